@@ -1,0 +1,69 @@
+// `cinevol info PATH`: what a volume file, DICOM folder or phantom holds.
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+
+#include <fmt/format.h>
+
+#include "commands.h"
+#include "io/volume_loader.h"
+
+namespace cinevol::cli {
+namespace {
+
+// The LPS letter each index axis points to most, e.g. "LPS" or "RAS".
+std::string OrientationCode(const VolumeMetadata& meta) {
+  std::string code;
+  for (int c = 0; c < 3; ++c) {
+    int best = 0;
+    for (int r = 1; r < 3; ++r) {
+      if (std::abs(meta.direction[3 * r + c]) > std::abs(meta.direction[3 * best + c])) best = r;
+    }
+    const bool positive = meta.direction[3 * best + c] > 0;
+    code += positive ? "LPS"[best] : "RAI"[best];
+  }
+  return code;
+}
+
+void PrintInfo(const std::string& spec) {
+  const v1::VolumeSource source = ParseVolumeSpec(spec);
+  if (source.has_dicom_folder()) {
+    const auto series = ListDicomSeries(source.dicom_folder());
+    fmt::print("series:       {} in the folder (the largest loads)\n", series.size());
+    for (const auto& s : series) {
+      fmt::print("  {:<40} {:>5} files  {} {} '{}'\n", s.uid.empty() ? "(no SeriesInstanceUID)" : s.uid,
+                 s.file_count, s.modality, s.size, s.description);
+    }
+  }
+  const Volume v = LoadVolume(source);
+  const auto& m = v.metadata();
+  const Vec3i d = v.dims();
+  const Vec3f s = v.spacing_mm(), e = v.extent_mm();
+  fmt::print("source:       {}\n", m.source);
+  fmt::print("modality:     {}\n", m.modality.empty() ? "unknown" : m.modality);
+  fmt::print("dimensions:   {} x {} x {} voxels\n", d.x, d.y, d.z);
+  fmt::print("spacing:      {:g} x {:g} x {:g} mm\n", s.x, s.y, s.z);
+  fmt::print("extent:       {:g} x {:g} x {:g} mm\n", e.x, e.y, e.z);
+  fmt::print("voxel type:   {} in the source, held as {}\n", m.original_type, ToString(v.storage()));
+  fmt::print("value range:  {:g} .. {:g}{}\n", v.min_value(), v.max_value(),
+             m.value_unit.empty() ? "" : " " + m.value_unit);
+  fmt::print("orientation:  {} (index axes point to patient L/R, P/A, S/I)\n", OrientationCode(m));
+  fmt::print("origin:       {:g}, {:g}, {:g} mm (LPS)\n", m.origin_mm[0], m.origin_mm[1], m.origin_mm[2]);
+  fmt::print("memory:       {:.1f} MiB\n", v.MemoryBytes() / 1048576.0);
+  if (m.non_finite_replaced > 0) {
+    fmt::print("sanitised:    {} NaN/Inf voxels replaced by the finite range's ends\n",
+               m.non_finite_replaced);
+  }
+}
+
+}  // namespace
+
+void AddInfoCommand(CLI::App& app) {
+  auto* cmd = app.add_subcommand("info", "Print what a volume file, DICOM folder or phantom holds");
+  auto path = std::make_shared<std::string>();
+  cmd->add_option("path", *path, "Volume file, DICOM folder, or phantom:head|cube|sphere[?size=N&...]")
+      ->required();
+  cmd->callback([path] { PrintInfo(*path); });
+}
+
+}  // namespace cinevol::cli

@@ -1,0 +1,28 @@
+// cinevol: the thin client and tools (demo, render, info, ...).
+#include <spdlog/spdlog.h>
+
+#include <cstdio>
+
+#include "commands.h"
+#include "core/error.h"
+
+int main(int argc, char** argv) {
+  CLI::App app{"cinevol: remote volumetric path tracing with real-time denoising"};
+  app.require_subcommand(1);
+  bool verbose = false;
+  app.add_flag("-v,--verbose", verbose, "Log debug detail");
+  app.parse_complete_callback([&] { spdlog::set_level(verbose ? spdlog::level::debug : spdlog::level::info); });
+  cinevol::cli::AddInfoCommand(app);
+  try {
+    app.parse(argc, argv);
+  } catch (const CLI::ParseError& e) {
+    return app.exit(e);
+  } catch (const cinevol::InputError& e) {
+    std::fprintf(stderr, "cinevol: %s\n", e.what());
+    return 2;
+  } catch (const std::exception& e) {
+    std::fprintf(stderr, "cinevol: internal error: %s\n", e.what());
+    return 1;
+  }
+  return 0;
+}

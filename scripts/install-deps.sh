@@ -1,0 +1,27 @@
+#!/usr/bin/env bash
+# Installs the Debian packages cinevol builds against. Idempotent: installs
+# only what is missing, so a second run costs a dpkg query and nothing else.
+set -euo pipefail
+
+packages=(
+  build-essential cmake ninja-build pkg-config
+  libinsighttoolkit5-dev        # volume I/O: NIfTI, NRRD, MetaImage, VTK, DICOM (GDCM, JPEG 2000)
+  libprotobuf-dev protobuf-compiler
+  libgrpc++-dev protobuf-compiler-grpc
+  libjpeg62-turbo-dev libpng-dev libopenexr-dev
+  libspdlog-dev libcli11-dev
+  libgtest-dev libgmock-dev
+)
+
+missing=()
+for p in "${packages[@]}"; do
+  dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")
+done
+[ ${#missing[@]} -eq 0 ] && exit 0
+
+echo "installing: ${missing[*]}"
+sudo=""
+[ "$(id -u)" -eq 0 ] || sudo="sudo"
+export DEBIAN_FRONTEND=noninteractive
+$sudo apt-get update -q
+$sudo apt-get install -y -q --no-install-recommends "${missing[@]}"

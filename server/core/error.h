@@ -1,0 +1,17 @@
+// Exceptions thrown inside cinevol. The service maps them to gRPC status codes
+// in one place; the command line prints their message and exits non-zero.
+#pragma once
+
+#include <stdexcept>
+#include <string>
+
+namespace cinevol {
+
+// Bad input from a user: a file, a folder, a scene or a request. The message
+// names what was wrong and where (file path, field name).
+class InputError : public std::runtime_error {
+ public:
+  explicit InputError(const std::string& what) : std::runtime_error(what) {}
+};
+
+}  // namespace cinevol

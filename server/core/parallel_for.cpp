@@ -1,0 +1,17 @@
+// Thread count for ParallelFor.
+#include "core/parallel_for.h"
+
+#include <cstdlib>
+#include <string>
+
+namespace cinevol {
+
+int DefaultThreadCount() {
+  if (const char* env = std::getenv("CINEVOL_THREADS")) {
+    const int n = std::atoi(env);
+    if (n > 0) return n;
+  }
+  return static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
+}
+
+}  // namespace cinevol

@@ -1,0 +1,79 @@
+// A scalar volume in host memory: voxel values in physical units (HU for CT),
+// its grid, spacing and patient orientation.
+#pragma once
+
+#include <array>
+#include <cstddef>
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "core/vec.h"
+
+namespace cinevol {
+
+// Limits that reject absurd headers before any memory is touched.
+inline constexpr int kMaxVoxelsPerAxis = 8192;
+inline constexpr std::size_t kMaxVoxels = std::size_t{1} << 30;  // 2 GiB as 16-bit
+
+// How voxel values are held. Integer data within a span of 65535 (all CT in
+// HU, 8/12/16-bit MR) is stored as 16-bit with an offset; anything else as float.
+enum class VoxelStorage { kUInt16, kFloat32 };
+
+const char* ToString(VoxelStorage storage);
+
+// What a volume is and where it came from; carried along, never rendered.
+struct VolumeMetadata {
+  std::string source;      // the file, folder or phantom it came from
+  std::string modality;    // "CT", "MR", ... or "" when the file does not say
+  std::string value_unit;  // "HU" for CT in Hounsfield units, else ""
+  std::string original_type;  // the file's voxel type, e.g. "int16", "uint8 * 2.2086"
+  // LPS position (mm) of the centre of voxel (0,0,0), and the LPS direction of
+  // each index axis: direction[3*r + c] is row r of the 3x3 matrix whose
+  // column c is index axis c.
+  std::array<double, 3> origin_mm{0, 0, 0};
+  std::array<double, 9> direction{1, 0, 0, 0, 1, 0, 0, 0, 1};
+  std::size_t non_finite_replaced = 0;  // NaN/Inf voxels sanitised on load
+};
+
+class Volume {
+ public:
+  // Takes voxel values (x fastest) and chooses the storage. Replaces NaN and
+  // -Inf by the smallest finite value and +Inf by the largest, counting them in
+  // metadata.non_finite_replaced. Throws InputError on bad dims or spacing.
+  Volume(Vec3i dims, Vec3f spacing_mm, std::vector<float> values, VolumeMetadata metadata);
+
+  Vec3i dims() const { return dims_; }
+  Vec3f spacing_mm() const { return spacing_mm_; }
+  Vec3f extent_mm() const { return ToFloat(dims_) * spacing_mm_; }
+  std::size_t voxel_count() const;
+  VoxelStorage storage() const { return storage_; }
+  const VolumeMetadata& metadata() const { return metadata_; }
+  float min_value() const { return min_value_; }
+  float max_value() const { return max_value_; }
+
+  // 16-bit storage: value = stored + stored_offset().
+  const std::vector<std::uint16_t>& u16() const { return u16_; }
+  const std::vector<float>& f32() const { return f32_; }
+  float stored_offset() const { return stored_offset_; }
+
+  float Value(int x, int y, int z) const;
+  float ValueAtIndex(std::size_t i) const;
+  std::size_t MemoryBytes() const;
+
+ private:
+  Vec3i dims_;
+  Vec3f spacing_mm_;
+  VoxelStorage storage_ = VoxelStorage::kFloat32;
+  std::vector<std::uint16_t> u16_;
+  std::vector<float> f32_;
+  float stored_offset_ = 0.0f;
+  float min_value_ = 0.0f;
+  float max_value_ = 0.0f;
+  VolumeMetadata metadata_;
+};
+
+// Throws InputError naming `what` when dims or spacing are outside the limits.
+void CheckVolumeGeometry(Vec3i dims, Vec3f spacing_mm, const std::string& what);
+
+}  // namespace cinevol

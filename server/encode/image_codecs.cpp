@@ -1,0 +1,224 @@
+// Codecs over libjpeg-turbo, libpng and OpenEXR, and a small PFM reader/writer.
+#include "encode/image_codecs.h"
+
+#include <ImfChannelList.h>
+#include <ImfFrameBuffer.h>
+#include <ImfHeader.h>
+#include <ImfInputFile.h>
+#include <ImfOutputFile.h>
+#include <jpeglib.h>
+#include <png.h>
+
+#include <algorithm>
+#include <csetjmp>
+#include <cstdio>
+#include <cstring>
+#include <fstream>
+
+#include <fmt/format.h>
+
+#include "core/error.h"
+
+namespace fs = std::filesystem;
+
+namespace cinevol {
+namespace {
+
+void CheckImage(const ImageRgb8& image) {
+  if (image.width <= 0 || image.height <= 0 ||
+      image.bytes.size() != std::size_t(image.width) * image.height * 3) {
+    throw std::invalid_argument("image buffer does not match its size");
+  }
+}
+
+// libjpeg reports errors through a callback that must not return.
+struct JpegError {
+  jpeg_error_mgr mgr;
+  std::jmp_buf jump;
+  char message[JMSG_LENGTH_MAX];
+};
+
+void OnJpegError(j_common_ptr cinfo) {
+  auto* err = reinterpret_cast<JpegError*>(cinfo->err);
+  (*cinfo->err->format_message)(cinfo, err->message);
+  std::longjmp(err->jump, 1);
+}
+
+}  // namespace
+
+std::vector<std::uint8_t> EncodeJpeg(const ImageRgb8& image, int quality) {
+  CheckImage(image);
+  jpeg_compress_struct cinfo;
+  JpegError err;
+  cinfo.err = jpeg_std_error(&err.mgr);
+  err.mgr.error_exit = OnJpegError;
+  unsigned char* buffer = nullptr;
+  unsigned long size = 0;
+  if (setjmp(err.jump)) {
+    jpeg_destroy_compress(&cinfo);
+    std::free(buffer);
+    throw std::runtime_error(std::string("JPEG encoding failed: ") + err.message);
+  }
+  jpeg_create_compress(&cinfo);
+  jpeg_mem_dest(&cinfo, &buffer, &size);
+  cinfo.image_width = image.width;
+  cinfo.image_height = image.height;
+  cinfo.input_components = 3;
+  cinfo.in_color_space = JCS_RGB;
+  jpeg_set_defaults(&cinfo);
+  jpeg_set_quality(&cinfo, std::clamp(quality, 1, 100), TRUE);
+  jpeg_start_compress(&cinfo, TRUE);
+  while (cinfo.next_scanline < cinfo.image_height) {
+    JSAMPROW row = const_cast<JSAMPROW>(&image.bytes[std::size_t(cinfo.next_scanline) * image.width * 3]);
+    jpeg_write_scanlines(&cinfo, &row, 1);
+  }
+  jpeg_finish_compress(&cinfo);
+  jpeg_destroy_compress(&cinfo);
+  std::vector<std::uint8_t> out(buffer, buffer + size);
+  std::free(buffer);
+  return out;
+}
+
+ImageRgb8 DecodeJpeg(const std::vector<std::uint8_t>& bytes) {
+  jpeg_decompress_struct cinfo;
+  JpegError err;
+  cinfo.err = jpeg_std_error(&err.mgr);
+  err.mgr.error_exit = OnJpegError;
+  ImageRgb8 image;
+  if (setjmp(err.jump)) {
+    jpeg_destroy_decompress(&cinfo);
+    throw InputError(std::string("not a decodable JPEG: ") + err.message);
+  }
+  jpeg_create_decompress(&cinfo);
+  jpeg_mem_src(&cinfo, bytes.data(), bytes.size());
+  jpeg_read_header(&cinfo, TRUE);
+  cinfo.out_color_space = JCS_RGB;
+  jpeg_start_decompress(&cinfo);
+  image.width = cinfo.output_width;
+  image.height = cinfo.output_height;
+  image.bytes.resize(std::size_t(image.width) * image.height * 3);
+  while (cinfo.output_scanline < cinfo.output_height) {
+    JSAMPROW row = &image.bytes[std::size_t(cinfo.output_scanline) * image.width * 3];
+    jpeg_read_scanlines(&cinfo, &row, 1);
+  }
+  jpeg_finish_decompress(&cinfo);
+  jpeg_destroy_decompress(&cinfo);
+  return image;
+}
+
+std::vector<std::uint8_t> EncodePng(const ImageRgb8& image) {
+  CheckImage(image);
+  png_image png;
+  std::memset(&png, 0, sizeof png);
+  png.version = PNG_IMAGE_VERSION;
+  png.width = image.width;
+  png.height = image.height;
+  png.format = PNG_FORMAT_RGB;
+  png_alloc_size_t size = 0;
+  if (!png_image_write_get_memory_size(png, size, 0, image.bytes.data(), 0, nullptr)) {
+    throw std::runtime_error(std::string("PNG encoding failed: ") + png.message);
+  }
+  std::vector<std::uint8_t> out(size);
+  if (!png_image_write_to_memory(&png, out.data(), &size, 0, image.bytes.data(), 0, nullptr)) {
+    throw std::runtime_error(std::string("PNG encoding failed: ") + png.message);
+  }
+  out.resize(size);
+  return out;
+}
+
+ImageRgb8 ReadPng(const fs::path& path) {
+  png_image png;
+  std::memset(&png, 0, sizeof png);
+  png.version = PNG_IMAGE_VERSION;
+  if (!png_image_begin_read_from_file(&png, path.c_str())) {
+    throw InputError(fmt::format("{}: {}", path.string(), png.message));
+  }
+  png.format = PNG_FORMAT_RGB;
+  ImageRgb8 image{int(png.width), int(png.height), std::vector<std::uint8_t>(PNG_IMAGE_SIZE(png))};
+  if (!png_image_finish_read(&png, nullptr, image.bytes.data(), 0, nullptr)) {
+    throw InputError(fmt::format("{}: {}", path.string(), png.message));
+  }
+  return image;
+}
+
+void WriteFile(const fs::path& path, const std::vector<std::uint8_t>& bytes) {
+  std::ofstream out(path, std::ios::binary);
+  out.write(reinterpret_cast<const char*>(bytes.data()), std::streamsize(bytes.size()));
+  if (!out) throw InputError(fmt::format("{}: cannot write the file", path.string()));
+}
+
+void WriteExr(const fs::path& path, const ImageRgbF& image) {
+  try {
+    Imf::Header header(image.width, image.height);
+    Imf::FrameBuffer frame;
+    const char* names[3] = {"R", "G", "B"};
+    char* base = reinterpret_cast<char*>(const_cast<Vec3f*>(image.pixels.data()));
+    for (int c = 0; c < 3; ++c) {
+      header.channels().insert(names[c], Imf::Channel(Imf::FLOAT));
+      frame.insert(names[c], Imf::Slice(Imf::FLOAT, base + c * sizeof(float), sizeof(Vec3f),
+                                        sizeof(Vec3f) * image.width));
+    }
+    Imf::OutputFile file(path.c_str(), header);
+    file.setFrameBuffer(frame);
+    file.writePixels(image.height);
+  } catch (const std::exception& e) {
+    throw InputError(fmt::format("{}: cannot write EXR: {}", path.string(), e.what()));
+  }
+}
+
+ImageRgbF ReadExr(const fs::path& path) {
+  try {
+    Imf::InputFile file(path.c_str());
+    const Imath::Box2i window = file.header().dataWindow();
+    ImageRgbF image;
+    image.width = window.max.x - window.min.x + 1;
+    image.height = window.max.y - window.min.y + 1;
+    image.pixels.resize(std::size_t(image.width) * image.height);
+    Imf::FrameBuffer frame;
+    const char* names[3] = {"R", "G", "B"};
+    // OpenEXR addresses pixels by absolute coordinates: offset the base.
+    char* base = reinterpret_cast<char*>(image.pixels.data()) -
+                 (std::ptrdiff_t(window.min.x) + std::ptrdiff_t(window.min.y) * image.width) * sizeof(Vec3f);
+    for (int c = 0; c < 3; ++c) {
+      // A channel the file lacks reads as 0.
+      frame.insert(names[c], Imf::Slice(Imf::FLOAT, base + c * sizeof(float), sizeof(Vec3f),
+                                        sizeof(Vec3f) * image.width, 1, 1, 0.0));
+    }
+    file.setFrameBuffer(frame);
+    file.readPixels(window.min.y, window.max.y);
+    return image;
+  } catch (const std::exception& e) {
+    throw InputError(fmt::format("{}: cannot read EXR: {}", path.string(), e.what()));
+  }
+}
+
+void WritePfm(const fs::path& path, const ImageRgbF& image) {
+  std::ofstream out(path, std::ios::binary);
+  out << "PF\n" << image.width << ' ' << image.height << "\n-1.0\n";  // -1: little-endian
+  for (int y = image.height - 1; y >= 0; --y) {  // PFM stores rows bottom to top
+    out.write(reinterpret_cast<const char*>(&image.pixels[std::size_t(y) * image.width]),
+              std::streamsize(sizeof(Vec3f)) * image.width);
+  }
+  if (!out) throw InputError(fmt::format("{}: cannot write the file", path.string()));
+}
+
+ImageRgbF ReadPfm(const fs::path& path) {
+  std::ifstream in(path, std::ios::binary);
+  std::string magic;
+  ImageRgbF image;
+  float scale = 0;
+  in >> magic >> image.width >> image.height >> scale;
+  in.get();
+  if (!in || magic != "PF" || image.width <= 0 || image.height <= 0 || scale >= 0) {
+    throw InputError(fmt::format("{}: not a little-endian RGB PFM file", path.string()));
+  }
+  image.pixels.resize(std::size_t(image.width) * image.height);
+  for (int y = image.height - 1; y >= 0; --y) {
+    in.read(reinterpret_cast<char*>(&image.pixels[std::size_t(y) * image.width]),
+            std::streamsize(sizeof(Vec3f)) * image.width);
+  }
+  if (!in) throw InputError(fmt::format("{}: truncated PFM data", path.string()));
+  return image;
+}
+
+}  // namespace cinevol

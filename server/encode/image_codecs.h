@@ -1,0 +1,26 @@
+// Image files and streams: JPEG (libjpeg-turbo) and PNG (libpng) for 8-bit
+// sRGB frames; OpenEXR and PFM for linear HDR. Errors throw InputError naming
+// the file.
+#pragma once
+
+#include <cstdint>
+#include <filesystem>
+#include <vector>
+
+#include "core/image.h"
+
+namespace cinevol {
+
+// quality in [1, 100].
+std::vector<std::uint8_t> EncodeJpeg(const ImageRgb8& image, int quality);
+std::vector<std::uint8_t> EncodePng(const ImageRgb8& image);
+ImageRgb8 DecodeJpeg(const std::vector<std::uint8_t>& bytes);
+ImageRgb8 ReadPng(const std::filesystem::path& path);
+
+void WriteFile(const std::filesystem::path& path, const std::vector<std::uint8_t>& bytes);
+void WriteExr(const std::filesystem::path& path, const ImageRgbF& image);
+void WritePfm(const std::filesystem::path& path, const ImageRgbF& image);
+ImageRgbF ReadExr(const std::filesystem::path& path);
+ImageRgbF ReadPfm(const std::filesystem::path& path);
+
+}  // namespace cinevol

@@ -1,0 +1,288 @@
+// DICOM series from a folder: GDCM scans the headers, cinevol groups, sorts
+// and checks the slices, ITK/GDCM decodes the pixels (JPEG 2000 and other
+// compressed transfer syntaxes included) and applies rescale slope/intercept.
+#include <gdcmDirectory.h>
+#include <gdcmScanner.h>
+#include <itkGDCMImageIO.h>
+#include <itkImageSeriesReader.h>
+#include <spdlog/spdlog.h>
+
+#include <algorithm>
+#include <cmath>
+#include <map>
+#include <sstream>
+
+#include <fmt/format.h>
+
+#include "core/error.h"
+#include "io/itk_image.h"
+#include "io/volume_loader.h"
+
+namespace fs = std::filesystem;
+
+namespace cinevol {
+namespace {
+
+const gdcm::Tag kSeriesUid(0x0020, 0x000e);
+const gdcm::Tag kSeriesDescription(0x0008, 0x103e);
+const gdcm::Tag kModality(0x0008, 0x0060);
+const gdcm::Tag kImagePosition(0x0020, 0x0032);
+const gdcm::Tag kImageOrientation(0x0020, 0x0037);
+const gdcm::Tag kRows(0x0028, 0x0010);
+const gdcm::Tag kColumns(0x0028, 0x0011);
+const gdcm::Tag kSliceThickness(0x0018, 0x0050);
+
+// Slices whose positions along the normal differ by more than this fraction
+// of the typical gap count as unevenly spaced.
+constexpr double kGapTolerance = 0.01;
+// Slice stacks sheared by more than this (degrees) count as gantry tilt.
+constexpr double kMaxTiltDeg = 0.1;
+
+struct Scan {
+  gdcm::Scanner scanner;
+  std::vector<std::string> dicom_files;  // files that parsed as DICOM
+  std::size_t files_seen = 0;
+};
+
+void ScanFolder(const fs::path& folder, Scan& scan) {
+  std::error_code ec;
+  if (!fs::is_directory(folder, ec)) {
+    throw InputError(fmt::format("{}: not a folder", folder.string()));
+  }
+  gdcm::Directory dir;
+  scan.files_seen = dir.Load(folder.string(), /*recursive=*/true);
+  for (const gdcm::Tag& t : {kSeriesUid, kSeriesDescription, kModality, kImagePosition,
+                             kImageOrientation, kRows, kColumns, kSliceThickness}) {
+    scan.scanner.AddTag(t);
+  }
+  if (scan.files_seen > 0 && !scan.scanner.Scan(dir.GetFilenames())) {
+    throw InputError(fmt::format("{}: could not scan the folder's files", folder.string()));
+  }
+  for (const std::string& f : dir.GetFilenames()) {
+    if (scan.scanner.IsKey(f.c_str())) scan.dicom_files.push_back(f);
+  }
+  if (scan.dicom_files.empty()) {
+    throw InputError(fmt::format("{}: no DICOM files found ({} files looked at)", folder.string(),
+                                 scan.files_seen));
+  }
+}
+
+std::string Value(const Scan& scan, const std::string& file, const gdcm::Tag& tag) {
+  const char* v = scan.scanner.GetValue(file.c_str(), tag);
+  std::string s = v ? v : "";
+  while (!s.empty() && (s.back() == ' ' || s.back() == '\0')) s.pop_back();
+  return s;
+}
+
+// Parses a backslash-separated decimal string such as "1\0\0\0\1\0".
+std::vector<double> Numbers(const std::string& s) {
+  std::vector<double> out;
+  std::stringstream in(s);
+  for (std::string item; std::getline(in, item, '\\');) {
+    try {
+      out.push_back(std::stod(item));
+    } catch (const std::exception&) {
+      return {};
+    }
+  }
+  return out;
+}
+
+// Files grouped into series. Anonymised data may lack SeriesInstanceUID, so
+// slices of another size or orientation count as a separate series too.
+struct Series {
+  DicomSeriesInfo info;
+  std::vector<std::string> files;
+};
+
+std::vector<Series> GroupSeries(const Scan& scan) {
+  std::map<std::string, Series> by_key;
+  for (const std::string& f : scan.dicom_files) {
+    const std::string uid = Value(scan, f, kSeriesUid);
+    const std::string size = Value(scan, f, kColumns) + "x" + Value(scan, f, kRows);
+    Series& s = by_key[uid + "|" + size + "|" + Value(scan, f, kImageOrientation)];
+    if (s.files.empty()) {
+      s.info = {uid, Value(scan, f, kSeriesDescription), Value(scan, f, kModality), size, 0};
+    }
+    s.files.push_back(f);
+    s.info.file_count = s.files.size();
+  }
+  std::vector<Series> out;
+  for (auto& [key, series] : by_key) out.push_back(std::move(series));
+  std::stable_sort(out.begin(), out.end(), [](const Series& a, const Series& b) {
+    return a.info.file_count > b.info.file_count;
+  });
+  return out;
+}
+
+struct Slice {
+  std::string file;
+  double position[3];
+  double along_normal;
+};
+
+// The checked, sorted geometry of one series.
+struct SeriesGeometry {
+  std::vector<Slice> slices;
+  double row[3], col[3], normal[3];
+  double slice_gap_mm = 1.0;
+};
+
+double Dot3(const double* a, const double* b) { return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]; }
+
+SeriesGeometry CheckGeometry(const Scan& scan, const std::vector<std::string>& files,
+                             const std::string& where) {
+  SeriesGeometry g;
+  const std::vector<double> iop = Numbers(Value(scan, files[0], kImageOrientation));
+  if (iop.size() != 6) {
+    throw InputError(fmt::format("{}: {} has no usable ImageOrientationPatient", where, files[0]));
+  }
+  std::copy(iop.begin(), iop.begin() + 3, g.row);
+  std::copy(iop.begin() + 3, iop.end(), g.col);
+  g.normal[0] = g.row[1] * g.col[2] - g.row[2] * g.col[1];
+  g.normal[1] = g.row[2] * g.col[0] - g.row[0] * g.col[2];
+  g.normal[2] = g.row[0] * g.col[1] - g.row[1] * g.col[0];
+
+  for (const std::string& f : files) {
+    const std::vector<double> p = Numbers(Value(scan, f, kImagePosition));
+    if (p.size() != 3) {
+      throw InputError(fmt::format("{}: {} has no usable ImagePositionPatient", where, f));
+    }
+    g.slices.push_back({f, {p[0], p[1], p[2]}, Dot3(p.data(), g.normal)});
+  }
+  std::sort(g.slices.begin(), g.slices.end(),
+            [](const Slice& a, const Slice& b) { return a.along_normal < b.along_normal; });
+  if (g.slices.size() < 2) {
+    const std::vector<double> t = Numbers(Value(scan, files[0], kSliceThickness));
+    g.slice_gap_mm = t.size() == 1 && t[0] > 0 ? t[0] : 1.0;
+    return g;
+  }
+
+  std::vector<double> gaps;
+  for (std::size_t i = 1; i < g.slices.size(); ++i) {
+    const double gap = g.slices[i].along_normal - g.slices[i - 1].along_normal;
+    if (gap < 1e-3) {
+      throw InputError(fmt::format(
+          "{}: {} and {} lie at the same position ({:.3f} mm along the normal): duplicate slices "
+          "or several acquisitions in one series",
+          where, g.slices[i - 1].file, g.slices[i].file, g.slices[i].along_normal));
+    }
+    gaps.push_back(gap);
+  }
+  std::vector<double> sorted = gaps;
+  std::nth_element(sorted.begin(), sorted.begin() + sorted.size() / 2, sorted.end());
+  g.slice_gap_mm = sorted[sorted.size() / 2];
+  for (std::size_t i = 0; i < gaps.size(); ++i) {
+    if (std::abs(gaps[i] - g.slice_gap_mm) > kGapTolerance * g.slice_gap_mm) {
+      throw InputError(fmt::format(
+          "{}: uneven slice spacing: {:.3f} mm between {} and {} where the series' gap is {:.3f} "
+          "mm (missing slices?); cinevol loads evenly spaced series only",
+          where, gaps[i], g.slices[i].file, g.slices[i + 1].file, g.slice_gap_mm));
+    }
+  }
+  // Gantry tilt: the stack's direction leaves the slice normal.
+  const Slice& first = g.slices.front();
+  const Slice& last = g.slices.back();
+  double step[3];
+  for (int a = 0; a < 3; ++a) step[a] = last.position[a] - first.position[a];
+  const double cos_tilt = Dot3(step, g.normal) / std::sqrt(Dot3(step, step));
+  const double tilt_deg = std::acos(std::min(1.0, std::abs(cos_tilt))) * 180.0 / M_PI;
+  if (tilt_deg > kMaxTiltDeg) {
+    throw InputError(fmt::format(
+        "{}: gantry tilt of {:.2f} degrees (slices are sheared along the stack); cinevol does "
+        "not resample tilted series",
+        where, tilt_deg));
+  }
+  return g;
+}
+
+std::string Describe(const DicomSeriesInfo& s) {
+  return fmt::format("{} '{}' ({}, {} pixels, {} files)", s.uid.empty() ? "(no SeriesInstanceUID)" : s.uid,
+                     s.description, s.modality, s.size, s.file_count);
+}
+
+// The largest series, or the largest with `requested` as its UID.
+Series ChooseSeries(std::vector<Series> all, const std::string& requested, const std::string& where) {
+  std::size_t chosen = 0;
+  if (!requested.empty()) {
+    chosen = all.size();
+    for (std::size_t i = 0; i < all.size() && chosen == all.size(); ++i) {
+      if (all[i].info.uid == requested) chosen = i;
+    }
+    if (chosen == all.size()) {
+      std::string known;
+      for (const auto& s : all) known += "\n  " + Describe(s.info);
+      throw InputError(fmt::format("{}: no series {}; the folder holds:{}", where, requested, known));
+    }
+  }
+  for (std::size_t i = 0; i < all.size(); ++i) {
+    if (i != chosen) spdlog::info("{}: also holds series {}; not loaded", where, Describe(all[i].info));
+  }
+  return std::move(all[chosen]);
+}
+
+}  // namespace
+
+std::vector<DicomSeriesInfo> ListDicomSeries(const fs::path& folder) {
+  Scan scan;
+  ScanFolder(folder, scan);
+  std::vector<DicomSeriesInfo> out;
+  for (const Series& s : GroupSeries(scan)) out.push_back(s.info);
+  return out;
+}
+
+Volume LoadDicomSeries(const fs::path& folder, const std::string& series_uid) {
+  const std::string where = folder.string();
+  Scan scan;
+  ScanFolder(folder, scan);
+  const Series series = ChooseSeries(GroupSeries(scan), series_uid, where);
+  const std::vector<std::string>& files = series.files;
+  const SeriesGeometry g = CheckGeometry(scan, files, where);
+
+  auto io = itk::GDCMImageIO::New();
+  auto reader = itk::ImageSeriesReader<itk_image::FloatImage>::New();
+  reader->SetImageIO(io);
+  std::vector<std::string> sorted;
+  for (const Slice& s : g.slices) sorted.push_back(s.file);
+  reader->SetFileNames(sorted);
+  try {
+    // Header sizes are checked before decoding: absurd rows/columns never allocate.
+    io->SetFileName(sorted[0]);
+    io->ReadImageInformation();
+    CheckVolumeGeometry({int(io->GetDimensions(0)), int(io->GetDimensions(1)), int(sorted.size())},
+                        {float(io->GetSpacing(0)), float(io->GetSpacing(1)), float(g.slice_gap_mm)},
+                        where);
+    reader->Update();
+  } catch (const itk::ExceptionObject& e) {
+    throw InputError(fmt::format("{}: cannot decode series {}: {}", where, Describe(series.info),
+                                 e.GetDescription()));
+  }
+  auto* image = reader->GetOutput();
+  // Geometry from the sorted positions, not from the first two files ITK saw.
+  auto spacing = image->GetSpacing();
+  spacing[2] = g.slice_gap_mm;
+  image->SetSpacing(spacing);
+  itk_image::FloatImage::PointType origin;
+  itk_image::FloatImage::DirectionType direction;
+  for (int r = 0; r < 3; ++r) {
+    origin[r] = g.slices.front().position[r];
+    direction[r][0] = g.row[r];
+    direction[r][1] = g.col[r];
+    direction[r][2] = g.normal[r];
+  }
+  image->SetOrigin(origin);
+  image->SetDirection(direction);
+
+  VolumeMetadata meta;
+  meta.source = where;
+  meta.modality = Value(scan, files[0], kModality);
+  meta.value_unit = meta.modality == "CT" ? "HU" : "";
+  meta.original_type = itk_image::ComponentName(io->GetInternalComponentType());
+  if (io->GetRescaleSlope() != 1.0 || io->GetRescaleIntercept() != 0.0) {
+    meta.original_type += fmt::format(" (rescale slope {:g}, intercept {:g})", io->GetRescaleSlope(),
+                                      io->GetRescaleIntercept());
+  }
+  return itk_image::ToVolume(image, std::move(meta));
+}
+
+}  // namespace cinevol

@@ -1,0 +1,300 @@
+// Scene JSON through protobuf's own JSON mapping, plus defaults and validation.
+#include "io/scene_file.h"
+
+#include <google/protobuf/util/json_util.h>
+
+#include <cmath>
+#include <fstream>
+#include <sstream>
+
+#include <fmt/format.h>
+
+#include "core/error.h"
+#include "io/phantom.h"
+#include "io/presets.h"
+
+namespace fs = std::filesystem;
+
+namespace cinevol {
+namespace {
+
+// Collects problems; each names its field by its JSON path.
+class Problems {
+ public:
+  void Add(const std::string& field, const std::string& what) {
+    list_.push_back(fmt::format("{}: {}", field, what));
+  }
+  void Finite(const std::string& field, float v) {
+    if (!std::isfinite(v)) Add(field, fmt::format("{} is not a finite number", v));
+  }
+  void InRange(const std::string& field, float v, float lo, float hi) {
+    if (!std::isfinite(v) || v < lo || v > hi) Add(field, fmt::format("{} is outside [{}, {}]", v, lo, hi));
+  }
+  void NonNegative(const std::string& field, float v) {
+    if (!std::isfinite(v) || v < 0) Add(field, fmt::format("{} must be a finite number >= 0", v));
+  }
+  void Vec(const std::string& field, const v1::Vec3& v) {
+    Finite(field + ".x", v.x());
+    Finite(field + ".y", v.y());
+    Finite(field + ".z", v.z());
+  }
+  void Color(const std::string& field, const v1::Color& c, float hi = INFINITY) {
+    InRange(field + ".r", c.r(), 0, hi);
+    InRange(field + ".g", c.g(), 0, hi);
+    InRange(field + ".b", c.b(), 0, hi);
+  }
+  std::vector<std::string> Take() { return std::move(list_); }
+
+ private:
+  std::vector<std::string> list_;
+};
+
+double Norm(const v1::Vec3& v) { return std::sqrt(double(v.x()) * v.x() + double(v.y()) * v.y() + double(v.z()) * v.z()); }
+
+v1::Vec3 Sub(const v1::Vec3& a, const v1::Vec3& b) {
+  v1::Vec3 d;
+  d.set_x(a.x() - b.x());
+  d.set_y(a.y() - b.y());
+  d.set_z(a.z() - b.z());
+  return d;
+}
+
+v1::Vec3 CrossV(const v1::Vec3& a, const v1::Vec3& b) {
+  v1::Vec3 c;
+  c.set_x(a.y() * b.z() - a.z() * b.y());
+  c.set_y(a.z() * b.x() - a.x() * b.z());
+  c.set_z(a.x() * b.y() - a.y() * b.x());
+  return c;
+}
+
+void ValidateVolume(const v1::VolumeSource& v, Problems& p) {
+  switch (v.source_case()) {
+    case v1::VolumeSource::kFile:
+      if (v.file().empty()) p.Add("volume.file", "is empty");
+      break;
+    case v1::VolumeSource::kDicomFolder:
+      if (v.dicom_folder().empty()) p.Add("volume.dicomFolder", "is empty");
+      break;
+    case v1::VolumeSource::kPhantom:
+      try {
+        ValidatePhantom(v.phantom());
+      } catch (const InputError& e) {
+        p.Add("volume.phantom", e.what());
+      }
+      break;
+    default:
+      p.Add("volume", "no source given (file, dicomFolder or phantom)");
+  }
+}
+
+void ValidateTransferFunction(const v1::TransferFunction& tf, Problems& p) {
+  const std::string f = "transferFunction";
+  if (tf.points().empty()) {
+    if (tf.preset().empty()) {
+      p.Add(f + ".points", "no control points and no preset");
+    } else if (!IsPreset(tf.preset())) {
+      p.Add(f + ".preset", fmt::format("unknown preset '{}'", tf.preset()));
+    }
+  }
+  for (int i = 0; i < tf.points_size(); ++i) {
+    const auto& pt = tf.points(i);
+    const std::string at = fmt::format("{}.points[{}]", f, i);
+    p.Finite(at + ".value", pt.value());
+    if (i > 0 && !(pt.value() > tf.points(i - 1).value())) {
+      p.Add(at + ".value", fmt::format("{} is not greater than the previous point's {}; points must be "
+                                       "sorted by strictly increasing value",
+                                       pt.value(), tf.points(i - 1).value()));
+    }
+    p.InRange(at + ".opacity", pt.opacity(), 0, 1);
+    p.Color(at + ".diffuse", pt.diffuse(), 1);
+    p.Color(at + ".specular", pt.specular(), 1);
+    p.InRange(at + ".roughness", pt.roughness(), 0, 1);
+    p.Color(at + ".emission", pt.emission());
+  }
+  p.InRange(f + ".densityScale", tf.density_scale(), 0, 1e6f);
+  p.NonNegative(f + ".gradientFactor", tf.gradient_factor());
+  if (!(std::abs(tf.phase_g()) < 1.0f)) {
+    p.Add(f + ".phaseG", fmt::format("{} is outside (-1, 1)", tf.phase_g()));
+  }
+}
+
+void ValidateCamera(const v1::Camera& c, Problems& p) {
+  if (c.view() == v1::NAMED_VIEW_UNSPECIFIED && c.has_eye()) {
+    p.Vec("camera.eye", c.eye());
+    p.Vec("camera.target", c.target());
+    const v1::Vec3 forward = Sub(c.target(), c.eye());
+    if (Norm(forward) == 0.0) p.Add("camera.target", "equals camera.eye; the camera has no direction");
+    if (c.has_up()) {
+      p.Vec("camera.up", c.up());
+      if (Norm(c.up()) == 0.0) {
+        p.Add("camera.up", "is the zero vector");
+      } else if (Norm(forward) > 0.0 && Norm(CrossV(forward, c.up())) <= 1e-6 * Norm(forward) * Norm(c.up())) {
+        p.Add("camera.up", "is parallel to the viewing direction (target - eye)");
+      }
+    }
+  }
+  p.InRange("camera.fovYDeg", c.fov_y_deg(), 1e-3f, 170.0f);
+  p.NonNegative("camera.apertureMm", c.aperture_mm());
+  p.NonNegative("camera.focalDistanceMm", c.focal_distance_mm());
+  p.InRange("camera.exposure", c.exposure(), -20, 20);
+}
+
+void ValidateLight(const v1::Light& l, const std::string& at, bool& seen_environment, Problems& p) {
+  switch (l.kind_case()) {
+    case v1::Light::kArea: {
+      const auto& a = l.area();
+      p.Vec(at + ".area.center", a.center());
+      p.Vec(at + ".area.edgeU", a.edge_u());
+      p.Vec(at + ".area.edgeV", a.edge_v());
+      if (!(Norm(CrossV(a.edge_u(), a.edge_v())) > 0.0)) {
+        p.Add(at + ".area", "zero area: edgeU x edgeV is the zero vector");
+      }
+      p.Color(at + ".area.color", a.color());
+      p.NonNegative(at + ".area.intensity", a.intensity());
+      break;
+    }
+    case v1::Light::kPoint:
+      p.Vec(at + ".point.position", l.point().position());
+      p.Color(at + ".point.color", l.point().color());
+      p.NonNegative(at + ".point.intensity", l.point().intensity());
+      break;
+    case v1::Light::kDirectional:
+      p.Vec(at + ".directional.direction", l.directional().direction());
+      if (!(Norm(l.directional().direction()) > 0.0)) {
+        p.Add(at + ".directional.direction", "is the zero vector");
+      }
+      p.Color(at + ".directional.color", l.directional().color());
+      p.NonNegative(at + ".directional.intensity", l.directional().intensity());
+      break;
+    case v1::Light::kEnvironment: {
+      const auto& e = l.environment();
+      if (seen_environment) p.Add(at + ".environment", "a second environment light; at most one is allowed");
+      seen_environment = true;
+      p.NonNegative(at + ".environment.intensity", e.intensity());
+      p.Finite(at + ".environment.rotationDeg", e.rotation_deg());
+      if (e.has_uniform()) p.Color(at + ".environment.uniform", e.uniform());
+      if (e.has_gradient()) {
+        p.Color(at + ".environment.gradient.zenith", e.gradient().zenith());
+        p.Color(at + ".environment.gradient.horizon", e.gradient().horizon());
+        p.Color(at + ".environment.gradient.ground", e.gradient().ground());
+        if (e.gradient().has_up()) {
+          p.Vec(at + ".environment.gradient.up", e.gradient().up());
+          if (!(Norm(e.gradient().up()) > 0.0)) p.Add(at + ".environment.gradient.up", "is the zero vector");
+        }
+      }
+      if (e.radiance_case() == v1::EnvironmentLight::kMap && e.map().empty()) {
+        p.Add(at + ".environment.map", "is empty");
+      }
+      if (e.radiance_case() == v1::EnvironmentLight::RADIANCE_NOT_SET) {
+        p.Add(at + ".environment", "no radiance given (uniform, gradient or map)");
+      }
+      break;
+    }
+    default:
+      p.Add(at, "no light kind given (area, point, directional or environment)");
+  }
+}
+
+void ValidateRender(const v1::RenderSettings& r, Problems& p) {
+  auto in = [&](const char* field, std::uint32_t v, std::uint32_t lo, std::uint32_t hi) {
+    if (v < lo || v > hi) p.Add(fmt::format("render.{}", field), fmt::format("{} is outside [{}, {}]", v, lo, hi));
+  };
+  in("width", r.width(), 1, 8192);
+  in("height", r.height(), 1, 8192);
+  in("spp", r.spp(), 1, 65536);
+  in("maxBounces", r.max_bounces(), 0, 256);
+}
+
+void ResolvePaths(v1::Scene& scene, const fs::path& base_dir) {
+  if (base_dir.empty()) return;
+  auto resolve = [&](std::string* path) {
+    if (!path->empty() && fs::path(*path).is_relative()) *path = (base_dir / *path).lexically_normal().string();
+  };
+  auto* volume = scene.mutable_volume();
+  if (volume->has_file()) resolve(volume->mutable_file());
+  if (volume->has_dicom_folder()) resolve(volume->mutable_dicom_folder());
+  for (auto& light : *scene.mutable_lights()) {
+    if (light.has_environment() && light.environment().has_map()) {
+      resolve(light.mutable_environment()->mutable_map());
+    }
+  }
+}
+
+}  // namespace
+
+void ApplyDefaults(v1::Scene& scene) {
+  auto* tf = scene.mutable_transfer_function();
+  if (!tf->has_density_scale()) tf->set_density_scale(1.0f);
+  if (!tf->has_gradient_factor()) tf->set_gradient_factor(1.0f);
+  if (!tf->has_phase_g()) tf->set_phase_g(0.0f);
+  auto* camera = scene.mutable_camera();
+  if (!camera->has_fov_y_deg()) camera->set_fov_y_deg(30.0f);
+  if (camera->view() == v1::NAMED_VIEW_UNSPECIFIED && !camera->has_eye()) camera->set_view(v1::ANTERIOR);
+  auto* render = scene.mutable_render();
+  if (!render->has_width()) render->set_width(640);
+  if (!render->has_height()) render->set_height(480);
+  if (!render->has_spp()) render->set_spp(2);
+  if (!render->has_max_bounces()) render->set_max_bounces(4);
+}
+
+std::vector<std::string> ValidateScene(const v1::Scene& scene) {
+  Problems p;
+  ValidateVolume(scene.volume(), p);
+  ValidateTransferFunction(scene.transfer_function(), p);
+  ValidateCamera(scene.camera(), p);
+  bool seen_environment = false;
+  for (int i = 0; i < scene.lights_size(); ++i) {
+    ValidateLight(scene.lights(i), fmt::format("lights[{}]", i), seen_environment, p);
+  }
+  ValidateRender(scene.render(), p);
+  return p.Take();
+}
+
+void CheckScene(const v1::Scene& scene) {
+  const std::vector<std::string> problems = ValidateScene(scene);
+  if (!problems.empty()) {
+    throw InputError(fmt::format("invalid scene:\n  {}", fmt::join(problems, "\n  ")));
+  }
+}
+
+v1::Scene ParseSceneJson(std::string_view json, const fs::path& base_dir) {
+  v1::Scene scene;
+  const auto status = google::protobuf::util::JsonStringToMessage(
+      google::protobuf::StringPiece(json.data(), json.size()), &scene);
+  if (!status.ok()) {
+    throw InputError(fmt::format("not a cinevol.v1.Scene in JSON: {}", status.message().as_string()));
+  }
+  ApplyDefaults(scene);
+  ResolvePaths(scene, base_dir);
+  CheckScene(scene);
+  return scene;
+}
+
+v1::Scene LoadSceneFile(const fs::path& path) {
+  std::ifstream in(path, std::ios::binary);
+  if (!in) throw InputError(fmt::format("{}: cannot open the scene file", path.string()));
+  std::ostringstream text;
+  text << in.rdbuf();
+  try {
+    return ParseSceneJson(text.str(), fs::absolute(path).parent_path());
+  } catch (const InputError& e) {
+    throw InputError(fmt::format("{}: {}", path.string(), e.what()));
+  }
+}
+
+std::string SceneToJson(const v1::Scene& scene) {
+  google::protobuf::util::JsonPrintOptions options;
+  options.add_whitespace = true;
+  std::string json;
+  const auto status = google::protobuf::util::MessageToJsonString(scene, &json, options);
+  if (!status.ok()) throw std::runtime_error("scene to JSON: " + status.message().as_string());
+  return json;
+}
+
+void SaveSceneFile(const v1::Scene& scene, const fs::path& path) {
+  std::ofstream out(path, std::ios::binary);
+  out << SceneToJson(scene);
+  if (!out) throw InputError(fmt::format("{}: cannot write the scene file", path.string()));
+}
+
+}  // namespace cinevol

@@ -1,0 +1,35 @@
+// Scene files: the proto3 JSON form of cinevol.v1.Scene. Loading fills the
+// documented defaults and validates every field; problems name the field in
+// its JSON spelling (e.g. "camera.up", "transferFunction.points[2].opacity").
+#pragma once
+
+#include <filesystem>
+#include <string>
+#include <string_view>
+#include <vector>
+
+#include "cinevol/v1/scene.pb.h"
+
+namespace cinevol {
+
+// Parses, fills defaults and validates; throws InputError listing every
+// problem. Relative volume and environment-map paths are resolved against
+// `base_dir` (left as they are when it is empty).
+v1::Scene ParseSceneJson(std::string_view json, const std::filesystem::path& base_dir = {});
+
+// ParseSceneJson on a file's contents, relative paths against its folder.
+v1::Scene LoadSceneFile(const std::filesystem::path& path);
+
+std::string SceneToJson(const v1::Scene& scene);
+void SaveSceneFile(const v1::Scene& scene, const std::filesystem::path& path);
+
+// Sets every absent `optional` field to its documented default.
+void ApplyDefaults(v1::Scene& scene);
+
+// Every problem found, one message each, naming the field; empty when valid.
+std::vector<std::string> ValidateScene(const v1::Scene& scene);
+
+// Throws InputError listing ValidateScene's problems, if any.
+void CheckScene(const v1::Scene& scene);
+
+}  // namespace cinevol

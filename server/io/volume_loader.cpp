@@ -1,0 +1,103 @@
+// LoadVolume: one entry point for every kind of volume source.
+#include "io/volume_loader.h"
+
+#include <charconv>
+
+#include <fmt/format.h>
+
+#include "core/error.h"
+#include "io/phantom.h"
+
+namespace fs = std::filesystem;
+
+namespace cinevol {
+namespace {
+
+fs::path Resolve(const std::string& path, const fs::path& base_dir) {
+  const fs::path p(path);
+  return p.is_absolute() || base_dir.empty() ? p : base_dir / p;
+}
+
+float ParseFloat(std::string_view text, std::string_view key) {
+  float v = 0;
+  const auto [end, ec] = std::from_chars(text.data(), text.data() + text.size(), v);
+  if (ec != std::errc() || end != text.data() + text.size()) {
+    throw InputError(fmt::format("phantom parameter {}: '{}' is not a number", key, text));
+  }
+  return v;
+}
+
+v1::Phantom ParsePhantomSpec(std::string_view spec) {
+  v1::Phantom p;
+  const std::string_view name = spec.substr(0, spec.find('?'));
+  if (name == "head") {
+    p.set_kind(v1::Phantom::HEAD);
+  } else if (name == "cube") {
+    p.set_kind(v1::Phantom::CUBE);
+  } else if (name == "sphere") {
+    p.set_kind(v1::Phantom::SPHERE);
+  } else {
+    throw InputError(fmt::format("unknown phantom '{}': use head, cube or sphere", name));
+  }
+  if (name.size() == spec.size()) return p;
+  std::string_view rest = spec.substr(name.size() + 1);
+  while (!rest.empty()) {
+    const std::string_view item = rest.substr(0, rest.find('&'));
+    rest.remove_prefix(std::min(rest.size(), item.size() + 1));
+    const auto eq = item.find('=');
+    if (eq == std::string_view::npos) {
+      throw InputError(fmt::format("phantom parameter '{}': expected key=value", item));
+    }
+    const std::string_view key = item.substr(0, eq);
+    const float v = ParseFloat(item.substr(eq + 1), key);
+    if (key == "size") {
+      if (v < 1 || v > 1024 || v != static_cast<int>(v)) {
+        throw InputError(fmt::format("phantom parameter size: {} is not an integer in [1, 1024]", v));
+      }
+      p.set_size(static_cast<std::uint32_t>(v));
+    } else if (key == "spacing") {
+      p.set_spacing(v);
+    } else if (key == "value") {
+      p.set_value(v);
+    } else if (key == "background") {
+      p.set_background(v);
+    } else if (key == "radius") {
+      p.set_radius(v);
+    } else {
+      throw InputError(fmt::format(
+          "unknown phantom parameter '{}': use size, spacing, value, background or radius", key));
+    }
+  }
+  return p;
+}
+
+}  // namespace
+
+v1::VolumeSource ParseVolumeSpec(std::string_view spec) {
+  v1::VolumeSource source;
+  constexpr std::string_view kPhantom = "phantom:";
+  std::error_code ec;
+  if (spec.rfind(kPhantom, 0) == 0) {
+    *source.mutable_phantom() = ParsePhantomSpec(spec.substr(kPhantom.size()));
+  } else if (fs::is_directory(fs::path(spec), ec)) {
+    source.set_dicom_folder(std::string(spec));
+  } else {
+    source.set_file(std::string(spec));
+  }
+  return source;
+}
+
+Volume LoadVolume(const v1::VolumeSource& source, const fs::path& base_dir) {
+  switch (source.source_case()) {
+    case v1::VolumeSource::kFile:
+      return LoadVolumeFile(Resolve(source.file(), base_dir));
+    case v1::VolumeSource::kDicomFolder:
+      return LoadDicomSeries(Resolve(source.dicom_folder(), base_dir), source.series_uid());
+    case v1::VolumeSource::kPhantom:
+      return MakePhantom(source.phantom());
+    default:
+      throw InputError("volume: no source given (file, dicomFolder or phantom)");
+  }
+}
+
+}  // namespace cinevol
