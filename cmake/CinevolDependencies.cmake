@@ -6,6 +6,7 @@ find_package(spdlog REQUIRED)
 find_package(CLI11 CONFIG REQUIRED)
 find_package(PNG REQUIRED)
 find_package(JPEG REQUIRED)
+find_package(ZLIB REQUIRED)
 find_package(OpenEXR CONFIG REQUIRED)
 find_package(GTest REQUIRED)
 

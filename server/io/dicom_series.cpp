@@ -45,6 +45,7 @@ struct Scan {
 };
 
 void ScanFolder(const fs::path& folder, Scan& scan) {
+  itk_image::InitToolkits();
   std::error_code ec;
   if (!fs::is_directory(folder, ec)) {
     throw InputError(fmt::format("{}: not a folder", folder.string()));

@@ -1,13 +1,18 @@
 // Volume files through ITK: NIfTI, NRRD/NHDR, MetaImage and VTK legacy.
+#include <gdcmTrace.h>
 #include <itkGDCMImageIOFactory.h>
 #include <itkImageFileReader.h>
 #include <itkImageIOFactory.h>
 #include <itkMetaDataObject.h>
+#include <itkMetaImageIO.h>
 #include <itkMetaImageIOFactory.h>
 #include <itkNiftiImageIOFactory.h>
 #include <itkNrrdImageIOFactory.h>
 #include <itkVTKImageIOFactory.h>
+#include <nifti/nifti1.h>
+#include <nifti/nifti2.h>
 #include <spdlog/spdlog.h>
+#include <zlib.h>
 
 #include <algorithm>
 #include <fstream>
@@ -26,6 +31,22 @@ namespace fs = std::filesystem;
 
 namespace cinevol {
 namespace itk_image {
+
+// The formats are registered explicitly rather than through ITK's
+// CMake-generated factory list, so the set is visible here.
+void InitToolkits() {
+  static std::once_flag once;
+  std::call_once(once, [] {
+    itk::NiftiImageIOFactory::RegisterOneFactory();
+    itk::NrrdImageIOFactory::RegisterOneFactory();
+    itk::MetaImageIOFactory::RegisterOneFactory();
+    itk::VTKImageIOFactory::RegisterOneFactory();
+    itk::GDCMImageIOFactory::RegisterOneFactory();
+    itk::Object::GlobalWarningDisplayOff();
+    gdcm::Trace::WarningOff();
+    gdcm::Trace::DebugOff();
+  });
+}
 
 std::string ComponentName(itk::IOComponentEnum type) {
   using C = itk::IOComponentEnum;
@@ -131,21 +152,8 @@ bool IsSpaceWithSpacingsError(const itk::ExceptionObject& e) {
   return std::string(e.GetDescription()).find("ScalarWithSpace") != std::string::npos;
 }
 
-// The formats cinevol accepts, registered explicitly rather than through
-// ITK's CMake-generated factory list, so the set is visible here.
-void RegisterImageIOs() {
-  static std::once_flag once;
-  std::call_once(once, [] {
-    itk::NiftiImageIOFactory::RegisterOneFactory();
-    itk::NrrdImageIOFactory::RegisterOneFactory();
-    itk::MetaImageIOFactory::RegisterOneFactory();
-    itk::VTKImageIOFactory::RegisterOneFactory();
-    itk::GDCMImageIOFactory::RegisterOneFactory();
-  });
-}
-
 itk::ImageIOBase::Pointer ReadHeader(const fs::path& path) {
-  RegisterImageIOs();
+  itk_image::InitToolkits();
   auto io = itk::ImageIOFactory::CreateImageIO(path.c_str(), itk::IOFileModeEnum::ReadMode);
   if (!io) {
     throw InputError(fmt::format(
@@ -207,9 +215,100 @@ std::string OriginalType(const itk::ImageIOBase& io) {
   return type;
 }
 
+template <class T>
+T Swapped(T v) {
+  auto* b = reinterpret_cast<unsigned char*>(&v);
+  std::reverse(b, b + sizeof(T));
+  return v;
+}
+
+// ITK's NIfTI reader pads a short payload with zeros instead of failing, so
+// the payload is counted here first (gz or plain: zlib reads both). Returns
+// "" when the file holds every voxel, else what is missing.
+std::string NiftiPayloadProblem(const fs::path& path) {
+  gzFile f = gzopen(path.c_str(), "rb");
+  if (!f) return "cannot open";
+  struct Close {
+    gzFile f;
+    ~Close() { gzclose(f); }
+  } close{f};
+  union {
+    nifti_1_header n1;
+    nifti_2_header n2;
+  } h;
+  if (gzread(f, &h, sizeof(nifti_1_header)) != int(sizeof(nifti_1_header))) return "header is truncated";
+  const bool swap = h.n1.sizeof_hdr != 348 && h.n1.sizeof_hdr != 540;
+  const int header_size = swap ? Swapped(h.n1.sizeof_hdr) : h.n1.sizeof_hdr;
+  std::int64_t voxels = 1, bitpix = 0, offset = 0;
+  if (header_size == 348) {
+    const int ndim = std::clamp<int>(swap ? Swapped(h.n1.dim[0]) : h.n1.dim[0], 1, 7);
+    for (int i = 1; i <= ndim; ++i) voxels *= swap ? Swapped(h.n1.dim[i]) : h.n1.dim[i];
+    bitpix = swap ? Swapped(h.n1.bitpix) : h.n1.bitpix;
+    offset = std::int64_t(swap ? Swapped(h.n1.vox_offset) : h.n1.vox_offset);
+  } else {
+    const int rest = int(sizeof(nifti_2_header) - sizeof(nifti_1_header));
+    if (gzread(f, reinterpret_cast<char*>(&h) + sizeof(nifti_1_header), rest) != rest) return "header is truncated";
+    const int ndim = int(std::clamp<std::int64_t>(swap ? Swapped(h.n2.dim[0]) : h.n2.dim[0], 1, 7));
+    for (int i = 1; i <= ndim; ++i) voxels *= swap ? Swapped(h.n2.dim[i]) : h.n2.dim[i];
+    bitpix = swap ? Swapped(h.n2.bitpix) : h.n2.bitpix;
+    offset = swap ? Swapped(h.n2.vox_offset) : h.n2.vox_offset;
+  }
+  const std::int64_t expected = offset + voxels * bitpix / 8;
+  std::int64_t total = header_size == 348 ? sizeof(nifti_1_header) : sizeof(nifti_2_header);
+  std::vector<char> buffer(1 << 20);
+  for (int n; (n = gzread(f, buffer.data(), unsigned(buffer.size()))) > 0;) total += n;
+  int err = Z_OK;
+  const char* message = gzerror(f, &err);
+  if (err != Z_OK && err != Z_STREAM_END) return fmt::format("compressed data are damaged ({})", message);
+  if (total < expected) {
+    return fmt::format("truncated: the header promises {} bytes of voxel data, the file holds {}",
+                       expected - offset, std::max<std::int64_t>(0, total - offset));
+  }
+  return "";
+}
+
+// ITK's MetaImage and VTK readers warn about a short payload on stderr and
+// carry on. For uncompressed data the file that holds the voxels must be at
+// least as long as they are.
+std::string RawPayloadProblem(itk::ImageIOBase& io, const fs::path& path) {
+  fs::path data = path;
+  if (auto* meta = dynamic_cast<itk::MetaImageIO*>(&io)) {
+    const std::string file = meta->GetMetaImagePointer()->ElementDataFileName();
+    if (meta->GetMetaImagePointer()->CompressedData() || file == "LIST" || file.find('%') != std::string::npos ||
+        file.find(' ') != std::string::npos) {
+      return "";
+    }
+    if (file != "LOCAL") data = fs::path(file).is_absolute() ? fs::path(file) : path.parent_path() / file;
+  } else if (std::string(io.GetNameOfClass()) != "VTKImageIO" || io.GetFileType() != itk::IOFileEnum::Binary) {
+    return "";
+  }
+  std::error_code ec;
+  const auto size = fs::file_size(data, ec);
+  if (ec) return fmt::format("cannot read the voxel data file {}", data.string());
+  if (size < io.GetImageSizeInBytes()) {
+    return fmt::format("truncated: {} voxel bytes expected, {} holds {} bytes in all", io.GetImageSizeInBytes(),
+                       data.filename().string(), size);
+  }
+  return "";
+}
+
+std::string MetaImageModality(itk::ImageIOBase& io) {
+  auto* meta = dynamic_cast<itk::MetaImageIO*>(&io);
+  if (!meta) return "";
+  switch (meta->GetMetaImagePointer()->Modality()) {
+    case MET_MOD_CT: return "CT";
+    case MET_MOD_MR: return "MR";
+    default: return "";
+  }
+}
+
 Volume ReadWithItk(const fs::path& path, const fs::path& source) {
   auto io = ReadHeader(path);
   CheckHeader(source, *io);
+  const std::string problem = std::string(io->GetNameOfClass()) == "NiftiImageIO"
+                                  ? NiftiPayloadProblem(path)
+                                  : RawPayloadProblem(*io, path);
+  if (!problem.empty()) throw InputError(fmt::format("{}: {}", source.string(), problem));
   auto reader = itk::ImageFileReader<FloatImage>::New();
   reader->SetImageIO(io);
   reader->SetFileName(path.string());
@@ -218,9 +317,7 @@ Volume ReadWithItk(const fs::path& path, const fs::path& source) {
   VolumeMetadata meta;
   meta.source = source.string();
   meta.original_type = OriginalType(*io);
-  const std::string modality = MetaString(io->GetMetaDataDictionary(), "Modality");
-  if (modality == "MET_MOD_CT" || modality == "CT") meta.modality = "CT";
-  if (modality == "MET_MOD_MR" || modality == "MR") meta.modality = "MR";
+  meta.modality = MetaImageModality(*io);
   if (meta.modality == "CT") meta.value_unit = "HU";
   return itk_image::ToVolume(reader->GetOutput(), std::move(meta));
 }

@@ -12,6 +12,10 @@ namespace cinevol::itk_image {
 
 using FloatImage = itk::Image<float, 3>;
 
+// Registers the image formats cinevol reads and routes ITK/GDCM warnings away
+// from stderr (failures still throw). Safe to call from any thread, often.
+void InitToolkits();
+
 // "int16", "uint8", "float32", ... for a file's voxel type.
 std::string ComponentName(itk::IOComponentEnum type);
 

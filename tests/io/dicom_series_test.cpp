@@ -1,0 +1,190 @@
+// DICOM folders built from the real slices: several series, missing and
+// duplicate slices, gantry tilt, truncated files, empty folders.
+#include <gdcmAttribute.h>
+#include <gdcmReader.h>
+#include <gdcmWriter.h>
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+
+#include "core/error.h"
+#include "io/volume_loader.h"
+#include "support/test_paths.h"
+
+namespace cinevol {
+namespace {
+
+using testing::ScratchDir;
+using testing::SharedData;
+namespace fs = std::filesystem;
+
+// The DICOM files of a folder (the data sets keep a README beside them).
+std::vector<fs::path> SortedFiles(const fs::path& folder) {
+  std::vector<fs::path> files;
+  for (const auto& e : fs::directory_iterator(folder)) {
+    if (e.path().filename() != "README.txt") files.push_back(e.path());
+  }
+  std::sort(files.begin(), files.end());
+  return files;
+}
+
+fs::path MrFolder() { return SharedData() / "mr-chest-dicom-seg3d"; }
+fs::path CtFolder() { return SharedData() / "ct-body-totalsegmentator/example_ct_dicom"; }
+
+// Copies `files` into `to`, writable (the shared data are read-only).
+void CopyAll(const std::vector<fs::path>& files, const fs::path& to) {
+  for (const auto& f : files) {
+    fs::copy_file(f, to / f.filename());
+    fs::permissions(to / f.filename(), fs::perms::owner_write, fs::perm_options::add);
+  }
+}
+
+std::string LoadError(const fs::path& folder) {
+  try {
+    LoadDicomSeries(folder);
+  } catch (const InputError& e) {
+    return e.what();
+  }
+  return "(loaded without error)";
+}
+
+// Rewrites one file's header in place with `edit`.
+template <class Edit>
+void EditHeader(const fs::path& file, Edit edit) {
+  gdcm::Reader reader;
+  reader.SetFileName(file.c_str());
+  ASSERT_TRUE(reader.Read()) << file;
+  edit(reader.GetFile().GetDataSet());
+  gdcm::Writer writer;
+  writer.SetFile(reader.GetFile());
+  writer.SetFileName(file.c_str());
+  ASSERT_TRUE(writer.Write()) << file;
+}
+
+void ShiftPosition(const fs::path& file, double dy) {
+  EditHeader(file, [&](gdcm::DataSet& ds) {
+    gdcm::Attribute<0x0020, 0x0032> ipp;
+    ipp.Set(ds);
+    ipp.SetValue(ipp.GetValue(1) + dy, 1);
+    ds.Replace(ipp.GetAsDataElement());
+  });
+}
+
+void SetSeriesUid(const fs::path& file, const std::string& uid) {
+  EditHeader(file, [&](gdcm::DataSet& ds) {
+    gdcm::Attribute<0x0020, 0x000e> a;
+    a.SetValue(uid);
+    ds.Replace(a.GetAsDataElement());
+  });
+}
+
+TEST(DicomSeries, EmptyFolderIsRefused) {
+  ScratchDir dir;
+  EXPECT_NE(LoadError(dir.path()).find("no DICOM files"), std::string::npos);
+}
+
+TEST(DicomSeries, FolderWithoutDicomIsRefused) {
+  ScratchDir dir;
+  std::ofstream(dir / "readme.txt") << "not an image";
+  const std::string error = LoadError(dir.path());
+  EXPECT_NE(error.find("no DICOM files"), std::string::npos) << error;
+  EXPECT_NE(error.find("1 files looked at"), std::string::npos) << error;
+}
+
+TEST(DicomSeries, SeveralSeriesLoadTheLargest) {
+  CINEVOL_REQUIRE_SHARED_DATA();
+  ScratchDir dir;
+  CopyAll(SortedFiles(MrFolder()), dir.path());
+  auto ct = SortedFiles(CtFolder());
+  ct.resize(5);
+  CopyAll(ct, dir.path());
+  const auto series = ListDicomSeries(dir.path());
+  ASSERT_EQ(series.size(), 2u);
+  EXPECT_EQ(series[0].file_count, 20u);
+  EXPECT_EQ(series[0].modality, "MR");
+  EXPECT_EQ(series[1].modality, "CT");
+  const Volume v = LoadDicomSeries(dir.path());
+  EXPECT_EQ(v.dims(), (Vec3i{640, 640, 20}));
+  EXPECT_EQ(v.metadata().modality, "MR");
+}
+
+TEST(DicomSeries, SeriesUidChoosesASeries) {
+  CINEVOL_REQUIRE_SHARED_DATA();
+  ScratchDir dir;
+  auto files = SortedFiles(MrFolder());
+  CopyAll(files, dir.path());
+  // Split the (anonymised, UID-less) series in two: 12 slices and 8.
+  const auto copies = SortedFiles(dir.path());
+  for (std::size_t i = 0; i < copies.size(); ++i) SetSeriesUid(copies[i], i < 12 ? "1.2.3.12" : "1.2.3.8");
+  EXPECT_EQ(LoadDicomSeries(dir.path()).dims().z, 12);
+  EXPECT_EQ(LoadDicomSeries(dir.path(), "1.2.3.8").dims().z, 8);
+  try {
+    LoadDicomSeries(dir.path(), "1.2.3.does.not.exist");
+    FAIL();
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("1.2.3.12"), std::string::npos) << "lists the others";
+  }
+}
+
+TEST(DicomSeries, MissingSliceIsRefused) {
+  CINEVOL_REQUIRE_SHARED_DATA();
+  ScratchDir dir;
+  auto files = SortedFiles(MrFolder());
+  files.erase(files.begin() + 7);
+  CopyAll(files, dir.path());
+  const std::string error = LoadError(dir.path());
+  EXPECT_NE(error.find("uneven slice spacing"), std::string::npos) << error;
+  EXPECT_NE(error.find("5.000 mm"), std::string::npos) << "names the gap: " << error;
+}
+
+TEST(DicomSeries, FilesInAnyOrderAreSortedByPosition) {
+  CINEVOL_REQUIRE_SHARED_DATA();
+  ScratchDir dir;
+  auto files = SortedFiles(MrFolder());
+  std::reverse(files.begin(), files.end());
+  for (std::size_t i = 0; i < files.size(); ++i) {
+    fs::copy_file(files[i], dir / ("slice" + std::to_string(100 + i) + ".dcm"));
+  }
+  const Volume shuffled = LoadDicomSeries(dir.path());
+  const Volume original = LoadDicomSeries(MrFolder());
+  ASSERT_EQ(shuffled.dims(), original.dims());
+  EXPECT_EQ(shuffled.Value(320, 320, 3), original.Value(320, 320, 3));
+  EXPECT_EQ(shuffled.Value(100, 400, 17), original.Value(100, 400, 17));
+}
+
+TEST(DicomSeries, DuplicatePositionsAreRefused) {
+  CINEVOL_REQUIRE_SHARED_DATA();
+  ScratchDir dir;
+  const auto files = SortedFiles(MrFolder());
+  CopyAll(files, dir.path());
+  fs::copy_file(files[3], dir / "copy-of-slice.dcm");
+  EXPECT_NE(LoadError(dir.path()).find("same position"), std::string::npos);
+}
+
+TEST(DicomSeries, GantryTiltIsRefused) {
+  CINEVOL_REQUIRE_SHARED_DATA();
+  ScratchDir dir;
+  const auto files = SortedFiles(MrFolder());
+  CopyAll(files, dir.path());
+  // Shear the stack by 10 degrees: each slice 2.5 mm further moves tan(10) * 2.5 mm in y.
+  std::vector<fs::path> copies = SortedFiles(dir.path());
+  for (std::size_t i = 0; i < copies.size(); ++i) {
+    ShiftPosition(copies[i], std::tan(10.0 * M_PI / 180.0) * 2.5 * double(i));
+  }
+  const std::string error = LoadError(dir.path());
+  EXPECT_NE(error.find("gantry tilt of 10.00 degrees"), std::string::npos) << error;
+}
+
+TEST(DicomSeries, TruncatedSliceIsAClearError) {
+  CINEVOL_REQUIRE_SHARED_DATA();
+  ScratchDir dir;
+  CopyAll(SortedFiles(CtFolder()), dir.path());  // JPEG 2000 compressed
+  const fs::path victim = SortedFiles(dir.path())[10];
+  fs::resize_file(victim, fs::file_size(victim) / 2);
+  const std::string error = LoadError(dir.path());
+  EXPECT_NE(error.find(dir.path().string()), std::string::npos) << error;
+}
+
+}  // namespace
+}  // namespace cinevol
