@@ -1,0 +1,177 @@
+// Scene JSON: examples load, round trips are exact, defaults are filled and
+// every validation rule rejects with a message naming its field.
+#include "io/scene_file.h"
+
+#include <google/protobuf/util/message_differencer.h>
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <fstream>
+#include <functional>
+
+#include "core/error.h"
+#include "io/presets.h"
+#include "support/test_paths.h"
+
+namespace cinevol {
+namespace {
+
+namespace fs = std::filesystem;
+using testing::ScratchDir;
+
+fs::path Examples() { return fs::path(CINEVOL_SOURCE_DIR) / "examples"; }
+
+TEST(SceneFile, EveryExampleLoads) {
+  int count = 0;
+  for (const auto& entry : fs::directory_iterator(Examples())) {
+    if (entry.path().extension() != ".json") continue;
+    SCOPED_TRACE(entry.path().string());
+    EXPECT_NO_THROW(LoadSceneFile(entry.path()));
+    ++count;
+  }
+  EXPECT_GE(count, 3);
+}
+
+TEST(SceneFile, JsonRoundTripIsExact) {
+  for (const char* name : {"ct-bone.json", "ct-soft-tissue.json", "mr-head.json"}) {
+    const v1::Scene scene = LoadSceneFile(Examples() / name);
+    const v1::Scene again = ParseSceneJson(SceneToJson(scene));
+    EXPECT_TRUE(google::protobuf::util::MessageDifferencer::Equals(scene, again)) << name;
+  }
+}
+
+TEST(SceneFile, SaveThenLoadKeepsTheScene) {
+  ScratchDir dir;
+  const v1::Scene scene = LoadSceneFile(Examples() / "ct-soft-tissue.json");
+  SaveSceneFile(scene, dir / "copy.json");
+  EXPECT_TRUE(google::protobuf::util::MessageDifferencer::Equals(scene, LoadSceneFile(dir / "copy.json")));
+}
+
+TEST(SceneFile, DefaultsAreFilled) {
+  const v1::Scene s = ParseSceneJson(R"({"volume": {"phantom": {"kind": "CUBE"}},
+                                         "transferFunction": {"preset": "ct-bone"}})");
+  EXPECT_EQ(s.render().width(), 640u);
+  EXPECT_EQ(s.render().height(), 480u);
+  EXPECT_EQ(s.render().spp(), 2u);
+  EXPECT_EQ(s.render().max_bounces(), 4u);
+  EXPECT_EQ(s.camera().fov_y_deg(), 30.0f);
+  EXPECT_EQ(s.camera().view(), v1::ANTERIOR);
+  EXPECT_EQ(s.transfer_function().density_scale(), 1.0f);
+  EXPECT_EQ(s.transfer_function().gradient_factor(), 1.0f);
+}
+
+TEST(SceneFile, RelativePathsResolveAgainstTheSceneFolder) {
+  ScratchDir dir;
+  fs::create_directories(dir / "scenes");
+  std::ofstream(dir / "scenes/s.json") << R"({"volume": {"file": "../data/head.nii.gz"},
+                                              "transferFunction": {"preset": "ct-bone"}})";
+  const v1::Scene s = LoadSceneFile(dir / "scenes/s.json");
+  EXPECT_EQ(fs::path(s.volume().file()), (dir / "data/head.nii.gz").lexically_normal());
+}
+
+TEST(SceneFile, UnknownFieldsAndBadJsonAreRejected) {
+  EXPECT_THROW(ParseSceneJson(R"({"volume": {"phantom": {"kind": "HEAD"}}, "colour": 1})"), InputError);
+  EXPECT_THROW(ParseSceneJson("{ not json"), InputError);
+  try {
+    LoadSceneFile("/nonexistent/scene.json");
+    FAIL();
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("/nonexistent/scene.json"), std::string::npos);
+  }
+}
+
+// A valid scene to break one field at a time.
+v1::Scene ValidScene() { return LoadSceneFile(Examples() / "ct-soft-tissue.json"); }
+
+struct Rule {
+  const char* name;
+  std::function<void(v1::Scene&)> breaks;
+  const char* field;  // must appear in the error
+};
+
+class ValidationRule : public ::testing::TestWithParam<Rule> {};
+
+TEST_P(ValidationRule, RejectsNamingTheField) {
+  v1::Scene scene = ValidScene();
+  ASSERT_TRUE(ValidateScene(scene).empty());
+  GetParam().breaks(scene);
+  const auto problems = ValidateScene(scene);
+  ASSERT_FALSE(problems.empty()) << "not rejected";
+  bool named = false;
+  for (const auto& p : problems) named |= p.find(GetParam().field) != std::string::npos;
+  EXPECT_TRUE(named) << "no problem names " << GetParam().field << "; got: " << problems[0];
+  EXPECT_THROW(CheckScene(scene), InputError);
+}
+
+v1::AreaLight* Area(v1::Scene& s) { return s.mutable_lights(0)->mutable_area(); }
+v1::TransferFunctionPoint* Point(v1::Scene& s, int i) { return s.mutable_transfer_function()->mutable_points(i); }
+
+INSTANTIATE_TEST_SUITE_P(
+    SceneFile, ValidationRule,
+    ::testing::Values(
+        Rule{"NaNEye", [](v1::Scene& s) { s.mutable_camera()->mutable_eye()->set_x(NAN); }, "camera.eye.x"},
+        Rule{"InfTarget", [](v1::Scene& s) { s.mutable_camera()->mutable_target()->set_z(INFINITY); }, "camera.target.z"},
+        Rule{"EyeEqualsTarget", [](v1::Scene& s) { *s.mutable_camera()->mutable_target() = s.camera().eye(); }, "camera.target"},
+        Rule{"ZeroUp", [](v1::Scene& s) { s.mutable_camera()->mutable_up()->Clear(); }, "camera.up"},
+        Rule{"UpAlongView", [](v1::Scene& s) {
+               auto* c = s.mutable_camera();
+               c->mutable_up()->set_x(c->target().x() - c->eye().x());
+               c->mutable_up()->set_y(c->target().y() - c->eye().y());
+               c->mutable_up()->set_z(c->target().z() - c->eye().z());
+             }, "camera.up"},
+        Rule{"FovTooWide", [](v1::Scene& s) { s.mutable_camera()->set_fov_y_deg(180); }, "camera.fovYDeg"},
+        Rule{"NegativeAperture", [](v1::Scene& s) { s.mutable_camera()->set_aperture_mm(-1); }, "camera.apertureMm"},
+        Rule{"ZeroAreaLight", [](v1::Scene& s) { *Area(s)->mutable_edge_v() = Area(s)->edge_u(); }, "lights[0].area"},
+        Rule{"NegativeLightIntensity", [](v1::Scene& s) { Area(s)->set_intensity(-2); }, "lights[0].area.intensity"},
+        Rule{"NegativeLightColor", [](v1::Scene& s) { Area(s)->mutable_color()->set_g(-1); }, "lights[0].area.color.g"},
+        Rule{"ZeroDirection", [](v1::Scene& s) { s.add_lights()->mutable_directional(); }, "lights[2].directional.direction"},
+        Rule{"TwoEnvironments", [](v1::Scene& s) { *s.add_lights() = s.lights(1); }, "lights[2].environment"},
+        Rule{"LightWithoutKind", [](v1::Scene& s) { s.add_lights(); }, "lights[2]"},
+        Rule{"UnsortedPoints", [](v1::Scene& s) { Point(s, 2)->set_value(-200); }, "transferFunction.points[2].value"},
+        Rule{"DuplicatePointValue", [](v1::Scene& s) { Point(s, 3)->set_value(Point(s, 2)->value()); }, "transferFunction.points[3].value"},
+        Rule{"OpacityAboveOne", [](v1::Scene& s) { Point(s, 1)->set_opacity(1.5f); }, "transferFunction.points[1].opacity"},
+        Rule{"NegativeDiffuse", [](v1::Scene& s) { Point(s, 0)->mutable_diffuse()->set_r(-0.1f); }, "transferFunction.points[0].diffuse.r"},
+        Rule{"RoughnessNaN", [](v1::Scene& s) { Point(s, 0)->set_roughness(NAN); }, "transferFunction.points[0].roughness"},
+        Rule{"NegativeEmission", [](v1::Scene& s) { Point(s, 4)->mutable_emission()->set_b(-1); }, "transferFunction.points[4].emission.b"},
+        Rule{"NoPointsNoPreset", [](v1::Scene& s) { s.mutable_transfer_function()->clear_points(); }, "transferFunction.points"},
+        Rule{"UnknownPreset", [](v1::Scene& s) {
+               s.mutable_transfer_function()->clear_points();
+               s.mutable_transfer_function()->set_preset("ct-teapot");
+             }, "transferFunction.preset"},
+        Rule{"NegativeDensity", [](v1::Scene& s) { s.mutable_transfer_function()->set_density_scale(-1); }, "transferFunction.densityScale"},
+        Rule{"NegativeGradientFactor", [](v1::Scene& s) { s.mutable_transfer_function()->set_gradient_factor(-1); }, "transferFunction.gradientFactor"},
+        Rule{"PhaseGOne", [](v1::Scene& s) { s.mutable_transfer_function()->set_phase_g(1); }, "transferFunction.phaseG"},
+        Rule{"ZeroWidth", [](v1::Scene& s) { s.mutable_render()->set_width(0); }, "render.width"},
+        Rule{"HugeHeight", [](v1::Scene& s) { s.mutable_render()->set_height(100000); }, "render.height"},
+        Rule{"ZeroSpp", [](v1::Scene& s) { s.mutable_render()->set_spp(0); }, "render.spp"},
+        Rule{"TooManyBounces", [](v1::Scene& s) { s.mutable_render()->set_max_bounces(100000); }, "render.maxBounces"},
+        Rule{"NoVolume", [](v1::Scene& s) { s.clear_volume(); }, "volume"},
+        Rule{"NegativePhantomSize", [](v1::Scene& s) { s.mutable_volume()->mutable_phantom()->set_spacing(-1); }, "volume.phantom"}),
+    [](const auto& info) { return std::string(info.param.name); });
+
+TEST(Presets, EveryPresetIsAValidTransferFunction) {
+  for (const std::string& name : PresetNames()) {
+    v1::Scene scene = ValidScene();
+    *scene.mutable_transfer_function() = MakePreset(name, -1024, 3071);
+    EXPECT_TRUE(ValidateScene(scene).empty()) << name;
+  }
+}
+
+TEST(Presets, CtPresetsAreInHounsfieldUnits) {
+  const auto bone = MakePreset("ct-bone", 0, 1);  // the range must not matter
+  EXPECT_GE(bone.points(0).value(), 0.0f);
+  EXPECT_GE(bone.points(bone.points_size() - 1).value(), 1000.0f);
+  const auto lung = MakePreset("ct-lung", 0, 1);
+  EXPECT_LE(lung.points(0).value(), -900.0f);
+}
+
+TEST(Presets, MrPresetFollowsTheVolumeRange) {
+  const auto a = MakePreset("mr-default", 0, 100), b = MakePreset("mr-default", 0, 1000);
+  EXPECT_NEAR(b.points(1).value(), 10 * a.points(1).value(), 1e-3);
+  const auto flat = MakePreset("mr-default", 5, 5);  // constant volume: still sorted
+  for (int i = 1; i < flat.points_size(); ++i) EXPECT_GT(flat.points(i).value(), flat.points(i - 1).value());
+  EXPECT_THROW(MakePreset("ct-teapot", 0, 1), InputError);
+}
+
+}  // namespace
+}  // namespace cinevol
