@@ -6,6 +6,8 @@
 
 namespace cinevol::cli {
 
+void AddDemoCommand(CLI::App& app);
 void AddInfoCommand(CLI::App& app);
+void AddRenderCommand(CLI::App& app);
 
 }  // namespace cinevol::cli

@@ -12,6 +12,8 @@ int main(int argc, char** argv) {
   bool verbose = false;
   app.add_flag("-v,--verbose", verbose, "Log debug detail");
   app.parse_complete_callback([&] { spdlog::set_level(verbose ? spdlog::level::debug : spdlog::level::info); });
+  cinevol::cli::AddDemoCommand(app);
+  cinevol::cli::AddRenderCommand(app);
   cinevol::cli::AddInfoCommand(app);
   try {
     app.parse(argc, argv);

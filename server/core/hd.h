@@ -10,3 +10,18 @@
 #define CINEVOL_HD inline
 #define CINEVOL_DEVICE_CODE 0
 #endif
+
+// Loads through the read-only data cache on the GPU; a plain load elsewhere.
+template <class T>
+CINEVOL_HD T LoadReadOnly(const T* p) {
+#if CINEVOL_DEVICE_CODE
+  if constexpr (sizeof(T) == 16 && alignof(T) == 16) {
+    const float4 v = __ldg(reinterpret_cast<const float4*>(p));
+    return T{v.x, v.y, v.z, v.w};
+  } else {
+    return __ldg(p);
+  }
+#else
+  return *p;
+#endif
+}

@@ -18,6 +18,11 @@ struct Vec3f {
   CINEVOL_HD float& operator[](int i) { return i == 0 ? x : (i == 1 ? y : z); }
 };
 
+// Four floats, 16-byte aligned so the GPU loads them in one instruction.
+struct alignas(16) Vec4f {
+  float x = 0, y = 0, z = 0, w = 0;
+};
+
 struct Vec3i {
   int x = 0, y = 0, z = 0;
 
@@ -39,6 +44,9 @@ CINEVOL_HD Vec3f& operator*=(Vec3f& a, float s) { return a = a * s; }
 CINEVOL_HD bool operator==(Vec3f a, Vec3f b) { return a.x == b.x && a.y == b.y && a.z == b.z; }
 CINEVOL_HD bool operator==(Vec3i a, Vec3i b) { return a.x == b.x && a.y == b.y && a.z == b.z; }
 
+CINEVOL_HD int MinInt(int a, int b) { return a < b ? a : b; }
+CINEVOL_HD int MaxInt(int a, int b) { return a > b ? a : b; }
+
 CINEVOL_HD float Dot(Vec3f a, Vec3f b) { return a.x * b.x + a.y * b.y + a.z * b.z; }
 CINEVOL_HD Vec3f Cross(Vec3f a, Vec3f b) {
   return {a.y * b.z - a.z * b.y, a.z * b.x - a.x * b.z, a.x * b.y - a.y * b.x};
@@ -53,6 +61,8 @@ CINEVOL_HD float MinComponent(Vec3f a) { return fminf(a.x, fminf(a.y, a.z)); }
 CINEVOL_HD Vec3f Lerp(Vec3f a, Vec3f b, float t) { return a + (b - a) * t; }
 CINEVOL_HD float Luminance(Vec3f rgb) { return 0.2126f * rgb.x + 0.7152f * rgb.y + 0.0722f * rgb.z; }
 CINEVOL_HD bool IsFinite(Vec3f a) { return isfinite(a.x) && isfinite(a.y) && isfinite(a.z); }
+CINEVOL_HD Vec3f Xyz(Vec4f a) { return {a.x, a.y, a.z}; }
+CINEVOL_HD Vec4f ToVec4(Vec3f a, float w) { return {a.x, a.y, a.z, w}; }
 CINEVOL_HD Vec3f ToFloat(Vec3i a) {
   return {static_cast<float>(a.x), static_cast<float>(a.y), static_cast<float>(a.z)};
 }

@@ -224,8 +224,9 @@ void ResolvePaths(v1::Scene& scene, const fs::path& base_dir) {
 
 void ApplyDefaults(v1::Scene& scene) {
   auto* tf = scene.mutable_transfer_function();
-  if (!tf->has_density_scale()) tf->set_density_scale(1.0f);
-  if (!tf->has_gradient_factor()) tf->set_gradient_factor(1.0f);
+  // A preset brings its own density and gradient factor.
+  if (!tf->points().empty() && !tf->has_density_scale()) tf->set_density_scale(1.0f);
+  if (!tf->points().empty() && !tf->has_gradient_factor()) tf->set_gradient_factor(1.0f);
   if (!tf->has_phase_g()) tf->set_phase_g(0.0f);
   auto* camera = scene.mutable_camera();
   if (!camera->has_fov_y_deg()) camera->set_fov_y_deg(30.0f);

@@ -49,7 +49,7 @@ TEST(SceneFile, SaveThenLoadKeepsTheScene) {
 
 TEST(SceneFile, DefaultsAreFilled) {
   const v1::Scene s = ParseSceneJson(R"({"volume": {"phantom": {"kind": "CUBE"}},
-                                         "transferFunction": {"preset": "ct-bone"}})");
+                                         "transferFunction": {"points": [{"value": 0, "opacity": 1}]}})");
   EXPECT_EQ(s.render().width(), 640u);
   EXPECT_EQ(s.render().height(), 480u);
   EXPECT_EQ(s.render().spp(), 2u);
@@ -58,6 +58,10 @@ TEST(SceneFile, DefaultsAreFilled) {
   EXPECT_EQ(s.camera().view(), v1::ANTERIOR);
   EXPECT_EQ(s.transfer_function().density_scale(), 1.0f);
   EXPECT_EQ(s.transfer_function().gradient_factor(), 1.0f);
+  // With a preset, density and gradient factor are the preset's own.
+  const v1::Scene p = ParseSceneJson(R"({"volume": {"phantom": {"kind": "CUBE"}},
+                                         "transferFunction": {"preset": "ct-bone"}})");
+  EXPECT_FALSE(p.transfer_function().has_density_scale());
 }
 
 TEST(SceneFile, RelativePathsResolveAgainstTheSceneFolder) {

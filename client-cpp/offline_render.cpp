@@ -1,0 +1,75 @@
+// RenderToFile: load, resolve, render progressively, write.
+#include "offline_render.h"
+
+#include <chrono>
+
+#include <fmt/format.h>
+
+#include "core/error.h"
+#include "core/tone_map.h"
+#include "encode/image_codecs.h"
+#include "io/scene_builder.h"
+#include "io/volume_loader.h"
+
+namespace cinevol::cli {
+namespace {
+
+double SecondsSince(std::chrono::steady_clock::time_point start) {
+  return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+}
+
+std::string Lower(std::string s) {
+  for (char& c : s) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+  return s;
+}
+
+}  // namespace
+
+void WriteImage(const ImageRgbF& linear, float exposure, const std::filesystem::path& out) {
+  const std::string ext = Lower(out.extension().string());
+  if (ext == ".exr") {
+    WriteExr(out, linear);
+  } else if (ext == ".pfm") {
+    WritePfm(out, linear);
+  } else if (ext == ".png") {
+    WriteFile(out, EncodePng(ToneMap(linear, exposure)));
+  } else if (ext == ".jpg" || ext == ".jpeg") {
+    WriteFile(out, EncodeJpeg(ToneMap(linear, exposure), 92));
+  } else {
+    throw InputError(fmt::format("{}: unknown image type; use .exr, .pfm, .png or .jpg", out.string()));
+  }
+}
+
+OfflineRenderResult RenderToFile(const v1::Scene& scene, const std::filesystem::path& base_dir, int total_spp,
+                                 Backend backend, const std::filesystem::path& out) {
+  OfflineRenderResult result;
+  const auto load_start = std::chrono::steady_clock::now();
+  auto volume = std::make_shared<const Volume>(LoadVolume(scene.volume(), base_dir));
+  const RenderSetup setup = ResolveScene(scene, *volume);
+  auto renderer = CreateRenderer(backend);
+  renderer->SetVolume(volume);
+  renderer->SetTransferFunction(setup.transfer_function);
+  renderer->SetLights(setup.lights);
+  result.load_seconds = SecondsSince(load_start);
+  result.backend = renderer->Name();
+
+  FrameRequest request;
+  request.camera = setup.camera;
+  request.max_bounces = setup.max_bounces;
+  request.seed = setup.seed;
+  const auto start = std::chrono::steady_clock::now();
+  while (result.total_spp < total_spp) {
+    request.spp = std::min(setup.spp, total_spp - result.total_spp);
+    request.frame = static_cast<std::uint32_t>(result.frames);
+    renderer->Render(request);
+    result.total_spp += request.spp;
+    ++result.frames;
+  }
+  const ImageRgbF image = renderer->AccumulatedMean();
+  result.seconds = SecondsSince(start);
+  result.paths_per_second = double(result.total_spp) * image.width * image.height / result.seconds;
+  WriteImage(image, setup.exposure, out);
+  return result;
+}
+
+}  // namespace cinevol::cli

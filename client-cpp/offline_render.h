@@ -1,0 +1,31 @@
+// Rendering a scene to an image file without a server: the `render` and
+// (until the service lands) `demo` commands share it.
+#pragma once
+
+#include <filesystem>
+#include <string>
+
+#include "cinevol/v1/scene.pb.h"
+#include "render/renderer.h"
+
+namespace cinevol::cli {
+
+struct OfflineRenderResult {
+  std::string backend;
+  int frames = 0;
+  int total_spp = 0;
+  double seconds = 0;      // rendering only, volume loading excluded
+  double load_seconds = 0;
+  double paths_per_second = 0;
+};
+
+// Loads the scene's volume, renders `total_spp` samples per pixel in frames of
+// the scene's spp, and writes `out`: .exr/.pfm linear radiance, .png/.jpg
+// tone-mapped sRGB with the camera's exposure.
+OfflineRenderResult RenderToFile(const v1::Scene& scene, const std::filesystem::path& base_dir, int total_spp,
+                                 Backend backend, const std::filesystem::path& out);
+
+// Writes an image by extension (see RenderToFile); throws InputError for others.
+void WriteImage(const ImageRgbF& linear, float exposure, const std::filesystem::path& out);
+
+}  // namespace cinevol::cli

@@ -1,0 +1,57 @@
+// Piecewise-linear evaluation and table building.
+#include "core/transfer_function.h"
+
+#include <algorithm>
+
+namespace cinevol {
+namespace {
+
+TransferPoint Mix(const TransferPoint& a, const TransferPoint& b, float t) {
+  TransferPoint p;
+  p.value = a.value + (b.value - a.value) * t;
+  p.opacity = a.opacity + (b.opacity - a.opacity) * t;
+  p.diffuse = Lerp(a.diffuse, b.diffuse, t);
+  p.specular = Lerp(a.specular, b.specular, t);
+  p.roughness = a.roughness + (b.roughness - a.roughness) * t;
+  p.emission = Lerp(a.emission, b.emission, t);
+  return p;
+}
+
+}  // namespace
+
+TransferPoint Evaluate(const TransferFunction& tf, float value) {
+  const auto& pts = tf.points;
+  if (pts.empty()) return {};
+  if (value <= pts.front().value) return pts.front();
+  if (value >= pts.back().value) return pts.back();
+  const auto upper = std::upper_bound(pts.begin(), pts.end(), value,
+                                      [](float v, const TransferPoint& p) { return v < p.value; });
+  const TransferPoint& b = *upper;
+  const TransferPoint& a = *(upper - 1);
+  return Mix(a, b, (value - a.value) / (b.value - a.value));
+}
+
+TransferTable BuildTransferTable(const TransferFunction& tf, float value_min, float value_max) {
+  TransferTable t;
+  t.value_min = value_min;
+  t.value_max = value_max > value_min ? value_max : value_min + 1.0f;
+  t.gradient_factor = tf.gradient_factor;
+  t.phase_g = tf.phase_g;
+  const int n = TransferTable::kEntries;
+  t.sigma_t.resize(n);
+  t.diffuse_opacity.resize(n);
+  t.specular_roughness.resize(n);
+  t.emission.resize(n);
+  for (int i = 0; i < n; ++i) {
+    const float v = t.value_min + (t.value_max - t.value_min) * float(i) / float(n - 1);
+    const TransferPoint p = Evaluate(tf, v);
+    t.sigma_t[i] = p.opacity * tf.density_scale;
+    t.diffuse_opacity[i] = ToVec4(p.diffuse, p.opacity);
+    t.specular_roughness[i] = ToVec4(p.specular, p.roughness);
+    t.emission[i] = ToVec4(p.emission, 0.0f);
+    t.has_emission |= MaxComponent(p.emission) > 0.0f;
+  }
+  return t;
+}
+
+}  // namespace cinevol

@@ -1,0 +1,61 @@
+// The transfer-function table as kernels see it (core/transfer_function.h
+// builds it): extinction and material channels by linear interpolation.
+#pragma once
+
+#include "core/hd.h"
+#include "core/sampling.h"
+#include "core/transfer_function.h"
+#include "core/vec.h"
+
+namespace cinevol {
+
+struct Material {
+  Vec3f diffuse;
+  float opacity;
+  Vec3f specular;
+  float roughness;
+};
+
+struct TransferView {
+  static constexpr int kEntries = TransferTable::kEntries;
+  const float* sigma_t = nullptr;
+  const Vec4f* diffuse_opacity = nullptr;
+  const Vec4f* specular_roughness = nullptr;
+  const Vec4f* emission = nullptr;
+  float entry_scale = 0, entry_offset = 0;  // table entry = stored voxel * scale + offset
+  float gradient_factor = 0;                 // >= 0
+  float gradient_normaliser = 0;             // |grad stored| * this = normalised gradient magnitude
+  float phase_g = 0;
+
+  // Fractional table position of a stored voxel value.
+  CINEVOL_HD float Entry(float stored) const {
+    return Clamp(stored * entry_scale + entry_offset, 0.0f, float(kEntries - 1));
+  }
+
+  CINEVOL_HD float SigmaT(float entry) const {
+    const int i = MinInt(static_cast<int>(entry), kEntries - 2);
+    const float t = entry - float(i);
+    const float a = LoadReadOnly(sigma_t + i), b = LoadReadOnly(sigma_t + i + 1);
+    return a + (b - a) * t;
+  }
+
+  CINEVOL_HD Material MaterialAt(float entry) const {
+    const int i = MinInt(static_cast<int>(entry), kEntries - 2);
+    const float t = entry - float(i);
+    const Vec4f d = Mix(diffuse_opacity, i, t), s = Mix(specular_roughness, i, t);
+    return {{d.x, d.y, d.z}, d.w, {s.x, s.y, s.z}, s.w};
+  }
+
+  CINEVOL_HD Vec3f Emission(float entry) const {
+    const int i = MinInt(static_cast<int>(entry), kEntries - 2);
+    return Xyz(Mix(emission, i, entry - float(i)));
+  }
+
+ private:
+  CINEVOL_HD static Vec4f Mix(const Vec4f* table, int i, float t) {
+    const Vec4f a = LoadReadOnly(table + i), b = LoadReadOnly(table + i + 1);
+    return {a.x + (b.x - a.x) * t, a.y + (b.y - a.y) * t, a.z + (b.z - a.z) * t, a.w + (b.w - a.w) * t};
+  }
+};
+
+}  // namespace cinevol

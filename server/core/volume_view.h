@@ -1,0 +1,81 @@
+// The volume as kernels see it: 16-bit voxels, trilinear sampling with
+// clamp-to-edge, and central-difference gradients. Positions are world mm;
+// the box [0, dims*spacing] is centred at the origin, voxel i's centre sits at
+// (i + 0.5) * spacing from the box's corner (docs/architecture.md).
+#pragma once
+
+#include <cstdint>
+
+#include "core/hd.h"
+#include "core/vec.h"
+
+namespace cinevol {
+
+struct VolumeView {
+  const std::uint16_t* voxels = nullptr;  // x fastest; in the backend's memory
+  Vec3i dims;
+  Vec3f spacing;      // mm
+  Vec3f inv_spacing;  // 1 / spacing
+  Vec3f box_min, box_max;  // world mm
+
+  // Voxel (x, y, z) clamped to the grid.
+  CINEVOL_HD float Fetch(int x, int y, int z) const {
+    x = x < 0 ? 0 : (x >= dims.x ? dims.x - 1 : x);
+    y = y < 0 ? 0 : (y >= dims.y ? dims.y - 1 : y);
+    z = z < 0 ? 0 : (z >= dims.z ? dims.z - 1 : z);
+    const std::int64_t i = (std::int64_t(z) * dims.y + y) * dims.x + x;
+#if CINEVOL_DEVICE_CODE
+    return static_cast<float>(__ldg(voxels + i));
+#else
+    return static_cast<float>(voxels[i]);
+#endif
+  }
+
+  // Continuous voxel coordinates: voxel centres at integers.
+  CINEVOL_HD Vec3f ToVoxel(Vec3f p) const { return (p - box_min) * inv_spacing - Vec3f{0.5f, 0.5f, 0.5f}; }
+
+  // Trilinearly interpolated stored value at world position p.
+  CINEVOL_HD float Sample(Vec3f p) const {
+    const Vec3f q = ToVoxel(p);
+    const float fx = floorf(q.x), fy = floorf(q.y), fz = floorf(q.z);
+    const int x = static_cast<int>(fx), y = static_cast<int>(fy), z = static_cast<int>(fz);
+    const float tx = q.x - fx, ty = q.y - fy, tz = q.z - fz;
+    const float c00 = Fetch(x, y, z) + tx * (Fetch(x + 1, y, z) - Fetch(x, y, z));
+    const float c10 = Fetch(x, y + 1, z) + tx * (Fetch(x + 1, y + 1, z) - Fetch(x, y + 1, z));
+    const float c01 = Fetch(x, y, z + 1) + tx * (Fetch(x + 1, y, z + 1) - Fetch(x, y, z + 1));
+    const float c11 = Fetch(x, y + 1, z + 1) + tx * (Fetch(x + 1, y + 1, z + 1) - Fetch(x, y + 1, z + 1));
+    const float c0 = c00 + ty * (c10 - c00);
+    const float c1 = c01 + ty * (c11 - c01);
+    return c0 + tz * (c1 - c0);
+  }
+
+  // Gradient of the stored value per mm, by central differences one voxel apart.
+  CINEVOL_HD Vec3f Gradient(Vec3f p) const {
+    const Vec3f dx{spacing.x, 0, 0}, dy{0, spacing.y, 0}, dz{0, 0, spacing.z};
+    return Vec3f{Sample(p + dx) - Sample(p - dx), Sample(p + dy) - Sample(p - dy),
+                 Sample(p + dz) - Sample(p - dz)} *
+           (0.5f * inv_spacing);
+  }
+};
+
+// Ray-box slab test; returns false when the ray misses [lo, hi].
+CINEVOL_HD bool IntersectBox(Vec3f origin, Vec3f inv_dir, Vec3f lo, Vec3f hi, float& t0, float& t1) {
+  float tmin = 0.0f, tmax = 3.4e38f;
+  for (int a = 0; a < 3; ++a) {
+    float ta = (lo[a] - origin[a]) * inv_dir[a];
+    float tb = (hi[a] - origin[a]) * inv_dir[a];
+    if (ta > tb) {
+      const float t = ta;
+      ta = tb;
+      tb = t;
+    }
+    // NaN (0 * inf on a slab face) compares false and leaves the bounds alone.
+    tmin = ta > tmin ? ta : tmin;
+    tmax = tb < tmax ? tb : tmax;
+  }
+  t0 = tmin;
+  t1 = tmax;
+  return tmin <= tmax;
+}
+
+}  // namespace cinevol

@@ -1,0 +1,74 @@
+// CpuRenderer: a table of integrator variants, one per feature set, each
+// running rows of pixels in parallel.
+#include "render/cpu_renderer.h"
+
+#include <array>
+#include <stdexcept>
+#include <utility>
+
+#include "core/parallel_for.h"
+#include "render/integrator.h"
+
+namespace cinevol {
+namespace {
+
+using RenderFrameFn = void (*)(const RenderScene&, const FrameTargets&, int threads);
+
+template <unsigned kFeatures>
+void RenderFrame(const RenderScene& scene, const FrameTargets& targets, int threads) {
+  ParallelFor(scene.camera.height, [&](std::int64_t y) {
+    for (int x = 0; x < scene.camera.width; ++x) RenderPixel<kFeatures>(scene, x, int(y), targets);
+  }, threads);
+}
+
+template <unsigned... kFeatures>
+constexpr std::array<RenderFrameFn, sizeof...(kFeatures)> MakeVariants(std::integer_sequence<unsigned, kFeatures...>) {
+  return {&RenderFrame<kFeatures>...};
+}
+
+constexpr auto kVariants = MakeVariants(std::make_integer_sequence<unsigned, kFeatureCombinations>());
+
+}  // namespace
+
+void CpuRenderer::Render(const FrameRequest& request) {
+  if (!data_.has_volume()) throw std::logic_error("CpuRenderer::Render before SetVolume");
+  const int w = request.camera.width, h = request.camera.height;
+  if (w != width_ || h != height_) {
+    width_ = w;
+    height_ = h;
+    radiance_.assign(std::size_t(w) * h, {});
+    first_hit_.assign(std::size_t(w) * h, {});
+    ResetAccumulation();
+  }
+  RenderScene scene = data_.HostView();
+  scene.camera = request.camera;
+  scene.spp = request.spp;
+  scene.max_bounces = request.max_bounces;
+  scene.seed = request.seed;
+  scene.frame = request.frame;
+  const unsigned needed = FeaturesOf(scene);
+  last_features_ = request.features == kAutoFeatures ? needed : (request.features | needed) & kAllFeatures;
+  kVariants[last_features_](scene, Targets(), threads_);
+  ++accumulated_frames_;
+}
+
+void CpuRenderer::ResetAccumulation() {
+  accumulated_.assign(std::size_t(width_) * height_, {});
+  accumulated_frames_ = 0;
+}
+
+ImageRgbF CpuRenderer::Radiance() const { return {width_, height_, radiance_}; }
+
+ImageRgbF CpuRenderer::AccumulatedMean() const {
+  ImageRgbF image{width_, height_, accumulated_};
+  const float inv = accumulated_frames_ > 0 ? 1.0f / float(accumulated_frames_) : 0.0f;
+  for (Vec3f& p : image.pixels) p *= inv;
+  return image;
+}
+
+FrameTargets CpuRenderer::Targets() const {
+  auto* self = const_cast<CpuRenderer*>(this);
+  return {self->radiance_.data(), self->first_hit_.data(), self->accumulated_.data()};
+}
+
+}  // namespace cinevol

@@ -1,0 +1,37 @@
+// The CPU backend: every core runs the shared per-pixel integrator.
+#pragma once
+
+#include "render/renderer.h"
+#include "render/scene_data.h"
+
+namespace cinevol {
+
+class CpuRenderer final : public Renderer {
+ public:
+  // threads <= 0: every hardware thread (or CINEVOL_THREADS).
+  explicit CpuRenderer(int threads = 0) : threads_(threads) {}
+
+  std::string Name() const override { return "cpu"; }
+  void SetVolume(std::shared_ptr<const Volume> volume) override { data_.SetVolume(std::move(volume)); }
+  void SetTransferFunction(const TransferFunction& tf) override { data_.SetTransferFunction(tf); }
+  void SetLights(const LightSetup& lights) override { data_.SetLights(lights); }
+  void Render(const FrameRequest& request) override;
+  void ResetAccumulation() override;
+  int accumulated_frames() const override { return accumulated_frames_; }
+  unsigned last_features() const override { return last_features_; }
+  ImageRgbF Radiance() const override;
+  ImageRgbF AccumulatedMean() const override;
+  std::vector<Vec4f> FirstHits() const override { return first_hit_; }
+  FrameTargets Targets() const override;
+
+ private:
+  int threads_;
+  SceneData data_;
+  int width_ = 0, height_ = 0;
+  std::vector<Vec3f> radiance_, accumulated_;
+  std::vector<Vec4f> first_hit_;
+  int accumulated_frames_ = 0;
+  unsigned last_features_ = 0;
+};
+
+}  // namespace cinevol

@@ -1,0 +1,243 @@
+// The volumetric path tracer: one function per pixel, shared by the CPU and
+// CUDA backends. Free paths by delta tracking against the majorant grid,
+// shadow rays by ratio tracking, next-event estimation combined with
+// phase/BRDF sampling by multiple importance sampling (power heuristic),
+// hybrid scattering, transfer-function emission and Russian roulette.
+//
+// Bounces count scattering events: max_bounces = 0 shows emission and the
+// lights seen directly through the volume; 1 is single scattering.
+#pragma once
+
+#include "core/rng.h"
+#include "render/render_scene.h"
+#include "render/sample_pattern.h"
+#include "render/scattering.h"
+
+namespace cinevol {
+
+// Gaussian pixel filter: standard deviation and truncation radius, in pixels.
+inline constexpr float kPixelFilterSigma = 0.5f;
+inline constexpr float kPixelFilterRadius = 1.5f;
+// Russian roulette starts after this many scattering events.
+inline constexpr int kRouletteDepth = 3;
+
+struct PathResult {
+  Vec3f radiance;
+  Vec3f first_hit;  // first real collision, when hit
+  bool hit = false;
+};
+
+template <unsigned kFeatures>
+class PathTracer {
+ public:
+  static constexpr bool kWithGradients = kFeatures & kGradients;
+  static constexpr bool kWithEmission = kFeatures & kEmission;
+  static constexpr bool kWithMap = kFeatures & kEnvironmentMap;
+  static constexpr bool kMultiple = kFeatures & kMultipleScattering;
+  static constexpr bool kChooseLight = kFeatures & kSeveralLights;
+
+  CINEVOL_HD PathTracer(const RenderScene& scene, Pcg32& rng) : s_(scene), rng_(rng) {}
+
+  CINEVOL_HD PathResult Trace(Ray ray) {
+    PathResult result;
+    Vec3f beta{1, 1, 1};
+    float scatter_pdf = 0.0f;  // pdf of the direction `ray` was sampled with
+    const int max_bounces = kMultiple ? s_.max_bounces : MinInt(s_.max_bounces, 1);
+    for (int depth = 0;; ++depth) {
+      float t_hit, entry;
+      const Collision c = NextCollision(ray, t_hit, entry);
+      if (c == Collision::kAbsorbedByBudget) break;
+      const bool from_camera = depth == 0;
+      result.radiance += beta * CrossedLights(ray, c == Collision::kHit ? t_hit : kInfiniteDistance,
+                                              scatter_pdf, from_camera);
+      if (c == Collision::kEscaped) {
+        result.radiance += beta * EscapedRadiance(ray.direction, scatter_pdf, from_camera);
+        break;
+      }
+      const Vec3f p = ray.origin + ray.direction * t_hit;
+      if (from_camera) {
+        result.first_hit = p;
+        result.hit = true;
+      }
+      if constexpr (kWithEmission) result.radiance += beta * s_.transfer.Emission(entry);
+      if (depth >= max_bounces) break;
+
+      const Vec3f wo = -ray.direction;
+      const Scatterer sc = MakeScatterer(p, wo, entry);
+      result.radiance += beta * DirectLight(p, wo, sc);
+      // The last scattering event only matters through what its sampled ray
+      // can reach: hittable lights or an emitting volume.
+      if (depth + 1 >= max_bounces && !s_.has_hittable_lights && !kWithEmission) break;
+
+      const float u0 = rng_.Uniform(), u1 = rng_.Uniform(), u2 = rng_.Uniform();
+      Vec3f wi;
+      const Vec3f weight = SampleScatter(sc, wo, u0, u1, u2, wi, scatter_pdf);
+      if (!(scatter_pdf > 0.0f) || !(MaxComponent(weight) > 0.0f)) break;
+      beta *= weight;
+      ray = {p, wi};
+      if constexpr (kMultiple) {
+        // Terminate with probability 1 - max(beta) (as pbrt does): survivors
+        // return to a throughput near 1, so weights never grow without bound.
+        if (depth + 1 >= kRouletteDepth) {
+          const float q = fmaxf(0.0f, 1.0f - MaxComponent(beta));
+          if (rng_.Uniform() < q) break;
+          beta *= 1.0f / (1.0f - q);
+        }
+      }
+    }
+    return result;
+  }
+
+ private:
+  enum class Collision { kHit, kEscaped, kAbsorbedByBudget };
+
+  // Delta tracking to the next real collision along the ray.
+  CINEVOL_HD Collision NextCollision(const Ray& ray, float& t_hit, float& entry) {
+    float t0, t1;
+    const Vec3f inv{1.0f / ray.direction.x, 1.0f / ray.direction.y, 1.0f / ray.direction.z};
+    if (!IntersectBox(ray.origin, inv, s_.volume.box_min, s_.volume.box_max, t0, t1)) return Collision::kEscaped;
+    bool hit = false;
+    const TrackResult r = SampleMajorant(s_.majorants, ray.origin, ray.direction, t0, t1, rng_,
+                                         [&](float t, float sigma_maj) {
+                                           const float e = s_.transfer.Entry(s_.volume.Sample(ray.origin + ray.direction * t));
+                                           if (rng_.Uniform() * sigma_maj >= s_.transfer.SigmaT(e)) return true;
+                                           t_hit = t;
+                                           entry = e;
+                                           hit = true;
+                                           return false;
+                                         });
+    if (r == TrackResult::kBudgetExhausted) return Collision::kAbsorbedByBudget;
+    return hit ? Collision::kHit : Collision::kEscaped;
+  }
+
+  // Ratio tracking with Russian roulette on small transmittance.
+  CINEVOL_HD float Transmittance(Vec3f p, Vec3f w, float distance) {
+    float t0, t1;
+    const Vec3f inv{1.0f / w.x, 1.0f / w.y, 1.0f / w.z};
+    if (!IntersectBox(p, inv, s_.volume.box_min, s_.volume.box_max, t0, t1)) return 1.0f;
+    t1 = fminf(t1, distance);
+    if (!(t0 < t1)) return 1.0f;
+    float transmittance = 1.0f;
+    const TrackResult r = SampleMajorant(s_.majorants, p, w, t0, t1, rng_, [&](float t, float sigma_maj) {
+      const float sigma_t = s_.transfer.SigmaT(s_.transfer.Entry(s_.volume.Sample(p + w * t)));
+      transmittance *= fmaxf(0.0f, 1.0f - sigma_t / sigma_maj);
+      if (transmittance < 0.05f) {
+        if (rng_.Uniform() < 0.75f) {
+          transmittance = 0.0f;
+          return false;
+        }
+        transmittance *= 4.0f;
+      }
+      return true;
+    });
+    return r == TrackResult::kBudgetExhausted ? 0.0f : transmittance;
+  }
+
+  CINEVOL_HD int SampleableLights() const {
+    return s_.light_count + (s_.environment.kind != Environment::Kind::kNone ? 1 : 0);
+  }
+
+  CINEVOL_HD float LightSelectionPdf() const { return kChooseLight ? 1.0f / float(SampleableLights()) : 1.0f; }
+
+  // Hybrid scattering: the BRDF with Exposure Render's probability, else the phase function.
+  CINEVOL_HD Scatterer MakeScatterer(Vec3f p, Vec3f wo, float entry) {
+    const Material m = s_.transfer.MaterialAt(entry);
+    Scatterer sc{false, m.diffuse, {}, 0.0f, {}, s_.transfer.phase_g};
+    if constexpr (kWithGradients) {
+      const Vec3f grad = s_.volume.Gradient(p);
+      const float magnitude = Length(grad);
+      const float p_surface =
+          SurfaceProbability(m.opacity, s_.transfer.gradient_factor, magnitude * s_.transfer.gradient_normaliser);
+      if (magnitude > 0.0f && rng_.Uniform() < p_surface) {
+        sc.surface = true;
+        sc.normal = grad / magnitude;
+        if (Dot(sc.normal, wo) < 0.0f) sc.normal = -sc.normal;
+        sc.specular = m.specular;
+        sc.alpha = fmaxf(m.roughness * m.roughness, 1e-3f);
+      }
+    }
+    return sc;
+  }
+
+  // Next-event estimation towards one light.
+  CINEVOL_HD Vec3f DirectLight(Vec3f p, Vec3f wo, const Scatterer& sc) {
+    const int n = SampleableLights();
+    if (n == 0) return {};
+    const int i = kChooseLight ? MinInt(static_cast<int>(rng_.Uniform() * float(n)), n - 1) : 0;
+    const float u1 = rng_.Uniform(), u2 = rng_.Uniform();
+    LightSample ls;
+    const bool sampled = i < s_.light_count ? SampleLight(s_.lights[i], p, u1, u2, ls)
+                                            : SampleEnvironment<kWithMap>(s_.environment, u1, u2, ls);
+    if (!sampled) return {};
+    float scatter_pdf;
+    const Vec3f f = EvalScatter(sc, wo, ls.wi, scatter_pdf);
+    if (!(MaxComponent(f) > 0.0f) || !(MaxComponent(ls.radiance) > 0.0f)) return {};
+    const float tr = Transmittance(p, ls.wi, ls.distance);
+    if (tr <= 0.0f) return {};
+    const float light_pdf = LightSelectionPdf() * ls.pdf;
+    const float mis = ls.delta ? 1.0f : PowerHeuristic(light_pdf, scatter_pdf);
+    return f * ls.radiance * (tr * mis / light_pdf);
+  }
+
+  // Area lights the ray crosses before t_max, weighted against NEE.
+  CINEVOL_HD Vec3f CrossedLights(const Ray& ray, float t_max, float scatter_pdf, bool from_camera) const {
+    Vec3f sum{};
+    for (int i = 0; i < s_.light_count; ++i) {
+      const Light& light = s_.lights[i];
+      if (light.kind != LightKind::kArea) continue;
+      Vec3f radiance;
+      float light_pdf;
+      if (!IntersectAreaLight(light, ray.origin, ray.direction, t_max, radiance, light_pdf)) continue;
+      sum += radiance * (from_camera ? 1.0f : PowerHeuristic(scatter_pdf, LightSelectionPdf() * light_pdf));
+    }
+    return sum;
+  }
+
+  CINEVOL_HD Vec3f EscapedRadiance(Vec3f d, float scatter_pdf, bool from_camera) const {
+    if (s_.environment.kind == Environment::Kind::kNone) return {};
+    const Vec3f radiance = EnvironmentRadiance<kWithMap>(s_.environment, d);
+    if (from_camera) return radiance;
+    return radiance * PowerHeuristic(scatter_pdf, LightSelectionPdf() * EnvironmentPdf<kWithMap>(s_.environment, d));
+  }
+
+  const RenderScene& s_;
+  Pcg32& rng_;
+};
+
+// Renders pixel (x, y): spp paths, stratified per frame, seeded by (seed,
+// frame, pixel) so the image does not depend on thread or block order.
+template <unsigned kFeatures>
+CINEVOL_HD void RenderPixel(const RenderScene& s, int x, int y, const FrameTargets& out) {
+  const int pixel = y * s.camera.width + x;
+  const std::uint64_t key = HashCombine(HashCombine(s.seed, s.frame), std::uint64_t(pixel));
+  const std::uint32_t pattern = static_cast<std::uint32_t>(key);
+  Vec3f sum{};
+  Vec4f first_hit{};
+  float nearest = kInfiniteDistance;
+  for (int k = 0; k < s.spp; ++k) {
+    float fx, fy, lx, ly;
+    CorrelatedMultiJitter(k, s.spp, pattern, fx, fy);
+    CorrelatedMultiJitter(k, s.spp, pattern ^ 0x5bd1e995U, lx, ly);
+    const float px = float(x) + 0.5f + SampleTruncatedGaussian(fx, kPixelFilterSigma, kPixelFilterRadius);
+    const float py = float(y) + 0.5f + SampleTruncatedGaussian(fy, kPixelFilterSigma, kPixelFilterRadius);
+    Pcg32 rng(key, std::uint64_t(k));
+    PathTracer<kFeatures> tracer(s, rng);
+    const PathResult r = tracer.Trace(s.camera.GenerateRay(px, py, lx, ly));
+    // A non-finite sample would poison the accumulation and the denoiser's
+    // history; the integrator is built not to make one, this is the backstop.
+    if (IsFinite(r.radiance)) sum += r.radiance;
+    if (r.hit) {
+      const float d = Length(r.first_hit - s.camera.eye);
+      if (d < nearest) {
+        nearest = d;
+        first_hit = ToVec4(r.first_hit, 1.0f);
+      }
+    }
+  }
+  const Vec3f radiance = sum / float(s.spp);
+  out.radiance[pixel] = radiance;
+  out.first_hit[pixel] = first_hit;
+  out.accumulated[pixel] += radiance;
+}
+
+}  // namespace cinevol

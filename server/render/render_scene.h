@@ -1,0 +1,64 @@
+// Everything one frame's kernels read, as POD views passed by value, plus
+// the feature set that picks a specialised integrator.
+#pragma once
+
+#include <cstdint>
+
+#include "core/camera.h"
+#include "core/lights.h"
+#include "core/transfer_view.h"
+#include "core/volume_view.h"
+#include "render/majorant_grid.h"
+
+namespace cinevol {
+
+// Features a scene may use. The integrator is instantiated for every subset
+// so that a scene pays only for what it uses; kAllFeatures renders anything.
+enum RenderFeature : unsigned {
+  kGradients = 1u << 0,           // gradientFactor > 0: gradients and the BRDF
+  kEmission = 1u << 1,            // the transfer function emits
+  kEnvironmentMap = 1u << 2,      // the environment is an HDR map
+  kMultipleScattering = 1u << 3,  // maxBounces > 1: the bounce loop and Russian roulette
+  kSeveralLights = 1u << 4,       // more than one light to choose from
+};
+inline constexpr unsigned kAllFeatures = (1u << 5) - 1;
+inline constexpr unsigned kFeatureCombinations = kAllFeatures + 1;
+
+struct RenderScene {
+  VolumeView volume;
+  TransferView transfer;
+  MajorantGridView majorants;
+  const Light* lights = nullptr;  // in the backend's memory
+  int light_count = 0;
+  Environment environment;
+  Camera camera;
+  int spp = 1;
+  int max_bounces = 4;
+  std::uint64_t seed = 0;
+  std::uint32_t frame = 0;  // frame index: with seed and pixel, seeds the samples
+  bool has_emission = false;
+
+  // Lights that sampled directions can hit: area lights and the environment.
+  bool has_hittable_lights = false;
+};
+
+// Per-pixel outputs in the backend's memory.
+struct FrameTargets {
+  Vec3f* radiance = nullptr;     // this frame: mean over its samples
+  Vec4f* first_hit = nullptr;    // xyz: nearest first real collision (mm); w: 1 hit, 0 escaped
+  Vec3f* accumulated = nullptr;  // running sum of radiance since the last reset
+};
+
+// The smallest feature set that renders `scene` exactly.
+inline unsigned FeaturesOf(const RenderScene& scene) {
+  unsigned f = 0;
+  if (scene.transfer.gradient_factor > 0.0f) f |= kGradients;
+  if (scene.has_emission) f |= kEmission;
+  if (scene.environment.kind == Environment::Kind::kMap) f |= kEnvironmentMap;
+  if (scene.max_bounces > 1) f |= kMultipleScattering;
+  const int sampleable = scene.light_count + (scene.environment.kind != Environment::Kind::kNone ? 1 : 0);
+  if (sampleable > 1) f |= kSeveralLights;
+  return f;
+}
+
+}  // namespace cinevol

@@ -1,0 +1,73 @@
+// The renderer interface: one path tracer behind a CPU and a CUDA backend.
+// Scene parts are set when they change (the volume rarely, the transfer
+// function and lights on edits); Render draws one frame of spp samples per
+// pixel and adds it to the running accumulation.
+#pragma once
+
+#include <cstdint>
+#include <memory>
+#include <string>
+#include <string_view>
+#include <vector>
+
+#include "core/camera.h"
+#include "core/image.h"
+#include "core/lights.h"
+#include "core/transfer_function.h"
+#include "core/volume.h"
+#include "render/render_scene.h"
+
+namespace cinevol {
+
+// Picks the smallest specialised integrator for the scene.
+inline constexpr unsigned kAutoFeatures = ~0u;
+
+struct FrameRequest {
+  Camera camera;            // its width and height set the frame size
+  int spp = 1;              // samples per pixel in this frame, >= 1
+  int max_bounces = 4;      // scattering events per path, >= 0
+  std::uint64_t seed = 0;
+  std::uint32_t frame = 0;  // advance every frame: seeds this frame's samples
+  unsigned features = kAutoFeatures;  // or a RenderFeature set to force (at least what the scene uses)
+};
+
+class Renderer {
+ public:
+  virtual ~Renderer() = default;
+  virtual std::string Name() const = 0;
+
+  // The Volume must stay alive and unchanged while the renderer uses it.
+  virtual void SetVolume(std::shared_ptr<const Volume> volume) = 0;
+  virtual void SetTransferFunction(const TransferFunction& tf) = 0;
+  virtual void SetLights(const LightSetup& lights) = 0;
+
+  // Renders one frame. A new frame size resets the accumulation.
+  virtual void Render(const FrameRequest& request) = 0;
+  virtual void ResetAccumulation() = 0;
+  virtual int accumulated_frames() const = 0;
+  // The feature set the last frame was rendered with.
+  virtual unsigned last_features() const = 0;
+
+  // The last frame's outputs, copied to the host.
+  virtual ImageRgbF Radiance() const = 0;
+  virtual ImageRgbF AccumulatedMean() const = 0;
+  virtual std::vector<Vec4f> FirstHits() const = 0;
+
+  // The last frame's outputs in the backend's own memory (host or device),
+  // for the denoiser of the same backend.
+  virtual FrameTargets Targets() const = 0;
+};
+
+enum class Backend { kAuto, kCpu, kCuda };
+
+// "auto", "cpu" or "cuda"; throws InputError otherwise.
+Backend ParseBackend(std::string_view name);
+
+// kAuto takes CUDA when a usable GPU is present, else the CPU. kCuda without
+// a GPU (or a build without CUDA) throws InputError saying why.
+std::unique_ptr<Renderer> CreateRenderer(Backend backend);
+
+// Whether a CUDA device can run kernels, and its name or the reason it can't.
+bool CudaAvailable(std::string* description = nullptr);
+
+}  // namespace cinevol

@@ -1,0 +1,166 @@
+// The path tracer against analytic answers: Beer-Lambert transmittance,
+// the white furnace, determinism, and specialised against general variants.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <cstring>
+
+#include "render/cpu_renderer.h"
+#include "render_test_scenes.h"
+
+namespace cinevol {
+namespace {
+
+using testing::AxisCamera;
+using testing::ConstantMedium;
+using testing::UniformCube;
+using testing::UniformSky;
+
+struct Stats {
+  double mean = 0, stderr_of_mean = 0, max = 0, min = 0;
+  bool finite = true;
+};
+
+// Renders `frames` frames of `spp` and returns per-channel-green statistics
+// of the per-frame pixel means (frames are independent estimates).
+Stats RenderStats(CpuRenderer& r, const Camera& camera, int spp, int frames, int max_bounces, unsigned features = kAutoFeatures) {
+  std::vector<double> frame_means;
+  Stats s;
+  s.min = 1e30;
+  for (int f = 0; f < frames; ++f) {
+    FrameRequest req;
+    req.camera = camera;
+    req.spp = spp;
+    req.max_bounces = max_bounces;
+    req.frame = f;
+    req.seed = 7;
+    req.features = features;
+    r.Render(req);
+    double sum = 0;
+    for (const Vec3f& p : r.Radiance().pixels) {
+      s.finite &= IsFinite(p);
+      sum += p.y;
+      s.max = std::max(s.max, double(p.y));
+      s.min = std::min(s.min, double(p.y));
+    }
+    frame_means.push_back(sum / r.Radiance().pixels.size());
+  }
+  for (double m : frame_means) s.mean += m / frames;
+  double var = 0;
+  for (double m : frame_means) var += (m - s.mean) * (m - s.mean) / (frames - 1);
+  s.stderr_of_mean = std::sqrt(var / frames);
+  return s;
+}
+
+TEST(Integrator, AbsorbingCubeMatchesBeerLambert) {
+  for (float tau : {0.1f, 1.0f, 3.0f}) {
+    CpuRenderer r;
+    auto cube = UniformCube(16, 2.0f);  // 32 mm across
+    const float chord = 32.0f;
+    r.SetVolume(cube);
+    r.SetTransferFunction(ConstantMedium(tau / chord, 0.0f));
+    r.SetLights(UniformSky(1.0f));
+    const Stats s = RenderStats(r, AxisCamera(), 64, 8, 4);
+    const double expected = std::exp(-double(tau));
+    // Binomial per sample: the mean of n escapes has variance T(1-T)/n.
+    const double n = 16.0 * 16 * 64 * 8;
+    const double sigma = std::sqrt(expected * (1 - expected) / n);
+    EXPECT_NEAR(s.mean, expected, 3 * sigma) << "tau " << tau;
+    EXPECT_TRUE(s.finite);
+  }
+}
+
+TEST(Integrator, WhiteFurnaceConservesEnergy) {
+  for (float tau : {1e-3f, 0.1f, 1.0f, 10.0f}) {
+    CpuRenderer r;
+    r.SetVolume(UniformCube(16, 2.0f));
+    r.SetTransferFunction(ConstantMedium(tau / 32.0f, 1.0f));
+    r.SetLights(UniformSky(1.0f));
+    const Stats s = RenderStats(r, AxisCamera(), 16, 12, 256);
+    EXPECT_NEAR(s.mean, 1.0, std::max(3 * s.stderr_of_mean, 1e-4)) << "tau " << tau;
+    EXPECT_TRUE(s.finite);
+  }
+}
+
+// Per-pixel means over `frames` frames and their standard errors.
+void PixelMeans(CpuRenderer& r, const Camera& camera, int spp, int frames, int max_bounces,
+                std::vector<double>& mean, std::vector<double>& stderr_of_mean) {
+  const std::size_t n = std::size_t(camera.width) * camera.height;
+  std::vector<double> sum(n), sum2(n);
+  for (int f = 0; f < frames; ++f) {
+    FrameRequest req;
+    req.camera = camera;
+    req.spp = spp;
+    req.max_bounces = max_bounces;
+    req.frame = f;
+    r.Render(req);
+    const auto& px = r.Radiance().pixels;
+    for (std::size_t i = 0; i < n; ++i) {
+      sum[i] += px[i].y;
+      sum2[i] += double(px[i].y) * px[i].y;
+    }
+  }
+  mean.resize(n);
+  stderr_of_mean.resize(n);
+  for (std::size_t i = 0; i < n; ++i) {
+    mean[i] = sum[i] / frames;
+    stderr_of_mean[i] = std::sqrt(std::max(0.0, sum2[i] / frames - mean[i] * mean[i]) / (frames - 1));
+  }
+}
+
+TEST(Integrator, ThickFurnaceLosesEnergyOnlyToTheBounceLimit) {
+  CpuRenderer r;
+  r.SetVolume(UniformCube(16, 2.0f));
+  r.SetTransferFunction(ConstantMedium(100.0f / 32.0f, 1.0f));  // optical thickness 100
+  r.SetLights(UniformSky(1.0f));
+  double previous = 0;
+  for (int bounces : {4, 16, 64}) {
+    std::vector<double> mean, err;
+    PixelMeans(r, AxisCamera(8, 8), 8, 8, bounces, mean, err);
+    double image = 0;
+    for (std::size_t i = 0; i < mean.size(); ++i) {
+      ASSERT_TRUE(std::isfinite(mean[i]));
+      EXPECT_LE(mean[i], 1.0 + 5 * err[i] + 1e-6) << "pixel " << i << " with " << bounces << " bounces";
+      image += mean[i] / mean.size();
+    }
+    EXPECT_LT(image, 1.0);
+    EXPECT_GT(image, previous) << "more bounces lose less";
+    previous = image;
+  }
+}
+
+TEST(Integrator, SameSeedSameImageWhateverTheThreadCount) {
+  auto render = [](int threads) {
+    CpuRenderer r(threads);
+    r.SetVolume(UniformCube(16, 2.0f));
+    r.SetTransferFunction(ConstantMedium(0.05f, 0.8f, 1.0f));
+    r.SetLights(UniformSky(1.0f));
+    FrameRequest req;
+    req.camera = LookAt({60, -80, 40}, {0, 0, 0}, {0, 0, 1}, 40, 24, 20);
+    req.spp = 3;
+    req.seed = 11;
+    r.Render(req);
+    return r.Radiance();
+  };
+  const ImageRgbF one = render(1), three = render(3);
+  ASSERT_EQ(one.pixels.size(), three.pixels.size());
+  EXPECT_EQ(std::memcmp(one.pixels.data(), three.pixels.data(), one.pixels.size() * sizeof(Vec3f)), 0);
+}
+
+TEST(Integrator, SpecialisedVariantAgreesWithGeneral) {
+  // A scene using no optional feature: single scattering, one light, phase only.
+  CpuRenderer r;
+  r.SetVolume(UniformCube(16, 2.0f));
+  r.SetTransferFunction(ConstantMedium(1.0f / 32.0f, 0.9f));
+  r.SetLights(UniformSky(1.0f));
+  const Camera cam = LookAt({60, -80, 40}, {0, 0, 0}, {0, 0, 1}, 30, 8, 8);
+  const Stats special = RenderStats(r, cam, 16, 10, 1);
+  EXPECT_EQ(r.last_features(), 0u);
+  const Stats general = RenderStats(r, cam, 16, 10, 1, kAllFeatures);
+  EXPECT_EQ(r.last_features(), kAllFeatures);
+  const double sigma = std::hypot(special.stderr_of_mean, general.stderr_of_mean);
+  EXPECT_NEAR(special.mean, general.mean, 4 * sigma);
+}
+
+}  // namespace
+}  // namespace cinevol

@@ -1,0 +1,47 @@
+// Small analytic scenes for renderer tests: a uniform cube seen along an axis
+// under a uniform environment, with knobs for what each test varies.
+#pragma once
+
+#include <memory>
+
+#include "core/volume.h"
+#include "io/phantom.h"
+#include "render/renderer.h"
+
+namespace cinevol::testing {
+
+// A cube phantom of `size` voxels, every voxel `value`.
+inline std::shared_ptr<const Volume> UniformCube(int size = 16, float spacing = 2.0f, float value = 1.0f) {
+  v1::Phantom p;
+  p.set_kind(v1::Phantom::CUBE);
+  p.set_size(size);
+  p.set_spacing(spacing);
+  p.set_value(value);
+  p.set_background(value);
+  return std::make_shared<const Volume>(MakePhantom(p));
+}
+
+// Constant opacity 1 and albedo `albedo` at every value: sigma_t = density.
+inline TransferFunction ConstantMedium(float density, float albedo, float gradient_factor = 0.0f) {
+  TransferFunction tf;
+  const Vec3f a{albedo, albedo, albedo};
+  tf.points = {{-1e6f, 1.0f, a, {}, 0.5f, {}}, {1e6f, 1.0f, a, {}, 0.5f, {}}};
+  tf.density_scale = density;
+  tf.gradient_factor = gradient_factor;
+  return tf;
+}
+
+inline LightSetup UniformSky(float radiance = 1.0f) {
+  LightSetup s;
+  s.environment.kind = Environment::Kind::kUniform;
+  s.environment.zenith = {radiance, radiance, radiance};
+  return s;
+}
+
+// Looking along +y at the volume from far away, so rays through the middle
+// cross the cube along y.
+inline Camera AxisCamera(int width = 16, int height = 16, float distance = 4000.0f, float fov_deg = 0.2f) {
+  return LookAt({0, -distance, 0}, {0, 0, 0}, {0, 0, 1}, fov_deg, width, height);
+}
+
+}  // namespace cinevol::testing
