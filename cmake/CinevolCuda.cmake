@@ -14,7 +14,7 @@ if(NOT CINEVOL_CUDA STREQUAL "OFF")
       set(CMAKE_CUDA_ARCHITECTURES 90-real 90-virtual)
     endif()
     enable_language(CUDA)
-    set(CMAKE_CUDA_STANDARD 20)
+    set(CMAKE_CUDA_STANDARD 17)  # CMake 3.25 has no C++20 dialect for nvcc
     set(CMAKE_CUDA_STANDARD_REQUIRED ON)
     find_package(CUDAToolkit REQUIRED)
     set(CINEVOL_HAVE_CUDA ON)

@@ -14,4 +14,11 @@ class InputError : public std::runtime_error {
   explicit InputError(const std::string& what) : std::runtime_error(what) {}
 };
 
+// Out of a resource the request needs: GPU memory, session slots. The
+// service answers RESOURCE_EXHAUSTED; other sessions are unaffected.
+class ResourceExhausted : public std::runtime_error {
+ public:
+  explicit ResourceExhausted(const std::string& what) : std::runtime_error(what) {}
+};
+
 }  // namespace cinevol

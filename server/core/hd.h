@@ -5,16 +5,21 @@
 
 #if defined(__CUDACC__)
 #define CINEVOL_HD __host__ __device__ __forceinline__
-#define CINEVOL_DEVICE_CODE 1
 #else
 #define CINEVOL_HD inline
-#define CINEVOL_DEVICE_CODE 0
+#endif
+
+// True in nvcc's device pass only (inside a CINEVOL_HD body).
+#if defined(__CUDA_ARCH__)
+#define CINEVOL_DEVICE_PASS 1
+#else
+#define CINEVOL_DEVICE_PASS 0
 #endif
 
 // Loads through the read-only data cache on the GPU; a plain load elsewhere.
 template <class T>
 CINEVOL_HD T LoadReadOnly(const T* p) {
-#if CINEVOL_DEVICE_CODE
+#if CINEVOL_DEVICE_PASS
   if constexpr (sizeof(T) == 16 && alignof(T) == 16) {
     const float4 v = __ldg(reinterpret_cast<const float4*>(p));
     return T{v.x, v.y, v.z, v.w};

@@ -24,11 +24,7 @@ struct VolumeView {
     y = y < 0 ? 0 : (y >= dims.y ? dims.y - 1 : y);
     z = z < 0 ? 0 : (z >= dims.z ? dims.z - 1 : z);
     const std::int64_t i = (std::int64_t(z) * dims.y + y) * dims.x + x;
-#if CINEVOL_DEVICE_CODE
-    return static_cast<float>(__ldg(voxels + i));
-#else
-    return static_cast<float>(voxels[i]);
-#endif
+    return static_cast<float>(LoadReadOnly(voxels + i));
   }
 
   // Continuous voxel coordinates: voxel centres at integers.

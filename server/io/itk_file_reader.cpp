@@ -285,7 +285,7 @@ std::string RawPayloadProblem(itk::ImageIOBase& io, const fs::path& path) {
   std::error_code ec;
   const auto size = fs::file_size(data, ec);
   if (ec) return fmt::format("cannot read the voxel data file {}", data.string());
-  if (size < io.GetImageSizeInBytes()) {
+  if (size < std::uintmax_t(io.GetImageSizeInBytes())) {
     return fmt::format("truncated: {} voxel bytes expected, {} holds {} bytes in all", io.GetImageSizeInBytes(),
                        data.filename().string(), size);
   }

@@ -8,8 +8,8 @@ namespace cinevol {
 
 class CpuRenderer final : public Renderer {
  public:
-  // threads <= 0: every hardware thread (or CINEVOL_THREADS).
-  explicit CpuRenderer(int threads = 0) : threads_(threads) {}
+  explicit CpuRenderer(const RendererOptions& options = {})
+      : threads_(options.cpu_threads), data_(options.empty_space_skipping) {}
 
   std::string Name() const override { return "cpu"; }
   void SetVolume(std::shared_ptr<const Volume> volume) override { data_.SetVolume(std::move(volume)); }

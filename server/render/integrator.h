@@ -44,7 +44,7 @@ class PathTracer {
     float scatter_pdf = 0.0f;  // pdf of the direction `ray` was sampled with
     const int max_bounces = kMultiple ? s_.max_bounces : MinInt(s_.max_bounces, 1);
     for (int depth = 0;; ++depth) {
-      float t_hit, entry;
+      float t_hit = 0.0f, entry = 0.0f;
       const Collision c = NextCollision(ray, t_hit, entry);
       if (c == Collision::kAbsorbedByBudget) break;
       const bool from_camera = depth == 0;

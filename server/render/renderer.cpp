@@ -25,15 +25,15 @@ bool CudaAvailable(std::string* description) {
 }
 #endif
 
-std::unique_ptr<Renderer> CreateRenderer(Backend backend) {
-  if (backend == Backend::kCpu) return std::make_unique<CpuRenderer>();
+std::unique_ptr<Renderer> CreateRenderer(Backend backend, const RendererOptions& options) {
+  if (backend == Backend::kCpu) return std::make_unique<CpuRenderer>(options);
   std::string why;
   const bool cuda = CudaAvailable(&why);
   if (backend == Backend::kCuda && !cuda) throw InputError("the CUDA backend is not available: " + why);
 #if CINEVOL_WITH_CUDA
-  if (cuda) return std::make_unique<CudaRenderer>();
+  if (cuda) return std::make_unique<CudaRenderer>(options);
 #endif
-  return std::make_unique<CpuRenderer>();
+  return std::make_unique<CpuRenderer>(options);
 }
 
 }  // namespace cinevol

@@ -60,12 +60,18 @@ class Renderer {
 
 enum class Backend { kAuto, kCpu, kCuda };
 
+struct RendererOptions {
+  // Skip empty bricks and bound dense ones tightly; off: one global majorant.
+  bool empty_space_skipping = true;
+  int cpu_threads = 0;  // 0: every hardware thread (or CINEVOL_THREADS)
+};
+
 // "auto", "cpu" or "cuda"; throws InputError otherwise.
 Backend ParseBackend(std::string_view name);
 
 // kAuto takes CUDA when a usable GPU is present, else the CPU. kCuda without
 // a GPU (or a build without CUDA) throws InputError saying why.
-std::unique_ptr<Renderer> CreateRenderer(Backend backend);
+std::unique_ptr<Renderer> CreateRenderer(Backend backend, const RendererOptions& options = {});
 
 // Whether a CUDA device can run kernels, and its name or the reason it can't.
 bool CudaAvailable(std::string* description = nullptr);

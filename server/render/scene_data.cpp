@@ -9,9 +9,9 @@
 
 namespace cinevol {
 
-BrickRanges ComputeBrickRanges(const std::uint16_t* voxels, Vec3i dims) {
+BrickRanges ComputeBrickRanges(const std::uint16_t* voxels, Vec3i dims, Vec3i brick_size) {
   BrickRanges r;
-  for (int a = 0; a < 3; ++a) r.bricks[a] = (dims[a] + kBrickSize - 1) / kBrickSize;
+  for (int a = 0; a < 3; ++a) r.bricks[a] = (dims[a] + brick_size[a] - 1) / brick_size[a];
   const std::size_t count = std::size_t(r.bricks.x) * r.bricks.y * r.bricks.z;
   r.min.assign(count, 0xffff);
   r.max.assign(count, 0);
@@ -22,8 +22,8 @@ BrickRanges ComputeBrickRanges(const std::uint16_t* voxels, Vec3i dims) {
         const Vec3i b{bx, by, int(bz)};
         Vec3i lo, hi;  // voxels read by trilinear lookups inside the brick
         for (int a = 0; a < 3; ++a) {
-          lo[a] = std::max(0, b[a] * kBrickSize - 1);
-          hi[a] = std::min(dims[a] - 1, (b[a] + 1) * kBrickSize);
+          lo[a] = std::max(0, b[a] * brick_size[a] - 1);
+          hi[a] = std::min(dims[a] - 1, (b[a] + 1) * brick_size[a]);
         }
         std::uint16_t mn = 0xffff, mx = 0;
         for (int z = lo.z; z <= hi.z; ++z) {
@@ -122,7 +122,8 @@ void SceneData::SetVolume(std::shared_ptr<const Volume> volume) {
     }, 0, 1 << 16);
     voxels_ = quantised_.data();
   }
-  bricks_ = ComputeBrickRanges(voxels_, v.dims());
+  brick_size_ = empty_space_skipping_ ? Vec3i{kBrickSize, kBrickSize, kBrickSize} : v.dims();
+  bricks_ = ComputeBrickRanges(voxels_, v.dims(), brick_size_);
   if (!tf_.points.empty()) SetTransferFunction(tf_);
 }
 
@@ -168,7 +169,7 @@ RenderScene SceneData::HostView() const {
     s.majorants.majorant = majorants_.data();
     s.majorants.bricks = bricks_.bricks;
     s.majorants.box_min = s.volume.box_min;
-    s.majorants.inv_brick_size = Vec3f{1, 1, 1} / (v.spacing_mm() * float(kBrickSize));
+    s.majorants.inv_brick_size = Vec3f{1, 1, 1} / (v.spacing_mm() * ToFloat(brick_size_));
   }
   s.transfer.sigma_t = table_.sigma_t.data();
   s.transfer.diffuse_opacity = table_.diffuse_opacity.data();

@@ -24,7 +24,7 @@ struct BrickRanges {
   std::vector<std::uint16_t> min, max;
 };
 
-BrickRanges ComputeBrickRanges(const std::uint16_t* voxels, Vec3i dims);
+BrickRanges ComputeBrickRanges(const std::uint16_t* voxels, Vec3i dims, Vec3i brick_size);
 
 // Per-brick majorant: the largest extinction the table gives over the brick's
 // value range (entries = stored * entry_scale + entry_offset).
@@ -42,6 +42,10 @@ EnvironmentDistribution BuildEnvironmentDistribution(const ImageRgbF& map);
 
 class SceneData {
  public:
+  // Without empty-space skipping the grid is one brick with the global
+  // majorant: classic Woodcock tracking, for measuring what bricks buy.
+  explicit SceneData(bool empty_space_skipping = true) : empty_space_skipping_(empty_space_skipping) {}
+
   // Quantises float volumes to 16 bits over their range; 16-bit volumes are
   // used as they are (the Volume must outlive this object).
   void SetVolume(std::shared_ptr<const Volume> volume);
@@ -65,6 +69,8 @@ class SceneData {
  private:
   void UpdateMajorants();
 
+  bool empty_space_skipping_;
+  Vec3i brick_size_{kBrickSize, kBrickSize, kBrickSize};
   std::shared_ptr<const Volume> volume_;
   std::vector<std::uint16_t> quantised_;  // float volumes only
   const std::uint16_t* voxels_ = nullptr;

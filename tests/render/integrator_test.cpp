@@ -5,6 +5,7 @@
 #include <cmath>
 #include <cstring>
 
+#include "io/phantom.h"
 #include "render/cpu_renderer.h"
 #include "render_test_scenes.h"
 
@@ -131,7 +132,9 @@ TEST(Integrator, ThickFurnaceLosesEnergyOnlyToTheBounceLimit) {
 
 TEST(Integrator, SameSeedSameImageWhateverTheThreadCount) {
   auto render = [](int threads) {
-    CpuRenderer r(threads);
+    RendererOptions options;
+    options.cpu_threads = threads;
+    CpuRenderer r(options);
     r.SetVolume(UniformCube(16, 2.0f));
     r.SetTransferFunction(ConstantMedium(0.05f, 0.8f, 1.0f));
     r.SetLights(UniformSky(1.0f));
@@ -160,6 +163,32 @@ TEST(Integrator, SpecialisedVariantAgreesWithGeneral) {
   EXPECT_EQ(r.last_features(), kAllFeatures);
   const double sigma = std::hypot(special.stderr_of_mean, general.stderr_of_mean);
   EXPECT_NEAR(special.mean, general.mean, 4 * sigma);
+}
+
+TEST(Integrator, EmptySpaceSkippingIsUnbiased) {
+  // A sparse volume: bricks skip empty space and tighten bounds, the global
+  // majorant does neither; both must converge to the same image.
+  v1::Phantom p;
+  p.set_kind(v1::Phantom::SPHERE);
+  p.set_size(32);
+  p.set_spacing(1.0f);
+  p.set_radius(9.0f);
+  auto sphere = std::make_shared<const Volume>(MakePhantom(p));
+  TransferFunction tf = ConstantMedium(0.2f, 0.8f, 1.0f);
+  tf.points[0] = {100, 0, {0.8f, 0.8f, 0.8f}, {0.2f, 0.2f, 0.2f}, 0.4f, {}};
+  tf.points[1] = {900, 1, {0.8f, 0.8f, 0.8f}, {0.2f, 0.2f, 0.2f}, 0.4f, {}};
+  const Camera cam = LookAt({30, -50, 20}, {0, 0, 0}, {0, 0, 1}, 30, 8, 8);
+  Stats with_bricks, global;
+  for (bool bricks : {true, false}) {
+    RendererOptions options;
+    options.empty_space_skipping = bricks;
+    CpuRenderer r(options);
+    r.SetVolume(sphere);
+    r.SetTransferFunction(tf);
+    r.SetLights(UniformSky(1.0f));
+    (bricks ? with_bricks : global) = RenderStats(r, cam, 16, 16, 4);
+  }
+  EXPECT_NEAR(with_bricks.mean, global.mean, 4 * std::hypot(with_bricks.stderr_of_mean, global.stderr_of_mean));
 }
 
 }  // namespace

@@ -1,0 +1,85 @@
+// RAII device memory and error checks for the CUDA backends (renderer and
+// denoiser). Included only by .cu files.
+#pragma once
+
+#include <cuda_runtime.h>
+
+#include <cstddef>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+#include "core/error.h"
+
+namespace cinevol::cuda {
+
+// Throws with the call site and CUDA's message; out-of-memory becomes
+// ResourceExhausted so the service can answer RESOURCE_EXHAUSTED.
+inline void Check(cudaError_t e, const char* what, const char* file, int line) {
+  if (e == cudaSuccess) return;
+  const std::string message = std::string(what) + " failed at " + file + ":" + std::to_string(line) + ": " +
+                              cudaGetErrorString(e);
+  if (e == cudaErrorMemoryAllocation) throw ResourceExhausted(message);
+  throw std::runtime_error(message);
+}
+
+#define CINEVOL_CUDA_CHECK(call) ::cinevol::cuda::Check((call), #call, __FILE__, __LINE__)
+// After a kernel launch: launch errors now, execution errors at the next sync.
+#define CINEVOL_CUDA_CHECK_LAUNCH() ::cinevol::cuda::Check(cudaGetLastError(), "kernel launch", __FILE__, __LINE__)
+
+template <class T>
+class DeviceBuffer {
+ public:
+  DeviceBuffer() = default;
+  explicit DeviceBuffer(std::size_t count) { Resize(count); }
+  ~DeviceBuffer() { Free(); }
+  DeviceBuffer(const DeviceBuffer&) = delete;
+  DeviceBuffer& operator=(const DeviceBuffer&) = delete;
+  DeviceBuffer(DeviceBuffer&& o) noexcept : data_(o.data_), count_(o.count_) { o.data_ = nullptr, o.count_ = 0; }
+  DeviceBuffer& operator=(DeviceBuffer&& o) noexcept {
+    std::swap(data_, o.data_);
+    std::swap(count_, o.count_);
+    return *this;
+  }
+
+  // Reallocates only when the size changes; contents are undefined after.
+  void Resize(std::size_t count) {
+    if (count == count_) return;
+    Free();
+    if (count > 0) CINEVOL_CUDA_CHECK(cudaMalloc(&data_, count * sizeof(T)));
+    count_ = count;
+  }
+
+  void Upload(const T* host, std::size_t count, cudaStream_t stream = nullptr) {
+    Resize(count);
+    if (count > 0) CINEVOL_CUDA_CHECK(cudaMemcpyAsync(data_, host, count * sizeof(T), cudaMemcpyHostToDevice, stream));
+  }
+  void Upload(const std::vector<T>& host, cudaStream_t stream = nullptr) { Upload(host.data(), host.size(), stream); }
+
+  std::vector<T> Download(cudaStream_t stream = nullptr) const {
+    std::vector<T> host(count_);
+    if (count_ > 0) {
+      CINEVOL_CUDA_CHECK(cudaMemcpyAsync(host.data(), data_, count_ * sizeof(T), cudaMemcpyDeviceToHost, stream));
+      CINEVOL_CUDA_CHECK(cudaStreamSynchronize(stream));
+    }
+    return host;
+  }
+
+  void Zero(cudaStream_t stream = nullptr) {
+    if (count_ > 0) CINEVOL_CUDA_CHECK(cudaMemsetAsync(data_, 0, count_ * sizeof(T), stream));
+  }
+
+  T* data() const { return data_; }
+  std::size_t size() const { return count_; }
+
+ private:
+  void Free() {
+    if (data_) cudaFree(data_);
+    data_ = nullptr;
+    count_ = 0;
+  }
+  T* data_ = nullptr;
+  std::size_t count_ = 0;
+};
+
+}  // namespace cinevol::cuda

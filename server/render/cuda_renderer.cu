@@ -1,0 +1,199 @@
+// CudaRenderer: uploads SceneData's tables and launches RenderPixel<F> over
+// the image, one thread per pixel.
+#include "render/cuda_renderer.h"
+
+#include <array>
+#include <utility>
+
+#include "render/cuda_buffer.h"
+#include "render/integrator.h"
+
+namespace cinevol {
+
+using cuda::DeviceBuffer;
+
+namespace {
+
+// 8x8 pixel blocks: neighbouring paths touch neighbouring voxels.
+constexpr int kBlock = 8;
+
+template <unsigned kFeatures>
+__global__ void __launch_bounds__(kBlock* kBlock) RenderKernel(RenderScene scene, FrameTargets targets) {
+  const int x = blockIdx.x * blockDim.x + threadIdx.x;
+  const int y = blockIdx.y * blockDim.y + threadIdx.y;
+  if (x >= scene.camera.width || y >= scene.camera.height) return;
+  RenderPixel<kFeatures>(scene, x, y, targets);
+}
+
+using Kernel = void (*)(RenderScene, FrameTargets);
+
+template <unsigned... kFeatures>
+std::array<Kernel, sizeof...(kFeatures)> MakeKernels(std::integer_sequence<unsigned, kFeatures...>) {
+  return {&RenderKernel<kFeatures>...};
+}
+
+}  // namespace
+
+struct CudaRenderer::Device {
+  cudaStream_t stream = nullptr;
+  cudaEvent_t start = nullptr, stop = nullptr;
+  DeviceBuffer<std::uint16_t> voxels;
+  DeviceBuffer<float> majorants, sigma_t, env_weight, env_marginal, env_conditional;
+  DeviceBuffer<Vec4f> diffuse_opacity, specular_roughness, emission, env_texels;
+  DeviceBuffer<Light> lights;
+  DeviceBuffer<Vec3f> radiance, accumulated;
+  DeviceBuffer<Vec4f> first_hit;
+
+  Device() {
+    CINEVOL_CUDA_CHECK(cudaStreamCreateWithFlags(&stream, cudaStreamNonBlocking));
+    CINEVOL_CUDA_CHECK(cudaEventCreate(&start));
+    CINEVOL_CUDA_CHECK(cudaEventCreate(&stop));
+  }
+  ~Device() {
+    cudaStreamSynchronize(stream);
+    cudaEventDestroy(start);
+    cudaEventDestroy(stop);
+    cudaStreamDestroy(stream);
+  }
+};
+
+bool CudaAvailable(std::string* description) {
+  int count = 0;
+  // Without a driver or GPU this fails (e.g. "CUDA driver version is
+  // insufficient"): any error means no GPU.
+  const cudaError_t e = cudaGetDeviceCount(&count);
+  if (e != cudaSuccess || count == 0) {
+    if (description) *description = e != cudaSuccess ? cudaGetErrorString(e) : "no CUDA device found";
+    cudaGetLastError();  // clear the sticky error
+    return false;
+  }
+  cudaDeviceProp prop;
+  if (cudaGetDeviceProperties(&prop, 0) != cudaSuccess) {
+    if (description) *description = "cannot query CUDA device 0";
+    return false;
+  }
+  if (prop.major < 9) {
+    if (description) {
+      *description = std::string(prop.name) + " has compute capability " + std::to_string(prop.major) + "." +
+                     std::to_string(prop.minor) + "; this build targets 9.0 and newer";
+    }
+    return false;
+  }
+  if (description) *description = prop.name;
+  return true;
+}
+
+CudaRenderer::CudaRenderer(const RendererOptions& options)
+    : device_(std::make_unique<Device>()), data_(options.empty_space_skipping) {}
+CudaRenderer::~CudaRenderer() = default;
+
+void CudaRenderer::SetVolume(std::shared_ptr<const Volume> volume) {
+  data_.SetVolume(std::move(volume));
+  device_->voxels.Upload(data_.voxels(), data_.voxel_count(), device_->stream);
+  if (!data_.majorants().empty()) device_->majorants.Upload(data_.majorants(), device_->stream);
+  CINEVOL_CUDA_CHECK(cudaStreamSynchronize(device_->stream));  // host arrays may change next
+}
+
+void CudaRenderer::SetTransferFunction(const TransferFunction& tf) {
+  data_.SetTransferFunction(tf);
+  const TransferTable& t = data_.table();
+  Device& d = *device_;
+  d.sigma_t.Upload(t.sigma_t, d.stream);
+  d.diffuse_opacity.Upload(t.diffuse_opacity, d.stream);
+  d.specular_roughness.Upload(t.specular_roughness, d.stream);
+  d.emission.Upload(t.emission, d.stream);
+  d.majorants.Upload(data_.majorants(), d.stream);
+  CINEVOL_CUDA_CHECK(cudaStreamSynchronize(d.stream));
+}
+
+void CudaRenderer::SetLights(const LightSetup& lights) {
+  data_.SetLights(lights);
+  Device& d = *device_;
+  d.lights.Upload(data_.lights(), d.stream);
+  const EnvironmentDistribution& env = data_.environment_distribution();
+  d.env_texels.Upload(env.texels, d.stream);
+  d.env_weight.Upload(env.weight, d.stream);
+  d.env_marginal.Upload(env.marginal_cdf, d.stream);
+  d.env_conditional.Upload(env.conditional_cdf, d.stream);
+  CINEVOL_CUDA_CHECK(cudaStreamSynchronize(d.stream));
+}
+
+void CudaRenderer::Render(const FrameRequest& request) {
+  if (!data_.has_volume()) throw std::logic_error("CudaRenderer::Render before SetVolume");
+  Device& d = *device_;
+  const int w = request.camera.width, h = request.camera.height;
+  if (w != width_ || h != height_) {
+    width_ = w;
+    height_ = h;
+    d.radiance.Resize(std::size_t(w) * h);
+    d.first_hit.Resize(std::size_t(w) * h);
+    d.accumulated.Resize(std::size_t(w) * h);
+    ResetAccumulation();
+  }
+  RenderScene scene = data_.HostView();
+  scene.volume.voxels = d.voxels.data();
+  scene.majorants.majorant = d.majorants.data();
+  scene.transfer.sigma_t = d.sigma_t.data();
+  scene.transfer.diffuse_opacity = d.diffuse_opacity.data();
+  scene.transfer.specular_roughness = d.specular_roughness.data();
+  scene.transfer.emission = d.emission.data();
+  scene.lights = d.lights.data();
+  scene.environment.map.texels = d.env_texels.data();
+  scene.environment.map.weight = d.env_weight.data();
+  scene.environment.map.marginal_cdf = d.env_marginal.data();
+  scene.environment.map.conditional_cdf = d.env_conditional.data();
+  scene.camera = request.camera;
+  scene.spp = request.spp;
+  scene.max_bounces = request.max_bounces;
+  scene.seed = request.seed;
+  scene.frame = request.frame;
+  const unsigned needed = FeaturesOf(scene);
+  last_features_ = request.features == kAutoFeatures ? needed : (request.features | needed) & kAllFeatures;
+
+  static const auto kKernels = MakeKernels(std::make_integer_sequence<unsigned, kFeatureCombinations>());
+  const dim3 block(kBlock, kBlock);
+  const dim3 grid((w + kBlock - 1) / kBlock, (h + kBlock - 1) / kBlock);
+  CINEVOL_CUDA_CHECK(cudaEventRecord(d.start, d.stream));
+  kKernels[last_features_]<<<grid, block, 0, d.stream>>>(scene, Targets());
+  CINEVOL_CUDA_CHECK_LAUNCH();
+  CINEVOL_CUDA_CHECK(cudaEventRecord(d.stop, d.stream));
+  ++accumulated_frames_;
+}
+
+void CudaRenderer::ResetAccumulation() {
+  device_->accumulated.Zero(device_->stream);
+  accumulated_frames_ = 0;
+}
+
+float CudaRenderer::LastKernelMilliseconds() const {
+  CINEVOL_CUDA_CHECK(cudaEventSynchronize(device_->stop));
+  float ms = 0;
+  CINEVOL_CUDA_CHECK(cudaEventElapsedTime(&ms, device_->start, device_->stop));
+  return ms;
+}
+
+std::size_t CudaRenderer::DeviceBytes() const {
+  const Device& d = *device_;
+  return d.voxels.size() * 2 + (d.majorants.size() + d.sigma_t.size() + d.env_weight.size() + d.env_marginal.size() +
+                                d.env_conditional.size()) * 4 +
+         (d.diffuse_opacity.size() + d.specular_roughness.size() + d.emission.size() + d.env_texels.size() +
+          d.first_hit.size()) * sizeof(Vec4f) +
+         d.lights.size() * sizeof(Light) + (d.radiance.size() + d.accumulated.size()) * sizeof(Vec3f);
+}
+
+ImageRgbF CudaRenderer::Radiance() const { return {width_, height_, device_->radiance.Download(device_->stream)}; }
+
+ImageRgbF CudaRenderer::AccumulatedMean() const {
+  ImageRgbF image{width_, height_, device_->accumulated.Download(device_->stream)};
+  const float inv = accumulated_frames_ > 0 ? 1.0f / float(accumulated_frames_) : 0.0f;
+  for (Vec3f& p : image.pixels) p *= inv;
+  return image;
+}
+
+std::vector<Vec4f> CudaRenderer::FirstHits() const { return device_->first_hit.Download(device_->stream); }
+
+FrameTargets CudaRenderer::Targets() const {
+  return {device_->radiance.data(), device_->first_hit.data(), device_->accumulated.data()};
+}
+
+}  // namespace cinevol

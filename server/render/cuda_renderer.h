@@ -1,0 +1,45 @@
+// The CUDA backend: the shared per-pixel integrator as one kernel per
+// feature set. Scene data live in device memory, uploaded when they change;
+// frames stay on the device for the CUDA denoiser.
+#pragma once
+
+#include <memory>
+
+#include "render/renderer.h"
+#include "render/scene_data.h"
+
+namespace cinevol {
+
+class CudaRenderer final : public Renderer {
+ public:
+  explicit CudaRenderer(const RendererOptions& options = {});
+  ~CudaRenderer() override;
+
+  std::string Name() const override { return "cuda"; }
+  void SetVolume(std::shared_ptr<const Volume> volume) override;
+  void SetTransferFunction(const TransferFunction& tf) override;
+  void SetLights(const LightSetup& lights) override;
+  void Render(const FrameRequest& request) override;
+  void ResetAccumulation() override;
+  int accumulated_frames() const override { return accumulated_frames_; }
+  unsigned last_features() const override { return last_features_; }
+  ImageRgbF Radiance() const override;
+  ImageRgbF AccumulatedMean() const override;
+  std::vector<Vec4f> FirstHits() const override;
+  FrameTargets Targets() const override;
+
+  // GPU time of the last Render's kernel, in ms (waits for it to finish).
+  float LastKernelMilliseconds() const;
+  // Device memory this renderer holds, in bytes.
+  std::size_t DeviceBytes() const;
+
+ private:
+  struct Device;  // CUDA objects; defined in the .cu file
+  std::unique_ptr<Device> device_;
+  SceneData data_;
+  int width_ = 0, height_ = 0;
+  int accumulated_frames_ = 0;
+  unsigned last_features_ = 0;
+};
+
+}  // namespace cinevol
