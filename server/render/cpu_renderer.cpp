@@ -3,6 +3,7 @@
 #include "render/cpu_renderer.h"
 
 #include <array>
+#include <chrono>
 #include <stdexcept>
 #include <utility>
 
@@ -48,7 +49,9 @@ void CpuRenderer::Render(const FrameRequest& request) {
   scene.frame = request.frame;
   const unsigned needed = FeaturesOf(scene);
   last_features_ = request.features == kAutoFeatures ? needed : (request.features | needed) & kAllFeatures;
+  const auto start = std::chrono::steady_clock::now();
   kVariants[last_features_](scene, Targets(), threads_);
+  last_ms_ = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
   ++accumulated_frames_;
 }
 

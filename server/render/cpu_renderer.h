@@ -19,6 +19,7 @@ class CpuRenderer final : public Renderer {
   void ResetAccumulation() override;
   int accumulated_frames() const override { return accumulated_frames_; }
   unsigned last_features() const override { return last_features_; }
+  double LastFrameMilliseconds() const override { return last_ms_; }
   ImageRgbF Radiance() const override;
   ImageRgbF AccumulatedMean() const override;
   std::vector<Vec4f> FirstHits() const override { return first_hit_; }
@@ -32,6 +33,7 @@ class CpuRenderer final : public Renderer {
   std::vector<Vec4f> first_hit_;
   int accumulated_frames_ = 0;
   unsigned last_features_ = 0;
+  double last_ms_ = 0;
 };
 
 }  // namespace cinevol

@@ -165,7 +165,7 @@ void CudaRenderer::ResetAccumulation() {
   accumulated_frames_ = 0;
 }
 
-float CudaRenderer::LastKernelMilliseconds() const {
+double CudaRenderer::LastFrameMilliseconds() const {
   CINEVOL_CUDA_CHECK(cudaEventSynchronize(device_->stop));
   float ms = 0;
   CINEVOL_CUDA_CHECK(cudaEventElapsedTime(&ms, device_->start, device_->stop));

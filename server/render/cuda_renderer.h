@@ -23,13 +23,12 @@ class CudaRenderer final : public Renderer {
   void ResetAccumulation() override;
   int accumulated_frames() const override { return accumulated_frames_; }
   unsigned last_features() const override { return last_features_; }
+  double LastFrameMilliseconds() const override;
   ImageRgbF Radiance() const override;
   ImageRgbF AccumulatedMean() const override;
   std::vector<Vec4f> FirstHits() const override;
   FrameTargets Targets() const override;
 
-  // GPU time of the last Render's kernel, in ms (waits for it to finish).
-  float LastKernelMilliseconds() const;
   // Device memory this renderer holds, in bytes.
   std::size_t DeviceBytes() const;
 

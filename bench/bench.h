@@ -1,0 +1,24 @@
+// cinevol-bench: quality and time measurements whose results go to
+// docs/performance.md with the command that produced them.
+#pragma once
+
+#include <string>
+
+namespace cinevol::bench {
+
+struct RenderBenchOptions {
+  std::string scene;
+  std::string volume;  // overrides the scene's volume (e.g. data copied to a GPU machine)
+  std::string backend = "auto";
+  std::string out;     // Markdown table appended here
+  std::string command_line;
+  int width = 0, height = 0;  // 0: the scene's
+  int frames = 50, warmup = 5;
+};
+
+int RunRenderBench(const RenderBenchOptions& options);
+
+// "NVIDIA H100 80GB HBM3 (cuda)" or "cpu, 2 threads".
+std::string DeviceDescription(const std::string& backend);
+
+}  // namespace cinevol::bench

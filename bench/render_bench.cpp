@@ -1,0 +1,92 @@
+// `cinevol-bench render`: milliseconds per frame and paths per second of the
+// path tracer on a scene, with empty-space skipping and specialisation each
+// switched on and off in the same run. Prints a Markdown table (and appends
+// it to --out) for docs/performance.md.
+#include <algorithm>
+#include <chrono>
+#include <fstream>
+
+#include <fmt/format.h>
+
+#include "bench.h"
+#include "io/scene_builder.h"
+#include "io/scene_file.h"
+#include "io/volume_loader.h"
+#include "render/renderer.h"
+
+namespace cinevol::bench {
+namespace {
+
+struct Config {
+  const char* name;
+  bool empty_space_skipping;
+  bool specialised;
+};
+
+struct Result {
+  double median_ms, p10_ms, p90_ms, paths_per_second;
+  unsigned features;
+};
+
+Result Measure(const RenderBenchOptions& o, const Config& c, std::shared_ptr<const Volume> volume,
+               const RenderSetup& setup) {
+  RendererOptions options;
+  options.empty_space_skipping = c.empty_space_skipping;
+  auto renderer = CreateRenderer(ParseBackend(o.backend), options);
+  renderer->SetVolume(volume);
+  renderer->SetTransferFunction(setup.transfer_function);
+  renderer->SetLights(setup.lights);
+  FrameRequest req;
+  req.camera = setup.camera;
+  req.spp = setup.spp;
+  req.max_bounces = setup.max_bounces;
+  req.seed = setup.seed;
+  req.features = c.specialised ? kAutoFeatures : kAllFeatures;
+  std::vector<double> ms;
+  for (int f = 0; f < o.warmup + o.frames; ++f) {
+    req.frame = f;
+    renderer->Render(req);
+    const double t = renderer->LastFrameMilliseconds();  // waits for the frame
+    if (f >= o.warmup) ms.push_back(t);
+  }
+  std::sort(ms.begin(), ms.end());
+  const double median = ms[ms.size() / 2];
+  const double paths = double(req.camera.width) * req.camera.height * req.spp;
+  return {median, ms[ms.size() / 10], ms[ms.size() * 9 / 10], paths / (median / 1000.0), renderer->last_features()};
+}
+
+}  // namespace
+
+int RunRenderBench(const RenderBenchOptions& o) {
+  v1::Scene scene = LoadSceneFile(o.scene);
+  if (!o.volume.empty()) *scene.mutable_volume() = ParseVolumeSpec(o.volume);
+  if (o.width > 0) scene.mutable_render()->set_width(o.width);
+  if (o.height > 0) scene.mutable_render()->set_height(o.height);
+  auto volume = std::make_shared<const Volume>(LoadVolume(scene.volume()));
+  const RenderSetup setup = ResolveScene(scene, *volume);
+  const std::string device = DeviceDescription(o.backend);
+
+  std::string table = fmt::format(
+      "\n### {} on {}\n\n`{}`\n\nvolume {} ({}x{}x{}), {}x{}, {} spp/frame, up to {} bounces, {} lights + "
+      "environment; median of {} frames after {} warm-up\n\n"
+      "| configuration | features | median ms/frame | p10..p90 ms | Mpaths/s |\n|---|---|---|---|---|\n",
+      o.scene, device, o.command_line, volume->metadata().source, volume->dims().x, volume->dims().y,
+      volume->dims().z, setup.camera.width, setup.camera.height, setup.spp, setup.max_bounces,
+      setup.lights.lights.size(), o.frames, o.warmup);
+  const Config configs[] = {{"default: bricks + specialised", true, true},
+                            {"no empty-space skipping", false, true},
+                            {"no specialisation", true, false},
+                            {"neither", false, false}};
+  double base = 0;
+  for (const Config& c : configs) {
+    const Result r = Measure(o, c, volume, setup);
+    if (base == 0) base = r.median_ms;
+    table += fmt::format("| {} | {:#04x} | {:.3f} ({:.2f}x) | {:.3f}..{:.3f} | {:.1f} |\n", c.name, r.features,
+                         r.median_ms, r.median_ms / base, r.p10_ms, r.p90_ms, r.paths_per_second / 1e6);
+  }
+  fmt::print("{}", table);
+  if (!o.out.empty()) std::ofstream(o.out, std::ios::app) << table;
+  return 0;
+}
+
+}  // namespace cinevol::bench

@@ -1,0 +1,179 @@
+// The CUDA backend against the CPU backend: converged images agree within
+// noise on a scene using every feature. Skips where no GPU is usable.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <cstring>
+
+#include "io/phantom.h"
+#include "render/renderer.h"
+#include "render_test_scenes.h"
+
+namespace cinevol {
+namespace {
+
+using testing::ConstantMedium;
+using testing::UniformCube;
+using testing::UniformSky;
+
+#define CINEVOL_REQUIRE_CUDA()                                      \
+  do {                                                              \
+    std::string why;                                                \
+    if (!CudaAvailable(&why)) GTEST_SKIP() << "no usable GPU: " << why; \
+  } while (0)
+
+// Every feature at once: hybrid BRDF, emission, an environment map, area,
+// point and directional lights, multiple scattering.
+struct FullScene {
+  std::shared_ptr<const Volume> volume;
+  TransferFunction tf;
+  LightSetup lights;
+  Camera camera;
+
+  FullScene() {
+    v1::Phantom p;
+    p.set_kind(v1::Phantom::HEAD);
+    p.set_size(64);
+    p.set_spacing(4.0f);
+    volume = std::make_shared<const Volume>(MakePhantom(p));
+    tf.points = {{-200, 0, {0.9f, 0.6f, 0.5f}, {}, 0.5f, {}},
+                 {0, 0.1f, {0.9f, 0.6f, 0.5f}, {0.1f, 0.1f, 0.1f}, 0.5f, {0.02f, 0.0f, 0.0f}},
+                 {300, 0.8f, {0.9f, 0.9f, 0.8f}, {0.3f, 0.3f, 0.3f}, 0.3f, {}},
+                 {1500, 1, {0.9f, 0.9f, 0.8f}, {0.3f, 0.3f, 0.3f}, 0.3f, {}}};
+    tf.density_scale = 0.3f;
+    tf.gradient_factor = 1.5f;
+    tf.phase_g = 0.3f;
+    lights.environment.kind = Environment::Kind::kMap;
+    lights.environment.map = {8, 4, std::vector<Vec3f>(32, Vec3f{0.3f, 0.35f, 0.4f})};
+    lights.environment.map.pixels[9] = {30, 25, 20};
+    Light area;
+    area.kind = LightKind::kArea;
+    area.position = {-200, -300, 250};
+    area.edge_u = {0, 80, 80};
+    area.edge_v = {100, -60, 0};
+    const Vec3f n = Cross(area.edge_u, area.edge_v);
+    area.area = Length(n);
+    area.normal = n / area.area;
+    area.emitted = {6, 6, 6};
+    area.two_sided = 1;
+    Light point;
+    point.kind = LightKind::kPoint;
+    point.position = {250, -150, 0};
+    point.emitted = {3e4f, 3e4f, 3e4f};
+    Light sun;
+    sun.kind = LightKind::kDirectional;
+    sun.direction = Normalize(Vec3f{0.2f, 1, -0.5f});
+    sun.emitted = {1, 1, 1};
+    lights.lights = {area, point, sun};
+    camera = LookAt({-250, -500, 150}, {0, 0, 0}, {0, 0, 1}, 30, 32, 24);
+  }
+};
+
+struct PixelEstimates {
+  std::vector<double> mean, stderr_of_mean;
+};
+
+PixelEstimates Estimate(Renderer& r, const FullScene& s, int frames, int spp) {
+  r.SetVolume(s.volume);
+  r.SetTransferFunction(s.tf);
+  r.SetLights(s.lights);
+  const std::size_t n = std::size_t(s.camera.width) * s.camera.height;
+  std::vector<double> sum(n), sum2(n);
+  for (int f = 0; f < frames; ++f) {
+    FrameRequest req;
+    req.camera = s.camera;
+    req.spp = spp;
+    req.max_bounces = 6;
+    req.frame = f;
+    r.Render(req);
+    const ImageRgbF image = r.Radiance();
+    for (std::size_t i = 0; i < n; ++i) {
+      const double v = Luminance(image.pixels[i]);
+      sum[i] += v;
+      sum2[i] += v * v;
+    }
+  }
+  PixelEstimates e{std::vector<double>(n), std::vector<double>(n)};
+  for (std::size_t i = 0; i < n; ++i) {
+    e.mean[i] = sum[i] / frames;
+    e.stderr_of_mean[i] = std::sqrt(std::max(0.0, sum2[i] / frames - e.mean[i] * e.mean[i]) / (frames - 1));
+  }
+  return e;
+}
+
+TEST(CudaRenderer, ConvergedImagesAgreeWithCpu) {
+  CINEVOL_REQUIRE_CUDA();
+  const FullScene scene;
+  auto cpu = CreateRenderer(Backend::kCpu), cuda = CreateRenderer(Backend::kCuda);
+  const PixelEstimates a = Estimate(*cpu, scene, 64, 4), b = Estimate(*cuda, scene, 64, 4);
+  double mean_a = 0, mean_b = 0, var = 0, z2 = 0;
+  int outliers = 0, counted = 0;
+  for (std::size_t i = 0; i < a.mean.size(); ++i) {
+    mean_a += a.mean[i] / a.mean.size();
+    mean_b += b.mean[i] / a.mean.size();
+    const double s2 = a.stderr_of_mean[i] * a.stderr_of_mean[i] + b.stderr_of_mean[i] * b.stderr_of_mean[i];
+    var += s2 / (a.mean.size() * a.mean.size());
+    if (s2 <= 0) {
+      EXPECT_NEAR(a.mean[i], b.mean[i], 1e-4 * std::max(1.0, a.mean[i])) << "noise-free pixel " << i;
+      continue;
+    }
+    const double z = (a.mean[i] - b.mean[i]) / std::sqrt(s2);
+    z2 += z * z;
+    outliers += std::abs(z) > 4.5;
+    ++counted;
+  }
+  EXPECT_NEAR(mean_a, mean_b, 4 * std::sqrt(var)) << "image means";
+  EXPECT_LT(std::sqrt(z2 / counted), 1.5) << "rms z-score over " << counted << " pixels";
+  EXPECT_LE(outliers, counted / 100 + 1);
+}
+
+TEST(CudaRenderer, SameSeedSameImage) {
+  CINEVOL_REQUIRE_CUDA();
+  const FullScene scene;
+  auto render = [&] {
+    auto r = CreateRenderer(Backend::kCuda);
+    Estimate(*r, scene, 1, 2);
+    return r->Radiance();
+  };
+  const ImageRgbF a = render(), b = render();
+  EXPECT_EQ(std::memcmp(a.pixels.data(), b.pixels.data(), a.pixels.size() * sizeof(Vec3f)), 0);
+}
+
+TEST(CudaRenderer, AbsorbingCubeMatchesBeerLambert) {
+  CINEVOL_REQUIRE_CUDA();
+  auto r = CreateRenderer(Backend::kCuda);
+  r->SetVolume(UniformCube(16, 2.0f));
+  r->SetTransferFunction(ConstantMedium(1.0f / 32.0f, 0.0f));
+  r->SetLights(UniformSky(1.0f));
+  FrameRequest req;
+  req.camera = testing::AxisCamera(64, 64);
+  req.spp = 256;
+  r->Render(req);
+  double mean = 0;
+  for (const Vec3f& p : r->Radiance().pixels) mean += p.y / (64.0 * 64);
+  const double expected = std::exp(-1.0), sigma = std::sqrt(expected * (1 - expected) / (64.0 * 64 * 256));
+  EXPECT_NEAR(mean, expected, 3 * sigma);
+}
+
+TEST(CudaRenderer, FirstHitsAndAccumulationMatchTheCpuLayout) {
+  CINEVOL_REQUIRE_CUDA();
+  auto r = CreateRenderer(Backend::kCuda);
+  r->SetVolume(UniformCube(16, 2.0f));
+  r->SetTransferFunction(ConstantMedium(10.0f, 0.5f));  // opaque: first hit at the front face
+  r->SetLights(UniformSky(1.0f));
+  FrameRequest req;
+  req.camera = testing::AxisCamera(8, 8);
+  for (int f = 0; f < 3; ++f) {
+    req.frame = f;
+    r->Render(req);
+  }
+  EXPECT_EQ(r->accumulated_frames(), 3);
+  for (const Vec4f& h : r->FirstHits()) {
+    EXPECT_EQ(h.w, 1.0f);
+    EXPECT_NEAR(h.y, -16.0f, 0.5f);  // the cube's face at y = -16 mm
+  }
+  EXPECT_EQ(r->AccumulatedMean().pixels.size(), 64u);
+}
+
+}  // namespace
+}  // namespace cinevol
