@@ -1,0 +1,29 @@
+#!/usr/bin/env bash
+# Runs the GPU checks and benchmarks on the lent GPU machine from a bundle
+# made by bench/make-gpu-bundle.sh (see docs/performance.md). Writes logs and
+# tables to $OUT (or ./gpu-out) and prints a short summary last.
+set -uo pipefail
+cd "$(dirname "$0")/.."
+out=${OUT:-gpu-out}
+mkdir -p "$out" /tmp/cv
+tar xJf .gpu/bundle.tar.xz -C /tmp/cv
+export LD_LIBRARY_PATH=/tmp/cv/lib
+bin=/tmp/cv/bin data=/tmp/cv/data
+nvidia-smi --query-gpu=name,memory.total,driver_version --format=csv,noheader | tee "$out/gpu.txt"
+
+"$bin/cinevol_tests" --gtest_filter="${TESTS:-Cuda*}" > "$out/gpu-tests.log" 2>&1
+echo "tests rc=$?: $(grep -E '^\[  (PASSED|FAILED) ' "$out/gpu-tests.log" | tr '\n' ' ')"
+
+if [ "${SANITIZE:-1}" = 1 ]; then
+  compute-sanitizer --tool memcheck --error-exitcode 9 "$bin/cinevol_tests" \
+    --gtest_filter='CudaRenderer.FirstHits*:CudaRenderer.SameSeed*' > "$out/memcheck.log" 2>&1
+  echo "memcheck rc=$?: $(grep -E 'ERROR SUMMARY' "$out/memcheck.log" | head -1)"
+fi
+
+for scene in ${BENCH_SCENES:-ct-head-cthead:ct-head-cthead/DERIVED_CThead.nhdr ct-aorta-bone:aorta_ct_cropped.nii.gz}; do
+  "$bin/cinevol-bench" render --scene "bench/scenes/${scene%%:*}.json" --volume "$data/${scene#*:}" \
+    --backend cuda --frames 100 --warmup 10 --out "$out/performance.md" > "$out/bench-${scene%%:*}.log" 2>&1
+  echo "bench ${scene%%:*} rc=$?"
+done
+${EXTRA:-true}
+cat "$out/performance.md" 2>/dev/null

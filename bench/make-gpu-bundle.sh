@@ -1,0 +1,15 @@
+#!/usr/bin/env bash
+# Packs the built programs, their libraries and the data sets the GPU checks
+# use into .gpu/bundle.tar.xz (kept out of git) for bench/gpu-run.sh.
+set -euo pipefail
+cd "$(dirname "$0")/.."
+stage=$(mktemp -d)
+../shared/tools/device-bundle.sh "$stage" build/cinevol build/cinevol-bench build/tests/cinevol_tests
+mkdir -p "$stage/data"
+cp -r ../shared/data/ct-head-cthead "$stage/data/"
+cp ../shared/data/ct-body-totalsegmentator/aorta_ct_cropped.nii.gz "$stage/data/"
+chmod -R u+w "$stage"
+mkdir -p .gpu
+tar cJf .gpu/bundle.tar.xz -C "$stage" .
+rm -rf "$stage"
+du -h .gpu/bundle.tar.xz
