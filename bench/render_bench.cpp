@@ -18,8 +18,8 @@ namespace cinevol::bench {
 namespace {
 
 struct Config {
-  const char* name;
-  bool empty_space_skipping;
+  std::string name;
+  int brick_size;  // 0: one global majorant
   bool specialised;
 };
 
@@ -31,7 +31,7 @@ struct Result {
 Result Measure(const RenderBenchOptions& o, const Config& c, std::shared_ptr<const Volume> volume,
                const RenderSetup& setup) {
   RendererOptions options;
-  options.empty_space_skipping = c.empty_space_skipping;
+  options.brick_size = c.brick_size;
   auto renderer = CreateRenderer(ParseBackend(o.backend), options);
   renderer->SetVolume(volume);
   renderer->SetTransferFunction(setup.transfer_function);
@@ -73,10 +73,11 @@ int RunRenderBench(const RenderBenchOptions& o) {
       o.scene, device, o.command_line, volume->metadata().source, volume->dims().x, volume->dims().y,
       volume->dims().z, setup.camera.width, setup.camera.height, setup.spp, setup.max_bounces,
       setup.lights.lights.size(), o.frames, o.warmup);
-  const Config configs[] = {{"default: bricks + specialised", true, true},
-                            {"no empty-space skipping", false, true},
-                            {"no specialisation", true, false},
-                            {"neither", false, false}};
+  std::vector<Config> configs = {{"default: 8^3 bricks, specialised", 8, true},
+                                 {"no empty-space skipping (global majorant)", 0, true},
+                                 {"no specialisation (all features)", 8, false},
+                                 {"neither", 0, false}};
+  for (int b : {4, 16}) configs.push_back({fmt::format("{}^3 bricks, specialised", b), b, true});
   double base = 0;
   for (const Config& c : configs) {
     const Result r = Measure(o, c, volume, setup);

@@ -19,7 +19,7 @@ namespace {
 namespace hu {
 constexpr float kAir = -1000, kSkin = 40, kFat = -90, kMuscle = 50, kCorticalBone = 1400,
                 kDiploe = 450, kCsf = 8, kGreyMatter = 40, kWhiteMatter = 28, kVitreous = 12,
-                kLens = 70, kContrastBlood = 350;
+                kLens = 70, kContrastBlood = 350, kEnamel = 2500;
 }  // namespace hu
 
 struct Ellipsoid {
@@ -66,6 +66,22 @@ float HeadValue(Vec3f p, float h) {
   static const Ellipsoid kVentricles[2] = {{{-11, 8, 32}, {6, 28, 10}}, {{11, 8, 32}, {6, 28, 10}}};
   static const Ellipsoid kThirdVentricle{{0, 10, 18}, {2.5f, 14, 9}};
   static const Tube kSpine{{0, 28, -128}, {0, 22, -45}, 10};
+  // Facial skeleton: orbits carved into the skull, maxilla with its sinus,
+  // zygomatic arches, mandible and two rows of teeth.
+  static const Ellipsoid kOrbits[2] = {{{-31, -70, -2}, {17, 16, 16}}, {{31, -70, -2}, {17, 16, 16}}};
+  static const Ellipsoid kMaxilla{{0, -52, -36}, {36, 30, 20}};
+  static const Ellipsoid kSinus{{0, -50, -33}, {27, 20, 12}};
+  static const Ellipsoid kNasalCavity{{0, -74, -22}, {8, 16, 15}};
+  static const Tube kFaceBones[] = {
+      {{-56, -50, -12}, {-66, -5, -14}, 5.0f},  // zygomatic arches
+      {{56, -50, -12}, {66, -5, -14}, 5.0f},
+      {{-50, -2, -22}, {-46, -20, -66}, 7.0f},  // mandibular rami
+      {{50, -2, -22}, {46, -20, -66}, 7.0f},
+      {{-46, -20, -66}, {-30, -58, -74}, 7.0f},  // body of the mandible
+      {{46, -20, -66}, {30, -58, -74}, 7.0f},
+      {{-30, -58, -74}, {0, -72, -76}, 7.0f},
+      {{30, -58, -74}, {0, -72, -76}, 7.0f},
+  };
   static const Tube kVessels[] = {
       {{-24, -4, -128}, {-16, 2, -25}, 3.0f},  // internal carotids
       {{24, -4, -128}, {16, 2, -25}, 3.0f},
@@ -98,6 +114,22 @@ float HeadValue(Vec3f p, float h) {
   paint(skull + 8.0f, hu::kCsf);
   paint(skull + 9.5f, hu::kGreyMatter);
   paint(skull + 14.0f, hu::kWhiteMatter);
+  for (const Ellipsoid& e : kOrbits) paint(e.Sdf(p), hu::kFat);
+  paint(kMaxilla.Sdf(p), hu::kCorticalBone);
+  paint(kMaxilla.Sdf(p) + 3.0f, hu::kDiploe);
+  paint(kSinus.Sdf(p), hu::kAir);
+  paint(kNasalCavity.Sdf(p), hu::kAir);
+  for (const Tube& t : kFaceBones) {
+    paint(t.Sdf(p), hu::kCorticalBone);
+    paint(t.Sdf(p) + 2.5f, hu::kDiploe);
+  }
+  // Teeth: enamel crowns along the upper and lower arches.
+  for (int i = 0; i < 14; ++i) {
+    const float a = (float(i) - 6.5f) / 6.5f * 1.35f;  // radians from the midline
+    const Vec3f upper{36.0f * std::sin(a), -14.0f - 58.0f * std::cos(a), -53.0f};
+    paint(Ellipsoid{upper, {3.6f, 3.6f, 5.0f}}.Sdf(p), hu::kEnamel);
+    paint(Ellipsoid{upper + Vec3f{0, 0, -10.5f}, {3.6f, 3.6f, 5.0f}}.Sdf(p), hu::kEnamel);
+  }
   for (const Ellipsoid& e : kVentricles) paint(e.Sdf(p), hu::kCsf);
   paint(kThirdVentricle.Sdf(p), hu::kCsf);
   for (const Ellipsoid& e : kEyes) paint(e.Sdf(p), hu::kVitreous);

@@ -37,6 +37,38 @@ void NamedViewDirections(v1::NamedView view, Vec3f& eye_side, Vec3f& up) {
   }
 }
 
+// The world-space box around the voxels the transfer function shows
+// (opacity > 0), sampled on a grid of at most ~64^3 voxels; the whole volume
+// when nothing shows.
+void VisibleBounds(const Volume& volume, const TransferFunction& tf, Vec3f& lo, Vec3f& hi) {
+  const Vec3i d = volume.dims();
+  const Vec3f half = volume.extent_mm() * 0.5f;
+  Vec3i step;
+  for (int a = 0; a < 3; ++a) step[a] = std::max(1, d[a] / 64);
+  Vec3i first = d, last{-1, -1, -1};
+  for (int z = 0; z < d.z; z += step.z) {
+    for (int y = 0; y < d.y; y += step.y) {
+      for (int x = 0; x < d.x; x += step.x) {
+        if (Evaluate(tf, volume.Value(x, y, z)).opacity <= 0.0f) continue;
+        const Vec3i v{x, y, z};
+        for (int a = 0; a < 3; ++a) {
+          first[a] = std::min(first[a], v[a]);
+          last[a] = std::max(last[a], v[a]);
+        }
+      }
+    }
+  }
+  if (last.x < 0) {
+    lo = -half;
+    hi = half;
+    return;
+  }
+  for (int a = 0; a < 3; ++a) {  // widen by one sampling step: the grid may miss the edges
+    lo[a] = std::max(0, first[a] - step[a]) * volume.spacing_mm()[a] - half[a];
+    hi[a] = std::min(d[a], last[a] + step[a] + 1) * volume.spacing_mm()[a] - half[a];
+  }
+}
+
 }  // namespace
 
 TransferFunction ResolveTransferFunction(const v1::TransferFunction& proto, const Volume& volume) {
@@ -56,18 +88,23 @@ TransferFunction ResolveTransferFunction(const v1::TransferFunction& proto, cons
   return tf;
 }
 
-Camera ResolveCamera(const v1::Camera& proto, const v1::RenderSettings& render, const Volume& volume) {
+Camera ResolveCamera(const v1::Camera& proto, const v1::RenderSettings& render, const Volume& volume,
+                     const TransferFunction& tf) {
   const int width = static_cast<int>(render.width()), height = static_cast<int>(render.height());
   const float fov = proto.fov_y_deg();
   Vec3f eye, target, up{0, 0, 1};
   if (proto.view() != v1::NAMED_VIEW_UNSPECIFIED) {
     Vec3f side, up_lps;
     NamedViewDirections(proto.view(), side, up_lps);
-    // Back off until the box's bounding sphere fits the narrower field of view.
-    const float radius = 0.5f * Length(volume.extent_mm());
+    // Frame what the transfer function shows: back off until its bounding
+    // sphere fits the narrower field of view.
+    Vec3f lo, hi;
+    VisibleBounds(volume, tf, lo, hi);
+    target = (lo + hi) * 0.5f;
+    const float radius = 0.5f * Length(hi - lo);
     const float half_fov_y = 0.5f * fov * kPi / 180.0f;
     const float half_fov = std::min(half_fov_y, std::atan(std::tan(half_fov_y) * width / height));
-    eye = PatientToWorld(volume, side) * (1.02f * radius / std::sin(half_fov));
+    eye = target + PatientToWorld(volume, side) * (1.02f * radius / std::sin(half_fov));
     up = PatientToWorld(volume, up_lps);
   } else {
     eye = ToVec(proto.eye());
@@ -142,7 +179,7 @@ LightSetup ResolveLights(const google::protobuf::RepeatedPtrField<v1::Light>& li
 RenderSetup ResolveScene(const v1::Scene& scene, const Volume& volume) {
   RenderSetup setup;
   setup.transfer_function = ResolveTransferFunction(scene.transfer_function(), volume);
-  setup.camera = ResolveCamera(scene.camera(), scene.render(), volume);
+  setup.camera = ResolveCamera(scene.camera(), scene.render(), volume, setup.transfer_function);
   setup.lights = ResolveLights(scene.lights());
   setup.spp = static_cast<int>(scene.render().spp());
   setup.max_bounces = static_cast<int>(scene.render().max_bounces());

@@ -22,7 +22,9 @@ struct RenderSetup {
 };
 
 TransferFunction ResolveTransferFunction(const v1::TransferFunction& tf, const Volume& volume);
-Camera ResolveCamera(const v1::Camera& camera, const v1::RenderSettings& render, const Volume& volume);
+// Named views frame what `tf` shows of the volume.
+Camera ResolveCamera(const v1::Camera& camera, const v1::RenderSettings& render, const Volume& volume,
+                     const TransferFunction& tf);
 LightSetup ResolveLights(const google::protobuf::RepeatedPtrField<v1::Light>& lights);
 
 // All of the above; the scene must have passed CheckScene.

@@ -9,7 +9,7 @@ namespace cinevol {
 class CpuRenderer final : public Renderer {
  public:
   explicit CpuRenderer(const RendererOptions& options = {})
-      : threads_(options.cpu_threads), data_(options.empty_space_skipping) {}
+      : threads_(options.cpu_threads), data_(options.brick_size) {}
 
   std::string Name() const override { return "cpu"; }
   void SetVolume(std::shared_ptr<const Volume> volume) override { data_.SetVolume(std::move(volume)); }

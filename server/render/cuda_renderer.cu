@@ -84,7 +84,7 @@ bool CudaAvailable(std::string* description) {
 }
 
 CudaRenderer::CudaRenderer(const RendererOptions& options)
-    : device_(std::make_unique<Device>()), data_(options.empty_space_skipping) {}
+    : device_(std::make_unique<Device>()), data_(options.brick_size) {}
 CudaRenderer::~CudaRenderer() = default;
 
 void CudaRenderer::SetVolume(std::shared_ptr<const Volume> volume) {

@@ -64,8 +64,9 @@ class Renderer {
 enum class Backend { kAuto, kCpu, kCuda };
 
 struct RendererOptions {
-  // Skip empty bricks and bound dense ones tightly; off: one global majorant.
-  bool empty_space_skipping = true;
+  // Voxels per majorant-grid brick edge: bricks skip empty space and bound
+  // dense space tightly. 0: no bricks, one global majorant.
+  int brick_size = 8;
   int cpu_threads = 0;  // 0: every hardware thread (or CINEVOL_THREADS)
 };
 

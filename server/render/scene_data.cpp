@@ -122,7 +122,8 @@ void SceneData::SetVolume(std::shared_ptr<const Volume> volume) {
     }, 0, 1 << 16);
     voxels_ = quantised_.data();
   }
-  brick_size_ = empty_space_skipping_ ? Vec3i{kBrickSize, kBrickSize, kBrickSize} : v.dims();
+  const int b = brick_size_setting_;
+  brick_size_ = b > 0 ? Vec3i{b, b, b} : v.dims();
   bricks_ = ComputeBrickRanges(voxels_, v.dims(), brick_size_);
   if (!tf_.points.empty()) SetTransferFunction(tf_);
 }

@@ -14,8 +14,8 @@
 
 namespace cinevol {
 
-// Bricks are this many voxels along each axis.
-inline constexpr int kBrickSize = 8;
+// Bricks are this many voxels along each axis by default.
+inline constexpr int kDefaultBrickSize = 8;
 
 // Min and max stored value of each brick, including the one-voxel margin that
 // trilinear interpolation inside the brick reads.
@@ -42,9 +42,10 @@ EnvironmentDistribution BuildEnvironmentDistribution(const ImageRgbF& map);
 
 class SceneData {
  public:
-  // Without empty-space skipping the grid is one brick with the global
-  // majorant: classic Woodcock tracking, for measuring what bricks buy.
-  explicit SceneData(bool empty_space_skipping = true) : empty_space_skipping_(empty_space_skipping) {}
+  // brick_size voxels per brick edge; 0 turns empty-space skipping off: one
+  // brick with the global majorant, classic Woodcock tracking (to measure
+  // what bricks buy).
+  explicit SceneData(int brick_size = kDefaultBrickSize) : brick_size_setting_(brick_size) {}
 
   // Quantises float volumes to 16 bits over their range; 16-bit volumes are
   // used as they are (the Volume must outlive this object).
@@ -69,8 +70,8 @@ class SceneData {
  private:
   void UpdateMajorants();
 
-  bool empty_space_skipping_;
-  Vec3i brick_size_{kBrickSize, kBrickSize, kBrickSize};
+  int brick_size_setting_;
+  Vec3i brick_size_;
   std::shared_ptr<const Volume> volume_;
   std::vector<std::uint16_t> quantised_;  // float volumes only
   const std::uint16_t* voxels_ = nullptr;

@@ -181,7 +181,7 @@ TEST(Integrator, EmptySpaceSkippingIsUnbiased) {
   Stats with_bricks, global;
   for (bool bricks : {true, false}) {
     RendererOptions options;
-    options.empty_space_skipping = bricks;
+    options.brick_size = bricks ? 8 : 0;
     CpuRenderer r(options);
     r.SetVolume(sphere);
     r.SetTransferFunction(tf);
