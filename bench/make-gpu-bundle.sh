@@ -10,6 +10,6 @@ cp -r ../shared/data/ct-head-cthead "$stage/data/"
 cp ../shared/data/ct-body-totalsegmentator/aorta_ct_cropped.nii.gz "$stage/data/"
 chmod -R u+w "$stage"
 mkdir -p .gpu
-tar cJf .gpu/bundle.tar.xz -C "$stage" .
+tar -I 'xz -T0 -6' -cf .gpu/bundle.tar.xz -C "$stage" .
 rm -rf "$stage"
 du -h .gpu/bundle.tar.xz
