@@ -73,11 +73,11 @@ int RunRenderBench(const RenderBenchOptions& o) {
       o.scene, device, o.command_line, volume->metadata().source, volume->dims().x, volume->dims().y,
       volume->dims().z, setup.camera.width, setup.camera.height, setup.spp, setup.max_bounces,
       setup.lights.lights.size(), o.frames, o.warmup);
-  std::vector<Config> configs = {{"default: 8^3 bricks, specialised", 8, true},
+  std::vector<Config> configs = {{"default: 4^3 bricks, specialised", kDefaultBrickSize, true},
                                  {"no empty-space skipping (global majorant)", 0, true},
-                                 {"no specialisation (all features)", 8, false},
+                                 {"no specialisation (all features)", kDefaultBrickSize, false},
                                  {"neither", 0, false}};
-  for (int b : {4, 16}) configs.push_back({fmt::format("{}^3 bricks, specialised", b), b, true});
+  for (int b : {8, 16}) configs.push_back({fmt::format("{}^3 bricks, specialised", b), b, true});
   double base = 0;
   for (const Config& c : configs) {
     const Result r = Measure(o, c, volume, setup);

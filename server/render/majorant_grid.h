@@ -38,47 +38,61 @@ class MajorantIterator {
       : grid_(&grid), t_min_(t_min), t_max_(t_max) {
     const Vec3f p = (o + d * t_min - grid.box_min) * grid.inv_brick_size;
     const Vec3f dg = d * grid.inv_brick_size;
-    for (int a = 0; a < 3; ++a) {
-      brick_[a] = MinInt(MaxInt(static_cast<int>(floorf(p[a])), 0), grid.bricks[a] - 1);
-      if (dg[a] > 0.0f) {
-        delta_t_[a] = 1.0f / dg[a];
-        next_t_[a] = t_min + (float(brick_[a] + 1) - p[a]) / dg[a];
-        step_[a] = 1;
-        limit_[a] = grid.bricks[a];
-      } else if (dg[a] < 0.0f) {
-        delta_t_[a] = -1.0f / dg[a];
-        next_t_[a] = t_min + (float(brick_[a]) - p[a]) / dg[a];
-        step_[a] = -1;
-        limit_[a] = -1;
-      } else {
-        delta_t_[a] = kNever;
-        next_t_[a] = kNever;
-        step_[a] = 0;
-        limit_[a] = -2;
-      }
-    }
+    x_ = Axis(p.x, dg.x, t_min, grid.bricks.x);
+    y_ = Axis(p.y, dg.y, t_min, grid.bricks.y);
+    z_ = Axis(p.z, dg.z, t_min, grid.bricks.z);
   }
 
   CINEVOL_HD bool Next(MajorantSegment& seg) {
     if (!(t_min_ < t_max_)) return false;
-    int axis = next_t_[0] < next_t_[1] ? 0 : 1;
-    if (next_t_[2] < next_t_[axis]) axis = 2;
-    const float exit = fminf(t_max_, next_t_[axis]);
-    seg = {t_min_, exit, grid_->At(brick_)};
-    t_min_ = exit;
-    brick_[axis] += step_[axis];
-    if (brick_[axis] == limit_[axis]) t_min_ = t_max_;
-    next_t_[axis] += delta_t_[axis];
+    seg.t_min = t_min_;
+    seg.sigma_maj = grid_->At({x_.brick, y_.brick, z_.brick});
+    // Step along the axis whose brick boundary comes first. One call per
+    // axis, not a reference or an index chosen at run time: that keeps every
+    // field in registers on a GPU.
+    if (x_.next_t < y_.next_t && x_.next_t < z_.next_t) {
+      Step(x_);
+    } else if (y_.next_t < z_.next_t) {
+      Step(y_);
+    } else {
+      Step(z_);
+    }
+    seg.t_max = t_min_;
     return true;
   }
 
  private:
   static constexpr float kNever = 3.4e38f;
+
+  struct AxisState {
+    int brick, step, limit;
+    float next_t, delta_t;
+  };
+
+  CINEVOL_HD void Step(AxisState& a) {
+    t_min_ = fminf(t_max_, a.next_t);
+    a.brick += a.step;
+    if (a.brick == a.limit) t_min_ = t_max_;
+    a.next_t += a.delta_t;
+  }
+
+  // p: entry position in bricks; d: direction in bricks per unit t.
+  CINEVOL_HD static AxisState Axis(float p, float d, float t_min, int bricks) {
+    AxisState s;
+    s.brick = MinInt(MaxInt(static_cast<int>(floorf(p)), 0), bricks - 1);
+    if (d > 0.0f) {
+      s = {s.brick, 1, bricks, t_min + (float(s.brick + 1) - p) / d, 1.0f / d};
+    } else if (d < 0.0f) {
+      s = {s.brick, -1, -1, t_min + (float(s.brick) - p) / d, -1.0f / d};
+    } else {
+      s = {s.brick, 0, -2, kNever, kNever};
+    }
+    return s;
+  }
+
   const MajorantGridView* grid_;
   float t_min_, t_max_;
-  Vec3i brick_;
-  float next_t_[3], delta_t_[3];
-  int step_[3], limit_[3];
+  AxisState x_, y_, z_;
 };
 
 // Hard cap on tentative collisions per call: extinction up to 1e6 per mm in a

@@ -16,6 +16,7 @@
 #include "core/transfer_function.h"
 #include "core/volume.h"
 #include "render/render_scene.h"
+#include "render/scene_data.h"
 
 namespace cinevol {
 
@@ -66,7 +67,7 @@ enum class Backend { kAuto, kCpu, kCuda };
 struct RendererOptions {
   // Voxels per majorant-grid brick edge: bricks skip empty space and bound
   // dense space tightly. 0: no bricks, one global majorant.
-  int brick_size = 8;
+  int brick_size = kDefaultBrickSize;
   int cpu_threads = 0;  // 0: every hardware thread (or CINEVOL_THREADS)
 };
 

@@ -14,8 +14,9 @@
 
 namespace cinevol {
 
-// Bricks are this many voxels along each axis by default.
-inline constexpr int kDefaultBrickSize = 8;
+// Bricks are this many voxels along each axis by default: 4^3 measured
+// faster than 8^3 and 16^3 on CPU and GPU (docs/performance.md).
+inline constexpr int kDefaultBrickSize = 4;
 
 // Min and max stored value of each brick, including the one-voxel margin that
 // trilinear interpolation inside the brick reads.
