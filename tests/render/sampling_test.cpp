@@ -234,5 +234,20 @@ TEST(Camera, ProjectInvertsGenerateRay) {
   }
 }
 
+TEST(Camera, ThinLensFocusesOnItsFocalPlane) {
+  Camera c = LookAt({0, -500, 0}, {0, 0, 0}, {0, 0, 1}, 30, 64, 48);
+  c.lens_radius = 20.0f;
+  c.focal_distance = 400.0f;
+  Pcg32 rng(2, 2);
+  const Ray pinhole = c.GenerateRay(10.5f, 30.5f, 0.5f, 0.5f);  // the lens centre
+  const Vec3f focus = pinhole.origin + pinhole.direction * (c.focal_distance / Dot(pinhole.direction, c.forward));
+  for (int i = 0; i < 100; ++i) {
+    const Ray r = c.GenerateRay(10.5f, 30.5f, rng.Uniform(), rng.Uniform());
+    EXPECT_LE(Length(r.origin - c.eye), c.lens_radius + 1e-3f);
+    const float t = Dot(focus - r.origin, c.forward) / Dot(r.direction, c.forward);
+    EXPECT_LT(Length(r.origin + r.direction * t - focus), 1e-2f);  // every lens sample meets there
+  }
+}
+
 }  // namespace
 }  // namespace cinevol
