@@ -42,13 +42,7 @@ void CpuRenderer::Render(const FrameRequest& request) {
     ResetAccumulation();
   }
   RenderScene scene = data_.HostView();
-  scene.camera = request.camera;
-  scene.spp = request.spp;
-  scene.max_bounces = request.max_bounces;
-  scene.seed = request.seed;
-  scene.frame = request.frame;
-  const unsigned needed = FeaturesOf(scene);
-  last_features_ = request.features == kAutoFeatures ? needed : (request.features | needed) & kAllFeatures;
+  last_features_ = ApplyRequest(request, scene);
   const auto start = std::chrono::steady_clock::now();
   kVariants[last_features_](scene, Targets(), threads_);
   last_ms_ = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();

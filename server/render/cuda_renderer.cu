@@ -149,13 +149,7 @@ void CudaRenderer::Render(const FrameRequest& request) {
   scene.environment.map.weight = d.env_weight.data();
   scene.environment.map.marginal_cdf = d.env_marginal.data();
   scene.environment.map.conditional_cdf = d.env_conditional.data();
-  scene.camera = request.camera;
-  scene.spp = request.spp;
-  scene.max_bounces = request.max_bounces;
-  scene.seed = request.seed;
-  scene.frame = request.frame;
-  const unsigned needed = FeaturesOf(scene);
-  last_features_ = request.features == kAutoFeatures ? needed : (request.features | needed) & kAllFeatures;
+  last_features_ = ApplyRequest(request, scene);
 
   static const auto kKernels = MakeKernels(std::make_integer_sequence<unsigned, kFeatureCombinations>());
   const dim3 block(kBlock, kBlock);

@@ -32,6 +32,19 @@ struct FrameRequest {
   unsigned features = kAutoFeatures;  // or a RenderFeature set to force (at least what the scene uses)
 };
 
+// Puts the request's camera and sampling into `scene` (whose views the
+// backend has set) and returns the feature set to render it with: the
+// smallest the scene needs, or the requested set plus what the scene needs.
+inline unsigned ApplyRequest(const FrameRequest& request, RenderScene& scene) {
+  scene.camera = request.camera;
+  scene.spp = request.spp;
+  scene.max_bounces = request.max_bounces;
+  scene.seed = request.seed;
+  scene.frame = request.frame;
+  const unsigned needed = FeaturesOf(scene);
+  return request.features == kAutoFeatures ? needed : (request.features | needed) & kAllFeatures;
+}
+
 class Renderer {
  public:
   virtual ~Renderer() = default;

@@ -17,6 +17,17 @@ using testing::ConstantMedium;
 using testing::UniformCube;
 using testing::UniformSky;
 
+FrameRequest Request(const Camera& camera, int spp, int frame, int max_bounces, unsigned features = kAutoFeatures) {
+  FrameRequest req;
+  req.camera = camera;
+  req.spp = spp;
+  req.max_bounces = max_bounces;
+  req.frame = frame;
+  req.seed = 7;
+  req.features = features;
+  return req;
+}
+
 struct Stats {
   double mean = 0, stderr_of_mean = 0, max = 0, min = 0;
   bool finite = true;
@@ -29,14 +40,7 @@ Stats RenderStats(CpuRenderer& r, const Camera& camera, int spp, int frames, int
   Stats s;
   s.min = 1e30;
   for (int f = 0; f < frames; ++f) {
-    FrameRequest req;
-    req.camera = camera;
-    req.spp = spp;
-    req.max_bounces = max_bounces;
-    req.frame = f;
-    req.seed = 7;
-    req.features = features;
-    r.Render(req);
+    r.Render(Request(camera, spp, f, max_bounces, features));
     double sum = 0;
     for (const Vec3f& p : r.Radiance().pixels) {
       s.finite &= IsFinite(p);
@@ -89,12 +93,7 @@ void PixelMeans(CpuRenderer& r, const Camera& camera, int spp, int frames, int m
   const std::size_t n = std::size_t(camera.width) * camera.height;
   std::vector<double> sum(n), sum2(n);
   for (int f = 0; f < frames; ++f) {
-    FrameRequest req;
-    req.camera = camera;
-    req.spp = spp;
-    req.max_bounces = max_bounces;
-    req.frame = f;
-    r.Render(req);
+    r.Render(Request(camera, spp, f, max_bounces));
     const auto& px = r.Radiance().pixels;
     for (std::size_t i = 0; i < n; ++i) {
       sum[i] += px[i].y;
