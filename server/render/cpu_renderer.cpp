@@ -39,6 +39,7 @@ void CpuRenderer::Render(const FrameRequest& request) {
     height_ = h;
     radiance_.assign(std::size_t(w) * h, {});
     first_hit_.assign(std::size_t(w) * h, {});
+    albedo_.assign(std::size_t(w) * h, {});
     ResetAccumulation();
   }
   RenderScene scene = data_.HostView();
@@ -65,7 +66,7 @@ ImageRgbF CpuRenderer::AccumulatedMean() const {
 
 FrameTargets CpuRenderer::Targets() const {
   auto* self = const_cast<CpuRenderer*>(this);
-  return {self->radiance_.data(), self->first_hit_.data(), self->accumulated_.data()};
+  return {self->radiance_.data(), self->first_hit_.data(), self->accumulated_.data(), self->albedo_.data()};
 }
 
 }  // namespace cinevol

@@ -23,13 +23,14 @@ class CpuRenderer final : public Renderer {
   ImageRgbF Radiance() const override;
   ImageRgbF AccumulatedMean() const override;
   std::vector<Vec4f> FirstHits() const override { return first_hit_; }
+  ImageRgbF Albedo() const override { return {width_, height_, albedo_}; }
   FrameTargets Targets() const override;
 
  private:
   int threads_;
   SceneData data_;
   int width_ = 0, height_ = 0;
-  std::vector<Vec3f> radiance_, accumulated_;
+  std::vector<Vec3f> radiance_, accumulated_, albedo_;
   std::vector<Vec4f> first_hit_;
   int accumulated_frames_ = 0;
   unsigned last_features_ = 0;

@@ -50,13 +50,16 @@ class DeviceBuffer {
     count_ = count;
   }
 
-  void Upload(const T* host, std::size_t count, cudaStream_t stream = nullptr) {
+  // Work is ordered on the calling thread's default stream (cudaStreamPerThread):
+  // a session's renderer and denoiser run in order, sessions on other threads
+  // overlap.
+  void Upload(const T* host, std::size_t count, cudaStream_t stream = cudaStreamPerThread) {
     Resize(count);
     if (count > 0) CINEVOL_CUDA_CHECK(cudaMemcpyAsync(data_, host, count * sizeof(T), cudaMemcpyHostToDevice, stream));
   }
-  void Upload(const std::vector<T>& host, cudaStream_t stream = nullptr) { Upload(host.data(), host.size(), stream); }
+  void Upload(const std::vector<T>& host, cudaStream_t stream = cudaStreamPerThread) { Upload(host.data(), host.size(), stream); }
 
-  std::vector<T> Download(cudaStream_t stream = nullptr) const {
+  std::vector<T> Download(cudaStream_t stream = cudaStreamPerThread) const {
     std::vector<T> host(count_);
     if (count_ > 0) {
       CINEVOL_CUDA_CHECK(cudaMemcpyAsync(host.data(), data_, count_ * sizeof(T), cudaMemcpyDeviceToHost, stream));
@@ -65,8 +68,14 @@ class DeviceBuffer {
     return host;
   }
 
-  void Zero(cudaStream_t stream = nullptr) {
+  void Zero(cudaStream_t stream = cudaStreamPerThread) {
     if (count_ > 0) CINEVOL_CUDA_CHECK(cudaMemsetAsync(data_, 0, count_ * sizeof(T), stream));
+  }
+
+  // Copies `count` elements already in device memory.
+  void CopyFrom(const T* device, std::size_t count, cudaStream_t stream = cudaStreamPerThread) {
+    Resize(count);
+    if (count > 0) CINEVOL_CUDA_CHECK(cudaMemcpyAsync(data_, device, count * sizeof(T), cudaMemcpyDeviceToDevice, stream));
   }
 
   T* data() const { return data_; }

@@ -41,18 +41,19 @@ std::array<Kernel, sizeof...(kFeatures)> MakeKernels(std::integer_sequence<unsig
 
 }  // namespace
 
+// All work goes to the calling thread's default stream (cudaStreamPerThread),
+// where the CUDA denoiser of the same session follows it in order.
 struct CudaRenderer::Device {
-  cudaStream_t stream = nullptr;
+  cudaStream_t stream = cudaStreamPerThread;
   cudaEvent_t start = nullptr, stop = nullptr;
   DeviceBuffer<std::uint16_t> voxels;
   DeviceBuffer<float> majorants, sigma_t, env_weight, env_marginal, env_conditional;
   DeviceBuffer<Vec4f> diffuse_opacity, specular_roughness, emission, env_texels;
   DeviceBuffer<Light> lights;
-  DeviceBuffer<Vec3f> radiance, accumulated;
+  DeviceBuffer<Vec3f> radiance, accumulated, albedo;
   DeviceBuffer<Vec4f> first_hit;
 
   Device() {
-    CINEVOL_CUDA_CHECK(cudaStreamCreateWithFlags(&stream, cudaStreamNonBlocking));
     CINEVOL_CUDA_CHECK(cudaEventCreate(&start));
     CINEVOL_CUDA_CHECK(cudaEventCreate(&stop));
   }
@@ -60,7 +61,6 @@ struct CudaRenderer::Device {
     cudaStreamSynchronize(stream);
     cudaEventDestroy(start);
     cudaEventDestroy(stop);
-    cudaStreamDestroy(stream);
   }
 };
 
@@ -135,6 +135,7 @@ void CudaRenderer::Render(const FrameRequest& request) {
     d.radiance.Resize(std::size_t(w) * h);
     d.first_hit.Resize(std::size_t(w) * h);
     d.accumulated.Resize(std::size_t(w) * h);
+    d.albedo.Resize(std::size_t(w) * h);
     ResetAccumulation();
   }
   RenderScene scene = data_.HostView();
@@ -179,7 +180,7 @@ std::size_t CudaRenderer::DeviceBytes() const {
                                 d.env_conditional.size()) * 4 +
          (d.diffuse_opacity.size() + d.specular_roughness.size() + d.emission.size() + d.env_texels.size() +
           d.first_hit.size()) * sizeof(Vec4f) +
-         d.lights.size() * sizeof(Light) + (d.radiance.size() + d.accumulated.size()) * sizeof(Vec3f);
+         d.lights.size() * sizeof(Light) + (d.radiance.size() + d.accumulated.size() + d.albedo.size()) * sizeof(Vec3f);
 }
 
 ImageRgbF CudaRenderer::Radiance() const { return {width_, height_, device_->radiance.Download(device_->stream)}; }
@@ -193,8 +194,10 @@ ImageRgbF CudaRenderer::AccumulatedMean() const {
 
 std::vector<Vec4f> CudaRenderer::FirstHits() const { return device_->first_hit.Download(device_->stream); }
 
+ImageRgbF CudaRenderer::Albedo() const { return {width_, height_, device_->albedo.Download(device_->stream)}; }
+
 FrameTargets CudaRenderer::Targets() const {
-  return {device_->radiance.data(), device_->first_hit.data(), device_->accumulated.data()};
+  return {device_->radiance.data(), device_->first_hit.data(), device_->accumulated.data(), device_->albedo.data()};
 }
 
 }  // namespace cinevol

@@ -27,6 +27,7 @@ class CudaRenderer final : public Renderer {
   ImageRgbF Radiance() const override;
   ImageRgbF AccumulatedMean() const override;
   std::vector<Vec4f> FirstHits() const override;
+  ImageRgbF Albedo() const override;
   FrameTargets Targets() const override;
 
   // Device memory this renderer holds, in bytes.

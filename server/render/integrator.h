@@ -23,7 +23,8 @@ inline constexpr int kRouletteDepth = 3;
 
 struct PathResult {
   Vec3f radiance;
-  Vec3f first_hit;  // first real collision, when hit
+  Vec3f first_hit;         // first real collision, when hit
+  Vec3f albedo{1, 1, 1};   // diffuse colour there; 1 for escaped paths (demodulation)
   bool hit = false;
 };
 
@@ -55,15 +56,17 @@ class PathTracer {
         break;
       }
       const Vec3f p = ray.origin + ray.direction * t_hit;
+      const Material m = s_.transfer.MaterialAt(entry);
       if (from_camera) {
         result.first_hit = p;
+        result.albedo = m.diffuse;
         result.hit = true;
       }
       if constexpr (kWithEmission) result.radiance += beta * s_.transfer.Emission(entry);
       if (depth >= max_bounces) break;
 
       const Vec3f wo = -ray.direction;
-      const Scatterer sc = MakeScatterer(p, wo, entry);
+      const Scatterer sc = MakeScatterer(p, wo, m);
       result.radiance += beta * DirectLight(p, wo, sc);
       // The last scattering event only matters through what its sampled ray
       // can reach: hittable lights or an emitting volume.
@@ -140,8 +143,7 @@ class PathTracer {
   CINEVOL_HD float LightSelectionPdf() const { return kChooseLight ? 1.0f / float(SampleableLights()) : 1.0f; }
 
   // Hybrid scattering: the BRDF with Exposure Render's probability, else the phase function.
-  CINEVOL_HD Scatterer MakeScatterer(Vec3f p, Vec3f wo, float entry) {
-    const Material m = s_.transfer.MaterialAt(entry);
+  CINEVOL_HD Scatterer MakeScatterer(Vec3f p, Vec3f wo, const Material& m) {
     Scatterer sc{false, m.diffuse, {}, 0.0f, {}, s_.transfer.phase_g};
     if constexpr (kWithGradients) {
       const Vec3f grad = s_.volume.Gradient(p);
@@ -211,7 +213,7 @@ CINEVOL_HD void RenderPixel(const RenderScene& s, int x, int y, const FrameTarge
   const int pixel = y * s.camera.width + x;
   const std::uint64_t key = HashCombine(HashCombine(s.seed, s.frame), std::uint64_t(pixel));
   const std::uint32_t pattern = static_cast<std::uint32_t>(key);
-  Vec3f sum{};
+  Vec3f sum{}, albedo{};
   Vec4f first_hit{};
   float nearest = kInfiniteDistance;
   for (int k = 0; k < s.spp; ++k) {
@@ -226,6 +228,7 @@ CINEVOL_HD void RenderPixel(const RenderScene& s, int x, int y, const FrameTarge
     // A non-finite sample would poison the accumulation and the denoiser's
     // history; the integrator is built not to make one, this is the backstop.
     if (IsFinite(r.radiance)) sum += r.radiance;
+    albedo += r.albedo;
     if (r.hit) {
       const float d = Length(r.first_hit - s.camera.eye);
       if (d < nearest) {
@@ -237,6 +240,7 @@ CINEVOL_HD void RenderPixel(const RenderScene& s, int x, int y, const FrameTarge
   const Vec3f radiance = sum / float(s.spp);
   out.radiance[pixel] = radiance;
   out.first_hit[pixel] = first_hit;
+  out.albedo[pixel] = albedo / float(s.spp);
   out.accumulated[pixel] += radiance;
 }
 

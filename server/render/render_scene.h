@@ -47,6 +47,7 @@ struct FrameTargets {
   Vec3f* radiance = nullptr;     // this frame: mean over its samples
   Vec4f* first_hit = nullptr;    // xyz: nearest first real collision (mm); w: 1 hit, 0 escaped
   Vec3f* accumulated = nullptr;  // running sum of radiance since the last reset
+  Vec3f* albedo = nullptr;       // mean diffuse colour at the first collision (1 where escaped)
 };
 
 // The smallest feature set that renders `scene` exactly.

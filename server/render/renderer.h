@@ -69,6 +69,7 @@ class Renderer {
   virtual ImageRgbF Radiance() const = 0;
   virtual ImageRgbF AccumulatedMean() const = 0;
   virtual std::vector<Vec4f> FirstHits() const = 0;
+  virtual ImageRgbF Albedo() const = 0;
 
   // The last frame's outputs in the backend's own memory (host or device),
   // for the denoiser of the same backend.

@@ -1,0 +1,52 @@
+// The CPU half of the denoisers' backend pair: host buffers and a parallel
+// loop over pixels. denoise/backend_cuda.cuh is the GPU half with the same
+// shape, so each denoiser's driver is written once (denoise/denoisers.h).
+#pragma once
+
+#include <algorithm>
+#include <chrono>
+#include <cstddef>
+#include <vector>
+
+#include "core/parallel_for.h"
+
+namespace cinevol {
+
+struct CpuBackend {
+  template <class T>
+  class Buffer {
+   public:
+    void Resize(std::size_t count) { data_.resize(count); }
+    void Zero() { std::fill(data_.begin(), data_.end(), T{}); }
+    void CopyFrom(const T* src, std::size_t count) { data_.assign(src, src + count); }
+    std::vector<T> Download() const { return data_; }
+    T* data() { return data_.data(); }
+    const T* data() const { return data_.data(); }
+    std::size_t size() const { return data_.size(); }
+
+   private:
+    std::vector<T> data_;
+  };
+
+  // f(x, y) for every pixel; f must not throw.
+  template <class F>
+  static void ForEachPixel(int width, int height, const F& f) {
+    ParallelFor(height, [&](std::int64_t y) {
+      for (int x = 0; x < width; ++x) f(x, int(y));
+    });
+  }
+
+  // Wall-clock timing of a sequence of passes.
+  class Timer {
+   public:
+    void Start() { start_ = std::chrono::steady_clock::now(); }
+    void Stop() { ms_ = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start_).count(); }
+    double Milliseconds() const { return ms_; }
+
+   private:
+    std::chrono::steady_clock::time_point start_;
+    double ms_ = 0;
+  };
+};
+
+}  // namespace cinevol

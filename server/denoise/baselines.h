@@ -1,0 +1,360 @@
+// Per-pixel work of the baseline denoisers, host and device: progressive
+// accumulation, Exposure Render's KNN filter, He et al.'s guided filter with
+// the volume's guides, and SVGF (Schied et al. 2017) on our reprojection.
+#pragma once
+
+#include "core/sampling.h"
+#include "denoise/denoiser.h"
+#include "denoise/reprojection.h"
+
+namespace cinevol {
+
+// --- Progressive accumulation (reset on change) -----------------------------
+
+struct AccumulatePass {
+  const Vec3f* input;
+  Vec3f* sum;        // running sum since the last reset
+  Vec3f* output;     // running mean
+  int width;
+  float inv_frames;  // 1 / frames summed, this one included
+
+  CINEVOL_HD void operator()(int x, int y) const {
+    const int i = y * width + x;
+    const Vec3f c = input[i];
+    sum[i] += IsFinite(c) ? c : Vec3f{};
+    output[i] = sum[i] * inv_frames;
+  }
+};
+
+// --- Exposure Render's KNN filter -------------------------------------------
+
+// Weights neighbours by colour distance (relative to the centre's luminance)
+// and pixel distance, then fades towards the unfiltered mean as samples
+// accumulate.
+struct KnnPass {
+  const Vec3f* mean;
+  Vec3f* output;
+  int width, height;
+  KnnSettings s;
+  float fade;  // 1: fully filtered, 0: unfiltered
+
+  CINEVOL_HD void operator()(int x, int y) const {
+    const Vec3f c = mean[y * width + x];
+    const float scale = 1.0f / (Sqr(s.strength) * (Sqr(Luminance(c)) + 1e-8f));
+    const float inv_r2 = 1.0f / float((s.radius + 1) * (s.radius + 1));
+    Vec3f sum{};
+    float weight = 0.0f;
+    for (int dy = -s.radius; dy <= s.radius; ++dy) {
+      for (int dx = -s.radius; dx <= s.radius; ++dx) {
+        const int nx = x + dx, ny = y + dy;
+        if (nx < 0 || ny < 0 || nx >= width || ny >= height) continue;
+        const Vec3f n = mean[ny * width + nx];
+        const Vec3f d = n - c;
+        const float w = expf(-Dot(d, d) * scale - float(dx * dx + dy * dy) * inv_r2);
+        sum += n * w;
+        weight += w;
+      }
+    }
+    output[y * width + x] = Lerp(c, sum / weight, fade);
+  }
+};
+
+// --- Guided filter ------------------------------------------------------------
+
+// The temporal feature (as wRLS's Eq. 12, without models) for the guide.
+struct TemporalFeaturePass {
+  ReprojectionView rv;
+  const Vec3f* input;
+  const Vec3f* prev_feature;
+  Vec3f* feature;
+  float alpha;
+
+  CINEVOL_HD void operator()(int x, int y) const {
+    const int i = rv.Index(x, y);
+    const Vec3f c = IsFinite(input[i]) ? input[i] : Vec3f{};
+    const Reprojection r = Reproject(rv, x, y);
+    Vec3f history;
+    feature[i] = r.valid && SampleHistory(rv, prev_feature, r, rv.first_hit[i], history)
+                     ? history * alpha + c * (1.0f - alpha)
+                     : c;
+  }
+};
+
+// Per-pixel products the box filter averages: guide g = (log luminance of
+// the feature, normalised depth), target n = the noisy colour.
+struct GuidedMoments {
+  float g0, g1, g00, g01, g11;
+  Vec3f n, g0n, g1n;
+};
+
+CINEVOL_HD GuidedMoments operator+(const GuidedMoments& a, const GuidedMoments& b) {
+  return {a.g0 + b.g0, a.g1 + b.g1, a.g00 + b.g00, a.g01 + b.g01, a.g11 + b.g11, a.n + b.n, a.g0n + b.g0n, a.g1n + b.g1n};
+}
+CINEVOL_HD GuidedMoments operator*(const GuidedMoments& a, float k) {
+  return {a.g0 * k, a.g1 * k, a.g00 * k, a.g01 * k, a.g11 * k, a.n * k, a.g0n * k, a.g1n * k};
+}
+
+// The two guide channels of a pixel.
+CINEVOL_HD void Guide(const Vec3f& feature, const Vec4f& hit, const Camera& camera, float depth_scale, float& g0, float& g1) {
+  g0 = logf(Luminance(Max(feature, Vec3f{})) + 1e-4f);
+  g1 = Escaped(hit) ? 2.0f : Length(Xyz(hit) - camera.eye) * depth_scale;
+}
+
+struct GuidedMomentsPass {
+  const Vec3f* input;
+  const Vec3f* feature;
+  const Vec4f* first_hit;
+  Camera camera;
+  float depth_scale;
+  GuidedMoments* moments;
+  int width;
+
+  CINEVOL_HD void operator()(int x, int y) const {
+    const int i = y * width + x;
+    float g0, g1;
+    Guide(feature[i], first_hit[i], camera, depth_scale, g0, g1);
+    const Vec3f n = IsFinite(input[i]) ? input[i] : feature[i];
+    moments[i] = {g0, g1, g0 * g0, g0 * g1, g1 * g1, n, n * g0, n * g1};
+  }
+};
+
+// Separable box mean of radius r along x (horizontal) or y.
+template <class T>
+struct BoxPass {
+  const T* in;
+  T* out;
+  int width, height, radius;
+  bool horizontal;
+
+  CINEVOL_HD void operator()(int x, int y) const {
+    T sum{};
+    int count = 0;
+    for (int d = -radius; d <= radius; ++d) {
+      const int sx = horizontal ? x + d : x, sy = horizontal ? y : y + d;
+      if (sx < 0 || sy < 0 || sx >= width || sy >= height) continue;
+      sum = sum + in[sy * width + sx];
+      ++count;
+    }
+    out[y * width + x] = sum * (1.0f / float(count));
+  }
+};
+
+// Per-window linear model n = a . g + b (He et al.'s Eq. 8-9 with a 2-channel
+// guide): a = (Sigma_g + eps)^-1 cov(g, n).
+struct GuidedCoefficients {
+  Vec3f a0, a1, b;
+};
+
+CINEVOL_HD GuidedCoefficients operator+(const GuidedCoefficients& a, const GuidedCoefficients& b) {
+  return {a.a0 + b.a0, a.a1 + b.a1, a.b + b.b};
+}
+CINEVOL_HD GuidedCoefficients operator*(const GuidedCoefficients& a, float k) { return {a.a0 * k, a.a1 * k, a.b * k}; }
+
+struct GuidedSolvePass {
+  const GuidedMoments* mean;  // box means
+  GuidedCoefficients* coefficients;
+  int width;
+  float eps0, eps1;
+
+  CINEVOL_HD void operator()(int x, int y) const {
+    const GuidedMoments& m = mean[y * width + x];
+    const float s00 = m.g00 - m.g0 * m.g0 + eps0, s01 = m.g01 - m.g0 * m.g1, s11 = m.g11 - m.g1 * m.g1 + eps1;
+    const float inv_det = 1.0f / fmaxf(s00 * s11 - s01 * s01, 1e-12f);
+    const Vec3f c0 = m.g0n - m.n * m.g0, c1 = m.g1n - m.n * m.g1;  // cov(g, n)
+    GuidedCoefficients k;
+    k.a0 = (c0 * s11 - c1 * s01) * inv_det;
+    k.a1 = (c1 * s00 - c0 * s01) * inv_det;
+    k.b = m.n - k.a0 * m.g0 - k.a1 * m.g1;
+    coefficients[y * width + x] = k;
+  }
+};
+
+struct GuidedOutputPass {
+  const GuidedCoefficients* mean;  // box means of the coefficients
+  const Vec3f* feature;
+  const Vec4f* first_hit;
+  Camera camera;
+  float depth_scale;
+  Vec3f* output;
+  int width;
+
+  CINEVOL_HD void operator()(int x, int y) const {
+    const int i = y * width + x;
+    float g0, g1;
+    Guide(feature[i], first_hit[i], camera, depth_scale, g0, g1);
+    const GuidedCoefficients& k = mean[i];
+    const Vec3f out = k.a0 * g0 + k.a1 * g1 + k.b;
+    output[i] = IsFinite(out) ? Max(out, Vec3f{}) : feature[i];
+  }
+};
+
+// --- SVGF --------------------------------------------------------------------
+
+struct SvgfHistory {
+  Vec3f color;
+  float moment1, moment2;  // of luminance
+  float length;            // frames integrated
+};
+
+// Temporal accumulation of colour and luminance moments.
+struct SvgfTemporalPass {
+  ReprojectionView rv;
+  const Vec3f* input;
+  const SvgfHistory* prev;
+  SvgfHistory* history;
+  SvgfSettings s;
+
+  CINEVOL_HD void operator()(int x, int y) const {
+    const int i = rv.Index(x, y);
+    const Vec3f c = IsFinite(input[i]) ? input[i] : Vec3f{};
+    const float l = Luminance(c);
+    const Reprojection r = Reproject(rv, x, y);
+    SvgfHistory h{c, l, l * l, 1.0f};
+    if (r.valid) {
+      const SvgfHistory& p = prev[rv.Index(r.nx, r.ny)];
+      if (IsFinite(p.color)) {
+        h.length = fminf(p.length + 1.0f, 64.0f);
+        const float ac = fmaxf(s.color_alpha, 1.0f / h.length), am = fmaxf(s.moments_alpha, 1.0f / h.length);
+        h.color = Lerp(p.color, c, ac);
+        h.moment1 = p.moment1 + (l - p.moment1) * am;
+        h.moment2 = p.moment2 + (l * l - p.moment2) * am;
+      }
+    }
+    history[i] = h;
+  }
+};
+
+// Colour and variance: temporal variance once 4 frames are integrated, a 7x7
+// spatial estimate before.
+struct SvgfVariancePass {
+  const SvgfHistory* history;
+  const Vec4f* first_hit;
+  Vec4f* color_variance;  // rgb colour, w variance
+  int width, height;
+
+  CINEVOL_HD void operator()(int x, int y) const {
+    const int i = y * width + x;
+    const SvgfHistory& h = history[i];
+    float variance = h.moment2 - h.moment1 * h.moment1;
+    if (h.length < 4.0f) {
+      float m1 = 0, m2 = 0, n = 0;
+      for (int dy = -3; dy <= 3; ++dy) {
+        for (int dx = -3; dx <= 3; ++dx) {
+          const int nx = x + dx, ny = y + dy;
+          if (nx < 0 || ny < 0 || nx >= width || ny >= height) continue;
+          const int k = ny * width + nx;
+          if (Escaped(first_hit[k]) != Escaped(first_hit[i])) continue;
+          m1 += history[k].moment1;
+          m2 += history[k].moment2;
+          n += 1;
+        }
+      }
+      variance = m2 / n - Sqr(m1 / n);
+      variance *= 4.0f / h.length;  // fewer frames, less certain
+    }
+    color_variance[i] = ToVec4(h.color, fmaxf(variance, 0.0f));
+  }
+};
+
+// One a-trous level: 5x5 B-spline taps 2^level apart, stopped at depth and
+// luminance edges (the latter scaled by the local standard deviation).
+struct SvgfAtrousPass {
+  const Vec4f* in;
+  Vec4f* out;
+  const Vec4f* first_hit;
+  Camera camera;
+  int width, height, step;
+  float sigma_luminance, sigma_depth;
+
+  CINEVOL_HD float Depth(int k) const {
+    return Escaped(first_hit[k]) ? 3.4e38f : Length(Xyz(first_hit[k]) - camera.eye);
+  }
+
+  CINEVOL_HD void operator()(int x, int y) const {
+    const float kernel[3] = {3.0f / 8.0f, 1.0f / 4.0f, 1.0f / 16.0f};
+    const int i = y * width + x;
+    const Vec4f c = in[i];
+    // Gaussian-blurred variance at the centre steadies the luminance stop.
+    float variance = 0.0f, vw = 0.0f;
+    for (int dy = -1; dy <= 1; ++dy) {
+      for (int dx = -1; dx <= 1; ++dx) {
+        const int nx = MinInt(MaxInt(x + dx, 0), width - 1), ny = MinInt(MaxInt(y + dy, 0), height - 1);
+        const float w = (dx == 0 ? 0.5f : 0.25f) * (dy == 0 ? 0.5f : 0.25f);
+        variance += in[ny * width + nx].w * w;
+        vw += w;
+      }
+    }
+    const float l = Luminance(Xyz(c));
+    const float l_scale = 1.0f / (sigma_luminance * sqrtf(fmaxf(variance / vw, 0.0f)) + 1e-10f);
+    const float z = Depth(i);
+    const float z_scale = 1.0f / (sigma_depth * 0.01f * fmaxf(z, 1e-3f) * float(step) + 1e-6f);
+    Vec3f sum{};
+    float var_sum = 0.0f, weight = 0.0f;
+    for (int dy = -2; dy <= 2; ++dy) {
+      for (int dx = -2; dx <= 2; ++dx) {
+        const int nx = x + dx * step, ny = y + dy * step;
+        if (nx < 0 || ny < 0 || nx >= width || ny >= height) continue;
+        const int k = ny * width + nx;
+        if (Escaped(first_hit[k]) != Escaped(first_hit[i])) continue;
+        const Vec4f q = in[k];
+        const float dz = Escaped(first_hit[i]) ? 0.0f : fabsf(Depth(k) - z);
+        const float w = kernel[dx < 0 ? -dx : dx] * kernel[dy < 0 ? -dy : dy] *
+                        expf(-fabsf(Luminance(Xyz(q)) - l) * l_scale - dz * z_scale);
+        sum += Xyz(q) * w;
+        var_sum += q.w * w * w;
+        weight += w;
+      }
+    }
+    out[i] = ToVec4(sum / weight, var_sum / (weight * weight));
+  }
+};
+
+// --- Demodulation -------------------------------------------------------------
+
+inline constexpr float kAlbedoFloor = 1e-3f;
+
+struct DemodulatePass {
+  const Vec3f* input;
+  const Vec3f* albedo;
+  Vec3f* output;
+  int width;
+  CINEVOL_HD void operator()(int x, int y) const {
+    const int i = y * width + x;
+    output[i] = input[i] / Max(albedo[i], Vec3f{kAlbedoFloor, kAlbedoFloor, kAlbedoFloor});
+  }
+};
+
+struct RemodulatePass {
+  const Vec3f* albedo;
+  Vec3f* image;
+  int width;
+  CINEVOL_HD void operator()(int x, int y) const {
+    const int i = y * width + x;
+    image[i] *= Max(albedo[i], Vec3f{kAlbedoFloor, kAlbedoFloor, kAlbedoFloor});
+  }
+};
+
+// Copies the input, non-finite pixels zeroed.
+struct CopyPass {
+  const Vec3f* in;
+  Vec3f* out;
+  int width;
+  CINEVOL_HD void operator()(int x, int y) const {
+    const int i = y * width + x;
+    out[i] = IsFinite(in[i]) ? in[i] : Vec3f{};
+  }
+};
+
+// Copies the colour of a colour+variance image.
+struct ColorOfPass {
+  const Vec4f* in;
+  Vec3f* out;
+  int width;
+  CINEVOL_HD void operator()(int x, int y) const {
+    const int i = y * width + x;
+    const Vec3f c = Xyz(in[i]);
+    out[i] = IsFinite(c) ? Max(c, Vec3f{}) : Vec3f{};
+  }
+};
+
+}  // namespace cinevol

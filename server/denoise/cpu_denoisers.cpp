@@ -1,0 +1,11 @@
+// The denoisers instantiated for the CPU backend.
+#include "denoise/backend_cpu.h"
+#include "denoise/denoisers.h"
+
+namespace cinevol {
+
+std::unique_ptr<Denoiser> MakeCpuDenoiser(const DenoiserSettings& settings) {
+  return MakeDenoiser<CpuBackend>(settings);
+}
+
+}  // namespace cinevol

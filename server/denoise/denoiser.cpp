@@ -1,0 +1,54 @@
+// Choosing a denoiser and its backend.
+#include "denoise/denoiser.h"
+
+#include <fmt/format.h>
+
+#include "core/error.h"
+#include "render/renderer.h"
+
+namespace cinevol {
+
+std::unique_ptr<Denoiser> MakeCpuDenoiser(const DenoiserSettings& settings);
+#if CINEVOL_WITH_CUDA
+std::unique_ptr<Denoiser> MakeCudaDenoiser(const DenoiserSettings& settings);
+#endif
+
+namespace {
+
+struct MethodName {
+  DenoiseMethod method;
+  const char* name;
+};
+
+constexpr MethodName kMethods[] = {{DenoiseMethod::kNone, "none"},        {DenoiseMethod::kAccumulate, "accumulate"},
+                                   {DenoiseMethod::kKnn, "knn"},          {DenoiseMethod::kGuidedFilter, "guided"},
+                                   {DenoiseMethod::kSvgf, "svgf"},        {DenoiseMethod::kWrls, "wrls"}};
+
+}  // namespace
+
+DenoiseMethod ParseDenoiseMethod(std::string_view name) {
+  for (const MethodName& m : kMethods) {
+    if (name == m.name) return m.method;
+  }
+  throw InputError(fmt::format("unknown denoiser '{}': use none, accumulate, knn, guided, svgf or wrls", name));
+}
+
+const char* ToString(DenoiseMethod method) {
+  for (const MethodName& m : kMethods) {
+    if (method == m.method) return m.name;
+  }
+  return "?";
+}
+
+std::unique_ptr<Denoiser> CreateDenoiser(DenoiseBackend backend, const DenoiserSettings& settings) {
+  if (backend == DenoiseBackend::kCpu) return MakeCpuDenoiser(settings);
+  std::string why;
+  if (!CudaAvailable(&why)) throw InputError("the CUDA denoiser is not available: " + why);
+#if CINEVOL_WITH_CUDA
+  return MakeCudaDenoiser(settings);
+#else
+  return nullptr;  // unreachable: CudaAvailable is false without CUDA
+#endif
+}
+
+}  // namespace cinevol

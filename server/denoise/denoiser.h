@@ -1,0 +1,118 @@
+// Real-time denoisers for the path tracer's frames, behind one interface:
+// the wRLS denoiser of Iglesias-Guitian et al. and the baselines it must beat
+// (accumulation, Exposure Render's KNN filter, a guided image filter, SVGF).
+// Each runs on the CPU and on CUDA from one source; a denoiser reads frames
+// in the memory of the renderer of the same backend.
+//
+// Lifecycle (as OIDN's): Configure(settings) once or on change, Denoise(frame)
+// per frame, Reset() on cuts. History lives across frames; a new frame size
+// resets it.
+#pragma once
+
+#include <cstdint>
+#include <memory>
+#include <string>
+#include <string_view>
+
+#include "core/camera.h"
+#include "core/image.h"
+#include "core/vec.h"
+
+namespace cinevol {
+
+enum class DenoiseMethod { kNone, kAccumulate, kKnn, kGuidedFilter, kSvgf, kWrls };
+
+// "none", "accumulate", "knn", "guided", "svgf", "wrls"; throws InputError otherwise.
+DenoiseMethod ParseDenoiseMethod(std::string_view name);
+const char* ToString(DenoiseMethod method);
+
+// Weighted recursive least squares (Iglesias-Guitian et al., Sec. 5-6). Every
+// model is per pixel and channel, predictor p = [1, z] over the temporal
+// feature z; models and features are reprojected from the previous frame.
+struct WrlsSettings {
+  float alpha = 0.75f;      // [0, 1): weight of the reprojected history in the feature z (Eq. 12)
+  float bandwidth = 0.75f;  // h > 0: sample weight exp(-d^2 / h^2) (Eq. 13); smaller is more stable, more biased
+  float lambda = 0.998f;    // (0, 1]: forgetting factor; 1 never forgets
+  float initial_p = 1.0f;   // > 0: a reset model's inverse covariance, diagonal, in normalised units
+  float max_trace_p = 1e3f; // > initial_p: trace(P) is scaled back to this (covariance wind-up)
+  float max_coefficient = 1e4f;  // a model with |beta| beyond this resets
+  int spatial_radius = 2;        // [0, 8]: neighbours' models blended over (2r+1)^2 pixels (5x5)
+  float spatial_sigma = 1.5f;    // pixels: Gaussian falloff of the spatial blend
+  float range_sigma = 0.3f;      // relative feature difference at which a neighbour's weight falls by e^-0.5
+  float firefly_clamp = 4.0f;    // >= 1: the sample entering z is clamped to this times the local level (neighbours' mean, history)
+};
+
+// Progressive accumulation, reset whenever the camera or scene changes
+// (Exposure Render's default).
+struct AccumulateSettings {};
+
+// Exposure Render's KNN (non-local means style) filter over the accumulated
+// image, fading out as samples accumulate.
+struct KnnSettings {
+  int radius = 3;              // 7x7 window
+  float strength = 0.5f;       // h: colour distance (relative to the pixel's luminance) where weights fall off
+  float fade_frames = 32.0f;   // frames over which the filter fades to the plain accumulation
+};
+
+// He et al.'s guided filter with a two-channel guide from what the volume
+// offers: the temporal feature's luminance and the first-collision depth.
+struct GuidedFilterSettings {
+  int radius = 8;                 // box window (2r+1)^2
+  float epsilon_feature = 0.01f;  // regulariser on the (relative) feature guide
+  float epsilon_depth = 0.01f;    // regulariser on the (normalised) depth guide
+  float alpha = 0.75f;            // temporal feature blend, as in wRLS
+};
+
+// Schied et al. 2017 with our reprojection: temporal accumulation of colour
+// and moments, variance-guided a-trous wavelet filtering (depth and luminance
+// edge stops; volumes have no reliable normals).
+struct SvgfSettings {
+  float color_alpha = 0.2f;    // history blend for colour
+  float moments_alpha = 0.2f;  // history blend for the moments
+  int iterations = 5;          // a-trous levels (step 1, 2, 4, 8, 16)
+  float sigma_luminance = 4.0f;
+  float sigma_depth = 1.0f;
+};
+
+struct DenoiserSettings {
+  DenoiseMethod method = DenoiseMethod::kWrls;
+  // Divide by the first-hit albedo before denoising and multiply after
+  // (an option around any method, so its value can be measured).
+  bool demodulate = false;
+  WrlsSettings wrls;
+  KnnSettings knn;
+  GuidedFilterSettings guided;
+  SvgfSettings svgf;
+};
+
+// One frame from the renderer, in the denoiser's backend memory.
+struct DenoiseFrame {
+  int width = 0, height = 0;
+  const Vec3f* radiance = nullptr;   // noisy linear HDR
+  const Vec4f* first_hit = nullptr;  // nearest first real collision (w = 1) or escaped (w = 0)
+  const Vec3f* albedo = nullptr;     // first-hit diffuse colour; needed when demodulating
+  Camera camera;                     // the camera that rendered it
+  std::uint64_t scene_version = 0;   // bump on transfer-function, light or volume edits
+};
+
+class Denoiser {
+ public:
+  virtual ~Denoiser() = default;
+  virtual void Configure(const DenoiserSettings& settings) = 0;
+  // Denoises one frame; returns the result in the backend's memory, valid
+  // until the next call.
+  virtual const Vec3f* Denoise(const DenoiseFrame& frame) = 0;
+  // Forgets all history (cuts, new volumes).
+  virtual void Reset() = 0;
+  // The last result, on the host.
+  virtual ImageRgbF Output() const = 0;
+  // Time the last Denoise took: wall time on the CPU, CUDA events on the GPU.
+  virtual double LastMilliseconds() const = 0;
+};
+
+enum class DenoiseBackend { kCpu, kCuda };
+
+// Throws InputError for kCuda without a usable GPU.
+std::unique_ptr<Denoiser> CreateDenoiser(DenoiseBackend backend, const DenoiserSettings& settings);
+
+}  // namespace cinevol

@@ -1,0 +1,275 @@
+// The denoisers' drivers, written once over a backend B (CpuBackend or
+// CudaBackend): buffers, the sequence of per-pixel passes, and the history
+// kept between frames. Instantiated in cpu_denoisers.cpp and
+// cuda_denoisers.cu.
+#pragma once
+
+#include <memory>
+#include <stdexcept>
+#include <utility>
+
+#include "denoise/baselines.h"
+#include "denoise/denoiser.h"
+#include "denoise/wrls.h"
+
+namespace cinevol {
+
+inline bool SameView(const Camera& a, const Camera& b) {
+  return a.eye == b.eye && a.forward == b.forward && a.up == b.up && a.tan_half_fov_y == b.tan_half_fov_y &&
+         a.lens_radius == b.lens_radius && a.focal_distance == b.focal_distance;
+}
+
+// What every method shares: frame size, optional demodulation, the previous
+// frame's camera and first hits for reprojection, the output, timing.
+template <class B>
+class DenoiserBase : public Denoiser {
+ public:
+  template <class T>
+  using Buffer = typename B::template Buffer<T>;
+
+  // The method is fixed when the denoiser is made; the rest may change.
+  void Configure(const DenoiserSettings& settings) override {
+    if (configured_ && settings.method != settings_.method) {
+      throw std::invalid_argument("a denoiser's method cannot change: create another");
+    }
+    settings_ = settings;
+    configured_ = true;
+  }
+
+  const Vec3f* Denoise(const DenoiseFrame& frame) override {
+    if (frame.width <= 0 || frame.height <= 0 || !frame.radiance || !frame.first_hit) {
+      throw std::invalid_argument("DenoiseFrame needs a size, radiance and first hits");
+    }
+    if (settings_.demodulate && !frame.albedo) throw std::invalid_argument("demodulation needs the albedo buffer");
+    if (frame.width != width_ || frame.height != height_) {
+      width_ = frame.width;
+      height_ = frame.height;
+      const std::size_t n = pixels();
+      output_.Resize(n);
+      demodulated_.Resize(n);
+      prev_first_hit_.Resize(n);
+      Allocate(n);
+      Reset();
+    }
+    timer_.Start();
+    const Vec3f* input = frame.radiance;
+    if (settings_.demodulate) {
+      B::ForEachPixel(width_, height_, DemodulatePass{frame.radiance, frame.albedo, demodulated_.data(), width_});
+      input = demodulated_.data();
+    }
+    ReprojectionView rv;
+    rv.first_hit = frame.first_hit;
+    rv.prev_first_hit = prev_first_hit_.data();
+    rv.camera = frame.camera;
+    rv.prev_camera = prev_camera_;
+    rv.width = width_;
+    rv.height = height_;
+    rv.has_history = has_history_;
+    Run(frame, input, rv, output_.data());
+    if (settings_.demodulate) B::ForEachPixel(width_, height_, RemodulatePass{frame.albedo, output_.data(), width_});
+    prev_first_hit_.CopyFrom(frame.first_hit, pixels());
+    prev_camera_ = frame.camera;
+    prev_scene_version_ = frame.scene_version;
+    has_history_ = true;
+    timer_.Stop();
+    return output_.data();
+  }
+
+  void Reset() override {
+    has_history_ = false;
+    ResetHistory();
+  }
+
+  ImageRgbF Output() const override { return {width_, height_, output_.Download()}; }
+  double LastMilliseconds() const override { return timer_.Milliseconds(); }
+
+ protected:
+  // One frame: read `input` (demodulated if asked), write `output`.
+  virtual void Run(const DenoiseFrame& frame, const Vec3f* input, const ReprojectionView& rv, Vec3f* output) = 0;
+  virtual void Allocate(std::size_t pixels) = 0;
+  virtual void ResetHistory() {}
+
+  std::size_t pixels() const { return std::size_t(width_) * height_; }
+  // True when nothing but the samples changed since the last frame.
+  bool SameScene(const DenoiseFrame& frame) const {
+    return has_history_ && SameView(frame.camera, prev_camera_) && frame.scene_version == prev_scene_version_;
+  }
+
+  DenoiserSettings settings_;
+  bool configured_ = false;
+  int width_ = 0, height_ = 0;
+  bool has_history_ = false;
+
+ private:
+  Buffer<Vec3f> output_, demodulated_;
+  Buffer<Vec4f> prev_first_hit_;
+  Camera prev_camera_;
+  std::uint64_t prev_scene_version_ = 0;
+  typename B::Timer timer_;
+};
+
+template <class B>
+class PassThrough final : public DenoiserBase<B> {
+ protected:
+  void Run(const DenoiseFrame&, const Vec3f* input, const ReprojectionView&, Vec3f* output) override {
+    B::ForEachPixel(this->width_, this->height_, CopyPass{input, output, this->width_});
+  }
+  void Allocate(std::size_t) override {}
+};
+
+// Progressive accumulation; KNN filters the running mean on top of it.
+template <class B>
+class Accumulation : public DenoiserBase<B> {
+ protected:
+  void Run(const DenoiseFrame& frame, const Vec3f* input, const ReprojectionView&, Vec3f* output) override {
+    if (!this->SameScene(frame)) {
+      sum_.Zero();
+      frames_ = 0;
+    }
+    ++frames_;
+    B::ForEachPixel(this->width_, this->height_,
+                    AccumulatePass{input, sum_.data(), output, this->width_, 1.0f / float(frames_)});
+  }
+  void Allocate(std::size_t n) override { sum_.Resize(n); }
+  void ResetHistory() override { frames_ = 0; }
+
+  int frames_ = 0;
+
+ private:
+  typename DenoiserBase<B>::template Buffer<Vec3f> sum_;
+};
+
+template <class B>
+class KnnFilter final : public Accumulation<B> {
+ protected:
+  void Run(const DenoiseFrame& frame, const Vec3f* input, const ReprojectionView& rv, Vec3f* output) override {
+    Accumulation<B>::Run(frame, input, rv, mean_.data());
+    const KnnSettings& s = this->settings_.knn;
+    const float fade = fmaxf(0.0f, 1.0f - float(this->frames_ - 1) / fmaxf(s.fade_frames, 1.0f));
+    B::ForEachPixel(this->width_, this->height_, KnnPass{mean_.data(), output, this->width_, this->height_, s, fade});
+  }
+  void Allocate(std::size_t n) override {
+    Accumulation<B>::Allocate(n);
+    mean_.Resize(n);
+  }
+
+ private:
+  typename DenoiserBase<B>::template Buffer<Vec3f> mean_;
+};
+
+template <class B>
+class GuidedFilter final : public DenoiserBase<B> {
+ protected:
+  void Run(const DenoiseFrame& frame, const Vec3f* input, const ReprojectionView& rv, Vec3f* output) override {
+    const GuidedFilterSettings& s = this->settings_.guided;
+    const int w = this->width_, h = this->height_;
+    std::swap(feature_, prev_feature_);
+    B::ForEachPixel(w, h, TemporalFeaturePass{rv, input, prev_feature_.data(), feature_.data(), s.alpha});
+    // Depth in units of the eye's distance from the volume's centre.
+    const float depth_scale = 1.0f / fmaxf(Length(frame.camera.eye), 1e-3f);
+    B::ForEachPixel(w, h, GuidedMomentsPass{input, feature_.data(), frame.first_hit, frame.camera, depth_scale,
+                                            moments_.data(), w});
+    B::ForEachPixel(w, h, BoxPass<GuidedMoments>{moments_.data(), moments_tmp_.data(), w, h, s.radius, true});
+    B::ForEachPixel(w, h, BoxPass<GuidedMoments>{moments_tmp_.data(), moments_.data(), w, h, s.radius, false});
+    B::ForEachPixel(w, h, GuidedSolvePass{moments_.data(), coefficients_.data(), w, s.epsilon_feature, s.epsilon_depth});
+    B::ForEachPixel(w, h, BoxPass<GuidedCoefficients>{coefficients_.data(), coefficients_tmp_.data(), w, h, s.radius, true});
+    B::ForEachPixel(w, h, BoxPass<GuidedCoefficients>{coefficients_tmp_.data(), coefficients_.data(), w, h, s.radius, false});
+    B::ForEachPixel(w, h, GuidedOutputPass{coefficients_.data(), feature_.data(), frame.first_hit, frame.camera,
+                                           depth_scale, output, w});
+  }
+  void Allocate(std::size_t n) override {
+    feature_.Resize(n);
+    prev_feature_.Resize(n);
+    moments_.Resize(n);
+    moments_tmp_.Resize(n);
+    coefficients_.Resize(n);
+    coefficients_tmp_.Resize(n);
+  }
+
+ private:
+  typename DenoiserBase<B>::template Buffer<Vec3f> feature_, prev_feature_;
+  typename DenoiserBase<B>::template Buffer<GuidedMoments> moments_, moments_tmp_;
+  typename DenoiserBase<B>::template Buffer<GuidedCoefficients> coefficients_, coefficients_tmp_;
+};
+
+// SVGF feeds the first a-trous level's colour back as history.
+struct SvgfFeedbackPass {
+  const Vec4f* filtered;
+  SvgfHistory* history;
+  int width;
+  CINEVOL_HD void operator()(int x, int y) const {
+    const int i = y * width + x;
+    history[i].color = Xyz(filtered[i]);
+  }
+};
+
+template <class B>
+class Svgf final : public DenoiserBase<B> {
+ protected:
+  void Run(const DenoiseFrame& frame, const Vec3f* input, const ReprojectionView& rv, Vec3f* output) override {
+    const SvgfSettings& s = this->settings_.svgf;
+    const int w = this->width_, h = this->height_;
+    std::swap(history_, prev_history_);
+    B::ForEachPixel(w, h, SvgfTemporalPass{rv, input, prev_history_.data(), history_.data(), s});
+    B::ForEachPixel(w, h, SvgfVariancePass{history_.data(), frame.first_hit, a_.data(), w, h});
+    for (int level = 0; level < s.iterations; ++level) {
+      B::ForEachPixel(w, h, SvgfAtrousPass{a_.data(), b_.data(), frame.first_hit, frame.camera, w, h, 1 << level,
+                                           s.sigma_luminance, s.sigma_depth});
+      if (level == 0) B::ForEachPixel(w, h, SvgfFeedbackPass{b_.data(), history_.data(), w});
+      std::swap(a_, b_);
+    }
+    B::ForEachPixel(w, h, ColorOfPass{a_.data(), output, w});
+  }
+  void Allocate(std::size_t n) override {
+    history_.Resize(n);
+    prev_history_.Resize(n);
+    a_.Resize(n);
+    b_.Resize(n);
+  }
+
+ private:
+  typename DenoiserBase<B>::template Buffer<SvgfHistory> history_, prev_history_;
+  typename DenoiserBase<B>::template Buffer<Vec4f> a_, b_;
+};
+
+template <class B>
+class Wrls final : public DenoiserBase<B> {
+ protected:
+  void Run(const DenoiseFrame& frame, const Vec3f* input, const ReprojectionView& rv, Vec3f* output) override {
+    const WrlsSettings& s = this->settings_.wrls;
+    const int w = this->width_, h = this->height_;
+    std::swap(feature_, prev_feature_);
+    std::swap(model_, prev_model_);
+    B::ForEachPixel(w, h, WrlsTemporalPass{rv, input, prev_feature_.data(), prev_model_.data(), feature_.data(),
+                                           model_.data(), s});
+    B::ForEachPixel(w, h, WrlsSpatialPass{rv, feature_.data(), model_.data(), output, s});
+    (void)frame;
+  }
+  void Allocate(std::size_t n) override {
+    feature_.Resize(n);
+    prev_feature_.Resize(n);
+    model_.Resize(n);
+    prev_model_.Resize(n);
+  }
+
+ private:
+  typename DenoiserBase<B>::template Buffer<Vec3f> feature_, prev_feature_;
+  typename DenoiserBase<B>::template Buffer<WrlsModel> model_, prev_model_;
+};
+
+template <class B>
+std::unique_ptr<Denoiser> MakeDenoiser(const DenoiserSettings& settings) {
+  std::unique_ptr<Denoiser> d;
+  switch (settings.method) {
+    case DenoiseMethod::kNone: d = std::make_unique<PassThrough<B>>(); break;
+    case DenoiseMethod::kAccumulate: d = std::make_unique<Accumulation<B>>(); break;
+    case DenoiseMethod::kKnn: d = std::make_unique<KnnFilter<B>>(); break;
+    case DenoiseMethod::kGuidedFilter: d = std::make_unique<GuidedFilter<B>>(); break;
+    case DenoiseMethod::kSvgf: d = std::make_unique<Svgf<B>>(); break;
+    case DenoiseMethod::kWrls: d = std::make_unique<Wrls<B>>(); break;
+  }
+  d->Configure(settings);
+  return d;
+}
+
+}  // namespace cinevol

@@ -1,0 +1,92 @@
+// Reprojection for the temporal denoisers (paper, Sec. 6): a pixel's motion
+// comes from its first real collision seen by the previous camera; pixels
+// whose rays escaped move with their direction. Per-pixel, host and device.
+#pragma once
+
+#include "core/camera.h"
+#include "core/hd.h"
+#include "core/vec.h"
+
+namespace cinevol {
+
+// What reprojection reads: this frame's and the previous frame's first hits
+// and cameras.
+struct ReprojectionView {
+  const Vec4f* first_hit = nullptr;       // this frame
+  const Vec4f* prev_first_hit = nullptr;  // previous frame
+  Camera camera, prev_camera;
+  int width = 0, height = 0;
+  bool has_history = false;
+  float max_error_px = 2.0f;  // round trip tolerance
+
+  CINEVOL_HD int Index(int x, int y) const { return y * width + x; }
+  CINEVOL_HD bool InBounds(int x, int y) const { return x >= 0 && y >= 0 && x < width && y < height; }
+};
+
+struct Reprojection {
+  bool valid = false;
+  float x = 0, y = 0;  // continuous pixel coordinates in the previous frame (centres at integers)
+  int nx = 0, ny = 0;  // nearest previous pixel
+};
+
+CINEVOL_HD bool Escaped(const Vec4f& hit) { return hit.w == 0.0f; }
+
+// Where pixel (x, y) was in the previous frame. Valid when it was on screen,
+// the previous pixel there saw the same kind of thing (volume or background)
+// and, for the volume, the previous pixel's own hit maps back within
+// max_error_px of (x, y): a round trip that tolerates the depth noise of
+// semi-transparent media (a static camera always maps back exactly) and
+// rejects disocclusions.
+CINEVOL_HD Reprojection Reproject(const ReprojectionView& v, int x, int y) {
+  Reprojection r;
+  if (!v.has_history) return r;
+  const Vec4f hit = v.first_hit[v.Index(x, y)];
+  float px, py;
+  if (Escaped(hit)) {
+    const Vec3f d = v.camera.GenerateRay(float(x) + 0.5f, float(y) + 0.5f, 0.5f, 0.5f).direction;
+    if (!v.prev_camera.Project(v.prev_camera.eye + d, px, py)) return r;
+  } else if (!v.prev_camera.Project(Xyz(hit), px, py)) {
+    return r;
+  }
+  r.x = px - 0.5f;
+  r.y = py - 0.5f;
+  r.nx = static_cast<int>(floorf(px));
+  r.ny = static_cast<int>(floorf(py));
+  if (!v.InBounds(r.nx, r.ny)) return r;
+  const Vec4f prev = v.prev_first_hit[v.Index(r.nx, r.ny)];
+  if (Escaped(prev) != Escaped(hit)) return r;
+  if (!Escaped(hit)) {
+    float bx, by;
+    if (!v.camera.Project(Xyz(prev), bx, by)) return r;
+    const float ex = bx - (float(x) + 0.5f), ey = by - (float(y) + 0.5f);
+    if (ex * ex + ey * ey > v.max_error_px * v.max_error_px) return r;
+  }
+  r.valid = true;
+  return r;
+}
+
+// Bilinear fetch of a previous-frame buffer at r's continuous position, over
+// the taps that saw the same kind of thing as `hit`. False when none did.
+template <class T>
+CINEVOL_HD bool SampleHistory(const ReprojectionView& v, const T* history, const Reprojection& r, const Vec4f& hit,
+                              T& out) {
+  const int x0 = static_cast<int>(floorf(r.x)), y0 = static_cast<int>(floorf(r.y));
+  const float fx = r.x - float(x0), fy = r.y - float(y0);
+  T sum{};
+  float weight = 0.0f;
+  for (int dy = 0; dy <= 1; ++dy) {
+    for (int dx = 0; dx <= 1; ++dx) {
+      const int sx = x0 + dx, sy = y0 + dy;
+      if (!v.InBounds(sx, sy) || Escaped(v.prev_first_hit[v.Index(sx, sy)]) != Escaped(hit)) continue;
+      const float w = (dx ? fx : 1.0f - fx) * (dy ? fy : 1.0f - fy);
+      if (w <= 0.0f) continue;
+      sum = sum + history[v.Index(sx, sy)] * w;
+      weight += w;
+    }
+  }
+  if (weight <= 0.0f) return false;
+  out = sum * (1.0f / weight);
+  return true;
+}
+
+}  // namespace cinevol

@@ -1,0 +1,202 @@
+// The wRLS denoiser's per-pixel work (Iglesias-Guitian et al., Sec. 5-6),
+// host and device.
+//
+// Per pixel: a temporal feature z (Eq. 12), then per channel a linear model
+// I ~ beta0 + beta1 z updated by weighted recursive least squares (Eqs. 9-11,
+// 13, 14); a spatial pass blends the predictions of the neighbours' models.
+//
+// Numerics (what keeps it stable at the extremes):
+// - Each model works in units of its own scale s (the feature's magnitude
+//   when it was made): predictor p = [1, z/s], target I/s. Radiance from 1e-4
+//   to 1e4, or an exposure change of 1e8, gives the same numbers. When z
+//   drifts 16x away from s the model is rescaled exactly.
+// - The gain is q = w P p / (lambda + w p'Pp): w is never a divisor, so a
+//   weight of 0 (an outlier) is a no-op rather than a division by zero.
+// - P is stored symmetric (three numbers) and updated in the symmetric form
+//   P' = (P - k k' w / (lambda + w p'k)) / lambda with k = P p.
+// - On a static view only one direction of p is excited and P grows as
+//   lambda^-n in the other (x5e8 after 10,000 frames at 0.998); its trace is
+//   scaled back to max_trace_p, so the next camera move cannot spike.
+// - A model resets on disocclusion, failed reprojection, non-finite numbers,
+//   a non-positive-definite P or a coefficient beyond max_coefficient.
+#pragma once
+
+#include "core/sampling.h"
+#include "denoise/denoiser.h"
+#include "denoise/reprojection.h"
+
+namespace cinevol {
+
+// One pixel's three per-channel models.
+struct WrlsModel {
+  float scale = 0;    // s
+  Vec3f beta0, beta1; // I/s = beta0 + beta1 z/s, per channel
+  Vec3f p00, p01, p11;  // P per channel (symmetric 2x2)
+};
+
+inline constexpr float kWrlsMinScale = 1e-20f;
+
+CINEVOL_HD float MeanComponent(Vec3f v) { return (v.x + v.y + v.z) * (1.0f / 3.0f); }
+
+// A fresh model predicting the feature itself (beta = [0, 1]).
+CINEVOL_HD WrlsModel InitialModel(Vec3f z, float initial_p) {
+  WrlsModel m;
+  m.scale = fmaxf(MeanComponent(Abs(z)), kWrlsMinScale);
+  m.beta0 = {0, 0, 0};
+  m.beta1 = {1, 1, 1};
+  m.p00 = m.p11 = {initial_p, initial_p, initial_p};
+  m.p01 = {0, 0, 0};
+  return m;
+}
+
+CINEVOL_HD bool Healthy(const WrlsModel& m, float max_coefficient) {
+  if (!(m.scale >= kWrlsMinScale) || !isfinite(m.scale)) return false;
+  for (int c = 0; c < 3; ++c) {
+    const float b0 = m.beta0[c], b1 = m.beta1[c], a = m.p00[c], b = m.p01[c], d = m.p11[c];
+    if (!(fabsf(b0) <= max_coefficient && fabsf(b1) <= max_coefficient)) return false;  // also NaN
+    if (!(a > 0.0f && d > 0.0f && a * d - b * b > 0.0f) || !isfinite(a + b + d)) return false;
+  }
+  return true;
+}
+
+// Re-expresses the model in units of `scale` (exact: predictions unchanged).
+CINEVOL_HD void Rescale(WrlsModel& m, float scale) {
+  const float r = m.scale / scale;
+  m.beta0 *= r;
+  m.p01 *= r;
+  m.p11 *= r * r;
+  m.scale = scale;
+}
+
+// Eq. 13: relative distance of the sample from the feature, as a weight.
+CINEVOL_HD float SampleWeight(Vec3f sample, Vec3f z, float bandwidth, float epsilon) {
+  const float d = Length(sample - z) / (fminf(Length(sample), Length(z)) + epsilon);
+  return expf(-(d * d) / (bandwidth * bandwidth));
+}
+
+// One weighted RLS step for channel c with predictor [1, u] and target y.
+CINEVOL_HD void UpdateChannel(WrlsModel& m, int c, float u, float y, float w, const WrlsSettings& s) {
+  float a = m.p00[c], b = m.p01[c], d = m.p11[c];
+  const float k0 = a + b * u, k1 = b + d * u;  // k = P p
+  const float denom = s.lambda + w * (k0 + k1 * u);  // lambda + w p'Pp (> 0: P is positive definite)
+  const float error = y - (m.beta0[c] + m.beta1[c] * u);
+  const float g = w / denom;  // gain q = g k
+  m.beta0[c] += g * k0 * error;
+  m.beta1[c] += g * k1 * error;
+  const float inv_lambda = 1.0f / s.lambda;
+  a = (a - g * k0 * k0) * inv_lambda;
+  b = (b - g * k0 * k1) * inv_lambda;
+  d = (d - g * k1 * k1) * inv_lambda;
+  const float trace = a + d;
+  if (trace > s.max_trace_p) {
+    const float shrink = s.max_trace_p / trace;
+    a *= shrink;
+    b *= shrink;
+    d *= shrink;
+  }
+  m.p00[c] = a;
+  m.p01[c] = b;
+  m.p11[c] = d;
+}
+
+// Pass 1: the temporal feature and the model update, per pixel.
+struct WrlsTemporalPass {
+  ReprojectionView rv;
+  const Vec3f* input;          // this frame's noisy radiance
+  const Vec3f* prev_feature;   // z of the previous frame
+  const WrlsModel* prev_model;
+  Vec3f* feature;              // z of this frame
+  WrlsModel* model;
+  WrlsSettings s;
+
+  CINEVOL_HD void operator()(int x, int y) const {
+    const int i = rv.Index(x, y);
+    const Vec3f sample = input[i];
+    const bool sample_ok = IsFinite(sample);
+    // The 3x3 neighbourhood: its colour box rectifies the history; the mean
+    // level of the centre's neighbours (with the history) caps what a firefly
+    // can add to z.
+    Vec3f lo{3.4e38f, 3.4e38f, 3.4e38f}, hi{-3.4e38f, -3.4e38f, -3.4e38f};
+    float neighbour_sum = 0.0f;
+    int neighbours = 0;
+    for (int dy = -1; dy <= 1; ++dy) {
+      for (int dx = -1; dx <= 1; ++dx) {
+        if (!rv.InBounds(x + dx, y + dy)) continue;
+        const Vec3f c = input[rv.Index(x + dx, y + dy)];
+        if (!IsFinite(c)) continue;
+        lo = Min(lo, c);
+        hi = Max(hi, c);
+        if (dx != 0 || dy != 0) {
+          neighbour_sum += MaxComponent(c);
+          ++neighbours;
+        }
+      }
+    }
+    const Reprojection r = Reproject(rv, x, y);
+    const Vec4f hit = rv.first_hit[i];
+    Vec3f history;
+    const bool has_history = r.valid && SampleHistory(rv, prev_feature, r, hit, history) && IsFinite(history);
+    if (has_history && lo.x <= hi.x) history = Min(Max(history, lo), hi);
+
+    const float level = fmaxf(neighbours > 0 ? neighbour_sum / float(neighbours) : 0.0f,
+                              has_history ? MaxComponent(history) : 0.0f);
+    const float cap = s.firefly_clamp * level;
+    Vec3f entering = sample_ok ? Min(Max(sample, Vec3f{}), Vec3f{cap, cap, cap}) : Vec3f{};
+    if (!sample_ok && has_history) entering = history;
+    // Eq. 12, all three channels together.
+    const Vec3f z = has_history ? history * s.alpha + entering * (1.0f - s.alpha) : entering;
+    feature[i] = z;
+
+    WrlsModel m = r.valid ? prev_model[rv.Index(r.nx, r.ny)] : InitialModel(z, s.initial_p);
+    if (!Healthy(m, s.max_coefficient)) m = InitialModel(z, s.initial_p);
+    const float magnitude = MeanComponent(Abs(z));
+    if (magnitude > 16.0f * m.scale || magnitude * 16.0f < m.scale) Rescale(m, fmaxf(magnitude, kWrlsMinScale));
+
+    if (sample_ok) {
+      const float w = SampleWeight(sample, z, s.bandwidth, 1e-3f * m.scale);
+      const float inv_scale = 1.0f / m.scale;
+      for (int c = 0; c < 3; ++c) UpdateChannel(m, c, z[c] * inv_scale, sample[c] * inv_scale, w, s);
+      if (!Healthy(m, s.max_coefficient)) m = InitialModel(z, s.initial_p);
+    }
+    model[i] = m;
+  }
+};
+
+// Pass 2: each pixel blends the predictions that its neighbours' models make
+// from its own feature, with bilateral weights on the feature.
+struct WrlsSpatialPass {
+  ReprojectionView rv;  // first_hit only: volume and background do not mix
+  const Vec3f* feature;
+  const WrlsModel* model;
+  Vec3f* output;
+  WrlsSettings s;
+
+  CINEVOL_HD void operator()(int x, int y) const {
+    const int i = rv.Index(x, y);
+    const Vec3f z = feature[i];
+    const bool escaped = Escaped(rv.first_hit[i]);
+    const float z2 = Dot(z, z);
+    const float inv_spatial = 1.0f / (2.0f * s.spatial_sigma * s.spatial_sigma);
+    Vec3f sum{};
+    float weight = 0.0f;
+    for (int dy = -s.spatial_radius; dy <= s.spatial_radius; ++dy) {
+      for (int dx = -s.spatial_radius; dx <= s.spatial_radius; ++dx) {
+        const int nx = x + dx, ny = y + dy;
+        if (!rv.InBounds(nx, ny)) continue;
+        const int k = rv.Index(nx, ny);
+        if (Escaped(rv.first_hit[k]) != escaped) continue;
+        const Vec3f zk = feature[k];
+        const Vec3f diff = z - zk;
+        const float range = Dot(diff, diff) / (2.0f * s.range_sigma * s.range_sigma * (0.5f * (z2 + Dot(zk, zk))) + 1e-30f);
+        const float w = expf(-float(dx * dx + dy * dy) * inv_spatial - range);
+        const WrlsModel& m = model[k];
+        sum += (m.beta0 * m.scale + m.beta1 * z) * w;
+        weight += w;
+      }
+    }
+    const Vec3f out = weight > 0.0f ? sum / weight : z;
+    output[i] = IsFinite(out) ? Max(out, Vec3f{}) : z;
+  }
+};
+
+}  // namespace cinevol
