@@ -28,13 +28,16 @@ struct CpuBackend {
     std::vector<T> data_;
   };
 
-  // f(x, y) for every pixel; f must not throw.
+  // f(x, y) for every pixel; f must not throw. Frames too small to repay
+  // starting threads run on the caller's.
   template <class F>
   static void ForEachPixel(int width, int height, const F& f) {
     ParallelFor(height, [&](std::int64_t y) {
       for (int x = 0; x < width; ++x) f(x, int(y));
-    });
+    }, std::int64_t(width) * height < kMinPixelsPerThread ? 1 : 0);
   }
+
+  static constexpr std::int64_t kMinPixelsPerThread = 16384;
 
   // Wall-clock timing of a sequence of passes.
   class Timer {

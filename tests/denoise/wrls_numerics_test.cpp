@@ -1,0 +1,64 @@
+// The wRLS update's numerics in isolation: covariance wind-up and its bound,
+// a zero weight, exact rescaling.
+#include <gtest/gtest.h>
+
+#include "denoise/wrls.h"
+
+namespace cinevol {
+namespace {
+
+float Trace(const WrlsModel& m, int c) { return m.p00[c] + m.p11[c]; }
+
+TEST(WrlsNumerics, ConstantPredictorWindsUpWithoutTheBound) {
+  WrlsSettings unbounded;
+  unbounded.max_trace_p = 3.4e38f;
+  WrlsModel m = InitialModel({1, 1, 1}, unbounded.initial_p);
+  for (int t = 0; t < 10000; ++t) UpdateChannel(m, 0, 1.0f, 1.0f, 1.0f, unbounded);
+  // Only [1, 1] is excited; P grows as lambda^-n along [1, -1]: 0.998^-10000 = 5e8.
+  EXPECT_GT(Trace(m, 0), 1e8f);
+}
+
+TEST(WrlsNumerics, TheTraceBoundHoldsAndTheModelStaysHealthy) {
+  const WrlsSettings s;
+  WrlsModel m = InitialModel({1, 1, 1}, s.initial_p);
+  for (int t = 0; t < 20000; ++t) {
+    for (int c = 0; c < 3; ++c) UpdateChannel(m, c, 1.0f, 0.8f, 1.0f, s);
+    ASSERT_LE(Trace(m, 0), s.max_trace_p * (1 + 1e-5f));
+    ASSERT_TRUE(Healthy(m, s.max_coefficient)) << "step " << t;
+  }
+  EXPECT_NEAR(m.beta0[0] + m.beta1[0] * 1.0f, 0.8f, 1e-3f);  // predicts what it saw
+}
+
+TEST(WrlsNumerics, ZeroWeightOnlyForgets) {
+  const WrlsSettings s;
+  WrlsModel m = InitialModel({2, 2, 2}, s.initial_p);
+  m.beta0 = {0.1f, 0.1f, 0.1f};
+  const WrlsModel before = m;
+  UpdateChannel(m, 1, 0.7f, 1e30f, 0.0f, s);  // an absurd target with weight 0
+  EXPECT_EQ(m.beta0[1], before.beta0[1]);
+  EXPECT_EQ(m.beta1[1], before.beta1[1]);
+  EXPECT_FLOAT_EQ(m.p00[1], before.p00[1] / s.lambda);
+}
+
+TEST(WrlsNumerics, RescalingKeepsPredictions) {
+  const WrlsSettings s;
+  WrlsModel m = InitialModel({1, 2, 3}, s.initial_p);
+  for (int t = 0; t < 50; ++t) {
+    for (int c = 0; c < 3; ++c) UpdateChannel(m, c, 1.0f + 0.01f * (t % 7), 1.2f + 0.02f * (t % 5), 1.0f, s);
+  }
+  const float z = 3.7f;
+  auto predict = [&](const WrlsModel& k, int c) { return k.beta0[c] * k.scale + k.beta1[c] * z; };
+  WrlsModel r = m;
+  Rescale(r, 1e6f);
+  for (int c = 0; c < 3; ++c) EXPECT_NEAR(predict(r, c), predict(m, c), 1e-4f * std::abs(predict(m, c)));
+  EXPECT_TRUE(Healthy(r, s.max_coefficient));
+}
+
+TEST(WrlsNumerics, OutliersGetNoWeight) {
+  EXPECT_NEAR(SampleWeight({1, 1, 1}, {1, 1, 1}, 0.75f, 1e-6f), 1.0f, 1e-6f);
+  EXPECT_LT(SampleWeight({1e6f, 1e6f, 1e6f}, {1, 1, 1}, 0.75f, 1e-6f), 1e-30f);
+  EXPECT_NEAR(SampleWeight({2, 2, 2}, {1, 1, 1}, 0.75f, 0.0f), std::exp(-1.0f / 0.5625f), 1e-6f);
+}
+
+}  // namespace
+}  // namespace cinevol
