@@ -18,6 +18,16 @@ struct RenderBenchOptions {
 
 int RunRenderBench(const RenderBenchOptions& options);
 
+struct DenoiseBenchOptions {
+  std::string scene, volume, backend = "auto", out, command_line;
+  int width = 0, height = 0;
+  int frames = 24, warmup = 8;
+  int reference_spp = 512;         // 0: timings only
+  float degrees_per_frame = 1.0f;  // camera orbit speed
+};
+
+int RunDenoiseBench(const DenoiseBenchOptions& options);
+
 // "NVIDIA H100 80GB HBM3 (cuda)" or "cpu, 2 threads".
 std::string DeviceDescription(const std::string& backend);
 

@@ -11,12 +11,12 @@ export LD_LIBRARY_PATH=/tmp/cv/lib
 bin=/tmp/cv/bin data=/tmp/cv/data
 nvidia-smi --query-gpu=name,memory.total,driver_version --format=csv,noheader | tee "$out/gpu.txt"
 
-"$bin/cinevol_tests" --gtest_filter="${TESTS:-Cuda*}" > "$out/gpu-tests.log" 2>&1
+"$bin/cinevol_tests" --gtest_filter="${TESTS:-*Cuda*}" > "$out/gpu-tests.log" 2>&1
 echo "tests rc=$?: $(grep -E '^\[  (PASSED|FAILED) ' "$out/gpu-tests.log" | tr '\n' ' ')"
 
 if [ "${SANITIZE:-1}" = 1 ]; then
   compute-sanitizer --tool memcheck --error-exitcode 9 "$bin/cinevol_tests" \
-    --gtest_filter='CudaRenderer.FirstHits*:CudaRenderer.SameSeed*' > "$out/memcheck.log" 2>&1
+    --gtest_filter='CudaRenderer.FirstHits*:CudaRenderer.SameSeed*:*CudaDenoiser*wrls' > "$out/memcheck.log" 2>&1
   echo "memcheck rc=$?: $(grep -E 'ERROR SUMMARY' "$out/memcheck.log" | head -1)"
 fi
 
@@ -24,6 +24,11 @@ for scene in ${BENCH_SCENES:-ct-head-cthead:ct-head-cthead/DERIVED_CThead.nhdr c
   "$bin/cinevol-bench" render --scene "bench/scenes/${scene%%:*}.json" --volume "$data/${scene#*:}" \
     --backend cuda --frames 100 --warmup 10 --out "$out/performance.md" > "$out/bench-${scene%%:*}.log" 2>&1
   echo "bench ${scene%%:*} rc=$?"
+done
+for scene in ${DENOISE_SCENES:-ct-head-cthead:ct-head-cthead/DERIVED_CThead.nhdr ct-aorta-bone:aorta_ct_cropped.nii.gz}; do
+  "$bin/cinevol-bench" denoise --scene "bench/scenes/${scene%%:*}.json" --volume "$data/${scene#*:}" \
+    --backend cuda --out "$out/performance.md" > "$out/denoise-${scene%%:*}.log" 2>&1
+  echo "denoise bench ${scene%%:*} rc=$?"
 done
 ${EXTRA:-true}
 cat "$out/performance.md" 2>/dev/null

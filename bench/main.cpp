@@ -37,6 +37,21 @@ int main(int argc, char** argv) {
   r->add_option("--warmup", render.warmup, "Untimed frames first")->capture_default_str();
   r->add_option("--out", render.out, "Append the Markdown table to this file");
   r->callback([&] { cinevol::bench::RunRenderBench(render); });
+  cinevol::bench::DenoiseBenchOptions denoise;
+  denoise.command_line = command_line;
+  auto* d = app.add_subcommand("denoise", "Every denoiser on a rendered camera orbit: ms/frame and PSNR");
+  d->add_option("--scene", denoise.scene, "Scene file")->required();
+  d->add_option("--volume", denoise.volume, "Volume file, folder or phantom: overrides the scene's");
+  d->add_option("--backend", denoise.backend, "auto, cpu or cuda (renderer and denoisers)");
+  d->add_option("--width", denoise.width, "Frame width (default: the scene's)");
+  d->add_option("--height", denoise.height, "Frame height (default: the scene's)");
+  d->add_option("--frames", denoise.frames, "Frames in the orbit")->capture_default_str();
+  d->add_option("--warmup", denoise.warmup, "Frames before measuring")->capture_default_str();
+  d->add_option("--reference-spp", denoise.reference_spp, "Samples per pixel of the reference (0: no PSNR)")
+      ->capture_default_str();
+  d->add_option("--degrees-per-frame", denoise.degrees_per_frame, "Camera orbit speed")->capture_default_str();
+  d->add_option("--out", denoise.out, "Append the Markdown table to this file");
+  d->callback([&] { cinevol::bench::RunDenoiseBench(denoise); });
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {

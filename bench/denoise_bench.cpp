@@ -1,0 +1,113 @@
+// `cinevol-bench denoise`: every denoiser on the same rendered camera orbit
+// at the scene's spp per frame: milliseconds per frame and PSNR against a
+// high-spp render of every frame, while the camera moves.
+#include <algorithm>
+#include <cmath>
+#include <fstream>
+
+#include <fmt/format.h>
+
+#include "bench.h"
+#include "core/image_metrics.h"
+#include "denoise/denoiser.h"
+#include "io/scene_builder.h"
+#include "io/scene_file.h"
+#include "io/volume_loader.h"
+#include "render/renderer.h"
+
+namespace cinevol::bench {
+namespace {
+
+// The scene's camera turned about its up axis through its target.
+Camera Orbit(const Camera& c, float degrees) {
+  const float distance = c.focal_distance;
+  const Vec3f target = c.eye + c.forward * distance;
+  const float a = degrees * kPi / 180.0f;
+  const Vec3f back = -c.forward;
+  const Vec3f turned = back * std::cos(a) + Cross(c.up, back) * std::sin(a) + c.up * Dot(c.up, back) * (1 - std::cos(a));
+  Camera out = LookAt(target + turned * distance, target, c.up, 2.0f * std::atan(c.tan_half_fov_y) * 180.0f / kPi,
+                      c.width, c.height);
+  out.lens_radius = c.lens_radius;
+  return out;
+}
+
+struct Method {
+  DenoiseMethod method;
+  bool demodulate;
+};
+
+}  // namespace
+
+int RunDenoiseBench(const DenoiseBenchOptions& o) {
+  v1::Scene scene = LoadSceneFile(o.scene);
+  if (!o.volume.empty()) *scene.mutable_volume() = ParseVolumeSpec(o.volume);
+  if (o.width > 0) scene.mutable_render()->set_width(o.width);
+  if (o.height > 0) scene.mutable_render()->set_height(o.height);
+  auto volume = std::make_shared<const Volume>(LoadVolume(scene.volume()));
+  const RenderSetup setup = ResolveScene(scene, *volume);
+  const Backend backend = ParseBackend(o.backend);
+  auto renderer = CreateRenderer(backend);
+  renderer->SetVolume(volume);
+  renderer->SetTransferFunction(setup.transfer_function);
+  renderer->SetLights(setup.lights);
+  const DenoiseBackend denoise_backend = renderer->Name() == "cuda" ? DenoiseBackend::kCuda : DenoiseBackend::kCpu;
+
+  auto request = [&](int t, int spp, std::uint64_t seed) {
+    FrameRequest r;
+    r.camera = Orbit(setup.camera, o.degrees_per_frame * float(t));
+    r.spp = spp;
+    r.max_bounces = setup.max_bounces;
+    r.seed = seed;
+    r.frame = static_cast<std::uint32_t>(t);
+    return r;
+  };
+
+  // References: reference_spp samples of every frame, in chunks of 64.
+  std::vector<ImageRgbF> references;
+  for (int t = 0; o.reference_spp > 0 && t < o.frames; ++t) {
+    renderer->ResetAccumulation();
+    for (int done = 0, chunk = 0; done < o.reference_spp; done += 64, ++chunk) {
+      FrameRequest r = request(t, std::min(64, o.reference_spp - done), 1000 + chunk);
+      renderer->Render(r);
+    }
+    references.push_back(renderer->AccumulatedMean());
+  }
+
+  const Method methods[] = {{DenoiseMethod::kNone, false},         {DenoiseMethod::kAccumulate, false},
+                            {DenoiseMethod::kKnn, false},          {DenoiseMethod::kGuidedFilter, false},
+                            {DenoiseMethod::kSvgf, false},         {DenoiseMethod::kSvgf, true},
+                            {DenoiseMethod::kWrls, false},         {DenoiseMethod::kWrls, true}};
+  std::string table = fmt::format(
+      "\n### Denoisers on {} ({})\n\n`{}`\n\n{}x{}, {} spp/frame, camera orbiting {} degrees per frame, {} frames; "
+      "times: median over frames {}..{}; PSNR (tone-mapped) against {} spp per frame, mean over the same frames\n\n"
+      "| method | demodulated | median ms | p90 ms | PSNR dB |\n|---|---|---|---|---|\n",
+      o.scene, DeviceDescription(o.backend), o.command_line, setup.camera.width, setup.camera.height, setup.spp,
+      o.degrees_per_frame, o.frames, o.warmup, o.frames - 1, o.reference_spp);
+  for (const Method& m : methods) {
+    DenoiserSettings settings;
+    settings.method = m.method;
+    settings.demodulate = m.demodulate;
+    auto denoiser = CreateDenoiser(denoise_backend, settings);
+    std::vector<double> ms;
+    double psnr = 0;
+    for (int t = 0; t < o.frames; ++t) {
+      const FrameRequest r = request(t, setup.spp, setup.seed);
+      renderer->Render(r);  // the same seed renders the same noisy frame for every method
+      const FrameTargets in = renderer->Targets();
+      denoiser->Denoise({r.camera.width, r.camera.height, in.radiance, in.first_hit, in.albedo, r.camera, 0});
+      const double t_ms = denoiser->LastMilliseconds();
+      if (t < o.warmup) continue;
+      ms.push_back(t_ms);
+      if (!references.empty()) psnr += DisplayPsnr(denoiser->Output(), references[t]) / (o.frames - o.warmup);
+    }
+    std::sort(ms.begin(), ms.end());
+    table += fmt::format("| {} | {} | {:.3f} | {:.3f} | {} |\n", ToString(m.method), m.demodulate ? "yes" : "no",
+                         ms[ms.size() / 2], ms[ms.size() * 9 / 10],
+                         references.empty() ? std::string("-") : fmt::format("{:.2f}", psnr));
+  }
+  fmt::print("{}", table);
+  if (!o.out.empty()) std::ofstream(o.out, std::ios::app) << table;
+  return 0;
+}
+
+}  // namespace cinevol::bench

@@ -1,0 +1,81 @@
+// CUDA denoisers against the CPU ones on the same rendered frames (GPU
+// machine; skips elsewhere): every method, wRLS with demodulation too.
+#include <gtest/gtest.h>
+
+#include <cmath>
+
+#include "core/image_metrics.h"
+#include "denoise/denoiser.h"
+#include "io/phantom.h"
+#include "render/renderer.h"
+
+namespace cinevol {
+namespace {
+
+struct Case {
+  DenoiseMethod method;
+  bool demodulate;
+};
+
+class CudaDenoiser : public ::testing::TestWithParam<Case> {};
+
+TEST_P(CudaDenoiser, AgreesWithCpu) {
+  std::string why;
+  if (!CudaAvailable(&why)) GTEST_SKIP() << "no usable GPU: " << why;
+  v1::Phantom p;
+  p.set_kind(v1::Phantom::HEAD);
+  p.set_size(64);
+  p.set_spacing(4.0f);
+  auto volume = std::make_shared<const Volume>(MakePhantom(p));
+  TransferFunction tf;
+  tf.points = {{-100, 0, {0.9f, 0.6f, 0.5f}, {}, 0.5f, {}}, {300, 1, {0.9f, 0.9f, 0.8f}, {0.2f, 0.2f, 0.2f}, 0.4f, {}}};
+  tf.density_scale = 0.3f;
+  LightSetup lights;
+  lights.environment.kind = Environment::Kind::kUniform;
+  lights.environment.zenith = {0.8f, 0.8f, 0.8f};
+  auto renderer = CreateRenderer(Backend::kCuda);
+  renderer->SetVolume(volume);
+  renderer->SetTransferFunction(tf);
+  renderer->SetLights(lights);
+
+  DenoiserSettings s;
+  s.method = GetParam().method;
+  s.demodulate = GetParam().demodulate;
+  auto gpu = CreateDenoiser(DenoiseBackend::kCuda, s), cpu = CreateDenoiser(DenoiseBackend::kCpu, s);
+  const int w = 64, h = 48;
+  for (int t = 0; t < 12; ++t) {
+    FrameRequest req;
+    req.camera = LookAt({400.0f * std::cos(0.05f * t), -400.0f * std::sin(0.05f * t + 1.5f), 50}, {0, 0, 0},
+                        {0, 0, 1}, 32, w, h);
+    req.spp = 2;
+    req.frame = t;
+    renderer->Render(req);
+    const FrameTargets device = renderer->Targets();
+    gpu->Denoise({w, h, device.radiance, device.first_hit, device.albedo, req.camera, 0});
+    const ImageRgbF radiance = renderer->Radiance(), albedo = renderer->Albedo();
+    const std::vector<Vec4f> hits = renderer->FirstHits();
+    cpu->Denoise({w, h, radiance.pixels.data(), hits.data(), albedo.pixels.data(), req.camera, 0});
+    const ImageRgbF a = gpu->Output(), b = cpu->Output();
+    int differing = 0;
+    for (std::size_t i = 0; i < a.pixels.size(); ++i) {
+      ASSERT_TRUE(IsFinite(a.pixels[i]));
+      const float d = MaxComponent(Abs(a.pixels[i] - b.pixels[i]));
+      differing += d > 1e-3f * std::max(1.0f, MaxComponent(b.pixels[i]));
+    }
+    EXPECT_LE(differing, int(a.pixels.size() / 100)) << "frame " << t;
+    EXPECT_GT(DisplayPsnr(a, b), 50.0) << "frame " << t;
+  }
+}
+
+INSTANTIATE_TEST_SUITE_P(
+    Methods, CudaDenoiser,
+    ::testing::Values(Case{DenoiseMethod::kNone, false}, Case{DenoiseMethod::kAccumulate, false},
+                      Case{DenoiseMethod::kKnn, false}, Case{DenoiseMethod::kGuidedFilter, false},
+                      Case{DenoiseMethod::kSvgf, false}, Case{DenoiseMethod::kWrls, false},
+                      Case{DenoiseMethod::kWrls, true}),
+    [](const auto& info) {
+      return std::string(ToString(info.param.method)) + (info.param.demodulate ? "Demodulated" : "");
+    });
+
+}  // namespace
+}  // namespace cinevol
