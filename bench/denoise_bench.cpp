@@ -9,6 +9,7 @@
 
 #include "bench.h"
 #include "core/image_metrics.h"
+#include "core/tone_map.h"
 #include "denoise/denoiser.h"
 #include "io/scene_builder.h"
 #include "io/scene_file.h"
@@ -29,6 +30,13 @@ Camera Orbit(const Camera& c, float degrees) {
                       c.width, c.height);
   out.lens_radius = c.lens_radius;
   return out;
+}
+
+// RMS difference of two 8-bit images, in [0, 1] units.
+double RmsDifference(const ImageRgb8& a, const ImageRgb8& b) {
+  double sum = 0;
+  for (std::size_t i = 0; i < a.bytes.size(); ++i) sum += Sqr((float(a.bytes[i]) - float(b.bytes[i])) / 255.0f);
+  return std::sqrt(sum / double(a.bytes.size()));
 }
 
 struct Method {
@@ -79,8 +87,10 @@ int RunDenoiseBench(const DenoiseBenchOptions& o) {
                             {DenoiseMethod::kWrls, false},         {DenoiseMethod::kWrls, true}};
   std::string table = fmt::format(
       "\n### Denoisers on {} ({})\n\n`{}`\n\n{}x{}, {} spp/frame, camera orbiting {} degrees per frame, {} frames; "
-      "times: median over frames {}..{}; PSNR (tone-mapped) against {} spp per frame, mean over the same frames\n\n"
-      "| method | demodulated | median ms | p90 ms | PSNR dB |\n|---|---|---|---|---|\n",
+      "times: median over frames {}..{}; PSNR (tone-mapped) against {} spp per frame, mean over the same frames; "
+      "flicker: RMS change between consecutive tone-mapped outputs of a static camera (the same frames again, "
+      "camera still; the noisy input's is the first row)\n\n"
+      "| method | demodulated | median ms | p90 ms | PSNR dB (moving) | flicker (static) |\n|---|---|---|---|---|---|\n",
       o.scene, DeviceDescription(o.backend), o.command_line, setup.camera.width, setup.camera.height, setup.spp,
       o.degrees_per_frame, o.frames, o.warmup, o.frames - 1, o.reference_spp);
   for (const Method& m : methods) {
@@ -100,10 +110,24 @@ int RunDenoiseBench(const DenoiseBenchOptions& o) {
       ms.push_back(t_ms);
       if (!references.empty()) psnr += DisplayPsnr(denoiser->Output(), references[t]) / (o.frames - o.warmup);
     }
+    // Flicker on a static camera: frame-to-frame change of what the viewer sees.
+    denoiser->Reset();
+    double flicker = 0;
+    ImageRgb8 previous;
+    for (int t = 0; t < o.frames; ++t) {
+      FrameRequest r = request(0, setup.spp, setup.seed);
+      r.frame = static_cast<std::uint32_t>(t);
+      renderer->Render(r);
+      const FrameTargets in = renderer->Targets();
+      denoiser->Denoise({r.camera.width, r.camera.height, in.radiance, in.first_hit, in.albedo, r.camera, 0});
+      const ImageRgb8 shown = ToneMap(denoiser->Output(), 0.0f);
+      if (t > o.warmup) flicker += RmsDifference(shown, previous) / (o.frames - o.warmup - 1);
+      previous = shown;
+    }
     std::sort(ms.begin(), ms.end());
-    table += fmt::format("| {} | {} | {:.3f} | {:.3f} | {} |\n", ToString(m.method), m.demodulate ? "yes" : "no",
-                         ms[ms.size() / 2], ms[ms.size() * 9 / 10],
-                         references.empty() ? std::string("-") : fmt::format("{:.2f}", psnr));
+    table += fmt::format("| {} | {} | {:.3f} | {:.3f} | {} | {:.4f} |\n", ToString(m.method),
+                         m.demodulate ? "yes" : "no", ms[ms.size() / 2], ms[ms.size() * 9 / 10],
+                         references.empty() ? std::string("-") : fmt::format("{:.2f}", psnr), flicker);
   }
   fmt::print("{}", table);
   if (!o.out.empty()) std::ofstream(o.out, std::ios::app) << table;
