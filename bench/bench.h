@@ -2,25 +2,47 @@
 // docs/performance.md with the command that produced them.
 #pragma once
 
+#include <memory>
 #include <string>
+
+#include <CLI/CLI.hpp>
+
+#include "cinevol/v1/scene.pb.h"
+#include "core/volume.h"
+#include "io/scene_builder.h"
 
 namespace cinevol::bench {
 
-struct RenderBenchOptions {
+// What every benchmark takes: a scene, optionally another volume and size.
+struct SceneOptions {
   std::string scene;
   std::string volume;  // overrides the scene's volume (e.g. data copied to a GPU machine)
   std::string backend = "auto";
   std::string out;     // Markdown table appended here
   std::string command_line;
   int width = 0, height = 0;  // 0: the scene's
+};
+
+void AddSceneOptions(CLI::App* command, SceneOptions& options);
+
+struct LoadedScene {
+  v1::Scene scene;
+  std::shared_ptr<const Volume> volume;
+  RenderSetup setup;
+};
+
+LoadedScene LoadScene(const SceneOptions& options);
+
+// Appends `table` to options.out (when set) and prints it.
+void Report(const SceneOptions& options, const std::string& table);
+
+struct RenderBenchOptions : SceneOptions {
   int frames = 50, warmup = 5;
 };
 
 int RunRenderBench(const RenderBenchOptions& options);
 
-struct DenoiseBenchOptions {
-  std::string scene, volume, backend = "auto", out, command_line;
-  int width = 0, height = 0;
+struct DenoiseBenchOptions : SceneOptions {
   int frames = 24, warmup = 8;
   int reference_spp = 512;         // 0: timings only
   float degrees_per_frame = 1.0f;  // camera orbit speed

@@ -3,7 +3,6 @@
 // high-spp render of every frame, while the camera moves.
 #include <algorithm>
 #include <cmath>
-#include <fstream>
 
 #include <fmt/format.h>
 
@@ -11,9 +10,6 @@
 #include "core/image_metrics.h"
 #include "core/tone_map.h"
 #include "denoise/denoiser.h"
-#include "io/scene_builder.h"
-#include "io/scene_file.h"
-#include "io/volume_loader.h"
 #include "render/renderer.h"
 
 namespace cinevol::bench {
@@ -47,15 +43,11 @@ struct Method {
 }  // namespace
 
 int RunDenoiseBench(const DenoiseBenchOptions& o) {
-  v1::Scene scene = LoadSceneFile(o.scene);
-  if (!o.volume.empty()) *scene.mutable_volume() = ParseVolumeSpec(o.volume);
-  if (o.width > 0) scene.mutable_render()->set_width(o.width);
-  if (o.height > 0) scene.mutable_render()->set_height(o.height);
-  auto volume = std::make_shared<const Volume>(LoadVolume(scene.volume()));
-  const RenderSetup setup = ResolveScene(scene, *volume);
+  const LoadedScene loaded = LoadScene(o);
+  const RenderSetup& setup = loaded.setup;
   const Backend backend = ParseBackend(o.backend);
   auto renderer = CreateRenderer(backend);
-  renderer->SetVolume(volume);
+  renderer->SetVolume(loaded.volume);
   renderer->SetTransferFunction(setup.transfer_function);
   renderer->SetLights(setup.lights);
   const DenoiseBackend denoise_backend = renderer->Name() == "cuda" ? DenoiseBackend::kCuda : DenoiseBackend::kCpu;
@@ -129,8 +121,7 @@ int RunDenoiseBench(const DenoiseBenchOptions& o) {
                          m.demodulate ? "yes" : "no", ms[ms.size() / 2], ms[ms.size() * 9 / 10],
                          references.empty() ? std::string("-") : fmt::format("{:.2f}", psnr), flicker);
   }
-  fmt::print("{}", table);
-  if (!o.out.empty()) std::ofstream(o.out, std::ios::app) << table;
+  Report(o, table);
   return 0;
 }
 

@@ -2,13 +2,41 @@
 #include <CLI/CLI.hpp>
 
 #include <cstdio>
+#include <fstream>
 
 #include "bench.h"
 #include "core/error.h"
 #include "core/parallel_for.h"
+#include "io/scene_file.h"
+#include "io/volume_loader.h"
 #include "render/renderer.h"
 
 namespace cinevol::bench {
+
+void AddSceneOptions(CLI::App* c, SceneOptions& o) {
+  c->add_option("--scene", o.scene, "Scene file")->required();
+  c->add_option("--volume", o.volume, "Volume file, folder or phantom: overrides the scene's");
+  c->add_option("--backend", o.backend, "auto, cpu or cuda");
+  c->add_option("--width", o.width, "Frame width (default: the scene's)");
+  c->add_option("--height", o.height, "Frame height (default: the scene's)");
+  c->add_option("--out", o.out, "Append the Markdown table to this file");
+}
+
+LoadedScene LoadScene(const SceneOptions& o) {
+  LoadedScene s;
+  s.scene = LoadSceneFile(o.scene);
+  if (!o.volume.empty()) *s.scene.mutable_volume() = ParseVolumeSpec(o.volume);
+  if (o.width > 0) s.scene.mutable_render()->set_width(o.width);
+  if (o.height > 0) s.scene.mutable_render()->set_height(o.height);
+  s.volume = std::make_shared<const Volume>(LoadVolume(s.scene.volume()));
+  s.setup = ResolveScene(s.scene, *s.volume);
+  return s;
+}
+
+void Report(const SceneOptions& o, const std::string& table) {
+  std::fputs(table.c_str(), stdout);
+  if (!o.out.empty()) std::ofstream(o.out, std::ios::app) << table;
+}
 
 std::string DeviceDescription(const std::string& backend) {
   std::string gpu;
@@ -28,29 +56,19 @@ int main(int argc, char** argv) {
   cinevol::bench::RenderBenchOptions render;
   render.command_line = command_line;
   auto* r = app.add_subcommand("render", "Path tracer ms/frame with and without empty-space skipping and specialisation");
-  r->add_option("--scene", render.scene, "Scene file")->required();
-  r->add_option("--volume", render.volume, "Volume file, folder or phantom: overrides the scene's");
-  r->add_option("--backend", render.backend, "auto, cpu or cuda");
-  r->add_option("--width", render.width, "Frame width (default: the scene's)");
-  r->add_option("--height", render.height, "Frame height (default: the scene's)");
+  cinevol::bench::AddSceneOptions(r, render);
   r->add_option("--frames", render.frames, "Timed frames")->capture_default_str();
   r->add_option("--warmup", render.warmup, "Untimed frames first")->capture_default_str();
-  r->add_option("--out", render.out, "Append the Markdown table to this file");
   r->callback([&] { cinevol::bench::RunRenderBench(render); });
   cinevol::bench::DenoiseBenchOptions denoise;
   denoise.command_line = command_line;
   auto* d = app.add_subcommand("denoise", "Every denoiser on a rendered camera orbit: ms/frame and PSNR");
-  d->add_option("--scene", denoise.scene, "Scene file")->required();
-  d->add_option("--volume", denoise.volume, "Volume file, folder or phantom: overrides the scene's");
-  d->add_option("--backend", denoise.backend, "auto, cpu or cuda (renderer and denoisers)");
-  d->add_option("--width", denoise.width, "Frame width (default: the scene's)");
-  d->add_option("--height", denoise.height, "Frame height (default: the scene's)");
+  cinevol::bench::AddSceneOptions(d, denoise);
   d->add_option("--frames", denoise.frames, "Frames in the orbit")->capture_default_str();
   d->add_option("--warmup", denoise.warmup, "Frames before measuring")->capture_default_str();
   d->add_option("--reference-spp", denoise.reference_spp, "Samples per pixel of the reference (0: no PSNR)")
       ->capture_default_str();
   d->add_option("--degrees-per-frame", denoise.degrees_per_frame, "Camera orbit speed")->capture_default_str();
-  d->add_option("--out", denoise.out, "Append the Markdown table to this file");
   d->callback([&] { cinevol::bench::RunDenoiseBench(denoise); });
   try {
     app.parse(argc, argv);

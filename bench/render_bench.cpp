@@ -4,14 +4,10 @@
 // it to --out) for docs/performance.md.
 #include <algorithm>
 #include <chrono>
-#include <fstream>
 
 #include <fmt/format.h>
 
 #include "bench.h"
-#include "io/scene_builder.h"
-#include "io/scene_file.h"
-#include "io/volume_loader.h"
 #include "render/renderer.h"
 
 namespace cinevol::bench {
@@ -28,7 +24,7 @@ struct Result {
   unsigned features;
 };
 
-Result Measure(const RenderBenchOptions& o, const Config& c, std::shared_ptr<const Volume> volume,
+Result Measure(const RenderBenchOptions& o, const Config& c, const std::shared_ptr<const Volume>& volume,
                const RenderSetup& setup) {
   RendererOptions options;
   options.brick_size = c.brick_size;
@@ -58,12 +54,9 @@ Result Measure(const RenderBenchOptions& o, const Config& c, std::shared_ptr<con
 }  // namespace
 
 int RunRenderBench(const RenderBenchOptions& o) {
-  v1::Scene scene = LoadSceneFile(o.scene);
-  if (!o.volume.empty()) *scene.mutable_volume() = ParseVolumeSpec(o.volume);
-  if (o.width > 0) scene.mutable_render()->set_width(o.width);
-  if (o.height > 0) scene.mutable_render()->set_height(o.height);
-  auto volume = std::make_shared<const Volume>(LoadVolume(scene.volume()));
-  const RenderSetup setup = ResolveScene(scene, *volume);
+  const LoadedScene loaded = LoadScene(o);
+  const auto& volume = loaded.volume;
+  const RenderSetup& setup = loaded.setup;
   const std::string device = DeviceDescription(o.backend);
 
   std::string table = fmt::format(
@@ -85,8 +78,7 @@ int RunRenderBench(const RenderBenchOptions& o) {
     table += fmt::format("| {} | {:#04x} | {:.3f} ({:.2f}x) | {:.3f}..{:.3f} | {:.1f} |\n", c.name, r.features,
                          r.median_ms, r.median_ms / base, r.p10_ms, r.p90_ms, r.paths_per_second / 1e6);
   }
-  fmt::print("{}", table);
-  if (!o.out.empty()) std::ofstream(o.out, std::ios::app) << table;
+  Report(o, table);
   return 0;
 }
 

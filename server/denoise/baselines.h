@@ -94,26 +94,32 @@ CINEVOL_HD GuidedMoments operator*(const GuidedMoments& a, float k) {
   return {a.g0 * k, a.g1 * k, a.g00 * k, a.g01 * k, a.g11 * k, a.n * k, a.g0n * k, a.g1n * k};
 }
 
-// The two guide channels of a pixel.
-CINEVOL_HD void Guide(const Vec3f& feature, const Vec4f& hit, const Camera& camera, float depth_scale, float& g0, float& g1) {
-  g0 = logf(Luminance(Max(feature, Vec3f{})) + 1e-4f);
-  g1 = Escaped(hit) ? 2.0f : Length(Xyz(hit) - camera.eye) * depth_scale;
-}
-
-struct GuidedMomentsPass {
-  const Vec3f* input;
+// The two guide channels of a pixel: log luminance of the temporal feature
+// and the first-collision depth (in units of the eye's distance from the
+// volume's centre; background pixels far behind).
+struct GuideView {
   const Vec3f* feature;
   const Vec4f* first_hit;
   Camera camera;
   float depth_scale;
+
+  CINEVOL_HD void At(int i, float& g0, float& g1) const {
+    g0 = logf(Luminance(Max(feature[i], Vec3f{})) + 1e-4f);
+    g1 = Escaped(first_hit[i]) ? 2.0f : Length(Xyz(first_hit[i]) - camera.eye) * depth_scale;
+  }
+};
+
+struct GuidedMomentsPass {
+  const Vec3f* input;
+  GuideView guide;
   GuidedMoments* moments;
   int width;
 
   CINEVOL_HD void operator()(int x, int y) const {
     const int i = y * width + x;
     float g0, g1;
-    Guide(feature[i], first_hit[i], camera, depth_scale, g0, g1);
-    const Vec3f n = IsFinite(input[i]) ? input[i] : feature[i];
+    guide.At(i, g0, g1);
+    const Vec3f n = IsFinite(input[i]) ? input[i] : guide.feature[i];
     moments[i] = {g0, g1, g0 * g0, g0 * g1, g1 * g1, n, n * g0, n * g1};
   }
 };
@@ -171,20 +177,17 @@ struct GuidedSolvePass {
 
 struct GuidedOutputPass {
   const GuidedCoefficients* mean;  // box means of the coefficients
-  const Vec3f* feature;
-  const Vec4f* first_hit;
-  Camera camera;
-  float depth_scale;
+  GuideView guide;
   Vec3f* output;
   int width;
 
   CINEVOL_HD void operator()(int x, int y) const {
     const int i = y * width + x;
     float g0, g1;
-    Guide(feature[i], first_hit[i], camera, depth_scale, g0, g1);
+    guide.At(i, g0, g1);
     const GuidedCoefficients& k = mean[i];
     const Vec3f out = k.a0 * g0 + k.a1 * g1 + k.b;
-    output[i] = IsFinite(out) ? Max(out, Vec3f{}) : feature[i];
+    output[i] = IsFinite(out) ? Max(out, Vec3f{}) : guide.feature[i];
   }
 };
 

@@ -165,17 +165,14 @@ class GuidedFilter final : public DenoiserBase<B> {
     const int w = this->width_, h = this->height_;
     std::swap(feature_, prev_feature_);
     B::ForEachPixel(w, h, TemporalFeaturePass{rv, input, prev_feature_.data(), feature_.data(), s.alpha});
-    // Depth in units of the eye's distance from the volume's centre.
-    const float depth_scale = 1.0f / fmaxf(Length(frame.camera.eye), 1e-3f);
-    B::ForEachPixel(w, h, GuidedMomentsPass{input, feature_.data(), frame.first_hit, frame.camera, depth_scale,
-                                            moments_.data(), w});
+    const GuideView guide{feature_.data(), frame.first_hit, frame.camera, 1.0f / fmaxf(Length(frame.camera.eye), 1e-3f)};
+    B::ForEachPixel(w, h, GuidedMomentsPass{input, guide, moments_.data(), w});
     B::ForEachPixel(w, h, BoxPass<GuidedMoments>{moments_.data(), moments_tmp_.data(), w, h, s.radius, true});
     B::ForEachPixel(w, h, BoxPass<GuidedMoments>{moments_tmp_.data(), moments_.data(), w, h, s.radius, false});
     B::ForEachPixel(w, h, GuidedSolvePass{moments_.data(), coefficients_.data(), w, s.epsilon_feature, s.epsilon_depth});
     B::ForEachPixel(w, h, BoxPass<GuidedCoefficients>{coefficients_.data(), coefficients_tmp_.data(), w, h, s.radius, true});
     B::ForEachPixel(w, h, BoxPass<GuidedCoefficients>{coefficients_tmp_.data(), coefficients_.data(), w, h, s.radius, false});
-    B::ForEachPixel(w, h, GuidedOutputPass{coefficients_.data(), feature_.data(), frame.first_hit, frame.camera,
-                                           depth_scale, output, w});
+    B::ForEachPixel(w, h, GuidedOutputPass{coefficients_.data(), guide, output, w});
   }
   void Allocate(std::size_t n) override {
     feature_.Resize(n);
