@@ -232,7 +232,7 @@ class Svgf final : public DenoiserBase<B> {
 template <class B>
 class Wrls final : public DenoiserBase<B> {
  protected:
-  void Run(const DenoiseFrame& frame, const Vec3f* input, const ReprojectionView& rv, Vec3f* output) override {
+  void Run(const DenoiseFrame&, const Vec3f* input, const ReprojectionView& rv, Vec3f* output) override {
     const WrlsSettings& s = this->settings_.wrls;
     const int w = this->width_, h = this->height_;
     std::swap(feature_, prev_feature_);
@@ -240,7 +240,6 @@ class Wrls final : public DenoiserBase<B> {
     B::ForEachPixel(w, h, WrlsTemporalPass{rv, input, prev_feature_.data(), prev_model_.data(), feature_.data(),
                                            model_.data(), s});
     B::ForEachPixel(w, h, WrlsSpatialPass{rv, feature_.data(), model_.data(), output, s});
-    (void)frame;
   }
   void Allocate(std::size_t n) override {
     feature_.Resize(n);
