@@ -17,6 +17,8 @@ struct Case {
   bool demodulate;
 };
 
+void PrintTo(const Case& c, std::ostream* os) { *os << ToString(c.method) << (c.demodulate ? "+demodulation" : ""); }
+
 class CudaDenoiser : public ::testing::TestWithParam<Case> {};
 
 TEST_P(CudaDenoiser, AgreesWithCpu) {

@@ -39,6 +39,8 @@ struct MethodCase {
   bool demodulate;
 };
 
+void PrintTo(const MethodCase& c, std::ostream* os) { *os << ToString(c.method) << (c.demodulate ? "+demodulation" : ""); }
+
 class EveryDenoiser : public ::testing::TestWithParam<MethodCase> {};
 
 TEST_P(EveryDenoiser, HostileInputStaysFiniteAndNonNegative) {

@@ -17,6 +17,8 @@ struct Expected {
   const char* modality;
 };
 
+void PrintTo(const Expected& e, std::ostream* os) { *os << e.path; }
+
 class RealData : public ::testing::TestWithParam<Expected> {};
 
 TEST_P(RealData, MatchesItsReadme) {

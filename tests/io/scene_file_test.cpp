@@ -93,6 +93,8 @@ struct Rule {
   const char* field;  // must appear in the error
 };
 
+void PrintTo(const Rule& r, std::ostream* os) { *os << r.name; }
+
 class ValidationRule : public ::testing::TestWithParam<Rule> {};
 
 TEST_P(ValidationRule, RejectsNamingTheField) {
