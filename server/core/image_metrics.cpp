@@ -15,7 +15,7 @@ void CheckSameSize(const ImageRgbF& a, const ImageRgbF& b) {
   }
 }
 
-float Displayed(float linear) { return LinearToSrgb(AcesFilm(IsFinite(Vec3f{linear, 0, 0}) ? linear : 0.0f)); }
+float Displayed(float linear) { return LinearToSrgb(AcesFilm(std::isfinite(linear) ? linear : 0.0f)); }
 }  // namespace
 
 double DisplayPsnr(const ImageRgbF& image, const ImageRgbF& reference) {

@@ -46,7 +46,6 @@ class DenoiserBase : public Denoiser {
       height_ = frame.height;
       const std::size_t n = pixels();
       output_.Resize(n);
-      demodulated_.Resize(n);
       prev_first_hit_.Resize(n);
       Allocate(n);
       Reset();
@@ -54,6 +53,7 @@ class DenoiserBase : public Denoiser {
     timer_.Start();
     const Vec3f* input = frame.radiance;
     if (settings_.demodulate) {
+      demodulated_.Resize(pixels());  // only demodulating denoisers pay for it
       B::ForEachPixel(width_, height_, DemodulatePass{frame.radiance, frame.albedo, demodulated_.data(), width_});
       input = demodulated_.data();
     }

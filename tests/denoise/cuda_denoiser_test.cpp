@@ -8,6 +8,7 @@
 #include "denoise/denoiser.h"
 #include "io/phantom.h"
 #include "render/renderer.h"
+#include "support/gpu.h"
 
 namespace cinevol {
 namespace {
@@ -22,8 +23,7 @@ void PrintTo(const Case& c, std::ostream* os) { *os << ToString(c.method) << (c.
 class CudaDenoiser : public ::testing::TestWithParam<Case> {};
 
 TEST_P(CudaDenoiser, AgreesWithCpu) {
-  std::string why;
-  if (!CudaAvailable(&why)) GTEST_SKIP() << "no usable GPU: " << why;
+  CINEVOL_REQUIRE_CUDA();
   v1::Phantom p;
   p.set_kind(v1::Phantom::HEAD);
   p.set_size(64);

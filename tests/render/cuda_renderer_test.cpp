@@ -8,6 +8,7 @@
 #include "io/phantom.h"
 #include "render/renderer.h"
 #include "render_test_scenes.h"
+#include "support/gpu.h"
 
 namespace cinevol {
 namespace {
@@ -16,11 +17,6 @@ using testing::ConstantMedium;
 using testing::UniformCube;
 using testing::UniformSky;
 
-#define CINEVOL_REQUIRE_CUDA()                                      \
-  do {                                                              \
-    std::string why;                                                \
-    if (!CudaAvailable(&why)) GTEST_SKIP() << "no usable GPU: " << why; \
-  } while (0)
 
 // Every feature at once: hybrid BRDF, emission, an environment map, area,
 // point and directional lights, multiple scattering.
