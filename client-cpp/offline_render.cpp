@@ -1,4 +1,4 @@
-// RenderToFile: load, resolve, render progressively, write.
+// RenderToFile: load, then accumulate through the frame pipeline, write.
 #include "offline_render.h"
 
 #include <chrono>
@@ -8,8 +8,8 @@
 #include "core/error.h"
 #include "core/tone_map.h"
 #include "encode/image_codecs.h"
-#include "io/scene_builder.h"
 #include "io/volume_loader.h"
+#include "pipeline/frame_pipeline.h"
 
 namespace cinevol::cli {
 namespace {
@@ -44,31 +44,25 @@ OfflineRenderResult RenderToFile(const v1::Scene& scene, const std::filesystem::
                                  Backend backend, const std::filesystem::path& out) {
   OfflineRenderResult result;
   const auto load_start = std::chrono::steady_clock::now();
-  auto volume = std::make_shared<const Volume>(LoadVolume(scene.volume(), base_dir));
-  const RenderSetup setup = ResolveScene(scene, *volume);
-  auto renderer = CreateRenderer(backend);
-  renderer->SetVolume(volume);
-  renderer->SetTransferFunction(setup.transfer_function);
-  renderer->SetLights(setup.lights);
+  FramePipeline pipeline(backend, std::make_shared<const Volume>(LoadVolume(scene.volume(), base_dir)));
+  FrameSettings settings;
+  settings.denoiser = DenoiseMethod::kNone;
+  settings.target_spp = total_spp;
+  pipeline.Update(scene, settings);
   result.load_seconds = SecondsSince(load_start);
-  result.backend = renderer->Name();
+  result.backend = pipeline.backend_name();
 
-  FrameRequest request;
-  request.camera = setup.camera;
-  request.max_bounces = setup.max_bounces;
-  request.seed = setup.seed;
+  const int frame_spp = static_cast<int>(scene.render().spp());
   const auto start = std::chrono::steady_clock::now();
-  while (result.total_spp < total_spp) {
-    request.spp = std::min(setup.spp, total_spp - result.total_spp);
-    request.frame = static_cast<std::uint32_t>(result.frames);
-    renderer->Render(request);
-    result.total_spp += request.spp;
+  while (!pipeline.Converged()) {
+    pipeline.Accumulate(std::min(frame_spp, total_spp - pipeline.accumulated_spp()));
     ++result.frames;
   }
-  const ImageRgbF image = renderer->AccumulatedMean();
+  const ImageRgbF image = pipeline.AccumulatedRadiance();
+  result.total_spp = pipeline.accumulated_spp();
   result.seconds = SecondsSince(start);
   result.paths_per_second = double(result.total_spp) * image.width * image.height / result.seconds;
-  WriteImage(image, setup.exposure, out);
+  WriteImage(image, pipeline.exposure(), out);
   return result;
 }
 

@@ -46,7 +46,7 @@ void OnJpegError(j_common_ptr cinfo) {
 
 }  // namespace
 
-std::vector<std::uint8_t> EncodeJpeg(const ImageRgb8& image, int quality) {
+std::vector<std::uint8_t> EncodeJpeg(const ImageRgb8& image, int quality, ChromaSubsampling chroma) {
   CheckImage(image);
   jpeg_compress_struct cinfo;
   JpegError err;
@@ -67,6 +67,9 @@ std::vector<std::uint8_t> EncodeJpeg(const ImageRgb8& image, int quality) {
   cinfo.in_color_space = JCS_RGB;
   jpeg_set_defaults(&cinfo);
   jpeg_set_quality(&cinfo, std::clamp(quality, 1, 100), TRUE);
+  // Luma's sampling factors relative to chroma's (1x1) set the subsampling.
+  cinfo.comp_info[0].h_samp_factor = chroma == ChromaSubsampling::k444 ? 1 : 2;
+  cinfo.comp_info[0].v_samp_factor = chroma == ChromaSubsampling::k420 ? 2 : 1;
   jpeg_start_compress(&cinfo, TRUE);
   while (cinfo.next_scanline < cinfo.image_height) {
     JSAMPROW row = const_cast<JSAMPROW>(&image.bytes[std::size_t(cinfo.next_scanline) * image.width * 3]);
@@ -147,23 +150,58 @@ void WriteFile(const fs::path& path, const std::vector<std::uint8_t>& bytes) {
   if (!out) throw InputError(fmt::format("{}: cannot write the file", path.string()));
 }
 
-void WriteExr(const fs::path& path, const ImageRgbF& image) {
-  try {
-    Imf::Header header(image.width, image.height);
-    Imf::FrameBuffer frame;
-    const char* names[3] = {"R", "G", "B"};
-    char* base = reinterpret_cast<char*>(const_cast<Vec3f*>(image.pixels.data()));
-    for (int c = 0; c < 3; ++c) {
-      header.channels().insert(names[c], Imf::Channel(Imf::FLOAT));
-      frame.insert(names[c], Imf::Slice(Imf::FLOAT, base + c * sizeof(float), sizeof(Vec3f),
-                                        sizeof(Vec3f) * image.width));
-    }
-    Imf::OutputFile file(path.c_str(), header);
+namespace {
+
+// OpenEXR writes through a stream; this one grows a byte vector.
+class MemoryStream final : public Imf::OStream {
+ public:
+  MemoryStream() : Imf::OStream("memory") {}
+  void write(const char c[], int n) override {
+    if (position_ + n > bytes_.size()) bytes_.resize(position_ + n);
+    std::memcpy(bytes_.data() + position_, c, std::size_t(n));
+    position_ += std::size_t(n);
+  }
+  uint64_t tellp() override { return position_; }
+  void seekp(uint64_t position) override { position_ = position; }
+  std::vector<std::uint8_t> Take() { return std::move(bytes_); }
+
+ private:
+  std::vector<std::uint8_t> bytes_;
+  std::size_t position_ = 0;
+};
+
+}  // namespace
+
+std::vector<std::uint8_t> EncodeExr(const ImageRgbF& image) {
+  if (image.width <= 0 || image.height <= 0 || image.pixels.size() != std::size_t(image.width) * image.height) {
+    throw std::invalid_argument("image buffer does not match its size");
+  }
+  Imf::Header header(image.width, image.height);
+  Imf::FrameBuffer frame;
+  const char* names[3] = {"R", "G", "B"};
+  char* base = reinterpret_cast<char*>(const_cast<Vec3f*>(image.pixels.data()));
+  for (int c = 0; c < 3; ++c) {
+    header.channels().insert(names[c], Imf::Channel(Imf::FLOAT));
+    frame.insert(names[c], Imf::Slice(Imf::FLOAT, base + c * sizeof(float), sizeof(Vec3f),
+                                      sizeof(Vec3f) * image.width));
+  }
+  MemoryStream stream;
+  {
+    Imf::OutputFile file(stream, header);  // finishes the file when it goes out of scope
     file.setFrameBuffer(frame);
     file.writePixels(image.height);
+  }
+  return stream.Take();
+}
+
+void WriteExr(const fs::path& path, const ImageRgbF& image) {
+  std::vector<std::uint8_t> bytes;
+  try {
+    bytes = EncodeExr(image);
   } catch (const std::exception& e) {
     throw InputError(fmt::format("{}: cannot write EXR: {}", path.string(), e.what()));
   }
+  WriteFile(path, bytes);
 }
 
 ImageRgbF ReadExr(const fs::path& path) {

@@ -11,9 +11,15 @@
 
 namespace cinevol {
 
-// quality in [1, 100].
-std::vector<std::uint8_t> EncodeJpeg(const ImageRgb8& image, int quality);
+enum class ChromaSubsampling { k444, k422, k420 };
+
+// quality in [1, 100]; chroma at full (4:4:4), half width (4:2:2) or half
+// width and height (4:2:0, the smallest files).
+std::vector<std::uint8_t> EncodeJpeg(const ImageRgb8& image, int quality,
+                                     ChromaSubsampling chroma = ChromaSubsampling::k420);
 std::vector<std::uint8_t> EncodePng(const ImageRgb8& image);
+// Linear RGB as 32-bit float channels.
+std::vector<std::uint8_t> EncodeExr(const ImageRgbF& image);
 ImageRgb8 DecodeJpeg(const std::vector<std::uint8_t>& bytes);
 ImageRgb8 ReadPng(const std::filesystem::path& path);
 

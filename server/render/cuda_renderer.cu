@@ -90,6 +90,28 @@ bool CudaAvailable(std::string* description) {
   return true;
 }
 
+std::vector<GpuInfo> ListGpus() {
+  std::vector<GpuInfo> gpus;
+  if (!CudaAvailable()) return gpus;
+  int count = 0;
+  CINEVOL_CUDA_CHECK(cudaGetDeviceCount(&count));
+  int current = 0;
+  CINEVOL_CUDA_CHECK(cudaGetDevice(&current));
+  for (int i = 0; i < count; ++i) {
+    cudaDeviceProp prop;
+    CINEVOL_CUDA_CHECK(cudaGetDeviceProperties(&prop, i));
+    if (prop.major < 9) continue;
+    GpuInfo info{i, prop.name, prop.totalGlobalMem, 0};
+    CINEVOL_CUDA_CHECK(cudaSetDevice(i));
+    CINEVOL_CUDA_CHECK(cudaMemGetInfo(&info.free_bytes, &info.total_bytes));
+    gpus.push_back(info);
+  }
+  CINEVOL_CUDA_CHECK(cudaSetDevice(current));
+  return gpus;
+}
+
+void UseGpu(int index) { CINEVOL_CUDA_CHECK(cudaSetDevice(index)); }
+
 CudaRenderer::CudaRenderer(const RendererOptions& options)
     : device_(std::make_unique<Device>()), data_(options.brick_size) {}
 CudaRenderer::~CudaRenderer() = default;

@@ -23,6 +23,10 @@ bool CudaAvailable(std::string* description) {
   if (description) *description = "this build has no CUDA backend (nvcc was not found)";
   return false;
 }
+
+std::vector<GpuInfo> ListGpus() { return {}; }
+
+void UseGpu(int index) { throw InputError(fmt::format("GPU {}: this build has no CUDA backend", index)); }
 #endif
 
 std::unique_ptr<Renderer> CreateRenderer(Backend backend, const RendererOptions& options) {

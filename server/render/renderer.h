@@ -95,4 +95,18 @@ std::unique_ptr<Renderer> CreateRenderer(Backend backend, const RendererOptions&
 // Whether a CUDA device can run kernels, and its name or the reason it can't.
 bool CudaAvailable(std::string* description = nullptr);
 
+struct GpuInfo {
+  int index = 0;
+  std::string name;
+  std::size_t total_bytes = 0, free_bytes = 0;
+};
+
+// The GPUs this build can run on (compute capability 9.0 and newer); empty
+// without a GPU or without CUDA.
+std::vector<GpuInfo> ListGpus();
+
+// Makes GPU `index` the calling thread's device: renderers and denoisers made
+// and used on this thread allocate and run there.
+void UseGpu(int index);
+
 }  // namespace cinevol

@@ -1,0 +1,9 @@
+// The display stage on the GPU, after the renderer and denoiser on the same stream.
+#include "denoise/backend_cuda.cuh"
+#include "pipeline/display.h"
+
+namespace cinevol {
+
+std::unique_ptr<Display> MakeCudaDisplay() { return std::make_unique<DisplayOn<CudaBackend>>(); }
+
+}  // namespace cinevol

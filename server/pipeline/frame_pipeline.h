@@ -1,0 +1,93 @@
+// FramePipeline: the one chain that turns a session's scene into frames.
+// Scene edits rebuild only what they invalidate (a transfer-function edit
+// re-derives the majorants, a camera move does not); each frame renders the
+// scene's spp, denoises, blends towards the accumulation as samples pile up
+// (idle refinement), tone maps on the device and copies 8-bit sRGB to the
+// host, ready for EncodeJpeg on any thread.
+//
+// The service drives one per session; `cinevol render` and the benches
+// drive the same object. CUDA work goes to the calling thread's current GPU
+// and default stream: construct and use a pipeline on the thread (or
+// threads) bound to its GPU.
+#pragma once
+
+#include <cstdint>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "cinevol/v1/scene.pb.h"
+#include "core/camera.h"
+#include "core/image.h"
+#include "core/volume.h"
+#include "denoise/denoiser.h"
+#include "encode/image_codecs.h"
+#include "pipeline/display.h"
+#include "render/renderer.h"
+
+namespace cinevol {
+
+// How frames are made from the scene, beyond what the scene model says.
+struct FrameSettings {
+  DenoiseMethod denoiser = DenoiseMethod::kWrls;
+  bool demodulate = false;        // divide by the first-hit albedo around the denoiser
+  int jpeg_quality = 80;          // [1, 100]
+  int final_jpeg_quality = 95;    // [1, 100]: the frame that ends refinement
+  ChromaSubsampling chroma = ChromaSubsampling::k420;
+  int target_spp = 256;           // >= 1: refinement stops at this many samples per pixel
+};
+
+// A frame ready to encode, with what it cost.
+struct DisplayFrame {
+  ImageRgb8 image;
+  int accumulated_spp = 0;  // samples per pixel behind it since the scene last changed
+  bool final = false;       // refinement reached target_spp with this frame
+  double render_ms = 0, denoise_ms = 0, display_ms = 0;
+};
+
+// How much of the displayed image is the plain accumulation: 0 up to
+// kBlendStartSpp samples per pixel (the denoiser's output alone), rising
+// with log(spp) to 1 at target_spp, where the image is the unbiased mean.
+inline constexpr int kBlendStartSpp = 16;
+float RefinementBlend(int accumulated_spp, int target_spp);
+
+class FramePipeline {
+ public:
+  FramePipeline(Backend backend, std::shared_ptr<const Volume> volume);
+  ~FramePipeline();
+
+  // Takes the scene (validated, defaults filled) and settings; rebuilds only
+  // what differs from the previous call. Throws InputError for a scene the
+  // volume cannot resolve (e.g. an unreadable environment map).
+  void Update(const v1::Scene& scene, const FrameSettings& settings);
+
+  // One frame of the scene's spp: render, denoise, blend, tone map.
+  DisplayFrame RenderFrame();
+  // Adds `spp` samples to the accumulation only (stills, offline renders).
+  void Accumulate(int spp);
+
+  int accumulated_spp() const { return accumulated_spp_; }
+  bool Converged() const { return accumulated_spp_ >= settings_.target_spp; }
+  ImageRgbF AccumulatedRadiance() const { return renderer_->AccumulatedMean(); }
+  float exposure() const { return scene_.camera().exposure(); }
+  std::string backend_name() const { return renderer_->Name(); }
+
+ private:
+  FrameRequest Request(int spp);
+
+  std::shared_ptr<const Volume> volume_;
+  std::unique_ptr<Renderer> renderer_;
+  DenoiseBackend denoise_backend_ = DenoiseBackend::kCpu;
+  std::unique_ptr<Denoiser> denoiser_;
+  std::unique_ptr<Display> display_;
+  v1::Scene scene_;
+  FrameSettings settings_;
+  bool has_scene_ = false;
+  TransferFunction transfer_function_;
+  Camera camera_;
+  std::uint64_t scene_version_ = 0;  // bumped on transfer-function and light edits (the denoiser's cue)
+  std::uint32_t frame_ = 0;          // seeds each frame's samples
+  int accumulated_spp_ = 0;
+};
+
+}  // namespace cinevol
