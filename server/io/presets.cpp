@@ -105,4 +105,32 @@ v1::TransferFunction MakePreset(std::string_view name, float min_value, float ma
   return tf;
 }
 
+v1::Scene MakePresetScene(std::string_view preset, Vec3f extent_mm) {
+  if (!IsPreset(preset)) MakePreset(preset, 0, 1);  // throws, naming the presets
+  v1::Scene scene;
+  scene.mutable_transfer_function()->set_preset(std::string(preset));
+  scene.mutable_camera()->set_view(v1::ANTERIOR);
+  scene.mutable_camera()->set_fov_y_deg(30.0f);
+  // The key light of examples/ct-bone.json, set for a 256 mm head: scaling
+  // its position and size together keeps the irradiance it gives.
+  const float s = Length(extent_mm) / Length(Vec3f{256, 256, 256});
+  auto set = [s](v1::Vec3* v, float x, float y, float z) {
+    v->set_x(x * s);
+    v->set_y(y * s);
+    v->set_z(z * s);
+  };
+  v1::AreaLight* key = scene.add_lights()->mutable_area();
+  set(key->mutable_center(), -300, -400, 350);
+  set(key->mutable_edge_u(), 70, 100, 150);
+  set(key->mutable_edge_v(), 150, -110, 0);
+  SetColor(key->mutable_color(), {1.0f, 0.95f, 0.9f});
+  key->set_intensity(40);
+  v1::EnvironmentLight* sky = scene.add_lights()->mutable_environment();
+  SetColor(sky->mutable_gradient()->mutable_zenith(), {0.16f, 0.18f, 0.22f});
+  SetColor(sky->mutable_gradient()->mutable_horizon(), {0.1f, 0.1f, 0.11f});
+  SetColor(sky->mutable_gradient()->mutable_ground(), {0.03f, 0.03f, 0.03f});
+  sky->set_intensity(1);
+  return scene;
+}
+
 }  // namespace cinevol

@@ -7,6 +7,7 @@
 #include <vector>
 
 #include "cinevol/v1/scene.pb.h"
+#include "core/vec.h"
 
 namespace cinevol {
 
@@ -19,5 +20,12 @@ bool IsPreset(std::string_view name);
 // and `max_value` are the volume's range (used by MR presets only). Throws
 // InputError for an unknown name.
 v1::TransferFunction MakePreset(std::string_view name, float min_value, float max_value);
+
+// A scene around a preset, for viewers that name only a preset: an anterior
+// view, a warm area key light above the viewer's right and a dim gradient sky
+// (the lighting of examples/ct-bone.json), scaled to a volume of `extent_mm`.
+// The volume source and render settings are left unset. Throws InputError
+// for an unknown preset.
+v1::Scene MakePresetScene(std::string_view preset, Vec3f extent_mm);
 
 }  // namespace cinevol

@@ -119,6 +119,7 @@ void ValidateTransferFunction(const v1::TransferFunction& tf, Problems& p) {
 }
 
 void ValidateCamera(const v1::Camera& c, Problems& p) {
+  if (!v1::NamedView_IsValid(c.view())) p.Add("camera.view", fmt::format("unknown named view {}", int(c.view())));
   if (c.view() == v1::NAMED_VIEW_UNSPECIFIED && c.has_eye()) {
     p.Vec("camera.eye", c.eye());
     p.Vec("camera.target", c.target());
@@ -238,9 +239,9 @@ void ApplyDefaults(v1::Scene& scene) {
   if (!render->has_max_bounces()) render->set_max_bounces(4);
 }
 
-std::vector<std::string> ValidateScene(const v1::Scene& scene) {
-  Problems p;
-  ValidateVolume(scene.volume(), p);
+namespace {
+
+void ValidateParts(const v1::Scene& scene, Problems& p) {
   ValidateTransferFunction(scene.transfer_function(), p);
   ValidateCamera(scene.camera(), p);
   bool seen_environment = false;
@@ -248,6 +249,20 @@ std::vector<std::string> ValidateScene(const v1::Scene& scene) {
     ValidateLight(scene.lights(i), fmt::format("lights[{}]", i), seen_environment, p);
   }
   ValidateRender(scene.render(), p);
+}
+
+}  // namespace
+
+std::vector<std::string> ValidateScene(const v1::Scene& scene) {
+  Problems p;
+  ValidateVolume(scene.volume(), p);
+  ValidateParts(scene, p);
+  return p.Take();
+}
+
+std::vector<std::string> ValidateSceneParts(const v1::Scene& scene) {
+  Problems p;
+  ValidateParts(scene, p);
   return p.Take();
 }
 

@@ -28,6 +28,8 @@ void ApplyDefaults(v1::Scene& scene);
 
 // Every problem found, one message each, naming the field; empty when valid.
 std::vector<std::string> ValidateScene(const v1::Scene& scene);
+// The same for everything but the volume source (a session names its volume apart).
+std::vector<std::string> ValidateSceneParts(const v1::Scene& scene);
 
 // Throws InputError listing ValidateScene's problems, if any.
 void CheckScene(const v1::Scene& scene);

@@ -1,0 +1,32 @@
+// Exceptions to gRPC status codes, in one place.
+#include "service/errors.h"
+
+#include <spdlog/spdlog.h>
+
+#include <new>
+
+#include "core/error.h"
+
+namespace cinevol::service {
+
+grpc::Status ToStatus(std::exception_ptr error) {
+  try {
+    std::rethrow_exception(error);
+  } catch (const RpcError& e) {
+    return e.status();
+  } catch (const InputError& e) {
+    return {grpc::StatusCode::INVALID_ARGUMENT, e.what()};
+  } catch (const ResourceExhausted& e) {
+    return {grpc::StatusCode::RESOURCE_EXHAUSTED, e.what()};
+  } catch (const std::bad_alloc&) {
+    return {grpc::StatusCode::RESOURCE_EXHAUSTED, "out of host memory"};
+  } catch (const std::exception& e) {
+    spdlog::error("internal error: {}", e.what());
+    return {grpc::StatusCode::INTERNAL, e.what()};
+  } catch (...) {
+    spdlog::error("internal error of unknown type");
+    return {grpc::StatusCode::INTERNAL, "internal error"};
+  }
+}
+
+}  // namespace cinevol::service

@@ -1,0 +1,88 @@
+// Scheduler: a fair ready queue over device-bound workers.
+#include "service/scheduler.h"
+
+#include <spdlog/spdlog.h>
+
+#include "render/renderer.h"
+
+namespace cinevol::service {
+
+Scheduler::Scheduler(std::string name, std::optional<int> gpu, int workers) : name_(std::move(name)), gpu_(gpu) {
+  for (int i = 0; i < std::max(workers, 1); ++i) workers_.emplace_back([this] { Work(); });
+}
+
+Scheduler::~Scheduler() { Stop(); }
+
+void Scheduler::Stop() {
+  std::deque<std::shared_ptr<Job>> dropped;  // released outside the lock
+  {
+    std::lock_guard lock(mu_);
+    stopping_ = true;
+    dropped.swap(ready_);
+  }
+  cv_.notify_all();
+  for (std::thread& t : workers_) {
+    if (t.joinable()) t.join();
+  }
+}
+
+void Scheduler::Wake(std::shared_ptr<Job> job) {
+  {
+    std::lock_guard lock(mu_);
+    if (stopping_) return;
+    switch (job->state_) {
+      case Job::State::kIdle:
+        job->state_ = Job::State::kQueued;
+        ready_.push_back(std::move(job));
+        break;
+      case Job::State::kRunning:
+        job->state_ = Job::State::kRunningWoken;
+        return;
+      default:
+        return;
+    }
+  }
+  cv_.notify_one();
+}
+
+int Scheduler::queued() const {
+  std::lock_guard lock(mu_);
+  return static_cast<int>(ready_.size());
+}
+
+void Scheduler::Work() {
+  if (gpu_) {
+    try {
+      UseGpu(*gpu_);
+    } catch (const std::exception& e) {
+      spdlog::error("{}: cannot bind a worker to the GPU: {}", name_, e.what());
+      return;
+    }
+  }
+  for (;;) {
+    std::shared_ptr<Job> job;
+    {
+      std::unique_lock lock(mu_);
+      cv_.wait(lock, [&] { return stopping_ || !ready_.empty(); });
+      if (stopping_) return;
+      job = std::move(ready_.front());
+      ready_.pop_front();
+      job->state_ = Job::State::kRunning;
+    }
+    const auto start = std::chrono::steady_clock::now();
+    const bool more = job->Step();
+    busy_ns_ += std::chrono::duration_cast<std::chrono::nanoseconds>(std::chrono::steady_clock::now() - start).count();
+    {
+      std::lock_guard lock(mu_);
+      if (more || job->state_ == Job::State::kRunningWoken) {
+        job->state_ = Job::State::kQueued;
+        ready_.push_back(std::move(job));
+        cv_.notify_one();
+      } else {
+        job->state_ = Job::State::kIdle;
+      }
+    }
+  }
+}
+
+}  // namespace cinevol::service

@@ -1,0 +1,47 @@
+// The gRPC server around a ServiceCore: listening, health checking and
+// reflection, the sweep that ends expired detached sessions, and an orderly
+// shutdown (calls cancelled, sessions ended, workers joined).
+#pragma once
+
+#include <grpcpp/grpcpp.h>
+
+#include <condition_variable>
+#include <memory>
+#include <mutex>
+#include <thread>
+
+#include "service/service_core.h"
+#include "service/services.h"
+
+namespace cinevol::service {
+
+class Server {
+ public:
+  // Loads the volumes and starts listening; throws InputError for bad
+  // options or an address it cannot listen on.
+  explicit Server(const ServerOptions& options);
+  ~Server();  // Shutdown()
+
+  int port() const { return port_; }
+  const ServiceCore& core() const { return *core_; }
+  // Blocks until Shutdown.
+  void Wait();
+  void Shutdown();
+
+ private:
+  void Sweep();
+
+  std::unique_ptr<ServiceCore> core_;
+  VolumeServiceImpl volume_service_;
+  SessionServiceImpl session_service_;
+  ServerServiceImpl server_service_;
+  std::unique_ptr<grpc::Server> server_;
+  int port_ = 0;
+
+  std::mutex mu_;
+  std::condition_variable stop_;
+  bool stopping_ = false;
+  std::thread sweeper_;
+};
+
+}  // namespace cinevol::service

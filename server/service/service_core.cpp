@@ -1,0 +1,254 @@
+// ServiceCore: devices, sessions, stills and status.
+#include "service/service_core.h"
+
+#include <fmt/format.h>
+#include <spdlog/spdlog.h>
+
+#include <algorithm>
+#include <thread>
+
+#include "core/error.h"
+#include "core/parallel_for.h"
+#include "core/tone_map.h"
+#include "encode/image_codecs.h"
+#include "service/errors.h"
+
+namespace cinevol::service {
+namespace {
+
+std::string CpuName() { return fmt::format("cpu ({} threads)", DefaultThreadCount()); }
+
+// A snapshot: accumulates `spp` samples a chunk per step on the session's
+// device, with its own pipeline (the session's history stays untouched),
+// then encodes on the encoder pool.
+class StillJob final : public Job {
+ public:
+  using Done = std::function<void(grpc::Status, v1::SnapshotResponse)>;
+  StillJob(std::shared_ptr<VolumeLease> volume, v1::Scene scene, int spp, v1::ImageFormat format, Backend backend,
+           TaskPool* encoder, Done done)
+      : volume_(std::move(volume)), scene_(std::move(scene)), spp_(spp), format_(format), backend_(backend),
+        encoder_(encoder), done_(std::move(done)) {}
+
+  bool Step() override {
+    try {
+      if (!pipeline_) {
+        start_ = Clock::now();
+        pipeline_ = std::make_unique<FramePipeline>(backend_, volume_->volume());
+        FrameSettings settings;
+        settings.denoiser = DenoiseMethod::kNone;
+        settings.target_spp = spp_;
+        pipeline_->Update(scene_, settings);
+      }
+      pipeline_->Accumulate(std::min(kChunkSpp, spp_ - pipeline_->accumulated_spp()));
+      if (!pipeline_->Converged()) return true;
+      ImageRgbF image = pipeline_->AccumulatedRadiance();
+      const float exposure = pipeline_->exposure();
+      pipeline_.reset();
+      const auto render_us = std::chrono::duration_cast<std::chrono::microseconds>(Clock::now() - start_).count();
+      encoder_->Submit([image = std::move(image), exposure, render_us, spp = spp_, format = format_,
+                        done = std::move(done_), volume = volume_] {
+        v1::SnapshotResponse response;
+        const grpc::Status status = Guarded([&] {
+          const bool exr = format == v1::EXR;
+          const std::vector<std::uint8_t> bytes = exr ? EncodeExr(image) : EncodePng(ToneMap(image, exposure));
+          response.set_image(bytes.data(), bytes.size());
+          response.set_format(exr ? v1::EXR : v1::PNG);
+          response.set_width(image.width);
+          response.set_height(image.height);
+          response.set_spp(spp);
+          response.set_render_us(render_us);
+        });
+        done(status, std::move(response));
+      });
+    } catch (...) {
+      pipeline_.reset();
+      done_(ToStatus(std::current_exception()), {});
+    }
+    return false;
+  }
+
+ private:
+  static constexpr int kChunkSpp = 8;  // one step's samples: other sessions' frames interleave
+  std::shared_ptr<VolumeLease> volume_;
+  v1::Scene scene_;
+  int spp_;
+  v1::ImageFormat format_;
+  Backend backend_;
+  TaskPool* encoder_;
+  Done done_;
+  std::unique_ptr<FramePipeline> pipeline_;
+  Clock::time_point start_;
+};
+
+}  // namespace
+
+ServiceCore::ServiceCore(const ServerOptions& options)
+    : options_(options),
+      volumes_(options.data_roots, options.max_upload_mb << 20),
+      encoder_("encoder", options.encode_threads > 0 ? options.encode_threads
+                                                      : int(std::max(2u, std::thread::hardware_concurrency()))),
+      loader_("loader", 2) {
+  std::string why;
+  const bool cuda = CudaAvailable(&why);
+  if (options.backend == Backend::kCuda && !cuda) throw InputError("--backend cuda: no usable GPU: " + why);
+  backend_ = options.backend == Backend::kCpu || !cuda ? Backend::kCpu : Backend::kCuda;
+  if (backend_ == Backend::kCuda) {
+    const std::vector<GpuInfo> gpus = ListGpus();
+    for (const GpuInfo& gpu : gpus) {
+      const bool wanted = options.devices.empty() ||
+                          std::find(options.devices.begin(), options.devices.end(), gpu.index) != options.devices.end();
+      if (!wanted) continue;
+      schedulers_.push_back(std::make_unique<Scheduler>(fmt::format("cuda:{} {}", gpu.index, gpu.name), gpu.index,
+                                                        options.workers_per_gpu));
+    }
+    for (int d : options.devices) {
+      if (std::none_of(gpus.begin(), gpus.end(), [d](const GpuInfo& g) { return g.index == d; })) {
+        throw InputError(fmt::format("--devices: GPU {} is not a usable GPU ({} found)", d, gpus.size()));
+      }
+    }
+  } else {
+    if (!options.devices.empty()) throw InputError("--devices: names GPUs, but the backend is the CPU");
+    schedulers_.push_back(std::make_unique<Scheduler>(CpuName(), std::nullopt, 1));
+  }
+  const std::vector<std::string> preload =
+      options.volumes.empty() ? std::vector<std::string>{"phantom:head"} : options.volumes;
+  for (const std::string& spec : preload) volumes_.AddFromSpec(spec);
+}
+
+ServiceCore::~ServiceCore() {
+  std::vector<std::shared_ptr<Session>> open;
+  {
+    std::lock_guard lock(mu_);
+    for (auto& [id, s] : sessions_) open.push_back(s);
+  }
+  for (auto& s : open) s->End({grpc::StatusCode::UNAVAILABLE, "the server is shutting down"});
+  open.clear();
+  // Workers first (encoders wake them), then the pools (their tasks hold sessions).
+  for (auto& s : schedulers_) s->Stop();
+  encoder_.Stop();
+  loader_.Stop();
+}
+
+std::string ServiceCore::DeviceSummary() const {
+  std::vector<std::string> names;
+  for (const auto& s : schedulers_) names.push_back(s->name());
+  return fmt::format("{}", fmt::join(names, ", "));
+}
+
+Scheduler& ServiceCore::LeastLoaded() {
+  return **std::min_element(schedulers_.begin(), schedulers_.end(),
+                            [](const auto& a, const auto& b) { return a->sessions < b->sessions; });
+}
+
+v1::CreateSessionResponse ServiceCore::CreateSession(const v1::CreateSessionRequest& request,
+                                                     const Principal& caller) {
+  std::shared_ptr<VolumeLease> volume = volumes_.Lease(request.volume_id());
+  v1::Scene scene = InitialScene(request, *volume->volume(), options_.limits, volumes_);
+  const FrameSettings settings = MergeStreamSettings(FrameSettings{}, request.stream(), "stream");
+  Scheduler& scheduler = LeastLoaded();
+  SessionContext context{&scheduler, &encoder_, backend_, &options_.limits, &volumes_,
+                         [this](const std::string& id) { Forget(id); }};
+  std::shared_ptr<Session> session;
+  {
+    std::lock_guard lock(mu_);
+    if (int(sessions_.size()) >= options_.max_sessions) {
+      throw RpcError(grpc::StatusCode::RESOURCE_EXHAUSTED,
+                     fmt::format("this server holds its maximum of {} sessions (--max-sessions)", options_.max_sessions));
+    }
+    const std::string id = fmt::format("s{}", next_session_++);
+    session = std::make_shared<Session>(id, caller.name, std::move(volume), scene, settings, std::move(context));
+    sessions_[id] = session;
+  }
+  spdlog::info("session {}: created for {} on {}, volume {}, {}x{}", session->id(), caller.name, scheduler.name(),
+               request.volume_id(), scene.render().width(), scene.render().height());
+  v1::CreateSessionResponse response;
+  response.set_session_id(session->id());
+  *response.mutable_scene() = std::move(scene);
+  response.set_device(scheduler.name());
+  return response;
+}
+
+std::shared_ptr<Session> ServiceCore::FindSession(const std::string& id, const Principal& caller) const {
+  std::shared_ptr<Session> session;
+  {
+    std::lock_guard lock(mu_);
+    auto it = sessions_.find(id);
+    if (it != sessions_.end()) session = it->second;
+  }
+  if (!session) throw RpcError(grpc::StatusCode::NOT_FOUND, fmt::format("session_id: no session '{}'", id));
+  RequireOwner(caller, session->owner(), fmt::format("session '{}'", id));
+  return session;
+}
+
+void ServiceCore::CloseSession(const std::string& id, const Principal& caller) {
+  FindSession(id, caller)->End({grpc::StatusCode::OK, "session closed"});
+}
+
+void ServiceCore::Forget(const std::string& id) {
+  std::shared_ptr<Session> last;  // may be the last reference: released outside the lock
+  std::lock_guard lock(mu_);
+  auto it = sessions_.find(id);
+  if (it == sessions_.end()) return;
+  last = std::move(it->second);
+  sessions_.erase(it);
+}
+
+void ServiceCore::Snapshot(const v1::SnapshotRequest& request, const Principal& caller,
+                           std::function<void(grpc::Status, v1::SnapshotResponse)> done) {
+  std::shared_ptr<Session> session = FindSession(request.session_id(), caller);
+  const int spp = SnapshotSpp(request, options_.limits);
+  v1::Scene scene;
+  FrameSettings settings;
+  session->CurrentScene(scene, settings);
+  session->scheduler()->Wake(std::make_shared<StillJob>(session->volume(), std::move(scene), spp, request.format(),
+                                                        backend_, &encoder_, std::move(done)));
+}
+
+void ServiceCore::ExpireDetachedSessions() {
+  const auto limit = std::chrono::duration_cast<Clock::duration>(
+      std::chrono::duration<double>(options_.detached_session_seconds));
+  const Clock::time_point now = Clock::now();
+  std::vector<std::shared_ptr<Session>> expired;
+  {
+    std::lock_guard lock(mu_);
+    for (auto& [id, s] : sessions_) {
+      if (s->Expired(now, limit)) expired.push_back(s);
+    }
+  }
+  for (auto& s : expired) {
+    s->End({grpc::StatusCode::DEADLINE_EXCEEDED,
+            fmt::format("no stream attached for {} s (--detached-session-seconds)", options_.detached_session_seconds)});
+  }
+}
+
+v1::ServerStatus ServiceCore::Status() const {
+  v1::ServerStatus status;
+  status.set_version(CINEVOL_VERSION);
+  status.set_uptime_seconds(std::chrono::duration<double>(Clock::now() - started_).count());
+  const std::vector<GpuInfo> gpus = backend_ == Backend::kCuda ? ListGpus() : std::vector<GpuInfo>{};
+  for (const auto& s : schedulers_) {
+    v1::DeviceStatus* d = status.add_devices();
+    d->set_name(s->name());
+    d->set_sessions(s->sessions);
+    d->set_frames_rendered(s->frames_rendered);
+    d->set_busy_seconds(s->busy_seconds());
+    for (const GpuInfo& g : gpus) {
+      if (s->gpu() && g.index == *s->gpu()) {
+        d->set_memory_total_bytes(g.total_bytes);
+        d->set_memory_free_bytes(g.free_bytes);
+      }
+    }
+  }
+  std::vector<std::shared_ptr<Session>> sessions;
+  {
+    std::lock_guard lock(mu_);
+    for (const auto& [id, s] : sessions_) sessions.push_back(s);
+  }
+  for (const auto& s : sessions) *status.add_sessions() = s->Status();
+  for (v1::VolumeInfo& v : volumes_.List()) *status.add_volumes() = std::move(v);
+  status.set_encode_threads(encoder_.threads());
+  status.set_encode_queue(encoder_.queued());
+  return status;
+}
+
+}  // namespace cinevol::service

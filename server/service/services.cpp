@@ -1,0 +1,205 @@
+// The three services' methods.
+#include "service/services.h"
+
+#include <fmt/format.h>
+
+#include <fstream>
+
+#include "service/errors.h"
+#include "service/session_stream.h"
+
+namespace cinevol::service {
+namespace {
+
+// Answers a unary call at once with what `f` returns or throws.
+template <class F>
+grpc::ServerUnaryReactor* Answer(grpc::CallbackServerContext* context, F&& f) {
+  grpc::ServerUnaryReactor* reactor = context->DefaultReactor();
+  reactor->Finish(Guarded([&] { f(Authenticate(*context)); }));
+  return reactor;
+}
+
+// An upload: chunks go straight to a private file (memory stays bounded),
+// which is loaded on the loader pool once the client has sent everything.
+class UploadReactor final : public grpc::ServerReadReactor<v1::UploadVolumeChunk> {
+ public:
+  UploadReactor(grpc::CallbackServerContext* context, ServiceCore* core, v1::VolumeInfo* response)
+      : core_(core), response_(response) {
+    const grpc::Status status = Guarded([&] { Authenticate(*context); });
+    if (!status.ok()) {
+      Fail(status);
+      return;
+    }
+    StartRead(&chunk_);
+  }
+
+  void OnReadDone(bool ok) override {
+    if (!ok) {
+      Complete();
+      return;
+    }
+    const grpc::Status status = Guarded([&] { Take(chunk_); });
+    if (!status.ok()) {
+      Fail(status);
+      return;
+    }
+    StartRead(&chunk_);
+  }
+
+  void OnDone() override {
+    std::error_code ec;
+    if (!path_.empty() && !loading_) std::filesystem::remove(path_, ec);
+    delete this;
+  }
+
+ private:
+  void Take(const v1::UploadVolumeChunk& chunk) {
+    if (chunk.has_header()) {
+      if (file_.is_open()) throw InputError("header: sent twice; send it once, first");
+      const auto& h = chunk.header();
+      if (!VolumeRegistry::IsUploadableName(h.file_name())) {
+        throw InputError(fmt::format("header.file_name: '{}' is not .nii, .nii.gz, .nrrd, .mha or .vtk (formats "
+                                     "whose voxels travel in the one file)", h.file_name()));
+      }
+      CheckSize(h.size_bytes(), "header.size_bytes");
+      expected_ = h.size_bytes();
+      name_ = h.file_name();
+      static std::atomic<int> counter{0};
+      const std::string base = std::filesystem::path(name_).filename().string();
+      path_ = core_->volumes().upload_dir() / fmt::format("{}-{}", counter++, base);
+      file_.open(path_, std::ios::binary);
+      if (!file_) throw std::runtime_error("cannot create the upload file " + path_.string());
+      return;
+    }
+    if (!file_.is_open()) throw InputError("header: the first message must be the header");
+    received_ += chunk.data().size();
+    if (received_ > expected_) {
+      throw InputError(fmt::format("data: more bytes than header.size_bytes ({})", expected_));
+    }
+    file_.write(chunk.data().data(), std::streamsize(chunk.data().size()));
+    if (!file_) throw ResourceExhausted("cannot write the upload to the server's disk");
+  }
+
+  void CheckSize(std::uint64_t size, const char* field) const {
+    const std::uint64_t limit = core_->volumes().max_upload_bytes();
+    if (size > limit) {
+      throw RpcError(grpc::StatusCode::RESOURCE_EXHAUSTED,
+                     fmt::format("{}: {} bytes is over this server's upload limit of {} bytes (--max-upload-mb)",
+                                 field, size, limit));
+    }
+    if (size == 0) throw InputError(fmt::format("{}: is 0", field));
+  }
+
+  void Complete() {
+    if (!file_.is_open()) {
+      Fail({grpc::StatusCode::INVALID_ARGUMENT, "header: no header was sent"});
+      return;
+    }
+    file_.close();
+    if (received_ != expected_) {
+      Fail({grpc::StatusCode::INVALID_ARGUMENT,
+            fmt::format("data: {} bytes received, header.size_bytes said {}", received_, expected_)});
+      return;
+    }
+    loading_ = true;  // the loader removes the file
+    core_->loader().Submit([this] {
+      Finish(Guarded([&] { *response_ = core_->volumes().AddUpload(path_, name_); }));
+    });
+  }
+
+  void Fail(const grpc::Status& status) {
+    file_.close();
+    Finish(status);
+  }
+
+  ServiceCore* core_;
+  v1::VolumeInfo* response_;
+  v1::UploadVolumeChunk chunk_;
+  std::ofstream file_;
+  std::filesystem::path path_;
+  std::string name_;
+  std::uint64_t expected_ = 0, received_ = 0;
+  bool loading_ = false;
+};
+
+}  // namespace
+
+grpc::ServerUnaryReactor* VolumeServiceImpl::ListVolumes(grpc::CallbackServerContext* context,
+                                                         const v1::ListVolumesRequest*,
+                                                         v1::ListVolumesResponse* response) {
+  return Answer(context, [&](const Principal&) {
+    for (v1::VolumeInfo& v : core_->volumes().List()) *response->add_volumes() = std::move(v);
+  });
+}
+
+grpc::ServerUnaryReactor* VolumeServiceImpl::LoadVolume(grpc::CallbackServerContext* context,
+                                                        const v1::LoadVolumeRequest* request,
+                                                        v1::VolumeInfo* response) {
+  grpc::ServerUnaryReactor* reactor = context->DefaultReactor();
+  const grpc::Status status = Guarded([&] {
+    Authenticate(*context);
+    // Refuse paths outside the data roots at once; read the disk on the loader pool.
+    core_->volumes().ResolveDataPath(request->path(), "path");
+    core_->loader().Submit([this, reactor, request, response] {
+      reactor->Finish(
+          Guarded([&] { *response = core_->volumes().LoadFromDataRoot(request->path(), request->series_uid()); }));
+    });
+  });
+  if (!status.ok()) reactor->Finish(status);
+  return reactor;
+}
+
+grpc::ServerReadReactor<v1::UploadVolumeChunk>* VolumeServiceImpl::UploadVolume(grpc::CallbackServerContext* context,
+                                                                                v1::VolumeInfo* response) {
+  return new UploadReactor(context, core_, response);
+}
+
+grpc::ServerUnaryReactor* VolumeServiceImpl::DescribeVolume(grpc::CallbackServerContext* context,
+                                                            const v1::DescribeVolumeRequest* request,
+                                                            v1::VolumeInfo* response) {
+  return Answer(context, [&](const Principal&) { *response = core_->volumes().Describe(request->volume_id()); });
+}
+
+grpc::ServerUnaryReactor* VolumeServiceImpl::UnloadVolume(grpc::CallbackServerContext* context,
+                                                          const v1::UnloadVolumeRequest* request,
+                                                          v1::UnloadVolumeResponse*) {
+  return Answer(context, [&](const Principal&) { core_->volumes().Unload(request->volume_id()); });
+}
+
+grpc::ServerUnaryReactor* SessionServiceImpl::CreateSession(grpc::CallbackServerContext* context,
+                                                            const v1::CreateSessionRequest* request,
+                                                            v1::CreateSessionResponse* response) {
+  return Answer(context, [&](const Principal& caller) { *response = core_->CreateSession(*request, caller); });
+}
+
+grpc::ServerBidiReactor<v1::ClientMessage, v1::ServerMessage>* SessionServiceImpl::StreamSession(
+    grpc::CallbackServerContext* context) {
+  return new SessionStreamReactor(context, core_);
+}
+
+grpc::ServerUnaryReactor* SessionServiceImpl::Snapshot(grpc::CallbackServerContext* context,
+                                                       const v1::SnapshotRequest* request,
+                                                       v1::SnapshotResponse* response) {
+  grpc::ServerUnaryReactor* reactor = context->DefaultReactor();
+  const grpc::Status status = Guarded([&] {
+    core_->Snapshot(*request, Authenticate(*context), [reactor, response](grpc::Status s, v1::SnapshotResponse r) {
+      *response = std::move(r);
+      reactor->Finish(s);
+    });
+  });
+  if (!status.ok()) reactor->Finish(status);
+  return reactor;
+}
+
+grpc::ServerUnaryReactor* SessionServiceImpl::CloseSession(grpc::CallbackServerContext* context,
+                                                           const v1::CloseSessionRequest* request,
+                                                           v1::CloseSessionResponse*) {
+  return Answer(context, [&](const Principal& caller) { core_->CloseSession(request->session_id(), caller); });
+}
+
+grpc::ServerUnaryReactor* ServerServiceImpl::GetStatus(grpc::CallbackServerContext* context,
+                                                       const v1::GetStatusRequest*, v1::ServerStatus* response) {
+  return Answer(context, [&](const Principal&) { *response = core_->Status(); });
+}
+
+}  // namespace cinevol::service

@@ -1,0 +1,60 @@
+// The gRPC services: thin shells that authenticate, hand each request to the
+// ServiceCore (slow work to its pools) and answer with the status its
+// errors map to. Callback API: no reaction blocks.
+#pragma once
+
+#include "cinevol/v1/service.grpc.pb.h"
+#include "service/service_core.h"
+
+namespace cinevol::service {
+
+class VolumeServiceImpl final : public v1::VolumeService::CallbackService {
+ public:
+  explicit VolumeServiceImpl(ServiceCore* core) : core_(core) {}
+
+  grpc::ServerUnaryReactor* ListVolumes(grpc::CallbackServerContext* context, const v1::ListVolumesRequest* request,
+                                        v1::ListVolumesResponse* response) override;
+  grpc::ServerUnaryReactor* LoadVolume(grpc::CallbackServerContext* context, const v1::LoadVolumeRequest* request,
+                                       v1::VolumeInfo* response) override;
+  grpc::ServerReadReactor<v1::UploadVolumeChunk>* UploadVolume(grpc::CallbackServerContext* context,
+                                                               v1::VolumeInfo* response) override;
+  grpc::ServerUnaryReactor* DescribeVolume(grpc::CallbackServerContext* context,
+                                           const v1::DescribeVolumeRequest* request,
+                                           v1::VolumeInfo* response) override;
+  grpc::ServerUnaryReactor* UnloadVolume(grpc::CallbackServerContext* context, const v1::UnloadVolumeRequest* request,
+                                         v1::UnloadVolumeResponse* response) override;
+
+ private:
+  ServiceCore* core_;
+};
+
+class SessionServiceImpl final : public v1::SessionService::CallbackService {
+ public:
+  explicit SessionServiceImpl(ServiceCore* core) : core_(core) {}
+
+  grpc::ServerUnaryReactor* CreateSession(grpc::CallbackServerContext* context,
+                                          const v1::CreateSessionRequest* request,
+                                          v1::CreateSessionResponse* response) override;
+  grpc::ServerBidiReactor<v1::ClientMessage, v1::ServerMessage>* StreamSession(
+      grpc::CallbackServerContext* context) override;
+  grpc::ServerUnaryReactor* Snapshot(grpc::CallbackServerContext* context, const v1::SnapshotRequest* request,
+                                     v1::SnapshotResponse* response) override;
+  grpc::ServerUnaryReactor* CloseSession(grpc::CallbackServerContext* context, const v1::CloseSessionRequest* request,
+                                         v1::CloseSessionResponse* response) override;
+
+ private:
+  ServiceCore* core_;
+};
+
+class ServerServiceImpl final : public v1::ServerService::CallbackService {
+ public:
+  explicit ServerServiceImpl(ServiceCore* core) : core_(core) {}
+
+  grpc::ServerUnaryReactor* GetStatus(grpc::CallbackServerContext* context, const v1::GetStatusRequest* request,
+                                      v1::ServerStatus* response) override;
+
+ private:
+  ServiceCore* core_;
+};
+
+}  // namespace cinevol::service

@@ -1,0 +1,284 @@
+// Session: event merging, the render gate, and the frame's way from the
+// scheduler through the encoder to the stream.
+#include "service/session.h"
+
+#include <fmt/format.h>
+#include <spdlog/spdlog.h>
+
+#include "encode/image_codecs.h"
+#include "service/errors.h"
+
+namespace cinevol::service {
+namespace {
+
+// Frames may be encoding while the next renders; more would only be dropped.
+constexpr int kMaxEncodesInFlight = 2;
+
+std::uint32_t Micros(double ms) { return static_cast<std::uint32_t>(std::max(0.0, ms * 1000.0)); }
+
+std::uint32_t MicrosBetween(Clock::time_point from, Clock::time_point to) {
+  return static_cast<std::uint32_t>(std::chrono::duration_cast<std::chrono::microseconds>(to - from).count());
+}
+
+}  // namespace
+
+// What one step renders, taken under the lock.
+struct Session::Work {
+  bool update = false;
+  v1::Scene scene;
+  FrameSettings settings;
+  std::uint64_t frame_id = 0;
+  std::uint64_t event_seq = 0;
+  Clock::time_point origin;  // the last event's arrival, or the render's start when refining
+  bool answers_event = false;
+  std::uint32_t queue_us = 0;  // from the event's arrival to the render's start
+};
+
+Session::Session(std::string id, std::string owner, std::shared_ptr<VolumeLease> volume, v1::Scene scene,
+                 FrameSettings settings, SessionContext context)
+    : id_(std::move(id)),
+      owner_(std::move(owner)),
+      volume_(std::move(volume)),
+      context_(std::move(context)),
+      scene_(std::move(scene)),
+      settings_(settings),
+      since_(Clock::now()) {
+  ++context_.scheduler->sessions;
+}
+
+Session::~Session() { --context_.scheduler->sessions; }
+
+void Session::Attach(FrameStream* stream) {
+  {
+    std::lock_guard lock(mu_);
+    if (ended_) throw RpcError(grpc::StatusCode::NOT_FOUND, fmt::format("session '{}' has ended", id_));
+    if (stream_) {
+      sent_before_ += stream_->frames_sent();
+      dropped_before_ += stream_->frames_dropped();
+      stream_->End({grpc::StatusCode::ABORTED, fmt::format("another stream attached to session '{}'", id_)});
+    }
+    stream_ = stream;
+    ever_attached_ = true;
+    dirty_ = true;  // a fresh pipeline (or the old one) takes the scene again
+    refined_ = false;
+    stream_->SendNotice(v1::Notice::INFO,
+                        fmt::format("attached to session '{}' on {}", id_, context_.scheduler->name()));
+  }
+  Wake();
+}
+
+void Session::Detach(FrameStream* stream) {
+  {
+    std::lock_guard lock(mu_);
+    if (stream_ != stream) return;
+    sent_before_ += stream_->frames_sent();
+    dropped_before_ += stream_->frames_dropped();
+    stream_ = nullptr;
+    since_ = Clock::now();
+  }
+  Wake();  // the next step frees the device memory
+}
+
+void Session::OnWritable(FrameStream* stream) {
+  {
+    std::lock_guard lock(mu_);
+    if (stream_ != stream) return;
+  }
+  Wake();
+}
+
+void Session::OnEvent(const v1::SessionEvent& event, Clock::time_point arrival) {
+  {
+    std::lock_guard lock(mu_);
+    if (event.seq() <= last_event_seq_ && last_event_seq_ > 0) {
+      throw InputError(fmt::format("event {}: seq must increase (the last was {})", event.seq(), last_event_seq_));
+    }
+    ApplyEvent(event, scene_, settings_, *context_.limits, *context_.volumes);
+    if (event.has_pause()) paused_ = true;
+    if (event.has_resume()) paused_ = false;
+    if (!event.has_pause() && !event.has_resume()) dirty_ = true;
+    refined_ = false;  // every event gets a frame that answers it
+    last_event_seq_ = event.seq();
+    last_event_arrival_ = arrival;
+    event_unrendered_ = true;
+  }
+  Wake();
+}
+
+void Session::End(const grpc::Status& status) {
+  {
+    std::lock_guard lock(mu_);
+    if (ended_) return;
+    ended_ = true;
+    if (stream_) {
+      sent_before_ += stream_->frames_sent();
+      dropped_before_ += stream_->frames_dropped();
+      stream_->End(status);
+    }
+    stream_ = nullptr;
+  }
+  if (status.ok()) {
+    spdlog::info("session {}: closed", id_);
+  } else {
+    spdlog::warn("session {}: ended: {}", id_, status.error_message());
+  }
+  context_.on_end(id_);
+  Wake();  // the next step frees the device memory
+}
+
+void Session::CurrentScene(v1::Scene& scene, FrameSettings& settings) const {
+  std::lock_guard lock(mu_);
+  scene = scene_;
+  settings = settings_;
+}
+
+bool Session::CanRenderLocked() const {
+  return stream_ && !paused_ && encodes_in_flight_ < kMaxEncodesInFlight && !stream_->SlotFull() &&
+         (dirty_ || !refined_);
+}
+
+bool Session::Step() {
+  Work work;
+  bool release = false;
+  {
+    std::lock_guard lock(mu_);
+    if (ended_ || !stream_) {
+      release = true;
+      holds_device_memory_ = false;
+    } else if (!CanRenderLocked()) {
+      return false;
+    } else {
+      work.update = dirty_;
+      if (dirty_) {
+        work.scene = scene_;
+        dirty_ = false;
+      }
+      work.settings = settings_;
+      work.frame_id = next_frame_id_++;
+      work.event_seq = last_event_seq_;
+      work.answers_event = event_unrendered_;
+      work.origin = last_event_arrival_;
+      event_unrendered_ = false;
+      ++encodes_in_flight_;
+      holds_device_memory_ = true;
+    }
+  }
+  if (release) {
+    pipeline_.reset();
+    return false;
+  }
+  const Clock::time_point render_start = Clock::now();
+  if (work.answers_event) {
+    work.queue_us = MicrosBetween(work.origin, render_start);
+  } else {
+    work.origin = render_start;
+  }
+  DisplayFrame frame;
+  try {
+    if (!pipeline_) pipeline_ = std::make_unique<FramePipeline>(context_.backend, volume_->volume());
+    if (work.update) pipeline_->Update(work.scene, work.settings);
+    frame = pipeline_->RenderFrame();
+  } catch (...) {
+    pipeline_.reset();  // whatever it held may be broken: give the memory back now
+    {
+      std::lock_guard lock(mu_);
+      --encodes_in_flight_;
+      holds_device_memory_ = false;
+    }
+    End(ToStatus(std::current_exception()));
+    return false;
+  }
+  ++context_.scheduler->frames_rendered;
+  {
+    std::lock_guard lock(mu_);
+    ++frames_rendered_;
+    accumulated_spp_ = frame.accumulated_spp;
+    if (frame.final) refined_ = true;
+  }
+  Encode(std::move(frame), work);
+  std::lock_guard lock(mu_);
+  return CanRenderLocked();
+}
+
+void Session::Encode(DisplayFrame display, const Work& work) {
+  const int quality = display.final ? work.settings.final_jpeg_quality : work.settings.jpeg_quality;
+  const ChromaSubsampling chroma = work.settings.chroma;
+  context_.encoder->Submit([self = shared_from_this(), display = std::move(display), work, quality, chroma]() {
+    v1::Frame frame;
+    try {
+      const Clock::time_point start = Clock::now();
+      const std::vector<std::uint8_t> jpeg = EncodeJpeg(display.image, quality, chroma);
+      frame.set_jpeg(jpeg.data(), jpeg.size());
+      frame.mutable_timings()->set_encode_us(MicrosBetween(start, Clock::now()));
+    } catch (...) {
+      {
+        std::lock_guard lock(self->mu_);
+        --self->encodes_in_flight_;
+      }
+      self->End(ToStatus(std::current_exception()));
+      return;
+    }
+    frame.set_frame_id(work.frame_id);
+    frame.set_width(display.image.width);
+    frame.set_height(display.image.height);
+    frame.set_accumulated_spp(display.accumulated_spp);
+    frame.set_last_event_seq(work.event_seq);
+    frame.set_final(display.final);
+    v1::FrameTimings* t = frame.mutable_timings();
+    t->set_render_us(Micros(display.render_ms));
+    t->set_denoise_us(Micros(display.denoise_ms));
+    t->set_tonemap_us(Micros(display.display_ms));
+    t->set_queue_us(work.queue_us);
+    self->Deliver(std::move(frame), work.origin);
+  });
+}
+
+void Session::Deliver(v1::Frame frame, Clock::time_point origin) {
+  {
+    std::lock_guard lock(mu_);
+    --encodes_in_flight_;
+    if (stream_ && frame.frame_id() > last_offered_id_) {
+      last_offered_id_ = frame.frame_id();
+      stream_->OfferFrame(std::move(frame), origin);
+    } else {
+      ++frames_stale_;
+    }
+  }
+  Wake();
+}
+
+v1::SessionStatus Session::Status() const {
+  std::lock_guard lock(mu_);
+  v1::SessionStatus s;
+  s.set_session_id(id_);
+  s.set_owner(owner_);
+  s.set_volume_id(volume_->id());
+  s.set_device(context_.scheduler->name());
+  s.mutable_viewport()->set_width(scene_.render().width());
+  s.mutable_viewport()->set_height(scene_.render().height());
+  if (!ever_attached_) {
+    s.set_state(v1::SessionStatus::STARTING);
+  } else if (!stream_) {
+    s.set_state(v1::SessionStatus::DETACHED);
+  } else if (paused_) {
+    s.set_state(v1::SessionStatus::PAUSED);
+  } else if (refined_ && !dirty_) {
+    s.set_state(v1::SessionStatus::IDLE);
+  } else {
+    s.set_state(v1::SessionStatus::RENDERING);
+  }
+  s.set_frames_rendered(frames_rendered_);
+  s.set_frames_sent(sent_before_ + (stream_ ? stream_->frames_sent() : 0));
+  s.set_frames_dropped(dropped_before_ + frames_stale_ + (stream_ ? stream_->frames_dropped() : 0));
+  s.set_accumulated_spp(accumulated_spp_);
+  s.set_last_event_seq(last_event_seq_);
+  s.set_holds_device_memory(holds_device_memory_);
+  return s;
+}
+
+bool Session::Expired(Clock::time_point now, Clock::duration limit) const {
+  std::lock_guard lock(mu_);
+  return !stream_ && !ended_ && now - since_ > limit;
+}
+
+}  // namespace cinevol::service

@@ -1,0 +1,125 @@
+// A session: one viewer's scene, settings and frame pipeline. Events from the
+// viewer's stream merge into the scene (the latest camera wins); the
+// session's scheduler calls Step, which renders one frame when there is
+// something to show and room to send it, and hands it to the encoder pool;
+// the encoded frame goes to the attached stream's newest-wins slot.
+//
+// Device memory (the pipeline) exists only while a stream is attached: when
+// the stream ends the next step frees it, and a later attach rebuilds it.
+#pragma once
+
+#include <chrono>
+#include <cstdint>
+#include <functional>
+#include <memory>
+#include <mutex>
+#include <string>
+
+#include <grpcpp/support/status.h>
+
+#include "cinevol/v1/service.pb.h"
+#include "pipeline/frame_pipeline.h"
+#include "service/scheduler.h"
+#include "service/session_requests.h"
+#include "service/task_pool.h"
+#include "service/volume_registry.h"
+
+namespace cinevol::service {
+
+using Clock = std::chrono::steady_clock;
+
+// The write side of the stream attached to a session: one write in flight,
+// and behind it one slot where a newer frame replaces an older one.
+class FrameStream {
+ public:
+  virtual ~FrameStream() = default;
+  // Writes `frame` now, or parks it in the slot while a write is in flight.
+  // `origin`: when the work this frame answers began (for timings.server_us).
+  virtual void OfferFrame(v1::Frame frame, Clock::time_point origin) = 0;
+  virtual void SendNotice(v1::Notice::Level level, std::string message) = 0;
+  // A frame waits in the slot (or the stream is ending): render nothing more.
+  virtual bool SlotFull() const = 0;
+  // Finishes the call with `status` after the write in flight.
+  virtual void End(grpc::Status status) = 0;
+  virtual std::uint64_t frames_sent() const = 0;
+  virtual std::uint64_t frames_dropped() const = 0;
+};
+
+// What sessions share: where they render and encode, the limits, the volumes.
+struct SessionContext {
+  Scheduler* scheduler = nullptr;
+  TaskPool* encoder = nullptr;
+  Backend backend = Backend::kCpu;
+  const SessionLimits* limits = nullptr;
+  const VolumeRegistry* volumes = nullptr;
+  std::function<void(const std::string& session_id)> on_end;  // the registry forgets it
+};
+
+class Session final : public Job, public std::enable_shared_from_this<Session> {
+ public:
+  Session(std::string id, std::string owner, std::shared_ptr<VolumeLease> volume, v1::Scene scene,
+          FrameSettings settings, SessionContext context);
+  ~Session() override;
+
+  const std::string& id() const { return id_; }
+  const std::string& owner() const { return owner_; }
+
+  // From the stream's reactor. Attach makes `stream` the session's (a
+  // previous stream ends with ABORTED); Detach forgets it and frees the
+  // device memory; OnWritable says a write finished.
+  void Attach(FrameStream* stream);
+  void Detach(FrameStream* stream);
+  void OnWritable(FrameStream* stream);
+  // Merges an event; throws InputError (or RpcError) for a bad one.
+  void OnEvent(const v1::SessionEvent& event, Clock::time_point arrival);
+  // Ends the session: the stream finishes with `status`, memory is freed and
+  // the registry forgets it. Later calls do nothing.
+  void End(const grpc::Status& status);
+
+  // What a snapshot renders: the current scene and settings.
+  void CurrentScene(v1::Scene& scene, FrameSettings& settings) const;
+  const std::shared_ptr<VolumeLease>& volume() const { return volume_; }
+  Scheduler* scheduler() const { return context_.scheduler; }
+  v1::SessionStatus Status() const;
+  // Detached (or never attached) for longer than `limit`.
+  bool Expired(Clock::time_point now, Clock::duration limit) const;
+
+  bool Step() override;
+
+ private:
+  struct Work;
+  bool CanRenderLocked() const;
+  void Encode(DisplayFrame frame, const Work& work);
+  void Deliver(v1::Frame frame, Clock::time_point origin);
+  void Wake() { context_.scheduler->Wake(shared_from_this()); }
+
+  const std::string id_, owner_;
+  const std::shared_ptr<VolumeLease> volume_;
+  const SessionContext context_;
+
+  mutable std::mutex mu_;
+  FrameStream* stream_ = nullptr;
+  v1::Scene scene_;
+  FrameSettings settings_;
+  bool dirty_ = true;     // scene_ or settings_ changed since the pipeline last saw them
+  bool refined_ = false;  // the final frame went out; nothing to render until an event
+  bool paused_ = false;
+  bool ended_ = false;
+  bool ever_attached_ = false;
+  std::uint64_t last_event_seq_ = 0;
+  Clock::time_point last_event_arrival_;
+  bool event_unrendered_ = false;  // an event arrived since the last frame began
+  Clock::time_point since_;        // creation or last detach
+  int encodes_in_flight_ = 0;
+  std::uint64_t next_frame_id_ = 1;
+  std::uint64_t last_offered_id_ = 0;
+  std::uint64_t frames_rendered_ = 0;
+  std::uint64_t frames_stale_ = 0;  // finished encoding after a newer frame: never sent
+  std::uint64_t sent_before_ = 0, dropped_before_ = 0;  // by streams that ended
+  int accumulated_spp_ = 0;
+  bool holds_device_memory_ = false;
+
+  std::unique_ptr<FramePipeline> pipeline_;  // touched only inside Step
+};
+
+}  // namespace cinevol::service

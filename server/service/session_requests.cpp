@@ -1,0 +1,193 @@
+// Session request checks and event merging.
+#include "service/session_requests.h"
+
+#include <fmt/format.h>
+
+#include "core/error.h"
+#include "io/presets.h"
+#include "io/scene_file.h"
+#include "service/errors.h"
+
+namespace cinevol::service {
+namespace {
+
+void CheckViewport(const v1::Viewport& v, const std::string& field, const SessionLimits& limits) {
+  for (auto [name, size] : {std::pair{"width", v.width()}, std::pair{"height", v.height()}}) {
+    if (size < 1 || size > 8192) {
+      throw InputError(fmt::format("{}.{}: {} is outside [1, 8192]", field, name, size));
+    }
+  }
+  const std::uint64_t pixels = std::uint64_t(v.width()) * v.height();
+  if (pixels > limits.max_pixels) {
+    throw InputError(fmt::format("{}: {}x{} is {} pixels, over this server's limit of {} (--max-pixels)", field,
+                                 v.width(), v.height(), pixels, limits.max_pixels));
+  }
+}
+
+void CheckFrameSpp(const v1::Scene& scene, const std::string& prefix, const SessionLimits& limits) {
+  if (int(scene.render().spp()) > limits.max_frame_spp) {
+    throw InputError(fmt::format("{}render.spp: {} is outside [1, {}] for a streamed frame (use a snapshot for more)",
+                                 prefix, scene.render().spp(), limits.max_frame_spp));
+  }
+}
+
+// Every problem of the scene's parts, as one InputError.
+void CheckParts(const v1::Scene& scene, const std::string& prefix) {
+  const std::vector<std::string> problems = ValidateSceneParts(scene);
+  if (!problems.empty()) throw InputError(prefix + fmt::format("{}", fmt::join(problems, "; " + prefix)));
+}
+
+// Environment maps are files on the server: only inside the data roots.
+void ResolveEnvironmentMaps(v1::Scene& scene, const VolumeRegistry& volumes) {
+  for (int i = 0; i < scene.lights_size(); ++i) {
+    v1::Light* light = scene.mutable_lights(i);
+    if (light->has_environment() && light->environment().has_map()) {
+      const auto path = volumes.ResolveDataPath(light->environment().map(),
+                                                fmt::format("lights[{}].environment.map", i));
+      light->mutable_environment()->set_map(path.string());
+    }
+  }
+}
+
+template <class Enum>
+void CheckEnum(bool valid, Enum value, const std::string& field) {
+  if (!valid) throw InputError(fmt::format("{}: unknown value {}", field, int(value)));
+}
+
+void CheckRange(std::uint32_t v, std::uint32_t lo, std::uint32_t hi, const std::string& field) {
+  if (v < lo || v > hi) throw InputError(fmt::format("{}: {} is outside [{}, {}]", field, v, lo, hi));
+}
+
+DenoiseMethod ToMethod(v1::Denoiser d) {
+  switch (d) {
+    case v1::DENOISER_NONE: return DenoiseMethod::kNone;
+    case v1::DENOISER_ACCUMULATE: return DenoiseMethod::kAccumulate;
+    case v1::DENOISER_KNN: return DenoiseMethod::kKnn;
+    case v1::DENOISER_GUIDED: return DenoiseMethod::kGuidedFilter;
+    case v1::DENOISER_SVGF: return DenoiseMethod::kSvgf;
+    default: return DenoiseMethod::kWrls;
+  }
+}
+
+ChromaSubsampling ToChroma(v1::ChromaSubsampling c) {
+  switch (c) {
+    case v1::CHROMA_444: return ChromaSubsampling::k444;
+    case v1::CHROMA_422: return ChromaSubsampling::k422;
+    default: return ChromaSubsampling::k420;
+  }
+}
+
+}  // namespace
+
+v1::Scene InitialScene(const v1::CreateSessionRequest& request, const Volume& volume, const SessionLimits& limits,
+                       const VolumeRegistry& volumes) {
+  if (!request.has_viewport()) throw InputError("viewport: not set");
+  CheckViewport(request.viewport(), "viewport", limits);
+  v1::Scene scene;
+  switch (request.initial_case()) {
+    case v1::CreateSessionRequest::kScene: scene = request.scene(); break;
+    case v1::CreateSessionRequest::kPreset:
+      try {
+        scene = MakePresetScene(request.preset(), volume.extent_mm());
+      } catch (const InputError& e) {
+        throw InputError(fmt::format("preset: {}", e.what()));
+      }
+      break;
+    default: throw InputError("scene: neither a scene nor a preset given");
+  }
+  scene.clear_volume();  // the session renders volume_id
+  scene.mutable_render()->set_width(request.viewport().width());
+  scene.mutable_render()->set_height(request.viewport().height());
+  ApplyDefaults(scene);
+  CheckParts(scene, "scene.");
+  CheckFrameSpp(scene, "scene.", limits);
+  ResolveEnvironmentMaps(scene, volumes);
+  return scene;
+}
+
+FrameSettings MergeStreamSettings(FrameSettings s, const v1::StreamSettings& edit, const std::string& field) {
+  CheckEnum(v1::Denoiser_IsValid(edit.denoiser()), edit.denoiser(), field + ".denoiser");
+  CheckEnum(v1::ChromaSubsampling_IsValid(edit.chroma()), edit.chroma(), field + ".chroma");
+  if (edit.denoiser() != v1::DENOISER_UNSPECIFIED) s.denoiser = ToMethod(edit.denoiser());
+  if (edit.chroma() != v1::CHROMA_UNSPECIFIED) s.chroma = ToChroma(edit.chroma());
+  if (edit.has_demodulate()) s.demodulate = edit.demodulate();
+  if (edit.has_jpeg_quality()) {
+    CheckRange(edit.jpeg_quality(), 1, 100, field + ".jpeg_quality");
+    s.jpeg_quality = static_cast<int>(edit.jpeg_quality());
+  }
+  if (edit.has_final_jpeg_quality()) {
+    CheckRange(edit.final_jpeg_quality(), 1, 100, field + ".final_jpeg_quality");
+    s.final_jpeg_quality = static_cast<int>(edit.final_jpeg_quality());
+  }
+  if (edit.has_target_spp()) {
+    CheckRange(edit.target_spp(), 1, 65536, field + ".target_spp");
+    s.target_spp = static_cast<int>(edit.target_spp());
+  }
+  return s;
+}
+
+void ApplyEvent(const v1::SessionEvent& event, v1::Scene& scene, FrameSettings& settings,
+                const SessionLimits& limits, const VolumeRegistry& volumes) {
+  const std::string prefix = fmt::format("event {}: ", event.seq());
+  v1::Scene next = scene;
+  FrameSettings next_settings = settings;
+  switch (event.kind_case()) {
+    case v1::SessionEvent::kCamera: {
+      *next.mutable_camera() = event.camera();
+      ApplyDefaults(next);  // an unset fov takes its default, as in a scene file
+      break;
+    }
+    case v1::SessionEvent::kLights:
+      *next.mutable_lights() = event.lights().lights();
+      ResolveEnvironmentMaps(next, volumes);
+      break;
+    case v1::SessionEvent::kTransferFunction:
+      *next.mutable_transfer_function() = event.transfer_function();
+      ApplyDefaults(next);
+      break;
+    case v1::SessionEvent::kRender: {
+      const v1::RenderSettings& r = event.render();
+      if (r.has_width() || r.has_height()) {
+        throw InputError(prefix + "render.width/height: a render event cannot resize; send resize");
+      }
+      if (r.has_spp()) next.mutable_render()->set_spp(r.spp());
+      if (r.has_max_bounces()) next.mutable_render()->set_max_bounces(r.max_bounces());
+      if (r.seed() != 0) next.mutable_render()->set_seed(r.seed());
+      break;
+    }
+    case v1::SessionEvent::kStream:
+      try {
+        next_settings = MergeStreamSettings(settings, event.stream(), "stream");
+      } catch (const InputError& e) {
+        throw InputError(prefix + e.what());
+      }
+      break;
+    case v1::SessionEvent::kResize:
+      try {
+        CheckViewport(event.resize(), "resize", limits);
+      } catch (const InputError& e) {
+        throw InputError(prefix + e.what());
+      }
+      next.mutable_render()->set_width(event.resize().width());
+      next.mutable_render()->set_height(event.resize().height());
+      break;
+    case v1::SessionEvent::kPause:
+    case v1::SessionEvent::kResume:
+      return;
+    default:
+      throw InputError(prefix + "no event kind set");
+  }
+  CheckParts(next, prefix);
+  CheckFrameSpp(next, prefix, limits);
+  scene = std::move(next);
+  settings = next_settings;
+}
+
+int SnapshotSpp(const v1::SnapshotRequest& request, const SessionLimits& limits) {
+  CheckEnum(v1::ImageFormat_IsValid(request.format()), request.format(), "format");
+  if (!request.has_spp()) return limits.default_snapshot_spp;
+  CheckRange(request.spp(), 1, std::uint32_t(limits.max_snapshot_spp), "spp");
+  return static_cast<int>(request.spp());
+}
+
+}  // namespace cinevol::service

@@ -1,0 +1,174 @@
+// SessionStreamReactor: attach, events in; frames and notices out.
+#include "service/session_stream.h"
+
+#include <fmt/format.h>
+
+#include "service/errors.h"
+#include "service/service_core.h"
+
+namespace cinevol::service {
+
+SessionStreamReactor::SessionStreamReactor(grpc::CallbackServerContext* context, ServiceCore* core) : core_(core) {
+  const grpc::Status status = Guarded([&] { principal_ = Authenticate(*context); });
+  if (!status.ok()) {
+    std::lock_guard lock(mu_);
+    FinishLocked(status);
+    return;
+  }
+  StartRead(&in_);
+}
+
+std::shared_ptr<Session> SessionStreamReactor::session() const {
+  std::lock_guard lock(mu_);
+  return session_;
+}
+
+void SessionStreamReactor::OnReadDone(bool ok) {
+  if (!ok) {  // the client closed its side, or the call is gone
+    End(grpc::Status::OK);
+    return;
+  }
+  const Clock::time_point arrival = Clock::now();
+  std::shared_ptr<Session> session = this->session();
+  if (!session) {
+    if (!in_.has_attach()) {
+      End({grpc::StatusCode::INVALID_ARGUMENT, "attach: the first message must attach to a session"});
+      return;
+    }
+    const grpc::Status status = Guarded([&] { HandleAttach(in_.attach()); });
+    if (!status.ok()) {
+      End(status);
+      return;
+    }
+  } else if (in_.has_attach()) {
+    End({grpc::StatusCode::INVALID_ARGUMENT, "attach: this stream is already attached"});
+    return;
+  } else {
+    const grpc::Status status = Guarded([&] { session->OnEvent(in_.event(), arrival); });
+    if (!status.ok()) {  // a bad event ends the session, with the message naming the field
+      session->End(status);
+      return;
+    }
+  }
+  StartRead(&in_);
+}
+
+void SessionStreamReactor::HandleAttach(const v1::Attach& attach) {
+  std::shared_ptr<Session> session = core_->FindSession(attach.session_id(), *principal_);
+  {
+    std::lock_guard lock(mu_);
+    session_ = session;
+  }
+  session->Attach(this);
+}
+
+void SessionStreamReactor::OfferFrame(v1::Frame frame, Clock::time_point origin) {
+  std::lock_guard lock(mu_);
+  if (finished_ || finish_after_write_) return;
+  if (!writing_) {
+    frame.mutable_timings()->set_server_us(static_cast<std::uint32_t>(
+        std::chrono::duration_cast<std::chrono::microseconds>(Clock::now() - origin).count()));
+    v1::ServerMessage message;
+    *message.mutable_frame() = std::move(frame);
+    StartWriteLocked(std::move(message), true);
+    return;
+  }
+  if (slot_) ++dropped_;
+  slot_ = Parked{std::move(frame), origin};
+}
+
+void SessionStreamReactor::SendNotice(v1::Notice::Level level, std::string message) {
+  std::lock_guard lock(mu_);
+  if (finished_ || finish_after_write_) return;
+  v1::Notice notice;
+  notice.set_level(level);
+  notice.set_message(std::move(message));
+  if (writing_) {
+    notices_.push_back(std::move(notice));
+    return;
+  }
+  v1::ServerMessage out;
+  *out.mutable_notice() = std::move(notice);
+  StartWriteLocked(std::move(out), false);
+}
+
+bool SessionStreamReactor::SlotFull() const {
+  std::lock_guard lock(mu_);
+  return slot_.has_value() || finished_ || finish_after_write_.has_value();
+}
+
+void SessionStreamReactor::End(grpc::Status status) {
+  std::lock_guard lock(mu_);
+  if (finished_ || finish_after_write_) return;
+  if (writing_) {
+    finish_after_write_ = std::move(status);
+  } else {
+    FinishLocked(status);
+  }
+}
+
+std::uint64_t SessionStreamReactor::frames_sent() const {
+  std::lock_guard lock(mu_);
+  return sent_;
+}
+
+std::uint64_t SessionStreamReactor::frames_dropped() const {
+  std::lock_guard lock(mu_);
+  return dropped_ + (slot_ ? 1 : 0);
+}
+
+void SessionStreamReactor::StartWriteLocked(v1::ServerMessage message, bool is_frame) {
+  out_ = std::move(message);
+  writing_ = true;
+  writing_frame_ = is_frame;
+  StartWrite(&out_);  // gRPC runs OnWriteDone on its own thread, never inside this call
+}
+
+void SessionStreamReactor::FinishLocked(const grpc::Status& status) {
+  finished_ = true;
+  slot_.reset();
+  notices_.clear();
+  Finish(status);
+}
+
+void SessionStreamReactor::OnWriteDone(bool ok) {
+  std::shared_ptr<Session> wake;
+  {
+    std::lock_guard lock(mu_);
+    writing_ = false;
+    if (ok && writing_frame_) ++sent_;
+    if (finished_) return;
+    if (!ok || finish_after_write_) {  // the stream broke, or an end waited for this write
+      FinishLocked(finish_after_write_.value_or(
+          grpc::Status(grpc::StatusCode::UNAVAILABLE, "the stream to the client broke")));
+      return;
+    }
+    if (!notices_.empty()) {
+      v1::ServerMessage out;
+      *out.mutable_notice() = std::move(notices_.front());
+      notices_.pop_front();
+      StartWriteLocked(std::move(out), false);
+      return;
+    }
+    if (slot_) {
+      Parked parked = std::move(*slot_);
+      slot_.reset();
+      parked.frame.mutable_timings()->set_server_us(static_cast<std::uint32_t>(
+          std::chrono::duration_cast<std::chrono::microseconds>(Clock::now() - parked.origin).count()));
+      v1::ServerMessage out;
+      *out.mutable_frame() = std::move(parked.frame);
+      StartWriteLocked(std::move(out), true);
+    }
+    wake = session_;  // the slot has room: the session may render again
+  }
+  if (wake) wake->OnWritable(this);
+}
+
+void SessionStreamReactor::OnCancel() { End({grpc::StatusCode::CANCELLED, "the client went away"}); }
+
+void SessionStreamReactor::OnDone() {
+  if (std::shared_ptr<Session> session = this->session()) session->Detach(this);
+  delete this;
+}
+
+}  // namespace cinevol::service
