@@ -42,7 +42,10 @@ Server::Server(const ServerOptions& options)
                core_->DeviceSummary());
 }
 
-Server::~Server() { Shutdown(); }
+Server::~Server() {
+  Shutdown();
+  Stop();
+}
 
 void Server::Sweep() {
   std::unique_lock lock(mu_);
@@ -53,24 +56,31 @@ void Server::Sweep() {
   }
 }
 
-void Server::Wait() {
-  std::unique_lock lock(mu_);
-  stop_.wait(lock, [&] { return stopping_; });
-}
-
 void Server::Shutdown() {
   {
     std::lock_guard lock(mu_);
-    if (stopping_) return;
     stopping_ = true;
   }
   stop_.notify_all();
-  spdlog::info("cinevol-server: shutting down");
-  server_->GetHealthCheckService()->SetServingStatus(false);
-  // Calls still open after a moment are cancelled; their reactors finish.
-  server_->Shutdown(std::chrono::system_clock::now() + std::chrono::seconds(1));
-  sweeper_.join();
-  core_.reset();
+}
+
+void Server::Wait() {
+  {
+    std::unique_lock lock(mu_);
+    stop_.wait(lock, [&] { return stopping_; });
+  }
+  Stop();
+}
+
+void Server::Stop() {
+  std::call_once(stopped_, [&] {
+    spdlog::info("cinevol-server: shutting down");
+    server_->GetHealthCheckService()->SetServingStatus(false);
+    // Calls still open after a moment are cancelled; their reactors finish.
+    server_->Shutdown(std::chrono::system_clock::now() + std::chrono::seconds(1));
+    sweeper_.join();
+    core_.reset();
+  });
 }
 
 }  // namespace cinevol::service

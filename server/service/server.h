@@ -20,16 +20,18 @@ class Server {
   // Loads the volumes and starts listening; throws InputError for bad
   // options or an address it cannot listen on.
   explicit Server(const ServerOptions& options);
-  ~Server();  // Shutdown()
+  ~Server();  // Shutdown(), then stops as Wait does
 
   int port() const { return port_; }
-  const ServiceCore& core() const { return *core_; }
-  // Blocks until Shutdown.
+  // Blocks until Shutdown is asked for, then stops: open calls are
+  // cancelled, sessions end, workers join.
   void Wait();
+  // Asks the server to stop; returns at once (any thread).
   void Shutdown();
 
  private:
   void Sweep();
+  void Stop();
 
   std::unique_ptr<ServiceCore> core_;
   VolumeServiceImpl volume_service_;
@@ -41,6 +43,7 @@ class Server {
   std::mutex mu_;
   std::condition_variable stop_;
   bool stopping_ = false;
+  std::once_flag stopped_;
   std::thread sweeper_;
 };
 

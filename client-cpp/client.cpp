@@ -1,0 +1,222 @@
+// cinevol::Client over the generated stubs.
+#include "client.h"
+
+#include <fmt/format.h>
+
+#include <fstream>
+
+namespace cinevol {
+namespace {
+
+constexpr int kMaxReceiveBytes = 512 << 20;  // a 4K EXR snapshot is about 100 MB
+
+void Check(const grpc::Status& status) {
+  if (!status.ok()) throw RpcError(status);
+}
+
+}  // namespace
+
+std::string StatusCodeName(grpc::StatusCode code) {
+  static const char* const kNames[] = {"OK", "CANCELLED", "UNKNOWN", "INVALID_ARGUMENT", "DEADLINE_EXCEEDED",
+                                       "NOT_FOUND", "ALREADY_EXISTS", "PERMISSION_DENIED", "RESOURCE_EXHAUSTED",
+                                       "FAILED_PRECONDITION", "ABORTED", "OUT_OF_RANGE", "UNIMPLEMENTED", "INTERNAL",
+                                       "UNAVAILABLE", "DATA_LOSS", "UNAUTHENTICATED"};
+  const int i = static_cast<int>(code);
+  return i >= 0 && i < int(std::size(kNames)) ? kNames[i] : fmt::format("code {}", i);
+}
+
+RpcError::RpcError(const grpc::Status& status)
+    : std::runtime_error(StatusCodeName(status.error_code()) + ": " + status.error_message()),
+      code_(status.error_code()) {}
+
+SessionStream::SessionStream(v1::SessionService::Stub* stub, const std::string& session_id) {
+  stream_ = stub->StreamSession(&context_);
+  v1::ClientMessage attach;
+  attach.mutable_attach()->set_session_id(session_id);
+  stream_->Write(attach);
+  reader_ = std::thread([this] { ReadAll(); });
+}
+
+SessionStream::~SessionStream() {
+  context_.TryCancel();
+  reader_.join();
+}
+
+void SessionStream::ReadAll() {
+  for (v1::ServerMessage message; stream_->Read(&message);) {
+    std::lock_guard lock(mu_);
+    inbox_.push_back(std::move(message));
+    arrived_.notify_all();
+  }
+  grpc::Status status;
+  {
+    std::lock_guard lock(write_mu_);  // Finish must not overlap a Write
+    writes_closed_ = true;
+    status = stream_->Finish();
+  }
+  std::lock_guard lock(mu_);
+  ended_ = true;
+  status_ = status;
+  arrived_.notify_all();
+}
+
+std::uint64_t SessionStream::Send(v1::SessionEvent event) {
+  std::lock_guard lock(write_mu_);
+  if (writes_closed_) return 0;
+  const std::uint64_t seq = next_seq_++;
+  event.set_seq(seq);
+  v1::ClientMessage message;
+  *message.mutable_event() = std::move(event);
+  {
+    std::lock_guard inbox_lock(mu_);
+    sent_at_[seq] = std::chrono::steady_clock::now();
+  }
+  return stream_->Write(message) ? seq : 0;
+}
+
+std::optional<v1::ServerMessage> SessionStream::Next(std::chrono::milliseconds timeout) {
+  std::unique_lock lock(mu_);
+  arrived_.wait_for(lock, timeout, [&] { return !inbox_.empty() || ended_; });
+  if (inbox_.empty()) return std::nullopt;
+  v1::ServerMessage message = std::move(inbox_.front());
+  inbox_.pop_front();
+  return message;
+}
+
+std::chrono::steady_clock::time_point SessionStream::SentAt(std::uint64_t seq) const {
+  std::lock_guard lock(mu_);
+  auto it = sent_at_.find(seq);
+  return it == sent_at_.end() ? std::chrono::steady_clock::time_point{} : it->second;
+}
+
+grpc::Status SessionStream::Finish(std::chrono::milliseconds timeout) {
+  {
+    std::lock_guard lock(write_mu_);
+    if (!writes_closed_) {
+      writes_closed_ = true;
+      stream_->WritesDone();
+    }
+  }
+  std::unique_lock lock(mu_);
+  if (!arrived_.wait_for(lock, timeout, [&] { return ended_; })) {
+    lock.unlock();
+    context_.TryCancel();
+    lock.lock();
+    arrived_.wait(lock, [&] { return ended_; });
+  }
+  return status_;
+}
+
+bool SessionStream::ended() const {
+  std::lock_guard lock(mu_);
+  return ended_;
+}
+
+grpc::Status SessionStream::status() const {
+  std::lock_guard lock(mu_);
+  return status_;
+}
+
+Client::Client(const ClientOptions& options) : options_(options) {
+  grpc::ChannelArguments args;
+  args.SetMaxReceiveMessageSize(kMaxReceiveBytes);
+  channel_ = grpc::CreateCustomChannel(options.address, grpc::InsecureChannelCredentials(), args);
+  if (!channel_->WaitForConnected(std::chrono::system_clock::now() + options.connect_timeout)) {
+    throw RpcError({grpc::StatusCode::UNAVAILABLE,
+                    fmt::format("cannot reach cinevol-server at {} within {} s", options.address,
+                                options.connect_timeout.count() / 1000.0)});
+  }
+  volumes_ = v1::VolumeService::NewStub(channel_);
+  sessions_ = v1::SessionService::NewStub(channel_);
+  server_ = v1::ServerService::NewStub(channel_);
+}
+
+std::unique_ptr<grpc::ClientContext> Client::CallContext() const {
+  auto context = std::make_unique<grpc::ClientContext>();
+  context->set_deadline(std::chrono::system_clock::now() + options_.call_timeout);
+  return context;
+}
+
+std::vector<v1::VolumeInfo> Client::ListVolumes() {
+  v1::ListVolumesResponse response;
+  Check(volumes_->ListVolumes(CallContext().get(), {}, &response));
+  return {response.volumes().begin(), response.volumes().end()};
+}
+
+v1::VolumeInfo Client::LoadVolume(const std::string& path, const std::string& series_uid) {
+  v1::LoadVolumeRequest request;
+  request.set_path(path);
+  request.set_series_uid(series_uid);
+  v1::VolumeInfo info;
+  Check(volumes_->LoadVolume(CallContext().get(), request, &info));
+  return info;
+}
+
+v1::VolumeInfo Client::UploadVolume(const std::filesystem::path& file, std::size_t chunk_bytes) {
+  std::ifstream in(file, std::ios::binary);
+  if (!in) throw std::runtime_error(fmt::format("{}: cannot open", file.string()));
+  v1::VolumeInfo info;
+  auto context = CallContext();
+  auto writer = volumes_->UploadVolume(context.get(), &info);
+  v1::UploadVolumeChunk header;
+  header.mutable_header()->set_file_name(file.filename().string());
+  header.mutable_header()->set_size_bytes(std::filesystem::file_size(file));
+  bool open = writer->Write(header);
+  std::string buffer(chunk_bytes, '\0');
+  while (open && in) {
+    in.read(buffer.data(), std::streamsize(buffer.size()));
+    if (in.gcount() == 0) break;
+    v1::UploadVolumeChunk chunk;
+    chunk.set_data(buffer.data(), std::size_t(in.gcount()));
+    open = writer->Write(chunk);
+  }
+  writer->WritesDone();
+  Check(writer->Finish());
+  return info;
+}
+
+v1::VolumeInfo Client::DescribeVolume(const std::string& volume_id) {
+  v1::DescribeVolumeRequest request;
+  request.set_volume_id(volume_id);
+  v1::VolumeInfo info;
+  Check(volumes_->DescribeVolume(CallContext().get(), request, &info));
+  return info;
+}
+
+void Client::UnloadVolume(const std::string& volume_id) {
+  v1::UnloadVolumeRequest request;
+  request.set_volume_id(volume_id);
+  v1::UnloadVolumeResponse response;
+  Check(volumes_->UnloadVolume(CallContext().get(), request, &response));
+}
+
+v1::CreateSessionResponse Client::CreateSession(const v1::CreateSessionRequest& request) {
+  v1::CreateSessionResponse response;
+  Check(sessions_->CreateSession(CallContext().get(), request, &response));
+  return response;
+}
+
+std::unique_ptr<SessionStream> Client::Attach(const std::string& session_id) {
+  return std::make_unique<SessionStream>(sessions_.get(), session_id);
+}
+
+v1::SnapshotResponse Client::Snapshot(const v1::SnapshotRequest& request) {
+  v1::SnapshotResponse response;
+  Check(sessions_->Snapshot(CallContext().get(), request, &response));
+  return response;
+}
+
+void Client::CloseSession(const std::string& session_id) {
+  v1::CloseSessionRequest request;
+  request.set_session_id(session_id);
+  v1::CloseSessionResponse response;
+  Check(sessions_->CloseSession(CallContext().get(), request, &response));
+}
+
+v1::ServerStatus Client::Status() {
+  v1::ServerStatus status;
+  Check(server_->GetStatus(CallContext().get(), {}, &status));
+  return status;
+}
+
+}  // namespace cinevol

@@ -1,0 +1,123 @@
+// cinevol::Client: the C++ client of cinevol-server. Connects, manages
+// volumes and sessions with unary calls (each bounded by a deadline), and
+// attaches to a session's stream: events go out with increasing sequence
+// numbers, frames and notices come back through Next().
+//
+//   cinevol::Client client({.address = "127.0.0.1:50051"});
+//   auto created = client.CreateSession(request);
+//   auto stream = client.Attach(created.session_id());
+//   stream->Send(camera_event);
+//   while (auto message = stream->Next(std::chrono::seconds(1))) { ... }
+#pragma once
+
+#include <grpcpp/grpcpp.h>
+
+#include <chrono>
+#include <condition_variable>
+#include <cstdint>
+#include <deque>
+#include <filesystem>
+#include <map>
+#include <memory>
+#include <mutex>
+#include <optional>
+#include <stdexcept>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include "cinevol/v1/service.grpc.pb.h"
+
+namespace cinevol {
+
+struct ClientOptions {
+  std::string address = "127.0.0.1:50051";
+  std::chrono::milliseconds connect_timeout{5000};
+  std::chrono::milliseconds call_timeout{60000};  // every unary call; snapshots and loads included
+};
+
+// A call the server refused or could not answer: its status code and message.
+class RpcError : public std::runtime_error {
+ public:
+  explicit RpcError(const grpc::Status& status);
+  grpc::StatusCode code() const { return code_; }
+
+ private:
+  grpc::StatusCode code_;
+};
+
+// "INVALID_ARGUMENT" and the like.
+std::string StatusCodeName(grpc::StatusCode code);
+
+// One attached session stream. A thread reads the server's messages into a
+// queue; Next takes them in order.
+class SessionStream {
+ public:
+  SessionStream(v1::SessionService::Stub* stub, const std::string& session_id);
+  ~SessionStream();  // cancels the call if it is still open
+  SessionStream(const SessionStream&) = delete;
+  SessionStream& operator=(const SessionStream&) = delete;
+
+  // Sends `event` with the next sequence number (1, 2, ...) and returns it;
+  // false-y 0 when the stream has ended.
+  std::uint64_t Send(v1::SessionEvent event);
+  // The next message, waiting up to `timeout`; nullopt on timeout or once
+  // the stream has ended and every message was taken (then see status()).
+  std::optional<v1::ServerMessage> Next(std::chrono::milliseconds timeout);
+  // When event `seq` went out, for event-to-frame latency.
+  std::chrono::steady_clock::time_point SentAt(std::uint64_t seq) const;
+  // Closes the sending side and waits up to `timeout` for the server's status.
+  grpc::Status Finish(std::chrono::milliseconds timeout);
+  // Drops the call, as a client that goes away does.
+  void Cancel() { context_.TryCancel(); }
+  bool ended() const;
+  grpc::Status status() const;  // OK until the stream ends
+
+ private:
+  void ReadAll();
+
+  grpc::ClientContext context_;
+  std::unique_ptr<grpc::ClientReaderWriter<v1::ClientMessage, v1::ServerMessage>> stream_;
+  std::mutex write_mu_;
+  bool writes_closed_ = false;
+  std::uint64_t next_seq_ = 1;
+  mutable std::mutex mu_;
+  std::condition_variable arrived_;
+  std::deque<v1::ServerMessage> inbox_;
+  std::map<std::uint64_t, std::chrono::steady_clock::time_point> sent_at_;
+  bool ended_ = false;
+  grpc::Status status_;
+  std::thread reader_;
+};
+
+class Client {
+ public:
+  // Connects; throws RpcError(UNAVAILABLE) when the server cannot be reached
+  // within options.connect_timeout.
+  explicit Client(const ClientOptions& options);
+
+  std::vector<v1::VolumeInfo> ListVolumes();
+  v1::VolumeInfo LoadVolume(const std::string& path, const std::string& series_uid = {});
+  v1::VolumeInfo UploadVolume(const std::filesystem::path& file, std::size_t chunk_bytes = 1 << 20);
+  v1::VolumeInfo DescribeVolume(const std::string& volume_id);
+  void UnloadVolume(const std::string& volume_id);
+
+  v1::CreateSessionResponse CreateSession(const v1::CreateSessionRequest& request);
+  std::unique_ptr<SessionStream> Attach(const std::string& session_id);
+  v1::SnapshotResponse Snapshot(const v1::SnapshotRequest& request);
+  void CloseSession(const std::string& session_id);
+  v1::ServerStatus Status();
+
+  const std::shared_ptr<grpc::Channel>& channel() const { return channel_; }
+
+ private:
+  std::unique_ptr<grpc::ClientContext> CallContext() const;
+
+  ClientOptions options_;
+  std::shared_ptr<grpc::Channel> channel_;
+  std::unique_ptr<v1::VolumeService::Stub> volumes_;
+  std::unique_ptr<v1::SessionService::Stub> sessions_;
+  std::unique_ptr<v1::ServerService::Stub> server_;
+};
+
+}  // namespace cinevol

@@ -1,0 +1,191 @@
+// The render service end to end on the CPU backend: a real cinevol-server on
+// loopback, real gRPC, frames that follow camera, transfer-function and light
+// edits, snapshots, two sessions apart, idle refinement that stops.
+#include <gtest/gtest.h>
+
+#include <thread>
+
+#include "server_process.h"
+#include "service_test_support.h"
+#include "support/test_paths.h"
+
+namespace cinevol::testing {
+namespace {
+
+using namespace std::chrono_literals;
+
+v1::SessionEvent CameraView(v1::NamedView view) {
+  v1::SessionEvent e;
+  e.mutable_camera()->set_view(view);
+  return e;
+}
+
+TEST(SessionStream, FramesFollowCameraTransferFunctionAndLightEdits) {
+  ScratchDir scratch;
+  ServerProcess server(scratch.path());
+  ASSERT_TRUE(server.running()) << server.Log();
+  Client client = server.Connect();
+  const auto created = client.CreateSession(SmallSession());
+  auto stream = client.Attach(created.session_id());
+
+  const auto base = WaitFinal(*stream);
+  ASSERT_TRUE(base) << stream->status().error_message();
+  EXPECT_EQ(base->width(), 96u);
+  EXPECT_EQ(base->height(), 64u);
+  EXPECT_GE(base->accumulated_spp(), 16u);
+  EXPECT_EQ(base->last_event_seq(), 0u);
+  const ImageRgb8 before = Decode(*base);
+  EXPECT_GT(MeanLevel(before), 1.0) << "the phantom's bone should show";
+
+  // A camera move: another view of the head.
+  const std::uint64_t camera_seq = stream->Send(CameraView(v1::LEFT));
+  const auto moved = WaitFinal(*stream, camera_seq);
+  ASSERT_TRUE(moved);
+  EXPECT_EQ(moved->last_event_seq(), camera_seq);
+  EXPECT_GT(moved->frame_id(), base->frame_id());
+  EXPECT_GT(MeanAbsDiff(before, Decode(*moved)), 2.0);
+
+  // A transfer-function edit: skin instead of bone.
+  v1::SessionEvent tf;
+  tf.mutable_transfer_function()->set_preset("ct-soft-tissue");
+  const std::uint64_t tf_seq = stream->Send(tf);
+  const auto skin = WaitFinal(*stream, tf_seq);
+  ASSERT_TRUE(skin);
+  EXPECT_GT(MeanAbsDiff(Decode(*moved), Decode(*skin)), 2.0);
+
+  // A light edit: only the dim sky is left, so the image darkens.
+  v1::SessionEvent lights;
+  for (const v1::Light& l : created.scene().lights()) {
+    if (l.has_environment()) *lights.mutable_lights()->add_lights() = l;
+  }
+  const std::uint64_t light_seq = stream->Send(lights);
+  const auto dim = WaitFinal(*stream, light_seq);
+  ASSERT_TRUE(dim);
+  EXPECT_LT(MeanLevel(Decode(*dim)), MeanLevel(Decode(*skin)) - 2.0);
+  EXPECT_GT(light_seq, tf_seq);
+
+  // Stills of the current state, as PNG and EXR.
+  v1::SnapshotRequest still;
+  still.set_session_id(created.session_id());
+  still.set_spp(8);
+  const auto png = client.Snapshot(still);
+  EXPECT_EQ(png.format(), v1::PNG);
+  EXPECT_EQ(png.width(), 96u);
+  EXPECT_EQ(png.spp(), 8u);
+  WriteFile(scratch / "still.png", {png.image().begin(), png.image().end()});
+  const ImageRgb8 still_image = ReadPng(scratch / "still.png");
+  EXPECT_EQ(still_image.width, 96);
+  EXPECT_LT(MeanAbsDiff(still_image, Decode(*dim)), 20.0) << "the still shows the session's current state";
+  still.set_format(v1::EXR);
+  const auto exr = client.Snapshot(still);
+  WriteFile(scratch / "still.exr", {exr.image().begin(), exr.image().end()});
+  EXPECT_EQ(ReadExr(scratch / "still.exr").height, 64);
+
+  client.CloseSession(created.session_id());
+  EXPECT_TRUE(stream->Finish(10s).ok());
+  EXPECT_FALSE(FindSessionStatus(client, created.session_id()));
+}
+
+TEST(SessionStream, TwoSessionsSeeOnlyTheirOwnState) {
+  ScratchDir scratch;
+  ServerProcess server(scratch.path());
+  ASSERT_TRUE(server.running()) << server.Log();
+  Client client = server.Connect();
+  const auto a = client.CreateSession(SmallSession("ct-bone"));
+  const auto b = client.CreateSession(SmallSession("ct-soft-tissue"));
+  ASSERT_NE(a.session_id(), b.session_id());
+  auto stream_a = client.Attach(a.session_id());
+  auto stream_b = client.Attach(b.session_id());
+  const auto a0 = WaitFinal(*stream_a);
+  const auto b0 = WaitFinal(*stream_b);
+  ASSERT_TRUE(a0 && b0);
+  EXPECT_GT(MeanAbsDiff(Decode(*a0), Decode(*b0)), 2.0) << "different transfer functions";
+
+  const std::uint64_t seq = stream_a->Send(CameraView(v1::SUPERIOR));
+  ASSERT_TRUE(WaitFinal(*stream_a, seq));
+  // B is refined and idle: A's edit renders nothing for it.
+  EXPECT_FALSE(stream_b->Next(1s)) << "B received a frame after A's edit";
+  const auto status_b = FindSessionStatus(client, b.session_id());
+  ASSERT_TRUE(status_b);
+  EXPECT_EQ(status_b->last_event_seq(), 0u);
+  EXPECT_EQ(status_b->state(), v1::SessionStatus::IDLE);
+}
+
+TEST(SessionStream, IdleRefinementReachesTheTargetThenStops) {
+  ScratchDir scratch;
+  ServerProcess server(scratch.path());
+  ASSERT_TRUE(server.running()) << server.Log();
+  Client client = server.Connect();
+  v1::CreateSessionRequest request = SmallSession("ct-bone", 96, 64, 32);
+  request.mutable_stream()->set_jpeg_quality(40);
+  request.mutable_stream()->set_final_jpeg_quality(98);
+  const auto created = client.CreateSession(request);
+  auto stream = client.Attach(created.session_id());
+
+  std::vector<v1::Frame> frames;
+  while (auto f = WaitFrame(*stream, [](const v1::Frame&) { return true; }, 30s)) {
+    frames.push_back(*f);
+    if (f->final()) break;
+  }
+  ASSERT_FALSE(frames.empty());
+  const v1::Frame& last = frames.back();
+  ASSERT_TRUE(last.final());
+  EXPECT_GE(last.accumulated_spp(), 32u);
+  for (std::size_t i = 1; i < frames.size(); ++i) {
+    EXPECT_GT(frames[i].accumulated_spp(), frames[i - 1].accumulated_spp()) << "samples accumulate";
+  }
+  // The final frame is encoded at the higher quality: larger than its predecessor.
+  ASSERT_GE(frames.size(), 2u);
+  EXPECT_GT(last.jpeg().size(), frames[frames.size() - 2].jpeg().size());
+
+  // Then nothing: no frames, and the server's CPU goes idle.
+  EXPECT_FALSE(stream->Next(1s));
+  const double cpu_before = server.CpuSeconds();
+  std::this_thread::sleep_for(1s);
+  EXPECT_LT(server.CpuSeconds() - cpu_before, 0.1) << "the server kept working after refinement ended";
+  const auto status = FindSessionStatus(client, created.session_id());
+  ASSERT_TRUE(status);
+  EXPECT_EQ(status->state(), v1::SessionStatus::IDLE);
+  EXPECT_EQ(status->frames_rendered(), frames.size());
+}
+
+TEST(SessionStream, PauseStopsFramesAndResumeBringsThemBack) {
+  ScratchDir scratch;
+  ServerProcess server(scratch.path());
+  ASSERT_TRUE(server.running()) << server.Log();
+  Client client = server.Connect();
+  const auto created = client.CreateSession(SmallSession("ct-bone", 96, 64, 4096));
+  auto stream = client.Attach(created.session_id());
+  ASSERT_TRUE(WaitFrame(*stream, [](const v1::Frame&) { return true; }));
+  v1::SessionEvent pause;
+  pause.mutable_pause();
+  stream->Send(pause);
+  ASSERT_TRUE(Eventually([&] { return FindSessionStatus(client, created.session_id())->state() ==
+                                      v1::SessionStatus::PAUSED; }, 5s));
+  std::this_thread::sleep_for(300ms);  // frames already encoding may still arrive
+  while (stream->Next(0ms)) {
+  }
+  EXPECT_FALSE(stream->Next(1s)) << "frames arrived while paused";
+  v1::SessionEvent resume;
+  resume.mutable_resume();
+  const std::uint64_t seq = stream->Send(resume);
+  EXPECT_TRUE(WaitFrame(*stream, [seq](const v1::Frame& f) { return f.last_event_seq() >= seq; }, 30s));
+}
+
+TEST(SessionStream, ASecondAttachTakesTheSessionOver) {
+  ScratchDir scratch;
+  ServerProcess server(scratch.path());
+  ASSERT_TRUE(server.running()) << server.Log();
+  Client client = server.Connect();
+  const auto created = client.CreateSession(SmallSession());
+  auto first = client.Attach(created.session_id());
+  ASSERT_TRUE(WaitFrame(*first, [](const v1::Frame&) { return true; }));
+  auto second = client.Attach(created.session_id());
+  const auto resumed = WaitFinal(*second);
+  ASSERT_TRUE(resumed) << "the new stream gets the session's frames";
+  EXPECT_TRUE(Eventually([&] { return first->ended(); }, 10s));
+  EXPECT_EQ(first->status().error_code(), grpc::StatusCode::ABORTED);
+}
+
+}  // namespace
+}  // namespace cinevol::testing
