@@ -8,6 +8,7 @@ namespace cinevol::cli {
 
 void AddDemoCommand(CLI::App& app);
 void AddInfoCommand(CLI::App& app);
+void AddLoadtestCommand(CLI::App& app);
 void AddRenderCommand(CLI::App& app);
 
 }  // namespace cinevol::cli

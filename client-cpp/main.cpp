@@ -4,6 +4,7 @@
 #include <cstdio>
 
 #include "commands.h"
+#include "client.h"
 #include "core/error.h"
 
 int main(int argc, char** argv) {
@@ -15,10 +16,14 @@ int main(int argc, char** argv) {
   cinevol::cli::AddDemoCommand(app);
   cinevol::cli::AddRenderCommand(app);
   cinevol::cli::AddInfoCommand(app);
+  cinevol::cli::AddLoadtestCommand(app);
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
     return app.exit(e);
+  } catch (const cinevol::RpcError& e) {
+    std::fprintf(stderr, "cinevol: %s\n", e.what());
+    return 3;
   } catch (const cinevol::InputError& e) {
     std::fprintf(stderr, "cinevol: %s\n", e.what());
     return 2;

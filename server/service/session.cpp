@@ -59,6 +59,8 @@ void Session::Attach(FrameStream* stream) {
     }
     stream_ = stream;
     ever_attached_ = true;
+    last_event_seq_ = 0;  // sequence numbers count per stream
+    event_unrendered_ = false;
     dirty_ = true;  // a fresh pipeline (or the old one) takes the scene again
     refined_ = false;
     stream_->SendNotice(v1::Notice::INFO,
