@@ -16,6 +16,7 @@
 
 #include "client.h"
 #include "commands.h"
+#include "io/scene_file.h"
 
 namespace cinevol::cli {
 namespace {
@@ -30,6 +31,7 @@ struct LoadtestOptions {
   std::string denoiser = "wrls";
   std::string volume;  // default: the server's first volume
   std::string preset = "ct-bone";
+  std::string scene;   // a scene file to start from instead of the preset (its volume is ignored)
   double event_hz = 120;
   double degrees_per_event = 1.0;
   int jpeg_quality = 80;
@@ -109,7 +111,11 @@ SessionResult RunSession(const LoadtestOptions& o, Client& client, const v1::Vol
     request.set_volume_id(volume.id());
     request.mutable_viewport()->set_width(o.width);
     request.mutable_viewport()->set_height(o.height);
-    request.set_preset(o.preset);
+    if (o.scene.empty()) {
+      request.set_preset(o.preset);
+    } else {
+      *request.mutable_scene() = LoadSceneFile(o.scene);
+    }
     request.mutable_stream()->set_denoiser(ParseDenoiser(o.denoiser));
     request.mutable_stream()->set_jpeg_quality(o.jpeg_quality);
     const auto created = client.CreateSession(request);
@@ -290,6 +296,7 @@ void AddLoadtestCommand(CLI::App& app) {
       ->capture_default_str();
   cmd->add_option("--volume", o->volume, "Volume id (default: the server's first)");
   cmd->add_option("--preset", o->preset, "Transfer-function preset")->capture_default_str();
+  cmd->add_option("--scene", o->scene, "Start from this scene file's transfer function and lights instead");
   cmd->add_option("--event-hz", o->event_hz, "Camera events per second per session")->check(CLI::Range(0.1, 10000.0))
       ->capture_default_str();
   cmd->add_option("--jpeg-quality", o->jpeg_quality, "JPEG quality")->check(CLI::Range(1, 100))->capture_default_str();

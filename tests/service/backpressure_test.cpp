@@ -147,7 +147,7 @@ TEST(Backpressure, AKilledClientsSessionIsFreed) {
   ServerProcess server(scratch.path(), {"--detached-session-seconds", "1"});
   ASSERT_TRUE(server.running()) << server.Log();
   Client client = server.Connect();
-  const pid_t viewer = Spawn(CINEVOL_CLI_PATH, {"loadtest", "--server", server.address(), "--sessions", "1",
+  const pid_t viewer = Spawn(CliPath(), {"loadtest", "--server", server.address(), "--sessions", "1",
                                                 "--seconds", "120", "--width", "96", "--height", "64"},
                              scratch / "viewer.log");
   ASSERT_GT(viewer, 0);

@@ -11,6 +11,7 @@
 #include <unistd.h>
 
 #include <chrono>
+#include <cstdlib>
 #include <filesystem>
 #include <fstream>
 #include <memory>
@@ -23,6 +24,15 @@
 extern char** environ;
 
 namespace cinevol::testing {
+
+// The programs under test: the build's, unless CINEVOL_SERVER / CINEVOL_CLI
+// name others (a bundle on the GPU machine).
+inline std::string ProgramPath(const char* variable, const char* built) {
+  const char* path = std::getenv(variable);
+  return path ? path : built;
+}
+inline std::string ServerPath() { return ProgramPath("CINEVOL_SERVER", CINEVOL_SERVER_PATH); }
+inline std::string CliPath() { return ProgramPath("CINEVOL_CLI", CINEVOL_CLI_PATH); }
 
 // Starts `program` with `args`; returns its pid (or -1).
 inline pid_t Spawn(const std::string& program, const std::vector<std::string>& args,
@@ -55,14 +65,15 @@ inline int WaitExit(pid_t pid, std::chrono::milliseconds timeout) {
 
 class ServerProcess {
  public:
-  // Starts cinevol-server on the CPU with a small head phantom, plus `extra` flags.
-  explicit ServerProcess(const std::filesystem::path& scratch, std::vector<std::string> extra = {}) {
+  // Starts cinevol-server with a small head phantom, plus `extra` flags.
+  explicit ServerProcess(const std::filesystem::path& scratch, std::vector<std::string> extra = {},
+                         const std::string& backend = "cpu") {
     const std::filesystem::path port_file = scratch / "port";
     log_ = scratch / "server.log";
-    std::vector<std::string> args{"--listen", "127.0.0.1:0", "--port-file", port_file.string(), "--backend", "cpu",
+    std::vector<std::string> args{"--listen", "127.0.0.1:0", "--port-file", port_file.string(), "--backend", backend,
                                   "--volume", "phantom:head?size=48", "--encode-threads", "2"};
     args.insert(args.end(), extra.begin(), extra.end());
-    pid_ = Spawn(CINEVOL_SERVER_PATH, args, log_);
+    pid_ = Spawn(ServerPath(), args, log_);
     if (pid_ <= 0) return;
     const auto end = std::chrono::steady_clock::now() + std::chrono::seconds(60);
     while (std::chrono::steady_clock::now() < end && port_ == 0) {

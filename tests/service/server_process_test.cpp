@@ -96,7 +96,7 @@ TEST(CinevolServer, ReadsItsSettingsFromAConfigFile) {
 // Runs cinevol-server with `args`; returns its exit code and output.
 std::pair<int, std::string> RunServer(const testing::ScratchDir& scratch, const std::vector<std::string>& args) {
   const auto log = scratch / "refused.log";
-  const pid_t pid = Spawn(CINEVOL_SERVER_PATH, args, log);
+  const pid_t pid = Spawn(ServerPath(), args, log);
   int status = WaitExit(pid, 60s);
   if (status == -1) {
     kill(pid, SIGKILL);

@@ -7,6 +7,7 @@
 
 #include "server_process.h"
 #include "service_test_support.h"
+#include "support/gpu.h"
 #include "support/test_paths.h"
 
 namespace cinevol::testing {
@@ -185,6 +186,29 @@ TEST(SessionStream, ASecondAttachTakesTheSessionOver) {
   ASSERT_TRUE(resumed) << "the new stream gets the session's frames";
   EXPECT_TRUE(Eventually([&] { return first->ended(); }, 10s));
   EXPECT_EQ(first->status().error_code(), grpc::StatusCode::ABORTED);
+}
+
+TEST(SessionStream, StreamsFromTheCudaBackend) {
+  CINEVOL_REQUIRE_CUDA();
+  ScratchDir scratch;
+  ServerProcess server(scratch.path(), {}, "cuda");
+  ASSERT_TRUE(server.running()) << server.Log();
+  Client client = server.Connect();
+  const auto created = client.CreateSession(SmallSession("ct-bone", 320, 240, 64));
+  EXPECT_NE(created.device().find("cuda:"), std::string::npos) << created.device();
+  auto stream = client.Attach(created.session_id());
+  const auto base = WaitFinal(*stream);
+  ASSERT_TRUE(base) << stream->status().error_message();
+  EXPECT_GT(MeanLevel(Decode(*base)), 1.0);
+  const std::uint64_t seq = stream->Send(CameraView(v1::LEFT));
+  const auto moved = WaitFinal(*stream, seq);
+  ASSERT_TRUE(moved);
+  EXPECT_GT(MeanAbsDiff(Decode(*base), Decode(*moved)), 2.0);
+  EXPECT_TRUE(FindSessionStatus(client, created.session_id())->holds_device_memory());
+  const v1::ServerStatus status = client.Status();
+  ASSERT_GE(status.devices_size(), 1);
+  EXPECT_GT(status.devices(0).memory_total_bytes(), 0u);
+  client.CloseSession(created.session_id());
 }
 
 }  // namespace
