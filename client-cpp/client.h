@@ -58,8 +58,8 @@ class SessionStream {
   SessionStream(const SessionStream&) = delete;
   SessionStream& operator=(const SessionStream&) = delete;
 
-  // Sends `event` with the next sequence number (1, 2, ...) and returns it;
-  // false-y 0 when the stream has ended.
+  // Sends `event` with the next sequence number (1, 2, ...) and returns it,
+  // or 0 when the stream has ended.
   std::uint64_t Send(v1::SessionEvent event);
   // The next message, waiting up to `timeout`; nullopt on timeout or once
   // the stream has ended and every message was taken (then see status()).

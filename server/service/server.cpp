@@ -38,8 +38,8 @@ Server::Server(const ServerOptions& options)
   server_->GetHealthCheckService()->SetServingStatus(true);
   if (!options.port_file.empty()) std::ofstream(options.port_file) << port_ << "\n";
   sweeper_ = std::thread([this] { Sweep(); });
-  spdlog::info("cinevol-server listening on {} (port {}), rendering on {}", options.listen, port_,
-               core_->DeviceSummary());
+  const std::string host = options.listen.substr(0, options.listen.rfind(':'));
+  spdlog::info("cinevol-server listening on {}:{}, rendering on {}", host, port_, core_->DeviceSummary());
 }
 
 Server::~Server() {
