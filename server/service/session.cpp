@@ -24,14 +24,10 @@ std::uint32_t MicrosBetween(Clock::time_point from, Clock::time_point to) {
 
 // What one step renders, taken under the lock.
 struct Session::Work {
-  bool update = false;
+  bool update = false;  // scene and settings changed since the pipeline saw them
   v1::Scene scene;
   FrameSettings settings;
-  std::uint64_t frame_id = 0;
-  std::uint64_t event_seq = 0;
-  Clock::time_point origin;  // the last event's arrival, or the render's start when refining
-  bool answers_event = false;
-  std::uint32_t queue_us = 0;  // from the event's arrival to the render's start
+  Stamp stamp;
 };
 
 Session::Session(std::string id, std::string owner, std::shared_ptr<VolumeLease> volume, v1::Scene scene,
@@ -156,10 +152,10 @@ bool Session::Step() {
         dirty_ = false;
       }
       work.settings = settings_;
-      work.frame_id = next_frame_id_++;
-      work.event_seq = last_event_seq_;
-      work.answers_event = event_unrendered_;
-      work.origin = last_event_arrival_;
+      work.stamp.frame_id = next_frame_id_++;
+      work.stamp.event_seq = last_event_seq_;
+      work.stamp.answers_event = event_unrendered_;
+      work.stamp.origin = last_event_arrival_;
       event_unrendered_ = false;
       ++encodes_in_flight_;
       holds_device_memory_ = true;
@@ -170,10 +166,10 @@ bool Session::Step() {
     return false;
   }
   const Clock::time_point render_start = Clock::now();
-  if (work.answers_event) {
-    work.queue_us = MicrosBetween(work.origin, render_start);
+  if (work.stamp.answers_event) {
+    work.stamp.queue_us = MicrosBetween(work.stamp.origin, render_start);
   } else {
-    work.origin = render_start;
+    work.stamp.origin = render_start;
   }
   DisplayFrame frame;
   try {
@@ -195,17 +191,16 @@ bool Session::Step() {
     std::lock_guard lock(mu_);
     ++frames_rendered_;
     accumulated_spp_ = frame.accumulated_spp;
-    if (frame.final) refined_ = true;
+    if (frame.final && !event_unrendered_) refined_ = true;  // an event during the render still gets its frame
   }
-  Encode(std::move(frame), work);
+  const int quality = frame.final ? work.settings.final_jpeg_quality : work.settings.jpeg_quality;
+  Encode(std::move(frame), work.stamp, quality, work.settings.chroma);
   std::lock_guard lock(mu_);
   return CanRenderLocked();
 }
 
-void Session::Encode(DisplayFrame display, const Work& work) {
-  const int quality = display.final ? work.settings.final_jpeg_quality : work.settings.jpeg_quality;
-  const ChromaSubsampling chroma = work.settings.chroma;
-  context_.encoder->Submit([self = shared_from_this(), display = std::move(display), work, quality, chroma]() {
+void Session::Encode(DisplayFrame display, const Stamp& stamp, int quality, ChromaSubsampling chroma) {
+  context_.encoder->Submit([self = shared_from_this(), display = std::move(display), stamp, quality, chroma]() {
     v1::Frame frame;
     try {
       const Clock::time_point start = Clock::now();
@@ -220,18 +215,18 @@ void Session::Encode(DisplayFrame display, const Work& work) {
       self->End(ToStatus(std::current_exception()));
       return;
     }
-    frame.set_frame_id(work.frame_id);
+    frame.set_frame_id(stamp.frame_id);
     frame.set_width(display.image.width);
     frame.set_height(display.image.height);
     frame.set_accumulated_spp(display.accumulated_spp);
-    frame.set_last_event_seq(work.event_seq);
+    frame.set_last_event_seq(stamp.event_seq);
     frame.set_final(display.final);
     v1::FrameTimings* t = frame.mutable_timings();
     t->set_render_us(Micros(display.render_ms));
     t->set_denoise_us(Micros(display.denoise_ms));
     t->set_tonemap_us(Micros(display.display_ms));
-    t->set_queue_us(work.queue_us);
-    self->Deliver(std::move(frame), work.origin);
+    t->set_queue_us(stamp.queue_us);
+    self->Deliver(std::move(frame), stamp.origin);
   });
 }
 

@@ -87,9 +87,17 @@ class Session final : public Job, public std::enable_shared_from_this<Session> {
   bool Step() override;
 
  private:
+  // What a frame answers and when its work began, for its header and timings.
+  struct Stamp {
+    std::uint64_t frame_id = 0;
+    std::uint64_t event_seq = 0;
+    bool answers_event = false;  // it applies an event no earlier frame applied
+    Clock::time_point origin;    // that event's arrival, or the render's start when refining
+    std::uint32_t queue_us = 0;  // from the event's arrival to the render's start
+  };
   struct Work;
   bool CanRenderLocked() const;
-  void Encode(DisplayFrame frame, const Work& work);
+  void Encode(DisplayFrame frame, const Stamp& stamp, int quality, ChromaSubsampling chroma);
   void Deliver(v1::Frame frame, Clock::time_point origin);
   void Wake() { context_.scheduler->Wake(shared_from_this()); }
 

@@ -114,7 +114,7 @@ std::uint64_t SessionStreamReactor::frames_sent() const {
 
 std::uint64_t SessionStreamReactor::frames_dropped() const {
   std::lock_guard lock(mu_);
-  return dropped_ + (slot_ ? 1 : 0);
+  return dropped_;
 }
 
 void SessionStreamReactor::StartWriteLocked(v1::ServerMessage message, bool is_frame) {
@@ -126,6 +126,7 @@ void SessionStreamReactor::StartWriteLocked(v1::ServerMessage message, bool is_f
 
 void SessionStreamReactor::FinishLocked(const grpc::Status& status) {
   finished_ = true;
+  if (slot_) ++dropped_;  // never sent
   slot_.reset();
   notices_.clear();
   Finish(status);
