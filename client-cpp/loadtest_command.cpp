@@ -264,7 +264,8 @@ int Run(const LoadtestOptions& o) {
     volume = client.DescribeVolume(o.volume);
   }
   const v1::ServerStatus status = client.Status();
-  const std::string device = status.devices_size() ? status.devices(0).name() : "?";
+  std::string device;
+  for (const v1::DeviceStatus& d : status.devices()) device += (device.empty() ? "" : ", ") + d.name();
 
   std::vector<SessionResult> results(o.sessions);
   std::vector<std::thread> threads;
