@@ -5,6 +5,8 @@
 
 #include <fstream>
 
+#include "encode/image_codecs.h"
+
 namespace cinevol {
 namespace {
 
@@ -12,6 +14,10 @@ constexpr int kMaxReceiveBytes = 512 << 20;  // a 4K EXR snapshot is about 100 M
 
 void Check(const grpc::Status& status) {
   if (!status.ok()) throw RpcError(status);
+}
+
+void AddToken(grpc::ClientContext& context, const std::string& token) {
+  if (!token.empty()) context.AddMetadata("authorization", "Bearer " + token);
 }
 
 }  // namespace
@@ -29,30 +35,70 @@ RpcError::RpcError(const grpc::Status& status)
     : std::runtime_error(StatusCodeName(status.error_code()) + ": " + status.error_message()),
       code_(status.error_code()) {}
 
-SessionStream::SessionStream(v1::SessionService::Stub* stub, const std::string& session_id) {
-  stream_ = stub->StreamSession(&context_);
-  v1::ClientMessage attach;
-  attach.mutable_attach()->set_session_id(session_id);
-  stream_->Write(attach);
+RgbImage DecodeFrame(const v1::Frame& frame) {
+  const ImageRgb8 image = DecodeJpeg(std::vector<std::uint8_t>(frame.jpeg().begin(), frame.jpeg().end()));
+  return {image.width, image.height, image.bytes};
+}
+
+SessionStream::SessionStream(std::shared_ptr<grpc::Channel> channel, std::string session_id, std::string token,
+                             StreamOptions options)
+    : channel_(std::move(channel)),
+      stub_(v1::SessionService::NewStub(channel_)),
+      session_id_(std::move(session_id)),
+      token_(std::move(token)),
+      options_(std::move(options)) {
+  {
+    std::lock_guard lock(call_mu_);
+    Open();
+  }
   reader_ = std::thread([this] { ReadAll(); });
 }
 
 SessionStream::~SessionStream() {
-  context_.TryCancel();
+  Cancel();
   reader_.join();
 }
 
-void SessionStream::ReadAll() {
-  for (v1::ServerMessage message; stream_->Read(&message);) {
-    std::lock_guard lock(mu_);
-    inbox_.push_back(std::move(message));
-    arrived_.notify_all();
-  }
-  grpc::Status status;
+void SessionStream::Open() {
+  stream_.reset();  // the finished call goes before its context
+  context_ = std::make_unique<grpc::ClientContext>();
+  AddToken(*context_, token_);
+  stream_ = stub_->StreamSession(context_.get());
+  next_seq_ = 1;
   {
-    std::lock_guard lock(write_mu_);  // Finish must not overlap a Write
+    std::lock_guard lock(mu_);
+    sent_at_.clear();
+  }
+  v1::ClientMessage attach;
+  attach.mutable_attach()->set_session_id(session_id_);
+  stream_->Write(attach);
+}
+
+void SessionStream::Deliver(v1::ServerMessage message) {
+  if (options_.on_message) {
+    options_.on_message(message);
+    return;
+  }
+  std::lock_guard lock(mu_);
+  inbox_.push_back(std::move(message));
+  arrived_.notify_all();
+}
+
+void SessionStream::ReadAll() {
+  grpc::Status status;
+  for (;;) {
+    for (v1::ServerMessage message; stream_->Read(&message);) Deliver(std::move(message));
+    {
+      std::lock_guard lock(call_mu_);  // Finish must not overlap a Write
+      status = stream_->Finish();
+      if (!options_.resume || writes_closed_ || status.error_code() != grpc::StatusCode::UNAVAILABLE) break;
+      reconnecting_ = true;
+    }
+    if (!Resume()) break;
+  }
+  {
+    std::lock_guard lock(call_mu_);
     writes_closed_ = true;
-    status = stream_->Finish();
   }
   std::lock_guard lock(mu_);
   ended_ = true;
@@ -60,9 +106,27 @@ void SessionStream::ReadAll() {
   arrived_.notify_all();
 }
 
+bool SessionStream::Resume() {
+  const auto deadline = std::chrono::system_clock::now() + options_.resume_timeout;
+  while (std::chrono::system_clock::now() < deadline) {
+    if (channel_->WaitForConnected(std::min(deadline, std::chrono::system_clock::now() + std::chrono::seconds(1)))) {
+      std::lock_guard lock(call_mu_);
+      if (writes_closed_) return false;
+      Open();
+      reconnecting_ = false;
+      std::lock_guard inbox_lock(mu_);
+      ++resumes_;
+      return true;
+    }
+    std::lock_guard lock(call_mu_);
+    if (writes_closed_) return false;
+  }
+  return false;
+}
+
 std::uint64_t SessionStream::Send(v1::SessionEvent event) {
-  std::lock_guard lock(write_mu_);
-  if (writes_closed_) return 0;
+  std::lock_guard lock(call_mu_);
+  if (writes_closed_ || reconnecting_) return 0;
   const std::uint64_t seq = next_seq_++;
   event.set_seq(seq);
   v1::ClientMessage message;
@@ -91,20 +155,26 @@ std::chrono::steady_clock::time_point SessionStream::SentAt(std::uint64_t seq) c
 
 grpc::Status SessionStream::Finish(std::chrono::milliseconds timeout) {
   {
-    std::lock_guard lock(write_mu_);
+    std::lock_guard lock(call_mu_);
     if (!writes_closed_) {
       writes_closed_ = true;
-      stream_->WritesDone();
+      if (!reconnecting_) stream_->WritesDone();
     }
   }
   std::unique_lock lock(mu_);
   if (!arrived_.wait_for(lock, timeout, [&] { return ended_; })) {
     lock.unlock();
-    context_.TryCancel();
+    Cancel();
     lock.lock();
     arrived_.wait(lock, [&] { return ended_; });
   }
   return status_;
+}
+
+void SessionStream::Cancel() {
+  std::lock_guard lock(call_mu_);
+  writes_closed_ = true;
+  context_->TryCancel();
 }
 
 bool SessionStream::ended() const {
@@ -115,6 +185,11 @@ bool SessionStream::ended() const {
 grpc::Status SessionStream::status() const {
   std::lock_guard lock(mu_);
   return status_;
+}
+
+int SessionStream::resumes() const {
+  std::lock_guard lock(mu_);
+  return resumes_;
 }
 
 Client::Client(const ClientOptions& options) : options_(options) {
@@ -134,6 +209,7 @@ Client::Client(const ClientOptions& options) : options_(options) {
 std::unique_ptr<grpc::ClientContext> Client::CallContext() const {
   auto context = std::make_unique<grpc::ClientContext>();
   context->set_deadline(std::chrono::system_clock::now() + options_.call_timeout);
+  AddToken(*context, options_.token);
   return context;
 }
 
@@ -196,8 +272,8 @@ v1::CreateSessionResponse Client::CreateSession(const v1::CreateSessionRequest& 
   return response;
 }
 
-std::unique_ptr<SessionStream> Client::Attach(const std::string& session_id) {
-  return std::make_unique<SessionStream>(sessions_.get(), session_id);
+std::unique_ptr<SessionStream> Client::Attach(const std::string& session_id, StreamOptions options) {
+  return std::make_unique<SessionStream>(channel_, session_id, options_.token, std::move(options));
 }
 
 v1::SnapshotResponse Client::Snapshot(const v1::SnapshotRequest& request) {

@@ -1,11 +1,15 @@
-// Who is calling: every RPC passes Authenticate before it does anything, and
-// each session records the principal that created it. Today every caller is
-// "anonymous"; bearer tokens and mutual TLS (the hardening issue) plug in
-// here and nowhere else. Health checking and reflection stay open (probes).
+// Who is calling: every RPC passes Authenticator::Authenticate before it does
+// anything, and each session records the principal that created it. Without
+// a token file every caller is "anonymous"; with one (--auth-tokens), a call
+// must carry `authorization: Bearer <token>` naming a listed token. Mutual
+// TLS (the hardening issue) plugs in here too. Health checking and
+// reflection stay open (probes).
 #pragma once
 
 #include <grpcpp/server_context.h>
 
+#include <filesystem>
+#include <map>
 #include <string>
 
 namespace cinevol::service {
@@ -14,10 +18,22 @@ struct Principal {
   std::string name;
 };
 
-// The caller's principal, or throws RpcError(UNAUTHENTICATED).
-Principal Authenticate(const grpc::CallbackServerContext& context);
+class Authenticator {
+ public:
+  // Open: everyone is "anonymous".
+  Authenticator() = default;
+  // Reads "TOKEN PRINCIPAL" lines (blank lines and # comments skipped);
+  // throws InputError naming the file and line.
+  explicit Authenticator(const std::filesystem::path& token_file);
 
-// Throws RpcError(PERMISSION_DENIED) unless `caller` owns what `owner` owns.
+  // The caller's principal, or throws RpcError(UNAUTHENTICATED).
+  Principal Authenticate(const grpc::CallbackServerContext& context) const;
+
+ private:
+  std::map<std::string, std::string, std::less<>> principals_;  // token -> principal
+};
+
+// Throws RpcError(PERMISSION_DENIED) unless `caller` is `owner`.
 void RequireOwner(const Principal& caller, const std::string& owner, const std::string& what);
 
 }  // namespace cinevol::service

@@ -43,6 +43,8 @@ void AddOptions(CLI::App& app, ServerOptions& o, std::string& backend) {
                  "How long a session without a stream waits for one before it ends")
       ->check(CLI::Range(0.0, 86400.0))
       ->capture_default_str();
+  app.add_option("--auth-tokens", o.auth_tokens,
+                 "File of 'TOKEN PRINCIPAL' lines: calls must send 'authorization: Bearer TOKEN' (default: open)");
   app.add_option("--port-file", o.port_file, "Write the port listened on to this file (useful with port 0)");
 }
 

@@ -84,6 +84,7 @@ class StillJob final : public Job {
 
 ServiceCore::ServiceCore(const ServerOptions& options)
     : options_(options),
+      authenticator_(options.auth_tokens.empty() ? Authenticator() : Authenticator(options.auth_tokens)),
       volumes_(options.data_roots, options.max_upload_mb << 20),
       encoder_("encoder", options.encode_threads > 0 ? options.encode_threads
                                                       : int(std::max(2u, std::thread::hardware_concurrency()))),

@@ -40,6 +40,7 @@ struct ServerOptions {
   double detached_session_seconds = 60;                  // a detached session waits this long for a new attach
   SessionLimits limits;
   std::string port_file;                                 // written with the bound port once listening
+  std::filesystem::path auth_tokens;                     // "TOKEN PRINCIPAL" lines; empty: no authentication
 };
 
 class ServiceCore {
@@ -47,6 +48,9 @@ class ServiceCore {
   explicit ServiceCore(const ServerOptions& options);  // loads the volumes; throws InputError for bad options
   ~ServiceCore();  // ends every session, then stops the workers
 
+  Principal Authenticate(const grpc::CallbackServerContext& context) const {
+    return authenticator_.Authenticate(context);
+  }
   VolumeRegistry& volumes() { return volumes_; }
   TaskPool& loader() { return loader_; }
 
@@ -69,6 +73,7 @@ class ServiceCore {
 
   ServerOptions options_;
   Backend backend_ = Backend::kCpu;  // resolved: kCpu or kCuda
+  Authenticator authenticator_;
   VolumeRegistry volumes_;
   TaskPool encoder_;
   TaskPool loader_;

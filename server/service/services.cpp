@@ -13,9 +13,9 @@ namespace {
 
 // Answers a unary call at once with what `f` returns or throws.
 template <class F>
-grpc::ServerUnaryReactor* Answer(grpc::CallbackServerContext* context, F&& f) {
+grpc::ServerUnaryReactor* Answer(ServiceCore* core, grpc::CallbackServerContext* context, F&& f) {
   grpc::ServerUnaryReactor* reactor = context->DefaultReactor();
-  reactor->Finish(Guarded([&] { f(Authenticate(*context)); }));
+  reactor->Finish(Guarded([&] { f(core->Authenticate(*context)); }));
   return reactor;
 }
 
@@ -25,7 +25,7 @@ class UploadReactor final : public grpc::ServerReadReactor<v1::UploadVolumeChunk
  public:
   UploadReactor(grpc::CallbackServerContext* context, ServiceCore* core, v1::VolumeInfo* response)
       : core_(core), response_(response) {
-    const grpc::Status status = Guarded([&] { Authenticate(*context); });
+    const grpc::Status status = Guarded([&] { core_->Authenticate(*context); });
     if (!status.ok()) {
       Fail(status);
       return;
@@ -127,7 +127,7 @@ class UploadReactor final : public grpc::ServerReadReactor<v1::UploadVolumeChunk
 grpc::ServerUnaryReactor* VolumeServiceImpl::ListVolumes(grpc::CallbackServerContext* context,
                                                          const v1::ListVolumesRequest*,
                                                          v1::ListVolumesResponse* response) {
-  return Answer(context, [&](const Principal&) {
+  return Answer(core_, context, [&](const Principal&) {
     for (v1::VolumeInfo& v : core_->volumes().List()) *response->add_volumes() = std::move(v);
   });
 }
@@ -137,7 +137,7 @@ grpc::ServerUnaryReactor* VolumeServiceImpl::LoadVolume(grpc::CallbackServerCont
                                                         v1::VolumeInfo* response) {
   grpc::ServerUnaryReactor* reactor = context->DefaultReactor();
   const grpc::Status status = Guarded([&] {
-    Authenticate(*context);
+    core_->Authenticate(*context);
     // Refuse paths outside the data roots at once; read the disk on the loader pool.
     core_->volumes().ResolveDataPath(request->path(), "path");
     core_->loader().Submit([this, reactor, request, response] {
@@ -157,19 +157,19 @@ grpc::ServerReadReactor<v1::UploadVolumeChunk>* VolumeServiceImpl::UploadVolume(
 grpc::ServerUnaryReactor* VolumeServiceImpl::DescribeVolume(grpc::CallbackServerContext* context,
                                                             const v1::DescribeVolumeRequest* request,
                                                             v1::VolumeInfo* response) {
-  return Answer(context, [&](const Principal&) { *response = core_->volumes().Describe(request->volume_id()); });
+  return Answer(core_, context, [&](const Principal&) { *response = core_->volumes().Describe(request->volume_id()); });
 }
 
 grpc::ServerUnaryReactor* VolumeServiceImpl::UnloadVolume(grpc::CallbackServerContext* context,
                                                           const v1::UnloadVolumeRequest* request,
                                                           v1::UnloadVolumeResponse*) {
-  return Answer(context, [&](const Principal&) { core_->volumes().Unload(request->volume_id()); });
+  return Answer(core_, context, [&](const Principal&) { core_->volumes().Unload(request->volume_id()); });
 }
 
 grpc::ServerUnaryReactor* SessionServiceImpl::CreateSession(grpc::CallbackServerContext* context,
                                                             const v1::CreateSessionRequest* request,
                                                             v1::CreateSessionResponse* response) {
-  return Answer(context, [&](const Principal& caller) { *response = core_->CreateSession(*request, caller); });
+  return Answer(core_, context, [&](const Principal& caller) { *response = core_->CreateSession(*request, caller); });
 }
 
 grpc::ServerBidiReactor<v1::ClientMessage, v1::ServerMessage>* SessionServiceImpl::StreamSession(
@@ -182,7 +182,7 @@ grpc::ServerUnaryReactor* SessionServiceImpl::Snapshot(grpc::CallbackServerConte
                                                        v1::SnapshotResponse* response) {
   grpc::ServerUnaryReactor* reactor = context->DefaultReactor();
   const grpc::Status status = Guarded([&] {
-    core_->Snapshot(*request, Authenticate(*context), [reactor, response](grpc::Status s, v1::SnapshotResponse r) {
+    core_->Snapshot(*request, core_->Authenticate(*context), [reactor, response](grpc::Status s, v1::SnapshotResponse r) {
       *response = std::move(r);
       reactor->Finish(s);
     });
@@ -194,12 +194,12 @@ grpc::ServerUnaryReactor* SessionServiceImpl::Snapshot(grpc::CallbackServerConte
 grpc::ServerUnaryReactor* SessionServiceImpl::CloseSession(grpc::CallbackServerContext* context,
                                                            const v1::CloseSessionRequest* request,
                                                            v1::CloseSessionResponse*) {
-  return Answer(context, [&](const Principal& caller) { core_->CloseSession(request->session_id(), caller); });
+  return Answer(core_, context, [&](const Principal& caller) { core_->CloseSession(request->session_id(), caller); });
 }
 
 grpc::ServerUnaryReactor* ServerServiceImpl::GetStatus(grpc::CallbackServerContext* context,
                                                        const v1::GetStatusRequest*, v1::ServerStatus* response) {
-  return Answer(context, [&](const Principal&) { *response = core_->Status(); });
+  return Answer(core_, context, [&](const Principal&) { *response = core_->Status(); });
 }
 
 }  // namespace cinevol::service

@@ -9,7 +9,7 @@
 namespace cinevol::service {
 
 SessionStreamReactor::SessionStreamReactor(grpc::CallbackServerContext* context, ServiceCore* core) : core_(core) {
-  const grpc::Status status = Guarded([&] { principal_ = Authenticate(*context); });
+  const grpc::Status status = Guarded([&] { principal_ = core_->Authenticate(*context); });
   if (!status.ok()) {
     std::lock_guard lock(mu_);
     FinishLocked(status);

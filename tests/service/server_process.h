@@ -95,7 +95,12 @@ class ServerProcess {
     std::ifstream in(log_);
     return {std::istreambuf_iterator<char>(in), {}};
   }
-  Client Connect() const { return Client({.address = address(), .call_timeout = std::chrono::seconds(60)}); }
+  Client Connect(const std::string& token = {}) const {
+    ClientOptions options;
+    options.address = address();
+    options.token = token;
+    return Client(options);
+  }
 
   // SIGTERM by pid, then SIGKILL if it does not stop in time; returns its wait status.
   int Stop() {
