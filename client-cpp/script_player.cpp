@@ -1,0 +1,130 @@
+// Play: the send/receive loop and its measurements.
+#include "script_player.h"
+
+#include <algorithm>
+#include <cmath>
+#include <map>
+#include <regex>
+
+#include <fmt/format.h>
+
+namespace cinevol::cli {
+namespace {
+
+using Clock = std::chrono::steady_clock;
+
+double SecondsSince(Clock::time_point start) { return std::chrono::duration<double>(Clock::now() - start).count(); }
+
+// The server names a bad event by its sequence number; the user knows its line.
+std::string ExplainStatus(const grpc::Status& status, const std::map<std::uint64_t, int>& line_of_seq) {
+  std::string message = StatusCodeName(status.error_code()) + ": " + status.error_message();
+  std::smatch m;
+  const std::string text = status.error_message();
+  if (std::regex_search(text, m, std::regex("^event ([0-9]+): "))) {
+    const auto it = line_of_seq.find(std::stoull(m[1]));
+    if (it != line_of_seq.end() && it->second > 0) {
+      message = fmt::format("{}: script line {}: {}", StatusCodeName(status.error_code()), it->second, m.suffix().str());
+    }
+  }
+  return message;
+}
+
+void AddFrame(const v1::Frame& f, SessionStream& stream, Clock::time_point now, std::uint64_t& answered,
+              std::uint64_t& last_id, PlayResult& r, double& latency_ms) {
+  ++r.frames;
+  r.bytes += f.jpeg().size();
+  if (last_id > 0 && f.frame_id() > last_id + 1) r.dropped += f.frame_id() - last_id - 1;
+  last_id = std::max(last_id, f.frame_id());
+  const auto& t = f.timings();
+  const double stages[] = {double(t.render_us()), double(t.denoise_us()), double(t.tonemap_us()),
+                           double(t.encode_us()), double(t.queue_us()), double(t.server_us())};
+  for (int i = 0; i < 6; ++i) r.stage_us_sum[i] += stages[i];
+  ++r.stage_frames;
+  latency_ms = 0;
+  if (f.last_event_seq() <= answered) return;
+  for (std::uint64_t seq = answered + 1; seq <= f.last_event_seq(); ++seq) {
+    const Clock::time_point sent = stream.SentAt(seq);
+    if (sent != Clock::time_point{}) r.latency_ms.push_back(std::chrono::duration<double, std::milli>(now - sent).count());
+  }
+  answered = f.last_event_seq();
+  if (r.latency_ms.empty()) return;
+  latency_ms = r.latency_ms.back();
+  r.stage_us_sum[6] += std::max(0.0, latency_ms * 1000.0 - t.server_us());
+  ++r.transfer_frames;
+}
+
+}  // namespace
+
+double PlayResult::StageMs(int stage) const {
+  const std::uint64_t n = stage == 6 ? transfer_frames : stage_frames;
+  return n ? stage_us_sum[stage] / double(n) / 1000.0 : NAN;
+}
+
+double Percentile(std::vector<double> v, double p) {
+  if (v.empty()) return NAN;
+  std::sort(v.begin(), v.end());
+  return v[std::min(v.size() - 1, static_cast<std::size_t>(p * double(v.size())))];
+}
+
+PlayResult Play(SessionStream& stream, const std::vector<ScriptStep>& steps, const PlayOptions& o,
+                const std::function<void(const ReceivedFrame&)>& on_frame,
+                const std::function<void(const PlayResult&)>& every_second) {
+  PlayResult r;
+  std::map<std::uint64_t, int> line_of_seq;
+  const Clock::time_point start = Clock::now();
+  const double period = steps.empty() ? 0 : std::max(steps.back().at, 1e-3);
+  std::size_t next = 0;
+  double lap = 0;  // timeline offset of the current loop
+  std::uint64_t answered = 0, last_id = 0, last_sent = 0;
+  bool final_after_last = false;
+  int resumes = stream.resumes();
+  double next_report = 1;
+  for (;;) {
+    const double now = SecondsSince(start);
+    if (now >= o.max_seconds || stream.ended()) break;
+    if (next == steps.size() && !o.loop && (!o.wait_final || final_after_last)) break;
+    if (next == steps.size() && o.loop && !steps.empty()) {
+      next = 0;
+      lap += period;
+    }
+    // Send every step that is due.
+    while (next < steps.size() && lap + steps[next].at <= now) {
+      if (const std::uint64_t seq = stream.Send(steps[next].event)) {
+        line_of_seq[seq] = steps[next].line;
+        last_sent = seq;
+        final_after_last = false;
+        ++r.events;
+      }
+      ++next;
+    }
+    if (stream.resumes() != resumes) {  // a new connection numbers events from 1 again
+      resumes = stream.resumes();
+      answered = last_sent = 0;
+      line_of_seq.clear();
+    }
+    const double until = std::min({o.max_seconds, next < steps.size() ? lap + steps[next].at : o.max_seconds,
+                                   next_report});
+    const auto wait = std::chrono::duration<double>(std::max(0.0, until - SecondsSince(start)));
+    auto message = stream.Next(std::chrono::duration_cast<std::chrono::milliseconds>(wait));
+    if (message && message->has_frame()) {
+      const v1::Frame& f = message->frame();
+      double latency = 0;
+      AddFrame(f, stream, Clock::now(), answered, last_id, r, latency);
+      if (f.final() && f.last_event_seq() >= last_sent) final_after_last = true;
+      if (on_frame) on_frame({f, SecondsSince(start), latency});
+    }
+    if (SecondsSince(start) >= next_report) {
+      r.seconds = SecondsSince(start);
+      if (every_second) every_second(r);
+      next_report += 1;
+    }
+  }
+  r.seconds = SecondsSince(start);
+  if (stream.ended()) {
+    r.status = stream.status();
+    if (!r.status.ok()) r.error = ExplainStatus(r.status, line_of_seq);
+  }
+  return r;
+}
+
+}  // namespace cinevol::cli

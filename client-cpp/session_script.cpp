@@ -1,0 +1,216 @@
+// Script parsing: each line through protobuf's JSON mapping, so field errors
+// name the field as the proto spells it.
+#include "session_script.h"
+
+#include <google/protobuf/struct.pb.h>
+#include <google/protobuf/util/json_util.h>
+
+#include <algorithm>
+#include <cmath>
+#include <fstream>
+#include <sstream>
+
+#include <fmt/format.h>
+
+#include "core/error.h"
+#include "io/scene_file.h"
+
+namespace cinevol::cli {
+namespace {
+
+using google::protobuf::Message;
+using google::protobuf::Struct;
+using google::protobuf::Value;
+
+std::string ToJson(const Value& value) {
+  std::string json;
+  google::protobuf::util::MessageToJsonString(value, &json);
+  return json;
+}
+
+// Parses `json` into `message`; the error names what protobuf found wrong.
+void ParseInto(const std::string& json, Message& message, const std::string& where) {
+  const auto status = google::protobuf::util::JsonStringToMessage(json, &message);
+  if (!status.ok()) throw InputError(fmt::format("{}: {}", where, status.message().as_string()));
+}
+
+double Number(const Value& v, const std::string& where) {
+  if (v.kind_case() != Value::kNumberValue || !std::isfinite(v.number_value())) {
+    throw InputError(fmt::format("{}: must be a number", where));
+  }
+  return v.number_value();
+}
+
+Orbit ParseOrbit(const Value& value, const std::string& where) {
+  if (!value.has_struct_value()) throw InputError(where + ": must be an object");
+  Orbit orbit;
+  for (const auto& [key, v] : value.struct_value().fields()) {
+    const std::string field = where + "." + key;
+    if (key == "degrees") {
+      orbit.degrees = Number(v, field);
+    } else if (key == "seconds") {
+      orbit.seconds = Number(v, field);
+      if (orbit.seconds <= 0) throw InputError(field + ": must be > 0");
+    } else if (key == "hz") {
+      orbit.hz = Number(v, field);
+      if (orbit.hz <= 0 || orbit.hz > 1000) throw InputError(field + ": must be in (0, 1000]");
+    } else if (key == "startDegrees") {
+      orbit.start_degrees = Number(v, field);
+    } else if (key == "elevationDegrees") {
+      orbit.elevation_degrees = Number(v, field);
+      if (std::abs(orbit.elevation_degrees) >= 90) throw InputError(field + ": must be in (-90, 90)");
+    } else {
+      throw InputError(fmt::format("{}: unknown field (degrees, seconds, hz, startDegrees, elevationDegrees)", field));
+    }
+  }
+  return orbit;
+}
+
+ScriptSession ParseSession(const Value& value, const std::string& where, const std::filesystem::path& base_dir) {
+  if (!value.has_struct_value()) throw InputError(where + ": must be an object");
+  ScriptSession s;
+  s.viewport.set_width(640);
+  s.viewport.set_height(360);
+  for (const auto& [key, v] : value.struct_value().fields()) {
+    const std::string field = where + "." + key;
+    if ((key == "volume" || key == "preset" || key == "scene") && v.kind_case() != Value::kStringValue) {
+      throw InputError(field + ": must be a string");
+    }
+    if (key == "volume") {
+      s.volume = v.string_value();
+    } else if (key == "preset") {
+      s.preset = v.string_value();
+    } else if (key == "scene") {
+      const std::filesystem::path path = base_dir / v.string_value();
+      try {
+        s.scene = LoadSceneFile(path);
+      } catch (const InputError& e) {
+        throw InputError(fmt::format("{}: {}", field, e.what()));
+      }
+    } else if (key == "viewport") {
+      ParseInto(ToJson(v), s.viewport, field);
+    } else if (key == "stream") {
+      ParseInto(ToJson(v), s.stream, field);
+    } else {
+      throw InputError(fmt::format("{}: unknown field (volume, preset, scene, viewport, stream)", field));
+    }
+  }
+  return s;
+}
+
+}  // namespace
+
+SessionScript ParseScript(const std::string& text, const std::string& name, const std::filesystem::path& base_dir) {
+  SessionScript script;
+  script.name = name;
+  std::istringstream lines(text);
+  int number = 0;
+  bool seen_session = false;
+  double last_at = 0;
+  for (std::string line; std::getline(lines, line);) {
+    ++number;
+    const std::string where = fmt::format("{} line {}", name, number);
+    if (line.find_first_not_of(" \t\r") == std::string::npos) continue;
+    Struct object;
+    const auto status = google::protobuf::util::JsonStringToMessage(line, &object);
+    if (!status.ok()) throw InputError(fmt::format("{}: not a JSON object: {}", where, status.message().as_string()));
+    const auto& fields = object.fields();
+    if (fields.count("session")) {
+      if (fields.size() != 1) throw InputError(where + ": a session line holds only \"session\"");
+      if (seen_session || !script.steps.empty()) throw InputError(where + ": session: must be the first line, once");
+      script.session = ParseSession(fields.at("session"), where + ": session", base_dir);
+      seen_session = true;
+      continue;
+    }
+    if (!fields.count("at")) throw InputError(where + ": at: missing (seconds from the start)");
+    ScriptStep step;
+    step.line = number;
+    step.at = Number(fields.at("at"), where + ": at");
+    if (step.at < last_at) {
+      throw InputError(fmt::format("{}: at: {} is before the previous line's {}; keep lines in time order", where,
+                                   step.at, last_at));
+    }
+    last_at = step.at;
+    if (fields.size() != 2) {
+      throw InputError(where + ": an event line holds \"at\" and one event (camera, lights, transferFunction, "
+                               "render, stream, resize, pause, resume) or \"orbit\"");
+    }
+    for (const auto& [key, value] : fields) {
+      if (key == "at") continue;
+      if (key == "orbit") {
+        step.is_orbit = true;
+        step.orbit = ParseOrbit(value, where + ": orbit");
+      } else if (key == "seq") {
+        throw InputError(where + ": seq: set by the player, not the script");
+      } else {
+        ParseInto(fmt::format("{{\"{}\": {}}}", key, ToJson(value)), step.event, where);
+      }
+    }
+    script.steps.push_back(std::move(step));
+  }
+  if (script.session.viewport.width() == 0) {  // no session line
+    script.session.viewport.set_width(640);
+    script.session.viewport.set_height(360);
+  }
+  return script;
+}
+
+SessionScript LoadScript(const std::filesystem::path& file) {
+  std::ifstream in(file, std::ios::binary);
+  if (!in) throw InputError(fmt::format("{}: cannot open the script", file.string()));
+  std::ostringstream text;
+  text << in.rdbuf();
+  return ParseScript(text.str(), file.string(), std::filesystem::absolute(file).parent_path());
+}
+
+v1::Camera OrbitCamera(const v1::VolumeInfo& volume, double degrees, double elevation_degrees) {
+  const double ex = volume.dims().x() * volume.spacing_mm().x(), ey = volume.dims().y() * volume.spacing_mm().y(),
+               ez = volume.dims().z() * volume.spacing_mm().z();
+  const double radius = 0.5 * std::sqrt(ex * ex + ey * ey + ez * ez);
+  const double distance = 1.02 * radius / std::sin(15.0 * M_PI / 180.0);  // fits a 30 degree field of view
+  const double a = degrees * M_PI / 180.0, e = elevation_degrees * M_PI / 180.0;
+  v1::Camera c;
+  c.mutable_eye()->set_x(float(distance * std::cos(e) * std::sin(a)));
+  c.mutable_eye()->set_y(float(-distance * std::cos(e) * std::cos(a)));
+  c.mutable_eye()->set_z(float(distance * std::sin(e)));
+  c.mutable_target();
+  c.mutable_up()->set_z(1);
+  c.set_fov_y_deg(30);
+  return c;
+}
+
+std::vector<ScriptStep> ExpandOrbits(const std::vector<ScriptStep>& steps, const v1::VolumeInfo& volume) {
+  std::vector<ScriptStep> out;
+  for (const ScriptStep& s : steps) {
+    if (!s.is_orbit) {
+      out.push_back(s);
+      continue;
+    }
+    const int count = std::max(1, static_cast<int>(std::lround(s.orbit.seconds * s.orbit.hz)));
+    for (int i = 0; i <= count; ++i) {
+      ScriptStep camera;
+      camera.at = s.at + s.orbit.seconds * i / count;
+      camera.line = s.line;
+      *camera.event.mutable_camera() =
+          OrbitCamera(volume, s.orbit.start_degrees + s.orbit.degrees * i / count, s.orbit.elevation_degrees);
+      out.push_back(std::move(camera));
+    }
+  }
+  std::stable_sort(out.begin(), out.end(), [](const ScriptStep& a, const ScriptStep& b) { return a.at < b.at; });
+  return out;
+}
+
+v1::CreateSessionRequest SessionRequest(const ScriptSession& session, const std::string& volume_id) {
+  v1::CreateSessionRequest request;
+  request.set_volume_id(volume_id);
+  *request.mutable_viewport() = session.viewport;
+  if (session.scene) {
+    *request.mutable_scene() = *session.scene;
+  } else {
+    request.set_preset(session.preset);
+  }
+  *request.mutable_stream() = session.stream;
+  return request;
+}
+
+}  // namespace cinevol::cli

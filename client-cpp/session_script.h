@@ -1,0 +1,68 @@
+// Session scripts: a timeline of events with times, in JSON Lines (one JSON
+// object per line, so every problem names its line). docs/client.md gives
+// the schema; examples/scripts/ has examples.
+//
+//   {"session": {"volume": "phantom:head", "preset": "ct-bone", "viewport": {"width": 640, "height": 360}}}
+//   {"at": 0.0, "orbit": {"degrees": 90, "seconds": 3}}
+//   {"at": 3.5, "transferFunction": {"preset": "ct-soft-tissue"}}
+//   {"at": 4.0, "render": {"spp": 4}}
+//
+// An event line is "at" (seconds from the start) plus one field of
+// cinevol.v1.SessionEvent in its proto3 JSON form; "orbit" expands into
+// camera events around the volume.
+#pragma once
+
+#include <filesystem>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "cinevol/v1/service.pb.h"
+
+namespace cinevol::cli {
+
+// What the "session" line says; unset parts take the defaults noted.
+struct ScriptSession {
+  std::string volume;                  // default: the server's first volume
+  std::string preset = "ct-bone";      // used without a scene
+  std::optional<v1::Scene> scene;      // "scene": a scene file, relative to the script
+  v1::Viewport viewport;               // default 640x360
+  v1::StreamSettings stream;
+};
+
+// A camera orbit: `degrees` about the volume's vertical axis over `seconds`,
+// as camera events at `hz`, from `start_degrees` (0: in front, -y).
+struct Orbit {
+  double degrees = 360, seconds = 4, hz = 30, start_degrees = 0, elevation_degrees = 0;
+};
+
+struct ScriptStep {
+  double at = 0;        // seconds from the start
+  int line = 0;         // in the script file; 0 for generated steps
+  bool is_orbit = false;
+  Orbit orbit;
+  v1::SessionEvent event;  // when not an orbit
+};
+
+struct SessionScript {
+  std::string name;  // the file, for messages
+  ScriptSession session;
+  std::vector<ScriptStep> steps;  // sorted by time
+};
+
+// Reads and checks a script; throws InputError "FILE line N: FIELD: what".
+SessionScript LoadScript(const std::filesystem::path& file);
+SessionScript ParseScript(const std::string& text, const std::string& name,
+                          const std::filesystem::path& base_dir = {});
+
+// The camera `degrees` about the volume's vertical (+z) axis from the front
+// (-y, anterior for LPS data), `elevation` above, framing the whole volume.
+v1::Camera OrbitCamera(const v1::VolumeInfo& volume, double degrees, double elevation_degrees = 0);
+
+// The steps with every orbit turned into its camera events.
+std::vector<ScriptStep> ExpandOrbits(const std::vector<ScriptStep>& steps, const v1::VolumeInfo& volume);
+
+// The request that starts the script's session on `volume`.
+v1::CreateSessionRequest SessionRequest(const ScriptSession& session, const std::string& volume_id);
+
+}  // namespace cinevol::cli
