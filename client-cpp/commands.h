@@ -9,6 +9,8 @@ namespace cinevol::cli {
 void AddDemoCommand(CLI::App& app);
 void AddInfoCommand(CLI::App& app);
 void AddLoadtestCommand(CLI::App& app);
+void AddPlayCommand(CLI::App& app);
+void AddSnapshotCommand(CLI::App& app);
 void AddRenderCommand(CLI::App& app);
 
 }  // namespace cinevol::cli

@@ -91,7 +91,7 @@ SessionResult RunSession(const LoadtestOptions& o, Client& client, const Session
     r.play = Play(*stream, ExpandOrbits(steps, volume), play);
     if (!r.play.status.ok()) {
       r.error = StatusCodeName(r.play.status.error_code());
-      r.error_message = r.play.error;
+      r.error_message = r.error + ": " + r.play.error;
       return r;
     }
     client.CloseSession(r.id);
@@ -199,15 +199,7 @@ std::string Json(const LoadtestOptions& o, const SessionScript& script, const st
 int Run(const LoadtestOptions& o) {
   const SessionScript script = MakeScript(o);
   Client client = Connect(o.connection);
-  const std::string volume_id = !o.volume.empty() ? o.volume : script.session.volume;
-  v1::VolumeInfo volume;
-  if (volume_id.empty()) {
-    const std::vector<v1::VolumeInfo> volumes = client.ListVolumes();
-    if (volumes.empty()) throw RpcError({grpc::StatusCode::NOT_FOUND, "the server holds no volume"});
-    volume = volumes.front();
-  } else {
-    volume = client.DescribeVolume(volume_id);
-  }
+  const v1::VolumeInfo volume = ResolveVolume(client, !o.volume.empty() ? o.volume : script.session.volume);
   std::string device;
   const v1::ServerStatus status = client.Status();
   for (const v1::DeviceStatus& d : status.devices()) device += (device.empty() ? "" : ", ") + d.name();

@@ -17,6 +17,8 @@ int main(int argc, char** argv) {
   cinevol::cli::AddRenderCommand(app);
   cinevol::cli::AddInfoCommand(app);
   cinevol::cli::AddLoadtestCommand(app);
+  cinevol::cli::AddPlayCommand(app);
+  cinevol::cli::AddSnapshotCommand(app);
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {

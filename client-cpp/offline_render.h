@@ -1,5 +1,4 @@
-// Rendering a scene to an image file without a server: the `render` and
-// (until the service lands) `demo` commands share it.
+// Rendering a scene to an image file without a server: `cinevol render`.
 #pragma once
 
 #include <filesystem>

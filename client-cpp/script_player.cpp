@@ -17,16 +17,13 @@ double SecondsSince(Clock::time_point start) { return std::chrono::duration<doub
 
 // The server names a bad event by its sequence number; the user knows its line.
 std::string ExplainStatus(const grpc::Status& status, const std::map<std::uint64_t, int>& line_of_seq) {
-  std::string message = StatusCodeName(status.error_code()) + ": " + status.error_message();
   std::smatch m;
   const std::string text = status.error_message();
   if (std::regex_search(text, m, std::regex("^event ([0-9]+): "))) {
     const auto it = line_of_seq.find(std::stoull(m[1]));
-    if (it != line_of_seq.end() && it->second > 0) {
-      message = fmt::format("{}: script line {}: {}", StatusCodeName(status.error_code()), it->second, m.suffix().str());
-    }
+    if (it != line_of_seq.end() && it->second > 0) return fmt::format("script line {}: {}", it->second, m.suffix().str());
   }
-  return message;
+  return text;
 }
 
 void AddFrame(const v1::Frame& f, SessionStream& stream, Clock::time_point now, std::uint64_t& answered,
@@ -58,6 +55,13 @@ void AddFrame(const v1::Frame& f, SessionStream& stream, Clock::time_point now, 
 double PlayResult::StageMs(int stage) const {
   const std::uint64_t n = stage == 6 ? transfer_frames : stage_frames;
   return n ? stage_us_sum[stage] / double(n) / 1000.0 : NAN;
+}
+
+v1::VolumeInfo ResolveVolume(Client& client, const std::string& id) {
+  if (!id.empty()) return client.DescribeVolume(id);
+  const std::vector<v1::VolumeInfo> volumes = client.ListVolumes();
+  if (volumes.empty()) throw RpcError({grpc::StatusCode::NOT_FOUND, "the server holds no volume"});
+  return volumes.front();
 }
 
 double Percentile(std::vector<double> v, double p) {

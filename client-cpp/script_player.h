@@ -39,7 +39,7 @@ struct PlayResult {
   std::array<double, 7> stage_us_sum{};
   std::uint64_t stage_frames = 0, transfer_frames = 0;
   grpc::Status status;  // how the stream ended; OK while it lasted the run
-  std::string error;    // the status, with "event N" told as the script line it came from
+  std::string error;    // the status's message, with "event N" told as the script line it came from
 
   double fps() const { return seconds > 0 ? frames / seconds : 0; }
   double StageMs(int stage) const;
@@ -48,6 +48,9 @@ struct PlayResult {
 PlayResult Play(SessionStream& stream, const std::vector<ScriptStep>& steps, const PlayOptions& options,
                 const std::function<void(const ReceivedFrame&)>& on_frame = {},
                 const std::function<void(const PlayResult&)>& every_second = {});
+
+// The volume `id` names, or the server's first when `id` is empty.
+v1::VolumeInfo ResolveVolume(Client& client, const std::string& id);
 
 // The p-quantile (0..1) of `values`; NaN when empty.
 double Percentile(std::vector<double> values, double p);

@@ -59,8 +59,12 @@ Orbit ParseOrbit(const Value& value, const std::string& where) {
     } else if (key == "elevationDegrees") {
       orbit.elevation_degrees = Number(v, field);
       if (std::abs(orbit.elevation_degrees) >= 90) throw InputError(field + ": must be in (-90, 90)");
+    } else if (key == "distanceScale") {
+      orbit.distance_scale = Number(v, field);
+      if (orbit.distance_scale <= 0) throw InputError(field + ": must be > 0");
     } else {
-      throw InputError(fmt::format("{}: unknown field (degrees, seconds, hz, startDegrees, elevationDegrees)", field));
+      throw InputError(fmt::format(
+          "{}: unknown field (degrees, seconds, hz, startDegrees, elevationDegrees, distanceScale)", field));
     }
   }
   return orbit;
@@ -163,11 +167,13 @@ SessionScript LoadScript(const std::filesystem::path& file) {
   return ParseScript(text.str(), file.string(), std::filesystem::absolute(file).parent_path());
 }
 
-v1::Camera OrbitCamera(const v1::VolumeInfo& volume, double degrees, double elevation_degrees) {
+v1::Camera OrbitCamera(const v1::VolumeInfo& volume, double degrees, double elevation_degrees,
+                       double distance_scale) {
   const double ex = volume.dims().x() * volume.spacing_mm().x(), ey = volume.dims().y() * volume.spacing_mm().y(),
                ez = volume.dims().z() * volume.spacing_mm().z();
   const double radius = 0.5 * std::sqrt(ex * ex + ey * ey + ez * ez);
-  const double distance = 1.02 * radius / std::sin(15.0 * M_PI / 180.0);  // fits a 30 degree field of view
+  // 1.02 radii over sin(15 degrees) fits the volume in a 30 degree field of view.
+  const double distance = distance_scale * 1.02 * radius / std::sin(15.0 * M_PI / 180.0);
   const double a = degrees * M_PI / 180.0, e = elevation_degrees * M_PI / 180.0;
   v1::Camera c;
   c.mutable_eye()->set_x(float(distance * std::cos(e) * std::sin(a)));
@@ -192,7 +198,8 @@ std::vector<ScriptStep> ExpandOrbits(const std::vector<ScriptStep>& steps, const
       camera.at = s.at + s.orbit.seconds * i / count;
       camera.line = s.line;
       *camera.event.mutable_camera() =
-          OrbitCamera(volume, s.orbit.start_degrees + s.orbit.degrees * i / count, s.orbit.elevation_degrees);
+          OrbitCamera(volume, s.orbit.start_degrees + s.orbit.degrees * i / count, s.orbit.elevation_degrees,
+                      s.orbit.distance_scale);
       out.push_back(std::move(camera));
     }
   }

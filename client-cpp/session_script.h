@@ -31,9 +31,10 @@ struct ScriptSession {
 };
 
 // A camera orbit: `degrees` about the volume's vertical axis over `seconds`,
-// as camera events at `hz`, from `start_degrees` (0: in front, -y).
+// as camera events at `hz`, from `start_degrees` (0: in front, -y), at
+// `distance_scale` times the distance that frames the whole volume.
 struct Orbit {
-  double degrees = 360, seconds = 4, hz = 30, start_degrees = 0, elevation_degrees = 0;
+  double degrees = 360, seconds = 4, hz = 30, start_degrees = 0, elevation_degrees = 0, distance_scale = 1;
 };
 
 struct ScriptStep {
@@ -57,7 +58,8 @@ SessionScript ParseScript(const std::string& text, const std::string& name,
 
 // The camera `degrees` about the volume's vertical (+z) axis from the front
 // (-y, anterior for LPS data), `elevation` above, framing the whole volume.
-v1::Camera OrbitCamera(const v1::VolumeInfo& volume, double degrees, double elevation_degrees = 0);
+v1::Camera OrbitCamera(const v1::VolumeInfo& volume, double degrees, double elevation_degrees = 0,
+                       double distance_scale = 1);
 
 // The steps with every orbit turned into its camera events.
 std::vector<ScriptStep> ExpandOrbits(const std::vector<ScriptStep>& steps, const v1::VolumeInfo& volume);
