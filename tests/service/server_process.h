@@ -63,6 +63,21 @@ inline int WaitExit(pid_t pid, std::chrono::milliseconds timeout) {
   return -1;
 }
 
+// Runs `program` to its end (at most `timeout`); returns its exit code (-1
+// when it did not exit by itself) and everything it printed.
+inline std::pair<int, std::string> RunProgram(const std::string& program, const std::vector<std::string>& args,
+                                              const std::filesystem::path& log,
+                                              std::chrono::milliseconds timeout = std::chrono::seconds(120)) {
+  const pid_t pid = Spawn(program, args, log);
+  int status = WaitExit(pid, timeout);
+  if (status == -1) {
+    kill(pid, SIGKILL);
+    WaitExit(pid, std::chrono::seconds(5));
+  }
+  std::ifstream in(log);
+  return {status != -1 && WIFEXITED(status) ? WEXITSTATUS(status) : -1, {std::istreambuf_iterator<char>(in), {}}};
+}
+
 class ServerProcess {
  public:
   // Starts cinevol-server with a small head phantom, plus `extra` flags.

@@ -93,17 +93,8 @@ TEST(CinevolServer, ReadsItsSettingsFromAConfigFile) {
   }
 }
 
-// Runs cinevol-server with `args`; returns its exit code and output.
-std::pair<int, std::string> RunServer(const testing::ScratchDir& scratch, const std::vector<std::string>& args) {
-  const auto log = scratch / "refused.log";
-  const pid_t pid = Spawn(ServerPath(), args, log);
-  int status = WaitExit(pid, 60s);
-  if (status == -1) {
-    kill(pid, SIGKILL);
-    WaitExit(pid, 5s);
-  }
-  std::ifstream in(log);
-  return {status != -1 && WIFEXITED(status) ? WEXITSTATUS(status) : -1, {std::istreambuf_iterator<char>(in), {}}};
+std::pair<int, std::string> RunServer(const ScratchDir& scratch, const std::vector<std::string>& args) {
+  return RunProgram(ServerPath(), args, scratch / "refused.log", std::chrono::seconds(60));
 }
 
 TEST(CinevolServer, RefusesBadSettingsWithAMessage) {
@@ -138,7 +129,9 @@ TEST(CinevolServer, StopsInOrderOnSigtermWithAStreamOpen) {
   ASSERT_TRUE(server.running()) << server.Log();
   Client client = server.Connect();
   const auto created = client.CreateSession(SmallSession("ct-bone", 96, 64, 65536));
-  auto stream = client.Attach(created.session_id());
+  StreamOptions no_resume;
+  no_resume.resume = false;  // the server is going away for good
+  auto stream = client.Attach(created.session_id(), no_resume);
   ASSERT_TRUE(WaitFrame(*stream, [](const v1::Frame&) { return true; }));
   const int status = server.Stop();
   EXPECT_TRUE(WIFEXITED(status) && WEXITSTATUS(status) == 0) << "wait status " << status;

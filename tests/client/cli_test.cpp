@@ -1,0 +1,164 @@
+// The `cinevol` subcommands as users run them, against a real local server:
+// demo, play, snapshot and loadtest, and their errors (server down, refused
+// token, bad script, refused volume): a clear message and a non-zero exit.
+#include <gtest/gtest.h>
+
+#include <fstream>
+#include <regex>
+
+#include "encode/image_codecs.h"
+#include "service/server_process.h"
+#include "service/service_test_support.h"
+#include "support/test_paths.h"
+
+namespace cinevol::testing {
+namespace {
+
+namespace fs = std::filesystem;
+using namespace std::chrono_literals;
+
+std::pair<int, std::string> Cinevol(const ScratchDir& scratch, const std::vector<std::string>& args) {
+  return RunProgram(CliPath(), args, scratch / "cinevol.log", 180s);
+}
+
+void WriteText(const fs::path& path, const std::string& text) { std::ofstream(path) << text; }
+
+int CountLines(const fs::path& path) {
+  std::ifstream in(path);
+  int n = 0;
+  for (std::string line; std::getline(in, line);) ++n;
+  return n;
+}
+
+// A short script on the test server's phantom.
+const char* kScript =
+    R"({"session": {"volume": "phantom:head?size=48", "viewport": {"width": 96, "height": 64}, "stream": {"targetSpp": 16}}}
+{"at": 0.0, "orbit": {"degrees": 30, "seconds": 0.5, "hz": 20}}
+{"at": 0.6, "transferFunction": {"preset": "ct-soft-tissue"}}
+)";
+
+TEST(CinevolCli, DemoRunsThroughARealServer) {
+  ScratchDir scratch;
+  const auto out = scratch / "demo";
+  const auto [code, output] = Cinevol(scratch, {"demo", "--backend", "cpu", "--out", out.string()});
+  ASSERT_EQ(code, 0) << output;
+  EXPECT_NE(output.find("starting cinevol-server"), std::string::npos) << output;
+  EXPECT_NE(output.find("fps"), std::string::npos) << "progress and summary";
+  EXPECT_NE(output.find("latency p50/p95/p99"), std::string::npos) << output;
+  EXPECT_NE(output.find("refined to 128 spp"), std::string::npos) << output;
+  const ImageRgb8 sheet = ReadPng(out / "contact-sheet.png");
+  EXPECT_GT(sheet.width, 400);
+  int frames = 0;
+  for (const auto& entry : fs::directory_iterator(out / "frames")) frames += entry.path().extension() == ".jpg";
+  EXPECT_GT(frames, 20);
+  EXPECT_GT(CountLines(out / "frames.csv"), frames);
+  EXPECT_TRUE(fs::exists(out / "summary.txt"));
+  EXPECT_TRUE(fs::exists(out / "final.jpg"));
+  // The demo stopped its server: nothing listens on its port any more.
+  int port = 0;
+  std::ifstream(out / "server.port") >> port;
+  ASSERT_GT(port, 0);
+  ClientOptions options;
+  options.address = "127.0.0.1:" + std::to_string(port);
+  options.connect_timeout = 500ms;
+  EXPECT_THROW(Client{options}, RpcError);
+}
+
+TEST(CinevolCli, PlayAndSnapshotAgainstAServer) {
+  ScratchDir scratch;
+  ServerProcess server(scratch.path());
+  ASSERT_TRUE(server.running()) << server.Log();
+  WriteText(scratch / "script.jsonl", kScript);
+  const auto out = scratch / "played";
+  auto [code, output] = Cinevol(scratch, {"play", "--server", server.address(), "--script",
+                                          (scratch / "script.jsonl").string(), "--out", out.string()});
+  ASSERT_EQ(code, 0) << output;
+  EXPECT_NE(output.find("12 events"), std::string::npos) << output;  // 11 orbit cameras and the edit
+  std::ifstream csv(out / "frames.csv");
+  std::string header, line, last;
+  std::getline(csv, header);
+  EXPECT_EQ(header.rfind("frame_id,received_s,width,height,accumulated_spp,final,last_event_seq", 0), 0u);
+  int rows = 0;
+  while (std::getline(csv, line)) last = line, ++rows;
+  EXPECT_GT(rows, 5);
+  EXPECT_NE(last.find(",96,64,"), std::string::npos) << last;
+  EXPECT_NE(last.find(",1,12,"), std::string::npos) << "the last frame is final and answers the last event: " << last;
+  EXPECT_TRUE(Eventually([&] { return server.Connect().Status().sessions().empty(); }, 10s)) << "play closes its session";
+
+  std::tie(code, output) = Cinevol(scratch, {"snapshot", "--server", server.address(), "--volume",
+                                             "phantom:head?size=48", "--width", "80", "--height", "60", "--spp", "8",
+                                             "--out", (scratch / "still.png").string()});
+  ASSERT_EQ(code, 0) << output;
+  EXPECT_EQ(ReadPng(scratch / "still.png").width, 80);
+  std::tie(code, output) = Cinevol(scratch, {"snapshot", "--server", server.address(), "--width", "80", "--height",
+                                             "60", "--spp", "4", "--out", (scratch / "still.exr").string()});
+  ASSERT_EQ(code, 0) << output;
+  EXPECT_EQ(ReadExr(scratch / "still.exr").height, 60);
+}
+
+TEST(CinevolCli, LoadtestReportsJsonForScripts) {
+  ScratchDir scratch;
+  ServerProcess server(scratch.path());
+  ASSERT_TRUE(server.running()) << server.Log();
+  WriteText(scratch / "script.jsonl", kScript);
+  const auto [code, output] =
+      Cinevol(scratch, {"loadtest", "--server", server.address(), "--sessions", "2", "--seconds", "2", "--script",
+                        (scratch / "script.jsonl").string(), "--json"});
+  ASSERT_EQ(code, 0) << output;
+  EXPECT_NE(output.find("\"per_session\": ["), std::string::npos) << output;
+  EXPECT_NE(output.find("\"errors\": {}"), std::string::npos) << output;
+  std::smatch m;
+  ASSERT_TRUE(std::regex_search(output, m, std::regex("\"overall\": \\{\"frames\": ([0-9]+)"))) << output;
+  EXPECT_GT(std::stoi(m[1]), 4);
+  EXPECT_TRUE(std::regex_search(output, std::regex("\"latency_ms\": \\{\"p50\": [0-9.]+"))) << output;
+}
+
+// One line on stderr, no stack trace.
+void ExpectCleanError(const std::pair<int, std::string>& result, int code, const std::string& text) {
+  EXPECT_EQ(result.first, code) << result.second;
+  EXPECT_NE(result.second.find(text), std::string::npos) << result.second;
+  EXPECT_EQ(result.second.find("terminate"), std::string::npos) << result.second;
+  EXPECT_LE(std::count(result.second.begin(), result.second.end(), '\n'), 2) << result.second;
+}
+
+TEST(CinevolCli, ErrorsAreClearWithANonZeroExit) {
+  ScratchDir scratch;
+  std::ofstream(scratch / "tokens") << "good-token alice\n";
+  ServerProcess server(scratch.path(), {"--auth-tokens", (scratch / "tokens").string()});
+  ASSERT_TRUE(server.running()) << server.Log();
+  WriteText(scratch / "script.jsonl", kScript);
+  const std::string script = (scratch / "script.jsonl").string();
+
+  ExpectCleanError(Cinevol(scratch, {"loadtest", "--server", "127.0.0.1:1", "--connect-timeout", "1", "--seconds", "1"}),
+                   3, "cannot reach cinevol-server at 127.0.0.1:1");
+  ExpectCleanError(Cinevol(scratch, {"play", "--server", server.address(), "--script", script}), 3, "UNAUTHENTICATED");
+  ExpectCleanError(Cinevol(scratch, {"play", "--server", server.address(), "--token", "bad", "--script", script}), 3,
+                   "not valid");
+
+  // A script with a misspelt field on line 3, one with a bad value (caught by the server) on line 2.
+  WriteText(scratch / "typo.jsonl", R"({"session": {"volume": "phantom:head?size=48"}}
+{"at": 0, "camera": {"view": "LEFT"}}
+{"at": 1, "camera": {"fovYdeg": 20}}
+)");
+  ExpectCleanError(Cinevol(scratch, {"play", "--server", server.address(), "--token", "good-token", "--script",
+                                     (scratch / "typo.jsonl").string()}),
+                   2, "typo.jsonl line 3");
+  EXPECT_NE(Cinevol(scratch, {"play", "--script", (scratch / "typo.jsonl").string()}).second.find("fovYdeg"),
+            std::string::npos);
+  WriteText(scratch / "bad-value.jsonl", R"({"session": {"volume": "phantom:head?size=48", "viewport": {"width": 96, "height": 64}}}
+{"at": 0.2, "camera": {"view": "LEFT", "fovYDeg": 500}}
+)");
+  ExpectCleanError(Cinevol(scratch, {"play", "--server", server.address(), "--token", "good-token", "--script",
+                                     (scratch / "bad-value.jsonl").string(), "--out", (scratch / "o").string()}),
+                   3, "script line 2: camera.fovYDeg");
+  WriteText(scratch / "missing.jsonl", R"({"session": {"volume": "no-such-volume"}})");
+  ExpectCleanError(Cinevol(scratch, {"play", "--server", server.address(), "--token", "good-token", "--script",
+                                     (scratch / "missing.jsonl").string()}),
+                   3, "NOT_FOUND");
+  ExpectCleanError(Cinevol(scratch, {"snapshot", "--server", server.address(), "--token", "good-token", "--out",
+                                     (scratch / "x.gif").string()}),
+                   2, "use .png or .exr");
+}
+
+}  // namespace
+}  // namespace cinevol::testing
