@@ -76,7 +76,8 @@ PlayResult Play(SessionStream& stream, const std::vector<ScriptStep>& steps, con
   PlayResult r;
   std::map<std::uint64_t, int> line_of_seq;
   const Clock::time_point start = Clock::now();
-  const double period = steps.empty() ? 0 : std::max(steps.back().at, 1e-3);
+  // A looped timeline restarts after its last step, and at most once a second.
+  const double period = steps.empty() ? 0 : std::max(steps.back().at, 1.0);
   std::size_t next = 0;
   double lap = 0;  // timeline offset of the current loop
   std::uint64_t answered = 0, last_id = 0, last_sent = 0;

@@ -19,7 +19,7 @@ namespace cinevol::cli {
 
 struct PlayOptions {
   double max_seconds = 60;  // the run never lasts longer
-  bool loop = false;        // repeat the timeline until max_seconds (load tests)
+  bool loop = false;        // repeat the timeline (every max(last step's time, 1 s)) until max_seconds
   bool wait_final = true;   // after the last step, wait for the frame that ends refinement
 };
 
