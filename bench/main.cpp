@@ -5,6 +5,7 @@
 #include <fstream>
 
 #include "bench.h"
+#include "tradeoff_study.h"
 #include "core/error.h"
 #include "core/parallel_for.h"
 #include "io/scene_file.h"
@@ -70,6 +71,39 @@ int main(int argc, char** argv) {
       ->capture_default_str();
   d->add_option("--degrees-per-frame", denoise.degrees_per_frame, "Camera orbit speed")->capture_default_str();
   d->callback([&] { cinevol::bench::RunDenoiseBench(denoise); });
+
+  // The speed/accuracy study: --dataset NAME=SCENE[,VOLUME] (repeatable).
+  cinevol::bench::StudyOptions study;
+  study.command_line = command_line;
+  std::vector<std::string> datasets, scenarios;
+  bool quick = false;
+  std::string out = "tradeoff-results", cache = "bench-cache";
+  auto* t = app.add_subcommand("tradeoff", "Quality against time per frame for every knob, on the paper's scenarios");
+  t->add_option("--dataset", datasets, "NAME=SCENE_FILE[,VOLUME] (repeatable)")->required();
+  t->add_option("--scenario", scenarios, "orbit, area-light, point-light, tf-edit, static, transparent (default all)");
+  t->add_option("--width", study.width, "Frame width")->capture_default_str();
+  t->add_option("--height", study.height, "Frame height")->capture_default_str();
+  t->add_option("--frames-scale", study.frames_scale, "Scenario lengths times this")->capture_default_str();
+  t->add_option("--reference-spp", study.reference_spp, "Samples per pixel of the references")->capture_default_str();
+  t->add_option("--reference-bounces", study.reference_bounces, "Bounces of the references")->capture_default_str();
+  t->add_option("--cache", cache, "Folder of cached reference EXRs")->capture_default_str();
+  t->add_option("--out", out, "Results folder: tradeoff.csv, .json, .md, images/")->capture_default_str();
+  t->add_option("--backend", study.backend, "auto, cpu or cuda")->capture_default_str();
+  t->add_flag("--quick", quick, "A small subset of the configurations");
+  t->callback([&] {
+    for (const std::string& spec : datasets) {
+      const auto eq = spec.find('='), comma = spec.find(',', eq);
+      if (eq == std::string::npos) throw cinevol::InputError("--dataset " + spec + ": use NAME=SCENE_FILE[,VOLUME]");
+      study.datasets.push_back({spec.substr(0, eq), spec.substr(eq + 1, comma == std::string::npos ? comma : comma - eq - 1),
+                                comma == std::string::npos ? "" : spec.substr(comma + 1)});
+    }
+    study.scenarios = scenarios;
+    study.configs = cinevol::bench::StudyConfigs(quick);
+    study.cache = cache;
+    study.out = out;
+    const auto results = cinevol::bench::RunStudy(study);
+    std::fputs(cinevol::bench::SummaryTable(results).c_str(), stdout);
+  });
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {

@@ -13,4 +13,16 @@ double DisplayPsnr(const ImageRgbF& image, const ImageRgbF& reference);
 // Mean over pixels and channels of (x - r)^2 / (r^2 + 1e-2).
 double RelativeMse(const ImageRgbF& image, const ImageRgbF& reference);
 
+// On displayed 8-bit sRGB images (after tone mapping, and after JPEG where
+// that applies):
+// PSNR in dB over the three channels (peak 255); 100 for identical images.
+double Psnr(const ImageRgb8& image, const ImageRgb8& reference);
+// SSIM (Wang et al. 2004: 11x11 Gaussian window, sigma 1.5, K1 0.01, K2 0.03)
+// of the Rec. 709 luma, averaged over the image.
+double Ssim(const ImageRgb8& image, const ImageRgb8& reference);
+// Temporal error: the mean over pixels of |(O_t - O_t-1) - (R_t - R_t-1)| in
+// luma, in [0, 1] units: flicker and lag that the reference does not have.
+double TemporalError(const ImageRgb8& image, const ImageRgb8& previous_image, const ImageRgb8& reference,
+                     const ImageRgb8& previous_reference);
+
 }  // namespace cinevol

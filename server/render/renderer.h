@@ -20,6 +20,9 @@
 
 namespace cinevol {
 
+// Bumped whenever the integrator's output changes: keys cached reference images.
+inline constexpr int kRendererVersion = 1;
+
 // Picks the smallest specialised integrator for the scene.
 inline constexpr unsigned kAutoFeatures = ~0u;
 

@@ -1,0 +1,522 @@
+// The study: scenarios, references, the run of every configuration, results.
+#include "tradeoff_study.h"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <fstream>
+#include <functional>
+#include <map>
+
+#include <fmt/format.h>
+
+#include "core/image_metrics.h"
+#include "core/tone_map.h"
+#include "encode/image_codecs.h"
+#include "io/presets.h"
+#include "io/scene_builder.h"
+#include "io/scene_file.h"
+#include "io/volume_loader.h"
+#include "pipeline/display.h"
+#include "render/renderer.h"
+
+namespace cinevol::bench {
+namespace {
+
+namespace fs = std::filesystem;
+using Clock = std::chrono::steady_clock;
+
+double MsSince(Clock::time_point start) {
+  return std::chrono::duration<double, std::milli>(Clock::now() - start).count();
+}
+
+// --- Scenarios ----------------------------------------------------------------
+
+// What the renderer shows at one frame of a scenario.
+struct ScenarioFrame {
+  Camera camera;
+  const TransferFunction* tf = nullptr;
+  const LightSetup* lights = nullptr;
+};
+
+struct Scenario {
+  std::string name;
+  int frames = 0;
+  std::vector<TransferFunction> tfs;   // one, or one per frame
+  std::vector<LightSetup> lights;      // one, or one per frame
+  std::function<Camera(int)> camera;
+
+  ScenarioFrame At(int t) const {
+    return {camera(t), &tfs[std::min<std::size_t>(t, tfs.size() - 1)],
+            &lights[std::min<std::size_t>(t, lights.size() - 1)]};
+  }
+};
+
+// `v` turned by `degrees` about the unit `axis`.
+Vec3f Rotate(Vec3f v, Vec3f axis, float degrees) {
+  const float a = degrees * kPi / 180.0f, c = std::cos(a), s = std::sin(a);
+  return v * c + Cross(axis, v) * s + axis * (Dot(axis, v) * (1 - c));
+}
+
+// The camera turned about its up axis through the point it looks at.
+Camera Orbit(const Camera& c, float degrees) {
+  const Vec3f target = c.eye + c.forward * c.focal_distance;
+  Camera out = LookAt(target + Rotate(c.eye - target, c.up, degrees), target, c.up,
+                      2.0f * std::atan(c.tan_half_fov_y) * 180.0f / kPi, c.width, c.height);
+  out.lens_radius = c.lens_radius;
+  return out;
+}
+
+float VolumeRadius(const Volume& volume) { return 0.5f * Length(volume.extent_mm()); }
+
+// An area key light above and beside the view, as the presets place it.
+Light KeyLight(const Volume& volume) {
+  const v1::Scene preset = MakePresetScene("ct-bone", volume.extent_mm());
+  return ResolveLights(preset.lights()).lights.front();
+}
+
+EnvironmentSetup SceneEnvironment(const RenderSetup& base, const Volume& volume) {
+  if (base.lights.environment.kind != Environment::Kind::kNone) return base.lights.environment;
+  return ResolveLights(MakePresetScene("ct-bone", volume.extent_mm()).lights()).environment;
+}
+
+// Several thin semi-transparent shells at values spread over the volume's range.
+TransferFunction TransparentShells(const Volume& volume) {
+  const float lo = volume.min_value(), range = std::max(volume.max_value() - volume.min_value(), 1e-3f);
+  const Vec3f colours[] = {{0.9f, 0.5f, 0.4f}, {0.5f, 0.8f, 0.5f}, {0.5f, 0.6f, 0.95f}, {0.95f, 0.9f, 0.6f}};
+  TransferFunction tf;
+  tf.points.push_back({lo, 0, colours[0], {}, 0.5f, {}});
+  for (int i = 0; i < 4; ++i) {
+    const float centre = lo + range * (0.3f + 0.15f * i), half = 0.02f * range;
+    tf.points.push_back({centre - half, 0, colours[i], {}, 0.5f, {}});
+    tf.points.push_back({centre, 0.12f, colours[i], {0.05f, 0.05f, 0.05f}, 0.4f, {}});
+    tf.points.push_back({centre + half, 0, colours[i], {}, 0.5f, {}});
+  }
+  tf.points.push_back({lo + range, 0, colours[3], {}, 0.5f, {}});
+  tf.density_scale = 0.5f;
+  tf.gradient_factor = 0.5f;
+  return tf;
+}
+
+std::vector<Scenario> MakeScenarios(const RenderSetup& base, const Volume& volume, float frames_scale) {
+  auto frames = [&](int n) { return std::max(3, static_cast<int>(std::lround(n * frames_scale))); };
+  const Camera camera = base.camera;
+  const Vec3f centre = camera.eye + camera.forward * camera.focal_distance;
+  std::vector<Scenario> s;
+
+  s.push_back({"orbit", frames(30), {base.transfer_function}, {base.lights},
+               [camera](int t) { return Orbit(camera, 1.0f * t); }});
+
+  // A rectangular key light circling the volume, the scene's environment as fill.
+  Scenario area{"area-light", frames(30), {base.transfer_function}, {}, [camera](int) { return camera; }};
+  const Light key = KeyLight(volume);
+  for (int t = 0; t < area.frames; ++t) {
+    LightSetup l;
+    l.environment = SceneEnvironment(base, volume);
+    Light k = key;
+    const float degrees = 6.0f * t;
+    k.position = centre + Rotate(key.position - centre, camera.up, degrees);
+    k.edge_u = Rotate(key.edge_u, camera.up, degrees);
+    k.edge_v = Rotate(key.edge_v, camera.up, degrees);
+    k.normal = Rotate(key.normal, camera.up, degrees);
+    l.lights.push_back(k);
+    area.lights.push_back(l);
+  }
+  s.push_back(area);
+
+  // A point light circling in the dark.
+  Scenario point{"point-light", frames(30), {base.transfer_function}, {}, [camera](int) { return camera; }};
+  const float radius = 1.3f * VolumeRadius(volume);
+  const Vec3f start = Normalize(camera.right * -1.0f + camera.up * 0.5f - camera.forward) * radius;
+  for (int t = 0; t < point.frames; ++t) {
+    LightSetup l;
+    Light p;
+    p.kind = LightKind::kPoint;
+    p.position = centre + Rotate(start, camera.up, 6.0f * t);
+    p.emitted = Vec3f{1, 0.95f, 0.9f} * (2.5f * radius * radius);  // irradiance ~2.5 at the centre
+    l.lights.push_back(p);
+    point.lights.push_back(l);
+  }
+  s.push_back(point);
+
+  // The opacity window sweeping over 40 frames: every point moves by 10% of the range.
+  Scenario tf_edit{"tf-edit", frames(40), {}, {base.lights}, [camera](int) { return camera; }};
+  const float shift = 0.1f * std::max(volume.max_value() - volume.min_value(), 1e-3f);
+  for (int t = 0; t < tf_edit.frames; ++t) {
+    TransferFunction tf = base.transfer_function;
+    const float offset = shift * (float(t) / float(std::max(tf_edit.frames - 1, 1)) - 0.5f);
+    for (auto& p : tf.points) p.value += offset;
+    tf_edit.tfs.push_back(tf);
+  }
+  s.push_back(tf_edit);
+
+  s.push_back({"static", frames(60), {base.transfer_function}, {base.lights}, [camera](int) { return camera; }});
+  s.push_back({"transparent", frames(30), {TransparentShells(volume)}, {base.lights},
+               [camera](int t) { return Orbit(camera, 0.5f * t); }});
+  return s;
+}
+
+// --- References -----------------------------------------------------------------
+
+std::uint64_t Fnv1a(const std::string& text) {
+  std::uint64_t h = 1469598103934665603ull;
+  for (unsigned char c : text) h = (h ^ c) * 1099511628211ull;
+  return h;
+}
+
+// Everything a reference frame depends on, hashed.
+std::string ReferenceKey(const Dataset& d, const std::string& scene_json, const std::string& scenario, int frame,
+                         int frames, int width, int height, const StudyOptions& o) {
+  const std::string text =
+      fmt::format("{}|{}|{}|{}|{}/{}|{}x{}|{}spp|{}bounces|renderer {}", d.name, d.volume, scene_json, scenario, frame,
+                  frames, width, height, o.reference_spp, o.reference_bounces, kRendererVersion);
+  return fmt::format("{}-{}-{:03}-{:016x}", d.name, scenario, frame, Fnv1a(text));
+}
+
+void ApplyFrame(Renderer& renderer, const ScenarioFrame& f, const TransferFunction*& tf, const LightSetup*& lights) {
+  if (f.tf != tf) renderer.SetTransferFunction(*(tf = f.tf));
+  if (f.lights != lights) renderer.SetLights(*(lights = f.lights));
+}
+
+ImageRgbF RenderReference(Renderer& renderer, const Camera& camera, int spp, int bounces, int frame) {
+  renderer.ResetAccumulation();
+  for (int done = 0, chunk = 0; done < spp; done += 64, ++chunk) {
+    FrameRequest r;
+    r.camera = camera;
+    r.spp = std::min(64, spp - done);
+    r.max_bounces = bounces;
+    r.seed = 1000003ull * (frame + 1) + chunk;
+    r.frame = static_cast<std::uint32_t>(chunk);
+    renderer.Render(r);
+  }
+  return renderer.AccumulatedMean();
+}
+
+// --- One configuration over one scenario -------------------------------------------
+
+ImageRgb8 Upsample(const ImageRgb8& image, int width, int height) {
+  if (image.width == width && image.height == height) return image;
+  ImageRgb8 out{width, height, std::vector<std::uint8_t>(std::size_t(width) * height * 3)};
+  for (int y = 0; y < height; ++y) {
+    const float sy = std::clamp((y + 0.5f) * image.height / height - 0.5f, 0.0f, float(image.height - 1));
+    const int y0 = int(sy), y1 = std::min(y0 + 1, image.height - 1);
+    const float fy = sy - y0;
+    for (int x = 0; x < width; ++x) {
+      const float sx = std::clamp((x + 0.5f) * image.width / width - 0.5f, 0.0f, float(image.width - 1));
+      const int x0 = int(sx), x1 = std::min(x0 + 1, image.width - 1);
+      const float fx = sx - x0;
+      for (int c = 0; c < 3; ++c) {
+        auto at = [&](int xx, int yy) { return float(image.bytes[(std::size_t(yy) * image.width + xx) * 3 + c]); };
+        const float v = (at(x0, y0) * (1 - fx) + at(x1, y0) * fx) * (1 - fy) + (at(x0, y1) * (1 - fx) + at(x1, y1) * fx) * fy;
+        out.bytes[(std::size_t(y) * width + x) * 3 + c] = std::uint8_t(std::lround(v));
+      }
+    }
+  }
+  return out;
+}
+
+ImageRgbF UpsampleHdr(const ImageRgbF& image, int width, int height) {
+  if (image.width == width && image.height == height) return image;
+  ImageRgbF out{width, height, std::vector<Vec3f>(std::size_t(width) * height)};
+  for (int y = 0; y < height; ++y) {
+    const int sy = std::min(image.height - 1, y * image.height / height);
+    for (int x = 0; x < width; ++x) {
+      out.pixels[std::size_t(y) * width + x] = image.pixels[std::size_t(sy) * image.width + std::min(image.width - 1, x * image.width / width)];
+    }
+  }
+  return out;
+}
+
+struct References {
+  std::vector<ImageRgbF> hdr;
+  std::vector<ImageRgb8> display;
+};
+
+struct Context {
+  const StudyOptions& o;
+  Renderer& renderer;
+  DenoiseBackend denoise_backend;
+  std::unique_ptr<Display> display;
+  float exposure = 0;
+};
+
+RunResult RunConfig(Context& ctx, const Scenario& scenario, const References& refs, const StudyConfig& c,
+                    const fs::path& images, int image_frame) {
+  RunResult run;
+  run.scenario = scenario.name;
+  run.config = c;
+  DenoiserSettings settings;
+  settings.method = c.method;
+  settings.demodulate = c.demodulate;
+  auto denoiser = CreateDenoiser(ctx.denoise_backend, settings);
+  const int w = std::max(1, int(std::lround(ctx.o.width * c.scale))), h = std::max(1, int(std::lround(ctx.o.height * c.scale)));
+  const TransferFunction* tf = nullptr;
+  const LightSetup* lights = nullptr;
+  std::uint64_t version = 0;
+  ImageRgb8 previous;
+  for (int t = 0; t < scenario.frames; ++t) {
+    const ScenarioFrame f = scenario.At(t);
+    const TransferFunction* before_tf = tf;
+    const LightSetup* before_lights = lights;
+    ApplyFrame(ctx.renderer, f, tf, lights);
+    if (tf != before_tf || lights != before_lights) ++version;
+    FrameRequest r;
+    r.camera = f.camera;
+    r.camera.width = w;
+    r.camera.height = h;
+    r.spp = c.spp;
+    r.max_bounces = c.bounces;
+    r.seed = 7;  // every configuration of the same spp, bounces and size sees the same noise
+    r.frame = static_cast<std::uint32_t>(t);
+    ctx.renderer.ResetAccumulation();
+    FrameResult fr;
+    fr.frame = t;
+    ctx.renderer.Render(r);
+    fr.render_ms = ctx.renderer.LastFrameMilliseconds();
+    const FrameTargets in = ctx.renderer.Targets();
+    const Vec3f* denoised = denoiser->Denoise({w, h, in.radiance, in.first_hit, in.albedo, r.camera, version});
+    fr.denoise_ms = denoiser->LastMilliseconds();
+
+    const Clock::time_point display_start = Clock::now();
+    DisplayInputs di;
+    di.width = w;
+    di.height = h;
+    di.denoised = denoised;
+    di.accumulated_sum = denoised;
+    di.exposure = ctx.exposure;
+    ImageRgb8 shown = ctx.display->Run(di);
+    fr.tonemap_ms = MsSince(display_start);
+    if (c.jpeg_quality > 0) {
+      const Clock::time_point encode_start = Clock::now();
+      const std::vector<std::uint8_t> jpeg = EncodeJpeg(shown, c.jpeg_quality);
+      fr.encode_ms = MsSince(encode_start);
+      shown = DecodeJpeg(jpeg);
+    }
+    shown = Upsample(shown, ctx.o.width, ctx.o.height);
+    fr.psnr = Psnr(shown, refs.display[t]);
+    fr.ssim = Ssim(shown, refs.display[t]);
+    fr.rel_mse = RelativeMse(UpsampleHdr(denoiser->Output(), ctx.o.width, ctx.o.height), refs.hdr[t]);
+    if (t > 0) fr.temporal = TemporalError(shown, previous, refs.display[t], refs.display[t - 1]);
+    if (!images.empty() && t == image_frame) WriteFile(images, EncodePng(shown));
+    previous = std::move(shown);
+    run.frames.push_back(fr);
+  }
+  return run;
+}
+
+}  // namespace
+
+// --- Public ------------------------------------------------------------------------
+
+std::string StudyConfig::Label() const {
+  std::string label = ToString(method);
+  if (demodulate) label += "+demod";
+  if (knob == "spp") label += fmt::format(" {}spp", spp);
+  if (knob == "bounces") label += fmt::format(" {}bounces", bounces);
+  if (knob == "jpeg") label += fmt::format(" jpeg{}", jpeg_quality);
+  if (knob == "scale") label += fmt::format(" x{}", scale);
+  return label;
+}
+
+std::vector<StudyConfig> StudyConfigs(bool quick) {
+  std::vector<StudyConfig> configs;
+  const DenoiseMethod all[] = {DenoiseMethod::kNone, DenoiseMethod::kAccumulate, DenoiseMethod::kKnn,
+                               DenoiseMethod::kGuidedFilter, DenoiseMethod::kSvgf, DenoiseMethod::kWrls};
+  for (DenoiseMethod m : all) {
+    if (quick && m != DenoiseMethod::kNone && m != DenoiseMethod::kSvgf && m != DenoiseMethod::kWrls) continue;
+    for (bool demodulate : {false, true}) {
+      if (demodulate && (quick || m == DenoiseMethod::kNone)) continue;
+      StudyConfig c;
+      c.method = m;
+      c.demodulate = demodulate;
+      configs.push_back(c);
+    }
+  }
+  auto sweep = [&](const std::string& knob, const std::vector<float>& values, auto set) {
+    for (float v : values) {
+      StudyConfig c;
+      c.knob = knob;
+      set(c, v);
+      configs.push_back(c);
+    }
+  };
+  sweep("spp", quick ? std::vector<float>{1, 4} : std::vector<float>{1, 4, 8}, [](StudyConfig& c, float v) { c.spp = int(v); });
+  if (!quick) sweep("bounces", {1, 2, 8}, [](StudyConfig& c, float v) { c.bounces = int(v); });
+  sweep("jpeg", quick ? std::vector<float>{75} : std::vector<float>{50, 75, 90},
+        [](StudyConfig& c, float v) { c.jpeg_quality = int(v); });
+  sweep("scale", quick ? std::vector<float>{0.5f} : std::vector<float>{0.5f, 0.75f},
+        [](StudyConfig& c, float v) { c.scale = v; });
+  return configs;
+}
+
+std::vector<std::string> ScenarioNames() {
+  return {"orbit", "area-light", "point-light", "tf-edit", "static", "transparent"};
+}
+
+double RunResult::Mean(double FrameResult::*field) const {
+  double sum = 0;
+  int n = 0;
+  for (const FrameResult& f : frames) {
+    if (field == &FrameResult::temporal && f.frame == 0) continue;
+    sum += f.*field;
+    ++n;
+  }
+  return n ? sum / n : NAN;
+}
+
+double RunResult::MeanMs() const {
+  return Mean(&FrameResult::render_ms) + Mean(&FrameResult::denoise_ms) + Mean(&FrameResult::tonemap_ms) +
+         Mean(&FrameResult::encode_ms);
+}
+
+namespace {
+
+std::string Slug(std::string s) {
+  for (char& c : s) {
+    if (!std::isalnum(static_cast<unsigned char>(c)) && c != '-' && c != '.') c = '_';
+  }
+  return s;
+}
+
+References LoadReferences(Context& ctx, const Dataset& d, const std::string& scene_json, const Scenario& s) {
+  References refs;
+  fs::create_directories(ctx.o.cache);
+  const TransferFunction* tf = nullptr;
+  const LightSetup* lights = nullptr;
+  for (int t = 0; t < s.frames; ++t) {
+    const fs::path path = ctx.o.cache / (ReferenceKey(d, scene_json, s.name, t, s.frames, ctx.o.width, ctx.o.height,
+                                                      ctx.o) + ".exr");
+    if (fs::exists(path)) {
+      refs.hdr.push_back(ReadExr(path));
+    } else {
+      const ScenarioFrame f = s.At(t);
+      ApplyFrame(ctx.renderer, f, tf, lights);
+      Camera camera = f.camera;
+      camera.width = ctx.o.width;
+      camera.height = ctx.o.height;
+      refs.hdr.push_back(RenderReference(ctx.renderer, camera, ctx.o.reference_spp, ctx.o.reference_bounces, t));
+      WriteExr(path, refs.hdr.back());
+    }
+    refs.display.push_back(ToneMap(refs.hdr.back(), ctx.exposure));
+  }
+  return refs;
+}
+
+void WriteCsv(const fs::path& path, const std::vector<RunResult>& results) {
+  std::ofstream out(path);
+  out << "dataset,scenario,knob,config,method,demodulate,spp,bounces,jpeg_quality,scale,frame,psnr,ssim,rel_mse,"
+         "temporal,render_ms,denoise_ms,tonemap_ms,encode_ms\n";
+  for (const RunResult& r : results) {
+    const StudyConfig& c = r.config;
+    for (const FrameResult& f : r.frames) {
+      out << fmt::format("{},{},{},{},{},{},{},{},{},{},{},{:.4f},{:.5f},{:.6g},{:.6f},{:.4f},{:.4f},{:.4f},{:.4f}\n",
+                         r.dataset, r.scenario, c.knob, c.Label(), ToString(c.method), c.demodulate ? 1 : 0, c.spp,
+                         c.bounces, c.jpeg_quality, c.scale, f.frame, f.psnr, f.ssim, f.rel_mse, f.temporal,
+                         f.render_ms, f.denoise_ms, f.tonemap_ms, f.encode_ms);
+    }
+  }
+}
+
+void WriteJson(const fs::path& path, const StudyOptions& o, const std::string& device,
+               const std::vector<RunResult>& results) {
+  std::ofstream out(path);
+  out << fmt::format("{{\"command\": \"{}\", \"device\": \"{}\", \"width\": {}, \"height\": {}, \"reference_spp\": {}, "
+                     "\"reference_bounces\": {},\n \"runs\": [",
+                     o.command_line, device, o.width, o.height, o.reference_spp, o.reference_bounces);
+  for (std::size_t i = 0; i < results.size(); ++i) {
+    const RunResult& r = results[i];
+    const StudyConfig& c = r.config;
+    out << fmt::format(
+        "{}\n  {{\"dataset\": \"{}\", \"scenario\": \"{}\", \"knob\": \"{}\", \"config\": \"{}\", \"method\": \"{}\", "
+        "\"demodulate\": {}, \"spp\": {}, \"bounces\": {}, \"jpeg_quality\": {}, \"scale\": {}, \"frames\": {}, "
+        "\"psnr\": {:.4f}, \"ssim\": {:.5f}, \"rel_mse\": {:.6g}, \"temporal\": {:.6f}, \"ms\": {{\"render\": {:.4f}, "
+        "\"denoise\": {:.4f}, \"tonemap\": {:.4f}, \"encode\": {:.4f}, \"total\": {:.4f}}}}}",
+        i ? "," : "", r.dataset, r.scenario, c.knob, c.Label(), ToString(c.method), c.demodulate ? "true" : "false",
+        c.spp, c.bounces, c.jpeg_quality, c.scale, r.frames.size(), r.Mean(&FrameResult::psnr),
+        r.Mean(&FrameResult::ssim), r.Mean(&FrameResult::rel_mse), r.Mean(&FrameResult::temporal),
+        r.Mean(&FrameResult::render_ms), r.Mean(&FrameResult::denoise_ms), r.Mean(&FrameResult::tonemap_ms),
+        r.Mean(&FrameResult::encode_ms), r.MeanMs());
+  }
+  out << "]}\n";
+}
+
+}  // namespace
+
+std::vector<RunResult> RunStudy(const StudyOptions& o) {
+  auto renderer = CreateRenderer(ParseBackend(o.backend));
+  const bool cuda = renderer->Name() == "cuda";
+  Context ctx{o, *renderer, cuda ? DenoiseBackend::kCuda : DenoiseBackend::kCpu, nullptr};
+#if CINEVOL_WITH_CUDA
+  ctx.display = cuda ? MakeCudaDisplay() : MakeCpuDisplay();
+#else
+  ctx.display = MakeCpuDisplay();
+#endif
+  std::string device;
+  if (!CudaAvailable(&device) || !cuda) device = "cpu";
+  std::vector<RunResult> results;
+  for (const Dataset& d : o.datasets) {
+    v1::Scene scene = LoadSceneFile(d.scene);
+    if (!d.volume.empty()) *scene.mutable_volume() = ParseVolumeSpec(d.volume);
+    scene.mutable_render()->set_width(o.width);
+    scene.mutable_render()->set_height(o.height);
+    const std::string scene_json = SceneToJson(scene);
+    auto volume = std::make_shared<const Volume>(LoadVolume(scene.volume()));
+    const RenderSetup setup = ResolveScene(scene, *volume);
+    ctx.exposure = setup.exposure;
+    renderer->SetVolume(volume);
+    for (const Scenario& s : MakeScenarios(setup, *volume, o.frames_scale)) {
+      if (!o.scenarios.empty() && std::find(o.scenarios.begin(), o.scenarios.end(), s.name) == o.scenarios.end()) {
+        continue;
+      }
+      const Clock::time_point start = Clock::now();
+      const References refs = LoadReferences(ctx, d, scene_json, s);
+      std::fprintf(stderr, "%s/%s: %d frames, references in %.1f s\n", d.name.c_str(), s.name.c_str(), s.frames,
+                   MsSince(start) / 1000);
+      const int image_frame = s.frames / 2;
+      fs::path images;
+      if (!o.out.empty()) {
+        images = o.out / "images" / d.name / s.name;
+        fs::create_directories(images);
+        WriteFile(images / "reference.png", EncodePng(refs.display[image_frame]));
+      }
+      for (const StudyConfig& c : o.configs) {
+        const fs::path image = images.empty() || c.knob != "denoiser" ? fs::path() : images / (Slug(c.Label()) + ".png");
+        RunResult run = RunConfig(ctx, s, refs, c, image, image_frame);
+        run.dataset = d.name;
+        std::fprintf(stderr, "  %-22s PSNR %6.2f  SSIM %.4f  temporal %.4f  %7.2f ms\n", c.Label().c_str(),
+                     run.Mean(&FrameResult::psnr), run.Mean(&FrameResult::ssim), run.Mean(&FrameResult::temporal),
+                     run.MeanMs());
+        results.push_back(std::move(run));
+      }
+    }
+  }
+  if (!o.out.empty()) {
+    fs::create_directories(o.out);
+    WriteCsv(o.out / "tradeoff.csv", results);
+    WriteJson(o.out / "tradeoff.json", o, device, results);
+    std::ofstream(o.out / "tradeoff.md") << SummaryTable(results);
+  }
+  return results;
+}
+
+std::string SummaryTable(const std::vector<RunResult>& results) {
+  std::string t;
+  std::string current;
+  for (const RunResult& r : results) {
+    const std::string heading = r.dataset + " / " + r.scenario;
+    if (heading != current) {
+      current = heading;
+      t += fmt::format("\n#### {} ({} frames)\n\n| configuration | PSNR dB | SSIM | relMSE | temporal error | ms "
+                       "(render + denoise + tone map + encode) |\n|---|---|---|---|---|---|\n",
+                       heading, r.frames.size());
+    }
+    t += fmt::format("| {} | {:.2f} | {:.4f} | {:.4g} | {:.4f} | {:.2f} ({:.2f} + {:.2f} + {:.2f} + {:.2f}) |\n",
+                     r.config.Label(), r.Mean(&FrameResult::psnr), r.Mean(&FrameResult::ssim),
+                     r.Mean(&FrameResult::rel_mse), r.Mean(&FrameResult::temporal), r.MeanMs(),
+                     r.Mean(&FrameResult::render_ms), r.Mean(&FrameResult::denoise_ms),
+                     r.Mean(&FrameResult::tonemap_ms), r.Mean(&FrameResult::encode_ms));
+  }
+  return t;
+}
+
+}  // namespace cinevol::bench

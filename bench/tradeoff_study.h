@@ -1,0 +1,76 @@
+// The speed/accuracy study behind `cinevol-bench tradeoff` (docs/tradeoff.md):
+// the wRLS paper's interaction scenarios (Sec. 7) on real volumes, every
+// frame rendered at a low sample count, denoised, displayed (and JPEG coded)
+// as a viewer sees it, and compared with a high-spp reference of the same
+// frame, cached on disk. Each knob that buys speed (denoiser, samples per
+// pixel, bounces, JPEG quality, resolution) is swept around a baseline.
+#pragma once
+
+#include <filesystem>
+#include <string>
+#include <vector>
+
+#include "denoise/denoiser.h"
+
+namespace cinevol::bench {
+
+struct Dataset {
+  std::string name;    // "ct-head-cthead"
+  std::string scene;   // scene file
+  std::string volume;  // overrides the scene's volume when set
+};
+
+// One point of the study: a denoiser and the knobs around it.
+struct StudyConfig {
+  std::string knob = "denoiser";  // the sweep it belongs to: denoiser, spp, bounces, jpeg, scale
+  DenoiseMethod method = DenoiseMethod::kWrls;
+  bool demodulate = false;
+  int spp = 2;           // samples per pixel per frame
+  int bounces = 4;       // scattering events per path
+  int jpeg_quality = 0;  // 0: the display image as rendered (no JPEG)
+  float scale = 1;       // resolution scale: rendered smaller, upsampled for display
+  std::string Label() const;
+};
+
+// The baseline and one-at-a-time sweeps of every knob; `quick` a small subset.
+std::vector<StudyConfig> StudyConfigs(bool quick);
+
+struct StudyOptions {
+  std::vector<Dataset> datasets;
+  std::vector<std::string> scenarios;  // empty: all (orbit, area-light, point-light, tf-edit, static, transparent)
+  std::vector<StudyConfig> configs;
+  int width = 1280, height = 720;
+  float frames_scale = 1;  // scenario lengths times this (CI: small)
+  int reference_spp = 1024;
+  int reference_bounces = 8;
+  std::filesystem::path cache = "bench-cache";  // references, as EXR
+  std::filesystem::path out;                     // tradeoff.csv, tradeoff.json, images/ (none when empty)
+  std::string backend = "auto";
+  std::string command_line;
+};
+
+struct FrameResult {
+  int frame = 0;
+  double psnr = 0, ssim = 0, rel_mse = 0;
+  double temporal = 0;  // 0 on the first frame
+  double render_ms = 0, denoise_ms = 0, tonemap_ms = 0, encode_ms = 0;
+};
+
+struct RunResult {
+  std::string dataset, scenario;
+  StudyConfig config;
+  std::vector<FrameResult> frames;
+  // Means over frames; temporal over frames 1.. ; times over all frames.
+  double Mean(double FrameResult::*field) const;
+  double MeanMs() const;  // render + denoise + tone map + encode
+};
+
+std::vector<std::string> ScenarioNames();
+
+// Runs the whole study; writes results when options.out is set.
+std::vector<RunResult> RunStudy(const StudyOptions& options);
+
+// Markdown: per scenario, every configuration's means.
+std::string SummaryTable(const std::vector<RunResult>& results);
+
+}  // namespace cinevol::bench
