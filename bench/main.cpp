@@ -75,7 +75,7 @@ int main(int argc, char** argv) {
   // The speed/accuracy study: --dataset NAME=SCENE[,VOLUME] (repeatable).
   cinevol::bench::StudyOptions study;
   study.command_line = command_line;
-  std::vector<std::string> datasets, scenarios;
+  std::vector<std::string> datasets, scenarios, variants;
   bool quick = false;
   std::string out = "tradeoff-results", cache = "bench-cache";
   auto* t = app.add_subcommand("tradeoff", "Quality against time per frame for every knob, on the paper's scenarios");
@@ -90,6 +90,9 @@ int main(int argc, char** argv) {
   t->add_option("--out", out, "Results folder: tradeoff.csv, .json, .md, images/")->capture_default_str();
   t->add_option("--backend", study.backend, "auto, cpu or cuda")->capture_default_str();
   t->add_flag("--quick", quick, "A small subset of the configurations");
+  t->add_option("--variant", variants, "Also a wRLS variant NAME:key=value,... (repeatable; ablations)");
+  bool variants_only = false;
+  t->add_flag("--variants-only", variants_only, "Only none, svgf, the default wrls and the variants");
   t->callback([&] {
     for (const std::string& spec : datasets) {
       const auto eq = spec.find('='), comma = spec.find(',', eq);
@@ -99,6 +102,14 @@ int main(int argc, char** argv) {
     }
     study.scenarios = scenarios;
     study.configs = cinevol::bench::StudyConfigs(quick);
+    if (variants_only) {
+      std::erase_if(study.configs, [](const auto& c) {
+        return c.knob != "denoiser" || c.demodulate ||
+               (c.method != cinevol::DenoiseMethod::kNone && c.method != cinevol::DenoiseMethod::kSvgf &&
+                c.method != cinevol::DenoiseMethod::kWrls);
+      });
+    }
+    for (const std::string& v : variants) study.configs.push_back(cinevol::bench::WrlsVariant(v));
     study.cache = cache;
     study.out = out;
     const auto results = cinevol::bench::RunStudy(study);

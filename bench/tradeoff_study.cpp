@@ -7,6 +7,9 @@
 #include <fstream>
 #include <functional>
 #include <map>
+#include <sstream>
+
+#include "core/error.h"
 
 #include <fmt/format.h>
 
@@ -248,6 +251,7 @@ RunResult RunConfig(Context& ctx, const Scenario& scenario, const References& re
   DenoiserSettings settings;
   settings.method = c.method;
   settings.demodulate = c.demodulate;
+  settings.wrls = c.wrls;
   auto denoiser = CreateDenoiser(ctx.denoise_backend, settings);
   const int w = std::max(1, int(std::lround(ctx.o.width * c.scale))), h = std::max(1, int(std::lround(ctx.o.height * c.scale)));
   const TransferFunction* tf = nullptr;
@@ -308,8 +312,36 @@ RunResult RunConfig(Context& ctx, const Scenario& scenario, const References& re
 
 // --- Public ------------------------------------------------------------------------
 
+StudyConfig WrlsVariant(const std::string& spec) {
+  StudyConfig c;
+  const auto colon = spec.find(':');
+  c.variant = spec.substr(0, colon);
+  if (colon == std::string::npos) return c;
+  std::istringstream items(spec.substr(colon + 1));
+  for (std::string item; std::getline(items, item, ',');) {
+    const auto eq = item.find('=');
+    if (eq == std::string::npos) throw InputError(fmt::format("--variant {}: '{}' is not key=value", spec, item));
+    const std::string key = item.substr(0, eq);
+    const float v = std::stof(item.substr(eq + 1));
+    WrlsSettings& s = c.wrls;
+    if (key == "alpha") s.alpha = v;
+    else if (key == "bandwidth") s.bandwidth = v;
+    else if (key == "lambda") s.lambda = v;
+    else if (key == "radius") s.spatial_radius = int(v);
+    else if (key == "atrous") s.atrous_iterations = int(v);
+    else if (key == "sigma_luminance") s.atrous_sigma_luminance = v;
+    else if (key == "sigma_depth") s.atrous_sigma_depth = v;
+    else if (key == "still") s.max_still_frames = int(v);
+    else if (key == "residual_rate") s.residual_rate = v;
+    else if (key == "firefly") s.firefly_clamp = v;
+    else throw InputError(fmt::format("--variant {}: unknown key '{}'", spec, key));
+  }
+  return c;
+}
+
 std::string StudyConfig::Label() const {
   std::string label = ToString(method);
+  if (!variant.empty()) label += "[" + variant + "]";
   if (demodulate) label += "+demod";
   if (knob == "spp") label += fmt::format(" {}spp", spp);
   if (knob == "bounces") label += fmt::format(" {}bounces", bounces);

@@ -259,9 +259,11 @@ struct SvgfVariancePass {
   }
 };
 
-// One a-trous level: 5x5 B-spline taps 2^level apart, stopped at depth and
-// luminance edges (the latter scaled by the local standard deviation).
-struct SvgfAtrousPass {
+// One a-trous level (SVGF's, and wRLS's spatial stage): 5x5 B-spline taps
+// `step` apart, stopped at depth and luminance edges (the latter scaled by the
+// local standard deviation); the variance in w goes through with the squared
+// weights.
+struct AtrousPass {
   const Vec4f* in;
   Vec4f* out;
   const Vec4f* first_hit;

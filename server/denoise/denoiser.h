@@ -40,6 +40,15 @@ struct WrlsSettings {
   float spatial_sigma = 1.5f;    // pixels: Gaussian falloff of the spatial blend
   float range_sigma = 0.3f;      // relative feature difference at which a neighbour's weight falls by e^-0.5
   float firefly_clamp = 4.0f;    // >= 1: the sample entering z is clamped to this times the local level (neighbours' mean, history)
+  // A view that stays still accumulates: the feature's history weight grows
+  // as 1 - 1/n over the still frames, up to this many (1: never; alpha always).
+  int max_still_frames = 1024;
+  float residual_rate = 0.1f;    // (0, 1]: how fast the model's residual variance follows new frames
+  // A-trous levels after the 5x5 stage (steps 2, 4, 8, 16), stopped at depth
+  // and at luminance edges scaled by the deviation the RLS fit predicts.
+  int atrous_iterations = 4;     // [0, 4]
+  float atrous_sigma_luminance = 4.0f;
+  float atrous_sigma_depth = 1.0f;
 };
 
 // Progressive accumulation, reset whenever the camera or scene changes

@@ -210,7 +210,7 @@ class Svgf final : public DenoiserBase<B> {
     B::ForEachPixel(w, h, SvgfTemporalPass{rv, input, prev_history_.data(), history_.data(), s});
     B::ForEachPixel(w, h, SvgfVariancePass{history_.data(), frame.first_hit, a_.data(), w, h});
     for (int level = 0; level < s.iterations; ++level) {
-      B::ForEachPixel(w, h, SvgfAtrousPass{a_.data(), b_.data(), frame.first_hit, frame.camera, w, h, 1 << level,
+      B::ForEachPixel(w, h, AtrousPass{a_.data(), b_.data(), frame.first_hit, frame.camera, w, h, 1 << level,
                                            s.sigma_luminance, s.sigma_depth});
       if (level == 0) B::ForEachPixel(w, h, SvgfFeedbackPass{b_.data(), history_.data(), w});
       std::swap(a_, b_);
@@ -229,28 +229,43 @@ class Svgf final : public DenoiserBase<B> {
   typename DenoiserBase<B>::template Buffer<Vec4f> a_, b_;
 };
 
+// wRLS: the temporal pass (feature and models), the paper's 5x5 blend of the
+// neighbours' predictions, then a-trous levels guided by the variance the
+// fit predicts.
 template <class B>
 class Wrls final : public DenoiserBase<B> {
  protected:
-  void Run(const DenoiseFrame&, const Vec3f* input, const ReprojectionView& rv, Vec3f* output) override {
+  void Run(const DenoiseFrame& frame, const Vec3f* input, const ReprojectionView& rv, Vec3f* output) override {
     const WrlsSettings& s = this->settings_.wrls;
     const int w = this->width_, h = this->height_;
+    still_frames_ = this->SameScene(frame) ? still_frames_ + 1 : 0;
     std::swap(feature_, prev_feature_);
     std::swap(model_, prev_model_);
     B::ForEachPixel(w, h, WrlsTemporalPass{rv, input, prev_feature_.data(), prev_model_.data(), feature_.data(),
-                                           model_.data(), s});
-    B::ForEachPixel(w, h, WrlsSpatialPass{rv, feature_.data(), model_.data(), output, s});
+                                           model_.data(), s, still_frames_});
+    B::ForEachPixel(w, h, WrlsSpatialPass{rv, feature_.data(), model_.data(), a_.data(), s});
+    for (int level = 0; level < s.atrous_iterations; ++level) {
+      B::ForEachPixel(w, h, AtrousPass{a_.data(), b_.data(), frame.first_hit, frame.camera, w, h, 2 << level,
+                                       s.atrous_sigma_luminance, s.atrous_sigma_depth});
+      std::swap(a_, b_);
+    }
+    B::ForEachPixel(w, h, ColorOfPass{a_.data(), output, w});
   }
   void Allocate(std::size_t n) override {
     feature_.Resize(n);
     prev_feature_.Resize(n);
     model_.Resize(n);
     prev_model_.Resize(n);
+    a_.Resize(n);
+    b_.Resize(n);
   }
+  void ResetHistory() override { still_frames_ = 0; }
 
  private:
   typename DenoiserBase<B>::template Buffer<Vec3f> feature_, prev_feature_;
   typename DenoiserBase<B>::template Buffer<WrlsModel> model_, prev_model_;
+  typename DenoiserBase<B>::template Buffer<Vec4f> a_, b_;  // prediction and its variance, per a-trous level
+  int still_frames_ = 0;
 };
 
 template <class B>

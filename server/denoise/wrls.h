@@ -32,6 +32,13 @@ struct WrlsModel {
   float scale = 0;    // s
   Vec3f beta0, beta1; // I/s = beta0 + beta1 z/s, per channel
   Vec3f p00, p01, p11;  // P per channel (symmetric 2x2)
+  // Weighted mean square of the luminance residual (sample - prediction), in
+  // units of s^2: the noise the fit sees. < 0 until the first sample.
+  float residual = -1;
+  // How many samples' worth the feature z holds (its variance is the
+  // samples' over this): 1 for a fresh pixel, (1 + alpha) / (1 - alpha) for
+  // the paper's moving average, growing with every frame of a still view.
+  float samples = 0;
 };
 
 inline constexpr float kWrlsMinScale = 1e-20f;
@@ -46,6 +53,8 @@ CINEVOL_HD WrlsModel InitialModel(Vec3f z, float initial_p) {
   m.beta1 = {1, 1, 1};
   m.p00 = m.p11 = {initial_p, initial_p, initial_p};
   m.p01 = {0, 0, 0};
+  m.residual = -1;
+  m.samples = 0;
   return m;
 }
 
@@ -65,7 +74,23 @@ CINEVOL_HD void Rescale(WrlsModel& m, float scale) {
   m.beta0 *= r;
   m.p01 *= r;
   m.p11 *= r * r;
+  if (m.residual > 0) m.residual *= r * r;
   m.scale = scale;
+}
+
+// Variance of the model's prediction at feature z (radiance^2), from the
+// residual variance the fit sees: the feature's noise carried by the slope
+// (beta1^2 / samples) plus the fit's own uncertainty (p'Pp), averaged over
+// channels.
+CINEVOL_HD float PredictionVariance(const WrlsModel& m, Vec3f z) {
+  if (!(m.residual >= 0.0f) || !(m.samples >= 1.0f)) return 0.0f;
+  const float inv = 1.0f / m.scale;
+  float sum = 0.0f;
+  for (int c = 0; c < 3; ++c) {
+    const float u = z[c] * inv;
+    sum += m.beta1[c] * m.beta1[c] / m.samples + m.p00[c] + 2.0f * m.p01[c] * u + m.p11[c] * u * u;
+  }
+  return m.residual * (sum * (1.0f / 3.0f)) * m.scale * m.scale;
 }
 
 // Eq. 13: relative distance of the sample from the feature, as a weight.
@@ -108,6 +133,7 @@ struct WrlsTemporalPass {
   Vec3f* feature;              // z of this frame
   WrlsModel* model;
   WrlsSettings s;
+  int still_frames;            // frames the view has stayed still (0: it moved or changed)
 
   CINEVOL_HD void operator()(int x, int y) const {
     const int i = rv.Index(x, y);
@@ -117,8 +143,8 @@ struct WrlsTemporalPass {
     // level of the centre's neighbours (with the history) caps what a firefly
     // can add to z.
     Vec3f lo{3.4e38f, 3.4e38f, 3.4e38f}, hi{-3.4e38f, -3.4e38f, -3.4e38f};
-    float neighbour_sum = 0.0f;
-    int neighbours = 0;
+    float neighbour_sum = 0.0f, luma_sum = 0.0f, luma_sq = 0.0f;
+    int neighbours = 0, finite = 0;
     for (int dy = -1; dy <= 1; ++dy) {
       for (int dx = -1; dx <= 1; ++dx) {
         if (!rv.InBounds(x + dx, y + dy)) continue;
@@ -126,6 +152,10 @@ struct WrlsTemporalPass {
         if (!IsFinite(c)) continue;
         lo = Min(lo, c);
         hi = Max(hi, c);
+        const float l = Luminance(c);
+        luma_sum += l;
+        luma_sq += l * l;
+        ++finite;
         if (dx != 0 || dy != 0) {
           neighbour_sum += MaxComponent(c);
           ++neighbours;
@@ -136,27 +166,52 @@ struct WrlsTemporalPass {
     const Vec4f hit = rv.first_hit[i];
     Vec3f history;
     const bool has_history = r.valid && SampleHistory(rv, prev_feature, r, hit, history) && IsFinite(history);
-    if (has_history && lo.x <= hi.x) history = Min(Max(history, lo), hi);
+    // A still view's history is exact: it is not rectified, and it weighs as
+    // many samples as it holds, so z becomes the running mean.
+    const bool still = still_frames > 0 && has_history;
+    if (has_history && !still && lo.x <= hi.x) history = Min(Max(history, lo), hi);
 
     const float level = fmaxf(neighbours > 0 ? neighbour_sum / float(neighbours) : 0.0f,
                               has_history ? MaxComponent(history) : 0.0f);
     const float cap = s.firefly_clamp * level;
     Vec3f entering = sample_ok ? Min(Max(sample, Vec3f{}), Vec3f{cap, cap, cap}) : Vec3f{};
     if (!sample_ok && has_history) entering = history;
-    // Eq. 12, all three channels together.
-    const Vec3f z = has_history ? history * s.alpha + entering * (1.0f - s.alpha) : entering;
-    feature[i] = z;
 
-    WrlsModel m = r.valid ? prev_model[rv.Index(r.nx, r.ny)] : InitialModel(z, s.initial_p);
-    if (!Healthy(m, s.max_coefficient)) m = InitialModel(z, s.initial_p);
+    WrlsModel m = r.valid ? prev_model[rv.Index(r.nx, r.ny)] : InitialModel(entering, s.initial_p);
+    if (!Healthy(m, s.max_coefficient)) m = InitialModel(entering, s.initial_p);
+    // Eq. 12, all three channels together, with the sample's share starting
+    // as a running mean (1, 1/2, 1/3, ...) down to the paper's 1 - alpha, or
+    // on down to 1 / max_still_frames while the view stays still.
+    const float held = has_history ? m.samples : 0.0f;
+    const float floor_share = still ? 1.0f / float(s.max_still_frames > 1 ? s.max_still_frames : 1) : 1.0f - s.alpha;
+    const float share = fmaxf(1.0f / (held + 1.0f), floor_share);
+    const Vec3f z = has_history ? history * (1.0f - share) + entering * share : entering;
+    feature[i] = z;
+    // Exact variance bookkeeping: z = (1 - a) h + a x, var(h) = v / held.
+    m.samples = held > 0.0f ? 1.0f / (Sqr(1.0f - share) / held + Sqr(share)) : 1.0f;
     const float magnitude = MeanComponent(Abs(z));
     if (magnitude > 16.0f * m.scale || magnitude * 16.0f < m.scale) Rescale(m, fmaxf(magnitude, kWrlsMinScale));
 
     if (sample_ok) {
       const float w = SampleWeight(sample, z, s.bandwidth, 1e-3f * m.scale);
       const float inv_scale = 1.0f / m.scale;
+      Vec3f error;
+      for (int c = 0; c < 3; ++c) error[c] = sample[c] * inv_scale - (m.beta0[c] + m.beta1[c] * z[c] * inv_scale);
+      if (m.residual < 0.0f) {
+        // A fresh model has seen nothing yet: its first estimate of the noise
+        // is the 3x3 neighbourhood's luminance variance.
+        const float mean = finite > 0 ? luma_sum / float(finite) : 0.0f;
+        m.residual = finite > 1 ? fmaxf(luma_sq / float(finite) - mean * mean, 0.0f) * inv_scale * inv_scale : 0.0f;
+      } else {
+        m.residual += s.residual_rate * w * (Sqr(Luminance(error)) - m.residual);
+      }
       for (int c = 0; c < 3; ++c) UpdateChannel(m, c, z[c] * inv_scale, sample[c] * inv_scale, w, s);
-      if (!Healthy(m, s.max_coefficient)) m = InitialModel(z, s.initial_p);
+      if (!Healthy(m, s.max_coefficient)) {
+        const float samples = m.samples, residual = m.residual;
+        m = InitialModel(z, s.initial_p);
+        m.samples = samples;
+        m.residual = isfinite(residual) ? residual : -1.0f;
+      }
     }
     model[i] = m;
   }
@@ -171,7 +226,7 @@ struct WrlsSpatialPass {
   ReprojectionView rv;  // first_hit only: volume and background do not mix
   const Vec3f* feature;
   const WrlsModel* model;
-  Vec3f* output;
+  Vec4f* output;  // rgb prediction, w its variance
   WrlsSettings s;
 
   CINEVOL_HD void operator()(int x, int y) const {
@@ -181,7 +236,7 @@ struct WrlsSpatialPass {
     const float z2 = Dot(z, z);
     const float inv_spatial = 1.0f / (2.0f * s.spatial_sigma * s.spatial_sigma);
     Vec3f sum{};
-    float weight = 0.0f;
+    float weight = 0.0f, variance = 0.0f;
     for (int dy = -s.spatial_radius; dy <= s.spatial_radius; ++dy) {
       for (int dx = -s.spatial_radius; dx <= s.spatial_radius; ++dx) {
         const int nx = x + dx, ny = y + dy;
@@ -194,11 +249,13 @@ struct WrlsSpatialPass {
         const float w = expf(-float(dx * dx + dy * dy) * inv_spatial - range);
         const WrlsModel& m = model[k];
         sum += (m.beta0 * m.scale + m.beta1 * zk) * w;
+        variance += PredictionVariance(m, zk) * w * w;
         weight += w;
       }
     }
     const Vec3f out = weight > 0.0f ? sum / weight : z;
-    output[i] = IsFinite(out) ? Max(out, Vec3f{}) : z;
+    const float v = weight > 0.0f ? variance / (weight * weight) : 0.0f;
+    output[i] = ToVec4(IsFinite(out) ? Max(out, Vec3f{}) : z, isfinite(v) ? v : 0.0f);
   }
 };
 
