@@ -334,6 +334,7 @@ StudyConfig WrlsVariant(const std::string& spec) {
     else if (key == "still") s.max_still_frames = int(v);
     else if (key == "residual_rate") s.residual_rate = v;
     else if (key == "firefly") s.firefly_clamp = v;
+
     else throw InputError(fmt::format("--variant {}: unknown key '{}'", spec, key));
   }
   return c;

@@ -65,6 +65,7 @@ class DenoiserBase : public Denoiser {
     rv.width = width_;
     rv.height = height_;
     rv.has_history = has_history_;
+    rv.still = SameScene(frame);
     Run(frame, input, rv, output_.data());
     if (settings_.demodulate) B::ForEachPixel(width_, height_, RemodulatePass{frame.albedo, output_.data(), width_});
     prev_first_hit_.CopyFrom(frame.first_hit, pixels());
@@ -164,7 +165,11 @@ class GuidedFilter final : public DenoiserBase<B> {
     const GuidedFilterSettings& s = this->settings_.guided;
     const int w = this->width_, h = this->height_;
     std::swap(feature_, prev_feature_);
-    B::ForEachPixel(w, h, TemporalFeaturePass{rv, input, prev_feature_.data(), feature_.data(), s.alpha});
+    // Measured: on a still view, identity reprojection makes this guide worse
+    // (-1 dB, CThead static scenario), so the guided filter keeps reprojecting.
+    ReprojectionView moving = rv;
+    moving.still = false;
+    B::ForEachPixel(w, h, TemporalFeaturePass{moving, input, prev_feature_.data(), feature_.data(), s.alpha});
     const GuideView guide{feature_.data(), frame.first_hit, frame.camera, 1.0f / fmaxf(Length(frame.camera.eye), 1e-3f)};
     B::ForEachPixel(w, h, GuidedMomentsPass{input, guide, moments_.data(), w});
     B::ForEachPixel(w, h, BoxPass<GuidedMoments>{moments_.data(), moments_tmp_.data(), w, h, s.radius, true});
@@ -238,7 +243,7 @@ class Wrls final : public DenoiserBase<B> {
   void Run(const DenoiseFrame& frame, const Vec3f* input, const ReprojectionView& rv, Vec3f* output) override {
     const WrlsSettings& s = this->settings_.wrls;
     const int w = this->width_, h = this->height_;
-    still_frames_ = this->SameScene(frame) ? still_frames_ + 1 : 0;
+    still_frames_ = rv.still ? still_frames_ + 1 : 0;
     std::swap(feature_, prev_feature_);
     std::swap(model_, prev_model_);
     B::ForEachPixel(w, h, WrlsTemporalPass{rv, input, prev_feature_.data(), prev_model_.data(), feature_.data(),

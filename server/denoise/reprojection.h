@@ -17,6 +17,10 @@ struct ReprojectionView {
   Camera camera, prev_camera;
   int width = 0, height = 0;
   bool has_history = false;
+  // Nothing moved or changed since the previous frame: every pixel is its own
+  // history, whatever its rays hit this time (at a few samples a pixel on a
+  // semi-transparent edge may escape in one frame and hit in the next).
+  bool still = false;
   float max_error_px = 2.0f;  // round trip tolerance
 
   CINEVOL_HD int Index(int x, int y) const { return y * width + x; }
@@ -40,6 +44,14 @@ CINEVOL_HD bool Escaped(const Vec4f& hit) { return hit.w == 0.0f; }
 CINEVOL_HD Reprojection Reproject(const ReprojectionView& v, int x, int y) {
   Reprojection r;
   if (!v.has_history) return r;
+  if (v.still) {
+    r.x = float(x);
+    r.y = float(y);
+    r.nx = x;
+    r.ny = y;
+    r.valid = true;
+    return r;
+  }
   const Vec4f hit = v.first_hit[v.Index(x, y)];
   float px, py;
   if (Escaped(hit)) {
@@ -70,6 +82,10 @@ CINEVOL_HD Reprojection Reproject(const ReprojectionView& v, int x, int y) {
 template <class T>
 CINEVOL_HD bool SampleHistory(const ReprojectionView& v, const T* history, const Reprojection& r, const Vec4f& hit,
                               T& out) {
+  if (v.still) {
+    out = history[v.Index(r.nx, r.ny)];
+    return true;
+  }
   const int x0 = static_cast<int>(floorf(r.x)), y0 = static_cast<int>(floorf(r.y));
   const float fx = r.x - float(x0), fy = r.y - float(y0);
   T sum{};

@@ -58,6 +58,15 @@ CINEVOL_HD WrlsModel InitialModel(Vec3f z, float initial_p) {
   return m;
 }
 
+// Starts the fit afresh at feature z; what the model knows of the feature
+// (its samples and their noise) stays.
+CINEVOL_HD void Refit(WrlsModel& m, Vec3f z, float initial_p) {
+  const float samples = m.samples, residual = m.residual;
+  m = InitialModel(z, initial_p);
+  m.samples = isfinite(samples) ? samples : 0.0f;
+  m.residual = isfinite(residual) ? residual : -1.0f;
+}
+
 CINEVOL_HD bool Healthy(const WrlsModel& m, float max_coefficient) {
   if (!(m.scale >= kWrlsMinScale) || !isfinite(m.scale)) return false;
   for (int c = 0; c < 3; ++c) {
@@ -178,7 +187,7 @@ struct WrlsTemporalPass {
     if (!sample_ok && has_history) entering = history;
 
     WrlsModel m = r.valid ? prev_model[rv.Index(r.nx, r.ny)] : InitialModel(entering, s.initial_p);
-    if (!Healthy(m, s.max_coefficient)) m = InitialModel(entering, s.initial_p);
+    if (!Healthy(m, s.max_coefficient)) Refit(m, entering, s.initial_p);
     // Eq. 12, all three channels together, with the sample's share starting
     // as a running mean (1, 1/2, 1/3, ...) down to the paper's 1 - alpha, or
     // on down to 1 / max_still_frames while the view stays still.
@@ -206,12 +215,7 @@ struct WrlsTemporalPass {
         m.residual += s.residual_rate * w * (Sqr(Luminance(error)) - m.residual);
       }
       for (int c = 0; c < 3; ++c) UpdateChannel(m, c, z[c] * inv_scale, sample[c] * inv_scale, w, s);
-      if (!Healthy(m, s.max_coefficient)) {
-        const float samples = m.samples, residual = m.residual;
-        m = InitialModel(z, s.initial_p);
-        m.samples = samples;
-        m.residual = isfinite(residual) ? residual : -1.0f;
-      }
+      if (!Healthy(m, s.max_coefficient)) Refit(m, z, s.initial_p);
     }
     model[i] = m;
   }

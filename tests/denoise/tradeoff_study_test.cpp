@@ -1,0 +1,51 @@
+// A tiny CPU run of the speed/accuracy study (docs/tradeoff.md): every
+// scenario on the head phantom at 96x64, every denoiser. It guards the
+// study's numbers (nothing NaN) and wRLS's standing: well above the noisy
+// input everywhere, and not behind SVGF on the camera orbit.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <map>
+
+#include "support/test_paths.h"
+#include "tradeoff_study.h"
+
+namespace cinevol::bench {
+namespace {
+
+TEST(TradeoffStudy, TinyRunKeepsWrlsAheadAndNumbersFinite) {
+  testing::ScratchDir scratch;
+  StudyOptions o;
+  o.datasets = {{"phantom", std::string(CINEVOL_SOURCE_DIR) + "/examples/ct-bone.json", "phantom:head?size=64"}};
+  o.width = 96;
+  o.height = 64;
+  o.frames_scale = 0.3f;
+  o.reference_spp = 128;
+  o.backend = "cpu";
+  o.cache = scratch / "cache";
+  o.out = scratch / "out";
+  o.configs = StudyConfigs(/*quick=*/true);
+  const std::vector<RunResult> results = RunStudy(o);
+  ASSERT_EQ(results.size(), ScenarioNames().size() * o.configs.size());
+
+  std::map<std::string, std::map<std::string, double>> psnr;  // scenario -> config -> mean PSNR
+  for (const RunResult& r : results) {
+    for (const FrameResult& f : r.frames) {
+      for (double v : {f.psnr, f.ssim, f.rel_mse, f.temporal, f.render_ms, f.denoise_ms, f.tonemap_ms, f.encode_ms}) {
+        ASSERT_TRUE(std::isfinite(v)) << r.scenario << " " << r.config.Label() << " frame " << f.frame;
+      }
+    }
+    psnr[r.scenario][r.config.Label()] = r.Mean(&FrameResult::psnr);
+  }
+  for (const auto& [scenario, by_config] : psnr) {
+    EXPECT_GT(by_config.at("wrls"), by_config.at("none") + 3.0) << scenario;
+  }
+  EXPECT_GE(psnr["orbit"]["wrls"], psnr["orbit"]["svgf"]) << "wRLS fell behind SVGF on the camera orbit";
+  EXPECT_GT(psnr["static"]["wrls"], psnr["static"]["svgf"]) << "a still view should converge";
+  EXPECT_TRUE(std::filesystem::exists(o.out / "tradeoff.csv"));
+  EXPECT_TRUE(std::filesystem::exists(o.out / "tradeoff.json"));
+  EXPECT_TRUE(std::filesystem::exists(o.out / "images" / "phantom" / "orbit" / "reference.png"));
+}
+
+}  // namespace
+}  // namespace cinevol::bench
