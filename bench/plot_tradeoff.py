@@ -103,20 +103,20 @@ def plot_strip(results, runs, dataset, scenario, out):
         return
     labels = [c for (d, s, c), rows in sorted(runs.items())
               if d == dataset and s == scenario and rows[0]["knob"] == "denoiser"
-              and os.path.exists(os.path.join(folder, c.replace("+", "_") + ".png"))]
+              and os.path.exists(os.path.join(folder, c.replace("+", "_") + ".jpg"))]
     labels = ["none"] + [c for c in labels if c != "none"] if "none" in labels else labels
-    reference = plt.imread(os.path.join(folder, "reference.png"))[..., :3]
+    reference = plt.imread(os.path.join(folder, "reference.jpg"))[..., :3] / 255.0
     fig, axes = plt.subplots(2, len(labels) + 1, figsize=(2.6 * (len(labels) + 1), 3.4), squeeze=False)
     for i, label in enumerate(labels + ["reference"]):
         image = reference if label == "reference" else plt.imread(
-            os.path.join(folder, label.replace("+", "_") + ".png"))[..., :3]
+            os.path.join(folder, label.replace("+", "_") + ".jpg"))[..., :3] / 255.0
         axes[0][i].imshow(image)
         axes[0][i].set_title("noisy" if label == "none" else label, fontsize=8)
         error = abs(image - reference).mean(axis=2)
         axes[1][i].imshow(error, cmap="inferno", vmin=0, vmax=0.25)
         for row in (0, 1):
             axes[row][i].axis("off")
-    fig.suptitle(f"{dataset} / {scenario}, middle frame; below: |error| against the reference", fontsize=9)
+    fig.suptitle(f"{dataset} / {scenario}, middle frame (half size, JPEG 92); below: |error| against the reference", fontsize=9)
     fig.tight_layout()
     fig.savefig(os.path.join(out, f"strip-{dataset}-{scenario}.png"), dpi=110)
     plt.close(fig)

@@ -230,6 +230,27 @@ ImageRgbF UpsampleHdr(const ImageRgbF& image, int width, int height) {
   return out;
 }
 
+// Half size (2x2 means) for the illustration images.
+ImageRgb8 Half(const ImageRgb8& image) {
+  const int w = std::max(1, image.width / 2), h = std::max(1, image.height / 2);
+  ImageRgb8 out{w, h, std::vector<std::uint8_t>(std::size_t(w) * h * 3)};
+  for (int y = 0; y < h; ++y) {
+    for (int x = 0; x < w; ++x) {
+      for (int c = 0; c < 3; ++c) {
+        int sum = 0;
+        for (int dy = 0; dy < 2; ++dy) {
+          for (int dx = 0; dx < 2; ++dx) {
+            const int sx = std::min(2 * x + dx, image.width - 1), sy = std::min(2 * y + dy, image.height - 1);
+            sum += image.bytes[(std::size_t(sy) * image.width + sx) * 3 + c];
+          }
+        }
+        out.bytes[(std::size_t(y) * w + x) * 3 + c] = std::uint8_t((sum + 2) / 4);
+      }
+    }
+  }
+  return out;
+}
+
 struct References {
   std::vector<ImageRgbF> hdr;
   std::vector<ImageRgb8> display;
@@ -301,7 +322,7 @@ RunResult RunConfig(Context& ctx, const Scenario& scenario, const References& re
     fr.ssim = Ssim(shown, refs.display[t]);
     fr.rel_mse = RelativeMse(UpsampleHdr(denoiser->Output(), ctx.o.width, ctx.o.height), refs.hdr[t]);
     if (t > 0) fr.temporal = TemporalError(shown, previous, refs.display[t], refs.display[t - 1]);
-    if (!images.empty() && t == image_frame) WriteFile(images, EncodePng(shown));
+    if (!images.empty() && t == image_frame) WriteFile(images, EncodeJpeg(Half(shown), 92));
     previous = std::move(shown);
     run.frames.push_back(fr);
   }
@@ -510,10 +531,10 @@ std::vector<RunResult> RunStudy(const StudyOptions& o) {
       if (!o.out.empty()) {
         images = o.out / "images" / d.name / s.name;
         fs::create_directories(images);
-        WriteFile(images / "reference.png", EncodePng(refs.display[image_frame]));
+        WriteFile(images / "reference.jpg", EncodeJpeg(Half(refs.display[image_frame]), 92));
       }
       for (const StudyConfig& c : o.configs) {
-        const fs::path image = images.empty() || c.knob != "denoiser" ? fs::path() : images / (Slug(c.Label()) + ".png");
+        const fs::path image = images.empty() || c.knob != "denoiser" ? fs::path() : images / (Slug(c.Label()) + ".jpg");
         RunResult run = RunConfig(ctx, s, refs, c, image, image_frame);
         run.dataset = d.name;
         std::fprintf(stderr, "  %-22s PSNR %6.2f  SSIM %.4f  temporal %.4f  %7.2f ms\n", c.Label().c_str(),

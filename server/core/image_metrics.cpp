@@ -6,6 +6,7 @@
 #include <vector>
 #include <stdexcept>
 
+#include "core/parallel_for.h"
 #include "core/tone_map.h"
 
 namespace cinevol {
@@ -69,20 +70,22 @@ std::vector<float> Blur(const std::vector<float>& in, int width, int height) {
     return k;
   }();
   std::vector<float> tmp(in.size()), out(in.size());
-  for (int y = 0; y < height; ++y) {
+  ParallelFor(height, [&](std::int64_t y) {
     for (int x = 0; x < width; ++x) {
       float s = 0;
       for (int k = -5; k <= 5; ++k) s += kernel[k + 5] * in[std::size_t(y) * width + std::clamp(x + k, 0, width - 1)];
       tmp[std::size_t(y) * width + x] = s;
     }
-  }
-  for (int y = 0; y < height; ++y) {
+  }, 0, 16);
+  ParallelFor(height, [&](std::int64_t y) {
     for (int x = 0; x < width; ++x) {
       float s = 0;
-      for (int k = -5; k <= 5; ++k) s += kernel[k + 5] * tmp[std::size_t(std::clamp(y + k, 0, height - 1)) * width + x];
+      for (int k = -5; k <= 5; ++k) {
+        s += kernel[k + 5] * tmp[std::size_t(std::clamp(int(y) + k, 0, height - 1)) * width + x];
+      }
       out[std::size_t(y) * width + x] = s;
     }
-  }
+  }, 0, 16);
   return out;
 }
 

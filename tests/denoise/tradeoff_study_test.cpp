@@ -44,7 +44,7 @@ TEST(TradeoffStudy, TinyRunKeepsWrlsAheadAndNumbersFinite) {
   EXPECT_GT(psnr["static"]["wrls"], psnr["static"]["svgf"]) << "a still view should converge";
   EXPECT_TRUE(std::filesystem::exists(o.out / "tradeoff.csv"));
   EXPECT_TRUE(std::filesystem::exists(o.out / "tradeoff.json"));
-  EXPECT_TRUE(std::filesystem::exists(o.out / "images" / "phantom" / "orbit" / "reference.png"));
+  EXPECT_TRUE(std::filesystem::exists(o.out / "images" / "phantom" / "orbit" / "reference.jpg"));
 }
 
 }  // namespace

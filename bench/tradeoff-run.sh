@@ -1,0 +1,28 @@
+#!/usr/bin/env bash
+# The speed/accuracy study on the GPU machine (docs/tradeoff.md), from the
+# bundle of bench/make-gpu-bundle.sh. One run per dataset keeps each under the
+# machine's per-command limit:
+#   DATASET=ct-head-cthead bash bench/tradeoff-run.sh     # or mr-head, phantom, ct-aorta
+# EXTRA passes more flags to cinevol-bench tradeoff (e.g. "--variants-only").
+# Results (CSV, JSON, Markdown, half-size images) go to $OUT/tradeoff-$DATASET.tgz.
+set -uo pipefail
+cd "$(dirname "$0")/.."
+out=${OUT:-gpu-out}
+mkdir -p "$out" /tmp/cv
+[ -x /tmp/cv/bin/cinevol-bench ] || tar xJf .gpu/bundle.tar.xz -C /tmp/cv
+export LD_LIBRARY_PATH=/tmp/cv/lib
+data=/tmp/cv/data
+case "${DATASET:?set DATASET}" in
+  ct-head-cthead) spec="ct-head-cthead=bench/scenes/ct-head-cthead.json,$data/ct-head-cthead/DERIVED_CThead.nhdr" ;;
+  mr-head) spec="mr-head=examples/mr-head.json,$data/MR.nii.gz" ;;
+  phantom) spec="phantom=examples/ct-bone.json,phantom:head" ;;
+  ct-aorta) spec="ct-aorta=bench/scenes/ct-aorta-bone.json,$data/aorta_ct_cropped.nii.gz" ;;
+  *) echo "unknown DATASET $DATASET"; exit 2 ;;
+esac
+results=/tmp/cv/tradeoff-$DATASET
+/tmp/cv/bin/cinevol-bench tradeoff --dataset "$spec" --backend cuda --width "${WIDTH:-1280}" --height "${HEIGHT:-720}" \
+  --cache /tmp/cv/cache --out "$results" ${EXTRA:-} > "$results.log" 2>&1
+echo "tradeoff $DATASET rc=$?"
+cp "$results.log" "$results/"
+tar czf "$out/tradeoff-$DATASET.tgz" -C /tmp/cv "tradeoff-$DATASET"
+grep -E "^[a-z-]+/|PSNR" "$results.log" | grep -E "/|none |svgf |wrls |knn |guided |accumulate " | head -60
