@@ -90,9 +90,11 @@ int main(int argc, char** argv) {
   t->add_option("--out", out, "Results folder: tradeoff.csv, .json, .md, images/")->capture_default_str();
   t->add_option("--backend", study.backend, "auto, cpu or cuda")->capture_default_str();
   t->add_flag("--quick", quick, "A small subset of the configurations");
-  t->add_option("--variant", variants, "Also a wRLS variant NAME:key=value,... (repeatable; ablations)");
+  t->add_option("--variant", variants, "Also a wRLS (or method=svgf) variant NAME:key=value,... (repeatable; ablations)");
   bool variants_only = false;
   t->add_flag("--variants-only", variants_only, "Only none, svgf, the default wrls and the variants");
+  bool denoisers_only = false;
+  t->add_flag("--denoisers-only", denoisers_only, "Every denoiser, no sweeps of the other knobs");
   t->callback([&] {
     for (const std::string& spec : datasets) {
       const auto eq = spec.find('='), comma = spec.find(',', eq);
@@ -109,7 +111,8 @@ int main(int argc, char** argv) {
                 c.method != cinevol::DenoiseMethod::kWrls);
       });
     }
-    for (const std::string& v : variants) study.configs.push_back(cinevol::bench::WrlsVariant(v));
+    if (denoisers_only) std::erase_if(study.configs, [](const auto& c) { return c.knob != "denoiser"; });
+    for (const std::string& v : variants) study.configs.push_back(cinevol::bench::Variant(v));
     study.cache = cache;
     study.out = out;
     const auto results = cinevol::bench::RunStudy(study);

@@ -273,6 +273,7 @@ RunResult RunConfig(Context& ctx, const Scenario& scenario, const References& re
   settings.method = c.method;
   settings.demodulate = c.demodulate;
   settings.wrls = c.wrls;
+  settings.svgf = c.svgf;
   auto denoiser = CreateDenoiser(ctx.denoise_backend, settings);
   const int w = std::max(1, int(std::lround(ctx.o.width * c.scale))), h = std::max(1, int(std::lround(ctx.o.height * c.scale)));
   const TransferFunction* tf = nullptr;
@@ -333,19 +334,31 @@ RunResult RunConfig(Context& ctx, const Scenario& scenario, const References& re
 
 // --- Public ------------------------------------------------------------------------
 
-StudyConfig WrlsVariant(const std::string& spec) {
+StudyConfig Variant(const std::string& spec) {
   StudyConfig c;
   const auto colon = spec.find(':');
   c.variant = spec.substr(0, colon);
   if (colon == std::string::npos) return c;
-  std::istringstream items(spec.substr(colon + 1));
-  for (std::string item; std::getline(items, item, ',');) {
+  std::vector<std::pair<std::string, std::string>> items;
+  std::istringstream list(spec.substr(colon + 1));
+  for (std::string item; std::getline(list, item, ',');) {
     const auto eq = item.find('=');
     if (eq == std::string::npos) throw InputError(fmt::format("--variant {}: '{}' is not key=value", spec, item));
-    const std::string key = item.substr(0, eq);
-    const float v = std::stof(item.substr(eq + 1));
+    items.emplace_back(item.substr(0, eq), item.substr(eq + 1));
+    if (items.back().first == "method") c.method = ParseDenoiseMethod(items.back().second);
+  }
+  if (c.method != DenoiseMethod::kWrls && c.method != DenoiseMethod::kSvgf) {
+    throw InputError(fmt::format("--variant {}: only wrls and svgf take variants", spec));
+  }
+  for (const auto& [key, text] : items) {
+    if (key == "method") continue;
+    const float v = std::stof(text);
     WrlsSettings& s = c.wrls;
-    if (key == "alpha") s.alpha = v;
+    if (c.method == DenoiseMethod::kSvgf) {
+      if (key == "sigma_luminance") c.svgf.sigma_luminance = v;
+      else if (key == "sigma_depth") c.svgf.sigma_depth = v;
+      else throw InputError(fmt::format("--variant {}: unknown SVGF key '{}'", spec, key));
+    } else if (key == "alpha") s.alpha = v;
     else if (key == "bandwidth") s.bandwidth = v;
     else if (key == "lambda") s.lambda = v;
     else if (key == "radius") s.spatial_radius = int(v);
@@ -355,7 +368,6 @@ StudyConfig WrlsVariant(const std::string& spec) {
     else if (key == "still") s.max_still_frames = int(v);
     else if (key == "residual_rate") s.residual_rate = v;
     else if (key == "firefly") s.firefly_clamp = v;
-
     else throw InputError(fmt::format("--variant {}: unknown key '{}'", spec, key));
   }
   return c;

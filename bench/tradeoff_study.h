@@ -29,15 +29,17 @@ struct StudyConfig {
   int bounces = 4;       // scattering events per path
   int jpeg_quality = 0;  // 0: the display image as rendered (no JPEG)
   float scale = 1;       // resolution scale: rendered smaller, upsampled for display
-  std::string variant;   // a named wRLS variant (ablations); empty: the defaults
+  std::string variant;   // a named variant (ablations); empty: the defaults
   WrlsSettings wrls;
+  SvgfSettings svgf;
   std::string Label() const;
 };
 
 // "NAME:key=value,..." -> a wRLS configuration with those settings changed.
-// Keys: alpha, bandwidth, lambda, radius, atrous, sigma_luminance,
-// sigma_depth, still, residual_rate, firefly.
-StudyConfig WrlsVariant(const std::string& spec);
+// Keys: alpha, bandwidth, lambda, radius, atrous,
+// sigma_luminance, sigma_depth, still, residual_rate, firefly; method=svgf
+// makes it an SVGF variant (keys sigma_luminance, sigma_depth).
+StudyConfig Variant(const std::string& spec);
 
 // The baseline and one-at-a-time sweeps of every knob; `quick` a small subset.
 std::vector<StudyConfig> StudyConfigs(bool quick);

@@ -29,6 +29,7 @@ const char* ToString(DenoiseMethod method);
 // Weighted recursive least squares (Iglesias-Guitian et al., Sec. 5-6). Every
 // model is per pixel and channel, predictor p = [1, z] over the temporal
 // feature z; models and features are reprojected from the previous frame.
+// Defaults are the study's best at 1280x720, 2 spp (docs/tradeoff.md).
 struct WrlsSettings {
   float alpha = 0.75f;      // [0, 1): weight of the reprojected history in the feature z (Eq. 12)
   float bandwidth = 0.75f;  // h > 0: sample weight exp(-d^2 / h^2) (Eq. 13); smaller is more stable, more biased
@@ -36,7 +37,10 @@ struct WrlsSettings {
   float initial_p = 1.0f;   // > 0: a reset model's inverse covariance, diagonal, in normalised units
   float max_trace_p = 1e3f; // > initial_p: trace(P) is scaled back to this (covariance wind-up)
   float max_coefficient = 1e4f;  // a model with |beta| beyond this resets
-  int spatial_radius = 2;        // [0, 8]: neighbours' models blended over (2r+1)^2 pixels (5x5)
+  // The paper's blend of the neighbours' model predictions over (2r+1)^2
+  // pixels (Sec. 5.3). 0, each pixel's own prediction, measured best at
+  // 1280x720 (docs/tradeoff.md): the a-trous levels do the spatial work.
+  int spatial_radius = 0;        // [0, 8]
   float spatial_sigma = 1.5f;    // pixels: Gaussian falloff of the spatial blend
   float range_sigma = 0.3f;      // relative feature difference at which a neighbour's weight falls by e^-0.5
   float firefly_clamp = 4.0f;    // >= 1: the sample entering z is clamped to this times the local level (neighbours' mean, history)
@@ -44,11 +48,13 @@ struct WrlsSettings {
   // as 1 - 1/n over the still frames, up to this many (1: never; alpha always).
   int max_still_frames = 1024;
   float residual_rate = 0.1f;    // (0, 1]: how fast the model's residual variance follows new frames
-  // A-trous levels after the 5x5 stage (steps 2, 4, 8, 16), stopped at depth
-  // and at luminance edges scaled by the deviation the RLS fit predicts.
-  int atrous_iterations = 4;     // [0, 4]
+  // A-trous levels on the predictions (steps 1, 2, 4, 8, 16), stopped at
+  // depth and at luminance edges scaled by the deviation the RLS fit predicts.
+  int atrous_iterations = 5;     // [0, 5]
   float atrous_sigma_luminance = 4.0f;
-  float atrous_sigma_depth = 1.0f;
+  // Relative depth tolerance (times 1% of the distance and the step). Loose:
+  // the first hit in semi-transparent tissue is itself a noisy estimate.
+  float atrous_sigma_depth = 8.0f;
 };
 
 // Progressive accumulation, reset whenever the camera or scene changes

@@ -234,9 +234,9 @@ class Svgf final : public DenoiserBase<B> {
   typename DenoiserBase<B>::template Buffer<Vec4f> a_, b_;
 };
 
-// wRLS: the temporal pass (feature and models), the paper's 5x5 blend of the
-// neighbours' predictions, then a-trous levels guided by the variance the
-// fit predicts.
+// wRLS: the temporal pass (feature and models), the predictions (blended
+// over the neighbours' models where spatial_radius > 0), then a-trous levels
+// guided by the variance the fit predicts.
 template <class B>
 class Wrls final : public DenoiserBase<B> {
  protected:
@@ -250,7 +250,7 @@ class Wrls final : public DenoiserBase<B> {
                                            model_.data(), s, still_frames_});
     B::ForEachPixel(w, h, WrlsSpatialPass{rv, feature_.data(), model_.data(), a_.data(), s});
     for (int level = 0; level < s.atrous_iterations; ++level) {
-      B::ForEachPixel(w, h, AtrousPass{a_.data(), b_.data(), frame.first_hit, frame.camera, w, h, 2 << level,
+      B::ForEachPixel(w, h, AtrousPass{a_.data(), b_.data(), frame.first_hit, frame.camera, w, h, 1 << level,
                                        s.atrous_sigma_luminance, s.atrous_sigma_depth});
       std::swap(a_, b_);
     }

@@ -3,7 +3,8 @@
 //
 // Per pixel: a temporal feature z (Eq. 12), then per channel a linear model
 // I ~ beta0 + beta1 z updated by weighted recursive least squares (Eqs. 9-11,
-// 13, 14); a spatial pass blends the predictions of the neighbours' models.
+// 13, 14); a spatial pass evaluates the model, optionally blending the
+// predictions of the neighbours' models, with the variance it predicts.
 //
 // Numerics (what keeps it stable at the extremes):
 // - Each model works in units of its own scale s (the feature's magnitude
@@ -222,10 +223,11 @@ struct WrlsTemporalPass {
 };
 
 // Pass 2: each pixel blends its neighbours' model predictions (each model at
-// its own pixel's feature) with bilateral weights on the feature. Evaluating
-// every neighbour's model at the centre's feature instead (the other reading
-// of the paper's Sec. 5.3) keeps the centre's feature noise: 1.1 dB worse on
-// the CThead orbit (docs/performance.md).
+// its own pixel's feature) with bilateral weights on the feature; radius 0
+// (the default) is the pixel's own prediction. Evaluating every neighbour's
+// model at the centre's feature instead (the other reading of the paper's
+// Sec. 5.3) keeps the centre's feature noise: 1.1 dB worse on the CThead
+// orbit (docs/denoising.md).
 struct WrlsSpatialPass {
   ReprojectionView rv;  // first_hit only: volume and background do not mix
   const Vec3f* feature;
