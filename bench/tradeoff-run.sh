@@ -3,7 +3,8 @@
 # bundle of bench/make-gpu-bundle.sh. One run per dataset keeps each under the
 # machine's per-command limit:
 #   DATASET=ct-head-cthead bash bench/tradeoff-run.sh     # or mr-head, phantom, ct-aorta
-# EXTRA passes more flags to cinevol-bench tradeoff (e.g. "--variants-only").
+# EXTRA passes more flags to cinevol-bench tradeoff (e.g. "--variants-only");
+# LIMIT (seconds) stops the study early and still packs its log.
 # Results (CSV, JSON, Markdown, half-size images) go to $OUT/tradeoff-$DATASET.tgz.
 set -uo pipefail
 cd "$(dirname "$0")/.."
@@ -20,7 +21,7 @@ case "${DATASET:?set DATASET}" in
   *) echo "unknown DATASET $DATASET"; exit 2 ;;
 esac
 results=/tmp/cv/tradeoff-$DATASET
-/tmp/cv/bin/cinevol-bench tradeoff --dataset "$spec" --backend cuda --width "${WIDTH:-1280}" --height "${HEIGHT:-720}" \
+timeout "${LIMIT:-86400}" /tmp/cv/bin/cinevol-bench tradeoff --dataset "$spec" --backend cuda --width "${WIDTH:-1280}" --height "${HEIGHT:-720}" \
   --cache /tmp/cv/cache --out "$results" ${EXTRA:-} > "$results.log" 2>&1
 echo "tradeoff $DATASET rc=$?"
 cp "$results.log" "$results/"
