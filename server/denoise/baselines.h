@@ -259,14 +259,38 @@ struct SvgfVariancePass {
   }
 };
 
+// The share of the 5x5 window's pixels whose samples hit the volume. In
+// semi-transparent tissue whether a pixel's few samples collide is itself
+// random, so this share, not the pixel's own flag, tells a real silhouette
+// (a jump from 0 to 1) from transparency (a noisy middle).
+struct CoveragePass {
+  const Vec4f* first_hit;
+  float* coverage;
+  int width, height;
+
+  CINEVOL_HD void operator()(int x, int y) const {
+    float hits = 0.0f, n = 0.0f;
+    for (int dy = -2; dy <= 2; ++dy) {
+      for (int dx = -2; dx <= 2; ++dx) {
+        const int nx = x + dx, ny = y + dy;
+        if (nx < 0 || ny < 0 || nx >= width || ny >= height) continue;
+        hits += Escaped(first_hit[ny * width + nx]) ? 0.0f : 1.0f;
+        n += 1.0f;
+      }
+    }
+    coverage[y * width + x] = hits / n;
+  }
+};
+
 // One a-trous level (SVGF's, and wRLS's spatial stage): 5x5 B-spline taps
-// `step` apart, stopped at depth and luminance edges (the latter scaled by the
-// local standard deviation); the variance in w goes through with the squared
-// weights.
+// `step` apart, stopped at coverage, depth and luminance edges (the last
+// scaled by the local standard deviation); the variance in w goes through
+// with the squared weights. Depth compares only pixels that both hit.
 struct AtrousPass {
   const Vec4f* in;
   Vec4f* out;
   const Vec4f* first_hit;
+  const float* coverage;  // CoveragePass
   Camera camera;
   int width, height, step;
   float sigma_luminance, sigma_depth;
@@ -274,6 +298,10 @@ struct AtrousPass {
   CINEVOL_HD float Depth(int k) const {
     return Escaped(first_hit[k]) ? 3.4e38f : Length(Xyz(first_hit[k]) - camera.eye);
   }
+
+  // A full silhouette (coverage 0 against 1) weighs e^-6; the +-0.1 noise of
+  // coverage in transparent tissue about e^-0.6.
+  static constexpr float kCoverageStop = 6.0f;
 
   CINEVOL_HD void operator()(int x, int y) const {
     const float kernel[3] = {3.0f / 8.0f, 1.0f / 4.0f, 1.0f / 16.0f};
@@ -300,11 +328,11 @@ struct AtrousPass {
         const int nx = x + dx * step, ny = y + dy * step;
         if (nx < 0 || ny < 0 || nx >= width || ny >= height) continue;
         const int k = ny * width + nx;
-        if (Escaped(first_hit[k]) != Escaped(first_hit[i])) continue;
         const Vec4f q = in[k];
-        const float dz = Escaped(first_hit[i]) ? 0.0f : fabsf(Depth(k) - z);
+        const float dz = Escaped(first_hit[i]) || Escaped(first_hit[k]) ? 0.0f : fabsf(Depth(k) - z);
+        const float dc = fabsf(coverage[k] - coverage[i]);
         const float w = kernel[dx < 0 ? -dx : dx] * kernel[dy < 0 ? -dy : dy] *
-                        expf(-fabsf(Luminance(Xyz(q)) - l) * l_scale - dz * z_scale);
+                        expf(-fabsf(Luminance(Xyz(q)) - l) * l_scale - dz * z_scale - dc * kCoverageStop);
         sum += Xyz(q) * w;
         var_sum += q.w * w * w;
         weight += w;

@@ -214,9 +214,10 @@ class Svgf final : public DenoiserBase<B> {
     std::swap(history_, prev_history_);
     B::ForEachPixel(w, h, SvgfTemporalPass{rv, input, prev_history_.data(), history_.data(), s});
     B::ForEachPixel(w, h, SvgfVariancePass{history_.data(), frame.first_hit, a_.data(), w, h});
+    B::ForEachPixel(w, h, CoveragePass{frame.first_hit, coverage_.data(), w, h});
     for (int level = 0; level < s.iterations; ++level) {
-      B::ForEachPixel(w, h, AtrousPass{a_.data(), b_.data(), frame.first_hit, frame.camera, w, h, 1 << level,
-                                           s.sigma_luminance, s.sigma_depth});
+      B::ForEachPixel(w, h, AtrousPass{a_.data(), b_.data(), frame.first_hit, coverage_.data(), frame.camera, w, h,
+                                       1 << level, s.sigma_luminance, s.sigma_depth});
       if (level == 0) B::ForEachPixel(w, h, SvgfFeedbackPass{b_.data(), history_.data(), w});
       std::swap(a_, b_);
     }
@@ -227,11 +228,13 @@ class Svgf final : public DenoiserBase<B> {
     prev_history_.Resize(n);
     a_.Resize(n);
     b_.Resize(n);
+    coverage_.Resize(n);
   }
 
  private:
   typename DenoiserBase<B>::template Buffer<SvgfHistory> history_, prev_history_;
   typename DenoiserBase<B>::template Buffer<Vec4f> a_, b_;
+  typename DenoiserBase<B>::template Buffer<float> coverage_;
 };
 
 // wRLS: the temporal pass (feature and models), the predictions (blended
@@ -249,9 +252,10 @@ class Wrls final : public DenoiserBase<B> {
     B::ForEachPixel(w, h, WrlsTemporalPass{rv, input, prev_feature_.data(), prev_model_.data(), feature_.data(),
                                            model_.data(), s, still_frames_});
     B::ForEachPixel(w, h, WrlsSpatialPass{rv, feature_.data(), model_.data(), a_.data(), s});
+    B::ForEachPixel(w, h, CoveragePass{frame.first_hit, coverage_.data(), w, h});
     for (int level = 0; level < s.atrous_iterations; ++level) {
-      B::ForEachPixel(w, h, AtrousPass{a_.data(), b_.data(), frame.first_hit, frame.camera, w, h, 1 << level,
-                                       s.atrous_sigma_luminance, s.atrous_sigma_depth});
+      B::ForEachPixel(w, h, AtrousPass{a_.data(), b_.data(), frame.first_hit, coverage_.data(), frame.camera, w, h,
+                                       1 << level, s.atrous_sigma_luminance, s.atrous_sigma_depth});
       std::swap(a_, b_);
     }
     B::ForEachPixel(w, h, ColorOfPass{a_.data(), output, w});
@@ -263,6 +267,7 @@ class Wrls final : public DenoiserBase<B> {
     prev_model_.Resize(n);
     a_.Resize(n);
     b_.Resize(n);
+    coverage_.Resize(n);
   }
   void ResetHistory() override { still_frames_ = 0; }
 
@@ -270,6 +275,7 @@ class Wrls final : public DenoiserBase<B> {
   typename DenoiserBase<B>::template Buffer<Vec3f> feature_, prev_feature_;
   typename DenoiserBase<B>::template Buffer<WrlsModel> model_, prev_model_;
   typename DenoiserBase<B>::template Buffer<Vec4f> a_, b_;  // prediction and its variance, per a-trous level
+  typename DenoiserBase<B>::template Buffer<float> coverage_;
   int still_frames_ = 0;
 };
 
