@@ -49,7 +49,8 @@ struct WrlsSettings {
   int max_still_frames = 1024;
   float residual_rate = 0.1f;    // (0, 1]: how fast the model's residual variance follows new frames
   // A-trous levels on the predictions (steps 1, 2, 4, 8, 16), stopped at
-  // depth and at luminance edges scaled by the deviation the RLS fit predicts.
+  // coverage, depth and luminance edges (the last scaled by the deviation the
+  // RLS fit predicts).
   int atrous_iterations = 5;     // [0, 5]
   float atrous_sigma_luminance = 4.0f;
   // Relative depth tolerance (times 1% of the distance and the step). Loose:
