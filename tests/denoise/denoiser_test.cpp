@@ -177,7 +177,9 @@ TEST(Wrls, AFireflyDoesNotSpike) {
     hit->Denoise(f);
     const float with = MaxComponent(hit->Output().pixels[pixel]), without = MaxComponent(clean->Output().pixels[pixel]);
     ASSERT_LT(with, 4.0f * MaxComponent(seq.truth()[pixel])) << "frame " << t;
-    if (t >= 30) ASSERT_NEAR(with / without, 1.0f, 0.1f) << "frame " << t << ": back to normal";
+    if (t >= 30) {
+      ASSERT_NEAR(with / without, 1.0f, 0.1f) << "frame " << t << ": back to normal";
+    }
   }
 }
 
