@@ -1,0 +1,89 @@
+// The a-trous levels SVGF and wRLS share, in isolation: the coverage edge
+// stop must mix semi-transparent tissue (whose pixels hit or escape at
+// random) and still stop at a real silhouette.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <vector>
+
+#include "core/camera.h"
+#include "core/rng.h"
+#include "denoise/baselines.h"
+
+namespace cinevol {
+namespace {
+
+constexpr int kSize = 48;
+
+// Five levels (steps 1..16) over `image` (rgb, w variance) with the
+// settings wRLS uses.
+std::vector<Vec4f> Atrous(std::vector<Vec4f> image, const std::vector<Vec4f>& first_hit) {
+  const Camera camera = LookAt({0, -300, 0}, {0, 0, 0}, {0, 0, 1}, 30, kSize, kSize);
+  std::vector<float> coverage(image.size());
+  const CoveragePass cover{first_hit.data(), coverage.data(), kSize, kSize};
+  for (int y = 0; y < kSize; ++y) {
+    for (int x = 0; x < kSize; ++x) cover(x, y);
+  }
+  std::vector<Vec4f> out(image.size());
+  for (int level = 0; level < 5; ++level) {
+    const AtrousPass pass{image.data(), out.data(), first_hit.data(), coverage.data(), camera, kSize, kSize,
+                          1 << level, 4.0f, 8.0f};
+    for (int y = 0; y < kSize; ++y) {
+      for (int x = 0; x < kSize; ++x) pass(x, y);
+    }
+    image.swap(out);
+  }
+  return image;
+}
+
+Vec4f Grey(float value, float variance) { return {value, value, value, variance}; }
+
+// Half the pixels' samples hit a shell (radiance 1), the others escape to a
+// background of 0.5, at random: the pixel's value is 0.75 either way.
+TEST(Atrous, MixesHitAndEscapedPixelsOfTransparentTissue) {
+  std::vector<Vec4f> image, first_hit;
+  Pcg32 rng(7, 1);
+  for (int i = 0; i < kSize * kSize; ++i) {
+    const bool hit = rng.Uniform() < 0.5f;
+    image.push_back(Grey(hit ? 1.0f : 0.5f, 0.0625f));
+    first_hit.push_back(hit ? Vec4f{0, 0, 0, 1} : Vec4f{0, 0, 0, 0});
+  }
+  const std::vector<Vec4f> out = Atrous(image, first_hit);
+  double sum = 0, sum_sq = 0;
+  int n = 0;
+  for (int y = 8; y < kSize - 8; ++y) {
+    for (int x = 8; x < kSize - 8; ++x) {
+      const double v = out[y * kSize + x].x;
+      sum += v;
+      sum_sq += v * v;
+      ++n;
+    }
+  }
+  const double mean = sum / n, deviation = std::sqrt(std::max(sum_sq / n - mean * mean, 0.0));
+  EXPECT_NEAR(mean, 0.75, 0.05);
+  EXPECT_LT(deviation, 0.05) << "hit and escaped pixels stayed apart (input deviation 0.25)";
+}
+
+// Opaque tissue (radiance 1) on the left, a lit background (0.4) on the
+// right, both noisy enough that the luminance stop alone would let them mix:
+// coverage keeps them apart.
+TEST(Atrous, StopsAtASilhouette) {
+  std::vector<Vec4f> image, first_hit;
+  for (int y = 0; y < kSize; ++y) {
+    for (int x = 0; x < kSize; ++x) {
+      const bool hit = x < kSize / 2;
+      image.push_back(hit ? Grey(1.0f, 0.1f) : Grey(0.4f, 0.1f));
+      first_hit.push_back(hit ? Vec4f{0, 0, 0, 1} : Vec4f{0, 0, 0, 0});
+    }
+  }
+  const std::vector<Vec4f> out = Atrous(image, first_hit);
+  // Two pixels in from the edge (the luminance stop alone leaves 0.965 and
+  // 0.435 there).
+  for (int y = 0; y < kSize; ++y) {
+    EXPECT_GT(out[y * kSize + kSize / 2 - 2].x, 0.985f) << "tissue darkened at row " << y;
+    EXPECT_LT(out[y * kSize + kSize / 2 + 1].x, 0.415f) << "background brightened at row " << y;
+  }
+}
+
+}  // namespace
+}  // namespace cinevol
