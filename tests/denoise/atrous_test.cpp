@@ -8,6 +8,7 @@
 
 #include "core/camera.h"
 #include "core/rng.h"
+#include "denoise/backend_cpu.h"
 #include "denoise/baselines.h"
 
 namespace cinevol {
@@ -20,17 +21,11 @@ constexpr int kSize = 48;
 std::vector<Vec4f> Atrous(std::vector<Vec4f> image, const std::vector<Vec4f>& first_hit) {
   const Camera camera = LookAt({0, -300, 0}, {0, 0, 0}, {0, 0, 1}, 30, kSize, kSize);
   std::vector<float> coverage(image.size());
-  const CoveragePass cover{first_hit.data(), coverage.data(), kSize, kSize};
-  for (int y = 0; y < kSize; ++y) {
-    for (int x = 0; x < kSize; ++x) cover(x, y);
-  }
+  CpuBackend::ForEachPixel(kSize, kSize, CoveragePass{first_hit.data(), coverage.data(), kSize, kSize});
   std::vector<Vec4f> out(image.size());
   for (int level = 0; level < 5; ++level) {
-    const AtrousPass pass{image.data(), out.data(), first_hit.data(), coverage.data(), camera, kSize, kSize,
-                          1 << level, 4.0f, 8.0f};
-    for (int y = 0; y < kSize; ++y) {
-      for (int x = 0; x < kSize; ++x) pass(x, y);
-    }
+    CpuBackend::ForEachPixel(kSize, kSize, AtrousPass{image.data(), out.data(), first_hit.data(), coverage.data(),
+                                                      camera, kSize, kSize, 1 << level, 4.0f, 8.0f});
     image.swap(out);
   }
   return image;
