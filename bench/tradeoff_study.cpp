@@ -368,6 +368,8 @@ StudyConfig Variant(const std::string& spec) {
     else if (key == "still") s.max_still_frames = int(v);
     else if (key == "residual_rate") s.residual_rate = v;
     else if (key == "firefly") s.firefly_clamp = v;
+    else if (key == "stabilize") s.stabilize_history = v;
+    else if (key == "stabilize_clamp") s.stabilize_clamp = v;
     else throw InputError(fmt::format("--variant {}: unknown key '{}'", spec, key));
   }
   return c;

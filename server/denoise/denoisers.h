@@ -65,6 +65,7 @@ class DenoiserBase : public Denoiser {
     rv.width = width_;
     rv.height = height_;
     rv.has_history = has_history_;
+    rv.same_view = has_history_ && SameView(frame.camera, prev_camera_);
     rv.still = SameScene(frame);
     Run(frame, input, rv, output_.data());
     if (settings_.demodulate) B::ForEachPixel(width_, height_, RemodulatePass{frame.albedo, output_.data(), width_});
@@ -168,7 +169,7 @@ class GuidedFilter final : public DenoiserBase<B> {
     // Measured: on a still view, identity reprojection makes this guide worse
     // (-1 dB, CThead static scenario), so the guided filter keeps reprojecting.
     ReprojectionView moving = rv;
-    moving.still = false;
+    moving.same_view = moving.still = false;
     B::ForEachPixel(w, h, TemporalFeaturePass{moving, input, prev_feature_.data(), feature_.data(), s.alpha});
     const GuideView guide{feature_.data(), frame.first_hit, frame.camera, 1.0f / fmaxf(Length(frame.camera.eye), 1e-3f)};
     B::ForEachPixel(w, h, GuidedMomentsPass{input, guide, moments_.data(), w});
@@ -258,9 +259,18 @@ class Wrls final : public DenoiserBase<B> {
                                        1 << level, s.atrous_sigma_luminance, s.atrous_sigma_depth});
       std::swap(a_, b_);
     }
-    B::ForEachPixel(w, h, ColorOfPass{a_.data(), output, w});
+    if (s.stabilize_history <= 0.0f) {
+      B::ForEachPixel(w, h, ColorOfPass{a_.data(), output, w});
+      return;
+    }
+    std::swap(stable_, prev_stable_);
+    B::ForEachPixel(w, h, WrlsStabilizePass{rv, a_.data(), prev_stable_.data(), stable_.data(), s.stabilize_history,
+                                            s.stabilize_clamp});
+    B::ForEachPixel(w, h, CopyPass{stable_.data(), output, w});
   }
   void Allocate(std::size_t n) override {
+    stable_.Resize(n);
+    prev_stable_.Resize(n);
     feature_.Resize(n);
     prev_feature_.Resize(n);
     model_.Resize(n);
@@ -273,6 +283,7 @@ class Wrls final : public DenoiserBase<B> {
 
  private:
   typename DenoiserBase<B>::template Buffer<Vec3f> feature_, prev_feature_;
+  typename DenoiserBase<B>::template Buffer<Vec3f> stable_, prev_stable_;  // stabilised outputs
   typename DenoiserBase<B>::template Buffer<WrlsModel> model_, prev_model_;
   typename DenoiserBase<B>::template Buffer<Vec4f> a_, b_;  // prediction and its variance, per a-trous level
   typename DenoiserBase<B>::template Buffer<float> coverage_;

@@ -265,4 +265,44 @@ struct WrlsSpatialPass {
   }
 };
 
+// Pass 4: temporal stabilisation of the output (WrlsSettings::stabilize_*).
+// The history is clipped to this frame's 3x3 mean +- clamp_sigma deviations
+// (Salvi's variance clipping; the deviation counts the 3x3 spread and the
+// variance the fit predicts), so a real change (a light moving, the transfer
+// function edited) passes through and only noise is averaged.
+struct WrlsStabilizePass {
+  ReprojectionView rv;
+  const Vec4f* current;      // this frame's estimate: colour, predicted variance
+  const Vec3f* prev_output;  // the previous frame's stabilised output
+  Vec3f* output;
+  float history_weight, clamp_sigma;
+
+  CINEVOL_HD void operator()(int x, int y) const {
+    const int i = rv.Index(x, y);
+    const Vec3f c = Xyz(current[i]);
+    Vec3f out = c;
+    const Reprojection r = Reproject(rv, x, y);
+    Vec3f history;
+    if (r.valid && SampleHistory(rv, prev_output, r, rv.first_hit[i], history) && IsFinite(history)) {
+      Vec3f sum{}, sum_sq{};
+      float n = 0.0f;
+      for (int dy = -1; dy <= 1; ++dy) {
+        for (int dx = -1; dx <= 1; ++dx) {
+          if (!rv.InBounds(x + dx, y + dy)) continue;
+          const Vec3f q = Xyz(current[rv.Index(x + dx, y + dy)]);
+          sum += q;
+          sum_sq += q * q;
+          n += 1.0f;
+        }
+      }
+      const Vec3f mean = sum / n;
+      const float predicted = fmaxf(current[i].w, 0.0f);
+      Vec3f deviation;
+      for (int k = 0; k < 3; ++k) deviation[k] = clamp_sigma * sqrtf(fmaxf(sum_sq[k] / n - mean[k] * mean[k], 0.0f) + predicted);
+      out = Lerp(c, Min(Max(history, c - deviation), c + deviation), history_weight);
+    }
+    output[i] = IsFinite(out) ? Max(out, Vec3f{}) : Vec3f{};
+  }
+};
+
 }  // namespace cinevol
