@@ -65,7 +65,6 @@ class DenoiserBase : public Denoiser {
     rv.width = width_;
     rv.height = height_;
     rv.has_history = has_history_;
-    rv.same_view = has_history_ && SameView(frame.camera, prev_camera_);
     rv.still = SameScene(frame);
     Run(frame, input, rv, output_.data());
     if (settings_.demodulate) B::ForEachPixel(width_, height_, RemodulatePass{frame.albedo, output_.data(), width_});
@@ -169,7 +168,7 @@ class GuidedFilter final : public DenoiserBase<B> {
     // Measured: on a still view, identity reprojection makes this guide worse
     // (-1 dB, CThead static scenario), so the guided filter keeps reprojecting.
     ReprojectionView moving = rv;
-    moving.same_view = moving.still = false;
+    moving.still = false;
     B::ForEachPixel(w, h, TemporalFeaturePass{moving, input, prev_feature_.data(), feature_.data(), s.alpha});
     const GuideView guide{feature_.data(), frame.first_hit, frame.camera, 1.0f / fmaxf(Length(frame.camera.eye), 1e-3f)};
     B::ForEachPixel(w, h, GuidedMomentsPass{input, guide, moments_.data(), w});

@@ -17,12 +17,9 @@ struct ReprojectionView {
   Camera camera, prev_camera;
   int width = 0, height = 0;
   bool has_history = false;
-  // The camera did not move since the previous frame: every pixel is its own
+  // Nothing moved or changed since the previous frame: every pixel is its own
   // history, whatever its rays hit this time (at a few samples a pixel on a
-  // semi-transparent edge may escape in one frame and hit in the next, and a
-  // transfer-function edit changes what is hit, not where it is).
-  bool same_view = false;
-  // Nothing moved or changed at all: the history is exact.
+  // semi-transparent edge may escape in one frame and hit in the next).
   bool still = false;
   float max_error_px = 2.0f;  // round trip tolerance
 
@@ -47,7 +44,7 @@ CINEVOL_HD bool Escaped(const Vec4f& hit) { return hit.w == 0.0f; }
 CINEVOL_HD Reprojection Reproject(const ReprojectionView& v, int x, int y) {
   Reprojection r;
   if (!v.has_history) return r;
-  if (v.same_view) {
+  if (v.still) {
     r.x = float(x);
     r.y = float(y);
     r.nx = x;
@@ -85,7 +82,7 @@ CINEVOL_HD Reprojection Reproject(const ReprojectionView& v, int x, int y) {
 template <class T>
 CINEVOL_HD bool SampleHistory(const ReprojectionView& v, const T* history, const Reprojection& r, const Vec4f& hit,
                               T& out) {
-  if (v.same_view) {
+  if (v.still) {
     out = history[v.Index(r.nx, r.ny)];
     return true;
   }
