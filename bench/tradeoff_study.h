@@ -37,8 +37,8 @@ struct StudyConfig {
 
 // "NAME:key=value,..." -> a wRLS configuration with those settings changed.
 // Keys: alpha, bandwidth, lambda, radius, atrous, sigma_luminance,
-// sigma_depth, still, residual_rate, firefly; method=svgf makes it an SVGF
-// variant (keys sigma_luminance, sigma_depth).
+// sigma_depth, still, residual_rate, firefly, stabilize, stabilize_clamp;
+// method=svgf makes it an SVGF variant (keys sigma_luminance, sigma_depth).
 StudyConfig Variant(const std::string& spec);
 
 // The baseline and one-at-a-time sweeps of every knob; `quick` a small subset.
