@@ -9,6 +9,8 @@ mkdir -p "$out" /tmp/cv
 tar xJf .gpu/bundle.tar.xz -C /tmp/cv
 export LD_LIBRARY_PATH=/tmp/cv/lib
 bin=/tmp/cv/bin data=/tmp/cv/data
+# The service tests start the bundle's programs, not the build tree's.
+export CINEVOL_SERVER=$bin/cinevol-server CINEVOL_CLI=$bin/cinevol
 nvidia-smi --query-gpu=name,memory.total,driver_version --format=csv,noheader | tee "$out/gpu.txt"
 
 "$bin/cinevol_tests" --gtest_filter="${TESTS:-*Cuda*}" > "$out/gpu-tests.log" 2>&1

@@ -361,6 +361,7 @@ StudyConfig Variant(const std::string& spec) {
     } else if (key == "alpha") s.alpha = v;
     else if (key == "bandwidth") s.bandwidth = v;
     else if (key == "lambda") s.lambda = v;
+    else if (key == "initial_p") s.initial_p = v;
     else if (key == "radius") s.spatial_radius = int(v);
     else if (key == "atrous") s.atrous_iterations = int(v);
     else if (key == "sigma_luminance") s.atrous_sigma_luminance = v;

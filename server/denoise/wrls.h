@@ -146,6 +146,25 @@ struct WrlsTemporalPass {
   WrlsSettings s;
   int still_frames;            // frames the view has stayed still (0: it moved or changed)
 
+  // Variance of the input's luminance over the 7x7 window (SVGF's first
+  // estimate too): a 3x3 window at 2 spp misjudges the noise by 2x either way,
+  // and the first frames' a-trous levels stop on it.
+  CINEVOL_HD float LocalLuminanceVariance(int x, int y) const {
+    float sum = 0.0f, sum_sq = 0.0f, n = 0.0f;
+    for (int dy = -3; dy <= 3; ++dy) {
+      for (int dx = -3; dx <= 3; ++dx) {
+        if (!rv.InBounds(x + dx, y + dy)) continue;
+        const Vec3f c = input[rv.Index(x + dx, y + dy)];
+        if (!IsFinite(c)) continue;
+        const float l = Luminance(c);
+        sum += l;
+        sum_sq += l * l;
+        n += 1.0f;
+      }
+    }
+    return n > 1.0f ? fmaxf(sum_sq / n - Sqr(sum / n), 0.0f) : 0.0f;
+  }
+
   CINEVOL_HD void operator()(int x, int y) const {
     const int i = rv.Index(x, y);
     const Vec3f sample = input[i];
@@ -154,8 +173,8 @@ struct WrlsTemporalPass {
     // level of the centre's neighbours (with the history) caps what a firefly
     // can add to z.
     Vec3f lo{3.4e38f, 3.4e38f, 3.4e38f}, hi{-3.4e38f, -3.4e38f, -3.4e38f};
-    float neighbour_sum = 0.0f, luma_sum = 0.0f, luma_sq = 0.0f;
-    int neighbours = 0, finite = 0;
+    float neighbour_sum = 0.0f;
+    int neighbours = 0;
     for (int dy = -1; dy <= 1; ++dy) {
       for (int dx = -1; dx <= 1; ++dx) {
         if (!rv.InBounds(x + dx, y + dy)) continue;
@@ -163,10 +182,6 @@ struct WrlsTemporalPass {
         if (!IsFinite(c)) continue;
         lo = Min(lo, c);
         hi = Max(hi, c);
-        const float l = Luminance(c);
-        luma_sum += l;
-        luma_sq += l * l;
-        ++finite;
         if (dx != 0 || dy != 0) {
           neighbour_sum += MaxComponent(c);
           ++neighbours;
@@ -210,9 +225,8 @@ struct WrlsTemporalPass {
       for (int c = 0; c < 3; ++c) error[c] = sample[c] * inv_scale - (m.beta0[c] + m.beta1[c] * z[c] * inv_scale);
       if (m.residual < 0.0f) {
         // A fresh model has seen nothing yet: its first estimate of the noise
-        // is the 3x3 neighbourhood's luminance variance.
-        const float mean = finite > 0 ? luma_sum / float(finite) : 0.0f;
-        m.residual = finite > 1 ? fmaxf(luma_sq / float(finite) - mean * mean, 0.0f) * inv_scale * inv_scale : 0.0f;
+        // is the neighbourhood's luminance variance.
+        m.residual = LocalLuminanceVariance(x, y) * inv_scale * inv_scale;
       } else {
         m.residual += s.residual_rate * w * (Sqr(Luminance(error)) - m.residual);
       }
