@@ -57,8 +57,8 @@ struct WrlsSettings {
   // the first hit in semi-transparent tissue is itself a noisy estimate.
   float atrous_sigma_depth = 8.0f;
   // Temporal stabilisation of the output (as NRD's): the previous output,
-  // reprojected and clipped to where this frame's estimate could lie (its
-  // 3x3 mean +- stabilize_clamp deviations), is blended in with this weight.
+  // reprojected and clipped to where this frame's estimate could lie (+-
+  // stabilize_clamp deviations), is blended in with this weight.
   // It steadies what the a-trous levels leave from frame to frame; the
   // regression never sees it.
   float stabilize_history = 0.5f;  // [0, 1): 0 turns it off

@@ -281,10 +281,11 @@ struct WrlsSpatialPass {
 };
 
 // Pass 4: temporal stabilisation of the output (WrlsSettings::stabilize_*).
-// The history is clipped to this frame's 3x3 mean +- clamp_sigma deviations
+// The history is clipped to this frame's estimate +- clamp_sigma deviations
 // (Salvi's variance clipping; the deviation counts the 3x3 spread and the
 // variance the fit predicts), so a real change (a light moving, the transfer
-// function edited) passes through and only noise is averaged.
+// function edited) passes through and only noise is averaged. The box is
+// centred on the pixel, not on the 3x3 mean, so that it does not blur edges.
 struct WrlsStabilizePass {
   ReprojectionView rv;
   const Vec4f* current;      // this frame's estimate: colour, predicted variance
@@ -313,7 +314,9 @@ struct WrlsStabilizePass {
       const Vec3f mean = sum / n;
       const float predicted = fmaxf(current[i].w, 0.0f);
       Vec3f deviation;
-      for (int k = 0; k < 3; ++k) deviation[k] = clamp_sigma * sqrtf(fmaxf(sum_sq[k] / n - mean[k] * mean[k], 0.0f) + predicted);
+      for (int k = 0; k < 3; ++k) {
+        deviation[k] = clamp_sigma * sqrtf(fmaxf(sum_sq[k] / n - mean[k] * mean[k], 0.0f) + predicted);
+      }
       out = Lerp(c, Min(Max(history, c - deviation), c + deviation), history_weight);
     }
     output[i] = IsFinite(out) ? Max(out, Vec3f{}) : Vec3f{};
