@@ -368,6 +368,9 @@ StudyConfig Variant(const std::string& spec) {
     else if (key == "sigma_depth") s.atrous_sigma_depth = v;
     else if (key == "still") s.max_still_frames = int(v);
     else if (key == "residual_rate") s.residual_rate = v;
+    else if (key == "drift") s.drift_sigma = v;
+    else if (key == "drift_boost") s.drift_boost = v;
+    else if (key == "young") s.young_variance = v;
     else if (key == "firefly") s.firefly_clamp = v;
     else if (key == "stabilize") s.stabilize_history = v;
     else if (key == "stabilize_clamp") s.stabilize_clamp = v;

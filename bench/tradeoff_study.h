@@ -37,7 +37,8 @@ struct StudyConfig {
 
 // "NAME:key=value,..." -> a wRLS configuration with those settings changed.
 // Keys: alpha, bandwidth, lambda, initial_p, radius, atrous, sigma_luminance,
-// sigma_depth, still, residual_rate, firefly, stabilize, stabilize_clamp;
+// sigma_depth, still, residual_rate, drift, drift_boost, young, firefly, stabilize,
+// stabilize_clamp;
 // method=svgf makes it an SVGF variant (keys sigma_luminance, sigma_depth).
 StudyConfig Variant(const std::string& spec);
 

@@ -48,6 +48,12 @@ struct WrlsSettings {
   // as 1 - 1/n over the still frames, up to this many (1: never; alpha always).
   int max_still_frames = 1024;
   float residual_rate = 0.1f;    // (0, 1]: how fast the model's residual variance follows new frames
+  // Adaptive forgetting (wrls.h, AdaptForgetting): when the running mean of
+  // the residual drifts beyond drift_sigma deviations of the noise, P widens
+  // by drift_boost per channel. 0 turns it off.
+  float drift_sigma = 0.0f;      // >= 0
+  float drift_boost = 1.0f;      // >= 0
+  float young_variance = 0.0f;   // >= 0: a model's predicted variance is at least this / samples times its noise
   // A-trous levels on the predictions (steps 1, 2, 4, 8, 16), stopped at
   // coverage, depth and luminance edges (the last scaled by the deviation the
   // RLS fit predicts).

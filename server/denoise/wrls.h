@@ -41,6 +41,9 @@ struct WrlsModel {
   // samples' over this): 1 for a fresh pixel, (1 + alpha) / (1 - alpha) for
   // the paper's moving average, growing with every frame of a still view.
   float samples = 0;
+  // Running mean of the signed luminance residual, in units of s: near 0
+  // while the model predicts, drifting when the radiance changes under it.
+  float drift = 0;
 };
 
 inline constexpr float kWrlsMinScale = 1e-20f;
@@ -57,6 +60,7 @@ CINEVOL_HD WrlsModel InitialModel(Vec3f z, float initial_p) {
   m.p01 = {0, 0, 0};
   m.residual = -1;
   m.samples = 0;
+  m.drift = 0;
   return m;
 }
 
@@ -86,6 +90,7 @@ CINEVOL_HD void Rescale(WrlsModel& m, float scale) {
   m.p01 *= r;
   m.p11 *= r * r;
   if (m.residual > 0) m.residual *= r * r;
+  m.drift *= r;
   m.scale = scale;
 }
 
@@ -93,7 +98,10 @@ CINEVOL_HD void Rescale(WrlsModel& m, float scale) {
 // residual variance the fit sees: the feature's noise carried by the slope
 // (beta1^2 / samples) plus the fit's own uncertainty (p'Pp), averaged over
 // channels.
-CINEVOL_HD float PredictionVariance(const WrlsModel& m, Vec3f z) {
+// A young model's variance is raised to young_variance / samples^2 times its
+// noise (SVGF's 4 / frames in spirit): a firm prior (small P) would otherwise
+// predict little variance for a model that has seen one or two samples.
+CINEVOL_HD float PredictionVariance(const WrlsModel& m, Vec3f z, float young_variance) {
   if (!(m.residual >= 0.0f) || !(m.samples >= 1.0f)) return 0.0f;
   const float inv = 1.0f / m.scale;
   float sum = 0.0f;
@@ -101,7 +109,7 @@ CINEVOL_HD float PredictionVariance(const WrlsModel& m, Vec3f z) {
     const float u = z[c] * inv;
     sum += m.beta1[c] * m.beta1[c] / m.samples + m.p00[c] + 2.0f * m.p01[c] * u + m.p11[c] * u * u;
   }
-  return m.residual * (sum * (1.0f / 3.0f)) * m.scale * m.scale;
+  return m.residual * fmaxf(sum * (1.0f / 3.0f), young_variance / (m.samples * m.samples)) * m.scale * m.scale;
 }
 
 // Eq. 13: relative distance of the sample from the feature, as a weight.
@@ -133,6 +141,24 @@ CINEVOL_HD void UpdateChannel(WrlsModel& m, int c, float u, float y, float w, co
   m.p00[c] = a;
   m.p01[c] = b;
   m.p11[c] = d;
+}
+
+// Forgetting that adapts to how well the model predicts (WrlsSettings::
+// drift_sigma): while the running mean of the residual stays within
+// drift_sigma deviations of what noise alone gives it, the model keeps its
+// firm prior; when it drifts beyond them (the radiance changed under the
+// model), P is widened by drift_boost, so the next samples move the fit.
+inline constexpr float kWrlsDriftRate = 0.3f;  // EMA rate of the drift: a change shows within 2-3 frames
+
+CINEVOL_HD void AdaptForgetting(WrlsModel& m, float luminance_error, float w, const WrlsSettings& s) {
+  if (!(s.drift_sigma > 0.0f)) return;
+  m.drift += kWrlsDriftRate * w * (luminance_error - m.drift);
+  // An EMA of rate k over noise of variance v has variance v k / (2 - k).
+  const float noise = m.residual * (kWrlsDriftRate / (2.0f - kWrlsDriftRate));
+  if (Sqr(m.drift) <= Sqr(s.drift_sigma) * noise) return;
+  m.p00 += Vec3f{s.drift_boost, s.drift_boost, s.drift_boost};
+  m.p11 += Vec3f{s.drift_boost, s.drift_boost, s.drift_boost};
+  m.drift = 0.0f;
 }
 
 // Pass 1: the temporal feature and the model update, per pixel.
@@ -228,6 +254,7 @@ struct WrlsTemporalPass {
         // is the neighbourhood's luminance variance.
         m.residual = LocalLuminanceVariance(x, y) * inv_scale * inv_scale;
       } else {
+        AdaptForgetting(m, Luminance(error), w, s);
         m.residual += s.residual_rate * w * (Sqr(Luminance(error)) - m.residual);
       }
       for (int c = 0; c < 3; ++c) UpdateChannel(m, c, z[c] * inv_scale, sample[c] * inv_scale, w, s);
@@ -270,7 +297,7 @@ struct WrlsSpatialPass {
         const float w = expf(-float(dx * dx + dy * dy) * inv_spatial - range);
         const WrlsModel& m = model[k];
         sum += (m.beta0 * m.scale + m.beta1 * zk) * w;
-        variance += PredictionVariance(m, zk) * w * w;
+        variance += PredictionVariance(m, zk, s.young_variance) * w * w;
         weight += w;
       }
     }

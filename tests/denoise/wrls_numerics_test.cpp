@@ -1,5 +1,5 @@
 // The wRLS update's numerics in isolation: covariance wind-up and its bound,
-// a zero weight, exact rescaling.
+// a zero weight, exact rescaling, adaptive forgetting, a young model's variance.
 #include <gtest/gtest.h>
 
 #include "denoise/wrls.h"
@@ -52,6 +52,47 @@ TEST(WrlsNumerics, RescalingKeepsPredictions) {
   Rescale(r, 1e6f);
   for (int c = 0; c < 3; ++c) EXPECT_NEAR(predict(r, c), predict(m, c), 1e-4f * std::abs(predict(m, c)));
   EXPECT_TRUE(Healthy(r, s.max_coefficient));
+}
+
+// Noise of the size the model expects leaves P alone; a lasting shift of
+// three deviations widens it within a few frames and restarts the drift.
+TEST(WrlsNumerics, ForgettingAdaptsToADriftNotToNoise) {
+  WrlsSettings s;
+  s.drift_sigma = 2.0f;
+  s.drift_boost = 1.0f;
+  WrlsModel m = InitialModel({1, 1, 1}, 0.1f);
+  m.residual = 0.01f;  // deviation 0.1
+  for (int t = 0; t < 200; ++t) {
+    AdaptForgetting(m, (t % 2 ? 0.1f : -0.1f), 1.0f, s);
+    ASSERT_FLOAT_EQ(m.p00[0], 0.1f) << "frame " << t;
+  }
+  int frames = 0;
+  while (m.p00[0] == 0.1f && frames < 10) {
+    AdaptForgetting(m, 0.3f, 1.0f, s);
+    ++frames;
+  }
+  EXPECT_LE(frames, 4);
+  EXPECT_FLOAT_EQ(m.p00[0], 1.1f);
+  EXPECT_FLOAT_EQ(m.p11[2], 1.1f);
+  EXPECT_EQ(m.drift, 0.0f);
+
+  s.drift_sigma = 0.0f;  // off
+  const WrlsModel before = m;
+  for (int t = 0; t < 10; ++t) AdaptForgetting(m, 5.0f, 1.0f, s);
+  EXPECT_EQ(m.p00[0], before.p00[0]);
+}
+
+// A model's first frames are filtered as if its noise were young_variance /
+// samples^2 times the residual, when that is more than the fit predicts.
+TEST(WrlsNumerics, AYoungModelPredictsAtLeastTheYoungVariance) {
+  WrlsModel m = InitialModel({1, 1, 1}, 0.1f);
+  m.residual = 0.5f;
+  m.samples = 1.0f;
+  // Fit's own: beta1^2 / samples + p'Pp = 1 + 0.1 + 0.1 at z = s.
+  EXPECT_NEAR(PredictionVariance(m, {1, 1, 1}, 0.0f), 0.5f * 1.2f, 1e-6f);
+  EXPECT_NEAR(PredictionVariance(m, {1, 1, 1}, 4.0f), 0.5f * 4.0f, 1e-6f);
+  m.samples = 4.0f;  // grown up: the fit's own variance is larger again
+  EXPECT_NEAR(PredictionVariance(m, {1, 1, 1}, 4.0f), 0.5f * 0.45f, 1e-6f);
 }
 
 TEST(WrlsNumerics, OutliersGetNoWeight) {
