@@ -69,6 +69,10 @@ struct WrlsSettings {
   // regression never sees it.
   float stabilize_history = 0.5f;  // [0, 1): 0 turns it off
   float stabilize_clamp = 1.0f;    // >= 0: width of the clip box in deviations
+  // > 0: the history is first shifted by its mean offset from the estimate
+  // over (2r + 1)^2 taps 2 pixels apart, so a shading change does not lag
+  // (wrls.h, WrlsStabilizePass). 0 turns it off.
+  int stabilize_recenter = 0;      // [0, 8]
 };
 
 // Progressive accumulation, reset whenever the camera or scene changes

@@ -307,32 +307,72 @@ struct WrlsSpatialPass {
   }
 };
 
-// Pass 4: temporal stabilisation of the output (WrlsSettings::stabilize_*).
+// Pass 4a: the previous stabilised output, reprojected to this frame: rgb,
+// and w = 1 where it could be (0 on disocclusion).
+struct ReprojectOutputPass {
+  ReprojectionView rv;
+  const Vec3f* prev_output;
+  Vec4f* history;
+
+  CINEVOL_HD void operator()(int x, int y) const {
+    const Reprojection r = Reproject(rv, x, y);
+    Vec3f h;
+    const bool ok = r.valid && SampleHistory(rv, prev_output, r, rv.first_hit[rv.Index(x, y)], h) && IsFinite(h);
+    history[rv.Index(x, y)] = ok ? ToVec4(h, 1.0f) : Vec4f{};
+  }
+};
+
+// Pass 4b: temporal stabilisation of the output (WrlsSettings::stabilize_*).
 // The history is clipped to this frame's estimate +- clamp_sigma deviations
 // (Salvi's variance clipping; the deviation counts the 3x3 spread and the
 // variance the fit predicts), so a real change (a light moving, the transfer
 // function edited) passes through and only noise is averaged. The box is
 // centred on the pixel, not on the 3x3 mean, so that it does not blur edges.
+// With `recenter` > 0 the history is first shifted by its mean offset from
+// this frame's estimate over a window of (2 recenter + 1)^2 taps 2 pixels
+// apart: a change of shading moves a whole region the same way and is taken
+// out of the history (no lag), while noise, different from pixel to pixel,
+// mostly averages away in the window and keeps being smoothed.
 struct WrlsStabilizePass {
-  ReprojectionView rv;
-  const Vec4f* current;      // this frame's estimate: colour, predicted variance
-  const Vec3f* prev_output;  // the previous frame's stabilised output
+  const Vec4f* current;  // this frame's estimate: colour, predicted variance
+  const Vec4f* history;  // ReprojectOutputPass
   Vec3f* output;
+  int width, height;
   float history_weight, clamp_sigma;
+  int recenter;
+
+  CINEVOL_HD bool InBounds(int x, int y) const { return x >= 0 && y >= 0 && x < width && y < height; }
+
+  // Mean of (history - estimate) over the window's reprojected pixels.
+  CINEVOL_HD Vec3f HistoryOffset(int x, int y) const {
+    Vec3f sum{};
+    float n = 0.0f;
+    for (int dy = -recenter; dy <= recenter; ++dy) {
+      for (int dx = -recenter; dx <= recenter; ++dx) {
+        const int nx = x + 2 * dx, ny = y + 2 * dy;
+        if (!InBounds(nx, ny)) continue;
+        const int k = ny * width + nx;
+        if (history[k].w == 0.0f) continue;
+        sum += Xyz(history[k]) - Xyz(current[k]);
+        n += 1.0f;
+      }
+    }
+    return n > 0.0f ? sum / n : Vec3f{};
+  }
 
   CINEVOL_HD void operator()(int x, int y) const {
-    const int i = rv.Index(x, y);
+    const int i = y * width + x;
     const Vec3f c = Xyz(current[i]);
     Vec3f out = c;
-    const Reprojection r = Reproject(rv, x, y);
-    Vec3f history;
-    if (r.valid && SampleHistory(rv, prev_output, r, rv.first_hit[i], history) && IsFinite(history)) {
+    if (history[i].w != 0.0f) {
+      Vec3f h = Xyz(history[i]);
+      if (recenter > 0) h = Max(h - HistoryOffset(x, y), Vec3f{});
       Vec3f sum{}, sum_sq{};
       float n = 0.0f;
       for (int dy = -1; dy <= 1; ++dy) {
         for (int dx = -1; dx <= 1; ++dx) {
-          if (!rv.InBounds(x + dx, y + dy)) continue;
-          const Vec3f q = Xyz(current[rv.Index(x + dx, y + dy)]);
+          if (!InBounds(x + dx, y + dy)) continue;
+          const Vec3f q = Xyz(current[(y + dy) * width + x + dx]);
           sum += q;
           sum_sq += q * q;
           n += 1.0f;
@@ -344,7 +384,7 @@ struct WrlsStabilizePass {
       for (int k = 0; k < 3; ++k) {
         deviation[k] = clamp_sigma * sqrtf(fmaxf(sum_sq[k] / n - mean[k] * mean[k], 0.0f) + predicted);
       }
-      out = Lerp(c, Min(Max(history, c - deviation), c + deviation), history_weight);
+      out = Lerp(c, Min(Max(h, c - deviation), c + deviation), history_weight);
     }
     output[i] = IsFinite(out) ? Max(out, Vec3f{}) : Vec3f{};
   }

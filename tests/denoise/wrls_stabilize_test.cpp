@@ -1,0 +1,74 @@
+// wRLS's output stabilisation (WrlsStabilizePass) in isolation: the clip box
+// lets a shading change through only partly; recentering the history on its
+// mean offset over the window lets it through whole, and noise is still
+// averaged.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <vector>
+
+#include "core/rng.h"
+#include "denoise/backend_cpu.h"
+#include "denoise/wrls.h"
+
+namespace cinevol {
+namespace {
+
+constexpr int kSize = 48;
+constexpr float kNoise = 0.05f;  // deviation of both frames' estimates
+
+struct Frames {
+  std::vector<Vec4f> current, history;  // estimate with its predicted variance; reprojected history (w = 1)
+};
+
+// Grey estimates around `now`, history around `before`, independent noise.
+Frames Make(float now, float before) {
+  Frames f;
+  Pcg32 rng(7, 1);
+  auto noisy = [&](float v) { return v + kNoise * 3.4641f * (rng.Uniform() - 0.5f); };  // uniform, std kNoise
+  for (int i = 0; i < kSize * kSize; ++i) {
+    const float c = noisy(now), h = noisy(before);
+    f.current.push_back({c, c, c, kNoise * kNoise});
+    f.history.push_back({h, h, h, 1.0f});
+  }
+  return f;
+}
+
+std::vector<Vec3f> Stabilize(const Frames& f, int recenter) {
+  std::vector<Vec3f> out(f.current.size());
+  CpuBackend::ForEachPixel(kSize, kSize, WrlsStabilizePass{f.current.data(), f.history.data(), out.data(), kSize,
+                                                           kSize, 0.5f, 4.0f, recenter});
+  return out;
+}
+
+double Mean(const std::vector<Vec3f>& image) {
+  double sum = 0;
+  for (const Vec3f& p : image) sum += p.x;
+  return sum / double(image.size());
+}
+
+double Deviation(const std::vector<Vec3f>& image) {
+  const double mean = Mean(image);
+  double sum = 0;
+  for (const Vec3f& p : image) sum += (p.x - mean) * (p.x - mean);
+  return std::sqrt(sum / double(image.size()));
+}
+
+TEST(WrlsStabilize, RecenteringLetsAShadingChangeThroughWhole) {
+  const Frames brighter = Make(1.0f, 0.7f);  // the light brightened the region by 0.3
+  EXPECT_LT(Mean(Stabilize(brighter, 0)), 0.9) << "the clipped history lags";
+  EXPECT_NEAR(Mean(Stabilize(brighter, 3)), 1.0, 0.01);
+}
+
+TEST(WrlsStabilize, RecenteringStillAveragesNoise) {
+  const Frames still = Make(1.0f, 1.0f);
+  std::vector<Vec3f> current;
+  for (const Vec4f& c : still.current) current.push_back(Xyz(c));
+  const double before = Deviation(current);
+  EXPECT_LT(Deviation(Stabilize(still, 3)), 0.8 * before);
+  EXPECT_LT(Deviation(Stabilize(still, 0)), 0.8 * before);
+  EXPECT_NEAR(Mean(Stabilize(still, 3)), 1.0, 0.01);
+}
+
+}  // namespace
+}  // namespace cinevol
