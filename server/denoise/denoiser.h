@@ -53,7 +53,9 @@ struct WrlsSettings {
   // by drift_boost per channel. 0 turns it off.
   float drift_sigma = 0.0f;      // >= 0
   float drift_boost = 1.0f;      // >= 0
-  float young_variance = 0.0f;   // >= 0: a model's predicted variance is at least this / samples^2 times its noise
+  // A young model's predicted variance is at least young_variance /
+  // samples^2 times its noise (wrls.h, PredictionVariance). 0 turns it off.
+  float young_variance = 0.0f;   // >= 0
   // A-trous levels on the predictions (steps 1, 2, 4, 8, 16), stopped at
   // coverage, depth and luminance edges (the last scaled by the deviation the
   // RLS fit predicts).
