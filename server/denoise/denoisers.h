@@ -264,9 +264,8 @@ class Wrls final : public DenoiserBase<B> {
     }
     std::swap(stable_, prev_stable_);
     B::ForEachPixel(w, h, ReprojectOutputPass{rv, prev_stable_.data(), b_.data()});
-    B::ForEachPixel(w, h, WrlsStabilizePass{a_.data(), b_.data(), stable_.data(), w, h, s.stabilize_history,
+    B::ForEachPixel(w, h, WrlsStabilizePass{a_.data(), b_.data(), output, stable_.data(), w, h, s.stabilize_history,
                                             s.stabilize_clamp, s.stabilize_recenter});
-    B::ForEachPixel(w, h, CopyPass{stable_.data(), output, w});
   }
   void Allocate(std::size_t n) override {
     stable_.Resize(n);

@@ -156,8 +156,9 @@ CINEVOL_HD void AdaptForgetting(WrlsModel& m, float luminance_error, float w, co
   // An EMA of rate k over noise of variance v has variance v k / (2 - k).
   const float noise = m.residual * (kWrlsDriftRate / (2.0f - kWrlsDriftRate));
   if (Sqr(m.drift) <= Sqr(s.drift_sigma) * noise) return;
-  m.p00 += Vec3f{s.drift_boost, s.drift_boost, s.drift_boost};
-  m.p11 += Vec3f{s.drift_boost, s.drift_boost, s.drift_boost};
+  const Vec3f boost{s.drift_boost, s.drift_boost, s.drift_boost};
+  m.p00 += boost;
+  m.p11 += boost;
   m.drift = 0.0f;
 }
 
@@ -336,7 +337,8 @@ struct ReprojectOutputPass {
 struct WrlsStabilizePass {
   const Vec4f* current;  // this frame's estimate: colour, predicted variance
   const Vec4f* history;  // ReprojectOutputPass
-  Vec3f* output;
+  Vec3f* output;         // the denoiser's output
+  Vec3f* kept;           // the same, kept as the next frame's history
   int width, height;
   float history_weight, clamp_sigma;
   int recenter;
@@ -386,7 +388,9 @@ struct WrlsStabilizePass {
       }
       out = Lerp(c, Min(Max(h, c - deviation), c + deviation), history_weight);
     }
-    output[i] = IsFinite(out) ? Max(out, Vec3f{}) : Vec3f{};
+    out = IsFinite(out) ? Max(out, Vec3f{}) : Vec3f{};
+    output[i] = out;
+    kept[i] = out;
   }
 };
 

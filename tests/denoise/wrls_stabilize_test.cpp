@@ -35,9 +35,10 @@ Frames Make(float now, float before) {
 }
 
 std::vector<Vec3f> Stabilize(const Frames& f, int recenter) {
-  std::vector<Vec3f> out(f.current.size());
-  CpuBackend::ForEachPixel(kSize, kSize, WrlsStabilizePass{f.current.data(), f.history.data(), out.data(), kSize,
-                                                           kSize, 0.5f, 4.0f, recenter});
+  std::vector<Vec3f> out(f.current.size()), kept(f.current.size());
+  CpuBackend::ForEachPixel(kSize, kSize, WrlsStabilizePass{f.current.data(), f.history.data(), out.data(),
+                                                           kept.data(), kSize, kSize, 0.5f, 4.0f, recenter});
+  EXPECT_EQ(out, kept);
   return out;
 }
 
