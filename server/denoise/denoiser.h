@@ -34,7 +34,9 @@ struct WrlsSettings {
   float alpha = 0.75f;      // [0, 1): weight of the reprojected history in the feature z (Eq. 12)
   float bandwidth = 0.75f;  // h > 0: sample weight exp(-d^2 / h^2) (Eq. 13); smaller is more stable, more biased
   float lambda = 0.998f;    // (0, 1]: forgetting factor; 1 never forgets
-  float initial_p = 1.0f;   // > 0: a reset model's inverse covariance, diagonal, in normalised units
+  // > 0: a reset model's inverse covariance, diagonal, in normalised units.
+  // A firm prior (0.1, not 1) holds still radiance; drift_sigma lets a change through.
+  float initial_p = 0.1f;
   float max_trace_p = 1e3f; // > initial_p: trace(P) is scaled back to this (covariance wind-up)
   float max_coefficient = 1e4f;  // a model with |beta| beyond this resets
   // The paper's blend of the neighbours' model predictions over (2r+1)^2
@@ -51,11 +53,11 @@ struct WrlsSettings {
   // Adaptive forgetting (wrls.h, AdaptForgetting): when the running mean of
   // the residual drifts beyond drift_sigma deviations of the noise, P widens
   // by drift_boost per channel. 0 turns it off.
-  float drift_sigma = 0.0f;      // >= 0
+  float drift_sigma = 2.0f;      // >= 0
   float drift_boost = 1.0f;      // >= 0
   // A young model's predicted variance is at least young_variance /
   // samples^2 times its noise (wrls.h, PredictionVariance). 0 turns it off.
-  float young_variance = 0.0f;   // >= 0
+  float young_variance = 8.0f;   // >= 0
   // A-trous levels on the predictions (steps 1, 2, 4, 8, 16), stopped at
   // coverage, depth and luminance edges (the last scaled by the deviation the
   // RLS fit predicts).
@@ -70,11 +72,11 @@ struct WrlsSettings {
   // It steadies what the a-trous levels leave from frame to frame; the
   // regression never sees it.
   float stabilize_history = 0.5f;  // [0, 1): 0 turns it off
-  float stabilize_clamp = 1.0f;    // >= 0: width of the clip box in deviations
+  float stabilize_clamp = 4.0f;    // >= 0: width of the clip box in deviations (wide: recentering takes the lag)
   // > 0: the history is first shifted by its mean offset from the estimate
   // over (2r + 1)^2 taps 2 pixels apart, so a shading change does not lag
   // (wrls.h, WrlsStabilizePass). 0 turns it off.
-  int stabilize_recenter = 0;      // [0, 8]
+  int stabilize_recenter = 5;      // [0, 8]
 };
 
 // Progressive accumulation, reset whenever the camera or scene changes
