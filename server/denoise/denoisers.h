@@ -264,8 +264,11 @@ class Wrls final : public DenoiserBase<B> {
     }
     std::swap(stable_, prev_stable_);
     B::ForEachPixel(w, h, ReprojectOutputPass{rv, prev_stable_.data(), b_.data()});
-    B::ForEachPixel(w, h, WrlsStabilizePass{a_.data(), b_.data(), output, stable_.data(), w, h, s.stabilize_history,
-                                            s.stabilize_clamp, s.stabilize_recenter});
+    if (s.stabilize_recenter > 0) {
+      B::ForEachPixel(w, h, HistoryOffsetRowsPass{a_.data(), b_.data(), offset_rows_.data(), w, s.stabilize_recenter});
+    }
+    B::ForEachPixel(w, h, WrlsStabilizePass{a_.data(), b_.data(), offset_rows_.data(), output, stable_.data(), w, h,
+                                            s.stabilize_history, s.stabilize_clamp, s.stabilize_recenter});
   }
   void Allocate(std::size_t n) override {
     stable_.Resize(n);
@@ -276,6 +279,7 @@ class Wrls final : public DenoiserBase<B> {
     prev_model_.Resize(n);
     a_.Resize(n);
     b_.Resize(n);
+    offset_rows_.Resize(n);
     coverage_.Resize(n);
   }
   void ResetHistory() override { still_frames_ = 0; }
@@ -285,6 +289,7 @@ class Wrls final : public DenoiserBase<B> {
   typename DenoiserBase<B>::template Buffer<Vec3f> stable_, prev_stable_;  // stabilised outputs
   typename DenoiserBase<B>::template Buffer<WrlsModel> model_, prev_model_;
   typename DenoiserBase<B>::template Buffer<Vec4f> a_, b_;  // prediction and its variance, per a-trous level
+  typename DenoiserBase<B>::template Buffer<Vec4f> offset_rows_;  // the stabiliser's recentering, by rows
   typename DenoiserBase<B>::template Buffer<float> coverage_;
   int still_frames_ = 0;
 };

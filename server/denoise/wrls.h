@@ -323,7 +323,33 @@ struct ReprojectOutputPass {
   }
 };
 
-// Pass 4b: temporal stabilisation of the output (WrlsSettings::stabilize_*).
+// Pass 4b (with recentering only): the recentering window's row sums. Per
+// pixel, the sum of (history - estimate) over the reprojected pixels among the
+// 2 recenter + 1 taps 2 pixels apart on its row, and in w how many there are.
+// The stabiliser adds these up over the same taps down its column: the
+// (2 recenter + 1)^2-tap mean for 2 (2 recenter + 1) reads.
+struct HistoryOffsetRowsPass {
+  const Vec4f* current;  // this frame's estimate
+  const Vec4f* history;  // ReprojectOutputPass
+  Vec4f* rows;
+  int width, recenter;
+
+  CINEVOL_HD void operator()(int x, int y) const {
+    Vec3f sum{};
+    float n = 0.0f;
+    for (int dx = -recenter; dx <= recenter; ++dx) {
+      const int nx = x + 2 * dx;
+      if (nx < 0 || nx >= width) continue;
+      const int k = y * width + nx;
+      if (history[k].w == 0.0f) continue;
+      sum += Xyz(history[k]) - Xyz(current[k]);
+      n += 1.0f;
+    }
+    rows[y * width + x] = ToVec4(sum, n);
+  }
+};
+
+// Pass 4c: temporal stabilisation of the output (WrlsSettings::stabilize_*).
 // The history is clipped to this frame's estimate +- clamp_sigma deviations
 // (Salvi's variance clipping; the deviation counts the 3x3 spread and the
 // variance the fit predicts), so a real change (a light moving, the transfer
@@ -335,10 +361,11 @@ struct ReprojectOutputPass {
 // out of the history (no lag), while noise, different from pixel to pixel,
 // mostly averages away in the window and keeps being smoothed.
 struct WrlsStabilizePass {
-  const Vec4f* current;  // this frame's estimate: colour, predicted variance
-  const Vec4f* history;  // ReprojectOutputPass
-  Vec3f* output;         // the denoiser's output
-  Vec3f* kept;           // the same, kept as the next frame's history
+  const Vec4f* current;      // this frame's estimate: colour, predicted variance
+  const Vec4f* history;      // ReprojectOutputPass
+  const Vec4f* offset_rows;  // HistoryOffsetRowsPass; unread without recentering
+  Vec3f* output;             // the denoiser's output
+  Vec3f* kept;               // the same, kept as the next frame's history
   int width, height;
   float history_weight, clamp_sigma;
   int recenter;
@@ -350,14 +377,11 @@ struct WrlsStabilizePass {
     Vec3f sum{};
     float n = 0.0f;
     for (int dy = -recenter; dy <= recenter; ++dy) {
-      for (int dx = -recenter; dx <= recenter; ++dx) {
-        const int nx = x + 2 * dx, ny = y + 2 * dy;
-        if (!InBounds(nx, ny)) continue;
-        const int k = ny * width + nx;
-        if (history[k].w == 0.0f) continue;
-        sum += Xyz(history[k]) - Xyz(current[k]);
-        n += 1.0f;
-      }
+      const int ny = y + 2 * dy;
+      if (ny < 0 || ny >= height) continue;
+      const Vec4f row = offset_rows[ny * width + x];
+      sum += Xyz(row);
+      n += row.w;
     }
     return n > 0.0f ? sum / n : Vec3f{};
   }

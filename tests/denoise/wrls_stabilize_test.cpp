@@ -1,4 +1,5 @@
-// wRLS's output stabilisation (WrlsStabilizePass) in isolation: the clip box
+// wRLS's output stabilisation (WrlsStabilizePass and its recentering window's
+// HistoryOffsetRowsPass) in isolation: the clip box
 // lets a shading change through only partly; recentering the history on its
 // mean offset over the window lets it through whole, and noise is still
 // averaged.
@@ -34,10 +35,23 @@ Frames Make(float now, float before) {
   return f;
 }
 
+// The stabiliser as the wRLS driver runs it: row sums first when recentering.
+WrlsStabilizePass MakePass(const Frames& f, int recenter, std::vector<Vec4f>& rows, std::vector<Vec3f>& out,
+                           std::vector<Vec3f>& kept) {
+  rows.resize(f.current.size());
+  out.resize(f.current.size());
+  kept.resize(f.current.size());
+  if (recenter > 0) {
+    CpuBackend::ForEachPixel(kSize, kSize, HistoryOffsetRowsPass{f.current.data(), f.history.data(), rows.data(),
+                                                                 kSize, recenter});
+  }
+  return {f.current.data(), f.history.data(), rows.data(), out.data(), kept.data(), kSize, kSize, 0.5f, 4.0f, recenter};
+}
+
 std::vector<Vec3f> Stabilize(const Frames& f, int recenter) {
-  std::vector<Vec3f> out(f.current.size()), kept(f.current.size());
-  CpuBackend::ForEachPixel(kSize, kSize, WrlsStabilizePass{f.current.data(), f.history.data(), out.data(),
-                                                           kept.data(), kSize, kSize, 0.5f, 4.0f, recenter});
+  std::vector<Vec4f> rows;
+  std::vector<Vec3f> out, kept;
+  CpuBackend::ForEachPixel(kSize, kSize, MakePass(f, recenter, rows, out, kept));
   EXPECT_EQ(out, kept);
   return out;
 }
@@ -69,6 +83,31 @@ TEST(WrlsStabilize, RecenteringStillAveragesNoise) {
   EXPECT_LT(Deviation(Stabilize(still, 3)), 0.8 * before);
   EXPECT_LT(Deviation(Stabilize(still, 0)), 0.8 * before);
   EXPECT_NEAR(Mean(Stabilize(still, 3)), 1.0, 0.01);
+}
+
+// Row sums added up down the column give the mean over the whole window of
+// taps 2 pixels apart, skipping pixels without history and the image's edge.
+TEST(WrlsStabilize, TheRowSumsGiveTheWindowMean) {
+  Frames f = Make(1.0f, 0.8f);
+  for (std::size_t i = 0; i < f.history.size(); i += 5) f.history[i].w = 0.0f;  // disoccluded
+  std::vector<Vec4f> rows;
+  std::vector<Vec3f> out, kept;
+  constexpr int kRecenter = 3;
+  const WrlsStabilizePass pass = MakePass(f, kRecenter, rows, out, kept);
+  for (const auto& [x, y] : {std::pair{0, 0}, {kSize - 1, 3}, {5, kSize - 2}, {24, 24}}) {
+    double sum = 0, n = 0;
+    for (int dy = -kRecenter; dy <= kRecenter; ++dy) {
+      for (int dx = -kRecenter; dx <= kRecenter; ++dx) {
+        const int nx = x + 2 * dx, ny = y + 2 * dy;
+        if (nx < 0 || ny < 0 || nx >= kSize || ny >= kSize) continue;
+        const int k = ny * kSize + nx;
+        if (f.history[k].w == 0.0f) continue;
+        sum += f.history[k].x - f.current[k].x;
+        n += 1;
+      }
+    }
+    EXPECT_NEAR(pass.HistoryOffset(x, y).x, sum / n, 1e-5) << x << "," << y;
+  }
 }
 
 }  // namespace
