@@ -372,6 +372,8 @@ StudyConfig Variant(const std::string& spec) {
     else if (key == "drift_boost") s.drift_boost = v;
     else if (key == "young") s.young_variance = v;
     else if (key == "recenter") s.stabilize_recenter = int(v);
+    else if (key == "rescale") s.feature_rescale = int(v);
+    else if (key == "rescale_sigma") s.feature_rescale_sigma = v;
     else if (key == "firefly") s.firefly_clamp = v;
     else if (key == "stabilize") s.stabilize_history = v;
     else if (key == "stabilize_clamp") s.stabilize_clamp = v;

@@ -38,7 +38,7 @@ struct StudyConfig {
 // "NAME:key=value,..." -> a wRLS configuration with those settings changed.
 // Keys: alpha, bandwidth, lambda, initial_p, radius, atrous, sigma_luminance,
 // sigma_depth, still, residual_rate, drift, drift_boost, young, firefly, stabilize,
-// stabilize_clamp, recenter;
+// stabilize_clamp, recenter, rescale, rescale_sigma;
 // method=svgf makes it an SVGF variant (keys sigma_luminance, sigma_depth).
 StudyConfig Variant(const std::string& spec);
 

@@ -58,6 +58,12 @@ struct WrlsSettings {
   // A young model's predicted variance is at least young_variance /
   // samples^2 times its noise (wrls.h, PredictionVariance). 0 turns it off.
   float young_variance = 8.0f;   // >= 0
+  // > 0: before the blend, the feature's reprojected history is scaled by the
+  // ratio of this frame's input to it over (2r + 1)^2 taps 2 pixels apart
+  // (wrls.h, Rescaled), so the feature does not lag a light that moves.
+  // 0 turns it off.
+  int feature_rescale = 0;             // [0, 8]
+  float feature_rescale_sigma = 3.0f;  // >= 0: the scaling is shrunk where it is within this many deviations of noise
   // A-trous levels on the predictions (steps 1, 2, 4, 8, 16), stopped at
   // coverage, depth and luminance edges (the last scaled by the deviation the
   // RLS fit predicts).

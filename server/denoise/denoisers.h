@@ -249,8 +249,15 @@ class Wrls final : public DenoiserBase<B> {
     still_frames_ = rv.still ? still_frames_ + 1 : 0;
     std::swap(feature_, prev_feature_);
     std::swap(model_, prev_model_);
+    const Vec4f* feature_ratio_rows = nullptr;
+    if (s.feature_rescale > 0 && !rv.still) {
+      B::ForEachPixel(w, h, ReprojectHistoryPass{rv, prev_feature_.data(), b_.data()});
+      B::ForEachPixel(w, h, FeatureRatioRowsPass{input, b_.data(), offset_rows_.data(), w, s.feature_rescale,
+                                                 s.firefly_clamp});
+      feature_ratio_rows = offset_rows_.data();
+    }
     B::ForEachPixel(w, h, WrlsTemporalPass{rv, input, prev_feature_.data(), prev_model_.data(), feature_.data(),
-                                           model_.data(), s, still_frames_});
+                                           model_.data(), s, still_frames_, feature_ratio_rows});
     B::ForEachPixel(w, h, WrlsSpatialPass{rv, feature_.data(), model_.data(), a_.data(), s});
     B::ForEachPixel(w, h, CoveragePass{frame.first_hit, coverage_.data(), w, h});
     for (int level = 0; level < s.atrous_iterations; ++level) {
@@ -263,7 +270,7 @@ class Wrls final : public DenoiserBase<B> {
       return;
     }
     std::swap(stable_, prev_stable_);
-    B::ForEachPixel(w, h, ReprojectOutputPass{rv, prev_stable_.data(), b_.data()});
+    B::ForEachPixel(w, h, ReprojectHistoryPass{rv, prev_stable_.data(), b_.data()});
     if (s.stabilize_recenter > 0) {
       B::ForEachPixel(w, h, HistoryOffsetRowsPass{a_.data(), b_.data(), offset_rows_.data(), w, s.stabilize_recenter});
     }
@@ -289,7 +296,7 @@ class Wrls final : public DenoiserBase<B> {
   typename DenoiserBase<B>::template Buffer<Vec3f> stable_, prev_stable_;  // stabilised outputs
   typename DenoiserBase<B>::template Buffer<WrlsModel> model_, prev_model_;
   typename DenoiserBase<B>::template Buffer<Vec4f> a_, b_;  // prediction and its variance, per a-trous level
-  typename DenoiserBase<B>::template Buffer<Vec4f> offset_rows_;  // the stabiliser's recentering, by rows
+  typename DenoiserBase<B>::template Buffer<Vec4f> offset_rows_;  // row sums of a recentering or rescaling window
   typename DenoiserBase<B>::template Buffer<float> coverage_;
   int still_frames_ = 0;
 };

@@ -162,6 +162,94 @@ CINEVOL_HD void AdaptForgetting(WrlsModel& m, float luminance_error, float w, co
   m.drift = 0.0f;
 }
 
+// A previous frame's image (the feature or the stabilised output),
+// reprojected to this frame: rgb, and w = 1 where it could be (0 on
+// disocclusion).
+struct ReprojectHistoryPass {
+  ReprojectionView rv;
+  const Vec3f* previous;
+  Vec4f* history;
+
+  CINEVOL_HD void operator()(int x, int y) const {
+    const Reprojection r = Reproject(rv, x, y);
+    Vec3f h;
+    const bool ok = r.valid && SampleHistory(rv, previous, r, rv.first_hit[rv.Index(x, y)], h) && IsFinite(h);
+    history[rv.Index(x, y)] = ok ? ToVec4(h, 1.0f) : Vec4f{};
+  }
+};
+
+// The stabiliser's recentering (WrlsSettings::stabilize_recenter): the
+// history is shifted by its mean offset from the estimate over (2 recenter +
+// 1)^2 taps 2 pixels apart. A change of shading moves a whole region the same
+// way and is taken out of the history (no lag), while noise, different from
+// pixel to pixel, mostly averages away in the window. First the row sums: per
+// pixel, the sum of (history - estimate) over the reprojected pixels among the
+// 2 recenter + 1 taps on its row, and in w how many there are; WindowMean adds
+// them up down the column, so the window costs 2 (2 recenter + 1) reads.
+struct HistoryOffsetRowsPass {
+  const Vec4f* current;  // this frame's estimate
+  const Vec4f* history;  // ReprojectHistoryPass
+  Vec4f* rows;
+  int width, recenter;
+
+  CINEVOL_HD void operator()(int x, int y) const {
+    Vec3f sum{};
+    float n = 0.0f;
+    for (int dx = -recenter; dx <= recenter; ++dx) {
+      const int nx = x + 2 * dx;
+      if (nx < 0 || nx >= width) continue;
+      const int k = y * width + nx;
+      if (history[k].w == 0.0f) continue;
+      sum += Xyz(history[k]) - Xyz(current[k]);
+      n += 1.0f;
+    }
+    rows[y * width + x] = ToVec4(sum, n);
+  }
+};
+
+// The feature's rescaling (WrlsSettings::feature_rescale): as the
+// stabiliser's recentering, but a ratio, since a light changes radiance in
+// proportion (dark and bright tissue in one window brighten by the same
+// factor). Row sums of the history's and the input's luminance over the
+// reprojected taps (x, y) and how many (w). An input tap counts at most
+// firefly_clamp times its history, so a firefly does not scale the window.
+struct FeatureRatioRowsPass {
+  const Vec3f* input;
+  const Vec4f* history;  // ReprojectHistoryPass over the previous feature
+  Vec4f* rows;
+  int width, radius;
+  float firefly_clamp;
+
+  CINEVOL_HD void operator()(int x, int y) const {
+    float history_sum = 0.0f, input_sum = 0.0f, n = 0.0f;
+    for (int dx = -radius; dx <= radius; ++dx) {
+      const int nx = x + 2 * dx;
+      if (nx < 0 || nx >= width) continue;
+      const int k = y * width + nx;
+      if (history[k].w == 0.0f || !IsFinite(input[k])) continue;
+      const float h = Luminance(Xyz(history[k]));
+      history_sum += h;
+      input_sum += fminf(fmaxf(Luminance(input[k]), 0.0f), firefly_clamp * h);
+      n += 1.0f;
+    }
+    rows[y * width + x] = {history_sum, input_sum, 0.0f, n};
+  }
+};
+
+// The window's mean offset, and in w over how many pixels.
+CINEVOL_HD Vec4f WindowMean(const Vec4f* rows, int width, int height, int x, int y, int recenter) {
+  Vec3f sum{};
+  float n = 0.0f;
+  for (int dy = -recenter; dy <= recenter; ++dy) {
+    const int ny = y + 2 * dy;
+    if (ny < 0 || ny >= height) continue;
+    const Vec4f row = rows[ny * width + x];
+    sum += Xyz(row);
+    n += row.w;
+  }
+  return ToVec4(n > 0.0f ? sum / n : Vec3f{}, n);
+}
+
 // Pass 1: the temporal feature and the model update, per pixel.
 struct WrlsTemporalPass {
   ReprojectionView rv;
@@ -172,6 +260,7 @@ struct WrlsTemporalPass {
   WrlsModel* model;
   WrlsSettings s;
   int still_frames;            // frames the view has stayed still (0: it moved or changed)
+  const Vec4f* feature_ratio_rows;  // FeatureRatioRowsPass; null: no rescaling
 
   // Variance of the input's luminance over the 7x7 window (SVGF's first
   // estimate too): a 3x3 window at 2 spp misjudges the noise by 2x either way,
@@ -190,6 +279,23 @@ struct WrlsTemporalPass {
       }
     }
     return n > 1.0f ? fmaxf(sum_sq / n - Sqr(sum / n), 0.0f) : 0.0f;
+  }
+
+  // The feature's history scaled by the window's ratio of input to history
+  // luminance (WrlsSettings::feature_rescale), shrunk where that ratio is
+  // within the noise of a mean over the window (Wiener: d^2 / (d^2 + k^2
+  // var / n), d the ratio's distance from 1, var the model's residual
+  // relative to the window's level): a real change is taken out whole, the
+  // window's own noise, which the a-trous levels could not remove (it is
+  // smooth), mostly not.
+  CINEVOL_HD Vec3f Rescaled(Vec3f history, int x, int y, const WrlsModel& m) const {
+    const Vec4f window = WindowMean(feature_ratio_rows, rv.width, rv.height, x, y, s.feature_rescale);
+    if (!(window.x > 0.0f)) return history;
+    const float ratio = window.y / window.x;
+    const float signal = Sqr(ratio - 1.0f);
+    const float noise = Sqr(s.feature_rescale_sigma * m.scale / window.x) * fmaxf(m.residual, 0.0f) / window.w;
+    const float keep = signal + noise > 0.0f ? signal / (signal + noise) : 0.0f;
+    return history * (1.0f + keep * (ratio - 1.0f));
   }
 
   CINEVOL_HD void operator()(int x, int y) const {
@@ -222,6 +328,7 @@ struct WrlsTemporalPass {
     // A still view's history is exact: it is not rectified, and it weighs as
     // many samples as it holds, so z becomes the running mean.
     const bool still = still_frames > 0 && has_history;
+    if (has_history && !still && feature_ratio_rows) history = Rescaled(history, x, y, prev_model[rv.Index(r.nx, r.ny)]);
     if (has_history && !still && lo.x <= hi.x) history = Min(Max(history, lo), hi);
 
     const float level = fmaxf(neighbours > 0 ? neighbour_sum / float(neighbours) : 0.0f,
@@ -308,61 +415,18 @@ struct WrlsSpatialPass {
   }
 };
 
-// Pass 4a: the previous stabilised output, reprojected to this frame: rgb,
-// and w = 1 where it could be (0 on disocclusion).
-struct ReprojectOutputPass {
-  ReprojectionView rv;
-  const Vec3f* prev_output;
-  Vec4f* history;
-
-  CINEVOL_HD void operator()(int x, int y) const {
-    const Reprojection r = Reproject(rv, x, y);
-    Vec3f h;
-    const bool ok = r.valid && SampleHistory(rv, prev_output, r, rv.first_hit[rv.Index(x, y)], h) && IsFinite(h);
-    history[rv.Index(x, y)] = ok ? ToVec4(h, 1.0f) : Vec4f{};
-  }
-};
-
-// Pass 4b (with recentering only): the recentering window's row sums. Per
-// pixel, the sum of (history - estimate) over the reprojected pixels among the
-// 2 recenter + 1 taps 2 pixels apart on its row, and in w how many there are.
-// The stabiliser adds these up over the same taps down its column: the
-// (2 recenter + 1)^2-tap mean for 2 (2 recenter + 1) reads.
-struct HistoryOffsetRowsPass {
-  const Vec4f* current;  // this frame's estimate
-  const Vec4f* history;  // ReprojectOutputPass
-  Vec4f* rows;
-  int width, recenter;
-
-  CINEVOL_HD void operator()(int x, int y) const {
-    Vec3f sum{};
-    float n = 0.0f;
-    for (int dx = -recenter; dx <= recenter; ++dx) {
-      const int nx = x + 2 * dx;
-      if (nx < 0 || nx >= width) continue;
-      const int k = y * width + nx;
-      if (history[k].w == 0.0f) continue;
-      sum += Xyz(history[k]) - Xyz(current[k]);
-      n += 1.0f;
-    }
-    rows[y * width + x] = ToVec4(sum, n);
-  }
-};
-
-// Pass 4c: temporal stabilisation of the output (WrlsSettings::stabilize_*).
+// Pass 4: temporal stabilisation of the output (WrlsSettings::stabilize_*).
 // The history is clipped to this frame's estimate +- clamp_sigma deviations
 // (Salvi's variance clipping; the deviation counts the 3x3 spread and the
 // variance the fit predicts), so a real change (a light moving, the transfer
 // function edited) passes through and only noise is averaged. The box is
 // centred on the pixel, not on the 3x3 mean, so that it does not blur edges.
-// With `recenter` > 0 the history is first shifted by its mean offset from
-// this frame's estimate over a window of (2 recenter + 1)^2 taps 2 pixels
-// apart: a change of shading moves a whole region the same way and is taken
-// out of the history (no lag), while noise, different from pixel to pixel,
-// mostly averages away in the window and keeps being smoothed.
+// With `recenter` > 0 the history is first recentred on the estimate
+// (HistoryOffsetRowsPass), so a change of shading passes whole and noise
+// keeps being smoothed.
 struct WrlsStabilizePass {
   const Vec4f* current;      // this frame's estimate: colour, predicted variance
-  const Vec4f* history;      // ReprojectOutputPass
+  const Vec4f* history;      // ReprojectHistoryPass
   const Vec4f* offset_rows;  // HistoryOffsetRowsPass; unread without recentering
   Vec3f* output;             // the denoiser's output
   Vec3f* kept;               // the same, kept as the next frame's history
@@ -372,27 +436,13 @@ struct WrlsStabilizePass {
 
   CINEVOL_HD bool InBounds(int x, int y) const { return x >= 0 && y >= 0 && x < width && y < height; }
 
-  // Mean of (history - estimate) over the window's reprojected pixels.
-  CINEVOL_HD Vec3f HistoryOffset(int x, int y) const {
-    Vec3f sum{};
-    float n = 0.0f;
-    for (int dy = -recenter; dy <= recenter; ++dy) {
-      const int ny = y + 2 * dy;
-      if (ny < 0 || ny >= height) continue;
-      const Vec4f row = offset_rows[ny * width + x];
-      sum += Xyz(row);
-      n += row.w;
-    }
-    return n > 0.0f ? sum / n : Vec3f{};
-  }
-
   CINEVOL_HD void operator()(int x, int y) const {
     const int i = y * width + x;
     const Vec3f c = Xyz(current[i]);
     Vec3f out = c;
     if (history[i].w != 0.0f) {
       Vec3f h = Xyz(history[i]);
-      if (recenter > 0) h = Max(h - HistoryOffset(x, y), Vec3f{});
+      if (recenter > 0) h = Max(h - Xyz(WindowMean(offset_rows, width, height, x, y, recenter)), Vec3f{});
       Vec3f sum{}, sum_sq{};
       float n = 0.0f;
       for (int dy = -1; dy <= 1; ++dy) {
