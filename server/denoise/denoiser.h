@@ -81,7 +81,7 @@ struct WrlsSettings {
   float stabilize_clamp = 4.0f;    // >= 0: width of the clip box in deviations (wide: recentering takes the lag)
   // > 0: the history is first shifted by its mean offset from the estimate
   // over (2r + 1)^2 taps 2 pixels apart, so a shading change does not lag
-  // (wrls.h, WrlsStabilizePass). 0 turns it off.
+  // (wrls.h, HistoryOffsetRowsPass). 0 turns it off.
   int stabilize_recenter = 5;      // [0, 8]
 };
 
