@@ -236,11 +236,13 @@ struct FeatureRatioRowsPass {
   }
 };
 
-// The window's mean offset, and in w over how many pixels.
-CINEVOL_HD Vec4f WindowMean(const Vec4f* rows, int width, int height, int x, int y, int recenter) {
+// Row sums (HistoryOffsetRowsPass, FeatureRatioRowsPass) added up over the
+// column's taps: the window's mean of what the rows summed, and in w over how
+// many pixels.
+CINEVOL_HD Vec4f WindowMean(const Vec4f* rows, int width, int height, int x, int y, int radius) {
   Vec3f sum{};
   float n = 0.0f;
-  for (int dy = -recenter; dy <= recenter; ++dy) {
+  for (int dy = -radius; dy <= radius; ++dy) {
     const int ny = y + 2 * dy;
     if (ny < 0 || ny >= height) continue;
     const Vec4f row = rows[ny * width + x];
