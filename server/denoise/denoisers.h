@@ -238,8 +238,8 @@ class Svgf final : public DenoiserBase<B> {
 };
 
 // wRLS: the temporal pass (feature and models), the predictions (blended
-// over the neighbours' models where spatial_radius > 0), then a-trous levels
-// guided by the variance the fit predicts.
+// over the neighbours' models where spatial_radius > 0), a-trous levels
+// guided by the variance the fit predicts, then the output's stabilisation.
 template <class B>
 class Wrls final : public DenoiserBase<B> {
  protected:
@@ -249,15 +249,8 @@ class Wrls final : public DenoiserBase<B> {
     still_frames_ = rv.still ? still_frames_ + 1 : 0;
     std::swap(feature_, prev_feature_);
     std::swap(model_, prev_model_);
-    const Vec4f* feature_ratio_rows = nullptr;
-    if (s.feature_rescale > 0 && !rv.still) {
-      B::ForEachPixel(w, h, ReprojectHistoryPass{rv, prev_feature_.data(), b_.data()});
-      B::ForEachPixel(w, h, FeatureRatioRowsPass{input, b_.data(), offset_rows_.data(), w, s.feature_rescale,
-                                                 s.firefly_clamp});
-      feature_ratio_rows = offset_rows_.data();
-    }
     B::ForEachPixel(w, h, WrlsTemporalPass{rv, input, prev_feature_.data(), prev_model_.data(), feature_.data(),
-                                           model_.data(), s, still_frames_, feature_ratio_rows});
+                                           model_.data(), s, still_frames_, FeatureRatioRows(input, rv)});
     B::ForEachPixel(w, h, WrlsSpatialPass{rv, feature_.data(), model_.data(), a_.data(), s});
     B::ForEachPixel(w, h, CoveragePass{frame.first_hit, coverage_.data(), w, h});
     for (int level = 0; level < s.atrous_iterations; ++level) {
@@ -265,18 +258,13 @@ class Wrls final : public DenoiserBase<B> {
                                        1 << level, s.atrous_sigma_luminance, s.atrous_sigma_depth});
       std::swap(a_, b_);
     }
-    if (s.stabilize_history <= 0.0f) {
+    if (s.stabilize_history > 0.0f) {
+      Stabilize(rv, output);
+    } else {
       B::ForEachPixel(w, h, ColorOfPass{a_.data(), output, w});
-      return;
     }
-    std::swap(stable_, prev_stable_);
-    B::ForEachPixel(w, h, ReprojectHistoryPass{rv, prev_stable_.data(), b_.data()});
-    if (s.stabilize_recenter > 0) {
-      B::ForEachPixel(w, h, HistoryOffsetRowsPass{a_.data(), b_.data(), offset_rows_.data(), w, s.stabilize_recenter});
-    }
-    B::ForEachPixel(w, h, WrlsStabilizePass{a_.data(), b_.data(), offset_rows_.data(), output, stable_.data(), w, h,
-                                            s.stabilize_history, s.stabilize_clamp, s.stabilize_recenter});
   }
+
   void Allocate(std::size_t n) override {
     stable_.Resize(n);
     prev_stable_.Resize(n);
@@ -292,6 +280,31 @@ class Wrls final : public DenoiserBase<B> {
   void ResetHistory() override { still_frames_ = 0; }
 
  private:
+  // The row sums the temporal pass rescales the feature's history with, or
+  // null where it does not (rescaling off, or a still view: exact history).
+  const Vec4f* FeatureRatioRows(const Vec3f* input, const ReprojectionView& rv) {
+    const WrlsSettings& s = this->settings_.wrls;
+    if (s.feature_rescale <= 0 || rv.still) return nullptr;
+    const int w = this->width_, h = this->height_;
+    B::ForEachPixel(w, h, ReprojectHistoryPass{rv, prev_feature_.data(), b_.data()});
+    B::ForEachPixel(w, h, FeatureRatioRowsPass{input, b_.data(), offset_rows_.data(), w, s.feature_rescale,
+                                               s.firefly_clamp});
+    return offset_rows_.data();
+  }
+
+  // The estimate in a_ blended with the previous output, recentred.
+  void Stabilize(const ReprojectionView& rv, Vec3f* output) {
+    const WrlsSettings& s = this->settings_.wrls;
+    const int w = this->width_, h = this->height_;
+    std::swap(stable_, prev_stable_);
+    B::ForEachPixel(w, h, ReprojectHistoryPass{rv, prev_stable_.data(), b_.data()});
+    if (s.stabilize_recenter > 0) {
+      B::ForEachPixel(w, h, HistoryOffsetRowsPass{a_.data(), b_.data(), offset_rows_.data(), w, s.stabilize_recenter});
+    }
+    B::ForEachPixel(w, h, WrlsStabilizePass{a_.data(), b_.data(), offset_rows_.data(), output, stable_.data(), w, h,
+                                            s.stabilize_history, s.stabilize_clamp, s.stabilize_recenter});
+  }
+
   typename DenoiserBase<B>::template Buffer<Vec3f> feature_, prev_feature_;
   typename DenoiserBase<B>::template Buffer<Vec3f> stable_, prev_stable_;  // stabilised outputs
   typename DenoiserBase<B>::template Buffer<WrlsModel> model_, prev_model_;
