@@ -330,6 +330,31 @@ RunResult RunConfig(Context& ctx, const Scenario& scenario, const References& re
   return run;
 }
 
+// The wRLS settings a --variant can change, by key.
+const std::map<std::string, float WrlsSettings::*> kWrlsFloatKeys = {
+    {"alpha", &WrlsSettings::alpha},
+    {"bandwidth", &WrlsSettings::bandwidth},
+    {"lambda", &WrlsSettings::lambda},
+    {"initial_p", &WrlsSettings::initial_p},
+    {"sigma_luminance", &WrlsSettings::atrous_sigma_luminance},
+    {"sigma_depth", &WrlsSettings::atrous_sigma_depth},
+    {"residual_rate", &WrlsSettings::residual_rate},
+    {"drift", &WrlsSettings::drift_sigma},
+    {"drift_boost", &WrlsSettings::drift_boost},
+    {"young", &WrlsSettings::young_variance},
+    {"rescale_sigma", &WrlsSettings::feature_rescale_sigma},
+    {"firefly", &WrlsSettings::firefly_clamp},
+    {"stabilize", &WrlsSettings::stabilize_history},
+    {"stabilize_clamp", &WrlsSettings::stabilize_clamp},
+};
+const std::map<std::string, int WrlsSettings::*> kWrlsIntKeys = {
+    {"radius", &WrlsSettings::spatial_radius},
+    {"atrous", &WrlsSettings::atrous_iterations},
+    {"still", &WrlsSettings::max_still_frames},
+    {"recenter", &WrlsSettings::stabilize_recenter},
+    {"rescale", &WrlsSettings::feature_rescale},
+};
+
 }  // namespace
 
 // --- Public ------------------------------------------------------------------------
@@ -353,31 +378,17 @@ StudyConfig Variant(const std::string& spec) {
   for (const auto& [key, text] : items) {
     if (key == "method") continue;
     const float v = std::stof(text);
-    WrlsSettings& s = c.wrls;
     if (c.method == DenoiseMethod::kSvgf) {
       if (key == "sigma_luminance") c.svgf.sigma_luminance = v;
       else if (key == "sigma_depth") c.svgf.sigma_depth = v;
       else throw InputError(fmt::format("--variant {}: unknown SVGF key '{}'", spec, key));
-    } else if (key == "alpha") s.alpha = v;
-    else if (key == "bandwidth") s.bandwidth = v;
-    else if (key == "lambda") s.lambda = v;
-    else if (key == "initial_p") s.initial_p = v;
-    else if (key == "radius") s.spatial_radius = int(v);
-    else if (key == "atrous") s.atrous_iterations = int(v);
-    else if (key == "sigma_luminance") s.atrous_sigma_luminance = v;
-    else if (key == "sigma_depth") s.atrous_sigma_depth = v;
-    else if (key == "still") s.max_still_frames = int(v);
-    else if (key == "residual_rate") s.residual_rate = v;
-    else if (key == "drift") s.drift_sigma = v;
-    else if (key == "drift_boost") s.drift_boost = v;
-    else if (key == "young") s.young_variance = v;
-    else if (key == "recenter") s.stabilize_recenter = int(v);
-    else if (key == "rescale") s.feature_rescale = int(v);
-    else if (key == "rescale_sigma") s.feature_rescale_sigma = v;
-    else if (key == "firefly") s.firefly_clamp = v;
-    else if (key == "stabilize") s.stabilize_history = v;
-    else if (key == "stabilize_clamp") s.stabilize_clamp = v;
-    else throw InputError(fmt::format("--variant {}: unknown key '{}'", spec, key));
+    } else if (auto f = kWrlsFloatKeys.find(key); f != kWrlsFloatKeys.end()) {
+      c.wrls.*(f->second) = v;
+    } else if (auto n = kWrlsIntKeys.find(key); n != kWrlsIntKeys.end()) {
+      c.wrls.*(n->second) = int(v);
+    } else {
+      throw InputError(fmt::format("--variant {}: unknown key '{}'", spec, key));
+    }
   }
   return c;
 }
