@@ -62,7 +62,7 @@ struct WrlsSettings {
   // ratio of this frame's input to it over (2r + 1)^2 taps 2 pixels apart
   // (wrls.h, Rescaled), so the feature does not lag a light that moves.
   // 0 turns it off.
-  int feature_rescale = 0;             // [0, 8]
+  int feature_rescale = 5;             // [0, 8]
   float feature_rescale_sigma = 3.0f;  // >= 0: the scaling is shrunk where it is within this many deviations of noise
   // A-trous levels on the predictions (steps 1, 2, 4, 8, 16), stopped at
   // coverage, depth and luminance edges (the last scaled by the deviation the

@@ -249,8 +249,9 @@ class Wrls final : public DenoiserBase<B> {
     still_frames_ = rv.still ? still_frames_ + 1 : 0;
     std::swap(feature_, prev_feature_);
     std::swap(model_, prev_model_);
-    B::ForEachPixel(w, h, WrlsTemporalPass{rv, input, prev_feature_.data(), prev_model_.data(), feature_.data(),
-                                           model_.data(), s, still_frames_, FeatureRatioRows(input, rv)});
+    B::ForEachPixel(w, h, ReprojectHistoryPass{rv, prev_feature_.data(), b_.data()});
+    B::ForEachPixel(w, h, WrlsTemporalPass{rv, input, b_.data(), prev_model_.data(), feature_.data(), model_.data(), s,
+                                           still_frames_, FeatureRatioRows(input, rv)});
     B::ForEachPixel(w, h, WrlsSpatialPass{rv, feature_.data(), model_.data(), a_.data(), s});
     B::ForEachPixel(w, h, CoveragePass{frame.first_hit, coverage_.data(), w, h});
     for (int level = 0; level < s.atrous_iterations; ++level) {
@@ -280,13 +281,13 @@ class Wrls final : public DenoiserBase<B> {
   void ResetHistory() override { still_frames_ = 0; }
 
  private:
-  // The row sums the temporal pass rescales the feature's history with, or
-  // null where it does not (rescaling off, or a still view: exact history).
+  // The row sums the temporal pass rescales the feature's history (in b_)
+  // with, or null where it does not (rescaling off, or a still view: exact
+  // history).
   const Vec4f* FeatureRatioRows(const Vec3f* input, const ReprojectionView& rv) {
     const WrlsSettings& s = this->settings_.wrls;
     if (s.feature_rescale <= 0 || rv.still) return nullptr;
     const int w = this->width_, h = this->height_;
-    B::ForEachPixel(w, h, ReprojectHistoryPass{rv, prev_feature_.data(), b_.data()});
     B::ForEachPixel(w, h, FeatureRatioRowsPass{input, b_.data(), offset_rows_.data(), w, s.feature_rescale,
                                                s.firefly_clamp});
     return offset_rows_.data();

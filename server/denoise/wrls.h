@@ -256,7 +256,7 @@ CINEVOL_HD Vec4f WindowMean(const Vec4f* rows, int width, int height, int x, int
 struct WrlsTemporalPass {
   ReprojectionView rv;
   const Vec3f* input;          // this frame's noisy radiance
-  const Vec3f* prev_feature;   // z of the previous frame
+  const Vec4f* prev_feature;   // z of the previous frame, reprojected (ReprojectHistoryPass)
   const WrlsModel* prev_model;
   Vec3f* feature;              // z of this frame
   WrlsModel* model;
@@ -324,9 +324,8 @@ struct WrlsTemporalPass {
       }
     }
     const Reprojection r = Reproject(rv, x, y);
-    const Vec4f hit = rv.first_hit[i];
-    Vec3f history;
-    const bool has_history = r.valid && SampleHistory(rv, prev_feature, r, hit, history) && IsFinite(history);
+    const bool has_history = prev_feature[i].w != 0.0f;
+    Vec3f history = Xyz(prev_feature[i]);
     // A still view's history is exact: it is not rectified, and it weighs as
     // many samples as it holds, so z becomes the running mean.
     const bool still = still_frames > 0 && has_history;
