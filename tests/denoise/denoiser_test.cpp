@@ -273,12 +273,11 @@ TEST(Wrls, StabilisationSteadiesEditsAndFollowsAStep) {
 // A light sweeping across a still view (the scene edited every frame): each
 // pixel brightens and darkens in turn, so the feature's history lags by a
 // different amount everywhere, which a per-pixel fit cannot learn. Rescaling
-// the history by the window's ratio of input to history takes most of it out.
+// the history by the window's ratio of input to history (on by default)
+// takes most of it out.
 TEST(Wrls, FeatureRescalingFollowsAMovingLight) {
   constexpr int kWidth = 64, kHeight = 32, kFrames = 30;
-  auto error = [&](int feature_rescale) {
-    DenoiserSettings s;
-    s.wrls.feature_rescale = feature_rescale;
+  auto error = [&](const DenoiserSettings& s) {
     auto d = CreateDenoiser(DenoiseBackend::kCpu, s);
     SyntheticSequence seq(kWidth, kHeight);
     double sum = 0;
@@ -300,15 +299,15 @@ TEST(Wrls, FeatureRescalingFollowsAMovingLight) {
     }
     return sum;
   };
-  const double plain = error(0), rescaled = error(5);
+  DenoiserSettings without;
+  without.wrls.feature_rescale = 0;
+  const double plain = error(without), rescaled = error(DenoiserSettings{});
   std::printf("mean relative error, frames 10-29: %.4f plain, %.4f rescaled\n", plain, rescaled);
   EXPECT_LT(rescaled, 0.8 * plain);
 }
 
 TEST(Wrls, FeatureRescalingSurvivesHostileInput) {
-  DenoiserSettings s;
-  s.wrls.feature_rescale = 5;
-  auto d = CreateDenoiser(DenoiseBackend::kCpu, s);
+  auto d = CreateDenoiser(DenoiseBackend::kCpu, DenoiserSettings{});
   SyntheticSequence seq(24, 16);
   const float inf = std::numeric_limits<float>::infinity();
   for (int t = 0; t < 30; ++t) {
