@@ -237,9 +237,11 @@ class Svgf final : public DenoiserBase<B> {
   typename DenoiserBase<B>::template Buffer<float> coverage_;
 };
 
-// wRLS: the temporal pass (feature and models), the predictions (blended
-// over the neighbours' models where spatial_radius > 0), a-trous levels
-// guided by the variance the fit predicts, then the output's stabilisation.
+// wRLS: the feature's history reprojected (and rescaled where the light or
+// the scene changed), the temporal pass (feature and models), the
+// predictions (blended over the neighbours' models where spatial_radius > 0),
+// a-trous levels guided by the variance the fit predicts, then the output's
+// stabilisation.
 template <class B>
 class Wrls final : public DenoiserBase<B> {
  protected:
