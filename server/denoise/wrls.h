@@ -4,9 +4,10 @@
 // Per pixel: a temporal feature z (Eq. 12; its reprojected history first
 // rescaled by the window's change of light, FeatureRatioRowsPass), then per
 // channel a linear model I ~ beta0 + beta1 z updated by weighted recursive
-// least squares (Eqs. 9-11, 13, 14); a spatial pass evaluates the model, optionally blending the
-// predictions of the neighbours' models, with the variance it predicts; after
-// the a-trous levels (baselines.h) a last pass steadies the output over time.
+// least squares (Eqs. 9-11, 13, 14); a spatial pass evaluates the model,
+// optionally blending the predictions of the neighbours' models, with the
+// variance it predicts; after the a-trous levels (baselines.h) a last pass
+// steadies the output over time.
 //
 // Numerics (what keeps it stable at the extremes):
 // - Each model works in units of its own scale s (the feature's magnitude
