@@ -326,12 +326,13 @@ struct WrlsTemporalPass {
       }
     }
     const Reprojection r = Reproject(rv, x, y);
-    const bool has_history = prev_feature[i].w != 0.0f;
+    const WrlsModel* previous = r.valid ? &prev_model[rv.Index(r.nx, r.ny)] : nullptr;
+    const bool has_history = previous && prev_feature[i].w != 0.0f;
     Vec3f history = Xyz(prev_feature[i]);
     // A still view's history is exact: it is not rectified, and it weighs as
     // many samples as it holds, so z becomes the running mean.
     const bool still = still_frames > 0 && has_history;
-    if (has_history && !still && feature_ratio_rows) history = Rescaled(history, x, y, prev_model[rv.Index(r.nx, r.ny)]);
+    if (has_history && !still && feature_ratio_rows) history = Rescaled(history, x, y, *previous);
     if (has_history && !still && lo.x <= hi.x) history = Min(Max(history, lo), hi);
 
     const float level = fmaxf(neighbours > 0 ? neighbour_sum / float(neighbours) : 0.0f,
@@ -340,7 +341,7 @@ struct WrlsTemporalPass {
     Vec3f entering = sample_ok ? Min(Max(sample, Vec3f{}), Vec3f{cap, cap, cap}) : Vec3f{};
     if (!sample_ok && has_history) entering = history;
 
-    WrlsModel m = r.valid ? prev_model[rv.Index(r.nx, r.ny)] : InitialModel(entering, s.initial_p);
+    WrlsModel m = previous ? *previous : InitialModel(entering, s.initial_p);
     if (!Healthy(m, s.max_coefficient)) Refit(m, entering, s.initial_p);
     // Eq. 12, all three channels together, with the sample's share starting
     // as a running mean (1, 1/2, 1/3, ...) down to the paper's 1 - alpha, or
