@@ -353,6 +353,7 @@ const std::map<std::string, int WrlsSettings::*> kWrlsIntKeys = {
     {"still", &WrlsSettings::max_still_frames},
     {"recenter", &WrlsSettings::stabilize_recenter},
     {"rescale", &WrlsSettings::feature_rescale},
+    {"stillmode", &WrlsSettings::still_mode},
 };
 
 }  // namespace
@@ -378,7 +379,9 @@ StudyConfig Variant(const std::string& spec) {
   for (const auto& [key, text] : items) {
     if (key == "method") continue;
     const float v = std::stof(text);
-    if (c.method == DenoiseMethod::kSvgf) {
+    if (key == "spp") {
+      c.spp = int(v);
+    } else if (c.method == DenoiseMethod::kSvgf) {
       if (key == "sigma_luminance") c.svgf.sigma_luminance = v;
       else if (key == "sigma_depth") c.svgf.sigma_depth = v;
       else throw InputError(fmt::format("--variant {}: unknown SVGF key '{}'", spec, key));

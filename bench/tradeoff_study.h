@@ -40,6 +40,7 @@ struct StudyConfig {
 // sigma_depth, still, residual_rate, drift, drift_boost, young, firefly, stabilize,
 // stabilize_clamp, recenter, rescale, rescale_sigma;
 // method=svgf makes it an SVGF variant (keys sigma_luminance, sigma_depth).
+// Either method also takes spp (samples per pixel per frame).
 StudyConfig Variant(const std::string& spec);
 
 // The baseline and one-at-a-time sweeps of every knob; `quick` a small subset.
