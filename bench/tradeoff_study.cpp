@@ -353,7 +353,6 @@ const std::map<std::string, int WrlsSettings::*> kWrlsIntKeys = {
     {"still", &WrlsSettings::max_still_frames},
     {"recenter", &WrlsSettings::stabilize_recenter},
     {"rescale", &WrlsSettings::feature_rescale},
-    {"stillmode", &WrlsSettings::still_mode},
 };
 
 }  // namespace
@@ -380,6 +379,7 @@ StudyConfig Variant(const std::string& spec) {
     if (key == "method") continue;
     const float v = std::stof(text);
     if (key == "spp") {
+      if (!(v >= 1.0f && v <= 1024.0f)) throw InputError(fmt::format("--variant {}: spp must be 1 to 1024", spec));
       c.spp = int(v);
     } else if (c.method == DenoiseMethod::kSvgf) {
       if (key == "sigma_luminance") c.svgf.sigma_luminance = v;

@@ -7,11 +7,24 @@
 #include <cmath>
 #include <map>
 
+#include "core/error.h"
 #include "support/test_paths.h"
 #include "tradeoff_study.h"
 
 namespace cinevol::bench {
 namespace {
+
+TEST(TradeoffStudy, VariantsParseTheirKeysAndNameBadOnes) {
+  const StudyConfig c = Variant("s8:spp=8,rescale=3,alpha=0.5");
+  EXPECT_EQ(c.Label(), "wrls[s8]");
+  EXPECT_EQ(c.spp, 8);
+  EXPECT_EQ(c.wrls.feature_rescale, 3);
+  EXPECT_FLOAT_EQ(c.wrls.alpha, 0.5f);
+  EXPECT_EQ(Variant("d:method=svgf,sigma_depth=8,spp=4").method, DenoiseMethod::kSvgf);
+  EXPECT_THROW(Variant("z:spp=0"), InputError);
+  EXPECT_THROW(Variant("u:no_such_key=1"), InputError);
+  EXPECT_THROW(Variant("k:method=knn"), InputError);
+}
 
 TEST(TradeoffStudy, TinyRunKeepsWrlsAheadAndNumbersFinite) {
   testing::ScratchDir scratch;
