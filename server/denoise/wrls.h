@@ -150,10 +150,13 @@ CINEVOL_HD void UpdateChannel(WrlsModel& m, int c, float u, float y, float w, co
 // drift_sigma deviations of what noise alone gives it, the model keeps its
 // firm prior; when it drifts beyond them (the radiance changed under the
 // model), P is widened by drift_boost, so the next samples move the fit.
+// A model with no noise estimate yet (residual 0) waits: every error would
+// read as a drift (at 1 spp on the MR head's still view such false alarms
+// cost 1.3 dB by frame 12, docs/tradeoff.md).
 inline constexpr float kWrlsDriftRate = 0.3f;  // EMA rate of the drift: a change shows within 2-3 frames
 
 CINEVOL_HD void AdaptForgetting(WrlsModel& m, float luminance_error, float w, const WrlsSettings& s) {
-  if (!(s.drift_sigma > 0.0f)) return;
+  if (!(s.drift_sigma > 0.0f) || !(m.residual > 0.0f)) return;
   m.drift += kWrlsDriftRate * w * (luminance_error - m.drift);
   // An EMA of rate k over noise of variance v has variance v k / (2 - k).
   const float noise = m.residual * (kWrlsDriftRate / (2.0f - kWrlsDriftRate));

@@ -82,6 +82,19 @@ TEST(WrlsNumerics, ForgettingAdaptsToADriftNotToNoise) {
   EXPECT_EQ(m.p00[0], before.p00[0]);
 }
 
+// A model that has seen no noise yet (residual 0: at 1 spp a dark region's
+// first 7x7 neighbourhood can be all black) cannot tell a drift from noise:
+// its first bright sample must not throw away the firm prior.
+TEST(WrlsNumerics, ForgettingWaitsForANoiseEstimate) {
+  WrlsSettings s;
+  WrlsModel m = InitialModel({1, 1, 1}, 0.1f);
+  m.residual = 0.0f;
+  for (int t = 0; t < 10; ++t) AdaptForgetting(m, 5.0f, 1.0f, s);
+  EXPECT_FLOAT_EQ(m.p00[0], 0.1f);
+  EXPECT_FLOAT_EQ(m.p11[1], 0.1f);
+  EXPECT_EQ(m.drift, 0.0f);
+}
+
 // A model's first frames are filtered as if its noise were young_variance /
 // samples^2 times the residual, when that is more than the fit predicts.
 TEST(WrlsNumerics, AYoungModelPredictsAtLeastTheYoungVariance) {
