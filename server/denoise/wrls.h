@@ -151,8 +151,8 @@ CINEVOL_HD void UpdateChannel(WrlsModel& m, int c, float u, float y, float w, co
 // firm prior; when it drifts beyond them (the radiance changed under the
 // model), P is widened by drift_boost, so the next samples move the fit.
 // A model with no noise estimate yet (residual 0) waits: every error would
-// read as a drift (at 1 spp on the MR head's still view such false alarms
-// cost 1.3 dB by frame 12, docs/tradeoff.md).
+// read as a drift (at 1 spp on the MR head's still view at 720p such false
+// alarms cost 1.8 dB, docs/tradeoff.md).
 inline constexpr float kWrlsDriftRate = 0.3f;  // EMA rate of the drift: a change shows within 2-3 frames
 
 CINEVOL_HD void AdaptForgetting(WrlsModel& m, float luminance_error, float w, const WrlsSettings& s) {
