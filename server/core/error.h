@@ -21,4 +21,11 @@ class ResourceExhausted : public std::runtime_error {
   explicit ResourceExhausted(const std::string& what) : std::runtime_error(what) {}
 };
 
+// Work stopped before it finished because nobody wants it any more: its
+// session closed, its caller went away, or the server is shutting down.
+class Cancelled : public std::runtime_error {
+ public:
+  explicit Cancelled(const std::string& what = "cancelled") : std::runtime_error(what) {}
+};
+
 }  // namespace cinevol

@@ -96,6 +96,7 @@ FrameRequest FramePipeline::Request(int spp) {
   r.max_bounces = static_cast<int>(scene_.render().max_bounces());
   r.seed = scene_.render().seed();
   r.frame = frame_++;
+  r.cancel = cancel_;
   return r;
 }
 

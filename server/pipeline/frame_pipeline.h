@@ -11,6 +11,7 @@
 // threads) bound to its GPU.
 #pragma once
 
+#include <atomic>
 #include <cstdint>
 #include <memory>
 #include <string>
@@ -65,6 +66,9 @@ class FramePipeline {
   DisplayFrame RenderFrame();
   // Adds `spp` samples to the accumulation only (stills, offline renders).
   void Accumulate(int spp);
+  // Frames check `cancel` as they render (FrameRequest::cancel); a cancelled
+  // frame throws Cancelled and leaves the pipeline to be discarded.
+  void SetCancel(const std::atomic<bool>* cancel) { cancel_ = cancel; }
 
   int accumulated_spp() const { return accumulated_spp_; }
   bool Converged() const { return accumulated_spp_ >= settings_.target_spp; }
@@ -88,6 +92,7 @@ class FramePipeline {
   std::uint64_t scene_version_ = 0;  // bumped on transfer-function and light edits (the denoiser's cue)
   std::uint32_t frame_ = 0;          // seeds each frame's samples
   int accumulated_spp_ = 0;
+  const std::atomic<bool>* cancel_ = nullptr;
 };
 
 }  // namespace cinevol

@@ -7,17 +7,19 @@
 #include <stdexcept>
 #include <utility>
 
+#include "core/error.h"
 #include "core/parallel_for.h"
 #include "render/integrator.h"
 
 namespace cinevol {
 namespace {
 
-using RenderFrameFn = void (*)(const RenderScene&, const FrameTargets&, int threads);
+using RenderFrameFn = void (*)(const RenderScene&, const FrameTargets&, int threads, const std::atomic<bool>* cancel);
 
 template <unsigned kFeatures>
-void RenderFrame(const RenderScene& scene, const FrameTargets& targets, int threads) {
+void RenderFrame(const RenderScene& scene, const FrameTargets& targets, int threads, const std::atomic<bool>* cancel) {
   ParallelFor(scene.camera.height, [&](std::int64_t y) {
+    if (cancel && cancel->load(std::memory_order_relaxed)) return;
     for (int x = 0; x < scene.camera.width; ++x) RenderPixel<kFeatures>(scene, x, int(y), targets);
   }, threads);
 }
@@ -45,7 +47,8 @@ void CpuRenderer::Render(const FrameRequest& request) {
   RenderScene scene = data_.HostView();
   last_features_ = ApplyRequest(request, scene);
   const auto start = std::chrono::steady_clock::now();
-  kVariants[last_features_](scene, Targets(), threads_);
+  kVariants[last_features_](scene, Targets(), threads_, request.cancel);
+  if (request.cancel && request.cancel->load()) throw Cancelled("the frame was cancelled");
   last_ms_ = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
   ++accumulated_frames_;
 }

@@ -4,6 +4,7 @@
 // pixel and adds it to the running accumulation.
 #pragma once
 
+#include <atomic>
 #include <cstdint>
 #include <memory>
 #include <string>
@@ -33,6 +34,10 @@ struct FrameRequest {
   std::uint64_t seed = 0;
   std::uint32_t frame = 0;  // advance every frame: seeds this frame's samples
   unsigned features = kAutoFeatures;  // or a RenderFeature set to force (at least what the scene uses)
+  // When set and raised, the CPU backend stops within a row of pixels and
+  // Render throws Cancelled (the accumulation is then unusable). CUDA frames
+  // are bounded by the service's per-frame sample limit instead.
+  const std::atomic<bool>* cancel = nullptr;
 };
 
 // Puts the request's camera and sampling into `scene` (whose views the

@@ -6,6 +6,7 @@
 #include <new>
 
 #include "core/error.h"
+#include "service/log_safe.h"
 
 namespace cinevol::service {
 
@@ -16,13 +17,16 @@ grpc::Status ToStatus(std::exception_ptr error) {
     return e.status();
   } catch (const InputError& e) {
     return {grpc::StatusCode::INVALID_ARGUMENT, e.what()};
+  } catch (const Cancelled& e) {
+    return {grpc::StatusCode::CANCELLED, e.what()};
   } catch (const ResourceExhausted& e) {
     return {grpc::StatusCode::RESOURCE_EXHAUSTED, e.what()};
   } catch (const std::bad_alloc&) {
     return {grpc::StatusCode::RESOURCE_EXHAUSTED, "out of host memory"};
   } catch (const std::exception& e) {
-    spdlog::error("internal error: {}", e.what());
-    return {grpc::StatusCode::INTERNAL, e.what()};
+    // The detail (a library's words, a server path) is for the operator's log only.
+    spdlog::error("internal error: {}", LogSafe(e.what()));
+    return {grpc::StatusCode::INTERNAL, "internal error; the server's log has the detail"};
   } catch (...) {
     spdlog::error("internal error of unknown type");
     return {grpc::StatusCode::INTERNAL, "internal error"};

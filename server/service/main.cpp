@@ -2,6 +2,7 @@
 // viewers over gRPC. With no arguments it listens on 127.0.0.1:50051,
 // serves the built-in head phantom and renders on a GPU when one is usable.
 #include <CLI/CLI.hpp>
+#include <fmt/format.h>
 #include <spdlog/spdlog.h>
 
 #include <csignal>
@@ -13,7 +14,59 @@
 
 namespace {
 
+using cinevol::service::ConnectionLimits;
 using cinevol::service::ServerOptions;
+using cinevol::service::SessionLimits;
+using cinevol::service::VolumeLimits;
+
+// What one client may take: every limit of docs/security.md.
+void AddLimitOptions(CLI::App& app, ServerOptions& o) {
+  auto limit = [&app](const std::string& flag, auto& value, const std::string& what, auto lo, auto hi) {
+    app.add_option(flag, value, what)->check(CLI::Range(lo, hi))->capture_default_str()->group("Limits");
+  };
+  SessionLimits& s = o.limits;
+  limit("--max-sessions", o.max_sessions, "Sessions held at once", 1, 100000);
+  limit("--max-sessions-per-principal", o.max_sessions_per_principal, "Sessions one principal holds at once", 1,
+        100000);
+  limit("--max-pixels", s.max_pixels, "Largest viewport, width x height", 1ull, 8192ull * 8192ull);
+  limit("--max-total-pixels", o.max_total_pixels, "Viewport pixels of all sessions together", 1ull, 1ull << 40);
+  limit("--max-frame-spp", s.max_frame_spp, "Samples per pixel of one streamed frame", 1, 65536);
+  limit("--max-frame-samples", s.max_frame_samples, "Samples (spp x pixels) of one streamed frame", 1ull, 1ull << 40);
+  limit("--max-bounces", s.max_bounces, "Scattering events per path", 0, 256);
+  limit("--max-snapshot-spp", s.max_snapshot_spp, "Samples per pixel of a snapshot", 1, 1 << 20);
+  limit("--max-snapshot-samples", s.max_snapshot_samples, "Samples (spp x pixels) of a snapshot", 1ull, 1ull << 50);
+  limit("--max-tf-points", s.max_tf_points, "Transfer-function control points", 1, 1 << 20);
+  limit("--max-lights", s.max_lights, "Lights in a scene", 0, 1 << 16);
+  limit("--max-events-per-second", s.max_events_per_second, "Events one stream applies per second (more coalesce)",
+        1, 1 << 20);
+  limit("--unattached-session-seconds", o.unattached_session_seconds,
+        "How long a new session waits for its first stream", 0.5, 86400.0);
+  limit("--first-message-seconds", o.first_message_seconds, "How long a stream may take to attach", 0.5, 3600.0);
+  VolumeLimits& v = o.volume_limits;
+  app.add_option_function<std::uint64_t>("--max-upload-mb", [&v](std::uint64_t mb) { v.max_upload_bytes = mb << 20; },
+                                         "Largest volume upload, MiB (default 2048)")
+      ->check(CLI::Range(1, 1 << 20))
+      ->group("Limits");
+  limit("--max-uploads-per-principal", o.max_uploads_per_principal, "Uploads one principal runs at once", 1, 1024);
+  limit("--upload-idle-seconds", o.upload_idle_seconds, "An upload that sends nothing this long ends", 0.5, 3600.0);
+  limit("--max-volume-voxels", v.max_voxels, "Voxels of one volume", 1ull, 1ull << 40);
+  app.add_option_function<std::uint64_t>(
+         "--max-volume-memory-mb", [&v](std::uint64_t mb) { v.max_total_bytes = mb << 20; },
+         fmt::format("Host memory of all volumes held, MiB (default {})", v.max_total_bytes >> 20))
+      ->group("Limits");
+  app.add_option_function<std::uint64_t>(
+         "--max-upload-memory-mb", [&v](std::uint64_t mb) { v.max_upload_bytes_per_principal = mb << 20; },
+         fmt::format("Host memory of one principal's uploaded volumes, MiB (default {})",
+                     v.max_upload_bytes_per_principal >> 20))
+      ->group("Limits");
+  ConnectionLimits& c = o.connections;
+  limit("--max-connections", c.max_connections, "Client connections at once (about: counted in descriptors)", 16,
+        1 << 24);
+  limit("--max-streams-per-connection", c.max_streams_per_connection, "Concurrent calls on one connection", 1,
+        1 << 16);
+  limit("--keepalive-seconds", c.keepalive_seconds, "Ping quiet connections this often to find dead peers", 1, 86400);
+  limit("--transport-memory-mb", c.transport_memory_mb, "Memory gRPC's transport may use", 16ull, 1ull << 20);
+}
 
 void AddOptions(CLI::App& app, ServerOptions& o, std::string& backend) {
   app.set_config("--config", "", "Read these settings from a TOML/INI file (keys as the long flags)");
@@ -32,19 +85,24 @@ void AddOptions(CLI::App& app, ServerOptions& o, std::string& backend) {
   app.add_option("--encode-threads", o.encode_threads, "JPEG encoder threads (0: one per hardware thread)")
       ->check(CLI::Range(0, 256))
       ->capture_default_str();
-  app.add_option("--max-sessions", o.max_sessions, "Sessions held at once")->check(CLI::Range(1, 100000))
-      ->capture_default_str();
-  app.add_option("--max-pixels", o.limits.max_pixels, "Largest viewport, width x height")
-      ->check(CLI::Range(1ull, 8192ull * 8192ull))
-      ->capture_default_str();
-  app.add_option("--max-upload-mb", o.max_upload_mb, "Largest volume upload, MiB")->check(CLI::Range(1, 1 << 20))
-      ->capture_default_str();
   app.add_option("--detached-session-seconds", o.detached_session_seconds,
-                 "How long a session without a stream waits for one before it ends")
+                 "How long a session whose stream ended waits for a new one before it ends")
       ->check(CLI::Range(0.0, 86400.0))
       ->capture_default_str();
+  app.add_option("--drain-seconds", o.drain_seconds, "On SIGTERM: notice to every stream, then exit within this")
+      ->check(CLI::Range(0.5, 3600.0))
+      ->capture_default_str();
+  AddLimitOptions(app, o);
   app.add_option("--auth-tokens", o.auth_tokens,
-                 "File of 'TOKEN PRINCIPAL' lines: calls must send 'authorization: Bearer TOKEN' (default: open)");
+                 "File of 'TOKEN PRINCIPAL [operator]' lines: calls must send 'authorization: Bearer TOKEN' "
+                 "(default: open); SIGHUP reloads it");
+  app.add_option("--tls-cert", o.tls.cert, "PEM certificate (chain) of the server: serve over TLS (with --tls-key)");
+  app.add_option("--tls-key", o.tls.key, "PEM private key of --tls-cert");
+  app.add_option("--tls-client-ca", o.tls.client_ca,
+                 "PEM CA certificates: require client certificates signed by them (mutual TLS; the certificate's "
+                 "CN names the caller)");
+  app.add_flag("--insecure-no-auth", o.insecure_no_auth,
+               "Allow listening beyond loopback with no --auth-tokens and no mutual TLS (anyone may call)");
   app.add_option("--port-file", o.port_file, "Write the port listened on to this file (useful with port 0)");
 }
 
@@ -60,19 +118,41 @@ int main(int argc, char** argv) {
   CLI11_PARSE(app, argc, argv);
   spdlog::set_level(verbose ? spdlog::level::debug : spdlog::level::info);
 
-  // SIGINT and SIGTERM end the server in order; a thread waits for them.
+  // SIGINT and SIGTERM end the server in order, SIGHUP reloads the token
+  // file; a thread waits for them.
   sigset_t signals;
   sigemptyset(&signals);
   sigaddset(&signals, SIGINT);
   sigaddset(&signals, SIGTERM);
+  sigaddset(&signals, SIGHUP);
   pthread_sigmask(SIG_BLOCK, &signals, nullptr);
   try {
     options.backend = cinevol::ParseBackend(backend);
+    cinevol::service::CheckListenPolicy(options.listen, !options.auth_tokens.empty(), options.tls.mutual(),
+                                        options.insecure_no_auth);
+    if (!cinevol::service::IsLoopbackListen(options.listen)) {
+      if (options.insecure_no_auth && options.auth_tokens.empty() && !options.tls.mutual()) {
+        spdlog::warn("!!! --insecure-no-auth: {} is reachable from other machines and ANYONE who can reach it may "
+                     "load volumes and render, unauthenticated !!!",
+                     options.listen);
+      } else if (!options.auth_tokens.empty() && !options.tls.enabled()) {
+        spdlog::warn("{} is reachable from other machines without TLS: bearer tokens travel in clear text; "
+                     "give --tls-cert/--tls-key",
+                     options.listen);
+      }
+    }
     cinevol::service::Server server(options);
     std::thread([&server, signals] {
-      int signal = 0;
-      sigwait(&signals, &signal);
-      server.Shutdown();
+      for (;;) {
+        int signal = 0;
+        sigwait(&signals, &signal);
+        if (signal == SIGHUP) {
+          cinevol::service::ReloadAllTokenFiles();
+          continue;
+        }
+        server.Shutdown();
+        return;
+      }
     }).detach();
     server.Wait();
   } catch (const cinevol::InputError& e) {

@@ -6,27 +6,36 @@
 #include <fmt/format.h>
 #include <spdlog/spdlog.h>
 
+#include <cstdio>
+#include <cstdlib>
 #include <fstream>
 
 #include "core/error.h"
+#include "service/connection_limits.h"
 
 namespace cinevol::service {
 namespace {
 
-constexpr int kMaxReceiveBytes = 64 << 20;  // scenes and upload chunks; uploads stream in many
+// Scenes, events and upload chunks (the client sends 1 MiB chunks). A scene
+// within the limits is a few kB; this bounds what one message can make the
+// server parse before any check runs.
+constexpr int kMaxReceiveBytes = (1 << 20) + (64 << 10);
 
 }  // namespace
 
 Server::Server(const ServerOptions& options)
     : core_(std::make_unique<ServiceCore>(options)),
+      drain_seconds_(options.drain_seconds),
       volume_service_(core_.get()),
       session_service_(core_.get()),
       server_service_(core_.get()) {
   grpc::EnableDefaultHealthCheckService(true);
   grpc::reflection::InitProtoReflectionServerBuilderPlugin();
   grpc::ServerBuilder builder;
-  builder.AddListeningPort(options.listen, grpc::InsecureServerCredentials(), &port_);
+  PrepareDescriptors(options.connections);
+  builder.AddListeningPort(options.listen, MakeServerCredentials(options.tls), &port_);
   builder.SetMaxReceiveMessageSize(kMaxReceiveBytes);
+  ApplyConnectionLimits(options.connections, builder);
   builder.RegisterService(&volume_service_);
   builder.RegisterService(&session_service_);
   builder.RegisterService(&server_service_);
@@ -52,6 +61,7 @@ void Server::Sweep() {
   while (!stop_.wait_for(lock, std::chrono::milliseconds(200), [&] { return stopping_; })) {
     lock.unlock();
     core_->ExpireDetachedSessions();
+    core_->calls().CancelOverdue(std::chrono::steady_clock::now());
     lock.lock();
   }
 }
@@ -59,9 +69,18 @@ void Server::Sweep() {
 void Server::Shutdown() {
   {
     std::lock_guard lock(mu_);
+    if (stopping_) return;
     stopping_ = true;
   }
   stop_.notify_all();
+  // Whatever hangs (a load deep in a library, a peer that never reads), the
+  // process ends on time: what drained is done, what did not is abandoned.
+  std::thread([seconds = drain_seconds_] {
+    std::this_thread::sleep_for(std::chrono::duration<double>(seconds));
+    spdlog::warn("cinevol-server: still busy after {} s (--drain-seconds); exiting now", seconds);
+    std::fflush(nullptr);
+    std::_Exit(0);
+  }).detach();
 }
 
 void Server::Wait() {
@@ -74,12 +93,15 @@ void Server::Wait() {
 
 void Server::Stop() {
   std::call_once(stopped_, [&] {
-    spdlog::info("cinevol-server: shutting down");
+    spdlog::info("cinevol-server: draining (at most {} s)", drain_seconds_);
     server_->GetHealthCheckService()->SetServingStatus(false);
-    // Calls still open after a moment are cancelled; their reactors finish.
-    server_->Shutdown(std::chrono::system_clock::now() + std::chrono::seconds(1));
+    core_->Drain();  // new work refused; sessions end with a notice; frames and stills cancelled
+    // Calls still open after a moment (uploads, a peer that never reads) are cancelled.
+    server_->Shutdown(std::chrono::system_clock::now() +
+                      std::chrono::milliseconds(int(std::min(2.0, drain_seconds_ / 4) * 1000)));
     sweeper_.join();
     core_.reset();
+    spdlog::info("cinevol-server: stopped");
   });
 }
 

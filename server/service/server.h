@@ -26,7 +26,8 @@ class Server {
   // Blocks until Shutdown is asked for, then stops: open calls are
   // cancelled, sessions end, workers join.
   void Wait();
-  // Asks the server to stop; returns at once (any thread).
+  // Asks the server to drain and stop; returns at once (any thread). The
+  // process exits (code 0) within --drain-seconds, even if something hangs.
   void Shutdown();
 
  private:
@@ -34,6 +35,7 @@ class Server {
   void Stop();
 
   std::unique_ptr<ServiceCore> core_;
+  double drain_seconds_;
   VolumeServiceImpl volume_service_;
   SessionServiceImpl session_service_;
   ServerServiceImpl server_service_;

@@ -4,6 +4,8 @@
 #include <fmt/format.h>
 #include <spdlog/spdlog.h>
 
+#include <sys/random.h>
+
 #include <algorithm>
 #include <thread>
 
@@ -12,69 +14,95 @@
 #include "core/tone_map.h"
 #include "encode/image_codecs.h"
 #include "service/errors.h"
+#include "service/log_safe.h"
 
 namespace cinevol::service {
 namespace {
 
 std::string CpuName() { return fmt::format("cpu ({} threads)", DefaultThreadCount()); }
 
+// A session id: 128 random bits in hex. Ids are not secrets (ownership is
+// checked on every call), but they must not be guessable either.
+std::string RandomSessionId() {
+  unsigned char bytes[16];
+  for (std::size_t got = 0; got < sizeof bytes;) {
+    const ssize_t n = getrandom(bytes + got, sizeof bytes - got, 0);
+    if (n > 0) got += std::size_t(n);
+  }
+  std::string id;
+  for (unsigned char b : bytes) id += fmt::format("{:02x}", b);
+  return id;
+}
+
 // A snapshot: accumulates `spp` samples a chunk per step on the session's
 // device, with its own pipeline (the session's history stays untouched),
-// then encodes on the encoder pool.
+// then encodes on the encoder pool. Between chunks (and between rows of a
+// chunk on the CPU) it checks whether anyone still wants the result.
 class StillJob final : public Job {
  public:
   using Done = std::function<void(grpc::Status, v1::SnapshotResponse)>;
-  StillJob(std::shared_ptr<VolumeLease> volume, v1::Scene scene, int spp, v1::ImageFormat format, Backend backend,
-           TaskPool* encoder, Done done)
-      : volume_(std::move(volume)), scene_(std::move(scene)), spp_(spp), format_(format), backend_(backend),
-        encoder_(encoder), done_(std::move(done)) {}
+  // `cancel`: raised when the caller goes away or the session ends.
+  StillJob(std::shared_ptr<VolumeLease> volume, v1::Scene scene, int spp, int chunk_spp, v1::ImageFormat format,
+           Backend backend, TaskPool* encoder, std::shared_ptr<std::atomic<bool>> cancel, Done done)
+      : volume_(std::move(volume)), scene_(std::move(scene)), spp_(spp), chunk_spp_(chunk_spp), format_(format),
+        backend_(backend), encoder_(encoder), cancel_(std::move(cancel)), done_(std::move(done)) {}
+  // A still dropped unfinished (the server stopping) still answers its caller.
+  ~StillJob() override {
+    if (done_) done_({grpc::StatusCode::CANCELLED, "the server is shutting down"}, {});
+  }
 
   bool Step() override {
     try {
+      if (*cancel_) throw Cancelled("the snapshot was cancelled: its caller went away or its session ended");
       if (!pipeline_) {
         start_ = Clock::now();
         pipeline_ = std::make_unique<FramePipeline>(backend_, volume_->volume());
+        pipeline_->SetCancel(cancel_.get());
         FrameSettings settings;
         settings.denoiser = DenoiseMethod::kNone;
         settings.target_spp = spp_;
         pipeline_->Update(scene_, settings);
       }
-      pipeline_->Accumulate(std::min(kChunkSpp, spp_ - pipeline_->accumulated_spp()));
+      pipeline_->Accumulate(std::min(chunk_spp_, spp_ - pipeline_->accumulated_spp()));
       if (!pipeline_->Converged()) return true;
-      ImageRgbF image = pipeline_->AccumulatedRadiance();
-      const float exposure = pipeline_->exposure();
-      pipeline_.reset();
-      const auto render_us = std::chrono::duration_cast<std::chrono::microseconds>(Clock::now() - start_).count();
-      encoder_->Submit([image = std::move(image), exposure, render_us, spp = spp_, format = format_,
-                        done = std::move(done_), volume = volume_] {
-        v1::SnapshotResponse response;
-        const grpc::Status status = Guarded([&] {
-          const bool exr = format == v1::EXR;
-          const std::vector<std::uint8_t> bytes = exr ? EncodeExr(image) : EncodePng(ToneMap(image, exposure));
-          response.set_image(bytes.data(), bytes.size());
-          response.set_format(exr ? v1::EXR : v1::PNG);
-          response.set_width(image.width);
-          response.set_height(image.height);
-          response.set_spp(spp);
-          response.set_render_us(render_us);
-        });
-        done(status, std::move(response));
-      });
+      Finish();
     } catch (...) {
       pipeline_.reset();
-      done_(ToStatus(std::current_exception()), {});
+      std::exchange(done_, nullptr)(ToStatus(std::current_exception()), {});
     }
     return false;
   }
 
  private:
-  static constexpr int kChunkSpp = 8;  // one step's samples: other sessions' frames interleave
+  void Finish() {
+    ImageRgbF image = pipeline_->AccumulatedRadiance();
+    const float exposure = pipeline_->exposure();
+    pipeline_.reset();
+    const auto render_us = std::chrono::duration_cast<std::chrono::microseconds>(Clock::now() - start_).count();
+    encoder_->Submit([image = std::move(image), exposure, render_us, spp = spp_, format = format_,
+                      done = std::exchange(done_, nullptr), volume = volume_] {
+      v1::SnapshotResponse response;
+      const grpc::Status status = Guarded([&] {
+        const bool exr = format == v1::EXR;
+        const std::vector<std::uint8_t> bytes = exr ? EncodeExr(image) : EncodePng(ToneMap(image, exposure));
+        response.set_image(bytes.data(), bytes.size());
+        response.set_format(exr ? v1::EXR : v1::PNG);
+        response.set_width(image.width);
+        response.set_height(image.height);
+        response.set_spp(spp);
+        response.set_render_us(render_us);
+      });
+      done(status, std::move(response));
+    });
+  }
+
   std::shared_ptr<VolumeLease> volume_;
   v1::Scene scene_;
-  int spp_;
+  int spp_, chunk_spp_;
   v1::ImageFormat format_;
   Backend backend_;
   TaskPool* encoder_;
+  std::shared_ptr<std::atomic<bool>> cancel_;  // the pipeline's frames check it too
   Done done_;
   std::unique_ptr<FramePipeline> pipeline_;
   Clock::time_point start_;
@@ -85,10 +113,11 @@ class StillJob final : public Job {
 ServiceCore::ServiceCore(const ServerOptions& options)
     : options_(options),
       authenticator_(options.auth_tokens.empty() ? Authenticator() : Authenticator(options.auth_tokens)),
-      volumes_(options.data_roots, options.max_upload_mb << 20),
+      volumes_(options.data_roots, options.volume_limits),
       encoder_("encoder", options.encode_threads > 0 ? options.encode_threads
                                                       : int(std::max(2u, std::thread::hardware_concurrency()))),
-      loader_("loader", 2) {
+      loader_("loader", 2),
+      pixels_(options.max_total_pixels) {
   std::string why;
   const bool cuda = CudaAvailable(&why);
   if (options.backend == Backend::kCuda && !cuda) throw InputError("--backend cuda: no usable GPU: " + why);
@@ -141,13 +170,18 @@ Scheduler& ServiceCore::LeastLoaded() {
                             [](const auto& a, const auto& b) { return a->sessions < b->sessions; });
 }
 
+void ServiceCore::RequireServing() const {
+  if (draining_) throw RpcError(grpc::StatusCode::UNAVAILABLE, "the server is shutting down");
+}
+
 v1::CreateSessionResponse ServiceCore::CreateSession(const v1::CreateSessionRequest& request,
                                                      const Principal& caller) {
-  std::shared_ptr<VolumeLease> volume = volumes_.Lease(request.volume_id());
+  RequireServing();
+  std::shared_ptr<VolumeLease> volume = volumes_.Lease(request.volume_id(), caller);
   v1::Scene scene = InitialScene(request, *volume->volume(), options_.limits, volumes_);
   const FrameSettings settings = MergeStreamSettings(FrameSettings{}, request.stream(), "stream");
   Scheduler& scheduler = LeastLoaded();
-  SessionContext context{&scheduler, &encoder_, backend_, &options_.limits, &volumes_,
+  SessionContext context{&scheduler, &encoder_, backend_, &options_.limits, &volumes_, &pixels_,
                          [this](const std::string& id) { Forget(id); }};
   std::shared_ptr<Session> session;
   {
@@ -156,12 +190,20 @@ v1::CreateSessionResponse ServiceCore::CreateSession(const v1::CreateSessionRequ
       throw RpcError(grpc::StatusCode::RESOURCE_EXHAUSTED,
                      fmt::format("this server holds its maximum of {} sessions (--max-sessions)", options_.max_sessions));
     }
-    const std::string id = fmt::format("s{}", next_session_++);
+    const auto own = std::count_if(sessions_.begin(), sessions_.end(),
+                                   [&](const auto& entry) { return entry.second->owner() == caller.name; });
+    if (own >= options_.max_sessions_per_principal) {
+      throw RpcError(grpc::StatusCode::RESOURCE_EXHAUSTED,
+                     fmt::format("you hold {} sessions, this server's limit per user (--max-sessions-per-principal): "
+                                 "close one first",
+                                 own));
+    }
+    const std::string id = RandomSessionId();
     session = std::make_shared<Session>(id, caller.name, std::move(volume), scene, settings, std::move(context));
     sessions_[id] = session;
   }
-  spdlog::info("session {}: created for {} on {}, volume {}, {}x{}", session->id(), caller.name, scheduler.name(),
-               request.volume_id(), scene.render().width(), scene.render().height());
+  spdlog::info("session {}: created for {} on {}, volume {}, {}x{}", session->id(), LogSafe(caller.name),
+               scheduler.name(), LogSafe(request.volume_id()), scene.render().width(), scene.render().height());
   v1::CreateSessionResponse response;
   response.set_session_id(session->id());
   *response.mutable_scene() = std::move(scene);
@@ -177,12 +219,39 @@ std::shared_ptr<Session> ServiceCore::FindSession(const std::string& id, const P
     if (it != sessions_.end()) session = it->second;
   }
   if (!session) throw RpcError(grpc::StatusCode::NOT_FOUND, fmt::format("session_id: no session '{}'", id));
-  RequireOwner(caller, session->owner(), fmt::format("session '{}'", id));
+  if (!caller.is_operator) RequireOwner(caller, session->owner(), fmt::format("session '{}'", id));
   return session;
 }
 
 void ServiceCore::CloseSession(const std::string& id, const Principal& caller) {
   FindSession(id, caller)->End({grpc::StatusCode::OK, "session closed"});
+}
+
+std::shared_ptr<void> ServiceCore::BeginUpload(const Principal& caller) {
+  RequireServing();
+  std::lock_guard lock(mu_);
+  int& count = uploads_[caller.name];
+  if (count >= options_.max_uploads_per_principal) {
+    throw RpcError(grpc::StatusCode::RESOURCE_EXHAUSTED,
+                   fmt::format("you have {} uploads under way, this server's limit (--max-uploads-per-principal)",
+                               count));
+  }
+  ++count;
+  return std::shared_ptr<void>(nullptr, [this, name = caller.name](void*) {
+    std::lock_guard lock(mu_);
+    if (--uploads_[name] == 0) uploads_.erase(name);
+  });
+}
+
+void ServiceCore::Drain() {
+  if (draining_.exchange(true)) return;
+  std::vector<std::shared_ptr<Session>> open;
+  {
+    std::lock_guard lock(mu_);
+    for (auto& [id, s] : sessions_) open.push_back(s);
+  }
+  spdlog::info("draining: {} session(s) end now", open.size());
+  for (auto& s : open) s->Drain();
 }
 
 void ServiceCore::Forget(const std::string& id) {
@@ -195,34 +264,43 @@ void ServiceCore::Forget(const std::string& id) {
 }
 
 void ServiceCore::Snapshot(const v1::SnapshotRequest& request, const Principal& caller,
+                           std::shared_ptr<std::atomic<bool>> cancel,
                            std::function<void(grpc::Status, v1::SnapshotResponse)> done) {
+  RequireServing();
   std::shared_ptr<Session> session = FindSession(request.session_id(), caller);
-  const int spp = SnapshotSpp(request, options_.limits);
   v1::Scene scene;
   FrameSettings settings;
   session->CurrentScene(scene, settings);
-  session->scheduler()->Wake(std::make_shared<StillJob>(session->volume(), std::move(scene), spp, request.format(),
-                                                        backend_, &encoder_, std::move(done)));
+  const std::uint64_t pixels = std::uint64_t(scene.render().width()) * scene.render().height();
+  const int spp = SnapshotSpp(request, pixels, options_.limits);
+  // A step's samples stay within one streamed frame's budget, so other
+  // sessions' frames interleave and a cancel is seen soon.
+  const int chunk = int(std::clamp<std::uint64_t>(options_.limits.max_frame_samples / std::max<std::uint64_t>(pixels, 1),
+                                                  1, 8));
+  session->CancelWithSession(cancel);
+  session->scheduler()->Wake(std::make_shared<StillJob>(session->volume(), std::move(scene), spp, chunk,
+                                                        request.format(), backend_, &encoder_, std::move(cancel),
+                                                        std::move(done)));
 }
 
 void ServiceCore::ExpireDetachedSessions() {
-  const auto limit = std::chrono::duration_cast<Clock::duration>(
-      std::chrono::duration<double>(options_.detached_session_seconds));
   const Clock::time_point now = Clock::now();
+  const auto detached = Seconds(options_.detached_session_seconds);
+  const auto unattached = Seconds(options_.unattached_session_seconds);
   std::vector<std::shared_ptr<Session>> expired;
   {
     std::lock_guard lock(mu_);
     for (auto& [id, s] : sessions_) {
-      if (s->Expired(now, limit)) expired.push_back(s);
+      if (s->Expired(now, detached, unattached)) expired.push_back(s);
     }
   }
   for (auto& s : expired) {
     s->End({grpc::StatusCode::DEADLINE_EXCEEDED,
-            fmt::format("no stream attached for {} s (--detached-session-seconds)", options_.detached_session_seconds)});
+            "no stream attached in time (--detached-session-seconds, --unattached-session-seconds)"});
   }
 }
 
-v1::ServerStatus ServiceCore::Status() const {
+v1::ServerStatus ServiceCore::Status(const Principal& caller) const {
   v1::ServerStatus status;
   status.set_version(CINEVOL_VERSION);
   status.set_uptime_seconds(std::chrono::duration<double>(Clock::now() - started_).count());
@@ -243,10 +321,12 @@ v1::ServerStatus ServiceCore::Status() const {
   std::vector<std::shared_ptr<Session>> sessions;
   {
     std::lock_guard lock(mu_);
-    for (const auto& [id, s] : sessions_) sessions.push_back(s);
+    for (const auto& [id, s] : sessions_) {
+      if (caller.is_operator || s->owner() == caller.name) sessions.push_back(s);
+    }
   }
   for (const auto& s : sessions) *status.add_sessions() = s->Status();
-  for (v1::VolumeInfo& v : volumes_.List()) *status.add_volumes() = std::move(v);
+  for (v1::VolumeInfo& v : volumes_.List(caller)) *status.add_volumes() = std::move(v);
   status.set_encode_threads(encoder_.threads());
   status.set_encode_queue(encoder_.queued());
   return status;

@@ -3,6 +3,7 @@
 // and the limits. The gRPC service classes are thin shells over it.
 #pragma once
 
+#include <atomic>
 #include <chrono>
 #include <cstdint>
 #include <filesystem>
@@ -18,15 +19,19 @@
 #include "cinevol/v1/service.pb.h"
 #include "render/renderer.h"
 #include "service/auth.h"
+#include "service/call_watch.h"
+#include "service/connection_limits.h"
 #include "service/scheduler.h"
 #include "service/session.h"
 #include "service/session_requests.h"
 #include "service/task_pool.h"
+#include "service/tls.h"
 #include "service/volume_registry.h"
 
 namespace cinevol::service {
 
-// Settings of a server; `cinevol-server --help` documents each.
+// Settings of a server; `cinevol-server --help` documents each, and
+// docs/security.md gives the limits' defaults and why.
 struct ServerOptions {
   std::string listen = "127.0.0.1:50051";
   Backend backend = Backend::kAuto;
@@ -36,11 +41,21 @@ struct ServerOptions {
   int workers_per_gpu = 4;                               // each its own CUDA stream
   int encode_threads = 0;                                // 0: one per hardware thread
   int max_sessions = 64;
-  std::uint64_t max_upload_mb = 2048;
+  int max_sessions_per_principal = 16;
+  std::uint64_t max_total_pixels = 40'000'000;          // viewport pixels of every session together
+  VolumeLimits volume_limits;
+  int max_uploads_per_principal = 2;                     // at once
+  double upload_idle_seconds = 30;                       // an upload that sends nothing this long ends
+  double first_message_seconds = 10;                     // a call that sends no first message this long ends
   double detached_session_seconds = 60;                  // a detached session waits this long for a new attach
+  double unattached_session_seconds = 15;                // a session never attached waits this long
+  double drain_seconds = 10;                             // SIGTERM to exit, whatever is in flight
   SessionLimits limits;
+  ConnectionLimits connections;
   std::string port_file;                                 // written with the bound port once listening
   std::filesystem::path auth_tokens;                     // "TOKEN PRINCIPAL" lines; empty: no authentication
+  TlsOptions tls;                                        // --tls-cert/--tls-key/--tls-client-ca
+  bool insecure_no_auth = false;                         // allow no authentication beyond loopback
 };
 
 class ServiceCore {
@@ -53,19 +68,35 @@ class ServiceCore {
   }
   VolumeRegistry& volumes() { return volumes_; }
   TaskPool& loader() { return loader_; }
+  CallWatch& calls() { return calls_; }
+  const ServerOptions& options() const { return options_; }
 
   v1::CreateSessionResponse CreateSession(const v1::CreateSessionRequest& request, const Principal& caller);
   std::shared_ptr<Session> FindSession(const std::string& id, const Principal& caller) const;
   void CloseSession(const std::string& id, const Principal& caller);
-  // Renders a still of the session's current state on its device;
-  // `done` runs on a worker with the result.
+  // Renders a still of the session's current state on its device; `done`
+  // runs on a worker with the result. It stops early (CANCELLED) once
+  // `cancel` is raised: by the caller's going away, or the session's end.
   void Snapshot(const v1::SnapshotRequest& request, const Principal& caller,
+                std::shared_ptr<std::atomic<bool>> cancel,
                 std::function<void(grpc::Status, v1::SnapshotResponse)> done);
-  v1::ServerStatus Status() const;
-  // Ends sessions detached for longer than the options allow.
+  // What `caller` may see: its own sessions and uploads (an operator: all).
+  v1::ServerStatus Status(const Principal& caller) const;
+  // Ends sessions detached (or never attached) for longer than the options allow.
   void ExpireDetachedSessions();
   // "cuda:0 NVIDIA H100 80GB HBM3, ..." or "cpu (N threads)".
   std::string DeviceSummary() const;
+
+  // An upload slot of `caller`'s (RESOURCE_EXHAUSTED past
+  // --max-uploads-per-principal); the returned guard gives it back.
+  std::shared_ptr<void> BeginUpload(const Principal& caller);
+
+  // SIGTERM: new sessions, loads and uploads get UNAVAILABLE, every session
+  // ends with a notice, frames and stills in flight are cancelled.
+  void Drain();
+  bool draining() const { return draining_; }
+  // Throws UNAVAILABLE while draining.
+  void RequireServing() const;
 
  private:
   Scheduler& LeastLoaded();
@@ -77,12 +108,15 @@ class ServiceCore {
   VolumeRegistry volumes_;
   TaskPool encoder_;
   TaskPool loader_;
+  CallWatch calls_;
+  PixelBudget pixels_;
   std::vector<std::unique_ptr<Scheduler>> schedulers_;
   const Clock::time_point started_ = Clock::now();
+  std::atomic<bool> draining_{false};
 
   mutable std::mutex mu_;
   std::map<std::string, std::shared_ptr<Session>> sessions_;
-  std::uint64_t next_session_ = 1;
+  std::map<std::string, int> uploads_;  // principal -> uploads under way
 };
 
 }  // namespace cinevol::service

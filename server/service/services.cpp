@@ -6,6 +6,7 @@
 #include <fstream>
 
 #include "service/errors.h"
+#include "service/log_safe.h"
 #include "service/session_stream.h"
 
 namespace cinevol::service {
@@ -21,15 +22,21 @@ grpc::ServerUnaryReactor* Answer(ServiceCore* core, grpc::CallbackServerContext*
 
 // An upload: chunks go straight to a private file (memory stays bounded),
 // which is loaded on the loader pool once the client has sent everything.
+// It holds one of the caller's upload slots, and ends when the client stays
+// silent for --upload-idle-seconds.
 class UploadReactor final : public grpc::ServerReadReactor<v1::UploadVolumeChunk> {
  public:
   UploadReactor(grpc::CallbackServerContext* context, ServiceCore* core, v1::VolumeInfo* response)
       : core_(core), response_(response) {
-    const grpc::Status status = Guarded([&] { core_->Authenticate(*context); });
+    const grpc::Status status = Guarded([&] {
+      caller_ = core_->Authenticate(*context);
+      slot_ = core_->BeginUpload(caller_);
+    });
     if (!status.ok()) {
       Fail(status);
       return;
     }
+    watch_ = core_->calls().Watch(context, Patience());
     StartRead(&chunk_);
   }
 
@@ -38,6 +45,7 @@ class UploadReactor final : public grpc::ServerReadReactor<v1::UploadVolumeChunk
       Complete();
       return;
     }
+    core_->calls().Touch(watch_, Patience());
     const grpc::Status status = Guarded([&] { Take(chunk_); });
     if (!status.ok()) {
       Fail(status);
@@ -47,26 +55,31 @@ class UploadReactor final : public grpc::ServerReadReactor<v1::UploadVolumeChunk
   }
 
   void OnDone() override {
+    core_->calls().Forget(watch_);
     std::error_code ec;
     if (!path_.empty() && !loading_) std::filesystem::remove(path_, ec);
     delete this;
   }
 
  private:
+  CallWatch::Clock::duration Patience() const { return Seconds(core_->options().upload_idle_seconds); }
+
   void Take(const v1::UploadVolumeChunk& chunk) {
     if (chunk.has_header()) {
       if (file_.is_open()) throw InputError("header: sent twice; send it once, first");
       const auto& h = chunk.header();
-      if (!VolumeRegistry::IsUploadableName(h.file_name())) {
+      if (!VolumeRegistry::IsUploadableName(h.file_name()) || h.file_name().size() > 255) {
         throw InputError(fmt::format("header.file_name: '{}' is not .nii, .nii.gz, .nrrd, .mha or .vtk (formats "
-                                     "whose voxels travel in the one file)", h.file_name()));
+                                     "whose voxels travel in the one file), up to 255 characters",
+                                     LogSafe(h.file_name(), 64)));
       }
       CheckSize(h.size_bytes(), "header.size_bytes");
       expected_ = h.size_bytes();
-      name_ = h.file_name();
+      // Only the name's last part, control characters escaped: it reaches messages and the log.
+      name_ = LogSafe(std::filesystem::path(h.file_name()).filename().string());
       static std::atomic<int> counter{0};
-      const std::string base = std::filesystem::path(name_).filename().string();
-      path_ = core_->volumes().upload_dir() / fmt::format("{}-{}", counter++, base);
+      // The file on disk is named by the server alone; the extension tells the loader the format.
+      path_ = core_->volumes().upload_dir() / fmt::format("{}{}", counter++, Extension(h.file_name()));
       file_.open(path_, std::ios::binary);
       if (!file_) throw std::runtime_error("cannot create the upload file " + path_.string());
       return;
@@ -80,8 +93,15 @@ class UploadReactor final : public grpc::ServerReadReactor<v1::UploadVolumeChunk
     if (!file_) throw ResourceExhausted("cannot write the upload to the server's disk");
   }
 
+  // The name's format extension, lower case (".nii.gz", ".nrrd", ...).
+  static std::string Extension(const std::string& file_name) {
+    std::string lower = file_name;
+    for (char& c : lower) c = char(std::tolower(static_cast<unsigned char>(c)));
+    return lower.ends_with(".nii.gz") ? ".nii.gz" : std::filesystem::path(lower).extension().string();
+  }
+
   void CheckSize(std::uint64_t size, const char* field) const {
-    const std::uint64_t limit = core_->volumes().max_upload_bytes();
+    const std::uint64_t limit = core_->volumes().limits().max_upload_bytes;
     if (size > limit) {
       throw RpcError(grpc::StatusCode::RESOURCE_EXHAUSTED,
                      fmt::format("{}: {} bytes is over this server's upload limit of {} bytes (--max-upload-mb)",
@@ -103,7 +123,10 @@ class UploadReactor final : public grpc::ServerReadReactor<v1::UploadVolumeChunk
     }
     loading_ = true;  // the loader removes the file
     core_->loader().Submit([this] {
-      Finish(Guarded([&] { *response_ = core_->volumes().AddUpload(path_, name_); }));
+      Finish(Guarded([&] {
+        core_->RequireServing();
+        *response_ = core_->volumes().AddUpload(path_, name_, caller_);
+      }));
     });
   }
 
@@ -114,6 +137,9 @@ class UploadReactor final : public grpc::ServerReadReactor<v1::UploadVolumeChunk
 
   ServiceCore* core_;
   v1::VolumeInfo* response_;
+  Principal caller_;
+  std::shared_ptr<void> slot_;  // one of the caller's upload slots
+  CallWatch::Id watch_ = 0;
   v1::UploadVolumeChunk chunk_;
   std::ofstream file_;
   std::filesystem::path path_;
@@ -122,13 +148,34 @@ class UploadReactor final : public grpc::ServerReadReactor<v1::UploadVolumeChunk
   bool loading_ = false;
 };
 
+// A still: the job learns through `cancel_` that its caller went away.
+class SnapshotReactor final : public grpc::ServerUnaryReactor {
+ public:
+  SnapshotReactor(grpc::CallbackServerContext* context, ServiceCore* core, const v1::SnapshotRequest* request,
+                  v1::SnapshotResponse* response) {
+    const grpc::Status status = Guarded([&] {
+      core->Snapshot(*request, core->Authenticate(*context), cancel_,
+                     [this, response](grpc::Status s, v1::SnapshotResponse r) {
+                       *response = std::move(r);
+                       Finish(s);
+                     });
+    });
+    if (!status.ok()) Finish(status);
+  }
+  void OnCancel() override { *cancel_ = true; }
+  void OnDone() override { delete this; }
+
+ private:
+  std::shared_ptr<std::atomic<bool>> cancel_ = std::make_shared<std::atomic<bool>>(false);
+};
+
 }  // namespace
 
 grpc::ServerUnaryReactor* VolumeServiceImpl::ListVolumes(grpc::CallbackServerContext* context,
                                                          const v1::ListVolumesRequest*,
                                                          v1::ListVolumesResponse* response) {
-  return Answer(core_, context, [&](const Principal&) {
-    for (v1::VolumeInfo& v : core_->volumes().List()) *response->add_volumes() = std::move(v);
+  return Answer(core_, context, [&](const Principal& caller) {
+    for (v1::VolumeInfo& v : core_->volumes().List(caller)) *response->add_volumes() = std::move(v);
   });
 }
 
@@ -137,12 +184,15 @@ grpc::ServerUnaryReactor* VolumeServiceImpl::LoadVolume(grpc::CallbackServerCont
                                                         v1::VolumeInfo* response) {
   grpc::ServerUnaryReactor* reactor = context->DefaultReactor();
   const grpc::Status status = Guarded([&] {
-    core_->Authenticate(*context);
+    const Principal caller = core_->Authenticate(*context);
+    core_->RequireServing();
     // Refuse paths outside the data roots at once; read the disk on the loader pool.
     core_->volumes().ResolveDataPath(request->path(), "path");
-    core_->loader().Submit([this, reactor, request, response] {
-      reactor->Finish(
-          Guarded([&] { *response = core_->volumes().LoadFromDataRoot(request->path(), request->series_uid()); }));
+    core_->loader().Submit([this, reactor, request, response, caller] {
+      reactor->Finish(Guarded([&] {
+        core_->RequireServing();
+        *response = core_->volumes().LoadFromDataRoot(request->path(), request->series_uid(), caller);
+      }));
     });
   });
   if (!status.ok()) reactor->Finish(status);
@@ -157,13 +207,15 @@ grpc::ServerReadReactor<v1::UploadVolumeChunk>* VolumeServiceImpl::UploadVolume(
 grpc::ServerUnaryReactor* VolumeServiceImpl::DescribeVolume(grpc::CallbackServerContext* context,
                                                             const v1::DescribeVolumeRequest* request,
                                                             v1::VolumeInfo* response) {
-  return Answer(core_, context, [&](const Principal&) { *response = core_->volumes().Describe(request->volume_id()); });
+  return Answer(core_, context,
+                [&](const Principal& caller) { *response = core_->volumes().Describe(request->volume_id(), caller); });
 }
 
 grpc::ServerUnaryReactor* VolumeServiceImpl::UnloadVolume(grpc::CallbackServerContext* context,
                                                           const v1::UnloadVolumeRequest* request,
                                                           v1::UnloadVolumeResponse*) {
-  return Answer(core_, context, [&](const Principal&) { core_->volumes().Unload(request->volume_id()); });
+  return Answer(core_, context,
+                [&](const Principal& caller) { core_->volumes().Unload(request->volume_id(), caller); });
 }
 
 grpc::ServerUnaryReactor* SessionServiceImpl::CreateSession(grpc::CallbackServerContext* context,
@@ -180,15 +232,7 @@ grpc::ServerBidiReactor<v1::ClientMessage, v1::ServerMessage>* SessionServiceImp
 grpc::ServerUnaryReactor* SessionServiceImpl::Snapshot(grpc::CallbackServerContext* context,
                                                        const v1::SnapshotRequest* request,
                                                        v1::SnapshotResponse* response) {
-  grpc::ServerUnaryReactor* reactor = context->DefaultReactor();
-  const grpc::Status status = Guarded([&] {
-    core_->Snapshot(*request, core_->Authenticate(*context), [reactor, response](grpc::Status s, v1::SnapshotResponse r) {
-      *response = std::move(r);
-      reactor->Finish(s);
-    });
-  });
-  if (!status.ok()) reactor->Finish(status);
-  return reactor;
+  return new SnapshotReactor(context, core_, request, response);
 }
 
 grpc::ServerUnaryReactor* SessionServiceImpl::CloseSession(grpc::CallbackServerContext* context,
@@ -199,7 +243,7 @@ grpc::ServerUnaryReactor* SessionServiceImpl::CloseSession(grpc::CallbackServerC
 
 grpc::ServerUnaryReactor* ServerServiceImpl::GetStatus(grpc::CallbackServerContext* context,
                                                        const v1::GetStatusRequest*, v1::ServerStatus* response) {
-  return Answer(core_, context, [&](const Principal&) { *response = core_->Status(); });
+  return Answer(core_, context, [&](const Principal& caller) { *response = core_->Status(caller); });
 }
 
 }  // namespace cinevol::service

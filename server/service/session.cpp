@@ -7,6 +7,7 @@
 
 #include "encode/image_codecs.h"
 #include "service/errors.h"
+#include "service/log_safe.h"
 
 namespace cinevol::service {
 namespace {
@@ -30,6 +31,22 @@ struct Session::Work {
   Stamp stamp;
 };
 
+void PixelBudget::Exchange(std::uint64_t release, std::uint64_t take) {
+  std::lock_guard lock(mu_);
+  const std::uint64_t next = used_ - std::min(release, used_) + take;
+  if (take > release && next > limit_) {
+    throw ResourceExhausted(fmt::format("viewport: {} pixels more would pass this server's limit of {} pixels for "
+                                        "all sessions together (--max-total-pixels; {} in use)",
+                                        take - release, limit_, used_));
+  }
+  used_ = next;
+}
+
+std::uint64_t PixelBudget::used() const {
+  std::lock_guard lock(mu_);
+  return used_;
+}
+
 Session::Session(std::string id, std::string owner, std::shared_ptr<VolumeLease> volume, v1::Scene scene,
                  FrameSettings settings, SessionContext context)
     : id_(std::move(id)),
@@ -38,11 +55,18 @@ Session::Session(std::string id, std::string owner, std::shared_ptr<VolumeLease>
       context_(std::move(context)),
       scene_(std::move(scene)),
       settings_(settings),
-      since_(Clock::now()) {
+      since_(Clock::now()),
+      pixels_(std::uint64_t(scene_.render().width()) * scene_.render().height()),
+      event_tokens_(context_.limits->max_events_per_second),
+      tokens_at_(since_) {
+  context_.pixels->Exchange(0, pixels_);
   ++context_.scheduler->sessions;
 }
 
-Session::~Session() { --context_.scheduler->sessions; }
+Session::~Session() {
+  --context_.scheduler->sessions;
+  context_.pixels->Exchange(pixels_, 0);
+}
 
 void Session::Attach(FrameStream* stream) {
   {
@@ -54,6 +78,7 @@ void Session::Attach(FrameStream* stream) {
       stream_->End({grpc::StatusCode::ABORTED, fmt::format("another stream attached to session '{}'", id_)});
     }
     stream_ = stream;
+    cancel_ = false;
     ever_attached_ = true;
     last_event_seq_ = 0;  // sequence numbers count per stream
     event_unrendered_ = false;
@@ -73,6 +98,7 @@ void Session::Detach(FrameStream* stream) {
     dropped_before_ += stream_->frames_dropped();
     stream_ = nullptr;
     since_ = Clock::now();
+    cancel_ = true;  // nobody will see the frame in flight
   }
   Wake();  // the next step frees the device memory
 }
@@ -91,16 +117,59 @@ void Session::OnEvent(const v1::SessionEvent& event, Clock::time_point arrival) 
     if (event.seq() <= last_event_seq_ && last_event_seq_ > 0) {
       throw InputError(fmt::format("event {}: seq must increase (the last was {})", event.seq(), last_event_seq_));
     }
-    ApplyEvent(event, scene_, settings_, *context_.limits, *context_.volumes);
-    if (event.has_pause()) paused_ = true;
-    if (event.has_resume()) paused_ = false;
-    if (!event.has_pause() && !event.has_resume()) dirty_ = true;
-    refined_ = false;  // every event gets a frame that answers it
-    last_event_seq_ = event.seq();
-    last_event_arrival_ = arrival;
-    event_unrendered_ = true;
+    if (event.has_pause() || event.has_resume() || TakeEventTokenLocked(arrival)) {
+      ApplyCoalescedLocked();  // what came earlier applies first
+      ApplyLocked(event, arrival);
+    } else {
+      // Over the rate: kept, unchecked, for the next frame; each kind keeps its latest.
+      auto [it, fresh] = coalesced_.try_emplace(int(event.kind_case()), event);
+      const bool merges = event.has_render() || event.has_stream();  // set fields change, as ApplyEvent does
+      if (!fresh && merges) it->second.MergeFrom(event);
+      if (!fresh && !merges) it->second = event;
+      last_event_seq_ = event.seq();
+      coalesced_arrival_ = arrival;
+    }
   }
   Wake();
+}
+
+bool Session::TakeEventTokenLocked(Clock::time_point now) {
+  const double rate = context_.limits->max_events_per_second;
+  event_tokens_ = std::min(rate, event_tokens_ + rate * std::chrono::duration<double>(now - tokens_at_).count());
+  tokens_at_ = now;
+  if (event_tokens_ < 1) return false;
+  event_tokens_ -= 1;
+  return true;
+}
+
+void Session::ApplyCoalescedLocked() {
+  std::map<int, v1::SessionEvent> events;
+  events.swap(coalesced_);
+  for (const auto& [kind, event] : events) ApplyLocked(event, coalesced_arrival_);
+}
+
+void Session::ApplyLocked(const v1::SessionEvent& event, Clock::time_point arrival) {
+  v1::Scene next = scene_;
+  FrameSettings next_settings = settings_;
+  ApplyEvent(event, next, next_settings, *context_.limits, *context_.volumes);
+  const std::uint64_t pixels = std::uint64_t(next.render().width()) * next.render().height();
+  if (pixels != pixels_) {
+    try {
+      context_.pixels->Exchange(pixels_, pixels);
+    } catch (const ResourceExhausted& e) {
+      throw ResourceExhausted(fmt::format("event {}: resize: {}", event.seq(), e.what()));
+    }
+    pixels_ = pixels;
+  }
+  scene_ = std::move(next);
+  settings_ = next_settings;
+  if (event.has_pause()) paused_ = true;
+  if (event.has_resume()) paused_ = false;
+  if (!event.has_pause() && !event.has_resume()) dirty_ = true;
+  refined_ = false;  // every event gets a frame that answers it
+  last_event_seq_ = std::max(last_event_seq_, event.seq());
+  last_event_arrival_ = arrival;
+  event_unrendered_ = true;
 }
 
 void Session::End(const grpc::Status& status) {
@@ -108,6 +177,11 @@ void Session::End(const grpc::Status& status) {
     std::lock_guard lock(mu_);
     if (ended_) return;
     ended_ = true;
+    cancel_ = true;
+    for (auto& still : stills_) {
+      if (auto flag = still.lock()) *flag = true;
+    }
+    stills_.clear();
     if (stream_) {
       sent_before_ += stream_->frames_sent();
       dropped_before_ += stream_->frames_dropped();
@@ -118,10 +192,31 @@ void Session::End(const grpc::Status& status) {
   if (status.ok()) {
     spdlog::info("session {}: closed", id_);
   } else {
-    spdlog::warn("session {}: ended: {}", id_, status.error_message());
+    spdlog::warn("session {}: ended: {}", id_, LogSafe(status.error_message()));
   }
   context_.on_end(id_);
   Wake();  // the next step frees the device memory
+}
+
+void Session::Drain() {
+  {
+    std::lock_guard lock(mu_);
+    if (stream_) {
+      stream_->SendNotice(v1::Notice::WARNING,
+                          "the server is shutting down (draining): this stream ends now; reconnect to another server");
+    }
+  }
+  End({grpc::StatusCode::UNAVAILABLE, "the server is shutting down"});
+}
+
+void Session::CancelWithSession(const std::shared_ptr<std::atomic<bool>>& flag) {
+  std::lock_guard lock(mu_);
+  if (ended_) {
+    *flag = true;
+    return;
+  }
+  std::erase_if(stills_, [](const auto& still) { return still.expired(); });
+  stills_.push_back(flag);
 }
 
 void Session::CurrentScene(v1::Scene& scene, FrameSettings& settings) const {
@@ -138,9 +233,13 @@ bool Session::CanRenderLocked() const {
 bool Session::Step() {
   Work work;
   bool release = false;
+  grpc::Status bad_event;
   {
     std::lock_guard lock(mu_);
-    if (ended_ || !stream_) {
+    if (!ended_ && stream_ && !coalesced_.empty()) bad_event = Guarded([&] { ApplyCoalescedLocked(); });
+    if (!bad_event.ok()) {
+      release = true;
+    } else if (ended_ || !stream_) {
       release = true;
       holds_device_memory_ = false;
     } else if (!CanRenderLocked()) {
@@ -163,6 +262,7 @@ bool Session::Step() {
   }
   if (release) {
     pipeline_.reset();
+    if (!bad_event.ok()) End(bad_event);
     return false;
   }
   const Clock::time_point render_start = Clock::now();
@@ -173,9 +273,19 @@ bool Session::Step() {
   }
   DisplayFrame frame;
   try {
-    if (!pipeline_) pipeline_ = std::make_unique<FramePipeline>(context_.backend, volume_->volume());
+    if (!pipeline_) {
+      pipeline_ = std::make_unique<FramePipeline>(context_.backend, volume_->volume());
+      pipeline_->SetCancel(&cancel_);
+    }
     if (work.update) pipeline_->Update(work.scene, work.settings);
     frame = pipeline_->RenderFrame();
+  } catch (const Cancelled&) {  // the session ended or its stream went: nobody waits for this frame
+    pipeline_.reset();
+    std::lock_guard lock(mu_);
+    --encodes_in_flight_;
+    holds_device_memory_ = false;
+    dirty_ = true;  // a new pipeline takes the scene again
+    return false;
   } catch (...) {
     pipeline_.reset();  // whatever it held may be broken: give the memory back now
     {
@@ -273,9 +383,14 @@ v1::SessionStatus Session::Status() const {
   return s;
 }
 
-bool Session::Expired(Clock::time_point now, Clock::duration limit) const {
+bool Session::Expired(Clock::time_point now, Clock::duration detached, Clock::duration unattached) const {
   std::lock_guard lock(mu_);
-  return !stream_ && !ended_ && now - since_ > limit;
+  return !stream_ && !ended_ && now - since_ > (ever_attached_ ? detached : unattached);
+}
+
+bool Session::ended() const {
+  std::lock_guard lock(mu_);
+  return ended_;
 }
 
 }  // namespace cinevol::service

@@ -8,12 +8,15 @@
 // the stream ends the next step frees it, and a later attach rebuilds it.
 #pragma once
 
+#include <atomic>
 #include <chrono>
 #include <cstdint>
 #include <functional>
+#include <map>
 #include <memory>
 #include <mutex>
 #include <string>
+#include <vector>
 
 #include <grpcpp/support/status.h>
 
@@ -45,6 +48,22 @@ class FrameStream {
   virtual std::uint64_t frames_dropped() const = 0;
 };
 
+// The viewport pixels of every session together (--max-total-pixels): the
+// device memory sessions take grows with them.
+class PixelBudget {
+ public:
+  explicit PixelBudget(std::uint64_t limit) : limit_(limit) {}
+  // Gives back `release` pixels and takes `take`; throws ResourceExhausted
+  // (changing nothing) when that would pass the limit.
+  void Exchange(std::uint64_t release, std::uint64_t take);
+  std::uint64_t used() const;
+
+ private:
+  const std::uint64_t limit_;
+  mutable std::mutex mu_;
+  std::uint64_t used_ = 0;
+};
+
 // What sessions share: where they render and encode, the limits, the volumes.
 struct SessionContext {
   Scheduler* scheduler = nullptr;
@@ -52,6 +71,7 @@ struct SessionContext {
   Backend backend = Backend::kCpu;
   const SessionLimits* limits = nullptr;
   const VolumeRegistry* volumes = nullptr;
+  PixelBudget* pixels = nullptr;  // the session holds its viewport's pixels from creation to destruction
   std::function<void(const std::string& session_id)> on_end;  // the registry forgets it
 };
 
@@ -70,19 +90,28 @@ class Session final : public Job, public std::enable_shared_from_this<Session> {
   void Attach(FrameStream* stream);
   void Detach(FrameStream* stream);
   void OnWritable(FrameStream* stream);
-  // Merges an event; throws InputError (or RpcError) for a bad one.
+  // Merges an event; throws InputError (or RpcError) for a bad one. Events
+  // past the stream's rate are coalesced (the latest camera, lights,
+  // transfer function and resize win; render and stream settings merge) and
+  // applied once, before the next frame.
   void OnEvent(const v1::SessionEvent& event, Clock::time_point arrival);
   // Ends the session: the stream finishes with `status`, memory is freed and
   // the registry forgets it. Later calls do nothing.
   void End(const grpc::Status& status);
+
+  // Ends the session on SIGTERM: a notice to the stream, then UNAVAILABLE.
+  void Drain();
+  // Raises `flag` when the session ends (now, if it has): a still's cancel.
+  void CancelWithSession(const std::shared_ptr<std::atomic<bool>>& flag);
 
   // What a snapshot renders: the current scene and settings.
   void CurrentScene(v1::Scene& scene, FrameSettings& settings) const;
   const std::shared_ptr<VolumeLease>& volume() const { return volume_; }
   Scheduler* scheduler() const { return context_.scheduler; }
   v1::SessionStatus Status() const;
-  // Detached (or never attached) for longer than `limit`.
-  bool Expired(Clock::time_point now, Clock::duration limit) const;
+  // Detached for longer than `detached`, or never attached for longer than `unattached`.
+  bool Expired(Clock::time_point now, Clock::duration detached, Clock::duration unattached) const;
+  bool ended() const;
 
   bool Step() override;
 
@@ -97,6 +126,12 @@ class Session final : public Job, public std::enable_shared_from_this<Session> {
   };
   struct Work;
   bool CanRenderLocked() const;
+  // Applies one event now; throws for a bad one (the scene stays as it was).
+  void ApplyLocked(const v1::SessionEvent& event, Clock::time_point arrival);
+  // Applies the coalesced events; ends nothing, throws for a bad one.
+  void ApplyCoalescedLocked();
+  // Whether the stream's event rate allows applying one more now.
+  bool TakeEventTokenLocked(Clock::time_point now);
   void Encode(DisplayFrame frame, const Stamp& stamp, int quality, ChromaSubsampling chroma);
   void Deliver(v1::Frame frame, Clock::time_point origin);
   void Wake() { context_.scheduler->Wake(shared_from_this()); }
@@ -126,6 +161,15 @@ class Session final : public Job, public std::enable_shared_from_this<Session> {
   std::uint64_t sent_before_ = 0, dropped_before_ = 0;  // by streams that ended
   int accumulated_spp_ = 0;
   bool holds_device_memory_ = false;
+  std::uint64_t pixels_ = 0;  // held in the context's PixelBudget
+  double event_tokens_ = 0;   // the rate limit's bucket
+  Clock::time_point tokens_at_;
+  std::map<int, v1::SessionEvent> coalesced_;  // by SessionEvent::KindCase, oldest first applied
+  Clock::time_point coalesced_arrival_;
+
+  // Raised when the session ends or its stream goes: the frame in flight stops.
+  std::atomic<bool> cancel_{false};
+  std::vector<std::weak_ptr<std::atomic<bool>>> stills_;  // raised when the session ends
 
   std::unique_ptr<FramePipeline> pipeline_;  // touched only inside Step
 };

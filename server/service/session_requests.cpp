@@ -24,10 +24,33 @@ void CheckViewport(const v1::Viewport& v, const std::string& field, const Sessio
   }
 }
 
-void CheckFrameSpp(const v1::Scene& scene, const std::string& prefix, const SessionLimits& limits) {
-  if (int(scene.render().spp()) > limits.max_frame_spp) {
-    throw InputError(fmt::format("{}render.spp: {} is outside [1, {}] for a streamed frame (use a snapshot for more)",
-                                 prefix, scene.render().spp(), limits.max_frame_spp));
+// What a streamed frame costs, against this server's limits (the scene's
+// own ranges are ValidateSceneParts's). Each message names the flag.
+void CheckCost(const v1::Scene& scene, const std::string& prefix, const SessionLimits& limits) {
+  const v1::RenderSettings& r = scene.render();
+  if (int(r.spp()) > limits.max_frame_spp) {
+    throw InputError(fmt::format("{}render.spp: {} is over this server's limit of {} per streamed frame "
+                                 "(--max-frame-spp; use a snapshot for more)",
+                                 prefix, r.spp(), limits.max_frame_spp));
+  }
+  const std::uint64_t samples = std::uint64_t(r.spp()) * r.width() * r.height();
+  if (samples > limits.max_frame_samples) {
+    throw InputError(fmt::format("{}render.spp: {} spp at {}x{} is {} samples per frame, over this server's limit "
+                                 "of {} (--max-frame-samples)",
+                                 prefix, r.spp(), r.width(), r.height(), samples, limits.max_frame_samples));
+  }
+  if (int(r.max_bounces()) > limits.max_bounces) {
+    throw InputError(fmt::format("{}render.max_bounces: {} is over this server's limit of {} (--max-bounces)", prefix,
+                                 r.max_bounces(), limits.max_bounces));
+  }
+  if (scene.transfer_function().points_size() > limits.max_tf_points) {
+    throw InputError(fmt::format("{}transfer_function.points: {} points, over this server's limit of {} "
+                                 "(--max-tf-points)",
+                                 prefix, scene.transfer_function().points_size(), limits.max_tf_points));
+  }
+  if (scene.lights_size() > limits.max_lights) {
+    throw InputError(fmt::format("{}lights: {} lights, over this server's limit of {} (--max-lights)", prefix,
+                                 scene.lights_size(), limits.max_lights));
   }
 }
 
@@ -98,9 +121,10 @@ v1::Scene InitialScene(const v1::CreateSessionRequest& request, const Volume& vo
   scene.clear_volume();  // the session renders volume_id
   scene.mutable_render()->set_width(request.viewport().width());
   scene.mutable_render()->set_height(request.viewport().height());
+  CheckCost(scene, "scene.", limits);  // before the work of defaults and validation
   ApplyDefaults(scene);
   CheckParts(scene, "scene.");
-  CheckFrameSpp(scene, "scene.", limits);
+  CheckCost(scene, "scene.", limits);
   ResolveEnvironmentMaps(scene, volumes);
   return scene;
 }
@@ -177,17 +201,24 @@ void ApplyEvent(const v1::SessionEvent& event, v1::Scene& scene, FrameSettings& 
     default:
       throw InputError(prefix + "no event kind set");
   }
+  CheckCost(next, prefix, limits);
   CheckParts(next, prefix);
-  CheckFrameSpp(next, prefix, limits);
   scene = std::move(next);
   settings = next_settings;
 }
 
-int SnapshotSpp(const v1::SnapshotRequest& request, const SessionLimits& limits) {
+int SnapshotSpp(const v1::SnapshotRequest& request, std::uint64_t pixels, const SessionLimits& limits) {
   CheckEnum(v1::ImageFormat_IsValid(request.format()), request.format(), "format");
-  if (!request.has_spp()) return limits.default_snapshot_spp;
-  CheckRange(request.spp(), 1, std::uint32_t(limits.max_snapshot_spp), "spp");
-  return static_cast<int>(request.spp());
+  const std::uint32_t spp = request.has_spp() ? request.spp() : std::uint32_t(limits.default_snapshot_spp);
+  if (spp < 1 || int(spp) > limits.max_snapshot_spp) {
+    throw InputError(fmt::format("spp: {} is outside [1, {}] (--max-snapshot-spp)", spp, limits.max_snapshot_spp));
+  }
+  if (spp * pixels > limits.max_snapshot_samples) {
+    throw InputError(fmt::format("spp: {} spp at {} pixels is {} samples, over this server's limit of {} "
+                                 "(--max-snapshot-samples)",
+                                 spp, pixels, spp * pixels, limits.max_snapshot_samples));
+  }
+  return static_cast<int>(spp);
 }
 
 }  // namespace cinevol::service

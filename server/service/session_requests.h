@@ -13,11 +13,19 @@
 
 namespace cinevol::service {
 
+// What one session may ask for; `cinevol-server --help` names the flags and
+// docs/security.md gives the defaults and why.
 struct SessionLimits {
-  std::uint64_t max_pixels = 3840 * 2160;  // width x height of a viewport
-  int max_frame_spp = 256;                 // samples per pixel of one streamed frame
+  std::uint64_t max_pixels = 3840 * 2160;        // width x height of a viewport
+  int max_frame_spp = 256;                       // samples per pixel of one streamed frame
+  std::uint64_t max_frame_samples = 1ull << 25;  // spp x pixels of one streamed frame
+  int max_bounces = 64;
   int max_snapshot_spp = 16384;
+  std::uint64_t max_snapshot_samples = 1ull << 31;  // spp x pixels of one still
   int default_snapshot_spp = 256;
+  int max_tf_points = 256;                       // transfer-function control points
+  int max_lights = 16;
+  int max_events_per_second = 240;               // per stream; past it events are coalesced
 };
 
 // The scene a new session starts from: the request's scene or preset, its
@@ -34,7 +42,8 @@ FrameSettings MergeStreamSettings(FrameSettings settings, const v1::StreamSettin
 void ApplyEvent(const v1::SessionEvent& event, v1::Scene& scene, FrameSettings& settings,
                 const SessionLimits& limits, const VolumeRegistry& volumes);
 
-// The snapshot's samples per pixel (default filled), checked.
-int SnapshotSpp(const v1::SnapshotRequest& request, const SessionLimits& limits);
+// The snapshot's samples per pixel (default filled), checked against the
+// limits for a still of `pixels` pixels.
+int SnapshotSpp(const v1::SnapshotRequest& request, std::uint64_t pixels, const SessionLimits& limits);
 
 }  // namespace cinevol::service

@@ -15,6 +15,8 @@ SessionStreamReactor::SessionStreamReactor(grpc::CallbackServerContext* context,
     FinishLocked(status);
     return;
   }
+  // A stream that never attaches is cancelled (--first-message-seconds).
+  watch_ = core_->calls().Watch(context, Seconds(core_->options().first_message_seconds));
   StartRead(&in_);
 }
 
@@ -31,6 +33,7 @@ void SessionStreamReactor::OnReadDone(bool ok) {
   const Clock::time_point arrival = Clock::now();
   std::shared_ptr<Session> session = this->session();
   if (!session) {
+    core_->calls().Forget(watch_);
     if (!in_.has_attach()) {
       End({grpc::StatusCode::INVALID_ARGUMENT, "attach: the first message must attach to a session"});
       return;
@@ -139,16 +142,20 @@ void SessionStreamReactor::OnWriteDone(bool ok) {
     writing_ = false;
     if (ok && writing_frame_) ++sent_;
     if (finished_) return;
-    if (!ok || finish_after_write_) {  // the stream broke, or an end waited for this write
+    if (!ok) {
       FinishLocked(finish_after_write_.value_or(
           grpc::Status(grpc::StatusCode::UNAVAILABLE, "the stream to the client broke")));
       return;
     }
-    if (!notices_.empty()) {
+    if (!notices_.empty()) {  // before an end that waits: a notice says why it ends
       v1::ServerMessage out;
       *out.mutable_notice() = std::move(notices_.front());
       notices_.pop_front();
       StartWriteLocked(std::move(out), false);
+      return;
+    }
+    if (finish_after_write_) {
+      FinishLocked(*finish_after_write_);
       return;
     }
     if (slot_) {
@@ -168,6 +175,7 @@ void SessionStreamReactor::OnWriteDone(bool ok) {
 void SessionStreamReactor::OnCancel() { End({grpc::StatusCode::CANCELLED, "the client went away"}); }
 
 void SessionStreamReactor::OnDone() {
+  core_->calls().Forget(watch_);
   if (std::shared_ptr<Session> session = this->session()) session->Detach(this);
   delete this;
 }

@@ -14,6 +14,7 @@
 
 #include "cinevol/v1/service.grpc.pb.h"
 #include "service/auth.h"
+#include "service/call_watch.h"
 #include "service/session.h"
 
 namespace cinevol::service {
@@ -47,6 +48,7 @@ class SessionStreamReactor final : public grpc::ServerBidiReactor<v1::ClientMess
 
   ServiceCore* core_;
   std::optional<Principal> principal_;  // empty when authentication failed
+  CallWatch::Id watch_ = 0;             // until the attach arrives
   v1::ClientMessage in_;                // the read in flight
 
   mutable std::mutex mu_;

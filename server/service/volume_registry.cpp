@@ -10,6 +10,7 @@
 #include "core/error.h"
 #include "io/volume_loader.h"
 #include "service/errors.h"
+#include "service/log_safe.h"
 
 namespace fs = std::filesystem;
 
@@ -62,8 +63,8 @@ VolumeLease::VolumeLease(VolumeRegistry* registry, std::string id, std::shared_p
 
 VolumeLease::~VolumeLease() { registry_->Release(id_); }
 
-VolumeRegistry::VolumeRegistry(std::vector<fs::path> data_roots, std::uint64_t max_upload_bytes)
-    : max_upload_bytes_(max_upload_bytes),
+VolumeRegistry::VolumeRegistry(std::vector<fs::path> data_roots, VolumeLimits limits)
+    : limits_(limits),
       upload_dir_(fs::temp_directory_path() / fmt::format("cinevol-uploads-{}", ::getpid())) {
   for (const fs::path& root : data_roots) {
     std::error_code ec;
@@ -107,17 +108,33 @@ fs::path VolumeRegistry::ResolveDataPath(const std::string& path, const std::str
   if (!inside_a_root(canonical)) {
     throw RpcError(grpc::StatusCode::PERMISSION_DENIED, outside + " (a symlink leads out)");
   }
+  // FIFOs, sockets and devices would block a reader or never end.
+  const fs::file_type type = fs::status(canonical, ec).type();
+  if (type != fs::file_type::regular && type != fs::file_type::directory) {
+    throw RpcError(grpc::StatusCode::INVALID_ARGUMENT,
+                   fmt::format("{}: '{}' is not a regular file or folder", field, path));
+  }
   return canonical;
+}
+
+LoadPolicy VolumeRegistry::PolicyFor(const std::string& label, bool upload) const {
+  LoadPolicy policy;
+  policy.references = upload ? LoadPolicy::References::kNone : LoadPolicy::References::kInsideRoots;
+  policy.roots = data_roots_;
+  policy.max_voxels = limits_.max_voxels;
+  policy.label = label;
+  return policy;
 }
 
 v1::VolumeInfo VolumeRegistry::AddFromSpec(const std::string& spec) {
   const v1::VolumeSource source = ParseVolumeSpec(spec);
-  if (source.has_phantom()) return Add(spec, spec, LoadVolume(source));
+  if (source.has_phantom()) return Add(spec, spec, LoadVolume(source), "", false);
   const fs::path path = fs::absolute(spec).lexically_normal();
-  return Add(BaseIdOf(path), path.string(), LoadVolume(source));
+  return Add(BaseIdOf(path), path.string(), LoadVolume(source), "", false);
 }
 
-v1::VolumeInfo VolumeRegistry::LoadFromDataRoot(const std::string& path, const std::string& series_uid) {
+v1::VolumeInfo VolumeRegistry::LoadFromDataRoot(const std::string& path, const std::string& series_uid,
+                                                const Principal& caller) {
   const fs::path resolved = ResolveDataPath(path, "path");
   const std::string source = series_uid.empty() ? resolved.string() : resolved.string() + "#" + series_uid;
   {
@@ -133,10 +150,13 @@ v1::VolumeInfo VolumeRegistry::LoadFromDataRoot(const std::string& path, const s
   } else {
     request.set_file(resolved.string());
   }
-  return Add(BaseIdOf(resolved), source, LoadVolume(request));
+  // Messages name the path as the client wrote it, never where it resolved to.
+  return Add(BaseIdOf(resolved), source, LoadVolume(request, {}, PolicyFor("path '" + path + "'", false)),
+             caller.name, false);
 }
 
-v1::VolumeInfo VolumeRegistry::AddUpload(const fs::path& file, const std::string& file_name) {
+v1::VolumeInfo VolumeRegistry::AddUpload(const fs::path& file, const std::string& file_name,
+                                         const Principal& caller) {
   struct Remove {
     const fs::path& f;
     ~Remove() {
@@ -144,22 +164,56 @@ v1::VolumeInfo VolumeRegistry::AddUpload(const fs::path& file, const std::string
       fs::remove(f, ec);
     }
   } remove{file};
-  Volume volume = LoadVolumeFile(file);
-  return Add(BaseIdOf(file_name), "upload:" + file_name, std::move(volume));
+  Volume volume = LoadVolumeFile(file, PolicyFor("upload:" + file_name, true));
+  return Add(BaseIdOf(file_name), "upload:" + file_name, std::move(volume), caller.name, true);
 }
 
-v1::VolumeInfo VolumeRegistry::Add(const std::string& base_id, const std::string& source, Volume volume) {
+v1::VolumeInfo VolumeRegistry::Add(const std::string& base_id, const std::string& source, Volume volume,
+                                   const std::string& owner, bool upload) {
   std::lock_guard lock(mu_);
+  if (!upload) {
+    for (const auto& [id, e] : volumes_) {
+      if (e.source == source) return InfoLocked(id, e);
+    }
+  }
+  const std::uint64_t bytes = volume.MemoryBytes();
+  std::uint64_t total = 0, owners = 0;
   for (const auto& [id, e] : volumes_) {
-    if (e.source == source && source.rfind("upload:", 0) != 0) return InfoLocked(id, e);
+    total += e.volume->MemoryBytes();
+    if (e.upload && e.owner == owner) owners += e.volume->MemoryBytes();
+  }
+  if (total + bytes > limits_.max_total_bytes) {
+    throw ResourceExhausted(fmt::format("the volume needs {} MiB; this server holds {} MiB of volumes and allows "
+                                        "{} MiB (--max-volume-memory-mb): unload one first",
+                                        bytes >> 20, total >> 20, limits_.max_total_bytes >> 20));
+  }
+  if (upload && owners + bytes > limits_.max_upload_bytes_per_principal) {
+    throw ResourceExhausted(fmt::format("your uploads hold {} MiB; this one needs {} MiB more, over the limit of "
+                                        "{} MiB per user (--max-upload-memory-mb): unload one first",
+                                        owners >> 20, bytes >> 20, limits_.max_upload_bytes_per_principal >> 20));
   }
   std::string id = base_id;
   for (int n = 2; volumes_.count(id); ++n) id = fmt::format("{}-{}", base_id, n);
   Entry& e = volumes_[id];
   e.source = source;
   e.volume = std::make_shared<const Volume>(std::move(volume));
-  spdlog::info("volume {}: {}x{}x{} from {}", id, e.volume->dims().x, e.volume->dims().y, e.volume->dims().z, source);
+  e.owner = owner;
+  e.upload = upload;
+  // The source is a path or a client's file name: patient data, and not for the info log.
+  spdlog::info("volume {}: {}x{}x{}, {} MiB", LogSafe(id), e.volume->dims().x, e.volume->dims().y,
+               e.volume->dims().z, bytes >> 20);
   return InfoLocked(id, e);
+}
+
+const VolumeRegistry::Entry& VolumeRegistry::FindLocked(const std::string& id, const Principal& caller,
+                                                        const std::string& field) const {
+  auto it = volumes_.find(id);
+  if (it == volumes_.end()) throw RpcError(grpc::StatusCode::NOT_FOUND, fmt::format("{}: no volume '{}'", field, id));
+  if (it->second.upload && !caller.is_operator && it->second.owner != caller.name) {
+    throw RpcError(grpc::StatusCode::PERMISSION_DENIED,
+                   fmt::format("{}: volume '{}' was uploaded by another user", field, id));
+  }
+  return it->second;
 }
 
 v1::VolumeInfo VolumeRegistry::InfoLocked(const std::string& id, const Entry& e) const {
@@ -180,41 +234,45 @@ v1::VolumeInfo VolumeRegistry::InfoLocked(const std::string& id, const Entry& e)
   return info;
 }
 
-v1::VolumeInfo VolumeRegistry::Describe(const std::string& id) const {
+v1::VolumeInfo VolumeRegistry::Describe(const std::string& id, const Principal& caller) const {
   std::lock_guard lock(mu_);
-  auto it = volumes_.find(id);
-  if (it == volumes_.end()) throw RpcError(grpc::StatusCode::NOT_FOUND, fmt::format("no volume '{}'", id));
-  return InfoLocked(id, it->second);
+  return InfoLocked(id, FindLocked(id, caller, "volume_id"));
 }
 
-std::vector<v1::VolumeInfo> VolumeRegistry::List() const {
+std::vector<v1::VolumeInfo> VolumeRegistry::List(const Principal& caller) const {
   std::lock_guard lock(mu_);
   std::vector<v1::VolumeInfo> list;
-  for (const auto& [id, e] : volumes_) list.push_back(InfoLocked(id, e));
+  for (const auto& [id, e] : volumes_) {
+    if (!e.upload || caller.is_operator || e.owner == caller.name) list.push_back(InfoLocked(id, e));
+  }
   return list;
 }
 
-void VolumeRegistry::Unload(const std::string& id) {
+void VolumeRegistry::Unload(const std::string& id, const Principal& caller) {
   std::shared_ptr<const Volume> last;  // freed outside the lock
   std::lock_guard lock(mu_);
-  auto it = volumes_.find(id);
-  if (it == volumes_.end()) throw RpcError(grpc::StatusCode::NOT_FOUND, fmt::format("no volume '{}'", id));
-  if (it->second.leases > 0) {
-    throw RpcError(grpc::StatusCode::FAILED_PRECONDITION,
-                   fmt::format("volume '{}' is in use by {} session(s) or still(s); close them first", id,
-                               it->second.leases));
+  const Entry& e = FindLocked(id, caller, "volume_id");
+  if (!caller.is_operator && e.owner != caller.name) {
+    throw RpcError(grpc::StatusCode::PERMISSION_DENIED,
+                   fmt::format("volume_id: volume '{}' was loaded by {}; only its owner or an operator may unload it",
+                               id, e.owner.empty() ? "the operator" : "another user"));
   }
+  if (e.leases > 0) {
+    throw RpcError(grpc::StatusCode::FAILED_PRECONDITION,
+                   fmt::format("volume '{}' is in use by {} session(s) or still(s); close them first", id, e.leases));
+  }
+  auto it = volumes_.find(id);
   last = std::move(it->second.volume);
   volumes_.erase(it);
-  spdlog::info("volume {}: unloaded", id);
+  spdlog::info("volume {}: unloaded", LogSafe(id));
 }
 
-std::shared_ptr<VolumeLease> VolumeRegistry::Lease(const std::string& id) {
+std::shared_ptr<VolumeLease> VolumeRegistry::Lease(const std::string& id, const Principal& caller) {
   std::lock_guard lock(mu_);
-  auto it = volumes_.find(id);
-  if (it == volumes_.end()) throw RpcError(grpc::StatusCode::NOT_FOUND, fmt::format("volume_id: no volume '{}'", id));
-  ++it->second.leases;
-  return std::make_shared<VolumeLease>(this, id, it->second.volume);
+  FindLocked(id, caller, "volume_id");
+  Entry& e = volumes_.at(id);
+  ++e.leases;
+  return std::make_shared<VolumeLease>(this, id, e.volume);
 }
 
 void VolumeRegistry::Release(const std::string& id) {

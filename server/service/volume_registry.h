@@ -1,8 +1,14 @@
 // The volumes a server holds, by id. Operators preload any path or phantom
 // (--volume); clients load only under the data roots (--data-root), where a
 // path that climbs out with `..` or a symlink that leads out is refused, or
-// upload a file that is checked exactly as a file on disk would be. A volume
-// that a session leases cannot be unloaded.
+// upload a self-contained file. A volume that a session leases cannot be
+// unloaded.
+//
+// Who sees what: preloaded volumes and files from the data roots are shared
+// (every caller sees and renders them); an upload is its uploader's alone.
+// Only a volume's owner (whoever loaded or uploaded it; the operator for
+// preloaded ones) or an operator may unload it. Memory is bounded: voxels per
+// volume, all volumes together, and uploads per principal.
 #pragma once
 
 #include <cstdint>
@@ -15,6 +21,8 @@
 
 #include "cinevol/v1/service.pb.h"
 #include "core/volume.h"
+#include "io/volume_loader.h"
+#include "service/auth.h"
 
 namespace cinevol::service {
 
@@ -37,26 +45,38 @@ class VolumeLease {
   std::shared_ptr<const Volume> volume_;
 };
 
+struct VolumeLimits {
+  std::uint64_t max_upload_bytes = 2048ull << 20;        // one upload's file
+  std::uint64_t max_voxels = 1ull << 30;                  // one volume
+  std::uint64_t max_total_bytes = 32ull << 30;            // every volume held, host memory
+  std::uint64_t max_upload_bytes_per_principal = 8ull << 30;  // voxel memory of one principal's uploads
+};
+
 class VolumeRegistry {
  public:
-  VolumeRegistry(std::vector<std::filesystem::path> data_roots, std::uint64_t max_upload_bytes);
+  VolumeRegistry(std::vector<std::filesystem::path> data_roots, VolumeLimits limits);
   ~VolumeRegistry();
 
   // The operator's volume: a phantom spec ("phantom:head?size=64"), a file or a
   // DICOM folder anywhere. Loading the same source again returns the first.
   v1::VolumeInfo AddFromSpec(const std::string& spec);
-  // A client's request: a file or DICOM folder under a data root. Reads the
-  // disk (seconds for a large series): call it off the gRPC threads.
-  v1::VolumeInfo LoadFromDataRoot(const std::string& path, const std::string& series_uid);
+  // A client's request: a file or DICOM folder under a data root, which may
+  // name other files only inside the data roots. Reads the disk (seconds for
+  // a large series): call it off the gRPC threads.
+  v1::VolumeInfo LoadFromDataRoot(const std::string& path, const std::string& series_uid, const Principal& caller);
   // A client's upload, written to `file` (in upload_dir()) by the service;
-  // `file_name` is the name the client gave. The file is removed.
-  v1::VolumeInfo AddUpload(const std::filesystem::path& file, const std::string& file_name);
+  // `file_name` is the name the client gave. It may name no other file. The
+  // file is removed.
+  v1::VolumeInfo AddUpload(const std::filesystem::path& file, const std::string& file_name, const Principal& caller);
 
-  v1::VolumeInfo Describe(const std::string& id) const;
-  std::vector<v1::VolumeInfo> List() const;
-  // FAILED_PRECONDITION while leased, NOT_FOUND for an unknown id.
-  void Unload(const std::string& id);
-  std::shared_ptr<VolumeLease> Lease(const std::string& id);
+  // NOT_FOUND for an unknown id; PERMISSION_DENIED for another's upload.
+  v1::VolumeInfo Describe(const std::string& id, const Principal& caller) const;
+  // The volumes `caller` may render.
+  std::vector<v1::VolumeInfo> List(const Principal& caller) const;
+  // FAILED_PRECONDITION while leased; PERMISSION_DENIED unless the caller
+  // owns it or is an operator.
+  void Unload(const std::string& id, const Principal& caller);
+  std::shared_ptr<VolumeLease> Lease(const std::string& id, const Principal& caller);
 
   // `path` resolved inside a data root (relative paths against the first),
   // symlinks followed; PERMISSION_DENIED outside them, NOT_FOUND when absent.
@@ -64,7 +84,7 @@ class VolumeRegistry {
   std::filesystem::path ResolveDataPath(const std::string& path, const std::string& field) const;
 
   const std::filesystem::path& upload_dir() const { return upload_dir_; }
-  std::uint64_t max_upload_bytes() const { return max_upload_bytes_; }
+  const VolumeLimits& limits() const { return limits_; }
   // The file extensions an upload may have.
   static bool IsUploadableName(const std::string& file_name);
 
@@ -73,15 +93,21 @@ class VolumeRegistry {
   struct Entry {
     std::string source;  // canonical path (+ series) or phantom spec: loading it twice returns this entry
     std::shared_ptr<const Volume> volume;
+    std::string owner;   // principal name; "" for the operator's preloaded volumes
+    bool upload = false; // private to its owner
     int leases = 0;
   };
 
-  v1::VolumeInfo Add(const std::string& base_id, const std::string& source, Volume volume);
+  v1::VolumeInfo Add(const std::string& base_id, const std::string& source, Volume volume, const std::string& owner,
+                     bool upload);
+  // The entry `caller` may use, or throws NOT_FOUND / PERMISSION_DENIED.
+  const Entry& FindLocked(const std::string& id, const Principal& caller, const std::string& field) const;
   v1::VolumeInfo InfoLocked(const std::string& id, const Entry& e) const;
+  LoadPolicy PolicyFor(const std::string& label, bool upload) const;
   void Release(const std::string& id);
 
   std::vector<std::filesystem::path> data_roots_;  // canonical
-  std::uint64_t max_upload_bytes_;
+  VolumeLimits limits_;
   std::filesystem::path upload_dir_;
   mutable std::mutex mu_;
   std::map<std::string, Entry> volumes_;
