@@ -1,7 +1,6 @@
 // DICOM series from a folder: GDCM scans the headers, cinevol groups, sorts
 // and checks the slices, ITK/GDCM decodes the pixels (JPEG 2000 and other
 // compressed transfer syntaxes included) and applies rescale slope/intercept.
-#include <gdcmDirectory.h>
 #include <gdcmScanner.h>
 #include <itkGDCMImageIO.h>
 #include <itkImageSeriesReader.h>
@@ -15,6 +14,7 @@
 #include <fmt/format.h>
 
 #include "core/error.h"
+#include "io/file_checks.h"
 #include "io/itk_image.h"
 #include "io/volume_loader.h"
 
@@ -32,6 +32,9 @@ const gdcm::Tag kRows(0x0028, 0x0010);
 const gdcm::Tag kColumns(0x0028, 0x0011);
 const gdcm::Tag kSliceThickness(0x0018, 0x0050);
 
+// A folder with more files than this is not one patient's series.
+constexpr std::size_t kMaxFolderFiles = 100000;
+
 // Slices whose positions along the normal differ by more than this fraction
 // of the typical gap count as unevenly spaced.
 constexpr double kGapTolerance = 0.01;
@@ -42,28 +45,61 @@ struct Scan {
   gdcm::Scanner scanner;
   std::vector<std::string> dicom_files;  // files that parsed as DICOM
   std::size_t files_seen = 0;
+  std::string folder;  // as given
+  std::string shown;   // what messages call the folder
+
+  // What messages call a file in the folder: its path under `shown`.
+  std::string Name(const std::string& file) const {
+    return file.rfind(folder, 0) == 0 ? shown + file.substr(folder.size()) : file;
+  }
 };
 
-void ScanFolder(const fs::path& folder, Scan& scan) {
+// The regular files under `folder` (subfolders included, symlinked folders
+// not followed) that the policy lets a load read: FIFOs, sockets and devices
+// are skipped without being opened; kInsideRoots keeps files inside the
+// roots, kNone files inside the folder itself.
+std::vector<std::string> FolderFiles(const fs::path& folder, const LoadPolicy& policy, const std::string& shown) {
+  using R = LoadPolicy::References;
+  std::error_code ec;
+  const std::vector<fs::path> allowed = policy.references == R::kNone ? std::vector<fs::path>{fs::canonical(folder, ec)}
+                                                                      : policy.roots;
+  std::vector<std::string> files;
+  for (fs::recursive_directory_iterator it(folder, fs::directory_options::skip_permission_denied, ec), end;
+       !ec && it != end; it.increment(ec)) {
+    if (it->is_directory(ec) || !file_checks::IsRegularFile(it->path())) continue;
+    if (policy.references != R::kAnywhere && !file_checks::IsInside(fs::canonical(it->path(), ec), allowed)) continue;
+    if (files.size() == kMaxFolderFiles) {
+      throw InputError(fmt::format("{}: more than {} files in the folder", shown, kMaxFolderFiles));
+    }
+    files.push_back(it->path().string());
+  }
+  if (ec) throw InputError(fmt::format("{}: cannot list the folder", shown));
+  return files;
+}
+
+void ScanFolder(const fs::path& folder, const LoadPolicy& policy, Scan& scan) {
   itk_image::InitToolkits();
+  scan.folder = folder.string();
+  scan.shown = file_checks::Shown(folder, policy);
   std::error_code ec;
   if (!fs::is_directory(folder, ec)) {
-    throw InputError(fmt::format("{}: not a folder", folder.string()));
+    throw InputError(fmt::format("{}: not a folder", scan.shown));
   }
-  gdcm::Directory dir;
-  scan.files_seen = dir.Load(folder.string(), /*recursive=*/true);
+  file_checks::RequireInsideRoots(folder, policy, scan.shown);
+  const std::vector<std::string> files = FolderFiles(folder, policy, scan.shown);
+  scan.files_seen = files.size();
   for (const gdcm::Tag& t : {kSeriesUid, kSeriesDescription, kModality, kImagePosition,
                              kImageOrientation, kRows, kColumns, kSliceThickness}) {
     scan.scanner.AddTag(t);
   }
-  if (scan.files_seen > 0 && !scan.scanner.Scan(dir.GetFilenames())) {
-    throw InputError(fmt::format("{}: could not scan the folder's files", folder.string()));
+  if (scan.files_seen > 0 && !scan.scanner.Scan(files)) {
+    throw InputError(fmt::format("{}: could not scan the folder's files", scan.shown));
   }
-  for (const std::string& f : dir.GetFilenames()) {
+  for (const std::string& f : files) {
     if (scan.scanner.IsKey(f.c_str())) scan.dicom_files.push_back(f);
   }
   if (scan.dicom_files.empty()) {
-    throw InputError(fmt::format("{}: no DICOM files found ({} files looked at)", folder.string(),
+    throw InputError(fmt::format("{}: no DICOM files found ({} files looked at)", scan.shown,
                                  scan.files_seen));
   }
 }
@@ -136,7 +172,7 @@ SeriesGeometry CheckGeometry(const Scan& scan, const std::vector<std::string>& f
   SeriesGeometry g;
   const std::vector<double> iop = Numbers(Value(scan, files[0], kImageOrientation));
   if (iop.size() != 6) {
-    throw InputError(fmt::format("{}: {} has no usable ImageOrientationPatient", where, files[0]));
+    throw InputError(fmt::format("{}: {} has no usable ImageOrientationPatient", where, scan.Name(files[0])));
   }
   std::copy(iop.begin(), iop.begin() + 3, g.row);
   std::copy(iop.begin() + 3, iop.end(), g.col);
@@ -147,7 +183,7 @@ SeriesGeometry CheckGeometry(const Scan& scan, const std::vector<std::string>& f
   for (const std::string& f : files) {
     const std::vector<double> p = Numbers(Value(scan, f, kImagePosition));
     if (p.size() != 3) {
-      throw InputError(fmt::format("{}: {} has no usable ImagePositionPatient", where, f));
+      throw InputError(fmt::format("{}: {} has no usable ImagePositionPatient", where, scan.Name(f)));
     }
     g.slices.push_back({f, {p[0], p[1], p[2]}, Dot3(p.data(), g.normal)});
   }
@@ -166,7 +202,7 @@ SeriesGeometry CheckGeometry(const Scan& scan, const std::vector<std::string>& f
       throw InputError(fmt::format(
           "{}: {} and {} lie at the same position ({:.3f} mm along the normal): duplicate slices "
           "or several acquisitions in one series",
-          where, g.slices[i - 1].file, g.slices[i].file, g.slices[i].along_normal));
+          where, scan.Name(g.slices[i - 1].file), scan.Name(g.slices[i].file), g.slices[i].along_normal));
     }
     gaps.push_back(gap);
   }
@@ -178,7 +214,7 @@ SeriesGeometry CheckGeometry(const Scan& scan, const std::vector<std::string>& f
       throw InputError(fmt::format(
           "{}: uneven slice spacing: {:.3f} mm between {} and {} where the series' gap is {:.3f} "
           "mm (missing slices?); cinevol loads evenly spaced series only",
-          where, gaps[i], g.slices[i].file, g.slices[i + 1].file, g.slice_gap_mm));
+          where, gaps[i], scan.Name(g.slices[i].file), scan.Name(g.slices[i + 1].file), g.slice_gap_mm));
     }
   }
   // Gantry tilt: the stack's direction leaves the slice normal.
@@ -226,16 +262,16 @@ Series ChooseSeries(std::vector<Series> all, const std::string& requested, const
 
 std::vector<DicomSeriesInfo> ListDicomSeries(const fs::path& folder) {
   Scan scan;
-  ScanFolder(folder, scan);
+  ScanFolder(folder, {}, scan);
   std::vector<DicomSeriesInfo> out;
   for (const Series& s : GroupSeries(scan)) out.push_back(s.info);
   return out;
 }
 
-Volume LoadDicomSeries(const fs::path& folder, const std::string& series_uid) {
-  const std::string where = folder.string();
+Volume LoadDicomSeries(const fs::path& folder, const std::string& series_uid, const LoadPolicy& policy) {
   Scan scan;
-  ScanFolder(folder, scan);
+  ScanFolder(folder, policy, scan);
+  const std::string where = scan.shown;
   const Series series = ChooseSeries(GroupSeries(scan), series_uid, where);
   const std::vector<std::string>& files = series.files;
   const SeriesGeometry g = CheckGeometry(scan, files, where);
@@ -253,10 +289,17 @@ Volume LoadDicomSeries(const fs::path& folder, const std::string& series_uid) {
     CheckVolumeGeometry({int(io->GetDimensions(0)), int(io->GetDimensions(1)), int(sorted.size())},
                         {float(io->GetSpacing(0)), float(io->GetSpacing(1)), float(g.slice_gap_mm)},
                         where);
+    const std::uint64_t frames = io->GetNumberOfDimensions() > 2 ? std::max<std::uint64_t>(1, io->GetDimensions(2)) : 1;
+    const std::uint64_t voxels = std::uint64_t(io->GetDimensions(0)) * io->GetDimensions(1) * sorted.size() * frames;
+    if (voxels > policy.max_voxels) {
+      throw InputError(fmt::format("{}: {}x{}x{} = {} voxels exceeds this server's limit of {} voxels", where,
+                                   io->GetDimensions(0), io->GetDimensions(1), sorted.size() * frames, voxels,
+                                   policy.max_voxels));
+    }
     reader->Update();
   } catch (const itk::ExceptionObject& e) {
     throw InputError(fmt::format("{}: cannot decode series {}: {}", where, Describe(series.info),
-                                 e.GetDescription()));
+                                 itk_image::ItkMessage(e, {folder}, where)));
   }
   auto* image = reader->GetOutput();
   // Geometry from the sorted positions, not from the first two files ITK saw.

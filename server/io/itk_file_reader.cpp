@@ -14,16 +14,20 @@
 #include <spdlog/spdlog.h>
 #include <zlib.h>
 
+#include <unistd.h>
+
 #include <algorithm>
-#include <fstream>
+#include <charconv>
+#include <cstdio>
 #include <map>
 #include <mutex>
 #include <random>
-#include <sstream>
+#include <regex>
 
 #include <fmt/format.h>
 
 #include "core/error.h"
+#include "io/file_checks.h"
 #include "io/itk_image.h"
 #include "io/volume_loader.h"
 
@@ -65,6 +69,37 @@ std::string ComponentName(itk::IOComponentEnum type) {
   }
 }
 
+std::string ItkMessage(const itk::ExceptionObject& e, const std::vector<fs::path>& paths,
+                       const std::string& shown) {
+  std::string d = e.GetDescription();
+  const auto colon = d.find("): ");
+  if (d.rfind("ITK ERROR", 0) == 0 && colon != std::string::npos) d = d.substr(colon + 3);
+  std::vector<std::string> forms;
+  for (const fs::path& p : paths) {
+    std::error_code ec;
+    for (const fs::path& form : {p, fs::absolute(p, ec), fs::weakly_canonical(p, ec)}) {
+      if (!form.empty() && form.string() != shown) forms.push_back(form.string());
+    }
+  }
+  // Longest first, so a path is replaced whole rather than its relative tail.
+  std::sort(forms.begin(), forms.end(), [](const auto& a, const auto& b) { return a.size() > b.size(); });
+  for (const std::string& form : forms) {
+    for (auto at = d.find(form); at != std::string::npos; at = d.find(form, at + shown.size())) {
+      d.replace(at, form.size(), shown);
+    }
+  }
+  static const std::regex kSourceLocation(R"([\w./+-]+\.(cxx|cpp|hxx|txx|c|h):\d+:?\s*)");
+  static const std::regex kItkPrefix(R"((ITK ERROR|itk::ERROR): \w+\(0x[0-9a-fA-F]+\): )");
+  d = std::regex_replace(std::regex_replace(d, kSourceLocation, ""), kItkPrefix, "");
+  // teem stacks "[nrrd] function: ..." lines, the cause last: keep that.
+  if (const auto nrrd = d.rfind("[nrrd] "); nrrd != std::string::npos) {
+    d = d.substr(nrrd + 7);
+    d = d.substr(d.find(": ") == std::string::npos ? 0 : d.find(": ") + 2);
+  }
+  while (!d.empty() && (d.back() == '\n' || d.back() == ' ')) d.pop_back();
+  return d;
+}
+
 Volume ToVolume(FloatImage* image, VolumeMetadata meta) {
   const auto size = image->GetLargestPossibleRegion().GetSize();
   const auto spacing = image->GetSpacing();
@@ -101,84 +136,101 @@ bool IsSupportedComponent(itk::IOComponentEnum c) {
   }
 }
 
-// ITK messages start with "file:line:\nITK ERROR: Class(0x...): "; keep the rest.
-std::string ShortItkMessage(const itk::ExceptionObject& e) {
-  std::string d = e.GetDescription();
-  const auto colon = d.find("): ");
-  if (d.rfind("ITK ERROR", 0) == 0 && colon != std::string::npos) d = d.substr(colon + 3);
-  while (!d.empty() && (d.back() == '\n' || d.back() == ' ')) d.pop_back();
-  return d;
-}
+// The copy of a header that the lenient NRRD reading writes, removed when done.
+struct TempFile {
+  fs::path path;
+  ~TempFile() {
+    std::error_code ec;
+    if (!path.empty()) fs::remove(path, ec);
+  }
+};
 
-std::string ReadText(const fs::path& path) {
-  std::ifstream in(path, std::ios::binary);
-  std::ostringstream s;
-  s << in.rdbuf();
-  return s.str();
+// The lines teem skips before the voxels: a header's own `line skip` field.
+std::int64_t LineSkip(const std::string& line, const std::string& shown) {
+  const std::string value = line.substr(std::min(line.size(), line.find_first_not_of(" \t", line.find(':') + 1)));
+  std::int64_t n = 0;
+  const auto [end, ec] = std::from_chars(value.data(), value.data() + value.size(), n);
+  if (ec != std::errc() || n < 0) throw InputError(fmt::format("{}: 'line skip' is not a count", shown));
+  return n;
 }
 
 // Some published detached NRRD headers give both `space` and per-axis
 // `spacings`, which teem (ITK's NRRD reader) rejects. The intent is plain:
 // the spacings are the voxel size. Writes a copy of the header without the
-// `space` line and with data file paths made absolute; returns its path.
-fs::path WriteLenientNrrdHeader(const fs::path& header) {
-  const fs::path dir = fs::absolute(header).parent_path();
-  std::istringstream in(ReadText(header));
-  std::ostringstream out;
-  bool in_file_list = false;
-  for (std::string line; std::getline(in, line);) {
-    if (line.rfind("space:", 0) == 0) continue;
-    if (in_file_list && !line.empty()) {
-      out << (fs::path(line).is_absolute() ? fs::path(line) : dir / line).string() << '\n';
+// `space` line into `copy`. Its data file field names only the canonical
+// files the original's check resolved (or the file itself, past its header
+// lines, for attached voxels), so the copy reaches nothing the original could
+// not: it never becomes a way around the LoadPolicy.
+void WriteLenientNrrdHeader(const fs::path& header, const std::string& shown, TempFile& copy) {
+  const file_checks::NrrdHeader h = file_checks::ParseNrrdHeader(header, shown);
+  if (!h.references.problem.empty()) throw InputError(fmt::format("{}: {}", shown, h.references.problem));
+  std::string out;
+  std::int64_t line_skip = 0;
+  for (const std::string& line : h.lines) {
+    const std::string key = file_checks::FieldName(line);
+    if (key == "space") continue;
+    if (h.attached && key == "lineskip") {
+      line_skip = LineSkip(line, shown);
       continue;
     }
-    const std::string key = "data file:";
-    if (line.rfind(key, 0) == 0) {
-      std::string rest = line.substr(key.size());
-      rest.erase(0, rest.find_first_not_of(' '));
-      in_file_list = rest.rfind("LIST", 0) == 0;
-      if (!in_file_list && !fs::path(rest).is_absolute()) rest = (dir / rest).string();
-      line = key + " " + rest;
+    out += line + "\n";
+  }
+  std::vector<std::string> files;
+  for (const fs::path& f : h.attached ? std::vector<fs::path>{header} : h.references.files) {
+    std::error_code ec;
+    const std::string real = fs::canonical(f, ec).string();
+    if (ec || real.find_first_of("\r\n") != std::string::npos) {
+      throw InputError(fmt::format("{}: the header's 'data file' names a file that cannot be read", shown));
     }
-    out << line << '\n';
+    files.push_back(real);
+  }
+  if (h.attached) out += fmt::format("line skip: {}\n", std::int64_t(h.line_count) + line_skip);
+  if (h.listed) {
+    out += "data file: LIST" + (h.list_dim.empty() ? "" : " " + h.list_dim) + "\n";
+    for (const std::string& f : files) out += f + "\n";
+  } else {
+    out += "data file: " + files.at(0) + "\n";
   }
   std::random_device rd;
-  const fs::path copy = fs::temp_directory_path() / fmt::format("cinevol-{:x}.nhdr", rd());
-  std::ofstream(copy) << out.str();
-  return copy;
+  copy.path = fs::temp_directory_path() / fmt::format("cinevol-{:08x}{:08x}.nhdr", rd(), rd());
+  // "x": never through a file or link someone placed there first.
+  std::FILE* f = std::fopen(copy.path.c_str(), "wx");
+  const bool written = f && std::fwrite(out.data(), 1, out.size(), f) == out.size();
+  if (f) std::fclose(f);
+  if (!written) throw InputError(fmt::format("{}: cannot write a corrected copy of the header", shown));
 }
 
 bool IsSpaceWithSpacingsError(const itk::ExceptionObject& e) {
   return std::string(e.GetDescription()).find("ScalarWithSpace") != std::string::npos;
 }
 
-itk::ImageIOBase::Pointer ReadHeader(const fs::path& path) {
+itk::ImageIOBase::Pointer ReadHeader(const fs::path& path, const std::string& shown) {
   itk_image::InitToolkits();
   auto io = itk::ImageIOFactory::CreateImageIO(path.c_str(), itk::IOFileModeEnum::ReadMode);
   if (!io) {
     throw InputError(fmt::format(
         "{}: not a volume format cinevol reads (NIfTI, NRRD/NHDR, MetaImage, VTK; "
         "DICOM is read from a folder)",
-        path.string()));
+        shown));
   }
   io->SetFileName(path.string());
   io->ReadImageInformation();
   return io;
 }
 
-void CheckHeader(const fs::path& path, itk::ImageIOBase& io) {
+void CheckHeader(const std::string& shown, itk::ImageIOBase& io, std::uint64_t max_voxels) {
   const unsigned dims = io.GetNumberOfDimensions();
   if (dims < 2 || dims > 3) {
     throw InputError(fmt::format("{}: a {}-D image; cinevol reads 2-D and 3-D scalar volumes",
-                                 path.string(), dims));
+                                 shown, dims));
   }
   if (io.GetNumberOfComponents() != 1) {
     throw InputError(fmt::format("{}: {} components per voxel ({}); cinevol needs one scalar",
-                                 path.string(), io.GetNumberOfComponents(),
+                                 shown, io.GetNumberOfComponents(),
                                  io.GetPixelTypeAsString(io.GetPixelType())));
   }
   if (!IsSupportedComponent(io.GetComponentType())) {
-    throw InputError(fmt::format("{}: unsupported voxel type '{}'", path.string(),
+    throw InputError(fmt::format("{}: unsupported voxel type '{}'", shown,
                                  io.GetComponentTypeAsString(io.GetComponentType())));
   }
   Vec3i size{1, 1, 1};
@@ -188,7 +240,12 @@ void CheckHeader(const fs::path& path, itk::ImageIOBase& io) {
     size[a] = int(std::min<itk::SizeValueType>(io.GetDimensions(a), 1u << 30));
     spacing[a] = float(io.GetSpacing(a));
   }
-  CheckVolumeGeometry(size, spacing, path.string());
+  CheckVolumeGeometry(size, spacing, shown);
+  const std::uint64_t voxels = std::uint64_t(size.x) * std::uint64_t(size.y) * std::uint64_t(size.z);
+  if (voxels > max_voxels) {
+    throw InputError(fmt::format("{}: {}x{}x{} = {} voxels exceeds this server's limit of {} voxels", shown,
+                                 size.x, size.y, size.z, voxels, max_voxels));
+  }
 }
 
 std::string MetaString(const itk::MetaDataDictionary& dict, const std::string& key) {
@@ -222,12 +279,19 @@ T Swapped(T v) {
   return v;
 }
 
+// Headers and NIfTI extensions before the voxels: a few KiB in real files.
+constexpr std::int64_t kMaxNiftiOffset = std::int64_t{16} << 20;
+
 // ITK's NIfTI reader pads a short payload with zeros instead of failing, so
 // the payload is counted here first (gz or plain: zlib reads both). Returns
 // "" when the file holds every voxel, else what is missing.
 std::string NiftiPayloadProblem(const fs::path& path) {
-  gzFile f = gzopen(path.c_str(), "rb");
-  if (!f) return "cannot open";
+  const int fd = file_checks::OpenRegularFile(path);
+  gzFile f = fd < 0 ? nullptr : gzdopen(fd, "rb");
+  if (!f) {
+    if (fd >= 0) close(fd);
+    return "cannot open";
+  }
   struct Close {
     gzFile f;
     ~Close() { gzclose(f); }
@@ -253,10 +317,19 @@ std::string NiftiPayloadProblem(const fs::path& path) {
     bitpix = swap ? Swapped(h.n2.bitpix) : h.n2.bitpix;
     offset = swap ? Swapped(h.n2.vox_offset) : h.n2.vox_offset;
   }
+  // The readers inflate up to vox_offset too; extensions past it are absurd.
+  if (offset < 0 || offset > kMaxNiftiOffset) {
+    return fmt::format("vox_offset {} is outside [0, {}]", offset, kMaxNiftiOffset);
+  }
   const std::int64_t expected = offset + voxels * bitpix / 8;
   std::int64_t total = header_size == 348 ? sizeof(nifti_1_header) : sizeof(nifti_2_header);
   std::vector<char> buffer(1 << 20);
-  for (int n; (n = gzread(f, buffer.data(), unsigned(buffer.size()))) > 0;) total += n;
+  // Inflates only what the header promises (whose voxel count was checked
+  // already): a small .nii.gz can expand without bound.
+  for (int n = 1; total < expected && n > 0; total += n) {
+    n = gzread(f, buffer.data(), unsigned(std::min<std::int64_t>(std::int64_t(buffer.size()), expected - total)));
+    if (n < 0) break;
+  }
   int err = Z_OK;
   const char* message = gzerror(f, &err);
   if (err != Z_OK && err != Z_STREAM_END) return fmt::format("compressed data are damaged ({})", message);
@@ -283,11 +356,11 @@ std::string RawPayloadProblem(itk::ImageIOBase& io, const fs::path& path) {
     return "";
   }
   std::error_code ec;
-  const auto size = fs::file_size(data, ec);
-  if (ec) return fmt::format("cannot read the voxel data file {}", data.string());
+  const auto size = file_checks::IsRegularFile(data) ? fs::file_size(data, ec) : 0;
+  if (ec || !file_checks::IsRegularFile(data)) return "cannot read the file that ElementDataFile names";
   if (size < std::uintmax_t(io.GetImageSizeInBytes())) {
     return fmt::format("truncated: {} voxel bytes expected, {} holds {} bytes in all", io.GetImageSizeInBytes(),
-                       data.filename().string(), size);
+                       data == path ? "the file" : "'" + data.filename().string() + "'", size);
   }
   return "";
 }
@@ -302,20 +375,43 @@ std::string MetaImageModality(itk::ImageIOBase& io) {
   }
 }
 
-Volume ReadWithItk(const fs::path& path, const fs::path& source) {
-  auto io = ReadHeader(path);
-  CheckHeader(source, *io);
+// MetaIO parsed the header on its own: what it will open must be what the
+// header check found (a single file is checked again, a list or pattern must
+// have been seen).
+void CheckMetaImageDataFile(itk::ImageIOBase& io, const fs::path& path, const file_checks::References& checked,
+                            const LoadPolicy& policy, const std::string& shown) {
+  auto* meta = dynamic_cast<itk::MetaImageIO*>(&io);
+  if (!meta) return;
+  const std::string name = meta->GetMetaImagePointer()->ElementDataFileName();
+  if (name == "LOCAL" || name == "Local" || name == "local") return;
+  file_checks::References refs{"ElementDataFile", {}, ""};
+  if (name.rfind("LIST", 0) == 0 || name.find('%') != std::string::npos) {
+    if (!checked.field.empty()) return;
+    refs.problem = "a form the header check did not see";
+  } else {
+    refs.files.push_back(!name.empty() && name[0] == '/' ? fs::path(name) : path.parent_path() / name);
+  }
+  file_checks::CheckReferences(refs, policy, shown);
+}
+
+// Reads `path` (the named file, or the lenient copy of its header) whose
+// references were checked as `refs`.
+Volume ReadWithItk(const fs::path& path, const file_checks::References& refs, const LoadPolicy& policy,
+                   const std::string& shown) {
+  auto io = ReadHeader(path, shown);
+  CheckHeader(shown, *io, policy.max_voxels);
+  CheckMetaImageDataFile(*io, path, refs, policy, shown);
   const std::string problem = std::string(io->GetNameOfClass()) == "NiftiImageIO"
                                   ? NiftiPayloadProblem(path)
                                   : RawPayloadProblem(*io, path);
-  if (!problem.empty()) throw InputError(fmt::format("{}: {}", source.string(), problem));
+  if (!problem.empty()) throw InputError(fmt::format("{}: {}", shown, problem));
   auto reader = itk::ImageFileReader<FloatImage>::New();
   reader->SetImageIO(io);
   reader->SetFileName(path.string());
   reader->Update();
 
   VolumeMetadata meta;
-  meta.source = source.string();
+  meta.source = shown;
   meta.original_type = OriginalType(*io);
   meta.modality = MetaImageModality(*io);
   if (meta.modality == "CT") meta.value_unit = "HU";
@@ -324,28 +420,31 @@ Volume ReadWithItk(const fs::path& path, const fs::path& source) {
 
 }  // namespace
 
-Volume LoadVolumeFile(const fs::path& path) {
+Volume LoadVolumeFile(const fs::path& path, const LoadPolicy& policy) {
+  const std::string shown = file_checks::Shown(path, policy);
   std::error_code ec;
-  if (!fs::exists(path, ec)) throw InputError(fmt::format("{}: no such file", path.string()));
-  if (fs::is_directory(path, ec)) return LoadDicomSeries(path);
+  const fs::file_status status = fs::status(path, ec);
+  if (!fs::exists(status)) throw InputError(fmt::format("{}: no such file", shown));
+  if (fs::is_directory(status)) return LoadDicomSeries(path, {}, policy);
+  file_checks::RequireRegularFile(path, shown);
+  file_checks::RequireInsideRoots(path, policy, shown);
+  // Before ITK opens anything: the files the header names.
+  const file_checks::References refs = file_checks::FindReferences(path, shown);
+  file_checks::CheckReferences(refs, policy, shown);
+  TempFile copy;
   try {
     try {
-      return ReadWithItk(path, path);
+      return ReadWithItk(path, refs, policy, shown);
     } catch (const itk::ExceptionObject& e) {
       if (!IsSpaceWithSpacingsError(e)) throw;
-      spdlog::warn("{}: NRRD header gives both 'space' and 'spacings'; using the spacings",
-                   path.string());
-      const fs::path copy = WriteLenientNrrdHeader(path);
-      struct Remove {
-        fs::path p;
-        ~Remove() { fs::remove(p); }
-      } remove{copy};
-      return ReadWithItk(copy, path);
+      spdlog::warn("{}: NRRD header gives both 'space' and 'spacings'; using the spacings", path.string());
+      WriteLenientNrrdHeader(path, shown, copy);
+      return ReadWithItk(copy.path, refs, policy, shown);
     }
   } catch (const itk::ExceptionObject& e) {
-    throw InputError(fmt::format("{}: {}", path.string(), ShortItkMessage(e)));
+    throw InputError(fmt::format("{}: {}", shown, itk_image::ItkMessage(e, {path, copy.path}, shown)));
   } catch (const std::bad_alloc&) {
-    throw InputError(fmt::format("{}: out of memory reading the volume", path.string()));
+    throw InputError(fmt::format("{}: out of memory reading the volume", shown));
   }
 }
 

@@ -87,12 +87,12 @@ v1::VolumeSource ParseVolumeSpec(std::string_view spec) {
   return source;
 }
 
-Volume LoadVolume(const v1::VolumeSource& source, const fs::path& base_dir) {
+Volume LoadVolume(const v1::VolumeSource& source, const fs::path& base_dir, const LoadPolicy& policy) {
   switch (source.source_case()) {
     case v1::VolumeSource::kFile:
-      return LoadVolumeFile(Resolve(source.file(), base_dir));
+      return LoadVolumeFile(Resolve(source.file(), base_dir), policy);
     case v1::VolumeSource::kDicomFolder:
-      return LoadDicomSeries(Resolve(source.dicom_folder(), base_dir), source.series_uid());
+      return LoadDicomSeries(Resolve(source.dicom_folder(), base_dir), source.series_uid(), policy);
     case v1::VolumeSource::kPhantom:
       return MakePhantom(source.phantom());
     default:

@@ -3,6 +3,7 @@
 // throws InputError naming the file or folder and what was wrong.
 #pragma once
 
+#include <cstdint>
 #include <filesystem>
 #include <string>
 #include <string_view>
@@ -13,15 +14,35 @@
 
 namespace cinevol {
 
+// What a load may read besides the file or folder it names, and how much.
+// Only regular files are ever opened (FIFOs, devices and sockets are refused
+// without opening them), and headers are read with a bound.
+struct LoadPolicy {
+  enum class References {
+    kAnywhere,     // the operator's own files (--volume): a header may name any file
+    kInsideRoots,  // files a header names must resolve (symlinks followed) inside `roots`
+    kNone,         // uploads: a header that names another file is refused
+  };
+  References references = References::kAnywhere;
+  std::vector<std::filesystem::path> roots;  // canonical; for kInsideRoots
+  // Voxels per volume, checked on the header before any voxel is read. The
+  // default is 1024^3; core's kMaxVoxels (the same number) bounds it anyway.
+  std::uint64_t max_voxels = std::uint64_t{1} << 30;
+  // Names the file in messages instead of its path ("upload:head.nrrd");
+  // empty: the path.
+  std::string label;
+};
+
 // Loads what `source` names; relative paths resolve against `base_dir`.
-Volume LoadVolume(const v1::VolumeSource& source, const std::filesystem::path& base_dir = {});
+Volume LoadVolume(const v1::VolumeSource& source, const std::filesystem::path& base_dir = {},
+                  const LoadPolicy& policy = {});
 
 // Reads a command-line volume spec: "phantom:NAME[?key=value&...]" (keys:
 // size, spacing, value, background, radius), a folder (a DICOM series) or a file.
 v1::VolumeSource ParseVolumeSpec(std::string_view spec);
 
 // One volume file, in any format ITK reads that cinevol accepts.
-Volume LoadVolumeFile(const std::filesystem::path& path);
+Volume LoadVolumeFile(const std::filesystem::path& path, const LoadPolicy& policy = {});
 
 // A DICOM series found in a folder.
 struct DicomSeriesInfo {
@@ -32,12 +53,14 @@ struct DicomSeriesInfo {
   std::size_t file_count = 0;
 };
 
-// The series in `folder` (searched recursively), largest first.
+// The series in `folder` (searched recursively), largest first. Only regular
+// files are looked at.
 std::vector<DicomSeriesInfo> ListDicomSeries(const std::filesystem::path& folder);
 
 // Loads one series from `folder`: `series_uid`, or the largest when empty.
 // Slices are sorted along the slice normal; gantry tilt, uneven gaps (missing
 // slices), mixed sizes or orientations and duplicate positions are refused.
-Volume LoadDicomSeries(const std::filesystem::path& folder, const std::string& series_uid = {});
+Volume LoadDicomSeries(const std::filesystem::path& folder, const std::string& series_uid = {},
+                       const LoadPolicy& policy = {});
 
 }  // namespace cinevol

@@ -1,0 +1,324 @@
+// Hostile volume files (issue 18): headers that name other files, FIFOs and
+// devices, absurd sizes, gzip bombs. Each load must stay inside what its
+// LoadPolicy allows, finish quickly, and name the label, never a server path.
+#include <fcntl.h>
+#include <gtest/gtest.h>
+#include <nifti/nifti1.h>
+#include <sys/stat.h>
+#include <unistd.h>
+#include <zlib.h>
+
+#include <chrono>
+#include <cstring>
+#include <fstream>
+#include <functional>
+#include <future>
+
+#include "core/error.h"
+#include "io/volume_loader.h"
+#include "support/test_paths.h"
+
+namespace cinevol {
+namespace {
+
+using testing::ScratchDir;
+namespace fs = std::filesystem;
+using namespace std::chrono_literals;
+
+constexpr const char* kLabel = "upload:evil";
+
+void WriteBytes(const fs::path& path, const std::string& bytes) {
+  std::ofstream(path, std::ios::binary).write(bytes.data(), std::streamsize(bytes.size()));
+}
+
+std::string Gzip(const std::string& data) {
+  std::string out(compressBound(uLong(data.size())) + 32, '\0');
+  z_stream z{};
+  deflateInit2(&z, 6, Z_DEFLATED, 15 + 16, 8, Z_DEFAULT_STRATEGY);  // +16: gzip wrapper
+  z.next_in = reinterpret_cast<Bytef*>(const_cast<char*>(data.data()));
+  z.avail_in = uInt(data.size());
+  z.next_out = reinterpret_cast<Bytef*>(out.data());
+  z.avail_out = uInt(out.size());
+  deflate(&z, Z_FINISH);
+  out.resize(z.total_out);
+  deflateEnd(&z);
+  return out;
+}
+
+// A NIfTI-1 header (4x4x4 int16) with the given magic, then `payload`.
+std::string Nifti(const char* magic, const std::string& payload, float vox_offset = 352) {
+  nifti_1_header h;
+  std::memset(&h, 0, sizeof h);
+  h.sizeof_hdr = 348;
+  h.dim[0] = 3;
+  h.dim[1] = h.dim[2] = h.dim[3] = 4;
+  h.datatype = DT_INT16;
+  h.bitpix = 16;
+  h.pixdim[1] = h.pixdim[2] = h.pixdim[3] = 1.0f;
+  h.vox_offset = vox_offset;
+  h.scl_slope = 1.0f;
+  std::memcpy(h.magic, magic, 4);
+  return std::string(reinterpret_cast<const char*>(&h), sizeof h) + std::string(4, '\0') + payload;
+}
+
+LoadPolicy Upload() {
+  LoadPolicy p;
+  p.references = LoadPolicy::References::kNone;
+  p.label = kLabel;
+  return p;
+}
+
+LoadPolicy InsideRoots(const fs::path& root) {
+  LoadPolicy p;
+  p.references = LoadPolicy::References::kInsideRoots;
+  p.roots = {fs::canonical(root)};
+  return p;
+}
+
+// Runs `load` on a thread and returns its InputError message, or "(loaded)".
+// A load still running after 2 s has blocked: the test fails, and each of
+// `fifos` gets a writer so the blocked open returns and the thread ends.
+std::string LoadMessage(const std::function<Volume()>& load, const std::vector<fs::path>& fifos = {}) {
+  auto result = std::async(std::launch::async, [load]() -> std::string {
+    try {
+      load();
+      return "(loaded)";
+    } catch (const InputError& e) {
+      return e.what();
+    }
+  });
+  if (result.wait_for(2s) == std::future_status::timeout) {
+    ADD_FAILURE() << "the load blocked";
+    for (const fs::path& f : fifos) {
+      const int fd = open(f.c_str(), O_RDWR | O_NONBLOCK);
+      if (fd >= 0) close(fd);
+    }
+  }
+  return result.get();
+}
+
+bool Has(const std::string& text, const std::string& part) { return text.find(part) != std::string::npos; }
+
+// A data root with a detached NRRD pair inside, and a secret outside it.
+struct Layout {
+  ScratchDir dir;
+  fs::path root = dir / "root";
+  fs::path secret = dir / "outside" / "secret.raw";
+  Layout() {
+    fs::create_directories(root);
+    fs::create_directories(secret.parent_path());
+    WriteBytes(secret, std::string(8, '\x7f'));
+    WriteBytes(root / "in.raw", std::string("\1\2\3\4\5\6\7\x08", 8));
+  }
+};
+
+std::string Nhdr(const std::string& data_file) {
+  return "NRRD0004\ntype: uchar\ndimension: 3\nsizes: 2 2 2\nencoding: raw\n" + data_file + "\n";
+}
+
+// Every way a header names another file, one per format.
+struct Reference {
+  const char* name;
+  std::string text;
+  const char* field;
+};
+
+std::vector<Reference> References(const fs::path& secret) {
+  const std::string s = secret.string();
+  return {
+      {"single.nhdr", Nhdr("data file: " + s), "data file"},
+      {"spelling.nrrd", Nhdr("DATAFILE: " + s), "data file"},
+      {"list.nhdr", Nhdr("data file: LIST\n" + s + "\n" + s), "data file"},
+      {"pattern.nhdr", Nhdr("data file: " + secret.parent_path().string() + "/s%03d.raw 1 2 1"), "data file"},
+      {"meta.mhd", "ObjectType = Image\nNDims = 3\nDimSize = 2 2 2\nElementType = MET_UCHAR\nElementDataFile = " + s + "\n",
+       "ElementDataFile"},
+      {"list.mha", "ObjectType = Image\nNDims = 3\nDimSize = 2 2 2\nElementType = MET_UCHAR\nElementDataFile = LIST\n" +
+                       s + "\n" + s + "\n",
+       "ElementDataFile"},
+      {"pair.nii", Nifti("ni1", std::string(128, '\0')), "NIfTI/Analyze .hdr/.img pair"},
+      {"pair.hdr", Nifti("ni1", ""), "NIfTI/Analyze .hdr/.img pair"},
+  };
+}
+
+TEST(HostileFiles, UploadsThatNameAnotherFileAreRefused) {
+  Layout l;
+  WriteBytes(l.root / "pair.img", std::string(128, '\0'));
+  for (const Reference& r : References(l.secret)) {
+    WriteBytes(l.root / r.name, r.text);
+    const std::string what = LoadMessage([&] { return LoadVolumeFile(l.root / r.name, Upload()); });
+    EXPECT_TRUE(Has(what, std::string(kLabel) + ": the header names another file ('" + r.field + "')")) << what;
+    EXPECT_TRUE(Has(what, "uploads must be self-contained")) << what;
+    EXPECT_FALSE(Has(what, "secret")) << what;
+    EXPECT_FALSE(Has(what, l.dir.path().string())) << what;
+  }
+}
+
+TEST(HostileFiles, InsideRootsLoadsADetachedPairInside) {
+  Layout l;
+  WriteBytes(l.root / "pair.nhdr", Nhdr("data file: in.raw"));
+  const Volume v = LoadVolumeFile(l.root / "pair.nhdr", InsideRoots(l.root));
+  EXPECT_EQ(v.Value(1, 1, 1), 8.0f);
+  // The other forms, inside the root, load too.
+  WriteBytes(l.root / "s01.raw", std::string("\1\2\3\4", 4));
+  WriteBytes(l.root / "s02.raw", std::string("\5\6\7\x08", 4));
+  WriteBytes(l.root / "pattern.nhdr", Nhdr("data file: s%02d.raw 1 2 1"));
+  WriteBytes(l.root / "list.nhdr", Nhdr("data file: LIST\ns01.raw\ns02.raw"));
+  WriteBytes(l.root / "meta.mhd", "ObjectType = Image\nNDims = 3\nDimSize = 2 2 2\nElementType = MET_UCHAR\n"
+                                  "ElementDataFile = in.raw\n");
+  for (const char* name : {"pattern.nhdr", "list.nhdr", "meta.mhd"}) {
+    EXPECT_EQ(LoadVolumeFile(l.root / name, InsideRoots(l.root)).Value(1, 1, 1), 8.0f) << name;
+  }
+}
+
+TEST(HostileFiles, InsideRootsRefusesFilesOutsideAlikeWhetherTheyExistOrNot) {
+  Layout l;
+  fs::create_symlink(l.secret, l.root / "link.raw");
+  for (const Reference& r : References(l.secret)) {
+    if (Has(r.field, "NIfTI")) continue;  // pairs are siblings, never outside
+    std::string text = r.text;
+    WriteBytes(l.root / r.name, text);
+    const std::string existing = LoadMessage([&] { return LoadVolumeFile(l.root / r.name, InsideRoots(l.root)); });
+    for (std::size_t at; (at = text.find("secret")) != std::string::npos;) text.replace(at, 6, "absent");
+    for (std::size_t at; (at = text.find("/s%03d")) != std::string::npos;) text.replace(at, 6, "/a%03d");
+    WriteBytes(l.root / r.name, text);
+    const std::string missing = LoadMessage([&] { return LoadVolumeFile(l.root / r.name, InsideRoots(l.root)); });
+    EXPECT_TRUE(Has(existing, std::string("'") + r.field + "'")) << existing;
+    EXPECT_TRUE(Has(existing, "not a regular file inside the data roots") || Has(existing, "cannot be checked"))
+        << existing;
+    EXPECT_EQ(existing, missing);
+    EXPECT_FALSE(Has(existing, "secret")) << existing;
+  }
+  WriteBytes(l.root / "link.nhdr", Nhdr("data file: link.raw"));
+  const std::string link = LoadMessage([&] { return LoadVolumeFile(l.root / "link.nhdr", InsideRoots(l.root)); });
+  EXPECT_TRUE(Has(link, "'data file' names a file that is not a regular file inside the data roots")) << link;
+  WriteBytes(l.root / "up.nhdr", Nhdr("data file: ../outside/secret.raw"));
+  const std::string up = LoadMessage([&] { return LoadVolumeFile(l.root / "up.nhdr", InsideRoots(l.root)); });
+  EXPECT_EQ(up.substr(up.find(": ")), link.substr(link.find(": ")));
+  // The named file itself must be inside too.
+  EXPECT_TRUE(Has(LoadMessage([&] { return LoadVolumeFile(l.secret, InsideRoots(l.root)); }), "outside the data roots"));
+}
+
+TEST(HostileFiles, FifoAsTheVolumeFileIsRefusedWithoutBlocking) {
+  ScratchDir dir;
+  ASSERT_EQ(mkfifo((dir / "v.nrrd").c_str(), 0600), 0);
+  const std::string what = LoadMessage([&] { return LoadVolumeFile(dir / "v.nrrd"); }, {dir / "v.nrrd"});
+  EXPECT_TRUE(Has(what, "not a regular file")) << what;
+}
+
+TEST(HostileFiles, FifoOrDeviceAsDataFileIsRefusedWithoutBlocking) {
+  ScratchDir dir;
+  ASSERT_EQ(mkfifo((dir / "pipe.raw").c_str(), 0600), 0);
+  fs::create_symlink(dir / "pipe.raw", dir / "link.raw");
+  const std::vector<std::pair<std::string, std::string>> cases = {
+      {"fifo.nhdr", Nhdr("data file: pipe.raw")},
+      {"fifo-link.nhdr", Nhdr("data file: link.raw")},
+      {"zero.nhdr", Nhdr("data file: /dev/zero")},
+      {"stdin.nhdr", Nhdr("data file: -")},
+      {"fifo.mhd", "ObjectType = Image\nNDims = 3\nDimSize = 2 2 2\nElementType = MET_UCHAR\n"
+                   "ElementDataFile = pipe.raw\n"},
+  };
+  for (const auto& [name, text] : cases) {
+    WriteBytes(dir / name, text);
+    // The operator's own files (kAnywhere) too: only regular files are opened.
+    const std::string what = LoadMessage([&] { return LoadVolumeFile(dir / name); }, {dir / "pipe.raw"});
+    EXPECT_TRUE(Has(what, "names something other than a regular file")) << name << ": " << what;
+  }
+}
+
+TEST(HostileFiles, FifoInADicomFolderIsSkippedWithoutBlocking) {
+  ScratchDir dir;
+  ASSERT_EQ(mkfifo((dir / "slice.dcm").c_str(), 0600), 0);
+  const std::string what = LoadMessage([&] { return LoadDicomSeries(dir.path()); }, {dir / "slice.dcm"});
+  EXPECT_TRUE(Has(what, "no DICOM files found (0 files looked at)")) << what;
+  const std::string as_file = LoadMessage([&] { return LoadVolumeFile(dir.path()); }, {dir / "slice.dcm"});
+  EXPECT_TRUE(Has(as_file, "no DICOM files found")) << as_file;
+}
+
+TEST(HostileFiles, DicomFolderUploadNamesTheLabel) {
+  ScratchDir dir;
+  WriteBytes(dir / "notes.txt", "hello");
+  LoadPolicy p = Upload();
+  const std::string what = LoadMessage([&] { return LoadDicomSeries(dir.path(), {}, p); });
+  EXPECT_TRUE(Has(what, std::string(kLabel) + ": no DICOM files found")) << what;
+  EXPECT_FALSE(Has(what, dir.path().string())) << what;
+}
+
+TEST(HostileFiles, VoxelLimitIsCheckedBeforeReading) {
+  ScratchDir dir;
+  // A few bytes declaring 32^3 voxels: refused for the limit, not the missing data.
+  WriteBytes(dir / "big.nrrd", "NRRD0004\ntype: short\ndimension: 3\nsizes: 32 32 32\nencoding: raw\n"
+                               "endian: little\n\n");
+  LoadPolicy p = Upload();
+  p.max_voxels = 4096;
+  const std::string what = LoadMessage([&] { return LoadVolumeFile(dir / "big.nrrd", p); });
+  EXPECT_EQ(what, std::string(kLabel) + ": 32x32x32 = 32768 voxels exceeds this server's limit of 4096 voxels");
+  // Absurd sizes in a tiny file, under the default limit.
+  WriteBytes(dir / "huge.nrrd", "NRRD0004\ntype: short\ndimension: 3\nsizes: 5000 5000 5000\nencoding: raw\n"
+                                "endian: little\n\n");
+  const auto start = std::chrono::steady_clock::now();
+  EXPECT_TRUE(Has(LoadMessage([&] { return LoadVolumeFile(dir / "huge.nrrd"); }), "exceeds the limit of 1073741824"));
+  EXPECT_LT(std::chrono::steady_clock::now() - start, 1s);
+  EXPECT_EQ(LoadPolicy().max_voxels, 1073741824u);
+}
+
+TEST(HostileFiles, GzipNiftiBombIsNotInflated) {
+  ScratchDir dir;
+  // 4x4x4 voxels, then 4 GiB of zeros as 4096 concatenated gzip members of
+  // 1 MiB each (zlib reads on across members): about 4 MB on disk.
+  const std::string member = Gzip(std::string(1 << 20, '\0'));
+  std::string bomb = Gzip(Nifti("n+1", std::string(128, '\3')));
+  bomb.reserve(bomb.size() + 4096 * member.size());
+  for (int i = 0; i < 4096; ++i) bomb += member;
+  WriteBytes(dir / "bomb.nii.gz", bomb);
+  const auto start = std::chrono::steady_clock::now();
+  const std::string what = LoadMessage([&] { return LoadVolumeFile(dir / "bomb.nii.gz", Upload()); });
+  EXPECT_EQ(what, "(loaded)");
+  EXPECT_LT(std::chrono::steady_clock::now() - start, 1s);
+  // A voxel offset far past the header would be inflated up to: refused.
+  WriteBytes(dir / "far.nii.gz", Gzip(Nifti("n+1", std::string(128, '\3'), 1e12f)) + member);
+  EXPECT_TRUE(Has(LoadMessage([&] { return LoadVolumeFile(dir / "far.nii.gz", Upload()); }), "vox_offset"));
+}
+
+TEST(HostileFiles, LabelsReplacePathsInItkMessages) {
+  ScratchDir dir;
+  WriteBytes(dir / "bad.nrrd", "NRRD0004\ntype: nonsense\ndimension: 3\nsizes: 2 2 2\nencoding: raw\n\n" +
+                                   std::string(8, '\0'));
+  const std::string what = LoadMessage([&] { return LoadVolumeFile(dir / "bad.nrrd", Upload()); });
+  EXPECT_EQ(what.rfind(std::string(kLabel) + ": ", 0), 0u) << what;
+  EXPECT_FALSE(Has(what, dir.path().string())) << what;
+  EXPECT_FALSE(Has(what, "bad.nrrd")) << what;
+  EXPECT_FALSE(Has(what, ".cxx")) << what;
+  EXPECT_FALSE(Has(what, "0x")) << what;  // no library internals
+  EXPECT_TRUE(Has(what, "nonsense")) << what;
+  // Without a label the path is named, as before.
+  EXPECT_TRUE(Has(LoadMessage([&] { return LoadVolumeFile(dir / "bad.nrrd"); }), "bad.nrrd"));
+  // teem's own text for a short payload quotes the file: the label replaces it.
+  WriteBytes(dir / "short.nrrd", "NRRD0004\ntype: short\ndimension: 3\nsizes: 16 16 16\nencoding: raw\n"
+                                 "endian: little\n\n" + std::string(100, '\1'));
+  const std::string short_what = LoadMessage([&] { return LoadVolumeFile(dir / "short.nrrd", Upload()); });
+  EXPECT_EQ(short_what.rfind(std::string(kLabel) + ": ", 0), 0u) << short_what;
+  EXPECT_FALSE(Has(short_what, "short.nrrd")) << short_what;
+  EXPECT_FALSE(Has(short_what, dir.path().string())) << short_what;
+  EXPECT_TRUE(Has(short_what, "of expected")) << short_what;
+}
+
+TEST(HostileFiles, LenientNrrdRewriteKeepsThePolicy) {
+  Layout l;
+  const std::string spaced = "NRRD0004\ntype: uchar\ndimension: 3\nspace: left-posterior-superior\n"
+                             "sizes: 2 2 2\nspacings: 1 1 2\nencoding: raw\n";
+  // Attached voxels: the copy reads them from the file itself.
+  WriteBytes(l.root / "attached.nrrd", spaced + "\n" + std::string("\1\2\3\4\5\6\7\x08", 8));
+  const Volume v = LoadVolumeFile(l.root / "attached.nrrd", Upload());
+  EXPECT_EQ(v.Value(1, 1, 1), 8.0f);
+  EXPECT_FLOAT_EQ(v.spacing_mm().z, 2.0f);
+  // A detached pair inside the roots, in any spelling, loads; one leading out does not.
+  WriteBytes(l.root / "in.nhdr", spaced + "datafile: in.raw\n");
+  EXPECT_EQ(LoadVolumeFile(l.root / "in.nhdr", InsideRoots(l.root)).Value(1, 1, 1), 8.0f);
+  WriteBytes(l.root / "out.nhdr", spaced + "datafile: ../outside/secret.raw\n");
+  EXPECT_TRUE(Has(LoadMessage([&] { return LoadVolumeFile(l.root / "out.nhdr", InsideRoots(l.root)); }),
+                  "not a regular file inside the data roots"));
+  EXPECT_TRUE(Has(LoadMessage([&] { return LoadVolumeFile(l.root / "in.nhdr", Upload()); }), "self-contained"));
+}
+
+}  // namespace
+}  // namespace cinevol
