@@ -24,6 +24,18 @@ class RpcError : public std::runtime_error {
   grpc::StatusCode code_;
 };
 
+// A request over one of the server's limits: `flag` names it ("max-lights")
+// for the metrics; the message names the flag and value for the caller.
+class LimitExceeded : public RpcError {
+ public:
+  LimitExceeded(grpc::StatusCode code, std::string flag, const std::string& message)
+      : RpcError(code, message), flag_(std::move(flag)) {}
+  const std::string& flag() const { return flag_; }
+
+ private:
+  std::string flag_;
+};
+
 // InputError -> INVALID_ARGUMENT, ResourceExhausted and bad_alloc ->
 // RESOURCE_EXHAUSTED, RpcError -> its code, anything else -> INTERNAL.
 grpc::Status ToStatus(std::exception_ptr error);

@@ -187,13 +187,13 @@ v1::CreateSessionResponse ServiceCore::CreateSession(const v1::CreateSessionRequ
   {
     std::lock_guard lock(mu_);
     if (int(sessions_.size()) >= options_.max_sessions) {
-      throw RpcError(grpc::StatusCode::RESOURCE_EXHAUSTED,
+      throw LimitExceeded(grpc::StatusCode::RESOURCE_EXHAUSTED, "max-sessions",
                      fmt::format("this server holds its maximum of {} sessions (--max-sessions)", options_.max_sessions));
     }
     const auto own = std::count_if(sessions_.begin(), sessions_.end(),
                                    [&](const auto& entry) { return entry.second->owner() == caller.name; });
     if (own >= options_.max_sessions_per_principal) {
-      throw RpcError(grpc::StatusCode::RESOURCE_EXHAUSTED,
+      throw LimitExceeded(grpc::StatusCode::RESOURCE_EXHAUSTED, "max-sessions-per-principal",
                      fmt::format("you hold {} sessions, this server's limit per user (--max-sessions-per-principal): "
                                  "close one first",
                                  own));
@@ -232,7 +232,7 @@ std::shared_ptr<void> ServiceCore::BeginUpload(const Principal& caller) {
   std::lock_guard lock(mu_);
   int& count = uploads_[caller.name];
   if (count >= options_.max_uploads_per_principal) {
-    throw RpcError(grpc::StatusCode::RESOURCE_EXHAUSTED,
+    throw LimitExceeded(grpc::StatusCode::RESOURCE_EXHAUSTED, "max-uploads-per-principal",
                    fmt::format("you have {} uploads under way, this server's limit (--max-uploads-per-principal)",
                                count));
   }

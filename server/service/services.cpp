@@ -103,7 +103,7 @@ class UploadReactor final : public grpc::ServerReadReactor<v1::UploadVolumeChunk
   void CheckSize(std::uint64_t size, const char* field) const {
     const std::uint64_t limit = core_->volumes().limits().max_upload_bytes;
     if (size > limit) {
-      throw RpcError(grpc::StatusCode::RESOURCE_EXHAUSTED,
+      throw LimitExceeded(grpc::StatusCode::RESOURCE_EXHAUSTED, "max-upload-mb",
                      fmt::format("{}: {} bytes is over this server's upload limit of {} bytes (--max-upload-mb)",
                                  field, size, limit));
     }

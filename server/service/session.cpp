@@ -35,7 +35,7 @@ void PixelBudget::Exchange(std::uint64_t release, std::uint64_t take) {
   std::lock_guard lock(mu_);
   const std::uint64_t next = used_ - std::min(release, used_) + take;
   if (take > release && next > limit_) {
-    throw ResourceExhausted(fmt::format("viewport: {} pixels more would pass this server's limit of {} pixels for "
+    throw LimitExceeded(grpc::StatusCode::RESOURCE_EXHAUSTED, "max-total-pixels", fmt::format("viewport: {} pixels more would pass this server's limit of {} pixels for "
                                         "all sessions together (--max-total-pixels; {} in use)",
                                         take - release, limit_, used_));
   }
@@ -156,8 +156,8 @@ void Session::ApplyLocked(const v1::SessionEvent& event, Clock::time_point arriv
   if (pixels != pixels_) {
     try {
       context_.pixels->Exchange(pixels_, pixels);
-    } catch (const ResourceExhausted& e) {
-      throw ResourceExhausted(fmt::format("event {}: resize: {}", event.seq(), e.what()));
+    } catch (const LimitExceeded& e) {
+      throw LimitExceeded(e.code(), e.flag(), fmt::format("event {}: resize: {}", event.seq(), e.what()));
     }
     pixels_ = pixels;
   }

@@ -183,12 +183,12 @@ v1::VolumeInfo VolumeRegistry::Add(const std::string& base_id, const std::string
     if (e.upload && e.owner == owner) owners += e.volume->MemoryBytes();
   }
   if (total + bytes > limits_.max_total_bytes) {
-    throw ResourceExhausted(fmt::format("the volume needs {} MiB; this server holds {} MiB of volumes and allows "
+    throw LimitExceeded(grpc::StatusCode::RESOURCE_EXHAUSTED, "max-volume-memory-mb", fmt::format("the volume needs {} MiB; this server holds {} MiB of volumes and allows "
                                         "{} MiB (--max-volume-memory-mb): unload one first",
                                         bytes >> 20, total >> 20, limits_.max_total_bytes >> 20));
   }
   if (upload && owners + bytes > limits_.max_upload_bytes_per_principal) {
-    throw ResourceExhausted(fmt::format("your uploads hold {} MiB; this one needs {} MiB more, over the limit of "
+    throw LimitExceeded(grpc::StatusCode::RESOURCE_EXHAUSTED, "max-upload-memory-mb", fmt::format("your uploads hold {} MiB; this one needs {} MiB more, over the limit of "
                                         "{} MiB per user (--max-upload-memory-mb): unload one first",
                                         owners >> 20, bytes >> 20, limits_.max_upload_bytes_per_principal >> 20));
   }
