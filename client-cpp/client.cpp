@@ -4,6 +4,8 @@
 #include <fmt/format.h>
 
 #include <fstream>
+#include <iterator>
+#include <stdexcept>
 
 #include "encode/image_codecs.h"
 
@@ -18,6 +20,34 @@ void Check(const grpc::Status& status) {
 
 void AddToken(grpc::ClientContext& context, const std::string& token) {
   if (!token.empty()) context.AddMetadata("authorization", "Bearer " + token);
+}
+
+std::string ReadPem(const std::filesystem::path& file, const char* what) {
+  std::ifstream in(file, std::ios::binary);
+  if (!in || std::filesystem::is_directory(file)) {
+    throw std::invalid_argument(fmt::format("{} {}: cannot read the file", what, file.string()));
+  }
+  std::string text(std::istreambuf_iterator<char>(in), {});
+  if (text.find("-----BEGIN ") == std::string::npos) {
+    throw std::invalid_argument(fmt::format("{} {}: not a PEM file", what, file.string()));
+  }
+  return text;
+}
+
+std::shared_ptr<grpc::ChannelCredentials> Credentials(const ClientOptions& options) {
+  if (options.tls_ca.empty() && options.tls_cert.empty() && options.tls_key.empty()) {
+    return grpc::InsecureChannelCredentials();
+  }
+  if (options.tls_cert.empty() != options.tls_key.empty()) {
+    throw std::invalid_argument("tls_cert (--tls-cert) and tls_key (--tls-key) go together: give both");
+  }
+  grpc::SslCredentialsOptions ssl;
+  if (!options.tls_ca.empty()) ssl.pem_root_certs = ReadPem(options.tls_ca, "--tls-ca");
+  if (!options.tls_cert.empty()) {
+    ssl.pem_cert_chain = ReadPem(options.tls_cert, "--tls-cert");
+    ssl.pem_private_key = ReadPem(options.tls_key, "--tls-key");
+  }
+  return grpc::SslCredentials(ssl);
 }
 
 }  // namespace
@@ -195,11 +225,15 @@ int SessionStream::resumes() const {
 Client::Client(const ClientOptions& options) : options_(options) {
   grpc::ChannelArguments args;
   args.SetMaxReceiveMessageSize(kMaxReceiveBytes);
-  channel_ = grpc::CreateCustomChannel(options.address, grpc::InsecureChannelCredentials(), args);
+  const bool tls = !options.tls_ca.empty() || !options.tls_cert.empty();
+  channel_ = grpc::CreateCustomChannel(options.address, Credentials(options), args);
   if (!channel_->WaitForConnected(std::chrono::system_clock::now() + options.connect_timeout)) {
     throw RpcError({grpc::StatusCode::UNAVAILABLE,
-                    fmt::format("cannot reach cinevol-server at {} within {} s", options.address,
-                                options.connect_timeout.count() / 1000.0)});
+                    fmt::format("cannot reach cinevol-server at {} within {} s{}", options.address,
+                                options.connect_timeout.count() / 1000.0,
+                                tls ? " (over TLS: is the server's certificate signed by --tls-ca, for this "
+                                      "address, and does the server accept the client certificate?)"
+                                    : " (is it running? a server with TLS needs --tls-ca)")});
   }
   volumes_ = v1::VolumeService::NewStub(channel_);
   sessions_ = v1::SessionService::NewStub(channel_);

@@ -37,6 +37,14 @@ struct ClientOptions {
   std::string token;  // sent as "authorization: Bearer <token>" when set
   std::chrono::milliseconds connect_timeout{5000};
   std::chrono::milliseconds call_timeout{60000};  // every unary call; snapshots and loads included
+  // TLS (PEM files, read when the Client is constructed). With tls_ca the
+  // channel is TLS and the server's certificate must chain to that CA;
+  // tls_cert and tls_key (together) add a client certificate for servers
+  // that require one (mutual TLS). A client key or certificate without
+  // tls_ca trusts the system's root certificates. None set: plaintext.
+  std::filesystem::path tls_ca;
+  std::filesystem::path tls_cert;
+  std::filesystem::path tls_key;
 };
 
 // A call the server refused or could not answer: its status code and message.
@@ -128,7 +136,8 @@ class SessionStream {
 class Client {
  public:
   // Connects; throws RpcError(UNAVAILABLE) when the server cannot be reached
-  // within options.connect_timeout.
+  // within options.connect_timeout (a TLS handshake that fails included),
+  // and std::invalid_argument when a TLS file cannot be read.
   explicit Client(const ClientOptions& options);
 
   std::vector<v1::VolumeInfo> ListVolumes();

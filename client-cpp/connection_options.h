@@ -1,12 +1,14 @@
-// The options every networked subcommand takes: where the server is and the
-// token to show it.
+// The options every networked subcommand takes: where the server is, the
+// token to show it and the TLS files to reach it with.
 #pragma once
 
 #include <CLI/CLI.hpp>
 
+#include <stdexcept>
 #include <string>
 
 #include "client.h"
+#include "core/error.h"
 
 namespace cinevol::cli {
 
@@ -14,6 +16,7 @@ struct ConnectionOptions {
   std::string server = "127.0.0.1:50051";
   std::string token;
   double connect_seconds = 5;
+  std::string tls_ca, tls_cert, tls_key;  // PEM files; tls_ca set: TLS
 };
 
 inline void AddConnectionOptions(CLI::App* command, ConnectionOptions& o) {
@@ -22,6 +25,13 @@ inline void AddConnectionOptions(CLI::App* command, ConnectionOptions& o) {
   command->add_option("--connect-timeout", o.connect_seconds, "Seconds to wait for the server")
       ->check(CLI::Range(0.1, 600.0))
       ->capture_default_str();
+  command->add_option("--tls-ca", o.tls_ca,
+                      "PEM CA certificate(s) the server's certificate must chain to: connect over TLS");
+  auto* cert = command->add_option("--tls-cert", o.tls_cert,
+                                   "PEM client certificate, for a server that requires one (mutual TLS)");
+  auto* key = command->add_option("--tls-key", o.tls_key, "PEM private key of --tls-cert");
+  cert->needs(key);
+  key->needs(cert);
 }
 
 // Throws RpcError(UNAVAILABLE) when the server cannot be reached in time.
@@ -30,7 +40,14 @@ inline Client Connect(const ConnectionOptions& o) {
   options.address = o.server;
   options.token = o.token;
   options.connect_timeout = std::chrono::milliseconds(static_cast<long>(o.connect_seconds * 1000));
-  return Client(options);
+  options.tls_ca = o.tls_ca;
+  options.tls_cert = o.tls_cert;
+  options.tls_key = o.tls_key;
+  try {
+    return Client(options);
+  } catch (const std::invalid_argument& e) {  // an unreadable TLS file
+    throw InputError(e.what());
+  }
 }
 
 }  // namespace cinevol::cli

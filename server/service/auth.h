@@ -1,37 +1,65 @@
 // Who is calling: every RPC passes Authenticator::Authenticate before it does
-// anything, and each session records the principal that created it. Without
-// a token file every caller is "anonymous"; with one (--auth-tokens), a call
-// must carry `authorization: Bearer <token>` naming a listed token. Mutual
-// TLS (the hardening issue) plugs in here too. Health checking and
-// reflection stay open (probes).
+// anything, and each session records the principal that created it.
+//
+//   no token file, no client certificates   every caller is "anonymous"
+//   --auth-tokens FILE                       `authorization: Bearer <token>`
+//                                            must name a listed token; its
+//                                            line names the principal
+//   mutual TLS (--tls-client-ca)             the principal is the verified
+//                                            client certificate's subject CN
+//   mutual TLS and --auth-tokens             both: the certificate to connect,
+//                                            the token names the principal
+//
+// The token file holds lines `TOKEN PRINCIPAL` or `TOKEN PRINCIPAL operator`
+// (blank lines and # comments skipped); `operator` marks an operator
+// principal. Reload() (cinevol-server does it on SIGHUP) re-reads it; calls
+// see the old or the new set, never a mix. Tokens are compared in constant
+// time and never logged. Health checking and reflection stay open (probes).
 #pragma once
 
 #include <grpcpp/server_context.h>
 
 #include <filesystem>
-#include <map>
+#include <memory>
 #include <string>
 
 namespace cinevol::service {
 
 struct Principal {
   std::string name;
+  bool is_operator = false;
 };
 
 class Authenticator {
  public:
-  // Open: everyone is "anonymous".
+  // Open: everyone is "anonymous" unless a verified client certificate names them.
   Authenticator() = default;
-  // Reads "TOKEN PRINCIPAL" lines (blank lines and # comments skipped);
-  // throws InputError naming the file and line.
+  // Reads the token file; throws InputError naming the file and line.
   explicit Authenticator(const std::filesystem::path& token_file);
 
   // The caller's principal, or throws RpcError(UNAUTHENTICATED).
   Principal Authenticate(const grpc::CallbackServerContext& context) const;
+  // The same, from a call's auth context and `authorization` header value
+  // (null when absent): what Authenticate does, for tests and other callers.
+  Principal Authenticate(const grpc::AuthContext* auth_context, const std::string* authorization) const;
+
+  // Re-reads the token file. On error (InputError naming file and line) the
+  // tokens in use stay. Without a token file it does nothing.
+  void Reload();
+  bool has_tokens() const { return tokens_ != nullptr; }
+  std::size_t token_count() const;
+
+  struct TokenFile;  // the file and its current tokens, shared by copies
 
  private:
-  std::map<std::string, std::string, std::less<>> principals_;  // token -> principal
+  std::shared_ptr<TokenFile> tokens_;  // null: no token file
 };
+
+// Reloads the token file of every Authenticator alive in this process (the
+// server's lives inside its ServiceCore); main.cpp calls it on SIGHUP. Logs
+// the outcome (never a token) and returns false when some file could not be
+// loaded (its old tokens stay).
+bool ReloadAllTokenFiles();
 
 // Throws RpcError(PERMISSION_DENIED) unless `caller` is `owner`.
 void RequireOwner(const Principal& caller, const std::string& owner, const std::string& what);
