@@ -64,6 +64,7 @@ void AddLimitOptions(CLI::App& app, ServerOptions& o) {
         1 << 24);
   limit("--max-streams-per-connection", c.max_streams_per_connection, "Concurrent calls on one connection", 1,
         1 << 16);
+  limit("--handshake-seconds", c.handshake_seconds, "A connection must speak HTTP/2 (and TLS) within this", 1, 3600);
   limit("--keepalive-seconds", c.keepalive_seconds, "Ping quiet connections this often to find dead peers", 1, 86400);
   limit("--transport-memory-mb", c.transport_memory_mb, "Memory gRPC's transport may use", 16ull, 1ull << 20);
 }
@@ -104,6 +105,9 @@ void AddOptions(CLI::App& app, ServerOptions& o, std::string& backend) {
   app.add_flag("--insecure-no-auth", o.insecure_no_auth,
                "Allow listening beyond loopback with no --auth-tokens and no mutual TLS (anyone may call)");
   app.add_option("--port-file", o.port_file, "Write the port listened on to this file (useful with port 0)");
+  app.add_option("--metrics-listen", o.metrics_listen,
+                 "HOST:PORT to serve Prometheus metrics on, at /metrics (port 0: any free port, logged; "
+                 "default: off)");
 }
 
 }  // namespace

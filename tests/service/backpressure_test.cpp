@@ -24,34 +24,6 @@ v1::CreateSessionRequest HeavyFrames() {
   return r;
 }
 
-v1::SessionEvent Orbit(int step) {
-  v1::SessionEvent e;
-  v1::Camera* c = e.mutable_camera();
-  c->mutable_eye()->set_x(float(200 * std::sin(step * 0.05)));
-  c->mutable_eye()->set_y(float(-200 * std::cos(step * 0.05)));
-  c->mutable_target();
-  c->mutable_up()->set_z(1);
-  return e;
-}
-
-// Frames per second a normally reading session gets over `seconds`, sending
-// camera events at 60 Hz.
-double ReadingFps(SessionStream& stream, std::chrono::milliseconds duration) {
-  while (stream.Next(0ms)) {  // frames that arrived before the measurement
-  }
-  int frames = 0, step = 0;
-  const auto start = std::chrono::steady_clock::now();
-  auto next = start;
-  while (std::chrono::steady_clock::now() - start < duration) {
-    if (std::chrono::steady_clock::now() >= next) {
-      stream.Send(Orbit(step++));
-      next += 16ms;
-    }
-    if (auto m = stream.Next(5ms); m && m->has_frame()) ++frames;
-  }
-  return frames / std::chrono::duration<double>(duration).count();
-}
-
 // A stream that attaches and sends events but never reads.
 class StalledReader {
  public:

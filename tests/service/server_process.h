@@ -80,15 +80,22 @@ inline std::pair<int, std::string> RunProgram(const std::string& program, const 
 
 class ServerProcess {
  public:
-  // Starts cinevol-server with a small head phantom, plus `extra` flags.
+  // Starts cinevol-server with a small head phantom, plus `extra` flags;
+  // with `file_limit`, under that descriptor limit (soft and hard).
   explicit ServerProcess(const std::filesystem::path& scratch, std::vector<std::string> extra = {},
-                         const std::string& backend = "cpu") {
+                         const std::string& backend = "cpu", int file_limit = 0) {
     const std::filesystem::path port_file = scratch / "port";
     log_ = scratch / "server.log";
     std::vector<std::string> args{"--listen", "127.0.0.1:0", "--port-file", port_file.string(), "--backend", backend,
                                   "--volume", "phantom:head?size=48", "--encode-threads", "2"};
     args.insert(args.end(), extra.begin(), extra.end());
-    pid_ = Spawn(ServerPath(), args, log_);
+    if (file_limit > 0) {  // the shell execs the server: the pid stays its
+      args.insert(args.begin(), {"-c", "ulimit -n " + std::to_string(file_limit) + " && exec \"$0\" \"$@\"",
+                                 ServerPath()});
+      pid_ = Spawn("/bin/sh", args, log_);
+    } else {
+      pid_ = Spawn(ServerPath(), args, log_);
+    }
     if (pid_ <= 0) return;
     const auto end = std::chrono::steady_clock::now() + std::chrono::seconds(60);
     while (std::chrono::steady_clock::now() < end && port_ == 0) {

@@ -14,36 +14,6 @@ namespace {
 
 using namespace std::chrono_literals;
 
-// Runs `call` and expects it to throw RpcError with `code` and `text` in its message.
-template <class F>
-void ExpectRpcError(F&& call, grpc::StatusCode code, const std::string& text) {
-  try {
-    call();
-    ADD_FAILURE() << "no error; expected " << StatusCodeName(code) << " naming '" << text << "'";
-  } catch (const RpcError& e) {
-    EXPECT_EQ(e.code(), code) << e.what();
-    EXPECT_NE(std::string(e.what()).find(text), std::string::npos) << e.what();
-  }
-}
-
-// A 16^3 NRRD volume of 16-bit values, written to `path`.
-void WriteSmallNrrd(const std::filesystem::path& path) {
-  std::ofstream out(path, std::ios::binary);
-  out << "NRRD0004\ntype: short\ndimension: 3\nsizes: 16 16 16\nspacings: 1 1 1\nencoding: raw\nendian: little\n\n";
-  for (int i = 0; i < 16 * 16 * 16; ++i) {
-    const std::int16_t v = static_cast<std::int16_t>((i % 16) * 100);
-    out.write(reinterpret_cast<const char*>(&v), sizeof v);
-  }
-}
-
-// The server must still create sessions and stream frames.
-void ExpectServing(Client& client) {
-  const auto created = client.CreateSession(SmallSession());
-  auto stream = client.Attach(created.session_id());
-  EXPECT_TRUE(WaitFrame(*stream, [](const v1::Frame&) { return true; }, 30s)) << "the server stopped serving";
-  client.CloseSession(created.session_id());
-}
-
 TEST(ServiceErrors, BadSessionRequestsNameTheField) {
   ScratchDir scratch;
   ServerProcess server(scratch.path());

@@ -3,15 +3,21 @@
 
 #include <chrono>
 #include <cmath>
+#include <fstream>
+#include <thread>
 #include <functional>
 #include <optional>
 #include <string>
+
+#include <gtest/gtest.h>
 
 #include "client.h"
 #include "core/image.h"
 #include "encode/image_codecs.h"
 
 namespace cinevol::testing {
+
+using namespace std::chrono_literals;
 
 // A small CPU-friendly session on the server's phantom.
 inline v1::CreateSessionRequest SmallSession(const std::string& preset = "ct-bone", int width = 96, int height = 64,
@@ -80,6 +86,65 @@ inline bool Eventually(const std::function<bool()>& condition, std::chrono::mill
     std::this_thread::sleep_for(std::chrono::milliseconds(50));
   }
   return condition();
+}
+
+// Runs `call` and expects it to throw RpcError with `code` and `text` in its message.
+template <class F>
+void ExpectRpcError(F&& call, grpc::StatusCode code, const std::string& text) {
+  try {
+    call();
+    ADD_FAILURE() << "no error; expected " << StatusCodeName(code) << " naming '" << text << "'";
+  } catch (const RpcError& e) {
+    EXPECT_EQ(e.code(), code) << e.what();
+    EXPECT_NE(std::string(e.what()).find(text), std::string::npos) << e.what();
+  }
+}
+
+// A 16^3 NRRD volume of 16-bit values, written to `path`.
+inline void WriteSmallNrrd(const std::filesystem::path& path) {
+  std::ofstream out(path, std::ios::binary);
+  out << "NRRD0004\ntype: short\ndimension: 3\nsizes: 16 16 16\nspacings: 1 1 1\nencoding: raw\nendian: little\n\n";
+  for (int i = 0; i < 16 * 16 * 16; ++i) {
+    const std::int16_t v = static_cast<std::int16_t>((i % 16) * 100);
+    out.write(reinterpret_cast<const char*>(&v), sizeof v);
+  }
+}
+
+// The server must still create sessions and stream frames.
+inline void ExpectServing(Client& client) {
+  const auto created = client.CreateSession(SmallSession());
+  auto stream = client.Attach(created.session_id());
+  EXPECT_TRUE(WaitFrame(*stream, [](const v1::Frame&) { return true; }, 30s)) << "the server stopped serving";
+  client.CloseSession(created.session_id());
+}
+
+// A camera step of an orbit around the phantom.
+inline v1::SessionEvent Orbit(int step) {
+  v1::SessionEvent e;
+  v1::Camera* c = e.mutable_camera();
+  c->mutable_eye()->set_x(float(200 * std::sin(step * 0.05)));
+  c->mutable_eye()->set_y(float(-200 * std::cos(step * 0.05)));
+  c->mutable_target();
+  c->mutable_up()->set_z(1);
+  return e;
+}
+
+// Frames per second a normally reading session gets over `seconds`, sending
+// camera events at 60 Hz.
+inline double ReadingFps(SessionStream& stream, std::chrono::milliseconds duration) {
+  while (stream.Next(0ms)) {  // frames that arrived before the measurement
+  }
+  int frames = 0, step = 0;
+  const auto start = std::chrono::steady_clock::now();
+  auto next = start;
+  while (std::chrono::steady_clock::now() - start < duration) {
+    if (std::chrono::steady_clock::now() >= next) {
+      stream.Send(Orbit(step++));
+      next += 16ms;
+    }
+    if (auto m = stream.Next(5ms); m && m->has_frame()) ++frames;
+  }
+  return frames / std::chrono::duration<double>(duration).count();
 }
 
 }  // namespace cinevol::testing
