@@ -8,6 +8,7 @@
 #include "encode/image_codecs.h"
 #include "service/errors.h"
 #include "service/log_safe.h"
+#include "service/metrics.h"
 
 namespace cinevol::service {
 namespace {
@@ -57,8 +58,7 @@ Session::Session(std::string id, std::string owner, std::shared_ptr<VolumeLease>
       settings_(settings),
       since_(Clock::now()),
       pixels_(std::uint64_t(scene_.render().width()) * scene_.render().height()),
-      event_tokens_(context_.limits->max_events_per_second),
-      tokens_at_(since_) {
+      events_(context_.limits->max_events_per_second, since_) {
   context_.pixels->Exchange(0, pixels_);
   ++context_.scheduler->sessions;
 }
@@ -112,12 +112,13 @@ void Session::OnWritable(FrameStream* stream) {
 }
 
 void Session::OnEvent(const v1::SessionEvent& event, Clock::time_point arrival) {
+  ServerMetrics().EventReceived();
   {
     std::lock_guard lock(mu_);
     if (event.seq() <= last_event_seq_ && last_event_seq_ > 0) {
       throw InputError(fmt::format("event {}: seq must increase (the last was {})", event.seq(), last_event_seq_));
     }
-    if (event.has_pause() || event.has_resume() || TakeEventTokenLocked(arrival)) {
+    if (event.has_pause() || event.has_resume() || events_.Take(arrival)) {
       ApplyCoalescedLocked();  // what came earlier applies first
       ApplyLocked(event, arrival);
     } else {
@@ -128,18 +129,10 @@ void Session::OnEvent(const v1::SessionEvent& event, Clock::time_point arrival) 
       if (!fresh && !merges) it->second = event;
       last_event_seq_ = event.seq();
       coalesced_arrival_ = arrival;
+      ServerMetrics().EventCoalesced();
     }
   }
   Wake();
-}
-
-bool Session::TakeEventTokenLocked(Clock::time_point now) {
-  const double rate = context_.limits->max_events_per_second;
-  event_tokens_ = std::min(rate, event_tokens_ + rate * std::chrono::duration<double>(now - tokens_at_).count());
-  tokens_at_ = now;
-  if (event_tokens_ < 1) return false;
-  event_tokens_ -= 1;
-  return true;
 }
 
 void Session::ApplyCoalescedLocked() {
@@ -297,6 +290,12 @@ bool Session::Step() {
     return false;
   }
   ++context_.scheduler->frames_rendered;
+  ServerMetrics().FrameRendered();
+  ServerMetrics().ObserveStage(Stage::kRender, frame.render_ms / 1000.0);
+  if (work.settings.denoiser != DenoiseMethod::kNone) {
+    ServerMetrics().ObserveStage(Stage::kDenoise, frame.denoise_ms / 1000.0);
+  }
+  ServerMetrics().ObserveStage(Stage::kTonemap, frame.display_ms / 1000.0);
   {
     std::lock_guard lock(mu_);
     ++frames_rendered_;
@@ -317,6 +316,8 @@ void Session::Encode(DisplayFrame display, const Stamp& stamp, int quality, Chro
       const std::vector<std::uint8_t> jpeg = EncodeJpeg(display.image, quality, chroma);
       frame.set_jpeg(jpeg.data(), jpeg.size());
       frame.mutable_timings()->set_encode_us(MicrosBetween(start, Clock::now()));
+      ServerMetrics().ObserveStage(Stage::kEncode,
+                                   std::chrono::duration<double>(Clock::now() - start).count());
     } catch (...) {
       {
         std::lock_guard lock(self->mu_);
@@ -349,6 +350,7 @@ void Session::Deliver(v1::Frame frame, Clock::time_point origin) {
       stream_->OfferFrame(std::move(frame), origin);
     } else {
       ++frames_stale_;
+      ServerMetrics().FrameDropped();
     }
   }
   Wake();

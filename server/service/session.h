@@ -25,6 +25,7 @@
 #include "service/scheduler.h"
 #include "service/session_requests.h"
 #include "service/task_pool.h"
+#include "service/token_bucket.h"
 #include "service/volume_registry.h"
 
 namespace cinevol::service {
@@ -130,8 +131,6 @@ class Session final : public Job, public std::enable_shared_from_this<Session> {
   void ApplyLocked(const v1::SessionEvent& event, Clock::time_point arrival);
   // Applies the coalesced events; ends nothing, throws for a bad one.
   void ApplyCoalescedLocked();
-  // Whether the stream's event rate allows applying one more now.
-  bool TakeEventTokenLocked(Clock::time_point now);
   void Encode(DisplayFrame frame, const Stamp& stamp, int quality, ChromaSubsampling chroma);
   void Deliver(v1::Frame frame, Clock::time_point origin);
   void Wake() { context_.scheduler->Wake(shared_from_this()); }
@@ -162,8 +161,7 @@ class Session final : public Job, public std::enable_shared_from_this<Session> {
   int accumulated_spp_ = 0;
   bool holds_device_memory_ = false;
   std::uint64_t pixels_ = 0;  // held in the context's PixelBudget
-  double event_tokens_ = 0;   // the rate limit's bucket
-  Clock::time_point tokens_at_;
+  TokenBucket events_;        // events applied at once; past it, coalesced
   std::map<int, v1::SessionEvent> coalesced_;  // by SessionEvent::KindCase, oldest first applied
   Clock::time_point coalesced_arrival_;
 

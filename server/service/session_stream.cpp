@@ -4,11 +4,13 @@
 #include <fmt/format.h>
 
 #include "service/errors.h"
+#include "service/metrics.h"
 #include "service/service_core.h"
 
 namespace cinevol::service {
 
-SessionStreamReactor::SessionStreamReactor(grpc::CallbackServerContext* context, ServiceCore* core) : core_(core) {
+SessionStreamReactor::SessionStreamReactor(grpc::CallbackServerContext* context, ServiceCore* core)
+    : core_(core), reads_(kReadPacing * core->options().limits.max_events_per_second, Clock::now()) {
   const grpc::Status status = Guarded([&] { principal_ = core_->Authenticate(*context); });
   if (!status.ok()) {
     std::lock_guard lock(mu_);
@@ -53,7 +55,33 @@ void SessionStreamReactor::OnReadDone(bool ok) {
       return;
     }
   }
-  StartRead(&in_);
+  std::lock_guard lock(mu_);
+  ReadNextLocked();
+}
+
+void SessionStreamReactor::ReadNextLocked() {
+  if (finished_) return;
+  const Clock::time_point now = Clock::now();
+  const Clock::duration wait = reads_.Wait(now);
+  if (wait == Clock::duration::zero()) {
+    reads_.Take(now);
+    StartRead(&in_);
+    return;
+  }
+  pacing_ = true;
+  pace_.Set(std::chrono::system_clock::now() + wait, [this](bool) { OnPaced(); });
+}
+
+void SessionStreamReactor::OnPaced() {
+  {
+    std::lock_guard lock(mu_);
+    pacing_ = false;
+    if (!done_) {
+      ReadNextLocked();
+      return;
+    }
+  }
+  delete this;  // OnDone came while the alarm was set and left the deletion to it
 }
 
 void SessionStreamReactor::HandleAttach(const v1::Attach& attach) {
@@ -76,7 +104,10 @@ void SessionStreamReactor::OfferFrame(v1::Frame frame, Clock::time_point origin)
     StartWriteLocked(std::move(message), true);
     return;
   }
-  if (slot_) ++dropped_;
+  if (slot_) {
+    ++dropped_;
+    ServerMetrics().FrameDropped();
+  }
   slot_ = Parked{std::move(frame), origin};
 }
 
@@ -124,12 +155,16 @@ void SessionStreamReactor::StartWriteLocked(v1::ServerMessage message, bool is_f
   out_ = std::move(message);
   writing_ = true;
   writing_frame_ = is_frame;
+  if (is_frame) write_started_ = Clock::now();
   StartWrite(&out_);  // gRPC runs OnWriteDone on its own thread, never inside this call
 }
 
 void SessionStreamReactor::FinishLocked(const grpc::Status& status) {
   finished_ = true;
-  if (slot_) ++dropped_;  // never sent
+  if (slot_) {  // never sent
+    ++dropped_;
+    ServerMetrics().FrameDropped();
+  }
   slot_.reset();
   notices_.clear();
   Finish(status);
@@ -140,7 +175,11 @@ void SessionStreamReactor::OnWriteDone(bool ok) {
   {
     std::lock_guard lock(mu_);
     writing_ = false;
-    if (ok && writing_frame_) ++sent_;
+    if (ok && writing_frame_) {
+      ++sent_;
+      ServerMetrics().FrameSent(out_.frame().jpeg().size(),
+                                std::chrono::duration<double>(Clock::now() - write_started_).count());
+    }
     if (finished_) return;
     if (!ok) {
       FinishLocked(finish_after_write_.value_or(
@@ -177,6 +216,14 @@ void SessionStreamReactor::OnCancel() { End({grpc::StatusCode::CANCELLED, "the c
 void SessionStreamReactor::OnDone() {
   core_->calls().Forget(watch_);
   if (std::shared_ptr<Session> session = this->session()) session->Detach(this);
+  {
+    std::lock_guard lock(mu_);
+    done_ = true;
+    if (pacing_) {  // the pacing alarm's callback deletes the reactor
+      pace_.Cancel();
+      return;
+    }
+  }
   delete this;
 }
 

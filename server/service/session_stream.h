@@ -5,6 +5,7 @@
 // block: they take short locks and hand work to the session.
 #pragma once
 
+#include <grpcpp/alarm.h>
 #include <grpcpp/grpcpp.h>
 
 #include <deque>
@@ -16,10 +17,15 @@
 #include "service/auth.h"
 #include "service/call_watch.h"
 #include "service/session.h"
+#include "service/token_bucket.h"
 
 namespace cinevol::service {
 
 class ServiceCore;
+
+// Events are read at most this many times --max-events-per-second; the
+// session coalesces those past --max-events-per-second.
+inline constexpr int kReadPacing = 4;
 
 class SessionStreamReactor final : public grpc::ServerBidiReactor<v1::ClientMessage, v1::ServerMessage>,
                                    public FrameStream {
@@ -42,6 +48,11 @@ class SessionStreamReactor final : public grpc::ServerBidiReactor<v1::ClientMess
 
  private:
   void HandleAttach(const v1::Attach& attach);
+  // Reads the next message, at once or, past the stream's read rate, when
+  // the pacing alarm rings: past it the client's sends wait in the transport
+  // (HTTP/2 flow control) instead of costing the server a read each.
+  void ReadNextLocked();
+  void OnPaced();
   void StartWriteLocked(v1::ServerMessage message, bool is_frame);
   void FinishLocked(const grpc::Status& status);
   std::shared_ptr<Session> session() const;
@@ -56,6 +67,7 @@ class SessionStreamReactor final : public grpc::ServerBidiReactor<v1::ClientMess
   v1::ServerMessage out_;                // the write in flight
   bool writing_ = false;
   bool writing_frame_ = false;
+  Clock::time_point write_started_;  // of the frame in flight (cinevol_stage_seconds{stage="send"})
   struct Parked {
     v1::Frame frame;
     Clock::time_point origin;
@@ -65,6 +77,10 @@ class SessionStreamReactor final : public grpc::ServerBidiReactor<v1::ClientMess
   std::optional<grpc::Status> finish_after_write_;
   bool finished_ = false;
   std::uint64_t sent_ = 0, dropped_ = 0;
+  TokenBucket reads_;     // kReadPacing x --max-events-per-second
+  grpc::Alarm pace_;
+  bool pacing_ = false;   // pace_ is set
+  bool done_ = false;     // OnDone ran
 };
 
 }  // namespace cinevol::service

@@ -454,33 +454,54 @@ TEST(Hardening, AnEventFloodCostsItsNeighbourLittle) {
   const auto neighbour = client.CreateSession(SmallSession("ct-bone", 96, 64, 65536));
   const auto noisy = client.CreateSession(SmallSession("ct-bone", 96, 64, 65536));
   auto watched = client.Attach(neighbour.session_id());
-  auto other = client.Attach(noisy.session_id());
   ASSERT_TRUE(WaitFrame(*watched, [](const v1::Frame&) { return true; }));
 
-  // The same run twice: the other session orbiting at 60 Hz, then flooding.
+  // The flooder: a raw stream whose writes gRPC may batch (buffer_hint), as
+  // cheap for this process as a flood can be: the machine is shared.
+  auto stub = v1::SessionService::NewStub(client.channel());
+  grpc::ClientContext context;
+  auto flood = stub->StreamSession(&context);
+  v1::ClientMessage attach;
+  attach.mutable_attach()->set_session_id(noisy.session_id());
+  ASSERT_TRUE(flood->Write(attach));
+  std::thread drain([&] {
+    v1::ServerMessage m;
+    while (flood->Read(&m)) {
+    }
+  });
+  std::uint64_t seq = 0;
   auto measure = [&](int events_per_second) {
     std::atomic<bool> stop{false};
     std::thread sender([&] {
       const auto start = std::chrono::steady_clock::now();
       for (int i = 0; !stop && i < 20000; ++i) {
-        other->Send(Orbit(i));
-        std::this_thread::sleep_until(start + std::chrono::microseconds(i * 1000000ll / events_per_second));
+        v1::ClientMessage m;
+        *m.mutable_event() = Orbit(i);
+        m.mutable_event()->set_seq(++seq);
+        flood->Write(m, grpc::WriteOptions().set_buffer_hint());
+        if (i % 64 == 0) {
+          std::this_thread::sleep_until(start + std::chrono::microseconds(i * 1000000ll / events_per_second));
+        }
       }
     });
-    std::thread reader([&] {
-      while (!stop) other->Next(std::chrono::milliseconds(20));
-    });
-    const double fps = ReadingFps(*watched, std::chrono::seconds(4));
+    const double fps = ReadingFps(*watched, std::chrono::seconds(2));
     stop = true;
     sender.join();
-    reader.join();
     return fps;
   };
-  const double calm = measure(60);
-  const double flooded = measure(10000);
+  // Alternated, so that whatever else loads the machine weighs on both alike.
+  double calm = 0, flooded = 0;
+  for (int round = 0; round < 2; ++round) {
+    calm += measure(60) / 2;
+    flooded += measure(10000) / 2;
+  }
   EXPECT_GE(flooded, 0.9 * calm) << "calm " << calm << " fps, flooded " << flooded << " fps";
   EXPECT_LT(server.ResidentMiB(), 1024.0);
-  EXPECT_FALSE(other->ended()) << other->status().error_message();
+  const auto status = FindSessionStatus(client, noisy.session_id());
+  ASSERT_TRUE(status) << "the flooding session ended";
+  EXPECT_GT(status->frames_rendered(), 0u);
+  context.TryCancel();
+  drain.join();
 }
 
 TEST(Hardening, ACrowdPastTheSessionLimitLocksNobodyOut) {
