@@ -5,9 +5,13 @@
 #include <itkGDCMImageIO.h>
 #include <itkImageSeriesReader.h>
 #include <spdlog/spdlog.h>
+#include <unistd.h>
 
 #include <algorithm>
 #include <cmath>
+#include <cstdint>
+#include <cstdio>
+#include <cstring>
 #include <map>
 #include <sstream>
 
@@ -54,6 +58,154 @@ struct Scan {
   }
 };
 
+// GDCM trusts a DICOM file's structure: it asserts (aborting the process;
+// Debian keeps its asserts) on a file meta element whose VR it does not know,
+// and allocates whatever length an element declares (4 GiB in a 1 KiB file).
+// So a file's elements are walked here first, headers only, nested sequences
+// included: every VR known, every defined length inside the file. A file
+// that fails is not handed to GDCM (it counts as not DICOM).
+class DicomWalk {
+ public:
+  explicit DicomWalk(std::FILE* f, std::int64_t size) : f_(f), size_(size) {}
+
+  bool File() {
+    std::uint8_t magic[4];
+    std::int64_t at = 0;
+    if (size_ >= 132 && Read(128, magic, 4) && std::memcmp(magic, "DICM", 4) == 0) {
+      at = 132;
+      // The file meta group: explicit VR little endian, group 0002.
+      std::uint8_t h[4];
+      while (at + 8 <= size_ && Read(at, h, 2) && U16(h) == 0x0002) {
+        if (!Element(at, size_, true, 0, true)) return false;
+      }
+    }
+    if (at == size_) return true;
+    // The data set: explicit VR when the bytes after the first tag read as a
+    // VR (GDCM guesses the same way when the meta group is absent or wrong).
+    std::uint8_t h[6];
+    const bool explicit_vr = at + 6 <= size_ && Read(at, h, 6) && IsVr(h + 4);
+    while (at < size_) {
+      if (!Element(at, size_, explicit_vr, 0, false)) return false;
+    }
+    return true;
+  }
+
+ private:
+  static unsigned U16(const std::uint8_t* b) { return unsigned(b[0]) | unsigned(b[1]) << 8; }
+  static std::uint32_t U32(const std::uint8_t* b) { return std::uint32_t(U16(b)) | std::uint32_t(U16(b + 2)) << 16; }
+  static bool IsVr(const std::uint8_t* v) {
+    static const char* const kVrs[] = {"AE", "AS", "AT", "CS", "DA", "DS", "DT", "FD", "FL", "IS", "LO",
+                                       "LT", "OB", "OD", "OF", "OL", "OW", "PN", "SH", "SL", "SQ", "SS",
+                                       "ST", "TM", "UC", "UI", "UL", "UN", "UR", "US", "UT"};
+    return std::any_of(std::begin(kVrs), std::end(kVrs), [&](const char* k) { return std::memcmp(k, v, 2) == 0; });
+  }
+  static bool IsLongVr(const std::uint8_t* v) {
+    static const char* const kLong[] = {"OB", "OD", "OF", "OL", "OW", "SQ", "UC", "UN", "UR", "UT"};
+    return std::any_of(std::begin(kLong), std::end(kLong), [&](const char* k) { return std::memcmp(k, v, 2) == 0; });
+  }
+  bool Read(std::int64_t at, std::uint8_t* out, std::size_t n) {
+    return at >= 0 && at + std::int64_t(n) <= size_ && std::fseek(f_, long(at), SEEK_SET) == 0 &&
+           std::fread(out, 1, n, f_) == n;
+  }
+
+  // One element at `at` (advanced past it) that must end by `end`.
+  bool Element(std::int64_t& at, std::int64_t end, bool explicit_vr, int depth, bool meta) {
+    if (depth > 16 || ++elements_ > 200000) return false;
+    std::uint8_t h[12];
+    if (at + 8 > end || !Read(at, h, 8)) return false;
+    const unsigned group = U16(h), element = U16(h + 2);
+    std::uint32_t length;
+    bool sequence = false;
+    if (group == 0xfffe) {  // item or delimiter: tag and a 4-byte length, never a VR
+      length = U32(h + 4);
+      at += 8;
+      if (element == 0xe00d || element == 0xe0dd) return length == 0;
+      if (element != 0xe000) return false;
+      if (length == 0xffffffffu) return Items(at, end, explicit_vr, depth + 1, 0xe00d);
+      if (length > std::uint64_t(end - at)) return false;
+      const std::int64_t item_end = at + length;
+      while (at < item_end) {
+        if (!Element(at, item_end, explicit_vr, depth + 1, false)) return false;
+      }
+      return true;
+    }
+    if (meta && group != 0x0002) return false;
+    if (explicit_vr) {
+      if (!IsVr(h + 4)) return false;
+      sequence = std::memcmp(h + 4, "SQ", 2) == 0;
+      if (IsLongVr(h + 4)) {
+        if (at + 12 > end || !Read(at + 8, h + 8, 4)) return false;
+        length = U32(h + 8);
+        at += 12;
+      } else {
+        length = U16(h + 6);
+        at += 8;
+      }
+    } else {
+      length = U32(h + 4);
+      at += 8;
+    }
+    if (length == 0xffffffffu) {
+      // Encapsulated pixel data: fragments, each an item of plain bytes.
+      const bool fragments = (group == 0x7fe0 && element == 0x0010) ||
+                             (explicit_vr && !sequence && std::memcmp(h + 4, "UN", 2) != 0);
+      if (fragments) return Fragments(at, end);
+      // A sequence: items of elements (implicit VR inside an undefined-length UN).
+      const bool inner_explicit = explicit_vr && std::memcmp(h + 4, "UN", 2) != 0;
+      return Items(at, end, inner_explicit, depth + 1, 0xe0dd);
+    }
+    if (length > std::uint64_t(end - at)) return false;
+    at += length;
+    return true;
+  }
+
+  // Items of plain bytes up to the sequence delimiter, which is consumed.
+  bool Fragments(std::int64_t& at, std::int64_t end) {
+    while (at + 8 <= end) {
+      std::uint8_t h[8];
+      if (!Read(at, h, 8) || U16(h) != 0xfffe || ++elements_ > 200000) return false;
+      at += 8;
+      if (U16(h + 2) == 0xe0dd) return true;
+      const std::uint32_t length = U32(h + 4);
+      if (U16(h + 2) != 0xe000 || length > std::uint64_t(end - at)) return false;
+      at += length;
+    }
+    return false;
+  }
+
+  // Elements up to the delimiter (FFFE,`delimiter`), which is consumed.
+  bool Items(std::int64_t& at, std::int64_t end, bool explicit_vr, int depth, unsigned delimiter) {
+    while (at + 8 <= end) {
+      std::uint8_t h[4];
+      if (!Read(at, h, 4)) return false;
+      if (U16(h) == 0xfffe && U16(h + 2) == delimiter) {
+        at += 8;
+        return true;
+      }
+      if (!Element(at, end, explicit_vr, depth, false)) return false;
+    }
+    return false;
+  }
+
+  std::FILE* f_;
+  std::int64_t size_;
+  int elements_ = 0;
+};
+
+bool DicomStructureIsSound(const fs::path& path) {
+  const int fd = file_checks::OpenRegularFile(path);
+  std::FILE* f = fd < 0 ? nullptr : fdopen(fd, "rb");
+  if (!f) {
+    if (fd >= 0) close(fd);
+    return false;
+  }
+  std::error_code ec;
+  const auto size = fs::file_size(path, ec);
+  const bool sound = !ec && DicomWalk(f, std::int64_t(size)).File();
+  std::fclose(f);
+  return sound;
+}
+
 // The regular files under `folder` (subfolders included, symlinked folders
 // not followed) that the policy lets a load read: FIFOs, sockets and devices
 // are skipped without being opened; kInsideRoots keeps files inside the
@@ -68,6 +220,7 @@ std::vector<std::string> FolderFiles(const fs::path& folder, const LoadPolicy& p
        !ec && it != end; it.increment(ec)) {
     if (it->is_directory(ec) || !file_checks::IsRegularFile(it->path())) continue;
     if (policy.references != R::kAnywhere && !file_checks::IsInside(fs::canonical(it->path(), ec), allowed)) continue;
+    if (!DicomStructureIsSound(it->path())) continue;
     if (files.size() == kMaxFolderFiles) {
       throw InputError(fmt::format("{}: more than {} files in the folder", shown, kMaxFolderFiles));
     }

@@ -17,8 +17,10 @@
 #include <unistd.h>
 
 #include <algorithm>
+#include <cctype>
 #include <charconv>
 #include <cstdio>
+#include <cstdlib>
 #include <map>
 #include <mutex>
 #include <random>
@@ -340,27 +342,243 @@ std::string NiftiPayloadProblem(const fs::path& path) {
   return "";
 }
 
+std::string TrimBlanks(const std::string& s) {
+  const auto first = s.find_first_not_of(" \t\r");
+  return first == std::string::npos ? "" : s.substr(first, s.find_last_not_of(" \t\r") - first + 1);
+}
+
+// The byte offset just past the first `lines` lines of `text`, with line ends
+// counted as file_checks::Lines counts them ("\n", "\r" or "\r\n"); -1 when
+// the text has fewer.
+std::int64_t OffsetAfterLines(const std::string& text, std::size_t lines) {
+  std::size_t i = 0;
+  for (std::size_t n = 0; n < lines; ++n) {
+    while (i < text.size() && text[i] != '\r' && text[i] != '\n') ++i;
+    if (i == text.size()) return -1;
+    if (text[i] == '\r' && i + 1 < text.size() && text[i + 1] == '\n') ++i;
+    ++i;
+  }
+  return std::int64_t(i);
+}
+
+// teem (ITK's NRRD reader) leaks its state whenever the voxels cannot be
+// read (a short or damaged payload, a bad number in ASCII data): a few KiB
+// per load, tens of KiB for gzip. So the payload of a NRRD in one file
+// (attached, or one detached data file) is checked here first, as teem will
+// read it. Returns "" when it holds every voxel, else what is wrong.
+std::string NrrdPayloadProblem(itk::ImageIOBase& io, const fs::path& path, const std::string& shown) {
+  const file_checks::NrrdHeader h = file_checks::ParseNrrdHeader(path, shown);
+  if (h.listed || !h.references.problem.empty() || (!h.attached && h.references.files.size() != 1)) return "";
+  std::string encoding = "raw";
+  std::int64_t line_skip = 0, byte_skip = 0;
+  for (const std::string& line : h.lines) {
+    const std::string key = file_checks::FieldName(line);
+    if (key != "encoding" && key != "lineskip" && key != "byteskip") continue;
+    const std::string value = TrimBlanks(line.substr(line.find(':') + 1));
+    if (key == "encoding") {
+      encoding.clear();
+      for (char c : value) encoding += char(std::tolower(static_cast<unsigned char>(c)));
+      continue;
+    }
+    std::int64_t n = 0;
+    const auto [end, ec] = std::from_chars(value.data(), value.data() + value.size(), n);
+    if (ec != std::errc() || end != value.data() + value.size() || n < (key == "byteskip" ? -1 : 0)) {
+      return fmt::format("'{}' is not a valid count", key == "byteskip" ? "byte skip" : "line skip");
+    }
+    (key == "byteskip" ? byte_skip : line_skip) = n;
+  }
+  const fs::path data = h.attached ? path : h.references.files.front();
+  const int fd = file_checks::OpenRegularFile(data);
+  std::FILE* f = fd < 0 ? nullptr : fdopen(fd, "rb");
+  if (!f) {
+    if (fd >= 0) close(fd);
+    return "cannot read the file that 'data file' names";
+  }
+  struct Close {
+    std::FILE* f;
+    ~Close() {
+      if (f) std::fclose(f);
+    }
+  } closer{f};
+  // Where the data begin: past the header's lines (attached) and `line skip` lines.
+  std::int64_t start = 0;
+  if (h.attached) {
+    start = OffsetAfterLines(file_checks::ReadHead(data, file_checks::kMaxHeaderBytes + 1, shown), h.line_count);
+    if (start < 0) return "the header does not end before the data";
+  }
+  if (std::fseek(f, long(start), SEEK_SET) != 0) return "cannot read the data";
+  for (std::int64_t n = 0; n < line_skip; ++n) {
+    int c;
+    while ((c = std::getc(f)) != EOF && c != '\n') {
+    }
+    if (c == EOF) return fmt::format("truncated: 'line skip' {} runs past the end of the file", line_skip);
+  }
+  start = std::ftell(f);
+  const std::int64_t expected = std::int64_t(io.GetImageSizeInBytes());
+  std::error_code ec;
+  const std::int64_t size = std::int64_t(fs::file_size(data, ec));
+  if (ec) return "cannot read the data";
+  const std::string shown_data = h.attached ? "the file" : "'" + data.filename().string() + "'";
+  if (encoding == "raw") {
+    const std::int64_t available = byte_skip < 0 ? size - start : size - start - byte_skip;
+    if (available < expected) {
+      return fmt::format("truncated: {} voxel bytes expected, {} holds {}", expected, shown_data,
+                         std::max<std::int64_t>(0, available));
+    }
+    return "";
+  }
+  if (byte_skip < 0) return fmt::format("'byte skip: -1' is for raw data only, not '{}'", encoding);
+  if (encoding == "gzip" || encoding == "gz") {
+    // Inflates what teem will (byte skip and voxels, then the stream's end),
+    // never more: a small file can expand without bound.
+    if (std::fflush(f) != 0 || lseek(fileno(f), off_t(start), SEEK_SET) != off_t(start)) return "cannot read the data";
+    const int gz_fd = dup(fileno(f));
+    gzFile z = gz_fd < 0 ? nullptr : gzdopen(gz_fd, "rb");
+    if (!z) {
+      if (gz_fd >= 0) close(gz_fd);
+      return "cannot read the data";
+    }
+    struct GzClose {
+      gzFile z;
+      ~GzClose() { gzclose(z); }
+    } gz_closer{z};
+    std::vector<char> buffer(1 << 20);
+    std::int64_t want = byte_skip + expected + 1, total = 0;
+    for (int n = 1; total < want && n > 0; total += n) {
+      n = gzread(z, buffer.data(), unsigned(std::min<std::int64_t>(std::int64_t(buffer.size()), want - total)));
+      if (n < 0) break;
+    }
+    int err = Z_OK;
+    std::string message = gzerror(z, &err);
+    // zlib names the descriptor ("<fd:5>: "): keep only what is wrong.
+    if (const auto colon = message.find(">: "); message.rfind("<fd:", 0) == 0 && colon != std::string::npos) {
+      message = message.substr(colon + 3);
+    }
+    if (err != Z_OK && err != Z_STREAM_END) return fmt::format("compressed data are damaged ({})", message);
+    if (total < byte_skip + expected) {
+      return fmt::format("truncated: {} voxel bytes expected, the compressed data hold {}", expected,
+                         std::max<std::int64_t>(0, total - byte_skip));
+    }
+    return "";
+  }
+  const bool hex = encoding == "hex";
+  if (!hex && encoding != "ascii" && encoding != "text" && encoding != "txt") return "";
+  if (byte_skip != 0) return fmt::format("'byte skip' is for raw and compressed data, not '{}'", encoding);
+  // ASCII: one number per blank-separated token; hex: two digits per byte.
+  const int component = int(io.GetComponentSize());
+  const std::int64_t wanted = hex ? 2 * expected : expected / std::max(1, component);
+  const bool integral = io.GetComponentType() != itk::IOComponentEnum::FLOAT &&
+                        io.GetComponentType() != itk::IOComponentEnum::DOUBLE;
+  std::int64_t found = 0;
+  std::string token;
+  auto number = [&](const std::string& t) {
+    if (t.size() > 256) return false;
+    char* end = nullptr;
+    if (integral) {
+      std::strtoll(t.c_str(), &end, 10);
+    } else {
+      std::strtod(t.c_str(), &end);
+    }
+    return end != t.c_str();
+  };
+  for (int c = std::getc(f); found < wanted; c = std::getc(f)) {
+    if (hex) {
+      if (c == EOF) break;
+      if (std::isxdigit(c)) {
+        ++found;
+      } else if (!std::isspace(c)) {
+        return fmt::format("hex data hold '{}' where a digit belongs", char(c));
+      }
+      continue;
+    }
+    if (c != EOF && !std::isspace(c)) {
+      if (token.size() <= 256) token += char(c);
+      continue;
+    }
+    if (!token.empty()) {
+      if (!number(token)) return fmt::format("ASCII data hold '{}' where a number belongs", token.substr(0, 32));
+      ++found;
+      token.clear();
+    }
+    if (c == EOF) break;
+  }
+  if (found < wanted) {
+    return fmt::format("truncated: {} {} expected, {} holds {}", wanted, hex ? "hex digits" : "values",
+                       shown_data, found);
+  }
+  return "";
+}
+
+// The MetaImage header as MetaIO reads it: "Key = value" lines, the last
+// ElementDataFile; LOCAL data begin right after that line.
+struct MetaHeader {
+  std::int64_t data_start = -1;        // -1: no ElementDataFile line found
+  std::int64_t header_size = 0;        // HeaderSize: bytes skipped before the data
+  double compressed_size = -1;         // CompressedDataSize; -1 when absent
+};
+
+MetaHeader ReadMetaHeader(const fs::path& path, const std::string& shown) {
+  const std::string head = file_checks::ReadHead(path, file_checks::kMaxHeaderBytes, shown);
+  MetaHeader h;
+  for (std::size_t pos = 0; pos < head.size();) {
+    const std::size_t end = std::min(head.find('\n', pos), head.size());
+    const std::string line = head.substr(pos, end - pos);
+    pos = std::min(end + 1, head.size());
+    const std::size_t eq = line.find('=');
+    if (eq == std::string::npos) continue;
+    const std::string key = TrimBlanks(line.substr(0, eq)), value = TrimBlanks(line.substr(eq + 1));
+    if (key == "CompressedDataSize") {
+      h.compressed_size = std::strtod(value.c_str(), nullptr);
+    } else if (key == "HeaderSize") {
+      h.header_size = std::strtoll(value.c_str(), nullptr, 10);
+    } else if (key == "ElementDataFile") {
+      h.data_start = std::int64_t(pos);
+      break;
+    }
+  }
+  return h;
+}
+
 // ITK's MetaImage and VTK readers warn about a short payload on stderr and
 // carry on. For uncompressed data the file that holds the voxels must be at
-// least as long as they are.
-std::string RawPayloadProblem(itk::ImageIOBase& io, const fs::path& path) {
+// least as long as they are (a LOCAL MetaImage's header not counted), and
+// compressed MetaImage data no longer than the file: MetaIO allocates what
+// CompressedDataSize says before reading.
+std::string RawPayloadProblem(itk::ImageIOBase& io, const fs::path& path, const std::string& shown) {
   fs::path data = path;
+  // Bytes of `data` before the voxels: a LOCAL MetaImage's header, HeaderSize.
+  std::int64_t skip = 0;
   if (auto* meta = dynamic_cast<itk::MetaImageIO*>(&io)) {
     const std::string file = meta->GetMetaImagePointer()->ElementDataFileName();
-    if (meta->GetMetaImagePointer()->CompressedData() || file == "LIST" || file.find('%') != std::string::npos ||
-        file.find(' ') != std::string::npos) {
+    if (file == "LIST" || file.find('%') != std::string::npos || file.find(' ') != std::string::npos) return "";
+    const bool local = file == "LOCAL" || file == "Local" || file == "local";
+    if (!local) data = fs::path(file).is_absolute() ? fs::path(file) : path.parent_path() / file;
+    const MetaHeader h = ReadMetaHeader(path, shown);
+    skip = (local ? std::max<std::int64_t>(0, h.data_start) : 0) + std::max<std::int64_t>(0, h.header_size);
+    if (meta->GetMetaImagePointer()->CompressedData()) {
+      // MetaIO allocates CompressedDataSize bytes before it reads them.
+      std::error_code ec;
+      const std::int64_t size = file_checks::IsRegularFile(data) ? std::int64_t(fs::file_size(data, ec)) : 0;
+      if (ec || !file_checks::IsRegularFile(data)) return "cannot read the file that ElementDataFile names";
+      if (!(h.compressed_size <= double(size - skip))) {
+        return fmt::format("CompressedDataSize {} is more than {} holds ({} bytes)", h.compressed_size,
+                           local ? "the file after its header" : "'" + data.filename().string() + "'",
+                           std::max<std::int64_t>(0, size - skip));
+      }
       return "";
     }
-    if (file != "LOCAL") data = fs::path(file).is_absolute() ? fs::path(file) : path.parent_path() / file;
+    if (h.header_size < 0) skip = 0;  // HeaderSize -1: the voxels are the file's last bytes
   } else if (std::string(io.GetNameOfClass()) != "VTKImageIO" || io.GetFileType() != itk::IOFileEnum::Binary) {
     return "";
   }
   std::error_code ec;
   const auto size = file_checks::IsRegularFile(data) ? fs::file_size(data, ec) : 0;
   if (ec || !file_checks::IsRegularFile(data)) return "cannot read the file that ElementDataFile names";
-  if (size < std::uintmax_t(io.GetImageSizeInBytes())) {
-    return fmt::format("truncated: {} voxel bytes expected, {} holds {} bytes in all", io.GetImageSizeInBytes(),
-                       data == path ? "the file" : "'" + data.filename().string() + "'", size);
+  if (std::int64_t(size) - skip < std::int64_t(io.GetImageSizeInBytes())) {
+    return fmt::format("truncated: {} voxel bytes expected, {} holds {}", io.GetImageSizeInBytes(),
+                       data == path ? (skip > 0 ? "the file after its header" : "the file")
+                                    : "'" + data.filename().string() + "'",
+                       std::max<std::int64_t>(0, std::int64_t(size) - skip));
   }
   return "";
 }
@@ -401,9 +619,10 @@ Volume ReadWithItk(const fs::path& path, const file_checks::References& refs, co
   auto io = ReadHeader(path, shown);
   CheckHeader(shown, *io, policy.max_voxels);
   CheckMetaImageDataFile(*io, path, refs, policy, shown);
-  const std::string problem = std::string(io->GetNameOfClass()) == "NiftiImageIO"
-                                  ? NiftiPayloadProblem(path)
-                                  : RawPayloadProblem(*io, path);
+  const std::string kind = io->GetNameOfClass();
+  const std::string problem = kind == "NiftiImageIO"  ? NiftiPayloadProblem(path)
+                              : kind == "NrrdImageIO" ? NrrdPayloadProblem(*io, path, shown)
+                                                      : RawPayloadProblem(*io, path, shown);
   if (!problem.empty()) throw InputError(fmt::format("{}: {}", shown, problem));
   auto reader = itk::ImageFileReader<FloatImage>::New();
   reader->SetImageIO(io);

@@ -320,5 +320,63 @@ TEST(HostileFiles, LenientNrrdRewriteKeepsThePolicy) {
   EXPECT_TRUE(Has(LoadMessage([&] { return LoadVolumeFile(l.root / "in.nhdr", Upload()); }), "self-contained"));
 }
 
+// Found by tests/fuzz (libFuzzer). Each was a crash, a leak or an unbounded
+// allocation inside ITK, teem or GDCM; the loaders now refuse the input
+// before those libraries see it.
+
+// A LOCAL MetaImage short by less than its header: the file's whole size
+// used to be compared with the voxels, so the header hid the shortfall.
+TEST(HostileFiles, ShortLocalMetaImageIsTruncated) {
+  ScratchDir dir;
+  const std::string header = "ObjectType = Image\nNDims = 3\nDimSize = 8 8 8\nElementType = MET_SHORT\n"
+                             "ElementDataFile = LOCAL\n";
+  WriteBytes(dir / "m.mha", header + std::string(8 * 8 * 8 * 2 - 10, '\0'));
+  const std::string message = LoadMessage([&] { return LoadVolumeFile(dir / "m.mha", Upload()); });
+  EXPECT_TRUE(Has(message, "truncated")) << message;
+}
+
+// MetaIO allocates CompressedDataSize bytes before reading: a few bytes of
+// file declaring gigabytes.
+TEST(HostileFiles, MetaImageCompressedDataSizeIsBoundedByTheFile) {
+  ScratchDir dir;
+  WriteBytes(dir / "c.mha", "ObjectType = Image\nNDims = 3\nDimSize = 4 4 4\nElementType = MET_SHORT\n"
+                            "CompressedData = True\nCompressedDataSize = 4000000000\nElementDataFile = LOCAL\n" +
+                                Gzip(std::string(128, '\0')));
+  const std::string message = LoadMessage([&] { return LoadVolumeFile(dir / "c.mha", Upload()); });
+  EXPECT_TRUE(Has(message, "CompressedDataSize")) << message;
+}
+
+// teem leaked its state (tens of KiB) on every NRRD whose voxels it could not
+// read: damaged gzip, bad ASCII numbers, short raw data.
+TEST(HostileFiles, NrrdPayloadIsCheckedBeforeTeemReadsIt) {
+  ScratchDir dir;
+  const std::string header = "NRRD0004\ntype: short\ndimension: 3\nsizes: 4 4 4\nendian: little\n";
+  std::string gz = Gzip(std::string(128, '\1'));
+  gz[gz.size() - 6] ^= 0x55;  // the CRC
+  WriteBytes(dir / "gz.nrrd", header + "encoding: gzip\n\n" + gz);
+  WriteBytes(dir / "ascii.nrrd", header + "encoding: ascii\n\n1 2 3 x 5\n");
+  WriteBytes(dir / "raw.nrrd", header + "encoding: raw\n\n" + std::string(100, '\0'));
+  EXPECT_TRUE(Has(LoadMessage([&] { return LoadVolumeFile(dir / "gz.nrrd", Upload()); }), "damaged"));
+  EXPECT_TRUE(Has(LoadMessage([&] { return LoadVolumeFile(dir / "ascii.nrrd", Upload()); }), "'x'"));
+  EXPECT_TRUE(Has(LoadMessage([&] { return LoadVolumeFile(dir / "raw.nrrd", Upload()); }), "truncated"));
+}
+
+// GDCM asserted (aborting the server) on an unknown VR in the file meta
+// group, and allocated an element's declared length (4 GiB) before reading.
+TEST(HostileFiles, MalformedDicomNeverReachesGdcm) {
+  ScratchDir dir;
+  const std::string preamble = std::string(128, '\0') + "DICM";
+  fs::create_directories(dir / "vr");
+  WriteBytes(dir / "vr" / "x.dcm", preamble + std::string("\x02\0\0\0O6\x04\0\0\0\0\0", 12));
+  fs::create_directories(dir / "length");
+  WriteBytes(dir / "length" / "x.dcm",
+             preamble + std::string("\x02\0\x10\0UI\x14\0", 8) + "1.2.840.10008.1.2\0\0\0" +
+                 std::string("\x08\0\x60\0\0\0\0\xf0", 8) + "CT");
+  for (const char* name : {"vr", "length"}) {
+    const std::string message = LoadMessage([&] { return LoadDicomSeries(dir / name, {}, Upload()); });
+    EXPECT_TRUE(Has(message, "no DICOM files found")) << name << ": " << message;
+  }
+}
+
 }  // namespace
 }  // namespace cinevol
