@@ -11,6 +11,7 @@ packages=(
   libjpeg62-turbo-dev libpng-dev libopenexr-dev
   libspdlog-dev libcli11-dev
   libgtest-dev libgmock-dev
+  clang libclang-rt-14-dev      # tests/fuzz: clang 14 with libFuzzer, ASan and UBSan
 )
 
 missing=()
