@@ -48,6 +48,8 @@ bool IsInside(const fs::path& path, const fs::path& root) {
   return root_end == root.end();
 }
 
+std::string Mib(std::uint64_t bytes) { return fmt::format("{:.1f} MiB", double(bytes) / (1 << 20)); }
+
 v1::Vec3 ToProto(Vec3f v) {
   v1::Vec3 p;
   p.set_x(v.x);
@@ -182,15 +184,18 @@ v1::VolumeInfo VolumeRegistry::Add(const std::string& base_id, const std::string
     total += e.volume->MemoryBytes();
     if (e.upload && e.owner == owner) owners += e.volume->MemoryBytes();
   }
-  if (total + bytes > limits_.max_total_bytes) {
-    throw LimitExceeded(grpc::StatusCode::RESOURCE_EXHAUSTED, "max-volume-memory-mb", fmt::format("the volume needs {} MiB; this server holds {} MiB of volumes and allows "
-                                        "{} MiB (--max-volume-memory-mb): unload one first",
-                                        bytes >> 20, total >> 20, limits_.max_total_bytes >> 20));
-  }
+  // The caller's own quota first: it says what the caller can do about it.
   if (upload && owners + bytes > limits_.max_upload_bytes_per_principal) {
-    throw LimitExceeded(grpc::StatusCode::RESOURCE_EXHAUSTED, "max-upload-memory-mb", fmt::format("your uploads hold {} MiB; this one needs {} MiB more, over the limit of "
-                                        "{} MiB per user (--max-upload-memory-mb): unload one first",
-                                        owners >> 20, bytes >> 20, limits_.max_upload_bytes_per_principal >> 20));
+    throw LimitExceeded(grpc::StatusCode::RESOURCE_EXHAUSTED, "max-upload-memory-mb",
+                        fmt::format("your uploads hold {}; this one needs {} more, over the limit of {} per user "
+                                    "(--max-upload-memory-mb): unload one first",
+                                    Mib(owners), Mib(bytes), Mib(limits_.max_upload_bytes_per_principal)));
+  }
+  if (total + bytes > limits_.max_total_bytes) {
+    throw LimitExceeded(grpc::StatusCode::RESOURCE_EXHAUSTED, "max-volume-memory-mb",
+                        fmt::format("the volume needs {}; this server holds {} of volumes and allows {} "
+                                    "(--max-volume-memory-mb)",
+                                    Mib(bytes), Mib(total), Mib(limits_.max_total_bytes)));
   }
   std::string id = base_id;
   for (int n = 2; volumes_.count(id); ++n) id = fmt::format("{}-{}", base_id, n);

@@ -228,7 +228,36 @@ TEST(Hardening, EveryLimitIsEnforcedAndNamed) {
   WriteSmallNrrd(scratch / "big.nrrd");  // 16^3 voxels, over 1000
   ExpectRpcError([&] { client.UploadVolume(scratch / "big.nrrd"); }, grpc::StatusCode::INVALID_ARGUMENT,
                  "upload:big.nrrd");
+
+  // One message may not make the server parse megabytes.
+  r = scene_request();
+  r.mutable_scene()->mutable_transfer_function()->set_preset(std::string(2 << 20, 'x'));
+  ExpectRpcError([&] { client.CreateSession(r); }, grpc::StatusCode::RESOURCE_EXHAUSTED, "larger than max");
   ExpectServing(client);
+}
+
+// A 64 x 64 x 128 volume of 16-bit values: 1 MiB once loaded.
+void WriteMegabyteNrrd(const std::filesystem::path& path) {
+  std::ofstream out(path, std::ios::binary);
+  out << "NRRD0004\ntype: short\ndimension: 3\nsizes: 64 64 128\nspacings: 1 1 1\nencoding: raw\nendian: little\n\n";
+  std::vector<std::int16_t> voxels(64 * 64 * 128);
+  for (std::size_t i = 0; i < voxels.size(); ++i) voxels[i] = std::int16_t(int(i % 2000) - 1000);
+  out.write(reinterpret_cast<const char*>(voxels.data()), std::streamsize(voxels.size() * sizeof(std::int16_t)));
+}
+
+TEST(Hardening, VolumeMemoryIsBounded) {
+  ScratchDir scratch;
+  WriteFile(scratch / "tokens", "alice-token alice\nbob-token bob\n");
+  WriteMegabyteNrrd(scratch / "mega.nrrd");
+  ServerProcess server(scratch.path(), {"--auth-tokens", (scratch / "tokens").string(), "--max-upload-memory-mb",
+                                        "1", "--max-volume-memory-mb", "2"});
+  ASSERT_TRUE(server.running()) << server.Log();
+  Client alice = server.Connect("alice-token"), bob = server.Connect("bob-token");
+  alice.UploadVolume(scratch / "mega.nrrd");
+  ExpectRpcError([&] { alice.UploadVolume(scratch / "mega.nrrd"); }, grpc::StatusCode::RESOURCE_EXHAUSTED,
+                 "--max-upload-memory-mb");
+  ExpectRpcError([&] { bob.UploadVolume(scratch / "mega.nrrd"); }, grpc::StatusCode::RESOURCE_EXHAUSTED,
+                 "--max-volume-memory-mb");
 }
 
 // A raw upload call, for uploads that stop half way.
