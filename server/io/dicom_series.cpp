@@ -406,7 +406,8 @@ Series ChooseSeries(std::vector<Series> all, const std::string& requested, const
     }
   }
   for (std::size_t i = 0; i < all.size(); ++i) {
-    if (i != chosen) spdlog::info("{}: also holds series {}; not loaded", where, Describe(all[i].info));
+    // Debug level: folder paths and series descriptions are not for the info log.
+    if (i != chosen) spdlog::debug("{}: also holds series {}; not loaded", where, Describe(all[i].info));
   }
   return std::move(all[chosen]);
 }

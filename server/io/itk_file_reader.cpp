@@ -656,7 +656,8 @@ Volume LoadVolumeFile(const fs::path& path, const LoadPolicy& policy) {
       return ReadWithItk(path, refs, policy, shown);
     } catch (const itk::ExceptionObject& e) {
       if (!IsSpaceWithSpacingsError(e)) throw;
-      spdlog::warn("{}: NRRD header gives both 'space' and 'spacings'; using the spacings", path.string());
+      // Debug level: the path (or the client's file name) is not for the info log.
+      spdlog::debug("{}: NRRD header gives both 'space' and 'spacings'; using the spacings", shown);
       WriteLenientNrrdHeader(path, shown, copy);
       return ReadWithItk(copy.path, refs, policy, shown);
     }

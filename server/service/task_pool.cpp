@@ -5,6 +5,8 @@
 
 #include <exception>
 
+#include "service/log_safe.h"
+
 namespace cinevol::service {
 
 TaskPool::TaskPool(std::string name, int threads) : name_(std::move(name)) {
@@ -51,7 +53,7 @@ void TaskPool::Work() {
     try {
       task();
     } catch (const std::exception& e) {  // a task's bug must not take the pool down
-      spdlog::error("{} task failed: {}", name_, e.what());
+      spdlog::error("{} task failed: {}", name_, LogSafe(e.what()));
     }
   }
 }
