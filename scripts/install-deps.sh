@@ -12,6 +12,8 @@ packages=(
   libspdlog-dev libcli11-dev
   libgtest-dev libgmock-dev
   clang libclang-rt-14-dev      # tests/fuzz: clang 14 with libFuzzer, ASan and UBSan
+  prometheus-cpp-dev            # the server's /metrics (--metrics-listen)
+  prometheus                    # promtool, which the metrics test checks the exposition with
 )
 
 missing=()

@@ -7,12 +7,18 @@
 
 #include "core/error.h"
 #include "service/log_safe.h"
+#include "service/metrics.h"
 
 namespace cinevol::service {
 
-grpc::Status ToStatus(std::exception_ptr error) {
+namespace {
+
+grpc::Status StatusOf(std::exception_ptr error) {
   try {
     std::rethrow_exception(error);
+  } catch (const LimitExceeded& e) {
+    ServerMetrics().LimitRefused(e.flag());
+    return e.status();
   } catch (const RpcError& e) {
     return e.status();
   } catch (const InputError& e) {
@@ -31,6 +37,14 @@ grpc::Status ToStatus(std::exception_ptr error) {
     spdlog::error("internal error of unknown type");
     return {grpc::StatusCode::INTERNAL, "internal error"};
   }
+}
+
+}  // namespace
+
+grpc::Status ToStatus(std::exception_ptr error) {
+  grpc::Status status = StatusOf(std::move(error));
+  ServerMetrics().Error(status.error_code());  // every error a caller sees passes here
+  return status;
 }
 
 }  // namespace cinevol::service

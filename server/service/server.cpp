@@ -4,6 +4,7 @@
 #include <grpcpp/ext/proto_server_reflection_plugin.h>
 #include <grpcpp/health_check_service_interface.h>
 #include <fmt/format.h>
+#include <prometheus/exposer.h>
 #include <spdlog/spdlog.h>
 
 #include <cstdio>
@@ -11,7 +12,9 @@
 #include <fstream>
 
 #include "core/error.h"
+#include "service/call_log.h"
 #include "service/connection_limits.h"
+#include "service/metrics.h"
 
 namespace cinevol::service {
 namespace {
@@ -29,6 +32,7 @@ Server::Server(const ServerOptions& options)
       volume_service_(core_.get()),
       session_service_(core_.get()),
       server_service_(core_.get()) {
+  if (!options.metrics_listen.empty()) StartMetrics(options.metrics_listen);
   grpc::EnableDefaultHealthCheckService(true);
   grpc::reflection::InitProtoReflectionServerBuilderPlugin();
   grpc::ServerBuilder builder;
@@ -36,6 +40,7 @@ Server::Server(const ServerOptions& options)
   builder.AddListeningPort(options.listen, MakeServerCredentials(options.tls), &port_);
   builder.SetMaxReceiveMessageSize(kMaxReceiveBytes);
   ApplyConnectionLimits(options.connections, builder);
+  builder.experimental().SetInterceptorCreators(CallLogInterceptors());
   builder.RegisterService(&volume_service_);
   builder.RegisterService(&session_service_);
   builder.RegisterService(&server_service_);
@@ -51,6 +56,29 @@ Server::Server(const ServerOptions& options)
   spdlog::info("cinevol-server listening on {}:{}, rendering on {}", host, port_, core_->DeviceSummary());
 }
 
+void Server::StartMetrics(const std::string& listen) {
+  const auto colon = listen.rfind(':');
+  const std::string port = colon == std::string::npos ? "" : listen.substr(colon + 1);
+  if (colon == 0 || port.empty() || port.size() > 5 || port.find_first_not_of("0123456789") != std::string::npos ||
+      std::stoi(port) > 65535) {
+    throw InputError(fmt::format("--metrics-listen {}: not HOST:PORT (e.g. 127.0.0.1:9464)", listen));
+  }
+  try {
+    exposer_ = std::make_unique<prometheus::Exposer>(listen, 1);
+  } catch (const std::exception&) {
+    throw InputError(fmt::format("--metrics-listen {}: cannot listen there (address in use, or not HOST:PORT?)",
+                                 listen));
+  }
+  exposer_->RegisterCollectable(ServerMetrics().registry());
+  const std::vector<int> ports = exposer_->GetListeningPorts();
+  metrics_port_ = ports.empty() ? 0 : ports.front();
+  core_->PublishMetrics(true);
+  spdlog::info("cinevol-server metrics on http://{}:{}/metrics", listen.substr(0, colon), metrics_port_);
+  if (!IsLoopbackListen(listen)) {
+    spdlog::warn("--metrics-listen {}: /metrics is reachable from other machines, without authentication", listen);
+  }
+}
+
 Server::~Server() {
   Shutdown();
   Stop();
@@ -58,10 +86,12 @@ Server::~Server() {
 
 void Server::Sweep() {
   std::unique_lock lock(mu_);
+  int sweeps = 0;
   while (!stop_.wait_for(lock, std::chrono::milliseconds(200), [&] { return stopping_; })) {
     lock.unlock();
     core_->ExpireDetachedSessions();
     core_->calls().CancelOverdue(std::chrono::steady_clock::now());
+    if (exposer_) core_->PublishMetrics(++sweeps % 5 == 0);  // GPU memory once a second
     lock.lock();
   }
 }

@@ -13,6 +13,10 @@
 #include "service/service_core.h"
 #include "service/services.h"
 
+namespace prometheus {
+class Exposer;
+}
+
 namespace cinevol::service {
 
 class Server {
@@ -23,6 +27,8 @@ class Server {
   ~Server();  // Shutdown(), then stops as Wait does
 
   int port() const { return port_; }
+  // The port /metrics is served on (--metrics-listen); 0 when off.
+  int metrics_port() const { return metrics_port_; }
   // Blocks until Shutdown is asked for, then stops: open calls are
   // cancelled, sessions end, workers join.
   void Wait();
@@ -33,6 +39,8 @@ class Server {
  private:
   void Sweep();
   void Stop();
+  // Serves /metrics on `listen` (--metrics-listen); throws InputError naming the flag.
+  void StartMetrics(const std::string& listen);
 
   std::unique_ptr<ServiceCore> core_;
   double drain_seconds_;
@@ -41,6 +49,8 @@ class Server {
   ServerServiceImpl server_service_;
   std::unique_ptr<grpc::Server> server_;
   int port_ = 0;
+  std::unique_ptr<prometheus::Exposer> exposer_;  // /metrics, with --metrics-listen
+  int metrics_port_ = 0;
 
   std::mutex mu_;
   std::condition_variable stop_;

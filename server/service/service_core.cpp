@@ -15,6 +15,7 @@
 #include "encode/image_codecs.h"
 #include "service/errors.h"
 #include "service/log_safe.h"
+#include "service/metrics.h"
 
 namespace cinevol::service {
 namespace {
@@ -297,6 +298,37 @@ void ServiceCore::ExpireDetachedSessions() {
   for (auto& s : expired) {
     s->End({grpc::StatusCode::DEADLINE_EXCEEDED,
             "no stream attached in time (--detached-session-seconds, --unattached-session-seconds)"});
+  }
+}
+
+void ServiceCore::PublishMetrics(bool devices) const {
+  std::vector<std::shared_ptr<Session>> sessions;
+  {
+    std::lock_guard lock(mu_);
+    for (const auto& [id, s] : sessions_) sessions.push_back(s);
+  }
+  SessionStates states;
+  for (const auto& s : sessions) {
+    switch (s->Status().state()) {
+      case v1::SessionStatus::STARTING: ++states.starting; break;
+      case v1::SessionStatus::PAUSED: ++states.paused; break;
+      case v1::SessionStatus::IDLE: ++states.idle; break;
+      case v1::SessionStatus::DETACHED: ++states.detached; break;
+      default: ++states.rendering; break;
+    }
+  }
+  Metrics& metrics = ServerMetrics();
+  metrics.SetSessions(states);
+  std::uint64_t volume_bytes = 0;
+  for (const v1::VolumeInfo& v : volumes_.List(Principal{"", true})) volume_bytes += v.memory_bytes();
+  metrics.SetVolumeMemory(volume_bytes);
+  metrics.SetConnectionsShed(ShedConnections());
+  if (devices && backend_ == Backend::kCuda) {
+    for (const GpuInfo& g : ListGpus()) {
+      for (const auto& s : schedulers_) {
+        if (s->gpu() && *s->gpu() == g.index) metrics.SetDeviceMemoryUsed(g.index, g.total_bytes - g.free_bytes);
+      }
+    }
   }
 }
 

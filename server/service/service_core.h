@@ -56,6 +56,7 @@ struct ServerOptions {
   std::filesystem::path auth_tokens;                     // "TOKEN PRINCIPAL" lines; empty: no authentication
   TlsOptions tls;                                        // --tls-cert/--tls-key/--tls-client-ca
   bool insecure_no_auth = false;                         // allow no authentication beyond loopback
+  std::string metrics_listen;                            // HOST:PORT of /metrics (Prometheus); empty: off
 };
 
 class ServiceCore {
@@ -84,6 +85,9 @@ class ServiceCore {
   v1::ServerStatus Status(const Principal& caller) const;
   // Ends sessions detached (or never attached) for longer than the options allow.
   void ExpireDetachedSessions();
+  // Sets the metrics' gauges (metrics.h): sessions by state, volume memory,
+  // shed connections; with `devices`, the GPUs' memory in use too.
+  void PublishMetrics(bool devices) const;
   // "cuda:0 NVIDIA H100 80GB HBM3, ..." or "cpu (N threads)".
   std::string DeviceSummary() const;
 

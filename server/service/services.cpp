@@ -7,6 +7,7 @@
 
 #include "service/errors.h"
 #include "service/log_safe.h"
+#include "service/metrics.h"
 #include "service/session_stream.h"
 
 namespace cinevol::service {
@@ -123,14 +124,17 @@ class UploadReactor final : public grpc::ServerReadReactor<v1::UploadVolumeChunk
     }
     loading_ = true;  // the loader removes the file
     core_->loader().Submit([this] {
-      Finish(Guarded([&] {
+      const grpc::Status status = Guarded([&] {
         core_->RequireServing();
         *response_ = core_->volumes().AddUpload(path_, name_, caller_);
-      }));
+      });
+      ServerMetrics().Upload(status.ok());
+      Finish(status);
     });
   }
 
   void Fail(const grpc::Status& status) {
+    ServerMetrics().Upload(false);
     file_.close();
     Finish(status);
   }
