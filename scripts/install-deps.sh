@@ -14,6 +14,7 @@ packages=(
   clang libclang-rt-14-dev      # tests/fuzz: clang 14 with libFuzzer, ASan and UBSan
   prometheus-cpp-dev            # the server's /metrics (--metrics-listen)
   prometheus                    # promtool, which the metrics test checks the exposition with
+  openssl                       # the TLS tests make their own CA and certificates
 )
 
 missing=()
