@@ -7,6 +7,8 @@
 #include <sys/random.h>
 
 #include <algorithm>
+#include <cerrno>
+#include <system_error>
 #include <thread>
 
 #include "core/error.h"
@@ -28,6 +30,7 @@ std::string RandomSessionId() {
   unsigned char bytes[16];
   for (std::size_t got = 0; got < sizeof bytes;) {
     const ssize_t n = getrandom(bytes + got, sizeof bytes - got, 0);
+    if (n < 0 && errno != EINTR) throw std::system_error(errno, std::generic_category(), "getrandom");
     if (n > 0) got += std::size_t(n);
   }
   std::string id;
@@ -188,8 +191,9 @@ v1::CreateSessionResponse ServiceCore::CreateSession(const v1::CreateSessionRequ
   {
     std::lock_guard lock(mu_);
     if (int(sessions_.size()) >= options_.max_sessions) {
-      throw LimitExceeded(grpc::StatusCode::RESOURCE_EXHAUSTED, "max-sessions",
-                     fmt::format("this server holds its maximum of {} sessions (--max-sessions)", options_.max_sessions));
+      throw LimitExceeded(
+          grpc::StatusCode::RESOURCE_EXHAUSTED, "max-sessions",
+          fmt::format("this server holds its maximum of {} sessions (--max-sessions)", options_.max_sessions));
     }
     const auto own = std::count_if(sessions_.begin(), sessions_.end(),
                                    [&](const auto& entry) { return entry.second->owner() == caller.name; });
@@ -276,8 +280,8 @@ void ServiceCore::Snapshot(const v1::SnapshotRequest& request, const Principal& 
   const int spp = SnapshotSpp(request, pixels, options_.limits);
   // A step's samples stay within one streamed frame's budget, so other
   // sessions' frames interleave and a cancel is seen soon.
-  const int chunk = int(std::clamp<std::uint64_t>(options_.limits.max_frame_samples / std::max<std::uint64_t>(pixels, 1),
-                                                  1, 8));
+  const int chunk =
+      int(std::clamp<std::uint64_t>(options_.limits.max_frame_samples / std::max<std::uint64_t>(pixels, 1), 1, 8));
   session->CancelWithSession(cancel);
   session->scheduler()->Wake(std::make_shared<StillJob>(session->volume(), std::move(scene), spp, chunk,
                                                         request.format(), backend_, &encoder_, std::move(cancel),

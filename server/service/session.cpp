@@ -36,9 +36,10 @@ void PixelBudget::Exchange(std::uint64_t release, std::uint64_t take) {
   std::lock_guard lock(mu_);
   const std::uint64_t next = used_ - std::min(release, used_) + take;
   if (take > release && next > limit_) {
-    throw LimitExceeded(grpc::StatusCode::RESOURCE_EXHAUSTED, "max-total-pixels", fmt::format("viewport: {} pixels more would pass this server's limit of {} pixels for "
-                                        "all sessions together (--max-total-pixels; {} in use)",
-                                        take - release, limit_, used_));
+    throw LimitExceeded(grpc::StatusCode::RESOURCE_EXHAUSTED, "max-total-pixels",
+                        fmt::format("viewport: {} pixels more would pass this server's limit of {} pixels for "
+                                    "all sessions together (--max-total-pixels; {} in use)",
+                                    take - release, limit_, used_));
   }
   used_ = next;
 }

@@ -11,6 +11,11 @@
 namespace cinevol::service {
 namespace {
 
+// A request past one of this server's limits; the message names the flag.
+LimitExceeded OverLimit(std::string flag, const std::string& message) {
+  return LimitExceeded(grpc::StatusCode::INVALID_ARGUMENT, std::move(flag), message);
+}
+
 void CheckViewport(const v1::Viewport& v, const std::string& field, const SessionLimits& limits) {
   for (auto [name, size] : {std::pair{"width", v.width()}, std::pair{"height", v.height()}}) {
     if (size < 1 || size > 8192) {
@@ -19,8 +24,8 @@ void CheckViewport(const v1::Viewport& v, const std::string& field, const Sessio
   }
   const std::uint64_t pixels = std::uint64_t(v.width()) * v.height();
   if (pixels > limits.max_pixels) {
-    throw LimitExceeded(grpc::StatusCode::INVALID_ARGUMENT, "max-pixels", fmt::format("{}: {}x{} is {} pixels, over this server's limit of {} (--max-pixels)", field,
-                                 v.width(), v.height(), pixels, limits.max_pixels));
+    throw OverLimit("max-pixels", fmt::format("{}: {}x{} is {} pixels, over this server's limit of {} (--max-pixels)",
+                                              field, v.width(), v.height(), pixels, limits.max_pixels));
   }
 }
 
@@ -29,28 +34,32 @@ void CheckViewport(const v1::Viewport& v, const std::string& field, const Sessio
 void CheckCost(const v1::Scene& scene, const std::string& prefix, const SessionLimits& limits) {
   const v1::RenderSettings& r = scene.render();
   if (int(r.spp()) > limits.max_frame_spp) {
-    throw LimitExceeded(grpc::StatusCode::INVALID_ARGUMENT, "max-frame-spp", fmt::format("{}render.spp: {} is over this server's limit of {} per streamed frame "
-                                 "(--max-frame-spp; use a snapshot for more)",
-                                 prefix, r.spp(), limits.max_frame_spp));
+    throw OverLimit("max-frame-spp",
+                    fmt::format("{}render.spp: {} is over this server's limit of {} per streamed frame "
+                                "(--max-frame-spp; use a snapshot for more)",
+                                prefix, r.spp(), limits.max_frame_spp));
   }
   const std::uint64_t samples = std::uint64_t(r.spp()) * r.width() * r.height();
   if (samples > limits.max_frame_samples) {
-    throw LimitExceeded(grpc::StatusCode::INVALID_ARGUMENT, "max-frame-samples", fmt::format("{}render.spp: {} spp at {}x{} is {} samples per frame, over this server's limit "
-                                 "of {} (--max-frame-samples)",
-                                 prefix, r.spp(), r.width(), r.height(), samples, limits.max_frame_samples));
+    throw OverLimit("max-frame-samples",
+                    fmt::format("{}render.spp: {} spp at {}x{} is {} samples per frame, over this server's limit "
+                                "of {} (--max-frame-samples)",
+                                prefix, r.spp(), r.width(), r.height(), samples, limits.max_frame_samples));
   }
   if (int(r.max_bounces()) > limits.max_bounces) {
-    throw LimitExceeded(grpc::StatusCode::INVALID_ARGUMENT, "max-bounces", fmt::format("{}render.max_bounces: {} is over this server's limit of {} (--max-bounces)", prefix,
-                                 r.max_bounces(), limits.max_bounces));
+    throw OverLimit("max-bounces",
+                    fmt::format("{}render.max_bounces: {} is over this server's limit of {} (--max-bounces)", prefix,
+                                r.max_bounces(), limits.max_bounces));
   }
   if (scene.transfer_function().points_size() > limits.max_tf_points) {
-    throw LimitExceeded(grpc::StatusCode::INVALID_ARGUMENT, "max-tf-points", fmt::format("{}transfer_function.points: {} points, over this server's limit of {} "
-                                 "(--max-tf-points)",
-                                 prefix, scene.transfer_function().points_size(), limits.max_tf_points));
+    throw OverLimit("max-tf-points",
+                    fmt::format("{}transfer_function.points: {} points, over this server's limit of {} "
+                                "(--max-tf-points)",
+                                prefix, scene.transfer_function().points_size(), limits.max_tf_points));
   }
   if (scene.lights_size() > limits.max_lights) {
-    throw LimitExceeded(grpc::StatusCode::INVALID_ARGUMENT, "max-lights", fmt::format("{}lights: {} lights, over this server's limit of {} (--max-lights)", prefix,
-                                 scene.lights_size(), limits.max_lights));
+    throw OverLimit("max-lights", fmt::format("{}lights: {} lights, over this server's limit of {} (--max-lights)",
+                                              prefix, scene.lights_size(), limits.max_lights));
   }
 }
 
@@ -211,12 +220,14 @@ int SnapshotSpp(const v1::SnapshotRequest& request, std::uint64_t pixels, const 
   CheckEnum(v1::ImageFormat_IsValid(request.format()), request.format(), "format");
   const std::uint32_t spp = request.has_spp() ? request.spp() : std::uint32_t(limits.default_snapshot_spp);
   if (spp < 1 || int(spp) > limits.max_snapshot_spp) {
-    throw LimitExceeded(grpc::StatusCode::INVALID_ARGUMENT, "max-snapshot-spp", fmt::format("spp: {} is outside [1, {}] (--max-snapshot-spp)", spp, limits.max_snapshot_spp));
+    throw OverLimit("max-snapshot-spp",
+                    fmt::format("spp: {} is outside [1, {}] (--max-snapshot-spp)", spp, limits.max_snapshot_spp));
   }
   if (spp * pixels > limits.max_snapshot_samples) {
-    throw LimitExceeded(grpc::StatusCode::INVALID_ARGUMENT, "max-snapshot-samples", fmt::format("spp: {} spp at {} pixels is {} samples, over this server's limit of {} "
-                                 "(--max-snapshot-samples)",
-                                 spp, pixels, spp * pixels, limits.max_snapshot_samples));
+    throw OverLimit("max-snapshot-samples",
+                    fmt::format("spp: {} spp at {} pixels is {} samples, over this server's limit of {} "
+                                "(--max-snapshot-samples)",
+                                spp, pixels, spp * pixels, limits.max_snapshot_samples));
   }
   return static_cast<int>(spp);
 }

@@ -92,8 +92,9 @@ bool VolumeRegistry::IsUploadableName(const std::string& file_name) {
 
 fs::path VolumeRegistry::ResolveDataPath(const std::string& path, const std::string& field) const {
   if (data_roots_.empty()) {
-    throw RpcError(grpc::StatusCode::PERMISSION_DENIED,
-                   fmt::format("{}: this server has no data root (--data-root): it loads nothing from its disk", field));
+    throw RpcError(
+        grpc::StatusCode::PERMISSION_DENIED,
+        fmt::format("{}: this server has no data root (--data-root): it loads nothing from its disk", field));
   }
   if (path.empty()) throw RpcError(grpc::StatusCode::INVALID_ARGUMENT, fmt::format("{}: is empty", field));
   const fs::path requested = fs::path(path).is_absolute() ? fs::path(path) : data_roots_.front() / path;

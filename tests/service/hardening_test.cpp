@@ -57,7 +57,8 @@ TEST(Hardening, UploadsThatNameAnotherFileAreRefused) {
       EXPECT_EQ(e.code(), grpc::StatusCode::INVALID_ARGUMENT) << e.what();
       EXPECT_NE(std::string(e.what()).find("self-contained"), std::string::npos) << e.what();
       EXPECT_NE(std::string(e.what()).find(std::string("upload:") + name), std::string::npos) << e.what();
-      EXPECT_EQ(std::string(e.what()).find(scratch.path().string()), std::string::npos) << "a server path: " << e.what();
+      EXPECT_EQ(std::string(e.what()).find(scratch.path().string()), std::string::npos)
+          << "a server path: " << e.what();
     }
   }
   ExpectServing(client);
@@ -535,7 +536,8 @@ TEST(Hardening, AnEventFloodCostsItsNeighbourLittle) {
 
 TEST(Hardening, ACrowdPastTheSessionLimitLocksNobodyOut) {
   ScratchDir scratch;
-  ServerProcess server(scratch.path(), {"--max-sessions", "20", "--max-sessions-per-principal", "100", "--unattached-session-seconds", "2"});
+  ServerProcess server(scratch.path(), {"--max-sessions", "20", "--max-sessions-per-principal", "100",
+                                        "--unattached-session-seconds", "2"});
   ASSERT_TRUE(server.running()) << server.Log();
   Client client = server.Connect();
   const auto mine = client.CreateSession(SmallSession("ct-bone", 96, 64, 65536));
