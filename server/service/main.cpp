@@ -47,7 +47,7 @@ void AddLimitOptions(CLI::App& app, ServerOptions& o) {
                                          "Largest volume upload, MiB (default 2048)")
       ->check(CLI::Range(1, 1 << 20))
       ->group("Limits");
-  limit("--max-uploads-per-principal", o.max_uploads_per_principal, "Uploads one principal runs at once", 1, 1024);
+  limit("--max-uploads-per-principal", o.max_uploads_per_principal, "Uploads and loads one principal runs at once", 1, 1024);
   limit("--upload-idle-seconds", o.upload_idle_seconds, "An upload that sends nothing this long ends", 0.5, 3600.0);
   limit("--max-volume-voxels", v.max_voxels, "Voxels of one volume", 1ull, 1ull << 40);
   app.add_option_function<std::uint64_t>(

@@ -232,19 +232,20 @@ void ServiceCore::CloseSession(const std::string& id, const Principal& caller) {
   FindSession(id, caller)->End({grpc::StatusCode::OK, "session closed"});
 }
 
-std::shared_ptr<void> ServiceCore::BeginUpload(const Principal& caller) {
+std::shared_ptr<void> ServiceCore::BeginLoad(const Principal& caller) {
   RequireServing();
   std::lock_guard lock(mu_);
-  int& count = uploads_[caller.name];
+  int& count = loads_[caller.name];
   if (count >= options_.max_uploads_per_principal) {
     throw LimitExceeded(grpc::StatusCode::RESOURCE_EXHAUSTED, "max-uploads-per-principal",
-                   fmt::format("you have {} uploads under way, this server's limit (--max-uploads-per-principal)",
-                               count));
+                        fmt::format("you have {} uploads or loads under way, this server's limit "
+                                    "(--max-uploads-per-principal)",
+                                    count));
   }
   ++count;
   return std::shared_ptr<void>(nullptr, [this, name = caller.name](void*) {
     std::lock_guard lock(mu_);
-    if (--uploads_[name] == 0) uploads_.erase(name);
+    if (--loads_[name] == 0) loads_.erase(name);
   });
 }
 

@@ -91,9 +91,9 @@ class ServiceCore {
   // "cuda:0 NVIDIA H100 80GB HBM3, ..." or "cpu (N threads)".
   std::string DeviceSummary() const;
 
-  // An upload slot of `caller`'s (RESOURCE_EXHAUSTED past
-  // --max-uploads-per-principal); the returned guard gives it back.
-  std::shared_ptr<void> BeginUpload(const Principal& caller);
+  // One of `caller`'s slots for uploads and loads under way (RESOURCE_EXHAUSTED
+  // past --max-uploads-per-principal); the returned guard gives it back.
+  std::shared_ptr<void> BeginLoad(const Principal& caller);
 
   // SIGTERM: new sessions, loads and uploads get UNAVAILABLE, every session
   // ends with a notice, frames and stills in flight are cancelled.
@@ -120,7 +120,7 @@ class ServiceCore {
 
   mutable std::mutex mu_;
   std::map<std::string, std::shared_ptr<Session>> sessions_;
-  std::map<std::string, int> uploads_;  // principal -> uploads under way
+  std::map<std::string, int> loads_;  // principal -> uploads and loads under way
 };
 
 }  // namespace cinevol::service

@@ -31,7 +31,7 @@ class UploadReactor final : public grpc::ServerReadReactor<v1::UploadVolumeChunk
       : core_(core), response_(response) {
     const grpc::Status status = Guarded([&] {
       caller_ = core_->Authenticate(*context);
-      slot_ = core_->BeginUpload(caller_);
+      slot_ = core_->BeginLoad(caller_);
     });
     if (!status.ok()) {
       Fail(status);
@@ -192,7 +192,8 @@ grpc::ServerUnaryReactor* VolumeServiceImpl::LoadVolume(grpc::CallbackServerCont
     core_->RequireServing();
     // Refuse paths outside the data roots at once; read the disk on the loader pool.
     core_->volumes().ResolveDataPath(request->path(), "path");
-    core_->loader().Submit([this, reactor, request, response, caller] {
+    // The load holds one of the caller's slots: a client cannot queue loads without end.
+    core_->loader().Submit([this, reactor, request, response, caller, slot = core_->BeginLoad(caller)] {
       reactor->Finish(Guarded([&] {
         core_->RequireServing();
         *response = core_->volumes().LoadFromDataRoot(request->path(), request->series_uid(), caller);
