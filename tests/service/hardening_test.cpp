@@ -117,11 +117,10 @@ TEST(Hardening, TheListenerSurvivesDescriptorExhaustion) {
     EXPECT_GT(idle.size(), 300u);
     std::this_thread::sleep_for(std::chrono::milliseconds(500));
     for (int fd : idle) close(fd);
-    Client client = Connect(server, {}, 10);
     EXPECT_TRUE(Eventually(
         [&] {
           try {
-            client.ListVolumes();
+            Connect(server, {}, 10).ListVolumes();
             return true;
           } catch (const RpcError&) {
             return false;
