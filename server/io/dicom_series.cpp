@@ -155,6 +155,12 @@ class DicomWalk {
       return Items(at, end, inner_explicit, depth + 1, 0xe0dd);
     }
     if (length > std::uint64_t(end - at)) return false;
+    // GDCM asserts that Samples per Pixel is at most 4 (an abort, found by
+    // fuzz_volume): 1 (grey) to 4 only, in any image, icons included.
+    if (group == 0x0028 && element == 0x0002 && !meta) {
+      std::uint8_t v[2];
+      if (length < 2 || !Read(at, v, 2) || U16(v) < 1 || U16(v) > 4) return false;
+    }
     at += length;
     return true;
   }
@@ -209,8 +215,10 @@ bool DicomStructureIsSound(const fs::path& path) {
 // The regular files under `folder` (subfolders included, symlinked folders
 // not followed) that the policy lets a load read: FIFOs, sockets and devices
 // are skipped without being opened; kInsideRoots keeps files inside the
-// roots, kNone files inside the folder itself.
-std::vector<std::string> FolderFiles(const fs::path& folder, const LoadPolicy& policy, const std::string& shown) {
+// roots, kNone files inside the folder itself. Files whose structure is not
+// sound DICOM are left out too; `looked_at` counts every file examined.
+std::vector<std::string> FolderFiles(const fs::path& folder, const LoadPolicy& policy, const std::string& shown,
+                                     std::size_t& looked_at) {
   using R = LoadPolicy::References;
   std::error_code ec;
   const std::vector<fs::path> allowed = policy.references == R::kNone ? std::vector<fs::path>{fs::canonical(folder, ec)}
@@ -220,11 +228,12 @@ std::vector<std::string> FolderFiles(const fs::path& folder, const LoadPolicy& p
        !ec && it != end; it.increment(ec)) {
     if (it->is_directory(ec) || !file_checks::IsRegularFile(it->path())) continue;
     if (policy.references != R::kAnywhere && !file_checks::IsInside(fs::canonical(it->path(), ec), allowed)) continue;
-    if (!DicomStructureIsSound(it->path())) continue;
-    if (files.size() == kMaxFolderFiles) {
+    // Counted before the structure check, which reads each file: the limit bounds that work too.
+    if (looked_at == kMaxFolderFiles) {
       throw InputError(fmt::format("{}: more than {} files in the folder", shown, kMaxFolderFiles));
     }
-    files.push_back(it->path().string());
+    ++looked_at;
+    if (DicomStructureIsSound(it->path())) files.push_back(it->path().string());
   }
   if (ec) throw InputError(fmt::format("{}: cannot list the folder", shown));
   return files;
@@ -239,13 +248,12 @@ void ScanFolder(const fs::path& folder, const LoadPolicy& policy, Scan& scan) {
     throw InputError(fmt::format("{}: not a folder", scan.shown));
   }
   file_checks::RequireInsideRoots(folder, policy, scan.shown);
-  const std::vector<std::string> files = FolderFiles(folder, policy, scan.shown);
-  scan.files_seen = files.size();
+  const std::vector<std::string> files = FolderFiles(folder, policy, scan.shown, scan.files_seen);
   for (const gdcm::Tag& t : {kSeriesUid, kSeriesDescription, kModality, kImagePosition,
                              kImageOrientation, kRows, kColumns, kSliceThickness}) {
     scan.scanner.AddTag(t);
   }
-  if (scan.files_seen > 0 && !scan.scanner.Scan(files)) {
+  if (!files.empty() && !scan.scanner.Scan(files)) {
     throw InputError(fmt::format("{}: could not scan the folder's files", scan.shown));
   }
   for (const std::string& f : files) {

@@ -21,6 +21,7 @@
 #include <charconv>
 #include <cstdio>
 #include <cstdlib>
+#include <fstream>
 #include <map>
 #include <mutex>
 #include <random>
@@ -539,6 +540,84 @@ MetaHeader ReadMetaHeader(const fs::path& path, const std::string& shown) {
   return h;
 }
 
+// MetaIO's own reading of a header's fields (CompressedDataSize has no
+// accessor: a pointer to the protected member, named through a derived class).
+struct MetaFields : MetaImage {
+  static std::streamoff CompressedDataSize(const MetaImage& m) { return m.*(&MetaFields::m_CompressedDataSize); }
+};
+
+// Where MetaIO finds LOCAL data: just past the header as MetaIO itself reads
+// it (the same parse ITK's reader makes before reading the voxels); -1 when
+// it cannot tell.
+std::int64_t MetaLocalDataStart(const fs::path& path) {
+  std::ifstream stream(path, std::ios::in | std::ios::binary);
+  if (!stream) return -1;
+  MetaImage header;
+  if (!header.ReadStream(0, &stream, false)) return -1;
+  const std::streampos at = stream.tellg();
+  return at == std::streampos(-1) ? -1 : std::int64_t(at);
+}
+
+// MetaIO inflates a compressed payload without checking what zlib says:
+// damaged or short data load as whatever the buffer held, and its streamed
+// reading returns on a zlib error without freeing its buffers (a leak per
+// load). So the payload is inflated here first, as MetaIO will read it: the
+// `length` bytes of `data` from `start`, up to the voxels' `expected` bytes
+// (and one more, to see a stream longer than the image), never beyond.
+// Returns "" when the stream holds every voxel, else what is wrong.
+std::string MetaCompressedProblem(const fs::path& data, std::int64_t start, std::int64_t length,
+                                  std::int64_t expected, const std::string& shown_data) {
+  const int fd = file_checks::OpenRegularFile(data);
+  std::FILE* f = fd < 0 ? nullptr : fdopen(fd, "rb");
+  if (!f) {
+    if (fd >= 0) close(fd);
+    return "cannot read the file that ElementDataFile names";
+  }
+  struct Close {
+    std::FILE* f;
+    ~Close() { std::fclose(f); }
+  } closer{f};
+  if (std::fseek(f, long(start), SEEK_SET) != 0) return "cannot read the data";
+  z_stream z{};
+  // 47: zlib or gzip headers, as MetaIO inflates.
+  if (inflateInit2(&z, 47) != Z_OK) return "cannot inflate the compressed data";
+  struct End {
+    z_stream* z;
+    ~End() { inflateEnd(z); }
+  } ender{&z};
+  std::vector<unsigned char> in(std::size_t{1} << 16), out(std::size_t{1} << 20);
+  std::int64_t unread = length, total = 0;
+  int ret = Z_OK;
+  while (total <= expected) {
+    if (z.avail_in == 0 && unread > 0) {
+      const std::size_t want = std::size_t(std::min<std::int64_t>(std::int64_t(in.size()), unread));
+      const std::size_t n = std::fread(in.data(), 1, want, f);
+      if (n == 0) break;
+      unread -= std::int64_t(n);
+      z.next_in = in.data();
+      z.avail_in = uInt(n);
+    }
+    const uInt room = uInt(std::min<std::int64_t>(std::int64_t(out.size()), expected + 1 - total));
+    z.next_out = out.data();
+    z.avail_out = room;
+    ret = inflate(&z, Z_NO_FLUSH);
+    total += std::int64_t(room - z.avail_out);
+    if (ret == Z_STREAM_END || ret == Z_BUF_ERROR) break;  // the stream's end, or its input's
+    if (ret != Z_OK) {
+      return fmt::format("compressed data are damaged ({})",
+                         ret == Z_NEED_DICT ? "a preset dictionary is needed" : z.msg ? z.msg : zError(ret));
+    }
+  }
+  if (total < expected) {
+    return fmt::format("truncated: {} voxel bytes expected, the compressed data in {} hold {}", expected,
+                       shown_data == "the file after its header" ? "the file" : shown_data, total);
+  }
+  if (total > expected) {
+    return fmt::format("compressed data are damaged (they hold more than the {} voxel bytes expected)", expected);
+  }
+  return "";
+}
+
 // ITK's MetaImage and VTK readers warn about a short payload on stderr and
 // carry on. For uncompressed data the file that holds the voxels must be at
 // least as long as they are (a LOCAL MetaImage's header not counted), and
@@ -555,17 +634,28 @@ std::string RawPayloadProblem(itk::ImageIOBase& io, const fs::path& path, const 
     if (!local) data = fs::path(file).is_absolute() ? fs::path(file) : path.parent_path() / file;
     const MetaHeader h = ReadMetaHeader(path, shown);
     skip = (local ? std::max<std::int64_t>(0, h.data_start) : 0) + std::max<std::int64_t>(0, h.header_size);
-    if (meta->GetMetaImagePointer()->CompressedData()) {
-      // MetaIO allocates CompressedDataSize bytes before it reads them.
+    const MetaImage& image = *meta->GetMetaImagePointer();
+    if (image.CompressedData()) {
+      // MetaIO reads compressed data from just past the header (LOCAL) or the
+      // data file's start; it skips no HeaderSize the same way on every path.
+      if (image.HeaderSize() != 0) return "'HeaderSize' is for uncompressed data only";
+      const std::int64_t start = local ? MetaLocalDataStart(path) : 0;
+      if (start < 0) return "cannot find where the compressed data begin";
       std::error_code ec;
       const std::int64_t size = file_checks::IsRegularFile(data) ? std::int64_t(fs::file_size(data, ec)) : 0;
       if (ec || !file_checks::IsRegularFile(data)) return "cannot read the file that ElementDataFile names";
-      if (!(h.compressed_size <= double(size - skip))) {
-        return fmt::format("CompressedDataSize {} is more than {} holds ({} bytes)", h.compressed_size,
-                           local ? "the file after its header" : "'" + data.filename().string() + "'",
-                           std::max<std::int64_t>(0, size - skip));
+      const std::string shown_data = local ? "the file after its header" : "'" + data.filename().string() + "'";
+      // MetaIO allocates CompressedDataSize bytes before it reads them; 0
+      // (or none given) means the rest of the file.
+      const std::int64_t declared = MetaFields::CompressedDataSize(image);
+      if (declared < 0) return fmt::format("CompressedDataSize {} is negative", declared);
+      if (!(h.compressed_size <= double(size - start)) || declared > size - start) {
+        return fmt::format("CompressedDataSize {} is more than {} holds ({} bytes)",
+                           std::max(h.compressed_size, double(declared)), shown_data,
+                           std::max<std::int64_t>(0, size - start));
       }
-      return "";
+      return MetaCompressedProblem(data, start, declared > 0 ? declared : size - start,
+                                   std::int64_t(io.GetImageSizeInBytes()), shown_data);
     }
     if (h.header_size < 0) skip = 0;  // HeaderSize -1: the voxels are the file's last bytes
   } else if (std::string(io.GetNameOfClass()) != "VTKImageIO" || io.GetFileType() != itk::IOFileEnum::Binary) {
