@@ -397,6 +397,21 @@ TEST(HostileFiles, DamagedCompressedMetaImageIsRefused) {
                   "CompressedDataSize"));
 }
 
+// MetaIO copied a header run of 255+ characters into a 255-byte field name
+// (a fortify abort): such headers are refused before MetaIO parses them.
+TEST(HostileFiles, MetaImageLongHeaderRunNeverReachesMetaIO) {
+  ScratchDir dir;
+  const std::string rest = "NDims = 3\nDimSize = 2 2 2\nElementType = MET_UCHAR\nElementDataFile = LOCAL\n" +
+                           std::string(8, '\0');
+  for (const std::string& line : {"BinaryData = " + std::string(300, '\xab') + "\n", std::string(300, 'K') + " = 1\n"}) {
+    WriteBytes(dir / "long.mha", "ObjectType = Image\n" + line + rest);
+    const std::string message = LoadMessage([&] { return LoadVolumeFile(dir / "long.mha", Upload()); });
+    EXPECT_TRUE(Has(message, "characters between separators")) << message;
+  }
+  WriteBytes(dir / "ok.mha", "ObjectType = Image\n" + rest);
+  EXPECT_EQ(LoadMessage([&] { return LoadVolumeFile(dir / "ok.mha", Upload()); }), "(loaded)");
+}
+
 // teem leaked its state (tens of KiB) on every NRRD whose voxels it could not
 // read: damaged gzip, bad ASCII numbers, short raw data.
 TEST(HostileFiles, NrrdPayloadIsCheckedBeforeTeemReadsIt) {
