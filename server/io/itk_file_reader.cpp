@@ -1,6 +1,5 @@
 // Volume files through ITK: NIfTI, NRRD/NHDR, MetaImage and VTK legacy.
 #include <gdcmTrace.h>
-#include <itkGDCMImageIOFactory.h>
 #include <itkImageFileReader.h>
 #include <itkImageIOFactory.h>
 #include <itkMetaDataObject.h>
@@ -40,7 +39,10 @@ namespace cinevol {
 namespace itk_image {
 
 // The formats are registered explicitly rather than through ITK's
-// CMake-generated factory list, so the set is visible here.
+// CMake-generated factory list, so the set is visible here. GDCM is not among
+// them: DICOM is read from a folder (dicom_series.cpp makes its GDCMImageIO
+// after its own checks), and the factory would have GDCM parse any file the
+// other formats decline (GDCM asserts, aborting, on a malformed meta group).
 void InitToolkits() {
   static std::once_flag once;
   std::call_once(once, [] {
@@ -48,7 +50,6 @@ void InitToolkits() {
     itk::NrrdImageIOFactory::RegisterOneFactory();
     itk::MetaImageIOFactory::RegisterOneFactory();
     itk::VTKImageIOFactory::RegisterOneFactory();
-    itk::GDCMImageIOFactory::RegisterOneFactory();
     itk::Object::GlobalWarningDisplayOff();
     gdcm::Trace::WarningOff();
     gdcm::Trace::DebugOff();

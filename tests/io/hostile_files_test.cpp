@@ -465,5 +465,20 @@ TEST(HostileFiles, DicomSamplesPerPixelAboveFourNeverReachesGdcm) {
   EXPECT_TRUE(Has(message, "no DICOM files found")) << message;
 }
 
+// ITK's factory let GDCM parse any file the volume formats declined (a
+// DICOM meta group in a ".nii.gz" made GDCM assert): a single file is never
+// read as DICOM.
+TEST(HostileFiles, DicomContentInAVolumeFileNeverReachesGdcm) {
+  ScratchDir dir;
+  std::ifstream seed(fs::path(CINEVOL_SOURCE_DIR) / "tests/fuzz/corpus/volume/ct.dcm", std::ios::binary);
+  const std::string ct((std::istreambuf_iterator<char>(seed)), std::istreambuf_iterator<char>());
+  ASSERT_GT(ct.size(), 1u);
+  for (const char* name : {"x.nii.gz", "x.nii", "x.dcm"}) {
+    WriteBytes(dir / name, ct.substr(1));
+    const std::string message = LoadMessage([&] { return LoadVolumeFile(dir / name, Upload()); });
+    EXPECT_FALSE(message == "(loaded)") << name;
+  }
+}
+
 }  // namespace
 }  // namespace cinevol
