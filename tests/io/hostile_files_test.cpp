@@ -434,11 +434,15 @@ TEST(HostileFiles, MalformedDicomNeverReachesGdcm) {
   const std::string preamble = std::string(128, '\0') + "DICM";
   fs::create_directories(dir / "vr");
   WriteBytes(dir / "vr" / "x.dcm", preamble + std::string("\x02\0\0\0O6\x04\0\0\0\0\0", 12));
+  // Only a file meta group, the file ending with it: GDCM asserted.
+  fs::create_directories(dir / "meta_only");
+  WriteBytes(dir / "meta_only" / "x.dcm", preamble + std::string("\x02\0\0\0UL\x04\0\xca\0\0\0", 12) +
+                                              std::string("\x02\0\x01\0OB\0\0\x02\0\0\0\0\x01", 14));
   fs::create_directories(dir / "length");
   WriteBytes(dir / "length" / "x.dcm",
              preamble + std::string("\x02\0\x10\0UI\x14\0", 8) + "1.2.840.10008.1.2\0\0\0" +
                  std::string("\x08\0\x60\0\0\0\0\xf0", 8) + "CT");
-  for (const char* name : {"vr", "length"}) {
+  for (const char* name : {"vr", "length", "meta_only"}) {
     const std::string message = LoadMessage([&] { return LoadDicomSeries(dir / name, {}, Upload()); });
     EXPECT_TRUE(Has(message, "no DICOM files found")) << name << ": " << message;
   }
