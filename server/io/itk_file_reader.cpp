@@ -18,6 +18,7 @@
 #include <algorithm>
 #include <cctype>
 #include <charconv>
+#include <cmath>
 #include <cstdio>
 #include <cstdlib>
 #include <fstream>
@@ -208,6 +209,11 @@ bool IsSpaceWithSpacingsError(const itk::ExceptionObject& e) {
   return std::string(e.GetDescription()).find("ScalarWithSpace") != std::string::npos;
 }
 
+std::string TrimBlanks(const std::string& s) {
+  const auto first = s.find_first_not_of(" \t\r");
+  return first == std::string::npos ? "" : s.substr(first, s.find_last_not_of(" \t\r") - first + 1);
+}
+
 // MetaIO copies each key it reads (up to 500 characters, up to '=', ':' or a
 // line end) into a 255-byte field name: a longer run overflows it (an abort
 // under _FORTIFY_SOURCE, found by fuzz_volume). A run can start anywhere (the
@@ -217,6 +223,24 @@ void CheckMetaHeaderText(const fs::path& path, const std::string& shown) {
   const std::string head = file_checks::ReadHead(path, file_checks::kMaxHeaderBytes, shown);
   constexpr std::size_t kMaxRun = 254;
   const std::size_t end = std::min(head.size(), head.find('\n', std::min(head.size(), head.find("ElementDataFile"))));
+  // MetaIO reads NDims values for DimSize and the like (NDims squared for a
+  // matrix) into arrays of 10 (100): a negative or large NDims made it loop
+  // for hours (found by fuzz_volume) or write past them.
+  for (std::size_t pos = 0; pos < end;) {
+    const std::size_t line_end = std::min(head.find_first_of("\r\n", pos), end);
+    const std::size_t sep = head.find_first_of("=:", pos);
+    if (TrimBlanks(head.substr(pos, std::min(sep, line_end) - pos)) == "NDims") {
+      const std::size_t from = sep == std::string::npos ? head.size() : sep + 1;
+      const std::size_t to = std::min(head.find_first_of("\r\n", std::min(from, head.size())), head.size());
+      const std::string value = from < to ? TrimBlanks(head.substr(from, to - from)) : "";
+      char* stop = nullptr;
+      const double n = std::strtod(value.c_str(), &stop);
+      if (stop == value.c_str() || !(n >= 1 && n <= 10) || n != std::floor(n)) {
+        throw InputError(fmt::format("{}: NDims '{}' is not a dimension count (1 to 10)", shown, value.substr(0, 32)));
+      }
+    }
+    pos = line_end + 1;
+  }
   std::size_t run = 0;
   for (std::size_t i = 0; i < end; ++i) {
     const char c = head[i];
@@ -365,10 +389,6 @@ std::string NiftiPayloadProblem(const fs::path& path) {
   return "";
 }
 
-std::string TrimBlanks(const std::string& s) {
-  const auto first = s.find_first_not_of(" \t\r");
-  return first == std::string::npos ? "" : s.substr(first, s.find_last_not_of(" \t\r") - first + 1);
-}
 
 // The byte offset just past the first `lines` lines of `text`, with line ends
 // counted as file_checks::Lines counts them ("\n", "\r" or "\r\n"); -1 when

@@ -408,6 +408,13 @@ TEST(HostileFiles, MetaImageLongHeaderRunNeverReachesMetaIO) {
     const std::string message = LoadMessage([&] { return LoadVolumeFile(dir / "long.mha", Upload()); });
     EXPECT_TRUE(Has(message, "characters between separators")) << message;
   }
+  // NDims -3 made MetaIO loop for hours (a fuzz_volume timeout); 11 overflows its arrays.
+  for (const char* ndims : {"-3", "11", "2.5", "x"}) {
+    WriteBytes(dir / "ndims.mha", std::string("ObjectType = Image\nNDims = ") + ndims + "\nDimSize = 2 2 2\n" +
+                                      "ElementType = MET_UCHAR\nElementDataFile = LOCAL\n" + std::string(8, '\0'));
+    const std::string message = LoadMessage([&] { return LoadVolumeFile(dir / "ndims.mha", Upload()); });
+    EXPECT_TRUE(Has(message, "NDims")) << ndims << ": " << message;
+  }
   WriteBytes(dir / "ok.mha", "ObjectType = Image\n" + rest);
   EXPECT_EQ(LoadMessage([&] { return LoadVolumeFile(dir / "ok.mha", Upload()); }), "(loaded)");
 }
