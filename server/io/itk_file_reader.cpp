@@ -21,11 +21,13 @@
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
+#include <cstring>
 #include <fstream>
 #include <map>
 #include <mutex>
 #include <random>
 #include <regex>
+#include <vector>
 
 #include <fmt/format.h>
 
@@ -389,6 +391,86 @@ std::string NiftiPayloadProblem(const fs::path& path) {
   return "";
 }
 
+// Spacings, offsets and srow entries beyond this (mm) are no real scan's,
+// and made ITK's direction SVD run for minutes (a fuzz_volume hang).
+constexpr double kMaxNiftiMm = 1e6;
+
+// ITK builds the image direction from these fields with vnl_svd, which
+// aborts the process on a NaN or infinity. Returns "" when every field is
+// finite and in range, else what is wrong. Analyze 7.5 headers (no NIfTI
+// magic) keep other data where the NIfTI orientation is: pixdim only.
+template <class Header>
+std::string NiftiFieldProblem(const Header& h, bool swap) {
+  const auto get = [swap](auto v) { return double(swap ? Swapped(v) : v); };
+  const bool nifti = std::memcmp(h.magic, "n+", 2) == 0 || std::memcmp(h.magic, "ni", 2) == 0;
+  std::vector<double> values, spatial;
+  for (int i = 0; i < 8; ++i) (i >= 1 && i <= 3 ? spatial : values).push_back(get(h.pixdim[i]));
+  if (nifti) {
+    for (auto v : {h.quatern_b, h.quatern_c, h.quatern_d, h.scl_slope, h.scl_inter, h.toffset}) values.push_back(get(v));
+    for (auto v : {h.qoffset_x, h.qoffset_y, h.qoffset_z}) spatial.push_back(get(v));
+    for (int i = 0; i < 4; ++i) {
+      for (auto v : {h.srow_x[i], h.srow_y[i], h.srow_z[i]}) spatial.push_back(get(v));
+    }
+  }
+  values.insert(values.end(), spatial.begin(), spatial.end());
+  if (!std::all_of(values.begin(), values.end(), [](double v) { return std::isfinite(v); })) {
+    return "the header's spacing, orientation or scaling holds a value that is not a finite number";
+  }
+  if (!std::all_of(spatial.begin(), spatial.end(), [](double v) { return std::fabs(v) <= kMaxNiftiMm; })) {
+    return fmt::format("the header's spacing, orientation or scaling holds a value beyond {:.0f} mm", kMaxNiftiMm);
+  }
+  return "";
+}
+
+// The header ITK's NIfTI reader will parse (NIfTI-1/-2 or Analyze, gz or
+// plain), read as NiftiPayloadProblem reads it; "" when it is fine or is not
+// such a header (ITK then refuses it itself).
+std::string NiftiHeaderProblem(const fs::path& path) {
+  const int fd = file_checks::OpenRegularFile(path);
+  gzFile f = fd < 0 ? nullptr : gzdopen(fd, "rb");
+  if (!f) {
+    if (fd >= 0) close(fd);
+    return "";
+  }
+  struct Close {
+    gzFile f;
+    ~Close() { gzclose(f); }
+  } close{f};
+  union {
+    nifti_1_header n1;
+    nifti_2_header n2;
+  } h;
+  if (gzread(f, &h, sizeof(nifti_1_header)) != int(sizeof(nifti_1_header))) return "";
+  const bool swap = h.n1.sizeof_hdr != 348 && h.n1.sizeof_hdr != 540;
+  const int header_size = swap ? Swapped(h.n1.sizeof_hdr) : h.n1.sizeof_hdr;
+  if (header_size == 348) return NiftiFieldProblem(h.n1, swap);
+  if (header_size != 540) return "";
+  const int rest = int(sizeof(nifti_2_header) - sizeof(nifti_1_header));
+  if (gzread(f, reinterpret_cast<char*>(&h) + sizeof(nifti_1_header), rest) != rest) return "";
+  return NiftiFieldProblem(h.n2, swap);
+}
+
+// ITK's NIfTI reader takes a file by its name (.nii, .hdr, .img, any case,
+// optionally .gz) and parses the header while ReadImageInformation runs, so
+// the header (an .img's is in the .hdr beside it) is checked before that.
+void CheckNiftiHeaders(const fs::path& path, const std::string& shown) {
+  std::string name = path.filename().string();
+  std::transform(name.begin(), name.end(), name.begin(), [](unsigned char c) { return char(std::tolower(c)); });
+  if (name.size() > 3 && name.compare(name.size() - 3, 3, ".gz") == 0) name.resize(name.size() - 3);
+  const std::string ext = name.size() > 4 ? name.substr(name.size() - 4) : "";
+  std::vector<fs::path> headers;
+  if (ext == ".nii" || ext == ".hdr") headers.push_back(path);
+  if (ext == ".img") {
+    const std::string base = path.filename().string().substr(0, name.size() - 4);
+    for (const char* hdr : {".hdr", ".HDR", ".hdr.gz", ".HDR.gz"}) headers.push_back(path.parent_path() / (base + hdr));
+  }
+  for (const fs::path& header : headers) {
+    if (header != path && !file_checks::IsRegularFile(header)) continue;
+    const std::string problem = NiftiHeaderProblem(header);
+    if (!problem.empty()) throw InputError(fmt::format("{}: {}", shown, problem));
+  }
+}
+
 
 // The byte offset just past the first `lines` lines of `text`, with line ends
 // counted as file_checks::Lines counts them ("\n", "\r" or "\r\n"); -1 when
@@ -748,6 +830,7 @@ void CheckMetaImageDataFile(itk::ImageIOBase& io, const fs::path& path, const fi
 // references were checked as `refs`.
 Volume ReadWithItk(const fs::path& path, const file_checks::References& refs, const LoadPolicy& policy,
                    const std::string& shown) {
+  CheckNiftiHeaders(path, shown);
   auto io = ReadHeader(path, shown);
   CheckHeader(shown, *io, policy.max_voxels);
   CheckMetaImageDataFile(*io, path, refs, policy, shown);

@@ -8,7 +8,9 @@
 #include <unistd.h>
 #include <zlib.h>
 
+#include <algorithm>
 #include <chrono>
+#include <cmath>
 #include <cstring>
 #include <fstream>
 #include <functional>
@@ -489,6 +491,54 @@ TEST(HostileFiles, DicomContentInAVolumeFileNeverReachesGdcm) {
     const std::string message = LoadMessage([&] { return LoadVolumeFile(dir / name, Upload()); });
     EXPECT_FALSE(message == "(loaded)") << name;
   }
+}
+
+// A NaN or infinity in a NIfTI header's orientation made ITK's vnl_svd
+// abort the process (found by fuzz_volume); huge srow values made it run for
+// minutes. Such headers are refused before ITK reads them.
+TEST(HostileFiles, NonFiniteNiftiOrientationNeverReachesItk) {
+  ScratchDir dir;
+  const std::string good = Nifti("n+1", std::string(128, '\0'));
+  const auto with = [&](const std::function<void(nifti_1_header&)>& edit) {
+    nifti_1_header h;
+    std::memcpy(&h, good.data(), sizeof h);
+    edit(h);
+    return std::string(reinterpret_cast<const char*>(&h), sizeof h) + good.substr(sizeof h);
+  };
+  const std::vector<std::pair<std::string, std::string>> cases = {
+      {with([](nifti_1_header& h) { h.sform_code = 1, h.srow_x[0] = NAN; }), "not a finite number"},
+      {with([](nifti_1_header& h) { h.qform_code = 1, h.quatern_b = INFINITY; }), "not a finite number"},
+      {with([](nifti_1_header& h) { h.pixdim[2] = NAN; }), "not a finite number"},
+      {with([](nifti_1_header& h) {
+         h.sform_code = 1;
+         for (float* row : {h.srow_x, h.srow_y, h.srow_z}) std::fill(row, row + 4, 1e38f);
+       }),
+       "beyond 1000000 mm"},
+  };
+  for (const auto& [bytes, expected] : cases) {
+    for (const char* name : {"x.nii", "x.nii.gz"}) {
+      WriteBytes(dir / name, std::string(name) == "x.nii" ? bytes : Gzip(bytes));
+      const std::string message = LoadMessage([&] { return LoadVolumeFile(dir / name, Upload()); });
+      EXPECT_TRUE(Has(message, "the header's spacing, orientation or scaling holds a value") && Has(message, expected))
+          << name << ": " << message;
+    }
+  }
+  // Byte-swapped: the same check.
+  std::string swapped = cases[0].first;
+  nifti_1_header h;
+  std::memcpy(&h, swapped.data(), sizeof h);
+  const auto swap = [](auto& v) {
+    auto* b = reinterpret_cast<unsigned char*>(&v);
+    std::reverse(b, b + sizeof v);
+  };
+  swap(h.sizeof_hdr), swap(h.sform_code), swap(h.srow_x[0]);
+  std::memcpy(swapped.data(), &h, sizeof h);
+  WriteBytes(dir / "swapped.nii", swapped);
+  EXPECT_TRUE(Has(LoadMessage([&] { return LoadVolumeFile(dir / "swapped.nii", Upload()); }), "not a finite number"));
+  WriteBytes(dir / "ok.nii", with([](nifti_1_header& h) {
+               h.sform_code = 1, h.srow_x[0] = h.srow_y[1] = h.srow_z[2] = 1, h.srow_x[3] = -1e5f;
+             }));
+  EXPECT_EQ(LoadMessage([&] { return LoadVolumeFile(dir / "ok.nii", Upload()); }), "(loaded)");
 }
 
 }  // namespace
