@@ -148,6 +148,9 @@ class DicomWalk {
       length = U32(h + 4);
       at += 8;
     }
+    // GDCM asserts on a sequence or an undefined length in the file meta
+    // group (found by fuzz_volume); the standard allows neither there.
+    if (meta && (sequence || length == 0xffffffffu)) return false;
     if (length == 0xffffffffu) {
       // Encapsulated pixel data: fragments, each an item of plain bytes.
       const bool fragments = (group == 0x7fe0 && element == 0x0010) ||
