@@ -47,17 +47,20 @@ void AddLimitOptions(CLI::App& app, ServerOptions& o) {
                                          "Largest volume upload, MiB (default 2048)")
       ->check(CLI::Range(1, 1 << 20))
       ->group("Limits");
-  limit("--max-uploads-per-principal", o.max_uploads_per_principal, "Uploads and loads one principal runs at once", 1, 1024);
+  limit("--max-uploads-per-principal", o.max_uploads_per_principal, "Uploads and loads one principal runs at once", 1,
+        1024);
   limit("--upload-idle-seconds", o.upload_idle_seconds, "An upload that sends nothing this long ends", 0.5, 3600.0);
   limit("--max-volume-voxels", v.max_voxels, "Voxels of one volume", 1ull, 1ull << 40);
   app.add_option_function<std::uint64_t>(
          "--max-volume-memory-mb", [&v](std::uint64_t mb) { v.max_total_bytes = mb << 20; },
          fmt::format("Host memory of all volumes held, MiB (default {})", v.max_total_bytes >> 20))
+      ->check(CLI::Range(1, 1 << 30))
       ->group("Limits");
   app.add_option_function<std::uint64_t>(
          "--max-upload-memory-mb", [&v](std::uint64_t mb) { v.max_upload_bytes_per_principal = mb << 20; },
          fmt::format("Host memory of one principal's uploaded volumes, MiB (default {})",
                      v.max_upload_bytes_per_principal >> 20))
+      ->check(CLI::Range(1, 1 << 30))
       ->group("Limits");
   ConnectionLimits& c = o.connections;
   limit("--max-connections", c.max_connections, "Client connections at once (about: counted in descriptors)", 16,
