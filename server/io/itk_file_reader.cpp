@@ -333,27 +333,55 @@ T Swapped(T v) {
 // Headers and NIfTI extensions before the voxels: a few KiB in real files.
 constexpr std::int64_t kMaxNiftiOffset = std::int64_t{16} << 20;
 
+// A NIfTI (or Analyze) file opened through zlib (gz or plain: zlib reads
+// both) with its header read: where both checks below start.
+struct NiftiFile {
+  gzFile f = nullptr;
+  union {
+    nifti_1_header n1;
+    nifti_2_header n2;
+  } h{};
+  bool swap = false;
+  int header_size = 0;  // 348: NIfTI-1 or Analyze; else NIfTI-2's 540 (read whole) or not NIfTI
+  NiftiFile() = default;
+  NiftiFile(const NiftiFile&) = delete;
+  NiftiFile& operator=(const NiftiFile&) = delete;
+  ~NiftiFile() {
+    if (f) gzclose(f);
+  }
+};
+
+// Opens `path` into `file`; "" or what is wrong ("cannot open", "header is truncated").
+std::string OpenNifti(const fs::path& path, NiftiFile& file) {
+  const int fd = file_checks::OpenRegularFile(path);
+  file.f = fd < 0 ? nullptr : gzdopen(fd, "rb");
+  if (!file.f) {
+    if (fd >= 0) close(fd);
+    return "cannot open";
+  }
+  auto& h = file.h;
+  if (gzread(file.f, &h, sizeof(nifti_1_header)) != int(sizeof(nifti_1_header))) return "header is truncated";
+  file.swap = h.n1.sizeof_hdr != 348 && h.n1.sizeof_hdr != 540;
+  file.header_size = file.swap ? Swapped(h.n1.sizeof_hdr) : h.n1.sizeof_hdr;
+  if (file.header_size != 348) {  // NIfTI-2, or not NIfTI at all (the readers then refuse it)
+    const int rest = int(sizeof(nifti_2_header) - sizeof(nifti_1_header));
+    if (gzread(file.f, reinterpret_cast<char*>(&h) + sizeof(nifti_1_header), rest) != rest) {
+      return "header is truncated";
+    }
+  }
+  return "";
+}
+
 // ITK's NIfTI reader pads a short payload with zeros instead of failing, so
 // the payload is counted here first (gz or plain: zlib reads both). Returns
 // "" when the file holds every voxel, else what is missing.
 std::string NiftiPayloadProblem(const fs::path& path) {
-  const int fd = file_checks::OpenRegularFile(path);
-  gzFile f = fd < 0 ? nullptr : gzdopen(fd, "rb");
-  if (!f) {
-    if (fd >= 0) close(fd);
-    return "cannot open";
-  }
-  struct Close {
-    gzFile f;
-    ~Close() { gzclose(f); }
-  } close{f};
-  union {
-    nifti_1_header n1;
-    nifti_2_header n2;
-  } h;
-  if (gzread(f, &h, sizeof(nifti_1_header)) != int(sizeof(nifti_1_header))) return "header is truncated";
-  const bool swap = h.n1.sizeof_hdr != 348 && h.n1.sizeof_hdr != 540;
-  const int header_size = swap ? Swapped(h.n1.sizeof_hdr) : h.n1.sizeof_hdr;
+  NiftiFile file;
+  if (std::string problem = OpenNifti(path, file); !problem.empty()) return problem;
+  const auto& h = file.h;
+  const bool swap = file.swap;
+  const int header_size = file.header_size;
+  gzFile f = file.f;
   std::int64_t voxels = 1, bitpix = 0, offset = 0;
   if (header_size == 348) {
     const int ndim = std::clamp<int>(swap ? Swapped(h.n1.dim[0]) : h.n1.dim[0], 1, 7);
@@ -361,8 +389,6 @@ std::string NiftiPayloadProblem(const fs::path& path) {
     bitpix = swap ? Swapped(h.n1.bitpix) : h.n1.bitpix;
     offset = std::int64_t(swap ? Swapped(h.n1.vox_offset) : h.n1.vox_offset);
   } else {
-    const int rest = int(sizeof(nifti_2_header) - sizeof(nifti_1_header));
-    if (gzread(f, reinterpret_cast<char*>(&h) + sizeof(nifti_1_header), rest) != rest) return "header is truncated";
     const int ndim = int(std::clamp<std::int64_t>(swap ? Swapped(h.n2.dim[0]) : h.n2.dim[0], 1, 7));
     for (int i = 1; i <= ndim; ++i) voxels *= swap ? Swapped(h.n2.dim[i]) : h.n2.dim[i];
     bitpix = swap ? Swapped(h.n2.bitpix) : h.n2.bitpix;
@@ -426,28 +452,11 @@ std::string NiftiFieldProblem(const Header& h, bool swap) {
 // plain), read as NiftiPayloadProblem reads it; "" when it is fine or is not
 // such a header (ITK then refuses it itself).
 std::string NiftiHeaderProblem(const fs::path& path) {
-  const int fd = file_checks::OpenRegularFile(path);
-  gzFile f = fd < 0 ? nullptr : gzdopen(fd, "rb");
-  if (!f) {
-    if (fd >= 0) close(fd);
-    return "";
-  }
-  struct Close {
-    gzFile f;
-    ~Close() { gzclose(f); }
-  } close{f};
-  union {
-    nifti_1_header n1;
-    nifti_2_header n2;
-  } h;
-  if (gzread(f, &h, sizeof(nifti_1_header)) != int(sizeof(nifti_1_header))) return "";
-  const bool swap = h.n1.sizeof_hdr != 348 && h.n1.sizeof_hdr != 540;
-  const int header_size = swap ? Swapped(h.n1.sizeof_hdr) : h.n1.sizeof_hdr;
-  if (header_size == 348) return NiftiFieldProblem(h.n1, swap);
-  if (header_size != 540) return "";
-  const int rest = int(sizeof(nifti_2_header) - sizeof(nifti_1_header));
-  if (gzread(f, reinterpret_cast<char*>(&h) + sizeof(nifti_1_header), rest) != rest) return "";
-  return NiftiFieldProblem(h.n2, swap);
+  NiftiFile file;
+  if (!OpenNifti(path, file).empty()) return "";
+  if (file.header_size == 348) return NiftiFieldProblem(file.h.n1, file.swap);
+  if (file.header_size == 540) return NiftiFieldProblem(file.h.n2, file.swap);
+  return "";
 }
 
 // ITK's NIfTI reader takes a file by its name (.nii, .hdr, .img, any case,
