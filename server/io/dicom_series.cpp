@@ -205,17 +205,11 @@ class DicomWalk {
 };
 
 bool DicomStructureIsSound(const fs::path& path) {
-  const int fd = file_checks::OpenRegularFile(path);
-  std::FILE* f = fd < 0 ? nullptr : fdopen(fd, "rb");
-  if (!f) {
-    if (fd >= 0) close(fd);
-    return false;
-  }
+  const file_checks::FileStream f = file_checks::OpenRegularStream(path);
+  if (!f) return false;
   std::error_code ec;
   const auto size = fs::file_size(path, ec);
-  const bool sound = !ec && DicomWalk(f, std::int64_t(size)).File();
-  std::fclose(f);
-  return sound;
+  return !ec && DicomWalk(f.get(), std::int64_t(size)).File();
 }
 
 // The regular files under `folder` (subfolders included, symlinked folders

@@ -218,6 +218,13 @@ int OpenRegularFile(const fs::path& path) {
   return fd;
 }
 
+FileStream OpenRegularStream(const fs::path& path) {
+  const int fd = OpenRegularFile(path);
+  std::FILE* f = fd < 0 ? nullptr : fdopen(fd, "rb");
+  if (!f && fd >= 0) close(fd);
+  return {f, &std::fclose};
+}
+
 std::string ReadHead(const fs::path& path, std::size_t limit, const std::string& shown) {
   const int fd = OpenRegularFile(path);
   if (fd < 0) throw InputError(fmt::format("{}: not a regular file that can be read", shown));

@@ -5,7 +5,9 @@
 #pragma once
 
 #include <cstddef>
+#include <cstdio>
 #include <filesystem>
+#include <memory>
 #include <string>
 #include <vector>
 
@@ -31,6 +33,10 @@ void RequireRegularFile(const std::filesystem::path& path, const std::string& sh
 // type is checked on the open descriptor, so a file swapped after
 // IsRegularFile is refused too). Returns -1 if it cannot.
 int OpenRegularFile(const std::filesystem::path& path);
+
+// OpenRegularFile as a stdio stream, closed when dropped; null if it cannot.
+using FileStream = std::unique_ptr<std::FILE, int (*)(std::FILE*)>;
+FileStream OpenRegularStream(const std::filesystem::path& path);
 
 // At most `limit` bytes from the start of a regular file.
 std::string ReadHead(const std::filesystem::path& path, std::size_t limit, const std::string& shown);

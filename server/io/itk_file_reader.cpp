@@ -522,18 +522,9 @@ std::string NrrdPayloadProblem(itk::ImageIOBase& io, const fs::path& path, const
     (key == "byteskip" ? byte_skip : line_skip) = n;
   }
   const fs::path data = h.attached ? path : h.references.files.front();
-  const int fd = file_checks::OpenRegularFile(data);
-  std::FILE* f = fd < 0 ? nullptr : fdopen(fd, "rb");
-  if (!f) {
-    if (fd >= 0) close(fd);
-    return "cannot read the file that 'data file' names";
-  }
-  struct Close {
-    std::FILE* f;
-    ~Close() {
-      if (f) std::fclose(f);
-    }
-  } closer{f};
+  const file_checks::FileStream stream = file_checks::OpenRegularStream(data);
+  if (!stream) return "cannot read the file that 'data file' names";
+  std::FILE* f = stream.get();
   // Where the data begin: past the header's lines (attached) and `line skip` lines.
   std::int64_t start = 0;
   if (h.attached) {
@@ -700,16 +691,9 @@ std::int64_t MetaLocalDataStart(const fs::path& path) {
 // Returns "" when the stream holds every voxel, else what is wrong.
 std::string MetaCompressedProblem(const fs::path& data, std::int64_t start, std::int64_t length,
                                   std::int64_t expected, const std::string& shown_data) {
-  const int fd = file_checks::OpenRegularFile(data);
-  std::FILE* f = fd < 0 ? nullptr : fdopen(fd, "rb");
-  if (!f) {
-    if (fd >= 0) close(fd);
-    return "cannot read the file that ElementDataFile names";
-  }
-  struct Close {
-    std::FILE* f;
-    ~Close() { std::fclose(f); }
-  } closer{f};
+  const file_checks::FileStream stream = file_checks::OpenRegularStream(data);
+  if (!stream) return "cannot read the file that ElementDataFile names";
+  std::FILE* f = stream.get();
   if (std::fseek(f, long(start), SEEK_SET) != 0) return "cannot read the data";
   z_stream z{};
   // 47: zlib or gzip headers, as MetaIO inflates.
