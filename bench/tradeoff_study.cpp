@@ -74,13 +74,13 @@ float VolumeRadius(const Volume& volume) { return 0.5f * Length(volume.extent_mm
 
 // An area key light above and beside the view, as the presets place it.
 Light KeyLight(const Volume& volume) {
-  const v1::Scene preset = MakePresetScene("ct-bone", volume.extent_mm());
+  const v1::Scene preset = MakePresetScene("ct-bone", volume);
   return ResolveLights(preset.lights()).lights.front();
 }
 
 EnvironmentSetup SceneEnvironment(const RenderSetup& base, const Volume& volume) {
   if (base.lights.environment.kind != Environment::Kind::kNone) return base.lights.environment;
-  return ResolveLights(MakePresetScene("ct-bone", volume.extent_mm()).lights()).environment;
+  return ResolveLights(MakePresetScene("ct-bone", volume).lights()).environment;
 }
 
 // Several thin semi-transparent shells at values spread over the volume's range.

@@ -24,6 +24,7 @@ struct Light {
   Vec3f direction;       // directional: the direction light travels
   Vec3f emitted;         // area: radiance; point: radiant intensity; directional: irradiance
   std::int32_t two_sided = 0;
+  std::int32_t visible = 0;  // area: seen by camera rays
 };
 
 // A piecewise-constant 2D distribution over the map's texels (pbrt's
@@ -45,6 +46,7 @@ struct Environment {
   Vec3f ground;   // gradient only: away from up
   Vec3f up{0, 0, 1};
   float rotation = 0;  // map: radians about +z
+  std::int32_t visible = 1;  // seen by camera rays as the background
   EnvironmentMapView map;
 };
 
@@ -55,6 +57,7 @@ struct EnvironmentSetup {
   Vec3f zenith, horizon, ground;  // as in Environment, intensity applied
   Vec3f up{0, 0, 1};
   float rotation = 0;  // radians
+  bool visible = true;  // as the background
   ImageRgbF map;       // kMap: equirectangular radiance, intensity applied
 };
 

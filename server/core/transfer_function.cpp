@@ -31,6 +31,14 @@ TransferPoint Evaluate(const TransferFunction& tf, float value) {
   return Mix(a, b, (value - a.value) / (b.value - a.value));
 }
 
+float MaxOpacity(const TransferFunction& tf, float lo, float hi) {
+  float best = std::max(Evaluate(tf, lo).opacity, Evaluate(tf, hi).opacity);
+  for (const TransferPoint& p : tf.points) {
+    if (p.value > lo && p.value < hi) best = std::max(best, p.opacity);
+  }
+  return best;
+}
+
 TransferTable BuildTransferTable(const TransferFunction& tf, float value_min, float value_max) {
   TransferTable t;
   t.value_min = value_min;

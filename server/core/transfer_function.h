@@ -27,6 +27,9 @@ struct TransferFunction {
 // Evaluates the piecewise-linear function at `value`: constant beyond the ends.
 TransferPoint Evaluate(const TransferFunction& tf, float value);
 
+// The largest opacity the function takes over [lo, hi].
+float MaxOpacity(const TransferFunction& tf, float lo, float hi);
+
 // The transfer function sampled at `kEntries` values evenly spaced over
 // [value_min, value_max] (the volume's range). The renderer interpolates
 // linearly between entries; the majorant grid bounds extinction from the

@@ -8,6 +8,7 @@
 #include <fmt/format.h>
 
 #include "core/error.h"
+#include "core/parallel_for.h"
 
 namespace cinevol {
 
@@ -58,6 +59,25 @@ std::size_t SanitiseNonFinite(std::vector<float>& values, float& lo, float& hi) 
   return bad;
 }
 
+std::vector<Volume::ValueRange> BlockRanges(const std::vector<float>& values, Vec3i dims, Vec3i blocks) {
+  std::vector<Volume::ValueRange> ranges(std::size_t(blocks.x) * blocks.y * blocks.z,
+                                         {std::numeric_limits<float>::max(), std::numeric_limits<float>::lowest()});
+  const int b = Volume::kBlockSize;
+  ParallelFor(blocks.z, [&](std::int64_t bz) {  // one slab of blocks per task
+    for (int z = int(bz) * b; z < std::min(dims.z, int(bz + 1) * b); ++z) {
+      for (int y = 0; y < dims.y; ++y) {
+        const float* row = values.data() + (std::size_t(z) * dims.y + y) * dims.x;
+        Volume::ValueRange* out = ranges.data() + (std::size_t(bz) * blocks.y + y / b) * blocks.x;
+        for (int x = 0; x < dims.x; ++x) {
+          out[x / b].lo = std::min(out[x / b].lo, row[x]);
+          out[x / b].hi = std::max(out[x / b].hi, row[x]);
+        }
+      }
+    }
+  });
+  return ranges;
+}
+
 bool AllIntegers(const std::vector<float>& values) {
   return std::all_of(values.begin(), values.end(), [](float v) { return v == std::nearbyint(v); });
 }
@@ -72,6 +92,8 @@ Volume::Volume(Vec3i dims, Vec3f spacing_mm, std::vector<float> values, VolumeMe
                                  values.size(), dims.x, dims.y, dims.z));
   }
   metadata_.non_finite_replaced = SanitiseNonFinite(values, min_value_, max_value_);
+  histogram_ = ValueHistogram::Of(values, min_value_, max_value_);
+  block_ranges_ = BlockRanges(values, dims_, block_counts());
 
   const bool fits_u16 = double(max_value_) - double(min_value_) <= 65535.0;
   if (fits_u16 && AllIntegers(values)) {
@@ -85,6 +107,11 @@ Volume::Volume(Vec3i dims, Vec3f spacing_mm, std::vector<float> values, VolumeMe
     storage_ = VoxelStorage::kFloat32;
     f32_ = std::move(values);
   }
+}
+
+Vec3i Volume::block_counts() const {
+  return {(dims_.x + kBlockSize - 1) / kBlockSize, (dims_.y + kBlockSize - 1) / kBlockSize,
+          (dims_.z + kBlockSize - 1) / kBlockSize};
 }
 
 std::size_t Volume::voxel_count() const {

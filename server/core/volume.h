@@ -8,6 +8,7 @@
 #include <string>
 #include <vector>
 
+#include "core/value_histogram.h"
 #include "core/vec.h"
 
 namespace cinevol {
@@ -61,6 +62,17 @@ class Volume {
   float ValueAtIndex(std::size_t i) const;
   std::size_t MemoryBytes() const;
 
+  const ValueHistogram& histogram() const { return histogram_; }
+
+  // The value range of each block of kBlockSize^3 voxels (x fastest), so
+  // finding what a transfer function shows need not visit every voxel.
+  struct ValueRange {
+    float lo, hi;
+  };
+  static constexpr int kBlockSize = 8;
+  Vec3i block_counts() const;
+  const std::vector<ValueRange>& block_ranges() const { return block_ranges_; }
+
  private:
   Vec3i dims_;
   Vec3f spacing_mm_;
@@ -70,6 +82,8 @@ class Volume {
   float stored_offset_ = 0.0f;
   float min_value_ = 0.0f;
   float max_value_ = 0.0f;
+  ValueHistogram histogram_;
+  std::vector<ValueRange> block_ranges_;
   VolumeMetadata metadata_;
 };
 

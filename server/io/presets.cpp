@@ -1,98 +1,75 @@
-// The preset tables. Values for CT follow the usual HU windows: lung
-// parenchyma about -850, fat -100, soft tissue 20..60, contrast-filled vessels
-// 200..500, bone 300..2000.
+// Presets onto volumes, default presets by kind, and the preset scene.
 #include "io/presets.h"
+
+#include <cmath>
 
 #include <fmt/format.h>
 
 #include "core/error.h"
+#include "io/scene_builder.h"
+#include "io/volume_kind.h"
 
 namespace cinevol {
 namespace {
 
-struct Rgb {
-  float r, g, b;
-};
-
-struct Point {
-  float value, opacity;
-  Rgb diffuse;
-  float specular, roughness;
-};
-
-struct Preset {
-  const char* name;
-  bool relative;  // values are fractions of the volume's range (MR)
-  float density_scale, gradient_factor;
-  std::vector<Point> points;
-};
-
-const std::vector<Preset>& Presets() {
-  constexpr Rgb kBone{0.92f, 0.88f, 0.78f}, kSkin{0.90f, 0.62f, 0.52f}, kFat{0.95f, 0.82f, 0.6f},
-      kMuscle{0.78f, 0.32f, 0.28f}, kBlood{0.85f, 0.15f, 0.12f}, kLung{0.88f, 0.72f, 0.68f},
-      kGrey{0.85f, 0.8f, 0.75f};
-  static const std::vector<Preset> presets = {
-      {"ct-bone", false, 2.0f, 2.0f,
-       {{100, 0, kBone, 0, 0.5f}, {250, 0.3f, kBone, 0.15f, 0.5f}, {500, 1, kBone, 0.2f, 0.4f},
-        {2000, 1, kBone, 0.2f, 0.4f}}},
-      {"ct-soft-tissue", false, 0.5f, 1.5f,
-       {{-300, 0, kFat, 0, 0.6f}, {-100, 0.02f, kFat, 0.05f, 0.6f}, {-20, 0.05f, kSkin, 0.1f, 0.5f},
-        {40, 0.4f, kSkin, 0.1f, 0.5f}, {120, 0.4f, kMuscle, 0.1f, 0.5f},
-        {250, 0.8f, kBone, 0.2f, 0.4f}, {1000, 1, kBone, 0.2f, 0.4f}}},
-      {"ct-vessels", false, 2.0f, 1.5f,
-       {{120, 0, kBlood, 0, 0.4f}, {220, 0.6f, kBlood, 0.3f, 0.3f}, {500, 1, kBlood, 0.3f, 0.3f},
-        {700, 1, kBone, 0.2f, 0.4f}, {2000, 1, kBone, 0.2f, 0.4f}}},
-      {"ct-lung", false, 1.0f, 1.0f,
-       {{-1000, 0, kLung, 0, 0.6f}, {-900, 0, kLung, 0, 0.6f}, {-800, 0.04f, kLung, 0.05f, 0.6f},
-        {-500, 0.08f, kLung, 0.05f, 0.6f}, {-300, 0, kLung, 0, 0.6f}, {0, 0, kBlood, 0, 0.5f},
-        {150, 0.6f, kBlood, 0.2f, 0.4f}, {400, 0.9f, kBone, 0.2f, 0.4f}}},
-      {"mr-default", true, 1.0f, 1.0f,
-       {{0.08f, 0, kGrey, 0, 0.6f}, {0.2f, 0.05f, kGrey, 0.05f, 0.6f},
-        {0.5f, 0.5f, kGrey, 0.1f, 0.5f}, {1.0f, 0.9f, kGrey, 0.1f, 0.5f}}},
-  };
-  return presets;
-}
-
-const Preset* Find(std::string_view name) {
-  for (const Preset& p : Presets()) {
+const PresetDefinition* Find(std::string_view name) {
+  for (const PresetDefinition& p : PresetLibrary()) {
     if (name == p.name) return &p;
   }
   return nullptr;
 }
 
-void SetColor(v1::Color* c, Rgb rgb) {
+void SetColor(v1::Color* c, PresetColor rgb) {
   c->set_r(rgb.r);
   c->set_g(rgb.g);
   c->set_b(rgb.b);
+}
+
+void SetVec(v1::Vec3* v, Vec3f p) {
+  v->set_x(p.x);
+  v->set_y(p.y);
+  v->set_z(p.z);
 }
 
 }  // namespace
 
 std::vector<std::string> PresetNames() {
   std::vector<std::string> names;
-  for (const Preset& p : Presets()) names.emplace_back(p.name);
+  for (const PresetDefinition& p : PresetLibrary()) names.emplace_back(p.name);
   return names;
 }
 
 bool IsPreset(std::string_view name) { return Find(name) != nullptr; }
 
-v1::TransferFunction MakePreset(std::string_view name, float min_value, float max_value) {
-  const Preset* preset = Find(name);
+const PresetDefinition& FindPreset(std::string_view name) {
+  const PresetDefinition* preset = Find(name);
   if (!preset) {
     throw InputError(fmt::format("unknown transfer-function preset '{}': use {}", name,
                                  fmt::join(PresetNames(), ", ")));
   }
+  return *preset;
+}
+
+ValueWindow AutoWindow(const ValueHistogram& histogram) {
+  ValueWindow w{histogram.OtsuThreshold(), 0};
+  w.hi = histogram.Percentile(0.995, w.lo);
+  if (!(w.hi > w.lo)) w.hi = histogram.max_value > w.lo ? histogram.max_value : w.lo + 1.0f;
+  return w;
+}
+
+v1::TransferFunction MakePreset(std::string_view name, ValueWindow window) {
+  const PresetDefinition& preset = FindPreset(name);
   v1::TransferFunction tf;
-  tf.set_preset(preset->name);
-  tf.set_density_scale(preset->density_scale);
-  tf.set_gradient_factor(preset->gradient_factor);
+  tf.set_preset(preset.name);
+  tf.set_density_scale(preset.density_scale);
+  tf.set_gradient_factor(preset.gradient_factor);
   tf.set_phase_g(0.0f);
-  const float range = max_value > min_value ? max_value - min_value : 1.0f;
+  const bool windowed = preset.scale == PresetScale::kWindow;
   float previous = -INFINITY;
-  for (const Point& p : preset->points) {
+  for (const PresetPoint& p : preset.points) {
     auto* out = tf.add_points();
-    float value = preset->relative ? min_value + p.value * range : p.value;
-    // A degenerate range must still give strictly increasing points.
+    float value = windowed ? window.lo + p.value * (window.hi - window.lo) : p.value;
+    // A degenerate window must still give strictly increasing points.
     value = std::max(value, std::nextafter(previous, INFINITY));
     previous = value;
     out->set_value(value);
@@ -100,35 +77,49 @@ v1::TransferFunction MakePreset(std::string_view name, float min_value, float ma
     SetColor(out->mutable_diffuse(), p.diffuse);
     SetColor(out->mutable_specular(), {p.specular, p.specular, p.specular});
     out->set_roughness(p.roughness);
-    SetColor(out->mutable_emission(), {0, 0, 0});
+    SetColor(out->mutable_emission(), p.emission);
   }
   return tf;
 }
 
-v1::Scene MakePresetScene(std::string_view preset, Vec3f extent_mm) {
-  if (!IsPreset(preset)) MakePreset(preset, 0, 1);  // throws, naming the presets
+std::string DefaultPreset(v1::VolumeKind kind) {
+  switch (kind) {
+    case v1::CT_HU: return "ct-bone";
+    case v1::CT_SCALED: return "ct-auto";
+    case v1::MR: return "mr-default";
+    default: return "auto";
+  }
+}
+
+std::string DefaultPreset(const Volume& volume) { return DefaultPreset(JudgeVolumeKind(volume).kind); }
+
+v1::Scene MakePresetScene(std::string_view preset, const Volume& volume) {
+  FindPreset(preset);  // throws, naming the presets
   v1::Scene scene;
   scene.mutable_transfer_function()->set_preset(std::string(preset));
   scene.mutable_camera()->set_view(v1::ANTERIOR);
   scene.mutable_camera()->set_fov_y_deg(30.0f);
-  // The key light of examples/ct-bone.json, set for a 256 mm head: scaling
-  // its position and size together keeps the irradiance it gives.
-  const float s = Length(extent_mm) / Length(Vec3f{256, 256, 256});
-  auto set = [s](v1::Vec3* v, float x, float y, float z) {
-    v->set_x(x * s);
-    v->set_y(y * s);
-    v->set_z(z * s);
-  };
+  // The key light sits above the viewer's left and in front, at 2.75 times
+  // the volume's bounding radius; its edges scale with that distance, so the
+  // solid angle it fills, and the light it gives, are the same for any
+  // volume (the light of examples/ct-bone.json on its 256 mm head).
+  const ViewDirections view = NamedViewDirections(v1::ANTERIOR, volume);
+  const Vec3f right = Normalize(Cross(-view.to_eye, view.up));
+  const float radius = 0.5f * Length(volume.extent_mm());
+  const Vec3f towards_light = Normalize(right * -0.55f + view.up * 0.6f + view.to_eye * 0.6f);
+  const Vec3f edge_u = Normalize(Cross(towards_light, view.up)), edge_v = Cross(edge_u, towards_light);
+  const float size = 0.86f * radius;  // front face, edge_u x edge_v, towards the volume
   v1::AreaLight* key = scene.add_lights()->mutable_area();
-  set(key->mutable_center(), -300, -400, 350);
-  set(key->mutable_edge_u(), 70, 100, 150);
-  set(key->mutable_edge_v(), 150, -110, 0);
+  SetVec(key->mutable_center(), towards_light * (2.75f * radius));
+  SetVec(key->mutable_edge_u(), edge_u * size);
+  SetVec(key->mutable_edge_v(), edge_v * size);
   SetColor(key->mutable_color(), {1.0f, 0.95f, 0.9f});
   key->set_intensity(40);
   v1::EnvironmentLight* sky = scene.add_lights()->mutable_environment();
   SetColor(sky->mutable_gradient()->mutable_zenith(), {0.16f, 0.18f, 0.22f});
   SetColor(sky->mutable_gradient()->mutable_horizon(), {0.1f, 0.1f, 0.11f});
   SetColor(sky->mutable_gradient()->mutable_ground(), {0.03f, 0.03f, 0.03f});
+  SetVec(sky->mutable_gradient()->mutable_up(), view.up);
   sky->set_intensity(1);
   return scene;
 }

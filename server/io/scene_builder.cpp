@@ -12,68 +12,68 @@ namespace {
 Vec3f ToVec(const v1::Vec3& v) { return {v.x(), v.y(), v.z()}; }
 Vec3f ToColor(const v1::Color& c) { return {c.r(), c.g(), c.b()}; }
 
-// A patient direction (LPS) in the volume's index space, which is world space
-// for rendering: the transpose of the direction cosines maps LPS to index.
+// The default camera fills this fraction of the viewport's shorter side.
+constexpr float kFramingFill = 0.8f;
+
+}  // namespace
+
 Vec3f PatientToWorld(const Volume& volume, Vec3f lps) {
+  // The transpose of the direction cosines maps LPS to index space, which is
+  // world space for rendering.
   const auto& d = volume.metadata().direction;
   Vec3f w;
   for (int c = 0; c < 3; ++c) w[c] = float(d[0 * 3 + c] * lps.x + d[1 * 3 + c] * lps.y + d[2 * 3 + c] * lps.z);
   return Normalize(w);
 }
 
-// Where the eye sits (as a patient direction) and which way is up on screen.
-// Lateral and frontal views keep the head up; axial views put anterior up and
-// the patient's right on the viewer's left, as radiologists read them.
-void NamedViewDirections(v1::NamedView view, Vec3f& eye_side, Vec3f& up) {
+ViewDirections NamedViewDirections(v1::NamedView view, const Volume& volume) {
+  // Lateral and frontal views keep the head up; axial views put anterior up
+  // and the patient's right on the viewer's left, as radiologists read them.
   const Vec3f kLeft{1, 0, 0}, kPosterior{0, 1, 0}, kSuperior{0, 0, 1};
-  up = kSuperior;
+  Vec3f to_eye = -kPosterior, up = kSuperior;
   switch (view) {
-    case v1::POSTERIOR: eye_side = kPosterior; break;
-    case v1::LEFT: eye_side = kLeft; break;
-    case v1::RIGHT: eye_side = -kLeft; break;
-    case v1::SUPERIOR: eye_side = kSuperior; up = -kPosterior; break;
-    case v1::INFERIOR: eye_side = -kSuperior; up = -kPosterior; break;
-    default: eye_side = -kPosterior; break;  // ANTERIOR
+    case v1::POSTERIOR: to_eye = kPosterior; break;
+    case v1::LEFT: to_eye = kLeft; break;
+    case v1::RIGHT: to_eye = -kLeft; break;
+    case v1::SUPERIOR: to_eye = kSuperior; up = -kPosterior; break;
+    case v1::INFERIOR: to_eye = -kSuperior; up = -kPosterior; break;
+    default: break;  // ANTERIOR
   }
+  return {PatientToWorld(volume, to_eye), PatientToWorld(volume, up)};
 }
 
-// The world-space box around the voxels the transfer function shows
-// (opacity > 0), sampled on a grid of at most ~64^3 voxels; the whole volume
-// when nothing shows.
-void VisibleBounds(const Volume& volume, const TransferFunction& tf, Vec3f& lo, Vec3f& hi) {
-  const Vec3i d = volume.dims();
+Box VisibleBounds(const Volume& volume, const TransferFunction& tf) {
+  const Vec3i blocks = volume.block_counts();
   const Vec3f half = volume.extent_mm() * 0.5f;
-  Vec3i step;
-  for (int a = 0; a < 3; ++a) step[a] = std::max(1, d[a] / 64);
-  Vec3i first = d, last{-1, -1, -1};
-  for (int z = 0; z < d.z; z += step.z) {
-    for (int y = 0; y < d.y; y += step.y) {
-      for (int x = 0; x < d.x; x += step.x) {
-        if (Evaluate(tf, volume.Value(x, y, z)).opacity <= 0.0f) continue;
-        const Vec3i v{x, y, z};
+  Vec3i first = blocks, last{-1, -1, -1};
+  std::size_t i = 0;
+  for (int z = 0; z < blocks.z; ++z) {
+    for (int y = 0; y < blocks.y; ++y) {
+      for (int x = 0; x < blocks.x; ++x, ++i) {
+        const Volume::ValueRange r = volume.block_ranges()[i];
+        if (MaxOpacity(tf, r.lo, r.hi) <= 0.0f) continue;
+        const Vec3i b{x, y, z};
         for (int a = 0; a < 3; ++a) {
-          first[a] = std::min(first[a], v[a]);
-          last[a] = std::max(last[a], v[a]);
+          first[a] = std::min(first[a], b[a]);
+          last[a] = std::max(last[a], b[a]);
         }
       }
     }
   }
-  if (last.x < 0) {
-    lo = -half;
-    hi = half;
-    return;
+  if (last.x < 0) return {-half, half};
+  Box box;
+  for (int a = 0; a < 3; ++a) {
+    const float block_mm = Volume::kBlockSize * volume.spacing_mm()[a];
+    box.lo[a] = first[a] * block_mm - half[a];
+    box.hi[a] = std::min((last[a] + 1) * block_mm, 2 * half[a]) - half[a];
   }
-  for (int a = 0; a < 3; ++a) {  // widen by one sampling step: the grid may miss the edges
-    lo[a] = std::max(0, first[a] - step[a]) * volume.spacing_mm()[a] - half[a];
-    hi[a] = std::min(d[a], last[a] + step[a] + 1) * volume.spacing_mm()[a] - half[a];
-  }
+  return box;
 }
 
-}  // namespace
-
 TransferFunction ResolveTransferFunction(const v1::TransferFunction& proto, const Volume& volume) {
+  const std::string preset = proto.preset().empty() ? DefaultPreset(volume) : proto.preset();
   const v1::TransferFunction expanded =
-      proto.points().empty() ? MakePreset(proto.preset(), volume.min_value(), volume.max_value()) : proto;
+      proto.points().empty() ? MakePreset(preset, AutoWindow(volume.histogram())) : proto;
   TransferFunction tf;
   for (const auto& p : expanded.points()) {
     tf.points.push_back({p.value(), p.opacity(), ToColor(p.diffuse()), ToColor(p.specular()), p.roughness(),
@@ -88,24 +88,35 @@ TransferFunction ResolveTransferFunction(const v1::TransferFunction& proto, cons
   return tf;
 }
 
+float FramingDistance(const Box& box, const ViewDirections& view, float fov_y_deg, float aspect) {
+  // Every corner of the box must project inside kFramingFill of the
+  // viewport: |x| <= k_x (D - z) and |y| <= k_y (D - z), z towards the eye.
+  const Vec3f right = Normalize(Cross(-view.to_eye, view.up));
+  const Vec3f up = Cross(right, -view.to_eye);
+  const float k_y = kFramingFill * std::tan(0.5f * fov_y_deg * kPi / 180.0f), k_x = k_y * aspect;
+  const Vec3f centre = (box.lo + box.hi) * 0.5f;
+  float distance = 0;
+  for (int corner = 0; corner < 8; ++corner) {
+    const Vec3f p{corner & 1 ? box.hi.x : box.lo.x, corner & 2 ? box.hi.y : box.lo.y,
+                  corner & 4 ? box.hi.z : box.lo.z};
+    const Vec3f o = p - centre;
+    const float fit = std::max(std::abs(Dot(o, right)) / k_x, std::abs(Dot(o, up)) / k_y);
+    distance = std::max(distance, fit + Dot(o, view.to_eye));
+  }
+  return std::max(distance, 1e-3f + 0.5f * Length(box.hi - box.lo));  // never inside the box
+}
+
 Camera ResolveCamera(const v1::Camera& proto, const v1::RenderSettings& render, const Volume& volume,
                      const TransferFunction& tf) {
   const int width = static_cast<int>(render.width()), height = static_cast<int>(render.height());
   const float fov = proto.fov_y_deg();
   Vec3f eye, target, up{0, 0, 1};
   if (proto.view() != v1::NAMED_VIEW_UNSPECIFIED) {
-    Vec3f side, up_lps;
-    NamedViewDirections(proto.view(), side, up_lps);
-    // Frame what the transfer function shows: back off until its bounding
-    // sphere fits the narrower field of view.
-    Vec3f lo, hi;
-    VisibleBounds(volume, tf, lo, hi);
-    target = (lo + hi) * 0.5f;
-    const float radius = 0.5f * Length(hi - lo);
-    const float half_fov_y = 0.5f * fov * kPi / 180.0f;
-    const float half_fov = std::min(half_fov_y, std::atan(std::tan(half_fov_y) * width / height));
-    eye = target + PatientToWorld(volume, side) * (1.02f * radius / std::sin(half_fov));
-    up = PatientToWorld(volume, up_lps);
+    const ViewDirections view = NamedViewDirections(proto.view(), volume);
+    const Box box = VisibleBounds(volume, tf);
+    target = (box.lo + box.hi) * 0.5f;
+    up = view.up;
+    eye = target + view.to_eye * FramingDistance(box, view, fov, float(width) / float(height));
   } else {
     eye = ToVec(proto.eye());
     target = ToVec(proto.target());
@@ -135,6 +146,7 @@ LightSetup ResolveLights(const google::protobuf::RepeatedPtrField<v1::Light>& li
         light.normal = n / light.area;
         light.emitted = ToColor(a.color()) * a.intensity();
         light.two_sided = a.two_sided();
+        light.visible = a.visible();
         break;
       }
       case v1::Light::kPoint:
@@ -151,6 +163,7 @@ LightSetup ResolveLights(const google::protobuf::RepeatedPtrField<v1::Light>& li
         const auto& e = l.environment();
         EnvironmentSetup& env = setup.environment;
         const float k = e.intensity();
+        env.visible = !e.has_visible() || e.visible();
         if (e.has_uniform()) {
           env.kind = Environment::Kind::kUniform;
           env.zenith = ToColor(e.uniform()) * k;

@@ -21,8 +21,31 @@ struct RenderSetup {
   float exposure = 0;  // stops, applied by the tone mapper
 };
 
+// A named view in world space: the direction from the volume to the eye
+// and the screen's up.
+struct ViewDirections {
+  Vec3f to_eye, up;
+};
+ViewDirections NamedViewDirections(v1::NamedView view, const Volume& volume);
+
+// A patient (LPS) direction in world space, through the volume's direction cosines.
+Vec3f PatientToWorld(const Volume& volume, Vec3f lps);
+
+struct Box {
+  Vec3f lo, hi;
+};
+
+// The world box around the blocks of voxels `tf` gives any opacity; the
+// whole volume when it shows nothing.
+Box VisibleBounds(const Volume& volume, const TransferFunction& tf);
+
+// How far from the box's centre the eye of `view` sits so that the box fills
+// 80% of the viewport's shorter side.
+float FramingDistance(const Box& box, const ViewDirections& view, float fov_y_deg, float aspect);
+
+// With neither points nor a preset, the volume's default preset.
 TransferFunction ResolveTransferFunction(const v1::TransferFunction& tf, const Volume& volume);
-// Named views frame what `tf` shows of the volume.
+// Named views frame what `tf` shows of the volume (FramingDistance).
 Camera ResolveCamera(const v1::Camera& camera, const v1::RenderSettings& render, const Volume& volume,
                      const TransferFunction& tf);
 LightSetup ResolveLights(const google::protobuf::RepeatedPtrField<v1::Light>& lights);

@@ -89,12 +89,8 @@ void ValidateVolume(const v1::VolumeSource& v, Problems& p) {
 
 void ValidateTransferFunction(const v1::TransferFunction& tf, Problems& p) {
   const std::string f = "transferFunction";
-  if (tf.points().empty()) {
-    if (tf.preset().empty()) {
-      p.Add(f + ".points", "no control points and no preset");
-    } else if (!IsPreset(tf.preset())) {
-      p.Add(f + ".preset", fmt::format("unknown preset '{}'", tf.preset()));
-    }
+  if (tf.points().empty() && !tf.preset().empty() && !IsPreset(tf.preset())) {
+    p.Add(f + ".preset", fmt::format("unknown preset '{}'", tf.preset()));
   }
   for (int i = 0; i < tf.points_size(); ++i) {
     const auto& pt = tf.points(i);

@@ -186,7 +186,7 @@ class PathTracer {
     Vec3f sum{};
     for (int i = 0; i < s_.light_count; ++i) {
       const Light& light = s_.lights[i];
-      if (light.kind != LightKind::kArea) continue;
+      if (light.kind != LightKind::kArea || (from_camera && !light.visible)) continue;
       Vec3f radiance;
       float light_pdf;
       if (!IntersectAreaLight(light, ray.origin, ray.direction, t_max, radiance, light_pdf)) continue;
@@ -196,7 +196,7 @@ class PathTracer {
   }
 
   CINEVOL_HD Vec3f EscapedRadiance(Vec3f d, float scatter_pdf, bool from_camera) const {
-    if (s_.environment.kind == Environment::Kind::kNone) return {};
+    if (s_.environment.kind == Environment::Kind::kNone || (from_camera && !s_.environment.visible)) return {};
     const Vec3f radiance = EnvironmentRadiance<kWithMap>(s_.environment, d);
     if (from_camera) return radiance;
     return radiance * PowerHeuristic(scatter_pdf, LightSelectionPdf() * EnvironmentPdf<kWithMap>(s_.environment, d));

@@ -189,6 +189,7 @@ RenderScene SceneData::HostView() const {
   s.environment.ground = env.ground;
   s.environment.up = env.up;
   s.environment.rotation = env.rotation;
+  s.environment.visible = env.visible;
   if (env.kind == Environment::Kind::kMap) {
     s.environment.map = {environment_.texels.data(), environment_.marginal_cdf.data(),
                          environment_.conditional_cdf.data(), environment_.weight.data(),

@@ -120,12 +120,12 @@ v1::Scene InitialScene(const v1::CreateSessionRequest& request, const Volume& vo
     case v1::CreateSessionRequest::kScene: scene = request.scene(); break;
     case v1::CreateSessionRequest::kPreset:
       try {
-        scene = MakePresetScene(request.preset(), volume.extent_mm());
+        scene = MakePresetScene(request.preset(), volume);
       } catch (const InputError& e) {
         throw InputError(fmt::format("preset: {}", e.what()));
       }
       break;
-    default: throw InputError("scene: neither a scene nor a preset given");
+    default: scene = MakePresetScene(DefaultPreset(volume), volume); break;
   }
   scene.clear_volume();  // the session renders volume_id
   scene.mutable_render()->set_width(request.viewport().width());

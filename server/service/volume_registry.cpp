@@ -8,6 +8,8 @@
 #include <algorithm>
 
 #include "core/error.h"
+#include "io/presets.h"
+#include "io/volume_kind.h"
 #include "io/volume_loader.h"
 #include "service/errors.h"
 #include "service/log_safe.h"
@@ -237,6 +239,14 @@ v1::VolumeInfo VolumeRegistry::InfoLocked(const std::string& id, const Entry& e)
   info.set_max_value(v.max_value());
   info.set_memory_bytes(v.MemoryBytes());
   info.set_sessions(e.leases);
+  const VolumeKindJudgement kind = JudgeVolumeKind(v);
+  info.set_kind(kind.kind);
+  info.set_kind_reason(kind.reason);
+  info.set_default_preset(DefaultPreset(kind.kind));
+  const ValueHistogram& h = v.histogram();
+  info.mutable_histogram()->set_min_value(h.min_value);
+  info.mutable_histogram()->set_max_value(h.max_value);
+  info.mutable_histogram()->mutable_counts()->Add(h.counts.begin(), h.counts.end());
   return info;
 }
 
@@ -249,7 +259,10 @@ std::vector<v1::VolumeInfo> VolumeRegistry::List(const Principal& caller) const 
   std::lock_guard lock(mu_);
   std::vector<v1::VolumeInfo> list;
   for (const auto& [id, e] : volumes_) {
-    if (!e.upload || caller.is_operator || e.owner == caller.name) list.push_back(InfoLocked(id, e));
+    if (!e.upload || caller.is_operator || e.owner == caller.name) {
+      list.push_back(InfoLocked(id, e));
+      list.back().clear_histogram();  // lists stay small
+    }
   }
   return list;
 }

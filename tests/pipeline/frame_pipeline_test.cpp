@@ -24,7 +24,7 @@ std::shared_ptr<const Volume> SmallHead() {
 }
 
 v1::Scene SmallScene(const Volume& volume, int width = 48, int height = 32) {
-  v1::Scene scene = MakePresetScene("ct-bone", volume.extent_mm());
+  v1::Scene scene = MakePresetScene("ct-bone", volume);
   scene.mutable_render()->set_width(width);
   scene.mutable_render()->set_height(height);
   scene.mutable_render()->set_spp(2);
