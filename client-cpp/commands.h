@@ -12,5 +12,7 @@ void AddLoadtestCommand(CLI::App& app);
 void AddPlayCommand(CLI::App& app);
 void AddSnapshotCommand(CLI::App& app);
 void AddRenderCommand(CLI::App& app);
+void AddStatusCommand(CLI::App& app);
+void AddVolumesCommand(CLI::App& app);
 
 }  // namespace cinevol::cli

@@ -19,6 +19,8 @@ int main(int argc, char** argv) {
   cinevol::cli::AddLoadtestCommand(app);
   cinevol::cli::AddPlayCommand(app);
   cinevol::cli::AddSnapshotCommand(app);
+  cinevol::cli::AddVolumesCommand(app);
+  cinevol::cli::AddStatusCommand(app);
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
