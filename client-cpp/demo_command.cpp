@@ -102,7 +102,7 @@ void Run(const DemoOptions& o) {
   const bool gpu = device.rfind("cuda", 0) == 0;
   script.session.viewport.set_width(gpu ? 1280 : 320);
   script.session.viewport.set_height(gpu ? 720 : 180);
-  const v1::VolumeInfo volume = ResolveVolume(client, script.session.volume);
+  const v1::VolumeInfo volume = ResolveVolume(client, script.session);
   const auto created = client.CreateSession(SessionRequest(script.session, volume.id()));
   fmt::print("server {} on {}; session {} at {}x{}: orbit, moving light, transfer-function edit, refinement to {} "
              "spp\n",

@@ -27,7 +27,7 @@ struct LoadtestOptions {
   std::string script;  // a session script played in a loop; default: an orbit
   int width = 1280, height = 720, spp = 2;
   std::string denoiser = "wrls";
-  std::string volume;  // default: the script's, else the server's first volume
+  std::string volume;  // default: the script's (volume, load or upload), else the server's first volume
   std::string preset = "ct-bone";
   std::string scene;   // a scene file to start from instead of the preset (its volume is ignored)
   double event_hz = 120;
@@ -199,7 +199,8 @@ std::string Json(const LoadtestOptions& o, const SessionScript& script, const st
 int Run(const LoadtestOptions& o) {
   const SessionScript script = MakeScript(o);
   Client client = Connect(o.connection);
-  const v1::VolumeInfo volume = ResolveVolume(client, !o.volume.empty() ? o.volume : script.session.volume);
+  const v1::VolumeInfo volume =
+      o.volume.empty() ? ResolveVolume(client, script.session) : ResolveVolume(client, o.volume);
   std::string device;
   const v1::ServerStatus status = client.Status();
   for (const v1::DeviceStatus& d : status.devices()) device += (device.empty() ? "" : ", ") + d.name();
@@ -235,7 +236,8 @@ void AddLoadtestCommand(CLI::App& app) {
   cmd->add_option("--denoiser", o->denoiser, "none, accumulate, knn, guided, svgf or wrls (orbit)")
       ->check(CLI::IsMember({"none", "accumulate", "knn", "guided", "svgf", "wrls"}))
       ->capture_default_str();
-  cmd->add_option("--volume", o->volume, "Volume id (default: the script's, else the server's first)");
+  cmd->add_option("--volume", o->volume,
+                  "Volume id (default: the script's volume, load or upload, else the server's first)");
   cmd->add_option("--preset", o->preset, "Transfer-function preset (orbit)")->capture_default_str();
   cmd->add_option("--scene", o->scene, "Start from this scene file instead of the preset (orbit)");
   cmd->add_option("--event-hz", o->event_hz, "Camera events per second per session (orbit)")

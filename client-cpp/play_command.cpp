@@ -16,14 +16,15 @@ struct PlayCommandOptions {
   ConnectionOptions connection;
   std::string script;
   std::string out = "cinevol-play";
-  std::string volume;     // overrides the script's
+  std::string volume;     // overrides the script's volume, load or upload
   double timeout = 120;   // seconds the whole run may take
 };
 
 void Run(const PlayCommandOptions& o) {
   const SessionScript script = LoadScript(o.script);
   Client client = Connect(o.connection);
-  const v1::VolumeInfo volume = ResolveVolume(client, o.volume.empty() ? script.session.volume : o.volume);
+  const v1::VolumeInfo volume =
+      o.volume.empty() ? ResolveVolume(client, script.session) : ResolveVolume(client, o.volume);
   const auto created = client.CreateSession(SessionRequest(script.session, volume.id()));
   FrameRecorder recorder(o.out);
   auto stream = client.Attach(created.session_id());
@@ -51,7 +52,7 @@ void AddPlayCommand(CLI::App& app) {
   AddConnectionOptions(cmd, o->connection);
   cmd->add_option("--script", o->script, "Session script (JSON Lines; docs/client.md)")->required();
   cmd->add_option("--out", o->out, "Output folder")->capture_default_str();
-  cmd->add_option("--volume", o->volume, "Volume id, instead of the script's");
+  cmd->add_option("--volume", o->volume, "Volume id, instead of the script's volume, load or upload");
   cmd->add_option("--timeout", o->timeout, "Seconds the run may take at most")->check(CLI::Range(0.1, 86400.0))
       ->capture_default_str();
   cmd->callback([o] { Run(*o); });

@@ -64,6 +64,12 @@ v1::VolumeInfo ResolveVolume(Client& client, const std::string& id) {
   return volumes.front();
 }
 
+v1::VolumeInfo ResolveVolume(Client& client, const ScriptSession& session) {
+  if (!session.upload.empty()) return client.UploadVolume(session.upload);
+  if (!session.load.empty()) return client.LoadVolume(session.load);
+  return ResolveVolume(client, session.volume);
+}
+
 double Percentile(std::vector<double> v, double p) {
   if (v.empty()) return NAN;
   std::sort(v.begin(), v.end());

@@ -51,6 +51,9 @@ PlayResult Play(SessionStream& stream, const std::vector<ScriptStep>& steps, con
 
 // The volume `id` names, or the server's first when `id` is empty.
 v1::VolumeInfo ResolveVolume(Client& client, const std::string& id);
+// The volume a script's session line names: its upload or load, done now,
+// else its volume id as above.
+v1::VolumeInfo ResolveVolume(Client& client, const ScriptSession& session);
 
 // The p-quantile (0..1) of `values`; NaN when empty.
 double Percentile(std::vector<double> values, double p);

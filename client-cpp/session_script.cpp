@@ -70,18 +70,33 @@ Orbit ParseOrbit(const Value& value, const std::string& where) {
   return orbit;
 }
 
+// "upload": a local file, checked before anything is sent.
+std::filesystem::path UploadPath(const std::string& file, const std::string& field,
+                                 const std::filesystem::path& base_dir) {
+  const std::filesystem::path path = base_dir / file;
+  if (!std::filesystem::is_regular_file(path)) {
+    throw InputError(fmt::format("{}: {}: not a file that can be read", field, path.string()));
+  }
+  return path;
+}
+
 ScriptSession ParseSession(const Value& value, const std::string& where, const std::filesystem::path& base_dir) {
   if (!value.has_struct_value()) throw InputError(where + ": must be an object");
   ScriptSession s;
   s.viewport.set_width(640);
   s.viewport.set_height(360);
+  int volumes_named = 0;
   for (const auto& [key, v] : value.struct_value().fields()) {
     const std::string field = where + "." + key;
-    if ((key == "volume" || key == "preset" || key == "scene") && v.kind_case() != Value::kStringValue) {
-      throw InputError(field + ": must be a string");
-    }
+    const bool text = key == "volume" || key == "load" || key == "upload" || key == "preset" || key == "scene";
+    if (text && v.kind_case() != Value::kStringValue) throw InputError(field + ": must be a string");
+    if (key == "volume" || key == "load" || key == "upload") ++volumes_named;
     if (key == "volume") {
       s.volume = v.string_value();
+    } else if (key == "load") {
+      s.load = v.string_value();
+    } else if (key == "upload") {
+      s.upload = UploadPath(v.string_value(), field, base_dir);
     } else if (key == "preset") {
       s.preset = v.string_value();
     } else if (key == "scene") {
@@ -96,9 +111,11 @@ ScriptSession ParseSession(const Value& value, const std::string& where, const s
     } else if (key == "stream") {
       ParseInto(ToJson(v), s.stream, field);
     } else {
-      throw InputError(fmt::format("{}: unknown field (volume, preset, scene, viewport, stream)", field));
+      throw InputError(
+          fmt::format("{}: unknown field (volume, load, upload, preset, scene, viewport, stream)", field));
     }
   }
+  if (volumes_named > 1) throw InputError(where + ": name the volume once: volume, load or upload");
   return s;
 }
 
@@ -213,9 +230,9 @@ v1::CreateSessionRequest SessionRequest(const ScriptSession& session, const std:
   *request.mutable_viewport() = session.viewport;
   if (session.scene) {
     *request.mutable_scene() = *session.scene;
-  } else {
+  } else if (!session.preset.empty()) {
     request.set_preset(session.preset);
-  }
+  }  // neither: the server applies the volume's default preset
   *request.mutable_stream() = session.stream;
   return request;
 }

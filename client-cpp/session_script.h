@@ -3,6 +3,7 @@
 // the schema; examples/scripts/ has examples.
 //
 //   {"session": {"volume": "phantom:head", "preset": "ct-bone", "viewport": {"width": 640, "height": 360}}}
+//   {"session": {"load": "ct/head.nii.gz"}}         (or "upload": "local/file.nrrd", relative to the script)
 //   {"at": 0.0, "orbit": {"degrees": 90, "seconds": 3}}
 //   {"at": 3.5, "transferFunction": {"preset": "ct-soft-tissue"}}
 //   {"at": 4.0, "render": {"spp": 4}}
@@ -21,10 +22,13 @@
 
 namespace cinevol::cli {
 
-// What the "session" line says; unset parts take the defaults noted.
+// What the "session" line says; unset parts take the defaults noted. At most
+// one of volume, load and upload is set.
 struct ScriptSession {
-  std::string volume;                  // default: the server's first volume
-  std::string preset = "ct-bone";      // used without a scene
+  std::string volume;                  // an id the server holds; none of the three: the server's first
+  std::string load;                    // a path on the server, under its data roots, to load first
+  std::filesystem::path upload;        // a local file to upload first (relative paths: to the script's folder)
+  std::string preset;                  // used without a scene; empty: the volume's default preset
   std::optional<v1::Scene> scene;      // "scene": a scene file, relative to the script
   v1::Viewport viewport;               // default 640x360
   v1::StreamSettings stream;
@@ -64,7 +68,8 @@ v1::Camera OrbitCamera(const v1::VolumeInfo& volume, double degrees, double elev
 // The steps with every orbit turned into its camera events.
 std::vector<ScriptStep> ExpandOrbits(const std::vector<ScriptStep>& steps, const v1::VolumeInfo& volume);
 
-// The request that starts the script's session on `volume`.
+// The request that starts the script's session on `volume`: its scene, else
+// its preset, else neither (the volume's default preset).
 v1::CreateSessionRequest SessionRequest(const ScriptSession& session, const std::string& volume_id);
 
 }  // namespace cinevol::cli

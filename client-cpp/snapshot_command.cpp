@@ -16,7 +16,8 @@ struct SnapshotOptions {
   ConnectionOptions connection;
   std::string out;
   std::string session;  // an existing session's current state; else a new session from the options below
-  std::string volume, preset = "ct-bone", scene;
+  std::string volume, scene;
+  std::string preset;  // empty: the volume's default preset
   int width = 1280, height = 720, spp = 256;
 };
 
@@ -53,7 +54,7 @@ void AddSnapshotCommand(CLI::App& app) {
   cmd->add_option("--out", o->out, "Output image: .png or .exr")->required();
   cmd->add_option("--session", o->session, "Render this session's current state (default: a new session)");
   cmd->add_option("--volume", o->volume, "Volume id for a new session (default: the server's first)");
-  cmd->add_option("--preset", o->preset, "Transfer-function preset for a new session")->capture_default_str();
+  cmd->add_option("--preset", o->preset, "Transfer-function preset for a new session (default: the volume's)");
   cmd->add_option("--scene", o->scene, "Scene file for a new session, instead of the preset");
   cmd->add_option("--width", o->width, "Width of a new session")->check(CLI::Range(1, 8192))->capture_default_str();
   cmd->add_option("--height", o->height, "Height of a new session")->check(CLI::Range(1, 8192))->capture_default_str();
