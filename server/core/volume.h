@@ -69,7 +69,7 @@ class Volume {
   struct ValueRange {
     float lo, hi;
   };
-  static constexpr int kBlockSize = 8;
+  static constexpr int kBlockSize = 4;
   Vec3i block_counts() const;
   const std::vector<ValueRange>& block_ranges() const { return block_ranges_; }
 

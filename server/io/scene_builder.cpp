@@ -42,32 +42,39 @@ ViewDirections NamedViewDirections(v1::NamedView view, const Volume& volume) {
   return {PatientToWorld(volume, to_eye), PatientToWorld(volume, up)};
 }
 
-Box VisibleBounds(const Volume& volume, const TransferFunction& tf) {
-  const Vec3i blocks = volume.block_counts();
-  const Vec3f half = volume.extent_mm() * 0.5f;
-  Vec3i first = blocks, last{-1, -1, -1};
+std::vector<Vec3f> VisibleCorners(const Volume& volume, const TransferFunction& tf) {
+  const Vec3i blocks = volume.block_counts(), n{blocks.x + 1, blocks.y + 1, blocks.z + 1};
+  std::vector<char> corner(std::size_t(n.x) * n.y * n.z, 0);  // on the lattice of block corners
+  auto at = [&](int x, int y, int z) { return (std::size_t(z) * n.y + y) * n.x + x; };
+  // Haze that cannot take 20% of the light crossing a block is not framed.
+  const Vec3f block_mm = volume.spacing_mm() * float(Volume::kBlockSize);
+  const float min_opacity = 0.2f / std::max(1e-12f, tf.density_scale * MinComponent(block_mm));
   std::size_t i = 0;
+  bool any = false;
   for (int z = 0; z < blocks.z; ++z) {
     for (int y = 0; y < blocks.y; ++y) {
       for (int x = 0; x < blocks.x; ++x, ++i) {
         const Volume::ValueRange r = volume.block_ranges()[i];
-        if (MaxOpacity(tf, r.lo, r.hi) <= 0.0f) continue;
-        const Vec3i b{x, y, z};
-        for (int a = 0; a < 3; ++a) {
-          first[a] = std::min(first[a], b[a]);
-          last[a] = std::max(last[a], b[a]);
-        }
+        if (MaxOpacity(tf, r.lo, r.hi) <= min_opacity) continue;
+        any = true;
+        for (int c = 0; c < 8; ++c) corner[at(x + (c & 1), y + (c >> 1 & 1), z + (c >> 2))] = 1;
       }
     }
   }
-  if (last.x < 0) return {-half, half};
-  Box box;
-  for (int a = 0; a < 3; ++a) {
-    const float block_mm = Volume::kBlockSize * volume.spacing_mm()[a];
-    box.lo[a] = first[a] * block_mm - half[a];
-    box.hi[a] = std::min((last[a] + 1) * block_mm, 2 * half[a]) - half[a];
+  const Vec3f half = volume.extent_mm() * 0.5f;
+  std::vector<Vec3f> points;
+  for (int z = 0; z < n.z; ++z) {
+    for (int y = 0; y < n.y; ++y) {
+      for (int x = 0; x < n.x; ++x) {
+        const bool outer = (x == 0 || x == blocks.x) && (y == 0 || y == blocks.y) && (z == 0 || z == blocks.z);
+        if (any ? !corner[at(x, y, z)] : !outer) continue;
+        // The last block may be partial: clamp to the volume's box.
+        const Vec3f p = ToFloat(Vec3i{x, y, z}) * block_mm - half;
+        points.push_back(Min(p, half));
+      }
+    }
   }
-  return box;
+  return points;
 }
 
 TransferFunction ResolveTransferFunction(const v1::TransferFunction& proto, const Volume& volume) {
@@ -88,22 +95,38 @@ TransferFunction ResolveTransferFunction(const v1::TransferFunction& proto, cons
   return tf;
 }
 
-float FramingDistance(const Box& box, const ViewDirections& view, float fov_y_deg, float aspect) {
-  // Every corner of the box must project inside kFramingFill of the
-  // viewport: |x| <= k_x (D - z) and |y| <= k_y (D - z), z towards the eye.
-  const Vec3f right = Normalize(Cross(-view.to_eye, view.up));
-  const Vec3f up = Cross(right, -view.to_eye);
+Framing FrameView(const std::vector<Vec3f>& points, const ViewDirections& view, float fov_y_deg, float aspect) {
+  const Vec3f forward = -view.to_eye;
+  const Vec3f right = Normalize(Cross(forward, view.up)), up = Cross(right, forward);
+  // A point at screen offsets (x, y) and depth z towards the eye fits when
+  // |x| <= k_x (D - z) and |y| <= k_y (D - z).
   const float k_y = kFramingFill * std::tan(0.5f * fov_y_deg * kPi / 180.0f), k_x = k_y * aspect;
-  const Vec3f centre = (box.lo + box.hi) * 0.5f;
-  float distance = 0;
-  for (int corner = 0; corner < 8; ++corner) {
-    const Vec3f p{corner & 1 ? box.hi.x : box.lo.x, corner & 2 ? box.hi.y : box.lo.y,
-                  corner & 4 ? box.hi.z : box.lo.z};
-    const Vec3f o = p - centre;
-    const float fit = std::max(std::abs(Dot(o, right)) / k_x, std::abs(Dot(o, up)) / k_y);
-    distance = std::max(distance, fit + Dot(o, view.to_eye));
+  Vec3f lo = points.front(), hi = points.front();
+  for (const Vec3f& p : points) lo = Min(lo, p), hi = Max(hi, p);
+  Framing f{(lo + hi) * 0.5f, 0};
+  // Perspective makes near points look larger: fit, then centre what the
+  // eye sees and fit again.
+  for (int pass = 0; pass < 3; ++pass) {
+    float nearest = 0;
+    f.distance = 0;
+    for (const Vec3f& p : points) {
+      const Vec3f o = p - f.target;
+      const float z = Dot(o, view.to_eye);
+      f.distance = std::max(f.distance, std::max(std::abs(Dot(o, right)) / k_x, std::abs(Dot(o, up)) / k_y) + z);
+      nearest = std::max(nearest, z);
+    }
+    f.distance = std::max(f.distance, nearest + 1e-3f * Length(hi - lo) + 1e-6f);  // every point in front
+    if (pass == 2) break;
+    float x0 = INFINITY, x1 = -INFINITY, y0 = INFINITY, y1 = -INFINITY;  // tangents seen from the eye
+    for (const Vec3f& p : points) {
+      const Vec3f o = p - f.target;
+      const float depth = f.distance - Dot(o, view.to_eye);
+      x0 = std::min(x0, Dot(o, right) / depth), x1 = std::max(x1, Dot(o, right) / depth);
+      y0 = std::min(y0, Dot(o, up) / depth), y1 = std::max(y1, Dot(o, up) / depth);
+    }
+    f.target += (right * (x0 + x1) + up * (y0 + y1)) * (0.5f * f.distance);
   }
-  return std::max(distance, 1e-3f + 0.5f * Length(box.hi - box.lo));  // never inside the box
+  return f;
 }
 
 Camera ResolveCamera(const v1::Camera& proto, const v1::RenderSettings& render, const Volume& volume,
@@ -113,10 +136,10 @@ Camera ResolveCamera(const v1::Camera& proto, const v1::RenderSettings& render, 
   Vec3f eye, target, up{0, 0, 1};
   if (proto.view() != v1::NAMED_VIEW_UNSPECIFIED) {
     const ViewDirections view = NamedViewDirections(proto.view(), volume);
-    const Box box = VisibleBounds(volume, tf);
-    target = (box.lo + box.hi) * 0.5f;
+    const Framing framing = FrameView(VisibleCorners(volume, tf), view, fov, float(width) / float(height));
+    target = framing.target;
     up = view.up;
-    eye = target + view.to_eye * FramingDistance(box, view, fov, float(width) / float(height));
+    eye = target + view.to_eye * framing.distance;
   } else {
     eye = ToVec(proto.eye());
     target = ToVec(proto.target());

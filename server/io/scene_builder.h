@@ -3,6 +3,8 @@
 // framed), lights (environment maps read) and frame settings.
 #pragma once
 
+#include <vector>
+
 #include "cinevol/v1/scene.pb.h"
 #include "core/camera.h"
 #include "core/lights.h"
@@ -31,21 +33,23 @@ ViewDirections NamedViewDirections(v1::NamedView view, const Volume& volume);
 // A patient (LPS) direction in world space, through the volume's direction cosines.
 Vec3f PatientToWorld(const Volume& volume, Vec3f lps);
 
-struct Box {
-  Vec3f lo, hi;
+// The corners of the blocks of voxels (Volume::block_ranges) that `tf` makes
+// visible (able to take 5% of the light crossing them); the volume's corners
+// when it shows nothing.
+std::vector<Vec3f> VisibleCorners(const Volume& volume, const TransferFunction& tf);
+
+// Where a named view looks at and how far back its eye sits so that
+// `points`, centred, fill 80% of the viewport's shorter side (perspective
+// included).
+struct Framing {
+  Vec3f target;
+  float distance = 0;
 };
-
-// The world box around the blocks of voxels `tf` gives any opacity; the
-// whole volume when it shows nothing.
-Box VisibleBounds(const Volume& volume, const TransferFunction& tf);
-
-// How far from the box's centre the eye of `view` sits so that the box fills
-// 80% of the viewport's shorter side.
-float FramingDistance(const Box& box, const ViewDirections& view, float fov_y_deg, float aspect);
+Framing FrameView(const std::vector<Vec3f>& points, const ViewDirections& view, float fov_y_deg, float aspect);
 
 // With neither points nor a preset, the volume's default preset.
 TransferFunction ResolveTransferFunction(const v1::TransferFunction& tf, const Volume& volume);
-// Named views frame what `tf` shows of the volume (FramingDistance).
+// Named views frame what `tf` shows of the volume (FrameView).
 Camera ResolveCamera(const v1::Camera& camera, const v1::RenderSettings& render, const Volume& volume,
                      const TransferFunction& tf);
 LightSetup ResolveLights(const google::protobuf::RepeatedPtrField<v1::Light>& lights);

@@ -4,6 +4,7 @@
 
 #include <cmath>
 #include <limits>
+#include <numeric>
 
 #include "core/error.h"
 
@@ -53,6 +54,43 @@ TEST(Volume, RejectsBadGeometryNamingTheSource) {
 
 TEST(Volume, RejectsValueCountMismatch) {
   EXPECT_THROW(Volume({2, 2, 1}, {1, 1, 1}, {1.0f, 2.0f}, Named("t")), InputError);
+}
+
+TEST(ValueHistogram, PercentilesAndTheThresholdBetweenTwoClasses) {
+  // 3/4 of the voxels are background near 0, 1/4 subject spread over 600..1000.
+  std::vector<float> values;
+  for (int i = 0; i < 3000; ++i) values.push_back(float(i % 20));
+  for (int i = 0; i < 1000; ++i) values.push_back(600.0f + 0.4f * float(i));
+  const ValueHistogram h = ValueHistogram::Of(values, 0, 999.6f);
+  EXPECT_EQ(std::accumulate(h.counts.begin(), h.counts.end(), std::uint64_t{0}), values.size());
+  EXPECT_NEAR(h.Percentile(0.5), 13.0f, 8.0f);
+  const float threshold = h.OtsuThreshold();
+  EXPECT_GE(threshold, 19.0f);  // above every background value
+  EXPECT_LE(threshold, 600.0f);
+  EXPECT_NEAR(h.Percentile(0.5, threshold), 800.0f, 8.0f);  // the subject's median
+  EXPECT_NEAR(h.Percentile(1.0, threshold), 999.6f, 4.0f);
+}
+
+TEST(ValueHistogram, ConstantVolumesHaveOneFullBin) {
+  const Volume v({2, 2, 2}, {1, 1, 1}, std::vector<float>(8, 5.0f), Named("t"));
+  EXPECT_EQ(v.histogram().counts[0], 8u);
+  EXPECT_EQ(v.histogram().Percentile(0.5), 5.0f);
+}
+
+TEST(Volume, BlockRangesBoundEveryVoxel) {
+  std::vector<float> values(20 * 9 * 3);
+  for (std::size_t i = 0; i < values.size(); ++i) values[i] = float(i % 37);
+  const Volume v({20, 9, 3}, {1, 1, 1}, values, Named("t"));
+  EXPECT_EQ(v.block_counts(), (Vec3i{5, 3, 1}));
+  for (int z = 0; z < 3; ++z) {
+    for (int y = 0; y < 9; ++y) {
+      for (int x = 0; x < 20; ++x) {
+        const auto r = v.block_ranges()[(y / 4) * 5 + x / 4];
+        EXPECT_LE(r.lo, v.Value(x, y, z));
+        EXPECT_GE(r.hi, v.Value(x, y, z));
+      }
+    }
+  }
 }
 
 }  // namespace
