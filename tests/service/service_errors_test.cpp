@@ -4,6 +4,7 @@
 
 #include <cmath>
 #include <fstream>
+#include <numeric>
 
 #include "server_process.h"
 #include "service_test_support.h"
@@ -221,9 +222,20 @@ TEST(ServiceErrors, RealDataUploadsAndRenders) {
   const v1::VolumeInfo mr = client.UploadVolume(SharedData() / "mr-head-seg3d-nifti" / "MR.nii.gz");
   EXPECT_EQ(mr.id(), "MR");
   EXPECT_GT(mr.dims().x(), 100u);
-  v1::CreateSessionRequest r = SmallSession("mr-default");
+  // A NIfTI file says no modality: the histogram does not look like CT.
+  EXPECT_EQ(mr.kind(), v1::OTHER) << mr.kind_reason();
+  EXPECT_EQ(mr.default_preset(), "auto");
+  ASSERT_EQ(mr.histogram().counts_size(), 256);
+  EXPECT_EQ(std::accumulate(mr.histogram().counts().begin(), mr.histogram().counts().end(), std::uint64_t{0}),
+            std::uint64_t{mr.dims().x()} * mr.dims().y() * mr.dims().z());
+  EXPECT_EQ(client.DescribeVolume(mr.id()).histogram().counts_size(), 256);
+  for (const v1::VolumeInfo& v : client.ListVolumes()) EXPECT_EQ(v.histogram().counts_size(), 0) << v.id();
+  // A session that names neither a scene nor a preset gets the default.
+  v1::CreateSessionRequest r = SmallSession();
+  r.clear_preset();
   r.set_volume_id(mr.id());
   const auto created = client.CreateSession(r);
+  EXPECT_EQ(created.scene().transfer_function().preset(), "auto");
   auto stream = client.Attach(created.session_id());
   const auto frame = WaitFinal(*stream);
   ASSERT_TRUE(frame);
