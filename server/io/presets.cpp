@@ -31,6 +31,21 @@ void SetVec(v1::Vec3* v, Vec3f p) {
   v->set_z(p.z);
 }
 
+// The extent of the volume's box along a world direction.
+float ExtentAlong(const Volume& volume, Vec3f direction) {
+  const Vec3f e = volume.extent_mm();
+  return std::abs(direction.x) * e.x + std::abs(direction.y) * e.y + std::abs(direction.z) * e.z;
+}
+
+// Anterior, as radiologists start; but a thin stack of axial slices (a slab
+// less than a quarter as deep as it is wide) is seen from above, not edge on.
+v1::NamedView DefaultView(const Volume& volume) {
+  const float superior = ExtentAlong(volume, PatientToWorld(volume, {0, 0, 1}));
+  const float lateral = std::min(ExtentAlong(volume, PatientToWorld(volume, {1, 0, 0})),
+                                 ExtentAlong(volume, PatientToWorld(volume, {0, 1, 0})));
+  return superior < 0.25f * lateral ? v1::SUPERIOR : v1::ANTERIOR;
+}
+
 }  // namespace
 
 std::vector<std::string> PresetNames() {
@@ -97,13 +112,14 @@ v1::Scene MakePresetScene(std::string_view preset, const Volume& volume) {
   FindPreset(preset);  // throws, naming the presets
   v1::Scene scene;
   scene.mutable_transfer_function()->set_preset(std::string(preset));
-  scene.mutable_camera()->set_view(v1::ANTERIOR);
+  const v1::NamedView default_view = DefaultView(volume);
+  scene.mutable_camera()->set_view(default_view);
   scene.mutable_camera()->set_fov_y_deg(30.0f);
   // The key light sits above the viewer's left and in front, at 2.75 times
   // the volume's bounding radius; its edges scale with that distance, so the
   // solid angle it fills, and the light it gives, are the same for any
   // volume (the light of examples/ct-bone.json on its 256 mm head).
-  const ViewDirections view = NamedViewDirections(v1::ANTERIOR, volume);
+  const ViewDirections view = NamedViewDirections(default_view, volume);
   const Vec3f right = Normalize(Cross(-view.to_eye, view.up));
   const float radius = 0.5f * Length(volume.extent_mm());
   const Vec3f towards_light = Normalize(right * -0.55f + view.up * 0.6f + view.to_eye * 0.6f);
@@ -119,7 +135,7 @@ v1::Scene MakePresetScene(std::string_view preset, const Volume& volume) {
   SetColor(sky->mutable_gradient()->mutable_zenith(), {0.16f, 0.18f, 0.22f});
   SetColor(sky->mutable_gradient()->mutable_horizon(), {0.1f, 0.1f, 0.11f});
   SetColor(sky->mutable_gradient()->mutable_ground(), {0.03f, 0.03f, 0.03f});
-  SetVec(sky->mutable_gradient()->mutable_up(), view.up);
+  SetVec(sky->mutable_gradient()->mutable_up(), PatientToWorld(volume, {0, 0, 1}));
   sky->set_intensity(1);
   return scene;
 }

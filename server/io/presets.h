@@ -40,7 +40,7 @@ std::string DefaultPreset(v1::VolumeKind kind);
 std::string DefaultPreset(const Volume& volume);
 
 // A scene around a preset, for viewers that name only a preset: an anterior
-// view framing what the preset shows, a warm key light above the viewer's
+// view (superior for a thin slab of axial slices) framing what the preset shows, a warm key light above the viewer's
 // left (not in the picture) and a dim gradient sky, placed relative to the
 // view and the volume's size so that every volume is lit alike. The volume
 // source and render settings are left unset. Throws InputError for an

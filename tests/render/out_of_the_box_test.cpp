@@ -155,6 +155,15 @@ TEST(OutOfTheBox, NamedViewsFillFourFifthsOfTheShorterSide) {
   }
 }
 
+TEST(OutOfTheBox, AThinSlabOfAxialSlicesIsSeenFromAbove) {
+  VolumeMetadata meta;
+  meta.source = "slab";
+  const Volume slab({32, 32, 4}, {1, 1, 1}, std::vector<float>(32 * 32 * 4, 1000.0f), meta);
+  EXPECT_EQ(MakePresetScene("ct-bone", slab).camera().view(), v1::SUPERIOR);
+  const Volume cube({32, 32, 32}, {1, 1, 1}, std::vector<float>(32 * 32 * 32, 1000.0f), meta);
+  EXPECT_EQ(MakePresetScene("ct-bone", cube).camera().view(), v1::ANTERIOR);
+}
+
 struct DataSet {
   const char* path;  // under ../shared/data, or a phantom spec
   v1::VolumeKind kind;
