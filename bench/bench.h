@@ -4,6 +4,7 @@
 
 #include <memory>
 #include <string>
+#include <vector>
 
 #include <CLI/CLI.hpp>
 
@@ -49,6 +50,15 @@ struct DenoiseBenchOptions : SceneOptions {
 };
 
 int RunDenoiseBench(const DenoiseBenchOptions& options);
+
+struct VolumeBenchOptions {
+  std::vector<std::string> volumes;  // files, folders or phantom specs
+  std::string out;
+  std::string command_line;
+};
+
+// Load, summaries (histogram, block ranges), kind and framing per volume.
+int RunVolumeBench(const VolumeBenchOptions& options);
 
 // "NVIDIA H100 80GB HBM3 (cuda)" or "cpu, 2 threads".
 std::string DeviceDescription(const std::string& backend);

@@ -71,6 +71,12 @@ int main(int argc, char** argv) {
       ->capture_default_str();
   d->add_option("--degrees-per-frame", denoise.degrees_per_frame, "Camera orbit speed")->capture_default_str();
   d->callback([&] { cinevol::bench::RunDenoiseBench(denoise); });
+  cinevol::bench::VolumeBenchOptions volume;
+  volume.command_line = command_line;
+  auto* v = app.add_subcommand("volume", "Load, histogram and block ranges, kind and framing, per volume");
+  v->add_option("volumes", volume.volumes, "Volume files, DICOM folders or phantom specs")->required();
+  v->add_option("--out", volume.out, "Append the Markdown table to this file");
+  v->callback([&] { cinevol::bench::RunVolumeBench(volume); });
 
   // The speed/accuracy study: --dataset NAME=SCENE[,VOLUME] (repeatable).
   cinevol::bench::StudyOptions study;
