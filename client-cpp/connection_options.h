@@ -34,8 +34,7 @@ inline void AddConnectionOptions(CLI::App* command, ConnectionOptions& o) {
   key->needs(cert);
 }
 
-// Throws RpcError(UNAVAILABLE) when the server cannot be reached in time.
-inline Client Connect(const ConnectionOptions& o) {
+inline ClientOptions ToClientOptions(const ConnectionOptions& o) {
   ClientOptions options;
   options.address = o.server;
   options.token = o.token;
@@ -43,8 +42,13 @@ inline Client Connect(const ConnectionOptions& o) {
   options.tls_ca = o.tls_ca;
   options.tls_cert = o.tls_cert;
   options.tls_key = o.tls_key;
+  return options;
+}
+
+// Throws RpcError(UNAVAILABLE) when the server cannot be reached in time.
+inline Client Connect(const ConnectionOptions& o) {
   try {
-    return Client(options);
+    return Client(ToClientOptions(o));
   } catch (const std::invalid_argument& e) {  // an unreadable TLS file
     throw InputError(e.what());
   }

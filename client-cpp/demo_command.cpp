@@ -3,17 +3,9 @@
 // phantom), plays examples/scripts/demo.jsonl over gRPC (a camera orbit, a
 // light moving, a transfer-function edit, then idle refinement), writes the
 // frames, a contact sheet and a summary, and stops the server.
-#include <fcntl.h>
-#include <signal.h>
-#include <spawn.h>
-#include <sys/wait.h>
-#include <unistd.h>
-
-#include <chrono>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
-#include <thread>
 
 #include <fmt/format.h>
 
@@ -21,9 +13,8 @@
 #include "core/error.h"
 #include "demo_script.h"
 #include "frame_recorder.h"
+#include "local_server.h"
 #include "script_player.h"
-
-extern char** environ;
 
 namespace cinevol::cli {
 namespace {
@@ -35,63 +26,12 @@ struct DemoOptions {
   std::string backend = "auto";
 };
 
-// A cinevol-server of our own on a free loopback port, stopped by its pid.
-class LocalServer {
- public:
-  LocalServer(const std::string& backend, const fs::path& folder) {
-    const fs::path program = fs::read_symlink("/proc/self/exe").parent_path() / "cinevol-server";
-    if (!fs::exists(program)) throw InputError(fmt::format("{} not found beside cinevol", program.string()));
-    const fs::path port_file = folder / "server.port", log = folder / "server.log";
-    fs::remove(port_file);
-    const std::vector<std::string> args{program.string(), "--listen", "127.0.0.1:0", "--port-file",
-                                        port_file.string(), "--backend", backend};
-    std::vector<char*> argv;
-    for (const std::string& a : args) argv.push_back(const_cast<char*>(a.c_str()));
-    argv.push_back(nullptr);
-    posix_spawn_file_actions_t actions;
-    posix_spawn_file_actions_init(&actions);
-    posix_spawn_file_actions_addopen(&actions, 1, log.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
-    posix_spawn_file_actions_adddup2(&actions, 1, 2);
-    const int spawned = posix_spawn(&pid_, program.c_str(), &actions, nullptr, argv.data(), environ);
-    posix_spawn_file_actions_destroy(&actions);
-    if (spawned != 0) throw std::runtime_error("cannot start " + program.string());
-    // The built-in phantom takes a few seconds to build on a small CPU.
-    for (auto end = std::chrono::steady_clock::now() + std::chrono::seconds(120);
-         std::chrono::steady_clock::now() < end;) {
-      std::ifstream(port_file) >> port_;
-      if (port_ > 0) return;
-      int status = 0;
-      if (waitpid(pid_, &status, WNOHANG) == pid_) {
-        pid_ = -1;
-        throw InputError(fmt::format("cinevol-server stopped at start; see {}", log.string()));
-      }
-      std::this_thread::sleep_for(std::chrono::milliseconds(50));
-    }
-    throw InputError(fmt::format("cinevol-server did not start listening within 120 s; see {}", log.string()));
-  }
-  ~LocalServer() {
-    if (pid_ <= 0) return;
-    kill(pid_, SIGTERM);
-    for (int i = 0; i < 300; ++i) {  // up to 15 s for an orderly stop
-      if (waitpid(pid_, nullptr, WNOHANG) == pid_) return;
-      std::this_thread::sleep_for(std::chrono::milliseconds(50));
-    }
-    kill(pid_, SIGKILL);
-    waitpid(pid_, nullptr, 0);
-  }
-  std::string address() const { return fmt::format("127.0.0.1:{}", port_); }
-
- private:
-  pid_t pid_ = -1;
-  int port_ = 0;
-};
-
 void Run(const DemoOptions& o) {
   const fs::path out = o.out;
   fs::create_directories(out);
   fmt::print("cinevol demo: starting cinevol-server ({} backend, built-in head phantom)...\n", o.backend);
   std::fflush(stdout);
-  LocalServer server(o.backend, out);
+  LocalServer server(o.backend, out / "server.log");
   ClientOptions options;
   options.address = server.address();
   Client client(options);

@@ -100,6 +100,10 @@ PlayResult Play(SessionStream& stream, const std::vector<ScriptStep>& steps, con
     }
     // Send every step that is due.
     while (next < steps.size() && lap + steps[next].at <= now) {
+      if (!steps[next].ui.empty()) {  // viewer actions: nothing to send
+        ++next;
+        continue;
+      }
       if (const std::uint64_t seq = stream.Send(steps[next].event)) {
         line_of_seq[seq] = steps[next].line;
         last_sent = seq;

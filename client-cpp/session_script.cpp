@@ -154,13 +154,16 @@ SessionScript ParseScript(const std::string& text, const std::string& name, cons
     last_at = step.at;
     if (fields.size() != 2) {
       throw InputError(where + ": an event line holds \"at\" and one event (camera, lights, transferFunction, "
-                               "render, stream, resize, pause, resume) or \"orbit\"");
+                               "render, stream, resize, pause, resume), \"orbit\" or \"ui\"");
     }
     for (const auto& [key, value] : fields) {
       if (key == "at") continue;
       if (key == "orbit") {
         step.is_orbit = true;
         step.orbit = ParseOrbit(value, where + ": orbit");
+      } else if (key == "ui") {
+        if (!value.has_struct_value()) throw InputError(where + ": ui: must be an object");
+        step.ui = ToJson(value);
       } else if (key == "seq") {
         throw InputError(where + ": seq: set by the player, not the script");
       } else {

@@ -46,7 +46,10 @@ struct ScriptStep {
   int line = 0;         // in the script file; 0 for generated steps
   bool is_orbit = false;
   Orbit orbit;
-  v1::SessionEvent event;  // when not an orbit
+  v1::SessionEvent event;  // when not an orbit or a UI action
+  // "ui": an action for cinevol-viewer (its JSON object, e.g. {"panel": "lights"});
+  // `cinevol play` skips these lines. docs/viewer.md lists the actions.
+  std::string ui;
 };
 
 struct SessionScript {

@@ -40,9 +40,9 @@ float ExtentAlong(const Volume& volume, Vec3f direction) {
 // Anterior, as radiologists start; but a thin stack of axial slices (a slab
 // less than a quarter as deep as it is wide) is seen from above, not edge on.
 v1::NamedView DefaultView(const Volume& volume) {
-  const float superior = ExtentAlong(volume, PatientToWorld(volume, {0, 0, 1}));
-  const float lateral = std::min(ExtentAlong(volume, PatientToWorld(volume, {1, 0, 0})),
-                                 ExtentAlong(volume, PatientToWorld(volume, {0, 1, 0})));
+  const float superior = ExtentAlong(volume, PatientToWorld(volume.metadata().direction, {0, 0, 1}));
+  const float lateral = std::min(ExtentAlong(volume, PatientToWorld(volume.metadata().direction, {1, 0, 0})),
+                                 ExtentAlong(volume, PatientToWorld(volume.metadata().direction, {0, 1, 0})));
   return superior < 0.25f * lateral ? v1::SUPERIOR : v1::ANTERIOR;
 }
 
@@ -119,7 +119,7 @@ v1::Scene MakePresetScene(std::string_view preset, const Volume& volume) {
   // the volume's bounding radius; its edges scale with that distance, so the
   // solid angle it fills, and the light it gives, are the same for any
   // volume (the light of examples/ct-bone.json on its 256 mm head).
-  const ViewDirections view = NamedViewDirections(default_view, volume);
+  const ViewDirections view = NamedViewDirections(default_view, volume.metadata().direction);
   const Vec3f right = Normalize(Cross(-view.to_eye, view.up));
   const float radius = 0.5f * Length(volume.extent_mm());
   const Vec3f towards_light = Normalize(right * -0.55f + view.up * 0.6f + view.to_eye * 0.6f);
@@ -135,7 +135,7 @@ v1::Scene MakePresetScene(std::string_view preset, const Volume& volume) {
   SetColor(sky->mutable_gradient()->mutable_zenith(), {0.16f, 0.18f, 0.22f});
   SetColor(sky->mutable_gradient()->mutable_horizon(), {0.1f, 0.1f, 0.11f});
   SetColor(sky->mutable_gradient()->mutable_ground(), {0.03f, 0.03f, 0.03f});
-  SetVec(sky->mutable_gradient()->mutable_up(), PatientToWorld(volume, {0, 0, 1}));
+  SetVec(sky->mutable_gradient()->mutable_up(), PatientToWorld(volume.metadata().direction, {0, 0, 1}));
   sky->set_intensity(1);
   return scene;
 }

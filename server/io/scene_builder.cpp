@@ -17,16 +17,15 @@ constexpr float kFramingFill = 0.8f;
 
 }  // namespace
 
-Vec3f PatientToWorld(const Volume& volume, Vec3f lps) {
+Vec3f PatientToWorld(const DirectionCosines& d, Vec3f lps) {
   // The transpose of the direction cosines maps LPS to index space, which is
   // world space for rendering.
-  const auto& d = volume.metadata().direction;
   Vec3f w;
   for (int c = 0; c < 3; ++c) w[c] = float(d[0 * 3 + c] * lps.x + d[1 * 3 + c] * lps.y + d[2 * 3 + c] * lps.z);
   return Normalize(w);
 }
 
-ViewDirections NamedViewDirections(v1::NamedView view, const Volume& volume) {
+ViewDirections NamedViewDirections(v1::NamedView view, const DirectionCosines& direction) {
   // Lateral and frontal views keep the head up; axial views put anterior up
   // and the patient's right on the viewer's left, as radiologists read them.
   const Vec3f kLeft{1, 0, 0}, kPosterior{0, 1, 0}, kSuperior{0, 0, 1};
@@ -39,7 +38,7 @@ ViewDirections NamedViewDirections(v1::NamedView view, const Volume& volume) {
     case v1::INFERIOR: to_eye = -kSuperior; up = -kPosterior; break;
     default: break;  // ANTERIOR
   }
-  return {PatientToWorld(volume, to_eye), PatientToWorld(volume, up)};
+  return {PatientToWorld(direction, to_eye), PatientToWorld(direction, up)};
 }
 
 std::vector<Vec3f> VisibleCorners(const Volume& volume, const TransferFunction& tf) {
@@ -135,7 +134,7 @@ Camera ResolveCamera(const v1::Camera& proto, const v1::RenderSettings& render, 
   const float fov = proto.fov_y_deg();
   Vec3f eye, target, up{0, 0, 1};
   if (proto.view() != v1::NAMED_VIEW_UNSPECIFIED) {
-    const ViewDirections view = NamedViewDirections(proto.view(), volume);
+    const ViewDirections view = NamedViewDirections(proto.view(), volume.metadata().direction);
     const Framing framing = FrameView(VisibleCorners(volume, tf), view, fov, float(width) / float(height));
     target = framing.target;
     up = view.up;

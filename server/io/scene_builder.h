@@ -3,6 +3,7 @@
 // framed), lights (environment maps read) and frame settings.
 #pragma once
 
+#include <array>
 #include <vector>
 
 #include "cinevol/v1/scene.pb.h"
@@ -28,10 +29,12 @@ struct RenderSetup {
 struct ViewDirections {
   Vec3f to_eye, up;
 };
-ViewDirections NamedViewDirections(v1::NamedView view, const Volume& volume);
+// `direction` is the volume's direction cosines (VolumeMetadata::direction).
+using DirectionCosines = std::array<double, 9>;
+ViewDirections NamedViewDirections(v1::NamedView view, const DirectionCosines& direction);
 
-// A patient (LPS) direction in world space, through the volume's direction cosines.
-Vec3f PatientToWorld(const Volume& volume, Vec3f lps);
+// A patient (LPS) direction in world space, through the direction cosines.
+Vec3f PatientToWorld(const DirectionCosines& direction, Vec3f lps);
 
 // The corners of the blocks of voxels (Volume::block_ranges) that `tf` makes
 // visible (able to take 5% of the light crossing them); the volume's corners

@@ -5,6 +5,7 @@
 
 #include "core/error.h"
 #include "io/presets.h"
+#include "io/scene_builder.h"
 #include "io/scene_file.h"
 #include "service/errors.h"
 
@@ -110,6 +111,21 @@ ChromaSubsampling ToChroma(v1::ChromaSubsampling c) {
 }
 
 }  // namespace
+
+void AddResolvedCamera(v1::Scene& scene, const Volume& volume) {
+  v1::Camera& proto = *scene.mutable_camera();
+  if (proto.view() == v1::NAMED_VIEW_UNSPECIFIED) return;
+  const TransferFunction tf = ResolveTransferFunction(scene.transfer_function(), volume);
+  const Camera c = ResolveCamera(proto, scene.render(), volume, tf);
+  auto set = [](v1::Vec3* v, Vec3f p) {
+    v->set_x(p.x);
+    v->set_y(p.y);
+    v->set_z(p.z);
+  };
+  set(proto.mutable_eye(), c.eye);
+  set(proto.mutable_target(), c.eye + c.forward * c.focal_distance);
+  set(proto.mutable_up(), c.up);
+}
 
 v1::Scene InitialScene(const v1::CreateSessionRequest& request, const Volume& volume, const SessionLimits& limits,
                        const VolumeRegistry& volumes) {

@@ -28,6 +28,10 @@ struct SessionLimits {
   int max_events_per_second = 240;               // per stream; past it events are coalesced
 };
 
+// Fills a named view's eye, target and up (the view stays set) with what it
+// resolves to for `volume`.
+void AddResolvedCamera(v1::Scene& scene, const Volume& volume);
+
 // The scene a new session starts from: the request's scene or preset, its
 // viewport, defaults filled, validated; environment maps resolved inside the
 // data roots.

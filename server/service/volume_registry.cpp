@@ -247,6 +247,7 @@ v1::VolumeInfo VolumeRegistry::InfoLocked(const std::string& id, const Entry& e)
   info.mutable_histogram()->set_min_value(h.min_value);
   info.mutable_histogram()->set_max_value(h.max_value);
   info.mutable_histogram()->mutable_counts()->Add(h.counts.begin(), h.counts.end());
+  info.mutable_direction()->Add(v.metadata().direction.begin(), v.metadata().direction.end());
   return info;
 }
 

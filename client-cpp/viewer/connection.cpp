@@ -1,0 +1,241 @@
+// The viewer's network side: a worker thread for calls and events, the
+// stream's reader for frames, a decoder thread for JPEG.
+#include "viewer/connection.h"
+
+#include <fmt/format.h>
+
+#include "script_player.h"
+
+namespace cinevol::viewer {
+namespace {
+
+using Clock = std::chrono::steady_clock;
+
+// Codes that say the server refused what we asked: retrying cannot help.
+bool Refused(grpc::StatusCode code) {
+  return code != grpc::StatusCode::UNAVAILABLE && code != grpc::StatusCode::DEADLINE_EXCEEDED &&
+         code != grpc::StatusCode::ABORTED && code != grpc::StatusCode::CANCELLED &&
+         code != grpc::StatusCode::INTERNAL && code != grpc::StatusCode::UNKNOWN;
+}
+
+std::string Describe(grpc::StatusCode code, const std::string& message) {
+  switch (code) {
+    case grpc::StatusCode::UNAUTHENTICATED: return "the server does not accept this token: " + message;
+    case grpc::StatusCode::PERMISSION_DENIED: return "the server refused: " + message;
+    case grpc::StatusCode::UNAVAILABLE: return "cannot reach the server: " + message;
+    default: return fmt::format("{}: {}", StatusCodeName(code), message);
+  }
+}
+
+constexpr auto kRetryEvery = std::chrono::seconds(2);
+
+}  // namespace
+
+Connection::Connection(ConnectionSettings settings)
+    : settings_(std::move(settings)), worker_([this] { Work(); }), decoder_([this] { Decode(); }) {}
+
+Connection::~Connection() {
+  {
+    std::scoped_lock lock(mu_, frame_mu_);  // no waiter misses it
+    stopping_ = true;
+  }
+  wake_.notify_all();
+  frame_arrived_.notify_all();
+  worker_.join();
+  decoder_.join();
+}
+
+LinkStatus Connection::status() const {
+  std::lock_guard lock(mu_);
+  return status_;
+}
+
+std::optional<v1::CreateSessionResponse> Connection::session() const {
+  std::lock_guard lock(mu_);
+  return session_;
+}
+
+std::optional<v1::VolumeInfo> Connection::volume() const {
+  std::lock_guard lock(mu_);
+  return volume_;
+}
+
+void Connection::Post(v1::SessionEvent event) {
+  {
+    std::lock_guard lock(mu_);
+    if (event.has_camera() && !events_.empty() && events_.back().has_camera()) {
+      events_.back() = std::move(event);  // the newest camera wins
+    } else {
+      events_.push_back(std::move(event));
+    }
+  }
+  wake_.notify_all();
+}
+
+void Connection::Request(std::function<void(Client&)> request, std::function<void(const std::string&)> done) {
+  {
+    std::lock_guard lock(mu_);
+    requests_.emplace_back(std::move(request), std::move(done));
+  }
+  wake_.notify_all();
+}
+
+std::optional<ViewFrame> Connection::TakeFrame() {
+  std::lock_guard lock(frame_mu_);
+  std::optional<ViewFrame> frame = std::move(decoded_);
+  decoded_.reset();
+  return frame;
+}
+
+std::optional<Clock::time_point> Connection::SentAt(std::uint64_t seq) const {
+  std::lock_guard lock(mu_);
+  const auto it = sent_at_.find(seq);
+  if (it == sent_at_.end()) return std::nullopt;
+  return it->second;
+}
+
+void Connection::SetStatus(LinkState state, std::string message) {
+  std::lock_guard lock(mu_);
+  status_ = {state, std::move(message)};
+}
+
+void Connection::Start() {
+  SetStatus(LinkState::kConnecting, "connecting to " + settings_.client.address);
+  client_ = std::make_unique<Client>(settings_.client);
+  // After the first start, the volume it resolved to (an upload is not sent again).
+  v1::VolumeInfo volume;
+  if (!resolved_volume_.empty()) {
+    try {
+      volume = client_->DescribeVolume(resolved_volume_);
+    } catch (const RpcError& e) {
+      if (e.code() != grpc::StatusCode::NOT_FOUND) throw;  // a restarted server lost it: resolve again
+    }
+  }
+  if (volume.id().empty()) volume = client_->DescribeVolume(cli::ResolveVolume(*client_, settings_.session).id());
+  resolved_volume_ = volume.id();
+  const v1::CreateSessionResponse created =
+      client_->CreateSession(cli::SessionRequest(settings_.session, volume.id()));
+  StreamOptions options;
+  options.on_message = [this](const v1::ServerMessage& m) {
+    if (m.has_notice() && m.notice().level() == v1::Notice::WARNING) SetStatus(LinkState::kStreaming, m.notice().message());
+    if (!m.has_frame()) return;
+    {
+      std::lock_guard lock(frame_mu_);
+      encoded_ = m.frame();
+      encoded_at_ = Clock::now();
+    }
+    frame_arrived_.notify_one();
+  };
+  stream_ = client_->Attach(created.session_id(), options);
+  {
+    std::lock_guard lock(mu_);
+    volume_ = volume;
+    session_ = created;
+    sent_at_.clear();
+  }
+  SetStatus(LinkState::kStreaming, fmt::format("{} on {}", volume.id(), created.device()));
+}
+
+bool Connection::SendPending() {
+  std::unique_lock lock(mu_);
+  while (!events_.empty()) {
+    v1::SessionEvent event = std::move(events_.front());
+    events_.pop_front();
+    lock.unlock();
+    const std::uint64_t seq = stream_->Send(event);
+    lock.lock();
+    if (seq == 0) return false;  // the stream ended or is reconnecting: the event is dropped
+    sent_at_[seq] = Clock::now();
+    last_sent_ = seq;
+    while (sent_at_.size() > 4096) sent_at_.erase(sent_at_.begin());
+  }
+  return true;
+}
+
+void Connection::Work() {
+  auto next_try = Clock::now();
+  std::unique_lock lock(mu_);
+  while (!stopping_) {
+    if (!requests_.empty() && client_) {
+      auto [request, done] = std::move(requests_.front());
+      requests_.pop_front();
+      lock.unlock();
+      std::string error;
+      try {
+        request(*client_);
+      } catch (const RpcError& e) {
+        error = Describe(e.code(), e.what());
+      } catch (const std::exception& e) {
+        error = e.what();
+      }
+      done(error);
+      lock.lock();
+      continue;
+    }
+    lock.unlock();
+    if (!stream_ && Clock::now() >= next_try) {
+      try {
+        Start();
+      } catch (const RpcError& e) {
+        const bool refused = Refused(e.code());
+        SetStatus(refused ? LinkState::kFailed : LinkState::kReconnecting,
+                  Describe(e.code(), e.what()) + (refused ? "" : " (retrying)"));
+        stream_.reset();
+        next_try = refused ? Clock::time_point::max() : Clock::now() + kRetryEvery;
+      } catch (const std::exception& e) {
+        SetStatus(LinkState::kFailed, e.what());
+        next_try = Clock::time_point::max();
+      }
+    } else if (stream_ && stream_->ended()) {
+      const grpc::Status s = stream_->status();
+      const bool refused = Refused(s.error_code());
+      SetStatus(refused ? LinkState::kFailed : LinkState::kReconnecting,
+                Describe(s.error_code(), s.error_message()) + (refused ? "" : " (starting a new session)"));
+      stream_.reset();
+      next_try = refused ? Clock::time_point::max() : Clock::now() + kRetryEvery;
+    } else if (stream_) {
+      SendPending();
+    }
+    lock.lock();
+    wake_.wait_for(lock, std::chrono::milliseconds(20), [this] { return stopping_ || !events_.empty() || !requests_.empty(); });
+  }
+  lock.unlock();
+  if (stream_ && session_) {
+    try {
+      client_->CloseSession(session_->session_id());
+    } catch (const std::exception&) {  // the server went first: nothing to close
+    }
+    stream_->Finish(std::chrono::seconds(2));
+  }
+  SetStatus(LinkState::kClosed, "closed");
+}
+
+void Connection::Decode() {
+  std::unique_lock lock(frame_mu_);
+  for (;;) {
+    frame_arrived_.wait(lock, [this] { return encoded_.has_value() || stopping_; });
+    if (!encoded_) return;
+    v1::Frame frame = std::move(*encoded_);
+    encoded_.reset();
+    const Clock::time_point received = encoded_at_;
+    lock.unlock();
+    ViewFrame view;
+    const auto start = Clock::now();
+    try {
+      view.image = DecodeFrame(frame);
+    } catch (const std::exception& e) {
+      SetStatus(LinkState::kStreaming, std::string("a frame could not be decoded: ") + e.what());
+      lock.lock();
+      continue;
+    }
+    view.decode_ms = std::chrono::duration<double, std::milli>(Clock::now() - start).count();
+    view.jpeg_bytes = frame.jpeg().size();
+    frame.clear_jpeg();
+    view.info = std::move(frame);
+    view.received = received;
+    lock.lock();
+    decoded_ = std::move(view);
+  }
+}
+
+}  // namespace cinevol::viewer

@@ -1,0 +1,107 @@
+// Everything cinevol-viewer does over the network, off the UI thread. The UI
+// posts events and requests and reads the newest decoded frame and the
+// connection's state; it never waits on the server.
+//
+// Threads: a worker connects, creates the session and attaches, then sends
+// posted events (camera events coalesced: the newest wins) and runs posted
+// requests in order; the stream's reader hands frames to a decoder thread,
+// which keeps only the newest (a slow decoder skips frames, never queues).
+#pragma once
+
+#include <atomic>
+#include <chrono>
+#include <condition_variable>
+#include <deque>
+#include <functional>
+#include <map>
+#include <memory>
+#include <mutex>
+#include <optional>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include "client.h"
+#include "session_script.h"
+
+namespace cinevol::viewer {
+
+struct ConnectionSettings {
+  ClientOptions client;
+  cli::ScriptSession session;  // the volume (id, load or upload), preset or scene, stream settings
+};
+
+// A decoded frame and what the server said about it.
+struct ViewFrame {
+  RgbImage image;
+  v1::Frame info;  // without its JPEG
+  std::size_t jpeg_bytes = 0;
+  double decode_ms = 0;
+  std::chrono::steady_clock::time_point received;
+};
+
+enum class LinkState { kConnecting, kStreaming, kReconnecting, kFailed, kClosed };
+
+struct LinkStatus {
+  LinkState state = LinkState::kConnecting;
+  std::string message;  // for people: what is happening or what went wrong
+};
+
+class Connection {
+ public:
+  explicit Connection(ConnectionSettings settings);
+  ~Connection();  // closes the session and stops every thread
+  Connection(const Connection&) = delete;
+  Connection& operator=(const Connection&) = delete;
+
+  LinkStatus status() const;
+  // Set once the session exists: its scene (named views resolved), volume and device.
+  std::optional<v1::CreateSessionResponse> session() const;
+  std::optional<v1::VolumeInfo> volume() const;
+
+  // Queues an event. Camera events replace a camera event still waiting.
+  void Post(v1::SessionEvent event);
+  // Runs `request` on the worker with the client; its errors go to `done`
+  // (empty on success). Both run on the worker thread.
+  void Request(std::function<void(Client&)> request, std::function<void(const std::string& error)> done);
+
+  // The newest decoded frame since the last call, if any.
+  std::optional<ViewFrame> TakeFrame();
+  // When event `seq` went out (for event-to-frame latency); nullopt if unknown.
+  std::optional<std::chrono::steady_clock::time_point> SentAt(std::uint64_t seq) const;
+  // The sequence number of the newest event sent (0: none yet).
+  std::uint64_t last_sent() const { return last_sent_; }
+
+ private:
+  void Work();
+  void Start();  // connect, resolve the volume, create the session, attach
+  bool SendPending();
+  void Decode();
+  void SetStatus(LinkState state, std::string message);
+
+  const ConnectionSettings settings_;
+  std::unique_ptr<Client> client_;  // the worker's
+  std::string resolved_volume_;     // the volume id the first start found
+  std::unique_ptr<SessionStream> stream_;
+
+  mutable std::mutex mu_;
+  std::condition_variable wake_;
+  LinkStatus status_;
+  std::optional<v1::CreateSessionResponse> session_;
+  std::optional<v1::VolumeInfo> volume_;
+  std::deque<v1::SessionEvent> events_;
+  std::deque<std::pair<std::function<void(Client&)>, std::function<void(const std::string&)>>> requests_;
+  std::map<std::uint64_t, std::chrono::steady_clock::time_point> sent_at_;
+  std::atomic<std::uint64_t> last_sent_{0};
+  std::atomic<bool> stopping_{false};
+
+  std::mutex frame_mu_;
+  std::condition_variable frame_arrived_;
+  std::optional<v1::Frame> encoded_;   // newest undecoded
+  std::optional<ViewFrame> decoded_;   // newest decoded, not yet taken
+  std::chrono::steady_clock::time_point encoded_at_;
+
+  std::thread worker_, decoder_;
+};
+
+}  // namespace cinevol::viewer

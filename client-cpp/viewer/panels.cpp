@@ -1,0 +1,233 @@
+// The viewer's panels (volume, transfer function, lights, render, scene),
+// its stats overlay and the banner that says what is wrong.
+#include <imgui.h>
+#include <imgui_stdlib.h>
+
+#include <cmath>
+
+#include <fmt/format.h>
+
+#include "io/presets.h"
+#include "viewer/viewer_app.h"
+
+namespace cinevol::viewer {
+namespace {
+
+// Text fields grow with what is typed (imgui_stdlib).
+bool InputPath(const char* label, std::string& text) { return ImGui::InputText(label, &text); }
+
+void VolumePanel(App& app) {
+  if (app.volume) {
+    const v1::VolumeInfo& v = *app.volume;
+    ImGui::Text("%s", v.id().c_str());
+    ImGui::TextWrapped("%s", v.source().c_str());
+    ImGui::Text("%u x %u x %u voxels, %.3g x %.3g x %.3g mm", v.dims().x(), v.dims().y(), v.dims().z(),
+                v.spacing_mm().x(), v.spacing_mm().y(), v.spacing_mm().z());
+    ImGui::Text("modality %s, values %.6g .. %.6g %s", v.modality().empty() ? "unknown" : v.modality().c_str(),
+                v.min_value(), v.max_value(), v.value_unit().c_str());
+    ImGui::TextWrapped("kind: %s (%s)", v1::VolumeKind_Name(v.kind()).c_str(), v.kind_reason().c_str());
+    ImGui::Text("default preset: %s", v.default_preset().c_str());
+  }
+  ImGui::Separator();
+  if (ImGui::Button("Server's volumes")) app.RefreshVolumes();
+  for (const v1::VolumeInfo& v : app.server_volumes) {
+    const bool current = app.volume && v.id() == app.volume->id();
+    if (ImGui::Selectable(v.id().c_str(), current) && !current) app.SwitchVolume(v.id());
+  }
+  InputPath("##load", app.load_path);
+  ImGui::SameLine();
+  if (ImGui::Button("Load") && !app.load_path.empty()) {
+    const std::string path = app.load_path;
+    app.connection->Request(
+        [&app, path](Client& client) {
+          const std::string id = client.LoadVolume(path).id();
+          app.Later([&app, id] { app.SwitchVolume(id); });
+        },
+        [&app, path](const std::string& error) {
+          if (!error.empty()) app.Later([&app, path, error] { app.notice = fmt::format("load {}: {}", path, error); });
+        });
+  }
+  ImGui::TextDisabled("a file or DICOM folder under the server's data roots");
+  InputPath("##upload", app.upload_path);
+  ImGui::SameLine();
+  if (ImGui::Button("Upload") && !app.upload_path.empty()) {
+    const std::string path = app.upload_path;
+    app.notice = "uploading " + path + "...";
+    app.connection->Request(
+        [&app, path](Client& client) {
+          const std::string id = client.UploadVolume(path).id();
+          app.Later([&app, id] { app.SwitchVolume(id); });
+        },
+        [&app, path](const std::string& error) {
+          if (!error.empty()) app.Later([&app, path, error] { app.notice = fmt::format("upload {}: {}", path, error); });
+        });
+  }
+  ImGui::TextDisabled("a local .nii, .nii.gz, .nrrd, .mha or .vtk file");
+}
+
+void TransferPanel(App& app) {
+  const std::string current = app.transfer.preset().empty() ? "(edited)" : app.transfer.preset();
+  if (ImGui::BeginCombo("preset", current.c_str())) {
+    for (const std::string& name : PresetNames()) {
+      if (ImGui::Selectable(name.c_str(), name == app.transfer.preset())) app.ChoosePreset(name);
+    }
+    ImGui::EndCombo();
+  }
+  if (app.volume &&
+      TransferFunctionEditor("##tf", app.transfer, app.volume->histogram(), app.editor, 140.0f)) {
+    app.SendTransferFunction();
+  }
+  ImGui::TextDisabled("Alt + drag in the view: window (sideways), level (up/down)");
+}
+
+// The first area light is the key light.
+v1::AreaLight* KeyLight(App& app) {
+  for (v1::Light& l : *app.lights.mutable_lights()) {
+    if (l.has_area()) return l.mutable_area();
+  }
+  return nullptr;
+}
+
+void LightsPanel(App& app) {
+  if (v1::AreaLight* key = KeyLight(app)) {
+    float intensity = key->intensity();
+    if (ImGui::SliderFloat("key light", &intensity, 0, 200, "%.1f", ImGuiSliderFlags_Logarithmic)) {
+      key->set_intensity(intensity);
+      app.SendLights();
+    }
+    bool visible = key->visible();
+    if (ImGui::Checkbox("show the lamp", &visible)) {
+      key->set_visible(visible);
+      app.SendLights();
+    }
+    ImGui::TextDisabled("Ctrl + drag in the view turns the key light");
+  }
+  for (v1::Light& l : *app.lights.mutable_lights()) {
+    if (!l.has_environment()) continue;
+    float intensity = l.environment().intensity();
+    if (ImGui::SliderFloat("environment", &intensity, 0, 20, "%.2f", ImGuiSliderFlags_Logarithmic)) {
+      l.mutable_environment()->set_intensity(intensity);
+      app.SendLights();
+    }
+  }
+}
+
+// Speed for accuracy, from docs/tradeoff.md: what each costs is measured there.
+struct Quality {
+  const char* name;
+  int spp, bounces;
+  v1::Denoiser denoiser;
+};
+constexpr Quality kQualities[] = {
+    {"fast: 1 spp, 2 bounces, wRLS", 1, 2, v1::DENOISER_WRLS},
+    {"interactive: 2 spp, 4 bounces, wRLS", 2, 4, v1::DENOISER_WRLS},
+    {"quality: 4 spp, 8 bounces, wRLS", 4, 8, v1::DENOISER_WRLS},
+};
+
+void RenderPanel(App& app) {
+  for (const Quality& q : kQualities) {
+    if (ImGui::Button(q.name)) {
+      app.render.set_spp(q.spp);
+      app.render.set_max_bounces(q.bounces);
+      app.stream.set_denoiser(q.denoiser);
+      app.SendRender();
+      app.SendStream();
+    }
+  }
+  int spp = int(app.render.spp()), bounces = int(app.render.max_bounces());
+  if (ImGui::SliderInt("spp per frame", &spp, 1, 16)) {
+    app.render.set_spp(spp);
+    app.SendRender();
+  }
+  if (ImGui::SliderInt("bounces", &bounces, 0, 16)) {
+    app.render.set_max_bounces(bounces);
+    app.SendRender();
+  }
+  static const char* kDenoisers[] = {"server default (wRLS)", "none", "accumulate", "kNN", "guided", "SVGF", "wRLS"};
+  int denoiser = app.stream.denoiser();
+  if (ImGui::Combo("denoiser", &denoiser, kDenoisers, IM_ARRAYSIZE(kDenoisers))) {
+    app.stream.set_denoiser(v1::Denoiser(denoiser));
+    app.SendStream();
+  }
+  int quality = app.stream.has_jpeg_quality() ? int(app.stream.jpeg_quality()) : 80;
+  if (ImGui::SliderInt("JPEG quality", &quality, 10, 100)) {
+    app.stream.set_jpeg_quality(quality);
+    app.SendStream();
+  }
+  int target = app.stream.has_target_spp() ? int(app.stream.target_spp()) : 256;
+  if (ImGui::SliderInt("refine to spp", &target, 1, 4096, "%d", ImGuiSliderFlags_Logarithmic)) {
+    app.stream.set_target_spp(target);
+    app.SendStream();
+  }
+}
+
+void ScenePanel(App& app) {
+  InputPath("scene file", app.scene_path);
+  if (ImGui::Button("Open")) app.OpenScene(app.scene_path);
+  ImGui::SameLine();
+  if (ImGui::Button("Save")) app.SaveScene(app.scene_path);
+  ImGui::Separator();
+  InputPath("snapshot", app.snapshot_path);
+  ImGui::SliderInt("snapshot spp", &app.snapshot_spp, 1, 4096, "%d", ImGuiSliderFlags_Logarithmic);
+  if (ImGui::Button("Take snapshot (.png or .exr)")) app.Snapshot(app.snapshot_path, app.snapshot_spp);
+}
+
+bool Header(const char* label, bool& open) {
+  ImGui::SetNextItemOpen(open, ImGuiCond_Always);
+  open = ImGui::CollapsingHeader(label);
+  return open;
+}
+
+}  // namespace
+
+void DrawPanels(App& app) {
+  ImGui::SetNextWindowPos({app.panel_area.x, app.panel_area.y});
+  ImGui::SetNextWindowSize({app.panel_area.w, app.panel_area.h});
+  ImGui::Begin("cinevol", nullptr, ImGuiWindowFlags_NoMove | ImGuiWindowFlags_NoResize | ImGuiWindowFlags_NoCollapse);
+  if (Header("Volume", app.panels.volume)) VolumePanel(app);
+  if (Header("Transfer function", app.panels.transfer_function)) TransferPanel(app);
+  if (Header("Lights", app.panels.lights)) LightsPanel(app);
+  if (Header("Render", app.panels.render)) RenderPanel(app);
+  if (Header("Scene and snapshot", app.panels.scene)) ScenePanel(app);
+  ImGui::Separator();
+  ImGui::Checkbox("stats overlay (F2)", &app.panels.stats);
+  if (!app.notice.empty()) ImGui::TextWrapped("%s", app.notice.c_str());
+  ImGui::TextDisabled("drag: orbit; right drag or wheel: zoom; middle or Shift drag: pan;");
+  ImGui::TextDisabled("A P L R S I: named views; Home: reset; Ctrl+Q: quit");
+  ImGui::End();
+}
+
+void DrawStatsOverlay(App& app) {
+  const ViewerStats& s = app.stats;
+  ImGui::SetNextWindowPos({app.frame_area.x + 10, app.frame_area.y + 10});
+  ImGui::SetNextWindowBgAlpha(0.6f);
+  ImGui::Begin("stats", nullptr,
+               ImGuiWindowFlags_NoDecoration | ImGuiWindowFlags_AlwaysAutoResize | ImGuiWindowFlags_NoInputs |
+                   ImGuiWindowFlags_NoSavedSettings | ImGuiWindowFlags_NoFocusOnAppearing);
+  const v1::FrameTimings& t = s.last.timings();
+  ImGui::Text("%.0f fps   %u x %u   %u spp", s.Fps(), s.last.width(), s.last.height(), s.last.accumulated_spp());
+  ImGui::Text("latency p50 %.0f ms  p95 %.0f ms", s.LatencyPercentile(0.5), s.LatencyPercentile(0.95));
+  ImGui::Text("server: render %.1f  denoise %.1f  encode %.1f ms", t.render_us() / 1e3, t.denoise_us() / 1e3,
+              t.encode_us() / 1e3);
+  ImGui::Text("viewer: decode %.1f  upload %.1f  draw %.1f ms", s.decode_ms, s.upload_ms, s.draw_ms);
+  ImGui::Text("%.2f MB/s   %llu frames dropped", s.BytesPerSecond() / 1e6, (unsigned long long)s.dropped);
+  const ImVec2 pos = ImGui::GetWindowPos(), size = ImGui::GetWindowSize();
+  app.stats_area = {pos.x, pos.y, size.x, size.y};
+  ImGui::End();
+}
+
+void DrawStatusBanner(App& app, const LinkStatus& status) {
+  if (status.state == LinkState::kStreaming && app.stats.last_frame_id > 0) return;
+  const bool bad = status.state == LinkState::kFailed || status.state == LinkState::kReconnecting;
+  const std::string text = status.state == LinkState::kStreaming ? "waiting for the first frame..." : status.message;
+  ImGui::SetNextWindowPos({app.frame_area.x + app.frame_area.w * 0.5f, app.frame_area.y + app.frame_area.h * 0.5f},
+                          ImGuiCond_Always, {0.5f, 0.5f});
+  ImGui::SetNextWindowSize({std::min(520.0f, app.frame_area.w - 20), 0});
+  ImGui::Begin("status", nullptr, ImGuiWindowFlags_NoDecoration | ImGuiWindowFlags_NoSavedSettings);
+  if (bad) ImGui::PushStyleColor(ImGuiCol_Text, ImVec4(1.0f, 0.55f, 0.45f, 1.0f));
+  ImGui::TextWrapped("%s", text.c_str());
+  if (bad) ImGui::PopStyleColor();
+  ImGui::End();
+}
+
+}  // namespace cinevol::viewer

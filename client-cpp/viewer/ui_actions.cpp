@@ -1,0 +1,154 @@
+// Session-script "ui" lines: the viewer's own actions, so that a script can
+// drive the window as a person would (docs/viewer.md lists them).
+#include <google/protobuf/struct.pb.h>
+#include <google/protobuf/util/json_util.h>
+
+#include <cmath>
+
+#include <fmt/format.h>
+
+#include "core/error.h"
+#include "viewer/transfer_edits.h"
+#include "viewer/viewer_app.h"
+
+namespace cinevol::viewer {
+namespace {
+
+using google::protobuf::Struct;
+using google::protobuf::Value;
+
+const Value& Field(const Struct& s, const std::string& key, const std::string& where) {
+  const auto it = s.fields().find(key);
+  if (it == s.fields().end()) throw InputError(fmt::format("{}: {}: missing", where, key));
+  return it->second;
+}
+
+double Number(const Struct& s, const std::string& key, const std::string& where, double fallback = NAN) {
+  const auto it = s.fields().find(key);
+  if (it == s.fields().end() && !std::isnan(fallback)) return fallback;
+  const Value& v = Field(s, key, where);
+  if (v.kind_case() != Value::kNumberValue || !std::isfinite(v.number_value())) {
+    throw InputError(fmt::format("{}: {}: must be a number", where, key));
+  }
+  return v.number_value();
+}
+
+std::string Text(const Value& v, const std::string& where) {
+  if (v.kind_case() != Value::kStringValue) throw InputError(where + ": must be a string");
+  return v.string_value();
+}
+
+const Struct& Object(const Value& v, const std::string& where) {
+  if (!v.has_struct_value()) throw InputError(where + ": must be an object");
+  return v.struct_value();
+}
+
+bool* Panel(PanelsOpen& p, const std::string& name) {
+  if (name == "volume") return &p.volume;
+  if (name == "transferFunction") return &p.transfer_function;
+  if (name == "lights") return &p.lights;
+  if (name == "render") return &p.render;
+  if (name == "scene") return &p.scene;
+  if (name == "stats") return &p.stats;
+  return nullptr;
+}
+
+int Button(const std::string& name, const std::string& where) {
+  if (name == "left") return SDL_BUTTON_LEFT;
+  if (name == "middle") return SDL_BUTTON_MIDDLE;
+  if (name == "right") return SDL_BUTTON_RIGHT;
+  throw InputError(where + ": button: left, middle or right");
+}
+
+SDL_Keymod Modifier(const std::string& name, const std::string& where) {
+  if (name.empty()) return KMOD_NONE;
+  if (name == "shift") return KMOD_LSHIFT;
+  if (name == "ctrl") return KMOD_LCTRL;
+  if (name == "alt") return KMOD_LALT;
+  throw InputError(where + ": modifier: shift, ctrl or alt");
+}
+
+}  // namespace
+
+// `line` < 0: check the action only (at load, before anything runs).
+void App::RunUiAction(const std::string& json, int line) {
+  const bool run = line > 0;
+  const std::string where = fmt::format("{} line {}: ui", options.script, std::abs(line));
+  Struct action;
+  if (!google::protobuf::util::JsonStringToMessage(json, &action).ok() || action.fields().size() != 1) {
+    throw InputError(where + ": one action per line");
+  }
+  const auto& [name, value] = *action.fields().begin();
+  const std::string at = where + "." + name;
+  if (name == "panel") {  // {"panel": {"name": "lights", "open": true}}
+    const Struct& p = Object(value, at);
+    bool* open = Panel(panels, Text(Field(p, "name", at), at + ".name"));
+    if (!open) throw InputError(at + ".name: volume, transferFunction, lights, render, scene or stats");
+    if (run) *open = !p.fields().count("open") || p.fields().at("open").bool_value();
+  } else if (name == "key") {  // {"key": "p"}
+    const std::string key = Text(value, at);
+    if (key.size() != 1 && key != "Home" && key != "F2") throw InputError(at + ": one character, Home or F2");
+    if (run) Key(key == "Home" ? SDLK_HOME : key == "F2" ? SDLK_F2 : SDL_Keycode(key[0]));
+  } else if (name == "drag") {  // {"drag": {"button": "left", "dx": 100, "dy": 0, "modifier": "ctrl"}}
+    const Struct& d = Object(value, at);
+    const int button = Button(d.fields().count("button") ? Text(d.fields().at("button"), at) : "left", at);
+    const SDL_Keymod mods = Modifier(d.fields().count("modifier") ? Text(d.fields().at("modifier"), at) : "", at);
+    const double dx = Number(d, "dx", at, 0), dy = Number(d, "dy", at, 0);
+    if (run) Drag(button, float(dx), float(dy), mods);
+  } else if (name == "wheel") {  // {"wheel": 2}
+    if (value.kind_case() != Value::kNumberValue) throw InputError(at + ": must be a number");
+    if (run) Wheel(float(value.number_value()));
+  } else if (name == "preset") {
+    const std::string preset = Text(value, at);
+    if (run) ChoosePreset(preset);
+  } else if (name == "movePoint") {  // {"movePoint": {"index": 2, "value": 300, "opacity": 0.8}}
+    const Struct& p = Object(value, at);
+    const int index = int(Number(p, "index", at));
+    const double v = Number(p, "value", at), o = Number(p, "opacity", at);
+    if (run) {
+      if (!MoveTransferPoint(transfer, index, float(v), float(o))) {
+        throw InputError(fmt::format("{}: no point {} (the transfer function has {})", at, index, transfer.points_size()));
+      }
+      SendTransferFunction();
+    }
+  } else if (name == "addPoint") {  // {"addPoint": {"value": 300, "opacity": 0.5}}
+    const Struct& p = Object(value, at);
+    const double v = Number(p, "value", at), o = Number(p, "opacity", at);
+    if (run && AddTransferPoint(transfer, float(v), float(o)) >= 0) SendTransferFunction();
+  } else if (name == "deletePoint") {  // {"deletePoint": 1}
+    if (value.kind_case() != Value::kNumberValue) throw InputError(at + ": must be a point index");
+    if (run && DeleteTransferPoint(transfer, int(value.number_value()))) SendTransferFunction();
+  } else if (name == "windowLevel") {  // {"windowLevel": {"level": 100, "window": 1.5}}
+    const Struct& p = Object(value, at);
+    const double level = Number(p, "level", at, 0), window = Number(p, "window", at, 1);
+    if (run) {
+      ApplyWindowLevel(transfer, float(level), float(window));
+      SendTransferFunction();
+    }
+  } else if (name == "snapshot") {  // {"snapshot": {"file": "still.png", "spp": 64}}
+    const Struct& p = Object(value, at);
+    const std::string file = Text(Field(p, "file", at), at + ".file");
+    const double spp = Number(p, "spp", at, 256);
+    if (run) Snapshot(file, int(spp));
+  } else if (name == "saveScene" || name == "openScene") {
+    const std::string file = Text(value, at);
+    if (run) name == "saveScene" ? SaveScene(file) : OpenScene(file);
+  } else if (name == "resizeWindow") {  // {"resizeWindow": {"width": 800, "height": 500}}
+    const Struct& p = Object(value, at);
+    const double w = Number(p, "width", at), h = Number(p, "height", at);
+    if (w < 200 || h < 150 || w > 8192 || h > 8192) throw InputError(at + ": width and height in [200, 8192] x [150, 8192]");
+    if (run) SDL_SetWindowSize(window_, int(w), int(h));
+  } else if (name == "screenshot") {  // {"screenshot": "step.png"}: the window as it was last drawn
+    const std::string file = Text(value, at);
+    if (run) WriteScreenshot(file);
+  } else if (name == "quit") {
+    if (run) finish_now_ = true;
+  } else {
+    throw InputError(fmt::format(
+        "{}: unknown action (panel, key, drag, wheel, preset, movePoint, addPoint, deletePoint, windowLevel, "
+        "snapshot, saveScene, openScene, resizeWindow, screenshot, quit)",
+        at));
+  }
+}
+
+}  // namespace cinevol::viewer

@@ -1,0 +1,608 @@
+// The viewer's UI thread: the SDL loop, frames onto the screen, mouse and
+// keys, session scripts and screenshots.
+#include "viewer/viewer_app.h"
+
+#include <google/protobuf/struct.pb.h>
+#include <google/protobuf/util/json_util.h>
+#include <imgui.h>
+#include <imgui_impl_sdl.h>
+#include <imgui_impl_sdlrenderer.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <thread>
+
+#include <fmt/format.h>
+
+#include "core/error.h"
+#include "encode/image_codecs.h"
+#include "io/presets.h"
+#include "io/scene_file.h"
+#include "viewer/transfer_edits.h"
+
+namespace cinevol::viewer {
+namespace {
+
+constexpr float kPanelWidth = 330;          // logical pixels
+constexpr auto kResizeSettle = std::chrono::milliseconds(250);
+constexpr auto kFramePeriod = std::chrono::milliseconds(8);  // at most ~120 displayed frames a second
+constexpr double kSettleSeconds = 1.0;      // scripts: frames after the last event before the screenshot
+
+double Ms(Clock::duration d) { return std::chrono::duration<double, std::milli>(d).count(); }
+
+ValueHistogram ToHistogram(const v1::ValueHistogram& proto) {
+  ValueHistogram h;
+  h.min_value = proto.min_value();
+  h.max_value = proto.max_value();
+  h.counts.assign(proto.counts().begin(), proto.counts().end());
+  h.counts.resize(ValueHistogram::kBins, 0);
+  return h;
+}
+
+// Refused, or the server cannot be reached (retrying).
+bool Broken(LinkState s) { return s == LinkState::kFailed || s == LinkState::kReconnecting; }
+
+}  // namespace
+
+// ---------------------------------------------------------------- stats
+
+double ViewerStats::Fps() const { return double(displayed.size()); }
+
+double ViewerStats::LatencyPercentile(double q) const {
+  if (latency_ms.empty()) return NAN;
+  std::vector<double> v(latency_ms.begin(), latency_ms.end());
+  std::sort(v.begin(), v.end());
+  return v[std::min(v.size() - 1, static_cast<std::size_t>(q * double(v.size())))];
+}
+
+double ViewerStats::BytesPerSecond() const {
+  double sum = 0;
+  for (const auto& [at, n] : bytes) sum += double(n);
+  return sum;
+}
+
+// ------------------------------------------------------------ lifecycle
+
+App::App(ViewerOptions o) : options(std::move(o)) {
+  if (!options.script.empty()) {
+    script_ = cli::LoadScript(options.script);
+    // The script's session line says what it names; the command line the rest.
+    cli::ScriptSession& s = script_->session;
+    const bool names_volume = !s.volume.empty() || !s.load.empty() || !s.upload.empty();
+    if (!names_volume) s.volume = options.session.volume, s.load = options.session.load, s.upload = options.session.upload;
+    if (s.preset.empty() && !s.scene) s.preset = options.session.preset;
+    options.session = s;
+    for (const cli::ScriptStep& step : script_->steps) {
+      if (!step.ui.empty()) RunUiAction(step.ui, -step.line);  // a dry run: checks every action
+    }
+  }
+  if (SDL_Init(SDL_INIT_VIDEO) != 0) throw InputError(fmt::format("cannot open a window: {}", SDL_GetError()));
+  window_ = SDL_CreateWindow("cinevol-viewer", SDL_WINDOWPOS_CENTERED, SDL_WINDOWPOS_CENTERED, options.width,
+                             options.height, SDL_WINDOW_RESIZABLE | SDL_WINDOW_ALLOW_HIGHDPI);
+  if (!window_) throw InputError(fmt::format("cannot open a window: {}", SDL_GetError()));
+  renderer_ = SDL_CreateRenderer(window_, -1, SDL_RENDERER_ACCELERATED);
+  if (!renderer_) renderer_ = SDL_CreateRenderer(window_, -1, SDL_RENDERER_SOFTWARE);
+  if (!renderer_) throw InputError(fmt::format("cannot draw in the window: {}", SDL_GetError()));
+  ImGui::CreateContext();
+  ImGui::GetIO().IniFilename = nullptr;  // the layout is the program's, not a file's
+  ImGui::StyleColorsDark();
+  ImGui_ImplSDL2_InitForSDLRenderer(window_);
+  ImGui_ImplSDLRenderer_Init(renderer_);
+  Layout();
+}
+
+App::~App() {
+  connection.reset();  // closes the session before the local server stops
+  local_server.reset();
+  ImGui_ImplSDLRenderer_Shutdown();
+  ImGui_ImplSDL2_Shutdown();
+  ImGui::DestroyContext();
+  if (texture_) SDL_DestroyTexture(texture_);
+  if (renderer_) SDL_DestroyRenderer(renderer_);
+  if (window_) SDL_DestroyWindow(window_);
+  SDL_Quit();
+}
+
+void App::Connect() {
+  if (options.local_server && !local_server) {
+    const auto log = std::filesystem::temp_directory_path() / fmt::format("cinevol-viewer-{}.log", getpid());
+    std::fprintf(stderr, "cinevol-viewer: starting a local cinevol-server (log: %s)...\n", log.c_str());
+    local_server = std::make_unique<cli::LocalServer>(options.backend, log);
+    options.connection.server = local_server->address();
+  }
+  ConnectionSettings settings{cli::ToClientOptions(options.connection), options.session};
+  // The session starts at the size the window shows it.
+  viewport_w_ = std::max(16, int(std::lround(frame_area.w * pixel_scale_)));
+  viewport_h_ = std::max(16, int(std::lround(frame_area.h * pixel_scale_)));
+  settings.session.viewport.set_width(viewport_w_);
+  settings.session.viewport.set_height(viewport_h_);
+  connection = std::make_unique<Connection>(std::move(settings));
+}
+
+int App::Run() {
+  Connect();
+  while (!quit_) {
+    const Clock::time_point frame_start = Clock::now();
+    PumpSdlEvents();
+    std::vector<std::function<void()>> later;
+    {
+      std::lock_guard lock(later_mu_);
+      later.swap(later_);
+    }
+    for (auto& f : later) f();
+    AdoptSession();
+    TakeFrame();
+    RunScript();
+    ResizeViewportWhenSettled();
+    if (camera_dirty_ && !session_id.empty()) {  // one camera event per displayed frame
+      v1::SessionEvent e;
+      *e.mutable_camera() = ToProto(camera);
+      connection->Post(std::move(e));
+      camera_dirty_ = false;
+    }
+
+    ImGui_ImplSDLRenderer_NewFrame();
+    ImGui_ImplSDL2_NewFrame();
+    ImGui::NewFrame();
+    Layout();
+    DrawPanels(*this);
+    if (panels.stats) DrawStatsOverlay(*this);
+    DrawStatusBanner(*this, connection->status());
+    ImGui::Render();
+    SDL_SetRenderDrawColor(renderer_, 24, 26, 30, 255);
+    SDL_RenderClear(renderer_);
+    DrawFrame();
+    ImGui_ImplSDLRenderer_RenderDrawData(ImGui::GetDrawData());
+    if (script_ && ScriptDone()) {
+      if (!options.screenshot.empty()) WriteScreenshot(options.screenshot);
+      quit_ = true;
+    }
+    SDL_RenderPresent(renderer_);
+    stats.draw_ms = Ms(Clock::now() - frame_start);
+    std::this_thread::sleep_until(frame_start + kFramePeriod);
+  }
+  return exit_code_;
+}
+
+// ----------------------------------------------------------- the session
+
+void App::Later(std::function<void()> f) {
+  std::lock_guard lock(later_mu_);
+  later_.push_back(std::move(f));
+}
+
+void App::AdoptSession() {
+  const std::optional<v1::CreateSessionResponse> s = connection->session();
+  if (!s || s->session_id() == session_id) return;
+  const bool restore = !session_id.empty() && volume && connection->volume() &&
+                       volume->id() == connection->volume()->id();
+  session_id = s->session_id();
+  stats.last_frame_id = 0;
+  if (restore) {  // the server lost our session: put our state onto the new one
+    camera_dirty_ = true;
+    SendTransferFunction();
+    SendLights();
+    SendRender();
+    SendStream();
+    return;
+  }
+  volume = connection->volume();
+  const v1::Scene& scene = s->scene();
+  camera = home = FromProto(scene.camera(), ViewCamera{});
+  transfer = scene.transfer_function();
+  if (transfer.points().empty()) {
+    const std::string preset = transfer.preset().empty() ? volume->default_preset() : transfer.preset();
+    transfer = MakePreset(preset, AutoWindow(ToHistogram(volume->histogram())));
+  }
+  lights.mutable_lights()->CopyFrom(scene.lights());
+  render = scene.render();
+  stream = options.session.stream;
+}
+
+void App::SendTransferFunction() {
+  v1::SessionEvent e;
+  *e.mutable_transfer_function() = transfer;
+  connection->Post(std::move(e));
+}
+
+void App::SendLights() {
+  v1::SessionEvent e;
+  *e.mutable_lights() = lights;
+  connection->Post(std::move(e));
+}
+
+void App::SendRender() {
+  v1::SessionEvent e;
+  e.mutable_render()->set_spp(render.spp());
+  e.mutable_render()->set_max_bounces(render.max_bounces());
+  connection->Post(std::move(e));
+}
+
+void App::SendStream() {
+  v1::SessionEvent e;
+  *e.mutable_stream() = stream;
+  connection->Post(std::move(e));
+}
+
+void App::SendCamera() { camera_dirty_ = true; }
+
+void App::ChoosePreset(const std::string& name) {
+  if (!volume) return;
+  transfer = MakePreset(name, AutoWindow(ToHistogram(volume->histogram())));
+  editor = {};
+  SendTransferFunction();
+}
+
+void App::SwitchVolume(const std::string& id) {
+  options.session.volume = id;
+  options.session.load.clear();
+  options.session.upload.clear();
+  options.session.preset.clear();  // the new volume's default
+  options.session.scene.reset();
+  connection.reset();
+  session_id.clear();
+  volume.reset();
+  Connect();
+}
+
+void App::RefreshVolumes() {
+  connection->Request(
+      [this](Client& client) {
+        auto list = client.ListVolumes();
+        Later([this, list = std::move(list)] { server_volumes = list; });
+      },
+      [this](const std::string& error) {
+        if (!error.empty()) Later([this, error] { notice = error; });
+      });
+}
+
+void App::Snapshot(const std::string& path, int spp) {
+  const std::string ext = std::filesystem::path(path).extension().string();
+  if (ext != ".png" && ext != ".exr") {
+    notice = fmt::format("snapshot {}: use .png or .exr", path);
+    return;
+  }
+  v1::SnapshotRequest request;
+  request.set_session_id(session_id);
+  request.set_spp(spp);
+  request.set_format(ext == ".exr" ? v1::EXR : v1::PNG);
+  notice = fmt::format("rendering {} at {} spp...", path, spp);
+  connection->Request(
+      [this, request, path](Client& client) {
+        const v1::SnapshotResponse still = client.Snapshot(request);
+        WriteFile(path, std::vector<std::uint8_t>(still.image().begin(), still.image().end()));
+        Later([this, path, still] {
+          notice = fmt::format("wrote {} ({}x{}, {} spp, {:.1f} s)", path, still.width(), still.height(), still.spp(),
+                               still.render_us() / 1e6);
+        });
+      },
+      [this, path](const std::string& error) {
+        if (!error.empty()) Later([this, path, error] { notice = fmt::format("snapshot {}: {}", path, error); });
+      });
+}
+
+void App::SaveScene(const std::string& path) {
+  v1::Scene scene;
+  *scene.mutable_transfer_function() = transfer;
+  *scene.mutable_camera() = ToProto(camera);
+  scene.mutable_lights()->CopyFrom(lights.lights());
+  *scene.mutable_render() = render;
+  scene.mutable_render()->set_width(viewport_w_);
+  scene.mutable_render()->set_height(viewport_h_);
+  if (volume) scene.mutable_volume()->set_file(volume->source());
+  google::protobuf::util::JsonPrintOptions print;
+  print.add_whitespace = true;
+  std::string json;
+  google::protobuf::util::MessageToJsonString(scene, &json, print);
+  std::ofstream out(path);
+  out << json;
+  notice = out ? fmt::format("saved the scene to {}", path) : fmt::format("cannot write {}", path);
+}
+
+void App::OpenScene(const std::string& path) {
+  try {
+    const v1::Scene scene = LoadSceneFile(path);
+    camera = FromProto(scene.camera(), camera);
+    SendCamera();
+    transfer = scene.transfer_function();
+    if (transfer.points().empty() && volume) {
+      transfer = MakePreset(transfer.preset().empty() ? volume->default_preset() : transfer.preset(),
+                            AutoWindow(ToHistogram(volume->histogram())));
+    }
+    SendTransferFunction();
+    lights.mutable_lights()->CopyFrom(scene.lights());
+    SendLights();
+    render.set_spp(scene.render().spp());
+    render.set_max_bounces(scene.render().max_bounces());
+    SendRender();
+    notice = fmt::format("opened {}", path);
+  } catch (const std::exception& e) {
+    notice = e.what();
+  }
+}
+
+// ------------------------------------------------------------ the frame
+
+void App::TakeFrame() {
+  const Clock::time_point now = Clock::now();
+  while (!stats.displayed.empty() && now - stats.displayed.front() > std::chrono::seconds(1)) stats.displayed.pop_front();
+  while (!stats.bytes.empty() && now - stats.bytes.front().first > std::chrono::seconds(1)) stats.bytes.pop_front();
+  std::optional<ViewFrame> frame = connection->TakeFrame();
+  if (!frame) return;
+  UploadFrame(*frame);
+  const v1::Frame& f = frame->info;
+  if (stats.last_frame_id > 0 && f.frame_id() > stats.last_frame_id + 1) stats.dropped += f.frame_id() - stats.last_frame_id - 1;
+  for (std::uint64_t seq = stats.last.last_event_seq() + 1; seq <= f.last_event_seq(); ++seq) {
+    if (const auto sent = connection->SentAt(seq)) stats.latency_ms.push_back(Ms(now - *sent));
+  }
+  while (stats.latency_ms.size() > 200) stats.latency_ms.pop_front();
+  stats.last_frame_id = f.frame_id();
+  stats.last = f;
+  stats.displayed.push_back(now);
+  stats.bytes.emplace_back(now, frame->jpeg_bytes);
+  stats.decode_ms = frame->decode_ms;
+  stats.cost_ms.push_back(stats.decode_ms + stats.upload_ms + stats.draw_ms);
+}
+
+void App::UploadFrame(const ViewFrame& frame) {
+  const Clock::time_point start = Clock::now();
+  const RgbImage& image = frame.image;
+  if (!texture_ || texture_w_ != image.width || texture_h_ != image.height) {
+    if (texture_) SDL_DestroyTexture(texture_);
+    texture_ = SDL_CreateTexture(renderer_, SDL_PIXELFORMAT_RGB24, SDL_TEXTUREACCESS_STREAMING, image.width,
+                                 image.height);
+    texture_w_ = image.width;
+    texture_h_ = image.height;
+  }
+  if (texture_) SDL_UpdateTexture(texture_, nullptr, image.rgb.data(), image.width * 3);
+  stats.upload_ms = Ms(Clock::now() - start);
+}
+
+void App::Layout() {
+  int w = 0, h = 0, pw = 0, ph = 0;
+  SDL_GetWindowSize(window_, &w, &h);
+  SDL_GetRendererOutputSize(renderer_, &pw, &ph);
+  pixel_scale_ = w > 0 ? float(pw) / float(w) : 1.0f;
+  const float panel = std::min(kPanelWidth, float(w) * 0.5f);
+  panel_area = {0, 0, panel, float(h)};
+  frame_area = {panel, 0, float(w) - panel, float(h)};
+}
+
+void App::DrawFrame() {
+  if (!texture_) return;
+  // Fit the frame into its area, keeping its aspect ratio (it matches once
+  // a resize has settled).
+  const float aw = frame_area.w * pixel_scale_, ah = frame_area.h * pixel_scale_;
+  const float s = std::min(aw / float(texture_w_), ah / float(texture_h_));
+  SDL_Rect dst;
+  dst.w = int(std::lround(texture_w_ * s));
+  dst.h = int(std::lround(texture_h_ * s));
+  dst.x = int(std::lround(frame_area.x * pixel_scale_ + (aw - dst.w) / 2));
+  dst.y = int(std::lround(frame_area.y * pixel_scale_ + (ah - dst.h) / 2));
+  SDL_RenderCopy(renderer_, texture_, nullptr, &dst);
+}
+
+void App::ResizeViewportWhenSettled() {
+  const int w = std::max(16, int(std::lround(frame_area.w * pixel_scale_)));
+  const int h = std::max(16, int(std::lround(frame_area.h * pixel_scale_)));
+  if (w == viewport_w_ && h == viewport_h_) return;
+  if (w != pending_w_ || h != pending_h_) {
+    pending_w_ = w;
+    pending_h_ = h;
+    pending_since_ = Clock::now();
+    return;
+  }
+  if (Clock::now() - pending_since_ < kResizeSettle || session_id.empty()) return;
+  viewport_w_ = w;
+  viewport_h_ = h;
+  v1::SessionEvent e;
+  e.mutable_resize()->set_width(w);
+  e.mutable_resize()->set_height(h);
+  connection->Post(std::move(e));
+}
+
+// ------------------------------------------------------- mouse and keys
+
+void App::PumpSdlEvents() {
+  const ImGuiIO& io = ImGui::GetIO();
+  SDL_Event e;
+  while (SDL_PollEvent(&e)) {
+    ImGui_ImplSDL2_ProcessEvent(&e);
+    switch (e.type) {
+      case SDL_QUIT: quit_ = true; break;
+      case SDL_MOUSEBUTTONDOWN:
+        if (!io.WantCaptureMouse && frame_area.Contains(float(e.button.x), float(e.button.y))) {
+          drag_button_ = e.button.button;
+          drag_x_ = float(e.button.x);
+          drag_y_ = float(e.button.y);
+        }
+        break;
+      case SDL_MOUSEBUTTONUP:
+        if (e.button.button == drag_button_) drag_button_ = 0;
+        break;
+      case SDL_MOUSEMOTION:
+        if (drag_button_) {
+          Drag(drag_button_, float(e.motion.x) - drag_x_, float(e.motion.y) - drag_y_, SDL_GetModState());
+          drag_x_ = float(e.motion.x);
+          drag_y_ = float(e.motion.y);
+        }
+        break;
+      case SDL_MOUSEWHEEL:
+        if (!io.WantCaptureMouse) Wheel(float(e.wheel.y));
+        break;
+      case SDL_KEYDOWN:
+        if (!io.WantCaptureKeyboard) Key(e.key.keysym.sym);
+        break;
+      default: break;
+    }
+  }
+}
+
+void App::Drag(int button, float dx, float dy, SDL_Keymod mods) {
+  if (session_id.empty()) return;
+  if (button == SDL_BUTTON_LEFT && (mods & KMOD_CTRL)) {  // the key light
+    for (v1::Light& l : *lights.mutable_lights()) {
+      if (!l.has_area()) continue;
+      OrbitLight(*l.mutable_area(), camera, dx * kDegreesPerPixel, dy * kDegreesPerPixel);
+      SendLights();
+      break;
+    }
+  } else if (button == SDL_BUTTON_LEFT && (mods & KMOD_ALT)) {  // window (horizontal) and level (vertical)
+    const float range = volume ? volume->max_value() - volume->min_value() : 1.0f;
+    ApplyWindowLevel(transfer, -dy * range / 500.0f, std::exp(dx * 0.005f));
+    SendTransferFunction();
+  } else if (button == SDL_BUTTON_MIDDLE || (button == SDL_BUTTON_LEFT && (mods & KMOD_SHIFT))) {
+    Pan(camera, dx, dy, int(frame_area.h));
+    SendCamera();
+  } else if (button == SDL_BUTTON_RIGHT) {
+    Zoom(camera, std::exp(dy * 0.01f));
+    SendCamera();
+  } else if (button == SDL_BUTTON_LEFT) {
+    Orbit(camera, dx * kDegreesPerPixel, dy * kDegreesPerPixel);
+    SendCamera();
+  }
+}
+
+void App::Wheel(float steps) {
+  if (session_id.empty()) return;
+  Zoom(camera, std::pow(0.9f, steps));
+  SendCamera();
+}
+
+bool App::Key(SDL_Keycode key) {
+  const SDL_Keymod mods = SDL_GetModState();
+  if (key == SDLK_q && (mods & KMOD_CTRL)) {
+    quit_ = true;
+    return true;
+  }
+  if (key == SDLK_F2) {
+    panels.stats = !panels.stats;
+    return true;
+  }
+  if (session_id.empty()) return false;
+  if (key == SDLK_HOME || key == SDLK_SPACE) {
+    camera = home;
+    SendCamera();
+    return true;
+  }
+  static const std::pair<SDL_Keycode, v1::NamedView> kViews[] = {
+      {SDLK_a, v1::ANTERIOR}, {SDLK_p, v1::POSTERIOR}, {SDLK_l, v1::LEFT},
+      {SDLK_r, v1::RIGHT},    {SDLK_s, v1::SUPERIOR},  {SDLK_i, v1::INFERIOR}};
+  for (const auto& [k, view] : kViews) {
+    if (k != key) continue;
+    camera = NamedView(camera, view, volume->direction());
+    SendCamera();
+    return true;
+  }
+  return false;
+}
+
+// ------------------------------------------------------------ scripts
+
+void App::RunScript() {
+  if (!script_) return;
+  if (Clock::now() - started_ > std::chrono::duration<double>(options.max_seconds)) {
+    notice = fmt::format("the script did not finish within {} s (--max-seconds)", options.max_seconds);
+    std::fprintf(stderr, "cinevol-viewer: %s\n", notice.c_str());
+    exit_code_ = 1;
+    finish_now_ = true;
+    return;
+  }
+  if (!script_start_) {
+    // It starts with the first frame, or once the server has failed for a
+    // second (its UI actions still run: a screenshot shows the message).
+    const bool broken = Broken(connection->status().state) && Clock::now() - started_ > std::chrono::seconds(1);
+    if (!broken && (stats.last_frame_id == 0 || !volume)) return;
+    steps_ = cli::ExpandOrbits(script_->steps, volume.value_or(v1::VolumeInfo{}));
+    script_start_ = Clock::now();
+  }
+  const double t = std::chrono::duration<double>(Clock::now() - *script_start_).count();
+  while (next_step_ < steps_.size() && steps_[next_step_].at <= t) {
+    const cli::ScriptStep& step = steps_[next_step_++];
+    if (!step.ui.empty()) {
+      RunUiAction(step.ui, step.line);
+      continue;
+    }
+    const v1::SessionEvent& e = step.event;
+    if (!volume) continue;  // no session: events have nowhere to go
+    if (e.has_camera()) {  // kept here, so that the mouse goes on from it
+      camera = e.camera().view() != v1::NAMED_VIEW_UNSPECIFIED ? NamedView(camera, e.camera().view(), volume->direction())
+                                                                 : FromProto(e.camera(), camera);
+      SendCamera();
+      continue;
+    }
+    if (e.has_transfer_function()) {
+      transfer = e.transfer_function();
+      if (transfer.points().empty()) {
+        ChoosePreset(transfer.preset().empty() ? volume->default_preset() : transfer.preset());
+        continue;
+      }
+    }
+    if (e.has_lights()) lights = e.lights();
+    if (e.has_render()) render.MergeFrom(e.render());
+    if (e.has_stream()) stream.MergeFrom(e.stream());
+    connection->Post(e);
+  }
+}
+
+bool App::ScriptDone() {
+  const LinkStatus status = connection->status();
+  const bool broken = Broken(status.state);
+  if (finish_now_ || (broken && script_start_ && next_step_ >= steps_.size())) {
+    if (broken && exit_code_ == 0) {
+      exit_code_ = 3;
+      std::fprintf(stderr, "cinevol-viewer: %s\n", status.message.c_str());
+    }
+    return true;
+  }
+  if (!script_start_ || next_step_ < steps_.size() || camera_dirty_) return false;
+  // Every event answered, then a moment of refinement (or the final frame).
+  if (stats.last.last_event_seq() < connection->last_sent()) {
+    settled_since_.reset();
+    return false;
+  }
+  if (!settled_since_) settled_since_ = Clock::now();
+  return stats.last.final() || Clock::now() - *settled_since_ > std::chrono::duration<double>(kSettleSeconds);
+}
+
+void App::WriteScreenshot(const std::string& path) {
+  int w = 0, h = 0;
+  SDL_GetRendererOutputSize(renderer_, &w, &h);
+  ImageRgb8 image;
+  image.width = w;
+  image.height = h;
+  image.bytes.resize(std::size_t(w) * h * 3);
+  if (SDL_RenderReadPixels(renderer_, nullptr, SDL_PIXELFORMAT_RGB24, image.bytes.data(), w * 3) != 0) {
+    std::fprintf(stderr, "cinevol-viewer: cannot read the window: %s\n", SDL_GetError());
+    exit_code_ = 1;
+    return;
+  }
+  WriteFile(path, EncodePng(image));
+  // Where things are, for whoever checks the screenshot (in its pixels).
+  auto rect = [this](const Rect& r) {
+    return fmt::format("[{:.0f}, {:.0f}, {:.0f}, {:.0f}]", r.x * pixel_scale_, r.y * pixel_scale_, r.w * pixel_scale_,
+                       r.h * pixel_scale_);
+  };
+  const LinkStatus status = connection->status();
+  std::string escaped;
+  for (char c : status.message) escaped += (c == '"' || c == '\\') ? std::string("\\") + c : std::string(1, c);
+  std::ofstream(std::filesystem::path(path).replace_extension(".layout.json"))
+      << fmt::format("{{\"window\": [{}, {}], \"frame\": {}, \"panel\": {}, \"stats\": {}, \"frameId\": {}, "
+                     "\"accumulatedSpp\": {}, \"state\": {}, \"message\": \"{}\"}}\n",
+                     w, h, rect(frame_area), rect(panel_area), panels.stats ? rect(stats_area) : "null",
+                     stats.last.frame_id(), stats.last.accumulated_spp(), int(status.state), escaped);
+}
+
+}  // namespace cinevol::viewer
+
+namespace cinevol::viewer {
+
+int RunViewer(ViewerOptions options) {
+  App app(std::move(options));
+  return app.Run();
+}
+
+}  // namespace cinevol::viewer

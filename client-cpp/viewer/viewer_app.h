@@ -1,0 +1,150 @@
+// The viewer's state and UI thread: what the user sees and edits, kept in
+// step with the session through the Connection. viewer_app.cpp runs the
+// loop, input and scripts; panels.cpp draws the panels and overlay.
+#pragma once
+
+#include <SDL.h>
+
+#include <chrono>
+#include <deque>
+#include <functional>
+#include <memory>
+#include <mutex>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "local_server.h"
+#include "viewer/camera_control.h"
+#include "viewer/connection.h"
+#include "viewer/transfer_editor.h"
+#include "viewer/viewer.h"
+
+namespace cinevol::viewer {
+
+using Clock = std::chrono::steady_clock;
+
+// A rectangle in logical (ImGui) pixels.
+struct Rect {
+  float x = 0, y = 0, w = 0, h = 0;
+  bool Contains(float px, float py) const { return px >= x && py >= y && px < x + w && py < y + h; }
+};
+
+// What the viewer measures, for the stats overlay and docs/performance.md.
+struct ViewerStats {
+  std::deque<Clock::time_point> displayed;  // frames shown in the last second
+  std::deque<double> latency_ms;            // event-to-frame, the last 200 events
+  std::deque<std::pair<Clock::time_point, std::size_t>> bytes;  // the last second
+  std::uint64_t last_frame_id = 0, dropped = 0;
+  double decode_ms = 0, upload_ms = 0, draw_ms = 0;  // the viewer's own cost, last frame
+  std::vector<double> cost_ms;  // decode + upload + draw per displayed frame, all of them
+  v1::Frame last;               // the newest frame's header
+
+  double Fps() const;
+  double LatencyPercentile(double q) const;
+  double BytesPerSecond() const;
+};
+
+// Panels the user can open and close.
+struct PanelsOpen {
+  bool volume = true, transfer_function = true, lights = false, render = false, scene = false;
+  bool stats = true;  // the overlay
+};
+
+class App {
+ public:
+  explicit App(ViewerOptions options);
+  ~App();
+  int Run();
+
+  // --- state the panels read and edit ---------------------------------
+  ViewerOptions options;
+  std::unique_ptr<cli::LocalServer> local_server;
+  std::unique_ptr<Connection> connection;
+  std::string session_id;           // of the session the state below belongs to
+  std::optional<v1::VolumeInfo> volume;
+  ViewCamera camera, home;          // home: where the session started (reset)
+  v1::TransferFunction transfer;    // always explicit points in data units
+  TransferEditorState editor;
+  v1::LightList lights;
+  v1::RenderSettings render;        // spp per frame, bounces
+  v1::StreamSettings stream;        // denoiser, JPEG quality, target spp
+  PanelsOpen panels;
+  ViewerStats stats;
+  std::string notice;               // the last message for people (a result or an error)
+  // Text fields of the panels.
+  std::string load_path, upload_path, scene_path = "view.json", snapshot_path = "snapshot.png";
+  int snapshot_spp = 256;
+  std::vector<v1::VolumeInfo> server_volumes;
+
+  Rect frame_area, panel_area, stats_area;
+
+  // --- actions, shared by the panels, the mouse and keys, and scripts ----
+  void SendCamera();                // at most once per displayed frame
+  void SendTransferFunction();
+  void SendLights();
+  void SendRender();
+  void SendStream();
+  void ChoosePreset(const std::string& name);
+  void SwitchVolume(const std::string& id);
+  void Snapshot(const std::string& path, int spp);
+  void SaveScene(const std::string& path);
+  void OpenScene(const std::string& path);
+  void RefreshVolumes();
+  // Runs on the UI thread at the next frame (for results from the worker).
+  void Later(std::function<void()> f);
+
+  // Mouse drags and keys, in logical pixels; also what scripts call.
+  void Drag(int button, float dx, float dy, SDL_Keymod modifiers);
+  void Wheel(float steps);
+  bool Key(SDL_Keycode key);
+
+ private:
+  void Connect();
+  void AdoptSession();            // a new session: take its scene, or restore ours onto it
+  void PumpSdlEvents();
+  void TakeFrame();
+  void UploadFrame(const ViewFrame& frame);
+  void Layout();
+  void DrawFrame();
+  void ResizeViewportWhenSettled();
+  void RunScript();
+  void RunUiAction(const std::string& json, int line);
+  bool ScriptDone();
+  void WriteScreenshot(const std::string& path);
+
+  SDL_Window* window_ = nullptr;
+  SDL_Renderer* renderer_ = nullptr;
+  SDL_Texture* texture_ = nullptr;
+  int texture_w_ = 0, texture_h_ = 0;
+  float pixel_scale_ = 1;
+  bool camera_dirty_ = false;
+  bool quit_ = false;
+  int exit_code_ = 0;
+
+  // Viewport resizes wait until the window stops changing.
+  int viewport_w_ = 0, viewport_h_ = 0, pending_w_ = 0, pending_h_ = 0;
+  Clock::time_point pending_since_;
+
+  // Mouse drag in progress.
+  int drag_button_ = 0;
+  float drag_x_ = 0, drag_y_ = 0;
+
+  // The script: steps with orbits expanded once the volume is known.
+  std::optional<cli::SessionScript> script_;
+  std::vector<cli::ScriptStep> steps_;
+  std::size_t next_step_ = 0;
+  std::optional<Clock::time_point> script_start_, settled_since_;
+  bool finish_now_ = false;  // quit action or out of time: screenshot and stop
+  Clock::time_point started_ = Clock::now();
+
+  std::mutex later_mu_;
+  std::vector<std::function<void()>> later_;
+};
+
+// panels.cpp
+void DrawPanels(App& app);
+void DrawStatsOverlay(App& app);
+void DrawStatusBanner(App& app, const LinkStatus& status);
+
+}  // namespace cinevol::viewer
