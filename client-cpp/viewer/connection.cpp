@@ -80,6 +80,11 @@ void Connection::Request(std::function<void(Client&)> request, std::function<voi
   wake_.notify_all();
 }
 
+bool Connection::idle() const {
+  std::lock_guard lock(mu_);
+  return events_.empty() && sending_ == 0;
+}
+
 std::optional<ViewFrame> Connection::TakeFrame() {
   std::lock_guard lock(frame_mu_);
   std::optional<ViewFrame> frame = std::move(decoded_);
@@ -141,9 +146,11 @@ bool Connection::SendPending() {
   while (!events_.empty()) {
     v1::SessionEvent event = std::move(events_.front());
     events_.pop_front();
+    ++sending_;
     lock.unlock();
     const std::uint64_t seq = stream_->Send(event);
     lock.lock();
+    --sending_;
     if (seq == 0) return false;  // the stream ended or is reconnecting: the event is dropped
     sent_at_[seq] = Clock::now();
     last_sent_ = seq;

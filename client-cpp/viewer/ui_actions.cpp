@@ -138,15 +138,17 @@ void App::RunUiAction(const std::string& json, int line) {
     const double w = Number(p, "width", at), h = Number(p, "height", at);
     if (w < 200 || h < 150 || w > 8192 || h > 8192) throw InputError(at + ": width and height in [200, 8192] x [150, 8192]");
     if (run) SDL_SetWindowSize(window_, int(w), int(h));
-  } else if (name == "screenshot") {  // {"screenshot": "step.png"}: the window as it was last drawn
+  } else if (name == "screenshot") {  // {"screenshot": "step.png"}: the window once this frame is drawn
     const std::string file = Text(value, at);
-    if (run) WriteScreenshot(file);
+    if (run) screenshots_.push_back(file);
+  } else if (name == "settle") {  // {"settle": true}: the script waits until every event sent has its frame
+    if (run) settling_ = true;
   } else if (name == "quit") {
     if (run) finish_now_ = true;
   } else {
     throw InputError(fmt::format(
         "{}: unknown action (panel, key, drag, wheel, preset, movePoint, addPoint, deletePoint, windowLevel, "
-        "snapshot, saveScene, openScene, resizeWindow, screenshot, quit)",
+        "snapshot, saveScene, openScene, resizeWindow, settle, screenshot, quit)",
         at));
   }
 }

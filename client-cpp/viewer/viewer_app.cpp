@@ -156,6 +156,8 @@ int App::Run() {
     SDL_RenderClear(renderer_);
     DrawFrame();
     ImGui_ImplSDLRenderer_RenderDrawData(ImGui::GetDrawData());
+    for (const std::string& file : screenshots_) WriteScreenshot(file);
+    screenshots_.clear();
     if (script_ && ScriptDone()) {
       if (!options.screenshot.empty()) WriteScreenshot(options.screenshot);
       quit_ = true;
@@ -519,8 +521,18 @@ void App::RunScript() {
     steps_ = cli::ExpandOrbits(script_->steps, volume.value_or(v1::VolumeInfo{}));
     script_start_ = Clock::now();
   }
-  const double t = std::chrono::duration<double>(Clock::now() - *script_start_).count();
-  while (next_step_ < steps_.size() && steps_[next_step_].at <= t) {
+  if (settling_) {  // the timeline stands still until the view has caught up
+    const Clock::time_point now = Clock::now();
+    if (!EventsAnswered()) {
+      *script_start_ += now - last_script_tick_;
+      last_script_tick_ = now;
+      return;
+    }
+    settling_ = false;
+  }
+  last_script_tick_ = Clock::now();
+  const double t = std::chrono::duration<double>(last_script_tick_ - *script_start_).count();
+  while (!settling_ && next_step_ < steps_.size() && steps_[next_step_].at <= t) {
     const cli::ScriptStep& step = steps_[next_step_++];
     if (!step.ui.empty()) {
       RunUiAction(step.ui, step.line);
@@ -548,6 +560,11 @@ void App::RunScript() {
   }
 }
 
+bool App::EventsAnswered() const {
+  return !camera_dirty_ && stats.last_frame_id > 0 && stats.last.last_event_seq() >= connection->last_sent() &&
+         connection->idle();
+}
+
 bool App::ScriptDone() {
   const LinkStatus status = connection->status();
   const bool broken = Broken(status.state);
@@ -558,9 +575,9 @@ bool App::ScriptDone() {
     }
     return true;
   }
-  if (!script_start_ || next_step_ < steps_.size() || camera_dirty_) return false;
+  if (!script_start_ || next_step_ < steps_.size() || settling_) return false;
   // Every event answered, then a moment of refinement (or the final frame).
-  if (stats.last.last_event_seq() < connection->last_sent()) {
+  if (!EventsAnswered()) {
     settled_since_.reset();
     return false;
   }

@@ -110,6 +110,7 @@ class App {
   void ResizeViewportWhenSettled();
   void RunScript();
   void RunUiAction(const std::string& json, int line);
+  bool EventsAnswered() const;  // every event sent has its frame on screen
   bool ScriptDone();
   void WriteScreenshot(const std::string& path);
 
@@ -135,7 +136,10 @@ class App {
   std::vector<cli::ScriptStep> steps_;
   std::size_t next_step_ = 0;
   std::optional<Clock::time_point> script_start_, settled_since_;
+  Clock::time_point last_script_tick_;
   bool finish_now_ = false;  // quit action or out of time: screenshot and stop
+  bool settling_ = false;    // a "settle" action waits for the frame of every event sent
+  std::vector<std::string> screenshots_;  // to write once this frame is drawn
   Clock::time_point started_ = Clock::now();
 
   std::mutex later_mu_;

@@ -2,11 +2,8 @@
 // real local server with a temporary data root: readable tables, proto3 JSON
 // for scripts, the server's refusals as one line and exit 3; and session
 // scripts whose session line loads or uploads its volume.
-#include <arpa/inet.h>
 #include <google/protobuf/util/json_util.h>
 #include <gtest/gtest.h>
-#include <netinet/in.h>
-#include <sys/socket.h>
 
 #include <fstream>
 #include <regex>
@@ -63,19 +60,6 @@ struct VolumesServer {
     return Cinevol(scratch, args);
   }
 };
-
-// A loopback port nothing listens on (it was free a moment ago).
-int FreePort() {
-  const int fd = socket(AF_INET, SOCK_STREAM, 0);
-  sockaddr_in address{};
-  address.sin_family = AF_INET;
-  address.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
-  socklen_t size = sizeof address;
-  bind(fd, reinterpret_cast<sockaddr*>(&address), size);
-  getsockname(fd, reinterpret_cast<sockaddr*>(&address), &size);
-  close(fd);
-  return ntohs(address.sin_port);
-}
 
 TEST(VolumesCommand, ListPrintsATableAndJson) {
   VolumesServer s;

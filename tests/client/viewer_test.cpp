@@ -1,0 +1,188 @@
+// cinevol-viewer end to end under Xvfb: a real window against a real CPU
+// server on loopback, driven by session scripts with UI actions; the tests
+// read its screenshots (and the layout file written beside each: where the
+// frame, the panels and the stats overlay are).
+#include <google/protobuf/struct.pb.h>
+#include <google/protobuf/util/json_util.h>
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <fstream>
+
+#include <fmt/format.h>
+
+#include "encode/image_codecs.h"
+#include "io/scene_file.h"
+#include "service/server_process.h"
+#include "service/service_test_support.h"
+#include "support/test_paths.h"
+
+namespace cinevol::testing {
+namespace {
+
+namespace fs = std::filesystem;
+
+#ifdef CINEVOL_VIEWER_PATH
+constexpr const char* kViewer = CINEVOL_VIEWER_PATH;
+#else
+constexpr const char* kViewer = "";
+#endif
+
+#define CINEVOL_REQUIRE_VIEWER()                                                                  \
+  do {                                                                                            \
+    if (!fs::exists(kViewer)) GTEST_SKIP() << "cinevol-viewer was not built (libsdl2-dev, libimgui-dev)"; \
+    if (std::system("command -v xvfb-run > /dev/null") != 0) GTEST_SKIP() << "xvfb-run not found (xvfb)"; \
+  } while (0)
+
+struct ViewerRun {
+  int exit_code = -1;
+  std::string output;
+};
+
+// The viewer on a virtual display, 640x400, at most 90 s.
+ViewerRun RunViewer(const fs::path& scratch, std::vector<std::string> args) {
+  std::vector<std::string> all{"-a", "-s", "-screen 0 1024x768x24", "timeout", "90", kViewer, "--width", "640",
+                               "--height", "400"};
+  all.insert(all.end(), args.begin(), args.end());
+  auto [code, output] = RunProgram("/usr/bin/xvfb-run", all, scratch / "viewer.log", std::chrono::seconds(120));
+  return {code, output};
+}
+
+fs::path WriteScript(const fs::path& file, const std::string& text) {
+  std::ofstream(file) << text;
+  return file;
+}
+
+struct Region {
+  int x, y, w, h;
+};
+
+// A rectangle of the layout file: [x, y, w, h] in screenshot pixels.
+Region RegionOf(const google::protobuf::Struct& layout, const std::string& key) {
+  const auto& v = layout.fields().at(key).list_value().values();
+  return {int(v[0].number_value()), int(v[1].number_value()), int(v[2].number_value()), int(v[3].number_value())};
+}
+
+google::protobuf::Struct ReadLayout(const fs::path& png) {
+  std::ifstream in(fs::path(png).replace_extension(".layout.json"));
+  const std::string json{std::istreambuf_iterator<char>(in), {}};
+  google::protobuf::Struct layout;
+  EXPECT_TRUE(google::protobuf::util::JsonStringToMessage(json, &layout).ok()) << json;
+  return layout;
+}
+
+// Mean and standard deviation of the luminance in a region.
+std::pair<double, double> Luminance(const ImageRgb8& img, Region r) {
+  double sum = 0, sum2 = 0, n = 0;
+  for (int y = r.y; y < r.y + r.h && y < img.height; ++y) {
+    for (int x = r.x; x < r.x + r.w && x < img.width; ++x) {
+      const std::uint8_t* p = &img.bytes[(std::size_t(y) * img.width + x) * 3];
+      const double l = 0.2126 * p[0] + 0.7152 * p[1] + 0.0722 * p[2];
+      sum += l, sum2 += l * l, ++n;
+    }
+  }
+  const double mean = sum / std::max(1.0, n);
+  return {mean, std::sqrt(std::max(0.0, sum2 / std::max(1.0, n) - mean * mean))};
+}
+
+double MeanDifference(const ImageRgb8& a, const ImageRgb8& b, Region r) {
+  double sum = 0, n = 0;
+  for (int y = r.y; y < r.y + r.h; ++y) {
+    for (int x = r.x; x < r.x + r.w; ++x) {
+      for (int c = 0; c < 3; ++c) {
+        const std::size_t i = (std::size_t(y) * a.width + x) * 3 + c;
+        sum += std::abs(int(a.bytes[i]) - int(b.bytes[i]));
+        ++n;
+      }
+    }
+  }
+  return sum / std::max(1.0, n);
+}
+
+// Pixels of ImGui's blue headers and buttons: the panels are drawn.
+int BluePixels(const ImageRgb8& img, Region r) {
+  int n = 0;
+  for (int y = r.y; y < r.y + r.h; ++y) {
+    for (int x = r.x; x < r.x + r.w; ++x) {
+      const std::uint8_t* p = &img.bytes[(std::size_t(y) * img.width + x) * 3];
+      n += p[2] > 70 && p[2] > p[0] + 30;
+    }
+  }
+  return n;
+}
+
+TEST(Viewer, ShowsTheVolumeStatsAndPanelsAndFollowsEdits) {
+  CINEVOL_REQUIRE_VIEWER();
+  ScratchDir scratch;
+  ServerProcess server(scratch.path());
+  ASSERT_TRUE(server.running()) << server.Log();
+  const fs::path a = scratch.path() / "a.png", b = scratch.path() / "b.png", c = scratch.path() / "c.png",
+                 scene = scratch.path() / "view.json";
+  const fs::path script = WriteScript(scratch.path() / "tour.jsonl", fmt::format(R"({{"session": {{"stream": {{"targetSpp": 8}}}}}}
+{{"at": 0, "ui": {{"settle": true}}}}
+{{"at": 0, "ui": {{"screenshot": "{}"}}}}
+{{"at": 0.1, "ui": {{"drag": {{"button": "left", "dx": 150, "dy": 0}}}}}}
+{{"at": 0.1, "ui": {{"panel": {{"name": "lights", "open": true}}}}}}
+{{"at": 0.2, "ui": {{"settle": true}}}}
+{{"at": 0.2, "ui": {{"screenshot": "{}"}}}}
+{{"at": 0.3, "ui": {{"movePoint": {{"index": 1, "value": 1200, "opacity": 0.05}}}}}}
+{{"at": 0.4, "ui": {{"saveScene": "{}"}}}}
+)", a.string(), b.string(), scene.string()));
+  const ViewerRun run = RunViewer(scratch.path(), {"--server", server.address(), "--script", script.string(),
+                                             "--screenshot", c.string()});
+  ASSERT_EQ(run.exit_code, 0) << run.output;
+
+  const google::protobuf::Struct layout = ReadLayout(c);
+  const Region frame = RegionOf(layout, "frame"), panel = RegionOf(layout, "panel"), stats = RegionOf(layout, "stats");
+  const ImageRgb8 before = ReadPng(a), orbited = ReadPng(b), edited = ReadPng(c);
+  // A rendered volume: not blank, not one colour.
+  const auto [mean, spread] = Luminance(before, frame);
+  EXPECT_GT(mean, 20) << "the frame area is blank";
+  EXPECT_GT(spread, 10) << "the frame area is uniform";
+  EXPECT_GT(MeanDifference(before, orbited, frame), 2.0) << "an orbit did not change the view";
+  EXPECT_GT(MeanDifference(orbited, edited, frame), 2.0) << "a transfer-function edit did not change the view";
+  // The stats overlay is text over a dark box; the panels have their headers.
+  EXPECT_GT(Luminance(edited, stats).second, 20) << "no stats overlay";
+  EXPECT_GT(BluePixels(edited, panel), 2000) << "no panels";
+  EXPECT_GT(layout.fields().at("frameId").number_value(), 1);
+  // The scene it saved is one `cinevol render` reads.
+  EXPECT_NO_THROW(LoadSceneFile(scene));
+}
+
+TEST(Viewer, ServersThatFailOrRefuseAreNamedAndTheViewerExits) {
+  CINEVOL_REQUIRE_VIEWER();
+  ScratchDir scratch;
+  const fs::path script = WriteScript(scratch.path() / "nothing.jsonl", R"({"session": {}})");
+  const fs::path tokens = scratch.path() / "tokens";
+  std::ofstream(tokens) << "right-token-0123456789abcdef alice\n";
+  ServerProcess server(scratch.path(), {"--auth-tokens", tokens.string()});
+  ASSERT_TRUE(server.running()) << server.Log();
+  struct Case {
+    const char* name;
+    std::vector<std::string> args;
+    const char* says;
+  };
+  const std::vector<Case> cases{
+      {"down", {"--server", "127.0.0.1:" + std::to_string(FreePort()), "--connect-timeout", "1"}, "cannot reach"},
+      {"token", {"--server", server.address(), "--token", "wrong-token"}, "token"},
+      {"volume", {"--server", server.address(), "--token", "right-token-0123456789abcdef", "--volume", "no-such-volume"},
+       "no-such-volume"},
+  };
+  for (const Case& c : cases) {
+    const fs::path shot = scratch.path() / (std::string(c.name) + ".png");
+    std::vector<std::string> args = c.args;
+    args.insert(args.end(), {"--script", script.string(), "--screenshot", shot.string()});
+    const auto start = std::chrono::steady_clock::now();
+    const ViewerRun run = RunViewer(scratch.path(), args);
+    EXPECT_EQ(run.exit_code, 3) << c.name << ": " << run.output;
+    EXPECT_NE(run.output.find(c.says), std::string::npos) << c.name << ": " << run.output;
+    EXPECT_LT(std::chrono::steady_clock::now() - start, std::chrono::seconds(60)) << c.name;
+    const google::protobuf::Struct layout = ReadLayout(shot);
+    EXPECT_NE(layout.fields().at("message").string_value().find(c.says), std::string::npos) << c.name;
+    // The message is drawn in the frame area.
+    EXPECT_GT(Luminance(ReadPng(shot), RegionOf(layout, "frame")).second, 5) << c.name;
+  }
+}
+
+}  // namespace
+}  // namespace cinevol::testing
