@@ -4,7 +4,8 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 stage=$(mktemp -d)
-../shared/tools/device-bundle.sh "$stage" build/cinevol build/cinevol-server build/cinevol-bench build/tests/cinevol_tests
+../shared/tools/device-bundle.sh "$stage" build/cinevol build/cinevol-server build/cinevol-bench build/cinevol-viewer \
+  build/tests/cinevol_tests
 mkdir -p "$stage/data"
 cp -r ../shared/data/ct-head-cthead "$stage/data/"
 cp ../shared/data/ct-body-totalsegmentator/aorta_ct_cropped.nii.gz "$stage/data/"

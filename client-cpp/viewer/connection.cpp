@@ -82,7 +82,7 @@ void Connection::Request(std::function<void(Client&)> request, std::function<voi
 
 bool Connection::idle() const {
   std::lock_guard lock(mu_);
-  return events_.empty() && sending_ == 0;
+  return events_.empty() && sending_ == 0 && requests_.empty() && !requesting_;
 }
 
 std::optional<ViewFrame> Connection::TakeFrame() {
@@ -166,6 +166,7 @@ void Connection::Work() {
     if (!requests_.empty() && client_) {
       auto [request, done] = std::move(requests_.front());
       requests_.pop_front();
+      requesting_ = true;
       lock.unlock();
       std::string error;
       try {
@@ -177,6 +178,7 @@ void Connection::Work() {
       }
       done(error);
       lock.lock();
+      requesting_ = false;
       continue;
     }
     lock.unlock();

@@ -71,7 +71,7 @@ class Connection {
   std::optional<std::chrono::steady_clock::time_point> SentAt(std::uint64_t seq) const;
   // The sequence number of the newest event sent (0: none yet).
   std::uint64_t last_sent() const { return last_sent_; }
-  // No event waits to be sent.
+  // No event waits to be sent and no request to finish.
   bool idle() const;
 
  private:
@@ -93,6 +93,7 @@ class Connection {
   std::optional<v1::VolumeInfo> volume_;
   std::deque<v1::SessionEvent> events_;
   int sending_ = 0;  // events taken from the queue, not yet sent
+  bool requesting_ = false;  // a request is running
   std::deque<std::pair<std::function<void(Client&)>, std::function<void(const std::string&)>>> requests_;
   std::map<std::uint64_t, std::chrono::steady_clock::time_point> sent_at_;
   std::atomic<std::uint64_t> last_sent_{0};

@@ -21,6 +21,7 @@
 #include "encode/image_codecs.h"
 #include "io/presets.h"
 #include "io/scene_file.h"
+#include "script_player.h"
 #include "viewer/transfer_edits.h"
 
 namespace cinevol::viewer {
@@ -134,7 +135,7 @@ int App::Run() {
     }
     for (auto& f : later) f();
     AdoptSession();
-    TakeFrame();
+    const bool new_frame = TakeFrame();
     RunScript();
     ResizeViewportWhenSettled();
     if (camera_dirty_ && !session_id.empty()) {  // one camera event per displayed frame
@@ -163,9 +164,14 @@ int App::Run() {
       quit_ = true;
     }
     SDL_RenderPresent(renderer_);
-    stats.draw_ms = Ms(Clock::now() - frame_start);
+    if (new_frame) {  // the UI thread's cost of showing it: upload, panels, drawing, present
+      const double loop_ms = Ms(Clock::now() - frame_start);
+      stats.draw_ms = loop_ms - stats.upload_ms;
+      stats.all_ui_ms.push_back(loop_ms);
+    }
     std::this_thread::sleep_until(frame_start + kFramePeriod);
   }
+  if (script_) PrintSummary();
   return exit_code_;
 }
 
@@ -328,17 +334,20 @@ void App::OpenScene(const std::string& path) {
 
 // ------------------------------------------------------------ the frame
 
-void App::TakeFrame() {
+bool App::TakeFrame() {
   const Clock::time_point now = Clock::now();
   while (!stats.displayed.empty() && now - stats.displayed.front() > std::chrono::seconds(1)) stats.displayed.pop_front();
   while (!stats.bytes.empty() && now - stats.bytes.front().first > std::chrono::seconds(1)) stats.bytes.pop_front();
   std::optional<ViewFrame> frame = connection->TakeFrame();
-  if (!frame) return;
+  if (!frame) return false;
   UploadFrame(*frame);
   const v1::Frame& f = frame->info;
   if (stats.last_frame_id > 0 && f.frame_id() > stats.last_frame_id + 1) stats.dropped += f.frame_id() - stats.last_frame_id - 1;
   for (std::uint64_t seq = stats.last.last_event_seq() + 1; seq <= f.last_event_seq(); ++seq) {
-    if (const auto sent = connection->SentAt(seq)) stats.latency_ms.push_back(Ms(now - *sent));
+    if (const auto sent = connection->SentAt(seq)) {
+      stats.latency_ms.push_back(Ms(now - *sent));
+      stats.all_latency_ms.push_back(stats.latency_ms.back());
+    }
   }
   while (stats.latency_ms.size() > 200) stats.latency_ms.pop_front();
   stats.last_frame_id = f.frame_id();
@@ -346,7 +355,29 @@ void App::TakeFrame() {
   stats.displayed.push_back(now);
   stats.bytes.emplace_back(now, frame->jpeg_bytes);
   stats.decode_ms = frame->decode_ms;
-  stats.cost_ms.push_back(stats.decode_ms + stats.upload_ms + stats.draw_ms);
+  stats.all_decode_ms.push_back(frame->decode_ms);
+  stats.all_bytes += frame->jpeg_bytes;
+  return true;
+}
+
+std::string App::RendererName() const {
+  SDL_RendererInfo info;
+  return SDL_GetRendererInfo(renderer_, &info) == 0 ? info.name : "?";
+}
+
+void App::PrintSummary() const {
+  const ViewerStats& s = stats;
+  const double seconds = script_start_ ? std::chrono::duration<double>(Clock::now() - *script_start_).count() : 0;
+  std::printf(
+      "cinevol-viewer: %zu frames shown in %.1f s (%.1f fps), %.2f MB/s; event-to-frame latency p50/p95 %.1f/%.1f ms "
+      "over %zu events; per frame shown: decode p50/p95 %.2f/%.2f ms (decoder thread), upload and draw p50/p95 "
+      "%.2f/%.2f ms (UI thread, SDL renderer %s, video driver %s)\n",
+      s.all_ui_ms.size(), seconds, seconds > 0 ? double(s.all_ui_ms.size()) / seconds : 0.0,
+      seconds > 0 ? double(s.all_bytes) / seconds / 1e6 : 0.0, cli::Percentile(s.all_latency_ms, 0.5),
+      cli::Percentile(s.all_latency_ms, 0.95), s.all_latency_ms.size(), cli::Percentile(s.all_decode_ms, 0.5),
+      cli::Percentile(s.all_decode_ms, 0.95), cli::Percentile(s.all_ui_ms, 0.5), cli::Percentile(s.all_ui_ms, 0.95),
+      RendererName().c_str(), SDL_GetCurrentVideoDriver());
+  std::fflush(stdout);
 }
 
 void App::UploadFrame(const ViewFrame& frame) {
@@ -608,9 +639,10 @@ void App::WriteScreenshot(const std::string& path) {
   for (char c : status.message) escaped += (c == '"' || c == '\\') ? std::string("\\") + c : std::string(1, c);
   std::ofstream(std::filesystem::path(path).replace_extension(".layout.json"))
       << fmt::format("{{\"window\": [{}, {}], \"frame\": {}, \"panel\": {}, \"stats\": {}, \"frameId\": {}, "
-                     "\"accumulatedSpp\": {}, \"state\": {}, \"message\": \"{}\"}}\n",
+                     "\"frameSize\": [{}, {}], \"accumulatedSpp\": {}, \"state\": {}, \"message\": \"{}\"}}\n",
                      w, h, rect(frame_area), rect(panel_area), panels.stats ? rect(stats_area) : "null",
-                     stats.last.frame_id(), stats.last.accumulated_spp(), int(status.state), escaped);
+                     stats.last.frame_id(), stats.last.width(), stats.last.height(), stats.last.accumulated_spp(),
+                     int(status.state), escaped);
 }
 
 }  // namespace cinevol::viewer

@@ -37,7 +37,9 @@ struct ViewerStats {
   std::deque<std::pair<Clock::time_point, std::size_t>> bytes;  // the last second
   std::uint64_t last_frame_id = 0, dropped = 0;
   double decode_ms = 0, upload_ms = 0, draw_ms = 0;  // the viewer's own cost, last frame
-  std::vector<double> cost_ms;  // decode + upload + draw per displayed frame, all of them
+  // Over the whole run, for the summary a script prints at its end.
+  std::vector<double> all_decode_ms, all_ui_ms, all_latency_ms;  // ui: upload and draw on the UI thread
+  std::size_t all_bytes = 0;
   v1::Frame last;               // the newest frame's header
 
   double Fps() const;
@@ -103,7 +105,9 @@ class App {
   void Connect();
   void AdoptSession();            // a new session: take its scene, or restore ours onto it
   void PumpSdlEvents();
-  void TakeFrame();
+  bool TakeFrame();  // true when a new frame arrived
+  void PrintSummary() const;
+  std::string RendererName() const;
   void UploadFrame(const ViewFrame& frame);
   void Layout();
   void DrawFrame();

@@ -86,6 +86,8 @@ std::pair<double, double> Luminance(const ImageRgb8& img, Region r) {
 }
 
 double MeanDifference(const ImageRgb8& a, const ImageRgb8& b, Region r) {
+  EXPECT_TRUE(a.width == b.width && a.height == b.height && r.x + r.w <= a.width && r.y + r.h <= a.height);
+  if (a.width != b.width || a.height != b.height || r.x + r.w > a.width || r.y + r.h > a.height) return 0;
   double sum = 0, n = 0;
   for (int y = r.y; y < r.y + r.h; ++y) {
     for (int x = r.x; x < r.x + r.w; ++x) {
@@ -102,8 +104,8 @@ double MeanDifference(const ImageRgb8& a, const ImageRgb8& b, Region r) {
 // Pixels of ImGui's blue headers and buttons: the panels are drawn.
 int BluePixels(const ImageRgb8& img, Region r) {
   int n = 0;
-  for (int y = r.y; y < r.y + r.h; ++y) {
-    for (int x = r.x; x < r.x + r.w; ++x) {
+  for (int y = r.y; y < r.y + r.h && y < img.height; ++y) {
+    for (int x = r.x; x < r.x + r.w && x < img.width; ++x) {
       const std::uint8_t* p = &img.bytes[(std::size_t(y) * img.width + x) * 3];
       n += p[2] > 70 && p[2] > p[0] + 30;
     }
@@ -117,7 +119,8 @@ TEST(Viewer, ShowsTheVolumeStatsAndPanelsAndFollowsEdits) {
   ServerProcess server(scratch.path());
   ASSERT_TRUE(server.running()) << server.Log();
   const fs::path a = scratch.path() / "a.png", b = scratch.path() / "b.png", c = scratch.path() / "c.png",
-                 scene = scratch.path() / "view.json";
+                 edited_png = scratch.path() / "edited.png", scene = scratch.path() / "view.json",
+                 still = scratch.path() / "still.png";
   const fs::path script = WriteScript(scratch.path() / "tour.jsonl", fmt::format(R"({{"session": {{"stream": {{"targetSpp": 8}}}}}}
 {{"at": 0, "ui": {{"settle": true}}}}
 {{"at": 0, "ui": {{"screenshot": "{}"}}}}
@@ -126,15 +129,19 @@ TEST(Viewer, ShowsTheVolumeStatsAndPanelsAndFollowsEdits) {
 {{"at": 0.2, "ui": {{"settle": true}}}}
 {{"at": 0.2, "ui": {{"screenshot": "{}"}}}}
 {{"at": 0.3, "ui": {{"movePoint": {{"index": 1, "value": 1200, "opacity": 0.05}}}}}}
+{{"at": 0.4, "ui": {{"settle": true}}}}
+{{"at": 0.4, "ui": {{"screenshot": "{}"}}}}
 {{"at": 0.4, "ui": {{"saveScene": "{}"}}}}
-)", a.string(), b.string(), scene.string()));
+{{"at": 0.4, "ui": {{"snapshot": {{"file": "{}", "spp": 4}}}}}}
+{{"at": 0.5, "ui": {{"resizeWindow": {{"width": 700, "height": 420}}}}}}
+)", a.string(), b.string(), edited_png.string(), scene.string(), still.string()));
   const ViewerRun run = RunViewer(scratch.path(), {"--server", server.address(), "--script", script.string(),
                                              "--screenshot", c.string()});
   ASSERT_EQ(run.exit_code, 0) << run.output;
 
-  const google::protobuf::Struct layout = ReadLayout(c);
-  const Region frame = RegionOf(layout, "frame"), panel = RegionOf(layout, "panel"), stats = RegionOf(layout, "stats");
-  const ImageRgb8 before = ReadPng(a), orbited = ReadPng(b), edited = ReadPng(c);
+  // a, b and the edit share one window size (the resize comes last).
+  const Region frame = RegionOf(ReadLayout(a), "frame");
+  const ImageRgb8 before = ReadPng(a), orbited = ReadPng(b), edited = ReadPng(edited_png);
   // A rendered volume: not blank, not one colour.
   const auto [mean, spread] = Luminance(before, frame);
   EXPECT_GT(mean, 20) << "the frame area is blank";
@@ -142,11 +149,19 @@ TEST(Viewer, ShowsTheVolumeStatsAndPanelsAndFollowsEdits) {
   EXPECT_GT(MeanDifference(before, orbited, frame), 2.0) << "an orbit did not change the view";
   EXPECT_GT(MeanDifference(orbited, edited, frame), 2.0) << "a transfer-function edit did not change the view";
   // The stats overlay is text over a dark box; the panels have their headers.
-  EXPECT_GT(Luminance(edited, stats).second, 20) << "no stats overlay";
-  EXPECT_GT(BluePixels(edited, panel), 2000) << "no panels";
+  const google::protobuf::Struct layout = ReadLayout(c);
+  const ImageRgb8 last = ReadPng(c);
+  EXPECT_GT(Luminance(last, RegionOf(layout, "stats")).second, 20) << "no stats overlay";
+  EXPECT_GT(BluePixels(last, RegionOf(layout, "panel")), 2000) << "no panels";
   EXPECT_GT(layout.fields().at("frameId").number_value(), 1);
-  // The scene it saved is one `cinevol render` reads.
+  // The scene it saved is one `cinevol render` reads; the snapshot is a PNG.
   EXPECT_NO_THROW(LoadSceneFile(scene));
+  EXPECT_GT(ReadPng(still).width, 0);
+  // The window was resized: the session's viewport followed the frame area.
+  const auto& size = layout.fields().at("frameSize").list_value().values();
+  EXPECT_EQ(layout.fields().at("window").list_value().values(0).number_value(), 700);
+  EXPECT_EQ(int(size[0].number_value()), RegionOf(layout, "frame").w);
+  EXPECT_EQ(int(size[1].number_value()), RegionOf(layout, "frame").h);
 }
 
 TEST(Viewer, ServersThatFailOrRefuseAreNamedAndTheViewerExits) {
