@@ -216,10 +216,22 @@ void DrawStatsOverlay(App& app) {
   ImGui::End();
 }
 
+// What the banner says, or nothing while frames keep up.
+std::string BannerText(const App& app, const LinkStatus& status) {
+  if (status.state != LinkState::kStreaming) return status.message;
+  if (app.stats.last_frame_id == 0) return "waiting for the first frame...";
+  const double waiting = std::chrono::duration<double>(Clock::now() - app.stats.last_shown).count();
+  if (app.stats.last.last_event_seq() < app.connection->last_sent() && waiting > 3) {
+    return fmt::format("the server has not answered for {:.0f} s: it may be busy or the network slow", waiting);
+  }
+  return {};
+}
+
 void DrawStatusBanner(App& app, const LinkStatus& status) {
-  if (status.state == LinkState::kStreaming && app.stats.last_frame_id > 0) return;
-  const bool bad = status.state == LinkState::kFailed || status.state == LinkState::kReconnecting;
-  const std::string text = status.state == LinkState::kStreaming ? "waiting for the first frame..." : status.message;
+  const std::string text = BannerText(app, status);
+  if (text.empty()) return;
+  const bool bad = status.state == LinkState::kFailed || status.state == LinkState::kReconnecting ||
+                   (status.state == LinkState::kStreaming && app.stats.last_frame_id > 0);
   ImGui::SetNextWindowPos({app.frame_area.x + app.frame_area.w * 0.5f, app.frame_area.y + app.frame_area.h * 0.5f},
                           ImGuiCond_Always, {0.5f, 0.5f});
   ImGui::SetNextWindowSize({std::min(520.0f, app.frame_area.w - 20), 0});

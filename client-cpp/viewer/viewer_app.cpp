@@ -97,6 +97,7 @@ App::App(ViewerOptions o) : options(std::move(o)) {
 
 App::~App() {
   connection.reset();  // closes the session before the local server stops
+  retired_.clear();    // joins the threads closing earlier sessions
   local_server.reset();
   ImGui_ImplSDLRenderer_Shutdown();
   ImGui_ImplSDL2_Shutdown();
@@ -250,7 +251,8 @@ void App::SwitchVolume(const std::string& id) {
   options.session.upload.clear();
   options.session.preset.clear();  // the new volume's default
   options.session.scene.reset();
-  connection.reset();
+  // Closing the old session may wait on the network: not on this thread.
+  retired_.emplace_back([old = std::move(connection)]() mutable { old.reset(); });
   session_id.clear();
   volume.reset();
   Connect();
@@ -353,6 +355,7 @@ bool App::TakeFrame() {
   stats.last_frame_id = f.frame_id();
   stats.last = f;
   stats.displayed.push_back(now);
+  stats.last_shown = now;
   stats.bytes.emplace_back(now, frame->jpeg_bytes);
   stats.decode_ms = frame->decode_ms;
   stats.all_decode_ms.push_back(frame->decode_ms);

@@ -12,6 +12,7 @@
 #include <mutex>
 #include <optional>
 #include <string>
+#include <thread>
 #include <vector>
 
 #include "local_server.h"
@@ -41,6 +42,7 @@ struct ViewerStats {
   std::vector<double> all_decode_ms, all_ui_ms, all_latency_ms;  // ui: upload and draw on the UI thread
   std::size_t all_bytes = 0;
   v1::Frame last;               // the newest frame's header
+  Clock::time_point last_shown;  // when it arrived
 
   double Fps() const;
   double LatencyPercentile(double q) const;
@@ -148,6 +150,7 @@ class App {
 
   std::mutex later_mu_;
   std::vector<std::function<void()>> later_;
+  std::vector<std::jthread> retired_;  // closing the connections of earlier volumes
 };
 
 // panels.cpp
