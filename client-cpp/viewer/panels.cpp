@@ -4,6 +4,7 @@
 #include <imgui_stdlib.h>
 
 #include <cmath>
+#include <functional>
 
 #include <fmt/format.h>
 
@@ -15,6 +16,26 @@ namespace {
 
 // Text fields grow with what is typed (imgui_stdlib).
 bool InputPath(const char* label, std::string& text) { return ImGui::InputText(label, &text); }
+
+// A path field with a button that loads or uploads it on the worker, then
+// switches the view to the new volume.
+void VolumeField(App& app, const char* verb, std::string& path,
+                 std::function<v1::VolumeInfo(Client&, const std::string&)> open) {
+  ImGui::PushID(verb);
+  InputPath("##path", path);
+  ImGui::PopID();
+  ImGui::SameLine();
+  if (!ImGui::Button(verb) || path.empty()) return;
+  app.notice = fmt::format("{} {}...", verb, path);
+  app.connection->Request(
+      [&app, open, path = path](Client& client) {
+        const std::string id = open(client, path).id();
+        app.Later([&app, id] { app.SwitchVolume(id); });
+      },
+      [&app, verb, path = path](const std::string& error) {
+        if (!error.empty()) app.Later([&app, verb, path, error] { app.notice = fmt::format("{} {}: {}", verb, path, error); });
+      });
+}
 
 void VolumePanel(App& app) {
   if (app.volume) {
@@ -34,34 +55,9 @@ void VolumePanel(App& app) {
     const bool current = app.volume && v.id() == app.volume->id();
     if (ImGui::Selectable(v.id().c_str(), current) && !current) app.SwitchVolume(v.id());
   }
-  InputPath("##load", app.load_path);
-  ImGui::SameLine();
-  if (ImGui::Button("Load") && !app.load_path.empty()) {
-    const std::string path = app.load_path;
-    app.connection->Request(
-        [&app, path](Client& client) {
-          const std::string id = client.LoadVolume(path).id();
-          app.Later([&app, id] { app.SwitchVolume(id); });
-        },
-        [&app, path](const std::string& error) {
-          if (!error.empty()) app.Later([&app, path, error] { app.notice = fmt::format("load {}: {}", path, error); });
-        });
-  }
+  VolumeField(app, "Load", app.load_path, [](Client& c, const std::string& path) { return c.LoadVolume(path); });
   ImGui::TextDisabled("a file or DICOM folder under the server's data roots");
-  InputPath("##upload", app.upload_path);
-  ImGui::SameLine();
-  if (ImGui::Button("Upload") && !app.upload_path.empty()) {
-    const std::string path = app.upload_path;
-    app.notice = "uploading " + path + "...";
-    app.connection->Request(
-        [&app, path](Client& client) {
-          const std::string id = client.UploadVolume(path).id();
-          app.Later([&app, id] { app.SwitchVolume(id); });
-        },
-        [&app, path](const std::string& error) {
-          if (!error.empty()) app.Later([&app, path, error] { app.notice = fmt::format("upload {}: {}", path, error); });
-        });
-  }
+  VolumeField(app, "Upload", app.upload_path, [](Client& c, const std::string& path) { return c.UploadVolume(path); });
   ImGui::TextDisabled("a local .nii, .nii.gz, .nrrd, .mha or .vtk file");
 }
 
