@@ -92,4 +92,31 @@ void OrbitLight(v1::AreaLight& light, const ViewCamera& c, float yaw_deg, float 
   Set(light.mutable_edge_v(), turn(ToVec(light.edge_v())));
 }
 
+LightDirection DirectionOf(const v1::AreaLight& light, const ViewCamera& c) {
+  const Vec3f right = Right(c), up = Normalize(Cross(right, c.target - c.eye)), to_eye = Normalize(c.eye - c.target);
+  const Vec3f d = Normalize(ToVec(light.center()) - c.target);
+  return {std::atan2(Dot(d, right), Dot(d, to_eye)) * 180.0f / kPi,
+          std::asin(std::clamp(Dot(d, up), -1.0f, 1.0f)) * 180.0f / kPi};
+}
+
+void SetDirection(v1::AreaLight& light, const ViewCamera& c, LightDirection direction) {
+  const Vec3f right = Right(c), up = Normalize(Cross(right, c.target - c.eye)), to_eye = Normalize(c.eye - c.target);
+  const Vec3f offset = ToVec(light.center()) - c.target;
+  const float a = direction.azimuth_deg * kPi / 180.0f, e = direction.elevation_deg * kPi / 180.0f;
+  const Vec3f from = Normalize(offset);
+  const Vec3f to = (to_eye * std::cos(a) + right * std::sin(a)) * std::cos(e) + up * std::sin(e);
+  // The rotation taking `from` to `to`, applied to the whole light.
+  const Vec3f axis = Cross(from, to);
+  const float s = Length(axis);
+  if (!(s > 1e-6f)) {
+    Set(light.mutable_center(), c.target + to * Length(offset));
+    return;
+  }
+  const float degrees = std::atan2(s, Dot(from, to)) * 180.0f / kPi;
+  const Vec3f k = axis / s;
+  Set(light.mutable_center(), c.target + Rotate(offset, k, degrees));
+  Set(light.mutable_edge_u(), Rotate(ToVec(light.edge_u()), k, degrees));
+  Set(light.mutable_edge_v(), Rotate(ToVec(light.edge_v()), k, degrees));
+}
+
 }  // namespace cinevol::viewer

@@ -37,4 +37,15 @@ ViewCamera NamedView(const ViewCamera& camera, v1::NamedView view, const google:
 // Turns an area light about the camera's target as Orbit turns the eye.
 void OrbitLight(v1::AreaLight& light, const ViewCamera& camera, float yaw_deg, float pitch_deg);
 
+// Where an area light sits as seen from the camera: azimuth (degrees, 0 in
+// front of the volume towards the eye, positive to the viewer's right) and
+// elevation (degrees above the view's horizontal plane through the target).
+struct LightDirection {
+  float azimuth_deg = 0, elevation_deg = 0;
+};
+LightDirection DirectionOf(const v1::AreaLight& light, const ViewCamera& camera);
+// Moves the light to that direction at the same distance from the target,
+// turning it so that it faces the target as before.
+void SetDirection(v1::AreaLight& light, const ViewCamera& camera, LightDirection direction);
+
 }  // namespace cinevol::viewer

@@ -4,6 +4,8 @@
 
 #include <fmt/format.h>
 
+#include <utility>
+
 #include "script_player.h"
 
 namespace cinevol::viewer {
@@ -23,7 +25,7 @@ std::string Describe(grpc::StatusCode code, const std::string& message) {
     case grpc::StatusCode::UNAUTHENTICATED: return "the server does not accept this token: " + message;
     case grpc::StatusCode::PERMISSION_DENIED: return "the server refused: " + message;
     case grpc::StatusCode::UNAVAILABLE: return "cannot reach the server: " + message;
-    default: return fmt::format("{}: {}", StatusCodeName(code), message);
+    default: return message;  // it starts with its code
   }
 }
 
@@ -80,6 +82,11 @@ void Connection::Request(std::function<void(Client&)> request, std::function<voi
   wake_.notify_all();
 }
 
+std::string Connection::TakeWarning() {
+  std::lock_guard lock(mu_);
+  return std::exchange(warning_, {});
+}
+
 bool Connection::idle() const {
   std::lock_guard lock(mu_);
   return events_.empty() && sending_ == 0 && requests_.empty() && !requesting_;
@@ -105,7 +112,9 @@ void Connection::SetStatus(LinkState state, std::string message) {
 }
 
 void Connection::Start() {
-  SetStatus(LinkState::kConnecting, "connecting to " + settings_.client.address);
+  if (status().state != LinkState::kReconnecting) {  // while retrying, the last error stays in view
+    SetStatus(LinkState::kConnecting, "connecting to " + settings_.client.address);
+  }
   client_ = std::make_unique<Client>(settings_.client);
   // After the first start, the volume it resolved to (an upload is not sent again).
   v1::VolumeInfo volume;
@@ -122,7 +131,10 @@ void Connection::Start() {
       client_->CreateSession(cli::SessionRequest(settings_.session, volume.id()));
   StreamOptions options;
   options.on_message = [this](const v1::ServerMessage& m) {
-    if (m.has_notice() && m.notice().level() == v1::Notice::WARNING) SetStatus(LinkState::kStreaming, m.notice().message());
+    if (m.has_notice() && m.notice().level() == v1::Notice::WARNING) {
+      std::lock_guard lock(mu_);
+      warning_ = m.notice().message();
+    }
     if (!m.has_frame()) return;
     {
       std::lock_guard lock(frame_mu_);
@@ -199,7 +211,8 @@ void Connection::Work() {
       const grpc::Status s = stream_->status();
       const bool refused = Refused(s.error_code());
       SetStatus(refused ? LinkState::kFailed : LinkState::kReconnecting,
-                Describe(s.error_code(), s.error_message()) + (refused ? "" : " (starting a new session)"));
+                Describe(s.error_code(), fmt::format("{}: {}", StatusCodeName(s.error_code()), s.error_message())) +
+                    (refused ? "" : " (starting a new session)"));
       stream_.reset();
       next_try = refused ? Clock::time_point::max() : Clock::now() + kRetryEvery;
     } else if (stream_) {

@@ -71,6 +71,8 @@ class Connection {
   std::optional<std::chrono::steady_clock::time_point> SentAt(std::uint64_t seq) const;
   // The sequence number of the newest event sent (0: none yet).
   std::uint64_t last_sent() const { return last_sent_; }
+  // The server's newest warning notice since the last call ("" if none).
+  std::string TakeWarning();
   // No event waits to be sent and no request to finish.
   bool idle() const;
 
@@ -89,6 +91,7 @@ class Connection {
   mutable std::mutex mu_;
   std::condition_variable wake_;
   LinkStatus status_;
+  std::string warning_;
   std::optional<v1::CreateSessionResponse> session_;
   std::optional<v1::VolumeInfo> volume_;
   std::deque<v1::SessionEvent> events_;

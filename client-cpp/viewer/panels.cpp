@@ -14,6 +14,13 @@
 namespace cinevol::viewer {
 namespace {
 
+// Grey help text, wrapped to the panel.
+void Hint(const char* text) {
+  ImGui::PushStyleColor(ImGuiCol_Text, ImGui::GetStyleColorVec4(ImGuiCol_TextDisabled));
+  ImGui::TextWrapped("%s", text);
+  ImGui::PopStyleColor();
+}
+
 // Text fields grow with what is typed (imgui_stdlib).
 bool InputPath(const char* label, std::string& text) { return ImGui::InputText(label, &text); }
 
@@ -56,9 +63,9 @@ void VolumePanel(App& app) {
     if (ImGui::Selectable(v.id().c_str(), current) && !current) app.SwitchVolume(v.id());
   }
   VolumeField(app, "Load", app.load_path, [](Client& c, const std::string& path) { return c.LoadVolume(path); });
-  ImGui::TextDisabled("a file or DICOM folder under the server's data roots");
+  Hint("a file or DICOM folder under the server's data roots");
   VolumeField(app, "Upload", app.upload_path, [](Client& c, const std::string& path) { return c.UploadVolume(path); });
-  ImGui::TextDisabled("a local .nii, .nii.gz, .nrrd, .mha or .vtk file");
+  Hint("a local .nii, .nii.gz, .nrrd, .mha or .vtk file");
 }
 
 void TransferPanel(App& app) {
@@ -73,7 +80,7 @@ void TransferPanel(App& app) {
       TransferFunctionEditor("##tf", app.transfer, app.volume->histogram(), app.editor, 140.0f)) {
     app.SendTransferFunction();
   }
-  ImGui::TextDisabled("Alt + drag in the view: window (sideways), level (up/down)");
+  Hint("Alt + drag in the view: window (sideways), level (up/down)");
 }
 
 // The first area light is the key light.
@@ -91,12 +98,18 @@ void LightsPanel(App& app) {
       key->set_intensity(intensity);
       app.SendLights();
     }
+    LightDirection direction = DirectionOf(*key, app.camera);
+    const bool turned = ImGui::SliderFloat("azimuth", &direction.azimuth_deg, -180, 180, "%.0f deg");
+    if (ImGui::SliderFloat("elevation", &direction.elevation_deg, -89, 89, "%.0f deg") || turned) {
+      SetDirection(*key, app.camera, direction);
+      app.SendLights();
+    }
     bool visible = key->visible();
     if (ImGui::Checkbox("show the lamp", &visible)) {
       key->set_visible(visible);
       app.SendLights();
     }
-    ImGui::TextDisabled("Ctrl + drag in the view turns the key light");
+    Hint("Ctrl + drag in the view turns the key light");
   }
   for (v1::Light& l : *app.lights.mutable_lights()) {
     if (!l.has_environment()) continue;
@@ -188,8 +201,8 @@ void DrawPanels(App& app) {
   ImGui::Separator();
   ImGui::Checkbox("stats overlay (F2)", &app.panels.stats);
   if (!app.notice.empty()) ImGui::TextWrapped("%s", app.notice.c_str());
-  ImGui::TextDisabled("drag: orbit; right drag or wheel: zoom; middle or Shift drag: pan;");
-  ImGui::TextDisabled("A P L R S I: named views; Home: reset; Ctrl+Q: quit");
+  Hint("drag: orbit; right drag or wheel: zoom; middle or Shift drag: pan;");
+  Hint("A P L R S I: named views; Home: reset; Ctrl+Q: quit");
   ImGui::End();
 }
 
@@ -202,7 +215,11 @@ void DrawStatsOverlay(App& app) {
                    ImGuiWindowFlags_NoSavedSettings | ImGuiWindowFlags_NoFocusOnAppearing);
   const v1::FrameTimings& t = s.last.timings();
   ImGui::Text("%.0f fps   %u x %u   %u spp", s.Fps(), s.last.width(), s.last.height(), s.last.accumulated_spp());
-  ImGui::Text("latency p50 %.0f ms  p95 %.0f ms", s.LatencyPercentile(0.5), s.LatencyPercentile(0.95));
+  if (s.latency_ms.empty()) {
+    ImGui::Text("latency: no event answered yet");
+  } else {
+    ImGui::Text("latency p50 %.0f ms  p95 %.0f ms", s.LatencyPercentile(0.5), s.LatencyPercentile(0.95));
+  }
   ImGui::Text("server: render %.1f  denoise %.1f  encode %.1f ms", t.render_us() / 1e3, t.denoise_us() / 1e3,
               t.encode_us() / 1e3);
   ImGui::Text("viewer: decode %.1f  upload %.1f  draw %.1f ms", s.decode_ms, s.upload_ms, s.draw_ms);

@@ -3,6 +3,7 @@
 #include <google/protobuf/struct.pb.h>
 #include <google/protobuf/util/json_util.h>
 
+#include <cctype>
 #include <cmath>
 
 #include <fmt/format.h>
@@ -88,7 +89,7 @@ void App::RunUiAction(const std::string& json, int line) {
   } else if (name == "key") {  // {"key": "p"}
     const std::string key = Text(value, at);
     if (key.size() != 1 && key != "Home" && key != "F2") throw InputError(at + ": one character, Home or F2");
-    if (run) Key(key == "Home" ? SDLK_HOME : key == "F2" ? SDLK_F2 : SDL_Keycode(key[0]));
+    if (run) Key(key == "Home" ? SDLK_HOME : key == "F2" ? SDLK_F2 : SDL_Keycode(std::tolower(key[0])));
   } else if (name == "drag") {  // {"drag": {"button": "left", "dx": 100, "dy": 0, "modifier": "ctrl"}}
     const Struct& d = Object(value, at);
     const int button = Button(d.fields().count("button") ? Text(d.fields().at("button"), at) : "left", at);

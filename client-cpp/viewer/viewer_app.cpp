@@ -21,6 +21,7 @@
 #include "encode/image_codecs.h"
 #include "io/presets.h"
 #include "io/scene_file.h"
+#include "io/volume_loader.h"
 #include "script_player.h"
 #include "viewer/transfer_edits.h"
 
@@ -136,6 +137,7 @@ int App::Run() {
     }
     for (auto& f : later) f();
     AdoptSession();
+    if (std::string warning = connection->TakeWarning(); !warning.empty()) notice = warning;
     const bool new_frame = TakeFrame();
     RunScript();
     ResizeViewportWhenSettled();
@@ -302,7 +304,7 @@ void App::SaveScene(const std::string& path) {
   *scene.mutable_render() = render;
   scene.mutable_render()->set_width(viewport_w_);
   scene.mutable_render()->set_height(viewport_h_);
-  if (volume) scene.mutable_volume()->set_file(volume->source());
+  if (volume) *scene.mutable_volume() = ParseVolumeSpec(volume->source());  // a phantom stays a phantom
   google::protobuf::util::JsonPrintOptions print;
   print.add_whitespace = true;
   std::string json;
@@ -524,6 +526,7 @@ bool App::Key(SDL_Keycode key) {
     SendCamera();
     return true;
   }
+  if (mods & (KMOD_CTRL | KMOD_ALT)) return false;
   static const std::pair<SDL_Keycode, v1::NamedView> kViews[] = {
       {SDLK_a, v1::ANTERIOR}, {SDLK_p, v1::POSTERIOR}, {SDLK_l, v1::LEFT},
       {SDLK_r, v1::RIGHT},    {SDLK_s, v1::SUPERIOR},  {SDLK_i, v1::INFERIOR}};
@@ -557,7 +560,7 @@ void App::RunScript() {
   }
   if (settling_) {  // the timeline stands still until the view has caught up
     const Clock::time_point now = Clock::now();
-    if (!EventsAnswered()) {
+    if (!EventsAnswered() && !Broken(connection->status().state)) {
       *script_start_ += now - last_script_tick_;
       last_script_tick_ = now;
       return;

@@ -60,6 +60,28 @@ TEST(CameraControl, TheKeyLightTurnsLikeTheEye) {
   EXPECT_NEAR(light.edge_u().y(), -50, 1e-2f);  // edges turn with it
 }
 
+TEST(CameraControl, TheKeyLightsDirectionIsSetAsSeenFromTheCamera) {
+  v1::AreaLight light;
+  light.mutable_center()->set_y(-300);  // in front, towards the eye
+  light.mutable_edge_u()->set_x(50);
+  light.mutable_edge_v()->set_z(50);
+  LightDirection d = DirectionOf(light, Front());
+  EXPECT_NEAR(d.azimuth_deg, 0, 1e-3f);
+  EXPECT_NEAR(d.elevation_deg, 0, 1e-3f);
+  SetDirection(light, Front(), {90, 0});  // to the viewer's right (+x), same distance
+  EXPECT_NEAR(light.center().x(), 300, 1e-2f);
+  EXPECT_NEAR(light.center().y(), 0, 1e-2f);
+  SetDirection(light, Front(), {0, 45});
+  d = DirectionOf(light, Front());
+  EXPECT_NEAR(d.azimuth_deg, 0, 1e-2f);
+  EXPECT_NEAR(d.elevation_deg, 45, 1e-2f);
+  // Its face still points at the target: edge_u x edge_v along -center.
+  const Vec3f n = Normalize(Cross(Vec3f{light.edge_u().x(), light.edge_u().y(), light.edge_u().z()},
+                                  Vec3f{light.edge_v().x(), light.edge_v().y(), light.edge_v().z()}));
+  const Vec3f to_target = -Normalize(Vec3f{light.center().x(), light.center().y(), light.center().z()});
+  EXPECT_NEAR(std::abs(Dot(n, to_target)), 1.0f, 1e-3f);
+}
+
 TEST(CameraControl, ProtoRoundTripAndFallback) {
   const ViewCamera c = FromProto(ToProto(Front()), {});
   ExpectNear(c.eye, Front().eye);

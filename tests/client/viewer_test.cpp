@@ -39,10 +39,14 @@ struct ViewerRun {
   std::string output;
 };
 
-// The viewer on a virtual display, 640x400, at most 90 s.
+// The viewer on a virtual display, 640x400, at most 90 s. Each run takes a
+// display number of its own: xvfb-run's --auto-servernum races when tests
+// run side by side.
 ViewerRun RunViewer(const fs::path& scratch, std::vector<std::string> args) {
-  std::vector<std::string> all{"-a", "-s", "-screen 0 1024x768x24", "timeout", "90", kViewer, "--width", "640",
-                               "--height", "400"};
+  static int runs = 0;
+  const std::string display = std::to_string(100 + (getpid() * 7 + runs++) % 800);
+  std::vector<std::string> all{"-n", display, "-s", "-screen 0 1024x768x24", "timeout", "90", kViewer, "--width",
+                               "640", "--height", "400"};
   all.insert(all.end(), args.begin(), args.end());
   auto [code, output] = RunProgram("/usr/bin/xvfb-run", all, scratch / "viewer.log", std::chrono::seconds(120));
   return {code, output};
