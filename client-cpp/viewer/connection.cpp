@@ -34,7 +34,10 @@ constexpr auto kRetryEvery = std::chrono::seconds(2);
 }  // namespace
 
 Connection::Connection(ConnectionSettings settings)
-    : settings_(std::move(settings)), worker_([this] { Work(); }), decoder_([this] { Decode(); }) {}
+    : settings_(std::move(settings)),
+      worker_([this] { Work(); }),
+      requester_([this] { Serve(); }),
+      decoder_([this] { Decode(); }) {}
 
 Connection::~Connection() {
   {
@@ -44,6 +47,7 @@ Connection::~Connection() {
   wake_.notify_all();
   frame_arrived_.notify_all();
   worker_.join();
+  requester_.join();
   decoder_.join();
 }
 
@@ -115,20 +119,25 @@ void Connection::Start() {
   if (status().state != LinkState::kReconnecting) {  // while retrying, the last error stays in view
     SetStatus(LinkState::kConnecting, "connecting to " + settings_.client.address);
   }
-  client_ = std::make_unique<Client>(settings_.client);
+  auto client = std::make_shared<Client>(settings_.client);
+  {
+    std::lock_guard lock(mu_);
+    client_ = client;
+  }
+  wake_.notify_all();  // requests may have waited for a connection
   // After the first start, the volume it resolved to (an upload is not sent again).
   v1::VolumeInfo volume;
   if (!resolved_volume_.empty()) {
     try {
-      volume = client_->DescribeVolume(resolved_volume_);
+      volume = client->DescribeVolume(resolved_volume_);
     } catch (const RpcError& e) {
       if (e.code() != grpc::StatusCode::NOT_FOUND) throw;  // a restarted server lost it: resolve again
     }
   }
-  if (volume.id().empty()) volume = client_->DescribeVolume(cli::ResolveVolume(*client_, settings_.session).id());
+  if (volume.id().empty()) volume = client->DescribeVolume(cli::ResolveVolume(*client, settings_.session).id());
   resolved_volume_ = volume.id();
   const v1::CreateSessionResponse created =
-      client_->CreateSession(cli::SessionRequest(settings_.session, volume.id()));
+      client->CreateSession(cli::SessionRequest(settings_.session, volume.id()));
   StreamOptions options;
   options.on_message = [this](const v1::ServerMessage& m) {
     if (m.has_notice() && m.notice().level() == v1::Notice::WARNING) {
@@ -143,7 +152,7 @@ void Connection::Start() {
     }
     frame_arrived_.notify_one();
   };
-  stream_ = client_->Attach(created.session_id(), options);
+  stream_ = client->Attach(created.session_id(), options);
   {
     std::lock_guard lock(mu_);
     volume_ = volume;
@@ -175,24 +184,6 @@ void Connection::Work() {
   auto next_try = Clock::now();
   std::unique_lock lock(mu_);
   while (!stopping_) {
-    if (!requests_.empty() && client_) {
-      auto [request, done] = std::move(requests_.front());
-      requests_.pop_front();
-      requesting_ = true;
-      lock.unlock();
-      std::string error;
-      try {
-        request(*client_);
-      } catch (const RpcError& e) {
-        error = Describe(e.code(), e.what());
-      } catch (const std::exception& e) {
-        error = e.what();
-      }
-      done(error);
-      lock.lock();
-      requesting_ = false;
-      continue;
-    }
     lock.unlock();
     if (!stream_ && Clock::now() >= next_try) {
       try {
@@ -219,7 +210,7 @@ void Connection::Work() {
       SendPending();
     }
     lock.lock();
-    wake_.wait_for(lock, std::chrono::milliseconds(20), [this] { return stopping_ || !events_.empty() || !requests_.empty(); });
+    wake_.wait_for(lock, std::chrono::milliseconds(20), [this] { return stopping_ || !events_.empty(); });
   }
   lock.unlock();
   if (stream_ && session_) {
@@ -230,6 +221,30 @@ void Connection::Work() {
     stream_->Finish(std::chrono::seconds(2));
   }
   SetStatus(LinkState::kClosed, "closed");
+}
+
+void Connection::Serve() {
+  std::unique_lock lock(mu_);
+  for (;;) {
+    wake_.wait(lock, [this] { return stopping_ || (!requests_.empty() && client_); });
+    if (stopping_) return;
+    auto [request, done] = std::move(requests_.front());
+    requests_.pop_front();
+    requesting_ = true;
+    const std::shared_ptr<Client> client = client_;  // a reconnect may replace it meanwhile
+    lock.unlock();
+    std::string error;
+    try {
+      request(*client);
+    } catch (const RpcError& e) {
+      error = Describe(e.code(), e.what());
+    } catch (const std::exception& e) {
+      error = e.what();
+    }
+    done(error);
+    lock.lock();
+    requesting_ = false;
+  }
 }
 
 void Connection::Decode() {

@@ -3,9 +3,10 @@
 // connection's state; it never waits on the server.
 //
 // Threads: a worker connects, creates the session and attaches, then sends
-// posted events (camera events coalesced: the newest wins) and runs posted
-// requests in order; the stream's reader hands frames to a decoder thread,
-// which keeps only the newest (a slow decoder skips frames, never queues).
+// posted events (camera events coalesced: the newest wins); a requester runs
+// posted requests (loads, uploads, snapshots) in order beside it; the
+// stream's reader hands frames to a decoder thread, which keeps only the
+// newest (a slow decoder skips frames, never queues).
 #pragma once
 
 #include <atomic>
@@ -61,8 +62,8 @@ class Connection {
 
   // Queues an event. Camera events replace a camera event still waiting.
   void Post(v1::SessionEvent event);
-  // Runs `request` on the worker with the client; its errors go to `done`
-  // (empty on success). Both run on the worker thread.
+  // Runs `request` with the client once connected; its errors go to `done`
+  // (empty on success). Both run on the requester thread.
   void Request(std::function<void(Client&)> request, std::function<void(const std::string& error)> done);
 
   // The newest decoded frame since the last call, if any.
@@ -77,14 +78,15 @@ class Connection {
   bool idle() const;
 
  private:
-  void Work();
+  void Work();   // connects, sends events
+  void Serve();  // runs requests, so that a long upload holds no event back
   void Start();  // connect, resolve the volume, create the session, attach
   bool SendPending();
   void Decode();
   void SetStatus(LinkState state, std::string message);
 
   const ConnectionSettings settings_;
-  std::unique_ptr<Client> client_;  // the worker's
+  std::shared_ptr<Client> client_;  // set by the worker (mu_), shared with the requester
   std::string resolved_volume_;     // the volume id the first start found
   std::unique_ptr<SessionStream> stream_;
 
@@ -108,7 +110,7 @@ class Connection {
   std::optional<ViewFrame> decoded_;   // newest decoded, not yet taken
   std::chrono::steady_clock::time_point encoded_at_;
 
-  std::thread worker_, decoder_;
+  std::thread worker_, requester_, decoder_;
 };
 
 }  // namespace cinevol::viewer
