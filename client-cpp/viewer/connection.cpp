@@ -200,7 +200,8 @@ void Connection::Work() {
       }
     } else if (stream_ && stream_->ended()) {
       const grpc::Status s = stream_->status();
-      const bool refused = Refused(s.error_code());
+      // NOT_FOUND here: the server no longer knows the session (it restarted).
+      const bool refused = Refused(s.error_code()) && s.error_code() != grpc::StatusCode::NOT_FOUND;
       SetStatus(refused ? LinkState::kFailed : LinkState::kReconnecting,
                 Describe(s.error_code(), fmt::format("{}: {}", StatusCodeName(s.error_code()), s.error_message())) +
                     (refused ? "" : " (starting a new session)"));

@@ -168,6 +168,47 @@ TEST(Viewer, ShowsTheVolumeStatsAndPanelsAndFollowsEdits) {
   EXPECT_EQ(int(size[1].number_value()), RegionOf(layout, "frame").h);
 }
 
+TEST(Viewer, ASessionLostWithItsServerIsReplacedWithTheViewersState) {
+  CINEVOL_REQUIRE_VIEWER();
+  ScratchDir scratch;
+  auto server = std::make_unique<ServerProcess>(scratch.path());
+  ASSERT_TRUE(server->running()) << server->Log();
+  const int port = server->port();
+  const fs::path first = scratch.path() / "first.png", last = scratch.path() / "last.png";
+  const fs::path script = WriteScript(scratch.path() / "restart.jsonl", fmt::format(R"({{"session": {{}}}}
+{{"at": 0, "ui": {{"settle": true}}}}
+{{"at": 0, "ui": {{"screenshot": "{}"}}}}
+{{"at": 0.2, "ui": {{"preset": "ct-soft-tissue"}}}}
+{{"at": 12, "ui": {{"key": "p"}}}}
+)", first.string()));
+  std::vector<std::string> args{"-n", std::to_string(100 + getpid() % 800), "-s", "-screen 0 1024x768x24", "timeout",
+                                "90", kViewer, "--width", "640", "--height", "400", "--server", server->address(),
+                                "--script", script.string(), "--screenshot", last.string()};
+  const pid_t viewer = Spawn("/usr/bin/xvfb-run", args, scratch.path() / "viewer.log");
+  ASSERT_GT(viewer, 0);
+  // Once the first frame is on screen, the server dies and another takes its port.
+  for (int i = 0; i < 600 && !fs::exists(first); ++i) std::this_thread::sleep_for(std::chrono::milliseconds(100));
+  ASSERT_TRUE(fs::exists(first)) << "no first frame";
+  kill(server->pid(), SIGKILL);
+  server.reset();
+  const fs::path second_dir = scratch.path() / "second";
+  fs::create_directories(second_dir);
+  ServerProcess second(second_dir, {}, "cpu", 0, port);
+  ASSERT_TRUE(second.running()) << second.Log();
+  const int status = WaitExit(viewer, std::chrono::seconds(100));
+  std::ifstream log(scratch.path() / "viewer.log");
+  const std::string output{std::istreambuf_iterator<char>(log), {}};
+  ASSERT_TRUE(status != -1 && WIFEXITED(status)) << output;
+  EXPECT_EQ(WEXITSTATUS(status), 0) << output;
+  // The new session streams, with the preset the viewer had chosen.
+  const google::protobuf::Struct layout = ReadLayout(last);
+  EXPECT_EQ(layout.fields().at("state").number_value(), 1) << layout.fields().at("message").string_value();
+  EXPECT_GT(layout.fields().at("frameId").number_value(), 0);
+  Client client = second.Connect();
+  const v1::ServerStatus s = client.Status();
+  EXPECT_EQ(s.sessions_size(), 0) << "the viewer closes its session on exit";
+}
+
 TEST(Viewer, ServersThatFailOrRefuseAreNamedAndTheViewerExits) {
   CINEVOL_REQUIRE_VIEWER();
   ScratchDir scratch;

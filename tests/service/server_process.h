@@ -97,12 +97,14 @@ inline int FreePort() {
 class ServerProcess {
  public:
   // Starts cinevol-server with a small head phantom, plus `extra` flags;
-  // with `file_limit`, under that descriptor limit (soft and hard).
+  // with `file_limit`, under that descriptor limit (soft and hard); on
+  // `port` (0: any free one).
   explicit ServerProcess(const std::filesystem::path& scratch, std::vector<std::string> extra = {},
-                         const std::string& backend = "cpu", int file_limit = 0) {
+                         const std::string& backend = "cpu", int file_limit = 0, int port = 0) {
     const std::filesystem::path port_file = scratch / "port";
+    std::filesystem::remove(port_file);
     log_ = scratch / "server.log";
-    std::vector<std::string> args{"--listen", "127.0.0.1:0", "--port-file", port_file.string(), "--backend", backend,
+    std::vector<std::string> args{"--listen", "127.0.0.1:" + std::to_string(port), "--port-file", port_file.string(), "--backend", backend,
                                   "--volume", "phantom:head?size=48", "--encode-threads", "2"};
     args.insert(args.end(), extra.begin(), extra.end());
     if (file_limit > 0) {  // the shell execs the server: the pid stays its
