@@ -170,7 +170,7 @@ int App::Run() {
     if (new_frame) {  // the UI thread's cost of showing it: upload, panels, drawing, present
       const double loop_ms = Ms(Clock::now() - frame_start);
       stats.draw_ms = loop_ms - stats.upload_ms;
-      stats.all_ui_ms.push_back(loop_ms);
+      if (script_) stats.all_ui_ms.push_back(loop_ms);
     }
     std::this_thread::sleep_until(frame_start + kFramePeriod);
   }
@@ -350,7 +350,7 @@ bool App::TakeFrame() {
   for (std::uint64_t seq = stats.last.last_event_seq() + 1; seq <= f.last_event_seq(); ++seq) {
     if (const auto sent = connection->SentAt(seq)) {
       stats.latency_ms.push_back(Ms(now - *sent));
-      stats.all_latency_ms.push_back(stats.latency_ms.back());
+      if (script_) stats.all_latency_ms.push_back(stats.latency_ms.back());
     }
   }
   while (stats.latency_ms.size() > 200) stats.latency_ms.pop_front();
@@ -360,7 +360,7 @@ bool App::TakeFrame() {
   stats.last_shown = now;
   stats.bytes.emplace_back(now, frame->jpeg_bytes);
   stats.decode_ms = frame->decode_ms;
-  stats.all_decode_ms.push_back(frame->decode_ms);
+  if (script_) stats.all_decode_ms.push_back(frame->decode_ms);
   stats.all_bytes += frame->jpeg_bytes;
   return true;
 }

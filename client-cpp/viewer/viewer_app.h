@@ -38,7 +38,8 @@ struct ViewerStats {
   std::deque<std::pair<Clock::time_point, std::size_t>> bytes;  // the last second
   std::uint64_t last_frame_id = 0, dropped = 0;
   double decode_ms = 0, upload_ms = 0, draw_ms = 0;  // the viewer's own cost, last frame
-  // Over the whole run, for the summary a script prints at its end.
+  // Over the whole run, for the summary a script prints at its end (kept
+  // only when a script runs: a viewer left open would grow them for ever).
   std::vector<double> all_decode_ms, all_ui_ms, all_latency_ms;  // ui: upload and draw on the UI thread
   std::size_t all_bytes = 0;
   v1::Frame last;               // the newest frame's header
