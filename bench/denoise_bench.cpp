@@ -50,7 +50,7 @@ int RunDenoiseBench(const DenoiseBenchOptions& o) {
   renderer->SetVolume(loaded.volume);
   renderer->SetTransferFunction(setup.transfer_function);
   renderer->SetLights(setup.lights);
-  const DenoiseBackend denoise_backend = renderer->Name() == "cuda" ? DenoiseBackend::kCuda : DenoiseBackend::kCpu;
+  const Backend denoise_backend = renderer->backend();
 
   auto request = [&](int t, int spp, std::uint64_t seed) {
     FrameRequest r;

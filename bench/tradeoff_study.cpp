@@ -259,7 +259,7 @@ struct References {
 struct Context {
   const StudyOptions& o;
   Renderer& renderer;
-  DenoiseBackend denoise_backend;
+  Backend denoise_backend;  // the renderer's: frames stay in its memory
   std::unique_ptr<Display> display;
   float exposure = 0;
 };
@@ -533,8 +533,8 @@ void WriteJson(const fs::path& path, const StudyOptions& o, const std::string& d
 
 std::vector<RunResult> RunStudy(const StudyOptions& o) {
   auto renderer = CreateRenderer(ParseBackend(o.backend));
-  const bool cuda = renderer->Name() == "cuda";
-  Context ctx{o, *renderer, cuda ? DenoiseBackend::kCuda : DenoiseBackend::kCpu, nullptr};
+  Context ctx{o, *renderer, renderer->backend(), nullptr};
+  const bool cuda = renderer->backend() == Backend::kCuda;
 #if CINEVOL_WITH_CUDA
   ctx.display = cuda ? MakeCudaDisplay() : MakeCpuDisplay();
 #else

@@ -50,7 +50,7 @@ OfflineRenderResult RenderToFile(const v1::Scene& scene, const std::filesystem::
   settings.target_spp = total_spp;
   pipeline.Update(scene, settings);
   result.load_seconds = SecondsSince(load_start);
-  result.backend = pipeline.backend_name();
+  result.backend = ToString(pipeline.backend());
 
   const int frame_spp = static_cast<int>(scene.render().spp());
   const auto start = std::chrono::steady_clock::now();

@@ -3,7 +3,7 @@
 // calling thread's default stream after the renderer's frame.
 #pragma once
 
-#include "render/cuda_buffer.h"
+#include "device/cuda_buffer.h"
 
 namespace cinevol {
 

@@ -4,7 +4,6 @@
 #include <fmt/format.h>
 
 #include "core/error.h"
-#include "render/renderer.h"
 
 namespace cinevol {
 
@@ -40,15 +39,13 @@ const char* ToString(DenoiseMethod method) {
   return "?";
 }
 
-std::unique_ptr<Denoiser> CreateDenoiser(DenoiseBackend backend, const DenoiserSettings& settings) {
-  if (backend == DenoiseBackend::kCpu) return MakeCpuDenoiser(settings);
-  std::string why;
-  if (!CudaAvailable(&why)) throw InputError("the CUDA denoiser is not available: " + why);
+std::unique_ptr<Denoiser> CreateDenoiser(Backend backend, const DenoiserSettings& settings) {
 #if CINEVOL_WITH_CUDA
-  return MakeCudaDenoiser(settings);
+  if (Resolve(backend, "denoiser") == Backend::kCuda) return MakeCudaDenoiser(settings);
 #else
-  return nullptr;  // unreachable: CudaAvailable is false without CUDA
+  Resolve(backend, "denoiser");  // throws for kCuda
 #endif
+  return MakeCpuDenoiser(settings);
 }
 
 }  // namespace cinevol

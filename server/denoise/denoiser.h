@@ -17,6 +17,7 @@
 #include "core/camera.h"
 #include "core/image.h"
 #include "core/vec.h"
+#include "device/device.h"
 
 namespace cinevol {
 
@@ -153,9 +154,8 @@ class Denoiser {
   virtual double LastMilliseconds() const = 0;
 };
 
-enum class DenoiseBackend { kCpu, kCuda };
-
-// Throws InputError for kCuda without a usable GPU.
-std::unique_ptr<Denoiser> CreateDenoiser(DenoiseBackend backend, const DenoiserSettings& settings);
+// kAuto: CUDA where a usable GPU is present. Throws InputError for kCuda
+// without one.
+std::unique_ptr<Denoiser> CreateDenoiser(Backend backend, const DenoiserSettings& settings);
 
 }  // namespace cinevol

@@ -45,10 +45,7 @@ FramePipeline::FramePipeline(Backend backend, std::shared_ptr<const Volume> volu
     : volume_(std::move(volume)), renderer_(CreateRenderer(backend)) {
   renderer_->SetVolume(volume_);
 #if CINEVOL_WITH_CUDA
-  if (renderer_->Name() == "cuda") {
-    denoise_backend_ = DenoiseBackend::kCuda;
-    display_ = MakeCudaDisplay();
-  }
+  if (renderer_->backend() == Backend::kCuda) display_ = MakeCudaDisplay();
 #endif
   if (!display_) display_ = MakeCpuDisplay();
 }
@@ -77,7 +74,7 @@ void FramePipeline::Update(const v1::Scene& scene, const FrameSettings& settings
     DenoiserSettings denoiser;
     denoiser.method = settings.denoiser;
     denoiser.demodulate = settings.demodulate;
-    denoiser_ = CreateDenoiser(denoise_backend_, denoiser);
+    denoiser_ = CreateDenoiser(renderer_->backend(), denoiser);  // frames stay in the renderer's memory
   }
   if (tf_changed || lights_changed) ++scene_version_;
   if (tf_changed || lights_changed || camera_changed || sampling_changed) {

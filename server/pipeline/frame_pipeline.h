@@ -74,14 +74,13 @@ class FramePipeline {
   bool Converged() const { return accumulated_spp_ >= settings_.target_spp; }
   ImageRgbF AccumulatedRadiance() const { return renderer_->AccumulatedMean(); }
   float exposure() const { return scene_.camera().exposure(); }
-  std::string backend_name() const { return renderer_->Name(); }
+  Backend backend() const { return renderer_->backend(); }
 
  private:
   FrameRequest Request(int spp);
 
   std::shared_ptr<const Volume> volume_;
   std::unique_ptr<Renderer> renderer_;
-  DenoiseBackend denoise_backend_ = DenoiseBackend::kCpu;
   std::unique_ptr<Denoiser> denoiser_;
   std::unique_ptr<Display> display_;
   v1::Scene scene_;

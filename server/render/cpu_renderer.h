@@ -11,7 +11,7 @@ class CpuRenderer final : public Renderer {
   explicit CpuRenderer(const RendererOptions& options = {})
       : threads_(options.cpu_threads), data_(options.brick_size) {}
 
-  std::string Name() const override { return "cpu"; }
+  Backend backend() const override { return Backend::kCpu; }
   void SetVolume(std::shared_ptr<const Volume> volume) override { data_.SetVolume(std::move(volume)); }
   void SetTransferFunction(const TransferFunction& tf) override { data_.SetTransferFunction(tf); }
   void SetLights(const LightSetup& lights) override { data_.SetLights(lights); }

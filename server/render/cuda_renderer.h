@@ -15,7 +15,7 @@ class CudaRenderer final : public Renderer {
   explicit CudaRenderer(const RendererOptions& options = {});
   ~CudaRenderer() override;
 
-  std::string Name() const override { return "cuda"; }
+  Backend backend() const override { return Backend::kCuda; }
   void SetVolume(std::shared_ptr<const Volume> volume) override;
   void SetTransferFunction(const TransferFunction& tf) override;
   void SetLights(const LightSetup& lights) override;

@@ -16,6 +16,7 @@
 #include "core/lights.h"
 #include "core/transfer_function.h"
 #include "core/volume.h"
+#include "device/device.h"
 #include "render/render_scene.h"
 #include "render/scene_data.h"
 
@@ -56,7 +57,7 @@ inline unsigned ApplyRequest(const FrameRequest& request, RenderScene& scene) {
 class Renderer {
  public:
   virtual ~Renderer() = default;
-  virtual std::string Name() const = 0;
+  virtual Backend backend() const = 0;  // kCpu or kCuda
 
   // The Volume must stay alive and unchanged while the renderer uses it.
   virtual void SetVolume(std::shared_ptr<const Volume> volume) = 0;
@@ -84,8 +85,6 @@ class Renderer {
   virtual FrameTargets Targets() const = 0;
 };
 
-enum class Backend { kAuto, kCpu, kCuda };
-
 struct RendererOptions {
   // Voxels per majorant-grid brick edge: bricks skip empty space and bound
   // dense space tightly. 0: no bricks, one global majorant.
@@ -93,28 +92,8 @@ struct RendererOptions {
   int cpu_threads = 0;  // 0: every hardware thread (or CINEVOL_THREADS)
 };
 
-// "auto", "cpu" or "cuda"; throws InputError otherwise.
-Backend ParseBackend(std::string_view name);
-
 // kAuto takes CUDA when a usable GPU is present, else the CPU. kCuda without
 // a GPU (or a build without CUDA) throws InputError saying why.
 std::unique_ptr<Renderer> CreateRenderer(Backend backend, const RendererOptions& options = {});
-
-// Whether a CUDA device can run kernels, and its name or the reason it can't.
-bool CudaAvailable(std::string* description = nullptr);
-
-struct GpuInfo {
-  int index = 0;
-  std::string name;
-  std::size_t total_bytes = 0, free_bytes = 0;
-};
-
-// The GPUs this build can run on (compute capability 9.0 and newer); empty
-// without a GPU or without CUDA.
-std::vector<GpuInfo> ListGpus();
-
-// Makes GPU `index` the calling thread's device: renderers and denoisers made
-// and used on this thread allocate and run there.
-void UseGpu(int index);
 
 }  // namespace cinevol

@@ -3,7 +3,7 @@
 
 #include <spdlog/spdlog.h>
 
-#include "render/renderer.h"
+#include "device/device.h"
 
 namespace cinevol::service {
 

@@ -17,7 +17,7 @@
 #include <grpcpp/support/status.h>
 
 #include "cinevol/v1/service.pb.h"
-#include "render/renderer.h"
+#include "device/device.h"
 #include "service/auth.h"
 #include "service/call_watch.h"
 #include "service/connection_limits.h"

@@ -43,7 +43,7 @@ TEST_P(CudaDenoiser, AgreesWithCpu) {
   DenoiserSettings s;
   s.method = GetParam().method;
   s.demodulate = GetParam().demodulate;
-  auto gpu = CreateDenoiser(DenoiseBackend::kCuda, s), cpu = CreateDenoiser(DenoiseBackend::kCpu, s);
+  auto gpu = CreateDenoiser(Backend::kCuda, s), cpu = CreateDenoiser(Backend::kCpu, s);
   const int w = 64, h = 48;
   for (int t = 0; t < 12; ++t) {
     FrameRequest req;

@@ -23,7 +23,7 @@ std::unique_ptr<Denoiser> Make(DenoiseMethod method, bool demodulate = false) {
   DenoiserSettings s;
   s.method = method;
   s.demodulate = demodulate;
-  return CreateDenoiser(DenoiseBackend::kCpu, s);
+  return CreateDenoiser(Backend::kCpu, s);
 }
 
 bool AllFiniteNonNegative(const ImageRgbF& image) {
@@ -250,7 +250,7 @@ TEST(Wrls, StabilisationSteadiesEditsAndFollowsAStep) {
   auto run = [](float history_weight) {
     DenoiserSettings s;
     s.wrls.stabilize_history = history_weight;
-    auto d = CreateDenoiser(DenoiseBackend::kCpu, s);
+    auto d = CreateDenoiser(Backend::kCpu, s);
     SyntheticSequence seq(24, 16);
     Run r;
     ImageRgbF previous;
@@ -278,7 +278,7 @@ TEST(Wrls, StabilisationSteadiesEditsAndFollowsAStep) {
 TEST(Wrls, FeatureRescalingFollowsAMovingLight) {
   constexpr int kWidth = 64, kHeight = 32, kFrames = 30;
   auto error = [&](const DenoiserSettings& s) {
-    auto d = CreateDenoiser(DenoiseBackend::kCpu, s);
+    auto d = CreateDenoiser(Backend::kCpu, s);
     SyntheticSequence seq(kWidth, kHeight);
     double sum = 0;
     for (int t = 0; t < kFrames; ++t) {
@@ -307,7 +307,7 @@ TEST(Wrls, FeatureRescalingFollowsAMovingLight) {
 }
 
 TEST(Wrls, FeatureRescalingSurvivesHostileInput) {
-  auto d = CreateDenoiser(DenoiseBackend::kCpu, DenoiserSettings{});
+  auto d = CreateDenoiser(Backend::kCpu, DenoiserSettings{});
   SyntheticSequence seq(24, 16);
   const float inf = std::numeric_limits<float>::infinity();
   for (int t = 0; t < 30; ++t) {

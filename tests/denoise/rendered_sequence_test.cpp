@@ -59,8 +59,8 @@ TEST(RenderedSequence, WrlsBeatsNoiseAndAccumulationDuringMotion) {
   DenoiserSettings wrls_settings, accumulate_settings;
   wrls_settings.method = DenoiseMethod::kWrls;
   accumulate_settings.method = DenoiseMethod::kAccumulate;
-  auto wrls = CreateDenoiser(DenoiseBackend::kCpu, wrls_settings);
-  auto accumulate = CreateDenoiser(DenoiseBackend::kCpu, accumulate_settings);
+  auto wrls = CreateDenoiser(Backend::kCpu, wrls_settings);
+  auto accumulate = CreateDenoiser(Backend::kCpu, accumulate_settings);
 
   double psnr_noisy = 0, psnr_wrls = 0, psnr_accumulate = 0;
   for (int t = 0; t < frames; ++t) {

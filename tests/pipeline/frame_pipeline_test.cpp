@@ -124,7 +124,7 @@ TEST(FramePipeline, CudaAgreesWithCpu) {
   CINEVOL_REQUIRE_CUDA();
   auto volume = SmallHead();
   FramePipeline cpu(Backend::kCpu, volume), gpu(Backend::kCuda, volume);
-  EXPECT_EQ(gpu.backend_name(), "cuda");
+  EXPECT_EQ(gpu.backend(), Backend::kCuda);
   FrameSettings settings;
   settings.target_spp = 64;
   const v1::Scene scene = SmallScene(*volume, 64, 48);

@@ -5,7 +5,7 @@
 
 #include <string>
 
-#include "render/renderer.h"
+#include "device/device.h"
 
 #define CINEVOL_REQUIRE_CUDA()                                                \
   do {                                                                        \
