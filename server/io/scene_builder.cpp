@@ -43,7 +43,8 @@ ViewDirections NamedViewDirections(v1::NamedView view, const DirectionCosines& d
 
 std::vector<Vec3f> VisibleCorners(const Volume& volume, const TransferFunction& tf) {
   const Vec3i blocks = volume.block_counts(), n{blocks.x + 1, blocks.y + 1, blocks.z + 1};
-  std::vector<char> corner(std::size_t(n.x) * n.y * n.z, 0);  // on the lattice of block corners
+  // Per corner of the block lattice, how many visible blocks touch it.
+  std::vector<std::uint8_t> touching(std::size_t(n.x) * n.y * n.z, 0);
   auto at = [&](int x, int y, int z) { return (std::size_t(z) * n.y + y) * n.x + x; };
   // Haze that cannot take 20% of the light crossing a block is not framed.
   const Vec3f block_mm = volume.spacing_mm() * float(Volume::kBlockSize);
@@ -56,7 +57,7 @@ std::vector<Vec3f> VisibleCorners(const Volume& volume, const TransferFunction& 
         const Volume::ValueRange r = volume.block_ranges()[i];
         if (MaxOpacity(tf, r.lo, r.hi) <= min_opacity) continue;
         any = true;
-        for (int c = 0; c < 8; ++c) corner[at(x + (c & 1), y + (c >> 1 & 1), z + (c >> 2))] = 1;
+        for (int c = 0; c < 8; ++c) ++touching[at(x + (c & 1), y + (c >> 1 & 1), z + (c >> 2))];
       }
     }
   }
@@ -65,8 +66,11 @@ std::vector<Vec3f> VisibleCorners(const Volume& volume, const TransferFunction& 
   for (int z = 0; z < n.z; ++z) {
     for (int y = 0; y < n.y; ++y) {
       for (int x = 0; x < n.x; ++x) {
+        // Only the visible region's surface matters: a corner inside it (all
+        // eight blocks visible) is never the farthest out.
+        const int t = touching[at(x, y, z)];
         const bool outer = (x == 0 || x == blocks.x) && (y == 0 || y == blocks.y) && (z == 0 || z == blocks.z);
-        if (any ? !corner[at(x, y, z)] : !outer) continue;
+        if (any ? (t == 0 || t == 8) : !outer) continue;
         // The last block may be partial: clamp to the volume's box.
         const Vec3f p = ToFloat(Vec3i{x, y, z}) * block_mm - half;
         points.push_back(Min(p, half));
