@@ -1,8 +1,6 @@
 // FramePipeline: scene diffing, the per-frame chain and refinement blending.
 #include "pipeline/frame_pipeline.h"
 
-#include <google/protobuf/util/message_differencer.h>
-
 #include <chrono>
 #include <cmath>
 
@@ -10,20 +8,6 @@
 
 namespace cinevol {
 namespace {
-
-using google::protobuf::util::MessageDifferencer;
-
-bool SameLights(const v1::Scene& a, const v1::Scene& b) {
-  if (a.lights_size() != b.lights_size()) return false;
-  for (int i = 0; i < a.lights_size(); ++i) {
-    if (!MessageDifferencer::Equals(a.lights(i), b.lights(i))) return false;
-  }
-  return true;
-}
-
-bool SameSampling(const v1::RenderSettings& a, const v1::RenderSettings& b) {
-  return a.spp() == b.spp() && a.max_bounces() == b.max_bounces() && a.seed() == b.seed();
-}
 
 bool SameDenoiser(const FrameSettings& a, const FrameSettings& b) {
   return a.denoiser == b.denoiser && a.demodulate == b.demodulate;
@@ -52,17 +36,15 @@ FramePipeline::FramePipeline(Backend backend, std::shared_ptr<const Volume> volu
 
 FramePipeline::~FramePipeline() = default;
 
-void FramePipeline::Update(const v1::Scene& scene, const FrameSettings& settings) {
+void FramePipeline::Update(const v1::Scene& scene, const FrameSettings& settings, unsigned changes) {
   const bool first = !has_scene_;
-  const bool tf_changed =
-      first || !MessageDifferencer::Equals(scene.transfer_function(), scene_.transfer_function());
-  const bool lights_changed = first || !SameLights(scene, scene_);
+  if (first) changes = kEverythingChanged;
+  const bool tf_changed = changes & kTransferFunctionChanged;
+  const bool lights_changed = changes & kLightsChanged;
   // Named views frame what the transfer function shows, so they follow its edits.
-  const bool camera_changed = first || !MessageDifferencer::Equals(scene.camera(), scene_.camera()) ||
-                              scene.render().width() != scene_.render().width() ||
-                              scene.render().height() != scene_.render().height() ||
-                              (tf_changed && scene.camera().view() != v1::NAMED_VIEW_UNSPECIFIED);
-  const bool sampling_changed = first || !SameSampling(scene.render(), scene_.render());
+  const bool camera_changed =
+      (changes & kCameraChanged) || (tf_changed && scene.camera().view() != v1::NAMED_VIEW_UNSPECIFIED);
+  const bool sampling_changed = changes & kSamplingChanged;
 
   if (tf_changed) {
     transfer_function_ = ResolveTransferFunction(scene.transfer_function(), *volume_);

@@ -52,15 +52,27 @@ struct DisplayFrame {
 inline constexpr int kBlendStartSpp = 16;
 float RefinementBlend(int accumulated_spp, int target_spp);
 
+// What an update changes, as the events that made it say: the pipeline
+// rebuilds from these, without comparing scenes.
+enum SceneChange : unsigned {
+  kCameraChanged = 1u << 0,  // the camera or the frame's size
+  kTransferFunctionChanged = 1u << 1,
+  kLightsChanged = 1u << 2,
+  kSamplingChanged = 1u << 3,  // spp, bounces or seed
+  kEverythingChanged = (1u << 4) - 1,
+};
+
 class FramePipeline {
  public:
   FramePipeline(Backend backend, std::shared_ptr<const Volume> volume);
   ~FramePipeline();
 
   // Takes the scene (validated, defaults filled) and settings; rebuilds only
-  // what differs from the previous call. Throws InputError for a scene the
-  // volume cannot resolve (e.g. an unreadable environment map).
-  void Update(const v1::Scene& scene, const FrameSettings& settings);
+  // what `changes` (SceneChange bits) says changed since the previous call,
+  // and whatever the settings change; the first call takes everything.
+  // Throws InputError for a scene the volume cannot resolve (e.g. an
+  // unreadable environment map).
+  void Update(const v1::Scene& scene, const FrameSettings& settings, unsigned changes = kEverythingChanged);
 
   // One frame of the scene's spp: render, denoise, blend, tone map.
   DisplayFrame RenderFrame();
@@ -71,6 +83,8 @@ class FramePipeline {
   void SetCancel(const std::atomic<bool>* cancel) { cancel_ = cancel; }
 
   int accumulated_spp() const { return accumulated_spp_; }
+  // Bumped by every transfer-function or light rebuild.
+  std::uint64_t scene_version() const { return scene_version_; }
   bool Converged() const { return accumulated_spp_ >= settings_.target_spp; }
   ImageRgbF AccumulatedRadiance() const { return renderer_->AccumulatedMean(); }
   float exposure() const { return scene_.camera().exposure(); }

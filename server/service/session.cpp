@@ -5,6 +5,8 @@
 #include <fmt/format.h>
 #include <spdlog/spdlog.h>
 
+#include <utility>
+
 #include "encode/image_codecs.h"
 #include "service/errors.h"
 #include "service/log_safe.h"
@@ -12,6 +14,15 @@
 
 namespace cinevol::service {
 namespace {
+
+// What an event changes for the pipeline (stream settings it compares itself).
+unsigned ChangesOf(const v1::SessionEvent& e) {
+  if (e.has_camera() || e.has_resize()) return kCameraChanged;
+  if (e.has_transfer_function()) return kTransferFunctionChanged;
+  if (e.has_lights()) return kLightsChanged;
+  if (e.has_render()) return kSamplingChanged;
+  return 0;
+}
 
 // Frames may be encoding while the next renders; more would only be dropped.
 constexpr int kMaxEncodesInFlight = 2;
@@ -27,6 +38,7 @@ std::uint32_t MicrosBetween(Clock::time_point from, Clock::time_point to) {
 // What one step renders, taken under the lock.
 struct Session::Work {
   bool update = false;  // scene and settings changed since the pipeline saw them
+  unsigned changes = 0;  // SceneChange bits: what the events changed
   v1::Scene scene;
   FrameSettings settings;
   Stamp stamp;
@@ -160,6 +172,7 @@ void Session::ApplyLocked(const v1::SessionEvent& event, Clock::time_point arriv
   if (event.has_pause()) paused_ = true;
   if (event.has_resume()) paused_ = false;
   if (!event.has_pause() && !event.has_resume()) dirty_ = true;
+  changes_ |= ChangesOf(event);
   refined_ = false;  // every event gets a frame that answers it
   last_event_seq_ = std::max(last_event_seq_, event.seq());
   last_event_arrival_ = arrival;
@@ -242,6 +255,7 @@ bool Session::Step() {
       work.update = dirty_;
       if (dirty_) {
         work.scene = scene_;
+        work.changes = std::exchange(changes_, 0u);
         dirty_ = false;
       }
       work.settings = settings_;
@@ -271,7 +285,7 @@ bool Session::Step() {
       pipeline_ = std::make_unique<FramePipeline>(context_.backend, volume_->volume());
       pipeline_->SetCancel(&cancel_);
     }
-    if (work.update) pipeline_->Update(work.scene, work.settings);
+    if (work.update) pipeline_->Update(work.scene, work.settings, work.changes);
     frame = pipeline_->RenderFrame();
   } catch (const Cancelled&) {  // the session ended or its stream went: nobody waits for this frame
     pipeline_.reset();

@@ -144,6 +144,7 @@ class Session final : public Job, public std::enable_shared_from_this<Session> {
   v1::Scene scene_;
   FrameSettings settings_;
   bool dirty_ = true;     // scene_ or settings_ changed since the pipeline last saw them
+  unsigned changes_ = kEverythingChanged;  // SceneChange bits since the pipeline last saw the scene
   bool refined_ = false;  // the final frame went out; nothing to render until an event
   bool paused_ = false;
   bool ended_ = false;

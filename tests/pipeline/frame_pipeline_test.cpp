@@ -65,27 +65,30 @@ TEST(FramePipeline, EditsResetTheAccumulationOnlyWhenTheImageChanges) {
   EXPECT_EQ(pipeline.accumulated_spp(), 4);
 
   settings.jpeg_quality = 20;  // encoding only
-  pipeline.Update(scene, settings);
+  pipeline.Update(scene, settings, 0);
   pipeline.RenderFrame();
   EXPECT_EQ(pipeline.accumulated_spp(), 6);
 
   scene.mutable_camera()->set_view(v1::LEFT);
-  pipeline.Update(scene, settings);
+  pipeline.Update(scene, settings, kCameraChanged);
   EXPECT_EQ(pipeline.accumulated_spp(), 0) << "a camera move";
+  const std::uint64_t version = pipeline.scene_version();
   pipeline.RenderFrame();
+  EXPECT_EQ(pipeline.scene_version(), version) << "a camera move rebuilt the transfer function or lights";
 
   scene.mutable_transfer_function()->set_preset("ct-soft-tissue");
-  pipeline.Update(scene, settings);
+  pipeline.Update(scene, settings, kTransferFunctionChanged);
   EXPECT_EQ(pipeline.accumulated_spp(), 0) << "a transfer-function edit";
+  EXPECT_GT(pipeline.scene_version(), version);
   pipeline.RenderFrame();
 
   scene.mutable_lights()->RemoveLast();
-  pipeline.Update(scene, settings);
+  pipeline.Update(scene, settings, kLightsChanged);
   EXPECT_EQ(pipeline.accumulated_spp(), 0) << "a light edit";
   pipeline.RenderFrame();
 
   settings.denoiser = DenoiseMethod::kSvgf;  // a new denoiser, the same samples
-  pipeline.Update(scene, settings);
+  pipeline.Update(scene, settings, 0);
   EXPECT_EQ(pipeline.accumulated_spp(), 2);
 }
 
