@@ -81,6 +81,12 @@ App::App(ViewerOptions o) : options(std::move(o)) {
       if (!step.ui.empty()) RunUiAction(step.ui, -step.line);  // a dry run: checks every action
     }
   }
+  if (options.local_server) {  // before the window: a window that waits for it would not answer
+    const auto log = std::filesystem::temp_directory_path() / fmt::format("cinevol-viewer-{}.log", getpid());
+    std::fprintf(stderr, "cinevol-viewer: starting a local cinevol-server (log: %s)...\n", log.c_str());
+    local_server = std::make_unique<cli::LocalServer>(options.backend, log);
+    options.connection.server = local_server->address();
+  }
   if (SDL_Init(SDL_INIT_VIDEO) != 0) throw InputError(fmt::format("cannot open a window: {}", SDL_GetError()));
   window_ = SDL_CreateWindow("cinevol-viewer", SDL_WINDOWPOS_CENTERED, SDL_WINDOWPOS_CENTERED, options.width,
                              options.height, SDL_WINDOW_RESIZABLE | SDL_WINDOW_ALLOW_HIGHDPI);
@@ -110,12 +116,6 @@ App::~App() {
 }
 
 void App::Connect() {
-  if (options.local_server && !local_server) {
-    const auto log = std::filesystem::temp_directory_path() / fmt::format("cinevol-viewer-{}.log", getpid());
-    std::fprintf(stderr, "cinevol-viewer: starting a local cinevol-server (log: %s)...\n", log.c_str());
-    local_server = std::make_unique<cli::LocalServer>(options.backend, log);
-    options.connection.server = local_server->address();
-  }
   ConnectionSettings settings{cli::ToClientOptions(options.connection), options.session};
   // The session starts at the size the window shows it.
   viewport_w_ = std::max(16, int(std::lround(frame_area.w * pixel_scale_)));
