@@ -11,22 +11,11 @@
 #include "core/tone_map.h"
 #include "denoise/denoiser.h"
 #include "render/renderer.h"
+#include "tradeoff_study.h"
 
 namespace cinevol::bench {
 namespace {
 
-// The scene's camera turned about its up axis through its target.
-Camera Orbit(const Camera& c, float degrees) {
-  const float distance = c.focal_distance;
-  const Vec3f target = c.eye + c.forward * distance;
-  const float a = degrees * kPi / 180.0f;
-  const Vec3f back = -c.forward;
-  const Vec3f turned = back * std::cos(a) + Cross(c.up, back) * std::sin(a) + c.up * Dot(c.up, back) * (1 - std::cos(a));
-  Camera out = LookAt(target + turned * distance, target, c.up, 2.0f * std::atan(c.tan_half_fov_y) * 180.0f / kPi,
-                      c.width, c.height);
-  out.lens_radius = c.lens_radius;
-  return out;
-}
 
 // RMS difference of two 8-bit images, in [0, 1] units.
 double RmsDifference(const ImageRgb8& a, const ImageRgb8& b) {
@@ -62,15 +51,10 @@ int RunDenoiseBench(const DenoiseBenchOptions& o) {
     return r;
   };
 
-  // References: reference_spp samples of every frame, in chunks of 64.
   std::vector<ImageRgbF> references;
   for (int t = 0; o.reference_spp > 0 && t < o.frames; ++t) {
-    renderer->ResetAccumulation();
-    for (int done = 0, chunk = 0; done < o.reference_spp; done += 64, ++chunk) {
-      FrameRequest r = request(t, std::min(64, o.reference_spp - done), 1000 + chunk);
-      renderer->Render(r);
-    }
-    references.push_back(renderer->AccumulatedMean());
+    const Camera camera = Orbit(setup.camera, o.degrees_per_frame * float(t));
+    references.push_back(RenderReference(*renderer, camera, o.reference_spp, setup.max_bounces, t));
   }
 
   const Method methods[] = {{DenoiseMethod::kNone, false},         {DenoiseMethod::kAccumulate, false},

@@ -61,15 +61,6 @@ Vec3f Rotate(Vec3f v, Vec3f axis, float degrees) {
   return v * c + Cross(axis, v) * s + axis * (Dot(axis, v) * (1 - c));
 }
 
-// The camera turned about its up axis through the point it looks at.
-Camera Orbit(const Camera& c, float degrees) {
-  const Vec3f target = c.eye + c.forward * c.focal_distance;
-  Camera out = LookAt(target + Rotate(c.eye - target, c.up, degrees), target, c.up,
-                      2.0f * std::atan(c.tan_half_fov_y) * 180.0f / kPi, c.width, c.height);
-  out.lens_radius = c.lens_radius;
-  return out;
-}
-
 float VolumeRadius(const Volume& volume) { return 0.5f * Length(volume.extent_mm()); }
 
 // An area key light above and beside the view, as the presets place it.
@@ -179,20 +170,6 @@ std::string ReferenceKey(const Dataset& d, const std::string& scene_json, const 
 void ApplyFrame(Renderer& renderer, const ScenarioFrame& f, const TransferFunction*& tf, const LightSetup*& lights) {
   if (f.tf != tf) renderer.SetTransferFunction(*(tf = f.tf));
   if (f.lights != lights) renderer.SetLights(*(lights = f.lights));
-}
-
-ImageRgbF RenderReference(Renderer& renderer, const Camera& camera, int spp, int bounces, int frame) {
-  renderer.ResetAccumulation();
-  for (int done = 0, chunk = 0; done < spp; done += 64, ++chunk) {
-    FrameRequest r;
-    r.camera = camera;
-    r.spp = std::min(64, spp - done);
-    r.max_bounces = bounces;
-    r.seed = 1000003ull * (frame + 1) + chunk;
-    r.frame = static_cast<std::uint32_t>(chunk);
-    renderer.Render(r);
-  }
-  return renderer.AccumulatedMean();
 }
 
 // --- One configuration over one scenario -------------------------------------------
@@ -530,6 +507,28 @@ void WriteJson(const fs::path& path, const StudyOptions& o, const std::string& d
 }
 
 }  // namespace
+
+Camera Orbit(const Camera& c, float degrees) {
+  const Vec3f target = c.eye + c.forward * c.focal_distance;
+  Camera out = LookAt(target + Rotate(c.eye - target, c.up, degrees), target, c.up,
+                      2.0f * std::atan(c.tan_half_fov_y) * 180.0f / kPi, c.width, c.height);
+  out.lens_radius = c.lens_radius;
+  return out;
+}
+
+ImageRgbF RenderReference(Renderer& renderer, const Camera& camera, int spp, int bounces, int frame) {
+  renderer.ResetAccumulation();
+  for (int done = 0, chunk = 0; done < spp; done += 64, ++chunk) {
+    FrameRequest r;
+    r.camera = camera;
+    r.spp = std::min(64, spp - done);
+    r.max_bounces = bounces;
+    r.seed = 1000003ull * (frame + 1) + chunk;
+    r.frame = static_cast<std::uint32_t>(chunk);
+    renderer.Render(r);
+  }
+  return renderer.AccumulatedMean();
+}
 
 std::vector<RunResult> RunStudy(const StudyOptions& o) {
   auto renderer = CreateRenderer(ParseBackend(o.backend));

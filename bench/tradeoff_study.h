@@ -10,7 +10,10 @@
 #include <string>
 #include <vector>
 
+#include "core/camera.h"
+#include "core/image.h"
 #include "denoise/denoiser.h"
+#include "render/renderer.h"
 
 namespace cinevol::bench {
 
@@ -80,6 +83,12 @@ std::vector<std::string> ScenarioNames();
 
 // Runs the whole study; writes results when options.out is set.
 std::vector<RunResult> RunStudy(const StudyOptions& options);
+
+// What the benchmarks share: the camera turned about its up axis through the
+// point it looks at, and a reference image of one view (`spp` samples in
+// chunks of 64, seeded by `frame`) from a renderer whose scene is set.
+Camera Orbit(const Camera& camera, float degrees);
+ImageRgbF RenderReference(Renderer& renderer, const Camera& camera, int spp, int bounces, int frame);
 
 // Markdown: per scenario, every configuration's means.
 std::string SummaryTable(const std::vector<RunResult>& results);
