@@ -84,19 +84,20 @@ Session::~Session() {
 void Session::Attach(FrameStream* stream) {
   {
     std::lock_guard lock(mu_);
-    if (ended_) throw RpcError(grpc::StatusCode::NOT_FOUND, fmt::format("session '{}' has ended", id_));
+    if (state_ == State::kEnded) {
+      throw RpcError(grpc::StatusCode::NOT_FOUND, fmt::format("session '{}' has ended", id_));
+    }
     if (stream_) {
       sent_before_ += stream_->frames_sent();
       dropped_before_ += stream_->frames_dropped();
       stream_->End({grpc::StatusCode::ABORTED, fmt::format("another stream attached to session '{}'", id_)});
     }
     stream_ = stream;
+    state_ = State::kRendering;
     cancel_ = false;
-    ever_attached_ = true;
     last_event_seq_ = 0;  // sequence numbers count per stream
     event_unrendered_ = false;
     dirty_ = true;  // a fresh pipeline (or the old one) takes the scene again
-    refined_ = false;
     stream_->SendNotice(v1::Notice::INFO,
                         fmt::format("attached to session '{}' on {}", id_, context_.scheduler->name()));
   }
@@ -110,6 +111,7 @@ void Session::Detach(FrameStream* stream) {
     sent_before_ += stream_->frames_sent();
     dropped_before_ += stream_->frames_dropped();
     stream_ = nullptr;
+    state_ = State::kDetached;
     since_ = Clock::now();
     cancel_ = true;  // nobody will see the frame in flight
   }
@@ -169,11 +171,14 @@ void Session::ApplyLocked(const v1::SessionEvent& event, Clock::time_point arriv
   }
   scene_ = std::move(next);
   settings_ = next_settings;
-  if (event.has_pause()) paused_ = true;
-  if (event.has_resume()) paused_ = false;
+  // Every event but a pause gets a frame that answers it.
+  if (event.has_pause()) {
+    state_ = State::kPaused;
+  } else if (event.has_resume() || state_ == State::kIdle) {
+    state_ = State::kRendering;
+  }
   if (!event.has_pause() && !event.has_resume()) dirty_ = true;
   changes_ |= ChangesOf(event);
-  refined_ = false;  // every event gets a frame that answers it
   last_event_seq_ = std::max(last_event_seq_, event.seq());
   last_event_arrival_ = arrival;
   event_unrendered_ = true;
@@ -182,8 +187,8 @@ void Session::ApplyLocked(const v1::SessionEvent& event, Clock::time_point arriv
 void Session::End(const grpc::Status& status) {
   {
     std::lock_guard lock(mu_);
-    if (ended_) return;
-    ended_ = true;
+    if (state_ == State::kEnded) return;
+    state_ = State::kEnded;
     cancel_ = true;
     for (auto& still : stills_) {
       if (auto flag = still.lock()) *flag = true;
@@ -218,7 +223,7 @@ void Session::Drain() {
 
 void Session::CancelWithSession(const std::shared_ptr<std::atomic<bool>>& flag) {
   std::lock_guard lock(mu_);
-  if (ended_) {
+  if (state_ == State::kEnded) {
     *flag = true;
     return;
   }
@@ -233,8 +238,7 @@ void Session::CurrentScene(v1::Scene& scene, FrameSettings& settings) const {
 }
 
 bool Session::CanRenderLocked() const {
-  return stream_ && !paused_ && encodes_in_flight_ < kMaxEncodesInFlight && !stream_->SlotFull() &&
-         (dirty_ || !refined_);
+  return state_ == State::kRendering && encodes_in_flight_ < kMaxEncodesInFlight && !stream_->SlotFull();
 }
 
 bool Session::Step() {
@@ -243,10 +247,10 @@ bool Session::Step() {
   grpc::Status bad_event;
   {
     std::lock_guard lock(mu_);
-    if (!ended_ && stream_ && !coalesced_.empty()) bad_event = Guarded([&] { ApplyCoalescedLocked(); });
+    if (stream_ && !coalesced_.empty()) bad_event = Guarded([&] { ApplyCoalescedLocked(); });
     if (!bad_event.ok()) {
       release = true;
-    } else if (ended_ || !stream_) {
+    } else if (!stream_) {  // detached or ended
       release = true;
       holds_device_memory_ = false;
     } else if (!CanRenderLocked()) {
@@ -315,7 +319,8 @@ bool Session::Step() {
     std::lock_guard lock(mu_);
     ++frames_rendered_;
     accumulated_spp_ = frame.accumulated_spp;
-    if (frame.final && !event_unrendered_) refined_ = true;  // an event during the render still gets its frame
+    // An event during the render still gets its frame.
+    if (frame.final && !event_unrendered_ && state_ == State::kRendering) state_ = State::kIdle;
   }
   const int quality = frame.final ? work.settings.final_jpeg_quality : work.settings.jpeg_quality;
   Encode(std::move(frame), work.stamp, quality, work.settings.chroma);
@@ -380,16 +385,13 @@ v1::SessionStatus Session::Status() const {
   s.set_device(context_.scheduler->name());
   s.mutable_viewport()->set_width(scene_.render().width());
   s.mutable_viewport()->set_height(scene_.render().height());
-  if (!ever_attached_) {
-    s.set_state(v1::SessionStatus::STARTING);
-  } else if (!stream_) {
-    s.set_state(v1::SessionStatus::DETACHED);
-  } else if (paused_) {
-    s.set_state(v1::SessionStatus::PAUSED);
-  } else if (refined_ && !dirty_) {
-    s.set_state(v1::SessionStatus::IDLE);
-  } else {
-    s.set_state(v1::SessionStatus::RENDERING);
+  switch (state_) {
+    case State::kStarting: s.set_state(v1::SessionStatus::STARTING); break;
+    case State::kIdle: s.set_state(v1::SessionStatus::IDLE); break;
+    case State::kPaused: s.set_state(v1::SessionStatus::PAUSED); break;
+    case State::kDetached:
+    case State::kEnded: s.set_state(v1::SessionStatus::DETACHED); break;
+    default: s.set_state(v1::SessionStatus::RENDERING); break;
   }
   s.set_frames_rendered(frames_rendered_);
   s.set_frames_sent(sent_before_ + (stream_ ? stream_->frames_sent() : 0));
@@ -402,12 +404,13 @@ v1::SessionStatus Session::Status() const {
 
 bool Session::Expired(Clock::time_point now, Clock::duration detached, Clock::duration unattached) const {
   std::lock_guard lock(mu_);
-  return !stream_ && !ended_ && now - since_ > (ever_attached_ ? detached : unattached);
+  if (state_ == State::kStarting) return now - since_ > unattached;
+  return state_ == State::kDetached && now - since_ > detached;
 }
 
 bool Session::ended() const {
   std::lock_guard lock(mu_);
-  return ended_;
+  return state_ == State::kEnded;
 }
 
 }  // namespace cinevol::service

@@ -145,10 +145,17 @@ class Session final : public Job, public std::enable_shared_from_this<Session> {
   FrameSettings settings_;
   bool dirty_ = true;     // scene_ or settings_ changed since the pipeline last saw them
   unsigned changes_ = kEverythingChanged;  // SceneChange bits since the pipeline last saw the scene
-  bool refined_ = false;  // the final frame went out; nothing to render until an event
-  bool paused_ = false;
-  bool ended_ = false;
-  bool ever_attached_ = false;
+  // Where the session is in its life. kRendering, kIdle and kPaused have a
+  // stream attached (stream_ set); the others do not.
+  enum class State {
+    kStarting,   // created; no stream attached yet
+    kRendering,  // frames go out: events to answer or refinement under way
+    kIdle,       // refined to target_spp; nothing to render until an event
+    kPaused,     // no frames until resume (a new attach resumes too)
+    kDetached,   // its stream went; kept for a new attach until it expires
+    kEnded,
+  };
+  State state_ = State::kStarting;
   std::uint64_t last_event_seq_ = 0;
   Clock::time_point last_event_arrival_;
   bool event_unrendered_ = false;  // an event arrived since the last frame began
