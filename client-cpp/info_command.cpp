@@ -53,7 +53,7 @@ void PrintInfo(const std::string& spec) {
   fmt::print("origin:       {:g}, {:g}, {:g} mm (LPS)\n", m.origin_mm[0], m.origin_mm[1], m.origin_mm[2]);
   fmt::print("memory:       {:.1f} MiB\n", v.MemoryBytes() / 1048576.0);
   const VolumeKindJudgement kind = JudgeVolumeKind(v);
-  fmt::print("kind:         {} ({})\n", KindName(kind.kind), kind.reason);
+  fmt::print("kind:         {} ({})\n", v1::VolumeKind_Name(kind.kind), kind.reason);
   fmt::print("preset:       {} (the default for this kind)\n", DefaultPreset(kind.kind));
   if (m.non_finite_replaced > 0) {
     fmt::print("sanitised:    {} NaN/Inf voxels replaced by the finite range's ends\n",

@@ -54,13 +54,4 @@ VolumeKindJudgement JudgeVolumeKind(const Volume& volume) {
   return volume.metadata().modality.empty() ? FromHistogram(volume) : FromModality(volume);
 }
 
-std::string KindName(v1::VolumeKind kind) {
-  switch (kind) {
-    case v1::CT_HU: return "CT (HU)";
-    case v1::CT_SCALED: return "CT (not HU)";
-    case v1::MR: return "MR";
-    default: return "other";
-  }
-}
-
 }  // namespace cinevol

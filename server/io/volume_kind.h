@@ -17,7 +17,4 @@ struct VolumeKindJudgement {
 
 VolumeKindJudgement JudgeVolumeKind(const Volume& volume);
 
-// "CT (HU)", "CT (not HU)", "MR", "other".
-std::string KindName(v1::VolumeKind kind);
-
 }  // namespace cinevol
