@@ -33,6 +33,7 @@ struct LoadtestOptions {
   double event_hz = 120;
   double degrees_per_second = 120;
   int jpeg_quality = 80;
+  float interactive_frame_ms = 0;
   bool json = false;
   std::string out;
 };
@@ -62,6 +63,7 @@ SessionScript MakeScript(const LoadtestOptions& o) {
   if (!o.scene.empty()) s.session.scene = LoadSceneFile(o.scene);
   s.session.stream.set_denoiser(ParseDenoiser(o.denoiser));
   s.session.stream.set_jpeg_quality(o.jpeg_quality);
+  s.session.stream.set_interactive_frame_ms(o.interactive_frame_ms);
   s.session.stream.set_target_spp(65536);  // keep rendering: every frame counts
   ScriptStep spp;
   spp.event.mutable_render()->set_spp(o.spp);
@@ -244,6 +246,11 @@ void AddLoadtestCommand(CLI::App& app) {
       ->check(CLI::Range(0.1, 1000.0))
       ->capture_default_str();
   cmd->add_option("--jpeg-quality", o->jpeg_quality, "JPEG quality (orbit)")->check(CLI::Range(1, 100))
+      ->capture_default_str();
+  cmd->add_option("--interactive-frame-ms", o->interactive_frame_ms,
+                  "Frame-time budget while the view moves: frames render at 0.75 or 0.5 size to meet it "
+                  "(0: always full size) (orbit)")
+      ->check(CLI::Range(0.0f, 10000.0f))
       ->capture_default_str();
   cmd->add_flag("--json", o->json, "Print JSON instead of a table");
   cmd->add_option("--out", o->out, "Also append the report to this file");

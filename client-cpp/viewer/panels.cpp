@@ -168,6 +168,14 @@ void RenderPanel(App& app) {
     app.stream.set_target_spp(target);
     app.SendStream();
   }
+  float budget = app.stream.interactive_frame_ms();
+  if (ImGui::SliderFloat("moving frame budget ms", &budget, 0.0f, 100.0f, budget > 0 ? "%.0f" : "off (full size)")) {
+    app.stream.set_interactive_frame_ms(budget);
+    app.SendStream();
+  }
+  if (ImGui::IsItemHovered()) {
+    ImGui::SetTooltip("While the view moves, render at 0.75 or 0.5 size when a full frame would take longer");
+  }
 }
 
 void ScenePanel(App& app) {

@@ -1,9 +1,11 @@
 // The display stage on the CPU.
 #include "denoise/backend_cpu.h"
 #include "pipeline/display.h"
+#include "pipeline/upsample.h"
 
 namespace cinevol {
 
 std::unique_ptr<Display> MakeCpuDisplay() { return std::make_unique<DisplayOn<CpuBackend>>(); }
+std::unique_ptr<Upsampler> MakeCpuUpsampler() { return std::make_unique<UpsamplerOn<CpuBackend>>(); }
 
 }  // namespace cinevol

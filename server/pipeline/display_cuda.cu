@@ -1,9 +1,11 @@
 // The display stage on the GPU, after the renderer and denoiser on the same stream.
 #include "denoise/backend_cuda.cuh"
 #include "pipeline/display.h"
+#include "pipeline/upsample.h"
 
 namespace cinevol {
 
 std::unique_ptr<Display> MakeCudaDisplay() { return std::make_unique<DisplayOn<CudaBackend>>(); }
+std::unique_ptr<Upsampler> MakeCudaUpsampler() { return std::make_unique<UpsamplerOn<CudaBackend>>(); }
 
 }  // namespace cinevol

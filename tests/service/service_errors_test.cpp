@@ -44,6 +44,11 @@ TEST(ServiceErrors, BadSessionRequestsNameTheField) {
   r = SmallSession();
   r.mutable_stream()->set_jpeg_quality(0);
   ExpectRpcError([&] { client.CreateSession(r); }, grpc::StatusCode::INVALID_ARGUMENT, "stream.jpeg_quality");
+  for (const float budget : {-1.0f, NAN, 1e9f}) {
+    r = SmallSession();
+    r.mutable_stream()->set_interactive_frame_ms(budget);
+    ExpectRpcError([&] { client.CreateSession(r); }, grpc::StatusCode::INVALID_ARGUMENT, "stream.interactive_frame_ms");
+  }
 
   // A scene with a NaN camera, a negative spp (as a uint32 it wraps) and an unknown view.
   r = SmallSession();

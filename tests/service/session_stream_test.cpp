@@ -150,6 +150,37 @@ TEST(SessionStream, IdleRefinementReachesTheTargetThenStops) {
   EXPECT_EQ(status->frames_rendered(), frames.size());
 }
 
+TEST(SessionStream, AMovingViewStreamsSmallerFramesThenRefinesAtFullSize) {
+  ScratchDir scratch;
+  ServerProcess server(scratch.path());
+  ASSERT_TRUE(server.running()) << server.Log();
+  Client client = server.Connect();
+  v1::CreateSessionRequest request = SmallSession();
+  request.mutable_stream()->set_interactive_frame_ms(0.001f);  // no frame meets it: the smallest scale
+  const auto created = client.CreateSession(request);
+  auto stream = client.Attach(created.session_id());
+  const auto still = WaitFinal(*stream);
+  ASSERT_TRUE(still) << stream->status().error_message();
+  EXPECT_EQ(still->resolution_scale(), 1.0f);
+
+  v1::SessionEvent zoom;
+  zoom.mutable_camera()->set_view(v1::ANTERIOR);
+  zoom.mutable_camera()->set_fov_y_deg(25);
+  const std::uint64_t seq = stream->Send(zoom);
+  const auto moving = WaitFrame(*stream, [seq](const v1::Frame& f) { return f.last_event_seq() >= seq; });
+  ASSERT_TRUE(moving);
+  EXPECT_EQ(moving->resolution_scale(), 0.5f);
+  EXPECT_FALSE(moving->final());
+  const ImageRgb8 small = Decode(*moving);
+  EXPECT_EQ(small.width, 96) << "upsampled to the viewport";
+  EXPECT_EQ(small.height, 64);
+
+  const auto refined = WaitFinal(*stream, seq);
+  ASSERT_TRUE(refined);
+  EXPECT_EQ(refined->resolution_scale(), 1.0f);
+  EXPECT_GE(refined->accumulated_spp(), 16u);
+}
+
 TEST(SessionStream, PauseStopsFramesAndResumeBringsThemBack) {
   ScratchDir scratch;
   ServerProcess server(scratch.path());

@@ -1,0 +1,126 @@
+// Interactive resolution: while the view moves under a frame-time budget the
+// pipeline renders fewer pixels and upsamples them to the viewport; once it
+// holds still it refines at full size, and only a full-size frame is final.
+#include <gtest/gtest.h>
+
+#include <thread>
+
+#include "io/phantom.h"
+#include "io/presets.h"
+#include "io/scene_file.h"
+#include "pipeline/frame_pipeline.h"
+
+namespace cinevol {
+namespace {
+
+std::shared_ptr<const Volume> SmallHead() {
+  v1::Phantom p;
+  p.set_kind(v1::Phantom::HEAD);
+  p.set_size(32);
+  p.set_spacing(6.0f);
+  return std::make_shared<const Volume>(MakePhantom(p));
+}
+
+v1::Scene SmallScene(const Volume& volume) {
+  v1::Scene scene = MakePresetScene("ct-bone", volume);
+  scene.mutable_render()->set_width(64);
+  scene.mutable_render()->set_height(40);
+  scene.mutable_render()->set_spp(1);
+  ApplyDefaults(scene);
+  return scene;
+}
+
+// A camera move: the view zooms.
+void Zoom(v1::Scene& scene, float degrees) {
+  scene.mutable_camera()->set_fov_y_deg(scene.camera().fov_y_deg() - degrees);
+}
+
+struct Shown {
+  float scale;
+  int rendered_width;  // of the accumulation behind the frame
+  int width, height;   // of the image
+  bool final;
+};
+
+Shown Render(FramePipeline& pipeline) {
+  const DisplayFrame f = pipeline.RenderFrame();
+  return {f.resolution_scale, pipeline.AccumulatedRadiance().width, f.image.width, f.image.height, f.final};
+}
+
+FrameSettings WithBudget(float ms) {
+  FrameSettings s;
+  s.target_spp = 2;
+  s.interactive_frame_ms = ms;
+  return s;
+}
+
+TEST(InteractiveResolution, AMovingViewRendersSmallerAndRefinesAtFullSize) {
+  auto volume = SmallHead();
+  FramePipeline pipeline(Backend::kCpu, volume);
+  v1::Scene scene = SmallScene(*volume);
+  const FrameSettings settings = WithBudget(1e-3f);  // no frame meets it: the smallest scale
+  pipeline.Update(scene, settings);
+  const Shown first = Render(pipeline);
+  EXPECT_EQ(first.scale, 1.0f) << "nothing measured yet, and nothing moved";
+
+  for (int step = 1; step <= 3; ++step) {
+    Zoom(scene, 1.0f);
+    pipeline.Update(scene, settings, kCameraChanged);
+    const Shown moving = Render(pipeline);
+    EXPECT_EQ(moving.scale, 0.5f) << "step " << step;
+    EXPECT_EQ(moving.rendered_width, 32) << "half the viewport's width is rendered";
+    EXPECT_EQ(moving.width, 64) << "and upsampled to the viewport";
+    EXPECT_EQ(moving.height, 40);
+    EXPECT_FALSE(moving.final) << "a small frame never ends refinement, whatever its spp";
+  }
+
+  std::this_thread::sleep_for(std::chrono::milliseconds(kInteractionHoldMs + 50));
+  Shown still = Render(pipeline);
+  EXPECT_EQ(still.scale, 1.0f) << "the view held still: full size again";
+  EXPECT_EQ(still.rendered_width, 64);
+  if (!still.final) still = Render(pipeline);
+  EXPECT_TRUE(still.final);
+  EXPECT_EQ(pipeline.accumulated_spp(), 2) << "the accumulation restarted at full size";
+}
+
+TEST(InteractiveResolution, AFrameWithinTheBudgetStaysFullSize) {
+  auto volume = SmallHead();
+  for (const float budget : {0.0f, 1e6f}) {
+    FramePipeline pipeline(Backend::kCpu, volume);
+    v1::Scene scene = SmallScene(*volume);
+    pipeline.Update(scene, WithBudget(budget));
+    Render(pipeline);
+    Zoom(scene, 2.0f);
+    pipeline.Update(scene, WithBudget(budget), kCameraChanged);
+    const Shown moving = Render(pipeline);
+    EXPECT_EQ(moving.scale, 1.0f) << "budget " << budget;
+    EXPECT_EQ(moving.rendered_width, 64) << "budget " << budget;
+  }
+}
+
+TEST(InteractiveResolution, AMovingTransferFunctionAlsoScales) {
+  auto volume = SmallHead();
+  FramePipeline pipeline(Backend::kCpu, volume);
+  v1::Scene scene = SmallScene(*volume);
+  pipeline.Update(scene, WithBudget(1e-3f));
+  Render(pipeline);
+  scene.mutable_transfer_function()->set_density_scale(scene.transfer_function().density_scale() * 0.5f);
+  pipeline.Update(scene, WithBudget(1e-3f), kTransferFunctionChanged);
+  EXPECT_EQ(Render(pipeline).scale, 0.5f);
+}
+
+TEST(UpsamplePass, InterpolatesBetweenPixelCentresAndClampsAtEdges) {
+  const std::vector<Vec3f> source = {{0, 0, 0}, {1, 1, 1}, {2, 2, 2}, {3, 3, 3}};  // 2x2
+  auto upsampler = MakeCpuUpsampler();
+  const Vec3f* out = upsampler->Run(source.data(), 2, 2, 4, 4);
+  // Target pixel centres map to source positions -0.25, 0.25, 0.75, 1.25.
+  EXPECT_FLOAT_EQ(out[0].x, 0.0f) << "clamped to the corner";
+  EXPECT_FLOAT_EQ(out[1].x, 0.25f);
+  EXPECT_FLOAT_EQ(out[2].x, 0.75f);
+  EXPECT_FLOAT_EQ(out[3].x, 1.0f);
+  EXPECT_FLOAT_EQ(out[4 * 3 + 3].x, 3.0f);
+  EXPECT_FLOAT_EQ(out[4 * 1 + 1].x, 0.75f) << "(0.25, 0.25): 0.25 on the top row, 2.25 on the bottom";
+}
+
+}  // namespace
+}  // namespace cinevol
