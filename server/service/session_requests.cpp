@@ -91,6 +91,10 @@ void CheckRange(std::uint32_t v, std::uint32_t lo, std::uint32_t hi, const std::
   if (v < lo || v > hi) throw InputError(fmt::format("{}: {} is outside [{}, {}]", field, v, lo, hi));
 }
 
+void CheckRange(float v, float lo, float hi, const std::string& field) {
+  if (!(v >= lo && v <= hi)) throw InputError(fmt::format("{}: {} is outside [{}, {}]", field, v, lo, hi));
+}
+
 DenoiseMethod ToMethod(v1::Denoiser d) {
   switch (d) {
     case v1::DENOISER_NONE: return DenoiseMethod::kNone;
@@ -171,6 +175,10 @@ FrameSettings MergeStreamSettings(FrameSettings s, const v1::StreamSettings& edi
   if (edit.has_target_spp()) {
     CheckRange(edit.target_spp(), 1, 65536, field + ".target_spp");
     s.target_spp = static_cast<int>(edit.target_spp());
+  }
+  if (edit.has_interactive_frame_ms()) {
+    CheckRange(edit.interactive_frame_ms(), 0.0f, 10000.0f, field + ".interactive_frame_ms");
+    s.interactive_frame_ms = edit.interactive_frame_ms();
   }
   return s;
 }
