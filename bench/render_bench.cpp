@@ -17,6 +17,7 @@ struct Config {
   std::string name;
   int brick_size;  // 0: one global majorant
   bool specialised;
+  bool volume_texture = true;
 };
 
 struct Result {
@@ -28,6 +29,7 @@ Result Measure(const RenderBenchOptions& o, const Config& c, const std::shared_p
                const RenderSetup& setup) {
   RendererOptions options;
   options.brick_size = c.brick_size;
+  options.volume_texture = c.volume_texture;
   auto renderer = CreateRenderer(ParseBackend(o.backend), options);
   renderer->SetVolume(volume);
   renderer->SetTransferFunction(setup.transfer_function);
@@ -71,6 +73,9 @@ int RunRenderBench(const RenderBenchOptions& o) {
                                  {"no specialisation (all features)", kDefaultBrickSize, false},
                                  {"neither", 0, false}};
   for (int b : {8, 16}) configs.push_back({fmt::format("{}^3 bricks, specialised", b), b, true});
+  if (ParseBackend(o.backend) != Backend::kCpu) {
+    configs.push_back({"voxels read from a buffer, not the texture unit", kDefaultBrickSize, true, false});
+  }
   double base = 0;
   for (const Config& c : configs) {
     const Result r = Measure(o, c, volume, setup);

@@ -13,6 +13,9 @@ namespace cinevol {
 
 struct VolumeView {
   const std::uint16_t* voxels = nullptr;  // x fastest; in the backend's memory
+  // CUDA only, where set: the same voxels as a 3D texture (cudaTextureObject_t,
+  // device/volume_texture.h) that Sample reads instead of `voxels`.
+  unsigned long long texture = 0;
   Vec3i dims;
   Vec3f spacing;      // mm
   Vec3f inv_spacing;  // 1 / spacing
@@ -33,6 +36,9 @@ struct VolumeView {
   // Trilinearly interpolated stored value at world position p.
   CINEVOL_HD float Sample(Vec3f p) const {
     const Vec3f q = ToVoxel(p);
+#if CINEVOL_DEVICE_PASS
+    if (texture) return 65535.0f * tex3D<float>(texture, q.x + 0.5f, q.y + 0.5f, q.z + 0.5f);
+#endif
     const float fx = floorf(q.x), fy = floorf(q.y), fz = floorf(q.z);
     const int x = static_cast<int>(fx), y = static_cast<int>(fy), z = static_cast<int>(fz);
     const float tx = q.x - fx, ty = q.y - fy, tz = q.z - fz;

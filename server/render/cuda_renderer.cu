@@ -6,6 +6,7 @@
 #include <utility>
 
 #include "device/cuda_buffer.h"
+#include "device/volume_texture.h"
 #include "render/integrator.h"
 
 namespace cinevol {
@@ -47,6 +48,7 @@ struct CudaRenderer::Device {
   cudaStream_t stream = cudaStreamPerThread;
   cudaEvent_t start = nullptr, stop = nullptr;
   DeviceBuffer<std::uint16_t> voxels;
+  cuda::VolumeTexture texture;
   DeviceBuffer<float> majorants, sigma_t, env_weight, env_marginal, env_conditional;
   DeviceBuffer<Vec4f> diffuse_opacity, specular_roughness, emission, env_texels;
   DeviceBuffer<Light> lights;
@@ -65,12 +67,13 @@ struct CudaRenderer::Device {
 };
 
 CudaRenderer::CudaRenderer(const RendererOptions& options)
-    : device_(std::make_unique<Device>()), data_(options.brick_size) {}
+    : device_(std::make_unique<Device>()), data_(options.brick_size), use_texture_(options.volume_texture) {}
 CudaRenderer::~CudaRenderer() = default;
 
 void CudaRenderer::SetVolume(std::shared_ptr<const Volume> volume) {
   data_.SetVolume(std::move(volume));
   device_->voxels.Upload(data_.voxels(), data_.voxel_count(), device_->stream);
+  if (use_texture_) device_->texture.Upload(data_.voxels(), data_.dims(), device_->stream);
   if (!data_.majorants().empty()) device_->majorants.Upload(data_.majorants(), device_->stream);
   CINEVOL_CUDA_CHECK(cudaStreamSynchronize(device_->stream));  // host arrays may change next
 }
@@ -114,6 +117,7 @@ void CudaRenderer::Render(const FrameRequest& request) {
   }
   RenderScene scene = data_.HostView();
   scene.volume.voxels = d.voxels.data();
+  scene.volume.texture = d.texture.handle();
   scene.majorants.majorant = d.majorants.data();
   scene.transfer.sigma_t = d.sigma_t.data();
   scene.transfer.diffuse_opacity = d.diffuse_opacity.data();

@@ -37,6 +37,7 @@ class CudaRenderer final : public Renderer {
   struct Device;  // CUDA objects; defined in the .cu file
   std::unique_ptr<Device> device_;
   SceneData data_;
+  bool use_texture_;
   int width_ = 0, height_ = 0;
   int accumulated_frames_ = 0;
   unsigned last_features_ = 0;

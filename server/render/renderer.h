@@ -89,6 +89,9 @@ struct RendererOptions {
   // Voxels per majorant-grid brick edge: bricks skip empty space and bound
   // dense space tightly. 0: no bricks, one global majorant.
   int brick_size = kDefaultBrickSize;
+  // CUDA: sample the volume through the texture unit (device/volume_texture.h);
+  // false reads the voxel buffer, as the CPU does (to measure what it buys).
+  bool volume_texture = true;
   int cpu_threads = 0;  // 0: every hardware thread (or CINEVOL_THREADS)
 };
 
