@@ -73,7 +73,9 @@ TEST_P(JpegFromPlanes, DecodesLikeTheJpegOfTheSameSrgb) {
       ASSERT_EQ(from_planes.width, w);
       ASSERT_EQ(from_planes.height, h);
       const Difference d = Compare(from_planes, from_rgb);
-      // Only conversion rounding (a code value, here and there) tells them apart.
+      // Identical where no block is padded; at odd sizes libjpeg pads chroma
+      // before downsampling, this encoder after, and the padding's DCT leaks
+      // a little into the edge pixels.
       EXPECT_LT(d.mean, 1.0) << w << "x" << h << " q" << quality;
       EXPECT_LE(d.max, 6) << w << "x" << h << " q" << quality;
     }
@@ -88,7 +90,7 @@ TEST_P(JpegFromPlanes, ToRgbGivesThePixelsBack) {
   if (GetParam() == ChromaSubsampling::k444) {
     EXPECT_LE(d.max, 2) << "YCbCr rounding only";
   } else {
-    EXPECT_LT(d.mean, 4.0) << "chroma shared by neighbours";
+    EXPECT_LT(d.mean, 6.0) << "chroma shared by neighbours, across the disc's edge too";
   }
 }
 
