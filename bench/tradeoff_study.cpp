@@ -15,6 +15,7 @@
 
 #include "core/image_metrics.h"
 #include "core/tone_map.h"
+#include "core/ycc.h"
 #include "encode/image_codecs.h"
 #include "io/presets.h"
 #include "io/scene_builder.h"
@@ -287,13 +288,18 @@ RunResult RunConfig(Context& ctx, const Scenario& scenario, const References& re
     di.denoised = denoised;
     di.accumulated_sum = denoised;
     di.exposure = ctx.exposure;
-    ImageRgb8 shown = ctx.display->Run(di);
+    // Without JPEG, full chroma: the displayed pixels, give or take YCbCr rounding.
+    di.chroma = c.jpeg_quality > 0 ? ChromaSubsampling::k420 : ChromaSubsampling::k444;
+    const ImageYcc8 planes = ctx.display->Run(di);
     fr.tonemap_ms = MsSince(display_start);
+    ImageRgb8 shown;
     if (c.jpeg_quality > 0) {
       const Clock::time_point encode_start = Clock::now();
-      const std::vector<std::uint8_t> jpeg = EncodeJpeg(shown, c.jpeg_quality);
+      const std::vector<std::uint8_t> jpeg = EncodeJpeg(planes, c.jpeg_quality);
       fr.encode_ms = MsSince(encode_start);
       shown = DecodeJpeg(jpeg);
+    } else {
+      shown = ToRgb(planes);
     }
     shown = Upsample(shown, ctx.o.width, ctx.o.height);
     fr.psnr = Psnr(shown, refs.display[t]);

@@ -11,6 +11,7 @@ packages=(
   libjpeg62-turbo-dev libpng-dev libopenexr-dev
   libspdlog-dev libcli11-dev
   libgtest-dev libgmock-dev
+  libturbojpeg0-dev             # tests: TurboJPEG's YCbCr planes, the display's reference
   clang libclang-rt-14-dev      # tests/fuzz: clang 14 with libFuzzer, ASan and UBSan
   prometheus-cpp-dev            # the server's /metrics (--metrics-listen)
   prometheus                    # promtool, which the metrics test checks the exposition with

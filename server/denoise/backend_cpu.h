@@ -20,6 +20,7 @@ struct CpuBackend {
     void Zero() { std::fill(data_.begin(), data_.end(), T{}); }
     void CopyFrom(const T* src, std::size_t count) { data_.assign(src, src + count); }
     std::vector<T> Download() const { return data_; }
+    void Download(T* host) const { std::copy(data_.begin(), data_.end(), host); }
     T* data() { return data_.data(); }
     const T* data() const { return data_.data(); }
     std::size_t size() const { return data_.size(); }
@@ -27,6 +28,9 @@ struct CpuBackend {
    private:
     std::vector<T> data_;
   };
+  // Host memory that Buffer::Download(T*) fills.
+  template <class T>
+  using HostBuffer = Buffer<T>;
 
   // f(x, y) for every pixel; f must not throw. Frames too small to repay
   // starting threads run on the caller's.

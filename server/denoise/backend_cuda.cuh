@@ -17,6 +17,9 @@ __global__ void ForEachPixelKernel(const F f, int width, int height) {
 struct CudaBackend {
   template <class T>
   using Buffer = cuda::DeviceBuffer<T>;
+  // Host memory that Buffer::Download(T*) fills at full bus speed.
+  template <class T>
+  using HostBuffer = cuda::PinnedBuffer<T>;
 
   template <class F>
   static void ForEachPixel(int width, int height, const F& f) {

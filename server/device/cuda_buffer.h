@@ -59,12 +59,18 @@ class DeviceBuffer {
   }
   void Upload(const std::vector<T>& host, cudaStream_t stream = cudaStreamPerThread) { Upload(host.data(), host.size(), stream); }
 
+  // Copies every element into `host` (size() of them) and waits for the copy.
+  // Into pinned memory (PinnedBuffer) the copy runs at full bus speed; into
+  // pageable memory the driver stages it.
+  void Download(T* host, cudaStream_t stream = cudaStreamPerThread) const {
+    if (count_ == 0) return;
+    CINEVOL_CUDA_CHECK(cudaMemcpyAsync(host, data_, count_ * sizeof(T), cudaMemcpyDeviceToHost, stream));
+    CINEVOL_CUDA_CHECK(cudaStreamSynchronize(stream));
+  }
+
   std::vector<T> Download(cudaStream_t stream = cudaStreamPerThread) const {
     std::vector<T> host(count_);
-    if (count_ > 0) {
-      CINEVOL_CUDA_CHECK(cudaMemcpyAsync(host.data(), data_, count_ * sizeof(T), cudaMemcpyDeviceToHost, stream));
-      CINEVOL_CUDA_CHECK(cudaStreamSynchronize(stream));
-    }
+    Download(host.data(), stream);
     return host;
   }
 
@@ -89,6 +95,41 @@ class DeviceBuffer {
   }
   T* data_ = nullptr;
   std::size_t count_ = 0;
+};
+
+// Page-locked host memory, the target of device-to-host copies that should
+// not be staged through a driver buffer. Host code reads it like any memory.
+template <class T>
+class PinnedBuffer {
+ public:
+  PinnedBuffer() = default;
+  ~PinnedBuffer() { Free(); }
+  PinnedBuffer(const PinnedBuffer&) = delete;
+  PinnedBuffer& operator=(const PinnedBuffer&) = delete;
+
+  // Reallocates only to grow: pinning is slow, and a frame size that shrinks
+  // and grows back (interactive resolution) should not pay it again.
+  // Contents are undefined after.
+  void Resize(std::size_t count) {
+    if (count > capacity_) {
+      Free();
+      CINEVOL_CUDA_CHECK(cudaMallocHost(&data_, count * sizeof(T)));
+      capacity_ = count;
+    }
+    count_ = count;
+  }
+
+  T* data() const { return data_; }
+  std::size_t size() const { return count_; }
+
+ private:
+  void Free() {
+    if (data_) cudaFreeHost(data_);
+    data_ = nullptr;
+    count_ = capacity_ = 0;
+  }
+  T* data_ = nullptr;
+  std::size_t count_ = 0, capacity_ = 0;
 };
 
 }  // namespace cinevol::cuda

@@ -31,6 +31,13 @@ void CheckImage(const ImageRgb8& image) {
   }
 }
 
+void CheckImage(const ImageYcc8& image) {
+  if (image.width <= 0 || image.height <= 0 || !image.data ||
+      image.size < YccBytes(image.width, image.height, image.chroma)) {
+    throw std::invalid_argument("YCbCr planes do not match their size");
+  }
+}
+
 // libjpeg reports errors through a callback that must not return.
 struct JpegError {
   jpeg_error_mgr mgr;
@@ -44,10 +51,12 @@ void OnJpegError(j_common_ptr cinfo) {
   std::longjmp(err->jump, 1);
 }
 
-}  // namespace
-
-std::vector<std::uint8_t> EncodeJpeg(const ImageRgb8& image, int quality, ChromaSubsampling chroma) {
-  CheckImage(image);
+// One JPEG from `space` input; write_lines(cinfo) feeds the started
+// compressor all its lines. An error longjmps out of write_lines: it must
+// hold no objects with destructors.
+template <class WriteLines>
+std::vector<std::uint8_t> CompressJpeg(int width, int height, J_COLOR_SPACE space, int quality,
+                                       ChromaSubsampling chroma, const WriteLines& write_lines) {
   jpeg_compress_struct cinfo;
   JpegError err;
   cinfo.err = jpeg_std_error(&err.mgr);
@@ -61,25 +70,81 @@ std::vector<std::uint8_t> EncodeJpeg(const ImageRgb8& image, int quality, Chroma
   }
   jpeg_create_compress(&cinfo);
   jpeg_mem_dest(&cinfo, &buffer, &size);
-  cinfo.image_width = image.width;
-  cinfo.image_height = image.height;
+  cinfo.image_width = width;
+  cinfo.image_height = height;
   cinfo.input_components = 3;
-  cinfo.in_color_space = JCS_RGB;
+  cinfo.in_color_space = space;
   jpeg_set_defaults(&cinfo);
   jpeg_set_quality(&cinfo, std::clamp(quality, 1, 100), TRUE);
   // Luma's sampling factors relative to chroma's (1x1) set the subsampling.
   cinfo.comp_info[0].h_samp_factor = chroma == ChromaSubsampling::k444 ? 1 : 2;
   cinfo.comp_info[0].v_samp_factor = chroma == ChromaSubsampling::k420 ? 2 : 1;
+  cinfo.raw_data_in = space == JCS_YCbCr;  // planes come converted and downsampled
   jpeg_start_compress(&cinfo, TRUE);
-  while (cinfo.next_scanline < cinfo.image_height) {
-    JSAMPROW row = const_cast<JSAMPROW>(&image.bytes[std::size_t(cinfo.next_scanline) * image.width * 3]);
-    jpeg_write_scanlines(&cinfo, &row, 1);
-  }
+  write_lines(cinfo);
   jpeg_finish_compress(&cinfo);
   jpeg_destroy_compress(&cinfo);
   std::vector<std::uint8_t> out(buffer, buffer + size);
   std::free(buffer);
   return out;
+}
+
+// The raw-data path takes one iMCU row (8 lines of each component per
+// sampling factor) a call and reads whole 8x8 blocks. Each line goes through
+// `scratch`, padded to whole blocks by repeating its last sample, and lines
+// past a plane's bottom repeat its last line: libjpeg pads RGB input alike
+// (expand_right_edge, expand_bottom_edge), so edge blocks encode the same.
+void WriteRawLines(jpeg_compress_struct& cinfo, const ImageYcc8& image, std::vector<JSAMPLE>& scratch,
+                   std::vector<JSAMPROW>& lines) {
+  int padded_width[3], lines_per_call[3];
+  std::size_t scratch_size = 0, line_count = 0;
+  for (int c = 0; c < 3; ++c) {
+    padded_width[c] = int(cinfo.comp_info[c].width_in_blocks) * DCTSIZE;
+    lines_per_call[c] = cinfo.comp_info[c].v_samp_factor * DCTSIZE;
+    scratch_size += std::size_t(padded_width[c]) * lines_per_call[c];
+    line_count += std::size_t(lines_per_call[c]);
+  }
+  scratch.resize(scratch_size);
+  lines.resize(line_count);
+  JSAMPARRAY planes[3];
+  JSAMPLE* next_scratch = scratch.data();
+  JSAMPROW* next_line = lines.data();
+  for (int c = 0; c < 3; ++c) {
+    planes[c] = next_line;
+    for (int l = 0; l < lines_per_call[c]; ++l, next_scratch += padded_width[c]) *next_line++ = next_scratch;
+  }
+  for (int call = 0; cinfo.next_scanline < cinfo.image_height; ++call) {
+    for (int c = 0; c < 3; ++c) {
+      const int width = image.PlaneWidth(c), height = image.PlaneHeight(c);
+      for (int l = 0; l < lines_per_call[c]; ++l) {
+        const int y = std::min(call * lines_per_call[c] + l, height - 1);
+        const JSAMPLE* src = image.Plane(c) + std::size_t(y) * width;
+        std::copy(src, src + width, planes[c][l]);
+        std::fill(planes[c][l] + width, planes[c][l] + padded_width[c], src[width - 1]);
+      }
+    }
+    jpeg_write_raw_data(&cinfo, planes, JDIMENSION(lines_per_call[0]));
+  }
+}
+
+}  // namespace
+
+std::vector<std::uint8_t> EncodeJpeg(const ImageRgb8& image, int quality, ChromaSubsampling chroma) {
+  CheckImage(image);
+  return CompressJpeg(image.width, image.height, JCS_RGB, quality, chroma, [&](jpeg_compress_struct& cinfo) {
+    while (cinfo.next_scanline < cinfo.image_height) {
+      JSAMPROW row = const_cast<JSAMPROW>(&image.bytes[std::size_t(cinfo.next_scanline) * image.width * 3]);
+      jpeg_write_scanlines(&cinfo, &row, 1);
+    }
+  });
+}
+
+std::vector<std::uint8_t> EncodeJpeg(const ImageYcc8& image, int quality) {
+  CheckImage(image);
+  std::vector<JSAMPLE> scratch;  // outside CompressJpeg's setjmp: an error frees them normally
+  std::vector<JSAMPROW> lines;
+  return CompressJpeg(image.width, image.height, JCS_YCbCr, quality, image.chroma,
+                      [&](jpeg_compress_struct& cinfo) { WriteRawLines(cinfo, image, scratch, lines); });
 }
 
 ImageRgb8 DecodeJpeg(const std::vector<std::uint8_t>& bytes) {

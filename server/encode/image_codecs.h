@@ -1,6 +1,6 @@
 // Image files and streams: JPEG (libjpeg-turbo) and PNG (libpng) for 8-bit
-// sRGB frames; OpenEXR and PFM for linear HDR. Errors throw InputError naming
-// the file.
+// sRGB frames, JPEG also from YCbCr planes; OpenEXR and PFM for linear HDR.
+// Errors throw InputError naming the file.
 #pragma once
 
 #include <cstdint>
@@ -11,12 +11,12 @@
 
 namespace cinevol {
 
-enum class ChromaSubsampling { k444, k422, k420 };
-
-// quality in [1, 100]; chroma at full (4:4:4), half width (4:2:2) or half
-// width and height (4:2:0, the smallest files).
+// quality in [1, 100]; chroma subsampling as ChromaSubsampling (core/image.h).
 std::vector<std::uint8_t> EncodeJpeg(const ImageRgb8& image, int quality,
                                      ChromaSubsampling chroma = ChromaSubsampling::k420);
+// From planes already converted and downsampled (the display's frames):
+// libjpeg's raw-data path, which skips its colour conversion and downsampling.
+std::vector<std::uint8_t> EncodeJpeg(const ImageYcc8& image, int quality);
 std::vector<std::uint8_t> EncodePng(const ImageRgb8& image);
 // Linear RGB as 32-bit float channels.
 std::vector<std::uint8_t> EncodeExr(const ImageRgbF& image);

@@ -1,15 +1,20 @@
 // The last device stage of a frame: blend the denoised image towards the
-// plain accumulation as samples pile up, tone map to 8-bit sRGB, and copy the
-// result to the host (3 bytes a pixel instead of 12). Runs on the backend
-// that rendered the frame, from one source (denoise/backend_*.h).
+// plain accumulation as samples pile up, tone map to 8-bit sRGB, convert to
+// JPEG's YCbCr with the session's chroma subsampling, and copy the planes to
+// the host (1.5 bytes a pixel at 4:2:0, instead of 12 of radiance), where the
+// JPEG encoder takes them as they are. Runs on the backend that rendered the
+// frame, from one source (denoise/backend_*.h).
 #pragma once
 
+#include <atomic>
 #include <cstdint>
 #include <memory>
+#include <vector>
 
 #include "core/image.h"
 #include "core/tone_map.h"
 #include "core/vec.h"
+#include "core/ycc.h"
 
 namespace cinevol {
 
@@ -20,14 +25,15 @@ struct DisplayInputs {
   float inv_frames = 0;                    // 1 / frames in accumulated_sum
   float blend = 0;                         // 0: denoised only, 1: accumulation only
   float exposure = 0;                      // stops
+  ChromaSubsampling chroma = ChromaSubsampling::k420;
 };
 
-struct DisplayPass {
+// A pixel's displayed 8-bit sRGB.
+struct DisplayedPixel {
   DisplayInputs in;
-  std::uint8_t* rgb;
   float exposure_scale;
 
-  CINEVOL_HD void operator()(int x, int y) const {
+  CINEVOL_HD void operator()(int x, int y, std::uint8_t* rgb) const {
     const int i = y * in.width + x;
     Vec3f c = in.denoised[i];
     if (in.blend >= 1.0f) {
@@ -35,28 +41,84 @@ struct DisplayPass {
     } else if (in.blend > 0.0f) {
       c = c * (1.0f - in.blend) + in.accumulated_sum[i] * (in.inv_frames * in.blend);
     }
-    ToneMapPixel(c, exposure_scale, rgb + 3 * i);
+    ToneMapPixel(c, exposure_scale, rgb);
   }
+};
+
+// Runs over the chroma planes: each call converts the pixel block behind one
+// chroma sample (one pixel at 4:4:4).
+struct DisplayPass {
+  DisplayedPixel pixel;
+  YccPlanes out;
+
+  CINEVOL_HD void operator()(int cx, int cy) const { WriteYccBlock(out, cx, cy, pixel); }
 };
 
 class Display {
  public:
   virtual ~Display() = default;
-  virtual ImageRgb8 Run(const DisplayInputs& inputs) = 0;
+  // The planes stay valid while the returned image (or a copy) lives, also
+  // after later runs and after the Display is gone.
+  virtual ImageYcc8 Run(const DisplayInputs& inputs) = 0;
 };
 
-// Runs DisplayPass over backend B's memory and downloads the bytes.
-template <class B>
-class DisplayOn final : public Display {
+// The host buffers behind the frames a display returns. A frame shares its
+// buffer; a buffer is written again only once no frame holds it, so a frame
+// can be encoded on another thread while the next one renders. kKept
+// buffers suffice for a session (it holds at most two frames: one encoding
+// while the next renders); a caller holding more frames gets fresh buffers.
+template <class HostBuffer>
+class FrameBufferRing {
  public:
-  ImageRgb8 Run(const DisplayInputs& in) override {
-    rgb_.Resize(std::size_t(in.width) * in.height * 3);
-    B::ForEachPixel(in.width, in.height, DisplayPass{in, rgb_.data(), exp2f(in.exposure)});
-    return {in.width, in.height, rgb_.Download()};
+  static constexpr std::size_t kKept = 3;
+
+  std::shared_ptr<HostBuffer> Next(std::size_t count) {
+    for (const std::shared_ptr<HostBuffer>& buffer : buffers_) {
+      if (buffer.use_count() == 1) {
+        // Pairs with the release in the last frame's shared_ptr destructor:
+        // that thread's reads come before this buffer's next write.
+        std::atomic_thread_fence(std::memory_order_acquire);
+        buffer->Resize(count);
+        return buffer;
+      }
+    }
+    auto fresh = std::make_shared<HostBuffer>();
+    fresh->Resize(count);
+    if (buffers_.size() < kKept) {
+      buffers_.push_back(fresh);
+    } else {
+      buffers_[next_replaced_++ % kKept] = fresh;  // its frame keeps the old one alive
+    }
+    return fresh;
   }
 
  private:
-  typename B::template Buffer<std::uint8_t> rgb_;
+  std::vector<std::shared_ptr<HostBuffer>> buffers_;
+  std::size_t next_replaced_ = 0;
+};
+
+// Runs DisplayPass over backend B's memory and copies the planes into one of
+// the ring's host buffers, waiting for the copy: the frame returned is ready
+// to encode on any thread. (Waiting costs little: the stream has nothing else
+// of this session's queued, and the next frame starts from this thread.)
+template <class B>
+class DisplayOn final : public Display {
+ public:
+  ImageYcc8 Run(const DisplayInputs& in) override {
+    const std::size_t bytes = YccBytes(in.width, in.height, in.chroma);
+    planes_.Resize(bytes);
+    const YccPlanes out = YccPlanes::Of(planes_.data(), in.width, in.height, in.chroma);
+    B::ForEachPixel(ChromaWidth(in.width, in.chroma), ChromaHeight(in.height, in.chroma),
+                    DisplayPass{{in, exp2f(in.exposure)}, out});
+    const std::shared_ptr<HostBuffer> host = ring_.Next(bytes);
+    planes_.Download(host->data());
+    return {in.width, in.height, in.chroma, std::shared_ptr<const std::uint8_t>(host, host->data()), bytes};
+  }
+
+ private:
+  using HostBuffer = typename B::template HostBuffer<std::uint8_t>;
+  typename B::template Buffer<std::uint8_t> planes_;
+  FrameBufferRing<HostBuffer> ring_;
 };
 
 std::unique_ptr<Display> MakeCpuDisplay();

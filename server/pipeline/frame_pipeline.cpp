@@ -152,6 +152,7 @@ DisplayFrame FramePipeline::RenderFrame() {
     in.inv_frames = 1.0f / float(renderer_->accumulated_frames());
     in.blend = RefinementBlend(accumulated_spp_, settings_.target_spp);
   }
+  in.chroma = settings_.chroma;
   out.image = display_->Run(in);
   out.display_ms = MillisecondsSince(display_start);
   out.accumulated_spp = accumulated_spp_;

@@ -2,8 +2,9 @@
 // Scene edits rebuild only what they invalidate (a transfer-function edit
 // re-derives the majorants, a camera move does not); each frame renders the
 // scene's spp, denoises, blends towards the accumulation as samples pile up
-// (idle refinement), tone maps on the device and copies 8-bit sRGB to the
-// host, ready for EncodeJpeg on any thread.
+// (idle refinement), tone maps and converts to JPEG's YCbCr planes on the
+// device and copies them to pinned host memory, ready for EncodeJpeg on any
+// thread.
 //
 // The service drives one per session; `cinevol render` and the benches
 // drive the same object. CUDA work goes to the calling thread's current GPU
@@ -53,9 +54,10 @@ struct FrameSettings {
 inline constexpr float kInteractiveScales[] = {1.0f, 0.75f, 0.5f};
 inline constexpr int kInteractionHoldMs = 200;
 
-// A frame ready to encode, with what it cost.
+// A frame ready to encode, with what it cost. The planes are at the
+// settings' chroma subsampling; ToRgb (core/ycc.h) gives the pixels back.
 struct DisplayFrame {
-  ImageRgb8 image;
+  ImageYcc8 image;
   int accumulated_spp = 0;  // samples per pixel behind it since the scene last changed
   bool final = false;       // refinement reached target_spp with this frame
   float resolution_scale = 1;  // < 1: rendered at this fraction of the width and height, upsampled

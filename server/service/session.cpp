@@ -323,17 +323,17 @@ bool Session::Step() {
     if (frame.final && !event_unrendered_ && state_ == State::kRendering) state_ = State::kIdle;
   }
   const int quality = frame.final ? work.settings.final_jpeg_quality : work.settings.jpeg_quality;
-  Encode(std::move(frame), work.stamp, quality, work.settings.chroma);
+  Encode(std::move(frame), work.stamp, quality);  // at the settings' chroma, as displayed
   std::lock_guard lock(mu_);
   return CanRenderLocked();
 }
 
-void Session::Encode(DisplayFrame display, const Stamp& stamp, int quality, ChromaSubsampling chroma) {
-  context_.encoder->Submit([self = shared_from_this(), display = std::move(display), stamp, quality, chroma]() {
+void Session::Encode(DisplayFrame display, const Stamp& stamp, int quality) {
+  context_.encoder->Submit([self = shared_from_this(), display = std::move(display), stamp, quality]() {
     v1::Frame frame;
     try {
       const Clock::time_point start = Clock::now();
-      const std::vector<std::uint8_t> jpeg = EncodeJpeg(display.image, quality, chroma);
+      const std::vector<std::uint8_t> jpeg = EncodeJpeg(display.image, quality);
       frame.set_jpeg(jpeg.data(), jpeg.size());
       frame.mutable_timings()->set_encode_us(MicrosBetween(start, Clock::now()));
       ServerMetrics().ObserveStage(Stage::kEncode,

@@ -131,7 +131,7 @@ class Session final : public Job, public std::enable_shared_from_this<Session> {
   void ApplyLocked(const v1::SessionEvent& event, Clock::time_point arrival);
   // Applies the coalesced events; ends nothing, throws for a bad one.
   void ApplyCoalescedLocked();
-  void Encode(DisplayFrame frame, const Stamp& stamp, int quality, ChromaSubsampling chroma);
+  void Encode(DisplayFrame frame, const Stamp& stamp, int quality);
   void Deliver(v1::Frame frame, Clock::time_point origin);
   void Wake() { context_.scheduler->Wake(shared_from_this()); }
 
