@@ -1,5 +1,5 @@
-// CudaRenderer: uploads SceneData's tables and launches RenderPixel<F> over
-// the image, one thread per pixel.
+// CudaRenderer: uploads SceneData's tables, takes the GPU's shared copy of
+// the voxels, and launches RenderPixel<F> over the image, one thread per pixel.
 #include "render/cuda_renderer.h"
 
 #include <array>
@@ -46,7 +46,6 @@ std::array<Kernel, sizeof...(kFeatures)> MakeKernels(std::integer_sequence<unsig
 struct CudaRenderer::Device {
   cudaStream_t stream = cudaStreamPerThread;
   cudaEvent_t start = nullptr, stop = nullptr;
-  DeviceBuffer<std::uint16_t> voxels;
   DeviceBuffer<float> majorants, sigma_t, env_weight, env_marginal, env_conditional;
   DeviceBuffer<Vec4f> diffuse_opacity, specular_roughness, emission, env_texels;
   DeviceBuffer<Light> lights;
@@ -65,12 +64,14 @@ struct CudaRenderer::Device {
 };
 
 CudaRenderer::CudaRenderer(const RendererOptions& options)
-    : device_(std::make_unique<Device>()), data_(options.brick_size) {}
+    : brick_size_(options.brick_size), device_(std::make_unique<Device>()) {}
 CudaRenderer::~CudaRenderer() = default;
 
 void CudaRenderer::SetVolume(std::shared_ptr<const Volume> volume) {
-  data_.SetVolume(std::move(volume));
-  device_->voxels.Upload(data_.voxels(), data_.voxel_count(), device_->stream);
+  int gpu = 0;
+  CINEVOL_CUDA_CHECK(cudaGetDevice(&gpu));
+  volume_ = VolumeCache::Get().Acquire(volume, brick_size_, gpu);
+  data_.SetVolume(volume_->prepared_ptr());
   if (!data_.majorants().empty()) device_->majorants.Upload(data_.majorants(), device_->stream);
   CINEVOL_CUDA_CHECK(cudaStreamSynchronize(device_->stream));  // host arrays may change next
 }
@@ -113,7 +114,7 @@ void CudaRenderer::Render(const FrameRequest& request) {
     ResetAccumulation();
   }
   RenderScene scene = data_.HostView();
-  scene.volume.voxels = d.voxels.data();
+  scene.volume.voxels = volume_->voxels();
   scene.majorants.majorant = d.majorants.data();
   scene.transfer.sigma_t = d.sigma_t.data();
   scene.transfer.diffuse_opacity = d.diffuse_opacity.data();
@@ -150,8 +151,8 @@ double CudaRenderer::LastFrameMilliseconds() const {
 
 std::size_t CudaRenderer::DeviceBytes() const {
   const Device& d = *device_;
-  return d.voxels.size() * 2 + (d.majorants.size() + d.sigma_t.size() + d.env_weight.size() + d.env_marginal.size() +
-                                d.env_conditional.size()) * 4 +
+  return (d.majorants.size() + d.sigma_t.size() + d.env_weight.size() + d.env_marginal.size() +
+          d.env_conditional.size()) * 4 +
          (d.diffuse_opacity.size() + d.specular_roughness.size() + d.emission.size() + d.env_texels.size() +
           d.first_hit.size()) * sizeof(Vec4f) +
          d.lights.size() * sizeof(Light) + (d.radiance.size() + d.accumulated.size() + d.albedo.size()) * sizeof(Vec3f);
