@@ -15,13 +15,26 @@ struct StatusOptions {
 };
 
 void PrintDevices(const v1::ServerStatus& status) {
-  std::vector<TextRow> rows{{"DEVICE", "SESSIONS", "MEMORY FREE", "MEMORY TOTAL", "FRAMES", "BUSY"}};
+  std::vector<TextRow> rows{{"DEVICE", "SESSIONS", "VOLUMES", "MEMORY FREE", "MEMORY TOTAL", "FRAMES", "BUSY"}};
   for (const v1::DeviceStatus& d : status.devices()) {
     const bool gpu = d.memory_total_bytes() > 0;
-    rows.push_back({d.name(), std::to_string(d.sessions()), gpu ? Bytes(d.memory_free_bytes()) : "-",
-                    gpu ? Bytes(d.memory_total_bytes()) : "-", std::to_string(d.frames_rendered()),
-                    fmt::format("{:.1f} s", d.busy_seconds())});
+    rows.push_back({d.name(), std::to_string(d.sessions()),
+                    fmt::format("{} ({})", d.volume_copies(), Bytes(d.volume_copy_bytes())),
+                    gpu ? Bytes(d.memory_free_bytes()) : "-", gpu ? Bytes(d.memory_total_bytes()) : "-",
+                    std::to_string(d.frames_rendered()), fmt::format("{:.1f} s", d.busy_seconds())});
   }
+  PrintTable(rows);
+}
+
+// Each volume's copies on the devices and how many renderers share each.
+void PrintVolumeCopies(const v1::ServerStatus& status) {
+  std::vector<TextRow> rows{{"VOLUME", "DEVICE", "COPY MEMORY", "RENDERERS"}};
+  for (const v1::VolumeInfo& v : status.volumes()) {
+    for (const v1::VolumeCopy& c : v.copies()) {
+      rows.push_back({v.id(), c.device(), Bytes(c.bytes()), std::to_string(c.renderers())});
+    }
+  }
+  if (rows.size() == 1) return fmt::print("no volume copies on the devices\n");
   PrintTable(rows);
 }
 
@@ -56,6 +69,8 @@ void Run(const StatusOptions& o) {
   PrintSessions(status);
   fmt::print("\n");
   PrintVolumeTable({status.volumes().begin(), status.volumes().end()});
+  fmt::print("\n");
+  PrintVolumeCopies(status);
 }
 
 }  // namespace

@@ -33,6 +33,11 @@ constexpr auto kVariants = MakeVariants(std::make_integer_sequence<unsigned, kFe
 
 }  // namespace
 
+void CpuRenderer::SetVolume(std::shared_ptr<const Volume> volume) {
+  volume_ = VolumeCache::Get().Acquire(volume, brick_size_, kHostDevice);
+  data_.SetVolume(volume_->prepared_ptr());
+}
+
 void CpuRenderer::Render(const FrameRequest& request) {
   if (!data_.has_volume()) throw std::logic_error("CpuRenderer::Render before SetVolume");
   const int w = request.camera.width, h = request.camera.height;

@@ -9,10 +9,10 @@ namespace cinevol {
 class CpuRenderer final : public Renderer {
  public:
   explicit CpuRenderer(const RendererOptions& options = {})
-      : threads_(options.cpu_threads), data_(options.brick_size) {}
+      : threads_(options.cpu_threads), brick_size_(options.brick_size) {}
 
   Backend backend() const override { return Backend::kCpu; }
-  void SetVolume(std::shared_ptr<const Volume> volume) override { data_.SetVolume(std::move(volume)); }
+  void SetVolume(std::shared_ptr<const Volume> volume) override;
   void SetTransferFunction(const TransferFunction& tf) override { data_.SetTransferFunction(tf); }
   void SetLights(const LightSetup& lights) override { data_.SetLights(lights); }
   void Render(const FrameRequest& request) override;
@@ -28,6 +28,8 @@ class CpuRenderer final : public Renderer {
 
  private:
   int threads_;
+  int brick_size_;
+  std::shared_ptr<const VolumeCopy> volume_;  // the host copy every CPU renderer of the volume shares
   SceneData data_;
   int width_ = 0, height_ = 0;
   std::vector<Vec3f> radiance_, accumulated_, albedo_;

@@ -1,12 +1,11 @@
-// CudaRenderer: uploads SceneData's tables and launches RenderPixel<F> over
-// the image, one thread per pixel.
+// CudaRenderer: uploads SceneData's tables, takes the GPU's shared copy of
+// the voxels, and launches RenderPixel<F> over the image, one thread per pixel.
 #include "render/cuda_renderer.h"
 
 #include <array>
 #include <utility>
 
 #include "device/cuda_buffer.h"
-#include "device/volume_texture.h"
 #include "render/integrator.h"
 
 namespace cinevol {
@@ -47,8 +46,6 @@ std::array<Kernel, sizeof...(kFeatures)> MakeKernels(std::integer_sequence<unsig
 struct CudaRenderer::Device {
   cudaStream_t stream = cudaStreamPerThread;
   cudaEvent_t start = nullptr, stop = nullptr;
-  DeviceBuffer<std::uint16_t> voxels;
-  cuda::VolumeTexture texture;
   DeviceBuffer<float> majorants, sigma_t, env_weight, env_marginal, env_conditional;
   DeviceBuffer<Vec4f> diffuse_opacity, specular_roughness, emission, env_texels;
   DeviceBuffer<Light> lights;
@@ -67,13 +64,14 @@ struct CudaRenderer::Device {
 };
 
 CudaRenderer::CudaRenderer(const RendererOptions& options)
-    : device_(std::make_unique<Device>()), data_(options.brick_size), use_texture_(options.volume_texture) {}
+    : brick_size_(options.brick_size), use_texture_(options.volume_texture), device_(std::make_unique<Device>()) {}
 CudaRenderer::~CudaRenderer() = default;
 
 void CudaRenderer::SetVolume(std::shared_ptr<const Volume> volume) {
-  data_.SetVolume(std::move(volume));
-  device_->voxels.Upload(data_.voxels(), data_.voxel_count(), device_->stream);
-  if (use_texture_) device_->texture.Upload(data_.voxels(), data_.dims(), device_->stream);
+  int gpu = 0;
+  CINEVOL_CUDA_CHECK(cudaGetDevice(&gpu));
+  volume_ = VolumeCache::Get().Acquire(volume, brick_size_, gpu);
+  data_.SetVolume(volume_->prepared_ptr());
   if (!data_.majorants().empty()) device_->majorants.Upload(data_.majorants(), device_->stream);
   CINEVOL_CUDA_CHECK(cudaStreamSynchronize(device_->stream));  // host arrays may change next
 }
@@ -116,8 +114,8 @@ void CudaRenderer::Render(const FrameRequest& request) {
     ResetAccumulation();
   }
   RenderScene scene = data_.HostView();
-  scene.volume.voxels = d.voxels.data();
-  scene.volume.texture = d.texture.handle();
+  scene.volume.voxels = volume_->voxels();
+  if (use_texture_) scene.volume.texture = volume_->texture();
   scene.majorants.majorant = d.majorants.data();
   scene.transfer.sigma_t = d.sigma_t.data();
   scene.transfer.diffuse_opacity = d.diffuse_opacity.data();
@@ -154,8 +152,8 @@ double CudaRenderer::LastFrameMilliseconds() const {
 
 std::size_t CudaRenderer::DeviceBytes() const {
   const Device& d = *device_;
-  return d.voxels.size() * 2 + (d.majorants.size() + d.sigma_t.size() + d.env_weight.size() + d.env_marginal.size() +
-                                d.env_conditional.size()) * 4 +
+  return (d.majorants.size() + d.sigma_t.size() + d.env_weight.size() + d.env_marginal.size() +
+          d.env_conditional.size()) * 4 +
          (d.diffuse_opacity.size() + d.specular_roughness.size() + d.emission.size() + d.env_texels.size() +
           d.first_hit.size()) * sizeof(Vec4f) +
          d.lights.size() * sizeof(Light) + (d.radiance.size() + d.accumulated.size() + d.albedo.size()) * sizeof(Vec3f);

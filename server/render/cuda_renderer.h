@@ -1,5 +1,6 @@
 // The CUDA backend: the shared per-pixel integrator as one kernel per
-// feature set. Scene data live in device memory, uploaded when they change;
+// feature set. Scene data live in device memory, uploaded when they change
+// (the voxels once per GPU, shared with every renderer there: VolumeCache);
 // frames stay on the device for the CUDA denoiser.
 #pragma once
 
@@ -30,14 +31,19 @@ class CudaRenderer final : public Renderer {
   ImageRgbF Albedo() const override;
   FrameTargets Targets() const override;
 
-  // Device memory this renderer holds, in bytes.
+  // Device memory this renderer holds alone, in bytes: everything but the
+  // voxels it shares (VolumeCache).
   std::size_t DeviceBytes() const;
 
  private:
+  int brick_size_;
+  bool use_texture_;  // RendererOptions::volume_texture
+  // The voxels on this GPU, shared. Declared before device_: the frames in
+  // flight end (~Device) before the voxels may go.
+  std::shared_ptr<const VolumeCopy> volume_;
   struct Device;  // CUDA objects; defined in the .cu file
   std::unique_ptr<Device> device_;
   SceneData data_;
-  bool use_texture_;
   int width_ = 0, height_ = 0;
   int accumulated_frames_ = 0;
   unsigned last_features_ = 0;

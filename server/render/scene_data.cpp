@@ -5,44 +5,7 @@
 #include <bit>
 #include <cmath>
 
-#include "core/parallel_for.h"
-
 namespace cinevol {
-
-BrickRanges ComputeBrickRanges(const std::uint16_t* voxels, Vec3i dims, Vec3i brick_size) {
-  BrickRanges r;
-  for (int a = 0; a < 3; ++a) r.bricks[a] = (dims[a] + brick_size[a] - 1) / brick_size[a];
-  const std::size_t count = std::size_t(r.bricks.x) * r.bricks.y * r.bricks.z;
-  r.min.assign(count, 0xffff);
-  r.max.assign(count, 0);
-  // One brick slab (fixed z) per task: every brick is written by one thread.
-  ParallelFor(r.bricks.z, [&](std::int64_t bz) {
-    for (int by = 0; by < r.bricks.y; ++by) {
-      for (int bx = 0; bx < r.bricks.x; ++bx) {
-        const Vec3i b{bx, by, int(bz)};
-        Vec3i lo, hi;  // voxels read by trilinear lookups inside the brick
-        for (int a = 0; a < 3; ++a) {
-          lo[a] = std::max(0, b[a] * brick_size[a] - 1);
-          hi[a] = std::min(dims[a] - 1, (b[a] + 1) * brick_size[a]);
-        }
-        std::uint16_t mn = 0xffff, mx = 0;
-        for (int z = lo.z; z <= hi.z; ++z) {
-          for (int y = lo.y; y <= hi.y; ++y) {
-            const std::uint16_t* row = voxels + (std::size_t(z) * dims.y + y) * dims.x;
-            for (int x = lo.x; x <= hi.x; ++x) {
-              mn = std::min(mn, row[x]);
-              mx = std::max(mx, row[x]);
-            }
-          }
-        }
-        const std::size_t i = (std::size_t(bz) * r.bricks.y + by) * r.bricks.x + bx;
-        r.min[i] = mn;
-        r.max[i] = mx;
-      }
-    }
-  });
-  return r;
-}
 
 std::vector<float> ComputeMajorants(const BrickRanges& ranges, const std::vector<float>& sigma_t,
                                     float entry_scale, float entry_offset) {
@@ -103,41 +66,22 @@ EnvironmentDistribution BuildEnvironmentDistribution(const ImageRgbF& map) {
   return d;
 }
 
-void SceneData::SetVolume(std::shared_ptr<const Volume> volume) {
+void SceneData::SetVolume(std::shared_ptr<const PreparedVolume> volume) {
   volume_ = std::move(volume);
-  const Volume& v = *volume_;
-  quantised_.clear();
-  if (v.storage() == VoxelStorage::kUInt16) {
-    voxels_ = v.u16().data();
-    value_scale_ = 1.0f;
-    value_offset_ = v.stored_offset();
-  } else {
-    const float range = v.max_value() - v.min_value();
-    value_scale_ = range > 0 ? range / 65535.0f : 1.0f;
-    value_offset_ = v.min_value();
-    quantised_.resize(v.voxel_count());
-    const std::vector<float>& f = v.f32();
-    ParallelFor(std::int64_t(f.size()), [&](std::int64_t i) {
-      quantised_[i] = static_cast<std::uint16_t>(std::lround((f[i] - value_offset_) / value_scale_));
-    }, 0, 1 << 16);
-    voxels_ = quantised_.data();
-  }
-  const int b = brick_size_setting_;
-  brick_size_ = b > 0 ? Vec3i{b, b, b} : v.dims();
-  bricks_ = ComputeBrickRanges(voxels_, v.dims(), brick_size_);
   if (!tf_.points.empty()) SetTransferFunction(tf_);
 }
 
 void SceneData::SetTransferFunction(const TransferFunction& tf) {
   tf_ = tf;
   if (!volume_) return;
-  table_ = BuildTransferTable(tf_, volume_->min_value(), volume_->max_value());
+  table_ = BuildTransferTable(tf_, volume_->volume().min_value(), volume_->volume().max_value());
   UpdateMajorants();
 }
 
 void SceneData::UpdateMajorants() {
   const RenderScene view = HostView();
-  majorants_ = ComputeMajorants(bricks_, table_.sigma_t, view.transfer.entry_scale, view.transfer.entry_offset);
+  majorants_ =
+      ComputeMajorants(volume_->brick_ranges(), table_.sigma_t, view.transfer.entry_scale, view.transfer.entry_offset);
 }
 
 void SceneData::SetLights(const LightSetup& setup) {
@@ -152,8 +96,9 @@ void SceneData::SetLights(const LightSetup& setup) {
 RenderScene SceneData::HostView() const {
   RenderScene s;
   if (volume_) {
-    const Volume& v = *volume_;
-    s.volume.voxels = voxels_;
+    const Volume& v = volume_->volume();
+    const float value_scale = volume_->value_scale(), value_offset = volume_->value_offset();
+    s.volume.voxels = volume_->voxels();
     s.volume.dims = v.dims();
     s.volume.spacing = v.spacing_mm();
     s.volume.inv_spacing = Vec3f{1, 1, 1} / v.spacing_mm();
@@ -162,15 +107,15 @@ RenderScene SceneData::HostView() const {
 
     const float n1 = float(TransferTable::kEntries - 1);
     const float to_entry = n1 / (table_.value_max - table_.value_min);
-    s.transfer.entry_scale = value_scale_ * to_entry;
-    s.transfer.entry_offset = (value_offset_ - table_.value_min) * to_entry;
+    s.transfer.entry_scale = value_scale * to_entry;
+    s.transfer.entry_offset = (value_offset - table_.value_min) * to_entry;
     const float range = v.max_value() - v.min_value();
-    s.transfer.gradient_normaliser = range > 0 ? value_scale_ * MinComponent(v.spacing_mm()) / range : 0.0f;
+    s.transfer.gradient_normaliser = range > 0 ? value_scale * MinComponent(v.spacing_mm()) / range : 0.0f;
 
     s.majorants.majorant = majorants_.data();
-    s.majorants.bricks = bricks_.bricks;
+    s.majorants.bricks = volume_->brick_ranges().bricks;
     s.majorants.box_min = s.volume.box_min;
-    s.majorants.inv_brick_size = Vec3f{1, 1, 1} / (v.spacing_mm() * ToFloat(brick_size_));
+    s.majorants.inv_brick_size = Vec3f{1, 1, 1} / (v.spacing_mm() * ToFloat(volume_->brick_size()));
   }
   s.transfer.sigma_t = table_.sigma_t.data();
   s.transfer.diffuse_opacity = table_.diffuse_opacity.data();

@@ -15,6 +15,7 @@
 #include "core/parallel_for.h"
 #include "core/tone_map.h"
 #include "encode/image_codecs.h"
+#include "render/prepared_volume.h"
 #include "service/errors.h"
 #include "service/log_safe.h"
 #include "service/metrics.h"
@@ -343,12 +344,18 @@ v1::ServerStatus ServiceCore::Status(const Principal& caller) const {
   status.set_version(CINEVOL_VERSION);
   status.set_uptime_seconds(std::chrono::duration<double>(Clock::now() - started_).count());
   const std::vector<GpuInfo> gpus = backend_ == Backend::kCuda ? ListGpus() : std::vector<GpuInfo>{};
+  const std::vector<VolumeCopyStatus> copies = VolumeCache::Get().Copies();
   for (const auto& s : schedulers_) {
     v1::DeviceStatus* d = status.add_devices();
     d->set_name(s->name());
     d->set_sessions(s->sessions);
     d->set_frames_rendered(s->frames_rendered);
     d->set_busy_seconds(s->busy_seconds());
+    for (const VolumeCopyStatus& c : copies) {
+      if (c.device != s->gpu().value_or(kHostDevice)) continue;
+      d->set_volume_copies(d->volume_copies() + 1);
+      d->set_volume_copy_bytes(d->volume_copy_bytes() + c.bytes);
+    }
     for (const GpuInfo& g : gpus) {
       if (s->gpu() && g.index == *s->gpu()) {
         d->set_memory_total_bytes(g.total_bytes);

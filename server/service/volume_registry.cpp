@@ -11,6 +11,7 @@
 #include "io/presets.h"
 #include "io/volume_kind.h"
 #include "io/volume_loader.h"
+#include "render/prepared_volume.h"
 #include "service/errors.h"
 #include "service/log_safe.h"
 
@@ -248,6 +249,13 @@ v1::VolumeInfo VolumeRegistry::InfoLocked(const std::string& id, const Entry& e)
   info.mutable_histogram()->set_max_value(h.max_value);
   info.mutable_histogram()->mutable_counts()->Add(h.counts.begin(), h.counts.end());
   info.mutable_direction()->Add(v.metadata().direction.begin(), v.metadata().direction.end());
+  for (const VolumeCopyStatus& c : VolumeCache::Get().Copies()) {
+    if (c.volume != e.volume.get()) continue;
+    v1::VolumeCopy* copy = info.add_copies();
+    copy->set_device(DeviceLabel(c.device));
+    copy->set_bytes(c.bytes);
+    copy->set_renderers(std::uint32_t(c.renderers));
+  }
   return info;
 }
 

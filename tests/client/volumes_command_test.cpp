@@ -163,8 +163,11 @@ TEST(VolumesCommand, StatusPrintsTablesAndJson) {
   EXPECT_TRUE(std::regex_search(output, std::regex("^cinevol-server \\S+ at 127\\.0\\.0\\.1:[0-9]+, up [0-9]+ s; "
                                                    "encoder: 2 threads, [0-9]+ frames queued\n")))
       << output;
-  EXPECT_TRUE(std::regex_search(output, std::regex("\nDEVICE +SESSIONS .*\ncpu[^\n]* +0 +- +- +0 +[0-9.]+ s\n"))) << output;
+  EXPECT_TRUE(std::regex_search(output, std::regex("\nDEVICE +SESSIONS +VOLUMES .*\ncpu[^\n]* +0 +0 \\(0 B\\) +- +- +0 +"
+                                                   "[0-9.]+ s\n")))
+      << output;
   EXPECT_TRUE(Has(output, "\nno sessions\n")) << output;
+  EXPECT_TRUE(Has(output, "\nno volume copies on the devices\n")) << output;
   EXPECT_TRUE(Has(output, "\nphantom:head?size=48 ")) << output;
 
   std::tie(code, output) = s.Run({"status", "--json"});

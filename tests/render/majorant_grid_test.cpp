@@ -38,7 +38,7 @@ TEST(MajorantGrid, NeverBelowTheTrueExtinction) {
   for (int trial = 0; trial < 6; ++trial) {
     const Vec3i dims{19 + trial, 23, 17 + 2 * trial};  // bricks straddle the edges
     SceneData data;
-    data.SetVolume(RandomVolume(rng, dims));
+    data.SetVolume(std::make_shared<const PreparedVolume>(RandomVolume(rng, dims), kDefaultBrickSize));
     for (int edit = 0; edit < 4; ++edit) {  // transfer-function edits on the same volume
       data.SetTransferFunction(RandomTransferFunction(rng));
       const RenderScene s = data.HostView();
@@ -62,7 +62,8 @@ TEST(MajorantGrid, EmptyBricksHaveZeroMajorant) {
   VolumeMetadata meta;
   meta.source = "sparse";
   SceneData data;
-  data.SetVolume(std::make_shared<const Volume>(Vec3i{32, 32, 32}, Vec3f{1, 1, 1}, std::move(v), meta));
+  data.SetVolume(std::make_shared<const PreparedVolume>(
+      std::make_shared<const Volume>(Vec3i{32, 32, 32}, Vec3f{1, 1, 1}, std::move(v), meta), kDefaultBrickSize));
   TransferFunction tf;
   tf.points = {{100, 0, {}, {}, 0, {}}, {1000, 1, {}, {}, 0, {}}};
   data.SetTransferFunction(tf);

@@ -1,0 +1,144 @@
+// Preparing volumes once, and the cache that shares them.
+#include "render/prepared_volume.h"
+
+#include <algorithm>
+#include <cmath>
+#include <stdexcept>
+#include <type_traits>
+
+#include "core/parallel_for.h"
+
+namespace cinevol {
+
+BrickRanges ComputeBrickRanges(const std::uint16_t* voxels, Vec3i dims, Vec3i brick_size) {
+  BrickRanges r;
+  for (int a = 0; a < 3; ++a) r.bricks[a] = (dims[a] + brick_size[a] - 1) / brick_size[a];
+  const std::size_t count = std::size_t(r.bricks.x) * r.bricks.y * r.bricks.z;
+  r.min.assign(count, 0xffff);
+  r.max.assign(count, 0);
+  // One brick slab (fixed z) per task: every brick is written by one thread.
+  ParallelFor(r.bricks.z, [&](std::int64_t bz) {
+    for (int by = 0; by < r.bricks.y; ++by) {
+      for (int bx = 0; bx < r.bricks.x; ++bx) {
+        const Vec3i b{bx, by, int(bz)};
+        Vec3i lo, hi;  // voxels read by trilinear lookups inside the brick
+        for (int a = 0; a < 3; ++a) {
+          lo[a] = std::max(0, b[a] * brick_size[a] - 1);
+          hi[a] = std::min(dims[a] - 1, (b[a] + 1) * brick_size[a]);
+        }
+        std::uint16_t mn = 0xffff, mx = 0;
+        for (int z = lo.z; z <= hi.z; ++z) {
+          for (int y = lo.y; y <= hi.y; ++y) {
+            const std::uint16_t* row = voxels + (std::size_t(z) * dims.y + y) * dims.x;
+            for (int x = lo.x; x <= hi.x; ++x) {
+              mn = std::min(mn, row[x]);
+              mx = std::max(mx, row[x]);
+            }
+          }
+        }
+        const std::size_t i = (std::size_t(bz) * r.bricks.y + by) * r.bricks.x + bx;
+        r.min[i] = mn;
+        r.max[i] = mx;
+      }
+    }
+  });
+  return r;
+}
+
+PreparedVolume::PreparedVolume(std::shared_ptr<const Volume> volume, int brick_size) : volume_(std::move(volume)) {
+  const Volume& v = *volume_;
+  if (v.storage() == VoxelStorage::kUInt16) {
+    voxels_ = v.u16().data();
+    value_offset_ = v.stored_offset();
+  } else {
+    const float range = v.max_value() - v.min_value();
+    value_scale_ = range > 0 ? range / 65535.0f : 1.0f;
+    value_offset_ = v.min_value();
+    quantised_.resize(v.voxel_count());
+    const std::vector<float>& f = v.f32();
+    ParallelFor(std::int64_t(f.size()), [&](std::int64_t i) {
+      quantised_[i] = static_cast<std::uint16_t>(std::lround((f[i] - value_offset_) / value_scale_));
+    }, 0, 1 << 16);
+    voxels_ = quantised_.data();
+  }
+  brick_size_ = brick_size > 0 ? Vec3i{brick_size, brick_size, brick_size} : v.dims();
+  bricks_ = ComputeBrickRanges(voxels_, v.dims(), brick_size_);
+}
+
+std::size_t PreparedVolume::host_bytes() const {
+  return (quantised_.size() + bricks_.min.size() + bricks_.max.size()) * sizeof(std::uint16_t);
+}
+
+std::string DeviceLabel(int device) { return device == kHostDevice ? "cpu" : "cuda:" + std::to_string(device); }
+
+VolumeCopy::VolumeCopy(std::shared_ptr<const PreparedVolume> prepared, int device)
+    : prepared_(std::move(prepared)), device_(device) {
+  if (device_ == kHostDevice) return;
+#if CINEVOL_WITH_CUDA
+  gpu_ = UploadVoxels(*prepared_, device_);
+#else
+  throw std::logic_error("VolumeCopy: a GPU copy in a build without CUDA");
+#endif
+}
+
+const std::uint16_t* VolumeCopy::voxels() const {
+  return device_ == kHostDevice ? prepared_->voxels() : gpu_->buffer;
+}
+
+std::size_t VolumeCopy::bytes() const {
+  return device_ == kHostDevice ? prepared_->host_bytes() : gpu_->bytes;
+}
+
+VolumeCache& VolumeCache::Get() {
+  static VolumeCache cache;
+  return cache;
+}
+
+template <class Key, class T>
+void VolumeCache::PruneLocked(Slots<Key, T>& slots) {
+  // A slot nobody else holds (use_count 1: no build under way) whose value is gone.
+  std::erase_if(slots, [](const auto& entry) { return entry.second.use_count() == 1 && entry.second->value.expired(); });
+}
+
+template <class Key, class T, class Make>
+std::shared_ptr<const T> VolumeCache::FindOrMake(Slots<Key, T>& slots, const Key& key, Make make) {
+  std::shared_ptr<Slot<T>> slot;
+  {
+    std::lock_guard lock(mu_);
+    PruneLocked(slots);
+    std::shared_ptr<Slot<T>>& s = slots[key];
+    if (!s) s = std::make_shared<Slot<T>>();
+    slot = s;
+  }
+  // Only callers for this key wait while it is built (an upload can take a
+  // while); other volumes and devices go on.
+  std::lock_guard build(slot->build);
+  if (std::shared_ptr<const T> value = slot->value.lock()) return value;
+  std::shared_ptr<const T> value = make();
+  std::lock_guard lock(mu_);
+  slot->value = value;
+  if constexpr (std::is_same_v<T, VolumeCopy>) slot->bytes = value->bytes();
+  return value;
+}
+
+std::shared_ptr<const VolumeCopy> VolumeCache::Acquire(const std::shared_ptr<const Volume>& volume, int brick_size,
+                                                       int device) {
+  return FindOrMake(copies_, std::tuple{device, volume.get(), brick_size}, [&] {
+    std::shared_ptr<const PreparedVolume> prepared = FindOrMake(prepared_, std::tuple{volume.get(), brick_size}, [&] {
+      return std::make_shared<const PreparedVolume>(volume, brick_size);
+    });
+    return std::make_shared<const VolumeCopy>(std::move(prepared), device);
+  });
+}
+
+std::vector<VolumeCopyStatus> VolumeCache::Copies() const {
+  std::lock_guard lock(mu_);
+  std::vector<VolumeCopyStatus> out;
+  for (const auto& [key, slot] : copies_) {
+    const long renderers = slot->value.use_count();
+    if (renderers > 0) out.push_back({std::get<1>(key), std::get<0>(key), slot->bytes, renderers});
+  }
+  return out;
+}
+
+}  // namespace cinevol

@@ -1,0 +1,156 @@
+// Volumes ready to render, shared by every renderer that draws them. A
+// PreparedVolume (16-bit voxels, the value mapping, per-brick value ranges) is
+// built once per Volume and brick size; a VolumeCopy puts it on one device (on
+// a GPU: the voxels uploaded once). Every renderer of a volume on a device
+// holds the same copy through VolumeCache, which keeps only weak references:
+// the copy goes with its last renderer.
+//
+// What stays per renderer is what depends on the session: the transfer table,
+// the majorants it implies, lights, frame buffers (scene_data.h, renderers).
+#pragma once
+
+#include <cstddef>
+#include <cstdint>
+#include <map>
+#include <memory>
+#include <mutex>
+#include <string>
+#include <tuple>
+#include <vector>
+
+#include "core/volume.h"
+
+namespace cinevol {
+
+// Bricks are this many voxels along each axis by default: 4^3 measured
+// faster than 8^3 and 16^3 on CPU and GPU (docs/performance.md).
+inline constexpr int kDefaultBrickSize = 4;
+
+// Min and max stored value of each brick, including the one-voxel margin that
+// trilinear interpolation inside the brick reads. (Volume::block_ranges is
+// another thing: float values without the margin, for framing what a transfer
+// function shows; majorants from it would not bound trilinear lookups.)
+struct BrickRanges {
+  Vec3i bricks;
+  std::vector<std::uint16_t> min, max;
+};
+
+BrickRanges ComputeBrickRanges(const std::uint16_t* voxels, Vec3i dims, Vec3i brick_size);
+
+// Immutable once built: safe to read from any thread.
+class PreparedVolume {
+ public:
+  // Quantises float volumes to 16 bits over their range; 16-bit volumes are
+  // used as they are. brick_size voxels per brick edge; 0: one brick spanning
+  // the volume (empty-space skipping off, to measure what bricks buy).
+  PreparedVolume(std::shared_ptr<const Volume> volume, int brick_size);
+
+  const Volume& volume() const { return *volume_; }
+  const std::uint16_t* voxels() const { return voxels_; }  // host memory
+  // value = stored * value_scale + value_offset
+  float value_scale() const { return value_scale_; }
+  float value_offset() const { return value_offset_; }
+  Vec3i brick_size() const { return brick_size_; }
+  const BrickRanges& brick_ranges() const { return bricks_; }
+  // Host memory this adds to the Volume's own: a float volume's quantised
+  // voxels and the brick ranges.
+  std::size_t host_bytes() const;
+
+ private:
+  std::shared_ptr<const Volume> volume_;
+  std::vector<std::uint16_t> quantised_;  // float volumes only
+  const std::uint16_t* voxels_ = nullptr;
+  float value_scale_ = 1, value_offset_ = 0;
+  Vec3i brick_size_;
+  BrickRanges bricks_;
+};
+
+// The device of CPU renderers: their copy is the PreparedVolume in host memory.
+inline constexpr int kHostDevice = -1;
+
+// "cpu" for kHostDevice, "cuda:N" for GPU N.
+std::string DeviceLabel(int device);
+
+// A prepared volume's voxels on one GPU: a buffer, and where it fits the
+// texture size, a 3D texture too (the path tracer samples through it; the
+// buffer serves volumes too large for one and RendererOptions::volume_texture).
+struct GpuVoxels {
+  const std::uint16_t* buffer = nullptr;
+  unsigned long long texture = 0;  // cudaTextureObject_t
+  std::size_t bytes = 0;           // both together
+};
+
+// A prepared volume on one device: kHostDevice or a GPU ordinal. Immutable.
+class VolumeCopy {
+ public:
+  // On a GPU, uploads the voxels there (throws ResourceExhausted when they do
+  // not fit).
+  VolumeCopy(std::shared_ptr<const PreparedVolume> prepared, int device);
+
+  const PreparedVolume& prepared() const { return *prepared_; }
+  const std::shared_ptr<const PreparedVolume>& prepared_ptr() const { return prepared_; }
+  int device() const { return device_; }
+  const std::uint16_t* voxels() const;  // in the device's memory
+  // On a GPU, the voxels also as a 3D texture (device/volume_texture.h) when
+  // they fit the GPU's texture size; 0 otherwise.
+  unsigned long long texture() const { return gpu_ ? gpu_->texture : 0; }
+  // Memory this copy takes on its device: the uploaded voxels on a GPU, the
+  // prepared volume's host_bytes on the host.
+  std::size_t bytes() const;
+
+ private:
+  std::shared_ptr<const PreparedVolume> prepared_;
+  int device_;
+  std::shared_ptr<const GpuVoxels> gpu_;  // freed on its GPU with the last owner
+};
+
+#if CINEVOL_WITH_CUDA
+// Copies the prepared voxels to GPU `gpu`; the pointer frees them there (from
+// any thread). Defined in volume_upload.cu.
+std::shared_ptr<const GpuVoxels> UploadVoxels(const PreparedVolume& prepared, int gpu);
+#endif
+
+// One copy as the cache reports it.
+struct VolumeCopyStatus {
+  const Volume* volume;  // which volume: compare only, it may be gone by now
+  int device;            // kHostDevice or a GPU ordinal
+  std::size_t bytes;     // VolumeCopy::bytes
+  long renderers;        // renderers holding the copy
+};
+
+class VolumeCache {
+ public:
+  // The process's cache: every session, still and offline render shares it.
+  static VolumeCache& Get();
+
+  // The copy of `volume` with `brick_size` bricks on `device`, built on first
+  // use. Thread-safe: callers asking for the same copy at once get one copy,
+  // built once; only they wait for it.
+  std::shared_ptr<const VolumeCopy> Acquire(const std::shared_ptr<const Volume>& volume, int brick_size, int device);
+
+  // The live copies, by device then volume.
+  std::vector<VolumeCopyStatus> Copies() const;
+
+ private:
+  // One key's value; `build` serialises building it, the cache's lock guards
+  // `value` (held weakly: the users own it).
+  template <class T>
+  struct Slot {
+    std::mutex build;
+    std::weak_ptr<const T> value;
+    std::size_t bytes = 0;
+  };
+  template <class Key, class T>
+  using Slots = std::map<Key, std::shared_ptr<Slot<T>>>;
+
+  template <class Key, class T, class Make>
+  std::shared_ptr<const T> FindOrMake(Slots<Key, T>& slots, const Key& key, Make make);
+  template <class Key, class T>
+  static void PruneLocked(Slots<Key, T>& slots);
+
+  mutable std::mutex mu_;
+  Slots<std::tuple<const Volume*, int>, PreparedVolume> prepared_;          // volume, brick size
+  Slots<std::tuple<int, const Volume*, int>, VolumeCopy> copies_;          // device, volume, brick size
+};
+
+}  // namespace cinevol

@@ -1,0 +1,55 @@
+// A prepared volume's voxels in a GPU's memory.
+#include "device/cuda_buffer.h"
+#include "device/volume_texture.h"
+#include "render/prepared_volume.h"
+
+namespace cinevol {
+namespace {
+
+using cuda::DeviceBuffer;
+
+// Makes `gpu` the calling thread's device for a while: the last owner of a
+// copy may let it go on any thread (a session ending on a gRPC thread).
+class OnGpu {
+ public:
+  explicit OnGpu(int gpu) {
+    CINEVOL_CUDA_CHECK(cudaGetDevice(&previous_));
+    CINEVOL_CUDA_CHECK(cudaSetDevice(gpu));
+  }
+  ~OnGpu() { cudaSetDevice(previous_); }
+  OnGpu(const OnGpu&) = delete;
+  OnGpu& operator=(const OnGpu&) = delete;
+
+ private:
+  int previous_ = 0;
+};
+
+}  // namespace
+
+std::shared_ptr<const GpuVoxels> UploadVoxels(const PreparedVolume& prepared, int gpu) {
+  OnGpu on(gpu);
+  struct Owned {
+    DeviceBuffer<std::uint16_t> buffer;
+    cuda::VolumeTexture texture;
+    GpuVoxels view;
+  };
+  auto owned = std::make_shared<Owned>();
+  owned->buffer.Upload(prepared.voxels(), prepared.volume().voxel_count());
+  owned->texture.Upload(prepared.voxels(), prepared.volume().dims(), cudaStreamPerThread);
+  // Renderers on other threads (other streams) read it next.
+  CINEVOL_CUDA_CHECK(cudaStreamSynchronize(cudaStreamPerThread));
+  owned->view = {owned->buffer.data(), owned->texture.handle(),
+                 owned->buffer.size() * sizeof(std::uint16_t) + owned->texture.bytes()};
+  const GpuVoxels* view = &owned->view;
+  return std::shared_ptr<const GpuVoxels>(view, [owned = std::move(owned), gpu](const GpuVoxels*) mutable {
+    // cudaFree waits for kernels still reading it. Errors are ignored: a
+    // deleter must not throw, and a lost device leaves nothing to free.
+    int previous = 0;
+    cudaGetDevice(&previous);
+    cudaSetDevice(gpu);
+    owned.reset();
+    cudaSetDevice(previous);
+  });
+}
+
+}  // namespace cinevol

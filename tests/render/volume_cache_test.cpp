@@ -1,0 +1,200 @@
+// Renderers of one volume on one device share one prepared copy (on a GPU one
+// upload of the voxels), built once however many ask at once, freed with the
+// last of them, and rendering exactly what a renderer alone renders.
+#include <gtest/gtest.h>
+
+#include <thread>
+#include <vector>
+
+#include "io/phantom.h"
+#include "io/presets.h"
+#include "io/scene_file.h"
+#include "pipeline/frame_pipeline.h"
+#include "render/renderer.h"
+#include "render_test_scenes.h"
+#include "support/gpu.h"
+
+namespace cinevol {
+namespace {
+
+using testing::UniformSky;
+
+std::shared_ptr<const Volume> SmallHead() {
+  v1::Phantom p;
+  p.set_kind(v1::Phantom::HEAD);
+  p.set_size(32);
+  p.set_spacing(6.0f);
+  return std::make_shared<const Volume>(MakePhantom(p));
+}
+
+// A float volume: the prepared copy holds its quantised voxels.
+std::shared_ptr<const Volume> FloatRamp() {
+  std::vector<float> values(12 * 10 * 8);
+  for (std::size_t i = 0; i < values.size(); ++i) values[i] = 0.25f * float(i % 97);
+  VolumeMetadata meta;
+  meta.source = "ramp";
+  return std::make_shared<const Volume>(Vec3i{12, 10, 8}, Vec3f{1, 1, 1}, std::move(values), meta);
+}
+
+// The cache's copies of `volume`.
+std::vector<VolumeCopyStatus> CopiesOf(const std::shared_ptr<const Volume>& volume) {
+  std::vector<VolumeCopyStatus> copies;
+  for (const VolumeCopyStatus& c : VolumeCache::Get().Copies()) {
+    if (c.volume == volume.get()) copies.push_back(c);
+  }
+  return copies;
+}
+
+// Soft tissue to bone of the head phantom: bricks empty and dense.
+TransferFunction HeadTransferFunction() {
+  TransferFunction tf;
+  tf.points = {{-200, 0, {0.9f, 0.6f, 0.5f}, {}, 0.5f, {}},
+               {300, 0.8f, {0.9f, 0.9f, 0.8f}, {0.3f, 0.3f, 0.3f}, 0.3f, {}},
+               {1500, 1, {0.9f, 0.9f, 0.8f}, {0.3f, 0.3f, 0.3f}, 0.3f, {}}};
+  tf.density_scale = 0.3f;
+  tf.gradient_factor = 1.5f;
+  return tf;
+}
+
+ImageRgbF RenderFrames(Renderer& r, const std::shared_ptr<const Volume>& volume, int frames) {
+  r.SetVolume(volume);
+  r.SetTransferFunction(HeadTransferFunction());
+  r.SetLights(UniformSky(1.0f));
+  FrameRequest request;
+  request.camera = LookAt({-300, -400, 150}, {0, 0, 0}, {0, 0, 1}, 30, 24, 16);
+  request.spp = 2;
+  request.seed = 7;
+  for (int f = 0; f < frames; ++f) {
+    request.frame = std::uint32_t(f);
+    r.Render(request);
+  }
+  return r.AccumulatedMean();
+}
+
+double MeanOf(const ImageRgbF& image) {
+  double sum = 0;
+  for (const Vec3f& p : image.pixels) sum += p.x + p.y + p.z;
+  return sum / double(image.pixels.size());
+}
+
+TEST(VolumeCache, TwoRenderersOnOneVolumeShareOneCopy) {
+  const auto volume = FloatRamp();
+  {
+    auto a = CreateRenderer(Backend::kCpu), b = CreateRenderer(Backend::kCpu);
+    a->SetVolume(volume);
+    b->SetVolume(volume);
+    const auto copies = CopiesOf(volume);
+    ASSERT_EQ(copies.size(), 1u);
+    EXPECT_EQ(copies[0].device, kHostDevice);
+    EXPECT_EQ(copies[0].renderers, 2);
+    // The quantised voxels (2 bytes each) and the brick ranges, once.
+    EXPECT_GE(copies[0].bytes, volume->voxel_count() * 2);
+  }
+  EXPECT_TRUE(CopiesOf(volume).empty()) << "the last renderer frees the copy";
+}
+
+TEST(VolumeCache, TwoPipelinesOnOneVolumeShareOneCopy) {
+  const auto volume = SmallHead();
+  {
+    FramePipeline a(Backend::kCpu, volume), b(Backend::kCpu, volume);
+    const auto copies = CopiesOf(volume);
+    ASSERT_EQ(copies.size(), 1u);
+    EXPECT_EQ(copies[0].renderers, 2);
+    EXPECT_EQ(DeviceLabel(copies[0].device), "cpu");
+  }
+  EXPECT_TRUE(CopiesOf(volume).empty());
+}
+
+TEST(VolumeCache, OtherBrickSizesAreOtherCopies) {
+  const auto volume = SmallHead();
+  RendererOptions unbricked;
+  unbricked.brick_size = 0;
+  auto a = CreateRenderer(Backend::kCpu), b = CreateRenderer(Backend::kCpu, unbricked);
+  a->SetVolume(volume);
+  b->SetVolume(volume);
+  EXPECT_EQ(CopiesOf(volume).size(), 2u);
+}
+
+TEST(VolumeCache, RenderersAskingAtOnceGetOneCopy) {
+  const auto volume = FloatRamp();
+  constexpr int kThreads = 8;
+  std::vector<std::unique_ptr<Renderer>> renderers(kThreads);
+  std::vector<std::thread> threads;
+  for (int i = 0; i < kThreads; ++i) {
+    threads.emplace_back([&, i] {
+      renderers[i] = CreateRenderer(Backend::kCpu);
+      renderers[i]->SetVolume(volume);
+    });
+  }
+  for (std::thread& t : threads) t.join();
+  const auto copies = CopiesOf(volume);
+  ASSERT_EQ(copies.size(), 1u);
+  EXPECT_EQ(copies[0].renderers, kThreads);
+  renderers.clear();
+  EXPECT_TRUE(CopiesOf(volume).empty());
+}
+
+TEST(VolumeCache, ASharedCopyRendersWhatALoneRendererDoes) {
+  const auto volume = SmallHead();
+  auto alone = CreateRenderer(Backend::kCpu);
+  const ImageRgbF lone = RenderFrames(*alone, volume, 3);
+  alone.reset();
+  auto a = CreateRenderer(Backend::kCpu), b = CreateRenderer(Backend::kCpu);
+  const ImageRgbF first = RenderFrames(*a, volume, 3);
+  const ImageRgbF second = RenderFrames(*b, volume, 3);
+  EXPECT_EQ(first.pixels, lone.pixels);
+  EXPECT_EQ(second.pixels, lone.pixels);
+  EXPECT_GT(MeanOf(lone), 0.0) << "the head should show";
+}
+
+#if CINEVOL_WITH_CUDA
+TEST(VolumeCache, CudaRenderersShareOneDeviceUpload) {
+  CINEVOL_REQUIRE_CUDA();
+  const auto volume = SmallHead();
+  auto alone = CreateRenderer(Backend::kCuda);
+  const ImageRgbF lone = RenderFrames(*alone, volume, 3);
+  alone.reset();
+  EXPECT_TRUE(CopiesOf(volume).empty());
+  {
+    auto a = CreateRenderer(Backend::kCuda), b = CreateRenderer(Backend::kCuda);
+    const ImageRgbF first = RenderFrames(*a, volume, 3);
+    const ImageRgbF second = RenderFrames(*b, volume, 3);
+    const auto copies = CopiesOf(volume);
+    ASSERT_EQ(copies.size(), 1u);
+    EXPECT_GE(copies[0].device, 0);
+    EXPECT_EQ(copies[0].renderers, 2);
+    EXPECT_EQ(copies[0].bytes, volume->voxel_count() * 4) << "one upload of the 16-bit voxels, as a buffer and a texture";
+    EXPECT_EQ(first.pixels, lone.pixels);
+    EXPECT_EQ(second.pixels, lone.pixels);
+  }
+  EXPECT_TRUE(CopiesOf(volume).empty()) << "the last renderer frees the upload";
+  EXPECT_GT(MeanOf(lone), 0.0) << "the head should show";
+}
+
+// What a 720p session's pipeline adds on the GPU beyond the shared voxels
+// (printed for docs/architecture.md; the GPU's free memory tells the rest).
+TEST(VolumeCache, PrintsTheDeviceMemoryOfA720pSession) {
+  CINEVOL_REQUIRE_CUDA();
+  const auto volume = SmallHead();
+  v1::Scene scene = MakePresetScene("ct-bone", *volume);
+  scene.mutable_render()->set_width(1280);
+  scene.mutable_render()->set_height(720);
+  ApplyDefaults(scene);
+  const std::size_t free_before = ListGpus().at(0).free_bytes;
+  FramePipeline first(Backend::kCuda, volume);
+  first.Update(scene, FrameSettings{});
+  first.RenderFrame();
+  const std::size_t free_one = ListGpus().at(0).free_bytes;
+  FramePipeline second(Backend::kCuda, volume);
+  second.Update(scene, FrameSettings{});
+  second.RenderFrame();
+  const std::size_t free_two = ListGpus().at(0).free_bytes;
+  std::printf("first 720p session: %.1f MiB; each further one: %.1f MiB (shared voxels: %.1f MiB)\n",
+              (double(free_before) - double(free_one)) / (1 << 20), (double(free_one) - double(free_two)) / (1 << 20),
+              double(CopiesOf(volume).at(0).bytes) / (1 << 20));
+  EXPECT_EQ(CopiesOf(volume).size(), 1u);
+}
+#endif
+
+}  // namespace
+}  // namespace cinevol
