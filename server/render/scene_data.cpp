@@ -138,6 +138,7 @@ void SceneData::SetTransferFunction(const TransferFunction& tf) {
 void SceneData::UpdateMajorants() {
   const RenderScene view = HostView();
   majorants_ = ComputeMajorants(bricks_, table_.sigma_t, view.transfer.entry_scale, view.transfer.entry_offset);
+  ++majorant_builds_;
 }
 
 void SceneData::SetLights(const LightSetup& setup) {
