@@ -1,6 +1,7 @@
 // `cinevol-bench denoise`: every denoiser on the same rendered camera orbit
 // at the scene's spp per frame: milliseconds per frame and PSNR against a
-// high-spp render of every frame, while the camera moves.
+// high-spp render of every frame, while the camera moves. Each method runs
+// in a FramePipeline of its own, as a session would.
 #include <algorithm>
 #include <cmath>
 
@@ -8,14 +9,12 @@
 
 #include "bench.h"
 #include "core/image_metrics.h"
-#include "core/tone_map.h"
-#include "denoise/denoiser.h"
-#include "render/renderer.h"
+#include "core/ycc.h"
+#include "pipeline/frame_pipeline.h"
 #include "tradeoff_study.h"
 
 namespace cinevol::bench {
 namespace {
-
 
 // RMS difference of two 8-bit images, in [0, 1] units.
 double RmsDifference(const ImageRgb8& a, const ImageRgb8& b) {
@@ -34,27 +33,16 @@ struct Method {
 int RunDenoiseBench(const DenoiseBenchOptions& o) {
   const LoadedScene loaded = LoadScene(o);
   const RenderSetup& setup = loaded.setup;
-  const Backend backend = ParseBackend(o.backend);
-  auto renderer = CreateRenderer(backend);
-  renderer->SetVolume(loaded.volume);
-  renderer->SetTransferFunction(setup.transfer_function);
-  renderer->SetLights(setup.lights);
-  const Backend denoise_backend = renderer->backend();
-
-  auto request = [&](int t, int spp, std::uint64_t seed) {
-    FrameRequest r;
-    r.camera = Orbit(setup.camera, o.degrees_per_frame * float(t));
-    r.spp = spp;
-    r.max_bounces = setup.max_bounces;
-    r.seed = seed;
-    r.frame = static_cast<std::uint32_t>(t);
-    return r;
+  const Backend backend = Resolve(ParseBackend(o.backend), "denoise bench");
+  auto view = [&](int t) {
+    RenderSetup v = setup;
+    v.camera = Orbit(setup.camera, o.degrees_per_frame * float(t));
+    return v;
   };
 
   std::vector<ImageRgbF> references;
   for (int t = 0; o.reference_spp > 0 && t < o.frames; ++t) {
-    const Camera camera = Orbit(setup.camera, o.degrees_per_frame * float(t));
-    references.push_back(RenderReference(*renderer, camera, o.reference_spp, setup.max_bounces, t));
+    references.push_back(RenderReference(backend, loaded.volume, view(t), o.reference_spp, setup.max_bounces, t));
   }
 
   const Method methods[] = {{DenoiseMethod::kNone, false},         {DenoiseMethod::kAccumulate, false},
@@ -70,33 +58,30 @@ int RunDenoiseBench(const DenoiseBenchOptions& o) {
       o.scene, DeviceDescription(o.backend), o.command_line, setup.camera.width, setup.camera.height, setup.spp,
       o.degrees_per_frame, o.frames, o.warmup, o.frames - 1, o.reference_spp);
   for (const Method& m : methods) {
-    DenoiserSettings settings;
-    settings.method = m.method;
-    settings.demodulate = m.demodulate;
-    auto denoiser = CreateDenoiser(denoise_backend, settings);
+    FrameSettings settings;
+    settings.denoiser.method = m.method;
+    settings.denoiser.demodulate = m.demodulate;
+    settings.refine = false;  // the denoiser's output alone, however many samples pile up
+    settings.chroma = ChromaSubsampling::k444;  // flicker on the displayed pixels, before JPEG
+    // The same seed renders the same noisy frames for every method: frame t
+    // of a fresh pipeline is sampled as frame t.
+    FramePipeline moving(backend, loaded.volume);
     std::vector<double> ms;
     double psnr = 0;
     for (int t = 0; t < o.frames; ++t) {
-      const FrameRequest r = request(t, setup.spp, setup.seed);
-      renderer->Render(r);  // the same seed renders the same noisy frame for every method
-      const FrameTargets in = renderer->Targets();
-      denoiser->Denoise({r.camera.width, r.camera.height, in.radiance, in.first_hit, in.albedo, r.camera, 0});
-      const double t_ms = denoiser->LastMilliseconds();
+      moving.Update(view(t), settings, kCameraChanged);
+      const DisplayFrame frame = moving.RenderFrame();
       if (t < o.warmup) continue;
-      ms.push_back(t_ms);
-      if (!references.empty()) psnr += DisplayPsnr(denoiser->Output(), references[t]) / (o.frames - o.warmup);
+      ms.push_back(frame.denoise_ms);
+      if (!references.empty()) psnr += DisplayPsnr(moving.DenoisedRadiance(), references[t]) / (o.frames - o.warmup);
     }
     // Flicker on a static camera: frame-to-frame change of what the viewer sees.
-    denoiser->Reset();
+    FramePipeline still(backend, loaded.volume);
+    still.Update(view(0), settings);
     double flicker = 0;
     ImageRgb8 previous;
     for (int t = 0; t < o.frames; ++t) {
-      FrameRequest r = request(0, setup.spp, setup.seed);
-      r.frame = static_cast<std::uint32_t>(t);
-      renderer->Render(r);
-      const FrameTargets in = renderer->Targets();
-      denoiser->Denoise({r.camera.width, r.camera.height, in.radiance, in.first_hit, in.albedo, r.camera, 0});
-      const ImageRgb8 shown = ToneMap(denoiser->Output(), 0.0f);
+      const ImageRgb8 shown = ToRgb(still.RenderFrame().image);
       if (t > o.warmup) flicker += RmsDifference(shown, previous) / (o.frames - o.warmup - 1);
       previous = shown;
     }

@@ -1,14 +1,14 @@
 // `cinevol-bench render`: milliseconds per frame and paths per second of the
 // path tracer on a scene, with empty-space skipping and specialisation each
-// switched on and off in the same run. Prints a Markdown table (and appends
-// it to --out) for docs/performance.md.
+// switched on and off in the same run, each in a FramePipeline of its own.
+// Prints a Markdown table (and appends it to --out) for docs/performance.md.
 #include <algorithm>
 #include <chrono>
 
 #include <fmt/format.h>
 
 #include "bench.h"
-#include "render/renderer.h"
+#include "pipeline/frame_pipeline.h"
 
 namespace cinevol::bench {
 namespace {
@@ -30,27 +30,21 @@ Result Measure(const RenderBenchOptions& o, const Config& c, const std::shared_p
   RendererOptions options;
   options.brick_size = c.brick_size;
   options.volume_texture = c.volume_texture;
-  auto renderer = CreateRenderer(ParseBackend(o.backend), options);
-  renderer->SetVolume(volume);
-  renderer->SetTransferFunction(setup.transfer_function);
-  renderer->SetLights(setup.lights);
-  FrameRequest req;
-  req.camera = setup.camera;
-  req.spp = setup.spp;
-  req.max_bounces = setup.max_bounces;
-  req.seed = setup.seed;
-  req.features = c.specialised ? kAutoFeatures : kAllFeatures;
+  FramePipeline pipeline(ParseBackend(o.backend), volume, options);
+  pipeline.SetRenderFeatures(c.specialised ? kAutoFeatures : kAllFeatures);
+  FrameSettings settings;
+  settings.denoiser.method = DenoiseMethod::kNone;  // the renderer's time is what is measured
+  pipeline.Update(setup, settings);
   std::vector<double> ms;
   for (int f = 0; f < o.warmup + o.frames; ++f) {
-    req.frame = f;
-    renderer->Render(req);
-    const double t = renderer->LastFrameMilliseconds();  // waits for the frame
+    const double t = pipeline.RenderFrame().render_ms;
     if (f >= o.warmup) ms.push_back(t);
   }
   std::sort(ms.begin(), ms.end());
   const double median = ms[ms.size() / 2];
-  const double paths = double(req.camera.width) * req.camera.height * req.spp;
-  return {median, ms[ms.size() / 10], ms[ms.size() * 9 / 10], paths / (median / 1000.0), renderer->last_features()};
+  const double paths = double(setup.camera.width) * setup.camera.height * setup.spp;
+  return {median, ms[ms.size() / 10], ms[ms.size() * 9 / 10], paths / (median / 1000.0),
+          pipeline.last_render_features()};
 }
 
 }  // namespace

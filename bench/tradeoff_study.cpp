@@ -21,8 +21,6 @@
 #include "io/scene_builder.h"
 #include "io/scene_file.h"
 #include "io/volume_loader.h"
-#include "pipeline/display.h"
-#include "render/renderer.h"
 
 namespace cinevol::bench {
 namespace {
@@ -168,9 +166,20 @@ std::string ReferenceKey(const Dataset& d, const std::string& scene_json, const 
   return fmt::format("{}-{}-{:03}-{:016x}", d.name, scenario, frame, Fnv1a(text));
 }
 
-void ApplyFrame(Renderer& renderer, const ScenarioFrame& f, const TransferFunction*& tf, const LightSetup*& lights) {
-  if (f.tf != tf) renderer.SetTransferFunction(*(tf = f.tf));
-  if (f.lights != lights) renderer.SetLights(*(lights = f.lights));
+// Copies the frame's transfer function and lights into `setup` where they
+// are not the previous frame's; returns the SceneChange bits that says.
+unsigned ApplyFrame(const ScenarioFrame& f, RenderSetup& setup, const TransferFunction*& tf,
+                    const LightSetup*& lights) {
+  unsigned changes = 0;
+  if (f.tf != tf) {
+    setup.transfer_function = *(tf = f.tf);
+    changes |= kTransferFunctionChanged;
+  }
+  if (f.lights != lights) {
+    setup.lights = *(lights = f.lights);
+    changes |= kLightsChanged;
+  }
+  return changes;
 }
 
 // --- One configuration over one scenario -------------------------------------------
@@ -236,62 +245,49 @@ struct References {
 
 struct Context {
   const StudyOptions& o;
-  Renderer& renderer;
-  Backend denoise_backend;  // the renderer's: frames stay in its memory
-  std::unique_ptr<Display> display;
+  Backend backend;  // resolved: every pipeline of the study on the same device
+  std::shared_ptr<const Volume> volume;
   float exposure = 0;
 };
 
-RunResult RunConfig(Context& ctx, const Scenario& scenario, const References& refs, const StudyConfig& c,
+RunResult RunConfig(const Context& ctx, const Scenario& scenario, const References& refs, const StudyConfig& c,
                     const fs::path& images, int image_frame) {
   RunResult run;
   run.scenario = scenario.name;
   run.config = c;
-  DenoiserSettings settings;
-  settings.method = c.method;
-  settings.demodulate = c.demodulate;
-  settings.wrls = c.wrls;
-  settings.svgf = c.svgf;
-  auto denoiser = CreateDenoiser(ctx.denoise_backend, settings);
+  FrameSettings settings;
+  settings.denoiser.method = c.method;
+  settings.denoiser.demodulate = c.demodulate;
+  settings.denoiser.wrls = c.wrls;
+  settings.denoiser.svgf = c.svgf;
+  settings.refine = false;  // every frame as it looks while interacting
+  // Without JPEG, full chroma: the displayed pixels, give or take YCbCr rounding.
+  settings.chroma = c.jpeg_quality > 0 ? ChromaSubsampling::k420 : ChromaSubsampling::k444;
+  FramePipeline pipeline(ctx.backend, ctx.volume);
+  RenderSetup setup;
+  setup.spp = c.spp;
+  setup.max_bounces = c.bounces;
+  setup.seed = 7;  // every configuration of the same spp, bounces and size sees the same noise
+  setup.exposure = ctx.exposure;
   const int w = std::max(1, int(std::lround(ctx.o.width * c.scale))), h = std::max(1, int(std::lround(ctx.o.height * c.scale)));
   const TransferFunction* tf = nullptr;
   const LightSetup* lights = nullptr;
-  std::uint64_t version = 0;
   ImageRgb8 previous;
   for (int t = 0; t < scenario.frames; ++t) {
     const ScenarioFrame f = scenario.At(t);
-    const TransferFunction* before_tf = tf;
-    const LightSetup* before_lights = lights;
-    ApplyFrame(ctx.renderer, f, tf, lights);
-    if (tf != before_tf || lights != before_lights) ++version;
-    FrameRequest r;
-    r.camera = f.camera;
-    r.camera.width = w;
-    r.camera.height = h;
-    r.spp = c.spp;
-    r.max_bounces = c.bounces;
-    r.seed = 7;  // every configuration of the same spp, bounces and size sees the same noise
-    r.frame = static_cast<std::uint32_t>(t);
-    ctx.renderer.ResetAccumulation();
+    // The camera bit every frame: each frame's accumulation starts afresh.
+    const unsigned changes = kCameraChanged | ApplyFrame(f, setup, tf, lights);
+    setup.camera = f.camera;
+    setup.camera.width = w;
+    setup.camera.height = h;
+    pipeline.Update(setup, settings, changes);
+    const DisplayFrame frame = pipeline.RenderFrame();
     FrameResult fr;
     fr.frame = t;
-    ctx.renderer.Render(r);
-    fr.render_ms = ctx.renderer.LastFrameMilliseconds();
-    const FrameTargets in = ctx.renderer.Targets();
-    const Vec3f* denoised = denoiser->Denoise({w, h, in.radiance, in.first_hit, in.albedo, r.camera, version});
-    fr.denoise_ms = denoiser->LastMilliseconds();
-
-    const Clock::time_point display_start = Clock::now();
-    DisplayInputs di;
-    di.width = w;
-    di.height = h;
-    di.denoised = denoised;
-    di.accumulated_sum = denoised;
-    di.exposure = ctx.exposure;
-    // Without JPEG, full chroma: the displayed pixels, give or take YCbCr rounding.
-    di.chroma = c.jpeg_quality > 0 ? ChromaSubsampling::k420 : ChromaSubsampling::k444;
-    const ImageYcc8 planes = ctx.display->Run(di);
-    fr.tonemap_ms = MsSince(display_start);
+    fr.render_ms = frame.render_ms;
+    fr.denoise_ms = frame.denoise_ms;
+    fr.tonemap_ms = frame.display_ms;
+    const ImageYcc8& planes = frame.image;
     ImageRgb8 shown;
     if (c.jpeg_quality > 0) {
       const Clock::time_point encode_start = Clock::now();
@@ -304,7 +300,7 @@ RunResult RunConfig(Context& ctx, const Scenario& scenario, const References& re
     shown = Upsample(shown, ctx.o.width, ctx.o.height);
     fr.psnr = Psnr(shown, refs.display[t]);
     fr.ssim = Ssim(shown, refs.display[t]);
-    fr.rel_mse = RelativeMse(UpsampleHdr(denoiser->Output(), ctx.o.width, ctx.o.height), refs.hdr[t]);
+    fr.rel_mse = RelativeMse(UpsampleHdr(pipeline.DenoisedRadiance(), ctx.o.width, ctx.o.height), refs.hdr[t]);
     if (t > 0) fr.temporal = TemporalError(shown, previous, refs.display[t], refs.display[t - 1]);
     if (!images.empty() && t == image_frame) WriteFile(images, EncodeJpeg(Half(shown), 92));
     previous = std::move(shown);
@@ -323,7 +319,6 @@ const std::map<std::string, float WrlsSettings::*> kWrlsFloatKeys = {
     {"sigma_depth", &WrlsSettings::atrous_sigma_depth},
     {"residual_rate", &WrlsSettings::residual_rate},
     {"drift", &WrlsSettings::drift_sigma},
-    {"drift_boost", &WrlsSettings::drift_boost},
     {"young", &WrlsSettings::young_variance},
     {"rescale_sigma", &WrlsSettings::feature_rescale_sigma},
     {"firefly", &WrlsSettings::firefly_clamp},
@@ -331,7 +326,6 @@ const std::map<std::string, float WrlsSettings::*> kWrlsFloatKeys = {
     {"stabilize_clamp", &WrlsSettings::stabilize_clamp},
 };
 const std::map<std::string, int WrlsSettings::*> kWrlsIntKeys = {
-    {"radius", &WrlsSettings::spatial_radius},
     {"atrous", &WrlsSettings::atrous_iterations},
     {"still", &WrlsSettings::max_still_frames},
     {"recenter", &WrlsSettings::stabilize_recenter},
@@ -375,6 +369,12 @@ StudyConfig Variant(const std::string& spec) {
     } else {
       throw InputError(fmt::format("--variant {}: unknown key '{}'", spec, key));
     }
+  }
+  // 0 turned these stages off until the study settled them (docs/denoising.md).
+  const WrlsSettings& w = c.wrls;
+  if (w.feature_rescale < 1 || w.feature_rescale > 8 || w.stabilize_recenter < 1 || w.stabilize_recenter > 8 ||
+      !(w.drift_sigma > 0)) {
+    throw InputError(fmt::format("--variant {}: rescale and recenter take 1 to 8, drift more than 0", spec));
   }
   return c;
 }
@@ -450,11 +450,9 @@ std::string Slug(std::string s) {
   return s;
 }
 
-References LoadReferences(Context& ctx, const Dataset& d, const std::string& scene_json, const Scenario& s) {
+References LoadReferences(const Context& ctx, const Dataset& d, const std::string& scene_json, const Scenario& s) {
   References refs;
   fs::create_directories(ctx.o.cache);
-  const TransferFunction* tf = nullptr;
-  const LightSetup* lights = nullptr;
   for (int t = 0; t < s.frames; ++t) {
     const fs::path path = ctx.o.cache / (ReferenceKey(d, scene_json, s.name, t, s.frames, ctx.o.width, ctx.o.height,
                                                       ctx.o) + ".exr");
@@ -462,11 +460,14 @@ References LoadReferences(Context& ctx, const Dataset& d, const std::string& sce
       refs.hdr.push_back(ReadExr(path));
     } else {
       const ScenarioFrame f = s.At(t);
-      ApplyFrame(ctx.renderer, f, tf, lights);
-      Camera camera = f.camera;
-      camera.width = ctx.o.width;
-      camera.height = ctx.o.height;
-      refs.hdr.push_back(RenderReference(ctx.renderer, camera, ctx.o.reference_spp, ctx.o.reference_bounces, t));
+      RenderSetup view;
+      view.camera = f.camera;
+      view.camera.width = ctx.o.width;
+      view.camera.height = ctx.o.height;
+      view.transfer_function = *f.tf;
+      view.lights = *f.lights;
+      refs.hdr.push_back(
+          RenderReference(ctx.backend, ctx.volume, view, ctx.o.reference_spp, ctx.o.reference_bounces, t));
       WriteExr(path, refs.hdr.back());
     }
     refs.display.push_back(ToneMap(refs.hdr.back(), ctx.exposure));
@@ -522,31 +523,26 @@ Camera Orbit(const Camera& c, float degrees) {
   return out;
 }
 
-ImageRgbF RenderReference(Renderer& renderer, const Camera& camera, int spp, int bounces, int frame) {
-  renderer.ResetAccumulation();
+ImageRgbF RenderReference(Backend backend, std::shared_ptr<const Volume> volume, RenderSetup view, int spp,
+                          int bounces, int frame) {
+  FramePipeline pipeline(backend, std::move(volume));  // its frames count the chunks from 0
+  FrameSettings settings;
+  settings.denoiser.method = DenoiseMethod::kNone;
+  view.max_bounces = bounces;
   for (int done = 0, chunk = 0; done < spp; done += 64, ++chunk) {
-    FrameRequest r;
-    r.camera = camera;
-    r.spp = std::min(64, spp - done);
-    r.max_bounces = bounces;
-    r.seed = 1000003ull * (frame + 1) + chunk;
-    r.frame = static_cast<std::uint32_t>(chunk);
-    renderer.Render(r);
+    // Each chunk its own seed, in one accumulation: only the first update
+    // says what changed.
+    view.seed = 1000003ull * (frame + 1) + chunk;
+    pipeline.Update(view, settings, chunk == 0 ? kEverythingChanged : 0u);
+    pipeline.Accumulate(std::min(64, spp - done));
   }
-  return renderer.AccumulatedMean();
+  return pipeline.AccumulatedRadiance();
 }
 
 std::vector<RunResult> RunStudy(const StudyOptions& o) {
-  auto renderer = CreateRenderer(ParseBackend(o.backend));
-  Context ctx{o, *renderer, renderer->backend(), nullptr};
-  const bool cuda = renderer->backend() == Backend::kCuda;
-#if CINEVOL_WITH_CUDA
-  ctx.display = cuda ? MakeCudaDisplay() : MakeCpuDisplay();
-#else
-  ctx.display = MakeCpuDisplay();
-#endif
+  Context ctx{o, Resolve(ParseBackend(o.backend), "study"), nullptr};
   std::string device;
-  if (!CudaAvailable(&device) || !cuda) device = "cpu";
+  if (!CudaAvailable(&device) || ctx.backend != Backend::kCuda) device = "cpu";
   std::vector<RunResult> results;
   for (const Dataset& d : o.datasets) {
     v1::Scene scene = LoadSceneFile(d.scene);
@@ -557,7 +553,7 @@ std::vector<RunResult> RunStudy(const StudyOptions& o) {
     auto volume = std::make_shared<const Volume>(LoadVolume(scene.volume()));
     const RenderSetup setup = ResolveScene(scene, *volume);
     ctx.exposure = setup.exposure;
-    renderer->SetVolume(volume);
+    ctx.volume = volume;
     for (const Scenario& s : MakeScenarios(setup, *volume, o.frames_scale)) {
       if (!o.scenarios.empty() && std::find(o.scenarios.begin(), o.scenarios.end(), s.name) == o.scenarios.end()) {
         continue;

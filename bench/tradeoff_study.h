@@ -13,7 +13,8 @@
 #include "core/camera.h"
 #include "core/image.h"
 #include "denoise/denoiser.h"
-#include "render/renderer.h"
+#include "io/scene_builder.h"
+#include "pipeline/frame_pipeline.h"
 
 namespace cinevol::bench {
 
@@ -39,9 +40,9 @@ struct StudyConfig {
 };
 
 // "NAME:key=value,..." -> a wRLS configuration with those settings changed.
-// Keys: alpha, bandwidth, lambda, initial_p, radius, atrous, sigma_luminance,
-// sigma_depth, still, residual_rate, drift, drift_boost, young, firefly, stabilize,
-// stabilize_clamp, recenter, rescale, rescale_sigma;
+// Keys: alpha, bandwidth, lambda, initial_p, atrous, sigma_luminance,
+// sigma_depth, still, residual_rate, drift, young, firefly, stabilize,
+// stabilize_clamp, recenter, rescale, rescale_sigma (WrlsSettings);
 // method=svgf makes it an SVGF variant (keys sigma_luminance, sigma_depth).
 // Either method also takes spp (samples per pixel per frame).
 StudyConfig Variant(const std::string& spec);
@@ -85,10 +86,12 @@ std::vector<std::string> ScenarioNames();
 std::vector<RunResult> RunStudy(const StudyOptions& options);
 
 // What the benchmarks share: the camera turned about its up axis through the
-// point it looks at, and a reference image of one view (`spp` samples in
-// chunks of 64, seeded by `frame`) from a renderer whose scene is set.
+// point it looks at, and a reference image of one view (its camera,
+// transfer function and lights): `spp` samples at `bounces` in chunks of 64,
+// seeded by `frame` alone, accumulated by a FramePipeline of its own.
 Camera Orbit(const Camera& camera, float degrees);
-ImageRgbF RenderReference(Renderer& renderer, const Camera& camera, int spp, int bounces, int frame);
+ImageRgbF RenderReference(Backend backend, std::shared_ptr<const Volume> volume, RenderSetup view, int spp,
+                          int bounces, int frame);
 
 // Markdown: per scenario, every configuration's means.
 std::string SummaryTable(const std::vector<RunResult>& results);

@@ -46,7 +46,7 @@ OfflineRenderResult RenderToFile(const v1::Scene& scene, const std::filesystem::
   const auto load_start = std::chrono::steady_clock::now();
   FramePipeline pipeline(backend, std::make_shared<const Volume>(LoadVolume(scene.volume(), base_dir)));
   FrameSettings settings;
-  settings.denoiser = DenoiseMethod::kNone;
+  settings.denoiser.method = DenoiseMethod::kNone;
   settings.target_spp = total_spp;
   pipeline.Update(scene, settings);
   result.load_seconds = SecondsSince(load_start);

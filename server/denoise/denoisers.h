@@ -238,10 +238,9 @@ class Svgf final : public DenoiserBase<B> {
 };
 
 // wRLS: the feature's history reprojected (and rescaled where the light or
-// the scene changed), the temporal pass (feature and models), the
-// predictions (blended over the neighbours' models where spatial_radius > 0),
-// a-trous levels guided by the variance the fit predicts, then the output's
-// stabilisation.
+// the scene changed), the temporal pass (feature and models), each pixel's
+// prediction, a-trous levels guided by the variance the fit predicts, then
+// the output's stabilisation.
 template <class B>
 class Wrls final : public DenoiserBase<B> {
  protected:
@@ -254,18 +253,14 @@ class Wrls final : public DenoiserBase<B> {
     B::ForEachPixel(w, h, ReprojectHistoryPass{rv, prev_feature_.data(), b_.data()});
     B::ForEachPixel(w, h, WrlsTemporalPass{rv, input, b_.data(), prev_model_.data(), feature_.data(), model_.data(), s,
                                            still_frames_, FeatureRatioRows(input, rv)});
-    B::ForEachPixel(w, h, WrlsSpatialPass{rv, feature_.data(), model_.data(), a_.data(), s});
+    B::ForEachPixel(w, h, WrlsPredictPass{feature_.data(), model_.data(), a_.data(), w, s.young_variance});
     B::ForEachPixel(w, h, CoveragePass{frame.first_hit, coverage_.data(), w, h});
     for (int level = 0; level < s.atrous_iterations; ++level) {
       B::ForEachPixel(w, h, AtrousPass{a_.data(), b_.data(), frame.first_hit, coverage_.data(), frame.camera, w, h,
                                        1 << level, s.atrous_sigma_luminance, s.atrous_sigma_depth});
       std::swap(a_, b_);
     }
-    if (s.stabilize_history > 0.0f) {
-      Stabilize(rv, output);
-    } else {
-      B::ForEachPixel(w, h, ColorOfPass{a_.data(), output, w});
-    }
+    Stabilize(rv, output);
   }
 
   void Allocate(std::size_t n) override {
@@ -284,11 +279,10 @@ class Wrls final : public DenoiserBase<B> {
 
  private:
   // The row sums the temporal pass rescales the feature's history (in b_)
-  // with, or null where it does not (rescaling off, or a still view: exact
-  // history).
+  // with, or null on a still view (its history is exact).
   const Vec4f* FeatureRatioRows(const Vec3f* input, const ReprojectionView& rv) {
     const WrlsSettings& s = this->settings_.wrls;
-    if (s.feature_rescale <= 0 || rv.still) return nullptr;
+    if (rv.still) return nullptr;
     const int w = this->width_, h = this->height_;
     B::ForEachPixel(w, h, FeatureRatioRowsPass{input, b_.data(), offset_rows_.data(), w, s.feature_rescale,
                                                s.firefly_clamp});
@@ -301,9 +295,7 @@ class Wrls final : public DenoiserBase<B> {
     const int w = this->width_, h = this->height_;
     std::swap(stable_, prev_stable_);
     B::ForEachPixel(w, h, ReprojectHistoryPass{rv, prev_stable_.data(), b_.data()});
-    if (s.stabilize_recenter > 0) {
-      B::ForEachPixel(w, h, HistoryOffsetRowsPass{a_.data(), b_.data(), offset_rows_.data(), w, s.stabilize_recenter});
-    }
+    B::ForEachPixel(w, h, HistoryOffsetRowsPass{a_.data(), b_.data(), offset_rows_.data(), w, s.stabilize_recenter});
     B::ForEachPixel(w, h, WrlsStabilizePass{a_.data(), b_.data(), offset_rows_.data(), output, stable_.data(), w, h,
                                             s.stabilize_history, s.stabilize_clamp, s.stabilize_recenter});
   }

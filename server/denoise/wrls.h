@@ -4,9 +4,8 @@
 // Per pixel: a temporal feature z (Eq. 12; its reprojected history first
 // rescaled by the window's change of light, FeatureRatioRowsPass), then per
 // channel a linear model I ~ beta0 + beta1 z updated by weighted recursive
-// least squares (Eqs. 9-11, 13, 14); a spatial pass evaluates the model,
-// optionally blending the predictions of the neighbours' models, with the
-// variance it predicts; after the a-trous levels (baselines.h) a last pass
+// least squares (Eqs. 9-11, 13, 14); a second pass evaluates each pixel's
+// model, with the variance it predicts; after the a-trous levels (baselines.h) a last pass
 // steadies the output over time.
 //
 // Numerics (what keeps it stable at the extremes):
@@ -149,19 +148,22 @@ CINEVOL_HD void UpdateChannel(WrlsModel& m, int c, float u, float y, float w, co
 // drift_sigma): while the running mean of the residual stays within
 // drift_sigma deviations of what noise alone gives it, the model keeps its
 // firm prior; when it drifts beyond them (the radiance changed under the
-// model), P is widened by drift_boost, so the next samples move the fit.
+// model), P is widened by kWrlsDriftBoost, so the next samples move the fit.
 // A model with no noise estimate yet (residual 0) waits: every error would
 // read as a drift (at 1 spp on the MR head's still view at 720p such false
 // alarms cost 1.8 dB, docs/tradeoff.md).
 inline constexpr float kWrlsDriftRate = 0.3f;  // EMA rate of the drift: a change shows within 2-3 frames
+// What a drift adds to P's diagonal: 3 (with drift_sigma 1.5) read the same
+// to 0.02 dB, since the drift rarely fires.
+inline constexpr float kWrlsDriftBoost = 1.0f;
 
 CINEVOL_HD void AdaptForgetting(WrlsModel& m, float luminance_error, float w, const WrlsSettings& s) {
-  if (!(s.drift_sigma > 0.0f) || !(m.residual > 0.0f)) return;
+  if (!(m.residual > 0.0f)) return;
   m.drift += kWrlsDriftRate * w * (luminance_error - m.drift);
   // An EMA of rate k over noise of variance v has variance v k / (2 - k).
   const float noise = m.residual * (kWrlsDriftRate / (2.0f - kWrlsDriftRate));
   if (Sqr(m.drift) <= Sqr(s.drift_sigma) * noise) return;
-  const Vec3f boost{s.drift_boost, s.drift_boost, s.drift_boost};
+  const Vec3f boost{kWrlsDriftBoost, kWrlsDriftBoost, kWrlsDriftBoost};
   m.p00 += boost;
   m.p11 += boost;
   m.drift = 0.0f;
@@ -379,45 +381,28 @@ struct WrlsTemporalPass {
   }
 };
 
-// Pass 2: each pixel blends its neighbours' model predictions (each model at
-// its own pixel's feature) with bilateral weights on the feature; radius 0
-// (the default) is the pixel's own prediction. Evaluating every neighbour's
-// model at the centre's feature instead (the other reading of the paper's
-// Sec. 5.3) keeps the centre's feature noise: 1.1 dB worse on the CThead
-// orbit (docs/denoising.md).
-struct WrlsSpatialPass {
-  ReprojectionView rv;  // first_hit only: volume and background do not mix
+// Pass 2: each pixel's model evaluated at its feature, with the variance
+// it predicts. The paper's blend of the neighbours' predictions (Sec. 5.3)
+// measured 2.0 dB worse on the CThead orbit at 720p, and evaluating the
+// neighbours' models at the centre's feature (its other reading) 1.1 dB
+// worse still (docs/denoising.md): the a-trous levels do the spatial work.
+struct WrlsPredictPass {
   const Vec3f* feature;
   const WrlsModel* model;
   Vec4f* output;  // rgb prediction, w its variance
-  WrlsSettings s;
+  int width;
+  float young_variance;
 
   CINEVOL_HD void operator()(int x, int y) const {
-    const int i = rv.Index(x, y);
+    const int i = y * width + x;
     const Vec3f z = feature[i];
-    const bool escaped = Escaped(rv.first_hit[i]);
-    const float z2 = Dot(z, z);
-    const float inv_spatial = 1.0f / (2.0f * s.spatial_sigma * s.spatial_sigma);
-    Vec3f sum{};
-    float weight = 0.0f, variance = 0.0f;
-    for (int dy = -s.spatial_radius; dy <= s.spatial_radius; ++dy) {
-      for (int dx = -s.spatial_radius; dx <= s.spatial_radius; ++dx) {
-        const int nx = x + dx, ny = y + dy;
-        if (!rv.InBounds(nx, ny)) continue;
-        const int k = rv.Index(nx, ny);
-        if (Escaped(rv.first_hit[k]) != escaped) continue;
-        const Vec3f zk = feature[k];
-        const Vec3f diff = z - zk;
-        const float range = Dot(diff, diff) / (2.0f * s.range_sigma * s.range_sigma * (0.5f * (z2 + Dot(zk, zk))) + 1e-30f);
-        const float w = expf(-float(dx * dx + dy * dy) * inv_spatial - range);
-        const WrlsModel& m = model[k];
-        sum += (m.beta0 * m.scale + m.beta1 * zk) * w;
-        variance += PredictionVariance(m, zk, s.young_variance) * w * w;
-        weight += w;
-      }
+    if (!IsFinite(z)) {
+      output[i] = ToVec4(z, 0.0f);
+      return;
     }
-    const Vec3f out = weight > 0.0f ? sum / weight : z;
-    const float v = weight > 0.0f ? variance / (weight * weight) : 0.0f;
+    const WrlsModel& m = model[i];
+    const Vec3f out = m.beta0 * m.scale + m.beta1 * z;
+    const float v = PredictionVariance(m, z, young_variance);
     output[i] = ToVec4(IsFinite(out) ? Max(out, Vec3f{}) : z, isfinite(v) ? v : 0.0f);
   }
 };
@@ -428,18 +413,17 @@ struct WrlsSpatialPass {
 // variance the fit predicts), so a real change (a light moving, the transfer
 // function edited) passes through and only noise is averaged. The box is
 // centred on the pixel, not on the 3x3 mean, so that it does not blur edges.
-// With `recenter` > 0 the history is first recentred on the estimate
-// (HistoryOffsetRowsPass), so a change of shading passes whole and noise
-// keeps being smoothed.
+// The history is first recentred on the estimate (HistoryOffsetRowsPass), so
+// a change of shading passes whole and noise keeps being smoothed.
 struct WrlsStabilizePass {
   const Vec4f* current;      // this frame's estimate: colour, predicted variance
   const Vec4f* history;      // ReprojectHistoryPass
-  const Vec4f* offset_rows;  // HistoryOffsetRowsPass; unread without recentering
+  const Vec4f* offset_rows;  // HistoryOffsetRowsPass
   Vec3f* output;             // the denoiser's output
   Vec3f* kept;               // the same, kept as the next frame's history
   int width, height;
   float history_weight, clamp_sigma;
-  int recenter;
+  int recenter;  // >= 1
 
   CINEVOL_HD bool InBounds(int x, int y) const { return x >= 0 && y >= 0 && x < width && y < height; }
 
@@ -449,7 +433,7 @@ struct WrlsStabilizePass {
     Vec3f out = c;
     if (history[i].w != 0.0f) {
       Vec3f h = Xyz(history[i]);
-      if (recenter > 0) h = Max(h - Xyz(WindowMean(offset_rows, width, height, x, y, recenter)), Vec3f{});
+      h = Max(h - Xyz(WindowMean(offset_rows, width, height, x, y, recenter)), Vec3f{});
       Vec3f sum{}, sum_sq{};
       float n = 0.0f;
       for (int dy = -1; dy <= 1; ++dy) {

@@ -6,14 +6,8 @@
 #include <cmath>
 #include <iterator>
 
-#include "io/scene_builder.h"
-
 namespace cinevol {
 namespace {
-
-bool SameDenoiser(const FrameSettings& a, const FrameSettings& b) {
-  return a.denoiser == b.denoiser && a.demodulate == b.demodulate;
-}
 
 using Clock = std::chrono::steady_clock;
 
@@ -37,8 +31,8 @@ float RefinementBlend(int accumulated_spp, int target_spp) {
   return std::log(float(accumulated_spp) / kBlendStartSpp) / std::log(float(target_spp) / kBlendStartSpp);
 }
 
-FramePipeline::FramePipeline(Backend backend, std::shared_ptr<const Volume> volume)
-    : volume_(std::move(volume)), renderer_(CreateRenderer(backend)) {
+FramePipeline::FramePipeline(Backend backend, std::shared_ptr<const Volume> volume, const RendererOptions& options)
+    : volume_(std::move(volume)), renderer_(CreateRenderer(backend, options)) {
   renderer_->SetVolume(volume_);
 #if CINEVOL_WITH_CUDA
   if (renderer_->backend() == Backend::kCuda) {
@@ -55,34 +49,51 @@ FramePipeline::FramePipeline(Backend backend, std::shared_ptr<const Volume> volu
 FramePipeline::~FramePipeline() = default;
 
 void FramePipeline::Update(const v1::Scene& scene, const FrameSettings& settings, unsigned changes) {
-  const bool first = !has_scene_;
-  if (first) changes = kEverythingChanged;
-  const bool tf_changed = changes & kTransferFunctionChanged;
-  const bool lights_changed = changes & kLightsChanged;
+  if (!has_scene_) changes = kEverythingChanged;
   // Named views frame what the transfer function shows, so they follow its edits.
-  const bool camera_changed =
-      (changes & kCameraChanged) || (tf_changed && scene.camera().view() != v1::NAMED_VIEW_UNSPECIFIED);
-  const bool sampling_changed = changes & kSamplingChanged;
+  if ((changes & kTransferFunctionChanged) && scene.camera().view() != v1::NAMED_VIEW_UNSPECIFIED) {
+    changes |= kCameraChanged;
+  }
+  if (changes & kTransferFunctionChanged) {
+    SetTransferFunction(ResolveTransferFunction(scene.transfer_function(), *volume_));
+  }
+  if (changes & kLightsChanged) renderer_->SetLights(ResolveLights(scene.lights()));
+  if (changes & kCameraChanged) camera_ = ResolveCamera(scene.camera(), scene.render(), *volume_, transfer_function_);
+  spp_ = static_cast<int>(scene.render().spp());
+  max_bounces_ = static_cast<int>(scene.render().max_bounces());
+  seed_ = scene.render().seed();
+  exposure_ = scene.camera().exposure();
+  Apply(settings, changes);
+}
 
-  if (tf_changed) {
-    transfer_function_ = ResolveTransferFunction(scene.transfer_function(), *volume_);
-    renderer_->SetTransferFunction(transfer_function_);
+void FramePipeline::Update(const RenderSetup& setup, const FrameSettings& settings, unsigned changes) {
+  if (!has_scene_) changes = kEverythingChanged;
+  if (changes & kTransferFunctionChanged) SetTransferFunction(setup.transfer_function);
+  if (changes & kLightsChanged) renderer_->SetLights(setup.lights);
+  if (changes & kCameraChanged) camera_ = setup.camera;
+  spp_ = setup.spp;
+  max_bounces_ = setup.max_bounces;
+  seed_ = setup.seed;
+  exposure_ = setup.exposure;
+  Apply(settings, changes);
+}
+
+void FramePipeline::SetTransferFunction(TransferFunction tf) {
+  transfer_function_ = std::move(tf);
+  renderer_->SetTransferFunction(transfer_function_);  // rebuilds the majorants
+  ++transfer_function_builds_;
+}
+
+void FramePipeline::Apply(const FrameSettings& settings, unsigned changes) {
+  if (!has_scene_ || !(settings.denoiser == settings_.denoiser)) {
+    denoiser_ = CreateDenoiser(renderer_->backend(), settings.denoiser);  // frames stay in the renderer's memory
   }
-  if (lights_changed) renderer_->SetLights(ResolveLights(scene.lights()));
-  if (camera_changed) camera_ = ResolveCamera(scene.camera(), scene.render(), *volume_, transfer_function_);
-  if (first || !SameDenoiser(settings, settings_)) {
-    DenoiserSettings denoiser;
-    denoiser.method = settings.denoiser;
-    denoiser.demodulate = settings.demodulate;
-    denoiser_ = CreateDenoiser(renderer_->backend(), denoiser);  // frames stay in the renderer's memory
-  }
-  if (tf_changed || lights_changed) ++scene_version_;
-  if (!first && (camera_changed || tf_changed)) moved_at_ = Clock::now();
-  if (tf_changed || lights_changed || camera_changed || sampling_changed) {
+  if (changes & (kTransferFunctionChanged | kLightsChanged)) ++scene_version_;
+  if (has_scene_ && (changes & (kCameraChanged | kTransferFunctionChanged))) moved_at_ = Clock::now();
+  if (changes & kEverythingChanged) {
     renderer_->ResetAccumulation();
     accumulated_spp_ = 0;
   }
-  scene_ = scene;
   settings_ = settings;
   has_scene_ = true;
 }
@@ -111,9 +122,10 @@ FrameRequest FramePipeline::Request(int spp) {
   FrameRequest r;
   r.camera = Scaled(camera_, scale_);
   r.spp = spp;
-  r.max_bounces = static_cast<int>(scene_.render().max_bounces());
-  r.seed = scene_.render().seed();
+  r.max_bounces = max_bounces_;
+  r.seed = seed_;
   r.frame = frame_++;
+  r.features = render_features_;
   r.cancel = cancel_;
   return r;
 }
@@ -123,12 +135,11 @@ DisplayFrame FramePipeline::RenderFrame() {
   SetScale(ChooseScale());
   DisplayFrame out;
   out.resolution_scale = scale_;
-  const int spp = static_cast<int>(scene_.render().spp());
-  const FrameRequest request = Request(spp);
+  const FrameRequest request = Request(spp_);
   const Camera& camera = request.camera;
   renderer_->Render(request);
   out.render_ms = renderer_->LastFrameMilliseconds();
-  accumulated_spp_ += spp;
+  accumulated_spp_ += spp_;
 
   const FrameTargets t = renderer_->Targets();
   const Vec3f* denoised =
@@ -150,7 +161,7 @@ DisplayFrame FramePipeline::RenderFrame() {
     in.denoised = denoised;
     in.accumulated_sum = t.accumulated;
     in.inv_frames = 1.0f / float(renderer_->accumulated_frames());
-    in.blend = RefinementBlend(accumulated_spp_, settings_.target_spp);
+    in.blend = settings_.refine ? RefinementBlend(accumulated_spp_, settings_.target_spp) : 0.0f;
   }
   in.chroma = settings_.chroma;
   out.image = display_->Run(in);

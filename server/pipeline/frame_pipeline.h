@@ -25,6 +25,7 @@
 #include "core/volume.h"
 #include "denoise/denoiser.h"
 #include "encode/image_codecs.h"
+#include "io/scene_builder.h"
 #include "pipeline/display.h"
 #include "pipeline/upsample.h"
 #include "render/renderer.h"
@@ -33,8 +34,7 @@ namespace cinevol {
 
 // How frames are made from the scene, beyond what the scene model says.
 struct FrameSettings {
-  DenoiseMethod denoiser = DenoiseMethod::kWrls;
-  bool demodulate = false;        // divide by the first-hit albedo around the denoiser
+  DenoiserSettings denoiser;      // the method and every knob of it; a change makes a new denoiser
   int jpeg_quality = 80;          // [1, 100]
   int final_jpeg_quality = 95;    // [1, 100]: the frame that ends refinement
   ChromaSubsampling chroma = ChromaSubsampling::k420;
@@ -47,6 +47,9 @@ struct FrameSettings {
   // the default, since a smaller frame costs accuracy (docs/tradeoff.md:
   // -1.1 dB at 0.75, -2.8 dB at 0.5, on CThead at 720p).
   float interactive_frame_ms = 0;
+  // false: every frame shows the denoiser's output alone, never the
+  // accumulation (the benches measure frames as they look while interacting).
+  bool refine = true;
 };
 
 // The resolution scales interactive frames choose from, largest first, and
@@ -82,7 +85,7 @@ enum SceneChange : unsigned {
 
 class FramePipeline {
  public:
-  FramePipeline(Backend backend, std::shared_ptr<const Volume> volume);
+  FramePipeline(Backend backend, std::shared_ptr<const Volume> volume, const RendererOptions& options = {});
   ~FramePipeline();
 
   // Takes the scene (validated, defaults filled) and settings; rebuilds only
@@ -91,6 +94,11 @@ class FramePipeline {
   // Throws InputError for a scene the volume cannot resolve (e.g. an
   // unreadable environment map).
   void Update(const v1::Scene& scene, const FrameSettings& settings, unsigned changes = kEverythingChanged);
+  // The same from a scene already resolved against the volume: the benches'
+  // scenarios move cameras, lights and transfer functions no scene file
+  // names. Reads only the parts `changes` names (and the sampling and
+  // exposure, every time).
+  void Update(const RenderSetup& setup, const FrameSettings& settings, unsigned changes = kEverythingChanged);
 
   // One frame of the scene's spp: render, denoise, blend, tone map.
   DisplayFrame RenderFrame();
@@ -99,6 +107,10 @@ class FramePipeline {
   // Frames check `cancel` as they render (FrameRequest::cancel); a cancelled
   // frame throws Cancelled and leaves the pipeline to be discarded.
   void SetCancel(const std::atomic<bool>* cancel) { cancel_ = cancel; }
+  // kAutoFeatures (the default) renders with the smallest specialised
+  // integrator; `cinevol-bench render` forces kAllFeatures to measure what
+  // specialisation buys.
+  void SetRenderFeatures(unsigned features) { render_features_ = features; }
 
   int accumulated_spp() const { return accumulated_spp_; }
   // Bumped by every transfer-function or light rebuild.
@@ -106,10 +118,21 @@ class FramePipeline {
   // Refinement is done: target_spp samples behind a full-size image.
   bool Converged() const { return scale_ == 1.0f && accumulated_spp_ >= settings_.target_spp; }
   ImageRgbF AccumulatedRadiance() const { return renderer_->AccumulatedMean(); }
-  float exposure() const { return scene_.camera().exposure(); }
+  // The last frame's denoised linear radiance, before blending and tone
+  // mapping (the benches compare it with references in HDR).
+  ImageRgbF DenoisedRadiance() const { return denoiser_->Output(); }
+  float exposure() const { return exposure_; }
   Backend backend() const { return renderer_->backend(); }
+  unsigned last_render_features() const { return renderer_->last_features(); }
+  // What edits cost: transfer functions resolved and majorant grids built
+  // since construction. A camera move builds neither.
+  std::uint64_t transfer_function_builds() const { return transfer_function_builds_; }
+  std::uint64_t majorant_builds() const { return renderer_->majorant_builds(); }
 
  private:
+  void SetTransferFunction(TransferFunction tf);
+  // What every update ends with: the denoiser, its cue and the accumulation.
+  void Apply(const FrameSettings& settings, unsigned changes);
   FrameRequest Request(int spp);
   float ChooseScale();
   void SetScale(float scale);
@@ -119,11 +142,15 @@ class FramePipeline {
   std::unique_ptr<Denoiser> denoiser_;
   std::unique_ptr<Display> display_;
   std::unique_ptr<Upsampler> upsampler_;
-  v1::Scene scene_;
   FrameSettings settings_;
   bool has_scene_ = false;
   TransferFunction transfer_function_;
   Camera camera_;
+  int spp_ = 1, max_bounces_ = 0;
+  std::uint64_t seed_ = 0;
+  float exposure_ = 0;
+  unsigned render_features_ = kAutoFeatures;
+  std::uint64_t transfer_function_builds_ = 0;
   std::uint64_t scene_version_ = 0;  // bumped on transfer-function and light edits (the denoiser's cue)
   std::uint32_t frame_ = 0;          // seeds each frame's samples
   int accumulated_spp_ = 0;

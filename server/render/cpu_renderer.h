@@ -19,6 +19,7 @@ class CpuRenderer final : public Renderer {
   void ResetAccumulation() override;
   int accumulated_frames() const override { return accumulated_frames_; }
   unsigned last_features() const override { return last_features_; }
+  std::uint64_t majorant_builds() const override { return data_.majorant_builds(); }
   double LastFrameMilliseconds() const override { return last_ms_; }
   ImageRgbF Radiance() const override;
   ImageRgbF AccumulatedMean() const override;

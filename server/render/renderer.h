@@ -70,6 +70,8 @@ class Renderer {
   virtual int accumulated_frames() const = 0;
   // The feature set the last frame was rendered with.
   virtual unsigned last_features() const = 0;
+  // How many times the majorants were rebuilt (SceneData::majorant_builds).
+  virtual std::uint64_t majorant_builds() const = 0;
   // Time the last frame took to render: wall time on the CPU, kernel time
   // (CUDA events) on the GPU, where reading it waits for the frame.
   virtual double LastFrameMilliseconds() const = 0;

@@ -82,6 +82,7 @@ void SceneData::UpdateMajorants() {
   const RenderScene view = HostView();
   majorants_ =
       ComputeMajorants(volume_->brick_ranges(), table_.sigma_t, view.transfer.entry_scale, view.transfer.entry_offset);
+  ++majorant_builds_;
 }
 
 void SceneData::SetLights(const LightSetup& setup) {

@@ -38,6 +38,9 @@ class SceneData {
   bool has_volume() const { return volume_ != nullptr; }
   const PreparedVolume& volume() const { return *volume_; }
   const std::vector<float>& majorants() const { return majorants_; }
+  // How many times the majorants were rebuilt (volume and transfer-function
+  // changes): tests check that a camera move rebuilds none.
+  std::uint64_t majorant_builds() const { return majorant_builds_; }
   const TransferTable& table() const { return table_; }
   const std::vector<Light>& lights() const { return lights_.lights; }
   const EnvironmentDistribution& environment_distribution() const { return environment_; }
@@ -53,6 +56,7 @@ class SceneData {
   TransferFunction tf_;
   TransferTable table_;
   std::vector<float> majorants_;
+  std::uint64_t majorant_builds_ = 0;
   LightSetup lights_;
   EnvironmentDistribution environment_;
 };

@@ -64,7 +64,7 @@ class StillJob final : public Job {
         pipeline_ = std::make_unique<FramePipeline>(backend_, volume_->volume());
         pipeline_->SetCancel(cancel_.get());
         FrameSettings settings;
-        settings.denoiser = DenoiseMethod::kNone;
+        settings.denoiser.method = DenoiseMethod::kNone;
         settings.target_spp = spp_;
         pipeline_->Update(scene_, settings);
       }

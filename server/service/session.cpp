@@ -311,7 +311,7 @@ bool Session::Step() {
   ++context_.scheduler->frames_rendered;
   ServerMetrics().FrameRendered();
   ServerMetrics().ObserveStage(Stage::kRender, frame.render_ms / 1000.0);
-  if (work.settings.denoiser != DenoiseMethod::kNone) {
+  if (work.settings.denoiser.method != DenoiseMethod::kNone) {
     ServerMetrics().ObserveStage(Stage::kDenoise, frame.denoise_ms / 1000.0);
   }
   ServerMetrics().ObserveStage(Stage::kTonemap, frame.display_ms / 1000.0);

@@ -161,9 +161,9 @@ v1::Scene InitialScene(const v1::CreateSessionRequest& request, const Volume& vo
 FrameSettings MergeStreamSettings(FrameSettings s, const v1::StreamSettings& edit, const std::string& field) {
   CheckEnum(v1::Denoiser_IsValid(edit.denoiser()), edit.denoiser(), field + ".denoiser");
   CheckEnum(v1::ChromaSubsampling_IsValid(edit.chroma()), edit.chroma(), field + ".chroma");
-  if (edit.denoiser() != v1::DENOISER_UNSPECIFIED) s.denoiser = ToMethod(edit.denoiser());
+  if (edit.denoiser() != v1::DENOISER_UNSPECIFIED) s.denoiser.method = ToMethod(edit.denoiser());
   if (edit.chroma() != v1::CHROMA_UNSPECIFIED) s.chroma = ToChroma(edit.chroma());
-  if (edit.has_demodulate()) s.demodulate = edit.demodulate();
+  if (edit.has_demodulate()) s.denoiser.demodulate = edit.demodulate();
   if (edit.has_jpeg_quality()) {
     CheckRange(edit.jpeg_quality(), 1, 100, field + ".jpeg_quality");
     s.jpeg_quality = static_cast<int>(edit.jpeg_quality());

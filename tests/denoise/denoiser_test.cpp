@@ -273,8 +273,9 @@ TEST(Wrls, StabilisationSteadiesEditsAndFollowsAStep) {
 // A light sweeping across a still view (the scene edited every frame): each
 // pixel brightens and darkens in turn, so the feature's history lags by a
 // different amount everywhere, which a per-pixel fit cannot learn. Rescaling
-// the history by the window's ratio of input to history (on by default)
-// takes most of it out.
+// the history by the window's ratio of input to history takes most of it
+// out; an infinite shrinkage deviation reads every window's change as noise
+// and rescales nothing.
 TEST(Wrls, FeatureRescalingFollowsAMovingLight) {
   constexpr int kWidth = 64, kHeight = 32, kFrames = 30;
   auto error = [&](const DenoiserSettings& s) {
@@ -300,7 +301,7 @@ TEST(Wrls, FeatureRescalingFollowsAMovingLight) {
     return sum;
   };
   DenoiserSettings without;
-  without.wrls.feature_rescale = 0;
+  without.wrls.feature_rescale_sigma = std::numeric_limits<float>::infinity();
   const double plain = error(without), rescaled = error(DenoiserSettings{});
   std::printf("mean relative error, frames 10-29: %.4f plain, %.4f rescaled\n", plain, rescaled);
   EXPECT_LT(rescaled, 0.8 * plain);

@@ -24,6 +24,8 @@ TEST(TradeoffStudy, VariantsParseTheirKeysAndNameBadOnes) {
   EXPECT_THROW(Variant("z:spp=0"), InputError);
   EXPECT_THROW(Variant("u:no_such_key=1"), InputError);
   EXPECT_THROW(Variant("k:method=knn"), InputError);
+  EXPECT_THROW(Variant("r:rescale=0"), InputError) << "the study settled rescaling: it cannot be turned off";
+  EXPECT_THROW(Variant("b:radius=2"), InputError) << "the paper's spatial blend left the code";
 }
 
 TEST(TradeoffStudy, TinyRunKeepsWrlsAheadAndNumbersFinite) {

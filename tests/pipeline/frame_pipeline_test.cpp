@@ -7,6 +7,7 @@
 
 #include "io/phantom.h"
 #include "io/presets.h"
+#include "io/scene_builder.h"
 #include "io/scene_file.h"
 #include "pipeline/frame_pipeline.h"
 #include "support/gpu.h"
@@ -56,12 +57,18 @@ TEST(RefinementBlend, RisesFromDenoisedToAccumulatedWithSamples) {
   EXPECT_NEAR(RefinementBlend(64, 256), 0.5f, 1e-5f) << "halfway in log(spp) from 16 to 256";
 }
 
+// ... and rebuild only what the edit invalidates: a camera move resolves no
+// transfer function and builds no majorants, a transfer-function edit one of
+// each.
 TEST(FramePipeline, EditsResetTheAccumulationOnlyWhenTheImageChanges) {
   auto volume = SmallHead();
   FramePipeline pipeline(Backend::kCpu, volume);
   v1::Scene scene = SmallScene(*volume);
   FrameSettings settings;
   pipeline.Update(scene, settings);
+  EXPECT_EQ(pipeline.transfer_function_builds(), 1u);
+  const std::uint64_t majorants = pipeline.majorant_builds();
+  EXPECT_GE(majorants, 1u);
   pipeline.RenderFrame();
   pipeline.RenderFrame();
   EXPECT_EQ(pipeline.accumulated_spp(), 4);
@@ -77,21 +84,57 @@ TEST(FramePipeline, EditsResetTheAccumulationOnlyWhenTheImageChanges) {
   const std::uint64_t version = pipeline.scene_version();
   pipeline.RenderFrame();
   EXPECT_EQ(pipeline.scene_version(), version) << "a camera move rebuilt the transfer function or lights";
+  EXPECT_EQ(pipeline.transfer_function_builds(), 1u) << "a camera move";
+  EXPECT_EQ(pipeline.majorant_builds(), majorants) << "a camera move";
 
   scene.mutable_transfer_function()->set_preset("ct-soft-tissue");
   pipeline.Update(scene, settings, kTransferFunctionChanged);
   EXPECT_EQ(pipeline.accumulated_spp(), 0) << "a transfer-function edit";
   EXPECT_GT(pipeline.scene_version(), version);
+  EXPECT_EQ(pipeline.transfer_function_builds(), 2u);
+  EXPECT_EQ(pipeline.majorant_builds(), majorants + 1);
   pipeline.RenderFrame();
 
   scene.mutable_lights()->RemoveLast();
   pipeline.Update(scene, settings, kLightsChanged);
   EXPECT_EQ(pipeline.accumulated_spp(), 0) << "a light edit";
+  EXPECT_EQ(pipeline.majorant_builds(), majorants + 1) << "a light edit";
   pipeline.RenderFrame();
 
-  settings.denoiser = DenoiseMethod::kSvgf;  // a new denoiser, the same samples
+  settings.denoiser.method = DenoiseMethod::kSvgf;  // a new denoiser, the same samples
   pipeline.Update(scene, settings, 0);
   EXPECT_EQ(pipeline.accumulated_spp(), 2);
+  settings.denoiser.svgf.sigma_depth = 2;  // a knob of it: the same
+  pipeline.Update(scene, settings, 0);
+  EXPECT_EQ(pipeline.accumulated_spp(), 2);
+  EXPECT_EQ(pipeline.transfer_function_builds(), 2u) << "settings edits";
+}
+
+// The benches drive the pipeline with scenes they resolved themselves; with
+// refinement off every frame is the denoiser's output alone.
+TEST(FramePipeline, ResolvedScenesAndFramesWithoutRefinement) {
+  auto volume = SmallHead();
+  const v1::Scene scene = SmallScene(*volume);
+  FramePipeline from_proto(Backend::kCpu, volume), resolved(Backend::kCpu, volume);
+  FrameSettings settings;
+  settings.refine = false;
+  settings.target_spp = 4;
+  settings.denoiser.method = DenoiseMethod::kNone;
+  from_proto.Update(scene, settings);
+  resolved.Update(ResolveScene(scene, *volume), settings);
+  for (int i = 0; i < 3; ++i) {
+    const DisplayFrame a = from_proto.RenderFrame(), b = resolved.RenderFrame();
+    EXPECT_EQ(Bytes(a.image), Bytes(b.image)) << "frame " << i;
+    // The display pass over the denoised image alone.
+    const ImageRgbF denoised = resolved.DenoisedRadiance();
+    DisplayInputs in;
+    in.width = denoised.width;
+    in.height = denoised.height;
+    in.denoised = denoised.pixels.data();
+    in.exposure = resolved.exposure();
+    EXPECT_EQ(Bytes(b.image), Bytes(MakeCpuDisplay()->Run(in))) << "frame " << i << ": refinement is off";
+  }
+  EXPECT_TRUE(resolved.Converged());
 }
 
 TEST(FramePipeline, TheConvergedFrameIsTheToneMappedMean) {
