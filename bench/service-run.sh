@@ -11,7 +11,8 @@
 set -uo pipefail
 cd "$(dirname "$0")/.."
 out=${OUT:-gpu-out}
-mkdir -p "$out" /tmp/cv
+runs=/tmp/cv/service-runs  # per-run logs; the tables go to $out/service.md
+mkdir -p "$out" "$runs"
 [ -x /tmp/cv/bin/cinevol-server ] || tar xJf .gpu/bundle.tar.xz -C /tmp/cv
 export LD_LIBRARY_PATH=/tmp/cv/lib
 bin=/tmp/cv/bin
@@ -29,25 +30,26 @@ run() {  # run N WORKERS_PER_GPU
   local tag=$label-$n-$workers
   rm -f "$port_file"
   "$server_bin" --listen 127.0.0.1:0 --port-file "$port_file" --backend cuda --volume "$volume" \
-    --workers-per-gpu "$workers" > "$out/server-$tag.log" 2>&1 &
+    --workers-per-gpu "$workers" --max-sessions 256 --max-sessions-per-principal 256 \
+    --max-total-pixels 300000000 > "$runs/server-$tag.log" 2>&1 &
   local server=$!
   for _ in $(seq 300); do [ -s "$port_file" ] && break; sleep 0.1; done
-  nvidia-smi --query-gpu=utilization.gpu,memory.used --format=csv,noheader,nounits -lms 200 > "$out/gpu-util-$tag.txt" &
+  nvidia-smi --query-gpu=utilization.gpu,memory.used --format=csv,noheader,nounits -lms 200 > "$runs/gpu-util-$tag.txt" &
   local smi=$!
   read -r busy0 total0 < <(cpu_ticks)
   "$bin/cinevol" loadtest --server "127.0.0.1:$(cat "$port_file")" --sessions "$n" --seconds "$seconds" \
-    --width 1280 --height 720 --spp 2 --denoiser wrls --scene "$scene" ${EXTRA:-} > "$out/loadtest-$tag.md" 2>&1
+    --width 1280 --height 720 --spp 2 --denoiser wrls --scene "$scene" ${EXTRA:-} > "$runs/loadtest-$tag.md" 2>&1
   echo "loadtest $label N=$n workers=$workers rc=$?"
   read -r busy1 total1 < <(cpu_ticks)
   kill $smi
   kill -TERM $server
   wait $server
   local gpu mem cpu
-  gpu=$(awk -F', ' '$1>0{s+=$1;n++} END{printf "%.0f", n?s/n:0}' "$out/gpu-util-$tag.txt")
-  mem=$(awk -F', ' '$2>m{m=$2} END{print m+0}' "$out/gpu-util-$tag.txt")
+  gpu=$(awk -F', ' '$1>0{s+=$1;n++} END{printf "%.0f", n?s/n:0}' "$runs/gpu-util-$tag.txt")
+  mem=$(awk -F', ' '$2>m{m=$2} END{print m+0}' "$runs/gpu-util-$tag.txt")
   cpu=$(awk -v b="$((busy1-busy0))" -v t="$((total1-total0))" 'BEGIN{printf "%.0f", 100*b/t}')
   { echo "#### $label, $n sessions"
-    cat "$out/loadtest-$tag.md"
+    cat "$runs/loadtest-$tag.md"
     echo "GPU utilisation (nvidia-smi, mean of non-zero samples): ${gpu}%; GPU memory used (peak): ${mem} MiB; CPU busy (all $(nproc) cores, server and client): ${cpu}%; workers per GPU: $workers"
     echo; } >> "$out/service.md"
 }

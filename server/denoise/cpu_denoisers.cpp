@@ -1,5 +1,5 @@
 // The denoisers instantiated for the CPU backend.
-#include "denoise/backend_cpu.h"
+#include "device/cpu_backend.h"
 #include "denoise/denoisers.h"
 
 namespace cinevol {

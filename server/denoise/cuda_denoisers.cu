@@ -1,5 +1,5 @@
 // The denoisers instantiated for the CUDA backend.
-#include "denoise/backend_cuda.cuh"
+#include "device/cuda_backend.cuh"
 #include "denoise/denoisers.h"
 
 namespace cinevol {

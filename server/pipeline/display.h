@@ -3,7 +3,7 @@
 // JPEG's YCbCr with the session's chroma subsampling, and copy the planes to
 // the host (1.5 bytes a pixel at 4:2:0, instead of 12 of radiance), where the
 // JPEG encoder takes them as they are. Runs on the backend that rendered the
-// frame, from one source (denoise/backend_*.h).
+// frame, from one source (device/cpu_backend.h, cuda_backend.cuh).
 #pragma once
 
 #include <atomic>

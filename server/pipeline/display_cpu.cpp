@@ -1,5 +1,5 @@
 // The display stage on the CPU.
-#include "denoise/backend_cpu.h"
+#include "device/cpu_backend.h"
 #include "pipeline/display.h"
 #include "pipeline/upsample.h"
 

@@ -1,5 +1,5 @@
 // The display stage on the GPU, after the renderer and denoiser on the same stream.
-#include "denoise/backend_cuda.cuh"
+#include "device/cuda_backend.cuh"
 #include "pipeline/display.h"
 #include "pipeline/upsample.h"
 

@@ -8,7 +8,7 @@
 
 #include "core/camera.h"
 #include "core/rng.h"
-#include "denoise/backend_cpu.h"
+#include "device/cpu_backend.h"
 #include "denoise/baselines.h"
 
 namespace cinevol {

@@ -9,7 +9,7 @@
 #include <vector>
 
 #include "core/rng.h"
-#include "denoise/backend_cpu.h"
+#include "device/cpu_backend.h"
 #include "denoise/wrls.h"
 
 namespace cinevol {

@@ -1,6 +1,7 @@
-// The CPU half of the denoisers' backend pair: host buffers and a parallel
-// loop over pixels. denoise/backend_cuda.cuh is the GPU half with the same
-// shape, so each denoiser's driver is written once (denoise/denoisers.h).
+// The CPU half of the launch backends: host buffers and a parallel loop over
+// pixels. device/cuda_backend.cuh is the GPU half with the same shape, so the
+// denoisers (denoise/denoisers.h), the display and the upsampler
+// (pipeline/) are written once over either.
 #pragma once
 
 #include <algorithm>

@@ -1,4 +1,4 @@
-// The GPU half of the denoisers' backend pair (see backend_cpu.h): device
+// The GPU half of the launch backends (see cpu_backend.h): device
 // buffers and one generic kernel that runs a per-pixel functor, on the
 // calling thread's default stream after the renderer's frame.
 #pragma once
