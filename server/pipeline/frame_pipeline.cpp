@@ -132,6 +132,15 @@ FrameRequest FramePipeline::Request(int spp) {
 
 DisplayFrame FramePipeline::RenderFrame() {
   if (!has_scene_) throw std::logic_error("FramePipeline::RenderFrame before Update");
+  const Clock::time_point start = Clock::now();
+  if (!last_frame_final_) {
+    // The previous frame's time, at the size it had, as a full-size time: the
+    // work is per pixel.
+    const double ms = std::chrono::duration<double, std::milli>(start - last_frame_start_).count() /
+                      (scale_ * scale_);
+    full_size_ms_ = full_size_ms_ > 0 ? 0.75 * full_size_ms_ + 0.25 * ms : ms;
+  }
+  last_frame_start_ = start;
   SetScale(ChooseScale());
   DisplayFrame out;
   out.resolution_scale = scale_;
@@ -145,8 +154,6 @@ DisplayFrame FramePipeline::RenderFrame() {
   const Vec3f* denoised =
       denoiser_->Denoise({camera.width, camera.height, t.radiance, t.first_hit, t.albedo, camera, scene_version_});
   out.denoise_ms = denoiser_->LastMilliseconds();
-  const double full_size_ms = (out.render_ms + out.denoise_ms) / (scale_ * scale_);
-  full_size_ms_ = full_size_ms_ > 0 ? 0.75 * full_size_ms_ + 0.25 * full_size_ms : full_size_ms;
 
   const auto display_start = Clock::now();
   DisplayInputs in;
@@ -168,6 +175,7 @@ DisplayFrame FramePipeline::RenderFrame() {
   out.display_ms = MillisecondsSince(display_start);
   out.accumulated_spp = accumulated_spp_;
   out.final = Converged();
+  last_frame_final_ = out.final;
   return out;
 }
 

@@ -39,13 +39,15 @@ struct FrameSettings {
   int final_jpeg_quality = 95;    // [1, 100]: the frame that ends refinement
   ChromaSubsampling chroma = ChromaSubsampling::k420;
   int target_spp = 256;           // >= 1: refinement stops at this many samples per pixel
-  // Interactive resolution, a frame-time budget in milliseconds (render +
-  // denoise). While the camera or the transfer function moves, frames render
-  // at the largest of 1, 0.75 and 0.5 of the viewport's width and height
-  // expected to meet it, upsampled on the device; once the view holds still
-  // for kInteractionHoldMs, frames refine at full size. 0: always full size,
-  // the default, since a smaller frame costs accuracy (docs/tradeoff.md:
-  // -1.1 dB at 0.75, -2.8 dB at 0.5, on CThead at 720p).
+  // Interactive resolution, a frame-time budget in milliseconds: the time
+  // from one of this pipeline's frames to the next while it renders back to
+  // back, waiting for the GPU and for a worker included. While the camera or
+  // the transfer function moves, frames render at the largest of 1, 0.75 and
+  // 0.5 of the viewport's width and height expected to meet it, upsampled on
+  // the device; once the view holds still for kInteractionHoldMs, frames
+  // refine at full size. 0: always full size, the default, since a smaller
+  // frame costs accuracy (docs/tradeoff.md: -1.1 dB at 0.75, -2.8 dB at 0.5,
+  // on CThead at 720p).
   float interactive_frame_ms = 0;
   // false: every frame shows the denoiser's output alone, never the
   // accumulation (the benches measure frames as they look while interacting).
@@ -155,11 +157,13 @@ class FramePipeline {
   std::uint32_t frame_ = 0;          // seeds each frame's samples
   int accumulated_spp_ = 0;
   // Interactive resolution: the scale frames render at, when the view last
-  // moved, and the running estimate of a full-size frame's render + denoise
-  // time (0 until a frame has been measured).
+  // moved, and the running estimate of the frame time at full size (0 until
+  // two frames in a row have been measured).
   float scale_ = 1;
   std::chrono::steady_clock::time_point moved_at_{};
   double full_size_ms_ = 0;
+  std::chrono::steady_clock::time_point last_frame_start_{};
+  bool last_frame_final_ = true;  // then the next frame waited for an event: no frame time
   const std::atomic<bool>* cancel_ = nullptr;
 };
 
