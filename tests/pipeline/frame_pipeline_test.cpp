@@ -11,26 +11,13 @@
 #include "io/scene_file.h"
 #include "pipeline/frame_pipeline.h"
 #include "support/gpu.h"
+#include "support/small_scene.h"
 
 namespace cinevol {
 namespace {
 
-std::shared_ptr<const Volume> SmallHead() {
-  v1::Phantom p;
-  p.set_kind(v1::Phantom::HEAD);
-  p.set_size(32);
-  p.set_spacing(6.0f);
-  return std::make_shared<const Volume>(MakePhantom(p));
-}
-
-v1::Scene SmallScene(const Volume& volume, int width = 48, int height = 32) {
-  v1::Scene scene = MakePresetScene("ct-bone", volume);
-  scene.mutable_render()->set_width(width);
-  scene.mutable_render()->set_height(height);
-  scene.mutable_render()->set_spp(2);
-  ApplyDefaults(scene);
-  return scene;
-}
+using testing::SmallHead;
+using testing::SmallScene;
 
 std::vector<std::uint8_t> Bytes(const ImageYcc8& image) { return {image.data.get(), image.data.get() + image.size}; }
 

@@ -5,30 +5,14 @@
 
 #include <thread>
 
-#include "io/phantom.h"
-#include "io/presets.h"
-#include "io/scene_file.h"
 #include "pipeline/frame_pipeline.h"
+#include "support/small_scene.h"
 
 namespace cinevol {
 namespace {
 
-std::shared_ptr<const Volume> SmallHead() {
-  v1::Phantom p;
-  p.set_kind(v1::Phantom::HEAD);
-  p.set_size(32);
-  p.set_spacing(6.0f);
-  return std::make_shared<const Volume>(MakePhantom(p));
-}
-
-v1::Scene SmallScene(const Volume& volume) {
-  v1::Scene scene = MakePresetScene("ct-bone", volume);
-  scene.mutable_render()->set_width(64);
-  scene.mutable_render()->set_height(40);
-  scene.mutable_render()->set_spp(1);
-  ApplyDefaults(scene);
-  return scene;
-}
+using testing::SmallHead;
+using testing::SmallScene;
 
 // A camera move: the view zooms.
 void Zoom(v1::Scene& scene, float degrees) {
@@ -57,7 +41,7 @@ FrameSettings WithBudget(float ms) {
 TEST(InteractiveResolution, AMovingViewRendersSmallerAndRefinesAtFullSize) {
   auto volume = SmallHead();
   FramePipeline pipeline(Backend::kCpu, volume);
-  v1::Scene scene = SmallScene(*volume);
+  v1::Scene scene = SmallScene(*volume, 64, 40, 1);
   const FrameSettings settings = WithBudget(1e-3f);  // no frame meets it: the smallest scale
   pipeline.Update(scene, settings);
   const Shown first = Render(pipeline);
@@ -87,7 +71,7 @@ TEST(InteractiveResolution, AFrameWithinTheBudgetStaysFullSize) {
   auto volume = SmallHead();
   for (const float budget : {0.0f, 1e6f}) {
     FramePipeline pipeline(Backend::kCpu, volume);
-    v1::Scene scene = SmallScene(*volume);
+    v1::Scene scene = SmallScene(*volume, 64, 40, 1);
     pipeline.Update(scene, WithBudget(budget));
     Render(pipeline);
     Zoom(scene, 2.0f);
@@ -101,7 +85,7 @@ TEST(InteractiveResolution, AFrameWithinTheBudgetStaysFullSize) {
 TEST(InteractiveResolution, AMovingTransferFunctionAlsoScales) {
   auto volume = SmallHead();
   FramePipeline pipeline(Backend::kCpu, volume);
-  v1::Scene scene = SmallScene(*volume);
+  v1::Scene scene = SmallScene(*volume, 64, 40, 1);
   pipeline.Update(scene, WithBudget(1e-3f));
   Render(pipeline);
   scene.mutable_transfer_function()->set_density_scale(scene.transfer_function().density_scale() * 0.5f);

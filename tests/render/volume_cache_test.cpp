@@ -13,19 +13,13 @@
 #include "render/renderer.h"
 #include "render_test_scenes.h"
 #include "support/gpu.h"
+#include "support/small_scene.h"
 
 namespace cinevol {
 namespace {
 
+using testing::SmallHead;
 using testing::UniformSky;
-
-std::shared_ptr<const Volume> SmallHead() {
-  v1::Phantom p;
-  p.set_kind(v1::Phantom::HEAD);
-  p.set_size(32);
-  p.set_spacing(6.0f);
-  return std::make_shared<const Volume>(MakePhantom(p));
-}
 
 // A float volume: the prepared copy holds its quantised voxels.
 std::shared_ptr<const Volume> FloatRamp() {
