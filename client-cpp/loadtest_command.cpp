@@ -128,6 +128,7 @@ Summary Summarise(const std::vector<SessionResult>& results) {
     s.dropped += r.play.dropped;
     for (int i = 0; i < 7; ++i) s.stages.stage_us_sum[i] += r.play.stage_us_sum[i];
     s.stages.stage_frames += r.play.stage_frames;
+    s.stages.smaller_frames += r.play.smaller_frames;
     s.stages.transfer_frames += r.play.transfer_frames;
   }
   s.fps_mean = results.empty() ? 0 : s.fps_total / double(results.size());
@@ -158,6 +159,10 @@ std::string Table(const LoadtestOptions& o, const SessionScript& script, const s
   for (int i = 0; i < 7; ++i) t += fmt::format(" {} {:.2f}{}", kStageNames[i], s.stages.StageMs(i), i < 6 ? "," : "\n");
   t += "(queue: event arrival to render start; server: event arrival to send start; transfer: the rest of the "
        "latency, i.e. send, network and client)\n";
+  if (s.stages.smaller_frames > 0) {
+    t += fmt::format("frames rendered smaller while moving (interactive resolution): {} of {} ({:.0f}%)\n",
+                     s.stages.smaller_frames, s.frames, 100.0 * double(s.stages.smaller_frames) / double(s.frames));
+  }
   for (const auto& [code, n] : s.errors) t += fmt::format("errors {}: {}\n", code, n);
   for (const SessionResult& r : results) {
     if (!r.error.empty()) t += fmt::format("session {}: {}\n", r.id.empty() ? "?" : r.id, r.error_message);

@@ -34,6 +34,7 @@ inline constexpr const char* kStageNames[] = {"render", "denoise", "tonemap", "e
 
 struct PlayResult {
   std::uint64_t frames = 0, bytes = 0, dropped = 0, events = 0;
+  std::uint64_t smaller_frames = 0;  // rendered at a resolution scale below 1 (interactive resolution)
   double seconds = 0;
   std::vector<double> latency_ms;  // one per event a frame answered
   std::array<double, 7> stage_us_sum{};
