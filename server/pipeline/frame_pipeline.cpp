@@ -101,21 +101,36 @@ void FramePipeline::Apply(const FrameSettings& settings, unsigned changes) {
 float FramePipeline::ChooseScale() {
   const bool moving = settings_.interactive_frame_ms > 0 &&
                       Clock::now() - moved_at_ < std::chrono::milliseconds(kInteractionHoldMs);
-  if (!moving || full_size_ms_ <= 0) return 1.0f;
-  // A smaller scale holds until the view stops: each new size restarts the
-  // denoiser's history.
-  if (scale_ < 1.0f) return scale_;
-  for (const float scale : kInteractiveScales) {
-    if (full_size_ms_ * scale * scale <= settings_.interactive_frame_ms) return scale;
+  if (!moving) return 1.0f;
+  if (scale_ != moving_scale_ || frame_times_ <= kFrameTimesPerStep) return moving_scale_;
+  const float* scale = std::find(std::begin(kInteractiveScales), std::end(kInteractiveScales), scale_);
+  const double budget = settings_.interactive_frame_ms;
+  if (frame_ms_ > budget && scale + 1 != std::end(kInteractiveScales)) {
+    moving_scale_ = scale[1];
+  } else if (scale != std::begin(kInteractiveScales)) {
+    // Up only with room to spare: the work is per pixel, and a larger size
+    // that misses the budget would step straight back down.
+    const double larger_ms = frame_ms_ * (scale[-1] * scale[-1]) / (scale_ * scale_);
+    if (larger_ms < 0.8 * budget) moving_scale_ = scale[-1];
   }
-  return std::end(kInteractiveScales)[-1];
+  return moving_scale_;
 }
 
 void FramePipeline::SetScale(float scale) {
   if (scale == scale_) return;
   scale_ = scale;
+  frame_times_ = 0;
   renderer_->ResetAccumulation();
   accumulated_spp_ = 0;
+}
+
+void FramePipeline::MeasureFrameTime(Clock::time_point start) {
+  if (!last_frame_final_) {
+    const double ms = std::chrono::duration<double, std::milli>(start - last_frame_start_).count();
+    if (frame_times_ > 0) frame_ms_ = frame_times_ == 1 ? ms : 0.7 * frame_ms_ + 0.3 * ms;
+    ++frame_times_;
+  }
+  last_frame_start_ = start;
 }
 
 FrameRequest FramePipeline::Request(int spp) {
@@ -132,15 +147,7 @@ FrameRequest FramePipeline::Request(int spp) {
 
 DisplayFrame FramePipeline::RenderFrame() {
   if (!has_scene_) throw std::logic_error("FramePipeline::RenderFrame before Update");
-  const Clock::time_point start = Clock::now();
-  if (!last_frame_final_) {
-    // The previous frame's time, at the size it had, as a full-size time: the
-    // work is per pixel.
-    const double ms = std::chrono::duration<double, std::milli>(start - last_frame_start_).count() /
-                      (scale_ * scale_);
-    full_size_ms_ = full_size_ms_ > 0 ? 0.75 * full_size_ms_ + 0.25 * ms : ms;
-  }
-  last_frame_start_ = start;
+  MeasureFrameTime(Clock::now());
   SetScale(ChooseScale());
   DisplayFrame out;
   out.resolution_scale = scale_;

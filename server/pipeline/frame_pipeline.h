@@ -42,22 +42,27 @@ struct FrameSettings {
   // Interactive resolution, a frame-time budget in milliseconds: the time
   // from one of this pipeline's frames to the next while it renders back to
   // back, waiting for the GPU and for a worker included. While the camera or
-  // the transfer function moves, frames render at the largest of 1, 0.75 and
-  // 0.5 of the viewport's width and height expected to meet it, upsampled on
-  // the device; once the view holds still for kInteractionHoldMs, frames
-  // refine at full size. 0: always full size, the default, since a smaller
-  // frame costs accuracy (docs/tradeoff.md: -1.1 dB at 0.75, -2.8 dB at 0.5,
-  // on CThead at 720p).
+  // the transfer function moves, frames step down through 0.75 and 0.5 of the
+  // viewport's width and height while they come slower than the budget, and
+  // back up when the larger size would meet it with room to spare; they are
+  // upsampled on the device, and the next interaction starts at the scale the
+  // last one ended with. Once the view holds still for kInteractionHoldMs,
+  // frames refine at full size. 0: always full size, the default, since a
+  // smaller frame costs accuracy (docs/tradeoff.md: -1.1 dB at 0.75, -2.8 dB
+  // at 0.5, on CThead at 720p).
   float interactive_frame_ms = 0;
   // false: every frame shows the denoiser's output alone, never the
   // accumulation (the benches measure frames as they look while interacting).
   bool refine = true;
 };
 
-// The resolution scales interactive frames choose from, largest first, and
-// how long after the last camera or transfer-function change they end.
+// The resolution scales interactive frames step through, largest first; how
+// long after the last camera or transfer-function change they end; and how
+// many frame times a scale is measured over before the next step (a step
+// restarts the denoiser's history, so steps are rare).
 inline constexpr float kInteractiveScales[] = {1.0f, 0.75f, 0.5f};
 inline constexpr int kInteractionHoldMs = 200;
+inline constexpr int kFrameTimesPerStep = 3;
 
 // A frame ready to encode, with what it cost. The planes are at the
 // settings' chroma subsampling; ToRgb (core/ycc.h) gives the pixels back.
@@ -138,6 +143,9 @@ class FramePipeline {
   FrameRequest Request(int spp);
   float ChooseScale();
   void SetScale(float scale);
+  // Takes the time since the previous frame started, when it rendered back
+  // to back with this one.
+  void MeasureFrameTime(std::chrono::steady_clock::time_point start);
 
   std::shared_ptr<const Volume> volume_;
   std::unique_ptr<Renderer> renderer_;
@@ -156,12 +164,15 @@ class FramePipeline {
   std::uint64_t scene_version_ = 0;  // bumped on transfer-function and light edits (the denoiser's cue)
   std::uint32_t frame_ = 0;          // seeds each frame's samples
   int accumulated_spp_ = 0;
-  // Interactive resolution: the scale frames render at, when the view last
-  // moved, and the running estimate of the frame time at full size (0 until
-  // two frames in a row have been measured).
+  // Interactive resolution: the scale this frame renders at, the scale moving
+  // views render at (kept from one interaction to the next), when the view
+  // last moved, and the frame time measured at scale_ (a running mean of
+  // frame_times_ - 1 frames: the first at a new size pays its allocations).
   float scale_ = 1;
+  float moving_scale_ = 1;
   std::chrono::steady_clock::time_point moved_at_{};
-  double full_size_ms_ = 0;
+  double frame_ms_ = 0;
+  int frame_times_ = 0;
   std::chrono::steady_clock::time_point last_frame_start_{};
   bool last_frame_final_ = true;  // then the next frame waited for an event: no frame time
   const std::atomic<bool>* cancel_ = nullptr;

@@ -3,7 +3,10 @@
 // holds still it refines at full size, and only a full-size frame is final.
 #include <gtest/gtest.h>
 
+#include <algorithm>
+#include <cmath>
 #include <thread>
+#include <vector>
 
 #include "pipeline/frame_pipeline.h"
 #include "support/small_scene.h"
@@ -38,25 +41,41 @@ FrameSettings WithBudget(float ms) {
   return s;
 }
 
-TEST(InteractiveResolution, AMovingViewRendersSmallerAndRefinesAtFullSize) {
+// Moves the view frame by frame (at most 20 frames) until a frame renders at
+// `until`; returns the scales seen. Every frame is checked for its size.
+std::vector<float> Move(FramePipeline& pipeline, v1::Scene& scene, const FrameSettings& settings,
+                        unsigned change, float until) {
+  std::vector<float> scales;
+  for (int step = 0; step < 20 && (scales.empty() || scales.back() != until); ++step) {
+    if (change == kCameraChanged) {
+      Zoom(scene, 0.5f);
+    } else {
+      scene.mutable_transfer_function()->set_density_scale(scene.transfer_function().density_scale() * 0.9f);
+    }
+    pipeline.Update(scene, settings, change);
+    const Shown moving = Render(pipeline);
+    scales.push_back(moving.scale);
+    EXPECT_EQ(moving.width, 64) << "upsampled to the viewport, at scale " << moving.scale;
+    EXPECT_EQ(moving.height, 40);
+    EXPECT_EQ(moving.rendered_width, int(std::lround(64 * moving.scale)));
+    if (moving.scale < 1.0f) EXPECT_FALSE(moving.final) << "a small frame never ends refinement";
+  }
+  return scales;
+}
+
+TEST(InteractiveResolution, AMovingViewStepsDownAndRefinesAtFullSize) {
   auto volume = SmallHead();
   FramePipeline pipeline(Backend::kCpu, volume);
   v1::Scene scene = SmallScene(*volume, 64, 40, 1);
-  const FrameSettings settings = WithBudget(1e-3f);  // no frame meets it: the smallest scale
+  const FrameSettings settings = WithBudget(1e-3f);  // no frame meets it
   pipeline.Update(scene, settings);
-  const Shown first = Render(pipeline);
-  EXPECT_EQ(first.scale, 1.0f) << "nothing measured yet, and nothing moved";
+  EXPECT_EQ(Render(pipeline).scale, 1.0f) << "nothing moved";
 
-  for (int step = 1; step <= 3; ++step) {
-    Zoom(scene, 1.0f);
-    pipeline.Update(scene, settings, kCameraChanged);
-    const Shown moving = Render(pipeline);
-    EXPECT_EQ(moving.scale, 0.5f) << "step " << step;
-    EXPECT_EQ(moving.rendered_width, 32) << "half the viewport's width is rendered";
-    EXPECT_EQ(moving.width, 64) << "and upsampled to the viewport";
-    EXPECT_EQ(moving.height, 40);
-    EXPECT_FALSE(moving.final) << "a small frame never ends refinement, whatever its spp";
-  }
+  const std::vector<float> scales = Move(pipeline, scene, settings, kCameraChanged, 0.5f);
+  ASSERT_EQ(scales.back(), 0.5f) << "the scale steps down to the smallest";
+  EXPECT_EQ(std::count(scales.begin(), scales.end(), 1.0f), kFrameTimesPerStep)
+      << "a step waits for that many frame times";
+  EXPECT_GT(std::count(scales.begin(), scales.end(), 0.75f), 0) << "through 0.75";
 
   std::this_thread::sleep_for(std::chrono::milliseconds(kInteractionHoldMs + 50));
   Shown still = Render(pipeline);
@@ -65,6 +84,10 @@ TEST(InteractiveResolution, AMovingViewRendersSmallerAndRefinesAtFullSize) {
   if (!still.final) still = Render(pipeline);
   EXPECT_TRUE(still.final);
   EXPECT_EQ(pipeline.accumulated_spp(), 2) << "the accumulation restarted at full size";
+
+  Zoom(scene, 0.5f);
+  pipeline.Update(scene, settings, kCameraChanged);
+  EXPECT_EQ(Render(pipeline).scale, 0.5f) << "the next interaction starts where the last one ended";
 }
 
 TEST(InteractiveResolution, AFrameWithinTheBudgetStaysFullSize) {
@@ -74,11 +97,8 @@ TEST(InteractiveResolution, AFrameWithinTheBudgetStaysFullSize) {
     v1::Scene scene = SmallScene(*volume, 64, 40, 1);
     pipeline.Update(scene, WithBudget(budget));
     Render(pipeline);
-    Zoom(scene, 2.0f);
-    pipeline.Update(scene, WithBudget(budget), kCameraChanged);
-    const Shown moving = Render(pipeline);
-    EXPECT_EQ(moving.scale, 1.0f) << "budget " << budget;
-    EXPECT_EQ(moving.rendered_width, 64) << "budget " << budget;
+    const std::vector<float> scales = Move(pipeline, scene, WithBudget(budget), kCameraChanged, 0.0f);
+    EXPECT_EQ(std::count(scales.begin(), scales.end(), 1.0f), 20) << "budget " << budget;
   }
 }
 
@@ -88,9 +108,7 @@ TEST(InteractiveResolution, AMovingTransferFunctionAlsoScales) {
   v1::Scene scene = SmallScene(*volume, 64, 40, 1);
   pipeline.Update(scene, WithBudget(1e-3f));
   Render(pipeline);
-  scene.mutable_transfer_function()->set_density_scale(scene.transfer_function().density_scale() * 0.5f);
-  pipeline.Update(scene, WithBudget(1e-3f), kTransferFunctionChanged);
-  EXPECT_EQ(Render(pipeline).scale, 0.5f);
+  EXPECT_EQ(Move(pipeline, scene, WithBudget(1e-3f), kTransferFunctionChanged, 0.5f).back(), 0.5f);
 }
 
 TEST(UpsamplePass, InterpolatesBetweenPixelCentresAndClampsAtEdges) {

@@ -163,12 +163,17 @@ TEST(SessionStream, AMovingViewStreamsSmallerFramesThenRefinesAtFullSize) {
   ASSERT_TRUE(still) << stream->status().error_message();
   EXPECT_EQ(still->resolution_scale(), 1.0f);
 
-  v1::SessionEvent zoom;
-  zoom.mutable_camera()->set_view(v1::ANTERIOR);
-  zoom.mutable_camera()->set_fov_y_deg(25);
-  const std::uint64_t seq = stream->Send(zoom);
-  const auto moving = WaitFrame(*stream, [seq](const v1::Frame& f) { return f.last_event_seq() >= seq; });
-  ASSERT_TRUE(moving);
+  // Camera moves, one frame each, until the frames step down to half size.
+  std::uint64_t seq = 0;
+  std::optional<v1::Frame> moving;
+  for (int step = 0; step < 20 && !(moving && moving->resolution_scale() == 0.5f); ++step) {
+    v1::SessionEvent zoom;
+    zoom.mutable_camera()->set_view(v1::ANTERIOR);
+    zoom.mutable_camera()->set_fov_y_deg(25.0f + 0.5f * float(step));
+    seq = stream->Send(zoom);
+    moving = WaitFrame(*stream, [seq](const v1::Frame& f) { return f.last_event_seq() >= seq; });
+    ASSERT_TRUE(moving) << stream->status().error_message();
+  }
   EXPECT_EQ(moving->resolution_scale(), 0.5f);
   EXPECT_FALSE(moving->final());
   const ImageRgb8 small = Decode(*moving);
