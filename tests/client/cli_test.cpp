@@ -113,6 +113,19 @@ TEST(CinevolCli, LoadtestReportsJsonForScripts) {
   EXPECT_TRUE(std::regex_search(output, std::regex("\"latency_ms\": \\{\"p50\": [0-9.]+"))) << output;
 }
 
+TEST(CinevolCli, LoadtestCountsFramesRenderedSmallerWhileMoving) {
+  ScratchDir scratch;
+  ServerProcess server(scratch.path());
+  ASSERT_TRUE(server.running()) << server.Log();
+  const auto [code, output] =
+      Cinevol(scratch, {"loadtest", "--server", server.address(), "--sessions", "1", "--seconds", "2", "--width", "64",
+                        "--height", "48", "--event-hz", "30", "--interactive-frame-ms", "0.001", "--json"});
+  ASSERT_EQ(code, 0) << output;
+  std::smatch m;
+  ASSERT_TRUE(std::regex_search(output, m, std::regex("\"smaller_frames\": ([0-9]+)"))) << output;
+  EXPECT_GT(std::stoi(m[1]), 0) << "no frame meets the budget: the orbit steps down to smaller frames";
+}
+
 // One line on stderr, no stack trace.
 void ExpectCleanError(const std::pair<int, std::string>& result, int code, const std::string& text) {
   EXPECT_EQ(result.first, code) << result.second;
