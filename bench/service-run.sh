@@ -7,7 +7,8 @@
 #   SESSIONS="1 4 8 16" SECONDS_PER_RUN=10 bash bench/service-run.sh
 # SERVER=path runs another build's cinevol-server (e.g. the previous release,
 # to rerun its table in the same session); LABEL names its files and rows.
-# EXTRA adds loadtest flags (e.g. "--interactive-frame-ms 16").
+# EXTRA adds loadtest flags (e.g. "--interactive-frame-ms 16"), SERVER_EXTRA
+# server flags (e.g. "--encode-threads 1": every frame encodes whole).
 set -uo pipefail
 cd "$(dirname "$0")/.."
 out=${OUT:-gpu-out}
@@ -31,7 +32,7 @@ run() {  # run N WORKERS_PER_GPU
   rm -f "$port_file"
   "$server_bin" --listen 127.0.0.1:0 --port-file "$port_file" --backend cuda --volume "$volume" \
     --workers-per-gpu "$workers" --max-sessions 256 --max-sessions-per-principal 256 \
-    --max-total-pixels 300000000 > "$runs/server-$tag.log" 2>&1 &
+    --max-total-pixels 300000000 ${SERVER_EXTRA:-} > "$runs/server-$tag.log" 2>&1 &
   local server=$!
   for _ in $(seq 300); do [ -s "$port_file" ] && break; sleep 0.1; done
   nvidia-smi --query-gpu=utilization.gpu,memory.used --format=csv,noheader,nounits -lms 200 > "$runs/gpu-util-$tag.txt" &

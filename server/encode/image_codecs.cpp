@@ -13,7 +13,9 @@
 #include <csetjmp>
 #include <cstdio>
 #include <cstring>
+#include <exception>
 #include <fstream>
+#include <thread>
 
 #include <fmt/format.h>
 
@@ -94,8 +96,10 @@ std::vector<std::uint8_t> CompressJpeg(int width, int height, J_COLOR_SPACE spac
 // `scratch`, padded to whole blocks by repeating its last sample, and lines
 // past a plane's bottom repeat its last line: libjpeg pads RGB input alike
 // (expand_right_edge, expand_bottom_edge), so edge blocks encode the same.
-void WriteRawLines(jpeg_compress_struct& cinfo, const ImageYcc8& image, std::vector<JSAMPLE>& scratch,
-                   std::vector<JSAMPROW>& lines) {
+// The compressor covers the image's luma rows from `first_line` (a whole
+// number of iMCU rows) for its image_height.
+void WriteRawLines(jpeg_compress_struct& cinfo, const ImageYcc8& image, int first_line,
+                   std::vector<JSAMPLE>& scratch, std::vector<JSAMPROW>& lines) {
   int padded_width[3], lines_per_call[3];
   std::size_t scratch_size = 0, line_count = 0;
   for (int c = 0; c < 3; ++c) {
@@ -113,7 +117,8 @@ void WriteRawLines(jpeg_compress_struct& cinfo, const ImageYcc8& image, std::vec
     planes[c] = next_line;
     for (int l = 0; l < lines_per_call[c]; ++l, next_scratch += padded_width[c]) *next_line++ = next_scratch;
   }
-  for (int call = 0; cinfo.next_scanline < cinfo.image_height; ++call) {
+  const int first_call = first_line / lines_per_call[0];
+  for (int call = first_call; cinfo.next_scanline < cinfo.image_height; ++call) {
     for (int c = 0; c < 3; ++c) {
       const int width = image.PlaneWidth(c), height = image.PlaneHeight(c);
       for (int l = 0; l < lines_per_call[c]; ++l) {
@@ -125,6 +130,72 @@ void WriteRawLines(jpeg_compress_struct& cinfo, const ImageYcc8& image, std::vec
     }
     jpeg_write_raw_data(&cinfo, planes, JDIMENSION(lines_per_call[0]));
   }
+}
+
+// Luma rows [first_line, first_line + lines) of the planes as a JPEG of their own.
+std::vector<std::uint8_t> EncodeBand(const ImageYcc8& image, int first_line, int lines, int quality) {
+  std::vector<JSAMPLE> scratch;  // outside CompressJpeg's setjmp: an error frees them normally
+  std::vector<JSAMPROW> rows;
+  return CompressJpeg(image.width, lines, JCS_YCbCr, quality, image.chroma, [&](jpeg_compress_struct& cinfo) {
+    WriteRawLines(cinfo, image, first_line, scratch, rows);
+  });
+}
+
+// Where the parts of a JPEG that libjpeg wrote lie: the frame header's height
+// field, the scan header, and the entropy-coded data between it and EOI.
+struct JpegLayout {
+  std::size_t height_at = 0, scan_header_at = 0, data_begin = 0, data_end = 0;
+};
+
+int BigEndian16(const std::vector<std::uint8_t>& b, std::size_t at) { return (b[at] << 8) | b[at + 1]; }
+
+JpegLayout LayoutOf(const std::vector<std::uint8_t>& jpeg) {
+  JpegLayout layout;
+  for (std::size_t at = 2; at + 4 <= jpeg.size() && jpeg[at] == 0xFF;) {
+    const int marker = jpeg[at + 1];
+    const std::size_t length = std::size_t(BigEndian16(jpeg, at + 2));
+    if (marker >= 0xC0 && marker <= 0xC2) layout.height_at = at + 5;  // SOFn: length, precision, height
+    if (marker == 0xDA) {                                              // SOS: the data follows
+      layout.scan_header_at = at;
+      layout.data_begin = at + 2 + length;
+      layout.data_end = jpeg.size() - 2;  // libjpeg ends with EOI, and wrote no restart markers
+      break;
+    }
+    at += 2 + length;
+  }
+  if (layout.height_at == 0 || layout.data_begin == 0 || layout.data_begin > layout.data_end ||
+      BigEndian16(jpeg, jpeg.size() - 2) != 0xFFD9) {
+    throw std::runtime_error("JPEG encoding failed: libjpeg's output has an unexpected layout");
+  }
+  return layout;
+}
+
+// Joins bands encoded alone into one JPEG: every band after the first is a
+// restart interval. A restart resets the DC predictors and pads the bit
+// stream to a byte, as the start of a band's own scan does; the tables are
+// the same in every band (one quality, libjpeg's standard Huffman tables), so
+// the result decodes to exactly the pixels of a single encode.
+std::vector<std::uint8_t> JoinBands(const std::vector<std::vector<std::uint8_t>>& bands, int height,
+                                    int mcus_per_band) {
+  const JpegLayout first = LayoutOf(bands[0]);
+  std::vector<std::uint8_t> out(bands[0].begin(), bands[0].begin() + std::ptrdiff_t(first.scan_header_at));
+  out[first.height_at] = std::uint8_t(height >> 8);
+  out[first.height_at + 1] = std::uint8_t(height & 0xFF);
+  const std::uint8_t restart_interval[] = {0xFF, 0xDD, 0x00, 0x04, std::uint8_t(mcus_per_band >> 8),
+                                           std::uint8_t(mcus_per_band & 0xFF)};
+  out.insert(out.end(), std::begin(restart_interval), std::end(restart_interval));
+  out.insert(out.end(), bands[0].begin() + std::ptrdiff_t(first.scan_header_at),
+             bands[0].begin() + std::ptrdiff_t(first.data_end));
+  for (std::size_t i = 1; i < bands.size(); ++i) {
+    const JpegLayout band = LayoutOf(bands[i]);
+    out.push_back(0xFF);
+    out.push_back(std::uint8_t(0xD0 + (i - 1) % 8));  // RST0..RST7, in turn
+    out.insert(out.end(), bands[i].begin() + std::ptrdiff_t(band.data_begin),
+               bands[i].begin() + std::ptrdiff_t(band.data_end));
+  }
+  out.push_back(0xFF);
+  out.push_back(0xD9);
+  return out;
 }
 
 }  // namespace
@@ -139,12 +210,40 @@ std::vector<std::uint8_t> EncodeJpeg(const ImageRgb8& image, int quality, Chroma
   });
 }
 
-std::vector<std::uint8_t> EncodeJpeg(const ImageYcc8& image, int quality) {
+std::vector<std::uint8_t> EncodeJpeg(const ImageYcc8& image, int quality, int bands) {
   CheckImage(image);
-  std::vector<JSAMPLE> scratch;  // outside CompressJpeg's setjmp: an error frees them normally
-  std::vector<JSAMPROW> lines;
-  return CompressJpeg(image.width, image.height, JCS_YCbCr, quality, image.chroma,
-                      [&](jpeg_compress_struct& cinfo) { WriteRawLines(cinfo, image, scratch, lines); });
+  // One iMCU row: 16 luma lines at 4:2:0, else 8; MCUs 16 or 8 pixels wide.
+  const int mcu_height = image.chroma == ChromaSubsampling::k420 ? 16 : 8;
+  const int mcu_width = image.chroma == ChromaSubsampling::k444 ? 8 : 16;
+  const int mcu_rows = (image.height + mcu_height - 1) / mcu_height;
+  const int mcus_per_row = (image.width + mcu_width - 1) / mcu_width;
+  // A restart interval counts MCUs in 16 bits.
+  const int max_rows_per_band = std::max(1, 65535 / mcus_per_row);
+  int rows_per_band = (mcu_rows + std::clamp(bands, 1, mcu_rows) - 1) / std::clamp(bands, 1, mcu_rows);
+  rows_per_band = std::min(rows_per_band, max_rows_per_band);
+  bands = (mcu_rows + rows_per_band - 1) / rows_per_band;
+  if (bands == 1 || mcus_per_row > 65535) return EncodeBand(image, 0, image.height, quality);
+
+  std::vector<std::vector<std::uint8_t>> encoded(static_cast<std::size_t>(bands));
+  std::vector<std::exception_ptr> errors(static_cast<std::size_t>(bands));
+  auto encode = [&](int band) {
+    try {
+      const int first_line = band * rows_per_band * mcu_height;
+      const int lines = std::min(rows_per_band * mcu_height, image.height - first_line);
+      encoded[std::size_t(band)] = EncodeBand(image, first_line, lines, quality);
+    } catch (...) {
+      errors[std::size_t(band)] = std::current_exception();
+    }
+  };
+  {
+    std::vector<std::jthread> others;
+    for (int band = 1; band < bands; ++band) others.emplace_back(encode, band);
+    encode(0);
+  }
+  for (const std::exception_ptr& e : errors) {
+    if (e) std::rethrow_exception(e);
+  }
+  return JoinBands(encoded, image.height, rows_per_band * mcus_per_row);
 }
 
 ImageRgb8 DecodeJpeg(const std::vector<std::uint8_t>& bytes) {

@@ -16,7 +16,9 @@ std::vector<std::uint8_t> EncodeJpeg(const ImageRgb8& image, int quality,
                                      ChromaSubsampling chroma = ChromaSubsampling::k420);
 // From planes already converted and downsampled (the display's frames):
 // libjpeg's raw-data path, which skips its colour conversion and downsampling.
-std::vector<std::uint8_t> EncodeJpeg(const ImageYcc8& image, int quality);
+// With bands > 1, horizontal bands of whole MCU rows encode on as many
+// threads and join as restart intervals: the same pixels decode, sooner.
+std::vector<std::uint8_t> EncodeJpeg(const ImageYcc8& image, int quality, int bands = 1);
 std::vector<std::uint8_t> EncodePng(const ImageRgb8& image);
 // Linear RGB as 32-bit float channels.
 std::vector<std::uint8_t> EncodeExr(const ImageRgbF& image);

@@ -26,6 +26,9 @@ unsigned ChangesOf(const v1::SessionEvent& e) {
 
 // Frames may be encoding while the next renders; more would only be dropped.
 constexpr int kMaxEncodesInFlight = 2;
+// A 720p frame in 4 bands encodes in about a third of the time; more bands
+// add thread starts and restart markers for little (docs/performance.md).
+constexpr int kMaxJpegBands = 4;
 
 std::uint32_t Micros(double ms) { return static_cast<std::uint32_t>(std::max(0.0, ms * 1000.0)); }
 
@@ -333,7 +336,10 @@ void Session::Encode(DisplayFrame display, const Stamp& stamp, int quality) {
     v1::Frame frame;
     try {
       const Clock::time_point start = Clock::now();
-      const std::vector<std::uint8_t> jpeg = EncodeJpeg(display.image, quality);
+      // Idle encoder threads mean idle cores: a lone session's frame encodes
+      // in bands on them and reaches its viewer sooner; a busy pool encodes whole.
+      const int bands = std::min(1 + self->context_.encoder->idle(), kMaxJpegBands);
+      const std::vector<std::uint8_t> jpeg = EncodeJpeg(display.image, quality, bands);
       frame.set_jpeg(jpeg.data(), jpeg.size());
       frame.mutable_timings()->set_encode_us(MicrosBetween(start, Clock::now()));
       ServerMetrics().ObserveStage(Stage::kEncode,

@@ -3,6 +3,7 @@
 
 #include <spdlog/spdlog.h>
 
+#include <algorithm>
 #include <exception>
 
 #include "service/log_safe.h"
@@ -40,6 +41,11 @@ int TaskPool::queued() const {
   return static_cast<int>(tasks_.size());
 }
 
+int TaskPool::idle() const {
+  std::lock_guard lock(mu_);
+  return std::max(0, threads() - running_ - static_cast<int>(tasks_.size()));
+}
+
 void TaskPool::Work() {
   for (;;) {
     std::function<void()> task;
@@ -49,12 +55,15 @@ void TaskPool::Work() {
       if (tasks_.empty()) return;  // stopping, nothing left
       task = std::move(tasks_.front());
       tasks_.pop_front();
+      ++running_;
     }
     try {
       task();
     } catch (const std::exception& e) {  // a task's bug must not take the pool down
       spdlog::error("{} task failed: {}", name_, LogSafe(e.what()));
     }
+    std::lock_guard lock(mu_);
+    --running_;
   }
 }
 

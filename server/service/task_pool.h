@@ -26,6 +26,8 @@ class TaskPool {
   void Submit(std::function<void()> task);
   int threads() const { return static_cast<int>(threads_.size()); }
   int queued() const;
+  // Threads with nothing to run: what a task may borrow to split its work.
+  int idle() const;
 
  private:
   void Work();
@@ -34,6 +36,7 @@ class TaskPool {
   mutable std::mutex mu_;
   std::condition_variable cv_;
   std::deque<std::function<void()>> tasks_;
+  int running_ = 0;
   bool stopping_ = false;
   std::vector<std::thread> threads_;
 };

@@ -4,6 +4,7 @@
 // gives the pixels back.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdlib>
 #include <stdexcept>
@@ -91,6 +92,28 @@ TEST_P(JpegFromPlanes, ToRgbGivesThePixelsBack) {
     EXPECT_LE(d.max, 2) << "YCbCr rounding only";
   } else {
     EXPECT_LT(d.mean, 6.0) << "chroma shared by neighbours, across the disc's edge too";
+  }
+}
+
+// Bands encoded on their own threads and joined by restart markers decode to
+// exactly the pixels of one encode, at every size and band count (more bands
+// than MCU rows included), and the joined stream does carry the restarts.
+TEST_P(JpegFromPlanes, BandsEncodedInParallelDecodeToTheSamePixels) {
+  for (const auto& [w, h] : {std::pair{96, 64}, std::pair{173, 131}, std::pair{37, 21}, std::pair{1, 1}}) {
+    const ImageYcc8 planes = Display(Frame(w, h), GetParam());
+    const std::vector<std::uint8_t> whole = EncodeJpeg(planes, 85);
+    const ImageRgb8 expected = DecodeJpeg(whole);
+    for (int bands : {2, 3, 4, 7, 1000}) {
+      const std::vector<std::uint8_t> joined = EncodeJpeg(planes, 85, bands);
+      const ImageRgb8 decoded = DecodeJpeg(joined);
+      ASSERT_EQ(decoded.width, w);
+      ASSERT_EQ(decoded.height, h);
+      EXPECT_EQ(decoded.bytes, expected.bytes) << w << "x" << h << ", " << bands << " bands";
+      const std::uint8_t restart_interval[] = {0xFF, 0xDD};
+      const bool has_restarts = std::search(joined.begin(), joined.end(), std::begin(restart_interval),
+                                            std::end(restart_interval)) != joined.end();
+      EXPECT_EQ(has_restarts, h > 16) << w << "x" << h << ": one MCU row makes one band";
+    }
   }
 }
 
