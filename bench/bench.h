@@ -51,6 +51,16 @@ struct DenoiseBenchOptions : SceneOptions {
 
 int RunDenoiseBench(const DenoiseBenchOptions& options);
 
+struct RefineBenchOptions : SceneOptions {
+  int reference_spp = 4096;
+  int target_spp = 512;    // the curve runs to this many samples per pixel
+  int orbit_frames = 8;    // camera moves before it holds still
+};
+
+// The displayed error of still frames after an orbit, refined against the
+// previous release's blend.
+int RunRefineBench(const RefineBenchOptions& options);
+
 struct VolumeBenchOptions {
   std::vector<std::string> volumes;  // files, folders or phantom specs
   std::string out;

@@ -71,6 +71,14 @@ int main(int argc, char** argv) {
       ->capture_default_str();
   d->add_option("--degrees-per-frame", denoise.degrees_per_frame, "Camera orbit speed")->capture_default_str();
   d->callback([&] { cinevol::bench::RunDenoiseBench(denoise); });
+  cinevol::bench::RefineBenchOptions refine;
+  refine.command_line = command_line;
+  auto* f = app.add_subcommand("refine", "Still frames after an orbit: displayed PSNR/SSIM per step, refined and previous");
+  cinevol::bench::AddSceneOptions(f, refine);
+  f->add_option("--reference-spp", refine.reference_spp, "Samples per pixel of the reference")->capture_default_str();
+  f->add_option("--target-spp", refine.target_spp, "Samples per pixel the curve runs to")->capture_default_str();
+  f->add_option("--orbit-frames", refine.orbit_frames, "Camera moves before it holds still")->capture_default_str();
+  f->callback([&] { cinevol::bench::RunRefineBench(refine); });
   cinevol::bench::VolumeBenchOptions volume;
   volume.command_line = command_line;
   auto* v = app.add_subcommand("volume", "Load, histogram and block ranges, kind and framing, per volume");

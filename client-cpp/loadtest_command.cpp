@@ -65,6 +65,7 @@ SessionScript MakeScript(const LoadtestOptions& o) {
   s.session.stream.set_jpeg_quality(o.jpeg_quality);
   s.session.stream.set_interactive_frame_ms(o.interactive_frame_ms);
   s.session.stream.set_target_spp(65536);  // keep rendering: every frame counts
+  s.session.stream.set_error_target(0);
   ScriptStep spp;
   spp.event.mutable_render()->set_spp(o.spp);
   s.steps.push_back(spp);

@@ -168,6 +168,14 @@ void RenderPanel(App& app) {
     app.stream.set_target_spp(target);
     app.SendStream();
   }
+  float error = app.stream.has_error_target() ? app.stream.error_target() * 100.0f : 0.5f;
+  if (ImGui::SliderFloat("refine to error %", &error, 0.0f, 5.0f, error > 0 ? "%.2f" : "off (to the spp cap)")) {
+    app.stream.set_error_target(error / 100.0f);
+    app.SendStream();
+  }
+  if (ImGui::IsItemHovered()) {
+    ImGui::SetTooltip("A still view refines until its estimated relative error is this low (or the spp cap)");
+  }
   float budget = app.stream.interactive_frame_ms();
   if (ImGui::SliderFloat("moving frame budget ms", &budget, 0.0f, 100.0f, budget > 0 ? "%.0f" : "off (full size)")) {
     app.stream.set_interactive_frame_ms(budget);

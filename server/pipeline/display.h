@@ -1,5 +1,5 @@
-// The last device stage of a frame: blend the denoised image towards the
-// plain accumulation as samples pile up, tone map to 8-bit sRGB, convert to
+// The last device stage of a frame: tone map the frame's radiance (denoised,
+// or refined: pipeline/refine.h) to 8-bit sRGB, convert to
 // JPEG's YCbCr with the session's chroma subsampling, and copy the planes to
 // the host (1.5 bytes a pixel at 4:2:0, instead of 12 of radiance), where the
 // JPEG encoder takes them as they are. Runs on the backend that rendered the
@@ -20,11 +20,8 @@ namespace cinevol {
 
 struct DisplayInputs {
   int width = 0, height = 0;
-  const Vec3f* denoised = nullptr;         // backend memory
-  const Vec3f* accumulated_sum = nullptr;  // backend memory: sum of frame means
-  float inv_frames = 0;                    // 1 / frames in accumulated_sum
-  float blend = 0;                         // 0: denoised only, 1: accumulation only
-  float exposure = 0;                      // stops
+  const Vec3f* radiance = nullptr;  // backend memory: linear, what the frame shows
+  float exposure = 0;               // stops
   ChromaSubsampling chroma = ChromaSubsampling::k420;
 };
 
@@ -34,14 +31,7 @@ struct DisplayedPixel {
   float exposure_scale;
 
   CINEVOL_HD void operator()(int x, int y, std::uint8_t* rgb) const {
-    const int i = y * in.width + x;
-    Vec3f c = in.denoised[i];
-    if (in.blend >= 1.0f) {
-      c = in.accumulated_sum[i] * in.inv_frames;
-    } else if (in.blend > 0.0f) {
-      c = c * (1.0f - in.blend) + in.accumulated_sum[i] * (in.inv_frames * in.blend);
-    }
-    ToneMapPixel(c, exposure_scale, rgb);
+    ToneMapPixel(in.radiance[y * in.width + x], exposure_scale, rgb);
   }
 };
 

@@ -25,12 +25,6 @@ Camera Scaled(Camera camera, float scale) {
 
 }  // namespace
 
-float RefinementBlend(int accumulated_spp, int target_spp) {
-  if (accumulated_spp >= target_spp) return 1.0f;
-  if (accumulated_spp <= kBlendStartSpp) return 0.0f;
-  return std::log(float(accumulated_spp) / kBlendStartSpp) / std::log(float(target_spp) / kBlendStartSpp);
-}
-
 FramePipeline::FramePipeline(Backend backend, std::shared_ptr<const Volume> volume, const RendererOptions& options)
     : volume_(std::move(volume)), renderer_(CreateRenderer(backend, options)) {
   renderer_->SetVolume(volume_);
@@ -38,11 +32,13 @@ FramePipeline::FramePipeline(Backend backend, std::shared_ptr<const Volume> volu
   if (renderer_->backend() == Backend::kCuda) {
     display_ = MakeCudaDisplay();
     upsampler_ = MakeCudaUpsampler();
+    refiner_ = MakeCudaRefiner();
   }
 #endif
   if (!display_) {
     display_ = MakeCpuDisplay();
     upsampler_ = MakeCpuUpsampler();
+    refiner_ = MakeCpuRefiner();
   }
 }
 
@@ -90,10 +86,7 @@ void FramePipeline::Apply(const FrameSettings& settings, unsigned changes) {
   }
   if (changes & (kTransferFunctionChanged | kLightsChanged)) ++scene_version_;
   if (has_scene_ && (changes & (kCameraChanged | kTransferFunctionChanged))) moved_at_ = Clock::now();
-  if (changes & kEverythingChanged) {
-    renderer_->ResetAccumulation();
-    accumulated_spp_ = 0;
-  }
+  if (changes & kEverythingChanged) ResetAccumulation();
   settings_ = settings;
   has_scene_ = true;
 }
@@ -120,8 +113,20 @@ void FramePipeline::SetScale(float scale) {
   if (scale == scale_) return;
   scale_ = scale;
   frame_times_ = 0;
+  ResetAccumulation();
+}
+
+void FramePipeline::ResetAccumulation() {
   renderer_->ResetAccumulation();
   accumulated_spp_ = 0;
+  relative_error_ = -1;
+}
+
+bool FramePipeline::Converged() const {
+  if (scale_ != 1.0f) return false;
+  if (accumulated_spp_ >= settings_.target_spp) return true;
+  return settings_.refine && settings_.error_target > 0 && relative_error_ >= 0 &&
+         relative_error_ <= settings_.error_target;
 }
 
 void FramePipeline::MeasureFrameTime(Clock::time_point start) {
@@ -158,6 +163,13 @@ DisplayFrame FramePipeline::RenderFrame() {
   accumulated_spp_ += spp_;
 
   const FrameTargets t = renderer_->Targets();
+  // A full-size still view refines: the mean of its frames so far, and the
+  // denoiser's output, combined per pixel by their estimated errors.
+  const bool refining = settings_.refine && scale_ == 1.0f;
+  if (refining) {
+    refiner_->Accumulate(t.radiance, t.accumulated, camera.width, camera.height, renderer_->accumulated_frames(),
+                         exposure_);
+  }
   const Vec3f* denoised =
       denoiser_->Denoise({camera.width, camera.height, t.radiance, t.first_hit, t.albedo, camera, scene_version_});
   out.denoise_ms = denoiser_->LastMilliseconds();
@@ -170,12 +182,14 @@ DisplayFrame FramePipeline::RenderFrame() {
   if (scale_ < 1.0f) {
     // A moving view shows the denoiser's output alone: its few samples are
     // about to be replaced.
-    in.denoised = upsampler_->Run(denoised, camera.width, camera.height, camera_.width, camera_.height);
+    in.radiance = upsampler_->Run(denoised, camera.width, camera.height, camera_.width, camera_.height);
+  } else if (refining) {
+    const RefinedImage refined = refiner_->Blend(denoised, camera.width, camera.height, renderer_->accumulated_frames());
+    in.radiance = refined.radiance;
+    relative_error_ = refined.relative_error;
+    out.relative_error = refined.relative_error;
   } else {
-    in.denoised = denoised;
-    in.accumulated_sum = t.accumulated;
-    in.inv_frames = 1.0f / float(renderer_->accumulated_frames());
-    in.blend = settings_.refine ? RefinementBlend(accumulated_spp_, settings_.target_spp) : 0.0f;
+    in.radiance = denoised;
   }
   in.chroma = settings_.chroma;
   out.image = display_->Run(in);

@@ -1,8 +1,8 @@
 // FramePipeline: the one chain that turns a session's scene into frames.
 // Scene edits rebuild only what they invalidate (a transfer-function edit
 // re-derives the majorants, a camera move does not); each frame renders the
-// scene's spp, denoises, blends towards the accumulation as samples pile up
-// (idle refinement), tone maps and converts to JPEG's YCbCr planes on the
+// scene's spp, denoises, combines the denoised image with the accumulation
+// per pixel by their estimated errors (idle refinement), tone maps and converts to JPEG's YCbCr planes on the
 // device and copies them to pinned host memory, ready for EncodeJpeg on any
 // thread.
 //
@@ -27,10 +27,16 @@
 #include "encode/image_codecs.h"
 #include "io/scene_builder.h"
 #include "pipeline/display.h"
+#include "pipeline/refine.h"
 #include "pipeline/upsample.h"
 #include "render/renderer.h"
 
 namespace cinevol {
+
+// The default refinement error target: a relative RMS error of 0.5%
+// (docs/tradeoff.md, "Still frames": where the refined image ends at 45 dB
+// or better on the shared CT and MR).
+inline constexpr float kDefaultErrorTarget = 0.005f;
 
 // How frames are made from the scene, beyond what the scene model says.
 struct FrameSettings {
@@ -39,6 +45,9 @@ struct FrameSettings {
   int final_jpeg_quality = 95;    // [1, 100]: the frame that ends refinement
   ChromaSubsampling chroma = ChromaSubsampling::k420;
   int target_spp = 256;           // >= 1: refinement stops at this many samples per pixel
+  // Refinement stops sooner once the refined image's estimated relative
+  // error (pipeline/refine.h) is at most this; 0: only at target_spp.
+  float error_target = kDefaultErrorTarget;
   // Interactive resolution, a frame-time budget in milliseconds: the time
   // from one of this pipeline's frames to the next while it renders back to
   // back, waiting for the GPU and for a worker included. While the camera or
@@ -69,16 +78,11 @@ inline constexpr int kFrameTimesPerStep = 3;
 struct DisplayFrame {
   ImageYcc8 image;
   int accumulated_spp = 0;  // samples per pixel behind it since the scene last changed
-  bool final = false;       // refinement reached target_spp with this frame
+  bool final = false;       // refinement reached its error target or target_spp with this frame
+  float relative_error = -1;  // refined frames: the image's estimated relative error; < 0 unknown
   float resolution_scale = 1;  // < 1: rendered at this fraction of the width and height, upsampled
   double render_ms = 0, denoise_ms = 0, display_ms = 0;
 };
-
-// How much of the displayed image is the plain accumulation: 0 up to
-// kBlendStartSpp samples per pixel (the denoiser's output alone), rising
-// with log(spp) to 1 at target_spp, where the image is the unbiased mean.
-inline constexpr int kBlendStartSpp = 16;
-float RefinementBlend(int accumulated_spp, int target_spp);
 
 // What an update changes, as the events that made it say: the pipeline
 // rebuilds from these, without comparing scenes.
@@ -107,7 +111,7 @@ class FramePipeline {
   // exposure, every time).
   void Update(const RenderSetup& setup, const FrameSettings& settings, unsigned changes = kEverythingChanged);
 
-  // One frame of the scene's spp: render, denoise, blend, tone map.
+  // One frame of the scene's spp: render, denoise, refine, tone map.
   DisplayFrame RenderFrame();
   // Adds `spp` samples to the accumulation only (stills, offline renders).
   void Accumulate(int spp);
@@ -122,8 +126,9 @@ class FramePipeline {
   int accumulated_spp() const { return accumulated_spp_; }
   // Bumped by every transfer-function or light rebuild.
   std::uint64_t scene_version() const { return scene_version_; }
-  // Refinement is done: target_spp samples behind a full-size image.
-  bool Converged() const { return scale_ == 1.0f && accumulated_spp_ >= settings_.target_spp; }
+  // Refinement is done: a full-size image at the error target, or with
+  // target_spp samples behind it.
+  bool Converged() const;
   ImageRgbF AccumulatedRadiance() const { return renderer_->AccumulatedMean(); }
   // The last frame's denoised linear radiance, before blending and tone
   // mapping (the benches compare it with references in HDR).
@@ -143,6 +148,7 @@ class FramePipeline {
   FrameRequest Request(int spp);
   float ChooseScale();
   void SetScale(float scale);
+  void ResetAccumulation();
   // Takes the time since the previous frame started, when it rendered back
   // to back with this one.
   void MeasureFrameTime(std::chrono::steady_clock::time_point start);
@@ -152,6 +158,7 @@ class FramePipeline {
   std::unique_ptr<Denoiser> denoiser_;
   std::unique_ptr<Display> display_;
   std::unique_ptr<Upsampler> upsampler_;
+  std::unique_ptr<Refiner> refiner_;
   FrameSettings settings_;
   bool has_scene_ = false;
   TransferFunction transfer_function_;
@@ -164,6 +171,7 @@ class FramePipeline {
   std::uint64_t scene_version_ = 0;  // bumped on transfer-function and light edits (the denoiser's cue)
   std::uint32_t frame_ = 0;          // seeds each frame's samples
   int accumulated_spp_ = 0;
+  float relative_error_ = -1;  // the last refined frame's estimate; < 0 none yet
   // Interactive resolution: the scale this frame renders at, the scale moving
   // views render at (kept from one interaction to the next), when the view
   // last moved, and the frame time measured at scale_ (a running mean of

@@ -359,6 +359,7 @@ void Session::Encode(DisplayFrame display, const Stamp& stamp, int quality) {
     frame.set_last_event_seq(stamp.event_seq);
     frame.set_final(display.final);
     frame.set_resolution_scale(display.resolution_scale);
+    frame.set_estimated_error(std::max(display.relative_error, 0.0f));
     v1::FrameTimings* t = frame.mutable_timings();
     t->set_render_us(Micros(display.render_ms));
     t->set_denoise_us(Micros(display.denoise_ms));

@@ -180,6 +180,10 @@ FrameSettings MergeStreamSettings(FrameSettings s, const v1::StreamSettings& edi
     CheckRange(edit.interactive_frame_ms(), 0.0f, 10000.0f, field + ".interactive_frame_ms");
     s.interactive_frame_ms = edit.interactive_frame_ms();
   }
+  if (edit.has_error_target()) {
+    CheckRange(edit.error_target(), 0.0f, 1.0f, field + ".error_target");
+    s.error_target = edit.error_target();
+  }
   return s;
 }
 

@@ -38,9 +38,7 @@ ImageYcc8 Display(const ImageRgbF& radiance, ChromaSubsampling chroma) {
   DisplayInputs in;
   in.width = radiance.width;
   in.height = radiance.height;
-  in.denoised = radiance.pixels.data();
-  in.accumulated_sum = radiance.pixels.data();
-  in.inv_frames = 1.0f;
+  in.radiance = radiance.pixels.data();
   in.chroma = chroma;
   return MakeCpuDisplay()->Run(in);
 }

@@ -43,9 +43,7 @@ DisplayInputs InputsFor(const Vec3f* radiance, int width, int height, ChromaSubs
   DisplayInputs in;
   in.width = width;
   in.height = height;
-  in.denoised = radiance;
-  in.accumulated_sum = radiance;
-  in.inv_frames = 1.0f;
+  in.radiance = radiance;
   in.exposure = 0.5f;
   in.chroma = chroma;
   return in;

@@ -1,6 +1,6 @@
-// FramePipeline: edits reset exactly what they invalidate, refinement blends
-// from the denoiser's output to the plain accumulation, the converged frame is
-// the tone-mapped mean, and the CUDA chain agrees with the CPU one.
+// FramePipeline: edits reset exactly what they invalidate, frames without
+// refinement are the denoiser's output, and the CUDA chain agrees with the
+// CPU one (tests/pipeline/refine_test.cpp: refinement).
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -26,22 +26,6 @@ double MeanAbsDiff(const ImageYcc8& a, const ImageYcc8& b) {
   double sum = 0;
   for (std::size_t i = 0; i < x.size(); ++i) sum += std::abs(int(x[i]) - int(y[i]));
   return sum / double(x.size());
-}
-
-TEST(RefinementBlend, RisesFromDenoisedToAccumulatedWithSamples) {
-  EXPECT_EQ(RefinementBlend(2, 256), 0.0f);
-  EXPECT_EQ(RefinementBlend(kBlendStartSpp, 256), 0.0f);
-  EXPECT_EQ(RefinementBlend(256, 256), 1.0f);
-  EXPECT_EQ(RefinementBlend(300, 256), 1.0f);
-  EXPECT_EQ(RefinementBlend(4, 4), 1.0f) << "a target below the start converges at once";
-  float previous = 0;
-  for (int spp = 18; spp < 256; spp += 2) {
-    const float b = RefinementBlend(spp, 256);
-    EXPECT_GT(b, previous);
-    EXPECT_LT(b, 1.0f);
-    previous = b;
-  }
-  EXPECT_NEAR(RefinementBlend(64, 256), 0.5f, 1e-5f) << "halfway in log(spp) from 16 to 256";
 }
 
 // ... and rebuild only what the edit invalidates: a camera move resolves no
@@ -117,34 +101,11 @@ TEST(FramePipeline, ResolvedScenesAndFramesWithoutRefinement) {
     DisplayInputs in;
     in.width = denoised.width;
     in.height = denoised.height;
-    in.denoised = denoised.pixels.data();
+    in.radiance = denoised.pixels.data();
     in.exposure = resolved.exposure();
     EXPECT_EQ(Bytes(b.image), Bytes(MakeCpuDisplay()->Run(in))) << "frame " << i << ": refinement is off";
   }
   EXPECT_TRUE(resolved.Converged());
-}
-
-TEST(FramePipeline, TheConvergedFrameIsTheToneMappedMean) {
-  auto volume = SmallHead();
-  FramePipeline pipeline(Backend::kCpu, volume);
-  FrameSettings settings;
-  settings.target_spp = 8;
-  pipeline.Update(SmallScene(*volume), settings);
-  DisplayFrame frame;
-  for (int i = 0; i < 4; ++i) {
-    frame = pipeline.RenderFrame();
-    EXPECT_EQ(frame.final, i == 3);
-  }
-  EXPECT_EQ(frame.accumulated_spp, 8);
-  // The display pass over the mean alone (blend 0: its "denoised" input).
-  const ImageRgbF mean = pipeline.AccumulatedRadiance();
-  DisplayInputs in;
-  in.width = mean.width;
-  in.height = mean.height;
-  in.denoised = mean.pixels.data();
-  in.accumulated_sum = mean.pixels.data();
-  in.exposure = pipeline.exposure();
-  EXPECT_EQ(Bytes(frame.image), Bytes(MakeCpuDisplay()->Run(in)));
 }
 
 TEST(FramePipeline, ResizeChangesTheFrameSize) {

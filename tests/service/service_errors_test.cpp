@@ -49,6 +49,14 @@ TEST(ServiceErrors, BadSessionRequestsNameTheField) {
     r.mutable_stream()->set_interactive_frame_ms(budget);
     ExpectRpcError([&] { client.CreateSession(r); }, grpc::StatusCode::INVALID_ARGUMENT, "stream.interactive_frame_ms");
   }
+  for (const float target : {-0.01f, NAN, 2.0f}) {
+    r = SmallSession();
+    r.mutable_stream()->set_error_target(target);
+    ExpectRpcError([&] { client.CreateSession(r); }, grpc::StatusCode::INVALID_ARGUMENT, "stream.error_target");
+  }
+  r = SmallSession();
+  r.mutable_stream()->set_target_spp(0);
+  ExpectRpcError([&] { client.CreateSession(r); }, grpc::StatusCode::INVALID_ARGUMENT, "stream.target_spp");
 
   // A scene with a NaN camera, a negative spp (as a uint32 it wraps) and an unknown view.
   r = SmallSession();

@@ -120,6 +120,7 @@ TEST(SessionStream, IdleRefinementReachesTheTargetThenStops) {
   v1::CreateSessionRequest request = SmallSession("ct-bone", 96, 64, 32);
   request.mutable_stream()->set_jpeg_quality(40);
   request.mutable_stream()->set_final_jpeg_quality(98);
+  request.mutable_stream()->set_error_target(0);  // to the cap
   const auto created = client.CreateSession(request);
   auto stream = client.Attach(created.session_id());
 
@@ -148,6 +149,30 @@ TEST(SessionStream, IdleRefinementReachesTheTargetThenStops) {
   ASSERT_TRUE(status);
   EXPECT_EQ(status->state(), v1::SessionStatus::IDLE);
   EXPECT_EQ(status->frames_rendered(), frames.size());
+}
+
+// An easy error target ends refinement long before a cap it would never
+// reach in the test's time; the final frame carries the estimate it met, and
+// the session is idle afterwards.
+TEST(SessionStream, RefinementEndsAtTheErrorTarget) {
+  ScratchDir scratch;
+  ServerProcess server(scratch.path());
+  ASSERT_TRUE(server.running()) << server.Log();
+  Client client = server.Connect();
+  v1::CreateSessionRequest request = SmallSession();
+  request.mutable_stream()->set_target_spp(65536);
+  request.mutable_stream()->set_error_target(0.05f);
+  const auto created = client.CreateSession(request);
+  auto stream = client.Attach(created.session_id());
+  const auto last = WaitFinal(*stream);
+  ASSERT_TRUE(last) << stream->status().error_message();
+  EXPECT_LT(last->accumulated_spp(), 65536u);
+  EXPECT_GT(last->estimated_error(), 0.0f);
+  EXPECT_LE(last->estimated_error(), 0.05f);
+  EXPECT_FALSE(stream->Next(1s)) << "a frame after the final one";
+  const auto status = FindSessionStatus(client, created.session_id());
+  ASSERT_TRUE(status);
+  EXPECT_EQ(status->state(), v1::SessionStatus::IDLE);
 }
 
 TEST(SessionStream, AMovingViewStreamsSmallerFramesThenRefinesAtFullSize) {

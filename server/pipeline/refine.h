@@ -1,0 +1,208 @@
+// Idle refinement: while the view holds still, the displayed image combines,
+// per pixel, the denoiser's output d and the running mean m of the frames,
+// by their estimated errors. The mean's error is its variance V (the spread
+// of the frame means over their count). The denoiser's, B, comes from the
+// squared difference D = (d - m)^2 = B + V - 2 Cov(d, m): d is made of the
+// same frames as m, mostly the latest ones, and for an average of the last
+// k frames Cov(d, m) = V exactly, so B = D + V. (Taking B = D - V, as if the
+// two were independent, underrated the denoiser's error and kept the image
+// 0.7 dB below the plain mean from 100 spp on; tests/pipeline/refine_test.cpp's
+// scene.) Both are averaged over a small window (single pixels are too noisy
+// to steer by), and
+//
+//   shown = d + w (m - d),  w = B / (B + V),
+//
+// the weight that minimises the expected squared error, w^2 V + (1 - w)^2 B =
+// B V / (B + V). The mean takes over wherever it is the better estimate, and
+// everywhere as V falls: the image is never worse than either. The same
+// expected error, over the image, is what refinement stops at
+// (FrameSettings::error_target). Runs on the backend that rendered the frame.
+#pragma once
+
+#include <cmath>
+#include <memory>
+#include <vector>
+
+#include "core/sampling.h"
+#include "core/vec.h"
+
+namespace cinevol {
+
+// Half-width of the window the error estimates are averaged over (7x7).
+inline constexpr int kErrorWindowRadius = 3;
+// Frames before the variance is estimated: fewer give too noisy a spread.
+inline constexpr int kMinFramesForError = 8;
+// Linear radiance shown as 2% grey at exposure 0: RelativeScale's floor.
+inline constexpr float kDarkGrey = 0.02f;
+
+// Errors are weighed relative to the pixel's brightness, as a viewer sees
+// them (sRGB spends its codes on ratios): 1 / (luminance + dark)^2, where
+// `dark` is a floor at the display's 2% grey, so that black pixels do not
+// weigh without bound.
+CINEVOL_HD float RelativeScale(Vec3f radiance, float dark) {
+  const float l = fmaxf(Luminance(radiance), 0.0f) + dark;
+  return 1.0f / (l * l);
+}
+
+// Before the denoiser: the frame's squares join the accumulation's, and the
+// mean and its variance (mean over channels) are written out.
+struct MeanAndVariancePass {
+  const Vec3f* frame;            // this frame's radiance: the mean of its samples
+  const Vec3f* accumulated_sum;  // sum of frame means, this one included
+  Vec3f* squares;                // sum of squared frame means (this pass adds this frame's)
+  Vec3f* mean;
+  float* variance;               // of the mean: the sample variance of the frames / frames, relative
+  int width, frames;
+  float dark;                    // RelativeScale's floor
+
+  CINEVOL_HD void operator()(int x, int y) const {
+    const int i = y * width + x;
+    const Vec3f r = frame[i];
+    const Vec3f q = (frames == 1 ? Vec3f{} : squares[i]) + r * r;
+    squares[i] = q;
+    const float n = float(frames);
+    const Vec3f m = accumulated_sum[i] * (1.0f / n);
+    mean[i] = m;
+    if (frames < 2) {
+      variance[i] = 0.0f;
+      return;
+    }
+    const Vec3f spread = q - m * m * n;  // sum of squared deviations
+    const float sum = fmaxf(spread.x, 0.0f) + fmaxf(spread.y, 0.0f) + fmaxf(spread.z, 0.0f);
+    variance[i] = sum / (3.0f * (n - 1.0f) * n) * RelativeScale(m, dark);
+  }
+};
+
+// After the denoiser: the squared difference of d and m, mean over
+// channels, relative.
+struct DifferencePass {
+  const Vec3f* denoised;
+  const Vec3f* mean;
+  float* difference;
+  int width;
+  float dark;
+
+  CINEVOL_HD void operator()(int x, int y) const {
+    const int i = y * width + x;
+    const Vec3f e = denoised[i] - mean[i];
+    difference[i] = Dot(e, e) * (1.0f / 3.0f) * RelativeScale(mean[i], dark);
+  }
+};
+
+// The blend, and each pixel's expected squared relative error.
+struct BlendPass {
+  const Vec3f* denoised;
+  const Vec3f* mean;
+  const float* variance;
+  const float* difference;
+  Vec3f* shown;
+  float* error;
+  int width, height, frames;
+
+  CINEVOL_HD void operator()(int x, int y) const {
+    float v = 0.0f, d = 0.0f;
+    int count = 0;
+    for (int wy = MaxInt(y - kErrorWindowRadius, 0); wy <= MinInt(y + kErrorWindowRadius, height - 1); ++wy) {
+      for (int wx = MaxInt(x - kErrorWindowRadius, 0); wx <= MinInt(x + kErrorWindowRadius, width - 1); ++wx) {
+        v += variance[wy * width + wx];
+        d += difference[wy * width + wx];
+        ++count;
+      }
+    }
+    v /= float(count);
+    d /= float(count);
+    const int i = y * width + x;
+    const float bias = d + v;
+    const float own = variance[i];
+    // Too few frames have too noisy a spread to go by: the denoiser's output.
+    // No spread and no difference: the mean is exact (empty space, or one value).
+    const float w = frames < kMinFramesForError ? 0.0f : (bias + own > 0.0f ? bias / (bias + own) : 1.0f);
+    shown[i] = denoised[i] + (mean[i] - denoised[i]) * w;
+    error[i] = w * w * own + (1.0f - w) * (1.0f - w) * bias;
+  }
+};
+
+// Sums of each row's errors (one thread a row): a reduction both backends
+// can run; the host adds the rows.
+struct RowSumPass {
+  const float* error;
+  float* row_sums;
+  int width;
+
+  CINEVOL_HD void operator()(int, int y) const {
+    float sum = 0.0f;
+    for (int x = 0; x < width; ++x) sum += error[y * width + x];
+    row_sums[y] = sum;
+  }
+};
+
+// What a refined frame shows.
+struct RefinedImage {
+  const Vec3f* radiance = nullptr;  // backend memory, valid until the next Blend
+  // Expected relative error of the image: the root of the mean over pixels
+  // of their expected squared relative errors. Negative until
+  // kMinFramesForError frames have accumulated.
+  float relative_error = -1.0f;
+};
+
+class Refiner {
+ public:
+  virtual ~Refiner() = default;
+  // Before the denoiser, every full-size frame: takes this frame's radiance
+  // into the squares (the accumulation restarts when `frames` is 1) and
+  // returns the running mean (backend memory).
+  // `exposure`: the display's, in stops (errors are weighed as shown).
+  virtual const Vec3f* Accumulate(const Vec3f* frame, const Vec3f* accumulated_sum, int width, int height,
+                                  int frames, float exposure) = 0;
+  // After the denoiser: the blended image and its estimated error.
+  virtual RefinedImage Blend(const Vec3f* denoised, int width, int height, int frames) = 0;
+};
+
+template <class B>
+class RefinerOn final : public Refiner {
+ public:
+  const Vec3f* Accumulate(const Vec3f* frame, const Vec3f* accumulated_sum, int width, int height,
+                          int frames, float exposure) override {
+    dark_ = kDarkGrey / exp2f(exposure);
+    const std::size_t n = std::size_t(width) * height;
+    squares_.Resize(n);
+    mean_.Resize(n);
+    variance_.Resize(n);
+    B::ForEachPixel(width, height,
+                    MeanAndVariancePass{frame, accumulated_sum, squares_.data(), mean_.data(), variance_.data(),
+                                        width, frames, dark_});
+    return mean_.data();
+  }
+
+  RefinedImage Blend(const Vec3f* denoised, int width, int height, int frames) override {
+    const std::size_t n = std::size_t(width) * height;
+    difference_.Resize(n);
+    shown_.Resize(n);
+    error_.Resize(n);
+    row_sums_.Resize(std::size_t(height));
+    B::ForEachPixel(width, height, DifferencePass{denoised, mean_.data(), difference_.data(), width, dark_});
+    B::ForEachPixel(width, height,
+                    BlendPass{denoised, mean_.data(), variance_.data(), difference_.data(), shown_.data(),
+                              error_.data(), width, height, frames});
+    RefinedImage out;
+    out.radiance = shown_.data();
+    if (frames < kMinFramesForError) return out;
+    B::ForEachPixel(1, height, RowSumPass{error_.data(), row_sums_.data(), width});
+    double error = 0;
+    for (const float row : row_sums_.Download()) error += row;
+    out.relative_error = float(std::sqrt(error / double(n)));
+    return out;
+  }
+
+ private:
+  typename B::template Buffer<Vec3f> squares_, mean_, shown_;
+  typename B::template Buffer<float> variance_, difference_, error_, row_sums_;
+  float dark_ = kDarkGrey;
+};
+
+std::unique_ptr<Refiner> MakeCpuRefiner();
+#if CINEVOL_WITH_CUDA
+std::unique_ptr<Refiner> MakeCudaRefiner();
+#endif
+
+}  // namespace cinevol

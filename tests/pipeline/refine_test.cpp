@@ -1,0 +1,129 @@
+// Idle refinement (pipeline/refine.h): the displayed error of a still view
+// falls frame after frame, the final frame is the best of them, refinement
+// stops at its error target, and the CUDA refiner agrees with the CPU one.
+#include <gtest/gtest.h>
+
+#include <algorithm>
+
+#include "core/image_metrics.h"
+#include "core/ycc.h"
+#include "pipeline/frame_pipeline.h"
+#include "support/gpu.h"
+#include "support/small_scene.h"
+
+namespace cinevol {
+namespace {
+
+using testing::SmallHead;
+using testing::SmallScene;
+
+// What a viewer sees of linear radiance, through the display pass at 4:4:4.
+ImageRgb8 Shown(const ImageRgbF& radiance, float exposure) {
+  DisplayInputs in;
+  in.width = radiance.width;
+  in.height = radiance.height;
+  in.radiance = radiance.pixels.data();
+  in.exposure = exposure;
+  in.chroma = ChromaSubsampling::k444;
+  return ToRgb(MakeCpuDisplay()->Run(in));
+}
+
+ImageRgb8 Reference(std::shared_ptr<const Volume> volume, const v1::Scene& scene, int spp) {
+  FramePipeline pipeline(Backend::kCpu, std::move(volume));
+  FrameSettings settings;
+  settings.denoiser.method = DenoiseMethod::kNone;
+  v1::Scene s = scene;
+  for (int done = 0, chunk = 0; done < spp; done += 64, ++chunk) {
+    s.mutable_render()->set_seed(1000 + chunk);  // other samples than the frames under test
+    pipeline.Update(s, settings, chunk == 0 ? kEverythingChanged : 0u);
+    pipeline.Accumulate(64);
+  }
+  return Shown(pipeline.AccumulatedRadiance(), pipeline.exposure());
+}
+
+FrameSettings Refining(int target_spp, float error_target) {
+  FrameSettings settings;
+  settings.target_spp = target_spp;
+  settings.error_target = error_target;
+  settings.chroma = ChromaSubsampling::k444;
+  return settings;
+}
+
+// The refinement curve at a small size. A firefly entering the mean
+// drops every unbiased image at once (here the mean itself by 1 dB at 98
+// spp); the refined image may not drop by more than 0.1 dB beyond what the
+// samples bring.
+TEST(Refinement, TheDisplayedErrorFallsAndTheFinalFrameIsTheBest) {
+  auto volume = SmallHead();
+  const v1::Scene scene = SmallScene(*volume, 96, 64, 2);
+  const ImageRgb8 reference = Reference(volume, scene, 2048);
+  FramePipeline pipeline(Backend::kCpu, volume);
+  pipeline.Update(scene, Refining(128, 0.0f));
+  std::vector<double> refined, mean;
+  DisplayFrame frame;
+  do {
+    frame = pipeline.RenderFrame();
+    refined.push_back(Psnr(ToRgb(frame.image), reference));
+    mean.push_back(Psnr(Shown(pipeline.AccumulatedRadiance(), pipeline.exposure()), reference));
+  } while (!frame.final);
+  EXPECT_EQ(frame.accumulated_spp, 128);
+  for (std::size_t i = 1; i < refined.size(); ++i) {
+    const double drop = refined[i - 1] - refined[i], samples_drop = std::max(0.0, mean[i - 1] - mean[i]);
+    EXPECT_LE(drop, samples_drop + 0.1) << "at " << 2 * (i + 1) << " spp; the mean dropped " << samples_drop;
+    if (i + 1 >= std::size_t(kMinFramesForError)) {
+      EXPECT_GE(refined[i], mean[i]) << "at " << 2 * (i + 1) << " spp: worse than the plain mean";
+    }
+  }
+  EXPECT_GE(refined.back(), *std::max_element(refined.begin(), refined.end()) - 0.05) << "the final frame is the best";
+  EXPECT_GT(refined.back(), refined.front() + 6.0) << "first " << refined.front() << " dB, final " << refined.back();
+  EXPECT_GT(frame.relative_error, 0.0f);
+}
+
+TEST(Refinement, StopsAtTheErrorTargetBeforeTheCap) {
+  auto volume = SmallHead();
+  FramePipeline pipeline(Backend::kCpu, volume);
+  const float target = 0.05f;
+  pipeline.Update(SmallScene(*volume), Refining(4096, target));
+  DisplayFrame frame;
+  for (int i = 0; i < 2048 && !frame.final; ++i) {
+    frame = pipeline.RenderFrame();
+    if (!frame.final && frame.accumulated_spp >= 2 * kMinFramesForError) {
+      EXPECT_GT(frame.relative_error, target) << "a frame at the target is the final one";
+    }
+  }
+  ASSERT_TRUE(frame.final);
+  EXPECT_LT(frame.accumulated_spp, 4096) << "the easy scene met its error target before the cap";
+  EXPECT_GE(frame.accumulated_spp, 2 * kMinFramesForError) << "no estimate before kMinFramesForError frames";
+  EXPECT_LE(frame.relative_error, target);
+  EXPECT_TRUE(pipeline.Converged());
+}
+
+TEST(Refinement, ErrorsAreEstimatedOnlyAfterEnoughFrames) {
+  auto volume = SmallHead();
+  FramePipeline pipeline(Backend::kCpu, volume);
+  pipeline.Update(SmallScene(*volume), Refining(4096, 0.0f));
+  for (int i = 1; i <= kMinFramesForError + 1; ++i) {
+    const DisplayFrame frame = pipeline.RenderFrame();
+    EXPECT_EQ(frame.relative_error >= 0.0f, i >= kMinFramesForError) << "frame " << i;
+  }
+}
+
+TEST(Refinement, CudaAgreesWithCpu) {
+  CINEVOL_REQUIRE_CUDA();
+  auto volume = SmallHead();
+  FramePipeline cpu(Backend::kCpu, volume), gpu(Backend::kCuda, volume);
+  const v1::Scene scene = SmallScene(*volume, 64, 48);
+  cpu.Update(scene, Refining(64, 0.0f));
+  gpu.Update(scene, Refining(64, 0.0f));
+  for (int i = 0; i < 32; ++i) {
+    const DisplayFrame a = cpu.RenderFrame(), b = gpu.RenderFrame();
+    const double psnr = Psnr(ToRgb(a.image), ToRgb(b.image));
+    EXPECT_GT(psnr, 40.0) << "frame " << i;
+    if (a.relative_error >= 0) {
+      EXPECT_NEAR(a.relative_error, b.relative_error, 0.1 * a.relative_error) << "frame " << i;
+    }
+  }
+}
+
+}  // namespace
+}  // namespace cinevol
