@@ -168,7 +168,7 @@ void RenderPanel(App& app) {
     app.stream.set_target_spp(target);
     app.SendStream();
   }
-  float error = app.stream.has_error_target() ? app.stream.error_target() * 100.0f : 0.5f;
+  float error = app.stream.has_error_target() ? app.stream.error_target() * 100.0f : 2.0f;
   if (ImGui::SliderFloat("refine to error %", &error, 0.0f, 5.0f, error > 0 ? "%.2f" : "off (to the spp cap)")) {
     app.stream.set_error_target(error / 100.0f);
     app.SendStream();

@@ -1,14 +1,17 @@
 // Idle refinement: while the view holds still, the displayed image combines,
 // per pixel, the denoiser's output d and the running mean m of the frames,
 // by their estimated errors. The mean's error is its variance V (the spread
-// of the frame means over their count). The denoiser's, B, comes from the
-// squared difference D = (d - m)^2 = B + V - 2 Cov(d, m): d is made of the
-// same frames as m, mostly the latest ones, and for an average of the last
-// k frames Cov(d, m) = V exactly, so B = D + V. (Taking B = D - V, as if the
-// two were independent, underrated the denoiser's error and kept the image
-// 0.7 dB below the plain mean from 100 spp on; tests/pipeline/refine_test.cpp's
-// scene.) Both are averaged over a small window (single pixels are too noisy
-// to steer by), and
+// of the frame means over their count). The denoiser's, B, is the part of
+// the squared difference D = (d - m)^2 that the mean's noise does not
+// explain: B = max(0, D - V). This takes d and m as independent; d is made
+// of the same frames, so where the denoiser leans on a pixel's own recent
+// values B comes out low and the mean takes over later than it could.
+// Counting the covariance as V instead (B = D + V, exact for a plain average
+// of recent frames) kept the mean at least half in every pixel and cost 7 dB
+// at 720p the moment blending began (docs/tradeoff.md, "Still frames"). Both
+// are averaged over a small window (single pixels are too noisy to steer
+// by), and a pixel whose own spread is larger than its window's (a firefly)
+// keeps its own:
 //
 //   shown = d + w (m - d),  w = B / (B + V),
 //
@@ -31,7 +34,7 @@ namespace cinevol {
 // Half-width of the window the error estimates are averaged over (7x7).
 inline constexpr int kErrorWindowRadius = 3;
 // Frames before the variance is estimated: fewer give too noisy a spread.
-inline constexpr int kMinFramesForError = 8;
+inline constexpr int kMinFramesForError = 16;
 // Linear radiance shown as 2% grey at exposure 0: RelativeScale's floor.
 inline constexpr float kDarkGrey = 0.02f;
 
@@ -112,13 +115,18 @@ struct BlendPass {
     v /= float(count);
     d /= float(count);
     const int i = y * width + x;
-    const float bias = d + v;
-    const float own = variance[i];
+    // The spread of n frames is itself uncertain (relative standard error
+    // about sqrt(2 / (n - 1))): the mean takes over only on the evidence,
+    // with the spread counted at its upper error bar.
+    const float upper = 1.0f + sqrtf(2.0f / float(MaxInt(frames - 1, 1)));
+    const float bias = fmaxf(d - upper * v, 0.0f);
+    // A firefly's pixel has a far larger spread than its window: its own.
+    const float spread = upper * fmaxf(variance[i], v);
     // Too few frames have too noisy a spread to go by: the denoiser's output.
     // No spread and no difference: the mean is exact (empty space, or one value).
-    const float w = frames < kMinFramesForError ? 0.0f : (bias + own > 0.0f ? bias / (bias + own) : 1.0f);
+    const float w = frames < kMinFramesForError ? 0.0f : (bias + spread > 0.0f ? bias / (bias + spread) : 1.0f);
     shown[i] = denoised[i] + (mean[i] - denoised[i]) * w;
-    error[i] = w * w * own + (1.0f - w) * (1.0f - w) * bias;
+    error[i] = w * w * spread + (1.0f - w) * (1.0f - w) * bias;
   }
 };
 
