@@ -44,14 +44,16 @@ void Run(const DemoOptions& o) {
   script.session.viewport.set_height(gpu ? 720 : 180);
   const v1::VolumeInfo volume = ResolveVolume(client, script.session);
   const auto created = client.CreateSession(SessionRequest(script.session, volume.id()));
-  fmt::print("server {} on {}; session {} at {}x{}: orbit, moving light, transfer-function edit, refinement to {} "
-             "spp\n",
+  fmt::print("server {} on {}; session {} at {}x{}: orbit, moving light, transfer-function edit, refinement to {}% "
+             "estimated error or {} spp\n",
              server.address(), device, created.session_id(), script.session.viewport.width(),
-             script.session.viewport.height(), script.session.stream.target_spp());
+             script.session.viewport.height(), 100.0f * script.session.stream.error_target(),
+             script.session.stream.target_spp());
 
   FrameRecorder recorder(out, 30);
   auto stream = client.Attach(created.session_id());
   int last_spp = 0;
+  float last_error = 0;
   PlayOptions play;
   play.max_seconds = 50;
   const PlayResult r = Play(
@@ -59,6 +61,7 @@ void Run(const DemoOptions& o) {
       [&](const ReceivedFrame& f) {
         recorder.Add(f);
         last_spp = static_cast<int>(f.frame.accumulated_spp());
+        last_error = f.frame.estimated_error();
       },
       [&](const PlayResult& p) {
         fmt::print("  {:4.1f} s  {:5} frames  {:6.1f} fps  {:5} spp accumulated\n", p.seconds, p.frames, p.fps(),
@@ -76,12 +79,12 @@ void Run(const DemoOptions& o) {
   const std::string summary = fmt::format(
       "cinevol demo: {} frames in {:.1f} s ({:.1f} fps) from {} on {}\n"
       "event-to-frame latency p50/p95/p99: {:.1f}/{:.1f}/{:.1f} ms over {} events\n"
-      "received {:.2f} MB, {} frames dropped by newest-wins, refined to {} spp\n"
+      "received {:.2f} MB, {} frames dropped by newest-wins, refined to {} spp (estimated error {:.1f}%)\n"
       "wrote {} frames (at most 30 per second) to {}\n"
       "wrote {} (per-frame timings), {}, {}\n",
       r.frames, r.seconds, r.fps(), server.address(), device, Percentile(r.latency_ms, 0.5),
       Percentile(r.latency_ms, 0.95), Percentile(r.latency_ms, 0.99), r.latency_ms.size(), r.bytes / 1e6, r.dropped,
-      last_spp, recorder.written().size(), fs::absolute(out / "frames").string(),
+      last_spp, 100.0 * last_error, recorder.written().size(), fs::absolute(out / "frames").string(),
       fs::absolute(recorder.csv_path()).string(), fs::absolute(sheet).string(), fs::absolute(final_frame).string());
   std::ofstream(out / "summary.txt") << summary;
   fmt::print("{}", summary);
