@@ -35,17 +35,6 @@ ImageRgbF Lerp(const ImageRgbF& a, const ImageRgbF& b, float t) {
   return out;
 }
 
-// What a viewer sees of linear radiance: the display pass at 4:4:4.
-ImageRgb8 Shown(const ImageRgbF& radiance, float exposure) {
-  DisplayInputs in;
-  in.width = radiance.width;
-  in.height = radiance.height;
-  in.radiance = radiance.pixels.data();
-  in.exposure = exposure;
-  in.chroma = ChromaSubsampling::k444;
-  return ToRgb(MakeCpuDisplay()->Run(in));
-}
-
 struct Curve {
   std::vector<double> psnr, ssim, ms;  // per still frame; ms: wall clock since the camera stopped
 };
@@ -73,7 +62,7 @@ int RunRefineBench(const RefineBenchOptions& o) {
   using Clock = std::chrono::steady_clock;
 
   const ImageRgbF reference = RenderReference(backend, loaded.volume, setup, o.reference_spp, setup.max_bounces, 0);
-  const ImageRgb8 reference_shown = Shown(reference, setup.exposure);
+  const ImageRgb8 reference_shown = ShownOnCpu(reference, setup.exposure);
 
   // Two pipelines on the same samples: `previous` with refinement off
   // shows the denoiser's output, blended here with its mean as the previous
@@ -110,7 +99,7 @@ int RunRefineBench(const RefineBenchOptions& o) {
     start = Clock::now();
     const DisplayFrame b = now.RenderFrame();
     after_ms += std::chrono::duration<double, std::milli>(Clock::now() - start).count();
-    const ImageRgb8 x = Shown(shown_before, setup.exposure), y = ToRgb(b.image);
+    const ImageRgb8 x = ShownOnCpu(shown_before, setup.exposure), y = ToRgb(b.image);
     before.psnr.push_back(Psnr(x, reference_shown));
     before.ssim.push_back(Ssim(x, reference_shown));
     before.ms.push_back(before_ms);

@@ -112,6 +112,9 @@ class DisplayOn final : public Display {
 };
 
 std::unique_ptr<Display> MakeCpuDisplay();
+// What a viewer sees of host radiance: the CPU display pass at 4:4:4, back
+// to RGB (tests and benches compare frames with references through it).
+ImageRgb8 ShownOnCpu(const ImageRgbF& radiance, float exposure);
 #if CINEVOL_WITH_CUDA
 std::unique_ptr<Display> MakeCudaDisplay();
 #endif

@@ -1,4 +1,4 @@
-// FramePipeline: scene diffing, the per-frame chain and refinement blending.
+// FramePipeline: scene diffing, the per-frame chain and refinement.
 #include "pipeline/frame_pipeline.h"
 
 #include <algorithm>

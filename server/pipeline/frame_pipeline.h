@@ -114,7 +114,8 @@ class FramePipeline {
 
   // One frame of the scene's spp: render, denoise, refine, tone map.
   DisplayFrame RenderFrame();
-  // Adds `spp` samples to the accumulation only (stills, offline renders).
+  // Adds `spp` samples to the accumulation only (stills, offline renders):
+  // not for a pipeline whose frames refine, whose error estimate counts frames.
   void Accumulate(int spp);
   // Frames check `cancel` as they render (FrameRequest::cancel); a cancelled
   // frame throws Cancelled and leaves the pipeline to be discarded.
@@ -131,7 +132,7 @@ class FramePipeline {
   // target_spp samples behind it.
   bool Converged() const;
   ImageRgbF AccumulatedRadiance() const { return renderer_->AccumulatedMean(); }
-  // The last frame's denoised linear radiance, before blending and tone
+  // The last frame's denoised linear radiance, before refinement and tone
   // mapping (the benches compare it with references in HDR).
   ImageRgbF DenoisedRadiance() const { return denoiser_->Output(); }
   float exposure() const { return exposure_; }

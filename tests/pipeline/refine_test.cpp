@@ -17,17 +17,6 @@ namespace {
 using testing::SmallHead;
 using testing::SmallScene;
 
-// What a viewer sees of linear radiance, through the display pass at 4:4:4.
-ImageRgb8 Shown(const ImageRgbF& radiance, float exposure) {
-  DisplayInputs in;
-  in.width = radiance.width;
-  in.height = radiance.height;
-  in.radiance = radiance.pixels.data();
-  in.exposure = exposure;
-  in.chroma = ChromaSubsampling::k444;
-  return ToRgb(MakeCpuDisplay()->Run(in));
-}
-
 ImageRgb8 Reference(std::shared_ptr<const Volume> volume, const v1::Scene& scene, int spp) {
   FramePipeline pipeline(Backend::kCpu, std::move(volume));
   FrameSettings settings;
@@ -38,7 +27,7 @@ ImageRgb8 Reference(std::shared_ptr<const Volume> volume, const v1::Scene& scene
     pipeline.Update(s, settings, chunk == 0 ? kEverythingChanged : 0u);
     pipeline.Accumulate(64);
   }
-  return Shown(pipeline.AccumulatedRadiance(), pipeline.exposure());
+  return ShownOnCpu(pipeline.AccumulatedRadiance(), pipeline.exposure());
 }
 
 FrameSettings Refining(int target_spp, float error_target) {
@@ -64,7 +53,7 @@ TEST(Refinement, TheDisplayedErrorFallsAndTheFinalFrameIsTheBest) {
   do {
     frame = pipeline.RenderFrame();
     refined.push_back(Psnr(ToRgb(frame.image), reference));
-    mean.push_back(Psnr(Shown(pipeline.AccumulatedRadiance(), pipeline.exposure()), reference));
+    mean.push_back(Psnr(ShownOnCpu(pipeline.AccumulatedRadiance(), pipeline.exposure()), reference));
   } while (!frame.final);
   EXPECT_EQ(frame.accumulated_spp, 128);
   for (std::size_t i = 1; i < refined.size(); ++i) {
