@@ -17,7 +17,8 @@
 //
 // the weight that minimises the expected squared error, w^2 V + (1 - w)^2 B =
 // B V / (B + V). The mean takes over wherever it is the better estimate, and
-// everywhere as V falls: the image is never worse than either. The same
+// everywhere as V falls (measured: never below the mean once blending
+// starts, tests/pipeline/refine_test.cpp). The same
 // expected error, over the image, is what refinement stops at
 // (FrameSettings::error_target). Runs on the backend that rendered the frame.
 #pragma once
@@ -156,12 +157,12 @@ struct RefinedImage {
 class Refiner {
  public:
   virtual ~Refiner() = default;
-  // Before the denoiser, every full-size frame: takes this frame's radiance
-  // into the squares (the accumulation restarts when `frames` is 1) and
-  // returns the running mean (backend memory).
-  // `exposure`: the display's, in stops (errors are weighed as shown).
-  virtual const Vec3f* Accumulate(const Vec3f* frame, const Vec3f* accumulated_sum, int width, int height,
-                                  int frames, float exposure) = 0;
+  // Every full-size frame, before Blend: takes this frame's radiance into
+  // the squares (the accumulation restarts when `frames` is 1) and derives
+  // the running mean and its variance. `exposure`: the display's, in stops
+  // (errors are weighed as shown).
+  virtual void Accumulate(const Vec3f* frame, const Vec3f* accumulated_sum, int width, int height, int frames,
+                          float exposure) = 0;
   // After the denoiser: the blended image and its estimated error.
   virtual RefinedImage Blend(const Vec3f* denoised, int width, int height, int frames) = 0;
 };
@@ -169,8 +170,8 @@ class Refiner {
 template <class B>
 class RefinerOn final : public Refiner {
  public:
-  const Vec3f* Accumulate(const Vec3f* frame, const Vec3f* accumulated_sum, int width, int height,
-                          int frames, float exposure) override {
+  void Accumulate(const Vec3f* frame, const Vec3f* accumulated_sum, int width, int height, int frames,
+                  float exposure) override {
     dark_ = kDarkGrey / exp2f(exposure);
     const std::size_t n = std::size_t(width) * height;
     squares_.Resize(n);
@@ -179,7 +180,6 @@ class RefinerOn final : public Refiner {
     B::ForEachPixel(width, height,
                     MeanAndVariancePass{frame, accumulated_sum, squares_.data(), mean_.data(), variance_.data(),
                                         width, frames, dark_});
-    return mean_.data();
   }
 
   RefinedImage Blend(const Vec3f* denoised, int width, int height, int frames) override {
