@@ -107,7 +107,7 @@ int RunRefineBench(const RefineBenchOptions& o) {
     after.ssim.push_back(Ssim(y, reference_shown));
     after.ms.push_back(after_ms);
     spp.push_back(b.accumulated_spp);
-    estimate.push_back(b.relative_error);
+    estimate.push_back(b.estimated_error);
   }
 
   std::string table = fmt::format(

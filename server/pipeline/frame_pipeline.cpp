@@ -119,14 +119,14 @@ void FramePipeline::SetScale(float scale) {
 void FramePipeline::ResetAccumulation() {
   renderer_->ResetAccumulation();
   accumulated_spp_ = 0;
-  relative_error_ = -1;
+  estimated_error_ = -1;
 }
 
 bool FramePipeline::Converged() const {
   if (scale_ != 1.0f) return false;
   if (accumulated_spp_ >= settings_.target_spp) return true;
-  return settings_.refine && settings_.error_target > 0 && relative_error_ >= 0 &&
-         relative_error_ <= settings_.error_target;
+  return settings_.refine && settings_.error_target > 0 && estimated_error_ >= 0 &&
+         estimated_error_ <= settings_.error_target;
 }
 
 void FramePipeline::MeasureFrameTime(Clock::time_point start) {
@@ -163,13 +163,6 @@ DisplayFrame FramePipeline::RenderFrame() {
   accumulated_spp_ += spp_;
 
   const FrameTargets t = renderer_->Targets();
-  // A full-size still view refines: the mean of its frames so far, and the
-  // denoiser's output, combined per pixel by their estimated errors.
-  const bool refining = settings_.refine && scale_ == 1.0f;
-  if (refining) {
-    refiner_->Accumulate(t.radiance, t.accumulated, camera.width, camera.height, renderer_->accumulated_frames(),
-                         exposure_);
-  }
   const Vec3f* denoised =
       denoiser_->Denoise({camera.width, camera.height, t.radiance, t.first_hit, t.albedo, camera, scene_version_});
   out.denoise_ms = denoiser_->LastMilliseconds();
@@ -183,11 +176,14 @@ DisplayFrame FramePipeline::RenderFrame() {
     // A moving view shows the denoiser's output alone: its few samples are
     // about to be replaced.
     in.radiance = upsampler_->Run(denoised, camera.width, camera.height, camera_.width, camera_.height);
-  } else if (refining) {
-    const RefinedImage refined = refiner_->Blend(denoised, camera.width, camera.height, renderer_->accumulated_frames());
+  } else if (settings_.refine) {
+    // The denoiser's output and the mean of the frames so far, combined per
+    // pixel by their estimated errors.
+    const RefinedImage refined = refiner_->Refine(
+        {camera.width, camera.height, t.radiance, t.accumulated, denoised, renderer_->accumulated_frames(), exposure_});
     in.radiance = refined.radiance;
-    relative_error_ = refined.relative_error;
-    out.relative_error = refined.relative_error;
+    estimated_error_ = refined.estimated_error;
+    out.estimated_error = refined.estimated_error;
   } else {
     in.radiance = denoised;
   }

@@ -2,9 +2,9 @@
 // Scene edits rebuild only what they invalidate (a transfer-function edit
 // re-derives the majorants, a camera move does not); each frame renders the
 // scene's spp, denoises, combines the denoised image with the accumulation
-// per pixel by their estimated errors (idle refinement), tone maps and converts to JPEG's YCbCr planes on the
-// device and copies them to pinned host memory, ready for EncodeJpeg on any
-// thread.
+// per pixel by their estimated errors (idle refinement), tone maps and
+// converts to JPEG's YCbCr planes on the device and copies them to pinned
+// host memory, ready for EncodeJpeg on any thread.
 //
 // The service drives one per session; `cinevol render` and the benches
 // drive the same object. CUDA work goes to the calling thread's current GPU
@@ -80,7 +80,7 @@ struct DisplayFrame {
   ImageYcc8 image;
   int accumulated_spp = 0;  // samples per pixel behind it since the scene last changed
   bool final = false;       // refinement reached its error target or target_spp with this frame
-  float relative_error = -1;  // refined frames: the image's estimated relative error; < 0 unknown
+  float estimated_error = -1;  // refined frames: the image's estimated relative error; < 0 unknown
   float resolution_scale = 1;  // < 1: rendered at this fraction of the width and height, upsampled
   double render_ms = 0, denoise_ms = 0, display_ms = 0;
 };
@@ -173,7 +173,7 @@ class FramePipeline {
   std::uint64_t scene_version_ = 0;  // bumped on transfer-function and light edits (the denoiser's cue)
   std::uint32_t frame_ = 0;          // seeds each frame's samples
   int accumulated_spp_ = 0;
-  float relative_error_ = -1;  // the last refined frame's estimate; < 0 none yet
+  float estimated_error_ = -1;  // the last refined frame's estimate; < 0 none yet
   // Interactive resolution: the scale this frame renders at, the scale moving
   // views render at (kept from one interaction to the next), when the view
   // last moved, and the frame time measured at scale_ (a running mean of

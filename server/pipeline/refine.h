@@ -25,7 +25,6 @@
 
 #include <cmath>
 #include <memory>
-#include <vector>
 
 #include "core/sampling.h"
 #include "core/vec.h"
@@ -49,12 +48,11 @@ CINEVOL_HD float RelativeScale(Vec3f radiance, float dark) {
 }
 
 // Before the denoiser: the frame's squares join the accumulation's, and the
-// mean and its variance (mean over channels) are written out.
-struct MeanAndVariancePass {
+// variance of the mean (mean over channels) is written out.
+struct VariancePass {
   const Vec3f* frame;            // this frame's radiance: the mean of its samples
   const Vec3f* accumulated_sum;  // sum of frame means, this one included
   Vec3f* squares;                // sum of squared frame means (this pass adds this frame's)
-  Vec3f* mean;
   float* variance;               // of the mean: the sample variance of the frames / frames, relative
   int width, frames;
   float dark;                    // RelativeScale's floor
@@ -66,7 +64,6 @@ struct MeanAndVariancePass {
     squares[i] = q;
     const float n = float(frames);
     const Vec3f m = accumulated_sum[i] * (1.0f / n);
-    mean[i] = m;
     if (frames < 2) {
       variance[i] = 0.0f;
       return;
@@ -81,22 +78,25 @@ struct MeanAndVariancePass {
 // channels, relative.
 struct DifferencePass {
   const Vec3f* denoised;
-  const Vec3f* mean;
+  const Vec3f* accumulated_sum;
+  float inv_frames;
   float* difference;
   int width;
   float dark;
 
   CINEVOL_HD void operator()(int x, int y) const {
     const int i = y * width + x;
-    const Vec3f e = denoised[i] - mean[i];
-    difference[i] = Dot(e, e) * (1.0f / 3.0f) * RelativeScale(mean[i], dark);
+    const Vec3f m = accumulated_sum[i] * inv_frames;
+    const Vec3f e = denoised[i] - m;
+    difference[i] = Dot(e, e) * (1.0f / 3.0f) * RelativeScale(m, dark);
   }
 };
 
 // The blend, and each pixel's expected squared relative error.
 struct BlendPass {
   const Vec3f* denoised;
-  const Vec3f* mean;
+  const Vec3f* accumulated_sum;
+  float inv_frames;
   const float* variance;
   const float* difference;
   Vec3f* shown;
@@ -123,10 +123,9 @@ struct BlendPass {
     const float bias = fmaxf(d - upper * v, 0.0f);
     // A firefly's pixel has a far larger spread than its window: its own.
     const float spread = upper * fmaxf(variance[i], v);
-    // Too few frames have too noisy a spread to go by: the denoiser's output.
     // No spread and no difference: the mean is exact (empty space, or one value).
-    const float w = frames < kMinFramesForError ? 0.0f : (bias + spread > 0.0f ? bias / (bias + spread) : 1.0f);
-    shown[i] = denoised[i] + (mean[i] - denoised[i]) * w;
+    const float w = bias + spread > 0.0f ? bias / (bias + spread) : 1.0f;
+    shown[i] = denoised[i] + (accumulated_sum[i] * inv_frames - denoised[i]) * w;
     error[i] = w * w * spread + (1.0f - w) * (1.0f - w) * bias;
   }
 };
@@ -145,67 +144,66 @@ struct RowSumPass {
   }
 };
 
+// One full-size frame, after the denoiser.
+struct RefineInputs {
+  int width = 0, height = 0;
+  const Vec3f* frame = nullptr;            // backend memory: this frame's radiance
+  const Vec3f* accumulated_sum = nullptr;  // backend memory: sum of the frames, this one included
+  const Vec3f* denoised = nullptr;         // backend memory
+  int frames = 0;                          // in accumulated_sum; 1 restarts the squares
+  float exposure = 0;                      // the display's, in stops: errors are weighed as shown
+};
+
 // What a refined frame shows.
 struct RefinedImage {
-  const Vec3f* radiance = nullptr;  // backend memory, valid until the next Blend
+  const Vec3f* radiance = nullptr;  // backend memory, valid until the next Refine
   // Expected relative error of the image: the root of the mean over pixels
   // of their expected squared relative errors. Negative until
   // kMinFramesForError frames have accumulated.
-  float relative_error = -1.0f;
+  float estimated_error = -1.0f;
 };
 
 class Refiner {
  public:
   virtual ~Refiner() = default;
-  // Every full-size frame, before Blend: takes this frame's radiance into
-  // the squares (the accumulation restarts when `frames` is 1) and derives
-  // the running mean and its variance. `exposure`: the display's, in stops
-  // (errors are weighed as shown).
-  virtual void Accumulate(const Vec3f* frame, const Vec3f* accumulated_sum, int width, int height, int frames,
-                          float exposure) = 0;
-  // After the denoiser: the blended image and its estimated error.
-  virtual RefinedImage Blend(const Vec3f* denoised, int width, int height, int frames) = 0;
+  // Every full-size frame: takes its radiance into the squares, and from
+  // kMinFramesForError frames on blends (before, too few frames have too
+  // noisy a spread to go by, and the denoiser's output is shown as it is).
+  virtual RefinedImage Refine(const RefineInputs& in) = 0;
 };
 
 template <class B>
 class RefinerOn final : public Refiner {
  public:
-  void Accumulate(const Vec3f* frame, const Vec3f* accumulated_sum, int width, int height, int frames,
-                  float exposure) override {
-    dark_ = kDarkGrey / exp2f(exposure);
-    const std::size_t n = std::size_t(width) * height;
+  RefinedImage Refine(const RefineInputs& in) override {
+    const std::size_t n = std::size_t(in.width) * in.height;
+    const float dark = kDarkGrey / exp2f(in.exposure);
     squares_.Resize(n);
-    mean_.Resize(n);
     variance_.Resize(n);
-    B::ForEachPixel(width, height,
-                    MeanAndVariancePass{frame, accumulated_sum, squares_.data(), mean_.data(), variance_.data(),
-                                        width, frames, dark_});
-  }
+    B::ForEachPixel(in.width, in.height,
+                    VariancePass{in.frame, in.accumulated_sum, squares_.data(), variance_.data(), in.width,
+                                 in.frames, dark});
+    if (in.frames < kMinFramesForError) return {in.denoised, -1.0f};
 
-  RefinedImage Blend(const Vec3f* denoised, int width, int height, int frames) override {
-    const std::size_t n = std::size_t(width) * height;
     difference_.Resize(n);
     shown_.Resize(n);
     error_.Resize(n);
-    row_sums_.Resize(std::size_t(height));
-    B::ForEachPixel(width, height, DifferencePass{denoised, mean_.data(), difference_.data(), width, dark_});
-    B::ForEachPixel(width, height,
-                    BlendPass{denoised, mean_.data(), variance_.data(), difference_.data(), shown_.data(),
-                              error_.data(), width, height, frames});
-    RefinedImage out;
-    out.radiance = shown_.data();
-    if (frames < kMinFramesForError) return out;
-    B::ForEachPixel(1, height, RowSumPass{error_.data(), row_sums_.data(), width});
+    row_sums_.Resize(std::size_t(in.height));
+    const float inv_frames = 1.0f / float(in.frames);
+    B::ForEachPixel(in.width, in.height,
+                    DifferencePass{in.denoised, in.accumulated_sum, inv_frames, difference_.data(), in.width, dark});
+    B::ForEachPixel(in.width, in.height,
+                    BlendPass{in.denoised, in.accumulated_sum, inv_frames, variance_.data(), difference_.data(),
+                              shown_.data(), error_.data(), in.width, in.height, in.frames});
+    B::ForEachPixel(1, in.height, RowSumPass{error_.data(), row_sums_.data(), in.width});
     double error = 0;
     for (const float row : row_sums_.Download()) error += row;
-    out.relative_error = float(std::sqrt(error / double(n)));
-    return out;
+    return {shown_.data(), float(std::sqrt(error / double(n)))};
   }
 
  private:
-  typename B::template Buffer<Vec3f> squares_, mean_, shown_;
+  typename B::template Buffer<Vec3f> squares_, shown_;
   typename B::template Buffer<float> variance_, difference_, error_, row_sums_;
-  float dark_ = kDarkGrey;
 };
 
 std::unique_ptr<Refiner> MakeCpuRefiner();

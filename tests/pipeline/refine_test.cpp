@@ -65,7 +65,7 @@ TEST(Refinement, TheDisplayedErrorFallsAndTheFinalFrameIsTheBest) {
   }
   EXPECT_GE(refined.back(), *std::max_element(refined.begin(), refined.end()) - 0.05) << "the final frame is the best";
   EXPECT_GT(refined.back(), refined.front() + 6.0) << "first " << refined.front() << " dB, final " << refined.back();
-  EXPECT_GT(frame.relative_error, 0.0f);
+  EXPECT_GT(frame.estimated_error, 0.0f);
 }
 
 TEST(Refinement, StopsAtTheErrorTargetBeforeTheCap) {
@@ -77,13 +77,13 @@ TEST(Refinement, StopsAtTheErrorTargetBeforeTheCap) {
   for (int i = 0; i < 2048 && !frame.final; ++i) {
     frame = pipeline.RenderFrame();
     if (!frame.final && frame.accumulated_spp >= 2 * kMinFramesForError) {
-      EXPECT_GT(frame.relative_error, target) << "a frame at the target is the final one";
+      EXPECT_GT(frame.estimated_error, target) << "a frame at the target is the final one";
     }
   }
   ASSERT_TRUE(frame.final);
   EXPECT_LT(frame.accumulated_spp, 4096) << "the easy scene met its error target before the cap";
   EXPECT_GE(frame.accumulated_spp, 2 * kMinFramesForError) << "no estimate before kMinFramesForError frames";
-  EXPECT_LE(frame.relative_error, target);
+  EXPECT_LE(frame.estimated_error, target);
   EXPECT_TRUE(pipeline.Converged());
 }
 
@@ -93,7 +93,7 @@ TEST(Refinement, ErrorsAreEstimatedOnlyAfterEnoughFrames) {
   pipeline.Update(SmallScene(*volume), Refining(4096, 0.0f));
   for (int i = 1; i <= kMinFramesForError + 1; ++i) {
     const DisplayFrame frame = pipeline.RenderFrame();
-    EXPECT_EQ(frame.relative_error >= 0.0f, i >= kMinFramesForError) << "frame " << i;
+    EXPECT_EQ(frame.estimated_error >= 0.0f, i >= kMinFramesForError) << "frame " << i;
   }
 }
 
@@ -108,8 +108,8 @@ TEST(Refinement, CudaAgreesWithCpu) {
     const DisplayFrame a = cpu.RenderFrame(), b = gpu.RenderFrame();
     const double psnr = Psnr(ToRgb(a.image), ToRgb(b.image));
     EXPECT_GT(psnr, 40.0) << "frame " << i;
-    if (a.relative_error >= 0) {
-      EXPECT_NEAR(a.relative_error, b.relative_error, 0.1 * a.relative_error) << "frame " << i;
+    if (a.estimated_error >= 0) {
+      EXPECT_NEAR(a.estimated_error, b.estimated_error, 0.1 * a.estimated_error) << "frame " << i;
     }
   }
 }
