@@ -6,8 +6,10 @@
 #include <google/protobuf/util/json_util.h>
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <fstream>
+#include <random>
 
 #include <fmt/format.h>
 
@@ -39,22 +41,37 @@ struct ViewerRun {
   std::string output;
 };
 
-// The viewer on a virtual display, 640x400, at most 90 s. Each run takes a
-// display number of its own: xvfb-run's --auto-servernum races when tests
-// run side by side.
-ViewerRun RunViewer(const fs::path& scratch, std::vector<std::string> args) {
-  static int runs = 0;
-  const std::string display = std::to_string(100 + (getpid() * 7 + runs++) % 800);
-  std::vector<std::string> all{"-n", display, "-s", "-screen 0 1024x768x24", "timeout", "90", kViewer, "--width",
-                               "640", "--height", "400"};
-  all.insert(all.end(), args.begin(), args.end());
-  // xvfb-run exits 5 when it cannot remove its temporary directory after
-  // the viewer ended, and the viewer's own exit status is lost: seen on the
-  // CI machine under load. That is the harness failing, not the viewer: run again.
-  constexpr const char* kCleanupFailed = "xvfb-run: error: problem while cleaning up temporary directory";
+// xvfb-run's arguments for the viewer on a virtual display of its own,
+// 640x400, at most 90 s. xvfb-run's --auto-servernum races when tests run
+// side by side, so each run draws a display number whose lock file and
+// socket are absent, starting at a random place.
+std::vector<std::string> XvfbRunArgs(const std::vector<std::string>& viewer_args) {
+  static std::mt19937 draw{std::random_device{}()};
+  int display = 100 + int(draw() % 800);
+  for (int tries = 0; tries < 800; ++tries, display = 100 + (display - 99) % 800) {
+    if (!fs::exists(fmt::format("/tmp/.X{}-lock", display)) && !fs::exists(fmt::format("/tmp/.X11-unix/X{}", display)))
+      break;
+  }
+  std::vector<std::string> all{"-n", std::to_string(display), "-s", "-screen 0 1024x768x24", "timeout", "90", kViewer,
+                               "--width", "640", "--height", "400"};
+  all.insert(all.end(), viewer_args.begin(), viewer_args.end());
+  return all;
+}
+
+ViewerRun RunViewer(const fs::path& scratch, const std::vector<std::string>& args) {
+  // Two ways xvfb-run fails around the viewer, both seen on the CI machine
+  // under load, both the harness failing rather than the viewer: Xvfb does
+  // not start (another run took the display between the check and the
+  // start), and xvfb-run exits 5 when it cannot remove its temporary
+  // directory after the viewer ended, losing the viewer's exit status. Run again.
+  constexpr const char* kHarnessFailures[] = {"xvfb-run: error: Xvfb failed to start",
+                                              "xvfb-run: error: problem while cleaning up temporary directory"};
   for (int attempt = 0;; ++attempt) {
-    auto [code, output] = RunProgram("/usr/bin/xvfb-run", all, scratch / "viewer.log", std::chrono::seconds(120));
-    if (code == 5 && output.find(kCleanupFailed) != std::string::npos && attempt < 2) continue;
+    auto [code, output] =
+        RunProgram("/usr/bin/xvfb-run", XvfbRunArgs(args), scratch / "viewer.log", std::chrono::seconds(120));
+    const bool harness_failed = std::any_of(std::begin(kHarnessFailures), std::end(kHarnessFailures),
+                                            [&](const char* s) { return output.find(s) != std::string::npos; });
+    if (harness_failed && attempt < 2) continue;
     return {code, output};
   }
 }
@@ -188,9 +205,8 @@ TEST(Viewer, ASessionLostWithItsServerIsReplacedWithTheViewersState) {
 {{"at": 0.2, "ui": {{"preset": "ct-soft-tissue"}}}}
 {{"at": 12, "ui": {{"key": "p"}}}}
 )", first.string()));
-  std::vector<std::string> args{"-n", std::to_string(100 + getpid() % 800), "-s", "-screen 0 1024x768x24", "timeout",
-                                "90", kViewer, "--width", "640", "--height", "400", "--server", server->address(),
-                                "--script", script.string(), "--screenshot", last.string()};
+  const auto args = XvfbRunArgs({"--server", server->address(), "--script", script.string(), "--screenshot",
+                                  last.string()});
   const pid_t viewer = Spawn("/usr/bin/xvfb-run", args, scratch.path() / "viewer.log");
   ASSERT_GT(viewer, 0);
   // Once the first frame is on screen, the server dies and another takes its port.
