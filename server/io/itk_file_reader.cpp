@@ -342,7 +342,7 @@ struct NiftiFile {
     nifti_2_header n2;
   } h{};
   bool swap = false;
-  int header_size = 0;  // 348: NIfTI-1 or Analyze; else NIfTI-2's 540 (read whole) or not NIfTI
+  int header_size = 0;  // 348: NIfTI-1 or Analyze; 540: NIfTI-2 (read whole)
   NiftiFile() = default;
   NiftiFile(const NiftiFile&) = delete;
   NiftiFile& operator=(const NiftiFile&) = delete;
@@ -351,7 +351,28 @@ struct NiftiFile {
   }
 };
 
-// Opens `path` into `file`; "" or what is wrong ("cannot open", "header is truncated").
+// ITK's nifti1_io takes a header as NIfTI-1 when it has the NIfTI-1 magic
+// (sizeof_hdr then is not checked), and decides its byte order by dim[0]
+// when that is set, else by sizeof_hdr; it refuses a header where neither
+// order fits. The checks below read the header exactly so: a crafted file
+// with a NIfTI-1 magic and a bad sizeof_hdr once slipped past them.
+bool NiftiOneMagic(const nifti_1_header& h) {
+  return std::memcmp(h.magic, "n+1", 4) == 0 || std::memcmp(h.magic, "ni1", 4) == 0;
+}
+
+// Sets `swap` as nifti1_io does; false where it refuses the byte order.
+bool NiftiOneByteOrder(const nifti_1_header& h, bool& swap) {
+  const auto in_range = [](short d) { return d > 0 && d <= 7; };
+  if (h.dim[0] != 0) {
+    swap = !in_range(h.dim[0]);
+    return !swap || in_range(Swapped(h.dim[0]));
+  }
+  swap = h.sizeof_hdr != 348;
+  return !swap || Swapped(h.sizeof_hdr) == 348;
+}
+
+// Opens `path` into `file`; "" or what is wrong ("cannot open", "header is
+// truncated", a byte order that the reader refuses).
 std::string OpenNifti(const fs::path& path, NiftiFile& file) {
   const int fd = file_checks::OpenRegularFile(path);
   file.f = fd < 0 ? nullptr : gzdopen(fd, "rb");
@@ -361,13 +382,17 @@ std::string OpenNifti(const fs::path& path, NiftiFile& file) {
   }
   auto& h = file.h;
   if (gzread(file.f, &h, sizeof(nifti_1_header)) != int(sizeof(nifti_1_header))) return "header is truncated";
-  file.swap = h.n1.sizeof_hdr != 348 && h.n1.sizeof_hdr != 540;
-  file.header_size = file.swap ? Swapped(h.n1.sizeof_hdr) : h.n1.sizeof_hdr;
-  if (file.header_size != 348) {  // NIfTI-2, or not NIfTI at all (the readers then refuse it)
-    const int rest = int(sizeof(nifti_2_header) - sizeof(nifti_1_header));
-    if (gzread(file.f, reinterpret_cast<char*>(&h) + sizeof(nifti_1_header), rest) != rest) {
-      return "header is truncated";
-    }
+  const bool nifti2 = (h.n1.sizeof_hdr == 540 || Swapped(h.n1.sizeof_hdr) == 540) && !NiftiOneMagic(h.n1);
+  if (!nifti2) {  // NIfTI-1 or Analyze, the only layouts ITK 5.2 reads
+    file.header_size = 348;
+    if (!NiftiOneByteOrder(h.n1, file.swap)) return "dim[0] (the number of dimensions) is outside 1..7";
+    return "";
+  }
+  file.header_size = 540;
+  file.swap = h.n1.sizeof_hdr != 540;
+  const int rest = int(sizeof(nifti_2_header) - sizeof(nifti_1_header));
+  if (gzread(file.f, reinterpret_cast<char*>(&h) + sizeof(nifti_1_header), rest) != rest) {
+    return "header is truncated";
   }
   return "";
 }
