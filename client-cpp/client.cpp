@@ -65,8 +65,12 @@ RpcError::RpcError(const grpc::Status& status)
     : std::runtime_error(StatusCodeName(status.error_code()) + ": " + status.error_message()),
       code_(status.error_code()) {}
 
+const std::string& EncodedImage(const v1::Frame& frame) { return frame.has_png() ? frame.png() : frame.jpeg(); }
+
 RgbImage DecodeFrame(const v1::Frame& frame) {
-  const ImageRgb8 image = DecodeJpeg(std::vector<std::uint8_t>(frame.jpeg().begin(), frame.jpeg().end()));
+  const std::string& encoded = EncodedImage(frame);
+  const std::vector<std::uint8_t> bytes(encoded.begin(), encoded.end());
+  const ImageRgb8 image = frame.has_png() ? DecodePng(bytes) : DecodeJpeg(bytes);
   return {image.width, image.height, image.bytes};
 }
 

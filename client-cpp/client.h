@@ -66,7 +66,10 @@ struct RgbImage {
   std::vector<std::uint8_t> rgb;  // width * height * 3
 };
 
-// Decodes a frame's JPEG; throws std::runtime_error when it is not one.
+// A frame's encoded image: its JPEG, or its PNG (a final frame, where the
+// stream's final_format asks for one).
+const std::string& EncodedImage(const v1::Frame& frame);
+// Decodes a frame's image; throws std::runtime_error when it is not one.
 RgbImage DecodeFrame(const v1::Frame& frame);
 
 struct StreamOptions {

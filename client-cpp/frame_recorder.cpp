@@ -54,14 +54,15 @@ void FrameRecorder::Add(const ReceivedFrame& r) {
   std::string file;
   if (max_per_second_ <= 0 || f.final() || r.at >= next_write_at_) {
     next_write_at_ = r.at + (max_per_second_ > 0 ? 1.0 / max_per_second_ : 0.0);
-    const std::filesystem::path path = frames_dir_ / fmt::format("frame-{:06}.jpg", f.frame_id());
-    WriteFile(path, std::vector<std::uint8_t>(f.jpeg().begin(), f.jpeg().end()));
+    const std::filesystem::path path =
+        frames_dir_ / fmt::format("frame-{:06}.{}", f.frame_id(), f.has_png() ? "png" : "jpg");
+    WriteFile(path, std::vector<std::uint8_t>(EncodedImage(f).begin(), EncodedImage(f).end()));
     written_.push_back(path);
     file = path.filename().string();
   }
   const auto& t = f.timings();
   csv_ << fmt::format("{},{:.4f},{},{},{},{},{},{},{},{},{},{},{},{},{},{}\n", f.frame_id(), r.at, f.width(),
-                      f.height(), f.accumulated_spp(), f.final() ? 1 : 0, f.last_event_seq(), f.jpeg().size(),
+                      f.height(), f.accumulated_spp(), f.final() ? 1 : 0, f.last_event_seq(), EncodedImage(f).size(),
                       t.render_us(), t.denoise_us(), t.tonemap_us(), t.encode_us(), t.queue_us(), t.server_us(),
                       r.latency_ms > 0 ? fmt::format("{:.3f}", r.latency_ms) : std::string(), file);
 }

@@ -1,6 +1,7 @@
 // `cinevol play --server ADDR --script FILE [--out DIR]`: replays a scripted
 // interaction against a server and saves every frame and a per-frame CSV.
 #include <cstdio>
+#include <optional>
 
 #include <fmt/format.h>
 
@@ -18,10 +19,23 @@ struct PlayCommandOptions {
   std::string out = "cinevol-play";
   std::string volume;     // overrides the script's volume, load or upload
   double timeout = 120;   // seconds the whole run may take
+  // Refinement settings over the script's (docs/api.md, StreamSettings); unset keeps the script's.
+  std::optional<int> target_spp;
+  std::optional<float> error_target;
+  std::string final_format;  // "", "jpeg" or "png"
 };
 
+void OverrideRefinement(const PlayCommandOptions& o, v1::StreamSettings& stream) {
+  if (o.target_spp) stream.set_target_spp(std::uint32_t(*o.target_spp));
+  if (o.error_target) stream.set_error_target(*o.error_target);
+  if (!o.final_format.empty()) {
+    stream.set_final_format(o.final_format == "png" ? v1::FINAL_FORMAT_PNG : v1::FINAL_FORMAT_JPEG);
+  }
+}
+
 void Run(const PlayCommandOptions& o) {
-  const SessionScript script = LoadScript(o.script);
+  SessionScript script = LoadScript(o.script);
+  OverrideRefinement(o, script.session.stream);
   Client client = Connect(o.connection);
   const v1::VolumeInfo volume =
       o.volume.empty() ? ResolveVolume(client, script.session) : ResolveVolume(client, o.volume);
@@ -55,6 +69,13 @@ void AddPlayCommand(CLI::App& app) {
   cmd->add_option("--volume", o->volume, "Volume id, instead of the script's volume, load or upload");
   cmd->add_option("--timeout", o->timeout, "Seconds the run may take at most")->check(CLI::Range(0.1, 86400.0))
       ->capture_default_str();
+  cmd->add_option("--target-spp", o->target_spp, "Refinement's cap in samples per pixel (default: the script's, else 256)")
+      ->check(CLI::Range(1, 65536));
+  cmd->add_option("--error-target", o->error_target,
+                  "Refinement ends at this estimated relative error (default: the script's, else 0.02; 0: at the cap)")
+      ->check(CLI::Range(0.0, 1.0));
+  cmd->add_option("--final-format", o->final_format, "The final frame as jpeg or png (lossless; default: the script's, else jpeg)")
+      ->check(CLI::IsMember({"jpeg", "png"}));
   cmd->callback([o] { Run(*o); });
 }
 

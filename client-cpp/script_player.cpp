@@ -29,7 +29,7 @@ std::string ExplainStatus(const grpc::Status& status, const std::map<std::uint64
 void AddFrame(const v1::Frame& f, SessionStream& stream, Clock::time_point now, std::uint64_t& answered,
               std::uint64_t& last_id, PlayResult& r, double& latency_ms) {
   ++r.frames;
-  r.bytes += f.jpeg().size();
+  r.bytes += EncodedImage(f).size();
   if (f.resolution_scale() > 0 && f.resolution_scale() < 1) ++r.smaller_frames;
   if (last_id > 0 && f.frame_id() > last_id + 1) r.dropped += f.frame_id() - last_id - 1;
   last_id = std::max(last_id, f.frame_id());

@@ -267,8 +267,8 @@ void Connection::Decode() {
       continue;
     }
     view.decode_ms = std::chrono::duration<double, std::milli>(Clock::now() - start).count();
-    view.jpeg_bytes = frame.jpeg().size();
-    frame.clear_jpeg();
+    view.image_bytes = EncodedImage(frame).size();
+    frame.clear_image();
     view.info = std::move(frame);
     view.received = received;
     lock.lock();

@@ -35,8 +35,8 @@ struct ConnectionSettings {
 // A decoded frame and what the server said about it.
 struct ViewFrame {
   RgbImage image;
-  v1::Frame info;  // without its JPEG
-  std::size_t jpeg_bytes = 0;
+  v1::Frame info;  // without its image
+  std::size_t image_bytes = 0;  // encoded, as received
   double decode_ms = 0;
   std::chrono::steady_clock::time_point received;
 };

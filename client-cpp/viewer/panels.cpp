@@ -176,6 +176,11 @@ void RenderPanel(App& app) {
   if (ImGui::IsItemHovered()) {
     ImGui::SetTooltip("A still view refines until its estimated relative error is this low (or the spp cap)");
   }
+  bool lossless = app.stream.final_format() == v1::FINAL_FORMAT_PNG;
+  if (ImGui::Checkbox("lossless final frame (PNG)", &lossless)) {
+    app.stream.set_final_format(lossless ? v1::FINAL_FORMAT_PNG : v1::FINAL_FORMAT_JPEG);
+    app.SendStream();
+  }
   float budget = app.stream.interactive_frame_ms();
   if (ImGui::SliderFloat("moving frame budget ms", &budget, 0.0f, 100.0f, budget > 0 ? "%.0f" : "off (full size)")) {
     app.stream.set_interactive_frame_ms(budget);

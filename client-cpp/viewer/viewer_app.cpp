@@ -358,10 +358,10 @@ bool App::TakeFrame() {
   stats.last = f;
   stats.displayed.push_back(now);
   stats.last_shown = now;
-  stats.bytes.emplace_back(now, frame->jpeg_bytes);
+  stats.bytes.emplace_back(now, frame->image_bytes);
   stats.decode_ms = frame->decode_ms;
   if (script_) stats.all_decode_ms.push_back(frame->decode_ms);
-  stats.all_bytes += frame->jpeg_bytes;
+  stats.all_bytes += frame->image_bytes;
   return true;
 }
 

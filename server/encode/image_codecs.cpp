@@ -246,6 +246,19 @@ std::vector<std::uint8_t> EncodeJpeg(const ImageYcc8& image, int quality, int ba
   return JoinBands(encoded, image.height, rows_per_band * mcus_per_row);
 }
 
+namespace {
+
+// Frames and images come from a server or a file: the size a header claims
+// is allocated only up to the largest viewport.
+constexpr std::uint64_t kMaxDecodedSide = 8192;
+
+std::string DecodedSizeProblem(std::uint64_t width, std::uint64_t height) {
+  if (width > 0 && height > 0 && width <= kMaxDecodedSide && height <= kMaxDecodedSide) return "";
+  return fmt::format("{}x{} pixels, beyond {}x{}", width, height, kMaxDecodedSide, kMaxDecodedSide);
+}
+
+}  // namespace
+
 ImageRgb8 DecodeJpeg(const std::vector<std::uint8_t>& bytes) {
   jpeg_decompress_struct cinfo;
   JpegError err;
@@ -260,6 +273,10 @@ ImageRgb8 DecodeJpeg(const std::vector<std::uint8_t>& bytes) {
   jpeg_mem_src(&cinfo, bytes.data(), bytes.size());
   jpeg_read_header(&cinfo, TRUE);
   cinfo.out_color_space = JCS_RGB;
+  if (const std::string problem = DecodedSizeProblem(cinfo.image_width, cinfo.image_height); !problem.empty()) {
+    jpeg_destroy_decompress(&cinfo);
+    throw InputError("not a decodable JPEG: " + problem);
+  }
   jpeg_start_decompress(&cinfo);
   image.width = cinfo.output_width;
   image.height = cinfo.output_height;
@@ -293,19 +310,40 @@ std::vector<std::uint8_t> EncodePng(const ImageRgb8& image) {
   return out;
 }
 
-ImageRgb8 ReadPng(const fs::path& path) {
-  png_image png;
-  std::memset(&png, 0, sizeof png);
-  png.version = PNG_IMAGE_VERSION;
-  if (!png_image_begin_read_from_file(&png, path.c_str())) {
-    throw InputError(fmt::format("{}: {}", path.string(), png.message));
+namespace {
+
+// Decodes a PNG whose header `begin` has read; `what` names it in errors.
+ImageRgb8 FinishPng(png_image& png, bool begun, const std::string& what) {
+  if (!begun) throw InputError(fmt::format("{}: {}", what, png.message));
+  if (const std::string problem = DecodedSizeProblem(png.width, png.height); !problem.empty()) {
+    png_image_free(&png);
+    throw InputError(fmt::format("{}: {}", what, problem));
   }
   png.format = PNG_FORMAT_RGB;
   ImageRgb8 image{int(png.width), int(png.height), std::vector<std::uint8_t>(PNG_IMAGE_SIZE(png))};
   if (!png_image_finish_read(&png, nullptr, image.bytes.data(), 0, nullptr)) {
-    throw InputError(fmt::format("{}: {}", path.string(), png.message));
+    throw InputError(fmt::format("{}: {}", what, png.message));
   }
   return image;
+}
+
+png_image NewPngImage() {
+  png_image png;
+  std::memset(&png, 0, sizeof png);
+  png.version = PNG_IMAGE_VERSION;
+  return png;
+}
+
+}  // namespace
+
+ImageRgb8 DecodePng(const std::vector<std::uint8_t>& bytes) {
+  png_image png = NewPngImage();
+  return FinishPng(png, png_image_begin_read_from_memory(&png, bytes.data(), bytes.size()), "not a decodable PNG");
+}
+
+ImageRgb8 ReadPng(const fs::path& path) {
+  png_image png = NewPngImage();
+  return FinishPng(png, png_image_begin_read_from_file(&png, path.c_str()), path.string());
 }
 
 void WriteFile(const fs::path& path, const std::vector<std::uint8_t>& bytes) {

@@ -22,7 +22,9 @@ std::vector<std::uint8_t> EncodeJpeg(const ImageYcc8& image, int quality, int ba
 std::vector<std::uint8_t> EncodePng(const ImageRgb8& image);
 // Linear RGB as 32-bit float channels.
 std::vector<std::uint8_t> EncodeExr(const ImageRgbF& image);
+// Decoders allocate at most 8192 x 8192 pixels (the largest viewport).
 ImageRgb8 DecodeJpeg(const std::vector<std::uint8_t>& bytes);
+ImageRgb8 DecodePng(const std::vector<std::uint8_t>& bytes);
 ImageRgb8 ReadPng(const std::filesystem::path& path);
 
 void WriteFile(const std::filesystem::path& path, const std::vector<std::uint8_t>& bytes);

@@ -44,12 +44,23 @@ struct DisplayPass {
   CINEVOL_HD void operator()(int cx, int cy) const { WriteYccBlock(out, cx, cy, pixel); }
 };
 
+// The displayed pixels themselves, interleaved RGB: a lossless final frame.
+struct DisplayRgbPass {
+  DisplayedPixel pixel;
+  std::uint8_t* out;
+
+  CINEVOL_HD void operator()(int x, int y) const { pixel(x, y, out + 3 * (std::size_t(y) * pixel.in.width + x)); }
+};
+
 class Display {
  public:
   virtual ~Display() = default;
   // The planes stay valid while the returned image (or a copy) lives, also
   // after later runs and after the Display is gone.
   virtual ImageYcc8 Run(const DisplayInputs& inputs) = 0;
+  // The same pixels as 8-bit sRGB (inputs.chroma does not apply), for a
+  // frame that goes out losslessly: once per refinement, so not pipelined.
+  virtual ImageRgb8 RunRgb(const DisplayInputs& inputs) = 0;
 };
 
 // The host buffers behind the frames a display returns. A frame shares its
@@ -103,6 +114,14 @@ class DisplayOn final : public Display {
     const std::shared_ptr<HostBuffer> host = ring_.Next(bytes);
     planes_.Download(host->data());
     return {in.width, in.height, in.chroma, std::shared_ptr<const std::uint8_t>(host, host->data()), bytes};
+  }
+
+  ImageRgb8 RunRgb(const DisplayInputs& in) override {
+    ImageRgb8 image{in.width, in.height, std::vector<std::uint8_t>(std::size_t(in.width) * in.height * 3)};
+    planes_.Resize(image.bytes.size());
+    B::ForEachPixel(in.width, in.height, DisplayRgbPass{{in, exp2f(in.exposure)}, planes_.data()});
+    planes_.Download(image.bytes.data());
+    return image;
   }
 
  private:

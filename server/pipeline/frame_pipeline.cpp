@@ -188,11 +188,15 @@ DisplayFrame FramePipeline::RenderFrame() {
     in.radiance = denoised;
   }
   in.chroma = settings_.chroma;
-  out.image = display_->Run(in);
-  out.display_ms = MillisecondsSince(display_start);
   out.accumulated_spp = accumulated_spp_;
   out.final = Converged();
   last_frame_final_ = out.final;
+  if (out.final && settings_.final_png) {
+    out.final_rgb = display_->RunRgb(in);
+  } else {
+    out.image = display_->Run(in);
+  }
+  out.display_ms = MillisecondsSince(display_start);
   return out;
 }
 

@@ -44,6 +44,7 @@ struct FrameSettings {
   DenoiserSettings denoiser;      // the method and every knob of it; a change makes a new denoiser
   int jpeg_quality = 80;          // [1, 100]
   int final_jpeg_quality = 95;    // [1, 100]: the frame that ends refinement
+  bool final_png = false;         // the frame that ends refinement as lossless 8-bit sRGB instead
   ChromaSubsampling chroma = ChromaSubsampling::k420;
   int target_spp = 256;           // >= 1: refinement stops at this many samples per pixel
   // Refinement stops sooner once the refined image's estimated relative
@@ -77,7 +78,8 @@ inline constexpr int kFrameTimesPerStep = 3;
 // A frame ready to encode, with what it cost. The planes are at the
 // settings' chroma subsampling; ToRgb (core/ycc.h) gives the pixels back.
 struct DisplayFrame {
-  ImageYcc8 image;
+  ImageYcc8 image;          // empty where final_rgb holds the frame
+  ImageRgb8 final_rgb;      // the final frame, where FrameSettings::final_png asks for its exact pixels
   int accumulated_spp = 0;  // samples per pixel behind it since the scene last changed
   bool final = false;       // refinement reached its error target or target_spp with this frame
   float estimated_error = -1;  // refined frames: the image's estimated relative error; < 0 unknown

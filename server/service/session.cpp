@@ -337,11 +337,20 @@ void Session::Encode(DisplayFrame display, const Stamp& stamp, int quality) {
     v1::Frame frame;
     try {
       const Clock::time_point start = Clock::now();
-      // Idle encoder threads mean idle cores: a lone session's frame encodes
-      // in bands on them and reaches its viewer sooner; a busy pool encodes whole.
-      const int bands = std::min(1 + self->context_.encoder->idle(), kMaxJpegBands);
-      const std::vector<std::uint8_t> jpeg = EncodeJpeg(display.image, quality, bands);
-      frame.set_jpeg(jpeg.data(), jpeg.size());
+      if (!display.final_rgb.bytes.empty()) {
+        const std::vector<std::uint8_t> png = EncodePng(display.final_rgb);
+        frame.set_png(png.data(), png.size());
+        frame.set_width(display.final_rgb.width);
+        frame.set_height(display.final_rgb.height);
+      } else {
+        // Idle encoder threads mean idle cores: a lone session's frame encodes
+        // in bands on them and reaches its viewer sooner; a busy pool encodes whole.
+        const int bands = std::min(1 + self->context_.encoder->idle(), kMaxJpegBands);
+        const std::vector<std::uint8_t> jpeg = EncodeJpeg(display.image, quality, bands);
+        frame.set_jpeg(jpeg.data(), jpeg.size());
+        frame.set_width(display.image.width);
+        frame.set_height(display.image.height);
+      }
       frame.mutable_timings()->set_encode_us(MicrosBetween(start, Clock::now()));
       ServerMetrics().ObserveStage(Stage::kEncode,
                                    std::chrono::duration<double>(Clock::now() - start).count());
@@ -354,8 +363,6 @@ void Session::Encode(DisplayFrame display, const Stamp& stamp, int quality) {
       return;
     }
     frame.set_frame_id(stamp.frame_id);
-    frame.set_width(display.image.width);
-    frame.set_height(display.image.height);
     frame.set_accumulated_spp(display.accumulated_spp);
     frame.set_last_event_seq(stamp.event_seq);
     frame.set_final(display.final);

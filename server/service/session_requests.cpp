@@ -161,8 +161,10 @@ v1::Scene InitialScene(const v1::CreateSessionRequest& request, const Volume& vo
 FrameSettings MergeStreamSettings(FrameSettings s, const v1::StreamSettings& edit, const std::string& field) {
   CheckEnum(v1::Denoiser_IsValid(edit.denoiser()), edit.denoiser(), field + ".denoiser");
   CheckEnum(v1::ChromaSubsampling_IsValid(edit.chroma()), edit.chroma(), field + ".chroma");
+  CheckEnum(v1::FinalFormat_IsValid(edit.final_format()), edit.final_format(), field + ".final_format");
   if (edit.denoiser() != v1::DENOISER_UNSPECIFIED) s.denoiser.method = ToMethod(edit.denoiser());
   if (edit.chroma() != v1::CHROMA_UNSPECIFIED) s.chroma = ToChroma(edit.chroma());
+  if (edit.final_format() != v1::FINAL_FORMAT_UNSPECIFIED) s.final_png = edit.final_format() == v1::FINAL_FORMAT_PNG;
   if (edit.has_demodulate()) s.denoiser.demodulate = edit.demodulate();
   if (edit.has_jpeg_quality()) {
     CheckRange(edit.jpeg_quality(), 1, 100, field + ".jpeg_quality");

@@ -177,7 +177,7 @@ void SessionStreamReactor::OnWriteDone(bool ok) {
     writing_ = false;
     if (ok && writing_frame_) {
       ++sent_;
-      ServerMetrics().FrameSent(out_.frame().jpeg().size(),
+      ServerMetrics().FrameSent(out_.frame().jpeg().size() + out_.frame().png().size(),  // one of them is set
                                 std::chrono::duration<double>(Clock::now() - write_started_).count());
     }
     if (finished_) return;

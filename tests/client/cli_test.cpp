@@ -71,8 +71,9 @@ TEST(CinevolCli, PlayAndSnapshotAgainstAServer) {
   ASSERT_TRUE(server.running()) << server.Log();
   WriteText(scratch / "script.jsonl", kScript);
   const auto out = scratch / "played";
-  auto [code, output] = Cinevol(scratch, {"play", "--server", server.address(), "--script",
-                                          (scratch / "script.jsonl").string(), "--out", out.string()});
+  auto [code, output] =
+      Cinevol(scratch, {"play", "--server", server.address(), "--script", (scratch / "script.jsonl").string(), "--out",
+                        out.string(), "--target-spp", "12", "--error-target", "0", "--final-format", "png"});
   ASSERT_EQ(code, 0) << output;
   EXPECT_NE(output.find("12 events"), std::string::npos) << output;  // 11 orbit cameras and the edit
   std::ifstream csv(out / "frames.csv");
@@ -84,6 +85,9 @@ TEST(CinevolCli, PlayAndSnapshotAgainstAServer) {
   EXPECT_GT(rows, 5);
   EXPECT_NE(last.find(",96,64,"), std::string::npos) << last;
   EXPECT_NE(last.find(",1,12,"), std::string::npos) << "the last frame is final and answers the last event: " << last;
+  EXPECT_NE(last.find(",12,1,12,"), std::string::npos) << "--target-spp 12 caps the script's refinement: " << last;
+  ASSERT_EQ(last.substr(last.size() - 4), ".png") << "--final-format png: " << last;
+  EXPECT_EQ(ReadPng(out / "frames" / last.substr(last.rfind(',') + 1)).width, 96);
   EXPECT_TRUE(Eventually([&] { return server.Connect().Status().sessions().empty(); }, 10s)) << "play closes its session";
 
   std::tie(code, output) = Cinevol(scratch, {"snapshot", "--server", server.address(), "--volume",

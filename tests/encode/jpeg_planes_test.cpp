@@ -10,6 +10,9 @@
 #include <stdexcept>
 #include <vector>
 
+#include <zlib.h>
+
+#include "core/error.h"
 #include "core/tone_map.h"
 #include "core/ycc.h"
 #include "encode/image_codecs.h"
@@ -132,6 +135,52 @@ TEST(JpegFromPlanes, PlanesThatDoNotMatchTheirSizeAreRefused) {
   EXPECT_THROW(EncodeJpeg(ImageYcc8{}, 80), std::invalid_argument);
   EXPECT_THROW(ToRgb(ImageYcc8{}), std::invalid_argument);
   EXPECT_NO_THROW(EncodeJpeg(good, 0)) << "quality clamps to [1, 100]";
+}
+
+// A frame's pixels come from a server: a header claiming a huge image is
+// refused before anything that size is allocated.
+TEST(Decoders, RefuseImagesBeyondTheLargestViewport) {
+  std::vector<std::uint8_t> jpeg = EncodeJpeg(ImageRgb8{8, 8, std::vector<std::uint8_t>(8 * 8 * 3, 128)}, 80);
+  const std::uint8_t sof0[] = {0xFF, 0xC0};
+  const auto sof = std::search(jpeg.begin(), jpeg.end(), std::begin(sof0), std::end(sof0));
+  ASSERT_NE(sof, jpeg.end());
+  sof[5] = sof[6] = sof[7] = sof[8] = 0xEA;  // 60138 x 60138
+  try {
+    DecodeJpeg(jpeg);
+    ADD_FAILURE() << "a 60138x60138 JPEG was decoded";
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("beyond 8192x8192"), std::string::npos) << e.what();
+  }
+
+  std::vector<std::uint8_t> png = EncodePng(ImageRgb8{1, 1, {1, 2, 3}});
+  ASSERT_EQ(std::string(png.begin() + 12, png.begin() + 16), "IHDR");
+  png[16] = png[17] = 0;  // width 0x0000FFFF, the CRC made to match
+  png[18] = png[19] = 0xFF;
+  const std::uint32_t crc = std::uint32_t(crc32(0, png.data() + 12, 17));
+  for (int i = 0; i < 4; ++i) png[29 + i] = std::uint8_t(crc >> (24 - 8 * i));
+  try {
+    DecodePng(png);
+    ADD_FAILURE() << "a 65535-pixel-wide PNG was decoded";
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("beyond 8192x8192"), std::string::npos) << e.what();
+  }
+}
+
+// The lossless final frame: the tone-mapped pixels themselves.
+TEST(Display, RgbIsTheToneMappedPixels) {
+  const ImageRgbF radiance = Frame(13, 7);
+  DisplayInputs in;
+  in.width = radiance.width;
+  in.height = radiance.height;
+  in.radiance = radiance.pixels.data();
+  in.exposure = 0.5f;
+  const ImageRgb8 rgb = MakeCpuDisplay()->RunRgb(in);
+  ASSERT_EQ(rgb.bytes.size(), std::size_t(13 * 7 * 3));
+  for (int i = 0; i < 13 * 7; ++i) {
+    std::uint8_t expected[3];
+    ToneMapPixel(radiance.pixels[i], exp2f(0.5f), expected);
+    for (int c = 0; c < 3; ++c) ASSERT_EQ(rgb.bytes[3 * i + c], expected[c]) << "pixel " << i;
+  }
 }
 
 }  // namespace

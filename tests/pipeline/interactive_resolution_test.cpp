@@ -58,7 +58,9 @@ std::vector<float> Move(FramePipeline& pipeline, v1::Scene& scene, const FrameSe
     EXPECT_EQ(moving.width, 64) << "upsampled to the viewport, at scale " << moving.scale;
     EXPECT_EQ(moving.height, 40);
     EXPECT_EQ(moving.rendered_width, int(std::lround(64 * moving.scale)));
-    if (moving.scale < 1.0f) EXPECT_FALSE(moving.final) << "a small frame never ends refinement";
+    if (moving.scale < 1.0f) {
+      EXPECT_FALSE(moving.final) << "a small frame never ends refinement";
+    }
   }
   return scales;
 }

@@ -415,7 +415,9 @@ TEST(Hardening, SigtermDrainsWhateverIsInFlight) {
   ASSERT_TRUE(server.running()) << server.Log();
   Client client = server.Connect();
   const auto created = client.CreateSession(SmallSession("ct-bone", 96, 64, 65536));
-  auto stream = client.Attach(created.session_id(), {.resume = false});
+  StreamOptions no_resume;
+  no_resume.resume = false;
+  auto stream = client.Attach(created.session_id(), no_resume);
   ASSERT_TRUE(WaitFrame(*stream, [](const v1::Frame&) { return true; }));
   const auto still_session = client.CreateSession(SmallSession());
   std::atomic<int> still_code{-1};

@@ -55,6 +55,9 @@ TEST(ServiceErrors, BadSessionRequestsNameTheField) {
     ExpectRpcError([&] { client.CreateSession(r); }, grpc::StatusCode::INVALID_ARGUMENT, "stream.error_target");
   }
   r = SmallSession();
+  r.mutable_stream()->set_final_format(static_cast<v1::FinalFormat>(7));
+  ExpectRpcError([&] { client.CreateSession(r); }, grpc::StatusCode::INVALID_ARGUMENT, "stream.final_format");
+  r = SmallSession();
   r.mutable_stream()->set_target_spp(0);
   ExpectRpcError([&] { client.CreateSession(r); }, grpc::StatusCode::INVALID_ARGUMENT, "stream.target_spp");
 

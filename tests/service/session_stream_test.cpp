@@ -5,6 +5,7 @@
 
 #include <thread>
 
+#include "core/image_metrics.h"
 #include "server_process.h"
 #include "service_test_support.h"
 #include "support/gpu.h"
@@ -149,6 +150,48 @@ TEST(SessionStream, IdleRefinementReachesTheTargetThenStops) {
   ASSERT_TRUE(status);
   EXPECT_EQ(status->state(), v1::SessionStatus::IDLE);
   EXPECT_EQ(status->frames_rendered(), frames.size());
+}
+
+// A client that asks for a lossless final frame gets it as PNG, the frames
+// before it as JPEG; a settings event switches back.
+TEST(SessionStream, TheFinalFrameComesAsPngWhereAsked) {
+  ScratchDir scratch;
+  ServerProcess server(scratch.path());
+  ASSERT_TRUE(server.running()) << server.Log();
+  Client client = server.Connect();
+  v1::CreateSessionRequest request = SmallSession("ct-bone", 96, 64, 16);
+  request.mutable_stream()->set_error_target(0);  // to the cap
+  request.mutable_stream()->set_final_format(v1::FINAL_FORMAT_PNG);
+  const auto created = client.CreateSession(request);
+  auto stream = client.Attach(created.session_id());
+  std::vector<v1::Frame> frames;
+  while (auto f = WaitFrame(*stream, [](const v1::Frame&) { return true; }, 30s)) {
+    frames.push_back(*f);
+    if (f->final()) break;
+  }
+  ASSERT_GE(frames.size(), 2u);
+  const v1::Frame& last = frames.back();
+  ASSERT_TRUE(last.final());
+  ASSERT_TRUE(last.has_png());
+  EXPECT_EQ(last.png().compare(0, 8, "\x89PNG\r\n\x1a\n"), 0);
+  const RgbImage png = DecodeFrame(last);
+  EXPECT_EQ(png.width, 96);
+  EXPECT_EQ(png.height, 64);
+  EXPECT_EQ(last.width(), 96u);
+  const v1::Frame& before = frames[frames.size() - 2];
+  ASSERT_TRUE(before.has_jpeg());
+  // One more frame of samples than the JPEG before it: the same image, near enough.
+  const RgbImage jpeg = DecodeFrame(before);
+  EXPECT_GT(Psnr(ImageRgb8{png.width, png.height, png.rgb}, ImageRgb8{jpeg.width, jpeg.height, jpeg.rgb}), 30.0);
+
+  v1::SessionEvent back, move;
+  back.mutable_stream()->set_final_format(v1::FINAL_FORMAT_JPEG);
+  stream->Send(back);
+  move.mutable_camera()->CopyFrom(created.scene().camera());
+  move.mutable_camera()->mutable_eye()->set_x(move.camera().eye().x() + 10);
+  const auto again = WaitFinal(*stream, stream->Send(move));
+  ASSERT_TRUE(again);
+  EXPECT_TRUE(again->has_jpeg());
 }
 
 // An easy error target ends refinement long before a cap it would never
