@@ -55,6 +55,7 @@ struct RefineBenchOptions : SceneOptions {
   int reference_spp = 4096;
   int target_spp = 512;    // the curve runs to this many samples per pixel
   int orbit_frames = 8;    // camera moves before it holds still
+  std::string csv;         // every step's numbers, for plots (bench/plot_refine.py)
 };
 
 // The displayed error of still frames after an orbit, refined against the

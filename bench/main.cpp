@@ -78,6 +78,7 @@ int main(int argc, char** argv) {
   f->add_option("--reference-spp", refine.reference_spp, "Samples per pixel of the reference")->capture_default_str();
   f->add_option("--target-spp", refine.target_spp, "Samples per pixel the curve runs to")->capture_default_str();
   f->add_option("--orbit-frames", refine.orbit_frames, "Camera moves before it holds still")->capture_default_str();
+  f->add_option("--csv", refine.csv, "Append every step (spp, ms, PSNR, SSIM, errors) to this CSV");
   f->callback([&] { cinevol::bench::RunRefineBench(refine); });
   cinevol::bench::VolumeBenchOptions volume;
   volume.command_line = command_line;

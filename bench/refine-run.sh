@@ -20,7 +20,7 @@ for run in "bench/scenes/ct-head-cthead.json:$data/ct-head-cthead/DERIVED_CThead
            "examples/mr-head.json:$mr" "examples/ct-bone.json:phantom:head"; do
   "$bin/cinevol-bench" refine --scene "${run%%:*}" --volume "${run#*:}" --backend "${BACKEND:-cuda}" \
     --width "${WIDTH:-1280}" --height "${HEIGHT:-720}" --reference-spp "${REFERENCE_SPP:-4096}" \
-    --target-spp "${TARGET_SPP:-512}" --out "$out/refine.md" > "$out/refine-$(basename "${run%%:*}" .json).log" 2>&1
+    --target-spp "${TARGET_SPP:-512}" --out "$out/refine.md" --csv "$out/refine.csv" > "$out/refine-$(basename "${run%%:*}" .json).log" 2>&1
   echo "refine ${run%%:*} rc=$?"
 done
 cat "$out/refine.md"

@@ -8,6 +8,8 @@
 // samples.
 #include <chrono>
 #include <cmath>
+#include <filesystem>
+#include <fstream>
 
 #include <fmt/format.h>
 
@@ -15,6 +17,7 @@
 #include "core/image_metrics.h"
 #include "core/ycc.h"
 #include "pipeline/frame_pipeline.h"
+#include "pipeline/refine.h"
 #include "tradeoff_study.h"
 
 namespace cinevol::bench {
@@ -45,6 +48,18 @@ int FirstAt(const Curve& c, double db) {
     if (c.psnr[i] >= db) return int(i);
   }
   return -1;
+}
+
+// The relative RMS error of `image` against `reference`, weighed as the
+// refiner's estimate is (pipeline/refine.h): what the estimate should
+// match, up to the reference's own noise.
+double RelativeRmsError(const ImageRgbF& image, const ImageRgbF& reference, float dark) {
+  double sum = 0;
+  for (std::size_t i = 0; i < image.pixels.size(); ++i) {
+    const Vec3f e = image.pixels[i] - reference.pixels[i];
+    sum += Dot(e, e) / 3.0f * RelativeScale(reference.pixels[i], dark);
+  }
+  return std::sqrt(sum / double(image.pixels.size()));
 }
 
 double LargestDrop(const Curve& c) {
@@ -87,6 +102,8 @@ int RunRefineBench(const RefineBenchOptions& o) {
   Curve before, after;
   std::vector<int> spp;
   std::vector<float> estimate;
+  std::vector<double> measured;  // the refined image's relative error against the reference
+  const float dark = kDarkGrey / exp2f(setup.exposure);
   double before_ms = 0, after_ms = 0;
   while (spp.empty() || spp.back() < o.target_spp) {
     // The previous release blended on the device in its display pass, at no
@@ -108,21 +125,24 @@ int RunRefineBench(const RefineBenchOptions& o) {
     after.ms.push_back(after_ms);
     spp.push_back(b.accumulated_spp);
     estimate.push_back(b.estimated_error);
+    const ImageRgbF refined = now.RefinedRadiance();
+    measured.push_back(RelativeRmsError(refined.pixels.empty() ? now.DenoisedRadiance() : refined, reference, dark));
   }
 
   std::string table = fmt::format(
       "\n### Still frames on {} ({})\n\n`{}`\n\n{}x{}, {} spp a frame, {} orbit frames then a still camera; "
       "PSNR and SSIM of the displayed image (8-bit, 4:4:4, before JPEG) against {} spp; ms: wall clock since "
       "the camera stopped; estimate: the refined image's estimated relative error\n\n"
-      "| spp | previous PSNR | SSIM | ms | refined PSNR | SSIM | ms | estimate |\n|---|---|---|---|---|---|---|---|\n",
+      "| spp | previous PSNR | SSIM | ms | refined PSNR | SSIM | ms | estimate | measured |\n"
+      "|---|---|---|---|---|---|---|---|---|\n",
       o.scene, DeviceDescription(o.backend), o.command_line, setup.camera.width, setup.camera.height, setup.spp,
       o.orbit_frames, o.reference_spp);
   for (std::size_t i = 0; i < spp.size(); ++i) {
     const bool power_of_two = (spp[i] & (spp[i] - 1)) == 0;
     if (!power_of_two && i + 1 != spp.size()) continue;
-    table += fmt::format("| {} | {:.2f} | {:.4f} | {:.0f} | {:.2f} | {:.4f} | {:.0f} | {:.4f} |\n", spp[i],
+    table += fmt::format("| {} | {:.2f} | {:.4f} | {:.0f} | {:.2f} | {:.4f} | {:.0f} | {:.4f} | {:.4f} |\n", spp[i],
                          before.psnr[i], before.ssim[i], before.ms[i], after.psnr[i], after.ssim[i], after.ms[i],
-                         estimate[i]);
+                         estimate[i], measured[i]);
   }
   auto reach = [&](const Curve& c, double db) {
     const int i = FirstAt(c, db);
@@ -139,6 +159,16 @@ int RunRefineBench(const RefineBenchOptions& o) {
                          spp[i], after.ms[i], after.psnr[i], after.ssim[i]);
   }
   Report(o, table);
+  if (!o.csv.empty()) {
+    const bool fresh = !std::filesystem::exists(o.csv);
+    std::ofstream csv(o.csv, std::ios::app);
+    if (fresh) csv << "scene,width,height,step,spp,previous_psnr,previous_ssim,previous_ms,psnr,ssim,ms,estimate,measured\n";
+    for (std::size_t i = 0; i < spp.size(); ++i) {
+      csv << fmt::format("{},{},{},{},{},{:.4f},{:.5f},{:.1f},{:.4f},{:.5f},{:.1f},{:.5f},{:.5f}\n", o.scene,
+                         setup.camera.width, setup.camera.height, i, spp[i], before.psnr[i], before.ssim[i],
+                         before.ms[i], after.psnr[i], after.ssim[i], after.ms[i], estimate[i], measured[i]);
+    }
+  }
   return 0;
 }
 

@@ -122,6 +122,8 @@ void FramePipeline::ResetAccumulation() {
   estimated_error_ = -1;
 }
 
+ImageRgbF FramePipeline::RefinedRadiance() const { return last_frame_blended_ ? refiner_->Output() : ImageRgbF{}; }
+
 bool FramePipeline::Converged() const {
   if (scale_ != 1.0f) return false;
   if (accumulated_spp_ >= settings_.target_spp) return true;
@@ -156,6 +158,7 @@ DisplayFrame FramePipeline::RenderFrame() {
   SetScale(ChooseScale());
   DisplayFrame out;
   out.resolution_scale = scale_;
+  last_frame_blended_ = false;
   const FrameRequest request = Request(spp_);
   const Camera& camera = request.camera;
   renderer_->Render(request);
@@ -182,6 +185,7 @@ DisplayFrame FramePipeline::RenderFrame() {
     const RefinedImage refined = refiner_->Refine(
         {camera.width, camera.height, t.radiance, t.accumulated, denoised, renderer_->accumulated_frames(), exposure_});
     in.radiance = refined.radiance;
+    last_frame_blended_ = refined.estimated_error >= 0;
     estimated_error_ = refined.estimated_error;
     out.estimated_error = refined.estimated_error;
   } else {

@@ -137,6 +137,9 @@ class FramePipeline {
   // The last frame's denoised linear radiance, before refinement and tone
   // mapping (the benches compare it with references in HDR).
   ImageRgbF DenoisedRadiance() const { return denoiser_->Output(); }
+  // The last refined frame's radiance before the display; empty where the
+  // frame was not blended (refinement off, fewer than kMinFramesForError frames).
+  ImageRgbF RefinedRadiance() const;
   float exposure() const { return exposure_; }
   Backend backend() const { return renderer_->backend(); }
   unsigned last_render_features() const { return renderer_->last_features(); }
@@ -163,6 +166,7 @@ class FramePipeline {
   std::unique_ptr<Display> display_;
   std::unique_ptr<Upsampler> upsampler_;
   std::unique_ptr<Refiner> refiner_;
+  bool last_frame_blended_ = false;  // the last frame showed refiner_'s blend
   FrameSettings settings_;
   bool has_scene_ = false;
   TransferFunction transfer_function_;

@@ -1,31 +1,47 @@
 // Idle refinement: while the view holds still, the displayed image combines,
-// per pixel, the denoiser's output d and the running mean m of the frames,
-// by their estimated errors. The mean's error is its variance V (the spread
-// of the frame means over their count). The denoiser's, B, is the part of
-// the squared difference D = (d - m)^2 that the mean's noise does not
-// explain: B = max(0, D - V). This takes d and m as independent; d is made
-// of the same frames, so where the denoiser leans on a pixel's own recent
-// values B comes out low and the mean takes over later than it could.
-// Counting the covariance as V instead (B = D + V, exact for a plain average
-// of recent frames) kept the mean at least half in every pixel and cost 7 dB
-// at 720p the moment blending began (docs/tradeoff.md, "Still frames"). Both
-// are averaged over a small window (single pixels are too noisy to steer
-// by), and a pixel whose own spread is larger than its window's (a firefly)
-// keeps its own:
+// per pixel, the denoiser's output d and an estimate a made from the frames
+// accumulated so far, by their estimated errors.
 //
-//   shown = d + w (m - d),  w = B / (B + V),
+// The accumulation's estimate. The mean m of the frames has error V, its
+// variance (the spread of the frame means over their count). A variance-
+// guided a-trous filter (SVGF's, steered by V) smooths it where neighbours
+// agree within their noise. Its variance V_f cannot be propagated through
+// the filter's levels (they correlate neighbours, and the weights depend on
+// the noise: propagating as if independent put V_f 20 times too low), so
+// the frames are kept in two halves, odd and even, each filtered alone: f is
+// their average, and V_f = (f_odd - f_even)^2 / 4, averaged over a window,
+// measures its variance directly (the two-buffer estimate of NFOR and
+// Rousselle et al.). f's bias b^2 is the part of the cross-half change,
+// (f_odd - m_even)^2, that the halves' independent noises do not explain.
+// m and f then combine as two correlated estimators of errors V and
+// e_f = b^2 + V_f (EstimatePass): a = f + u (m - f), with the u of least
+// expected squared error E.
 //
-// the weight that minimises the expected squared error, w^2 V + (1 - w)^2 B =
-// B V / (B + V). The mean takes over wherever it is the better estimate, and
-// everywhere as V falls (measured: never below the mean once blending
-// starts, tests/pipeline/refine_test.cpp). The same
+// The blend. The denoiser's error B follows from D = (d - a)^2 = B + E - 2C,
+// C their covariance: d is made of the same frames as a, and C = E is exact
+// where d is a plain average of them (measured 0.9 E on the MR head), so
+// B = D + E. (With the unfiltered mean, whose error is far larger, counting
+// C this way kept the mean at least half in every pixel and cost 7 dB at
+// 720p; taking d and m as independent, B = D - V, was right then: the
+// history is in docs/tradeoff.md, "Still frames".) Estimates are averaged
+// over a small window (single pixels are too noisy to steer by), and a
+// pixel whose own error is larger than its window's (a firefly) keeps its own:
+//
+//   shown = d + w (a - d),  w = B / (B + E),
+//
+// the weight that minimises the expected squared error, w^2 E + (1 - w)^2 B =
+// B E / (B + E). The accumulation takes over wherever it is the better
+// estimate, and everywhere as its error falls (measured: never below the
+// mean once blending starts, tests/pipeline/refine_test.cpp). The same
 // expected error, over the image, is what refinement stops at
 // (FrameSettings::error_target). Runs on the backend that rendered the frame.
 #pragma once
 
 #include <cmath>
 #include <memory>
+#include <utility>
 
+#include "core/image.h"
 #include "core/sampling.h"
 #include "core/vec.h"
 
@@ -47,12 +63,14 @@ CINEVOL_HD float RelativeScale(Vec3f radiance, float dark) {
   return 1.0f / (l * l);
 }
 
-// Before the denoiser: the frame's squares join the accumulation's, and the
-// variance of the mean (mean over channels) is written out.
+// Before the denoiser: the frame's squares join the accumulation's, an odd
+// frame joins the odd half, and the variance of the mean (mean over
+// channels) is written out.
 struct VariancePass {
   const Vec3f* frame;            // this frame's radiance: the mean of its samples
   const Vec3f* accumulated_sum;  // sum of frame means, this one included
   Vec3f* squares;                // sum of squared frame means (this pass adds this frame's)
+  Vec3f* odd_sum;                // sum of frames 1, 3, 5...
   float* variance;               // of the mean: the sample variance of the frames / frames, relative
   int width, frames;
   float dark;                    // RelativeScale's floor
@@ -62,6 +80,7 @@ struct VariancePass {
     const Vec3f r = frame[i];
     const Vec3f q = (frames == 1 ? Vec3f{} : squares[i]) + r * r;
     squares[i] = q;
+    if (frames % 2 == 1) odd_sum[i] = (frames == 1 ? Vec3f{} : odd_sum[i]) + r;
     const float n = float(frames);
     const Vec3f m = accumulated_sum[i] * (1.0f / n);
     if (frames < 2) {
@@ -74,58 +93,192 @@ struct VariancePass {
   }
 };
 
-// After the denoiser: the squared difference of d and m, mean over
-// channels, relative.
-struct DifferencePass {
-  const Vec3f* denoised;
+// One level of the accumulation's a-trous filter (SVGF's 5x5 B-spline taps
+// `step` apart): a neighbour counts unless it differs from the centre by
+// more than their noise explains (in any channel, relative, against
+// kMeanFilterSigma standard deviations of the difference). The variance in w
+// steers the next level, propagated as if pixels were independent (it only
+// steers: the estimate's error is measured from the two halves). As samples
+// grow the noise, and with it what the filter averages, shrinks: f tends to m.
+inline constexpr float kMeanFilterSigma = 2.0f;
+inline constexpr int kMeanFilterLevels = 3;  // steps 1, 2, 4: a 17x17 footprint
+
+struct MeanFilterPass {
+  const Vec4f* in;  // rgb: a half's (filtered) mean; w: its relative variance
+  Vec4f* out;
+  int width, height, step;
+  float dark;       // RelativeScale's floor
+
+  CINEVOL_HD void operator()(int x, int y) const {
+    const float kernel[3] = {3.0f / 8.0f, 1.0f / 4.0f, 1.0f / 16.0f};
+    const int i = y * width + x;
+    const Vec4f c = in[i];
+    const float inv_l = 1.0f / (fmaxf(Luminance(Xyz(c)), 0.0f) + dark);
+    Vec3f sum{};
+    float var_sum = 0.0f, weight = 0.0f;
+    for (int dy = -2; dy <= 2; ++dy) {
+      for (int dx = -2; dx <= 2; ++dx) {
+        const int nx = x + dx * step, ny = y + dy * step;
+        if (nx < 0 || ny < 0 || nx >= width || ny >= height) continue;
+        const Vec4f q = in[ny * width + nx];
+        const float difference = fmaxf(fabsf(q.x - c.x), fmaxf(fabsf(q.y - c.y), fabsf(q.z - c.z))) * inv_l;
+        const float noise = kMeanFilterSigma * sqrtf(c.w + q.w) + 1e-7f;
+        const float w = kernel[dx < 0 ? -dx : dx] * kernel[dy < 0 ? -dy : dy] * expf(-difference / noise);
+        sum += Xyz(q) * w;
+        var_sum += q.w * w * w;
+        weight += w;
+      }
+    }
+    out[i] = ToVec4(sum / weight, var_sum / (weight * weight));
+  }
+};
+
+// One half's mean (odd frames, or even ones) and its variance, about twice
+// the whole mean's, packed for MeanFilterPass.
+struct HalfMeanPass {
+  const Vec3f* accumulated_sum;
+  const Vec3f* odd_sum;
+  const float* variance;
+  Vec4f* out;
+  int width, frames;
+  bool odd;
+
+  CINEVOL_HD void operator()(int x, int y) const {
+    const int i = y * width + x;
+    const int odd_frames = (frames + 1) / 2;
+    const Vec3f sum = odd ? odd_sum[i] : accumulated_sum[i] - odd_sum[i];
+    out[i] = ToVec4(sum * (1.0f / float(odd ? odd_frames : frames - odd_frames)), 2.0f * variance[i]);
+  }
+};
+
+// Per pixel, for EstimatePass's window, all relative: the filtered mean f
+// (the halves' average); what the filter changed, (f - m)^2; each half's
+// filtered mean against the other half's mean, (f_odd - m_even)^2 and
+// (f_even - m_odd)^2 averaged, whose noises are independent; and the
+// two-half measure of f's variance, (f_odd - f_even)^2 / 4.
+struct FilteredPass {
+  const Vec3f* accumulated_sum;
+  const Vec3f* odd_sum;
+  int frames;
+  const Vec4f* odd;   // filtered halves
+  const Vec4f* even;
+  Vec3f* filtered;
+  float* change;
+  float* cross_change;
+  float* filter_variance;
+  int width;
+  float dark;
+
+  CINEVOL_HD void operator()(int x, int y) const {
+    const int i = y * width + x;
+    const int odd_frames = (frames + 1) / 2;
+    const Vec3f m = accumulated_sum[i] * (1.0f / float(frames));
+    const Vec3f m_odd = odd_sum[i] * (1.0f / float(odd_frames));
+    const Vec3f m_even = (accumulated_sum[i] - odd_sum[i]) * (1.0f / float(frames - odd_frames));
+    const Vec3f f_odd = Xyz(odd[i]), f_even = Xyz(even[i]);
+    const Vec3f f = (f_odd + f_even) * 0.5f;
+    const Vec3f e = f - m, h = (f_odd - f_even) * 0.5f, c1 = f_odd - m_even, c2 = f_even - m_odd;
+    const float scale = (1.0f / 3.0f) * RelativeScale(m, dark);
+    filtered[i] = f;
+    change[i] = Dot(e, e) * scale;
+    cross_change[i] = 0.5f * (Dot(c1, c1) + Dot(c2, c2)) * scale;
+    filter_variance[i] = Dot(h, h) * scale;
+  }
+};
+
+// Means of N per-pixel quantities over the error window around (x, y).
+template <int N>
+CINEVOL_HD void WindowMean(const float* const (&in)[N], float (&out)[N], int x, int y, int width, int height) {
+  for (int k = 0; k < N; ++k) out[k] = 0.0f;
+  int count = 0;
+  for (int wy = MaxInt(y - kErrorWindowRadius, 0); wy <= MinInt(y + kErrorWindowRadius, height - 1); ++wy) {
+    for (int wx = MaxInt(x - kErrorWindowRadius, 0); wx <= MinInt(x + kErrorWindowRadius, width - 1); ++wx) {
+      for (int k = 0; k < N; ++k) out[k] += in[k][wy * width + wx];
+      ++count;
+    }
+  }
+  for (int k = 0; k < N; ++k) out[k] /= float(count);
+}
+
+// The accumulation's estimate a of m and f, and its error E. A half's mean
+// has variance 2V and a half's filtered mean 2V_f, so f's squared bias is
+// what the cross-half change leaves of them; f's error is e_f = b^2 + V_f.
+// f and m are correlated (f keeps part of m's own pixel): their covariance
+// C is what (f - m)^2 falls short of e_f + V by. The combination of two
+// correlated estimators with the least expected squared error:
+//
+//   u = (e_f - C) / (e_f + V - 2C),  E = (e_f V - C^2) / (e_f + V - 2C).
+struct EstimatePass {
   const Vec3f* accumulated_sum;
   float inv_frames;
+  const float* variance;  // V
+  const Vec3f* filtered;  // FilteredPass
+  const float* change;
+  const float* cross_change;
+  const float* filter_variance;
+  Vec3f* estimate;
+  float* estimate_error;
+  int width, height;
+
+  CINEVOL_HD void operator()(int x, int y) const {
+    const int i = y * width + x;
+    float w[4];
+    WindowMean<4>({change, cross_change, variance, filter_variance}, w, x, y, width, height);
+    const float bias = fmaxf(w[1] - 2.0f * (w[2] + w[3]), 0.0f);
+    const float e_f = bias + w[3];
+    // A firefly in the mean has a far larger variance than its window: its own.
+    const float v = fmaxf(variance[i], w[2]);
+    const float c = fminf(fmaxf(0.5f * (e_f + w[2] - w[0]), 0.0f), fminf(e_f, v));
+    const float spread = e_f + v - 2.0f * c;
+    const float u = spread > 0.0f ? (e_f - c) / spread : 0.0f;
+    const Vec3f f = filtered[i];
+    estimate[i] = f + (accumulated_sum[i] * inv_frames - f) * u;
+    estimate_error[i] = spread > 0.0f ? fmaxf(e_f * v - c * c, 0.0f) / spread : 0.0f;
+  }
+};
+
+// The squared difference of the denoiser's output and the accumulation's
+// estimate, mean over channels, relative.
+struct DifferencePass {
+  const Vec3f* denoised;
+  const Vec3f* estimate;
   float* difference;
   int width;
   float dark;
 
   CINEVOL_HD void operator()(int x, int y) const {
     const int i = y * width + x;
-    const Vec3f m = accumulated_sum[i] * inv_frames;
-    const Vec3f e = denoised[i] - m;
-    difference[i] = Dot(e, e) * (1.0f / 3.0f) * RelativeScale(m, dark);
+    const Vec3f e = denoised[i] - estimate[i];
+    difference[i] = Dot(e, e) * (1.0f / 3.0f) * RelativeScale(estimate[i], dark);
   }
 };
 
-// The blend, and each pixel's expected squared relative error.
+// The blend of d and a, and each pixel's expected squared relative error.
 struct BlendPass {
   const Vec3f* denoised;
-  const Vec3f* accumulated_sum;
-  float inv_frames;
-  const float* variance;
-  const float* difference;
+  const Vec3f* estimate;
+  const float* estimate_error;  // E
+  const float* difference;      // (d - a)^2
   Vec3f* shown;
   float* error;
   int width, height, frames;
 
   CINEVOL_HD void operator()(int x, int y) const {
-    float v = 0.0f, d = 0.0f;
-    int count = 0;
-    for (int wy = MaxInt(y - kErrorWindowRadius, 0); wy <= MinInt(y + kErrorWindowRadius, height - 1); ++wy) {
-      for (int wx = MaxInt(x - kErrorWindowRadius, 0); wx <= MinInt(x + kErrorWindowRadius, width - 1); ++wx) {
-        v += variance[wy * width + wx];
-        d += difference[wy * width + wx];
-        ++count;
-      }
-    }
-    v /= float(count);
-    d /= float(count);
+    float m[2];
+    WindowMean<2>({estimate_error, difference}, m, x, y, width, height);
     const int i = y * width + x;
     // The spread of n frames is itself uncertain (relative standard error
-    // about sqrt(2 / (n - 1))): the mean takes over only on the evidence,
-    // with the spread counted at its upper error bar.
+    // about sqrt(2 / (n - 1))): the accumulation takes over only on the
+    // evidence, with its error counted at its upper error bar.
     const float upper = 1.0f + sqrtf(2.0f / float(MaxInt(frames - 1, 1)));
-    const float bias = fmaxf(d - upper * v, 0.0f);
-    // A firefly's pixel has a far larger spread than its window: its own.
-    const float spread = upper * fmaxf(variance[i], v);
-    // No spread and no difference: the mean is exact (empty space, or one value).
+    // D = B + E - 2C, C the covariance of d and a. d averages the same
+    // frames as a: C = E (exact where d is a plain average of them; on the
+    // MR head the measured C was 0.9 E), so B = D + E, here D + (2 - upper) E.
+    const float bias = fmaxf(m[1] + (2.0f - upper) * m[0], 0.0f);
+    const float spread = upper * fmaxf(estimate_error[i], m[0]);
+    // No spread and no difference: the accumulation is exact (empty space, or one value).
     const float w = bias + spread > 0.0f ? bias / (bias + spread) : 1.0f;
-    shown[i] = denoised[i] + (accumulated_sum[i] * inv_frames - denoised[i]) * w;
+    shown[i] = denoised[i] + (estimate[i] - denoised[i]) * w;
     error[i] = w * w * spread + (1.0f - w) * (1.0f - w) * bias;
   }
 };
@@ -170,6 +323,9 @@ class Refiner {
   // kMinFramesForError frames on blends (before, too few frames have too
   // noisy a spread to go by, and the denoiser's output is shown as it is).
   virtual RefinedImage Refine(const RefineInputs& in) = 0;
+  // The last blended image on the host (benches measure its error); empty
+  // before kMinFramesForError frames.
+  virtual ImageRgbF Output() const = 0;
 };
 
 template <class B>
@@ -177,33 +333,70 @@ class RefinerOn final : public Refiner {
  public:
   RefinedImage Refine(const RefineInputs& in) override {
     const std::size_t n = std::size_t(in.width) * in.height;
+    const int w = in.width, h = in.height;
     const float dark = kDarkGrey / exp2f(in.exposure);
     squares_.Resize(n);
+    odd_sum_.Resize(n);
     variance_.Resize(n);
-    B::ForEachPixel(in.width, in.height,
-                    VariancePass{in.frame, in.accumulated_sum, squares_.data(), variance_.data(), in.width,
-                                 in.frames, dark});
+    B::ForEachPixel(w, h, VariancePass{in.frame, in.accumulated_sum, squares_.data(), odd_sum_.data(),
+                                       variance_.data(), w, in.frames, dark});
+    width_ = height_ = 0;
     if (in.frames < kMinFramesForError) return {in.denoised, -1.0f};
 
-    difference_.Resize(n);
-    shown_.Resize(n);
-    error_.Resize(n);
-    row_sums_.Resize(std::size_t(in.height));
     const float inv_frames = 1.0f / float(in.frames);
-    B::ForEachPixel(in.width, in.height,
-                    DifferencePass{in.denoised, in.accumulated_sum, inv_frames, difference_.data(), in.width, dark});
-    B::ForEachPixel(in.width, in.height,
-                    BlendPass{in.denoised, in.accumulated_sum, inv_frames, variance_.data(), difference_.data(),
-                              shown_.data(), error_.data(), in.width, in.height, in.frames});
-    B::ForEachPixel(1, in.height, RowSumPass{error_.data(), row_sums_.data(), in.width});
+    for (auto* buffer : {&shown_, &filtered_, &estimate_}) buffer->Resize(n);
+    for (auto* buffer : {&change_, &cross_change_, &filter_variance_, &estimate_error_, &difference_, &error_}) {
+      buffer->Resize(n);
+    }
+    const Vec4f* odd = FilterHalf(in, true);
+    const Vec4f* even = FilterHalf(in, false);
+    B::ForEachPixel(w, h, FilteredPass{in.accumulated_sum, odd_sum_.data(), in.frames, odd, even, filtered_.data(),
+                                       change_.data(), cross_change_.data(), filter_variance_.data(), w, dark});
+    B::ForEachPixel(w, h, EstimatePass{in.accumulated_sum, inv_frames, variance_.data(), filtered_.data(),
+                                       change_.data(), cross_change_.data(), filter_variance_.data(),
+                                       estimate_.data(), estimate_error_.data(), w, h});
+    B::ForEachPixel(w, h, DifferencePass{in.denoised, estimate_.data(), difference_.data(), w, dark});
+    B::ForEachPixel(w, h, BlendPass{in.denoised, estimate_.data(), estimate_error_.data(), difference_.data(),
+                                    shown_.data(), error_.data(), w, h, in.frames});
+    width_ = w;
+    height_ = h;
+    row_sums_.Resize(std::size_t(h));
+    B::ForEachPixel(1, h, RowSumPass{error_.data(), row_sums_.data(), w});
     double error = 0;
     for (const float row : row_sums_.Download()) error += row;
     return {shown_.data(), float(std::sqrt(error / double(n)))};
   }
 
+  ImageRgbF Output() const override {
+    if (width_ == 0) return {};
+    return {width_, height_, shown_.Download()};
+  }
+
  private:
-  typename B::template Buffer<Vec3f> squares_, shown_;
-  typename B::template Buffer<float> variance_, difference_, error_, row_sums_;
+  // One half's mean through kMeanFilterLevels levels; the odd half ends in
+  // halves_[1], the even one in halves_[2] (halves_[0] is scratch).
+  const Vec4f* FilterHalf(const RefineInputs& in, bool odd) {
+    const int w = in.width, h = in.height;
+    const float dark = kDarkGrey / exp2f(in.exposure);
+    constexpr int levels = kMeanFilterLevels;
+    auto& result = halves_[odd ? 1 : 2];
+    for (auto& buffer : halves_) buffer.Resize(std::size_t(w) * h);
+    // Ping-pong between scratch and result, ending in result.
+    Vec4f* from = levels % 2 == 0 ? result.data() : halves_[0].data();
+    Vec4f* to = levels % 2 == 0 ? halves_[0].data() : result.data();
+    B::ForEachPixel(w, h, HalfMeanPass{in.accumulated_sum, odd_sum_.data(), variance_.data(), from, w, in.frames, odd});
+    for (int level = 0; level < levels; ++level) {
+      B::ForEachPixel(w, h, MeanFilterPass{from, to, w, h, 1 << level, dark});
+      std::swap(from, to);
+    }
+    return from;
+  }
+
+  int width_ = 0, height_ = 0;  // of the last blend; 0 where none
+  typename B::template Buffer<Vec3f> squares_, odd_sum_, filtered_, estimate_, shown_;
+  typename B::template Buffer<Vec4f> halves_[3];
+  typename B::template Buffer<float> variance_, change_, cross_change_, filter_variance_, estimate_error_,
+      difference_, error_, row_sums_;
 };
 
 std::unique_ptr<Refiner> MakeCpuRefiner();
