@@ -151,8 +151,8 @@ struct HalfMeanPass {
   }
 };
 
-// Per pixel, for EstimatePass's window, all relative: the filtered mean f
-// (the halves' average); what the filter changed, (f - m)^2; each half's
+// Per pixel, for EstimatePass's window, all relative: what the filter
+// changed, (f - m)^2, f being the filtered halves' average; each half's
 // filtered mean against the other half's mean, (f_odd - m_even)^2 and
 // (f_even - m_odd)^2 averaged, whose noises are independent; and the
 // two-half measure of f's variance, (f_odd - f_even)^2 / 4.
@@ -162,7 +162,6 @@ struct FilteredPass {
   int frames;
   const Vec4f* odd;   // filtered halves
   const Vec4f* even;
-  Vec3f* filtered;
   float* change;
   float* cross_change;
   float* filter_variance;
@@ -179,7 +178,6 @@ struct FilteredPass {
     const Vec3f f = (f_odd + f_even) * 0.5f;
     const Vec3f e = f - m, h = (f_odd - f_even) * 0.5f, c1 = f_odd - m_even, c2 = f_even - m_odd;
     const float scale = (1.0f / 3.0f) * RelativeScale(m, dark);
-    filtered[i] = f;
     change[i] = Dot(e, e) * scale;
     cross_change[i] = 0.5f * (Dot(c1, c1) + Dot(c2, c2)) * scale;
     filter_variance[i] = Dot(h, h) * scale;
@@ -212,8 +210,9 @@ struct EstimatePass {
   const Vec3f* accumulated_sum;
   float inv_frames;
   const float* variance;  // V
-  const Vec3f* filtered;  // FilteredPass
-  const float* change;
+  const Vec4f* odd;       // filtered halves
+  const Vec4f* even;
+  const float* change;    // FilteredPass
   const float* cross_change;
   const float* filter_variance;
   Vec3f* estimate;
@@ -231,7 +230,7 @@ struct EstimatePass {
     const float c = fminf(fmaxf(0.5f * (e_f + w[2] - w[0]), 0.0f), fminf(e_f, v));
     const float spread = e_f + v - 2.0f * c;
     const float u = spread > 0.0f ? (e_f - c) / spread : 0.0f;
-    const Vec3f f = filtered[i];
+    const Vec3f f = (Xyz(odd[i]) + Xyz(even[i])) * 0.5f;
     estimate[i] = f + (accumulated_sum[i] * inv_frames - f) * u;
     estimate_error[i] = spread > 0.0f ? fmaxf(e_f * v - c * c, 0.0f) / spread : 0.0f;
   }
@@ -344,20 +343,19 @@ class RefinerOn final : public Refiner {
     if (in.frames < kMinFramesForError) return {in.denoised, -1.0f};
 
     const float inv_frames = 1.0f / float(in.frames);
-    for (auto* buffer : {&shown_, &filtered_, &estimate_}) buffer->Resize(n);
-    for (auto* buffer : {&change_, &cross_change_, &filter_variance_, &estimate_error_, &difference_, &error_}) {
-      buffer->Resize(n);
-    }
+    for (auto* buffer : {&shown_, &estimate_}) buffer->Resize(n);
+    for (auto* buffer : {&change_, &cross_change_, &filter_variance_, &estimate_error_, &error_}) buffer->Resize(n);
     const Vec4f* odd = FilterHalf(in, true);
     const Vec4f* even = FilterHalf(in, false);
-    B::ForEachPixel(w, h, FilteredPass{in.accumulated_sum, odd_sum_.data(), in.frames, odd, even, filtered_.data(),
-                                       change_.data(), cross_change_.data(), filter_variance_.data(), w, dark});
-    B::ForEachPixel(w, h, EstimatePass{in.accumulated_sum, inv_frames, variance_.data(), filtered_.data(),
-                                       change_.data(), cross_change_.data(), filter_variance_.data(),
-                                       estimate_.data(), estimate_error_.data(), w, h});
-    B::ForEachPixel(w, h, DifferencePass{in.denoised, estimate_.data(), difference_.data(), w, dark});
-    B::ForEachPixel(w, h, BlendPass{in.denoised, estimate_.data(), estimate_error_.data(), difference_.data(),
-                                    shown_.data(), error_.data(), w, h, in.frames});
+    B::ForEachPixel(w, h, FilteredPass{in.accumulated_sum, odd_sum_.data(), in.frames, odd, even, change_.data(),
+                                       cross_change_.data(), filter_variance_.data(), w, dark});
+    B::ForEachPixel(w, h, EstimatePass{in.accumulated_sum, inv_frames, variance_.data(), odd, even, change_.data(),
+                                       cross_change_.data(), filter_variance_.data(), estimate_.data(),
+                                       estimate_error_.data(), w, h});
+    float* difference = change_.data();  // the change is spent
+    B::ForEachPixel(w, h, DifferencePass{in.denoised, estimate_.data(), difference, w, dark});
+    B::ForEachPixel(w, h, BlendPass{in.denoised, estimate_.data(), estimate_error_.data(), difference, shown_.data(),
+                                    error_.data(), w, h, in.frames});
     width_ = w;
     height_ = h;
     row_sums_.Resize(std::size_t(h));
@@ -393,10 +391,11 @@ class RefinerOn final : public Refiner {
   }
 
   int width_ = 0, height_ = 0;  // of the last blend; 0 where none
-  typename B::template Buffer<Vec3f> squares_, odd_sum_, filtered_, estimate_, shown_;
+  // 120 bytes a pixel.
+  typename B::template Buffer<Vec3f> squares_, odd_sum_, estimate_, shown_;
   typename B::template Buffer<Vec4f> halves_[3];
-  typename B::template Buffer<float> variance_, change_, cross_change_, filter_variance_, estimate_error_,
-      difference_, error_, row_sums_;
+  typename B::template Buffer<float> variance_, change_, cross_change_, filter_variance_, estimate_error_, error_,
+      row_sums_;
 };
 
 std::unique_ptr<Refiner> MakeCpuRefiner();
