@@ -94,7 +94,10 @@ int main(int argc, char** argv) {
   bool quick = false;
   std::string out = "tradeoff-results", cache = "bench-cache";
   auto* t = app.add_subcommand("tradeoff", "Quality against time per frame for every knob, on the paper's scenarios");
-  t->add_option("--dataset", datasets, "NAME=SCENE_FILE[,VOLUME] (repeatable)")->required();
+  t->add_option("--dataset", datasets,
+                 "NAME=SCENE_FILE[,VOLUME] (repeatable); SCENE_FILE preset:NAME or preset:default is a session's "
+                 "scene for that preset (with VOLUME)")
+      ->required();
   t->add_option("--scenario", scenarios, "orbit, area-light, point-light, tf-edit, static, transparent (default all)");
   t->add_option("--width", study.width, "Frame width")->capture_default_str();
   t->add_option("--height", study.height, "Frame height")->capture_default_str();

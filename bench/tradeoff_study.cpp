@@ -545,8 +545,19 @@ std::vector<RunResult> RunStudy(const StudyOptions& o) {
   if (!CudaAvailable(&device) || ctx.backend != Backend::kCuda) device = "cpu";
   std::vector<RunResult> results;
   for (const Dataset& d : o.datasets) {
-    v1::Scene scene = LoadSceneFile(d.scene);
+    // "preset:NAME" (NAME may be "default"): the scene a session gets for
+    // that preset, lights and framing included, as a new user would see it.
+    const bool preset = d.scene.rfind("preset:", 0) == 0;
+    v1::Scene scene = preset ? v1::Scene{} : LoadSceneFile(d.scene);
     if (!d.volume.empty()) *scene.mutable_volume() = ParseVolumeSpec(d.volume);
+    if (preset) {
+      const Volume loaded = LoadVolume(scene.volume());
+      const std::string name = d.scene.substr(7);
+      const auto source = scene.volume();
+      scene = MakePresetScene(name == "default" ? DefaultPreset(loaded) : name, loaded);
+      *scene.mutable_volume() = source;
+      ApplyDefaults(scene);
+    }
     scene.mutable_render()->set_width(o.width);
     scene.mutable_render()->set_height(o.height);
     const std::string scene_json = SceneToJson(scene);
