@@ -10,6 +10,7 @@ mkdir -p "$stage/data"
 cp -r ../shared/data/ct-head-cthead "$stage/data/"
 cp ../shared/data/ct-body-totalsegmentator/aorta_ct_cropped.nii.gz "$stage/data/"
 cp ../shared/data/mr-head-seg3d-nifti/MR.nii.gz "$stage/data/"
+cp -r ../shared/data/mr-chest-dicom-seg3d "$stage/data/"
 chmod -R u+w "$stage"
 mkdir -p .gpu
 tar -I 'xz -T0 -6' -cf .gpu/bundle.tar.xz -C "$stage" .
