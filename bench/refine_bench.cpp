@@ -50,18 +50,6 @@ int FirstAt(const Curve& c, double db) {
   return -1;
 }
 
-// The relative RMS error of `image` against `reference`, weighed as the
-// refiner's estimate is (pipeline/refine.h): what the estimate should
-// match, up to the reference's own noise.
-double RelativeRmsError(const ImageRgbF& image, const ImageRgbF& reference, float dark) {
-  double sum = 0;
-  for (std::size_t i = 0; i < image.pixels.size(); ++i) {
-    const Vec3f e = image.pixels[i] - reference.pixels[i];
-    sum += Dot(e, e) / 3.0f * RelativeScale(reference.pixels[i], dark);
-  }
-  return std::sqrt(sum / double(image.pixels.size()));
-}
-
 double LargestDrop(const Curve& c) {
   double drop = 0;
   for (std::size_t i = 1; i < c.psnr.size(); ++i) drop = std::max(drop, c.psnr[i - 1] - c.psnr[i]);

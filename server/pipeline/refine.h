@@ -63,6 +63,17 @@ CINEVOL_HD float RelativeScale(Vec3f radiance, float dark) {
   return 1.0f / (l * l);
 }
 
+// The relative RMS error of `image` against `reference`, weighed as the
+// refiner's estimate is: what benches and tests hold the estimate against.
+inline double RelativeRmsError(const ImageRgbF& image, const ImageRgbF& reference, float dark) {
+  double sum = 0;
+  for (std::size_t i = 0; i < image.pixels.size(); ++i) {
+    const Vec3f e = image.pixels[i] - reference.pixels[i];
+    sum += Dot(e, e) / 3.0f * RelativeScale(reference.pixels[i], dark);
+  }
+  return std::sqrt(sum / double(image.pixels.size()));
+}
+
 // Before the denoiser: the frame's squares join the accumulation's, an odd
 // frame joins the odd half, and the variance of the mean (mean over
 // channels) is written out.
