@@ -329,7 +329,8 @@ struct RefinedImage {
 class Refiner {
  public:
   virtual ~Refiner() = default;
-  // Every full-size frame: takes its radiance into the squares, and from
+  // Every full-size frame: takes its radiance into the squares and the odd
+  // or even half, and from
   // kMinFramesForError frames on blends (before, too few frames have too
   // noisy a spread to go by, and the denoiser's output is shown as it is).
   virtual RefinedImage Refine(const RefineInputs& in) = 0;
@@ -387,14 +388,13 @@ class RefinerOn final : public Refiner {
   const Vec4f* FilterHalf(const RefineInputs& in, bool odd) {
     const int w = in.width, h = in.height;
     const float dark = kDarkGrey / exp2f(in.exposure);
-    constexpr int levels = kMeanFilterLevels;
     auto& result = halves_[odd ? 1 : 2];
     for (auto& buffer : halves_) buffer.Resize(std::size_t(w) * h);
     // Ping-pong between scratch and result, ending in result.
-    Vec4f* from = levels % 2 == 0 ? result.data() : halves_[0].data();
-    Vec4f* to = levels % 2 == 0 ? halves_[0].data() : result.data();
+    Vec4f* from = kMeanFilterLevels % 2 == 0 ? result.data() : halves_[0].data();
+    Vec4f* to = kMeanFilterLevels % 2 == 0 ? halves_[0].data() : result.data();
     B::ForEachPixel(w, h, HalfMeanPass{in.accumulated_sum, odd_sum_.data(), variance_.data(), from, w, in.frames, odd});
-    for (int level = 0; level < levels; ++level) {
+    for (int level = 0; level < kMeanFilterLevels; ++level) {
       B::ForEachPixel(w, h, MeanFilterPass{from, to, w, h, 1 << level, dark});
       std::swap(from, to);
     }

@@ -22,6 +22,16 @@ v1::SessionEvent CameraView(v1::NamedView view) {
   return e;
 }
 
+// Every frame up to and including the final one, 30 s at most for each.
+std::vector<v1::Frame> FramesUntilFinal(SessionStream& stream) {
+  std::vector<v1::Frame> frames;
+  while (auto f = WaitFrame(stream, [](const v1::Frame&) { return true; }, 30s)) {
+    frames.push_back(*f);
+    if (f->final()) break;
+  }
+  return frames;
+}
+
 TEST(SessionStream, FramesFollowCameraTransferFunctionAndLightEdits) {
   ScratchDir scratch;
   ServerProcess server(scratch.path());
@@ -125,11 +135,7 @@ TEST(SessionStream, IdleRefinementReachesTheTargetThenStops) {
   const auto created = client.CreateSession(request);
   auto stream = client.Attach(created.session_id());
 
-  std::vector<v1::Frame> frames;
-  while (auto f = WaitFrame(*stream, [](const v1::Frame&) { return true; }, 30s)) {
-    frames.push_back(*f);
-    if (f->final()) break;
-  }
+  const std::vector<v1::Frame> frames = FramesUntilFinal(*stream);
   ASSERT_FALSE(frames.empty());
   const v1::Frame& last = frames.back();
   ASSERT_TRUE(last.final());
@@ -164,11 +170,7 @@ TEST(SessionStream, TheFinalFrameComesAsPngWhereAsked) {
   request.mutable_stream()->set_final_format(v1::FINAL_FORMAT_PNG);
   const auto created = client.CreateSession(request);
   auto stream = client.Attach(created.session_id());
-  std::vector<v1::Frame> frames;
-  while (auto f = WaitFrame(*stream, [](const v1::Frame&) { return true; }, 30s)) {
-    frames.push_back(*f);
-    if (f->final()) break;
-  }
+  const std::vector<v1::Frame> frames = FramesUntilFinal(*stream);
   ASSERT_GE(frames.size(), 2u);
   const v1::Frame& last = frames.back();
   ASSERT_TRUE(last.final());
