@@ -154,7 +154,7 @@ SessionScript ParseScript(const std::string& text, const std::string& name, cons
     last_at = step.at;
     if (fields.size() != 2) {
       throw InputError(where + ": an event line holds \"at\" and one event (camera, lights, transferFunction, "
-                               "render, stream, resize, pause, resume), \"orbit\" or \"ui\"");
+                               "render, stream, resize, clipping, pause, resume), \"orbit\" or \"ui\"");
     }
     for (const auto& [key, value] : fields) {
       if (key == "at") continue;

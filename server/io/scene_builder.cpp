@@ -224,7 +224,62 @@ RenderSetup ResolveScene(const v1::Scene& scene, const Volume& volume) {
   setup.max_bounces = static_cast<int>(scene.render().max_bounces());
   setup.seed = scene.render().seed();
   setup.exposure = scene.camera().exposure();
+  setup.clip = ResolveClipping(scene.clipping(), volume);
   return setup;
+}
+
+namespace {
+
+// Patient LPS (mm) to world: index space in mm, centred on the volume. The
+// origin is the centre of voxel 0, and voxel i's centre is at
+// (i + 0.5) * spacing - extent / 2 in world space.
+struct PatientFrame {
+  DirectionCosines d;
+  Vec3f origin, shift;  // shift: half a voxel less half the extent
+
+  explicit PatientFrame(const Volume& v)
+      : d(v.metadata().direction),
+        origin{float(v.metadata().origin_mm[0]), float(v.metadata().origin_mm[1]), float(v.metadata().origin_mm[2])},
+        shift(v.spacing_mm() * 0.5f - v.extent_mm() * 0.5f) {}
+
+  Vec3f Direction(Vec3f lps) const {  // D^T lps, not normalised
+    Vec3f w;
+    for (int c = 0; c < 3; ++c) w[c] = float(d[0 * 3 + c] * lps.x + d[1 * 3 + c] * lps.y + d[2 * 3 + c] * lps.z);
+    return w;
+  }
+  Vec3f Point(Vec3f lps) const { return Direction(lps - origin) + shift; }
+};
+
+// Keeps Dot(normal, x - point) >= 0, in world mm.
+Vec4f HalfSpace(Vec3f normal, Vec3f point) {
+  const Vec3f n = Normalize(normal);
+  return ToVec4(n, -Dot(n, point));
+}
+
+}  // namespace
+
+ClipRegion ResolveClipping(const v1::Clipping& clipping, const Volume& volume) {
+  const PatientFrame frame(volume);
+  ClipRegion region;
+  if (clipping.has_crop_box()) {
+    const v1::CropBox& b = clipping.crop_box();
+    const bool oriented = b.has_axis_x() && b.has_axis_y();
+    const Vec3f x = Normalize(oriented ? ToVec(b.axis_x()) : Vec3f{1, 0, 0});
+    const Vec3f z = Normalize(Cross(x, oriented ? ToVec(b.axis_y()) : Vec3f{0, 1, 0}));
+    const Vec3f y = Cross(z, x);
+    const Vec3f center = frame.Point(ToVec(b.center())), half = ToVec(b.size()) * 0.5f;
+    const Vec3f axes[3] = {frame.Direction(x), frame.Direction(y), frame.Direction(z)};
+    for (int a = 0; a < 3; ++a) {
+      region.half_spaces[region.count++] = HalfSpace(axes[a], center - axes[a] * half[a]);
+      region.half_spaces[region.count++] = HalfSpace(-axes[a], center + axes[a] * half[a]);
+    }
+  }
+  for (const v1::ClipPlane& plane : clipping.planes()) {
+    if (region.count == kMaxClipHalfSpaces) break;  // validation allows 6 planes
+    region.half_spaces[region.count++] =
+        HalfSpace(frame.Direction(ToVec(plane.normal())), frame.Point(ToVec(plane.point())));
+  }
+  return region;
 }
 
 }  // namespace cinevol

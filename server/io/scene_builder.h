@@ -8,6 +8,7 @@
 
 #include "cinevol/v1/scene.pb.h"
 #include "core/camera.h"
+#include "core/clip_region.h"
 #include "core/lights.h"
 #include "core/transfer_function.h"
 #include "core/volume.h"
@@ -22,6 +23,7 @@ struct RenderSetup {
   int max_bounces = 4;
   std::uint64_t seed = 0;
   float exposure = 0;  // stops, applied by the tone mapper
+  ClipRegion clip;     // what the crop box and clip planes keep
 };
 
 // A named view in world space: the direction from the volume to the eye
@@ -35,6 +37,9 @@ ViewDirections NamedViewDirections(v1::NamedView view, const DirectionCosines& d
 
 // A patient (LPS) direction in world space, through the direction cosines.
 Vec3f PatientToWorld(const DirectionCosines& direction, Vec3f lps);
+
+// The crop box and clip planes (patient LPS mm) as half-spaces in world mm.
+ClipRegion ResolveClipping(const v1::Clipping& clipping, const Volume& volume);
 
 // The corners of the blocks of voxels (Volume::block_ranges) that `tf` makes
 // visible (able to take 5% of the light crossing them); the volume's corners

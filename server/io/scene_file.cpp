@@ -136,6 +136,33 @@ void ValidateCamera(const v1::Camera& c, Problems& p) {
   p.InRange("camera.exposure", c.exposure(), -20, 20);
 }
 
+// Positions within this of the volume (mm) are all any scan needs.
+constexpr float kMaxClipMm = 1e6f;
+
+void ValidateClipping(const v1::Clipping& c, Problems& p) {
+  if (c.has_crop_box()) {
+    const v1::CropBox& b = c.crop_box();
+    p.Vec("clipping.cropBox.center", b.center());
+    p.InRange("clipping.cropBox.size.x", b.size().x(), 1e-3f, kMaxClipMm);
+    p.InRange("clipping.cropBox.size.y", b.size().y(), 1e-3f, kMaxClipMm);
+    p.InRange("clipping.cropBox.size.z", b.size().z(), 1e-3f, kMaxClipMm);
+    if (b.has_axis_x() || b.has_axis_y()) {
+      p.Vec("clipping.cropBox.axisX", b.axis_x());
+      p.Vec("clipping.cropBox.axisY", b.axis_y());
+      if (!(Norm(CrossV(b.axis_x(), b.axis_y())) > 1e-6 * Norm(b.axis_x()) * Norm(b.axis_y()))) {
+        p.Add("clipping.cropBox", "axisX and axisY must both be set, non-zero and not parallel");
+      }
+    }
+  }
+  if (c.planes_size() > 6) p.Add("clipping.planes", fmt::format("{} planes; at most 6", c.planes_size()));
+  for (int i = 0; i < c.planes_size(); ++i) {
+    const std::string at = fmt::format("clipping.planes[{}]", i);
+    p.Vec(at + ".point", c.planes(i).point());
+    p.Vec(at + ".normal", c.planes(i).normal());
+    if (!(Norm(c.planes(i).normal()) > 0.0)) p.Add(at + ".normal", "is the zero vector");
+  }
+}
+
 void ValidateLight(const v1::Light& l, const std::string& at, bool& seen_environment, Problems& p) {
   switch (l.kind_case()) {
     case v1::Light::kArea: {
@@ -245,6 +272,7 @@ void ValidateParts(const v1::Scene& scene, Problems& p) {
     ValidateLight(scene.lights(i), fmt::format("lights[{}]", i), seen_environment, p);
   }
   ValidateRender(scene.render(), p);
+  ValidateClipping(scene.clipping(), p);
 }
 
 }  // namespace

@@ -54,6 +54,7 @@ void FramePipeline::Update(const v1::Scene& scene, const FrameSettings& settings
     SetTransferFunction(ResolveTransferFunction(scene.transfer_function(), *volume_));
   }
   if (changes & kLightsChanged) renderer_->SetLights(ResolveLights(scene.lights()));
+  if (changes & kClippingChanged) renderer_->SetClipRegion(ResolveClipping(scene.clipping(), *volume_));
   if (changes & kCameraChanged) camera_ = ResolveCamera(scene.camera(), scene.render(), *volume_, transfer_function_);
   spp_ = static_cast<int>(scene.render().spp());
   max_bounces_ = static_cast<int>(scene.render().max_bounces());
@@ -66,6 +67,7 @@ void FramePipeline::Update(const RenderSetup& setup, const FrameSettings& settin
   if (!has_scene_) changes = kEverythingChanged;
   if (changes & kTransferFunctionChanged) SetTransferFunction(setup.transfer_function);
   if (changes & kLightsChanged) renderer_->SetLights(setup.lights);
+  if (changes & kClippingChanged) renderer_->SetClipRegion(setup.clip);
   if (changes & kCameraChanged) camera_ = setup.camera;
   spp_ = setup.spp;
   max_bounces_ = setup.max_bounces;
@@ -84,7 +86,7 @@ void FramePipeline::Apply(const FrameSettings& settings, unsigned changes) {
   if (!has_scene_ || !(settings.denoiser == settings_.denoiser)) {
     denoiser_ = CreateDenoiser(renderer_->backend(), settings.denoiser);  // frames stay in the renderer's memory
   }
-  if (changes & (kTransferFunctionChanged | kLightsChanged)) ++scene_version_;
+  if (changes & (kTransferFunctionChanged | kLightsChanged | kClippingChanged)) ++scene_version_;
   if (has_scene_ && (changes & (kCameraChanged | kTransferFunctionChanged))) moved_at_ = Clock::now();
   if (changes & kEverythingChanged) ResetAccumulation();
   settings_ = settings;

@@ -93,7 +93,8 @@ enum SceneChange : unsigned {
   kTransferFunctionChanged = 1u << 1,
   kLightsChanged = 1u << 2,
   kSamplingChanged = 1u << 3,  // spp, bounces or seed
-  kEverythingChanged = (1u << 4) - 1,
+  kClippingChanged = 1u << 4,  // the crop box or clip planes
+  kEverythingChanged = (1u << 5) - 1,
 };
 
 class FramePipeline {

@@ -15,6 +15,7 @@ class CpuRenderer final : public Renderer {
   void SetVolume(std::shared_ptr<const Volume> volume) override;
   void SetTransferFunction(const TransferFunction& tf) override { data_.SetTransferFunction(tf); }
   void SetLights(const LightSetup& lights) override { data_.SetLights(lights); }
+  void SetClipRegion(const ClipRegion& clip) override { data_.SetClipRegion(clip); }
   void Render(const FrameRequest& request) override;
   void ResetAccumulation() override;
   int accumulated_frames() const override { return accumulated_frames_; }

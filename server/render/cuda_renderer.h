@@ -20,6 +20,7 @@ class CudaRenderer final : public Renderer {
   void SetVolume(std::shared_ptr<const Volume> volume) override;
   void SetTransferFunction(const TransferFunction& tf) override;
   void SetLights(const LightSetup& lights) override;
+  void SetClipRegion(const ClipRegion& clip) override { data_.SetClipRegion(clip); }
   void Render(const FrameRequest& request) override;
   void ResetAccumulation() override;
   int accumulated_frames() const override { return accumulated_frames_; }

@@ -98,7 +98,10 @@ class PathTracer {
   CINEVOL_HD Collision NextCollision(const Ray& ray, float& t_hit, float& entry) {
     float t0, t1;
     const Vec3f inv{1.0f / ray.direction.x, 1.0f / ray.direction.y, 1.0f / ray.direction.z};
-    if (!IntersectBox(ray.origin, inv, s_.volume.box_min, s_.volume.box_max, t0, t1)) return Collision::kEscaped;
+    if (!IntersectBox(ray.origin, inv, s_.volume.box_min, s_.volume.box_max, t0, t1) ||
+        !s_.clip.Clip(ray.origin, ray.direction, t0, t1)) {
+      return Collision::kEscaped;
+    }
     bool hit = false;
     const TrackResult r = SampleMajorant(s_.majorants, ray.origin, ray.direction, t0, t1, rng_,
                                          [&](float t, float sigma_maj) {
@@ -117,7 +120,7 @@ class PathTracer {
   CINEVOL_HD float Transmittance(Vec3f p, Vec3f w, float distance) {
     float t0, t1;
     const Vec3f inv{1.0f / w.x, 1.0f / w.y, 1.0f / w.z};
-    if (!IntersectBox(p, inv, s_.volume.box_min, s_.volume.box_max, t0, t1)) return 1.0f;
+    if (!IntersectBox(p, inv, s_.volume.box_min, s_.volume.box_max, t0, t1) || !s_.clip.Clip(p, w, t0, t1)) return 1.0f;
     t1 = fminf(t1, distance);
     if (!(t0 < t1)) return 1.0f;
     float transmittance = 1.0f;

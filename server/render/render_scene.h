@@ -5,6 +5,7 @@
 #include <cstdint>
 
 #include "core/camera.h"
+#include "core/clip_region.h"
 #include "core/lights.h"
 #include "core/transfer_view.h"
 #include "core/volume_view.h"
@@ -28,6 +29,7 @@ struct RenderScene {
   VolumeView volume;
   TransferView transfer;
   MajorantGridView majorants;
+  ClipRegion clip;                // what the crop box and clip planes keep
   const Light* lights = nullptr;  // in the backend's memory
   int light_count = 0;
   Environment environment;

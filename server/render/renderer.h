@@ -12,6 +12,7 @@
 #include <vector>
 
 #include "core/camera.h"
+#include "core/clip_region.h"
 #include "core/image.h"
 #include "core/lights.h"
 #include "core/transfer_function.h"
@@ -63,6 +64,8 @@ class Renderer {
   virtual void SetVolume(std::shared_ptr<const Volume> volume) = 0;
   virtual void SetTransferFunction(const TransferFunction& tf) = 0;
   virtual void SetLights(const LightSetup& lights) = 0;
+  // What the crop box and clip planes keep; an empty region keeps everything.
+  virtual void SetClipRegion(const ClipRegion& clip) = 0;
 
   // Renders one frame. A new frame size resets the accumulation.
   virtual void Render(const FrameRequest& request) = 0;

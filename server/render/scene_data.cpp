@@ -96,6 +96,7 @@ void SceneData::SetLights(const LightSetup& setup) {
 
 RenderScene SceneData::HostView() const {
   RenderScene s;
+  s.clip = clip_;
   if (volume_) {
     const Volume& v = volume_->volume();
     const float value_scale = volume_->value_scale(), value_offset = volume_->value_offset();

@@ -34,6 +34,7 @@ class SceneData {
   void SetVolume(std::shared_ptr<const PreparedVolume> volume);
   void SetTransferFunction(const TransferFunction& tf);
   void SetLights(const LightSetup& setup);
+  void SetClipRegion(const ClipRegion& clip) { clip_ = clip; }
 
   bool has_volume() const { return volume_ != nullptr; }
   const PreparedVolume& volume() const { return *volume_; }
@@ -59,6 +60,7 @@ class SceneData {
   std::uint64_t majorant_builds_ = 0;
   LightSetup lights_;
   EnvironmentDistribution environment_;
+  ClipRegion clip_;
 };
 
 }  // namespace cinevol

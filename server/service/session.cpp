@@ -21,6 +21,7 @@ unsigned ChangesOf(const v1::SessionEvent& e) {
   if (e.has_transfer_function()) return kTransferFunctionChanged;
   if (e.has_lights()) return kLightsChanged;
   if (e.has_render()) return kSamplingChanged;
+  if (e.has_clipping()) return kClippingChanged;
   return 0;
 }
 

@@ -234,6 +234,9 @@ void ApplyEvent(const v1::SessionEvent& event, v1::Scene& scene, FrameSettings& 
       next.mutable_render()->set_width(event.resize().width());
       next.mutable_render()->set_height(event.resize().height());
       break;
+    case v1::SessionEvent::kClipping:
+      *next.mutable_clipping() = event.clipping();
+      break;
     case v1::SessionEvent::kPause:
     case v1::SessionEvent::kResume:
       return;

@@ -151,7 +151,18 @@ INSTANTIATE_TEST_SUITE_P(
         Rule{"ZeroSpp", [](v1::Scene& s) { s.mutable_render()->set_spp(0); }, "render.spp"},
         Rule{"TooManyBounces", [](v1::Scene& s) { s.mutable_render()->set_max_bounces(100000); }, "render.maxBounces"},
         Rule{"NoVolume", [](v1::Scene& s) { s.clear_volume(); }, "volume"},
-        Rule{"NegativePhantomSize", [](v1::Scene& s) { s.mutable_volume()->mutable_phantom()->set_spacing(-1); }, "volume.phantom"}),
+        Rule{"NegativePhantomSize", [](v1::Scene& s) { s.mutable_volume()->mutable_phantom()->set_spacing(-1); }, "volume.phantom"},
+        Rule{"ZeroCropSize", [](v1::Scene& s) { s.mutable_clipping()->mutable_crop_box()->mutable_size()->set_x(1); }, "clipping.cropBox.size.y"},
+        Rule{"NaNCropCenter", [](v1::Scene& s) { s.mutable_clipping()->mutable_crop_box()->mutable_center()->set_z(NAN); }, "clipping.cropBox.center.z"},
+        Rule{"ParallelCropAxes", [](v1::Scene& s) {
+               auto* b = s.mutable_clipping()->mutable_crop_box();
+               b->mutable_size()->set_x(1), b->mutable_size()->set_y(1), b->mutable_size()->set_z(1);
+               b->mutable_axis_x()->set_x(1), b->mutable_axis_y()->set_x(2);
+             }, "clipping.cropBox"},
+        Rule{"ZeroPlaneNormal", [](v1::Scene& s) { s.mutable_clipping()->add_planes(); }, "clipping.planes[0].normal"},
+        Rule{"SevenPlanes", [](v1::Scene& s) {
+               for (int i = 0; i < 7; ++i) s.mutable_clipping()->add_planes()->mutable_normal()->set_z(1);
+             }, "clipping.planes"}),
     [](const auto& info) { return std::string(info.param.name); });
 
 TEST(Presets, EveryPresetIsAValidTransferFunction) {

@@ -75,6 +75,39 @@ TEST(Integrator, AbsorbingCubeMatchesBeerLambert) {
   }
 }
 
+// A plane through the cube's middle, across the rays, keeps half of each
+// chord: the transmittance is that of the half (issue 22). Either side.
+TEST(Integrator, ACubeCutInHalfTransmitsTheRemainingChord) {
+  const float tau = 2.0f, chord = 32.0f;
+  const double expected = std::exp(-double(tau) / 2);
+  const double sigma = std::sqrt(expected * (1 - expected) / (16.0 * 16 * 64 * 8));
+  for (const float side : {1.0f, -1.0f}) {
+    CpuRenderer r;
+    r.SetVolume(UniformCube(16, 2.0f));
+    r.SetTransferFunction(ConstantMedium(tau / chord, 0.0f));
+    r.SetLights(UniformSky(1.0f));
+    ClipRegion clip;
+    clip.half_spaces[clip.count++] = {0.0f, side, 0.0f, 0.0f};  // keeps y >= 0 (or y <= 0)
+    r.SetClipRegion(clip);
+    const Stats s = RenderStats(r, AxisCamera(), 64, 8, 4);
+    EXPECT_NEAR(s.mean, expected, 3 * sigma) << "side " << side;
+  }
+}
+
+// A crop that keeps nothing of the volume renders the background alone.
+TEST(Integrator, ACropThatRemovesEverythingShowsTheBackground) {
+  CpuRenderer r;
+  r.SetVolume(UniformCube(16, 2.0f));
+  r.SetTransferFunction(ConstantMedium(1.0f, 0.5f));
+  r.SetLights(UniformSky(1.0f));
+  ClipRegion clip;
+  clip.half_spaces[clip.count++] = {1.0f, 0.0f, 0.0f, -100.0f};  // keeps x >= 100 mm: outside the 32 mm cube
+  r.SetClipRegion(clip);
+  const Stats s = RenderStats(r, AxisCamera(), 4, 2, 4);
+  EXPECT_EQ(s.min, 1.0);
+  EXPECT_EQ(s.max, 1.0);
+}
+
 TEST(Integrator, WhiteFurnaceConservesEnergy) {
   for (float tau : {1e-3f, 0.1f, 1.0f, 10.0f}) {
     CpuRenderer r;

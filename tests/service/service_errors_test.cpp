@@ -124,8 +124,9 @@ TEST(ServiceErrors, ABadEventEndsOnlyItsSession) {
   const std::uint64_t seq = good_stream->Send(move);
   EXPECT_TRUE(WaitFinal(*good_stream, seq));
 
-  // Other bad events: a resize out of range, an unknown enum, a render event that resizes.
-  for (int kind = 0; kind < 3; ++kind) {
+  // Other bad events: a resize out of range, an unknown enum, a render event
+  // that resizes, a clip plane without a normal.
+  for (int kind = 0; kind < 4; ++kind) {
     const auto s = client.CreateSession(SmallSession());
     auto stream = client.Attach(s.session_id());
     v1::SessionEvent e;
@@ -137,9 +138,12 @@ TEST(ServiceErrors, ABadEventEndsOnlyItsSession) {
     } else if (kind == 1) {
       e.mutable_stream()->set_chroma(static_cast<v1::ChromaSubsampling>(9));
       field = "stream.chroma";
-    } else {
+    } else if (kind == 2) {
       e.mutable_render()->set_width(10);
       field = "render.width";
+    } else {
+      e.mutable_clipping()->add_planes();
+      field = "clipping.planes[0].normal";
     }
     stream->Send(e);
     EXPECT_TRUE(Eventually([&] { return stream->ended(); }, 10s)) << field;

@@ -158,6 +158,35 @@ TEST(SessionStream, IdleRefinementReachesTheTargetThenStops) {
   EXPECT_EQ(status->frames_rendered(), frames.size());
 }
 
+// A clipping event cuts the phantom: a plane keeping only what lies beyond
+// the volume leaves the background, and clearing it brings the head back.
+TEST(SessionStream, AClippingEventCutsAndClearingItRestores) {
+  ScratchDir scratch;
+  ServerProcess server(scratch.path());
+  ASSERT_TRUE(server.running()) << server.Log();
+  Client client = server.Connect();
+  const auto created = client.CreateSession(SmallSession());
+  auto stream = client.Attach(created.session_id());
+  const auto whole = WaitFinal(*stream);
+  ASSERT_TRUE(whole);
+  v1::SessionEvent cut;
+  v1::ClipPlane* plane = cut.mutable_clipping()->add_planes();
+  plane->mutable_point()->set_x(1e5f);  // far to the patient's left of any voxel
+  plane->mutable_normal()->set_x(1);
+  const auto empty = WaitFinal(*stream, stream->Send(cut));
+  ASSERT_TRUE(empty);
+  v1::SessionEvent clear;
+  clear.mutable_clipping();
+  const auto back = WaitFinal(*stream, stream->Send(clear));
+  ASSERT_TRUE(back);
+  const RgbImage a = DecodeFrame(*whole), b = DecodeFrame(*empty), c = DecodeFrame(*back);
+  const auto psnr = [](const RgbImage& x, const RgbImage& y) {
+    return Psnr(ImageRgb8{x.width, x.height, x.rgb}, ImageRgb8{y.width, y.height, y.rgb});
+  };
+  EXPECT_LT(psnr(a, b), 20.0) << "the cut image still shows the head";
+  EXPECT_GT(psnr(a, c), 30.0) << "clearing the clipping brings the head back";
+}
+
 // A client that asks for a lossless final frame gets it as PNG, the frames
 // before it as JPEG; a settings event switches back.
 TEST(SessionStream, TheFinalFrameComesAsPngWhereAsked) {
