@@ -17,15 +17,23 @@ struct ClipRegion {
   // Keeps the points x with Dot(xyz, x) + w >= 0: xyz points into the kept side.
   Vec4f half_spaces[kMaxClipHalfSpaces] = {};
   int count = 0;
+  // Bit i: half-space i's face is capped, where it cuts tissue a surface.
+  unsigned capped = 0;
 
   // Narrows [t0, t1] along o + t d to the kept part; false where none is left.
-  CINEVOL_HD bool Clip(Vec3f o, Vec3f d, float& t0, float& t1) const {
+  // `entered` is the half-space whose face the interval now starts on, or -1.
+  CINEVOL_HD bool Clip(Vec3f o, Vec3f d, float& t0, float& t1, int* entered = nullptr) const {
+    if (entered) *entered = -1;
     for (int i = 0; i < count; ++i) {
       const Vec3f n = Xyz(half_spaces[i]);
       const float inside = Dot(n, o) + half_spaces[i].w;  // > 0 where o is kept
       const float rate = Dot(n, d);
       if (rate > 0.0f) {
-        t0 = fmaxf(t0, -inside / rate);
+        const float t = -inside / rate;
+        if (t > t0) {
+          t0 = t;
+          if (entered) *entered = i;
+        }
       } else if (rate < 0.0f) {
         t1 = fminf(t1, -inside / rate);
       } else if (inside < 0.0f) {

@@ -273,9 +273,11 @@ ClipRegion ResolveClipping(const v1::Clipping& clipping, const Volume& volume) {
       region.half_spaces[region.count++] = HalfSpace(axes[a], center - axes[a] * half[a]);
       region.half_spaces[region.count++] = HalfSpace(-axes[a], center + axes[a] * half[a]);
     }
+    if (b.cap()) region.capped = (1u << 6) - 1;
   }
   for (const v1::ClipPlane& plane : clipping.planes()) {
     if (region.count == kMaxClipHalfSpaces) break;  // validation allows 6 planes
+    if (plane.cap()) region.capped |= 1u << region.count;
     region.half_spaces[region.count++] =
         HalfSpace(frame.Direction(ToVec(plane.normal())), frame.Point(ToVec(plane.point())));
   }

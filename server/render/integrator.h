@@ -94,13 +94,27 @@ class PathTracer {
  private:
   enum class Collision { kHit, kEscaped, kAbsorbedByBudget };
 
-  // Delta tracking to the next real collision along the ray.
+  // Delta tracking to the next real collision along the ray. A ray that
+  // enters the kept region through a capped face meets the cut tissue there
+  // as a surface, with the tissue's opacity as the probability.
   CINEVOL_HD Collision NextCollision(const Ray& ray, float& t_hit, float& entry) {
     float t0, t1;
+    int entered;
     const Vec3f inv{1.0f / ray.direction.x, 1.0f / ray.direction.y, 1.0f / ray.direction.z};
     if (!IntersectBox(ray.origin, inv, s_.volume.box_min, s_.volume.box_max, t0, t1) ||
-        !s_.clip.Clip(ray.origin, ray.direction, t0, t1)) {
+        !s_.clip.Clip(ray.origin, ray.direction, t0, t1, &entered)) {
       return Collision::kEscaped;
+    }
+    cap_ = false;
+    if (entered >= 0 && (s_.clip.capped >> entered & 1u)) {
+      const float e = s_.transfer.Entry(s_.volume.Sample(ray.origin + ray.direction * t0));
+      if (rng_.Uniform() < s_.transfer.MaterialAt(e).opacity) {
+        t_hit = t0;
+        entry = e;
+        cap_ = true;
+        cap_normal_ = -Xyz(s_.clip.half_spaces[entered]);  // out of the kept region, towards the ray
+        return Collision::kHit;
+      }
     }
     bool hit = false;
     const TrackResult r = SampleMajorant(s_.majorants, ray.origin, ray.direction, t0, t1, rng_,
@@ -147,6 +161,7 @@ class PathTracer {
 
   // Hybrid scattering: the BRDF with Exposure Render's probability, else the phase function.
   CINEVOL_HD Scatterer MakeScatterer(Vec3f p, Vec3f wo, const Material& m) {
+    if (cap_) return {true, m.diffuse, m.specular, fmaxf(m.roughness * m.roughness, 1e-3f), cap_normal_, 0.0f};
     Scatterer sc{false, m.diffuse, {}, 0.0f, {}, s_.transfer.phase_g};
     if constexpr (kWithGradients) {
       const Vec3f grad = s_.volume.Gradient(p);
@@ -207,6 +222,8 @@ class PathTracer {
 
   const RenderScene& s_;
   Pcg32& rng_;
+  bool cap_ = false;   // the last collision is on a capped face, with this normal (on the ray's side)
+  Vec3f cap_normal_{};
 };
 
 // Renders pixel (x, y): spp paths, stratified per frame, seeded by (seed,

@@ -129,11 +129,12 @@ TEST(CudaRenderer, ConvergedImagesAgreeWithCpu) {
   ExpectAgree(FullScene{});
 }
 
-// An oblique clip plane and a crop box (issue 22).
+// An oblique, capped clip plane and a crop box (issue 22).
 TEST(CudaRenderer, ClippedImagesAgreeWithCpu) {
   CINEVOL_REQUIRE_CUDA();
   FullScene scene;
   scene.clip.half_spaces[scene.clip.count++] = ToVec4(Normalize(Vec3f{1, 1, 0.5f}), 10.0f);
+  scene.clip.capped = 1u;  // the oblique cut shows the tissue it crosses
   for (int a = 0; a < 3; ++a) {  // a 160 mm cube around the centre
     Vec3f n{};
     n[a] = 1;

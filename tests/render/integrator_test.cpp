@@ -108,6 +108,32 @@ TEST(Integrator, ACropThatRemovesEverythingShowsTheBackground) {
   EXPECT_EQ(s.max, 1.0);
 }
 
+// A capped cut through an opaque cube: camera rays meet the cut face as a
+// diffuse surface of the tissue's colour, facing the camera under a uniform
+// sky of radiance 1, so the face shows its albedo (one bounce: the sky
+// directly). Uncapped, the same rays go into the medium and see its inside.
+TEST(Integrator, ACappedCutShowsTheTissueColour) {
+  const float albedo = 0.6f;
+  double capped_mean = 0, uncapped_mean = 0;
+  for (const bool cap : {true, false}) {
+    CpuRenderer r;
+    r.SetVolume(UniformCube(16, 2.0f));
+    TransferFunction tf = ConstantMedium(10.0f, albedo, 1.0f);
+    for (auto& p : tf.points) p.specular = {0, 0, 0};
+    r.SetTransferFunction(tf);
+    r.SetLights(UniformSky(1.0f));
+    ClipRegion clip;
+    clip.half_spaces[clip.count++] = {0.0f, 1.0f, 0.0f, 0.0f};  // keeps y >= 0; the camera looks along +y
+    clip.capped = cap ? 1u : 0u;
+    r.SetClipRegion(clip);
+    const Stats s = RenderStats(r, AxisCamera(), 64, 4, 1);
+    (cap ? capped_mean : uncapped_mean) = s.mean;
+    EXPECT_TRUE(s.finite);
+  }
+  EXPECT_NEAR(capped_mean, albedo, 0.02) << "the cap shows the tissue's diffuse colour";
+  EXPECT_GT(std::abs(uncapped_mean - capped_mean), 0.05) << "without the cap the rays enter the medium";
+}
+
 TEST(Integrator, WhiteFurnaceConservesEnergy) {
   for (float tau : {1e-3f, 0.1f, 1.0f, 10.0f}) {
     CpuRenderer r;
