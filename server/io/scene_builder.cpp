@@ -41,7 +41,24 @@ ViewDirections NamedViewDirections(v1::NamedView view, const DirectionCosines& d
   return {PatientToWorld(direction, to_eye), PatientToWorld(direction, up)};
 }
 
-std::vector<Vec3f> VisibleCorners(const Volume& volume, const TransferFunction& tf) {
+namespace {
+
+// True when one of the region's half-spaces has all of the box
+// [lo, hi] on its cut side (enough to skip it; a box cut away by several
+// planes together still counts as kept).
+bool CutAway(const ClipRegion& clip, Vec3f lo, Vec3f hi) {
+  for (int i = 0; i < clip.count; ++i) {
+    const Vec4f h = clip.half_spaces[i];
+    // The box corner farthest into the kept side.
+    const Vec3f far{h.x > 0 ? hi.x : lo.x, h.y > 0 ? hi.y : lo.y, h.z > 0 ? hi.z : lo.z};
+    if (Dot(Xyz(h), far) + h.w < 0.0f) return true;
+  }
+  return false;
+}
+
+}  // namespace
+
+std::vector<Vec3f> VisibleCorners(const Volume& volume, const TransferFunction& tf, const ClipRegion& clip) {
   const Vec3i blocks = volume.block_counts(), n{blocks.x + 1, blocks.y + 1, blocks.z + 1};
   // Per corner of the block lattice, how many visible blocks touch it.
   std::vector<std::uint8_t> touching(std::size_t(n.x) * n.y * n.z, 0);
@@ -56,6 +73,8 @@ std::vector<Vec3f> VisibleCorners(const Volume& volume, const TransferFunction& 
       for (int x = 0; x < blocks.x; ++x, ++i) {
         const Volume::ValueRange r = volume.block_ranges()[i];
         if (MaxOpacity(tf, r.lo, r.hi) <= min_opacity) continue;
+        const Vec3f lo = ToFloat(Vec3i{x, y, z}) * block_mm - volume.extent_mm() * 0.5f;
+        if (CutAway(clip, lo, lo + block_mm)) continue;
         any = true;
         for (int c = 0; c < 8; ++c) ++touching[at(x + (c & 1), y + (c >> 1 & 1), z + (c >> 2))];
       }
@@ -133,13 +152,13 @@ Framing FrameView(const std::vector<Vec3f>& points, const ViewDirections& view, 
 }
 
 Camera ResolveCamera(const v1::Camera& proto, const v1::RenderSettings& render, const Volume& volume,
-                     const TransferFunction& tf) {
+                     const TransferFunction& tf, const ClipRegion& clip) {
   const int width = static_cast<int>(render.width()), height = static_cast<int>(render.height());
   const float fov = proto.fov_y_deg();
   Vec3f eye, target, up{0, 0, 1};
   if (proto.view() != v1::NAMED_VIEW_UNSPECIFIED) {
     const ViewDirections view = NamedViewDirections(proto.view(), volume.metadata().direction);
-    const Framing framing = FrameView(VisibleCorners(volume, tf), view, fov, float(width) / float(height));
+    const Framing framing = FrameView(VisibleCorners(volume, tf, clip), view, fov, float(width) / float(height));
     target = framing.target;
     up = view.up;
     eye = target + view.to_eye * framing.distance;
@@ -218,13 +237,13 @@ LightSetup ResolveLights(const google::protobuf::RepeatedPtrField<v1::Light>& li
 RenderSetup ResolveScene(const v1::Scene& scene, const Volume& volume) {
   RenderSetup setup;
   setup.transfer_function = ResolveTransferFunction(scene.transfer_function(), volume);
-  setup.camera = ResolveCamera(scene.camera(), scene.render(), volume, setup.transfer_function);
+  setup.clip = ResolveClipping(scene.clipping(), volume);
+  setup.camera = ResolveCamera(scene.camera(), scene.render(), volume, setup.transfer_function, setup.clip);
   setup.lights = ResolveLights(scene.lights());
   setup.spp = static_cast<int>(scene.render().spp());
   setup.max_bounces = static_cast<int>(scene.render().max_bounces());
   setup.seed = scene.render().seed();
   setup.exposure = scene.camera().exposure();
-  setup.clip = ResolveClipping(scene.clipping(), volume);
   return setup;
 }
 

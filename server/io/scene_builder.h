@@ -42,9 +42,9 @@ Vec3f PatientToWorld(const DirectionCosines& direction, Vec3f lps);
 ClipRegion ResolveClipping(const v1::Clipping& clipping, const Volume& volume);
 
 // The corners of the blocks of voxels (Volume::block_ranges) that `tf` makes
-// visible (able to take 5% of the light crossing them); the volume's corners
-// when it shows nothing.
-std::vector<Vec3f> VisibleCorners(const Volume& volume, const TransferFunction& tf);
+// visible (able to take 5% of the light crossing them) and `clip` does not
+// cut away whole; the volume's corners when it shows nothing.
+std::vector<Vec3f> VisibleCorners(const Volume& volume, const TransferFunction& tf, const ClipRegion& clip = ClipRegion());
 
 // Where a named view looks at and how far back its eye sits so that
 // `points`, centred, fill 80% of the viewport's shorter side (perspective
@@ -57,9 +57,9 @@ Framing FrameView(const std::vector<Vec3f>& points, const ViewDirections& view, 
 
 // With neither points nor a preset, the volume's default preset.
 TransferFunction ResolveTransferFunction(const v1::TransferFunction& tf, const Volume& volume);
-// Named views frame what `tf` shows of the volume (FrameView).
+// Named views frame what `tf` shows of the volume and `clip` keeps (FrameView).
 Camera ResolveCamera(const v1::Camera& camera, const v1::RenderSettings& render, const Volume& volume,
-                     const TransferFunction& tf);
+                     const TransferFunction& tf, const ClipRegion& clip = ClipRegion());
 LightSetup ResolveLights(const google::protobuf::RepeatedPtrField<v1::Light>& lights);
 
 // All of the above; the scene must have passed CheckScene.

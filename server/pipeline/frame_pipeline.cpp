@@ -46,16 +46,22 @@ FramePipeline::~FramePipeline() = default;
 
 void FramePipeline::Update(const v1::Scene& scene, const FrameSettings& settings, unsigned changes) {
   if (!has_scene_) changes = kEverythingChanged;
-  // Named views frame what the transfer function shows, so they follow its edits.
-  if ((changes & kTransferFunctionChanged) && scene.camera().view() != v1::NAMED_VIEW_UNSPECIFIED) {
+  // Named views frame what the transfer function shows and the clipping
+  // keeps, so they follow their edits.
+  if ((changes & (kTransferFunctionChanged | kClippingChanged)) && scene.camera().view() != v1::NAMED_VIEW_UNSPECIFIED) {
     changes |= kCameraChanged;
   }
   if (changes & kTransferFunctionChanged) {
     SetTransferFunction(ResolveTransferFunction(scene.transfer_function(), *volume_));
   }
   if (changes & kLightsChanged) renderer_->SetLights(ResolveLights(scene.lights()));
-  if (changes & kClippingChanged) renderer_->SetClipRegion(ResolveClipping(scene.clipping(), *volume_));
-  if (changes & kCameraChanged) camera_ = ResolveCamera(scene.camera(), scene.render(), *volume_, transfer_function_);
+  if (changes & kClippingChanged) {
+    clip_ = ResolveClipping(scene.clipping(), *volume_);
+    renderer_->SetClipRegion(clip_);
+  }
+  if (changes & kCameraChanged) {
+    camera_ = ResolveCamera(scene.camera(), scene.render(), *volume_, transfer_function_, clip_);
+  }
   spp_ = static_cast<int>(scene.render().spp());
   max_bounces_ = static_cast<int>(scene.render().max_bounces());
   seed_ = scene.render().seed();

@@ -167,6 +167,7 @@ class FramePipeline {
   std::unique_ptr<Upsampler> upsampler_;
   std::unique_ptr<Refiner> refiner_;
   bool last_frame_blended_ = false;  // the last frame showed refiner_'s blend
+  ClipRegion clip_;                  // the scene's, resolved: named views frame what it keeps
   FrameSettings settings_;
   bool has_scene_ = false;
   TransferFunction transfer_function_;

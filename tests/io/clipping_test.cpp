@@ -4,6 +4,7 @@
 // tests/render/integrator_test.cpp.
 #include <gtest/gtest.h>
 
+#include "io/phantom.h"
 #include "io/scene_builder.h"
 
 namespace cinevol {
@@ -79,6 +80,42 @@ TEST(Clipping, AnOrientedBoxFollowsItsAxes) {
   EXPECT_TRUE(Kept(region, {-10, -10, 0}));  // 14 mm along L+P (world -x, -y)
   EXPECT_FALSE(Kept(region, {-10, 10, 0}));
   EXPECT_FALSE(Kept(region, {-15, -15, 0}));  // 21 mm along: beyond half of 40
+}
+
+// A named view frames what the clipping keeps: a crop box around the middle
+// of the head's left half brings the view closer and centres it there.
+TEST(Clipping, NamedViewsFrameWhatIsKept) {
+  v1::Phantom phantom;
+  phantom.set_kind(v1::Phantom::HEAD);
+  phantom.set_size(64);
+  const Volume head = MakePhantom(phantom);
+  v1::TransferFunction preset;
+  preset.set_preset("ct-bone");
+  const TransferFunction tf = ResolveTransferFunction(preset, head);
+  v1::Camera anterior;
+  anterior.set_view(v1::ANTERIOR);
+  anterior.set_fov_y_deg(30);
+  v1::RenderSettings render;
+  render.set_width(64);
+  render.set_height(64);
+  v1::Clipping clipping;
+  v1::CropBox* box = clipping.mutable_crop_box();
+  // The phantom's axes are the patient's; its origin puts its centre at 0 mm.
+  const auto& origin = head.metadata().origin_mm;
+  const Vec3f centre = Vec3f{float(origin[0]), float(origin[1]), float(origin[2])} + head.extent_mm() * 0.5f -
+                       head.spacing_mm() * 0.5f;
+  box->mutable_center()->set_x(centre.x + head.extent_mm().x * 0.25f);  // the patient's left
+  box->mutable_center()->set_y(centre.y);
+  box->mutable_center()->set_z(centre.z);
+  box->mutable_size()->set_x(head.extent_mm().x * 0.5f);
+  box->mutable_size()->set_y(head.extent_mm().y * 0.5f);
+  box->mutable_size()->set_z(head.extent_mm().z * 0.5f);
+  const Camera whole = ResolveCamera(anterior, render, head, tf);
+  const Camera cropped = ResolveCamera(anterior, render, head, tf, ResolveClipping(clipping, head));
+  EXPECT_LT(cropped.focal_distance, 0.8f * whole.focal_distance) << "the view comes closer to the kept quarter";
+  const Vec3f target = cropped.eye + cropped.forward * cropped.focal_distance;
+  const Vec3f whole_target = whole.eye + whole.forward * whole.focal_distance;
+  EXPECT_GT(target.x - whole_target.x, head.extent_mm().x * 0.05f) << "and moves to it (world +x: the patient's left)";
 }
 
 TEST(Clipping, NoClippingKeepsEverything) {
