@@ -149,8 +149,9 @@ void ValidateClipping(const v1::Clipping& c, Problems& p) {
     if (b.has_axis_x() || b.has_axis_y()) {
       p.Vec("clipping.cropBox.axisX", b.axis_x());
       p.Vec("clipping.cropBox.axisY", b.axis_y());
-      if (!(Norm(CrossV(b.axis_x(), b.axis_y())) > 1e-6 * Norm(b.axis_x()) * Norm(b.axis_y()))) {
-        p.Add("clipping.cropBox", "axisX and axisY must both be set, non-zero and not parallel");
+      if (!(Norm(b.axis_x()) >= 1e-6 && Norm(b.axis_y()) >= 1e-6 &&
+            Norm(CrossV(b.axis_x(), b.axis_y())) > 1e-3 * Norm(b.axis_x()) * Norm(b.axis_y()))) {
+        p.Add("clipping.cropBox", "axisX and axisY must both be set, of length at least 1e-6 and not parallel");
       }
     }
   }
@@ -159,7 +160,7 @@ void ValidateClipping(const v1::Clipping& c, Problems& p) {
     const std::string at = fmt::format("clipping.planes[{}]", i);
     p.Vec(at + ".point", c.planes(i).point());
     p.Vec(at + ".normal", c.planes(i).normal());
-    if (!(Norm(c.planes(i).normal()) > 0.0)) p.Add(at + ".normal", "is the zero vector");
+    if (!(Norm(c.planes(i).normal()) >= 1e-6)) p.Add(at + ".normal", "is shorter than 1e-6: no direction");
   }
 }
 

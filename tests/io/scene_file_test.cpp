@@ -160,6 +160,7 @@ INSTANTIATE_TEST_SUITE_P(
                b->mutable_axis_x()->set_x(1), b->mutable_axis_y()->set_x(2);
              }, "clipping.cropBox"},
         Rule{"ZeroPlaneNormal", [](v1::Scene& s) { s.mutable_clipping()->add_planes(); }, "clipping.planes[0].normal"},
+        Rule{"TinyPlaneNormal", [](v1::Scene& s) { s.mutable_clipping()->add_planes()->mutable_normal()->set_y(1e-30f); }, "clipping.planes[0].normal"},
         Rule{"SevenPlanes", [](v1::Scene& s) {
                for (int i = 0; i < 7; ++i) s.mutable_clipping()->add_planes()->mutable_normal()->set_z(1);
              }, "clipping.planes"}),
