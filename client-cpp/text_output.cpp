@@ -101,6 +101,9 @@ void PrintVolume(const v1::VolumeInfo& v) {
   fmt::print("dimensions:      {} voxels\n", Triple(d.x(), d.y(), d.z()));
   fmt::print("spacing:         {}\n", Triple(s.x(), s.y(), s.z(), "mm"));
   fmt::print("extent:          {}\n", Triple(d.x() * s.x(), d.y() * s.y(), d.z() * s.z(), "mm"));
+  const auto& o = v.origin_mm();
+  fmt::print("origin:          {:g}, {:g}, {:g} mm (LPS, voxel 0's centre: where clipping coordinates lie)\n", o.x(),
+             o.y(), o.z());
   fmt::print("value range:     {}\n", ValueRange(v));
   fmt::print("memory:          {}\n", Bytes(v.memory_bytes()));
   fmt::print("sessions:        {}\n", v.sessions());

@@ -1,8 +1,9 @@
-// The viewer's panels (volume, transfer function, lights, render, scene),
-// its stats overlay and the banner that says what is wrong.
+// The viewer's panels (volume, transfer function, lights, render, clipping,
+// scene), its stats overlay and the banner that says what is wrong.
 #include <imgui.h>
 #include <imgui_stdlib.h>
 
+#include <algorithm>
 #include <cmath>
 #include <functional>
 
@@ -191,6 +192,72 @@ void RenderPanel(App& app) {
   }
 }
 
+// The volume's extent along the patient's L, P and S axes (mm): the corners
+// of its voxel grid through its origin and direction cosines.
+void PatientBounds(const v1::VolumeInfo& v, float lo[3], float hi[3]) {
+  const float n[3] = {float(v.dims().x()), float(v.dims().y()), float(v.dims().z())};
+  const float s[3] = {v.spacing_mm().x(), v.spacing_mm().y(), v.spacing_mm().z()};
+  const float o[3] = {v.origin_mm().x(), v.origin_mm().y(), v.origin_mm().z()};
+  for (int r = 0; r < 3; ++r) lo[r] = hi[r] = o[r];
+  for (int corner = 0; corner < 8; ++corner) {
+    for (int r = 0; r < 3; ++r) {
+      float p = o[r];
+      for (int c = 0; c < 3; ++c) {
+        const double d = v.direction_size() == 9 ? v.direction(3 * r + c) : (r == c ? 1.0 : 0.0);
+        p += float(d) * ((corner >> c & 1) ? n[c] - 0.5f : -0.5f) * s[c];
+      }
+      lo[r] = std::min(lo[r], p);
+      hi[r] = std::max(hi[r], p);
+    }
+  }
+}
+
+// A crop box along the patient's axes, as ranges over the volume's extent.
+void ClippingPanel(App& app) {
+  if (!app.volume) return;
+  float lo[3], hi[3];
+  PatientBounds(*app.volume, lo, hi);
+  bool crop = app.clipping.has_crop_box();
+  if (ImGui::Checkbox("crop box", &crop)) {
+    app.clipping.clear_crop_box();
+    if (crop) {
+      v1::CropBox* box = app.clipping.mutable_crop_box();
+      box->mutable_center()->set_x(0.5f * (lo[0] + hi[0]));
+      box->mutable_center()->set_y(0.5f * (lo[1] + hi[1]));
+      box->mutable_center()->set_z(0.5f * (lo[2] + hi[2]));
+      box->mutable_size()->set_x(hi[0] - lo[0]);
+      box->mutable_size()->set_y(hi[1] - lo[1]);
+      box->mutable_size()->set_z(hi[2] - lo[2]);
+    }
+    app.SendClipping();
+  }
+  if (!app.clipping.has_crop_box()) return;
+  v1::CropBox* box = app.clipping.mutable_crop_box();
+  const char* labels[3] = {"R..L mm", "A..P mm", "I..S mm"};
+  bool changed = false;
+  for (int a = 0; a < 3; ++a) {
+    const float c = a == 0 ? box->center().x() : a == 1 ? box->center().y() : box->center().z();
+    const float s = a == 0 ? box->size().x() : a == 1 ? box->size().y() : box->size().z();
+    float from = c - 0.5f * s, to = c + 0.5f * s;
+    if (ImGui::DragFloatRange2(labels[a], &from, &to, 0.5f, lo[a], hi[a], "%.0f", "%.0f",
+                               ImGuiSliderFlags_AlwaysClamp)) {
+      to = std::max(to, from + 1.0f);  // at least 1 mm
+      const float mid = 0.5f * (from + to), size = to - from;
+      if (a == 0) box->mutable_center()->set_x(mid), box->mutable_size()->set_x(size);
+      if (a == 1) box->mutable_center()->set_y(mid), box->mutable_size()->set_y(size);
+      if (a == 2) box->mutable_center()->set_z(mid), box->mutable_size()->set_z(size);
+      changed = true;
+    }
+  }
+  bool cap = box->cap();
+  if (ImGui::Checkbox("cap the cut faces", &cap)) {
+    box->set_cap(cap);
+    changed = true;
+  }
+  Hint("What lies outside the box is not rendered; capped faces show the tissue they cut");
+  if (changed) app.SendClipping();
+}
+
 void ScenePanel(App& app) {
   InputPath("scene file", app.scene_path);
   if (ImGui::Button("Open")) app.OpenScene(app.scene_path);
@@ -218,6 +285,7 @@ void DrawPanels(App& app) {
   if (Header("Transfer function", app.panels.transfer_function)) TransferPanel(app);
   if (Header("Lights", app.panels.lights)) LightsPanel(app);
   if (Header("Render", app.panels.render)) RenderPanel(app);
+  if (Header("Clipping", app.panels.clipping)) ClippingPanel(app);
   if (Header("Scene and snapshot", app.panels.scene)) ScenePanel(app);
   ImGui::Separator();
   ImGui::Checkbox("stats overlay (F2)", &app.panels.stats);

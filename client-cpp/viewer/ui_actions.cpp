@@ -49,6 +49,7 @@ bool* Panel(PanelsOpen& p, const std::string& name) {
   if (name == "transferFunction") return &p.transfer_function;
   if (name == "lights") return &p.lights;
   if (name == "render") return &p.render;
+  if (name == "clipping") return &p.clipping;
   if (name == "scene") return &p.scene;
   if (name == "stats") return &p.stats;
   return nullptr;

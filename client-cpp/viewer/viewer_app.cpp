@@ -198,6 +198,7 @@ void App::AdoptSession() {
     SendLights();
     SendRender();
     SendStream();
+    SendClipping();
     return;
   }
   volume = connection->volume();
@@ -211,11 +212,18 @@ void App::AdoptSession() {
   lights.mutable_lights()->CopyFrom(scene.lights());
   render = scene.render();
   stream = options.session.stream;
+  clipping = scene.clipping();
 }
 
 void App::SendTransferFunction() {
   v1::SessionEvent e;
   *e.mutable_transfer_function() = transfer;
+  connection->Post(std::move(e));
+}
+
+void App::SendClipping() {
+  v1::SessionEvent e;
+  *e.mutable_clipping() = clipping;
   connection->Post(std::move(e));
 }
 
@@ -302,6 +310,7 @@ void App::SaveScene(const std::string& path) {
   *scene.mutable_camera() = ToProto(camera);
   scene.mutable_lights()->CopyFrom(lights.lights());
   *scene.mutable_render() = render;
+  *scene.mutable_clipping() = clipping;
   scene.mutable_render()->set_width(viewport_w_);
   scene.mutable_render()->set_height(viewport_h_);
   if (volume) *scene.mutable_volume() = ParseVolumeSpec(volume->source());  // a phantom stays a phantom
@@ -330,6 +339,8 @@ void App::OpenScene(const std::string& path) {
     render.set_spp(scene.render().spp());
     render.set_max_bounces(scene.render().max_bounces());
     SendRender();
+    clipping = scene.clipping();
+    SendClipping();
     notice = fmt::format("opened {}", path);
   } catch (const std::exception& e) {
     notice = e.what();

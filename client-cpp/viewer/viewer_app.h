@@ -52,7 +52,7 @@ struct ViewerStats {
 
 // Panels the user can open and close.
 struct PanelsOpen {
-  bool volume = true, transfer_function = true, lights = false, render = false, scene = false;
+  bool volume = true, transfer_function = true, lights = false, render = false, clipping = false, scene = false;
   bool stats = true;  // the overlay
 };
 
@@ -74,6 +74,7 @@ class App {
   v1::LightList lights;
   v1::RenderSettings render;        // spp per frame, bounces
   v1::StreamSettings stream;        // denoiser, JPEG quality, target spp
+  v1::Clipping clipping;            // the crop box (patient mm)
   PanelsOpen panels;
   ViewerStats stats;
   std::string notice;               // the last message for people (a result or an error)
@@ -90,6 +91,7 @@ class App {
   void SendLights();
   void SendRender();
   void SendStream();
+  void SendClipping();
   void ChoosePreset(const std::string& name);
   void SwitchVolume(const std::string& id);
   void Snapshot(const std::string& path, int spp);

@@ -249,6 +249,8 @@ v1::VolumeInfo VolumeRegistry::InfoLocked(const std::string& id, const Entry& e)
   info.mutable_histogram()->set_max_value(h.max_value);
   info.mutable_histogram()->mutable_counts()->Add(h.counts.begin(), h.counts.end());
   info.mutable_direction()->Add(v.metadata().direction.begin(), v.metadata().direction.end());
+  const auto& origin = v.metadata().origin_mm;
+  *info.mutable_origin_mm() = ToProto(Vec3f{float(origin[0]), float(origin[1]), float(origin[2])});
   for (const VolumeCopyStatus& c : VolumeCache::Get().Copies()) {
     if (c.volume != e.volume.get()) continue;
     v1::VolumeCopy* copy = info.add_copies();

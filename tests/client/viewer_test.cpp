@@ -148,7 +148,15 @@ TEST(Viewer, ShowsTheVolumeStatsAndPanelsAndFollowsEdits) {
   ASSERT_TRUE(server.running()) << server.Log();
   const fs::path a = scratch.path() / "a.png", b = scratch.path() / "b.png", c = scratch.path() / "c.png",
                  edited_png = scratch.path() / "edited.png", scene = scratch.path() / "view.json",
-                 still = scratch.path() / "still.png";
+                 still = scratch.path() / "still.png", cut_png = scratch.path() / "cut.png",
+                 cut_scene = scratch.path() / "cut.json", saved_cut = scratch.path() / "saved-cut.json";
+  // The example scene with a crop that keeps nothing of the head: opened, the
+  // view shows the background (lit as before: the lights are the example's).
+  v1::Scene cropped = LoadSceneFile(fs::path(CINEVOL_SOURCE_DIR) / "examples" / "ct-bone.json");
+  v1::CropBox* box = cropped.mutable_clipping()->mutable_crop_box();
+  box->mutable_center()->set_x(5000);
+  box->mutable_size()->set_x(10), box->mutable_size()->set_y(10), box->mutable_size()->set_z(10);
+  SaveSceneFile(cropped, cut_scene);
   const fs::path script = WriteScript(scratch.path() / "tour.jsonl", fmt::format(R"({{"session": {{"stream": {{"targetSpp": 8}}}}}}
 {{"at": 0, "ui": {{"settle": true}}}}
 {{"at": 0, "ui": {{"screenshot": "{}"}}}}
@@ -161,8 +169,14 @@ TEST(Viewer, ShowsTheVolumeStatsAndPanelsAndFollowsEdits) {
 {{"at": 0.4, "ui": {{"screenshot": "{}"}}}}
 {{"at": 0.4, "ui": {{"saveScene": "{}"}}}}
 {{"at": 0.4, "ui": {{"snapshot": {{"file": "{}", "spp": 4}}}}}}
-{{"at": 0.5, "ui": {{"resizeWindow": {{"width": 700, "height": 420}}}}}}
-)", a.string(), b.string(), edited_png.string(), scene.string(), still.string()));
+{{"at": 0.45, "ui": {{"panel": {{"name": "clipping", "open": true}}}}}}
+{{"at": 0.45, "ui": {{"openScene": "{}"}}}}
+{{"at": 0.5, "ui": {{"settle": true}}}}
+{{"at": 0.5, "ui": {{"screenshot": "{}"}}}}
+{{"at": 0.5, "ui": {{"saveScene": "{}"}}}}
+{{"at": 0.6, "ui": {{"resizeWindow": {{"width": 700, "height": 420}}}}}}
+)", a.string(), b.string(), edited_png.string(), scene.string(), still.string(), cut_scene.string(),
+                                                                                 cut_png.string(), saved_cut.string()));
   const ViewerRun run = RunViewer(scratch.path(), {"--server", server.address(), "--script", script.string(),
                                              "--screenshot", c.string()});
   ASSERT_EQ(run.exit_code, 0) << run.output;
@@ -176,6 +190,13 @@ TEST(Viewer, ShowsTheVolumeStatsAndPanelsAndFollowsEdits) {
   EXPECT_GT(spread, 10) << "the frame area is uniform";
   EXPECT_GT(MeanDifference(before, orbited, frame), 2.0) << "an orbit did not change the view";
   EXPECT_GT(MeanDifference(orbited, edited, frame), 2.0) << "a transfer-function edit did not change the view";
+  // The opened scene's crop took the head away, and a saved scene keeps the crop.
+  const ImageRgb8 cut = ReadPng(cut_png);
+  EXPECT_GT(MeanDifference(edited, cut, frame), 2.0) << "the opened crop did not change the view";
+  const auto [cut_mean, cut_spread] = Luminance(cut, frame);
+  EXPECT_LT(cut_spread, spread) << "the cropped view still shows the head";
+  EXPECT_GT(cut_mean, 5) << "the cropped view is black: the background is not lit";
+  EXPECT_TRUE(LoadSceneFile(saved_cut).clipping().has_crop_box()) << "the saved scene lost the crop";
   // The stats overlay is text over a dark box; the panels have their headers.
   const google::protobuf::Struct layout = ReadLayout(c);
   const ImageRgb8 last = ReadPng(c);

@@ -120,7 +120,7 @@ TEST(VolumesCommand, DescribeShowsEveryField) {
   ASSERT_EQ(code, 0) << output;
   for (const char* field : {"id:              small\n", "source:          ", "modality:        ", "value unit:      ",
                             "kind:            ", "default preset:  ", "dimensions:      16x16x16 voxels\n",
-                            "spacing:         1x1x1 mm\n", "extent:          16x16x16 mm\n",
+                            "spacing:         1x1x1 mm\n", "extent:          16x16x16 mm\n", "origin:          ",
                             "value range:     0 .. 1500\n", "memory:          ", "sessions:        0\n",
                             "histogram:       "}) {
     EXPECT_TRUE(Has(output, field)) << field << " missing from:\n" << output;
