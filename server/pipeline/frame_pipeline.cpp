@@ -73,7 +73,10 @@ void FramePipeline::Update(const RenderSetup& setup, const FrameSettings& settin
   if (!has_scene_) changes = kEverythingChanged;
   if (changes & kTransferFunctionChanged) SetTransferFunction(setup.transfer_function);
   if (changes & kLightsChanged) renderer_->SetLights(setup.lights);
-  if (changes & kClippingChanged) renderer_->SetClipRegion(setup.clip);
+  if (changes & kClippingChanged) {
+    clip_ = setup.clip;
+    renderer_->SetClipRegion(clip_);
+  }
   if (changes & kCameraChanged) camera_ = setup.camera;
   spp_ = setup.spp;
   max_bounces_ = setup.max_bounces;

@@ -357,8 +357,8 @@ class RefinerOn final : public Refiner {
     const float inv_frames = 1.0f / float(in.frames);
     for (auto* buffer : {&shown_, &estimate_}) buffer->Resize(n);
     for (auto* buffer : {&change_, &cross_change_, &filter_variance_, &estimate_error_, &error_}) buffer->Resize(n);
-    const Vec4f* odd = FilterHalf(in, true);
-    const Vec4f* even = FilterHalf(in, false);
+    const Vec4f* odd = FilterHalf(in, true, dark);
+    const Vec4f* even = FilterHalf(in, false, dark);
     B::ForEachPixel(w, h, FilteredPass{in.accumulated_sum, odd_sum_.data(), in.frames, odd, even, change_.data(),
                                        cross_change_.data(), filter_variance_.data(), w, dark});
     B::ForEachPixel(w, h, EstimatePass{in.accumulated_sum, inv_frames, variance_.data(), odd, even, change_.data(),
@@ -385,9 +385,8 @@ class RefinerOn final : public Refiner {
  private:
   // One half's mean through kMeanFilterLevels levels; the odd half ends in
   // halves_[1], the even one in halves_[2] (halves_[0] is scratch).
-  const Vec4f* FilterHalf(const RefineInputs& in, bool odd) {
+  const Vec4f* FilterHalf(const RefineInputs& in, bool odd, float dark) {
     const int w = in.width, h = in.height;
-    const float dark = kDarkGrey / exp2f(in.exposure);
     auto& result = halves_[odd ? 1 : 2];
     for (auto& buffer : halves_) buffer.Resize(std::size_t(w) * h);
     // Ping-pong between scratch and result, ending in result.
