@@ -1,5 +1,7 @@
-// The transfer-function table as kernels see it (core/transfer_function.h
-// builds it): extinction and material channels by linear interpolation.
+// The transfer-function tables as kernels see them (core/transfer_function.h
+// builds one): extinction and material channels by linear interpolation.
+// Table 0 is the image's; labels with a transfer function of their own
+// (core/label_view.h) read the tables after it, kEntries each.
 #pragma once
 
 #include "core/hd.h"
@@ -32,26 +34,34 @@ struct TransferView {
     return Clamp(stored * entry_scale + entry_offset, 0.0f, float(kEntries - 1));
   }
 
-  CINEVOL_HD float SigmaT(float entry) const {
-    const int i = MinInt(static_cast<int>(entry), kEntries - 2);
-    const float t = entry - float(i);
-    const float a = LoadReadOnly(sigma_t + i), b = LoadReadOnly(sigma_t + i + 1);
-    return a + (b - a) * t;
+  CINEVOL_HD float SigmaT(float entry, int table = 0) const {
+    const Lerp l = At(entry, table);
+    const float a = LoadReadOnly(sigma_t + l.i), b = LoadReadOnly(sigma_t + l.i + 1);
+    return a + (b - a) * l.t;
   }
 
-  CINEVOL_HD Material MaterialAt(float entry) const {
-    const int i = MinInt(static_cast<int>(entry), kEntries - 2);
-    const float t = entry - float(i);
-    const Vec4f d = Mix(diffuse_opacity, i, t), s = Mix(specular_roughness, i, t);
+  CINEVOL_HD Material MaterialAt(float entry, int table = 0) const {
+    const Lerp l = At(entry, table);
+    const Vec4f d = Mix(diffuse_opacity, l.i, l.t), s = Mix(specular_roughness, l.i, l.t);
     return {{d.x, d.y, d.z}, d.w, {s.x, s.y, s.z}, s.w};
   }
 
-  CINEVOL_HD Vec3f Emission(float entry) const {
-    const int i = MinInt(static_cast<int>(entry), kEntries - 2);
-    return Xyz(Mix(emission, i, entry - float(i)));
+  CINEVOL_HD Vec3f Emission(float entry, int table = 0) const {
+    const Lerp l = At(entry, table);
+    return Xyz(Mix(emission, l.i, l.t));
   }
 
  private:
+  // The array index of the entry below `entry` in `table`, and the fraction past it.
+  struct Lerp {
+    int i;
+    float t;
+  };
+  CINEVOL_HD static Lerp At(float entry, int table) {
+    const int below = MinInt(static_cast<int>(entry), kEntries - 2);
+    return {below + table * kEntries, entry - float(below)};
+  }
+
   CINEVOL_HD static Vec4f Mix(const Vec4f* table, int i, float t) {
     const Vec4f a = LoadReadOnly(table + i), b = LoadReadOnly(table + i + 1);
     return {a.x + (b.x - a.x) * t, a.y + (b.y - a.y) * t, a.z + (b.z - a.z) * t, a.w + (b.w - a.w) * t};

@@ -1,5 +1,5 @@
-// The volume as kernels see it: 16-bit voxels, trilinear sampling with
-// clamp-to-edge, and central-difference gradients. Positions are world mm;
+// The volume as kernels see it: 16-bit voxels, trilinear or tricubic
+// (B-spline) sampling with clamp-to-edge, and central-difference gradients. Positions are world mm;
 // the box [0, dims*spacing] is centred at the origin, voxel i's centre sits at
 // (i + 0.5) * spacing from the box's corner (docs/architecture.md).
 #pragma once
@@ -11,6 +11,13 @@
 
 namespace cinevol {
 
+// How values are reconstructed between voxel centres (Scene render.reconstruction).
+enum class Reconstruction { kTrilinear, kTricubic };
+
+// Voxels a lookup reads beyond the cell it falls in, on each side: what the
+// majorant grid's brick ranges must include.
+inline int LookupMargin(Reconstruction r) { return r == Reconstruction::kTricubic ? 2 : 1; }
+
 struct VolumeView {
   const std::uint16_t* voxels = nullptr;  // x fastest; in the backend's memory
   // CUDA only, where set: the same voxels as a 3D texture (cudaTextureObject_t,
@@ -20,6 +27,7 @@ struct VolumeView {
   Vec3f spacing;      // mm
   Vec3f inv_spacing;  // 1 / spacing
   Vec3f box_min, box_max;  // world mm
+  bool tricubic = false;   // cubic B-spline reconstruction instead of trilinear
 
   // Voxel (x, y, z) clamped to the grid.
   CINEVOL_HD float Fetch(int x, int y, int z) const {
@@ -33,8 +41,10 @@ struct VolumeView {
   // Continuous voxel coordinates: voxel centres at integers.
   CINEVOL_HD Vec3f ToVoxel(Vec3f p) const { return (p - box_min) * inv_spacing - Vec3f{0.5f, 0.5f, 0.5f}; }
 
-  // Trilinearly interpolated stored value at world position p.
-  CINEVOL_HD float Sample(Vec3f p) const {
+  // The reconstructed stored value at world position p.
+  CINEVOL_HD float Sample(Vec3f p) const { return tricubic ? SampleTricubic(p) : SampleTrilinear(p); }
+
+  CINEVOL_HD float SampleTrilinear(Vec3f p) const {
     const Vec3f q = ToVoxel(p);
 #if CINEVOL_DEVICE_PASS
     if (texture) return 65535.0f * tex3D<float>(texture, q.x + 0.5f, q.y + 0.5f, q.z + 0.5f);
@@ -49,6 +59,53 @@ struct VolumeView {
     const float c0 = c00 + ty * (c10 - c00);
     const float c1 = c01 + ty * (c11 - c01);
     return c0 + tz * (c1 - c0);
+  }
+
+  // Uniform cubic B-spline over the 4^3 voxels around p. Its weights are
+  // non-negative and sum to 1, so the value stays within those voxels'
+  // range: the majorant grid bounds it with a two-voxel brick margin.
+  CINEVOL_HD float SampleTricubic(Vec3f p) const {
+    const Vec3f q = ToVoxel(p);
+    const Vec3f f{floorf(q.x), floorf(q.y), floorf(q.z)};
+    Vec3f w[4];
+    BSplineWeights(q - f, w);
+#if CINEVOL_DEVICE_PASS
+    if (texture) {
+      // GPU Gems 2, ch. 20: each axis's four weights as two linear fetches
+      // placed between voxel pairs, so 8 hardware trilinear fetches do it.
+      const Vec3f g0 = w[0] + w[1], g1 = w[2] + w[3];
+      const Vec3f h0 = f + w[1] / g0 - Vec3f{0.5f, 0.5f, 0.5f}, h1 = f + w[3] / g1 + Vec3f{1.5f, 1.5f, 1.5f};
+      auto at = [&](float x, float y, float z) { return tex3D<float>(texture, x, y, z); };
+      const float a = g0.z * (g0.y * (g0.x * at(h0.x, h0.y, h0.z) + g1.x * at(h1.x, h0.y, h0.z)) +
+                              g1.y * (g0.x * at(h0.x, h1.y, h0.z) + g1.x * at(h1.x, h1.y, h0.z)));
+      const float b = g1.z * (g0.y * (g0.x * at(h0.x, h0.y, h1.z) + g1.x * at(h1.x, h0.y, h1.z)) +
+                              g1.y * (g0.x * at(h0.x, h1.y, h1.z) + g1.x * at(h1.x, h1.y, h1.z)));
+      return 65535.0f * (a + b);
+    }
+#endif
+    const int x = static_cast<int>(f.x) - 1, y = static_cast<int>(f.y) - 1, z = static_cast<int>(f.z) - 1;
+    float sum = 0.0f;
+    for (int k = 0; k < 4; ++k) {
+      float plane = 0.0f;
+      for (int j = 0; j < 4; ++j) {
+        float row = 0.0f;
+        for (int i = 0; i < 4; ++i) row += w[i].x * Fetch(x + i, y + j, z + k);
+        plane += w[j].y * row;
+      }
+      sum += w[k].z * plane;
+    }
+    return sum;
+  }
+
+  // Cubic B-spline weights of the voxels at offsets -1, 0, 1, 2 from the
+  // cell's corner, for fractional position t along each axis.
+  CINEVOL_HD static void BSplineWeights(Vec3f t, Vec3f w[4]) {
+    const Vec3f one{1, 1, 1};
+    const Vec3f t2 = t * t, t3 = t2 * t, s = one - t;
+    w[0] = s * s * s * (1.0f / 6.0f);
+    w[1] = (t3 * 3.0f - t2 * 6.0f + one * 4.0f) * (1.0f / 6.0f);
+    w[3] = t3 * (1.0f / 6.0f);
+    w[2] = one - w[0] - w[1] - w[3];
   }
 
   // Gradient of the stored value per mm, by central differences one voxel apart.

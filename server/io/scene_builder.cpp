@@ -244,6 +244,38 @@ RenderSetup ResolveScene(const v1::Scene& scene, const Volume& volume) {
   setup.max_bounces = static_cast<int>(scene.render().max_bounces());
   setup.seed = scene.render().seed();
   setup.exposure = scene.camera().exposure();
+  setup.reconstruction = ResolveReconstruction(scene.render().reconstruction(), volume);
+  setup.labels = ResolveLabels(scene.labels(), volume);
+  return setup;
+}
+
+Reconstruction DefaultReconstruction(const Volume& volume) {
+  return MaxComponent(volume.spacing_mm()) >= kTricubicFromSpacingMm ? Reconstruction::kTricubic
+                                                                      : Reconstruction::kTrilinear;
+}
+
+Reconstruction ResolveReconstruction(v1::Reconstruction reconstruction, const Volume& volume) {
+  switch (reconstruction) {
+    case v1::TRILINEAR: return Reconstruction::kTrilinear;
+    case v1::TRICUBIC: return Reconstruction::kTricubic;
+    default: return DefaultReconstruction(volume);
+  }
+}
+
+LabelSetup ResolveLabels(const v1::Labels& labels, const Volume& volume) {
+  LabelSetup setup;
+  setup.show_unlisted = !labels.has_show_unlisted() || labels.show_unlisted();
+  for (const v1::LabelStyle& proto : labels.styles()) {
+    LabelStyle& style = setup.styles[int(proto.value())];
+    style.visible = !proto.has_visible() || proto.visible();
+    style.opacity_scale = proto.has_opacity_scale() ? proto.opacity_scale() : 1.0f;
+    style.has_color = proto.has_color();
+    style.color = ToColor(proto.color());
+    if (proto.has_transfer_function()) {
+      style.transfer = static_cast<int>(setup.transfer_functions.size());
+      setup.transfer_functions.push_back(ResolveTransferFunction(proto.transfer_function(), volume));
+    }
+  }
   return setup;
 }
 

@@ -9,9 +9,11 @@
 #include "cinevol/v1/scene.pb.h"
 #include "core/camera.h"
 #include "core/clip_region.h"
+#include "core/labels.h"
 #include "core/lights.h"
 #include "core/transfer_function.h"
 #include "core/volume.h"
+#include "core/volume_view.h"
 
 namespace cinevol {
 
@@ -24,6 +26,8 @@ struct RenderSetup {
   std::uint64_t seed = 0;
   float exposure = 0;  // stops, applied by the tone mapper
   ClipRegion clip;     // what the crop box and clip planes keep
+  Reconstruction reconstruction = Reconstruction::kTrilinear;
+  LabelSetup labels;   // how the segmentation's labels show, where there is one
 };
 
 // A named view in world space: the direction from the volume to the eye
@@ -60,6 +64,15 @@ TransferFunction ResolveTransferFunction(const v1::TransferFunction& tf, const V
 // Named views frame what `tf` shows of the volume and `clip` keeps (FrameView).
 Camera ResolveCamera(const v1::Camera& camera, const v1::RenderSettings& render, const Volume& volume,
                      const TransferFunction& tf, const ClipRegion& clip = ClipRegion());
+// The reconstruction a scene gets unless it names one: tricubic for volumes
+// at least this coarse (their largest spacing), where trilinear's terraces
+// show (docs/rendering.md, "Reconstruction"); trilinear for finer ones.
+inline constexpr float kTricubicFromSpacingMm = 1.5f;
+Reconstruction DefaultReconstruction(const Volume& volume);
+// Unspecified: DefaultReconstruction.
+Reconstruction ResolveReconstruction(v1::Reconstruction reconstruction, const Volume& volume);
+// Label styles, their own transfer functions resolved against the volume.
+LabelSetup ResolveLabels(const v1::Labels& labels, const Volume& volume);
 LightSetup ResolveLights(const google::protobuf::RepeatedPtrField<v1::Light>& lights);
 
 // All of the above; the scene must have passed CheckScene.

@@ -5,11 +5,13 @@
 
 #include <cmath>
 #include <fstream>
+#include <set>
 #include <sstream>
 
 #include <fmt/format.h>
 
 #include "core/error.h"
+#include "core/labels.h"
 #include "io/phantom.h"
 #include "io/presets.h"
 
@@ -85,10 +87,13 @@ void ValidateVolume(const v1::VolumeSource& v, Problems& p) {
     default:
       p.Add("volume", "no source given (file, dicomFolder or phantom)");
   }
+  if (!v.labels().empty() && v.has_phantom()) p.Add("volume.labels", "phantoms have no segmentation");
+  if (!v.label_table().empty() && v.labels().empty()) p.Add("volume.labelTable", "names labels: set volume.labels too");
 }
 
-void ValidateTransferFunction(const v1::TransferFunction& tf, Problems& p) {
-  const std::string f = "transferFunction";
+
+// `f`: the field's name in messages.
+void ValidateTransferFunction(const v1::TransferFunction& tf, const std::string& f, Problems& p) {
   if (tf.points().empty() && !tf.preset().empty() && !IsPreset(tf.preset())) {
     p.Add(f + ".preset", fmt::format("unknown preset '{}'", tf.preset()));
   }
@@ -111,6 +116,28 @@ void ValidateTransferFunction(const v1::TransferFunction& tf, Problems& p) {
   p.NonNegative(f + ".gradientFactor", tf.gradient_factor());
   if (!(std::abs(tf.phase_g()) < 1.0f)) {
     p.Add(f + ".phaseG", fmt::format("{} is outside (-1, 1)", tf.phase_g()));
+  }
+}
+
+void ValidateLabels(const v1::Labels& labels, Problems& p) {
+  if (labels.styles_size() > 1024) p.Add("labels.styles", fmt::format("{} styles; at most 1024", labels.styles_size()));
+  std::set<std::uint32_t> seen;
+  int own = 0;
+  for (int i = 0; i < labels.styles_size(); ++i) {
+    const v1::LabelStyle& style = labels.styles(i);
+    const std::string at = fmt::format("labels.styles[{}]", i);
+    if (style.value() > 65535) p.Add(at + ".value", fmt::format("{} is outside [0, 65535]", style.value()));
+    if (!seen.insert(style.value()).second) p.Add(at + ".value", fmt::format("label {} is styled twice", style.value()));
+    if (style.has_color()) p.Color(at + ".color", style.color(), 1);
+    if (style.has_opacity_scale()) p.InRange(at + ".opacityScale", style.opacity_scale(), 0, 1000);
+    if (style.has_transfer_function()) {
+      ValidateTransferFunction(style.transfer_function(), at + ".transferFunction", p);
+      ++own;
+    }
+  }
+  if (own > kMaxLabelTransferFunctions) {
+    p.Add("labels.styles", fmt::format("{} labels with their own transfer function; at most {}", own,
+                                       kMaxLabelTransferFunctions));
   }
 }
 
@@ -228,6 +255,9 @@ void ValidateRender(const v1::RenderSettings& r, Problems& p) {
   in("height", r.height(), 1, 8192);
   in("spp", r.spp(), 1, 65536);
   in("maxBounces", r.max_bounces(), 0, 256);
+  if (!v1::Reconstruction_IsValid(r.reconstruction())) {
+    p.Add("render.reconstruction", fmt::format("unknown value {}", int(r.reconstruction())));
+  }
 }
 
 void ResolvePaths(v1::Scene& scene, const fs::path& base_dir) {
@@ -238,6 +268,8 @@ void ResolvePaths(v1::Scene& scene, const fs::path& base_dir) {
   auto* volume = scene.mutable_volume();
   if (volume->has_file()) resolve(volume->mutable_file());
   if (volume->has_dicom_folder()) resolve(volume->mutable_dicom_folder());
+  resolve(volume->mutable_labels());
+  resolve(volume->mutable_label_table());
   for (auto& light : *scene.mutable_lights()) {
     if (light.has_environment() && light.environment().has_map()) {
       resolve(light.mutable_environment()->mutable_map());
@@ -266,7 +298,7 @@ void ApplyDefaults(v1::Scene& scene) {
 namespace {
 
 void ValidateParts(const v1::Scene& scene, Problems& p) {
-  ValidateTransferFunction(scene.transfer_function(), p);
+  ValidateTransferFunction(scene.transfer_function(), "transferFunction", p);
   ValidateCamera(scene.camera(), p);
   bool seen_environment = false;
   for (int i = 0; i < scene.lights_size(); ++i) {
@@ -274,6 +306,7 @@ void ValidateParts(const v1::Scene& scene, Problems& p) {
   }
   ValidateRender(scene.render(), p);
   ValidateClipping(scene.clipping(), p);
+  ValidateLabels(scene.labels(), p);
 }
 
 }  // namespace

@@ -25,8 +25,9 @@ Camera Scaled(Camera camera, float scale) {
 
 }  // namespace
 
-FramePipeline::FramePipeline(Backend backend, std::shared_ptr<const Volume> volume, const RendererOptions& options)
-    : volume_(std::move(volume)), renderer_(CreateRenderer(backend, options)) {
+FramePipeline::FramePipeline(Backend backend, std::shared_ptr<const Volume> volume, const RendererOptions& options,
+                             std::shared_ptr<const LabelVolume> labels)
+    : volume_(std::move(volume)), labels_(std::move(labels)), renderer_(CreateRenderer(backend, options)) {
   renderer_->SetVolume(volume_);
 #if CINEVOL_WITH_CUDA
   if (renderer_->backend() == Backend::kCuda) {
@@ -59,6 +60,8 @@ void FramePipeline::Update(const v1::Scene& scene, const FrameSettings& settings
     clip_ = ResolveClipping(scene.clipping(), *volume_);
     renderer_->SetClipRegion(clip_);
   }
+  if (changes & kLabelsChanged) renderer_->SetLabels(labels_, ResolveLabels(scene.labels(), *volume_));
+  if (changes & kSamplingChanged) renderer_->SetReconstruction(ResolveReconstruction(scene.render().reconstruction(), *volume_));
   if (changes & kCameraChanged) {
     camera_ = ResolveCamera(scene.camera(), scene.render(), *volume_, transfer_function_, clip_);
   }
@@ -77,6 +80,8 @@ void FramePipeline::Update(const RenderSetup& setup, const FrameSettings& settin
     clip_ = setup.clip;
     renderer_->SetClipRegion(clip_);
   }
+  if (changes & kLabelsChanged) renderer_->SetLabels(labels_, setup.labels);
+  if (changes & kSamplingChanged) renderer_->SetReconstruction(setup.reconstruction);
   if (changes & kCameraChanged) camera_ = setup.camera;
   spp_ = setup.spp;
   max_bounces_ = setup.max_bounces;
@@ -95,7 +100,7 @@ void FramePipeline::Apply(const FrameSettings& settings, unsigned changes) {
   if (!has_scene_ || !(settings.denoiser == settings_.denoiser)) {
     denoiser_ = CreateDenoiser(renderer_->backend(), settings.denoiser);  // frames stay in the renderer's memory
   }
-  if (changes & (kTransferFunctionChanged | kLightsChanged | kClippingChanged)) ++scene_version_;
+  if (changes & (kTransferFunctionChanged | kLightsChanged | kClippingChanged | kLabelsChanged)) ++scene_version_;
   if (has_scene_ && (changes & (kCameraChanged | kTransferFunctionChanged))) moved_at_ = Clock::now();
   if (changes & kEverythingChanged) ResetAccumulation();
   settings_ = settings;

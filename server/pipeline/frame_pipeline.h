@@ -92,14 +92,17 @@ enum SceneChange : unsigned {
   kCameraChanged = 1u << 0,  // the camera or the frame's size
   kTransferFunctionChanged = 1u << 1,
   kLightsChanged = 1u << 2,
-  kSamplingChanged = 1u << 3,  // spp, bounces or seed
+  kSamplingChanged = 1u << 3,  // spp, bounces, seed or reconstruction
   kClippingChanged = 1u << 4,  // the crop box or clip planes
-  kEverythingChanged = (1u << 5) - 1,
+  kLabelsChanged = 1u << 5,    // the label styles
+  kEverythingChanged = (1u << 6) - 1,
 };
 
 class FramePipeline {
  public:
-  FramePipeline(Backend backend, std::shared_ptr<const Volume> volume, const RendererOptions& options = {});
+  // `labels`: the volume's segmentation, where it has one (Scene.labels styles it).
+  FramePipeline(Backend backend, std::shared_ptr<const Volume> volume, const RendererOptions& options = {},
+                std::shared_ptr<const LabelVolume> labels = nullptr);
   ~FramePipeline();
 
   // Takes the scene (validated, defaults filled) and settings; rebuilds only
@@ -161,6 +164,7 @@ class FramePipeline {
   void MeasureFrameTime(std::chrono::steady_clock::time_point start);
 
   std::shared_ptr<const Volume> volume_;
+  std::shared_ptr<const LabelVolume> labels_;
   std::unique_ptr<Renderer> renderer_;
   std::unique_ptr<Denoiser> denoiser_;
   std::unique_ptr<Display> display_;

@@ -49,6 +49,9 @@ struct CudaRenderer::Device {
   DeviceBuffer<float> majorants, sigma_t, env_weight, env_marginal, env_conditional;
   DeviceBuffer<Vec4f> diffuse_opacity, specular_roughness, emission, env_texels;
   DeviceBuffer<Light> lights;
+  DeviceBuffer<std::uint16_t> labels;  // this renderer's copy of the segmentation
+  const LabelVolume* uploaded_labels = nullptr;
+  DeviceBuffer<LabelMaterial> label_materials;
   DeviceBuffer<Vec3f> radiance, accumulated, albedo;
   DeviceBuffer<Vec4f> first_hit;
 
@@ -78,6 +81,26 @@ void CudaRenderer::SetVolume(std::shared_ptr<const Volume> volume) {
 
 void CudaRenderer::SetTransferFunction(const TransferFunction& tf) {
   data_.SetTransferFunction(tf);
+  UploadTables();
+}
+
+void CudaRenderer::SetReconstruction(Reconstruction r) {
+  data_.SetReconstruction(r);
+  UploadTables();
+}
+
+void CudaRenderer::SetLabels(std::shared_ptr<const LabelVolume> labels, const LabelSetup& setup) {
+  data_.SetLabels(std::move(labels), setup);
+  Device& d = *device_;
+  if (data_.labels() != d.uploaded_labels) {
+    d.labels.Upload(data_.labels() ? data_.labels()->labels : std::vector<std::uint16_t>{}, d.stream);
+    d.uploaded_labels = data_.labels();
+  }
+  d.label_materials.Upload(data_.label_materials(), d.stream);
+  UploadTables();
+}
+
+void CudaRenderer::UploadTables() {
   const TransferTable& t = data_.table();
   Device& d = *device_;
   d.sigma_t.Upload(t.sigma_t, d.stream);
@@ -117,6 +140,7 @@ void CudaRenderer::Render(const FrameRequest& request) {
   scene.volume.voxels = volume_->voxels();
   if (use_texture_) scene.volume.texture = volume_->texture();
   scene.majorants.majorant = d.majorants.data();
+  if (scene.labels.voxels) scene.labels = {d.labels.data(), d.label_materials.data()};
   scene.transfer.sigma_t = d.sigma_t.data();
   scene.transfer.diffuse_opacity = d.diffuse_opacity.data();
   scene.transfer.specular_roughness = d.specular_roughness.data();
@@ -156,7 +180,7 @@ std::size_t CudaRenderer::DeviceBytes() const {
           d.env_conditional.size()) * 4 +
          (d.diffuse_opacity.size() + d.specular_roughness.size() + d.emission.size() + d.env_texels.size() +
           d.first_hit.size()) * sizeof(Vec4f) +
-         d.lights.size() * sizeof(Light) + (d.radiance.size() + d.accumulated.size() + d.albedo.size()) * sizeof(Vec3f);
+         d.lights.size() * sizeof(Light) + d.labels.size() * 2 + d.label_materials.size() * sizeof(LabelMaterial) + (d.radiance.size() + d.accumulated.size() + d.albedo.size()) * sizeof(Vec3f);
 }
 
 ImageRgbF CudaRenderer::Radiance() const { return {width_, height_, device_->radiance.Download(device_->stream)}; }

@@ -21,6 +21,8 @@ class CudaRenderer final : public Renderer {
   void SetTransferFunction(const TransferFunction& tf) override;
   void SetLights(const LightSetup& lights) override;
   void SetClipRegion(const ClipRegion& clip) override { data_.SetClipRegion(clip); }
+  void SetReconstruction(Reconstruction r) override;
+  void SetLabels(std::shared_ptr<const LabelVolume> labels, const LabelSetup& setup) override;
   void Render(const FrameRequest& request) override;
   void ResetAccumulation() override;
   int accumulated_frames() const override { return accumulated_frames_; }
@@ -45,6 +47,8 @@ class CudaRenderer final : public Renderer {
   std::shared_ptr<const VolumeCopy> volume_;
   struct Device;  // CUDA objects; defined in the .cu file
   std::unique_ptr<Device> device_;
+  void UploadTables();  // the transfer tables and the majorants, after SceneData changed them
+
   SceneData data_;
   int width_ = 0, height_ = 0;
   int accumulated_frames_ = 0;

@@ -45,8 +45,9 @@ class PathTracer {
     float scatter_pdf = 0.0f;  // pdf of the direction `ray` was sampled with
     const int max_bounces = kMultiple ? s_.max_bounces : MinInt(s_.max_bounces, 1);
     for (int depth = 0;; ++depth) {
-      float t_hit = 0.0f, entry = 0.0f;
-      const Collision c = NextCollision(ray, t_hit, entry);
+      float t_hit = 0.0f;
+      Classified hit;
+      const Collision c = NextCollision(ray, t_hit, hit);
       if (c == Collision::kAbsorbedByBudget) break;
       const bool from_camera = depth == 0;
       result.radiance += beta * CrossedLights(ray, c == Collision::kHit ? t_hit : kInfiniteDistance,
@@ -56,13 +57,13 @@ class PathTracer {
         break;
       }
       const Vec3f p = ray.origin + ray.direction * t_hit;
-      const Material m = s_.transfer.MaterialAt(entry);
+      const Material m = MaterialOf(hit);
       if (from_camera) {
         result.first_hit = p;
         result.albedo = m.diffuse;
         result.hit = true;
       }
-      if constexpr (kWithEmission) result.radiance += beta * s_.transfer.Emission(entry);
+      if constexpr (kWithEmission) result.radiance += beta * s_.transfer.Emission(hit.entry, hit.label.table);
       if (depth >= max_bounces) break;
 
       const Vec3f wo = -ray.direction;
@@ -94,10 +95,31 @@ class PathTracer {
  private:
   enum class Collision { kHit, kEscaped, kAbsorbedByBudget };
 
+  // A point's classification: its transfer-table position and its label's style.
+  struct Classified {
+    float entry = 0.0f;
+    LabelMaterial label;
+  };
+
+  // The extinction (per mm) at p.
+  CINEVOL_HD float Extinction(Vec3f p, Classified& c) const {
+    c.entry = s_.transfer.Entry(s_.volume.Sample(p));
+    if (!s_.labels.voxels) return s_.transfer.SigmaT(c.entry);
+    c.label = s_.labels.At(s_.volume, p);
+    return c.label.opacity_scale * s_.transfer.SigmaT(c.entry, c.label.table);
+  }
+
+  CINEVOL_HD Material MaterialOf(const Classified& c) const {
+    Material m = s_.transfer.MaterialAt(c.entry, c.label.table);
+    m.opacity = fminf(1.0f, m.opacity * c.label.opacity_scale);
+    if (c.label.has_color) m.diffuse = c.label.color;
+    return m;
+  }
+
   // Delta tracking to the next real collision along the ray. A ray that
   // enters the kept region through a capped face meets the cut tissue there
   // as a surface, with the tissue's opacity as the probability.
-  CINEVOL_HD Collision NextCollision(const Ray& ray, float& t_hit, float& entry) {
+  CINEVOL_HD Collision NextCollision(const Ray& ray, float& t_hit, Classified& hit) {
     float t0, t1;
     int entered;
     const Vec3f inv{1.0f / ray.direction.x, 1.0f / ray.direction.y, 1.0f / ray.direction.z};
@@ -107,27 +129,26 @@ class PathTracer {
     }
     cap_ = false;
     if (entered >= 0 && (s_.clip.capped >> entered & 1u)) {
-      const float e = s_.transfer.Entry(s_.volume.Sample(ray.origin + ray.direction * t0));
-      if (rng_.Uniform() < s_.transfer.MaterialAt(e).opacity) {
+      Extinction(ray.origin + ray.direction * t0, hit);
+      if (rng_.Uniform() < MaterialOf(hit).opacity) {
         t_hit = t0;
-        entry = e;
         cap_ = true;
         cap_normal_ = -Xyz(s_.clip.half_spaces[entered]);  // out of the kept region, towards the ray
         return Collision::kHit;
       }
     }
-    bool hit = false;
+    bool found = false;
     const TrackResult r = SampleMajorant(s_.majorants, ray.origin, ray.direction, t0, t1, rng_,
                                          [&](float t, float sigma_maj) {
-                                           const float e = s_.transfer.Entry(s_.volume.Sample(ray.origin + ray.direction * t));
-                                           if (rng_.Uniform() * sigma_maj >= s_.transfer.SigmaT(e)) return true;
+                                           Classified c;
+                                           if (rng_.Uniform() * sigma_maj >= Extinction(ray.origin + ray.direction * t, c)) return true;
                                            t_hit = t;
-                                           entry = e;
-                                           hit = true;
+                                           hit = c;
+                                           found = true;
                                            return false;
                                          });
     if (r == TrackResult::kBudgetExhausted) return Collision::kAbsorbedByBudget;
-    return hit ? Collision::kHit : Collision::kEscaped;
+    return found ? Collision::kHit : Collision::kEscaped;
   }
 
   // Ratio tracking with Russian roulette on small transmittance.
@@ -139,8 +160,8 @@ class PathTracer {
     if (!(t0 < t1)) return 1.0f;
     float transmittance = 1.0f;
     const TrackResult r = SampleMajorant(s_.majorants, p, w, t0, t1, rng_, [&](float t, float sigma_maj) {
-      const float sigma_t = s_.transfer.SigmaT(s_.transfer.Entry(s_.volume.Sample(p + w * t)));
-      transmittance *= fmaxf(0.0f, 1.0f - sigma_t / sigma_maj);
+      Classified c;
+      transmittance *= fmaxf(0.0f, 1.0f - Extinction(p + w * t, c) / sigma_maj);
       if (transmittance < 0.05f) {
         if (rng_.Uniform() < 0.75f) {
           transmittance = 0.0f;

@@ -10,7 +10,7 @@
 
 namespace cinevol {
 
-BrickRanges ComputeBrickRanges(const std::uint16_t* voxels, Vec3i dims, Vec3i brick_size) {
+BrickRanges ComputeBrickRanges(const std::uint16_t* voxels, Vec3i dims, Vec3i brick_size, int margin) {
   BrickRanges r;
   for (int a = 0; a < 3; ++a) r.bricks[a] = (dims[a] + brick_size[a] - 1) / brick_size[a];
   const std::size_t count = std::size_t(r.bricks.x) * r.bricks.y * r.bricks.z;
@@ -21,10 +21,10 @@ BrickRanges ComputeBrickRanges(const std::uint16_t* voxels, Vec3i dims, Vec3i br
     for (int by = 0; by < r.bricks.y; ++by) {
       for (int bx = 0; bx < r.bricks.x; ++bx) {
         const Vec3i b{bx, by, int(bz)};
-        Vec3i lo, hi;  // voxels read by trilinear lookups inside the brick
+        Vec3i lo, hi;  // voxels read by lookups inside the brick
         for (int a = 0; a < 3; ++a) {
-          lo[a] = std::max(0, b[a] * brick_size[a] - 1);
-          hi[a] = std::min(dims[a] - 1, (b[a] + 1) * brick_size[a]);
+          lo[a] = std::max(0, b[a] * brick_size[a] - margin);
+          hi[a] = std::min(dims[a] - 1, (b[a] + 1) * brick_size[a] + margin - 1);
         }
         std::uint16_t mn = 0xffff, mx = 0;
         for (int z = lo.z; z <= hi.z; ++z) {
@@ -62,11 +62,12 @@ PreparedVolume::PreparedVolume(std::shared_ptr<const Volume> volume, int brick_s
     voxels_ = quantised_.data();
   }
   brick_size_ = brick_size > 0 ? Vec3i{brick_size, brick_size, brick_size} : v.dims();
-  bricks_ = ComputeBrickRanges(voxels_, v.dims(), brick_size_);
+  bricks_ = ComputeBrickRanges(voxels_, v.dims(), brick_size_, LookupMargin(Reconstruction::kTrilinear));
+  cubic_bricks_ = ComputeBrickRanges(voxels_, v.dims(), brick_size_, LookupMargin(Reconstruction::kTricubic));
 }
 
 std::size_t PreparedVolume::host_bytes() const {
-  return (quantised_.size() + bricks_.min.size() + bricks_.max.size()) * sizeof(std::uint16_t);
+  return (quantised_.size() + 2 * (bricks_.min.size() + bricks_.max.size())) * sizeof(std::uint16_t);
 }
 
 std::string DeviceLabel(int device) { return device == kHostDevice ? "cpu" : "cuda:" + std::to_string(device); }

@@ -19,6 +19,7 @@
 #include <vector>
 
 #include "core/volume.h"
+#include "core/volume_view.h"
 
 namespace cinevol {
 
@@ -26,8 +27,8 @@ namespace cinevol {
 // faster than 8^3 and 16^3 on CPU and GPU (docs/performance.md).
 inline constexpr int kDefaultBrickSize = 4;
 
-// Min and max stored value of each brick, including the one-voxel margin that
-// trilinear interpolation inside the brick reads. (Volume::block_ranges is
+// Min and max stored value of each brick, including the margin that lookups
+// inside the brick read (one voxel for trilinear, two for tricubic). (Volume::block_ranges is
 // another thing: float values without the margin, for framing what a transfer
 // function shows; majorants from it would not bound trilinear lookups.)
 struct BrickRanges {
@@ -35,7 +36,7 @@ struct BrickRanges {
   std::vector<std::uint16_t> min, max;
 };
 
-BrickRanges ComputeBrickRanges(const std::uint16_t* voxels, Vec3i dims, Vec3i brick_size);
+BrickRanges ComputeBrickRanges(const std::uint16_t* voxels, Vec3i dims, Vec3i brick_size, int margin);
 
 // Immutable once built: safe to read from any thread.
 class PreparedVolume {
@@ -51,7 +52,9 @@ class PreparedVolume {
   float value_scale() const { return value_scale_; }
   float value_offset() const { return value_offset_; }
   Vec3i brick_size() const { return brick_size_; }
-  const BrickRanges& brick_ranges() const { return bricks_; }
+  const BrickRanges& brick_ranges(Reconstruction r) const {
+    return r == Reconstruction::kTricubic ? cubic_bricks_ : bricks_;
+  }
   // Host memory this adds to the Volume's own: a float volume's quantised
   // voxels and the brick ranges.
   std::size_t host_bytes() const;
@@ -62,7 +65,7 @@ class PreparedVolume {
   const std::uint16_t* voxels_ = nullptr;
   float value_scale_ = 1, value_offset_ = 0;
   Vec3i brick_size_;
-  BrickRanges bricks_;
+  BrickRanges bricks_, cubic_bricks_;  // trilinear and tricubic margins
 };
 
 // The device of CPU renderers: their copy is the PreparedVolume in host memory.

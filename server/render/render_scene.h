@@ -6,6 +6,7 @@
 
 #include "core/camera.h"
 #include "core/clip_region.h"
+#include "core/label_view.h"
 #include "core/lights.h"
 #include "core/transfer_view.h"
 #include "core/volume_view.h"
@@ -30,6 +31,7 @@ struct RenderScene {
   TransferView transfer;
   MajorantGridView majorants;
   ClipRegion clip;                // what the crop box and clip planes keep
+  LabelView labels;               // the segmentation's styles; none by default
   const Light* lights = nullptr;  // in the backend's memory
   int light_count = 0;
   Environment environment;

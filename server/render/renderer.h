@@ -14,6 +14,7 @@
 #include "core/camera.h"
 #include "core/clip_region.h"
 #include "core/image.h"
+#include "core/labels.h"
 #include "core/lights.h"
 #include "core/transfer_function.h"
 #include "core/volume.h"
@@ -66,6 +67,9 @@ class Renderer {
   virtual void SetLights(const LightSetup& lights) = 0;
   // What the crop box and clip planes keep; an empty region keeps everything.
   virtual void SetClipRegion(const ClipRegion& clip) = 0;
+  virtual void SetReconstruction(Reconstruction r) = 0;
+  // A segmentation on the volume's grid (null: none) and how its labels show.
+  virtual void SetLabels(std::shared_ptr<const LabelVolume> labels, const LabelSetup& setup) = 0;
 
   // Renders one frame. A new frame size resets the accumulation.
   virtual void Render(const FrameRequest& request) = 0;

@@ -4,17 +4,20 @@
 #include <algorithm>
 #include <bit>
 #include <cmath>
+#include <stdexcept>
+
+#include "core/parallel_for.h"
 
 namespace cinevol {
 
-std::vector<float> ComputeMajorants(const BrickRanges& ranges, const std::vector<float>& sigma_t,
-                                    float entry_scale, float entry_offset) {
+std::vector<float> ComputeMajorants(const BrickRanges& ranges, const float* sigma_t, int entries, float entry_scale,
+                                    float entry_offset) {
   // Sparse table: level k holds the max over 2^k consecutive entries, so any
   // range's max is two lookups.
-  const int n = static_cast<int>(sigma_t.size());
+  const int n = entries;
   const int levels = std::bit_width(unsigned(n));
   std::vector<std::vector<float>> table(levels);
-  table[0] = sigma_t;
+  table[0].assign(sigma_t, sigma_t + n);
   for (int k = 1; k < levels; ++k) {
     const int span = 1 << k;
     table[k].resize(n - span + 1);
@@ -66,22 +69,131 @@ EnvironmentDistribution BuildEnvironmentDistribution(const ImageRgbF& map) {
   return d;
 }
 
+BrickLabels ComputeBrickLabels(const LabelVolume& labels, Vec3i brick_size) {
+  const Vec3i dims = labels.dims;
+  Vec3i bricks;
+  for (int a = 0; a < 3; ++a) bricks[a] = (dims[a] + brick_size[a] - 1) / brick_size[a];
+  const std::size_t count = std::size_t(bricks.x) * bricks.y * bricks.z;
+  // Per brick its distinct labels, found in parallel by slabs, then packed.
+  std::vector<std::vector<std::uint16_t>> found(count);
+  ParallelFor(bricks.z, [&](std::int64_t bz) {
+    std::vector<std::uint16_t> seen;
+    for (int by = 0; by < bricks.y; ++by) {
+      for (int bx = 0; bx < bricks.x; ++bx) {
+        const Vec3i b{bx, by, int(bz)};
+        Vec3i lo, hi;
+        for (int a = 0; a < 3; ++a) {
+          lo[a] = std::max(0, b[a] * brick_size[a] - 1);
+          hi[a] = std::min(dims[a] - 1, (b[a] + 1) * brick_size[a]);
+        }
+        seen.clear();
+        for (int z = lo.z; z <= hi.z; ++z) {
+          for (int y = lo.y; y <= hi.y; ++y) {
+            const std::uint16_t* row = labels.labels.data() + (std::size_t(z) * dims.y + y) * dims.x;
+            for (int x = lo.x; x <= hi.x; ++x) {
+              if (std::find(seen.begin(), seen.end(), row[x]) == seen.end()) seen.push_back(row[x]);
+            }
+          }
+        }
+        found[(std::size_t(bz) * bricks.y + by) * bricks.x + bx] = seen;
+      }
+    }
+  });
+  BrickLabels out;
+  out.offsets.reserve(count + 1);
+  out.offsets.push_back(0);
+  for (const auto& f : found) {
+    out.labels.insert(out.labels.end(), f.begin(), f.end());
+    out.offsets.push_back(static_cast<std::uint32_t>(out.labels.size()));
+  }
+  return out;
+}
+
 void SceneData::SetVolume(std::shared_ptr<const PreparedVolume> volume) {
   volume_ = std::move(volume);
-  if (!tf_.points.empty()) SetTransferFunction(tf_);
+  if (labels_ && labels_->dims != volume_->volume().dims()) labels_ = nullptr;
+  if (labels_) brick_labels_ = ComputeBrickLabels(*labels_, volume_->brick_size());
+  UpdateTables();
 }
 
 void SceneData::SetTransferFunction(const TransferFunction& tf) {
   tf_ = tf;
-  if (!volume_) return;
-  table_ = BuildTransferTable(tf_, volume_->volume().min_value(), volume_->volume().max_value());
+  UpdateTables();
+}
+
+void SceneData::SetReconstruction(Reconstruction r) {
+  if (r == reconstruction_) return;
+  reconstruction_ = r;
+  if (volume_ && !tf_.points.empty()) UpdateMajorants();
+}
+
+void SceneData::SetLabels(std::shared_ptr<const LabelVolume> labels, const LabelSetup& setup) {
+  if (labels && volume_ && labels->dims != volume_->volume().dims()) {
+    throw std::invalid_argument("SceneData::SetLabels: the label volume is not on the image's grid");
+  }
+  if (labels != labels_) {
+    labels_ = std::move(labels);
+    brick_labels_ = labels_ && volume_ ? ComputeBrickLabels(*labels_, volume_->brick_size()) : BrickLabels{};
+  }
+  label_setup_ = setup;
+  label_materials_.clear();
+  if (labels_) {
+    label_materials_.resize(std::size_t(labels_->max_label()) + 1);
+    for (int label = 0; label <= labels_->max_label(); ++label) {
+      const LabelStyle& style = label_setup_.StyleOf(label);
+      LabelMaterial& m = label_materials_[label];
+      m.opacity_scale = style.visible ? style.opacity_scale : 0.0f;
+      m.has_color = style.has_color;
+      m.color = style.color;
+      m.table = style.transfer + 1;
+    }
+  }
+  UpdateTables();
+}
+
+// Appends `more`'s entries to `table`'s (labels' own tables after the image's).
+static void AppendTable(TransferTable& table, const TransferTable& more) {
+  auto append = [](auto& to, const auto& from) { to.insert(to.end(), from.begin(), from.end()); };
+  append(table.sigma_t, more.sigma_t);
+  append(table.diffuse_opacity, more.diffuse_opacity);
+  append(table.specular_roughness, more.specular_roughness);
+  append(table.emission, more.emission);
+  table.has_emission |= more.has_emission;
+}
+
+void SceneData::UpdateTables() {
+  if (!volume_ || tf_.points.empty()) return;
+  const float lo = volume_->volume().min_value(), hi = volume_->volume().max_value();
+  table_ = BuildTransferTable(tf_, lo, hi);
+  if (labels_) {
+    for (const TransferFunction& own : label_setup_.transfer_functions) AppendTable(table_, BuildTransferTable(own, lo, hi));
+  }
   UpdateMajorants();
 }
 
 void SceneData::UpdateMajorants() {
   const RenderScene view = HostView();
-  majorants_ =
-      ComputeMajorants(volume_->brick_ranges(), table_.sigma_t, view.transfer.entry_scale, view.transfer.entry_offset);
+  const BrickRanges& ranges = volume_->brick_ranges(reconstruction_);
+  const std::size_t n = TransferTable::kEntries;
+  auto majorants_of_table = [&](int k) {
+    return ComputeMajorants(ranges, table_.sigma_t.data() + k * n, int(n), view.transfer.entry_scale,
+                            view.transfer.entry_offset);
+  };
+  majorants_ = majorants_of_table(0);
+  if (labels_) {
+    // A brick's bound is the largest over the labels it holds, each label's
+    // table bound scaled by its opacity scale (0 for hidden labels).
+    std::vector<std::vector<float>> by_table{majorants_};
+    for (std::size_t k = 1; k * n < table_.sigma_t.size(); ++k) by_table.push_back(majorants_of_table(int(k)));
+    for (std::size_t b = 0; b < majorants_.size(); ++b) {
+      float bound = 0.0f;
+      for (std::uint32_t i = brick_labels_.offsets[b]; i < brick_labels_.offsets[b + 1]; ++i) {
+        const LabelMaterial& m = label_materials_[brick_labels_.labels[i]];
+        bound = std::max(bound, m.opacity_scale * by_table[m.table][b]);
+      }
+      majorants_[b] = bound;
+    }
+  }
   ++majorant_builds_;
 }
 
@@ -106,6 +218,7 @@ RenderScene SceneData::HostView() const {
     s.volume.inv_spacing = Vec3f{1, 1, 1} / v.spacing_mm();
     s.volume.box_max = v.extent_mm() * 0.5f;
     s.volume.box_min = -s.volume.box_max;
+    s.volume.tricubic = reconstruction_ == Reconstruction::kTricubic;
 
     const float n1 = float(TransferTable::kEntries - 1);
     const float to_entry = n1 / (table_.value_max - table_.value_min);
@@ -115,10 +228,11 @@ RenderScene SceneData::HostView() const {
     s.transfer.gradient_normaliser = range > 0 ? value_scale * MinComponent(v.spacing_mm()) / range : 0.0f;
 
     s.majorants.majorant = majorants_.data();
-    s.majorants.bricks = volume_->brick_ranges().bricks;
+    s.majorants.bricks = volume_->brick_ranges(reconstruction_).bricks;
     s.majorants.box_min = s.volume.box_min;
     s.majorants.inv_brick_size = Vec3f{1, 1, 1} / (v.spacing_mm() * ToFloat(volume_->brick_size()));
   }
+  if (labels_) s.labels = {labels_->labels.data(), label_materials_.data()};
   s.transfer.sigma_t = table_.sigma_t.data();
   s.transfer.diffuse_opacity = table_.diffuse_opacity.data();
   s.transfer.specular_roughness = table_.specular_roughness.data();

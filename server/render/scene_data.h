@@ -1,12 +1,15 @@
-// Host-side tables of one renderer (CPU or CUDA): the transfer table and the
-// majorants it implies over the shared prepared volume's bricks, lights and
-// the environment map's sampling tables.
+// Host-side tables of one renderer (CPU or CUDA): the transfer tables (the
+// image's, then the labels' own) and the majorants they imply over the shared
+// prepared volume's bricks, the labels' materials, lights and the environment
+// map's sampling tables.
 #pragma once
 
 #include <cstdint>
 #include <memory>
 #include <vector>
 
+#include "core/label_view.h"
+#include "core/labels.h"
 #include "core/lights.h"
 #include "core/transfer_function.h"
 #include "render/prepared_volume.h"
@@ -16,8 +19,18 @@ namespace cinevol {
 
 // Per-brick majorant: the largest extinction the table gives over the brick's
 // value range (entries = stored * entry_scale + entry_offset).
-std::vector<float> ComputeMajorants(const BrickRanges& ranges, const std::vector<float>& sigma_t,
-                                    float entry_scale, float entry_offset);
+// `sigma_t`: one table's `entries` extinctions.
+std::vector<float> ComputeMajorants(const BrickRanges& ranges, const float* sigma_t, int entries, float entry_scale,
+                                    float entry_offset);
+
+// The labels present in each brick of `brick_size` voxels, with the one-voxel
+// margin that nearest-label lookups inside the brick read: labels of brick i
+// are labels[offsets[i] .. offsets[i + 1]).
+struct BrickLabels {
+  std::vector<std::uint32_t> offsets;
+  std::vector<std::uint16_t> labels;
+};
+BrickLabels ComputeBrickLabels(const LabelVolume& labels, Vec3i brick_size);
 
 // Sampling tables of an environment map (pbrt's Distribution2D).
 struct EnvironmentDistribution {
@@ -35,6 +48,9 @@ class SceneData {
   void SetTransferFunction(const TransferFunction& tf);
   void SetLights(const LightSetup& setup);
   void SetClipRegion(const ClipRegion& clip) { clip_ = clip; }
+  void SetReconstruction(Reconstruction r);
+  // A segmentation on the volume's grid and how its labels show; null: none.
+  void SetLabels(std::shared_ptr<const LabelVolume> labels, const LabelSetup& setup);
 
   bool has_volume() const { return volume_ != nullptr; }
   const PreparedVolume& volume() const { return *volume_; }
@@ -42,7 +58,10 @@ class SceneData {
   // How many times the majorants were rebuilt (volume and transfer-function
   // changes): tests check that a camera move rebuilds none.
   std::uint64_t majorant_builds() const { return majorant_builds_; }
+  // The image's table, then the labels' own, kEntries each.
   const TransferTable& table() const { return table_; }
+  const LabelVolume* labels() const { return labels_.get(); }
+  const std::vector<LabelMaterial>& label_materials() const { return label_materials_; }
   const std::vector<Light>& lights() const { return lights_.lights; }
   const EnvironmentDistribution& environment_distribution() const { return environment_; }
 
@@ -51,10 +70,16 @@ class SceneData {
   RenderScene HostView() const;
 
  private:
+  void UpdateTables();
   void UpdateMajorants();
 
   std::shared_ptr<const PreparedVolume> volume_;
+  Reconstruction reconstruction_ = Reconstruction::kTrilinear;
   TransferFunction tf_;
+  std::shared_ptr<const LabelVolume> labels_;
+  LabelSetup label_setup_;
+  BrickLabels brick_labels_;
+  std::vector<LabelMaterial> label_materials_;  // by label value
   TransferTable table_;
   std::vector<float> majorants_;
   std::uint64_t majorant_builds_ = 0;

@@ -61,7 +61,7 @@ class StillJob final : public Job {
       if (*cancel_) throw Cancelled("the snapshot was cancelled: its caller went away or its session ended");
       if (!pipeline_) {
         start_ = Clock::now();
-        pipeline_ = std::make_unique<FramePipeline>(backend_, volume_->volume());
+        pipeline_ = std::make_unique<FramePipeline>(backend_, volume_->volume(), RendererOptions{}, volume_->labels());
         pipeline_->SetCancel(cancel_.get());
         FrameSettings settings;
         settings.denoiser.method = DenoiseMethod::kNone;
@@ -184,6 +184,11 @@ v1::CreateSessionResponse ServiceCore::CreateSession(const v1::CreateSessionRequ
   RequireServing();
   std::shared_ptr<VolumeLease> volume = volumes_.Lease(request.volume_id(), caller);
   v1::Scene scene = InitialScene(request, *volume->volume(), options_.limits, volumes_);
+  if (scene.has_labels() && !volume->labels()) {
+    throw InputError(fmt::format("scene.labels: volume '{}' has no segmentation; load one first (LoadLabels, or "
+                                 "an upload with header.labels_for)",
+                                 request.volume_id()));
+  }
   const FrameSettings settings = MergeStreamSettings(FrameSettings{}, request.stream(), "stream");
   Scheduler& scheduler = LeastLoaded();
   SessionContext context{&scheduler, &encoder_, backend_, &options_.limits, &volumes_, &pixels_,

@@ -5,6 +5,7 @@
 
 #include <fstream>
 
+#include "io/label_volume.h"
 #include "service/errors.h"
 #include "service/log_safe.h"
 #include "service/metrics.h"
@@ -75,6 +76,15 @@ class UploadReactor final : public grpc::ServerReadReactor<v1::UploadVolumeChunk
                                      LogSafe(h.file_name(), 64)));
       }
       CheckSize(h.size_bytes(), "header.size_bytes");
+      if (h.label_table().size() > kMaxLabelTableBytes) {
+        throw InputError(fmt::format("header.label_table: {} bytes; at most {}", h.label_table().size(),
+                                     kMaxLabelTableBytes));
+      }
+      if (!h.label_table().empty() && h.labels_for().empty()) {
+        throw InputError("header.label_table: only with header.labels_for (a label volume's names)");
+      }
+      labels_for_ = h.labels_for();
+      label_table_ = h.label_table();
       expected_ = h.size_bytes();
       // Only the name's last part, control characters escaped: it reaches messages and the log.
       name_ = LogSafe(std::filesystem::path(h.file_name()).filename().string());
@@ -126,7 +136,9 @@ class UploadReactor final : public grpc::ServerReadReactor<v1::UploadVolumeChunk
     core_->loader().Submit([this] {
       const grpc::Status status = Guarded([&] {
         core_->RequireServing();
-        *response_ = core_->volumes().AddUpload(path_, name_, caller_);
+        *response_ = labels_for_.empty()
+                         ? core_->volumes().AddUpload(path_, name_, caller_)
+                         : core_->volumes().AddUploadedLabels(labels_for_, path_, name_, label_table_, caller_);
       });
       ServerMetrics().Upload(status.ok());
       Finish(status);
@@ -148,6 +160,7 @@ class UploadReactor final : public grpc::ServerReadReactor<v1::UploadVolumeChunk
   std::ofstream file_;
   std::filesystem::path path_;
   std::string name_;
+  std::string labels_for_, label_table_;  // a segmentation's upload: its volume and label table
   std::uint64_t expected_ = 0, received_ = 0;
   bool loading_ = false;
 };
@@ -197,6 +210,25 @@ grpc::ServerUnaryReactor* VolumeServiceImpl::LoadVolume(grpc::CallbackServerCont
       reactor->Finish(Guarded([&] {
         core_->RequireServing();
         *response = core_->volumes().LoadFromDataRoot(request->path(), request->series_uid(), caller);
+      }));
+    });
+  });
+  if (!status.ok()) reactor->Finish(status);
+  return reactor;
+}
+
+grpc::ServerUnaryReactor* VolumeServiceImpl::LoadLabels(grpc::CallbackServerContext* context,
+                                                        const v1::LoadLabelsRequest* request,
+                                                        v1::VolumeInfo* response) {
+  grpc::ServerUnaryReactor* reactor = context->DefaultReactor();
+  const grpc::Status status = Guarded([&] {
+    const Principal caller = core_->Authenticate(*context);
+    core_->RequireServing();
+    core_->volumes().ResolveDataPath(request->path(), "path");
+    core_->loader().Submit([this, reactor, request, response, caller, slot = core_->BeginLoad(caller)] {
+      reactor->Finish(Guarded([&] {
+        core_->RequireServing();
+        *response = core_->volumes().LoadLabels(request->volume_id(), request->path(), request->table_path(), caller);
       }));
     });
   });

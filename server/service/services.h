@@ -16,6 +16,8 @@ class VolumeServiceImpl final : public v1::VolumeService::CallbackService {
                                         v1::ListVolumesResponse* response) override;
   grpc::ServerUnaryReactor* LoadVolume(grpc::CallbackServerContext* context, const v1::LoadVolumeRequest* request,
                                        v1::VolumeInfo* response) override;
+  grpc::ServerUnaryReactor* LoadLabels(grpc::CallbackServerContext* context, const v1::LoadLabelsRequest* request,
+                                       v1::VolumeInfo* response) override;
   grpc::ServerReadReactor<v1::UploadVolumeChunk>* UploadVolume(grpc::CallbackServerContext* context,
                                                                v1::VolumeInfo* response) override;
   grpc::ServerUnaryReactor* DescribeVolume(grpc::CallbackServerContext* context,

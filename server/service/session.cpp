@@ -22,6 +22,7 @@ unsigned ChangesOf(const v1::SessionEvent& e) {
   if (e.has_lights()) return kLightsChanged;
   if (e.has_render()) return kSamplingChanged;
   if (e.has_clipping()) return kClippingChanged;
+  if (e.has_labels()) return kLabelsChanged;
   return 0;
 }
 
@@ -291,7 +292,7 @@ bool Session::Step() {
   DisplayFrame frame;
   try {
     if (!pipeline_) {
-      pipeline_ = std::make_unique<FramePipeline>(context_.backend, volume_->volume());
+      pipeline_ = std::make_unique<FramePipeline>(context_.backend, volume_->volume(), RendererOptions{}, volume_->labels());
       pipeline_->SetCancel(&cancel_);
     }
     if (work.update) pipeline_->Update(work.scene, work.settings, work.changes);

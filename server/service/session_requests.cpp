@@ -216,6 +216,7 @@ void ApplyEvent(const v1::SessionEvent& event, v1::Scene& scene, FrameSettings& 
       if (r.has_spp()) next.mutable_render()->set_spp(r.spp());
       if (r.has_max_bounces()) next.mutable_render()->set_max_bounces(r.max_bounces());
       if (r.seed() != 0) next.mutable_render()->set_seed(r.seed());
+      if (r.reconstruction() != v1::RECONSTRUCTION_UNSPECIFIED) next.mutable_render()->set_reconstruction(r.reconstruction());
       break;
     }
     case v1::SessionEvent::kStream:
@@ -236,6 +237,9 @@ void ApplyEvent(const v1::SessionEvent& event, v1::Scene& scene, FrameSettings& 
       break;
     case v1::SessionEvent::kClipping:
       *next.mutable_clipping() = event.clipping();
+      break;
+    case v1::SessionEvent::kLabels:
+      *next.mutable_labels() = event.labels();
       break;
     case v1::SessionEvent::kPause:
     case v1::SessionEvent::kResume:

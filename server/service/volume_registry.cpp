@@ -8,6 +8,7 @@
 #include <algorithm>
 
 #include "core/error.h"
+#include "io/label_volume.h"
 #include "io/presets.h"
 #include "io/volume_kind.h"
 #include "io/volume_loader.h"
@@ -63,8 +64,9 @@ v1::Vec3 ToProto(Vec3f v) {
 
 }  // namespace
 
-VolumeLease::VolumeLease(VolumeRegistry* registry, std::string id, std::shared_ptr<const Volume> volume)
-    : registry_(registry), id_(std::move(id)), volume_(std::move(volume)) {}
+VolumeLease::VolumeLease(VolumeRegistry* registry, std::string id, std::shared_ptr<const Volume> volume,
+                         std::shared_ptr<const LabelVolume> labels)
+    : registry_(registry), id_(std::move(id)), volume_(std::move(volume)), labels_(std::move(labels)) {}
 
 VolumeLease::~VolumeLease() { registry_->Release(id_); }
 
@@ -183,9 +185,9 @@ v1::VolumeInfo VolumeRegistry::Add(const std::string& base_id, const std::string
     }
   }
   const std::uint64_t bytes = volume.MemoryBytes();
-  std::uint64_t total = 0, owners = 0;
+  const std::uint64_t total = HeldBytesLocked();
+  std::uint64_t owners = 0;
   for (const auto& [id, e] : volumes_) {
-    total += e.volume->MemoryBytes();
     if (e.upload && e.owner == owner) owners += e.volume->MemoryBytes();
   }
   // The caller's own quota first: it says what the caller can do about it.
@@ -211,6 +213,72 @@ v1::VolumeInfo VolumeRegistry::Add(const std::string& base_id, const std::string
   // The source is a path or a client's file name: patient data, and not for the info log.
   spdlog::info("volume {}: {}x{}x{}, {} MiB", LogSafe(id), e.volume->dims().x, e.volume->dims().y,
                e.volume->dims().z, bytes >> 20);
+  return InfoLocked(id, e);
+}
+
+std::uint64_t VolumeRegistry::HeldBytesLocked() const {
+  std::uint64_t total = 0;
+  for (const auto& [id, e] : volumes_) {
+    total += e.volume->MemoryBytes() + (e.labels ? e.labels->labels.size() * sizeof(std::uint16_t) : 0);
+  }
+  return total;
+}
+
+std::shared_ptr<const Volume> VolumeRegistry::VolumeForLabels(const std::string& id, const Principal& caller) const {
+  std::lock_guard lock(mu_);
+  const Entry& e = FindLocked(id, caller, "volume_id");
+  if (!caller.is_operator && e.owner != caller.name) {
+    throw RpcError(grpc::StatusCode::PERMISSION_DENIED,
+                   fmt::format("volume_id: volume '{}' was loaded by {}; only its owner or an operator may load its "
+                               "segmentation",
+                               id, e.owner.empty() ? "the operator" : "another user"));
+  }
+  return e.volume;
+}
+
+v1::VolumeInfo VolumeRegistry::LoadLabels(const std::string& id, const std::string& path,
+                                          const std::string& table_path, const Principal& caller) {
+  const std::shared_ptr<const Volume> image = VolumeForLabels(id, caller);
+  const fs::path labels = ResolveDataPath(path, "path");
+  const fs::path table = table_path.empty() ? fs::path() : ResolveDataPath(table_path, "table_path");
+  LabelVolume loaded = LoadLabelVolume(labels, *image, PolicyFor("path '" + path + "'", false));
+  if (!table.empty()) loaded.names = LoadLabelTable(table, "table_path '" + table_path + "'");
+  return AttachLabels(id, std::move(loaded), caller);
+}
+
+v1::VolumeInfo VolumeRegistry::AddUploadedLabels(const std::string& id, const fs::path& file,
+                                                 const std::string& file_name, const std::string& table,
+                                                 const Principal& caller) {
+  struct Remove {
+    const fs::path& f;
+    ~Remove() {
+      std::error_code ec;
+      fs::remove(f, ec);
+    }
+  } remove{file};
+  const std::shared_ptr<const Volume> image = VolumeForLabels(id, caller);
+  const std::string shown = "upload:" + file_name;
+  LabelVolume loaded = FitLabels(LoadVolumeFile(file, PolicyFor(shown, true)), *image, shown);
+  loaded.names = ParseLabelTable(table, "header.label_table");
+  return AttachLabels(id, std::move(loaded), caller);
+}
+
+v1::VolumeInfo VolumeRegistry::AttachLabels(const std::string& id, LabelVolume labels, const Principal& caller) {
+  std::shared_ptr<const LabelVolume> last;  // freed outside the lock
+  std::lock_guard lock(mu_);
+  FindLocked(id, caller, "volume_id");  // it may have gone while the file loaded
+  Entry& e = volumes_.at(id);
+  const std::uint64_t bytes = labels.labels.size() * sizeof(std::uint16_t);
+  const std::uint64_t held = HeldBytesLocked() - (e.labels ? e.labels->labels.size() * sizeof(std::uint16_t) : 0);
+  if (held + bytes > limits_.max_total_bytes) {
+    throw LimitExceeded(grpc::StatusCode::RESOURCE_EXHAUSTED, "max-volume-memory-mb",
+                        fmt::format("the segmentation needs {}; this server holds {} of volumes and allows {} "
+                                    "(--max-volume-memory-mb)",
+                                    Mib(bytes), Mib(held), Mib(limits_.max_total_bytes)));
+  }
+  last = std::move(e.labels);
+  e.labels = std::make_shared<const LabelVolume>(std::move(labels));
+  spdlog::info("volume {}: segmentation with {} labels", LogSafe(id), e.labels->voxels.size());
   return InfoLocked(id, e);
 }
 
@@ -251,6 +319,18 @@ v1::VolumeInfo VolumeRegistry::InfoLocked(const std::string& id, const Entry& e)
   info.mutable_direction()->Add(v.metadata().direction.begin(), v.metadata().direction.end());
   const auto& origin = v.metadata().origin_mm;
   *info.mutable_origin_mm() = ToProto(Vec3f{float(origin[0]), float(origin[1]), float(origin[2])});
+  if (e.labels) {
+    v1::LabelSet* set = info.mutable_labels();
+    set->set_source(e.labels->source);
+    set->set_note(e.labels->note);
+    std::map<int, v1::LabelName> names;
+    for (const auto& [value, voxels] : e.labels->voxels) names[value].set_voxels(voxels);
+    for (const auto& [value, name] : e.labels->names) names[value].set_name(name);
+    for (auto& [value, n] : names) {
+      n.set_value(std::uint32_t(value));
+      *set->add_names() = std::move(n);
+    }
+  }
   for (const VolumeCopyStatus& c : VolumeCache::Get().Copies()) {
     if (c.volume != e.volume.get()) continue;
     v1::VolumeCopy* copy = info.add_copies();
@@ -302,7 +382,7 @@ std::shared_ptr<VolumeLease> VolumeRegistry::Lease(const std::string& id, const 
   FindLocked(id, caller, "volume_id");
   Entry& e = volumes_.at(id);
   ++e.leases;
-  return std::make_shared<VolumeLease>(this, id, e.volume);
+  return std::make_shared<VolumeLease>(this, id, e.volume, e.labels);
 }
 
 void VolumeRegistry::Release(const std::string& id) {

@@ -20,6 +20,7 @@
 #include <vector>
 
 #include "cinevol/v1/service.pb.h"
+#include "core/labels.h"
 #include "core/volume.h"
 #include "io/volume_loader.h"
 #include "service/auth.h"
@@ -31,18 +32,22 @@ class VolumeRegistry;
 // A session's or a still's hold on a volume: Unload refuses while one lives.
 class VolumeLease {
  public:
-  VolumeLease(VolumeRegistry* registry, std::string id, std::shared_ptr<const Volume> volume);
+  VolumeLease(VolumeRegistry* registry, std::string id, std::shared_ptr<const Volume> volume,
+              std::shared_ptr<const LabelVolume> labels);
   ~VolumeLease();
   VolumeLease(const VolumeLease&) = delete;
   VolumeLease& operator=(const VolumeLease&) = delete;
 
   const std::string& id() const { return id_; }
   const std::shared_ptr<const Volume>& volume() const { return volume_; }
+  // Its segmentation when the lease began; null: none.
+  const std::shared_ptr<const LabelVolume>& labels() const { return labels_; }
 
  private:
   VolumeRegistry* registry_;
   std::string id_;
   std::shared_ptr<const Volume> volume_;
+  std::shared_ptr<const LabelVolume> labels_;
 };
 
 struct VolumeLimits {
@@ -69,6 +74,15 @@ class VolumeRegistry {
   // file is removed.
   v1::VolumeInfo AddUpload(const std::filesystem::path& file, const std::string& file_name, const Principal& caller);
 
+  // A segmentation for volume `id`: a label volume and optionally its table,
+  // both under the data roots; it replaces any earlier one, for sessions
+  // created afterwards. Only the volume's owner or an operator may.
+  v1::VolumeInfo LoadLabels(const std::string& id, const std::string& path, const std::string& table_path,
+                            const Principal& caller);
+  // The same from an upload written to `file` (removed), with the table's text.
+  v1::VolumeInfo AddUploadedLabels(const std::string& id, const std::filesystem::path& file,
+                                   const std::string& file_name, const std::string& table, const Principal& caller);
+
   // NOT_FOUND for an unknown id; PERMISSION_DENIED for another's upload.
   v1::VolumeInfo Describe(const std::string& id, const Principal& caller) const;
   // The volumes `caller` may render.
@@ -93,6 +107,7 @@ class VolumeRegistry {
   struct Entry {
     std::string source;  // canonical path (+ series) or phantom spec: loading it twice returns this entry
     std::shared_ptr<const Volume> volume;
+    std::shared_ptr<const LabelVolume> labels;  // its segmentation, when one is loaded
     std::string owner;   // principal name; "" for the operator's preloaded volumes
     bool upload = false; // private to its owner
     int leases = 0;
@@ -103,6 +118,10 @@ class VolumeRegistry {
   // The entry `caller` may use, or throws NOT_FOUND / PERMISSION_DENIED.
   const Entry& FindLocked(const std::string& id, const Principal& caller, const std::string& field) const;
   v1::VolumeInfo InfoLocked(const std::string& id, const Entry& e) const;
+  // The volume `id` for attaching labels: its owner's or an operator's.
+  std::shared_ptr<const Volume> VolumeForLabels(const std::string& id, const Principal& caller) const;
+  v1::VolumeInfo AttachLabels(const std::string& id, LabelVolume labels, const Principal& caller);
+  std::uint64_t HeldBytesLocked() const;
   LoadPolicy PolicyFor(const std::string& label, bool upload) const;
   void Release(const std::string& id);
 

@@ -1,0 +1,185 @@
+// Label volumes and label tables.
+#include "io/label_volume.h"
+
+#include <spdlog/spdlog.h>
+
+#include <array>
+#include <charconv>
+#include <cmath>
+#include <sstream>
+
+#include "core/error.h"
+#include "core/parallel_for.h"
+#include "io/file_checks.h"
+
+namespace cinevol {
+
+namespace {
+
+using Matrix3 = std::array<double, 9>;  // row-major
+
+// Voxel index (continuous) to patient LPS mm: origin + direction * (spacing * index).
+struct IndexToPatient {
+  Matrix3 m;  // direction with spacing folded into its columns
+  std::array<double, 3> origin;
+
+  explicit IndexToPatient(const Volume& v) : origin(v.metadata().origin_mm) {
+    const auto& d = v.metadata().direction;
+    const Vec3f s = v.spacing_mm();
+    for (int r = 0; r < 3; ++r) {
+      for (int c = 0; c < 3; ++c) m[3 * r + c] = d[3 * r + c] * s[c];
+    }
+  }
+};
+
+Matrix3 Inverse(const Matrix3& a) {
+  const double det = a[0] * (a[4] * a[8] - a[5] * a[7]) - a[1] * (a[3] * a[8] - a[5] * a[6]) +
+                     a[2] * (a[3] * a[7] - a[4] * a[6]);
+  const double k = 1.0 / det;
+  return {(a[4] * a[8] - a[5] * a[7]) * k, (a[2] * a[7] - a[1] * a[8]) * k, (a[1] * a[5] - a[2] * a[4]) * k,
+          (a[5] * a[6] - a[3] * a[8]) * k, (a[0] * a[8] - a[2] * a[6]) * k, (a[2] * a[3] - a[0] * a[5]) * k,
+          (a[3] * a[7] - a[4] * a[6]) * k, (a[1] * a[6] - a[0] * a[7]) * k, (a[0] * a[4] - a[1] * a[3]) * k};
+}
+
+// Whether two grids are the same: voxel centres within a hundredth of a voxel.
+bool SameGrid(const Volume& a, const Volume& b) {
+  if (a.dims() != b.dims()) return false;
+  const IndexToPatient pa(a), pb(b);
+  const double tolerance = 0.01 * MinComponent(a.spacing_mm());
+  for (int i = 0; i < 3; ++i) {
+    if (std::abs(pa.origin[i] - pb.origin[i]) > tolerance) return false;
+  }
+  // The far corner, index (dims - 1), and the two other axis ends.
+  for (int axis = 0; axis < 3; ++axis) {
+    const double n = a.dims()[axis] - 1;
+    for (int r = 0; r < 3; ++r) {
+      if (std::abs(pa.m[3 * r + axis] - pb.m[3 * r + axis]) * std::max(n, 1.0) > tolerance) return false;
+    }
+  }
+  return true;
+}
+
+std::string GridText(const Volume& v) {
+  std::ostringstream out;
+  const Vec3f s = v.spacing_mm();
+  const auto& o = v.metadata().origin_mm;
+  out << v.dims().x << "x" << v.dims().y << "x" << v.dims().z << " voxels of " << s.x << "x" << s.y << "x" << s.z
+      << " mm at (" << o[0] << ", " << o[1] << ", " << o[2] << ")";
+  return out.str();
+}
+
+// The stored labels, checked to be integers in [0, 65535].
+std::vector<std::uint16_t> IntegerLabels(const Volume& v, const std::string& shown) {
+  std::vector<std::uint16_t> out(v.voxel_count());
+  for (std::size_t i = 0; i < out.size(); ++i) {
+    const float value = v.ValueAtIndex(i);
+    if (!(value >= 0.0f && value <= 65535.0f) || value != std::floor(value)) {
+      throw InputError(shown + ": voxel " + std::to_string(i) + " holds " + std::to_string(value) +
+                       ", not an integer label in [0, 65535]");
+    }
+    out[i] = static_cast<std::uint16_t>(value);
+  }
+  return out;
+}
+
+}  // namespace
+
+std::map<int, std::string> ParseLabelTable(std::string_view text, const std::string& shown) {
+  std::map<int, std::string> names;
+  int line_number = 0;
+  while (!text.empty()) {
+    const std::size_t end = text.find('\n');
+    std::string_view line = text.substr(0, end);
+    text = end == std::string_view::npos ? std::string_view{} : text.substr(end + 1);
+    ++line_number;
+    if (!line.empty() && line.back() == '\r') line.remove_suffix(1);
+    if (line.empty() || line.front() == '#') continue;
+    const std::string where = shown + " line " + std::to_string(line_number) + ": ";
+    const std::size_t tab = line.find('\t');
+    int value = -1;
+    const std::string_view number = line.substr(0, tab);
+    const auto [rest, ec] = std::from_chars(number.data(), number.data() + number.size(), value);
+    if (tab == std::string_view::npos || ec != std::errc() || rest != number.data() + number.size() || value < 0 ||
+        value > 65535) {
+      throw InputError(where + "expected 'value<TAB>name' with an integer value in [0, 65535], got '" +
+                       std::string(line.substr(0, 80)) + "'");
+    }
+    const std::string_view name = line.substr(tab + 1);
+    if (name.empty() || name.size() > 256) throw InputError(where + "the name must have 1 to 256 characters");
+    if (!names.emplace(value, std::string(name)).second) {
+      throw InputError(where + "label " + std::to_string(value) + " is named twice");
+    }
+  }
+  return names;
+}
+
+std::map<int, std::string> LoadLabelTable(const std::filesystem::path& path, const std::string& shown) {
+  file_checks::RequireRegularFile(path, shown);
+  const std::string text = file_checks::ReadHead(path, kMaxLabelTableBytes + 1, shown);
+  if (text.size() > kMaxLabelTableBytes) {
+    throw InputError(shown + ": a label table may have at most " + std::to_string(kMaxLabelTableBytes) + " bytes");
+  }
+  return ParseLabelTable(text, shown);
+}
+
+LabelVolume FitLabels(const Volume& labels, const Volume& image, const std::string& shown) {
+  LabelVolume out;
+  out.dims = image.dims();
+  out.source = shown;
+  const std::vector<std::uint16_t> own = IntegerLabels(labels, shown);
+  if (SameGrid(labels, image)) {
+    out.labels = own;
+  } else {
+    // Image index -> patient -> label index, as one affine map.
+    const IndexToPatient to_patient(image), label_to_patient(labels);
+    const Matrix3 inv = Inverse(label_to_patient.m);
+    Matrix3 a{};
+    std::array<double, 3> b{};
+    for (int r = 0; r < 3; ++r) {
+      for (int c = 0; c < 3; ++c) {
+        for (int k = 0; k < 3; ++k) a[3 * r + c] += inv[3 * r + k] * to_patient.m[3 * k + c];
+        b[r] += inv[3 * r + c] * (to_patient.origin[c] - label_to_patient.origin[c]);
+      }
+    }
+    if (!std::isfinite(a[0] + a[4] + a[8] + b[0] + b[1] + b[2])) {
+      throw InputError(shown + ": its direction cosines are singular");
+    }
+    const Vec3i n = image.dims(), m = labels.dims();
+    out.labels.assign(image.voxel_count(), 0);
+    std::vector<std::size_t> inside_per_slice(n.z, 0);
+    ParallelFor(n.z, [&](std::int64_t z) {
+      for (int y = 0; y < n.y; ++y) {
+        for (int x = 0; x < n.x; ++x) {
+          int q[3];
+          bool inside = true;
+          for (int r = 0; r < 3; ++r) {
+            const double v = a[3 * r] * x + a[3 * r + 1] * y + a[3 * r + 2] * double(z) + b[r];
+            q[r] = static_cast<int>(std::floor(v + 0.5));
+            inside &= q[r] >= 0 && q[r] < m[r];
+          }
+          if (!inside) continue;
+          ++inside_per_slice[z];
+          out.labels[(std::size_t(z) * n.y + y) * n.x + x] = own[(std::size_t(q[2]) * m.y + q[1]) * m.x + q[0]];
+        }
+      }
+    });
+    std::size_t inside = 0;
+    for (std::size_t c : inside_per_slice) inside += c;
+    if (inside == 0) {
+      throw InputError(shown + ": its grid (" + GridText(labels) + ") does not overlap the image's (" +
+                       GridText(image) + ")");
+    }
+    out.note = "resampled nearest-neighbour from " + GridText(labels) + " onto the image's " + GridText(image) +
+               (inside < image.voxel_count() ? "; voxels outside it are label 0" : "");
+    spdlog::info("{}: {}", shown, out.note);
+  }
+  for (std::uint16_t label : out.labels) ++out.voxels[label];
+  return out;
+}
+
+LabelVolume LoadLabelVolume(const std::filesystem::path& path, const Volume& image, const LoadPolicy& policy) {
+  const std::string shown = file_checks::Shown(path, policy);
+  return FitLabels(LoadVolumeFile(path, policy), image, shown);
+}
+
+}  // namespace cinevol

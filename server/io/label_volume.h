@@ -1,0 +1,38 @@
+// Loads segmentations: a label volume (NIfTI or NRRD, integer labels) fitted
+// to its image's grid, and a label table naming the labels. Every failure
+// throws InputError naming the file (and the line, for tables).
+#pragma once
+
+#include <filesystem>
+#include <map>
+#include <string>
+#include <string_view>
+
+#include "core/labels.h"
+#include "core/volume.h"
+#include "io/volume_loader.h"
+
+namespace cinevol {
+
+// The most bytes a label table may have: 117 TotalSegmentator labels take 2 KiB.
+inline constexpr std::size_t kMaxLabelTableBytes = std::size_t{1} << 20;
+
+// `value<TAB>name` lines: value an integer in [0, 65535], each once, name not
+// empty. Blank lines and lines starting with '#' are skipped. `shown` names
+// the table in messages.
+std::map<int, std::string> ParseLabelTable(std::string_view text, const std::string& shown);
+
+// Reads a label table file (at most kMaxLabelTableBytes).
+std::map<int, std::string> LoadLabelTable(const std::filesystem::path& path, const std::string& shown);
+
+// Fits a label volume (already loaded; every value must be an integer in
+// [0, 65535]) to `image`'s grid: taken as it is when dimensions, spacing,
+// origin and direction agree; else resampled nearest-neighbour, with labels
+// outside its own grid 0, and said so in LabelVolume::note and the log.
+// Refused when the grids do not overlap.
+LabelVolume FitLabels(const Volume& labels, const Volume& image, const std::string& shown);
+
+// LoadVolumeFile under `policy`, then FitLabels.
+LabelVolume LoadLabelVolume(const std::filesystem::path& path, const Volume& image, const LoadPolicy& policy = {});
+
+}  // namespace cinevol
