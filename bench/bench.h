@@ -71,6 +71,17 @@ struct VolumeBenchOptions {
 // Load, summaries (histogram, block ranges), kind and framing per volume.
 int RunVolumeBench(const VolumeBenchOptions& options);
 
+struct ReconstructionBenchOptions : SceneOptions {
+  std::vector<float> spacings{2.0f, 3.0f};  // mm: the coarse balls
+  float reference_spacing = 0.25f;
+  int spp = 1024;
+  int frames = 50, warmup = 10;  // 720p frames timed, after untimed ones
+  std::string images;  // folder for the PNGs; empty: none
+};
+
+// Trilinear against tricubic on a coarse ball, with a fine ball as reference.
+int RunReconstructionBench(const ReconstructionBenchOptions& options);
+
 // "NVIDIA H100 80GB HBM3 (cuda)" or "cpu, 2 threads".
 std::string DeviceDescription(const std::string& backend);
 

@@ -87,6 +87,23 @@ int main(int argc, char** argv) {
   v->add_option("--out", volume.out, "Append the Markdown table to this file");
   v->callback([&] { cinevol::bench::RunVolumeBench(volume); });
 
+  cinevol::bench::ReconstructionBenchOptions reconstruction;
+  reconstruction.command_line = command_line;
+  reconstruction.width = reconstruction.height = 512;
+  auto* c = app.add_subcommand("reconstruction", "Trilinear against tricubic on a coarse ball, against a fine one");
+  c->add_option("--spacing", reconstruction.spacings, "Coarse spacings, mm (repeatable)")->capture_default_str();
+  c->add_option("--reference-spacing", reconstruction.reference_spacing, "The reference's spacing, mm")
+      ->capture_default_str();
+  c->add_option("--spp", reconstruction.spp, "Samples per pixel of every image")->capture_default_str();
+  c->add_option("--width", reconstruction.width, "Image width")->capture_default_str();
+  c->add_option("--height", reconstruction.height, "Image height")->capture_default_str();
+  c->add_option("--frames", reconstruction.frames, "Timed 720p frames")->capture_default_str();
+  c->add_option("--warmup", reconstruction.warmup, "Untimed 720p frames first")->capture_default_str();
+  c->add_option("--backend", reconstruction.backend, "auto, cpu or cuda")->capture_default_str();
+  c->add_option("--images", reconstruction.images, "Write the images to this folder");
+  c->add_option("--out", reconstruction.out, "Append the Markdown table to this file");
+  c->callback([&] { cinevol::bench::RunReconstructionBench(reconstruction); });
+
   // The speed/accuracy study: --dataset NAME=SCENE[,VOLUME] (repeatable).
   cinevol::bench::StudyOptions study;
   study.command_line = command_line;

@@ -1,6 +1,7 @@
 // `cinevol-bench render`: milliseconds per frame and paths per second of the
 // path tracer on a scene, with empty-space skipping and specialisation each
-// switched on and off in the same run, each in a FramePipeline of its own.
+// switched on and off in the same run, each in a FramePipeline of its own;
+// trilinear unless a row says tricubic.
 // Prints a Markdown table (and appends it to --out) for docs/performance.md.
 #include <algorithm>
 #include <chrono>
@@ -18,6 +19,7 @@ struct Config {
   int brick_size;  // 0: one global majorant
   bool specialised;
   bool volume_texture = true;
+  Reconstruction reconstruction = Reconstruction::kTrilinear;
 };
 
 struct Result {
@@ -34,7 +36,9 @@ Result Measure(const RenderBenchOptions& o, const Config& c, const std::shared_p
   pipeline.SetRenderFeatures(c.specialised ? kAutoFeatures : kAllFeatures);
   FrameSettings settings;
   settings.denoiser.method = DenoiseMethod::kNone;  // the renderer's time is what is measured
-  pipeline.Update(setup, settings);
+  RenderSetup with = setup;
+  with.reconstruction = c.reconstruction;
+  pipeline.Update(with, settings);
   std::vector<double> ms;
   for (int f = 0; f < o.warmup + o.frames; ++f) {
     const double t = pipeline.RenderFrame().render_ms;
@@ -70,6 +74,7 @@ int RunRenderBench(const RenderBenchOptions& o) {
   if (ParseBackend(o.backend) != Backend::kCpu) {
     configs.push_back({"voxels read from a buffer, not the texture unit", kDefaultBrickSize, true, false});
   }
+  configs.push_back({"tricubic reconstruction", kDefaultBrickSize, true, true, Reconstruction::kTricubic});
   double base = 0;
   for (const Config& c : configs) {
     const Result r = Measure(o, c, volume, setup);

@@ -134,6 +134,91 @@ TEST(Integrator, ACappedCutShowsTheTissueColour) {
   EXPECT_GT(std::abs(uncapped_mean - capped_mean), 0.05) << "without the cap the rays enter the medium";
 }
 
+// Two balls, A and B, in 2 mm voxels; A lies inside a brick-aligned block
+// labelled 1, two voxels clear of its faces, so hiding label 1 leaves every
+// brick's majorant as it would be without A (issue 22).
+std::shared_ptr<const Volume> TwoBalls(bool with_a) {
+  const int n = 32;
+  std::vector<float> v(std::size_t(n) * n * n, 0.0f);
+  auto ball = [&](Vec3f c, float r) {
+    for (int z = 0; z < n; ++z)
+      for (int y = 0; y < n; ++y)
+        for (int x = 0; x < n; ++x)
+          if (Length(Vec3f{float(x), float(y), float(z)} - c) <= r) v[(std::size_t(z) * n + y) * n + x] = 1000.0f;
+  };
+  if (with_a) ball({11.5f, 15.5f, 15.5f}, 2.5f);
+  ball({25.5f, 15.5f, 15.5f}, 3.0f);
+  VolumeMetadata meta;
+  meta.source = with_a ? "two balls" : "ball B";
+  return std::make_shared<const Volume>(Vec3i{n, n, n}, Vec3f{2, 2, 2}, std::move(v), meta);
+}
+
+std::shared_ptr<const LabelVolume> BallALabelled() {
+  auto labels = std::make_shared<LabelVolume>();
+  labels->dims = {32, 32, 32};
+  labels->labels.assign(32 * 32 * 32, 0);
+  for (int z = 4; z < 28; ++z)
+    for (int y = 4; y < 28; ++y)
+      for (int x = 4; x < 20; ++x) labels->labels[(std::size_t(z) * 32 + y) * 32 + x] = 1;
+  for (std::uint16_t l : labels->labels) ++labels->voxels[l];
+  return labels;
+}
+
+ImageRgbF RenderBalls(const std::shared_ptr<const Volume>& volume, const std::shared_ptr<const LabelVolume>& labels,
+                      const LabelSetup& setup) {
+  CpuRenderer r;
+  r.SetVolume(volume);
+  TransferFunction tf;
+  tf.points = {{400, 0, {0.8f, 0.8f, 0.8f}, {}, 0.5f, {}}, {600, 1, {0.8f, 0.8f, 0.8f}, {}, 0.5f, {}}};
+  tf.density_scale = 5;
+  r.SetTransferFunction(tf);
+  r.SetLights(UniformSky(1.0f));
+  r.SetLabels(labels, setup);
+  r.Render(Request(LookAt({0, -200, 0}, {0, 0, 0}, {0, 0, 1}, 30.0f, 24, 24), 8, 0, 2));
+  return r.Radiance();
+}
+
+TEST(Integrator, ABallHiddenByItsLabelLeavesTheImageWithoutIt) {
+  LabelSetup hide_a;
+  hide_a.styles[1].visible = false;
+  const ImageRgbF hidden = RenderBalls(TwoBalls(true), BallALabelled(), hide_a);
+  const ImageRgbF without = RenderBalls(TwoBalls(false), nullptr, {});
+  const ImageRgbF shown = RenderBalls(TwoBalls(true), BallALabelled(), {});
+  int differ = 0;
+  for (std::size_t i = 0; i < hidden.pixels.size(); ++i) {
+    ASSERT_EQ(hidden.pixels[i], without.pixels[i]) << "pixel " << i;
+    differ += !(shown.pixels[i] == without.pixels[i]);
+  }
+  EXPECT_GT(differ, 10) << "ball A shows while its label is visible";
+}
+
+// A label's colour replaces the diffuse colour of its voxels only, and a
+// label with a transfer function of its own shows through it: here one that
+// sees nothing, so ball A goes as if hidden.
+TEST(Integrator, ALabelsColourAndOwnTransferFunctionApplyToItsVoxelsOnly) {
+  LabelSetup red;
+  red.styles[1].has_color = true;
+  red.styles[1].color = {1, 0, 0};
+  const ImageRgbF coloured = RenderBalls(TwoBalls(true), BallALabelled(), red);
+  const ImageRgbF plain = RenderBalls(TwoBalls(true), BallALabelled(), {});
+  double red_gain = 0, green_gain = 0;
+  for (std::size_t i = 0; i < plain.pixels.size(); ++i) {
+    red_gain += coloured.pixels[i].x - plain.pixels[i].x;
+    green_gain += coloured.pixels[i].y - plain.pixels[i].y;
+  }
+  EXPECT_GT(red_gain, 0.2) << "green " << green_gain;
+  EXPECT_LT(green_gain, -0.6) << "red " << red_gain;
+
+  LabelSetup clear;
+  clear.styles[1].transfer = 0;
+  TransferFunction nothing;
+  nothing.points = {{0, 0, {1, 1, 1}, {}, 0.5f, {}}, {1000, 0, {1, 1, 1}, {}, 0.5f, {}}};
+  clear.transfer_functions.push_back(nothing);
+  const ImageRgbF own = RenderBalls(TwoBalls(true), BallALabelled(), clear);
+  const ImageRgbF without = RenderBalls(TwoBalls(false), nullptr, {});
+  for (std::size_t i = 0; i < own.pixels.size(); ++i) ASSERT_EQ(own.pixels[i], without.pixels[i]) << "pixel " << i;
+}
+
 TEST(Integrator, WhiteFurnaceConservesEnergy) {
   for (float tau : {1e-3f, 0.1f, 1.0f, 10.0f}) {
     CpuRenderer r;

@@ -6,6 +6,7 @@
 
 #include "render/majorant_grid.h"
 #include "render/scene_data.h"
+#include "core/labels.h"
 
 namespace cinevol {
 namespace {
@@ -33,27 +34,96 @@ TransferFunction RandomTransferFunction(std::mt19937& rng) {
   return tf;
 }
 
+// Labels 0..4 in slabs and speckles, each a random style: hidden, scaled,
+// with a transfer function of its own or unlisted.
+std::shared_ptr<const LabelVolume> RandomLabels(std::mt19937& rng, Vec3i dims) {
+  auto labels = std::make_shared<LabelVolume>();
+  labels->dims = dims;
+  labels->labels.resize(std::size_t(dims.x) * dims.y * dims.z);
+  for (std::size_t i = 0; i < labels->labels.size(); ++i) {
+    labels->labels[i] = rng() % 5 == 0 ? std::uint16_t(rng() % 5) : std::uint16_t((i / (dims.x * 3)) % 5);
+    ++labels->voxels[labels->labels[i]];
+  }
+  return labels;
+}
+
+LabelSetup RandomLabelSetup(std::mt19937& rng) {
+  std::uniform_real_distribution<float> u(0.0f, 1.0f);
+  LabelSetup setup;
+  setup.show_unlisted = u(rng) < 0.5f;
+  for (int label = 0; label < 4; ++label) {
+    LabelStyle& style = setup.styles[label];
+    style.visible = u(rng) < 0.8f;
+    style.opacity_scale = u(rng) * 3.0f;
+    if (u(rng) < 0.5f) {
+      style.transfer = int(setup.transfer_functions.size());
+      setup.transfer_functions.push_back(RandomTransferFunction(rng));
+    }
+  }
+  return setup;
+}
+
+// What the integrator takes as extinction at p (render/integrator.h).
+float Extinction(const RenderScene& s, Vec3f p) {
+  const float entry = s.transfer.Entry(s.volume.Sample(p));
+  if (!s.labels.voxels) return s.transfer.SigmaT(entry);
+  const LabelMaterial m = s.labels.At(s.volume, p);
+  return m.opacity_scale * s.transfer.SigmaT(entry, m.table);
+}
+
+// Samples the reconstruction densely (trilinear and tricubic, with and
+// without labels) and checks every value against its brick's majorant.
 TEST(MajorantGrid, NeverBelowTheTrueExtinction) {
   std::mt19937 rng(1);
   for (int trial = 0; trial < 6; ++trial) {
     const Vec3i dims{19 + trial, 23, 17 + 2 * trial};  // bricks straddle the edges
     SceneData data;
     data.SetVolume(std::make_shared<const PreparedVolume>(RandomVolume(rng, dims), kDefaultBrickSize));
-    for (int edit = 0; edit < 4; ++edit) {  // transfer-function edits on the same volume
+    const auto labels = RandomLabels(rng, dims);
+    for (int edit = 0; edit < 8; ++edit) {  // transfer-function, reconstruction and label edits on the same volume
       data.SetTransferFunction(RandomTransferFunction(rng));
+      data.SetReconstruction(edit % 2 ? Reconstruction::kTricubic : Reconstruction::kTrilinear);
+      data.SetLabels(edit % 4 >= 2 ? labels : nullptr, RandomLabelSetup(rng));
       const RenderScene s = data.HostView();
       std::uniform_real_distribution<float> u(0.0f, 1.0f);
       for (int k = 0; k < 20000; ++k) {
         const Vec3f p = s.volume.box_min + (s.volume.box_max - s.volume.box_min) * Vec3f{u(rng), u(rng), u(rng)};
-        const float sigma = s.transfer.SigmaT(s.transfer.Entry(s.volume.Sample(p)));
         Vec3i b;
         for (int a = 0; a < 3; ++a) {
           b[a] = std::min(int((p[a] - s.majorants.box_min[a]) * s.majorants.inv_brick_size[a]), s.majorants.bricks[a] - 1);
         }
-        ASSERT_LE(sigma, s.majorants.At(b)) << "trial " << trial << " edit " << edit;
+        ASSERT_LE(Extinction(s, p), s.majorants.At(b)) << "trial " << trial << " edit " << edit;
       }
     }
   }
+}
+
+// Tricubic values stay within their 4^3 voxels' range, so the bound holds
+// with the wider margin, and a one-voxel margin would not do: a spike next
+// to a brick raises the tricubic value inside it.
+TEST(MajorantGrid, TricubicBricksReachTwoVoxelsBeyond) {
+  std::vector<float> v(16 * 16 * 16, 0.0f);
+  v[(8 * 16 + 8) * 16 + 9] = 1000.0f;  // x = 9: two voxels past brick x 1 (voxels 4..7), in the next brick's first two
+  VolumeMetadata meta;
+  meta.source = "spike";
+  auto volume = std::make_shared<const Volume>(Vec3i{16, 16, 16}, Vec3f{1, 1, 1}, std::move(v), meta);
+  const PreparedVolume prepared(volume, kDefaultBrickSize);
+  auto brick = [](const BrickRanges& r, int x, int y, int z) {
+    return r.max[(std::size_t(z) * r.bricks.y + y) * r.bricks.x + x];
+  };
+  const std::uint16_t zero = prepared.brick_ranges(Reconstruction::kTrilinear).min[0];
+  EXPECT_EQ(brick(prepared.brick_ranges(Reconstruction::kTrilinear), 1, 2, 2), zero);
+  EXPECT_GT(brick(prepared.brick_ranges(Reconstruction::kTricubic), 1, 2, 2), zero);
+  VolumeView view;
+  view.voxels = prepared.voxels();
+  view.dims = {16, 16, 16};
+  view.spacing = {1, 1, 1};
+  view.inv_spacing = {1, 1, 1};
+  view.box_min = {-8, -8, -8};
+  view.box_max = {8, 8, 8};
+  view.tricubic = true;
+  // 7.4 voxels in along x (world -8 + 7.9 mm) lies in brick 1, whose cubic reads reach voxel 9.
+  EXPECT_GT(view.Sample({-8 + 7.9f, -8 + 8.5f, -8 + 8.5f}), float(zero));
 }
 
 TEST(MajorantGrid, EmptyBricksHaveZeroMajorant) {
