@@ -137,6 +137,8 @@ class FramePipeline {
   // target_spp samples behind it.
   bool Converged() const;
   ImageRgbF AccumulatedRadiance() const { return renderer_->AccumulatedMean(); }
+  // The last frame's nearest first real collision per pixel (Renderer::FirstHits).
+  std::vector<Vec4f> FirstHits() const { return renderer_->FirstHits(); }
   // The last frame's denoised linear radiance, before refinement and tone
   // mapping (the benches compare it with references in HDR).
   ImageRgbF DenoisedRadiance() const { return denoiser_->Output(); }

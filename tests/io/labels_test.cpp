@@ -1,0 +1,176 @@
+// Segmentations: label tables, fitting a label volume to its image's grid,
+// and the real 117-label TotalSegmentator CT rendered with labels shown and
+// hidden (issue 22).
+#include <gtest/gtest.h>
+
+#include <fmt/format.h>
+
+#include "core/error.h"
+#include "io/label_volume.h"
+#include "io/presets.h"
+#include "io/scene_builder.h"
+#include "io/scene_file.h"
+#include "pipeline/frame_pipeline.h"
+#include "support/test_paths.h"
+
+namespace cinevol {
+namespace {
+
+using testing::SharedData;
+
+std::string MessageOf(const std::function<void()>& f) {
+  try {
+    f();
+  } catch (const InputError& e) {
+    return e.what();
+  }
+  return "(no error)";
+}
+
+TEST(LabelTable, ReadsValueTabNameLinesAndSkipsComments) {
+  const auto names = ParseLabelTable("# label\\tname\n1\tspleen\r\n\n5\tliver\n65535\tlast one\n", "t.tsv");
+  ASSERT_EQ(names.size(), 3u);
+  EXPECT_EQ(names.at(1), "spleen");
+  EXPECT_EQ(names.at(5), "liver");
+  EXPECT_EQ(names.at(65535), "last one");
+}
+
+TEST(LabelTable, ABadLineGetsAnErrorNamingTheLine) {
+  EXPECT_NE(MessageOf([] { ParseLabelTable("1\tspleen\nliver 5\n", "t.tsv"); }).find("t.tsv line 2: expected 'value<TAB>name'"),
+            std::string::npos);
+  EXPECT_NE(MessageOf([] { ParseLabelTable("1\tspleen\n\n70000\tx\n", "t.tsv"); }).find("line 3"), std::string::npos);
+  EXPECT_NE(MessageOf([] { ParseLabelTable("-1\tx\n", "t.tsv"); }).find("line 1"), std::string::npos);
+  EXPECT_NE(MessageOf([] { ParseLabelTable("4\t\n", "t.tsv"); }).find("line 1: the name"), std::string::npos);
+  EXPECT_NE(MessageOf([] { ParseLabelTable("4\ta\n4\tb\n", "t.tsv"); }).find("line 2: label 4 is named twice"),
+            std::string::npos);
+}
+
+Volume Grid(Vec3i dims, Vec3f spacing, std::array<double, 3> origin, std::vector<float> values) {
+  VolumeMetadata meta;
+  meta.source = "grid";
+  meta.origin_mm = origin;
+  return Volume(dims, spacing, std::move(values), meta);
+}
+
+TEST(LabelVolume, OnTheSameGridIsTakenAsItIs) {
+  const Volume image = Grid({2, 2, 2}, {1, 1, 1}, {10, 20, 30}, std::vector<float>(8, 0.0f));
+  const Volume labels = Grid({2, 2, 2}, {1, 1, 1}, {10, 20, 30}, {0, 1, 2, 3, 4, 5, 6, 7});
+  const LabelVolume fitted = FitLabels(labels, image, "labels.nii");
+  EXPECT_TRUE(fitted.note.empty()) << fitted.note;
+  EXPECT_EQ(fitted.labels, (std::vector<std::uint16_t>{0, 1, 2, 3, 4, 5, 6, 7}));
+  EXPECT_EQ(fitted.voxels.at(7), 1u);
+}
+
+TEST(LabelVolume, OnAnotherGridIsResampledNearestNeighbour) {
+  // The image: 8^3 voxels of 1 mm at the origin. The labels: 4^3 of 2 mm
+  // whose first centre sits half a millimetre on, so image voxel x takes
+  // label voxel x / 2; a label is its label voxel's x index + 1.
+  const Volume image = Grid({8, 8, 8}, {1, 1, 1}, {0, 0, 0}, std::vector<float>(512, 0.0f));
+  std::vector<float> own(64);
+  for (std::size_t i = 0; i < own.size(); ++i) own[i] = float(i % 4 + 1);
+  const LabelVolume fitted = FitLabels(Grid({4, 4, 4}, {2, 2, 2}, {0.5, 0.5, 0.5}, own), image, "labels.nii");
+  EXPECT_NE(fitted.note.find("resampled nearest-neighbour"), std::string::npos) << fitted.note;
+  for (int x = 0; x < 8; ++x) EXPECT_EQ(fitted.labels[x], x / 2 + 1) << "image voxel x " << x;
+  // Shifted half its size away, half the image lies outside: label 0 there, and said so.
+  const LabelVolume half = FitLabels(Grid({4, 4, 4}, {2, 2, 2}, {4.5, 0.5, 0.5}, own), image, "labels.nii");
+  EXPECT_EQ(half.labels[0], 0);
+  EXPECT_EQ(half.labels[7], 2);
+  EXPECT_NE(half.note.find("voxels outside it are label 0"), std::string::npos) << half.note;
+}
+
+TEST(LabelVolume, ThatMissesTheImageOrHoldsNonIntegersIsRefused) {
+  const Volume image = Grid({4, 4, 4}, {1, 1, 1}, {0, 0, 0}, std::vector<float>(64, 0.0f));
+  EXPECT_NE(MessageOf([&] { FitLabels(Grid({4, 4, 4}, {1, 1, 1}, {500, 0, 0}, std::vector<float>(64, 1.0f)), image, "seg.nii"); })
+                .find("seg.nii: its grid (4x4x4 voxels of 1x1x1 mm at (500, 0, 0)) does not overlap the image's"),
+            std::string::npos);
+  std::vector<float> half(64, 1.0f);
+  half[9] = 2.5f;
+  EXPECT_NE(MessageOf([&] { FitLabels(Grid({4, 4, 4}, {1, 1, 1}, {0, 0, 0}, half), image, "seg.nii"); })
+                .find("seg.nii: voxel 9 holds 2.5"),
+            std::string::npos);
+}
+
+// The real TotalSegmentator segmentation on its CT, through the renderer.
+class TotalSegmentator : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    CINEVOL_REQUIRE_SHARED_DATA();
+    const auto folder = SharedData() / "ct-body-totalsegmentator";
+    image_ = std::make_shared<const Volume>(LoadVolumeFile(folder / "example_ct_sm.nii.gz"));
+    auto labels = LoadLabelVolume(folder / "example_seg.nii.gz", *image_);
+    labels.names = LoadLabelTable(folder / "labels-total.tsv", "labels-total.tsv");
+    labels_ = std::make_shared<const LabelVolume>(std::move(labels));
+  }
+
+  // The labels of the voxels where camera rays first met tissue, at 96x96.
+  std::map<int, int> FirstHitLabels(const v1::Labels& styles) const {
+    v1::Scene scene = MakePresetScene("ct-soft-tissue", *image_);
+    scene.mutable_render()->set_width(96);
+    scene.mutable_render()->set_height(96);
+    scene.mutable_render()->set_spp(2);
+    *scene.mutable_labels() = styles;
+    ApplyDefaults(scene);
+    FramePipeline pipeline(Backend::kCpu, image_, {}, labels_);
+    FrameSettings settings;
+    settings.denoiser.method = DenoiseMethod::kNone;
+    pipeline.Update(scene, settings);
+    pipeline.RenderFrame();
+    const Vec3f extent = image_->extent_mm(), spacing = image_->spacing_mm();
+    std::map<int, int> hits;
+    for (const Vec4f& h : pipeline.FirstHits()) {
+      if (h.w == 0) continue;
+      Vec3i v;
+      for (int a = 0; a < 3; ++a) {
+        const float q = (Xyz(h)[a] + 0.5f * extent[a]) / spacing[a] - 0.5f;
+        v[a] = std::clamp(int(std::floor(q + 0.5f)), 0, image_->dims()[a] - 1);
+      }
+      ++hits[labels_->labels[(std::size_t(v.z) * image_->dims().y + v.y) * image_->dims().x + v.x]];
+    }
+    return hits;
+  }
+
+  std::shared_ptr<const Volume> image_;
+  std::shared_ptr<const LabelVolume> labels_;
+};
+
+TEST_F(TotalSegmentator, ItsTableNamesItsLabels) {
+  EXPECT_EQ(labels_->names.size(), 117u);
+  EXPECT_EQ(labels_->names.at(5), "liver");
+  EXPECT_TRUE(labels_->note.empty()) << "example_seg shares example_ct_sm's grid: " << labels_->note;
+  EXPECT_GT(labels_->voxels.at(5), 1000u) << "liver voxels";
+}
+
+TEST_F(TotalSegmentator, TheLiverAloneVisibleShowsOnlyLiver) {
+  v1::Labels liver_alone;
+  liver_alone.set_show_unlisted(false);
+  liver_alone.add_styles()->set_value(5);
+  const std::map<int, int> hits = FirstHitLabels(liver_alone);
+  std::string seen;
+  for (const auto& [label, count] : hits) seen += fmt::format(" {}:{}", label, count);
+  ASSERT_EQ(hits.size(), 1u) << "labels hit (label:pixels):" << seen;
+  EXPECT_EQ(hits.begin()->first, 5);
+  EXPECT_GT(hits.begin()->second, 200) << "pixels showing the liver";
+}
+
+TEST_F(TotalSegmentator, TheRibsHiddenShowNoRib) {
+  v1::Labels no_ribs;
+  int ribs_present = 0;
+  for (const auto& [value, name] : labels_->names) {
+    if (name.rfind("rib_", 0) != 0) continue;
+    v1::LabelStyle* style = no_ribs.add_styles();
+    style->set_value(value);
+    style->set_visible(false);
+    ribs_present += labels_->voxels.count(value);
+  }
+  ASSERT_GT(ribs_present, 0) << "the segmentation holds ribs";
+  const std::map<int, int> all = FirstHitLabels({}), hidden = FirstHitLabels(no_ribs);
+  int rib_hits_before = 0;
+  for (const v1::LabelStyle& style : no_ribs.styles()) {
+    EXPECT_EQ(hidden.count(int(style.value())), 0u) << "rib label " << style.value() << " still shows";
+    rib_hits_before += all.count(int(style.value())) ? all.at(int(style.value())) : 0;
+  }
+  EXPECT_GT(rib_hits_before, 0) << "ribs show while visible";
+}
+
+}  // namespace
+}  // namespace cinevol
