@@ -267,14 +267,43 @@ v1::VolumeInfo Client::LoadVolume(const std::string& path, const std::string& se
 }
 
 v1::VolumeInfo Client::UploadVolume(const std::filesystem::path& file, std::size_t chunk_bytes) {
+  return Upload(file, {}, chunk_bytes);
+}
+
+v1::VolumeInfo Client::LoadLabels(const std::string& volume_id, const std::string& path,
+                                  const std::string& table_path) {
+  v1::LoadLabelsRequest request;
+  request.set_volume_id(volume_id);
+  request.set_path(path);
+  request.set_table_path(table_path);
+  v1::VolumeInfo info;
+  Check(volumes_->LoadLabels(CallContext().get(), request, &info));
+  return info;
+}
+
+v1::VolumeInfo Client::UploadLabels(const std::string& volume_id, const std::filesystem::path& file,
+                                    const std::filesystem::path& table) {
+  v1::UploadVolumeChunk::Header header;
+  header.set_labels_for(volume_id);
+  if (!table.empty()) {
+    std::ifstream in(table, std::ios::binary);
+    if (!in) throw std::runtime_error(fmt::format("{}: cannot open", table.string()));
+    header.set_label_table(std::string(std::istreambuf_iterator<char>(in), {}));
+  }
+  return Upload(file, header, 1 << 20);
+}
+
+v1::VolumeInfo Client::Upload(const std::filesystem::path& file, v1::UploadVolumeChunk::Header fields,
+                              std::size_t chunk_bytes) {
   std::ifstream in(file, std::ios::binary);
   if (!in) throw std::runtime_error(fmt::format("{}: cannot open", file.string()));
   v1::VolumeInfo info;
   auto context = CallContext();
   auto writer = volumes_->UploadVolume(context.get(), &info);
   v1::UploadVolumeChunk header;
-  header.mutable_header()->set_file_name(file.filename().string());
-  header.mutable_header()->set_size_bytes(std::filesystem::file_size(file));
+  fields.set_file_name(file.filename().string());
+  fields.set_size_bytes(std::filesystem::file_size(file));
+  *header.mutable_header() = std::move(fields);
   bool open = writer->Write(header);
   std::string buffer(chunk_bytes, '\0');
   while (open && in) {

@@ -146,6 +146,11 @@ class Client {
   std::vector<v1::VolumeInfo> ListVolumes();
   v1::VolumeInfo LoadVolume(const std::string& path, const std::string& series_uid = {});
   v1::VolumeInfo UploadVolume(const std::filesystem::path& file, std::size_t chunk_bytes = 1 << 20);
+  // A segmentation for a loaded volume: a label volume on the server (under
+  // its data roots) or a local file, each with an optional label table.
+  v1::VolumeInfo LoadLabels(const std::string& volume_id, const std::string& path, const std::string& table_path = {});
+  v1::VolumeInfo UploadLabels(const std::string& volume_id, const std::filesystem::path& file,
+                              const std::filesystem::path& table = {});
   v1::VolumeInfo DescribeVolume(const std::string& volume_id);
   void UnloadVolume(const std::string& volume_id);
 
@@ -162,6 +167,9 @@ class Client {
 
   ClientOptions options_;
   std::shared_ptr<grpc::Channel> channel_;
+  // Streams `file` after a header of `fields` (its name and size set here).
+  v1::VolumeInfo Upload(const std::filesystem::path& file, v1::UploadVolumeChunk::Header fields, std::size_t chunk_bytes);
+
   std::unique_ptr<v1::VolumeService::Stub> volumes_;
   std::unique_ptr<v1::SessionService::Stub> sessions_;
   std::unique_ptr<v1::ServerService::Stub> server_;

@@ -6,7 +6,10 @@
 #include <fmt/format.h>
 
 #include "commands.h"
+#include "core/error.h"
+#include "io/label_volume.h"
 #include "io/presets.h"
+#include "text_output.h"
 #include "io/volume_kind.h"
 #include "io/volume_loader.h"
 
@@ -27,7 +30,13 @@ std::string OrientationCode(const VolumeMetadata& meta) {
   return code;
 }
 
-void PrintInfo(const std::string& spec) {
+struct InfoOptions {
+  std::string path;
+  std::string labels, label_table;  // a segmentation of it, and the table naming its labels
+};
+
+void PrintInfo(const InfoOptions& o) {
+  const std::string& spec = o.path;
   const v1::VolumeSource source = ParseVolumeSpec(spec);
   if (source.has_dicom_folder()) {
     const auto series = ListDicomSeries(source.dicom_folder());
@@ -59,16 +68,26 @@ void PrintInfo(const std::string& spec) {
     fmt::print("sanitised:    {} NaN/Inf voxels replaced by the finite range's ends\n",
                m.non_finite_replaced);
   }
+  if (!o.labels.empty()) {
+    v1::VolumeSource segmentation;
+    segmentation.set_labels(o.labels);
+    segmentation.set_label_table(o.label_table);
+    PrintLabels(ToLabelSet(*LoadSceneLabels(segmentation, v)));
+  } else if (!o.label_table.empty()) {
+    throw InputError("--label-table: names the labels of --labels; give that too");
+  }
 }
 
 }  // namespace
 
 void AddInfoCommand(CLI::App& app) {
   auto* cmd = app.add_subcommand("info", "Print what a volume file, DICOM folder or phantom holds");
-  auto path = std::make_shared<std::string>();
-  cmd->add_option("path", *path, "Volume file, DICOM folder, or phantom:head|cube|sphere[?size=N&...]")
+  auto o = std::make_shared<InfoOptions>();
+  cmd->add_option("path", o->path, "Volume file, DICOM folder, or phantom:head|cube|sphere[?size=N&...]")
       ->required();
-  cmd->callback([path] { PrintInfo(*path); });
+  cmd->add_option("--labels", o->labels, "A segmentation of it (label volume, NIfTI or NRRD): print its labels");
+  cmd->add_option("--label-table", o->label_table, "The table naming the labels (`value<TAB>name` lines)");
+  cmd->callback([o] { PrintInfo(*o); });
 }
 
 }  // namespace cinevol::cli

@@ -8,6 +8,7 @@
 #include "core/error.h"
 #include "core/tone_map.h"
 #include "encode/image_codecs.h"
+#include "io/label_volume.h"
 #include "io/volume_loader.h"
 #include "pipeline/frame_pipeline.h"
 
@@ -44,7 +45,12 @@ OfflineRenderResult RenderToFile(const v1::Scene& scene, const std::filesystem::
                                  Backend backend, const std::filesystem::path& out) {
   OfflineRenderResult result;
   const auto load_start = std::chrono::steady_clock::now();
-  FramePipeline pipeline(backend, std::make_shared<const Volume>(LoadVolume(scene.volume(), base_dir)));
+  const auto volume = std::make_shared<const Volume>(LoadVolume(scene.volume(), base_dir));
+  const auto labels = LoadSceneLabels(scene.volume(), *volume, base_dir);
+  if (scene.has_labels() && !labels) {
+    throw InputError("labels: the scene styles labels but volume.labels names no segmentation");
+  }
+  FramePipeline pipeline(backend, volume, {}, labels);
   FrameSettings settings;
   settings.denoiser.method = DenoiseMethod::kNone;
   settings.target_spp = total_spp;

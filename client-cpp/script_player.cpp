@@ -66,9 +66,13 @@ v1::VolumeInfo ResolveVolume(Client& client, const std::string& id) {
 }
 
 v1::VolumeInfo ResolveVolume(Client& client, const ScriptSession& session) {
-  if (!session.upload.empty()) return client.UploadVolume(session.upload);
-  if (!session.load.empty()) return client.LoadVolume(session.load);
-  return ResolveVolume(client, session.volume);
+  const v1::VolumeInfo volume = !session.upload.empty() ? client.UploadVolume(session.upload)
+                                : !session.load.empty() ? client.LoadVolume(session.load)
+                                                        : ResolveVolume(client, session.volume);
+  const ScriptLabels& labels = session.labels;
+  if (labels.empty()) return volume;
+  return labels.upload.empty() ? client.LoadLabels(volume.id(), labels.load, labels.server_table)
+                               : client.UploadLabels(volume.id(), labels.upload, labels.local_table);
 }
 
 double Percentile(std::vector<double> v, double p) {

@@ -80,6 +80,34 @@ std::filesystem::path UploadPath(const std::string& file, const std::string& fie
   return path;
 }
 
+ScriptLabels ParseLabels(const Value& value, const std::string& where, const std::filesystem::path& base_dir) {
+  if (!value.has_struct_value()) throw InputError(where + ": must be an object");
+  ScriptLabels labels;
+  std::string table;
+  for (const auto& [key, v] : value.struct_value().fields()) {
+    const std::string field = where + "." + key;
+    if (v.kind_case() != Value::kStringValue) throw InputError(field + ": must be a string");
+    if (key == "load") {
+      labels.load = v.string_value();
+    } else if (key == "upload") {
+      labels.upload = UploadPath(v.string_value(), field, base_dir);
+    } else if (key == "table") {
+      table = v.string_value();
+    } else {
+      throw InputError(fmt::format("{}: unknown field (load, upload, table)", field));
+    }
+  }
+  if (labels.load.empty() == labels.upload.empty()) throw InputError(where + ": give one of load and upload");
+  if (!table.empty()) {
+    if (labels.upload.empty()) {
+      labels.server_table = table;
+    } else {
+      labels.local_table = UploadPath(table, where + ".table", base_dir);
+    }
+  }
+  return labels;
+}
+
 ScriptSession ParseSession(const Value& value, const std::string& where, const std::filesystem::path& base_dir) {
   if (!value.has_struct_value()) throw InputError(where + ": must be an object");
   ScriptSession s;
@@ -110,9 +138,11 @@ ScriptSession ParseSession(const Value& value, const std::string& where, const s
       ParseInto(ToJson(v), s.viewport, field);
     } else if (key == "stream") {
       ParseInto(ToJson(v), s.stream, field);
+    } else if (key == "labels") {
+      s.labels = ParseLabels(v, field, base_dir);
     } else {
       throw InputError(
-          fmt::format("{}: unknown field (volume, load, upload, preset, scene, viewport, stream)", field));
+          fmt::format("{}: unknown field (volume, load, upload, preset, scene, viewport, stream, labels)", field));
     }
   }
   if (volumes_named > 1) throw InputError(where + ": name the volume once: volume, load or upload");

@@ -4,6 +4,7 @@
 //
 //   {"session": {"volume": "phantom:head", "preset": "ct-bone", "viewport": {"width": 640, "height": 360}}}
 //   {"session": {"load": "ct/head.nii.gz"}}         (or "upload": "local/file.nrrd", relative to the script)
+//   {"session": {"load": "ct/body.nii.gz", "labels": {"load": "ct/seg.nii.gz", "table": "ct/labels.tsv"}}}
 //   {"at": 0.0, "orbit": {"degrees": 90, "seconds": 3}}
 //   {"at": 3.5, "transferFunction": {"preset": "ct-soft-tissue"}}
 //   {"at": 4.0, "render": {"spp": 4}}
@@ -22,6 +23,17 @@
 
 namespace cinevol::cli {
 
+// "labels" on the session line: a segmentation of the session's volume,
+// loaded before the session starts. On the server (under its data roots):
+//   {"load": "ct/seg.nii.gz", "table": "ct/labels.tsv"}
+// or local files, relative to the script:
+//   {"upload": "seg.nii.gz", "table": "labels.tsv"}
+struct ScriptLabels {
+  std::string load, server_table;               // on the server
+  std::filesystem::path upload, local_table;    // local files
+  bool empty() const { return load.empty() && upload.empty(); }
+};
+
 // What the "session" line says; unset parts take the defaults noted. At most
 // one of volume, load and upload is set.
 struct ScriptSession {
@@ -32,6 +44,7 @@ struct ScriptSession {
   std::optional<v1::Scene> scene;      // "scene": a scene file, relative to the script
   v1::Viewport viewport;               // default 640x360
   v1::StreamSettings stream;
+  ScriptLabels labels;
 };
 
 // A camera orbit: `degrees` about the volume's vertical axis over `seconds`,

@@ -107,6 +107,7 @@ void PrintVolume(const v1::VolumeInfo& v) {
   fmt::print("value range:     {}\n", ValueRange(v));
   fmt::print("memory:          {}\n", Bytes(v.memory_bytes()));
   fmt::print("sessions:        {}\n", v.sessions());
+  if (v.has_labels()) PrintLabels(v.labels());
   const v1::ValueHistogram& h = v.histogram();
   if (h.counts_size() == 0) {
     fmt::print("histogram:       -\n");
@@ -119,6 +120,16 @@ void PrintVolume(const v1::VolumeInfo& v) {
   fmt::print("                 |{}|\n", line);
   fmt::print("                 {}{:>{}}\n", low, fmt::format("{:g}", h.max_value()),
              std::max<int>(1, columns + 2 - int(low.size())));
+}
+
+void PrintLabels(const v1::LabelSet& labels) {
+  fmt::print("labels:          {} values from {}\n", labels.names_size(), labels.source());
+  if (!labels.note().empty()) fmt::print("                 {}\n", labels.note());
+  std::vector<TextRow> rows{{"  VALUE", "NAME", "VOXELS"}};
+  for (const v1::LabelName& n : labels.names()) {
+    rows.push_back({"  " + std::to_string(n.value()), OrDash(n.name()), std::to_string(n.voxels())});
+  }
+  PrintTable(rows);
 }
 
 }  // namespace cinevol::cli

@@ -42,4 +42,8 @@ void PrintVolumeTable(const std::vector<v1::VolumeInfo>& volumes);
 // Every field of `volume`, one per line, the histogram drawn.
 void PrintVolume(const v1::VolumeInfo& volume);
 
+// A segmentation: where it came from, how it was fitted, and each label's
+// value, name and voxels.
+void PrintLabels(const v1::LabelSet& labels);
+
 }  // namespace cinevol::cli

@@ -17,6 +17,8 @@ struct VolumesOptions {
   bool json = false;
   std::string argument;  // the path, file or id the subcommand acts on
   std::string series;    // load: a DICOM folder's series
+  std::string volume_id, table;  // labels: the volume they segment, and their label table
+  bool upload = false;           // labels: the path is a local file to send
 };
 
 // A volume the server answered with: all its fields, or its JSON.
@@ -42,6 +44,17 @@ void Upload(const VolumesOptions& o) {
   Show(Connect(o.connection).UploadVolume(o.argument), o.json);
 }
 
+void Labels(const VolumesOptions& o) {
+  Client client = Connect(o.connection);
+  if (!o.upload) return Show(client.LoadLabels(o.volume_id, o.argument, o.table), o.json);
+  for (const std::string& file : {o.argument, o.table}) {
+    if (!file.empty() && !std::filesystem::is_regular_file(file)) {
+      throw InputError(fmt::format("{}: not a file that can be read", file));
+    }
+  }
+  Show(client.UploadLabels(o.volume_id, o.argument, o.table), o.json);
+}
+
 void Describe(const VolumesOptions& o) { Show(Connect(o.connection).DescribeVolume(o.argument), o.json); }
 
 void Unload(const VolumesOptions& o) {
@@ -65,7 +78,7 @@ CLI::App* AddVolumesSubcommand(CLI::App* volumes, const std::string& name, const
 }  // namespace
 
 void AddVolumesCommand(CLI::App& app) {
-  auto* volumes = app.add_subcommand("volumes", "List, load, upload, describe or unload a server's volumes");
+  auto* volumes = app.add_subcommand("volumes", "List, load, upload, describe or unload a server's volumes, or load their segmentations");
   volumes->require_subcommand(1);
   std::shared_ptr<VolumesOptions> o;
   AddVolumesSubcommand(volumes, "list", "The volumes the server holds", List, o);
@@ -79,6 +92,14 @@ void AddVolumesCommand(CLI::App& app) {
   auto* upload = AddVolumesSubcommand(
       volumes, "upload", "Send a local volume file (.nii, .nii.gz, .nrrd, .mha, .vtk) to the server", Upload, o);
   upload->add_option("file", o->argument, "Local volume file; its voxels must be in the same file")->required();
+
+  auto* labels = AddVolumesSubcommand(
+      volumes, "labels", "Load a segmentation (a label volume, NIfTI or NRRD) for a volume the server holds", Labels, o);
+  labels->add_option("id", o->volume_id, "Volume id the labels segment")->required();
+  labels->add_option("path", o->argument, "Label volume: a path on the server, or a local file with --upload")
+      ->required();
+  labels->add_option("--table", o->table, "Label table (`value<TAB>name` lines), on the server or local with --upload");
+  labels->add_flag("--upload", o->upload, "Send local files instead of naming files on the server");
 
   auto* describe =
       AddVolumesSubcommand(volumes, "describe", "Every field of one volume, its histogram drawn", Describe, o);

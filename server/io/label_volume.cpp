@@ -182,4 +182,27 @@ LabelVolume LoadLabelVolume(const std::filesystem::path& path, const Volume& ima
   return FitLabels(LoadVolumeFile(path, policy), image, shown);
 }
 
+v1::LabelSet ToLabelSet(const LabelVolume& labels) {
+  v1::LabelSet set;
+  set.set_source(labels.source);
+  set.set_note(labels.note);
+  std::map<int, v1::LabelName> names;
+  for (const auto& [value, voxels] : labels.voxels) names[value].set_voxels(voxels);
+  for (const auto& [value, name] : labels.names) names[value].set_name(name);
+  for (auto& [value, n] : names) {
+    n.set_value(std::uint32_t(value));
+    *set.add_names() = std::move(n);
+  }
+  return set;
+}
+
+std::shared_ptr<const LabelVolume> LoadSceneLabels(const v1::VolumeSource& source, const Volume& image,
+                                                   const std::filesystem::path& base_dir) {
+  if (source.labels().empty()) return nullptr;
+  auto resolve = [&](const std::string& p) { return std::filesystem::path(p).is_relative() ? base_dir / p : std::filesystem::path(p); };
+  LabelVolume labels = LoadLabelVolume(resolve(source.labels()), image);
+  if (!source.label_table().empty()) labels.names = LoadLabelTable(resolve(source.label_table()), source.label_table());
+  return std::make_shared<const LabelVolume>(std::move(labels));
+}
+
 }  // namespace cinevol

@@ -8,6 +8,7 @@
 #include <string>
 #include <string_view>
 
+#include "cinevol/v1/service.pb.h"
 #include "core/labels.h"
 #include "core/volume.h"
 #include "io/volume_loader.h"
@@ -34,5 +35,14 @@ LabelVolume FitLabels(const Volume& labels, const Volume& image, const std::stri
 
 // LoadVolumeFile under `policy`, then FitLabels.
 LabelVolume LoadLabelVolume(const std::filesystem::path& path, const Volume& image, const LoadPolicy& policy = {});
+
+// What the API and `cinevol info` say of a segmentation: every label present
+// and every label the table names.
+v1::LabelSet ToLabelSet(const LabelVolume& labels);
+
+// The scene's segmentation (VolumeSource.labels and label_table, relative
+// paths against `base_dir`) fitted to `image`; null when it names none.
+std::shared_ptr<const LabelVolume> LoadSceneLabels(const v1::VolumeSource& source, const Volume& image,
+                                                   const std::filesystem::path& base_dir = {});
 
 }  // namespace cinevol

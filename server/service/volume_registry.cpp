@@ -319,18 +319,7 @@ v1::VolumeInfo VolumeRegistry::InfoLocked(const std::string& id, const Entry& e)
   info.mutable_direction()->Add(v.metadata().direction.begin(), v.metadata().direction.end());
   const auto& origin = v.metadata().origin_mm;
   *info.mutable_origin_mm() = ToProto(Vec3f{float(origin[0]), float(origin[1]), float(origin[2])});
-  if (e.labels) {
-    v1::LabelSet* set = info.mutable_labels();
-    set->set_source(e.labels->source);
-    set->set_note(e.labels->note);
-    std::map<int, v1::LabelName> names;
-    for (const auto& [value, voxels] : e.labels->voxels) names[value].set_voxels(voxels);
-    for (const auto& [value, name] : e.labels->names) names[value].set_name(name);
-    for (auto& [value, n] : names) {
-      n.set_value(std::uint32_t(value));
-      *set->add_names() = std::move(n);
-    }
-  }
+  if (e.labels) *info.mutable_labels() = ToLabelSet(*e.labels);
   for (const VolumeCopyStatus& c : VolumeCache::Get().Copies()) {
     if (c.volume != e.volume.get()) continue;
     v1::VolumeCopy* copy = info.add_copies();
