@@ -18,6 +18,7 @@ namespace cinevol::bench {
 struct SceneOptions {
   std::string scene;
   std::string volume;  // overrides the scene's volume (e.g. data copied to a GPU machine)
+  std::string labels;  // overrides the scene's volume.labels
   std::string backend = "auto";
   std::string out;     // Markdown table appended here
   std::string command_line;
@@ -29,6 +30,7 @@ void AddSceneOptions(CLI::App* command, SceneOptions& options);
 struct LoadedScene {
   v1::Scene scene;
   std::shared_ptr<const Volume> volume;
+  std::shared_ptr<const LabelVolume> labels;  // the scene's segmentation, where it names one
   RenderSetup setup;
 };
 

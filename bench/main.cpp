@@ -8,6 +8,7 @@
 #include "tradeoff_study.h"
 #include "core/error.h"
 #include "core/parallel_for.h"
+#include "io/label_volume.h"
 #include "io/scene_file.h"
 #include "io/volume_loader.h"
 #include "render/renderer.h"
@@ -17,6 +18,7 @@ namespace cinevol::bench {
 void AddSceneOptions(CLI::App* c, SceneOptions& o) {
   c->add_option("--scene", o.scene, "Scene file")->required();
   c->add_option("--volume", o.volume, "Volume file, folder or phantom: overrides the scene's");
+  c->add_option("--labels", o.labels, "Label volume: overrides the scene's volume.labels");
   c->add_option("--backend", o.backend, "auto, cpu or cuda");
   c->add_option("--width", o.width, "Frame width (default: the scene's)");
   c->add_option("--height", o.height, "Frame height (default: the scene's)");
@@ -29,7 +31,9 @@ LoadedScene LoadScene(const SceneOptions& o) {
   if (!o.volume.empty()) *s.scene.mutable_volume() = ParseVolumeSpec(o.volume);
   if (o.width > 0) s.scene.mutable_render()->set_width(o.width);
   if (o.height > 0) s.scene.mutable_render()->set_height(o.height);
+  if (!o.labels.empty()) s.scene.mutable_volume()->set_labels(o.labels);
   s.volume = std::make_shared<const Volume>(LoadVolume(s.scene.volume()));
+  s.labels = LoadSceneLabels(s.scene.volume(), *s.volume);
   s.setup = ResolveScene(s.scene, *s.volume);
   return s;
 }

@@ -27,12 +27,12 @@ struct Result {
   unsigned features;
 };
 
-Result Measure(const RenderBenchOptions& o, const Config& c, const std::shared_ptr<const Volume>& volume,
-               const RenderSetup& setup) {
+Result Measure(const RenderBenchOptions& o, const Config& c, const LoadedScene& loaded) {
+  const RenderSetup& setup = loaded.setup;
   RendererOptions options;
   options.brick_size = c.brick_size;
   options.volume_texture = c.volume_texture;
-  FramePipeline pipeline(ParseBackend(o.backend), volume, options);
+  FramePipeline pipeline(ParseBackend(o.backend), loaded.volume, options, loaded.labels);
   pipeline.SetRenderFeatures(c.specialised ? kAutoFeatures : kAllFeatures);
   FrameSettings settings;
   settings.denoiser.method = DenoiseMethod::kNone;  // the renderer's time is what is measured
@@ -66,6 +66,10 @@ int RunRenderBench(const RenderBenchOptions& o) {
       o.scene, device, o.command_line, volume->metadata().source, volume->dims().x, volume->dims().y,
       volume->dims().z, setup.camera.width, setup.camera.height, setup.spp, setup.max_bounces,
       setup.lights.lights.size(), o.frames, o.warmup);
+  if (loaded.labels) {
+    table.insert(table.find("| configuration"), fmt::format("segmentation {} with {} label styles\n\n", loaded.labels->source,
+                                                           loaded.setup.labels.styles.size()));
+  }
   std::vector<Config> configs = {{"default: 4^3 bricks, specialised", kDefaultBrickSize, true},
                                  {"no empty-space skipping (global majorant)", 0, true},
                                  {"no specialisation (all features)", kDefaultBrickSize, false},
@@ -77,7 +81,7 @@ int RunRenderBench(const RenderBenchOptions& o) {
   configs.push_back({"tricubic reconstruction", kDefaultBrickSize, true, true, Reconstruction::kTricubic});
   double base = 0;
   for (const Config& c : configs) {
-    const Result r = Measure(o, c, volume, setup);
+    const Result r = Measure(o, c, loaded);
     if (base == 0) base = r.median_ms;
     table += fmt::format("| {} | {:#04x} | {:.3f} ({:.2f}x) | {:.3f}..{:.3f} | {:.1f} |\n", c.name, r.features,
                          r.median_ms, r.median_ms / base, r.p10_ms, r.p90_ms, r.paths_per_second / 1e6);

@@ -1,5 +1,6 @@
-// `cinevol render --scene S --out F [--spp N] [--backend cpu|cuda]`: an
-// offline render of a scene file, no server involved.
+// `cinevol render --scene S --out F [--spp N] [--backend cpu|cuda]
+// [--reconstruction trilinear|tricubic]`: an offline render of a scene file,
+// no server involved.
 #include <fmt/format.h>
 
 #include "commands.h"
@@ -11,11 +12,15 @@ namespace {
 
 struct RenderOptions {
   std::string scene, out, backend = "auto";
+  std::string reconstruction;  // overrides the scene's
   int spp = 0;
 };
 
 void Run(const RenderOptions& o) {
-  const v1::Scene scene = LoadSceneFile(o.scene);
+  v1::Scene scene = LoadSceneFile(o.scene);
+  if (!o.reconstruction.empty()) {
+    scene.mutable_render()->set_reconstruction(o.reconstruction == "tricubic" ? v1::TRICUBIC : v1::TRILINEAR);
+  }
   const int spp = o.spp > 0 ? o.spp : static_cast<int>(scene.render().spp());
   const auto r = RenderToFile(scene, {}, spp, ParseBackend(o.backend), o.out);
   fmt::print("wrote {}: {}x{}, {} spp in {} frames on {}, {:.2f} s ({:.2f} Mpaths/s; loading {:.2f} s)\n", o.out,
@@ -32,6 +37,8 @@ void AddRenderCommand(CLI::App& app) {
   cmd->add_option("--out", o->out, "Output image: .exr/.pfm linear HDR, .png/.jpg tone-mapped")->required();
   cmd->add_option("--spp", o->spp, "Total samples per pixel (default: the scene's spp)")->check(CLI::Range(1, 1 << 20));
   cmd->add_option("--backend", o->backend, "auto, cpu or cuda")->check(CLI::IsMember({"auto", "cpu", "cuda"}));
+  cmd->add_option("--reconstruction", o->reconstruction, "trilinear or tricubic (default: the scene's)")
+      ->check(CLI::IsMember({"trilinear", "tricubic"}));
   cmd->callback([o] { Run(*o); });
 }
 

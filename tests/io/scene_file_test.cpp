@@ -163,7 +163,28 @@ INSTANTIATE_TEST_SUITE_P(
         Rule{"TinyPlaneNormal", [](v1::Scene& s) { s.mutable_clipping()->add_planes()->mutable_normal()->set_y(1e-30f); }, "clipping.planes[0].normal"},
         Rule{"SevenPlanes", [](v1::Scene& s) {
                for (int i = 0; i < 7; ++i) s.mutable_clipping()->add_planes()->mutable_normal()->set_z(1);
-             }, "clipping.planes"}),
+             }, "clipping.planes"},
+        Rule{"UnknownReconstruction", [](v1::Scene& s) { s.mutable_render()->set_reconstruction(v1::Reconstruction(9)); }, "render.reconstruction"},
+        Rule{"LabelOutOfRange", [](v1::Scene& s) { s.mutable_labels()->add_styles()->set_value(70000); }, "labels.styles[0].value"},
+        Rule{"LabelStyledTwice", [](v1::Scene& s) {
+               s.mutable_labels()->add_styles()->set_value(5);
+               s.mutable_labels()->add_styles()->set_value(5);
+             }, "labels.styles[1].value"},
+        Rule{"LabelOpacityScaleNegative", [](v1::Scene& s) { s.mutable_labels()->add_styles()->set_opacity_scale(-1); }, "labels.styles[0].opacityScale"},
+        Rule{"LabelColourOver1", [](v1::Scene& s) { s.mutable_labels()->add_styles()->mutable_color()->set_g(2); }, "labels.styles[0].color"},
+        Rule{"LabelTransferFunctionUnsorted", [](v1::Scene& s) {
+               auto* tf = s.mutable_labels()->add_styles()->mutable_transfer_function();
+               tf->add_points()->set_value(10);
+               tf->add_points()->set_value(5);
+             }, "labels.styles[0].transferFunction.points[1].value"},
+        Rule{"NineLabelTransferFunctions", [](v1::Scene& s) {
+               for (int i = 0; i < 9; ++i) {
+                 auto* style = s.mutable_labels()->add_styles();
+                 style->set_value(i);
+                 style->mutable_transfer_function()->set_preset("ct-bone");
+               }
+             }, "labels.styles"},
+        Rule{"LabelTableWithoutLabels", [](v1::Scene& s) { s.mutable_volume()->set_label_table("names.tsv"); }, "volume.labelTable"}),
     [](const auto& info) { return std::string(info.param.name); });
 
 TEST(Presets, EveryPresetIsAValidTransferFunction) {

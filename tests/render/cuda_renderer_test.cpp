@@ -26,6 +26,9 @@ struct FullScene {
   LightSetup lights;
   Camera camera;
   ClipRegion clip;  // none unless a test sets one
+  Reconstruction reconstruction = Reconstruction::kTrilinear;
+  std::shared_ptr<const LabelVolume> labels;  // none unless a test sets one
+  LabelSetup label_setup;
 
   FullScene() {
     v1::Phantom p;
@@ -75,6 +78,8 @@ PixelEstimates Estimate(Renderer& r, const FullScene& s, int frames, int spp) {
   r.SetTransferFunction(s.tf);
   r.SetLights(s.lights);
   r.SetClipRegion(s.clip);
+  r.SetReconstruction(s.reconstruction);
+  r.SetLabels(s.labels, s.label_setup);
   const std::size_t n = std::size_t(s.camera.width) * s.camera.height;
   std::vector<double> sum(n), sum2(n);
   for (int f = 0; f < frames; ++f) {
@@ -141,6 +146,33 @@ TEST(CudaRenderer, ClippedImagesAgreeWithCpu) {
     scene.clip.half_spaces[scene.clip.count++] = ToVec4(n, 80.0f);
     scene.clip.half_spaces[scene.clip.count++] = ToVec4(-n, 80.0f);
   }
+  ExpectAgree(scene);
+}
+
+// Tricubic reconstruction (8 texture fetches on the GPU, 64 voxel reads on
+// the CPU) and a segmentation: one label hidden, one recoloured and dimmed,
+// one with a transfer function of its own (issue 22).
+TEST(CudaRenderer, TricubicAndLabelledImagesAgreeWithCpu) {
+  CINEVOL_REQUIRE_CUDA();
+  FullScene scene;
+  scene.reconstruction = Reconstruction::kTricubic;
+  auto labels = std::make_shared<LabelVolume>();
+  labels->dims = scene.volume->dims();
+  labels->labels.resize(scene.volume->voxel_count());
+  for (std::size_t i = 0; i < labels->labels.size(); ++i) {
+    const int x = int(i % 64), z = int(i / (64 * 64));
+    labels->labels[i] = std::uint16_t(x < 24 ? 1 : (z < 32 ? 2 : 3));
+    ++labels->voxels[labels->labels[i]];
+  }
+  scene.labels = labels;
+  scene.label_setup.styles[1].visible = false;
+  scene.label_setup.styles[2].has_color = true;
+  scene.label_setup.styles[2].color = {0.2f, 0.4f, 0.9f};
+  scene.label_setup.styles[2].opacity_scale = 0.5f;
+  scene.label_setup.styles[3].transfer = 0;
+  TransferFunction own = scene.tf;
+  for (auto& p : own.points) p.diffuse = {0.9f, 0.2f, 0.2f};
+  scene.label_setup.transfer_functions.push_back(own);
   ExpectAgree(scene);
 }
 
