@@ -27,3 +27,5 @@ for scene in ct-body-liver ct-body-no-ribs; do
   "$bin/cinevol" render --scene "examples/$scene.json" --backend cuda --spp 1024 --out "$out/images/$scene.png" 2>&1 | tail -1
 done
 cat "$out/reconstruction.md" 2>/dev/null
+# One archive: the device tool returns a limited number of files.
+tar czf "$out/clinical.tgz" -C "$out" images reconstruction.md reconstruction.log && rm -rf "$out/images"

@@ -41,8 +41,19 @@ struct VolumeView {
   // Continuous voxel coordinates: voxel centres at integers.
   CINEVOL_HD Vec3f ToVoxel(Vec3f p) const { return (p - box_min) * inv_spacing - Vec3f{0.5f, 0.5f, 0.5f}; }
 
-  // The reconstructed stored value at world position p.
+  // The reconstructed stored value at world position p, as `tricubic` says.
   CINEVOL_HD float Sample(Vec3f p) const { return tricubic ? SampleTricubic(p) : SampleTrilinear(p); }
+
+  // The same with the reconstruction fixed at compile time (the integrator's
+  // specialisations): no branch, and no registers for the other one.
+  template <bool kTricubic>
+  CINEVOL_HD float SampleAs(Vec3f p) const {
+    if constexpr (kTricubic) {
+      return SampleTricubic(p);
+    } else {
+      return SampleTrilinear(p);
+    }
+  }
 
   CINEVOL_HD float SampleTrilinear(Vec3f p) const {
     const Vec3f q = ToVoxel(p);
@@ -109,11 +120,11 @@ struct VolumeView {
   }
 
   // Gradient of the stored value per mm, by central differences one voxel apart.
+  template <bool kTricubic>
   CINEVOL_HD Vec3f Gradient(Vec3f p) const {
     const Vec3f dx{spacing.x, 0, 0}, dy{0, spacing.y, 0}, dz{0, 0, spacing.z};
-    return Vec3f{Sample(p + dx) - Sample(p - dx), Sample(p + dy) - Sample(p - dy),
-                 Sample(p + dz) - Sample(p - dz)} *
-           (0.5f * inv_spacing);
+    auto at = [&](Vec3f q) { return SampleAs<kTricubic>(q); };
+    return Vec3f{at(p + dx) - at(p - dx), at(p + dy) - at(p - dy), at(p + dz) - at(p - dz)} * (0.5f * inv_spacing);
   }
 };
 

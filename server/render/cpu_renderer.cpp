@@ -24,12 +24,12 @@ void RenderFrame(const RenderScene& scene, const FrameTargets& targets, int thre
   }, threads);
 }
 
-template <unsigned... kFeatures>
-constexpr std::array<RenderFrameFn, sizeof...(kFeatures)> MakeVariants(std::integer_sequence<unsigned, kFeatures...>) {
-  return {&RenderFrame<kFeatures>...};
+template <unsigned... kVariant>
+constexpr std::array<RenderFrameFn, sizeof...(kVariant)> MakeVariants(std::integer_sequence<unsigned, kVariant...>) {
+  return {&RenderFrame<VariantFeatures(kVariant)>...};
 }
 
-constexpr auto kVariants = MakeVariants(std::make_integer_sequence<unsigned, kFeatureCombinations>());
+constexpr auto kVariants = MakeVariants(std::make_integer_sequence<unsigned, kIntegratorVariants>());
 
 }  // namespace
 
@@ -52,7 +52,7 @@ void CpuRenderer::Render(const FrameRequest& request) {
   RenderScene scene = data_.HostView();
   last_features_ = ApplyRequest(request, scene);
   const auto start = std::chrono::steady_clock::now();
-  kVariants[last_features_](scene, Targets(), threads_, request.cancel);
+  kVariants[VariantOf(last_features_)](scene, Targets(), threads_, request.cancel);
   if (request.cancel && request.cancel->load()) throw Cancelled("the frame was cancelled");
   last_ms_ = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
   ++accumulated_frames_;

@@ -34,9 +34,9 @@ __global__ void __launch_bounds__(kBlock* kBlock, kMinBlocksPerSm)
 
 using Kernel = void (*)(const RenderScene, const FrameTargets);
 
-template <unsigned... kFeatures>
-std::array<Kernel, sizeof...(kFeatures)> MakeKernels(std::integer_sequence<unsigned, kFeatures...>) {
-  return {&RenderKernel<kFeatures>...};
+template <unsigned... kVariant>
+std::array<Kernel, sizeof...(kVariant)> MakeKernels(std::integer_sequence<unsigned, kVariant...>) {
+  return {&RenderKernel<VariantFeatures(kVariant)>...};
 }
 
 }  // namespace
@@ -152,11 +152,11 @@ void CudaRenderer::Render(const FrameRequest& request) {
   scene.environment.map.conditional_cdf = d.env_conditional.data();
   last_features_ = ApplyRequest(request, scene);
 
-  static const auto kKernels = MakeKernels(std::make_integer_sequence<unsigned, kFeatureCombinations>());
+  static const auto kKernels = MakeKernels(std::make_integer_sequence<unsigned, kIntegratorVariants>());
   const dim3 block(kBlock, kBlock);
   const dim3 grid((w + kBlock - 1) / kBlock, (h + kBlock - 1) / kBlock);
   CINEVOL_CUDA_CHECK(cudaEventRecord(d.start, d.stream));
-  kKernels[last_features_]<<<grid, block, 0, d.stream>>>(scene, Targets());
+  kKernels[VariantOf(last_features_)]<<<grid, block, 0, d.stream>>>(scene, Targets());
   CINEVOL_CUDA_CHECK_LAUNCH();
   CINEVOL_CUDA_CHECK(cudaEventRecord(d.stop, d.stream));
   ++accumulated_frames_;

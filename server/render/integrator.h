@@ -36,6 +36,8 @@ class PathTracer {
   static constexpr bool kWithMap = kFeatures & kEnvironmentMap;
   static constexpr bool kMultiple = kFeatures & kMultipleScattering;
   static constexpr bool kChooseLight = kFeatures & kSeveralLights;
+  static constexpr bool kCubic = kFeatures & kTricubic;
+  static constexpr bool kWithLabels = kFeatures & kLabels;
 
   CINEVOL_HD PathTracer(const RenderScene& scene, Pcg32& rng) : s_(scene), rng_(rng) {}
 
@@ -63,7 +65,7 @@ class PathTracer {
         result.albedo = m.diffuse;
         result.hit = true;
       }
-      if constexpr (kWithEmission) result.radiance += beta * s_.transfer.Emission(hit.entry, hit.label.table);
+      if constexpr (kWithEmission) result.radiance += beta * s_.transfer.Emission(hit.entry, kWithLabels ? hit.label.table : 0);
       if (depth >= max_bounces) break;
 
       const Vec3f wo = -ray.direction;
@@ -103,17 +105,24 @@ class PathTracer {
 
   // The extinction (per mm) at p.
   CINEVOL_HD float Extinction(Vec3f p, Classified& c) const {
-    c.entry = s_.transfer.Entry(s_.volume.Sample(p));
-    if (!s_.labels.voxels) return s_.transfer.SigmaT(c.entry);
-    c.label = s_.labels.At(s_.volume, p);
-    return c.label.opacity_scale * s_.transfer.SigmaT(c.entry, c.label.table);
+    c.entry = s_.transfer.Entry(s_.volume.template SampleAs<kCubic>(p));
+    if constexpr (!kWithLabels) {
+      return s_.transfer.SigmaT(c.entry);
+    } else {
+      c.label = s_.labels.At(s_.volume, p);
+      return c.label.opacity_scale * s_.transfer.SigmaT(c.entry, c.label.table);
+    }
   }
 
   CINEVOL_HD Material MaterialOf(const Classified& c) const {
-    Material m = s_.transfer.MaterialAt(c.entry, c.label.table);
-    m.opacity = fminf(1.0f, m.opacity * c.label.opacity_scale);
-    if (c.label.has_color) m.diffuse = c.label.color;
-    return m;
+    if constexpr (!kWithLabels) {
+      return s_.transfer.MaterialAt(c.entry);
+    } else {
+      Material m = s_.transfer.MaterialAt(c.entry, c.label.table);
+      m.opacity = fminf(1.0f, m.opacity * c.label.opacity_scale);
+      if (c.label.has_color) m.diffuse = c.label.color;
+      return m;
+    }
   }
 
   // Delta tracking to the next real collision along the ray. A ray that
@@ -185,7 +194,7 @@ class PathTracer {
     if (cap_) return {true, m.diffuse, m.specular, fmaxf(m.roughness * m.roughness, 1e-3f), cap_normal_, 0.0f};
     Scatterer sc{false, m.diffuse, {}, 0.0f, {}, s_.transfer.phase_g};
     if constexpr (kWithGradients) {
-      const Vec3f grad = s_.volume.Gradient(p);
+      const Vec3f grad = s_.volume.template Gradient<kCubic>(p);
       const float magnitude = Length(grad);
       const float p_surface =
           SurfaceProbability(m.opacity, s_.transfer.gradient_factor, magnitude * s_.transfer.gradient_normaliser);

@@ -22,9 +22,25 @@ enum RenderFeature : unsigned {
   kEnvironmentMap = 1u << 2,      // the environment is an HDR map
   kMultipleScattering = 1u << 3,  // maxBounces > 1: the bounce loop and Russian roulette
   kSeveralLights = 1u << 4,       // more than one light to choose from
+  // What clinical scenes add (issue 22). They change what is computed, so a
+  // request never forces them; and they come only with every feature above,
+  // so they add 3 integrators, not 96 (kIntegratorVariants).
+  kTricubic = 1u << 5,  // tricubic reconstruction
+  kLabels = 1u << 6,    // a segmentation styles the classification
 };
+// Every feature that only specialises, never changes the image.
 inline constexpr unsigned kAllFeatures = (1u << 5) - 1;
-inline constexpr unsigned kFeatureCombinations = kAllFeatures + 1;
+inline constexpr unsigned kClinicalFeatures = kTricubic | kLabels;
+
+// The integrators compiled: every subset of kAllFeatures, then kAllFeatures
+// with each non-empty subset of kClinicalFeatures.
+inline constexpr unsigned kIntegratorVariants = (kAllFeatures + 1) + 3;
+constexpr unsigned VariantFeatures(unsigned variant) {
+  return variant <= kAllFeatures ? variant : kAllFeatures | ((variant - kAllFeatures) << 5);
+}
+constexpr unsigned VariantOf(unsigned features) {
+  return features & kClinicalFeatures ? kAllFeatures + (features >> 5) : features;
+}
 
 struct RenderScene {
   VolumeView volume;
@@ -63,6 +79,8 @@ inline unsigned FeaturesOf(const RenderScene& scene) {
   if (scene.max_bounces > 1) f |= kMultipleScattering;
   const int sampleable = scene.light_count + (scene.environment.kind != Environment::Kind::kNone ? 1 : 0);
   if (sampleable > 1) f |= kSeveralLights;
+  if (scene.volume.tricubic) f |= kTricubic;
+  if (scene.labels.voxels) f |= kLabels;
   return f;
 }
 

@@ -53,7 +53,8 @@ inline unsigned ApplyRequest(const FrameRequest& request, RenderScene& scene) {
   scene.seed = request.seed;
   scene.frame = request.frame;
   const unsigned needed = FeaturesOf(scene);
-  return request.features == kAutoFeatures ? needed : (request.features | needed) & kAllFeatures;
+  const unsigned f = request.features == kAutoFeatures ? needed : (request.features & kAllFeatures) | needed;
+  return VariantFeatures(VariantOf(f));  // clinical features come with every other
 }
 
 class Renderer {
