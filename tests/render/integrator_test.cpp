@@ -174,7 +174,9 @@ ImageRgbF RenderBalls(const std::shared_ptr<const Volume>& volume, const std::sh
   r.SetTransferFunction(tf);
   r.SetLights(UniformSky(1.0f));
   r.SetLabels(labels, setup);
-  r.Render(Request(LookAt({0, -200, 0}, {0, 0, 0}, {0, 0, 1}, 30.0f, 24, 24), 8, 0, 2));
+  // Every feature, with labels or without: the same integrator draws the same
+  // random numbers (a labelled scene takes every feature; render/render_scene.h).
+  r.Render(Request(LookAt({0, -200, 0}, {0, 0, 0}, {0, 0, 1}, 30.0f, 24, 24), 8, 0, 2, kAllFeatures));
   return r.Radiance();
 }
 
