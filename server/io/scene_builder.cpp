@@ -244,22 +244,13 @@ RenderSetup ResolveScene(const v1::Scene& scene, const Volume& volume) {
   setup.max_bounces = static_cast<int>(scene.render().max_bounces());
   setup.seed = scene.render().seed();
   setup.exposure = scene.camera().exposure();
-  setup.reconstruction = ResolveReconstruction(scene.render().reconstruction(), volume);
+  setup.reconstruction = ResolveReconstruction(scene.render().reconstruction());
   setup.labels = ResolveLabels(scene.labels(), volume);
   return setup;
 }
 
-Reconstruction DefaultReconstruction(const Volume& volume) {
-  return MaxComponent(volume.spacing_mm()) >= kTricubicFromSpacingMm ? Reconstruction::kTricubic
-                                                                      : Reconstruction::kTrilinear;
-}
-
-Reconstruction ResolveReconstruction(v1::Reconstruction reconstruction, const Volume& volume) {
-  switch (reconstruction) {
-    case v1::TRILINEAR: return Reconstruction::kTrilinear;
-    case v1::TRICUBIC: return Reconstruction::kTricubic;
-    default: return DefaultReconstruction(volume);
-  }
+Reconstruction ResolveReconstruction(v1::Reconstruction reconstruction) {
+  return reconstruction == v1::TRICUBIC ? Reconstruction::kTricubic : Reconstruction::kTrilinear;
 }
 
 LabelSetup ResolveLabels(const v1::Labels& labels, const Volume& volume) {

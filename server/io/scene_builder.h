@@ -64,13 +64,9 @@ TransferFunction ResolveTransferFunction(const v1::TransferFunction& tf, const V
 // Named views frame what `tf` shows of the volume and `clip` keeps (FrameView).
 Camera ResolveCamera(const v1::Camera& camera, const v1::RenderSettings& render, const Volume& volume,
                      const TransferFunction& tf, const ClipRegion& clip = ClipRegion());
-// The reconstruction a scene gets unless it names one: tricubic for volumes
-// at least this coarse (their largest spacing), where trilinear's terraces
-// show (docs/rendering.md, "Reconstruction"); trilinear for finer ones.
-inline constexpr float kTricubicFromSpacingMm = 1.5f;
-Reconstruction DefaultReconstruction(const Volume& volume);
-// Unspecified: DefaultReconstruction.
-Reconstruction ResolveReconstruction(v1::Reconstruction reconstruction, const Volume& volume);
+// Unspecified is trilinear: tricubic costs 2.2 to 3.3 times the frame time
+// (docs/rendering.md, "Reconstruction"), which interactive frames cannot pay.
+Reconstruction ResolveReconstruction(v1::Reconstruction reconstruction);
 // Label styles, their own transfer functions resolved against the volume.
 LabelSetup ResolveLabels(const v1::Labels& labels, const Volume& volume);
 LightSetup ResolveLights(const google::protobuf::RepeatedPtrField<v1::Light>& lights);

@@ -61,7 +61,7 @@ void FramePipeline::Update(const v1::Scene& scene, const FrameSettings& settings
     renderer_->SetClipRegion(clip_);
   }
   if (changes & kLabelsChanged) renderer_->SetLabels(labels_, ResolveLabels(scene.labels(), *volume_));
-  if (changes & kSamplingChanged) renderer_->SetReconstruction(ResolveReconstruction(scene.render().reconstruction(), *volume_));
+  if (changes & kSamplingChanged) renderer_->SetReconstruction(ResolveReconstruction(scene.render().reconstruction()));
   if (changes & kCameraChanged) {
     camera_ = ResolveCamera(scene.camera(), scene.render(), *volume_, transfer_function_, clip_);
   }
