@@ -34,7 +34,7 @@ LoadedScene LoadScene(const SceneOptions& o) {
   if (!o.labels.empty()) s.scene.mutable_volume()->set_labels(o.labels);
   s.volume = std::make_shared<const Volume>(LoadVolume(s.scene.volume()));
   s.labels = LoadSceneLabels(s.scene.volume(), *s.volume);
-  s.setup = ResolveScene(s.scene, *s.volume);
+  s.setup = ResolveScene(s.scene, *s.volume, s.labels.get());
   return s;
 }
 

@@ -58,7 +58,33 @@ bool CutAway(const ClipRegion& clip, Vec3f lo, Vec3f hi) {
 
 }  // namespace
 
-std::vector<Vec3f> VisibleCorners(const Volume& volume, const TransferFunction& tf, const ClipRegion& clip) {
+// Per block of Volume::kBlockSize^3 voxels (x fastest), whether it holds a
+// label the setup shows; all true without labels.
+std::vector<bool> BlocksWithVisibleLabels(const Volume& volume, const InView& in_view) {
+  const Vec3i blocks = volume.block_counts(), dims = volume.dims();
+  std::vector<bool> shown(std::size_t(blocks.x) * blocks.y * blocks.z, in_view.labels == nullptr);
+  if (!in_view.labels) return shown;
+  std::vector<bool> visible(std::size_t(in_view.labels->max_label()) + 1);
+  for (std::size_t l = 0; l < visible.size(); ++l) {
+    const LabelStyle& style = in_view.label_setup.StyleOf(int(l));
+    visible[l] = style.visible && style.opacity_scale > 0.0f;
+  }
+  const std::vector<std::uint16_t>& labels = in_view.labels->labels;
+  for (int z = 0; z < dims.z; ++z) {
+    for (int y = 0; y < dims.y; ++y) {
+      const std::size_t row = (std::size_t(z) * dims.y + y) * dims.x;
+      const std::size_t block_row = (std::size_t(z / Volume::kBlockSize) * blocks.y + y / Volume::kBlockSize) * blocks.x;
+      for (int x = 0; x < dims.x; ++x) {
+        if (visible[labels[row + x]]) shown[block_row + x / Volume::kBlockSize] = true;
+      }
+    }
+  }
+  return shown;
+}
+
+std::vector<Vec3f> VisibleCorners(const Volume& volume, const TransferFunction& tf, const InView& in_view) {
+  const ClipRegion& clip = in_view.clip;
+  const std::vector<bool> labelled = BlocksWithVisibleLabels(volume, in_view);
   const Vec3i blocks = volume.block_counts(), n{blocks.x + 1, blocks.y + 1, blocks.z + 1};
   // Per corner of the block lattice, how many visible blocks touch it.
   std::vector<std::uint8_t> touching(std::size_t(n.x) * n.y * n.z, 0);
@@ -72,7 +98,7 @@ std::vector<Vec3f> VisibleCorners(const Volume& volume, const TransferFunction& 
     for (int y = 0; y < blocks.y; ++y) {
       for (int x = 0; x < blocks.x; ++x, ++i) {
         const Volume::ValueRange r = volume.block_ranges()[i];
-        if (MaxOpacity(tf, r.lo, r.hi) <= min_opacity) continue;
+        if (!labelled[i] || MaxOpacity(tf, r.lo, r.hi) <= min_opacity) continue;
         const Vec3f lo = ToFloat(Vec3i{x, y, z}) * block_mm - volume.extent_mm() * 0.5f;
         if (CutAway(clip, lo, lo + block_mm)) continue;
         any = true;
@@ -152,13 +178,13 @@ Framing FrameView(const std::vector<Vec3f>& points, const ViewDirections& view, 
 }
 
 Camera ResolveCamera(const v1::Camera& proto, const v1::RenderSettings& render, const Volume& volume,
-                     const TransferFunction& tf, const ClipRegion& clip) {
+                     const TransferFunction& tf, const InView& in_view) {
   const int width = static_cast<int>(render.width()), height = static_cast<int>(render.height());
   const float fov = proto.fov_y_deg();
   Vec3f eye, target, up{0, 0, 1};
   if (proto.view() != v1::NAMED_VIEW_UNSPECIFIED) {
     const ViewDirections view = NamedViewDirections(proto.view(), volume.metadata().direction);
-    const Framing framing = FrameView(VisibleCorners(volume, tf, clip), view, fov, float(width) / float(height));
+    const Framing framing = FrameView(VisibleCorners(volume, tf, in_view), view, fov, float(width) / float(height));
     target = framing.target;
     up = view.up;
     eye = target + view.to_eye * framing.distance;
@@ -234,18 +260,19 @@ LightSetup ResolveLights(const google::protobuf::RepeatedPtrField<v1::Light>& li
   return setup;
 }
 
-RenderSetup ResolveScene(const v1::Scene& scene, const Volume& volume) {
+RenderSetup ResolveScene(const v1::Scene& scene, const Volume& volume, const LabelVolume* labels) {
   RenderSetup setup;
   setup.transfer_function = ResolveTransferFunction(scene.transfer_function(), volume);
   setup.clip = ResolveClipping(scene.clipping(), volume);
-  setup.camera = ResolveCamera(scene.camera(), scene.render(), volume, setup.transfer_function, setup.clip);
+  setup.labels = ResolveLabels(scene.labels(), volume);
+  setup.camera = ResolveCamera(scene.camera(), scene.render(), volume, setup.transfer_function,
+                               {setup.clip, labels, setup.labels});
   setup.lights = ResolveLights(scene.lights());
   setup.spp = static_cast<int>(scene.render().spp());
   setup.max_bounces = static_cast<int>(scene.render().max_bounces());
   setup.seed = scene.render().seed();
   setup.exposure = scene.camera().exposure();
   setup.reconstruction = ResolveReconstruction(scene.render().reconstruction());
-  setup.labels = ResolveLabels(scene.labels(), volume);
   return setup;
 }
 

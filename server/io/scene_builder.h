@@ -45,10 +45,19 @@ Vec3f PatientToWorld(const DirectionCosines& direction, Vec3f lps);
 // The crop box and clip planes (patient LPS mm) as half-spaces in world mm.
 ClipRegion ResolveClipping(const v1::Clipping& clipping, const Volume& volume);
 
+// What a scene leaves in view beyond its transfer function: the clipping
+// and, where the volume has a segmentation, the labels its styles show.
+struct InView {
+  ClipRegion clip;
+  const LabelVolume* labels = nullptr;
+  LabelSetup label_setup;
+};
+
 // The corners of the blocks of voxels (Volume::block_ranges) that `tf` makes
-// visible (able to take 5% of the light crossing them) and `clip` does not
-// cut away whole; the volume's corners when it shows nothing.
-std::vector<Vec3f> VisibleCorners(const Volume& volume, const TransferFunction& tf, const ClipRegion& clip = ClipRegion());
+// visible (able to take 5% of the light crossing them), the clipping does not
+// cut away whole and, with labels, that hold a visible label; the volume's
+// corners when it shows nothing.
+std::vector<Vec3f> VisibleCorners(const Volume& volume, const TransferFunction& tf, const InView& in_view = InView());
 
 // Where a named view looks at and how far back its eye sits so that
 // `points`, centred, fill 80% of the viewport's shorter side (perspective
@@ -61,9 +70,9 @@ Framing FrameView(const std::vector<Vec3f>& points, const ViewDirections& view, 
 
 // With neither points nor a preset, the volume's default preset.
 TransferFunction ResolveTransferFunction(const v1::TransferFunction& tf, const Volume& volume);
-// Named views frame what `tf` shows of the volume and `clip` keeps (FrameView).
+// Named views frame what `tf` shows of the volume and `in_view` keeps (FrameView).
 Camera ResolveCamera(const v1::Camera& camera, const v1::RenderSettings& render, const Volume& volume,
-                     const TransferFunction& tf, const ClipRegion& clip = ClipRegion());
+                     const TransferFunction& tf, const InView& in_view = InView());
 // Unspecified is trilinear: tricubic costs 2.2 to 3.3 times the frame time
 // (docs/rendering.md, "Reconstruction"), which interactive frames cannot pay.
 Reconstruction ResolveReconstruction(v1::Reconstruction reconstruction);
@@ -71,7 +80,8 @@ Reconstruction ResolveReconstruction(v1::Reconstruction reconstruction);
 LabelSetup ResolveLabels(const v1::Labels& labels, const Volume& volume);
 LightSetup ResolveLights(const google::protobuf::RepeatedPtrField<v1::Light>& lights);
 
-// All of the above; the scene must have passed CheckScene.
-RenderSetup ResolveScene(const v1::Scene& scene, const Volume& volume);
+// All of the above; the scene must have passed CheckScene. `labels`: the
+// volume's segmentation, where it has one.
+RenderSetup ResolveScene(const v1::Scene& scene, const Volume& volume, const LabelVolume* labels = nullptr);
 
 }  // namespace cinevol

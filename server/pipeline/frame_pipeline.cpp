@@ -47,9 +47,10 @@ FramePipeline::~FramePipeline() = default;
 
 void FramePipeline::Update(const v1::Scene& scene, const FrameSettings& settings, unsigned changes) {
   if (!has_scene_) changes = kEverythingChanged;
-  // Named views frame what the transfer function shows and the clipping
-  // keeps, so they follow their edits.
-  if ((changes & (kTransferFunctionChanged | kClippingChanged)) && scene.camera().view() != v1::NAMED_VIEW_UNSPECIFIED) {
+  // Named views frame what the transfer function and the labels show and the
+  // clipping keeps, so they follow their edits.
+  if ((changes & (kTransferFunctionChanged | kClippingChanged | kLabelsChanged)) &&
+      scene.camera().view() != v1::NAMED_VIEW_UNSPECIFIED) {
     changes |= kCameraChanged;
   }
   if (changes & kTransferFunctionChanged) {
@@ -60,10 +61,14 @@ void FramePipeline::Update(const v1::Scene& scene, const FrameSettings& settings
     clip_ = ResolveClipping(scene.clipping(), *volume_);
     renderer_->SetClipRegion(clip_);
   }
-  if (changes & kLabelsChanged) renderer_->SetLabels(labels_, ResolveLabels(scene.labels(), *volume_));
+  if (changes & kLabelsChanged) {
+    label_setup_ = ResolveLabels(scene.labels(), *volume_);
+    renderer_->SetLabels(labels_, label_setup_);
+  }
   if (changes & kSamplingChanged) renderer_->SetReconstruction(ResolveReconstruction(scene.render().reconstruction()));
   if (changes & kCameraChanged) {
-    camera_ = ResolveCamera(scene.camera(), scene.render(), *volume_, transfer_function_, clip_);
+    camera_ = ResolveCamera(scene.camera(), scene.render(), *volume_, transfer_function_,
+                            {clip_, labels_.get(), label_setup_});
   }
   spp_ = static_cast<int>(scene.render().spp());
   max_bounces_ = static_cast<int>(scene.render().max_bounces());
@@ -80,7 +85,10 @@ void FramePipeline::Update(const RenderSetup& setup, const FrameSettings& settin
     clip_ = setup.clip;
     renderer_->SetClipRegion(clip_);
   }
-  if (changes & kLabelsChanged) renderer_->SetLabels(labels_, setup.labels);
+  if (changes & kLabelsChanged) {
+    label_setup_ = setup.labels;
+    renderer_->SetLabels(labels_, label_setup_);
+  }
   if (changes & kSamplingChanged) renderer_->SetReconstruction(setup.reconstruction);
   if (changes & kCameraChanged) camera_ = setup.camera;
   spp_ = setup.spp;

@@ -167,6 +167,7 @@ class FramePipeline {
 
   std::shared_ptr<const Volume> volume_;
   std::shared_ptr<const LabelVolume> labels_;
+  LabelSetup label_setup_;  // the scene's label styles, resolved
   std::unique_ptr<Renderer> renderer_;
   std::unique_ptr<Denoiser> denoiser_;
   std::unique_ptr<Display> display_;

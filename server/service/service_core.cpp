@@ -218,7 +218,7 @@ v1::CreateSessionResponse ServiceCore::CreateSession(const v1::CreateSessionRequ
   v1::CreateSessionResponse response;
   response.set_session_id(session->id());
   *response.mutable_scene() = std::move(scene);
-  AddResolvedCamera(*response.mutable_scene(), *session->volume()->volume());
+  AddResolvedCamera(*response.mutable_scene(), *session->volume()->volume(), session->volume()->labels().get());
   response.set_device(scheduler.name());
   return response;
 }

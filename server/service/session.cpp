@@ -163,6 +163,11 @@ void Session::ApplyCoalescedLocked() {
 }
 
 void Session::ApplyLocked(const v1::SessionEvent& event, Clock::time_point arrival) {
+  if (event.has_labels() && !volume_->labels()) {
+    throw InputError(fmt::format("event {}: labels: volume '{}' had no segmentation when this session began; load "
+                                 "one (LoadLabels) and start a new session",
+                                 event.seq(), volume_->id()));
+  }
   v1::Scene next = scene_;
   FrameSettings next_settings = settings_;
   ApplyEvent(event, next, next_settings, *context_.limits, *context_.volumes);

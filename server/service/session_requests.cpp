@@ -116,11 +116,12 @@ ChromaSubsampling ToChroma(v1::ChromaSubsampling c) {
 
 }  // namespace
 
-void AddResolvedCamera(v1::Scene& scene, const Volume& volume) {
+void AddResolvedCamera(v1::Scene& scene, const Volume& volume, const LabelVolume* labels) {
   v1::Camera& proto = *scene.mutable_camera();
   if (proto.view() == v1::NAMED_VIEW_UNSPECIFIED) return;
   const TransferFunction tf = ResolveTransferFunction(scene.transfer_function(), volume);
-  const Camera c = ResolveCamera(proto, scene.render(), volume, tf, ResolveClipping(scene.clipping(), volume));
+  const Camera c = ResolveCamera(proto, scene.render(), volume, tf,
+                                 {ResolveClipping(scene.clipping(), volume), labels, ResolveLabels(scene.labels(), volume)});
   auto set = [](v1::Vec3* v, Vec3f p) {
     v->set_x(p.x);
     v->set_y(p.y);

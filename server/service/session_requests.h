@@ -30,7 +30,7 @@ struct SessionLimits {
 
 // Fills a named view's eye, target and up (the view stays set) with what it
 // resolves to for `volume`.
-void AddResolvedCamera(v1::Scene& scene, const Volume& volume);
+void AddResolvedCamera(v1::Scene& scene, const Volume& volume, const LabelVolume* labels);
 
 // The scene a new session starts from: the request's scene or preset, its
 // viewport, defaults filled, validated; environment maps resolved inside the

@@ -1,5 +1,6 @@
 // Scene files: proto3 JSON text through ParseSceneJson (parse, defaults,
-// validation) and, when it parses, the round trip through SceneToJson.
+// validation) and, when it parses, the round trip through SceneToJson; and
+// the same bytes as a label table (ParseLabelTable).
 // InputError is the expected refusal; crashes and sanitizer reports are bugs.
 #include <cstddef>
 #include <cstdint>
@@ -7,10 +8,16 @@
 #include <exception>
 #include <string_view>
 
+#include "core/error.h"
+#include "io/label_volume.h"
 #include "io/scene_file.h"
 
 extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {
   const std::string_view text(reinterpret_cast<const char*>(data), size);
+  try {
+    (void)cinevol::ParseLabelTable(text, "fuzz.tsv");
+  } catch (const cinevol::InputError&) {
+  }
   cinevol::v1::Scene scene;
   try {
     scene = cinevol::ParseSceneJson(text, "/nonexistent-base");

@@ -152,6 +152,29 @@ TEST_F(TotalSegmentator, TheLiverAloneVisibleShowsOnlyLiver) {
   EXPECT_GT(hits.begin()->second, 200) << "pixels showing the liver";
 }
 
+// A named view frames what the labels leave visible: the liver alone is
+// seen from closer than the whole body, centred on it.
+TEST_F(TotalSegmentator, NamedViewsFrameTheVisibleLabels) {
+  v1::Camera anterior;
+  anterior.set_view(v1::ANTERIOR);
+  anterior.set_fov_y_deg(30);
+  v1::RenderSettings render;
+  render.set_width(96);
+  render.set_height(96);
+  const TransferFunction tf = ResolveTransferFunction(MakePresetScene("ct-soft-tissue", *image_).transfer_function(), *image_);
+  LabelSetup liver_alone;
+  liver_alone.show_unlisted = false;
+  liver_alone.styles[5] = {};
+  InView all_labels;
+  all_labels.labels = labels_.get();
+  InView liver_only = all_labels;
+  liver_only.label_setup = liver_alone;
+  const Camera whole = ResolveCamera(anterior, render, *image_, tf, all_labels);
+  const Camera liver = ResolveCamera(anterior, render, *image_, tf, liver_only);
+  EXPECT_LT(Length(liver.eye - (liver.eye + liver.forward * liver.focal_distance)),
+            0.8f * Length(whole.eye - (whole.eye + whole.forward * whole.focal_distance)));
+}
+
 TEST_F(TotalSegmentator, TheRibsHiddenShowNoRib) {
   v1::Labels no_ribs;
   int ribs_present = 0;
