@@ -1,4 +1,4 @@
-// The viewer's panels (volume, transfer function, lights, render, clipping,
+// The viewer's panels (volume, transfer function, lights, render, clipping, labels,
 // scene), its stats overlay and the banner that says what is wrong.
 #include <imgui.h>
 #include <imgui_stdlib.h>
@@ -153,6 +153,12 @@ void RenderPanel(App& app) {
     app.render.set_max_bounces(bounces);
     app.SendRender();
   }
+  int cubic = app.render.reconstruction() == v1::TRICUBIC ? 1 : 0;
+  static const char* kReconstructions[] = {"trilinear", "tricubic (smooth, 2-3x slower)"};
+  if (ImGui::Combo("reconstruction", &cubic, kReconstructions, IM_ARRAYSIZE(kReconstructions))) {
+    app.render.set_reconstruction(cubic ? v1::TRICUBIC : v1::TRILINEAR);
+    app.SendRender();
+  }
   static const char* kDenoisers[] = {"server default (wRLS)", "none", "accumulate", "kNN", "guided", "SVGF", "wRLS"};
   int denoiser = app.stream.denoiser();
   if (ImGui::Combo("denoiser", &denoiser, kDenoisers, IM_ARRAYSIZE(kDenoisers))) {
@@ -212,7 +218,60 @@ void PatientBounds(const v1::VolumeInfo& v, float lo[3], float hi[3]) {
   }
 }
 
-// A crop box along the patient's axes, as ranges over the volume's extent.
+// Clip planes: each a normal (a patient axis either way, or its own) and an
+// offset along it through the volume's extent. Returns whether one changed.
+bool ClipPlanes(App& app, const float lo[3], const float hi[3]) {
+  bool changed = false;
+  const float centre[3] = {0.5f * (lo[0] + hi[0]), 0.5f * (lo[1] + hi[1]), 0.5f * (lo[2] + hi[2])};
+  const float reach = 0.5f * std::sqrt((hi[0] - lo[0]) * (hi[0] - lo[0]) + (hi[1] - lo[1]) * (hi[1] - lo[1]) +
+                                       (hi[2] - lo[2]) * (hi[2] - lo[2]));
+  for (int i = 0; i < app.clipping.planes_size(); ++i) {
+    ImGui::PushID(i);
+    v1::ClipPlane* plane = app.clipping.mutable_planes(i);
+    float n[3] = {plane->normal().x(), plane->normal().y(), plane->normal().z()};
+    const float length = std::max(1e-6f, std::sqrt(n[0] * n[0] + n[1] * n[1] + n[2] * n[2]));
+    // The plane as an offset from the volume's centre along its unit normal.
+    float offset = ((plane->point().x() - centre[0]) * n[0] + (plane->point().y() - centre[1]) * n[1] +
+                    (plane->point().z() - centre[2]) * n[2]) / length;
+    bool moved = ImGui::DragFloat3("normal (L P S)", n, 0.01f, -1.0f, 1.0f, "%.2f");
+    moved |= ImGui::SliderFloat("offset mm", &offset, -reach, reach, "%.0f");
+    bool cap = plane->cap();
+    if (ImGui::Checkbox("cap", &cap)) {
+      plane->set_cap(cap);
+      changed = true;
+    }
+    ImGui::SameLine();
+    const bool remove = ImGui::Button("remove");
+    if (moved && n[0] * n[0] + n[1] * n[1] + n[2] * n[2] > 1e-6f) {
+      const float l = std::sqrt(n[0] * n[0] + n[1] * n[1] + n[2] * n[2]);
+      plane->mutable_normal()->set_x(n[0] / l);
+      plane->mutable_normal()->set_y(n[1] / l);
+      plane->mutable_normal()->set_z(n[2] / l);
+      plane->mutable_point()->set_x(centre[0] + offset * n[0] / l);
+      plane->mutable_point()->set_y(centre[1] + offset * n[1] / l);
+      plane->mutable_point()->set_z(centre[2] + offset * n[2] / l);
+      changed = true;
+    }
+    ImGui::PopID();
+    if (remove) {
+      app.clipping.mutable_planes()->DeleteSubrange(i, 1);
+      return true;
+    }
+  }
+  if (app.clipping.planes_size() < 6 && ImGui::Button("add a clip plane")) {
+    v1::ClipPlane* plane = app.clipping.add_planes();  // keeps the inferior half: a cut from above
+    plane->mutable_point()->set_x(centre[0]);
+    plane->mutable_point()->set_y(centre[1]);
+    plane->mutable_point()->set_z(centre[2]);
+    plane->mutable_normal()->set_z(-1);
+    changed = true;
+  }
+  Hint("each plane keeps the side its normal points to");
+  return changed;
+}
+
+// A crop box along the patient's axes, as ranges over the volume's extent,
+// and clip planes.
 void ClippingPanel(App& app) {
   if (!app.volume) return;
   float lo[3], hi[3];
@@ -231,6 +290,7 @@ void ClippingPanel(App& app) {
     }
     app.SendClipping();
   }
+  if (ClipPlanes(app, lo, hi)) app.SendClipping();
   if (!app.clipping.has_crop_box()) return;
   v1::CropBox* box = app.clipping.mutable_crop_box();
   const char* labels[3] = {"R..L mm", "A..P mm", "I..S mm"};
@@ -256,6 +316,66 @@ void ClippingPanel(App& app) {
   }
   Hint("What lies outside the box is not rendered; capped faces show the tissue they cut");
   if (changed) app.SendClipping();
+}
+
+// The style of label `value`, added (visible, no change) when it has none.
+v1::LabelStyle* StyleOf(v1::Labels& labels, std::uint32_t value) {
+  for (v1::LabelStyle& style : *labels.mutable_styles()) {
+    if (style.value() == value) return &style;
+  }
+  v1::LabelStyle* style = labels.add_styles();
+  style->set_value(value);
+  return style;
+}
+
+// Each label of the volume's segmentation: shown or hidden, its colour.
+void LabelsPanel(App& app) {
+  if (!app.volume || !app.volume->has_labels()) {
+    Hint("this volume has no segmentation: `cinevol volumes labels ID SEG` loads one, for sessions started after");
+    return;
+  }
+  bool changed = false;
+  bool unlisted = !app.labels.has_show_unlisted() || app.labels.show_unlisted();
+  if (ImGui::Checkbox("show labels left as they are", &unlisted)) {
+    app.labels.set_show_unlisted(unlisted);
+    changed = true;
+  }
+  static std::string filter;
+  ImGui::InputText("filter", &filter);
+  ImGui::BeginChild("labels", {0, 240}, true);
+  for (const v1::LabelName& label : app.volume->labels().names()) {
+    const std::string name = label.name().empty() ? fmt::format("label {}", label.value()) : label.name();
+    if (!filter.empty() && name.find(filter) == std::string::npos) continue;
+    ImGui::PushID(int(label.value()));
+    const v1::LabelStyle* style = nullptr;
+    for (const v1::LabelStyle& s : app.labels.styles()) {
+      if (s.value() == label.value()) style = &s;
+    }
+    bool visible = style ? !style->has_visible() || style->visible() : unlisted;
+    if (ImGui::Checkbox("##visible", &visible)) {
+      StyleOf(app.labels, label.value())->set_visible(visible);
+      changed = true;
+    }
+    ImGui::SameLine();
+    float colour[3] = {0.8f, 0.8f, 0.8f};
+    if (style && style->has_color()) colour[0] = style->color().r(), colour[1] = style->color().g(), colour[2] = style->color().b();
+    if (ImGui::ColorEdit3("##colour", colour, ImGuiColorEditFlags_NoInputs)) {
+      v1::Color* c = StyleOf(app.labels, label.value())->mutable_color();
+      c->set_r(colour[0]);
+      c->set_g(colour[1]);
+      c->set_b(colour[2]);
+      changed = true;
+    }
+    ImGui::SameLine();
+    ImGui::Text("%u %s (%llu voxels)", label.value(), name.c_str(), static_cast<unsigned long long>(label.voxels()));
+    ImGui::PopID();
+  }
+  ImGui::EndChild();
+  if (ImGui::Button("reset styles")) {
+    app.labels.Clear();
+    changed = true;
+  }
+  if (changed) app.SendLabels();
 }
 
 void ScenePanel(App& app) {
@@ -286,6 +406,7 @@ void DrawPanels(App& app) {
   if (Header("Lights", app.panels.lights)) LightsPanel(app);
   if (Header("Render", app.panels.render)) RenderPanel(app);
   if (Header("Clipping", app.panels.clipping)) ClippingPanel(app);
+  if (Header("Labels", app.panels.labels)) LabelsPanel(app);
   if (Header("Scene and snapshot", app.panels.scene)) ScenePanel(app);
   ImGui::Separator();
   ImGui::Checkbox("stats overlay (F2)", &app.panels.stats);

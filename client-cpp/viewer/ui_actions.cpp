@@ -50,6 +50,7 @@ bool* Panel(PanelsOpen& p, const std::string& name) {
   if (name == "lights") return &p.lights;
   if (name == "render") return &p.render;
   if (name == "clipping") return &p.clipping;
+  if (name == "labels") return &p.labels;
   if (name == "scene") return &p.scene;
   if (name == "stats") return &p.stats;
   return nullptr;

@@ -199,6 +199,7 @@ void App::AdoptSession() {
     SendRender();
     SendStream();
     SendClipping();
+    SendLabels();
     return;
   }
   volume = connection->volume();
@@ -213,6 +214,7 @@ void App::AdoptSession() {
   render = scene.render();
   stream = options.session.stream;
   clipping = scene.clipping();
+  labels = scene.labels();
 }
 
 void App::SendTransferFunction() {
@@ -237,6 +239,14 @@ void App::SendRender() {
   v1::SessionEvent e;
   e.mutable_render()->set_spp(render.spp());
   e.mutable_render()->set_max_bounces(render.max_bounces());
+  e.mutable_render()->set_reconstruction(render.reconstruction() == v1::TRICUBIC ? v1::TRICUBIC : v1::TRILINEAR);
+  connection->Post(std::move(e));
+}
+
+void App::SendLabels() {
+  if (!volume || !volume->has_labels()) return;  // the session has no segmentation to style
+  v1::SessionEvent e;
+  *e.mutable_labels() = labels;
   connection->Post(std::move(e));
 }
 
@@ -311,6 +321,7 @@ void App::SaveScene(const std::string& path) {
   scene.mutable_lights()->CopyFrom(lights.lights());
   *scene.mutable_render() = render;
   *scene.mutable_clipping() = clipping;
+  if (labels.styles_size() > 0 || labels.has_show_unlisted()) *scene.mutable_labels() = labels;
   scene.mutable_render()->set_width(viewport_w_);
   scene.mutable_render()->set_height(viewport_h_);
   if (volume) *scene.mutable_volume() = ParseVolumeSpec(volume->source());  // a phantom stays a phantom
@@ -338,10 +349,15 @@ void App::OpenScene(const std::string& path) {
     SendLights();
     render.set_spp(scene.render().spp());
     render.set_max_bounces(scene.render().max_bounces());
+    render.set_reconstruction(scene.render().reconstruction());
     SendRender();
     clipping = scene.clipping();
     SendClipping();
-    notice = fmt::format("opened {}", path);
+    labels = scene.labels();
+    SendLabels();
+    notice = scene.has_labels() && !(volume && volume->has_labels())
+                 ? fmt::format("opened {}; its label styles wait for a segmentation of this volume", path)
+                 : fmt::format("opened {}", path);
   } catch (const std::exception& e) {
     notice = e.what();
   }

@@ -52,7 +52,8 @@ struct ViewerStats {
 
 // Panels the user can open and close.
 struct PanelsOpen {
-  bool volume = true, transfer_function = true, lights = false, render = false, clipping = false, scene = false;
+  bool volume = true, transfer_function = true, lights = false, render = false, clipping = false, labels = false,
+       scene = false;
   bool stats = true;  // the overlay
 };
 
@@ -74,7 +75,8 @@ class App {
   v1::LightList lights;
   v1::RenderSettings render;        // spp per frame, bounces
   v1::StreamSettings stream;        // denoiser, JPEG quality, target spp
-  v1::Clipping clipping;            // the crop box (patient mm)
+  v1::Clipping clipping;            // the crop box and clip planes (patient mm)
+  v1::Labels labels;                // the segmentation's label styles
   PanelsOpen panels;
   ViewerStats stats;
   std::string notice;               // the last message for people (a result or an error)
@@ -92,6 +94,7 @@ class App {
   void SendRender();
   void SendStream();
   void SendClipping();
+  void SendLabels();  // where the volume has a segmentation
   void ChoosePreset(const std::string& name);
   void SwitchVolume(const std::string& id);
   void Snapshot(const std::string& path, int spp);

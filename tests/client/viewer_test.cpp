@@ -156,6 +156,10 @@ TEST(Viewer, ShowsTheVolumeStatsAndPanelsAndFollowsEdits) {
   v1::CropBox* box = cropped.mutable_clipping()->mutable_crop_box();
   box->mutable_center()->set_x(5000);
   box->mutable_size()->set_x(10), box->mutable_size()->set_y(10), box->mutable_size()->set_z(10);
+  v1::ClipPlane* plane = cropped.mutable_clipping()->add_planes();  // and an oblique plane, capped
+  plane->mutable_normal()->set_x(0.6f), plane->mutable_normal()->set_z(0.8f);
+  plane->set_cap(true);
+  cropped.mutable_render()->set_reconstruction(v1::TRICUBIC);
   SaveSceneFile(cropped, cut_scene);
   const fs::path script = WriteScript(scratch.path() / "tour.jsonl", fmt::format(R"({{"session": {{"stream": {{"targetSpp": 8}}}}}}
 {{"at": 0, "ui": {{"settle": true}}}}
@@ -196,7 +200,11 @@ TEST(Viewer, ShowsTheVolumeStatsAndPanelsAndFollowsEdits) {
   const auto [cut_mean, cut_spread] = Luminance(cut, frame);
   EXPECT_LT(cut_spread, spread) << "the cropped view still shows the head";
   EXPECT_GT(cut_mean, 5) << "the cropped view is black: the background is not lit";
-  EXPECT_TRUE(LoadSceneFile(saved_cut).clipping().has_crop_box()) << "the saved scene lost the crop";
+  const v1::Scene saved = LoadSceneFile(saved_cut);
+  EXPECT_TRUE(saved.clipping().has_crop_box()) << "the saved scene lost the crop";
+  ASSERT_EQ(saved.clipping().planes_size(), 1) << "the saved scene lost the clip plane";
+  EXPECT_TRUE(saved.clipping().planes(0).cap());
+  EXPECT_EQ(saved.render().reconstruction(), v1::TRICUBIC) << "the saved scene lost the reconstruction";
   // The stats overlay is text over a dark box; the panels have their headers.
   const google::protobuf::Struct layout = ReadLayout(c);
   const ImageRgb8 last = ReadPng(c);
