@@ -199,36 +199,33 @@ grpc::ServerUnaryReactor* VolumeServiceImpl::ListVolumes(grpc::CallbackServerCon
 grpc::ServerUnaryReactor* VolumeServiceImpl::LoadVolume(grpc::CallbackServerContext* context,
                                                         const v1::LoadVolumeRequest* request,
                                                         v1::VolumeInfo* response) {
-  grpc::ServerUnaryReactor* reactor = context->DefaultReactor();
-  const grpc::Status status = Guarded([&] {
-    const Principal caller = core_->Authenticate(*context);
-    core_->RequireServing();
-    // Refuse paths outside the data roots at once; read the disk on the loader pool.
-    core_->volumes().ResolveDataPath(request->path(), "path");
-    // The load holds one of the caller's slots: a client cannot queue loads without end.
-    core_->loader().Submit([this, reactor, request, response, caller, slot = core_->BeginLoad(caller)] {
-      reactor->Finish(Guarded([&] {
-        core_->RequireServing();
-        *response = core_->volumes().LoadFromDataRoot(request->path(), request->series_uid(), caller);
-      }));
-    });
+  return LoadFromDisk(context, request->path(), [this, request, response](const Principal& caller) {
+    *response = core_->volumes().LoadFromDataRoot(request->path(), request->series_uid(), caller);
   });
-  if (!status.ok()) reactor->Finish(status);
-  return reactor;
 }
 
 grpc::ServerUnaryReactor* VolumeServiceImpl::LoadLabels(grpc::CallbackServerContext* context,
                                                         const v1::LoadLabelsRequest* request,
                                                         v1::VolumeInfo* response) {
+  return LoadFromDisk(context, request->path(), [this, request, response](const Principal& caller) {
+    *response = core_->volumes().LoadLabels(request->volume_id(), request->path(), request->table_path(), caller);
+  });
+}
+
+grpc::ServerUnaryReactor* VolumeServiceImpl::LoadFromDisk(grpc::CallbackServerContext* context,
+                                                          const std::string& path,
+                                                          std::function<void(const Principal&)> load) {
   grpc::ServerUnaryReactor* reactor = context->DefaultReactor();
   const grpc::Status status = Guarded([&] {
     const Principal caller = core_->Authenticate(*context);
     core_->RequireServing();
-    core_->volumes().ResolveDataPath(request->path(), "path");
-    core_->loader().Submit([this, reactor, request, response, caller, slot = core_->BeginLoad(caller)] {
+    // Refuse paths outside the data roots at once; read the disk on the loader pool.
+    core_->volumes().ResolveDataPath(path, "path");
+    // The load holds one of the caller's slots: a client cannot queue loads without end.
+    core_->loader().Submit([this, reactor, load = std::move(load), caller, slot = core_->BeginLoad(caller)] {
       reactor->Finish(Guarded([&] {
         core_->RequireServing();
-        *response = core_->volumes().LoadLabels(request->volume_id(), request->path(), request->table_path(), caller);
+        load(caller);
       }));
     });
   });

@@ -3,6 +3,9 @@
 // errors map to. Callback API: no reaction blocks.
 #pragma once
 
+#include <functional>
+#include <string>
+
 #include "cinevol/v1/service.grpc.pb.h"
 #include "service/service_core.h"
 
@@ -27,6 +30,11 @@ class VolumeServiceImpl final : public v1::VolumeService::CallbackService {
                                          v1::UnloadVolumeResponse* response) override;
 
  private:
+  // Checks `path` against the data roots at once, then runs `load` on the
+  // loader pool holding one of the caller's load slots, and answers with it.
+  grpc::ServerUnaryReactor* LoadFromDisk(grpc::CallbackServerContext* context, const std::string& path,
+                                         std::function<void(const Principal&)> load);
+
   ServiceCore* core_;
 };
 

@@ -30,6 +30,15 @@ bool EndsWith(const std::string& s, const std::string& tail) {
          });
 }
 
+// Removes an upload's file however its load ends.
+struct RemoveWhenDone {
+  const fs::path& file;
+  ~RemoveWhenDone() {
+    std::error_code ec;
+    fs::remove(file, ec);
+  }
+};
+
 // A readable id from a file or folder name: its stem, in [A-Za-z0-9._-].
 std::string BaseIdOf(const fs::path& path) {
   std::string name = path.filename().string();
@@ -165,13 +174,7 @@ v1::VolumeInfo VolumeRegistry::LoadFromDataRoot(const std::string& path, const s
 
 v1::VolumeInfo VolumeRegistry::AddUpload(const fs::path& file, const std::string& file_name,
                                          const Principal& caller) {
-  struct Remove {
-    const fs::path& f;
-    ~Remove() {
-      std::error_code ec;
-      fs::remove(f, ec);
-    }
-  } remove{file};
+  const RemoveWhenDone remove{file};
   Volume volume = LoadVolumeFile(file, PolicyFor("upload:" + file_name, true));
   return Add(BaseIdOf(file_name), "upload:" + file_name, std::move(volume), caller.name, true);
 }
@@ -249,13 +252,7 @@ v1::VolumeInfo VolumeRegistry::LoadLabels(const std::string& id, const std::stri
 v1::VolumeInfo VolumeRegistry::AddUploadedLabels(const std::string& id, const fs::path& file,
                                                  const std::string& file_name, const std::string& table,
                                                  const Principal& caller) {
-  struct Remove {
-    const fs::path& f;
-    ~Remove() {
-      std::error_code ec;
-      fs::remove(f, ec);
-    }
-  } remove{file};
+  const RemoveWhenDone remove{file};
   const std::shared_ptr<const Volume> image = VolumeForLabels(id, caller);
   const std::string shown = "upload:" + file_name;
   LabelVolume loaded = FitLabels(LoadVolumeFile(file, PolicyFor(shown, true)), *image, shown);
