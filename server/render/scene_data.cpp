@@ -10,11 +10,10 @@
 
 namespace cinevol {
 
-std::vector<float> ComputeMajorants(const BrickRanges& ranges, const float* sigma_t, int entries, float entry_scale,
+std::vector<float> ComputeMajorants(const BrickRanges& ranges, const float* sigma_t, int n, float entry_scale,
                                     float entry_offset) {
   // Sparse table: level k holds the max over 2^k consecutive entries, so any
   // range's max is two lookups.
-  const int n = entries;
   const int levels = std::bit_width(unsigned(n));
   std::vector<std::vector<float>> table(levels);
   table[0].assign(sigma_t, sigma_t + n);

@@ -19,8 +19,8 @@ namespace cinevol {
 
 // Per-brick majorant: the largest extinction the table gives over the brick's
 // value range (entries = stored * entry_scale + entry_offset).
-// `sigma_t`: one table's `entries` extinctions.
-std::vector<float> ComputeMajorants(const BrickRanges& ranges, const float* sigma_t, int entries, float entry_scale,
+// `sigma_t`: one table's `n` extinctions.
+std::vector<float> ComputeMajorants(const BrickRanges& ranges, const float* sigma_t, int n, float entry_scale,
                                     float entry_offset);
 
 // The labels present in each brick of `brick_size` voxels, with the one-voxel
