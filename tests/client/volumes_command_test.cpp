@@ -227,5 +227,41 @@ TEST(VolumesCommand, ScriptSessionsLoadOrUploadTheirVolume) {
                    "session.upload: ");
 }
 
+// Segmentations from the command line: `volumes labels` on the server's disk
+// or uploaded, the names shown; a script's session line loads one and its
+// events style the labels. (The small volume's own values, 0 to 1500 by
+// hundreds, serve as labels on its grid.)
+TEST(VolumesCommand, LabelsLoadOrUploadAndScriptsStyleThem) {
+  VolumesServer s;
+  ASSERT_TRUE(s.server->running()) << s.server->Log();
+  std::ofstream(s.root / "sub" / "names.tsv") << "0\tnothing\n100\tone hundred\n";
+  ASSERT_EQ(s.Run({"volumes", "load", "sub/small.nrrd"}).first, 0);
+  const auto [code, loaded] = s.Run({"volumes", "labels", "small", "sub/small.nrrd", "--table", "sub/names.tsv"});
+  ASSERT_EQ(code, 0) << loaded;
+  EXPECT_TRUE(Has(loaded, "labels:          16 values")) << loaded;
+  EXPECT_TRUE(Has(loaded, "one hundred")) << loaded;
+
+  WriteSmallNrrd(s.scratch / "mine.nrrd");
+  std::ofstream(s.scratch / "bad.tsv") << "0\tnothing\n100 one hundred\n";
+  const auto uploaded = s.Run({"volumes", "upload", (s.scratch / "mine.nrrd").string(), "--json"});
+  ASSERT_EQ(uploaded.first, 0) << uploaded.second;
+  const std::string id = ParseJson<v1::VolumeInfo>(uploaded.second).id();
+  ExpectCleanError(s.Run({"volumes", "labels", id, (s.scratch / "mine.nrrd").string(), "--table",
+                          (s.scratch / "bad.tsv").string(), "--upload"}),
+                   3, "header.label_table line 2");
+  const auto json = s.Run({"volumes", "labels", id, (s.scratch / "mine.nrrd").string(), "--upload", "--json"});
+  ASSERT_EQ(json.first, 0) << json.second;
+  EXPECT_EQ(ParseJson<v1::VolumeInfo>(json.second).labels().names_size(), 16);
+
+  std::ofstream(s.scratch / "labels.jsonl")
+      << R"({"session": {"load": "sub/small.nrrd", "labels": {"load": "sub/small.nrrd", "table": "sub/names.tsv"}, )"
+      << R"("viewport": {"width": 48, "height": 32}, "stream": {"targetSpp": 4}}})" << "\n"
+      << R"({"at": 0.1, "labels": {"showUnlisted": false, "styles": [{"value": 100}]}})" << "\n";
+  const auto played = s.Run({"play", "--script", (s.scratch / "labels.jsonl").string(), "--out",
+                             (s.scratch / "played").string(), "--timeout", "60"});
+  EXPECT_EQ(played.first, 0) << played.second;
+  EXPECT_TRUE(Has(played.second, "1 events")) << played.second;
+}
+
 }  // namespace
 }  // namespace cinevol::testing
