@@ -37,7 +37,11 @@ struct LabelSetup {
   bool show_unlisted = true;  // labels without a style: the image's transfer function, else hidden
   std::vector<TransferFunction> transfer_functions;  // the labels' own
   const LabelStyle& StyleOf(int label) const {
-    static const LabelStyle kShown{}, kHidden{false};
+    static const LabelStyle kShown{}, kHidden = [] {
+      LabelStyle hidden;
+      hidden.visible = false;
+      return hidden;
+    }();
     const auto it = styles.find(label);
     return it != styles.end() ? it->second : (show_unlisted ? kShown : kHidden);
   }

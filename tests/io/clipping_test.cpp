@@ -111,7 +111,9 @@ TEST(Clipping, NamedViewsFrameWhatIsKept) {
   box->mutable_size()->set_y(head.extent_mm().y * 0.5f);
   box->mutable_size()->set_z(head.extent_mm().z * 0.5f);
   const Camera whole = ResolveCamera(anterior, render, head, tf);
-  const Camera cropped = ResolveCamera(anterior, render, head, tf, {ResolveClipping(clipping, head)});
+  InView kept;
+  kept.clip = ResolveClipping(clipping, head);
+  const Camera cropped = ResolveCamera(anterior, render, head, tf, kept);
   EXPECT_LT(cropped.focal_distance, 0.8f * whole.focal_distance) << "the view comes closer to the kept quarter";
   const Vec3f target = cropped.eye + cropped.forward * cropped.focal_distance;
   const Vec3f whole_target = whole.eye + whole.forward * whole.focal_distance;
