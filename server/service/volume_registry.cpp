@@ -246,7 +246,7 @@ v1::VolumeInfo VolumeRegistry::LoadLabels(const std::string& id, const std::stri
   const fs::path table = table_path.empty() ? fs::path() : ResolveDataPath(table_path, "table_path");
   LabelVolume loaded = LoadLabelVolume(labels, *image, PolicyFor("path '" + path + "'", false));
   if (!table.empty()) loaded.names = LoadLabelTable(table, "table_path '" + table_path + "'");
-  return AttachLabels(id, std::move(loaded), caller);
+  return AttachLabels(id, image, std::move(loaded), caller);
 }
 
 v1::VolumeInfo VolumeRegistry::AddUploadedLabels(const std::string& id, const fs::path& file,
@@ -257,14 +257,19 @@ v1::VolumeInfo VolumeRegistry::AddUploadedLabels(const std::string& id, const fs
   const std::string shown = "upload:" + file_name;
   LabelVolume loaded = FitLabels(LoadVolumeFile(file, PolicyFor(shown, true)), *image, shown);
   loaded.names = ParseLabelTable(table, "header.label_table");
-  return AttachLabels(id, std::move(loaded), caller);
+  return AttachLabels(id, image, std::move(loaded), caller);
 }
 
-v1::VolumeInfo VolumeRegistry::AttachLabels(const std::string& id, LabelVolume labels, const Principal& caller) {
+v1::VolumeInfo VolumeRegistry::AttachLabels(const std::string& id, const std::shared_ptr<const Volume>& image,
+                                            LabelVolume labels, const Principal& caller) {
   std::shared_ptr<const LabelVolume> last;  // freed outside the lock
   std::lock_guard lock(mu_);
   FindLocked(id, caller, "volume_id");  // it may have gone while the file loaded
   Entry& e = volumes_.at(id);
+  if (e.volume != image) {
+    throw RpcError(grpc::StatusCode::ABORTED,
+                   fmt::format("volume_id: volume '{}' was replaced while its segmentation loaded; load it again", id));
+  }
   const std::uint64_t bytes = labels.labels.size() * sizeof(std::uint16_t);
   const std::uint64_t held = HeldBytesLocked() - (e.labels ? e.labels->labels.size() * sizeof(std::uint16_t) : 0);
   if (held + bytes > limits_.max_total_bytes) {

@@ -120,7 +120,9 @@ class VolumeRegistry {
   v1::VolumeInfo InfoLocked(const std::string& id, const Entry& e) const;
   // The volume `id` for attaching labels: its owner's or an operator's.
   std::shared_ptr<const Volume> VolumeForLabels(const std::string& id, const Principal& caller) const;
-  v1::VolumeInfo AttachLabels(const std::string& id, LabelVolume labels, const Principal& caller);
+  // Holds `labels`, fitted to `image`, for volume `id` if that is still `image`.
+  v1::VolumeInfo AttachLabels(const std::string& id, const std::shared_ptr<const Volume>& image, LabelVolume labels,
+                              const Principal& caller);
   std::uint64_t HeldBytesLocked() const;
   LoadPolicy PolicyFor(const std::string& label, bool upload) const;
   void Release(const std::string& id);

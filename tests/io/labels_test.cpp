@@ -169,6 +169,23 @@ TEST_F(TotalSegmentator, OnTheLongerCtTheSegmentationIsResampledAndSaysSo) {
                           [](std::uint16_t l) { return l == 0; }));
 }
 
+// example_seg_dicom is stored with its y axis flipped against the DICOM
+// series (LAS against LPS, origin at the other end): the same voxels, indexed
+// the other way. Fitted, every voxel finds its own label: the counts agree.
+TEST(LabelVolumeOnDicom, AFlippedAxisIsResampledVoxelForVoxel) {
+  CINEVOL_REQUIRE_SHARED_DATA();
+  const auto folder = SharedData() / "ct-body-totalsegmentator";
+  const Volume ct = LoadDicomSeries(folder / "example_ct_dicom");
+  const Volume own = LoadVolumeFile(folder / "example_seg_dicom.nii.gz");
+  const LabelVolume fitted = FitLabels(own, ct, "example_seg_dicom.nii.gz");
+  EXPECT_NE(fitted.note.find("resampled"), std::string::npos) << fitted.note;
+  EXPECT_EQ(fitted.note.find("outside"), std::string::npos) << "the grids cover each other: " << fitted.note;
+  std::map<int, std::uint64_t> counts;
+  for (std::size_t i = 0; i < own.voxel_count(); ++i) ++counts[int(own.ValueAtIndex(i))];
+  EXPECT_EQ(fitted.voxels, counts);
+  EXPECT_GT(fitted.voxels.at(5), 100000u) << "liver voxels";
+}
+
 // A named view frames what the labels leave visible: the liver alone is
 // seen from closer than the whole body, centred on it.
 TEST_F(TotalSegmentator, NamedViewsFrameTheVisibleLabels) {
