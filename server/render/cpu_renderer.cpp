@@ -38,6 +38,11 @@ void CpuRenderer::SetVolume(std::shared_ptr<const Volume> volume) {
   data_.SetVolume(volume_->prepared_ptr());
 }
 
+void CpuRenderer::SetLabels(std::shared_ptr<const LabelVolume> labels, const LabelSetup& setup) {
+  data_.SetLabels(labels ? VolumeCache::Get().AcquireLabels(labels, data_.volume().brick_size(), kHostDevice) : nullptr,
+                  setup);
+}
+
 void CpuRenderer::Render(const FrameRequest& request) {
   if (!data_.has_volume()) throw std::logic_error("CpuRenderer::Render before SetVolume");
   const int w = request.camera.width, h = request.camera.height;

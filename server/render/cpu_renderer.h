@@ -17,9 +17,7 @@ class CpuRenderer final : public Renderer {
   void SetLights(const LightSetup& lights) override { data_.SetLights(lights); }
   void SetClipRegion(const ClipRegion& clip) override { data_.SetClipRegion(clip); }
   void SetReconstruction(Reconstruction r) override { data_.SetReconstruction(r); }
-  void SetLabels(std::shared_ptr<const LabelVolume> labels, const LabelSetup& setup) override {
-    data_.SetLabels(std::move(labels), setup);
-  }
+  void SetLabels(std::shared_ptr<const LabelVolume> labels, const LabelSetup& setup) override;
   void Render(const FrameRequest& request) override;
   void ResetAccumulation() override;
   int accumulated_frames() const override { return accumulated_frames_; }

@@ -49,8 +49,6 @@ struct CudaRenderer::Device {
   DeviceBuffer<float> majorants, sigma_t, env_weight, env_marginal, env_conditional;
   DeviceBuffer<Vec4f> diffuse_opacity, specular_roughness, emission, env_texels;
   DeviceBuffer<Light> lights;
-  DeviceBuffer<std::uint16_t> labels;  // this renderer's copy of the segmentation
-  const LabelVolume* uploaded_labels = nullptr;
   DeviceBuffer<LabelMaterial> label_materials;
   DeviceBuffer<Vec3f> radiance, accumulated, albedo;
   DeviceBuffer<Vec4f> first_hit;
@@ -90,12 +88,10 @@ void CudaRenderer::SetReconstruction(Reconstruction r) {
 }
 
 void CudaRenderer::SetLabels(std::shared_ptr<const LabelVolume> labels, const LabelSetup& setup) {
-  data_.SetLabels(std::move(labels), setup);
+  int gpu = 0;
+  CINEVOL_CUDA_CHECK(cudaGetDevice(&gpu));
+  data_.SetLabels(labels ? VolumeCache::Get().AcquireLabels(labels, data_.volume().brick_size(), gpu) : nullptr, setup);
   Device& d = *device_;
-  if (data_.labels() != d.uploaded_labels) {
-    d.labels.Upload(data_.labels() ? data_.labels()->labels : std::vector<std::uint16_t>{}, d.stream);
-    d.uploaded_labels = data_.labels();
-  }
   d.label_materials.Upload(data_.label_materials(), d.stream);
   UploadTables();
 }
@@ -140,7 +136,7 @@ void CudaRenderer::Render(const FrameRequest& request) {
   scene.volume.voxels = volume_->voxels();
   if (use_texture_) scene.volume.texture = volume_->texture();
   scene.majorants.majorant = d.majorants.data();
-  if (scene.labels.voxels) scene.labels = {d.labels.data(), d.label_materials.data()};
+  if (scene.labels.voxels) scene.labels = {data_.labels()->voxels(), d.label_materials.data()};
   scene.transfer.sigma_t = d.sigma_t.data();
   scene.transfer.diffuse_opacity = d.diffuse_opacity.data();
   scene.transfer.specular_roughness = d.specular_roughness.data();
@@ -180,7 +176,7 @@ std::size_t CudaRenderer::DeviceBytes() const {
           d.env_conditional.size()) * 4 +
          (d.diffuse_opacity.size() + d.specular_roughness.size() + d.emission.size() + d.env_texels.size() +
           d.first_hit.size()) * sizeof(Vec4f) +
-         d.lights.size() * sizeof(Light) + d.labels.size() * 2 + d.label_materials.size() * sizeof(LabelMaterial) + (d.radiance.size() + d.accumulated.size() + d.albedo.size()) * sizeof(Vec3f);
+         d.lights.size() * sizeof(Light) + d.label_materials.size() * sizeof(LabelMaterial) + (d.radiance.size() + d.accumulated.size() + d.albedo.size()) * sizeof(Vec3f);
 }
 
 ImageRgbF CudaRenderer::Radiance() const { return {width_, height_, device_->radiance.Download(device_->stream)}; }

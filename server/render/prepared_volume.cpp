@@ -70,6 +70,58 @@ std::size_t PreparedVolume::host_bytes() const {
   return (quantised_.size() + 2 * (bricks_.min.size() + bricks_.max.size())) * sizeof(std::uint16_t);
 }
 
+BrickLabels ComputeBrickLabels(const LabelVolume& labels, Vec3i brick_size) {
+  const Vec3i dims = labels.dims;
+  Vec3i bricks;
+  for (int a = 0; a < 3; ++a) bricks[a] = (dims[a] + brick_size[a] - 1) / brick_size[a];
+  const std::size_t count = std::size_t(bricks.x) * bricks.y * bricks.z;
+  // Per brick its distinct labels, found in parallel by slabs, then packed.
+  std::vector<std::vector<std::uint16_t>> found(count);
+  ParallelFor(bricks.z, [&](std::int64_t bz) {
+    std::vector<std::uint16_t> seen;
+    for (int by = 0; by < bricks.y; ++by) {
+      for (int bx = 0; bx < bricks.x; ++bx) {
+        const Vec3i b{bx, by, int(bz)};
+        Vec3i lo, hi;
+        for (int a = 0; a < 3; ++a) {
+          lo[a] = std::max(0, b[a] * brick_size[a] - 1);
+          hi[a] = std::min(dims[a] - 1, (b[a] + 1) * brick_size[a]);
+        }
+        seen.clear();
+        for (int z = lo.z; z <= hi.z; ++z) {
+          for (int y = lo.y; y <= hi.y; ++y) {
+            const std::uint16_t* row = labels.labels.data() + (std::size_t(z) * dims.y + y) * dims.x;
+            for (int x = lo.x; x <= hi.x; ++x) {
+              if (std::find(seen.begin(), seen.end(), row[x]) == seen.end()) seen.push_back(row[x]);
+            }
+          }
+        }
+        found[(std::size_t(bz) * bricks.y + by) * bricks.x + bx] = seen;
+      }
+    }
+  });
+  BrickLabels out;
+  out.offsets.reserve(count + 1);
+  out.offsets.push_back(0);
+  for (const auto& f : found) {
+    out.labels.insert(out.labels.end(), f.begin(), f.end());
+    out.offsets.push_back(static_cast<std::uint32_t>(out.labels.size()));
+  }
+  return out;
+}
+
+LabelCopy::LabelCopy(std::shared_ptr<const LabelVolume> labels, Vec3i brick_size, int device)
+    : labels_(std::move(labels)), bricks_(ComputeBrickLabels(*labels_, brick_size)) {
+  if (device == kHostDevice) return;
+#if CINEVOL_WITH_CUDA
+  gpu_ = UploadLabels(*labels_, device);
+#else
+  throw std::logic_error("LabelCopy: a GPU copy in a build without CUDA");
+#endif
+}
+
+const std::uint16_t* LabelCopy::voxels() const { return gpu_ ? gpu_.get() : labels_->labels.data(); }
+
 std::string DeviceLabel(int device) { return device == kHostDevice ? "cpu" : "cuda:" + std::to_string(device); }
 
 VolumeCopy::VolumeCopy(std::shared_ptr<const PreparedVolume> prepared, int device)
@@ -130,6 +182,12 @@ std::shared_ptr<const VolumeCopy> VolumeCache::Acquire(const std::shared_ptr<con
     });
     return std::make_shared<const VolumeCopy>(std::move(prepared), device);
   });
+}
+
+std::shared_ptr<const LabelCopy> VolumeCache::AcquireLabels(const std::shared_ptr<const LabelVolume>& labels,
+                                                            Vec3i brick_size, int device) {
+  return FindOrMake(labels_, std::tuple{device, labels.get(), brick_size.x},
+                    [&] { return std::make_shared<const LabelCopy>(labels, brick_size, device); });
 }
 
 std::vector<VolumeCopyStatus> VolumeCache::Copies() const {

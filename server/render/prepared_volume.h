@@ -18,6 +18,7 @@
 #include <tuple>
 #include <vector>
 
+#include "core/labels.h"
 #include "core/volume.h"
 #include "core/volume_view.h"
 
@@ -68,6 +69,15 @@ class PreparedVolume {
   BrickRanges bricks_, cubic_bricks_;  // trilinear and tricubic margins
 };
 
+// The labels present in each brick of `brick_size` voxels, with the one-voxel
+// margin that nearest-label lookups inside the brick read: labels of brick i
+// are labels[offsets[i] .. offsets[i + 1]).
+struct BrickLabels {
+  std::vector<std::uint32_t> offsets;
+  std::vector<std::uint16_t> labels;
+};
+BrickLabels ComputeBrickLabels(const LabelVolume& labels, Vec3i brick_size);
+
 // The device of CPU renderers: their copy is the PreparedVolume in host memory.
 inline constexpr int kHostDevice = -1;
 
@@ -107,10 +117,29 @@ class VolumeCopy {
   std::shared_ptr<const GpuVoxels> gpu_;  // freed on its GPU with the last owner
 };
 
+// A segmentation on one device, shared like a VolumeCopy by every renderer
+// of it there: the labels present in each brick (host memory, for the
+// majorants) and the label voxels (on a GPU, uploaded once). Immutable.
+class LabelCopy {
+ public:
+  LabelCopy(std::shared_ptr<const LabelVolume> labels, Vec3i brick_size, int device);
+
+  const LabelVolume& labels() const { return *labels_; }
+  const BrickLabels& brick_labels() const { return bricks_; }
+  const std::uint16_t* voxels() const;  // in the device's memory
+
+ private:
+  std::shared_ptr<const LabelVolume> labels_;
+  BrickLabels bricks_;
+  std::shared_ptr<const std::uint16_t> gpu_;  // freed on its GPU with the last owner
+};
+
 #if CINEVOL_WITH_CUDA
 // Copies the prepared voxels to GPU `gpu`; the pointer frees them there (from
 // any thread). Defined in volume_upload.cu.
 std::shared_ptr<const GpuVoxels> UploadVoxels(const PreparedVolume& prepared, int gpu);
+// The same for a segmentation's label voxels.
+std::shared_ptr<const std::uint16_t> UploadLabels(const LabelVolume& labels, int gpu);
 #endif
 
 // One copy as the cache reports it.
@@ -130,6 +159,9 @@ class VolumeCache {
   // use. Thread-safe: callers asking for the same copy at once get one copy,
   // built once; only they wait for it.
   std::shared_ptr<const VolumeCopy> Acquire(const std::shared_ptr<const Volume>& volume, int brick_size, int device);
+  // The same for a segmentation, with the prepared volume's brick size.
+  std::shared_ptr<const LabelCopy> AcquireLabels(const std::shared_ptr<const LabelVolume>& labels, Vec3i brick_size,
+                                                 int device);
 
   // The live copies, by device then volume.
   std::vector<VolumeCopyStatus> Copies() const;
@@ -154,6 +186,7 @@ class VolumeCache {
   mutable std::mutex mu_;
   Slots<std::tuple<const Volume*, int>, PreparedVolume> prepared_;          // volume, brick size
   Slots<std::tuple<int, const Volume*, int>, VolumeCopy> copies_;          // device, volume, brick size
+  Slots<std::tuple<int, const LabelVolume*, int>, LabelCopy> labels_;     // device, labels, brick size (x)
 };
 
 }  // namespace cinevol

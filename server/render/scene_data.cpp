@@ -6,7 +6,6 @@
 #include <cmath>
 #include <stdexcept>
 
-#include "core/parallel_for.h"
 
 namespace cinevol {
 
@@ -68,50 +67,9 @@ EnvironmentDistribution BuildEnvironmentDistribution(const ImageRgbF& map) {
   return d;
 }
 
-BrickLabels ComputeBrickLabels(const LabelVolume& labels, Vec3i brick_size) {
-  const Vec3i dims = labels.dims;
-  Vec3i bricks;
-  for (int a = 0; a < 3; ++a) bricks[a] = (dims[a] + brick_size[a] - 1) / brick_size[a];
-  const std::size_t count = std::size_t(bricks.x) * bricks.y * bricks.z;
-  // Per brick its distinct labels, found in parallel by slabs, then packed.
-  std::vector<std::vector<std::uint16_t>> found(count);
-  ParallelFor(bricks.z, [&](std::int64_t bz) {
-    std::vector<std::uint16_t> seen;
-    for (int by = 0; by < bricks.y; ++by) {
-      for (int bx = 0; bx < bricks.x; ++bx) {
-        const Vec3i b{bx, by, int(bz)};
-        Vec3i lo, hi;
-        for (int a = 0; a < 3; ++a) {
-          lo[a] = std::max(0, b[a] * brick_size[a] - 1);
-          hi[a] = std::min(dims[a] - 1, (b[a] + 1) * brick_size[a]);
-        }
-        seen.clear();
-        for (int z = lo.z; z <= hi.z; ++z) {
-          for (int y = lo.y; y <= hi.y; ++y) {
-            const std::uint16_t* row = labels.labels.data() + (std::size_t(z) * dims.y + y) * dims.x;
-            for (int x = lo.x; x <= hi.x; ++x) {
-              if (std::find(seen.begin(), seen.end(), row[x]) == seen.end()) seen.push_back(row[x]);
-            }
-          }
-        }
-        found[(std::size_t(bz) * bricks.y + by) * bricks.x + bx] = seen;
-      }
-    }
-  });
-  BrickLabels out;
-  out.offsets.reserve(count + 1);
-  out.offsets.push_back(0);
-  for (const auto& f : found) {
-    out.labels.insert(out.labels.end(), f.begin(), f.end());
-    out.offsets.push_back(static_cast<std::uint32_t>(out.labels.size()));
-  }
-  return out;
-}
-
 void SceneData::SetVolume(std::shared_ptr<const PreparedVolume> volume) {
   volume_ = std::move(volume);
-  if (labels_ && labels_->dims != volume_->volume().dims()) labels_ = nullptr;
-  if (labels_) brick_labels_ = ComputeBrickLabels(*labels_, volume_->brick_size());
+  labels_ = nullptr;  // a segmentation belongs to its volume
   UpdateTables();
 }
 
@@ -126,19 +84,18 @@ void SceneData::SetReconstruction(Reconstruction r) {
   if (volume_ && !tf_.points.empty()) UpdateMajorants();
 }
 
-void SceneData::SetLabels(std::shared_ptr<const LabelVolume> labels, const LabelSetup& setup) {
-  if (labels && volume_ && labels->dims != volume_->volume().dims()) {
-    throw std::invalid_argument("SceneData::SetLabels: the label volume is not on the image's grid");
+void SceneData::SetLabels(std::shared_ptr<const LabelCopy> labels, const LabelSetup& setup) {
+  if (labels && (!volume_ || labels->labels().dims != volume_->volume().dims() ||
+                 labels->brick_labels().offsets.size() != volume_->brick_ranges(reconstruction_).min.size() + 1)) {
+    throw std::invalid_argument("SceneData::SetLabels: the labels are not on the volume's grid and bricks");
   }
-  if (labels != labels_) {
-    labels_ = std::move(labels);
-    brick_labels_ = labels_ && volume_ ? ComputeBrickLabels(*labels_, volume_->brick_size()) : BrickLabels{};
-  }
+  labels_ = std::move(labels);
   label_setup_ = setup;
   label_materials_.clear();
   if (labels_) {
-    label_materials_.resize(std::size_t(labels_->max_label()) + 1);
-    for (int label = 0; label <= labels_->max_label(); ++label) {
+    const int max_label = labels_->labels().max_label();
+    label_materials_.resize(std::size_t(max_label) + 1);
+    for (int label = 0; label <= max_label; ++label) {
       const LabelStyle& style = label_setup_.StyleOf(label);
       LabelMaterial& m = label_materials_[label];
       m.opacity_scale = style.visible ? style.opacity_scale : 0.0f;
@@ -186,8 +143,9 @@ void SceneData::UpdateMajorants() {
     for (std::size_t k = 1; k * n < table_.sigma_t.size(); ++k) by_table.push_back(majorants_of_table(int(k)));
     for (std::size_t b = 0; b < majorants_.size(); ++b) {
       float bound = 0.0f;
-      for (std::uint32_t i = brick_labels_.offsets[b]; i < brick_labels_.offsets[b + 1]; ++i) {
-        const LabelMaterial& m = label_materials_[brick_labels_.labels[i]];
+      const BrickLabels& present = labels_->brick_labels();
+      for (std::uint32_t i = present.offsets[b]; i < present.offsets[b + 1]; ++i) {
+        const LabelMaterial& m = label_materials_[present.labels[i]];
         bound = std::max(bound, m.opacity_scale * by_table[m.table][b]);
       }
       majorants_[b] = bound;
@@ -231,7 +189,7 @@ RenderScene SceneData::HostView() const {
     s.majorants.box_min = s.volume.box_min;
     s.majorants.inv_brick_size = Vec3f{1, 1, 1} / (v.spacing_mm() * ToFloat(volume_->brick_size()));
   }
-  if (labels_) s.labels = {labels_->labels.data(), label_materials_.data()};
+  if (labels_) s.labels = {labels_->labels().labels.data(), label_materials_.data()};
   s.transfer.sigma_t = table_.sigma_t.data();
   s.transfer.diffuse_opacity = table_.diffuse_opacity.data();
   s.transfer.specular_roughness = table_.specular_roughness.data();

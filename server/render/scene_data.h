@@ -23,14 +23,6 @@ namespace cinevol {
 std::vector<float> ComputeMajorants(const BrickRanges& ranges, const float* sigma_t, int n, float entry_scale,
                                     float entry_offset);
 
-// The labels present in each brick of `brick_size` voxels, with the one-voxel
-// margin that nearest-label lookups inside the brick read: labels of brick i
-// are labels[offsets[i] .. offsets[i + 1]).
-struct BrickLabels {
-  std::vector<std::uint32_t> offsets;
-  std::vector<std::uint16_t> labels;
-};
-BrickLabels ComputeBrickLabels(const LabelVolume& labels, Vec3i brick_size);
 
 // Sampling tables of an environment map (pbrt's Distribution2D).
 struct EnvironmentDistribution {
@@ -49,8 +41,9 @@ class SceneData {
   void SetLights(const LightSetup& setup);
   void SetClipRegion(const ClipRegion& clip) { clip_ = clip; }
   void SetReconstruction(Reconstruction r);
-  // A segmentation on the volume's grid and how its labels show; null: none.
-  void SetLabels(std::shared_ptr<const LabelVolume> labels, const LabelSetup& setup);
+  // A segmentation of the volume (VolumeCache::AcquireLabels, with the
+  // volume's brick size) and how its labels show; null: none.
+  void SetLabels(std::shared_ptr<const LabelCopy> labels, const LabelSetup& setup);
 
   bool has_volume() const { return volume_ != nullptr; }
   const PreparedVolume& volume() const { return *volume_; }
@@ -60,7 +53,7 @@ class SceneData {
   std::uint64_t majorant_builds() const { return majorant_builds_; }
   // The image's table, then the labels' own, kEntries each.
   const TransferTable& table() const { return table_; }
-  const LabelVolume* labels() const { return labels_.get(); }
+  const LabelCopy* labels() const { return labels_.get(); }
   const std::vector<LabelMaterial>& label_materials() const { return label_materials_; }
   const std::vector<Light>& lights() const { return lights_.lights; }
   const EnvironmentDistribution& environment_distribution() const { return environment_; }
@@ -76,9 +69,8 @@ class SceneData {
   std::shared_ptr<const PreparedVolume> volume_;
   Reconstruction reconstruction_ = Reconstruction::kTrilinear;
   TransferFunction tf_;
-  std::shared_ptr<const LabelVolume> labels_;
+  std::shared_ptr<const LabelCopy> labels_;
   LabelSetup label_setup_;
-  BrickLabels brick_labels_;
   std::vector<LabelMaterial> label_materials_;  // by label value
   TransferTable table_;
   std::vector<float> majorants_;

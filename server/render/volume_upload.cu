@@ -1,4 +1,4 @@
-// A prepared volume's voxels in a GPU's memory.
+// A prepared volume's voxels, and a segmentation's labels, in a GPU's memory.
 #include "device/cuda_buffer.h"
 #include "device/volume_texture.h"
 #include "render/prepared_volume.h"
@@ -45,6 +45,20 @@ std::shared_ptr<const GpuVoxels> UploadVoxels(const PreparedVolume& prepared, in
     // cudaFree waits for kernels still reading it. Errors are ignored: a
     // deleter must not throw, and a lost device leaves nothing to free.
     int previous = 0;
+    cudaGetDevice(&previous);
+    cudaSetDevice(gpu);
+    owned.reset();
+    cudaSetDevice(previous);
+  });
+}
+
+std::shared_ptr<const std::uint16_t> UploadLabels(const LabelVolume& labels, int gpu) {
+  OnGpu on(gpu);
+  auto owned = std::make_shared<DeviceBuffer<std::uint16_t>>();
+  owned->Upload(labels.labels);
+  CINEVOL_CUDA_CHECK(cudaStreamSynchronize(cudaStreamPerThread));  // read next on other streams
+  return std::shared_ptr<const std::uint16_t>(owned->data(), [owned = std::move(owned), gpu](const std::uint16_t*) mutable {
+    int previous = 0;  // as for the voxels: free it on its GPU, ignore errors
     cudaGetDevice(&previous);
     cudaSetDevice(gpu);
     owned.reset();

@@ -83,7 +83,9 @@ TEST(MajorantGrid, NeverBelowTheTrueExtinction) {
     for (int edit = 0; edit < 8; ++edit) {  // transfer-function, reconstruction and label edits on the same volume
       data.SetTransferFunction(RandomTransferFunction(rng));
       data.SetReconstruction(edit % 2 ? Reconstruction::kTricubic : Reconstruction::kTrilinear);
-      data.SetLabels(edit % 4 >= 2 ? labels : nullptr, RandomLabelSetup(rng));
+      data.SetLabels(edit % 4 >= 2 ? VolumeCache::Get().AcquireLabels(labels, data.volume().brick_size(), kHostDevice)
+                                   : nullptr,
+                     RandomLabelSetup(rng));
       const RenderScene s = data.HostView();
       std::uniform_real_distribution<float> u(0.0f, 1.0f);
       for (int k = 0; k < 20000; ++k) {

@@ -165,6 +165,32 @@ TEST(VolumeCache, CudaRenderersShareOneDeviceUpload) {
   EXPECT_GT(MeanOf(lone), 0.0) << "the head should show";
 }
 
+// A segmentation is shared too: one copy per device (its labels per brick, and
+// on a GPU one upload of the label voxels) for every renderer of it there,
+// freed with the last; the renderer's own part is its label materials.
+TEST(VolumeCache, RenderersOfOneSegmentationShareOneLabelCopy) {
+  const auto volume = SmallHead();
+  auto labels = std::make_shared<LabelVolume>();
+  labels->dims = volume->dims();
+  labels->labels.assign(volume->voxel_count(), 1);
+  labels->voxels[1] = volume->voxel_count();
+  const std::shared_ptr<const LabelVolume> shared = labels;
+  std::vector<int> devices{kHostDevice};
+  if (CudaAvailable()) devices.push_back(0);
+  for (const int device : devices) {
+    std::weak_ptr<const LabelCopy> seen;
+    {
+      const auto a = VolumeCache::Get().AcquireLabels(shared, {4, 4, 4}, device);
+      const auto b = VolumeCache::Get().AcquireLabels(shared, {4, 4, 4}, device);
+      EXPECT_EQ(a.get(), b.get()) << "device " << device;
+      EXPECT_NE(a.get(), VolumeCache::Get().AcquireLabels(shared, {8, 8, 8}, device).get()) << "other bricks";
+      EXPECT_EQ(a->brick_labels().offsets.size(), std::size_t(8 * 8 * 8) + 1) << "32^3 voxels in 4^3 bricks";
+      seen = a;
+    }
+    EXPECT_TRUE(seen.expired()) << "the last holder frees the copy";
+  }
+}
+
 // What a 720p session's pipeline adds on the GPU beyond the shared voxels
 // (printed for docs/architecture.md; the GPU's free memory tells the rest).
 TEST(VolumeCache, PrintsTheDeviceMemoryOfA720pSession) {
