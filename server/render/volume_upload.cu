@@ -57,7 +57,8 @@ std::shared_ptr<const std::uint16_t> UploadLabels(const LabelVolume& labels, int
   auto owned = std::make_shared<DeviceBuffer<std::uint16_t>>();
   owned->Upload(labels.labels);
   CINEVOL_CUDA_CHECK(cudaStreamSynchronize(cudaStreamPerThread));  // read next on other streams
-  return std::shared_ptr<const std::uint16_t>(owned->data(), [owned = std::move(owned), gpu](const std::uint16_t*) mutable {
+  const std::uint16_t* data = owned->data();  // before the deleter takes `owned`
+  return std::shared_ptr<const std::uint16_t>(data, [owned = std::move(owned), gpu](const std::uint16_t*) mutable {
     int previous = 0;  // as for the voxels: free it on its GPU, ignore errors
     cudaGetDevice(&previous);
     cudaSetDevice(gpu);
