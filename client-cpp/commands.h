@@ -7,6 +7,7 @@
 namespace cinevol::cli {
 
 void AddDemoCommand(CLI::App& app);
+void AddHealthCommand(CLI::App& app);
 void AddInfoCommand(CLI::App& app);
 void AddLoadtestCommand(CLI::App& app);
 void AddPlayCommand(CLI::App& app);

@@ -21,6 +21,7 @@ int main(int argc, char** argv) {
   cinevol::cli::AddSnapshotCommand(app);
   cinevol::cli::AddVolumesCommand(app);
   cinevol::cli::AddStatusCommand(app);
+  cinevol::cli::AddHealthCommand(app);
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {

@@ -24,6 +24,9 @@ namespace {
 // server parse before any check runs.
 constexpr int kMaxReceiveBytes = (1 << 20) + (64 << 10);
 
+// What Kubernetes readiness probes ask (docs/deploy.md); "" is liveness.
+constexpr const char* kReadinessService = "cinevol.v1.SessionService";
+
 }  // namespace
 
 Server::Server(const ServerOptions& options)
@@ -50,6 +53,7 @@ Server::Server(const ServerOptions& options)
                                  options.listen));
   }
   server_->GetHealthCheckService()->SetServingStatus(true);
+  server_->GetHealthCheckService()->SetServingStatus(kReadinessService, core_->HasRoomForSession());
   if (!options.port_file.empty()) std::ofstream(options.port_file) << port_ << "\n";
   sweeper_ = std::thread([this] { Sweep(); });
   const std::string host = options.listen.substr(0, options.listen.rfind(':'));
@@ -90,6 +94,8 @@ void Server::Sweep() {
   while (!stop_.wait_for(lock, std::chrono::milliseconds(200), [&] { return stopping_; })) {
     lock.unlock();
     core_->ExpireDetachedSessions();
+    // Readiness: the session service serves while another session fits.
+    server_->GetHealthCheckService()->SetServingStatus(kReadinessService, core_->HasRoomForSession());
     core_->calls().CancelOverdue(std::chrono::steady_clock::now());
     if (exposer_) core_->PublishMetrics(++sweeps % 5 == 0);  // GPU memory once a second
     lock.lock();
@@ -124,8 +130,9 @@ void Server::Wait() {
 void Server::Stop() {
   std::call_once(stopped_, [&] {
     spdlog::info("cinevol-server: draining (at most {} s)", drain_seconds_);
-    server_->GetHealthCheckService()->SetServingStatus(false);
+    // Draining first: the sweeper's readiness update then reads no room.
     core_->Drain();  // new work refused; sessions end with a notice; frames and stills cancelled
+    server_->GetHealthCheckService()->SetServingStatus(false);
     // Calls still open after a moment (uploads, a peer that never reads) are cancelled.
     server_->Shutdown(std::chrono::system_clock::now() +
                       std::chrono::milliseconds(int(std::min(2.0, drain_seconds_ / 4) * 1000)));

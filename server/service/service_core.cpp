@@ -267,6 +267,11 @@ void ServiceCore::Drain() {
   for (auto& s : open) s->Drain();
 }
 
+bool ServiceCore::HasRoomForSession() const {
+  std::lock_guard lock(mu_);
+  return !draining_ && int(sessions_.size()) < options_.max_sessions;
+}
+
 void ServiceCore::Forget(const std::string& id) {
   std::shared_ptr<Session> last;  // may be the last reference: released outside the lock
   std::lock_guard lock(mu_);

@@ -99,6 +99,8 @@ class ServiceCore {
   // ends with a notice, frames and stills in flight are cancelled.
   void Drain();
   bool draining() const { return draining_; }
+  // Whether CreateSession would find room for one more session (readiness).
+  bool HasRoomForSession() const;
   // Throws UNAVAILABLE while draining.
   void RequireServing() const;
 
