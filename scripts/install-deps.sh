@@ -18,6 +18,7 @@ packages=(
   openssl                       # the TLS tests make their own CA and certificates
   libsdl2-dev libimgui-dev      # cinevol-viewer: the window and its panels
   xvfb xauth                    # the viewer's tests run it on a virtual display
+  python3-yaml yamllint         # tests/deploy: the Kubernetes and Compose manifests' checks
 )
 
 missing=()
