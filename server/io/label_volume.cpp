@@ -171,7 +171,8 @@ LabelVolume FitLabels(const Volume& labels, const Volume& image, const std::stri
     }
     out.note = "resampled nearest-neighbour from " + GridText(labels) + " onto the image's " + GridText(image) +
                (inside < image.voxel_count() ? "; voxels outside it are label 0" : "");
-    spdlog::info("{}: {}", shown, out.note);
+    // Debug only: `shown` is a path or a client's file name, patient data for an info log.
+    spdlog::debug("{}: {}", shown, out.note);
   }
   for (std::uint16_t label : out.labels) ++out.voxels[label];
   return out;
