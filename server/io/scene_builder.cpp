@@ -58,24 +58,20 @@ bool CutAway(const ClipRegion& clip, Vec3f lo, Vec3f hi) {
 
 }  // namespace
 
-// Per block of Volume::kBlockSize^3 voxels (x fastest), whether it holds a
-// label the setup shows; all true without labels.
-std::vector<bool> BlocksWithVisibleLabels(const Volume& volume, const InView& in_view) {
+std::vector<bool> BlocksWithVisibleLabels(const Volume& volume, const LabelVolume& labels, const LabelSetup& setup) {
   const Vec3i blocks = volume.block_counts(), dims = volume.dims();
-  std::vector<bool> shown(std::size_t(blocks.x) * blocks.y * blocks.z, in_view.labels == nullptr);
-  if (!in_view.labels) return shown;
-  std::vector<bool> visible(std::size_t(in_view.labels->max_label()) + 1);
+  std::vector<bool> visible(std::size_t(labels.max_label()) + 1);
   for (std::size_t l = 0; l < visible.size(); ++l) {
-    const LabelStyle& style = in_view.label_setup.StyleOf(int(l));
+    const LabelStyle& style = setup.StyleOf(int(l));
     visible[l] = style.visible && style.opacity_scale > 0.0f;
   }
-  const std::vector<std::uint16_t>& labels = in_view.labels->labels;
+  std::vector<bool> shown(std::size_t(blocks.x) * blocks.y * blocks.z, false);
   for (int z = 0; z < dims.z; ++z) {
     for (int y = 0; y < dims.y; ++y) {
       const std::size_t row = (std::size_t(z) * dims.y + y) * dims.x;
       const std::size_t block_row = (std::size_t(z / Volume::kBlockSize) * blocks.y + y / Volume::kBlockSize) * blocks.x;
       for (int x = 0; x < dims.x; ++x) {
-        if (visible[labels[row + x]]) shown[block_row + x / Volume::kBlockSize] = true;
+        if (visible[labels.labels[row + x]]) shown[block_row + x / Volume::kBlockSize] = true;
       }
     }
   }
@@ -84,7 +80,6 @@ std::vector<bool> BlocksWithVisibleLabels(const Volume& volume, const InView& in
 
 std::vector<Vec3f> VisibleCorners(const Volume& volume, const TransferFunction& tf, const InView& in_view) {
   const ClipRegion& clip = in_view.clip;
-  const std::vector<bool> labelled = BlocksWithVisibleLabels(volume, in_view);
   const Vec3i blocks = volume.block_counts(), n{blocks.x + 1, blocks.y + 1, blocks.z + 1};
   // Per corner of the block lattice, how many visible blocks touch it.
   std::vector<std::uint8_t> touching(std::size_t(n.x) * n.y * n.z, 0);
@@ -98,7 +93,9 @@ std::vector<Vec3f> VisibleCorners(const Volume& volume, const TransferFunction& 
     for (int y = 0; y < blocks.y; ++y) {
       for (int x = 0; x < blocks.x; ++x, ++i) {
         const Volume::ValueRange r = volume.block_ranges()[i];
-        if (!labelled[i] || MaxOpacity(tf, r.lo, r.hi) <= min_opacity) continue;
+        if ((in_view.label_blocks && !(*in_view.label_blocks)[i]) || MaxOpacity(tf, r.lo, r.hi) <= min_opacity) {
+          continue;
+        }
         const Vec3f lo = ToFloat(Vec3i{x, y, z}) * block_mm - volume.extent_mm() * 0.5f;
         if (CutAway(clip, lo, lo + block_mm)) continue;
         any = true;
@@ -265,8 +262,10 @@ RenderSetup ResolveScene(const v1::Scene& scene, const Volume& volume, const Lab
   setup.transfer_function = ResolveTransferFunction(scene.transfer_function(), volume);
   setup.clip = ResolveClipping(scene.clipping(), volume);
   setup.labels = ResolveLabels(scene.labels(), volume);
+  const std::vector<bool> label_blocks =
+      labels ? BlocksWithVisibleLabels(volume, *labels, setup.labels) : std::vector<bool>();
   setup.camera = ResolveCamera(scene.camera(), scene.render(), volume, setup.transfer_function,
-                               {setup.clip, labels, setup.labels});
+                               {setup.clip, labels ? &label_blocks : nullptr});
   setup.lights = ResolveLights(scene.lights());
   setup.spp = static_cast<int>(scene.render().spp());
   setup.max_bounces = static_cast<int>(scene.render().max_bounces());

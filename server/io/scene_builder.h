@@ -45,12 +45,16 @@ Vec3f PatientToWorld(const DirectionCosines& direction, Vec3f lps);
 // The crop box and clip planes (patient LPS mm) as half-spaces in world mm.
 ClipRegion ResolveClipping(const v1::Clipping& clipping, const Volume& volume);
 
+// Per block of Volume::kBlockSize^3 voxels (Volume::block_counts, x fastest),
+// whether it holds a label `setup` shows. One pass over the labels: callers
+// keep it while the label styles stay (FramePipeline does).
+std::vector<bool> BlocksWithVisibleLabels(const Volume& volume, const LabelVolume& labels, const LabelSetup& setup);
+
 // What a scene leaves in view beyond its transfer function: the clipping
-// and, where the volume has a segmentation, the labels its styles show.
+// and, where the volume has a segmentation, the blocks holding labels it shows.
 struct InView {
   ClipRegion clip;
-  const LabelVolume* labels = nullptr;
-  LabelSetup label_setup;
+  const std::vector<bool>* label_blocks = nullptr;  // BlocksWithVisibleLabels; null: no segmentation
 };
 
 // The corners of the blocks of voxels (Volume::block_ranges) that `tf` makes

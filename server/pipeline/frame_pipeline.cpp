@@ -62,13 +62,12 @@ void FramePipeline::Update(const v1::Scene& scene, const FrameSettings& settings
     renderer_->SetClipRegion(clip_);
   }
   if (changes & kLabelsChanged) {
-    label_setup_ = ResolveLabels(scene.labels(), *volume_);
-    renderer_->SetLabels(labels_, label_setup_);
+    SetLabels(ResolveLabels(scene.labels(), *volume_));
   }
   if (changes & kSamplingChanged) renderer_->SetReconstruction(ResolveReconstruction(scene.render().reconstruction()));
   if (changes & kCameraChanged) {
     camera_ = ResolveCamera(scene.camera(), scene.render(), *volume_, transfer_function_,
-                            {clip_, labels_.get(), label_setup_});
+                            {clip_, labels_ ? &label_blocks_ : nullptr});
   }
   spp_ = static_cast<int>(scene.render().spp());
   max_bounces_ = static_cast<int>(scene.render().max_bounces());
@@ -85,10 +84,7 @@ void FramePipeline::Update(const RenderSetup& setup, const FrameSettings& settin
     clip_ = setup.clip;
     renderer_->SetClipRegion(clip_);
   }
-  if (changes & kLabelsChanged) {
-    label_setup_ = setup.labels;
-    renderer_->SetLabels(labels_, label_setup_);
-  }
+  if (changes & kLabelsChanged) SetLabels(setup.labels);
   if (changes & kSamplingChanged) renderer_->SetReconstruction(setup.reconstruction);
   if (changes & kCameraChanged) camera_ = setup.camera;
   spp_ = setup.spp;
@@ -96,6 +92,11 @@ void FramePipeline::Update(const RenderSetup& setup, const FrameSettings& settin
   seed_ = setup.seed;
   exposure_ = setup.exposure;
   Apply(settings, changes);
+}
+
+void FramePipeline::SetLabels(const LabelSetup& setup) {
+  renderer_->SetLabels(labels_, setup);
+  if (labels_) label_blocks_ = BlocksWithVisibleLabels(*volume_, *labels_, setup);  // for framing
 }
 
 void FramePipeline::SetTransferFunction(TransferFunction tf) {

@@ -155,6 +155,7 @@ class FramePipeline {
 
  private:
   void SetTransferFunction(TransferFunction tf);
+  void SetLabels(const LabelSetup& setup);  // styles the segmentation, if any, and keeps its framing blocks
   // What every update ends with: the denoiser, its cue and the accumulation.
   void Apply(const FrameSettings& settings, unsigned changes);
   FrameRequest Request(int spp);
@@ -167,7 +168,7 @@ class FramePipeline {
 
   std::shared_ptr<const Volume> volume_;
   std::shared_ptr<const LabelVolume> labels_;
-  LabelSetup label_setup_;  // the scene's label styles, resolved
+  std::vector<bool> label_blocks_;  // BlocksWithVisibleLabels of the current styles, for named views
   std::unique_ptr<Renderer> renderer_;
   std::unique_ptr<Denoiser> denoiser_;
   std::unique_ptr<Display> display_;

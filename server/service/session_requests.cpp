@@ -58,6 +58,15 @@ void CheckCost(const v1::Scene& scene, const std::string& prefix, const SessionL
                                 "(--max-tf-points)",
                                 prefix, scene.transfer_function().points_size(), limits.max_tf_points));
   }
+  for (int i = 0; i < scene.labels().styles_size(); ++i) {
+    const int points = scene.labels().styles(i).transfer_function().points_size();
+    if (points > limits.max_tf_points) {
+      throw OverLimit("max-tf-points",
+                      fmt::format("{}labels.styles[{}].transfer_function.points: {} points, over this server's limit "
+                                  "of {} (--max-tf-points)",
+                                  prefix, i, points, limits.max_tf_points));
+    }
+  }
   if (scene.lights_size() > limits.max_lights) {
     throw OverLimit("max-lights", fmt::format("{}lights: {} lights, over this server's limit of {} (--max-lights)",
                                               prefix, scene.lights_size(), limits.max_lights));
@@ -120,8 +129,10 @@ void AddResolvedCamera(v1::Scene& scene, const Volume& volume, const LabelVolume
   v1::Camera& proto = *scene.mutable_camera();
   if (proto.view() == v1::NAMED_VIEW_UNSPECIFIED) return;
   const TransferFunction tf = ResolveTransferFunction(scene.transfer_function(), volume);
+  const std::vector<bool> label_blocks =
+      labels ? BlocksWithVisibleLabels(volume, *labels, ResolveLabels(scene.labels(), volume)) : std::vector<bool>();
   const Camera c = ResolveCamera(proto, scene.render(), volume, tf,
-                                 {ResolveClipping(scene.clipping(), volume), labels, ResolveLabels(scene.labels(), volume)});
+                                 {ResolveClipping(scene.clipping(), volume), labels ? &label_blocks : nullptr});
   auto set = [](v1::Vec3* v, Vec3f p) {
     v->set_x(p.x);
     v->set_y(p.y);

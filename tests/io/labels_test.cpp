@@ -199,10 +199,11 @@ TEST_F(TotalSegmentator, NamedViewsFrameTheVisibleLabels) {
   LabelSetup liver_alone;
   liver_alone.show_unlisted = false;
   liver_alone.styles[5] = {};
-  InView all_labels;
-  all_labels.labels = labels_.get();
-  InView liver_only = all_labels;
-  liver_only.label_setup = liver_alone;
+  const std::vector<bool> all_blocks = BlocksWithVisibleLabels(*image_, *labels_, {});
+  const std::vector<bool> liver_blocks = BlocksWithVisibleLabels(*image_, *labels_, liver_alone);
+  InView all_labels, liver_only;
+  all_labels.label_blocks = &all_blocks;
+  liver_only.label_blocks = &liver_blocks;
   const Camera whole = ResolveCamera(anterior, render, *image_, tf, all_labels);
   const Camera liver = ResolveCamera(anterior, render, *image_, tf, liver_only);
   EXPECT_LT(liver.focal_distance, 0.8f * whole.focal_distance) << "the view comes closer to the liver";

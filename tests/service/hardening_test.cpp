@@ -197,6 +197,11 @@ TEST(Hardening, EveryLimitIsEnforcedAndNamed) {
   r = scene_request();
   for (int i = 0; i < 5; ++i) r.mutable_scene()->mutable_transfer_function()->add_points()->set_value(float(i));
   ExpectRpcError([&] { client.CreateSession(r); }, grpc::StatusCode::INVALID_ARGUMENT, "--max-tf-points");
+  r = scene_request();  // a label's own transfer function is bounded the same way
+  auto* own = r.mutable_scene()->mutable_labels()->add_styles()->mutable_transfer_function();
+  for (int i = 0; i < 5; ++i) own->add_points()->set_value(float(i));
+  ExpectRpcError([&] { client.CreateSession(r); }, grpc::StatusCode::INVALID_ARGUMENT,
+                 "labels.styles[0].transfer_function.points");
   r = scene_request();
   r.mutable_scene()->mutable_render()->set_max_bounces(9);
   ExpectRpcError([&] { client.CreateSession(r); }, grpc::StatusCode::INVALID_ARGUMENT, "--max-bounces");
