@@ -1,54 +1,19 @@
-// cinevol::Client over the generated stubs.
+// cinevol::Client over the generated stubs and its ServerPool.
 #include "client.h"
 
 #include <fmt/format.h>
 
-#include <fstream>
-#include <iterator>
-#include <stdexcept>
-
 #include "encode/image_codecs.h"
+#include "server_pool.h"
+#include "volume_calls.h"
 
 namespace cinevol {
 namespace {
 
-constexpr int kMaxReceiveBytes = 512 << 20;  // a 4K EXR snapshot is about 100 MB
-
-void Check(const grpc::Status& status) {
-  if (!status.ok()) throw RpcError(status);
-}
-
-void AddToken(grpc::ClientContext& context, const std::string& token) {
-  if (!token.empty()) context.AddMetadata("authorization", "Bearer " + token);
-}
-
-std::string ReadPem(const std::filesystem::path& file, const char* what) {
-  std::ifstream in(file, std::ios::binary);
-  if (!in || std::filesystem::is_directory(file)) {
-    throw std::invalid_argument(fmt::format("{} {}: cannot read the file", what, file.string()));
-  }
-  std::string text(std::istreambuf_iterator<char>(in), {});
-  if (text.find("-----BEGIN ") == std::string::npos) {
-    throw std::invalid_argument(fmt::format("{} {}: not a PEM file", what, file.string()));
-  }
-  return text;
-}
-
-std::shared_ptr<grpc::ChannelCredentials> Credentials(const ClientOptions& options) {
-  if (options.tls_ca.empty() && options.tls_cert.empty() && options.tls_key.empty()) {
-    return grpc::InsecureChannelCredentials();
-  }
-  if (options.tls_cert.empty() != options.tls_key.empty()) {
-    throw std::invalid_argument("tls_cert (--tls-cert) and tls_key (--tls-key) go together: give both");
-  }
-  grpc::SslCredentialsOptions ssl;
-  if (!options.tls_ca.empty()) ssl.pem_root_certs = ReadPem(options.tls_ca, "--tls-ca");
-  if (!options.tls_cert.empty()) {
-    ssl.pem_cert_chain = ReadPem(options.tls_cert, "--tls-cert");
-    ssl.pem_private_key = ReadPem(options.tls_key, "--tls-key");
-  }
-  return grpc::SslCredentials(ssl);
-}
+// Trailing metadata of a stream whose session the server ended.
+constexpr char kSessionEndedTrailer[] = "cinevol-session-ended";
+// Between attempts to reattach after a drop.
+constexpr std::chrono::milliseconds kResumePause{200};
 
 }  // namespace
 
@@ -65,6 +30,10 @@ RpcError::RpcError(const grpc::Status& status)
     : std::runtime_error(StatusCodeName(status.error_code()) + ": " + status.error_message()),
       code_(status.error_code()) {}
 
+void Check(const grpc::Status& status) {
+  if (!status.ok()) throw RpcError(status);
+}
+
 const std::string& EncodedImage(const v1::Frame& frame) { return frame.has_png() ? frame.png() : frame.jpeg(); }
 
 RgbImage DecodeFrame(const v1::Frame& frame) {
@@ -74,15 +43,13 @@ RgbImage DecodeFrame(const v1::Frame& frame) {
   return {image.width, image.height, image.bytes};
 }
 
-SessionStream::SessionStream(std::shared_ptr<grpc::Channel> channel, std::string session_id, std::string token,
-                             StreamOptions options)
-    : channel_(std::move(channel)),
-      stub_(v1::SessionService::NewStub(channel_)),
-      session_id_(std::move(session_id)),
-      token_(std::move(token)),
-      options_(std::move(options)) {
+SessionStream::SessionStream(std::shared_ptr<ServerPool> pool, std::string session_id, StreamOptions options)
+    : pool_(std::move(pool)), route_(std::move(session_id)), options_(std::move(options)) {
   {
     std::lock_guard lock(call_mu_);
+    session_id_ = pool_->CurrentId(route_);
+    channel_ = pool_->Channel(pool_->AddressOf(route_));
+    stub_ = v1::SessionService::NewStub(channel_);
     Open();
   }
   reader_ = std::thread([this] { ReadAll(); });
@@ -96,7 +63,7 @@ SessionStream::~SessionStream() {
 void SessionStream::Open() {
   stream_.reset();  // the finished call goes before its context
   context_ = std::make_unique<grpc::ClientContext>();
-  AddToken(*context_, token_);
+  if (!pool_->options().token.empty()) context_->AddMetadata("authorization", "Bearer " + pool_->options().token);
   stream_ = stub_->StreamSession(context_.get());
   next_seq_ = 1;
   {
@@ -120,15 +87,32 @@ void SessionStream::Deliver(v1::ServerMessage message) {
 
 void SessionStream::ReadAll() {
   grpc::Status status;
+  // The end of the current drop's resume window; none while messages arrive.
+  std::optional<std::chrono::system_clock::time_point> give_up;
   for (;;) {
-    for (v1::ServerMessage message; stream_->Read(&message);) Deliver(std::move(message));
+    for (v1::ServerMessage message; stream_->Read(&message);) {
+      give_up.reset();
+      Deliver(std::move(message));
+    }
+    bool session_over = false;
     {
       std::lock_guard lock(call_mu_);  // Finish must not overlap a Write
       status = stream_->Finish();
-      if (!options_.resume || writes_closed_ || status.error_code() != grpc::StatusCode::UNAVAILABLE) break;
+      if (writes_closed_) break;
+      // The server ended the session itself (closed, drained, failed): it
+      // says so in the trailers (server/service/session_stream.cpp).
+      session_over = context_->GetServerTrailingMetadata().count(kSessionEndedTrailer) > 0;
       reconnecting_ = true;
     }
-    if (!Resume()) break;
+    const grpc::StatusCode code = status.error_code();
+    if (!give_up) give_up = std::chrono::system_clock::now() + options_.resume_timeout;
+    if (options_.resume && code == grpc::StatusCode::UNAVAILABLE && !session_over && Resume(*give_up)) continue;
+    const bool gone = code == grpc::StatusCode::UNAVAILABLE || code == grpc::StatusCode::NOT_FOUND;
+    if (options_.failover && gone && Relocate(status)) {
+      give_up.reset();
+      continue;
+    }
+    break;
   }
   {
     std::lock_guard lock(call_mu_);
@@ -140,10 +124,13 @@ void SessionStream::ReadAll() {
   arrived_.notify_all();
 }
 
-bool SessionStream::Resume() {
-  const auto deadline = std::chrono::system_clock::now() + options_.resume_timeout;
-  while (std::chrono::system_clock::now() < deadline) {
-    if (channel_->WaitForConnected(std::min(deadline, std::chrono::system_clock::now() + std::chrono::seconds(1)))) {
+bool SessionStream::Resume(std::chrono::system_clock::time_point give_up) {
+  // A server (or a proxy before it) that answers at once yet fails the
+  // call is not asked again straight away.
+  std::this_thread::sleep_for(std::min<std::chrono::system_clock::duration>(
+      kResumePause, std::max<std::chrono::system_clock::duration>(give_up - std::chrono::system_clock::now(), {})));
+  while (std::chrono::system_clock::now() < give_up) {
+    if (channel_->WaitForConnected(std::min(give_up, std::chrono::system_clock::now() + std::chrono::seconds(1)))) {
       std::lock_guard lock(call_mu_);
       if (writes_closed_) return false;
       Open();
@@ -158,6 +145,47 @@ bool SessionStream::Resume() {
   return false;
 }
 
+bool SessionStream::Relocate(grpc::Status& status) {
+  if (!pool_->CanRelocate(route_)) return false;
+  std::string from;
+  Placement placed;
+  try {
+    from = pool_->AddressOf(route_);
+    placed = pool_->Relocate(route_);
+  } catch (const std::exception& e) {
+    status = grpc::Status(status.error_code(),
+                          fmt::format("{}; re-creating the session on another server failed: {}",
+                                      status.error_message(), e.what()));
+    return false;
+  }
+  {
+    std::lock_guard lock(call_mu_);
+    if (writes_closed_) return false;
+    channel_ = pool_->Channel(placed.address);
+    stub_ = v1::SessionService::NewStub(channel_);
+    session_id_ = placed.response.session_id();
+    Open();
+    reconnecting_ = false;
+  }
+  if (pool_->Paused(route_)) {
+    v1::SessionEvent pause;
+    pause.mutable_pause();
+    Send(pause);
+  }
+  {
+    std::lock_guard lock(mu_);
+    ++failovers_;
+  }
+  v1::ServerMessage notice;
+  notice.mutable_notice()->set_level(v1::Notice::INFO);
+  notice.mutable_notice()->set_message(
+      fmt::format("the session's server {} went away ({}): the session was created again from its last state on {} "
+                  "as {}",
+                  from, StatusCodeName(status.error_code()), placed.address, placed.response.session_id()));
+  Deliver(std::move(notice));
+  return true;
+}
+
 std::uint64_t SessionStream::Send(v1::SessionEvent event) {
   std::lock_guard lock(call_mu_);
   if (writes_closed_ || reconnecting_) return 0;
@@ -169,7 +197,9 @@ std::uint64_t SessionStream::Send(v1::SessionEvent event) {
     std::lock_guard inbox_lock(mu_);
     sent_at_[seq] = std::chrono::steady_clock::now();
   }
-  return stream_->Write(message) ? seq : 0;
+  if (!stream_->Write(message)) return 0;
+  pool_->Record(route_, message.event());
+  return seq;
 }
 
 std::optional<v1::ServerMessage> SessionStream::Next(std::chrono::milliseconds timeout) {
@@ -226,139 +256,94 @@ int SessionStream::resumes() const {
   return resumes_;
 }
 
-Client::Client(const ClientOptions& options) : options_(options) {
-  grpc::ChannelArguments args;
-  args.SetMaxReceiveMessageSize(kMaxReceiveBytes);
-  const bool tls = !options.tls_ca.empty() || !options.tls_cert.empty();
-  channel_ = grpc::CreateCustomChannel(options.address, Credentials(options), args);
-  if (!channel_->WaitForConnected(std::chrono::system_clock::now() + options.connect_timeout)) {
-    throw RpcError({grpc::StatusCode::UNAVAILABLE,
-                    fmt::format("cannot reach cinevol-server at {} within {} s{}", options.address,
-                                options.connect_timeout.count() / 1000.0,
-                                tls ? " (over TLS: is the server's certificate signed by --tls-ca, for this "
-                                      "address, and does the server accept the client certificate?)"
-                                    : " (is it running? a server with TLS needs --tls-ca)")});
-  }
-  volumes_ = v1::VolumeService::NewStub(channel_);
-  sessions_ = v1::SessionService::NewStub(channel_);
-  server_ = v1::ServerService::NewStub(channel_);
+int SessionStream::failovers() const {
+  std::lock_guard lock(mu_);
+  return failovers_;
 }
 
-std::unique_ptr<grpc::ClientContext> Client::CallContext() const {
-  auto context = std::make_unique<grpc::ClientContext>();
-  context->set_deadline(std::chrono::system_clock::now() + options_.call_timeout);
-  AddToken(*context, options_.token);
-  return context;
+std::string SessionStream::session_id() const {
+  std::lock_guard lock(call_mu_);
+  return session_id_;
 }
 
-std::vector<v1::VolumeInfo> Client::ListVolumes() {
-  v1::ListVolumesResponse response;
-  Check(volumes_->ListVolumes(CallContext().get(), {}, &response));
-  return {response.volumes().begin(), response.volumes().end()};
-}
+Client::Client(const ClientOptions& options) : pool_(std::make_shared<ServerPool>(options)) {}
+
+std::shared_ptr<grpc::Channel> Client::channel() const { return pool_->Channel(pool_->home()); }
+
+std::vector<v1::VolumeInfo> Client::ListVolumes() { return VolumeCalls(*pool_, pool_->home()).List(); }
 
 v1::VolumeInfo Client::LoadVolume(const std::string& path, const std::string& series_uid) {
-  v1::LoadVolumeRequest request;
-  request.set_path(path);
-  request.set_series_uid(series_uid);
-  v1::VolumeInfo info;
-  Check(volumes_->LoadVolume(CallContext().get(), request, &info));
+  v1::VolumeInfo info = VolumeCalls(*pool_, pool_->home()).Load(path, series_uid);
+  VolumeOrigin origin;
+  origin.path = path;
+  origin.series_uid = series_uid;
+  pool_->RememberVolume(info.id(), origin);
   return info;
 }
 
 v1::VolumeInfo Client::UploadVolume(const std::filesystem::path& file, std::size_t chunk_bytes) {
-  return Upload(file, {}, chunk_bytes);
+  v1::VolumeInfo info = VolumeCalls(*pool_, pool_->home()).Upload(file, {}, chunk_bytes);
+  VolumeOrigin origin;
+  origin.upload = std::filesystem::absolute(file);
+  pool_->RememberVolume(info.id(), origin);
+  return info;
 }
 
 v1::VolumeInfo Client::LoadLabels(const std::string& volume_id, const std::string& path,
                                   const std::string& table_path) {
-  v1::LoadLabelsRequest request;
-  request.set_volume_id(volume_id);
-  request.set_path(path);
-  request.set_table_path(table_path);
-  v1::VolumeInfo info;
-  Check(volumes_->LoadLabels(CallContext().get(), request, &info));
+  v1::VolumeInfo info = VolumeCalls(*pool_, pool_->home()).LoadLabels(volume_id, path, table_path);
+  VolumeOrigin origin;
+  origin.labels_path = path;
+  origin.labels_table_path = table_path;
+  pool_->RememberLabels(volume_id, origin);
   return info;
 }
 
 v1::VolumeInfo Client::UploadLabels(const std::string& volume_id, const std::filesystem::path& file,
                                     const std::filesystem::path& table) {
-  v1::UploadVolumeChunk::Header header;
-  header.set_labels_for(volume_id);
-  if (!table.empty()) {
-    std::ifstream in(table, std::ios::binary);
-    if (!in) throw std::runtime_error(fmt::format("{}: cannot open", table.string()));
-    header.set_label_table(std::string(std::istreambuf_iterator<char>(in), {}));
-  }
-  return Upload(file, header, 1 << 20);
-}
-
-v1::VolumeInfo Client::Upload(const std::filesystem::path& file, v1::UploadVolumeChunk::Header fields,
-                              std::size_t chunk_bytes) {
-  std::ifstream in(file, std::ios::binary);
-  if (!in) throw std::runtime_error(fmt::format("{}: cannot open", file.string()));
-  v1::VolumeInfo info;
-  auto context = CallContext();
-  auto writer = volumes_->UploadVolume(context.get(), &info);
-  v1::UploadVolumeChunk header;
-  fields.set_file_name(file.filename().string());
-  fields.set_size_bytes(std::filesystem::file_size(file));
-  *header.mutable_header() = std::move(fields);
-  bool open = writer->Write(header);
-  std::string buffer(chunk_bytes, '\0');
-  while (open && in) {
-    in.read(buffer.data(), std::streamsize(buffer.size()));
-    if (in.gcount() == 0) break;
-    v1::UploadVolumeChunk chunk;
-    chunk.set_data(buffer.data(), std::size_t(in.gcount()));
-    open = writer->Write(chunk);
-  }
-  writer->WritesDone();
-  Check(writer->Finish());
+  v1::VolumeInfo info = VolumeCalls(*pool_, pool_->home()).UploadLabels(volume_id, file, table);
+  VolumeOrigin origin;
+  origin.labels_upload = std::filesystem::absolute(file);
+  if (!table.empty()) origin.labels_upload_table = std::filesystem::absolute(table);
+  pool_->RememberLabels(volume_id, origin);
   return info;
 }
 
 v1::VolumeInfo Client::DescribeVolume(const std::string& volume_id) {
-  v1::DescribeVolumeRequest request;
-  request.set_volume_id(volume_id);
-  v1::VolumeInfo info;
-  Check(volumes_->DescribeVolume(CallContext().get(), request, &info));
-  return info;
+  return VolumeCalls(*pool_, pool_->home()).Describe(volume_id);
 }
 
-void Client::UnloadVolume(const std::string& volume_id) {
-  v1::UnloadVolumeRequest request;
-  request.set_volume_id(volume_id);
-  v1::UnloadVolumeResponse response;
-  Check(volumes_->UnloadVolume(CallContext().get(), request, &response));
-}
+void Client::UnloadVolume(const std::string& volume_id) { VolumeCalls(*pool_, pool_->home()).Unload(volume_id); }
 
 v1::CreateSessionResponse Client::CreateSession(const v1::CreateSessionRequest& request) {
-  v1::CreateSessionResponse response;
-  Check(sessions_->CreateSession(CallContext().get(), request, &response));
-  return response;
+  return pool_->CreateSession(request).response;
 }
 
 std::unique_ptr<SessionStream> Client::Attach(const std::string& session_id, StreamOptions options) {
-  return std::make_unique<SessionStream>(channel_, session_id, options_.token, std::move(options));
+  return std::make_unique<SessionStream>(pool_, session_id, std::move(options));
 }
 
-v1::SnapshotResponse Client::Snapshot(const v1::SnapshotRequest& request) {
+v1::SnapshotResponse Client::Snapshot(v1::SnapshotRequest request) {
+  auto stub = v1::SessionService::NewStub(pool_->Channel(pool_->AddressOf(request.session_id())));
+  request.set_session_id(pool_->CurrentId(request.session_id()));
   v1::SnapshotResponse response;
-  Check(sessions_->Snapshot(CallContext().get(), request, &response));
+  Check(stub->Snapshot(pool_->CallContext().get(), request, &response));
   return response;
 }
 
 void Client::CloseSession(const std::string& session_id) {
+  auto stub = v1::SessionService::NewStub(pool_->Channel(pool_->AddressOf(session_id)));
   v1::CloseSessionRequest request;
-  request.set_session_id(session_id);
+  request.set_session_id(pool_->CurrentId(session_id));
   v1::CloseSessionResponse response;
-  Check(sessions_->CloseSession(CallContext().get(), request, &response));
+  Check(stub->CloseSession(pool_->CallContext().get(), request, &response));
+  pool_->Forget(session_id);
 }
 
 v1::ServerStatus Client::Status() {
+  auto stub = v1::ServerService::NewStub(pool_->Channel(pool_->home()));
   v1::ServerStatus status;
-  Check(server_->GetStatus(CallContext().get(), {}, &status));
+  Check(stub->GetStatus(pool_->CallContext().get(), {}, &status));
   return status;
 }
 

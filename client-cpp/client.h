@@ -3,6 +3,9 @@
 // attaches to a session's stream: events go out with increasing sequence
 // numbers, frames and notices come back through Next() or a callback, and a
 // dropped connection is resumed while the server still holds the session.
+// Given several servers (one deployment's pods), it places each new session
+// where there is most room and, when a session's server goes away, creates
+// the session again on another from its last state (server_pool.h).
 //
 //   cinevol::Client client({.address = "127.0.0.1:50051"});
 //   auto created = client.CreateSession(request);
@@ -29,36 +32,9 @@
 #include <vector>
 
 #include "cinevol/v1/service.grpc.pb.h"
+#include "client_options.h"
 
 namespace cinevol {
-
-struct ClientOptions {
-  std::string address = "127.0.0.1:50051";
-  std::string token;  // sent as "authorization: Bearer <token>" when set
-  std::chrono::milliseconds connect_timeout{5000};
-  std::chrono::milliseconds call_timeout{60000};  // every unary call; snapshots and loads included
-  // TLS (PEM files, read when the Client is constructed). With tls_ca the
-  // channel is TLS and the server's certificate must chain to that CA;
-  // tls_cert and tls_key (together) add a client certificate for servers
-  // that require one (mutual TLS). A client key or certificate without
-  // tls_ca trusts the system's root certificates. None set: plaintext.
-  std::filesystem::path tls_ca;
-  std::filesystem::path tls_cert;
-  std::filesystem::path tls_key;
-};
-
-// A call the server refused or could not answer: its status code and message.
-class RpcError : public std::runtime_error {
- public:
-  explicit RpcError(const grpc::Status& status);
-  grpc::StatusCode code() const { return code_; }
-
- private:
-  grpc::StatusCode code_;
-};
-
-// "INVALID_ARGUMENT" and the like.
-std::string StatusCodeName(grpc::StatusCode code);
 
 // A frame's pixels: 8-bit sRGB, rows top to bottom.
 struct RgbImage {
@@ -80,14 +56,24 @@ struct StreamOptions {
   // still holds the session; sequence numbers start again at 1.
   bool resume = true;
   std::chrono::milliseconds resume_timeout{10000};  // per drop, reconnecting included
+  // When the session's server is gone (it cannot be resumed: unreachable for
+  // resume_timeout, draining, or restarted without it), create the session
+  // again from its last state (the scene it was created with, changed by
+  // every event sent since) on another of the Client's servers and go on
+  // there: an INFO notice says so, sequence numbers start again at 1, and
+  // the Client's calls for the session follow it. Only for sessions this
+  // Client created.
+  bool failover = true;
 };
+
+class ServerPool;
 
 // One attached session stream. A thread reads the server's messages into a
 // queue (or hands them to on_message); Next takes them in order.
 class SessionStream {
  public:
-  SessionStream(std::shared_ptr<grpc::Channel> channel, std::string session_id, std::string token,
-                StreamOptions options);
+  // Attaches to session `session_id` of `pool` (where it lives).
+  SessionStream(std::shared_ptr<ServerPool> pool, std::string session_id, StreamOptions options);
   ~SessionStream();  // cancels the call if it is still open
   SessionStream(const SessionStream&) = delete;
   SessionStream& operator=(const SessionStream&) = delete;
@@ -107,19 +93,24 @@ class SessionStream {
   bool ended() const;
   grpc::Status status() const;  // OK until the stream ends
   int resumes() const;          // times the stream reattached after a drop
+  int failovers() const;        // times the session was re-created on another server
+  std::string session_id() const;  // the session's id now (it changes with a failover)
 
  private:
   void Open();  // a new call that attaches; call_mu_ held
   void ReadAll();
-  bool Resume();  // reattaches after a drop; false when it cannot
+  bool Resume(std::chrono::system_clock::time_point give_up);  // reattaches after a drop; false when it cannot
+  bool Relocate(grpc::Status& status);  // re-creates the session elsewhere; false (status says why) when it cannot
   void Deliver(v1::ServerMessage message);
 
-  const std::shared_ptr<grpc::Channel> channel_;
-  const std::unique_ptr<v1::SessionService::Stub> stub_;
-  const std::string session_id_, token_;
+  const std::shared_ptr<ServerPool> pool_;
+  const std::string route_;  // the session's first id: the pool knows it by it
   const StreamOptions options_;
 
-  std::mutex call_mu_;  // the call and its write side
+  mutable std::mutex call_mu_;  // the call, its write side and where it goes
+  std::shared_ptr<grpc::Channel> channel_;
+  std::unique_ptr<v1::SessionService::Stub> stub_;
+  std::string session_id_;
   std::unique_ptr<grpc::ClientContext> context_;
   std::unique_ptr<grpc::ClientReaderWriter<v1::ClientMessage, v1::ServerMessage>> stream_;
   bool writes_closed_ = false;  // by Finish or Cancel: no resume
@@ -133,16 +124,21 @@ class SessionStream {
   bool ended_ = false;
   grpc::Status status_;
   int resumes_ = 0;
+  int failovers_ = 0;
   std::thread reader_;
 };
 
 class Client {
  public:
-  // Connects; throws RpcError(UNAVAILABLE) when the server cannot be reached
-  // within options.connect_timeout (a TLS handshake that fails included),
-  // and std::invalid_argument when a TLS file cannot be read.
+  // Connects (to the first of options.address's servers that answers);
+  // throws RpcError(UNAVAILABLE) when none can be reached within
+  // options.connect_timeout (a TLS handshake that fails included), and
+  // std::invalid_argument when a TLS file cannot be read.
   explicit Client(const ClientOptions& options);
 
+  // Volume calls go to the first server that answered; with several
+  // servers, a volume loaded or uploaded here is loaded or uploaded again on
+  // another where a session of it is placed.
   std::vector<v1::VolumeInfo> ListVolumes();
   v1::VolumeInfo LoadVolume(const std::string& path, const std::string& series_uid = {});
   v1::VolumeInfo UploadVolume(const std::filesystem::path& file, std::size_t chunk_bytes = 1 << 20);
@@ -154,25 +150,21 @@ class Client {
   v1::VolumeInfo DescribeVolume(const std::string& volume_id);
   void UnloadVolume(const std::string& volume_id);
 
+  // With several servers, on the one with the most room (ServerStatus).
+  // The session's calls below go where it lives (CreateSessionResponse's
+  // address), and follow it when a stream's failover moves it.
   v1::CreateSessionResponse CreateSession(const v1::CreateSessionRequest& request);
   std::unique_ptr<SessionStream> Attach(const std::string& session_id, StreamOptions options = {});
-  v1::SnapshotResponse Snapshot(const v1::SnapshotRequest& request);
+  v1::SnapshotResponse Snapshot(v1::SnapshotRequest request);
   void CloseSession(const std::string& session_id);
+  // The status of the first server that answered.
   v1::ServerStatus Status();
 
-  const std::shared_ptr<grpc::Channel>& channel() const { return channel_; }
+  // The channel to the first server that answered.
+  std::shared_ptr<grpc::Channel> channel() const;
 
  private:
-  std::unique_ptr<grpc::ClientContext> CallContext() const;
-
-  ClientOptions options_;
-  std::shared_ptr<grpc::Channel> channel_;
-  // Streams `file` after a header of `fields` (its name and size set here).
-  v1::VolumeInfo Upload(const std::filesystem::path& file, v1::UploadVolumeChunk::Header fields, std::size_t chunk_bytes);
-
-  std::unique_ptr<v1::VolumeService::Stub> volumes_;
-  std::unique_ptr<v1::SessionService::Stub> sessions_;
-  std::unique_ptr<v1::ServerService::Stub> server_;
+  std::shared_ptr<ServerPool> pool_;
 };
 
 }  // namespace cinevol

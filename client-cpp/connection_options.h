@@ -20,7 +20,11 @@ struct ConnectionOptions {
 };
 
 inline void AddConnectionOptions(CLI::App* command, ConnectionOptions& o) {
-  command->add_option("--server", o.server, "Server address HOST:PORT")->capture_default_str();
+  command
+      ->add_option("--server", o.server,
+                   "Server address HOST:PORT, or a deployment's servers separated by commas (sessions go where "
+                   "there is most room and move when theirs dies)")
+      ->capture_default_str();
   command->add_option("--token", o.token, "Bearer token, when the server asks for one");
   command->add_option("--connect-timeout", o.connect_seconds, "Seconds to wait for the server")
       ->check(CLI::Range(0.1, 600.0))

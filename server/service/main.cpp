@@ -7,6 +7,7 @@
 
 #include <csignal>
 #include <cstdio>
+#include <regex>
 #include <thread>
 
 #include "core/error.h"
@@ -107,6 +108,16 @@ void AddOptions(CLI::App& app, ServerOptions& o, std::string& backend) {
                  "CN names the caller)");
   app.add_flag("--insecure-no-auth", o.insecure_no_auth,
                "Allow listening beyond loopback with no --auth-tokens and no mutual TLS (anyone may call)");
+  app.add_option("--advertise-address", o.advertise_address,
+                 "HOST:PORT clients reach this server's sessions at, told in CreateSession's answer (behind a "
+                 "load balancer: this instance's own name, e.g. a StatefulSet pod's; default: none, clients "
+                 "stay on the address they used)")
+      ->check(CLI::Validator(
+          [](std::string& value) -> std::string {
+            static const std::regex kHostPort(R"(^([A-Za-z0-9._-]{1,253}|\[[0-9A-Fa-f:.]{2,45}\]):[0-9]{1,5}$)");
+            return std::regex_match(value, kHostPort) ? "" : "want HOST:PORT (a DNS name, IPv4 or [IPv6], and a port)";
+          },
+          "HOST:PORT"));
   app.add_option("--port-file", o.port_file, "Write the port listened on to this file (useful with port 0)");
   app.add_option("--metrics-listen", o.metrics_listen,
                  "HOST:PORT to serve Prometheus metrics on, at /metrics (port 0: any free port, logged; "

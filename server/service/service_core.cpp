@@ -220,6 +220,7 @@ v1::CreateSessionResponse ServiceCore::CreateSession(const v1::CreateSessionRequ
   *response.mutable_scene() = std::move(scene);
   AddResolvedCamera(*response.mutable_scene(), *session->volume()->volume(), session->volume()->labels().get());
   response.set_device(scheduler.name());
+  response.set_address(options_.advertise_address);
   return response;
 }
 
@@ -269,8 +270,10 @@ void ServiceCore::Drain() {
 
 bool ServiceCore::HasRoomForSession() const {
   std::lock_guard lock(mu_);
-  return !draining_ && int(sessions_.size()) < options_.max_sessions;
+  return HasRoomLocked();
 }
+
+bool ServiceCore::HasRoomLocked() const { return !draining_ && int(sessions_.size()) < options_.max_sessions; }
 
 void ServiceCore::Forget(const std::string& id) {
   std::shared_ptr<Session> last;  // may be the last reference: released outside the lock
@@ -379,7 +382,10 @@ v1::ServerStatus ServiceCore::Status(const Principal& caller) const {
     for (const auto& [id, s] : sessions_) {
       if (caller.is_operator || s->owner() == caller.name) sessions.push_back(s);
     }
+    status.set_sessions_held(std::uint32_t(sessions_.size()));
+    status.set_accepting_sessions(HasRoomLocked());
   }
+  status.set_max_sessions(std::uint32_t(options_.max_sessions));
   for (const auto& s : sessions) *status.add_sessions() = s->Status();
   for (v1::VolumeInfo& v : volumes_.List(caller)) *status.add_volumes() = std::move(v);
   status.set_encode_threads(encoder_.threads());

@@ -57,6 +57,7 @@ struct ServerOptions {
   TlsOptions tls;                                        // --tls-cert/--tls-key/--tls-client-ca
   bool insecure_no_auth = false;                         // allow no authentication beyond loopback
   std::string metrics_listen;                            // HOST:PORT of /metrics (Prometheus); empty: off
+  std::string advertise_address;                         // where clients reach this server's sessions; empty: as they came
 };
 
 class ServiceCore {
@@ -105,6 +106,7 @@ class ServiceCore {
   void RequireServing() const;
 
  private:
+  bool HasRoomLocked() const;  // mu_ held
   Scheduler& LeastLoaded();
   void Forget(const std::string& id);
 

@@ -208,7 +208,7 @@ void Session::End(const grpc::Status& status) {
     if (stream_) {
       sent_before_ += stream_->frames_sent();
       dropped_before_ += stream_->frames_dropped();
-      stream_->End(status);
+      stream_->EndSession(status);
     }
     stream_ = nullptr;
   }

@@ -45,6 +45,9 @@ class FrameStream {
   virtual bool SlotFull() const = 0;
   // Finishes the call with `status` after the write in flight.
   virtual void End(grpc::Status status) = 0;
+  // The same where the session itself ended (closed, drained, failed): the
+  // call's trailers say so, and a client knows not to attach to it again.
+  virtual void EndSession(grpc::Status status) = 0;
   virtual std::uint64_t frames_sent() const = 0;
   virtual std::uint64_t frames_dropped() const = 0;
 };

@@ -10,7 +10,7 @@
 namespace cinevol::service {
 
 SessionStreamReactor::SessionStreamReactor(grpc::CallbackServerContext* context, ServiceCore* core)
-    : core_(core), reads_(kReadPacing * core->options().limits.max_events_per_second, Clock::now()) {
+    : context_(context), core_(core), reads_(kReadPacing * core->options().limits.max_events_per_second, Clock::now()) {
   const grpc::Status status = Guarded([&] { principal_ = core_->Authenticate(*context); });
   if (!status.ok()) {
     std::lock_guard lock(mu_);
@@ -139,6 +139,16 @@ void SessionStreamReactor::End(grpc::Status status) {
   } else {
     FinishLocked(status);
   }
+}
+
+void SessionStreamReactor::EndSession(grpc::Status status) {
+  {
+    std::lock_guard lock(mu_);
+    if (finished_ || finish_after_write_) return;
+    // The client library's SessionStream reads this trailer (client-cpp/client.cpp).
+    context_->AddTrailingMetadata("cinevol-session-ended", "1");
+  }
+  End(std::move(status));
 }
 
 std::uint64_t SessionStreamReactor::frames_sent() const {

@@ -37,6 +37,7 @@ class SessionStreamReactor final : public grpc::ServerBidiReactor<v1::ClientMess
   void SendNotice(v1::Notice::Level level, std::string message) override;
   bool SlotFull() const override;
   void End(grpc::Status status) override;
+  void EndSession(grpc::Status status) override;
   std::uint64_t frames_sent() const override;
   std::uint64_t frames_dropped() const override;
 
@@ -57,6 +58,7 @@ class SessionStreamReactor final : public grpc::ServerBidiReactor<v1::ClientMess
   void FinishLocked(const grpc::Status& status);
   std::shared_ptr<Session> session() const;
 
+  grpc::CallbackServerContext* context_;
   ServiceCore* core_;
   std::optional<Principal> principal_;  // empty when authentication failed
   CallWatch::Id watch_ = 0;             // until the attach arrives

@@ -1,0 +1,259 @@
+#include "server_pool.h"
+
+#include <fmt/format.h>
+
+#include <algorithm>
+#include <fstream>
+#include <future>
+#include <iterator>
+#include <sstream>
+
+namespace cinevol {
+namespace {
+
+constexpr int kMaxReceiveBytes = 512 << 20;  // a 4K EXR snapshot is about 100 MB
+// How long placement waits for a server's status: a dead one must not hold
+// up a session on a live one.
+constexpr std::chrono::milliseconds kStatusTimeout{2000};
+
+std::string ReadPem(const std::filesystem::path& file, const char* what) {
+  std::ifstream in(file, std::ios::binary);
+  if (!in || std::filesystem::is_directory(file)) {
+    throw std::invalid_argument(fmt::format("{} {}: cannot read the file", what, file.string()));
+  }
+  std::string text(std::istreambuf_iterator<char>(in), {});
+  if (text.find("-----BEGIN ") == std::string::npos) {
+    throw std::invalid_argument(fmt::format("{} {}: not a PEM file", what, file.string()));
+  }
+  return text;
+}
+
+std::shared_ptr<grpc::ChannelCredentials> Credentials(const ClientOptions& options) {
+  if (options.tls_ca.empty() && options.tls_cert.empty() && options.tls_key.empty()) {
+    return grpc::InsecureChannelCredentials();
+  }
+  if (options.tls_cert.empty() != options.tls_key.empty()) {
+    throw std::invalid_argument("tls_cert (--tls-cert) and tls_key (--tls-key) go together: give both");
+  }
+  grpc::SslCredentialsOptions ssl;
+  if (!options.tls_ca.empty()) ssl.pem_root_certs = ReadPem(options.tls_ca, "--tls-ca");
+  if (!options.tls_cert.empty()) {
+    ssl.pem_cert_chain = ReadPem(options.tls_cert, "--tls-cert");
+    ssl.pem_private_key = ReadPem(options.tls_key, "--tls-key");
+  }
+  return grpc::SslCredentials(ssl);
+}
+
+std::vector<std::string> SplitServers(const std::string& list) {
+  std::vector<std::string> servers;
+  std::stringstream in(list);
+  for (std::string item; std::getline(in, item, ',');) {
+    item.erase(0, item.find_first_not_of(" \t"));
+    item.erase(item.find_last_not_of(" \t") + 1);
+    if (!item.empty()) servers.push_back(item);
+  }
+  if (servers.empty()) throw std::invalid_argument("address: no server given");
+  return servers;
+}
+
+// Whether another server may do what this one could not.
+bool TryAnother(grpc::StatusCode code) {
+  return code == grpc::StatusCode::RESOURCE_EXHAUSTED || code == grpc::StatusCode::UNAVAILABLE ||
+         code == grpc::StatusCode::DEADLINE_EXCEEDED || code == grpc::StatusCode::NOT_FOUND;
+}
+
+}  // namespace
+
+ServerPool::ServerPool(const ClientOptions& options)
+    : options_(options), servers_(SplitServers(options.address)), credentials_(Credentials(options)) {
+  const auto deadline = std::chrono::system_clock::now() + options.connect_timeout;
+  for (const std::string& server : servers_) {
+    if (Channel(server)->WaitForConnected(deadline)) {
+      home_ = server;
+      return;
+    }
+  }
+  const bool tls = !options.tls_ca.empty() || !options.tls_cert.empty();
+  throw RpcError({grpc::StatusCode::UNAVAILABLE,
+                  fmt::format("cannot reach cinevol-server at {} within {} s{}", options.address,
+                              options.connect_timeout.count() / 1000.0,
+                              tls ? " (over TLS: is the server's certificate signed by --tls-ca, for this "
+                                    "address, and does the server accept the client certificate?)"
+                                  : " (is it running? a server with TLS needs --tls-ca)")});
+}
+
+std::shared_ptr<grpc::Channel> ServerPool::Channel(const std::string& address) {
+  std::lock_guard lock(mu_);
+  std::shared_ptr<grpc::Channel>& channel = channels_[address];
+  if (!channel) {
+    grpc::ChannelArguments args;
+    args.SetMaxReceiveMessageSize(kMaxReceiveBytes);
+    channel = grpc::CreateCustomChannel(address, credentials_, args);
+  }
+  return channel;
+}
+
+std::unique_ptr<grpc::ClientContext> ServerPool::CallContext() const {
+  auto context = std::make_unique<grpc::ClientContext>();
+  context->set_deadline(std::chrono::system_clock::now() + options_.call_timeout);
+  if (!options_.token.empty()) context->AddMetadata("authorization", "Bearer " + options_.token);
+  return context;
+}
+
+void ServerPool::RememberVolume(const std::string& id, const VolumeOrigin& origin) {
+  std::lock_guard lock(mu_);
+  volumes_[id] = origin;
+}
+
+void ServerPool::RememberLabels(const std::string& id, const VolumeOrigin& labels) {
+  std::lock_guard lock(mu_);
+  VolumeOrigin& origin = volumes_[id];
+  origin.labels_path = labels.labels_path;
+  origin.labels_table_path = labels.labels_table_path;
+  origin.labels_upload = labels.labels_upload;
+  origin.labels_upload_table = labels.labels_upload_table;
+  // Copies elsewhere have the old segmentation: get them again.
+  for (auto it = copies_.begin(); it != copies_.end();) {
+    it = it->first.second == id ? copies_.erase(it) : std::next(it);
+  }
+}
+
+std::vector<ServerPool::Room> ServerPool::ByRoom(const std::string& avoid) {
+  std::vector<Room> rooms;
+  std::vector<std::future<long>> asked;
+  for (const std::string& server : servers_) {
+    if (server == avoid) continue;
+    rooms.push_back({server});
+    asked.push_back(std::async(std::launch::async, [this, server] {
+      auto stub = v1::ServerService::NewStub(Channel(server));
+      auto context = CallContext();
+      context->set_deadline(std::chrono::system_clock::now() + std::min(options_.call_timeout, kStatusTimeout));
+      v1::ServerStatus status;
+      if (!stub->GetStatus(context.get(), {}, &status).ok() || !status.accepting_sessions()) return -1L;
+      return long(status.max_sessions()) - long(status.sessions_held());
+    }));
+  }
+  for (std::size_t i = 0; i < rooms.size(); ++i) rooms[i].free = asked[i].get();
+  // The list's order breaks ties, so one server fills first among equals.
+  std::stable_sort(rooms.begin(), rooms.end(), [](const Room& a, const Room& b) { return a.free > b.free; });
+  if (!avoid.empty()) rooms.push_back({avoid});
+  return rooms;
+}
+
+Placement ServerPool::CreateSession(const v1::CreateSessionRequest& request) {
+  Placement placed = Place(request, {});
+  auto route = std::make_shared<Route>(
+      Route{placed.response.session_id(), placed.address, placed.server, SessionState(request, placed.response)});
+  std::lock_guard lock(mu_);
+  routes_[placed.response.session_id()] = std::move(route);
+  return placed;
+}
+
+Placement ServerPool::Place(v1::CreateSessionRequest request, const std::string& avoid) {
+  const std::string volume_id = request.volume_id();
+  std::vector<Room> rooms = servers_.size() == 1 ? std::vector<Room>{{servers_[0]}} : ByRoom(avoid);
+  std::vector<std::string> refusals;
+  for (std::size_t i = 0; i < rooms.size(); ++i) {
+    const std::string& server = rooms[i].server;
+    try {
+      request.set_volume_id(VolumeOn(server, volume_id));
+      Placement placed;
+      auto stub = v1::SessionService::NewStub(Channel(server));
+      Check(stub->CreateSession(CallContext().get(), request, &placed.response));
+      placed.server = server;
+      placed.address = placed.response.address().empty() ? server : placed.response.address();
+      return placed;
+    } catch (const RpcError& e) {
+      if (!TryAnother(e.code()) || i + 1 == rooms.size()) {
+        if (refusals.empty()) throw;
+        refusals.push_back(fmt::format("{}: {}", server, e.what()));
+        throw RpcError({e.code(), fmt::format("no server took the session: {}", fmt::join(refusals, "; "))});
+      }
+      refusals.push_back(fmt::format("{}: {}", server, e.what()));
+    }
+  }
+  throw RpcError({grpc::StatusCode::UNAVAILABLE, "no server to place the session on"});  // rooms is never empty
+}
+
+std::string ServerPool::VolumeOn(const std::string& server, const std::string& id) {
+  VolumeOrigin origin;
+  {
+    std::lock_guard lock(mu_);
+    if (server == home_) return id;
+    if (auto it = copies_.find({server, id}); it != copies_.end()) return it->second;
+    auto it = volumes_.find(id);
+    if (it == volumes_.end()) return id;  // the operator's: the same id everywhere
+    origin = it->second;
+  }
+  VolumeCalls calls(*this, server);
+  v1::VolumeInfo info = origin.upload.empty() ? calls.Load(origin.path, origin.series_uid) : calls.Upload(origin.upload, {});
+  if (!origin.labels_path.empty()) {
+    calls.LoadLabels(info.id(), origin.labels_path, origin.labels_table_path);
+  } else if (!origin.labels_upload.empty()) {
+    calls.UploadLabels(info.id(), origin.labels_upload, origin.labels_upload_table);
+  }
+  std::lock_guard lock(mu_);
+  copies_[{server, id}] = info.id();
+  return info.id();
+}
+
+std::string ServerPool::AddressOf(const std::string& id) const {
+  std::lock_guard lock(mu_);
+  auto it = routes_.find(id);
+  return it == routes_.end() ? home_ : it->second->address;
+}
+
+std::string ServerPool::CurrentId(const std::string& id) const {
+  std::lock_guard lock(mu_);
+  auto it = routes_.find(id);
+  return it == routes_.end() ? id : it->second->current_id;
+}
+
+void ServerPool::Forget(const std::string& id) {
+  std::lock_guard lock(mu_);
+  auto it = routes_.find(id);
+  if (it == routes_.end()) return;
+  const std::shared_ptr<Route> route = it->second;
+  for (auto r = routes_.begin(); r != routes_.end();) r = r->second == route ? routes_.erase(r) : std::next(r);
+}
+
+void ServerPool::Record(const std::string& id, const v1::SessionEvent& event) {
+  std::lock_guard lock(mu_);
+  auto it = routes_.find(id);
+  if (it != routes_.end() && it->second->state) it->second->state->Apply(event);
+}
+
+bool ServerPool::CanRelocate(const std::string& id) const {
+  std::lock_guard lock(mu_);
+  auto it = routes_.find(id);
+  return it != routes_.end() && it->second->state.has_value();
+}
+
+bool ServerPool::Paused(const std::string& id) const {
+  std::lock_guard lock(mu_);
+  auto it = routes_.find(id);
+  return it != routes_.end() && it->second->state && it->second->state->paused();
+}
+
+Placement ServerPool::Relocate(const std::string& id) {
+  std::shared_ptr<Route> route;
+  v1::CreateSessionRequest request;
+  {
+    std::lock_guard lock(mu_);
+    auto it = routes_.find(id);
+    if (it == routes_.end() || !it->second->state) {
+      throw RpcError({grpc::StatusCode::FAILED_PRECONDITION, fmt::format("session '{}': not created by this client", id)});
+    }
+    route = it->second;
+    request = route->state->request();
+  }
+  Placement placed = Place(request, route->server);
+  std::lock_guard lock(mu_);
+  route->current_id = placed.response.session_id();
+  route->address = placed.address;
+  route->server = placed.server;
+  routes_[route->current_id] = route;
+  return placed;
+}
+
+}  // namespace cinevol

@@ -1,0 +1,116 @@
+// The servers one Client may use, and what it keeps to use several of them:
+// a channel to each, where each of its sessions lives, the state each was
+// created in, and how it got each volume. The Client and its streams share
+// it (a stream re-creates its session from the stream's reader thread).
+//
+// Placement: with more than one server, a new session goes to the one that
+// says it has the most room (ServerStatus: max_sessions - sessions_held,
+// while accepting_sessions); one that is full, unreachable or lacks the
+// volume is passed over for the next. Failover: a session whose server went
+// away is created again, from its last state, by the same placement among
+// the others. A volume the client loaded or uploaded is loaded or uploaded
+// again where a session of it goes; one the operator preloaded must be
+// there under the same id (every pod of a deployment preloads the same).
+#pragma once
+
+#include <grpcpp/grpcpp.h>
+
+#include <chrono>
+#include <filesystem>
+#include <map>
+#include <memory>
+#include <mutex>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "cinevol/v1/service.grpc.pb.h"
+#include "client_options.h"
+#include "session_state.h"
+#include "volume_calls.h"
+
+namespace cinevol {
+
+// How the client got a volume, to get it again on another server.
+struct VolumeOrigin {
+  std::string path, series_uid;    // LoadVolume, under the server's data roots
+  std::filesystem::path upload;    // UploadVolume, a local file
+  std::string labels_path, labels_table_path;  // LoadLabels
+  std::filesystem::path labels_upload, labels_upload_table;  // UploadLabels
+};
+
+// Where a session went: its id there, the address its calls go to, and the
+// entry of the server list it was placed through.
+struct Placement {
+  v1::CreateSessionResponse response;
+  std::string address;
+  std::string server;
+};
+
+class ServerPool {
+ public:
+  // Splits options.address at commas and connects to the first server that
+  // answers within connect_timeout; throws RpcError(UNAVAILABLE) naming
+  // them all when none does.
+  explicit ServerPool(const ClientOptions& options);
+
+  const ClientOptions& options() const { return options_; }
+  // The server volume and status calls go to: the first that answered.
+  const std::string& home() const { return home_; }
+  std::shared_ptr<grpc::Channel> Channel(const std::string& address);
+  // A context with the token and a deadline of options().call_timeout.
+  std::unique_ptr<grpc::ClientContext> CallContext() const;
+
+  // Volumes the client got from home(), by id there.
+  void RememberVolume(const std::string& id, const VolumeOrigin& origin);
+  void RememberLabels(const std::string& id, const VolumeOrigin& labels);
+
+  // Places and creates a session (see above) and remembers it.
+  Placement CreateSession(const v1::CreateSessionRequest& request);
+  // Where calls for session `id` go: the address it was placed at, or
+  // home() for a session this client did not create. A session that moved
+  // is found by its first id too.
+  std::string AddressOf(const std::string& id) const;
+  std::string CurrentId(const std::string& id) const;
+  void Forget(const std::string& id);
+
+  // Session `id` as it is now, once its stream sends `event`.
+  void Record(const std::string& id, const v1::SessionEvent& event);
+  // Whether the client created session `id` and so can re-create it.
+  bool CanRelocate(const std::string& id) const;
+  // Creates session `id` again from its last state, on another server than
+  // the one that held it where there is another; throws RpcError when no
+  // server takes it.
+  Placement Relocate(const std::string& id);
+  bool Paused(const std::string& id) const;
+
+ private:
+  struct Route {
+    std::string current_id, address, server;
+    std::optional<SessionState> state;
+  };
+  struct Room {
+    std::string server;
+    long free = -1;  // sessions it takes now; -1: full, draining or unreachable
+  };
+
+  // The servers to try, most room first; `avoid` last (it may be the only one).
+  std::vector<Room> ByRoom(const std::string& avoid);
+  // The id volume `id` of home() has on `server`, loading or uploading it
+  // there as the client did at home; throws RpcError.
+  std::string VolumeOn(const std::string& server, const std::string& id);
+  Placement Place(v1::CreateSessionRequest request, const std::string& avoid);
+
+  const ClientOptions options_;
+  std::vector<std::string> servers_;
+  std::string home_;
+  std::shared_ptr<grpc::ChannelCredentials> credentials_;
+
+  mutable std::mutex mu_;
+  std::map<std::string, std::shared_ptr<grpc::Channel>> channels_;
+  std::map<std::string, VolumeOrigin> volumes_;                   // by id at home
+  std::map<std::pair<std::string, std::string>, std::string> copies_;  // (server, home id) -> id there
+  std::map<std::string, std::shared_ptr<Route>> routes_;           // by every id the session had
+};
+
+}  // namespace cinevol

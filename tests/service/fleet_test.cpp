@@ -1,0 +1,206 @@
+// Several servers behind one client (issue 23): two real cinevol-server
+// processes on loopback stand in for two pods. A new session goes to the
+// server with the most room, its answer says where it lives, and when its
+// server dies the client's stream creates it again, from its last state, on
+// the other one.
+#include <gtest/gtest.h>
+
+#include <csignal>
+
+#include "server_process.h"
+#include "service_test_support.h"
+#include "session_state.h"
+#include "support/test_paths.h"
+
+namespace cinevol::testing {
+namespace {
+
+using namespace std::chrono_literals;
+
+// A server on a port chosen up front, so that it can advertise it.
+std::unique_ptr<ServerProcess> AdvertisingServer(const std::filesystem::path& scratch, std::vector<std::string> extra) {
+  const int port = FreePort();
+  extra.insert(extra.end(), {"--advertise-address", "127.0.0.1:" + std::to_string(port)});
+  return std::make_unique<ServerProcess>(scratch, extra, "cpu", 0, port);
+}
+
+Client ConnectToBoth(const ServerProcess& a, const ServerProcess& b) {
+  ClientOptions options;
+  options.address = a.address() + "," + b.address();
+  return Client(options);
+}
+
+bool Holds(const ServerProcess& server, const std::string& session_id) {
+  Client client = server.Connect();
+  return FindSessionStatus(client, session_id).has_value();
+}
+
+TEST(Placement, ANewSessionGoesWhereThereIsMostRoomAndItsAnswerSaysWhere) {
+  ScratchDir scratch;
+  std::filesystem::create_directories(scratch / "a");
+  std::filesystem::create_directories(scratch / "b");
+  auto a = AdvertisingServer(scratch / "a", {"--max-sessions", "4"});
+  auto b = AdvertisingServer(scratch / "b", {"--max-sessions", "3"});
+  ASSERT_TRUE(a->running() && b->running()) << a->Log() << b->Log();
+  Client only_a = a->Connect();
+  Client both = ConnectToBoth(*a, *b);
+
+  const v1::ServerStatus idle = only_a.Status();
+  EXPECT_EQ(idle.max_sessions(), 4u);
+  EXPECT_EQ(idle.sessions_held(), 0u);
+  EXPECT_TRUE(idle.accepting_sessions());
+
+  // A has 4 free places and B 3: A first; then A has 3, B 3: A again (the list breaks ties)...
+  const auto first = both.CreateSession(SmallSession());
+  EXPECT_EQ(first.address(), a->address()) << "the answer names the server that holds it";
+  EXPECT_TRUE(Holds(*a, first.session_id()));
+  const auto second = both.CreateSession(SmallSession());
+  EXPECT_EQ(second.address(), a->address());
+  // ... and now B, with 3 free to A's 2.
+  const auto third = both.CreateSession(SmallSession());
+  EXPECT_EQ(third.address(), b->address());
+  EXPECT_TRUE(Holds(*b, third.session_id()));
+  EXPECT_FALSE(Holds(*a, third.session_id()));
+
+  // The session's own calls go where it lives.
+  auto stream = both.Attach(third.session_id());
+  EXPECT_TRUE(WaitFrame(*stream, [](const v1::Frame&) { return true; }, 30s)) << b->Log();
+  v1::SnapshotRequest still;
+  still.set_session_id(third.session_id());
+  still.set_spp(1);
+  EXPECT_GT(both.Snapshot(still).image().size(), 0u);
+  stream->Cancel();
+
+  // A full server is passed over, and a full fleet refuses with both reasons.
+  Client only_b = b->Connect();
+  only_b.CreateSession(SmallSession());
+  only_b.CreateSession(SmallSession());
+  EXPECT_FALSE(only_b.Status().accepting_sessions());
+  EXPECT_EQ(both.CreateSession(SmallSession()).address(), a->address());
+  EXPECT_EQ(both.CreateSession(SmallSession()).address(), a->address());  // A's fourth
+  ExpectRpcError([&] { both.CreateSession(SmallSession()); }, grpc::StatusCode::RESOURCE_EXHAUSTED,
+                 "no server took the session");
+
+  both.CloseSession(third.session_id());
+  EXPECT_FALSE(Holds(*b, third.session_id())) << "CloseSession went to the wrong server";
+}
+
+TEST(Failover, WhenItsServerDiesTheStreamCreatesTheSessionAgainFromItsLastStateOnAnother) {
+  ScratchDir scratch;
+  WriteSmallNrrd(scratch / "small.nrrd");
+  std::filesystem::create_directories(scratch / "a");
+  std::filesystem::create_directories(scratch / "b");
+  const std::vector<std::string> flags{"--data-root", scratch.path().string()};
+  auto a = AdvertisingServer(scratch / "a", flags);
+  auto b = AdvertisingServer(scratch / "b", flags);
+  ASSERT_TRUE(a->running() && b->running()) << a->Log() << b->Log();
+  Client both = ConnectToBoth(*a, *b);
+
+  // A volume the client loaded (only A has it), and a session of it on A.
+  const v1::VolumeInfo volume = both.LoadVolume("small.nrrd");
+  v1::CreateSessionRequest request = SmallSession("ct-bone", 96, 64, 4);
+  request.set_volume_id(volume.id());
+  const auto created = both.CreateSession(request);
+  ASSERT_EQ(created.address(), a->address());
+  StreamOptions options;
+  options.resume_timeout = 1s;  // a dead server is given up on soon
+  auto stream = both.Attach(created.session_id(), options);
+  ASSERT_TRUE(WaitFrame(*stream, [](const v1::Frame&) { return true; }, 30s)) << a->Log();
+
+  // The state to carry over: a new camera, a new viewport, new stream settings.
+  v1::SessionEvent camera = Orbit(9);
+  stream->Send(camera);
+  v1::SessionEvent resize;
+  resize.mutable_resize()->set_width(72);
+  resize.mutable_resize()->set_height(40);
+  stream->Send(resize);
+  v1::SessionEvent quality;
+  quality.mutable_stream()->set_jpeg_quality(55);
+  const std::uint64_t last = stream->Send(quality);
+  ASSERT_TRUE(WaitFrame(*stream, [&](const v1::Frame& f) { return f.last_event_seq() >= last; }, 30s));
+
+  const auto killed = std::chrono::steady_clock::now();
+  ASSERT_EQ(kill(a->pid(), SIGKILL), 0);
+  const auto after = WaitFrame(*stream, [&](const v1::Frame&) { return stream->failovers() > 0; }, 60s);
+  ASSERT_TRUE(after) << "no frame after the failover; stream status: " << stream->status().error_message();
+  RecordProperty("seconds_from_sigkill_to_a_frame_from_the_other_server",
+                 std::to_string(std::chrono::duration<double>(std::chrono::steady_clock::now() - killed).count()));
+  EXPECT_EQ(stream->failovers(), 1);
+  EXPECT_EQ(after->width(), 72u);
+  EXPECT_EQ(after->height(), 40u);
+  const std::string moved = stream->session_id();
+  EXPECT_NE(moved, created.session_id());
+  EXPECT_TRUE(Holds(*b, moved));
+
+  // The same scene as a session created on B with the events applied:
+  // stills of the two match pixel for pixel; without the camera they differ.
+  Client only_b = b->Connect();
+  SessionState expected(request, created);
+  expected.Apply(camera);
+  expected.Apply(resize);
+  v1::CreateSessionRequest direct = expected.request();
+  direct.set_volume_id(only_b.ListVolumes().back().id());
+  const auto twin = only_b.CreateSession(direct);
+  v1::SnapshotRequest still;
+  still.set_spp(2);
+  still.set_session_id(created.session_id());  // the client follows the session to B
+  const std::string moved_image = both.Snapshot(still).image();
+  still.set_session_id(twin.session_id());
+  EXPECT_EQ(moved_image, only_b.Snapshot(still).image());
+  v1::CreateSessionRequest unmoved = direct;
+  *unmoved.mutable_scene()->mutable_camera() = created.scene().camera();
+  still.set_session_id(only_b.CreateSession(unmoved).session_id());
+  EXPECT_NE(moved_image, only_b.Snapshot(still).image());
+
+  both.CloseSession(created.session_id());
+  EXPECT_FALSE(Holds(*b, moved));
+  a.reset();  // already dead: Stop finds it gone
+}
+
+// An upgrade: the pod drains (SIGTERM) and its sessions move, without
+// waiting out the resume timeout, since the draining server refuses them.
+TEST(Failover, ADrainingServersSessionsMoveToAnotherAtOnce) {
+  ScratchDir scratch;
+  std::filesystem::create_directories(scratch / "a");
+  std::filesystem::create_directories(scratch / "b");
+  auto a = AdvertisingServer(scratch / "a", {"--drain-seconds", "3"});
+  auto b = AdvertisingServer(scratch / "b", {});
+  ASSERT_TRUE(a->running() && b->running()) << a->Log() << b->Log();
+  Client both = ConnectToBoth(*a, *b);
+  const auto created = both.CreateSession(SmallSession());
+  ASSERT_EQ(created.address(), a->address());
+  auto stream = both.Attach(created.session_id());  // the default resume timeout, 10 s
+  ASSERT_TRUE(WaitFrame(*stream, [](const v1::Frame&) { return true; }, 30s));
+
+  const auto drained = std::chrono::steady_clock::now();
+  ASSERT_EQ(kill(a->pid(), SIGTERM), 0);
+  const auto after = WaitFrame(*stream, [&](const v1::Frame&) { return stream->failovers() > 0; }, 30s);
+  ASSERT_TRUE(after) << stream->status().error_message();
+  const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - drained).count();
+  RecordProperty("seconds_from_sigterm_to_a_frame_from_the_other_server", std::to_string(seconds));
+  EXPECT_LT(seconds, 10) << "it waited out the resume timeout";
+  EXPECT_TRUE(Holds(*b, stream->session_id()));
+}
+
+TEST(Failover, AStreamOfASessionItDidNotCreateEndsAsBefore) {
+  ScratchDir scratch;
+  std::filesystem::create_directories(scratch / "a");
+  std::filesystem::create_directories(scratch / "b");
+  auto a = AdvertisingServer(scratch / "a", {});
+  auto b = AdvertisingServer(scratch / "b", {});
+  ASSERT_TRUE(a->running() && b->running());
+  Client only_a = a->Connect();
+  const auto created = only_a.CreateSession(SmallSession());
+  Client both = ConnectToBoth(*a, *b);  // knows nothing of the session's state
+  StreamOptions options;
+  options.resume_timeout = 500ms;
+  auto stream = both.Attach(created.session_id(), options);
+  ASSERT_TRUE(WaitFrame(*stream, [](const v1::Frame&) { return true; }, 30s));
+  ASSERT_EQ(kill(a->pid(), SIGKILL), 0);
+  EXPECT_TRUE(Eventually([&] { return stream->ended(); }, 20s));
+  EXPECT_EQ(stream->status().error_code(), grpc::StatusCode::UNAVAILABLE);
+  EXPECT_EQ(stream->failovers(), 0);
+}
+
+}  // namespace
+}  // namespace cinevol::testing
