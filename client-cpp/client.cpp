@@ -323,6 +323,8 @@ std::unique_ptr<SessionStream> Client::Attach(const std::string& session_id, Str
   return std::make_unique<SessionStream>(pool_, session_id, std::move(options));
 }
 
+std::string Client::SessionAddress(const std::string& session_id) const { return pool_->AddressOf(session_id); }
+
 v1::SnapshotResponse Client::Snapshot(v1::SnapshotRequest request) {
   auto stub = v1::SessionService::NewStub(pool_->Channel(pool_->AddressOf(request.session_id())));
   request.set_session_id(pool_->CurrentId(request.session_id()));

@@ -55,7 +55,9 @@ struct StreamOptions {
   // After a dropped connection (UNAVAILABLE), attach again while the server
   // still holds the session; sequence numbers start again at 1.
   bool resume = true;
-  std::chrono::milliseconds resume_timeout{10000};  // per drop, reconnecting included
+  // How long one drop may last, reconnecting included; past it, a session
+  // this client created moves (failover below), so this need not be long.
+  std::chrono::milliseconds resume_timeout{5000};
   // When the session's server is gone (it cannot be resumed: unreachable for
   // resume_timeout, draining, or restarted without it), create the session
   // again from its last state (the scene it was created with, changed by
@@ -155,6 +157,8 @@ class Client {
   // address), and follow it when a stream's failover moves it.
   v1::CreateSessionResponse CreateSession(const v1::CreateSessionRequest& request);
   std::unique_ptr<SessionStream> Attach(const std::string& session_id, StreamOptions options = {});
+  // Where session `session_id`'s calls go now (it changes with a failover).
+  std::string SessionAddress(const std::string& session_id) const;
   v1::SnapshotResponse Snapshot(v1::SnapshotRequest request);
   void CloseSession(const std::string& session_id);
   // The status of the first server that answered.

@@ -40,6 +40,7 @@ struct LoadtestOptions {
 
 struct SessionResult {
   std::string id;
+  std::string server;  // where the session lived (the one it ended on)
   PlayResult play;
   std::string error;  // status code name (or CLIENT), empty when none
   std::string error_message;
@@ -84,6 +85,7 @@ SessionResult RunSession(const LoadtestOptions& o, Client& client, const Session
   try {
     const auto created = client.CreateSession(SessionRequest(script.session, volume.id()));
     r.id = created.session_id();
+    r.server = client.SessionAddress(r.id);
     std::vector<ScriptStep> steps = script.steps;
     for (ScriptStep& s : steps) s.orbit.start_degrees += 37.0 * index;  // sessions look at different sides
     auto stream = client.Attach(r.id);
@@ -92,6 +94,7 @@ SessionResult RunSession(const LoadtestOptions& o, Client& client, const Session
     play.loop = true;
     play.wait_final = false;
     r.play = Play(*stream, ExpandOrbits(steps, volume), play);
+    r.server = client.SessionAddress(r.id);  // a failover may have moved it
     if (!r.play.status.ok()) {
       r.error = StatusCodeName(r.play.status.error_code());
       r.error_message = r.error + ": " + r.play.error;
@@ -165,6 +168,15 @@ std::string Table(const LoadtestOptions& o, const SessionScript& script, const s
                      s.stages.smaller_frames, s.frames, 100.0 * double(s.stages.smaller_frames) / double(s.frames));
   }
   for (const auto& [code, n] : s.errors) t += fmt::format("errors {}: {}\n", code, n);
+  std::map<std::string, int> per_server;
+  for (const SessionResult& r : results) {
+    if (!r.server.empty()) ++per_server[r.server];
+  }
+  if (per_server.size() > 1) {
+    t += "sessions per server:";
+    for (const auto& [server, n] : per_server) t += fmt::format(" {} {};", server, n);
+    t.back() = '\n';
+  }
   for (const SessionResult& r : results) {
     if (!r.error.empty()) t += fmt::format("session {}: {}\n", r.id.empty() ? "?" : r.id, r.error_message);
   }
@@ -185,9 +197,9 @@ std::string Json(const LoadtestOptions& o, const SessionScript& script, const st
       script.session.viewport.height(), o.script.empty() ? "built-in orbit" : o.script);
   for (std::size_t i = 0; i < results.size(); ++i) {
     const SessionResult& r = results[i];
-    j += fmt::format("{}\n  {{\"id\": \"{}\", \"frames\": {}, \"fps\": {}, \"latency_ms\": {}, \"bytes\": {}, "
-                     "\"dropped\": {}, \"error\": \"{}\"}}",
-                     i ? "," : "", r.id, r.play.frames, number(r.play.fps()), latency(r.play.latency_ms),
+    j += fmt::format("{}\n  {{\"id\": \"{}\", \"server\": \"{}\", \"frames\": {}, \"fps\": {}, \"latency_ms\": {}, "
+                     "\"bytes\": {}, \"dropped\": {}, \"error\": \"{}\"}}",
+                     i ? "," : "", r.id, r.server, r.play.frames, number(r.play.fps()), latency(r.play.latency_ms),
                      r.play.bytes, r.play.dropped, r.error);
   }
   j += fmt::format("],\n \"overall\": {{\"frames\": {}, \"fps_mean\": {}, \"fps_min\": {}, \"fps_total\": {}, "

@@ -134,9 +134,7 @@ std::vector<ServerPool::Room> ServerPool::ByRoom(const std::string& avoid) {
     }));
   }
   for (std::size_t i = 0; i < rooms.size(); ++i) rooms[i].free = asked[i].get();
-  // The list's order breaks ties, so one server fills first among equals.
-  std::stable_sort(rooms.begin(), rooms.end(), [](const Room& a, const Room& b) { return a.free > b.free; });
-  if (!avoid.empty()) rooms.push_back({avoid});
+  if (!avoid.empty()) rooms.push_back({avoid});  // with no room known: last
   return rooms;
 }
 
@@ -149,27 +147,48 @@ Placement ServerPool::CreateSession(const v1::CreateSessionRequest& request) {
   return placed;
 }
 
+ServerPool::Room ServerPool::TakeBest(std::vector<Room>& rooms) {
+  std::lock_guard lock(mu_);
+  // Room left once this client's creations under way land: sessions created
+  // at once from many threads spread instead of all taking the same server.
+  auto left = [&](const Room& r) { return r.free < 0 ? r.free : r.free - placing_[r.server]; };
+  auto best = rooms.begin();
+  for (auto it = rooms.begin(); it != rooms.end(); ++it) {
+    if (left(*it) > left(*best)) best = it;  // the first of equals: the list breaks ties
+  }
+  Room room = *best;
+  rooms.erase(best);
+  ++placing_[room.server];
+  return room;
+}
+
 Placement ServerPool::Place(v1::CreateSessionRequest request, const std::string& avoid) {
   const std::string volume_id = request.volume_id();
   std::vector<Room> rooms = servers_.size() == 1 ? std::vector<Room>{{servers_[0]}} : ByRoom(avoid);
   std::vector<std::string> refusals;
-  for (std::size_t i = 0; i < rooms.size(); ++i) {
-    const std::string& server = rooms[i].server;
+  while (!rooms.empty()) {
+    const Room room = TakeBest(rooms);
+    auto landed = [&] {
+      std::lock_guard lock(mu_);
+      --placing_[room.server];
+    };
     try {
-      request.set_volume_id(VolumeOn(server, volume_id));
+      request.set_volume_id(VolumeOn(room.server, volume_id));
       Placement placed;
-      auto stub = v1::SessionService::NewStub(Channel(server));
+      auto stub = v1::SessionService::NewStub(Channel(room.server));
       Check(stub->CreateSession(CallContext().get(), request, &placed.response));
-      placed.server = server;
-      placed.address = placed.response.address().empty() ? server : placed.response.address();
+      placed.server = room.server;
+      placed.address = placed.response.address().empty() ? room.server : placed.response.address();
+      landed();
       return placed;
     } catch (const RpcError& e) {
-      if (!TryAnother(e.code()) || i + 1 == rooms.size()) {
+      landed();
+      if (!TryAnother(e.code()) || rooms.empty()) {
         if (refusals.empty()) throw;
-        refusals.push_back(fmt::format("{}: {}", server, e.what()));
+        refusals.push_back(fmt::format("{}: {}", room.server, e.what()));
         throw RpcError({e.code(), fmt::format("no server took the session: {}", fmt::join(refusals, "; "))});
       }
-      refusals.push_back(fmt::format("{}: {}", server, e.what()));
+      refusals.push_back(fmt::format("{}: {}", room.server, e.what()));
     }
   }
   throw RpcError({grpc::StatusCode::UNAVAILABLE, "no server to place the session on"});  // rooms is never empty
@@ -186,11 +205,19 @@ std::string ServerPool::VolumeOn(const std::string& server, const std::string& i
     origin = it->second;
   }
   VolumeCalls calls(*this, server);
-  v1::VolumeInfo info = origin.upload.empty() ? calls.Load(origin.path, origin.series_uid) : calls.Upload(origin.upload, {});
-  if (!origin.labels_path.empty()) {
-    calls.LoadLabels(info.id(), origin.labels_path, origin.labels_table_path);
-  } else if (!origin.labels_upload.empty()) {
-    calls.UploadLabels(info.id(), origin.labels_upload, origin.labels_upload_table);
+  v1::VolumeInfo info;
+  try {
+    info = origin.upload.empty() ? calls.Load(origin.path, origin.series_uid) : calls.Upload(origin.upload, {});
+    if (!origin.labels_path.empty()) {
+      calls.LoadLabels(info.id(), origin.labels_path, origin.labels_table_path);
+    } else if (!origin.labels_upload.empty()) {
+      calls.UploadLabels(info.id(), origin.labels_upload, origin.labels_upload_table);
+    }
+  } catch (const RpcError&) {
+    throw;
+  } catch (const std::exception& e) {  // a local file gone since it was uploaded
+    throw RpcError({grpc::StatusCode::FAILED_PRECONDITION,
+                    fmt::format("volume '{}': cannot upload it again to {}: {}", id, server, e.what())});
   }
   std::lock_guard lock(mu_);
   copies_[{server, id}] = info.id();

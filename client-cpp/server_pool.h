@@ -94,8 +94,11 @@ class ServerPool {
     long free = -1;  // sessions it takes now; -1: full, draining or unreachable
   };
 
-  // The servers to try, most room first; `avoid` last (it may be the only one).
+  // The servers' room, as each says; `avoid` with none (tried last: it may be the only one).
   std::vector<Room> ByRoom(const std::string& avoid);
+  // Takes the room with the most left out of `rooms` and counts a creation
+  // under way on it (placing_).
+  Room TakeBest(std::vector<Room>& rooms);
   // The id volume `id` of home() has on `server`, loading or uploading it
   // there as the client did at home; throws RpcError.
   std::string VolumeOn(const std::string& server, const std::string& id);
@@ -111,6 +114,7 @@ class ServerPool {
   std::map<std::string, VolumeOrigin> volumes_;                   // by id at home
   std::map<std::pair<std::string, std::string>, std::string> copies_;  // (server, home id) -> id there
   std::map<std::string, std::shared_ptr<Route>> routes_;           // by every id the session had
+  std::map<std::string, int> placing_;                             // creations under way, by server
 };
 
 }  // namespace cinevol
