@@ -2,15 +2,20 @@
 # Two cinevol-servers on loopback standing in for two pods (docs/deploy.md,
 # "Routing"): `cinevol loadtest --server A,B` places its sessions by room,
 # then, a third of the way through, server A is killed (SIGKILL) and its
-# sessions must go on from B. Prints the load test's table and what moved where. Runs on the
-# CPU backend from a build folder (default build/), small frames, so it runs
-# anywhere:
-#   SESSIONS=8 SECONDS_PER_RUN=30 bash bench/fleet-run.sh [BUILD_DIR]
+# sessions must go on from B. Prints where sessions went, how long the move
+# took and the load test's numbers. By default the CPU backend from build/ at
+# 160x96, so it runs anywhere; on the GPU machine, with the bundle of
+# bench/make-gpu-bundle.sh:
+#   SESSIONS=8 SECONDS_PER_RUN=30 bash bench/fleet-run.sh [BIN_DIR]
+#   BACKEND=cuda VOLUME=/tmp/cv/data/ct-head-cthead/DERIVED_CThead.nhdr WIDTH=1280 HEIGHT=720 \
+#     bash bench/fleet-run.sh /tmp/cv/bin
 set -euo pipefail
 cd "$(dirname "$0")/.."
 build=${1:-build}
 sessions=${SESSIONS:-8}
 seconds=${SECONDS_PER_RUN:-30}
+backend=${BACKEND:-cpu}
+volume=${VOLUME:-phantom:head?size=64}
 scratch=$(mktemp -d)
 pids=()
 cleanup() { for pid in "${pids[@]}"; do kill "$pid" 2>/dev/null || true; done; rm -rf "$scratch"; }
@@ -18,8 +23,8 @@ trap cleanup EXIT
 [ -n "${KEEP:-}" ] && trap - EXIT && echo "logs in $scratch" >&2
 
 start_server() {  # NAME: starts one; its address goes to $scratch/NAME.address
-  "$build/cinevol-server" --listen 127.0.0.1:0 --port-file "$scratch/$1.port" --backend cpu \
-    --volume "phantom:head?size=64" --max-sessions "$sessions" --max-sessions-per-principal "$sessions" \
+  "$build/cinevol-server" --listen 127.0.0.1:0 --port-file "$scratch/$1.port" --backend "$backend" \
+    --volume "$volume" --max-sessions "$sessions" --max-sessions-per-principal "$sessions" \
     > "$scratch/$1.log" 2>&1 &
   pids+=($!)
   for _ in $(seq 300); do [ -s "$scratch/$1.port" ] && break; sleep 0.1; done
@@ -34,7 +39,7 @@ b=$(cat "$scratch/b.address")
 ( sleep "$((seconds / 3))"; date '+%F %T.%3N' > "$scratch/killed"; kill -KILL "$a_pid" ) &
 killer=$!
 status=0
-"$build/cinevol" loadtest --server "$a,$b" --sessions "$sessions" --seconds "$seconds" --width 160 --height 96 \
+"$build/cinevol" loadtest --server "$a,$b" --sessions "$sessions" --seconds "$seconds" --width "${WIDTH:-160}" --height "${HEIGHT:-96}" \
   --json --out "$scratch/loadtest.json" > /dev/null || status=$?
 wait "$killer" || true
 python3 - "$scratch" "$a" "$b" <<'PY'
