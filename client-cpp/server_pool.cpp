@@ -12,6 +12,8 @@ namespace cinevol {
 namespace {
 
 constexpr int kMaxReceiveBytes = 512 << 20;  // a 4K EXR snapshot is about 100 MB
+// One server's turn while the client looks for one that answers.
+constexpr std::chrono::milliseconds kConnectTurn{100};
 // How long placement waits for a server's status: a dead one must not hold
 // up a session on a live one.
 constexpr std::chrono::milliseconds kStatusTimeout{2000};
@@ -66,13 +68,17 @@ bool TryAnother(grpc::StatusCode code) {
 
 ServerPool::ServerPool(const ClientOptions& options)
     : options_(options), servers_(SplitServers(options.address)), credentials_(Credentials(options)) {
+  // The servers take turns in short waits, so a dead first one does not use
+  // up the time of those after it.
   const auto deadline = std::chrono::system_clock::now() + options.connect_timeout;
-  for (const std::string& server : servers_) {
-    if (Channel(server)->WaitForConnected(deadline)) {
-      home_ = server;
-      return;
+  do {
+    for (const std::string& server : servers_) {
+      if (Channel(server)->WaitForConnected(std::min(deadline, std::chrono::system_clock::now() + kConnectTurn))) {
+        home_ = server;
+        return;
+      }
     }
-  }
+  } while (std::chrono::system_clock::now() < deadline);
   const bool tls = !options.tls_ca.empty() || !options.tls_cert.empty();
   throw RpcError({grpc::StatusCode::UNAVAILABLE,
                   fmt::format("cannot reach cinevol-server at {} within {} s{}", options.address,

@@ -85,6 +85,19 @@ TEST(Placement, ANewSessionGoesWhereThereIsMostRoomAndItsAnswerSaysWhere) {
   EXPECT_FALSE(Holds(*b, third.session_id())) << "CloseSession went to the wrong server";
 }
 
+TEST(Placement, AServerThatIsDownIsPassedOver) {
+  ScratchDir scratch;
+  auto b = AdvertisingServer(scratch.path(), {});
+  ASSERT_TRUE(b->running()) << b->Log();
+  ClientOptions options;
+  options.address = "127.0.0.1:" + std::to_string(FreePort()) + "," + b->address();  // nothing on the first
+  const auto start = std::chrono::steady_clock::now();
+  Client client(options);
+  EXPECT_LT(std::chrono::steady_clock::now() - start, 2s) << "the dead first server used up the connect timeout";
+  EXPECT_FALSE(client.ListVolumes().empty()) << "volume calls go to the server that answered";
+  EXPECT_EQ(client.CreateSession(SmallSession()).address(), b->address());
+}
+
 TEST(Failover, WhenItsServerDiesTheStreamCreatesTheSessionAgainFromItsLastStateOnAnother) {
   ScratchDir scratch;
   WriteSmallNrrd(scratch / "small.nrrd");
