@@ -116,6 +116,10 @@ TEST(CinevolServer, RefusesBadSettingsWithAMessage) {
   std::tie(code, out) = RunServer(scratch, with({"--backend", "gpu"}));
   EXPECT_NE(code, 0) << out;
   EXPECT_NE(out.find("--backend"), std::string::npos) << out;
+  std::tie(code, out) = RunServer(scratch, with({"--advertise-address", "pod-0 :50051"}));
+  EXPECT_NE(code, 0) << out;
+  EXPECT_NE(out.find("--advertise-address"), std::string::npos) << out;
+  EXPECT_NE(out.find("HOST:PORT"), std::string::npos) << out;
   std::tie(code, out) = RunServer(scratch, {"--help"});
   EXPECT_EQ(code, 0);
   for (const char* flag : {"--listen", "--backend", "--devices", "--data-root", "--config"}) {
