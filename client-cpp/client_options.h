@@ -20,6 +20,13 @@ struct ClientOptions {
   std::string token;  // sent as "authorization: Bearer <token>" when set
   std::chrono::milliseconds connect_timeout{5000};
   std::chrono::milliseconds call_timeout{60000};  // every unary call; snapshots and loads included
+  // While a call is open (a stream that gets no frames included), ping the
+  // server this often; a ping unanswered for keepalive_timeout ends the
+  // connection. That is how a stream notices a server whose machine went
+  // away without closing it (a node lost, a network cut), instead of waiting
+  // minutes for TCP. The server accepts pings every 10 s at most.
+  std::chrono::milliseconds keepalive{20000};
+  std::chrono::milliseconds keepalive_timeout{10000};
   // TLS (PEM files, read when the Client is constructed). With tls_ca the
   // channel is TLS and the server's certificate must chain to that CA;
   // tls_cert and tls_key (together) add a client certificate for servers

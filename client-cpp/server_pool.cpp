@@ -94,6 +94,9 @@ std::shared_ptr<grpc::Channel> ServerPool::Channel(const std::string& address) {
   if (!channel) {
     grpc::ChannelArguments args;
     args.SetMaxReceiveMessageSize(kMaxReceiveBytes);
+    args.SetInt(GRPC_ARG_KEEPALIVE_TIME_MS, int(options_.keepalive.count()));
+    args.SetInt(GRPC_ARG_KEEPALIVE_TIMEOUT_MS, int(options_.keepalive_timeout.count()));
+    args.SetInt(GRPC_ARG_HTTP2_MAX_PINGS_WITHOUT_DATA, 0);  // a stream of a refined session sends nothing for long
     channel = grpc::CreateCustomChannel(address, credentials_, args);
   }
   return channel;

@@ -196,6 +196,38 @@ TEST(Failover, ADrainingServersSessionsMoveToAnotherAtOnce) {
   EXPECT_TRUE(Holds(*b, stream->session_id()));
 }
 
+// A server that stops answering without closing anything (SIGSTOP: its
+// kernel still holds the connections, as with a lost node or a network cut):
+// keepalive pings find it out, then the session moves.
+TEST(Failover, AServerThatHangsIsFoundOutByKeepaliveAndItsSessionsMove) {
+  ScratchDir scratch;
+  std::filesystem::create_directories(scratch / "a");
+  std::filesystem::create_directories(scratch / "b");
+  auto a = AdvertisingServer(scratch / "a", {});
+  auto b = AdvertisingServer(scratch / "b", {});
+  ASSERT_TRUE(a->running() && b->running()) << a->Log() << b->Log();
+  ClientOptions options;
+  options.address = a->address() + "," + b->address();
+  options.keepalive = 1s;
+  options.keepalive_timeout = 1s;
+  Client both(options);
+  const auto created = both.CreateSession(SmallSession());
+  ASSERT_EQ(created.address(), a->address());
+  StreamOptions stream_options;
+  stream_options.resume_timeout = 1s;
+  auto stream = both.Attach(created.session_id(), stream_options);
+  ASSERT_TRUE(WaitFrame(*stream, [](const v1::Frame&) { return true; }, 30s));
+
+  const auto hung = std::chrono::steady_clock::now();
+  ASSERT_EQ(kill(a->pid(), SIGSTOP), 0);
+  const auto after = WaitFrame(*stream, [&](const v1::Frame&) { return stream->failovers() > 0; }, 30s);
+  const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - hung).count();
+  kill(a->pid(), SIGKILL);
+  ASSERT_TRUE(after) << "no move in 30 s: " << stream->status().error_message();
+  RecordProperty("seconds_from_sigstop_to_a_frame_from_the_other_server", std::to_string(seconds));
+  EXPECT_TRUE(Holds(*b, stream->session_id()));
+}
+
 TEST(Failover, AStreamOfASessionItDidNotCreateEndsAsBefore) {
   ScratchDir scratch;
   std::filesystem::create_directories(scratch / "a");
