@@ -270,50 +270,81 @@ Client::Client(const ClientOptions& options) : pool_(std::make_shared<ServerPool
 
 std::shared_ptr<grpc::Channel> Client::channel() const { return pool_->Channel(pool_->home()); }
 
-std::vector<v1::VolumeInfo> Client::ListVolumes() { return VolumeCalls(*pool_, pool_->home()).List(); }
+template <class Call>
+auto Client::OnHome(const Call& call) {
+  const std::string home = pool_->home();
+  try {
+    return call(home);
+  } catch (const RpcError& e) {
+    if (e.code() != grpc::StatusCode::UNAVAILABLE || !pool_->MoveHome(home)) throw;
+  }
+  return call(pool_->home());
+}
+
+std::vector<v1::VolumeInfo> Client::ListVolumes() {
+  return OnHome([&](const std::string& home) { return VolumeCalls(*pool_, home).List(); });
+}
 
 v1::VolumeInfo Client::LoadVolume(const std::string& path, const std::string& series_uid) {
-  v1::VolumeInfo info = VolumeCalls(*pool_, pool_->home()).Load(path, series_uid);
-  VolumeOrigin origin;
-  origin.path = path;
-  origin.series_uid = series_uid;
-  pool_->RememberVolume(info.id(), origin);
-  return info;
+  return OnHome([&](const std::string& home) {
+    v1::VolumeInfo info = VolumeCalls(*pool_, home).Load(path, series_uid);
+    VolumeOrigin origin;
+    origin.home = home;
+    origin.path = path;
+    origin.series_uid = series_uid;
+    pool_->RememberVolume(info.id(), origin);
+    return info;
+  });
 }
 
 v1::VolumeInfo Client::UploadVolume(const std::filesystem::path& file, std::size_t chunk_bytes) {
-  v1::VolumeInfo info = VolumeCalls(*pool_, pool_->home()).Upload(file, {}, chunk_bytes);
-  VolumeOrigin origin;
-  origin.upload = std::filesystem::absolute(file);
-  pool_->RememberVolume(info.id(), origin);
-  return info;
+  return OnHome([&](const std::string& home) {
+    v1::VolumeInfo info = VolumeCalls(*pool_, home).Upload(file, {}, chunk_bytes);
+    VolumeOrigin origin;
+    origin.home = home;
+    origin.upload = std::filesystem::absolute(file);
+    pool_->RememberVolume(info.id(), origin);
+    return info;
+  });
 }
 
 v1::VolumeInfo Client::LoadLabels(const std::string& volume_id, const std::string& path,
                                   const std::string& table_path) {
-  v1::VolumeInfo info = VolumeCalls(*pool_, pool_->home()).LoadLabels(volume_id, path, table_path);
-  VolumeOrigin origin;
-  origin.labels_path = path;
-  origin.labels_table_path = table_path;
-  pool_->RememberLabels(volume_id, origin);
-  return info;
+  return OnHome([&](const std::string& home) {
+    v1::VolumeInfo info = VolumeCalls(*pool_, home).LoadLabels(pool_->VolumeOn(home, volume_id), path, table_path);
+    VolumeOrigin origin;
+    origin.home = home;
+    origin.labels_path = path;
+    origin.labels_table_path = table_path;
+    pool_->RememberLabels(volume_id, origin);
+    return info;
+  });
 }
 
 v1::VolumeInfo Client::UploadLabels(const std::string& volume_id, const std::filesystem::path& file,
                                     const std::filesystem::path& table) {
-  v1::VolumeInfo info = VolumeCalls(*pool_, pool_->home()).UploadLabels(volume_id, file, table);
-  VolumeOrigin origin;
-  origin.labels_upload = std::filesystem::absolute(file);
-  if (!table.empty()) origin.labels_upload_table = std::filesystem::absolute(table);
-  pool_->RememberLabels(volume_id, origin);
-  return info;
+  return OnHome([&](const std::string& home) {
+    v1::VolumeInfo info = VolumeCalls(*pool_, home).UploadLabels(pool_->VolumeOn(home, volume_id), file, table);
+    VolumeOrigin origin;
+    origin.home = home;
+    origin.labels_upload = std::filesystem::absolute(file);
+    if (!table.empty()) origin.labels_upload_table = std::filesystem::absolute(table);
+    pool_->RememberLabels(volume_id, origin);
+    return info;
+  });
 }
 
 v1::VolumeInfo Client::DescribeVolume(const std::string& volume_id) {
-  return VolumeCalls(*pool_, pool_->home()).Describe(volume_id);
+  return OnHome(
+      [&](const std::string& home) { return VolumeCalls(*pool_, home).Describe(pool_->VolumeOn(home, volume_id)); });
 }
 
-void Client::UnloadVolume(const std::string& volume_id) { VolumeCalls(*pool_, pool_->home()).Unload(volume_id); }
+void Client::UnloadVolume(const std::string& volume_id) {
+  OnHome([&](const std::string& home) {
+    VolumeCalls(*pool_, home).Unload(pool_->KnownIdOn(home, volume_id));
+    return 0;
+  });
+}
 
 v1::CreateSessionResponse Client::CreateSession(const v1::CreateSessionRequest& request) {
   return pool_->CreateSession(request).response;
@@ -343,10 +374,12 @@ void Client::CloseSession(const std::string& session_id) {
 }
 
 v1::ServerStatus Client::Status() {
-  auto stub = v1::ServerService::NewStub(pool_->Channel(pool_->home()));
-  v1::ServerStatus status;
-  Check(stub->GetStatus(pool_->CallContext().get(), {}, &status));
-  return status;
+  return OnHome([&](const std::string& home) {
+    auto stub = v1::ServerService::NewStub(pool_->Channel(home));
+    v1::ServerStatus status;
+    Check(stub->GetStatus(pool_->CallContext().get(), {}, &status));
+    return status;
+  });
 }
 
 }  // namespace cinevol

@@ -138,9 +138,9 @@ class Client {
   // std::invalid_argument when a TLS file cannot be read.
   explicit Client(const ClientOptions& options);
 
-  // Volume calls go to the first server that answered; with several
-  // servers, a volume loaded or uploaded here is loaded or uploaded again on
-  // another where a session of it is placed.
+  // Volume calls go to the first server that answered (with several, to
+  // another when it stops answering); a volume loaded or uploaded here is
+  // loaded or uploaded again on another server where a session of it goes.
   std::vector<v1::VolumeInfo> ListVolumes();
   v1::VolumeInfo LoadVolume(const std::string& path, const std::string& series_uid = {});
   v1::VolumeInfo UploadVolume(const std::filesystem::path& file, std::size_t chunk_bytes = 1 << 20);
@@ -168,6 +168,11 @@ class Client {
   std::shared_ptr<grpc::Channel> channel() const;
 
  private:
+  // call(home server), and once more on another server when the home does
+  // not answer (UNAVAILABLE) and another does.
+  template <class Call>
+  auto OnHome(const Call& call);
+
   std::shared_ptr<ServerPool> pool_;
 };
 

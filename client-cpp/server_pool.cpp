@@ -68,17 +68,8 @@ bool TryAnother(grpc::StatusCode code) {
 
 ServerPool::ServerPool(const ClientOptions& options)
     : options_(options), servers_(SplitServers(options.address)), credentials_(Credentials(options)) {
-  // The servers take turns in short waits, so a dead first one does not use
-  // up the time of those after it.
-  const auto deadline = std::chrono::system_clock::now() + options.connect_timeout;
-  do {
-    for (const std::string& server : servers_) {
-      if (Channel(server)->WaitForConnected(std::min(deadline, std::chrono::system_clock::now() + kConnectTurn))) {
-        home_ = server;
-        return;
-      }
-    }
-  } while (std::chrono::system_clock::now() < deadline);
+  home_ = FirstAnswering({});
+  if (!home_.empty()) return;
   const bool tls = !options.tls_ca.empty() || !options.tls_cert.empty();
   throw RpcError({grpc::StatusCode::UNAVAILABLE,
                   fmt::format("cannot reach cinevol-server at {} within {} s{}", options.address,
@@ -86,6 +77,35 @@ ServerPool::ServerPool(const ClientOptions& options)
                               tls ? " (over TLS: is the server's certificate signed by --tls-ca, for this "
                                     "address, and does the server accept the client certificate?)"
                                   : " (is it running? a server with TLS needs --tls-ca)")});
+}
+
+std::string ServerPool::FirstAnswering(const std::string& skip) {
+  // The servers take turns in short waits, so a dead first one does not use
+  // up the time of those after it.
+  const auto deadline = std::chrono::system_clock::now() + options_.connect_timeout;
+  do {
+    for (const std::string& server : servers_) {
+      if (server == skip) continue;
+      if (Channel(server)->WaitForConnected(std::min(deadline, std::chrono::system_clock::now() + kConnectTurn))) {
+        return server;
+      }
+    }
+  } while (std::chrono::system_clock::now() < deadline);
+  return {};
+}
+
+std::string ServerPool::home() const {
+  std::lock_guard lock(mu_);
+  return home_;
+}
+
+bool ServerPool::MoveHome(const std::string& failed) {
+  if (servers_.size() < 2) return false;
+  const std::string next = FirstAnswering(failed);
+  if (next.empty()) return false;
+  std::lock_guard lock(mu_);
+  if (home_ == failed) home_ = next;
+  return true;
 }
 
 std::shared_ptr<grpc::Channel> ServerPool::Channel(const std::string& address) {
@@ -116,14 +136,16 @@ void ServerPool::RememberVolume(const std::string& id, const VolumeOrigin& origi
 
 void ServerPool::RememberLabels(const std::string& id, const VolumeOrigin& labels) {
   std::lock_guard lock(mu_);
-  VolumeOrigin& origin = volumes_[id];
+  auto [it, operators] = volumes_.try_emplace(id);
+  VolumeOrigin& origin = it->second;
+  if (operators) origin.home = labels.home;  // the volume was there already: only the labels are the client's
   origin.labels_path = labels.labels_path;
   origin.labels_table_path = labels.labels_table_path;
   origin.labels_upload = labels.labels_upload;
   origin.labels_upload_table = labels.labels_upload_table;
   // Copies elsewhere have the old segmentation: get them again.
-  for (auto it = copies_.begin(); it != copies_.end();) {
-    it = it->first.second == id ? copies_.erase(it) : std::next(it);
+  for (auto copy = copies_.begin(); copy != copies_.end();) {
+    copy = copy->first.second == id ? copies_.erase(copy) : std::next(copy);
   }
 }
 
@@ -207,20 +229,23 @@ std::string ServerPool::VolumeOn(const std::string& server, const std::string& i
   VolumeOrigin origin;
   {
     std::lock_guard lock(mu_);
-    if (server == home_) return id;
-    if (auto it = copies_.find({server, id}); it != copies_.end()) return it->second;
+    if (auto copy = copies_.find({server, id}); copy != copies_.end()) return copy->second;
     auto it = volumes_.find(id);
-    if (it == volumes_.end()) return id;  // the operator's: the same id everywhere
+    if (it == volumes_.end() || it->second.home == server) return id;  // the operator's: the same id everywhere
     origin = it->second;
   }
   VolumeCalls calls(*this, server);
-  v1::VolumeInfo info;
+  std::string there = id;  // where the client gave only labels, the volume is the operator's
   try {
-    info = origin.upload.empty() ? calls.Load(origin.path, origin.series_uid) : calls.Upload(origin.upload, {});
+    if (!origin.upload.empty()) {
+      there = calls.Upload(origin.upload, {}).id();
+    } else if (!origin.path.empty()) {
+      there = calls.Load(origin.path, origin.series_uid).id();
+    }
     if (!origin.labels_path.empty()) {
-      calls.LoadLabels(info.id(), origin.labels_path, origin.labels_table_path);
+      calls.LoadLabels(there, origin.labels_path, origin.labels_table_path);
     } else if (!origin.labels_upload.empty()) {
-      calls.UploadLabels(info.id(), origin.labels_upload, origin.labels_upload_table);
+      calls.UploadLabels(there, origin.labels_upload, origin.labels_upload_table);
     }
   } catch (const RpcError&) {
     throw;
@@ -229,8 +254,14 @@ std::string ServerPool::VolumeOn(const std::string& server, const std::string& i
                     fmt::format("volume '{}': cannot upload it again to {}: {}", id, server, e.what())});
   }
   std::lock_guard lock(mu_);
-  copies_[{server, id}] = info.id();
-  return info.id();
+  copies_[{server, id}] = there;
+  return there;
+}
+
+std::string ServerPool::KnownIdOn(const std::string& server, const std::string& id) const {
+  std::lock_guard lock(mu_);
+  auto copy = copies_.find({server, id});
+  return copy == copies_.end() ? id : copy->second;
 }
 
 std::string ServerPool::AddressOf(const std::string& id) const {

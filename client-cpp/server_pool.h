@@ -33,6 +33,7 @@ namespace cinevol {
 
 // How the client got a volume, to get it again on another server.
 struct VolumeOrigin {
+  std::string home;                // the server whose id it is
   std::string path, series_uid;    // LoadVolume, under the server's data roots
   std::filesystem::path upload;    // UploadVolume, a local file
   std::string labels_path, labels_table_path;  // LoadLabels
@@ -56,14 +57,24 @@ class ServerPool {
 
   const ClientOptions& options() const { return options_; }
   // The server volume and status calls go to: the first that answered.
-  const std::string& home() const { return home_; }
+  std::string home() const;
+  // After `failed` (the home) did not answer: makes another server that
+  // answers within connect_timeout the home; false when none does.
+  bool MoveHome(const std::string& failed);
   std::shared_ptr<grpc::Channel> Channel(const std::string& address);
   // A context with the token and a deadline of options().call_timeout.
   std::unique_ptr<grpc::ClientContext> CallContext() const;
 
-  // Volumes the client got from home(), by id there.
+  // Volumes the client loaded or uploaded, by their id on origin.home.
   void RememberVolume(const std::string& id, const VolumeOrigin& origin);
+  // A segmentation the client gave volume `id` (its id on origin.home).
   void RememberLabels(const std::string& id, const VolumeOrigin& labels);
+  // The id volume `id` has on `server`, loading or uploading it there as the
+  // client did where it got it (with its segmentation); an operator's volume
+  // keeps its id. Throws RpcError.
+  std::string VolumeOn(const std::string& server, const std::string& id);
+  // The same without getting it there: its id there if the client put it there.
+  std::string KnownIdOn(const std::string& server, const std::string& id) const;
 
   // Places and creates a session (see above) and remembers it.
   Placement CreateSession(const v1::CreateSessionRequest& request);
@@ -94,14 +105,13 @@ class ServerPool {
     long free = -1;  // sessions it takes now; -1: full, draining or unreachable
   };
 
+  // The first server but `skip` to answer within connect_timeout; empty: none.
+  std::string FirstAnswering(const std::string& skip);
   // The servers' room, as each says; `avoid` with none (tried last: it may be the only one).
   std::vector<Room> ByRoom(const std::string& avoid);
   // Takes the room with the most left out of `rooms` and counts a creation
   // under way on it (placing_).
   Room TakeBest(std::vector<Room>& rooms);
-  // The id volume `id` of home() has on `server`, loading or uploading it
-  // there as the client did at home; throws RpcError.
-  std::string VolumeOn(const std::string& server, const std::string& id);
   Placement Place(v1::CreateSessionRequest request, const std::string& avoid);
 
   const ClientOptions options_;
@@ -111,8 +121,8 @@ class ServerPool {
 
   mutable std::mutex mu_;
   std::map<std::string, std::shared_ptr<grpc::Channel>> channels_;
-  std::map<std::string, VolumeOrigin> volumes_;                   // by id at home
-  std::map<std::pair<std::string, std::string>, std::string> copies_;  // (server, home id) -> id there
+  std::map<std::string, VolumeOrigin> volumes_;                   // by id on their origin's home
+  std::map<std::pair<std::string, std::string>, std::string> copies_;  // (server, that id) -> id there
   std::map<std::string, std::shared_ptr<Route>> routes_;           // by every id the session had
   std::map<std::string, int> placing_;                             // creations under way, by server
 };

@@ -98,6 +98,33 @@ TEST(Placement, AServerThatIsDownIsPassedOver) {
   EXPECT_EQ(client.CreateSession(SmallSession()).address(), b->address());
 }
 
+TEST(Placement, WhenTheFirstServerGoesVolumeAndStatusCallsGoToAnother) {
+  ScratchDir scratch;
+  WriteSmallNrrd(scratch / "small.nrrd");
+  std::filesystem::create_directories(scratch / "local");
+  std::filesystem::create_directories(scratch / "a");
+  std::filesystem::create_directories(scratch / "b");
+  const std::vector<std::string> flags{"--data-root", scratch.path().string()};
+  auto a = AdvertisingServer(scratch / "a", flags);
+  auto b = AdvertisingServer(scratch / "b", flags);
+  ASSERT_TRUE(a->running() && b->running()) << a->Log() << b->Log();
+  Client both = ConnectToBoth(*a, *b);
+  const v1::VolumeInfo volume = both.LoadVolume("small.nrrd");  // on A, with a segmentation uploaded
+  WriteSmallNrrd(scratch / "local" / "labels.nrrd");
+  both.UploadLabels(volume.id(), scratch / "local" / "labels.nrrd");
+
+  ASSERT_EQ(kill(a->pid(), SIGKILL), 0);
+  EXPECT_TRUE(both.Status().accepting_sessions()) << "the status of B";
+  const v1::VolumeInfo on_b = both.DescribeVolume(volume.id());
+  EXPECT_NE(on_b.source().find("small.nrrd"), std::string::npos)
+      << "the volume, loaded on B as the client had loaded it on A";
+  EXPECT_GT(on_b.labels().names_size(), 0) << "and its segmentation, uploaded again";
+  v1::CreateSessionRequest request = SmallSession();
+  request.set_volume_id(volume.id());
+  EXPECT_EQ(both.CreateSession(request).address(), b->address());
+  a.reset();  // already dead: Stop finds it gone
+}
+
 TEST(Failover, WhenItsServerDiesTheStreamCreatesTheSessionAgainFromItsLastStateOnAnother) {
   ScratchDir scratch;
   WriteSmallNrrd(scratch / "small.nrrd");
