@@ -24,6 +24,18 @@ std::unique_ptr<ServerProcess> AdvertisingServer(const std::filesystem::path& sc
   return std::make_unique<ServerProcess>(scratch, extra, "cpu", 0, port);
 }
 
+// Servers A and B, each with its own folder under `scratch`.
+struct TwoServers {
+  std::unique_ptr<ServerProcess> a, b;
+};
+
+TwoServers StartTwo(const std::filesystem::path& scratch, const std::vector<std::string>& a_flags,
+                    const std::vector<std::string>& b_flags) {
+  std::filesystem::create_directories(scratch / "a");
+  std::filesystem::create_directories(scratch / "b");
+  return {AdvertisingServer(scratch / "a", a_flags), AdvertisingServer(scratch / "b", b_flags)};
+}
+
 Client ConnectToBoth(const ServerProcess& a, const ServerProcess& b) {
   ClientOptions options;
   options.address = a.address() + "," + b.address();
@@ -37,10 +49,7 @@ bool Holds(const ServerProcess& server, const std::string& session_id) {
 
 TEST(Placement, ANewSessionGoesWhereThereIsMostRoomAndItsAnswerSaysWhere) {
   ScratchDir scratch;
-  std::filesystem::create_directories(scratch / "a");
-  std::filesystem::create_directories(scratch / "b");
-  auto a = AdvertisingServer(scratch / "a", {"--max-sessions", "4"});
-  auto b = AdvertisingServer(scratch / "b", {"--max-sessions", "3"});
+  auto [a, b] = StartTwo(scratch.path(), {"--max-sessions", "4"}, {"--max-sessions", "3"});
   ASSERT_TRUE(a->running() && b->running()) << a->Log() << b->Log();
   Client only_a = a->Connect();
   Client both = ConnectToBoth(*a, *b);
@@ -102,11 +111,8 @@ TEST(Placement, WhenTheFirstServerGoesVolumeAndStatusCallsGoToAnother) {
   ScratchDir scratch;
   WriteSmallNrrd(scratch / "small.nrrd");
   std::filesystem::create_directories(scratch / "local");
-  std::filesystem::create_directories(scratch / "a");
-  std::filesystem::create_directories(scratch / "b");
   const std::vector<std::string> flags{"--data-root", scratch.path().string()};
-  auto a = AdvertisingServer(scratch / "a", flags);
-  auto b = AdvertisingServer(scratch / "b", flags);
+  auto [a, b] = StartTwo(scratch.path(), flags, flags);
   ASSERT_TRUE(a->running() && b->running()) << a->Log() << b->Log();
   Client both = ConnectToBoth(*a, *b);
   const v1::VolumeInfo volume = both.LoadVolume("small.nrrd");  // on A, with a segmentation uploaded
@@ -128,11 +134,8 @@ TEST(Placement, WhenTheFirstServerGoesVolumeAndStatusCallsGoToAnother) {
 TEST(Failover, WhenItsServerDiesTheStreamCreatesTheSessionAgainFromItsLastStateOnAnother) {
   ScratchDir scratch;
   WriteSmallNrrd(scratch / "small.nrrd");
-  std::filesystem::create_directories(scratch / "a");
-  std::filesystem::create_directories(scratch / "b");
   const std::vector<std::string> flags{"--data-root", scratch.path().string()};
-  auto a = AdvertisingServer(scratch / "a", flags);
-  auto b = AdvertisingServer(scratch / "b", flags);
+  auto [a, b] = StartTwo(scratch.path(), flags, flags);
   ASSERT_TRUE(a->running() && b->running()) << a->Log() << b->Log();
   Client both = ConnectToBoth(*a, *b);
 
@@ -202,10 +205,7 @@ TEST(Failover, WhenItsServerDiesTheStreamCreatesTheSessionAgainFromItsLastStateO
 // session ended, so there is nothing to resume.
 TEST(Failover, ADrainingServersSessionsMoveToAnotherAtOnce) {
   ScratchDir scratch;
-  std::filesystem::create_directories(scratch / "a");
-  std::filesystem::create_directories(scratch / "b");
-  auto a = AdvertisingServer(scratch / "a", {"--drain-seconds", "3"});
-  auto b = AdvertisingServer(scratch / "b", {});
+  auto [a, b] = StartTwo(scratch.path(), {"--drain-seconds", "3"}, {});
   ASSERT_TRUE(a->running() && b->running()) << a->Log() << b->Log();
   Client both = ConnectToBoth(*a, *b);
   const auto created = both.CreateSession(SmallSession());
@@ -228,10 +228,7 @@ TEST(Failover, ADrainingServersSessionsMoveToAnotherAtOnce) {
 // keepalive pings find it out, then the session moves.
 TEST(Failover, AServerThatHangsIsFoundOutByKeepaliveAndItsSessionsMove) {
   ScratchDir scratch;
-  std::filesystem::create_directories(scratch / "a");
-  std::filesystem::create_directories(scratch / "b");
-  auto a = AdvertisingServer(scratch / "a", {});
-  auto b = AdvertisingServer(scratch / "b", {});
+  auto [a, b] = StartTwo(scratch.path(), {}, {});
   ASSERT_TRUE(a->running() && b->running()) << a->Log() << b->Log();
   ClientOptions options;
   options.address = a->address() + "," + b->address();
@@ -257,11 +254,8 @@ TEST(Failover, AServerThatHangsIsFoundOutByKeepaliveAndItsSessionsMove) {
 
 TEST(Failover, AStreamOfASessionItDidNotCreateEndsAsBefore) {
   ScratchDir scratch;
-  std::filesystem::create_directories(scratch / "a");
-  std::filesystem::create_directories(scratch / "b");
-  auto a = AdvertisingServer(scratch / "a", {});
-  auto b = AdvertisingServer(scratch / "b", {});
-  ASSERT_TRUE(a->running() && b->running());
+  auto [a, b] = StartTwo(scratch.path(), {}, {});
+  ASSERT_TRUE(a->running() && b->running()) << a->Log() << b->Log();
   Client only_a = a->Connect();
   const auto created = only_a.CreateSession(SmallSession());
   Client both = ConnectToBoth(*a, *b);  // knows nothing of the session's state
