@@ -154,7 +154,10 @@ std::vector<ServerPool::Room> ServerPool::ByRoom(const std::string& avoid) {
   std::vector<std::future<long>> asked;
   for (const std::string& server : servers_) {
     if (server == avoid) continue;
-    rooms.push_back({server});
+    {
+      std::lock_guard lock(mu_);
+      rooms.push_back({server, -1, created_[server]});
+    }
     asked.push_back(std::async(std::launch::async, [this, server] {
       auto stub = v1::ServerService::NewStub(Channel(server));
       auto context = CallContext();
@@ -180,9 +183,9 @@ Placement ServerPool::CreateSession(const v1::CreateSessionRequest& request) {
 
 ServerPool::Room ServerPool::TakeBest(std::vector<Room>& rooms) {
   std::lock_guard lock(mu_);
-  // Room left once this client's creations under way land: sessions created
-  // at once from many threads spread instead of all taking the same server.
-  auto left = [&](const Room& r) { return r.free < 0 ? r.free : r.free - placing_[r.server]; };
+  auto left = [&](const Room& r) {
+    return r.free < 0 ? r.free : r.free - placing_[r.server] - (created_[r.server] - r.created_before);
+  };
   auto best = rooms.begin();
   for (auto it = rooms.begin(); it != rooms.end(); ++it) {
     if (left(*it) > left(*best)) best = it;  // the first of equals: the list breaks ties
@@ -199,9 +202,10 @@ Placement ServerPool::Place(v1::CreateSessionRequest request, const std::string&
   std::vector<std::string> refusals;
   while (!rooms.empty()) {
     const Room room = TakeBest(rooms);
-    auto landed = [&] {
+    auto landed = [&](bool created) {
       std::lock_guard lock(mu_);
       --placing_[room.server];
+      if (created) ++created_[room.server];
     };
     try {
       request.set_volume_id(VolumeOn(room.server, volume_id));
@@ -210,10 +214,10 @@ Placement ServerPool::Place(v1::CreateSessionRequest request, const std::string&
       Check(stub->CreateSession(CallContext().get(), request, &placed.response));
       placed.server = room.server;
       placed.address = placed.response.address().empty() ? room.server : placed.response.address();
-      landed();
+      landed(true);
       return placed;
     } catch (const RpcError& e) {
-      landed();
+      landed(false);
       if (!TryAnother(e.code()) || rooms.empty()) {
         if (refusals.empty()) throw;
         refusals.push_back(fmt::format("{}: {}", room.server, e.what()));

@@ -102,7 +102,8 @@ class ServerPool {
   };
   struct Room {
     std::string server;
-    long free = -1;  // sessions it takes now; -1: full, draining or unreachable
+    long free = -1;  // sessions it takes, as it said; -1: full, draining or unreachable
+    long created_before = 0;  // created_[server] before it was asked
   };
 
   // The first server but `skip` to answer within connect_timeout; empty: none.
@@ -110,7 +111,9 @@ class ServerPool {
   // The servers' room, as each says; `avoid` with none (tried last: it may be the only one).
   std::vector<Room> ByRoom(const std::string& avoid);
   // Takes the room with the most left out of `rooms` and counts a creation
-  // under way on it (placing_).
+  // under way on it (placing_). What is left is what the server said, less
+  // this client's creations on it under way or done since it was asked, so
+  // sessions created at once from many threads spread.
   Room TakeBest(std::vector<Room>& rooms);
   Placement Place(v1::CreateSessionRequest request, const std::string& avoid);
 
@@ -124,7 +127,8 @@ class ServerPool {
   std::map<std::string, VolumeOrigin> volumes_;                   // by id on their origin's home
   std::map<std::pair<std::string, std::string>, std::string> copies_;  // (server, that id) -> id there
   std::map<std::string, std::shared_ptr<Route>> routes_;           // by every id the session had
-  std::map<std::string, int> placing_;                             // creations under way, by server
+  std::map<std::string, long> placing_;                            // creations under way, by server
+  std::map<std::string, long> created_;                            // creations done, by server
 };
 
 }  // namespace cinevol

@@ -5,7 +5,9 @@
 // the other one.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <csignal>
+#include <thread>
 
 #include "server_process.h"
 #include "service_test_support.h"
@@ -92,6 +94,23 @@ TEST(Placement, ANewSessionGoesWhereThereIsMostRoomAndItsAnswerSaysWhere) {
 
   both.CloseSession(third.session_id());
   EXPECT_FALSE(Holds(*b, third.session_id())) << "CloseSession went to the wrong server";
+}
+
+TEST(Placement, SessionsCreatedAtOnceSpreadOverTheServers) {
+  ScratchDir scratch;
+  auto [a, b] = StartTwo(scratch.path(), {"--max-sessions", "8"}, {"--max-sessions", "8"});
+  ASSERT_TRUE(a->running() && b->running()) << a->Log() << b->Log();
+  Client both = ConnectToBoth(*a, *b);
+  std::vector<std::string> addresses(8);
+  std::vector<std::thread> threads;
+  for (std::size_t i = 0; i < addresses.size(); ++i) {
+    threads.emplace_back([&, i] { addresses[i] = both.CreateSession(SmallSession()).address(); });
+  }
+  for (std::thread& t : threads) t.join();
+  const auto on_a = std::count(addresses.begin(), addresses.end(), a->address());
+  const auto on_b = std::count(addresses.begin(), addresses.end(), b->address());
+  EXPECT_EQ(on_a + on_b, 8);
+  EXPECT_LE(std::abs(on_a - on_b), 2) << on_a << " on A, " << on_b << " on B";
 }
 
 TEST(Placement, AServerThatIsDownIsPassedOver) {
