@@ -9,8 +9,9 @@
 // volume is passed over for the next. Failover: a session whose server went
 // away is created again, from its last state, by the same placement among
 // the others. A volume the client loaded or uploaded is loaded or uploaded
-// again where a session of it goes; one the operator preloaded must be
-// there under the same id (every pod of a deployment preloads the same).
+// again where a session or a volume call names it; one the operator
+// preloaded must be there under the same id (every pod of a deployment
+// preloads the same).
 #pragma once
 
 #include <grpcpp/grpcpp.h>
@@ -56,7 +57,8 @@ class ServerPool {
   explicit ServerPool(const ClientOptions& options);
 
   const ClientOptions& options() const { return options_; }
-  // The server volume and status calls go to: the first that answered.
+  // The server volume and status calls go to: the first that answered, or
+  // the one MoveHome found after it.
   std::string home() const;
   // After `failed` (the home) did not answer: makes another server that
   // answers within connect_timeout the home; false when none does.
