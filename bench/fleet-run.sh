@@ -18,9 +18,11 @@ backend=${BACKEND:-cpu}
 volume=${VOLUME:-phantom:head?size=64}
 scratch=$(mktemp -d)
 pids=()
-cleanup() { for pid in "${pids[@]}"; do kill "$pid" 2>/dev/null || true; done; rm -rf "$scratch"; }
+cleanup() {  # KEEP=1 keeps the logs
+  for pid in "${pids[@]}"; do kill "$pid" 2>/dev/null || true; done
+  if [ -n "${KEEP:-}" ]; then echo "logs in $scratch" >&2; else rm -rf "$scratch"; fi
+}
 trap cleanup EXIT
-[ -n "${KEEP:-}" ] && trap - EXIT && echo "logs in $scratch" >&2
 
 start_server() {  # NAME: starts one; its address goes to $scratch/NAME.address
   "$build/cinevol-server" --listen 127.0.0.1:0 --port-file "$scratch/$1.port" --backend "$backend" \
