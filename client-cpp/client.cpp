@@ -112,6 +112,7 @@ void SessionStream::ReadAll() {
       give_up.reset();
       continue;
     }
+    if (session_over) pool_->Forget(route_);  // nothing left to route to or re-create
     break;
   }
   {
