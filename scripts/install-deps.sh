@@ -16,6 +16,7 @@ packages=(
   prometheus-cpp-dev            # the server's /metrics (--metrics-listen)
   prometheus                    # promtool, which the metrics test checks the exposition with
   openssl                       # the TLS tests make their own CA and certificates
+  libseccomp-dev                # cinevol-reader: the system calls a reader may make
   libsdl2-dev libimgui-dev      # cinevol-viewer: the window and its panels
   xvfb xauth                    # the viewer's tests run it on a virtual display
   python3-yaml yamllint         # tests/deploy: the Kubernetes and Compose manifests' checks

@@ -4,15 +4,41 @@
 #include <algorithm>
 #include <numeric>
 
+#include "core/parallel_for.h"
+
 namespace cinevol {
 
-ValueHistogram ValueHistogram::Of(const std::vector<float>& values, float lo, float hi) {
+namespace {
+
+template <class V>
+ValueHistogram Count(ValuesView<V> values, float offset, float lo, float hi) {
   ValueHistogram h;
   h.min_value = lo;
   h.max_value = hi;
-  h.counts.assign(kBins, 0);
-  for (float v : values) ++h.counts[h.BinOf(v)];
+  h.counts.assign(ValueHistogram::kBins, 0);
+  // Per-slab counts, summed: the same totals whatever thread ran what.
+  constexpr std::size_t kSlab = std::size_t{1} << 22;
+  std::vector<std::vector<std::uint64_t>> slabs((values.size() + kSlab - 1) / kSlab);
+  ParallelFor(std::int64_t(slabs.size()), [&](std::int64_t s) {
+    std::vector<std::uint64_t>& c = slabs[std::size_t(s)];
+    c.assign(ValueHistogram::kBins, 0);
+    const std::size_t end = std::min(values.size(), std::size_t(s + 1) * kSlab);
+    for (std::size_t i = std::size_t(s) * kSlab; i < end; ++i) ++c[h.BinOf(float(values[i]) + offset)];
+  });
+  for (const auto& c : slabs) {
+    for (int b = 0; b < ValueHistogram::kBins; ++b) h.counts[b] += c[b];
+  }
   return h;
+}
+
+}  // namespace
+
+ValueHistogram ValueHistogram::Of(ValuesView<float> values, float offset, float lo, float hi) {
+  return Count(values, offset, lo, hi);
+}
+
+ValueHistogram ValueHistogram::Of(ValuesView<std::uint16_t> values, float offset, float lo, float hi) {
+  return Count(values, offset, lo, hi);
 }
 
 int ValueHistogram::BinOf(float value) const {

@@ -5,6 +5,8 @@
 #include <cstdint>
 #include <vector>
 
+#include "core/voxel_memory.h"
+
 namespace cinevol {
 
 struct ValueHistogram {
@@ -12,8 +14,9 @@ struct ValueHistogram {
   float min_value = 0, max_value = 0;
   std::vector<std::uint64_t> counts;  // kBins equal-width bins over [min_value, max_value]
 
-  // Counts `values` (all inside [lo, hi]) into kBins bins.
-  static ValueHistogram Of(const std::vector<float>& values, float lo, float hi);
+  // Counts `values` + `offset` (all inside [lo, hi]) into kBins bins.
+  static ValueHistogram Of(ValuesView<float> values, float offset, float lo, float hi);
+  static ValueHistogram Of(ValuesView<std::uint16_t> values, float offset, float lo, float hi);
 
   float BinWidth() const { return (max_value - min_value) / float(kBins); }
   float BinStart(int bin) const { return min_value + BinWidth() * float(bin); }

@@ -4,6 +4,7 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <type_traits>
 
 #include <fmt/format.h>
 
@@ -36,41 +37,120 @@ void CheckVolumeGeometry(Vec3i dims, Vec3f spacing_mm, const std::string& what) 
 
 namespace {
 
-// Replaces non-finite values in place; returns how many and the finite range.
-std::size_t SanitiseNonFinite(std::vector<float>& values, float& lo, float& hi) {
-  lo = std::numeric_limits<float>::max();
-  hi = std::numeric_limits<float>::lowest();
-  std::size_t bad = 0;
-  for (float v : values) {
-    if (std::isfinite(v)) {
-      lo = std::min(lo, v);
-      hi = std::max(hi, v);
-    } else {
-      ++bad;
-    }
+constexpr std::int64_t kChunk = std::int64_t{1} << 20;  // voxels per parallel task
+
+// What a first pass over a reader's values finds; values are taken as
+// sanitising will leave them (subnormals as 0, non-finite ones aside).
+struct ValueScan {
+  double lo = std::numeric_limits<double>::infinity();
+  double hi = -std::numeric_limits<double>::infinity();
+  std::size_t non_finite = 0, subnormal = 0;
+  bool integral = true;  // every finite value is an integer
+  double beyond = 0;     // a value past kMaxVoxelMagnitude (0: none)
+
+  void Merge(const ValueScan& o) {
+    lo = std::min(lo, o.lo);
+    hi = std::max(hi, o.hi);
+    non_finite += o.non_finite;
+    subnormal += o.subnormal;
+    integral = integral && o.integral;
+    if (beyond == 0) beyond = o.beyond;
   }
-  if (lo > hi) lo = hi = 0.0f;  // nothing finite at all
-  if (bad > 0) {
-    for (float& v : values) {
-      if (std::isnan(v) || v == -std::numeric_limits<float>::infinity()) v = lo;
-      if (v == std::numeric_limits<float>::infinity()) v = hi;
+};
+
+template <class T>
+ValueScan Scan(const T* values, std::size_t n) {
+  std::vector<ValueScan> parts(std::size_t((std::int64_t(n) + kChunk - 1) / kChunk));
+  ParallelFor(std::int64_t(parts.size()), [&](std::int64_t part) {
+    ValueScan s;
+    const std::size_t end = std::min(n, std::size_t(part + 1) * std::size_t(kChunk));
+    for (std::size_t i = std::size_t(part) * std::size_t(kChunk); i < end; ++i) {
+      double v = double(values[i]);
+      if constexpr (std::is_floating_point_v<T>) {
+        if (!std::isfinite(v)) {
+          ++s.non_finite;
+          continue;
+        }
+        if (v != 0 && std::fabs(v) < double(std::numeric_limits<float>::min())) {
+          ++s.subnormal;
+          v = 0;
+        }
+        if (s.integral && v != std::nearbyint(v)) s.integral = false;
+      }
+      if (std::fabs(v) > double(kMaxVoxelMagnitude) && s.beyond == 0) s.beyond = v;
+      s.lo = std::min(s.lo, v);
+      s.hi = std::max(s.hi, v);
     }
-  }
-  return bad;
+    parts[std::size_t(part)] = s;
+  });
+  ValueScan all;
+  for (const ValueScan& p : parts) all.Merge(p);
+  if (all.lo > all.hi) all.lo = all.hi = 0;  // nothing finite at all
+  return all;
 }
 
-std::vector<Volume::ValueRange> BlockRanges(const std::vector<float>& values, Vec3i dims, Vec3i blocks) {
+// The value sanitising leaves in place of `v`: non-finite ones clamped to the
+// finite range, subnormals 0.
+template <class T>
+float Sanitised(T v, float lo, float hi) {
+  if constexpr (std::is_floating_point_v<T>) {
+    if (std::isnan(v)) return lo;
+    if (std::isinf(v)) return v > 0 ? hi : lo;
+    if (v != 0 && std::fabs(double(v)) < double(std::numeric_limits<float>::min())) return 0.0f;
+  }
+  return float(v);
+}
+
+// Writes out[i] = f(in[i]) for every voxel. Where `Out` is narrower than
+// `In` in the same memory, in order (each output lands at or before the
+// input it replaces); otherwise in parallel.
+template <class In, class Out, class F>
+void Convert(const In* in, Out* out, std::size_t n, F f) {
+  const bool overlapping = static_cast<const void*>(in) == static_cast<const void*>(out);
+  if (overlapping && sizeof(Out) < sizeof(In)) {
+    for (std::size_t i = 0; i < n; ++i) out[i] = f(in[i]);
+    return;
+  }
+  ParallelFor(std::int64_t((std::int64_t(n) + kChunk - 1) / kChunk), [&](std::int64_t part) {
+    const std::size_t end = std::min(n, std::size_t(part + 1) * std::size_t(kChunk));
+    for (std::size_t i = std::size_t(part) * std::size_t(kChunk); i < end; ++i) out[i] = f(in[i]);
+  });
+}
+
+template <class Out>
+std::size_t StorageBytes(std::size_t n) {
+  return n * sizeof(Out);
+}
+
+// Converts `block` (values of type In) into `Out` storage: in the same
+// memory when Out is no wider, else into a new block.
+template <class In, class Out, class F>
+MemoryBlock ConvertBlock(MemoryBlock block, std::size_t n, F f) {
+  const In* in = static_cast<const In*>(block.data());
+  if (sizeof(Out) <= sizeof(In)) {
+    Convert(in, static_cast<Out*>(block.data()), n, f);
+    block.Shrink(StorageBytes<Out>(n));
+    return block;
+  }
+  MemoryBlock wider = MemoryBlock::Allocate(StorageBytes<Out>(n));
+  Convert(in, static_cast<Out*>(wider.data()), n, f);
+  return wider;
+}
+
+template <class V>
+std::vector<Volume::ValueRange> BlockRanges(const V* values, float offset, Vec3i dims, Vec3i blocks) {
   std::vector<Volume::ValueRange> ranges(std::size_t(blocks.x) * blocks.y * blocks.z,
                                          {std::numeric_limits<float>::max(), std::numeric_limits<float>::lowest()});
   const int b = Volume::kBlockSize;
   ParallelFor(blocks.z, [&](std::int64_t bz) {  // one slab of blocks per task
     for (int z = int(bz) * b; z < std::min(dims.z, int(bz + 1) * b); ++z) {
       for (int y = 0; y < dims.y; ++y) {
-        const float* row = values.data() + (std::size_t(z) * dims.y + y) * dims.x;
+        const V* row = values + (std::size_t(z) * dims.y + y) * dims.x;
         Volume::ValueRange* out = ranges.data() + (std::size_t(bz) * blocks.y + y / b) * blocks.x;
         for (int x = 0; x < dims.x; ++x) {
-          out[x / b].lo = std::min(out[x / b].lo, row[x]);
-          out[x / b].hi = std::max(out[x / b].hi, row[x]);
+          const float v = float(row[x]) + offset;
+          out[x / b].lo = std::min(out[x / b].lo, v);
+          out[x / b].hi = std::max(out[x / b].hi, v);
         }
       }
     }
@@ -78,35 +158,89 @@ std::vector<Volume::ValueRange> BlockRanges(const std::vector<float>& values, Ve
   return ranges;
 }
 
-bool AllIntegers(const std::vector<float>& values) {
-  return std::all_of(values.begin(), values.end(), [](float v) { return v == std::nearbyint(v); });
+MemoryBlock FloatBlock(std::vector<float> values) {
+  auto* owned = new std::vector<float>(std::move(values));
+  return {owned->data(), owned->size() * sizeof(float), [owned](void*, std::size_t) { delete owned; }};
 }
 
 }  // namespace
 
 Volume::Volume(Vec3i dims, Vec3f spacing_mm, std::vector<float> values, VolumeMetadata metadata)
+    : Volume(dims, spacing_mm, VoxelType::kFloat32, FloatBlock(std::move(values)), std::move(metadata)) {}
+
+Volume::Volume(Vec3i dims, Vec3f spacing_mm, VoxelType type, MemoryBlock voxels, VolumeMetadata metadata)
     : dims_(dims), spacing_mm_(spacing_mm), metadata_(std::move(metadata)) {
   CheckVolumeGeometry(dims, spacing_mm, metadata_.source);
-  if (values.size() != voxel_count()) {
-    throw InputError(fmt::format("{}: {} voxel values for a {}x{}x{} grid", metadata_.source,
-                                 values.size(), dims.x, dims.y, dims.z));
+  const std::size_t n = voxel_count();
+  if (voxels.bytes() != n * BytesPerVoxel(type)) {
+    throw InputError(fmt::format("{}: {} bytes of {} voxels for a {}x{}x{} grid", metadata_.source, voxels.bytes(),
+                                 ToString(type), dims.x, dims.y, dims.z));
   }
-  metadata_.non_finite_replaced = SanitiseNonFinite(values, min_value_, max_value_);
-  histogram_ = ValueHistogram::Of(values, min_value_, max_value_);
-  block_ranges_ = BlockRanges(values, dims_, block_counts());
+  switch (type) {
+    case VoxelType::kUInt8: Store<std::uint8_t>(std::move(voxels)); break;
+    case VoxelType::kInt8: Store<std::int8_t>(std::move(voxels)); break;
+    case VoxelType::kUInt16: Store<std::uint16_t>(std::move(voxels)); break;
+    case VoxelType::kInt16: Store<std::int16_t>(std::move(voxels)); break;
+    case VoxelType::kUInt32: Store<std::uint32_t>(std::move(voxels)); break;
+    case VoxelType::kInt32: Store<std::int32_t>(std::move(voxels)); break;
+    case VoxelType::kUInt64: Store<std::uint64_t>(std::move(voxels)); break;
+    case VoxelType::kInt64: Store<std::int64_t>(std::move(voxels)); break;
+    case VoxelType::kFloat32: Store<float>(std::move(voxels)); break;
+    case VoxelType::kFloat64: Store<double>(std::move(voxels)); break;
+  }
+  if (storage_ == VoxelStorage::kUInt16) {
+    histogram_ = ValueHistogram::Of(u16(), stored_offset_, min_value_, max_value_);
+    block_ranges_ = BlockRanges(u16().data(), stored_offset_, dims_, block_counts());
+  } else {
+    histogram_ = ValueHistogram::Of(f32(), 0.0f, min_value_, max_value_);
+    block_ranges_ = BlockRanges(f32().data(), 0.0f, dims_, block_counts());
+  }
+}
 
-  const bool fits_u16 = double(max_value_) - double(min_value_) <= 65535.0;
-  if (fits_u16 && AllIntegers(values)) {
+template <class T>
+void Volume::Store(MemoryBlock voxels) {
+  const std::size_t n = voxel_count();
+  const ValueScan scan = Scan(static_cast<const T*>(voxels.data()), n);
+  if (scan.beyond != 0) {
+    throw InputError(fmt::format("{}: a voxel value of {:g} is beyond what cinevol holds: values must lie within "
+                                 "[{:g}, {:g}]",
+                                 metadata_.source, scan.beyond, -kMaxVoxelMagnitude, kMaxVoxelMagnitude));
+  }
+  metadata_.non_finite_replaced = scan.non_finite;
+  metadata_.subnormals_flushed = scan.subnormal;
+  min_value_ = float(scan.lo);
+  max_value_ = float(scan.hi);
+  const float lo = min_value_, hi = max_value_;
+  if (scan.integral && scan.hi - scan.lo <= 65535.0) {
     storage_ = VoxelStorage::kUInt16;
-    stored_offset_ = min_value_;
-    u16_.resize(values.size());
-    std::transform(values.begin(), values.end(), u16_.begin(), [this](float v) {
-      return static_cast<std::uint16_t>(v - stored_offset_);
+    stored_offset_ = lo;
+    const double offset = scan.lo;
+    voxels_ = ConvertBlock<T, std::uint16_t>(std::move(voxels), n, [=](T v) {
+      return static_cast<std::uint16_t>(double(Sanitised(v, lo, hi)) - offset);
     });
   } else {
     storage_ = VoxelStorage::kFloat32;
-    f32_ = std::move(values);
+    voxels_ = ConvertBlock<T, float>(std::move(voxels), n, [=](T v) { return Sanitised(v, lo, hi); });
   }
+}
+
+ValuesView<std::uint16_t> Volume::u16() const {
+  if (storage_ != VoxelStorage::kUInt16) return {};
+  return {static_cast<const std::uint16_t*>(voxels_.data()), voxel_count()};
+}
+
+ValuesView<float> Volume::f32() const {
+  if (storage_ != VoxelStorage::kFloat32) return {};
+  return {static_cast<const float*>(voxels_.data()), voxel_count()};
+}
+
+std::uint64_t Volume::BytesToLoad(VoxelType type, std::uint64_t voxels) {
+  const std::uint64_t block = std::max<std::uint64_t>(BytesPerVoxel(type), sizeof(std::uint16_t));
+  // 8-bit voxels widen into a new 16-bit block while the reader's is held.
+  const std::uint64_t widening = BytesPerVoxel(type) == 1 ? voxels : 0;
+  const std::uint64_t blocks = (voxels + kBlockSize * kBlockSize * kBlockSize - 1) /
+                               (kBlockSize * kBlockSize * kBlockSize);
+  return voxels * block + widening + blocks * sizeof(ValueRange);
 }
 
 Vec3i Volume::block_counts() const {
@@ -119,7 +253,7 @@ std::size_t Volume::voxel_count() const {
 }
 
 float Volume::ValueAtIndex(std::size_t i) const {
-  return storage_ == VoxelStorage::kUInt16 ? u16_[i] + stored_offset_ : f32_[i];
+  return storage_ == VoxelStorage::kUInt16 ? float(u16()[i]) + stored_offset_ : f32()[i];
 }
 
 float Volume::Value(int x, int y, int z) const {
@@ -127,7 +261,8 @@ float Volume::Value(int x, int y, int z) const {
 }
 
 std::size_t Volume::MemoryBytes() const {
-  return u16_.size() * sizeof(std::uint16_t) + f32_.size() * sizeof(float);
+  return voxels_.bytes() + block_ranges_.size() * sizeof(ValueRange) +
+         histogram_.counts.size() * sizeof(std::uint64_t);
 }
 
 }  // namespace cinevol

@@ -10,12 +10,17 @@
 
 #include "core/value_histogram.h"
 #include "core/vec.h"
+#include "core/voxel_memory.h"
 
 namespace cinevol {
 
 // Limits that reject absurd headers before any memory is touched.
 inline constexpr int kMaxVoxelsPerAxis = 8192;
 inline constexpr std::size_t kMaxVoxels = std::size_t{1} << 30;  // 2 GiB as 16-bit
+// Voxel values are held within +-kMaxVoxelMagnitude: float32 reaches 3.4e38,
+// but a transfer function's table and the quantisation to 16 bits subtract
+// and scale values, and need the headroom to stay finite.
+inline constexpr float kMaxVoxelMagnitude = 1e30f;
 
 // How voxel values are held. Integer data within a span of 65535 (all CT in
 // HU, 8/12/16-bit MR) is stored as 16-bit with an offset; anything else as float.
@@ -35,13 +40,20 @@ struct VolumeMetadata {
   std::array<double, 3> origin_mm{0, 0, 0};
   std::array<double, 9> direction{1, 0, 0, 0, 1, 0, 0, 0, 1};
   std::size_t non_finite_replaced = 0;  // NaN/Inf voxels sanitised on load
+  std::size_t subnormals_flushed = 0;   // values below float's normal range, made 0
 };
 
 class Volume {
  public:
-  // Takes voxel values (x fastest) and chooses the storage. Replaces NaN and
-  // -Inf by the smallest finite value and +Inf by the largest, counting them in
-  // metadata.non_finite_replaced. Throws InputError on bad dims or spacing.
+  // Takes `voxels`, one `type` value per voxel (x fastest), and chooses the
+  // storage, converting within that memory where the storage is no wider.
+  // Sanitises on the way: NaN and -Inf become the smallest finite value and
+  // +Inf the largest (metadata.non_finite_replaced), subnormals 0
+  // (metadata.subnormals_flushed). Throws InputError naming metadata.source
+  // for bad dims or spacing, a block of the wrong size, or values beyond
+  // +-kMaxVoxelMagnitude.
+  Volume(Vec3i dims, Vec3f spacing_mm, VoxelType type, MemoryBlock voxels, VolumeMetadata metadata);
+  // The same from float values (phantoms, tests).
   Volume(Vec3i dims, Vec3f spacing_mm, std::vector<float> values, VolumeMetadata metadata);
 
   Vec3i dims() const { return dims_; }
@@ -53,14 +65,19 @@ class Volume {
   float min_value() const { return min_value_; }
   float max_value() const { return max_value_; }
 
-  // 16-bit storage: value = stored + stored_offset().
-  const std::vector<std::uint16_t>& u16() const { return u16_; }
-  const std::vector<float>& f32() const { return f32_; }
+  // 16-bit storage: value = stored + stored_offset(). The other is empty.
+  ValuesView<std::uint16_t> u16() const;
+  ValuesView<float> f32() const;
   float stored_offset() const { return stored_offset_; }
 
   float Value(int x, int y, int z) const;
   float ValueAtIndex(std::size_t i) const;
+  // Host memory held: the voxels, their block ranges and the histogram.
   std::size_t MemoryBytes() const;
+  // What a volume of `voxels` voxels read as `type` may hold at most while it
+  // is made and afterwards (the reader's block, a wider storage, the block
+  // ranges): what a load reserves before any voxel is read.
+  static std::uint64_t BytesToLoad(VoxelType type, std::uint64_t voxels);
 
   const ValueHistogram& histogram() const { return histogram_; }
 
@@ -74,11 +91,14 @@ class Volume {
   const std::vector<ValueRange>& block_ranges() const { return block_ranges_; }
 
  private:
+  // Sanitises and stores `voxels`, values of type T.
+  template <class T>
+  void Store(MemoryBlock voxels);
+
   Vec3i dims_;
   Vec3f spacing_mm_;
   VoxelStorage storage_ = VoxelStorage::kFloat32;
-  std::vector<std::uint16_t> u16_;
-  std::vector<float> f32_;
+  MemoryBlock voxels_;  // uint16 or float32, per storage_
   float stored_offset_ = 0.0f;
   float min_value_ = 0.0f;
   float max_value_ = 0.0f;

@@ -406,13 +406,19 @@ void WriteExr(const fs::path& path, const ImageRgbF& image) {
   WriteFile(path, bytes);
 }
 
-ImageRgbF ReadExr(const fs::path& path) {
+ImageRgbF ReadExr(const fs::path& path, const std::string& shown) {
+  const std::string name = shown.empty() ? path.string() : shown;
   try {
     Imf::InputFile file(path.c_str());
     const Imath::Box2i window = file.header().dataWindow();
+    const std::int64_t width = std::int64_t(window.max.x) - window.min.x + 1;
+    const std::int64_t height = std::int64_t(window.max.y) - window.min.y + 1;
+    if (width < 1 || height < 1 || width * height > (std::int64_t{1} << 26)) {
+      throw InputError(fmt::format("{}: a {}x{} image; at most 2^26 pixels are read", name, width, height));
+    }
     ImageRgbF image;
-    image.width = window.max.x - window.min.x + 1;
-    image.height = window.max.y - window.min.y + 1;
+    image.width = int(width);
+    image.height = int(height);
     image.pixels.resize(std::size_t(image.width) * image.height);
     Imf::FrameBuffer frame;
     const char* names[3] = {"R", "G", "B"};
@@ -427,8 +433,10 @@ ImageRgbF ReadExr(const fs::path& path) {
     file.setFrameBuffer(frame);
     file.readPixels(window.min.y, window.max.y);
     return image;
+  } catch (const InputError&) {
+    throw;
   } catch (const std::exception& e) {
-    throw InputError(fmt::format("{}: cannot read EXR: {}", path.string(), e.what()));
+    throw InputError(fmt::format("{}: cannot read EXR: {}", name, e.what()));
   }
 }
 

@@ -30,7 +30,9 @@ ImageRgb8 ReadPng(const std::filesystem::path& path);
 void WriteFile(const std::filesystem::path& path, const std::vector<std::uint8_t>& bytes);
 void WriteExr(const std::filesystem::path& path, const ImageRgbF& image);
 void WritePfm(const std::filesystem::path& path, const ImageRgbF& image);
-ImageRgbF ReadExr(const std::filesystem::path& path);
+// Messages call the file `shown` (default: its path). Images of more than
+// 2^26 pixels are refused before any is read.
+ImageRgbF ReadExr(const std::filesystem::path& path, const std::string& shown = {});
 ImageRgbF ReadPfm(const std::filesystem::path& path);
 
 }  // namespace cinevol

@@ -11,6 +11,7 @@
 #include "core/error.h"
 #include "core/parallel_for.h"
 #include "io/file_checks.h"
+#include "io/reader_cage.h"
 
 namespace cinevol {
 
@@ -115,11 +116,7 @@ std::map<int, std::string> ParseLabelTable(std::string_view text, const std::str
 
 std::map<int, std::string> LoadLabelTable(const std::filesystem::path& path, const std::string& shown) {
   file_checks::RequireRegularFile(path, shown);
-  const std::string text = file_checks::ReadHead(path, kMaxLabelTableBytes + 1, shown);
-  if (text.size() > kMaxLabelTableBytes) {
-    throw InputError(shown + ": a label table may have at most " + std::to_string(kMaxLabelTableBytes) + " bytes");
-  }
-  return ParseLabelTable(text, shown);
+  return reader_cage::ReadLabelTable(path, shown, {});
 }
 
 LabelVolume FitLabels(const Volume& labels, const Volume& image, const std::string& shown) {

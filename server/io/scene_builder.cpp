@@ -5,6 +5,7 @@
 
 #include "encode/image_codecs.h"
 #include "io/presets.h"
+#include "io/reader_cage.h"
 
 namespace cinevol {
 namespace {
@@ -243,7 +244,8 @@ LightSetup ResolveLights(const google::protobuf::RepeatedPtrField<v1::Light>& li
           if (e.gradient().has_up()) env.up = Normalize(ToVec(e.gradient().up()));
         } else {
           env.kind = Environment::Kind::kMap;
-          env.map = ReadExr(e.map());
+          env.map = reader_cage::ReadExrImage(
+              e.map(), "environment map '" + std::filesystem::path(e.map()).filename().string() + "'", {});
           for (Vec3f& p : env.map.pixels) p *= k;
           env.rotation = e.rotation_deg() * kPi / 180.0f;
         }

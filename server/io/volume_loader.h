@@ -3,8 +3,10 @@
 // throws InputError naming the file or folder and what was wrong.
 #pragma once
 
+#include <atomic>
 #include <cstdint>
 #include <filesystem>
+#include <functional>
 #include <string>
 #include <string_view>
 #include <vector>
@@ -13,6 +15,15 @@
 #include "core/volume.h"
 
 namespace cinevol {
+
+// How far one reader child (io/reader_cage.h) may go.
+struct ReaderLimits {
+  // The child's address space (bytes, its libraries included) until its
+  // header is read; for the voxels it gets twice their bytes more.
+  std::uint64_t header_address_space = std::uint64_t{2} << 30;
+  double cpu_seconds = 120;   // the child's CPU time (--reader-cpu-seconds)
+  double wall_seconds = 300;  // from its start to its last answer (--reader-seconds)
+};
 
 // What a load may read besides the file or folder it names, and how much.
 // Only regular files are ever opened (FIFOs, devices and sockets are refused
@@ -31,6 +42,13 @@ struct LoadPolicy {
   // Names the file in messages instead of its path ("upload:head.nrrd");
   // empty: the path.
   std::string label;
+  ReaderLimits reader;
+  // Called once the header is read and before any voxel is, with what the
+  // volume will hold (Volume::BytesToLoad): throws to refuse the load (a
+  // memory limit), else the bytes count as reserved until the caller says.
+  std::function<void(std::uint64_t bytes)> reserve;
+  // Once raised, the load stops within a second (Cancelled).
+  const std::atomic<bool>* cancel = nullptr;
 };
 
 // Loads what `source` names; relative paths resolve against `base_dir`.
@@ -55,7 +73,7 @@ struct DicomSeriesInfo {
 
 // The series in `folder` (searched recursively), largest first. Only regular
 // files are looked at.
-std::vector<DicomSeriesInfo> ListDicomSeries(const std::filesystem::path& folder);
+std::vector<DicomSeriesInfo> ListDicomSeries(const std::filesystem::path& folder, const LoadPolicy& policy = {});
 
 // Loads one series from `folder`: `series_uid`, or the largest when empty.
 // Slices are sorted along the slice normal; gantry tilt, uneven gaps (missing

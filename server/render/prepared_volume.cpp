@@ -74,7 +74,7 @@ PreparedVolume::PreparedVolume(std::shared_ptr<const Volume> volume, int brick_s
     value_scale_ = range > 0 ? range / 65535.0f : 1.0f;
     value_offset_ = v.min_value();
     quantised_.resize(v.voxel_count());
-    const std::vector<float>& f = v.f32();
+    const ValuesView<float> f = v.f32();
     ParallelFor(std::int64_t(f.size()), [&](std::int64_t i) {
       quantised_[i] = static_cast<std::uint16_t>(std::lround((f[i] - value_offset_) / value_scale_));
     }, 0, 1 << 16);

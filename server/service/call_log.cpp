@@ -9,7 +9,7 @@
 #include <chrono>
 #include <string>
 
-#include "service/log_safe.h"
+#include "core/log_safe.h"
 
 namespace cinevol::service {
 namespace {

@@ -6,7 +6,7 @@
 #include <new>
 
 #include "core/error.h"
-#include "service/log_safe.h"
+#include "core/log_safe.h"
 #include "service/metrics.h"
 
 namespace cinevol::service {

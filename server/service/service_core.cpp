@@ -17,7 +17,7 @@
 #include "encode/image_codecs.h"
 #include "render/prepared_volume.h"
 #include "service/errors.h"
-#include "service/log_safe.h"
+#include "core/log_safe.h"
 #include "service/metrics.h"
 
 namespace cinevol::service {

@@ -7,7 +7,7 @@
 
 #include "io/label_volume.h"
 #include "service/errors.h"
-#include "service/log_safe.h"
+#include "core/log_safe.h"
 #include "service/metrics.h"
 #include "service/session_stream.h"
 

@@ -9,7 +9,7 @@
 
 #include "encode/image_codecs.h"
 #include "service/errors.h"
-#include "service/log_safe.h"
+#include "core/log_safe.h"
 #include "service/metrics.h"
 
 namespace cinevol::service {

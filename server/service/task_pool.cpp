@@ -6,7 +6,7 @@
 #include <algorithm>
 #include <exception>
 
-#include "service/log_safe.h"
+#include "core/log_safe.h"
 
 namespace cinevol::service {
 

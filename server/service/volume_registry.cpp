@@ -14,7 +14,7 @@
 #include "io/volume_loader.h"
 #include "render/prepared_volume.h"
 #include "service/errors.h"
-#include "service/log_safe.h"
+#include "core/log_safe.h"
 
 namespace fs = std::filesystem;
 

@@ -22,7 +22,8 @@ TEST(Volume, IntegerHuFitsSixteenBits) {
   EXPECT_EQ(v.storage(), VoxelStorage::kUInt16);
   EXPECT_EQ(v.Value(0, 0, 0), -1024.0f);
   EXPECT_EQ(v.Value(1, 0, 0), 3071.0f);
-  EXPECT_EQ(v.MemoryBytes(), 4u);
+  // The voxels, one block's value range and the histogram.
+  EXPECT_EQ(v.MemoryBytes(), 4u + sizeof(Volume::ValueRange) + ValueHistogram::kBins * sizeof(std::uint64_t));
 }
 
 TEST(Volume, FractionalOrWideValuesStayFloat) {
@@ -61,7 +62,7 @@ TEST(ValueHistogram, PercentilesAndTheThresholdBetweenTwoClasses) {
   std::vector<float> values;
   for (int i = 0; i < 3000; ++i) values.push_back(float(i % 20));
   for (int i = 0; i < 1000; ++i) values.push_back(600.0f + 0.4f * float(i));
-  const ValueHistogram h = ValueHistogram::Of(values, 0, 999.6f);
+  const ValueHistogram h = ValueHistogram::Of(ValuesView<float>(values), 0.0f, 0.0f, 999.6f);
   EXPECT_EQ(std::accumulate(h.counts.begin(), h.counts.end(), std::uint64_t{0}), values.size());
   EXPECT_NEAR(h.Percentile(0.5), 13.0f, 8.0f);
   const float threshold = h.OtsuThreshold();

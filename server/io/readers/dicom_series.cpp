@@ -3,8 +3,6 @@
 // compressed transfer syntaxes included) and applies rescale slope/intercept.
 #include <gdcmScanner.h>
 #include <itkGDCMImageIO.h>
-#include <itkImageSeriesReader.h>
-#include <spdlog/spdlog.h>
 #include <unistd.h>
 
 #include <algorithm>
@@ -18,9 +16,11 @@
 #include <fmt/format.h>
 
 #include "core/error.h"
+#include "core/volume.h"
+#include "core/voxel_memory.h"
 #include "io/file_checks.h"
-#include "io/itk_image.h"
-#include "io/volume_loader.h"
+#include "io/readers/formats.h"
+#include "io/readers/itk_image.h"
 
 namespace fs = std::filesystem;
 
@@ -35,9 +35,8 @@ const gdcm::Tag kImageOrientation(0x0020, 0x0037);
 const gdcm::Tag kRows(0x0028, 0x0010);
 const gdcm::Tag kColumns(0x0028, 0x0011);
 const gdcm::Tag kSliceThickness(0x0018, 0x0050);
-
-// A folder with more files than this is not one patient's series.
-constexpr std::size_t kMaxFolderFiles = 100000;
+const gdcm::Tag kRescaleIntercept(0x0028, 0x1052);
+const gdcm::Tag kRescaleSlope(0x0028, 0x1053);
 
 // Slices whose positions along the normal differ by more than this fraction
 // of the typical gap count as unevenly spaced.
@@ -47,14 +46,15 @@ constexpr double kMaxTiltDeg = 0.1;
 
 struct Scan {
   gdcm::Scanner scanner;
-  std::vector<std::string> dicom_files;  // files that parsed as DICOM
+  std::vector<std::string> dicom_files;  // paths of files that parsed as DICOM
   std::size_t files_seen = 0;
-  std::string folder;  // as given
-  std::string shown;   // what messages call the folder
+  std::map<std::string, std::string> names;  // path -> the file's path under the folder
+  std::string shown;                         // what messages call the folder
 
   // What messages call a file in the folder: its path under `shown`.
   std::string Name(const std::string& file) const {
-    return file.rfind(folder, 0) == 0 ? shown + file.substr(folder.size()) : file;
+    const auto it = names.find(file);
+    return shown + "/" + (it == names.end() ? std::string("?") : it->second);
   }
 };
 
@@ -212,56 +212,29 @@ bool DicomStructureIsSound(const fs::path& path) {
   return !ec && DicomWalk(f.get(), std::int64_t(size)).File();
 }
 
-// The regular files under `folder` (subfolders included, symlinked folders
-// not followed) that the policy lets a load read: FIFOs, sockets and devices
-// are skipped without being opened; kInsideRoots keeps files inside the
-// roots, kNone files inside the folder itself. Files whose structure is not
-// sound DICOM are left out too; `looked_at` counts every file examined.
-std::vector<std::string> FolderFiles(const fs::path& folder, const LoadPolicy& policy, const std::string& shown,
-                                     std::size_t& looked_at) {
-  using R = LoadPolicy::References;
-  std::error_code ec;
-  const std::vector<fs::path> allowed = policy.references == R::kNone ? std::vector<fs::path>{fs::canonical(folder, ec)}
-                                                                      : policy.roots;
-  std::vector<std::string> files;
-  for (fs::recursive_directory_iterator it(folder, fs::directory_options::skip_permission_denied, ec), end;
-       !ec && it != end; it.increment(ec)) {
-    if (it->is_directory(ec) || !file_checks::IsRegularFile(it->path())) continue;
-    if (policy.references != R::kAnywhere && !file_checks::IsInside(fs::canonical(it->path(), ec), allowed)) continue;
-    // Counted before the structure check, which reads each file: the limit bounds that work too.
-    if (looked_at == kMaxFolderFiles) {
-      throw InputError(fmt::format("{}: more than {} files in the folder", shown, kMaxFolderFiles));
-    }
-    ++looked_at;
-    if (DicomStructureIsSound(it->path())) files.push_back(it->path().string());
-  }
-  if (ec) throw InputError(fmt::format("{}: cannot list the folder", shown));
-  return files;
-}
-
-void ScanFolder(const fs::path& folder, const LoadPolicy& policy, Scan& scan) {
+// Scans `files`' headers. Files whose structure is not sound DICOM are
+// left out (with the pre-checks on), and so are files GDCM cannot parse.
+void ScanFiles(const std::vector<reader::DicomFile>& files, const reader::ReadOptions& options, Scan& scan) {
   itk_image::InitToolkits();
-  scan.folder = folder.string();
-  scan.shown = file_checks::Shown(folder, policy);
-  std::error_code ec;
-  if (!fs::is_directory(folder, ec)) {
-    throw InputError(fmt::format("{}: not a folder", scan.shown));
+  scan.shown = options.shown;
+  scan.files_seen = files.size();
+  std::vector<std::string> sound;
+  for (const reader::DicomFile& f : files) {
+    scan.names[f.path] = f.name;
+    if (!options.prechecks || DicomStructureIsSound(f.path)) sound.push_back(f.path);
   }
-  file_checks::RequireInsideRoots(folder, policy, scan.shown);
-  const std::vector<std::string> files = FolderFiles(folder, policy, scan.shown, scan.files_seen);
-  for (const gdcm::Tag& t : {kSeriesUid, kSeriesDescription, kModality, kImagePosition,
-                             kImageOrientation, kRows, kColumns, kSliceThickness}) {
+  for (const gdcm::Tag& t : {kSeriesUid, kSeriesDescription, kModality, kImagePosition, kImageOrientation, kRows,
+                             kColumns, kSliceThickness, kRescaleIntercept, kRescaleSlope}) {
     scan.scanner.AddTag(t);
   }
-  if (!files.empty() && !scan.scanner.Scan(files)) {
+  if (!sound.empty() && !scan.scanner.Scan(sound)) {
     throw InputError(fmt::format("{}: could not scan the folder's files", scan.shown));
   }
-  for (const std::string& f : files) {
+  for (const std::string& f : sound) {
     if (scan.scanner.IsKey(f.c_str())) scan.dicom_files.push_back(f);
   }
   if (scan.dicom_files.empty()) {
-    throw InputError(fmt::format("{}: no DICOM files found ({} files looked at)", scan.shown,
-                                 scan.files_seen));
+    throw InputError(fmt::format("{}: no DICOM files found ({} files looked at)", scan.shown, scan.files_seen));
   }
 }
 
@@ -288,27 +261,30 @@ std::vector<double> Numbers(const std::string& s) {
 
 // Files grouped into series. Anonymised data may lack SeriesInstanceUID, so
 // slices of another size or orientation count as a separate series too.
-struct Series {
-  DicomSeriesInfo info;
+struct SeriesFiles {
+  reader::Series info;
   std::vector<std::string> files;
 };
 
-std::vector<Series> GroupSeries(const Scan& scan) {
-  std::map<std::string, Series> by_key;
+std::vector<SeriesFiles> GroupSeries(const Scan& scan) {
+  std::map<std::string, SeriesFiles> by_key;
   for (const std::string& f : scan.dicom_files) {
     const std::string uid = Value(scan, f, kSeriesUid);
     const std::string size = Value(scan, f, kColumns) + "x" + Value(scan, f, kRows);
-    Series& s = by_key[uid + "|" + size + "|" + Value(scan, f, kImageOrientation)];
+    SeriesFiles& s = by_key[uid + "|" + size + "|" + Value(scan, f, kImageOrientation)];
     if (s.files.empty()) {
-      s.info = {uid, Value(scan, f, kSeriesDescription), Value(scan, f, kModality), size, 0};
+      s.info.set_uid(uid);
+      s.info.set_description(Value(scan, f, kSeriesDescription));
+      s.info.set_modality(Value(scan, f, kModality));
+      s.info.set_size(size);
     }
     s.files.push_back(f);
-    s.info.file_count = s.files.size();
+    s.info.set_file_count(s.files.size());
   }
-  std::vector<Series> out;
+  std::vector<SeriesFiles> out;
   for (auto& [key, series] : by_key) out.push_back(std::move(series));
-  std::stable_sort(out.begin(), out.end(), [](const Series& a, const Series& b) {
-    return a.info.file_count > b.info.file_count;
+  std::stable_sort(out.begin(), out.end(), [](const SeriesFiles& a, const SeriesFiles& b) {
+    return a.info.file_count() > b.info.file_count();
   });
   return out;
 }
@@ -394,18 +370,18 @@ SeriesGeometry CheckGeometry(const Scan& scan, const std::vector<std::string>& f
   return g;
 }
 
-std::string Describe(const DicomSeriesInfo& s) {
-  return fmt::format("{} '{}' ({}, {} pixels, {} files)", s.uid.empty() ? "(no SeriesInstanceUID)" : s.uid,
-                     s.description, s.modality, s.size, s.file_count);
+std::string Describe(const reader::Series& s) {
+  return fmt::format("{} '{}' ({}, {} pixels, {} files)", s.uid().empty() ? "(no SeriesInstanceUID)" : s.uid(),
+                     s.description(), s.modality(), s.size(), s.file_count());
 }
 
 // The largest series, or the largest with `requested` as its UID.
-Series ChooseSeries(std::vector<Series> all, const std::string& requested, const std::string& where) {
+SeriesFiles ChooseSeries(std::vector<SeriesFiles> all, const std::string& requested, const std::string& where) {
   std::size_t chosen = 0;
   if (!requested.empty()) {
     chosen = all.size();
     for (std::size_t i = 0; i < all.size() && chosen == all.size(); ++i) {
-      if (all[i].info.uid == requested) chosen = i;
+      if (all[i].info.uid() == requested) chosen = i;
     }
     if (chosen == all.size()) {
       std::string known;
@@ -413,82 +389,169 @@ Series ChooseSeries(std::vector<Series> all, const std::string& requested, const
       throw InputError(fmt::format("{}: no series {}; the folder holds:{}", where, requested, known));
     }
   }
-  for (std::size_t i = 0; i < all.size(); ++i) {
-    // Debug level: folder paths and series descriptions are not for the info log.
-    if (i != chosen) spdlog::debug("{}: also holds series {}; not loaded", where, Describe(all[i].info));
-  }
   return std::move(all[chosen]);
 }
 
+// Whether every file of the series has the same rescale slope and intercept:
+// else each slice is rescaled on its own, into float32.
+bool SameRescale(const Scan& scan, const std::vector<std::string>& files) {
+  for (const std::string& f : files) {
+    if (Value(scan, f, kRescaleSlope) != Value(scan, files[0], kRescaleSlope) ||
+        Value(scan, f, kRescaleIntercept) != Value(scan, files[0], kRescaleIntercept)) {
+      return false;
+    }
+  }
+  return true;
+}
+
+// Converts `n` values of ITK component `from` at `in` to float32 at `out`.
+void ToFloat(itk::IOComponentEnum from, const void* in, float* out, std::size_t n) {
+  using C = itk::IOComponentEnum;
+  auto copy = [&](auto* typed) {
+    for (std::size_t i = 0; i < n; ++i) out[i] = float(typed[i]);
+  };
+  switch (from) {
+    case C::UCHAR: copy(static_cast<const std::uint8_t*>(in)); break;
+    case C::CHAR: copy(static_cast<const std::int8_t*>(in)); break;
+    case C::USHORT: copy(static_cast<const std::uint16_t*>(in)); break;
+    case C::SHORT: copy(static_cast<const std::int16_t*>(in)); break;
+    case C::UINT: copy(static_cast<const std::uint32_t*>(in)); break;
+    case C::INT: copy(static_cast<const std::int32_t*>(in)); break;
+    case C::FLOAT: copy(static_cast<const float*>(in)); break;
+    case C::DOUBLE: copy(static_cast<const double*>(in)); break;
+    default: throw InputError("a slice of a voxel type cinevol does not read");
+  }
+}
+
+// One series, its slices sorted and its header known; the pixels are
+// decoded slice by slice (GDCM: JPEG 2000 and other compressed transfer
+// syntaxes included; rescale slope and intercept applied).
+class DicomSeriesRead final : public reader::VolumeRead {
+ public:
+  DicomSeriesRead(const Scan& scan, const SeriesFiles& series, const SeriesGeometry& g, std::uint64_t max_voxels)
+      : where_(scan.shown), series_(series.info) {
+    for (const Slice& s : g.slices) files_.push_back(s.file);
+    auto io = itk::GDCMImageIO::New();
+    try {
+      // Header sizes are checked before decoding: absurd rows/columns never allocate.
+      io->SetFileName(files_[0]);
+      io->ReadImageInformation();
+    } catch (const itk::ExceptionObject& e) {
+      throw Failed(e);
+    }
+    const std::uint64_t frames = io->GetNumberOfDimensions() > 2 ? std::max<std::uint64_t>(1, io->GetDimensions(2)) : 1;
+    if (frames > 1 && files_.size() > 1) {
+      throw InputError(fmt::format("{}: series {} has multi-frame files; cinevol reads one such file, or single-frame "
+                                   "slices", where_, Describe(series_)));
+    }
+    const std::array<int, 3> dims{int(std::min<std::uint64_t>(io->GetDimensions(0), 1u << 30)),
+                                  int(std::min<std::uint64_t>(io->GetDimensions(1), 1u << 30)),
+                                  int(std::min<std::uint64_t>(files_.size() * frames, 1u << 30))};
+    CheckVolumeGeometry({dims[0], dims[1], dims[2]},
+                        {float(io->GetSpacing(0)), float(io->GetSpacing(1)), float(g.slice_gap_mm)}, where_);
+    const std::uint64_t voxels = std::uint64_t(dims[0]) * std::uint64_t(dims[1]) * std::uint64_t(dims[2]);
+    if (voxels > max_voxels) {
+      throw InputError(fmt::format("{}: {}x{}x{} = {} voxels exceeds this server's limit of {} voxels", where_,
+                                   dims[0], dims[1], dims[2], voxels, max_voxels));
+    }
+    // Geometry from the sorted positions, not from the first two files.
+    std::array<double, 9> direction;
+    for (int r = 0; r < 3; ++r) {
+      direction[3 * r + 0] = g.row[r];
+      direction[3 * r + 1] = g.col[r];
+      direction[3 * r + 2] = g.normal[r];
+    }
+    const Slice& first = g.slices.front();
+    itk_image::SetGeometry(header_, dims, {io->GetSpacing(0), io->GetSpacing(1), g.slice_gap_mm},
+                           {first.position[0], first.position[1], first.position[2]}, direction);
+    type_ = io->GetComponentType();
+    rescaled_alike_ = SameRescale(scan, files_);
+    header_.set_voxel_type(rescaled_alike_ ? itk_image::VoxelTypeOf(type_) : "float32");
+    if (header_.voxel_type().empty()) {
+      throw InputError(fmt::format("{}: series {} holds voxels of type {}, which cinevol does not read", where_,
+                                   Describe(series_), itk_image::ComponentName(type_)));
+    }
+    header_.set_modality(Value(scan, files_[0], kModality));
+    header_.set_value_unit(header_.modality() == "CT" ? "HU" : "");
+    std::string original = itk_image::ComponentName(io->GetInternalComponentType());
+    if (io->GetRescaleSlope() != 1.0 || io->GetRescaleIntercept() != 0.0) {
+      original += fmt::format(" (rescale slope {:g}, intercept {:g})", io->GetRescaleSlope(), io->GetRescaleIntercept());
+    }
+    header_.set_original_type(original);
+    slice_voxels_ = std::size_t(dims[0]) * std::size_t(dims[1]) * std::size_t(frames);
+  }
+
+  void Read(void* memory, std::size_t bytes) override {
+    const std::size_t voxel_bytes = BytesPerVoxel(*VoxelTypeNamed(header_.voxel_type()));
+    if (bytes != slice_voxels_ * voxel_bytes * files_.size()) {
+      throw InputError(fmt::format("{}: {} bytes of memory for the series' voxels", where_, bytes));
+    }
+    std::vector<char> scratch;
+    for (std::size_t k = 0; k < files_.size(); ++k) {
+      auto io = itk::GDCMImageIO::New();
+      char* out = static_cast<char*>(memory) + k * slice_voxels_ * voxel_bytes;
+      try {
+        io->SetFileName(files_[k]);
+        io->ReadImageInformation();
+        const std::size_t n = io->GetImageSizeInPixels();
+        if (io->GetNumberOfComponents() != 1 || n != slice_voxels_ ||
+            (rescaled_alike_ && io->GetComponentType() != type_)) {
+          throw InputError(fmt::format("{}: a slice of series {} differs from the first in size or voxel type",
+                                       where_, Describe(series_)));
+        }
+        itk::ImageIORegion region(io->GetNumberOfDimensions());
+        for (unsigned a = 0; a < io->GetNumberOfDimensions(); ++a) {
+          region.SetIndex(a, 0);
+          region.SetSize(a, io->GetDimensions(a));
+        }
+        io->SetIORegion(region);
+        if (rescaled_alike_) {
+          io->Read(out);
+        } else {
+          scratch.resize(io->GetImageSizeInBytes());
+          io->Read(scratch.data());
+          ToFloat(io->GetComponentType(), scratch.data(), reinterpret_cast<float*>(out), n);
+        }
+      } catch (const itk::ExceptionObject& e) {
+        throw Failed(e);
+      }
+    }
+  }
+
+ private:
+  InputError Failed(const itk::ExceptionObject& e) const {
+    return InputError(fmt::format("{}: cannot decode series {}: {}", where_, Describe(series_),
+                                  itk_image::ItkMessage(e, {}, where_)));
+  }
+
+  std::string where_;
+  reader::Series series_;
+  std::vector<std::string> files_;  // sorted along the normal
+  itk::IOComponentEnum type_ = itk::IOComponentEnum::UNKNOWNCOMPONENTTYPE;
+  bool rescaled_alike_ = true;
+  std::size_t slice_voxels_ = 0;
+};
+
 }  // namespace
 
-std::vector<DicomSeriesInfo> ListDicomSeries(const fs::path& folder) {
+namespace reader {
+
+SeriesList ListDicomSeries(const std::vector<DicomFile>& files, const ReadOptions& options) {
   Scan scan;
-  ScanFolder(folder, {}, scan);
-  std::vector<DicomSeriesInfo> out;
-  for (const Series& s : GroupSeries(scan)) out.push_back(s.info);
+  ScanFiles(files, options, scan);
+  SeriesList out;
+  for (const SeriesFiles& s : GroupSeries(scan)) *out.add_series() = s.info;
   return out;
 }
 
-Volume LoadDicomSeries(const fs::path& folder, const std::string& series_uid, const LoadPolicy& policy) {
+std::unique_ptr<VolumeRead> OpenDicomSeries(const std::vector<DicomFile>& files, const std::string& series_uid,
+                                            const ReadOptions& options) {
   Scan scan;
-  ScanFolder(folder, policy, scan);
-  const std::string where = scan.shown;
-  const Series series = ChooseSeries(GroupSeries(scan), series_uid, where);
-  const std::vector<std::string>& files = series.files;
-  const SeriesGeometry g = CheckGeometry(scan, files, where);
-
-  auto io = itk::GDCMImageIO::New();
-  auto reader = itk::ImageSeriesReader<itk_image::FloatImage>::New();
-  reader->SetImageIO(io);
-  std::vector<std::string> sorted;
-  for (const Slice& s : g.slices) sorted.push_back(s.file);
-  reader->SetFileNames(sorted);
-  try {
-    // Header sizes are checked before decoding: absurd rows/columns never allocate.
-    io->SetFileName(sorted[0]);
-    io->ReadImageInformation();
-    CheckVolumeGeometry({int(io->GetDimensions(0)), int(io->GetDimensions(1)), int(sorted.size())},
-                        {float(io->GetSpacing(0)), float(io->GetSpacing(1)), float(g.slice_gap_mm)},
-                        where);
-    const std::uint64_t frames = io->GetNumberOfDimensions() > 2 ? std::max<std::uint64_t>(1, io->GetDimensions(2)) : 1;
-    const std::uint64_t voxels = std::uint64_t(io->GetDimensions(0)) * io->GetDimensions(1) * sorted.size() * frames;
-    if (voxels > policy.max_voxels) {
-      throw InputError(fmt::format("{}: {}x{}x{} = {} voxels exceeds this server's limit of {} voxels", where,
-                                   io->GetDimensions(0), io->GetDimensions(1), sorted.size() * frames, voxels,
-                                   policy.max_voxels));
-    }
-    reader->Update();
-  } catch (const itk::ExceptionObject& e) {
-    throw InputError(fmt::format("{}: cannot decode series {}: {}", where, Describe(series.info),
-                                 itk_image::ItkMessage(e, {folder}, where)));
-  }
-  auto* image = reader->GetOutput();
-  // Geometry from the sorted positions, not from the first two files ITK saw.
-  auto spacing = image->GetSpacing();
-  spacing[2] = g.slice_gap_mm;
-  image->SetSpacing(spacing);
-  itk_image::FloatImage::PointType origin;
-  itk_image::FloatImage::DirectionType direction;
-  for (int r = 0; r < 3; ++r) {
-    origin[r] = g.slices.front().position[r];
-    direction[r][0] = g.row[r];
-    direction[r][1] = g.col[r];
-    direction[r][2] = g.normal[r];
-  }
-  image->SetOrigin(origin);
-  image->SetDirection(direction);
-
-  VolumeMetadata meta;
-  meta.source = where;
-  meta.modality = Value(scan, files[0], kModality);
-  meta.value_unit = meta.modality == "CT" ? "HU" : "";
-  meta.original_type = itk_image::ComponentName(io->GetInternalComponentType());
-  if (io->GetRescaleSlope() != 1.0 || io->GetRescaleIntercept() != 0.0) {
-    meta.original_type += fmt::format(" (rescale slope {:g}, intercept {:g})", io->GetRescaleSlope(),
-                                      io->GetRescaleIntercept());
-  }
-  return itk_image::ToVolume(image, std::move(meta));
+  ScanFiles(files, options, scan);
+  const SeriesFiles series = ChooseSeries(GroupSeries(scan), series_uid, scan.shown);
+  const SeriesGeometry g = CheckGeometry(scan, series.files, scan.shown);
+  return std::make_unique<DicomSeriesRead>(scan, series, g, options.max_voxels);
 }
 
+}  // namespace reader
 }  // namespace cinevol

@@ -10,12 +10,12 @@
 #include <itkVTKImageIOFactory.h>
 #include <nifti/nifti1.h>
 #include <nifti/nifti2.h>
-#include <spdlog/spdlog.h>
 #include <zlib.h>
 
 #include <unistd.h>
 
 #include <algorithm>
+#include <array>
 #include <cctype>
 #include <charconv>
 #include <cmath>
@@ -25,16 +25,17 @@
 #include <fstream>
 #include <map>
 #include <mutex>
-#include <random>
 #include <regex>
+#include <sstream>
 #include <vector>
 
 #include <fmt/format.h>
 
 #include "core/error.h"
+#include "core/volume.h"
 #include "io/file_checks.h"
-#include "io/itk_image.h"
-#include "io/volume_loader.h"
+#include "io/readers/formats.h"
+#include "io/readers/itk_image.h"
 
 namespace fs = std::filesystem;
 
@@ -107,28 +108,55 @@ std::string ItkMessage(const itk::ExceptionObject& e, const std::vector<fs::path
   return d;
 }
 
-Volume ToVolume(FloatImage* image, VolumeMetadata meta) {
-  const auto size = image->GetLargestPossibleRegion().GetSize();
-  const auto spacing = image->GetSpacing();
-  const auto origin = image->GetOrigin();
-  const auto direction = image->GetDirection();
-  for (int r = 0; r < 3; ++r) {
-    meta.origin_mm[r] = origin[r];
-    for (int c = 0; c < 3; ++c) meta.direction[3 * r + c] = direction[r][c];
+std::string VoxelTypeOf(itk::IOComponentEnum type) {
+  using C = itk::IOComponentEnum;
+  switch (type) {
+    case C::UCHAR: return "uint8";
+    case C::CHAR: return "int8";
+    case C::USHORT: return "uint16";
+    case C::SHORT: return "int16";
+    case C::UINT: return "uint32";
+    case C::INT: return "int32";
+    case C::ULONG: return sizeof(unsigned long) == 8 ? "uint64" : "uint32";
+    case C::LONG: return sizeof(long) == 8 ? "int64" : "int32";
+    case C::ULONGLONG: return "uint64";
+    case C::LONGLONG: return "int64";
+    case C::FLOAT: return "float32";
+    case C::DOUBLE: return "float64";
+    default: return "";
   }
-  const float* pixels = image->GetBufferPointer();
-  std::vector<float> values(pixels, pixels + image->GetPixelContainer()->Size());
-  image->Initialize();  // frees ITK's copy before the Volume picks its storage
-  return Volume({int(size[0]), int(size[1]), int(size[2])},
-                {float(spacing[0]), float(spacing[1]), float(spacing[2])}, std::move(values),
-                std::move(meta));
+}
+
+void SetGeometry(reader::Header& header, const std::array<int, 3>& dims, std::array<double, 3> spacing,
+                 const std::array<double, 3>& origin, std::array<double, 9> direction) {
+  // As ITK's ImageFileReader: a negative spacing flips its axis instead, and
+  // a direction that is no rotation (determinant 0) becomes the identity.
+  for (int c = 0; c < 3; ++c) {
+    if (spacing[c] < 0) {
+      spacing[c] = -spacing[c];
+      for (int r = 0; r < 3; ++r) direction[3 * r + c] = -direction[3 * r + c];
+    }
+  }
+  const auto& d = direction;
+  const double det = d[0] * (d[4] * d[8] - d[5] * d[7]) - d[1] * (d[3] * d[8] - d[5] * d[6]) +
+                     d[2] * (d[3] * d[7] - d[4] * d[6]);
+  if (!(std::fabs(det) > 1e-6)) direction = {1, 0, 0, 0, 1, 0, 0, 0, 1};
+  header.clear_dims();
+  header.clear_spacing_mm();
+  header.clear_origin_mm();
+  header.clear_direction();
+  for (int a = 0; a < 3; ++a) {
+    header.add_dims(std::uint32_t(dims[a]));
+    header.add_spacing_mm(spacing[a]);
+    header.add_origin_mm(origin[a]);
+  }
+  for (double v : direction) header.add_direction(v);
 }
 
 }  // namespace itk_image
 
 namespace {
 
-using itk_image::FloatImage;
 
 // "unknown" ITK enum values print as numbers; name the ones cinevol accepts.
 bool IsSupportedComponent(itk::IOComponentEnum c) {
@@ -143,15 +171,6 @@ bool IsSupportedComponent(itk::IOComponentEnum c) {
   }
 }
 
-// The copy of a header that the lenient NRRD reading writes, removed when done.
-struct TempFile {
-  fs::path path;
-  ~TempFile() {
-    std::error_code ec;
-    if (!path.empty()) fs::remove(path, ec);
-  }
-};
-
 // The lines teem skips before the voxels: a header's own `line skip` field.
 std::int64_t LineSkip(const std::string& line, const std::string& shown) {
   const std::string value = line.substr(std::min(line.size(), line.find_first_not_of(" \t", line.find(':') + 1)));
@@ -161,21 +180,33 @@ std::int64_t LineSkip(const std::string& line, const std::string& shown) {
   return n;
 }
 
-// Some published detached NRRD headers give both `space` and per-axis
-// `spacings`, which teem (ITK's NRRD reader) rejects. The intent is plain:
-// the spacings are the voxel size. Writes a copy of the header without the
-// `space` line into `copy`. Its data file field names only the canonical
-// files the original's check resolved (or the file itself, past its header
-// lines, for attached voxels), so the copy reaches nothing the original could
-// not: it never becomes a way around the LoadPolicy.
-void WriteLenientNrrdHeader(const fs::path& header, const std::string& shown, TempFile& copy) {
+// Replaces the scratch file's text with `text`; returns its path.
+fs::path WriteScratch(const std::string& text, const reader::ReadOptions& options) {
+  if (options.scratch_fd < 0 || ftruncate(options.scratch_fd, 0) != 0 ||
+      pwrite(options.scratch_fd, text.data(), text.size(), 0) != ssize_t(text.size())) {
+    throw InputError(fmt::format("{}: cannot rewrite the header ({} bytes)", options.shown, text.size()));
+  }
+  return options.scratch_path;
+}
+
+// A NRRD header whose other files are where the cage placed them (`named`,
+// in the header's order) and, with `drop_space`, without its `space` line:
+// some published detached headers give both `space` and per-axis `spacings`,
+// which teem refuses, and the intent is plain (the spacings are the voxel
+// size). Attached voxels are read from `header` itself past its lines.
+fs::path RewriteNrrdHeader(const fs::path& header, const std::vector<fs::path>& named, bool drop_space,
+                           const reader::ReadOptions& options) {
+  const std::string& shown = options.shown;
   const file_checks::NrrdHeader h = file_checks::ParseNrrdHeader(header, shown);
   if (!h.references.problem.empty()) throw InputError(fmt::format("{}: {}", shown, h.references.problem));
+  if (!h.attached && h.references.files.size() != named.size()) {
+    throw InputError(fmt::format("{}: the header changed while it was read", shown));
+  }
   std::string out;
   std::int64_t line_skip = 0;
   for (const std::string& line : h.lines) {
     const std::string key = file_checks::FieldName(line);
-    if (key == "space") continue;
+    if (drop_space && key == "space") continue;
     if (h.attached && key == "lineskip") {
       line_skip = LineSkip(line, shown);
       continue;
@@ -183,13 +214,12 @@ void WriteLenientNrrdHeader(const fs::path& header, const std::string& shown, Te
     out += line + "\n";
   }
   std::vector<std::string> files;
-  for (const fs::path& f : h.attached ? std::vector<fs::path>{header} : h.references.files) {
-    std::error_code ec;
-    const std::string real = fs::canonical(f, ec).string();
-    if (ec || real.find_first_of("\r\n") != std::string::npos) {
+  for (const fs::path& f : h.attached ? std::vector<fs::path>{header} : named) {
+    const std::string path = fs::absolute(f).lexically_normal().string();
+    if (path.find_first_of("\r\n") != std::string::npos) {
       throw InputError(fmt::format("{}: the header's 'data file' names a file that cannot be read", shown));
     }
-    files.push_back(real);
+    files.push_back(path);
   }
   if (h.attached) out += fmt::format("line skip: {}\n", std::int64_t(h.line_count) + line_skip);
   if (h.listed) {
@@ -198,13 +228,47 @@ void WriteLenientNrrdHeader(const fs::path& header, const std::string& shown, Te
   } else {
     out += "data file: " + files.at(0) + "\n";
   }
-  std::random_device rd;
-  copy.path = fs::temp_directory_path() / fmt::format("cinevol-{:08x}{:08x}.nhdr", rd(), rd());
-  // "x": never through a file or link someone placed there first.
-  std::FILE* f = std::fopen(copy.path.c_str(), "wx");
-  const bool written = f && std::fwrite(out.data(), 1, out.size(), f) == out.size();
-  if (f) std::fclose(f);
-  if (!written) throw InputError(fmt::format("{}: cannot write a corrected copy of the header", shown));
+  return WriteScratch(out, options);
+}
+
+// A MetaImage header whose ElementDataFile names where the cage placed the
+// files (`named`, in the header's order): a single file, or a LIST.
+fs::path RewriteMetaImageHeader(const fs::path& header, const std::vector<fs::path>& named,
+                                const reader::ReadOptions& options) {
+  const std::string head = file_checks::ReadHead(header, file_checks::kMaxHeaderBytes, options.shown);
+  std::string out;
+  for (std::size_t pos = 0; pos < head.size();) {
+    const std::size_t end = std::min(head.find_first_of("\r\n", pos), head.size());
+    const std::string line = head.substr(pos, end - pos);
+    pos = end + 1;
+    const std::size_t sep = line.find_first_of("=:");
+    std::string key = sep == std::string::npos ? "" : line.substr(0, sep);
+    key.erase(std::remove_if(key.begin(), key.end(), [](char c) { return c == ' ' || c == '\t'; }), key.end());
+    if (key != "ElementDataFile") {
+      out += line + "\n";
+      continue;
+    }
+    // A LIST's or pattern's file dimension, when the header gives one.
+    std::string dim;
+    const std::string value = line.substr(sep + 1);
+    if (const auto list = value.find("LIST"); list != std::string::npos) {
+      std::istringstream in(value.substr(list + 4));
+      in >> dim;
+    } else if (value.find('%') != std::string::npos) {
+      std::istringstream in(value);
+      std::string format, lo, hi, step;
+      in >> format >> lo >> hi >> step >> dim;
+      if (!dim.empty()) dim += "D";
+    }
+    if (named.size() == 1 && value.find("LIST") == std::string::npos && value.find('%') == std::string::npos) {
+      out += "ElementDataFile = " + fs::absolute(named[0]).lexically_normal().string() + "\n";
+    } else {
+      out += "ElementDataFile = LIST" + (dim.empty() ? "" : " " + dim) + "\n";
+      for (const fs::path& f : named) out += fs::absolute(f).lexically_normal().string() + "\n";
+    }
+    return WriteScratch(out, options);
+  }
+  throw InputError(fmt::format("{}: the header changed while it was read", options.shown));
 }
 
 bool IsSpaceWithSpacingsError(const itk::ExceptionObject& e) {
@@ -254,7 +318,7 @@ void CheckMetaHeaderText(const fs::path& path, const std::string& shown) {
   }
 }
 
-itk::ImageIOBase::Pointer ReadHeader(const fs::path& path, const std::string& shown) {
+itk::ImageIOBase::Pointer ReadHeader(const fs::path& path, const std::string& shown, bool prechecks) {
   itk_image::InitToolkits();
   auto io = itk::ImageIOFactory::CreateImageIO(path.c_str(), itk::IOFileModeEnum::ReadMode);
   if (!io) {
@@ -264,7 +328,7 @@ itk::ImageIOBase::Pointer ReadHeader(const fs::path& path, const std::string& sh
         shown));
   }
   io->SetFileName(path.string());
-  if (dynamic_cast<itk::MetaImageIO*>(io.GetPointer())) CheckMetaHeaderText(path, shown);
+  if (prechecks && dynamic_cast<itk::MetaImageIO*>(io.GetPointer())) CheckMetaHeaderText(path, shown);
   io->ReadImageInformation();
   return io;
 }
@@ -825,80 +889,131 @@ std::string MetaImageModality(itk::ImageIOBase& io) {
   }
 }
 
-// MetaIO parsed the header on its own: what it will open must be what the
-// header check found (a single file is checked again, a list or pattern must
-// have been seen).
-void CheckMetaImageDataFile(itk::ImageIOBase& io, const fs::path& path, const file_checks::References& checked,
-                            const LoadPolicy& policy, const std::string& shown) {
+// MetaIO parsed the header on its own: what it will open must be where the
+// cage placed the files (or the file itself, LOCAL). A list or pattern was
+// rewritten to the placed files before MetaIO saw it.
+void CheckMetaImageDataFile(itk::ImageIOBase& io, const fs::path& path, const std::vector<fs::path>& placed,
+                            const std::string& shown) {
   auto* meta = dynamic_cast<itk::MetaImageIO*>(&io);
   if (!meta) return;
   const std::string name = meta->GetMetaImagePointer()->ElementDataFileName();
   if (name == "LOCAL" || name == "Local" || name == "local") return;
-  file_checks::References refs{"ElementDataFile", {}, ""};
-  if (name.rfind("LIST", 0) == 0 || name.find('%') != std::string::npos) {
-    if (!checked.field.empty()) return;
-    refs.problem = "a form the header check did not see";
-  } else {
-    refs.files.push_back(!name.empty() && name[0] == '/' ? fs::path(name) : path.parent_path() / name);
+  const bool listed = name.rfind("LIST", 0) == 0 || name.find('%') != std::string::npos;
+  const fs::path file = (!name.empty() && name[0] == '/' ? fs::path(name) : path.parent_path() / name).lexically_normal();
+  const bool seen = std::any_of(placed.begin(), placed.end(), [&](const fs::path& p) {
+    return fs::absolute(p).lexically_normal() == fs::absolute(file).lexically_normal();
+  });
+  if ((listed && placed.empty()) || (!listed && !seen)) {
+    throw InputError(fmt::format("{}: the header's 'ElementDataFile' names a file the header check did not see",
+                                 shown));
   }
-  file_checks::CheckReferences(refs, policy, shown);
 }
 
-// Reads `path` (the named file, or the lenient copy of its header) whose
-// references were checked as `refs`.
-Volume ReadWithItk(const fs::path& path, const file_checks::References& refs, const LoadPolicy& policy,
-                   const std::string& shown) {
-  CheckNiftiHeaders(path, shown);
-  auto io = ReadHeader(path, shown);
-  CheckHeader(shown, *io, policy.max_voxels);
-  CheckMetaImageDataFile(*io, path, refs, policy, shown);
-  const std::string kind = io->GetNameOfClass();
-  const std::string problem = kind == "NiftiImageIO"  ? NiftiPayloadProblem(path)
-                              : kind == "NrrdImageIO" ? NrrdPayloadProblem(*io, path, shown)
-                                                      : RawPayloadProblem(*io, path, shown);
-  if (!problem.empty()) throw InputError(fmt::format("{}: {}", shown, problem));
-  auto reader = itk::ImageFileReader<FloatImage>::New();
-  reader->SetImageIO(io);
-  reader->SetFileName(path.string());
-  reader->Update();
+// A volume file opened through ITK: the header read and checked, the voxels
+// not yet.
+class ItkVolumeRead final : public reader::VolumeRead {
+ public:
+  ItkVolumeRead(itk::ImageIOBase::Pointer io, const std::string& shown) : io_(std::move(io)), shown_(shown) {
+    const unsigned n = io_->GetNumberOfDimensions();
+    std::array<int, 3> dims{1, 1, 1};
+    std::array<double, 3> spacing{1, 1, 1}, origin{0, 0, 0};
+    std::array<double, 9> direction{1, 0, 0, 0, 1, 0, 0, 0, 1};
+    for (unsigned c = 0; c < n; ++c) {
+      dims[c] = int(io_->GetDimensions(c));
+      spacing[c] = io_->GetSpacing(c);
+      origin[c] = io_->GetOrigin(c);
+      const std::vector<double> axis = io_->GetDirection(c);
+      for (unsigned r = 0; r < n && r < axis.size(); ++r) direction[3 * r + c] = axis[r];
+    }
+    itk_image::SetGeometry(header_, dims, spacing, origin, direction);
+    header_.set_voxel_type(itk_image::VoxelTypeOf(io_->GetComponentType()));
+    header_.set_original_type(OriginalType(*io_));
+    header_.set_modality(MetaImageModality(*io_));
+    if (header_.modality() == "CT") header_.set_value_unit("HU");
+  }
 
-  VolumeMetadata meta;
-  meta.source = shown;
-  meta.original_type = OriginalType(*io);
-  meta.modality = MetaImageModality(*io);
-  if (meta.modality == "CT") meta.value_unit = "HU";
-  return itk_image::ToVolume(reader->GetOutput(), std::move(meta));
+  void Read(void* memory, std::size_t bytes) override {
+    if (bytes != io_->GetImageSizeInBytes()) {
+      throw InputError(fmt::format("{}: {} bytes of memory for {} bytes of voxels", shown_, bytes,
+                                   io_->GetImageSizeInBytes()));
+    }
+    const unsigned n = io_->GetNumberOfDimensions();
+    itk::ImageIORegion region(n);
+    for (unsigned a = 0; a < n; ++a) {
+      region.SetIndex(a, 0);
+      region.SetSize(a, io_->GetDimensions(a));
+    }
+    io_->SetIORegion(region);
+    try {
+      io_->Read(memory);
+    } catch (const itk::ExceptionObject& e) {
+      throw InputError(fmt::format("{}: {}", shown_, itk_image::ItkMessage(e, {io_->GetFileName()}, shown_)));
+    }
+  }
+
+ private:
+  itk::ImageIOBase::Pointer io_;
+  std::string shown_;
+};
+
+// Opens `path` (the file, or the cage's rewrite of its header) with ITK.
+std::unique_ptr<reader::VolumeRead> OpenWithItk(const fs::path& path, const std::vector<fs::path>& placed,
+                                                const reader::ReadOptions& options) {
+  const std::string& shown = options.shown;
+  if (options.prechecks) CheckNiftiHeaders(path, shown);
+  auto io = ReadHeader(path, shown, options.prechecks);
+  CheckHeader(shown, *io, options.max_voxels);
+  CheckMetaImageDataFile(*io, path, placed, shown);
+  if (options.prechecks) {
+    const std::string kind = io->GetNameOfClass();
+    const std::string problem = kind == "NiftiImageIO"  ? NiftiPayloadProblem(path)
+                                : kind == "NrrdImageIO" ? NrrdPayloadProblem(*io, path, shown)
+                                                        : RawPayloadProblem(*io, path, shown);
+    if (!problem.empty()) throw InputError(fmt::format("{}: {}", shown, problem));
+  }
+  return std::make_unique<ItkVolumeRead>(io, shown);
+}
+
+bool IsNrrd(const fs::path& path, const std::string& shown) {
+  return file_checks::ReadHead(path, 4, shown) == "NRRD";
 }
 
 }  // namespace
 
-Volume LoadVolumeFile(const fs::path& path, const LoadPolicy& policy) {
-  const std::string shown = file_checks::Shown(path, policy);
-  std::error_code ec;
-  const fs::file_status status = fs::status(path, ec);
-  if (!fs::exists(status)) throw InputError(fmt::format("{}: no such file", shown));
-  if (fs::is_directory(status)) return LoadDicomSeries(path, {}, policy);
-  file_checks::RequireRegularFile(path, shown);
-  file_checks::RequireInsideRoots(path, policy, shown);
-  // Before ITK opens anything: the files the header names.
+namespace reader {
+
+std::unique_ptr<VolumeRead> OpenVolumeFile(const fs::path& path, const std::vector<fs::path>& named,
+                                           const ReadOptions& options) {
+  const std::string& shown = options.shown;
+  itk_image::InitToolkits();
+  // The files the header names sit beside it when it names them so; any
+  // other way (a subfolder, an absolute path, a list) gets a rewrite of the
+  // header that names where the cage placed them.
   const file_checks::References refs = file_checks::FindReferences(path, shown);
-  file_checks::CheckReferences(refs, policy, shown);
-  TempFile copy;
+  const bool beside = std::all_of(refs.files.begin(), refs.files.end(), [&](const fs::path& f) {
+    return f.parent_path() == path.parent_path() && fs::exists(fs::symlink_status(f));
+  });
+  fs::path read = path;
+  if (!refs.field.empty() && !beside && refs.field != "NIfTI/Analyze .hdr/.img pair") {
+    read = IsNrrd(path, shown) ? RewriteNrrdHeader(path, named, false, options)
+                               : RewriteMetaImageHeader(path, named, options);
+  }
+  std::vector<fs::path> placed = named;
+  for (const fs::path& f : refs.files) {
+    if (beside) placed.push_back(f);
+  }
   try {
     try {
-      return ReadWithItk(path, refs, policy, shown);
+      return OpenWithItk(read, placed, options);
     } catch (const itk::ExceptionObject& e) {
       if (!IsSpaceWithSpacingsError(e)) throw;
-      // Debug level: the path (or the client's file name) is not for the info log.
-      spdlog::debug("{}: NRRD header gives both 'space' and 'spacings'; using the spacings", shown);
-      WriteLenientNrrdHeader(path, shown, copy);
-      return ReadWithItk(copy.path, refs, policy, shown);
+      read = RewriteNrrdHeader(path, beside ? refs.files : named, true, options);
+      return OpenWithItk(read, placed, options);
     }
   } catch (const itk::ExceptionObject& e) {
-    throw InputError(fmt::format("{}: {}", shown, itk_image::ItkMessage(e, {path, copy.path}, shown)));
-  } catch (const std::bad_alloc&) {
-    throw InputError(fmt::format("{}: out of memory reading the volume", shown));
+    throw InputError(fmt::format("{}: {}", shown, itk_image::ItkMessage(e, {path, read}, shown)));
   }
 }
 
+}  // namespace reader
 }  // namespace cinevol

@@ -8,7 +8,7 @@
 #include <string>
 #include <string_view>
 
-namespace cinevol::service {
+namespace cinevol {
 
 inline std::string LogSafe(std::string_view text, std::size_t max_length = 200) {
   std::string out;
@@ -24,4 +24,4 @@ inline std::string LogSafe(std::string_view text, std::size_t max_length = 200) 
   return out;
 }
 
-}  // namespace cinevol::service
+}  // namespace cinevol

@@ -1,0 +1,545 @@
+// The parent's side of the reader cage: start cinevol-reader, hand it the
+// inputs, watch it, and turn its answer (or its end) into a result or an
+// error. Nothing here parses the input's bytes.
+#include "io/reader_cage.h"
+
+#include <fcntl.h>
+#include <poll.h>
+#include <signal.h>
+#include <spawn.h>
+#include <spdlog/spdlog.h>
+#include <sys/mman.h>
+#include <sys/resource.h>
+#include <sys/socket.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <chrono>
+#include <cmath>
+#include <cstdlib>
+#include <cstring>
+#include <mutex>
+#include <thread>
+
+#include <fmt/format.h>
+
+#include "cinevol/reader/reader.pb.h"
+#include "core/error.h"
+#include "core/log_safe.h"
+#include "io/label_volume.h"
+#include "io/reader_channel.h"
+
+extern char** environ;
+
+namespace fs = std::filesystem;
+
+namespace cinevol::reader_cage {
+namespace {
+
+using Clock = std::chrono::steady_clock;
+using reader::Reply;
+using reader::Request;
+
+// The most a child's stderr is kept for the log.
+constexpr std::size_t kMaxStderrBytes = 64 << 10;
+// An image (environment map) the cage reads: 8192 x 8192 pixels at most.
+constexpr std::uint64_t kMaxImagePixels = std::uint64_t{1} << 26;
+// The address space a child may be granted at most beyond its header's.
+constexpr std::uint64_t kMaxVoxelAddressSpace = std::uint64_t{48} << 30;
+
+std::mutex observer_mu;
+OutcomeObserver& Observer() {
+  static OutcomeObserver observer;
+  return observer;
+}
+
+void Report(std::string_view outcome) {
+  std::lock_guard lock(observer_mu);
+  if (Observer()) Observer()(outcome);
+}
+
+std::string SignalName(int sig) {
+  const char* abbrev = sigabbrev_np(sig);
+  return abbrev ? fmt::format("SIG{}", abbrev) : fmt::format("signal {}", sig);
+}
+
+std::string Mib(std::uint64_t bytes) { return fmt::format("{} MiB", (bytes + (1 << 20) - 1) >> 20); }
+
+// A private folder for one child's links, removed with everything in it.
+class WorkDir {
+ public:
+  WorkDir() {
+    std::string pattern = (fs::temp_directory_path() / "cinevol-reader-XXXXXX").string();
+    if (!mkdtemp(pattern.data())) throw std::runtime_error("cannot make a folder for the reader");
+    path_ = pattern;
+  }
+  ~WorkDir() {
+    std::error_code ec;
+    fs::remove_all(path_, ec);
+  }
+  const fs::path& path() const { return path_; }
+
+ private:
+  fs::path path_;
+};
+
+// One cinevol-reader child, from its start to its end.
+class ReaderProcess {
+ public:
+  ReaderProcess(Request request, const std::vector<Input>& inputs, const LoadPolicy& policy)
+      : shown_(request.shown()), limits_(policy.reader), cancel_(policy.cancel),
+        deadline_(Clock::now() + std::chrono::duration_cast<Clock::duration>(
+                                     std::chrono::duration<double>(limits_.wall_seconds))) {
+    request.set_work_dir(work_dir_.path().string());
+    const char* skip = std::getenv("CINEVOL_READER_PRECHECKS");
+    request.set_skip_prechecks(skip && std::string_view(skip) == "off");
+    for (const Input& in : inputs) request.add_file_names(in.name);
+    Spawn();
+    channel_.Send(request);
+    SendInputs(inputs);
+  }
+
+  ~ReaderProcess() {
+    if (pid_ > 0) {
+      kill(pid_, SIGKILL);
+      waitpid(pid_, nullptr, 0);
+    }
+    DrainStderr();
+    for (std::size_t at = 0, end; at < stderr_text_.size(); at = end + 1) {
+      end = std::min(stderr_text_.find('\n', at), stderr_text_.size());
+      if (end > at) spdlog::debug("reader for {}: {}", LogSafe(shown_), LogSafe(stderr_text_.substr(at, end - at)));
+    }
+    if (!outcome_.empty()) Report(outcome_);
+  }
+
+  ReaderProcess(const ReaderProcess&) = delete;
+  ReaderProcess& operator=(const ReaderProcess&) = delete;
+
+  // The child's next answer; its failure or its end as the load's error.
+  Reply Receive() {
+    Reply reply;
+    std::vector<UniqueFd> fds;  // a child sends none: dropped
+    try {
+      channel_.Receive(reply, fds, [this] { Wait(); });
+    } catch (const ChannelError&) {
+      Ended();
+    }
+    if (reply.has_failure()) Fail(reply.failure());
+    if (reply.has_reader()) {
+      reader_ = LogSafe(reply.reader(), 32);
+      return Receive();
+    }
+    return reply;
+  }
+
+  // Lets the child write `bytes` into `memory`, with the address space for it.
+  void Proceed(int memory, std::uint64_t bytes) {
+    rlimit limit{};
+    if (prlimit(pid_, RLIMIT_AS, nullptr, &limit) == 0) {
+      const std::uint64_t wanted = limits_.header_address_space + 2 * bytes + (std::uint64_t{64} << 20);
+      limit.rlim_cur = std::min<rlim_t>(rlim_t(wanted), limit.rlim_max);
+      prlimit(pid_, RLIMIT_AS, &limit, nullptr);
+    }
+    reader::Proceed proceed;
+    channel_.Send(proceed, {memory});
+  }
+
+  // Waits for `done`, then for the child's clean exit.
+  void Finish() {
+    const Reply reply = Receive();
+    if (reply.reply_case() != Reply::kDone) Violation("answered out of turn");
+    for (const auto end = Clock::now() + std::chrono::seconds(2); Clock::now() < end;) {
+      int status = 0;
+      if (waitpid(pid_, &status, WNOHANG) == pid_) {
+        pid_ = -1;
+        if (WIFEXITED(status) && WEXITSTATUS(status) == 0) {
+          outcome_ = "ok";
+          return;
+        }
+        Classify(status);
+      }
+      std::this_thread::sleep_for(std::chrono::milliseconds(2));
+    }
+    Violation("did not end after its answer");
+  }
+
+  // The child's answer that ends a request (a list, a table).
+  void Answered() {
+    outcome_ = "ok";
+  }
+
+  [[noreturn]] void Violation(const std::string& what) {
+    outcome_ = "protocol";
+    throw InputError(fmt::format("{}: the {} reader {}", shown_, reader_, what));
+  }
+
+  const std::string& shown() const { return shown_; }
+
+ private:
+  void Spawn() {
+    int sockets[2], err[2];
+    if (socketpair(AF_UNIX, SOCK_STREAM | SOCK_CLOEXEC, 0, sockets) != 0) {
+      throw ResourceExhausted(fmt::format("{}: cannot start a reader ({})", shown_, std::strerror(errno)));
+    }
+    UniqueFd parent_end(sockets[0]), child_end(sockets[1]);
+    if (pipe2(err, O_CLOEXEC) != 0) {
+      throw ResourceExhausted(fmt::format("{}: cannot start a reader ({})", shown_, std::strerror(errno)));
+    }
+    stderr_.Reset(err[0]);
+    UniqueFd stderr_write(err[1]);
+    fcntl(stderr_.get(), F_SETFL, O_NONBLOCK);
+
+    const std::string program = ReaderPath().string();
+    const std::uint64_t max_space = limits_.header_address_space + kMaxVoxelAddressSpace;
+    std::vector<std::string> args{program,
+                                  "--parent",
+                                  std::to_string(getpid()),
+                                  "--address-space",
+                                  std::to_string(limits_.header_address_space),
+                                  "--address-space-max",
+                                  std::to_string(max_space),
+                                  "--cpu-seconds",
+                                  std::to_string(int(std::ceil(limits_.cpu_seconds)))};
+    std::vector<std::string> env{"MALLOC_ARENA_MAX=1"};
+    if (const char* path = std::getenv("LD_LIBRARY_PATH")) env.push_back(std::string("LD_LIBRARY_PATH=") + path);
+    std::vector<char*> argv, envp;
+    for (std::string& a : args) argv.push_back(a.data());
+    for (std::string& e : env) envp.push_back(e.data());
+    argv.push_back(nullptr);
+    envp.push_back(nullptr);
+
+    posix_spawn_file_actions_t actions;
+    posix_spawn_file_actions_init(&actions);
+    posix_spawn_file_actions_addopen(&actions, 0, "/dev/null", O_RDONLY, 0);
+    posix_spawn_file_actions_addopen(&actions, 1, "/dev/null", O_WRONLY, 0);
+    posix_spawn_file_actions_adddup2(&actions, stderr_write.get(), 2);
+    posix_spawn_file_actions_adddup2(&actions, child_end.get(), 3);
+    posix_spawn_file_actions_addclosefrom_np(&actions, 4);
+    posix_spawnattr_t attributes;
+    posix_spawnattr_init(&attributes);
+    sigset_t none, all;
+    sigemptyset(&none);
+    sigfillset(&all);
+    posix_spawnattr_setsigmask(&attributes, &none);
+    posix_spawnattr_setsigdefault(&attributes, &all);
+    posix_spawnattr_setflags(&attributes, POSIX_SPAWN_SETSIGMASK | POSIX_SPAWN_SETSIGDEF);
+    const int error = posix_spawn(&pid_, program.c_str(), &actions, &attributes, argv.data(), envp.data());
+    posix_spawn_file_actions_destroy(&actions);
+    posix_spawnattr_destroy(&attributes);
+    if (error != 0) {
+      pid_ = -1;
+      throw ResourceExhausted(fmt::format("{}: cannot start {} ({})", shown_, program, std::strerror(error)));
+    }
+    channel_ = ReaderChannel(std::move(parent_end));
+  }
+
+  // The inputs' descriptors, opened here (regular files only), a batch at a
+  // time so the parent never holds many.
+  void SendInputs(const std::vector<Input>& inputs) {
+    for (std::size_t at = 0; at < inputs.size(); at += ReaderChannel::kMaxFds) {
+      std::vector<UniqueFd> open;
+      std::vector<int> fds;
+      for (std::size_t i = at; i < std::min(inputs.size(), at + ReaderChannel::kMaxFds); ++i) {
+        open.emplace_back(file_checks::OpenRegularFile(inputs[i].path));
+        if (!open.back()) {
+          throw InputError(fmt::format("{}: {} is not a regular file that can be read", shown_,
+                                       inputs[i].name.empty() ? std::string("it") : "'" + inputs[i].name + "'"));
+        }
+        fds.push_back(open.back().get());
+      }
+      try {
+        channel_.Send(reader::Batch(), fds);
+      } catch (const ChannelError&) {
+        Ended();
+      }
+    }
+  }
+
+  // Returns once the socket has something to read; keeps the child's stderr
+  // flowing; stops the load when it is cancelled or out of time.
+  void Wait() {
+    for (;;) {
+      if (cancel_ && cancel_->load()) {
+        outcome_ = "cancelled";
+        throw Cancelled(fmt::format("{}: the load was cancelled", shown_));
+      }
+      if (Clock::now() > deadline_) {
+        outcome_ = "timeout";
+        throw ResourceExhausted(fmt::format("{}: the {} reader took longer than {:g} s (--reader-seconds)", shown_,
+                                            reader_, limits_.wall_seconds));
+      }
+      pollfd fds[2] = {{channel_.fd(), POLLIN, 0}, {stderr_.get(), POLLIN, 0}};
+      const int n = poll(fds, stderr_ ? 2 : 1, 100);
+      if (n > 0 && fds[1].revents) DrainStderr();
+      if (n > 0 && fds[0].revents) return;
+    }
+  }
+
+  void DrainStderr() {
+    if (!stderr_) return;
+    char buffer[4096];
+    for (ssize_t n; (n = read(stderr_.get(), buffer, sizeof buffer)) != 0;) {
+      if (n < 0) {
+        if (errno == EINTR) continue;
+        if (errno != EAGAIN) stderr_.Reset();
+        return;
+      }
+      stderr_text_.append(buffer, std::min<std::size_t>(std::size_t(n), kMaxStderrBytes - std::min(kMaxStderrBytes, stderr_text_.size())));
+    }
+    stderr_.Reset();  // end of file: the child has gone
+  }
+
+  // The socket closed: the child ended (or is ending); say how.
+  [[noreturn]] void Ended() {
+    int status = 0;
+    for (const auto end = Clock::now() + std::chrono::seconds(1); Clock::now() < end;) {
+      if (waitpid(pid_, &status, WNOHANG) == pid_) {
+        pid_ = -1;
+        Classify(status);
+      }
+      std::this_thread::sleep_for(std::chrono::milliseconds(2));
+    }
+    Violation("closed its socket without an answer");
+  }
+
+  [[noreturn]] void Classify(int status) {
+    if (WIFSIGNALED(status)) {
+      const int sig = WTERMSIG(status);
+      if (sig == SIGXCPU) {
+        outcome_ = "cpu";
+        throw ResourceExhausted(fmt::format("{}: the {} reader used up its {:g} s of CPU time (--reader-cpu-seconds)",
+                                            shown_, reader_, limits_.cpu_seconds));
+      }
+      if (sig == SIGSYS) {
+        outcome_ = "sandbox";
+        throw InputError(fmt::format("{}: the {} reader was stopped by its sandbox (a forbidden system call)",
+                                     shown_, reader_));
+      }
+      outcome_ = "crashed";
+      throw InputError(fmt::format("{}: the {} reader stopped ({})", shown_, reader_, SignalName(sig)));
+    }
+    Violation(fmt::format("ended without an answer (exit code {})", WIFEXITED(status) ? WEXITSTATUS(status) : -1));
+  }
+
+  [[noreturn]] void Fail(const reader::Failure& failure) {
+    const std::string message = failure.message().substr(0, 4096);
+    switch (failure.kind()) {
+      case reader::Failure::MEMORY:
+        outcome_ = "memory";
+        throw ResourceExhausted(fmt::format("{}: the {} reader ran out of memory ({})", shown_, reader_,
+                                            message.empty() ? "its limit" : message));
+      case reader::Failure::INPUT:
+        outcome_ = "refused";
+        throw InputError(message);
+      default:
+        outcome_ = "refused";
+        throw InputError(fmt::format("{}: the {} reader failed: {}", shown_, reader_, message));
+    }
+  }
+
+  std::string shown_;
+  ReaderLimits limits_;
+  const std::atomic<bool>* cancel_;
+  Clock::time_point deadline_;
+  WorkDir work_dir_;
+  pid_t pid_ = -1;
+  UniqueFd stderr_;
+  ReaderChannel channel_{UniqueFd()};
+  std::string stderr_text_;
+  std::string reader_ = "file";
+  std::string outcome_;  // for the metrics, once known
+};
+
+// Shared memory of `bytes` that cannot grow or shrink: what the child writes
+// the voxels to.
+UniqueFd SealedMemory(std::uint64_t bytes, const std::string& shown) {
+  UniqueFd fd(memfd_create("cinevol-voxels", MFD_CLOEXEC | MFD_ALLOW_SEALING));
+  if (!fd || ftruncate(fd.get(), off_t(bytes)) != 0 ||
+      fcntl(fd.get(), F_ADD_SEALS, F_SEAL_SHRINK | F_SEAL_GROW | F_SEAL_SEAL) != 0) {
+    throw ResourceExhausted(fmt::format("{}: cannot make {} of shared memory ({})", shown, Mib(bytes),
+                                        std::strerror(errno)));
+  }
+  return fd;
+}
+
+// The shared memory as a block of this process's, given back when dropped.
+MemoryBlock MapMemory(UniqueFd fd, std::uint64_t bytes, const std::string& shown) {
+  void* data = mmap(nullptr, bytes, PROT_READ | PROT_WRITE, MAP_SHARED, fd.get(), 0);
+  if (data == MAP_FAILED) throw ResourceExhausted(fmt::format("{}: cannot map {} of voxels", shown, Mib(bytes)));
+  return {data, bytes, [](void* p, std::size_t size) { munmap(p, size); }};
+}
+
+bool AllFinite(const google::protobuf::RepeatedField<double>& values, int count) {
+  if (values.size() != count) return false;
+  for (double v : values) {
+    if (!std::isfinite(v)) return false;
+  }
+  return true;
+}
+
+// The header as the parent can trust it, or a protocol violation.
+struct CheckedHeader {
+  Vec3i dims;
+  Vec3f spacing;
+  VoxelType type;
+  VolumeMetadata meta;
+  std::uint64_t voxels = 0;
+};
+
+CheckedHeader Check(const reader::Header& h, ReaderProcess& child, const LoadPolicy& policy) {
+  CheckedHeader c;
+  const auto type = VoxelTypeNamed(h.voxel_type());
+  const bool sane = h.dims_size() == 3 && AllFinite(h.spacing_mm(), 3) && AllFinite(h.origin_mm(), 3) &&
+                    AllFinite(h.direction(), 9) && type && h.modality().size() <= 64 &&
+                    h.value_unit().size() <= 64 && h.original_type().size() <= 256;
+  if (!sane) child.Violation("sent a header that does not hold together");
+  c.type = *type;
+  for (int a = 0; a < 3; ++a) {
+    if (h.dims(a) < 1 || h.dims(a) > std::uint32_t(kMaxVoxelsPerAxis)) child.Violation("sent impossible dimensions");
+    c.dims[a] = int(h.dims(a));
+    c.spacing[a] = float(h.spacing_mm(a));
+  }
+  CheckVolumeGeometry(c.dims, c.spacing, child.shown());
+  c.voxels = std::uint64_t(c.dims.x) * std::uint64_t(c.dims.y) * std::uint64_t(c.dims.z);
+  if (c.voxels > policy.max_voxels) {
+    throw InputError(fmt::format("{}: {}x{}x{} = {} voxels exceeds this server's limit of {} voxels", child.shown(),
+                                 c.dims.x, c.dims.y, c.dims.z, c.voxels, policy.max_voxels));
+  }
+  c.meta.source = child.shown();
+  c.meta.modality = h.modality();
+  c.meta.value_unit = h.value_unit();
+  c.meta.original_type = h.original_type();
+  for (int i = 0; i < 3; ++i) c.meta.origin_mm[i] = h.origin_mm(i);
+  for (int i = 0; i < 9; ++i) c.meta.direction[i] = h.direction(i);
+  return c;
+}
+
+// The volume a child announced with `reply`: reserved, read, then built.
+Volume ReceiveVolume(ReaderProcess& child, const Reply& reply, const LoadPolicy& policy) {
+  if (reply.reply_case() != Reply::kHeader) child.Violation("answered out of turn");
+  CheckedHeader h = Check(reply.header(), child, policy);
+  if (policy.reserve) policy.reserve(Volume::BytesToLoad(h.type, h.voxels));
+  const std::uint64_t bytes = h.voxels * BytesPerVoxel(h.type);
+  UniqueFd memory = SealedMemory(bytes, child.shown());
+  child.Proceed(memory.get(), bytes);
+  child.Finish();
+  // The child is gone: nobody else can change the memory now.
+  return Volume(h.dims, h.spacing, h.type, MapMemory(std::move(memory), bytes, child.shown()), std::move(h.meta));
+}
+
+std::string Relative(const fs::path& file, const fs::path& folder) {
+  const fs::path relative = file.lexically_relative(folder);
+  return relative.empty() ? file.filename().string() : relative.string();
+}
+
+}  // namespace
+
+void ObserveOutcomes(OutcomeObserver observer) {
+  std::lock_guard lock(observer_mu);
+  Observer() = std::move(observer);
+}
+
+fs::path ReaderPath() {
+  if (const char* path = std::getenv("CINEVOL_READER")) return path;
+  std::error_code ec;
+  const fs::path self = fs::read_symlink("/proc/self/exe", ec);
+  for (const fs::path& dir : {self.parent_path(), self.parent_path().parent_path()}) {
+    const fs::path candidate = dir / "cinevol-reader";
+    if (!ec && access(candidate.c_str(), X_OK) == 0) return candidate;
+  }
+  throw std::runtime_error(fmt::format("cinevol-reader, which reads every file, is not beside {}: install it there",
+                                       self.string()));
+}
+
+Volume ReadVolumeFile(const fs::path& file, const file_checks::References& refs, const LoadPolicy& policy) {
+  Request request;
+  request.set_kind(Request::VOLUME);
+  request.set_shown(file_checks::Shown(file, policy));
+  request.set_max_voxels(policy.max_voxels);
+  std::vector<Input> inputs{{file, file.filename().string()}};
+  for (const fs::path& named : refs.files) inputs.push_back({named, Relative(named, file.parent_path())});
+  ReaderProcess child(request, inputs, policy);
+  return ReceiveVolume(child, child.Receive(), policy);
+}
+
+Volume ReadDicomSeries(const std::vector<Input>& files, const std::string& series_uid, const LoadPolicy& policy) {
+  Request request;
+  request.set_kind(Request::DICOM_SERIES);
+  request.set_shown(policy.label);
+  request.set_series_uid(series_uid);
+  request.set_max_voxels(policy.max_voxels);
+  ReaderProcess child(request, files, policy);
+  return ReceiveVolume(child, child.Receive(), policy);
+}
+
+std::vector<DicomSeriesInfo> ListDicomSeries(const std::vector<Input>& files, const LoadPolicy& policy) {
+  Request request;
+  request.set_kind(Request::DICOM_LIST);
+  request.set_shown(policy.label);
+  ReaderProcess child(request, files, policy);
+  const Reply reply = child.Receive();
+  if (reply.reply_case() != Reply::kSeriesList) child.Violation("answered out of turn");
+  child.Answered();
+  std::vector<DicomSeriesInfo> out;
+  for (const reader::Series& s : reply.series_list().series()) {
+    out.push_back({s.uid(), s.description(), s.modality(), s.size(), std::size_t(s.file_count())});
+  }
+  return out;
+}
+
+std::map<int, std::string> ReadLabelTable(const fs::path& file, const std::string& shown, const LoadPolicy& policy) {
+  Request request;
+  request.set_kind(Request::LABEL_TABLE);
+  request.set_shown(shown);
+  ReaderProcess child(request, {{file, file.filename().string()}}, policy);
+  const Reply reply = child.Receive();
+  if (reply.reply_case() != Reply::kLabelTable) child.Violation("answered out of turn");
+  child.Answered();
+  std::map<int, std::string> names;
+  for (const auto& [value, name] : reply.label_table().names()) {
+    if (value < 0 || value > 65535 || name.empty() || name.size() > 1024) child.Violation("sent an impossible label");
+    names[value] = name;
+  }
+  return names;
+}
+
+std::map<int, std::string> ReadLabelTableText(const std::string& text, const std::string& shown) {
+  if (text.size() > kMaxLabelTableBytes) {
+    throw InputError(fmt::format("{}: a label table may have at most {} bytes", shown, kMaxLabelTableBytes));
+  }
+  UniqueFd memory(memfd_create("cinevol-label-table", MFD_CLOEXEC));
+  if (!memory || write(memory.get(), text.data(), text.size()) != ssize_t(text.size())) {
+    throw ResourceExhausted(fmt::format("{}: cannot hold the table for its reader", shown));
+  }
+  return ReadLabelTable(fmt::format("/proc/self/fd/{}", memory.get()), shown, {});
+}
+
+ImageRgbF ReadExrImage(const fs::path& file, const std::string& shown, const LoadPolicy& policy) {
+  Request request;
+  request.set_kind(Request::EXR_IMAGE);
+  request.set_shown(shown);
+  ReaderProcess child(request, {{file, file.filename().string()}}, policy);
+  const Reply reply = child.Receive();
+  if (reply.reply_case() != Reply::kImage) child.Violation("answered out of turn");
+  const std::uint64_t pixels = std::uint64_t(reply.image().width()) * reply.image().height();
+  if (pixels == 0 || pixels > kMaxImagePixels) {
+    throw InputError(fmt::format("{}: a {}x{} image; environment maps may have up to {} pixels", shown,
+                                 reply.image().width(), reply.image().height(), kMaxImagePixels));
+  }
+  const std::uint64_t bytes = pixels * sizeof(Vec3f);
+  UniqueFd memory = SealedMemory(bytes, shown);
+  child.Proceed(memory.get(), bytes);
+  child.Finish();
+  const MemoryBlock block = MapMemory(std::move(memory), bytes, shown);
+  ImageRgbF image;
+  image.width = int(reply.image().width());
+  image.height = int(reply.image().height());
+  const Vec3f* p = static_cast<const Vec3f*>(block.data());
+  image.pixels.assign(p, p + pixels);
+  for (Vec3f& c : image.pixels) {  // what the renderer can sample: finite, not negative
+    for (int i = 0; i < 3; ++i) c[i] = std::isfinite(c[i]) ? std::clamp(c[i], 0.0f, kMaxVoxelMagnitude) : 0.0f;
+  }
+  return image;
+}
+
+}  // namespace cinevol::reader_cage

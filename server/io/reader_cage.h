@@ -1,0 +1,74 @@
+// The reader cage: every parse of bytes from outside (volume files, DICOM
+// series, segmentations, label tables, environment maps) runs in a child
+// process, cinevol-reader, so that a reader's crash, hang or appetite is the
+// load's error and never the caller's.
+//
+// The child gets the bytes as file descriptors the parent opened (never a
+// path it could swap), runs with no network, no writes, no new processes
+// (a seccomp filter) and limits on address space, CPU time and core dumps,
+// and hands back a header first. The parent checks the header's size against
+// its limits and reserves the memory (LoadPolicy::reserve) before it lets
+// the child read the voxels into shared memory (a sealed memfd), in their
+// native type. A child that crashes, exceeds a limit, takes too long or
+// writes garbage is killed; the load fails with a message that names the
+// input and what happened ("upload:head.nrrd: the NRRD reader stopped
+// (SIGABRT)"). docs/security.md tells the whole story.
+#pragma once
+
+#include <filesystem>
+#include <functional>
+#include <map>
+#include <string>
+#include <string_view>
+#include <vector>
+
+#include "core/image.h"
+#include "core/volume.h"
+#include "io/file_checks.h"
+#include "io/volume_loader.h"
+
+namespace cinevol::reader_cage {
+
+// A file the child reads: where it is, and what the request calls it (a DICOM
+// file's path under its folder; a named file as its header names it).
+struct Input {
+  std::filesystem::path path;
+  std::string name;
+};
+
+// A volume file, `refs` the files its header names (already checked against
+// the policy by the caller).
+Volume ReadVolumeFile(const std::filesystem::path& file, const file_checks::References& refs,
+                      const LoadPolicy& policy);
+
+// A DICOM series from `files` (a folder's files); the largest when
+// `series_uid` is empty.
+Volume ReadDicomSeries(const std::vector<Input>& files, const std::string& series_uid, const LoadPolicy& policy);
+
+// The series `files` hold, largest first.
+std::vector<DicomSeriesInfo> ListDicomSeries(const std::vector<Input>& files, const LoadPolicy& policy);
+
+// A label table file (`value<TAB>name` lines); messages call it `shown`.
+std::map<int, std::string> ReadLabelTable(const std::filesystem::path& file, const std::string& shown,
+                                          const LoadPolicy& policy);
+
+// The same from a label table's text (an upload's header carries one).
+std::map<int, std::string> ReadLabelTableText(const std::string& text, const std::string& shown);
+
+// An OpenEXR image as linear RGB.
+ImageRgbF ReadExrImage(const std::filesystem::path& file, const std::string& shown, const LoadPolicy& policy);
+
+// How loads end, for the metrics: "ok", "refused" (the reader named a problem
+// with the input), or how the reader was stopped: "crashed" (a signal),
+// "sandbox" (a forbidden system call), "memory", "cpu", "timeout",
+// "cancelled", "protocol" (an answer that is not the protocol).
+using OutcomeObserver = std::function<void(std::string_view outcome)>;
+// Called once per load from then on; set before loads begin.
+void ObserveOutcomes(OutcomeObserver observer);
+
+// Where cinevol-reader is: $CINEVOL_READER, else beside the running program
+// (or one folder up, as for the test binary in build/tests/); throws when
+// there is none.
+std::filesystem::path ReaderPath();
+
+}  // namespace cinevol::reader_cage

@@ -1,0 +1,198 @@
+// Job: one request inside the cage, from its inputs to its answer.
+#include "io/readers/reading.h"
+
+#include <fcntl.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <cstring>
+#include <new>
+
+#include <fmt/format.h>
+
+#include "core/error.h"
+#include "encode/image_codecs.h"
+#include "io/file_checks.h"
+#include "io/label_volume.h"
+#include "io/readers/formats.h"
+
+namespace fs = std::filesystem;
+
+namespace cinevol::reader {
+namespace {
+
+std::string Lower(std::string s) {
+  for (char& c : s) c = char(std::tolower(static_cast<unsigned char>(c)));
+  return s;
+}
+
+bool EndsWith(const std::string& s, const std::string& tail) {
+  return s.size() >= tail.size() && s.compare(s.size() - tail.size(), tail.size(), tail) == 0;
+}
+
+// A name that can be a file name in the work folder: the last part of
+// `name`, "input" when that is empty or a dot name.
+std::string SafeFileName(const std::string& name) {
+  std::string last = fs::path(name).filename().string();
+  if (last.empty() || last == "." || last == "..") last = "input";
+  return last;
+}
+
+// The extension a reader needs to see ("" when the name has none it knows).
+std::string Extension(const std::string& name) {
+  const std::string lower = Lower(name);
+  for (const char* ext : {".nii.gz", ".hdr.gz", ".img.gz", ".nii", ".hdr", ".img", ".nia", ".nrrd", ".nhdr", ".mha",
+                          ".mhd", ".vtk", ".exr"}) {
+    if (EndsWith(lower, ext)) return name.substr(name.size() - std::string(ext).size());
+  }
+  return "";
+}
+
+std::string DescriptorPath(int fd) { return fmt::format("/proc/self/fd/{}", fd); }
+
+void Link(const std::string& target, const fs::path& link) {
+  if (symlink(target.c_str(), link.c_str()) != 0) {
+    throw std::runtime_error(fmt::format("cannot place a link in the reader's folder ({})", std::strerror(errno)));
+  }
+}
+
+}  // namespace
+
+Job::Job(Request request, std::vector<UniqueFd> inputs) : request_(std::move(request)), inputs_(std::move(inputs)) {
+  if (inputs_.size() != std::size_t(request_.file_names_size()) || inputs_.empty()) {
+    throw std::runtime_error("a request whose files did not all come");
+  }
+  if (request_.kind() != Request::VOLUME) return;  // the others open their inputs by descriptor
+  // The file beside the names its header may use, in a folder of its own; any
+  // other named file in a folder of its own too (a rewritten header names it).
+  const fs::path dir = request_.work_dir();
+  const std::string main = SafeFileName(request_.file_names(0));
+  Link(DescriptorPath(inputs_[0].get()), dir / main);
+  for (std::size_t i = 1; i < inputs_.size(); ++i) {
+    const std::string& name = request_.file_names(int(i));
+    const std::string file = SafeFileName(name);
+    const fs::path own = dir / fmt::format("named-{}", i);
+    fs::create_directory(own);
+    Link(DescriptorPath(inputs_[i].get()), own / file);
+    std::error_code ec;
+    if (name == file && file != main && !fs::exists(fs::symlink_status(dir / file, ec))) {
+      Link(DescriptorPath(inputs_[i].get()), dir / file);
+    }
+  }
+  const fs::path scratch = dir / ("rewritten" + Extension(main));
+  scratch_.Reset(open(scratch.c_str(), O_RDWR | O_CREAT | O_EXCL | O_CLOEXEC, 0600));
+  if (!scratch_) throw std::runtime_error("cannot make the reader's scratch file");
+}
+
+Job::~Job() = default;
+
+std::string Job::InputPath(std::size_t i) const {
+  if (request_.kind() != Request::VOLUME) return DescriptorPath(inputs_.at(i).get());
+  const fs::path dir = request_.work_dir();
+  return (i == 0 ? dir / SafeFileName(request_.file_names(0))
+                 : dir / fmt::format("named-{}", i) / SafeFileName(request_.file_names(int(i))))
+      .string();
+}
+
+std::string Job::ReaderName() const {
+  switch (request_.kind()) {
+    case Request::DICOM_SERIES:
+    case Request::DICOM_LIST:
+      return "DICOM";
+    case Request::LABEL_TABLE:
+      return "label table";
+    case Request::EXR_IMAGE:
+      return "OpenEXR";
+    default:
+      break;
+  }
+  const std::string ext = Lower(Extension(request_.file_names(0)));
+  if (ext.rfind(".nii", 0) == 0 || ext.rfind(".hdr", 0) == 0 || ext.rfind(".img", 0) == 0 || ext == ".nia") {
+    return "NIfTI";
+  }
+  if (ext == ".mha" || ext == ".mhd") return "MetaImage";
+  if (ext == ".vtk") return "VTK";
+  return "NRRD";  // .nrrd, .nhdr, or any file that starts with the NRRD magic
+}
+
+Reply Job::Answer() {
+  ReadOptions options;
+  options.shown = request_.shown();
+  options.max_voxels = request_.max_voxels();
+  options.prechecks = !request_.skip_prechecks();
+  options.scratch_fd = scratch_.get();
+  options.scratch_path = fs::path(request_.work_dir()) / ("rewritten" + Extension(SafeFileName(request_.file_names(0))));
+  std::vector<DicomFile> dicom;
+  if (request_.kind() == Request::DICOM_SERIES || request_.kind() == Request::DICOM_LIST) {
+    for (std::size_t i = 0; i < inputs_.size(); ++i) dicom.push_back({InputPath(i), request_.file_names(int(i))});
+  }
+  Reply reply;
+  switch (request_.kind()) {
+    case Request::VOLUME: {
+      std::vector<fs::path> named;
+      for (std::size_t i = 1; i < inputs_.size(); ++i) named.push_back(InputPath(i));
+      volume_ = OpenVolumeFile(InputPath(0), named, options);
+      *reply.mutable_header() = volume_->header();
+      break;
+    }
+    case Request::DICOM_SERIES:
+      volume_ = OpenDicomSeries(dicom, request_.series_uid(), options);
+      *reply.mutable_header() = volume_->header();
+      break;
+    case Request::DICOM_LIST:
+      *reply.mutable_series_list() = ListDicomSeries(dicom, options);
+      break;
+    case Request::LABEL_TABLE: {
+      const std::string text = file_checks::ReadHead(InputPath(0), kMaxLabelTableBytes + 1, options.shown);
+      if (text.size() > kMaxLabelTableBytes) {
+        throw InputError(fmt::format("{}: a label table may have at most {} bytes", options.shown,
+                                     kMaxLabelTableBytes));
+      }
+      for (const auto& [value, name] : ParseLabelTable(text, options.shown)) {
+        (*reply.mutable_label_table()->mutable_names())[value] = name;
+      }
+      break;
+    }
+    case Request::EXR_IMAGE: {
+      const ImageRgbF image = ReadExr(InputPath(0), options.shown);
+      reply.mutable_image()->set_width(std::uint32_t(image.width));
+      reply.mutable_image()->set_height(std::uint32_t(image.height));
+      pixels_.resize(image.pixels.size() * 3);
+      std::memcpy(pixels_.data(), image.pixels.data(), pixels_.size() * sizeof(float));
+      break;
+    }
+    default:
+      throw std::runtime_error("a request of no known kind");
+  }
+  return reply;
+}
+
+void Job::Write(void* memory, std::size_t bytes) {
+  if (volume_) {
+    volume_->Read(memory, bytes);
+    return;
+  }
+  if (bytes != pixels_.size() * sizeof(float)) throw std::runtime_error("memory of the wrong size for the image");
+  std::memcpy(memory, pixels_.data(), bytes);
+}
+
+Reply ReadInProcess(const Request& request, std::vector<UniqueFd> inputs, std::vector<unsigned char>& memory) {
+  Job job(request, std::move(inputs));
+  Reply reply = job.Answer();
+  std::uint64_t bytes = 0;
+  if (reply.has_header()) {
+    const Header& h = reply.header();
+    const auto type = VoxelTypeNamed(h.voxel_type());
+    if (!type || h.dims_size() != 3) throw std::runtime_error("a header that does not hold together");
+    bytes = std::uint64_t(h.dims(0)) * h.dims(1) * h.dims(2) * BytesPerVoxel(*type);
+  } else if (reply.has_image()) {
+    bytes = std::uint64_t(reply.image().width()) * reply.image().height() * 3 * sizeof(float);
+  } else {
+    return reply;
+  }
+  memory.resize(bytes);
+  job.Write(memory.data(), bytes);
+  return reply;
+}
+
+}  // namespace cinevol::reader
