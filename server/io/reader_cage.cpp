@@ -94,23 +94,22 @@ class ReaderProcess {
     const char* skip = std::getenv("CINEVOL_READER_PRECHECKS");
     request.set_skip_prechecks(skip && std::string_view(skip) == "off");
     for (const Input& in : inputs) request.add_file_names(in.name);
-    Spawn();
-    channel_.Send(request);
-    SendInputs(inputs);
+    reader_ = ReaderName(request.kind(), inputs.empty() ? "" : inputs[0].name);
+    try {
+      Spawn();
+      try {
+        channel_.Send(request);
+        SendInputs(inputs);
+      } catch (const ChannelError&) {
+        Ended();
+      }
+    } catch (...) {
+      End();  // no destructor runs for an object whose constructor threw
+      throw;
+    }
   }
 
-  ~ReaderProcess() {
-    if (pid_ > 0) {
-      kill(pid_, SIGKILL);
-      waitpid(pid_, nullptr, 0);
-    }
-    DrainStderr();
-    for (std::size_t at = 0, end; at < stderr_text_.size(); at = end + 1) {
-      end = std::min(stderr_text_.find('\n', at), stderr_text_.size());
-      if (end > at) spdlog::debug("reader for {}: {}", LogSafe(shown_), LogSafe(stderr_text_.substr(at, end - at)));
-    }
-    if (!outcome_.empty()) Report(outcome_);
-  }
+  ~ReaderProcess() { End(); }
 
   ReaderProcess(const ReaderProcess&) = delete;
   ReaderProcess& operator=(const ReaderProcess&) = delete;
@@ -125,10 +124,6 @@ class ReaderProcess {
       Ended();
     }
     if (reply.has_failure()) Fail(reply.failure());
-    if (reply.has_reader()) {
-      reader_ = LogSafe(reply.reader(), 32);
-      return Receive();
-    }
     return reply;
   }
 
@@ -247,12 +242,25 @@ class ReaderProcess {
         }
         fds.push_back(open.back().get());
       }
-      try {
-        channel_.Send(reader::Batch(), fds);
-      } catch (const ChannelError&) {
-        Ended();
-      }
+      channel_.Send(reader::Batch(), fds);
     }
+  }
+
+  // Kills the child if it still runs, logs what it said and counts how it ended.
+  void End() {
+    if (pid_ > 0) {
+      kill(pid_, SIGKILL);
+      waitpid(pid_, nullptr, 0);
+      pid_ = -1;
+    }
+    DrainStderr();
+    for (std::size_t at = 0, end; at < stderr_text_.size(); at = end + 1) {
+      end = std::min(stderr_text_.find('\n', at), stderr_text_.size());
+      if (end > at) spdlog::debug("reader for {}: {}", LogSafe(shown_), LogSafe(stderr_text_.substr(at, end - at)));
+    }
+    stderr_text_.clear();
+    if (outcome_ != "reported") Report(outcome_.empty() ? "refused" : outcome_);
+    outcome_ = "reported";
   }
 
   // Returns once the socket has something to read; keeps the child's stderr
@@ -346,7 +354,7 @@ class ReaderProcess {
   UniqueFd stderr_;
   ReaderChannel channel_{UniqueFd()};
   std::string stderr_text_;
-  std::string reader_ = "file";
+  std::string reader_;  // "NRRD", ... for messages
   std::string outcome_;  // for the metrics, once known
 };
 
@@ -439,6 +447,29 @@ void ObserveOutcomes(OutcomeObserver observer) {
   Observer() = std::move(observer);
 }
 
+std::string ReaderName(int request_kind, const std::string& file_name) {
+  switch (request_kind) {
+    case Request::DICOM_SERIES:
+    case Request::DICOM_LIST:
+      return "DICOM";
+    case Request::LABEL_TABLE:
+      return "label table";
+    case Request::EXR_IMAGE:
+      return "OpenEXR";
+    default:
+      break;
+  }
+  std::string name = file_name;
+  for (char& c : name) c = char(std::tolower(static_cast<unsigned char>(c)));
+  if (name.ends_with(".gz")) name.resize(name.size() - 3);
+  for (const char* nifti : {".nii", ".hdr", ".img", ".nia"}) {
+    if (name.ends_with(nifti)) return "NIfTI";
+  }
+  if (name.ends_with(".mha") || name.ends_with(".mhd")) return "MetaImage";
+  if (name.ends_with(".vtk")) return "VTK";
+  return "NRRD";  // .nrrd, .nhdr, or any file that starts with the NRRD magic
+}
+
 fs::path ReaderPath() {
   if (const char* path = std::getenv("CINEVOL_READER")) return path;
   std::error_code ec;
@@ -507,6 +538,7 @@ std::map<int, std::string> ReadLabelTableText(const std::string& text, const std
   if (text.size() > kMaxLabelTableBytes) {
     throw InputError(fmt::format("{}: a label table may have at most {} bytes", shown, kMaxLabelTableBytes));
   }
+  if (text.empty()) return {};
   UniqueFd memory(memfd_create("cinevol-label-table", MFD_CLOEXEC));
   if (!memory || write(memory.get(), text.data(), text.size()) != ssize_t(text.size())) {
     throw ResourceExhausted(fmt::format("{}: cannot hold the table for its reader", shown));

@@ -66,6 +66,11 @@ using OutcomeObserver = std::function<void(std::string_view outcome)>;
 // Called once per load from then on; set before loads begin.
 void ObserveOutcomes(OutcomeObserver observer);
 
+// What messages call the reader a request goes to, by its kind and file
+// name alone: "NIfTI", "NRRD", "MetaImage", "VTK", "DICOM", "label table",
+// "OpenEXR".
+std::string ReaderName(int request_kind, const std::string& file_name);
+
 // Where cinevol-reader is: $CINEVOL_READER, else beside the running program
 // (or one folder up, as for the test binary in build/tests/); throws when
 // there is none.

@@ -199,7 +199,7 @@ Camera ResolveCamera(const v1::Camera& proto, const v1::RenderSettings& render, 
   return c;
 }
 
-LightSetup ResolveLights(const google::protobuf::RepeatedPtrField<v1::Light>& lights) {
+LightSetup ResolveLights(const google::protobuf::RepeatedPtrField<v1::Light>& lights, const std::atomic<bool>* cancel) {
   LightSetup setup;
   for (const v1::Light& l : lights) {
     Light light;
@@ -244,8 +244,10 @@ LightSetup ResolveLights(const google::protobuf::RepeatedPtrField<v1::Light>& li
           if (e.gradient().has_up()) env.up = Normalize(ToVec(e.gradient().up()));
         } else {
           env.kind = Environment::Kind::kMap;
+          LoadPolicy policy;
+          policy.cancel = cancel;
           env.map = reader_cage::ReadExrImage(
-              e.map(), "environment map '" + std::filesystem::path(e.map()).filename().string() + "'", {});
+              e.map(), "environment map '" + std::filesystem::path(e.map()).filename().string() + "'", policy);
           for (Vec3f& p : env.map.pixels) p *= k;
           env.rotation = e.rotation_deg() * kPi / 180.0f;
         }

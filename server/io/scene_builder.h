@@ -4,6 +4,7 @@
 #pragma once
 
 #include <array>
+#include <atomic>
 #include <vector>
 
 #include "cinevol/v1/scene.pb.h"
@@ -82,7 +83,10 @@ Camera ResolveCamera(const v1::Camera& camera, const v1::RenderSettings& render,
 Reconstruction ResolveReconstruction(v1::Reconstruction reconstruction);
 // Label styles, their own transfer functions resolved against the volume.
 LabelSetup ResolveLabels(const v1::Labels& labels, const Volume& volume);
-LightSetup ResolveLights(const google::protobuf::RepeatedPtrField<v1::Light>& lights);
+// An environment map is read through the reader cage; raising `cancel`
+// stops that read (Cancelled).
+LightSetup ResolveLights(const google::protobuf::RepeatedPtrField<v1::Light>& lights,
+                         const std::atomic<bool>* cancel = nullptr);
 
 // All of the above; the scene must have passed CheckScene. `labels`: the
 // volume's segmentation, where it has one.

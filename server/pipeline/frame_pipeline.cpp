@@ -56,7 +56,7 @@ void FramePipeline::Update(const v1::Scene& scene, const FrameSettings& settings
   if (changes & kTransferFunctionChanged) {
     SetTransferFunction(ResolveTransferFunction(scene.transfer_function(), *volume_));
   }
-  if (changes & kLightsChanged) renderer_->SetLights(ResolveLights(scene.lights()));
+  if (changes & kLightsChanged) renderer_->SetLights(ResolveLights(scene.lights(), cancel_));
   if (changes & kClippingChanged) {
     clip_ = ResolveClipping(scene.clipping(), *volume_);
     renderer_->SetClipRegion(clip_);

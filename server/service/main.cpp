@@ -63,6 +63,9 @@ void AddLimitOptions(CLI::App& app, ServerOptions& o) {
                      v.max_upload_bytes_per_principal >> 20))
       ->check(CLI::Range(1, 1 << 30))
       ->group("Limits");
+  limit("--reader-cpu-seconds", v.reader.cpu_seconds, "CPU time of one file's reader (cinevol-reader)", 1.0, 86400.0);
+  limit("--reader-seconds", v.reader.wall_seconds, "Time one file's reader may take from start to answer", 1.0,
+        86400.0);
   ConnectionLimits& c = o.connections;
   limit("--max-connections", c.max_connections, "Client connections at once (about: counted in descriptors)", 16,
         1 << 24);

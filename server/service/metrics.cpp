@@ -108,6 +108,11 @@ Metrics::Metrics()
                                  .Name("cinevol_limit_refusals_total")
                                  .Help("Requests refused for passing one of the server's limits, by flag")
                                  .Register(*registry_)),
+      reader_outcomes_family_(BuildCounter()
+                                  .Name("cinevol_reader_outcomes_total")
+                                  .Help("Files read in the reader cage, by how the reader ended (ok, refused, "
+                                        "crashed, sandbox, memory, cpu, timeout, cancelled, protocol)")
+                                  .Register(*registry_)),
       errors_family_(BuildCounter()
                          .Name("cinevol_errors_total")
                          .Help("Error statuses returned to callers, by gRPC code")
@@ -136,6 +141,10 @@ void Metrics::ObserveStage(Stage stage, double seconds) {
 
 // The flags are the server's own limit names: a bounded set.
 void Metrics::LimitRefused(const std::string& flag) { limit_refusals_family_.Add({{"limit", flag}}).Increment(); }
+
+void Metrics::ReaderEnded(std::string_view outcome) {
+  reader_outcomes_family_.Add({{"outcome", std::string(outcome)}}).Increment();
+}
 
 void Metrics::Error(grpc::StatusCode code) {
   if (code == grpc::StatusCode::OK) return;

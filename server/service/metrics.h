@@ -16,6 +16,7 @@
 #include <memory>
 #include <mutex>
 #include <string>
+#include <string_view>
 
 namespace cinevol::service {
 
@@ -44,6 +45,9 @@ class Metrics {
   void EventCoalesced() { events_coalesced_.Increment(); }
   void ObserveStage(Stage stage, double seconds);
   void Upload(bool ok) { (ok ? uploads_ok_ : uploads_error_).Increment(); }
+  // How a reader child ended (io/reader_cage.h's outcomes: "ok", "refused",
+  // "crashed", "sandbox", "memory", "cpu", "timeout", "cancelled", "protocol").
+  void ReaderEnded(std::string_view outcome);
   // A LimitExceeded, by its flag ("max-lights").
   void LimitRefused(const std::string& flag);
   // A non-OK status a caller gets.
@@ -73,6 +77,7 @@ class Metrics {
   prometheus::Family<prometheus::Counter>& uploads_family_;
   prometheus::Counter &uploads_ok_, &uploads_error_;
   prometheus::Family<prometheus::Counter>& limit_refusals_family_;
+  prometheus::Family<prometheus::Counter>& reader_outcomes_family_;
   prometheus::Family<prometheus::Counter>& errors_family_;
   prometheus::Counter& connections_shed_;
 

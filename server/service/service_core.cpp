@@ -18,6 +18,7 @@
 #include "render/prepared_volume.h"
 #include "service/errors.h"
 #include "core/log_safe.h"
+#include "io/reader_cage.h"
 #include "service/metrics.h"
 
 namespace cinevol::service {
@@ -123,6 +124,9 @@ ServiceCore::ServiceCore(const ServerOptions& options)
                                                       : int(std::max(2u, std::thread::hardware_concurrency()))),
       loader_("loader", 2),
       pixels_(options.max_total_pixels) {
+  // Every file is read through cinevol-reader: find it now, not at the first load.
+  spdlog::info("reader: {}", reader_cage::ReaderPath().string());
+  reader_cage::ObserveOutcomes([](std::string_view outcome) { ServerMetrics().ReaderEnded(outcome); });
   std::string why;
   const bool cuda = CudaAvailable(&why);
   if (options.backend == Backend::kCuda && !cuda) throw InputError("--backend cuda: no usable GPU: " + why);
@@ -240,7 +244,7 @@ void ServiceCore::CloseSession(const std::string& id, const Principal& caller) {
   FindSession(id, caller)->End({grpc::StatusCode::OK, "session closed"});
 }
 
-std::shared_ptr<void> ServiceCore::BeginLoad(const Principal& caller) {
+std::shared_ptr<LoadSlot> ServiceCore::BeginLoad(const Principal& caller) {
   RequireServing();
   std::lock_guard lock(mu_);
   int& count = loads_[caller.name];
@@ -251,9 +255,15 @@ std::shared_ptr<void> ServiceCore::BeginLoad(const Principal& caller) {
                                     count));
   }
   ++count;
-  return std::shared_ptr<void>(nullptr, [this, name = caller.name](void*) {
-    std::lock_guard lock(mu_);
-    if (--loads_[name] == 0) loads_.erase(name);
+  auto* slot = new LoadSlot;
+  load_slots_.insert(slot);
+  return std::shared_ptr<LoadSlot>(slot, [this, name = caller.name](LoadSlot* done) {
+    {
+      std::lock_guard lock(mu_);
+      load_slots_.erase(done);
+      if (--loads_[name] == 0) loads_.erase(name);
+    }
+    delete done;
   });
 }
 
@@ -263,6 +273,7 @@ void ServiceCore::Drain() {
   {
     std::lock_guard lock(mu_);
     for (auto& [id, s] : sessions_) open.push_back(s);
+    for (LoadSlot* slot : load_slots_) slot->cancel = true;  // their readers are killed
   }
   spdlog::info("draining: {} session(s) end now", open.size());
   for (auto& s : open) s->Drain();

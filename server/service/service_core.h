@@ -11,6 +11,7 @@
 #include <map>
 #include <memory>
 #include <mutex>
+#include <set>
 #include <string>
 #include <vector>
 
@@ -60,6 +61,13 @@ struct ServerOptions {
   std::string advertise_address;                         // where clients reach this server's sessions; empty: as they came
 };
 
+// One of a principal's uploads or loads under way (--max-uploads-per-principal).
+// Raising `cancel` stops its reading within a second: its caller went away,
+// or the server drains.
+struct LoadSlot {
+  std::atomic<bool> cancel{false};
+};
+
 class ServiceCore {
  public:
   explicit ServiceCore(const ServerOptions& options);  // loads the volumes; throws InputError for bad options
@@ -93,8 +101,8 @@ class ServiceCore {
   std::string DeviceSummary() const;
 
   // One of `caller`'s slots for uploads and loads under way (RESOURCE_EXHAUSTED
-  // past --max-uploads-per-principal); the returned guard gives it back.
-  std::shared_ptr<void> BeginLoad(const Principal& caller);
+  // past --max-uploads-per-principal), given back when dropped.
+  std::shared_ptr<LoadSlot> BeginLoad(const Principal& caller);
 
   // SIGTERM: new sessions, loads and uploads get UNAVAILABLE, every session
   // ends with a notice, frames and stills in flight are cancelled.
@@ -125,6 +133,7 @@ class ServiceCore {
   mutable std::mutex mu_;
   std::map<std::string, std::shared_ptr<Session>> sessions_;
   std::map<std::string, int> loads_;  // principal -> uploads and loads under way
+  std::set<LoadSlot*> load_slots_;    // every one under way: Drain cancels them
 };
 
 }  // namespace cinevol::service

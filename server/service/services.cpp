@@ -56,6 +56,11 @@ class UploadReactor final : public grpc::ServerReadReactor<v1::UploadVolumeChunk
     StartRead(&chunk_);
   }
 
+  // The client gave up: a load under way stops (its reader is killed).
+  void OnCancel() override {
+    if (slot_) slot_->cancel = true;
+  }
+
   void OnDone() override {
     core_->calls().Forget(watch_);
     std::error_code ec;
@@ -137,8 +142,9 @@ class UploadReactor final : public grpc::ServerReadReactor<v1::UploadVolumeChunk
       const grpc::Status status = Guarded([&] {
         core_->RequireServing();
         *response_ = labels_for_.empty()
-                         ? core_->volumes().AddUpload(path_, name_, caller_)
-                         : core_->volumes().AddUploadedLabels(labels_for_, path_, name_, label_table_, caller_);
+                         ? core_->volumes().AddUpload(path_, name_, caller_, &slot_->cancel)
+                         : core_->volumes().AddUploadedLabels(labels_for_, path_, name_, label_table_, caller_,
+                                                              &slot_->cancel);
       });
       ServerMetrics().Upload(status.ok());
       Finish(status);
@@ -154,7 +160,7 @@ class UploadReactor final : public grpc::ServerReadReactor<v1::UploadVolumeChunk
   ServiceCore* core_;
   v1::VolumeInfo* response_;
   Principal caller_;
-  std::shared_ptr<void> slot_;  // one of the caller's upload slots
+  std::shared_ptr<LoadSlot> slot_;  // one of the caller's upload slots
   CallWatch::Id watch_ = 0;
   v1::UploadVolumeChunk chunk_;
   std::ofstream file_;
@@ -199,33 +205,54 @@ grpc::ServerUnaryReactor* VolumeServiceImpl::ListVolumes(grpc::CallbackServerCon
 grpc::ServerUnaryReactor* VolumeServiceImpl::LoadVolume(grpc::CallbackServerContext* context,
                                                         const v1::LoadVolumeRequest* request,
                                                         v1::VolumeInfo* response) {
-  return LoadFromDisk(context, request->path(), [this, request, response](const Principal& caller) {
-    *response = core_->volumes().LoadFromDataRoot(request->path(), request->series_uid(), caller);
+  return LoadFromDisk(context, request->path(), [this, request, response](const Principal& caller, LoadSlot& slot) {
+    *response = core_->volumes().LoadFromDataRoot(request->path(), request->series_uid(), caller, &slot.cancel);
   });
 }
 
 grpc::ServerUnaryReactor* VolumeServiceImpl::LoadLabels(grpc::CallbackServerContext* context,
                                                         const v1::LoadLabelsRequest* request,
                                                         v1::VolumeInfo* response) {
-  return LoadFromDisk(context, request->path(), [this, request, response](const Principal& caller) {
-    *response = core_->volumes().LoadLabels(request->volume_id(), request->path(), request->table_path(), caller);
+  return LoadFromDisk(context, request->path(), [this, request, response](const Principal& caller, LoadSlot& slot) {
+    *response = core_->volumes().LoadLabels(request->volume_id(), request->path(), request->table_path(), caller,
+                                            &slot.cancel);
   });
 }
 
+namespace {
+
+// A load from the disk: run on the loader pool, stopped (its reader killed)
+// when the caller goes away.
+class LoadReactor final : public grpc::ServerUnaryReactor {
+ public:
+  void OnCancel() override {
+    if (auto slot = slot_.lock()) slot->cancel = true;
+  }
+  void OnDone() override { delete this; }
+  void Hold(const std::shared_ptr<LoadSlot>& slot) { slot_ = slot; }
+
+ private:
+  std::weak_ptr<LoadSlot> slot_;
+};
+
+}  // namespace
+
 grpc::ServerUnaryReactor* VolumeServiceImpl::LoadFromDisk(grpc::CallbackServerContext* context,
                                                           const std::string& path,
-                                                          std::function<void(const Principal&)> load) {
-  grpc::ServerUnaryReactor* reactor = context->DefaultReactor();
+                                                          std::function<void(const Principal&, LoadSlot&)> load) {
+  auto* reactor = new LoadReactor;
   const grpc::Status status = Guarded([&] {
     const Principal caller = core_->Authenticate(*context);
     core_->RequireServing();
     // Refuse paths outside the data roots at once; read the disk on the loader pool.
     core_->volumes().ResolveDataPath(path, "path");
     // The load holds one of the caller's slots: a client cannot queue loads without end.
-    core_->loader().Submit([this, reactor, load = std::move(load), caller, slot = core_->BeginLoad(caller)] {
+    std::shared_ptr<LoadSlot> slot = core_->BeginLoad(caller);
+    reactor->Hold(slot);
+    core_->loader().Submit([this, reactor, load = std::move(load), caller, slot] {
       reactor->Finish(Guarded([&] {
         core_->RequireServing();
-        load(caller);
+        load(caller, *slot);
       }));
     });
   });

@@ -31,9 +31,10 @@ class VolumeServiceImpl final : public v1::VolumeService::CallbackService {
 
  private:
   // Checks `path` against the data roots at once, then runs `load` on the
-  // loader pool holding one of the caller's load slots, and answers with it.
+  // loader pool holding one of the caller's load slots (cancelled when the
+  // caller goes away), and answers with it.
   grpc::ServerUnaryReactor* LoadFromDisk(grpc::CallbackServerContext* context, const std::string& path,
-                                         std::function<void(const Principal&)> load);
+                                         std::function<void(const Principal&, LoadSlot&)> load);
 
   ServiceCore* core_;
 };

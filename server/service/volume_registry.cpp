@@ -10,6 +10,7 @@
 #include "core/error.h"
 #include "io/label_volume.h"
 #include "io/presets.h"
+#include "io/reader_cage.h"
 #include "io/volume_kind.h"
 #include "io/volume_loader.h"
 #include "render/prepared_volume.h"
@@ -71,7 +72,53 @@ v1::Vec3 ToProto(Vec3f v) {
   return p;
 }
 
+// Host memory of a segmentation: its labels and what is known of each.
+std::uint64_t LabelBytes(const LabelVolume* labels) {
+  if (!labels) return 0;
+  std::uint64_t bytes = labels->labels.size() * sizeof(std::uint16_t);
+  for (const auto& [value, name] : labels->names) bytes += sizeof(value) + name.size() + 64;
+  return bytes + labels->voxels.size() * 64;  // a map node each
+}
+
+// What fitting a segmentation to `image` holds: a label per image voxel.
+std::uint64_t LabelBytesFor(const Volume& image) { return image.voxel_count() * sizeof(std::uint16_t); }
+
 }  // namespace
+
+class VolumeRegistry::Reservation {
+ public:
+  Reservation(VolumeRegistry* registry, std::string owner, bool upload, std::string what)
+      : registry_(registry), owner_(std::move(owner)), upload_(upload), what_(std::move(what)) {}
+  ~Reservation() {
+    std::lock_guard lock(registry_->mu_);
+    ReleaseLocked();
+  }
+  Reservation(const Reservation&) = delete;
+  Reservation& operator=(const Reservation&) = delete;
+
+  // Reserves `bytes` more, or throws RESOURCE_EXHAUSTED naming the limit.
+  void Add(std::uint64_t bytes) {
+    std::lock_guard lock(registry_->mu_);
+    registry_->CheckRoomLocked(bytes, owner_, upload_, what_);
+    bytes_ += bytes;
+    registry_->reserved_ += bytes;
+    if (upload_) registry_->reserved_uploads_[owner_] += bytes;
+  }
+
+  // Gives the bytes back (mu_ held): the load ended, or its volume is added.
+  void ReleaseLocked() {
+    registry_->reserved_ -= bytes_;
+    if (upload_ && (registry_->reserved_uploads_[owner_] -= bytes_) == 0) registry_->reserved_uploads_.erase(owner_);
+    bytes_ = 0;
+  }
+
+ private:
+  VolumeRegistry* registry_;
+  std::string owner_;
+  bool upload_;
+  std::string what_;
+  std::uint64_t bytes_ = 0;
+};
 
 VolumeLease::VolumeLease(VolumeRegistry* registry, std::string id, std::shared_ptr<const Volume> volume,
                          std::shared_ptr<const LabelVolume> labels)
@@ -134,30 +181,67 @@ fs::path VolumeRegistry::ResolveDataPath(const std::string& path, const std::str
   return canonical;
 }
 
-LoadPolicy VolumeRegistry::PolicyFor(const std::string& label, bool upload) const {
+LoadPolicy VolumeRegistry::PolicyFor(const std::string& label, bool upload, const std::atomic<bool>* cancel,
+                                     Reservation* reservation) {
   LoadPolicy policy;
   policy.references = upload ? LoadPolicy::References::kNone : LoadPolicy::References::kInsideRoots;
   policy.roots = data_roots_;
   policy.max_voxels = limits_.max_voxels;
   policy.label = label;
+  policy.reader = limits_.reader;
+  policy.cancel = cancel;
+  if (reservation) policy.reserve = [reservation](std::uint64_t bytes) { reservation->Add(bytes); };
   return policy;
+}
+
+void VolumeRegistry::CheckRoomLocked(std::uint64_t bytes, const std::string& owner, bool upload,
+                                     const std::string& what) const {
+  // Held and being loaded: a load's memory counts from its header on.
+  const std::uint64_t total = HeldBytesLocked() + reserved_;
+  // The caller's own quota first: it says what the caller can do about it.
+  if (upload) {
+    std::uint64_t owners = 0;
+    for (const auto& [id, e] : volumes_) {
+      if (e.upload && e.owner == owner) owners += e.volume->MemoryBytes();
+    }
+    if (const auto it = reserved_uploads_.find(owner); it != reserved_uploads_.end()) owners += it->second;
+    if (owners + bytes > limits_.max_upload_bytes_per_principal) {
+      throw LimitExceeded(grpc::StatusCode::RESOURCE_EXHAUSTED, "max-upload-memory-mb",
+                          fmt::format("your uploads hold {}; this one needs {} more, over the limit of {} per user "
+                                      "(--max-upload-memory-mb): unload one first",
+                                      Mib(owners), Mib(bytes), Mib(limits_.max_upload_bytes_per_principal)));
+    }
+  }
+  if (total + bytes > limits_.max_total_bytes) {
+    throw LimitExceeded(grpc::StatusCode::RESOURCE_EXHAUSTED, "max-volume-memory-mb",
+                        fmt::format("{} needs {}; this server holds {} of volumes and allows {} "
+                                    "(--max-volume-memory-mb)",
+                                    what, Mib(bytes), Mib(total), Mib(limits_.max_total_bytes)));
+  }
 }
 
 v1::VolumeInfo VolumeRegistry::AddFromSpec(const std::string& spec) {
   const v1::VolumeSource source = ParseVolumeSpec(spec);
-  if (source.has_phantom()) return Add(spec, spec, LoadVolume(source), "", false);
+  if (source.has_phantom()) return Add(spec, spec, spec, LoadVolume(source), "", false);
   const fs::path path = fs::absolute(spec).lexically_normal();
-  return Add(BaseIdOf(path), path.string(), LoadVolume(source), "", false);
+  LoadPolicy policy;
+  policy.reader = limits_.reader;
+  return Add(BaseIdOf(path), path.string(), spec, LoadVolume(source, {}, policy), "", false);
 }
 
 v1::VolumeInfo VolumeRegistry::LoadFromDataRoot(const std::string& path, const std::string& series_uid,
-                                                const Principal& caller) {
+                                                const Principal& caller, const std::atomic<bool>* cancel) {
   const fs::path resolved = ResolveDataPath(path, "path");
   const std::string source = series_uid.empty() ? resolved.string() : resolved.string() + "#" + series_uid;
+  // Answers name the path as this client wrote it, never where it resolved to.
+  const auto as_written = [&](v1::VolumeInfo info) {
+    info.set_source(path);
+    return info;
+  };
   {
     std::lock_guard lock(mu_);
     for (const auto& [id, e] : volumes_) {
-      if (e.source == source) return InfoLocked(id, e);
+      if (e.source == source) return as_written(InfoLocked(id, e));
     }
   }
   v1::VolumeSource request;
@@ -167,49 +251,36 @@ v1::VolumeInfo VolumeRegistry::LoadFromDataRoot(const std::string& path, const s
   } else {
     request.set_file(resolved.string());
   }
-  // Messages name the path as the client wrote it, never where it resolved to.
-  return Add(BaseIdOf(resolved), source, LoadVolume(request, {}, PolicyFor("path '" + path + "'", false)),
-             caller.name, false);
+  Reservation reservation(this, caller.name, false, "the volume");
+  Volume volume = LoadVolume(request, {}, PolicyFor("path '" + path + "'", false, cancel, &reservation));
+  return as_written(Add(BaseIdOf(resolved), source, path, std::move(volume), caller.name, false, &reservation));
 }
 
 v1::VolumeInfo VolumeRegistry::AddUpload(const fs::path& file, const std::string& file_name,
-                                         const Principal& caller) {
+                                         const Principal& caller, const std::atomic<bool>* cancel) {
   const RemoveWhenDone remove{file};
-  Volume volume = LoadVolumeFile(file, PolicyFor("upload:" + file_name, true));
-  return Add(BaseIdOf(file_name), "upload:" + file_name, std::move(volume), caller.name, true);
+  const std::string shown = "upload:" + file_name;
+  Reservation reservation(this, caller.name, true, "the volume");
+  Volume volume = LoadVolumeFile(file, PolicyFor(shown, true, cancel, &reservation));
+  return Add(BaseIdOf(file_name), shown, shown, std::move(volume), caller.name, true, &reservation);
 }
 
-v1::VolumeInfo VolumeRegistry::Add(const std::string& base_id, const std::string& source, Volume volume,
-                                   const std::string& owner, bool upload) {
+v1::VolumeInfo VolumeRegistry::Add(const std::string& base_id, const std::string& source, const std::string& shown,
+                                   Volume volume, const std::string& owner, bool upload, Reservation* reservation) {
   std::lock_guard lock(mu_);
+  if (reservation) reservation->ReleaseLocked();  // the volume itself counts from here on
   if (!upload) {
     for (const auto& [id, e] : volumes_) {
       if (e.source == source) return InfoLocked(id, e);
     }
   }
   const std::uint64_t bytes = volume.MemoryBytes();
-  const std::uint64_t total = HeldBytesLocked();
-  std::uint64_t owners = 0;
-  for (const auto& [id, e] : volumes_) {
-    if (e.upload && e.owner == owner) owners += e.volume->MemoryBytes();
-  }
-  // The caller's own quota first: it says what the caller can do about it.
-  if (upload && owners + bytes > limits_.max_upload_bytes_per_principal) {
-    throw LimitExceeded(grpc::StatusCode::RESOURCE_EXHAUSTED, "max-upload-memory-mb",
-                        fmt::format("your uploads hold {}; this one needs {} more, over the limit of {} per user "
-                                    "(--max-upload-memory-mb): unload one first",
-                                    Mib(owners), Mib(bytes), Mib(limits_.max_upload_bytes_per_principal)));
-  }
-  if (total + bytes > limits_.max_total_bytes) {
-    throw LimitExceeded(grpc::StatusCode::RESOURCE_EXHAUSTED, "max-volume-memory-mb",
-                        fmt::format("the volume needs {}; this server holds {} of volumes and allows {} "
-                                    "(--max-volume-memory-mb)",
-                                    Mib(bytes), Mib(total), Mib(limits_.max_total_bytes)));
-  }
+  CheckRoomLocked(bytes, owner, upload, "the volume");
   std::string id = base_id;
   for (int n = 2; volumes_.count(id); ++n) id = fmt::format("{}-{}", base_id, n);
   Entry& e = volumes_[id];
   e.source = source;
+  e.shown = shown;
   e.volume = std::make_shared<const Volume>(std::move(volume));
   e.owner = owner;
   e.upload = upload;
@@ -221,9 +292,7 @@ v1::VolumeInfo VolumeRegistry::Add(const std::string& base_id, const std::string
 
 std::uint64_t VolumeRegistry::HeldBytesLocked() const {
   std::uint64_t total = 0;
-  for (const auto& [id, e] : volumes_) {
-    total += e.volume->MemoryBytes() + (e.labels ? e.labels->labels.size() * sizeof(std::uint16_t) : 0);
-  }
+  for (const auto& [id, e] : volumes_) total += e.volume->MemoryBytes() + LabelBytes(e.labels.get());
   return total;
 }
 
@@ -240,44 +309,47 @@ std::shared_ptr<const Volume> VolumeRegistry::VolumeForLabels(const std::string&
 }
 
 v1::VolumeInfo VolumeRegistry::LoadLabels(const std::string& id, const std::string& path,
-                                          const std::string& table_path, const Principal& caller) {
+                                          const std::string& table_path, const Principal& caller,
+                                          const std::atomic<bool>* cancel) {
   const std::shared_ptr<const Volume> image = VolumeForLabels(id, caller);
   const fs::path labels = ResolveDataPath(path, "path");
   const fs::path table = table_path.empty() ? fs::path() : ResolveDataPath(table_path, "table_path");
-  LabelVolume loaded = LoadLabelVolume(labels, *image, PolicyFor("path '" + path + "'", false));
+  Reservation reservation(this, caller.name, false, "the segmentation");
+  const std::string shown = "path '" + path + "'";
+  const Volume file = LoadVolumeFile(labels, PolicyFor(shown, false, cancel, &reservation));
+  reservation.Add(LabelBytesFor(*image));
+  LabelVolume loaded = FitLabels(file, *image, shown);
   if (!table.empty()) loaded.names = LoadLabelTable(table, "table_path '" + table_path + "'");
-  return AttachLabels(id, image, std::move(loaded), caller);
+  return AttachLabels(id, image, std::move(loaded), caller, &reservation);
 }
 
 v1::VolumeInfo VolumeRegistry::AddUploadedLabels(const std::string& id, const fs::path& file,
                                                  const std::string& file_name, const std::string& table,
-                                                 const Principal& caller) {
+                                                 const Principal& caller, const std::atomic<bool>* cancel) {
   const RemoveWhenDone remove{file};
   const std::shared_ptr<const Volume> image = VolumeForLabels(id, caller);
   const std::string shown = "upload:" + file_name;
-  LabelVolume loaded = FitLabels(LoadVolumeFile(file, PolicyFor(shown, true)), *image, shown);
-  loaded.names = ParseLabelTable(table, "header.label_table");
-  return AttachLabels(id, image, std::move(loaded), caller);
+  Reservation reservation(this, caller.name, false, "the segmentation");
+  const Volume labels = LoadVolumeFile(file, PolicyFor(shown, true, cancel, &reservation));
+  reservation.Add(LabelBytesFor(*image));
+  LabelVolume loaded = FitLabels(labels, *image, shown);
+  loaded.names = reader_cage::ReadLabelTableText(table, "header.label_table");
+  return AttachLabels(id, image, std::move(loaded), caller, &reservation);
 }
 
 v1::VolumeInfo VolumeRegistry::AttachLabels(const std::string& id, const std::shared_ptr<const Volume>& image,
-                                            LabelVolume labels, const Principal& caller) {
+                                            LabelVolume labels, const Principal& caller, Reservation* reservation) {
   std::shared_ptr<const LabelVolume> last;  // freed outside the lock
   std::lock_guard lock(mu_);
+  reservation->ReleaseLocked();  // the segmentation itself counts from here on
   FindLocked(id, caller, "volume_id");  // it may have gone while the file loaded
   Entry& e = volumes_.at(id);
   if (e.volume != image) {
     throw RpcError(grpc::StatusCode::ABORTED,
                    fmt::format("volume_id: volume '{}' was replaced while its segmentation loaded; load it again", id));
   }
-  const std::uint64_t bytes = labels.labels.size() * sizeof(std::uint16_t);
-  const std::uint64_t held = HeldBytesLocked() - (e.labels ? e.labels->labels.size() * sizeof(std::uint16_t) : 0);
-  if (held + bytes > limits_.max_total_bytes) {
-    throw LimitExceeded(grpc::StatusCode::RESOURCE_EXHAUSTED, "max-volume-memory-mb",
-                        fmt::format("the segmentation needs {}; this server holds {} of volumes and allows {} "
-                                    "(--max-volume-memory-mb)",
-                                    Mib(bytes), Mib(held), Mib(limits_.max_total_bytes)));
-  }
+  const std::uint64_t bytes = LabelBytes(&labels), replaced = LabelBytes(e.labels.get());
+  CheckRoomLocked(bytes > replaced ? bytes - replaced : 0, e.owner, false, "the segmentation");
   last = std::move(e.labels);
   e.labels = std::make_shared<const LabelVolume>(std::move(labels));
   spdlog::info("volume {}: segmentation with {} labels", LogSafe(id), e.labels->voxels.size());
@@ -299,7 +371,7 @@ v1::VolumeInfo VolumeRegistry::InfoLocked(const std::string& id, const Entry& e)
   const Volume& v = *e.volume;
   v1::VolumeInfo info;
   info.set_id(id);
-  info.set_source(e.source);
+  info.set_source(e.shown);
   info.set_modality(v.metadata().modality);
   info.set_value_unit(v.metadata().value_unit);
   info.mutable_dims()->set_x(v.dims().x);

@@ -14,6 +14,7 @@
 #include <cstdint>
 #include <filesystem>
 #include <map>
+#include <atomic>
 #include <memory>
 #include <mutex>
 #include <string>
@@ -55,6 +56,7 @@ struct VolumeLimits {
   std::uint64_t max_voxels = 1ull << 30;                  // one volume
   std::uint64_t max_total_bytes = 32ull << 30;            // every volume held, host memory
   std::uint64_t max_upload_bytes_per_principal = 8ull << 30;  // voxel memory of one principal's uploads
+  ReaderLimits reader;                                    // each load's reader child
 };
 
 class VolumeRegistry {
@@ -65,23 +67,30 @@ class VolumeRegistry {
   // The operator's volume: a phantom spec ("phantom:head?size=64"), a file or a
   // DICOM folder anywhere. Loading the same source again returns the first.
   v1::VolumeInfo AddFromSpec(const std::string& spec);
+  // Loads below read files through the reader cage (io/reader_cage.h):
+  // seconds for a large series, so call them off the gRPC threads. Memory is
+  // reserved from the file's header before any voxel is read, against the
+  // limits; raising `cancel` stops a load within a second.
+
   // A client's request: a file or DICOM folder under a data root, which may
-  // name other files only inside the data roots. Reads the disk (seconds for
-  // a large series): call it off the gRPC threads.
-  v1::VolumeInfo LoadFromDataRoot(const std::string& path, const std::string& series_uid, const Principal& caller);
+  // name other files only inside the data roots.
+  v1::VolumeInfo LoadFromDataRoot(const std::string& path, const std::string& series_uid, const Principal& caller,
+                                  const std::atomic<bool>* cancel = nullptr);
   // A client's upload, written to `file` (in upload_dir()) by the service;
   // `file_name` is the name the client gave. It may name no other file. The
   // file is removed.
-  v1::VolumeInfo AddUpload(const std::filesystem::path& file, const std::string& file_name, const Principal& caller);
+  v1::VolumeInfo AddUpload(const std::filesystem::path& file, const std::string& file_name, const Principal& caller,
+                           const std::atomic<bool>* cancel = nullptr);
 
   // A segmentation for volume `id`: a label volume and optionally its table,
   // both under the data roots; it replaces any earlier one, for sessions
   // created afterwards. Only the volume's owner or an operator may.
   v1::VolumeInfo LoadLabels(const std::string& id, const std::string& path, const std::string& table_path,
-                            const Principal& caller);
+                            const Principal& caller, const std::atomic<bool>* cancel = nullptr);
   // The same from an upload written to `file` (removed), with the table's text.
   v1::VolumeInfo AddUploadedLabels(const std::string& id, const std::filesystem::path& file,
-                                   const std::string& file_name, const std::string& table, const Principal& caller);
+                                   const std::string& file_name, const std::string& table, const Principal& caller,
+                                   const std::atomic<bool>* cancel = nullptr);
 
   // NOT_FOUND for an unknown id; PERMISSION_DENIED for another's upload.
   v1::VolumeInfo Describe(const std::string& id, const Principal& caller) const;
@@ -104,8 +113,13 @@ class VolumeRegistry {
 
  private:
   friend class VolumeLease;
+  // Memory reserved for one load under way: counted with what is held until
+  // the volume is added or the load ends.
+  class Reservation;
+
   struct Entry {
     std::string source;  // canonical path (+ series) or phantom spec: loading it twice returns this entry
+    std::string shown;   // what answers call it: the path as its loader wrote it, or "upload:NAME"
     std::shared_ptr<const Volume> volume;
     std::shared_ptr<const LabelVolume> labels;  // its segmentation, when one is loaded
     std::string owner;   // principal name; "" for the operator's preloaded volumes
@@ -113,8 +127,11 @@ class VolumeRegistry {
     int leases = 0;
   };
 
-  v1::VolumeInfo Add(const std::string& base_id, const std::string& source, Volume volume, const std::string& owner,
-                     bool upload);
+  v1::VolumeInfo Add(const std::string& base_id, const std::string& source, const std::string& shown, Volume volume,
+                     const std::string& owner, bool upload, Reservation* reservation = nullptr);
+  // Throws RESOURCE_EXHAUSTED unless `bytes` more fit the limits (an
+  // upload's also its owner's); `what` names it in the message.
+  void CheckRoomLocked(std::uint64_t bytes, const std::string& owner, bool upload, const std::string& what) const;
   // The entry `caller` may use, or throws NOT_FOUND / PERMISSION_DENIED.
   const Entry& FindLocked(const std::string& id, const Principal& caller, const std::string& field) const;
   v1::VolumeInfo InfoLocked(const std::string& id, const Entry& e) const;
@@ -122,9 +139,10 @@ class VolumeRegistry {
   std::shared_ptr<const Volume> VolumeForLabels(const std::string& id, const Principal& caller) const;
   // Holds `labels`, fitted to `image`, for volume `id` if that is still `image`.
   v1::VolumeInfo AttachLabels(const std::string& id, const std::shared_ptr<const Volume>& image, LabelVolume labels,
-                              const Principal& caller);
+                              const Principal& caller, Reservation* reservation);
   std::uint64_t HeldBytesLocked() const;
-  LoadPolicy PolicyFor(const std::string& label, bool upload) const;
+  LoadPolicy PolicyFor(const std::string& label, bool upload, const std::atomic<bool>* cancel = nullptr,
+                       Reservation* reservation = nullptr);
   void Release(const std::string& id);
 
   std::vector<std::filesystem::path> data_roots_;  // canonical
@@ -132,6 +150,8 @@ class VolumeRegistry {
   std::filesystem::path upload_dir_;
   mutable std::mutex mu_;
   std::map<std::string, Entry> volumes_;
+  std::uint64_t reserved_ = 0;                         // loads under way, together
+  std::map<std::string, std::uint64_t> reserved_uploads_;  // uploads under way, by owner
 };
 
 }  // namespace cinevol::service

@@ -35,6 +35,7 @@ const gdcm::Tag kImageOrientation(0x0020, 0x0037);
 const gdcm::Tag kRows(0x0028, 0x0010);
 const gdcm::Tag kColumns(0x0028, 0x0011);
 const gdcm::Tag kSliceThickness(0x0018, 0x0050);
+const gdcm::Tag kPhotometric(0x0028, 0x0004);
 const gdcm::Tag kRescaleIntercept(0x0028, 0x1052);
 const gdcm::Tag kRescaleSlope(0x0028, 0x1053);
 
@@ -54,7 +55,7 @@ struct Scan {
   // What messages call a file in the folder: its path under `shown`.
   std::string Name(const std::string& file) const {
     const auto it = names.find(file);
-    return shown + "/" + (it == names.end() ? std::string("?") : it->second);
+    return shown + (shown.ends_with('/') ? "" : "/") + (it == names.end() ? std::string("?") : it->second);
   }
 };
 
@@ -224,7 +225,7 @@ void ScanFiles(const std::vector<reader::DicomFile>& files, const reader::ReadOp
     if (!options.prechecks || DicomStructureIsSound(f.path)) sound.push_back(f.path);
   }
   for (const gdcm::Tag& t : {kSeriesUid, kSeriesDescription, kModality, kImagePosition, kImageOrientation, kRows,
-                             kColumns, kSliceThickness, kRescaleIntercept, kRescaleSlope}) {
+                             kColumns, kSliceThickness, kPhotometric, kRescaleIntercept, kRescaleSlope}) {
     scan.scanner.AddTag(t);
   }
   if (!sound.empty() && !scan.scanner.Scan(sound)) {
@@ -392,6 +393,21 @@ SeriesFiles ChooseSeries(std::vector<SeriesFiles> all, const std::string& reques
   return std::move(all[chosen]);
 }
 
+// Grey-scale slices only: GDCM decodes colour models (YBR_*, RGB, ARGB,
+// PALETTE COLOR) into several components, and aborts or crashes on some that
+// disagree with their codec (a JPEG 2000 slice marked YBR_RCT, an
+// uncompressed one marked ARGB).
+void CheckGreyScale(const Scan& scan, const std::vector<std::string>& files, const std::string& where) {
+  for (const std::string& f : files) {
+    const std::string pi = Value(scan, f, kPhotometric);
+    if (pi != "MONOCHROME1" && pi != "MONOCHROME2" && !pi.empty()) {
+      throw InputError(fmt::format("{}: {} has Photometric Interpretation '{}'; cinevol reads grey-scale series "
+                                   "(MONOCHROME1 or MONOCHROME2)",
+                                   where, scan.Name(f), pi.substr(0, 32)));
+    }
+  }
+}
+
 // Whether every file of the series has the same rescale slope and intercept:
 // else each slice is rescaled on its own, into float32.
 bool SameRescale(const Scan& scan, const std::vector<std::string>& files) {
@@ -438,6 +454,10 @@ class DicomSeriesRead final : public reader::VolumeRead {
       io->ReadImageInformation();
     } catch (const itk::ExceptionObject& e) {
       throw Failed(e);
+    }
+    if (io->GetNumberOfComponents() != 1) {
+      throw InputError(fmt::format("{}: series {} holds pixels of {} components; cinevol reads grey-scale series",
+                                   where_, Describe(series_), io->GetNumberOfComponents()));
     }
     const std::uint64_t frames = io->GetNumberOfDimensions() > 2 ? std::max<std::uint64_t>(1, io->GetDimensions(2)) : 1;
     if (frames > 1 && files_.size() > 1) {
@@ -550,6 +570,7 @@ std::unique_ptr<VolumeRead> OpenDicomSeries(const std::vector<DicomFile>& files,
   ScanFiles(files, options, scan);
   const SeriesFiles series = ChooseSeries(GroupSeries(scan), series_uid, scan.shown);
   const SeriesGeometry g = CheckGeometry(scan, series.files, scan.shown);
+  CheckGreyScale(scan, series.files, scan.shown);
   return std::make_unique<DicomSeriesRead>(scan, series, g, options.max_voxels);
 }
 

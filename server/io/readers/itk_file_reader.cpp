@@ -318,6 +318,26 @@ void CheckMetaHeaderText(const fs::path& path, const std::string& shown) {
   }
 }
 
+// teem copies a per-axis field's values ("sizes", "spacings", "space
+// directions", ...) through fixed buffers: a line of about 1,000 characters
+// (extra values, trailing blanks) aborts it under _FORTIFY_SOURCE. Real
+// lines are a few dozen characters; free text ("content", comments and
+// key/value pairs) is not limited.
+void CheckNrrdHeaderText(const fs::path& path, const std::string& shown) {
+  constexpr std::size_t kMaxFieldLine = 512;
+  const file_checks::NrrdHeader h = file_checks::ParseNrrdHeader(path, shown);
+  for (std::size_t i = 1; i < h.lines.size(); ++i) {
+    const std::string& line = h.lines[i];
+    const std::string key = file_checks::FieldName(line);
+    if (key.empty() || key == "content" || line.find(":=") != std::string::npos) continue;
+    if (line.size() > kMaxFieldLine) {
+      throw InputError(fmt::format("{}: the header's '{}' line has {} characters; cinevol reads NRRD field lines of "
+                                   "up to {}",
+                                   shown, line.substr(0, line.find(':')), line.size(), kMaxFieldLine));
+    }
+  }
+}
+
 itk::ImageIOBase::Pointer ReadHeader(const fs::path& path, const std::string& shown, bool prechecks) {
   itk_image::InitToolkits();
   auto io = itk::ImageIOFactory::CreateImageIO(path.c_str(), itk::IOFileModeEnum::ReadMode);
@@ -329,6 +349,7 @@ itk::ImageIOBase::Pointer ReadHeader(const fs::path& path, const std::string& sh
   }
   io->SetFileName(path.string());
   if (prechecks && dynamic_cast<itk::MetaImageIO*>(io.GetPointer())) CheckMetaHeaderText(path, shown);
+  if (prechecks && std::string(io->GetNameOfClass()) == "NrrdImageIO") CheckNrrdHeaderText(path, shown);
   io->ReadImageInformation();
   return io;
 }
@@ -913,7 +934,8 @@ void CheckMetaImageDataFile(itk::ImageIOBase& io, const fs::path& path, const st
 // not yet.
 class ItkVolumeRead final : public reader::VolumeRead {
  public:
-  ItkVolumeRead(itk::ImageIOBase::Pointer io, const std::string& shown) : io_(std::move(io)), shown_(shown) {
+  ItkVolumeRead(itk::ImageIOBase::Pointer io, const fs::path& path, const reader::ReadOptions& options)
+      : io_(std::move(io)), path_(path), shown_(options.shown), prechecks_(options.prechecks) {
     const unsigned n = io_->GetNumberOfDimensions();
     std::array<int, 3> dims{1, 1, 1};
     std::array<double, 3> spacing{1, 1, 1}, origin{0, 0, 0};
@@ -933,6 +955,15 @@ class ItkVolumeRead final : public reader::VolumeRead {
   }
 
   void Read(void* memory, std::size_t bytes) override {
+    // The payload is checked now, once the parent has counted the memory the
+    // header asks for: a small compressed file may inflate to gigabytes.
+    if (prechecks_) {
+      const std::string kind = io_->GetNameOfClass();
+      const std::string problem = kind == "NiftiImageIO"  ? NiftiPayloadProblem(path_)
+                                  : kind == "NrrdImageIO" ? NrrdPayloadProblem(*io_, path_, shown_)
+                                                          : RawPayloadProblem(*io_, path_, shown_);
+      if (!problem.empty()) throw InputError(fmt::format("{}: {}", shown_, problem));
+    }
     if (bytes != io_->GetImageSizeInBytes()) {
       throw InputError(fmt::format("{}: {} bytes of memory for {} bytes of voxels", shown_, bytes,
                                    io_->GetImageSizeInBytes()));
@@ -953,7 +984,9 @@ class ItkVolumeRead final : public reader::VolumeRead {
 
  private:
   itk::ImageIOBase::Pointer io_;
+  fs::path path_;
   std::string shown_;
+  bool prechecks_;
 };
 
 // Opens `path` (the file, or the cage's rewrite of its header) with ITK.
@@ -964,14 +997,7 @@ std::unique_ptr<reader::VolumeRead> OpenWithItk(const fs::path& path, const std:
   auto io = ReadHeader(path, shown, options.prechecks);
   CheckHeader(shown, *io, options.max_voxels);
   CheckMetaImageDataFile(*io, path, placed, shown);
-  if (options.prechecks) {
-    const std::string kind = io->GetNameOfClass();
-    const std::string problem = kind == "NiftiImageIO"  ? NiftiPayloadProblem(path)
-                                : kind == "NrrdImageIO" ? NrrdPayloadProblem(*io, path, shown)
-                                                        : RawPayloadProblem(*io, path, shown);
-    if (!problem.empty()) throw InputError(fmt::format("{}: {}", shown, problem));
-  }
-  return std::make_unique<ItkVolumeRead>(io, shown);
+  return std::make_unique<ItkVolumeRead>(io, path, options);
 }
 
 bool IsNrrd(const fs::path& path, const std::string& shown) {

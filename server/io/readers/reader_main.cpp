@@ -71,9 +71,6 @@ reader::Request ReceiveRequest(ReaderChannel& channel, std::vector<UniqueFd>& in
 
 // Answers the request; for voxels, waits for the memory to write them to.
 void Serve(ReaderChannel& channel, reader::Job& job) {
-  Reply started;
-  started.set_reader(job.ReaderName());
-  Send(channel, started);
   const Reply answer = job.Answer();
   Send(channel, answer);
   if (!answer.has_header() && !answer.has_image()) return;

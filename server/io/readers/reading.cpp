@@ -50,6 +50,15 @@ std::string Extension(const std::string& name) {
 
 std::string DescriptorPath(int fd) { return fmt::format("/proc/self/fd/{}", fd); }
 
+// At most `limit` bytes from the start of `fd`.
+std::string ReadAll(int fd, std::size_t limit) {
+  std::string text(limit, '\0');
+  std::size_t got = 0;
+  for (ssize_t n; got < limit && (n = pread(fd, text.data() + got, limit - got, off_t(got))) > 0;) got += std::size_t(n);
+  text.resize(got);
+  return text;
+}
+
 void Link(const std::string& target, const fs::path& link) {
   if (symlink(target.c_str(), link.c_str()) != 0) {
     throw std::runtime_error(fmt::format("cannot place a link in the reader's folder ({})", std::strerror(errno)));
@@ -94,27 +103,6 @@ std::string Job::InputPath(std::size_t i) const {
       .string();
 }
 
-std::string Job::ReaderName() const {
-  switch (request_.kind()) {
-    case Request::DICOM_SERIES:
-    case Request::DICOM_LIST:
-      return "DICOM";
-    case Request::LABEL_TABLE:
-      return "label table";
-    case Request::EXR_IMAGE:
-      return "OpenEXR";
-    default:
-      break;
-  }
-  const std::string ext = Lower(Extension(request_.file_names(0)));
-  if (ext.rfind(".nii", 0) == 0 || ext.rfind(".hdr", 0) == 0 || ext.rfind(".img", 0) == 0 || ext == ".nia") {
-    return "NIfTI";
-  }
-  if (ext == ".mha" || ext == ".mhd") return "MetaImage";
-  if (ext == ".vtk") return "VTK";
-  return "NRRD";  // .nrrd, .nhdr, or any file that starts with the NRRD magic
-}
-
 Reply Job::Answer() {
   ReadOptions options;
   options.shown = request_.shown();
@@ -142,12 +130,13 @@ Reply Job::Answer() {
     case Request::DICOM_LIST:
       *reply.mutable_series_list() = ListDicomSeries(dicom, options);
       break;
-    case Request::LABEL_TABLE: {
-      const std::string text = file_checks::ReadHead(InputPath(0), kMaxLabelTableBytes + 1, options.shown);
+    case Request::LABEL_TABLE: {  // read through its descriptor: an upload's table is a memfd
+      const std::string text = ReadAll(inputs_[0].get(), kMaxLabelTableBytes + 1);
       if (text.size() > kMaxLabelTableBytes) {
         throw InputError(fmt::format("{}: a label table may have at most {} bytes", options.shown,
                                      kMaxLabelTableBytes));
       }
+      reply.mutable_label_table();  // an empty table is an answer too
       for (const auto& [value, name] : ParseLabelTable(text, options.shown)) {
         (*reply.mutable_label_table()->mutable_names())[value] = name;
       }

@@ -26,10 +26,6 @@ class Job {
   Job(const Job&) = delete;
   Job& operator=(const Job&) = delete;
 
-  // Which reader does the work: "NIfTI", "NRRD", "MetaImage", "VTK",
-  // "DICOM", "label table", "OpenEXR".
-  std::string ReaderName() const;
-
   // Reads up to the first answer: a header (then Write), a series list or a
   // label table. Throws InputError for a bad input, std::bad_alloc when out
   // of memory.

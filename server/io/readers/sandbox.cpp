@@ -57,7 +57,8 @@ bool RestrictFiles(const std::vector<int>& inputs, const std::filesystem::path& 
   if (ruleset < 0) throw std::runtime_error(std::string("landlock: ") + std::strerror(errno));
   auto allow = [&](int fd, __u64 access) {
     landlock_path_beneath_attr rule{access, fd};
-    if (syscall(SYS_landlock_add_rule, ruleset, LANDLOCK_RULE_PATH_BENEATH, &rule, 0) != 0) {
+    // EBADFD: no path leads to it (a memfd); it is read through its descriptor.
+    if (syscall(SYS_landlock_add_rule, ruleset, LANDLOCK_RULE_PATH_BENEATH, &rule, 0) != 0 && errno != EBADFD) {
       throw std::runtime_error(std::string("landlock rule: ") + std::strerror(errno));
     }
   };
