@@ -73,6 +73,14 @@ struct VolumeBenchOptions {
 // Load, summaries (histogram, block ranges), kind and framing per volume.
 int RunVolumeBench(const VolumeBenchOptions& options);
 
+struct CageBenchOptions : VolumeBenchOptions {
+  int runs = 7;  // loads each way, alternating
+};
+
+// Each volume loaded through the reader cage and in this process, and the
+// server-side peak memory of the caged load.
+int RunCageBench(const CageBenchOptions& options);
+
 struct ReconstructionBenchOptions : SceneOptions {
   std::vector<float> spacings{2.0f, 3.0f};  // mm: the coarse balls
   float reference_spacing = 0.25f;

@@ -91,6 +91,14 @@ int main(int argc, char** argv) {
   v->add_option("--out", volume.out, "Append the Markdown table to this file");
   v->callback([&] { cinevol::bench::RunVolumeBench(volume); });
 
+  cinevol::bench::CageBenchOptions cage;
+  cage.command_line = command_line;
+  auto* g = app.add_subcommand("cage", "Loads through the reader cage against loads in this process, per volume");
+  g->add_option("volumes", cage.volumes, "Volume files or DICOM folders")->required();
+  g->add_option("--runs", cage.runs, "Loads each way (medians)")->check(CLI::Range(1, 1000));
+  g->add_option("--out", cage.out, "Append the Markdown table to this file");
+  g->callback([&] { cinevol::bench::RunCageBench(cage); });
+
   cinevol::bench::ReconstructionBenchOptions reconstruction;
   reconstruction.command_line = command_line;
   reconstruction.width = reconstruction.height = 512;

@@ -4,6 +4,7 @@
 #include "io/reader_cage.h"
 
 #include <fcntl.h>
+#include <linux/landlock.h>
 #include <poll.h>
 #include <signal.h>
 #include <spawn.h>
@@ -11,6 +12,7 @@
 #include <sys/mman.h>
 #include <sys/resource.h>
 #include <sys/socket.h>
+#include <sys/syscall.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
@@ -445,6 +447,10 @@ std::string Relative(const fs::path& file, const fs::path& folder) {
 void ObserveOutcomes(OutcomeObserver observer) {
   std::lock_guard lock(observer_mu);
   Observer() = std::move(observer);
+}
+
+bool KernelHasLandlock() {
+  return syscall(SYS_landlock_create_ruleset, nullptr, 0, LANDLOCK_CREATE_RULESET_VERSION) >= 1;
 }
 
 std::string ReaderName(int request_kind, const std::string& file_name) {

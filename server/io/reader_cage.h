@@ -71,6 +71,10 @@ void ObserveOutcomes(OutcomeObserver observer);
 // "OpenEXR".
 std::string ReaderName(int request_kind, const std::string& file_name);
 
+// Whether this kernel has Landlock, which confines a reader to its inputs
+// (without it, seccomp and rlimits alone wall it in).
+bool KernelHasLandlock();
+
 // Where cinevol-reader is: $CINEVOL_READER, else beside the running program
 // (or one folder up, as for the test binary in build/tests/); throws when
 // there is none.

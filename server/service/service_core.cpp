@@ -126,6 +126,10 @@ ServiceCore::ServiceCore(const ServerOptions& options)
       pixels_(options.max_total_pixels) {
   // Every file is read through cinevol-reader: find it now, not at the first load.
   spdlog::info("reader: {}", reader_cage::ReaderPath().string());
+  if (!reader_cage::KernelHasLandlock()) {
+    spdlog::warn("reader: this kernel has no Landlock: readers are walled in by seccomp and rlimits only, and "
+                 "could open any file this server's user may read (docs/security.md#the-reader-cage)");
+  }
   reader_cage::ObserveOutcomes([](std::string_view outcome) { ServerMetrics().ReaderEnded(outcome); });
   std::string why;
   const bool cuda = CudaAvailable(&why);
