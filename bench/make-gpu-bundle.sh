@@ -4,7 +4,7 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 stage=$(mktemp -d)
-../shared/tools/device-bundle.sh "$stage" build/cinevol build/cinevol-server build/cinevol-bench build/cinevol-viewer \
+../shared/tools/device-bundle.sh "$stage" build/cinevol build/cinevol-server build/cinevol-reader build/cinevol-bench build/cinevol-viewer \
   build/tests/cinevol_tests
 mkdir -p "$stage/data"
 cp -r ../shared/data/ct-head-cthead "$stage/data/"

@@ -16,7 +16,7 @@ COPY scripts/install-deps.sh scripts/
 RUN scripts/install-deps.sh
 COPY . .
 RUN CINEVOL_CUDA=OFF scripts/build.sh \
- && docker/collect-runtime.sh /opt/cinevol build/cinevol build/cinevol-viewer build/cinevol-server
+ && docker/collect-runtime.sh /opt/cinevol build/cinevol build/cinevol-viewer build/cinevol-server build/cinevol-reader
 
 FROM debian:bookworm-slim
 COPY --from=build /opt/cinevol /opt/cinevol

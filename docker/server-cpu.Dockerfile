@@ -13,7 +13,7 @@ COPY scripts/install-deps.sh scripts/
 RUN scripts/install-deps.sh
 COPY . .
 RUN CINEVOL_CUDA=OFF scripts/build.sh \
- && docker/collect-runtime.sh /opt/cinevol build/cinevol-server build/cinevol
+ && docker/collect-runtime.sh /opt/cinevol build/cinevol-server build/cinevol build/cinevol-reader
 
 FROM debian:bookworm-slim
 COPY --from=build /opt/cinevol /opt/cinevol

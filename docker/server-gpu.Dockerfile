@@ -19,7 +19,7 @@ COPY scripts/install-deps.sh scripts/
 RUN scripts/install-deps.sh
 COPY . .
 RUN CINEVOL_CUDA=ON scripts/build.sh \
- && docker/collect-runtime.sh /opt/cinevol build/cinevol-server build/cinevol
+ && docker/collect-runtime.sh /opt/cinevol build/cinevol-server build/cinevol build/cinevol-reader
 
 FROM debian:bookworm-slim
 COPY --from=build /opt/cinevol /opt/cinevol

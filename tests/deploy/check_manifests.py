@@ -156,6 +156,8 @@ def check_dockerfiles():
         final = text[text.rfind("\nFROM "):]
         check(re.search(r"^USER 10001$", final, re.M), f"{dockerfile.name}: the final stage runs as root")
         check("server" not in dockerfile.name or "HEALTHCHECK" in final, f"{dockerfile.name}: no HEALTHCHECK")
+        check("server" not in dockerfile.name or "build/cinevol-reader" in text,
+              f"{dockerfile.name}: does not ship cinevol-reader, which reads every file the server loads")
 
 
 def check_compose():
