@@ -21,6 +21,7 @@
 #include <cstdlib>
 #include <cstring>
 #include <mutex>
+#include <optional>
 #include <thread>
 
 #include <fmt/format.h>
@@ -85,6 +86,124 @@ class WorkDir {
   fs::path path_;
 };
 
+// A cinevol-reader started and waiting for its request: the process, its
+// socket and its stderr, and the limits it was started with.
+struct Started {
+  pid_t pid = -1;
+  UniqueFd socket, stderr_pipe;
+  ReaderLimits limits;
+};
+
+// Kills and reaps a started child that will not be used.
+void Discard(Started& child) {
+  if (child.pid > 0) {
+    kill(child.pid, SIGKILL);
+    waitpid(child.pid, nullptr, 0);
+    child.pid = -1;
+  }
+}
+
+Started StartReader(const ReaderLimits& limits) {
+  Started child;
+  child.limits = limits;
+  int sockets[2], err[2];
+  if (socketpair(AF_UNIX, SOCK_STREAM | SOCK_CLOEXEC, 0, sockets) != 0) {
+    throw ResourceExhausted(fmt::format("cannot start a reader ({})", std::strerror(errno)));
+  }
+  child.socket.Reset(sockets[0]);
+  UniqueFd child_end(sockets[1]);
+  if (pipe2(err, O_CLOEXEC) != 0) throw ResourceExhausted(fmt::format("cannot start a reader ({})", std::strerror(errno)));
+  child.stderr_pipe.Reset(err[0]);
+  UniqueFd stderr_write(err[1]);
+  fcntl(child.stderr_pipe.get(), F_SETFL, O_NONBLOCK);
+
+  const std::string program = ReaderPath().string();
+  const std::uint64_t max_space = limits.header_address_space + kMaxVoxelAddressSpace;
+  std::vector<std::string> args{program,
+                                "--parent",
+                                std::to_string(getpid()),
+                                "--address-space",
+                                std::to_string(limits.header_address_space),
+                                "--address-space-max",
+                                std::to_string(max_space),
+                                "--cpu-seconds",
+                                std::to_string(int(std::ceil(limits.cpu_seconds)))};
+  std::vector<std::string> env{"MALLOC_ARENA_MAX=1"};
+  if (const char* path = std::getenv("LD_LIBRARY_PATH")) env.push_back(std::string("LD_LIBRARY_PATH=") + path);
+  std::vector<char*> argv, envp;
+  for (std::string& a : args) argv.push_back(a.data());
+  for (std::string& e : env) envp.push_back(e.data());
+  argv.push_back(nullptr);
+  envp.push_back(nullptr);
+
+  posix_spawn_file_actions_t actions;
+  posix_spawn_file_actions_init(&actions);
+  posix_spawn_file_actions_addopen(&actions, 0, "/dev/null", O_RDONLY, 0);
+  posix_spawn_file_actions_addopen(&actions, 1, "/dev/null", O_WRONLY, 0);
+  posix_spawn_file_actions_adddup2(&actions, stderr_write.get(), 2);
+  posix_spawn_file_actions_adddup2(&actions, child_end.get(), 3);
+  posix_spawn_file_actions_addclosefrom_np(&actions, 4);
+  posix_spawnattr_t attributes;
+  posix_spawnattr_init(&attributes);
+  sigset_t none, all;
+  sigemptyset(&none);
+  sigfillset(&all);
+  posix_spawnattr_setsigmask(&attributes, &none);
+  posix_spawnattr_setsigdefault(&attributes, &all);
+  posix_spawnattr_setflags(&attributes, POSIX_SPAWN_SETSIGMASK | POSIX_SPAWN_SETSIGDEF);
+  const int error = posix_spawn(&child.pid, program.c_str(), &actions, &attributes, argv.data(), envp.data());
+  posix_spawn_file_actions_destroy(&actions);
+  posix_spawnattr_destroy(&attributes);
+  if (error != 0) {
+    child.pid = -1;
+    throw ResourceExhausted(fmt::format("cannot start {} ({})", program, std::strerror(error)));
+  }
+  return child;
+}
+
+bool SameLimits(const ReaderLimits& a, const ReaderLimits& b) {
+  return a.header_address_space == b.header_address_space && a.cpu_seconds == b.cpu_seconds;
+}
+
+// One reader started ahead of need: exec and the readers' libraries take tens
+// of milliseconds to start (ITK's and GDCM's static tables), which a load then
+// does not wait for. The spare has read nothing and raised no walls yet: it
+// waits for its request.
+class Spare {
+ public:
+  static Spare& Get() {
+    static Spare* spare = new Spare;  // never destroyed: its child dies with this process
+    return *spare;
+  }
+
+  Started Take(const ReaderLimits& limits) {
+    std::optional<Started> ready;
+    {
+      std::lock_guard lock(mu_);
+      ready.swap(spare_);
+    }
+    int status = 0;
+    if (ready && (!SameLimits(ready->limits, limits) || waitpid(ready->pid, &status, WNOHANG) != 0)) {
+      Discard(*ready);
+      ready.reset();
+    }
+    Started taken = ready ? std::move(*ready) : StartReader(limits);
+    try {
+      Started next = StartReader(limits);
+      std::lock_guard lock(mu_);
+      if (!spare_) spare_ = std::move(next);
+      else Discard(next);
+    } catch (const std::exception&) {
+      // none ahead this time; the next load starts its own
+    }
+    return taken;
+  }
+
+ private:
+  std::mutex mu_;
+  std::optional<Started> spare_;
+};
+
 // One cinevol-reader child, from its start to its end.
 class ReaderProcess {
  public:
@@ -98,7 +217,10 @@ class ReaderProcess {
     for (const Input& in : inputs) request.add_file_names(in.name);
     reader_ = ReaderName(request.kind(), inputs.empty() ? "" : inputs[0].name);
     try {
-      Spawn();
+      Started child = Spare::Get().Take(limits_);
+      pid_ = child.pid;
+      channel_ = ReaderChannel(std::move(child.socket));
+      stderr_ = std::move(child.stderr_pipe);
       try {
         channel_.Send(request);
         SendInputs(inputs);
@@ -173,63 +295,6 @@ class ReaderProcess {
   const std::string& shown() const { return shown_; }
 
  private:
-  void Spawn() {
-    int sockets[2], err[2];
-    if (socketpair(AF_UNIX, SOCK_STREAM | SOCK_CLOEXEC, 0, sockets) != 0) {
-      throw ResourceExhausted(fmt::format("{}: cannot start a reader ({})", shown_, std::strerror(errno)));
-    }
-    UniqueFd parent_end(sockets[0]), child_end(sockets[1]);
-    if (pipe2(err, O_CLOEXEC) != 0) {
-      throw ResourceExhausted(fmt::format("{}: cannot start a reader ({})", shown_, std::strerror(errno)));
-    }
-    stderr_.Reset(err[0]);
-    UniqueFd stderr_write(err[1]);
-    fcntl(stderr_.get(), F_SETFL, O_NONBLOCK);
-
-    const std::string program = ReaderPath().string();
-    const std::uint64_t max_space = limits_.header_address_space + kMaxVoxelAddressSpace;
-    std::vector<std::string> args{program,
-                                  "--parent",
-                                  std::to_string(getpid()),
-                                  "--address-space",
-                                  std::to_string(limits_.header_address_space),
-                                  "--address-space-max",
-                                  std::to_string(max_space),
-                                  "--cpu-seconds",
-                                  std::to_string(int(std::ceil(limits_.cpu_seconds)))};
-    std::vector<std::string> env{"MALLOC_ARENA_MAX=1"};
-    if (const char* path = std::getenv("LD_LIBRARY_PATH")) env.push_back(std::string("LD_LIBRARY_PATH=") + path);
-    std::vector<char*> argv, envp;
-    for (std::string& a : args) argv.push_back(a.data());
-    for (std::string& e : env) envp.push_back(e.data());
-    argv.push_back(nullptr);
-    envp.push_back(nullptr);
-
-    posix_spawn_file_actions_t actions;
-    posix_spawn_file_actions_init(&actions);
-    posix_spawn_file_actions_addopen(&actions, 0, "/dev/null", O_RDONLY, 0);
-    posix_spawn_file_actions_addopen(&actions, 1, "/dev/null", O_WRONLY, 0);
-    posix_spawn_file_actions_adddup2(&actions, stderr_write.get(), 2);
-    posix_spawn_file_actions_adddup2(&actions, child_end.get(), 3);
-    posix_spawn_file_actions_addclosefrom_np(&actions, 4);
-    posix_spawnattr_t attributes;
-    posix_spawnattr_init(&attributes);
-    sigset_t none, all;
-    sigemptyset(&none);
-    sigfillset(&all);
-    posix_spawnattr_setsigmask(&attributes, &none);
-    posix_spawnattr_setsigdefault(&attributes, &all);
-    posix_spawnattr_setflags(&attributes, POSIX_SPAWN_SETSIGMASK | POSIX_SPAWN_SETSIGDEF);
-    const int error = posix_spawn(&pid_, program.c_str(), &actions, &attributes, argv.data(), envp.data());
-    posix_spawn_file_actions_destroy(&actions);
-    posix_spawnattr_destroy(&attributes);
-    if (error != 0) {
-      pid_ = -1;
-      throw ResourceExhausted(fmt::format("{}: cannot start {} ({})", shown_, program, std::strerror(error)));
-    }
-    channel_ = ReaderChannel(std::move(parent_end));
-  }
-
   // The inputs' descriptors, opened here (regular files only), a batch at a
   // time so the parent never holds many.
   void SendInputs(const std::vector<Input>& inputs) {
