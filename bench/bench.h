@@ -92,6 +92,23 @@ struct ReconstructionBenchOptions : SceneOptions {
 // Trilinear against tricubic on a coarse ball, with a fine ball as reference.
 int RunReconstructionBench(const ReconstructionBenchOptions& options);
 
+struct CallsBenchOptions {
+  std::string server;  // empty: a cinevol-server of its own on a written volume of `size`^3
+  std::string token;
+  std::string volume;  // with --server: a volume that has a segmentation
+  int size = 512;
+  int clients = 4;     // creating sessions at once
+  int creations = 1;   // sessions each client creates (and closes), one after another
+  int width = 320, height = 180;
+  int interval_ms = 10;  // between the prober's GetStatus + health rounds
+  std::string out;
+  std::string command_line;
+};
+
+// GetStatus and gRPC health latency (another client's) while `clients`
+// clients create sessions on a labelled volume at once.
+int RunCallsBench(const CallsBenchOptions& options);
+
 // "NVIDIA H100 80GB HBM3 (cuda)" or "cpu, 2 threads".
 std::string DeviceDescription(const std::string& backend);
 

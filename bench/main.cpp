@@ -116,6 +116,27 @@ int main(int argc, char** argv) {
   c->add_option("--out", reconstruction.out, "Append the Markdown table to this file");
   c->callback([&] { cinevol::bench::RunReconstructionBench(reconstruction); });
 
+  cinevol::bench::CallsBenchOptions calls;
+  calls.command_line = command_line;
+  auto* k = app.add_subcommand("calls", "GetStatus and health latency while clients create sessions on a labelled volume");
+  k->add_option("--server", calls.server, "A running server (default: start one on a written volume)");
+  k->add_option("--token", calls.token, "Bearer token for --server");
+  k->add_option("--volume", calls.volume, "With --server: the id of a volume that has a segmentation");
+  k->add_option("--size", calls.size, "Without --server: the written volume's side, voxels")
+      ->check(CLI::Range(16, 1024))
+      ->capture_default_str();
+  k->add_option("--clients", calls.clients, "Clients creating sessions at once")->check(CLI::Range(1, 64))->capture_default_str();
+  k->add_option("--creations", calls.creations, "Sessions each client creates and closes in turn")
+      ->check(CLI::Range(1, 1000))
+      ->capture_default_str();
+  k->add_option("--width", calls.width, "Session viewport width")->capture_default_str();
+  k->add_option("--height", calls.height, "Session viewport height")->capture_default_str();
+  k->add_option("--interval-ms", calls.interval_ms, "Pause between probes")->capture_default_str();
+  k->add_option("--out", calls.out, "Append the Markdown table to this file");
+  k->callback([&] {
+    if (cinevol::bench::RunCallsBench(calls) != 0) throw CLI::RuntimeError(1);
+  });
+
   // The speed/accuracy study: --dataset NAME=SCENE[,VOLUME] (repeatable).
   cinevol::bench::StudyOptions study;
   study.command_line = command_line;

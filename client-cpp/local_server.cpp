@@ -23,13 +23,14 @@ namespace cinevol::cli {
 
 namespace fs = std::filesystem;
 
-LocalServer::LocalServer(const std::string& backend, const fs::path& log) {
+LocalServer::LocalServer(const std::string& backend, const fs::path& log, const std::vector<std::string>& extra) {
   const fs::path program = fs::read_symlink("/proc/self/exe").parent_path() / "cinevol-server";
   if (!fs::exists(program)) throw InputError(fmt::format("{} not found beside this program", program.string()));
   const fs::path port_file = fs::path(log).replace_extension(".port");
   fs::remove(port_file);
-  const std::vector<std::string> args{program.string(), "--listen", "127.0.0.1:0", "--port-file",
-                                      port_file.string(), "--backend", backend};
+  std::vector<std::string> args{program.string(), "--listen", "127.0.0.1:0", "--port-file", port_file.string(),
+                                "--backend", backend};
+  args.insert(args.end(), extra.begin(), extra.end());
   std::vector<char*> argv;
   for (const std::string& a : args) argv.push_back(const_cast<char*>(a.c_str()));
   argv.push_back(nullptr);

@@ -8,15 +8,17 @@
 
 #include <filesystem>
 #include <string>
+#include <vector>
 
 namespace cinevol::cli {
 
 class LocalServer {
  public:
   // Starts the server (`backend`: auto, cpu or cuda; the built-in head
-  // phantom) writing its log to `log`, and waits until it listens. Throws
-  // InputError when it cannot start or stops at start.
-  LocalServer(const std::string& backend, const std::filesystem::path& log);
+  // phantom unless `extra` flags name volumes) writing its log to `log`, and
+  // waits until it listens. Throws InputError when it cannot start or stops
+  // at start.
+  LocalServer(const std::string& backend, const std::filesystem::path& log, const std::vector<std::string>& extra = {});
   ~LocalServer();  // SIGTERM, then SIGKILL after 15 s
   LocalServer(const LocalServer&) = delete;
   LocalServer& operator=(const LocalServer&) = delete;

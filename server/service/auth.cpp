@@ -115,6 +115,12 @@ std::size_t Authenticator::token_count() const { return tokens_ ? tokens_->Curre
 Principal Authenticator::Authenticate(const grpc::CallbackServerContext& context) const {
   const std::shared_ptr<const grpc::AuthContext> auth_context = context.auth_context();
   const auto& metadata = context.client_metadata();
+  // Two principals' tokens in one call: which one names the caller would be
+  // a guess, so neither does.
+  if (const std::size_t headers = metadata.count("authorization"); headers > 1) {
+    throw RpcError(grpc::StatusCode::UNAUTHENTICATED,
+                   fmt::format("the call carries {} 'authorization' headers; send one", headers));
+  }
   const auto header = metadata.find("authorization");
   std::optional<std::string> authorization;
   if (header != metadata.end()) authorization.emplace(header->second.data(), header->second.size());

@@ -14,7 +14,9 @@
 // (blank lines and # comments skipped); `operator` marks an operator
 // principal. Reload() (cinevol-server does it on SIGHUP) re-reads it; calls
 // see the old or the new set, never a mix. Tokens are compared in constant
-// time and never logged. Health checking and reflection stay open (probes).
+// time and never logged. A call with more than one `authorization` header is
+// refused (UNAUTHENTICATED), whatever the configuration. Reflection passes
+// here too; only gRPC health checking stays open (probes carry no token).
 #pragma once
 
 #include <grpcpp/server_context.h>

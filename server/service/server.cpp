@@ -1,7 +1,6 @@
 // Server: gRPC setup and teardown.
 #include "service/server.h"
 
-#include <grpcpp/ext/proto_server_reflection_plugin.h>
 #include <grpcpp/health_check_service_interface.h>
 #include <fmt/format.h>
 #include <prometheus/exposer.h>
@@ -34,10 +33,13 @@ Server::Server(const ServerOptions& options)
       drain_seconds_(options.drain_seconds),
       volume_service_(core_.get()),
       session_service_(core_.get()),
-      server_service_(core_.get()) {
+      server_service_(core_.get()),
+      reflection_service_(core_.get(), {v1::VolumeService::service_full_name(), v1::SessionService::service_full_name(),
+                                        v1::ServerService::service_full_name(), "grpc.health.v1.Health"}) {
   if (!options.metrics_listen.empty()) StartMetrics(options.metrics_listen);
+  // Health answers without credentials (Kubernetes and Docker probes carry none);
+  // it tells only SERVING or NOT_SERVING.
   grpc::EnableDefaultHealthCheckService(true);
-  grpc::reflection::InitProtoReflectionServerBuilderPlugin();
   grpc::ServerBuilder builder;
   PrepareDescriptors(options.connections);
   builder.AddListeningPort(options.listen, MakeServerCredentials(options.tls), &port_);
@@ -47,6 +49,7 @@ Server::Server(const ServerOptions& options)
   builder.RegisterService(&volume_service_);
   builder.RegisterService(&session_service_);
   builder.RegisterService(&server_service_);
+  builder.RegisterService(&reflection_service_);
   server_ = builder.BuildAndStart();
   if (!server_ || port_ == 0) {
     throw InputError(fmt::format("--listen {}: cannot listen there (address in use, or not HOST:PORT?)",

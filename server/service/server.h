@@ -1,5 +1,5 @@
-// The gRPC server around a ServiceCore: listening, health checking and
-// reflection, the sweep that ends expired detached sessions, and an orderly
+// The gRPC server around a ServiceCore: listening, health checking (open to
+// anyone: probes) and reflection (authenticated), the sweep that ends expired detached sessions, and an orderly
 // shutdown (calls cancelled, sessions ended, workers joined).
 #pragma once
 
@@ -10,6 +10,7 @@
 #include <mutex>
 #include <thread>
 
+#include "service/reflection.h"
 #include "service/service_core.h"
 #include "service/services.h"
 
@@ -47,6 +48,7 @@ class Server {
   VolumeServiceImpl volume_service_;
   SessionServiceImpl session_service_;
   ServerServiceImpl server_service_;
+  ReflectionService reflection_service_;  // authenticated like the others
   std::unique_ptr<grpc::Server> server_;
   int port_ = 0;
   std::unique_ptr<prometheus::Exposer> exposer_;  // /metrics, with --metrics-listen

@@ -123,6 +123,7 @@ ServiceCore::ServiceCore(const ServerOptions& options)
       encoder_("encoder", options.encode_threads > 0 ? options.encode_threads
                                                       : int(std::max(2u, std::thread::hardware_concurrency()))),
       loader_("loader", 2),
+      setup_("setup", 2),
       pixels_(options.max_total_pixels) {
   // Every file is read through cinevol-reader: find it now, not at the first load.
   spdlog::info("reader: {}", reader_cage::ReaderPath().string());
@@ -159,6 +160,7 @@ ServiceCore::ServiceCore(const ServerOptions& options)
 }
 
 ServiceCore::~ServiceCore() {
+  setup_.Stop();  // first: what it creates is ended below
   std::vector<std::shared_ptr<Session>> open;
   {
     std::lock_guard lock(mu_);
@@ -187,8 +189,24 @@ void ServiceCore::RequireServing() const {
   if (draining_) throw RpcError(grpc::StatusCode::UNAVAILABLE, "the server is shutting down");
 }
 
+void ServiceCore::RequireRoomLocked(const Principal& caller) const {
+  if (int(sessions_.size()) >= options_.max_sessions) {
+    throw LimitExceeded(
+        grpc::StatusCode::RESOURCE_EXHAUSTED, "max-sessions",
+        fmt::format("this server holds its maximum of {} sessions (--max-sessions)", options_.max_sessions));
+  }
+  const auto own = std::count_if(sessions_.begin(), sessions_.end(),
+                                 [&](const auto& entry) { return entry.second->owner() == caller.name; });
+  if (own >= options_.max_sessions_per_principal) {
+    throw LimitExceeded(grpc::StatusCode::RESOURCE_EXHAUSTED, "max-sessions-per-principal",
+                        fmt::format("you hold {} sessions, this server's limit per user (--max-sessions-per-principal): "
+                                    "close one first",
+                                    own));
+  }
+}
+
 v1::CreateSessionResponse ServiceCore::CreateSession(const v1::CreateSessionRequest& request,
-                                                     const Principal& caller) {
+                                                     const Principal& caller, const std::atomic<bool>& cancelled) {
   RequireServing();
   std::shared_ptr<VolumeLease> volume = volumes_.Lease(request.volume_id(), caller);
   v1::Scene scene = InitialScene(request, *volume->volume(), options_.limits, volumes_);
@@ -198,25 +216,27 @@ v1::CreateSessionResponse ServiceCore::CreateSession(const v1::CreateSessionRequ
                                  request.volume_id()));
   }
   const FrameSettings settings = MergeStreamSettings(FrameSettings{}, request.stream(), "stream");
+  {
+    std::lock_guard lock(mu_);
+    RequireRoomLocked(caller);  // before the framing: a refusal costs no scan
+  }
+  auto require_caller = [&] {
+    if (cancelled) throw Cancelled("CreateSession: the caller went away; no session was created");
+  };
+  // The answer shows a named view's camera as framed: over the volume's
+  // blocks and, with a segmentation, every label voxel. Seconds for 512^3.
+  require_caller();
+  v1::Scene answered = scene;
+  AddResolvedCamera(answered, *volume->volume(), volume->labels().get());
+  require_caller();
   Scheduler& scheduler = LeastLoaded();
   SessionContext context{&scheduler, &encoder_, backend_, &options_.limits, &volumes_, &pixels_,
                          [this](const std::string& id) { Forget(id); }};
   std::shared_ptr<Session> session;
   {
     std::lock_guard lock(mu_);
-    if (int(sessions_.size()) >= options_.max_sessions) {
-      throw LimitExceeded(
-          grpc::StatusCode::RESOURCE_EXHAUSTED, "max-sessions",
-          fmt::format("this server holds its maximum of {} sessions (--max-sessions)", options_.max_sessions));
-    }
-    const auto own = std::count_if(sessions_.begin(), sessions_.end(),
-                                   [&](const auto& entry) { return entry.second->owner() == caller.name; });
-    if (own >= options_.max_sessions_per_principal) {
-      throw LimitExceeded(grpc::StatusCode::RESOURCE_EXHAUSTED, "max-sessions-per-principal",
-                     fmt::format("you hold {} sessions, this server's limit per user (--max-sessions-per-principal): "
-                                 "close one first",
-                                 own));
-    }
+    RequireServing();  // Drain() raises the flag, then ends what it finds here under mu_
+    RequireRoomLocked(caller);
     const std::string id = RandomSessionId();
     session = std::make_shared<Session>(id, caller.name, std::move(volume), scene, settings, std::move(context));
     sessions_[id] = session;
@@ -225,8 +245,7 @@ v1::CreateSessionResponse ServiceCore::CreateSession(const v1::CreateSessionRequ
                scheduler.name(), LogSafe(request.volume_id()), scene.render().width(), scene.render().height());
   v1::CreateSessionResponse response;
   response.set_session_id(session->id());
-  *response.mutable_scene() = std::move(scene);
-  AddResolvedCamera(*response.mutable_scene(), *session->volume()->volume(), session->volume()->labels().get());
+  *response.mutable_scene() = std::move(answered);
   response.set_device(scheduler.name());
   response.set_address(options_.advertise_address);
   return response;

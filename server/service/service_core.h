@@ -1,6 +1,6 @@
 // What the three services share: the volumes, the devices (one scheduler
-// per GPU, or one for the CPU), the encoder and loader pools, the sessions
-// and the limits. The gRPC service classes are thin shells over it.
+// per GPU, or one for the CPU), the encoder, loader and setup pools, the
+// sessions and the limits. The gRPC service classes are thin shells over it.
 #pragma once
 
 #include <atomic>
@@ -78,10 +78,19 @@ class ServiceCore {
   }
   VolumeRegistry& volumes() { return volumes_; }
   TaskPool& loader() { return loader_; }
+  // The work of calls that grows with a volume, apart from loads (which may
+  // take minutes) and frames (which must not wait behind it): a new session's
+  // framing over its volume and segmentation. Queues by caller, so one
+  // caller's creations delay another's by one at most per thread.
+  TaskPool& setup() { return setup_; }
   CallWatch& calls() { return calls_; }
   const ServerOptions& options() const { return options_; }
 
-  v1::CreateSessionResponse CreateSession(const v1::CreateSessionRequest& request, const Principal& caller);
+  // Reads the whole volume and segmentation (its framing): run it on setup().
+  // It stops (Cancelled) before the framing and before the session exists
+  // once `cancelled` is raised (the caller went away).
+  v1::CreateSessionResponse CreateSession(const v1::CreateSessionRequest& request, const Principal& caller,
+                                          const std::atomic<bool>& cancelled);
   std::shared_ptr<Session> FindSession(const std::string& id, const Principal& caller) const;
   void CloseSession(const std::string& id, const Principal& caller);
   // Renders a still of the session's current state on its device; `done`
@@ -115,6 +124,8 @@ class ServiceCore {
 
  private:
   bool HasRoomLocked() const;  // mu_ held
+  // Throws RESOURCE_EXHAUSTED unless `caller` may hold one more session; mu_ held.
+  void RequireRoomLocked(const Principal& caller) const;
   Scheduler& LeastLoaded();
   void Forget(const std::string& id);
 
@@ -124,6 +135,7 @@ class ServiceCore {
   VolumeRegistry volumes_;
   TaskPool encoder_;
   TaskPool loader_;
+  TaskPool setup_;
   CallWatch calls_;
   PixelBudget pixels_;
   std::vector<std::unique_ptr<Scheduler>> schedulers_;

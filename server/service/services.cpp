@@ -14,13 +14,44 @@
 namespace cinevol::service {
 namespace {
 
-// Answers a unary call at once with what `f` returns or throws.
+// Answers a unary call at once, on the gRPC thread, with what `f` returns or
+// throws: only for work that does not grow with a volume (else PooledReactor).
 template <class F>
 grpc::ServerUnaryReactor* Answer(ServiceCore* core, grpc::CallbackServerContext* context, F&& f) {
   grpc::ServerUnaryReactor* reactor = context->DefaultReactor();
   reactor->Finish(Guarded([&] { f(core->Authenticate(*context)); }));
   return reactor;
 }
+
+// A unary call answered from a pool, never on a gRPC thread: for work that
+// grows with a volume. The reactor finishes from the pool, in the caller's
+// queue there (pools take turns between callers). A caller that goes away
+// before its turn is answered CANCELLED without the work, which may check
+// `cancelled` between its steps.
+class PooledReactor final : public grpc::ServerUnaryReactor {
+ public:
+  using Work = std::function<void(const Principal& caller, const std::atomic<bool>& cancelled)>;
+
+  PooledReactor(grpc::CallbackServerContext* context, ServiceCore* core, TaskPool& pool, Work work) {
+    const grpc::Status status = Guarded([&] {
+      const Principal caller = core->Authenticate(*context);
+      core->RequireServing();
+      pool.Submit(
+          [this, caller, work = std::move(work)] {
+            // Nothing of `this` is touched after Finish: OnDone may delete it at once.
+            Finish(cancelled_ ? grpc::Status(grpc::StatusCode::CANCELLED, "the caller went away")
+                              : Guarded([&] { work(caller, cancelled_); }));
+          },
+          caller.name);
+    });
+    if (!status.ok()) Finish(status);
+  }
+  void OnCancel() override { cancelled_ = true; }
+  void OnDone() override { delete this; }
+
+ private:
+  std::atomic<bool> cancelled_{false};
+};
 
 // An upload: chunks go straight to a private file (memory stays bounded),
 // which is loaded on the loader pool once the client has sent everything.
@@ -282,7 +313,10 @@ grpc::ServerUnaryReactor* VolumeServiceImpl::UnloadVolume(grpc::CallbackServerCo
 grpc::ServerUnaryReactor* SessionServiceImpl::CreateSession(grpc::CallbackServerContext* context,
                                                             const v1::CreateSessionRequest* request,
                                                             v1::CreateSessionResponse* response) {
-  return Answer(core_, context, [&](const Principal& caller) { *response = core_->CreateSession(*request, caller); });
+  return new PooledReactor(context, core_, core_->setup(),
+                           [this, request, response](const Principal& caller, const std::atomic<bool>& cancelled) {
+                             *response = core_->CreateSession(*request, caller, cancelled);
+                           });
 }
 
 grpc::ServerBidiReactor<v1::ClientMessage, v1::ServerMessage>* SessionServiceImpl::StreamSession(

@@ -27,23 +27,26 @@ void TaskPool::Stop() {
   }
 }
 
-void TaskPool::Submit(std::function<void()> task) {
+void TaskPool::Submit(std::function<void()> task, const std::string& queue) {
   {
     std::lock_guard lock(mu_);
     if (stopping_) return;
-    tasks_.push_back(std::move(task));
+    std::deque<std::function<void()>>& tasks = queues_[queue];
+    if (tasks.empty()) turns_.push_back(queue);
+    tasks.push_back(std::move(task));
+    ++queued_;
   }
   cv_.notify_one();
 }
 
 int TaskPool::queued() const {
   std::lock_guard lock(mu_);
-  return static_cast<int>(tasks_.size());
+  return queued_;
 }
 
 int TaskPool::idle() const {
   std::lock_guard lock(mu_);
-  return std::max(0, threads() - running_ - static_cast<int>(tasks_.size()));
+  return std::max(0, threads() - running_ - queued_);
 }
 
 void TaskPool::Work() {
@@ -51,10 +54,20 @@ void TaskPool::Work() {
     std::function<void()> task;
     {
       std::unique_lock lock(mu_);
-      cv_.wait(lock, [&] { return stopping_ || !tasks_.empty(); });
-      if (tasks_.empty()) return;  // stopping, nothing left
-      task = std::move(tasks_.front());
-      tasks_.pop_front();
+      cv_.wait(lock, [&] { return stopping_ || queued_ > 0; });
+      if (queued_ == 0) return;  // stopping, nothing left
+      // The queue whose turn it is gives its oldest task, then waits behind the others.
+      const std::string queue = std::move(turns_.front());
+      turns_.pop_front();
+      auto it = queues_.find(queue);
+      task = std::move(it->second.front());
+      it->second.pop_front();
+      if (it->second.empty()) {
+        queues_.erase(it);
+      } else {
+        turns_.push_back(queue);
+      }
+      --queued_;
       ++running_;
     }
     try {

@@ -1,12 +1,17 @@
 // TLS, mutual TLS and bearer tokens: certificates made with the `openssl`
 // command at test time (a CA, a server certificate for 127.0.0.1/localhost,
 // clients alice and bob, and a stranger from another CA), real servers on
-// loopback, the token file's format and its reload on SIGHUP, and the listen
-// policy that keeps an unauthenticated server on loopback.
+// loopback, the token file's format and its reload on SIGHUP, what answers
+// without a token (health) and what does not (reflection, two tokens at
+// once), and the listen policy that keeps an unauthenticated server on
+// loopback.
 #include <gtest/gtest.h>
 #include <signal.h>
 #include <unistd.h>
 
+#include <google/protobuf/descriptor.pb.h>
+
+#include <algorithm>
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
@@ -15,6 +20,8 @@
 #include <vector>
 
 #include "core/error.h"
+#include "grpc/health/v1/health.grpc.pb.h"
+#include "grpc/reflection/v1alpha/reflection.grpc.pb.h"
 #include "server_process.h"
 #include "service/auth.h"
 #include "service/errors.h"
@@ -392,6 +399,112 @@ TEST(TlsAuth, ServerRefusesToStartOpenBeyondLoopbackOrWithBadTlsFiles) {
                           "--tls-client-ca", (scratch / "garbage.pem").string(), "--listen", "127.0.0.1:0"});
   EXPECT_EQ(code, 2) << out;
   EXPECT_TRUE(Contains(out, "--tls-client-ca")) << out;
+}
+
+// Reflection answers only callers the server authenticates (it lists every
+// method); health answers anyone (probes carry no token) and tells only
+// SERVING or not; a call with two authorization headers (two principals'
+// tokens, or one twice) is refused, whichever call it is.
+TEST(TlsAuth, ReflectionNeedsATokenHealthDoesNotAndTwoTokensAreRefused) {
+  ScratchDir scratch;
+  std::ofstream(scratch / "tokens") << "token-alice alice\ntoken-bob bob\n";
+  ServerProcess server(scratch.path(), {"--auth-tokens", (scratch / "tokens").string()});
+  ASSERT_TRUE(server.running()) << server.Log();
+  const auto channel = grpc::CreateChannel(server.address(), grpc::InsecureChannelCredentials());
+  auto with_tokens = [](grpc::ClientContext& context, const std::vector<std::string>& tokens) {
+    context.set_deadline(std::chrono::system_clock::now() + 10s);
+    for (const std::string& t : tokens) context.AddMetadata("authorization", "Bearer " + t);
+  };
+
+  auto health = grpc::health::v1::Health::NewStub(channel);
+  for (const char* service : {"", "cinevol.v1.SessionService"}) {
+    grpc::ClientContext context;
+    with_tokens(context, {});
+    grpc::health::v1::HealthCheckRequest request;
+    request.set_service(service);
+    grpc::health::v1::HealthCheckResponse response;
+    const grpc::Status status = health->Check(&context, request, &response);
+    ASSERT_TRUE(status.ok()) << "'" << service << "': " << status.error_message();
+    EXPECT_EQ(response.status(), grpc::health::v1::HealthCheckResponse::SERVING) << service;
+  }
+
+  namespace reflection = grpc::reflection::v1alpha;
+  auto reflection_stub = reflection::ServerReflection::NewStub(channel);
+  // One request on a new reflection stream: the call's status, and its answer in `response`.
+  auto ask = [&](const std::vector<std::string>& tokens, const reflection::ServerReflectionRequest& request,
+                 reflection::ServerReflectionResponse& response) {
+    grpc::ClientContext context;
+    with_tokens(context, tokens);
+    auto stream = reflection_stub->ServerReflectionInfo(&context);
+    stream->Write(request);
+    stream->WritesDone();
+    const bool answered = stream->Read(&response);
+    for (reflection::ServerReflectionResponse extra; stream->Read(&extra);) ADD_FAILURE() << "a second answer";
+    const grpc::Status status = stream->Finish();
+    return status.ok() && !answered ? grpc::Status(grpc::StatusCode::UNKNOWN, "no answer") : status;
+  };
+  reflection::ServerReflectionRequest list;
+  list.set_list_services("");
+  reflection::ServerReflectionResponse response;
+  EXPECT_EQ(ask({}, list, response).error_code(), grpc::StatusCode::UNAUTHENTICATED) << "no token";
+  EXPECT_EQ(ask({"token-mallory"}, list, response).error_code(), grpc::StatusCode::UNAUTHENTICATED);
+  EXPECT_EQ(ask({"token-alice", "token-bob"}, list, response).error_code(), grpc::StatusCode::UNAUTHENTICATED);
+  const grpc::Status listed = ask({"token-alice"}, list, response);
+  ASSERT_TRUE(listed.ok()) << listed.error_message();
+  std::vector<std::string> names;
+  for (const auto& service : response.list_services_response().service()) names.push_back(service.name());
+  for (const char* name : {"cinevol.v1.VolumeService", "cinevol.v1.SessionService", "cinevol.v1.ServerService",
+                           "grpc.health.v1.Health", "grpc.reflection.v1alpha.ServerReflection"}) {
+    EXPECT_NE(std::find(names.begin(), names.end(), name), names.end()) << name;
+  }
+
+  // Describing a service gives its file first, then the files it imports.
+  reflection::ServerReflectionRequest describe;
+  describe.set_file_containing_symbol("cinevol.v1.SessionService");
+  ASSERT_TRUE(ask({"token-bob"}, describe, response).ok());
+  std::vector<std::string> files;
+  bool creates = false;
+  for (const std::string& bytes : response.file_descriptor_response().file_descriptor_proto()) {
+    google::protobuf::FileDescriptorProto file;
+    ASSERT_TRUE(file.ParseFromString(bytes));
+    files.push_back(file.name());
+    for (const auto& service : file.service()) {
+      for (const auto& method : service.method()) creates |= service.name() == "SessionService" && method.name() == "CreateSession";
+    }
+  }
+  ASSERT_FALSE(files.empty());
+  EXPECT_EQ(files.front(), "cinevol/v1/service.proto");
+  EXPECT_NE(std::find(files.begin(), files.end(), "cinevol/v1/scene.proto"), files.end());
+  EXPECT_TRUE(creates);
+  describe.set_file_containing_symbol("grpc.health.v1.Health");
+  ASSERT_TRUE(ask({"token-bob"}, describe, response).ok());
+  EXPECT_EQ(response.file_descriptor_response().file_descriptor_proto_size(), 1);
+  describe.set_file_containing_symbol("cinevol.v1.NoSuchThing");
+  ASSERT_TRUE(ask({"token-bob"}, describe, response).ok());
+  EXPECT_EQ(response.error_response().error_code(), int(grpc::StatusCode::NOT_FOUND));
+
+  // Two authorization headers, on unary calls answered at once and from a pool alike.
+  auto server_stub = v1::ServerService::NewStub(channel);
+  auto session_stub = v1::SessionService::NewStub(channel);
+  for (const std::vector<std::string>& tokens : {std::vector<std::string>{"token-alice", "token-bob"},
+                                                 std::vector<std::string>{"token-alice", "token-alice"},
+                                                 std::vector<std::string>{"token-alice"}}) {
+    const bool one = tokens.size() == 1;
+    grpc::ClientContext status_context;
+    with_tokens(status_context, tokens);
+    v1::ServerStatus server_status;
+    const grpc::Status got = server_stub->GetStatus(&status_context, v1::GetStatusRequest(), &server_status);
+    EXPECT_EQ(got.error_code(), one ? grpc::StatusCode::OK : grpc::StatusCode::UNAUTHENTICATED) << got.error_message();
+    if (!one) {
+      EXPECT_TRUE(Contains(got.error_message(), "authorization")) << got.error_message();
+    }
+    grpc::ClientContext create_context;
+    with_tokens(create_context, tokens);
+    v1::CreateSessionResponse created;
+    const grpc::Status create = session_stub->CreateSession(&create_context, SmallSession(), &created);
+    EXPECT_EQ(create.error_code(), one ? grpc::StatusCode::OK : grpc::StatusCode::UNAUTHENTICATED)
+        << create.error_message();
+  }
 }
 
 TEST(TlsAuth, CliConnectsOverMutualTls) {
