@@ -13,6 +13,7 @@
 
 #include "bench.h"
 #include "io/file_checks.h"
+#include "io/reader_cage.h"
 #include "io/readers/reading.h"
 #include "io/volume_loader.h"
 
@@ -123,6 +124,7 @@ std::string Row(const std::string& spec, int runs) {
 }  // namespace
 
 int RunCageBench(const CageBenchOptions& options) {
+  reader_cage::KeepSpareReader();  // as the server does
   std::string table = fmt::format(
       "\n`{}` ({}; medians of {} loads each, alternating)\n\n"
       "| volume | voxels | type in the file | in process ms | caged ms | cage's cost ms | server peak bytes/voxel "

@@ -16,6 +16,7 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include <atomic>
 #include <chrono>
 #include <cmath>
 #include <cstdlib>
@@ -176,7 +177,10 @@ class Spare {
     return *spare;
   }
 
+  void Keep() { keep_ = true; }
+
   Started Take(const ReaderLimits& limits) {
+    if (!keep_) return StartReader(limits);
     std::optional<Started> ready;
     {
       std::lock_guard lock(mu_);
@@ -200,6 +204,7 @@ class Spare {
   }
 
  private:
+  std::atomic<bool> keep_{false};
   std::mutex mu_;
   std::optional<Started> spare_;
 };
@@ -513,6 +518,8 @@ void ObserveOutcomes(OutcomeObserver observer) {
   std::lock_guard lock(observer_mu);
   Observer() = std::move(observer);
 }
+
+void KeepSpareReader() { Spare::Get().Keep(); }
 
 bool KernelHasLandlock() {
   return syscall(SYS_landlock_create_ruleset, nullptr, 0, LANDLOCK_CREATE_RULESET_VERSION) >= 1;

@@ -71,6 +71,12 @@ void ObserveOutcomes(OutcomeObserver observer);
 // "OpenEXR".
 std::string ReaderName(int request_kind, const std::string& file_name);
 
+// Keeps one reader started ahead of need from then on, so that loads do not
+// wait for a process to start (tens of milliseconds: ITK's and GDCM's start-
+// up): for long-lived processes (the server); a command that reads one file
+// gains nothing from it.
+void KeepSpareReader();
+
 // Whether this kernel has Landlock, which confines a reader to its inputs
 // (without it, seccomp and rlimits alone wall it in).
 bool KernelHasLandlock();

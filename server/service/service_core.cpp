@@ -132,6 +132,7 @@ ServiceCore::ServiceCore(const ServerOptions& options)
                  "could open any file this server's user may read (docs/security.md#the-reader-cage)");
   }
   reader_cage::ObserveOutcomes([](std::string_view outcome) { ServerMetrics().ReaderEnded(outcome); });
+  reader_cage::KeepSpareReader();
   std::string why;
   const bool cuda = CudaAvailable(&why);
   if (options.backend == Backend::kCuda && !cuda) throw InputError("--backend cuda: no usable GPU: " + why);
