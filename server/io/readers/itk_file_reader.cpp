@@ -1,5 +1,7 @@
 // Volume files through ITK: NIfTI, NRRD/NHDR, MetaImage and VTK legacy.
+#include <gdcmGlobal.h>
 #include <gdcmTrace.h>
+#include <itkGDCMImageIO.h>
 #include <itkImageFileReader.h>
 #include <itkImageIOFactory.h>
 #include <itkMetaDataObject.h>
@@ -58,6 +60,15 @@ void InitToolkits() {
     gdcm::Trace::WarningOff();
     gdcm::Trace::DebugOff();
   });
+}
+
+void WarmUp() {
+  InitToolkits();
+  gdcm::Global::GetInstance().GetDicts();  // the DICOM dictionary
+  itk::GDCMImageIO::New();
+  for (const char* name : {"x.nii", "x.nrrd", "x.mha", "x.vtk"}) {
+    itk::ImageIOFactory::CreateImageIO(name, itk::IOFileModeEnum::ReadMode);
+  }
 }
 
 std::string ComponentName(itk::IOComponentEnum type) {

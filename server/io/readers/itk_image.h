@@ -17,6 +17,11 @@ namespace cinevol::itk_image {
 // from stderr (failures still throw). Safe to call from any thread, often.
 void InitToolkits();
 
+// InitToolkits, and what the readers would otherwise set up at their first
+// file (GDCM's dictionary, each format's reader): a child does it while it
+// waits for its request, so that a load does not wait for it.
+void WarmUp();
+
 // "int16", "uint8", "float32", ... for a file's voxel type.
 std::string ComponentName(itk::IOComponentEnum type);
 

@@ -97,13 +97,13 @@ int main(int argc, char** argv) {
   ReaderChannel channel{UniqueFd(kChannelFd)};
   try {
     reader::SetLimits(args.address_space, args.address_space_max, args.cpu_seconds);
+    itk_image::WarmUp();  // before the request: a spare does it while it waits
     std::vector<UniqueFd> inputs;
     reader::Request request = ReceiveRequest(channel, inputs);
     std::vector<int> fds;
     for (const UniqueFd& fd : inputs) fds.push_back(fd.get());
     const std::string work_dir = request.work_dir();
     reader::Job job(std::move(request), std::move(inputs));
-    itk_image::InitToolkits();  // before the walls: it may read what it needs
     reader::Enter(fds, work_dir, kChannelFd);
     try {
       Serve(channel, job);
