@@ -118,8 +118,8 @@ App::~App() {
 void App::Connect() {
   ConnectionSettings settings{cli::ToClientOptions(options.connection), options.session};
   // The session starts at the size the window shows it.
-  viewport_w_ = std::max(16, int(std::lround(frame_area.w * pixel_scale_)));
-  viewport_h_ = std::max(16, int(std::lround(frame_area.h * pixel_scale_)));
+  viewport_w_ = Pixels(frame_area.w);
+  viewport_h_ = Pixels(frame_area.h);
   settings.session.viewport.set_width(viewport_w_);
   settings.session.viewport.set_height(viewport_h_);
   connection = std::make_unique<Connection>(std::move(settings));
@@ -450,9 +450,10 @@ void App::DrawFrame() {
   SDL_RenderCopy(renderer_, texture_, nullptr, &dst);
 }
 
+int App::Pixels(float logical) const { return std::max(16, int(std::lround(logical * pixel_scale_))); }
+
 void App::ResizeViewportWhenSettled() {
-  const int w = std::max(16, int(std::lround(frame_area.w * pixel_scale_)));
-  const int h = std::max(16, int(std::lround(frame_area.h * pixel_scale_)));
+  const int w = Pixels(frame_area.w), h = Pixels(frame_area.h);
   if (w == viewport_w_ && h == viewport_h_) return;
   if (w != pending_w_ || h != pending_h_) {
     pending_w_ = w;
@@ -468,6 +469,8 @@ void App::ResizeViewportWhenSettled() {
   e.mutable_resize()->set_height(h);
   connection->Post(std::move(e));
 }
+
+bool App::ResizePending() const { return Pixels(frame_area.w) != viewport_w_ || Pixels(frame_area.h) != viewport_h_; }
 
 // ------------------------------------------------------- mouse and keys
 
@@ -596,7 +599,10 @@ void App::RunScript() {
   }
   last_script_tick_ = Clock::now();
   const double t = std::chrono::duration<double>(last_script_tick_ - *script_start_).count();
-  while (!settling_ && next_step_ < steps_.size() && steps_[next_step_].at <= t) {
+  // A screenshot shows the window as the lines before it left it, so it ends
+  // this turn's lines: it is read once this turn is drawn, and a slow turn
+  // (a loaded machine) can leave later lines due already, such as a resize.
+  while (!settling_ && screenshots_.empty() && next_step_ < steps_.size() && steps_[next_step_].at <= t) {
     const cli::ScriptStep& step = steps_[next_step_++];
     if (!step.ui.empty()) {
       RunUiAction(step.ui, step.line);
@@ -625,8 +631,13 @@ void App::RunScript() {
 }
 
 bool App::EventsAnswered() const {
-  return !camera_dirty_ && stats.last_frame_id > 0 && stats.last.last_event_seq() >= connection->last_sent() &&
-         connection->idle();
+  // A resized window is an event not sent yet (it waits for the window to
+  // hold still), and the frame on screen is still of the old size.
+  if (camera_dirty_ || ResizePending() || stats.last_frame_id == 0) return false;
+  // idle() before last_sent(): once nothing waits to be sent, last_sent()
+  // counts every event posted; read first, it could miss events sent meanwhile.
+  if (!connection->idle()) return false;
+  return stats.last.last_event_seq() >= connection->last_sent();
 }
 
 bool App::ScriptDone() {

@@ -119,10 +119,12 @@ class App {
   void UploadFrame(const ViewFrame& frame);
   void Layout();
   void DrawFrame();
+  int Pixels(float logical) const;  // a length of the frame area in frame pixels (at least 16)
   void ResizeViewportWhenSettled();
+  bool ResizePending() const;  // the frame area's size is not yet the session's viewport
   void RunScript();
   void RunUiAction(const std::string& json, int line);
-  bool EventsAnswered() const;  // every event sent has its frame on screen
+  bool EventsAnswered() const;  // every event sent, and the window's size, has its frame on screen
   bool ScriptDone();
   void WriteScreenshot(const std::string& path);
 

@@ -221,6 +221,35 @@ TEST(Viewer, ShowsTheVolumeStatsAndPanelsAndFollowsEdits) {
   EXPECT_EQ(int(size[1].number_value()), RegionOf(layout, "frame").h);
 }
 
+// Every frame final from the first (targetSpp 1), and the lines due in one
+// turn: the screenshot must still show the window before the resize after
+// it, and the script must not end on the final frame of the old size.
+TEST(Viewer, AScreenshotPrecedesLaterLinesAndTheEndWaitsForTheResizedFrame) {
+  CINEVOL_REQUIRE_VIEWER();
+  ScratchDir scratch;
+  ServerProcess server(scratch.path());
+  ASSERT_TRUE(server.running()) << server.Log();
+  const fs::path before = scratch.path() / "before.png", last = scratch.path() / "last.png";
+  const fs::path script = WriteScript(scratch.path() / "resize.jsonl", fmt::format(R"({{"session": {{"stream": {{"targetSpp": 1}}}}}}
+{{"at": 0, "ui": {{"settle": true}}}}
+{{"at": 0, "ui": {{"screenshot": "{}"}}}}
+{{"at": 0, "ui": {{"resizeWindow": {{"width": 700, "height": 420}}}}}}
+)", before.string()));
+  const ViewerRun run = RunViewer(scratch.path(), {"--server", server.address(), "--script", script.string(),
+                                                   "--screenshot", last.string()});
+  ASSERT_EQ(run.exit_code, 0) << run.output;
+
+  auto window_width = [](const google::protobuf::Struct& layout) {
+    return layout.fields().at("window").list_value().values(0).number_value();
+  };
+  EXPECT_EQ(window_width(ReadLayout(before)), 640) << "the screenshot shows the resize after it";
+  const google::protobuf::Struct layout = ReadLayout(last);
+  const auto& size = layout.fields().at("frameSize").list_value().values();
+  EXPECT_EQ(window_width(layout), 700);
+  EXPECT_EQ(int(size[0].number_value()), RegionOf(layout, "frame").w) << "the script ended before the resized frame";
+  EXPECT_EQ(int(size[1].number_value()), RegionOf(layout, "frame").h);
+}
+
 TEST(Viewer, ASessionLostWithItsServerIsReplacedWithTheViewersState) {
   CINEVOL_REQUIRE_VIEWER();
   ScratchDir scratch;
