@@ -134,8 +134,9 @@ CINEVOL_HD Vec3f MapUvToDirection(float u, float v, float rotation) {
 }
 
 CINEVOL_HD int MapTexelIndex(const EnvironmentMapView& m, float u, float v) {
-  const int x = MinInt(static_cast<int>(u * float(m.width)), m.width - 1);
-  const int y = MinInt(static_cast<int>(v * float(m.height)), m.height - 1);
+  // Clamped both ways: a direction that is not a number must still read a texel.
+  const int x = MaxInt(0, MinInt(static_cast<int>(u * float(m.width)), m.width - 1));
+  const int y = MaxInt(0, MinInt(static_cast<int>(v * float(m.height)), m.height - 1));
   return y * m.width + x;
 }
 

@@ -30,10 +30,18 @@ TransferPoint Evaluate(const TransferFunction& tf, float value);
 // The largest opacity the function takes over [lo, hi].
 float MaxOpacity(const TransferFunction& tf, float lo, float hi);
 
+// Gradient factors above this act as this: the surface probability
+// opacity * (1 - exp(-25 g^3 |grad|)) is then the opacity wherever the
+// normalised gradient passes 1e-9 (a billionth of the value range per voxel),
+// and g^3 stays finite.
+inline constexpr float kMaxGradientFactor = 1000.0f;
+
 // The transfer function sampled at `kEntries` values evenly spaced over
-// [value_min, value_max] (the volume's range). The renderer interpolates
-// linearly between entries; the majorant grid bounds extinction from the
-// same entries, so bounds are exact for what is rendered.
+// [value_min, value_max] (the volume's range; a constant volume's gets a
+// width). The renderer interpolates linearly between entries; the majorant
+// grid bounds extinction from the same entries, so bounds are exact for what
+// is rendered. Extinction is clamped to `max_sigma_t` (per mm), the gradient
+// factor to kMaxGradientFactor.
 struct TransferTable {
   static constexpr int kEntries = 4096;
   float value_min = 0, value_max = 1;
@@ -46,6 +54,7 @@ struct TransferTable {
   bool has_emission = false;
 };
 
-TransferTable BuildTransferTable(const TransferFunction& tf, float value_min, float value_max);
+TransferTable BuildTransferTable(const TransferFunction& tf, float value_min, float value_max,
+                                 float max_sigma_t = 3.4e38f);
 
 }  // namespace cinevol

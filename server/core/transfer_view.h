@@ -28,6 +28,9 @@ struct TransferView {
   float gradient_factor = 0;                 // >= 0
   float gradient_normaliser = 0;             // |grad stored| * this = normalised gradient magnitude
   float phase_g = 0;
+  // Extinction (per mm) never exceeds this: the tables are clamped to it, and
+  // so are labels' scaled extinctions (render/scene_data.h, kMaxOpticalDepthPerVoxel).
+  float max_sigma_t = 3.4e38f;
 
   // Fractional table position of a stored voxel value.
   CINEVOL_HD float Entry(float stored) const {

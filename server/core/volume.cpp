@@ -216,7 +216,12 @@ void Volume::Store(MemoryBlock voxels) {
     stored_offset_ = lo;
     const double offset = scan.lo;
     voxels_ = ConvertBlock<T, std::uint16_t>(std::move(voxels), n, [=](T v) {
-      return static_cast<std::uint16_t>(double(Sanitised(v, lo, hi)) - offset);
+      // From the value itself where it is finite: through float, integers
+      // past 2^24 round, to below the offset too.
+      bool finite = true;
+      if constexpr (std::is_floating_point_v<T>) finite = std::isfinite(v);
+      const double exact = finite ? double(v) : double(Sanitised(v, lo, hi));
+      return static_cast<std::uint16_t>(std::clamp(std::nearbyint(exact - offset), 0.0, 65535.0));
     });
   } else {
     storage_ = VoxelStorage::kFloat32;

@@ -1,6 +1,7 @@
 // Label volumes and label tables.
 #include "io/label_volume.h"
 
+#include <fmt/format.h>
 #include <spdlog/spdlog.h>
 
 #include <array>
@@ -75,8 +76,7 @@ std::vector<std::uint16_t> IntegerLabels(const Volume& v, const std::string& sho
   for (std::size_t i = 0; i < out.size(); ++i) {
     const float value = v.ValueAtIndex(i);
     if (!(value >= 0.0f && value <= 65535.0f) || value != std::floor(value)) {
-      throw InputError(shown + ": voxel " + std::to_string(i) + " holds " + std::to_string(value) +
-                       ", not an integer label in [0, 65535]");
+      throw InputError(fmt::format("{}: voxel {} holds {:g}, not an integer label in [0, 65535]", shown, i, value));
     }
     out[i] = static_cast<std::uint16_t>(value);
   }
@@ -138,9 +138,9 @@ LabelVolume FitLabels(const Volume& labels, const Volume& image, const std::stri
         b[r] += inv[3 * r + c] * (to_patient.origin[c] - label_to_patient.origin[c]);
       }
     }
-    if (!std::isfinite(a[0] + a[4] + a[8] + b[0] + b[1] + b[2])) {
-      throw InputError(shown + ": its direction cosines are singular");
-    }
+    bool finite = std::isfinite(b[0]) && std::isfinite(b[1]) && std::isfinite(b[2]);
+    for (double e : a) finite &= std::isfinite(e);
+    if (!finite) throw InputError(shown + ": its direction cosines are singular");
     const Vec3i n = image.dims(), m = labels.dims();
     out.labels.assign(image.voxel_count(), 0);
     std::vector<std::size_t> inside_per_slice(n.z, 0);
@@ -149,10 +149,12 @@ LabelVolume FitLabels(const Volume& labels, const Volume& image, const std::stri
         for (int x = 0; x < n.x; ++x) {
           int q[3];
           bool inside = true;
-          for (int r = 0; r < 3; ++r) {
-            const double v = a[3 * r] * x + a[3 * r + 1] * y + a[3 * r + 2] * double(z) + b[r];
-            q[r] = static_cast<int>(std::floor(v + 0.5));
-            inside &= q[r] >= 0 && q[r] < m[r];
+          for (int r = 0; r < 3 && inside; ++r) {
+            // Compared as a double first: grids far apart or of very
+            // different spacings map to indices no int holds.
+            const double v = std::floor(a[3 * r] * x + a[3 * r + 1] * y + a[3 * r + 2] * double(z) + b[r] + 0.5);
+            inside = v >= 0.0 && v < double(m[r]);
+            if (inside) q[r] = static_cast<int>(v);
           }
           if (!inside) continue;
           ++inside_per_slice[z];

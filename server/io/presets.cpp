@@ -1,6 +1,7 @@
 // Presets onto volumes, default presets by kind, and the preset scene.
 #include "io/presets.h"
 
+#include <algorithm>
 #include <cmath>
 
 #include <fmt/format.h>
@@ -68,7 +69,9 @@ const PresetDefinition& FindPreset(std::string_view name) {
 ValueWindow AutoWindow(const ValueHistogram& histogram) {
   ValueWindow w{histogram.OtsuThreshold(), 0};
   w.hi = histogram.Percentile(0.995, w.lo);
-  if (!(w.hi > w.lo)) w.hi = histogram.max_value > w.lo ? histogram.max_value : w.lo + 1.0f;
+  // A constant volume's window is one unit wide, or where that is below the
+  // value's precision, a millionth of the value (as its transfer table's).
+  if (!(w.hi > w.lo)) w.hi = histogram.max_value > w.lo ? histogram.max_value : w.lo + std::max(1.0f, std::abs(w.lo) * 1e-6f);
   return w;
 }
 

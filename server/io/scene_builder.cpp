@@ -1,11 +1,13 @@
 // From the proto scene model to renderer inputs.
 #include "io/scene_builder.h"
 
+#include <algorithm>
 #include <cmath>
 
 #include "encode/image_codecs.h"
 #include "io/presets.h"
 #include "io/reader_cage.h"
+#include "io/scene_file.h"
 
 namespace cinevol {
 namespace {
@@ -248,8 +250,16 @@ LightSetup ResolveLights(const google::protobuf::RepeatedPtrField<v1::Light>& li
           policy.cancel = cancel;
           env.map = reader_cage::ReadExrImage(
               e.map(), "environment map '" + std::filesystem::path(e.map()).filename().string() + "'", policy);
-          for (Vec3f& p : env.map.pixels) p *= k;
-          env.rotation = e.rotation_deg() * kPi / 180.0f;
+          // Texels become radiance under the scene's limit (kMaxRadiance): a
+          // map's NaN, infinite or negative texels give none.
+          for (Vec3f& p : env.map.pixels) {
+            for (int c = 0; c < 3; ++c) {
+              const float radiance = p[c] * k;
+              p[c] = radiance >= 0.0f ? std::min(radiance, kMaxRadiance) : 0.0f;
+            }
+          }
+          // Within one turn first: FLT_MAX degrees in radians overflows float.
+          env.rotation = float(std::remainder(double(e.rotation_deg()), 360.0) * kPi / 180.0);
         }
         continue;  // not a Light
       }

@@ -3,6 +3,7 @@
 
 #include <google/protobuf/util/json_util.h>
 
+#include <algorithm>
 #include <cmath>
 #include <fstream>
 #include <set>
@@ -30,15 +31,34 @@ class Problems {
     if (!std::isfinite(v)) Add(field, fmt::format("{} is not a finite number", v));
   }
   void InRange(const std::string& field, float v, float lo, float hi) {
-    if (!std::isfinite(v) || v < lo || v > hi) Add(field, fmt::format("{} is outside [{}, {}]", v, lo, hi));
+    if (!std::isfinite(v) || v < lo || v > hi) Add(field, fmt::format("{:g} is outside [{:g}, {:g}]", v, lo, hi));
   }
   void NonNegative(const std::string& field, float v) {
     if (!std::isfinite(v) || v < 0) Add(field, fmt::format("{} must be a finite number >= 0", v));
   }
   void Vec(const std::string& field, const v1::Vec3& v) {
-    Finite(field + ".x", v.x());
-    Finite(field + ".y", v.y());
-    Finite(field + ".z", v.z());
+    InRange(field + ".x", v.x(), -kMaxSceneMm, kMaxSceneMm);
+    InRange(field + ".y", v.y(), -kMaxSceneMm, kMaxSceneMm);
+    InRange(field + ".z", v.z(), -kMaxSceneMm, kMaxSceneMm);
+  }
+  // A vector that gives a direction: also long enough to normalise.
+  void Direction(const std::string& field, const v1::Vec3& v);
+  // A light's `field`.color and `field`.intensity: what they emit together
+  // stays within kMaxRadiance.
+  void Emitted(const std::string& field, const v1::Color& color, float intensity) {
+    Color(field + ".color", color);
+    if (std::isfinite(intensity) && intensity >= 0 && intensity <= kMaxRadiance) {
+      Brightness(field + ".intensity", color, intensity);
+    } else {
+      InRange(field + ".intensity", intensity, 0, kMaxRadiance);
+    }
+  }
+  // Colour x intensity at most kMaxRadiance in every channel; `field` is named.
+  void Brightness(const std::string& field, const v1::Color& color, float intensity) {
+    const double brightest = std::max({color.r(), color.g(), color.b()}) * double(intensity);
+    if (std::isfinite(brightest) && brightest > kMaxRadiance) {
+      Add(field, fmt::format("colour x intensity is {:g}, over the limit of {:g}", brightest, kMaxRadiance));
+    }
   }
   void Color(const std::string& field, const v1::Color& c, float hi = INFINITY) {
     InRange(field + ".r", c.r(), 0, hi);
@@ -53,20 +73,30 @@ class Problems {
 
 double Norm(const v1::Vec3& v) { return std::sqrt(double(v.x()) * v.x() + double(v.y()) * v.y() + double(v.z()) * v.z()); }
 
+void Problems::Direction(const std::string& field, const v1::Vec3& v) {
+  Vec(field, v);
+  if (!(Norm(v) >= kMinDirectionLength)) {
+    Add(field, fmt::format("is shorter than {:g}: no direction", kMinDirectionLength));
+  }
+}
+
+// Area lights smaller than this (mm^2) have no normal float can hold.
+constexpr double kMinArea = 1e-6;
+
+// |a x b| in double: float squares of what validation allows overflow or vanish.
+double CrossNorm(const v1::Vec3& a, const v1::Vec3& b) {
+  const double x = double(a.y()) * b.z() - double(a.z()) * b.y();
+  const double y = double(a.z()) * b.x() - double(a.x()) * b.z();
+  const double z = double(a.x()) * b.y() - double(a.y()) * b.x();
+  return std::sqrt(x * x + y * y + z * z);
+}
+
 v1::Vec3 Sub(const v1::Vec3& a, const v1::Vec3& b) {
   v1::Vec3 d;
   d.set_x(a.x() - b.x());
   d.set_y(a.y() - b.y());
   d.set_z(a.z() - b.z());
   return d;
-}
-
-v1::Vec3 CrossV(const v1::Vec3& a, const v1::Vec3& b) {
-  v1::Vec3 c;
-  c.set_x(a.y() * b.z() - a.z() * b.y());
-  c.set_y(a.z() * b.x() - a.x() * b.z());
-  c.set_z(a.x() * b.y() - a.y() * b.x());
-  return c;
 }
 
 void ValidateVolume(const v1::VolumeSource& v, Problems& p) {
@@ -110,7 +140,7 @@ void ValidateTransferFunction(const v1::TransferFunction& tf, const std::string&
     p.Color(at + ".diffuse", pt.diffuse(), 1);
     p.Color(at + ".specular", pt.specular(), 1);
     p.InRange(at + ".roughness", pt.roughness(), 0, 1);
-    p.Color(at + ".emission", pt.emission());
+    p.Color(at + ".emission", pt.emission(), kMaxRadiance);
   }
   p.InRange(f + ".densityScale", tf.density_scale(), 0, 1e6f);
   p.NonNegative(f + ".gradientFactor", tf.gradient_factor());
@@ -149,17 +179,16 @@ void ValidateCamera(const v1::Camera& c, Problems& p) {
     const v1::Vec3 forward = Sub(c.target(), c.eye());
     if (Norm(forward) == 0.0) p.Add("camera.target", "equals camera.eye; the camera has no direction");
     if (c.has_up()) {
-      p.Vec("camera.up", c.up());
-      if (Norm(c.up()) == 0.0) {
-        p.Add("camera.up", "is the zero vector");
-      } else if (Norm(forward) > 0.0 && Norm(CrossV(forward, c.up())) <= 1e-6 * Norm(forward) * Norm(c.up())) {
+      p.Direction("camera.up", c.up());
+      if (Norm(c.up()) >= kMinDirectionLength && Norm(forward) > 0.0 &&
+          CrossNorm(forward, c.up()) <= 1e-6 * Norm(forward) * Norm(c.up())) {
         p.Add("camera.up", "is parallel to the viewing direction (target - eye)");
       }
     }
   }
   p.InRange("camera.fovYDeg", c.fov_y_deg(), 1e-3f, 170.0f);
-  p.NonNegative("camera.apertureMm", c.aperture_mm());
-  p.NonNegative("camera.focalDistanceMm", c.focal_distance_mm());
+  p.InRange("camera.apertureMm", c.aperture_mm(), 0, kMaxSceneMm);
+  p.InRange("camera.focalDistanceMm", c.focal_distance_mm(), 0, kMaxSceneMm);
   p.InRange("camera.exposure", c.exposure(), -20, 20);
 }
 
@@ -177,7 +206,7 @@ void ValidateClipping(const v1::Clipping& c, Problems& p) {
       p.Vec("clipping.cropBox.axisX", b.axis_x());
       p.Vec("clipping.cropBox.axisY", b.axis_y());
       if (!(Norm(b.axis_x()) >= 1e-6 && Norm(b.axis_y()) >= 1e-6 &&
-            Norm(CrossV(b.axis_x(), b.axis_y())) > 1e-3 * Norm(b.axis_x()) * Norm(b.axis_y()))) {
+            CrossNorm(b.axis_x(), b.axis_y()) > 1e-3 * Norm(b.axis_x()) * Norm(b.axis_y()))) {
         p.Add("clipping.cropBox", "axisX and axisY must both be set, of length at least 1e-6 and not parallel");
       }
     }
@@ -198,41 +227,38 @@ void ValidateLight(const v1::Light& l, const std::string& at, bool& seen_environ
       p.Vec(at + ".area.center", a.center());
       p.Vec(at + ".area.edgeU", a.edge_u());
       p.Vec(at + ".area.edgeV", a.edge_v());
-      if (!(Norm(CrossV(a.edge_u(), a.edge_v())) > 0.0)) {
-        p.Add(at + ".area", "zero area: edgeU x edgeV is the zero vector");
+      if (!(CrossNorm(a.edge_u(), a.edge_v()) >= kMinArea)) {
+        p.Add(at + ".area", fmt::format("zero area: |edgeU x edgeV| is {:g} mm^2, under {:g}",
+                                        CrossNorm(a.edge_u(), a.edge_v()), kMinArea));
       }
-      p.Color(at + ".area.color", a.color());
-      p.NonNegative(at + ".area.intensity", a.intensity());
+      p.Emitted(at + ".area", a.color(), a.intensity());
       break;
     }
     case v1::Light::kPoint:
       p.Vec(at + ".point.position", l.point().position());
-      p.Color(at + ".point.color", l.point().color());
-      p.NonNegative(at + ".point.intensity", l.point().intensity());
+      p.Emitted(at + ".point", l.point().color(), l.point().intensity());
       break;
     case v1::Light::kDirectional:
-      p.Vec(at + ".directional.direction", l.directional().direction());
-      if (!(Norm(l.directional().direction()) > 0.0)) {
-        p.Add(at + ".directional.direction", "is the zero vector");
-      }
-      p.Color(at + ".directional.color", l.directional().color());
-      p.NonNegative(at + ".directional.intensity", l.directional().intensity());
+      p.Direction(at + ".directional.direction", l.directional().direction());
+      p.Emitted(at + ".directional", l.directional().color(), l.directional().intensity());
       break;
     case v1::Light::kEnvironment: {
       const auto& e = l.environment();
       if (seen_environment) p.Add(at + ".environment", "a second environment light; at most one is allowed");
       seen_environment = true;
-      p.NonNegative(at + ".environment.intensity", e.intensity());
+      p.InRange(at + ".environment.intensity", e.intensity(), 0, kMaxRadiance);
       p.Finite(at + ".environment.rotationDeg", e.rotation_deg());
-      if (e.has_uniform()) p.Color(at + ".environment.uniform", e.uniform());
+      // The sky's colours under the same limit as lights'.
+      auto sky = [&](const std::string& field, const v1::Color& c) {
+        p.Color(field, c);
+        p.Brightness(field, c, e.intensity());
+      };
+      if (e.has_uniform()) sky(at + ".environment.uniform", e.uniform());
       if (e.has_gradient()) {
-        p.Color(at + ".environment.gradient.zenith", e.gradient().zenith());
-        p.Color(at + ".environment.gradient.horizon", e.gradient().horizon());
-        p.Color(at + ".environment.gradient.ground", e.gradient().ground());
-        if (e.gradient().has_up()) {
-          p.Vec(at + ".environment.gradient.up", e.gradient().up());
-          if (!(Norm(e.gradient().up()) > 0.0)) p.Add(at + ".environment.gradient.up", "is the zero vector");
-        }
+        sky(at + ".environment.gradient.zenith", e.gradient().zenith());
+        sky(at + ".environment.gradient.horizon", e.gradient().horizon());
+        sky(at + ".environment.gradient.ground", e.gradient().ground());
+        if (e.gradient().has_up()) p.Direction(at + ".environment.gradient.up", e.gradient().up());
       }
       if (e.radiance_case() == v1::EnvironmentLight::kMap && e.map().empty()) {
         p.Add(at + ".environment.map", "is empty");

@@ -12,6 +12,17 @@
 
 namespace cinevol {
 
+// What validation takes of values at the extremes (docs/rendering.md,
+// "Values at the extremes"): every position and vector component, and the
+// camera's aperture and focal distance, within +-kMaxSceneMm (a thousand km:
+// past it float positions are metres apart and squared lengths overflow);
+// directions at least kMinDirectionLength long (shorter ones square to 0);
+// a light's colour x intensity, per channel, and transfer-function emission
+// at most kMaxRadiance, so that sums over samples and frames stay finite.
+inline constexpr float kMaxSceneMm = 1e9f;
+inline constexpr float kMinDirectionLength = 1e-6f;
+inline constexpr float kMaxRadiance = 1e12f;
+
 // Parses, fills defaults and validates; throws InputError listing every
 // problem. Relative volume and environment-map paths are resolved against
 // `base_dir` (left as they are when it is empty).

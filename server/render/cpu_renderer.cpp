@@ -18,9 +18,13 @@ using RenderFrameFn = void (*)(const RenderScene&, const FrameTargets&, int thre
 
 template <unsigned kFeatures>
 void RenderFrame(const RenderScene& scene, const FrameTargets& targets, int threads, const std::atomic<bool>* cancel) {
+  // Every pixel looks at the flag: a pixel costs at most spp paths of
+  // bounded cost (integrator.h), so a cancel is seen within that.
   ParallelFor(scene.camera.height, [&](std::int64_t y) {
-    if (cancel && cancel->load(std::memory_order_relaxed)) return;
-    for (int x = 0; x < scene.camera.width; ++x) RenderPixel<kFeatures>(scene, x, int(y), targets);
+    for (int x = 0; x < scene.camera.width; ++x) {
+      if (cancel && cancel->load(std::memory_order_relaxed)) return;
+      RenderPixel<kFeatures>(scene, x, int(y), targets);
+    }
   }, threads);
 }
 

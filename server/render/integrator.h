@@ -6,6 +6,11 @@
 //
 // Bounces count scattering events: max_bounces = 0 shows emission and the
 // lights seen directly through the volume; 1 is single scattering.
+//
+// What one path costs is bounded: at most kMaxPathCollisions tentative
+// collisions (volume lookups) over all its free flights and shadow rays, plus
+// one DDA step per brick each of its at most 2 * max_bounces + 1 tracking
+// calls crosses (docs/rendering.md, "Values at the extremes").
 #pragma once
 
 #include "core/rng.h"
@@ -41,16 +46,25 @@ class PathTracer {
 
   CINEVOL_HD PathTracer(const RenderScene& scene, Pcg32& rng) : s_(scene), rng_(rng) {}
 
+  // Tentative collisions the paths traced so far took from the budget
+  // (kMaxPathCollisions per path), and how many of those paths it ended.
+  CINEVOL_HD int collisions() const { return collisions_; }
+  CINEVOL_HD int budget_ends() const { return budget_ends_; }
+
   CINEVOL_HD PathResult Trace(Ray ray) {
     PathResult result;
     Vec3f beta{1, 1, 1};
     float scatter_pdf = 0.0f;  // pdf of the direction `ray` was sampled with
+    budget_ = kMaxPathCollisions;
     const int max_bounces = kMultiple ? s_.max_bounces : MinInt(s_.max_bounces, 1);
     for (int depth = 0;; ++depth) {
       float t_hit = 0.0f;
       Classified hit;
       const Collision c = NextCollision(ray, t_hit, hit);
-      if (c == Collision::kAbsorbedByBudget) break;
+      if (c == Collision::kAbsorbedByBudget) {
+        ++budget_ends_;
+        break;
+      }
       const bool from_camera = depth == 0;
       result.radiance += beta * CrossedLights(ray, c == Collision::kHit ? t_hit : kInfiniteDistance,
                                               scatter_pdf, from_camera);
@@ -91,6 +105,7 @@ class PathTracer {
         }
       }
     }
+    collisions_ += kMaxPathCollisions - MaxInt(budget_, 0);
     return result;
   }
 
@@ -110,7 +125,7 @@ class PathTracer {
       return s_.transfer.SigmaT(c.entry);
     } else {
       c.label = s_.labels.At(s_.volume, p);
-      return c.label.opacity_scale * s_.transfer.SigmaT(c.entry, c.label.table);
+      return fminf(c.label.opacity_scale * s_.transfer.SigmaT(c.entry, c.label.table), s_.transfer.max_sigma_t);
     }
   }
 
@@ -147,7 +162,7 @@ class PathTracer {
       }
     }
     bool found = false;
-    const TrackResult r = SampleMajorant(s_.majorants, ray.origin, ray.direction, t0, t1, rng_,
+    const TrackResult r = SampleMajorant(s_.majorants, ray.origin, ray.direction, t0, t1, rng_, budget_,
                                          [&](float t, float sigma_maj) {
                                            Classified c;
                                            if (rng_.Uniform() * sigma_maj >= Extinction(ray.origin + ray.direction * t, c)) return true;
@@ -168,7 +183,7 @@ class PathTracer {
     t1 = fminf(t1, distance);
     if (!(t0 < t1)) return 1.0f;
     float transmittance = 1.0f;
-    const TrackResult r = SampleMajorant(s_.majorants, p, w, t0, t1, rng_, [&](float t, float sigma_maj) {
+    const TrackResult r = SampleMajorant(s_.majorants, p, w, t0, t1, rng_, budget_, [&](float t, float sigma_maj) {
       Classified c;
       transmittance *= fmaxf(0.0f, 1.0f - Extinction(p + w * t, c) / sigma_maj);
       if (transmittance < 0.05f) {
@@ -254,6 +269,8 @@ class PathTracer {
   Pcg32& rng_;
   bool cap_ = false;   // the last collision is on a capped face, with this normal (on the ray's side)
   Vec3f cap_normal_{};
+  int budget_ = kMaxPathCollisions;  // tentative collisions left to the path being traced
+  int collisions_ = 0, budget_ends_ = 0;
 };
 
 // Renders pixel (x, y): spp paths, stratified per frame, seeded by (seed,

@@ -95,29 +95,35 @@ class MajorantIterator {
   AxisState x_, y_, z_;
 };
 
-// Hard cap on tentative collisions per call: extinction up to 1e6 per mm in a
-// brick that is otherwise thin could take millions of null collisions; the
-// cap keeps every frame's time bounded (a path that reaches it ends there).
-inline constexpr int kMaxTentativeCollisions = 1 << 16;
+// Hard cap on the tentative collisions of one path, over all its tracking
+// calls (free flights and shadow rays together): with it, a path's cost is
+// bounded whatever the transfer function. A path that reaches it ends there,
+// as if absorbed. Extinction is clamped per voxel (kMaxOpticalDepthPerVoxel,
+// render/scene_data.h), so that takes about 2000 voxels of majorant at the
+// clamp without a real collision: no ordinary path comes near it.
+inline constexpr int kMaxPathCollisions = 1 << 16;
 
 enum class TrackResult { kLeftRange, kStopped, kBudgetExhausted };
 
 // Draws tentative collisions along o + t d in [t_min, t_max]. For each one
-// calls on_collision(t, sigma_maj), which returns false to stop.
+// calls on_collision(t, sigma_maj), which returns false to stop. Each
+// collision takes one from `budget`; none left: kBudgetExhausted.
 template <class OnCollision>
 CINEVOL_HD TrackResult SampleMajorant(const MajorantGridView& grid, Vec3f o, Vec3f d, float t_min,
-                                      float t_max, Pcg32& rng, OnCollision&& on_collision) {
+                                      float t_max, Pcg32& rng, int& budget, OnCollision&& on_collision) {
   MajorantIterator it(grid, o, d, t_min, t_max);
   MajorantSegment seg;
-  int budget = kMaxTentativeCollisions;
   while (it.Next(seg)) {
     if (seg.sigma_maj <= 0.0f) continue;  // empty space: skipped
-    float t = seg.t_min;
+    // Steps add up from the segment's start, not onto t: far from the ray's
+    // origin a step smaller than t's precision would leave t where it was.
+    const float length = seg.t_max - seg.t_min;
+    float dt = 0.0f;
     while (true) {
-      t -= logf(1.0f - rng.Uniform()) / seg.sigma_maj;
-      if (t >= seg.t_max) break;  // memoryless: restart in the next segment
+      dt -= logf(1.0f - rng.Uniform()) / seg.sigma_maj;
+      if (dt >= length) break;  // memoryless: restart in the next segment
       if (--budget < 0) return TrackResult::kBudgetExhausted;
-      if (!on_collision(t, seg.sigma_maj)) return TrackResult::kStopped;
+      if (!on_collision(fminf(seg.t_min + dt, seg.t_max), seg.sigma_maj)) return TrackResult::kStopped;
     }
   }
   return TrackResult::kLeftRange;

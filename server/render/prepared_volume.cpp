@@ -3,6 +3,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <stdexcept>
 #include <type_traits>
 
@@ -71,12 +72,16 @@ PreparedVolume::PreparedVolume(std::shared_ptr<const Volume> volume, int brick_s
     value_offset_ = v.stored_offset();
   } else {
     const float range = v.max_value() - v.min_value();
-    value_scale_ = range > 0 ? range / 65535.0f : 1.0f;
+    // A step of at least the smallest normal float: a range narrower than
+    // 65535 of them (below 7.7e-34) takes fewer levels rather than a
+    // subnormal scale, which GPUs flush to 0.
+    value_scale_ = range > 0 ? std::max(range / 65535.0f, std::numeric_limits<float>::min()) : 1.0f;
     value_offset_ = v.min_value();
     quantised_.resize(v.voxel_count());
     const ValuesView<float> f = v.f32();
     ParallelFor(std::int64_t(f.size()), [&](std::int64_t i) {
-      quantised_[i] = static_cast<std::uint16_t>(std::lround((f[i] - value_offset_) / value_scale_));
+      const long level = std::lround((f[i] - value_offset_) / value_scale_);
+      quantised_[i] = static_cast<std::uint16_t>(std::clamp(level, 0L, 65535L));
     }, 0, 1 << 16);
     voxels_ = quantised_.data();
   }

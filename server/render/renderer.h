@@ -25,7 +25,7 @@
 namespace cinevol {
 
 // Bumped whenever the integrator's output changes: keys cached reference images.
-inline constexpr int kRendererVersion = 1;
+inline constexpr int kRendererVersion = 2;  // 2: free-flight steps from the segment start, extinction clamp
 
 // Picks the smallest specialised integrator for the scene.
 inline constexpr unsigned kAutoFeatures = ~0u;
@@ -37,7 +37,7 @@ struct FrameRequest {
   std::uint64_t seed = 0;
   std::uint32_t frame = 0;  // advance every frame: seeds this frame's samples
   unsigned features = kAutoFeatures;  // or a RenderFeature set to force (at least what the scene uses)
-  // When set and raised, the CPU backend stops within a row of pixels and
+  // When set and raised, the CPU backend stops within a pixel and
   // Render throws Cancelled (the accumulation is then unusable). CUDA frames
   // are bounded by the service's per-frame sample limit instead.
   const std::atomic<bool>* cancel = nullptr;

@@ -9,6 +9,8 @@
 
 namespace cinevol {
 
+float MaxExtinction(Vec3f spacing_mm) { return kMaxOpticalDepthPerVoxel / MinComponent(spacing_mm); }
+
 std::vector<float> ComputeMajorants(const BrickRanges& ranges, const float* sigma_t, int n, float entry_scale,
                                     float entry_offset) {
   // Sparse table: level k holds the max over 2^k consecutive entries, so any
@@ -33,7 +35,10 @@ std::vector<float> ComputeMajorants(const BrickRanges& ranges, const float* sigm
     // bound and the renderer's entry arithmetic (an FMA on the GPU).
     const float lo = std::floor(ranges.min[i] * entry_scale + entry_offset) - 1.0f;
     const float hi = std::ceil(ranges.max[i] * entry_scale + entry_offset) + 1.0f;
-    majorants[i] = range_max(int(std::clamp(lo, 0.0f, float(n - 1))), int(std::clamp(hi, 0.0f, float(n - 1))));
+    // Within the table; a bound that is not a number bounds nothing: the whole table.
+    const int first = lo >= 0.0f ? int(std::min(lo, float(n - 1))) : 0;
+    const int last = hi <= float(n - 1) ? int(std::max(hi, 0.0f)) : n - 1;
+    majorants[i] = range_max(first, std::max(first, last));
   }
   return majorants;
 }
@@ -120,9 +125,12 @@ static void AppendTable(TransferTable& table, const TransferTable& more) {
 void SceneData::UpdateTables() {
   if (!volume_ || tf_.points.empty()) return;
   const float lo = volume_->volume().min_value(), hi = volume_->volume().max_value();
-  table_ = BuildTransferTable(tf_, lo, hi);
+  const float max_sigma_t = MaxExtinction(volume_->volume().spacing_mm());
+  table_ = BuildTransferTable(tf_, lo, hi, max_sigma_t);
   if (labels_) {
-    for (const TransferFunction& own : label_setup_.transfer_functions) AppendTable(table_, BuildTransferTable(own, lo, hi));
+    for (const TransferFunction& own : label_setup_.transfer_functions) {
+      AppendTable(table_, BuildTransferTable(own, lo, hi, max_sigma_t));
+    }
   }
   UpdateMajorants();
 }
@@ -148,7 +156,7 @@ void SceneData::UpdateMajorants() {
         const LabelMaterial& m = label_materials_[present.labels[i]];
         bound = std::max(bound, m.opacity_scale * by_table[m.table][b]);
       }
-      majorants_[b] = bound;
+      majorants_[b] = std::min(bound, view.transfer.max_sigma_t);  // as the integrator clamps scaled extinction
     }
   }
   ++majorant_builds_;
@@ -156,6 +164,10 @@ void SceneData::UpdateMajorants() {
 
 void SceneData::SetLights(const LightSetup& setup) {
   lights_ = setup;
+  // Kernels turn directions into map texels relative to the rotation: taken
+  // within one turn, any finite rotation keeps its precision.
+  const float rotation = std::remainder(lights_.environment.rotation, 2.0f * kPi);
+  lights_.environment.rotation = std::isfinite(rotation) ? rotation : 0.0f;
   environment_ = {};
   if (setup.environment.kind == Environment::Kind::kMap) {
     environment_ = BuildEnvironmentDistribution(setup.environment.map);
@@ -177,12 +189,14 @@ RenderScene SceneData::HostView() const {
     s.volume.box_min = -s.volume.box_max;
     s.volume.tricubic = reconstruction_ == Reconstruction::kTricubic;
 
-    const float n1 = float(TransferTable::kEntries - 1);
-    const float to_entry = n1 / (table_.value_max - table_.value_min);
-    s.transfer.entry_scale = value_scale * to_entry;
-    s.transfer.entry_offset = (value_offset - table_.value_min) * to_entry;
-    const float range = v.max_value() - v.min_value();
-    s.transfer.gradient_normaliser = range > 0 ? value_scale * MinComponent(v.spacing_mm()) / range : 0.0f;
+    // In double: a narrow range (1e-37 wide) or a wide one (2e30) overflows
+    // one factor in float where the product is an ordinary number.
+    const double to_entry = double(TransferTable::kEntries - 1) / (double(table_.value_max) - table_.value_min);
+    s.transfer.entry_scale = float(value_scale * to_entry);
+    s.transfer.entry_offset = float((double(value_offset) - table_.value_min) * to_entry);
+    const double range = double(v.max_value()) - v.min_value();
+    s.transfer.gradient_normaliser = range > 0 ? float(value_scale * double(MinComponent(v.spacing_mm())) / range) : 0.0f;
+    s.transfer.max_sigma_t = MaxExtinction(v.spacing_mm());
 
     s.majorants.majorant = majorants_.data();
     s.majorants.bricks = volume_->brick_ranges(reconstruction_).bricks;

@@ -17,6 +17,18 @@
 
 namespace cinevol {
 
+// Extinction is clamped at this optical depth per voxel (the smallest
+// spacing): kMaxOpticalDepthPerVoxel / min(spacing) per mm. A voxel at the
+// clamp lets through e^-32 (1e-14) of the light, as opaque as anything
+// denser looks; but delta tracking costs one lookup per 1/sigma mm of
+// majorant, so above it the cost would grow with the density scale and
+// nothing in the image with it (density scale 1e6 made a frame of the head
+// phantom hundreds of times slower, and black: its paths ran out of budget).
+inline constexpr float kMaxOpticalDepthPerVoxel = 32.0f;
+
+// The extinction clamp of a volume with this spacing, per mm.
+float MaxExtinction(Vec3f spacing_mm);
+
 // Per-brick majorant: the largest extinction the table gives over the brick's
 // value range (entries = stored * entry_scale + entry_offset).
 // `sigma_t`: one table's `n` extinctions.

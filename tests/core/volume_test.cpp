@@ -3,6 +3,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <cstring>
 #include <limits>
 #include <numeric>
 
@@ -92,6 +93,124 @@ TEST(Volume, BlockRangesBoundEveryVoxel) {
       }
     }
   }
+}
+
+// Values at the extremes (issue "No file can take the server down"): what
+// Volume keeps, what it refuses, and what its histogram makes of them.
+
+std::string RefusalOf(std::vector<float> values) {
+  try {
+    const int n = int(values.size());
+    Volume({n, 1, 1}, {1, 1, 1}, std::move(values), Named("huge.nrrd"));
+  } catch (const InputError& e) {
+    return e.what();
+  }
+  return "(accepted)";
+}
+
+template <class T>
+MemoryBlock BlockOf(std::vector<T> values) {
+  MemoryBlock block = MemoryBlock::Allocate(values.size() * sizeof(T));
+  std::memcpy(block.data(), values.data(), values.size() * sizeof(T));
+  return block;
+}
+
+TEST(Volume, KeepsValuesUpToTheLargestMagnitudeExactly) {
+  const Volume v({3, 1, 1}, {1, 1, 1}, {-kMaxVoxelMagnitude, 0.0f, kMaxVoxelMagnitude}, Named("t"));
+  EXPECT_EQ(v.storage(), VoxelStorage::kFloat32);
+  EXPECT_EQ(v.min_value(), -kMaxVoxelMagnitude);
+  EXPECT_EQ(v.max_value(), kMaxVoxelMagnitude);
+  EXPECT_EQ(v.Value(1, 0, 0), 0.0f);
+}
+
+TEST(Volume, RefusesFloatMaxNamingTheFileAndTheAllowedRange) {
+  const float max = std::numeric_limits<float>::max();
+  for (const std::vector<float>& values : {std::vector<float>{1.0f, max}, std::vector<float>{-max, 1.0f},
+                                           std::vector<float>{0.0f, 1.01e30f}}) {
+    const std::string message = RefusalOf(values);
+    EXPECT_NE(message.find("huge.nrrd"), std::string::npos) << message;
+    EXPECT_NE(message.find("[-1e+30, 1e+30]"), std::string::npos) << message;
+  }
+  // Doubles past float's range too, and they never reach float as infinities.
+  try {
+    Volume({2, 1, 1}, {1, 1, 1}, VoxelType::kFloat64, BlockOf<double>({1.0, 1e300}), Named("huge.nii"));
+    FAIL() << "accepted";
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("1e+300"), std::string::npos) << e.what();
+  }
+}
+
+TEST(Volume, FlushesSubnormalsToZeroAndCountsThem) {
+  const float smallest = std::numeric_limits<float>::denorm_min();
+  const Volume v({4, 1, 1}, {1, 1, 1}, {1e-40f, -smallest, 2.5f, std::numeric_limits<float>::min()}, Named("t"));
+  EXPECT_EQ(v.metadata().subnormals_flushed, 2u);
+  EXPECT_EQ(v.Value(0, 0, 0), 0.0f);
+  EXPECT_EQ(v.Value(1, 0, 0), 0.0f);
+  EXPECT_EQ(v.Value(3, 0, 0), std::numeric_limits<float>::min());  // the smallest normal stays
+  // Doubles below float's normal range are flushed too.
+  const Volume d({2, 1, 1}, {1, 1, 1}, VoxelType::kFloat64, BlockOf<double>({1e-300, 3.0}), Named("t"));
+  EXPECT_EQ(d.metadata().subnormals_flushed, 1u);
+  EXPECT_EQ(d.Value(0, 0, 0), 0.0f);
+}
+
+TEST(Volume, ConstantVolumesAtTheLargestMagnitudeKeepTheirValue) {
+  for (const float value : {kMaxVoxelMagnitude, -kMaxVoxelMagnitude, 0.5f, 0.0f}) {
+    const Volume v({2, 2, 1}, {1, 1, 1}, std::vector<float>(4, value), Named("t"));
+    EXPECT_EQ(v.min_value(), value);
+    EXPECT_EQ(v.max_value(), value);
+    EXPECT_EQ(v.Value(1, 1, 0), value);
+    EXPECT_EQ(v.block_ranges()[0].lo, value);
+  }
+}
+
+// Integers past float's 2^24 keep 16-bit storage when their span allows it,
+// and each voxel keeps its value to float's precision: none wraps around
+// the 16 bits (16777217 read as float rounds below the offset).
+TEST(Volume, WideIntegersNearTheirTypesLimitsKeepTheirValues) {
+  const Volume v({3, 1, 1}, {1, 1, 1}, VoxelType::kInt32, BlockOf<std::int32_t>({16777217, 16777219, 16777300}),
+                 Named("t"));
+  EXPECT_EQ(v.storage(), VoxelStorage::kUInt16);
+  for (int x = 0; x < 3; ++x) {
+    EXPECT_GE(v.Value(x, 0, 0), v.min_value());
+    EXPECT_LE(v.Value(x, 0, 0), v.max_value());
+  }
+  EXPECT_NEAR(v.Value(0, 0, 0), 16777217.0, 2.0);
+  EXPECT_NEAR(v.Value(1, 0, 0), 16777219.0, 2.0);
+  EXPECT_NEAR(v.Value(2, 0, 0), 16777300.0, 2.0);
+  const std::int64_t big = (std::int64_t{1} << 62) + 3 * (std::int64_t{1} << 38);
+  const Volume w({2, 1, 1}, {1, 1, 1}, VoxelType::kInt64, BlockOf<std::int64_t>({big, big + 1000}), Named("t"));
+  EXPECT_EQ(w.storage(), VoxelStorage::kUInt16);
+  EXPECT_LE(w.Value(0, 0, 0), w.max_value());
+  EXPECT_LE(w.Value(1, 0, 0), w.max_value());
+  EXPECT_NEAR(w.Value(1, 0, 0), double(big), 1e-6 * double(big));
+}
+
+TEST(ValueHistogram, PercentilesAndOtsuStayInRangeAtTheExtremes) {
+  const float m = kMaxVoxelMagnitude, tiny = std::numeric_limits<float>::min();
+  const std::vector<std::vector<float>> cases = {
+      {-m, -m, 0.0f, m},                  // the widest range
+      {0.0f, tiny, tiny, 2 * tiny},       // the narrowest above zero
+      std::vector<float>(8, m),           // constant, at the largest value
+      std::vector<float>(8, -m),
+      {42.0f},                            // one voxel
+  };
+  for (const std::vector<float>& values : cases) {
+    const Volume v({int(values.size()), 1, 1}, {1, 1, 1}, values, Named("t"));
+    const ValueHistogram& h = v.histogram();
+    EXPECT_EQ(std::accumulate(h.counts.begin(), h.counts.end(), std::uint64_t{0}), values.size());
+    for (const float f : {h.Percentile(0.0), h.Percentile(0.5), h.Percentile(0.995), h.Percentile(1.0),
+                          h.OtsuThreshold(), h.Percentile(0.5, h.OtsuThreshold())}) {
+      ASSERT_TRUE(std::isfinite(f)) << values[0];
+      EXPECT_GE(f, v.min_value());
+      EXPECT_LE(f, v.max_value());
+    }
+  }
+  // The two classes of the widest range are told apart.
+  std::vector<float> two(64, -m);
+  for (int i = 0; i < 16; ++i) two[i] = m;
+  const Volume v({64, 1, 1}, {1, 1, 1}, two, Named("t"));
+  EXPECT_GT(v.histogram().OtsuThreshold(), -m);
+  EXPECT_LT(v.histogram().OtsuThreshold(), m);
 }
 
 }  // namespace

@@ -90,6 +90,42 @@ TEST(LabelVolume, ThatMissesTheImageOrHoldsNonIntegersIsRefused) {
             std::string::npos);
 }
 
+// Segmentations at the extremes: grids a million times finer or coarser than
+// their image's, one voxel, far away, singular, or labels no uint16 holds.
+TEST(LabelVolume, AtTheExtremesFitsOrIsRefusedClearly) {
+  const Volume image = Grid({8, 8, 8}, {1e3f, 1e3f, 1e3f}, {0, 0, 0}, std::vector<float>(512, 0.0f));
+  // One label voxel of 1e4 mm over the image's first five voxels along each axis.
+  const LabelVolume coarse = FitLabels(Grid({1, 1, 1}, {1e4f, 1e4f, 1e4f}, {0, 0, 0}, {3.0f}), image, "seg.nii");
+  EXPECT_EQ(coarse.labels[0], 3);
+  EXPECT_EQ(coarse.labels[7], 0);  // x = 7000 mm: outside the label voxel
+  EXPECT_EQ(coarse.voxels.at(3), 5u * 5 * 5);
+  // Labels of 1e-3 mm: image voxel i lands on label index 1e6 i, past any int; only the first is inside.
+  const LabelVolume fine = FitLabels(Grid({2, 2, 2}, {1e-3f, 1e-3f, 1e-3f}, {0, 0, 0}, std::vector<float>(8, 1.0f)),
+                                     image, "seg.nii");
+  EXPECT_EQ(fine.voxels.at(1), 1u);
+  // Far away, at the largest spacing: the grids do not meet.
+  EXPECT_NE(MessageOf([&] {
+              FitLabels(Grid({4, 4, 4}, {1e4f, 1e4f, 1e4f}, {1e300, -1e300, 0}, std::vector<float>(64, 1.0f)), image,
+                        "seg.nii");
+            }).find("does not overlap"),
+            std::string::npos);
+  // Direction cosines that collapse an axis.
+  {
+    VolumeMetadata meta;
+    meta.source = "seg.nii";
+    meta.direction = {1, 0, 0, 1, 0, 0, 0, 0, 1};
+    const Volume flat({2, 2, 2}, {1, 1, 1}, std::vector<float>(8, 1.0f), meta);
+    EXPECT_NE(MessageOf([&] { FitLabels(flat, image, "seg.nii"); }).find("singular"), std::string::npos);
+  }
+  // Values no label holds, named as they are.
+  EXPECT_NE(MessageOf([&] { FitLabels(Grid({1, 1, 1}, {1, 1, 1}, {0, 0, 0}, {1e30f}), image, "seg.nii"); })
+                .find("seg.nii: voxel 0 holds 1e+30, not an integer label in [0, 65535]"),
+            std::string::npos);
+  EXPECT_NE(MessageOf([&] { FitLabels(Grid({1, 1, 1}, {1, 1, 1}, {0, 0, 0}, {-1.0f}), image, "seg.nii"); })
+                .find("holds -1,"),
+            std::string::npos);
+}
+
 // The real TotalSegmentator segmentation on its CT, through the renderer.
 class TotalSegmentator : public ::testing::Test {
  protected:

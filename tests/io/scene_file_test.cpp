@@ -8,6 +8,7 @@
 #include <cmath>
 #include <fstream>
 #include <functional>
+#include <limits>
 
 #include "core/error.h"
 #include "io/presets.h"
@@ -18,6 +19,8 @@ namespace {
 
 namespace fs = std::filesystem;
 using testing::ScratchDir;
+
+constexpr float kFloatMax = std::numeric_limits<float>::max();
 
 fs::path Examples() { return fs::path(CINEVOL_SOURCE_DIR) / "examples"; }
 
@@ -184,8 +187,63 @@ INSTANTIATE_TEST_SUITE_P(
                  style->mutable_transfer_function()->set_preset("ct-bone");
                }
              }, "labels.styles"},
-        Rule{"LabelTableWithoutLabels", [](v1::Scene& s) { s.mutable_volume()->set_label_table("names.tsv"); }, "volume.labelTable"}),
+        Rule{"LabelTableWithoutLabels", [](v1::Scene& s) { s.mutable_volume()->set_label_table("names.tsv"); }, "volume.labelTable"},
+        // At the extremes (docs/rendering.md, "Values at the extremes").
+        Rule{"OpacityFloatMax", [](v1::Scene& s) { Point(s, 1)->set_opacity(kFloatMax); }, "transferFunction.points[1].opacity"},
+        Rule{"OpacityMinusFloatMax", [](v1::Scene& s) { Point(s, 1)->set_opacity(-kFloatMax); }, "transferFunction.points[1].opacity"},
+        Rule{"PointValueNaN", [](v1::Scene& s) { Point(s, 3)->set_value(NAN); }, "transferFunction.points[3].value"},
+        Rule{"PointValueInfinite", [](v1::Scene& s) { Point(s, 5)->set_value(INFINITY); }, "transferFunction.points[5].value"},
+        Rule{"EmissionFloatMax", [](v1::Scene& s) { Point(s, 4)->mutable_emission()->set_r(kFloatMax); }, "transferFunction.points[4].emission.r"},
+        Rule{"DensityFloatMax", [](v1::Scene& s) { s.mutable_transfer_function()->set_density_scale(kFloatMax); }, "transferFunction.densityScale"},
+        Rule{"DensityNaN", [](v1::Scene& s) { s.mutable_transfer_function()->set_density_scale(NAN); }, "transferFunction.densityScale"},
+        Rule{"GradientFactorInfinite", [](v1::Scene& s) { s.mutable_transfer_function()->set_gradient_factor(INFINITY); }, "transferFunction.gradientFactor"},
+        Rule{"LightIntensityFloatMax", [](v1::Scene& s) { Area(s)->set_intensity(kFloatMax); }, "lights[0].area.intensity"},
+        Rule{"LightColourTimesIntensityTooBright", [](v1::Scene& s) {
+               Area(s)->mutable_color()->set_r(1e7f);
+               Area(s)->set_intensity(1e7f);
+             }, "lights[0].area.intensity"},
+        Rule{"LightColourFloatMax", [](v1::Scene& s) { Area(s)->mutable_color()->set_b(kFloatMax); }, "lights[0].area.intensity"},
+        Rule{"PointLightAtFloatMax", [](v1::Scene& s) {
+               auto* point = s.add_lights()->mutable_point();
+               point->mutable_position()->set_x(kFloatMax);
+               point->set_intensity(1);
+             }, "lights[2].point.position.x"},
+        Rule{"TinyLightDirection", [](v1::Scene& s) {
+               s.add_lights()->mutable_directional()->mutable_direction()->set_z(1e-30f);
+             }, "lights[2].directional.direction"},
+        Rule{"TinyAreaLight", [](v1::Scene& s) {
+               Area(s)->mutable_edge_u()->set_x(1e-20f), Area(s)->mutable_edge_u()->set_y(0), Area(s)->mutable_edge_u()->set_z(0);
+             }, "lights[0].area"},
+        Rule{"SkyFloatMax", [](v1::Scene& s) {
+               s.mutable_lights(1)->mutable_environment()->mutable_uniform()->set_g(kFloatMax);
+             }, "lights[1].environment.uniform"},
+        Rule{"SkyIntensityFloatMax", [](v1::Scene& s) { s.mutable_lights(1)->mutable_environment()->set_intensity(kFloatMax); }, "lights[1].environment.intensity"},
+        Rule{"EyeAt1e30", [](v1::Scene& s) { s.mutable_camera()->mutable_eye()->set_y(-1e30f); }, "camera.eye.y"},
+        Rule{"TargetAtFloatMax", [](v1::Scene& s) { s.mutable_camera()->mutable_target()->set_x(kFloatMax); }, "camera.target.x"},
+        Rule{"TinyUp", [](v1::Scene& s) { s.mutable_camera()->mutable_up()->set_x(1e-30f), s.mutable_camera()->mutable_up()->set_z(0); }, "camera.up"},
+        Rule{"ApertureFloatMax", [](v1::Scene& s) { s.mutable_camera()->set_aperture_mm(kFloatMax); }, "camera.apertureMm"},
+        Rule{"FocalDistanceFloatMax", [](v1::Scene& s) { s.mutable_camera()->set_focal_distance_mm(kFloatMax); }, "camera.focalDistanceMm"},
+        Rule{"ClipPlaneFarAway", [](v1::Scene& s) {
+               auto* plane = s.mutable_clipping()->add_planes();
+               plane->mutable_normal()->set_z(1);
+               plane->mutable_point()->set_z(-kFloatMax);
+             }, "clipping.planes[0].point.z"}),
     [](const auto& info) { return std::string(info.param.name); });
+
+// What validation leaves through at the extremes is what the renderer
+// takes: the largest accepted values load.
+TEST(SceneFile, AcceptsTheLargestValuesItAllows) {
+  v1::Scene scene = ValidScene();
+  Point(scene, 0)->set_value(-kFloatMax);  // points anywhere float reaches
+  Point(scene, 5)->set_value(kFloatMax);
+  Point(scene, 4)->mutable_emission()->set_g(kMaxRadiance);
+  scene.mutable_transfer_function()->set_density_scale(1e6f);
+  scene.mutable_transfer_function()->set_gradient_factor(kFloatMax);
+  Area(scene)->set_intensity(kMaxRadiance);
+  scene.mutable_camera()->mutable_eye()->set_x(-kMaxSceneMm);
+  scene.mutable_lights(1)->mutable_environment()->set_rotation_deg(kFloatMax);
+  EXPECT_TRUE(ValidateScene(scene).empty()) << ValidateScene(scene)[0];
+}
 
 TEST(Presets, EveryPresetIsAValidTransferFunction) {
   for (const std::string& name : PresetNames()) {

@@ -68,7 +68,7 @@ float Extinction(const RenderScene& s, Vec3f p) {
   const float entry = s.transfer.Entry(s.volume.Sample(p));
   if (!s.labels.voxels) return s.transfer.SigmaT(entry);
   const LabelMaterial m = s.labels.At(s.volume, p);
-  return m.opacity_scale * s.transfer.SigmaT(entry, m.table);
+  return std::min(m.opacity_scale * s.transfer.SigmaT(entry, m.table), s.transfer.max_sigma_t);
 }
 
 // Samples the reconstruction densely (trilinear and tricubic, with and

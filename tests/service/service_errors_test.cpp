@@ -4,6 +4,8 @@
 
 #include <cmath>
 #include <fstream>
+#include <functional>
+#include <limits>
 #include <numeric>
 
 #include "server_process.h"
@@ -76,6 +78,16 @@ TEST(ServiceErrors, BadSessionRequestsNameTheField) {
   scene->mutable_render()->set_spp(2);
   scene->mutable_camera()->set_view(static_cast<v1::NamedView>(77));
   ExpectRpcError([&] { client.CreateSession(r); }, grpc::StatusCode::INVALID_ARGUMENT, "camera.view");
+  // Values at the extremes (docs/rendering.md): refused, naming the field.
+  scene->mutable_camera()->set_view(v1::NAMED_VIEW_UNSPECIFIED);
+  scene->mutable_transfer_function()->set_density_scale(std::numeric_limits<float>::max());
+  ExpectRpcError([&] { client.CreateSession(r); }, grpc::StatusCode::INVALID_ARGUMENT, "transferFunction.densityScale");
+  scene->mutable_transfer_function()->clear_density_scale();
+  scene->add_lights()->mutable_point()->set_intensity(std::numeric_limits<float>::max());
+  ExpectRpcError([&] { client.CreateSession(r); }, grpc::StatusCode::INVALID_ARGUMENT, "lights[0].point.intensity");
+  scene->clear_lights();
+  scene->mutable_camera()->mutable_eye()->set_x(1e30f);
+  ExpectRpcError([&] { client.CreateSession(r); }, grpc::StatusCode::INVALID_ARGUMENT, "camera.eye.x");
 
   // Unknown ids.
   ExpectRpcError([&] { client.CloseSession("s999"); }, grpc::StatusCode::NOT_FOUND, "s999");
@@ -230,6 +242,46 @@ TEST(ServiceErrors, UploadsAreCheckedLikeFiles) {
   }
   ExpectRpcError([&] { client.UploadVolume(scratch / "big.nrrd"); }, grpc::StatusCode::RESOURCE_EXHAUSTED,
                  "--max-upload-mb");
+  ExpectServing(client);
+}
+
+// An 8^3 float NRRD whose voxel i holds value(i).
+void WriteFloatNrrd(const std::filesystem::path& path, const std::function<float(int)>& value) {
+  std::ofstream out(path, std::ios::binary);
+  out << "NRRD0004\ntype: float\ndimension: 3\nsizes: 8 8 8\nspacings: 1 1 1\nencoding: raw\nendian: little\n\n";
+  for (int i = 0; i < 8 * 8 * 8; ++i) {
+    const float v = value(i);
+    out.write(reinterpret_cast<const char*>(&v), sizeof v);
+  }
+}
+
+// Volumes at the extremes of what Volume takes render; past them they are
+// refused naming the range. A constant volume of 1e30 and one of 0 and the
+// smallest normal floats (subnormals flushed) used to end the server at
+// their first frame: their transfer table's range collapsed or overflowed
+// to an infinite scale, and the majorants indexed with NaN.
+TEST(ServiceErrors, VolumesAtTheExtremesRenderOrAreRefused) {
+  ScratchDir scratch;
+  ServerProcess server(scratch.path());
+  ASSERT_TRUE(server.running()) << server.Log();
+  Client client = server.Connect();
+  const float tiny = std::numeric_limits<float>::min();
+  WriteFloatNrrd(scratch / "constant.nrrd", [](int) { return 1e30f; });
+  WriteFloatNrrd(scratch / "narrow.nrrd", [&](int i) { return i % 3 == 0 ? 1e-40f : float(i % 3) * tiny; });
+  WriteFloatNrrd(scratch / "widest.nrrd", [](int i) { return i % 2 ? 1e30f : -1e30f; });
+  for (const char* name : {"constant.nrrd", "narrow.nrrd", "widest.nrrd"}) {
+    const v1::VolumeInfo v = client.UploadVolume(scratch / name);
+    v1::CreateSessionRequest r = SmallSession();
+    r.clear_preset();  // the default preset, on the histogram's window
+    r.set_volume_id(v.id());
+    const auto created = client.CreateSession(r);
+    auto stream = client.Attach(created.session_id());
+    EXPECT_TRUE(WaitFrame(*stream, [](const v1::Frame&) { return true; }, 30s)) << name;
+    client.CloseSession(created.session_id());
+  }
+  WriteFloatNrrd(scratch / "floatmax.nrrd", [](int i) { return i == 7 ? std::numeric_limits<float>::max() : 0.0f; });
+  ExpectRpcError([&] { client.UploadVolume(scratch / "floatmax.nrrd"); }, grpc::StatusCode::INVALID_ARGUMENT,
+                 "[-1e+30, 1e+30]");
   ExpectServing(client);
 }
 
