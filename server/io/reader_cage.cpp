@@ -129,7 +129,11 @@ Started StartReader(const ReaderLimits& limits) {
                                 std::to_string(max_space),
                                 "--cpu-seconds",
                                 std::to_string(int(std::ceil(limits.cpu_seconds)))};
-  std::vector<std::string> env{"MALLOC_ARENA_MAX=1"};
+  // One malloc arena (the address-space limit counts each arena's reservation);
+  // large blocks from the heap, kept when freed: a reader allocates a buffer
+  // per slice, and fresh mappings for each would fault in every page again.
+  std::vector<std::string> env{"MALLOC_ARENA_MAX=1", "MALLOC_MMAP_THRESHOLD_=67108864",
+                               "MALLOC_TRIM_THRESHOLD_=1073741824"};
   if (const char* path = std::getenv("LD_LIBRARY_PATH")) env.push_back(std::string("LD_LIBRARY_PATH=") + path);
   std::vector<char*> argv, envp;
   for (std::string& a : args) argv.push_back(a.data());
@@ -191,16 +195,28 @@ class Spare {
       Discard(*ready);
       ready.reset();
     }
-    Started taken = ready ? std::move(*ready) : StartReader(limits);
+    return ready ? std::move(*ready) : StartReader(limits);
+  }
+
+  // Starts the next spare, if none waits: once a load has ended, so that its
+  // start-up does not compete with the load for the processor.
+  void Replenish(const ReaderLimits& limits) {
+    if (!keep_) return;
+    {
+      std::lock_guard lock(mu_);
+      if (spare_) return;
+    }
     try {
       Started next = StartReader(limits);
       std::lock_guard lock(mu_);
-      if (!spare_) spare_ = std::move(next);
-      else Discard(next);
+      if (!spare_) {
+        spare_ = std::move(next);
+      } else {
+        Discard(next);
+      }
     } catch (const std::exception&) {
       // none ahead this time; the next load starts its own
     }
-    return taken;
   }
 
  private:
@@ -333,6 +349,7 @@ class ReaderProcess {
     stderr_text_.clear();
     if (outcome_ != "reported") Report(outcome_.empty() ? "refused" : outcome_);
     outcome_ = "reported";
+    Spare::Get().Replenish(limits_);
   }
 
   // Returns once the socket has something to read; keeps the child's stderr
@@ -444,7 +461,7 @@ UniqueFd SealedMemory(std::uint64_t bytes, const std::string& shown) {
 
 // The shared memory as a block of this process's, given back when dropped.
 MemoryBlock MapMemory(UniqueFd fd, std::uint64_t bytes, const std::string& shown) {
-  void* data = mmap(nullptr, bytes, PROT_READ | PROT_WRITE, MAP_SHARED, fd.get(), 0);
+  void* data = mmap(nullptr, bytes, PROT_READ | PROT_WRITE, MAP_SHARED | MAP_POPULATE, fd.get(), 0);
   if (data == MAP_FAILED) throw ResourceExhausted(fmt::format("{}: cannot map {} of voxels", shown, Mib(bytes)));
   return {data, bytes, [](void* p, std::size_t size) { munmap(p, size); }};
 }
@@ -645,10 +662,7 @@ ImageRgbF ReadExrImage(const fs::path& file, const std::string& shown, const Loa
   image.width = int(reply.image().width());
   image.height = int(reply.image().height());
   const Vec3f* p = static_cast<const Vec3f*>(block.data());
-  image.pixels.assign(p, p + pixels);
-  for (Vec3f& c : image.pixels) {  // what the renderer can sample: finite, not negative
-    for (int i = 0; i < 3; ++i) c[i] = std::isfinite(c[i]) ? std::clamp(c[i], 0.0f, kMaxVoxelMagnitude) : 0.0f;
-  }
+  image.pixels.assign(p, p + pixels);  // as the file holds them: ResolveLights makes them radiance
   return image;
 }
 
