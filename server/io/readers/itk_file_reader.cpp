@@ -120,22 +120,9 @@ std::string ItkMessage(const itk::ExceptionObject& e, const std::vector<fs::path
 }
 
 std::string VoxelTypeOf(itk::IOComponentEnum type) {
-  using C = itk::IOComponentEnum;
-  switch (type) {
-    case C::UCHAR: return "uint8";
-    case C::CHAR: return "int8";
-    case C::USHORT: return "uint16";
-    case C::SHORT: return "int16";
-    case C::UINT: return "uint32";
-    case C::INT: return "int32";
-    case C::ULONG: return sizeof(unsigned long) == 8 ? "uint64" : "uint32";
-    case C::LONG: return sizeof(long) == 8 ? "int64" : "int32";
-    case C::ULONGLONG: return "uint64";
-    case C::LONGLONG: return "int64";
-    case C::FLOAT: return "float32";
-    case C::DOUBLE: return "float64";
-    default: return "";
-  }
+  const std::string name = ComponentName(type);
+  return VoxelTypeNamed(name) ? name : "";
+}
 }
 
 void SetGeometry(reader::Header& header, const std::array<int, 3>& dims, std::array<double, 3> spacing,

@@ -21,15 +21,6 @@ namespace fs = std::filesystem;
 namespace cinevol::reader {
 namespace {
 
-std::string Lower(std::string s) {
-  for (char& c : s) c = char(std::tolower(static_cast<unsigned char>(c)));
-  return s;
-}
-
-bool EndsWith(const std::string& s, const std::string& tail) {
-  return s.size() >= tail.size() && s.compare(s.size() - tail.size(), tail.size(), tail) == 0;
-}
-
 // A name that can be a file name in the work folder: the last part of
 // `name`, "input" when that is empty or a dot name.
 std::string SafeFileName(const std::string& name) {
@@ -40,10 +31,11 @@ std::string SafeFileName(const std::string& name) {
 
 // The extension a reader needs to see ("" when the name has none it knows).
 std::string Extension(const std::string& name) {
-  const std::string lower = Lower(name);
-  for (const char* ext : {".nii.gz", ".hdr.gz", ".img.gz", ".nii", ".hdr", ".img", ".nia", ".nrrd", ".nhdr", ".mha",
-                          ".mhd", ".vtk", ".exr"}) {
-    if (EndsWith(lower, ext)) return name.substr(name.size() - std::string(ext).size());
+  std::string lower = name;
+  for (char& c : lower) c = char(std::tolower(static_cast<unsigned char>(c)));
+  for (const std::string ext : {".nii.gz", ".hdr.gz", ".img.gz", ".nii", ".hdr", ".img", ".nia", ".nrrd", ".nhdr",
+                                ".mha", ".mhd", ".vtk", ".exr"}) {
+    if (lower.ends_with(ext)) return name.substr(name.size() - ext.size());
   }
   return "";
 }
