@@ -123,7 +123,6 @@ std::string VoxelTypeOf(itk::IOComponentEnum type) {
   const std::string name = ComponentName(type);
   return VoxelTypeNamed(name) ? name : "";
 }
-}
 
 void SetGeometry(reader::Header& header, const std::array<int, 3>& dims, std::array<double, 3> spacing,
                  const std::array<double, 3>& origin, std::array<double, 9> direction) {
