@@ -39,12 +39,13 @@ float ExtentAlong(const Volume& volume, Vec3f direction) {
 }
 
 // Anterior, as radiologists start; but a thin stack of axial slices (a slab
-// less than a quarter as deep as it is wide) is seen from above, not edge on.
+// less than a quarter as deep as it is wide) is seen as PACS shows axial
+// images: from the feet, anterior up, the patient's left on the right.
 v1::NamedView DefaultView(const Volume& volume) {
   const float superior = ExtentAlong(volume, PatientToWorld(volume.metadata().direction, {0, 0, 1}));
   const float lateral = std::min(ExtentAlong(volume, PatientToWorld(volume.metadata().direction, {1, 0, 0})),
                                  ExtentAlong(volume, PatientToWorld(volume.metadata().direction, {0, 1, 0})));
-  return superior < 0.25f * lateral ? v1::SUPERIOR : v1::ANTERIOR;
+  return superior < 0.25f * lateral ? v1::INFERIOR : v1::ANTERIOR;
 }
 
 }  // namespace

@@ -3,6 +3,7 @@
 // shows, and every shared data set's default preset shows structure.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 
 #include "core/tone_map.h"
@@ -155,13 +156,45 @@ TEST(OutOfTheBox, NamedViewsFillFourFifthsOfTheShorterSide) {
   }
 }
 
-TEST(OutOfTheBox, AThinSlabOfAxialSlicesIsSeenFromAbove) {
+TEST(OutOfTheBox, AThinSlabOfAxialSlicesIsSeenFromTheFeet) {
   VolumeMetadata meta;
   meta.source = "slab";
   const Volume slab({32, 32, 4}, {1, 1, 1}, std::vector<float>(32 * 32 * 4, 1000.0f), meta);
-  EXPECT_EQ(MakePresetScene("ct-bone", slab).camera().view(), v1::SUPERIOR);
+  EXPECT_EQ(MakePresetScene("ct-bone", slab).camera().view(), v1::INFERIOR);  // as PACS shows axial images
   const Volume cube({32, 32, 32}, {1, 1, 1}, std::vector<float>(32 * 32 * 32, 1000.0f), meta);
   EXPECT_EQ(MakePresetScene("ct-bone", cube).camera().view(), v1::ANTERIOR);
+}
+
+// PACS shows an axial image from the feet: anterior up, the patient's left on
+// the right. A slab framed by a ring of bone, with a block of bone filling its
+// anterior-left quarter: the block must show in the picture's top right.
+TEST(OutOfTheBox, ASlabShowsThePatientsLeftOnTheRightAndAnteriorUp) {
+  const Vec3i dims{32, 32, 4};
+  std::vector<float> values(std::size_t(dims.x) * dims.y * dims.z, -1000.0f);
+  for (int z = 0; z < dims.z; ++z) {
+    for (int y = 0; y < dims.y; ++y) {
+      for (int x = 0; x < dims.x; ++x) {
+        const bool ring = x == 0 || y == 0 || x == dims.x - 1 || y == dims.y - 1;
+        const bool anterior_left = y < 16 && x >= 16;  // LPS: low y is anterior, high x the patient's left
+        if (ring || anterior_left) values[(std::size_t(z) * dims.y + y) * dims.x + x] = 1500.0f;
+      }
+    }
+  }
+  VolumeMetadata meta;
+  meta.source = "slab";
+  meta.modality = "CT";
+  meta.value_unit = "HU";
+  const Volume slab(dims, {1, 1, 1}, values, meta);
+  const Rendered r = Render(slab, MakePresetScene("ct-bone", slab), 64, 64, 1);
+  int quadrant[2][2] = {};  // [top?][right?]
+  for (int y = 0; y < 64; ++y) {
+    for (int x = 0; x < 64; ++x) {
+      if (r.first_hits[std::size_t(y) * 64 + x].w > 0) ++quadrant[y < 32][x >= 32];
+    }
+  }
+  const int elsewhere = std::max({quadrant[0][0], quadrant[0][1], quadrant[1][0]});
+  EXPECT_GT(quadrant[1][1], 3 * elsewhere) << "the filled quarter is not at the top right: the view is mirrored or "
+                                              "upside down";
 }
 
 struct DataSet {
