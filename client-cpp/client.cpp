@@ -286,24 +286,28 @@ std::vector<v1::VolumeInfo> Client::ListVolumes() {
   return OnHome([&](const std::string& home) { return VolumeCalls(*pool_, home).List(); });
 }
 
-v1::VolumeInfo Client::LoadVolume(const std::string& path, const std::string& series_uid) {
+v1::VolumeInfo Client::LoadVolume(const std::string& path, const std::string& series_uid,
+                                  const std::string& orientation) {
   return OnHome([&](const std::string& home) {
-    v1::VolumeInfo info = VolumeCalls(*pool_, home).Load(path, series_uid);
     VolumeOrigin origin;
     origin.home = home;
-    origin.path = path;
-    origin.series_uid = series_uid;
+    origin.load.set_path(path);
+    origin.load.set_series_uid(series_uid);
+    origin.load.set_orientation(orientation);
+    v1::VolumeInfo info = VolumeCalls(*pool_, home).Load(origin.load);
     pool_->RememberVolume(info.id(), origin);
     return info;
   });
 }
 
-v1::VolumeInfo Client::UploadVolume(const std::filesystem::path& file, std::size_t chunk_bytes) {
+v1::VolumeInfo Client::UploadVolume(const std::filesystem::path& file, const std::string& orientation,
+                                    std::size_t chunk_bytes) {
   return OnHome([&](const std::string& home) {
-    v1::VolumeInfo info = VolumeCalls(*pool_, home).Upload(file, {}, chunk_bytes);
     VolumeOrigin origin;
     origin.home = home;
     origin.upload = std::filesystem::absolute(file);
+    origin.upload_fields.set_orientation(orientation);
+    v1::VolumeInfo info = VolumeCalls(*pool_, home).Upload(file, origin.upload_fields, chunk_bytes);
     pool_->RememberVolume(info.id(), origin);
     return info;
   });

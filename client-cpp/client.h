@@ -142,8 +142,11 @@ class Client {
   // another when it stops answering); a volume loaded or uploaded here is
   // loaded or uploaded again on another server where a session of it goes.
   std::vector<v1::VolumeInfo> ListVolumes();
-  v1::VolumeInfo LoadVolume(const std::string& path, const std::string& series_uid = {});
-  v1::VolumeInfo UploadVolume(const std::filesystem::path& file, std::size_t chunk_bytes = 1 << 20);
+  // `orientation` ("LPI") overrides the file's (docs/volumes-and-scenes.md).
+  v1::VolumeInfo LoadVolume(const std::string& path, const std::string& series_uid = {},
+                            const std::string& orientation = {});
+  v1::VolumeInfo UploadVolume(const std::filesystem::path& file, const std::string& orientation = {},
+                              std::size_t chunk_bytes = 1 << 20);
   // A segmentation for a loaded volume: a label volume on the server (under
   // its data roots) or a local file, each with an optional label table.
   v1::VolumeInfo LoadLabels(const std::string& volume_id, const std::string& path, const std::string& table_path = {});

@@ -16,28 +16,16 @@
 namespace cinevol::cli {
 namespace {
 
-// The LPS letter each index axis points to most, e.g. "LPS" or "RAS".
-std::string OrientationCode(const VolumeMetadata& meta) {
-  std::string code;
-  for (int c = 0; c < 3; ++c) {
-    int best = 0;
-    for (int r = 1; r < 3; ++r) {
-      if (std::abs(meta.direction[3 * r + c]) > std::abs(meta.direction[3 * best + c])) best = r;
-    }
-    const bool positive = meta.direction[3 * best + c] > 0;
-    code += positive ? "LPS"[best] : "RAI"[best];
-  }
-  return code;
-}
-
 struct InfoOptions {
   std::string path;
+  std::string orientation;  // overrides the file's ("LPI")
   std::string labels, label_table;  // a segmentation of it, and the table naming its labels
 };
 
 void PrintInfo(const InfoOptions& o) {
   const std::string& spec = o.path;
-  const v1::VolumeSource source = ParseVolumeSpec(spec);
+  v1::VolumeSource source = ParseVolumeSpec(spec);
+  source.set_orientation(o.orientation);
   if (source.has_dicom_folder()) {
     const auto series = ListDicomSeries(source.dicom_folder());
     fmt::print("series:       {} in the folder (the largest loads)\n", series.size());
@@ -58,7 +46,8 @@ void PrintInfo(const InfoOptions& o) {
   fmt::print("voxel type:   {} in the source, held as {}\n", m.original_type, ToString(v.storage()));
   fmt::print("value range:  {:g} .. {:g}{}\n", v.min_value(), v.max_value(),
              m.value_unit.empty() ? "" : " " + m.value_unit);
-  fmt::print("orientation:  {} (index axes point to patient L/R, P/A, S/I)\n", OrientationCode(m));
+  fmt::print("orientation:  {} (index axes point to patient L/R, P/A, S/I){}\n", OrientationCode(m.direction),
+             m.orientation_override.empty() ? "" : ", given with --orientation");
   fmt::print("origin:       {:g}, {:g}, {:g} mm (LPS)\n", m.origin_mm[0], m.origin_mm[1], m.origin_mm[2]);
   fmt::print("memory:       {:.1f} MiB\n", v.MemoryBytes() / 1048576.0);
   const VolumeKindJudgement kind = JudgeVolumeKind(v);
@@ -68,6 +57,7 @@ void PrintInfo(const InfoOptions& o) {
     fmt::print("sanitised:    {} NaN/Inf voxels replaced by the finite range's ends\n",
                m.non_finite_replaced);
   }
+  for (const std::string& note : m.notes) fmt::print("note:         {}\n", note);
   if (!o.labels.empty()) {
     v1::VolumeSource segmentation;
     segmentation.set_labels(o.labels);
@@ -85,6 +75,9 @@ void AddInfoCommand(CLI::App& app) {
   auto o = std::make_shared<InfoOptions>();
   cmd->add_option("path", o->path, "Volume file, DICOM folder, or phantom:head|cube|sphere[?size=N&...]")
       ->required();
+  cmd->add_option("--orientation", o->orientation,
+                  "Where index axes x, y, z point in the patient, overriding the file's: three letters from L/R, "
+                  "P/A, S/I (e.g. LPS; LPI for a head stored top down)");
   cmd->add_option("--labels", o->labels, "A segmentation of it (label volume, NIfTI or NRRD): print its labels");
   cmd->add_option("--label-table", o->label_table, "The table naming the labels (`value<TAB>name` lines)");
   cmd->callback([o] { PrintInfo(*o); });

@@ -242,9 +242,9 @@ std::string ServerPool::VolumeOn(const std::string& server, const std::string& i
   std::string there = id;  // where the client gave only labels, the volume is the operator's
   try {
     if (!origin.upload.empty()) {
-      there = calls.Upload(origin.upload, {}).id();
-    } else if (!origin.path.empty()) {
-      there = calls.Load(origin.path, origin.series_uid).id();
+      there = calls.Upload(origin.upload, origin.upload_fields).id();
+    } else if (!origin.load.path().empty()) {
+      there = calls.Load(origin.load).id();
     }
     if (!origin.labels_path.empty()) {
       calls.LoadLabels(there, origin.labels_path, origin.labels_table_path);

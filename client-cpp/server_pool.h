@@ -35,8 +35,9 @@ namespace cinevol {
 // How the client got a volume, to get it again on another server.
 struct VolumeOrigin {
   std::string home;                // the server whose id it is
-  std::string path, series_uid;    // LoadVolume, under the server's data roots
+  v1::LoadVolumeRequest load;      // LoadVolume, under the server's data roots (path empty: not loaded)
   std::filesystem::path upload;    // UploadVolume, a local file
+  v1::UploadVolumeChunk::Header upload_fields;  // and its header's fields beyond name and size
   std::string labels_path, labels_table_path;  // LoadLabels
   std::filesystem::path labels_upload, labels_upload_table;  // UploadLabels
 };

@@ -19,10 +19,7 @@ std::vector<v1::VolumeInfo> VolumeCalls::List() {
   return {response.volumes().begin(), response.volumes().end()};
 }
 
-v1::VolumeInfo VolumeCalls::Load(const std::string& path, const std::string& series_uid) {
-  v1::LoadVolumeRequest request;
-  request.set_path(path);
-  request.set_series_uid(series_uid);
+v1::VolumeInfo VolumeCalls::Load(const v1::LoadVolumeRequest& request) {
   v1::VolumeInfo info;
   Check(stub_->LoadVolume(pool_.CallContext().get(), request, &info));
   return info;

@@ -19,7 +19,7 @@ class VolumeCalls {
   VolumeCalls(ServerPool& pool, const std::string& server);
 
   std::vector<v1::VolumeInfo> List();
-  v1::VolumeInfo Load(const std::string& path, const std::string& series_uid);
+  v1::VolumeInfo Load(const v1::LoadVolumeRequest& request);
   // Streams `file` after a header of `fields` (its name and size set here).
   v1::VolumeInfo Upload(const std::filesystem::path& file, v1::UploadVolumeChunk::Header fields,
                         std::size_t chunk_bytes = 1 << 20);

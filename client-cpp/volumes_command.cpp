@@ -17,9 +17,14 @@ struct VolumesOptions {
   bool json = false;
   std::string argument;  // the path, file or id the subcommand acts on
   std::string series;    // load: a DICOM folder's series
+  std::string orientation;  // load, upload: overrides the file's ("LPI")
   std::string volume_id, table;  // labels: the volume they segment, and their label table
   bool upload = false;           // labels: the path is a local file to send
 };
+
+constexpr const char* kOrientationHelp =
+    "Where index axes x, y, z point in the patient, overriding the file's: three letters from L/R, P/A, S/I "
+    "(e.g. LPS; LPI for a head stored top down)";
 
 // A volume the server answered with: all its fields, or its JSON.
 void Show(const v1::VolumeInfo& volume, bool json) {
@@ -35,13 +40,15 @@ void List(const VolumesOptions& o) {
   PrintJson(response);
 }
 
-void Load(const VolumesOptions& o) { Show(Connect(o.connection).LoadVolume(o.argument, o.series), o.json); }
+void Load(const VolumesOptions& o) {
+  Show(Connect(o.connection).LoadVolume(o.argument, o.series, o.orientation), o.json);
+}
 
 void Upload(const VolumesOptions& o) {
   if (!std::filesystem::is_regular_file(o.argument)) {
     throw InputError(fmt::format("{}: not a file that can be read", o.argument));
   }
-  Show(Connect(o.connection).UploadVolume(o.argument), o.json);
+  Show(Connect(o.connection).UploadVolume(o.argument, o.orientation), o.json);
 }
 
 void Labels(const VolumesOptions& o) {
@@ -88,10 +95,13 @@ void AddVolumesCommand(CLI::App& app) {
   load->add_option("path", o->argument, "Path on the server: absolute, or relative to its first data root")
       ->required();
   load->add_option("--series", o->series, "DICOM folders: the SeriesInstanceUID to load (default the largest)");
+  load->add_option("--orientation", o->orientation, kOrientationHelp);
 
   auto* upload = AddVolumesSubcommand(
-      volumes, "upload", "Send a local volume file (.nii, .nii.gz, .nrrd, .mha, .vtk) to the server", Upload, o);
+      volumes, "upload", "Send a local volume file (.nii, .nii.gz, .nrrd, .nrrd.gz, .mha, .vtk) to the server", Upload,
+      o);
   upload->add_option("file", o->argument, "Local volume file; its voxels must be in the same file")->required();
+  upload->add_option("--orientation", o->orientation, kOrientationHelp);
 
   auto* labels = AddVolumesSubcommand(
       volumes, "labels", "Load a segmentation (a label volume, NIfTI or NRRD) for a volume the server holds", Labels, o);

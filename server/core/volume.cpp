@@ -2,6 +2,7 @@
 #include "core/volume.h"
 
 #include <algorithm>
+#include <cctype>
 #include <cmath>
 #include <limits>
 #include <type_traits>
@@ -188,6 +189,11 @@ Volume::Volume(Vec3i dims, Vec3f spacing_mm, VoxelType type, MemoryBlock voxels,
     case VoxelType::kFloat32: Store<float>(std::move(voxels)); break;
     case VoxelType::kFloat64: Store<double>(std::move(voxels)); break;
   }
+  MakeRightHanded();
+  SummariseValues();
+}
+
+void Volume::SummariseValues() {
   if (storage_ == VoxelStorage::kUInt16) {
     histogram_ = ValueHistogram::Of(u16(), stored_offset_, min_value_, max_value_);
     block_ranges_ = BlockRanges(u16().data(), stored_offset_, dims_, block_counts());
@@ -195,6 +201,78 @@ Volume::Volume(Vec3i dims, Vec3f spacing_mm, VoxelType type, MemoryBlock voxels,
     histogram_ = ValueHistogram::Of(f32(), 0.0f, min_value_, max_value_);
     block_ranges_ = BlockRanges(f32().data(), 0.0f, dims_, block_counts());
   }
+}
+
+void Volume::Reorient(const std::array<double, 9>& direction, const std::string& code) {
+  metadata_.notes.push_back(fmt::format("orientation {} given at load, the file's being {}", code,
+                                        OrientationCode(metadata_.direction)));
+  metadata_.direction = direction;
+  metadata_.orientation_override = code;
+  MakeRightHanded();
+  SummariseValues();
+}
+
+namespace {
+
+double Determinant(const std::array<double, 9>& d) {
+  return d[0] * (d[4] * d[8] - d[5] * d[7]) - d[1] * (d[3] * d[8] - d[5] * d[6]) + d[2] * (d[3] * d[7] - d[4] * d[6]);
+}
+
+template <class V>
+void MirrorRows(V* voxels, Vec3i dims) {
+  ParallelFor(std::int64_t(dims.z) * dims.y, [&](std::int64_t row) {
+    V* begin = voxels + std::size_t(row) * dims.x;
+    std::reverse(begin, begin + dims.x);
+  }, 0, 64);
+}
+
+}  // namespace
+
+void Volume::MakeRightHanded() {
+  auto& d = metadata_.direction;
+  if (!(Determinant(d) < 0)) return;
+  if (storage_ == VoxelStorage::kUInt16) {
+    MirrorRows(static_cast<std::uint16_t*>(voxels_.data()), dims_);
+  } else {
+    MirrorRows(static_cast<float*>(voxels_.data()), dims_);
+  }
+  const std::string before = OrientationCode(d);
+  // Voxel (0,0,0) is now the old (nx-1,0,0); index axis x points the other way.
+  const double reach = double(dims_.x - 1) * spacing_mm_.x;
+  for (int r = 0; r < 3; ++r) {
+    metadata_.origin_mm[r] += d[3 * r] * reach;
+    d[3 * r] = -d[3 * r];
+  }
+  metadata_.notes.push_back(fmt::format("held mirrored along x, from {} to {}: its index axes were left-handed, "
+                                        "the patient is the same",
+                                        before, OrientationCode(d)));
+}
+
+std::string OrientationCode(const std::array<double, 9>& direction) {
+  std::string code;
+  for (int c = 0; c < 3; ++c) {
+    int best = 0;
+    for (int r = 1; r < 3; ++r) {
+      if (std::abs(direction[3 * r + c]) > std::abs(direction[3 * best + c])) best = r;
+    }
+    code += direction[3 * best + c] > 0 ? "LPS"[best] : "RAI"[best];
+  }
+  return code;
+}
+
+std::optional<std::array<double, 9>> DirectionOfCode(std::string_view code) {
+  if (code.size() != 3) return std::nullopt;
+  std::array<double, 9> d{};
+  bool used[3] = {};
+  for (int c = 0; c < 3; ++c) {
+    const char letter = char(std::toupper(static_cast<unsigned char>(code[c])));
+    const std::string_view positive = "LPS", negative = "RAI";
+    const std::size_t at = positive.find(letter) != std::string_view::npos ? positive.find(letter) : negative.find(letter);
+    if (at == std::string_view::npos || used[at]) return std::nullopt;
+    used[at] = true;
+    d[3 * at + c] = positive.find(letter) != std::string_view::npos ? 1.0 : -1.0;
+  }
+  return d;
 }
 
 template <class T>

@@ -5,7 +5,9 @@
 #include <array>
 #include <cstddef>
 #include <cstdint>
+#include <optional>
 #include <string>
+#include <string_view>
 #include <vector>
 
 #include "core/value_histogram.h"
@@ -41,7 +43,16 @@ struct VolumeMetadata {
   std::array<double, 9> direction{1, 0, 0, 0, 1, 0, 0, 0, 1};
   std::size_t non_finite_replaced = 0;  // NaN/Inf voxels sanitised on load
   std::size_t subnormals_flushed = 0;   // values below float's normal range, made 0
+  std::string orientation_override;     // the code a load gave instead of the file's direction, e.g. "LPI"
+  std::vector<std::string> notes;       // what loading changed: a resampling, a mirroring
 };
+
+// The patient direction each index axis points to most, as three letters
+// from L/R, P/A and S/I: "LPS" (the DICOM convention), "RAS", ...
+std::string OrientationCode(const std::array<double, 9>& direction);
+// The direction matrix of such a code; nullopt unless it is three letters,
+// one from each pair (case-insensitive).
+std::optional<std::array<double, 9>> DirectionOfCode(std::string_view code);
 
 class Volume {
  public:
@@ -55,6 +66,11 @@ class Volume {
   Volume(Vec3i dims, Vec3f spacing_mm, VoxelType type, MemoryBlock voxels, VolumeMetadata metadata);
   // The same from float values (phantoms, tests).
   Volume(Vec3i dims, Vec3f spacing_mm, std::vector<float> values, VolumeMetadata metadata);
+
+  // Takes `direction` for the index axes' patient directions instead of the
+  // file's (`code` names it: an override for files without an orientation,
+  // or a wrong one); the origin stays where voxel (0,0,0) is.
+  void Reorient(const std::array<double, 9>& direction, const std::string& code);
 
   Vec3i dims() const { return dims_; }
   Vec3f spacing_mm() const { return spacing_mm_; }
@@ -94,6 +110,12 @@ class Volume {
   // Sanitises and stores `voxels`, values of type T.
   template <class T>
   void Store(MemoryBlock voxels);
+  // Volumes are held with right-handed index axes, as the renderer's world
+  // (index space in mm) is: one whose direction has a negative determinant
+  // (NIfTI stored LAS, an override such as LPI) is mirrored along x, its
+  // direction and origin adjusted, so the patient is not shown mirrored.
+  void MakeRightHanded();
+  void SummariseValues();  // the histogram and block ranges
 
   Vec3i dims_;
   Vec3f spacing_mm_;

@@ -177,9 +177,15 @@ LabelVolume FitLabels(const Volume& labels, const Volume& image, const std::stri
   return out;
 }
 
+void FollowImageOrientation(Volume& labels, const Volume& image) {
+  ApplyOrientation(labels, image.metadata().orientation_override, "the image's orientation");
+}
+
 LabelVolume LoadLabelVolume(const std::filesystem::path& path, const Volume& image, const LoadPolicy& policy) {
   const std::string shown = file_checks::Shown(path, policy);
-  return FitLabels(LoadVolumeFile(path, policy), image, shown);
+  Volume labels = LoadVolumeFile(path, policy);
+  FollowImageOrientation(labels, image);
+  return FitLabels(labels, image, shown);
 }
 
 v1::LabelSet ToLabelSet(const LabelVolume& labels) {

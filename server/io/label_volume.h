@@ -33,7 +33,11 @@ std::map<int, std::string> LoadLabelTable(const std::filesystem::path& path, con
 // Refused when the grids do not overlap.
 LabelVolume FitLabels(const Volume& labels, const Volume& image, const std::string& shown);
 
-// LoadVolumeFile under `policy`, then FitLabels.
+// A segmentation of an image whose orientation was given at load (an
+// override) takes the same: it was stored as the image was.
+void FollowImageOrientation(Volume& labels, const Volume& image);
+
+// LoadVolumeFile under `policy`, FollowImageOrientation, then FitLabels.
 LabelVolume LoadLabelVolume(const std::filesystem::path& path, const Volume& image, const LoadPolicy& policy = {});
 
 // What the API and `cinevol info` say of a segmentation: every label present

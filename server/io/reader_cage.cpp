@@ -419,7 +419,7 @@ class ReaderProcess {
   }
 
   [[noreturn]] void Fail(const reader::Failure& failure) {
-    const std::string message = failure.message().substr(0, 4096);
+    const std::string message = ValidUtf8(failure.message().substr(0, 4096));
     switch (failure.kind()) {
       case reader::Failure::MEMORY:
         outcome_ = "memory";
@@ -488,7 +488,7 @@ CheckedHeader Check(const reader::Header& h, ReaderProcess& child, const LoadPol
   const auto type = VoxelTypeNamed(h.voxel_type());
   const bool sane = h.dims_size() == 3 && AllFinite(h.spacing_mm(), 3) && AllFinite(h.origin_mm(), 3) &&
                     AllFinite(h.direction(), 9) && type && h.modality().size() <= 64 &&
-                    h.value_unit().size() <= 64 && h.original_type().size() <= 256;
+                    h.value_unit().size() <= 64 && h.original_type().size() <= 256 && h.notes_size() <= 8;
   if (!sane) child.Violation("sent a header that does not hold together");
   c.type = *type;
   for (int a = 0; a < 3; ++a) {
@@ -503,11 +503,12 @@ CheckedHeader Check(const reader::Header& h, ReaderProcess& child, const LoadPol
                                  c.dims.x, c.dims.y, c.dims.z, c.voxels, policy.max_voxels));
   }
   c.meta.source = child.shown();
-  c.meta.modality = h.modality();
-  c.meta.value_unit = h.value_unit();
-  c.meta.original_type = h.original_type();
+  c.meta.modality = ValidUtf8(h.modality());
+  c.meta.value_unit = ValidUtf8(h.value_unit());
+  c.meta.original_type = ValidUtf8(h.original_type());
   for (int i = 0; i < 3; ++i) c.meta.origin_mm[i] = h.origin_mm(i);
   for (int i = 0; i < 9; ++i) c.meta.direction[i] = h.direction(i);
+  for (const std::string& note : h.notes()) c.meta.notes.push_back(ValidUtf8(LogSafe(note, 512)));
   return c;
 }
 
@@ -608,7 +609,8 @@ std::vector<DicomSeriesInfo> ListDicomSeries(const std::vector<Input>& files, co
   child.Answered();
   std::vector<DicomSeriesInfo> out;
   for (const reader::Series& s : reply.series_list().series()) {
-    out.push_back({s.uid(), s.description(), s.modality(), s.size(), std::size_t(s.file_count())});
+    out.push_back({ValidUtf8(s.uid()), ValidUtf8(s.description()), ValidUtf8(s.modality()), ValidUtf8(s.size()),
+                   std::size_t(s.file_count())});
   }
   return out;
 }
@@ -624,7 +626,7 @@ std::map<int, std::string> ReadLabelTable(const fs::path& file, const std::strin
   std::map<int, std::string> names;
   for (const auto& [value, name] : reply.label_table().names()) {
     if (value < 0 || value > 65535 || name.empty() || name.size() > 1024) child.Violation("sent an impossible label");
-    names[value] = name;
+    names[value] = ValidUtf8(name);
   }
   return names;
 }

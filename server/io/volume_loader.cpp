@@ -152,17 +152,37 @@ v1::VolumeSource ParseVolumeSpec(std::string_view spec) {
   return source;
 }
 
-Volume LoadVolume(const v1::VolumeSource& source, const fs::path& base_dir, const LoadPolicy& policy) {
-  switch (source.source_case()) {
-    case v1::VolumeSource::kFile:
-      return LoadVolumeFile(Resolve(source.file(), base_dir), policy);
-    case v1::VolumeSource::kDicomFolder:
-      return LoadDicomSeries(Resolve(source.dicom_folder(), base_dir), source.series_uid(), policy);
-    case v1::VolumeSource::kPhantom:
-      return MakePhantom(source.phantom());
-    default:
-      throw InputError("volume: no source given (file, dicomFolder or phantom)");
+std::array<double, 9> ParseOrientation(const std::string& code, const std::string& field) {
+  const auto direction = DirectionOfCode(code);
+  if (!direction) {
+    throw InputError(fmt::format("{}: '{}' is not an orientation: three letters naming where index axes x, y and z "
+                                 "point, one of L/R, one of P/A and one of S/I (e.g. LPS, or LPI for a head stored "
+                                 "top down)",
+                                 field, code.substr(0, 16)));
   }
+  return *direction;
+}
+
+void ApplyOrientation(Volume& volume, const std::string& code, const std::string& field) {
+  if (!code.empty()) volume.Reorient(ParseOrientation(code, field), code);
+}
+
+Volume LoadVolume(const v1::VolumeSource& source, const fs::path& base_dir, const LoadPolicy& policy) {
+  if (!source.orientation().empty()) ParseOrientation(source.orientation(), "volume.orientation");  // before reading
+  Volume volume = [&] {
+    switch (source.source_case()) {
+      case v1::VolumeSource::kFile:
+        return LoadVolumeFile(Resolve(source.file(), base_dir), policy);
+      case v1::VolumeSource::kDicomFolder:
+        return LoadDicomSeries(Resolve(source.dicom_folder(), base_dir), source.series_uid(), policy);
+      case v1::VolumeSource::kPhantom:
+        return MakePhantom(source.phantom());
+      default:
+        throw InputError("volume: no source given (file, dicomFolder or phantom)");
+    }
+  }();
+  ApplyOrientation(volume, source.orientation(), "volume.orientation");
+  return volume;
 }
 
 }  // namespace cinevol

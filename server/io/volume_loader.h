@@ -3,6 +3,7 @@
 // throws InputError naming the file or folder and what was wrong.
 #pragma once
 
+#include <array>
 #include <atomic>
 #include <cstdint>
 #include <filesystem>
@@ -51,9 +52,16 @@ struct LoadPolicy {
   const std::atomic<bool>* cancel = nullptr;
 };
 
-// Loads what `source` names; relative paths resolve against `base_dir`.
+// Loads what `source` names; relative paths resolve against `base_dir`;
+// source.orientation overrides the file's.
 Volume LoadVolume(const v1::VolumeSource& source, const std::filesystem::path& base_dir = {},
                   const LoadPolicy& policy = {});
+
+// The direction of orientation code `code` ("LPI"); InputError naming
+// `field` unless it is one.
+std::array<double, 9> ParseOrientation(const std::string& code, const std::string& field);
+// Reorients `volume` to `code` when it is not empty (an override of the file's).
+void ApplyOrientation(Volume& volume, const std::string& code, const std::string& field);
 
 // Reads a command-line volume spec: "phantom:NAME[?key=value&...]" (keys:
 // size, spacing, value, background, radius), a folder (a DICOM series) or a file.

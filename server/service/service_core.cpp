@@ -280,12 +280,16 @@ std::shared_ptr<LoadSlot> ServiceCore::BeginLoad(const Principal& caller) {
   }
   ++count;
   auto* slot = new LoadSlot;
+  slot->release_ = [this, name = caller.name] {
+    std::lock_guard lock(mu_);
+    if (--loads_[name] == 0) loads_.erase(name);
+  };
   load_slots_.insert(slot);
-  return std::shared_ptr<LoadSlot>(slot, [this, name = caller.name](LoadSlot* done) {
+  return std::shared_ptr<LoadSlot>(slot, [this](LoadSlot* done) {
+    done->Release();
     {
       std::lock_guard lock(mu_);
       load_slots_.erase(done);
-      if (--loads_[name] == 0) loads_.erase(name);
     }
     delete done;
   });

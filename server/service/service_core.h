@@ -66,6 +66,14 @@ struct ServerOptions {
 // or the server drains.
 struct LoadSlot {
   std::atomic<bool> cancel{false};
+  // Gives the slot back before the caller hears the answer (it may start the
+  // next load at once); also done when the slot is dropped.
+  void Release() { std::call_once(released_, release_); }
+
+ private:
+  friend class ServiceCore;
+  std::once_flag released_;
+  std::function<void()> release_;
 };
 
 class ServiceCore {

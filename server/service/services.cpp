@@ -6,6 +6,7 @@
 #include <fstream>
 
 #include "io/label_volume.h"
+#include "io/volume_loader.h"
 #include "service/errors.h"
 #include "core/log_safe.h"
 #include "service/metrics.h"
@@ -107,7 +108,7 @@ class UploadReactor final : public grpc::ServerReadReactor<v1::UploadVolumeChunk
       if (file_.is_open()) throw InputError("header: sent twice; send it once, first");
       const auto& h = chunk.header();
       if (!VolumeRegistry::IsUploadableName(h.file_name()) || h.file_name().size() > 255) {
-        throw InputError(fmt::format("header.file_name: '{}' is not .nii, .nii.gz, .nrrd, .mha or .vtk (formats "
+        throw InputError(fmt::format("header.file_name: '{}' is not .nii, .nii.gz, .nrrd, .nrrd.gz, .mha or .vtk (formats "
                                      "whose voxels travel in the one file), up to 255 characters",
                                      LogSafe(h.file_name(), 64)));
       }
@@ -119,8 +120,10 @@ class UploadReactor final : public grpc::ServerReadReactor<v1::UploadVolumeChunk
       if (!h.label_table().empty() && h.labels_for().empty()) {
         throw InputError("header.label_table: only with header.labels_for (a label volume's names)");
       }
+      if (!h.orientation().empty()) ParseOrientation(h.orientation(), "header.orientation");  // before any data
       labels_for_ = h.labels_for();
       label_table_ = h.label_table();
+      orientation_ = h.orientation();
       expected_ = h.size_bytes();
       // Only the name's last part, control characters escaped: it reaches messages and the log.
       name_ = LogSafe(std::filesystem::path(h.file_name()).filename().string());
@@ -144,7 +147,10 @@ class UploadReactor final : public grpc::ServerReadReactor<v1::UploadVolumeChunk
   static std::string Extension(const std::string& file_name) {
     std::string lower = file_name;
     for (char& c : lower) c = char(std::tolower(static_cast<unsigned char>(c)));
-    return lower.ends_with(".nii.gz") ? ".nii.gz" : std::filesystem::path(lower).extension().string();
+    for (const char* gz : {".nii.gz", ".nrrd.gz"}) {
+      if (lower.ends_with(gz)) return gz;
+    }
+    return std::filesystem::path(lower).extension().string();
   }
 
   void CheckSize(std::uint64_t size, const char* field) const {
@@ -169,15 +175,18 @@ class UploadReactor final : public grpc::ServerReadReactor<v1::UploadVolumeChunk
       return;
     }
     loading_ = true;  // the loader removes the file
+    // Everything came: the idle watch ends (a load has its reader's limits).
+    core_->calls().Forget(watch_);
     core_->loader().Submit([this] {
       const grpc::Status status = Guarded([&] {
         core_->RequireServing();
         *response_ = labels_for_.empty()
-                         ? core_->volumes().AddUpload(path_, name_, caller_, &slot_->cancel)
+                         ? core_->volumes().AddUpload(path_, name_, orientation_, caller_, &slot_->cancel)
                          : core_->volumes().AddUploadedLabels(labels_for_, path_, name_, label_table_, caller_,
                                                               &slot_->cancel);
       });
       ServerMetrics().Upload(status.ok());
+      slot_->Release();
       Finish(status);
     });
   }
@@ -198,6 +207,7 @@ class UploadReactor final : public grpc::ServerReadReactor<v1::UploadVolumeChunk
   std::filesystem::path path_;
   std::string name_;
   std::string labels_for_, label_table_;  // a segmentation's upload: its volume and label table
+  std::string orientation_;               // overrides the file's ("LPI")
   std::uint64_t expected_ = 0, received_ = 0;
   bool loading_ = false;
 };
@@ -237,7 +247,8 @@ grpc::ServerUnaryReactor* VolumeServiceImpl::LoadVolume(grpc::CallbackServerCont
                                                         const v1::LoadVolumeRequest* request,
                                                         v1::VolumeInfo* response) {
   return LoadFromDisk(context, request->path(), [this, request, response](const Principal& caller, LoadSlot& slot) {
-    *response = core_->volumes().LoadFromDataRoot(request->path(), request->series_uid(), caller, &slot.cancel);
+    *response = core_->volumes().LoadFromDataRoot(request->path(), request->series_uid(), request->orientation(),
+                                                  caller, &slot.cancel);
   });
 }
 
@@ -281,10 +292,12 @@ grpc::ServerUnaryReactor* VolumeServiceImpl::LoadFromDisk(grpc::CallbackServerCo
     std::shared_ptr<LoadSlot> slot = core_->BeginLoad(caller);
     reactor->Hold(slot);
     core_->loader().Submit([this, reactor, load = std::move(load), caller, slot] {
-      reactor->Finish(Guarded([&] {
+      const grpc::Status status = Guarded([&] {
         core_->RequireServing();
         load(caller, *slot);
-      }));
+      });
+      slot->Release();
+      reactor->Finish(status);
     });
   });
   if (!status.ok()) reactor->Finish(status);

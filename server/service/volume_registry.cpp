@@ -22,8 +22,8 @@ namespace fs = std::filesystem;
 namespace cinevol::service {
 namespace {
 
-constexpr const char* kUploadExtensions[] = {".nii.gz", ".nii", ".nrrd", ".mha", ".vtk"};
-constexpr const char* kVolumeExtensions[] = {".nii.gz", ".nii", ".nrrd", ".nhdr", ".mha", ".mhd", ".vtk"};
+constexpr const char* kUploadExtensions[] = {".nii.gz", ".nii", ".nrrd.gz", ".nrrd", ".mha", ".vtk"};
+constexpr const char* kVolumeExtensions[] = {".nii.gz", ".nii", ".nrrd.gz", ".nrrd", ".nhdr", ".mha", ".mhd", ".vtk"};
 
 bool EndsWith(const std::string& s, const std::string& tail) {
   return s.size() >= tail.size() && std::equal(tail.rbegin(), tail.rend(), s.rbegin(), [](char a, char b) {
@@ -230,9 +230,11 @@ v1::VolumeInfo VolumeRegistry::AddFromSpec(const std::string& spec) {
 }
 
 v1::VolumeInfo VolumeRegistry::LoadFromDataRoot(const std::string& path, const std::string& series_uid,
-                                                const Principal& caller, const std::atomic<bool>* cancel) {
+                                                const std::string& orientation, const Principal& caller,
+                                                const std::atomic<bool>* cancel) {
   const fs::path resolved = ResolveDataPath(path, "path");
-  const std::string source = series_uid.empty() ? resolved.string() : resolved.string() + "#" + series_uid;
+  const std::string source = resolved.string() + (series_uid.empty() ? "" : "#" + series_uid) +
+                             (orientation.empty() ? "" : "@" + orientation);
   // Answers name the path as this client wrote it, never where it resolved to.
   const auto as_written = [&](v1::VolumeInfo info) {
     info.set_source(path);
@@ -251,17 +253,20 @@ v1::VolumeInfo VolumeRegistry::LoadFromDataRoot(const std::string& path, const s
   } else {
     request.set_file(resolved.string());
   }
+  request.set_orientation(orientation);
   Reservation reservation(this, caller.name, false, "the volume");
   Volume volume = LoadVolume(request, {}, PolicyFor("path '" + path + "'", false, cancel, &reservation));
   return as_written(Add(BaseIdOf(resolved), source, path, std::move(volume), caller.name, false, &reservation));
 }
 
 v1::VolumeInfo VolumeRegistry::AddUpload(const fs::path& file, const std::string& file_name,
-                                         const Principal& caller, const std::atomic<bool>* cancel) {
+                                         const std::string& orientation, const Principal& caller,
+                                         const std::atomic<bool>* cancel) {
   const RemoveWhenDone remove{file};
   const std::string shown = "upload:" + file_name;
   Reservation reservation(this, caller.name, true, "the volume");
   Volume volume = LoadVolumeFile(file, PolicyFor(shown, true, cancel, &reservation));
+  ApplyOrientation(volume, orientation, "header.orientation");
   return Add(BaseIdOf(file_name), shown, shown, std::move(volume), caller.name, true, &reservation);
 }
 
@@ -316,7 +321,8 @@ v1::VolumeInfo VolumeRegistry::LoadLabels(const std::string& id, const std::stri
   const fs::path table = table_path.empty() ? fs::path() : ResolveDataPath(table_path, "table_path");
   Reservation reservation(this, caller.name, false, "the segmentation");
   const std::string shown = "path '" + path + "'";
-  const Volume file = LoadVolumeFile(labels, PolicyFor(shown, false, cancel, &reservation));
+  Volume file = LoadVolumeFile(labels, PolicyFor(shown, false, cancel, &reservation));
+  FollowImageOrientation(file, *image);
   reservation.Add(LabelBytesFor(*image));
   LabelVolume loaded = FitLabels(file, *image, shown);
   if (!table.empty()) loaded.names = LoadLabelTable(table, "table_path '" + table_path + "'");
@@ -330,7 +336,8 @@ v1::VolumeInfo VolumeRegistry::AddUploadedLabels(const std::string& id, const fs
   const std::shared_ptr<const Volume> image = VolumeForLabels(id, caller);
   const std::string shown = "upload:" + file_name;
   Reservation reservation(this, caller.name, false, "the segmentation");
-  const Volume labels = LoadVolumeFile(file, PolicyFor(shown, true, cancel, &reservation));
+  Volume labels = LoadVolumeFile(file, PolicyFor(shown, true, cancel, &reservation));
+  FollowImageOrientation(labels, *image);
   reservation.Add(LabelBytesFor(*image));
   LabelVolume loaded = FitLabels(labels, *image, shown);
   loaded.names = reader_cage::ReadLabelTableText(table, "header.label_table");
@@ -394,6 +401,7 @@ v1::VolumeInfo VolumeRegistry::InfoLocked(const std::string& id, const Entry& e)
   const auto& origin = v.metadata().origin_mm;
   *info.mutable_origin_mm() = ToProto(Vec3f{float(origin[0]), float(origin[1]), float(origin[2])});
   if (e.labels) *info.mutable_labels() = ToLabelSet(*e.labels);
+  info.mutable_notes()->Add(v.metadata().notes.begin(), v.metadata().notes.end());
   for (const VolumeCopyStatus& c : VolumeCache::Get().Copies()) {
     if (c.volume != e.volume.get()) continue;
     v1::VolumeCopy* copy = info.add_copies();

@@ -74,12 +74,16 @@ class VolumeRegistry {
 
   // A client's request: a file or DICOM folder under a data root, which may
   // name other files only inside the data roots.
-  v1::VolumeInfo LoadFromDataRoot(const std::string& path, const std::string& series_uid, const Principal& caller,
+  // `orientation` ("LPI") overrides the file's; a volume so loaded is another
+  // than the same file loaded as it is.
+  v1::VolumeInfo LoadFromDataRoot(const std::string& path, const std::string& series_uid,
+                                  const std::string& orientation, const Principal& caller,
                                   const std::atomic<bool>* cancel = nullptr);
   // A client's upload, written to `file` (in upload_dir()) by the service;
   // `file_name` is the name the client gave. It may name no other file. The
   // file is removed.
-  v1::VolumeInfo AddUpload(const std::filesystem::path& file, const std::string& file_name, const Principal& caller,
+  v1::VolumeInfo AddUpload(const std::filesystem::path& file, const std::string& file_name,
+                           const std::string& orientation, const Principal& caller,
                            const std::atomic<bool>* cancel = nullptr);
 
   // A segmentation for volume `id`: a label volume and optionally its table,

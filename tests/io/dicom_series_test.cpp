@@ -1,5 +1,5 @@
 // DICOM folders built from the real slices: several series, missing and
-// duplicate slices, gantry tilt, truncated files, empty folders.
+// duplicate slices, gantry tilt (resampled), truncated files, empty folders.
 #include <gdcmAttribute.h>
 #include <gdcmReader.h>
 #include <gdcmWriter.h>
@@ -163,18 +163,45 @@ TEST(DicomSeries, DuplicatePositionsAreRefused) {
   EXPECT_NE(LoadError(dir.path()).find("same position"), std::string::npos);
 }
 
-TEST(DicomSeries, GantryTiltIsRefused) {
+// Mean absolute difference of slice `k` of `a`, moved `shift` voxels along
+// y, and the same slice of `b`, over the voxels both hold.
+double SliceDifference(const Volume& a, const Volume& b, int k, int shift) {
+  double sum = 0;
+  int n = 0;
+  for (int y = std::max(0, -shift); y < a.dims().y && y + shift < a.dims().y; ++y) {
+    if (y + shift < 0) continue;
+    for (int x = 0; x < a.dims().x; ++x) {
+      sum += std::abs(a.Value(x, y + shift, k) - b.Value(x, y, k));
+      ++n;
+    }
+  }
+  return sum / std::max(n, 1);
+}
+
+TEST(DicomSeries, GantryTiltIsResampledOntoARegularGrid) {
   CINEVOL_REQUIRE_SHARED_DATA();
   ScratchDir dir;
   const auto files = SortedFiles(MrFolder());
   CopyAll(files, dir.path());
   // Shear the stack by 10 degrees: each slice 2.5 mm further moves tan(10) * 2.5 mm in y.
+  const double per_slice_mm = std::tan(10.0 * M_PI / 180.0) * 2.5;
   std::vector<fs::path> copies = SortedFiles(dir.path());
-  for (std::size_t i = 0; i < copies.size(); ++i) {
-    ShiftPosition(copies[i], std::tan(10.0 * M_PI / 180.0) * 2.5 * double(i));
-  }
-  const std::string error = LoadError(dir.path());
-  EXPECT_NE(error.find("gantry tilt of 10.00 degrees"), std::string::npos) << error;
+  for (std::size_t i = 0; i < copies.size(); ++i) ShiftPosition(copies[i], per_slice_mm * double(i));
+  const Volume original = LoadDicomSeries(MrFolder());
+  const Volume tilted = LoadDicomSeries(dir.path());
+  ASSERT_EQ(tilted.dims(), original.dims());
+  ASSERT_FALSE(tilted.metadata().notes.empty());
+  EXPECT_NE(tilted.metadata().notes[0].find("gantry tilt of 10.0 degrees"), std::string::npos)
+      << tilted.metadata().notes[0];
+  // Slice k of the regular grid is the sheared slice k moved back by its shift
+  // along the image's columns (patient y): the same anatomy at the same place.
+  const int k = 10;
+  const double col_y = original.metadata().direction[3 * 1 + 1];  // patient y of index axis y
+  const int shift = int(std::lround(per_slice_mm * k * col_y / original.spacing_mm().y));
+  ASSERT_GE(std::abs(shift), 5);
+  const double moved = SliceDifference(tilted, original, k, shift);
+  const double unmoved = SliceDifference(tilted, original, k, 0);
+  EXPECT_LT(moved, 0.25 * unmoved) << "moved " << moved << ", unmoved " << unmoved;
 }
 
 TEST(DicomSeries, TruncatedSliceIsAClearError) {

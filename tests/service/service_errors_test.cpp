@@ -218,7 +218,7 @@ TEST(ServiceErrors, UploadsAreCheckedLikeFiles) {
   Client client = server.Connect();
 
   WriteSmallNrrd(scratch / "upload.nrrd");
-  const v1::VolumeInfo uploaded = client.UploadVolume(scratch / "upload.nrrd", 1000);
+  const v1::VolumeInfo uploaded = client.UploadVolume(scratch / "upload.nrrd", {}, 1000);
   EXPECT_EQ(uploaded.id(), "upload");
   EXPECT_EQ(uploaded.source(), "upload:upload.nrrd");
   EXPECT_EQ(uploaded.dims().z(), 16u);

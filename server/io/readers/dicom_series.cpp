@@ -6,6 +6,7 @@
 #include <unistd.h>
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <cstdint>
 #include <cstdio>
@@ -42,7 +43,8 @@ const gdcm::Tag kRescaleSlope(0x0028, 0x1053);
 // Slices whose positions along the normal differ by more than this fraction
 // of the typical gap count as unevenly spaced.
 constexpr double kGapTolerance = 0.01;
-// Slice stacks sheared by more than this (degrees) count as gantry tilt.
+// Slice stacks sheared by more than this (degrees) count as gantry tilt, and
+// are resampled.
 constexpr double kMaxTiltDeg = 0.1;
 
 struct Scan {
@@ -82,6 +84,10 @@ class DicomWalk {
       // GDCM asserts reading a meta group that the file ends in (found by
       // fuzz_volume); a file without a data set holds no image anyway.
       if (at == size_) return false;
+      // A data set in big-endian or deflated encoding is not walked here (the
+      // walk reads little-endian bytes as they stand): GDCM reads it in the
+      // cage, where its failure is the load's alone.
+      if (transfer_syntax_ == "1.2.840.10008.1.2.2" || transfer_syntax_ == "1.2.840.10008.1.2.1.99") return true;
     }
     if (at == size_) return true;
     // The data set: explicit VR when the bytes after the first tag read as a
@@ -162,6 +168,13 @@ class DicomWalk {
       return Items(at, end, inner_explicit, depth + 1, 0xe0dd);
     }
     if (length > std::uint64_t(end - at)) return false;
+    if (meta && element == 0x0010 && length <= 64) {  // (0002,0010) Transfer Syntax UID
+      transfer_syntax_.assign(length, '\0');
+      if (!Read(at, reinterpret_cast<std::uint8_t*>(transfer_syntax_.data()), length)) return false;
+      while (!transfer_syntax_.empty() && (transfer_syntax_.back() == '\0' || transfer_syntax_.back() == ' ')) {
+        transfer_syntax_.pop_back();
+      }
+    }
     // GDCM asserts that Samples per Pixel is at most 4 (an abort, found by
     // fuzz_volume): 1 (grey) to 4 only, in any image, icons included.
     if (group == 0x0028 && element == 0x0002 && !meta) {
@@ -203,6 +216,7 @@ class DicomWalk {
   std::FILE* f_;
   std::int64_t size_;
   int elements_ = 0;
+  std::string transfer_syntax_;  // from the file meta group
 };
 
 bool DicomStructureIsSound(const fs::path& path) {
@@ -246,7 +260,8 @@ std::string Value(const Scan& scan, const std::string& file, const gdcm::Tag& ta
   return s;
 }
 
-// Parses a backslash-separated decimal string such as "1\0\0\0\1\0".
+// Parses a backslash-separated decimal string such as "1\0\0\0\1\0"; empty
+// when any item is not a finite number (NaN and infinities included).
 std::vector<double> Numbers(const std::string& s) {
   std::vector<double> out;
   std::stringstream in(s);
@@ -256,6 +271,7 @@ std::vector<double> Numbers(const std::string& s) {
     } catch (const std::exception&) {
       return {};
     }
+    if (!std::isfinite(out.back())) return {};
   }
   return out;
 }
@@ -301,6 +317,9 @@ struct SeriesGeometry {
   std::vector<Slice> slices;
   double row[3], col[3], normal[3];
   double slice_gap_mm = 1.0;
+  // Above kMaxTiltDeg: the stack is sheared along its slices (a gantry tilt):
+  // each slice is shifted in its own plane onto a regular grid, as Slicer does.
+  double tilt_deg = 0;
 };
 
 double Dot3(const double* a, const double* b) { return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]; }
@@ -361,13 +380,7 @@ SeriesGeometry CheckGeometry(const Scan& scan, const std::vector<std::string>& f
   double step[3];
   for (int a = 0; a < 3; ++a) step[a] = last.position[a] - first.position[a];
   const double cos_tilt = Dot3(step, g.normal) / std::sqrt(Dot3(step, step));
-  const double tilt_deg = std::acos(std::min(1.0, std::abs(cos_tilt))) * 180.0 / M_PI;
-  if (tilt_deg > kMaxTiltDeg) {
-    throw InputError(fmt::format(
-        "{}: gantry tilt of {:.2f} degrees (slices are sheared along the stack); cinevol does "
-        "not resample tilted series",
-        where, tilt_deg));
-  }
+  g.tilt_deg = std::acos(std::min(1.0, std::abs(cos_tilt))) * 180.0 / M_PI;
   return g;
 }
 
@@ -499,6 +512,7 @@ class DicomSeriesRead final : public reader::VolumeRead {
     }
     header_.set_original_type(original);
     slice_voxels_ = std::size_t(dims[0]) * std::size_t(dims[1]) * std::size_t(frames);
+    if (g.tilt_deg > kMaxTiltDeg) Shear(g, io->GetSpacing(0), io->GetSpacing(1), dims);
   }
 
   void Read(void* memory, std::size_t bytes) override {
@@ -525,12 +539,13 @@ class DicomSeriesRead final : public reader::VolumeRead {
           region.SetSize(a, io->GetDimensions(a));
         }
         io->SetIORegion(region);
-        if (rescaled_alike_) {
+        if (rescaled_alike_ && shifts_.empty()) {
           io->Read(out);
         } else {
           scratch.resize(io->GetImageSizeInBytes());
           io->Read(scratch.data());
           ToFloat(io->GetComponentType(), scratch.data(), reinterpret_cast<float*>(out), n);
+          if (!shifts_.empty()) ShiftSlice(reinterpret_cast<float*>(out), shifts_[k], io->GetComponentType());
         }
       } catch (const itk::ExceptionObject& e) {
         throw Failed(e);
@@ -539,6 +554,46 @@ class DicomSeriesRead final : public reader::VolumeRead {
   }
 
  private:
+  // A gantry-tilted series: each slice's offset in its own plane (voxels along
+  // row and column) from where a regular grid puts it; read as float32.
+  void Shear(const SeriesGeometry& g, double row_mm, double col_mm, const std::array<int, 3>& dims) {
+    const Slice& first = g.slices.front();
+    for (std::size_t k = 0; k < g.slices.size(); ++k) {
+      double d[3];
+      for (int a = 0; a < 3; ++a) d[a] = g.slices[k].position[a] - first.position[a];
+      shifts_.push_back({Dot3(d, g.row) / row_mm, Dot3(d, g.col) / col_mm});
+    }
+    width_ = dims[0];
+    height_ = dims[1];
+    header_.set_voxel_type("float32");
+    header_.add_notes(fmt::format("resampled from a gantry tilt of {:.1f} degrees onto a regular grid: each slice "
+                                  "shifted in its own plane",
+                                  g.tilt_deg));
+  }
+
+  // Moves a slice by its offset: the regular grid's voxel (i, j) is the
+  // slice's (i - dx, j - dy), interpolated bilinearly; what falls outside the
+  // slice takes its lowest value (air). Integer data are rounded again.
+  void ShiftSlice(float* slice, std::array<double, 2> shift, itk::IOComponentEnum type) const {
+    const std::vector<float> in(slice, slice + std::size_t(width_) * height_);
+    const float fill = *std::min_element(in.begin(), in.end());
+    const bool integral = type != itk::IOComponentEnum::FLOAT && type != itk::IOComponentEnum::DOUBLE;
+    for (int j = 0; j < height_; ++j) {
+      for (int i = 0; i < width_; ++i) {
+        const double x = i - shift[0], y = j - shift[1];
+        const int x0 = int(std::floor(x)), y0 = int(std::floor(y));
+        const double fx = x - x0, fy = y - y0;
+        auto at = [&](int xi, int yi) {
+          return xi < 0 || yi < 0 || xi >= width_ || yi >= height_ ? double(fill)
+                                                                    : double(in[std::size_t(yi) * width_ + xi]);
+        };
+        const double v = (at(x0, y0) * (1 - fx) + at(x0 + 1, y0) * fx) * (1 - fy) +
+                         (at(x0, y0 + 1) * (1 - fx) + at(x0 + 1, y0 + 1) * fx) * fy;
+        slice[std::size_t(j) * width_ + i] = float(integral ? std::nearbyint(v) : v);
+      }
+    }
+  }
+
   InputError Failed(const itk::ExceptionObject& e) const {
     return InputError(fmt::format("{}: cannot decode series {}: {}", where_, Describe(series_),
                                   itk_image::ItkMessage(e, {}, where_)));
@@ -550,6 +605,8 @@ class DicomSeriesRead final : public reader::VolumeRead {
   itk::IOComponentEnum type_ = itk::IOComponentEnum::UNKNOWNCOMPONENTTYPE;
   bool rescaled_alike_ = true;
   std::size_t slice_voxels_ = 0;
+  std::vector<std::array<double, 2>> shifts_;  // per slice, for a tilted series; empty otherwise
+  int width_ = 0, height_ = 0;
 };
 
 }  // namespace

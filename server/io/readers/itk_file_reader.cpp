@@ -997,6 +997,58 @@ std::unique_ptr<reader::VolumeRead> OpenWithItk(const fs::path& path, const std:
   return std::make_unique<ItkVolumeRead>(io, path, options);
 }
 
+bool IsGzippedNrrd(const fs::path& path) {
+  std::string name = path.filename().string();
+  for (char& c : name) c = char(std::tolower(static_cast<unsigned char>(c)));
+  return name.ends_with(".nrrd.gz");
+}
+
+// A whole NRRD file gzipped (.nrrd.gz): teem inflates gzip only as a NRRD's
+// encoding of its voxels. So the header, read through zlib, is rewritten as a
+// detached header that names the file itself as its data, gzip-encoded, with
+// a byte skip past the header: teem inflates the file and skips what the
+// header took.
+fs::path RewriteGzippedNrrd(const fs::path& path, const reader::ReadOptions& options) {
+  const std::string& shown = options.shown;
+  const int fd = file_checks::OpenRegularFile(path);
+  gzFile z = fd < 0 ? nullptr : gzdopen(fd, "rb");
+  if (!z) {
+    if (fd >= 0) close(fd);
+    throw InputError(fmt::format("{}: cannot be read", shown));
+  }
+  std::string text(file_checks::kMaxHeaderBytes, '\0');
+  const int got = gzread(z, text.data(), unsigned(text.size()));
+  gzclose(z);
+  text.resize(std::size_t(std::max(got, 0)));
+  if (text.rfind("NRRD", 0) != 0) throw InputError(fmt::format("{}: not a gzipped NRRD file", shown));
+  std::string out;
+  std::int64_t byte_skip = 0;
+  for (std::size_t line_count = 1;; ++line_count) {
+    const std::int64_t end = OffsetAfterLines(text, line_count);
+    if (end < 0) throw InputError(fmt::format("{}: the header does not end within {} bytes", shown, text.size()));
+    const std::int64_t begin = OffsetAfterLines(text, line_count - 1);
+    std::string line = text.substr(std::size_t(begin), std::size_t(end - begin));
+    while (!line.empty() && (line.back() == '\n' || line.back() == '\r')) line.pop_back();
+    if (line.empty()) {  // the blank line before the voxels
+      out += fmt::format("encoding: gzip\nbyte skip: {}\ndata file: {}\n", end + byte_skip,
+                         fs::absolute(path).lexically_normal().string());
+      return WriteScratch(out, options);
+    }
+    const std::string key = file_checks::FieldName(line);
+    const std::string value = TrimBlanks(line.substr(std::min(line.size(), line.find(':') + 1)));
+    if (key == "datafile") throw InputError(fmt::format("{}: a gzipped NRRD must hold its voxels itself", shown));
+    if (key == "lineskip" && value != "0") throw InputError(fmt::format("{}: 'line skip' in a gzipped NRRD", shown));
+    if (key == "encoding" && value != "raw") {
+      throw InputError(fmt::format("{}: a gzipped NRRD's voxels must be raw, not '{}'", shown, value.substr(0, 32)));
+    }
+    if (key == "byteskip") {
+      const auto [ptr, ec] = std::from_chars(value.data(), value.data() + value.size(), byte_skip);
+      if (ec != std::errc() || byte_skip < 0) throw InputError(fmt::format("{}: 'byte skip' is not a count", shown));
+    }
+    if (key != "encoding" && key != "byteskip" && key != "lineskip") out += line + "\n";
+  }
+}
+
 bool IsNrrd(const fs::path& path, const std::string& shown) {
   return file_checks::ReadHead(path, 4, shown) == "NRRD";
 }
@@ -1012,6 +1064,14 @@ std::unique_ptr<VolumeRead> OpenVolumeFile(const fs::path& path, const std::vect
   // The files the header names sit beside it when it names them so; any
   // other way (a subfolder, an absolute path, a list) gets a rewrite of the
   // header that names where the cage placed them.
+  if (IsGzippedNrrd(path)) {
+    const fs::path read = RewriteGzippedNrrd(path, options);
+    try {
+      return OpenWithItk(read, {path}, options);
+    } catch (const itk::ExceptionObject& e) {
+      throw InputError(fmt::format("{}: {}", shown, itk_image::ItkMessage(e, {path, read}, shown)));
+    }
+  }
   const file_checks::References refs = file_checks::FindReferences(path, shown);
   const bool beside = std::all_of(refs.files.begin(), refs.files.end(), [&](const fs::path& f) {
     return f.parent_path() == path.parent_path() && fs::exists(fs::symlink_status(f));

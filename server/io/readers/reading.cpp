@@ -33,11 +33,18 @@ std::string SafeFileName(const std::string& name) {
 std::string Extension(const std::string& name) {
   std::string lower = name;
   for (char& c : lower) c = char(std::tolower(static_cast<unsigned char>(c)));
-  for (const std::string ext : {".nii.gz", ".hdr.gz", ".img.gz", ".nii", ".hdr", ".img", ".nia", ".nrrd", ".nhdr",
-                                ".mha", ".mhd", ".vtk", ".exr"}) {
+  for (const std::string ext : {".nii.gz", ".hdr.gz", ".img.gz", ".nrrd.gz", ".nii", ".hdr", ".img", ".nia", ".nrrd",
+                                ".nhdr", ".mha", ".mhd", ".vtk", ".exr"}) {
     if (lower.ends_with(ext)) return name.substr(name.size() - ext.size());
   }
   return "";
+}
+
+// The file a rewritten header goes to: named as a reader of the main file's
+// format expects (a gzipped NRRD's becomes a detached header).
+std::string ScratchName(const std::string& main) {
+  const std::string ext = Extension(main);
+  return "rewritten" + (ext == ".nrrd.gz" ? std::string(".nhdr") : ext);
 }
 
 std::string DescriptorPath(int fd) { return fmt::format("/proc/self/fd/{}", fd); }
@@ -80,8 +87,8 @@ Job::Job(Request request, std::vector<UniqueFd> inputs) : request_(std::move(req
       Link(DescriptorPath(inputs_[i].get()), dir / file);
     }
   }
-  const fs::path scratch = dir / ("rewritten" + Extension(main));
-  scratch_.Reset(open(scratch.c_str(), O_RDWR | O_CREAT | O_EXCL | O_CLOEXEC, 0600));
+  scratch_path_ = dir / ScratchName(main);
+  scratch_.Reset(open(scratch_path_.c_str(), O_RDWR | O_CREAT | O_EXCL | O_CLOEXEC, 0600));
   if (!scratch_) throw std::runtime_error("cannot make the reader's scratch file");
 }
 
@@ -101,7 +108,7 @@ Reply Job::Answer() {
   options.max_voxels = request_.max_voxels();
   options.prechecks = !request_.skip_prechecks();
   options.scratch_fd = scratch_.get();
-  options.scratch_path = fs::path(request_.work_dir()) / ("rewritten" + Extension(SafeFileName(request_.file_names(0))));
+  options.scratch_path = scratch_path_;
   std::vector<DicomFile> dicom;
   if (request_.kind() == Request::DICOM_SERIES || request_.kind() == Request::DICOM_LIST) {
     for (std::size_t i = 0; i < inputs_.size(); ++i) dicom.push_back({InputPath(i), request_.file_names(int(i))});

@@ -4,6 +4,7 @@
 #pragma once
 
 #include <cstddef>
+#include <filesystem>
 #include <memory>
 #include <string>
 #include <vector>
@@ -40,6 +41,7 @@ class Job {
   Request request_;
   std::vector<UniqueFd> inputs_;
   UniqueFd scratch_;  // the rewritten header's file, when one may be needed
+  std::filesystem::path scratch_path_;
   std::unique_ptr<VolumeRead> volume_;
   std::vector<float> pixels_;  // EXR_IMAGE: RGB, read with the header
 };
