@@ -2,7 +2,9 @@
 // DICOM file (tests/fuzz/corpus/dicom/); its preamble's first byte asks for
 // 1 to 3 slices, written as a folder of copies moved along the slice normal,
 // and read as an upload's series through the reader cage's child entry point
-// (reader::ReadInProcess, DICOM_SERIES, pre-checks on, 4 Mi voxels).
+// (reader::Job, as cinevol-reader and reader::ReadInProcess run it;
+// DICOM_SERIES, pre-checks on, 4 Mi voxels), its answers checked as the
+// parent would check them (fuzz_support.h).
 // LLVMFuzzerCustomMutator parses the file into elements (dicom_model.h) and
 // mutates tags, VRs, lengths, transfer syntaxes, the pixel module and the
 // pixel data, JPEG 2000 codestreams included (j2k_model.h); CustomCrossOver
@@ -61,9 +63,8 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
     request.add_file_names(name);
     inputs.push_back(cinevol::fuzz::OpenInput(folder / name));
   }
-  std::vector<unsigned char> memory;
   try {
-    cinevol::fuzz::RequireWireForm(cinevol::reader::ReadInProcess(request, std::move(inputs), memory));
+    cinevol::fuzz::ReadLikeTheChild(request, std::move(inputs));
   } catch (const std::bad_alloc&) {
     cinevol::fuzz::Verbose("out of memory\n");
     return 0;
@@ -72,7 +73,7 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
     cinevol::fuzz::Verbose("refused (%zu slices): %s\n", slices.size(), e.what());
     return 0;
   }
-  cinevol::fuzz::Verbose("loaded (%zu slices, %zu bytes)\n", slices.size(), memory.size());
+  cinevol::fuzz::Verbose("loaded (%zu slices)\n", slices.size());
   return 0;
 }
 

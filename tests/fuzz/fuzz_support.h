@@ -4,17 +4,23 @@
 
 #include <stdlib.h>
 
+#include <cmath>
 #include <cstdarg>
 #include <cstdint>
 #include <cstdio>
 #include <cstdlib>
 #include <filesystem>
 #include <string>
+#include <stdexcept>
 #include <string_view>
+#include <vector>
 
 #include "cinevol/reader/reader.pb.h"
+#include "core/volume.h"
+#include "core/voxel_memory.h"
 #include "io/file_checks.h"
 #include "io/reader_channel.h"
+#include "io/readers/reading.h"
 
 namespace cinevol::fuzz {
 
@@ -75,10 +81,36 @@ inline UniqueFd OpenInput(const std::filesystem::path& path) {
   return fd;
 }
 
+// A header the parent takes (io/reader_cage.cpp, Check): three dimensions
+// within the axis limit, finite geometry, a known voxel type, short texts.
+// Anything else is a broken protocol there ("sent a header that does not
+// hold together") instead of the reader's refusal. Aborts then.
+inline void RequireSaneHeader(const reader::Reply& reply) {
+  if (!reply.has_header()) return;
+  const reader::Header& h = reply.header();
+  auto finite = [](const auto& values, int count) {
+    if (values.size() != count) return false;
+    for (double v : values) {
+      if (!std::isfinite(v)) return false;
+    }
+    return true;
+  };
+  bool sane = h.dims_size() == 3 && finite(h.spacing_mm(), 3) && finite(h.origin_mm(), 3) &&
+              finite(h.direction(), 9) && VoxelTypeNamed(h.voxel_type()) && h.modality().size() <= 64 &&
+              h.value_unit().size() <= 64 && h.original_type().size() <= 256;
+  for (int a = 0; sane && a < 3; ++a) sane = h.dims(a) >= 1 && h.dims(a) <= std::uint32_t(kMaxVoxelsPerAxis);
+  if (!sane) {
+    std::fprintf(stderr, "the reader's header would be a broken protocol to the parent: %s\n",
+                 h.ShortDebugString().c_str());
+    std::abort();
+  }
+}
+
 // The child's answer travels to the parent as a protobuf message: one that
 // does not parse back (a proto3 string holding bytes that are not UTF-8)
 // reaches the parent as a broken protocol instead of the answer. Aborts then.
 inline void RequireWireForm(const reader::Reply& reply) {
+  RequireSaneHeader(reply);
   reader::Reply back;
   if (!back.ParseFromString(reply.SerializeAsString())) {
     std::fprintf(stderr, "the reader's answer does not survive the socket (not UTF-8?): %s\n",
@@ -93,6 +125,22 @@ inline void RequireFailureWireForm(const std::string& message) {
   reply.mutable_failure()->set_kind(reader::Failure::INPUT);
   reply.mutable_failure()->set_message(message);
   RequireWireForm(reply);
+}
+
+// What cinevol-reader does with a request (reader_main.cpp, Serve), in this
+// process: the answer, checked as the parent would check it, then the voxels
+// into memory of the size the header announces (reader::ReadInProcess does
+// the same without the check between).
+inline void ReadLikeTheChild(const reader::Request& request, std::vector<UniqueFd> inputs) {
+  reader::Job job(request, std::move(inputs));
+  const reader::Reply reply = job.Answer();
+  RequireWireForm(reply);
+  if (!reply.has_header()) return;
+  const reader::Header& h = reply.header();
+  const std::uint64_t voxels = std::uint64_t(h.dims(0)) * h.dims(1) * h.dims(2);
+  if (voxels > request.max_voxels()) throw std::runtime_error("the parent refuses the header: too many voxels");
+  std::vector<unsigned char> memory(voxels * BytesPerVoxel(*VoxelTypeNamed(h.voxel_type())));
+  job.Write(memory.data(), memory.size());
 }
 
 // CINEVOL_FUZZ_VERBOSE=1: each input's outcome on stderr (to check seeds and reproducers).

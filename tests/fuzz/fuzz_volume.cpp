@@ -1,10 +1,13 @@
 // Volume files from an upload: the first byte picks the format, the rest is
 // the file. What the server does with an upload, in this process: the
 // parent's checks (the header may name no other file), then the reader
-// cage's child entry point (reader::ReadInProcess) with an upload's request
-// (4 Mi voxels at most), the readers' pre-checks on. InputError and other
+// cage's child entry point (reader::Job, as cinevol-reader and
+// reader::ReadInProcess run it) with an upload's request (4 Mi voxels at
+// most), the readers' pre-checks on, and between its steps the parent's
+// checks of what it would receive (fuzz_support.h). InputError and other
 // std::exceptions are the expected refusals; crashes, sanitizer reports,
-// hangs and leaks are bugs.
+// hangs, leaks in cinevol's code and answers that would not reach the parent
+// are bugs.
 //
 // CINEVOL_READER_PRECHECKS=off skips the pre-checks, as the server's
 // variable does: the committed regression inputs then crash this process.
@@ -55,8 +58,7 @@ void ReadUpload(const fs::path& file, const std::string& shown) {
   request.set_work_dir(scratch->FreshWorkDir().string());
   std::vector<cinevol::UniqueFd> inputs;
   inputs.emplace_back(cinevol::fuzz::OpenInput(file));
-  std::vector<unsigned char> memory;
-  cinevol::fuzz::RequireWireForm(cinevol::reader::ReadInProcess(request, std::move(inputs), memory));
+  cinevol::fuzz::ReadLikeTheChild(request, std::move(inputs));
 }
 
 // One DICOM file in a folder, read as a series.
@@ -67,8 +69,7 @@ void ReadDicomUpload(const fs::path& file, const std::string& shown) {
   request.set_work_dir(scratch->FreshWorkDir().string());
   std::vector<cinevol::UniqueFd> inputs;
   inputs.emplace_back(cinevol::fuzz::OpenInput(file));
-  std::vector<unsigned char> memory;
-  cinevol::fuzz::RequireWireForm(cinevol::reader::ReadInProcess(request, std::move(inputs), memory));
+  cinevol::fuzz::ReadLikeTheChild(request, std::move(inputs));
 }
 
 }  // namespace

@@ -333,6 +333,7 @@ struct Tally {
   std::map<std::string, std::uint64_t> regression_outcomes;  // the committed regression inputs, replayed
   std::uint64_t deaths = 0;
   std::vector<std::string> death_notes;
+  std::uint64_t slot_waits = 0;  // seconds an input waited for an earlier load to end
   std::uint64_t kept = 0;
 };
 
@@ -419,12 +420,12 @@ class Run {
         for (std::size_t i = 0; i < in.files.size(); ++i) {
           WriteFile(placed / ("slice" + std::to_string(i) + ".dcm"), in.files[i]);
         }
-        volume_id = client_->LoadVolume(placed.filename().string()).id();
+        volume_id = WithSlot([&] { return client_->LoadVolume(placed.filename().string()).id(); });
       } else {
         ++tally_.uploads;
         placed = uploads_ / ("fuzz-" + std::to_string(n) + in.extension);
         WriteFile(placed, in.files[0]);
-        volume_id = client_->UploadVolume(placed).id();
+        volume_id = WithSlot([&] { return client_->UploadVolume(placed).id(); });
       }
       outcome = "loaded";
     } catch (const cinevol::RpcError& e) {
@@ -447,6 +448,24 @@ class Run {
     std::error_code ec;
     fs::remove_all(placed, ec);
     return outcome;
+  }
+
+  // `call`, again while the server still runs an earlier load of ours (a
+  // load whose call ended before it did: --max-uploads-per-principal).
+  template <class Call>
+  std::string WithSlot(const Call& call) {
+    for (const auto give_up = Clock::now() + 330s;;) {
+      try {
+        return call();
+      } catch (const cinevol::RpcError& e) {
+        if (e.code() != grpc::StatusCode::RESOURCE_EXHAUSTED ||
+            std::string(e.what()).find("max-uploads-per-principal") == std::string::npos || Clock::now() > give_up) {
+          throw;
+        }
+        ++tally_.slot_waits;
+        std::this_thread::sleep_for(1s);
+      }
+    }
   }
 
   // The inputs that stopped a reader, the first few of each kind.
@@ -505,6 +524,10 @@ class Run {
     r << "inputs: " << tally_.inputs << " (" << tally_.replayed << " corpus files as they are, " << tally_.mutated
       << " mutated; " << tally_.uploads << " uploads, " << tally_.series << " DICOM series of " << tally_.slices
       << " slices)\n";
+    if (tally_.slot_waits > 0) {
+      r << "waited " << tally_.slot_waits << " s in all for earlier loads whose calls had ended (a call ends "
+        << "CANCELLED after --upload-idle-seconds while its load goes on)\n";
+    }
     r << "outcomes:\n";
     for (const auto& [outcome, count] : tally_.outcomes) r << "  " << outcome << ": " << count << "\n";
     r << "committed regression inputs:\n";
