@@ -182,7 +182,7 @@ class Server {
 
 class Witness {
  public:
-  explicit Witness(cinevol::Client& client) : client_(client) {
+  explicit Witness(cinevol::Client& client) {
     cinevol::v1::CreateSessionRequest r;
     r.set_volume_id("phantom:head?size=32");
     r.mutable_viewport()->set_width(48);
@@ -230,7 +230,6 @@ class Witness {
   }
 
  private:
-  cinevol::Client& client_;
   std::string session_;
   std::unique_ptr<cinevol::SessionStream> stream_;
   std::atomic<std::uint64_t> frames_{0};
