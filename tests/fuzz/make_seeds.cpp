@@ -1,12 +1,19 @@
 // Writes the fuzz targets' seed corpora (tests/fuzz/corpus/): small valid
 // volume files, one per format, each prefixed by the byte fuzz_volume reads
-// its format from, and session requests in wire form, each prefixed by the
-// byte fuzz_requests reads the message type from. Run from the fuzz build:
+// its format from; session requests in wire form, each prefixed by the byte
+// fuzz_requests reads the message type from; and DICOM files for fuzz_dicom
+// (corpus/dicom/: each transfer syntax GDCM writes, JPEG 2000 among them,
+// colour models, palettes, frames, an icon, 1 to 3 slices). Run from the
+// fuzz build:
 //   build-fuzz/fuzz_seeds tests/fuzz/corpus
-// fuzz_scene's seeds are examples/*.json (run.sh adds them).
+// fuzz_scene's seeds are examples/*.json (run.sh adds them). The inputs that
+// once crashed (corpus/*/regression-*) are kept as they were found.
 #include <gdcmAttribute.h>
 #include <gdcmImage.h>
+#include <gdcmImageChangeTransferSyntax.h>
 #include <gdcmImageWriter.h>
+#include <gdcmJPEG2000Codec.h>
+#include <gdcmSmartPointer.h>
 #include <google/protobuf/util/json_util.h>
 #include <nifti/nifti1.h>
 #include <zlib.h>
@@ -14,10 +21,15 @@
 #include <sstream>
 
 #include "cinevol/v1/service.pb.h"
+#include "dicom_model.h"
 
 #include <cstdint>
 #include <cstring>
 #include <filesystem>
+#include <functional>
+#include <map>
+#include <optional>
+#include <algorithm>
 #include <fstream>
 #include <iostream>
 #include <string>
@@ -116,6 +128,218 @@ bool WriteDicom(const fs::path& path) {
   w.GetFile().GetHeader().SetDataSetTransferSyntax(gdcm::TransferSyntax::ExplicitVRLittleEndian);
   w.SetFileName(path.c_str());
   return w.Write();
+}
+
+// ---- fuzz_dicom's seeds
+
+namespace fz = cinevol::fuzz;
+
+struct DicomSeed {
+  std::string name;
+  gdcm::PixelFormat format = gdcm::PixelFormat::INT16;
+  gdcm::PhotometricInterpretation::PIType photometric = gdcm::PhotometricInterpretation::MONOCHROME2;
+  int size = 4;  // rows and columns
+  int frames = 1;
+  gdcm::TransferSyntax::TSType syntax = gdcm::TransferSyntax::ExplicitVRLittleEndian;
+  bool lossy = false;  // JPEG 2000: irreversible, at a rate
+  int slices = 1;      // what fuzz_dicom makes of it: the preamble's first byte
+};
+
+// A small image of `seed`'s kind as GDCM writes it, with the elements a
+// series needs (position, orientation, series UID).
+std::string GdcmDicom(const DicomSeed& seed) {
+  const int n = seed.size;
+  // GDCM's writers and filters hold their images by counted pointers: on the heap.
+  const gdcm::SmartPointer<gdcm::Image> owned = new gdcm::Image;
+  gdcm::Image& image = *owned;
+  image.SetNumberOfDimensions(seed.frames > 1 ? 3 : 2);
+  image.SetDimension(0, unsigned(n));
+  image.SetDimension(1, unsigned(n));
+  if (seed.frames > 1) image.SetDimension(2, unsigned(seed.frames));
+  image.SetPixelFormat(seed.format);
+  image.SetPhotometricInterpretation(seed.photometric);
+  image.SetSpacing(0, 0.5);
+  image.SetSpacing(1, 0.5);
+  image.SetOrigin(0, -1.0);
+  image.SetOrigin(1, -1.0);
+  image.SetOrigin(2, 10.0);
+  const double cosines[6] = {1, 0, 0, 0, 1, 0};
+  image.SetDirectionCosines(cosines);
+  if (seed.format.GetPixelRepresentation() == 1 && seed.format.GetSamplesPerPixel() == 1) {
+    image.SetIntercept(-1024);
+    image.SetSlope(1);
+  }
+  // Smooth ramps, which a coder shrinks: GDCM's JPEG 2000 encoder writes past
+  // its output buffer (the raw image's size) when the code stream comes out
+  // larger, as it does for noise or tiny images.
+  const std::size_t samples = seed.format.GetSamplesPerPixel();
+  const std::size_t sample_bytes = seed.format.GetBitsAllocated() / 8;
+  const std::size_t bytes = std::size_t(n) * n * seed.frames * samples * sample_bytes;
+  std::vector<char> pixels(bytes);
+  for (std::size_t i = 0; i < bytes / sample_bytes; ++i) {
+    const std::size_t p = i / samples, x = p % n, y = p / n % n, frame = p / (std::size_t(n) * n);
+    const unsigned v = unsigned(10 * x + 7 * y + 30 * frame + 50 * (i % samples)) & 0x7f;
+    for (std::size_t b = 0; b < sample_bytes; ++b) pixels[i * sample_bytes + b] = char(b == 0 ? v : 0);
+  }
+  gdcm::DataElement pixel(gdcm::Tag(0x7fe0, 0x0010));
+  pixel.SetByteValue(pixels.data(), std::uint32_t(bytes));
+  image.SetDataElement(pixel);
+  const bool native = seed.syntax == gdcm::TransferSyntax::ExplicitVRLittleEndian ||
+                      seed.syntax == gdcm::TransferSyntax::ImplicitVRLittleEndian ||
+                      seed.syntax == gdcm::TransferSyntax::ExplicitVRBigEndian ||
+                      seed.syntax == gdcm::TransferSyntax::DeflatedExplicitVRLittleEndian;
+  gdcm::ImageWriter w;
+  if (native) {
+    image.SetTransferSyntax(seed.syntax);
+    w.SetImage(image);
+  } else {
+    image.SetTransferSyntax(gdcm::TransferSyntax::ExplicitVRLittleEndian);
+    gdcm::ImageChangeTransferSyntax change;
+    change.SetTransferSyntax(seed.syntax);
+    gdcm::JPEG2000Codec j2k;
+    if (seed.lossy) {
+      j2k.SetRate(0, 4);
+      j2k.SetReversible(false);
+      change.SetUserCodec(&j2k);
+    }
+    change.SetInput(image);
+    if (!change.Change()) return "";
+    w.SetImage(change.GetOutput());
+  }
+  gdcm::DataSet& ds = w.GetFile().GetDataSet();
+  gdcm::Attribute<0x0008, 0x0060> modality{"CT"};
+  ds.Replace(modality.GetAsDataElement());
+  gdcm::Attribute<0x0020, 0x000e> series{"1.2.826.0.1.3680043.2.1125.1.1"};
+  ds.Replace(series.GetAsDataElement());
+  gdcm::Attribute<0x0020, 0x000d> study{"1.2.826.0.1.3680043.2.1125.1.2"};
+  ds.Replace(study.GetAsDataElement());
+  gdcm::Attribute<0x0008, 0x0018> sop{"1.2.826.0.1.3680043.2.1125.1.3"};
+  ds.Replace(sop.GetAsDataElement());
+  gdcm::Attribute<0x0008, 0x0016> sop_class{"1.2.840.10008.5.1.4.1.1.2"};
+  ds.Replace(sop_class.GetAsDataElement());
+  gdcm::Attribute<0x0020, 0x0013> number{1};
+  ds.Replace(number.GetAsDataElement());
+  gdcm::Attribute<0x0018, 0x0050> thickness{1.0};
+  ds.Replace(thickness.GetAsDataElement());
+  std::ostringstream out;
+  w.SetStream(out);
+  if (!w.Write()) return "";
+  return out.str();
+}
+
+// The file with the preamble's first byte asking fuzz_dicom for `slices`.
+std::string WithSlices(std::string file, int slices) {
+  if (file.size() > 132 && file.compare(128, 4, "DICM") == 0) file[0] = char(slices - 1);
+  return file;
+}
+
+// A GDCM file changed through the tree: a palette, an icon.
+std::string Edited(const std::string& bytes, const std::function<void(fz::DicomFile&)>& edit) {
+  std::optional<fz::DicomFile> file = fz::ParseDicom(reinterpret_cast<const std::uint8_t*>(bytes.data()), bytes.size());
+  if (!file || !file->trailing.empty()) return "";
+  edit(*file);
+  return fz::WriteDicom(*file);
+}
+
+std::string Us(std::initializer_list<unsigned> values) {
+  std::string out;
+  for (unsigned v : values) out += std::string{char(v & 0xff), char(v >> 8)};
+  return out;
+}
+
+bool WriteDicomSeeds(const fs::path& out) {
+  fs::create_directories(out);
+  using TS = gdcm::TransferSyntax;
+  using PI = gdcm::PhotometricInterpretation;
+  const std::vector<DicomSeed> seeds = {
+      {"ct-int16.dcm"},
+      {"ct-int16-3-slices.dcm", gdcm::PixelFormat::INT16, PI::MONOCHROME2, 4, 1, TS::ExplicitVRLittleEndian, false, 3},
+      {"implicit-uint16-mono1.dcm", gdcm::PixelFormat::UINT16, PI::MONOCHROME1, 4, 1, TS::ImplicitVRLittleEndian},
+      {"explicit-big-endian.dcm", gdcm::PixelFormat::INT16, PI::MONOCHROME2, 4, 1, TS::ExplicitVRBigEndian, false, 2},
+      {"deflated.dcm", gdcm::PixelFormat::INT16, PI::MONOCHROME2, 4, 1, TS::DeflatedExplicitVRLittleEndian},
+      {"j2k-lossless-int16.dcm", gdcm::PixelFormat::INT16, PI::MONOCHROME2, 16, 1, TS::JPEG2000Lossless, false, 2},
+      {"j2k-lossy-uint8.dcm", gdcm::PixelFormat::UINT8, PI::MONOCHROME2, 16, 1, TS::JPEG2000, true},
+      {"j2k-lossless-uint16-3-slices.dcm", gdcm::PixelFormat::UINT16, PI::MONOCHROME2, 16, 1, TS::JPEG2000Lossless, false,
+       3},
+      {"j2k-rgb.dcm", gdcm::PixelFormat(3, 8, 8, 7, 0), PI::RGB, 16, 1, TS::JPEG2000Lossless},
+      {"j2k-multiframe-uint8.dcm", gdcm::PixelFormat::UINT8, PI::MONOCHROME2, 16, 3, TS::JPEG2000Lossless},
+      {"rle-uint8.dcm", gdcm::PixelFormat::UINT8, PI::MONOCHROME2, 16, 1, TS::RLELossless},
+      {"jpeg-baseline-uint8.dcm", gdcm::PixelFormat::UINT8, PI::MONOCHROME2, 16, 1, TS::JPEGBaselineProcess1},
+      {"jpeg-lossless-int16.dcm", gdcm::PixelFormat::INT16, PI::MONOCHROME2, 16, 1,
+       TS::JPEGLosslessProcess14_1},
+      {"jpegls-uint16.dcm", gdcm::PixelFormat::UINT16, PI::MONOCHROME2, 16, 1, TS::JPEGLSLossless},
+      {"rgb-native.dcm", gdcm::PixelFormat(3, 8, 8, 7, 0), PI::RGB, 4, 1, TS::ExplicitVRLittleEndian},
+      {"multiframe-uint8.dcm", gdcm::PixelFormat::UINT8, PI::MONOCHROME2, 4, 3, TS::ExplicitVRLittleEndian},
+      {"uint8.dcm", gdcm::PixelFormat::UINT8, PI::MONOCHROME2, 4, 1, TS::ExplicitVRLittleEndian},
+  };
+  std::map<std::string, std::string> written;
+  for (const DicomSeed& seed : seeds) {
+    const std::string bytes = GdcmDicom(seed);
+    if (bytes.empty()) {
+      std::cerr << "GDCM could not write " << seed.name << "\n";
+      return false;
+    }
+    written[seed.name] = WithSlices(bytes, seed.slices);
+  }
+  // GDCM writes no position or orientation for a multi-frame image; a series needs them.
+  for (const char* name : {"multiframe-uint8.dcm", "j2k-multiframe-uint8.dcm"}) {
+    written[name] = Edited(written[name], [](fz::DicomFile& f) {
+      f.Set(0x0020, 0x0032, "DS", "-1\\-1\\10");
+      f.Set(0x0020, 0x0037, "DS", "1\\0\\0\\0\\1\\0 ");
+    });
+  }
+  // A palette: 8-bit indices, three 256-entry 16-bit tables.
+  written["palette-uint8.dcm"] = Edited(written["uint8.dcm"], [](fz::DicomFile& f) {
+    f.Set(0x0028, 0x0004, "CS", "PALETTE COLOR ");
+    std::string table;
+    for (int i = 0; i < 256; ++i) table += Us({unsigned(i * 257)});
+    for (std::uint16_t c = 0; c < 3; ++c) {
+      f.Set(0x0028, std::uint16_t(0x1101 + c), "US", Us({256, 0, 16}));
+      f.Set(0x0028, std::uint16_t(0x1201 + c), "OW", table);
+    }
+  });
+  // An icon: a nested pixel module and pixel data, undefined lengths.
+  written["icon-sequence.dcm"] = Edited(written["ct-int16.dcm"], [](fz::DicomFile& f) {
+    fz::Item icon;
+    icon.undefined_length = true;
+    auto add = [&](std::uint16_t g, std::uint16_t e, const char* vr, const std::string& v) {
+      fz::Element x;
+      x.group = g;
+      x.element = e;
+      x.vr = vr;
+      x.value = v;
+      icon.elements.push_back(x);
+    };
+    add(0x0028, 0x0002, "US", Us({1}));
+    add(0x0028, 0x0004, "CS", "MONOCHROME2 ");
+    add(0x0028, 0x0010, "US", Us({2}));
+    add(0x0028, 0x0011, "US", Us({2}));
+    add(0x0028, 0x0100, "US", Us({8}));
+    add(0x0028, 0x0101, "US", Us({8}));
+    add(0x0028, 0x0102, "US", Us({7}));
+    add(0x0028, 0x0103, "US", Us({0}));
+    add(0x7fe0, 0x0010, "OB", std::string("\1\2\3\4", 4));
+    fz::Element& seq = f.Set(0x0088, 0x0200, "SQ", "");
+    seq.kind = fz::Element::Kind::kSequence;
+    seq.undefined_length = true;
+    seq.items = {icon};
+  });
+  for (const auto& [name, bytes] : written) {
+    if (bytes.empty()) {
+      std::cerr << "cannot make " << name << "\n";
+      return false;
+    }
+    // The mutator's model must hold GDCM's files whole, byte for byte
+    // (deflated ones: the same data set, compressed anew).
+    const auto* data = reinterpret_cast<const std::uint8_t*>(bytes.data());
+    const std::optional<fz::DicomFile> parsed = fz::ParseDicom(data, bytes.size());
+    if (!parsed || !parsed->trailing.empty() || (!parsed->encoding.deflated && fz::WriteDicom(*parsed) != bytes)) {
+      std::cerr << "dicom_model.h does not read " << name << " back as it was\n";
+      return false;
+    }
+    std::ofstream(out / name, std::ios::binary) << bytes;
+  }
+  return true;
 }
 
 namespace v1 = cinevol::v1;
@@ -249,6 +473,7 @@ int main(int argc, char** argv) {
   std::ifstream in(dicom, std::ios::binary);
   Write(out / "ct.dcm", kDicom, std::string(std::istreambuf_iterator<char>(in), {}));
   fs::remove(dicom);
+  if (!WriteDicomSeeds(fs::path(argv[1]) / "dicom")) return 1;
   std::cout << "wrote seeds under " << argv[1] << "\n";
   return 0;
 }
