@@ -281,7 +281,11 @@ class ReaderProcess {
       prlimit(pid_, RLIMIT_AS, &limit, nullptr);
     }
     reader::Proceed proceed;
-    channel_.Send(proceed, {memory});
+    try {
+      channel_.Send(proceed, {memory});
+    } catch (const ChannelError&) {
+      Ended();  // the child died after its header
+    }
   }
 
   // Waits for `done`, then for the child's clean exit.
