@@ -31,7 +31,7 @@ struct SlicerPoint {
 constexpr float kSlicerUnitMm = 1.0f;
 // a = 1 has no finite extinction; 0.99 stands in (4.6/mm: opaque in a voxel).
 constexpr float kSlicerMaxOpacity = 0.99f;
-float SlicerExtinction(float a) { return -std::log(1.0f - std::min(a, kSlicerMaxOpacity)) / kSlicerUnitMm; }
+float SlicerExtinction(float a) { return std::max(0.0f, -std::log(1.0f - std::min(a, kSlicerMaxOpacity)) / kSlicerUnitMm); }
 
 // VTK interpolates `a` linearly between points, and -ln(1 - a) is convex:
 // a segment is halved until the extinction midway is within 5% of the line
@@ -132,29 +132,34 @@ const std::vector<PresetDefinition>& PresetLibrary() {
         {250, 0.8f, kBone, 0.2f, 0.4f},
         {1000, 1, kBone, 0.2f, 0.4f}}},
       // Contrast blood and bone overlap in value (bone's partial-volume rim
-      // and marrow pass through the blood pool's values): the lumen band is
-      // a quarter as dense as bone, so a lumen millimetres deep stops a ray
-      // while a rib's thin rim mostly lets it through to the white cortex.
+      // and thin bone pass through the blood pool's values). The lumen band
+      // is faint (0.15/mm): a lumen millimetres deep stops a ray, a rim
+      // mostly lets it through to the cortex, which stops it at once (4/mm)
+      // in ivory. By value alone this halves the red on bone, no more
+      // (docs/presets.md, "CT angiography").
       {"ct-vessels",
        "CT angiography: contrast-filled lumen in red, bone ivory; follows the blood pool",
-       "cinevol: a band on the blood pool (reference 400 HU, edge 550) at 0.5/mm, bone at 2/mm",
+       "cinevol: a band on the blood pool (reference 400 HU, edge 550) at 0.15/mm, bone at 4/mm",
        PresetScale::kHu,
-       2.0f,
+       4.0f,
        1.5f,
        {{220, 0, kBlood, 0, 0.4f},
-        {300, 0.15f, kBlood, 0.3f, 0.3f},
-        {400, 0.25f, kBlood, 0.3f, 0.3f},
-        {550, 0.25f, kBlood, 0.3f, 0.3f},
-        {700, 0.6f, kBone, 0.2f, 0.4f},
-        {900, 1, kBone, 0.2f, 0.4f},
+        {328, 0.0375f, kBlood, 0.3f, 0.3f},
+        {550, 0.0375f, kBlood, 0.3f, 0.3f},
+        {551, 0.3f, kBone, 0.2f, 0.4f},
+        {650, 1, kBone, 0.2f, 0.4f},
         {2000, 1, kBone, 0.2f, 0.4f}},
        ContrastRule::kOnBloodPool},
+      // Slicer's band starts at -599 HU; on 1.5-3 mm CT, where the lung's
+      // boundaries are smeared, that let half the rays through a lung
+      // unstopped, so it starts at -749 (docs/presets-sources.md).
       FromSlicer("ct-lung", "Lungs and airways through a translucent body: lung surfaces, vessels and bronchi",
-                 "3D Slicer presets.xml 'CT-Lung' (Slicer licence, BSD-style): a band -599..-400 HU at "
-                 "opacity 0.15 per mm (0.16/mm), nothing else",
+                 "3D Slicer presets.xml 'CT-Lung' (Slicer licence, BSD-style): a band at opacity 0.15 per mm "
+                 "(0.16/mm), from -749 HU rather than -599, to -400; nothing else",
                  PresetScale::kHu,
-                 {{-600, 0, {0, 0, 1}},
-                  {-599, 0.15f, {0.002f, 0.011f, 0.987f}},
+                 {{-750, 0, {0.113f, 0.113f, 1}},
+                  {-749, 0.15f, {0.112f, 0.112f, 1}},
+                  {-600, 0.15f, {0, 0, 1}},
                   {-530, 0.15f, {0.135f, 0.782f, 0.072f}},
                   {-460, 0.15f, {0.929f, 1, 0.109f}},
                   {-400, 0.15f, {0.889f, 0.255f, 0.024f}},

@@ -201,16 +201,20 @@ BloodPool FindBloodPool(const ValueHistogram& h) {
       h.BinWidth() > 40.0f) {
     return {};
   }
-  constexpr float kStep = 10.0f, kFrom = 150.0f, kTo = 700.0f;
-  float peak = kFrom, peak_count = 0;
-  for (float v = kFrom; v <= kTo; v += kStep) {
-    if (const float c = SmoothedCount(h, v); c > peak_count) peak = v, peak_count = c;
+  // The highest local maximum between 150 and 700 HU: soft tissue's tail
+  // falls through 150 HU, so a maximum there is no pool.
+  constexpr float kStep = 10.0f, kFrom = 150.0f, kTo = 700.0f, kAround = 30.0f;
+  float peak = 0, peak_count = 0;
+  for (float v = kFrom + kAround; v <= kTo; v += kStep) {
+    const float c = SmoothedCount(h, v);
+    if (c > peak_count && c >= SmoothedCount(h, v - kAround) && c >= SmoothedCount(h, v + kAround)) peak = v, peak_count = c;
   }
-  // A pool is a peak: well above the valley between it and soft tissue, and
-  // falling away above it (without contrast, counts only fall from 100 HU on).
+  if (!(peak_count > 0)) return {};
+  // A pool stands well above the valley between it and soft tissue, and
+  // falls away above it.
   float valley = peak_count;
   for (float v = 100.0f; v < peak; v += kStep) valley = std::min(valley, SmoothedCount(h, v));
-  if (!(peak_count > 0) || peak - kFrom < 50.0f || valley > 0.75f * peak_count) return {};
+  if (valley > 0.75f * peak_count) return {};
   float top = peak;
   while (top < h.max_value && SmoothedCount(h, top) > 0.2f * peak_count) top += kStep;
   if (top - peak < kStep || SmoothedCount(h, peak + 150.0f) > 0.5f * peak_count) return {};
@@ -233,18 +237,23 @@ float FindDensePhase(const ValueHistogram& h, float lo) {
     const double gap = sum_low / weight_low - (sum - sum_low) / weight_high;
     if (const double between = weight_low * weight_high * gap * gap; between > best) best = between, split = b + 1;
   }
-  // A skeleton: a small phase, at least twice as far above the background
-  // as the rest of the subject.
-  double low = 0, low_sum = 0, high = 0, high_sum = 0;
+  // A skeleton: a small phase, far brighter than the rest of the subject,
+  // which is one tissue (a compact peak, not a spread of values).
+  double low = 0, low_sum = 0, low_sq = 0, high = 0, high_sum = 0;
   for (int b = first; b < ValueHistogram::kBins; ++b) {
     const double c = double(h.counts[b]), v = double(h.BinStart(b)) + 0.5 * h.BinWidth() - lo;
-    (b < split ? low : high) += c;
-    (b < split ? low_sum : high_sum) += c * v;
+    if (b < split) {
+      low += c, low_sum += c * v, low_sq += c * v * v;
+    } else {
+      high += c, high_sum += c * v;
+    }
   }
   if (!(low > 0 && high > 0)) return NAN;
+  const double low_mean = low_sum / low, low_spread = std::sqrt(std::max(0.0, low_sq / low - low_mean * low_mean));
   const bool small = high <= kDensePhaseMaxFraction * total;
-  const bool far = high_sum / high >= kDensePhaseContrast * (low_sum / low);
-  return small && far ? h.BinStart(split) : NAN;
+  const bool far = high_sum / high >= kDensePhaseContrast * low_mean;
+  const bool one_tissue = low_spread <= kDensePhaseMaxSpread * low_mean;
+  return small && far && one_tissue ? h.BinStart(split) : NAN;
 }
 
 ValueWindow AutoWindow(const ValueHistogram& histogram, float voxel_mm) {
