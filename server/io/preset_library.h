@@ -26,9 +26,9 @@ enum class PresetScale {
 // histogram peak between 150 and 700 HU; ValueWindow::blood).
 enum class ContrastRule {
   kNone,
-  // Bone presets: on a contrast CT every point moves up by the same amount,
-  // so that the first lies at the top of the blood pool (its upper edge):
-  // contrast blood stays hidden and bone keeps its ramp.
+  // Bone presets: on a contrast CT the ramp moves up to start at the top of
+  // the blood pool (its upper edge), over 0.6 of its width: contrast blood
+  // stays hidden and the cortex above it shows.
   kAboveBloodPool,
   // Angiography presets: values are HU for a reference pool (peak
   // kReferenceBloodHu, upper edge kReferenceBloodTopHu); on a contrast CT,

@@ -275,10 +275,30 @@ ValueWindow AutoWindow(const Volume& volume) { return AutoWindow(volume.histogra
 
 namespace {
 
+// ContrastRule::kAboveBloodPool: the ramp up to the first point of full
+// opacity starts at the pool's top and spans kAboveBloodPoolSpan of its
+// width (bone that shows above the pool is cortex, which is thin); points
+// beyond it move with it.
+constexpr float kAboveBloodPoolSpan = 0.6f;
+
+float AboveBloodPool(const PresetDefinition& preset, float hu, float top) {
+  const float start = preset.points.front().value;
+  if (top <= start) return hu;
+  float full = preset.points.back().value;
+  for (const PresetPoint& p : preset.points) {
+    if (p.opacity >= 1.0f) {
+      full = p.value;
+      break;
+    }
+  }
+  if (hu <= full) return top + (hu - start) * kAboveBloodPoolSpan;
+  return hu + (top + (full - start) * kAboveBloodPoolSpan - full);
+}
+
 // A HU value of a preset on this volume's blood pool (ContrastRule).
 float OnBloodPool(const PresetDefinition& preset, float hu, const ValueWindow& w) {
   if (preset.contrast == ContrastRule::kNone || !(w.blood > kSoftTissueHu && w.blood_top > w.blood)) return hu;
-  if (preset.contrast == ContrastRule::kAboveBloodPool) return hu + std::max(0.0f, w.blood_top - preset.points.front().value);
+  if (preset.contrast == ContrastRule::kAboveBloodPool) return AboveBloodPool(preset, hu, w.blood_top);
   if (hu <= kSoftTissueHu) return hu;
   if (hu <= kReferenceBloodHu) {
     return kSoftTissueHu + (hu - kSoftTissueHu) * (w.blood - kSoftTissueHu) / (kReferenceBloodHu - kSoftTissueHu);
