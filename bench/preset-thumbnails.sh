@@ -2,7 +2,7 @@
 # The thumbnails of docs/presets.md: a local cinevol-server over the shared
 # data, `cinevol volumes load`, then `cinevol snapshot` of each preset on a
 # data set it suits, and of every data set with its default preset.
-#   bash bench/preset-thumbnails.sh            # CPU, about 5 minutes on 2 cores
+#   bash bench/preset-thumbnails.sh            # CPU, about 10 minutes on a busy 2-core machine
 #   BIN=/tmp/cv/bin BACKEND=cuda SPP=1024 bash bench/preset-thumbnails.sh
 set -euo pipefail
 cd "$(dirname "$0")/.."

@@ -183,8 +183,8 @@ const PresetDefinition& FindPreset(std::string_view name) {
 
 namespace {
 
-// Counts of the bins whose centres lie in [lo, hi] HU, smoothed over 50 HU
-// so that the bin width (the volume's range / 256) matters little.
+// The mean count of the bins within 25 HU of `hu`: a density smoothed over
+// 50 HU, so that the bin width (the volume's range / 256) matters little.
 float SmoothedCount(const ValueHistogram& h, float hu) {
   const int first = h.BinOf(hu - 25.0f), last = h.BinOf(hu + 25.0f);
   double sum = 0;
