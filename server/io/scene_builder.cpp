@@ -128,7 +128,7 @@ std::vector<Vec3f> VisibleCorners(const Volume& volume, const TransferFunction& 
 TransferFunction ResolveTransferFunction(const v1::TransferFunction& proto, const Volume& volume) {
   const std::string preset = proto.preset().empty() ? DefaultPreset(volume) : proto.preset();
   const v1::TransferFunction expanded =
-      proto.points().empty() ? MakePreset(preset, AutoWindow(volume.histogram())) : proto;
+      proto.points().empty() ? MakePreset(preset, AutoWindow(volume)) : proto;
   TransferFunction tf;
   for (const auto& p : expanded.points()) {
     tf.points.push_back({p.value(), p.opacity(), ToColor(p.diffuse()), ToColor(p.specular()), p.roughness(),
