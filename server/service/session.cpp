@@ -245,9 +245,12 @@ void Session::BeginStill(const std::shared_ptr<std::atomic<bool>>& flag) {
 }
 
 void Session::EndStill() {
-  std::lock_guard lock(mu_);
-  stills_rendering_ = std::max(0, stills_rendering_ - 1);
-  if (state_ == State::kStarting || state_ == State::kDetached) since_ = Clock::now();
+  {
+    std::lock_guard lock(mu_);
+    stills_rendering_ = std::max(0, stills_rendering_ - 1);
+    if (state_ == State::kStarting || state_ == State::kDetached) since_ = Clock::now();
+  }
+  Wake();  // refinement waited for the still
 }
 
 std::string Session::EndReason() const {
@@ -262,7 +265,11 @@ void Session::CurrentScene(v1::Scene& scene, FrameSettings& settings) const {
 }
 
 bool Session::CanRenderLocked() const {
-  return state_ == State::kRendering && encodes_in_flight_ < kMaxEncodesInFlight && !stream_->SlotFull();
+  if (state_ != State::kRendering || encodes_in_flight_ >= kMaxEncodesInFlight || stream_->SlotFull()) return false;
+  // While a still of this session renders, its refinement waits (EndStill
+  // wakes it): on a CPU the two would share the cores for minutes, and the
+  // still is the better picture of the same view. Events still get frames.
+  return stills_rendering_ == 0 || dirty_ || event_unrendered_ || !coalesced_.empty();
 }
 
 bool Session::Step() {

@@ -117,6 +117,42 @@ TEST(Stills, ASnapshotWhoseServerFallsSilentIsGivenUp) {
   EXPECT_LT(Seconds(std::chrono::steady_clock::now() - start), 20.0);
 }
 
+// The viewer's *Take snapshot*: a still of a session that is refining. The
+// refinement waits while the still renders (on a CPU they would share the
+// cores for minutes), and goes on once it is done.
+TEST(Stills, ASessionsRefinementWaitsForItsStill) {
+  ScratchDir scratch;
+  ServerProcess server(scratch.path());
+  ASSERT_TRUE(server.running()) << server.Log();
+  Client client = ClientOf(server, 60s);
+  v1::CreateSessionRequest request = SmallSession("ct-bone", 96, 64, 65536);
+  request.mutable_stream()->set_error_target(0);  // refines for ever
+  const std::string session = client.CreateSession(request).session_id();
+  const int spp = SppForSeconds(client, session, 3.0);
+  auto stream = client.Attach(session);
+  ASSERT_TRUE(WaitFrame(*stream, [](const v1::Frame& f) { return f.accumulated_spp() >= 8; }, 30s));
+
+  std::atomic<int> frames_during{0};
+  std::atomic<bool> rendering{false}, done{false};
+  std::thread counter([&] {
+    while (!done) {
+      auto message = stream->Next(100ms);
+      if (message && message->has_frame() && rendering) ++frames_during;
+    }
+  });
+  SnapshotOptions wait;
+  wait.on_progress = [&](const v1::SnapshotProgress& p) {
+    if (p.spp_done() > 0 && !rendering.exchange(true)) frames_during = 0;  // frames in flight before it are not counted
+  };
+  EXPECT_NO_THROW(client.Snapshot(StillOf(session, spp), wait));
+  rendering = false;
+  const int during = frames_during;
+  done = true;
+  counter.join();
+  EXPECT_LE(during, 2) << "the session refined beside its still";
+  EXPECT_TRUE(WaitFrame(*stream, [](const v1::Frame&) { return true; }, 30s)) << "the refinement did not go on";
+}
+
 // A cancel from another thread (a window closing) ends the wait at once.
 TEST(Stills, ASnapshotIsCancelledFromAnotherThread) {
   ScratchDir scratch;
