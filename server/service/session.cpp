@@ -200,6 +200,7 @@ void Session::End(const grpc::Status& status) {
     std::lock_guard lock(mu_);
     if (state_ == State::kEnded) return;
     state_ = State::kEnded;
+    end_reason_ = status.ok() ? "it was closed" : status.error_message();
     cancel_ = true;
     for (auto& still : stills_) {
       if (auto flag = still.lock()) *flag = true;
@@ -232,14 +233,29 @@ void Session::Drain() {
   End({grpc::StatusCode::UNAVAILABLE, "the server is shutting down"});
 }
 
-void Session::CancelWithSession(const std::shared_ptr<std::atomic<bool>>& flag) {
+void Session::BeginStill(const std::shared_ptr<std::atomic<bool>>& flag) {
   std::lock_guard lock(mu_);
+  ++stills_rendering_;
   if (state_ == State::kEnded) {
     *flag = true;
     return;
   }
   std::erase_if(stills_, [](const auto& still) { return still.expired(); });
   stills_.push_back(flag);
+}
+
+void Session::EndStill() {
+  {
+    std::lock_guard lock(mu_);
+    stills_rendering_ = std::max(0, stills_rendering_ - 1);
+    if (state_ == State::kStarting || state_ == State::kDetached) since_ = Clock::now();
+  }
+  Wake();  // refinement waited for the still
+}
+
+std::string Session::EndReason() const {
+  std::lock_guard lock(mu_);
+  return end_reason_;
 }
 
 void Session::CurrentScene(v1::Scene& scene, FrameSettings& settings) const {
@@ -249,7 +265,11 @@ void Session::CurrentScene(v1::Scene& scene, FrameSettings& settings) const {
 }
 
 bool Session::CanRenderLocked() const {
-  return state_ == State::kRendering && encodes_in_flight_ < kMaxEncodesInFlight && !stream_->SlotFull();
+  if (state_ != State::kRendering || encodes_in_flight_ >= kMaxEncodesInFlight || stream_->SlotFull()) return false;
+  // While a still of this session renders, its refinement waits (EndStill
+  // wakes it): on a CPU the two would share the cores for minutes, and the
+  // still is the better picture of the same view. Events still get frames.
+  return stills_rendering_ == 0 || dirty_ || event_unrendered_ || !coalesced_.empty();
 }
 
 bool Session::Step() {
@@ -427,6 +447,7 @@ v1::SessionStatus Session::Status() const {
 
 bool Session::Expired(Clock::time_point now, Clock::duration detached, Clock::duration unattached) const {
   std::lock_guard lock(mu_);
+  if (stills_rendering_ > 0) return false;
   if (state_ == State::kStarting) return now - since_ > unattached;
   return state_ == State::kDetached && now - since_ > detached;
 }
