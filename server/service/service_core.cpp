@@ -267,7 +267,7 @@ v1::CreateSessionResponse ServiceCore::CreateSession(const v1::CreateSessionRequ
                                  "an upload with header.labels_for)",
                                  request.volume_id()));
   }
-  const FrameSettings settings = MergeStreamSettings(FrameSettings{}, request.stream(), "stream");
+  const FrameSettings settings = MergeStreamSettings(SessionFrameSettings(backend_), request.stream(), "stream");
   {
     std::lock_guard lock(mu_);
     RequireRoomLocked(caller);  // before the framing: a refusal costs no scan

@@ -152,6 +152,7 @@ void Session::OnEvent(const v1::SessionEvent& event, Clock::time_point arrival) 
       coalesced_arrival_ = arrival;
       ServerMetrics().EventCoalesced();
     }
+    if (ChangesOf(event) != 0) preempt_ = true;
   }
   Wake();
 }
@@ -299,6 +300,7 @@ bool Session::Step() {
       work.stamp.answers_event = event_unrendered_;
       work.stamp.origin = last_event_arrival_;
       event_unrendered_ = false;
+      preempt_ = false;  // this frame takes every event so far
       ++encodes_in_flight_;
       holds_device_memory_ = true;
     }
@@ -319,6 +321,7 @@ bool Session::Step() {
     if (!pipeline_) {
       pipeline_ = std::make_unique<FramePipeline>(context_.backend, volume_->volume(), RendererOptions{}, volume_->labels());
       pipeline_->SetCancel(&cancel_);
+      pipeline_->SetPreempt(&preempt_);
     }
     if (work.update) pipeline_->Update(work.scene, work.settings, work.changes);
     frame = pipeline_->RenderFrame();
@@ -338,6 +341,12 @@ bool Session::Step() {
     }
     End(ToStatus(std::current_exception()));
     return false;
+  }
+  if (frame.preempted) {  // a newer event made it moot: the next step renders that
+    std::lock_guard lock(mu_);
+    --encodes_in_flight_;
+    if (next_frame_id_ == work.stamp.frame_id + 1) next_frame_id_ = work.stamp.frame_id;  // no gap for the viewer
+    return CanRenderLocked();
   }
   ++context_.scheduler->frames_rendered;
   ServerMetrics().FrameRendered();

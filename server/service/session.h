@@ -186,6 +186,9 @@ class Session final : public Job, public std::enable_shared_from_this<Session> {
 
   // Raised when the session ends or its stream goes: the frame in flight stops.
   std::atomic<bool> cancel_{false};
+  // Raised by an event that changes the picture, lowered when a frame takes
+  // the events: a still CPU frame in flight stops (FramePipeline::SetPreempt).
+  std::atomic<bool> preempt_{false};
   std::vector<std::weak_ptr<std::atomic<bool>>> stills_;  // raised when the session ends
   int stills_rendering_ = 0;  // BeginStill without EndStill: the session does not expire
   std::string end_reason_;
