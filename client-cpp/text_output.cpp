@@ -107,6 +107,10 @@ void PrintVolume(const v1::VolumeInfo& v) {
   fmt::print("value range:     {}\n", ValueRange(v));
   fmt::print("memory:          {}\n", Bytes(v.memory_bytes()));
   fmt::print("sessions:        {}\n", v.sessions());
+  if (v.has_table()) {
+    fmt::print("table:           {}{}\n", v.table().voxels() > 0 ? "removable (labels.removeTable); " : "",
+               OrDash(v.table().note()));
+  }
   if (v.has_labels()) PrintLabels(v.labels());
   const v1::ValueHistogram& h = v.histogram();
   if (h.counts_size() == 0) {
