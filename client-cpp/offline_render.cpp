@@ -48,10 +48,11 @@ OfflineRenderResult RenderToFile(const v1::Scene& scene, const std::filesystem::
   OfflineRenderResult result;
   const auto load_start = std::chrono::steady_clock::now();
   const auto volume = std::make_shared<const Volume>(LoadVolume(scene.volume(), base_dir));
-  const auto labels = LoadSceneLabels(scene.volume(), *volume, base_dir);
-  if (scene.has_labels() && !labels) {
+  if (StylesLabels(scene.labels()) && scene.volume().labels().empty()) {
     throw InputError("labels: the scene styles labels but volume.labels names no segmentation");
   }
+  const auto labels = LoadSceneLabels(scene, *volume, base_dir);  // with the table where it removes it
+  if (scene.labels().remove_table()) result.table = labels ? labels->table_note : "";
   v1::Scene lit = scene;
   if (AddDefaultLights(lit, *volume)) {
     std::fprintf(stderr, "cinevol: the scene has no lights: rendering with the volume's default lights (a key light "

@@ -258,9 +258,15 @@ void App::SendRender() {
 }
 
 void App::SendLabels() {
-  if (!volume || !volume->has_labels()) return;  // the session has no segmentation to style
+  if (!volume) return;
   v1::SessionEvent e;
-  *e.mutable_labels() = labels;
+  if (volume->has_labels()) {
+    *e.mutable_labels() = labels;
+  } else if (volume->table().voxels() > 0) {
+    e.mutable_labels()->set_remove_table(labels.remove_table());  // styles wait for a segmentation
+  } else {
+    return;  // nothing the session can style
+  }
   connection->Post(std::move(e));
 }
 
@@ -342,7 +348,7 @@ void App::SaveScene(const std::string& path) {
   scene.mutable_lights()->CopyFrom(lights.lights());
   *scene.mutable_render() = render;
   *scene.mutable_clipping() = clipping;
-  if (labels.styles_size() > 0 || labels.has_show_unlisted()) *scene.mutable_labels() = labels;
+  if (labels.styles_size() > 0 || labels.has_show_unlisted() || labels.remove_table()) *scene.mutable_labels() = labels;
   scene.mutable_render()->set_width(viewport_w_);
   scene.mutable_render()->set_height(viewport_h_);
   if (volume) *scene.mutable_volume() = ParseVolumeSpec(volume->source());  // a phantom stays a phantom
@@ -380,7 +386,8 @@ void App::OpenScene(const std::string& path) {
     SendClipping();
     labels = scene.labels();
     SendLabels();
-    notice = scene.has_labels() && !(volume && volume->has_labels())
+    const bool styles = scene.labels().styles_size() > 0 || scene.labels().has_show_unlisted();
+    notice = styles && !(volume && volume->has_labels())
                  ? fmt::format("opened {}; its label styles wait for a segmentation of this volume", path)
                  : fmt::format("opened {}", path);
     if (scene.lights_size() == 0) notice += " (it has no lights: the lights stay as they were)";

@@ -53,7 +53,9 @@ void CpuRenderer::SetVolume(std::shared_ptr<const Volume> volume) {
 }
 
 void CpuRenderer::SetLabels(std::shared_ptr<const LabelVolume> labels, const LabelSetup& setup) {
-  data_.SetLabels(labels ? VolumeCache::Get().AcquireLabels(labels, data_.volume().brick_size(), kHostDevice) : nullptr,
+  // Labels that change nothing are not looked up (a CT's table while it shows).
+  const bool used = labels && setup.ChangesAnything(*labels);
+  data_.SetLabels(used ? VolumeCache::Get().AcquireLabels(labels, data_.volume().brick_size(), kHostDevice) : nullptr,
                   setup);
 }
 

@@ -18,6 +18,7 @@
 #include "render/prepared_volume.h"
 #include "service/errors.h"
 #include "core/log_safe.h"
+#include "io/label_volume.h"
 #include "io/reader_cage.h"
 #include "service/metrics.h"
 
@@ -262,7 +263,7 @@ v1::CreateSessionResponse ServiceCore::CreateSession(const v1::CreateSessionRequ
   RequireServing();
   std::shared_ptr<VolumeLease> volume = volumes_.Lease(request.volume_id(), caller);
   v1::Scene scene = InitialScene(request, *volume->volume(), options_.limits, volumes_);
-  if (scene.has_labels() && !volume->labels()) {
+  if (StylesLabels(scene.labels()) && !volume->has_segmentation()) {
     throw InputError(fmt::format("scene.labels: volume '{}' has no segmentation; load one first (LoadLabels, or "
                                  "an upload with header.labels_for)",
                                  request.volume_id()));

@@ -8,6 +8,7 @@
 #include <utility>
 
 #include "encode/image_codecs.h"
+#include "io/label_volume.h"
 #include "service/errors.h"
 #include "core/log_safe.h"
 #include "service/metrics.h"
@@ -164,7 +165,7 @@ void Session::ApplyCoalescedLocked() {
 }
 
 void Session::ApplyLocked(const v1::SessionEvent& event, Clock::time_point arrival) {
-  if (event.has_labels() && !volume_->labels()) {
+  if (event.has_labels() && StylesLabels(event.labels()) && !volume_->has_segmentation()) {
     throw InputError(fmt::format("event {}: labels: volume '{}' had no segmentation when this session began; load "
                                  "one (LoadLabels) and start a new session",
                                  event.seq(), volume_->id()));
