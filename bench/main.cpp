@@ -33,7 +33,7 @@ LoadedScene LoadScene(const SceneOptions& o) {
   if (o.height > 0) s.scene.mutable_render()->set_height(o.height);
   if (!o.labels.empty()) s.scene.mutable_volume()->set_labels(o.labels);
   s.volume = std::make_shared<const Volume>(LoadVolume(s.scene.volume()));
-  s.labels = LoadSceneLabels(s.scene.volume(), *s.volume);
+  s.labels = LoadSceneLabels(s.scene, *s.volume);  // with the table where the scene removes it
   s.setup = ResolveScene(s.scene, *s.volume, s.labels.get());
   return s;
 }

@@ -5,6 +5,7 @@
 
 #include "encode/image_codecs.h"
 #include "server_pool.h"
+#include "snapshot_call.h"
 #include "volume_calls.h"
 
 namespace cinevol {
@@ -361,11 +362,18 @@ std::unique_ptr<SessionStream> Client::Attach(const std::string& session_id, Str
 
 std::string Client::SessionAddress(const std::string& session_id) const { return pool_->AddressOf(session_id); }
 
-v1::SnapshotResponse Client::Snapshot(v1::SnapshotRequest request) {
+v1::SnapshotResponse Client::Snapshot(v1::SnapshotRequest request, const SnapshotOptions& options) {
   auto stub = v1::SessionService::NewStub(pool_->Channel(pool_->AddressOf(request.session_id())));
   request.set_session_id(pool_->CurrentId(request.session_id()));
+  try {
+    return StreamStill(*stub, pool_->CallContext(std::nullopt), request, options, pool_->options().snapshot_silence);
+  } catch (const RpcError& e) {
+    if (e.code() != grpc::StatusCode::UNIMPLEMENTED) throw;
+  }
+  // A server from before StreamSnapshot: one unary call, with a deadline.
+  const auto limit = options.timeout.count() > 0 ? options.timeout : pool_->options().call_timeout;
   v1::SnapshotResponse response;
-  Check(stub->Snapshot(pool_->CallContext().get(), request, &response));
+  Check(stub->Snapshot(pool_->CallContext(limit).get(), request, &response));
   return response;
 }
 

@@ -16,6 +16,7 @@
 
 #include <grpcpp/grpcpp.h>
 
+#include <atomic>
 #include <chrono>
 #include <condition_variable>
 #include <cstdint>
@@ -67,6 +68,26 @@ struct StreamOptions {
   // Client created.
   bool failover = true;
 };
+
+// How Client::Snapshot waits for a still. A still has no fixed deadline:
+// its cost grows with pixels and samples (minutes on a CPU server at 720p
+// and 256 spp), so the client follows the server's progress instead and
+// gives up only when the server falls silent (ClientOptions::
+// snapshot_silence), when `timeout` passes, or when `cancel` is raised.
+struct SnapshotOptions {
+  // The whole still, from the call to the image; 0: no limit.
+  std::chrono::milliseconds timeout{0};
+  // Called on the calling thread with each progress report (the first, with
+  // no samples done, as soon as the server takes the still; then about one
+  // a second).
+  std::function<void(const v1::SnapshotProgress&)> on_progress;
+  // Raised by another thread: the call is cancelled (RpcError CANCELLED)
+  // within a tenth of a second, and the server stops rendering.
+  const std::atomic<bool>* cancel = nullptr;
+};
+
+// "64/256 spp, 40 s, about 2m00s left": a still's progress for people.
+std::string DescribeProgress(const v1::SnapshotProgress& progress);
 
 class ServerPool;
 
@@ -162,7 +183,12 @@ class Client {
   std::unique_ptr<SessionStream> Attach(const std::string& session_id, StreamOptions options = {});
   // Where session `session_id`'s calls go now (it changes with a failover).
   std::string SessionAddress(const std::string& session_id) const;
-  v1::SnapshotResponse Snapshot(v1::SnapshotRequest request);
+  // A still of the session's current state (StreamSnapshot; a server
+  // without it gets the unary Snapshot, bounded by options.timeout or else
+  // call_timeout). Throws RpcError: DEADLINE_EXCEEDED saying what ran out
+  // (the timeout, or the server's silence), how far the still came and what
+  // to do; CANCELLED when the session ended under it, saying why.
+  v1::SnapshotResponse Snapshot(v1::SnapshotRequest request, const SnapshotOptions& options = {});
   void CloseSession(const std::string& session_id);
   // The status of the first server that answered.
   v1::ServerStatus Status();

@@ -19,7 +19,12 @@ struct ClientOptions {
   std::string address = "127.0.0.1:50051";
   std::string token;  // sent as "authorization: Bearer <token>" when set
   std::chrono::milliseconds connect_timeout{5000};
-  std::chrono::milliseconds call_timeout{60000};  // every unary call; snapshots and loads included
+  std::chrono::milliseconds call_timeout{60000};  // every unary call; loads included, snapshots not
+  // A snapshot has no deadline of its own (SnapshotOptions::timeout sets
+  // one): it is given up when the server reports no progress for this long.
+  // The server reports about once a second; a step of a still on a slow CPU
+  // (4K, a dense CT) takes at most some tens of seconds.
+  std::chrono::milliseconds snapshot_silence{120000};
   // While a call is open (a stream that gets no frames included), ping the
   // server this often; a ping unanswered for keepalive_timeout ends the
   // connection. That is how a stream notices a server whose machine went

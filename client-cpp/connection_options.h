@@ -16,6 +16,7 @@ struct ConnectionOptions {
   std::string server = "127.0.0.1:50051";
   std::string token;
   double connect_seconds = 5;
+  double call_seconds = 60;  // each unary call's deadline (--timeout where a command offers it)
   std::string tls_ca, tls_cert, tls_key;  // PEM files; tls_ca set: TLS
 };
 
@@ -38,11 +39,20 @@ inline void AddConnectionOptions(CLI::App* command, ConnectionOptions& o) {
   key->needs(cert);
 }
 
+// --timeout S for commands whose calls may take long (a large load or
+// upload): each call's deadline, which is 60 s elsewhere.
+inline void AddCallTimeoutOption(CLI::App* command, ConnectionOptions& o) {
+  command->add_option("--timeout", o.call_seconds, "Seconds the server may take to answer (a large volume takes longer)")
+      ->check(CLI::Range(1.0, 7.0 * 86400))
+      ->capture_default_str();
+}
+
 inline ClientOptions ToClientOptions(const ConnectionOptions& o) {
   ClientOptions options;
   options.address = o.server;
   options.token = o.token;
   options.connect_timeout = std::chrono::milliseconds(static_cast<long>(o.connect_seconds * 1000));
+  options.call_timeout = std::chrono::milliseconds(static_cast<long>(o.call_seconds * 1000));
   options.tls_ca = o.tls_ca;
   options.tls_cert = o.tls_cert;
   options.tls_key = o.tls_key;

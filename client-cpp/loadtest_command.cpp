@@ -33,7 +33,7 @@ struct LoadtestOptions {
   double event_hz = 120;
   double degrees_per_second = 120;
   int jpeg_quality = 80;
-  float interactive_frame_ms = 0;
+  float interactive_frame_ms = -1;  // < 0: the server's default (70 ms on a CPU server, else off)
   bool json = false;
   std::string out;
 };
@@ -64,7 +64,7 @@ SessionScript MakeScript(const LoadtestOptions& o) {
   if (!o.scene.empty()) s.session.scene = LoadSceneFile(o.scene);
   s.session.stream.set_denoiser(ParseDenoiser(o.denoiser));
   s.session.stream.set_jpeg_quality(o.jpeg_quality);
-  s.session.stream.set_interactive_frame_ms(o.interactive_frame_ms);
+  if (o.interactive_frame_ms >= 0) s.session.stream.set_interactive_frame_ms(o.interactive_frame_ms);
   s.session.stream.set_target_spp(65536);  // keep rendering: every frame counts
   s.session.stream.set_error_target(0);
   ScriptStep spp;
@@ -266,10 +266,9 @@ void AddLoadtestCommand(CLI::App& app) {
   cmd->add_option("--jpeg-quality", o->jpeg_quality, "JPEG quality (orbit)")->check(CLI::Range(1, 100))
       ->capture_default_str();
   cmd->add_option("--interactive-frame-ms", o->interactive_frame_ms,
-                  "Frame-time budget while the view moves: frames render at 0.75 or 0.5 size to meet it "
-                  "(0: always full size) (orbit)")
-      ->check(CLI::Range(0.0f, 10000.0f))
-      ->capture_default_str();
+                  "Frame-time budget while the view moves: frames render smaller to meet it "
+                  "(0: always full size; default: the server's, 70 ms on the CPU backend, else 0) (orbit)")
+      ->check(CLI::Range(0.0f, 10000.0f));
   cmd->add_flag("--json", o->json, "Print JSON instead of a table");
   cmd->add_option("--out", o->out, "Also append the report to this file");
   cmd->callback([o] {

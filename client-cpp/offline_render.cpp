@@ -2,6 +2,7 @@
 #include "offline_render.h"
 
 #include <chrono>
+#include <cstdio>
 
 #include <fmt/format.h>
 
@@ -9,6 +10,7 @@
 #include "core/tone_map.h"
 #include "encode/image_codecs.h"
 #include "io/label_volume.h"
+#include "io/presets.h"
 #include "io/volume_loader.h"
 #include "pipeline/frame_pipeline.h"
 
@@ -46,15 +48,21 @@ OfflineRenderResult RenderToFile(const v1::Scene& scene, const std::filesystem::
   OfflineRenderResult result;
   const auto load_start = std::chrono::steady_clock::now();
   const auto volume = std::make_shared<const Volume>(LoadVolume(scene.volume(), base_dir));
-  const auto labels = LoadSceneLabels(scene.volume(), *volume, base_dir);
-  if (scene.has_labels() && !labels) {
+  if (StylesLabels(scene.labels()) && scene.volume().labels().empty()) {
     throw InputError("labels: the scene styles labels but volume.labels names no segmentation");
+  }
+  const auto labels = LoadSceneLabels(scene, *volume, base_dir);  // with the table where it removes it
+  if (scene.labels().remove_table()) result.table = labels ? labels->table_note : "";
+  v1::Scene lit = scene;
+  if (AddDefaultLights(lit, *volume)) {
+    std::fprintf(stderr, "cinevol: the scene has no lights: rendering with the volume's default lights (a key light "
+                         "and a sky)\n");
   }
   FramePipeline pipeline(backend, volume, {}, labels);
   FrameSettings settings;
   settings.denoiser.method = DenoiseMethod::kNone;
   settings.target_spp = total_spp;
-  pipeline.Update(scene, settings);
+  pipeline.Update(lit, settings);
   result.load_seconds = SecondsSince(load_start);
   result.backend = ToString(pipeline.backend());
 

@@ -16,6 +16,7 @@ struct OfflineRenderResult {
   double seconds = 0;      // rendering only, volume loading excluded
   double load_seconds = 0;
   double paths_per_second = 0;
+  std::string table;       // where the scene removes the table: what the search found
 };
 
 // Loads the scene's volume, renders `total_spp` samples per pixel in frames of

@@ -122,9 +122,9 @@ std::shared_ptr<grpc::Channel> ServerPool::Channel(const std::string& address) {
   return channel;
 }
 
-std::unique_ptr<grpc::ClientContext> ServerPool::CallContext() const {
+std::unique_ptr<grpc::ClientContext> ServerPool::CallContext(std::optional<std::chrono::milliseconds> timeout) const {
   auto context = std::make_unique<grpc::ClientContext>();
-  context->set_deadline(std::chrono::system_clock::now() + options_.call_timeout);
+  if (timeout) context->set_deadline(std::chrono::system_clock::now() + *timeout);
   if (!options_.token.empty()) context->AddMetadata("authorization", "Bearer " + options_.token);
   return context;
 }

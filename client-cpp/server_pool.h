@@ -66,7 +66,9 @@ class ServerPool {
   bool MoveHome(const std::string& failed);
   std::shared_ptr<grpc::Channel> Channel(const std::string& address);
   // A context with the token and a deadline of options().call_timeout.
-  std::unique_ptr<grpc::ClientContext> CallContext() const;
+  std::unique_ptr<grpc::ClientContext> CallContext() const { return CallContext(options_.call_timeout); }
+  // The same with a deadline of `timeout` from now; nullopt: none.
+  std::unique_ptr<grpc::ClientContext> CallContext(std::optional<std::chrono::milliseconds> timeout) const;
 
   // Volumes the client loaded or uploaded, by their id on origin.home.
   void RememberVolume(const std::string& id, const VolumeOrigin& origin);

@@ -7,6 +7,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <fstream>
 #include <sstream>
 
@@ -134,6 +135,7 @@ ScriptSession ParseSession(const Value& value, const std::string& where, const s
       } catch (const InputError& e) {
         throw InputError(fmt::format("{}: {}", field, e.what()));
       }
+      SayWhenUnlit(*s.scene, path.string());
     } else if (key == "viewport") {
       ParseInto(ToJson(v), s.viewport, field);
     } else if (key == "stream") {
@@ -255,6 +257,12 @@ std::vector<ScriptStep> ExpandOrbits(const std::vector<ScriptStep>& steps, const
   }
   std::stable_sort(out.begin(), out.end(), [](const ScriptStep& a, const ScriptStep& b) { return a.at < b.at; });
   return out;
+}
+
+void SayWhenUnlit(const v1::Scene& scene, const std::string& file) {
+  if (scene.lights_size() > 0) return;
+  std::fprintf(stderr, "%s: no lights: the session takes the volume's default lights (a key light and a sky)\n",
+               file.c_str());
 }
 
 v1::CreateSessionRequest SessionRequest(const ScriptSession& session, const std::string& volume_id) {

@@ -88,4 +88,8 @@ std::vector<ScriptStep> ExpandOrbits(const std::vector<ScriptStep>& steps, const
 // its preset, else neither (the volume's default preset).
 v1::CreateSessionRequest SessionRequest(const ScriptSession& session, const std::string& volume_id);
 
+// Says on stderr that scene file `file` names no lights, so that a session
+// of it takes the volume's default lights (the server adds them).
+void SayWhenUnlit(const v1::Scene& scene, const std::string& file);
+
 }  // namespace cinevol::cli

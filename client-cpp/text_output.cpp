@@ -108,6 +108,10 @@ void PrintVolume(const v1::VolumeInfo& v) {
   fmt::print("memory:          {}\n", Bytes(v.memory_bytes()));
   fmt::print("sessions:        {}\n", v.sessions());
   for (const std::string& note : v.notes()) fmt::print("note:            {}\n", note);
+  if (v.has_table()) {
+    fmt::print("table:           {}{}\n", v.table().voxels() > 0 ? "removable (labels.removeTable); " : "",
+               OrDash(v.table().note()));
+  }
   if (v.has_labels()) PrintLabels(v.labels());
   const v1::ValueHistogram& h = v.histogram();
   if (h.counts_size() == 0) {

@@ -70,15 +70,30 @@ void Unload(const VolumesOptions& o) {
   fmt::print("unloaded {}\n", o.argument);
 }
 
-// A subcommand of `volumes` with the connection options and --json that calls
-// `run`; `o` receives the options it fills, for the subcommand's own to add to.
+// Runs `run`; a call past its deadline says which flag gives it more time.
+void RunWithTimeout(const std::string& name, void (*run)(const VolumesOptions&), const VolumesOptions& o) {
+  try {
+    run(o);
+  } catch (const RpcError& e) {
+    if (e.code() != grpc::StatusCode::DEADLINE_EXCEEDED) throw;
+    throw RpcError({grpc::StatusCode::DEADLINE_EXCEEDED,
+                    fmt::format("volumes {}: the server did not answer within {:g} s, so the call (and the server's "
+                                "work on it) was cancelled: a large volume takes longer; give --timeout more seconds",
+                                name, o.connection.call_seconds)});
+  }
+}
+
+// A subcommand of `volumes` with the connection options, --timeout and
+// --json that calls `run`; `o` receives the options it fills, for the
+// subcommand's own to add to.
 CLI::App* AddVolumesSubcommand(CLI::App* volumes, const std::string& name, const std::string& help,
                                void (*run)(const VolumesOptions&), std::shared_ptr<VolumesOptions>& o) {
   auto* cmd = volumes->add_subcommand(name, help);
   o = std::make_shared<VolumesOptions>();
   AddConnectionOptions(cmd, o->connection);
+  AddCallTimeoutOption(cmd, o->connection);
   cmd->add_flag("--json", o->json, "Print the server's answer as proto3 JSON (one object)");
-  cmd->callback([o, run] { run(*o); });
+  cmd->callback([o, run, name] { RunWithTimeout(name, run, *o); });
   return cmd;
 }
 

@@ -5,7 +5,10 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 scripts/install-deps.sh
-scripts/build.sh
+# Every target, CUDA included wherever nvcc is (GPU or not): CUDA code must
+# keep compiling. A build/ the demo configured without CUDA is configured
+# again; CINEVOL_CUDA=OFF keeps it without.
+CINEVOL_CUDA="${CINEVOL_CUDA:-AUTO}" scripts/build.sh
 cd build
 log=$(mktemp)
 status=0

@@ -76,6 +76,8 @@ class Connection {
   std::string TakeWarning();
   // No event waits to be sent and no request to finish.
   bool idle() const;
+  // Raised when the connection closes: a long request (a snapshot) stops on it.
+  const std::atomic<bool>& stopping() const { return stopping_; }
 
  private:
   void Work();   // connects, sends events

@@ -37,7 +37,9 @@ int main(int argc, char** argv) {
     if (!o.screenshot.empty() && o.script.empty()) throw cinevol::InputError("--screenshot needs --script");
     return cinevol::viewer::RunViewer(std::move(o));
   } catch (const CLI::ParseError& e) {
-    return app.exit(e);
+    // --help prints and exits 0; a bad flag is bad input, exit 2 as documented
+    // (CLI11's own codes, 105 or 109, would say nothing to a script).
+    return app.exit(e) == 0 ? 0 : 2;
   } catch (const cinevol::RpcError& e) {
     std::fprintf(stderr, "cinevol-viewer: %s\n", e.what());
     return 3;

@@ -328,8 +328,24 @@ v1::LabelStyle* StyleOf(v1::Labels& labels, std::uint32_t value) {
   return style;
 }
 
+// Table removal: one switch, on any volume the server found a table in.
+void TableSwitch(App& app) {
+  if (!app.volume || app.volume->table().voxels() == 0) {
+    if (app.volume) Hint(fmt::format("no table to remove: {}", app.volume->table().note()).c_str());
+    return;
+  }
+  bool remove = app.labels.remove_table();
+  if (ImGui::Checkbox("remove table", &remove)) {
+    app.labels.set_remove_table(remove);
+    app.SendLabels();
+  }
+  ImGui::SameLine();
+  Hint(fmt::format("({} voxels)", app.volume->table().voxels()).c_str());
+}
+
 // Each label of the volume's segmentation: shown or hidden, its colour.
 void LabelsPanel(App& app) {
+  TableSwitch(app);
   if (!app.volume || !app.volume->has_labels()) {
     Hint("this volume has no segmentation: `cinevol volumes labels ID SEG` loads one, for sessions started after");
     return;
@@ -372,7 +388,9 @@ void LabelsPanel(App& app) {
   }
   ImGui::EndChild();
   if (ImGui::Button("reset styles")) {
+    const bool remove_table = app.labels.remove_table();  // a switch of its own, not a style
     app.labels.Clear();
+    app.labels.set_remove_table(remove_table);
     changed = true;
   }
   if (changed) app.SendLabels();

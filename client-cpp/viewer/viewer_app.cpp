@@ -11,6 +11,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <cstdlib>
 #include <filesystem>
 #include <fstream>
 #include <thread>
@@ -81,13 +82,13 @@ App::App(ViewerOptions o) : options(std::move(o)) {
       if (!step.ui.empty()) RunUiAction(step.ui, -step.line);  // a dry run: checks every action
     }
   }
+  OpenDisplay();  // first: without one there is nothing to start a server for
   if (options.local_server) {  // before the window: a window that waits for it would not answer
     const auto log = std::filesystem::temp_directory_path() / fmt::format("cinevol-viewer-{}.log", getpid());
     std::fprintf(stderr, "cinevol-viewer: starting a local cinevol-server (log: %s)...\n", log.c_str());
     local_server = std::make_unique<cli::LocalServer>(options.backend, log);
     options.connection.server = local_server->address();
   }
-  if (SDL_Init(SDL_INIT_VIDEO) != 0) throw InputError(fmt::format("cannot open a window: {}", SDL_GetError()));
   window_ = SDL_CreateWindow("cinevol-viewer", SDL_WINDOWPOS_CENTERED, SDL_WINDOWPOS_CENTERED, options.width,
                              options.height, SDL_WINDOW_RESIZABLE | SDL_WINDOW_ALLOW_HIGHDPI);
   if (!window_) throw InputError(fmt::format("cannot open a window: {}", SDL_GetError()));
@@ -100,6 +101,19 @@ App::App(ViewerOptions o) : options(std::move(o)) {
   ImGui_ImplSDL2_InitForSDLRenderer(window_);
   ImGui_ImplSDLRenderer_Init(renderer_);
   Layout();
+}
+
+void App::OpenDisplay() {
+  if (SDL_Init(SDL_INIT_VIDEO) != 0) throw InputError(fmt::format("cannot open a window: {}", SDL_GetError()));
+  // Without a display SDL falls back to drivers that draw nowhere: the
+  // window would run unseen for ever. Only a user who asks for one gets it.
+  const std::string driver = SDL_GetCurrentVideoDriver() ? SDL_GetCurrentVideoDriver() : "";
+  const bool windowless = driver == "offscreen" || driver == "dummy" || driver == "evdev";
+  if (windowless && !std::getenv("SDL_VIDEODRIVER")) {
+    throw InputError(
+        "no display to open a window on (DISPLAY and WAYLAND_DISPLAY are not set): run it in a desktop session or "
+        "over ssh -X; for a script without a screen, use xvfb-run (or SDL_VIDEODRIVER=offscreen)");
+  }
 }
 
 App::~App() {
@@ -244,9 +258,15 @@ void App::SendRender() {
 }
 
 void App::SendLabels() {
-  if (!volume || !volume->has_labels()) return;  // the session has no segmentation to style
+  if (!volume) return;
   v1::SessionEvent e;
-  *e.mutable_labels() = labels;
+  if (volume->has_labels()) {
+    *e.mutable_labels() = labels;
+  } else if (volume->table().voxels() > 0) {
+    e.mutable_labels()->set_remove_table(labels.remove_table());  // styles wait for a segmentation
+  } else {
+    return;  // nothing the session can style
+  }
   connection->Post(std::move(e));
 }
 
@@ -300,9 +320,16 @@ void App::Snapshot(const std::string& path, int spp) {
   request.set_spp(spp);
   request.set_format(ext == ".exr" ? v1::EXR : v1::PNG);
   notice = fmt::format("rendering {} at {} spp...", path, spp);
+  // No deadline: a still on a CPU server takes minutes. The line under the
+  // panels follows its progress; closing the window cancels it.
   connection->Request(
-      [this, request, path](Client& client) {
-        const v1::SnapshotResponse still = client.Snapshot(request);
+      [this, request, path, stopping = &connection->stopping()](Client& client) {
+        SnapshotOptions wait;
+        wait.cancel = stopping;
+        wait.on_progress = [this, path](const v1::SnapshotProgress& p) {
+          Later([this, path, text = DescribeProgress(p)] { notice = fmt::format("rendering {}: {}", path, text); });
+        };
+        const v1::SnapshotResponse still = client.Snapshot(request, wait);
         WriteFile(path, std::vector<std::uint8_t>(still.image().begin(), still.image().end()));
         Later([this, path, still] {
           notice = fmt::format("wrote {} ({}x{}, {} spp, {:.1f} s)", path, still.width(), still.height(), still.spp(),
@@ -321,7 +348,7 @@ void App::SaveScene(const std::string& path) {
   scene.mutable_lights()->CopyFrom(lights.lights());
   *scene.mutable_render() = render;
   *scene.mutable_clipping() = clipping;
-  if (labels.styles_size() > 0 || labels.has_show_unlisted()) *scene.mutable_labels() = labels;
+  if (labels.styles_size() > 0 || labels.has_show_unlisted() || labels.remove_table()) *scene.mutable_labels() = labels;
   scene.mutable_render()->set_width(viewport_w_);
   scene.mutable_render()->set_height(viewport_h_);
   if (volume) *scene.mutable_volume() = ParseVolumeSpec(volume->source());  // a phantom stays a phantom
@@ -345,8 +372,12 @@ void App::OpenScene(const std::string& path) {
                             AutoWindow(ToHistogram(volume->histogram())));
     }
     SendTransferFunction();
-    lights.mutable_lights()->CopyFrom(scene.lights());
-    SendLights();
+    // A file without lights keeps the lights on screen (sending none would
+    // leave the volume black).
+    if (scene.lights_size() > 0) {
+      lights.mutable_lights()->CopyFrom(scene.lights());
+      SendLights();
+    }
     render.set_spp(scene.render().spp());
     render.set_max_bounces(scene.render().max_bounces());
     render.set_reconstruction(scene.render().reconstruction());
@@ -355,9 +386,11 @@ void App::OpenScene(const std::string& path) {
     SendClipping();
     labels = scene.labels();
     SendLabels();
-    notice = scene.has_labels() && !(volume && volume->has_labels())
+    const bool styles = scene.labels().styles_size() > 0 || scene.labels().has_show_unlisted();
+    notice = styles && !(volume && volume->has_labels())
                  ? fmt::format("opened {}; its label styles wait for a segmentation of this volume", path)
                  : fmt::format("opened {}", path);
+    if (scene.lights_size() == 0) notice += " (it has no lights: the lights stay as they were)";
   } catch (const std::exception& e) {
     notice = e.what();
   }
@@ -623,9 +656,13 @@ void App::RunScript() {
         continue;
       }
     }
+    // The panels show what the events set, as if they had set it: the
+    // whole clipping and label styles replace the old, as on the server.
     if (e.has_lights()) lights = e.lights();
     if (e.has_render()) render.MergeFrom(e.render());
     if (e.has_stream()) stream.MergeFrom(e.stream());
+    if (e.has_clipping()) clipping = e.clipping();
+    if (e.has_labels()) labels = e.labels();
     connection->Post(e);
   }
 }

@@ -110,6 +110,8 @@ class App {
   bool Key(SDL_Keycode key);
 
  private:
+  // SDL's video; throws InputError (exit 2) where there is no display.
+  void OpenDisplay();
   void Connect();
   void AdoptSession();            // a new session: take its scene, or restore ours onto it
   void PumpSdlEvents();

@@ -1,8 +1,9 @@
-// Thread count for ParallelFor.
+// Thread count for ParallelFor's pool.
 #include "core/parallel_for.h"
 
+#include <algorithm>
 #include <cstdlib>
-#include <string>
+#include <thread>
 
 namespace cinevol {
 

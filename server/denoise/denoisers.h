@@ -6,13 +6,28 @@
 
 #include <memory>
 #include <stdexcept>
+#include <type_traits>
 #include <utility>
 
 #include "denoise/baselines.h"
+#include "denoise/cpu_passes.h"
 #include "denoise/denoiser.h"
 #include "denoise/wrls.h"
 
 namespace cinevol {
+
+struct CpuBackend;
+
+// One a-trous level on backend B: on the CPU as vectorised rows of the same
+// weights (denoise/cpu_passes.h), elsewhere the functor per pixel.
+template <class B>
+void RunAtrousLevel(const AtrousPass& pass) {
+  if constexpr (std::is_same_v<B, CpuBackend>) {
+    CpuAtrousLevel(pass);
+  } else {
+    B::ForEachPixel(pass.width, pass.height, pass);
+  }
+}
 
 inline bool SameView(const Camera& a, const Camera& b) {
   return a.eye == b.eye && a.forward == b.forward && a.up == b.up && a.tan_half_fov_y == b.tan_half_fov_y &&
@@ -216,8 +231,8 @@ class Svgf final : public DenoiserBase<B> {
     B::ForEachPixel(w, h, SvgfVariancePass{history_.data(), frame.first_hit, a_.data(), w, h});
     B::ForEachPixel(w, h, CoveragePass{frame.first_hit, coverage_.data(), w, h});
     for (int level = 0; level < s.iterations; ++level) {
-      B::ForEachPixel(w, h, AtrousPass{a_.data(), b_.data(), frame.first_hit, coverage_.data(), frame.camera, w, h,
-                                       1 << level, s.sigma_luminance, s.sigma_depth});
+      RunAtrousLevel<B>(AtrousPass{a_.data(), b_.data(), frame.first_hit, coverage_.data(), frame.camera, w, h,
+                                   1 << level, s.sigma_luminance, s.sigma_depth});
       if (level == 0) B::ForEachPixel(w, h, SvgfFeedbackPass{b_.data(), history_.data(), w});
       std::swap(a_, b_);
     }
@@ -256,8 +271,8 @@ class Wrls final : public DenoiserBase<B> {
     B::ForEachPixel(w, h, WrlsPredictPass{feature_.data(), model_.data(), a_.data(), w, s.young_variance});
     B::ForEachPixel(w, h, CoveragePass{frame.first_hit, coverage_.data(), w, h});
     for (int level = 0; level < s.atrous_iterations; ++level) {
-      B::ForEachPixel(w, h, AtrousPass{a_.data(), b_.data(), frame.first_hit, coverage_.data(), frame.camera, w, h,
-                                       1 << level, s.atrous_sigma_luminance, s.atrous_sigma_depth});
+      RunAtrousLevel<B>(AtrousPass{a_.data(), b_.data(), frame.first_hit, coverage_.data(), frame.camera, w, h,
+                                   1 << level, s.atrous_sigma_luminance, s.atrous_sigma_depth});
       std::swap(a_, b_);
     }
     Stabilize(rv, output);

@@ -15,11 +15,11 @@
 #include <cstring>
 #include <exception>
 #include <fstream>
-#include <thread>
 
 #include <fmt/format.h>
 
 #include "core/error.h"
+#include "core/parallel_for.h"
 
 namespace fs = std::filesystem;
 
@@ -224,25 +224,14 @@ std::vector<std::uint8_t> EncodeJpeg(const ImageYcc8& image, int quality, int ba
   bands = (mcu_rows + rows_per_band - 1) / rows_per_band;
   if (bands == 1 || mcus_per_row > 65535) return EncodeBand(image, 0, image.height, quality);
 
+  // The bands run on the shared pool's free threads and this one: when the
+  // pool is busy (the next frame rendering), this thread encodes them all.
   std::vector<std::vector<std::uint8_t>> encoded(static_cast<std::size_t>(bands));
-  std::vector<std::exception_ptr> errors(static_cast<std::size_t>(bands));
-  auto encode = [&](int band) {
-    try {
-      const int first_line = band * rows_per_band * mcu_height;
-      const int lines = std::min(rows_per_band * mcu_height, image.height - first_line);
-      encoded[std::size_t(band)] = EncodeBand(image, first_line, lines, quality);
-    } catch (...) {
-      errors[std::size_t(band)] = std::current_exception();
-    }
-  };
-  {
-    std::vector<std::jthread> others;
-    for (int band = 1; band < bands; ++band) others.emplace_back(encode, band);
-    encode(0);
-  }
-  for (const std::exception_ptr& e : errors) {
-    if (e) std::rethrow_exception(e);
-  }
+  ParallelFor(bands, [&](std::int64_t band) {
+    const int first_line = int(band) * rows_per_band * mcu_height;
+    const int lines = std::min(rows_per_band * mcu_height, image.height - first_line);
+    encoded[std::size_t(band)] = EncodeBand(image, first_line, lines, quality);
+  }, bands);
   return JoinBands(encoded, image.height, rows_per_band * mcus_per_row);
 }
 

@@ -17,7 +17,8 @@ std::vector<std::uint8_t> EncodeJpeg(const ImageRgb8& image, int quality,
 // From planes already converted and downsampled (the display's frames):
 // libjpeg's raw-data path, which skips its colour conversion and downsampling.
 // With bands > 1, horizontal bands of whole MCU rows encode on as many
-// threads and join as restart intervals: the same pixels decode, sooner.
+// threads of the shared pool (those it has free) and join as restart
+// intervals: the same pixels decode, sooner.
 std::vector<std::uint8_t> EncodeJpeg(const ImageYcc8& image, int quality, int bands = 1);
 std::vector<std::uint8_t> EncodePng(const ImageRgb8& image);
 // Linear RGB as 32-bit float channels.

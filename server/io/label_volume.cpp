@@ -4,15 +4,18 @@
 #include <fmt/format.h>
 #include <spdlog/spdlog.h>
 
+#include <algorithm>
 #include <array>
 #include <charconv>
 #include <cmath>
 #include <sstream>
+#include <stdexcept>
 
 #include "core/error.h"
 #include "core/parallel_for.h"
 #include "io/file_checks.h"
 #include "io/reader_cage.h"
+#include "io/table_finder.h"
 
 namespace cinevol {
 
@@ -174,11 +177,132 @@ LabelVolume FitLabels(const Volume& labels, const Volume& image, const std::stri
     spdlog::debug("{}: {}", shown, out.note);
   }
   for (std::uint16_t label : out.labels) ++out.voxels[label];
+  AddShells(out);
   return out;
 }
 
 void FollowImageOrientation(Volume& labels, const Volume& image) {
   ApplyOrientation(labels, image.metadata().orientation_override, "the image's orientation");
+}
+
+void AddShells(LabelVolume& labels) {
+  const Vec3i d = labels.dims;
+  const std::size_t sx = d.x, sxy = std::size_t(d.x) * d.y;
+  labels.first_derived = labels.max_label() + 1;
+  // Per slice: the unlabelled voxels touching labels, each with the index of
+  // the set of labels it touches among the slice's sets.
+  struct Slice {
+    std::vector<std::vector<std::uint16_t>> sets;
+    std::vector<std::pair<std::size_t, int>> shells;  // voxel, set
+  };
+  std::vector<Slice> slices(d.z);
+  ParallelFor(d.z, [&](std::int64_t z) {
+    Slice& slice = slices[z];
+    std::map<std::vector<std::uint16_t>, int> index;
+    std::vector<std::uint16_t> touches;
+    const int z0 = std::max(0, int(z) - 1), z1 = std::min(d.z - 1, int(z) + 1);
+    for (int y = 0; y < d.y; ++y) {
+      const int y0 = std::max(0, y - 1), y1 = std::min(d.y - 1, y + 1);
+      for (int x = 0; x < d.x; ++x) {
+        const std::size_t i = z * sxy + y * sx + x;
+        if (labels.labels[i] != 0) continue;
+        touches.clear();
+        for (int nz = z0; nz <= z1; ++nz) {
+          for (int ny = y0; ny <= y1; ++ny) {
+            const std::uint16_t* row = labels.labels.data() + nz * sxy + ny * sx;
+            for (int nx = std::max(0, x - 1); nx <= std::min(d.x - 1, x + 1); ++nx) {
+              if (row[nx] != 0) touches.push_back(row[nx]);
+            }
+          }
+        }
+        if (touches.empty()) continue;
+        std::sort(touches.begin(), touches.end());
+        touches.erase(std::unique(touches.begin(), touches.end()), touches.end());
+        const auto [it, added] = index.emplace(touches, int(slice.sets.size()));
+        if (added) slice.sets.push_back(touches);
+        slice.shells.emplace_back(i, it->second);
+      }
+    }
+  });
+  // One value per set of labels touched, in slice order, while values last.
+  std::map<std::vector<std::uint16_t>, int> value_of;
+  std::uint64_t left = 0;
+  for (const Slice& slice : slices) {
+    std::vector<int> values(slice.sets.size(), -1);
+    for (std::size_t k = 0; k < slice.sets.size(); ++k) {
+      auto it = value_of.find(slice.sets[k]);
+      if (it == value_of.end()) {
+        const int value = labels.first_derived + int(labels.derived.size());
+        if (value > 65534) continue;  // 65535 stays for the table
+        labels.derived.push_back({DerivedLabel::Kind::kShell, slice.sets[k]});
+        it = value_of.emplace(slice.sets[k], value).first;
+      }
+      values[k] = it->second;
+    }
+    for (const auto& [voxel, set] : slice.shells) {
+      if (values[set] < 0) {
+        ++left;
+      } else {
+        labels.labels[voxel] = std::uint16_t(values[set]);
+      }
+    }
+  }
+  if (left > 0) {
+    labels.note += fmt::format("{}{} voxels of partial-volume shell stay label 0: no 16-bit values left for them",
+                               labels.note.empty() ? "" : "; ", left);
+  }
+}
+
+namespace {
+
+// Marks voxels `is_table` says are the table, where the segmentation leaves
+// them unlabelled, with a value of its own; none left (a label 65535): not at all.
+template <class IsTable>
+void MarkTable(LabelVolume& labels, IsTable is_table) {
+  if (labels.derived.empty()) labels.first_derived = labels.max_label() + 1;
+  const int value = labels.first_derived + int(labels.derived.size());
+  if (value > 65535) {
+    labels.table_note += "; not marked: the segmentation uses every 16-bit value";
+    return;
+  }
+  labels.derived.push_back({DerivedLabel::Kind::kTable, {}});
+  const auto table = std::uint16_t(value);
+  std::uint64_t marked = 0;
+  for (std::size_t i = 0; i < labels.labels.size(); ++i) {
+    if (is_table(i) && labels.LabelOf(labels.labels[i]) == 0) {
+      labels.labels[i] = table;
+      ++marked;
+    }
+  }
+  labels.table_voxels = marked;
+}
+
+}  // namespace
+
+void AddTable(LabelVolume& labels, const TableMask& table) {
+  labels.table_note = table.note;
+  if (!table.found()) return;
+  if (labels.dims != table.dims) throw std::invalid_argument("AddTable: the table is not on the labels' grid");
+  MarkTable(labels, [&](std::size_t i) { return (table.voxels[i] & (kTableVoxel | kTableRimVoxel)) != 0; });
+}
+
+LabelVolume TableLabels(const TableMask& table) {
+  LabelVolume labels;
+  labels.dims = table.dims;
+  labels.segmentation = false;
+  const std::size_t n = std::size_t(table.dims.x) * table.dims.y * table.dims.z;
+  labels.labels.assign(n, 0);
+  labels.voxels[0] = n;
+  AddTable(labels, table);
+  return labels;
+}
+
+void CopyTable(const LabelVolume& from, LabelVolume& to) {
+  to.table_note = from.table_note;
+  const int table = from.table_value();
+  if (table < 0) return;
+  if (from.dims != to.dims) throw std::invalid_argument("CopyTable: the label volumes' grids differ");
+  MarkTable(to, [&](std::size_t i) { return from.labels[i] == table; });
 }
 
 LabelVolume LoadLabelVolume(const std::filesystem::path& path, const Volume& image, const LoadPolicy& policy) {
@@ -187,6 +311,8 @@ LabelVolume LoadLabelVolume(const std::filesystem::path& path, const Volume& ima
   FollowImageOrientation(labels, image);
   return FitLabels(labels, image, shown);
 }
+
+bool StylesLabels(const v1::Labels& labels) { return labels.styles_size() > 0 || labels.has_show_unlisted(); }
 
 v1::LabelSet ToLabelSet(const LabelVolume& labels) {
   v1::LabelSet set;
@@ -209,6 +335,18 @@ std::shared_ptr<const LabelVolume> LoadSceneLabels(const v1::VolumeSource& sourc
   LabelVolume labels = LoadLabelVolume(resolve(source.labels()), image);
   if (!source.label_table().empty()) labels.names = LoadLabelTable(resolve(source.label_table()), source.label_table());
   return std::make_shared<const LabelVolume>(std::move(labels));
+}
+
+std::shared_ptr<const LabelVolume> LoadSceneLabels(const v1::Scene& scene, const Volume& image,
+                                                   const std::filesystem::path& base_dir) {
+  std::shared_ptr<const LabelVolume> segmentation = LoadSceneLabels(scene.volume(), image, base_dir);
+  if (!scene.labels().remove_table()) return segmentation;
+  const TableMask table = FindTable(image);
+  spdlog::debug("table search: {} ({:.2f} s)", table.note, table.seconds);
+  if (!segmentation) return std::make_shared<const LabelVolume>(TableLabels(table));
+  LabelVolume both = *segmentation;
+  AddTable(both, table);
+  return std::make_shared<const LabelVolume>(std::move(both));
 }
 
 }  // namespace cinevol

@@ -11,6 +11,7 @@
 #include "cinevol/v1/service.pb.h"
 #include "core/labels.h"
 #include "core/volume.h"
+#include "io/table_finder.h"
 #include "io/volume_loader.h"
 
 namespace cinevol {
@@ -33,12 +34,29 @@ std::map<int, std::string> LoadLabelTable(const std::filesystem::path& path, con
 // Refused when the grids do not overlap.
 LabelVolume FitLabels(const Volume& labels, const Volume& image, const std::string& shown);
 
+// Gives every unlabelled voxel touching labels (its 26 neighbours) a value
+// of its own per set of labels touched, above every label (DerivedLabel): the
+// partial-volume shell that hides with the labels it touches. FitLabels calls it.
+void AddShells(LabelVolume& labels);
+
+// Marks `table` (FindTable's, on the labels' grid) with a value of its own,
+// where the segmentation leaves voxels unlabelled; keeps its note.
+void AddTable(LabelVolume& labels, const TableMask& table);
+// Labels that only mark the table, for a volume without a segmentation.
+LabelVolume TableLabels(const TableMask& table);
+// Marks `from`'s table on `to` (a segmentation of the same volume loaded later).
+void CopyTable(const LabelVolume& from, LabelVolume& to);
+
 // A segmentation of an image whose orientation was given at load (an
 // override) takes the same: it was stored as the image was.
 void FollowImageOrientation(Volume& labels, const Volume& image);
 
 // LoadVolumeFile under `policy`, FollowImageOrientation, then FitLabels.
 LabelVolume LoadLabelVolume(const std::filesystem::path& path, const Volume& image, const LoadPolicy& policy = {});
+
+// Whether `labels` styles a segmentation's labels (styles, show_unlisted),
+// which needs one; remove_table alone does not.
+bool StylesLabels(const v1::Labels& labels);
 
 // What the API and `cinevol info` say of a segmentation: every label present
 // and every label the table names.
@@ -47,6 +65,10 @@ v1::LabelSet ToLabelSet(const LabelVolume& labels);
 // The scene's segmentation (VolumeSource.labels and label_table, relative
 // paths against `base_dir`) fitted to `image`; null when it names none.
 std::shared_ptr<const LabelVolume> LoadSceneLabels(const v1::VolumeSource& source, const Volume& image,
+                                                   const std::filesystem::path& base_dir = {});
+// The same, with the table marked where the scene removes it (labels.remove_table):
+// what offline renders of a scene file draw. Null when there is neither.
+std::shared_ptr<const LabelVolume> LoadSceneLabels(const v1::Scene& scene, const Volume& image,
                                                    const std::filesystem::path& base_dir = {});
 
 }  // namespace cinevol

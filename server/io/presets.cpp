@@ -392,4 +392,10 @@ v1::Scene MakePresetScene(std::string_view preset, const Volume& volume) {
   return scene;
 }
 
+bool AddDefaultLights(v1::Scene& scene, const Volume& volume) {
+  if (scene.lights_size() > 0) return false;
+  *scene.mutable_lights() = MakePresetScene(DefaultPreset(volume), volume).lights();
+  return true;
+}
+
 }  // namespace cinevol

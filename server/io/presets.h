@@ -81,4 +81,9 @@ std::string DefaultPreset(const Volume& volume);
 // unknown preset.
 v1::Scene MakePresetScene(std::string_view preset, const Volume& volume);
 
+// A scene that names no lights takes the volume's default ones (those of
+// MakePresetScene: the key light and the sky); with none it renders black.
+// Returns whether it added them, for the caller to say so.
+bool AddDefaultLights(v1::Scene& scene, const Volume& volume);
+
 }  // namespace cinevol

@@ -63,12 +63,16 @@ bool CutAway(const ClipRegion& clip, Vec3f lo, Vec3f hi) {
 
 std::vector<bool> BlocksWithVisibleLabels(const Volume& volume, const LabelVolume& labels, const LabelSetup& setup) {
   const Vec3i blocks = volume.block_counts(), dims = volume.dims();
-  std::vector<bool> visible(std::size_t(labels.max_label()) + 1);
-  for (std::size_t l = 0; l < visible.size(); ++l) {
-    const LabelStyle& style = setup.StyleOf(int(l));
-    visible[l] = style.visible && style.opacity_scale > 0.0f;
+  // By stored value: labels, shells and the table (core/labels.h).
+  std::vector<bool> visible(std::size_t(labels.value_count()));
+  bool all_visible = true;
+  for (std::size_t v = 0; v < visible.size(); ++v) {
+    visible[v] = !setup.StyleOfValue(labels, int(v)).hidden();
+    all_visible = all_visible && visible[v];
   }
-  std::vector<bool> shown(std::size_t(blocks.x) * blocks.y * blocks.z, false);
+  const std::size_t block_count = std::size_t(blocks.x) * blocks.y * blocks.z;
+  if (all_visible) return std::vector<bool>(block_count, true);  // no need to read every voxel
+  std::vector<bool> shown(block_count, false);
   for (int z = 0; z < dims.z; ++z) {
     for (int y = 0; y < dims.y; ++y) {
       const std::size_t row = (std::size_t(z) * dims.y + y) * dims.x;
@@ -296,6 +300,7 @@ Reconstruction ResolveReconstruction(v1::Reconstruction reconstruction) {
 LabelSetup ResolveLabels(const v1::Labels& labels, const Volume& volume) {
   LabelSetup setup;
   setup.show_unlisted = !labels.has_show_unlisted() || labels.show_unlisted();
+  setup.remove_table = labels.remove_table();
   for (const v1::LabelStyle& proto : labels.styles()) {
     LabelStyle& style = setup.styles[int(proto.value())];
     style.visible = !proto.has_visible() || proto.visible();

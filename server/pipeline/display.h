@@ -15,6 +15,7 @@
 #include "core/tone_map.h"
 #include "core/vec.h"
 #include "core/ycc.h"
+#include "pipeline/upsample.h"
 
 namespace cinevol {
 
@@ -25,31 +26,55 @@ struct DisplayInputs {
   ChromaSubsampling chroma = ChromaSubsampling::k420;
 };
 
+// The tone map of core/tone_map.h, evaluated (GPUs; the CPU uses the same
+// codes from a table: pipeline/tone_map_table.h).
+struct FormulaToneMap {
+  CINEVOL_HD void operator()(Vec3f c, float exposure_scale, std::uint8_t* rgb) const {
+    ToneMapPixel(c, exposure_scale, rgb);
+  }
+};
+
+// The radiance a pixel shows: the frame's own, or (a moving frame on the
+// CPU) upsampled from a smaller frame on the way, with the upsampler's
+// arithmetic and without a viewport-sized buffer in between.
+struct FrameRadiance {
+  const Vec3f* radiance;
+  int width;
+  CINEVOL_HD Vec3f operator()(int x, int y) const { return radiance[y * width + x]; }
+};
+struct UpsampledRadiance {
+  UpsamplePass pass;
+  CINEVOL_HD Vec3f operator()(int x, int y) const { return pass.Sample(x, y); }
+};
+
 // A pixel's displayed 8-bit sRGB.
+template <class Radiance = FrameRadiance, class ToneMap = FormulaToneMap>
 struct DisplayedPixel {
-  DisplayInputs in;
+  Radiance radiance;
+  ToneMap tone_map;
   float exposure_scale;
 
-  CINEVOL_HD void operator()(int x, int y, std::uint8_t* rgb) const {
-    ToneMapPixel(in.radiance[y * in.width + x], exposure_scale, rgb);
-  }
+  CINEVOL_HD void operator()(int x, int y, std::uint8_t* rgb) const { tone_map(radiance(x, y), exposure_scale, rgb); }
 };
 
 // Runs over the chroma planes: each call converts the pixel block behind one
 // chroma sample (one pixel at 4:4:4).
+template <class Pixel>
 struct DisplayPass {
-  DisplayedPixel pixel;
+  Pixel pixel;
   YccPlanes out;
 
   CINEVOL_HD void operator()(int cx, int cy) const { WriteYccBlock(out, cx, cy, pixel); }
 };
 
 // The displayed pixels themselves, interleaved RGB: a lossless final frame.
+template <class Pixel>
 struct DisplayRgbPass {
-  DisplayedPixel pixel;
+  Pixel pixel;
   std::uint8_t* out;
+  int width;
 
-  CINEVOL_HD void operator()(int x, int y) const { pixel(x, y, out + 3 * (std::size_t(y) * pixel.in.width + x)); }
+  CINEVOL_HD void operator()(int x, int y) const { pixel(x, y, out + 3 * (std::size_t(y) * width + x)); }
 };
 
 class Display {
@@ -58,6 +83,9 @@ class Display {
   // The planes stay valid while the returned image (or a copy) lives, also
   // after later runs and after the Display is gone.
   virtual ImageYcc8 Run(const DisplayInputs& inputs) = 0;
+  // The same for `source` (width x height, backend memory) upsampled to the
+  // inputs' size as Upsampler::Run does; inputs.radiance is not read.
+  virtual ImageYcc8 RunUpsampled(const DisplayInputs& inputs, const Vec3f* source, int width, int height) = 0;
   // The same pixels as 8-bit sRGB (inputs.chroma does not apply), for a
   // frame that goes out losslessly: once per refinement, so not pipelined.
   virtual ImageRgb8 RunRgb(const DisplayInputs& inputs) = 0;
@@ -102,29 +130,50 @@ class FrameBufferRing {
 // the ring's host buffers, waiting for the copy: the frame returned is ready
 // to encode on any thread. (Waiting costs little: the stream has nothing else
 // of this session's queued, and the next frame starts from this thread.)
-template <class B>
+// ToneMap: FormulaToneMap, or on the CPU the table's same codes.
+template <class B, class ToneMap = FormulaToneMap>
 class DisplayOn final : public Display {
  public:
+  explicit DisplayOn(ToneMap tone_map = {}) : tone_map_(tone_map) {}
+
   ImageYcc8 Run(const DisplayInputs& in) override {
-    const std::size_t bytes = YccBytes(in.width, in.height, in.chroma);
-    planes_.Resize(bytes);
-    const YccPlanes out = YccPlanes::Of(planes_.data(), in.width, in.height, in.chroma);
-    B::ForEachPixel(ChromaWidth(in.width, in.chroma), ChromaHeight(in.height, in.chroma),
-                    DisplayPass{{in, exp2f(in.exposure)}, out});
-    const std::shared_ptr<HostBuffer> host = ring_.Next(bytes);
-    planes_.Download(host->data());
-    return {in.width, in.height, in.chroma, std::shared_ptr<const std::uint8_t>(host, host->data()), bytes};
+    return Planes(in, Pixel<FrameRadiance>(in, {in.radiance, in.width}));
+  }
+
+  ImageYcc8 RunUpsampled(const DisplayInputs& in, const Vec3f* source, int width, int height) override {
+    const UpsamplePass up{source, width, height, nullptr, in.width, float(width) / float(in.width),
+                          float(height) / float(in.height)};
+    return Planes(in, Pixel<UpsampledRadiance>(in, {up}));
   }
 
   ImageRgb8 RunRgb(const DisplayInputs& in) override {
     ImageRgb8 image{in.width, in.height, std::vector<std::uint8_t>(std::size_t(in.width) * in.height * 3)};
     planes_.Resize(image.bytes.size());
-    B::ForEachPixel(in.width, in.height, DisplayRgbPass{{in, exp2f(in.exposure)}, planes_.data()});
+    using P = DisplayedPixel<FrameRadiance, ToneMap>;
+    B::ForEachPixel(in.width, in.height, DisplayRgbPass<P>{Pixel<FrameRadiance>(in, {in.radiance, in.width}),
+                                                           planes_.data(), in.width});
     planes_.Download(image.bytes.data());
     return image;
   }
 
  private:
+  template <class Radiance>
+  DisplayedPixel<Radiance, ToneMap> Pixel(const DisplayInputs& in, Radiance radiance) const {
+    return {radiance, tone_map_, exp2f(in.exposure)};
+  }
+
+  template <class P>
+  ImageYcc8 Planes(const DisplayInputs& in, const P& pixel) {
+    const std::size_t bytes = YccBytes(in.width, in.height, in.chroma);
+    planes_.Resize(bytes);
+    const YccPlanes out = YccPlanes::Of(planes_.data(), in.width, in.height, in.chroma);
+    B::ForEachPixel(ChromaWidth(in.width, in.chroma), ChromaHeight(in.height, in.chroma), DisplayPass<P>{pixel, out});
+    const std::shared_ptr<HostBuffer> host = ring_.Next(bytes);
+    planes_.Download(host->data());
+    return {in.width, in.height, in.chroma, std::shared_ptr<const std::uint8_t>(host, host->data()), bytes};
+  }
+
+  ToneMap tone_map_;
   using HostBuffer = typename B::template HostBuffer<std::uint8_t>;
   typename B::template Buffer<std::uint8_t> planes_;
   FrameBufferRing<HostBuffer> ring_;

@@ -2,12 +2,19 @@
 #include "core/ycc.h"
 #include "device/cpu_backend.h"
 #include "pipeline/display.h"
+#include "pipeline/tone_map_table.h"
 #include "pipeline/refine.h"
 #include "pipeline/upsample.h"
 
 namespace cinevol {
 
-std::unique_ptr<Display> MakeCpuDisplay() { return std::make_unique<DisplayOn<CpuBackend>>(); }
+namespace {
+
+using CpuDisplay = DisplayOn<CpuBackend, TableToneMap>;
+
+}  // namespace
+
+std::unique_ptr<Display> MakeCpuDisplay() { return std::make_unique<CpuDisplay>(TableToneMap{&ToneMapTable::Get()}); }
 
 ImageRgb8 ShownOnCpu(const ImageRgbF& radiance, float exposure) {
   DisplayInputs in;
@@ -16,7 +23,7 @@ ImageRgb8 ShownOnCpu(const ImageRgbF& radiance, float exposure) {
   in.radiance = radiance.pixels.data();
   in.exposure = exposure;
   in.chroma = ChromaSubsampling::k444;
-  return ToRgb(DisplayOn<CpuBackend>().Run(in));
+  return ToRgb(CpuDisplay(TableToneMap{&ToneMapTable::Get()}).Run(in));
 }
 std::unique_ptr<Upsampler> MakeCpuUpsampler() { return std::make_unique<UpsamplerOn<CpuBackend>>(); }
 std::unique_ptr<Refiner> MakeCpuRefiner() { return std::make_unique<RefinerOn<CpuBackend>>(); }

@@ -25,10 +25,17 @@ Camera Scaled(Camera camera, float scale) {
 
 }  // namespace
 
+FrameSettings SessionFrameSettings(Backend backend) {
+  FrameSettings settings;
+  if (backend == Backend::kCpu) settings.interactive_frame_ms = kCpuInteractiveFrameMs;
+  return settings;
+}
+
 FramePipeline::FramePipeline(Backend backend, std::shared_ptr<const Volume> volume, const RendererOptions& options,
                              std::shared_ptr<const LabelVolume> labels)
     : volume_(std::move(volume)), labels_(std::move(labels)), renderer_(CreateRenderer(backend, options)) {
   renderer_->SetVolume(volume_);
+  policy_ = renderer_->backend() == Backend::kCpu ? InteractivePolicy::kCostModel : InteractivePolicy::kSteps;
 #if CINEVOL_WITH_CUDA
   if (renderer_->backend() == Backend::kCuda) {
     display_ = MakeCudaDisplay();
@@ -110,16 +117,25 @@ void FramePipeline::Apply(const FrameSettings& settings, unsigned changes) {
     denoiser_ = CreateDenoiser(renderer_->backend(), settings.denoiser);  // frames stay in the renderer's memory
   }
   if (changes & (kTransferFunctionChanged | kLightsChanged | kClippingChanged | kLabelsChanged)) ++scene_version_;
-  if (has_scene_ && (changes & (kCameraChanged | kTransferFunctionChanged))) moved_at_ = Clock::now();
+  // On the CPU every edit of the picture is an interaction: a full-size
+  // frame after a moved light would take seconds.
+  const unsigned interactions = policy_ == InteractivePolicy::kCostModel
+                                    ? (kCameraChanged | kTransferFunctionChanged | kLightsChanged |
+                                       kClippingChanged | kLabelsChanged)
+                                    : (kCameraChanged | kTransferFunctionChanged);
+  if (has_scene_ && (changes & interactions)) moved_at_ = Clock::now();
   if (changes & kEverythingChanged) ResetAccumulation();
   settings_ = settings;
   has_scene_ = true;
 }
 
+bool FramePipeline::Moving() const {
+  return settings_.interactive_frame_ms > 0 &&
+         Clock::now() - moved_at_ < std::chrono::milliseconds(kInteractionHoldMs);
+}
+
 float FramePipeline::ChooseScale() {
-  const bool moving = settings_.interactive_frame_ms > 0 &&
-                      Clock::now() - moved_at_ < std::chrono::milliseconds(kInteractionHoldMs);
-  if (!moving) return 1.0f;
+  if (!Moving()) return 1.0f;
   if (scale_ != moving_scale_ || frame_times_ <= kFrameTimesPerStep) return moving_scale_;
   const float* scale = std::find(std::begin(kInteractiveScales), std::end(kInteractiveScales), scale_);
   const double budget = settings_.interactive_frame_ms;
@@ -134,6 +150,23 @@ float FramePipeline::ChooseScale() {
   return moving_scale_;
 }
 
+int FramePipeline::ChooseCostModelFrame(bool moving) {
+  const std::int64_t viewport = std::int64_t(camera_.width) * camera_.height;
+  if (moving) {
+    const MovingFrame next = ChooseMovingFrame(cost_, viewport, spp_, settings_.interactive_frame_ms,
+                                               {moving_scale_, moving_spp_});
+    moving_scale_ = next.scale;
+    moving_spp_ = next.spp;
+    SetScale(next.scale);
+    return next.spp;
+  }
+  SetScale(1.0f);
+  if (!LiveOnCpu() || !settings_.refine) return spp_;
+  still_spp_ = ChooseStillSpp(cost_, viewport, spp_, still_spp_);
+  // Not past the refinement's cap.
+  return std::clamp(settings_.target_spp - accumulated_spp_, 1, still_spp_);
+}
+
 void FramePipeline::SetScale(float scale) {
   if (scale == scale_) return;
   scale_ = scale;
@@ -145,6 +178,7 @@ void FramePipeline::ResetAccumulation() {
   renderer_->ResetAccumulation();
   accumulated_spp_ = 0;
   estimated_error_ = -1;
+  still_spp_ = 0;
 }
 
 ImageRgbF FramePipeline::RefinedRadiance() const { return last_frame_blended_ ? refiner_->Output() : ImageRgbF{}; }
@@ -161,6 +195,7 @@ void FramePipeline::MeasureFrameTime(Clock::time_point start) {
     const double ms = std::chrono::duration<double, std::milli>(start - last_frame_start_).count();
     if (frame_times_ > 0) frame_ms_ = frame_times_ == 1 ? ms : 0.7 * frame_ms_ + 0.3 * ms;
     ++frame_times_;
+    cost_.ObserveInterval(ms);
   }
   last_frame_start_ = start;
 }
@@ -180,15 +215,30 @@ FrameRequest FramePipeline::Request(int spp) {
 DisplayFrame FramePipeline::RenderFrame() {
   if (!has_scene_) throw std::logic_error("FramePipeline::RenderFrame before Update");
   MeasureFrameTime(Clock::now());
-  SetScale(ChooseScale());
+  int spp = spp_;
+  const bool moving = Moving();
+  if (policy_ == InteractivePolicy::kCostModel) {
+    spp = ChooseCostModelFrame(moving);
+  } else {
+    SetScale(ChooseScale());
+  }
   DisplayFrame out;
   out.resolution_scale = scale_;
+  out.spp = spp;
   last_frame_blended_ = false;
-  const FrameRequest request = Request(spp_);
+  FrameRequest request = Request(spp);
+  if (!moving && LiveOnCpu()) request.preempt = preempt_;  // moving frames are what events wait for
   const Camera& camera = request.camera;
-  renderer_->Render(request);
+  try {
+    renderer_->Render(request);
+  } catch (const FramePreempted&) {
+    ResetAccumulation();  // it holds part of the frame
+    last_frame_final_ = true;  // the next frame follows an event: no frame time
+    out.preempted = true;
+    return out;
+  }
   out.render_ms = renderer_->LastFrameMilliseconds();
-  accumulated_spp_ += spp_;
+  accumulated_spp_ += spp;
 
   const FrameTargets t = renderer_->Targets();
   const Vec3f* denoised =
@@ -196,19 +246,26 @@ DisplayFrame FramePipeline::RenderFrame() {
   out.denoise_ms = denoiser_->LastMilliseconds();
 
   const auto display_start = Clock::now();
+  double refine_ms = 0;
   DisplayInputs in;
   in.width = camera_.width;
   in.height = camera_.height;
   in.exposure = exposure();
-  if (scale_ < 1.0f) {
+  const bool upsample = scale_ < 1.0f;
+  const bool upsample_in_display = upsample && renderer_->backend() == Backend::kCpu;  // no viewport-sized buffer
+  if (upsample && !upsample_in_display) {
     // A moving view shows the denoiser's output alone: its few samples are
     // about to be replaced.
     in.radiance = upsampler_->Run(denoised, camera.width, camera.height, camera_.width, camera_.height);
+  } else if (upsample) {
+    in.radiance = nullptr;
   } else if (settings_.refine) {
     // The denoiser's output and the mean of the frames so far, combined per
     // pixel by their estimated errors.
+    const auto refine_start = Clock::now();
     const RefinedImage refined = refiner_->Refine(
         {camera.width, camera.height, t.radiance, t.accumulated, denoised, renderer_->accumulated_frames(), exposure_});
+    refine_ms = MillisecondsSince(refine_start);
     in.radiance = refined.radiance;
     last_frame_blended_ = refined.estimated_error >= 0;
     estimated_error_ = refined.estimated_error;
@@ -222,10 +279,14 @@ DisplayFrame FramePipeline::RenderFrame() {
   last_frame_final_ = out.final;
   if (out.final && settings_.final_png) {
     out.final_rgb = display_->RunRgb(in);
+  } else if (upsample_in_display) {
+    out.image = display_->RunUpsampled(in, denoised, camera.width, camera.height);
   } else {
     out.image = display_->Run(in);
   }
   out.display_ms = MillisecondsSince(display_start);
+  cost_.Observe({std::int64_t(camera.width) * camera.height, spp, out.render_ms, out.denoise_ms,
+                 out.display_ms - refine_ms, refine_ms});
   return out;
 }
 

@@ -27,11 +27,19 @@
 #include "encode/image_codecs.h"
 #include "io/scene_builder.h"
 #include "pipeline/display.h"
+#include "pipeline/frame_cost.h"
 #include "pipeline/refine.h"
 #include "pipeline/upsample.h"
 #include "render/renderer.h"
 
 namespace cinevol {
+
+// The frame-time budget a session on the CPU backend gets unless it asks
+// otherwise (FrameSettings::interactive_frame_ms; the service's default): a
+// frame every 70 ms while the view moves keeps a viewer beside the server
+// at >= 10 fps with p95 event-to-frame latency under 250 ms on 2 cores
+// (docs/performance.md). On a GPU the default stays 0 (full size).
+inline constexpr float kCpuInteractiveFrameMs = 70;
 
 // The default refinement error target: an estimated relative RMS error of
 // 2%, where CThead, the MR head and the head phantom at 720p stand at 44.3
@@ -60,11 +68,23 @@ struct FrameSettings {
   // frames refine at full size. 0: always full size, the default, since a
   // smaller frame costs accuracy (docs/tradeoff.md: -1.1 dB at 0.75, -2.8 dB
   // at 0.5, on CThead at 720p).
+  //
+  // On the CPU backend (InteractivePolicy::kCostModel) a budget also means a
+  // live view: frames follow every edit that changes the picture (lights,
+  // clipping and labels too), choose their size down to an eighth of the
+  // viewport and their samples per pixel (up to the scene's) from the
+  // measured cost of each part, take more samples per frame when still
+  // (frame_cost.h), and a still frame stops when a newer event preempts it
+  // (SetPreempt).
   float interactive_frame_ms = 0;
   // false: every frame shows the denoiser's output alone, never the
   // accumulation (the benches measure frames as they look while interacting).
   bool refine = true;
 };
+
+// What a streamed session starts with on `backend` before its own stream
+// settings: on the CPU, interactive_frame_ms = kCpuInteractiveFrameMs.
+FrameSettings SessionFrameSettings(Backend backend);
 
 // The resolution scales interactive frames step through, largest first; how
 // long after the last camera or transfer-function change they end; and how
@@ -73,6 +93,17 @@ struct FrameSettings {
 inline constexpr float kInteractiveScales[] = {1.0f, 0.75f, 0.5f};
 inline constexpr int kInteractionHoldMs = 200;
 inline constexpr int kFrameTimesPerStep = 3;
+
+// How interactive frames choose their size.
+enum class InteractivePolicy {
+  // The GPU's: the scene's spp, and the size steps through
+  // kInteractiveScales, one step after kFrameTimesPerStep frame times over
+  // (or well under) the budget.
+  kSteps,
+  // The CPU's: size and spp from a model of each part's cost (frame_cost.h),
+  // more samples per still frame, still frames preemptible.
+  kCostModel,
+};
 
 // A frame ready to encode, with what it cost. The planes are at the
 // settings' chroma subsampling; ToRgb (core/ycc.h) gives the pixels back.
@@ -83,7 +114,11 @@ struct DisplayFrame {
   bool final = false;       // refinement reached its error target or target_spp with this frame
   float estimated_error = -1;  // refined frames: the image's estimated relative error; < 0 unknown
   float resolution_scale = 1;  // < 1: rendered at this fraction of the width and height, upsampled
-  double render_ms = 0, denoise_ms = 0, display_ms = 0;
+  int spp = 0;                 // samples per pixel this frame rendered
+  // A newer event stopped the frame (SetPreempt): no image; the
+  // accumulation restarted.
+  bool preempted = false;
+  double render_ms = 0, denoise_ms = 0, display_ms = 0;  // display_ms: upsampling, refinement and display
 };
 
 // What an update changes, as the events that made it say: the pipeline
@@ -125,6 +160,14 @@ class FramePipeline {
   // Frames check `cancel` as they render (FrameRequest::cancel); a cancelled
   // frame throws Cancelled and leaves the pipeline to be discarded.
   void SetCancel(const std::atomic<bool>* cancel) { cancel_ = cancel; }
+  // Under InteractivePolicy::kCostModel with a budget, a still frame stops
+  // when `preempt` is raised and RenderFrame returns a preempted frame
+  // (no image): the caller raises it when an event that changes the picture
+  // arrives, and lowers it before the next frame.
+  void SetPreempt(const std::atomic<bool>* preempt) { preempt_ = preempt; }
+  // The backend's by default (kSteps on a GPU, kCostModel on the CPU); tests
+  // pick the other to check it on the CPU.
+  void SetInteractivePolicy(InteractivePolicy policy) { policy_ = policy; }
   // kAutoFeatures (the default) renders with the smallest specialised
   // integrator; `cinevol-bench render` forces kAllFeatures to measure what
   // specialisation buys.
@@ -159,7 +202,11 @@ class FramePipeline {
   // What every update ends with: the denoiser, its cue and the accumulation.
   void Apply(const FrameSettings& settings, unsigned changes);
   FrameRequest Request(int spp);
+  bool Moving() const;
+  bool LiveOnCpu() const { return policy_ == InteractivePolicy::kCostModel && settings_.interactive_frame_ms > 0; }
   float ChooseScale();
+  // kCostModel: the next frame's size (SetScale) and samples per pixel.
+  int ChooseCostModelFrame(bool moving);
   void SetScale(float scale);
   void ResetAccumulation();
   // Takes the time since the previous frame started, when it rendered back
@@ -200,7 +247,14 @@ class FramePipeline {
   int frame_times_ = 0;
   std::chrono::steady_clock::time_point last_frame_start_{};
   bool last_frame_final_ = true;  // then the next frame waited for an event: no frame time
+  // kCostModel: what each part costs, the samples moving frames take, and the
+  // samples of the last still frame (0: none since the scene changed).
+  InteractivePolicy policy_;
+  FrameCostModel cost_;
+  int moving_spp_ = 1;
+  int still_spp_ = 0;
   const std::atomic<bool>* cancel_ = nullptr;
+  const std::atomic<bool>* preempt_ = nullptr;
 };
 
 }  // namespace cinevol

@@ -39,6 +39,7 @@
 
 #include <cmath>
 #include <memory>
+#include <type_traits>
 #include <utility>
 
 #include "core/image.h"
@@ -143,6 +144,21 @@ struct MeanFilterPass {
     out[i] = ToVec4(sum / weight, var_sum / (weight * weight));
   }
 };
+
+struct CpuBackend;
+// One MeanFilterPass level over the whole frame, as vectorised rows of the
+// same weights (cpu_refine.cpp).
+void CpuMeanFilterLevel(const MeanFilterPass& pass);
+
+// One level on backend B: the CPU's rows, elsewhere the functor per pixel.
+template <class B>
+void RunMeanFilterLevel(const MeanFilterPass& pass) {
+  if constexpr (std::is_same_v<B, CpuBackend>) {
+    CpuMeanFilterLevel(pass);
+  } else {
+    B::ForEachPixel(pass.width, pass.height, pass);
+  }
+}
 
 // One half's mean (odd frames, or even ones) and its variance, about twice
 // the whole mean's, packed for MeanFilterPass.
@@ -394,7 +410,7 @@ class RefinerOn final : public Refiner {
     Vec4f* to = kMeanFilterLevels % 2 == 0 ? halves_[0].data() : result.data();
     B::ForEachPixel(w, h, HalfMeanPass{in.accumulated_sum, odd_sum_.data(), variance_.data(), from, w, in.frames, odd});
     for (int level = 0; level < kMeanFilterLevels; ++level) {
-      B::ForEachPixel(w, h, MeanFilterPass{from, to, w, h, 1 << level, dark});
+      RunMeanFilterLevel<B>(MeanFilterPass{from, to, w, h, 1 << level, dark});
       std::swap(from, to);
     }
     return from;

@@ -14,11 +14,12 @@ namespace cinevol {
 struct UpsamplePass {
   const Vec3f* source;
   int source_width, source_height;
-  Vec3f* target;
+  Vec3f* target;     // operator() writes here; Sample alone does not need it
   int target_width;
   float scale_x, scale_y;  // source pixels per target pixel
 
-  CINEVOL_HD void operator()(int x, int y) const {
+  // Target pixel (x, y)'s radiance.
+  CINEVOL_HD Vec3f Sample(int x, int y) const {
     const float sx = Clamp((float(x) + 0.5f) * scale_x - 0.5f, 0.0f, float(source_width - 1));
     const float sy = Clamp((float(y) + 0.5f) * scale_y - 0.5f, 0.0f, float(source_height - 1));
     const int x0 = int(sx), y0 = int(sy);
@@ -26,8 +27,10 @@ struct UpsamplePass {
     const float fx = sx - float(x0), fy = sy - float(y0);
     const Vec3f top = source[y0 * source_width + x0] * (1.0f - fx) + source[y0 * source_width + x1] * fx;
     const Vec3f bottom = source[y1 * source_width + x0] * (1.0f - fx) + source[y1 * source_width + x1] * fx;
-    target[y * target_width + x] = top * (1.0f - fy) + bottom * fy;
+    return top * (1.0f - fy) + bottom * fy;
   }
+
+  CINEVOL_HD void operator()(int x, int y) const { target[y * target_width + x] = Sample(x, y); }
 };
 
 class Upsampler {

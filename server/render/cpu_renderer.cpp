@@ -14,15 +14,25 @@
 namespace cinevol {
 namespace {
 
-using RenderFrameFn = void (*)(const RenderScene&, const FrameTargets&, int threads, const std::atomic<bool>* cancel);
+// The flags a frame stops at: the session's cancel and a newer event's preempt.
+struct StopFlags {
+  const std::atomic<bool>* cancel;
+  const std::atomic<bool>* preempt;
+
+  bool Raised() const {
+    return (cancel && cancel->load(std::memory_order_relaxed)) || (preempt && preempt->load(std::memory_order_relaxed));
+  }
+};
+
+using RenderFrameFn = void (*)(const RenderScene&, const FrameTargets&, int threads, StopFlags stop);
 
 template <unsigned kFeatures>
-void RenderFrame(const RenderScene& scene, const FrameTargets& targets, int threads, const std::atomic<bool>* cancel) {
-  // Every pixel looks at the flag: a pixel costs at most spp paths of
+void RenderFrame(const RenderScene& scene, const FrameTargets& targets, int threads, StopFlags stop) {
+  // Every pixel looks at the flags: a pixel costs at most spp paths of
   // bounded cost (integrator.h), so a cancel is seen within that.
   ParallelFor(scene.camera.height, [&](std::int64_t y) {
     for (int x = 0; x < scene.camera.width; ++x) {
-      if (cancel && cancel->load(std::memory_order_relaxed)) return;
+      if (stop.Raised()) return;
       RenderPixel<kFeatures>(scene, x, int(y), targets);
     }
   }, threads);
@@ -43,7 +53,9 @@ void CpuRenderer::SetVolume(std::shared_ptr<const Volume> volume) {
 }
 
 void CpuRenderer::SetLabels(std::shared_ptr<const LabelVolume> labels, const LabelSetup& setup) {
-  data_.SetLabels(labels ? VolumeCache::Get().AcquireLabels(labels, data_.volume().brick_size(), kHostDevice) : nullptr,
+  // Labels that change nothing are not looked up (a CT's table while it shows).
+  const bool used = labels && setup.ChangesAnything(*labels);
+  data_.SetLabels(used ? VolumeCache::Get().AcquireLabels(labels, data_.volume().brick_size(), kHostDevice) : nullptr,
                   setup);
 }
 
@@ -61,8 +73,9 @@ void CpuRenderer::Render(const FrameRequest& request) {
   RenderScene scene = data_.HostView();
   last_features_ = ApplyRequest(request, scene);
   const auto start = std::chrono::steady_clock::now();
-  kVariants[VariantOf(last_features_)](scene, Targets(), threads_, request.cancel);
+  kVariants[VariantOf(last_features_)](scene, Targets(), threads_, {request.cancel, request.preempt});
   if (request.cancel && request.cancel->load()) throw Cancelled("the frame was cancelled");
+  if (request.preempt && request.preempt->load()) throw FramePreempted();
   last_ms_ = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
   ++accumulated_frames_;
 }

@@ -90,7 +90,9 @@ void CudaRenderer::SetReconstruction(Reconstruction r) {
 void CudaRenderer::SetLabels(std::shared_ptr<const LabelVolume> labels, const LabelSetup& setup) {
   int gpu = 0;
   CINEVOL_CUDA_CHECK(cudaGetDevice(&gpu));
-  data_.SetLabels(labels ? VolumeCache::Get().AcquireLabels(labels, data_.volume().brick_size(), gpu) : nullptr, setup);
+  // Labels that change nothing are neither uploaded nor looked up (a CT's table while it shows).
+  const bool used = labels && setup.ChangesAnything(*labels);
+  data_.SetLabels(used ? VolumeCache::Get().AcquireLabels(labels, data_.volume().brick_size(), gpu) : nullptr, setup);
   Device& d = *device_;
   d.label_materials.Upload(data_.label_materials(), d.stream);
   UploadTables();

@@ -7,6 +7,7 @@
 #include <atomic>
 #include <cstdint>
 #include <memory>
+#include <stdexcept>
 #include <string>
 #include <string_view>
 #include <vector>
@@ -41,6 +42,17 @@ struct FrameRequest {
   // Render throws Cancelled (the accumulation is then unusable). CUDA frames
   // are bounded by the service's per-frame sample limit instead.
   const std::atomic<bool>* cancel = nullptr;
+  // When set and raised, the CPU backend stops within a pixel and Render
+  // throws FramePreempted: a newer event makes this frame moot (a still
+  // frame on the CPU takes seconds). The accumulation holds part of the
+  // frame: reset it. CUDA frames ignore it (they take milliseconds).
+  const std::atomic<bool>* preempt = nullptr;
+};
+
+// A frame stopped by FrameRequest::preempt.
+class FramePreempted : public std::runtime_error {
+ public:
+  FramePreempted() : std::runtime_error("the frame was preempted by a newer event") {}
 };
 
 // Puts the request's camera and sampling into `scene` (whose views the

@@ -98,11 +98,12 @@ void SceneData::SetLabels(std::shared_ptr<const LabelCopy> labels, const LabelSe
   label_setup_ = setup;
   label_materials_.clear();
   if (labels_) {
-    const int max_label = labels_->labels().max_label();
-    label_materials_.resize(std::size_t(max_label) + 1);
-    for (int label = 0; label <= max_label; ++label) {
-      const LabelStyle& style = label_setup_.StyleOf(label);
-      LabelMaterial& m = label_materials_[label];
+    // By stored value: labels, then the shells and the table (core/labels.h).
+    const LabelVolume& volume = labels_->labels();
+    label_materials_.resize(std::size_t(volume.value_count()));
+    for (int value = 0; value < volume.value_count(); ++value) {
+      const LabelStyle& style = label_setup_.StyleOfValue(volume, value);
+      LabelMaterial& m = label_materials_[value];
       m.opacity_scale = style.visible ? style.opacity_scale : 0.0f;
       m.has_color = style.has_color;
       m.color = style.color;

@@ -136,7 +136,11 @@ int main(int argc, char** argv) {
   bool verbose = false;
   AddOptions(app, options, backend);
   app.add_flag("-v,--verbose", verbose, "Log debug detail");
-  CLI11_PARSE(app, argc, argv);
+  try {
+    app.parse(argc, argv);
+  } catch (const CLI::ParseError& e) {
+    return app.exit(e) == 0 ? 0 : 2;  // a bad flag is bad input (2), as a bad listen address is
+  }
   spdlog::set_level(verbose ? spdlog::level::debug : spdlog::level::info);
 
   // SIGINT and SIGTERM end the server in order, SIGHUP reloads the token

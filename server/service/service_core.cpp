@@ -18,6 +18,7 @@
 #include "render/prepared_volume.h"
 #include "service/errors.h"
 #include "core/log_safe.h"
+#include "io/label_volume.h"
 #include "io/reader_cage.h"
 #include "service/metrics.h"
 
@@ -40,53 +41,103 @@ std::string RandomSessionId() {
   return id;
 }
 
+// How long one step of a still should take: other sessions' frames on the
+// same device wait at most this long behind it, a cancel is seen within it,
+// and progress is reported at about this pace.
+constexpr auto kStillStep = std::chrono::milliseconds(250);
+// Progress updates at most this often (each is a message to the client).
+constexpr auto kProgressPeriod = std::chrono::milliseconds(500);
+
 // A snapshot: accumulates `spp` samples a chunk per step on the session's
 // device, with its own pipeline (the session's history stays untouched),
 // then encodes on the encoder pool. Between chunks (and between rows of a
-// chunk on the CPU) it checks whether anyone still wants the result.
+// chunk on the CPU) it checks whether anyone still wants the result. A
+// chunk's samples follow the device's pace: about kStillStep of work, never
+// more than one streamed frame's budget.
 class StillJob final : public Job {
  public:
   using Done = std::function<void(grpc::Status, v1::SnapshotResponse)>;
+  using Progress = std::function<void(const v1::SnapshotProgress&)>;
+  struct Callbacks {
+    Done done;                                 // once, with the image or the error
+    Progress progress;                         // after steps, at most every kProgressPeriod; may be empty
+    std::function<std::string()> why_cancelled;  // what raised `cancel`, for the message
+  };
   // `cancel`: raised when the caller goes away or the session ends.
-  StillJob(std::shared_ptr<VolumeLease> volume, v1::Scene scene, int spp, int chunk_spp, v1::ImageFormat format,
-           Backend backend, TaskPool* encoder, std::shared_ptr<std::atomic<bool>> cancel, Done done)
-      : volume_(std::move(volume)), scene_(std::move(scene)), spp_(spp), chunk_spp_(chunk_spp), format_(format),
-        backend_(backend), encoder_(encoder), cancel_(std::move(cancel)), done_(std::move(done)) {}
+  StillJob(std::shared_ptr<VolumeLease> volume, v1::Scene scene, int spp, int max_chunk_spp, v1::ImageFormat format,
+           Backend backend, TaskPool* encoder, std::shared_ptr<std::atomic<bool>> cancel, Callbacks callbacks)
+      : volume_(std::move(volume)), scene_(std::move(scene)), spp_(spp), max_chunk_(max_chunk_spp), format_(format),
+        backend_(backend), encoder_(encoder), cancel_(std::move(cancel)), callbacks_(std::move(callbacks)) {}
   // A still dropped unfinished (the server stopping) still answers its caller.
   ~StillJob() override {
-    if (done_) done_({grpc::StatusCode::CANCELLED, "the server is shutting down"}, {});
+    if (callbacks_.done) callbacks_.done({grpc::StatusCode::CANCELLED, "the server is shutting down"}, {});
   }
 
   bool Step() override {
     try {
-      if (*cancel_) throw Cancelled("the snapshot was cancelled: its caller went away or its session ended");
-      if (!pipeline_) {
-        start_ = Clock::now();
-        pipeline_ = std::make_unique<FramePipeline>(backend_, volume_->volume(), RendererOptions{}, volume_->labels());
-        pipeline_->SetCancel(cancel_.get());
-        FrameSettings settings;
-        settings.denoiser.method = DenoiseMethod::kNone;
-        settings.target_spp = spp_;
-        pipeline_->Update(scene_, settings);
+      if (*cancel_) throw Cancelled("the snapshot was cancelled");
+      if (!pipeline_) Start();
+      const Clock::time_point begin = Clock::now();
+      const int chunk = std::min(chunk_, spp_ - pipeline_->accumulated_spp());
+      pipeline_->Accumulate(chunk);
+      AdaptChunk(chunk, Clock::now() - begin);
+      if (!pipeline_->Converged()) {
+        ReportProgress();
+        return true;
       }
-      pipeline_->Accumulate(std::min(chunk_spp_, spp_ - pipeline_->accumulated_spp()));
-      if (!pipeline_->Converged()) return true;
       Finish();
     } catch (...) {
+      const int done = pipeline_ ? pipeline_->accumulated_spp() : 0;
       pipeline_.reset();
-      std::exchange(done_, nullptr)(ToStatus(std::current_exception()), {});
+      std::exchange(callbacks_.done, nullptr)(Failure(std::current_exception(), done), {});
     }
     return false;
   }
 
  private:
+  void Start() {
+    start_ = Clock::now();
+    pipeline_ = std::make_unique<FramePipeline>(backend_, volume_->volume(), RendererOptions{}, volume_->labels());
+    pipeline_->SetCancel(cancel_.get());
+    FrameSettings settings;
+    settings.denoiser.method = DenoiseMethod::kNone;
+    settings.target_spp = spp_;
+    pipeline_->Update(scene_, settings);
+  }
+
+  // The next chunk aims at kStillStep, growing at most twofold a step.
+  void AdaptChunk(int chunk, Clock::duration took) {
+    const double ratio = std::chrono::duration<double>(kStillStep).count() /
+                         std::max(1e-4, std::chrono::duration<double>(took).count());
+    chunk_ = std::clamp(int(chunk * std::min(2.0, ratio)), 1, max_chunk_);
+  }
+
+  void ReportProgress() {
+    const Clock::time_point now = Clock::now();
+    if (!callbacks_.progress || now - last_progress_ < kProgressPeriod) return;
+    last_progress_ = now;
+    v1::SnapshotProgress p;
+    p.set_spp_done(std::uint32_t(pipeline_->accumulated_spp()));
+    p.set_spp(std::uint32_t(spp_));
+    p.set_elapsed_us(std::uint64_t(std::chrono::duration_cast<std::chrono::microseconds>(now - start_).count()));
+    callbacks_.progress(p);
+  }
+
+  // The error's status; a cancel says what cancelled it and how far it came.
+  grpc::Status Failure(std::exception_ptr error, int done) const {
+    const grpc::Status status = ToStatus(error);
+    if (status.error_code() != grpc::StatusCode::CANCELLED || !*cancel_ || !callbacks_.why_cancelled) return status;
+    return {grpc::StatusCode::CANCELLED,
+            fmt::format("the snapshot stopped at {} of {} spp: {}", done, spp_, callbacks_.why_cancelled())};
+  }
+
   void Finish() {
     ImageRgbF image = pipeline_->AccumulatedRadiance();
     const float exposure = pipeline_->exposure();
     pipeline_.reset();
     const auto render_us = std::chrono::duration_cast<std::chrono::microseconds>(Clock::now() - start_).count();
     encoder_->Submit([image = std::move(image), exposure, render_us, spp = spp_, format = format_,
-                      done = std::exchange(done_, nullptr), volume = volume_] {
+                      done = std::exchange(callbacks_.done, nullptr), volume = volume_] {
       v1::SnapshotResponse response;
       const grpc::Status status = Guarded([&] {
         const bool exr = format == v1::EXR;
@@ -104,14 +155,15 @@ class StillJob final : public Job {
 
   std::shared_ptr<VolumeLease> volume_;
   v1::Scene scene_;
-  int spp_, chunk_spp_;
+  int spp_, max_chunk_;
+  int chunk_ = 1;  // the first step is short, whatever the device: progress comes soon
   v1::ImageFormat format_;
   Backend backend_;
   TaskPool* encoder_;
   std::shared_ptr<std::atomic<bool>> cancel_;  // the pipeline's frames check it too
-  Done done_;
+  Callbacks callbacks_;
   std::unique_ptr<FramePipeline> pipeline_;
-  Clock::time_point start_;
+  Clock::time_point start_, last_progress_;
 };
 
 }  // namespace
@@ -211,12 +263,12 @@ v1::CreateSessionResponse ServiceCore::CreateSession(const v1::CreateSessionRequ
   RequireServing();
   std::shared_ptr<VolumeLease> volume = volumes_.Lease(request.volume_id(), caller);
   v1::Scene scene = InitialScene(request, *volume->volume(), options_.limits, volumes_);
-  if (scene.has_labels() && !volume->labels()) {
+  if (StylesLabels(scene.labels()) && !volume->has_segmentation()) {
     throw InputError(fmt::format("scene.labels: volume '{}' has no segmentation; load one first (LoadLabels, or "
                                  "an upload with header.labels_for)",
                                  request.volume_id()));
   }
-  const FrameSettings settings = MergeStreamSettings(FrameSettings{}, request.stream(), "stream");
+  const FrameSettings settings = MergeStreamSettings(SessionFrameSettings(backend_), request.stream(), "stream");
   {
     std::lock_guard lock(mu_);
     RequireRoomLocked(caller);  // before the framing: a refusal costs no scan
@@ -324,8 +376,7 @@ void ServiceCore::Forget(const std::string& id) {
 }
 
 void ServiceCore::Snapshot(const v1::SnapshotRequest& request, const Principal& caller,
-                           std::shared_ptr<std::atomic<bool>> cancel,
-                           std::function<void(grpc::Status, v1::SnapshotResponse)> done) {
+                           std::shared_ptr<std::atomic<bool>> cancel, SnapshotCallbacks callbacks) {
   RequireServing();
   std::shared_ptr<Session> session = FindSession(request.session_id(), caller);
   v1::Scene scene;
@@ -335,12 +386,29 @@ void ServiceCore::Snapshot(const v1::SnapshotRequest& request, const Principal& 
   const int spp = SnapshotSpp(request, pixels, options_.limits);
   // A step's samples stay within one streamed frame's budget, so other
   // sessions' frames interleave and a cancel is seen soon.
-  const int chunk =
+  const int max_chunk =
       int(std::clamp<std::uint64_t>(options_.limits.max_frame_samples / std::max<std::uint64_t>(pixels, 1), 1, 8));
-  session->CancelWithSession(cancel);
-  session->scheduler()->Wake(std::make_shared<StillJob>(session->volume(), std::move(scene), spp, chunk,
+  if (callbacks.progress) {  // at once: the client knows the still is under way before its first sample
+    v1::SnapshotProgress accepted;
+    accepted.set_spp(std::uint32_t(spp));
+    callbacks.progress(accepted);
+  }
+  // The session does not expire while its still renders (EndStill).
+  session->BeginStill(cancel);
+  StillJob::Callbacks job;
+  job.done = [session, done = std::move(callbacks.done)](grpc::Status status, v1::SnapshotResponse response) {
+    session->EndStill();
+    done(std::move(status), std::move(response));
+  };
+  job.progress = std::move(callbacks.progress);
+  job.why_cancelled = [session] {
+    const std::string why = session->EndReason();
+    return why.empty() ? std::string("its caller went away")
+                       : fmt::format("its session '{}' ended: {}", session->id(), why);
+  };
+  session->scheduler()->Wake(std::make_shared<StillJob>(session->volume(), std::move(scene), spp, max_chunk,
                                                         request.format(), backend_, &encoder_, std::move(cancel),
-                                                        std::move(done)));
+                                                        std::move(job)));
 }
 
 void ServiceCore::ExpireDetachedSessions() {

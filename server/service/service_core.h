@@ -101,12 +101,18 @@ class ServiceCore {
                                           const std::atomic<bool>& cancelled);
   std::shared_ptr<Session> FindSession(const std::string& id, const Principal& caller) const;
   void CloseSession(const std::string& id, const Principal& caller);
-  // Renders a still of the session's current state on its device; `done`
-  // runs on a worker with the result. It stops early (CANCELLED) once
-  // `cancel` is raised: by the caller's going away, or the session's end.
+  // What a still tells its caller. `done` runs once, on a worker, with the
+  // image or the error; `progress` (optional) runs at once with 0 samples
+  // done, then on the device's worker about twice a second while it renders.
+  struct SnapshotCallbacks {
+    std::function<void(grpc::Status, v1::SnapshotResponse)> done;
+    std::function<void(const v1::SnapshotProgress&)> progress;
+  };
+  // Renders a still of the session's current state on its device. It stops
+  // early (CANCELLED, saying why) once `cancel` is raised: by the caller's
+  // going away, or the session's end. The session does not expire meanwhile.
   void Snapshot(const v1::SnapshotRequest& request, const Principal& caller,
-                std::shared_ptr<std::atomic<bool>> cancel,
-                std::function<void(grpc::Status, v1::SnapshotResponse)> done);
+                std::shared_ptr<std::atomic<bool>> cancel, SnapshotCallbacks callbacks);
   // What `caller` may see: its own sessions and uploads (an operator: all).
   v1::ServerStatus Status(const Principal& caller) const;
   // Ends sessions detached (or never attached) for longer than the options allow.

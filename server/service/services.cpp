@@ -4,6 +4,8 @@
 #include <fmt/format.h>
 
 #include <fstream>
+#include <mutex>
+#include <optional>
 
 #include "io/label_volume.h"
 #include "io/volume_loader.h"
@@ -218,11 +220,12 @@ class SnapshotReactor final : public grpc::ServerUnaryReactor {
   SnapshotReactor(grpc::CallbackServerContext* context, ServiceCore* core, const v1::SnapshotRequest* request,
                   v1::SnapshotResponse* response) {
     const grpc::Status status = Guarded([&] {
-      core->Snapshot(*request, core->Authenticate(*context), cancel_,
-                     [this, response](grpc::Status s, v1::SnapshotResponse r) {
-                       *response = std::move(r);
-                       Finish(s);
-                     });
+      ServiceCore::SnapshotCallbacks callbacks;
+      callbacks.done = [this, response](grpc::Status s, v1::SnapshotResponse r) {
+        *response = std::move(r);
+        Finish(s);
+      };
+      core->Snapshot(*request, core->Authenticate(*context), cancel_, std::move(callbacks));
     });
     if (!status.ok()) Finish(status);
   }
@@ -231,6 +234,71 @@ class SnapshotReactor final : public grpc::ServerUnaryReactor {
 
  private:
   std::shared_ptr<std::atomic<bool>> cancel_ = std::make_shared<std::atomic<bool>>(false);
+};
+
+// A still with its progress. One write in flight: a newer progress replaces
+// one waiting, and the still (or the error) goes last. The job's callbacks
+// end with `done`, and Finish is called only after it, so none of them
+// outlives the reactor; a client gone or a failed write raises `cancel_`,
+// which the job sees within a step.
+class SnapshotStreamReactor final : public grpc::ServerWriteReactor<v1::SnapshotUpdate> {
+ public:
+  SnapshotStreamReactor(grpc::CallbackServerContext* context, ServiceCore* core, const v1::SnapshotRequest* request) {
+    const grpc::Status status = Guarded([&] {
+      ServiceCore::SnapshotCallbacks callbacks;
+      callbacks.progress = [this](const v1::SnapshotProgress& p) { Offer(p); };
+      callbacks.done = [this](grpc::Status s, v1::SnapshotResponse r) { Complete(std::move(s), std::move(r)); };
+      core->Snapshot(*request, core->Authenticate(*context), cancel_, std::move(callbacks));
+    });
+    if (!status.ok()) Complete(status, {});
+  }
+
+  void OnWriteDone(bool ok) override {
+    std::lock_guard lock(mu_);
+    writing_ = false;
+    if (!ok) *cancel_ = true;  // the client is gone: stop rendering; Complete still finishes
+    WriteNextLocked();
+  }
+  void OnCancel() override { *cancel_ = true; }
+  void OnDone() override { delete this; }
+
+ private:
+  void Offer(const v1::SnapshotProgress& progress) {
+    std::lock_guard lock(mu_);
+    pending_ = progress;
+    WriteNextLocked();
+  }
+
+  void Complete(grpc::Status status, v1::SnapshotResponse still) {
+    std::lock_guard lock(mu_);
+    status_ = std::move(status);
+    if (status_->ok()) *last_.mutable_still() = std::move(still);
+    pending_.reset();  // the answer makes older news moot
+    WriteNextLocked();
+  }
+
+  void WriteNextLocked() {
+    if (writing_ || finished_) return;
+    if (pending_) {
+      *out_.mutable_progress() = *std::exchange(pending_, std::nullopt);
+      writing_ = true;
+      StartWrite(&out_);
+    } else if (status_) {
+      finished_ = true;
+      if (status_->ok() && !*cancel_) {
+        StartWriteAndFinish(&last_, grpc::WriteOptions(), *status_);
+      } else {
+        Finish(status_->ok() ? grpc::Status(grpc::StatusCode::CANCELLED, "the caller went away") : *status_);
+      }
+    }
+  }
+
+  std::shared_ptr<std::atomic<bool>> cancel_ = std::make_shared<std::atomic<bool>>(false);
+  std::mutex mu_;
+  bool writing_ = false, finished_ = false;
+  std::optional<v1::SnapshotProgress> pending_;  // the newest progress not yet written
+  std::optional<grpc::Status> status_;           // set by Complete: write the still, or finish with the error
+  v1::SnapshotUpdate out_, last_;
 };
 
 }  // namespace
@@ -341,6 +409,11 @@ grpc::ServerUnaryReactor* SessionServiceImpl::Snapshot(grpc::CallbackServerConte
                                                        const v1::SnapshotRequest* request,
                                                        v1::SnapshotResponse* response) {
   return new SnapshotReactor(context, core_, request, response);
+}
+
+grpc::ServerWriteReactor<v1::SnapshotUpdate>* SessionServiceImpl::StreamSnapshot(grpc::CallbackServerContext* context,
+                                                                                 const v1::SnapshotRequest* request) {
+  return new SnapshotStreamReactor(context, core_, request);
 }
 
 grpc::ServerUnaryReactor* SessionServiceImpl::CloseSession(grpc::CallbackServerContext* context,

@@ -50,6 +50,8 @@ class SessionServiceImpl final : public v1::SessionService::CallbackService {
       grpc::CallbackServerContext* context) override;
   grpc::ServerUnaryReactor* Snapshot(grpc::CallbackServerContext* context, const v1::SnapshotRequest* request,
                                      v1::SnapshotResponse* response) override;
+  grpc::ServerWriteReactor<v1::SnapshotUpdate>* StreamSnapshot(grpc::CallbackServerContext* context,
+                                                               const v1::SnapshotRequest* request) override;
   grpc::ServerUnaryReactor* CloseSession(grpc::CallbackServerContext* context, const v1::CloseSessionRequest* request,
                                          v1::CloseSessionResponse* response) override;
 

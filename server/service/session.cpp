@@ -8,6 +8,7 @@
 #include <utility>
 
 #include "encode/image_codecs.h"
+#include "io/label_volume.h"
 #include "service/errors.h"
 #include "core/log_safe.h"
 #include "service/metrics.h"
@@ -152,6 +153,7 @@ void Session::OnEvent(const v1::SessionEvent& event, Clock::time_point arrival) 
       coalesced_arrival_ = arrival;
       ServerMetrics().EventCoalesced();
     }
+    if (ChangesOf(event) != 0) preempt_ = true;
   }
   Wake();
 }
@@ -163,7 +165,7 @@ void Session::ApplyCoalescedLocked() {
 }
 
 void Session::ApplyLocked(const v1::SessionEvent& event, Clock::time_point arrival) {
-  if (event.has_labels() && !volume_->labels()) {
+  if (event.has_labels() && StylesLabels(event.labels()) && !volume_->has_segmentation()) {
     throw InputError(fmt::format("event {}: labels: volume '{}' had no segmentation when this session began; load "
                                  "one (LoadLabels) and start a new session",
                                  event.seq(), volume_->id()));
@@ -200,6 +202,7 @@ void Session::End(const grpc::Status& status) {
     std::lock_guard lock(mu_);
     if (state_ == State::kEnded) return;
     state_ = State::kEnded;
+    end_reason_ = status.ok() ? "it was closed" : status.error_message();
     cancel_ = true;
     for (auto& still : stills_) {
       if (auto flag = still.lock()) *flag = true;
@@ -232,14 +235,29 @@ void Session::Drain() {
   End({grpc::StatusCode::UNAVAILABLE, "the server is shutting down"});
 }
 
-void Session::CancelWithSession(const std::shared_ptr<std::atomic<bool>>& flag) {
+void Session::BeginStill(const std::shared_ptr<std::atomic<bool>>& flag) {
   std::lock_guard lock(mu_);
+  ++stills_rendering_;
   if (state_ == State::kEnded) {
     *flag = true;
     return;
   }
   std::erase_if(stills_, [](const auto& still) { return still.expired(); });
   stills_.push_back(flag);
+}
+
+void Session::EndStill() {
+  {
+    std::lock_guard lock(mu_);
+    stills_rendering_ = std::max(0, stills_rendering_ - 1);
+    if (state_ == State::kStarting || state_ == State::kDetached) since_ = Clock::now();
+  }
+  Wake();  // refinement waited for the still
+}
+
+std::string Session::EndReason() const {
+  std::lock_guard lock(mu_);
+  return end_reason_;
 }
 
 void Session::CurrentScene(v1::Scene& scene, FrameSettings& settings) const {
@@ -249,7 +267,11 @@ void Session::CurrentScene(v1::Scene& scene, FrameSettings& settings) const {
 }
 
 bool Session::CanRenderLocked() const {
-  return state_ == State::kRendering && encodes_in_flight_ < kMaxEncodesInFlight && !stream_->SlotFull();
+  if (state_ != State::kRendering || encodes_in_flight_ >= kMaxEncodesInFlight || stream_->SlotFull()) return false;
+  // While a still of this session renders, its refinement waits (EndStill
+  // wakes it): on a CPU the two would share the cores for minutes, and the
+  // still is the better picture of the same view. Events still get frames.
+  return stills_rendering_ == 0 || dirty_ || event_unrendered_ || !coalesced_.empty();
 }
 
 bool Session::Step() {
@@ -279,6 +301,7 @@ bool Session::Step() {
       work.stamp.answers_event = event_unrendered_;
       work.stamp.origin = last_event_arrival_;
       event_unrendered_ = false;
+      preempt_ = false;  // this frame takes every event so far
       ++encodes_in_flight_;
       holds_device_memory_ = true;
     }
@@ -299,6 +322,7 @@ bool Session::Step() {
     if (!pipeline_) {
       pipeline_ = std::make_unique<FramePipeline>(context_.backend, volume_->volume(), RendererOptions{}, volume_->labels());
       pipeline_->SetCancel(&cancel_);
+      pipeline_->SetPreempt(&preempt_);
     }
     if (work.update) pipeline_->Update(work.scene, work.settings, work.changes);
     frame = pipeline_->RenderFrame();
@@ -318,6 +342,12 @@ bool Session::Step() {
     }
     End(ToStatus(std::current_exception()));
     return false;
+  }
+  if (frame.preempted) {  // a newer event made it moot: the next step renders that
+    std::lock_guard lock(mu_);
+    --encodes_in_flight_;
+    if (next_frame_id_ == work.stamp.frame_id + 1) next_frame_id_ = work.stamp.frame_id;  // no gap for the viewer
+    return CanRenderLocked();
   }
   ++context_.scheduler->frames_rendered;
   ServerMetrics().FrameRendered();
@@ -427,6 +457,7 @@ v1::SessionStatus Session::Status() const {
 
 bool Session::Expired(Clock::time_point now, Clock::duration detached, Clock::duration unattached) const {
   std::lock_guard lock(mu_);
+  if (stills_rendering_ > 0) return false;
   if (state_ == State::kStarting) return now - since_ > unattached;
   return state_ == State::kDetached && now - since_ > detached;
 }

@@ -105,15 +105,23 @@ class Session final : public Job, public std::enable_shared_from_this<Session> {
 
   // Ends the session on SIGTERM: a notice to the stream, then UNAVAILABLE.
   void Drain();
-  // Raises `flag` when the session ends (now, if it has): a still's cancel.
-  void CancelWithSession(const std::shared_ptr<std::atomic<bool>>& flag);
+  // A still of this session begins: `flag` (its cancel) is raised when the
+  // session ends, now if it has. Until EndStill the session does not expire:
+  // a snapshot's own session (created, never attached) would otherwise be
+  // reaped under it (--unattached-session-seconds).
+  void BeginStill(const std::shared_ptr<std::atomic<bool>>& flag);
+  // The still is done; the expiry clock of a session without a stream starts again.
+  void EndStill();
+  // Why the session ended (its status message); empty while it lives.
+  std::string EndReason() const;
 
   // What a snapshot renders: the current scene and settings.
   void CurrentScene(v1::Scene& scene, FrameSettings& settings) const;
   const std::shared_ptr<VolumeLease>& volume() const { return volume_; }
   Scheduler* scheduler() const { return context_.scheduler; }
   v1::SessionStatus Status() const;
-  // Detached for longer than `detached`, or never attached for longer than `unattached`.
+  // Detached for longer than `detached`, or never attached for longer than
+  // `unattached`, with no still rendering.
   bool Expired(Clock::time_point now, Clock::duration detached, Clock::duration unattached) const;
   bool ended() const;
 
@@ -178,7 +186,12 @@ class Session final : public Job, public std::enable_shared_from_this<Session> {
 
   // Raised when the session ends or its stream goes: the frame in flight stops.
   std::atomic<bool> cancel_{false};
+  // Raised by an event that changes the picture, lowered when a frame takes
+  // the events: a still CPU frame in flight stops (FramePipeline::SetPreempt).
+  std::atomic<bool> preempt_{false};
   std::vector<std::weak_ptr<std::atomic<bool>>> stills_;  // raised when the session ends
+  int stills_rendering_ = 0;  // BeginStill without EndStill: the session does not expire
+  std::string end_reason_;
 
   std::unique_ptr<FramePipeline> pipeline_;  // touched only inside Step
 };

@@ -149,7 +149,10 @@ v1::Scene InitialScene(const v1::CreateSessionRequest& request, const Volume& vo
   CheckViewport(request.viewport(), "viewport", limits);
   v1::Scene scene;
   switch (request.initial_case()) {
-    case v1::CreateSessionRequest::kScene: scene = request.scene(); break;
+    case v1::CreateSessionRequest::kScene:
+      scene = request.scene();
+      AddDefaultLights(scene, volume);  // the answer's scene shows them
+      break;
     case v1::CreateSessionRequest::kPreset:
       try {
         scene = MakePresetScene(request.preset(), volume);

@@ -11,6 +11,7 @@
 #include "io/label_volume.h"
 #include "io/presets.h"
 #include "io/reader_cage.h"
+#include "io/table_finder.h"
 #include "io/volume_kind.h"
 #include "io/volume_loader.h"
 #include "render/prepared_volume.h"
@@ -222,11 +223,16 @@ void VolumeRegistry::CheckRoomLocked(std::uint64_t bytes, const std::string& own
 
 v1::VolumeInfo VolumeRegistry::AddFromSpec(const std::string& spec) {
   const v1::VolumeSource source = ParseVolumeSpec(spec);
-  if (source.has_phantom()) return Add(spec, spec, spec, LoadVolume(source), "", false);
+  if (source.has_phantom()) {
+    // Built in, without a table: no search (it would take a second of the server's start).
+    return Add(spec, spec, spec, LoadVolume(source), "", false, nullptr, {nullptr, "a phantom: no table"});
+  }
   const fs::path path = fs::absolute(spec).lexically_normal();
   LoadPolicy policy;
   policy.reader = limits_.reader;
-  return Add(BaseIdOf(path), path.string(), spec, LoadVolume(source, {}, policy), "", false);
+  Volume volume = LoadVolume(source, {}, policy);
+  FoundTable table = SearchTable(volume, nullptr, nullptr);
+  return Add(BaseIdOf(path), path.string(), spec, std::move(volume), "", false, nullptr, std::move(table));
 }
 
 v1::VolumeInfo VolumeRegistry::LoadFromDataRoot(const std::string& path, const std::string& series_uid,
@@ -256,7 +262,9 @@ v1::VolumeInfo VolumeRegistry::LoadFromDataRoot(const std::string& path, const s
   request.set_orientation(orientation);
   Reservation reservation(this, caller.name, false, "the volume");
   Volume volume = LoadVolume(request, {}, PolicyFor("path '" + path + "'", false, cancel, &reservation));
-  return as_written(Add(BaseIdOf(resolved), source, path, std::move(volume), caller.name, false, &reservation));
+  FoundTable table = SearchTable(volume, &reservation, cancel);
+  return as_written(
+      Add(BaseIdOf(resolved), source, path, std::move(volume), caller.name, false, &reservation, std::move(table)));
 }
 
 v1::VolumeInfo VolumeRegistry::AddUpload(const fs::path& file, const std::string& file_name,
@@ -267,11 +275,30 @@ v1::VolumeInfo VolumeRegistry::AddUpload(const fs::path& file, const std::string
   Reservation reservation(this, caller.name, true, "the volume");
   Volume volume = LoadVolumeFile(file, PolicyFor(shown, true, cancel, &reservation));
   ApplyOrientation(volume, orientation, "header.orientation");
-  return Add(BaseIdOf(file_name), shown, shown, std::move(volume), caller.name, true, &reservation);
+  FoundTable table = SearchTable(volume, &reservation, cancel);
+  return Add(BaseIdOf(file_name), shown, shown, std::move(volume), caller.name, true, &reservation, std::move(table));
+}
+
+VolumeRegistry::FoundTable VolumeRegistry::SearchTable(const Volume& volume, Reservation* reservation,
+                                                       const std::atomic<bool>* cancel) {
+  try {
+    // The search's byte a voxel while it runs, and the labels marking what it finds.
+    if (reservation) reservation->Add(TableSearchBytes(volume.voxel_count()) + LabelBytesFor(volume));
+  } catch (const LimitExceeded& e) {
+    return {nullptr, std::string("no table search: ") + e.what()};
+  }
+  TableSettings settings;
+  settings.cancel = cancel;
+  const TableMask table = FindTable(volume, settings);
+  spdlog::debug("table search: {} ({:.2f} s)", table.note, table.seconds);
+  if (!table.found()) return {nullptr, table.note};
+  return {std::make_shared<const LabelVolume>(TableLabels(table)), table.note};
 }
 
 v1::VolumeInfo VolumeRegistry::Add(const std::string& base_id, const std::string& source, const std::string& shown,
-                                   Volume volume, const std::string& owner, bool upload, Reservation* reservation) {
+                                   Volume volume, const std::string& owner, bool upload, Reservation* reservation,
+                                   FoundTable table) {
+  std::shared_ptr<const LabelVolume> unused;  // a table that does not fit, freed outside the lock
   std::lock_guard lock(mu_);
   if (reservation) reservation->ReleaseLocked();  // the volume itself counts from here on
   if (!upload) {
@@ -281,6 +308,15 @@ v1::VolumeInfo VolumeRegistry::Add(const std::string& base_id, const std::string
   }
   const std::uint64_t bytes = volume.MemoryBytes();
   CheckRoomLocked(bytes, owner, upload, "the volume");
+  // The table's labels count like a segmentation; the volume goes in without them where they do not fit.
+  if (table.labels) {
+    try {
+      CheckRoomLocked(bytes + LabelBytes(table.labels.get()), owner, false, "the table's labels");
+    } catch (const LimitExceeded& e) {
+      unused = std::move(table.labels);
+      table.note = fmt::format("a table was found but not kept: {}", e.what());
+    }
+  }
   std::string id = base_id;
   for (int n = 2; volumes_.count(id); ++n) id = fmt::format("{}-{}", base_id, n);
   Entry& e = volumes_[id];
@@ -289,6 +325,8 @@ v1::VolumeInfo VolumeRegistry::Add(const std::string& base_id, const std::string
   e.volume = std::make_shared<const Volume>(std::move(volume));
   e.owner = owner;
   e.upload = upload;
+  e.labels = std::move(table.labels);
+  e.table_note = std::move(table.note);
   // The source is a path or a client's file name: patient data, and not for the info log.
   spdlog::info("volume {}: {}x{}x{}, {} MiB", LogSafe(id), e.volume->dims().x, e.volume->dims().y,
                e.volume->dims().z, bytes >> 20);
@@ -301,7 +339,8 @@ std::uint64_t VolumeRegistry::HeldBytesLocked() const {
   return total;
 }
 
-std::shared_ptr<const Volume> VolumeRegistry::VolumeForLabels(const std::string& id, const Principal& caller) const {
+std::shared_ptr<const Volume> VolumeRegistry::VolumeForLabels(const std::string& id, const Principal& caller,
+                                                              std::shared_ptr<const LabelVolume>* held) const {
   std::lock_guard lock(mu_);
   const Entry& e = FindLocked(id, caller, "volume_id");
   if (!caller.is_operator && e.owner != caller.name) {
@@ -310,13 +349,15 @@ std::shared_ptr<const Volume> VolumeRegistry::VolumeForLabels(const std::string&
                                "segmentation",
                                id, e.owner.empty() ? "the operator" : "another user"));
   }
+  *held = e.labels;
   return e.volume;
 }
 
 v1::VolumeInfo VolumeRegistry::LoadLabels(const std::string& id, const std::string& path,
                                           const std::string& table_path, const Principal& caller,
                                           const std::atomic<bool>* cancel) {
-  const std::shared_ptr<const Volume> image = VolumeForLabels(id, caller);
+  std::shared_ptr<const LabelVolume> held;
+  const std::shared_ptr<const Volume> image = VolumeForLabels(id, caller, &held);
   const fs::path labels = ResolveDataPath(path, "path");
   const fs::path table = table_path.empty() ? fs::path() : ResolveDataPath(table_path, "table_path");
   Reservation reservation(this, caller.name, false, "the segmentation");
@@ -325,6 +366,7 @@ v1::VolumeInfo VolumeRegistry::LoadLabels(const std::string& id, const std::stri
   FollowImageOrientation(file, *image);
   reservation.Add(LabelBytesFor(*image));
   LabelVolume loaded = FitLabels(file, *image, shown);
+  if (held) CopyTable(*held, loaded);  // the table found when the volume loaded stays marked
   if (!table.empty()) loaded.names = LoadLabelTable(table, "table_path '" + table_path + "'");
   return AttachLabels(id, image, std::move(loaded), caller, &reservation);
 }
@@ -333,13 +375,15 @@ v1::VolumeInfo VolumeRegistry::AddUploadedLabels(const std::string& id, const fs
                                                  const std::string& file_name, const std::string& table,
                                                  const Principal& caller, const std::atomic<bool>* cancel) {
   const RemoveWhenDone remove{file};
-  const std::shared_ptr<const Volume> image = VolumeForLabels(id, caller);
+  std::shared_ptr<const LabelVolume> held;
+  const std::shared_ptr<const Volume> image = VolumeForLabels(id, caller, &held);
   const std::string shown = "upload:" + file_name;
   Reservation reservation(this, caller.name, false, "the segmentation");
   Volume labels = LoadVolumeFile(file, PolicyFor(shown, true, cancel, &reservation));
   FollowImageOrientation(labels, *image);
   reservation.Add(LabelBytesFor(*image));
   LabelVolume loaded = FitLabels(labels, *image, shown);
+  if (held) CopyTable(*held, loaded);  // the table found when the volume loaded stays marked
   loaded.names = reader_cage::ReadLabelTableText(table, "header.label_table");
   return AttachLabels(id, image, std::move(loaded), caller, &reservation);
 }
@@ -400,8 +444,10 @@ v1::VolumeInfo VolumeRegistry::InfoLocked(const std::string& id, const Entry& e)
   info.mutable_direction()->Add(v.metadata().direction.begin(), v.metadata().direction.end());
   const auto& origin = v.metadata().origin_mm;
   *info.mutable_origin_mm() = ToProto(Vec3f{float(origin[0]), float(origin[1]), float(origin[2])});
-  if (e.labels) *info.mutable_labels() = ToLabelSet(*e.labels);
+  if (e.labels && e.labels->segmentation) *info.mutable_labels() = ToLabelSet(*e.labels);
   info.mutable_notes()->Add(v.metadata().notes.begin(), v.metadata().notes.end());
+  info.mutable_table()->set_voxels(e.labels ? e.labels->table_voxels : 0);
+  info.mutable_table()->set_note(e.table_note);
   for (const VolumeCopyStatus& c : VolumeCache::Get().Copies()) {
     if (c.volume != e.volume.get()) continue;
     v1::VolumeCopy* copy = info.add_copies();

@@ -41,8 +41,10 @@ class VolumeLease {
 
   const std::string& id() const { return id_; }
   const std::shared_ptr<const Volume>& volume() const { return volume_; }
-  // Its segmentation when the lease began; null: none.
+  // Its labels when the lease began: the segmentation and the table marked
+  // (LabelVolume::segmentation says whether there is a segmentation); null: neither.
   const std::shared_ptr<const LabelVolume>& labels() const { return labels_; }
+  bool has_segmentation() const { return labels_ && labels_->segmentation; }
 
  private:
   VolumeRegistry* registry_;
@@ -125,22 +127,34 @@ class VolumeRegistry {
     std::string source;  // canonical path (+ series) or phantom spec: loading it twice returns this entry
     std::string shown;   // what answers call it: the path as its loader wrote it, or "upload:NAME"
     std::shared_ptr<const Volume> volume;
-    std::shared_ptr<const LabelVolume> labels;  // its segmentation, when one is loaded
+    // Its segmentation, when one is loaded, with the table marked where one
+    // was found; or labels marking the table alone (LabelVolume::segmentation false).
+    std::shared_ptr<const LabelVolume> labels;
+    std::string table_note;  // what the table search found when it loaded
     std::string owner;   // principal name; "" for the operator's preloaded volumes
     bool upload = false; // private to its owner
     int leases = 0;
   };
 
+  // The table search's result for a volume being added.
+  struct FoundTable {
+    std::shared_ptr<const LabelVolume> labels;  // marking the table; null when none was found
+    std::string note;
+  };
+  // Searches `volume` for a table (io/table_finder.h) under `reservation`:
+  // skipped, said so in the note, where its memory does not fit.
+  FoundTable SearchTable(const Volume& volume, Reservation* reservation, const std::atomic<bool>* cancel);
   v1::VolumeInfo Add(const std::string& base_id, const std::string& source, const std::string& shown, Volume volume,
-                     const std::string& owner, bool upload, Reservation* reservation = nullptr);
+                     const std::string& owner, bool upload, Reservation* reservation = nullptr, FoundTable table = {});
   // Throws RESOURCE_EXHAUSTED unless `bytes` more fit the limits (an
   // upload's also its owner's); `what` names it in the message.
   void CheckRoomLocked(std::uint64_t bytes, const std::string& owner, bool upload, const std::string& what) const;
   // The entry `caller` may use, or throws NOT_FOUND / PERMISSION_DENIED.
   const Entry& FindLocked(const std::string& id, const Principal& caller, const std::string& field) const;
   v1::VolumeInfo InfoLocked(const std::string& id, const Entry& e) const;
-  // The volume `id` for attaching labels: its owner's or an operator's.
-  std::shared_ptr<const Volume> VolumeForLabels(const std::string& id, const Principal& caller) const;
+  // The volume `id` for attaching labels: its owner's or an operator's; `held`: the labels it holds now.
+  std::shared_ptr<const Volume> VolumeForLabels(const std::string& id, const Principal& caller,
+                                                std::shared_ptr<const LabelVolume>* held) const;
   // Holds `labels`, fitted to `image`, for volume `id` if that is still `image`.
   v1::VolumeInfo AttachLabels(const std::string& id, const std::shared_ptr<const Volume>& image, LabelVolume labels,
                               const Principal& caller, Reservation* reservation);

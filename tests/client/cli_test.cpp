@@ -178,5 +178,78 @@ TEST(CinevolCli, ErrorsAreClearWithANonZeroExit) {
                    2, "use .png or .exr");
 }
 
+// `cinevol snapshot` opens a session of its own and never attaches to it;
+// a server that reaps such sessions after a second must not reap it while
+// its still renders (about three seconds here).
+TEST(CinevolCli, SnapshotOutlivesTheUnattachedSessionLimit) {
+  ScratchDir scratch;
+  ServerProcess server(scratch.path(), {"--unattached-session-seconds", "1"});
+  ASSERT_TRUE(server.running()) << server.Log();
+  Client client = server.Connect();
+  const std::string probe = client.CreateSession(SmallSession("ct-bone", 96, 64)).session_id();
+  const int spp = SppForSeconds(client, probe, 3.0);
+  client.CloseSession(probe);
+  const auto [code, output] =
+      Cinevol(scratch, {"snapshot", "--server", server.address(), "--volume", "phantom:head?size=48", "--preset",
+                        "ct-bone", "--width", "96", "--height", "64", "--spp", std::to_string(spp), "--out",
+                        (scratch / "still.png").string()});
+  ASSERT_EQ(code, 0) << output << server.Log();
+  EXPECT_NE(output.find("snapshot: 0/" + std::to_string(spp) + " spp"), std::string::npos) << "progress: " << output;
+  std::smatch m;
+  ASSERT_TRUE(std::regex_search(output, m, std::regex("rendered in ([0-9.]+) s"))) << output;
+  EXPECT_GT(std::stod(m[1]), 1.0) << "not longer than the limit: " << output;
+  EXPECT_EQ(ReadPng(scratch / "still.png").width, 96);
+}
+
+TEST(CinevolCli, SnapshotTimeoutSaysWhatRanOutAndNamesTheFlags) {
+  ScratchDir scratch;
+  ServerProcess server(scratch.path());
+  ASSERT_TRUE(server.running()) << server.Log();
+  const auto result = Cinevol(scratch, {"snapshot", "--server", server.address(), "--width", "96", "--height", "64",
+                                        "--spp", "16384", "--timeout", "1", "--out", (scratch / "still.png").string()});
+  ExpectCleanError(result, 3, "DEADLINE_EXCEEDED: the snapshot did not finish within its timeout of 1 s");
+  EXPECT_NE(result.second.find("--timeout S"), std::string::npos) << result.second;
+  EXPECT_NE(result.second.find("--spp"), std::string::npos) << result.second;
+  Client client = server.Connect();
+  EXPECT_TRUE(Eventually([&] { return client.Status().sessions().empty(); }, 10s)) << "its session was left open";
+}
+
+// Bad flags are bad input: exit 2 as docs/client.md says, not CLI11's 105 or 109.
+TEST(CinevolCli, FlagErrorsExitTwo) {
+  ScratchDir scratch;
+  EXPECT_EQ(Cinevol(scratch, {"snapshot", "--no-such-flag"}).first, 2);
+  EXPECT_EQ(Cinevol(scratch, {"snapshot", "--spp", "0", "--out", "x.png"}).first, 2);
+  EXPECT_EQ(Cinevol(scratch, {"snapshot"}).first, 2) << "--out is required";
+  EXPECT_EQ(Cinevol(scratch, {"no-such-command"}).first, 2);
+  EXPECT_EQ(Cinevol(scratch, {"status", "extra"}).first, 2);
+  EXPECT_EQ(Cinevol(scratch, {"snapshot", "--help"}).first, 0);
+  EXPECT_EQ(RunProgram(ServerPath(), {"--no-such-flag"}, scratch / "server.log").first, 2);
+  EXPECT_EQ(RunProgram(ServerPath(), {"--max-sessions", "0"}, scratch / "server.log").first, 2);
+}
+
+// A scene file without lights renders lit (the volume's default lights),
+// offline and on a server, and the command says so on stderr.
+TEST(CinevolCli, ASceneWithoutLightsIsLitByTheVolumesDefaultLights) {
+  ScratchDir scratch;
+  WriteText(scratch / "unlit.json",
+            R"({"volume": {"phantom": {"kind": "HEAD", "size": 48}}, "transferFunction": {"preset": "ct-bone"},
+                "camera": {"view": "ANTERIOR"}, "render": {"width": 64, "height": 48, "spp": 4}})");
+  auto [code, output] = Cinevol(scratch, {"render", "--scene", (scratch / "unlit.json").string(), "--out",
+                                          (scratch / "offline.png").string(), "--spp", "8", "--backend", "cpu"});
+  ASSERT_EQ(code, 0) << output;
+  EXPECT_NE(output.find("no lights"), std::string::npos) << output;
+  EXPECT_GT(MeanLevel(ReadPng(scratch / "offline.png")), 10) << "black: unlit";
+
+  ServerProcess server(scratch.path());
+  ASSERT_TRUE(server.running()) << server.Log();
+  std::tie(code, output) = Cinevol(scratch, {"snapshot", "--server", server.address(), "--scene",
+                                             (scratch / "unlit.json").string(), "--width", "64", "--height", "48",
+                                             "--spp", "8", "--out", (scratch / "served.png").string()});
+  ASSERT_EQ(code, 0) << output;
+  EXPECT_NE(output.find("unlit.json: no lights: the session takes the volume's default lights"), std::string::npos)
+      << output;
+  EXPECT_GT(MeanLevel(ReadPng(scratch / "served.png")), 10) << "black: unlit";
+}
+
 }  // namespace
 }  // namespace cinevol::testing

@@ -325,5 +325,47 @@ TEST(Viewer, ServersThatFailOrRefuseAreNamedAndTheViewerExits) {
   }
 }
 
+// No display: SDL would fall back to a driver that draws nowhere and the
+// window would run unseen for ever; the viewer says why and exits 2.
+TEST(Viewer, WithoutADisplayItExitsTwoAtOnce) {
+  if (!fs::exists(kViewer)) GTEST_SKIP() << "cinevol-viewer was not built (libsdl2-dev, libimgui-dev)";
+  ScratchDir scratch;
+  const auto start = std::chrono::steady_clock::now();
+  const auto [code, output] =
+      RunProgram("/usr/bin/env", {"-u", "DISPLAY", "-u", "WAYLAND_DISPLAY", "-u", "SDL_VIDEODRIVER", kViewer, "--server",
+                                  "127.0.0.1:" + std::to_string(FreePort()), "--connect-timeout", "1"},
+                 scratch.path() / "viewer.log", std::chrono::seconds(30));
+  EXPECT_EQ(code, 2) << output;
+  EXPECT_NE(output.find("no display"), std::string::npos) << output;
+  EXPECT_LT(std::chrono::steady_clock::now() - start, std::chrono::seconds(20));
+}
+
+// Clipping and label events in a script go through the viewer's state as
+// the panels would: the scene it saves afterwards holds them.
+TEST(Viewer, ScriptedClippingAndLabelsShowInItsPanels) {
+  CINEVOL_REQUIRE_VIEWER();
+  ScratchDir scratch;
+  ServerProcess server(scratch.path());
+  ASSERT_TRUE(server.running()) << server.Log();
+  WriteSmallNrrd(scratch.path() / "small.nrrd");  // its values, 0 to 1500 by hundreds, serve as labels
+  const fs::path saved = scratch.path() / "saved.json";
+  const fs::path script = WriteScript(scratch.path() / "cut.jsonl", fmt::format(R"({{"session": {{"upload": "small.nrrd", "labels": {{"upload": "small.nrrd"}}, "stream": {{"targetSpp": 2}}}}}}
+{{"at": 0, "clipping": {{"cropBox": {{"center": {{"x": 2}}, "size": {{"x": 8, "y": 16, "z": 16}}}}, "planes": [{{"point": {{"z": 8}}, "normal": {{"z": 1}}, "cap": true}}]}}}}
+{{"at": 0, "labels": {{"showUnlisted": false, "styles": [{{"value": 300, "visible": true}}]}}}}
+{{"at": 0.1, "ui": {{"settle": true}}}}
+{{"at": 0.1, "ui": {{"saveScene": "{}"}}}}
+)", saved.string()));
+  const ViewerRun run = RunViewer(scratch.path(), {"--server", server.address(), "--script", script.string()});
+  ASSERT_EQ(run.exit_code, 0) << run.output;
+  const v1::Scene scene = LoadSceneFile(saved);
+  ASSERT_TRUE(scene.clipping().has_crop_box()) << "the crop box is not in the panel";
+  EXPECT_FLOAT_EQ(scene.clipping().crop_box().size().x(), 8);
+  ASSERT_EQ(scene.clipping().planes_size(), 1) << "the clip plane is not in the panel";
+  EXPECT_TRUE(scene.clipping().planes(0).cap());
+  ASSERT_EQ(scene.labels().styles_size(), 1) << "the label styles are not in the panel";
+  EXPECT_EQ(scene.labels().styles(0).value(), 300u);
+  EXPECT_FALSE(scene.labels().show_unlisted());
+}
+
 }  // namespace
 }  // namespace cinevol::testing

@@ -5,11 +5,14 @@
 
 #include <fmt/format.h>
 
+#include <set>
+
 #include "core/error.h"
 #include "io/label_volume.h"
 #include "io/presets.h"
 #include "io/scene_builder.h"
 #include "io/scene_file.h"
+#include "io/table_finder.h"
 #include "pipeline/frame_pipeline.h"
 #include "support/test_paths.h"
 
@@ -57,7 +60,8 @@ TEST(LabelVolume, OnTheSameGridIsTakenAsItIs) {
   const Volume labels = Grid({2, 2, 2}, {1, 1, 1}, {10, 20, 30}, {0, 1, 2, 3, 4, 5, 6, 7});
   const LabelVolume fitted = FitLabels(labels, image, "labels.nii");
   EXPECT_TRUE(fitted.note.empty()) << fitted.note;
-  EXPECT_EQ(fitted.labels, (std::vector<std::uint16_t>{0, 1, 2, 3, 4, 5, 6, 7}));
+  for (int i = 0; i < 8; ++i) EXPECT_EQ(fitted.LabelOf(fitted.labels[i]), i) << "voxel " << i;
+  EXPECT_EQ(fitted.labels[0], 8) << "voxel 0 touches labels 1..7: their shell";
   EXPECT_EQ(fitted.voxels.at(7), 1u);
 }
 
@@ -138,21 +142,29 @@ class TotalSegmentator : public ::testing::Test {
     labels_ = std::make_shared<const LabelVolume>(std::move(labels));
   }
 
-  // The labels of the voxels where camera rays first met tissue, at 96x96.
-  std::map<int, int> FirstHitLabels(const v1::Labels& styles) const {
-    v1::Scene scene = MakePresetScene("ct-soft-tissue", *image_);
+  // The voxels where camera rays first met tissue, at 96x96, under `styles`
+  // and `preset`, with `labels` (default: the segmentation as loaded).
+  std::vector<std::size_t> FirstHitVoxels(const v1::Labels& styles, std::shared_ptr<const LabelVolume> labels = nullptr,
+                                          const std::string& preset = "ct-soft-tissue") const {
+    return FirstHitVoxelsFrom(v1::ANTERIOR, styles, std::move(labels), preset);
+  }
+  std::vector<std::size_t> FirstHitVoxelsFrom(v1::NamedView view, const v1::Labels& styles,
+                                              std::shared_ptr<const LabelVolume> labels,
+                                              const std::string& preset = "ct-soft-tissue") const {
+    v1::Scene scene = MakePresetScene(preset, *image_);
+    scene.mutable_camera()->set_view(view);
     scene.mutable_render()->set_width(96);
     scene.mutable_render()->set_height(96);
     scene.mutable_render()->set_spp(2);
     *scene.mutable_labels() = styles;
     ApplyDefaults(scene);
-    FramePipeline pipeline(Backend::kCpu, image_, {}, labels_);
+    FramePipeline pipeline(Backend::kCpu, image_, {}, labels ? labels : labels_);
     FrameSettings settings;
     settings.denoiser.method = DenoiseMethod::kNone;
     pipeline.Update(scene, settings);
     pipeline.RenderFrame();
     const Vec3f extent = image_->extent_mm(), spacing = image_->spacing_mm();
-    std::map<int, int> hits;
+    std::vector<std::size_t> voxels;
     for (const Vec4f& h : pipeline.FirstHits()) {
       if (h.w == 0) continue;
       Vec3i v;
@@ -160,9 +172,29 @@ class TotalSegmentator : public ::testing::Test {
         const float q = (Xyz(h)[a] + 0.5f * extent[a]) / spacing[a] - 0.5f;
         v[a] = std::clamp(int(std::floor(q + 0.5f)), 0, image_->dims()[a] - 1);
       }
-      ++hits[labels_->labels[(std::size_t(v.z) * image_->dims().y + v.y) * image_->dims().x + v.x]];
+      voxels.push_back((std::size_t(v.z) * image_->dims().y + v.y) * image_->dims().x + v.x);
     }
+    return voxels;
+  }
+
+  // The labels of the voxels where camera rays first met tissue (stored
+  // values: shells have values of their own).
+  std::map<int, int> FirstHitLabels(const v1::Labels& styles) const {
+    std::map<int, int> hits;
+    for (std::size_t v : FirstHitVoxels(styles)) ++hits[labels_->labels[v]];
     return hits;
+  }
+
+  // The ribs, sternum and costal cartilages hidden: examples/ct-body-no-ribs.json.
+  v1::Labels NoRibs() const {
+    v1::Labels no_ribs;
+    for (const auto& [value, name] : labels_->names) {
+      if (name.rfind("rib_", 0) != 0 && name != "sternum" && name != "costal_cartilages") continue;
+      v1::LabelStyle* style = no_ribs.add_styles();
+      style->set_value(value);
+      style->set_visible(false);
+    }
+    return no_ribs;
   }
 
   std::shared_ptr<const Volume> image_;
@@ -202,7 +234,8 @@ TEST_F(TotalSegmentator, OnTheLongerCtTheSegmentationIsResampledAndSaysSo) {
   EXPECT_TRUE(std::equal(labels_->labels.begin(), labels_->labels.end(), fitted.labels.begin()))
       << "where they overlap, the labels are example_seg's own";
   EXPECT_TRUE(std::all_of(fitted.labels.begin() + std::ptrdiff_t(slice * 30), fitted.labels.end(),
-                          [](std::uint16_t l) { return l == 0; }));
+                          [&](std::uint16_t l) { return fitted.LabelOf(l) == 0; }))
+      << "beyond it label 0 (the shell of slice 29's labels in slice 30 among it)";
 }
 
 // example_seg_dicom is stored with its y axis flipped against the DICOM
@@ -263,6 +296,122 @@ TEST_F(TotalSegmentator, TheRibsHiddenShowNoRib) {
     rib_hits_before += all.count(int(style.value())) ? all.at(int(style.value())) : 0;
   }
   EXPECT_GT(rib_hits_before, 0) << "ribs show while visible";
+}
+
+// A voxel's 26 neighbours hold a label `hidden` says is hidden, while it holds none.
+bool TouchesHidden(const LabelVolume& l, std::size_t i, const std::set<int>& hidden) {
+  const Vec3i d = l.dims;
+  const int x = int(i % d.x), y = int(i / d.x % d.y), z = int(i / (std::size_t(d.x) * d.y));
+  if (l.LabelOf(l.labels[i]) != 0) return false;
+  for (int nz = std::max(0, z - 1); nz <= std::min(d.z - 1, z + 1); ++nz)
+    for (int ny = std::max(0, y - 1); ny <= std::min(d.y - 1, y + 1); ++ny)
+      for (int nx = std::max(0, x - 1); nx <= std::min(d.x - 1, x + 1); ++nx)
+        if (hidden.count(l.LabelOf(l.labels[(std::size_t(nz) * d.y + ny) * d.x + nx]))) return true;
+  return false;
+}
+
+// The same labels without shells: what FitLabels made before issue 32.
+std::shared_ptr<const LabelVolume> WithoutShells(const LabelVolume& labels) {
+  auto bare = std::make_shared<LabelVolume>(labels);
+  for (std::uint16_t& v : bare->labels) v = std::uint16_t(labels.LabelOf(v));
+  bare->derived.clear();
+  return bare;
+}
+
+// Issue 32: "with the ribs hidden, their partial-volume shell still shows as
+// speckled arcs". Under ct-bone (examples/ct-body-no-ribs.json) first hits on
+// unlabelled voxels touching a hidden rib, sternum or cartilage were the arcs.
+TEST_F(TotalSegmentator, TheRibsHiddenTakeTheirShellAlong) {
+  const v1::Labels no_ribs = NoRibs();
+  std::set<int> hidden;
+  for (const v1::LabelStyle& style : no_ribs.styles()) hidden.insert(int(style.value()));
+  auto on_shell = [&](const std::vector<std::size_t>& hits) {
+    return std::count_if(hits.begin(), hits.end(), [&](std::size_t v) { return TouchesHidden(*labels_, v, hidden); });
+  };
+  const auto before = FirstHitVoxels(no_ribs, WithoutShells(*labels_), "ct-bone");
+  const auto after = FirstHitVoxels(no_ribs, labels_, "ct-bone");
+  const auto shown = FirstHitVoxels({}, labels_, "ct-bone");
+  std::printf("first hits under ct-bone at 96x96: ribs shown %zu; ribs hidden %zu, on their shell %ld without shells, "
+              "%zu and %ld with\n",
+              shown.size(), before.size(), long(on_shell(before)), after.size(), long(on_shell(after)));
+  EXPECT_GT(on_shell(before), 20) << "the arcs: first hits on the ribs' unlabelled rim";
+  EXPECT_EQ(on_shell(after), 0) << "no first hit touches a hidden label";
+  // What else shows stays: the spine, pelvis and the rest of the skeleton.
+  const auto off_ribs = [&](const std::vector<std::size_t>& hits) {
+    return std::count_if(hits.begin(), hits.end(), [&](std::size_t v) {
+      return !hidden.count(labels_->LabelOf(labels_->labels[v])) && !TouchesHidden(*labels_, v, hidden);
+    });
+  };
+  EXPECT_GT(off_ribs(after), 0.9 * off_ribs(before)) << "the rest of the skeleton still shows";
+}
+
+// Issue 32: the table removed beside a real segmentation. The table search
+// knows nothing of the labels, yet none of TotalSegmentator's 117 structures
+// has a voxel in what it hides; removed with the ribs hidden, neither shows,
+// and the rest does.
+TEST_F(TotalSegmentator, TheTableGoesTheLabelsStay) {
+  const TableMask table = FindTable(*image_);
+  ASSERT_TRUE(table.found()) << table.note;
+  std::uint64_t labelled_in_table = 0;
+  for (std::size_t i = 0; i < labels_->labels.size(); ++i) {
+    labelled_in_table += labels_->LabelOf(labels_->labels[i]) != 0 && (table.voxels[i] & (kTableVoxel | kTableRimVoxel));
+  }
+  EXPECT_EQ(labelled_in_table, 0u) << "labelled voxels the table search would hide";
+  auto both = std::make_shared<LabelVolume>(*labels_);
+  AddTable(*both, table);
+  EXPECT_EQ(both->table_voxels, table.table_voxels + table.rim_voxels);
+
+  v1::Labels styles = NoRibs();
+  styles.set_remove_table(true);
+  std::set<int> ribs;
+  for (const v1::LabelStyle& style : styles.styles()) ribs.insert(int(style.value()));
+  int on_table = 0, on_ribs = 0, on_liver = 0;
+  for (v1::NamedView view : {v1::ANTERIOR, v1::POSTERIOR}) {
+    for (std::size_t v : FirstHitVoxelsFrom(view, styles, both)) {
+      on_table += both->labels[v] == both->table_value();
+      on_ribs += ribs.count(both->LabelOf(both->labels[v])) > 0;
+      on_liver += both->LabelOf(both->labels[v]) == 5;
+    }
+  }
+  EXPECT_EQ(on_table, 0);
+  EXPECT_EQ(on_ribs, 0);
+  EXPECT_GT(on_liver, 100) << "the liver shows through the ribs' gaps";
+}
+
+TEST(LabelShells, EachSetOfLabelsTouchedGetsAValueThatHidesWithThem) {
+  // 8x4x4: label 1 at x = 1, label 2 at x = 5; x = 3 touches neither, x = 4
+  // touches only 2, x = 0 and 2 only 1; x = 6, 7 only 2.
+  LabelVolume l;
+  l.dims = {8, 4, 4};
+  l.labels.assign(128, 0);
+  for (int z = 0; z < 4; ++z)
+    for (int y = 0; y < 4; ++y) l.labels[(z * 4 + y) * 8 + 1] = 1, l.labels[(z * 4 + y) * 8 + 5] = 2;
+  for (std::uint16_t v : l.labels) ++l.voxels[v];
+  AddShells(l);
+  ASSERT_EQ(l.first_derived, 3);
+  ASSERT_EQ(l.derived.size(), 2u);
+  EXPECT_EQ(l.value_count(), 5);
+  auto value_at = [&](int x) { return int(l.labels[x]); };
+  EXPECT_EQ(value_at(3), 0) << "touches no label";
+  EXPECT_EQ(value_at(0), value_at(2));
+  EXPECT_EQ(l.derived[value_at(0) - 3].touches, (std::vector<std::uint16_t>{1}));
+  EXPECT_EQ(l.derived[value_at(4) - 3].touches, (std::vector<std::uint16_t>{2}));
+  EXPECT_EQ(l.LabelOf(value_at(0)), 0) << "to everything but the renderer, a shell is label 0";
+  EXPECT_EQ(l.voxels.at(0), 128u - 32u) << "voxel counts stay the segmentation's";
+
+  LabelSetup hide_one;
+  hide_one.styles[1].visible = false;
+  EXPECT_TRUE(hide_one.StyleOfValue(l, value_at(0)).hidden());
+  EXPECT_FALSE(hide_one.StyleOfValue(l, value_at(4)).hidden()) << "label 2's shell stays";
+  LabelSetup one_alone;
+  one_alone.show_unlisted = false;
+  one_alone.styles[1] = {};
+  EXPECT_TRUE(one_alone.StyleOfValue(l, value_at(0)).hidden()) << "a shell is label 0: hidden with the unlisted";
+  LabelSetup faint;
+  faint.styles[1].opacity_scale = 0.2f;
+  EXPECT_EQ(faint.StyleOfValue(l, value_at(0)).opacity_scale, 1.0f) << "only hiding carries over to the shell";
+  EXPECT_FALSE(LabelSetup{}.ChangesAnything(l)) << "default styles: renderers skip the lookup";
+  EXPECT_TRUE(hide_one.ChangesAnything(l));
 }
 
 }  // namespace

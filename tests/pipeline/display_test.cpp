@@ -6,7 +6,9 @@
 #include <gtest/gtest.h>
 #include <turbojpeg.h>
 
+#include <bit>
 #include <cmath>
+#include <limits>
 #include <cstdlib>
 #include <memory>
 #include <string>
@@ -15,6 +17,8 @@
 #include "core/tone_map.h"
 #include "io/phantom.h"
 #include "pipeline/display.h"
+#include "pipeline/tone_map_table.h"
+#include "pipeline/upsample.h"
 #include "render/renderer.h"
 #include "support/gpu.h"
 
@@ -135,6 +139,52 @@ TEST(DisplayPlanes, AFrameKeepsItsPlanesWhileLaterFramesRender) {
   // Released frames' buffers come back: no allocation per frame.
   const std::uint8_t* first = display->Run(InputsFor(dark.pixels.data(), 20, 10, ChromaSubsampling::k420)).data.get();
   EXPECT_EQ(display->Run(InputsFor(dark.pixels.data(), 20, 10, ChromaSubsampling::k420)).data.get(), first);
+}
+
+// The CPU's table gives the formula's codes: around every step (where a
+// wobble of the float curve would show) and across the range.
+TEST(ToneMapTable, GivesTheFormulasCodesBitForBit) {
+  const ToneMapTable& table = ToneMapTable::Get();
+  auto expect_same = [&](float v) {
+    std::uint8_t formula[3], looked_up[3];
+    ToneMapPixel(Vec3f{v, v, v}, 1.0f, formula);
+    table.Map(Vec3f{v, v, v}, 1.0f, looked_up);
+    ASSERT_EQ(int(looked_up[0]), int(formula[0])) << "at " << v;
+  };
+  for (int code = 1; code < 256; ++code) {
+    const std::uint32_t bits = std::bit_cast<std::uint32_t>(table.step(code));
+    for (std::uint32_t b = bits - 256; b <= bits + 256; ++b) expect_same(std::bit_cast<float>(b));
+  }
+  for (float v = -1.0f; v < 40.0f; v = v < 1e-4f ? v + 1e-6f : v * 1.0001f) expect_same(v);
+  for (const float v : {0.0f, -0.0f, 1e-38f, 1e30f, std::numeric_limits<float>::max()}) expect_same(v);
+}
+
+TEST(ToneMapTable, BlacksOutNonFinitePixelsAndScalesByTheExposure) {
+  const ToneMapTable& table = ToneMapTable::Get();
+  for (const Vec3f c : {Vec3f{std::numeric_limits<float>::quiet_NaN(), 1, 1},
+                        Vec3f{1, std::numeric_limits<float>::infinity(), 1}, Vec3f{0.2f, 0.5f, 3.0f}}) {
+    for (const float scale : {0.25f, 1.0f, 5.7f}) {
+      std::uint8_t formula[3], looked_up[3];
+      ToneMapPixel(c, scale, formula);
+      table.Map(c, scale, looked_up);
+      for (int i = 0; i < 3; ++i) EXPECT_EQ(int(looked_up[i]), int(formula[i]));
+    }
+  }
+}
+
+// A moving CPU frame is upsampled inside the display: the same planes as the
+// upsampler's image through the display.
+TEST(DisplayPass, UpsamplingOnTheWayGivesTheUpsampledImagesPlanes) {
+  const ImageRgbF small = TestRadiance(37, 21);
+  const auto upsampler = MakeCpuUpsampler();
+  for (ChromaSubsampling chroma : {ChromaSubsampling::k444, ChromaSubsampling::k420}) {
+    const Vec3f* big = upsampler->Run(small.pixels.data(), 37, 21, 150, 83);
+    const ImageYcc8 a = MakeCpuDisplay()->Run(InputsFor(big, 150, 83, chroma));
+    const ImageYcc8 b = MakeCpuDisplay()->RunUpsampled(InputsFor(nullptr, 150, 83, chroma), small.pixels.data(), 37, 21);
+    ASSERT_EQ(a.size, b.size);
+    EXPECT_EQ(std::vector<std::uint8_t>(a.data.get(), a.data.get() + a.size),
+              std::vector<std::uint8_t>(b.data.get(), b.data.get() + b.size));
+  }
 }
 
 #if CINEVOL_WITH_CUDA

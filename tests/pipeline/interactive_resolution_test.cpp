@@ -1,9 +1,14 @@
 // Interactive resolution: while the view moves under a frame-time budget the
 // pipeline renders fewer pixels and upsamples them to the viewport; once it
 // holds still it refines at full size, and only a full-size frame is final.
+// InteractiveResolution.* check the GPU's policy (steps through 0.75 and 0.5)
+// on the CPU; CpuLiveView.* the CPU's own (sizes and samples from measured
+// costs, preemptible still frames).
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <atomic>
+#include <iterator>
 #include <cmath>
 #include <thread>
 #include <vector>
@@ -68,6 +73,7 @@ std::vector<float> Move(FramePipeline& pipeline, v1::Scene& scene, const FrameSe
 TEST(InteractiveResolution, AMovingViewStepsDownAndRefinesAtFullSize) {
   auto volume = SmallHead();
   FramePipeline pipeline(Backend::kCpu, volume);
+  pipeline.SetInteractivePolicy(InteractivePolicy::kSteps);
   v1::Scene scene = SmallScene(*volume, 64, 40, 1);
   const FrameSettings settings = WithBudget(1e-3f);  // no frame meets it
   pipeline.Update(scene, settings);
@@ -96,6 +102,7 @@ TEST(InteractiveResolution, AFrameWithinTheBudgetStaysFullSize) {
   auto volume = SmallHead();
   for (const float budget : {0.0f, 1e6f}) {
     FramePipeline pipeline(Backend::kCpu, volume);
+    pipeline.SetInteractivePolicy(InteractivePolicy::kSteps);
     v1::Scene scene = SmallScene(*volume, 64, 40, 1);
     pipeline.Update(scene, WithBudget(budget));
     Render(pipeline);
@@ -107,10 +114,127 @@ TEST(InteractiveResolution, AFrameWithinTheBudgetStaysFullSize) {
 TEST(InteractiveResolution, AMovingTransferFunctionAlsoScales) {
   auto volume = SmallHead();
   FramePipeline pipeline(Backend::kCpu, volume);
+  pipeline.SetInteractivePolicy(InteractivePolicy::kSteps);
   v1::Scene scene = SmallScene(*volume, 64, 40, 1);
   pipeline.Update(scene, WithBudget(1e-3f));
   Render(pipeline);
   EXPECT_EQ(Move(pipeline, scene, WithBudget(1e-3f), kTransferFunctionChanged, 0.5f).back(), 0.5f);
+}
+
+constexpr float kSmallestCpuScale = kCpuInteractiveScales[std::size(kCpuInteractiveScales) - 1];
+
+TEST(CpuLiveView, AMovingViewTakesTheSizeThatFitsFromItsFirstFrame) {
+  auto volume = SmallHead();
+  FramePipeline pipeline(Backend::kCpu, volume);
+  v1::Scene scene = SmallScene(*volume, 64, 40, 2);
+  const FrameSettings settings = WithBudget(1e-3f);  // no frame meets it
+  pipeline.Update(scene, settings);
+  const DisplayFrame still = pipeline.RenderFrame();
+  EXPECT_EQ(still.resolution_scale, 1.0f) << "nothing moved";
+  EXPECT_EQ(still.spp, 2);
+
+  Zoom(scene, 0.5f);
+  pipeline.Update(scene, settings, kCameraChanged);
+  const DisplayFrame moving = pipeline.RenderFrame();
+  EXPECT_EQ(moving.resolution_scale, kSmallestCpuScale) << "no stepping through the sizes between";
+  EXPECT_EQ(moving.spp, 1);
+  EXPECT_EQ(moving.image.width, 64) << "upsampled to the viewport";
+  EXPECT_EQ(pipeline.AccumulatedRadiance().width, 8);
+
+  std::this_thread::sleep_for(std::chrono::milliseconds(kInteractionHoldMs + 50));
+  const DisplayFrame refined = pipeline.RenderFrame();
+  EXPECT_EQ(refined.resolution_scale, 1.0f) << "the view held still: full size again";
+  EXPECT_EQ(pipeline.AccumulatedRadiance().width, 64);
+}
+
+TEST(CpuLiveView, AFrameWithinTheBudgetKeepsTheFullSizeAndTheScenesSamples) {
+  auto volume = SmallHead();
+  FramePipeline pipeline(Backend::kCpu, volume);
+  v1::Scene scene = SmallScene(*volume, 64, 40, 2);
+  pipeline.Update(scene, WithBudget(1e6f));
+  pipeline.RenderFrame();
+  for (int i = 0; i < 5; ++i) {
+    Zoom(scene, 0.5f);
+    pipeline.Update(scene, WithBudget(1e6f), kCameraChanged);
+    const DisplayFrame f = pipeline.RenderFrame();
+    EXPECT_EQ(f.resolution_scale, 1.0f);
+    EXPECT_EQ(f.spp, 2);
+  }
+}
+
+TEST(CpuLiveView, AMovedLightIsAnInteraction) {
+  auto volume = SmallHead();
+  FramePipeline pipeline(Backend::kCpu, volume);
+  v1::Scene scene = SmallScene(*volume, 64, 40, 2);
+  pipeline.Update(scene, WithBudget(1e-3f));
+  pipeline.RenderFrame();
+  pipeline.Update(scene, WithBudget(1e-3f), kLightsChanged);
+  EXPECT_LT(pipeline.RenderFrame().resolution_scale, 1.0f) << "on a CPU a full-size frame per light step takes seconds";
+}
+
+TEST(CpuLiveView, StillFramesNeverPassTheRefinementCap) {
+  auto volume = SmallHead();
+  FramePipeline pipeline(Backend::kCpu, volume);
+  FrameSettings settings = WithBudget(70);
+  settings.target_spp = 7;
+  settings.error_target = 0;
+  pipeline.Update(SmallScene(*volume, 64, 40, 2), settings);
+  int frames = 0;
+  for (; frames < 10; ++frames) {
+    const DisplayFrame f = pipeline.RenderFrame();
+    EXPECT_EQ(f.resolution_scale, 1.0f);
+    EXPECT_GE(f.spp, 1);
+    if (f.final) break;
+  }
+  EXPECT_EQ(pipeline.accumulated_spp(), 7) << "the last frame takes what is left";
+}
+
+TEST(CpuLiveView, APreemptedStillFrameShowsNothingAndRestartsTheAccumulation) {
+  auto volume = SmallHead();
+  FramePipeline pipeline(Backend::kCpu, volume);
+  std::atomic<bool> preempt{false};
+  pipeline.SetPreempt(&preempt);
+  FrameSettings settings = WithBudget(70);
+  settings.target_spp = 64;
+  v1::Scene scene = SmallScene(*volume, 64, 40, 2);
+  pipeline.Update(scene, settings);
+  pipeline.RenderFrame();
+  EXPECT_EQ(pipeline.accumulated_spp(), 2);
+
+  preempt = true;  // an event arrived while the frame rendered
+  const DisplayFrame stopped = pipeline.RenderFrame();
+  EXPECT_TRUE(stopped.preempted);
+  EXPECT_EQ(stopped.image.width, 0);
+  EXPECT_EQ(pipeline.accumulated_spp(), 0);
+
+  preempt = false;
+  const DisplayFrame next = pipeline.RenderFrame();
+  EXPECT_FALSE(next.preempted);
+  EXPECT_EQ(next.image.width, 64);
+  EXPECT_EQ(pipeline.accumulated_spp(), 2);
+
+  // Moving frames are what the events are waiting for: never preempted.
+  preempt = true;
+  Zoom(scene, 0.5f);
+  pipeline.Update(scene, settings, kCameraChanged);
+  EXPECT_FALSE(pipeline.RenderFrame().preempted);
+}
+
+TEST(CpuLiveView, WithoutABudgetNothingChanges) {
+  auto volume = SmallHead();
+  FramePipeline pipeline(Backend::kCpu, volume);
+  std::atomic<bool> preempt{true};
+  pipeline.SetPreempt(&preempt);
+  v1::Scene scene = SmallScene(*volume, 64, 40, 2);
+  pipeline.Update(scene, WithBudget(0));
+  for (int i = 0; i < 3; ++i) {
+    const DisplayFrame f = pipeline.RenderFrame();
+    EXPECT_FALSE(f.preempted);
+    EXPECT_EQ(f.spp, 2);
+    EXPECT_EQ(f.resolution_scale, 1.0f);
+    Zoom(scene, 0.5f);
+    pipeline.Update(scene, WithBudget(0), kCameraChanged);
+  }
 }
 
 TEST(UpsamplePass, InterpolatesBetweenPixelCentresAndClampsAtEdges) {

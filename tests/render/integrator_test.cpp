@@ -5,6 +5,7 @@
 #include <cmath>
 #include <cstring>
 
+#include "io/label_volume.h"
 #include "io/phantom.h"
 #include "render/cpu_renderer.h"
 #include "render_test_scenes.h"
@@ -219,6 +220,58 @@ TEST(Integrator, ALabelsColourAndOwnTransferFunctionApplyToItsVoxelsOnly) {
   const ImageRgbF own = RenderBalls(TwoBalls(true), BallALabelled(), clear);
   const ImageRgbF without = RenderBalls(TwoBalls(false), nullptr, {});
   for (std::size_t i = 0; i < own.pixels.size(); ++i) ASSERT_EQ(own.pixels[i], without.pixels[i]) << "pixel " << i;
+}
+
+// Issue 32: a segmentation that stops short of a structure's partial-volume
+// rim leaves the rim at label 0. Ball A here has a rim of half its value one
+// voxel deep, and only its core is labelled: hidden without its shell, the
+// rim still shows; with it (FitLabels adds shells), nothing of ball A does.
+TEST(Integrator, AHiddenLabelTakesItsUnlabelledShellAlong) {
+  const int n = 32;
+  std::vector<float> values(std::size_t(n) * n * n, 0.0f);
+  auto labels = std::make_shared<LabelVolume>();
+  labels->dims = {n, n, n};
+  labels->labels.assign(values.size(), 0);
+  const Vec3f a{11.5f, 15.5f, 15.5f}, b{25.5f, 15.5f, 15.5f};
+  for (int z = 0; z < n; ++z)
+    for (int y = 0; y < n; ++y)
+      for (int x = 0; x < n; ++x) {
+        const std::size_t i = (std::size_t(z) * n + y) * n + x;
+        const Vec3f p{float(x), float(y), float(z)};
+        const float ra = Length(p - a);
+        values[i] = ra <= 3.0f || Length(p - b) <= 3.0f ? 1000.0f : (ra <= 4.0f ? 500.0f : 0.0f);
+        if (ra <= 3.0f) labels->labels[i] = 1;
+      }
+  for (std::uint16_t l : labels->labels) ++labels->voxels[l];
+  const auto volume = std::make_shared<const Volume>(Vec3i{n, n, n}, Vec3f{2, 2, 2}, std::move(values), VolumeMetadata{});
+  auto with_shell = std::make_shared<LabelVolume>(*labels);
+  AddShells(*with_shell);
+  ASSERT_EQ(with_shell->derived.size(), 1u) << "one shell: the voxels touching label 1";
+  EXPECT_EQ(with_shell->derived[0].touches, (std::vector<std::uint16_t>{1}));
+
+  // First hits nearer ball A than ball B (world x < 0: voxel x < 16), at 48x48.
+  auto hits_on_a = [&](const std::shared_ptr<const LabelVolume>& l) {
+    CpuRenderer r;
+    r.SetVolume(volume);
+    TransferFunction tf;
+    tf.points = {{400, 0, {0.8f, 0.8f, 0.8f}, {}, 0.5f, {}}, {450, 1, {0.8f, 0.8f, 0.8f}, {}, 0.5f, {}}};
+    tf.density_scale = 5;
+    r.SetTransferFunction(tf);
+    r.SetLights(UniformSky(1.0f));
+    LabelSetup hide;
+    hide.styles[1].visible = false;
+    r.SetLabels(l, hide);
+    r.Render(Request(LookAt({0, -200, 0}, {0, 0, 0}, {0, 0, 1}, 30.0f, 48, 48), 8, 0, 2));
+    int on_a = 0, on_b = 0;
+    for (const Vec4f& h : r.FirstHits()) {
+      if (h.w == 0) continue;
+      (h.x < 0 ? on_a : on_b) += 1;
+    }
+    EXPECT_GT(on_b, 20) << "ball B shows";
+    return on_a;
+  };
+  EXPECT_GT(hits_on_a(labels), 10) << "without its shell, ball A's rim shows";
+  EXPECT_EQ(hits_on_a(with_shell), 0) << "with it, nothing of ball A";
 }
 
 TEST(Integrator, WhiteFurnaceConservesEnergy) {

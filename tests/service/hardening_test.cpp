@@ -384,12 +384,14 @@ TEST(Hardening, AnAbandonedSnapshotStopsRendering) {
   ScratchDir scratch;
   ServerProcess server(scratch.path());
   ASSERT_TRUE(server.running()) << server.Log();
-  Client impatient = Connect(server, {}, 1);
+  Client impatient = Connect(server);
   const auto created = impatient.CreateSession(SmallSession());
   v1::SnapshotRequest still;
   still.set_session_id(created.session_id());
   still.set_spp(16384);  // minutes on a CPU
-  ExpectRpcError([&] { impatient.Snapshot(still); }, grpc::StatusCode::DEADLINE_EXCEEDED, "");
+  SnapshotOptions one_second;
+  one_second.timeout = std::chrono::seconds(1);
+  ExpectRpcError([&] { impatient.Snapshot(still, one_second); }, grpc::StatusCode::DEADLINE_EXCEEDED, "timeout");
 
   Client client = server.Connect();
   const auto start = std::chrono::steady_clock::now();
@@ -400,11 +402,13 @@ TEST(Hardening, AnAbandonedSnapshotStopsRendering) {
 
   // Closing the session cancels its snapshot too.
   std::atomic<int> code{-1};
+  std::string message;  // read once `code` is set
   std::thread waiting([&] {
     try {
       client.Snapshot(still);
       code = 0;
     } catch (const RpcError& e) {
+      message = e.what();
       code = int(e.code());
     }
   });
@@ -413,6 +417,8 @@ TEST(Hardening, AnAbandonedSnapshotStopsRendering) {
   EXPECT_TRUE(Eventually([&] { return code >= 0; }, std::chrono::seconds(5)));
   waiting.join();
   EXPECT_EQ(code, int(grpc::StatusCode::CANCELLED));
+  EXPECT_NE(message.find("its session '" + created.session_id() + "' ended: it was closed"), std::string::npos)
+      << "the message says why: " << message;
 }
 
 TEST(Hardening, SigtermDrainsWhateverIsInFlight) {

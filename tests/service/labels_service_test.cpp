@@ -3,11 +3,14 @@
 // event; and the errors that name what is wrong (issue 22).
 #include <gtest/gtest.h>
 
+#include <fmt/format.h>
+
 #include <fstream>
 
 #include "core/image_metrics.h"
 #include "server_process.h"
 #include "service_test_support.h"
+#include "support/patient_on_table.h"
 #include "support/test_paths.h"
 
 namespace cinevol::testing {
@@ -113,6 +116,76 @@ TEST_F(LabelsOverTheApi, BadSegmentationsAndStylesWithoutOneAreRefusedByName) {
   request.mutable_scene()->mutable_labels()->set_show_unlisted(false);
   ExpectRpcError([&] { client.CreateSession(request); }, grpc::StatusCode::INVALID_ARGUMENT,
                  "has no segmentation");
+}
+
+// Issue 32: the table found when a CT loads, removed by one switch in the
+// scene or a labels event, on a volume without a segmentation.
+TEST(TableOverTheApi, AnUploadedCtSaysItHasATableAndOneSwitchRemovesIt) {
+  ScratchDir scratch;
+  const PatientOnTable patient;
+  {
+    std::ofstream out(scratch / "patient.nrrd", std::ios::binary);
+    out << fmt::format("NRRD0004\ntype: short\ndimension: 3\nsizes: {} {} {}\nspacings: {} {} {}\n"
+                       "encoding: raw\nendian: little\n\n",
+                       patient.dims.x, patient.dims.y, patient.dims.z, patient.spacing_mm, patient.spacing_mm,
+                       patient.spacing_mm);
+    for (int z = 0; z < patient.dims.z; ++z)
+      for (int y = 0; y < patient.dims.y; ++y)
+        for (int x = 0; x < patient.dims.x; ++x) {
+          const auto v = static_cast<std::int16_t>(patient.Hu(x, y, z));
+          out.write(reinterpret_cast<const char*>(&v), 2);
+        }
+  }
+  ServerProcess server(scratch.path(), {});
+  ASSERT_TRUE(server.running()) << server.Log();
+  Client client = server.Connect();
+  const v1::VolumeInfo volume = client.UploadVolume(scratch / "patient.nrrd");
+  EXPECT_GT(volume.table().voxels(), 0u) << volume.table().note();
+  EXPECT_NE(volume.table().note().find("table: 1 component"), std::string::npos) << volume.table().note();
+  EXPECT_FALSE(volume.has_labels()) << "no segmentation: the table is no label set";
+
+  // From behind (the table at large y, posterior), by events: the table is
+  // in the picture until removed.
+  v1::CreateSessionRequest request = SmallSession("ct-soft-tissue");
+  request.set_volume_id(volume.id());
+  const v1::CreateSessionResponse created = client.CreateSession(request);
+  auto stream = client.Attach(created.session_id());
+  v1::SessionEvent behind;
+  behind.mutable_camera()->set_view(v1::POSTERIOR);
+  const auto shown = WaitFinal(*stream, stream->Send(behind));
+  ASSERT_TRUE(shown) << stream->status().error_message();
+  v1::SessionEvent remove;
+  remove.mutable_labels()->set_remove_table(true);
+  const auto removed = WaitFinal(*stream, stream->Send(remove));
+  ASSERT_TRUE(removed) << stream->status().error_message();
+  v1::SessionEvent show;
+  show.mutable_labels()->set_remove_table(false);
+  const auto shown_again = WaitFinal(*stream, stream->Send(show));
+  ASSERT_TRUE(shown_again) << stream->status().error_message();
+  const double change = MeanAbsDiff(Decode(*shown), Decode(*removed));
+  EXPECT_GT(change, 2.0) << "the table goes";
+  EXPECT_LT(MeanAbsDiff(Decode(*shown), Decode(*shown_again)), change / 2) << "and comes back";
+
+  // The same switch in the scene a session starts from.
+  v1::CreateSessionRequest removed_from_start = request;
+  removed_from_start.clear_preset();
+  *removed_from_start.mutable_scene() = created.scene();
+  removed_from_start.mutable_scene()->mutable_camera()->set_view(v1::POSTERIOR);
+  removed_from_start.mutable_scene()->mutable_labels()->set_remove_table(true);
+  const v1::CreateSessionResponse second = client.CreateSession(removed_from_start);
+  EXPECT_TRUE(second.scene().labels().remove_table());
+  auto second_stream = client.Attach(second.session_id());
+  const auto from_start = WaitFinal(*second_stream);
+  ASSERT_TRUE(from_start) << second_stream->status().error_message();
+  EXPECT_LT(MeanAbsDiff(Decode(*removed), Decode(*from_start)), change / 2);
+
+  // Styles still need a segmentation: the session ends naming it.
+  v1::SessionEvent style;
+  style.mutable_labels()->add_styles()->set_value(1);
+  stream->Send(style);
+  EXPECT_FALSE(WaitFinal(*stream, 5));
+  EXPECT_NE(stream->status().error_message().find("had no segmentation"), std::string::npos)
+      << stream->status().error_message();
 }
 
 }  // namespace

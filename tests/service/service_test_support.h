@@ -1,6 +1,7 @@
 // Requests, waits and image comparisons shared by the service tests.
 #pragma once
 
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <fstream>
@@ -98,6 +99,18 @@ void ExpectRpcError(F&& call, grpc::StatusCode code, const std::string& text) {
     EXPECT_EQ(e.code(), code) << e.what();
     EXPECT_NE(std::string(e.what()).find(text), std::string::npos) << e.what();
   }
+}
+
+// The samples per pixel at which a still of `session` takes about `seconds`
+// on this server, from the time of a small one (machines and their load
+// differ; a test that needs a still longer than some limit asks for this).
+inline int SppForSeconds(Client& client, const std::string& session, double seconds) {
+  constexpr int kProbeSpp = 8;
+  v1::SnapshotRequest probe;
+  probe.set_session_id(session);
+  probe.set_spp(kProbeSpp);
+  const double per_spp = std::max(1e-4, client.Snapshot(probe).render_us() * 1e-6 / kProbeSpp);
+  return std::clamp(int(seconds / per_spp), 16, 16384);
 }
 
 // A 16^3 NRRD volume of 16-bit values, written to `path`.

@@ -56,10 +56,16 @@ struct Scan {
   std::map<std::string, std::string> names;  // path -> the file's path under the folder
   std::string shown;                         // what messages call the folder
 
-  // What messages call a file in the folder: its path under `shown`.
+  // What messages call a file in the folder: its path under `shown`. Where
+  // `shown` ends in a quoted folder ("path 'DIR'"), the file's whole path is
+  // quoted ('DIR/14.dcm'), not the folder alone ('DIR'/14.dcm).
   std::string Name(const std::string& file) const {
     const auto it = names.find(file);
-    return shown + (shown.ends_with('/') ? "" : "/") + (it == names.end() ? std::string("?") : it->second);
+    const std::string under = it == names.end() ? std::string("?") : it->second;
+    const std::size_t open = shown.ends_with('\'') ? shown.rfind('\'', shown.size() - 2) : std::string::npos;
+    const std::string folder = open == std::string::npos ? shown : shown.substr(open + 1, shown.size() - open - 2);
+    const std::string path = folder + (folder.ends_with('/') ? "" : "/") + under;
+    return open == std::string::npos ? path : "'" + path + "'";
   }
 };
 

@@ -1,0 +1,103 @@
+// The CPU's row form of an a-trous level (denoise/cpu_atrous.cpp) against
+// the per-pixel functor the GPU runs: the same weights, the same sums, with
+// e^x evaluated by a vectorisable exp within 2 ulp of the exact value.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <limits>
+#include <vector>
+
+#include "core/camera.h"
+#include "core/rng.h"
+#include "denoise/baselines.h"
+#include "device/cpu_backend.h"
+#include "denoise/cpu_passes.h"
+
+namespace cinevol {
+namespace {
+
+float Component(const Vec4f& v, int c) { return c == 0 ? v.x : c == 1 ? v.y : c == 2 ? v.z : v.w; }
+
+// Units in the last place between a float and the exact value.
+double Ulps(float value, double exact) {
+  const double ulp = std::nextafter(float(exact), std::numeric_limits<float>::infinity()) - float(exact);
+  return std::fabs(double(value) - exact) / ulp;
+}
+
+TEST(VectorisableExp, IsWithinTwoUlpsOverTheWeightsRange) {
+  double worst = 0;
+  for (float x = -87.0f; x <= 88.0f; x += 0.000731f) worst = std::max(worst, Ulps(VectorisableExp(x), std::exp(double(x))));
+  EXPECT_LE(worst, 2.0);
+  EXPECT_EQ(VectorisableExp(0.0f), 1.0f);
+}
+
+TEST(VectorisableExp, KeepsTheEdgeCasesOfExpf) {
+  EXPECT_EQ(VectorisableExp(-std::numeric_limits<float>::infinity()), 0.0f);
+  EXPECT_EQ(VectorisableExp(-1e30f), 0.0f);
+  EXPECT_EQ(VectorisableExp(-100.0f), 0.0f) << "below the normal range: 0 (expf gives a subnormal)";
+  EXPECT_TRUE(std::isinf(VectorisableExp(100.0f)));
+  EXPECT_TRUE(std::isnan(VectorisableExp(std::numeric_limits<float>::quiet_NaN())));
+}
+
+struct Frame {
+  int width, height;
+  std::vector<Vec4f> image, first_hit;
+  std::vector<float> coverage;
+  Camera camera;
+};
+
+// Noisy radiance over a silhouette, with escaped pixels, a band of depths
+// and odd sizes (the taps' clipping at every edge).
+Frame NoisyFrame(int width, int height) {
+  Frame f{width, height, {}, {}, std::vector<float>(std::size_t(width) * height), {}};
+  f.camera = LookAt({0, -300, 0}, {0, 0, 0}, {0, 0, 1}, 30, width, height);
+  Pcg32 rng(11, 3);
+  for (int y = 0; y < height; ++y) {
+    for (int x = 0; x < width; ++x) {
+      const bool hit = x < width * 2 / 3 && rng.Uniform() < 0.9f;
+      const float v = (hit ? 1.0f : 0.3f) * (0.5f + rng.Uniform());
+      f.image.push_back({v, 0.8f * v, 0.6f * v, 0.05f * rng.Uniform()});
+      f.first_hit.push_back(hit ? Vec4f{20.0f * rng.Uniform(), float(y), float(x), 1} : Vec4f{});
+    }
+  }
+  CpuBackend::ForEachPixel(width, height, CoveragePass{f.first_hit.data(), f.coverage.data(), width, height});
+  return f;
+}
+
+TEST(CpuAtrousLevel, AgreesWithThePerPixelPass) {
+  for (const int step : {1, 2, 4, 16}) {
+    Frame f = NoisyFrame(53, 37);
+    std::vector<Vec4f> functor(f.image.size()), rows(f.image.size());
+    const AtrousPass pass{f.image.data(), functor.data(), f.first_hit.data(), f.coverage.data(), f.camera,
+                          f.width,        f.height,       step,          4.0f,          8.0f};
+    CpuBackend::ForEachPixel(f.width, f.height, pass);
+    AtrousPass row_pass = pass;
+    row_pass.out = rows.data();
+    CpuAtrousLevel(row_pass);
+    for (std::size_t i = 0; i < rows.size(); ++i) {
+      for (int c = 0; c < 4; ++c) {
+        const float expected = Component(functor[i], c);
+        EXPECT_NEAR(Component(rows[i], c), expected, 2e-6f * std::fabs(expected) + 1e-12f)
+            << "pixel " << i << " channel " << c << " step " << step;
+      }
+    }
+  }
+}
+
+TEST(CpuAtrousLevel, CarriesANonFiniteInputAsThePassDoes) {
+  Frame f = NoisyFrame(20, 12);
+  f.image[5 * 20 + 7].x = std::numeric_limits<float>::quiet_NaN();
+  std::vector<Vec4f> functor(f.image.size()), rows(f.image.size());
+  const AtrousPass pass{f.image.data(), functor.data(), f.first_hit.data(), f.coverage.data(), f.camera, 20, 12, 1,
+                        4.0f,           8.0f};
+  CpuBackend::ForEachPixel(20, 12, pass);
+  AtrousPass row_pass = pass;
+  row_pass.out = rows.data();
+  CpuAtrousLevel(row_pass);
+  for (std::size_t i = 0; i < rows.size(); ++i) {
+    EXPECT_EQ(std::isnan(rows[i].x), std::isnan(functor[i].x)) << "pixel " << i;
+  }
+}
+
+}  // namespace
+}  // namespace cinevol
