@@ -24,6 +24,8 @@ int main(int argc, char** argv) {
   cinevol::cli::AddHealthCommand(app);
   try {
     app.parse(argc, argv);
+  } catch (const CLI::RuntimeError& e) {
+    return e.get_exit_code();  // a command's own outcome (health: not serving, 1)
   } catch (const CLI::ParseError& e) {
     // --help prints and exits 0; a bad flag is bad input, exit 2 as documented
     // (CLI11's own codes, 105 or 109, would say nothing to a script).

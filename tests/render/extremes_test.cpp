@@ -465,7 +465,9 @@ TEST(ValuesAtTheExtremes, EnvironmentMapsAtTheExtremesResolveToFiniteLight) {
     const LightSetup lights = ResolveLights(scene.lights());
     ASSERT_EQ(lights.environment.kind, Environment::Kind::kMap);
     EXPECT_LE(std::abs(lights.environment.rotation), kPi) << degrees;
-    if (degrees == 725.0f) EXPECT_NEAR(lights.environment.rotation, 5.0f * kPi / 180.0f, 1e-6f);
+    if (degrees == 725.0f) {
+      EXPECT_NEAR(lights.environment.rotation, 5.0f * kPi / 180.0f, 1e-6f);
+    }
     for (const Vec3f& p : lights.environment.map.pixels) {
       ASSERT_TRUE(IsFinite(p) && MinComponent(p) >= 0.0f && MaxComponent(p) <= kMaxRadiance) << degrees;
     }

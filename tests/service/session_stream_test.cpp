@@ -6,6 +6,7 @@
 #include <thread>
 
 #include "core/image_metrics.h"
+#include "pipeline/frame_cost.h"
 #include "server_process.h"
 #include "service_test_support.h"
 #include "support/gpu.h"
@@ -262,18 +263,16 @@ TEST(SessionStream, AMovingViewStreamsSmallerFramesThenRefinesAtFullSize) {
   ASSERT_TRUE(still) << stream->status().error_message();
   EXPECT_EQ(still->resolution_scale(), 1.0f);
 
-  // Camera moves, one frame each, until the frames step down to half size.
-  std::uint64_t seq = 0;
-  std::optional<v1::Frame> moving;
-  for (int step = 0; step < 20 && !(moving && moving->resolution_scale() == 0.5f); ++step) {
-    v1::SessionEvent zoom;
-    zoom.mutable_camera()->set_view(v1::ANTERIOR);
-    zoom.mutable_camera()->set_fov_y_deg(25.0f + 0.5f * float(step));
-    seq = stream->Send(zoom);
-    moving = WaitFrame(*stream, [seq](const v1::Frame& f) { return f.last_event_seq() >= seq; });
-    ASSERT_TRUE(moving) << stream->status().error_message();
-  }
-  EXPECT_EQ(moving->resolution_scale(), 0.5f);
+  // A camera move: the CPU picks the moving frame's size from the costs it
+  // measured while still, so a budget nothing meets takes the smallest size
+  // (an eighth, pipeline/frame_cost.h) at once.
+  v1::SessionEvent zoom;
+  zoom.mutable_camera()->set_view(v1::ANTERIOR);
+  zoom.mutable_camera()->set_fov_y_deg(25.0f);
+  const std::uint64_t seq = stream->Send(zoom);
+  const auto moving = WaitFrame(*stream, [seq](const v1::Frame& f) { return f.last_event_seq() >= seq; });
+  ASSERT_TRUE(moving) << stream->status().error_message();
+  EXPECT_EQ(moving->resolution_scale(), kCpuInteractiveScales[std::size(kCpuInteractiveScales) - 1]);
   EXPECT_FALSE(moving->final());
   const ImageRgb8 small = Decode(*moving);
   EXPECT_EQ(small.width, 96) << "upsampled to the viewport";
