@@ -4,6 +4,7 @@
 # data set it suits, and of every data set with its default preset.
 #   bash bench/preset-thumbnails.sh            # CPU, about 10 minutes on a busy 2-core machine
 #   BIN=/tmp/cv/bin BACKEND=cuda SPP=1024 bash bench/preset-thumbnails.sh
+#   DATASETS="mr-chest-dicom-seg3d" bash bench/preset-thumbnails.sh   # only these (paths under DATA)
 set -euo pipefail
 cd "$(dirname "$0")/.."
 bin=${BIN:-build}
@@ -47,10 +48,11 @@ declare -A presets=(
   [ct-head-cthead/DERIVED_CThead.nhdr]="ct-auto"
   [ct-objects-openscivis/bonsai.nii.gz]="auto"
 )
-datasets=(ct-body-totalsegmentator/aorta_ct_cropped.nii.gz ct-body-totalsegmentator/pulmonary_ct_cropped.nii.gz
+default_datasets=(ct-body-totalsegmentator/aorta_ct_cropped.nii.gz ct-body-totalsegmentator/pulmonary_ct_cropped.nii.gz
   ct-body-totalsegmentator/example_ct.nii.gz ct-body-totalsegmentator/example_ct_dicom ct-chest-lidc2/LIDC2.nhdr
   ct-head-avm/CT_AVM.nii.gz ct-head-cthead/DERIVED_CThead.nhdr ct-head-headsq/quarter.nhdr
   ct-objects-openscivis/bonsai.nii.gz ct-objects-openscivis/engine.nii.gz mr-chest-dicom-seg3d mr-head-seg3d-nifti/MR.nii.gz)
+read -r -a datasets <<< "${DATASETS:-${default_datasets[*]}}"
 for path in "${datasets[@]}"; do
   id=$(load "$path")
   shoot "$id" "default--$(basename "${path%%.*}")"
