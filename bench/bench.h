@@ -10,7 +10,7 @@
 
 #include "cinevol/v1/scene.pb.h"
 #include "core/volume.h"
-#include "io/scene_builder.h"
+#include "scene/scene_builder.h"
 
 namespace cinevol::bench {
 

@@ -9,7 +9,7 @@
 #include "core/error.h"
 #include "core/parallel_for.h"
 #include "io/label_volume.h"
-#include "io/scene_file.h"
+#include "scene/scene_file.h"
 #include "io/volume_loader.h"
 #include "render/renderer.h"
 

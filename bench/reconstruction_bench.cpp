@@ -15,8 +15,8 @@
 #include "core/tone_map.h"
 #include "encode/image_codecs.h"
 #include "io/phantom.h"
-#include "io/presets.h"
-#include "io/scene_file.h"
+#include "scene/presets.h"
+#include "scene/scene_file.h"
 #include "pipeline/frame_pipeline.h"
 
 namespace cinevol::bench {

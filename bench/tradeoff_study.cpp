@@ -17,9 +17,9 @@
 #include "core/tone_map.h"
 #include "core/ycc.h"
 #include "encode/image_codecs.h"
-#include "io/presets.h"
-#include "io/scene_builder.h"
-#include "io/scene_file.h"
+#include "scene/presets.h"
+#include "scene/scene_builder.h"
+#include "scene/scene_file.h"
 #include "io/volume_loader.h"
 
 namespace cinevol::bench {

@@ -13,7 +13,7 @@
 #include "core/camera.h"
 #include "core/image.h"
 #include "denoise/denoiser.h"
-#include "io/scene_builder.h"
+#include "scene/scene_builder.h"
 #include "pipeline/frame_pipeline.h"
 
 namespace cinevol::bench {

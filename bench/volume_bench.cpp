@@ -6,8 +6,8 @@
 #include <chrono>
 
 #include "bench.h"
-#include "io/presets.h"
-#include "io/scene_file.h"
+#include "scene/presets.h"
+#include "scene/scene_file.h"
 #include "io/volume_kind.h"
 #include "io/volume_loader.h"
 

@@ -77,6 +77,11 @@ void SessionStream::Open() {
 }
 
 void SessionStream::Deliver(v1::ServerMessage message) {
+  if (message.has_state()) {
+    pool_->Adopt(route_, message.state());
+    std::lock_guard lock(mu_);
+    state_ = message.state();
+  }
   if (options_.on_message) {
     options_.on_message(message);
     return;
@@ -136,6 +141,7 @@ bool SessionStream::Resume(std::chrono::system_clock::time_point give_up) {
       std::lock_guard lock(call_mu_);
       if (writes_closed_) return false;
       Open();
+      pool_->Reattached(route_);
       reconnecting_ = false;
       std::lock_guard inbox_lock(mu_);
       ++resumes_;
@@ -151,9 +157,10 @@ bool SessionStream::Relocate(grpc::Status& status) {
   if (!pool_->CanRelocate(route_)) return false;
   std::string from;
   Placement placed;
+  std::vector<v1::SessionEvent> replay;
   try {
     from = pool_->AddressOf(route_);
-    placed = pool_->Relocate(route_);
+    placed = pool_->Relocate(route_, replay);
   } catch (const std::exception& e) {
     status = grpc::Status(status.error_code(),
                           fmt::format("{}; re-creating the session on another server failed: {}",
@@ -169,11 +176,7 @@ bool SessionStream::Relocate(grpc::Status& status) {
     Open();
     reconnecting_ = false;
   }
-  if (pool_->Paused(route_)) {
-    v1::SessionEvent pause;
-    pause.mutable_pause();
-    Send(pause);
-  }
+  for (v1::SessionEvent& event : replay) Send(std::move(event));  // the server applies them as it would have
   {
     std::lock_guard lock(mu_);
     ++failovers_;
@@ -200,8 +203,13 @@ std::uint64_t SessionStream::Send(v1::SessionEvent event) {
     sent_at_[seq] = std::chrono::steady_clock::now();
   }
   if (!stream_->Write(message)) return 0;
-  pool_->Record(route_, message.event());
+  pool_->Sent(route_, message.event());
   return seq;
+}
+
+std::optional<v1::SessionState> SessionStream::state() const {
+  std::lock_guard lock(mu_);
+  return state_;
 }
 
 std::optional<v1::ServerMessage> SessionStream::Next(std::chrono::milliseconds timeout) {

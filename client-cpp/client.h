@@ -1,8 +1,9 @@
 // cinevol::Client: the C++ client of cinevol-server. Connects, manages
 // volumes and sessions with unary calls (each bounded by a deadline), and
 // attaches to a session's stream: events go out with increasing sequence
-// numbers, frames and notices come back through Next() or a callback, and a
-// dropped connection is resumed while the server still holds the session.
+// numbers, frames, notices and the session's state come back through Next()
+// or a callback, and a dropped connection is resumed while the server still
+// holds the session.
 // Given several servers (one deployment's pods), it places each new session
 // where there is most room and, when a session's server goes away, creates
 // the session again on another from its last state (server_pool.h).
@@ -118,6 +119,9 @@ class SessionStream {
   int resumes() const;          // times the stream reattached after a drop
   int failovers() const;        // times the session was re-created on another server
   std::string session_id() const;  // the session's id now (it changes with a failover)
+  // The session's state as the server last sent it (ServerMessage.state):
+  // what it renders, events applied; nullopt before the first.
+  std::optional<v1::SessionState> state() const;
 
  private:
   void Open();  // a new call that attaches; call_mu_ held
@@ -148,6 +152,7 @@ class SessionStream {
   grpc::Status status_;
   int resumes_ = 0;
   int failovers_ = 0;
+  std::optional<v1::SessionState> state_;
   std::thread reader_;
 };
 

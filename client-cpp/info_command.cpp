@@ -8,7 +8,7 @@
 #include "commands.h"
 #include "core/error.h"
 #include "io/label_volume.h"
-#include "io/presets.h"
+#include "scene/presets.h"
 #include "text_output.h"
 #include "io/volume_kind.h"
 #include "io/volume_loader.h"

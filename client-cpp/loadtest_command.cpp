@@ -14,7 +14,7 @@
 
 #include "commands.h"
 #include "connection_options.h"
-#include "io/scene_file.h"
+#include "scene/scene_file.h"
 #include "script_player.h"
 
 namespace cinevol::cli {

@@ -10,7 +10,7 @@
 #include "core/tone_map.h"
 #include "encode/image_codecs.h"
 #include "io/label_volume.h"
-#include "io/presets.h"
+#include "scene/presets.h"
 #include "io/volume_loader.h"
 #include "pipeline/frame_pipeline.h"
 

@@ -4,7 +4,7 @@
 #include <fmt/format.h>
 
 #include "commands.h"
-#include "io/scene_file.h"
+#include "scene/scene_file.h"
 #include "offline_render.h"
 
 namespace cinevol::cli {

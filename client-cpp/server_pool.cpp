@@ -288,10 +288,22 @@ void ServerPool::Forget(const std::string& id) {
   for (auto r = routes_.begin(); r != routes_.end();) r = r->second == route ? routes_.erase(r) : std::next(r);
 }
 
-void ServerPool::Record(const std::string& id, const v1::SessionEvent& event) {
+void ServerPool::Sent(const std::string& id, const v1::SessionEvent& event) {
   std::lock_guard lock(mu_);
   auto it = routes_.find(id);
-  if (it != routes_.end() && it->second->state) it->second->state->Apply(event);
+  if (it != routes_.end() && it->second->state) it->second->state->Sent(event);
+}
+
+void ServerPool::Adopt(const std::string& id, const v1::SessionState& state) {
+  std::lock_guard lock(mu_);
+  auto it = routes_.find(id);
+  if (it != routes_.end() && it->second->state) it->second->state->Adopt(state);
+}
+
+void ServerPool::Reattached(const std::string& id) {
+  std::lock_guard lock(mu_);
+  auto it = routes_.find(id);
+  if (it != routes_.end() && it->second->state) it->second->state->Reattached();
 }
 
 bool ServerPool::CanRelocate(const std::string& id) const {
@@ -300,13 +312,7 @@ bool ServerPool::CanRelocate(const std::string& id) const {
   return it != routes_.end() && it->second->state.has_value();
 }
 
-bool ServerPool::Paused(const std::string& id) const {
-  std::lock_guard lock(mu_);
-  auto it = routes_.find(id);
-  return it != routes_.end() && it->second->state && it->second->state->paused();
-}
-
-Placement ServerPool::Relocate(const std::string& id) {
+Placement ServerPool::Relocate(const std::string& id, std::vector<v1::SessionEvent>& replay) {
   std::shared_ptr<Route> route;
   v1::CreateSessionRequest request;
   {
@@ -320,6 +326,8 @@ Placement ServerPool::Relocate(const std::string& id) {
   }
   Placement placed = Place(request, route->server);
   std::lock_guard lock(mu_);
+  replay = route->state->Unanswered();
+  route->state->Recreated();
   route->current_id = placed.response.session_id();
   route->address = placed.address;
   route->server = placed.server;

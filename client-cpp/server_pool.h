@@ -90,15 +90,19 @@ class ServerPool {
   std::string CurrentId(const std::string& id) const;
   void Forget(const std::string& id);
 
-  // Session `id` as it is now, once its stream sends `event`.
-  void Record(const std::string& id, const v1::SessionEvent& event);
+  // What session `id`'s stream tells its SessionState (for a session this
+  // client created; others are ignored): an event sent, the server's state,
+  // a new stream attached to the same session.
+  void Sent(const std::string& id, const v1::SessionEvent& event);
+  void Adopt(const std::string& id, const v1::SessionState& state);
+  void Reattached(const std::string& id);
   // Whether the client created session `id` and so can re-create it.
   bool CanRelocate(const std::string& id) const;
-  // Creates session `id` again from its last state, on another server than
-  // the one that held it where there is another; throws RpcError when no
-  // server takes it.
-  Placement Relocate(const std::string& id);
-  bool Paused(const std::string& id) const;
+  // Creates session `id` again from the server's last state, on another
+  // server than the one that held it where there is another; `replay` gets
+  // the events to send on its new stream (SessionState::Unanswered). Throws
+  // RpcError when no server takes it.
+  Placement Relocate(const std::string& id, std::vector<v1::SessionEvent>& replay);
 
  private:
   struct Route {

@@ -14,7 +14,7 @@
 #include <fmt/format.h>
 
 #include "core/error.h"
-#include "io/scene_file.h"
+#include "scene/scene_file.h"
 
 namespace cinevol::cli {
 namespace {

@@ -1,5 +1,7 @@
 #include "session_state.h"
 
+#include <algorithm>
+
 namespace cinevol {
 
 SessionState::SessionState(const v1::CreateSessionRequest& request, const v1::CreateSessionResponse& created)
@@ -8,50 +10,30 @@ SessionState::SessionState(const v1::CreateSessionRequest& request, const v1::Cr
   request_.mutable_scene()->clear_volume();  // volume_id says which
 }
 
-void SessionState::Apply(const v1::SessionEvent& event) {
-  v1::Scene& scene = *request_.mutable_scene();
-  switch (event.kind_case()) {
-    case v1::SessionEvent::kCamera:
-      *scene.mutable_camera() = event.camera();
-      break;
-    case v1::SessionEvent::kLights:
-      *scene.mutable_lights() = event.lights().lights();
-      break;
-    case v1::SessionEvent::kTransferFunction:
-      *scene.mutable_transfer_function() = event.transfer_function();
-      break;
-    case v1::SessionEvent::kRender: {
-      // Set fields change (a seed of 0 and an unspecified reconstruction are
-      // unset); a render event never resizes.
-      v1::RenderSettings edit = event.render();
-      edit.clear_width();
-      edit.clear_height();
-      scene.mutable_render()->MergeFrom(edit);
-      break;
-    }
-    case v1::SessionEvent::kStream:
-      request_.mutable_stream()->MergeFrom(event.stream());  // set fields change, as on the server
-      break;
-    case v1::SessionEvent::kResize:
-      *request_.mutable_viewport() = event.resize();
-      scene.mutable_render()->set_width(event.resize().width());
-      scene.mutable_render()->set_height(event.resize().height());
-      break;
-    case v1::SessionEvent::kClipping:
-      *scene.mutable_clipping() = event.clipping();
-      break;
-    case v1::SessionEvent::kLabels:
-      *scene.mutable_labels() = event.labels();
-      break;
-    case v1::SessionEvent::kPause:
-      paused_ = true;
-      break;
-    case v1::SessionEvent::kResume:
-      paused_ = false;
-      break;
-    case v1::SessionEvent::KIND_NOT_SET:
-      break;
-  }
+void SessionState::Sent(const v1::SessionEvent& event) { unanswered_.push_back(event); }
+
+void SessionState::Adopt(const v1::SessionState& state) {
+  *request_.mutable_scene() = state.scene();
+  *request_.mutable_stream() = state.stream();
+  *request_.mutable_viewport() = state.viewport();
+  paused_ = state.paused();
+  std::erase_if(unanswered_, [&](const v1::SessionEvent& e) { return e.seq() <= state.last_event_seq(); });
+}
+
+void SessionState::Reattached() { unanswered_.clear(); }
+
+v1::CreateSessionRequest SessionState::request() const { return request_; }
+
+std::vector<v1::SessionEvent> SessionState::Unanswered() const {
+  std::vector<v1::SessionEvent> events;
+  if (paused_) events.emplace_back().mutable_pause();
+  events.insert(events.end(), unanswered_.begin(), unanswered_.end());
+  return events;
+}
+
+void SessionState::Recreated() {
+  unanswered_.clear();
+  paused_ = false;
 }
 
 }  // namespace cinevol

@@ -1,11 +1,13 @@
-// What a session is, seen from the client that created it: the request that
-// would create it again as it is now. The client library keeps one for each
-// session it creates and applies every event its stream sends, so that when
-// the session's server goes away the stream can re-create the session on
-// another server from its last scene (failover).
+// What a session is, seen from the client that created it: the server's last
+// word on its state (ServerMessage.state) and the events sent since that the
+// server has not answered yet. When the session's server goes away, the
+// stream creates the session again on another server from that state and
+// sends those events again (failover). The client never works out what an
+// event does: the server does (server/scene/session_state.h).
 #pragma once
 
-#include <string>
+#include <cstdint>
+#include <vector>
 
 #include "cinevol/v1/service.pb.h"
 
@@ -17,19 +19,27 @@ class SessionState {
   // filled and a named view's camera resolved).
   SessionState(const v1::CreateSessionRequest& request, const v1::CreateSessionResponse& created);
 
-  // Applies an event the way the server does: a camera, lights, transfer
-  // function, clipping or labels replace the scene's; render and stream
-  // settings change the fields they set; resize changes the viewport.
-  void Apply(const v1::SessionEvent& event);
+  // An event went out on the session's stream.
+  void Sent(const v1::SessionEvent& event);
+  // The server's state arrived: it includes every event up to its
+  // last_event_seq, which the stream no longer needs to keep.
+  void Adopt(const v1::SessionState& state);
+  // A new stream attached to the same session (sequence numbers start again):
+  // what the old stream sent is the server's now, answered or not.
+  void Reattached();
 
-  // The request that re-creates the session as it is now.
-  const v1::CreateSessionRequest& request() const { return request_; }
-  // Paused by its last pause or resume event: a re-created session pauses too.
-  bool paused() const { return paused_; }
+  // The request that creates the session again as the server last had it.
+  v1::CreateSessionRequest request() const;
+  // The events to send after `request()`: a pause where the session was
+  // paused, then what the server never answered.
+  std::vector<v1::SessionEvent> Unanswered() const;
+  // A session created from request() is attached to: nothing is pending.
+  void Recreated();
 
  private:
-  v1::CreateSessionRequest request_;  // `scene` always set
+  v1::CreateSessionRequest request_;  // volume_id, viewport, scene and stream as the server last had them
   bool paused_ = false;
+  std::vector<v1::SessionEvent> unanswered_;  // sent on the current stream, newer than the last state
 };
 
 }  // namespace cinevol

@@ -10,7 +10,7 @@
 #include "connection_options.h"
 #include "core/error.h"
 #include "encode/image_codecs.h"
-#include "io/scene_file.h"
+#include "scene/scene_file.h"
 #include "script_player.h"
 
 namespace cinevol::cli {

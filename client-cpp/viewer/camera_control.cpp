@@ -5,7 +5,7 @@
 #include <array>
 #include <cmath>
 
-#include "io/scene_builder.h"
+#include "scene/scene_builder.h"
 
 namespace cinevol::viewer {
 namespace {

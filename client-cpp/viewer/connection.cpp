@@ -135,9 +135,14 @@ void Connection::Start() {
     }
   }
   if (volume.id().empty()) volume = client->DescribeVolume(cli::ResolveVolume(*client, settings_.session).id());
+  v1::CreateSessionRequest request = cli::SessionRequest(settings_.session, volume.id());
+  if (carried_ && volume.id() == resolved_volume_) {
+    *request.mutable_scene() = carried_->scene();
+    *request.mutable_stream() = carried_->stream();
+    *request.mutable_viewport() = carried_->viewport();
+  }
   resolved_volume_ = volume.id();
-  const v1::CreateSessionResponse created =
-      client->CreateSession(cli::SessionRequest(settings_.session, volume.id()));
+  const v1::CreateSessionResponse created = client->CreateSession(request);
   StreamOptions options;
   options.on_message = [this](const v1::ServerMessage& m) {
     if (m.has_notice() && m.notice().level() == v1::Notice::WARNING) {
@@ -205,6 +210,7 @@ void Connection::Work() {
       SetStatus(refused ? LinkState::kFailed : LinkState::kReconnecting,
                 Describe(s.error_code(), fmt::format("{}: {}", StatusCodeName(s.error_code()), s.error_message())) +
                     (refused ? "" : " (starting a new session)"));
+      if (auto state = stream_->state()) carried_ = std::move(state);
       stream_.reset();
       next_try = refused ? Clock::time_point::max() : Clock::now() + kRetryEvery;
     } else if (stream_) {

@@ -90,6 +90,10 @@ class Connection {
   const ConnectionSettings settings_;
   std::shared_ptr<Client> client_;  // set by the worker (mu_), shared with the requester
   std::string resolved_volume_;     // the volume id the first start found
+  // The server's last state of a session whose stream ended: the next start
+  // creates the session again from it (on resolved_volume_), as the client
+  // library's failover does, so the view stays as it was.
+  std::optional<v1::SessionState> carried_;
   std::unique_ptr<SessionStream> stream_;
 
   mutable std::mutex mu_;

@@ -9,7 +9,7 @@
 
 #include <fmt/format.h>
 
-#include "io/presets.h"
+#include "scene/presets.h"
 #include "viewer/viewer_app.h"
 
 namespace cinevol::viewer {

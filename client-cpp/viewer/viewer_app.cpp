@@ -20,8 +20,8 @@
 
 #include "core/error.h"
 #include "encode/image_codecs.h"
-#include "io/presets.h"
-#include "io/scene_file.h"
+#include "scene/presets.h"
+#include "scene/scene_file.h"
 #include "io/volume_loader.h"
 #include "script_player.h"
 #include "viewer/transfer_edits.h"
@@ -206,16 +206,9 @@ void App::AdoptSession() {
                        volume->id() == connection->volume()->id();
   session_id = s->session_id();
   stats.last_frame_id = 0;
-  if (restore) {  // the server lost our session: put our state onto the new one
-    camera_dirty_ = true;
-    SendTransferFunction();
-    SendLights();
-    SendRender();
-    SendStream();
-    SendClipping();
-    SendLabels();
-    return;
-  }
+  // The server lost our session: the connection created it again from the
+  // server's last state of it (Connection::carried_), which is what we show.
+  if (restore) return;
   volume = connection->volume();
   const v1::Scene& scene = s->scene();
   camera = home = FromProto(scene.camera(), ViewCamera{});

@@ -4,6 +4,7 @@
 
 #include <stdexcept>
 #include <string>
+#include <utility>
 
 namespace cinevol {
 
@@ -12,6 +13,18 @@ namespace cinevol {
 class InputError : public std::runtime_error {
  public:
   explicit InputError(const std::string& what) : std::runtime_error(what) {}
+};
+
+// Bad input that breaks a limit this server was configured with: `flag`
+// names the option (e.g. "max-frame-spp"), which the message names too; the
+// service counts refusals by it.
+class OverLimit : public InputError {
+ public:
+  OverLimit(std::string flag, const std::string& what) : InputError(what), flag_(std::move(flag)) {}
+  const std::string& flag() const { return flag_; }
+
+ private:
+  std::string flag_;
 };
 
 // Out of a resource the request needs: GPU memory, session slots. The

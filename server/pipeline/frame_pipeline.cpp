@@ -25,10 +25,56 @@ Camera Scaled(Camera camera, float scale) {
 
 }  // namespace
 
-FrameSettings SessionFrameSettings(Backend backend) {
-  FrameSettings settings;
-  if (backend == Backend::kCpu) settings.interactive_frame_ms = kCpuInteractiveFrameMs;
-  return settings;
+namespace {
+
+constexpr std::pair<v1::Denoiser, DenoiseMethod> kDenoisers[] = {
+    {v1::DENOISER_NONE, DenoiseMethod::kNone},   {v1::DENOISER_ACCUMULATE, DenoiseMethod::kAccumulate},
+    {v1::DENOISER_KNN, DenoiseMethod::kKnn},     {v1::DENOISER_GUIDED, DenoiseMethod::kGuidedFilter},
+    {v1::DENOISER_SVGF, DenoiseMethod::kSvgf},   {v1::DENOISER_WRLS, DenoiseMethod::kWrls},
+};
+constexpr std::pair<v1::ChromaSubsampling, ChromaSubsampling> kChromas[] = {
+    {v1::CHROMA_444, ChromaSubsampling::k444},
+    {v1::CHROMA_422, ChromaSubsampling::k422},
+    {v1::CHROMA_420, ChromaSubsampling::k420},
+};
+
+}  // namespace
+
+FrameSettings SessionFrameSettings(Backend backend, const v1::StreamSettings& stream) {
+  FrameSettings s;
+  if (backend == Backend::kCpu) s.interactive_frame_ms = kCpuInteractiveFrameMs;
+  for (auto [proto, method] : kDenoisers) {
+    if (stream.denoiser() == proto) s.denoiser.method = method;
+  }
+  for (auto [proto, chroma] : kChromas) {
+    if (stream.chroma() == proto) s.chroma = chroma;
+  }
+  if (stream.final_format() != v1::FINAL_FORMAT_UNSPECIFIED) s.final_png = stream.final_format() == v1::FINAL_FORMAT_PNG;
+  if (stream.has_demodulate()) s.denoiser.demodulate = stream.demodulate();
+  if (stream.has_jpeg_quality()) s.jpeg_quality = int(stream.jpeg_quality());
+  if (stream.has_final_jpeg_quality()) s.final_jpeg_quality = int(stream.final_jpeg_quality());
+  if (stream.has_target_spp()) s.target_spp = int(stream.target_spp());
+  if (stream.has_interactive_frame_ms()) s.interactive_frame_ms = stream.interactive_frame_ms();
+  if (stream.has_error_target()) s.error_target = stream.error_target();
+  return s;
+}
+
+v1::StreamSettings ToStreamSettings(const FrameSettings& s) {
+  v1::StreamSettings stream;
+  for (auto [proto, method] : kDenoisers) {
+    if (s.denoiser.method == method) stream.set_denoiser(proto);
+  }
+  for (auto [proto, chroma] : kChromas) {
+    if (s.chroma == chroma) stream.set_chroma(proto);
+  }
+  stream.set_final_format(s.final_png ? v1::FINAL_FORMAT_PNG : v1::FINAL_FORMAT_JPEG);
+  stream.set_demodulate(s.denoiser.demodulate);
+  stream.set_jpeg_quality(std::uint32_t(s.jpeg_quality));
+  stream.set_final_jpeg_quality(std::uint32_t(s.final_jpeg_quality));
+  stream.set_target_spp(std::uint32_t(s.target_spp));
+  stream.set_interactive_frame_ms(s.interactive_frame_ms);
+  stream.set_error_target(s.error_target);
+  return stream;
 }
 
 FramePipeline::FramePipeline(Backend backend, std::shared_ptr<const Volume> volume, const RendererOptions& options,

@@ -25,7 +25,9 @@
 #include "core/volume.h"
 #include "denoise/denoiser.h"
 #include "encode/image_codecs.h"
-#include "io/scene_builder.h"
+#include "cinevol/v1/service.pb.h"
+#include "scene/scene_builder.h"
+#include "scene/scene_file.h"  // SceneChange: what an update changes, as the events that made it say
 #include "pipeline/display.h"
 #include "pipeline/frame_cost.h"
 #include "pipeline/refine.h"
@@ -82,9 +84,13 @@ struct FrameSettings {
   bool refine = true;
 };
 
-// What a streamed session starts with on `backend` before its own stream
-// settings: on the CPU, interactive_frame_ms = kCpuInteractiveFrameMs.
-FrameSettings SessionFrameSettings(Backend backend);
+// A streamed session's settings on `backend`: the defaults (on the CPU,
+// interactive_frame_ms = kCpuInteractiveFrameMs) with the fields `stream`
+// sets (checked: scene/session_state.h's CheckStreamSettings).
+FrameSettings SessionFrameSettings(Backend backend, const v1::StreamSettings& stream = {});
+// Every field of `settings` the stream settings hold, set: what a session's
+// state says it streams with.
+v1::StreamSettings ToStreamSettings(const FrameSettings& settings);
 
 // The resolution scales interactive frames step through, largest first; how
 // long after the last camera or transfer-function change they end; and how
@@ -119,18 +125,6 @@ struct DisplayFrame {
   // accumulation restarted.
   bool preempted = false;
   double render_ms = 0, denoise_ms = 0, display_ms = 0;  // display_ms: upsampling, refinement and display
-};
-
-// What an update changes, as the events that made it say: the pipeline
-// rebuilds from these, without comparing scenes.
-enum SceneChange : unsigned {
-  kCameraChanged = 1u << 0,  // the camera or the frame's size
-  kTransferFunctionChanged = 1u << 1,
-  kLightsChanged = 1u << 2,
-  kSamplingChanged = 1u << 3,  // spp, bounces, seed or reconstruction
-  kClippingChanged = 1u << 4,  // the crop box or clip planes
-  kLabelsChanged = 1u << 5,    // the label styles
-  kEverythingChanged = (1u << 6) - 1,
 };
 
 class FramePipeline {

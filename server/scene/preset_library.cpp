@@ -1,7 +1,7 @@
 // The preset library's tables: our own presets, 3D Slicer's volume-rendering
 // presets translated into our model, and the kWindow defaults for data
 // without absolute units. docs/presets-sources.md gives the raw numbers.
-#include "io/preset_library.h"
+#include "scene/preset_library.h"
 
 #include <algorithm>
 #include <cmath>

@@ -1,5 +1,5 @@
 // Presets onto volumes, default presets by kind, and the preset scene.
-#include "io/presets.h"
+#include "scene/presets.h"
 
 #include <algorithm>
 #include <cmath>
@@ -9,7 +9,7 @@
 #include <fmt/format.h>
 
 #include "core/error.h"
-#include "io/scene_builder.h"
+#include "scene/scene_builder.h"
 #include "io/volume_kind.h"
 
 namespace cinevol {

@@ -13,7 +13,7 @@
 #include "cinevol/v1/service.pb.h"
 #include "core/value_histogram.h"
 #include "core/volume.h"
-#include "io/preset_library.h"
+#include "scene/preset_library.h"
 
 namespace cinevol {
 

@@ -1,13 +1,13 @@
 // From the proto scene model to renderer inputs.
-#include "io/scene_builder.h"
+#include "scene/scene_builder.h"
 
 #include <algorithm>
 #include <cmath>
 
 #include "encode/image_codecs.h"
-#include "io/presets.h"
+#include "scene/presets.h"
 #include "io/reader_cage.h"
-#include "io/scene_file.h"
+#include "scene/scene_file.h"
 
 namespace cinevol {
 namespace {

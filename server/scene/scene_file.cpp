@@ -1,5 +1,5 @@
 // Scene JSON through protobuf's own JSON mapping, plus defaults and validation.
-#include "io/scene_file.h"
+#include "scene/scene_file.h"
 
 #include <google/protobuf/util/json_util.h>
 
@@ -14,7 +14,7 @@
 #include "core/error.h"
 #include "core/labels.h"
 #include "io/phantom.h"
-#include "io/presets.h"
+#include "scene/presets.h"
 
 namespace fs = std::filesystem;
 
@@ -305,34 +305,42 @@ void ResolvePaths(v1::Scene& scene, const fs::path& base_dir) {
 
 }  // namespace
 
-void ApplyDefaults(v1::Scene& scene) {
-  auto* tf = scene.mutable_transfer_function();
-  // A preset brings its own density and gradient factor.
-  if (!tf->points().empty() && !tf->has_density_scale()) tf->set_density_scale(1.0f);
-  if (!tf->points().empty() && !tf->has_gradient_factor()) tf->set_gradient_factor(1.0f);
-  if (!tf->has_phase_g()) tf->set_phase_g(0.0f);
-  auto* camera = scene.mutable_camera();
-  if (!camera->has_fov_y_deg()) camera->set_fov_y_deg(30.0f);
-  if (camera->view() == v1::NAMED_VIEW_UNSPECIFIED && !camera->has_eye()) camera->set_view(v1::ANTERIOR);
-  auto* render = scene.mutable_render();
-  if (!render->has_width()) render->set_width(640);
-  if (!render->has_height()) render->set_height(480);
-  if (!render->has_spp()) render->set_spp(2);
-  if (!render->has_max_bounces()) render->set_max_bounces(4);
+void ApplyDefaults(v1::Scene& scene, unsigned parts) {
+  if (parts & kTransferFunctionChanged) {
+    auto* tf = scene.mutable_transfer_function();
+    // A preset brings its own density and gradient factor.
+    if (!tf->points().empty() && !tf->has_density_scale()) tf->set_density_scale(1.0f);
+    if (!tf->points().empty() && !tf->has_gradient_factor()) tf->set_gradient_factor(1.0f);
+    if (!tf->has_phase_g()) tf->set_phase_g(0.0f);
+  }
+  if (parts & kCameraChanged) {
+    auto* camera = scene.mutable_camera();
+    if (!camera->has_fov_y_deg()) camera->set_fov_y_deg(30.0f);
+    if (camera->view() == v1::NAMED_VIEW_UNSPECIFIED && !camera->has_eye()) camera->set_view(v1::ANTERIOR);
+  }
+  if (parts & (kCameraChanged | kSamplingChanged)) {
+    auto* render = scene.mutable_render();
+    if (!render->has_width()) render->set_width(640);
+    if (!render->has_height()) render->set_height(480);
+    if (!render->has_spp()) render->set_spp(2);
+    if (!render->has_max_bounces()) render->set_max_bounces(4);
+  }
 }
 
 namespace {
 
-void ValidateParts(const v1::Scene& scene, Problems& p) {
-  ValidateTransferFunction(scene.transfer_function(), "transferFunction", p);
-  ValidateCamera(scene.camera(), p);
-  bool seen_environment = false;
-  for (int i = 0; i < scene.lights_size(); ++i) {
-    ValidateLight(scene.lights(i), fmt::format("lights[{}]", i), seen_environment, p);
+void ValidateParts(const v1::Scene& scene, unsigned parts, Problems& p) {
+  if (parts & kTransferFunctionChanged) ValidateTransferFunction(scene.transfer_function(), "transferFunction", p);
+  if (parts & kCameraChanged) ValidateCamera(scene.camera(), p);
+  if (parts & kLightsChanged) {
+    bool seen_environment = false;
+    for (int i = 0; i < scene.lights_size(); ++i) {
+      ValidateLight(scene.lights(i), fmt::format("lights[{}]", i), seen_environment, p);
+    }
   }
-  ValidateRender(scene.render(), p);
-  ValidateClipping(scene.clipping(), p);
-  ValidateLabels(scene.labels(), p);
+  if (parts & (kCameraChanged | kSamplingChanged)) ValidateRender(scene.render(), p);
+  if (parts & kClippingChanged) ValidateClipping(scene.clipping(), p);
+  if (parts & kLabelsChanged) ValidateLabels(scene.labels(), p);
 }
 
 }  // namespace
@@ -340,13 +348,13 @@ void ValidateParts(const v1::Scene& scene, Problems& p) {
 std::vector<std::string> ValidateScene(const v1::Scene& scene) {
   Problems p;
   ValidateVolume(scene.volume(), p);
-  ValidateParts(scene, p);
+  ValidateParts(scene, kEverythingChanged, p);
   return p.Take();
 }
 
-std::vector<std::string> ValidateSceneParts(const v1::Scene& scene) {
+std::vector<std::string> ValidateSceneParts(const v1::Scene& scene, unsigned parts) {
   Problems p;
-  ValidateParts(scene, p);
+  ValidateParts(scene, parts, p);
   return p.Take();
 }
 

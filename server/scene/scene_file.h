@@ -34,13 +34,27 @@ v1::Scene LoadSceneFile(const std::filesystem::path& path);
 std::string SceneToJson(const v1::Scene& scene);
 void SaveSceneFile(const v1::Scene& scene, const std::filesystem::path& path);
 
-// Sets every absent `optional` field to its documented default.
-void ApplyDefaults(v1::Scene& scene);
+// The parts of a scene, as what an edit changes: a session's events report
+// them (session_state.h) and FramePipeline::Update acts on them.
+enum SceneChange : unsigned {
+  kCameraChanged = 1u << 0,  // the camera or the frame's size
+  kTransferFunctionChanged = 1u << 1,
+  kLightsChanged = 1u << 2,
+  kSamplingChanged = 1u << 3,  // spp, bounces, seed or reconstruction
+  kClippingChanged = 1u << 4,  // the crop box or clip planes
+  kLabelsChanged = 1u << 5,    // the label styles or table removal
+  kEverythingChanged = (1u << 6) - 1,
+};
+
+// Sets every absent `optional` field to its documented default, in the
+// parts given (SceneChange bits; all by default).
+void ApplyDefaults(v1::Scene& scene, unsigned parts = kEverythingChanged);
 
 // Every problem found, one message each, naming the field; empty when valid.
 std::vector<std::string> ValidateScene(const v1::Scene& scene);
-// The same for everything but the volume source (a session names its volume apart).
-std::vector<std::string> ValidateSceneParts(const v1::Scene& scene);
+// The same for the parts given (SceneChange bits), without the volume
+// source (a session names its volume apart).
+std::vector<std::string> ValidateSceneParts(const v1::Scene& scene, unsigned parts = kEverythingChanged);
 
 // Throws InputError listing ValidateScene's problems, if any.
 void CheckScene(const v1::Scene& scene);

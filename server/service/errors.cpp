@@ -21,6 +21,9 @@ grpc::Status StatusOf(std::exception_ptr error) {
     return e.status();
   } catch (const RpcError& e) {
     return e.status();
+  } catch (const OverLimit& e) {
+    ServerMetrics().LimitRefused(e.flag());
+    return {grpc::StatusCode::INVALID_ARGUMENT, e.what()};
   } catch (const InputError& e) {
     return {grpc::StatusCode::INVALID_ARGUMENT, e.what()};
   } catch (const Cancelled& e) {

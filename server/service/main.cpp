@@ -17,7 +17,7 @@ namespace {
 
 using cinevol::service::ConnectionLimits;
 using cinevol::service::ServerOptions;
-using cinevol::service::SessionLimits;
+using cinevol::SessionLimits;
 using cinevol::service::VolumeLimits;
 
 // What one client may take: every limit of docs/security.md.

@@ -258,17 +258,24 @@ void ServiceCore::RequireRoomLocked(const Principal& caller) const {
   }
 }
 
+MapResolver ServiceCore::ResolveMap() const {
+  return [this](const std::string& map, const std::string& field) {
+    return volumes_.ResolveDataPath(map, field).string();  // environment maps: only inside the data roots
+  };
+}
+
 v1::CreateSessionResponse ServiceCore::CreateSession(const v1::CreateSessionRequest& request,
                                                      const Principal& caller, const std::atomic<bool>& cancelled) {
   RequireServing();
   std::shared_ptr<VolumeLease> volume = volumes_.Lease(request.volume_id(), caller);
-  v1::Scene scene = InitialScene(request, *volume->volume(), options_.limits, volumes_);
+  v1::SessionState state = InitialState(request, *volume->volume(), options_.limits, ResolveMap());
+  const v1::Scene& scene = state.scene();
   if (StylesLabels(scene.labels()) && !volume->has_segmentation()) {
     throw InputError(fmt::format("scene.labels: volume '{}' has no segmentation; load one first (LoadLabels, or "
                                  "an upload with header.labels_for)",
                                  request.volume_id()));
   }
-  const FrameSettings settings = MergeStreamSettings(SessionFrameSettings(backend_), request.stream(), "stream");
+  *state.mutable_stream() = ToStreamSettings(SessionFrameSettings(backend_, state.stream()));
   {
     std::lock_guard lock(mu_);
     RequireRoomLocked(caller);  // before the framing: a refusal costs no scan
@@ -283,7 +290,7 @@ v1::CreateSessionResponse ServiceCore::CreateSession(const v1::CreateSessionRequ
   AddResolvedCamera(answered, *volume->volume(), volume->labels().get());
   require_caller();
   Scheduler& scheduler = LeastLoaded();
-  SessionContext context{&scheduler, &encoder_, backend_, &options_.limits, &volumes_, &pixels_,
+  SessionContext context{&scheduler, &encoder_, backend_, &options_.limits, ResolveMap(), &pixels_,
                          [this](const std::string& id) { Forget(id); }};
   std::shared_ptr<Session> session;
   {
@@ -291,7 +298,7 @@ v1::CreateSessionResponse ServiceCore::CreateSession(const v1::CreateSessionRequ
     RequireServing();  // Drain() raises the flag, then ends what it finds here under mu_
     RequireRoomLocked(caller);
     const std::string id = RandomSessionId();
-    session = std::make_shared<Session>(id, caller.name, std::move(volume), scene, settings, std::move(context));
+    session = std::make_shared<Session>(id, caller.name, std::move(volume), state, std::move(context));
     sessions_[id] = session;
   }
   spdlog::info("session {}: created for {} on {}, volume {}, {}x{}", session->id(), LogSafe(caller.name),

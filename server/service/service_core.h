@@ -24,7 +24,7 @@
 #include "service/connection_limits.h"
 #include "service/scheduler.h"
 #include "service/session.h"
-#include "service/session_requests.h"
+#include "scene/session_state.h"
 #include "service/task_pool.h"
 #include "service/tls.h"
 #include "service/volume_registry.h"
@@ -140,6 +140,8 @@ class ServiceCore {
   bool HasRoomLocked() const;  // mu_ held
   // Throws RESOURCE_EXHAUSTED unless `caller` may hold one more session; mu_ held.
   void RequireRoomLocked(const Principal& caller) const;
+  // Environment maps a scene names: resolved inside the data roots.
+  MapResolver ResolveMap() const;
   Scheduler& LeastLoaded();
   void Forget(const std::string& id);
 

@@ -16,17 +16,6 @@
 namespace cinevol::service {
 namespace {
 
-// What an event changes for the pipeline (stream settings it compares itself).
-unsigned ChangesOf(const v1::SessionEvent& e) {
-  if (e.has_camera() || e.has_resize()) return kCameraChanged;
-  if (e.has_transfer_function()) return kTransferFunctionChanged;
-  if (e.has_lights()) return kLightsChanged;
-  if (e.has_render()) return kSamplingChanged;
-  if (e.has_clipping()) return kClippingChanged;
-  if (e.has_labels()) return kLabelsChanged;
-  return 0;
-}
-
 // Frames may be encoding while the next renders; more would only be dropped.
 constexpr int kMaxEncodesInFlight = 2;
 // A 720p frame in 4 bands encodes in half the time (2.32 -> 1.09 ms on the
@@ -68,16 +57,16 @@ std::uint64_t PixelBudget::used() const {
   return used_;
 }
 
-Session::Session(std::string id, std::string owner, std::shared_ptr<VolumeLease> volume, v1::Scene scene,
-                 FrameSettings settings, SessionContext context)
+Session::Session(std::string id, std::string owner, std::shared_ptr<VolumeLease> volume, v1::SessionState state,
+                 SessionContext context)
     : id_(std::move(id)),
       owner_(std::move(owner)),
       volume_(std::move(volume)),
       context_(std::move(context)),
-      scene_(std::move(scene)),
-      settings_(settings),
+      current_(std::move(state)),
+      settings_(SessionFrameSettings(context_.backend, current_.stream())),
       since_(Clock::now()),
-      pixels_(std::uint64_t(scene_.render().width()) * scene_.render().height()),
+      pixels_(std::uint64_t(current_.viewport().width()) * current_.viewport().height()),
       events_(context_.limits->max_events_per_second, since_) {
   context_.pixels->Exchange(0, pixels_);
   ++context_.scheduler->sessions;
@@ -103,8 +92,11 @@ void Session::Attach(FrameStream* stream) {
     state_ = State::kRendering;
     cancel_ = false;
     last_event_seq_ = 0;  // sequence numbers count per stream
+    current_.set_last_event_seq(0);
+    current_.set_paused(false);  // an attach resumes
     event_unrendered_ = false;
     dirty_ = true;  // a fresh pipeline (or the old one) takes the scene again
+    state_unsent_ = true;
     stream_->SendNotice(v1::Notice::INFO,
                         fmt::format("attached to session '{}' on {}", id_, context_.scheduler->name()));
   }
@@ -153,7 +145,7 @@ void Session::OnEvent(const v1::SessionEvent& event, Clock::time_point arrival) 
       coalesced_arrival_ = arrival;
       ServerMetrics().EventCoalesced();
     }
-    if (ChangesOf(event) != 0) preempt_ = true;
+    if (!event.has_pause() && !event.has_resume() && !event.has_stream()) preempt_ = true;  // the picture changes
   }
   Wake();
 }
@@ -170,10 +162,9 @@ void Session::ApplyLocked(const v1::SessionEvent& event, Clock::time_point arriv
                                  "one (LoadLabels) and start a new session",
                                  event.seq(), volume_->id()));
   }
-  v1::Scene next = scene_;
-  FrameSettings next_settings = settings_;
-  ApplyEvent(event, next, next_settings, *context_.limits, *context_.volumes);
-  const std::uint64_t pixels = std::uint64_t(next.render().width()) * next.render().height();
+  v1::SessionState next = current_;
+  const unsigned changes = ApplyEvent(next, event, context_.limits, context_.resolve_map);
+  const std::uint64_t pixels = std::uint64_t(next.viewport().width()) * next.viewport().height();
   if (pixels != pixels_) {
     try {
       context_.pixels->Exchange(pixels_, pixels);
@@ -182,8 +173,8 @@ void Session::ApplyLocked(const v1::SessionEvent& event, Clock::time_point arriv
     }
     pixels_ = pixels;
   }
-  scene_ = std::move(next);
-  settings_ = next_settings;
+  current_ = std::move(next);
+  if (changes & kStreamChanged) settings_ = SessionFrameSettings(context_.backend, current_.stream());
   // Every event but a pause gets a frame that answers it.
   if (event.has_pause()) {
     state_ = State::kPaused;
@@ -191,10 +182,17 @@ void Session::ApplyLocked(const v1::SessionEvent& event, Clock::time_point arriv
     state_ = State::kRendering;
   }
   if (!event.has_pause() && !event.has_resume()) dirty_ = true;
-  changes_ |= ChangesOf(event);
+  changes_ |= changes & kEverythingChanged;
+  state_unsent_ = true;
+  if (event.has_pause() && stream_) SendStateLocked();  // no frame follows to carry it
   last_event_seq_ = std::max(last_event_seq_, event.seq());
   last_event_arrival_ = arrival;
   event_unrendered_ = true;
+}
+
+void Session::SendStateLocked() {
+  stream_->SendState(current_);
+  state_unsent_ = false;
 }
 
 void Session::End(const grpc::Status& status) {
@@ -262,7 +260,7 @@ std::string Session::EndReason() const {
 
 void Session::CurrentScene(v1::Scene& scene, FrameSettings& settings) const {
   std::lock_guard lock(mu_);
-  scene = scene_;
+  scene = current_.scene();
   settings = settings_;
 }
 
@@ -289,9 +287,10 @@ bool Session::Step() {
     } else if (!CanRenderLocked()) {
       return false;
     } else {
+      if (state_unsent_) SendStateLocked();  // before the frame that shows it
       work.update = dirty_;
       if (dirty_) {
-        work.scene = scene_;
+        work.scene = current_.scene();
         work.changes = std::exchange(changes_, 0u);
         dirty_ = false;
       }
@@ -436,8 +435,7 @@ v1::SessionStatus Session::Status() const {
   s.set_owner(owner_);
   s.set_volume_id(volume_->id());
   s.set_device(context_.scheduler->name());
-  s.mutable_viewport()->set_width(scene_.render().width());
-  s.mutable_viewport()->set_height(scene_.render().height());
+  *s.mutable_viewport() = current_.viewport();
   switch (state_) {
     case State::kStarting: s.set_state(v1::SessionStatus::STARTING); break;
     case State::kIdle: s.set_state(v1::SessionStatus::IDLE); break;

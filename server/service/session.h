@@ -23,7 +23,7 @@
 #include "cinevol/v1/service.pb.h"
 #include "pipeline/frame_pipeline.h"
 #include "service/scheduler.h"
-#include "service/session_requests.h"
+#include "scene/session_state.h"
 #include "service/task_pool.h"
 #include "service/token_bucket.h"
 #include "service/volume_registry.h"
@@ -41,6 +41,8 @@ class FrameStream {
   // `origin`: when the work this frame answers began (for timings.server_us).
   virtual void OfferFrame(v1::Frame frame, Clock::time_point origin) = 0;
   virtual void SendNotice(v1::Notice::Level level, std::string message) = 0;
+  // The session's state after events changed it, before the frame showing them.
+  virtual void SendState(v1::SessionState state) = 0;
   // A frame waits in the slot (or the stream is ending): render nothing more.
   virtual bool SlotFull() const = 0;
   // Finishes the call with `status` after the write in flight.
@@ -74,15 +76,16 @@ struct SessionContext {
   TaskPool* encoder = nullptr;
   Backend backend = Backend::kCpu;
   const SessionLimits* limits = nullptr;
-  const VolumeRegistry* volumes = nullptr;
+  MapResolver resolve_map;  // environment maps: inside the data roots
   PixelBudget* pixels = nullptr;  // the session holds its viewport's pixels from creation to destruction
   std::function<void(const std::string& session_id)> on_end;  // the registry forgets it
 };
 
 class Session final : public Job, public std::enable_shared_from_this<Session> {
  public:
-  Session(std::string id, std::string owner, std::shared_ptr<VolumeLease> volume, v1::Scene scene,
-          FrameSettings settings, SessionContext context);
+  // `state`: InitialState's, its stream settings all set (ToStreamSettings).
+  Session(std::string id, std::string owner, std::shared_ptr<VolumeLease> volume, v1::SessionState state,
+          SessionContext context);
   ~Session() override;
 
   const std::string& id() const { return id_; }
@@ -94,7 +97,8 @@ class Session final : public Job, public std::enable_shared_from_this<Session> {
   void Attach(FrameStream* stream);
   void Detach(FrameStream* stream);
   void OnWritable(FrameStream* stream);
-  // Merges an event; throws InputError (or RpcError) for a bad one. Events
+  // Applies an event (scene/session_state.h's ApplyEvent, this server's
+  // limits); throws InputError (or RpcError) for a bad one. Events
   // past the stream's rate are coalesced (the latest camera, lights,
   // transfer function and resize win; render and stream settings merge) and
   // applied once, before the next frame.
@@ -142,6 +146,8 @@ class Session final : public Job, public std::enable_shared_from_this<Session> {
   void ApplyLocked(const v1::SessionEvent& event, Clock::time_point arrival);
   // Applies the coalesced events; ends nothing, throws for a bad one.
   void ApplyCoalescedLocked();
+  // Sends current_ to the stream (which must be attached).
+  void SendStateLocked();
   void Encode(DisplayFrame frame, const Stamp& stamp, int quality);
   void Deliver(v1::Frame frame, Clock::time_point origin);
   void Wake() { context_.scheduler->Wake(shared_from_this()); }
@@ -152,9 +158,10 @@ class Session final : public Job, public std::enable_shared_from_this<Session> {
 
   mutable std::mutex mu_;
   FrameStream* stream_ = nullptr;
-  v1::Scene scene_;
-  FrameSettings settings_;
-  bool dirty_ = true;     // scene_ or settings_ changed since the pipeline last saw them
+  v1::SessionState current_;  // what events made of the session; its stream settings all set
+  FrameSettings settings_;     // current_.stream() on this backend
+  bool dirty_ = true;          // current_ changed since the pipeline last saw it
+  bool state_unsent_ = true;   // current_ changed since the stream last got it
   unsigned changes_ = kEverythingChanged;  // SceneChange bits since the pipeline last saw the scene
   // Where the session is in its life. kRendering, kIdle and kPaused have a
   // stream attached (stream_ set); the others do not.

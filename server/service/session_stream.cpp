@@ -112,18 +112,26 @@ void SessionStreamReactor::OfferFrame(v1::Frame frame, Clock::time_point origin)
 }
 
 void SessionStreamReactor::SendNotice(v1::Notice::Level level, std::string message) {
+  v1::ServerMessage out;
+  out.mutable_notice()->set_level(level);
+  out.mutable_notice()->set_message(std::move(message));
+  SendMessage(std::move(out));
+}
+
+void SessionStreamReactor::SendState(v1::SessionState state) {
+  v1::ServerMessage out;
+  *out.mutable_state() = std::move(state);
+  SendMessage(std::move(out));
+}
+
+void SessionStreamReactor::SendMessage(v1::ServerMessage message) {
   std::lock_guard lock(mu_);
   if (finished_ || finish_after_write_) return;
-  v1::Notice notice;
-  notice.set_level(level);
-  notice.set_message(std::move(message));
   if (writing_) {
-    notices_.push_back(std::move(notice));
+    messages_.push_back(std::move(message));
     return;
   }
-  v1::ServerMessage out;
-  *out.mutable_notice() = std::move(notice);
-  StartWriteLocked(std::move(out), false);
+  StartWriteLocked(std::move(message), false);
 }
 
 bool SessionStreamReactor::SlotFull() const {
@@ -176,7 +184,7 @@ void SessionStreamReactor::FinishLocked(const grpc::Status& status) {
     ServerMetrics().FrameDropped();
   }
   slot_.reset();
-  notices_.clear();
+  messages_.clear();
   Finish(status);
 }
 
@@ -196,10 +204,9 @@ void SessionStreamReactor::OnWriteDone(bool ok) {
           grpc::Status(grpc::StatusCode::UNAVAILABLE, "the stream to the client broke")));
       return;
     }
-    if (!notices_.empty()) {  // before an end that waits: a notice says why it ends
-      v1::ServerMessage out;
-      *out.mutable_notice() = std::move(notices_.front());
-      notices_.pop_front();
+    if (!messages_.empty()) {  // before an end that waits (a notice says why it ends) and the next frame
+      v1::ServerMessage out = std::move(messages_.front());
+      messages_.pop_front();
       StartWriteLocked(std::move(out), false);
       return;
     }

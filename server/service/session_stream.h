@@ -35,6 +35,7 @@ class SessionStreamReactor final : public grpc::ServerBidiReactor<v1::ClientMess
   // FrameStream, called by the session (under its lock).
   void OfferFrame(v1::Frame frame, Clock::time_point origin) override;
   void SendNotice(v1::Notice::Level level, std::string message) override;
+  void SendState(v1::SessionState state) override;
   bool SlotFull() const override;
   void End(grpc::Status status) override;
   void EndSession(grpc::Status status) override;
@@ -54,6 +55,8 @@ class SessionStreamReactor final : public grpc::ServerBidiReactor<v1::ClientMess
   // (HTTP/2 flow control) instead of costing the server a read each.
   void ReadNextLocked();
   void OnPaced();
+  // A notice or state: now, or after the write in flight (before any frame).
+  void SendMessage(v1::ServerMessage message);
   void StartWriteLocked(v1::ServerMessage message, bool is_frame);
   void FinishLocked(const grpc::Status& status);
   std::shared_ptr<Session> session() const;
@@ -75,7 +78,7 @@ class SessionStreamReactor final : public grpc::ServerBidiReactor<v1::ClientMess
     Clock::time_point origin;
   };
   std::optional<Parked> slot_;
-  std::deque<v1::Notice> notices_;
+  std::deque<v1::ServerMessage> messages_;  // notices and states waiting for the write in flight
   std::optional<grpc::Status> finish_after_write_;
   bool finished_ = false;
   std::uint64_t sent_ = 0, dropped_ = 0;

@@ -9,7 +9,7 @@
 
 #include "core/error.h"
 #include "io/label_volume.h"
-#include "io/presets.h"
+#include "scene/presets.h"
 #include "io/reader_cage.h"
 #include "io/table_finder.h"
 #include "io/volume_kind.h"

@@ -1,5 +1,5 @@
-// SessionState: the client's copy of what a session is now, from which
-// failover creates it again. Each event must change it as the server does.
+// SessionState: the client's record of a session for failover: the server's
+// last state and the events it has not answered yet.
 #include "session_state.h"
 
 #include <gtest/gtest.h>
@@ -11,13 +11,9 @@ v1::CreateSessionResponse Created() {
   v1::CreateSessionResponse created;
   v1::Scene& scene = *created.mutable_scene();
   scene.mutable_volume()->set_file("head.nrrd");
-  scene.mutable_camera()->set_fov_y_deg(30);
   scene.mutable_render()->set_width(96);
   scene.mutable_render()->set_height(64);
-  scene.mutable_render()->set_spp(2);
-  scene.mutable_render()->set_max_bounces(4);
   scene.mutable_render()->set_seed(7);
-  scene.add_lights()->mutable_point();
   return created;
 }
 
@@ -31,6 +27,13 @@ v1::CreateSessionRequest Request() {
   return request;
 }
 
+v1::SessionEvent Event(std::uint64_t seq) {
+  v1::SessionEvent e;
+  e.set_seq(seq);
+  e.mutable_camera()->mutable_eye()->set_x(float(seq));
+  return e;
+}
+
 TEST(SessionState, StartsFromTheServersSceneNotThePreset) {
   const SessionState state(Request(), Created());
   EXPECT_TRUE(state.request().has_scene());
@@ -38,54 +41,48 @@ TEST(SessionState, StartsFromTheServersSceneNotThePreset) {
   EXPECT_FALSE(state.request().scene().has_volume()) << "volume_id says which";
   EXPECT_EQ(state.request().volume_id(), "phantom:head");
   EXPECT_EQ(state.request().scene().render().seed(), 7u);
+  EXPECT_TRUE(state.Unanswered().empty());
 }
 
-TEST(SessionState, EventsReplaceOrMergeAsTheServerDoes) {
+TEST(SessionState, TheServersStateReplacesItsOwnAndAnswersEventsUpToItsSeq) {
   SessionState state(Request(), Created());
-  v1::SessionEvent e;
-  e.mutable_camera()->mutable_eye()->set_x(100);
-  state.Apply(e);
-  EXPECT_EQ(state.request().scene().camera().eye().x(), 100);
-  EXPECT_FALSE(state.request().scene().camera().has_fov_y_deg()) << "a camera replaces the camera";
-
-  e.Clear();
-  e.mutable_render()->set_spp(8);
-  state.Apply(e);
-  EXPECT_EQ(state.request().scene().render().spp(), 8u);
-  EXPECT_EQ(state.request().scene().render().max_bounces(), 4u) << "unset render fields stay";
-  EXPECT_EQ(state.request().scene().render().seed(), 7u);
-
-  e.Clear();
-  e.mutable_resize()->set_width(320);
-  e.mutable_resize()->set_height(200);
-  state.Apply(e);
+  for (std::uint64_t seq = 1; seq <= 3; ++seq) state.Sent(Event(seq));
+  v1::SessionState server;
+  server.mutable_scene()->mutable_render()->set_width(320);
+  server.mutable_scene()->mutable_camera()->mutable_eye()->set_x(2);
+  server.mutable_viewport()->set_width(320);
+  server.mutable_stream()->set_jpeg_quality(50);
+  server.set_last_event_seq(2);
+  state.Adopt(server);
+  EXPECT_EQ(state.request().scene().camera().eye().x(), 2);
   EXPECT_EQ(state.request().viewport().width(), 320u);
-  EXPECT_EQ(state.request().scene().render().height(), 200u);
-
-  e.Clear();
-  e.mutable_stream()->set_jpeg_quality(50);
-  state.Apply(e);
   EXPECT_EQ(state.request().stream().jpeg_quality(), 50u);
-  EXPECT_EQ(state.request().stream().target_spp(), 16u) << "unset stream fields stay";
+  EXPECT_EQ(state.request().volume_id(), "phantom:head");
+  const std::vector<v1::SessionEvent> left = state.Unanswered();
+  ASSERT_EQ(left.size(), 1u) << "only event 3 is newer than the state";
+  EXPECT_EQ(left[0].seq(), 3u);
 
-  e.Clear();
-  e.mutable_lights();  // no lights at all
-  state.Apply(e);
-  EXPECT_EQ(state.request().scene().lights_size(), 0);
+  state.Recreated();
+  EXPECT_TRUE(state.Unanswered().empty());
+}
 
-  e.Clear();
-  e.mutable_clipping()->add_planes()->mutable_normal()->set_x(1);
-  state.Apply(e);
-  EXPECT_EQ(state.request().scene().clipping().planes_size(), 1);
+TEST(SessionState, APausedSessionIsPausedAgainBeforeItsUnansweredEvents) {
+  SessionState state(Request(), Created());
+  v1::SessionState server;
+  server.set_paused(true);
+  state.Adopt(server);
+  state.Sent(Event(1));
+  const std::vector<v1::SessionEvent> replay = state.Unanswered();
+  ASSERT_EQ(replay.size(), 2u);
+  EXPECT_TRUE(replay[0].has_pause());
+  EXPECT_TRUE(replay[1].has_camera());
+}
 
-  e.Clear();
-  e.mutable_pause();
-  state.Apply(e);
-  EXPECT_TRUE(state.paused());
-  e.Clear();
-  e.mutable_resume();
-  state.Apply(e);
-  EXPECT_FALSE(state.paused());
+TEST(SessionState, ANewStreamOnTheSameSessionLeavesNothingToReplay) {
+  SessionState state(Request(), Created());
+  state.Sent(Event(1));
+  state.Reattached();
+  EXPECT_TRUE(state.Unanswered().empty());
 }
 
 }  // namespace

@@ -14,7 +14,7 @@
 #include <fmt/format.h>
 
 #include "encode/image_codecs.h"
-#include "io/scene_file.h"
+#include "scene/scene_file.h"
 #include "service/server_process.h"
 #include "service/service_test_support.h"
 #include "support/test_paths.h"

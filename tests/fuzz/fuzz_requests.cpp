@@ -1,11 +1,11 @@
 // Session requests as the service checks them: the first byte picks the
 // message, the rest is its protobuf wire form (unparsable input is skipped).
-//   0: CreateSessionRequest -> InitialScene (+ MergeStreamSettings of its stream)
-//   1: SessionEvent         -> ApplyEvent on a session's scene
+//   0: CreateSessionRequest -> InitialState (and its stream's frame settings)
+//   1: SessionEvent         -> ApplyEvent on a session's state
 //   2: SnapshotRequest      -> SnapshotSpp for the session's viewport
-//   3: StreamSettings       -> MergeStreamSettings
+//   3: StreamSettings       -> a stream event's check and its frame settings
 // against a default SessionLimits, a 16^3 head phantom and a VolumeRegistry
-// with no data roots. InputError, RpcError (std::exceptions) are the expected
+// with no data roots (environment maps are refused, as on such a server). InputError, RpcError (std::exceptions) are the expected
 // refusals; crashes, sanitizer reports and an accepted scene that fails
 // validation are bugs.
 #include <cstddef>
@@ -16,13 +16,13 @@
 
 #include "cinevol/v1/service.pb.h"
 #include "io/phantom.h"
-#include "io/scene_file.h"
-#include "service/session_requests.h"
+#include "scene/scene_file.h"
+#include "scene/session_state.h"
 #include "service/volume_registry.h"
 
 namespace cv = cinevol;
 namespace v1 = cinevol::v1;
-using cinevol::service::SessionLimits;
+using cinevol::SessionLimits;
 
 namespace {
 
@@ -37,18 +37,20 @@ struct World {
   SessionLimits limits;
   cv::Volume volume = SmallHead();
   cv::service::VolumeRegistry registry{{}, {}};
-  v1::Scene session_scene;  // a session's scene: preset ct-bone at 64x48
-  cv::FrameSettings settings;
+  cv::MapResolver resolve_map = [this](const std::string& map, const std::string& field) {
+    return registry.ResolveDataPath(map, field).string();
+  };
+  v1::SessionState session;  // a session's state: preset ct-bone at 64x48
 };
 
 World* world;
 
-v1::Scene MakeSessionScene(const World& w) {
+v1::SessionState MakeSession(const World& w) {
   v1::CreateSessionRequest create;
   create.mutable_viewport()->set_width(64);
   create.mutable_viewport()->set_height(48);
   create.set_preset("ct-bone");
-  return cv::service::InitialScene(create, w.volume, w.limits, w.registry);
+  return cv::InitialState(create, w.volume, w.limits, w.resolve_map);
 }
 
 // What the service relies on after a request was accepted.
@@ -61,30 +63,36 @@ void CheckAccepted(const v1::Scene& scene, const SessionLimits& limits) {
   if (scene.transfer_function().points_size() > limits.max_tf_points) std::abort();
 }
 
-void CheckSettings(const cv::FrameSettings& s) {
-  if (s.jpeg_quality < 1 || s.jpeg_quality > 100 || s.final_jpeg_quality < 1 || s.final_jpeg_quality > 100 ||
-      s.target_spp < 1) {
+void CheckSettings(const v1::StreamSettings& s) {
+  auto outside = [](bool has, std::uint32_t v, std::uint32_t lo, std::uint32_t hi) { return has && (v < lo || v > hi); };
+  if (outside(s.has_jpeg_quality(), s.jpeg_quality(), 1, 100) ||
+      outside(s.has_final_jpeg_quality(), s.final_jpeg_quality(), 1, 100) ||
+      outside(s.has_target_spp(), s.target_spp(), 1, 65536) || !v1::Denoiser_IsValid(s.denoiser())) {
     std::abort();
   }
 }
 
+void CheckState(const v1::SessionState& state, const SessionLimits& limits) {
+  CheckAccepted(state.scene(), limits);
+  CheckSettings(state.stream());
+  if (state.viewport().width() != state.scene().render().width()) std::abort();
+}
+
 void Event(const v1::SessionEvent& event) {
-  v1::Scene scene = world->session_scene;
-  cv::FrameSettings settings = world->settings;
+  v1::SessionState state = world->session;
   try {
-    cv::service::ApplyEvent(event, scene, settings, world->limits, world->registry);
+    cv::ApplyEvent(state, event, &world->limits, world->resolve_map);
   } catch (const std::exception&) {
     return;
   }
-  CheckAccepted(scene, world->limits);
-  CheckSettings(settings);
+  CheckState(state, world->limits);
 }
 
 }  // namespace
 
 extern "C" int LLVMFuzzerInitialize(int*, char***) {
   world = new World;
-  world->session_scene = MakeSessionScene(*world);
+  world->session = MakeSession(*world);
   return 0;
 }
 
@@ -97,17 +105,13 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
     case 0: {
       v1::CreateSessionRequest request;
       if (!request.ParseFromArray(wire, wire_size)) return 0;
-      v1::Scene scene;
+      v1::SessionState state;
       try {
-        scene = cv::service::InitialScene(request, world->volume, world->limits, world->registry);
+        state = cv::InitialState(request, world->volume, world->limits, world->resolve_map);
       } catch (const std::exception&) {
         return 0;
       }
-      CheckAccepted(scene, world->limits);
-      try {
-        CheckSettings(cv::service::MergeStreamSettings({}, request.stream(), "stream"));
-      } catch (const std::exception&) {
-      }
+      CheckState(state, world->limits);
       break;
     }
     case 1: {
@@ -119,21 +123,18 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
     case 2: {
       v1::SnapshotRequest request;
       if (!request.ParseFromArray(wire, wire_size)) return 0;
-      const auto& r = world->session_scene.render();
+      const auto& r = world->session.scene().render();
       try {
-        const int spp = cv::service::SnapshotSpp(request, std::uint64_t(r.width()) * r.height(), world->limits);
+        const int spp = cv::SnapshotSpp(request, std::uint64_t(r.width()) * r.height(), world->limits);
         if (spp < 1 || spp > world->limits.max_snapshot_spp) std::abort();
       } catch (const std::exception&) {
       }
       break;
     }
     case 3: {
-      v1::StreamSettings edit;
-      if (!edit.ParseFromArray(wire, wire_size)) return 0;
-      try {
-        CheckSettings(cv::service::MergeStreamSettings(world->settings, edit, "stream"));
-      } catch (const std::exception&) {
-      }
+      v1::SessionEvent event;
+      if (!event.mutable_stream()->ParseFromArray(wire, wire_size)) return 0;
+      Event(event);
       break;
     }
   }

@@ -10,7 +10,7 @@
 
 #include "core/error.h"
 #include "io/label_volume.h"
-#include "io/scene_file.h"
+#include "scene/scene_file.h"
 
 extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {
   const std::string_view text(reinterpret_cast<const char*>(data), size);

@@ -5,7 +5,7 @@
 #include <gtest/gtest.h>
 
 #include "io/phantom.h"
-#include "io/scene_builder.h"
+#include "scene/scene_builder.h"
 
 namespace cinevol {
 namespace {

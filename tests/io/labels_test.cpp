@@ -9,9 +9,9 @@
 
 #include "core/error.h"
 #include "io/label_volume.h"
-#include "io/presets.h"
-#include "io/scene_builder.h"
-#include "io/scene_file.h"
+#include "scene/presets.h"
+#include "scene/scene_builder.h"
+#include "scene/scene_file.h"
 #include "io/table_finder.h"
 #include "pipeline/frame_pipeline.h"
 #include "support/test_paths.h"

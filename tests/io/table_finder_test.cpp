@@ -10,8 +10,8 @@
 
 #include "core/error.h"
 #include "io/label_volume.h"
-#include "io/presets.h"
-#include "io/scene_file.h"
+#include "scene/presets.h"
+#include "scene/scene_file.h"
 #include "io/table_finder.h"
 #include "io/volume_kind.h"
 #include "io/volume_loader.h"

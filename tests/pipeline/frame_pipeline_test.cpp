@@ -6,9 +6,9 @@
 #include <cmath>
 
 #include "io/phantom.h"
-#include "io/presets.h"
-#include "io/scene_builder.h"
-#include "io/scene_file.h"
+#include "scene/presets.h"
+#include "scene/scene_builder.h"
+#include "scene/scene_file.h"
 #include "pipeline/frame_pipeline.h"
 #include "support/gpu.h"
 #include "support/small_scene.h"

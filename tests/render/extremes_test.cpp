@@ -12,14 +12,14 @@
 #include <thread>
 
 #include "core/error.h"
-#include "io/scene_builder.h"
+#include "scene/scene_builder.h"
 #include "render/cpu_renderer.h"
 #include "render/integrator.h"
 #include "render/prepared_volume.h"
 #include "render/scene_data.h"
 #include "render_test_scenes.h"
 #include "encode/image_codecs.h"
-#include "io/scene_file.h"
+#include "scene/scene_file.h"
 #include "support/small_scene.h"
 #include "support/test_paths.h"
 

@@ -18,9 +18,9 @@
 
 #include "core/transfer_function.h"
 #include "io/label_volume.h"
-#include "io/presets.h"
-#include "io/scene_builder.h"
-#include "io/scene_file.h"
+#include "scene/presets.h"
+#include "scene/scene_builder.h"
+#include "scene/scene_file.h"
 #include "io/volume_kind.h"
 #include "io/volume_loader.h"
 #include "pipeline/frame_pipeline.h"

@@ -7,8 +7,8 @@
 #include <vector>
 
 #include "io/phantom.h"
-#include "io/presets.h"
-#include "io/scene_file.h"
+#include "scene/presets.h"
+#include "scene/scene_file.h"
 #include "pipeline/frame_pipeline.h"
 #include "render/renderer.h"
 #include "render_test_scenes.h"

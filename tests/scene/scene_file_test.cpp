@@ -1,6 +1,6 @@
 // Scene JSON: examples load, round trips are exact, defaults are filled and
 // every validation rule rejects with a message naming its field.
-#include "io/scene_file.h"
+#include "scene/scene_file.h"
 
 #include <google/protobuf/util/message_differencer.h>
 #include <gtest/gtest.h>
@@ -11,7 +11,7 @@
 #include <limits>
 
 #include "core/error.h"
-#include "io/presets.h"
+#include "scene/presets.h"
 #include "support/test_paths.h"
 
 namespace cinevol {

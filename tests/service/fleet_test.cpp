@@ -180,6 +180,14 @@ TEST(Failover, WhenItsServerDiesTheStreamCreatesTheSessionAgainFromItsLastStateO
   quality.mutable_stream()->set_jpeg_quality(55);
   const std::uint64_t last = stream->Send(quality);
   ASSERT_TRUE(WaitFrame(*stream, [&](const v1::Frame& f) { return f.last_event_seq() >= last; }, 30s));
+  // The server's state came before that frame: the events applied as it applies them.
+  const std::optional<v1::SessionState> on_a = stream->state();
+  ASSERT_TRUE(on_a);
+  EXPECT_GE(on_a->last_event_seq(), last);
+  EXPECT_EQ(on_a->viewport().width(), 72u);
+  EXPECT_EQ(on_a->scene().render().width(), 72u);
+  EXPECT_EQ(on_a->stream().jpeg_quality(), 55u);
+  EXPECT_EQ(on_a->scene().camera().eye().x(), camera.camera().eye().x());
 
   const auto killed = std::chrono::steady_clock::now();
   ASSERT_EQ(kill(a->pid(), SIGKILL), 0);
@@ -198,8 +206,7 @@ TEST(Failover, WhenItsServerDiesTheStreamCreatesTheSessionAgainFromItsLastStateO
   // stills of the two match pixel for pixel; without the camera they differ.
   Client only_b = b->Connect();
   SessionState expected(request, created);
-  expected.Apply(camera);
-  expected.Apply(resize);
+  expected.Adopt(*on_a);
   v1::CreateSessionRequest direct = expected.request();
   direct.set_volume_id(only_b.ListVolumes().back().id());
   const auto twin = only_b.CreateSession(direct);

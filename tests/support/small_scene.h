@@ -5,8 +5,8 @@
 #include <memory>
 
 #include "io/phantom.h"
-#include "io/presets.h"
-#include "io/scene_file.h"
+#include "scene/presets.h"
+#include "scene/scene_file.h"
 
 namespace cinevol::testing {
 

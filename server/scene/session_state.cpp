@@ -1,0 +1,277 @@
+// What events do to a session's state.
+#include "scene/session_state.h"
+
+#include <fmt/format.h>
+
+#include "core/error.h"
+#include "scene/presets.h"
+#include "scene/scene_builder.h"
+
+namespace cinevol {
+namespace {
+
+void CheckViewport(const v1::Viewport& v, const std::string& field, const SessionLimits* limits) {
+  for (auto [name, size] : {std::pair{"width", v.width()}, std::pair{"height", v.height()}}) {
+    if (size < 1 || size > 8192) {
+      throw InputError(fmt::format("{}.{}: {} is outside [1, 8192]", field, name, size));
+    }
+  }
+  const std::uint64_t pixels = std::uint64_t(v.width()) * v.height();
+  if (limits && pixels > limits->max_pixels) {
+    throw OverLimit("max-pixels", fmt::format("{}: {}x{} is {} pixels, over this server's limit of {} (--max-pixels)",
+                                              field, v.width(), v.height(), pixels, limits->max_pixels));
+  }
+}
+
+// What a streamed frame costs, against this server's limits (the scene's
+// own ranges are ValidateSceneParts's): only the parts in `parts`. Each
+// message names the flag.
+void CheckCost(const v1::Scene& scene, unsigned parts, const std::string& prefix, const SessionLimits& limits) {
+  const v1::RenderSettings& r = scene.render();
+  if ((parts & kSamplingChanged) && int(r.spp()) > limits.max_frame_spp) {
+    throw OverLimit("max-frame-spp",
+                    fmt::format("{}render.spp: {} is over this server's limit of {} per streamed frame "
+                                "(--max-frame-spp; use a snapshot for more)",
+                                prefix, r.spp(), limits.max_frame_spp));
+  }
+  const std::uint64_t samples = std::uint64_t(r.spp()) * r.width() * r.height();
+  if ((parts & (kSamplingChanged | kCameraChanged)) && samples > limits.max_frame_samples) {
+    throw OverLimit("max-frame-samples",
+                    fmt::format("{}render.spp: {} spp at {}x{} is {} samples per frame, over this server's limit "
+                                "of {} (--max-frame-samples)",
+                                prefix, r.spp(), r.width(), r.height(), samples, limits.max_frame_samples));
+  }
+  if ((parts & kSamplingChanged) && int(r.max_bounces()) > limits.max_bounces) {
+    throw OverLimit("max-bounces",
+                    fmt::format("{}render.max_bounces: {} is over this server's limit of {} (--max-bounces)", prefix,
+                                r.max_bounces(), limits.max_bounces));
+  }
+  if ((parts & kTransferFunctionChanged) && scene.transfer_function().points_size() > limits.max_tf_points) {
+    throw OverLimit("max-tf-points",
+                    fmt::format("{}transfer_function.points: {} points, over this server's limit of {} "
+                                "(--max-tf-points)",
+                                prefix, scene.transfer_function().points_size(), limits.max_tf_points));
+  }
+  for (int i = 0; (parts & kLabelsChanged) && i < scene.labels().styles_size(); ++i) {
+    const int points = scene.labels().styles(i).transfer_function().points_size();
+    if (points > limits.max_tf_points) {
+      throw OverLimit("max-tf-points",
+                      fmt::format("{}labels.styles[{}].transfer_function.points: {} points, over this server's limit "
+                                  "of {} (--max-tf-points)",
+                                  prefix, i, points, limits.max_tf_points));
+    }
+  }
+  if ((parts & kLightsChanged) && scene.lights_size() > limits.max_lights) {
+    throw OverLimit("max-lights", fmt::format("{}lights: {} lights, over this server's limit of {} (--max-lights)",
+                                              prefix, scene.lights_size(), limits.max_lights));
+  }
+}
+
+// Every problem of the scene's parts in `parts`, as one InputError.
+void CheckParts(const v1::Scene& scene, unsigned parts, const std::string& prefix) {
+  const std::vector<std::string> problems = ValidateSceneParts(scene, parts);
+  if (!problems.empty()) throw InputError(prefix + fmt::format("{}", fmt::join(problems, "; " + prefix)));
+}
+
+void ResolveEnvironmentMaps(v1::Scene& scene, const MapResolver& resolve_map) {
+  if (!resolve_map) return;
+  for (int i = 0; i < scene.lights_size(); ++i) {
+    v1::Light* light = scene.mutable_lights(i);
+    if (light->has_environment() && light->environment().has_map()) {
+      light->mutable_environment()->set_map(
+          resolve_map(light->environment().map(), fmt::format("lights[{}].environment.map", i)));
+    }
+  }
+}
+
+template <class Enum>
+void CheckEnum(bool valid, Enum value, const std::string& field) {
+  if (!valid) throw InputError(fmt::format("{}: unknown value {}", field, int(value)));
+}
+
+void CheckRange(std::uint32_t v, std::uint32_t lo, std::uint32_t hi, const std::string& field) {
+  if (v < lo || v > hi) throw InputError(fmt::format("{}: {} is outside [{}, {}]", field, v, lo, hi));
+}
+
+void CheckRange(float v, float lo, float hi, const std::string& field) {
+  if (!(v >= lo && v <= hi)) throw InputError(fmt::format("{}: {} is outside [{}, {}]", field, v, lo, hi));
+}
+
+// The scene parts an event replaces or edits, and the edit itself.
+unsigned ApplyToScene(const v1::SessionEvent& event, v1::Scene& scene, const std::string& prefix) {
+  switch (event.kind_case()) {
+    case v1::SessionEvent::kCamera:
+      *scene.mutable_camera() = event.camera();
+      return kCameraChanged;
+    case v1::SessionEvent::kLights:
+      *scene.mutable_lights() = event.lights().lights();
+      return kLightsChanged;
+    case v1::SessionEvent::kTransferFunction:
+      *scene.mutable_transfer_function() = event.transfer_function();
+      return kTransferFunctionChanged;
+    case v1::SessionEvent::kRender: {
+      const v1::RenderSettings& r = event.render();
+      if (r.has_width() || r.has_height()) {
+        throw InputError(prefix + "render.width/height: a render event cannot resize; send resize");
+      }
+      // Set fields change (a seed of 0 and an unspecified reconstruction are unset).
+      v1::RenderSettings* to = scene.mutable_render();
+      if (r.has_spp()) to->set_spp(r.spp());
+      if (r.has_max_bounces()) to->set_max_bounces(r.max_bounces());
+      if (r.seed() != 0) to->set_seed(r.seed());
+      if (r.reconstruction() != v1::RECONSTRUCTION_UNSPECIFIED) to->set_reconstruction(r.reconstruction());
+      return kSamplingChanged;
+    }
+    case v1::SessionEvent::kResize:
+      scene.mutable_render()->set_width(event.resize().width());
+      scene.mutable_render()->set_height(event.resize().height());
+      return kCameraChanged;
+    case v1::SessionEvent::kClipping:
+      *scene.mutable_clipping() = event.clipping();
+      return kClippingChanged;
+    case v1::SessionEvent::kLabels:
+      *scene.mutable_labels() = event.labels();
+      return kLabelsChanged;
+    default:
+      return 0;
+  }
+}
+
+}  // namespace
+
+void CheckStreamSettings(const v1::StreamSettings& edit, const std::string& field) {
+  CheckEnum(v1::Denoiser_IsValid(edit.denoiser()), edit.denoiser(), field + ".denoiser");
+  CheckEnum(v1::ChromaSubsampling_IsValid(edit.chroma()), edit.chroma(), field + ".chroma");
+  CheckEnum(v1::FinalFormat_IsValid(edit.final_format()), edit.final_format(), field + ".final_format");
+  if (edit.has_jpeg_quality()) CheckRange(edit.jpeg_quality(), 1, 100, field + ".jpeg_quality");
+  if (edit.has_final_jpeg_quality()) CheckRange(edit.final_jpeg_quality(), 1, 100, field + ".final_jpeg_quality");
+  if (edit.has_target_spp()) CheckRange(edit.target_spp(), 1, 65536, field + ".target_spp");
+  if (edit.has_interactive_frame_ms()) {
+    CheckRange(edit.interactive_frame_ms(), 0.0f, 10000.0f, field + ".interactive_frame_ms");
+  }
+  if (edit.has_error_target()) CheckRange(edit.error_target(), 0.0f, 1.0f, field + ".error_target");
+}
+
+v1::SessionState InitialState(const v1::CreateSessionRequest& request, const Volume& volume,
+                              const SessionLimits& limits, const MapResolver& resolve_map) {
+  if (!request.has_viewport()) throw InputError("viewport: not set");
+  CheckViewport(request.viewport(), "viewport", &limits);
+  CheckStreamSettings(request.stream(), "stream");
+  v1::SessionState state;
+  v1::Scene& scene = *state.mutable_scene();
+  switch (request.initial_case()) {
+    case v1::CreateSessionRequest::kScene:
+      scene = request.scene();
+      AddDefaultLights(scene, volume);  // the answer's scene shows them
+      break;
+    case v1::CreateSessionRequest::kPreset:
+      try {
+        scene = MakePresetScene(request.preset(), volume);
+      } catch (const InputError& e) {
+        throw InputError(fmt::format("preset: {}", e.what()));
+      }
+      break;
+    default: scene = MakePresetScene(DefaultPreset(volume), volume); break;
+  }
+  scene.clear_volume();  // the session renders volume_id
+  scene.mutable_render()->set_width(request.viewport().width());
+  scene.mutable_render()->set_height(request.viewport().height());
+  CheckCost(scene, kEverythingChanged, "scene.", limits);  // before the work of defaults and validation
+  ApplyDefaults(scene);
+  CheckParts(scene, kEverythingChanged, "scene.");
+  CheckCost(scene, kEverythingChanged, "scene.", limits);
+  ResolveEnvironmentMaps(scene, resolve_map);
+  *state.mutable_viewport() = request.viewport();
+  *state.mutable_stream() = request.stream();
+  return state;
+}
+
+void AddResolvedCamera(v1::Scene& scene, const Volume& volume, const LabelVolume* labels) {
+  v1::Camera& proto = *scene.mutable_camera();
+  if (proto.view() == v1::NAMED_VIEW_UNSPECIFIED) return;
+  const TransferFunction tf = ResolveTransferFunction(scene.transfer_function(), volume);
+  const std::vector<bool> label_blocks =
+      labels ? BlocksWithVisibleLabels(volume, *labels, ResolveLabels(scene.labels(), volume)) : std::vector<bool>();
+  const Camera c = ResolveCamera(proto, scene.render(), volume, tf,
+                                 {ResolveClipping(scene.clipping(), volume), labels ? &label_blocks : nullptr});
+  auto set = [](v1::Vec3* v, Vec3f p) {
+    v->set_x(p.x);
+    v->set_y(p.y);
+    v->set_z(p.z);
+  };
+  set(proto.mutable_eye(), c.eye);
+  set(proto.mutable_target(), c.eye + c.forward * c.focal_distance);
+  set(proto.mutable_up(), c.up);
+}
+
+unsigned ApplyEvent(v1::SessionState& state, const v1::SessionEvent& event, const SessionLimits* limits,
+                    const MapResolver& resolve_map) {
+  const std::string prefix = fmt::format("event {}: ", event.seq());
+  auto with_prefix = [&](auto check) {
+    try {
+      check();
+    } catch (const OverLimit& e) {
+      throw OverLimit(e.flag(), prefix + e.what());
+    } catch (const InputError& e) {
+      throw InputError(prefix + e.what());
+    }
+  };
+  unsigned changes = 0;
+  switch (event.kind_case()) {
+    case v1::SessionEvent::kPause:
+      changes = state.paused() ? 0 : kPauseChanged;
+      state.set_paused(true);
+      break;
+    case v1::SessionEvent::kResume:
+      changes = state.paused() ? kPauseChanged : 0;
+      state.set_paused(false);
+      break;
+    case v1::SessionEvent::kStream:
+      with_prefix([&] { CheckStreamSettings(event.stream(), "stream"); });
+      state.mutable_stream()->MergeFrom(event.stream());  // set fields change
+      changes = kStreamChanged;
+      break;
+    case v1::SessionEvent::KIND_NOT_SET:
+      throw InputError(prefix + "no event kind set");
+    default: {
+      if (event.has_resize()) with_prefix([&] { CheckViewport(event.resize(), "resize", limits); });
+      v1::Scene next = state.scene();
+      changes = ApplyToScene(event, next, prefix);
+      ApplyDefaults(next, changes);  // an unset fov takes its default, as in a scene file
+      if (changes & kLightsChanged) ResolveEnvironmentMaps(next, resolve_map);
+      if (limits) CheckCost(next, changes, prefix, *limits);
+      CheckParts(next, changes, prefix);
+      *state.mutable_scene() = std::move(next);
+      if (event.has_resize()) *state.mutable_viewport() = event.resize();
+    }
+  }
+  state.set_last_event_seq(std::max(state.last_event_seq(), event.seq()));
+  return changes;
+}
+
+int SnapshotSpp(const v1::SnapshotRequest& request, std::uint64_t pixels, const SessionLimits& limits) {
+  CheckEnum(v1::ImageFormat_IsValid(request.format()), request.format(), "format");
+  const std::uint32_t spp = request.has_spp() ? request.spp() : std::uint32_t(limits.default_snapshot_spp);
+  if (spp < 1 || int(spp) > limits.max_snapshot_spp) {
+    throw OverLimit("max-snapshot-spp",
+                    fmt::format("spp: {} is outside [1, {}] (--max-snapshot-spp)", spp, limits.max_snapshot_spp));
+  }
+  if (spp * pixels > limits.max_snapshot_samples) {
+    throw OverLimit("max-snapshot-samples",
+                    fmt::format("spp: {} spp at {} pixels is {} samples, over this server's limit of {} "
+                                "(--max-snapshot-samples)",
+                                spp, pixels, spp * pixels, limits.max_snapshot_samples));
+  }
+  return static_cast<int>(spp);
+}
+
+v1::CreateSessionRequest RecreateRequest(const v1::SessionState& state, const std::string& volume_id) {
+  v1::CreateSessionRequest request;
+  request.set_volume_id(volume_id);
+  *request.mutable_viewport() = state.viewport();
+  *request.mutable_scene() = state.scene();
+  *request.mutable_stream() = state.stream();
+  return request;
+}
+
+}  // namespace cinevol
