@@ -64,6 +64,13 @@ struct RefineBenchOptions : SceneOptions {
 // previous release's blend.
 int RunRefineBench(const RefineBenchOptions& options);
 
+struct EventBenchOptions : SceneOptions {
+  int events = 2000;
+};
+
+// What a camera event costs the server before a frame renders, step by step.
+int RunEventBench(const EventBenchOptions& options);
+
 struct VolumeBenchOptions {
   std::vector<std::string> volumes;  // files, folders or phantom specs
   std::string out;

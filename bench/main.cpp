@@ -4,6 +4,7 @@
 #include <cstdio>
 #include <fstream>
 
+#include "scene/scene_frame.h"
 #include "bench.h"
 #include "tradeoff_study.h"
 #include "core/error.h"
@@ -33,6 +34,7 @@ LoadedScene LoadScene(const SceneOptions& o) {
   if (o.height > 0) s.scene.mutable_render()->set_height(o.height);
   if (!o.labels.empty()) s.scene.mutable_volume()->set_labels(o.labels);
   s.volume = std::make_shared<const Volume>(LoadVolume(s.scene.volume()));
+  ToVolumeFrame(s.scene, VolumePlacement::Of(*s.volume));  // the renderers' frame
   s.labels = LoadSceneLabels(s.scene, *s.volume);  // with the table where the scene removes it
   s.setup = ResolveScene(s.scene, *s.volume, s.labels.get());
   return s;
@@ -84,6 +86,12 @@ int main(int argc, char** argv) {
   f->add_option("--orbit-frames", refine.orbit_frames, "Camera moves before it holds still")->capture_default_str();
   f->add_option("--csv", refine.csv, "Append every step (spp, ms, PSNR, SSIM, errors) to this CSV");
   f->callback([&] { cinevol::bench::RunRefineBench(refine); });
+  cinevol::bench::EventBenchOptions events;
+  events.command_line = command_line;
+  auto* e = app.add_subcommand("events", "What a camera event costs the server before a frame renders, per step");
+  cinevol::bench::AddSceneOptions(e, events);
+  e->add_option("--events", events.events, "Camera events")->check(CLI::Range(1, 1000000))->capture_default_str();
+  e->callback([&] { cinevol::bench::RunEventBench(events); });
   cinevol::bench::VolumeBenchOptions volume;
   volume.command_line = command_line;
   auto* v = app.add_subcommand("volume", "Load, histogram and block ranges, kind and framing, per volume");

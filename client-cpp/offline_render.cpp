@@ -11,6 +11,7 @@
 #include "encode/image_codecs.h"
 #include "io/label_volume.h"
 #include "scene/presets.h"
+#include "scene/scene_frame.h"
 #include "io/volume_loader.h"
 #include "pipeline/frame_pipeline.h"
 
@@ -54,6 +55,7 @@ OfflineRenderResult RenderToFile(const v1::Scene& scene, const std::filesystem::
   const auto labels = LoadSceneLabels(scene, *volume, base_dir);  // with the table where it removes it
   if (scene.labels().remove_table()) result.table = labels ? labels->table_note : "";
   v1::Scene lit = scene;
+  ToVolumeFrame(lit, VolumePlacement::Of(*volume));  // the renderers' frame
   if (AddDefaultLights(lit, *volume)) {
     std::fprintf(stderr, "cinevol: the scene has no lights: rendering with the volume's default lights (a key light "
                          "and a sky)\n");

@@ -20,6 +20,7 @@
 
 #include "core/error.h"
 #include "encode/image_codecs.h"
+#include "scene/scene_frame.h"
 #include "scene/presets.h"
 #include "scene/scene_file.h"
 #include "io/volume_loader.h"
@@ -344,7 +345,10 @@ void App::SaveScene(const std::string& path) {
   if (labels.styles_size() > 0 || labels.has_show_unlisted() || labels.remove_table()) *scene.mutable_labels() = labels;
   scene.mutable_render()->set_width(viewport_w_);
   scene.mutable_render()->set_height(viewport_h_);
-  if (volume) *scene.mutable_volume() = ParseVolumeSpec(volume->source());  // a phantom stays a phantom
+  if (volume) {
+    *scene.mutable_volume() = ParseVolumeSpec(volume->source());  // a phantom stays a phantom
+    ToPatientFrame(scene, VolumePlacement::Of(*volume));  // one frame for the whole file, as its clipping
+  }
   google::protobuf::util::JsonPrintOptions print;
   print.add_whitespace = true;
   std::string json;
@@ -356,7 +360,8 @@ void App::SaveScene(const std::string& path) {
 
 void App::OpenScene(const std::string& path) {
   try {
-    const v1::Scene scene = LoadSceneFile(path);
+    v1::Scene scene = LoadSceneFile(path);
+    if (volume) ToVolumeFrame(scene, VolumePlacement::Of(*volume));  // the viewer's camera and lights
     camera = FromProto(scene.camera(), camera);
     SendCamera();
     transfer = scene.transfer_function();

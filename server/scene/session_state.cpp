@@ -6,6 +6,7 @@
 #include "core/error.h"
 #include "scene/presets.h"
 #include "scene/scene_builder.h"
+#include "scene/scene_frame.h"
 
 namespace cinevol {
 namespace {
@@ -137,6 +138,42 @@ unsigned ApplyToScene(const v1::SessionEvent& event, v1::Scene& scene, const std
   }
 }
 
+// The parts of `scene` that `parts` names, alone: what an edit of them
+// replaces, kept to put back if the edit is refused.
+v1::Scene CopyParts(const v1::Scene& scene, unsigned parts) {
+  v1::Scene copy;
+  if (parts & kCameraChanged) *copy.mutable_camera() = scene.camera();
+  if (parts & (kCameraChanged | kSamplingChanged)) *copy.mutable_render() = scene.render();
+  if (parts & kLightsChanged) *copy.mutable_lights() = scene.lights();
+  if (parts & kTransferFunctionChanged) *copy.mutable_transfer_function() = scene.transfer_function();
+  if (parts & kClippingChanged) *copy.mutable_clipping() = scene.clipping();
+  if (parts & kLabelsChanged) *copy.mutable_labels() = scene.labels();
+  return copy;
+}
+
+void RestoreParts(v1::Scene& scene, v1::Scene& saved, unsigned parts) {
+  if (parts & kCameraChanged) scene.mutable_camera()->Swap(saved.mutable_camera());
+  if (parts & (kCameraChanged | kSamplingChanged)) scene.mutable_render()->Swap(saved.mutable_render());
+  if (parts & kLightsChanged) scene.mutable_lights()->Swap(saved.mutable_lights());
+  if (parts & kTransferFunctionChanged) scene.mutable_transfer_function()->Swap(saved.mutable_transfer_function());
+  if (parts & kClippingChanged) scene.mutable_clipping()->Swap(saved.mutable_clipping());
+  if (parts & kLabelsChanged) scene.mutable_labels()->Swap(saved.mutable_labels());
+}
+
+// The scene parts an event edits, without editing them.
+unsigned PartsOf(const v1::SessionEvent& event) {
+  switch (event.kind_case()) {
+    case v1::SessionEvent::kCamera:
+    case v1::SessionEvent::kResize: return kCameraChanged;
+    case v1::SessionEvent::kLights: return kLightsChanged;
+    case v1::SessionEvent::kTransferFunction: return kTransferFunctionChanged;
+    case v1::SessionEvent::kRender: return kSamplingChanged;
+    case v1::SessionEvent::kClipping: return kClippingChanged;
+    case v1::SessionEvent::kLabels: return kLabelsChanged;
+    default: return 0;
+  }
+}
+
 }  // namespace
 
 void CheckStreamSettings(const v1::StreamSettings& edit, const std::string& field) {
@@ -162,6 +199,7 @@ v1::SessionState InitialState(const v1::CreateSessionRequest& request, const Vol
   switch (request.initial_case()) {
     case v1::CreateSessionRequest::kScene:
       scene = request.scene();
+      ToVolumeFrame(scene, VolumePlacement::Of(volume));  // sessions hold the renderers' frame
       AddDefaultLights(scene, volume);  // the answer's scene shows them
       break;
     case v1::CreateSessionRequest::kPreset:
@@ -234,14 +272,20 @@ unsigned ApplyEvent(v1::SessionState& state, const v1::SessionEvent& event, cons
     case v1::SessionEvent::KIND_NOT_SET:
       throw InputError(prefix + "no event kind set");
     default: {
+      // Edited in place, only the parts it touches checked; put back if refused.
       if (event.has_resize()) with_prefix([&] { CheckViewport(event.resize(), "resize", limits); });
-      v1::Scene next = state.scene();
-      changes = ApplyToScene(event, next, prefix);
-      ApplyDefaults(next, changes);  // an unset fov takes its default, as in a scene file
-      if (changes & kLightsChanged) ResolveEnvironmentMaps(next, resolve_map);
-      if (limits) CheckCost(next, changes, prefix, *limits);
-      CheckParts(next, changes, prefix);
-      *state.mutable_scene() = std::move(next);
+      v1::Scene& scene = *state.mutable_scene();
+      v1::Scene saved = CopyParts(scene, PartsOf(event));
+      try {
+        changes = ApplyToScene(event, scene, prefix);
+        ApplyDefaults(scene, changes);  // an unset fov takes its default, as in a scene file
+        if (changes & kLightsChanged) ResolveEnvironmentMaps(scene, resolve_map);
+        if (limits) CheckCost(scene, changes, prefix, *limits);
+        CheckParts(scene, changes, prefix);
+      } catch (...) {
+        RestoreParts(scene, saved, PartsOf(event));
+        throw;
+      }
       if (event.has_resize()) *state.mutable_viewport() = event.resize();
     }
   }

@@ -162,18 +162,23 @@ void Session::ApplyLocked(const v1::SessionEvent& event, Clock::time_point arriv
                                  "one (LoadLabels) and start a new session",
                                  event.seq(), volume_->id()));
   }
-  v1::SessionState next = current_;
-  const unsigned changes = ApplyEvent(next, event, context_.limits, context_.resolve_map);
-  const std::uint64_t pixels = std::uint64_t(next.viewport().width()) * next.viewport().height();
+  const v1::Viewport viewport = current_.viewport();
+  const std::uint64_t applied_seq = current_.last_event_seq();
+  const unsigned changes = ApplyEvent(current_, event, context_.limits, context_.resolve_map);  // as it was if it throws
+  const std::uint64_t pixels = std::uint64_t(current_.viewport().width()) * current_.viewport().height();
   if (pixels != pixels_) {
     try {
       context_.pixels->Exchange(pixels_, pixels);
     } catch (const LimitExceeded& e) {
+      // Only a resize changes the size: put the old one back.
+      *current_.mutable_viewport() = viewport;
+      current_.mutable_scene()->mutable_render()->set_width(viewport.width());
+      current_.mutable_scene()->mutable_render()->set_height(viewport.height());
+      current_.set_last_event_seq(applied_seq);
       throw LimitExceeded(e.code(), e.flag(), fmt::format("event {}: resize: {}", event.seq(), e.what()));
     }
     pixels_ = pixels;
   }
-  current_ = std::move(next);
   if (changes & kStreamChanged) settings_ = SessionFrameSettings(context_.backend, current_.stream());
   // Every event but a pause gets a frame that answers it.
   if (event.has_pause()) {

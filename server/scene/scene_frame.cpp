@@ -1,0 +1,90 @@
+#include "scene/scene_frame.h"
+
+#include <functional>
+
+namespace cinevol {
+namespace {
+
+Vec3f ToVec(const v1::Vec3& v) { return {v.x(), v.y(), v.z()}; }
+
+void Set(v1::Vec3* to, Vec3f v) {
+  to->set_x(v.x);
+  to->set_y(v.y);
+  to->set_z(v.z);
+}
+
+// Every point and direction the camera and lights hold, moved by `point` and
+// `direction` (unset fields stay unset).
+void MoveCameraAndLights(v1::Scene& scene, const std::function<Vec3f(Vec3f)>& point,
+                         const std::function<Vec3f(Vec3f)>& direction) {
+  auto move = [](v1::Vec3* v, const std::function<Vec3f(Vec3f)>& f) { Set(v, f(ToVec(*v))); };
+  v1::Camera& camera = *scene.mutable_camera();
+  if (camera.has_eye()) move(camera.mutable_eye(), point);
+  if (camera.has_target()) move(camera.mutable_target(), point);
+  if (camera.has_up()) move(camera.mutable_up(), direction);
+  for (v1::Light& light : *scene.mutable_lights()) {
+    if (light.has_area()) {
+      move(light.mutable_area()->mutable_center(), point);
+      move(light.mutable_area()->mutable_edge_u(), direction);
+      move(light.mutable_area()->mutable_edge_v(), direction);
+    } else if (light.has_point()) {
+      move(light.mutable_point()->mutable_position(), point);
+    } else if (light.has_directional()) {
+      move(light.mutable_directional()->mutable_direction(), direction);
+    } else if (light.has_environment() && light.environment().has_gradient() &&
+               light.environment().gradient().has_up()) {
+      move(light.mutable_environment()->mutable_gradient()->mutable_up(), direction);
+    }
+  }
+}
+
+}  // namespace
+
+VolumePlacement VolumePlacement::Of(const Volume& volume) {
+  const VolumeMetadata& m = volume.metadata();
+  return {m.direction, Vec3f{float(m.origin_mm[0]), float(m.origin_mm[1]), float(m.origin_mm[2])},
+          volume.spacing_mm() * 0.5f - volume.extent_mm() * 0.5f};
+}
+
+VolumePlacement VolumePlacement::Of(const v1::VolumeInfo& volume) {
+  VolumePlacement p;
+  if (volume.direction_size() == 9) std::copy(volume.direction().begin(), volume.direction().end(), p.direction.begin());
+  p.origin = ToVec(volume.origin_mm());
+  const Vec3f spacing = ToVec(volume.spacing_mm());
+  const Vec3f extent{float(volume.dims().x()) * spacing.x, float(volume.dims().y()) * spacing.y,
+                     float(volume.dims().z()) * spacing.z};
+  p.shift = spacing * 0.5f - extent * 0.5f;
+  return p;
+}
+
+Vec3f VolumePlacement::DirectionToVolume(Vec3f lps) const {
+  Vec3f v;
+  for (int c = 0; c < 3; ++c) {
+    v[c] = float(direction[0 * 3 + c] * lps.x + direction[1 * 3 + c] * lps.y + direction[2 * 3 + c] * lps.z);
+  }
+  return v;
+}
+
+Vec3f VolumePlacement::DirectionToPatient(Vec3f v) const {
+  Vec3f lps;
+  for (int r = 0; r < 3; ++r) {
+    lps[r] = float(direction[r * 3 + 0] * v.x + direction[r * 3 + 1] * v.y + direction[r * 3 + 2] * v.z);
+  }
+  return lps;
+}
+
+void ToVolumeFrame(v1::Scene& scene, const VolumePlacement& p) {
+  if (scene.frame() != v1::PATIENT_LPS) return;
+  MoveCameraAndLights(scene, [&](Vec3f x) { return p.PointToVolume(x); },
+                      [&](Vec3f x) { return p.DirectionToVolume(x); });
+  scene.clear_frame();
+}
+
+void ToPatientFrame(v1::Scene& scene, const VolumePlacement& p) {
+  if (scene.frame() == v1::PATIENT_LPS) return;
+  MoveCameraAndLights(scene, [&](Vec3f x) { return p.PointToPatient(x); },
+                      [&](Vec3f x) { return p.DirectionToPatient(x); });
+  scene.set_frame(v1::PATIENT_LPS);
+}
+
+}  // namespace cinevol
