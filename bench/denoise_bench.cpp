@@ -8,7 +8,7 @@
 #include <fmt/format.h>
 
 #include "bench.h"
-#include "core/image_metrics.h"
+#include "image_metrics.h"
 #include "core/ycc.h"
 #include "pipeline/frame_pipeline.h"
 #include "tradeoff_study.h"

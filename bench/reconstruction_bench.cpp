@@ -11,7 +11,7 @@
 #include <fmt/format.h>
 
 #include "bench.h"
-#include "core/image_metrics.h"
+#include "image_metrics.h"
 #include "core/tone_map.h"
 #include "encode/image_codecs.h"
 #include "io/phantom.h"

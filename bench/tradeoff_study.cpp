@@ -13,9 +13,10 @@
 
 #include <fmt/format.h>
 
-#include "core/image_metrics.h"
+#include "image_metrics.h"
 #include "core/tone_map.h"
 #include "core/ycc.h"
+#include "encode/hdr_images.h"
 #include "encode/image_codecs.h"
 #include "scene/presets.h"
 #include "scene/scene_builder.h"

@@ -1,6 +1,7 @@
 // Image files and streams: JPEG (libjpeg-turbo) and PNG (libpng) for 8-bit
-// sRGB frames, JPEG also from YCbCr planes; OpenEXR and PFM for linear HDR.
-// Errors throw InputError naming the file.
+// sRGB frames, JPEG also from YCbCr planes (linear HDR: hdr_images.h). What
+// a client needs to show frames, nothing more. Errors throw InputError
+// naming the file.
 #pragma once
 
 #include <cstdint>
@@ -21,19 +22,11 @@ std::vector<std::uint8_t> EncodeJpeg(const ImageRgb8& image, int quality,
 // intervals: the same pixels decode, sooner.
 std::vector<std::uint8_t> EncodeJpeg(const ImageYcc8& image, int quality, int bands = 1);
 std::vector<std::uint8_t> EncodePng(const ImageRgb8& image);
-// Linear RGB as 32-bit float channels.
-std::vector<std::uint8_t> EncodeExr(const ImageRgbF& image);
 // Decoders allocate at most 8192 x 8192 pixels (the largest viewport).
 ImageRgb8 DecodeJpeg(const std::vector<std::uint8_t>& bytes);
 ImageRgb8 DecodePng(const std::vector<std::uint8_t>& bytes);
 ImageRgb8 ReadPng(const std::filesystem::path& path);
 
 void WriteFile(const std::filesystem::path& path, const std::vector<std::uint8_t>& bytes);
-void WriteExr(const std::filesystem::path& path, const ImageRgbF& image);
-void WritePfm(const std::filesystem::path& path, const ImageRgbF& image);
-// Messages call the file `shown` (default: its path). Images of more than
-// 2^26 pixels are refused before any is read.
-ImageRgbF ReadExr(const std::filesystem::path& path, const std::string& shown = {});
-ImageRgbF ReadPfm(const std::filesystem::path& path);
 
 }  // namespace cinevol

@@ -14,6 +14,7 @@
 #include "core/error.h"
 #include "core/parallel_for.h"
 #include "core/tone_map.h"
+#include "encode/hdr_images.h"
 #include "encode/image_codecs.h"
 #include "render/prepared_volume.h"
 #include "service/errors.h"

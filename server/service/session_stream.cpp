@@ -153,7 +153,7 @@ void SessionStreamReactor::EndSession(grpc::Status status) {
   {
     std::lock_guard lock(mu_);
     if (finished_ || finish_after_write_) return;
-    // The client library's SessionStream reads this trailer (client-cpp/client.cpp).
+    // The client library's SessionStream reads this trailer (client-cpp/library/client.cpp).
     context_->AddTrailingMetadata("cinevol-session-ended", "1");
   }
   End(std::move(status));

@@ -6,6 +6,7 @@
 #include <fstream>
 #include <regex>
 
+#include "encode/hdr_images.h"
 #include "encode/image_codecs.h"
 #include "service/server_process.h"
 #include "service/service_test_support.h"

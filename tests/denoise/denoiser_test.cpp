@@ -11,7 +11,7 @@
 #include <cstdio>
 #include <limits>
 
-#include "core/image_metrics.h"
+#include "image_metrics.h"
 #include "synthetic_sequence.h"
 
 namespace cinevol {

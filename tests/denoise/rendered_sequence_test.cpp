@@ -6,7 +6,7 @@
 
 #include <cmath>
 
-#include "core/image_metrics.h"
+#include "image_metrics.h"
 #include "denoise/denoiser.h"
 #include "io/phantom.h"
 #include "render/cpu_renderer.h"

@@ -5,7 +5,7 @@
 
 #include <algorithm>
 
-#include "core/image_metrics.h"
+#include "image_metrics.h"
 #include "core/ycc.h"
 #include "pipeline/frame_pipeline.h"
 #include "pipeline/refine.h"

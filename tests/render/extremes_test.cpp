@@ -18,6 +18,7 @@
 #include "render/prepared_volume.h"
 #include "render/scene_data.h"
 #include "render_test_scenes.h"
+#include "encode/hdr_images.h"
 #include "encode/image_codecs.h"
 #include "scene/scene_file.h"
 #include "support/small_scene.h"

@@ -7,7 +7,7 @@
 
 #include <fstream>
 
-#include "core/image_metrics.h"
+#include "image_metrics.h"
 #include "server_process.h"
 #include "service_test_support.h"
 #include "support/patient_on_table.h"

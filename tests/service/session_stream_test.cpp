@@ -5,7 +5,8 @@
 
 #include <thread>
 
-#include "core/image_metrics.h"
+#include "encode/hdr_images.h"
+#include "image_metrics.h"
 #include "pipeline/frame_cost.h"
 #include "server_process.h"
 #include "service_test_support.h"

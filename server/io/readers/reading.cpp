@@ -11,6 +11,7 @@
 #include <fmt/format.h>
 
 #include "core/error.h"
+#include "encode/hdr_images.h"
 #include "encode/image_codecs.h"
 #include "io/file_checks.h"
 #include "io/label_volume.h"

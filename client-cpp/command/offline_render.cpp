@@ -8,6 +8,7 @@
 
 #include "core/error.h"
 #include "core/tone_map.h"
+#include "encode/hdr_images.h"
 #include "encode/image_codecs.h"
 #include "io/label_volume.h"
 #include "scene/presets.h"

@@ -1,5 +1,5 @@
 // PSNR, SSIM, relative MSE and temporal error.
-#include "core/image_metrics.h"
+#include "image_metrics.h"
 
 #include <algorithm>
 #include <cmath>
