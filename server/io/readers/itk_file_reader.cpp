@@ -36,6 +36,9 @@
 #include "core/error.h"
 #include "core/volume.h"
 #include "io/file_checks.h"
+#include "io/formats/format.h"
+#include "io/formats/header_text.h"
+#include "io/formats/nrrd/references.h"
 #include "io/readers/formats.h"
 #include "io/readers/itk_image.h"
 
@@ -194,7 +197,7 @@ fs::path WriteScratch(const std::string& text, const reader::ReadOptions& option
 fs::path RewriteNrrdHeader(const fs::path& header, const std::vector<fs::path>& named, bool drop_space,
                            const reader::ReadOptions& options) {
   const std::string& shown = options.shown;
-  const file_checks::NrrdHeader h = file_checks::ParseNrrdHeader(header, shown);
+  const formats::nrrd::Header h = formats::nrrd::ParseHeader(header, shown);
   if (!h.references.problem.empty()) throw InputError(fmt::format("{}: {}", shown, h.references.problem));
   if (!h.attached && h.references.files.size() != named.size()) {
     throw InputError(fmt::format("{}: the header changed while it was read", shown));
@@ -202,7 +205,7 @@ fs::path RewriteNrrdHeader(const fs::path& header, const std::vector<fs::path>& 
   std::string out;
   std::int64_t line_skip = 0;
   for (const std::string& line : h.lines) {
-    const std::string key = file_checks::FieldName(line);
+    const std::string key = formats::nrrd::FieldName(line);
     if (drop_space && key == "space") continue;
     if (h.attached && key == "lineskip") {
       line_skip = LineSkip(line, shown);
@@ -232,7 +235,7 @@ fs::path RewriteNrrdHeader(const fs::path& header, const std::vector<fs::path>& 
 // files (`named`, in the header's order): a single file, or a LIST.
 fs::path RewriteMetaImageHeader(const fs::path& header, const std::vector<fs::path>& named,
                                 const reader::ReadOptions& options) {
-  const std::string head = file_checks::ReadHead(header, file_checks::kMaxHeaderBytes, options.shown);
+  const std::string head = file_checks::ReadHead(header, formats::kMaxHeaderBytes, options.shown);
   std::string out;
   for (std::size_t pos = 0; pos < head.size();) {
     const std::size_t end = std::min(head.find_first_of("\r\n", pos), head.size());
@@ -283,7 +286,7 @@ std::string TrimBlanks(const std::string& s) {
 // rest of a value MetaIO did not take is read as the next key), so no run of
 // the header, up to its ElementDataFile line, may reach 255 characters.
 void CheckMetaHeaderText(const fs::path& path, const std::string& shown) {
-  const std::string head = file_checks::ReadHead(path, file_checks::kMaxHeaderBytes, shown);
+  const std::string head = file_checks::ReadHead(path, formats::kMaxHeaderBytes, shown);
   constexpr std::size_t kMaxRun = 254;
   const std::size_t end = std::min(head.size(), head.find('\n', std::min(head.size(), head.find("ElementDataFile"))));
   // MetaIO reads NDims values for DimSize and the like (NDims squared for a
@@ -322,10 +325,10 @@ void CheckMetaHeaderText(const fs::path& path, const std::string& shown) {
 // key/value pairs) is not limited.
 void CheckNrrdHeaderText(const fs::path& path, const std::string& shown) {
   constexpr std::size_t kMaxFieldLine = 512;
-  const file_checks::NrrdHeader h = file_checks::ParseNrrdHeader(path, shown);
+  const formats::nrrd::Header h = formats::nrrd::ParseHeader(path, shown);
   for (std::size_t i = 1; i < h.lines.size(); ++i) {
     const std::string& line = h.lines[i];
-    const std::string key = file_checks::FieldName(line);
+    const std::string key = formats::nrrd::FieldName(line);
     if (key.empty() || key == "content" || line.find(":=") != std::string::npos) continue;
     if (line.size() > kMaxFieldLine) {
       throw InputError(fmt::format("{}: the header's '{}' line has {} characters; cinevol reads NRRD field lines of "
@@ -589,7 +592,7 @@ void CheckNiftiHeaders(const fs::path& path, const std::string& shown) {
 
 
 // The byte offset just past the first `lines` lines of `text`, with line ends
-// counted as file_checks::Lines counts them ("\n", "\r" or "\r\n"); -1 when
+// counted as formats::Lines counts them ("\n", "\r" or "\r\n"); -1 when
 // the text has fewer.
 std::int64_t OffsetAfterLines(const std::string& text, std::size_t lines) {
   std::size_t i = 0;
@@ -608,12 +611,12 @@ std::int64_t OffsetAfterLines(const std::string& text, std::size_t lines) {
 // (attached, or one detached data file) is checked here first, as teem will
 // read it. Returns "" when it holds every voxel, else what is wrong.
 std::string NrrdPayloadProblem(itk::ImageIOBase& io, const fs::path& path, const std::string& shown) {
-  const file_checks::NrrdHeader h = file_checks::ParseNrrdHeader(path, shown);
+  const formats::nrrd::Header h = formats::nrrd::ParseHeader(path, shown);
   if (h.listed || !h.references.problem.empty() || (!h.attached && h.references.files.size() != 1)) return "";
   std::string encoding = "raw";
   std::int64_t line_skip = 0, byte_skip = 0;
   for (const std::string& line : h.lines) {
-    const std::string key = file_checks::FieldName(line);
+    const std::string key = formats::nrrd::FieldName(line);
     if (key != "encoding" && key != "lineskip" && key != "byteskip") continue;
     const std::string value = TrimBlanks(line.substr(line.find(':') + 1));
     if (key == "encoding") {
@@ -635,7 +638,7 @@ std::string NrrdPayloadProblem(itk::ImageIOBase& io, const fs::path& path, const
   // Where the data begin: past the header's lines (attached) and `line skip` lines.
   std::int64_t start = 0;
   if (h.attached) {
-    start = OffsetAfterLines(file_checks::ReadHead(data, file_checks::kMaxHeaderBytes + 1, shown), h.line_count);
+    start = OffsetAfterLines(file_checks::ReadHead(data, formats::kMaxHeaderBytes + 1, shown), h.line_count);
     if (start < 0) return "the header does not end before the data";
   }
   if (std::fseek(f, long(start), SEEK_SET) != 0) return "cannot read the data";
@@ -750,7 +753,7 @@ struct MetaHeader {
 };
 
 MetaHeader ReadMetaHeader(const fs::path& path, const std::string& shown) {
-  const std::string head = file_checks::ReadHead(path, file_checks::kMaxHeaderBytes, shown);
+  const std::string head = file_checks::ReadHead(path, formats::kMaxHeaderBytes, shown);
   MetaHeader h;
   for (std::size_t pos = 0; pos < head.size();) {
     const std::size_t end = std::min(head.find('\n', pos), head.size());
@@ -1016,7 +1019,7 @@ fs::path RewriteGzippedNrrd(const fs::path& path, const reader::ReadOptions& opt
     if (fd >= 0) close(fd);
     throw InputError(fmt::format("{}: cannot be read", shown));
   }
-  std::string text(file_checks::kMaxHeaderBytes, '\0');
+  std::string text(formats::kMaxHeaderBytes, '\0');
   const int got = gzread(z, text.data(), unsigned(text.size()));
   gzclose(z);
   text.resize(std::size_t(std::max(got, 0)));
@@ -1034,7 +1037,7 @@ fs::path RewriteGzippedNrrd(const fs::path& path, const reader::ReadOptions& opt
                          fs::absolute(path).lexically_normal().string());
       return WriteScratch(out, options);
     }
-    const std::string key = file_checks::FieldName(line);
+    const std::string key = formats::nrrd::FieldName(line);
     const std::string value = TrimBlanks(line.substr(std::min(line.size(), line.find(':') + 1)));
     if (key == "datafile") throw InputError(fmt::format("{}: a gzipped NRRD must hold its voxels itself", shown));
     if (key == "lineskip" && value != "0") throw InputError(fmt::format("{}: 'line skip' in a gzipped NRRD", shown));
@@ -1072,7 +1075,7 @@ std::unique_ptr<VolumeRead> OpenVolumeFile(const fs::path& path, const std::vect
       throw InputError(fmt::format("{}: {}", shown, itk_image::ItkMessage(e, {path, read}, shown)));
     }
   }
-  const file_checks::References refs = file_checks::FindReferences(path, shown);
+  const formats::References refs = formats::FindReferences(path, shown);
   const bool beside = std::all_of(refs.files.begin(), refs.files.end(), [&](const fs::path& f) {
     return f.parent_path() == path.parent_path() && fs::exists(fs::symlink_status(f));
   });
