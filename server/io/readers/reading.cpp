@@ -14,7 +14,7 @@
 #include "encode/image_codecs.h"
 #include "io/formats/format.h"
 #include "io/label_volume.h"
-#include "io/readers/formats.h"
+#include "io/readers/volume_read.h"
 
 namespace fs = std::filesystem;
 

@@ -2,14 +2,14 @@
 // headers (after checks.h's walk); cinevol groups the files into series,
 // sorts one series' slices along their normal and checks them: gantry tilt
 // measured, uneven gaps, duplicates and colour refused. The ITK/GDCM adapter
-// (readers/dicom_series.cpp) decodes the pixels.
+// (readers/itk_adapter.h) decodes the pixels.
 #pragma once
 
 #include <string>
 #include <vector>
 
 #include "cinevol/reader/reader.pb.h"
-#include "io/readers/formats.h"
+#include "io/readers/volume_read.h"
 
 namespace cinevol::formats::dicom {
 
