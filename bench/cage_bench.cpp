@@ -14,6 +14,7 @@
 
 #include "bench.h"
 #include "io/file_checks.h"
+#include "io/formats/format.h"
 #include "io/reader_cage.h"
 #include "io/readers/reading.h"
 #include "io/volume_loader.h"
@@ -69,7 +70,7 @@ reader::Request RequestFor(const fs::path& path, std::vector<UniqueFd>& inputs, 
   }
   request.set_kind(reader::Request::VOLUME);
   add(path, path.filename().string());
-  for (const fs::path& named : file_checks::FindReferences(path, path.string()).files) {
+  for (const fs::path& named : formats::FindReferences(path, path.string()).files) {
     add(named, named.lexically_relative(path.parent_path()).string());
   }
   return request;

@@ -1,7 +1,9 @@
-// Internal to server/io: what a volume load may open. Everything the loaders
-// open themselves goes through here first: only regular files, headers read
-// with a bound, and the other files a header names found and checked against
-// the LoadPolicy before ITK reads anything.
+// Internal to server/io: what a volume load may open, whatever its format.
+// Everything the loaders open themselves goes through here first: only
+// regular files, inside the data roots where the policy says so, headers read
+// with a bound; and the other files a header names (found by its format,
+// io/formats/format.h) checked against the LoadPolicy before a reader sees
+// anything.
 #pragma once
 
 #include <cstddef>
@@ -11,13 +13,10 @@
 #include <string>
 #include <vector>
 
+#include "io/formats/format.h"
 #include "io/volume_loader.h"
 
 namespace cinevol::file_checks {
-
-// The most header text read to find the files a header names; real headers
-// are a few KiB, a NRRD list of slice files a few hundred.
-inline constexpr std::size_t kMaxHeaderBytes = std::size_t{1} << 20;
 
 // What messages call `path`: the policy's label when it has one.
 std::string Shown(const std::filesystem::path& path, const LoadPolicy& policy);
@@ -48,37 +47,9 @@ bool IsInside(const std::filesystem::path& path, const std::vector<std::filesyst
 // `path`, symlinks followed, lies inside one of the policy's roots.
 void RequireInsideRoots(const std::filesystem::path& path, const LoadPolicy& policy, const std::string& shown);
 
-// The field name of a "name: value" header line, lower case and without
-// blanks ("data file" -> "datafile"); "" for comments and other lines.
-std::string FieldName(const std::string& line);
-
-// The other files a volume file's header names.
-struct References {
-  std::string field;                        // "data file", "ElementDataFile", ...; empty: none
-  std::vector<std::filesystem::path> files;  // resolved against the header's folder
-  std::string problem;                      // why `files` could not be listed; "" when they were
-};
-
-// A NRRD header as teem reads it, for the lenient rewrite.
-struct NrrdHeader {
-  std::vector<std::string> lines;  // magic and fields, without the data file field and its list
-  std::size_t line_count = 0;      // lines teem reads up to the data (blank line included)
-  bool attached = true;            // no data file field: the voxels follow the header
-  bool listed = false;             // LIST or pattern form (else a single file)
-  std::string list_dim;            // LIST or pattern form: the data file dimension if given
-  References references;
-};
-
-// Parses the (bounded) header of a file that starts with "NRRD".
-NrrdHeader ParseNrrdHeader(const std::filesystem::path& file, const std::string& shown);
-
-// Finds the files `file`'s header names (NRRD/NHDR "data file", MetaImage
-// "ElementDataFile", a NIfTI/Analyze .hdr/.img pair), reading only `file`.
-References FindReferences(const std::filesystem::path& file, const std::string& shown);
-
 // Throws InputError unless `refs` is what `policy` allows: kNone refuses any
 // reference; kInsideRoots needs each file to be regular and inside the roots.
 // Messages name `shown` and the field, never whether an outside file exists.
-void CheckReferences(const References& refs, const LoadPolicy& policy, const std::string& shown);
+void CheckReferences(const formats::References& refs, const LoadPolicy& policy, const std::string& shown);
 
 }  // namespace cinevol::file_checks

@@ -30,6 +30,7 @@
 #include "cinevol/reader/reader.pb.h"
 #include "core/error.h"
 #include "core/log_safe.h"
+#include "io/file_checks.h"
 #include "io/label_volume.h"
 #include "io/reader_channel.h"
 
@@ -559,15 +560,9 @@ std::string ReaderName(int request_kind, const std::string& file_name) {
     default:
       break;
   }
-  std::string name = file_name;
-  for (char& c : name) c = char(std::tolower(static_cast<unsigned char>(c)));
-  if (name.ends_with(".gz")) name.resize(name.size() - 3);
-  for (const char* nifti : {".nii", ".hdr", ".img", ".nia"}) {
-    if (name.ends_with(nifti)) return "NIfTI";
-  }
-  if (name.ends_with(".mha") || name.ends_with(".mhd")) return "MetaImage";
-  if (name.ends_with(".vtk")) return "VTK";
-  return "NRRD";  // .nrrd, .nhdr, or any file that starts with the NRRD magic
+  const formats::Format format = formats::FormatOfName(file_name);
+  // Any other name is NRRD's: teem reads any file that starts with its magic.
+  return formats::ReaderName(format == formats::Format::kUnknown ? formats::Format::kNrrd : format);
 }
 
 fs::path ReaderPath() {
@@ -582,7 +577,7 @@ fs::path ReaderPath() {
                                        self.string()));
 }
 
-Volume ReadVolumeFile(const fs::path& file, const file_checks::References& refs, const LoadPolicy& policy) {
+Volume ReadVolumeFile(const fs::path& file, const formats::References& refs, const LoadPolicy& policy) {
   Request request;
   request.set_kind(Request::VOLUME);
   request.set_shown(file_checks::Shown(file, policy));

@@ -24,7 +24,7 @@
 
 #include "core/image.h"
 #include "core/volume.h"
-#include "io/file_checks.h"
+#include "io/formats/format.h"
 #include "io/volume_loader.h"
 
 namespace cinevol::reader_cage {
@@ -38,7 +38,7 @@ struct Input {
 
 // A volume file, `refs` the files its header names (already checked against
 // the policy by the caller).
-Volume ReadVolumeFile(const std::filesystem::path& file, const file_checks::References& refs,
+Volume ReadVolumeFile(const std::filesystem::path& file, const formats::References& refs,
                       const LoadPolicy& policy);
 
 // A DICOM series from `files` (a folder's files); the largest when

@@ -1,13 +1,14 @@
 // LoadVolume: one entry point for every kind of volume source.
 #include "io/volume_loader.h"
 
-#include <algorithm>
 #include <charconv>
 
 #include <fmt/format.h>
 
 #include "core/error.h"
 #include "io/file_checks.h"
+#include "io/formats/dicom/folder.h"
+#include "io/formats/format.h"
 #include "io/phantom.h"
 #include "io/reader_cage.h"
 
@@ -15,9 +16,6 @@ namespace fs = std::filesystem;
 
 namespace cinevol {
 namespace {
-
-// A folder with more files than this is not one patient's series.
-constexpr std::size_t kMaxFolderFiles = 100000;
 
 fs::path Resolve(const std::string& path, const fs::path& base_dir) {
   const fs::path p(path);
@@ -77,35 +75,6 @@ v1::Phantom ParsePhantomSpec(std::string_view spec) {
   return p;
 }
 
-// The regular files under `folder` (subfolders included, symlinked folders
-// not followed) that the policy lets a load read: FIFOs, sockets and devices
-// are skipped without being opened; kInsideRoots keeps files inside the
-// roots, kNone files inside the folder itself. Only names and types are
-// looked at here: the reader decides what is DICOM.
-std::vector<reader_cage::Input> FolderFiles(const fs::path& folder, const LoadPolicy& policy,
-                                            const std::string& shown) {
-  using R = LoadPolicy::References;
-  std::error_code ec;
-  if (!fs::is_directory(folder, ec)) throw InputError(fmt::format("{}: not a folder", shown));
-  file_checks::RequireInsideRoots(folder, policy, shown);
-  const std::vector<fs::path> allowed = policy.references == R::kNone ? std::vector<fs::path>{fs::canonical(folder, ec)}
-                                                                      : policy.roots;
-  std::vector<reader_cage::Input> files;
-  for (fs::recursive_directory_iterator it(folder, fs::directory_options::skip_permission_denied, ec), end;
-       !ec && it != end; it.increment(ec)) {
-    if (it->is_directory(ec) || !file_checks::IsRegularFile(it->path())) continue;
-    if (policy.references != R::kAnywhere && !file_checks::IsInside(fs::canonical(it->path(), ec), allowed)) continue;
-    if (files.size() == kMaxFolderFiles) {
-      throw InputError(fmt::format("{}: more than {} files in the folder", shown, kMaxFolderFiles));
-    }
-    files.push_back({it->path(), it->path().lexically_relative(folder).string()});
-  }
-  if (ec) throw InputError(fmt::format("{}: cannot list the folder", shown));
-  if (files.empty()) throw InputError(fmt::format("{}: no DICOM files found (0 files looked at)", shown));
-  std::sort(files.begin(), files.end(), [](const auto& a, const auto& b) { return a.name < b.name; });
-  return files;
-}
-
 LoadPolicy Labelled(LoadPolicy policy, const fs::path& path) {
   policy.label = file_checks::Shown(path, policy);
   return policy;
@@ -123,19 +92,19 @@ Volume LoadVolumeFile(const fs::path& path, const LoadPolicy& policy) {
   file_checks::RequireInsideRoots(path, policy, shown);
   // Before any reader sees the file: the files its header names, found with
   // our own bounded scan of the header's text and checked against the policy.
-  const file_checks::References refs = file_checks::FindReferences(path, shown);
+  const formats::References refs = formats::FindReferences(path, shown);
   file_checks::CheckReferences(refs, policy, shown);
   return reader_cage::ReadVolumeFile(path, refs, policy);
 }
 
 std::vector<DicomSeriesInfo> ListDicomSeries(const fs::path& folder, const LoadPolicy& policy) {
   const LoadPolicy labelled = Labelled(policy, folder);
-  return reader_cage::ListDicomSeries(FolderFiles(folder, labelled, labelled.label), labelled);
+  return reader_cage::ListDicomSeries(formats::dicom::FolderFiles(folder, labelled, labelled.label), labelled);
 }
 
 Volume LoadDicomSeries(const fs::path& folder, const std::string& series_uid, const LoadPolicy& policy) {
   const LoadPolicy labelled = Labelled(policy, folder);
-  return reader_cage::ReadDicomSeries(FolderFiles(folder, labelled, labelled.label), series_uid, labelled);
+  return reader_cage::ReadDicomSeries(formats::dicom::FolderFiles(folder, labelled, labelled.label), series_uid, labelled);
 }
 
 v1::VolumeSource ParseVolumeSpec(std::string_view spec) {

@@ -25,6 +25,7 @@
 
 #include "fuzz_support.h"
 #include "io/file_checks.h"
+#include "io/formats/format.h"
 #include "io/readers/reading.h"
 
 namespace fs = std::filesystem;
@@ -47,7 +48,7 @@ void CheckUpload(const fs::path& file, const std::string& shown) {
   cinevol::LoadPolicy policy;
   policy.references = cinevol::LoadPolicy::References::kNone;
   policy.label = shown;
-  const cinevol::file_checks::References refs = cinevol::file_checks::FindReferences(file, shown);
+  const cinevol::formats::References refs = cinevol::formats::FindReferences(file, shown);
   cinevol::file_checks::CheckReferences(refs, policy, shown);
 }
 

@@ -16,7 +16,7 @@
 #include "cinevol/reader/reader.pb.h"
 #include "core/error.h"
 #include "io/reader_channel.h"
-#include "io/readers/itk_image.h"
+#include "io/readers/itk_adapter.h"
 #include "io/readers/reading.h"
 #include "io/readers/sandbox.h"
 
@@ -97,7 +97,7 @@ int main(int argc, char** argv) {
   ReaderChannel channel{UniqueFd(kChannelFd)};
   try {
     reader::SetLimits(args.address_space, args.address_space_max, args.cpu_seconds);
-    itk_image::WarmUp();  // before the request: a spare does it while it waits
+    itk_adapter::WarmUp();  // before the request: a spare does it while it waits
     std::vector<UniqueFd> inputs;
     reader::Request request = ReceiveRequest(channel, inputs);
     std::vector<int> fds;

@@ -13,9 +13,9 @@
 #include "core/error.h"
 #include "encode/hdr_images.h"
 #include "encode/image_codecs.h"
-#include "io/file_checks.h"
+#include "io/formats/format.h"
 #include "io/label_volume.h"
-#include "io/readers/formats.h"
+#include "io/readers/volume_read.h"
 
 namespace fs = std::filesystem;
 
@@ -32,13 +32,10 @@ std::string SafeFileName(const std::string& name) {
 
 // The extension a reader needs to see ("" when the name has none it knows).
 std::string Extension(const std::string& name) {
+  if (std::string ending = formats::KnownEnding(name); !ending.empty()) return ending;
   std::string lower = name;
   for (char& c : lower) c = char(std::tolower(static_cast<unsigned char>(c)));
-  for (const std::string ext : {".nii.gz", ".hdr.gz", ".img.gz", ".nrrd.gz", ".nii", ".hdr", ".img", ".nia", ".nrrd",
-                                ".nhdr", ".mha", ".mhd", ".vtk", ".exr"}) {
-    if (lower.ends_with(ext)) return name.substr(name.size() - ext.size());
-  }
-  return "";
+  return lower.ends_with(".exr") ? name.substr(name.size() - 4) : "";
 }
 
 // The file a rewritten header goes to: named as a reader of the main file's

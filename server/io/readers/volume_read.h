@@ -1,6 +1,7 @@
-// Inside the reader cage: the format readers (ITK, teem, MetaIO, GDCM,
-// OpenEXR), each in two steps where there are voxels: the header, then the
-// voxels into memory the caller provides, in the file's own type.
+// Inside the reader cage: the volume readers (the ITK/GDCM adapter,
+// itk_adapter.cpp, with each format's checks from io/formats/), each in two
+// steps: the header, then the voxels into memory the caller provides, in the
+// file's own type.
 #pragma once
 
 #include <cstddef>

@@ -1,0 +1,19 @@
+// Inside the reader cage: what stands in front of GDCM's parser, which trusts
+// a DICOM file's structure: it asserts (aborting the process) on a file meta
+// element whose VR it does not know, allocates whatever length an element
+// declares, and decodes a JPEG 2000 or RLE stream that disagrees with the
+// header past its buffers.
+#pragma once
+
+#include <filesystem>
+
+namespace cinevol::formats::dicom {
+
+// Whether `path`'s elements, walked here (headers only, nested sequences
+// included), are what GDCM can parse: every VR known, every defined length
+// inside the file, a pixel module that holds together and a compressed first
+// frame that describes the image the header does. A file that fails is not
+// handed to GDCM (it counts as not DICOM).
+bool StructureIsSound(const std::filesystem::path& path);
+
+}  // namespace cinevol::formats::dicom

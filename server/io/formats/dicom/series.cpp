@@ -1,0 +1,277 @@
+// DICOM series: GDCM scans the headers, cinevol groups, sorts and checks them.
+#include "io/formats/dicom/series.h"
+
+#include <gdcmScanner.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdint>
+#include <map>
+#include <sstream>
+
+#include <fmt/format.h>
+
+#include "core/error.h"
+#include "io/formats/dicom/checks.h"
+
+namespace fs = std::filesystem;
+
+namespace cinevol::formats::dicom {
+namespace {
+
+const gdcm::Tag kSeriesUid(0x0020, 0x000e);
+const gdcm::Tag kSeriesDescription(0x0008, 0x103e);
+const gdcm::Tag kModality(0x0008, 0x0060);
+const gdcm::Tag kImagePosition(0x0020, 0x0032);
+const gdcm::Tag kImageOrientation(0x0020, 0x0037);
+const gdcm::Tag kRows(0x0028, 0x0010);
+const gdcm::Tag kColumns(0x0028, 0x0011);
+const gdcm::Tag kSliceThickness(0x0018, 0x0050);
+const gdcm::Tag kPhotometric(0x0028, 0x0004);
+const gdcm::Tag kRescaleIntercept(0x0028, 0x1052);
+const gdcm::Tag kRescaleSlope(0x0028, 0x1053);
+
+// Slices whose positions along the normal differ by more than this fraction
+// of the typical gap count as unevenly spaced.
+constexpr double kGapTolerance = 0.01;
+
+struct Scan {
+  gdcm::Scanner scanner;
+  std::vector<std::string> dicom_files;  // paths of files that parsed as DICOM
+  std::size_t files_seen = 0;
+  std::map<std::string, std::string> names;  // path -> the file's path under the folder
+  std::string shown;                         // what messages call the folder
+
+  // What messages call a file in the folder: its path under `shown`. Where
+  // `shown` ends in a quoted folder ("path 'DIR'"), the file's whole path is
+  // quoted ('DIR/14.dcm'), not the folder alone ('DIR'/14.dcm).
+  std::string Name(const std::string& file) const {
+    const auto it = names.find(file);
+    const std::string under = it == names.end() ? std::string("?") : it->second;
+    const std::size_t open = shown.ends_with('\'') ? shown.rfind('\'', shown.size() - 2) : std::string::npos;
+    const std::string folder = open == std::string::npos ? shown : shown.substr(open + 1, shown.size() - open - 2);
+    const std::string path = folder + (folder.ends_with('/') ? "" : "/") + under;
+    return open == std::string::npos ? path : "'" + path + "'";
+  }
+};
+
+
+// Scans `files`' headers. Files whose structure is not sound DICOM are
+// left out (with the pre-checks on), and so are files GDCM cannot parse.
+void ScanFiles(const std::vector<reader::DicomFile>& files, const reader::ReadOptions& options, Scan& scan) {
+  scan.shown = options.shown;
+  scan.files_seen = files.size();
+  std::vector<std::string> sound;
+  for (const reader::DicomFile& f : files) {
+    scan.names[f.path] = f.name;
+    if (!options.prechecks || StructureIsSound(f.path)) sound.push_back(f.path);
+  }
+  for (const gdcm::Tag& t : {kSeriesUid, kSeriesDescription, kModality, kImagePosition, kImageOrientation, kRows,
+                             kColumns, kSliceThickness, kPhotometric, kRescaleIntercept, kRescaleSlope}) {
+    scan.scanner.AddTag(t);
+  }
+  if (!sound.empty() && !scan.scanner.Scan(sound)) {
+    throw InputError(fmt::format("{}: could not scan the folder's files", scan.shown));
+  }
+  for (const std::string& f : sound) {
+    if (scan.scanner.IsKey(f.c_str())) scan.dicom_files.push_back(f);
+  }
+  if (scan.dicom_files.empty()) {
+    throw InputError(fmt::format("{}: no DICOM files found ({} files looked at)", scan.shown, scan.files_seen));
+  }
+}
+
+std::string Value(const Scan& scan, const std::string& file, const gdcm::Tag& tag) {
+  const char* v = scan.scanner.GetValue(file.c_str(), tag);
+  std::string s = v ? v : "";
+  while (!s.empty() && (s.back() == ' ' || s.back() == '\0')) s.pop_back();
+  return s;
+}
+
+// Parses a backslash-separated decimal string such as "1\0\0\0\1\0"; empty
+// when any item is not a finite number (NaN and infinities included).
+std::vector<double> Numbers(const std::string& s) {
+  std::vector<double> out;
+  std::stringstream in(s);
+  for (std::string item; std::getline(in, item, '\\');) {
+    try {
+      out.push_back(std::stod(item));
+    } catch (const std::exception&) {
+      return {};
+    }
+    if (!std::isfinite(out.back())) return {};
+  }
+  return out;
+}
+
+// Files grouped into series. Anonymised data may lack SeriesInstanceUID, so
+// slices of another size or orientation count as a separate series too.
+struct SeriesFiles {
+  reader::Series info;
+  std::vector<std::string> files;
+};
+
+std::vector<SeriesFiles> GroupSeries(const Scan& scan) {
+  std::map<std::string, SeriesFiles> by_key;
+  for (const std::string& f : scan.dicom_files) {
+    const std::string uid = Value(scan, f, kSeriesUid);
+    const std::string size = Value(scan, f, kColumns) + "x" + Value(scan, f, kRows);
+    SeriesFiles& s = by_key[uid + "|" + size + "|" + Value(scan, f, kImageOrientation)];
+    if (s.files.empty()) {
+      s.info.set_uid(uid);
+      s.info.set_description(Value(scan, f, kSeriesDescription));
+      s.info.set_modality(Value(scan, f, kModality));
+      s.info.set_size(size);
+    }
+    s.files.push_back(f);
+    s.info.set_file_count(s.files.size());
+  }
+  std::vector<SeriesFiles> out;
+  for (auto& [key, series] : by_key) out.push_back(std::move(series));
+  std::stable_sort(out.begin(), out.end(), [](const SeriesFiles& a, const SeriesFiles& b) {
+    return a.info.file_count() > b.info.file_count();
+  });
+  return out;
+}
+
+// Sorts `files` along their normal and checks the spacing: gantry tilt is
+// measured, duplicate positions and uneven gaps refused.
+SeriesGeometry CheckGeometry(const Scan& scan, const std::vector<std::string>& files,
+                             const std::string& where) {
+  SeriesGeometry g;
+  const std::vector<double> iop = Numbers(Value(scan, files[0], kImageOrientation));
+  if (iop.size() != 6) {
+    throw InputError(fmt::format("{}: {} has no usable ImageOrientationPatient", where, scan.Name(files[0])));
+  }
+  std::copy(iop.begin(), iop.begin() + 3, g.row);
+  std::copy(iop.begin() + 3, iop.end(), g.col);
+  g.normal[0] = g.row[1] * g.col[2] - g.row[2] * g.col[1];
+  g.normal[1] = g.row[2] * g.col[0] - g.row[0] * g.col[2];
+  g.normal[2] = g.row[0] * g.col[1] - g.row[1] * g.col[0];
+
+  for (const std::string& f : files) {
+    const std::vector<double> p = Numbers(Value(scan, f, kImagePosition));
+    if (p.size() != 3) {
+      throw InputError(fmt::format("{}: {} has no usable ImagePositionPatient", where, scan.Name(f)));
+    }
+    g.slices.push_back({f, {p[0], p[1], p[2]}, Dot3(p.data(), g.normal)});
+  }
+  std::sort(g.slices.begin(), g.slices.end(),
+            [](const Slice& a, const Slice& b) { return a.along_normal < b.along_normal; });
+  if (g.slices.size() < 2) {
+    const std::vector<double> t = Numbers(Value(scan, files[0], kSliceThickness));
+    g.slice_gap_mm = t.size() == 1 && t[0] > 0 ? t[0] : 1.0;
+    return g;
+  }
+
+  std::vector<double> gaps;
+  for (std::size_t i = 1; i < g.slices.size(); ++i) {
+    const double gap = g.slices[i].along_normal - g.slices[i - 1].along_normal;
+    if (gap < 1e-3) {
+      throw InputError(fmt::format(
+          "{}: {} and {} lie at the same position ({:.3f} mm along the normal): duplicate slices "
+          "or several acquisitions in one series",
+          where, scan.Name(g.slices[i - 1].file), scan.Name(g.slices[i].file), g.slices[i].along_normal));
+    }
+    gaps.push_back(gap);
+  }
+  std::vector<double> sorted = gaps;
+  std::nth_element(sorted.begin(), sorted.begin() + sorted.size() / 2, sorted.end());
+  g.slice_gap_mm = sorted[sorted.size() / 2];
+  for (std::size_t i = 0; i < gaps.size(); ++i) {
+    if (std::abs(gaps[i] - g.slice_gap_mm) > kGapTolerance * g.slice_gap_mm) {
+      throw InputError(fmt::format(
+          "{}: uneven slice spacing: {:.3f} mm between {} and {} where the series' gap is {:.3f} "
+          "mm (missing slices?); cinevol loads evenly spaced series only",
+          where, gaps[i], scan.Name(g.slices[i].file), scan.Name(g.slices[i + 1].file), g.slice_gap_mm));
+    }
+  }
+  // Gantry tilt: the stack's direction leaves the slice normal.
+  const Slice& first = g.slices.front();
+  const Slice& last = g.slices.back();
+  double step[3];
+  for (int a = 0; a < 3; ++a) step[a] = last.position[a] - first.position[a];
+  const double cos_tilt = Dot3(step, g.normal) / std::sqrt(Dot3(step, step));
+  g.tilt_deg = std::acos(std::min(1.0, std::abs(cos_tilt))) * 180.0 / M_PI;
+  return g;
+}
+
+// The largest series, or the largest with `requested` as its UID.
+SeriesFiles Pick(std::vector<SeriesFiles> all, const std::string& requested, const std::string& where) {
+  std::size_t chosen = 0;
+  if (!requested.empty()) {
+    chosen = all.size();
+    for (std::size_t i = 0; i < all.size() && chosen == all.size(); ++i) {
+      if (all[i].info.uid() == requested) chosen = i;
+    }
+    if (chosen == all.size()) {
+      std::string known;
+      for (const auto& s : all) known += "\n  " + Describe(s.info);
+      throw InputError(fmt::format("{}: no series {}; the folder holds:{}", where, requested, known));
+    }
+  }
+  return std::move(all[chosen]);
+}
+
+// Grey-scale slices only: GDCM decodes colour models (YBR_*, RGB, ARGB,
+// PALETTE COLOR) into several components, and aborts or crashes on some that
+// disagree with their codec (a JPEG 2000 slice marked YBR_RCT, an
+// uncompressed one marked ARGB).
+void CheckGreyScale(const Scan& scan, const std::vector<std::string>& files, const std::string& where) {
+  for (const std::string& f : files) {
+    const std::string pi = Value(scan, f, kPhotometric);
+    if (pi != "MONOCHROME1" && pi != "MONOCHROME2" && !pi.empty()) {
+      throw InputError(fmt::format("{}: {} has Photometric Interpretation '{}'; cinevol reads grey-scale series "
+                                   "(MONOCHROME1 or MONOCHROME2)",
+                                   where, scan.Name(f), pi.substr(0, 32)));
+    }
+  }
+}
+
+// Whether every file of the series has the same rescale slope and intercept:
+// else each slice is rescaled on its own, into float32.
+bool SameRescale(const Scan& scan, const std::vector<std::string>& files) {
+  for (const std::string& f : files) {
+    if (Value(scan, f, kRescaleSlope) != Value(scan, files[0], kRescaleSlope) ||
+        Value(scan, f, kRescaleIntercept) != Value(scan, files[0], kRescaleIntercept)) {
+      return false;
+    }
+  }
+  return true;
+}
+
+}  // namespace
+
+double Dot3(const double* a, const double* b) { return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]; }
+
+std::string Describe(const reader::Series& s) {
+  return fmt::format("{} '{}' ({}, {} pixels, {} files)", s.uid().empty() ? "(no SeriesInstanceUID)" : s.uid(),
+                     s.description(), s.modality(), s.size(), s.file_count());
+}
+
+reader::SeriesList ListSeries(const std::vector<reader::DicomFile>& files, const reader::ReadOptions& options) {
+  Scan scan;
+  ScanFiles(files, options, scan);
+  reader::SeriesList out;
+  for (const SeriesFiles& s : GroupSeries(scan)) *out.add_series() = s.info;
+  return out;
+}
+
+SortedSeries ChooseSeries(const std::vector<reader::DicomFile>& files, const std::string& series_uid,
+                          const reader::ReadOptions& options) {
+  Scan scan;
+  ScanFiles(files, options, scan);
+  const SeriesFiles series = Pick(GroupSeries(scan), series_uid, scan.shown);
+  SortedSeries sorted;
+  sorted.shown = scan.shown;
+  sorted.info = series.info;
+  sorted.geometry = CheckGeometry(scan, series.files, scan.shown);
+  CheckGreyScale(scan, series.files, scan.shown);
+  std::vector<std::string> files_sorted;
+  for (const Slice& s : sorted.geometry.slices) files_sorted.push_back(s.file);
+  sorted.modality = Value(scan, files_sorted[0], kModality);
+  sorted.rescaled_alike = SameRescale(scan, files_sorted);
+  return sorted;
+}
+
+}  // namespace cinevol::formats::dicom

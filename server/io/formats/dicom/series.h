@@ -1,0 +1,58 @@
+// Inside the reader cage: DICOM series from a folder's files. GDCM scans the
+// headers (after checks.h's walk); cinevol groups the files into series,
+// sorts one series' slices along their normal and checks them: gantry tilt
+// measured, uneven gaps, duplicates and colour refused. The ITK/GDCM adapter
+// (readers/itk_adapter.h) decodes the pixels.
+#pragma once
+
+#include <string>
+#include <vector>
+
+#include "cinevol/reader/reader.pb.h"
+#include "io/readers/volume_read.h"
+
+namespace cinevol::formats::dicom {
+
+// Slice stacks sheared by more than this (degrees) count as gantry tilt, and
+// are resampled.
+inline constexpr double kMaxTiltDeg = 0.1;
+
+struct Slice {
+  std::string file;
+  double position[3];
+  double along_normal;
+};
+
+// The checked, sorted geometry of one series.
+struct SeriesGeometry {
+  std::vector<Slice> slices;
+  double row[3], col[3], normal[3];
+  double slice_gap_mm = 1.0;
+  // Above kMaxTiltDeg: the stack is sheared along its slices (a gantry tilt):
+  // each slice is shifted in its own plane onto a regular grid, as Slicer does.
+  double tilt_deg = 0;
+};
+
+// One series chosen, its slices sorted and checked: what the adapter decodes.
+struct SortedSeries {
+  std::string shown;  // what messages call the folder
+  reader::Series info;
+  SeriesGeometry geometry;
+  std::string modality;        // the first slice's
+  bool rescaled_alike = true;  // every slice with the same rescale slope and intercept
+};
+
+// The series `files` hold, largest first. Files whose structure is not sound
+// DICOM (with the pre-checks on) and files GDCM cannot parse are left out.
+reader::SeriesList ListSeries(const std::vector<reader::DicomFile>& files, const reader::ReadOptions& options);
+
+// The series of `files` with `series_uid`, or the largest, sorted and checked.
+SortedSeries ChooseSeries(const std::vector<reader::DicomFile>& files, const std::string& series_uid,
+                          const reader::ReadOptions& options);
+
+// "UID 'description' (modality, size pixels, n files)", for messages.
+std::string Describe(const reader::Series& s);
+
+double Dot3(const double* a, const double* b);
+
+}  // namespace cinevol::formats::dicom

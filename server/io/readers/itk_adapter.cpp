@@ -1,0 +1,572 @@
+// The ITK/GDCM adapter: the one place that drives ITK's ImageIO (NIfTI, NRRD,
+// MetaImage, VTK) and GDCM (DICOM), with each format's checks around it
+// (io/formats/), and that converts what they decode, once, into the voxel
+// block the parent receives, in the file's native type.
+#include "io/readers/itk_adapter.h"
+
+#include <gdcmGlobal.h>
+#include <gdcmTrace.h>
+#include <itkGDCMImageIO.h>
+#include <itkImageIOBase.h>
+#include <itkImageIOFactory.h>
+#include <itkMetaImageIOFactory.h>
+#include <itkNiftiImageIOFactory.h>
+#include <itkNrrdImageIOFactory.h>
+#include <itkVTKImageIOFactory.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <cstdint>
+#include <mutex>
+#include <regex>
+#include <vector>
+
+#include <fmt/format.h>
+
+#include "core/error.h"
+#include "core/volume.h"
+#include "core/voxel_memory.h"
+#include "io/formats/dicom/series.h"
+#include "io/formats/format.h"
+#include "io/formats/metaimage/checks.h"
+#include "io/formats/nifti/checks.h"
+#include "io/formats/nrrd/checks.h"
+#include "io/formats/nrrd/references.h"
+#include "io/formats/vtk/checks.h"
+#include "io/readers/volume_read.h"
+
+namespace fs = std::filesystem;
+
+namespace cinevol {
+namespace dicom = formats::dicom;
+namespace metaimage = formats::metaimage;
+namespace nifti = formats::nifti;
+namespace nrrd = formats::nrrd;
+namespace vtk = formats::vtk;
+using formats::Format;
+
+namespace itk_adapter {
+
+// The formats are registered explicitly rather than through ITK's
+// CMake-generated factory list, so the set is visible here. GDCM is not among
+// them: DICOM is read from a folder (DicomSeriesRead below makes its
+// GDCMImageIO after the DICOM checks), and the factory would have GDCM parse
+// any file the other formats decline (GDCM asserts, aborting, on a malformed
+// meta group).
+void InitToolkits() {
+  static std::once_flag once;
+  std::call_once(once, [] {
+    itk::NiftiImageIOFactory::RegisterOneFactory();
+    itk::NrrdImageIOFactory::RegisterOneFactory();
+    itk::MetaImageIOFactory::RegisterOneFactory();
+    itk::VTKImageIOFactory::RegisterOneFactory();
+    itk::Object::GlobalWarningDisplayOff();
+    gdcm::Trace::WarningOff();
+    gdcm::Trace::DebugOff();
+  });
+}
+
+void WarmUp() {
+  InitToolkits();
+  gdcm::Global::GetInstance().GetDicts();  // the DICOM dictionary
+  itk::GDCMImageIO::New();
+  for (const char* name : {"x.nii", "x.nrrd", "x.mha", "x.vtk"}) {
+    itk::ImageIOFactory::CreateImageIO(name, itk::IOFileModeEnum::ReadMode);
+  }
+}
+
+}  // namespace itk_adapter
+
+namespace {
+
+// "int16", "uint8", "float32", ... for a file's voxel type.
+std::string ComponentName(itk::IOComponentEnum type) {
+  using C = itk::IOComponentEnum;
+  switch (type) {
+    case C::UCHAR: return "uint8";
+    case C::CHAR: return "int8";
+    case C::USHORT: return "uint16";
+    case C::SHORT: return "int16";
+    case C::UINT: return "uint32";
+    case C::INT: return "int32";
+    case C::ULONG: case C::ULONGLONG: return "uint64";
+    case C::LONG: case C::LONGLONG: return "int64";
+    case C::FLOAT: return "float32";
+    case C::DOUBLE: return "float64";
+    default: return itk::ImageIOBase::GetComponentTypeAsString(type);
+  }
+}
+
+// ITK's message without its source location and class prefix ("file.cxx:123:
+// ITK ERROR: Class(0x...): "), with each of `paths` replaced by `shown`: ITK,
+// teem and GDCM quote the paths they open, and messages must not.
+std::string ItkMessage(const itk::ExceptionObject& e, const std::vector<fs::path>& paths,
+                       const std::string& shown) {
+  std::string d = e.GetDescription();
+  const auto colon = d.find("): ");
+  if (d.rfind("ITK ERROR", 0) == 0 && colon != std::string::npos) d = d.substr(colon + 3);
+  std::vector<std::string> forms;
+  for (const fs::path& p : paths) {
+    std::error_code ec;
+    for (const fs::path& form : {p, fs::absolute(p, ec), fs::weakly_canonical(p, ec)}) {
+      if (!form.empty() && form.string() != shown) forms.push_back(form.string());
+    }
+  }
+  // Longest first, so a path is replaced whole rather than its relative tail.
+  std::sort(forms.begin(), forms.end(), [](const auto& a, const auto& b) { return a.size() > b.size(); });
+  for (const std::string& form : forms) {
+    for (auto at = d.find(form); at != std::string::npos; at = d.find(form, at + shown.size())) {
+      d.replace(at, form.size(), shown);
+    }
+  }
+  static const std::regex kSourceLocation(R"([\w./+-]+\.(cxx|cpp|hxx|txx|c|h):\d+:?\s*)");
+  static const std::regex kItkPrefix(R"((ITK ERROR|itk::ERROR): \w+\(0x[0-9a-fA-F]+\): )");
+  d = std::regex_replace(std::regex_replace(d, kSourceLocation, ""), kItkPrefix, "");
+  // teem stacks "[nrrd] function: ..." lines, the cause last: keep that.
+  if (const auto nrrd = d.rfind("[nrrd] "); nrrd != std::string::npos) {
+    d = d.substr(nrrd + 7);
+    d = d.substr(d.find(": ") == std::string::npos ? 0 : d.find(": ") + 2);
+  }
+  while (!d.empty() && (d.back() == '\n' || d.back() == ' ')) d.pop_back();
+  return d;
+}
+
+// The VoxelType name (core/voxel_memory.h) of an ITK component; "" for one
+// cinevol does not read.
+std::string VoxelTypeOf(itk::IOComponentEnum type) {
+  const std::string name = ComponentName(type);
+  return VoxelTypeNamed(name) ? name : "";
+}
+
+// Sets `header`'s grid: `direction` row-major, column c is index axis c.
+void SetGeometry(reader::Header& header, const std::array<int, 3>& dims, std::array<double, 3> spacing,
+                 const std::array<double, 3>& origin, std::array<double, 9> direction) {
+  // As ITK's ImageFileReader: a negative spacing flips its axis instead, and
+  // a direction that is no rotation (determinant 0) becomes the identity.
+  for (int c = 0; c < 3; ++c) {
+    if (spacing[c] < 0) {
+      spacing[c] = -spacing[c];
+      for (int r = 0; r < 3; ++r) direction[3 * r + c] = -direction[3 * r + c];
+    }
+  }
+  const auto& d = direction;
+  const double det = d[0] * (d[4] * d[8] - d[5] * d[7]) - d[1] * (d[3] * d[8] - d[5] * d[6]) +
+                     d[2] * (d[3] * d[7] - d[4] * d[6]);
+  if (!(std::fabs(det) > 1e-6)) direction = {1, 0, 0, 0, 1, 0, 0, 0, 1};
+  header.clear_dims();
+  header.clear_spacing_mm();
+  header.clear_origin_mm();
+  header.clear_direction();
+  for (int a = 0; a < 3; ++a) {
+    header.add_dims(std::uint32_t(dims[a]));
+    header.add_spacing_mm(spacing[a]);
+    header.add_origin_mm(origin[a]);
+  }
+  for (double v : direction) header.add_direction(v);
+}
+
+// "unknown" ITK enum values print as numbers; name the ones cinevol accepts.
+bool IsSupportedComponent(itk::IOComponentEnum c) {
+  using C = itk::IOComponentEnum;
+  switch (c) {
+    case C::UCHAR: case C::CHAR: case C::USHORT: case C::SHORT: case C::UINT: case C::INT:
+    case C::ULONG: case C::LONG: case C::ULONGLONG: case C::LONGLONG: case C::FLOAT:
+    case C::DOUBLE:
+      return true;
+    default:
+      return false;
+  }
+}
+
+// Replaces the scratch file's text with `text`; returns its path.
+fs::path WriteScratch(const std::string& text, const reader::ReadOptions& options) {
+  if (options.scratch_fd < 0 || ftruncate(options.scratch_fd, 0) != 0 ||
+      pwrite(options.scratch_fd, text.data(), text.size(), 0) != ssize_t(text.size())) {
+    throw InputError(fmt::format("{}: cannot rewrite the header ({} bytes)", options.shown, text.size()));
+  }
+  return options.scratch_path;
+}
+
+// The format of the ImageIO ITK chose for a file.
+Format FormatOf(const itk::ImageIOBase& io) {
+  const std::string kind = io.GetNameOfClass();
+  return kind == "NiftiImageIO"  ? Format::kNifti
+         : kind == "NrrdImageIO" ? Format::kNrrd
+         : kind == "MetaImageIO" ? Format::kMetaImage
+         : kind == "VTKImageIO"  ? Format::kVtk
+                                 : Format::kUnknown;
+}
+
+// The ImageIO ITK chooses for `path`, its header read after its format's
+// checks of the header's text.
+itk::ImageIOBase::Pointer ReadHeader(const fs::path& path, const std::string& shown, bool prechecks) {
+  itk_adapter::InitToolkits();
+  auto io = itk::ImageIOFactory::CreateImageIO(path.c_str(), itk::IOFileModeEnum::ReadMode);
+  if (!io) {
+    throw InputError(fmt::format(
+        "{}: not a volume format cinevol reads (NIfTI, NRRD/NHDR, MetaImage, VTK; "
+        "DICOM is read from a folder)",
+        shown));
+  }
+  io->SetFileName(path.string());
+  if (prechecks && FormatOf(*io) == Format::kMetaImage) metaimage::CheckHeaderText(path, shown);
+  if (prechecks && FormatOf(*io) == Format::kNrrd) nrrd::CheckHeaderText(path, shown);
+  io->ReadImageInformation();
+  return io;
+}
+
+// Throws InputError unless the header describes what cinevol reads: a 2-D or
+// 3-D scalar image of a known type, within the geometry and voxel limits.
+void CheckHeader(const std::string& shown, itk::ImageIOBase& io, std::uint64_t max_voxels) {
+  const unsigned dims = io.GetNumberOfDimensions();
+  if (dims < 2 || dims > 3) {
+    throw InputError(fmt::format("{}: a {}-D image; cinevol reads 2-D and 3-D scalar volumes",
+                                 shown, dims));
+  }
+  if (io.GetNumberOfComponents() != 1) {
+    throw InputError(fmt::format("{}: {} components per voxel ({}); cinevol needs one scalar",
+                                 shown, io.GetNumberOfComponents(),
+                                 io.GetPixelTypeAsString(io.GetPixelType())));
+  }
+  if (!IsSupportedComponent(io.GetComponentType())) {
+    throw InputError(fmt::format("{}: unsupported voxel type '{}'", shown,
+                                 io.GetComponentTypeAsString(io.GetComponentType())));
+  }
+  Vec3i size{1, 1, 1};
+  Vec3f spacing{1, 1, 1};
+  for (unsigned a = 0; a < dims; ++a) {
+    // Sizes past int range are absurd; clamp so the check below names them.
+    size[a] = int(std::min<itk::SizeValueType>(io.GetDimensions(a), 1u << 30));
+    spacing[a] = float(io.GetSpacing(a));
+  }
+  CheckVolumeGeometry(size, spacing, shown);
+  const std::uint64_t voxels = std::uint64_t(size.x) * std::uint64_t(size.y) * std::uint64_t(size.z);
+  if (voxels > max_voxels) {
+    throw InputError(fmt::format("{}: {}x{}x{} = {} voxels exceeds this server's limit of {} voxels", shown,
+                                 size.x, size.y, size.z, voxels, max_voxels));
+  }
+}
+
+// A volume file opened through ITK: the header read and checked, the voxels
+// not yet.
+class ItkVolumeRead final : public reader::VolumeRead {
+ public:
+  ItkVolumeRead(itk::ImageIOBase::Pointer io, const fs::path& path, const reader::ReadOptions& options)
+      : io_(std::move(io)), format_(FormatOf(*io_)), path_(path), shown_(options.shown),
+        prechecks_(options.prechecks) {
+    const unsigned n = io_->GetNumberOfDimensions();
+    std::array<int, 3> dims{1, 1, 1};
+    std::array<double, 3> spacing{1, 1, 1}, origin{0, 0, 0};
+    std::array<double, 9> direction{1, 0, 0, 0, 1, 0, 0, 0, 1};
+    for (unsigned c = 0; c < n; ++c) {
+      dims[c] = int(io_->GetDimensions(c));
+      spacing[c] = io_->GetSpacing(c);
+      origin[c] = io_->GetOrigin(c);
+      const std::vector<double> axis = io_->GetDirection(c);
+      for (unsigned r = 0; r < n && r < axis.size(); ++r) direction[3 * r + c] = axis[r];
+    }
+    SetGeometry(header_, dims, spacing, origin, direction);
+    header_.set_voxel_type(VoxelTypeOf(io_->GetComponentType()));
+    // The type as stored in the file: NIfTI's datatype where ITK converts.
+    const std::string stored = nifti::StoredType(*io_);
+    header_.set_original_type(stored.empty() ? ComponentName(io_->GetComponentType()) : stored);
+    header_.set_modality(format_ == Format::kMetaImage ? metaimage::Modality(*io_) : "");
+    if (header_.modality() == "CT") header_.set_value_unit("HU");
+  }
+
+  void Read(void* memory, std::size_t bytes) override {
+    // The payload is checked now, once the parent has counted the memory the
+    // header asks for: a small compressed file may inflate to gigabytes.
+    if (prechecks_) {
+      const std::string problem = PayloadProblem();
+      if (!problem.empty()) throw InputError(fmt::format("{}: {}", shown_, problem));
+    }
+    if (bytes != std::size_t(io_->GetImageSizeInBytes())) {
+      throw InputError(fmt::format("{}: {} bytes of memory for {} bytes of voxels", shown_, bytes,
+                                   io_->GetImageSizeInBytes()));
+    }
+    const unsigned n = io_->GetNumberOfDimensions();
+    itk::ImageIORegion region(n);
+    for (unsigned a = 0; a < n; ++a) {
+      region.SetIndex(a, 0);
+      region.SetSize(a, io_->GetDimensions(a));
+    }
+    io_->SetIORegion(region);
+    try {
+      io_->Read(memory);
+    } catch (const itk::ExceptionObject& e) {
+      throw InputError(fmt::format("{}: {}", shown_, ItkMessage(e, {io_->GetFileName()}, shown_)));
+    }
+  }
+
+ private:
+  // The format's check that the file holds every voxel, as its reader reads
+  // them: "" or what is wrong.
+  std::string PayloadProblem() {
+    switch (format_) {
+      case Format::kNifti: return nifti::PayloadProblem(path_);
+      case Format::kNrrd: return nrrd::PayloadProblem(*io_, path_, shown_);
+      case Format::kMetaImage: return metaimage::PayloadProblem(*io_, path_, shown_);
+      case Format::kVtk: return vtk::PayloadProblem(*io_, path_);
+      default: return "";
+    }
+  }
+
+  itk::ImageIOBase::Pointer io_;
+  Format format_;
+  fs::path path_;
+  std::string shown_;
+  bool prechecks_;
+};
+
+// Opens `path` (the file, or the cage's rewrite of its header) with ITK.
+std::unique_ptr<reader::VolumeRead> OpenWithItk(const fs::path& path, const std::vector<fs::path>& placed,
+                                                const reader::ReadOptions& options) {
+  const std::string& shown = options.shown;
+  if (options.prechecks) nifti::CheckHeaders(path, shown);  // ITK parses it to choose
+  auto io = ReadHeader(path, shown, options.prechecks);
+  CheckHeader(shown, *io, options.max_voxels);
+  if (FormatOf(*io) == Format::kMetaImage) metaimage::CheckDataFile(*io, path, placed, shown);
+  return std::make_unique<ItkVolumeRead>(io, path, options);
+}
+
+// Converts `n` values of ITK component `from` at `in` to float32 at `out`.
+void ToFloat(itk::IOComponentEnum from, const void* in, float* out, std::size_t n) {
+  using C = itk::IOComponentEnum;
+  auto copy = [&](auto* typed) {
+    for (std::size_t i = 0; i < n; ++i) out[i] = float(typed[i]);
+  };
+  switch (from) {
+    case C::UCHAR: copy(static_cast<const std::uint8_t*>(in)); break;
+    case C::CHAR: copy(static_cast<const std::int8_t*>(in)); break;
+    case C::USHORT: copy(static_cast<const std::uint16_t*>(in)); break;
+    case C::SHORT: copy(static_cast<const std::int16_t*>(in)); break;
+    case C::UINT: copy(static_cast<const std::uint32_t*>(in)); break;
+    case C::INT: copy(static_cast<const std::int32_t*>(in)); break;
+    case C::FLOAT: copy(static_cast<const float*>(in)); break;
+    case C::DOUBLE: copy(static_cast<const double*>(in)); break;
+    default: throw InputError("a slice of a voxel type cinevol does not read");
+  }
+}
+
+// One series, its slices sorted and its header known; the pixels are
+// decoded slice by slice (GDCM: JPEG 2000 and other compressed transfer
+// syntaxes included; rescale slope and intercept applied).
+class DicomSeriesRead final : public reader::VolumeRead {
+ public:
+  DicomSeriesRead(const dicom::SortedSeries& series, std::uint64_t max_voxels)
+      : where_(series.shown), series_(series.info) {
+    const dicom::SeriesGeometry& g = series.geometry;
+    for (const dicom::Slice& s : g.slices) files_.push_back(s.file);
+    auto io = itk::GDCMImageIO::New();
+    try {
+      // Header sizes are checked before decoding: absurd rows/columns never allocate.
+      io->SetFileName(files_[0]);
+      io->ReadImageInformation();
+    } catch (const itk::ExceptionObject& e) {
+      throw Failed(e);
+    }
+    if (io->GetNumberOfComponents() != 1) {
+      throw InputError(fmt::format("{}: series {} holds pixels of {} components; cinevol reads grey-scale series",
+                                   where_, dicom::Describe(series_), io->GetNumberOfComponents()));
+    }
+    const std::uint64_t frames = io->GetNumberOfDimensions() > 2 ? std::max<std::uint64_t>(1, io->GetDimensions(2)) : 1;
+    if (frames > 1 && files_.size() > 1) {
+      throw InputError(fmt::format("{}: series {} has multi-frame files; cinevol reads one such file, or single-frame "
+                                   "slices", where_, dicom::Describe(series_)));
+    }
+    const std::array<int, 3> dims{int(std::min<std::uint64_t>(io->GetDimensions(0), 1u << 30)),
+                                  int(std::min<std::uint64_t>(io->GetDimensions(1), 1u << 30)),
+                                  int(std::min<std::uint64_t>(files_.size() * frames, 1u << 30))};
+    CheckVolumeGeometry({dims[0], dims[1], dims[2]},
+                        {float(io->GetSpacing(0)), float(io->GetSpacing(1)), float(g.slice_gap_mm)}, where_);
+    const std::uint64_t voxels = std::uint64_t(dims[0]) * std::uint64_t(dims[1]) * std::uint64_t(dims[2]);
+    if (voxels > max_voxels) {
+      throw InputError(fmt::format("{}: {}x{}x{} = {} voxels exceeds this server's limit of {} voxels", where_,
+                                   dims[0], dims[1], dims[2], voxels, max_voxels));
+    }
+    // Geometry from the sorted positions, not from the first two files.
+    std::array<double, 9> direction;
+    for (int r = 0; r < 3; ++r) {
+      direction[3 * r + 0] = g.row[r];
+      direction[3 * r + 1] = g.col[r];
+      direction[3 * r + 2] = g.normal[r];
+    }
+    const dicom::Slice& first = g.slices.front();
+    SetGeometry(header_, dims, {io->GetSpacing(0), io->GetSpacing(1), g.slice_gap_mm},
+                           {first.position[0], first.position[1], first.position[2]}, direction);
+    type_ = io->GetComponentType();
+    rescaled_alike_ = series.rescaled_alike;
+    header_.set_voxel_type(rescaled_alike_ ? VoxelTypeOf(type_) : "float32");
+    if (header_.voxel_type().empty()) {
+      throw InputError(fmt::format("{}: series {} holds voxels of type {}, which cinevol does not read", where_,
+                                   dicom::Describe(series_), ComponentName(type_)));
+    }
+    header_.set_modality(series.modality);
+    header_.set_value_unit(header_.modality() == "CT" ? "HU" : "");
+    std::string original = ComponentName(io->GetInternalComponentType());
+    if (io->GetRescaleSlope() != 1.0 || io->GetRescaleIntercept() != 0.0) {
+      original += fmt::format(" (rescale slope {:g}, intercept {:g})", io->GetRescaleSlope(), io->GetRescaleIntercept());
+    }
+    header_.set_original_type(original);
+    slice_voxels_ = std::size_t(dims[0]) * std::size_t(dims[1]) * std::size_t(frames);
+    if (g.tilt_deg > dicom::kMaxTiltDeg) Shear(g, io->GetSpacing(0), io->GetSpacing(1), dims);
+  }
+
+  void Read(void* memory, std::size_t bytes) override {
+    const std::size_t voxel_bytes = BytesPerVoxel(*VoxelTypeNamed(header_.voxel_type()));
+    if (bytes != slice_voxels_ * voxel_bytes * files_.size()) {
+      throw InputError(fmt::format("{}: {} bytes of memory for the series' voxels", where_, bytes));
+    }
+    std::vector<char> scratch;
+    for (std::size_t k = 0; k < files_.size(); ++k) {
+      auto io = itk::GDCMImageIO::New();
+      char* out = static_cast<char*>(memory) + k * slice_voxels_ * voxel_bytes;
+      try {
+        io->SetFileName(files_[k]);
+        io->ReadImageInformation();
+        const std::size_t n = io->GetImageSizeInPixels();
+        if (io->GetNumberOfComponents() != 1 || n != slice_voxels_ ||
+            (rescaled_alike_ && io->GetComponentType() != type_)) {
+          throw InputError(fmt::format("{}: a slice of series {} differs from the first in size or voxel type",
+                                       where_, dicom::Describe(series_)));
+        }
+        itk::ImageIORegion region(io->GetNumberOfDimensions());
+        for (unsigned a = 0; a < io->GetNumberOfDimensions(); ++a) {
+          region.SetIndex(a, 0);
+          region.SetSize(a, io->GetDimensions(a));
+        }
+        io->SetIORegion(region);
+        if (rescaled_alike_ && shifts_.empty()) {
+          io->Read(out);
+        } else {
+          scratch.resize(io->GetImageSizeInBytes());
+          io->Read(scratch.data());
+          ToFloat(io->GetComponentType(), scratch.data(), reinterpret_cast<float*>(out), n);
+          if (!shifts_.empty()) ShiftSlice(reinterpret_cast<float*>(out), shifts_[k], io->GetComponentType());
+        }
+      } catch (const itk::ExceptionObject& e) {
+        throw Failed(e);
+      }
+    }
+  }
+
+ private:
+  // A gantry-tilted series: each slice's offset in its own plane (voxels along
+  // row and column) from where a regular grid puts it; read as float32.
+  void Shear(const dicom::SeriesGeometry& g, double row_mm, double col_mm,
+             const std::array<int, 3>& dims) {
+    const dicom::Slice& first = g.slices.front();
+    for (std::size_t k = 0; k < g.slices.size(); ++k) {
+      double d[3];
+      for (int a = 0; a < 3; ++a) d[a] = g.slices[k].position[a] - first.position[a];
+      shifts_.push_back({dicom::Dot3(d, g.row) / row_mm, dicom::Dot3(d, g.col) / col_mm});
+    }
+    width_ = dims[0];
+    height_ = dims[1];
+    header_.set_voxel_type("float32");
+    header_.add_notes(fmt::format("resampled from a gantry tilt of {:.1f} degrees onto a regular grid: each slice "
+                                  "shifted in its own plane",
+                                  g.tilt_deg));
+  }
+
+  // Moves a slice by its offset: the regular grid's voxel (i, j) is the
+  // slice's (i - dx, j - dy), interpolated bilinearly; what falls outside the
+  // slice takes its lowest value (air). Integer data are rounded again.
+  void ShiftSlice(float* slice, std::array<double, 2> shift, itk::IOComponentEnum type) const {
+    const std::vector<float> in(slice, slice + std::size_t(width_) * height_);
+    const float fill = *std::min_element(in.begin(), in.end());
+    const bool integral = type != itk::IOComponentEnum::FLOAT && type != itk::IOComponentEnum::DOUBLE;
+    for (int j = 0; j < height_; ++j) {
+      for (int i = 0; i < width_; ++i) {
+        const double x = i - shift[0], y = j - shift[1];
+        const int x0 = int(std::floor(x)), y0 = int(std::floor(y));
+        const double fx = x - x0, fy = y - y0;
+        auto at = [&](int xi, int yi) {
+          return xi < 0 || yi < 0 || xi >= width_ || yi >= height_ ? double(fill)
+                                                                    : double(in[std::size_t(yi) * width_ + xi]);
+        };
+        const double v = (at(x0, y0) * (1 - fx) + at(x0 + 1, y0) * fx) * (1 - fy) +
+                         (at(x0, y0 + 1) * (1 - fx) + at(x0 + 1, y0 + 1) * fx) * fy;
+        slice[std::size_t(j) * width_ + i] = float(integral ? std::nearbyint(v) : v);
+      }
+    }
+  }
+
+  InputError Failed(const itk::ExceptionObject& e) const {
+    return InputError(fmt::format("{}: cannot decode series {}: {}", where_, dicom::Describe(series_),
+                                  ItkMessage(e, {}, where_)));
+  }
+
+  std::string where_;
+  reader::Series series_;
+  std::vector<std::string> files_;  // sorted along the normal
+  itk::IOComponentEnum type_ = itk::IOComponentEnum::UNKNOWNCOMPONENTTYPE;
+  bool rescaled_alike_ = true;
+  std::size_t slice_voxels_ = 0;
+  std::vector<std::array<double, 2>> shifts_;  // per slice, for a tilted series; empty otherwise
+  int width_ = 0, height_ = 0;
+};
+
+}  // namespace
+
+namespace reader {
+
+std::unique_ptr<VolumeRead> OpenVolumeFile(const fs::path& path, const std::vector<fs::path>& named,
+                                           const ReadOptions& options) {
+  const std::string& shown = options.shown;
+  itk_adapter::InitToolkits();
+  // The files the header names sit beside it when it names them so; any
+  // other way (a subfolder, an absolute path, a list) gets a rewrite of the
+  // header that names where the cage placed them.
+  if (nrrd::IsGzipped(path)) {
+    const fs::path read = WriteScratch(nrrd::GzippedRewrite(path, shown), options);
+    try {
+      return OpenWithItk(read, {path}, options);
+    } catch (const itk::ExceptionObject& e) {
+      throw InputError(fmt::format("{}: {}", shown, ItkMessage(e, {path, read}, shown)));
+    }
+  }
+  const formats::References refs = formats::FindReferences(path, shown);
+  const bool beside = std::all_of(refs.files.begin(), refs.files.end(), [&](const fs::path& f) {
+    return f.parent_path() == path.parent_path() && fs::exists(fs::symlink_status(f));
+  });
+  fs::path read = path;
+  if (!refs.field.empty() && !beside && refs.field != "NIfTI/Analyze .hdr/.img pair") {
+    const std::string rewritten = nrrd::HasMagic(path, shown) ? nrrd::RewrittenHeader(path, named, false, shown)
+                                                              : metaimage::RewrittenHeader(path, named, shown);
+    read = WriteScratch(rewritten, options);
+  }
+  std::vector<fs::path> placed = named;
+  for (const fs::path& f : refs.files) {
+    if (beside) placed.push_back(f);
+  }
+  try {
+    try {
+      return OpenWithItk(read, placed, options);
+    } catch (const itk::ExceptionObject& e) {
+      if (!nrrd::IsSpaceWithSpacingsError(e.GetDescription())) throw;
+      read = WriteScratch(nrrd::RewrittenHeader(path, beside ? refs.files : named, true, shown), options);
+      return OpenWithItk(read, placed, options);
+    }
+  } catch (const itk::ExceptionObject& e) {
+    throw InputError(fmt::format("{}: {}", shown, ItkMessage(e, {path, read}, shown)));
+  }
+}
+
+std::unique_ptr<VolumeRead> OpenDicomSeries(const std::vector<DicomFile>& files, const std::string& series_uid,
+                                            const ReadOptions& options) {
+  itk_adapter::InitToolkits();
+  return std::make_unique<DicomSeriesRead>(dicom::ChooseSeries(files, series_uid, options),
+                                           options.max_voxels);
+}
+
+SeriesList ListDicomSeries(const std::vector<DicomFile>& files, const ReadOptions& options) {
+  itk_adapter::InitToolkits();
+  return dicom::ListSeries(files, options);
+}
+
+}  // namespace reader
+}  // namespace cinevol
