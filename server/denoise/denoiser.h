@@ -4,9 +4,11 @@
 // Each runs on the CPU and on CUDA from one source; a denoiser reads frames
 // in the memory of the renderer of the same backend.
 //
-// Lifecycle (as OIDN's): Configure(settings) once or on change, Denoise(frame)
-// per frame, Reset() on cuts. History lives across frames; a new frame size
-// resets it.
+// Lifecycle: CreateDenoiser(settings), then Denoise(frame) per frame. The
+// settings are fixed for a denoiser's life: a change makes a new denoiser,
+// and with it a new history (FramePipeline does so). History lives across
+// frames, reprojected: a cut needs no call, since only history whose first
+// hits project back is used; a new frame size resets it.
 #pragma once
 
 #include <cstdint>
@@ -149,12 +151,9 @@ struct DenoiseFrame {
 class Denoiser {
  public:
   virtual ~Denoiser() = default;
-  virtual void Configure(const DenoiserSettings& settings) = 0;
   // Denoises one frame; returns the result in the backend's memory, valid
   // until the next call.
   virtual const Vec3f* Denoise(const DenoiseFrame& frame) = 0;
-  // Forgets all history (cuts, new volumes).
-  virtual void Reset() = 0;
   // The last result, on the host.
   virtual ImageRgbF Output() const = 0;
   // Time the last Denoise took: wall time on the CPU, CUDA events on the GPU.
