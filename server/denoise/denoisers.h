@@ -6,7 +6,6 @@
 
 #include <memory>
 #include <stdexcept>
-#include <type_traits>
 #include <utility>
 
 #include "denoise/baselines.h"
@@ -15,19 +14,6 @@
 #include "denoise/wrls.h"
 
 namespace cinevol {
-
-struct CpuBackend;
-
-// One a-trous level on backend B: on the CPU as vectorised rows of the same
-// weights (denoise/cpu_passes.h), elsewhere the functor per pixel.
-template <class B>
-void RunAtrousLevel(const AtrousPass& pass) {
-  if constexpr (std::is_same_v<B, CpuBackend>) {
-    CpuAtrousLevel(pass);
-  } else {
-    B::ForEachPixel(pass.width, pass.height, pass);
-  }
-}
 
 inline bool SameView(const Camera& a, const Camera& b) {
   return a.eye == b.eye && a.forward == b.forward && a.up == b.up && a.tan_half_fov_y == b.tan_half_fov_y &&
