@@ -92,10 +92,6 @@ struct WrlsSettings {
   friend bool operator==(const WrlsSettings&, const WrlsSettings&);  // defaulted in denoiser.cpp
 };
 
-// Progressive accumulation, reset whenever the camera or scene changes
-// (Exposure Render's default).
-struct AccumulateSettings {};
-
 // Exposure Render's KNN (non-local means style) filter over the accumulated
 // image, fading out as samples accumulate.
 struct KnnSettings {

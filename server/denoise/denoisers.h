@@ -113,7 +113,9 @@ class PassThrough final : public DenoiserBase<B> {
   void Allocate(std::size_t) override {}
 };
 
-// Progressive accumulation; KNN filters the running mean on top of it.
+// Progressive accumulation, reset whenever the camera or scene changes
+// (Exposure Render's default; it has no settings). KNN filters the running
+// mean on top of it.
 template <class B>
 class Accumulation : public DenoiserBase<B> {
  public:
