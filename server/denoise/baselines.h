@@ -282,10 +282,35 @@ struct CoveragePass {
   }
 };
 
-// One a-trous level (SVGF's, and wRLS's spatial stage): 5x5 B-spline taps
-// `step` apart, stopped at coverage, depth and luminance edges (the last
-// scaled by the local standard deviation); the variance in w goes through
-// with the squared weights. Depth compares only pixels that both hit.
+// The a-trous taps every such filter shares (AtrousPass; the refinement's
+// MeanFilterPass, pipeline/refine.h): 5x5 B-spline taps `step` apart around
+// (x, y), each weighed by the kernel times stop(k, q), the edge stop for the
+// neighbour at index k with colour and variance q. The colour is averaged
+// with the weights; the variance in w goes through with their squares.
+// denoise/cpu_passes.h has the same taps as vectorised rows (CpuAtrousRows).
+template <class EdgeStop>
+CINEVOL_HD Vec4f AtrousTaps(const Vec4f* in, int x, int y, int width, int height, int step, const EdgeStop& stop) {
+  const float kernel[3] = {3.0f / 8.0f, 1.0f / 4.0f, 1.0f / 16.0f};
+  Vec3f sum{};
+  float var_sum = 0.0f, weight = 0.0f;
+  for (int dy = -2; dy <= 2; ++dy) {
+    for (int dx = -2; dx <= 2; ++dx) {
+      const int nx = x + dx * step, ny = y + dy * step;
+      if (nx < 0 || ny < 0 || nx >= width || ny >= height) continue;
+      const int k = ny * width + nx;
+      const Vec4f q = in[k];
+      const float w = kernel[dx < 0 ? -dx : dx] * kernel[dy < 0 ? -dy : dy] * stop(k, q);
+      sum += Xyz(q) * w;
+      var_sum += q.w * w * w;
+      weight += w;
+    }
+  }
+  return ToVec4(sum / weight, var_sum / (weight * weight));
+}
+
+// One a-trous level (SVGF's, and wRLS's spatial stage): AtrousTaps stopped
+// at coverage, depth and luminance edges (the last scaled by the local
+// standard deviation). Depth compares only pixels that both hit.
 struct AtrousPass {
   const Vec4f* in;
   Vec4f* out;
@@ -304,9 +329,7 @@ struct AtrousPass {
   static constexpr float kCoverageStop = 6.0f;
 
   CINEVOL_HD void operator()(int x, int y) const {
-    const float kernel[3] = {3.0f / 8.0f, 1.0f / 4.0f, 1.0f / 16.0f};
     const int i = y * width + x;
-    const Vec4f c = in[i];
     // Gaussian-blurred variance at the centre steadies the luminance stop.
     float variance = 0.0f, vw = 0.0f;
     for (int dy = -1; dy <= 1; ++dy) {
@@ -317,28 +340,15 @@ struct AtrousPass {
         vw += w;
       }
     }
-    const float l = Luminance(Xyz(c));
+    const float l = Luminance(Xyz(in[i]));
     const float l_scale = 1.0f / (sigma_luminance * sqrtf(fmaxf(variance / vw, 0.0f)) + 1e-10f);
     const float z = Depth(i);
     const float z_scale = 1.0f / (sigma_depth * 0.01f * fmaxf(z, 1e-3f) * float(step) + 1e-6f);
-    Vec3f sum{};
-    float var_sum = 0.0f, weight = 0.0f;
-    for (int dy = -2; dy <= 2; ++dy) {
-      for (int dx = -2; dx <= 2; ++dx) {
-        const int nx = x + dx * step, ny = y + dy * step;
-        if (nx < 0 || ny < 0 || nx >= width || ny >= height) continue;
-        const int k = ny * width + nx;
-        const Vec4f q = in[k];
-        const float dz = Escaped(first_hit[i]) || Escaped(first_hit[k]) ? 0.0f : fabsf(Depth(k) - z);
-        const float dc = fabsf(coverage[k] - coverage[i]);
-        const float w = kernel[dx < 0 ? -dx : dx] * kernel[dy < 0 ? -dy : dy] *
-                        expf(-fabsf(Luminance(Xyz(q)) - l) * l_scale - dz * z_scale - dc * kCoverageStop);
-        sum += Xyz(q) * w;
-        var_sum += q.w * w * w;
-        weight += w;
-      }
-    }
-    out[i] = ToVec4(sum / weight, var_sum / (weight * weight));
+    out[i] = AtrousTaps(in, x, y, width, height, step, [&](int k, Vec4f q) {
+      const float dz = Escaped(first_hit[i]) || Escaped(first_hit[k]) ? 0.0f : fabsf(Depth(k) - z);
+      const float dc = fabsf(coverage[k] - coverage[i]);
+      return expf(-fabsf(Luminance(Xyz(q)) - l) * l_scale - dz * z_scale - dc * kCoverageStop);
+    });
   }
 };
 

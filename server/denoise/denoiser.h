@@ -4,9 +4,11 @@
 // Each runs on the CPU and on CUDA from one source; a denoiser reads frames
 // in the memory of the renderer of the same backend.
 //
-// Lifecycle (as OIDN's): Configure(settings) once or on change, Denoise(frame)
-// per frame, Reset() on cuts. History lives across frames; a new frame size
-// resets it.
+// Lifecycle: CreateDenoiser(settings), then Denoise(frame) per frame. The
+// settings are fixed for a denoiser's life: a change makes a new denoiser,
+// and with it a new history (FramePipeline does so). History lives across
+// frames, reprojected: a cut needs no call, since only history whose first
+// hits project back is used; a new frame size resets it.
 #pragma once
 
 #include <cstdint>
@@ -87,11 +89,8 @@ struct WrlsSettings {
   // estimate over (2r + 1)^2 taps 2 pixels apart, so a shading change does
   // not lag (wrls.h, HistoryOffsetRowsPass; 3 reads as 5).
   int stabilize_recenter = 5;
+  friend bool operator==(const WrlsSettings&, const WrlsSettings&);  // defaulted in denoiser.cpp
 };
-
-// Progressive accumulation, reset whenever the camera or scene changes
-// (Exposure Render's default).
-struct AccumulateSettings {};
 
 // Exposure Render's KNN (non-local means style) filter over the accumulated
 // image, fading out as samples accumulate.
@@ -99,6 +98,7 @@ struct KnnSettings {
   int radius = 3;              // 7x7 window
   float strength = 4.0f;       // h: colour distance (relative to the pixel's luminance) where weights fall off; 1, 2, 4 measured, 4 best
   float fade_frames = 32.0f;   // frames over which the filter fades to the plain accumulation
+  friend bool operator==(const KnnSettings&, const KnnSettings&);  // defaulted in denoiser.cpp
 };
 
 // He et al.'s guided filter with a two-channel guide from what the volume
@@ -108,6 +108,7 @@ struct GuidedFilterSettings {
   float epsilon_feature = 0.01f;  // regulariser on the (relative) feature guide
   float epsilon_depth = 0.01f;    // regulariser on the (normalised) depth guide
   float alpha = 0.75f;            // temporal feature blend, as in wRLS
+  friend bool operator==(const GuidedFilterSettings&, const GuidedFilterSettings&);  // defaulted in denoiser.cpp
 };
 
 // Schied et al. 2017 with our reprojection: temporal accumulation of colour
@@ -119,6 +120,7 @@ struct SvgfSettings {
   int iterations = 5;          // a-trous levels (step 1, 2, 4, 8, 16)
   float sigma_luminance = 4.0f;
   float sigma_depth = 1.0f;
+  friend bool operator==(const SvgfSettings&, const SvgfSettings&);  // defaulted in denoiser.cpp
 };
 
 struct DenoiserSettings {
@@ -130,11 +132,11 @@ struct DenoiserSettings {
   KnnSettings knn;
   GuidedFilterSettings guided;
   SvgfSettings svgf;
+  // A pipeline makes a new denoiser when its settings change. The
+  // comparisons are defaulted in denoiser.cpp, not here: CUDA code builds as
+  // C++17, which has no defaulted comparisons.
+  friend bool operator==(const DenoiserSettings&, const DenoiserSettings&);
 };
-
-// Every field compared (denoiser.cpp): a pipeline makes a new denoiser when
-// its settings change.
-bool operator==(const DenoiserSettings& a, const DenoiserSettings& b);
 
 // One frame from the renderer, in the denoiser's backend memory.
 struct DenoiseFrame {
@@ -149,12 +151,9 @@ struct DenoiseFrame {
 class Denoiser {
  public:
   virtual ~Denoiser() = default;
-  virtual void Configure(const DenoiserSettings& settings) = 0;
   // Denoises one frame; returns the result in the backend's memory, valid
   // until the next call.
   virtual const Vec3f* Denoise(const DenoiseFrame& frame) = 0;
-  // Forgets all history (cuts, new volumes).
-  virtual void Reset() = 0;
   // The last result, on the host.
   virtual ImageRgbF Output() const = 0;
   // Time the last Denoise took: wall time on the CPU, CUDA events on the GPU.

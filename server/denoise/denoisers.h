@@ -6,7 +6,6 @@
 
 #include <memory>
 #include <stdexcept>
-#include <type_traits>
 #include <utility>
 
 #include "denoise/baselines.h"
@@ -15,19 +14,6 @@
 #include "denoise/wrls.h"
 
 namespace cinevol {
-
-struct CpuBackend;
-
-// One a-trous level on backend B: on the CPU as vectorised rows of the same
-// weights (denoise/cpu_passes.h), elsewhere the functor per pixel.
-template <class B>
-void RunAtrousLevel(const AtrousPass& pass) {
-  if constexpr (std::is_same_v<B, CpuBackend>) {
-    CpuAtrousLevel(pass);
-  } else {
-    B::ForEachPixel(pass.width, pass.height, pass);
-  }
-}
 
 inline bool SameView(const Camera& a, const Camera& b) {
   return a.eye == b.eye && a.forward == b.forward && a.up == b.up && a.tan_half_fov_y == b.tan_half_fov_y &&
@@ -42,29 +28,14 @@ class DenoiserBase : public Denoiser {
   template <class T>
   using Buffer = typename B::template Buffer<T>;
 
-  // The method is fixed when the denoiser is made; the rest may change.
-  void Configure(const DenoiserSettings& settings) override {
-    if (configured_ && settings.method != settings_.method) {
-      throw std::invalid_argument("a denoiser's method cannot change: create another");
-    }
-    settings_ = settings;
-    configured_ = true;
-  }
+  explicit DenoiserBase(const DenoiserSettings& settings) : settings_(settings) {}
 
   const Vec3f* Denoise(const DenoiseFrame& frame) override {
     if (frame.width <= 0 || frame.height <= 0 || !frame.radiance || !frame.first_hit) {
       throw std::invalid_argument("DenoiseFrame needs a size, radiance and first hits");
     }
     if (settings_.demodulate && !frame.albedo) throw std::invalid_argument("demodulation needs the albedo buffer");
-    if (frame.width != width_ || frame.height != height_) {
-      width_ = frame.width;
-      height_ = frame.height;
-      const std::size_t n = pixels();
-      output_.Resize(n);
-      prev_first_hit_.Resize(n);
-      Allocate(n);
-      Reset();
-    }
+    if (frame.width != width_ || frame.height != height_) Resize(frame.width, frame.height);
     timer_.Start();
     const Vec3f* input = frame.radiance;
     if (settings_.demodulate) {
@@ -91,11 +62,6 @@ class DenoiserBase : public Denoiser {
     return output_.data();
   }
 
-  void Reset() override {
-    has_history_ = false;
-    ResetHistory();
-  }
-
   ImageRgbF Output() const override { return {width_, height_, output_.Download()}; }
   double LastMilliseconds() const override { return timer_.Milliseconds(); }
 
@@ -111,12 +77,23 @@ class DenoiserBase : public Denoiser {
     return has_history_ && SameView(frame.camera, prev_camera_) && frame.scene_version == prev_scene_version_;
   }
 
-  DenoiserSettings settings_;
-  bool configured_ = false;
+  const DenoiserSettings settings_;
   int width_ = 0, height_ = 0;
   bool has_history_ = false;
 
  private:
+  // A new frame size: buffers of that size and no history.
+  void Resize(int width, int height) {
+    width_ = width;
+    height_ = height;
+    const std::size_t n = pixels();
+    output_.Resize(n);
+    prev_first_hit_.Resize(n);
+    Allocate(n);
+    has_history_ = false;
+    ResetHistory();
+  }
+
   Buffer<Vec3f> output_, demodulated_;
   Buffer<Vec4f> prev_first_hit_;
   Camera prev_camera_;
@@ -126,6 +103,9 @@ class DenoiserBase : public Denoiser {
 
 template <class B>
 class PassThrough final : public DenoiserBase<B> {
+ public:
+  using DenoiserBase<B>::DenoiserBase;
+
  protected:
   void Run(const DenoiseFrame&, const Vec3f* input, const ReprojectionView&, Vec3f* output) override {
     B::ForEachPixel(this->width_, this->height_, CopyPass{input, output, this->width_});
@@ -133,9 +113,14 @@ class PassThrough final : public DenoiserBase<B> {
   void Allocate(std::size_t) override {}
 };
 
-// Progressive accumulation; KNN filters the running mean on top of it.
+// Progressive accumulation, reset whenever the camera or scene changes
+// (Exposure Render's default; it has no settings). KNN filters the running
+// mean on top of it.
 template <class B>
 class Accumulation : public DenoiserBase<B> {
+ public:
+  using DenoiserBase<B>::DenoiserBase;
+
  protected:
   void Run(const DenoiseFrame& frame, const Vec3f* input, const ReprojectionView&, Vec3f* output) override {
     if (!this->SameScene(frame)) {
@@ -157,6 +142,9 @@ class Accumulation : public DenoiserBase<B> {
 
 template <class B>
 class KnnFilter final : public Accumulation<B> {
+ public:
+  using Accumulation<B>::Accumulation;
+
  protected:
   void Run(const DenoiseFrame& frame, const Vec3f* input, const ReprojectionView& rv, Vec3f* output) override {
     Accumulation<B>::Run(frame, input, rv, mean_.data());
@@ -175,6 +163,9 @@ class KnnFilter final : public Accumulation<B> {
 
 template <class B>
 class GuidedFilter final : public DenoiserBase<B> {
+ public:
+  using DenoiserBase<B>::DenoiserBase;
+
  protected:
   void Run(const DenoiseFrame& frame, const Vec3f* input, const ReprojectionView& rv, Vec3f* output) override {
     const GuidedFilterSettings& s = this->settings_.guided;
@@ -222,6 +213,9 @@ struct SvgfFeedbackPass {
 
 template <class B>
 class Svgf final : public DenoiserBase<B> {
+ public:
+  using DenoiserBase<B>::DenoiserBase;
+
  protected:
   void Run(const DenoiseFrame& frame, const Vec3f* input, const ReprojectionView& rv, Vec3f* output) override {
     const SvgfSettings& s = this->settings_.svgf;
@@ -258,6 +252,9 @@ class Svgf final : public DenoiserBase<B> {
 // the output's stabilisation.
 template <class B>
 class Wrls final : public DenoiserBase<B> {
+ public:
+  using DenoiserBase<B>::DenoiserBase;
+
  protected:
   void Run(const DenoiseFrame& frame, const Vec3f* input, const ReprojectionView& rv, Vec3f* output) override {
     const WrlsSettings& s = this->settings_.wrls;
@@ -328,14 +325,13 @@ template <class B>
 std::unique_ptr<Denoiser> MakeDenoiser(const DenoiserSettings& settings) {
   std::unique_ptr<Denoiser> d;
   switch (settings.method) {
-    case DenoiseMethod::kNone: d = std::make_unique<PassThrough<B>>(); break;
-    case DenoiseMethod::kAccumulate: d = std::make_unique<Accumulation<B>>(); break;
-    case DenoiseMethod::kKnn: d = std::make_unique<KnnFilter<B>>(); break;
-    case DenoiseMethod::kGuidedFilter: d = std::make_unique<GuidedFilter<B>>(); break;
-    case DenoiseMethod::kSvgf: d = std::make_unique<Svgf<B>>(); break;
-    case DenoiseMethod::kWrls: d = std::make_unique<Wrls<B>>(); break;
+    case DenoiseMethod::kNone: d = std::make_unique<PassThrough<B>>(settings); break;
+    case DenoiseMethod::kAccumulate: d = std::make_unique<Accumulation<B>>(settings); break;
+    case DenoiseMethod::kKnn: d = std::make_unique<KnnFilter<B>>(settings); break;
+    case DenoiseMethod::kGuidedFilter: d = std::make_unique<GuidedFilter<B>>(settings); break;
+    case DenoiseMethod::kSvgf: d = std::make_unique<Svgf<B>>(settings); break;
+    case DenoiseMethod::kWrls: d = std::make_unique<Wrls<B>>(settings); break;
   }
-  d->Configure(settings);
   return d;
 }
 

@@ -159,7 +159,7 @@ void FramePipeline::SetTransferFunction(TransferFunction tf) {
 }
 
 void FramePipeline::Apply(const FrameSettings& settings, unsigned changes) {
-  if (!has_scene_ || !(settings.denoiser == settings_.denoiser)) {
+  if (!has_scene_ || settings.denoiser != settings_.denoiser) {
     denoiser_ = CreateDenoiser(renderer_->backend(), settings.denoiser);  // frames stay in the renderer's memory
   }
   if (changes & (kTransferFunctionChanged | kLightsChanged | kClippingChanged | kLabelsChanged)) ++scene_version_;

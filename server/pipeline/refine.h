@@ -39,12 +39,13 @@
 
 #include <cmath>
 #include <memory>
-#include <type_traits>
 #include <utility>
 
 #include "core/image.h"
 #include "core/sampling.h"
 #include "core/vec.h"
+#include "denoise/baselines.h"
+#include "denoise/cpu_passes.h"
 
 namespace cinevol {
 
@@ -105,13 +106,14 @@ struct VariancePass {
   }
 };
 
-// One level of the accumulation's a-trous filter (SVGF's 5x5 B-spline taps
-// `step` apart): a neighbour counts unless it differs from the centre by
-// more than their noise explains (in any channel, relative, against
-// kMeanFilterSigma standard deviations of the difference). The variance in w
-// steers the next level, propagated as if pixels were independent (it only
-// steers: the estimate's error is measured from the two halves). As samples
-// grow the noise, and with it what the filter averages, shrinks: f tends to m.
+// One level of the accumulation's a-trous filter (the denoisers' taps,
+// AtrousTaps in denoise/baselines.h): a neighbour counts unless it differs
+// from the centre by more than their noise explains (in any channel,
+// relative, against kMeanFilterSigma standard deviations of the
+// difference). The variance in w steers the next level, propagated as if
+// pixels were independent (it only steers: the estimate's error is measured
+// from the two halves). As samples grow the noise, and with it what the
+// filter averages, shrinks: f tends to m.
 inline constexpr float kMeanFilterSigma = 2.0f;
 inline constexpr int kMeanFilterLevels = 3;  // steps 1, 2, 4: a 17x17 footprint
 
@@ -122,43 +124,20 @@ struct MeanFilterPass {
   float dark;       // RelativeScale's floor
 
   CINEVOL_HD void operator()(int x, int y) const {
-    const float kernel[3] = {3.0f / 8.0f, 1.0f / 4.0f, 1.0f / 16.0f};
     const int i = y * width + x;
     const Vec4f c = in[i];
     const float inv_l = 1.0f / (fmaxf(Luminance(Xyz(c)), 0.0f) + dark);
-    Vec3f sum{};
-    float var_sum = 0.0f, weight = 0.0f;
-    for (int dy = -2; dy <= 2; ++dy) {
-      for (int dx = -2; dx <= 2; ++dx) {
-        const int nx = x + dx * step, ny = y + dy * step;
-        if (nx < 0 || ny < 0 || nx >= width || ny >= height) continue;
-        const Vec4f q = in[ny * width + nx];
-        const float difference = fmaxf(fabsf(q.x - c.x), fmaxf(fabsf(q.y - c.y), fabsf(q.z - c.z))) * inv_l;
-        const float noise = kMeanFilterSigma * sqrtf(c.w + q.w) + 1e-7f;
-        const float w = kernel[dx < 0 ? -dx : dx] * kernel[dy < 0 ? -dy : dy] * expf(-difference / noise);
-        sum += Xyz(q) * w;
-        var_sum += q.w * w * w;
-        weight += w;
-      }
-    }
-    out[i] = ToVec4(sum / weight, var_sum / (weight * weight));
+    out[i] = AtrousTaps(in, x, y, width, height, step, [&](int, Vec4f q) {
+      const float difference = fmaxf(fabsf(q.x - c.x), fmaxf(fabsf(q.y - c.y), fabsf(q.z - c.z))) * inv_l;
+      const float noise = kMeanFilterSigma * sqrtf(c.w + q.w) + 1e-7f;
+      return expf(-difference / noise);
+    });
   }
 };
 
-struct CpuBackend;
 // One MeanFilterPass level over the whole frame, as vectorised rows of the
-// same weights (cpu_refine.cpp).
-void CpuMeanFilterLevel(const MeanFilterPass& pass);
-
-// One level on backend B: the CPU's rows, elsewhere the functor per pixel.
-template <class B>
-void RunMeanFilterLevel(const MeanFilterPass& pass) {
-  if constexpr (std::is_same_v<B, CpuBackend>) {
-    CpuMeanFilterLevel(pass);
-  } else {
-    B::ForEachPixel(pass.width, pass.height, pass);
-  }
-}
+// same weights (cpu_refine.cpp); RunAtrousLevel picks it on the CPU.
+void CpuAtrousLevel(const MeanFilterPass& pass);
 
 // One half's mean (odd frames, or even ones) and its variance, about twice
 // the whole mean's, packed for MeanFilterPass.
@@ -410,7 +389,7 @@ class RefinerOn final : public Refiner {
     Vec4f* to = kMeanFilterLevels % 2 == 0 ? halves_[0].data() : result.data();
     B::ForEachPixel(w, h, HalfMeanPass{in.accumulated_sum, odd_sum_.data(), variance_.data(), from, w, in.frames, odd});
     for (int level = 0; level < kMeanFilterLevels; ++level) {
-      RunMeanFilterLevel<B>(MeanFilterPass{from, to, w, h, 1 << level, dark});
+      RunAtrousLevel<B>(MeanFilterPass{from, to, w, h, 1 << level, dark});
       std::swap(from, to);
     }
     return from;

@@ -172,15 +172,6 @@ double CudaRenderer::LastFrameMilliseconds() const {
   return ms;
 }
 
-std::size_t CudaRenderer::DeviceBytes() const {
-  const Device& d = *device_;
-  return (d.majorants.size() + d.sigma_t.size() + d.env_weight.size() + d.env_marginal.size() +
-          d.env_conditional.size()) * 4 +
-         (d.diffuse_opacity.size() + d.specular_roughness.size() + d.emission.size() + d.env_texels.size() +
-          d.first_hit.size()) * sizeof(Vec4f) +
-         d.lights.size() * sizeof(Light) + d.label_materials.size() * sizeof(LabelMaterial) + (d.radiance.size() + d.accumulated.size() + d.albedo.size()) * sizeof(Vec3f);
-}
-
 ImageRgbF CudaRenderer::Radiance() const { return {width_, height_, device_->radiance.Download(device_->stream)}; }
 
 ImageRgbF CudaRenderer::AccumulatedMean() const {

@@ -35,10 +35,6 @@ class CudaRenderer final : public Renderer {
   ImageRgbF Albedo() const override;
   FrameTargets Targets() const override;
 
-  // Device memory this renderer holds alone, in bytes: everything but the
-  // voxels it shares (VolumeCache).
-  std::size_t DeviceBytes() const;
-
  private:
   int brick_size_;
   bool use_texture_;  // RendererOptions::volume_texture

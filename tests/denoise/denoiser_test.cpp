@@ -226,18 +226,6 @@ TEST(Wrls, ResolutionChangeResetsHistory) {
   for (std::size_t i = 0; i < a.pixels.size(); ++i) ASSERT_EQ(a.pixels[i], b.pixels[i]);
 }
 
-TEST(Wrls, ResetForgetsHistory) {
-  SyntheticSequence seq(16, 12);
-  auto d = Make(DenoiseMethod::kWrls);
-  for (int t = 0; t < 5; ++t) d->Denoise(seq.Next());
-  d->Reset();
-  const DenoiseFrame f = seq.Next();
-  d->Denoise(f);
-  auto fresh = Make(DenoiseMethod::kWrls);
-  fresh->Denoise(f);
-  EXPECT_EQ(d->Output().pixels, fresh->Output().pixels);
-}
-
 // A still camera with the scene edited every frame (as a transfer-function
 // sweep): the stabilised output changes less from frame to frame than the
 // unstabilised one, and a real change (the radiance doubling) passes the

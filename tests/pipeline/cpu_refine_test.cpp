@@ -33,7 +33,7 @@ TEST(CpuMeanFilterLevel, AgreesWithThePerPixelPass) {
     CpuBackend::ForEachPixel(width, height, pass);
     MeanFilterPass row_pass = pass;
     row_pass.out = rows.data();
-    CpuMeanFilterLevel(row_pass);
+    CpuAtrousLevel(row_pass);
     for (std::size_t i = 0; i < rows.size(); ++i) {
       for (int c = 0; c < 4; ++c) {
         const float expected = Component(functor[i], c);
@@ -52,7 +52,7 @@ TEST(CpuMeanFilterLevel, TakesTheLargestChannelDifferenceAsFmaxfDoes) {
   CpuBackend::ForEachPixel(width, height, pass);
   MeanFilterPass row_pass = pass;
   row_pass.out = rows.data();
-  CpuMeanFilterLevel(row_pass);
+  CpuAtrousLevel(row_pass);
   for (std::size_t i = 0; i < rows.size(); ++i) {
     for (int c = 0; c < 4; ++c) {
       const float expected = Component(functor[i], c), got = Component(rows[i], c);
