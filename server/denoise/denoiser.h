@@ -145,7 +145,10 @@ struct DenoiseFrame {
   const Vec4f* first_hit = nullptr;  // nearest first real collision (w = 1) or escaped (w = 0)
   const Vec3f* albedo = nullptr;     // first-hit diffuse colour; needed when demodulating
   Camera camera;                     // the camera that rendered it
-  std::uint64_t scene_version = 0;   // bump on transfer-function, light or volume edits
+  // The picture changed since the previous frame this denoiser got: the
+  // camera, transfer function, lights, clipping or labels (the pipeline's
+  // change bits say so; nothing compares cameras). false: only the samples did.
+  bool changed = true;
 };
 
 class Denoiser {

@@ -15,11 +15,6 @@
 
 namespace cinevol {
 
-inline bool SameView(const Camera& a, const Camera& b) {
-  return a.eye == b.eye && a.forward == b.forward && a.up == b.up && a.tan_half_fov_y == b.tan_half_fov_y &&
-         a.lens_radius == b.lens_radius && a.focal_distance == b.focal_distance;
-}
-
 // What every method shares: frame size, optional demodulation, the previous
 // frame's camera and first hits for reprojection, the output, timing.
 template <class B>
@@ -56,7 +51,6 @@ class DenoiserBase : public Denoiser {
     if (settings_.demodulate) B::ForEachPixel(width_, height_, RemodulatePass{frame.albedo, output_.data(), width_});
     prev_first_hit_.CopyFrom(frame.first_hit, pixels());
     prev_camera_ = frame.camera;
-    prev_scene_version_ = frame.scene_version;
     has_history_ = true;
     timer_.Stop();
     return output_.data();
@@ -73,9 +67,7 @@ class DenoiserBase : public Denoiser {
 
   std::size_t pixels() const { return std::size_t(width_) * height_; }
   // True when nothing but the samples changed since the last frame.
-  bool SameScene(const DenoiseFrame& frame) const {
-    return has_history_ && SameView(frame.camera, prev_camera_) && frame.scene_version == prev_scene_version_;
-  }
+  bool SameScene(const DenoiseFrame& frame) const { return has_history_ && !frame.changed; }
 
   const DenoiserSettings settings_;
   int width_ = 0, height_ = 0;
@@ -96,8 +88,7 @@ class DenoiserBase : public Denoiser {
 
   Buffer<Vec3f> output_, demodulated_;
   Buffer<Vec4f> prev_first_hit_;
-  Camera prev_camera_;
-  std::uint64_t prev_scene_version_ = 0;
+  Camera prev_camera_;  // for reprojection
   typename B::Timer timer_;
 };
 

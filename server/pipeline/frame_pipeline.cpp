@@ -163,6 +163,7 @@ void FramePipeline::Apply(const FrameSettings& settings, unsigned changes) {
     denoiser_ = CreateDenoiser(renderer_->backend(), settings.denoiser);  // frames stay in the renderer's memory
   }
   if (changes & (kTransferFunctionChanged | kLightsChanged | kClippingChanged | kLabelsChanged)) ++scene_version_;
+  picture_changed_ |= (changes & kPictureChanges) != 0;
   // On the CPU every edit of the picture is an interaction: a full-size
   // frame after a moved light would take seconds.
   const unsigned interactions = policy_ == InteractivePolicy::kCostModel
@@ -287,8 +288,8 @@ DisplayFrame FramePipeline::RenderFrame() {
   accumulated_spp_ += spp;
 
   const FrameTargets t = renderer_->Targets();
-  const Vec3f* denoised =
-      denoiser_->Denoise({camera.width, camera.height, t.radiance, t.first_hit, t.albedo, camera, scene_version_});
+  const Vec3f* denoised = denoiser_->Denoise(
+      {camera.width, camera.height, t.radiance, t.first_hit, t.albedo, camera, std::exchange(picture_changed_, false)});
   out.denoise_ms = denoiser_->LastMilliseconds();
 
   const auto display_start = Clock::now();

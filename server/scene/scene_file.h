@@ -44,6 +44,8 @@ enum SceneChange : unsigned {
   kClippingChanged = 1u << 4,  // the crop box or clip planes
   kLabelsChanged = 1u << 5,    // the label styles or table removal
   kEverythingChanged = (1u << 6) - 1,
+  // What the picture shows (not only how it is sampled): the denoiser's cue.
+  kPictureChanges = kCameraChanged | kTransferFunctionChanged | kLightsChanged | kClippingChanged | kLabelsChanged,
 };
 
 // Sets every absent `optional` field to its documented default, in the

@@ -53,10 +53,10 @@ TEST_P(CudaDenoiser, AgreesWithCpu) {
     req.frame = t;
     renderer->Render(req);
     const FrameTargets device = renderer->Targets();
-    gpu->Denoise({w, h, device.radiance, device.first_hit, device.albedo, req.camera, 0});
+    gpu->Denoise({w, h, device.radiance, device.first_hit, device.albedo, req.camera, true});  // an orbit
     const ImageRgbF radiance = renderer->Radiance(), albedo = renderer->Albedo();
     const std::vector<Vec4f> hits = renderer->FirstHits();
-    cpu->Denoise({w, h, radiance.pixels.data(), hits.data(), albedo.pixels.data(), req.camera, 0});
+    cpu->Denoise({w, h, radiance.pixels.data(), hits.data(), albedo.pixels.data(), req.camera, true});
     const ImageRgbF a = gpu->Output(), b = cpu->Output();
     int differing = 0;
     for (std::size_t i = 0; i < a.pixels.size(); ++i) {

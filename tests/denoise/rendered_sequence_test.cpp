@@ -75,7 +75,7 @@ TEST(RenderedSequence, WrlsBeatsNoiseAndAccumulationDuringMotion) {
     req.seed = 1;
     noisy.Render(req);
     const FrameTargets targets = noisy.Targets();
-    DenoiseFrame f{w, h, targets.radiance, targets.first_hit, targets.albedo, req.camera, 0};
+    DenoiseFrame f{w, h, targets.radiance, targets.first_hit, targets.albedo, req.camera, true};  // an orbit
     wrls->Denoise(f);
     accumulate->Denoise(f);
     if (t < warmup) continue;

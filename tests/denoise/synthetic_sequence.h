@@ -4,6 +4,7 @@
 #pragma once
 
 #include <cmath>
+#include <utility>
 #include <vector>
 
 #include "core/camera.h"
@@ -26,6 +27,7 @@ class SyntheticSequence {
   }
 
   void MoveCamera(Vec3f offset) {
+    moved_ = true;
     camera_ = LookAt(camera_.eye + offset, camera_.eye + offset + camera_.forward * 300.0f, {0, 0, 1}, 30, width_,
                      height_);
   }
@@ -57,6 +59,7 @@ class SyntheticSequence {
     f.first_hit = first_hit_.data();
     f.albedo = albedo_.data();
     f.camera = camera_;
+    f.changed = frame_ == 1 || std::exchange(moved_, false);  // the first frame, and after a move
     return f;
   }
 
@@ -69,6 +72,7 @@ class SyntheticSequence {
   int width_, height_;
   Camera camera_;
   std::uint64_t frame_ = 0;
+  bool moved_ = false;
   std::vector<Vec3f> truth_, radiance_, albedo_;
   std::vector<Vec4f> first_hit_;
 };
