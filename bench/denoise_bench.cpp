@@ -54,7 +54,8 @@ int RunDenoiseBench(const DenoiseBenchOptions& o) {
       "times: median over frames {}..{}; PSNR (tone-mapped) against {} spp per frame, mean over the same frames; "
       "flicker: RMS change between consecutive tone-mapped outputs of a static camera (the same frames again, "
       "camera still; the noisy input's is the first row)\n\n"
-      "| method | demodulated | median ms | p90 ms | PSNR dB (moving) | flicker (static) |\n|---|---|---|---|---|---|\n",
+      "| method | demodulated | median ms | p90 ms | PSNR dB (moving) | flicker (static) "
+      "|\n|---|---|---|---|---|---|\n",
       o.scene, DeviceDescription(o.backend), o.command_line, setup.camera.width, setup.camera.height, setup.spp,
       o.degrees_per_frame, o.frames, o.warmup, o.frames - 1, o.reference_spp);
   for (const Method& m : methods) {

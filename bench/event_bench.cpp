@@ -23,7 +23,9 @@ using Clock = std::chrono::steady_clock;
 
 struct Stats {
   std::vector<double> us;
-  void Add(Clock::time_point start) { us.push_back(std::chrono::duration<double, std::micro>(Clock::now() - start).count()); }
+  void Add(Clock::time_point start) {
+    us.push_back(std::chrono::duration<double, std::micro>(Clock::now() - start).count());
+  }
   double Percentile(double p) {
     std::sort(us.begin(), us.end());
     return us.empty() ? 0 : us[std::min(us.size() - 1, std::size_t(p * double(us.size())))];
@@ -88,9 +90,9 @@ int RunEventBench(const EventBenchOptions& o) {
       "| step | median us | p95 us |\n|---|---|---|\n",
       o.command_line, o.events, o.volume.empty() ? o.scene : o.volume,
       state.scene().lights_size(), state.scene().transfer_function().points_size(), bytes.size());
-  for (auto [name, stats] : {std::pair{"ApplyEvent (the rule)", &rule}, std::pair{"the old rule, re-enacted", &old_rule},
-                             std::pair{"state message serialised", &message},
-                             std::pair{"FramePipeline::Update (camera)", &update}}) {
+  for (auto [name, stats] :
+       {std::pair{"ApplyEvent (the rule)", &rule}, std::pair{"the old rule, re-enacted", &old_rule},
+        std::pair{"state message serialised", &message}, std::pair{"FramePipeline::Update (camera)", &update}}) {
     table += fmt::format("| {} | {:.1f} | {:.1f} |\n", name, stats->Percentile(0.5), stats->Percentile(0.95));
   }
   Report(o, table);

@@ -121,7 +121,8 @@ double Ssim(const ImageRgb8& image, const ImageRgb8& reference) {
   for (std::size_t i = 0; i < n; ++i) {
     const double va = maa[i] - double(ma[i]) * ma[i], vb = mbb[i] - double(mb[i]) * mb[i];
     const double cov = mab[i] - double(ma[i]) * mb[i];
-    sum += ((2 * ma[i] * mb[i] + c1) * (2 * cov + c2)) / ((double(ma[i]) * ma[i] + double(mb[i]) * mb[i] + c1) * (va + vb + c2));
+    sum += ((2 * ma[i] * mb[i] + c1) * (2 * cov + c2)) /
+           ((double(ma[i]) * ma[i] + double(mb[i]) * mb[i] + c1) * (va + vb + c2));
   }
   return sum / double(n);
 }

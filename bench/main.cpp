@@ -62,7 +62,8 @@ int main(int argc, char** argv) {
 
   cinevol::bench::RenderBenchOptions render;
   render.command_line = command_line;
-  auto* r = app.add_subcommand("render", "Path tracer ms/frame with and without empty-space skipping and specialisation");
+  auto* r =
+      app.add_subcommand("render", "Path tracer ms/frame with and without empty-space skipping and specialisation");
   cinevol::bench::AddSceneOptions(r, render);
   r->add_option("--frames", render.frames, "Timed frames")->capture_default_str();
   r->add_option("--warmup", render.warmup, "Untimed frames first")->capture_default_str();
@@ -79,7 +80,8 @@ int main(int argc, char** argv) {
   d->callback([&] { cinevol::bench::RunDenoiseBench(denoise); });
   cinevol::bench::RefineBenchOptions refine;
   refine.command_line = command_line;
-  auto* f = app.add_subcommand("refine", "Still frames after an orbit: displayed PSNR/SSIM per step, refined and previous");
+  auto* f =
+      app.add_subcommand("refine", "Still frames after an orbit: displayed PSNR/SSIM per step, refined and previous");
   cinevol::bench::AddSceneOptions(f, refine);
   f->add_option("--reference-spp", refine.reference_spp, "Samples per pixel of the reference")->capture_default_str();
   f->add_option("--target-spp", refine.target_spp, "Samples per pixel the curve runs to")->capture_default_str();
@@ -126,14 +128,17 @@ int main(int argc, char** argv) {
 
   cinevol::bench::CallsBenchOptions calls;
   calls.command_line = command_line;
-  auto* k = app.add_subcommand("calls", "GetStatus and health latency while clients create sessions on a labelled volume");
+  auto* k =
+      app.add_subcommand("calls", "GetStatus and health latency while clients create sessions on a labelled volume");
   k->add_option("--server", calls.server, "A running server (default: start one on a written volume)");
   k->add_option("--token", calls.token, "Bearer token for --server");
   k->add_option("--volume", calls.volume, "With --server: the id of a volume that has a segmentation");
   k->add_option("--size", calls.size, "Without --server: the written volume's side, voxels")
       ->check(CLI::Range(16, 1024))
       ->capture_default_str();
-  k->add_option("--clients", calls.clients, "Clients creating sessions at once")->check(CLI::Range(1, 64))->capture_default_str();
+  k->add_option("--clients", calls.clients, "Clients creating sessions at once")
+      ->check(CLI::Range(1, 64))
+      ->capture_default_str();
   k->add_option("--creations", calls.creations, "Sessions each client creates and closes in turn")
       ->check(CLI::Range(1, 1000))
       ->capture_default_str();
@@ -166,7 +171,8 @@ int main(int argc, char** argv) {
   t->add_option("--out", out, "Results folder: tradeoff.csv, .json, .md, images/")->capture_default_str();
   t->add_option("--backend", study.backend, "auto, cpu or cuda")->capture_default_str();
   t->add_flag("--quick", quick, "A small subset of the configurations");
-  t->add_option("--variant", variants, "Also a wRLS (or method=svgf) variant NAME:key=value,... (repeatable; ablations)");
+  t->add_option("--variant", variants,
+                "Also a wRLS (or method=svgf) variant NAME:key=value,... (repeatable; ablations)");
   bool variants_only = false;
   t->add_flag("--variants-only", variants_only, "Only none, svgf, the default wrls and the variants");
   bool denoisers_only = false;
@@ -175,7 +181,8 @@ int main(int argc, char** argv) {
     for (const std::string& spec : datasets) {
       const auto eq = spec.find('='), comma = spec.find(',', eq);
       if (eq == std::string::npos) throw cinevol::InputError("--dataset " + spec + ": use NAME=SCENE_FILE[,VOLUME]");
-      study.datasets.push_back({spec.substr(0, eq), spec.substr(eq + 1, comma == std::string::npos ? comma : comma - eq - 1),
+      study.datasets.push_back({spec.substr(0, eq),
+                                spec.substr(eq + 1, comma == std::string::npos ? comma : comma - eq - 1),
                                 comma == std::string::npos ? "" : spec.substr(comma + 1)});
     }
     study.scenarios = scenarios;

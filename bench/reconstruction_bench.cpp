@@ -134,7 +134,8 @@ int RunReconstructionBench(const ReconstructionBenchOptions& o) {
   }
   std::string table = fmt::format(
       "\n### Reconstruction on {}\n\n`{}`\n\nA ball of radius {} mm (1000 in 0, partial-volume voxelised) in a {} mm "
-      "box, opaque surface at 500 (ramp 450..550), {}x{} at {} spp against the ball at {} mm (tricubic); PSNR and SSIM of the "
+      "box, opaque surface at 500 (ramp 450..550), {}x{} at {} spp against the ball at {} mm (tricubic); PSNR and SSIM "
+      "of the "
       "displayed image over the ball's bounding rectangle ({}x{}); ms: median 720p frame at 2 spp\n\n"
       "| spacing | reconstruction | PSNR dB | SSIM | ms/frame 720p 2 spp |\n|---|---|---|---|---|\n",
       device, o.command_line, kRadiusMm, kExtentMm, o.width, o.height, o.spp, o.reference_spacing, x1 - x0, y1 - y0);

@@ -150,7 +150,8 @@ int RunRefineBench(const RefineBenchOptions& o) {
   if (!o.csv.empty()) {
     const bool fresh = !std::filesystem::exists(o.csv);
     std::ofstream csv(o.csv, std::ios::app);
-    if (fresh) csv << "scene,width,height,step,spp,previous_psnr,previous_ssim,previous_ms,psnr,ssim,ms,estimate,measured\n";
+    if (fresh)
+      csv << "scene,width,height,step,spp,previous_psnr,previous_ssim,previous_ms,psnr,ssim,ms,estimate,measured\n";
     for (std::size_t i = 0; i < spp.size(); ++i) {
       csv << fmt::format("{},{},{},{},{},{:.4f},{:.5f},{:.1f},{:.4f},{:.5f},{:.1f},{:.5f},{:.5f}\n", o.scene,
                          setup.camera.width, setup.camera.height, i, spp[i], before.psnr[i], before.ssim[i],

@@ -67,8 +67,8 @@ int RunRenderBench(const RenderBenchOptions& o) {
       volume->dims().z, setup.camera.width, setup.camera.height, setup.spp, setup.max_bounces,
       setup.lights.lights.size(), o.frames, o.warmup);
   if (loaded.labels) {
-    table.insert(table.find("| configuration"), fmt::format("segmentation {} with {} label styles\n\n", loaded.labels->source,
-                                                           loaded.setup.labels.styles.size()));
+    table.insert(table.find("| configuration"), fmt::format("segmentation {} with {} label styles\n\n",
+                                                            loaded.labels->source, loaded.setup.labels.styles.size()));
   }
   std::vector<Config> configs = {{"default: 4^3 bricks, specialised", kDefaultBrickSize, true},
                                  {"no empty-space skipping (global majorant)", 0, true},

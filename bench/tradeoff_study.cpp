@@ -198,7 +198,8 @@ ImageRgb8 Upsample(const ImageRgb8& image, int width, int height) {
       const float fx = sx - x0;
       for (int c = 0; c < 3; ++c) {
         auto at = [&](int xx, int yy) { return float(image.bytes[(std::size_t(yy) * image.width + xx) * 3 + c]); };
-        const float v = (at(x0, y0) * (1 - fx) + at(x1, y0) * fx) * (1 - fy) + (at(x0, y1) * (1 - fx) + at(x1, y1) * fx) * fy;
+        const float v =
+            (at(x0, y0) * (1 - fx) + at(x1, y0) * fx) * (1 - fy) + (at(x0, y1) * (1 - fx) + at(x1, y1) * fx) * fy;
         out.bytes[(std::size_t(y) * width + x) * 3 + c] = std::uint8_t(std::lround(v));
       }
     }
@@ -212,7 +213,8 @@ ImageRgbF UpsampleHdr(const ImageRgbF& image, int width, int height) {
   for (int y = 0; y < height; ++y) {
     const int sy = std::min(image.height - 1, y * image.height / height);
     for (int x = 0; x < width; ++x) {
-      out.pixels[std::size_t(y) * width + x] = image.pixels[std::size_t(sy) * image.width + std::min(image.width - 1, x * image.width / width)];
+      out.pixels[std::size_t(y) * width + x] =
+          image.pixels[std::size_t(sy) * image.width + std::min(image.width - 1, x * image.width / width)];
     }
   }
   return out;
@@ -270,7 +272,8 @@ RunResult RunConfig(const Context& ctx, const Scenario& scenario, const Referenc
   setup.max_bounces = c.bounces;
   setup.seed = 7;  // every configuration of the same spp, bounces and size sees the same noise
   setup.exposure = ctx.exposure;
-  const int w = std::max(1, int(std::lround(ctx.o.width * c.scale))), h = std::max(1, int(std::lround(ctx.o.height * c.scale)));
+  const int w = std::max(1, int(std::lround(ctx.o.width * c.scale))),
+            h = std::max(1, int(std::lround(ctx.o.height * c.scale)));
   const TransferFunction* tf = nullptr;
   const LightSetup* lights = nullptr;
   ImageRgb8 previous;
@@ -413,7 +416,8 @@ std::vector<StudyConfig> StudyConfigs(bool quick) {
       configs.push_back(c);
     }
   };
-  sweep("spp", quick ? std::vector<float>{1, 4} : std::vector<float>{1, 4, 8}, [](StudyConfig& c, float v) { c.spp = int(v); });
+  sweep("spp", quick ? std::vector<float>{1, 4} : std::vector<float>{1, 4, 8},
+        [](StudyConfig& c, float v) { c.spp = int(v); });
   if (!quick) sweep("bounces", {1, 2, 8}, [](StudyConfig& c, float v) { c.bounces = int(v); });
   sweep("jpeg", quick ? std::vector<float>{75} : std::vector<float>{50, 75, 90},
         [](StudyConfig& c, float v) { c.jpeg_quality = int(v); });
@@ -582,7 +586,8 @@ std::vector<RunResult> RunStudy(const StudyOptions& o) {
         WriteFile(images / "reference.jpg", EncodeJpeg(Half(refs.display[image_frame]), 92));
       }
       for (const StudyConfig& c : o.configs) {
-        const fs::path image = images.empty() || c.knob != "denoiser" ? fs::path() : images / (Slug(c.Label()) + ".jpg");
+        const fs::path image =
+            images.empty() || c.knob != "denoiser" ? fs::path() : images / (Slug(c.Label()) + ".jpg");
         RunResult run = RunConfig(ctx, s, refs, c, image, image_frame);
         run.dataset = d.name;
         std::fprintf(stderr, "  %-22s PSNR %6.2f  SSIM %.4f  temporal %.4f  %7.2f ms\n", c.Label().c_str(),

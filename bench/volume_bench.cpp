@@ -28,8 +28,8 @@ std::string Row(const std::string& spec) {
   for (std::size_t i = 0; i < values.size(); ++i) values[i] = volume->ValueAtIndex(i);
   const double construct =
       Milliseconds([&] { Volume copy(volume->dims(), volume->spacing_mm(), values, volume->metadata()); });
-  const double histogram =
-      Milliseconds([&] { ValueHistogram::Of(ValuesView<float>(values), 0.0f, volume->min_value(), volume->max_value()); });
+  const double histogram = Milliseconds(
+      [&] { ValueHistogram::Of(ValuesView<float>(values), 0.0f, volume->min_value(), volume->max_value()); });
   VolumeKindJudgement kind;
   const double judge = Milliseconds([&] { kind = JudgeVolumeKind(*volume); });
   v1::Scene scene = MakePresetScene(DefaultPreset(kind.kind), *volume);

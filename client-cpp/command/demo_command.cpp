@@ -94,7 +94,8 @@ void Run(const DemoOptions& o) {
 
 void AddDemoCommand(CLI::App& app) {
   auto* cmd = app.add_subcommand(
-      "demo", "Start a local server, play a scripted session over gRPC, write the frames, a contact sheet and a summary");
+      "demo",
+      "Start a local server, play a scripted session over gRPC, write the frames, a contact sheet and a summary");
   auto o = std::make_shared<DemoOptions>();
   cmd->add_option("--out", o->out, "Output folder")->capture_default_str();
   cmd->add_option("--backend", o->backend, "auto, cpu or cuda")->check(CLI::IsMember({"auto", "cpu", "cuda"}));

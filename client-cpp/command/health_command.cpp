@@ -24,7 +24,8 @@ void Run(const HealthOptions& o) {
   const Client client = Connect(o.connection);
   auto stub = grpc::health::v1::Health::NewStub(client.channel());
   grpc::ClientContext context;
-  context.set_deadline(std::chrono::system_clock::now() + std::chrono::milliseconds(int(o.connection.connect_seconds * 1000)));
+  context.set_deadline(std::chrono::system_clock::now() +
+                       std::chrono::milliseconds(int(o.connection.connect_seconds * 1000)));
   grpc::health::v1::HealthCheckRequest request;
   request.set_service(o.service);
   grpc::health::v1::HealthCheckResponse response;

@@ -206,7 +206,8 @@ std::string Json(const LoadtestOptions& o, const SessionScript& script, const st
                    "\"latency_ms\": {}, \"bytes\": {}, \"dropped\": {}, \"smaller_frames\": {}, \"stage_ms\": {{",
                    s.frames, number(s.fps_mean), number(s.fps_min), number(s.fps_total), latency(s.latencies),
                    s.bytes, s.dropped, s.stages.smaller_frames);
-  for (int i = 0; i < 7; ++i) j += fmt::format("{}\"{}\": {}", i ? ", " : "", kStageNames[i], number(s.stages.StageMs(i)));
+  for (int i = 0; i < 7; ++i)
+    j += fmt::format("{}\"{}\": {}", i ? ", " : "", kStageNames[i], number(s.stages.StageMs(i)));
   j += "}, \"errors\": {";
   bool first = true;
   for (const auto& [code, n] : s.errors) {

@@ -69,12 +69,14 @@ void AddPlayCommand(CLI::App& app) {
   cmd->add_option("--volume", o->volume, "Volume id, instead of the script's volume, load or upload");
   cmd->add_option("--timeout", o->timeout, "Seconds the run may take at most")->check(CLI::Range(0.1, 86400.0))
       ->capture_default_str();
-  cmd->add_option("--target-spp", o->target_spp, "Refinement's cap in samples per pixel (default: the script's, else 256)")
+  cmd->add_option("--target-spp", o->target_spp,
+                  "Refinement's cap in samples per pixel (default: the script's, else 256)")
       ->check(CLI::Range(1, 65536));
   cmd->add_option("--error-target", o->error_target,
                   "Refinement ends at this estimated relative error (default: the script's, else 0.02; 0: at the cap)")
       ->check(CLI::Range(0.0, 1.0));
-  cmd->add_option("--final-format", o->final_format, "The final frame as jpeg or png (lossless; default: the script's, else jpeg)")
+  cmd->add_option("--final-format", o->final_format,
+                  "The final frame as jpeg or png (lossless; default: the script's, else jpeg)")
       ->check(CLI::IsMember({"jpeg", "png"}));
   cmd->callback([o] { Run(*o); });
 }

@@ -53,7 +53,8 @@ std::string Triple(double x, double y, double z, const std::string& unit) {
 }
 
 std::string ValueRange(const v1::VolumeInfo& v) {
-  return fmt::format("{:g} .. {:g}{}", v.min_value(), v.max_value(), v.value_unit().empty() ? "" : " " + v.value_unit());
+  return fmt::format("{:g} .. {:g}{}", v.min_value(), v.max_value(),
+                     v.value_unit().empty() ? "" : " " + v.value_unit());
 }
 
 std::string KindName(v1::VolumeKind kind) {

@@ -100,7 +100,8 @@ CLI::App* AddVolumesSubcommand(CLI::App* volumes, const std::string& name, const
 }  // namespace
 
 void AddVolumesCommand(CLI::App& app) {
-  auto* volumes = app.add_subcommand("volumes", "List, load, upload, describe or unload a server's volumes, or load their segmentations");
+  auto* volumes = app.add_subcommand(
+      "volumes", "List, load, upload, describe or unload a server's volumes, or load their segmentations");
   volumes->require_subcommand(1);
   std::shared_ptr<VolumesOptions> o;
   AddVolumesSubcommand(volumes, "list", "The volumes the server holds", List, o);
@@ -119,7 +120,8 @@ void AddVolumesCommand(CLI::App& app) {
   upload->add_option("--orientation", o->orientation, kOrientationHelp);
 
   auto* labels = AddVolumesSubcommand(
-      volumes, "labels", "Load a segmentation (a label volume, NIfTI or NRRD) for a volume the server holds", Labels, o);
+      volumes, "labels", "Load a segmentation (a label volume, NIfTI or NRRD) for a volume the server holds", Labels,
+      o);
   labels->add_option("id", o->volume_id, "Volume id the labels segment")->required();
   labels->add_option("path", o->argument, "Label volume: a path on the server, or a local file with --upload")
       ->required();

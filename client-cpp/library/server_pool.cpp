@@ -319,7 +319,8 @@ Placement ServerPool::Relocate(const std::string& id, std::vector<v1::SessionEve
     std::lock_guard lock(mu_);
     auto it = routes_.find(id);
     if (it == routes_.end() || !it->second->state) {
-      throw RpcError({grpc::StatusCode::FAILED_PRECONDITION, fmt::format("session '{}': not created by this client", id)});
+      throw RpcError(
+          {grpc::StatusCode::FAILED_PRECONDITION, fmt::format("session '{}': not created by this client", id)});
     }
     route = it->second;
     request = route->state->request();

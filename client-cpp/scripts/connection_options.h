@@ -42,7 +42,8 @@ inline void AddConnectionOptions(CLI::App* command, ConnectionOptions& o) {
 // --timeout S for commands whose calls may take long (a large load or
 // upload): each call's deadline, which is 60 s elsewhere.
 inline void AddCallTimeoutOption(CLI::App* command, ConnectionOptions& o) {
-  command->add_option("--timeout", o.call_seconds, "Seconds the server may take to answer (a large volume takes longer)")
+  command
+      ->add_option("--timeout", o.call_seconds, "Seconds the server may take to answer (a large volume takes longer)")
       ->check(CLI::Range(1.0, 7.0 * 86400))
       ->capture_default_str();
 }

@@ -21,7 +21,8 @@ std::string ExplainStatus(const grpc::Status& status, const std::map<std::uint64
   const std::string text = status.error_message();
   if (std::regex_search(text, m, std::regex("^event ([0-9]+): "))) {
     const auto it = line_of_seq.find(std::stoull(m[1]));
-    if (it != line_of_seq.end() && it->second > 0) return fmt::format("script line {}: {}", it->second, m.suffix().str());
+    if (it != line_of_seq.end() && it->second > 0)
+      return fmt::format("script line {}: {}", it->second, m.suffix().str());
   }
   return text;
 }
@@ -42,7 +43,8 @@ void AddFrame(const v1::Frame& f, SessionStream& stream, Clock::time_point now, 
   if (f.last_event_seq() <= answered) return;
   for (std::uint64_t seq = answered + 1; seq <= f.last_event_seq(); ++seq) {
     const Clock::time_point sent = stream.SentAt(seq);
-    if (sent != Clock::time_point{}) r.latency_ms.push_back(std::chrono::duration<double, std::milli>(now - sent).count());
+    if (sent != Clock::time_point{})
+      r.latency_ms.push_back(std::chrono::duration<double, std::milli>(now - sent).count());
   }
   answered = f.last_event_seq();
   if (r.latency_ms.empty()) return;

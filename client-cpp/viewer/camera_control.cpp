@@ -67,14 +67,16 @@ void Zoom(ViewCamera& c, float factor) {
 
 void Pan(ViewCamera& c, float dx, float dy, int viewport_height) {
   const float distance = Length(c.eye - c.target);
-  const float mm_per_pixel = 2.0f * distance * std::tan(0.5f * c.fov_y_deg * kPi / 180.0f) / float(std::max(1, viewport_height));
+  const float mm_per_pixel =
+      2.0f * distance * std::tan(0.5f * c.fov_y_deg * kPi / 180.0f) / float(std::max(1, viewport_height));
   const Vec3f right = Right(c), up = Normalize(Cross(right, c.target - c.eye));
   const Vec3f shift = right * (-dx * mm_per_pixel) + up * (dy * mm_per_pixel);
   c.eye += shift;
   c.target += shift;
 }
 
-ViewCamera NamedView(const ViewCamera& c, v1::NamedView view, const google::protobuf::RepeatedField<double>& direction) {
+ViewCamera NamedView(const ViewCamera& c, v1::NamedView view,
+                     const google::protobuf::RepeatedField<double>& direction) {
   DirectionCosines d{1, 0, 0, 0, 1, 0, 0, 0, 1};
   if (direction.size() == 9) std::copy(direction.begin(), direction.end(), d.begin());
   const ViewDirections v = NamedViewDirections(view, d);

@@ -33,7 +33,8 @@ void Zoom(ViewCamera& camera, float factor);
 void Pan(ViewCamera& camera, float dx, float dy, int viewport_height);
 // The named view about the current target at the current distance.
 // `direction` is VolumeInfo.direction (the volume's direction cosines).
-ViewCamera NamedView(const ViewCamera& camera, v1::NamedView view, const google::protobuf::RepeatedField<double>& direction);
+ViewCamera NamedView(const ViewCamera& camera, v1::NamedView view,
+                     const google::protobuf::RepeatedField<double>& direction);
 // Turns an area light about the camera's target as Orbit turns the eye.
 void OrbitLight(v1::AreaLight& light, const ViewCamera& camera, float yaw_deg, float pitch_deg);
 

@@ -12,7 +12,10 @@ int main(int argc, char** argv) {
   CLI::App app{"cinevol-viewer: look at a volume on a cinevol-server, interactively"};
   cinevol::viewer::ViewerOptions o;
   cinevol::cli::AddConnectionOptions(&app, o.connection);
-  app.get_option("--server")->description("Server address HOST:PORT, or a deployment's servers separated by commas (default: start a local server on the phantom)");
+  app.get_option("--server")
+      ->description(
+          "Server address HOST:PORT, or a deployment's servers separated by commas (default: start a local server on "
+          "the phantom)");
   std::string volume, load, upload, preset;
   app.add_option("--volume", volume, "Volume id on the server (default: its first)");
   app.add_option("--load", load, "Load this file or DICOM folder from the server's data roots first");

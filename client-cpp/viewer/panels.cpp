@@ -41,7 +41,8 @@ void VolumeField(App& app, const char* verb, std::string& path,
         app.Later([&app, id] { app.SwitchVolume(id); });
       },
       [&app, verb, path = path](const std::string& error) {
-        if (!error.empty()) app.Later([&app, verb, path, error] { app.notice = fmt::format("{} {}: {}", verb, path, error); });
+        if (!error.empty())
+          app.Later([&app, verb, path, error] { app.notice = fmt::format("{} {}: {}", verb, path, error); });
       });
 }
 
@@ -374,7 +375,8 @@ void LabelsPanel(App& app) {
     }
     ImGui::SameLine();
     float colour[3] = {0.8f, 0.8f, 0.8f};
-    if (style && style->has_color()) colour[0] = style->color().r(), colour[1] = style->color().g(), colour[2] = style->color().b();
+    if (style && style->has_color())
+      colour[0] = style->color().r(), colour[1] = style->color().g(), colour[2] = style->color().b();
     if (ImGui::ColorEdit3("##colour", colour, ImGuiColorEditFlags_NoInputs)) {
       v1::Color* c = StyleOf(app.labels, label.value())->mutable_color();
       c->set_r(colour[0]);

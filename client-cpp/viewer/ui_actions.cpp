@@ -110,7 +110,8 @@ void App::RunUiAction(const std::string& json, int line) {
     const double v = Number(p, "value", at), o = Number(p, "opacity", at);
     if (run) {
       if (!MoveTransferPoint(transfer, index, float(v), float(o))) {
-        throw InputError(fmt::format("{}: no point {} (the transfer function has {})", at, index, transfer.points_size()));
+        throw InputError(
+            fmt::format("{}: no point {} (the transfer function has {})", at, index, transfer.points_size()));
       }
       SendTransferFunction();
     }
@@ -139,7 +140,8 @@ void App::RunUiAction(const std::string& json, int line) {
   } else if (name == "resizeWindow") {  // {"resizeWindow": {"width": 800, "height": 500}}
     const Struct& p = Object(value, at);
     const double w = Number(p, "width", at), h = Number(p, "height", at);
-    if (w < 200 || h < 150 || w > 8192 || h > 8192) throw InputError(at + ": width and height in [200, 8192] x [150, 8192]");
+    if (w < 200 || h < 150 || w > 8192 || h > 8192)
+      throw InputError(at + ": width and height in [200, 8192] x [150, 8192]");
     if (run) SDL_SetWindowSize(window_, int(w), int(h));
   } else if (name == "screenshot") {  // {"screenshot": "step.png"}: the window once this frame is drawn
     const std::string file = Text(value, at);

@@ -76,7 +76,8 @@ App::App(ViewerOptions o) : options(std::move(o)) {
     // The script's session line says what it names; the command line the rest.
     cli::ScriptSession& s = script_->session;
     const bool names_volume = !s.volume.empty() || !s.load.empty() || !s.upload.empty();
-    if (!names_volume) s.volume = options.session.volume, s.load = options.session.load, s.upload = options.session.upload;
+    if (!names_volume)
+      s.volume = options.session.volume, s.load = options.session.load, s.upload = options.session.upload;
     if (s.preset.empty() && !s.scene) s.preset = options.session.preset;
     options.session = s;
     for (const cli::ScriptStep& step : script_->steps) {
@@ -398,13 +399,15 @@ void App::OpenScene(const std::string& path) {
 
 bool App::TakeFrame() {
   const Clock::time_point now = Clock::now();
-  while (!stats.displayed.empty() && now - stats.displayed.front() > std::chrono::seconds(1)) stats.displayed.pop_front();
+  while (!stats.displayed.empty() && now - stats.displayed.front() > std::chrono::seconds(1))
+    stats.displayed.pop_front();
   while (!stats.bytes.empty() && now - stats.bytes.front().first > std::chrono::seconds(1)) stats.bytes.pop_front();
   std::optional<ViewFrame> frame = connection->TakeFrame();
   if (!frame) return false;
   UploadFrame(*frame);
   const v1::Frame& f = frame->info;
-  if (stats.last_frame_id > 0 && f.frame_id() > stats.last_frame_id + 1) stats.dropped += f.frame_id() - stats.last_frame_id - 1;
+  if (stats.last_frame_id > 0 && f.frame_id() > stats.last_frame_id + 1)
+    stats.dropped += f.frame_id() - stats.last_frame_id - 1;
   for (std::uint64_t seq = stats.last.last_event_seq() + 1; seq <= f.last_event_seq(); ++seq) {
     if (const auto sent = connection->SentAt(seq)) {
       stats.latency_ms.push_back(Ms(now - *sent));
@@ -642,8 +645,9 @@ void App::RunScript() {
     const v1::SessionEvent& e = step.event;
     if (!volume) continue;  // no session: events have nowhere to go
     if (e.has_camera()) {  // kept here, so that the mouse goes on from it
-      camera = e.camera().view() != v1::NAMED_VIEW_UNSPECIFIED ? NamedView(camera, e.camera().view(), volume->direction())
-                                                                 : FromProto(e.camera(), camera);
+      camera = e.camera().view() != v1::NAMED_VIEW_UNSPECIFIED
+                   ? NamedView(camera, e.camera().view(), volume->direction())
+                   : FromProto(e.camera(), camera);
       SendCamera();
       continue;
     }

@@ -267,7 +267,8 @@ std::optional<std::array<double, 9>> DirectionOfCode(std::string_view code) {
   for (int c = 0; c < 3; ++c) {
     const char letter = char(std::toupper(static_cast<unsigned char>(code[c])));
     const std::string_view positive = "LPS", negative = "RAI";
-    const std::size_t at = positive.find(letter) != std::string_view::npos ? positive.find(letter) : negative.find(letter);
+    const std::size_t at =
+        positive.find(letter) != std::string_view::npos ? positive.find(letter) : negative.find(letter);
     if (at == std::string_view::npos || used[at]) return std::nullopt;
     used[at] = true;
     d[3 * at + c] = positive.find(letter) != std::string_view::npos ? 1.0 : -1.0;

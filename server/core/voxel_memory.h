@@ -32,7 +32,18 @@ class ValuesView {
 };
 
 // The element types volume files hold (NIfTI, NRRD, MetaImage, VTK, DICOM).
-enum class VoxelType : std::uint8_t { kUInt8, kInt8, kUInt16, kInt16, kUInt32, kInt32, kUInt64, kInt64, kFloat32, kFloat64 };
+enum class VoxelType : std::uint8_t {
+  kUInt8,
+  kInt8,
+  kUInt16,
+  kInt16,
+  kUInt32,
+  kInt32,
+  kUInt64,
+  kInt64,
+  kFloat32,
+  kFloat64
+};
 
 std::size_t BytesPerVoxel(VoxelType type);
 const char* ToString(VoxelType type);  // "uint8", "int16", "float32", ...

@@ -88,7 +88,8 @@ struct GuidedMoments {
 };
 
 CINEVOL_HD GuidedMoments operator+(const GuidedMoments& a, const GuidedMoments& b) {
-  return {a.g0 + b.g0, a.g1 + b.g1, a.g00 + b.g00, a.g01 + b.g01, a.g11 + b.g11, a.n + b.n, a.g0n + b.g0n, a.g1n + b.g1n};
+  return {a.g0 + b.g0,   a.g1 + b.g1, a.g00 + b.g00, a.g01 + b.g01,
+          a.g11 + b.g11, a.n + b.n,   a.g0n + b.g0n, a.g1n + b.g1n};
 }
 CINEVOL_HD GuidedMoments operator*(const GuidedMoments& a, float k) {
   return {a.g0 * k, a.g1 * k, a.g00 * k, a.g01 * k, a.g11 * k, a.n * k, a.g0n * k, a.g1n * k};

@@ -38,7 +38,8 @@ const char* ToString(DenoiseMethod method);
 // the CThead orbit; adaptive forgetting, recentering and the feature's
 // rescaling: docs/denoising.md keeps what each was measured at).
 struct WrlsSettings {
-  float alpha = 0.75f;      // [0, 1): weight of the reprojected history in the feature z (Eq. 12); 0.8, 0.85 cost CThead's lights 0.6-0.7 dB
+  float alpha = 0.75f;  // [0, 1): weight of the reprojected history in the feature z (Eq. 12); 0.8, 0.85 cost CThead's
+                        // lights 0.6-0.7 dB
   float bandwidth = 0.75f;  // h > 0: sample weight exp(-d^2 / h^2) (Eq. 13); smaller is more stable, more biased
   float lambda = 0.998f;    // (0, 1]: forgetting factor; 1 never forgets
   // > 0: a reset model's inverse covariance, diagonal, in normalised units.
@@ -47,7 +48,8 @@ struct WrlsSettings {
   float initial_p = 0.1f;
   float max_trace_p = 1e3f; // > initial_p: trace(P) is scaled back to this (covariance wind-up)
   float max_coefficient = 1e4f;  // a model with |beta| beyond this resets
-  float firefly_clamp = 4.0f;    // >= 1: the sample entering z is clamped to this times the local level (neighbours' mean, history)
+  float firefly_clamp =
+      4.0f;  // >= 1: the sample entering z is clamped to this times the local level (neighbours' mean, history)
   // A view that stays still accumulates: the feature's history weight grows
   // as 1 - 1/n over the still frames, up to this many (1: never; alpha always).
   int max_still_frames = 1024;
@@ -84,7 +86,8 @@ struct WrlsSettings {
   // frame to frame (0.3, 0.6 and 0.7 balance no better); the regression
   // never sees it.
   float stabilize_history = 0.5f;  // [0, 1)
-  float stabilize_clamp = 4.0f;    // >= 0: width of the clip box in deviations (wide: recentering takes the lag; 4 and 100 read the same)
+  float stabilize_clamp =
+      4.0f;  // >= 0: width of the clip box in deviations (wide: recentering takes the lag; 4 and 100 read the same)
   // [1, 8]: the history is first shifted by its mean offset from the
   // estimate over (2r + 1)^2 taps 2 pixels apart, so a shading change does
   // not lag (wrls.h, HistoryOffsetRowsPass; 3 reads as 5).
@@ -96,7 +99,8 @@ struct WrlsSettings {
 // image, fading out as samples accumulate.
 struct KnnSettings {
   int radius = 3;              // 7x7 window
-  float strength = 4.0f;       // h: colour distance (relative to the pixel's luminance) where weights fall off; 1, 2, 4 measured, 4 best
+  float strength =
+      4.0f;  // h: colour distance (relative to the pixel's luminance) where weights fall off; 1, 2, 4 measured, 4 best
   float fade_frames = 32.0f;   // frames over which the filter fades to the plain accumulation
   friend bool operator==(const KnnSettings&, const KnnSettings&);  // defaulted in denoiser.cpp
 };

@@ -167,13 +167,17 @@ class GuidedFilter final : public DenoiserBase<B> {
     ReprojectionView moving = rv;
     moving.still = false;
     B::ForEachPixel(w, h, TemporalFeaturePass{moving, input, prev_feature_.data(), feature_.data(), s.alpha});
-    const GuideView guide{feature_.data(), frame.first_hit, frame.camera, 1.0f / fmaxf(Length(frame.camera.eye), 1e-3f)};
+    const GuideView guide{feature_.data(), frame.first_hit, frame.camera,
+                          1.0f / fmaxf(Length(frame.camera.eye), 1e-3f)};
     B::ForEachPixel(w, h, GuidedMomentsPass{input, guide, moments_.data(), w});
     B::ForEachPixel(w, h, BoxPass<GuidedMoments>{moments_.data(), moments_tmp_.data(), w, h, s.radius, true});
     B::ForEachPixel(w, h, BoxPass<GuidedMoments>{moments_tmp_.data(), moments_.data(), w, h, s.radius, false});
-    B::ForEachPixel(w, h, GuidedSolvePass{moments_.data(), coefficients_.data(), w, s.epsilon_feature, s.epsilon_depth});
-    B::ForEachPixel(w, h, BoxPass<GuidedCoefficients>{coefficients_.data(), coefficients_tmp_.data(), w, h, s.radius, true});
-    B::ForEachPixel(w, h, BoxPass<GuidedCoefficients>{coefficients_tmp_.data(), coefficients_.data(), w, h, s.radius, false});
+    B::ForEachPixel(w, h,
+                    GuidedSolvePass{moments_.data(), coefficients_.data(), w, s.epsilon_feature, s.epsilon_depth});
+    B::ForEachPixel(w, h,
+                    BoxPass<GuidedCoefficients>{coefficients_.data(), coefficients_tmp_.data(), w, h, s.radius, true});
+    B::ForEachPixel(w, h,
+                    BoxPass<GuidedCoefficients>{coefficients_tmp_.data(), coefficients_.data(), w, h, s.radius, false});
     B::ForEachPixel(w, h, GuidedOutputPass{coefficients_.data(), guide, output, w});
   }
   void Allocate(std::size_t n) override {

@@ -57,7 +57,9 @@ class DeviceBuffer {
     Resize(count);
     if (count > 0) CINEVOL_CUDA_CHECK(cudaMemcpyAsync(data_, host, count * sizeof(T), cudaMemcpyHostToDevice, stream));
   }
-  void Upload(const std::vector<T>& host, cudaStream_t stream = cudaStreamPerThread) { Upload(host.data(), host.size(), stream); }
+  void Upload(const std::vector<T>& host, cudaStream_t stream = cudaStreamPerThread) {
+    Upload(host.data(), host.size(), stream);
+  }
 
   // Copies every element into `host` (size() of them) and waits for the copy.
   // Into pinned memory (PinnedBuffer) the copy runs at full bus speed; into
@@ -81,7 +83,8 @@ class DeviceBuffer {
   // Copies `count` elements already in device memory.
   void CopyFrom(const T* device, std::size_t count, cudaStream_t stream = cudaStreamPerThread) {
     Resize(count);
-    if (count > 0) CINEVOL_CUDA_CHECK(cudaMemcpyAsync(data_, device, count * sizeof(T), cudaMemcpyDeviceToDevice, stream));
+    if (count > 0)
+      CINEVOL_CUDA_CHECK(cudaMemcpyAsync(data_, device, count * sizeof(T), cudaMemcpyDeviceToDevice, stream));
   }
 
   T* data() const { return data_; }

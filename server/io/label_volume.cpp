@@ -331,7 +331,9 @@ v1::LabelSet ToLabelSet(const LabelVolume& labels) {
 std::shared_ptr<const LabelVolume> LoadSceneLabels(const v1::VolumeSource& source, const Volume& image,
                                                    const std::filesystem::path& base_dir) {
   if (source.labels().empty()) return nullptr;
-  auto resolve = [&](const std::string& p) { return std::filesystem::path(p).is_relative() ? base_dir / p : std::filesystem::path(p); };
+  auto resolve = [&](const std::string& p) {
+    return std::filesystem::path(p).is_relative() ? base_dir / p : std::filesystem::path(p);
+  };
   LabelVolume labels = LoadLabelVolume(resolve(source.labels()), image);
   if (!source.label_table().empty()) labels.names = LoadLabelTable(resolve(source.label_table()), source.label_table());
   return std::make_shared<const LabelVolume>(std::move(labels));

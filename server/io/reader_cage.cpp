@@ -114,7 +114,8 @@ Started StartReader(const ReaderLimits& limits) {
   }
   child.socket.Reset(sockets[0]);
   UniqueFd child_end(sockets[1]);
-  if (pipe2(err, O_CLOEXEC) != 0) throw ResourceExhausted(fmt::format("cannot start a reader ({})", std::strerror(errno)));
+  if (pipe2(err, O_CLOEXEC) != 0)
+    throw ResourceExhausted(fmt::format("cannot start a reader ({})", std::strerror(errno)));
   child.stderr_pipe.Reset(err[0]);
   UniqueFd stderr_write(err[1]);
   fcntl(child.stderr_pipe.get(), F_SETFL, O_NONBLOCK);
@@ -386,7 +387,9 @@ class ReaderProcess {
         if (errno != EAGAIN) stderr_.Reset();
         return;
       }
-      stderr_text_.append(buffer, std::min<std::size_t>(std::size_t(n), kMaxStderrBytes - std::min(kMaxStderrBytes, stderr_text_.size())));
+      stderr_text_.append(
+          buffer,
+          std::min<std::size_t>(std::size_t(n), kMaxStderrBytes - std::min(kMaxStderrBytes, stderr_text_.size())));
     }
     stderr_.Reset();  // end of file: the child has gone
   }

@@ -305,7 +305,8 @@ void Searcher::ExtrudeTable(float threshold) {
       for (int u = 0; u < nu; ++u) {
         if (count[std::size_t(v) * nu + u] < most) continue;
         const std::size_t i = index(s, u, v);
-        if (!(mask_[i] & (kCore | kTable)) && volume_.ValueAtIndex(i) > threshold) mask_[i] = (mask_[i] & ~kBody) | kTable;
+        if (!(mask_[i] & (kCore | kTable)) && volume_.ValueAtIndex(i) > threshold)
+          mask_[i] = (mask_[i] & ~kBody) | kTable;
       }
     }
   });

@@ -104,7 +104,8 @@ std::vector<DicomSeriesInfo> ListDicomSeries(const fs::path& folder, const LoadP
 
 Volume LoadDicomSeries(const fs::path& folder, const std::string& series_uid, const LoadPolicy& policy) {
   const LoadPolicy labelled = Labelled(policy, folder);
-  return reader_cage::ReadDicomSeries(formats::dicom::FolderFiles(folder, labelled, labelled.label), series_uid, labelled);
+  return reader_cage::ReadDicomSeries(formats::dicom::FolderFiles(folder, labelled, labelled.label), series_uid,
+                                      labelled);
 }
 
 v1::VolumeSource ParseVolumeSpec(std::string_view spec) {

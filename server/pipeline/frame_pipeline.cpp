@@ -49,7 +49,8 @@ FrameSettings SessionFrameSettings(Backend backend, const v1::StreamSettings& st
   for (auto [proto, chroma] : kChromas) {
     if (stream.chroma() == proto) s.chroma = chroma;
   }
-  if (stream.final_format() != v1::FINAL_FORMAT_UNSPECIFIED) s.final_png = stream.final_format() == v1::FINAL_FORMAT_PNG;
+  if (stream.final_format() != v1::FINAL_FORMAT_UNSPECIFIED)
+    s.final_png = stream.final_format() == v1::FINAL_FORMAT_PNG;
   if (stream.has_demodulate()) s.denoiser.demodulate = stream.demodulate();
   if (stream.has_jpeg_quality()) s.jpeg_quality = int(stream.jpeg_quality());
   if (stream.has_final_jpeg_quality()) s.final_jpeg_quality = int(stream.final_jpeg_quality());

@@ -79,7 +79,8 @@ class PathTracer {
         result.albedo = m.diffuse;
         result.hit = true;
       }
-      if constexpr (kWithEmission) result.radiance += beta * s_.transfer.Emission(hit.entry, kWithLabels ? hit.label.table : 0);
+      if constexpr (kWithEmission)
+        result.radiance += beta * s_.transfer.Emission(hit.entry, kWithLabels ? hit.label.table : 0);
       if (depth >= max_bounces) break;
 
       const Vec3f wo = -ray.direction;
@@ -165,7 +166,9 @@ class PathTracer {
     const TrackResult r = SampleMajorant(s_.majorants, ray.origin, ray.direction, t0, t1, rng_, budget_,
                                          [&](float t, float sigma_maj) {
                                            Classified c;
-                                           if (rng_.Uniform() * sigma_maj >= Extinction(ray.origin + ray.direction * t, c)) return true;
+                                           if (rng_.Uniform() * sigma_maj >=
+                                               Extinction(ray.origin + ray.direction * t, c))
+                                             return true;
                                            t_hit = t;
                                            hit = c;
                                            found = true;

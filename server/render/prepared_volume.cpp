@@ -159,7 +159,8 @@ VolumeCache& VolumeCache::Get() {
 template <class Key, class T>
 void VolumeCache::PruneLocked(Slots<Key, T>& slots) {
   // A slot nobody else holds (use_count 1: no build under way) whose value is gone.
-  std::erase_if(slots, [](const auto& entry) { return entry.second.use_count() == 1 && entry.second->value.expired(); });
+  std::erase_if(slots,
+                [](const auto& entry) { return entry.second.use_count() == 1 && entry.second->value.expired(); });
 }
 
 template <class Key, class T, class Make>

@@ -196,7 +196,8 @@ RenderScene SceneData::HostView() const {
     s.transfer.entry_scale = float(value_scale * to_entry);
     s.transfer.entry_offset = float((double(value_offset) - table_.value_min) * to_entry);
     const double range = double(v.max_value()) - v.min_value();
-    s.transfer.gradient_normaliser = range > 0 ? float(value_scale * double(MinComponent(v.spacing_mm())) / range) : 0.0f;
+    s.transfer.gradient_normaliser =
+        range > 0 ? float(value_scale * double(MinComponent(v.spacing_mm())) / range) : 0.0f;
     s.transfer.max_sigma_t = MaxExtinction(v.spacing_mm());
 
     s.majorants.majorant = majorants_.data();

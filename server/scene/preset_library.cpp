@@ -31,7 +31,9 @@ struct SlicerPoint {
 constexpr float kSlicerUnitMm = 1.0f;
 // a = 1 has no finite extinction; 0.99 stands in (4.6/mm: opaque in a voxel).
 constexpr float kSlicerMaxOpacity = 0.99f;
-float SlicerExtinction(float a) { return std::max(0.0f, -std::log(1.0f - std::min(a, kSlicerMaxOpacity)) / kSlicerUnitMm); }
+float SlicerExtinction(float a) {
+  return std::max(0.0f, -std::log(1.0f - std::min(a, kSlicerMaxOpacity)) / kSlicerUnitMm);
+}
 
 // VTK interpolates `a` linearly between points, and -ln(1 - a) is convex:
 // a segment is halved until the extinction midway is within 5% of the line

@@ -208,7 +208,8 @@ BloodPool FindBloodPool(const ValueHistogram& h) {
   float peak = 0, peak_count = 0;
   for (float v = kFrom + kAround; v <= kTo; v += kStep) {
     const float c = SmoothedCount(h, v);
-    if (c > peak_count && c >= SmoothedCount(h, v - kAround) && c >= SmoothedCount(h, v + kAround)) peak = v, peak_count = c;
+    if (c > peak_count && c >= SmoothedCount(h, v - kAround) && c >= SmoothedCount(h, v + kAround))
+      peak = v, peak_count = c;
   }
   if (!(peak_count > 0)) return {};
   // A pool stands well above the valley between it and soft tissue, and
@@ -263,7 +264,8 @@ ValueWindow AutoWindow(const ValueHistogram& histogram, float voxel_mm) {
   w.hi = histogram.Percentile(0.995, w.lo);
   // A constant volume's window is one unit wide, or where that is below the
   // value's precision, a millionth of the value (as its transfer table's).
-  if (!(w.hi > w.lo)) w.hi = histogram.max_value > w.lo ? histogram.max_value : w.lo + std::max(1.0f, std::abs(w.lo) * 1e-6f);
+  if (!(w.hi > w.lo))
+    w.hi = histogram.max_value > w.lo ? histogram.max_value : w.lo + std::max(1.0f, std::abs(w.lo) * 1e-6f);
   w.dense = FindDensePhase(histogram, w.lo);
   if (!(w.dense > w.lo && w.dense < w.hi)) w.dense = NAN;
   const BloodPool pool = FindBloodPool(histogram);
@@ -272,7 +274,9 @@ ValueWindow AutoWindow(const ValueHistogram& histogram, float voxel_mm) {
   return w;
 }
 
-ValueWindow AutoWindow(const Volume& volume) { return AutoWindow(volume.histogram(), MinComponent(volume.spacing_mm())); }
+ValueWindow AutoWindow(const Volume& volume) {
+  return AutoWindow(volume.histogram(), MinComponent(volume.spacing_mm()));
+}
 
 namespace {
 

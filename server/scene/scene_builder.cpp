@@ -76,7 +76,8 @@ std::vector<bool> BlocksWithVisibleLabels(const Volume& volume, const LabelVolum
   for (int z = 0; z < dims.z; ++z) {
     for (int y = 0; y < dims.y; ++y) {
       const std::size_t row = (std::size_t(z) * dims.y + y) * dims.x;
-      const std::size_t block_row = (std::size_t(z / Volume::kBlockSize) * blocks.y + y / Volume::kBlockSize) * blocks.x;
+      const std::size_t block_row =
+          (std::size_t(z / Volume::kBlockSize) * blocks.y + y / Volume::kBlockSize) * blocks.x;
       for (int x = 0; x < dims.x; ++x) {
         if (visible[labels.labels[row + x]]) shown[block_row + x / Volume::kBlockSize] = true;
       }

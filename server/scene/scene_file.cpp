@@ -71,7 +71,9 @@ class Problems {
   std::vector<std::string> list_;
 };
 
-double Norm(const v1::Vec3& v) { return std::sqrt(double(v.x()) * v.x() + double(v.y()) * v.y() + double(v.z()) * v.z()); }
+double Norm(const v1::Vec3& v) {
+  return std::sqrt(double(v.x()) * v.x() + double(v.y()) * v.y() + double(v.z()) * v.z());
+}
 
 void Problems::Direction(const std::string& field, const v1::Vec3& v) {
   Vec(field, v);
@@ -157,7 +159,8 @@ void ValidateLabels(const v1::Labels& labels, Problems& p) {
     const v1::LabelStyle& style = labels.styles(i);
     const std::string at = fmt::format("labels.styles[{}]", i);
     if (style.value() > 65535) p.Add(at + ".value", fmt::format("{} is outside [0, 65535]", style.value()));
-    if (!seen.insert(style.value()).second) p.Add(at + ".value", fmt::format("label {} is styled twice", style.value()));
+    if (!seen.insert(style.value()).second)
+      p.Add(at + ".value", fmt::format("label {} is styled twice", style.value()));
     if (style.has_color()) p.Color(at + ".color", style.color(), 1);
     if (style.has_opacity_scale()) p.InRange(at + ".opacityScale", style.opacity_scale(), 0, 1000);
     if (style.has_transfer_function()) {

@@ -48,7 +48,8 @@ VolumePlacement VolumePlacement::Of(const Volume& volume) {
 
 VolumePlacement VolumePlacement::Of(const v1::VolumeInfo& volume) {
   VolumePlacement p;
-  if (volume.direction_size() == 9) std::copy(volume.direction().begin(), volume.direction().end(), p.direction.begin());
+  if (volume.direction_size() == 9)
+    std::copy(volume.direction().begin(), volume.direction().end(), p.direction.begin());
   p.origin = ToVec(volume.origin_mm());
   const Vec3f spacing = ToVec(volume.spacing_mm());
   const Vec3f extent{float(volume.dims().x()) * spacing.x, float(volume.dims().y()) * spacing.y,

@@ -62,7 +62,8 @@ class ReflectionReactor final : public grpc::ServerBidiReactor<ServerReflectionR
     };
     switch (request.message_request_case()) {
       case ServerReflectionRequest::kListServices:
-        for (const std::string& name : *services_) response.mutable_list_services_response()->add_service()->set_name(name);
+        for (const std::string& name : *services_)
+          response.mutable_list_services_response()->add_service()->set_name(name);
         break;
       case ServerReflectionRequest::kFileByFilename:
         if (const pb::FileDescriptor* file = pool.FindFileByName(request.file_by_filename())) {

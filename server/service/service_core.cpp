@@ -252,10 +252,11 @@ void ServiceCore::RequireRoomLocked(const Principal& caller) const {
   const auto own = std::count_if(sessions_.begin(), sessions_.end(),
                                  [&](const auto& entry) { return entry.second->owner() == caller.name; });
   if (own >= options_.max_sessions_per_principal) {
-    throw LimitExceeded(grpc::StatusCode::RESOURCE_EXHAUSTED, "max-sessions-per-principal",
-                        fmt::format("you hold {} sessions, this server's limit per user (--max-sessions-per-principal): "
-                                    "close one first",
-                                    own));
+    throw LimitExceeded(
+        grpc::StatusCode::RESOURCE_EXHAUSTED, "max-sessions-per-principal",
+        fmt::format("you hold {} sessions, this server's limit per user (--max-sessions-per-principal): "
+                    "close one first",
+                    own));
   }
 }
 

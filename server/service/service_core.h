@@ -58,7 +58,7 @@ struct ServerOptions {
   TlsOptions tls;                                        // --tls-cert/--tls-key/--tls-client-ca
   bool insecure_no_auth = false;                         // allow no authentication beyond loopback
   std::string metrics_listen;                            // HOST:PORT of /metrics (Prometheus); empty: off
-  std::string advertise_address;                         // where clients reach this server's sessions; empty: as they came
+  std::string advertise_address;  // where clients reach this server's sessions; empty: as they came
 };
 
 // One of a principal's uploads or loads under way (--max-uploads-per-principal).

@@ -164,7 +164,8 @@ void Session::ApplyLocked(const v1::SessionEvent& event, Clock::time_point arriv
   }
   const v1::Viewport viewport = current_.viewport();
   const std::uint64_t applied_seq = current_.last_event_seq();
-  const unsigned changes = ApplyEvent(current_, event, context_.limits, context_.resolve_map);  // as it was if it throws
+  const unsigned changes =
+      ApplyEvent(current_, event, context_.limits, context_.resolve_map);  // as it was if it throws
   const std::uint64_t pixels = std::uint64_t(current_.viewport().width()) * current_.viewport().height();
   if (pixels != pixels_) {
     try {
@@ -324,7 +325,8 @@ bool Session::Step() {
   DisplayFrame frame;
   try {
     if (!pipeline_) {
-      pipeline_ = std::make_unique<FramePipeline>(context_.backend, volume_->volume(), RendererOptions{}, volume_->labels());
+      pipeline_ =
+          std::make_unique<FramePipeline>(context_.backend, volume_->volume(), RendererOptions{}, volume_->labels());
       pipeline_->SetCancel(&cancel_);
       pipeline_->SetPreempt(&preempt_);
     }

@@ -89,7 +89,8 @@ TEST(CinevolCli, PlayAndSnapshotAgainstAServer) {
   EXPECT_NE(last.find(",12,1,12,"), std::string::npos) << "--target-spp 12 caps the script's refinement: " << last;
   ASSERT_EQ(last.substr(last.size() - 4), ".png") << "--final-format png: " << last;
   EXPECT_EQ(ReadPng(out / "frames" / last.substr(last.rfind(',') + 1)).width, 96);
-  EXPECT_TRUE(Eventually([&] { return server.Connect().Status().sessions().empty(); }, 10s)) << "play closes its session";
+  EXPECT_TRUE(Eventually([&] { return server.Connect().Status().sessions().empty(); }, 10s))
+      << "play closes its session";
 
   std::tie(code, output) = Cinevol(scratch, {"snapshot", "--server", server.address(), "--volume",
                                              "phantom:head?size=48", "--width", "80", "--height", "60", "--spp", "8",
@@ -148,8 +149,9 @@ TEST(CinevolCli, ErrorsAreClearWithANonZeroExit) {
   WriteText(scratch / "script.jsonl", kScript);
   const std::string script = (scratch / "script.jsonl").string();
 
-  ExpectCleanError(Cinevol(scratch, {"loadtest", "--server", "127.0.0.1:1", "--connect-timeout", "1", "--seconds", "1"}),
-                   3, "cannot reach cinevol-server at 127.0.0.1:1");
+  ExpectCleanError(
+      Cinevol(scratch, {"loadtest", "--server", "127.0.0.1:1", "--connect-timeout", "1", "--seconds", "1"}), 3,
+      "cannot reach cinevol-server at 127.0.0.1:1");
   ExpectCleanError(Cinevol(scratch, {"play", "--server", server.address(), "--script", script}), 3, "UNAUTHENTICATED");
   ExpectCleanError(Cinevol(scratch, {"play", "--server", server.address(), "--token", "bad", "--script", script}), 3,
                    "not valid");
@@ -164,7 +166,8 @@ TEST(CinevolCli, ErrorsAreClearWithANonZeroExit) {
                    2, "typo.jsonl line 3");
   EXPECT_NE(Cinevol(scratch, {"play", "--script", (scratch / "typo.jsonl").string()}).second.find("fovYdeg"),
             std::string::npos);
-  WriteText(scratch / "bad-value.jsonl", R"({"session": {"volume": "phantom:head?size=48", "viewport": {"width": 96, "height": 64}}}
+  WriteText(scratch / "bad-value.jsonl",
+            R"({"session": {"volume": "phantom:head?size=48", "viewport": {"width": 96, "height": 64}}}
 {"at": 0.2, "camera": {"view": "LEFT", "fovYDeg": 500}}
 )");
   ExpectCleanError(Cinevol(scratch, {"play", "--server", server.address(), "--token", "good-token", "--script",

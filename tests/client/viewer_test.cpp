@@ -161,7 +161,9 @@ TEST(Viewer, ShowsTheVolumeStatsAndPanelsAndFollowsEdits) {
   plane->set_cap(true);
   cropped.mutable_render()->set_reconstruction(v1::TRICUBIC);
   SaveSceneFile(cropped, cut_scene);
-  const fs::path script = WriteScript(scratch.path() / "tour.jsonl", fmt::format(R"({{"session": {{"stream": {{"targetSpp": 8}}}}}}
+  const fs::path script =
+      WriteScript(scratch.path() / "tour.jsonl",
+                  fmt::format(R"({{"session": {{"stream": {{"targetSpp": 8}}}}}}
 {{"at": 0, "ui": {{"settle": true}}}}
 {{"at": 0, "ui": {{"screenshot": "{}"}}}}
 {{"at": 0.1, "ui": {{"drag": {{"button": "left", "dx": 150, "dy": 0}}}}}}
@@ -179,8 +181,9 @@ TEST(Viewer, ShowsTheVolumeStatsAndPanelsAndFollowsEdits) {
 {{"at": 0.5, "ui": {{"screenshot": "{}"}}}}
 {{"at": 0.5, "ui": {{"saveScene": "{}"}}}}
 {{"at": 0.6, "ui": {{"resizeWindow": {{"width": 700, "height": 420}}}}}}
-)", a.string(), b.string(), edited_png.string(), scene.string(), still.string(), cut_scene.string(),
-                                                                                 cut_png.string(), saved_cut.string()));
+)",
+                              a.string(), b.string(), edited_png.string(), scene.string(), still.string(),
+                              cut_scene.string(), cut_png.string(), saved_cut.string()));
   const ViewerRun run = RunViewer(scratch.path(), {"--server", server.address(), "--script", script.string(),
                                              "--screenshot", c.string()});
   ASSERT_EQ(run.exit_code, 0) << run.output;
@@ -230,11 +233,13 @@ TEST(Viewer, AScreenshotPrecedesLaterLinesAndTheEndWaitsForTheResizedFrame) {
   ServerProcess server(scratch.path());
   ASSERT_TRUE(server.running()) << server.Log();
   const fs::path before = scratch.path() / "before.png", last = scratch.path() / "last.png";
-  const fs::path script = WriteScript(scratch.path() / "resize.jsonl", fmt::format(R"({{"session": {{"stream": {{"targetSpp": 1}}}}}}
+  const fs::path script =
+      WriteScript(scratch.path() / "resize.jsonl", fmt::format(R"({{"session": {{"stream": {{"targetSpp": 1}}}}}}
 {{"at": 0, "ui": {{"settle": true}}}}
 {{"at": 0, "ui": {{"screenshot": "{}"}}}}
 {{"at": 0, "ui": {{"resizeWindow": {{"width": 700, "height": 420}}}}}}
-)", before.string()));
+)",
+                                                               before.string()));
   const ViewerRun run = RunViewer(scratch.path(), {"--server", server.address(), "--script", script.string(),
                                                    "--screenshot", last.string()});
   ASSERT_EQ(run.exit_code, 0) << run.output;
@@ -306,7 +311,8 @@ TEST(Viewer, ServersThatFailOrRefuseAreNamedAndTheViewerExits) {
   const std::vector<Case> cases{
       {"down", {"--server", "127.0.0.1:" + std::to_string(FreePort()), "--connect-timeout", "1"}, "cannot reach"},
       {"token", {"--server", server.address(), "--token", "wrong-token"}, "token"},
-      {"volume", {"--server", server.address(), "--token", "right-token-0123456789abcdef", "--volume", "no-such-volume"},
+      {"volume",
+       {"--server", server.address(), "--token", "right-token-0123456789abcdef", "--volume", "no-such-volume"},
        "no-such-volume"},
   };
   for (const Case& c : cases) {
@@ -332,8 +338,9 @@ TEST(Viewer, WithoutADisplayItExitsTwoAtOnce) {
   ScratchDir scratch;
   const auto start = std::chrono::steady_clock::now();
   const auto [code, output] =
-      RunProgram("/usr/bin/env", {"-u", "DISPLAY", "-u", "WAYLAND_DISPLAY", "-u", "SDL_VIDEODRIVER", kViewer, "--server",
-                                  "127.0.0.1:" + std::to_string(FreePort()), "--connect-timeout", "1"},
+      RunProgram("/usr/bin/env",
+                 {"-u", "DISPLAY", "-u", "WAYLAND_DISPLAY", "-u", "SDL_VIDEODRIVER", kViewer, "--server",
+                  "127.0.0.1:" + std::to_string(FreePort()), "--connect-timeout", "1"},
                  scratch.path() / "viewer.log", std::chrono::seconds(30));
   EXPECT_EQ(code, 2) << output;
   EXPECT_NE(output.find("no display"), std::string::npos) << output;
@@ -349,12 +356,16 @@ TEST(Viewer, ScriptedClippingAndLabelsShowInItsPanels) {
   ASSERT_TRUE(server.running()) << server.Log();
   WriteSmallNrrd(scratch.path() / "small.nrrd");  // its values, 0 to 1500 by hundreds, serve as labels
   const fs::path saved = scratch.path() / "saved.json";
-  const fs::path script = WriteScript(scratch.path() / "cut.jsonl", fmt::format(R"({{"session": {{"upload": "small.nrrd", "labels": {{"upload": "small.nrrd"}}, "stream": {{"targetSpp": 2}}}}}}
+  const fs::path script = WriteScript(
+      scratch.path() / "cut.jsonl",
+      fmt::format(
+          R"({{"session": {{"upload": "small.nrrd", "labels": {{"upload": "small.nrrd"}}, "stream": {{"targetSpp": 2}}}}}}
 {{"at": 0, "clipping": {{"cropBox": {{"center": {{"x": 2}}, "size": {{"x": 8, "y": 16, "z": 16}}}}, "planes": [{{"point": {{"z": 8}}, "normal": {{"z": 1}}, "cap": true}}]}}}}
 {{"at": 0, "labels": {{"showUnlisted": false, "styles": [{{"value": 300, "visible": true}}]}}}}
 {{"at": 0.1, "ui": {{"settle": true}}}}
 {{"at": 0.1, "ui": {{"saveScene": "{}"}}}}
-)", saved.string()));
+)",
+          saved.string()));
   const ViewerRun run = RunViewer(scratch.path(), {"--server", server.address(), "--script", script.string()});
   ASSERT_EQ(run.exit_code, 0) << run.output;
   const v1::Scene scene = LoadSceneFile(saved);

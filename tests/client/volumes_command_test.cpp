@@ -66,9 +66,11 @@ TEST(VolumesCommand, ListPrintsATableAndJson) {
   ASSERT_TRUE(s.server->running()) << s.server->Log();
   auto [code, output] = s.Run({"volumes", "list"});
   ASSERT_EQ(code, 0) << output;
-  EXPECT_TRUE(std::regex_search(output, std::regex("^ID +KIND +DEFAULT PRESET +DIMS +SPACING +VALUES +MEMORY +SESSIONS")))
+  EXPECT_TRUE(
+      std::regex_search(output, std::regex("^ID +KIND +DEFAULT PRESET +DIMS +SPACING +VALUES +MEMORY +SESSIONS")))
       << output;
-  EXPECT_TRUE(std::regex_search(output, std::regex("\nphantom:head\\?size=48 .* 48x48x48 .* [0-9.]+ [KM]iB +0\n"))) << output;
+  EXPECT_TRUE(std::regex_search(output, std::regex("\nphantom:head\\?size=48 .* 48x48x48 .* [0-9.]+ [KM]iB +0\n")))
+      << output;
 
   std::tie(code, output) = s.Run({"volumes", "list", "--json"});
   ASSERT_EQ(code, 0) << output;
@@ -129,7 +131,8 @@ TEST(VolumesCommand, DescribeShowsEveryField) {
   EXPECT_TRUE(std::regex_search(output, std::regex("kind:            (CT_HU|CT_SCALED|MR|OTHER)"))) << output;
   EXPECT_TRUE(std::regex_search(output, std::regex("default preset:  [a-z]"))) << output;
   std::smatch m;
-  ASSERT_TRUE(std::regex_search(output, m, std::regex("histogram:       256 bins, log scale\n +\\|(.*)\\|\n +[-0-9.e+]+ +[-0-9.e+]+\n")))
+  ASSERT_TRUE(std::regex_search(
+      output, m, std::regex("histogram:       256 bins, log scale\n +\\|(.*)\\|\n +[-0-9.e+]+ +[-0-9.e+]+\n")))
       << output;
   const std::string line = m[1];
   EXPECT_EQ(std::count_if(line.begin(), line.end(), [](char c) { return (c & 0xC0) != 0x80; }), 64)
@@ -163,8 +166,9 @@ TEST(VolumesCommand, StatusPrintsTablesAndJson) {
   EXPECT_TRUE(std::regex_search(output, std::regex("^cinevol-server \\S+ at 127\\.0\\.0\\.1:[0-9]+, up [0-9]+ s; "
                                                    "encoder: 2 threads, [0-9]+ frames queued\n")))
       << output;
-  EXPECT_TRUE(std::regex_search(output, std::regex("\nDEVICE +SESSIONS +VOLUMES .*\ncpu[^\n]* +0 +0 \\(0 B\\) +- +- +0 +"
-                                                   "[0-9.]+ s\n")))
+  EXPECT_TRUE(
+      std::regex_search(output, std::regex("\nDEVICE +SESSIONS +VOLUMES .*\ncpu[^\n]* +0 +0 \\(0 B\\) +- +- +0 +"
+                                           "[0-9.]+ s\n")))
       << output;
   EXPECT_TRUE(Has(output, "\nno sessions\n")) << output;
   EXPECT_TRUE(Has(output, "\nno volume copies on the devices\n")) << output;

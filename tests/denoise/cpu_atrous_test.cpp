@@ -26,7 +26,8 @@ double Ulps(float value, double exact) {
 
 TEST(VectorisableExp, IsWithinTwoUlpsOverTheWeightsRange) {
   double worst = 0;
-  for (float x = -87.0f; x <= 88.0f; x += 0.000731f) worst = std::max(worst, Ulps(VectorisableExp(x), std::exp(double(x))));
+  for (float x = -87.0f; x <= 88.0f; x += 0.000731f)
+    worst = std::max(worst, Ulps(VectorisableExp(x), std::exp(double(x))));
   EXPECT_LE(worst, 2.0);
   EXPECT_EQ(VectorisableExp(0.0f), 1.0f);
 }

@@ -41,7 +41,9 @@ struct MethodCase {
   bool demodulate;
 };
 
-void PrintTo(const MethodCase& c, std::ostream* os) { *os << ToString(c.method) << (c.demodulate ? "+demodulation" : ""); }
+void PrintTo(const MethodCase& c, std::ostream* os) {
+  *os << ToString(c.method) << (c.demodulate ? "+demodulation" : "");
+}
 
 class EveryDenoiser : public ::testing::TestWithParam<MethodCase> {};
 

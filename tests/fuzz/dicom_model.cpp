@@ -42,7 +42,8 @@ int SwapUnit(const std::string& vr) {
 std::string Swapped(std::string value, const std::string& vr) {
   const int unit = SwapUnit(vr);
   if (unit == 0) return value;
-  for (std::size_t i = 0; i + unit <= value.size(); i += unit) std::reverse(value.begin() + i, value.begin() + i + unit);
+  for (std::size_t i = 0; i + unit <= value.size(); i += unit)
+    std::reverse(value.begin() + i, value.begin() + i + unit);
   return value;
 }
 
@@ -456,8 +457,11 @@ const std::vector<Interesting>& Table() {
       {0x0028, 0x1052, "DS", TextChoices({"0", "-1024", "1e308", "-1e308", "nan", "inf", "", "1\\2", "1e39"})},
       {0x0028, 0x1053, "DS", TextChoices({"1", "0", "-1", "1e-300", "1e300", "nan", "inf", "", "0.5", "1e-39"})},
       {0x0028, 0x1054, "LO", TextChoices({"HU", "US", "OD", ""})},
-      {0x0028, 0x1101, "US", {US({256, 0, 8}), US({0, 0, 16}), US({65535, 0, 16}), US({4096, 0, 16}), US({1, 0, 8}),
-                              US({256, 65535, 8}), US({256, 0, 0}), US({256, 0, 32}), US({256}), ""}},
+      {0x0028,
+       0x1101,
+       "US",
+       {US({256, 0, 8}), US({0, 0, 16}), US({65535, 0, 16}), US({4096, 0, 16}), US({1, 0, 8}), US({256, 65535, 8}),
+        US({256, 0, 0}), US({256, 0, 32}), US({256}), ""}},
       {0x0028, 0x1102, "US", {US({256, 0, 8}), US({0, 0, 16}), US({4096, 0, 16}), US({2, 0, 16}), US({256, 0, 1})}},
       {0x0028, 0x1103, "US", {US({256, 0, 8}), US({0, 0, 16}), US({65535, 32768, 16}), US({256, 0, 12})}},
       {0x0028, 0x1201, "OW", {"", std::string(2, '\x7f'), std::string(512, '\x40'), std::string(8192, '\x10')}},
@@ -485,8 +489,9 @@ const std::vector<Interesting>& Table() {
       {0x0020, 0x0032, "DS",
        TextChoices({"0\\0\\0", "-1\\-1\\10", "nan\\0\\0", "1e308\\0\\0", "0\\0", "", "1e-300\\0\\1e300"})},
       {0x0020, 0x0037, "DS",
-       TextChoices({"1\\0\\0\\0\\1\\0", "0\\1\\0\\0\\0\\-1", "1\\0\\0\\1\\0\\0", "0\\0\\0\\0\\0\\0", "nan\\0\\0\\0\\1\\0",
-                    "1\\0\\0\\0\\1", "0.7071\\0.7071\\0\\-0.7071\\0.7071\\0", "1e300\\0\\0\\0\\1e300\\0"})},
+       TextChoices({"1\\0\\0\\0\\1\\0", "0\\1\\0\\0\\0\\-1", "1\\0\\0\\1\\0\\0", "0\\0\\0\\0\\0\\0",
+                    "nan\\0\\0\\0\\1\\0", "1\\0\\0\\0\\1", "0.7071\\0.7071\\0\\-0.7071\\0.7071\\0",
+                    "1e300\\0\\0\\0\\1e300\\0"})},
       {0x7fe0, 0x0008, "OF", {std::string(64, '\x3f'), ""}},
   };
   return table;

@@ -5,9 +5,8 @@
 //   2: SnapshotRequest      -> SnapshotSpp for the session's viewport
 //   3: StreamSettings       -> a stream event's check and its frame settings
 // against a default SessionLimits, a 16^3 head phantom and a VolumeRegistry
-// with no data roots (environment maps are refused, as on such a server). InputError, RpcError (std::exceptions) are the expected
-// refusals; crashes, sanitizer reports and an accepted scene that fails
-// validation are bugs.
+// with no data roots (environment maps are refused, as on such a server). InputError, RpcError (std::exceptions) are
+// the expected refusals; crashes, sanitizer reports and an accepted scene that fails validation are bugs.
 #include <cstddef>
 #include <cstdint>
 #include <cstdlib>
@@ -64,7 +63,9 @@ void CheckAccepted(const v1::Scene& scene, const SessionLimits& limits) {
 }
 
 void CheckSettings(const v1::StreamSettings& s) {
-  auto outside = [](bool has, std::uint32_t v, std::uint32_t lo, std::uint32_t hi) { return has && (v < lo || v > hi); };
+  auto outside = [](bool has, std::uint32_t v, std::uint32_t lo, std::uint32_t hi) {
+    return has && (v < lo || v > hi);
+  };
   if (outside(s.has_jpeg_quality(), s.jpeg_quality(), 1, 100) ||
       outside(s.has_final_jpeg_quality(), s.final_jpeg_quality(), 1, 100) ||
       outside(s.has_target_spp(), s.target_spp(), 1, 65536) || !v1::Denoiser_IsValid(s.denoiser())) {

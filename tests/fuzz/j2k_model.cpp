@@ -112,13 +112,15 @@ void MutateSiz(Segment& siz, Random& random) {
   } else if (pick == 3) {
     const std::size_t comps = siz.body.size() > 36 ? (siz.body.size() - 36) / 3 : 0;
     if (comps) {
-      SetField(siz, 36 + 3 * random.Below(comps), 1,
-               random.Pick(std::vector<std::uint32_t>{0x00, 0x07, 0x0b, 0x0f, 0x8f, 0x87, 0x1f, 0x25, 0x26, 0x7f, 0xff}));
+      SetField(
+          siz, 36 + 3 * random.Below(comps), 1,
+          random.Pick(std::vector<std::uint32_t>{0x00, 0x07, 0x0b, 0x0f, 0x8f, 0x87, 0x1f, 0x25, 0x26, 0x7f, 0xff}));
     }
   } else if (pick == 4) {
     const std::size_t comps = siz.body.size() > 36 ? (siz.body.size() - 36) / 3 : 0;
-    if (comps) SetField(siz, 36 + 3 * random.Below(comps) + 1 + random.Below(2), 1, std::uint32_t(random.Pick(
-                                                                                       std::vector<int>{0, 1, 2, 3, 4, 255})));
+    if (comps)
+      SetField(siz, 36 + 3 * random.Below(comps) + 1 + random.Below(2), 1,
+               std::uint32_t(random.Pick(std::vector<int>{0, 1, 2, 3, 4, 255})));
   } else {
     SetField(siz, 0, 2, random.Pick(std::vector<std::uint32_t>{0, 1, 2, 0x4000, 0x8000, 0xffff}));
   }
@@ -216,8 +218,8 @@ void MutateCodestream(Codestream& c, Random& random, const ByteMutator& mutate, 
     case 6:
       if (!c.header.empty()) {
         Segment& s = c.header[random.Below(c.header.size())];
-        s.stated_length = std::uint16_t(random.Pick(std::vector<std::uint32_t>{0, 1, 2, 3, std::uint32_t(s.body.size() + 3),
-                                                                              std::uint32_t(s.body.size() + 1), 0xffff}));
+        s.stated_length = std::uint16_t(random.Pick(std::vector<std::uint32_t>{
+            0, 1, 2, 3, std::uint32_t(s.body.size() + 3), std::uint32_t(s.body.size() + 1), 0xffff}));
       }
       break;
     default: MutateTiles(c, random, mutate, max_size); break;

@@ -491,7 +491,8 @@ class Run {
     std::cerr << "SERVER DIED: " << note << "\n";
     const fs::path dir = o_.out / "kept" / ("server-death-" + std::to_string(tally_.inputs));
     fs::create_directories(dir);
-    for (std::size_t i = 0; i < in.files.size(); ++i) WriteFile(dir / ("file" + std::to_string(i) + in.extension), in.files[i]);
+    for (std::size_t i = 0; i < in.files.size(); ++i)
+      WriteFile(dir / ("file" + std::to_string(i) + in.extension), in.files[i]);
     frames_of_dead_witnesses_ += witness_ ? witness_->frames() : 0;
     witness_.reset();
     client_.reset();
@@ -534,7 +535,8 @@ class Run {
     r << "server deaths: " << tally_.deaths << "\n";
     for (const std::string& note : tally_.death_notes) r << "  " << note << "\n";
     char pace[160];
-    std::snprintf(pace, sizeof pace, "%llu in the 5 s before the inputs, %llu during them (%.0f s, %.1f/s), %llu in the 5 s after",
+    std::snprintf(pace, sizeof pace,
+                  "%llu in the 5 s before the inputs, %llu during them (%.0f s, %.1f/s), %llu in the 5 s after",
                   (unsigned long long)before, (unsigned long long)during, during_s, during / std::max(during_s, 1e-3),
                   (unsigned long long)after);
     r << "witness frames: " << pace << "; stream " << (witness_->open() ? "open" : "ended: " + witness_->status())

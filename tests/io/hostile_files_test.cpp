@@ -133,10 +133,12 @@ std::vector<Reference> References(const fs::path& secret) {
       {"spelling.nrrd", Nhdr("DATAFILE: " + s), "data file"},
       {"list.nhdr", Nhdr("data file: LIST\n" + s + "\n" + s), "data file"},
       {"pattern.nhdr", Nhdr("data file: " + secret.parent_path().string() + "/s%03d.raw 1 2 1"), "data file"},
-      {"meta.mhd", "ObjectType = Image\nNDims = 3\nDimSize = 2 2 2\nElementType = MET_UCHAR\nElementDataFile = " + s + "\n",
+      {"meta.mhd",
+       "ObjectType = Image\nNDims = 3\nDimSize = 2 2 2\nElementType = MET_UCHAR\nElementDataFile = " + s + "\n",
        "ElementDataFile"},
-      {"list.mha", "ObjectType = Image\nNDims = 3\nDimSize = 2 2 2\nElementType = MET_UCHAR\nElementDataFile = LIST\n" +
-                       s + "\n" + s + "\n",
+      {"list.mha",
+       "ObjectType = Image\nNDims = 3\nDimSize = 2 2 2\nElementType = MET_UCHAR\nElementDataFile = LIST\n" + s + "\n" +
+           s + "\n",
        "ElementDataFile"},
       {"pair.nii", Nifti("ni1", std::string(128, '\0')), "NIfTI/Analyze .hdr/.img pair"},
       {"pair.hdr", Nifti("ni1", ""), "NIfTI/Analyze .hdr/.img pair"},
@@ -198,7 +200,8 @@ TEST(HostileFiles, InsideRootsRefusesFilesOutsideAlikeWhetherTheyExistOrNot) {
   const std::string up = LoadMessage([&] { return LoadVolumeFile(l.root / "up.nhdr", InsideRoots(l.root)); });
   EXPECT_EQ(up.substr(up.find(": ")), link.substr(link.find(": ")));
   // The named file itself must be inside too.
-  EXPECT_TRUE(Has(LoadMessage([&] { return LoadVolumeFile(l.secret, InsideRoots(l.root)); }), "outside the data roots"));
+  EXPECT_TRUE(
+      Has(LoadMessage([&] { return LoadVolumeFile(l.secret, InsideRoots(l.root)); }), "outside the data roots"));
 }
 
 TEST(HostileFiles, FifoAsTheVolumeFileIsRefusedWithoutBlocking) {
@@ -405,7 +408,8 @@ TEST(HostileFiles, MetaImageLongHeaderRunNeverReachesMetaIO) {
   ScratchDir dir;
   const std::string rest = "NDims = 3\nDimSize = 2 2 2\nElementType = MET_UCHAR\nElementDataFile = LOCAL\n" +
                            std::string(8, '\0');
-  for (const std::string& line : {"BinaryData = " + std::string(300, '\xab') + "\n", std::string(300, 'K') + " = 1\n"}) {
+  for (const std::string& line :
+       {"BinaryData = " + std::string(300, '\xab') + "\n", std::string(300, 'K') + " = 1\n"}) {
     WriteBytes(dir / "long.mha", "ObjectType = Image\n" + line + rest);
     const std::string message = LoadMessage([&] { return LoadVolumeFile(dir / "long.mha", Upload()); });
     EXPECT_TRUE(Has(message, "characters between separators")) << message;

@@ -39,7 +39,9 @@ TEST(LabelTable, ReadsValueTabNameLinesAndSkipsComments) {
 }
 
 TEST(LabelTable, ABadLineGetsAnErrorNamingTheLine) {
-  EXPECT_NE(MessageOf([] { ParseLabelTable("1\tspleen\nliver 5\n", "t.tsv"); }).find("t.tsv line 2: expected 'value<TAB>name'"),
+  EXPECT_NE(MessageOf([] {
+              ParseLabelTable("1\tspleen\nliver 5\n", "t.tsv");
+            }).find("t.tsv line 2: expected 'value<TAB>name'"),
             std::string::npos);
   EXPECT_NE(MessageOf([] { ParseLabelTable("1\tspleen\n\n70000\tx\n", "t.tsv"); }).find("line 3"), std::string::npos);
   EXPECT_NE(MessageOf([] { ParseLabelTable("-1\tx\n", "t.tsv"); }).find("line 1"), std::string::npos);
@@ -84,8 +86,9 @@ TEST(LabelVolume, OnAnotherGridIsResampledNearestNeighbour) {
 
 TEST(LabelVolume, ThatMissesTheImageOrHoldsNonIntegersIsRefused) {
   const Volume image = Grid({4, 4, 4}, {1, 1, 1}, {0, 0, 0}, std::vector<float>(64, 0.0f));
-  EXPECT_NE(MessageOf([&] { FitLabels(Grid({4, 4, 4}, {1, 1, 1}, {500, 0, 0}, std::vector<float>(64, 1.0f)), image, "seg.nii"); })
-                .find("seg.nii: its grid (4x4x4 voxels of 1x1x1 mm at (500, 0, 0)) does not overlap the image's"),
+  EXPECT_NE(MessageOf([&] {
+              FitLabels(Grid({4, 4, 4}, {1, 1, 1}, {500, 0, 0}, std::vector<float>(64, 1.0f)), image, "seg.nii");
+            }).find("seg.nii: its grid (4x4x4 voxels of 1x1x1 mm at (500, 0, 0)) does not overlap the image's"),
             std::string::npos);
   std::vector<float> half(64, 1.0f);
   half[9] = 2.5f;
@@ -264,7 +267,8 @@ TEST_F(TotalSegmentator, NamedViewsFrameTheVisibleLabels) {
   v1::RenderSettings render;
   render.set_width(96);
   render.set_height(96);
-  const TransferFunction tf = ResolveTransferFunction(MakePresetScene("ct-soft-tissue", *image_).transfer_function(), *image_);
+  const TransferFunction tf =
+      ResolveTransferFunction(MakePresetScene("ct-soft-tissue", *image_).transfer_function(), *image_);
   LabelSetup liver_alone;
   liver_alone.show_unlisted = false;
   liver_alone.styles[5] = {};
@@ -354,7 +358,8 @@ TEST_F(TotalSegmentator, TheTableGoesTheLabelsStay) {
   ASSERT_TRUE(table.found()) << table.note;
   std::uint64_t labelled_in_table = 0;
   for (std::size_t i = 0; i < labels_->labels.size(); ++i) {
-    labelled_in_table += labels_->LabelOf(labels_->labels[i]) != 0 && (table.voxels[i] & (kTableVoxel | kTableRimVoxel));
+    labelled_in_table +=
+        labels_->LabelOf(labels_->labels[i]) != 0 && (table.voxels[i] & (kTableVoxel | kTableRimVoxel));
   }
   EXPECT_EQ(labelled_in_table, 0u) << "labelled voxels the table search would hide";
   auto both = std::make_shared<LabelVolume>(*labels_);

@@ -48,14 +48,21 @@ INSTANTIATE_TEST_SUITE_P(
         // NIfTI: uint8 with scl_slope, int16 and int32 HU.
         Expected{"ct-head-avm/AVM.nii.gz", {337, 319, 154}, {0.5469f, 0.5469f, 1}, 0, 255 * 2.20863f, ""},
         Expected{"ct-head-avm/CT_AVM.nii.gz", {256, 242, 154}, {0.72f, 0.72f, 1}, kUnstated, 0, ""},
-        Expected{"ct-body-totalsegmentator/aorta_ct_cropped.nii.gz", {120, 126, 164}, {1.5f, 1.5f, 1.5f}, -1078, 3343, ""},
-        Expected{"ct-body-totalsegmentator/pulmonary_ct_cropped.nii.gz", {122, 102, 112}, {1.5f, 1.5f, 1.5f}, -1064, 3343, ""},
+        Expected{
+            "ct-body-totalsegmentator/aorta_ct_cropped.nii.gz", {120, 126, 164}, {1.5f, 1.5f, 1.5f}, -1078, 3343, ""},
+        Expected{"ct-body-totalsegmentator/pulmonary_ct_cropped.nii.gz",
+                 {122, 102, 112},
+                 {1.5f, 1.5f, 1.5f},
+                 -1064,
+                 3343,
+                 ""},
         Expected{"ct-body-totalsegmentator/example_ct.nii.gz", {122, 101, 112}, {3, 3, 3}, -1207, 3382, ""},
         Expected{"mr-head-seg3d-nifti/MR.nii.gz", {160, 232, 160}, {1, 0.8984f, 0.8984f}, kUnstated, 0, ""},
         Expected{"ct-objects-openscivis/bonsai.nii.gz", {256, 256, 256}, {1, 1, 1}, kUnstated, 0, ""},
         Expected{"ct-objects-openscivis/engine.nii.gz", {256, 256, 128}, {1, 1, 1}, kUnstated, 0, ""},
         // DICOM series: JPEG 2000 lossless CT with intercept -1024; plain MR.
-        Expected{"ct-body-totalsegmentator/example_ct_dicom", {512, 512, 20}, {0.9766f, 0.9766f, 2}, kUnstated, 0, "CT"},
+        Expected{
+            "ct-body-totalsegmentator/example_ct_dicom", {512, 512, 20}, {0.9766f, 0.9766f, 2}, kUnstated, 0, "CT"},
         Expected{"mr-chest-dicom-seg3d", {640, 640, 20}, {0.625f, 0.625f, 2.5f}, kUnstated, 0, "MR"}),
     [](const auto& info) {
       std::string name = info.param.path;

@@ -180,7 +180,8 @@ TEST(DisplayPass, UpsamplingOnTheWayGivesTheUpsampledImagesPlanes) {
   for (ChromaSubsampling chroma : {ChromaSubsampling::k444, ChromaSubsampling::k420}) {
     const Vec3f* big = upsampler->Run(small.pixels.data(), 37, 21, 150, 83);
     const ImageYcc8 a = MakeCpuDisplay()->Run(InputsFor(big, 150, 83, chroma));
-    const ImageYcc8 b = MakeCpuDisplay()->RunUpsampled(InputsFor(nullptr, 150, 83, chroma), small.pixels.data(), 37, 21);
+    const ImageYcc8 b =
+        MakeCpuDisplay()->RunUpsampled(InputsFor(nullptr, 150, 83, chroma), small.pixels.data(), 37, 21);
     ASSERT_EQ(a.size, b.size);
     EXPECT_EQ(std::vector<std::uint8_t>(a.data.get(), a.data.get() + a.size),
               std::vector<std::uint8_t>(b.data.get(), b.data.get() + b.size));

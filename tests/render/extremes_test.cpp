@@ -197,7 +197,8 @@ std::shared_ptr<const Volume> Constant(Vec3i dims, float value) {
 std::shared_ptr<const Volume> Subnormal() {
   std::vector<float> values(8 * 8 * 8);
   for (std::size_t i = 0; i < values.size(); ++i) {
-    values[i] = i % 3 == 0 ? 1e-40f : (i % 3 == 1 ? std::numeric_limits<float>::min() : 2 * std::numeric_limits<float>::min());
+    values[i] =
+        i % 3 == 0 ? 1e-40f : (i % 3 == 1 ? std::numeric_limits<float>::min() : 2 * std::numeric_limits<float>::min());
   }
   return Grid({8, 8, 8}, {1, 1, 1}, std::move(values));
 }
@@ -234,7 +235,8 @@ std::vector<std::pair<std::string, TransferFunction>> TransferFunctions(const Vo
   dense.density_scale = 1e6f;
   dense.gradient_factor = kFloatMax;
   TransferFunction widest;
-  widest.points = {{-kFloatMax, 0.0f, {1, 1, 1}, {1, 1, 1}, 0.0f, {}}, {kFloatMax, 1.0f, {1, 0, 0}, {0, 0, 0}, 1.0f, {1, 1, 1}}};
+  widest.points = {{-kFloatMax, 0.0f, {1, 1, 1}, {1, 1, 1}, 0.0f, {}},
+                   {kFloatMax, 1.0f, {1, 0, 0}, {0, 0, 0}, 1.0f, {1, 1, 1}}};
   widest.density_scale = 1e6f;
   widest.gradient_factor = 1.0f;
   return {{"preset", preset}, {"preset at density 1e6", dense}, {"points at +-FLT_MAX", widest}};
@@ -281,8 +283,8 @@ void ExpectQuantisedFaithfully(const PreparedVolume& p) {
   const Volume& v = p.volume();
   ASSERT_TRUE(std::isfinite(p.value_scale()) && std::isfinite(p.value_offset()));
   ASSERT_GE(p.value_scale(), std::numeric_limits<float>::min());
-  const double tolerance = 0.5 * double(p.value_scale()) * (1 + 1e-5) + 1e-6 * std::max(std::abs(double(v.min_value())),
-                                                                                         std::abs(double(v.max_value())));
+  const double tolerance = 0.5 * double(p.value_scale()) * (1 + 1e-5) +
+                           1e-6 * std::max(std::abs(double(v.min_value())), std::abs(double(v.max_value())));
   for (std::size_t i = 0; i < v.voxel_count(); ++i) {
     const double back = double(p.voxels()[i]) * p.value_scale() + p.value_offset();
     ASSERT_NEAR(back, v.ValueAtIndex(i), tolerance) << "voxel " << i;
@@ -297,7 +299,8 @@ void ExpectTablesBoundExtinction(const SceneData& data) {
   ASSERT_TRUE(std::isfinite(s.transfer.gradient_normaliser) && s.transfer.gradient_normaliser >= 0.0f);
   ASSERT_TRUE(std::isfinite(s.transfer.max_sigma_t) && s.transfer.max_sigma_t > 0.0f);
   ASSERT_LE(s.transfer.gradient_factor, kMaxGradientFactor);
-  for (const float stored : {0.0f, 65535.0f}) ASSERT_TRUE(std::isfinite(stored * s.transfer.entry_scale + s.transfer.entry_offset));
+  for (const float stored : {0.0f, 65535.0f})
+    ASSERT_TRUE(std::isfinite(stored * s.transfer.entry_scale + s.transfer.entry_offset));
   const TransferTable& t = data.table();
   for (std::size_t i = 0; i < t.sigma_t.size(); ++i) {
     ASSERT_TRUE(std::isfinite(t.sigma_t[i]) && t.sigma_t[i] >= 0.0f) << "entry " << i;
@@ -314,10 +317,12 @@ void ExpectTablesBoundExtinction(const SceneData& data) {
   for (int k = 0; k < 2000; ++k) {
     const Vec3f p = s.volume.box_min + (s.volume.box_max - s.volume.box_min) * Vec3f{u(rng), u(rng), u(rng)};
     const float stored = s.volume.Sample(p);
-    ASSERT_TRUE(std::isfinite(stored) && stored >= -0.1f && stored <= 65535.1f) << stored;  // B-spline weights sum to 1 within rounding
+    ASSERT_TRUE(std::isfinite(stored) && stored >= -0.1f && stored <= 65535.1f)
+        << stored;  // B-spline weights sum to 1 within rounding
     Vec3i b;
     for (int a = 0; a < 3; ++a) {
-      b[a] = std::clamp(int((p[a] - s.majorants.box_min[a]) * s.majorants.inv_brick_size[a]), 0, s.majorants.bricks[a] - 1);
+      b[a] = std::clamp(int((p[a] - s.majorants.box_min[a]) * s.majorants.inv_brick_size[a]), 0,
+                        s.majorants.bricks[a] - 1);
     }
     ASSERT_LE(ExtinctionAt(s, p), s.majorants.At(b));
   }
@@ -340,7 +345,8 @@ Outcome RenderExtreme(const std::shared_ptr<const Volume>& volume, const Transfe
   Outcome o;
   o.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   for (const Vec3f& p : renderer.Radiance().pixels) o.finite &= IsFinite(p) && MinComponent(p) >= 0.0f;
-  for (const Vec4f& h : renderer.FirstHits()) o.finite &= std::isfinite(h.x) && std::isfinite(h.y) && std::isfinite(h.z);
+  for (const Vec4f& h : renderer.FirstHits())
+    o.finite &= std::isfinite(h.x) && std::isfinite(h.y) && std::isfinite(h.z);
   for (const Vec3f& a : renderer.Albedo().pixels) o.finite &= IsFinite(a);
   return o;
 }
@@ -378,8 +384,9 @@ TEST(ValuesAtTheExtremes, TransferTablesAndMajorantsStayFiniteAndBoundExtinction
           data.SetReconstruction(r);
           data.SetTransferFunction(tf);
           if (with_labels) {
-            data.SetLabels(VolumeCache::Get().AcquireLabels(Stripes(*e.volume), data.volume().brick_size(), kHostDevice),
-                           StripeStyles(*e.volume));
+            data.SetLabels(
+                VolumeCache::Get().AcquireLabels(Stripes(*e.volume), data.volume().brick_size(), kHostDevice),
+                StripeStyles(*e.volume));
           }
           ExpectTablesBoundExtinction(data);
         }
@@ -569,7 +576,8 @@ TEST(FrameCost, APathStopsAtItsCollisionBudget) {
   EXPECT_EQ(calls, 1000);
   // Empty space costs no collisions, so nothing from the budget.
   majorant[0] = 0.0f;
-  EXPECT_EQ(SampleMajorant(grid, {-50, 0, 0}, {1, 0, 0}, 0.0f, 100.0f, rng, budget, never_real), TrackResult::kLeftRange);
+  EXPECT_EQ(SampleMajorant(grid, {-50, 0, 0}, {1, 0, 0}, 0.0f, 100.0f, rng, budget, never_real),
+            TrackResult::kLeftRange);
 }
 
 // Far from the ray's origin a step of 1e-4 mm is below t's precision (at

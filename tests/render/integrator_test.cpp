@@ -36,7 +36,8 @@ struct Stats {
 
 // Renders `frames` frames of `spp` and returns per-channel-green statistics
 // of the per-frame pixel means (frames are independent estimates).
-Stats RenderStats(CpuRenderer& r, const Camera& camera, int spp, int frames, int max_bounces, unsigned features = kAutoFeatures) {
+Stats RenderStats(CpuRenderer& r, const Camera& camera, int spp, int frames, int max_bounces,
+                  unsigned features = kAutoFeatures) {
   std::vector<double> frame_means;
   Stats s;
   s.min = 1e30;
@@ -243,7 +244,8 @@ TEST(Integrator, AHiddenLabelTakesItsUnlabelledShellAlong) {
         if (ra <= 3.0f) labels->labels[i] = 1;
       }
   for (std::uint16_t l : labels->labels) ++labels->voxels[l];
-  const auto volume = std::make_shared<const Volume>(Vec3i{n, n, n}, Vec3f{2, 2, 2}, std::move(values), VolumeMetadata{});
+  const auto volume =
+      std::make_shared<const Volume>(Vec3i{n, n, n}, Vec3f{2, 2, 2}, std::move(values), VolumeMetadata{});
   auto with_shell = std::make_shared<LabelVolume>(*labels);
   AddShells(*with_shell);
   ASSERT_EQ(with_shell->derived.size(), 1u) << "one shell: the voxels touching label 1";

@@ -92,7 +92,8 @@ TEST(MajorantGrid, NeverBelowTheTrueExtinction) {
         const Vec3f p = s.volume.box_min + (s.volume.box_max - s.volume.box_min) * Vec3f{u(rng), u(rng), u(rng)};
         Vec3i b;
         for (int a = 0; a < 3; ++a) {
-          b[a] = std::min(int((p[a] - s.majorants.box_min[a]) * s.majorants.inv_brick_size[a]), s.majorants.bricks[a] - 1);
+          b[a] =
+              std::min(int((p[a] - s.majorants.box_min[a]) * s.majorants.inv_brick_size[a]), s.majorants.bricks[a] - 1);
         }
         ASSERT_LE(Extinction(s, p), s.majorants.At(b)) << "trial " << trial << " edit " << edit;
       }
@@ -169,7 +170,8 @@ TEST(MajorantIterator, VisitsBricksInOrderWithoutGaps) {
       if (seg.t_max - seg.t_min < 1e-3f) continue;  // corner grazes: no reliable midpoint
       const Vec3f mid = o + d * (0.5f * (seg.t_min + seg.t_max));
       Vec3i b;
-      for (int a = 0; a < 3; ++a) b[a] = std::clamp(int(std::floor((mid[a] - grid.box_min[a]) * 0.25f)), 0, grid.bricks[a] - 1);
+      for (int a = 0; a < 3; ++a)
+        b[a] = std::clamp(int(std::floor((mid[a] - grid.box_min[a]) * 0.25f)), 0, grid.bricks[a] - 1);
       ASSERT_EQ(seg.sigma_maj, grid.At(b)) << "segment " << segments << " of ray " << k;
       ++segments;
     }

@@ -244,7 +244,8 @@ TruthVolume ContrastCrop(const char* file) {
   // Marks each 6-connected piece of voxels `in` keeps with the tissue
   // `kind` gives it (kNone: unmarked).
   auto pieces = [&](const std::function<bool(std::size_t)>& in,
-                    const std::function<Tissue(const std::vector<std::size_t>&)>& kind, std::vector<std::uint8_t>& out) {
+                    const std::function<Tissue(const std::vector<std::size_t>&)>& kind,
+                    std::vector<std::uint8_t>& out) {
     std::vector<bool> seen(n, false);
     for (std::size_t s = 0; s < n; ++s) {
       if (seen[s] || !in(s)) continue;
@@ -277,7 +278,8 @@ TruthVolume ContrastCrop(const char* file) {
       const int x = int(i % d.x), y = int(i / d.x % d.y), z = int(i / (std::size_t(d.x) * d.y));
       for (int c = std::max(0, z - r); c <= std::min(d.z - 1, z + r); ++c)
         for (int b = std::max(0, y - r); b <= std::min(d.y - 1, y + r); ++b)
-          for (int a = std::max(0, x - r); a <= std::min(d.x - 1, x + r); ++a) near[(std::size_t(c) * d.y + b) * d.x + a] = true;
+          for (int a = std::max(0, x - r); a <= std::min(d.x - 1, x + r); ++a)
+            near[(std::size_t(c) * d.y + b) * d.x + a] = true;
     }
     return near;
   };
@@ -312,8 +314,9 @@ std::function<bool(int)> ShownRed(const Frame& f, const Volume& v, const Transfe
     if (h.w == 0) return false;
     const Vec3f q = (Xyz(h) + v.extent_mm() * 0.5f) / v.spacing_mm() - Vec3f{0.5f, 0.5f, 0.5f};
     const Vec3i d = v.dims();
-    const float value = v.Value(std::clamp(int(std::lround(q.x)), 0, d.x - 1), std::clamp(int(std::lround(q.y)), 0, d.y - 1),
-                                std::clamp(int(std::lround(q.z)), 0, d.z - 1));
+    const float value =
+        v.Value(std::clamp(int(std::lround(q.x)), 0, d.x - 1), std::clamp(int(std::lround(q.y)), 0, d.y - 1),
+                std::clamp(int(std::lround(q.z)), 0, d.z - 1));
     const Vec3f c = Evaluate(tf, value).diffuse;
     return c.x > 2.0f * c.y;
   };
@@ -371,7 +374,8 @@ TEST_P(ContrastCrops, TheBonePresetStopsRaysOnBoneNotInTheBloodPool) {
   const TruthVolume truth = ContrastCrop(GetParam());
   const Frame f = Render(truth.image, PresetScene(*truth.image, "ct-bone"), 64);
   const Share bone = ShareIn(f, truth, kBone), lumen = ShareIn(f, truth, kLumen), jet = ShareIn(f, truth, kJet);
-  std::printf("%s\n%s\n%s\n", Describe("first hits on bone", bone).c_str(), Describe("first hits in the lumen", lumen).c_str(),
+  std::printf("%s\n%s\n%s\n", Describe("first hits on bone", bone).c_str(),
+              Describe("first hits in the lumen", lumen).c_str(),
               Describe("first hits on the contrast jet", jet).c_str());
   ASSERT_GT(bone.of, 100);
   EXPECT_GE(bone.Fraction() + jet.Fraction(), 0.9) << Describe("first hits on bone", bone);
@@ -380,7 +384,9 @@ TEST_P(ContrastCrops, TheBonePresetStopsRaysOnBoneNotInTheBloodPool) {
 
 INSTANTIATE_TEST_SUITE_P(SharedData, ContrastCrops,
                          ::testing::Values("aorta_ct_cropped.nii.gz", "pulmonary_ct_cropped.nii.gz"),
-                         [](const auto& info) { return std::string(info.param).substr(0, info.param[0] == 'a' ? 5 : 9); });
+                         [](const auto& info) {
+                           return std::string(info.param).substr(0, info.param[0] == 'a' ? 5 : 9);
+                         });
 
 TEST(BloodPool, APlainCtHasNone) {
   CINEVOL_REQUIRE_SHARED_DATA();

@@ -89,7 +89,8 @@ TEST(Sampling, HenyeyGreensteinScattersForwardForPositiveG) {
   const Vec3f wo{0, 0, 1};
   Pcg32 rng(1, 1);
   double mean_cos = 0;
-  for (int i = 0; i < 20000; ++i) mean_cos += Dot(wo, SampleHenyeyGreenstein(wo, 0.8f, rng.Uniform(), rng.Uniform())) / 20000;
+  for (int i = 0; i < 20000; ++i)
+    mean_cos += Dot(wo, SampleHenyeyGreenstein(wo, 0.8f, rng.Uniform(), rng.Uniform())) / 20000;
   EXPECT_NEAR(mean_cos, -0.8, 0.02);  // the mean cosine of HG is g (about the travel direction)
 }
 

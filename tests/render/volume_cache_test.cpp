@@ -157,7 +157,8 @@ TEST(VolumeCache, CudaRenderersShareOneDeviceUpload) {
     ASSERT_EQ(copies.size(), 1u);
     EXPECT_GE(copies[0].device, 0);
     EXPECT_EQ(copies[0].renderers, 2);
-    EXPECT_EQ(copies[0].bytes, volume->voxel_count() * 4) << "one upload of the 16-bit voxels, as a buffer and a texture";
+    EXPECT_EQ(copies[0].bytes, volume->voxel_count() * 4)
+        << "one upload of the 16-bit voxels, as a buffer and a texture";
     EXPECT_EQ(first.pixels, lone.pixels);
     EXPECT_EQ(second.pixels, lone.pixels);
   }

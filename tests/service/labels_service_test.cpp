@@ -41,7 +41,8 @@ class LabelsOverTheApi : public ::testing::Test {
     });
     WriteNrrd(scratch_ / "halves.nrrd", [](int x, int, int) { return x < kSize / 2 ? 1 : 2; });
     std::ofstream(scratch_ / "halves.tsv") << "# value\tname\n1\tleft half\n2\tright half\n";
-    server_ = std::make_unique<ServerProcess>(scratch_.path(), std::vector<std::string>{"--data-root", scratch_.path().string()});
+    server_ = std::make_unique<ServerProcess>(scratch_.path(),
+                                              std::vector<std::string>{"--data-root", scratch_.path().string()});
     ASSERT_TRUE(server_->running()) << server_->Log();
   }
 

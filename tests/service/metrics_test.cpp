@@ -113,7 +113,8 @@ TEST(Metrics, ServedOnMetricsListenAndCounted) {
   ASSERT_TRUE(Eventually(
       [&] {
         text = HttpGet(port, "/metrics").value_or("");
-        return Sample(text, R"(cinevol_sessions{state="idle"})") + Sample(text, R"(cinevol_sessions{state="rendering"})") >=
+        return Sample(text, R"(cinevol_sessions{state="idle"})") +
+                   Sample(text, R"(cinevol_sessions{state="rendering"})") >=
                1;
       },
       10s))

@@ -45,7 +45,9 @@ void WriteLabelledVolume(const fs::path& dir, int n) {
       }
     }
   };
-  write(dir / "volume.nrrd", [&](int, int, int, float d) -> std::uint16_t { return d > r ? 0 : d > 0.9f * r ? 2400 : 1040; });
+  write(dir / "volume.nrrd", [&](int, int, int, float d) -> std::uint16_t {
+    return d > r ? 0 : d > 0.9f * r ? 2400 : 1040;
+  });
   write(dir / "labels.nrrd", [&](int x, int y, int z, float d) -> std::uint16_t {
     return d > r ? 0 : std::uint16_t(1 + x * 2 / n + 2 * (y * 2 / n) + 4 * (z * 2 / n));
   });

@@ -104,8 +104,11 @@ class ServerProcess {
     const std::filesystem::path port_file = scratch / "port";
     std::filesystem::remove(port_file);
     log_ = scratch / "server.log";
-    std::vector<std::string> args{"--listen", "127.0.0.1:" + std::to_string(port), "--port-file", port_file.string(), "--backend", backend,
-                                  "--volume", "phantom:head?size=48", "--encode-threads", "2"};
+    std::vector<std::string> args{"--listen",         "127.0.0.1:" + std::to_string(port),
+                                  "--port-file",      port_file.string(),
+                                  "--backend",        backend,
+                                  "--volume",         "phantom:head?size=48",
+                                  "--encode-threads", "2"};
     args.insert(args.end(), extra.begin(), extra.end());
     if (file_limit > 0) {  // the shell execs the server: the pid stays its
       args.insert(args.begin(), {"-c", "ulimit -n " + std::to_string(file_limit) + " && exec \"$0\" \"$@\"",

@@ -469,7 +469,8 @@ TEST(TlsAuth, ReflectionNeedsATokenHealthDoesNotAndTwoTokensAreRefused) {
     ASSERT_TRUE(file.ParseFromString(bytes));
     files.push_back(file.name());
     for (const auto& service : file.service()) {
-      for (const auto& method : service.method()) creates |= service.name() == "SessionService" && method.name() == "CreateSession";
+      for (const auto& method : service.method())
+        creates |= service.name() == "SessionService" && method.name() == "CreateSession";
     }
   }
   ASSERT_FALSE(files.empty());

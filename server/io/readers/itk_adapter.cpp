@@ -408,7 +408,8 @@ class DicomSeriesRead final : public reader::VolumeRead {
     header_.set_value_unit(header_.modality() == "CT" ? "HU" : "");
     std::string original = ComponentName(io->GetInternalComponentType());
     if (io->GetRescaleSlope() != 1.0 || io->GetRescaleIntercept() != 0.0) {
-      original += fmt::format(" (rescale slope {:g}, intercept {:g})", io->GetRescaleSlope(), io->GetRescaleIntercept());
+      original +=
+          fmt::format(" (rescale slope {:g}, intercept {:g})", io->GetRescaleSlope(), io->GetRescaleIntercept());
     }
     header_.set_original_type(original);
     slice_voxels_ = std::size_t(dims[0]) * std::size_t(dims[1]) * std::size_t(frames);

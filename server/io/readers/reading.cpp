@@ -51,7 +51,8 @@ std::string DescriptorPath(int fd) { return fmt::format("/proc/self/fd/{}", fd);
 std::string ReadAll(int fd, std::size_t limit) {
   std::string text(limit, '\0');
   std::size_t got = 0;
-  for (ssize_t n; got < limit && (n = pread(fd, text.data() + got, limit - got, off_t(got))) > 0;) got += std::size_t(n);
+  for (ssize_t n; got < limit && (n = pread(fd, text.data() + got, limit - got, off_t(got))) > 0;)
+    got += std::size_t(n);
   text.resize(got);
   return text;
 }

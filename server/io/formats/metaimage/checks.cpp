@@ -268,7 +268,8 @@ void CheckDataFile(itk::ImageIOBase& io, const fs::path& path, const std::vector
   const std::string name = meta->GetMetaImagePointer()->ElementDataFileName();
   if (IsLocal(name)) return;
   const bool listed = name.rfind("LIST", 0) == 0 || name.find('%') != std::string::npos;
-  const fs::path file = (!name.empty() && name[0] == '/' ? fs::path(name) : path.parent_path() / name).lexically_normal();
+  const fs::path file =
+      (!name.empty() && name[0] == '/' ? fs::path(name) : path.parent_path() / name).lexically_normal();
   const bool seen = std::any_of(placed.begin(), placed.end(), [&](const fs::path& p) {
     return fs::absolute(p).lexically_normal() == fs::absolute(file).lexically_normal();
   });

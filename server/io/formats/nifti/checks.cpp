@@ -121,7 +121,8 @@ std::string NiftiFieldProblem(const Header& h, bool swap) {
   std::vector<double> values, spatial;
   for (int i = 0; i < 8; ++i) (i >= 1 && i <= 3 ? spatial : values).push_back(get(h.pixdim[i]));
   if (nifti) {
-    for (auto v : {h.quatern_b, h.quatern_c, h.quatern_d, h.scl_slope, h.scl_inter, h.toffset}) values.push_back(get(v));
+    for (auto v : {h.quatern_b, h.quatern_c, h.quatern_d, h.scl_slope, h.scl_inter, h.toffset})
+      values.push_back(get(v));
     for (auto v : {h.qoffset_x, h.qoffset_y, h.qoffset_z}) spatial.push_back(get(v));
     for (int i = 0; i < 4; ++i) {
       for (auto v : {h.srow_x[i], h.srow_y[i], h.srow_z[i]}) spatial.push_back(get(v));
