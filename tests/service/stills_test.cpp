@@ -56,9 +56,12 @@ TEST(Stills, ASnapshotLongerThanTheOldLimitsCompletes) {
   EXPECT_EQ(still.spp(), std::uint32_t(spp));
   EXPECT_EQ(DecodePng(std::vector<std::uint8_t>(still.image().begin(), still.image().end())).width, 96);
 
-  // Progress: at once with nothing done, then growing, never past the target.
+  // Progress: at once, well before the end, then growing, never past the
+  // target. (The server says it accepted the still with nothing done, but
+  // progress is newest-wins at both ends: a first step finished before the
+  // client read that message replaces it.)
   ASSERT_GE(progress.size(), 2u);
-  EXPECT_EQ(progress.front().spp_done(), 0u);
+  EXPECT_LT(progress.front().spp_done(), std::uint32_t(spp) / 2);
   for (std::size_t i = 1; i < progress.size(); ++i) {
     EXPECT_GE(progress[i].spp_done(), progress[i - 1].spp_done());
     EXPECT_LE(progress[i].spp_done(), std::uint32_t(spp));
