@@ -122,7 +122,7 @@ const std::vector<PresetDefinition>& PresetLibrary() {
        ContrastRule::kAboveBloodPool},
       {"ct-soft-tissue",
        "Translucent skin, fat and muscle over bone",
-       "cinevol, the first preset table (server/io/presets.cpp), numbers kept",
+       "cinevol, the first preset table (server/scene/presets.cpp), numbers kept",
        PresetScale::kHu,
        0.5f,
        1.5f,

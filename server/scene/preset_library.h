@@ -1,6 +1,6 @@
 // The preset library's tables: transfer functions in our model (opacity,
 // colour, specular, roughness, the surface/volume blend), each saying where
-// its numbers come from. server/io/presets.h turns them into scenes.
+// its numbers come from. server/scene/presets.h turns them into scenes.
 #pragma once
 
 #include <vector>
