@@ -7,7 +7,6 @@
 
 #include <utility>
 
-#include "encode/image_codecs.h"
 #include "io/label_volume.h"
 #include "service/errors.h"
 #include "core/log_safe.h"
@@ -23,12 +22,6 @@ constexpr int kMaxEncodesInFlight = 2;
 // (docs/performance.md).
 constexpr int kMaxJpegBands = 4;
 
-std::uint32_t Micros(double ms) { return static_cast<std::uint32_t>(std::max(0.0, ms * 1000.0)); }
-
-std::uint32_t MicrosBetween(Clock::time_point from, Clock::time_point to) {
-  return static_cast<std::uint32_t>(std::chrono::duration_cast<std::chrono::microseconds>(to - from).count());
-}
-
 }  // namespace
 
 // What one step renders, taken under the lock.
@@ -37,7 +30,7 @@ struct Session::Work {
   unsigned changes = 0;  // SceneChange bits: what the events changed
   v1::Scene scene;
   FrameSettings settings;
-  Stamp stamp;
+  FrameStamp stamp;
 };
 
 void PixelBudget::Exchange(std::uint64_t release, std::uint64_t take) {
@@ -375,28 +368,14 @@ bool Session::Step() {
   return CanRenderLocked();
 }
 
-void Session::Encode(DisplayFrame display, const Stamp& stamp, int quality) {
+void Session::Encode(DisplayFrame display, const FrameStamp& stamp, int quality) {
   context_.encoder->Submit([self = shared_from_this(), display = std::move(display), stamp, quality]() {
+    // Idle encoder threads mean idle cores: a lone session's frame encodes
+    // in bands on them and reaches its viewer sooner; a busy pool encodes whole.
+    const int bands = std::min(1 + self->context_.encoder->idle(), kMaxJpegBands);
     v1::Frame frame;
     try {
-      const Clock::time_point start = Clock::now();
-      if (!display.final_rgb.bytes.empty()) {
-        const std::vector<std::uint8_t> png = EncodePng(display.final_rgb);
-        frame.set_png(png.data(), png.size());
-        frame.set_width(display.final_rgb.width);
-        frame.set_height(display.final_rgb.height);
-      } else {
-        // Idle encoder threads mean idle cores: a lone session's frame encodes
-        // in bands on them and reaches its viewer sooner; a busy pool encodes whole.
-        const int bands = std::min(1 + self->context_.encoder->idle(), kMaxJpegBands);
-        const std::vector<std::uint8_t> jpeg = EncodeJpeg(display.image, quality, bands);
-        frame.set_jpeg(jpeg.data(), jpeg.size());
-        frame.set_width(display.image.width);
-        frame.set_height(display.image.height);
-      }
-      frame.mutable_timings()->set_encode_us(MicrosBetween(start, Clock::now()));
-      ServerMetrics().ObserveStage(Stage::kEncode,
-                                   std::chrono::duration<double>(Clock::now() - start).count());
+      frame = EncodeFrame(display, stamp, quality, bands);
     } catch (...) {
       {
         std::lock_guard lock(self->mu_);
@@ -405,17 +384,6 @@ void Session::Encode(DisplayFrame display, const Stamp& stamp, int quality) {
       self->End(ToStatus(std::current_exception()));
       return;
     }
-    frame.set_frame_id(stamp.frame_id);
-    frame.set_accumulated_spp(display.accumulated_spp);
-    frame.set_last_event_seq(stamp.event_seq);
-    frame.set_final(display.final);
-    frame.set_resolution_scale(display.resolution_scale);
-    frame.set_estimated_error(std::max(display.estimated_error, 0.0f));
-    v1::FrameTimings* t = frame.mutable_timings();
-    t->set_render_us(Micros(display.render_ms));
-    t->set_denoise_us(Micros(display.denoise_ms));
-    t->set_tonemap_us(Micros(display.display_ms));
-    t->set_queue_us(stamp.queue_us);
     self->Deliver(std::move(frame), stamp.origin);
   });
 }

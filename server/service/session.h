@@ -24,6 +24,7 @@
 #include "pipeline/frame_pipeline.h"
 #include "service/scheduler.h"
 #include "scene/session_state.h"
+#include "service/frame_encoding.h"
 #include "service/task_pool.h"
 #include "service/token_bucket.h"
 #include "service/volume_registry.h"
@@ -132,14 +133,6 @@ class Session final : public Job, public std::enable_shared_from_this<Session> {
   bool Step() override;
 
  private:
-  // What a frame answers and when its work began, for its header and timings.
-  struct Stamp {
-    std::uint64_t frame_id = 0;
-    std::uint64_t event_seq = 0;
-    bool answers_event = false;  // it applies an event no earlier frame applied
-    Clock::time_point origin;    // that event's arrival, or the render's start when refining
-    std::uint32_t queue_us = 0;  // from the event's arrival to the render's start
-  };
   struct Work;
   bool CanRenderLocked() const;
   // Applies one event now; throws for a bad one (the scene stays as it was).
@@ -148,7 +141,8 @@ class Session final : public Job, public std::enable_shared_from_this<Session> {
   void ApplyCoalescedLocked();
   // Sends current_ to the stream (which must be attached).
   void SendStateLocked();
-  void Encode(DisplayFrame frame, const Stamp& stamp, int quality);
+  // The encode stage (frame_encoding.h) on the encoder pool, then Deliver.
+  void Encode(DisplayFrame frame, const FrameStamp& stamp, int quality);
   void Deliver(v1::Frame frame, Clock::time_point origin);
   void Wake() { context_.scheduler->Wake(shared_from_this()); }
 

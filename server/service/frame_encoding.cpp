@@ -1,0 +1,51 @@
+#include "service/frame_encoding.h"
+
+#include <algorithm>
+
+#include "encode/image_codecs.h"
+#include "service/metrics.h"
+
+namespace cinevol::service {
+namespace {
+
+using Clock = std::chrono::steady_clock;
+
+std::uint32_t Micros(double ms) { return static_cast<std::uint32_t>(std::max(0.0, ms * 1000.0)); }
+
+}  // namespace
+
+std::uint32_t MicrosBetween(Clock::time_point from, Clock::time_point to) {
+  return static_cast<std::uint32_t>(std::chrono::duration_cast<std::chrono::microseconds>(to - from).count());
+}
+
+v1::Frame EncodeFrame(const DisplayFrame& display, const FrameStamp& stamp, int quality, int bands) {
+  v1::Frame frame;
+  const Clock::time_point start = Clock::now();
+  if (!display.final_rgb.bytes.empty()) {
+    const std::vector<std::uint8_t> png = EncodePng(display.final_rgb);
+    frame.set_png(png.data(), png.size());
+    frame.set_width(display.final_rgb.width);
+    frame.set_height(display.final_rgb.height);
+  } else {
+    const std::vector<std::uint8_t> jpeg = EncodeJpeg(display.image, quality, bands);
+    frame.set_jpeg(jpeg.data(), jpeg.size());
+    frame.set_width(display.image.width);
+    frame.set_height(display.image.height);
+  }
+  frame.mutable_timings()->set_encode_us(MicrosBetween(start, Clock::now()));
+  ServerMetrics().ObserveStage(Stage::kEncode, std::chrono::duration<double>(Clock::now() - start).count());
+  frame.set_frame_id(stamp.frame_id);
+  frame.set_accumulated_spp(display.accumulated_spp);
+  frame.set_last_event_seq(stamp.event_seq);
+  frame.set_final(display.final);
+  frame.set_resolution_scale(display.resolution_scale);
+  frame.set_estimated_error(std::max(display.estimated_error, 0.0f));
+  v1::FrameTimings* t = frame.mutable_timings();
+  t->set_render_us(Micros(display.render_ms));
+  t->set_denoise_us(Micros(display.denoise_ms));
+  t->set_tonemap_us(Micros(display.display_ms));
+  t->set_queue_us(stamp.queue_us);
+  return frame;
+}
+
+}  // namespace cinevol::service
