@@ -98,18 +98,12 @@ void CheckRange(float v, float lo, float hi, const std::string& field) {
   if (!(v >= lo && v <= hi)) throw InputError(fmt::format("{}: {} is outside [{}, {}]", field, v, lo, hi));
 }
 
-// The scene parts an event replaces or edits, and the edit itself.
-unsigned ApplyToScene(const v1::SessionEvent& event, v1::Scene& scene, const std::string& prefix) {
+// Edits the scene part the event names (PartsOf says which).
+void ApplyToScene(const v1::SessionEvent& event, v1::Scene& scene, const std::string& prefix) {
   switch (event.kind_case()) {
-    case v1::SessionEvent::kCamera:
-      *scene.mutable_camera() = event.camera();
-      return kCameraChanged;
-    case v1::SessionEvent::kLights:
-      *scene.mutable_lights() = event.lights().lights();
-      return kLightsChanged;
-    case v1::SessionEvent::kTransferFunction:
-      *scene.mutable_transfer_function() = event.transfer_function();
-      return kTransferFunctionChanged;
+    case v1::SessionEvent::kCamera: *scene.mutable_camera() = event.camera(); break;
+    case v1::SessionEvent::kLights: *scene.mutable_lights() = event.lights().lights(); break;
+    case v1::SessionEvent::kTransferFunction: *scene.mutable_transfer_function() = event.transfer_function(); break;
     case v1::SessionEvent::kRender: {
       const v1::RenderSettings& r = event.render();
       if (r.has_width() || r.has_height()) {
@@ -121,20 +115,15 @@ unsigned ApplyToScene(const v1::SessionEvent& event, v1::Scene& scene, const std
       if (r.has_max_bounces()) to->set_max_bounces(r.max_bounces());
       if (r.seed() != 0) to->set_seed(r.seed());
       if (r.reconstruction() != v1::RECONSTRUCTION_UNSPECIFIED) to->set_reconstruction(r.reconstruction());
-      return kSamplingChanged;
+      break;
     }
     case v1::SessionEvent::kResize:
       scene.mutable_render()->set_width(event.resize().width());
       scene.mutable_render()->set_height(event.resize().height());
-      return kCameraChanged;
-    case v1::SessionEvent::kClipping:
-      *scene.mutable_clipping() = event.clipping();
-      return kClippingChanged;
-    case v1::SessionEvent::kLabels:
-      *scene.mutable_labels() = event.labels();
-      return kLabelsChanged;
-    default:
-      return 0;
+      break;
+    case v1::SessionEvent::kClipping: *scene.mutable_clipping() = event.clipping(); break;
+    case v1::SessionEvent::kLabels: *scene.mutable_labels() = event.labels(); break;
+    default: break;
   }
 }
 
@@ -160,7 +149,7 @@ void RestoreParts(v1::Scene& scene, v1::Scene& saved, unsigned parts) {
   if (parts & kLabelsChanged) scene.mutable_labels()->Swap(saved.mutable_labels());
 }
 
-// The scene parts an event edits, without editing them.
+// The scene parts an event edits: its SceneChange bits.
 unsigned PartsOf(const v1::SessionEvent& event) {
   switch (event.kind_case()) {
     case v1::SessionEvent::kCamera:
@@ -275,15 +264,16 @@ unsigned ApplyEvent(v1::SessionState& state, const v1::SessionEvent& event, cons
       // Edited in place, only the parts it touches checked; put back if refused.
       if (event.has_resize()) with_prefix([&] { CheckViewport(event.resize(), "resize", limits); });
       v1::Scene& scene = *state.mutable_scene();
-      v1::Scene saved = CopyParts(scene, PartsOf(event));
+      changes = PartsOf(event);
+      v1::Scene saved = CopyParts(scene, changes);
       try {
-        changes = ApplyToScene(event, scene, prefix);
+        ApplyToScene(event, scene, prefix);
         ApplyDefaults(scene, changes);  // an unset fov takes its default, as in a scene file
         if (changes & kLightsChanged) ResolveEnvironmentMaps(scene, resolve_map);
         if (limits) CheckCost(scene, changes, prefix, *limits);
         CheckParts(scene, changes, prefix);
       } catch (...) {
-        RestoreParts(scene, saved, PartsOf(event));
+        RestoreParts(scene, saved, changes);
         throw;
       }
       if (event.has_resize()) *state.mutable_viewport() = event.resize();
