@@ -10,14 +10,23 @@ SessionState::SessionState(const v1::CreateSessionRequest& request, const v1::Cr
   request_.mutable_scene()->clear_volume();  // volume_id says which
 }
 
-void SessionState::Sent(const v1::SessionEvent& event) { unanswered_.push_back(event); }
+void SessionState::Sent(const v1::SessionEvent& event) {
+  const int kind = event.has_resume() ? int(v1::SessionEvent::kPause) : int(event.kind_case());
+  auto [it, fresh] = unanswered_.try_emplace(kind, event);
+  if (fresh) return;
+  if (event.has_render() || event.has_stream()) {
+    it->second.MergeFrom(event);  // set fields change; the seq is the newest
+  } else {
+    it->second = event;
+  }
+}
 
 void SessionState::Adopt(const v1::SessionState& state) {
   *request_.mutable_scene() = state.scene();
   *request_.mutable_stream() = state.stream();
   *request_.mutable_viewport() = state.viewport();
   paused_ = state.paused();
-  std::erase_if(unanswered_, [&](const v1::SessionEvent& e) { return e.seq() <= state.last_event_seq(); });
+  std::erase_if(unanswered_, [&](const auto& kind_event) { return kind_event.second.seq() <= state.last_event_seq(); });
 }
 
 void SessionState::Reattached() { unanswered_.clear(); }
@@ -27,7 +36,7 @@ v1::CreateSessionRequest SessionState::request() const { return request_; }
 std::vector<v1::SessionEvent> SessionState::Unanswered() const {
   std::vector<v1::SessionEvent> events;
   if (paused_) events.emplace_back().mutable_pause();
-  events.insert(events.end(), unanswered_.begin(), unanswered_.end());
+  for (const auto& [kind, event] : unanswered_) events.push_back(event);
   return events;
 }
 

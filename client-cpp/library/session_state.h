@@ -7,6 +7,7 @@
 #pragma once
 
 #include <cstdint>
+#include <map>
 #include <vector>
 
 #include "cinevol/v1/service.pb.h"
@@ -39,7 +40,11 @@ class SessionState {
  private:
   v1::CreateSessionRequest request_;  // volume_id, viewport, scene and stream as the server last had them
   bool paused_ = false;
-  std::vector<v1::SessionEvent> unanswered_;  // sent on the current stream, newer than the last state
+  // Sent on the current stream, newer than the last state: one per kind, as
+  // the server coalesces them (the latest wins; render and stream settings
+  // merge; pause and resume are one kind), so a server that never answers
+  // costs a few events, not one per event sent.
+  std::map<int, v1::SessionEvent> unanswered_;
 };
 
 }  // namespace cinevol

@@ -1,5 +1,6 @@
 // From the proto scene model to renderer inputs.
 #include "scene/scene_builder.h"
+#include "scene/scene_frame.h"
 
 #include <algorithm>
 #include <cmath>
@@ -21,11 +22,9 @@ constexpr float kFramingFill = 0.8f;
 }  // namespace
 
 Vec3f PatientToWorld(const DirectionCosines& d, Vec3f lps) {
-  // The transpose of the direction cosines maps LPS to index space, which is
-  // world space for rendering.
-  Vec3f w;
-  for (int c = 0; c < 3; ++c) w[c] = float(d[0 * 3 + c] * lps.x + d[1 * 3 + c] * lps.y + d[2 * 3 + c] * lps.z);
-  return Normalize(w);
+  VolumePlacement placement;
+  placement.direction = d;
+  return Normalize(placement.DirectionToVolume(lps));
 }
 
 ViewDirections NamedViewDirections(v1::NamedView view, const DirectionCosines& direction) {
@@ -318,26 +317,6 @@ LabelSetup ResolveLabels(const v1::Labels& labels, const Volume& volume) {
 
 namespace {
 
-// Patient LPS (mm) to world: index space in mm, centred on the volume. The
-// origin is the centre of voxel 0, and voxel i's centre is at
-// (i + 0.5) * spacing - extent / 2 in world space.
-struct PatientFrame {
-  DirectionCosines d;
-  Vec3f origin, shift;  // shift: half a voxel less half the extent
-
-  explicit PatientFrame(const Volume& v)
-      : d(v.metadata().direction),
-        origin{float(v.metadata().origin_mm[0]), float(v.metadata().origin_mm[1]), float(v.metadata().origin_mm[2])},
-        shift(v.spacing_mm() * 0.5f - v.extent_mm() * 0.5f) {}
-
-  Vec3f Direction(Vec3f lps) const {  // D^T lps, not normalised
-    Vec3f w;
-    for (int c = 0; c < 3; ++c) w[c] = float(d[0 * 3 + c] * lps.x + d[1 * 3 + c] * lps.y + d[2 * 3 + c] * lps.z);
-    return w;
-  }
-  Vec3f Point(Vec3f lps) const { return Direction(lps - origin) + shift; }
-};
-
 // Keeps Dot(normal, x - point) >= 0, in world mm.
 Vec4f HalfSpace(Vec3f normal, Vec3f point) {
   const Vec3f n = Normalize(normal);
@@ -347,7 +326,7 @@ Vec4f HalfSpace(Vec3f normal, Vec3f point) {
 }  // namespace
 
 ClipRegion ResolveClipping(const v1::Clipping& clipping, const Volume& volume) {
-  const PatientFrame frame(volume);
+  const VolumePlacement frame = VolumePlacement::Of(volume);  // patient LPS to the volume-centred frame
   ClipRegion region;
   if (clipping.has_crop_box()) {
     const v1::CropBox& b = clipping.crop_box();
@@ -355,8 +334,8 @@ ClipRegion ResolveClipping(const v1::Clipping& clipping, const Volume& volume) {
     const Vec3f x = Normalize(oriented ? ToVec(b.axis_x()) : Vec3f{1, 0, 0});
     const Vec3f z = Normalize(Cross(x, oriented ? ToVec(b.axis_y()) : Vec3f{0, 1, 0}));
     const Vec3f y = Cross(z, x);
-    const Vec3f center = frame.Point(ToVec(b.center())), half = ToVec(b.size()) * 0.5f;
-    const Vec3f axes[3] = {frame.Direction(x), frame.Direction(y), frame.Direction(z)};
+    const Vec3f center = frame.PointToVolume(ToVec(b.center())), half = ToVec(b.size()) * 0.5f;
+    const Vec3f axes[3] = {frame.DirectionToVolume(x), frame.DirectionToVolume(y), frame.DirectionToVolume(z)};
     for (int a = 0; a < 3; ++a) {
       region.half_spaces[region.count++] = HalfSpace(axes[a], center - axes[a] * half[a]);
       region.half_spaces[region.count++] = HalfSpace(-axes[a], center + axes[a] * half[a]);
@@ -367,7 +346,7 @@ ClipRegion ResolveClipping(const v1::Clipping& clipping, const Volume& volume) {
     if (region.count == kMaxClipHalfSpaces) break;  // validation allows 6 planes
     if (plane.cap()) region.capped |= 1u << region.count;
     region.half_spaces[region.count++] =
-        HalfSpace(frame.Direction(ToVec(plane.normal())), frame.Point(ToVec(plane.point())));
+        HalfSpace(frame.DirectionToVolume(ToVec(plane.normal())), frame.PointToVolume(ToVec(plane.point())));
   }
   return region;
 }

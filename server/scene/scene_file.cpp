@@ -333,6 +333,9 @@ void ApplyDefaults(v1::Scene& scene, unsigned parts) {
 namespace {
 
 void ValidateParts(const v1::Scene& scene, unsigned parts, Problems& p) {
+  if ((parts & (kCameraChanged | kLightsChanged)) && !v1::SceneFrame_IsValid(scene.frame())) {
+    p.Add("frame", fmt::format("unknown frame {}", int(scene.frame())));
+  }
   if (parts & kTransferFunctionChanged) ValidateTransferFunction(scene.transfer_function(), "transferFunction", p);
   if (parts & kCameraChanged) ValidateCamera(scene.camera(), p);
   if (parts & kLightsChanged) {

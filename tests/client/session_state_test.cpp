@@ -85,5 +85,25 @@ TEST(SessionState, ANewStreamOnTheSameSessionLeavesNothingToReplay) {
   EXPECT_TRUE(state.Unanswered().empty());
 }
 
+// A server that never answers (one older than ServerMessage.state) must not
+// make the client keep every event it sent: one per kind, render settings merged.
+TEST(SessionState, UnansweredEventsAreKeptOnePerKind) {
+  SessionState state(Request(), Created());
+  for (std::uint64_t seq = 1; seq <= 10000; ++seq) state.Sent(Event(seq));
+  v1::SessionEvent spp;
+  spp.set_seq(10001);
+  spp.mutable_render()->set_spp(8);
+  state.Sent(spp);
+  v1::SessionEvent bounces;
+  bounces.set_seq(10002);
+  bounces.mutable_render()->set_max_bounces(2);
+  state.Sent(bounces);
+  const std::vector<v1::SessionEvent> replay = state.Unanswered();
+  ASSERT_EQ(replay.size(), 2u);
+  EXPECT_EQ(replay[0].camera().eye().x(), 10000.0f) << "the latest camera";
+  EXPECT_EQ(replay[1].render().spp(), 8u);
+  EXPECT_EQ(replay[1].render().max_bounces(), 2u);
+}
+
 }  // namespace
 }  // namespace cinevol
