@@ -26,7 +26,7 @@ ThreadPool::ThreadPool(int workers) {
   for (int i = 0; i < workers; ++i) threads_.emplace_back([this] { Work(); });
 }
 
-ThreadPool::~ThreadPool() {
+ThreadPool::~ThreadPool() {  // the workers run the tasks still queued before they leave
   {
     std::lock_guard lock(mu_);
     stopping_ = true;
@@ -63,15 +63,43 @@ void ThreadPool::Work() {
   std::unique_lock lock(mu_);
   for (;;) {
     Loop* loop = nullptr;
-    work_cv_.wait(lock, [&] { return stopping_ || (loop = FindWorkLocked()) != nullptr; });
-    if (stopping_) return;
-    --loop->helper_room;
-    ++loop->helpers_in;
-    lock.unlock();
-    RunChunks(*loop);
-    lock.lock();
-    if (--loop->helpers_in == 0) done_cv_.notify_all();
+    work_cv_.wait(lock, [&] { return (loop = FindWorkLocked()) != nullptr || !tasks_.empty() || stopping_; });
+    if (loop == nullptr && tasks_.empty()) return;  // stopping, nothing left
+    ++busy_;
+    if (loop != nullptr) {
+      --loop->helper_room;
+      ++loop->helpers_in;
+      lock.unlock();
+      RunChunks(*loop);
+      lock.lock();
+      if (--loop->helpers_in == 0) done_cv_.notify_all();
+    } else {
+      std::function<void()> task = std::move(tasks_.front());
+      tasks_.pop_front();
+      lock.unlock();
+      task();
+      task = nullptr;  // what it holds is released outside the lock
+      lock.lock();
+    }
+    --busy_;
   }
+}
+
+void ThreadPool::Post(std::function<void()> task) {
+  if (threads_.empty()) {
+    task();
+    return;
+  }
+  {
+    std::lock_guard lock(mu_);
+    tasks_.push_back(std::move(task));
+  }
+  work_cv_.notify_one();
+}
+
+int ThreadPool::idle() const {
+  std::lock_guard lock(mu_);
+  return std::max(0, workers() - busy_ - int(tasks_.size()));
 }
 
 void ThreadPool::Run(std::int64_t n, std::int64_t chunk, int max_threads, Body body, void* context) {

@@ -4,14 +4,20 @@
 // thread per loop cost each CPU frame its ~20 passes' thread starts.
 //
 // The caller of a loop works on it too and never waits for a free worker:
-// when every worker is busy (another session's frame, an encoder's bands)
-// the caller runs the whole loop itself. So loops may run from several
-// threads at once and may nest without deadlock.
+// when every worker is busy (another session's frame, an encode) the caller
+// runs the whole loop itself. So loops may run from several threads at once
+// and may nest without deadlock.
+//
+// Workers also run posted tasks (the frame encoders: service/task_pool.h),
+// but only while no loop has room for them: a loop's caller, a frame in
+// flight, waits on its chunks, while a task waits in a queue anyway.
 #pragma once
 
 #include <condition_variable>
 #include <cstdint>
+#include <deque>
 #include <exception>
+#include <functional>
 #include <list>
 #include <mutex>
 #include <thread>
@@ -41,6 +47,12 @@ class ThreadPool {
   using Body = void (*)(void* context, std::int64_t begin, std::int64_t end);
   void Run(std::int64_t n, std::int64_t chunk, int max_threads, Body body, void* context);
 
+  // Runs `task` on a worker, after the tasks posted before it; with no
+  // workers, on the caller now. `task` must not throw.
+  void Post(std::function<void()> task);
+  // Workers running neither a loop nor a task, less the tasks waiting.
+  int idle() const;
+
  private:
   struct Loop;
   void Work();
@@ -48,10 +60,12 @@ class ThreadPool {
   static void RunChunks(Loop& loop);
   Loop* FindWorkLocked();
 
-  std::mutex mu_;
-  std::condition_variable work_cv_;  // a loop with room for helpers was added, or stopping
+  mutable std::mutex mu_;
+  std::condition_variable work_cv_;  // a loop with room for helpers or a task was added, or stopping
   std::condition_variable done_cv_;  // a helper left a loop
   std::list<Loop*> loops_;           // running loops that take helpers, oldest first
+  std::deque<std::function<void()>> tasks_;  // posted, not started
+  int busy_ = 0;                             // workers inside a loop or a task
   bool stopping_ = false;
   std::vector<std::thread> threads_;
 };

@@ -173,10 +173,11 @@ ServiceCore::ServiceCore(const ServerOptions& options)
     : options_(options),
       authenticator_(options.auth_tokens.empty() ? Authenticator() : Authenticator(options.auth_tokens)),
       volumes_(options.data_roots, options.volume_limits),
-      encoder_("encoder", options.encode_threads > 0 ? options.encode_threads
-                                                      : int(std::max(2u, std::thread::hardware_concurrency()))),
-      loader_("loader", 2),
-      setup_("setup", 2),
+      encoder_("encoder", ThreadPool::Shared(),
+               options.encode_threads > 0 ? options.encode_threads : ThreadPool::Shared().workers()),
+      waiting_(4),
+      loader_("loader", waiting_, 2),
+      setup_("setup", waiting_, 2),
       pixels_(options.max_total_pixels) {
   // Every file is read through cinevol-reader: find it now, not at the first load.
   spdlog::info("reader: {}", reader_cage::ReaderPath().string());
@@ -504,7 +505,7 @@ v1::ServerStatus ServiceCore::Status(const Principal& caller) const {
   status.set_max_sessions(std::uint32_t(options_.max_sessions));
   for (const auto& s : sessions) *status.add_sessions() = s->Status();
   for (v1::VolumeInfo& v : volumes_.List(caller)) *status.add_volumes() = std::move(v);
-  status.set_encode_threads(encoder_.threads());
+  status.set_encode_threads(encoder_.max_running());
   status.set_encode_queue(encoder_.queued());
   return status;
 }

@@ -40,7 +40,7 @@ struct ServerOptions {
   std::vector<std::filesystem::path> data_roots;         // where clients may load volumes from
   std::vector<std::string> volumes;                      // preloaded; empty: phantom:head
   int workers_per_gpu = 4;                               // each its own CUDA stream
-  int encode_threads = 0;                                // 0: one per hardware thread
+  int encode_threads = 0;                                // encodes at once on the compute pool; 0: one per worker
   int max_sessions = 64;
   int max_sessions_per_principal = 16;
   std::uint64_t max_total_pixels = 40'000'000;          // viewport pixels of every session together
@@ -149,7 +149,8 @@ class ServiceCore {
   Backend backend_ = Backend::kCpu;  // resolved: kCpu or kCuda
   Authenticator authenticator_;
   VolumeRegistry volumes_;
-  TaskPool encoder_;
+  TaskPool encoder_;  // on ThreadPool::Shared(), beside the CPU's loops
+  ThreadPool waiting_;  // for loader_ and setup_: their tasks mostly wait, so they keep off the compute pool
   TaskPool loader_;
   TaskPool setup_;
   CallWatch calls_;

@@ -1,4 +1,4 @@
-// TaskPool: a queue and its threads.
+// TaskPool: fair queues over a ThreadPool.
 #include "service/task_pool.h"
 
 #include <spdlog/spdlog.h>
@@ -10,21 +10,15 @@
 
 namespace cinevol::service {
 
-TaskPool::TaskPool(std::string name, int threads) : name_(std::move(name)) {
-  for (int i = 0; i < std::max(threads, 1); ++i) threads_.emplace_back([this] { Work(); });
-}
+TaskPool::TaskPool(std::string name, ThreadPool& pool, int max_running)
+    : name_(std::move(name)), pool_(pool), max_running_(std::max(max_running, 1)) {}
 
 TaskPool::~TaskPool() { Stop(); }
 
 void TaskPool::Stop() {
-  {
-    std::lock_guard lock(mu_);
-    stopping_ = true;
-  }
-  cv_.notify_all();
-  for (std::thread& t : threads_) {
-    if (t.joinable()) t.join();
-  }
+  std::unique_lock lock(mu_);
+  stopping_ = true;
+  done_cv_.wait(lock, [&] { return draining_ == 0; });
 }
 
 void TaskPool::Submit(std::function<void()> task, const std::string& queue) {
@@ -35,8 +29,10 @@ void TaskPool::Submit(std::function<void()> task, const std::string& queue) {
     if (tasks.empty()) turns_.push_back(queue);
     tasks.push_back(std::move(task));
     ++queued_;
+    if (draining_ >= max_running_) return;  // a running drain takes it
+    ++draining_;
   }
-  cv_.notify_one();
+  pool_.Post([this] { Drain(); });
 }
 
 int TaskPool::queued() const {
@@ -44,18 +40,16 @@ int TaskPool::queued() const {
   return queued_;
 }
 
-int TaskPool::idle() const {
-  std::lock_guard lock(mu_);
-  return std::max(0, threads() - running_ - queued_);
-}
-
-void TaskPool::Work() {
+void TaskPool::Drain() {
   for (;;) {
     std::function<void()> task;
     {
-      std::unique_lock lock(mu_);
-      cv_.wait(lock, [&] { return stopping_ || queued_ > 0; });
-      if (queued_ == 0) return;  // stopping, nothing left
+      std::lock_guard lock(mu_);
+      if (queued_ == 0) {
+        --draining_;
+        done_cv_.notify_all();
+        return;
+      }
       // The queue whose turn it is gives its oldest task, then waits behind the others.
       const std::string queue = std::move(turns_.front());
       turns_.pop_front();
@@ -68,15 +62,12 @@ void TaskPool::Work() {
         turns_.push_back(queue);
       }
       --queued_;
-      ++running_;
     }
     try {
       task();
     } catch (const std::exception& e) {  // a task's bug must not take the pool down
       spdlog::error("{} task failed: {}", name_, LogSafe(e.what()));
     }
-    std::lock_guard lock(mu_);
-    --running_;
   }
 }
 

@@ -1,9 +1,11 @@
-// A fixed set of CPU threads running queued tasks, off the gRPC and GPU
-// threads: JPEG/PNG/EXR encoding, volume loading, the setup of calls whose
-// work grows with a volume. Tasks of one queue (a caller, by name) run in
+// TaskPool: named queues of tasks run on a ThreadPool's workers, off the gRPC
+// and GPU threads: the frame encoders on the process's one compute pool
+// (core/thread_pool.h), volume loading and the setup of calls whose work grows
+// with a volume on a pool of their own, as those tasks mostly wait (on a
+// reader child, on a peer). Tasks of one queue (a caller, by name) run in
 // order of submission; the queues take turns, so a caller who queues many
 // slow tasks delays each other caller's next task by at most one of them per
-// thread.
+// running task.
 #pragma once
 
 #include <condition_variable>
@@ -12,41 +14,44 @@
 #include <map>
 #include <mutex>
 #include <string>
-#include <thread>
-#include <vector>
+
+#include "core/thread_pool.h"
 
 namespace cinevol::service {
 
 class TaskPool {
  public:
-  TaskPool(std::string name, int threads);
+  // At most `max_running` of its tasks run at once on `pool`'s workers.
+  TaskPool(std::string name, ThreadPool& pool, int max_running);
   ~TaskPool();  // Stop()
   TaskPool(const TaskPool&) = delete;
   TaskPool& operator=(const TaskPool&) = delete;
 
-  // Runs what is queued, then joins; Submit does nothing afterwards.
+  // Waits until what is queued has run; Submit does nothing afterwards.
   void Stop();
 
   // `task` should not throw (the pool logs and drops what escapes). It joins
   // the back of queue `queue`.
   void Submit(std::function<void()> task, const std::string& queue = {});
-  int threads() const { return static_cast<int>(threads_.size()); }
+  int max_running() const { return max_running_; }
   int queued() const;
-  // Threads with nothing to run: what a task may borrow to split its work.
-  int idle() const;
+  // Workers with nothing to run: what a task may borrow to split its work.
+  int idle() const { return pool_.idle(); }
 
  private:
-  void Work();
+  // Runs tasks, the queues taking turns, until none is queued.
+  void Drain();
 
   std::string name_;
+  ThreadPool& pool_;
+  const int max_running_;
   mutable std::mutex mu_;
-  std::condition_variable cv_;
+  std::condition_variable done_cv_;  // a drain ended
   std::map<std::string, std::deque<std::function<void()>>> queues_;  // none empty
   std::deque<std::string> turns_;  // the queues with tasks, the next to run first
   int queued_ = 0;
-  int running_ = 0;
+  int draining_ = 0;  // Drain()s posted or running
   bool stopping_ = false;
-  std::vector<std::thread> threads_;
 };
 
 }  // namespace cinevol::service

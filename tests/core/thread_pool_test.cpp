@@ -3,6 +3,9 @@
 #include <gtest/gtest.h>
 
 #include <atomic>
+#include <chrono>
+#include <condition_variable>
+#include <mutex>
 #include <set>
 #include <stdexcept>
 #include <thread>
@@ -70,6 +73,37 @@ TEST(ThreadPool, ACallerGetsTheFirstExceptionAfterTheOthersFinish) {
   int after = 0;
   ParallelFor(10, [&](std::int64_t) { ++after; }, 1);
   EXPECT_EQ(after, 10) << "the pool works on";
+}
+
+TEST(ThreadPool, PostedTasksRunOnAWorkerInOrderAndMayRunLoops) {
+  ThreadPool pool(1);
+  const std::thread::id caller = std::this_thread::get_id();
+  std::mutex mu;
+  std::condition_variable cv;
+  std::vector<int> order;
+  std::atomic<std::int64_t> sum{0};
+  for (int i = 0; i < 5; ++i) {
+    pool.Post([&, i] {
+      EXPECT_NE(std::this_thread::get_id(), caller);
+      ParallelFor(100, [&](std::int64_t j) { sum += j; });  // a task's loop: an encode's bands
+      std::lock_guard lock(mu);
+      order.push_back(i);
+      cv.notify_all();
+    });
+  }
+  std::unique_lock lock(mu);
+  ASSERT_TRUE(cv.wait_for(lock, std::chrono::seconds(30), [&] { return order.size() == 5; }));
+  EXPECT_EQ(order, (std::vector<int>{0, 1, 2, 3, 4}));
+  EXPECT_EQ(sum.load(), 5 * 4950);
+}
+
+TEST(ThreadPool, WithoutWorkersATaskRunsOnItsPoster) {
+  ThreadPool pool(0);
+  const std::thread::id caller = std::this_thread::get_id();
+  bool ran = false;
+  pool.Post([&] { ran = std::this_thread::get_id() == caller; });
+  EXPECT_TRUE(ran);
+  EXPECT_EQ(pool.idle(), 0);
 }
 
 }  // namespace

@@ -57,7 +57,9 @@ TEST(CpuMeanFilterLevel, TakesTheLargestChannelDifferenceAsFmaxfDoes) {
     for (int c = 0; c < 4; ++c) {
       const float expected = Component(functor[i], c), got = Component(rows[i], c);
       EXPECT_EQ(std::isnan(got), std::isnan(expected)) << "pixel " << i << " channel " << c;
-      if (!std::isnan(expected)) EXPECT_NEAR(got, expected, 2e-6f * std::fabs(expected) + 1e-12f);
+      if (!std::isnan(expected)) {
+        EXPECT_NEAR(got, expected, 2e-6f * std::fabs(expected) + 1e-12f);
+      }
     }
   }
 }

@@ -6,6 +6,7 @@
 #include <condition_variable>
 #include <mutex>
 #include <string>
+#include <thread>
 #include <vector>
 
 #include "service/task_pool.h"
@@ -16,7 +17,8 @@ namespace {
 using namespace std::chrono_literals;
 
 TEST(TaskPool, QueuesTakeTurns) {
-  TaskPool pool("test", 1);
+  ThreadPool workers(2);
+  TaskPool pool("test", workers, 1);
   std::mutex mu;
   std::condition_variable cv;
   bool started = false, release = false;
@@ -48,19 +50,41 @@ TEST(TaskPool, QueuesTakeTurns) {
     release = true;
   }
   cv.notify_all();
-  pool.Stop();  // runs what is queued, then joins
+  pool.Stop();  // waits for what is queued
   const std::vector<std::string> expected{"alice0", "bob0", "carol0", "alice1", "bob1", "alice2"};
   EXPECT_EQ(order, expected);
   EXPECT_EQ(pool.queued(), 0);
 }
 
 TEST(TaskPool, OneQueueRunsInOrderOfSubmission) {
-  TaskPool pool("test", 1);
+  ThreadPool workers(2);
+  TaskPool pool("test", workers, 1);
   std::vector<int> order;
   for (int i = 0; i < 50; ++i) pool.Submit([&order, i] { order.push_back(i); });
   pool.Stop();
   ASSERT_EQ(order.size(), 50u);
   for (int i = 0; i < 50; ++i) EXPECT_EQ(order[i], i);
+}
+
+TEST(TaskPool, RunsAtMostItsShareOfThePool) {
+  ThreadPool workers(4);
+  TaskPool pool("test", workers, 2);
+  std::mutex mu;
+  int running = 0, most = 0;
+  for (int i = 0; i < 40; ++i) {
+    pool.Submit([&] {
+      {
+        std::lock_guard lock(mu);
+        most = std::max(most, ++running);
+      }
+      std::this_thread::sleep_for(1ms);
+      std::lock_guard lock(mu);
+      --running;
+    });
+  }
+  pool.Stop();
+  EXPECT_LE(most, 2);
+  EXPECT_GE(most, 1);
 }
 
 }  // namespace
