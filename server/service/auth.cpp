@@ -18,7 +18,7 @@
 #include <sstream>
 #include <vector>
 
-#include "service/errors.h"
+#include "runtime/errors.h"
 
 namespace cinevol::service {
 
@@ -185,12 +185,6 @@ bool ReloadAllTokenFiles() {
     }
   }
   return ok;
-}
-
-void RequireOwner(const Principal& caller, const std::string& owner, const std::string& what) {
-  if (caller.name != owner) {
-    throw RpcError(grpc::StatusCode::PERMISSION_DENIED, fmt::format("{} belongs to another user", what));
-  }
 }
 
 }  // namespace cinevol::service

@@ -25,12 +25,10 @@
 #include <memory>
 #include <string>
 
+#include "runtime/principal.h"
+
 namespace cinevol::service {
 
-struct Principal {
-  std::string name;
-  bool is_operator = false;
-};
 
 class Authenticator {
  public:
@@ -62,8 +60,5 @@ class Authenticator {
 // the outcome (never a token) and returns false when some file could not be
 // loaded (its old tokens stay).
 bool ReloadAllTokenFiles();
-
-// Throws RpcError(PERMISSION_DENIED) unless `caller` is `owner`.
-void RequireOwner(const Principal& caller, const std::string& owner, const std::string& what);
 
 }  // namespace cinevol::service

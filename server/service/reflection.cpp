@@ -8,7 +8,7 @@
 #include <set>
 
 #include "grpc/health/v1/health.pb.h"
-#include "service/errors.h"
+#include "runtime/errors.h"
 
 namespace cinevol::service {
 namespace {

@@ -13,7 +13,7 @@
 #include "core/error.h"
 #include "service/call_log.h"
 #include "service/connection_limits.h"
-#include "service/metrics.h"
+#include "runtime/metrics.h"
 
 namespace cinevol::service {
 namespace {

@@ -17,11 +17,11 @@
 #include "encode/hdr_images.h"
 #include "encode/image_codecs.h"
 #include "render/prepared_volume.h"
-#include "service/errors.h"
+#include "runtime/errors.h"
 #include "core/log_safe.h"
 #include "io/label_volume.h"
 #include "io/reader_cage.h"
-#include "service/metrics.h"
+#include "runtime/metrics.h"
 
 namespace cinevol::service {
 namespace {

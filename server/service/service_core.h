@@ -22,12 +22,12 @@
 #include "service/auth.h"
 #include "service/call_watch.h"
 #include "service/connection_limits.h"
-#include "service/scheduler.h"
-#include "service/session.h"
+#include "runtime/scheduler.h"
+#include "runtime/session.h"
 #include "scene/session_state.h"
-#include "service/task_pool.h"
+#include "runtime/task_pool.h"
 #include "service/tls.h"
-#include "service/volume_registry.h"
+#include "runtime/volume_registry.h"
 
 namespace cinevol::service {
 

@@ -9,9 +9,9 @@
 
 #include "io/label_volume.h"
 #include "io/volume_loader.h"
-#include "service/errors.h"
+#include "runtime/errors.h"
 #include "core/log_safe.h"
-#include "service/metrics.h"
+#include "runtime/metrics.h"
 #include "service/session_stream.h"
 
 namespace cinevol::service {

@@ -3,8 +3,8 @@
 
 #include <fmt/format.h>
 
-#include "service/errors.h"
-#include "service/metrics.h"
+#include "runtime/errors.h"
+#include "runtime/metrics.h"
 #include "service/service_core.h"
 
 namespace cinevol::service {

@@ -16,8 +16,8 @@
 #include "cinevol/v1/service.grpc.pb.h"
 #include "service/auth.h"
 #include "service/call_watch.h"
-#include "service/session.h"
-#include "service/token_bucket.h"
+#include "runtime/session.h"
+#include "runtime/token_bucket.h"
 
 namespace cinevol::service {
 

@@ -17,7 +17,7 @@
 #include "io/phantom.h"
 #include "scene/scene_file.h"
 #include "scene/session_state.h"
-#include "service/volume_registry.h"
+#include "runtime/volume_registry.h"
 
 namespace cv = cinevol;
 namespace v1 = cinevol::v1;

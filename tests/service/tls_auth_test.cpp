@@ -24,7 +24,7 @@
 #include "grpc/reflection/v1alpha/reflection.grpc.pb.h"
 #include "server_process.h"
 #include "service/auth.h"
-#include "service/errors.h"
+#include "runtime/errors.h"
 #include "service/tls.h"
 #include "service_test_support.h"
 #include "support/test_paths.h"

@@ -24,7 +24,7 @@
 #include "core/labels.h"
 #include "core/volume.h"
 #include "io/volume_loader.h"
-#include "service/auth.h"
+#include "runtime/principal.h"
 
 namespace cinevol::service {
 

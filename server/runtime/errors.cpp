@@ -1,5 +1,5 @@
 // Exceptions to gRPC status codes, in one place.
-#include "service/errors.h"
+#include "runtime/errors.h"
 
 #include <spdlog/spdlog.h>
 
@@ -7,7 +7,7 @@
 
 #include "core/error.h"
 #include "core/log_safe.h"
-#include "service/metrics.h"
+#include "runtime/metrics.h"
 
 namespace cinevol::service {
 

@@ -1,5 +1,5 @@
 // Scheduler: a fair ready queue over device-bound workers.
-#include "service/scheduler.h"
+#include "runtime/scheduler.h"
 
 #include <spdlog/spdlog.h>
 

@@ -1,5 +1,5 @@
 // Metrics: the families, their series, and the small updates.
-#include "service/metrics.h"
+#include "runtime/metrics.h"
 
 #include <fmt/format.h>
 

@@ -1,5 +1,5 @@
 // TaskPool: fair queues over a ThreadPool.
-#include "service/task_pool.h"
+#include "runtime/task_pool.h"
 
 #include <spdlog/spdlog.h>
 

@@ -1,6 +1,6 @@
 // Session: event merging, the render gate, and the frame's way from the
 // scheduler through the encoder to the stream.
-#include "service/session.h"
+#include "runtime/session.h"
 
 #include <fmt/format.h>
 #include <spdlog/spdlog.h>
@@ -8,9 +8,9 @@
 #include <utility>
 
 #include "io/label_volume.h"
-#include "service/errors.h"
+#include "runtime/errors.h"
 #include "core/log_safe.h"
-#include "service/metrics.h"
+#include "runtime/metrics.h"
 
 namespace cinevol::service {
 namespace {

@@ -1,9 +1,9 @@
-#include "service/frame_encoding.h"
+#include "runtime/frame_encoding.h"
 
 #include <algorithm>
 
 #include "encode/image_codecs.h"
-#include "service/metrics.h"
+#include "runtime/metrics.h"
 
 namespace cinevol::service {
 namespace {

@@ -22,12 +22,12 @@
 
 #include "cinevol/v1/service.pb.h"
 #include "pipeline/frame_pipeline.h"
-#include "service/scheduler.h"
+#include "runtime/scheduler.h"
 #include "scene/session_state.h"
-#include "service/frame_encoding.h"
-#include "service/task_pool.h"
-#include "service/token_bucket.h"
-#include "service/volume_registry.h"
+#include "runtime/frame_encoding.h"
+#include "runtime/task_pool.h"
+#include "runtime/token_bucket.h"
+#include "runtime/volume_registry.h"
 
 namespace cinevol::service {
 

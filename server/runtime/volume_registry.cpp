@@ -1,5 +1,5 @@
 // VolumeRegistry: ids, leases and the data-root policy.
-#include "service/volume_registry.h"
+#include "runtime/volume_registry.h"
 
 #include <fmt/format.h>
 #include <spdlog/spdlog.h>
@@ -15,7 +15,7 @@
 #include "io/volume_kind.h"
 #include "io/volume_loader.h"
 #include "render/prepared_volume.h"
-#include "service/errors.h"
+#include "runtime/errors.h"
 #include "core/log_safe.h"
 
 namespace fs = std::filesystem;

@@ -9,7 +9,7 @@
 #include <thread>
 #include <vector>
 
-#include "service/task_pool.h"
+#include "runtime/task_pool.h"
 
 namespace cinevol::service {
 namespace {
