@@ -9,6 +9,7 @@
 
 #include <fmt/format.h>
 
+#include "core/blocks.h"
 #include "core/error.h"
 #include "core/parallel_for.h"
 
@@ -139,22 +140,16 @@ MemoryBlock ConvertBlock(MemoryBlock block, std::size_t n, F f) {
 }
 
 template <class V>
-std::vector<Volume::ValueRange> BlockRanges(const V* values, float offset, Vec3i dims, Vec3i blocks) {
-  std::vector<Volume::ValueRange> ranges(std::size_t(blocks.x) * blocks.y * blocks.z,
-                                         {std::numeric_limits<float>::max(), std::numeric_limits<float>::lowest()});
-  const int b = Volume::kBlockSize;
-  ParallelFor(blocks.z, [&](std::int64_t bz) {  // one slab of blocks per task
-    for (int z = int(bz) * b; z < std::min(dims.z, int(bz + 1) * b); ++z) {
-      for (int y = 0; y < dims.y; ++y) {
-        const V* row = values + (std::size_t(z) * dims.y + y) * dims.x;
-        Volume::ValueRange* out = ranges.data() + (std::size_t(bz) * blocks.y + y / b) * blocks.x;
-        for (int x = 0; x < dims.x; ++x) {
-          const float v = float(row[x]) + offset;
-          out[x / b].lo = std::min(out[x / b].lo, v);
-          out[x / b].hi = std::max(out[x / b].hi, v);
-        }
-      }
-    }
+std::vector<Volume::ValueRange> BlockRanges(const V* values, float offset, Vec3i dims) {
+  const Vec3i size{Volume::kBlockSize, Volume::kBlockSize, Volume::kBlockSize};
+  std::vector<Volume::ValueRange> ranges(BlockTotal(BlockCounts(dims, size)));
+  ForEachBlock(dims, size, 0, [&](std::size_t i, Vec3i lo, Vec3i hi) {
+    V mn = values[(std::size_t(lo.z) * dims.y + lo.y) * dims.x + lo.x], mx = mn;
+    ForEachVoxel(values, dims, lo, hi, [&](V v) {
+      mn = std::min(mn, v);
+      mx = std::max(mx, v);
+    });
+    ranges[i] = {float(mn) + offset, float(mx) + offset};
   });
   return ranges;
 }
@@ -196,10 +191,10 @@ Volume::Volume(Vec3i dims, Vec3f spacing_mm, VoxelType type, MemoryBlock voxels,
 void Volume::SummariseValues() {
   if (storage_ == VoxelStorage::kUInt16) {
     histogram_ = ValueHistogram::Of(u16(), stored_offset_, min_value_, max_value_);
-    block_ranges_ = BlockRanges(u16().data(), stored_offset_, dims_, block_counts());
+    block_ranges_ = BlockRanges(u16().data(), stored_offset_, dims_);
   } else {
     histogram_ = ValueHistogram::Of(f32(), 0.0f, min_value_, max_value_);
-    block_ranges_ = BlockRanges(f32().data(), 0.0f, dims_, block_counts());
+    block_ranges_ = BlockRanges(f32().data(), 0.0f, dims_);
   }
 }
 
@@ -327,10 +322,7 @@ std::uint64_t Volume::BytesToLoad(VoxelType type, std::uint64_t voxels) {
   return voxels * block + widening + blocks * sizeof(ValueRange);
 }
 
-Vec3i Volume::block_counts() const {
-  return {(dims_.x + kBlockSize - 1) / kBlockSize, (dims_.y + kBlockSize - 1) / kBlockSize,
-          (dims_.z + kBlockSize - 1) / kBlockSize};
-}
+Vec3i Volume::block_counts() const { return BlockCounts(dims_, {kBlockSize, kBlockSize, kBlockSize}); }
 
 std::size_t Volume::voxel_count() const {
   return std::size_t(dims_.x) * std::size_t(dims_.y) * std::size_t(dims_.z);

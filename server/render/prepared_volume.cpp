@@ -7,58 +7,22 @@
 #include <stdexcept>
 #include <type_traits>
 
+#include "core/blocks.h"
 #include "core/parallel_for.h"
 
 namespace cinevol {
 
-namespace {
-
-Vec3i BrickCounts(Vec3i dims, Vec3i brick_size) {
-  Vec3i bricks;
-  for (int a = 0; a < 3; ++a) bricks[a] = (dims[a] + brick_size[a] - 1) / brick_size[a];
-  return bricks;
-}
-
-// Calls f(brick index, lo, hi) for every brick, with the voxels [lo, hi] that
-// lookups inside it read (`margin` beyond its own), one slab of bricks (fixed
-// z) per task: every brick is visited by one thread.
-template <class F>
-void ForEachBrick(Vec3i dims, Vec3i brick_size, int margin, F f) {
-  const Vec3i bricks = BrickCounts(dims, brick_size);
-  ParallelFor(bricks.z, [&](std::int64_t bz) {
-    for (int by = 0; by < bricks.y; ++by) {
-      for (int bx = 0; bx < bricks.x; ++bx) {
-        const Vec3i b{bx, by, int(bz)};
-        Vec3i lo, hi;
-        for (int a = 0; a < 3; ++a) {
-          lo[a] = std::max(0, b[a] * brick_size[a] - margin);
-          hi[a] = std::min(dims[a] - 1, (b[a] + 1) * brick_size[a] + margin - 1);
-        }
-        f((std::size_t(bz) * bricks.y + by) * bricks.x + bx, lo, hi);
-      }
-    }
-  });
-}
-
-}  // namespace
-
 BrickRanges ComputeBrickRanges(const std::uint16_t* voxels, Vec3i dims, Vec3i brick_size, int margin) {
   BrickRanges r;
-  r.bricks = BrickCounts(dims, brick_size);
-  const std::size_t count = std::size_t(r.bricks.x) * r.bricks.y * r.bricks.z;
-  r.min.assign(count, 0xffff);
-  r.max.assign(count, 0);
-  ForEachBrick(dims, brick_size, margin, [&](std::size_t i, Vec3i lo, Vec3i hi) {
+  r.bricks = BlockCounts(dims, brick_size);
+  r.min.assign(BlockTotal(r.bricks), 0xffff);
+  r.max.assign(BlockTotal(r.bricks), 0);
+  ForEachBlock(dims, brick_size, margin, [&](std::size_t i, Vec3i lo, Vec3i hi) {
     std::uint16_t mn = 0xffff, mx = 0;
-    for (int z = lo.z; z <= hi.z; ++z) {
-      for (int y = lo.y; y <= hi.y; ++y) {
-        const std::uint16_t* row = voxels + (std::size_t(z) * dims.y + y) * dims.x;
-        for (int x = lo.x; x <= hi.x; ++x) {
-          mn = std::min(mn, row[x]);
-          mx = std::max(mx, row[x]);
-        }
-      }
-    }
+    ForEachVoxel(voxels, dims, lo, hi, [&](std::uint16_t v) {
+      mn = std::min(mn, v);
+      mx = std::max(mx, v);
+    });
     r.min[i] = mn;
     r.max[i] = mx;
   });
@@ -95,19 +59,13 @@ std::size_t PreparedVolume::host_bytes() const {
 }
 
 BrickLabels ComputeBrickLabels(const LabelVolume& labels, Vec3i brick_size) {
-  const Vec3i dims = labels.dims, bricks = BrickCounts(dims, brick_size);
   // Per brick its distinct labels, found in parallel, then packed.
-  std::vector<std::vector<std::uint16_t>> found(std::size_t(bricks.x) * bricks.y * bricks.z);
-  ForEachBrick(dims, brick_size, 1, [&](std::size_t i, Vec3i lo, Vec3i hi) {
+  std::vector<std::vector<std::uint16_t>> found(BlockTotal(BlockCounts(labels.dims, brick_size)));
+  ForEachBlock(labels.dims, brick_size, 1, [&](std::size_t i, Vec3i lo, Vec3i hi) {
     std::vector<std::uint16_t>& seen = found[i];
-    for (int z = lo.z; z <= hi.z; ++z) {
-      for (int y = lo.y; y <= hi.y; ++y) {
-        const std::uint16_t* row = labels.labels.data() + (std::size_t(z) * dims.y + y) * dims.x;
-        for (int x = lo.x; x <= hi.x; ++x) {
-          if (std::find(seen.begin(), seen.end(), row[x]) == seen.end()) seen.push_back(row[x]);
-        }
-      }
-    }
+    ForEachVoxel(labels.labels.data(), labels.dims, lo, hi, [&](std::uint16_t v) {
+      if (std::find(seen.begin(), seen.end(), v) == seen.end()) seen.push_back(v);
+    });
   });
   BrickLabels out;
   out.offsets.reserve(found.size() + 1);

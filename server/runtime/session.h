@@ -82,11 +82,19 @@ struct SessionContext {
   std::function<void(const std::string& session_id)> on_end;  // the registry forgets it
 };
 
+// The session's volume prepared on `scheduler`'s device (its brick ranges,
+// a float volume quantised, the voxels uploaded to a GPU), as its renderer
+// will ask for it: shared with every session of that volume there, built by
+// the first. Slow for a large volume, so CreateSession calls it off the
+// frame and the gRPC threads; throws ResourceExhausted when it does not fit.
+std::shared_ptr<const VolumeCopy> PrepareOnDevice(const VolumeLease& volume, const Scheduler& scheduler);
+
 class Session final : public Job, public std::enable_shared_from_this<Session> {
  public:
   // `state`: InitialState's, its stream settings all set (ToStreamSettings).
+  // `prepared`: PrepareOnDevice's, held until the first frame's renderer takes it.
   Session(std::string id, std::string owner, std::shared_ptr<VolumeLease> volume, v1::SessionState state,
-          SessionContext context);
+          SessionContext context, std::shared_ptr<const VolumeCopy> prepared = nullptr);
   ~Session() override;
 
   const std::string& id() const { return id_; }
@@ -195,6 +203,7 @@ class Session final : public Job, public std::enable_shared_from_this<Session> {
   std::string end_reason_;
 
   std::unique_ptr<FramePipeline> pipeline_;  // touched only inside Step
+  std::shared_ptr<const VolumeCopy> prepared_;  // until the first pipeline holds it; touched only inside Step
 };
 
 }  // namespace cinevol::service

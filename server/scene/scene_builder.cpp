@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <cmath>
 
+#include "core/blocks.h"
 #include "encode/image_codecs.h"
 #include "scene/presets.h"
 #include "io/reader_cage.h"
@@ -61,7 +62,7 @@ bool CutAway(const ClipRegion& clip, Vec3f lo, Vec3f hi) {
 }  // namespace
 
 std::vector<bool> BlocksWithVisibleLabels(const Volume& volume, const LabelVolume& labels, const LabelSetup& setup) {
-  const Vec3i blocks = volume.block_counts(), dims = volume.dims();
+  const Vec3i blocks = volume.block_counts();
   // By stored value: labels, shells and the table (core/labels.h).
   std::vector<bool> visible(std::size_t(labels.value_count()));
   bool all_visible = true;
@@ -69,20 +70,14 @@ std::vector<bool> BlocksWithVisibleLabels(const Volume& volume, const LabelVolum
     visible[v] = !setup.StyleOfValue(labels, int(v)).hidden();
     all_visible = all_visible && visible[v];
   }
-  const std::size_t block_count = std::size_t(blocks.x) * blocks.y * blocks.z;
+  const std::size_t block_count = BlockTotal(blocks);
   if (all_visible) return std::vector<bool>(block_count, true);  // no need to read every voxel
-  std::vector<bool> shown(block_count, false);
-  for (int z = 0; z < dims.z; ++z) {
-    for (int y = 0; y < dims.y; ++y) {
-      const std::size_t row = (std::size_t(z) * dims.y + y) * dims.x;
-      const std::size_t block_row =
-          (std::size_t(z / Volume::kBlockSize) * blocks.y + y / Volume::kBlockSize) * blocks.x;
-      for (int x = 0; x < dims.x; ++x) {
-        if (visible[labels.labels[row + x]]) shown[block_row + x / Volume::kBlockSize] = true;
-      }
-    }
-  }
-  return shown;
+  std::vector<std::uint8_t> shown(block_count, 0);  // bytes: blocks are written from several threads
+  const Vec3i size{Volume::kBlockSize, Volume::kBlockSize, Volume::kBlockSize};
+  ForEachBlock(volume.dims(), size, 0, [&](std::size_t i, Vec3i lo, Vec3i hi) {
+    ForEachVoxel(labels.labels.data(), volume.dims(), lo, hi, [&](std::uint16_t v) { shown[i] |= visible[v]; });
+  });
+  return {shown.begin(), shown.end()};
 }
 
 std::vector<Vec3f> VisibleCorners(const Volume& volume, const TransferFunction& tf, const InView& in_view) {

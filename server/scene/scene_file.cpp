@@ -15,6 +15,7 @@
 #include "core/labels.h"
 #include "io/phantom.h"
 #include "scene/presets.h"
+#include "scene/scene_fields.h"
 
 namespace fs = std::filesystem;
 
@@ -33,8 +34,10 @@ class Problems {
   void InRange(const std::string& field, float v, float lo, float hi) {
     if (!std::isfinite(v) || v < lo || v > hi) Add(field, fmt::format("{:g} is outside [{:g}, {:g}]", v, lo, hi));
   }
-  void NonNegative(const std::string& field, float v) {
-    if (!std::isfinite(v) || v < 0) Add(field, fmt::format("{} must be a finite number >= 0", v));
+  // The fields of `message` in `fields` (scene_fields.h), named `prefix` + name.
+  template <class Message>
+  void Numbers(const Message& message, std::span<const NumberField<Message>> fields, const std::string& prefix) {
+    CheckRanges(message, fields, prefix, list_);
   }
   void Vec(const std::string& field, const v1::Vec3& v) {
     InRange(field + ".x", v.x(), -kMaxSceneMm, kMaxSceneMm);
@@ -144,11 +147,7 @@ void ValidateTransferFunction(const v1::TransferFunction& tf, const std::string&
     p.InRange(at + ".roughness", pt.roughness(), 0, 1);
     p.Color(at + ".emission", pt.emission(), kMaxRadiance);
   }
-  p.InRange(f + ".densityScale", tf.density_scale(), 0, 1e6f);
-  p.NonNegative(f + ".gradientFactor", tf.gradient_factor());
-  if (!(std::abs(tf.phase_g()) < 1.0f)) {
-    p.Add(f + ".phaseG", fmt::format("{} is outside (-1, 1)", tf.phase_g()));
-  }
+  p.Numbers(tf, TransferFunctionNumbers(), f + ".");
 }
 
 void ValidateLabels(const v1::Labels& labels, Problems& p) {
@@ -189,10 +188,7 @@ void ValidateCamera(const v1::Camera& c, Problems& p) {
       }
     }
   }
-  p.InRange("camera.fovYDeg", c.fov_y_deg(), 1e-3f, 170.0f);
-  p.InRange("camera.apertureMm", c.aperture_mm(), 0, kMaxSceneMm);
-  p.InRange("camera.focalDistanceMm", c.focal_distance_mm(), 0, kMaxSceneMm);
-  p.InRange("camera.exposure", c.exposure(), -20, 20);
+  p.Numbers(c, CameraNumbers(), "camera.");
 }
 
 // Positions within this of the volume (mm) are all any scan needs.
@@ -277,13 +273,7 @@ void ValidateLight(const v1::Light& l, const std::string& at, bool& seen_environ
 }
 
 void ValidateRender(const v1::RenderSettings& r, Problems& p) {
-  auto in = [&](const char* field, std::uint32_t v, std::uint32_t lo, std::uint32_t hi) {
-    if (v < lo || v > hi) p.Add(fmt::format("render.{}", field), fmt::format("{} is outside [{}, {}]", v, lo, hi));
-  };
-  in("width", r.width(), 1, 8192);
-  in("height", r.height(), 1, 8192);
-  in("spp", r.spp(), 1, 65536);
-  in("maxBounces", r.max_bounces(), 0, 256);
+  p.Numbers(r, RenderNumbers(), "render.");
   if (!v1::Reconstruction_IsValid(r.reconstruction())) {
     p.Add("render.reconstruction", fmt::format("unknown value {}", int(r.reconstruction())));
   }
@@ -310,24 +300,19 @@ void ResolvePaths(v1::Scene& scene, const fs::path& base_dir) {
 
 void ApplyDefaults(v1::Scene& scene, unsigned parts) {
   if (parts & kTransferFunctionChanged) {
-    auto* tf = scene.mutable_transfer_function();
-    // A preset brings its own density and gradient factor.
-    if (!tf->points().empty() && !tf->has_density_scale()) tf->set_density_scale(1.0f);
-    if (!tf->points().empty() && !tf->has_gradient_factor()) tf->set_gradient_factor(1.0f);
-    if (!tf->has_phase_g()) tf->set_phase_g(0.0f);
+    v1::TransferFunction& tf = *scene.mutable_transfer_function();
+    if (tf.points().empty()) {
+      FillDefaults(tf, TransferFunctionNumbers(), {"densityScale", "gradientFactor"});  // a preset brings its own
+    } else {
+      FillDefaults(tf, TransferFunctionNumbers());
+    }
   }
   if (parts & kCameraChanged) {
-    auto* camera = scene.mutable_camera();
-    if (!camera->has_fov_y_deg()) camera->set_fov_y_deg(30.0f);
-    if (camera->view() == v1::NAMED_VIEW_UNSPECIFIED && !camera->has_eye()) camera->set_view(v1::ANTERIOR);
+    v1::Camera& camera = *scene.mutable_camera();
+    FillDefaults(camera, CameraNumbers());
+    if (camera.view() == v1::NAMED_VIEW_UNSPECIFIED && !camera.has_eye()) camera.set_view(v1::ANTERIOR);
   }
-  if (parts & (kCameraChanged | kSamplingChanged)) {
-    auto* render = scene.mutable_render();
-    if (!render->has_width()) render->set_width(640);
-    if (!render->has_height()) render->set_height(480);
-    if (!render->has_spp()) render->set_spp(2);
-    if (!render->has_max_bounces()) render->set_max_bounces(4);
-  }
+  if (parts & (kCameraChanged | kSamplingChanged)) FillDefaults(*scene.mutable_render(), RenderNumbers());
 }
 
 namespace {

@@ -246,11 +246,11 @@ unsigned ApplyEvent(v1::SessionState& state, const v1::SessionEvent& event, cons
   unsigned changes = 0;
   switch (event.kind_case()) {
     case v1::SessionEvent::kPause:
-      changes = state.paused() ? 0 : kPauseChanged;
+      changes = state.paused() ? 0u : unsigned(kPauseChanged);
       state.set_paused(true);
       break;
     case v1::SessionEvent::kResume:
-      changes = state.paused() ? kPauseChanged : 0;
+      changes = state.paused() ? unsigned(kPauseChanged) : 0u;
       state.set_paused(false);
       break;
     case v1::SessionEvent::kStream:

@@ -90,7 +90,8 @@ void AddOptions(CLI::App& app, ServerOptions& o, std::string& backend) {
   app.add_option("--workers-per-gpu", o.workers_per_gpu, "Render threads per GPU, each with its own CUDA stream")
       ->check(CLI::Range(1, 64))
       ->capture_default_str();
-  app.add_option("--encode-threads", o.encode_threads, "frames encoded at once, on the compute threads (0: one per thread)")
+  app.add_option("--encode-threads", o.encode_threads,
+                 "frames encoded at once, on the compute threads (0: one per thread)")
       ->check(CLI::Range(0, 256))
       ->capture_default_str();
   app.add_option("--detached-session-seconds", o.detached_session_seconds,

@@ -293,6 +293,10 @@ v1::CreateSessionResponse ServiceCore::CreateSession(const v1::CreateSessionRequ
   AddResolvedCamera(answered, *volume->volume(), volume->labels().get());
   require_caller();
   Scheduler& scheduler = LeastLoaded();
+  // The volume reaches the device here, not inside the first frame on a
+  // worker that other sessions share.
+  std::shared_ptr<const VolumeCopy> prepared = PrepareOnDevice(*volume, scheduler);
+  require_caller();
   SessionContext context{&scheduler, &encoder_, backend_, &options_.limits, ResolveMap(), &pixels_,
                          [this](const std::string& id) { Forget(id); }};
   std::shared_ptr<Session> session;
@@ -301,7 +305,8 @@ v1::CreateSessionResponse ServiceCore::CreateSession(const v1::CreateSessionRequ
     RequireServing();  // Drain() raises the flag, then ends what it finds here under mu_
     RequireRoomLocked(caller);
     const std::string id = RandomSessionId();
-    session = std::make_shared<Session>(id, caller.name, std::move(volume), state, std::move(context));
+    session = std::make_shared<Session>(id, caller.name, std::move(volume), state, std::move(context),
+                                        std::move(prepared));
     sessions_[id] = session;
   }
   spdlog::info("session {}: created for {} on {}, volume {}, {}x{}", session->id(), LogSafe(caller.name),

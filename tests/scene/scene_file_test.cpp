@@ -12,6 +12,7 @@
 
 #include "core/error.h"
 #include "scene/presets.h"
+#include "scene/scene_fields.h"
 #include "support/test_paths.h"
 
 namespace cinevol {
@@ -119,8 +120,10 @@ INSTANTIATE_TEST_SUITE_P(
     SceneFile, ValidationRule,
     ::testing::Values(
         Rule{"NaNEye", [](v1::Scene& s) { s.mutable_camera()->mutable_eye()->set_x(NAN); }, "camera.eye.x"},
-        Rule{"InfTarget", [](v1::Scene& s) { s.mutable_camera()->mutable_target()->set_z(INFINITY); }, "camera.target.z"},
-        Rule{"EyeEqualsTarget", [](v1::Scene& s) { *s.mutable_camera()->mutable_target() = s.camera().eye(); }, "camera.target"},
+        Rule{"InfTarget", [](v1::Scene& s) { s.mutable_camera()->mutable_target()->set_z(INFINITY); },
+             "camera.target.z"},
+        Rule{"EyeEqualsTarget", [](v1::Scene& s) { *s.mutable_camera()->mutable_target() = s.camera().eye(); },
+             "camera.target"},
         Rule{"ZeroUp", [](v1::Scene& s) { s.mutable_camera()->mutable_up()->Clear(); }, "camera.up"},
         Rule{"UpAlongView", [](v1::Scene& s) {
                auto* c = s.mutable_camera();
@@ -133,48 +136,68 @@ INSTANTIATE_TEST_SUITE_P(
         Rule{"ZeroAreaLight", [](v1::Scene& s) { *Area(s)->mutable_edge_v() = Area(s)->edge_u(); }, "lights[0].area"},
         Rule{"NegativeLightIntensity", [](v1::Scene& s) { Area(s)->set_intensity(-2); }, "lights[0].area.intensity"},
         Rule{"NegativeLightColor", [](v1::Scene& s) { Area(s)->mutable_color()->set_g(-1); }, "lights[0].area.color.g"},
-        Rule{"ZeroDirection", [](v1::Scene& s) { s.add_lights()->mutable_directional(); }, "lights[2].directional.direction"},
+        Rule{"ZeroDirection", [](v1::Scene& s) { s.add_lights()->mutable_directional(); },
+             "lights[2].directional.direction"},
         Rule{"TwoEnvironments", [](v1::Scene& s) { *s.add_lights() = s.lights(1); }, "lights[2].environment"},
         Rule{"LightWithoutKind", [](v1::Scene& s) { s.add_lights(); }, "lights[2]"},
         Rule{"UnsortedPoints", [](v1::Scene& s) { Point(s, 2)->set_value(-200); }, "transferFunction.points[2].value"},
-        Rule{"DuplicatePointValue", [](v1::Scene& s) { Point(s, 3)->set_value(Point(s, 2)->value()); }, "transferFunction.points[3].value"},
-        Rule{"OpacityAboveOne", [](v1::Scene& s) { Point(s, 1)->set_opacity(1.5f); }, "transferFunction.points[1].opacity"},
-        Rule{"NegativeDiffuse", [](v1::Scene& s) { Point(s, 0)->mutable_diffuse()->set_r(-0.1f); }, "transferFunction.points[0].diffuse.r"},
-        Rule{"RoughnessNaN", [](v1::Scene& s) { Point(s, 0)->set_roughness(NAN); }, "transferFunction.points[0].roughness"},
-        Rule{"NegativeEmission", [](v1::Scene& s) { Point(s, 4)->mutable_emission()->set_b(-1); }, "transferFunction.points[4].emission.b"},
+        Rule{"DuplicatePointValue", [](v1::Scene& s) { Point(s, 3)->set_value(Point(s, 2)->value()); },
+             "transferFunction.points[3].value"},
+        Rule{"OpacityAboveOne", [](v1::Scene& s) { Point(s, 1)->set_opacity(1.5f); },
+             "transferFunction.points[1].opacity"},
+        Rule{"NegativeDiffuse", [](v1::Scene& s) { Point(s, 0)->mutable_diffuse()->set_r(-0.1f); },
+             "transferFunction.points[0].diffuse.r"},
+        Rule{"RoughnessNaN", [](v1::Scene& s) { Point(s, 0)->set_roughness(NAN); },
+             "transferFunction.points[0].roughness"},
+        Rule{"NegativeEmission", [](v1::Scene& s) { Point(s, 4)->mutable_emission()->set_b(-1); },
+             "transferFunction.points[4].emission.b"},
         Rule{"UnknownPreset", [](v1::Scene& s) {
                s.mutable_transfer_function()->clear_points();
                s.mutable_transfer_function()->set_preset("ct-teapot");
              }, "transferFunction.preset"},
-        Rule{"NegativeDensity", [](v1::Scene& s) { s.mutable_transfer_function()->set_density_scale(-1); }, "transferFunction.densityScale"},
-        Rule{"NegativeGradientFactor", [](v1::Scene& s) { s.mutable_transfer_function()->set_gradient_factor(-1); }, "transferFunction.gradientFactor"},
-        Rule{"PhaseGOne", [](v1::Scene& s) { s.mutable_transfer_function()->set_phase_g(1); }, "transferFunction.phaseG"},
+        Rule{"NegativeDensity", [](v1::Scene& s) { s.mutable_transfer_function()->set_density_scale(-1); },
+             "transferFunction.densityScale"},
+        Rule{"NegativeGradientFactor", [](v1::Scene& s) { s.mutable_transfer_function()->set_gradient_factor(-1); },
+             "transferFunction.gradientFactor"},
+        Rule{"PhaseGOne", [](v1::Scene& s) { s.mutable_transfer_function()->set_phase_g(1); },
+             "transferFunction.phaseG"},
         Rule{"ZeroWidth", [](v1::Scene& s) { s.mutable_render()->set_width(0); }, "render.width"},
         Rule{"HugeHeight", [](v1::Scene& s) { s.mutable_render()->set_height(100000); }, "render.height"},
         Rule{"ZeroSpp", [](v1::Scene& s) { s.mutable_render()->set_spp(0); }, "render.spp"},
         Rule{"TooManyBounces", [](v1::Scene& s) { s.mutable_render()->set_max_bounces(100000); }, "render.maxBounces"},
         Rule{"NoVolume", [](v1::Scene& s) { s.clear_volume(); }, "volume"},
-        Rule{"NegativePhantomSize", [](v1::Scene& s) { s.mutable_volume()->mutable_phantom()->set_spacing(-1); }, "volume.phantom"},
-        Rule{"ZeroCropSize", [](v1::Scene& s) { s.mutable_clipping()->mutable_crop_box()->mutable_size()->set_x(1); }, "clipping.cropBox.size.y"},
-        Rule{"NaNCropCenter", [](v1::Scene& s) { s.mutable_clipping()->mutable_crop_box()->mutable_center()->set_z(NAN); }, "clipping.cropBox.center.z"},
+        Rule{"NegativePhantomSize", [](v1::Scene& s) { s.mutable_volume()->mutable_phantom()->set_spacing(-1); },
+             "volume.phantom"},
+        Rule{"ZeroCropSize", [](v1::Scene& s) { s.mutable_clipping()->mutable_crop_box()->mutable_size()->set_x(1); },
+             "clipping.cropBox.size.y"},
+        Rule{"NaNCropCenter",
+             [](v1::Scene& s) { s.mutable_clipping()->mutable_crop_box()->mutable_center()->set_z(NAN); },
+             "clipping.cropBox.center.z"},
         Rule{"ParallelCropAxes", [](v1::Scene& s) {
                auto* b = s.mutable_clipping()->mutable_crop_box();
                b->mutable_size()->set_x(1), b->mutable_size()->set_y(1), b->mutable_size()->set_z(1);
                b->mutable_axis_x()->set_x(1), b->mutable_axis_y()->set_x(2);
              }, "clipping.cropBox"},
         Rule{"ZeroPlaneNormal", [](v1::Scene& s) { s.mutable_clipping()->add_planes(); }, "clipping.planes[0].normal"},
-        Rule{"TinyPlaneNormal", [](v1::Scene& s) { s.mutable_clipping()->add_planes()->mutable_normal()->set_y(1e-30f); }, "clipping.planes[0].normal"},
+        Rule{"TinyPlaneNormal",
+             [](v1::Scene& s) { s.mutable_clipping()->add_planes()->mutable_normal()->set_y(1e-30f); },
+             "clipping.planes[0].normal"},
         Rule{"SevenPlanes", [](v1::Scene& s) {
                for (int i = 0; i < 7; ++i) s.mutable_clipping()->add_planes()->mutable_normal()->set_z(1);
              }, "clipping.planes"},
-        Rule{"UnknownReconstruction", [](v1::Scene& s) { s.mutable_render()->set_reconstruction(v1::Reconstruction(9)); }, "render.reconstruction"},
-        Rule{"LabelOutOfRange", [](v1::Scene& s) { s.mutable_labels()->add_styles()->set_value(70000); }, "labels.styles[0].value"},
+        Rule{"UnknownReconstruction",
+             [](v1::Scene& s) { s.mutable_render()->set_reconstruction(v1::Reconstruction(9)); },
+             "render.reconstruction"},
+        Rule{"LabelOutOfRange", [](v1::Scene& s) { s.mutable_labels()->add_styles()->set_value(70000); },
+             "labels.styles[0].value"},
         Rule{"LabelStyledTwice", [](v1::Scene& s) {
                s.mutable_labels()->add_styles()->set_value(5);
                s.mutable_labels()->add_styles()->set_value(5);
              }, "labels.styles[1].value"},
-        Rule{"LabelOpacityScaleNegative", [](v1::Scene& s) { s.mutable_labels()->add_styles()->set_opacity_scale(-1); }, "labels.styles[0].opacityScale"},
-        Rule{"LabelColourOver1", [](v1::Scene& s) { s.mutable_labels()->add_styles()->mutable_color()->set_g(2); }, "labels.styles[0].color"},
+        Rule{"LabelOpacityScaleNegative", [](v1::Scene& s) { s.mutable_labels()->add_styles()->set_opacity_scale(-1); },
+             "labels.styles[0].opacityScale"},
+        Rule{"LabelColourOver1", [](v1::Scene& s) { s.mutable_labels()->add_styles()->mutable_color()->set_g(2); },
+             "labels.styles[0].color"},
         Rule{"LabelTransferFunctionUnsorted", [](v1::Scene& s) {
                auto* tf = s.mutable_labels()->add_styles()->mutable_transfer_function();
                tf->add_points()->set_value(10);
@@ -187,22 +210,33 @@ INSTANTIATE_TEST_SUITE_P(
                  style->mutable_transfer_function()->set_preset("ct-bone");
                }
              }, "labels.styles"},
-        Rule{"LabelTableWithoutLabels", [](v1::Scene& s) { s.mutable_volume()->set_label_table("names.tsv"); }, "volume.labelTable"},
+        Rule{"LabelTableWithoutLabels", [](v1::Scene& s) { s.mutable_volume()->set_label_table("names.tsv"); },
+             "volume.labelTable"},
         // At the extremes (docs/rendering.md, "Values at the extremes").
-        Rule{"OpacityFloatMax", [](v1::Scene& s) { Point(s, 1)->set_opacity(kFloatMax); }, "transferFunction.points[1].opacity"},
-        Rule{"OpacityMinusFloatMax", [](v1::Scene& s) { Point(s, 1)->set_opacity(-kFloatMax); }, "transferFunction.points[1].opacity"},
+        Rule{"OpacityFloatMax", [](v1::Scene& s) { Point(s, 1)->set_opacity(kFloatMax); },
+             "transferFunction.points[1].opacity"},
+        Rule{"OpacityMinusFloatMax", [](v1::Scene& s) { Point(s, 1)->set_opacity(-kFloatMax); },
+             "transferFunction.points[1].opacity"},
         Rule{"PointValueNaN", [](v1::Scene& s) { Point(s, 3)->set_value(NAN); }, "transferFunction.points[3].value"},
-        Rule{"PointValueInfinite", [](v1::Scene& s) { Point(s, 5)->set_value(INFINITY); }, "transferFunction.points[5].value"},
-        Rule{"EmissionFloatMax", [](v1::Scene& s) { Point(s, 4)->mutable_emission()->set_r(kFloatMax); }, "transferFunction.points[4].emission.r"},
-        Rule{"DensityFloatMax", [](v1::Scene& s) { s.mutable_transfer_function()->set_density_scale(kFloatMax); }, "transferFunction.densityScale"},
-        Rule{"DensityNaN", [](v1::Scene& s) { s.mutable_transfer_function()->set_density_scale(NAN); }, "transferFunction.densityScale"},
-        Rule{"GradientFactorInfinite", [](v1::Scene& s) { s.mutable_transfer_function()->set_gradient_factor(INFINITY); }, "transferFunction.gradientFactor"},
-        Rule{"LightIntensityFloatMax", [](v1::Scene& s) { Area(s)->set_intensity(kFloatMax); }, "lights[0].area.intensity"},
+        Rule{"PointValueInfinite", [](v1::Scene& s) { Point(s, 5)->set_value(INFINITY); },
+             "transferFunction.points[5].value"},
+        Rule{"EmissionFloatMax", [](v1::Scene& s) { Point(s, 4)->mutable_emission()->set_r(kFloatMax); },
+             "transferFunction.points[4].emission.r"},
+        Rule{"DensityFloatMax", [](v1::Scene& s) { s.mutable_transfer_function()->set_density_scale(kFloatMax); },
+             "transferFunction.densityScale"},
+        Rule{"DensityNaN", [](v1::Scene& s) { s.mutable_transfer_function()->set_density_scale(NAN); },
+             "transferFunction.densityScale"},
+        Rule{"GradientFactorInfinite",
+             [](v1::Scene& s) { s.mutable_transfer_function()->set_gradient_factor(INFINITY); },
+             "transferFunction.gradientFactor"},
+        Rule{"LightIntensityFloatMax", [](v1::Scene& s) { Area(s)->set_intensity(kFloatMax); },
+             "lights[0].area.intensity"},
         Rule{"LightColourTimesIntensityTooBright", [](v1::Scene& s) {
                Area(s)->mutable_color()->set_r(1e7f);
                Area(s)->set_intensity(1e7f);
              }, "lights[0].area.intensity"},
-        Rule{"LightColourFloatMax", [](v1::Scene& s) { Area(s)->mutable_color()->set_b(kFloatMax); }, "lights[0].area.intensity"},
+        Rule{"LightColourFloatMax", [](v1::Scene& s) { Area(s)->mutable_color()->set_b(kFloatMax); },
+             "lights[0].area.intensity"},
         Rule{"PointLightAtFloatMax", [](v1::Scene& s) {
                auto* point = s.add_lights()->mutable_point();
                point->mutable_position()->set_x(kFloatMax);
@@ -212,17 +246,26 @@ INSTANTIATE_TEST_SUITE_P(
                s.add_lights()->mutable_directional()->mutable_direction()->set_z(1e-30f);
              }, "lights[2].directional.direction"},
         Rule{"TinyAreaLight", [](v1::Scene& s) {
-               Area(s)->mutable_edge_u()->set_x(1e-20f), Area(s)->mutable_edge_u()->set_y(0), Area(s)->mutable_edge_u()->set_z(0);
+               v1::Vec3* u = Area(s)->mutable_edge_u();
+               u->set_x(1e-20f), u->set_y(0), u->set_z(0);
              }, "lights[0].area"},
         Rule{"SkyFloatMax", [](v1::Scene& s) {
                s.mutable_lights(1)->mutable_environment()->mutable_uniform()->set_g(kFloatMax);
              }, "lights[1].environment.uniform"},
-        Rule{"SkyIntensityFloatMax", [](v1::Scene& s) { s.mutable_lights(1)->mutable_environment()->set_intensity(kFloatMax); }, "lights[1].environment.intensity"},
+        Rule{"SkyIntensityFloatMax",
+             [](v1::Scene& s) { s.mutable_lights(1)->mutable_environment()->set_intensity(kFloatMax); },
+             "lights[1].environment.intensity"},
         Rule{"EyeAt1e30", [](v1::Scene& s) { s.mutable_camera()->mutable_eye()->set_y(-1e30f); }, "camera.eye.y"},
-        Rule{"TargetAtFloatMax", [](v1::Scene& s) { s.mutable_camera()->mutable_target()->set_x(kFloatMax); }, "camera.target.x"},
-        Rule{"TinyUp", [](v1::Scene& s) { s.mutable_camera()->mutable_up()->set_x(1e-30f), s.mutable_camera()->mutable_up()->set_z(0); }, "camera.up"},
-        Rule{"ApertureFloatMax", [](v1::Scene& s) { s.mutable_camera()->set_aperture_mm(kFloatMax); }, "camera.apertureMm"},
-        Rule{"FocalDistanceFloatMax", [](v1::Scene& s) { s.mutable_camera()->set_focal_distance_mm(kFloatMax); }, "camera.focalDistanceMm"},
+        Rule{"TargetAtFloatMax", [](v1::Scene& s) { s.mutable_camera()->mutable_target()->set_x(kFloatMax); },
+             "camera.target.x"},
+        Rule{"TinyUp", [](v1::Scene& s) {
+               v1::Vec3* up = s.mutable_camera()->mutable_up();
+               up->set_x(1e-30f), up->set_z(0);
+             }, "camera.up"},
+        Rule{"ApertureFloatMax", [](v1::Scene& s) { s.mutable_camera()->set_aperture_mm(kFloatMax); },
+             "camera.apertureMm"},
+        Rule{"FocalDistanceFloatMax", [](v1::Scene& s) { s.mutable_camera()->set_focal_distance_mm(kFloatMax); },
+             "camera.focalDistanceMm"},
         Rule{"ClipPlaneFarAway", [](v1::Scene& s) {
                auto* plane = s.mutable_clipping()->add_planes();
                plane->mutable_normal()->set_z(1);
@@ -243,6 +286,33 @@ TEST(SceneFile, AcceptsTheLargestValuesItAllows) {
   scene.mutable_camera()->mutable_eye()->set_x(-kMaxSceneMm);
   scene.mutable_lights(1)->mutable_environment()->set_rotation_deg(kFloatMax);
   EXPECT_TRUE(ValidateScene(scene).empty()) << ValidateScene(scene)[0];
+}
+
+// One table says each number's default and range (scene_fields.h); the docs
+// show that table, so they cannot drift from what validation does.
+TEST(SceneFields, TheDocsShowTheTableValidationUses) {
+  std::ifstream in(fs::path(CINEVOL_SOURCE_DIR) / "docs" / "api.md");
+  const std::string docs((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  const std::string table = SceneNumbersMarkdown();
+  EXPECT_NE(docs.find(table), std::string::npos) << "docs/api.md should hold this table:\n" << table;
+}
+
+TEST(SceneFields, EveryBoundIsEnforcedAndEveryDefaultFilled) {
+  for (const NumberField<v1::Camera>& f : CameraNumbers()) {
+    SCOPED_TRACE(std::string(f.name));
+    v1::Scene scene = ValidScene();
+    f.set(*scene.mutable_camera(), f.hi * 2 + 1);
+    ASSERT_FALSE(ValidateScene(scene).empty());
+    EXPECT_NE(ValidateScene(scene)[0].find("camera." + std::string(f.name)), std::string::npos);
+    f.set(*scene.mutable_camera(), f.lo);
+    EXPECT_TRUE(ValidateScene(scene).empty());
+  }
+  v1::Scene scene = ValidScene();
+  scene.clear_render();
+  scene.mutable_transfer_function()->clear_phase_g();
+  ApplyDefaults(scene, kEverythingChanged);
+  for (const NumberField<v1::RenderSettings>& f : RenderNumbers()) EXPECT_EQ(f.get(scene.render()), *f.fallback);
+  EXPECT_EQ(scene.transfer_function().phase_g(), 0.0f);
 }
 
 TEST(Presets, EveryPresetIsAValidTransferFunction) {

@@ -1,5 +1,6 @@
 // Sessions on one volume share its copy on the device, and the server's
 // status says so: one copy, rendered by both; none once both are closed.
+// The copy is made as a session is created, before its first frame.
 #include <gtest/gtest.h>
 
 #include "server_process.h"
@@ -56,6 +57,26 @@ TEST(SharedVolumes, TwoSessionsOnOneVolumeHoldOneCopy) {
   volume = FindVolume(status, request.volume_id());
   ASSERT_NE(volume, nullptr);
   EXPECT_EQ(volume->copies_size(), 0);
+}
+
+// CreateSession prepares the volume on the session's device, on the setup
+// pool: the first frame does not, on a worker other sessions share.
+TEST(SharedVolumes, ANewSessionFindsItsVolumePreparedBeforeItsFirstFrame) {
+  ScratchDir scratch;
+  ServerProcess server(scratch.path());
+  ASSERT_TRUE(server.running()) << server.Log();
+  Client client = server.Connect();
+  const v1::CreateSessionRequest request = SmallSession();
+  const auto created = client.CreateSession(request);  // never attached: no frame renders
+  const v1::ServerStatus status = client.Status();
+  const v1::VolumeInfo* volume = FindVolume(status, request.volume_id());
+  ASSERT_NE(volume, nullptr);
+  ASSERT_EQ(volume->copies_size(), 1) << "the copy exists as the creation answers";
+  EXPECT_EQ(volume->copies(0).device(), "cpu");
+  EXPECT_EQ(volume->copies(0).renderers(), 1u);
+  client.CloseSession(created.session_id());
+  EXPECT_TRUE(Eventually([&] { return client.Status().devices(0).volume_copies() == 0; }, 30s))
+      << "a session that never rendered frees the copy too";
 }
 
 }  // namespace
