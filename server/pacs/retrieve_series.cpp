@@ -119,10 +119,10 @@ class SeriesFetch {
     return SingleInstance(config_, response);
   }
 
-  // Hands one instance to the caller: one call at a time, none after a failure.
+  // Hands one instance to the caller: one call at a time, none after a failure or a cancel.
   void Deliver(const InstanceSummary& instance, std::string&& bytes) {
     std::lock_guard lock(deliver_mutex_);
-    if (abandon_) return;
+    if (abandon_ || Cancelling()) return;
     if (callbacks_.on_instance) callbacks_.on_instance(instance, std::move(bytes));
     ++done_;
     if (callbacks_.on_progress) callbacks_.on_progress(done_, instances_.size());
