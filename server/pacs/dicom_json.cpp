@@ -16,6 +16,31 @@ using google::protobuf::Struct;
 using google::protobuf::Value;
 
 constexpr std::int64_t kMaxCount = std::int64_t{1} << 31;
+// DICOM JSON nests three levels per sequence; 32 allows sequences 10 deep, more than a
+// search or store answer holds, and stays inside protobuf's own recursion limit.
+constexpr int kMaxJsonDepth = 32;
+
+// Whether `json`'s arrays and objects nest deeper than `limit`, in one pass.
+// Checked before protobuf's parser sees the text: deep nesting costs that
+// parser time quadratic in the depth (100,000 levels: minutes).
+bool NestsDeeperThan(std::string_view json, int limit) {
+  int depth = 0;
+  bool in_string = false;
+  for (std::size_t i = 0; i < json.size(); ++i) {
+    const char c = json[i];
+    if (in_string) {
+      if (c == '\\') ++i;  // an escaped character, perhaps a quote
+      if (c == '"') in_string = false;
+    } else if (c == '"') {
+      in_string = true;
+    } else if (c == '[' || c == '{') {
+      if (++depth > limit) return true;
+    } else if (c == ']' || c == '}') {
+      --depth;
+    }
+  }
+  return false;
+}
 
 std::string Cut(const std::string& text) { return text.substr(0, kMaxDicomText); }
 
@@ -106,6 +131,9 @@ std::vector<DicomJsonDataset> DicomJsonDataset::Items(std::uint32_t tag, std::si
 
 std::vector<DicomJsonDataset> ParseDicomJson(std::string_view json, Value& storage) {
   storage.Clear();
+  if (NestsDeeperThan(json, kMaxJsonDepth)) {
+    throw std::invalid_argument(fmt::format("the answer nests more than {} levels deep", kMaxJsonDepth));
+  }
   const auto status = google::protobuf::util::JsonStringToMessage(std::string(json), &storage);
   if (!status.ok()) throw std::invalid_argument("the answer is not valid JSON");
   std::vector<DicomJsonDataset> datasets;

@@ -68,13 +68,30 @@ void CheckStudyQuery(const StudyQuery& query) {
   if (query.offset < 0 || query.offset > kMaxOffset) throw InputError("study search: offset must be in [0; 1000000]");
 }
 
+// `value` percent-encoded for a query, but for DICOM's matching characters (`*` `?`), the PN
+// component separator `^` and the list separator `,`, which go as they are: Orthanc (1.10)
+// does not percent-decode query values, so "DOE%5EJ%2A" would match nothing there, and
+// these characters cannot end a value or start another (`&`, `=`, `#`, `+`, `%` are encoded).
+std::string EscapeQueryValue(const std::string& value) {
+  std::string escaped;
+  for (const char c : value) {
+    const auto u = static_cast<unsigned char>(c);
+    if (u < 0x80 && (std::isalnum(u) || std::string_view("-._~*?^,").find(c) != std::string_view::npos)) {
+      escaped += c;
+    } else {
+      escaped += fmt::format("%{:02X}", u);
+    }
+  }
+  return escaped;
+}
+
 // Appends `key=value` to a query string, the value escaped; empty values are left out.
 void AddParameter(std::string& query, const char* key, const std::string& value) {
   if (value.empty()) return;
   query += query.empty() ? "?" : "&";
   query += key;
   query += '=';
-  query += EscapeUrlComponent(value);
+  query += EscapeQueryValue(value);
 }
 
 template <std::size_t N>

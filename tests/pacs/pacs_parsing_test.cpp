@@ -2,6 +2,7 @@
 // `--pacs NAME=URL`, the credentials file, multipart bodies, DICOM JSON, UIDs.
 #include <gtest/gtest.h>
 
+#include <chrono>
 #include <string>
 
 #include "core/error.h"
@@ -115,7 +116,8 @@ TEST(PacsCredentials, ErrorsNameTheLineButNeverItsSecrets) {
 
 TEST(PacsMultipart, FindsTheBoundaryQuotedOrNot) {
   EXPECT_EQ(MultipartBoundary("multipart/related; type=\"application/dicom\"; boundary=abc-123"), "abc-123");
-  EXPECT_EQ(MultipartBoundary("Multipart/Related;boundary=\"a;b c\";type=\"application/dicom\""), "a;b c");
+  EXPECT_EQ(MultipartBoundary("Multipart/Related;boundary=\"a:b c\";type=\"application/dicom;x\""), "a:b c");
+  EXPECT_THROW(MultipartBoundary("multipart/related; boundary=\"a;b\""), MultipartError);  // ; is no bchar
   EXPECT_THROW(MultipartBoundary("multipart/related; type=\"application/dicom\""), MultipartError);
   EXPECT_THROW(MultipartBoundary("application/dicom; boundary=abc"), MultipartError);
   EXPECT_THROW(MultipartBoundary("multipart/related; boundary="), MultipartError);
@@ -195,9 +197,20 @@ TEST(PacsDicomJson, HostileValuesReadAsAbsent) {
   EXPECT_EQ(datasets[1].Text(0x0020000E), "4.5.6");  // lower-case tags read too
 }
 
-TEST(PacsDicomJson, DeepNestingAndGarbageAreErrorsNotCrashes) {
+TEST(PacsDicomJson, DeepNestingAndGarbageAreErrorsNotHangsOrCrashes) {
   google::protobuf::Value storage;
-  EXPECT_THROW(ParseDicomJson(std::string(100000, '[') + std::string(100000, ']'), storage), std::invalid_argument);
+  const auto start = std::chrono::steady_clock::now();
+  EXPECT_THROW(ParseDicomJson(std::string(1000000, '[') + std::string(1000000, ']'), storage), std::invalid_argument);
+  EXPECT_THROW(ParseDicomJson("[\"\\\"[[\"" + std::string(33, '{'), storage), std::invalid_argument);
+  EXPECT_LT(std::chrono::steady_clock::now() - start, std::chrono::seconds(1));
+  const std::string sequences_10_deep = [] {
+    std::string json = "[";
+    for (int i = 0; i < 10; ++i) json += R"({"00081199":{"vr":"SQ","Value":[)";
+    json += "{}";
+    for (int i = 0; i < 10; ++i) json += "]}}";
+    return json + "]";
+  }();
+  EXPECT_EQ(ParseDicomJson(sequences_10_deep, storage).size(), 1u);
   EXPECT_THROW(ParseDicomJson("{\"unterminated", storage), std::invalid_argument);
   EXPECT_THROW(ParseDicomJson("\"a string\"", storage), std::invalid_argument);
   EXPECT_TRUE(ParseDicomJson("[]", storage).empty());
