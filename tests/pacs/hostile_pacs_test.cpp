@@ -277,12 +277,18 @@ TEST(PacsHostileServer, BadUidsAndQueriesAreRefusedBeforeAnyRequest) {
 TEST(PacsHostileServer, SearchValuesAreEscapedIntoTheQuery) {
   LoopbackHttpServer pacs([](const HttpRequestSeen&) { return Answer(200, "application/dicom+json", "[]"); });
   StudyQuery query;
-  query.patient_name = "O'Brien&limit=99999 #x";
+  query.patient_name = "O'Brien&limit=99999 #x+%";
   query.limit = 7;
   DicomWebClient(ConfigFor(pacs)).SearchStudies(query);
-  ASSERT_EQ(pacs.requests().size(), 1u);
-  const std::string target = pacs.requests()[0].target;
-  EXPECT_TRUE(StartsWith(target, "/dicom-web/studies?PatientName=O%27Brien%26limit%3D99999%20%23x&limit=7&")) << target;
+  query.patient_name = "DOE^J?HN*";  // DICOM's matching characters go as they are (docs/pacs.md)
+  query.patient_id = "Zo\u00eb";
+  DicomWebClient(ConfigFor(pacs)).SearchStudies(query);
+  ASSERT_EQ(pacs.requests().size(), 2u);
+  std::string target = pacs.requests()[0].target;
+  EXPECT_TRUE(StartsWith(target, "/dicom-web/studies?PatientName=O%27Brien%26limit%3D99999%20%23x%2B%25&limit=7&"))
+      << target;
+  target = pacs.requests()[1].target;
+  EXPECT_TRUE(StartsWith(target, "/dicom-web/studies?PatientName=DOE^J?HN*&PatientID=Zo%C3%AB&limit=7&")) << target;
 }
 
 TEST(PacsHostileServer, ListingPastMaxInstancesIsRefusedBeforeAnyFetch) {

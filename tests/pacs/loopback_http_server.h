@@ -177,8 +177,8 @@ class LoopbackHttpServer {
         std::unique_lock lock(mutex_);
         wake_.wait_for(lock, answer.delay, [this] { return stopping_; });
       }
+      --at_once_;  // before the answer goes: once the client has it, it may ask again at once
       if (!Stopping()) SendAnswer(connection, answer);
-      --at_once_;
     }
     shutdown(connection, SHUT_RDWR);
     close(connection);

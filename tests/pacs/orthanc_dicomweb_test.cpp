@@ -13,6 +13,7 @@
 #include <map>
 #include <memory>
 #include <set>
+#include <sstream>
 
 #include "core/error.h"
 #include "pacs/dicomweb_client.h"
@@ -141,15 +142,23 @@ bool Contains(const std::vector<std::string>& values, const std::string& value) 
 }
 
 TEST_F(PacsOrthanc, ListensOnLoopbackOnly) {
-  std::ifstream tcp("/proc/net/tcp");
   const std::string port = fmt::format(":{:04X} ", orthanc_->port());
-  bool on_loopback = false;
-  for (std::string line; std::getline(tcp, line);) {
-    if (line.find(port) == std::string::npos || line.find(" 0A ") == std::string::npos) continue;  // 0A: listening
-    EXPECT_NE(line.find("0100007F" + port), std::string::npos) << "listening beyond 127.0.0.1: " << line;
-    on_loopback = on_loopback || line.find("0100007F" + port) != std::string::npos;
+  // /proc/net/tcp{,6}: "sl local_address rem_address st ...", addresses in hex, state 0A listening.
+  const auto listeners = [&](const char* table) {
+    std::vector<std::string> addresses;
+    std::ifstream in(table);
+    for (std::string line; std::getline(in, line);) {
+      std::istringstream fields(line);
+      std::string slot, local, remote, state;
+      fields >> slot >> local >> remote >> state;
+      if (state == "0A" && (local + " ").find(port) != std::string::npos) addresses.push_back(local);
+    }
+    return addresses;
+  };
+  EXPECT_EQ(listeners("/proc/net/tcp"), std::vector<std::string>{"0100007F" + port.substr(0, 5)});
+  for (const std::string& address : listeners("/proc/net/tcp6")) {
+    EXPECT_EQ(address, "00000000000000000000000001000000" + port.substr(0, 5)) << "listening beyond ::1";
   }
-  EXPECT_TRUE(on_loopback) << "Orthanc's port " << orthanc_->port() << " is not listening on 127.0.0.1";
 }
 
 TEST_F(PacsOrthanc, SearchByPatientIdFindsThatPatientsStudyAndNoOther) {

@@ -2,14 +2,15 @@
 // configuration and storage in a folder of the test's, HTTP on a free port of
 // 127.0.0.1 only (loopback_bind.c, preloaded), no DICOM port, remote access
 // refused, authentication on with a user made up per run; started as a child
-// process and stopped by its pid.
+// process, stopped by its pid, and killed by the kernel should the test
+// process die first (PR_SET_PDEATHSIG).
 #pragma once
 
 #include <arpa/inet.h>
 #include <fcntl.h>
 #include <netinet/in.h>
 #include <signal.h>
-#include <spawn.h>
+#include <sys/prctl.h>
 #include <sys/socket.h>
 #include <sys/wait.h>
 #include <unistd.h>
@@ -166,12 +167,20 @@ class OrthancProcess {
     const std::string config = (folder_ / "orthanc.json").string();
     const std::string log = (folder_ / "orthanc.log").string();
     std::vector<char*> argv{const_cast<char*>(kProgram), const_cast<char*>(config.c_str()), nullptr};
-    posix_spawn_file_actions_t actions;
-    posix_spawn_file_actions_init(&actions);
-    posix_spawn_file_actions_addopen(&actions, 1, log.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
-    posix_spawn_file_actions_adddup2(&actions, 1, 2);
-    if (posix_spawn(&pid_, kProgram, &actions, nullptr, argv.data(), envp.data()) != 0) pid_ = -1;
-    posix_spawn_file_actions_destroy(&actions);
+    const int log_fd = open(log.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);
+    if (log_fd < 0) return false;
+    const pid_t parent = getpid();
+    pid_ = fork();
+    if (pid_ == 0) {  // the child: async-signal-safe calls only, until exec
+      // Killed with the test process too, should it die before TearDownTestSuite: no Orthanc outlives its test.
+      prctl(PR_SET_PDEATHSIG, SIGKILL);
+      if (getppid() != parent) _exit(127);
+      dup2(log_fd, 1);
+      dup2(log_fd, 2);
+      execve(kProgram, argv.data(), envp.data());
+      _exit(127);
+    }
+    close(log_fd);
     return pid_ > 0;
   }
 
