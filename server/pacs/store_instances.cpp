@@ -121,17 +121,19 @@ StoreResult DicomWebClient::StoreInstances(const std::string& study_uid, const s
   request.cancel = cancel;
   HttpSession session(config_);
   const HttpResponse response = session.Perform(request);
-  if (response.status < 400 && response.status != 200 && response.status != 202) {
-    CheckStatus(config_, response, request.what, {200, 202});  // a redirect or another surprise
+  // A redirect or a refusal of the credentials is said as for every request; any other status
+  // is read for the PACS's report of what it stored and refused.
+  const long status = response.status;
+  if ((status >= 300 && status < 400) || status == 401 || status == 403) {
+    CheckStatus(config_, response, request.what, {200, 202});
   }
-  if (response.status == 401 || response.status == 403) CheckStatus(config_, response, request.what, {});
   const StoreAnswer answer = ReadStoreAnswer(response.body, instances.size());
-  if ((response.status == 200 || response.status == 202) && answer.failures.empty()) {
+  if ((status == 200 || status == 202) && answer.failures.empty()) {
     return {answer.stored};
   }
   throw PacsError(fmt::format("PACS '{}' stored {} of {} instances (HTTP {}){}", config_.name, answer.stored.size(),
-                              instances.size(), response.status, NameFailures(answer.failures)),
-                  response.status);
+                              instances.size(), status, NameFailures(answer.failures)),
+                  status);
 }
 
 }  // namespace cinevol::pacs
