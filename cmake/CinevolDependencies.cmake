@@ -10,6 +10,7 @@ find_package(ZLIB REQUIRED)
 find_package(OpenEXR CONFIG REQUIRED)
 find_package(GTest REQUIRED)
 find_package(gRPC CONFIG REQUIRED)
+find_package(CURL REQUIRED)  # server/pacs: DICOMweb over HTTP and HTTPS
 find_package(prometheus-cpp CONFIG REQUIRED)  # the server's /metrics (Exposer: prometheus-cpp::pull)
 
 # ITK pulls in many modules; ask only for the image I/O we use. Debian's GDCM

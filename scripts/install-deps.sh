@@ -20,6 +20,8 @@ packages=(
   libsdl2-dev libimgui-dev      # cinevol-viewer: the window and its panels
   xvfb xauth                    # the viewer's tests run it on a virtual display
   python3-yaml yamllint         # tests/deploy: the Kubernetes and Compose manifests' checks
+  libcurl4-openssl-dev          # server/pacs: DICOMweb (QIDO-RS, WADO-RS, STOW-RS) over HTTP and HTTPS
+  orthanc orthanc-dicomweb      # tests/pacs: a real PACS with its DICOMweb plugin, started by the tests
 )
 
 missing=()
