@@ -10,6 +10,7 @@ void AddDemoCommand(CLI::App& app);
 void AddHealthCommand(CLI::App& app);
 void AddInfoCommand(CLI::App& app);
 void AddLoadtestCommand(CLI::App& app);
+void AddPacsCommand(CLI::App& app);
 void AddPlayCommand(CLI::App& app);
 void AddSnapshotCommand(CLI::App& app);
 void AddRenderCommand(CLI::App& app);

@@ -6,6 +6,7 @@
 #include "encode/image_codecs.h"
 #include "server_pool.h"
 #include "snapshot_call.h"
+#include "pacs_calls.h"
 #include "volume_calls.h"
 
 namespace cinevol {
@@ -304,6 +305,30 @@ v1::VolumeInfo Client::LoadVolume(const std::string& path, const std::string& se
     origin.load.set_series_uid(series_uid);
     origin.load.set_orientation(orientation);
     v1::VolumeInfo info = VolumeCalls(*pool_, home).Load(origin.load);
+    pool_->RememberVolume(info.id(), origin);
+    return info;
+  });
+}
+
+std::vector<std::string> Client::ListPacs() {
+  return OnHome([&](const std::string& home) { return PacsCalls(*pool_, home).Names(); });
+}
+
+std::vector<v1::StudySummary> Client::SearchStudies(const v1::SearchStudiesRequest& request) {
+  return OnHome([&](const std::string& home) { return PacsCalls(*pool_, home).SearchStudies(request); });
+}
+
+std::vector<v1::SeriesSummary> Client::SearchSeries(const std::string& pacs, const std::string& study_uid) {
+  return OnHome([&](const std::string& home) { return PacsCalls(*pool_, home).SearchSeries(pacs, study_uid); });
+}
+
+v1::VolumeInfo Client::LoadSeries(const v1::LoadSeriesRequest& request,
+                                  const std::function<void(const v1::LoadSeriesProgress&)>& on_progress) {
+  return OnHome([&](const std::string& home) {
+    VolumeOrigin origin;
+    origin.home = home;
+    origin.series = request;
+    v1::VolumeInfo info = PacsCalls(*pool_, home).LoadSeries(request, on_progress);
     pool_->RememberVolume(info.id(), origin);
     return info;
   });

@@ -179,6 +179,15 @@ class Client {
   v1::VolumeInfo UploadLabels(const std::string& volume_id, const std::filesystem::path& file,
                               const std::filesystem::path& table = {});
   v1::VolumeInfo DescribeVolume(const std::string& volume_id);
+
+  // The PACS the server names (--pacs), and what they hold (docs/pacs.md).
+  std::vector<std::string> ListPacs();
+  std::vector<v1::StudySummary> SearchStudies(const v1::SearchStudiesRequest& request);
+  std::vector<v1::SeriesSummary> SearchSeries(const std::string& pacs, const std::string& study_uid);
+  // A series from PACS `request.pacs()`, held as this caller's volume;
+  // `on_progress` hears how far it came.
+  v1::VolumeInfo LoadSeries(const v1::LoadSeriesRequest& request,
+                            const std::function<void(const v1::LoadSeriesProgress&)>& on_progress = {});
   void UnloadVolume(const std::string& volume_id);
 
   // With several servers, on the one with the most room (ServerStatus).

@@ -8,6 +8,8 @@
 #include <iterator>
 #include <sstream>
 
+#include "pacs_calls.h"
+
 namespace cinevol {
 namespace {
 
@@ -245,6 +247,8 @@ std::string ServerPool::VolumeOn(const std::string& server, const std::string& i
       there = calls.Upload(origin.upload, origin.upload_fields).id();
     } else if (!origin.load.path().empty()) {
       there = calls.Load(origin.load).id();
+    } else if (!origin.series.series_uid().empty()) {
+      there = PacsCalls(*this, server).LoadSeries(origin.series).id();
     }
     if (!origin.labels_path.empty()) {
       calls.LoadLabels(there, origin.labels_path, origin.labels_table_path);

@@ -36,6 +36,7 @@ namespace cinevol {
 struct VolumeOrigin {
   std::string home;                // the server whose id it is
   v1::LoadVolumeRequest load;      // LoadVolume, under the server's data roots (path empty: not loaded)
+  v1::LoadSeriesRequest series;    // LoadSeries, from a PACS (series_uid empty: not loaded)
   std::filesystem::path upload;    // UploadVolume, a local file
   v1::UploadVolumeChunk::Header upload_fields;  // and its header's fields beyond name and size
   std::string labels_path, labels_table_path;  // LoadLabels

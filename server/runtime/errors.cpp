@@ -7,6 +7,7 @@
 
 #include "core/error.h"
 #include "core/log_safe.h"
+#include "pacs/pacs_error.h"
 #include "runtime/metrics.h"
 
 namespace cinevol::service {
@@ -28,6 +29,14 @@ grpc::Status StatusOf(std::exception_ptr error) {
     return {grpc::StatusCode::INVALID_ARGUMENT, e.what()};
   } catch (const Cancelled& e) {
     return {grpc::StatusCode::CANCELLED, e.what()};
+  } catch (const pacs::PacsError& e) {
+    // The PACS is down, slow or failing: another try may succeed. What it
+    // answered in words (a missing series, refused credentials) may not.
+    const bool transient = e.http_status() == 0 || e.http_status() >= 500;
+    return {e.http_status() == 404 ? grpc::StatusCode::NOT_FOUND
+            : transient           ? grpc::StatusCode::UNAVAILABLE
+                                  : grpc::StatusCode::FAILED_PRECONDITION,
+            e.what()};
   } catch (const ResourceExhausted& e) {
     return {grpc::StatusCode::RESOURCE_EXHAUSTED, e.what()};
   } catch (const std::bad_alloc&) {

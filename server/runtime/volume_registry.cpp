@@ -279,6 +279,46 @@ v1::VolumeInfo VolumeRegistry::AddUpload(const fs::path& file, const std::string
   return Add(BaseIdOf(file_name), shown, shown, std::move(volume), caller.name, true, &reservation, std::move(table));
 }
 
+v1::VolumeInfo VolumeRegistry::AddRetrievedSeries(const fs::path& folder, const std::string& source,
+                                                  const std::string& orientation, const Principal& caller,
+                                                  const std::atomic<bool>* cancel) {
+  struct RemoveFolder {
+    const fs::path& folder;
+    ~RemoveFolder() {
+      std::error_code ec;
+      fs::remove_all(folder, ec);
+    }
+  } remove{folder};
+  v1::VolumeSource request;
+  request.set_dicom_folder(folder.string());
+  request.set_orientation(orientation);
+  Reservation reservation(this, caller.name, true, "the series");
+  Volume volume = LoadVolume(request, {}, PolicyFor(source, true, cancel, &reservation));
+  FoundTable table = SearchTable(volume, &reservation, cancel);
+  const std::string series = source.substr(source.rfind('/') + 1);
+  const std::string base_id = "pacs-" + series.substr(series.size() > 12 ? series.size() - 12 : 0);
+  return Add(base_id, source, source, std::move(volume), caller.name, true, &reservation, std::move(table));
+}
+
+std::optional<v1::VolumeInfo> VolumeRegistry::FindHeld(const std::string& source, const Principal& caller) const {
+  std::lock_guard lock(mu_);
+  for (const auto& [id, e] : volumes_) {
+    if (e.source == source && (e.owner == caller.name || !e.upload)) return InfoLocked(id, e);
+  }
+  return std::nullopt;
+}
+
+void VolumeRegistry::RequireRoom(std::uint64_t voxels, std::uint64_t bytes, const Principal& caller,
+                                 const std::string& what) const {
+  if (voxels > limits_.max_voxels) {
+    throw LimitExceeded(grpc::StatusCode::RESOURCE_EXHAUSTED, "max-volume-voxels",
+                        fmt::format("{} has {} voxels; this server loads at most {} (--max-volume-voxels)", what, voxels,
+                                    limits_.max_voxels));
+  }
+  std::lock_guard lock(mu_);
+  CheckRoomLocked(bytes, caller.name, true, what);
+}
+
 VolumeRegistry::FoundTable VolumeRegistry::SearchTable(const Volume& volume, Reservation* reservation,
                                                        const std::atomic<bool>* cancel) {
   try {

@@ -17,6 +17,7 @@
 #include <atomic>
 #include <memory>
 #include <mutex>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -87,6 +88,19 @@ class VolumeRegistry {
   v1::VolumeInfo AddUpload(const std::filesystem::path& file, const std::string& file_name,
                            const std::string& orientation, const Principal& caller,
                            const std::atomic<bool>* cancel = nullptr);
+
+  // A series retrieved from a PACS into `folder` (in upload_dir(); removed):
+  // read as a DICOM folder, held for `caller` alone like an upload, its
+  // source `source` ("pacs:NAME/SERIES_UID").
+  v1::VolumeInfo AddRetrievedSeries(const std::filesystem::path& folder, const std::string& source,
+                                    const std::string& orientation, const Principal& caller,
+                                    const std::atomic<bool>* cancel = nullptr);
+  // The volume `caller` already holds from `source`, if any.
+  std::optional<v1::VolumeInfo> FindHeld(const std::string& source, const Principal& caller) const;
+  // Throws (LimitExceeded, naming the flag) unless a volume of `voxels` and
+  // `bytes` more would fit the limits of `caller`'s private volumes; `what`
+  // names it. Nothing is reserved: the load reserves again from the header.
+  void RequireRoom(std::uint64_t voxels, std::uint64_t bytes, const Principal& caller, const std::string& what) const;
 
   // A segmentation for volume `id`: a label volume and optionally its table,
   // both under the data roots; it replaces any earlier one, for sessions

@@ -76,7 +76,30 @@ void AddLimitOptions(CLI::App& app, ServerOptions& o) {
   limit("--transport-memory-mb", c.transport_memory_mb, "Memory gRPC's transport may use", 16ull, 1ull << 20);
 }
 
-void AddOptions(CLI::App& app, ServerOptions& o, std::string& backend) {
+// The --pacs flags as given; PacsConfigs once parsed.
+struct PacsFlags {
+  std::vector<std::string> specs;
+  std::string ca_file;
+  double timeout_seconds = 120;
+  int parallel_fetches = 4;
+  std::uint64_t max_series_mb = 4096;
+
+  std::vector<cinevol::pacs::PacsConfig> Configs() const {
+    std::vector<cinevol::pacs::PacsConfig> configs;
+    for (const std::string& spec : specs) {
+      cinevol::pacs::PacsConfig c = cinevol::pacs::ParsePacsSpec(spec);
+      c.ca_file = ca_file;
+      c.request_timeout = std::chrono::milliseconds(std::int64_t(timeout_seconds * 1000));
+      c.parallel_fetches = parallel_fetches;
+      c.max_series_bytes = max_series_mb << 20;
+      cinevol::pacs::ValidatePacsConfig(c);
+      configs.push_back(std::move(c));
+    }
+    return configs;
+  }
+};
+
+void AddOptions(CLI::App& app, ServerOptions& o, std::string& backend, PacsFlags& pacs) {
   app.set_config("--config", "", "Read these settings from a TOML/INI file (keys as the long flags)");
   app.add_option("--listen", o.listen, "HOST:PORT to listen on (port 0: any free port)")->capture_default_str();
   app.add_option("--backend", backend, "auto (CUDA when a GPU is usable), cpu or cuda")
@@ -122,6 +145,21 @@ void AddOptions(CLI::App& app, ServerOptions& o, std::string& backend) {
             return std::regex_match(value, kHostPort) ? "" : "want HOST:PORT (a DNS name, IPv4 or [IPv6], and a port)";
           },
           "HOST:PORT"));
+  app.add_option("--pacs", pacs.specs,
+                 "NAME=URL of a DICOMweb service (PACS) clients may search and load series from, by NAME "
+                 "(repeatable; docs/pacs.md)");
+  app.add_option("--pacs-credentials", o.pacs_credentials,
+                 "File of 'NAME basic USER:PASSWORD' or 'NAME bearer TOKEN' lines for the --pacs; SIGHUP reloads it");
+  app.add_option("--pacs-ca", pacs.ca_file, "PEM CA certificates to verify https PACS with (default: the system's)");
+  app.add_option("--pacs-timeout-seconds", pacs.timeout_seconds, "The longest one request to a PACS may take")
+      ->check(CLI::Range(0.1, 3600.0))
+      ->capture_default_str();
+  app.add_option("--pacs-parallel-fetches", pacs.parallel_fetches, "Instances of one series fetched at once")
+      ->check(CLI::Range(1, 32))
+      ->capture_default_str();
+  app.add_option("--pacs-max-series-mb", pacs.max_series_mb, "The most one retrieved series may bring, all instances")
+      ->check(CLI::Range(1, 65536))
+      ->capture_default_str();
   app.add_option("--port-file", o.port_file, "Write the port listened on to this file (useful with port 0)");
   app.add_option("--metrics-listen", o.metrics_listen,
                  "HOST:PORT to serve Prometheus metrics on, at /metrics (port 0: any free port, logged; "
@@ -135,7 +173,8 @@ int main(int argc, char** argv) {
   ServerOptions options;
   std::string backend = "auto";
   bool verbose = false;
-  AddOptions(app, options, backend);
+  PacsFlags pacs;
+  AddOptions(app, options, backend, pacs);
   app.add_flag("-v,--verbose", verbose, "Log debug detail");
   try {
     app.parse(argc, argv);
@@ -145,7 +184,7 @@ int main(int argc, char** argv) {
   spdlog::set_level(verbose ? spdlog::level::debug : spdlog::level::info);
 
   // SIGINT and SIGTERM end the server in order, SIGHUP reloads the token
-  // file; a thread waits for them.
+  // and PACS credentials files; a thread waits for them.
   sigset_t signals;
   sigemptyset(&signals);
   sigaddset(&signals, SIGINT);
@@ -154,6 +193,7 @@ int main(int argc, char** argv) {
   pthread_sigmask(SIG_BLOCK, &signals, nullptr);
   try {
     options.backend = cinevol::ParseBackend(backend);
+    options.pacs = pacs.Configs();
     cinevol::service::CheckListenPolicy(options.listen, !options.auth_tokens.empty(), options.tls.mutual(),
                                         options.insecure_no_auth);
     if (!cinevol::service::IsLoopbackListen(options.listen)) {
@@ -174,6 +214,7 @@ int main(int argc, char** argv) {
         sigwait(&signals, &signal);
         if (signal == SIGHUP) {
           cinevol::service::ReloadAllTokenFiles();
+          server.ReloadPacsCredentials();
           continue;
         }
         server.Shutdown();

@@ -33,9 +33,10 @@ Server::Server(const ServerOptions& options)
       drain_seconds_(options.drain_seconds),
       volume_service_(core_.get()),
       session_service_(core_.get()),
+      pacs_service_(core_.get()),
       server_service_(core_.get()),
       reflection_service_(core_.get(), {v1::VolumeService::service_full_name(), v1::SessionService::service_full_name(),
-                                        v1::ServerService::service_full_name(), "grpc.health.v1.Health"}) {
+                                        v1::PacsService::service_full_name(), v1::ServerService::service_full_name(), "grpc.health.v1.Health"}) {
   if (!options.metrics_listen.empty()) StartMetrics(options.metrics_listen);
   // Health answers without credentials (Kubernetes and Docker probes carry none);
   // it tells only SERVING or NOT_SERVING.
@@ -48,6 +49,7 @@ Server::Server(const ServerOptions& options)
   builder.experimental().SetInterceptorCreators(CallLogInterceptors());
   builder.RegisterService(&volume_service_);
   builder.RegisterService(&session_service_);
+  builder.RegisterService(&pacs_service_);
   builder.RegisterService(&server_service_);
   builder.RegisterService(&reflection_service_);
   server_ = builder.BuildAndStart();

@@ -36,6 +36,8 @@ class Server {
   // Asks the server to drain and stop; returns at once (any thread). The
   // process exits (code 0) within --drain-seconds, even if something hangs.
   void Shutdown();
+  // SIGHUP: the PACS credentials file again (the token file reloads apart).
+  void ReloadPacsCredentials() { core_->pacs().ReloadCredentials(); }
 
  private:
   void Sweep();
@@ -47,6 +49,7 @@ class Server {
   double drain_seconds_;
   VolumeServiceImpl volume_service_;
   SessionServiceImpl session_service_;
+  PacsServiceImpl pacs_service_;
   ServerServiceImpl server_service_;
   ReflectionService reflection_service_;  // authenticated like the others
   std::unique_ptr<grpc::Server> server_;

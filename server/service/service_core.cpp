@@ -175,9 +175,11 @@ ServiceCore::ServiceCore(const ServerOptions& options)
       volumes_(options.data_roots, options.volume_limits),
       encoder_("encoder", ThreadPool::Shared(),
                options.encode_threads > 0 ? options.encode_threads : ThreadPool::Shared().workers()),
-      waiting_(4),
+      waiting_(6),
       loader_("loader", waiting_, 2),
       setup_("setup", waiting_, 2),
+      pacs_calls_("pacs", waiting_, 2),
+      pacs_(options.pacs, options.pacs_credentials),
       pixels_(options.max_total_pixels) {
   // Every file is read through cinevol-reader: find it now, not at the first load.
   spdlog::info("reader: {}", reader_cage::ReaderPath().string());
@@ -215,7 +217,8 @@ ServiceCore::ServiceCore(const ServerOptions& options)
 }
 
 ServiceCore::~ServiceCore() {
-  setup_.Stop();  // first: what it creates is ended below
+  pacs_calls_.Stop();  // its searches use pacs_
+  setup_.Stop();       // first: what it creates is ended below
   std::vector<std::shared_ptr<Session>> open;
   {
     std::lock_guard lock(mu_);

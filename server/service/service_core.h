@@ -22,6 +22,7 @@
 #include "service/auth.h"
 #include "service/call_watch.h"
 #include "service/connection_limits.h"
+#include "runtime/pacs_directory.h"
 #include "runtime/scheduler.h"
 #include "runtime/session.h"
 #include "scene/session_state.h"
@@ -40,6 +41,8 @@ struct ServerOptions {
   std::vector<std::filesystem::path> data_roots;         // where clients may load volumes from
   std::vector<std::string> volumes;                      // preloaded; empty: phantom:head
   int workers_per_gpu = 4;                               // each its own CUDA stream
+  std::vector<pacs::PacsConfig> pacs;            // --pacs NAME=URL, with the --pacs-* settings
+  std::filesystem::path pacs_credentials;        // --pacs-credentials FILE; empty: none
   int encode_threads = 0;                                // encodes at once on the compute pool; 0: one per worker
   int max_sessions = 64;
   int max_sessions_per_principal = 16;
@@ -91,6 +94,9 @@ class ServiceCore {
   // framing over its volume and segmentation. Queues by caller, so one
   // caller's creations delay another's by one at most per thread.
   TaskPool& setup() { return setup_; }
+  // PACS searches: network calls, apart from loads (which may take minutes).
+  TaskPool& pacs_calls() { return pacs_calls_; }
+  PacsDirectory& pacs() { return pacs_; }
   CallWatch& calls() { return calls_; }
   const ServerOptions& options() const { return options_; }
 
@@ -153,6 +159,8 @@ class ServiceCore {
   ThreadPool waiting_;  // for loader_ and setup_: their tasks mostly wait, so they keep off the compute pool
   TaskPool loader_;
   TaskPool setup_;
+  TaskPool pacs_calls_;
+  PacsDirectory pacs_;
   CallWatch calls_;
   PixelBudget pixels_;
   std::vector<std::unique_ptr<Scheduler>> schedulers_;

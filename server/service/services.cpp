@@ -12,6 +12,7 @@
 #include "runtime/errors.h"
 #include "core/log_safe.h"
 #include "runtime/metrics.h"
+#include "runtime/series_load.h"
 #include "service/session_stream.h"
 
 namespace cinevol::service {
@@ -237,70 +238,77 @@ class SnapshotReactor final : public grpc::ServerUnaryReactor {
   std::shared_ptr<std::atomic<bool>> cancel_ = std::make_shared<std::atomic<bool>>(false);
 };
 
-// A still with its progress. One write in flight: a newer progress replaces
-// one waiting, and the still (or the error) goes last. The job's callbacks
-// end with `done`, and Finish is called only after it, so none of them
-// outlives the reactor; a client gone or a failed write raises `cancel_`,
-// which the job sees within a step.
-class SnapshotStreamReactor final : public grpc::ServerWriteReactor<v1::SnapshotUpdate> {
+// A call's progress, then its answer, on a server stream (a still, a series
+// from a PACS). One write in flight: a newer progress replaces one waiting,
+// and the answer (or the error) goes last. The work's callbacks end with
+// Complete, and Finish is called only after it, so none of them outlives the
+// reactor; a client gone or a failed write raises `cancel()`, which the work
+// sees within a step. `progress_field` and `answer_field` are Update's
+// mutable accessors of its two cases.
+template <class Update, class Progress, class Answer, Progress* (Update::*progress_field)(),
+          Answer* (Update::*answer_field)()>
+class ProgressStreamReactor final : public grpc::ServerWriteReactor<Update> {
  public:
-  SnapshotStreamReactor(grpc::CallbackServerContext* context, ServiceCore* core, const v1::SnapshotRequest* request) {
-    const grpc::Status status = Guarded([&] {
-      ServiceCore::SnapshotCallbacks callbacks;
-      callbacks.progress = [this](const v1::SnapshotProgress& p) { Offer(p); };
-      callbacks.done = [this](grpc::Status s, v1::SnapshotResponse r) { Complete(std::move(s), std::move(r)); };
-      core->Snapshot(*request, core->Authenticate(*context), cancel_, std::move(callbacks));
-    });
-    if (!status.ok()) Complete(status, {});
+  // `cancel`: the flag the work watches; null: one of its own.
+  explicit ProgressStreamReactor(std::shared_ptr<std::atomic<bool>> cancel = nullptr)
+      : cancel_(cancel ? std::move(cancel) : std::make_shared<std::atomic<bool>>(false)) {}
+
+  const std::shared_ptr<std::atomic<bool>>& cancel() const { return cancel_; }
+
+  void Offer(const Progress& progress) {
+    std::lock_guard lock(mu_);
+    pending_ = progress;
+    WriteNextLocked();
+  }
+
+  void Complete(grpc::Status status, Answer answer) {
+    std::lock_guard lock(mu_);
+    status_ = std::move(status);
+    if (status_->ok()) *(last_.*answer_field)() = std::move(answer);
+    pending_.reset();  // the answer makes older news moot
+    WriteNextLocked();
   }
 
   void OnWriteDone(bool ok) override {
     std::lock_guard lock(mu_);
     writing_ = false;
-    if (!ok) *cancel_ = true;  // the client is gone: stop rendering; Complete still finishes
+    if (!ok) *cancel_ = true;  // the client is gone: stop the work; Complete still finishes
     WriteNextLocked();
   }
   void OnCancel() override { *cancel_ = true; }
   void OnDone() override { delete this; }
 
  private:
-  void Offer(const v1::SnapshotProgress& progress) {
-    std::lock_guard lock(mu_);
-    pending_ = progress;
-    WriteNextLocked();
-  }
-
-  void Complete(grpc::Status status, v1::SnapshotResponse still) {
-    std::lock_guard lock(mu_);
-    status_ = std::move(status);
-    if (status_->ok()) *last_.mutable_still() = std::move(still);
-    pending_.reset();  // the answer makes older news moot
-    WriteNextLocked();
-  }
-
   void WriteNextLocked() {
     if (writing_ || finished_) return;
     if (pending_) {
-      *out_.mutable_progress() = *std::exchange(pending_, std::nullopt);
+      *(out_.*progress_field)() = *std::exchange(pending_, std::nullopt);
       writing_ = true;
-      StartWrite(&out_);
+      this->StartWrite(&out_);
     } else if (status_) {
       finished_ = true;
       if (status_->ok() && !*cancel_) {
-        StartWriteAndFinish(&last_, grpc::WriteOptions(), *status_);
+        this->StartWriteAndFinish(&last_, grpc::WriteOptions(), *status_);
       } else {
-        Finish(status_->ok() ? grpc::Status(grpc::StatusCode::CANCELLED, "the caller went away") : *status_);
+        this->Finish(status_->ok() ? grpc::Status(grpc::StatusCode::CANCELLED, "the caller went away") : *status_);
       }
     }
   }
 
-  std::shared_ptr<std::atomic<bool>> cancel_ = std::make_shared<std::atomic<bool>>(false);
+  std::shared_ptr<std::atomic<bool>> cancel_;
   std::mutex mu_;
   bool writing_ = false, finished_ = false;
-  std::optional<v1::SnapshotProgress> pending_;  // the newest progress not yet written
-  std::optional<grpc::Status> status_;           // set by Complete: write the still, or finish with the error
-  v1::SnapshotUpdate out_, last_;
+  std::optional<Progress> pending_;     // the newest progress not yet written
+  std::optional<grpc::Status> status_;  // set by Complete: write the answer, or finish with the error
+  Update out_, last_;
 };
+
+using SnapshotStreamReactor = ProgressStreamReactor<v1::SnapshotUpdate, v1::SnapshotProgress, v1::SnapshotResponse,
+                                                    &v1::SnapshotUpdate::mutable_progress,
+                                                    &v1::SnapshotUpdate::mutable_still>;
+using SeriesStreamReactor = ProgressStreamReactor<v1::LoadSeriesUpdate, v1::LoadSeriesProgress, v1::VolumeInfo,
+                                                  &v1::LoadSeriesUpdate::mutable_progress,
+                                                  &v1::LoadSeriesUpdate::mutable_volume>;
 
 }  // namespace
 
@@ -414,7 +422,15 @@ grpc::ServerUnaryReactor* SessionServiceImpl::Snapshot(grpc::CallbackServerConte
 
 grpc::ServerWriteReactor<v1::SnapshotUpdate>* SessionServiceImpl::StreamSnapshot(grpc::CallbackServerContext* context,
                                                                                  const v1::SnapshotRequest* request) {
-  return new SnapshotStreamReactor(context, core_, request);
+  auto* reactor = new SnapshotStreamReactor;
+  const grpc::Status status = Guarded([&] {
+    ServiceCore::SnapshotCallbacks callbacks;
+    callbacks.progress = [reactor](const v1::SnapshotProgress& p) { reactor->Offer(p); };
+    callbacks.done = [reactor](grpc::Status s, v1::SnapshotResponse r) { reactor->Complete(std::move(s), std::move(r)); };
+    core_->Snapshot(*request, core_->Authenticate(*context), reactor->cancel(), std::move(callbacks));
+  });
+  if (!status.ok()) reactor->Complete(status, {});
+  return reactor;
 }
 
 grpc::ServerUnaryReactor* SessionServiceImpl::CloseSession(grpc::CallbackServerContext* context,
@@ -426,6 +442,108 @@ grpc::ServerUnaryReactor* SessionServiceImpl::CloseSession(grpc::CallbackServerC
 grpc::ServerUnaryReactor* ServerServiceImpl::GetStatus(grpc::CallbackServerContext* context,
                                                        const v1::GetStatusRequest*, v1::ServerStatus* response) {
   return Answer(core_, context, [&](const Principal& caller) { *response = core_->Status(caller); });
+}
+
+namespace {
+
+pacs::StudyQuery ToQuery(const v1::SearchStudiesRequest& r) {
+  pacs::StudyQuery q;
+  q.patient_name = r.patient_name();
+  q.patient_id = r.patient_id();
+  q.study_date_from = r.study_date_from();
+  q.study_date_to = r.study_date_to();
+  q.modality = r.modality();
+  q.accession_number = r.accession_number();
+  q.study_description = r.study_description();
+  if (r.limit() > 0) q.limit = int(std::min<std::uint32_t>(r.limit(), 1u << 20));
+  q.offset = int(std::min<std::uint32_t>(r.offset(), 1u << 30));
+  return q;
+}
+
+void AddStudy(const pacs::StudySummary& from, v1::StudySummary* to) {
+  to->set_study_uid(from.study_uid);
+  to->set_patient_name(from.patient_name);
+  to->set_patient_id(from.patient_id);
+  to->set_study_date(from.study_date);
+  to->set_description(from.description);
+  to->set_accession_number(from.accession_number);
+  for (const std::string& m : from.modalities) to->add_modalities(m);
+  if (from.series_count) to->set_series_count(*from.series_count);
+  if (from.instance_count) to->set_instance_count(*from.instance_count);
+}
+
+void AddSeries(const pacs::SeriesSummary& from, v1::SeriesSummary* to) {
+  to->set_series_uid(from.series_uid);
+  to->set_modality(from.modality);
+  to->set_description(from.description);
+  if (from.series_number) to->set_series_number(*from.series_number);
+  if (from.instance_count) to->set_instance_count(*from.instance_count);
+}
+
+}  // namespace
+
+grpc::ServerUnaryReactor* PacsServiceImpl::ListPacs(grpc::CallbackServerContext* context,
+                                                    const v1::ListPacsRequest*, v1::ListPacsResponse* response) {
+  return Answer(core_, context, [&](const Principal&) {
+    for (const std::string& name : core_->pacs().Names()) response->add_names(name);
+  });
+}
+
+grpc::ServerUnaryReactor* PacsServiceImpl::SearchStudies(grpc::CallbackServerContext* context,
+                                                         const v1::SearchStudiesRequest* request,
+                                                         v1::SearchStudiesResponse* response) {
+  return new PooledReactor(context, core_, core_->pacs_calls(),
+                           [this, request, response](const Principal&, const std::atomic<bool>& cancelled) {
+                             const auto client = core_->pacs().Find(request->pacs());
+                             for (const pacs::StudySummary& study : client->SearchStudies(ToQuery(*request), &cancelled)) {
+                               AddStudy(study, response->add_studies());
+                             }
+                           });
+}
+
+grpc::ServerUnaryReactor* PacsServiceImpl::SearchSeries(grpc::CallbackServerContext* context,
+                                                        const v1::SearchSeriesRequest* request,
+                                                        v1::SearchSeriesResponse* response) {
+  return new PooledReactor(context, core_, core_->pacs_calls(),
+                           [this, request, response](const Principal&, const std::atomic<bool>& cancelled) {
+                             const auto client = core_->pacs().Find(request->pacs());
+                             for (const pacs::SeriesSummary& series :
+                                  client->SearchSeries(request->study_uid(), &cancelled)) {
+                               AddSeries(series, response->add_series());
+                             }
+                           });
+}
+
+grpc::ServerWriteReactor<v1::LoadSeriesUpdate>* PacsServiceImpl::LoadSeries(grpc::CallbackServerContext* context,
+                                                                           const v1::LoadSeriesRequest* request) {
+  Principal caller;
+  std::shared_ptr<const pacs::DicomWebClient> client;
+  std::shared_ptr<LoadSlot> slot;  // a client cannot queue loads without end
+  const grpc::Status status = Guarded([&] {
+    caller = core_->Authenticate(*context);
+    core_->RequireServing();
+    client = core_->pacs().Find(request->pacs());
+    slot = core_->BeginLoad(caller);
+  });
+  // The call's cancelling (the caller gone, a failed write) raises the slot's flag, as Drain does.
+  auto* reactor = new SeriesStreamReactor(slot ? std::shared_ptr<std::atomic<bool>>(slot, &slot->cancel) : nullptr);
+  if (!status.ok()) {
+    reactor->Complete(status, {});
+    return reactor;
+  }
+  core_->loader().Submit(
+      [this, reactor, request, caller, client, slot] {
+        v1::VolumeInfo volume;
+        const grpc::Status s = Guarded([&] {
+          core_->RequireServing();
+          volume = service::LoadSeries(*client, core_->volumes(), *request, caller, &slot->cancel,
+                                       [reactor](const v1::LoadSeriesProgress& p) { reactor->Offer(p); });
+        });
+        slot->Release();
+        reactor->Complete(s, std::move(volume));
+      },
+      caller.name);
+  return reactor;
 }
 
 }  // namespace cinevol::service

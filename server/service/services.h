@@ -1,4 +1,4 @@
-// The gRPC services: thin shells that authenticate, hand each request to the
+// The gRPC services (volumes, sessions, PACS, status): thin shells that authenticate, hand each request to the
 // ServiceCore (slow work to its pools) and answer with the status its
 // errors map to. Callback API: no reaction blocks.
 #pragma once
@@ -54,6 +54,24 @@ class SessionServiceImpl final : public v1::SessionService::CallbackService {
                                                                const v1::SnapshotRequest* request) override;
   grpc::ServerUnaryReactor* CloseSession(grpc::CallbackServerContext* context, const v1::CloseSessionRequest* request,
                                          v1::CloseSessionResponse* response) override;
+
+ private:
+  ServiceCore* core_;
+};
+
+class PacsServiceImpl final : public v1::PacsService::CallbackService {
+ public:
+  explicit PacsServiceImpl(ServiceCore* core) : core_(core) {}
+
+  grpc::ServerUnaryReactor* ListPacs(grpc::CallbackServerContext* context, const v1::ListPacsRequest* request,
+                                     v1::ListPacsResponse* response) override;
+  grpc::ServerUnaryReactor* SearchStudies(grpc::CallbackServerContext* context,
+                                          const v1::SearchStudiesRequest* request,
+                                          v1::SearchStudiesResponse* response) override;
+  grpc::ServerUnaryReactor* SearchSeries(grpc::CallbackServerContext* context, const v1::SearchSeriesRequest* request,
+                                         v1::SearchSeriesResponse* response) override;
+  grpc::ServerWriteReactor<v1::LoadSeriesUpdate>* LoadSeries(grpc::CallbackServerContext* context,
+                                                             const v1::LoadSeriesRequest* request) override;
 
  private:
   ServiceCore* core_;

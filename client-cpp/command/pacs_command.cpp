@@ -1,0 +1,151 @@
+// `cinevol pacs search|series|load --server ADDR --pacs NAME`: studies and
+// series in the PACS a server names, and a series loaded as a volume.
+// Tables for people, proto3 JSON (--json) for scripts.
+#include <fmt/format.h>
+
+#include <algorithm>
+
+#include "commands.h"
+#include "connection_options.h"
+#include "core/error.h"
+#include "text_output.h"
+
+namespace cinevol::cli {
+namespace {
+
+struct PacsOptions {
+  ConnectionOptions connection;
+  bool json = false;
+  v1::SearchStudiesRequest search;  // search's fields; load's --patient-id
+  std::string dates;                // --date FROM-TO
+  std::string study, series, orientation;
+};
+
+// "20240101-20241231", "20240101-" or "-20241231" into the request's range.
+void SetDates(const std::string& dates, v1::SearchStudiesRequest& request) {
+  if (dates.empty()) return;
+  const std::size_t dash = dates.find('-');
+  if (dash == std::string::npos) {
+    request.set_study_date_from(dates);
+    request.set_study_date_to(dates);
+    return;
+  }
+  request.set_study_date_from(dates.substr(0, dash));
+  request.set_study_date_to(dates.substr(dash + 1));
+}
+
+std::string Count(bool has, std::int64_t n) { return has ? std::to_string(n) : "-"; }
+
+void Search(const PacsOptions& o) {
+  v1::SearchStudiesRequest request = o.search;
+  SetDates(o.dates, request);
+  const auto studies = Connect(o.connection).SearchStudies(request);
+  if (o.json) {
+    v1::SearchStudiesResponse response;
+    response.mutable_studies()->Assign(studies.begin(), studies.end());
+    return PrintJson(response);
+  }
+  std::vector<TextRow> rows{{"STUDY UID", "PATIENT", "PATIENT ID", "DATE", "MODALITIES", "SERIES", "DESCRIPTION"}};
+  for (const v1::StudySummary& s : studies) {
+    std::string modalities;
+    for (const std::string& m : s.modalities()) modalities += (modalities.empty() ? "" : ",") + m;
+    rows.push_back({s.study_uid(), s.patient_name(), s.patient_id(), s.study_date(), modalities,
+                    Count(s.has_series_count(), s.series_count()), s.description()});
+  }
+  PrintTable(rows);
+}
+
+void Series(const PacsOptions& o) {
+  const auto series = Connect(o.connection).SearchSeries(o.search.pacs(), o.study);
+  if (o.json) {
+    v1::SearchSeriesResponse response;
+    response.mutable_series()->Assign(series.begin(), series.end());
+    return PrintJson(response);
+  }
+  std::vector<TextRow> rows{{"SERIES UID", "MODALITY", "NUMBER", "INSTANCES", "DESCRIPTION"}};
+  for (const v1::SeriesSummary& s : series) {
+    rows.push_back({s.series_uid(), s.modality(), Count(s.has_series_number(), s.series_number()),
+                    Count(s.has_instance_count(), s.instance_count()), s.description()});
+  }
+  PrintTable(rows);
+}
+
+// The patient's latest study (by date) of those a search by ID finds.
+std::string LatestStudy(Client& client, const PacsOptions& o) {
+  v1::SearchStudiesRequest request;
+  request.set_pacs(o.search.pacs());
+  request.set_patient_id(o.search.patient_id());
+  const auto studies = client.SearchStudies(request);
+  if (studies.empty()) throw InputError(fmt::format("--patient-id: no study of '{}' in PACS '{}'",
+                                                    o.search.patient_id(), o.search.pacs()));
+  return std::max_element(studies.begin(), studies.end(), [](const auto& a, const auto& b) {
+           return a.study_date() < b.study_date();
+         })->study_uid();
+}
+
+// The study's series with the most instances.
+std::string LargestSeries(Client& client, const std::string& pacs, const std::string& study) {
+  const auto series = client.SearchSeries(pacs, study);
+  if (series.empty()) throw InputError(fmt::format("--study: study {} has no series in PACS '{}'", study, pacs));
+  return std::max_element(series.begin(), series.end(), [](const auto& a, const auto& b) {
+           return a.instance_count() < b.instance_count();
+         })->series_uid();
+}
+
+void Load(const PacsOptions& o) {
+  if (o.study.empty() == o.search.patient_id().empty()) {
+    throw InputError("give --study UID (with --series UID or not) or --patient-id ID, one of them");
+  }
+  Client client = Connect(o.connection);
+  v1::LoadSeriesRequest request;
+  request.set_pacs(o.search.pacs());
+  request.set_study_uid(o.study.empty() ? LatestStudy(client, o) : o.study);
+  request.set_series_uid(o.series.empty() ? LargestSeries(client, request.pacs(), request.study_uid()) : o.series);
+  request.set_orientation(o.orientation);
+  const v1::VolumeInfo volume = client.LoadSeries(request, [&](const v1::LoadSeriesProgress& p) {
+    if (!o.json) fmt::print(stderr, "{}: {} of {} instances, {}\n", p.stage(), p.instances_done(),
+                            p.instances_total(), Bytes(p.bytes()));
+  });
+  if (o.json) return PrintJson(volume);
+  PrintVolume(volume);
+}
+
+CLI::App* AddPacsSubcommand(CLI::App* pacs, const std::string& name, const std::string& help,
+                            std::function<void(const PacsOptions&)> run, std::shared_ptr<PacsOptions>& o) {
+  auto* cmd = pacs->add_subcommand(name, help);
+  o = std::make_shared<PacsOptions>();
+  AddConnectionOptions(cmd, o->connection);
+  AddCallTimeoutOption(cmd, o->connection);
+  cmd->add_option("--pacs", *o->search.mutable_pacs(), "The PACS by the name the server gives it (--pacs NAME=URL)")
+      ->required();
+  cmd->add_flag("--json", o->json, "Print the server's answer as proto3 JSON (one object)");
+  cmd->callback([o, run] { run(*o); });
+  return cmd;
+}
+
+}  // namespace
+
+void AddPacsCommand(CLI::App& app) {
+  auto* pacs = app.add_subcommand("pacs", "Search the PACS a server names and load a series from one");
+  pacs->require_subcommand(1);
+  std::shared_ptr<PacsOptions> o;
+  auto* search = AddPacsSubcommand(pacs, "search", "Studies matching every field given", Search, o);
+  search->add_option("--patient-id", *o->search.mutable_patient_id(), "Patient ID (DICOM wildcards * and ?)");
+  search->add_option("--patient-name", *o->search.mutable_patient_name(), "Patient name, FAMILY^GIVEN (wildcards)");
+  search->add_option("--modality", *o->search.mutable_modality(), "A modality in the study: CT, MR, ...");
+  search->add_option("--date", o->dates, "Study date YYYYMMDD, or a range FROM-TO (either end may be open)");
+  search->add_option("--accession", *o->search.mutable_accession_number(), "Accession number");
+  search->add_option("--description", *o->search.mutable_study_description(), "Study description (wildcards)");
+
+  auto* series = AddPacsSubcommand(pacs, "series", "The series of one study", Series, o);
+  series->add_option("--study", o->study, "Study Instance UID")->required();
+
+  auto* load = AddPacsSubcommand(pacs, "load", "Load a series as a volume: the study's largest unless --series",
+                                 Load, o);
+  load->add_option("--study", o->study, "Study Instance UID");
+  load->add_option("--series", o->series, "Series Instance UID (default: the study's with the most instances)");
+  load->add_option("--patient-id", *o->search.mutable_patient_id(), "Instead of --study: the patient's latest study");
+  load->add_option("--orientation", o->orientation, "Where index axes x, y, z point, overriding the files' (LPS)");
+}
+
+}  // namespace cinevol::cli

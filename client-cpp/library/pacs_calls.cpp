@@ -1,0 +1,45 @@
+#include "pacs_calls.h"
+
+#include "server_pool.h"
+
+namespace cinevol {
+
+PacsCalls::PacsCalls(ServerPool& pool, const std::string& server)
+    : pool_(pool), stub_(v1::PacsService::NewStub(pool.Channel(server))) {}
+
+std::vector<std::string> PacsCalls::Names() {
+  v1::ListPacsResponse response;
+  Check(stub_->ListPacs(pool_.CallContext().get(), {}, &response));
+  return {response.names().begin(), response.names().end()};
+}
+
+std::vector<v1::StudySummary> PacsCalls::SearchStudies(const v1::SearchStudiesRequest& request) {
+  v1::SearchStudiesResponse response;
+  Check(stub_->SearchStudies(pool_.CallContext().get(), request, &response));
+  return {response.studies().begin(), response.studies().end()};
+}
+
+std::vector<v1::SeriesSummary> PacsCalls::SearchSeries(const std::string& pacs, const std::string& study_uid) {
+  v1::SearchSeriesRequest request;
+  request.set_pacs(pacs);
+  request.set_study_uid(study_uid);
+  v1::SearchSeriesResponse response;
+  Check(stub_->SearchSeries(pool_.CallContext().get(), request, &response));
+  return {response.series().begin(), response.series().end()};
+}
+
+v1::VolumeInfo PacsCalls::LoadSeries(const v1::LoadSeriesRequest& request,
+                                     const std::function<void(const v1::LoadSeriesProgress&)>& on_progress) {
+  auto context = pool_.CallContext();
+  auto reader = stub_->LoadSeries(context.get(), request);
+  v1::LoadSeriesUpdate update;
+  v1::VolumeInfo volume;
+  while (reader->Read(&update)) {
+    if (update.has_progress() && on_progress) on_progress(update.progress());
+    if (update.has_volume()) volume = update.volume();
+  }
+  Check(reader->Finish());
+  return volume;
+}
+
+}  // namespace cinevol

@@ -1,0 +1,91 @@
+// LoadSeries: listing, limits, retrieve, the reader cage.
+#include "runtime/series_load.h"
+
+#include <fmt/format.h>
+
+#include <filesystem>
+#include <fstream>
+
+#include "core/volume.h"
+#include "io/volume_loader.h"
+
+namespace cinevol::service {
+namespace {
+
+namespace fs = std::filesystem;
+
+// The voxels and bytes the listed instances will make, as far as the PACS
+// said their matrix; instances it said nothing of count as none (the reader's
+// own check from the headers still holds them to the limits).
+struct SeriesSize {
+  std::uint64_t voxels = 0, bytes = 0;
+};
+
+SeriesSize SizeOf(const std::vector<pacs::InstanceSummary>& instances) {
+  SeriesSize size;
+  for (const pacs::InstanceSummary& i : instances) {
+    const std::uint64_t voxels = std::uint64_t(std::max<std::int64_t>(i.rows.value_or(0), 0)) *
+                                 std::uint64_t(std::max<std::int64_t>(i.columns.value_or(0), 0)) *
+                                 std::uint64_t(std::max<std::int64_t>(i.frames.value_or(1), 1));
+    const VoxelType type = i.bits_allocated.value_or(16) > 16 ? VoxelType::kFloat32 : VoxelType::kInt16;
+    size.voxels += voxels;
+    size.bytes += Volume::BytesToLoad(type, voxels);
+  }
+  return size;
+}
+
+fs::path NewScratchFolder(const fs::path& under) {
+  static std::atomic<int> counter{0};
+  // Named by the server alone: nothing of the PACS's answer reaches a path.
+  const fs::path folder = under / fmt::format("pacs-{}-{}", ::getpid(), counter++);
+  fs::create_directories(folder);
+  return folder;
+}
+
+}  // namespace
+
+v1::VolumeInfo LoadSeries(const pacs::DicomWebClient& pacs, VolumeRegistry& volumes,
+                          const v1::LoadSeriesRequest& request, const Principal& caller,
+                          const std::atomic<bool>* cancel, const SeriesProgress& progress) {
+  pacs::CheckUid(request.study_uid(), "study_uid");
+  pacs::CheckUid(request.series_uid(), "series_uid");
+  if (!request.orientation().empty()) ParseOrientation(request.orientation(), "orientation");
+  const std::string source = fmt::format("pacs:{}/{}{}", pacs.config().name, request.series_uid(),
+                                         request.orientation().empty() ? "" : "@" + request.orientation());
+  if (std::optional<v1::VolumeInfo> held = volumes.FindHeld(source, caller)) return *held;
+
+  const fs::path folder = NewScratchFolder(volumes.upload_dir());
+  v1::LoadSeriesProgress news;
+  news.set_stage("retrieving");
+  pacs::RetrieveCallbacks callbacks;
+  callbacks.on_listing = [&](const std::vector<pacs::InstanceSummary>& instances) {
+    const SeriesSize size = SizeOf(instances);
+    volumes.RequireRoom(size.voxels, size.bytes, caller, fmt::format("series {}", request.series_uid()));
+    news.set_instances_total(instances.size());
+    progress(news);
+  };
+  std::size_t written = 0;
+  callbacks.on_instance = [&](const pacs::InstanceSummary&, std::string&& bytes) {
+    std::ofstream out(folder / fmt::format("{:06}.dcm", written++), std::ios::binary);
+    out.write(bytes.data(), std::streamsize(bytes.size()));
+    if (!out) throw std::runtime_error("cannot write a retrieved instance to " + folder.string());
+    news.set_bytes(news.bytes() + bytes.size());
+  };
+  callbacks.on_progress = [&](std::size_t done, std::size_t total) {
+    news.set_instances_done(done);
+    news.set_instances_total(total);
+    progress(news);
+  };
+  try {
+    pacs.RetrieveSeries(request.study_uid(), request.series_uid(), callbacks, cancel);
+  } catch (...) {
+    std::error_code ec;
+    fs::remove_all(folder, ec);
+    throw;
+  }
+  news.set_stage("reading");
+  progress(news);
+  return volumes.AddRetrievedSeries(folder, source, request.orientation(), caller, cancel);
+}
+
+}  // namespace cinevol::service

@@ -1,0 +1,184 @@
+// cinevol-server with a real PACS: Debian's Orthanc (orthanc_process.h),
+// seeded with the shared data's JPEG 2000 CT (20 slices, UIDs stamped), named
+// to the server with --pacs and searched, listed and loaded over gRPC and
+// from the `cinevol pacs` command. A series loads as the same volume as its
+// files from the disk; names that are not the server's, URLs and bad UIDs are
+// refused by name; a PACS that is down or refuses costs its caller a clear
+// error in bounded time and nobody else anything.
+#include <fmt/format.h>
+#include <gtest/gtest.h>
+
+#include <fstream>
+#include <memory>
+
+#include "pacs/orthanc_process.h"
+#include "pacs/stamped_series.h"
+#include "service/server_process.h"
+#include "service/service_test_support.h"
+#include "support/test_paths.h"
+
+namespace cinevol::testing {
+namespace {
+
+namespace fs = std::filesystem;
+using namespace std::chrono_literals;
+
+const SeriesStamp kCt{"2.25.3410001", "2.25.3410001.1", "CINEVOL-SRV-CT", "Cinevol^Server"};
+
+class PacsServer : public ::testing::Test {
+ protected:
+  static void SetUpTestSuite() {
+    skip_ = OrthancProcess::WhatIsMissing();
+    if (skip_.empty() && !fs::is_directory(SharedData())) skip_ = "the shared data are not at " + SharedData().string();
+    if (!skip_.empty()) return;
+    folder_ = fs::temp_directory_path() / fmt::format("cinevol-PacsServer-{}", getpid());
+    fs::remove_all(folder_);
+    fs::create_directories(folder_);
+    orthanc_ = std::make_unique<OrthancProcess>(folder_);
+    if (!orthanc_->running()) {
+      failure_ = "Orthanc did not start; its log:\n" + orthanc_->Log();
+      return;
+    }
+    const auto files = DicomFilesIn(SharedData() / "ct-body-totalsegmentator/example_ct_dicom");
+    const StampedSeries ct = StampSeries(files, kCt, folder_ / "data" / "ct");
+    for (const auto& instance : ct.instances) {
+      if (orthanc_->Upload(instance.bytes) != 200) failure_ = "Orthanc refused an upload";
+    }
+    const pacs::PacsConfig config = orthanc_->Pacs();
+    std::ofstream(folder_ / "pacs-credentials")
+        << "# test credentials\northanc basic " << config.credentials.user << ":" << config.credentials.password
+        << "\nwrong basic " << config.credentials.user << ":not-the-password\n";
+  }
+
+  static void TearDownTestSuite() {
+    orthanc_.reset();  // stops it by its pid
+    if (!folder_.empty()) fs::remove_all(folder_);
+  }
+
+  void SetUp() override {
+    if (!skip_.empty()) GTEST_SKIP() << skip_ << "; skipping";
+    ASSERT_TRUE(failure_.empty()) << failure_;
+    const std::string dicom_web = orthanc_->root_url() + "/dicom-web";
+    server_ = std::make_unique<ServerProcess>(
+        scratch_.path(), std::vector<std::string>{
+                             "--data-root", (folder_ / "data").string(),                         //
+                             "--pacs", "orthanc=" + dicom_web,                                  //
+                             "--pacs", "wrong=" + dicom_web,                                    // refused credentials
+                             "--pacs", fmt::format("down=http://127.0.0.1:{}/dicom-web", FreePort()),  //
+                             "--pacs-credentials", (folder_ / "pacs-credentials").string(),     //
+                             "--pacs-timeout-seconds", "10"});
+    ASSERT_TRUE(server_->running()) << server_->Log();
+  }
+
+  // `cinevol ARGS --server ADDR`: its exit code and output.
+  std::pair<int, std::string> Cli(std::vector<std::string> args) {
+    args.insert(args.begin() + 2, {"--server", server_->address()});
+    return RunProgram(CliPath(), args, scratch_ / "cli.log", 120s);
+  }
+
+  static v1::LoadSeriesRequest CtSeries() {
+    v1::LoadSeriesRequest request;
+    request.set_pacs("orthanc");
+    request.set_study_uid(kCt.study_uid);
+    request.set_series_uid(kCt.series_uid);
+    return request;
+  }
+
+  static inline std::string skip_, failure_;
+  static inline fs::path folder_;
+  static inline std::unique_ptr<OrthancProcess> orthanc_;
+  ScratchDir scratch_;
+  std::unique_ptr<ServerProcess> server_;
+};
+
+TEST_F(PacsServer, TheCommandSearchesListsAndLoads) {
+  Client client = server_->Connect();
+  EXPECT_EQ(client.ListPacs(), (std::vector<std::string>{"orthanc", "wrong", "down"}));
+
+  auto [code, out] = Cli({"pacs", "search", "--pacs", "orthanc", "--patient-id", kCt.patient_id});
+  ASSERT_EQ(code, 0) << out;
+  EXPECT_NE(out.find(kCt.study_uid), std::string::npos) << out;
+  EXPECT_NE(out.find("Cinevol^Server"), std::string::npos) << out;
+
+  std::tie(code, out) = Cli({"pacs", "series", "--pacs", "orthanc", "--study", kCt.study_uid, "--json"});
+  ASSERT_EQ(code, 0) << out;
+  EXPECT_NE(out.find(fmt::format(R"("seriesUid":"{}")", kCt.series_uid)), std::string::npos) << out;
+  EXPECT_NE(out.find(R"("instanceCount":"20")"), std::string::npos) << out;
+
+  // By patient: the latest study, its largest series.
+  std::tie(code, out) = Cli({"pacs", "load", "--pacs", "orthanc", "--patient-id", kCt.patient_id, "--json"});
+  ASSERT_EQ(code, 0) << out;
+  EXPECT_NE(out.find(fmt::format(R"("source":"pacs:orthanc/{}")", kCt.series_uid)), std::string::npos) << out;
+  EXPECT_NE(out.find(R"("z":20)"), std::string::npos) << out;
+}
+
+TEST_F(PacsServer, ASeriesLoadsAsTheSameVolumeAsItsFilesOnDisk) {
+  Client client = server_->Connect();
+  std::vector<v1::LoadSeriesProgress> progress;
+  const v1::VolumeInfo from_pacs =
+      client.LoadSeries(CtSeries(), [&](const v1::LoadSeriesProgress& p) { progress.push_back(p); });
+  const v1::VolumeInfo from_disk = client.LoadVolume("ct");
+  ASSERT_FALSE(progress.empty());
+  EXPECT_EQ(progress.back().stage(), "reading");
+  EXPECT_EQ(progress.back().instances_total(), 20u);
+  EXPECT_GT(progress.back().bytes(), 0u);
+
+  // Voxel for voxel: every voxel's value lands in the same histogram bin and
+  // the range is the same; geometry to the bit.
+  EXPECT_NE(from_pacs.id(), from_disk.id());
+  EXPECT_EQ(from_pacs.dims().DebugString(), from_disk.dims().DebugString());
+  EXPECT_EQ(from_pacs.spacing_mm().DebugString(), from_disk.spacing_mm().DebugString());
+  EXPECT_EQ(from_pacs.origin_mm().DebugString(), from_disk.origin_mm().DebugString());
+  EXPECT_EQ(from_pacs.min_value(), from_disk.min_value());
+  EXPECT_EQ(from_pacs.max_value(), from_disk.max_value());
+  EXPECT_EQ(from_pacs.histogram().DebugString(), from_disk.histogram().DebugString());
+  EXPECT_EQ(from_pacs.modality(), "CT");
+
+  // Held: a second load answers at once with the same volume, fetching nothing.
+  progress.clear();
+  const v1::VolumeInfo again =
+      client.LoadSeries(CtSeries(), [&](const v1::LoadSeriesProgress& p) { progress.push_back(p); });
+  EXPECT_EQ(again.id(), from_pacs.id());
+  EXPECT_TRUE(progress.empty());
+  // And it renders.
+  v1::CreateSessionRequest session = SmallSession();
+  session.set_volume_id(from_pacs.id());
+  EXPECT_FALSE(client.CreateSession(session).session_id().empty());
+}
+
+TEST_F(PacsServer, NamesThatAreNotTheServersUrlsAndBadUidsAreRefusedByName) {
+  Client client = server_->Connect();
+  v1::SearchStudiesRequest search;
+  for (const char* name : {"nope", "http://127.0.0.1:1/dicom-web", ""}) {
+    search.set_pacs(name);
+    ExpectRpcError([&] { client.SearchStudies(search); }, grpc::StatusCode::INVALID_ARGUMENT, "orthanc, wrong, down");
+  }
+  v1::LoadSeriesRequest load = CtSeries();
+  load.set_series_uid("1.2.3/../../studies");
+  ExpectRpcError([&] { client.LoadSeries(load); }, grpc::StatusCode::INVALID_ARGUMENT, "series_uid");
+  load = CtSeries();
+  load.set_series_uid("2.25.99999");  // a UID the PACS does not hold
+  ExpectRpcError([&] { client.LoadSeries(load); }, grpc::StatusCode::NOT_FOUND, "orthanc");
+}
+
+TEST_F(PacsServer, APacsThatIsDownOrRefusesIsAClearErrorAndNobodyElsesProblem) {
+  Client client = server_->Connect();
+  v1::SearchStudiesRequest search;
+  search.set_pacs("down");
+  const auto start = std::chrono::steady_clock::now();
+  ExpectRpcError([&] { client.SearchStudies(search); }, grpc::StatusCode::UNAVAILABLE, "down");
+  EXPECT_LT(std::chrono::steady_clock::now() - start, 30s);
+
+  search.set_pacs("wrong");
+  ExpectRpcError([&] { client.SearchStudies(search); }, grpc::StatusCode::FAILED_PRECONDITION, "wrong");
+
+  // The server and its other callers go on.
+  search.set_pacs("orthanc");
+  search.set_patient_id(kCt.patient_id);
+  EXPECT_EQ(client.SearchStudies(search).size(), 1u);
+  EXPECT_TRUE(client.Status().accepting_sessions());
+  EXPECT_EQ(server_->Log().find("not-the-password"), std::string::npos) << "a secret in the log";
+}
+
+}  // namespace
+}  // namespace cinevol::testing
