@@ -3,18 +3,17 @@
 
 #include <fmt/format.h>
 #include <gdcmDataSet.h>
-#include <gdcmPrivateTag.h>
-#include <gdcmReader.h>
 #include <gdcmWriter.h>
 #include <google/protobuf/struct.pb.h>
 #include <google/protobuf/util/json_util.h>
 
 #include <chrono>
 #include <ctime>
+#include <map>
 #include <random>
 #include <sstream>
-#include <streambuf>
 #include <string_view>
+#include <utility>
 
 #include "core/error.h"
 #include "pacs/dicom_json.h"
@@ -31,7 +30,6 @@ constexpr std::size_t kMaxPresetCharacters = 64;
 constexpr std::size_t kMaxVersionCharacters = 64;
 constexpr std::string_view kDescriptionPrefix = "cinevol render";
 constexpr std::size_t kLoCharacters = 64;
-const gdcm::Tag kPixelDataTag(0x7fe0, 0x0010);
 
 [[noreturn]] void Refuse(std::string_view field, std::string_view why) {
   throw InputError(fmt::format("{} {}", field, why));
@@ -400,95 +398,132 @@ void AppendPixelData(std::string& file, const std::vector<std::uint8_t>& rgb) {
 }
 
 // ---- Reading ----
+// Not with GDCM: Debian's GDCM keeps its assertions, and some malformed files abort the process in them; a file
+// from a PACS is not trusted. A capture is read as MakeSecondaryCapture writes it: Part 10, explicit VR little
+// endian, elements of defined length, up to the pixels, which are never read.
 
-// A read-only stream buffer over bytes the caller holds, so that GDCM reads a file without a copy of it.
-class MemoryBuffer : public std::streambuf {
- public:
-  explicit MemoryBuffer(std::string_view bytes) {
-    char* begin = const_cast<char*>(bytes.data());  // get area only: never written through
-    setg(begin, begin, begin + bytes.size());
-  }
+constexpr std::string_view kExplicitVrLittleEndian = "1.2.840.10008.1.2.1";
+constexpr std::uint32_t kTransferSyntaxTag = 0x00020010;
+constexpr std::uint32_t kSopClassTag = 0x00080016;
+constexpr std::uint16_t kPixelDataGroup = 0x7fe0;
 
- protected:
-  pos_type seekoff(off_type offset, std::ios_base::seekdir from, std::ios_base::openmode which) override {
-    const off_type base = from == std::ios_base::beg   ? 0
-                          : from == std::ios_base::cur ? gptr() - eback()
-                                                       : egptr() - eback();
-    const off_type target = base + offset;
-    if (!(which & std::ios_base::in) || target < 0 || target > egptr() - eback()) return pos_type(off_type(-1));
-    setg(eback(), eback() + target, egptr());
-    return pos_type(target);
-  }
-  pos_type seekpos(pos_type position, std::ios_base::openmode which) override {
-    return seekoff(off_type(position), std::ios_base::beg, which);
-  }
-};
+using Elements = std::map<std::uint32_t, std::string_view>;  // group << 16 | element -> value
 
-// The data set up to the pixels, which are never read.
-gdcm::DataSet ReadUpToPixels(const std::string& bytes) {
-  MemoryBuffer buffer(bytes);
-  std::istream in(&buffer);
-  gdcm::Reader reader;
-  reader.SetStream(in);
-  bool read = false;
-  try {
-    read = reader.ReadUpToTag(kPixelDataTag);
-  } catch (const std::exception&) {
-    read = false;  // GDCM throws on some malformed files
-  }
-  if (!read) throw InputError("not a cinevol render: not a DICOM file GDCM can read");
-  return reader.GetFile().GetDataSet();
+[[noreturn]] void NotARender(std::string_view why) { throw InputError(fmt::format("not a cinevol render: {}", why)); }
+
+std::uint32_t LittleEndian(std::string_view bytes, std::size_t at, int size) {
+  std::uint32_t value = 0;
+  for (int i = size - 1; i >= 0; --i) value = value << 8 | static_cast<unsigned char>(bytes[at + i]);
+  return value;
 }
 
-std::string BytesOf(const gdcm::DataElement& element) {
-  const gdcm::ByteValue* value = element.GetByteValue();
-  return value == nullptr ? std::string() : std::string(value->GetPointer(), value->GetLength());
+// The group of the element at `at`, which must have room for at least a short element header.
+std::uint16_t GroupAt(std::string_view bytes, std::size_t at) {
+  if (bytes.size() - at < 8) NotARender("it ends inside an element");
+  return static_cast<std::uint16_t>(LittleEndian(bytes, at, 2));
 }
 
-std::string TextOf(const gdcm::DataSet& data, gdcm::Tag tag) {
-  return data.FindDataElement(tag) ? WithoutTrailingSpaces(BytesOf(data.GetDataElement(tag))) : std::string();
-}
-
-int UnsignedShortOf(const gdcm::DataSet& data, gdcm::Tag tag) {
-  const std::string bytes = data.FindDataElement(tag) ? BytesOf(data.GetDataElement(tag)) : std::string();
-  return bytes.size() == 2 ? static_cast<unsigned char>(bytes[0]) | static_cast<unsigned char>(bytes[1]) << 8 : 0;
-}
-
-std::string RecipeJsonOf(const gdcm::DataSet& data) {
-  const gdcm::PrivateTag tag(kRecipeGroup, kRecipeElement, kRecipeCreator);
-  if (!data.FindDataElement(tag)) {
-    throw InputError(fmt::format("not a cinevol render: no private block \"{}\" holding a recipe", kRecipeCreator));
+// PS3.5 7.1.2: these VRs have two reserved bytes and a 32-bit length.
+bool HasLongLength(std::string_view vr) {
+  for (std::string_view long_vr : {"OB", "OD", "OF", "OL", "OV", "OW", "SQ", "SV", "UC", "UN", "UR", "UT", "UV"}) {
+    if (vr == long_vr) return true;
   }
-  return WithoutTrailingSpaces(BytesOf(data.GetDataElement(tag)));
+  return false;
+}
+
+// The explicit VR little endian element at `at` (GroupAt checked there is one), `at` moved past it.
+std::pair<std::uint32_t, std::string_view> NextElement(std::string_view bytes, std::size_t& at) {
+  const std::uint32_t tag = LittleEndian(bytes, at, 2) << 16 | LittleEndian(bytes, at + 2, 2);
+  const std::string_view vr = bytes.substr(at + 4, 2);
+  if (vr[0] < 'A' || vr[0] > 'Z' || vr[1] < 'A' || vr[1] > 'Z') NotARender("it is not in explicit VR");
+  std::size_t header = 8;
+  std::uint32_t length = LittleEndian(bytes, at + 6, 2);
+  if (HasLongLength(vr)) {
+    if (bytes.size() - at < 12) NotARender("it ends inside an element");
+    header = 12;
+    length = LittleEndian(bytes, at + 8, 4);
+  }
+  if (length == 0xffffffff) NotARender("it holds an element of undefined length");
+  if (bytes.size() - at - header < length) NotARender("it ends inside an element");
+  const std::string_view value = bytes.substr(at + header, length);
+  at += header + length;
+  return {tag, value};
+}
+
+std::string TextOf(const Elements& elements, std::uint32_t tag) {
+  const auto element = elements.find(tag);
+  return element == elements.end() ? std::string() : WithoutTrailingSpaces(std::string(element->second));
+}
+
+void CheckSopClass(std::string_view value) {
+  const std::string sop_class = WithoutTrailingSpaces(std::string(value));
+  if (sop_class != kSecondaryCaptureSopClass) {
+    NotARender(fmt::format("SOP class {}, not Secondary Capture", IsValidUid(sop_class) ? sop_class : "(no UID)"));
+  }
+}
+
+// The file meta header and the data set up to the pixels; a file of another SOP class is refused as soon as its
+// class is read.
+Elements ReadUpToPixels(std::string_view bytes) {
+  if (bytes.size() < 132 || bytes.substr(128, 4) != "DICM") NotARender("not a DICOM Part 10 file");
+  Elements elements;
+  std::size_t at = 132;
+  while (at < bytes.size() && GroupAt(bytes, at) == 0x0002) elements.insert(NextElement(bytes, at));
+  if (TextOf(elements, kTransferSyntaxTag) != kExplicitVrLittleEndian) {
+    NotARender("its transfer syntax is not explicit VR little endian");
+  }
+  while (at < bytes.size() && GroupAt(bytes, at) < kPixelDataGroup) {
+    const auto element = NextElement(bytes, at);
+    if (element.first == kSopClassTag) CheckSopClass(element.second);
+    elements.insert(element);
+  }
+  if (elements.count(kSopClassTag) == 0) NotARender("it has no SOP class");
+  return elements;
+}
+
+// The recipe, in whichever private block of kRecipeGroup its creator reserved (PS3.5 7.8.1).
+std::string RecipeJsonOf(const Elements& elements) {
+  for (std::uint32_t block = 0x10; block <= 0xff; ++block) {
+    if (TextOf(elements, std::uint32_t{kRecipeGroup} << 16 | block) != kRecipeCreator) continue;
+    const std::uint32_t tag = std::uint32_t{kRecipeGroup} << 16 | block << 8 | kRecipeElement;
+    if (elements.count(tag) == 0) break;
+    return TextOf(elements, tag);
+  }
+  NotARender(fmt::format("no private block \"{}\" holding a recipe", kRecipeCreator));
+}
+
+int UnsignedShortOf(const Elements& elements, std::uint32_t tag) {
+  const auto element = elements.find(tag);
+  if (element == elements.end() || element->second.size() != 2) return 0;
+  return static_cast<int>(LittleEndian(element->second, 0, 2));
 }
 
 std::string StringField(const Struct& recipe, const char* name) {
   const auto field = recipe.fields().find(name);
   if (field == recipe.fields().end() || !field->second.has_string_value()) {
-    throw InputError(fmt::format("not a cinevol render: its recipe has no text \"{}\"", name));
+    NotARender(fmt::format("its recipe has no text \"{}\"", name));
   }
   return field->second.string_value();
 }
 
 // The recipe's scene, source series, version and preset into `capture`.
 void ReadRecipe(ReadCapture& capture) {
-  if (capture.recipe_json.size() > kMaxSceneJsonBytes + 4096) throw InputError("not a cinevol render: recipe too long");
+  if (capture.recipe_json.size() > kMaxSceneJsonBytes + 4096) NotARender("its recipe is too long");
   Value recipe;
-  if (!ParseJsonObject(capture.recipe_json, recipe)) throw InputError("not a cinevol render: its recipe is not JSON");
+  if (!ParseJsonObject(capture.recipe_json, recipe)) NotARender("its recipe is not a JSON object");
   const Struct& fields = recipe.struct_value();
   const auto scene = fields.fields().find("scene");
-  if (scene == fields.fields().end() || !scene->second.has_struct_value()) {
-    throw InputError("not a cinevol render: its recipe has no scene object");
-  }
+  if (scene == fields.fields().end() || !scene->second.has_struct_value()) NotARender("its recipe has no scene");
   if (!google::protobuf::util::MessageToJsonString(scene->second, &capture.scene_json).ok()) {
-    throw InputError("not a cinevol render: its scene cannot be written as JSON");
+    NotARender("its scene cannot be written as JSON");
   }
   capture.source_series_uid = StringField(fields, "sourceSeriesUid");
-  if (!IsValidUid(capture.source_series_uid)) throw InputError("not a cinevol render: its recipe's series is no UID");
+  if (!IsValidUid(capture.source_series_uid)) NotARender("its recipe's series is not a UID");
   capture.cinevol_version = StringField(fields, "cinevolVersion");
   const auto preset = fields.fields().find("preset");
-  if (preset != fields.fields().end() && preset->second.has_string_value())
+  if (preset != fields.fields().end() && preset->second.has_string_value()) {
     capture.preset = preset->second.string_value();
+  }
 }
 
 }  // namespace
@@ -524,21 +559,15 @@ std::string MakeSecondaryCapture(const SourceStudy& given_source, const Secondar
 }
 
 ReadCapture ReadSecondaryCapture(const std::string& part10_bytes) {
-  const gdcm::DataSet data = ReadUpToPixels(part10_bytes);
-  const std::string sop_class = TextOf(data, gdcm::Tag(0x0008, 0x0016));
-  if (sop_class != kSecondaryCaptureSopClass) {
-    throw InputError(fmt::format("not a cinevol render: SOP class {}, not Secondary Capture",
-                                 IsValidUid(sop_class) ? sop_class : "(none)"));
-  }
+  const Elements elements = ReadUpToPixels(part10_bytes);
   ReadCapture capture;
-  capture.recipe_json = RecipeJsonOf(data);
+  capture.recipe_json = RecipeJsonOf(elements);
   ReadRecipe(capture);
-  capture.uids = {TextOf(data, gdcm::Tag(0x0020, 0x000d)), TextOf(data, gdcm::Tag(0x0020, 0x000e)),
-                  TextOf(data, gdcm::Tag(0x0008, 0x0018))};
-  capture.patient_id = TextOf(data, gdcm::Tag(0x0010, 0x0020));
-  capture.patient_name = TextOf(data, gdcm::Tag(0x0010, 0x0010));
-  capture.width = UnsignedShortOf(data, gdcm::Tag(0x0028, 0x0011));
-  capture.height = UnsignedShortOf(data, gdcm::Tag(0x0028, 0x0010));
+  capture.uids = {TextOf(elements, 0x0020000d), TextOf(elements, 0x0020000e), TextOf(elements, 0x00080018)};
+  capture.patient_id = TextOf(elements, 0x00100020);
+  capture.patient_name = TextOf(elements, 0x00100010);
+  capture.width = UnsignedShortOf(elements, 0x00280011);
+  capture.height = UnsignedShortOf(elements, 0x00280010);
   return capture;
 }
 

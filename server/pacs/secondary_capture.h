@@ -79,9 +79,10 @@ struct ReadCapture {
   int height = 0;
 };
 
-// Reads back what MakeSecondaryCapture wrote (for tests, and for `cinevol` to render a picture again), stopping
-// before the pixels. Throws InputError for bytes that are not a cinevol render: not DICOM, not a Secondary Capture,
-// no recipe block, or a recipe not of the shape above.
+// Reads back what MakeSecondaryCapture wrote (for tests, and for `cinevol` to render a picture again): a Part 10
+// file in explicit VR little endian, walked up to the pixels without GDCM (whose assertions abort the process on
+// some malformed files). Throws InputError ("not a cinevol render: ...") for anything else: not Part 10, another
+// transfer syntax or SOP class, truncated, no recipe block, or a recipe not of the shape above.
 ReadCapture ReadSecondaryCapture(const std::string& part10_bytes);
 
 // A new UID under the 2.25 root (PS3.5 B.2, ITU-T X.667): "2.25." and a random (version 4) UUID as a decimal

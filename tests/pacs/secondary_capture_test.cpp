@@ -347,6 +347,30 @@ TEST(SecondaryCapture, ReadRefusesWhatIsNotACinevolRender) {
             std::string::npos);
 }
 
+// A file from a PACS is not trusted: every truncation and every corrupted byte before the pixels reads or is
+// refused, and never takes the process down.
+TEST(SecondaryCapture, ReadSurvivesEveryTruncationAndCorruptedByte) {
+  const std::string capture = MakeSecondaryCapture(Source(), Picture(), Recipe());
+  const std::size_t header = capture.size() - 33 * 17 * 3 - 1 - 12;  // the pixels, their padding and element header
+  int refused = 0;
+  const auto read = [&](const std::string& bytes) {
+    try {
+      ReadSecondaryCapture(bytes);
+    } catch (const InputError&) {
+      ++refused;
+    }
+  };
+  for (std::size_t size = 0; size < header; ++size) read(capture.substr(0, size));
+  EXPECT_EQ(refused, int(header)) << "a capture cut before its pixels read as whole";
+  for (std::size_t at = 0; at < header; ++at) {
+    for (const char value : {'\x00', '\xff', '\x80'}) {
+      std::string corrupted = capture;
+      corrupted[at] = value;
+      read(corrupted);
+    }
+  }
+}
+
 TEST(SecondaryCapture, ReadRefusesAnMrSliceOfTheSharedData) {
   CINEVOL_REQUIRE_SHARED_DATA();
   const fs::path folder = cinevol::testing::SharedData() / "mr-chest-dicom-seg3d";
