@@ -30,6 +30,8 @@ constexpr std::size_t kMaxPresetCharacters = 64;
 constexpr std::size_t kMaxVersionCharacters = 64;
 constexpr std::string_view kDescriptionPrefix = "cinevol render";
 constexpr std::size_t kLoCharacters = 64;
+// A recipe is its scene and three short fields: the series UID, the version and the preset, quoted.
+constexpr std::size_t kMaxRecipeBytes = kMaxSceneJsonBytes + 4096;
 
 [[noreturn]] void Refuse(std::string_view field, std::string_view why) {
   throw InputError(fmt::format("{} {}", field, why));
@@ -43,14 +45,17 @@ std::string WithoutTrailingSpaces(std::string text) {
   return text;
 }
 
+// The length of the UTF-8 sequence that `lead` opens; 0 for a byte that opens none.
+std::size_t SequenceLength(unsigned char lead) {
+  if (lead < 0x80) return 1;
+  if ((lead >> 5) == 0x6) return 2;
+  if ((lead >> 4) == 0xe) return 3;
+  return (lead >> 3) == 0x1e ? 4 : 0;
+}
+
 bool IsValidUtf8(std::string_view text) {
   for (std::size_t i = 0; i < text.size();) {
-    const auto lead = static_cast<unsigned char>(text[i]);
-    const std::size_t length = lead < 0x80           ? 1
-                               : (lead >> 5) == 0x6  ? 2
-                               : (lead >> 4) == 0xe  ? 3
-                               : (lead >> 3) == 0x1e ? 4
-                                                     : 0;
+    const std::size_t length = SequenceLength(static_cast<unsigned char>(text[i]));
     if (length == 0 || i + length > text.size()) return false;
     for (std::size_t k = 1; k < length; ++k) {
       if ((static_cast<unsigned char>(text[i + k]) & 0xc0) != 0x80) return false;
@@ -508,7 +513,7 @@ std::string StringField(const Struct& recipe, const char* name) {
 
 // The recipe's scene, source series, version and preset into `capture`.
 void ReadRecipe(ReadCapture& capture) {
-  if (capture.recipe_json.size() > kMaxSceneJsonBytes + 4096) NotARender("its recipe is too long");
+  if (capture.recipe_json.size() > kMaxRecipeBytes) NotARender("its recipe is too long");
   Value recipe;
   if (!ParseJsonObject(capture.recipe_json, recipe)) NotARender("its recipe is not a JSON object");
   const Struct& fields = recipe.struct_value();
