@@ -20,28 +20,6 @@ constexpr std::int64_t kMaxCount = std::int64_t{1} << 31;
 // search or store answer holds, and stays inside protobuf's own recursion limit.
 constexpr int kMaxJsonDepth = 32;
 
-// Whether `json`'s arrays and objects nest deeper than `limit`, in one pass.
-// Checked before protobuf's parser sees the text: deep nesting costs that
-// parser time quadratic in the depth (100,000 levels: minutes).
-bool NestsDeeperThan(std::string_view json, int limit) {
-  int depth = 0;
-  bool in_string = false;
-  for (std::size_t i = 0; i < json.size(); ++i) {
-    const char c = json[i];
-    if (in_string) {
-      if (c == '\\') ++i;  // an escaped character, perhaps a quote
-      if (c == '"') in_string = false;
-    } else if (c == '"') {
-      in_string = true;
-    } else if (c == '[' || c == '{') {
-      if (++depth > limit) return true;
-    } else if (c == ']' || c == '}') {
-      --depth;
-    }
-  }
-  return false;
-}
-
 std::string Cut(const std::string& text) { return text.substr(0, kMaxDicomText); }
 
 std::string TextOf(const Value& value) {
@@ -127,6 +105,25 @@ std::vector<DicomJsonDataset> DicomJsonDataset::Items(std::uint32_t tag, std::si
     if (values->values(i).has_struct_value()) items.emplace_back(values->values(i).struct_value());
   }
   return items;
+}
+
+bool NestsDeeperThan(std::string_view json, int limit) {
+  int depth = 0;
+  bool in_string = false;
+  for (std::size_t i = 0; i < json.size(); ++i) {
+    const char c = json[i];
+    if (in_string) {
+      if (c == '\\') ++i;  // an escaped character, perhaps a quote
+      if (c == '"') in_string = false;
+    } else if (c == '"') {
+      in_string = true;
+    } else if (c == '[' || c == '{') {
+      if (++depth > limit) return true;
+    } else if (c == ']' || c == '}') {
+      --depth;
+    }
+  }
+  return false;
 }
 
 std::vector<DicomJsonDataset> ParseDicomJson(std::string_view json, Value& storage) {

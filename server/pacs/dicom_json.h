@@ -40,6 +40,11 @@ class DicomJsonDataset {
   const google::protobuf::Struct* object_;
 };
 
+// Whether `json`'s arrays and objects nest deeper than `limit`, in one pass.
+// Checked before protobuf's parser sees a text: deep nesting costs that
+// parser time quadratic in the depth (100,000 levels: minutes).
+bool NestsDeeperThan(std::string_view json, int limit);
+
 // A DICOM JSON answer: an array of data sets (QIDO-RS) or one data set
 // (STOW-RS answers), parsed into `storage`. Throws std::invalid_argument when
 // `json` is not JSON of that shape; objects inside that are not data sets are
