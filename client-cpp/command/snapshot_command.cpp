@@ -22,6 +22,7 @@ struct SnapshotOptions {
   std::string session;  // an existing session's current state; else a new session from the options below
   std::string volume, scene;
   std::string preset;  // empty: the volume's default preset
+  std::string store_to;  // a PACS name: the still also goes there, into its volume's study
   int width = 1280, height = 720, spp = 256;
   double timeout = 0;  // seconds for the whole still; 0: none (progress keeps it going)
 };
@@ -89,6 +90,7 @@ void Run(const SnapshotOptions& o) {
   request.set_session_id(session);
   request.set_spp(o.spp);
   request.set_format(ext == ".exr" ? v1::EXR : v1::PNG);
+  request.set_store_to(o.store_to);
   cinevol::SnapshotOptions wait;
   wait.timeout = std::chrono::milliseconds(static_cast<long>(o.timeout * 1000));
   v1::SnapshotResponse still;
@@ -104,6 +106,11 @@ void Run(const SnapshotOptions& o) {
   WriteFile(o.out, std::vector<std::uint8_t>(still.image().begin(), still.image().end()));
   fmt::print("wrote {}: {}x{}, {} spp, rendered in {:.2f} s\n", o.out, still.width(), still.height(), still.spp(),
              still.render_us() / 1e6);
+  if (still.has_stored()) {
+    const v1::StoredRender& s = still.stored();
+    fmt::print("stored in PACS '{}': study {}, series {}, instance {}\n", s.pacs(), s.study_uid(), s.series_uid(),
+               s.sop_instance_uid());
+  }
 }
 
 }  // namespace
@@ -119,6 +126,9 @@ void AddSnapshotCommand(CLI::App& app) {
   cmd->add_option("--scene", o->scene, "Scene file for a new session, instead of the preset");
   cmd->add_option("--width", o->width, "Width of a new session")->check(CLI::Range(1, 8192))->capture_default_str();
   cmd->add_option("--height", o->height, "Height of a new session")->check(CLI::Range(1, 8192))->capture_default_str();
+  cmd->add_option("--store-to", o->store_to,
+                  "A PACS the server names: store the still there too, as a DICOM Secondary Capture in the study "
+                  "of the volume (one loaded with `cinevol pacs load`), its recipe inside");
   cmd->add_option("--spp", o->spp, "Samples per pixel")->check(CLI::Range(1, 16384))->capture_default_str();
   cmd->add_option("--timeout", o->timeout,
                   "Seconds the whole still may take (0: no limit; it ends anyway when the server reports no "

@@ -19,7 +19,10 @@ constexpr int kMaxOffset = 1'000'000;
 constexpr std::size_t kMaxModalities = 16;
 
 // Attributes asked for beyond a PACS's defaults (PS3.18 does not require them all in an answer).
-constexpr const char* kStudyFields[] = {"00081030", "00080061", "00201206", "00201208", "00080050"};
+// Beyond a study's required matching keys: what a study list shows, and what a
+// render sent back into the study copies (secondary_capture.h's SourceStudy).
+constexpr const char* kStudyFields[] = {"00081030", "00080061", "00201206", "00201208", "00080050",
+                                        "00080030", "00080090", "00100030", "00100040", "00200010"};
 constexpr const char* kSeriesFields[] = {"0008103E", "00200011", "00201209", "00080060"};
 constexpr const char* kInstanceFields[] = {"00200013", "00280010", "00280011", "00280100", "00280008"};
 
@@ -54,6 +57,7 @@ void CheckModality(const std::string& modality) {
 }
 
 void CheckStudyQuery(const StudyQuery& query) {
+  if (!query.study_uid.empty()) CheckUid(query.study_uid, "study_uid");
   CheckQueryText(query.patient_name, "patient_name");
   CheckQueryText(query.patient_id, "patient_id");
   CheckQueryText(query.accession_number, "accession_number");
@@ -101,6 +105,7 @@ void AddIncludeFields(std::string& query, const char* const (&fields)[N]) {
 
 std::string StudySearchQuery(const StudyQuery& query, int limit) {
   std::string text;
+  AddParameter(text, "StudyInstanceUID", query.study_uid);
   AddParameter(text, "PatientName", query.patient_name);
   AddParameter(text, "PatientID", query.patient_id);
   if (!query.study_date_from.empty() || !query.study_date_to.empty()) {
@@ -126,6 +131,11 @@ StudySummary StudyFrom(const DicomJsonDataset& dataset) {
   study.modalities = dataset.Texts(tag::kModalitiesInStudy, kMaxModalities);
   study.series_count = dataset.Count(tag::kNumberOfStudyRelatedSeries);
   study.instance_count = dataset.Count(tag::kNumberOfStudyRelatedInstances);
+  study.study_time = dataset.Text(tag::kStudyTime);
+  study.study_id = dataset.Text(tag::kStudyId);
+  study.referring_physician = dataset.PersonName(tag::kReferringPhysicianName);
+  study.patient_birth_date = dataset.Text(tag::kPatientBirthDate);
+  study.patient_sex = dataset.Text(tag::kPatientSex);
   return study;
 }
 

@@ -19,6 +19,7 @@ namespace cinevol::pacs {
 // fields take DICOM matching (`*` and `?` wildcards) and at most 64
 // characters, without control characters or backslashes.
 struct StudyQuery {
+  std::string study_uid;     // one study, exactly
   std::string patient_name;  // e.g. "DOE^J*"
   std::string patient_id;
   std::string study_date_from;  // YYYYMMDD; with study_date_to, an inclusive range, either end open
@@ -42,6 +43,8 @@ struct StudySummary {
   std::vector<std::string> modalities;
   std::optional<std::int64_t> series_count;
   std::optional<std::int64_t> instance_count;
+  // What a render sent back into the study copies; empty where the PACS did not say.
+  std::string study_time, study_id, referring_physician, patient_birth_date, patient_sex;
 };
 
 struct SeriesSummary {

@@ -8,6 +8,7 @@
 
 #include "core/volume.h"
 #include "io/volume_loader.h"
+#include "runtime/render_store.h"
 
 namespace cinevol::service {
 namespace {
@@ -50,8 +51,8 @@ v1::VolumeInfo LoadSeries(const pacs::DicomWebClient& pacs, VolumeRegistry& volu
   pacs::CheckUid(request.study_uid(), "study_uid");
   pacs::CheckUid(request.series_uid(), "series_uid");
   if (!request.orientation().empty()) ParseOrientation(request.orientation(), "orientation");
-  const std::string source = fmt::format("pacs:{}/{}{}", pacs.config().name, request.series_uid(),
-                                         request.orientation().empty() ? "" : "@" + request.orientation());
+  const std::string source =
+      PacsSource({pacs.config().name, request.study_uid(), request.series_uid()}, request.orientation());
   if (std::optional<v1::VolumeInfo> held = volumes.FindHeld(source, caller)) return *held;
 
   const fs::path folder = NewScratchFolder(volumes.upload_dir());

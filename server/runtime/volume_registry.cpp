@@ -295,7 +295,8 @@ v1::VolumeInfo VolumeRegistry::AddRetrievedSeries(const fs::path& folder, const 
   Reservation reservation(this, caller.name, true, "the series");
   Volume volume = LoadVolume(request, {}, PolicyFor(source, true, cancel, &reservation));
   FoundTable table = SearchTable(volume, &reservation, cancel);
-  const std::string series = source.substr(source.rfind('/') + 1);
+  std::string series = source.substr(source.rfind('/') + 1);
+  series = series.substr(0, series.find('@'));
   const std::string base_id = "pacs-" + series.substr(series.size() > 12 ? series.size() - 12 : 0);
   return Add(base_id, source, source, std::move(volume), caller.name, true, &reservation, std::move(table));
 }

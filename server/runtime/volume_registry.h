@@ -91,7 +91,7 @@ class VolumeRegistry {
 
   // A series retrieved from a PACS into `folder` (in upload_dir(); removed):
   // read as a DICOM folder, held for `caller` alone like an upload, its
-  // source `source` ("pacs:NAME/SERIES_UID").
+  // source `source` ("pacs:NAME/STUDY_UID/SERIES_UID").
   v1::VolumeInfo AddRetrievedSeries(const std::filesystem::path& folder, const std::string& source,
                                     const std::string& orientation, const Principal& caller,
                                     const std::atomic<bool>* cancel = nullptr);

@@ -18,6 +18,7 @@
 #include "encode/image_codecs.h"
 #include "render/prepared_volume.h"
 #include "runtime/errors.h"
+#include "runtime/render_store.h"
 #include "core/log_safe.h"
 #include "io/label_volume.h"
 #include "io/reader_cage.h"
@@ -411,6 +412,9 @@ void ServiceCore::Snapshot(const v1::SnapshotRequest& request, const Principal& 
     accepted.set_spp(std::uint32_t(spp));
     callbacks.progress(accepted);
   }
+  if (!request.store_to().empty()) {
+    callbacks.done = StoreAfter(request, *session, caller, scene, cancel, std::move(callbacks.done));
+  }
   // The session does not expire while its still renders (EndStill).
   session->BeginStill(cancel);
   StillJob::Callbacks job;
@@ -427,6 +431,33 @@ void ServiceCore::Snapshot(const v1::SnapshotRequest& request, const Principal& 
   session->scheduler()->Wake(std::make_shared<StillJob>(session->volume(), std::move(scene), spp, max_chunk,
                                                         request.format(), backend_, &encoder_, std::move(cancel),
                                                         std::move(job)));
+}
+
+ServiceCore::SnapshotDone ServiceCore::StoreAfter(const v1::SnapshotRequest& request, const Session& session,
+                                                  const Principal& caller, const v1::Scene& scene,
+                                                  std::shared_ptr<std::atomic<bool>> cancel, SnapshotDone done) {
+  // Checked before a sample is rendered: the PACS named, the volume's own PACS and study.
+  const auto to = pacs_.Find(request.store_to(), "store_to");
+  if (request.format() == v1::EXR) throw InputError("store_to: a render goes to a PACS as PNG; leave format unset");
+  const v1::VolumeInfo volume = volumes_.Describe(session.volume()->id(), caller);
+  const std::optional<PacsOrigin> origin = ParsePacsSource(volume.source());
+  if (!origin) {
+    throw RpcError(grpc::StatusCode::FAILED_PRECONDITION,
+                   fmt::format("store_to: volume '{}' did not come from a PACS (it is {}); a render goes back into "
+                               "the study of a series loaded with LoadSeries",
+                               volume.id(), LogSafe(volume.source(), 80)));
+  }
+  const auto from = pacs_.Find(origin->pacs, "store_to");
+  return [this, to, from, origin = *origin, scene, cancel, done = std::move(done)](grpc::Status status,
+                                                                                   v1::SnapshotResponse still) {
+    if (!status.ok()) return done(std::move(status), std::move(still));
+    pacs_calls_.Submit([=, still = std::move(still)]() mutable {
+      const grpc::Status stored = Guarded([&] {
+        *still.mutable_stored() = StoreRender(*to, *from, origin, still, scene, CINEVOL_VERSION, cancel.get());
+      });
+      done(stored, stored.ok() ? std::move(still) : v1::SnapshotResponse());
+    });
+  };
 }
 
 void ServiceCore::ExpireDetachedSessions() {

@@ -110,8 +110,9 @@ class ServiceCore {
   // What a still tells its caller. `done` runs once, on a worker, with the
   // image or the error; `progress` (optional) runs at once with 0 samples
   // done, then on the device's worker about twice a second while it renders.
+  using SnapshotDone = std::function<void(grpc::Status, v1::SnapshotResponse)>;
   struct SnapshotCallbacks {
-    std::function<void(grpc::Status, v1::SnapshotResponse)> done;
+    SnapshotDone done;
     std::function<void(const v1::SnapshotProgress&)> progress;
   };
   // Renders a still of the session's current state on its device. It stops
@@ -149,6 +150,11 @@ class ServiceCore {
   // Environment maps a scene names: resolved inside the data roots.
   MapResolver ResolveMap() const;
   Scheduler& LeastLoaded();
+  // `done`, after the still is stored as request.store_to asks (on the PACS
+  // pool). Throws at once when it cannot be: an unknown PACS, a volume that
+  // did not come from one.
+  SnapshotDone StoreAfter(const v1::SnapshotRequest& request, const Session& session, const Principal& caller,
+                          const v1::Scene& scene, std::shared_ptr<std::atomic<bool>> cancel, SnapshotDone done);
   void Forget(const std::string& id);
 
   ServerOptions options_;

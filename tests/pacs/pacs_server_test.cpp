@@ -8,10 +8,13 @@
 #include <fmt/format.h>
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <fstream>
 #include <memory>
 
+#include "pacs/dicomweb_client.h"
 #include "pacs/orthanc_process.h"
+#include "pacs/secondary_capture.h"
 #include "pacs/stamped_series.h"
 #include "service/server_process.h"
 #include "service/service_test_support.h"
@@ -72,7 +75,7 @@ class PacsServer : public ::testing::Test {
 
   // `cinevol ARGS --server ADDR`: its exit code and output.
   std::pair<int, std::string> Cli(std::vector<std::string> args) {
-    args.insert(args.begin() + 2, {"--server", server_->address()});
+    args.insert(args.end(), {"--server", server_->address()});
     return RunProgram(CliPath(), args, scratch_ / "cli.log", 120s);
   }
 
@@ -108,7 +111,9 @@ TEST_F(PacsServer, TheCommandSearchesListsAndLoads) {
   // By patient: the latest study, its largest series.
   std::tie(code, out) = Cli({"pacs", "load", "--pacs", "orthanc", "--patient-id", kCt.patient_id, "--json"});
   ASSERT_EQ(code, 0) << out;
-  EXPECT_NE(out.find(fmt::format(R"("source":"pacs:orthanc/{}")", kCt.series_uid)), std::string::npos) << out;
+  EXPECT_NE(out.find(fmt::format(R"("source":"pacs:orthanc/{}/{}")", kCt.study_uid, kCt.series_uid)),
+            std::string::npos)
+      << out;
   EXPECT_NE(out.find(R"("z":20)"), std::string::npos) << out;
 }
 
@@ -144,6 +149,46 @@ TEST_F(PacsServer, ASeriesLoadsAsTheSameVolumeAsItsFilesOnDisk) {
   v1::CreateSessionRequest session = SmallSession();
   session.set_volume_id(from_pacs.id());
   EXPECT_FALSE(client.CreateSession(session).session_id().empty());
+}
+
+// A snapshot goes back into the source's study as a Secondary Capture that a
+// search finds and whose recipe reads back.
+TEST_F(PacsServer, ASnapshotIsStoredBackWithItsRecipe) {
+  Client client = server_->Connect();
+  const v1::VolumeInfo volume = client.LoadSeries(CtSeries());
+  const fs::path png = scratch_ / "render.png";
+  auto [code, out] = Cli({"snapshot", "--volume", volume.id(), "--preset", "ct-bone", "--width", "64", "--height",
+                          "48", "--spp", "2", "--out", png.string(), "--store-to", "orthanc"});
+  ASSERT_EQ(code, 0) << out;
+  const std::size_t at = out.find(", series ");
+  ASSERT_NE(at, std::string::npos) << out;
+  const std::string series_uid = out.substr(at + 9, out.find(',', at + 9) - at - 9);
+
+  std::vector<v1::SeriesSummary> series = client.SearchSeries("orthanc", kCt.study_uid);
+  const auto render = std::find_if(series.begin(), series.end(), [&](const auto& s) {
+    return s.series_uid() == series_uid;
+  });
+  ASSERT_NE(render, series.end()) << out;
+  EXPECT_EQ(render->modality(), "OT");
+  EXPECT_EQ(render->description(), "cinevol render: ct-bone");
+
+  // Its bytes, through the DICOMweb client: a cinevol render of this series.
+  std::string bytes;
+  pacs::RetrieveCallbacks callbacks;
+  callbacks.on_instance = [&](const pacs::InstanceSummary&, std::string&& b) { bytes = std::move(b); };
+  pacs::DicomWebClient(orthanc_->Pacs()).RetrieveSeries(kCt.study_uid, series_uid, callbacks);
+  const pacs::ReadCapture capture = pacs::ReadSecondaryCapture(bytes);
+  EXPECT_EQ(capture.source_series_uid, kCt.series_uid);
+  EXPECT_EQ(capture.patient_id, kCt.patient_id);
+  EXPECT_EQ(capture.preset, "ct-bone");
+  EXPECT_EQ(capture.width, 64);
+  EXPECT_NE(capture.scene_json.find("ct-bone"), std::string::npos) << capture.scene_json;
+
+  // A volume from elsewhere has no study to go back to.
+  std::tie(code, out) = Cli({"snapshot", "--volume", "phantom:head?size=48", "--width", "32", "--height", "32",
+                             "--spp", "1", "--out", png.string(), "--store-to", "orthanc"});
+  EXPECT_NE(code, 0);
+  EXPECT_NE(out.find("did not come from a PACS"), std::string::npos) << out;
 }
 
 TEST_F(PacsServer, NamesThatAreNotTheServersUrlsAndBadUidsAreRefusedByName) {

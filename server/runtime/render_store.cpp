@@ -1,0 +1,84 @@
+// StoreRender: the study's attributes, the capture, STOW-RS.
+#include "runtime/render_store.h"
+
+#include <fmt/format.h>
+#include <google/protobuf/util/json_util.h>
+
+#include "core/error.h"
+#include "encode/image_codecs.h"
+#include "pacs/pacs_error.h"
+#include "pacs/secondary_capture.h"
+
+namespace cinevol::service {
+
+std::string PacsSource(const PacsOrigin& origin, const std::string& orientation) {
+  return fmt::format("pacs:{}/{}/{}{}", origin.pacs, origin.study_uid, origin.series_uid,
+                     orientation.empty() ? "" : "@" + orientation);
+}
+
+std::optional<PacsOrigin> ParsePacsSource(const std::string& source) {
+  constexpr std::string_view kPrefix = "pacs:";
+  if (source.rfind(kPrefix, 0) != 0) return std::nullopt;
+  std::string rest = source.substr(kPrefix.size());
+  rest = rest.substr(0, rest.find('@'));
+  const std::size_t first = rest.find('/'), second = rest.find('/', first + 1);
+  if (first == std::string::npos || second == std::string::npos) return std::nullopt;
+  return PacsOrigin{rest.substr(0, first), rest.substr(first + 1, second - first - 1), rest.substr(second + 1)};
+}
+
+namespace {
+
+pacs::SourceStudy StudyOf(const pacs::DicomWebClient& from, const PacsOrigin& origin,
+                          const std::atomic<bool>* cancel) {
+  pacs::StudyQuery query;
+  query.study_uid = origin.study_uid;
+  query.limit = 1;
+  const std::vector<pacs::StudySummary> found = from.SearchStudies(query, cancel);
+  if (found.empty() || found[0].study_uid != origin.study_uid) {
+    throw pacs::PacsError(fmt::format("PACS '{}' no longer holds study {}: the render has nowhere to go",
+                                      origin.pacs, origin.study_uid), 404);
+  }
+  const pacs::StudySummary& s = found[0];
+  pacs::SourceStudy study;
+  study.patient_name = s.patient_name;
+  study.patient_id = s.patient_id;
+  study.patient_birth_date = s.patient_birth_date;
+  study.patient_sex = s.patient_sex;
+  study.study_uid = s.study_uid;
+  study.study_id = s.study_id;
+  study.study_date = s.study_date;
+  study.study_time = s.study_time;
+  study.accession_number = s.accession_number;
+  study.referring_physician = s.referring_physician;
+  study.study_description = s.description;
+  study.series_uid = origin.series_uid;
+  return study;
+}
+
+}  // namespace
+
+v1::StoredRender StoreRender(const pacs::DicomWebClient& to, const pacs::DicomWebClient& from,
+                             const PacsOrigin& origin, const v1::SnapshotResponse& still, const v1::Scene& scene,
+                             const std::string& version, const std::atomic<bool>* cancel) {
+  const ImageRgb8 image = DecodePng({still.image().begin(), still.image().end()});
+  pacs::RenderRecipe recipe;
+  google::protobuf::util::JsonPrintOptions options;
+  if (!google::protobuf::util::MessageToJsonString(scene, &recipe.scene_json, options).ok()) {
+    throw std::runtime_error("the scene could not be written as JSON for the recipe");
+  }
+  recipe.source_series_uid = origin.series_uid;
+  recipe.cinevol_version = version;
+  recipe.preset = scene.transfer_function().preset();
+  pacs::SecondaryCaptureUids uids;
+  const std::string capture =
+      pacs::MakeSecondaryCapture(StudyOf(from, origin, cancel), {image.width, image.height, image.bytes}, recipe, &uids);
+  to.StoreInstances(origin.study_uid, {capture}, cancel);
+  v1::StoredRender stored;
+  stored.set_pacs(to.config().name);
+  stored.set_study_uid(uids.study_uid);
+  stored.set_series_uid(uids.series_uid);
+  stored.set_sop_instance_uid(uids.sop_instance_uid);
+  return stored;
+}
+
+}  // namespace cinevol::service

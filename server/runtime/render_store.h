@@ -1,0 +1,32 @@
+// Renders sent back: a still of a volume that came from a PACS, stored into
+// the source's study as a DICOM Secondary Capture (pacs/secondary_capture.h)
+// with its recipe, so a picture in the report can be rendered again.
+#pragma once
+
+#include <atomic>
+#include <optional>
+#include <string>
+
+#include "cinevol/v1/scene.pb.h"
+#include "cinevol/v1/service.pb.h"
+#include "pacs/dicomweb_client.h"
+
+namespace cinevol::service {
+
+// Where a volume loaded from a PACS came from; as a volume's source it reads
+// "pacs:NAME/STUDY_UID/SERIES_UID", with "@ORIENTATION" when one was given.
+struct PacsOrigin {
+  std::string pacs, study_uid, series_uid;
+};
+std::string PacsSource(const PacsOrigin& origin, const std::string& orientation);
+// Nothing for a source that is not a PACS's.
+std::optional<PacsOrigin> ParsePacsSource(const std::string& source);
+
+// Stores `still` (a PNG) on `to` in the study `origin` names, whose patient
+// and study attributes `from` (the source PACS) answers; `scene` and
+// `version` make the recipe. Throws PacsError, InputError, Cancelled.
+v1::StoredRender StoreRender(const pacs::DicomWebClient& to, const pacs::DicomWebClient& from,
+                             const PacsOrigin& origin, const v1::SnapshotResponse& still, const v1::Scene& scene,
+                             const std::string& version, const std::atomic<bool>* cancel);
+
+}  // namespace cinevol::service
