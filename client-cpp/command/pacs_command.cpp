@@ -1,5 +1,5 @@
-// `cinevol pacs search|series|load --server ADDR --pacs NAME`: studies and
-// series in the PACS a server names, and a series loaded as a volume.
+// `cinevol pacs list|search|series|load --server ADDR [--pacs NAME]`: the
+// PACS a server names, studies and series in one, a series loaded as a volume.
 // Tables for people, proto3 JSON (--json) for scripts.
 #include <fmt/format.h>
 
@@ -35,6 +35,17 @@ void SetDates(const std::string& dates, v1::SearchStudiesRequest& request) {
 }
 
 std::string Count(bool has, std::int64_t n) { return has ? std::to_string(n) : "-"; }
+
+void List(const PacsOptions& o) {
+  const std::vector<std::string> names = Connect(o.connection).ListPacs();
+  if (o.json) {
+    v1::ListPacsResponse response;
+    response.mutable_names()->Assign(names.begin(), names.end());
+    return PrintJson(response);
+  }
+  if (names.empty()) fmt::print("this server names no PACS (cinevol-server --pacs NAME=URL)\n");
+  for (const std::string& name : names) fmt::print("{}\n", name);
+}
 
 void Search(const PacsOptions& o) {
   v1::SearchStudiesRequest request = o.search;
@@ -111,13 +122,16 @@ void Load(const PacsOptions& o) {
 }
 
 CLI::App* AddPacsSubcommand(CLI::App* pacs, const std::string& name, const std::string& help,
-                            std::function<void(const PacsOptions&)> run, std::shared_ptr<PacsOptions>& o) {
+                            std::function<void(const PacsOptions&)> run, std::shared_ptr<PacsOptions>& o,
+                            bool names_a_pacs = true) {
   auto* cmd = pacs->add_subcommand(name, help);
   o = std::make_shared<PacsOptions>();
   AddConnectionOptions(cmd, o->connection);
   AddCallTimeoutOption(cmd, o->connection);
-  cmd->add_option("--pacs", *o->search.mutable_pacs(), "The PACS by the name the server gives it (--pacs NAME=URL)")
-      ->required();
+  if (names_a_pacs) {
+    cmd->add_option("--pacs", *o->search.mutable_pacs(), "The PACS by the name the server gives it (--pacs NAME=URL)")
+        ->required();
+  }
   cmd->add_flag("--json", o->json, "Print the server's answer as proto3 JSON (one object)");
   cmd->callback([o, run] { run(*o); });
   return cmd;
@@ -129,6 +143,7 @@ void AddPacsCommand(CLI::App& app) {
   auto* pacs = app.add_subcommand("pacs", "Search the PACS a server names and load a series from one");
   pacs->require_subcommand(1);
   std::shared_ptr<PacsOptions> o;
+  AddPacsSubcommand(pacs, "list", "The PACS the server names", List, o, false);
   auto* search = AddPacsSubcommand(pacs, "search", "Studies matching every field given", Search, o);
   search->add_option("--patient-id", *o->search.mutable_patient_id(), "Patient ID (DICOM wildcards * and ?)");
   search->add_option("--patient-name", *o->search.mutable_patient_name(), "Patient name, FAMILY^GIVEN (wildcards)");

@@ -70,6 +70,7 @@ v1::VolumeInfo ResolveVolume(Client& client, const std::string& id) {
 v1::VolumeInfo ResolveVolume(Client& client, const ScriptSession& session) {
   const v1::VolumeInfo volume = !session.upload.empty() ? client.UploadVolume(session.upload)
                                 : !session.load.empty() ? client.LoadVolume(session.load)
+                                : session.series        ? client.LoadSeries(*session.series)
                                                         : ResolveVolume(client, session.volume);
   const ScriptLabels& labels = session.labels;
   if (labels.empty()) return volume;

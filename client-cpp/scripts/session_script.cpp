@@ -119,7 +119,7 @@ ScriptSession ParseSession(const Value& value, const std::string& where, const s
     const std::string field = where + "." + key;
     const bool text = key == "volume" || key == "load" || key == "upload" || key == "preset" || key == "scene";
     if (text && v.kind_case() != Value::kStringValue) throw InputError(field + ": must be a string");
-    if (key == "volume" || key == "load" || key == "upload") ++volumes_named;
+    if (key == "volume" || key == "load" || key == "upload" || key == "series") ++volumes_named;
     if (key == "volume") {
       s.volume = v.string_value();
     } else if (key == "load") {
@@ -142,12 +142,19 @@ ScriptSession ParseSession(const Value& value, const std::string& where, const s
       ParseInto(ToJson(v), s.stream, field);
     } else if (key == "labels") {
       s.labels = ParseLabels(v, field, base_dir);
+    } else if (key == "series") {
+      v1::LoadSeriesRequest series;
+      ParseInto(ToJson(v), series, field);
+      if (series.pacs().empty() || series.study_uid().empty() || series.series_uid().empty()) {
+        throw InputError(field + ": give pacs, studyUid and seriesUid");
+      }
+      s.series = std::move(series);
     } else {
-      throw InputError(
-          fmt::format("{}: unknown field (volume, load, upload, preset, scene, viewport, stream, labels)", field));
+      throw InputError(fmt::format(
+          "{}: unknown field (volume, load, upload, series, preset, scene, viewport, stream, labels)", field));
     }
   }
-  if (volumes_named > 1) throw InputError(where + ": name the volume once: volume, load or upload");
+  if (volumes_named > 1) throw InputError(where + ": name the volume once: volume, load, upload or series");
   return s;
 }
 

@@ -5,6 +5,7 @@
 //   {"session": {"volume": "phantom:head", "preset": "ct-bone", "viewport": {"width": 640, "height": 360}}}
 //   {"session": {"load": "ct/head.nii.gz"}}         (or "upload": "local/file.nrrd", relative to the script)
 //   {"session": {"load": "ct/body.nii.gz", "labels": {"load": "ct/seg.nii.gz", "table": "ct/labels.tsv"}}}
+//   {"session": {"series": {"pacs": "main", "studyUid": "1.2.840...", "seriesUid": "1.2.840..."}}}
 //   {"at": 0.0, "orbit": {"degrees": 90, "seconds": 3}}
 //   {"at": 3.5, "transferFunction": {"preset": "ct-soft-tissue"}}
 //   {"at": 4.0, "render": {"spp": 4}}
@@ -35,11 +36,12 @@ struct ScriptLabels {
 };
 
 // What the "session" line says; unset parts take the defaults noted. At most
-// one of volume, load and upload is set.
+// one of volume, load, upload and series is set.
 struct ScriptSession {
   std::string volume;                  // an id the server holds; none of the three: the server's first
   std::string load;                    // a path on the server, under its data roots, to load first
   std::filesystem::path upload;        // a local file to upload first (relative paths: to the script's folder)
+  std::optional<v1::LoadSeriesRequest> series;  // a series to load first from a PACS the server names
   std::string preset;                  // used without a scene; empty: the volume's default preset
   std::optional<v1::Scene> scene;      // "scene": a scene file, relative to the script
   v1::Viewport viewport;               // default 640x360

@@ -9,10 +9,12 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <atomic>
 #include <fstream>
 #include <memory>
 
 #include "pacs/dicomweb_client.h"
+#include "pacs/loopback_http_server.h"
 #include "pacs/orthanc_process.h"
 #include "pacs/secondary_capture.h"
 #include "pacs/stamped_series.h"
@@ -115,6 +117,21 @@ TEST_F(PacsServer, TheCommandSearchesListsAndLoads) {
             std::string::npos)
       << out;
   EXPECT_NE(out.find(R"("z":20)"), std::string::npos) << out;
+
+  std::tie(code, out) = Cli({"pacs", "list", "--json"});
+  ASSERT_EQ(code, 0) << out;
+  EXPECT_NE(out.find(R"({"names":["orthanc","wrong","down"]})"), std::string::npos) << out;
+
+  // A session script may name a series.
+  const fs::path script = scratch_ / "series.jsonl";
+  std::ofstream(script) << fmt::format(
+      R"({{"session": {{"series": {{"pacs": "orthanc", "studyUid": "{}", "seriesUid": "{}"}}, )"
+      R"("viewport": {{"width": 64, "height": 48}}, "stream": {{"targetSpp": 2}}}}}})",
+      kCt.study_uid, kCt.series_uid)
+                       << "\n";
+  std::tie(code, out) = Cli({"play", "--script", script.string(), "--out", (scratch_ / "play").string(),
+                             "--timeout", "60"});
+  EXPECT_EQ(code, 0) << out;
 }
 
 TEST_F(PacsServer, ASeriesLoadsAsTheSameVolumeAsItsFilesOnDisk) {
@@ -223,6 +240,45 @@ TEST_F(PacsServer, APacsThatIsDownOrRefusesIsAClearErrorAndNobodyElsesProblem) {
   EXPECT_EQ(client.SearchStudies(search).size(), 1u);
   EXPECT_TRUE(client.Status().accepting_sessions());
   EXPECT_EQ(server_->Log().find("not-the-password"), std::string::npos) << "a secret in the log";
+}
+
+// A PACS that lies: its listing claims a matrix past the server's limits, or
+// its instances are not DICOM. Each load ends in a clear error, the first
+// before any instance is fetched; the server and its other callers go on.
+TEST(PacsServerHostile, ALyingPacsCostsItsCallerAnErrorAndNobodyAnythingElse) {
+  ScratchDir scratch;
+  const std::string kListing = "/dicom-web/studies/1.2.3/series/4.5.6/instances";
+  std::atomic<int> fetched{0};
+  std::atomic<bool> huge{true};
+  LoopbackHttpServer pacs([&](const HttpRequestSeen& request) {
+    if (request.target.rfind(kListing + "?", 0) == 0) {
+      const std::string matrix = huge ? "65535" : "16";
+      return Answer(200, "application/dicom+json",
+                    R"([{"00080018":{"vr":"UI","Value":["4.5.6.1"]},"00280010":{"vr":"US","Value":[)" + matrix +
+                        R"(]},"00280011":{"vr":"US","Value":[)" + matrix + "]}}]");
+    }
+    ++fetched;
+    const std::string part = std::string(128, '\0') + "DICM" + std::string(64, 'x');  // DICOM only in looks
+    const std::string body = "--b\r\nContent-Type: application/dicom\r\n\r\n" + part + "\r\n--b--\r\n";
+    return Answer(200, "multipart/related; type=\"application/dicom\"; boundary=b", body);
+  });
+  ServerProcess server(scratch.path(), {"--pacs", "liar=" + pacs.url() + "/dicom-web", "--max-volume-voxels",
+                                        "100000000"});
+  ASSERT_TRUE(server.running()) << server.Log();
+  Client client = server.Connect();
+  v1::LoadSeriesRequest load;
+  load.set_pacs("liar");
+  load.set_study_uid("1.2.3");
+  load.set_series_uid("4.5.6");
+  ExpectRpcError([&] { client.LoadSeries(load); }, grpc::StatusCode::RESOURCE_EXHAUSTED, "max-volume-voxels");
+  EXPECT_EQ(fetched.load(), 0) << "refused from the listing, before any instance came";
+
+  huge = false;
+  ExpectRpcError([&] { client.LoadSeries(load); }, grpc::StatusCode::INVALID_ARGUMENT, "pacs:liar");
+  EXPECT_EQ(fetched.load(), 1);
+  EXPECT_EQ(client.ListVolumes().size(), 1u) << "nothing held but the phantom";
+  EXPECT_TRUE(client.Status().accepting_sessions());
+  EXPECT_FALSE(client.CreateSession(SmallSession()).session_id().empty());
 }
 
 }  // namespace
