@@ -71,7 +71,7 @@ CudaRenderer::~CudaRenderer() = default;
 void CudaRenderer::SetVolume(std::shared_ptr<const Volume> volume) {
   int gpu = 0;
   CINEVOL_CUDA_CHECK(cudaGetDevice(&gpu));
-  volume_ = VolumeCache::Get().Acquire(volume, brick_size_, gpu);
+  volume_ = VolumeCache::Get().Acquire(volume, brick_size_, gpu, use_texture_);
   data_.SetVolume(volume_->prepared_ptr());
   if (!data_.majorants().empty()) device_->majorants.Upload(data_.majorants(), device_->stream);
   CINEVOL_CUDA_CHECK(cudaStreamSynchronize(device_->stream));  // host arrays may change next

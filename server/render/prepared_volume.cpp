@@ -91,11 +91,11 @@ const std::uint16_t* LabelCopy::voxels() const { return gpu_ ? gpu_.get() : labe
 
 std::string DeviceLabel(int device) { return device == kHostDevice ? "cpu" : "cuda:" + std::to_string(device); }
 
-VolumeCopy::VolumeCopy(std::shared_ptr<const PreparedVolume> prepared, int device)
+VolumeCopy::VolumeCopy(std::shared_ptr<const PreparedVolume> prepared, int device, bool texture)
     : prepared_(std::move(prepared)), device_(device) {
   if (device_ == kHostDevice) return;
 #if CINEVOL_WITH_CUDA
-  gpu_ = UploadVoxels(*prepared_, device_);
+  gpu_ = UploadVoxels(*prepared_, device_, texture);
 #else
   throw std::logic_error("VolumeCopy: a GPU copy in a build without CUDA");
 #endif
@@ -143,12 +143,13 @@ std::shared_ptr<const T> VolumeCache::FindOrMake(Slots<Key, T>& slots, const Key
 }
 
 std::shared_ptr<const VolumeCopy> VolumeCache::Acquire(const std::shared_ptr<const Volume>& volume, int brick_size,
-                                                       int device) {
-  return FindOrMake(copies_, std::tuple{device, volume.get(), brick_size}, [&] {
+                                                       int device, bool texture) {
+  texture = texture && device != kHostDevice;  // the host has one kind of copy
+  return FindOrMake(copies_, std::tuple{device, volume.get(), brick_size, texture}, [&] {
     std::shared_ptr<const PreparedVolume> prepared = FindOrMake(prepared_, std::tuple{volume.get(), brick_size}, [&] {
       return std::make_shared<const PreparedVolume>(volume, brick_size);
     });
-    return std::make_shared<const VolumeCopy>(std::move(prepared), device);
+    return std::make_shared<const VolumeCopy>(std::move(prepared), device, texture);
   });
 }
 

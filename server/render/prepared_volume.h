@@ -84,26 +84,26 @@ inline constexpr int kHostDevice = -1;
 // "cpu" for kHostDevice, "cuda:N" for GPU N.
 std::string DeviceLabel(int device);
 
-// A prepared volume's voxels on one GPU: a buffer, and where it fits the
-// texture size, a 3D texture too (the path tracer samples through it; the
-// buffer serves volumes too large for one and RendererOptions::volume_texture).
+// A prepared volume's voxels on one GPU, held once: a 3D texture where one
+// fits (the path tracer samples through it), else a buffer (volumes too large
+// for a texture, RendererOptions::volume_texture off).
 struct GpuVoxels {
-  const std::uint16_t* buffer = nullptr;
-  unsigned long long texture = 0;  // cudaTextureObject_t
-  std::size_t bytes = 0;           // both together
+  const std::uint16_t* buffer = nullptr;  // null with a texture
+  unsigned long long texture = 0;         // cudaTextureObject_t; 0 with a buffer
+  std::size_t bytes = 0;
 };
 
 // A prepared volume on one device: kHostDevice or a GPU ordinal. Immutable.
 class VolumeCopy {
  public:
-  // On a GPU, uploads the voxels there (throws ResourceExhausted when they do
-  // not fit).
-  VolumeCopy(std::shared_ptr<const PreparedVolume> prepared, int device);
+  // On a GPU, uploads the voxels there, as a texture when `texture` and one
+  // fits (throws ResourceExhausted when they do not fit the GPU's memory).
+  VolumeCopy(std::shared_ptr<const PreparedVolume> prepared, int device, bool texture = true);
 
   const PreparedVolume& prepared() const { return *prepared_; }
   const std::shared_ptr<const PreparedVolume>& prepared_ptr() const { return prepared_; }
   int device() const { return device_; }
-  const std::uint16_t* voxels() const;  // in the device's memory
+  const std::uint16_t* voxels() const;  // in the device's memory; null on a GPU holding a texture
   // On a GPU, the voxels also as a 3D texture (device/volume_texture.h) when
   // they fit the GPU's texture size; 0 otherwise.
   unsigned long long texture() const { return gpu_ ? gpu_->texture : 0; }
@@ -137,7 +137,7 @@ class LabelCopy {
 #if CINEVOL_WITH_CUDA
 // Copies the prepared voxels to GPU `gpu`; the pointer frees them there (from
 // any thread). Defined in volume_upload.cu.
-std::shared_ptr<const GpuVoxels> UploadVoxels(const PreparedVolume& prepared, int gpu);
+std::shared_ptr<const GpuVoxels> UploadVoxels(const PreparedVolume& prepared, int gpu, bool texture);
 // The same for a segmentation's label voxels.
 std::shared_ptr<const std::uint16_t> UploadLabels(const LabelVolume& labels, int gpu);
 #endif
@@ -158,7 +158,9 @@ class VolumeCache {
   // The copy of `volume` with `brick_size` bricks on `device`, built on first
   // use. Thread-safe: callers asking for the same copy at once get one copy,
   // built once; only they wait for it.
-  std::shared_ptr<const VolumeCopy> Acquire(const std::shared_ptr<const Volume>& volume, int brick_size, int device);
+  // `texture`: on a GPU, held as a texture where one fits (RendererOptions::volume_texture).
+  std::shared_ptr<const VolumeCopy> Acquire(const std::shared_ptr<const Volume>& volume, int brick_size, int device,
+                                            bool texture = true);
   // The same for a segmentation, with the prepared volume's brick size.
   std::shared_ptr<const LabelCopy> AcquireLabels(const std::shared_ptr<const LabelVolume>& labels, Vec3i brick_size,
                                                  int device);
@@ -185,7 +187,7 @@ class VolumeCache {
 
   mutable std::mutex mu_;
   Slots<std::tuple<const Volume*, int>, PreparedVolume> prepared_;          // volume, brick size
-  Slots<std::tuple<int, const Volume*, int>, VolumeCopy> copies_;          // device, volume, brick size
+  Slots<std::tuple<int, const Volume*, int, bool>, VolumeCopy> copies_;  // device, volume, brick size, texture
   Slots<std::tuple<int, const LabelVolume*, int>, LabelCopy> labels_;     // device, labels, brick size (x)
 };
 

@@ -26,7 +26,7 @@ class OnGpu {
 
 }  // namespace
 
-std::shared_ptr<const GpuVoxels> UploadVoxels(const PreparedVolume& prepared, int gpu) {
+std::shared_ptr<const GpuVoxels> UploadVoxels(const PreparedVolume& prepared, int gpu, bool texture) {
   OnGpu on(gpu);
   struct Owned {
     DeviceBuffer<std::uint16_t> buffer;
@@ -34,8 +34,10 @@ std::shared_ptr<const GpuVoxels> UploadVoxels(const PreparedVolume& prepared, in
     GpuVoxels view;
   };
   auto owned = std::make_shared<Owned>();
-  owned->buffer.Upload(prepared.voxels(), prepared.volume().voxel_count());
-  owned->texture.Upload(prepared.voxels(), prepared.volume().dims(), cudaStreamPerThread);
+  // Once: as a texture where one fits (every lookup then reads it), else as a buffer.
+  if (!texture || !owned->texture.Upload(prepared.voxels(), prepared.volume().dims(), cudaStreamPerThread)) {
+    owned->buffer.Upload(prepared.voxels(), prepared.volume().voxel_count());
+  }
   // Renderers on other threads (other streams) read it next.
   CINEVOL_CUDA_CHECK(cudaStreamSynchronize(cudaStreamPerThread));
   owned->view = {owned->buffer.data(), owned->texture.handle(),

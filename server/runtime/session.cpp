@@ -55,7 +55,8 @@ std::uint64_t PixelBudget::used() const {
 
 std::shared_ptr<const VolumeCopy> PrepareOnDevice(const VolumeLease& volume, const Scheduler& scheduler) {
   const int device = scheduler.gpu().value_or(kHostDevice);
-  return VolumeCache::Get().Acquire(volume.volume(), kSessionRenderer.brick_size, device);
+  return VolumeCache::Get().Acquire(volume.volume(), kSessionRenderer.brick_size, device,
+                                    kSessionRenderer.volume_texture);
 }
 
 Session::Session(std::string id, std::string owner, std::shared_ptr<VolumeLease> volume, v1::SessionState state,

@@ -157,13 +157,28 @@ TEST(VolumeCache, CudaRenderersShareOneDeviceUpload) {
     ASSERT_EQ(copies.size(), 1u);
     EXPECT_GE(copies[0].device, 0);
     EXPECT_EQ(copies[0].renderers, 2);
-    EXPECT_EQ(copies[0].bytes, volume->voxel_count() * 4)
-        << "one upload of the 16-bit voxels, as a buffer and a texture";
+    EXPECT_EQ(copies[0].bytes, volume->voxel_count() * 2) << "one upload of the 16-bit voxels, as a texture alone";
     EXPECT_EQ(first.pixels, lone.pixels);
     EXPECT_EQ(second.pixels, lone.pixels);
   }
   EXPECT_TRUE(CopiesOf(volume).empty()) << "the last renderer frees the upload";
   EXPECT_GT(MeanOf(lone), 0.0) << "the head should show";
+}
+
+// Without the texture (RendererOptions::volume_texture off) the voxels go up
+// as a buffer: another copy, of the same 2 bytes a voxel, that renders the head.
+TEST(VolumeCache, WithoutTheTextureTheDeviceHoldsABuffer) {
+  CINEVOL_REQUIRE_CUDA();
+  const auto volume = SmallHead();
+  RendererOptions options;
+  options.volume_texture = false;
+  auto buffered = CreateRenderer(Backend::kCuda, options), textured = CreateRenderer(Backend::kCuda);
+  const ImageRgbF a = RenderFrames(*buffered, volume, 3), b = RenderFrames(*textured, volume, 3);
+  const auto copies = CopiesOf(volume);
+  ASSERT_EQ(copies.size(), 2u) << "a buffer and a texture: two kinds of copy";
+  for (const VolumeCopyStatus& c : copies) EXPECT_EQ(c.bytes, volume->voxel_count() * 2);
+  EXPECT_GT(MeanOf(a), 0.0);
+  EXPECT_NEAR(MeanOf(a), MeanOf(b), 0.05 * MeanOf(b)) << "the texture's interpolation differs only in its last bits";
 }
 
 // A segmentation is shared too: one copy per device (its labels per brick, and
