@@ -61,20 +61,20 @@ struct PanelsOpen {
 // What the PACS panel shows and edits (docs/viewer.md, "PACS"). Patient
 // fields stay here and on screen: they are never printed or logged.
 struct PacsBrowser {
-  std::vector<std::string> names;      // the server's PACS (ListPacs); none: no panel
-  v1::SearchStudiesRequest query;      // the search fields and the PACS searched
+  std::vector<std::string> names;  // the server's PACS (ListPacs); none: no panel
+  v1::SearchStudiesRequest query;  // the search fields and the PACS searched
   std::vector<v1::StudySummary> studies;
-  std::string study_uid;               // the study selected
-  std::vector<v1::SeriesSummary> series;  // of the study selected
-  std::string series_uid;              // the series selected
+  std::string study_uid;                           // the study selected
+  std::vector<v1::SeriesSummary> series;           // of the study selected
+  std::string series_uid;                          // the series selected
   std::optional<v1::LoadSeriesProgress> progress;  // of the series being opened
   bool opening = false;
   int busy = 0;  // calls under way (a script's settle waits for them)
   // Bumped when the connection closes: answers of its calls come to nothing.
   std::uint64_t generation = 0;
-  std::string source;                  // the PACS the studies and series listed came from
-  std::string status;                  // the panel's status line
-  bool failed = false;                 // it says what went wrong
+  std::string source;   // the PACS the studies and series listed came from
+  std::string status;   // the panel's status line
+  bool failed = false;  // it says what went wrong
 };
 
 class App {
