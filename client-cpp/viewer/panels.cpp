@@ -1,11 +1,15 @@
-// The viewer's panels (volume, transfer function, lights, render, clipping, labels,
-// scene), its stats overlay and the banner that says what is wrong.
+// The viewer's panels (volume, PACS, transfer function, lights, render, clipping,
+// labels, scene), its stats overlay and the banner that says what is wrong.
 #include <imgui.h>
 #include <imgui_stdlib.h>
 
 #include <algorithm>
 #include <cmath>
 #include <functional>
+#include <initializer_list>
+#include <string>
+#include <utility>
+#include <vector>
 
 #include <fmt/format.h>
 
@@ -68,6 +72,141 @@ void VolumePanel(App& app) {
   Hint("a file or DICOM folder under the server's data roots");
   VolumeField(app, "Upload", app.upload_path, [](Client& c, const std::string& path) { return c.UploadVolume(path); });
   Hint("a local .nii, .nii.gz, .nrrd, .mha or .vtk file");
+}
+
+// "DOE^JOHN^P" as "DOE, JOHN P": DICOM's person name (its alphabetic group) for people.
+std::string PersonName(const std::string& dicom) {
+  std::vector<std::string> parts;
+  std::string part;
+  for (const char c : dicom.substr(0, dicom.find('=')) + '^') {
+    if (c != '^') {
+      part += c;
+    } else if (!part.empty()) {
+      parts.push_back(std::exchange(part, {}));
+    }
+  }
+  std::string name = parts.empty() ? "" : parts.front();
+  for (std::size_t i = 1; i < parts.size(); ++i) name += (i == 1 ? ", " : " ") + parts[i];
+  return name;
+}
+
+// "20240115" as "2024-01-15"; anything else as it is.
+std::string DateText(const std::string& dicom) {
+  if (dicom.size() != 8) return dicom;
+  return fmt::format("{}-{}-{}", dicom.substr(0, 4), dicom.substr(4, 2), dicom.substr(6, 2));
+}
+
+void Cell(const std::string& text) {
+  ImGui::TableNextColumn();
+  ImGui::TextUnformatted(text.c_str());
+}
+
+// Column headers over a table that scrolls both ways: the panel is narrow. Columns fit
+// what they hold (resizable ones would keep the width of the empty table).
+bool BeginResults(const char* id, std::initializer_list<const char*> columns, float height) {
+  constexpr ImGuiTableFlags kFlags = ImGuiTableFlags_Borders | ImGuiTableFlags_RowBg | ImGuiTableFlags_ScrollX |
+                                     ImGuiTableFlags_ScrollY | ImGuiTableFlags_SizingFixedFit;
+  if (!ImGui::BeginTable(id, int(columns.size()), kFlags, {0, height})) return false;
+  ImGui::TableSetupScrollFreeze(1, 1);
+  for (const char* column : columns) ImGui::TableSetupColumn(column);
+  ImGui::TableHeadersRow();
+  return true;
+}
+
+// The PACS picker and the search fields; Enter in a field searches too.
+void PacsSearch(App& app) {
+  v1::SearchStudiesRequest& query = app.pacs.query;
+  if (ImGui::BeginCombo("PACS", query.pacs().c_str())) {
+    for (const std::string& name : app.pacs.names) {
+      if (ImGui::Selectable(name.c_str(), name == query.pacs())) query.set_pacs(name);
+    }
+    ImGui::EndCombo();
+  }
+  constexpr ImGuiInputTextFlags kEnter = ImGuiInputTextFlags_EnterReturnsTrue;
+  bool search = ImGui::InputTextWithHint("patient ID", "* and ? match", query.mutable_patient_id(), kEnter);
+  search |= ImGui::InputTextWithHint("patient name", "DOE^J*", query.mutable_patient_name(), kEnter);
+  search |= ImGui::InputTextWithHint("modality", "CT, MR", query.mutable_modality(), kEnter);
+  search |= ImGui::InputTextWithHint("date from", "YYYYMMDD", query.mutable_study_date_from(), kEnter);
+  search |= ImGui::InputTextWithHint("date to", "YYYYMMDD", query.mutable_study_date_to(), kEnter);
+  search |= ImGui::Button("Search");
+  if (search) app.SearchPacs(query);
+}
+
+void StudiesTable(App& app) {
+  if (!BeginResults("studies", {"patient", "ID", "date", "modalities", "description"}, 150)) return;
+  for (const v1::StudySummary& study : app.pacs.studies) {
+    ImGui::TableNextRow();
+    ImGui::TableNextColumn();
+    ImGui::PushID(study.study_uid().c_str());
+    const bool selected = study.study_uid() == app.pacs.study_uid;
+    if (ImGui::Selectable(PersonName(study.patient_name()).c_str(), selected, ImGuiSelectableFlags_SpanAllColumns) &&
+        !selected) {
+      app.SelectStudy(app.pacs.source, study.study_uid());
+    }
+    ImGui::PopID();
+    std::string modalities;
+    for (const std::string& m : study.modalities()) modalities += (modalities.empty() ? "" : "/") + m;
+    Cell(study.patient_id());
+    Cell(DateText(study.study_date()));
+    Cell(modalities);
+    Cell(study.description());
+  }
+  ImGui::EndTable();
+}
+
+v1::LoadSeriesRequest SelectedSeries(const App& app) {
+  v1::LoadSeriesRequest request;
+  request.set_pacs(app.pacs.source);
+  request.set_study_uid(app.pacs.study_uid);
+  request.set_series_uid(app.pacs.series_uid);
+  return request;
+}
+
+// The selected study's series: a click selects one, a double click opens it.
+void SeriesTable(App& app) {
+  if (!BeginResults("series", {"modality", "number", "instances", "description"}, 110)) return;
+  for (const v1::SeriesSummary& series : app.pacs.series) {
+    ImGui::TableNextRow();
+    ImGui::TableNextColumn();
+    ImGui::PushID(series.series_uid().c_str());
+    constexpr ImGuiSelectableFlags kFlags = ImGuiSelectableFlags_SpanAllColumns | ImGuiSelectableFlags_AllowDoubleClick;
+    if (ImGui::Selectable(series.modality().c_str(), series.series_uid() == app.pacs.series_uid, kFlags)) {
+      app.pacs.series_uid = series.series_uid();
+      if (ImGui::IsMouseDoubleClicked(ImGuiMouseButton_Left) && !app.pacs.opening) app.OpenSeries(SelectedSeries(app));
+    }
+    ImGui::PopID();
+    Cell(series.has_series_number() ? std::to_string(series.series_number()) : "");
+    Cell(series.has_instance_count() ? std::to_string(series.instance_count()) : "");
+    Cell(series.description());
+  }
+  ImGui::EndTable();
+}
+
+// Open, and how far the series has come: "retrieving 12/20", then "reading" (the server decodes it).
+void OpenButton(App& app) {
+  ImGui::BeginDisabled(app.pacs.series_uid.empty() || app.pacs.opening);
+  if (ImGui::Button("Open")) app.OpenSeries(SelectedSeries(app));
+  ImGui::EndDisabled();
+  if (!app.pacs.progress) return;
+  const v1::LoadSeriesProgress& p = *app.pacs.progress;
+  const bool reading = p.stage() == "reading";
+  const float done = p.instances_total() > 0 ? float(p.instances_done()) / float(p.instances_total()) : 0.0f;
+  const std::string text = reading ? fmt::format("reading {} instances", p.instances_total())
+                                   : fmt::format("{} {}/{}", p.stage(), p.instances_done(), p.instances_total());
+  ImGui::SameLine();
+  ImGui::ProgressBar(reading ? 1.0f : done, {-1, 0}, text.c_str());
+}
+
+// Shown where the server names a PACS: search, a study's series, open one.
+void PacsPanel(App& app) {
+  PacsSearch(app);
+  StudiesTable(app);
+  SeriesTable(app);
+  OpenButton(app);
+  if (app.pacs.status.empty()) return;
+  if (app.pacs.failed) ImGui::PushStyleColor(ImGuiCol_Text, ImVec4(1.0f, 0.55f, 0.45f, 1.0f));
+  ImGui::TextWrapped("%s", app.pacs.status.c_str());
+  if (app.pacs.failed) ImGui::PopStyleColor();
 }
 
 void TransferPanel(App& app) {
@@ -422,6 +561,7 @@ void DrawPanels(App& app) {
   ImGui::SetNextWindowSize({app.panel_area.w, app.panel_area.h});
   ImGui::Begin("cinevol", nullptr, ImGuiWindowFlags_NoMove | ImGuiWindowFlags_NoResize | ImGuiWindowFlags_NoCollapse);
   if (Header("Volume", app.panels.volume)) VolumePanel(app);
+  if (!app.pacs.names.empty() && Header("PACS", app.panels.pacs)) PacsPanel(app);
   if (Header("Transfer function", app.panels.transfer_function)) TransferPanel(app);
   if (Header("Lights", app.panels.lights)) LightsPanel(app);
   if (Header("Render", app.panels.render)) RenderPanel(app);

@@ -5,6 +5,7 @@
 
 #include <cctype>
 #include <cmath>
+#include <initializer_list>
 
 #include <fmt/format.h>
 
@@ -44,8 +45,28 @@ const Struct& Object(const Value& v, const std::string& where) {
   return v.struct_value();
 }
 
+// An action's object as a PacsService request, in the request's own JSON
+// names ("patientId", "studyUid"), with the fields it must name.
+template <class Request>
+Request PacsRequest(const Value& value, const std::string& where, std::initializer_list<const char*> required) {
+  const Struct& fields = Object(value, where);
+  for (const char* key : required) {
+    if (Text(Field(fields, key, where), where + "." + key).empty()) {
+      throw InputError(fmt::format("{}.{}: empty", where, key));
+    }
+  }
+  std::string json;
+  google::protobuf::util::MessageToJsonString(fields, &json);
+  Request request;
+  if (const auto status = google::protobuf::util::JsonStringToMessage(json, &request); !status.ok()) {
+    throw InputError(fmt::format("{}: {}", where, status.message().as_string()));
+  }
+  return request;
+}
+
 bool* Panel(PanelsOpen& p, const std::string& name) {
   if (name == "volume") return &p.volume;
+  if (name == "pacs") return &p.pacs;
   if (name == "transferFunction") return &p.transfer_function;
   if (name == "lights") return &p.lights;
   if (name == "render") return &p.render;
@@ -86,7 +107,9 @@ void App::RunUiAction(const std::string& json, int line) {
   if (name == "panel") {  // {"panel": {"name": "lights", "open": true}}
     const Struct& p = Object(value, at);
     bool* open = Panel(panels, Text(Field(p, "name", at), at + ".name"));
-    if (!open) throw InputError(at + ".name: volume, transferFunction, lights, render, scene or stats");
+    if (!open) {
+      throw InputError(at + ".name: volume, pacs, transferFunction, lights, render, clipping, labels, scene or stats");
+    }
     if (run) *open = !p.fields().count("open") || p.fields().at("open").bool_value();
   } else if (name == "key") {  // {"key": "p"}
     const std::string key = Text(value, at);
@@ -148,12 +171,31 @@ void App::RunUiAction(const std::string& json, int line) {
     if (run) screenshots_.push_back(file);
   } else if (name == "settle") {  // {"settle": true}: the script waits until every event sent has its frame
     if (run) settling_ = true;
+  } else if (name == "searchPacs") {  // {"searchPacs": {"pacs": "main", "patientId": "123", "modality": "CT"}}
+    const auto query = PacsRequest<v1::SearchStudiesRequest>(value, at, {"pacs"});
+    if (run) {
+      panels.pacs = true;  // a screenshot shows what the panel found
+      SearchPacs(query);
+    }
+  } else if (name == "selectStudy") {  // {"selectStudy": {"pacs": "main", "studyUid": "1.2.3"}}
+    const auto study = PacsRequest<v1::SearchSeriesRequest>(value, at, {"pacs", "studyUid"});
+    if (run) {
+      panels.pacs = true;
+      SelectStudy(study.pacs(), study.study_uid());
+    }
+  } else if (name == "openSeries") {  // {"openSeries": {"pacs": "main", "studyUid": "1.2.3", "seriesUid": "1.2.3.4"}}
+    const auto series = PacsRequest<v1::LoadSeriesRequest>(value, at, {"pacs", "studyUid", "seriesUid"});
+    if (run) {
+      panels.pacs = true;
+      OpenSeries(series);
+    }
   } else if (name == "quit") {
     if (run) finish_now_ = true;
   } else {
     throw InputError(fmt::format(
         "{}: unknown action (panel, key, drag, wheel, preset, movePoint, addPoint, deletePoint, windowLevel, "
-        "snapshot, saveScene, openScene, resizeWindow, settle, screenshot, quit)",
+        "snapshot, saveScene, openScene, searchPacs, selectStudy, openSeries, resizeWindow, settle, screenshot, "
+        "quit)",
         at));
   }
 }

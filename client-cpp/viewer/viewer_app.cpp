@@ -49,6 +49,37 @@ ValueHistogram ToHistogram(const v1::ValueHistogram& proto) {
 // Refused, or the server cannot be reached (retrying).
 bool Broken(LinkState s) { return s == LinkState::kFailed || s == LinkState::kReconnecting; }
 
+google::protobuf::Value TextValue(const std::string& text) {
+  google::protobuf::Value v;
+  v.set_string_value(text);
+  return v;
+}
+
+google::protobuf::Value NumberValue(double number) {
+  google::protobuf::Value v;
+  v.set_number_value(number);
+  return v;
+}
+
+// What a script's line says of a series: no descriptions, which a site may
+// fill with anything.
+google::protobuf::Value SeriesValue(const v1::SeriesSummary& s) {
+  google::protobuf::Value v;
+  auto& fields = *v.mutable_struct_value()->mutable_fields();
+  fields["seriesUid"] = TextValue(s.series_uid());
+  fields["modality"] = TextValue(s.modality());
+  fields["instances"] = NumberValue(double(s.instance_count()));
+  return v;
+}
+
+// The series a load without a choice takes, as `cinevol pacs load` does: the most instances.
+std::string LargestSeries(const std::vector<v1::SeriesSummary>& series) {
+  const auto largest = std::max_element(series.begin(), series.end(), [](const auto& a, const auto& b) {
+    return a.instance_count() < b.instance_count();
+  });
+  return largest == series.end() ? std::string() : largest->series_uid();
+}
+
 }  // namespace
 
 // ---------------------------------------------------------------- stats
@@ -139,6 +170,7 @@ void App::Connect() {
   settings.session.viewport.set_width(viewport_w_);
   settings.session.viewport.set_height(viewport_h_);
   connection = std::make_unique<Connection>(std::move(settings));
+  ListPacs();  // each connection asks: the panel shows only where the server names a PACS
 }
 
 int App::Run() {
@@ -290,6 +322,13 @@ void App::SwitchVolume(const std::string& id) {
   retired_.emplace_back([old = std::move(connection)]() mutable { old.reset(); });
   session_id.clear();
   volume.reset();
+  stats.last_frame_id = 0;  // a script's settle waits for the new session's first frame
+  // Calls queued on the old connection never run and those running are not
+  // heard of: nothing of the panel waits for them.
+  ++pacs.generation;
+  pacs.busy = 0;
+  pacs.opening = false;
+  pacs.progress.reset();
   Connect();
 }
 
@@ -302,6 +341,163 @@ void App::RefreshVolumes() {
       [this](const std::string& error) {
         if (!error.empty()) Later([this, error] { notice = error; });
       });
+}
+
+// ------------------------------------------------------------- the PACS
+
+void App::ListPacs() {
+  connection->Request(
+      [this, generation = pacs.generation](Client& client) {
+        std::vector<std::string> names = client.ListPacs();
+        Later([this, generation, names = std::move(names)] {
+          if (generation != pacs.generation) return;
+          pacs.names = names;
+          if (pacs.query.pacs().empty() && !names.empty()) pacs.query.set_pacs(names.front());
+        });
+      },
+      [](const std::string&) {});  // a server without PACS, or older than them: no panel
+}
+
+void App::PacsCall(const std::string& action, const std::string& pacs_name,
+                   std::function<std::function<void()>(Client&)> call) {
+  ++pacs.busy;
+  pacs.failed = false;
+  connection->Request(
+      [this, action, pacs_name, call = std::move(call), generation = pacs.generation](Client& client) {
+        std::function<void()> then;
+        try {
+          then = call(client);
+        } catch (const RpcError& e) {  // caught here rather than in Request's done, to keep the code
+          then = [this, action, pacs_name, code = e.code(), text = std::string(e.what())] {
+            PacsFailed(action, pacs_name, code, text);
+          };
+        } catch (const std::exception& e) {
+          then = [this, action, pacs_name, text = std::string(e.what())] {
+            PacsFailed(action, pacs_name, grpc::StatusCode::UNKNOWN, text);
+          };
+        }
+        Later([this, generation, then = std::move(then)] {
+          if (generation != pacs.generation) return;  // the connection closed meanwhile
+          --pacs.busy;
+          then();
+        });
+      },
+      [](const std::string&) {});
+}
+
+void App::PacsFailed(const std::string& action, const std::string& pacs_name, grpc::StatusCode code,
+                     const std::string& message) {
+  pacs.status = message;
+  pacs.failed = true;
+  if (action == "openSeries") {
+    pacs.opening = false;
+    pacs.progress.reset();
+  }
+  // The code alone: a message may quote what was asked, a patient's name or ID.
+  google::protobuf::Struct report;
+  (*report.mutable_fields())["pacs"] = TextValue(pacs_name);
+  (*report.mutable_fields())["error"] = TextValue(StatusCodeName(code));
+  Report(action, report);
+}
+
+void App::SearchPacs(v1::SearchStudiesRequest query) {
+  pacs.query = query;
+  pacs.status = fmt::format("searching {}...", query.pacs());
+  PacsCall("searchPacs", query.pacs(), [this, query](Client& client) -> std::function<void()> {
+    return [this, query, studies = client.SearchStudies(query)] { ShowStudies(query, studies); };
+  });
+}
+
+void App::ShowStudies(const v1::SearchStudiesRequest& query, const std::vector<v1::StudySummary>& studies) {
+  pacs.source = query.pacs();
+  pacs.studies = studies;
+  pacs.study_uid.clear();
+  pacs.series.clear();
+  pacs.series_uid.clear();
+  const std::size_t page = query.limit() > 0 ? query.limit() : 50;  // the server's default page
+  pacs.status = studies.empty()       ? "no study matches"
+                : studies.size() == 1 ? "1 study"
+                                      : fmt::format("{} studies", studies.size());
+  if (studies.size() >= page) pacs.status += " (a full page: narrow the search)";
+  google::protobuf::Struct report;
+  auto& fields = *report.mutable_fields();
+  fields["pacs"] = TextValue(query.pacs());
+  auto& uids = *fields["studyUids"].mutable_list_value();
+  for (const v1::StudySummary& s : studies) *uids.add_values() = TextValue(s.study_uid());
+  Report("searchPacs", report);
+}
+
+void App::SelectStudy(const std::string& pacs_name, const std::string& study_uid) {
+  pacs.source = pacs_name;
+  pacs.study_uid = study_uid;
+  pacs.series.clear();
+  pacs.series_uid.clear();
+  pacs.status = "listing the study's series...";
+  PacsCall("selectStudy", pacs_name, [this, pacs_name, study_uid](Client& client) -> std::function<void()> {
+    std::vector<v1::SeriesSummary> series = client.SearchSeries(pacs_name, study_uid);
+    std::sort(series.begin(), series.end(),
+              [](const auto& a, const auto& b) { return a.series_number() < b.series_number(); });
+    return [this, pacs_name, study_uid, series = std::move(series)] { ShowSeries(pacs_name, study_uid, series); };
+  });
+}
+
+void App::ShowSeries(const std::string& pacs_name, const std::string& study_uid,
+                     const std::vector<v1::SeriesSummary>& series) {
+  google::protobuf::Struct report;
+  auto& fields = *report.mutable_fields();
+  fields["pacs"] = TextValue(pacs_name);
+  fields["studyUid"] = TextValue(study_uid);
+  auto& list = *fields["series"].mutable_list_value();
+  for (const v1::SeriesSummary& s : series) *list.add_values() = SeriesValue(s);
+  Report("selectStudy", report);
+  if (pacs.study_uid != study_uid) return;  // another study was selected meanwhile
+  pacs.series = series;
+  pacs.series_uid = LargestSeries(series);  // Open takes it unless another is chosen
+  pacs.status = series.size() == 1 ? "1 series" : fmt::format("{} series", series.size());
+}
+
+void App::OpenSeries(const v1::LoadSeriesRequest& request) {
+  if (pacs.opening) {
+    pacs.status = "a series is opening already: wait for it";
+    return;
+  }
+  pacs.opening = true;
+  pacs.progress.reset();
+  pacs.status = "opening the series...";
+  // The server fetches and reads the series; its progress comes back meanwhile.
+  PacsCall("openSeries", request.pacs(), [this, request, generation = pacs.generation](Client& client) {
+    auto on_progress = [this, generation](const v1::LoadSeriesProgress& p) {
+      Later([this, generation, p] {
+        if (generation == pacs.generation && pacs.opening) pacs.progress = p;
+      });
+    };
+    return std::function<void()>(
+        [this, request, opened = client.LoadSeries(request, on_progress)] { Opened(request, opened); });
+  });
+}
+
+void App::Opened(const v1::LoadSeriesRequest& request, const v1::VolumeInfo& opened) {
+  pacs.opening = false;
+  pacs.progress.reset();
+  pacs.status = fmt::format("opened {} ({} x {} x {})", opened.id(), opened.dims().x(), opened.dims().y(),
+                            opened.dims().z());
+  google::protobuf::Struct report;
+  auto& fields = *report.mutable_fields();
+  fields["pacs"] = TextValue(request.pacs());
+  fields["studyUid"] = TextValue(request.study_uid());
+  fields["seriesUid"] = TextValue(request.series_uid());
+  fields["volumeId"] = TextValue(opened.id());
+  fields["source"] = TextValue(opened.source());
+  Report("openSeries", report);
+  SwitchVolume(opened.id());  // as a click on one of the server's volumes does
+}
+
+void App::Report(const std::string& action, const google::protobuf::Struct& fields) const {
+  if (!script_) return;  // a person's clicks print nothing
+  std::string json;
+  google::protobuf::util::MessageToJsonString(fields, &json);
+  std::printf("cinevol-viewer: %s %s\n", action.c_str(), json.c_str());
+  std::fflush(stdout);
 }
 
 void App::Snapshot(const std::string& path, int spp) {
@@ -672,7 +868,7 @@ void App::RunScript() {
 bool App::EventsAnswered() const {
   // A resized window is an event not sent yet (it waits for the window to
   // hold still), and the frame on screen is still of the old size.
-  if (camera_dirty_ || ResizePending() || stats.last_frame_id == 0) return false;
+  if (camera_dirty_ || ResizePending() || stats.last_frame_id == 0 || pacs.busy > 0) return false;
   // idle() before last_sent(): once nothing waits to be sent, last_sent()
   // counts every event posted; read first, it could miss events sent meanwhile.
   if (!connection->idle()) return false;

@@ -4,6 +4,7 @@
 #pragma once
 
 #include <SDL.h>
+#include <google/protobuf/struct.pb.h>
 
 #include <chrono>
 #include <deque>
@@ -52,9 +53,28 @@ struct ViewerStats {
 
 // Panels the user can open and close.
 struct PanelsOpen {
-  bool volume = true, transfer_function = true, lights = false, render = false, clipping = false, labels = false,
-       scene = false;
+  bool volume = true, pacs = false, transfer_function = true, lights = false, render = false, clipping = false,
+       labels = false, scene = false;
   bool stats = true;  // the overlay
+};
+
+// What the PACS panel shows and edits (docs/viewer.md, "PACS"). Patient
+// fields stay here and on screen: they are never printed or logged.
+struct PacsBrowser {
+  std::vector<std::string> names;  // the server's PACS (ListPacs); none: no panel
+  v1::SearchStudiesRequest query;  // the search fields and the PACS searched
+  std::vector<v1::StudySummary> studies;
+  std::string study_uid;                           // the study selected
+  std::vector<v1::SeriesSummary> series;           // of the study selected
+  std::string series_uid;                          // the series selected
+  std::optional<v1::LoadSeriesProgress> progress;  // of the series being opened
+  bool opening = false;
+  int busy = 0;  // calls under way (a script's settle waits for them)
+  // Bumped when the connection closes: answers of its calls come to nothing.
+  std::uint64_t generation = 0;
+  std::string source;   // the PACS the studies and series listed came from
+  std::string status;   // the panel's status line
+  bool failed = false;  // it says what went wrong
 };
 
 class App {
@@ -84,6 +104,7 @@ class App {
   std::string load_path, upload_path, scene_path = "view.json", snapshot_path = "snapshot.png";
   int snapshot_spp = 256;
   std::vector<v1::VolumeInfo> server_volumes;
+  PacsBrowser pacs;
 
   Rect frame_area, panel_area, stats_area;
 
@@ -101,6 +122,11 @@ class App {
   void SaveScene(const std::string& path);
   void OpenScene(const std::string& path);
   void RefreshVolumes();
+  // The PACS panel's calls, on the connection's requester; their answers
+  // land in `pacs` (and, in a script run, on stdout without patient fields).
+  void SearchPacs(v1::SearchStudiesRequest query);
+  void SelectStudy(const std::string& pacs_name, const std::string& study_uid);
+  void OpenSeries(const v1::LoadSeriesRequest& request);
   // Runs on the UI thread at the next frame (for results from the worker).
   void Later(std::function<void()> f);
 
@@ -126,6 +152,19 @@ class App {
   bool ResizePending() const;  // the frame area's size is not yet the session's viewport
   void RunScript();
   void RunUiAction(const std::string& json, int line);
+  void ListPacs();
+  // Runs `call` on the requester; the function it returns (or the error)
+  // then runs on the UI thread, unless the connection has closed since.
+  void PacsCall(const std::string& action, const std::string& pacs_name,
+                std::function<std::function<void()>(Client&)> call);
+  void ShowStudies(const v1::SearchStudiesRequest& query, const std::vector<v1::StudySummary>& studies);
+  void ShowSeries(const std::string& pacs_name, const std::string& study_uid,
+                  const std::vector<v1::SeriesSummary>& series);
+  void Opened(const v1::LoadSeriesRequest& request, const v1::VolumeInfo& opened);
+  void PacsFailed(const std::string& action, const std::string& pacs_name, grpc::StatusCode code,
+                  const std::string& message);
+  // One machine-readable line for scripts: "cinevol-viewer: ACTION {JSON}".
+  void Report(const std::string& action, const google::protobuf::Struct& fields) const;
   bool EventsAnswered() const;  // every event sent, and the window's size, has its frame on screen
   bool ScriptDone();
   void WriteScreenshot(const std::string& path);

@@ -14,6 +14,8 @@
 #include <fmt/format.h>
 
 #include "encode/image_codecs.h"
+#include "pacs/orthanc_process.h"
+#include "pacs/stamped_series.h"
 #include "scene/scene_file.h"
 #include "service/server_process.h"
 #include "service/service_test_support.h"
@@ -376,6 +378,116 @@ TEST(Viewer, ScriptedClippingAndLabelsShowInItsPanels) {
   ASSERT_EQ(scene.labels().styles_size(), 1) << "the label styles are not in the panel";
   EXPECT_EQ(scene.labels().styles(0).value(), 300u);
   EXPECT_FALSE(scene.labels().show_unlisted());
+}
+
+// The Struct a script run printed for a PACS action: every "cinevol-viewer: ACTION {...}" line of `output`.
+std::vector<google::protobuf::Struct> Reported(const std::string& output, const std::string& action) {
+  std::vector<google::protobuf::Struct> lines;
+  const std::string prefix = "cinevol-viewer: " + action + " {";
+  for (std::size_t at = output.find(prefix); at != std::string::npos; at = output.find(prefix, at + 1)) {
+    const std::size_t json = at + prefix.size() - 1;
+    google::protobuf::Struct line;
+    const std::string text = output.substr(json, output.find('\n', json) - json);
+    EXPECT_TRUE(google::protobuf::util::JsonStringToMessage(text, &line).ok()) << text;
+    lines.push_back(line);
+  }
+  return lines;
+}
+
+std::string TextField(const google::protobuf::Struct& s, const std::string& key) {
+  const auto it = s.fields().find(key);
+  return it == s.fields().end() ? "" : it->second.string_value();
+}
+
+// The volume source of a session the server holds for us, where one renders a series from a PACS.
+std::string PacsSessionSource(Client& client) {
+  const v1::ServerStatus status = client.Status();
+  for (const v1::SessionStatus& session : status.sessions()) {
+    const std::string source = client.DescribeVolume(session.volume_id()).source();
+    if (source.rfind("pacs:orthanc/", 0) == 0) return source;
+  }
+  return {};
+}
+
+// The PACS panel against a real Orthanc (tests/pacs/orthanc_process.h) holding the shared JPEG 2000 CT, stamped:
+// a script searches a PACS the server does not name (an error), then by patient ID, lists the study's series and
+// opens one. The viewer prints what it found (UIDs, no patient fields), and its session moves to the series.
+TEST(Viewer, APacsSeriesIsFoundListedAndOpenedFromItsPanel) {
+  CINEVOL_REQUIRE_VIEWER();
+  if (const std::string missing = OrthancProcess::WhatIsMissing(); !missing.empty()) GTEST_SKIP() << missing;
+  CINEVOL_REQUIRE_SHARED_DATA();
+  const SeriesStamp ct{"2.25.3410201", "2.25.3410201.1", "CINEVOL-VIEWER-CT", "Cinevol^Viewer"};
+  ScratchDir scratch;
+  fs::create_directories(scratch.path() / "orthanc");
+  OrthancProcess orthanc(scratch.path() / "orthanc");
+  ASSERT_TRUE(orthanc.running()) << orthanc.Log();
+  const auto files = DicomFilesIn(SharedData() / "ct-body-totalsegmentator/example_ct_dicom");
+  for (const StampedInstance& instance : StampSeries(files, ct, scratch.path() / "stamped").instances) {
+    ASSERT_EQ(orthanc.Upload(instance.bytes), 200) << "Orthanc refused an upload";
+  }
+  const pacs::PacsConfig pacs = orthanc.Pacs();
+  const fs::path credentials = scratch.path() / "pacs-credentials";
+  std::ofstream(credentials) << "orthanc basic " << pacs.credentials.user << ":" << pacs.credentials.password << "\n";
+  ServerProcess server(scratch.path(), {"--pacs", "orthanc=" + pacs.base_url, "--pacs-credentials",
+                                        credentials.string(), "--pacs-timeout-seconds", "10"});
+  ASSERT_TRUE(server.running()) << server.Log();
+
+  const fs::path shot = scratch.path() / "opened.png";
+  // Each action waits for the one before (settle); the last line keeps the session a while for the checks below.
+  const fs::path script = WriteScript(scratch.path() / "pacs.jsonl",
+                                      fmt::format(R"({{"session": {{"stream": {{"targetSpp": 2}}}}}}
+{{"at": 0, "ui": {{"searchPacs": {{"pacs": "nope"}}}}}}
+{{"at": 0, "ui": {{"searchPacs": {{"pacs": "orthanc", "patientId": "{0}", "modality": "CT"}}}}}}
+{{"at": 0, "ui": {{"settle": true}}}}
+{{"at": 0, "ui": {{"selectStudy": {{"pacs": "orthanc", "studyUid": "{1}"}}}}}}
+{{"at": 0, "ui": {{"settle": true}}}}
+{{"at": 0, "ui": {{"openSeries": {{"pacs": "orthanc", "studyUid": "{1}", "seriesUid": "{2}"}}}}}}
+{{"at": 0, "ui": {{"settle": true}}}}
+{{"at": 0, "ui": {{"screenshot": "{3}"}}}}
+{{"at": 4, "ui": {{"settle": true}}}}
+)", ct.patient_id, ct.study_uid, ct.series_uid, shot.string()));
+  const auto args = XvfbRunArgs({"--server", server.address(), "--script", script.string(), "--max-seconds", "80"});
+  const pid_t viewer = Spawn("/usr/bin/xvfb-run", args, scratch.path() / "viewer.log");
+  ASSERT_GT(viewer, 0);
+  // While the script runs, the server renders the series from the PACS for the viewer.
+  Client client = server.Connect();
+  std::string source;
+  int status = -1;
+  for (int i = 0; i < 1000 && source.empty() && status == -1; ++i) {
+    source = PacsSessionSource(client);
+    status = WaitExit(viewer, std::chrono::milliseconds(100));
+  }
+  if (status == -1) status = WaitExit(viewer, std::chrono::seconds(100));
+  std::ifstream log(scratch.path() / "viewer.log");
+  const std::string output{std::istreambuf_iterator<char>(log), {}};
+  ASSERT_TRUE(status != -1 && WIFEXITED(status)) << output;
+  EXPECT_EQ(WEXITSTATUS(status), 0) << output;
+  EXPECT_EQ(source, fmt::format("pacs:orthanc/{}/{}", ct.study_uid, ct.series_uid)) << "no session on the series";
+
+  const auto searches = Reported(output, "searchPacs");
+  ASSERT_EQ(searches.size(), 2u) << output;
+  EXPECT_EQ(TextField(searches[0], "error"), "INVALID_ARGUMENT") << output;
+  const auto& studies = searches[1].fields().at("studyUids").list_value().values();
+  ASSERT_EQ(studies.size(), 1) << output;
+  EXPECT_EQ(studies[0].string_value(), ct.study_uid);
+  const auto listed = Reported(output, "selectStudy");
+  ASSERT_EQ(listed.size(), 1u) << output;
+  const auto& series = listed[0].fields().at("series").list_value().values();
+  ASSERT_EQ(series.size(), 1) << output;
+  EXPECT_EQ(TextField(series[0].struct_value(), "seriesUid"), ct.series_uid);
+  EXPECT_EQ(series[0].struct_value().fields().at("instances").number_value(), 20);
+  const auto opened = Reported(output, "openSeries");
+  ASSERT_EQ(opened.size(), 1u) << output;
+  EXPECT_EQ(TextField(opened[0], "source"), source);
+  // The screenshot after the open shows the new session's frame.
+  const google::protobuf::Struct layout = ReadLayout(shot);
+  EXPECT_EQ(layout.fields().at("state").number_value(), 1) << TextField(layout, "message");
+  EXPECT_EQ(TextField(layout, "message").rfind(TextField(opened[0], "volumeId") + " on ", 0), 0u)
+      << TextField(layout, "message");
+  EXPECT_GT(layout.fields().at("frameId").number_value(), 0);
+  // Patient fields went to the panel only.
+  EXPECT_EQ(output.find(ct.patient_id), std::string::npos) << output;
+  EXPECT_EQ(output.find(ct.patient_name), std::string::npos) << output;
 }
 
 }  // namespace
