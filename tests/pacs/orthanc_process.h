@@ -25,6 +25,7 @@
 
 #include "pacs/http_session.h"
 #include "pacs/pacs_config.h"
+#include "support/free_port.h"
 
 extern char** environ;
 
@@ -49,7 +50,7 @@ class OrthancProcess {
   explicit OrthancProcess(const std::filesystem::path& folder) : folder_(folder) {
     password_ = RandomPassword();
     for (int attempt = 0; attempt < 3 && !running_; ++attempt) {  // a free port may be taken before Orthanc binds it
-      port_ = FreeLoopbackPort();
+      port_ = FreePort();
       WriteConfiguration();
       if (!Start()) continue;
       running_ = WaitForSystem(std::chrono::seconds(30));
@@ -114,18 +115,6 @@ class OrthancProcess {
   static std::string RandomPassword() {
     std::random_device random;
     return "pw-" + std::to_string(random()) + std::to_string(random());
-  }
-
-  static int FreeLoopbackPort() {
-    const int fd = socket(AF_INET, SOCK_STREAM | SOCK_CLOEXEC, 0);
-    sockaddr_in address{};
-    address.sin_family = AF_INET;
-    address.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
-    socklen_t size = sizeof address;
-    bind(fd, reinterpret_cast<sockaddr*>(&address), size);
-    getsockname(fd, reinterpret_cast<sockaddr*>(&address), &size);
-    close(fd);
-    return ntohs(address.sin_port);
   }
 
   // Orthanc's root, for its own REST API (uploads, /system).

@@ -23,6 +23,7 @@
 #include <vector>
 
 #include "client.h"
+#include "support/free_port.h"
 
 extern char** environ;
 
@@ -79,19 +80,6 @@ inline std::pair<int, std::string> RunProgram(const std::string& program, const 
   }
   std::ifstream in(log);
   return {status != -1 && WIFEXITED(status) ? WEXITSTATUS(status) : -1, {std::istreambuf_iterator<char>(in), {}}};
-}
-
-// A loopback port nothing listens on (it was free a moment ago).
-inline int FreePort() {
-  const int fd = socket(AF_INET, SOCK_STREAM, 0);
-  sockaddr_in address{};
-  address.sin_family = AF_INET;
-  address.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
-  socklen_t size = sizeof address;
-  bind(fd, reinterpret_cast<sockaddr*>(&address), size);
-  getsockname(fd, reinterpret_cast<sockaddr*>(&address), &size);
-  close(fd);
-  return ntohs(address.sin_port);
 }
 
 class ServerProcess {
