@@ -91,7 +91,7 @@ const std::uint16_t* LabelCopy::voxels() const { return gpu_ ? gpu_.get() : labe
 
 std::string DeviceLabel(int device) { return device == kHostDevice ? "cpu" : "cuda:" + std::to_string(device); }
 
-VolumeCopy::VolumeCopy(std::shared_ptr<const PreparedVolume> prepared, int device, bool texture)
+VolumeCopy::VolumeCopy(std::shared_ptr<const PreparedVolume> prepared, int device, [[maybe_unused]] bool texture)
     : prepared_(std::move(prepared)), device_(device) {
   if (device_ == kHostDevice) return;
 #if CINEVOL_WITH_CUDA

@@ -70,8 +70,8 @@ v1::StoredRender StoreRender(const pacs::DicomWebClient& to, const pacs::DicomWe
   recipe.cinevol_version = version;
   recipe.preset = scene.transfer_function().preset();
   pacs::SecondaryCaptureUids uids;
-  const std::string capture =
-      pacs::MakeSecondaryCapture(StudyOf(from, origin, cancel), {image.width, image.height, image.bytes}, recipe, &uids);
+  const pacs::SecondaryCaptureImage pixels{image.width, image.height, image.bytes};
+  const std::string capture = pacs::MakeSecondaryCapture(StudyOf(from, origin, cancel), pixels, recipe, &uids);
   to.StoreInstances(origin.study_uid, {capture}, cancel);
   v1::StoredRender stored;
   stored.set_pacs(to.config().name);

@@ -313,8 +313,8 @@ void VolumeRegistry::RequireRoom(std::uint64_t voxels, std::uint64_t bytes, cons
                                  const std::string& what) const {
   if (voxels > limits_.max_voxels) {
     throw LimitExceeded(grpc::StatusCode::RESOURCE_EXHAUSTED, "max-volume-voxels",
-                        fmt::format("{} has {} voxels; this server loads at most {} (--max-volume-voxels)", what, voxels,
-                                    limits_.max_voxels));
+                        fmt::format("{} has {} voxels; this server loads at most {} (--max-volume-voxels)", what,
+                                    voxels, limits_.max_voxels));
   }
   std::lock_guard lock(mu_);
   CheckRoomLocked(bytes, caller.name, true, what);

@@ -36,7 +36,8 @@ Server::Server(const ServerOptions& options)
       pacs_service_(core_.get()),
       server_service_(core_.get()),
       reflection_service_(core_.get(), {v1::VolumeService::service_full_name(), v1::SessionService::service_full_name(),
-                                        v1::PacsService::service_full_name(), v1::ServerService::service_full_name(), "grpc.health.v1.Health"}) {
+                                        v1::PacsService::service_full_name(), v1::ServerService::service_full_name(),
+                                        "grpc.health.v1.Health"}) {
   if (!options.metrics_listen.empty()) StartMetrics(options.metrics_listen);
   // Health answers without credentials (Kubernetes and Docker probes carry none);
   // it tells only SERVING or NOT_SERVING.

@@ -426,7 +426,9 @@ grpc::ServerWriteReactor<v1::SnapshotUpdate>* SessionServiceImpl::StreamSnapshot
   const grpc::Status status = Guarded([&] {
     ServiceCore::SnapshotCallbacks callbacks;
     callbacks.progress = [reactor](const v1::SnapshotProgress& p) { reactor->Offer(p); };
-    callbacks.done = [reactor](grpc::Status s, v1::SnapshotResponse r) { reactor->Complete(std::move(s), std::move(r)); };
+    callbacks.done = [reactor](grpc::Status s, v1::SnapshotResponse r) {
+      reactor->Complete(std::move(s), std::move(r));
+    };
     core_->Snapshot(*request, core_->Authenticate(*context), reactor->cancel(), std::move(callbacks));
   });
   if (!status.ok()) reactor->Complete(status, {});
@@ -495,9 +497,8 @@ grpc::ServerUnaryReactor* PacsServiceImpl::SearchStudies(grpc::CallbackServerCon
   return new PooledReactor(context, core_, core_->pacs_calls(),
                            [this, request, response](const Principal&, const std::atomic<bool>& cancelled) {
                              const auto client = core_->pacs().Find(request->pacs());
-                             for (const pacs::StudySummary& study : client->SearchStudies(ToQuery(*request), &cancelled)) {
-                               AddStudy(study, response->add_studies());
-                             }
+                             const auto studies = client->SearchStudies(ToQuery(*request), &cancelled);
+                             for (const pacs::StudySummary& study : studies) AddStudy(study, response->add_studies());
                            });
 }
 
