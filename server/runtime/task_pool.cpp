@@ -21,18 +21,19 @@ void TaskPool::Stop() {
   done_cv_.wait(lock, [&] { return draining_ == 0; });
 }
 
-void TaskPool::Submit(std::function<void()> task, const std::string& queue) {
+bool TaskPool::Submit(std::function<void()> task, const std::string& queue) {
   {
     std::lock_guard lock(mu_);
-    if (stopping_) return;
+    if (stopping_) return false;
     std::deque<std::function<void()>>& tasks = queues_[queue];
     if (tasks.empty()) turns_.push_back(queue);
     tasks.push_back(std::move(task));
     ++queued_;
-    if (draining_ >= max_running_) return;  // a running drain takes it
+    if (draining_ >= max_running_) return true;  // a running drain takes it
     ++draining_;
   }
   pool_.Post([this] { Drain(); });
+  return true;
 }
 
 int TaskPool::queued() const {

@@ -31,8 +31,8 @@ class TaskPool {
   void Stop();
 
   // `task` should not throw (the pool logs and drops what escapes). It joins
-  // the back of queue `queue`.
-  void Submit(std::function<void()> task, const std::string& queue = {});
+  // the back of queue `queue`; false (and dropped) once Stop has begun.
+  bool Submit(std::function<void()> task, const std::string& queue = {});
   int max_running() const { return max_running_; }
   int queued() const;
   // Workers with nothing to run: what a task may borrow to split its work.

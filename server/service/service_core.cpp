@@ -448,15 +448,16 @@ ServiceCore::SnapshotDone ServiceCore::StoreAfter(const v1::SnapshotRequest& req
                                volume.id(), LogSafe(volume.source(), 80)));
   }
   const auto from = pacs_.Find(origin->pacs, "store_to");
-  return [this, to, from, origin = *origin, scene, cancel, done = std::move(done)](grpc::Status status,
-                                                                                   v1::SnapshotResponse still) {
-    if (!status.ok()) return done(std::move(status), std::move(still));
-    pacs_calls_.Submit([=, still = std::move(still)]() mutable {
+  auto finish = std::make_shared<SnapshotDone>(std::move(done));  // called once, whoever runs it
+  return [this, to, from, origin = *origin, scene, cancel, finish](grpc::Status status, v1::SnapshotResponse still) {
+    if (!status.ok()) return (*finish)(std::move(status), std::move(still));
+    const bool queued = pacs_calls_.Submit([=, still = std::move(still)]() mutable {
       const grpc::Status stored = Guarded([&] {
         *still.mutable_stored() = StoreRender(*to, *from, origin, still, scene, CINEVOL_VERSION, cancel.get());
       });
-      done(stored, stored.ok() ? std::move(still) : v1::SnapshotResponse());
+      (*finish)(stored, stored.ok() ? std::move(still) : v1::SnapshotResponse());
     });
+    if (!queued) (*finish)({grpc::StatusCode::UNAVAILABLE, "the server is shutting down; the still was not stored"}, {});
   };
 }
 

@@ -40,13 +40,14 @@ class PooledReactor final : public grpc::ServerUnaryReactor {
     const grpc::Status status = Guarded([&] {
       const Principal caller = core->Authenticate(*context);
       core->RequireServing();
-      pool.Submit(
+      const bool queued = pool.Submit(
           [this, caller, work = std::move(work)] {
             // Nothing of `this` is touched after Finish: OnDone may delete it at once.
             Finish(cancelled_ ? grpc::Status(grpc::StatusCode::CANCELLED, "the caller went away")
                               : Guarded([&] { work(caller, cancelled_); }));
           },
           caller.name);
+      if (!queued) throw RpcError(grpc::StatusCode::UNAVAILABLE, "the server is shutting down");
     });
     if (!status.ok()) Finish(status);
   }
@@ -181,7 +182,7 @@ class UploadReactor final : public grpc::ServerReadReactor<v1::UploadVolumeChunk
     loading_ = true;  // the loader removes the file
     // Everything came: the idle watch ends (a load has its reader's limits).
     core_->calls().Forget(watch_);
-    core_->loader().Submit([this] {
+    const bool queued = core_->loader().Submit([this] {
       const grpc::Status status = Guarded([&] {
         core_->RequireServing();
         *response_ = labels_for_.empty()
@@ -193,6 +194,10 @@ class UploadReactor final : public grpc::ServerReadReactor<v1::UploadVolumeChunk
       slot_->Release();
       Finish(status);
     });
+    if (!queued) {
+      loading_ = false;  // OnDone removes the file
+      Fail({grpc::StatusCode::UNAVAILABLE, "the server is shutting down"});
+    }
   }
 
   void Fail(const grpc::Status& status) {
@@ -368,7 +373,7 @@ grpc::ServerUnaryReactor* VolumeServiceImpl::LoadFromDisk(grpc::CallbackServerCo
     // The load holds one of the caller's slots: a client cannot queue loads without end.
     std::shared_ptr<LoadSlot> slot = core_->BeginLoad(caller);
     reactor->Hold(slot);
-    core_->loader().Submit([this, reactor, load = std::move(load), caller, slot] {
+    const bool queued = core_->loader().Submit([this, reactor, load = std::move(load), caller, slot] {
       const grpc::Status status = Guarded([&] {
         core_->RequireServing();
         load(caller, *slot);
@@ -376,6 +381,10 @@ grpc::ServerUnaryReactor* VolumeServiceImpl::LoadFromDisk(grpc::CallbackServerCo
       slot->Release();
       reactor->Finish(status);
     });
+    if (!queued) {
+      slot->Release();
+      throw RpcError(grpc::StatusCode::UNAVAILABLE, "the server is shutting down");
+    }
   });
   if (!status.ok()) reactor->Finish(status);
   return reactor;
@@ -532,7 +541,7 @@ grpc::ServerWriteReactor<v1::LoadSeriesUpdate>* PacsServiceImpl::LoadSeries(grpc
     reactor->Complete(status, {});
     return reactor;
   }
-  core_->loader().Submit(
+  const bool queued = core_->loader().Submit(
       [this, reactor, request, caller, client, slot] {
         v1::VolumeInfo volume;
         const grpc::Status s = Guarded([&] {
@@ -544,6 +553,10 @@ grpc::ServerWriteReactor<v1::LoadSeriesUpdate>* PacsServiceImpl::LoadSeries(grpc
         reactor->Complete(s, std::move(volume));
       },
       caller.name);
+  if (!queued) {
+    slot->Release();
+    reactor->Complete({grpc::StatusCode::UNAVAILABLE, "the server is shutting down"}, {});
+  }
   return reactor;
 }
 
