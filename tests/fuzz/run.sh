@@ -40,6 +40,10 @@ cmake --build "$build" -j "$(nproc)" --target "${targets[@]}" | { grep -vE '^\[[
 
 scratch=$(mktemp -d "${TMPDIR:-/tmp}/cinevol-fuzz-XXXXXX")
 trap 'rm -rf "$scratch"' EXIT
+# The targets' own scratch folders too (libFuzzer exits without running their
+# destructors, and a crash or a fork child leaves its folder): all go with this one.
+mkdir -p "$scratch/tmp"
+export TMPDIR=$scratch/tmp
 artifacts="$build/fuzz-artifacts"
 mkdir -p "$artifacts"
 
