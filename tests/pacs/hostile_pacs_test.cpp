@@ -13,11 +13,13 @@
 #include "pacs/dicomweb_client.h"
 #include "pacs/loopback_http_server.h"
 #include "pacs/pacs_error.h"
+#include "support/error_of.h"
 
 namespace cinevol::pacs {
 namespace {
 
 using cinevol::testing::Answer;
+using cinevol::testing::ErrorOf;
 using cinevol::testing::HttpAnswer;
 using cinevol::testing::HttpRequestSeen;
 using cinevol::testing::LoopbackHttpServer;
@@ -27,16 +29,6 @@ constexpr const char* kStudy = "1.2.3";
 constexpr const char* kSeries = "4.5.6";
 constexpr const char* kSeriesPath = "/dicom-web/studies/1.2.3/series/4.5.6/instances";
 constexpr const char* kBoundary = "XyZ-boundary";
-
-template <class Error, class Call>
-std::string ErrorOf(Call&& call) {
-  try {
-    call();
-  } catch (const Error& e) {
-    return e.what();
-  }
-  return "(no error)";
-}
 
 bool StartsWith(const std::string& text, const std::string& prefix) { return text.rfind(prefix, 0) == 0; }
 

@@ -20,12 +20,14 @@
 #include "pacs/orthanc_process.h"
 #include "pacs/pacs_error.h"
 #include "pacs/stamped_series.h"
+#include "support/error_of.h"
 #include "support/test_paths.h"
 
 namespace cinevol::pacs {
 namespace {
 
 namespace fs = std::filesystem;
+using cinevol::testing::ErrorOf;
 using cinevol::testing::OrthancProcess;
 using cinevol::testing::SeriesStamp;
 using cinevol::testing::StampedSeries;
@@ -34,16 +36,6 @@ const SeriesStamp kCt{"2.25.3400001", "2.25.3400001.1", "CINEVOL-CT-1", "Cinevol
 const SeriesStamp kMr{"2.25.3400002", "2.25.3400002.1", "CINEVOL-MR-1", "Cinevol^Mr"};  // 2009-12-03
 const SeriesStamp kStow{"2.25.3400003", "2.25.3400003.1", "CINEVOL-STOW-1", "Cinevol^Stow"};
 constexpr std::size_t kMrSlices = 4;
-
-template <class Error, class Call>
-std::string ErrorOf(Call&& call) {
-  try {
-    call();
-  } catch (const Error& e) {
-    return e.what();
-  }
-  return "(no error)";
-}
 
 struct Retrieved {
   std::vector<InstanceSummary> listed;

@@ -23,12 +23,14 @@
 #include "pacs/dicomweb_client.h"
 #include "pacs/orthanc_process.h"
 #include "pacs/stamped_series.h"
+#include "support/error_of.h"
 #include "support/test_paths.h"
 
 namespace cinevol::pacs {
 namespace {
 
 namespace fs = std::filesystem;
+using cinevol::testing::ErrorOf;
 
 const char* kScene = R"({"camera": {"position": [0, -400.5, 120], "fovDeg": 30},
   "preset": "ct-bone", "transfer": {"points": [{"value": -1000, "opacity": 0}, {"value": 3000, "opacity": 0.8}]}})";
@@ -72,16 +74,6 @@ std::string TextAt(const gdcm::DataSet& data, std::uint16_t group, std::uint16_t
   std::string text(value->GetPointer(), value->GetLength());
   while (!text.empty() && (text.back() == ' ' || text.back() == '\0')) text.pop_back();
   return text;
-}
-
-template <class Call>
-std::string InputErrorOf(Call&& call) {
-  try {
-    call();
-  } catch (const InputError& e) {
-    return e.what();
-  }
-  return "(no InputError)";
 }
 
 google::protobuf::Value Json(const std::string& text) {
@@ -268,7 +260,7 @@ TEST(SecondaryCapture, DcmtkReadsTheFileAndItsPixels) {
 
 TEST(SecondaryCapture, HostileInputsAreRefusedNamingTheField) {
   const auto refusal = [](SourceStudy source, SecondaryCaptureImage image, RenderRecipe recipe) {
-    return InputErrorOf([&] { MakeSecondaryCapture(source, image, recipe); });
+    return ErrorOf<InputError>([&] { MakeSecondaryCapture(source, image, recipe); });
   };
   const auto source_with = [](auto edit) {
     SourceStudy source = Source();
@@ -325,11 +317,11 @@ TEST(SecondaryCapture, HostileInputsAreRefusedNamingTheField) {
 }
 
 TEST(SecondaryCapture, ReadRefusesWhatIsNotACinevolRender) {
-  EXPECT_NE(InputErrorOf([] { ReadSecondaryCapture(""); }).find("not a cinevol render"), std::string::npos);
-  EXPECT_NE(InputErrorOf([] { ReadSecondaryCapture(std::string(4096, 'x')); }).find("not a cinevol render"),
+  EXPECT_NE(ErrorOf<InputError>([] { ReadSecondaryCapture(""); }).find("not a cinevol render"), std::string::npos);
+  EXPECT_NE(ErrorOf<InputError>([] { ReadSecondaryCapture(std::string(4096, 'x')); }).find("not a cinevol render"),
             std::string::npos);
   const std::string capture = MakeSecondaryCapture(Source(), Picture(), Recipe());
-  EXPECT_NE(InputErrorOf([&] { ReadSecondaryCapture(capture.substr(0, 700)); }).find("not a cinevol render"),
+  EXPECT_NE(ErrorOf<InputError>([&] { ReadSecondaryCapture(capture.substr(0, 700)); }).find("not a cinevol render"),
             std::string::npos);
   // A Secondary Capture of someone else's: the same file without the recipe block.
   std::istringstream in(capture);
@@ -343,7 +335,7 @@ TEST(SecondaryCapture, ReadRefusesWhatIsNotACinevolRender) {
   std::ostringstream out;
   writer.SetStream(out);
   ASSERT_TRUE(writer.Write());
-  EXPECT_NE(InputErrorOf([&] { ReadSecondaryCapture(out.str()); }).find("no private block \"CINEVOL RECIPE\""),
+  EXPECT_NE(ErrorOf<InputError>([&] { ReadSecondaryCapture(out.str()); }).find("no private block \"CINEVOL RECIPE\""),
             std::string::npos);
 }
 
@@ -376,7 +368,7 @@ TEST(SecondaryCapture, ReadRefusesAnMrSliceOfTheSharedData) {
   const fs::path folder = cinevol::testing::SharedData() / "mr-chest-dicom-seg3d";
   const auto files = cinevol::testing::DicomFilesIn(folder);
   ASSERT_FALSE(files.empty()) << folder;
-  const std::string message = InputErrorOf([&] { ReadSecondaryCapture(cinevol::testing::ReadWholeFile(files[0])); });
+  const std::string message = ErrorOf<InputError>([&] { ReadSecondaryCapture(cinevol::testing::ReadWholeFile(files[0])); });
   EXPECT_NE(message.find("not a cinevol render: SOP class 1.2.840.10008.5.1.4.1.1.4,"), std::string::npos) << message;
 }
 
