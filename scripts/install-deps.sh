@@ -22,6 +22,7 @@ packages=(
   python3-yaml yamllint         # tests/deploy: the Kubernetes and Compose manifests' checks
   libcurl4-openssl-dev          # server/pacs: DICOMweb (QIDO-RS, WADO-RS, STOW-RS) over HTTP and HTTPS
   orthanc orthanc-dicomweb      # tests/pacs: a real PACS with its DICOMweb plugin, started by the tests
+  chromium                      # web/e2e: the page tested in a real headless browser
 )
 
 missing=()
@@ -31,11 +32,22 @@ done
 # tests/deploy validates the manifests against the Kubernetes schemas with an npm
 # package; a node and npm from elsewhere (NodeSource bundles npm) serve as well.
 command -v npm >/dev/null || missing+=(nodejs npm)
-[ ${#missing[@]} -eq 0 ] && exit 0
 
-echo "installing: ${missing[*]}"
-sudo=""
-[ "$(id -u)" -eq 0 ] || sudo="sudo"
-export DEBIAN_FRONTEND=noninteractive
-$sudo apt-get update -q
-$sudo apt-get install -y -q --no-install-recommends "${missing[@]}"
+if [ ${#missing[@]} -gt 0 ]; then
+  echo "installing: ${missing[*]}"
+  sudo=""
+  [ "$(id -u)" -eq 0 ] || sudo="sudo"
+  export DEBIAN_FRONTEND=noninteractive
+  $sudo apt-get update -q
+  $sudo apt-get install -y -q --no-install-recommends "${missing[@]}"
+fi
+
+# web/: the page's and cinevol-web's npm packages, exactly as the lockfile
+# pins them (no browser download: the tests drive Debian's chromium). Again
+# only when the lockfile changed since the last install.
+web="$(dirname "$0")/../web"
+if ! cmp -s "$web/package-lock.json" "$web/node_modules/.cinevol-installed-lock" 2>/dev/null; then
+  echo "installing web/'s npm packages (npm ci)"
+  (cd "$web" && npm ci --no-audit --no-fund --loglevel=error)
+  cp "$web/package-lock.json" "$web/node_modules/.cinevol-installed-lock"
+fi

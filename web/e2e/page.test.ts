@@ -1,0 +1,189 @@
+// The page in Debian's headless chromium (driven by playwright-core, never a
+// downloaded browser) against a real cinevol-server (CPU) and cinevol-web on
+// free loopback ports. Screenshots go to $CINEVOL_ARTIFACTS.
+// Run directly (node page.test.mjs): exit 77 (skipped) without chromium.
+import assert from "node:assert/strict";
+import { execFileSync } from "node:child_process";
+import { existsSync, mkdirSync, readFileSync } from "node:fs";
+import { join } from "node:path";
+import { after, before, test } from "node:test";
+import { chromium, type Browser, type Page } from "playwright-core";
+import { decodePng } from "./png.js";
+import { scratch, startWithPortFile, stop, tokensFile, type Running } from "./processes.js";
+
+const CHROMIUM = process.env.CINEVOL_CHROMIUM ?? "/usr/bin/chromium";
+if (!existsSync(CHROMIUM)) {
+  console.log(`skipped: no chromium at ${CHROMIUM} (scripts/install-deps.sh installs Debian's)`);
+  process.exit(77);
+}
+const SERVER = process.env.CINEVOL_SERVER!, WEB = process.env.CINEVOL_WEB!;
+const ARTIFACTS = process.env.CINEVOL_ARTIFACTS ?? join(scratch, "artifacts");
+mkdirSync(ARTIFACTS, { recursive: true });
+// As the environment's notes say: no background networking (this machine's network is closed), no sandbox as root.
+const CHROMIUM_ARGS = ["--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run",
+  "--disable-background-networking", "--disable-component-update", "--disable-sync"];
+const WAIT = { timeout: 90_000, polling: 100 };
+
+let server: Running, gateway: Running, browser: Browser, alice: Page;
+const base = () => `http://127.0.0.1:${gateway.port}`;
+
+interface PageStatus {
+  sessionId: string; framesPainted: number; error: string; banner: string; preset: string;
+  lastFrame: { id: number; lastEventSeq: number; width: number; height: number } | null;
+  motionToPhoton: { count: number };
+}
+const status = (page: Page) => page.evaluate(() => (window as any).cinevol.status()) as Promise<PageStatus>;
+const sample = (page: Page) => page.evaluate(() => (window as any).cinevol.sample(16)) as
+  Promise<{ width: number; height: number; grid: number[] }>;
+const meanDifference = (a: number[], b: number[]) => a.reduce((s, v, i) => s + Math.abs(v - b[i]), 0) / a.length;
+
+/** Waits for `count` more frames painted than now. */
+async function framesAfter(page: Page, count: number): Promise<void> {
+  const painted = (await status(page)).framesPainted;
+  await page.waitForFunction((n) => (window as any).cinevol.status().framesPainted >= n, painted + count, WAIT);
+}
+
+/** Waits until a frame answering every event sent so far has been painted, then a couple more. */
+async function settled(page: Page): Promise<void> {
+  await page.waitForFunction(() => {
+    const s = (window as any).cinevol.status();
+    return s.lastFrame && s.motionToPhoton.count > 0 && s.lastFrame.lastEventSeq >= s.motionToPhoton.count;
+  }, null, WAIT).catch(() => {});
+  await framesAfter(page, 2);
+}
+
+async function startGateway(port = 0): Promise<Running> {
+  return startWithPortFile(WEB, ["--listen", `127.0.0.1:${port}`, "--server", `127.0.0.1:${server.port}`], "gateway");
+}
+
+before(async () => {
+  const tokens = tokensFile("alice-token alice\nbob-token bob\n");
+  server = await startWithPortFile(SERVER, ["--listen", "127.0.0.1:0", "--backend", "cpu", "--auth-tokens", tokens],
+                                   "server");
+  gateway = await startGateway();
+  browser = await chromium.launch({ executablePath: CHROMIUM, args: CHROMIUM_ARGS, timeout: 60_000 });
+  alice = await browser.newPage({ viewport: { width: 960, height: 540 } });
+});
+
+after(async () => {
+  await browser?.close().catch(() => {});
+  await stop(gateway);
+  await stop(server);
+});
+
+test("the page opens from its URL, signs in from the fragment and streams at the canvas's size", async () => {
+  await alice.goto(`${base()}/?volume=phantom:head#token=alice-token`);
+  await alice.waitForFunction(() => (window as any).cinevol?.status().framesPainted >= 3, null, WAIT);
+  assert.ok(!alice.url().includes("token"), "the token leaves the address bar");
+  const s = await status(alice);
+  const canvas = await alice.evaluate(() => {
+    const r = document.getElementById("view")!.getBoundingClientRect();
+    return { width: Math.round(r.width * devicePixelRatio), height: Math.round(r.height * devicePixelRatio) };
+  });
+  assert.deepEqual({ width: s.lastFrame!.width, height: s.lastFrame!.height }, canvas);
+  assert.equal(s.error, "");
+  await alice.screenshot({ path: join(ARTIFACTS, "1-streams.png") });
+});
+
+test("an orbit drag changes the picture", async () => {
+  await framesAfter(alice, 3);
+  const still = [await sample(alice), await (framesAfter(alice, 1).then(() => sample(alice)))];
+  const noise = meanDifference(still[0].grid, still[1].grid);
+  const box = (await alice.locator("#view").boundingBox())!;
+  await alice.mouse.move(box.x + box.width / 2, box.y + box.height / 2);
+  await alice.mouse.down();
+  await alice.mouse.move(box.x + box.width / 2 + 200, box.y + box.height / 2 + 40, { steps: 10 });
+  await alice.mouse.up();
+  await settled(alice);
+  const turned = await sample(alice);
+  const change = meanDifference(still[1].grid, turned.grid);
+  assert.ok(change > 3 * noise + 2, `orbit changed the picture by ${change.toFixed(2)} (frame to frame: ${noise.toFixed(2)})`);
+  await alice.screenshot({ path: join(ARTIFACTS, "2-orbited.png") });
+});
+
+test("a preset changes the picture", async () => {
+  const before = await sample(alice);
+  const current = (await status(alice)).preset;
+  const options = await alice.$$eval("#preset option", (o) => o.map((x) => (x as HTMLOptionElement).value));
+  const other = options.find((p) => p && p !== current && p.startsWith("ct-"))!;
+  await alice.selectOption("#preset", other);
+  await alice.waitForFunction((p) => (window as any).cinevol.status().preset === p, other, WAIT);
+  await settled(alice);
+  const after = await sample(alice);
+  assert.ok(meanDifference(before.grid, after.grid) > 2, `preset ${other} left the picture as it was`);
+  await alice.screenshot({ path: join(ARTIFACTS, "3-preset.png") });
+});
+
+test("a window resize changes the frame's size", async () => {
+  const before = (await status(alice)).lastFrame!;
+  await alice.setViewportSize({ width: 720, height: 620 });
+  await alice.waitForFunction((w) => (window as any).cinevol.status().lastFrame.width !== w, before.width, WAIT);
+  const after = (await status(alice)).lastFrame!;
+  assert.equal(after.width, 720 - 320, "the canvas is the window less the 320-pixel panel");
+  assert.ok(after.height > before.height);
+  await alice.screenshot({ path: join(ARTIFACTS, "4-resized.png") });
+});
+
+test("a wrong token is refused with a message on the page", async () => {
+  const page = await browser.newPage();
+  await page.goto(`${base()}/?volume=phantom:head#token=wrong-token`);
+  await page.waitForFunction(() => document.getElementById("error")!.textContent!.length > 0, null, WAIT);
+  assert.match(await page.textContent("#error") ?? "", /did not accept your token/);
+  assert.ok(await page.isVisible("#sign-in"), "the sign-in form is offered again");
+  await page.screenshot({ path: join(ARTIFACTS, "5-wrong-token.png") });
+  await page.close();
+});
+
+test("the gateway killed and restarted mid-session: the page resumes the same session", async () => {
+  const before = await status(alice);
+  const port = gateway.port;
+  await stop(gateway, "SIGKILL");
+  await alice.waitForFunction(() => /Connection lost/.test((window as any).cinevol.status().banner), null, WAIT);
+  await alice.screenshot({ path: join(ARTIFACTS, "6-gateway-lost.png") });
+  gateway = await startGateway(port);
+  await alice.waitForFunction((n) => {
+    const s = (window as any).cinevol.status();
+    return s.banner === "" && s.framesPainted > n;
+  }, before.framesPainted, WAIT);
+  await framesAfter(alice, 2);
+  assert.equal((await status(alice)).sessionId, before.sessionId);
+  await alice.screenshot({ path: join(ARTIFACTS, "7-resumed.png") });
+});
+
+test("two principals cannot see each other's sessions", async () => {
+  const aliceSession = (await status(alice)).sessionId;
+  const bob = await browser.newPage({ viewport: { width: 800, height: 500 } });
+  await bob.goto(`${base()}/?session=${encodeURIComponent(aliceSession)}#token=bob-token`);
+  await bob.waitForFunction(() => document.getElementById("error")!.textContent!.length > 0, null, WAIT);
+  assert.match(await bob.textContent("#error") ?? "", /another user|not found/i);
+  await bob.screenshot({ path: join(ARTIFACTS, "8-other-principal.png") });
+  await bob.close();
+  // The Connect protocol through the gateway, as a script would call it: bob's status lists none of alice's sessions.
+  const answer = await fetch(`${base()}/cinevol.v1.ServerService/GetStatus`, {
+    method: "POST", body: "{}", headers: { "content-type": "application/json", authorization: "Bearer bob-token" },
+  });
+  assert.equal(answer.status, 200);
+  const bobStatus = await answer.json() as { sessions?: { sessionId: string }[] };
+  assert.ok(!(bobStatus.sessions ?? []).some((s) => s.sessionId === aliceSession));
+});
+
+test("a plain chromium --screenshot of the page's URL shows a rendered volume", () => {
+  const file = join(ARTIFACTS, "9-plain-chromium.png");
+  execFileSync(CHROMIUM, [...CHROMIUM_ARGS, "--headless", `--user-data-dir=${join(scratch, "profile")}`,
+    `--screenshot=${file}`, "--window-size=900,600", "--virtual-time-budget=20000",
+    `${base()}/?volume=phantom:head#token=alice-token`], { timeout: 120_000, stdio: "ignore" });
+  const png = decodePng(readFileSync(file));
+  // The view's half of the window (right of the 320-pixel panel): a volume is far from one flat colour.
+  let sum = 0, sumSquares = 0, n = 0;
+  for (let y = 0; y < png.height; y += 2) {
+    for (let x = 340; x < png.width; x += 2) {
+      const i = (y * png.width + x) * png.channels;
+      const l = 0.2126 * png.pixels[i] + 0.7152 * png.pixels[i + 1] + 0.0722 * png.pixels[i + 2];
+      sum += l;
+      sumSquares += l * l;
+      n += 1;
+    }
+  }
+  const spread = Math.sqrt(sumSquares / n - (sum / n) ** 2);
+  assert.ok(spread > 10, `the view is flat (luminance spread ${spread.toFixed(1)})`);
+});

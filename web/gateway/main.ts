@@ -1,0 +1,68 @@
+// cinevol-web: serves the browser page and translates gRPC-web and Connect
+// to cinevol-server's gRPC over HTTP/2 (docs/web.md).
+import { writeFileSync } from "node:fs";
+import http from "node:http";
+import http2 from "node:http2";
+import type { AddressInfo } from "node:net";
+import { connectNodeAdapter, createGrpcTransport } from "@connectrpc/connect-node";
+import { PacsService, ServerService, SessionService, VolumeService } from "../gen/cinevol/v1/service_pb.js";
+import { forwardService } from "./forward.js";
+import { parseOptions, UsageError, USAGE, type GatewayOptions } from "./options.js";
+import { StaticFiles } from "./static_files.js";
+
+// A batch of events with its transfer functions stays far below this; a
+// frame (the largest message, a PNG final frame) comes the other way.
+const MAX_REQUEST_BYTES = 4 << 20;
+
+function serverTransport(o: GatewayOptions) {
+  const tls = o.serverTls;
+  return createGrpcTransport({
+    baseUrl: `${tls ? "https" : "http"}://${o.server}`,
+    nodeOptions: tls ? { ca: tls.ca, cert: tls.cert, key: tls.key, servername: tls.serverName } : undefined,
+  });
+}
+
+function start(o: GatewayOptions): void {
+  const files = new StaticFiles(o.staticDir);
+  const transport = serverTransport(o);
+  const handler = connectNodeAdapter({
+    routes: (router) => {
+      for (const service of [VolumeService, SessionService, PacsService, ServerService]) {
+        forwardService(router, service, transport);
+      }
+    },
+    readMaxBytes: MAX_REQUEST_BYTES,
+    fallback: (req, res) => files.serve(req, res),
+  });
+  const server = o.tls
+    ? http2.createSecureServer({ cert: o.tls.cert, key: o.tls.key, allowHTTP1: true,
+                                 settings: { maxConcurrentStreams: 64 } }, handler)
+    : http.createServer(handler);
+  server.maxConnections = o.maxConnections;
+  server.on("error", (e: NodeJS.ErrnoException) => {
+    console.error(`cinevol-web: cannot listen on ${o.host}:${o.port}: ${e.code ?? e.message}`);
+    process.exit(1);
+  });
+  server.listen(o.port, o.host, () => {
+    const port = (server.address() as AddressInfo).port;
+    if (o.portFile) writeFileSync(o.portFile, `${port}\n`);
+    const scheme = o.tls ? "https" : "http";
+    console.log(`cinevol-web: serving ${scheme}://${o.host.includes(":") ? `[${o.host}]` : o.host}:${port}/ ` +
+                `for cinevol-server at ${o.server}${o.serverTls ? " (TLS)" : ""}`);
+  });
+  for (const signal of ["SIGTERM", "SIGINT"] as const) {
+    process.on(signal, () => {
+      server.close();
+      process.exit(0);
+    });
+  }
+}
+
+try {
+  start(parseOptions(process.argv.slice(2)));
+} catch (e) {
+  if (!(e instanceof UsageError)) throw e;
+  if (e.message) console.error(`cinevol-web: ${e.message}`);
+  console.error(USAGE);
+  process.exit(e.message ? 2 : 0);
+}

@@ -1,0 +1,31 @@
+// What the page's URL asks for (a contract: other viewers link to it):
+//   /?volume=ID[&preset=P][&session=S]#token=T
+// The token rides in the fragment, so it never reaches a server log, a
+// proxy or a Referer; the page takes it out of the address bar once read.
+
+export interface PageAddress {
+  volume?: string;
+  preset?: string;
+  session?: string;  // join an existing session of one's own (a reload resumes it)
+  token?: string;
+}
+
+export function readAddress(search: string, hash: string): PageAddress {
+  const query = new URLSearchParams(search);
+  const fragment = new URLSearchParams(hash.replace(/^#/, ""));
+  const pick = (p: URLSearchParams, key: string) => p.get(key)?.trim() || undefined;
+  return { volume: pick(query, "volume"), preset: pick(query, "preset"), session: pick(query, "session"),
+           token: pick(fragment, "token") };
+}
+
+/** The address to show once the token is read: the same query, no fragment. */
+export function withoutToken(pathname: string, search: string): string {
+  return pathname + search;
+}
+
+/** The query for a session: reloading the page resumes it. */
+export function sessionQuery(search: string, sessionId: string): string {
+  const query = new URLSearchParams(search);
+  query.set("session", sessionId);
+  return "?" + query.toString();
+}

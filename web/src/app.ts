@@ -1,0 +1,410 @@
+// The page once signed in: the volumes and PACS, a session on the 3D view,
+// the panels that edit it, the stats overlay and the keyboard. Every edit
+// is an event to the server; every control shows the state the server
+// answers.
+import { create } from "@bufbuild/protobuf";
+import {
+  AreaLightSchema, CameraSchema, ClippingSchema, ClipPlaneSchema, CropBoxSchema, LabelsSchema, LabelStyleSchema,
+  LightSchema, NamedView, SceneFrame, TransferFunctionSchema, Vec3Schema,
+  type Camera, type Light, type Scene,
+} from "../gen/cinevol/v1/scene_pb.js";
+import {
+  FinalFormat, LightListSchema, StreamSettingsSchema, ViewportSchema, type Frame, type SessionState, type VolumeInfo,
+} from "../gen/cinevol/v1/service_pb.js";
+import type { Api } from "./api.js";
+import { DEGREES_PER_PIXEL, lightDirection, orbit, pan, setLightDirection, zoom, type ViewCamera } from "./camera.js";
+import { sessionQuery } from "./address.js";
+import type { FrameMeta } from "./frame_messages.js";
+import { cropFromFractions, patientBox, toPatient } from "./geometry.js";
+import { PacsPanel } from "./pacs_panel.js";
+import { LiveSession, now, type EventKind } from "./session.js";
+import { MotionToPhoton, percentile, Rate } from "./stats.js";
+import { TransferEditor } from "./tf_editor.js";
+import { applyWindowLevel } from "./transfer.js";
+import { add, norm, scale, sub, v3, type V3 } from "./vec.js";
+import { View } from "./view.js";
+import { plainWords } from "./words.js";
+
+const $ = <T extends HTMLElement>(id: string) => document.getElementById(id) as T;
+const KEY_VIEWS: Record<string, NamedView> = {
+  a: NamedView.ANTERIOR, p: NamedView.POSTERIOR, l: NamedView.LEFT,
+  r: NamedView.RIGHT, s: NamedView.SUPERIOR, i: NamedView.INFERIOR,
+};
+const AXES = ["x", "y", "z"] as const;
+const vec3 = (v: V3) => create(Vec3Schema, { x: v.x, y: v.y, z: v.z });
+const AXIS_NAMES = { x: "Right–left", y: "Anterior–posterior", z: "Inferior–superior" };
+
+export class App {
+  readonly view = new View($("view"));
+  private readonly editor = new TransferEditor($("tf-editor"), $("tf-note"));
+  private readonly latency = new MotionToPhoton();
+  private readonly painted = new Rate();
+  private readonly received = new Rate();
+  private session?: LiveSession;
+  private volume?: VolumeInfo;
+  private state?: SessionState;
+  private camera?: ViewCamera;
+  private home?: Camera;
+  private lastFrame?: Frame;
+  private lastPainted?: FrameMeta;
+  private replaced = 0;
+  private framesPainted = 0;
+  private errorText = "";
+  private bannerText = "";
+
+  constructor(private readonly api: Api) {
+    this.view.onPainted = (meta, at, replaced) => this.onPainted(meta, at, replaced);
+    this.view.onError = (text) => this.showError(text);
+    this.view.listen({
+      orbit: (dx, dy) => this.moveCamera((c) => orbit(c, dx * DEGREES_PER_PIXEL, dy * DEGREES_PER_PIXEL)),
+      pan: (dx, dy, h) => this.moveCamera((c) => pan(c, dx, dy, h)),
+      zoom: (f) => this.moveCamera((c) => zoom(c, f)),
+      windowLevel: (dx, dy) => this.windowLevel(dx, dy),
+      turnLight: (dx, dy) => this.turnLight(dx, dy),
+    });
+    this.view.followSize((size) => this.post({ case: "resize", value: create(ViewportSchema, size) }));
+    this.editor.onEdit = (tf) => this.post({ case: "transferFunction", value: tf });
+    this.wirePanels();
+    setInterval(() => this.drawStats(), 250);
+  }
+
+  /** Fills the lists, then opens what the address names. Throws (in words) when the token is refused. */
+  async boot(address: { volume?: string; preset?: string; session?: string }): Promise<void> {
+    const status = await this.api.server.getStatus({});
+    const presets = $<HTMLSelectElement>("preset");
+    presets.replaceChildren(new Option("(choose a preset)", ""), ...status.presets.map((p) => new Option(p, p)));
+    const volumes = await this.api.volumes.listVolumes({});
+    $<HTMLSelectElement>("volumes").replaceChildren(...volumes.volumes.map((v) => new Option(v.id, v.id)));
+    void new PacsPanel(this.api, (volume) => this.addVolume(volume), (t) => this.setBanner(t),
+                       (t) => this.showError(t)).start();
+    if (address.session) await this.join(address.session);
+    else if (address.volume) await this.open(address.volume, address.preset);
+  }
+
+  async open(volumeId: string, preset?: string): Promise<void> {
+    this.session?.close();
+    this.showError("");
+    try {
+      this.volume = await this.api.volumes.describeVolume({ volumeId });
+      this.describeVolume();
+      this.session = await LiveSession.create(this.api, this.handlers(), this.latency, volumeId,
+                                              this.view.devicePixels(), preset);
+    } catch (e) {
+      this.showError(plainWords(e));
+    }
+  }
+
+  private async join(sessionId: string): Promise<void> {
+    try {
+      this.session = await LiveSession.join(this.api, this.handlers(), this.latency, sessionId);
+      if (this.session.volumeId) {
+        this.volume = await this.api.volumes.describeVolume({ volumeId: this.session.volumeId });
+        this.describeVolume();
+      }
+    } catch (e) {
+      this.showError(plainWords(e));
+    }
+  }
+
+  private addVolume(volume: VolumeInfo): void {
+    const select = $<HTMLSelectElement>("volumes");
+    if (![...select.options].some((o) => o.value === volume.id)) select.add(new Option(volume.id, volume.id));
+    select.value = volume.id;
+    void this.open(volume.id);
+  }
+
+  private handlers() {
+    return {
+      attached: (id: string) => history.replaceState(null, "", sessionQuery(location.search, id)),
+      frame: (frame: Frame) => {
+        this.lastFrame = frame;
+        this.received.add(now(), frame.image.value?.byteLength ?? 0);
+        this.view.show(frame);
+      },
+      state: (state: SessionState) => this.adopt(state),
+      notice: (n: { message: string }) => this.setBanner(n.message),
+      banner: (text: string | null) => this.setBanner(text ?? ""),
+      failed: (text: string) => this.showError(text),
+    };
+  }
+
+  private post(kind: EventKind, inputAt = now()): void {
+    this.session?.post(kind, inputAt);
+  }
+
+  // ------------------------------------------------------------ the state
+
+  private adopt(state: SessionState): void {
+    this.state = state;
+    const scene = state.scene;
+    if (!scene) return;
+    if (scene.camera?.eye && scene.camera.target && !this.session?.hasPending("camera")) {
+      const c = scene.camera;
+      this.camera = { eye: c.eye!, target: c.target!, up: c.up ?? v3(0, 0, 1), fovYDeg: c.fovYDeg ?? 30 };
+      this.home ??= create(CameraSchema, { ...c });
+    }
+    $<HTMLSelectElement>("preset").value = scene.transferFunction?.preset ?? "";
+    if (!this.session?.hasPending("transferFunction")) this.editor.show(scene.transferFunction);
+    this.showLight(scene);
+    this.showClipping(scene);
+    this.showLabels(scene);
+    $<HTMLInputElement>("lossless").checked = state.stream?.finalFormat === FinalFormat.PNG;
+    $<HTMLInputElement>("quality").value = String(state.stream?.jpegQuality ?? 80);
+  }
+
+  private describeVolume(): void {
+    this.home = undefined;
+    this.editor.show(undefined, this.volume?.histogram);
+    this.buildCropSliders();
+    this.buildLabels();
+  }
+
+  // --------------------------------------------------------- the camera
+
+  private moveCamera(move: (c: ViewCamera) => ViewCamera): void {
+    const current = this.state?.scene?.camera;
+    if (!this.camera || !current) return;
+    this.camera = move(this.camera);
+    const { eye, target, up, fovYDeg } = this.camera;
+    const camera = create(CameraSchema, current);
+    Object.assign(camera, { view: NamedView.NAMED_VIEW_UNSPECIFIED, eye: vec3(eye), target: vec3(target),
+                            up: vec3(up), fovYDeg });
+    this.post({ case: "camera", value: camera });
+  }
+
+  private namedView(view: NamedView): void {
+    const current = this.state?.scene?.camera;
+    if (current) this.post({ case: "camera", value: Object.assign(create(CameraSchema, current), { view }) });
+  }
+
+  private windowLevel(dx: number, dy: number): void {
+    const tf = this.state?.scene?.transferFunction;
+    if (!tf || tf.points.length === 0 || !this.volume) return;
+    const range = this.volume.maxValue - this.volume.minValue || 1;
+    this.post({ case: "transferFunction", value: applyWindowLevel(tf, (-dy * range) / 500, Math.exp(dx * 0.005)) });
+  }
+
+  // ---------------------------------------------------------- the light
+
+  private keyLight(scene: Scene | undefined): { index: number; light: Light } | undefined {
+    const index = scene?.lights.findIndex((l) => l.kind.case === "area") ?? -1;
+    return index >= 0 ? { index, light: scene!.lights[index] } : undefined;
+  }
+
+  private showLight(scene: Scene): void {
+    const key = this.keyLight(scene);
+    $("light").hidden = !key;
+    if (!key || key.light.kind.case !== "area" || !this.camera || this.session?.hasPending("lights")) return;
+    const area = key.light.kind.value;
+    const d = lightDirection({ center: area.center!, edgeU: area.edgeU!, edgeV: area.edgeV! }, this.camera);
+    $<HTMLInputElement>("light-azimuth").value = String(Math.round(d.azimuthDeg));
+    $<HTMLInputElement>("light-elevation").value = String(Math.round(d.elevationDeg));
+    $<HTMLInputElement>("light-intensity").value = String(area.intensity);
+  }
+
+  private setLight(azimuthDeg: number, elevationDeg: number, intensity: number): void {
+    const scene = this.state?.scene, key = this.keyLight(scene);
+    if (!scene || !key || key.light.kind.case !== "area" || !this.camera) return;
+    const area = key.light.kind.value;
+    const pose = setLightDirection({ center: area.center!, edgeU: area.edgeU!, edgeV: area.edgeV! }, this.camera,
+                                   azimuthDeg, elevationDeg);
+    const turned = create(AreaLightSchema, { ...area, center: vec3(pose.center), edgeU: vec3(pose.edgeU),
+                                             edgeV: vec3(pose.edgeV), intensity });
+    const lights = scene.lights.map((l, i) =>
+      i === key.index ? create(LightSchema, { kind: { case: "area", value: turned } }) : l);
+    this.post({ case: "lights", value: create(LightListSchema, { lights }) });
+  }
+
+  private turnLight(dx: number, dy: number): void {
+    const value = (id: string) => Number($<HTMLInputElement>(id).value);
+    const azimuth = ((value("light-azimuth") + dx * DEGREES_PER_PIXEL + 540) % 360) - 180;
+    const elevation = Math.max(-89, Math.min(89, value("light-elevation") - dy * DEGREES_PER_PIXEL));
+    $<HTMLInputElement>("light-azimuth").value = String(azimuth);
+    $<HTMLInputElement>("light-elevation").value = String(elevation);
+    this.setLight(azimuth, elevation, value("light-intensity"));
+  }
+
+  // ------------------------------------------------------- crop and clip
+
+  private buildCropSliders(): void {
+    const holder = $("crop-sliders");
+    holder.replaceChildren();
+    for (const axis of AXES) {
+      for (const end of ["lo", "hi"] as const) {
+        const input = document.createElement("input");
+        Object.assign(input, { type: "range", min: "0", max: "100", value: end === "lo" ? "0" : "100",
+                               id: `crop-${axis}-${end}` });
+        const name = `${AXIS_NAMES[axis]} crop ${end === "lo" ? "start" : "end"} (%)`;
+        input.setAttribute("aria-label", name);
+        input.title = name;
+        input.addEventListener("input", () => this.sendClipping());
+        holder.append(input);
+      }
+    }
+  }
+
+  private sendClipping(): void {
+    if (!this.volume || !this.camera) return;
+    const fraction = (axis: string, end: string) => Number($<HTMLInputElement>(`crop-${axis}-${end}`).value) / 100;
+    const caps = $<HTMLInputElement>("caps").checked;
+    const clipping = create(ClippingSchema, {});
+    if ($<HTMLInputElement>("crop-on").checked) {
+      const lo = v3(fraction("x", "lo"), fraction("y", "lo"), fraction("z", "lo"));
+      const hi = v3(fraction("x", "hi"), fraction("y", "hi"), fraction("z", "hi"));
+      const { center, size } = cropFromFractions(patientBox(this.volume), lo, hi);
+      clipping.cropBox = create(CropBoxSchema, { center: vec3(center), size: vec3(size), cap: caps });
+    }
+    if ($<HTMLInputElement>("clip-on").checked) {
+      const patientFrame = this.state?.scene?.frame === SceneFrame.PATIENT_LPS;
+      const along = norm(toPatient(this.volume, patientFrame, sub(this.camera.target, this.camera.eye), true));
+      const target = toPatient(this.volume, patientFrame, this.camera.target);
+      const depth = Number($<HTMLInputElement>("clip-depth").value);
+      clipping.planes = [create(ClipPlaneSchema, { point: vec3(add(target, scale(along, depth))), normal: vec3(along),
+                                                   cap: caps })];
+    }
+    this.post({ case: "clipping", value: clipping });
+  }
+
+  private showClipping(scene: Scene): void {
+    if (this.session?.hasPending("clipping")) return;
+    $<HTMLInputElement>("crop-on").checked = Boolean(scene.clipping?.cropBox);
+    $<HTMLInputElement>("clip-on").checked = (scene.clipping?.planes.length ?? 0) > 0;
+  }
+
+  // ------------------------------------------------------------- labels
+
+  private buildLabels(): void {
+    const names = this.volume?.labels?.names ?? [];
+    $("labels-panel").hidden = names.length === 0 && !this.volume?.table?.voxels;
+    $("labels").replaceChildren(...names.filter((n) => n.value !== 0).map((n) => {
+      const item = document.createElement("li"), label = document.createElement("label");
+      const box = Object.assign(document.createElement("input"), { type: "checkbox", checked: true });
+      box.dataset.label = String(n.value);
+      box.addEventListener("change", () => this.sendLabels());
+      label.append(box, ` ${n.value} ${n.name || "(unnamed)"}`);
+      item.append(label);
+      return item;
+    }));
+  }
+
+  private sendLabels(): void {
+    const current = this.state?.scene?.labels;
+    const styles = (current?.styles ?? []).map((s) => ({ ...s }));
+    for (const box of document.querySelectorAll<HTMLInputElement>("#labels input[data-label]")) {
+      const value = Number(box.dataset.label);
+      let style = styles.find((s) => s.value === value);
+      if (!style) styles.push(style = create(LabelStyleSchema, { value }));
+      style.visible = box.checked;
+    }
+    this.post({ case: "labels", value: create(LabelsSchema, { ...current, styles,
+                                                               removeTable: $<HTMLInputElement>("remove-table").checked }) });
+  }
+
+  private showLabels(scene: Scene): void {
+    if (this.session?.hasPending("labels")) return;
+    for (const box of document.querySelectorAll<HTMLInputElement>("#labels input[data-label]")) {
+      const style = scene.labels?.styles.find((s) => s.value === Number(box.dataset.label));
+      box.checked = style?.visible ?? true;
+    }
+    $<HTMLInputElement>("remove-table").checked = scene.labels?.removeTable ?? false;
+  }
+
+  // -------------------------------------------------------- the panels
+
+  private wirePanels(): void {
+    $("open-volume").addEventListener("click", () => void this.open($<HTMLSelectElement>("volumes").value));
+    $("preset").addEventListener("change", () => {
+      const preset = $<HTMLSelectElement>("preset").value;
+      if (preset) this.post({ case: "transferFunction", value: create(TransferFunctionSchema, { preset }) });
+    });
+    for (const b of document.querySelectorAll<HTMLButtonElement>("[data-view]")) {
+      b.addEventListener("click", () => this.namedView(NamedView[b.dataset.view as keyof typeof NamedView]));
+    }
+    $("home").addEventListener("click", () => this.goHome());
+    for (const id of ["crop-on", "clip-on", "clip-depth", "caps"]) $(id).addEventListener("input", () => this.sendClipping());
+    $("remove-table").addEventListener("change", () => this.sendLabels());
+    for (const id of ["light-azimuth", "light-elevation", "light-intensity"]) {
+      $(id).addEventListener("input", () => this.setLight(Number($<HTMLInputElement>("light-azimuth").value),
+        Number($<HTMLInputElement>("light-elevation").value), Number($<HTMLInputElement>("light-intensity").value)));
+    }
+    $("lossless").addEventListener("change", () => this.post({ case: "stream", value: create(StreamSettingsSchema, {
+      finalFormat: $<HTMLInputElement>("lossless").checked ? FinalFormat.PNG : FinalFormat.JPEG }) }));
+    $("quality").addEventListener("change", () => this.post({ case: "stream", value: create(StreamSettingsSchema, {
+      jpegQuality: Number($<HTMLInputElement>("quality").value) }) }));
+    $("show-stats").addEventListener("change", () => { $("stats").hidden = !$<HTMLInputElement>("show-stats").checked; });
+    window.addEventListener("keydown", (e) => this.key(e));
+  }
+
+  private goHome(): void {
+    if (this.home) this.post({ case: "camera", value: this.home });
+  }
+
+  /** The desktop viewer's keys: A P L R S I named views, Home or Space the first view, F2 the statistics. */
+  private key(e: KeyboardEvent): void {
+    const target = e.target as HTMLElement;
+    if (target.matches("input:not([type=checkbox]):not([type=range]), select, textarea")) return;
+    if (e.key === "F2") {
+      const box = $<HTMLInputElement>("show-stats");
+      box.checked = !box.checked;
+      $("stats").hidden = !box.checked;
+    } else if (e.key === "Home" || e.key === " ") {
+      this.goHome();
+    } else if (!e.ctrlKey && !e.altKey && !e.metaKey && KEY_VIEWS[e.key.toLowerCase()] !== undefined) {
+      this.namedView(KEY_VIEWS[e.key.toLowerCase()]);
+    } else {
+      return;
+    }
+    e.preventDefault();
+  }
+
+  // ------------------------------------------------- messages and stats
+
+  private setBanner(text: string): void {
+    this.bannerText = text;
+    $("banner").textContent = text;
+    $("banner").hidden = !text;
+  }
+
+  showError(text: string): void {
+    this.errorText = text;
+    $("error").textContent = text;
+    $("error").hidden = !text;
+  }
+
+  private onPainted(meta: FrameMeta, at: number, replaced: number): void {
+    this.lastPainted = meta;
+    this.replaced = replaced;
+    this.framesPainted += 1;
+    this.painted.add(at);
+    this.latency.painted(meta.lastEventSeq, at);
+  }
+
+  private drawStats(): void {
+    const f = this.lastFrame, t = f?.timings, ms = (us = 0) => (us / 1000).toFixed(1);
+    const samples = this.latency.samples;
+    $("stats").textContent = f ? [
+      `${f.width}x${f.height}  frame ${f.frameId}  ${f.accumulatedSpp} spp${f.final ? "  final" : ""}` +
+        (f.resolutionScale < 1 ? `  scale ${f.resolutionScale}` : ""),
+      `${this.painted.perSecond(now()).toFixed(1)} fps painted, ${this.replaced} replaced before painting`,
+      `motion-to-photon p50 ${percentile(samples, 0.5).toFixed(0)} ms  p95 ${percentile(samples, 0.95).toFixed(0)} ms` +
+        `  (${samples.length})`,
+      `${(this.received.perSecond(now()) / 1e6).toFixed(2)} MB/s received`,
+      `server ms: render ${ms(t?.renderUs)} denoise ${ms(t?.denoiseUs)} tonemap ${ms(t?.tonemapUs)} ` +
+        `encode ${ms(t?.encodeUs)} queue ${ms(t?.queueUs)} total ${ms(t?.serverUs)}`,
+    ].join("\n") : "waiting for the first frame";
+  }
+
+  /** What tests and scripts read (window.cinevol). */
+  status() {
+    const samples = this.latency.samples;
+    return {
+      sessionId: this.session?.id ?? "", framesPainted: this.framesPainted, error: this.errorText,
+      banner: this.bannerText,
+      lastFrame: this.lastPainted ? { ...this.lastPainted, id: Number(this.lastPainted.id),
+                                       lastEventSeq: Number(this.lastPainted.lastEventSeq) } : null,
+      motionToPhoton: { p50: percentile(samples, 0.5), p95: percentile(samples, 0.95), count: samples.length },
+      fps: this.painted.perSecond(now()), bytesPerSecond: this.received.perSecond(now()),
+      preset: this.state?.scene?.transferFunction?.preset ?? "",
+    };
+  }
+}

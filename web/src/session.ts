@@ -1,0 +1,210 @@
+// A session as the page lives it: create or join, watch its frames
+// (WatchSession), send its events in batches (SendEvents), and keep going
+// through a lost connection or gateway: the same session resumed, or a new
+// one made from the last state the server sent when the old one is gone.
+// The page never re-derives the state from its events: it shows what the
+// server answers.
+import { create, type MessageInitShape } from "@bufbuild/protobuf";
+import { Code, ConnectError } from "@connectrpc/connect";
+import {
+  NoticeSchema, Notice_Level, SessionEventSchema, type Frame, type Notice, type SessionEvent, type SessionState, type ViewportSchema,
+} from "../gen/cinevol/v1/service_pb.js";
+import type { Api } from "./api.js";
+import type { MotionToPhoton } from "./stats.js";
+import { plainWords } from "./words.js";
+
+/** One kind of event, e.g. { case: "camera", value: camera }. */
+export type EventKind = Exclude<SessionEvent["kind"], { case: undefined }>;
+
+export interface SessionHandlers {
+  attached(sessionId: string): void;
+  frame(frame: Frame): void;
+  state(state: SessionState): void;
+  notice(notice: Notice): void;
+  /** How the connection is, in words (null: all is well). */
+  banner(text: string | null): void;
+  /** The session cannot go on: why, in words. */
+  failed(text: string): void;
+}
+
+const ENDED_TRAILER = "cinevol-session-ended";
+const MAX_RETRY_MS = 4000;
+const sleep = (ms: number) => new Promise((r) => setTimeout(r, ms));
+export const now = () => performance.timeOrigin + performance.now();
+
+// Refusals that another try would meet again.
+const FINAL = new Set([Code.Unauthenticated, Code.PermissionDenied, Code.Aborted, Code.InvalidArgument]);
+
+export class LiveSession {
+  private seq = 0n;
+  private readonly pending = new Map<string, { kind: EventKind; inputAt: number }>();
+  private sending = false;
+  private attached = false;
+  private closed = false;
+  private abort = new AbortController();
+  state?: SessionState;
+
+  private constructor(private readonly api: Api, private readonly handlers: SessionHandlers,
+                      private readonly latency: MotionToPhoton, public id: string, readonly volumeId: string) {}
+
+  /** A new session of `volumeId` (its preset or the volume's default), watched at once. */
+  static async create(api: Api, handlers: SessionHandlers, latency: MotionToPhoton, volumeId: string,
+                      viewport: MessageInitShape<typeof ViewportSchema>, preset?: string): Promise<LiveSession> {
+    const created = await api.sessions.createSession({
+      volumeId, viewport, initial: preset ? { case: "preset", value: preset } : { case: undefined },
+    });
+    const session = new LiveSession(api, handlers, latency, created.sessionId, volumeId);
+    void session.watch();
+    return session;
+  }
+
+  /** An existing session of one's own (a reload, or a link that names it); its volume from the server's status. */
+  static async join(api: Api, handlers: SessionHandlers, latency: MotionToPhoton,
+                    sessionId: string): Promise<LiveSession> {
+    const status = await api.server.getStatus({});
+    const volumeId = status.sessions.find((s) => s.sessionId === sessionId)?.volumeId ?? "";
+    const session = new LiveSession(api, handlers, latency, sessionId, volumeId);
+    void session.watch();
+    return session;
+  }
+
+  /**
+   * Queues an event. While a batch is on its way, later events of the same
+   * kind replace earlier ones (the newest camera wins), so the page sends
+   * at the pace the server answers. `inputAt`: when the input behind it came.
+   */
+  post(kind: EventKind, inputAt = now()): void {
+    const earlier = this.pending.get(kind.case);
+    this.pending.set(kind.case, { kind, inputAt: Math.min(earlier?.inputAt ?? inputAt, inputAt) });
+    void this.send();
+  }
+
+  /** Is an event of this kind waiting to go? (The page keeps its own camera while one is.) */
+  hasPending(kind: EventKind["case"]): boolean {
+    return this.pending.has(kind);
+  }
+
+  close(): void {
+    this.closed = true;
+    this.abort.abort();
+    this.api.sessions.closeSession({ sessionId: this.id }).catch(() => {});
+  }
+
+  private async send(): Promise<void> {
+    if (this.sending || !this.attached || this.pending.size === 0) return;
+    this.sending = true;
+    const batch = [...this.pending.values()];
+    this.pending.clear();
+    const events = batch.map(({ kind, inputAt }) => {
+      this.seq += 1n;
+      this.latency.sent(this.seq, inputAt);
+      return create(SessionEventSchema, { seq: this.seq, kind });
+    });
+    try {
+      const answer = await this.api.sessions.sendEvents({ sessionId: this.id, events });
+      if (answer.state) this.adopt(answer.state);
+    } catch (e) {
+      const error = ConnectError.from(e);
+      if (FINAL.has(error.code) || error.code === Code.ResourceExhausted || error.code === Code.FailedPrecondition) {
+        this.handlers.notice(create(NoticeSchema, { level: Notice_Level.WARNING, message: plainWords(error) }));
+      } else {  // the connection broke: the events go again once the watch is back
+        for (const b of batch) if (!this.pending.has(b.kind.case)) this.pending.set(b.kind.case, b);
+      }
+    } finally {
+      this.sending = false;
+    }
+    void this.send();
+  }
+
+  private adopt(state: SessionState): void {
+    this.state = state;
+    this.handlers.state(state);
+  }
+
+  private async watch(): Promise<void> {
+    let retryMs = 250;
+    let lost = false;
+    while (!this.closed) {
+      const outcome = await this.watchOnce(() => {
+        retryMs = 250;
+        if (lost) this.handlers.banner(null);
+        lost = false;
+      });
+      if (this.closed) return;
+      if (outcome.kind === "failed") return this.handlers.failed(outcome.text);
+      if (outcome.kind === "closed") return this.handlers.failed("The session was closed on the server.");
+      if (outcome.kind === "lost") {
+        lost = true;
+        this.handlers.banner(`Connection lost (${outcome.text}). Reconnecting to the same session…`);
+        await sleep(retryMs);
+        retryMs = Math.min(2 * retryMs, MAX_RETRY_MS);
+        continue;
+      }
+      // The session itself ended (drained, failed, expired while away): go on in a new one.
+      if (!(await this.recreate(outcome.text))) return;
+    }
+  }
+
+  /** One WatchSession call, until it ends: what ended it. */
+  private async watchOnce(onAttach: () => void): Promise<
+      { kind: "failed" | "lost" | "ended"; text: string } | { kind: "closed" }> {
+    this.abort = new AbortController();
+    let ended = false;
+    try {
+      const messages = this.api.sessions.watchSession({ sessionId: this.id }, {
+        signal: this.abort.signal, onTrailer: (t) => { ended = t.has(ENDED_TRAILER); },
+      });
+      for await (const m of messages) {
+        if (!this.attached) {  // the first message (the state) says the attach took: numbering starts again
+          this.attached = true;
+          this.seq = 0n;
+          this.latency.reset();
+          onAttach();
+          this.handlers.attached(this.id);
+          void this.send();
+        }
+        if (m.kind.case === "frame") this.handlers.frame(m.kind.value);
+        else if (m.kind.case === "state") this.adopt(m.kind.value);
+        else if (m.kind.case === "notice") this.handlers.notice(m.kind.value);
+      }
+      return ended ? { kind: "closed" } : { kind: "lost", text: "the stream ended" };
+    } catch (e) {
+      const error = ConnectError.from(e);
+      if (error.metadata.has(ENDED_TRAILER) || error.code === Code.NotFound) {
+        return { kind: "ended", text: error.rawMessage || "it no longer exists" };
+      }
+      if (FINAL.has(error.code)) return { kind: "failed", text: plainWords(error) };
+      return { kind: "lost", text: error.rawMessage || "no answer" };
+    } finally {
+      this.attached = false;
+    }
+  }
+
+  /** A new session from the last state the server sent (the server's own rule: CreateSession from a state). */
+  private async recreate(reason: string): Promise<boolean> {
+    const state = this.state;
+    if (!state?.scene || !this.volumeId) {
+      this.handlers.failed(`The session ended on the server (${reason}).`);
+      return false;
+    }
+    for (let retryMs = 250; !this.closed; retryMs = Math.min(2 * retryMs, MAX_RETRY_MS)) {
+      try {
+        const created = await this.api.sessions.createSession({
+          volumeId: this.volumeId, viewport: state.viewport, stream: state.stream,
+          initial: { case: "scene", value: state.scene },
+        });
+        this.id = created.sessionId;
+        this.handlers.banner(`The session ended on the server (${reason}); a new one goes on from its last state.`);
+        return true;
+      } catch (e) {
+        const error = ConnectError.from(e);
+        if (error.code !== Code.Unavailable) {
+          this.handlers.failed(`The session ended on the server (${reason}), and a new one was refused: ${plainWords(error)}`);
+          return false;
+        }
+        await sleep(retryMs);
+      }
+    }
+    return false;
+  }
+}
