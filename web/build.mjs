@@ -38,7 +38,7 @@ async function bundle() {
   });
   for (const f of ["index.html", "app.css"]) copyFileSync(join(here, "static", f), join(out, "static", f));
   // Node bundles: ES modules that may still require() node's own modules.
-  const node = { ...common, platform: "node", format: "esm", target: "node20", outExtension: { ".js": ".mjs" },
+  const node = { ...common, platform: "node", format: "esm", target: "node18", outExtension: { ".js": ".mjs" },
     banner: { js: "import { createRequire } from 'node:module'; const require = createRequire(import.meta.url);" } };
   await esbuild.build({ ...node, entryPoints: { gateway: join(here, "gateway", "main.ts") }, outdir: out });
   await esbuild.build({ ...node, entryPoints: tests("test"), outdir: join(out, "tests") });

@@ -48,8 +48,9 @@ def render(overlay):
 
 def check_overlay(name, objects):
     kinds = {o["kind"] for o in objects}
-    for kind in ("StatefulSet", "Service", "ConfigMap", "PodDisruptionBudget", "NetworkPolicy"):
+    for kind in ("StatefulSet", "Deployment", "Service", "ConfigMap", "PodDisruptionBudget", "NetworkPolicy"):
         check(kind in kinds, f"{name}: no {kind}")
+    check_web(name, objects)
     config = next((o for o in objects if o["kind"] == "ConfigMap"), {})
     drain = int(re.search(r"drain-seconds\s*=\s*(\d+)", config.get("data", {}).get("server.toml", "")).group(1))
     for sts in (o for o in objects if o["kind"] == "StatefulSet"):
@@ -71,6 +72,26 @@ def check_overlay(name, objects):
             check_advertised_address(name, sts, c, objects)
     for policy in (o for o in objects if o["kind"] == "NetworkPolicy"):
         check(policy["spec"]["podSelector"].get("matchLabels"), f"{name}: the NetworkPolicy selects every pod")
+
+
+def check_web(name, objects):
+    """cinevol-web (docs/web.md): TLS towards the browser and the server, sessions routed only to the server pods."""
+    web = next((o for o in objects if o["kind"] == "Deployment" and o["metadata"]["name"] == "cinevol-web"), None)
+    check(web is not None, f"{name}: no cinevol-web Deployment")
+    if web is None:
+        return
+    pod = web["spec"]["template"]["spec"]
+    args = " ".join(pod["containers"][0]["args"])
+    for flag in ("--tls-cert=", "--server-tls-ca=", "--session-hosts=.cinevol-server-pods."):
+        check(flag in args, f"{name}: cinevol-web runs without {flag}")
+    check(pod["securityContext"].get("runAsNonRoot") is True, f"{name}: cinevol-web may run as root")
+    check(pod["containers"][0]["securityContext"].get("readOnlyRootFilesystem") is True,
+          f"{name}: cinevol-web's file system is writable")
+    allowed = [p for p in objects if p["kind"] == "NetworkPolicy"
+               and p["spec"]["podSelector"]["matchLabels"].get("app.kubernetes.io/name") == "cinevol-server"
+               and any(f.get("podSelector", {}).get("matchLabels", {}).get("app.kubernetes.io/name") == "cinevol-web"
+                       for rule in p["spec"].get("ingress", []) for f in rule.get("from", []))]
+    check(allowed, f"{name}: no NetworkPolicy lets cinevol-web reach the server pods")
 
 
 def check_advertised_address(name, sts, container, objects):

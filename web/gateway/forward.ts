@@ -35,15 +35,23 @@ export function fromServer(e: unknown): ConnectError {
 
 type Method = (request: unknown, options: CallOptions) => unknown;
 
-export function forwardService(router: ConnectRouter, service: DescService, transport: Transport): void {
-  const client = createClient(service, transport) as unknown as Record<string, Method>;
+/** Which server a call goes to: --server, or the session's own pod (SessionRoutes). */
+export type PickTransport = (ctx: HandlerContext) => Transport;
+
+export function forwardService(router: ConnectRouter, service: DescService, pick: PickTransport): void {
+  const clients = new WeakMap<Transport, Record<string, Method>>();
+  const clientFor = (transport: Transport) => {
+    let client = clients.get(transport);
+    if (!client) clients.set(transport, client = createClient(service, transport) as unknown as Record<string, Method>);
+    return client;
+  };
   const impl: Record<string, unknown> = {};
   for (const method of service.methods) {
-    const call = client[method.localName];
+    const call = (request: unknown, ctx: HandlerContext) => clientFor(pick(ctx))[method.localName](request, passThrough(ctx));
     if (method.methodKind === "unary") {
       impl[method.localName] = async (request: unknown, ctx: HandlerContext) => {
         try {
-          return await call(request, passThrough(ctx));
+          return await call(request, ctx);
         } catch (e) {
           throw fromServer(e);
         }
@@ -51,7 +59,7 @@ export function forwardService(router: ConnectRouter, service: DescService, tran
     } else if (method.methodKind === "server_streaming") {
       impl[method.localName] = async function* (request: unknown, ctx: HandlerContext) {
         try {
-          yield* call(request, passThrough(ctx)) as AsyncIterable<unknown>;
+          yield* call(request, ctx) as AsyncIterable<unknown>;
         } catch (e) {
           throw fromServer(e);
         }
@@ -59,4 +67,37 @@ export function forwardService(router: ConnectRouter, service: DescService, tran
     }
   }
   router.service(service, impl as never);  // built from the descriptor: the types cannot follow
+}
+
+/** The header a page sets to the address CreateSession answered (CreateSessionResponse.address). */
+export const SESSION_ADDRESS_HEADER = "cinevol-session-address";
+const MAX_ROUTES = 256;
+
+/**
+ * Behind a load balancer a session lives on one server, which CreateSession
+ * names; the page sends that address back with the session's calls. The
+ * gateway goes there only when the host ends with one of the operator's
+ * suffixes (--session-hosts), so no caller can point it anywhere else.
+ */
+export class SessionRoutes {
+  private readonly transports = new Map<string, Transport>();
+
+  constructor(private readonly fallback: Transport, private readonly suffixes: string[],
+              private readonly make: (address: string) => Transport) {}
+
+  pick(ctx: HandlerContext): Transport {
+    const address = ctx.requestHeader.get(SESSION_ADDRESS_HEADER);
+    if (!address || this.suffixes.length === 0) return this.fallback;
+    const m = /^([a-z0-9.-]+):(\d{1,5})$/i.exec(address);
+    if (!m || !this.suffixes.some((s) => m[1].toLowerCase().endsWith(s.toLowerCase()))) {
+      throw new ConnectError(`${SESSION_ADDRESS_HEADER}: cinevol-web does not route to '${address}' (--session-hosts)`,
+                             Code.PermissionDenied);
+    }
+    let transport = this.transports.get(address);
+    if (!transport) {
+      if (this.transports.size >= MAX_ROUTES) this.transports.delete(this.transports.keys().next().value!);
+      this.transports.set(address, transport = this.make(address));
+    }
+    return transport;
+  }
 }

@@ -6,7 +6,7 @@ import http2 from "node:http2";
 import type { AddressInfo } from "node:net";
 import { connectNodeAdapter, createGrpcTransport } from "@connectrpc/connect-node";
 import { PacsService, ServerService, SessionService, VolumeService } from "../gen/cinevol/v1/service_pb.js";
-import { forwardService } from "./forward.js";
+import { forwardService, SessionRoutes } from "./forward.js";
 import { parseOptions, UsageError, USAGE, type GatewayOptions } from "./options.js";
 import { StaticFiles } from "./static_files.js";
 
@@ -14,37 +14,37 @@ import { StaticFiles } from "./static_files.js";
 // frame (the largest message, a PNG final frame) comes the other way.
 const MAX_REQUEST_BYTES = 4 << 20;
 
-function serverTransport(o: GatewayOptions) {
+function serverTransport(o: GatewayOptions, address: string) {
   const tls = o.serverTls;
   return createGrpcTransport({
-    baseUrl: `${tls ? "https" : "http"}://${o.server}`,
+    baseUrl: `${tls ? "https" : "http"}://${address}`,
     nodeOptions: tls ? { ca: tls.ca, cert: tls.cert, key: tls.key, servername: tls.serverName } : undefined,
   });
 }
 
 function start(o: GatewayOptions): void {
   const files = new StaticFiles(o.staticDir);
-  const transport = serverTransport(o);
+  const server = serverTransport(o, o.server);
+  const sessions = new SessionRoutes(server, o.sessionHosts, (address) => serverTransport(o, address));
   const handler = connectNodeAdapter({
     routes: (router) => {
-      for (const service of [VolumeService, SessionService, PacsService, ServerService]) {
-        forwardService(router, service, transport);
-      }
+      for (const service of [VolumeService, PacsService, ServerService]) forwardService(router, service, () => server);
+      forwardService(router, SessionService, (ctx) => sessions.pick(ctx));
     },
     readMaxBytes: MAX_REQUEST_BYTES,
     fallback: (req, res) => files.serve(req, res),
   });
-  const server = o.tls
+  const listener = o.tls
     ? http2.createSecureServer({ cert: o.tls.cert, key: o.tls.key, allowHTTP1: true,
                                  settings: { maxConcurrentStreams: 64 } }, handler)
     : http.createServer(handler);
-  server.maxConnections = o.maxConnections;
-  server.on("error", (e: NodeJS.ErrnoException) => {
+  listener.maxConnections = o.maxConnections;
+  listener.on("error", (e: NodeJS.ErrnoException) => {
     console.error(`cinevol-web: cannot listen on ${o.host}:${o.port}: ${e.code ?? e.message}`);
     process.exit(1);
   });
-  server.listen(o.port, o.host, () => {
-    const port = (server.address() as AddressInfo).port;
+  listener.listen(o.port, o.host, () => {
+    const port = (listener.address() as AddressInfo).port;
     if (o.portFile) writeFileSync(o.portFile, `${port}\n`);
     const scheme = o.tls ? "https" : "http";
     console.log(`cinevol-web: serving ${scheme}://${o.host.includes(":") ? `[${o.host}]` : o.host}:${port}/ ` +
@@ -52,7 +52,7 @@ function start(o: GatewayOptions): void {
   });
   for (const signal of ["SIGTERM", "SIGINT"] as const) {
     process.on(signal, () => {
-      server.close();
+      listener.close();
       process.exit(0);
     });
   }

@@ -11,12 +11,13 @@ export interface GatewayOptions {
   serverTls?: { ca?: Buffer; cert?: Buffer; key?: Buffer; serverName?: string };
   staticDir: string;
   maxConnections: number;
+  sessionHosts: string[];   // DNS suffixes a session's own server may have (SessionRoutes)
 }
 
 export const USAGE = `usage: cinevol-web --listen HOST:PORT [--port-file F] --server ADDR
                    [--tls-cert F --tls-key F]
                    [--server-tls-ca F [--server-tls-cert F --server-tls-key F] [--server-tls-name N]]
-                   [--max-connections N]
+                   [--session-hosts SUFFIX[,SUFFIX...]] [--max-connections N]
 Serves the cinevol page and translates gRPC-web and Connect to cinevol-server's gRPC.
 Open http://HOST:PORT/?volume=ID#token=T. Defaults: --listen 127.0.0.1:8080, --server 127.0.0.1:50051.`;
 
@@ -59,6 +60,7 @@ export function parseOptions(argv: string[]): GatewayOptions {
       "server-tls-key": { type: "string" },
       "server-tls-name": { type: "string" },
       "max-connections": { type: "string", default: "256" },
+      "session-hosts": { type: "string", default: "" },
       static: { type: "string" },
       help: { type: "boolean" },
     },
@@ -97,5 +99,6 @@ export function parseOptions(argv: string[]): GatewayOptions {
   return {
     host, port, portFile: values["port-file"], server: values.server!, tls, serverTls,
     staticDir: values.static, maxConnections,
+    sessionHosts: values["session-hosts"]!.split(",").map((h) => h.trim()).filter(Boolean),
   };
 }

@@ -5,6 +5,12 @@ import { createGrpcWebTransport } from "@connectrpc/connect-web";
 import { PacsService, ServerService, SessionService, VolumeService } from "../gen/cinevol/v1/service_pb.js";
 
 export interface Api {
+  /**
+   * Where the session lives, as CreateSession answered (behind a load
+   * balancer, its own server): sent with the session's later calls so the
+   * gateway takes them there. Empty: the gateway's server.
+   */
+  sessionAddress: string;
   sessions: Client<typeof SessionService>;
   volumes: Client<typeof VolumeService>;
   server: Client<typeof ServerService>;
@@ -14,13 +20,17 @@ export interface Api {
 export function connect(token: string, baseUrl: string): Api {
   const withToken: Interceptor = (next) => (request) => {
     request.header.set("authorization", `Bearer ${token}`);
+    const inSession = request.service.typeName === SessionService.typeName && request.method.name !== "CreateSession";
+    if (inSession && api.sessionAddress) request.header.set("cinevol-session-address", api.sessionAddress);
     return next(request);
   };
   const transport = createGrpcWebTransport({ baseUrl, useBinaryFormat: true, interceptors: [withToken] });
-  return {
+  const api: Api = {
+    sessionAddress: "",
     sessions: createClient(SessionService, transport),
     volumes: createClient(VolumeService, transport),
     server: createClient(ServerService, transport),
     pacs: createClient(PacsService, transport),
   };
+  return api;
 }

@@ -33,7 +33,8 @@ const sleep = (ms: number) => new Promise((r) => setTimeout(r, ms));
 export const now = () => performance.timeOrigin + performance.now();
 
 // Refusals that another try would meet again.
-const FINAL = new Set([Code.Unauthenticated, Code.PermissionDenied, Code.Aborted, Code.InvalidArgument]);
+const FINAL = new Set([Code.Unauthenticated, Code.PermissionDenied, Code.Aborted, Code.InvalidArgument,
+                       Code.Unimplemented]);
 
 export class LiveSession {
   private seq = 0n;
@@ -53,6 +54,7 @@ export class LiveSession {
     const created = await api.sessions.createSession({
       volumeId, viewport, initial: preset ? { case: "preset", value: preset } : { case: undefined },
     });
+    api.sessionAddress = created.address;
     const session = new LiveSession(api, handlers, latency, created.sessionId, volumeId);
     void session.watch();
     return session;
@@ -194,6 +196,7 @@ export class LiveSession {
           initial: { case: "scene", value: state.scene },
         });
         this.id = created.sessionId;
+        this.api.sessionAddress = created.address;
         this.handlers.banner(`The session ended on the server (${reason}); a new one goes on from its last state.`);
         return true;
       } catch (e) {

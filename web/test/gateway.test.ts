@@ -44,3 +44,20 @@ test("only the page's own files are served: no path reaches the disk", () => {
   assert.equal(answer("/", "POST").status, 405);
   assert.equal(answer("/healthz").body, "ok\n");
 });
+
+test("a session's calls go to its own server only where --session-hosts allows the host", async () => {
+  const { SessionRoutes } = await import("../gateway/forward.js");
+  const made: string[] = [];
+  const fallback = {} as never;
+  const routes = new SessionRoutes(fallback, [".cinevol-server-pods.default.svc"], (a) => { made.push(a); return { a } as never; });
+  const ctx = (address?: string) => ({ requestHeader: new Headers(address ? { "cinevol-session-address": address } : {}) }) as never;
+  assert.equal(routes.pick(ctx()), fallback);
+  routes.pick(ctx("cinevol-server-1.cinevol-server-pods.default.svc:50051"));
+  routes.pick(ctx("cinevol-server-1.cinevol-server-pods.default.svc:50051"));
+  assert.deepEqual(made, ["cinevol-server-1.cinevol-server-pods.default.svc:50051"], "one transport per address");
+  for (const bad of ["169.254.169.254:80", "evil.example.org:50051", "x.cinevol-server-pods.default.svc.evil.org:1",
+                     "a b:1"]) {
+    assert.throws(() => routes.pick(ctx(bad)), /does not route/, bad);
+  }
+  assert.equal(new SessionRoutes(fallback, [], () => { throw new Error("no"); }).pick(ctx("anything:1")), fallback);
+});
