@@ -5,6 +5,7 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <fstream>
 #include <optional>
 #include <string>
 #include <vector>
@@ -146,7 +147,7 @@ TEST(WatchSession, ASecondWatchTakesOverAndTheFirstEndsAborted) {
 
 TEST(WatchSession, SendEventsChecksTheOwnerAndABadEventLeavesTheSessionStreaming) {
   ScratchDir scratch;
-  WriteFile(scratch / "tokens", "alice-token alice\nbob-token bob\n");
+  std::ofstream(scratch / "tokens") << "alice-token alice\nbob-token bob\n";
   ServerProcess server(scratch.path(), {"--auth-tokens", (scratch / "tokens").string()});
   ASSERT_TRUE(server.running()) << server.Log();
   Client alice = server.Connect("alice-token");
