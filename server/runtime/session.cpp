@@ -70,6 +70,7 @@ Session::Session(std::string id, std::string owner, std::shared_ptr<VolumeLease>
       since_(Clock::now()),
       pixels_(std::uint64_t(current_.viewport().width()) * current_.viewport().height()),
       events_(context_.limits->max_events_per_second, since_),
+      batched_(kReadPacing * context_.limits->max_events_per_second, since_),
       prepared_(std::move(prepared)) {
   context_.pixels->Exchange(0, pixels_);
   ++context_.scheduler->sessions;
@@ -129,28 +130,60 @@ void Session::OnWritable(FrameStream* stream) {
 }
 
 void Session::OnEvent(const v1::SessionEvent& event, Clock::time_point arrival) {
-  ServerMetrics().EventReceived();
   {
     std::lock_guard lock(mu_);
-    if (event.seq() <= last_event_seq_ && last_event_seq_ > 0) {
-      throw InputError(fmt::format("event {}: seq must increase (the last was {})", event.seq(), last_event_seq_));
-    }
-    if (event.has_pause() || event.has_resume() || events_.Take(arrival)) {
-      ApplyCoalescedLocked();  // what came earlier applies first
-      ApplyLocked(event, arrival);
-    } else {
-      // Over the rate: kept, unchecked, for the next frame; each kind keeps its latest.
-      auto [it, fresh] = coalesced_.try_emplace(int(event.kind_case()), event);
-      const bool merges = event.has_render() || event.has_stream();  // set fields change, as ApplyEvent does
-      if (!fresh && merges) it->second.MergeFrom(event);
-      if (!fresh && !merges) it->second = event;
-      last_event_seq_ = event.seq();
-      coalesced_arrival_ = arrival;
-      ServerMetrics().EventCoalesced();
-    }
-    if (!event.has_pause() && !event.has_resume() && !event.has_stream()) preempt_ = true;  // the picture changes
+    OnEventLocked(event, arrival);
   }
   Wake();
+}
+
+v1::SessionState Session::OnEvents(const google::protobuf::RepeatedPtrField<v1::SessionEvent>& events,
+                                   Clock::time_point arrival) {
+  std::exception_ptr bad;
+  v1::SessionState state;
+  {
+    std::lock_guard lock(mu_);
+    if (state_ == State::kEnded) {
+      throw RpcError(grpc::StatusCode::NOT_FOUND, fmt::format("session '{}' has ended", id_));
+    }
+    if (!batched_.Take(arrival, events.size())) {
+      throw LimitExceeded(grpc::StatusCode::RESOURCE_EXHAUSTED, "max-events-per-second",
+                          fmt::format("events: more than {} events a second to session '{}' ({} x "
+                                      "--max-events-per-second); none of these {} was applied",
+                                      kReadPacing * context_.limits->max_events_per_second, id_, kReadPacing,
+                                      events.size()));
+    }
+    try {
+      for (const v1::SessionEvent& event : events) OnEventLocked(event, arrival);
+    } catch (...) {
+      bad = std::current_exception();  // the events before it stay applied
+    }
+    state = current_;
+  }
+  Wake();
+  if (bad) std::rethrow_exception(bad);
+  return state;
+}
+
+void Session::OnEventLocked(const v1::SessionEvent& event, Clock::time_point arrival) {
+  ServerMetrics().EventReceived();
+  if (event.seq() <= last_event_seq_ && last_event_seq_ > 0) {
+    throw InputError(fmt::format("event {}: seq must increase (the last was {})", event.seq(), last_event_seq_));
+  }
+  if (event.has_pause() || event.has_resume() || events_.Take(arrival)) {
+    ApplyCoalescedLocked();  // what came earlier applies first
+    ApplyLocked(event, arrival);
+  } else {
+    // Over the rate: kept, unchecked, for the next frame; each kind keeps its latest.
+    auto [it, fresh] = coalesced_.try_emplace(int(event.kind_case()), event);
+    const bool merges = event.has_render() || event.has_stream();  // set fields change, as ApplyEvent does
+    if (!fresh && merges) it->second.MergeFrom(event);
+    if (!fresh && !merges) it->second = event;
+    last_event_seq_ = event.seq();
+    coalesced_arrival_ = arrival;
+    ServerMetrics().EventCoalesced();
+  }
+  if (!event.has_pause() && !event.has_resume() && !event.has_stream()) preempt_ = true;  // the picture changes
 }
 
 void Session::ApplyCoalescedLocked() {
@@ -184,10 +217,12 @@ void Session::ApplyLocked(const v1::SessionEvent& event, Clock::time_point arriv
     pixels_ = pixels;
   }
   if (changes & kStreamChanged) settings_ = SessionFrameSettings(context_.backend, current_.stream());
-  // Every event but a pause gets a frame that answers it.
-  if (event.has_pause()) {
+  // Every event but a pause gets a frame that answers it. Only an attached
+  // session pauses or resumes: one without a stream (SendEvents before a
+  // watch, or after the end) keeps its state, so that it still expires.
+  if (stream_ && event.has_pause()) {
     state_ = State::kPaused;
-  } else if (event.has_resume() || state_ == State::kIdle) {
+  } else if (stream_ && (event.has_resume() || state_ == State::kIdle)) {
     state_ = State::kRendering;
   }
   if (!event.has_pause() && !event.has_resume()) dirty_ = true;

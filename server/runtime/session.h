@@ -33,6 +33,11 @@ namespace cinevol::service {
 
 using Clock = std::chrono::steady_clock;
 
+// Events a session takes in, a second, at most this many times
+// --max-events-per-second: StreamSession paces its reads so, SendEvents
+// refuses past it. The session coalesces those past --max-events-per-second.
+inline constexpr int kReadPacing = 4;
+
 // The write side of the stream attached to a session: one write in flight,
 // and behind it one slot where a newer frame replaces an older one.
 class FrameStream {
@@ -112,6 +117,17 @@ class Session final : public Job, public std::enable_shared_from_this<Session> {
   // transfer function and resize win; render and stream settings merge) and
   // applied once, before the next frame.
   void OnEvent(const v1::SessionEvent& event, Clock::time_point arrival);
+  // SendEvents' batch: each event in order as OnEvent takes it; returns the
+  // state after them (coalesced events not yet in it). Unlike the stream,
+  // which ends the session on a bad event, a bad event here throws and leaves
+  // the session as the events before it made it: the caller hears the error
+  // in its answer. A batch past kReadPacing x --max-events-per-second a
+  // second is refused whole (RESOURCE_EXHAUSTED): unary calls have no paced
+  // reads, and would otherwise cost the session's lock a check or merge for
+  // every event a client can send. Events before an attach change the scene
+  // (the attach sends it); pause and resume only matter to an attached stream.
+  v1::SessionState OnEvents(const google::protobuf::RepeatedPtrField<v1::SessionEvent>& events,
+                            Clock::time_point arrival);
   // Ends the session: the stream finishes with `status`, memory is freed and
   // the registry forgets it. Later calls do nothing.
   void End(const grpc::Status& status);
@@ -143,6 +159,8 @@ class Session final : public Job, public std::enable_shared_from_this<Session> {
  private:
   struct Work;
   bool CanRenderLocked() const;
+  // OnEvent's work, mu_ held; throws for a bad event.
+  void OnEventLocked(const v1::SessionEvent& event, Clock::time_point arrival);
   // Applies one event now; throws for a bad one (the scene stays as it was).
   void ApplyLocked(const v1::SessionEvent& event, Clock::time_point arrival);
   // Applies the coalesced events; ends nothing, throws for a bad one.
@@ -190,6 +208,7 @@ class Session final : public Job, public std::enable_shared_from_this<Session> {
   bool holds_device_memory_ = false;
   std::uint64_t pixels_ = 0;  // held in the context's PixelBudget
   TokenBucket events_;        // events applied at once; past it, coalesced
+  TokenBucket batched_;       // SendEvents' events: kReadPacing x --max-events-per-second
   std::map<int, v1::SessionEvent> coalesced_;  // by SessionEvent::KindCase, oldest first applied
   Clock::time_point coalesced_arrival_;
 

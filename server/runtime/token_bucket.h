@@ -12,11 +12,11 @@ class TokenBucket {
   using Clock = std::chrono::steady_clock;
   TokenBucket(double rate, Clock::time_point now) : rate_(rate), tokens_(rate), at_(now) {}
 
-  // Takes a token if one is there.
-  bool Take(Clock::time_point now) {
+  // Takes `count` tokens if they are there (none otherwise).
+  bool Take(Clock::time_point now, int count = 1) {
     Refill(now);
-    if (tokens_ < 1) return false;
-    tokens_ -= 1;
+    if (tokens_ < count) return false;
+    tokens_ -= count;
     return true;
   }
   // How long until a token is there (zero: one is there now).

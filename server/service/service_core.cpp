@@ -23,6 +23,7 @@
 #include "io/label_volume.h"
 #include "io/reader_cage.h"
 #include "runtime/metrics.h"
+#include "scene/presets.h"
 
 namespace cinevol::service {
 namespace {
@@ -339,6 +340,13 @@ void ServiceCore::CloseSession(const std::string& id, const Principal& caller) {
   FindSession(id, caller)->End({grpc::StatusCode::OK, "session closed"});
 }
 
+v1::SessionState ServiceCore::SendEvents(const v1::SendEventsRequest& request, const Principal& caller) {
+  if (request.events_size() > kMaxEventsPerCall) {
+    throw InputError(fmt::format("events: {} events; at most {} a call", request.events_size(), kMaxEventsPerCall));
+  }
+  return FindSession(request.session_id(), caller)->OnEvents(request.events(), Clock::now());
+}
+
 std::shared_ptr<LoadSlot> ServiceCore::BeginLoad(const Principal& caller) {
   RequireServing();
   std::lock_guard lock(mu_);
@@ -543,6 +551,7 @@ v1::ServerStatus ServiceCore::Status(const Principal& caller) const {
     status.set_accepting_sessions(HasRoomLocked());
   }
   status.set_max_sessions(std::uint32_t(options_.max_sessions));
+  for (const std::string& name : PresetNames()) status.add_presets(name);
   for (const auto& s : sessions) *status.add_sessions() = s->Status();
   for (v1::VolumeInfo& v : volumes_.List(caller)) *status.add_volumes() = std::move(v);
   status.set_encode_threads(encoder_.max_running());

@@ -32,6 +32,9 @@
 
 namespace cinevol::service {
 
+// SendEvents' batch at most (service.proto): larger ones are INVALID_ARGUMENT.
+inline constexpr int kMaxEventsPerCall = 64;
+
 // Settings of a server; `cinevol-server --help` documents each, and
 // docs/security.md gives the limits' defaults and why.
 struct ServerOptions {
@@ -107,6 +110,8 @@ class ServiceCore {
                                           const std::atomic<bool>& cancelled);
   std::shared_ptr<Session> FindSession(const std::string& id, const Principal& caller) const;
   void CloseSession(const std::string& id, const Principal& caller);
+  // SendEvents: the batch (at most kMaxEventsPerCall) to the caller's session (Session::OnEvents).
+  v1::SessionState SendEvents(const v1::SendEventsRequest& request, const Principal& caller);
   // What a still tells its caller. `done` runs once, on a worker, with the
   // image or the error; `progress` (optional) runs at once with 0 samples
   // done, then on the device's worker about twice a second while it renders.

@@ -450,6 +450,20 @@ grpc::ServerUnaryReactor* SessionServiceImpl::CloseSession(grpc::CallbackServerC
   return Answer(core_, context, [&](const Principal& caller) { core_->CloseSession(request->session_id(), caller); });
 }
 
+grpc::ServerWriteReactor<v1::ServerMessage>* SessionServiceImpl::WatchSession(
+    grpc::CallbackServerContext* context, const v1::WatchSessionRequest* request) {
+  return new WatchSessionReactor(context, core_, *request);
+}
+
+grpc::ServerUnaryReactor* SessionServiceImpl::SendEvents(grpc::CallbackServerContext* context,
+                                                         const v1::SendEventsRequest* request,
+                                                         v1::SendEventsResponse* response) {
+  // Answered on the gRPC thread: a batch is at most 64 quick checks and merges under the session's lock.
+  return Answer(core_, context, [&](const Principal& caller) {
+    *response->mutable_state() = core_->SendEvents(*request, caller);
+  });
+}
+
 grpc::ServerUnaryReactor* ServerServiceImpl::GetStatus(grpc::CallbackServerContext* context,
                                                        const v1::GetStatusRequest*, v1::ServerStatus* response) {
   return Answer(core_, context, [&](const Principal& caller) { *response = core_->Status(caller); });

@@ -54,6 +54,10 @@ class SessionServiceImpl final : public v1::SessionService::CallbackService {
                                                                const v1::SnapshotRequest* request) override;
   grpc::ServerUnaryReactor* CloseSession(grpc::CallbackServerContext* context, const v1::CloseSessionRequest* request,
                                          v1::CloseSessionResponse* response) override;
+  grpc::ServerWriteReactor<v1::ServerMessage>* WatchSession(grpc::CallbackServerContext* context,
+                                                             const v1::WatchSessionRequest* request) override;
+  grpc::ServerUnaryReactor* SendEvents(grpc::CallbackServerContext* context, const v1::SendEventsRequest* request,
+                                       v1::SendEventsResponse* response) override;
 
  private:
   ServiceCore* core_;

@@ -1,4 +1,5 @@
-// SessionStreamReactor: attach, events in; frames and notices out.
+// FrameWriter's slot and queue; SessionStreamReactor's attach, events and
+// paced reads; WatchSessionReactor's attach.
 #include "service/session_stream.h"
 
 #include <fmt/format.h>
@@ -8,9 +9,182 @@
 #include "service/service_core.h"
 
 namespace cinevol::service {
+template <class Reactor>
+std::shared_ptr<Session> FrameWriter<Reactor>::session() const {
+  std::lock_guard lock(mu_);
+  return session_;
+}
+
+template <class Reactor>
+void FrameWriter<Reactor>::AttachTo(std::shared_ptr<Session> session) {
+  {
+    std::lock_guard lock(mu_);
+    session_ = session;
+  }
+  session->Attach(this);
+}
+
+template <class Reactor>
+void FrameWriter<Reactor>::DetachFromSession() {
+  if (std::shared_ptr<Session> session = this->session()) session->Detach(this);
+}
+
+template <class Reactor>
+void FrameWriter<Reactor>::OfferFrame(v1::Frame frame, Clock::time_point origin) {
+  std::lock_guard lock(mu_);
+  if (finished_ || finish_after_write_) return;
+  if (!writing_) {
+    frame.mutable_timings()->set_server_us(MicrosBetween(origin, Clock::now()));
+    v1::ServerMessage message;
+    *message.mutable_frame() = std::move(frame);
+    StartWriteLocked(std::move(message), true);
+    return;
+  }
+  if (slot_) {
+    ++dropped_;
+    ServerMetrics().FrameDropped();
+  }
+  slot_ = Parked{std::move(frame), origin};
+}
+
+template <class Reactor>
+void FrameWriter<Reactor>::SendNotice(v1::Notice::Level level, std::string message) {
+  v1::ServerMessage out;
+  out.mutable_notice()->set_level(level);
+  out.mutable_notice()->set_message(std::move(message));
+  SendMessage(std::move(out));
+}
+
+template <class Reactor>
+void FrameWriter<Reactor>::SendState(v1::SessionState state) {
+  v1::ServerMessage out;
+  *out.mutable_state() = std::move(state);
+  SendMessage(std::move(out));
+}
+
+template <class Reactor>
+void FrameWriter<Reactor>::SendMessage(v1::ServerMessage message) {
+  std::lock_guard lock(mu_);
+  if (finished_ || finish_after_write_) return;
+  if (writing_) {
+    messages_.push_back(std::move(message));
+    return;
+  }
+  StartWriteLocked(std::move(message), false);
+}
+
+template <class Reactor>
+bool FrameWriter<Reactor>::SlotFull() const {
+  std::lock_guard lock(mu_);
+  return slot_.has_value() || finished_ || finish_after_write_.has_value();
+}
+
+template <class Reactor>
+void FrameWriter<Reactor>::End(grpc::Status status) {
+  std::lock_guard lock(mu_);
+  if (finished_ || finish_after_write_) return;
+  if (writing_) {
+    finish_after_write_ = std::move(status);
+  } else {
+    FinishLocked(status);
+  }
+}
+
+template <class Reactor>
+void FrameWriter<Reactor>::EndSession(grpc::Status status) {
+  {
+    std::lock_guard lock(mu_);
+    if (finished_ || finish_after_write_) return;
+    // The client library's SessionStream reads this trailer (client-cpp/library/client.cpp).
+    context_->AddTrailingMetadata("cinevol-session-ended", "1");
+  }
+  End(std::move(status));
+}
+
+template <class Reactor>
+std::uint64_t FrameWriter<Reactor>::frames_sent() const {
+  std::lock_guard lock(mu_);
+  return sent_;
+}
+
+template <class Reactor>
+std::uint64_t FrameWriter<Reactor>::frames_dropped() const {
+  std::lock_guard lock(mu_);
+  return dropped_;
+}
+
+template <class Reactor>
+void FrameWriter<Reactor>::StartWriteLocked(v1::ServerMessage message, bool is_frame) {
+  out_ = std::move(message);
+  writing_ = true;
+  writing_frame_ = is_frame;
+  if (is_frame) write_started_ = Clock::now();
+  this->StartWrite(&out_);  // gRPC runs OnWriteDone on its own thread, never inside this call
+}
+
+template <class Reactor>
+void FrameWriter<Reactor>::FinishLocked(const grpc::Status& status) {
+  finished_ = true;
+  if (slot_) {  // never sent
+    ++dropped_;
+    ServerMetrics().FrameDropped();
+  }
+  slot_.reset();
+  messages_.clear();
+  this->Finish(status);
+}
+
+template <class Reactor>
+void FrameWriter<Reactor>::OnWriteDone(bool ok) {
+  std::shared_ptr<Session> wake;
+  {
+    std::lock_guard lock(mu_);
+    writing_ = false;
+    if (ok && writing_frame_) {
+      ++sent_;
+      ServerMetrics().FrameSent(out_.frame().jpeg().size() + out_.frame().png().size(),  // one of them is set
+                                std::chrono::duration<double>(Clock::now() - write_started_).count());
+    }
+    if (finished_) return;
+    if (!ok) {
+      FinishLocked(finish_after_write_.value_or(
+          grpc::Status(grpc::StatusCode::UNAVAILABLE, "the stream to the client broke")));
+      return;
+    }
+    if (!messages_.empty()) {  // before an end that waits (a notice says why it ends) and the next frame
+      v1::ServerMessage out = std::move(messages_.front());
+      messages_.pop_front();
+      StartWriteLocked(std::move(out), false);
+      return;
+    }
+    if (finish_after_write_) {
+      FinishLocked(*finish_after_write_);
+      return;
+    }
+    if (slot_) {
+      Parked parked = std::move(*slot_);
+      slot_.reset();
+      parked.frame.mutable_timings()->set_server_us(MicrosBetween(parked.origin, Clock::now()));
+      v1::ServerMessage out;
+      *out.mutable_frame() = std::move(parked.frame);
+      StartWriteLocked(std::move(out), true);
+    }
+    wake = session_;  // the slot has room: the session may render again
+  }
+  if (wake) wake->OnWritable(this);
+}
+
+template <class Reactor>
+void FrameWriter<Reactor>::OnCancel() {
+  End({grpc::StatusCode::CANCELLED, "the client went away"});
+}
+
+template class FrameWriter<BidiSessionReactor>;
+template class FrameWriter<WriteSessionReactor>;
 
 SessionStreamReactor::SessionStreamReactor(grpc::CallbackServerContext* context, ServiceCore* core)
-    : context_(context), core_(core), reads_(kReadPacing * core->options().limits.max_events_per_second, Clock::now()) {
+    : FrameWriter(context), core_(core),
+      reads_(kReadPacing * core->options().limits.max_events_per_second, Clock::now()) {
   const grpc::Status status = Guarded([&] { principal_ = core_->Authenticate(*context); });
   if (!status.ok()) {
     std::lock_guard lock(mu_);
@@ -20,11 +194,6 @@ SessionStreamReactor::SessionStreamReactor(grpc::CallbackServerContext* context,
   // A stream that never attaches is cancelled (--first-message-seconds).
   watch_ = core_->calls().Watch(context, Seconds(core_->options().first_message_seconds));
   StartRead(&in_);
-}
-
-std::shared_ptr<Session> SessionStreamReactor::session() const {
-  std::lock_guard lock(mu_);
-  return session_;
 }
 
 void SessionStreamReactor::OnReadDone(bool ok) {
@@ -50,7 +219,11 @@ void SessionStreamReactor::OnReadDone(bool ok) {
     return;
   } else {
     const grpc::Status status = Guarded([&] { session->OnEvent(in_.event(), arrival); });
-    if (!status.ok()) {  // a bad event ends the session, with the message naming the field
+    // A bad event ends the session, with the message naming the field: the
+    // stream's client sent it in the stream it watches, and a stream cannot
+    // answer one message alone. (SendEvents answers its batch and leaves the
+    // session as it was: Session::OnEvents.)
+    if (!status.ok()) {
       session->End(status);
       return;
     }
@@ -85,154 +258,12 @@ void SessionStreamReactor::OnPaced() {
 }
 
 void SessionStreamReactor::HandleAttach(const v1::Attach& attach) {
-  std::shared_ptr<Session> session = core_->FindSession(attach.session_id(), *principal_);
-  {
-    std::lock_guard lock(mu_);
-    session_ = session;
-  }
-  session->Attach(this);
+  AttachTo(core_->FindSession(attach.session_id(), *principal_));
 }
-
-void SessionStreamReactor::OfferFrame(v1::Frame frame, Clock::time_point origin) {
-  std::lock_guard lock(mu_);
-  if (finished_ || finish_after_write_) return;
-  if (!writing_) {
-    frame.mutable_timings()->set_server_us(static_cast<std::uint32_t>(
-        std::chrono::duration_cast<std::chrono::microseconds>(Clock::now() - origin).count()));
-    v1::ServerMessage message;
-    *message.mutable_frame() = std::move(frame);
-    StartWriteLocked(std::move(message), true);
-    return;
-  }
-  if (slot_) {
-    ++dropped_;
-    ServerMetrics().FrameDropped();
-  }
-  slot_ = Parked{std::move(frame), origin};
-}
-
-void SessionStreamReactor::SendNotice(v1::Notice::Level level, std::string message) {
-  v1::ServerMessage out;
-  out.mutable_notice()->set_level(level);
-  out.mutable_notice()->set_message(std::move(message));
-  SendMessage(std::move(out));
-}
-
-void SessionStreamReactor::SendState(v1::SessionState state) {
-  v1::ServerMessage out;
-  *out.mutable_state() = std::move(state);
-  SendMessage(std::move(out));
-}
-
-void SessionStreamReactor::SendMessage(v1::ServerMessage message) {
-  std::lock_guard lock(mu_);
-  if (finished_ || finish_after_write_) return;
-  if (writing_) {
-    messages_.push_back(std::move(message));
-    return;
-  }
-  StartWriteLocked(std::move(message), false);
-}
-
-bool SessionStreamReactor::SlotFull() const {
-  std::lock_guard lock(mu_);
-  return slot_.has_value() || finished_ || finish_after_write_.has_value();
-}
-
-void SessionStreamReactor::End(grpc::Status status) {
-  std::lock_guard lock(mu_);
-  if (finished_ || finish_after_write_) return;
-  if (writing_) {
-    finish_after_write_ = std::move(status);
-  } else {
-    FinishLocked(status);
-  }
-}
-
-void SessionStreamReactor::EndSession(grpc::Status status) {
-  {
-    std::lock_guard lock(mu_);
-    if (finished_ || finish_after_write_) return;
-    // The client library's SessionStream reads this trailer (client-cpp/library/client.cpp).
-    context_->AddTrailingMetadata("cinevol-session-ended", "1");
-  }
-  End(std::move(status));
-}
-
-std::uint64_t SessionStreamReactor::frames_sent() const {
-  std::lock_guard lock(mu_);
-  return sent_;
-}
-
-std::uint64_t SessionStreamReactor::frames_dropped() const {
-  std::lock_guard lock(mu_);
-  return dropped_;
-}
-
-void SessionStreamReactor::StartWriteLocked(v1::ServerMessage message, bool is_frame) {
-  out_ = std::move(message);
-  writing_ = true;
-  writing_frame_ = is_frame;
-  if (is_frame) write_started_ = Clock::now();
-  StartWrite(&out_);  // gRPC runs OnWriteDone on its own thread, never inside this call
-}
-
-void SessionStreamReactor::FinishLocked(const grpc::Status& status) {
-  finished_ = true;
-  if (slot_) {  // never sent
-    ++dropped_;
-    ServerMetrics().FrameDropped();
-  }
-  slot_.reset();
-  messages_.clear();
-  Finish(status);
-}
-
-void SessionStreamReactor::OnWriteDone(bool ok) {
-  std::shared_ptr<Session> wake;
-  {
-    std::lock_guard lock(mu_);
-    writing_ = false;
-    if (ok && writing_frame_) {
-      ++sent_;
-      ServerMetrics().FrameSent(out_.frame().jpeg().size() + out_.frame().png().size(),  // one of them is set
-                                std::chrono::duration<double>(Clock::now() - write_started_).count());
-    }
-    if (finished_) return;
-    if (!ok) {
-      FinishLocked(finish_after_write_.value_or(
-          grpc::Status(grpc::StatusCode::UNAVAILABLE, "the stream to the client broke")));
-      return;
-    }
-    if (!messages_.empty()) {  // before an end that waits (a notice says why it ends) and the next frame
-      v1::ServerMessage out = std::move(messages_.front());
-      messages_.pop_front();
-      StartWriteLocked(std::move(out), false);
-      return;
-    }
-    if (finish_after_write_) {
-      FinishLocked(*finish_after_write_);
-      return;
-    }
-    if (slot_) {
-      Parked parked = std::move(*slot_);
-      slot_.reset();
-      parked.frame.mutable_timings()->set_server_us(static_cast<std::uint32_t>(
-          std::chrono::duration_cast<std::chrono::microseconds>(Clock::now() - parked.origin).count()));
-      v1::ServerMessage out;
-      *out.mutable_frame() = std::move(parked.frame);
-      StartWriteLocked(std::move(out), true);
-    }
-    wake = session_;  // the slot has room: the session may render again
-  }
-  if (wake) wake->OnWritable(this);
-}
-
-void SessionStreamReactor::OnCancel() { End({grpc::StatusCode::CANCELLED, "the client went away"}); }
 
 void SessionStreamReactor::OnDone() {
   core_->calls().Forget(watch_);
-  if (std::shared_ptr<Session> session = this->session()) session->Detach(this);
+  DetachFromSession();
   {
     std::lock_guard lock(mu_);
     done_ = true;
@@ -241,6 +272,20 @@ void SessionStreamReactor::OnDone() {
       return;
     }
   }
+  delete this;
+}
+
+WatchSessionReactor::WatchSessionReactor(grpc::CallbackServerContext* context, ServiceCore* core,
+                                         const v1::WatchSessionRequest& request)
+    : FrameWriter(context) {
+  // Writes may start here, before gRPC holds the reactor: it keeps them until then.
+  const grpc::Status status =
+      Guarded([&] { AttachTo(core->FindSession(request.session_id(), core->Authenticate(*context))); });
+  if (!status.ok()) End(status);
+}
+
+void WatchSessionReactor::OnDone() {
+  DetachFromSession();
   delete this;
 }
 
