@@ -183,7 +183,8 @@ template class FrameWriter<BidiSessionReactor>;
 template class FrameWriter<WriteSessionReactor>;
 
 SessionStreamReactor::SessionStreamReactor(grpc::CallbackServerContext* context, ServiceCore* core)
-    : FrameWriter(context), core_(core),
+    : FrameWriter(context),
+      core_(core),
       reads_(kReadPacing * core->options().limits.max_events_per_second, Clock::now()) {
   const grpc::Status status = Guarded([&] { principal_ = core_->Authenticate(*context); });
   if (!status.ok()) {

@@ -104,18 +104,17 @@ class SessionStreamReactor final : public FrameWriter<BidiSessionReactor> {
   v1::ClientMessage in_;                // the read in flight
 
   // Under mu_.
-  TokenBucket reads_;     // kReadPacing x --max-events-per-second
+  TokenBucket reads_;  // kReadPacing x --max-events-per-second
   grpc::Alarm pace_;
-  bool pacing_ = false;   // pace_ is set
-  bool done_ = false;     // OnDone ran
+  bool pacing_ = false;  // pace_ is set
+  bool done_ = false;    // OnDone ran
 };
 
 // WatchSession: attaches at once, as StreamSession's attach does; the
 // events come by SendEvents.
 class WatchSessionReactor final : public FrameWriter<WriteSessionReactor> {
  public:
-  WatchSessionReactor(grpc::CallbackServerContext* context, ServiceCore* core,
-                      const v1::WatchSessionRequest& request);
+  WatchSessionReactor(grpc::CallbackServerContext* context, ServiceCore* core, const v1::WatchSessionRequest& request);
 
   void OnDone() override;
 };

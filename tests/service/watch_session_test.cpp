@@ -163,9 +163,9 @@ TEST(WatchSession, SendEventsChecksTheOwnerAndABadEventLeavesTheSessionStreaming
   ASSERT_TRUE(watch.FrameReaching(0)) << watch.Finish().error_message();
   ExpectStatus(SendEvents(*stub, id, {CameraEvent(1, v1::LEFT)}, nullptr, "bob-token"),
                grpc::StatusCode::PERMISSION_DENIED, "another user");
-  ExpectStatus(SendEvents(*stub, "0123456789abcdef0123456789abcdef", {CameraEvent(1, v1::LEFT)}, nullptr,
-                          "alice-token"),
-               grpc::StatusCode::NOT_FOUND, "session_id");
+  ExpectStatus(
+      SendEvents(*stub, "0123456789abcdef0123456789abcdef", {CameraEvent(1, v1::LEFT)}, nullptr, "alice-token"),
+      grpc::StatusCode::NOT_FOUND, "session_id");
 
   ExpectStatus(SendEvents(*stub, id, {ResizeEvent(1, 0, 64)}, nullptr, "alice-token"),
                grpc::StatusCode::INVALID_ARGUMENT, "resize");
