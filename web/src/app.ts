@@ -6,13 +6,15 @@ import { create } from "@bufbuild/protobuf";
 import {
   AreaLightSchema, CameraSchema, ClippingSchema, ClipPlaneSchema, CropBoxSchema, LabelsSchema, LabelStyleSchema,
   LightSchema, NamedView, SceneFrame, TransferFunctionSchema, Vec3Schema,
-  type Camera, type Light, type Scene,
+  type Light, type Scene,
 } from "../gen/cinevol/v1/scene_pb.js";
 import {
   FinalFormat, LightListSchema, StreamSettingsSchema, ViewportSchema, type Frame, type SessionState, type VolumeInfo,
 } from "../gen/cinevol/v1/service_pb.js";
 import type { Api } from "./api.js";
-import { DEGREES_PER_PIXEL, lightDirection, orbit, pan, setLightDirection, zoom, type ViewCamera } from "./camera.js";
+import {
+  DEGREES_PER_PIXEL, lightDirection, namedView, orbit, pan, setLightDirection, zoom, type ViewCamera, type ViewName,
+} from "./camera.js";
 import { sessionQuery } from "./address.js";
 import type { FrameMeta } from "./frame_messages.js";
 import { cropFromFractions, patientBox, toPatient } from "./geometry.js";
@@ -21,16 +23,16 @@ import { LiveSession, now, type EventKind } from "./session.js";
 import { MotionToPhoton, percentile, Rate } from "./stats.js";
 import { TransferEditor } from "./tf_editor.js";
 import { applyWindowLevel } from "./transfer.js";
-import { add, norm, scale, sub, v3, type V3 } from "./vec.js";
+import { add, len, norm, scale, sub, v3, type V3 } from "./vec.js";
 import { View } from "./view.js";
 import { plainWords } from "./words.js";
 
 const $ = <T extends HTMLElement>(id: string) => document.getElementById(id) as T;
-const KEY_VIEWS: Record<string, NamedView> = {
-  a: NamedView.ANTERIOR, p: NamedView.POSTERIOR, l: NamedView.LEFT,
-  r: NamedView.RIGHT, s: NamedView.SUPERIOR, i: NamedView.INFERIOR,
+const KEY_VIEWS: Record<string, ViewName> = {
+  a: "ANTERIOR", p: "POSTERIOR", l: "LEFT", r: "RIGHT", s: "SUPERIOR", i: "INFERIOR",
 };
 const AXES = ["x", "y", "z"] as const;
+const PASSING_MS = 6000;
 const vec3 = (v: V3) => create(Vec3Schema, { x: v.x, y: v.y, z: v.z });
 const AXIS_NAMES = { x: "Right–left", y: "Anterior–posterior", z: "Inferior–superior" };
 
@@ -44,13 +46,17 @@ export class App {
   private volume?: VolumeInfo;
   private state?: SessionState;
   private camera?: ViewCamera;
-  private home?: Camera;
+  private home?: ViewCamera;
   private lastFrame?: Frame;
   private lastPainted?: FrameMeta;
   private replaced = 0;
   private framesPainted = 0;
   private errorText = "";
   private bannerText = "";
+  private readonly messages: string[] = [];  // what the banner and the error line said, newest last
+  private painted1st!: () => void;
+  /** Settles with the first frame painted, or with a failure shown. */
+  readonly firstPaint = new Promise<void>((resolve) => { this.painted1st = resolve; });
 
   constructor(private readonly api: Api) {
     this.view.onPainted = (meta, at, replaced) => this.onPainted(meta, at, replaced);
@@ -122,8 +128,8 @@ export class App {
         this.view.show(frame);
       },
       state: (state: SessionState) => this.adopt(state),
-      notice: (n: { message: string }) => this.setBanner(n.message),
-      banner: (text: string | null) => this.setBanner(text ?? ""),
+      notice: (n: { message: string }) => this.setBanner(n.message, true),
+      banner: (text: string, passing?: boolean) => this.setBanner(text, passing),
       failed: (text: string) => this.showError(text),
     };
   }
@@ -138,11 +144,7 @@ export class App {
     this.state = state;
     const scene = state.scene;
     if (!scene) return;
-    if (scene.camera?.eye && scene.camera.target && !this.session?.hasPending("camera")) {
-      const c = scene.camera;
-      this.camera = { eye: c.eye!, target: c.target!, up: c.up ?? v3(0, 0, 1), fovYDeg: c.fovYDeg ?? 30 };
-      this.home ??= create(CameraSchema, { ...c });
-    }
+    if (!this.session?.hasPending("camera")) this.camera = this.cameraOf(scene) ?? this.camera;
     $<HTMLSelectElement>("preset").value = scene.transferFunction?.preset ?? "";
     if (!this.session?.hasPending("transferFunction")) this.editor.show(scene.transferFunction);
     this.showLight(scene);
@@ -161,9 +163,30 @@ export class App {
 
   // --------------------------------------------------------- the camera
 
+  /**
+   * The camera to orbit from: the state's own eye and target; for a named
+   * view, what CreateSession resolved it to, else (a joined session) that
+   * view around the volume's centre at twice its size.
+   */
+  private cameraOf(scene: Scene): ViewCamera | undefined {
+    let c = scene.camera;
+    const initial = this.session?.initialScene?.camera;
+    if (c && !c.eye && c.view && initial?.view === c.view && initial.eye) c = initial;
+    if (!c) return undefined;
+    const fovYDeg = c.fovYDeg ?? 30;
+    if (c.eye && c.target) return { eye: c.eye, target: c.target, up: c.up ?? v3(0, 0, 1), fovYDeg };
+    if (!this.volume) return undefined;
+    const box = patientBox(this.volume), patientFrame = scene.frame === SceneFrame.PATIENT_LPS;
+    const size = len(sub(box.max, box.min));
+    const target = patientFrame ? scale(add(box.min, box.max), 0.5) : v3(0, 0, 0);
+    const around = { eye: add(target, v3(0, -2 * size, 0)), target, up: v3(0, 0, 1), fovYDeg };
+    return namedView(around, NamedView[c.view || NamedView.ANTERIOR] as ViewName, this.volume.direction, patientFrame);
+  }
+
   private moveCamera(move: (c: ViewCamera) => ViewCamera): void {
     const current = this.state?.scene?.camera;
     if (!this.camera || !current) return;
+    this.home ??= this.camera;
     this.camera = move(this.camera);
     const { eye, target, up, fovYDeg } = this.camera;
     const camera = create(CameraSchema, current);
@@ -172,9 +195,10 @@ export class App {
     this.post({ case: "camera", value: camera });
   }
 
-  private namedView(view: NamedView): void {
-    const current = this.state?.scene?.camera;
-    if (current) this.post({ case: "camera", value: Object.assign(create(CameraSchema, current), { view }) });
+  private namedView(view: ViewName): void {
+    const scene = this.state?.scene;
+    if (!scene || !this.volume) return;
+    this.moveCamera((c) => namedView(c, view, this.volume!.direction, scene.frame === SceneFrame.PATIENT_LPS));
   }
 
   private windowLevel(dx: number, dy: number): void {
@@ -318,7 +342,7 @@ export class App {
       if (preset) this.post({ case: "transferFunction", value: create(TransferFunctionSchema, { preset }) });
     });
     for (const b of document.querySelectorAll<HTMLButtonElement>("[data-view]")) {
-      b.addEventListener("click", () => this.namedView(NamedView[b.dataset.view as keyof typeof NamedView]));
+      b.addEventListener("click", () => this.namedView(b.dataset.view as ViewName));
     }
     $("home").addEventListener("click", () => this.goHome());
     for (const id of ["crop-on", "clip-on", "clip-depth", "caps"]) $(id).addEventListener("input", () => this.sendClipping());
@@ -336,7 +360,8 @@ export class App {
   }
 
   private goHome(): void {
-    if (this.home) this.post({ case: "camera", value: this.home });
+    const home = this.home;
+    if (home) this.moveCamera(() => home);
   }
 
   /** The desktop viewer's keys: A P L R S I named views, Home or Space the first view, F2 the statistics. */
@@ -359,24 +384,37 @@ export class App {
 
   // ------------------------------------------------- messages and stats
 
-  private setBanner(text: string): void {
+  /** Says how things are; a passing message clears itself unless another came meanwhile. */
+  private setBanner(text: string, passing = false): void {
+    this.remember(text);
     this.bannerText = text;
     $("banner").textContent = text;
     $("banner").hidden = !text;
+    if (passing) setTimeout(() => this.bannerText === text && this.setBanner(""), PASSING_MS);
   }
 
   showError(text: string): void {
+    this.remember(text);
+    if (text) this.painted1st();  // nothing more will come to wait for
     this.errorText = text;
     $("error").textContent = text;
     $("error").hidden = !text;
   }
 
+  private remember(text: string): void {
+    if (!text) return;
+    this.messages.push(text);
+    if (this.messages.length > 20) this.messages.shift();
+  }
+
   private onPainted(meta: FrameMeta, at: number, replaced: number): void {
+    this.painted1st();
     this.lastPainted = meta;
     this.replaced = replaced;
     this.framesPainted += 1;
     this.painted.add(at);
     this.latency.painted(meta.lastEventSeq, at);
+    if (this.framesPainted === 1) this.drawStats();
   }
 
   private drawStats(): void {
@@ -398,8 +436,8 @@ export class App {
   status() {
     const samples = this.latency.samples;
     return {
-      sessionId: this.session?.id ?? "", framesPainted: this.framesPainted, error: this.errorText,
-      banner: this.bannerText,
+      sessionId: this.session?.id ?? "", eventsSent: Number(this.session?.lastSeq ?? 0n), framesPainted: this.framesPainted, error: this.errorText,
+      banner: this.bannerText, messages: [...this.messages],
       lastFrame: this.lastPainted ? { ...this.lastPainted, id: Number(this.lastPainted.id),
                                        lastEventSeq: Number(this.lastPainted.lastEventSeq) } : null,
       motionToPhoton: { p50: percentile(samples, 0.5), p95: percentile(samples, 0.95), count: samples.length },

@@ -7,6 +7,23 @@ import { App } from "./app.js";
 import { plainWords } from "./words.js";
 
 const TOKEN_KEY = "cinevol-token";
+const HOLD_LOAD_MS = 30_000;
+
+/**
+ * Keeps the page's load event back until `done` settles (at most
+ * HOLD_LOAD_MS): a child document left open holds its parent's load. So the
+ * page counts as loaded once it shows the volume, and tools that capture a
+ * page at its load (`chromium --headless --screenshot`, thumbnailers) see it.
+ */
+function holdLoadUntil(done: Promise<unknown>): void {
+  const hold = document.createElement("iframe");
+  hold.hidden = true;
+  hold.title = "loading";
+  document.body.append(hold);
+  hold.contentDocument?.open();
+  const release = () => hold.contentDocument?.close();
+  void Promise.race([done, new Promise((r) => setTimeout(r, HOLD_LOAD_MS))]).finally(release);
+}
 
 async function signIn(token: string): Promise<void> {
   const app = new App(connect(token, location.origin));
@@ -14,6 +31,7 @@ async function signIn(token: string): Promise<void> {
     status: () => app.status(),
     sample: (cells?: number) => app.view.sample(cells),
   };
+  holdLoadUntil(app.firstPaint);
   try {
     await app.boot(readAddress(location.search, ""));
   } catch (e) {

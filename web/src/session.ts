@@ -9,6 +9,7 @@ import { Code, ConnectError } from "@connectrpc/connect";
 import {
   NoticeSchema, Notice_Level, SessionEventSchema, type Frame, type Notice, type SessionEvent, type SessionState, type ViewportSchema,
 } from "../gen/cinevol/v1/service_pb.js";
+import type { Scene } from "../gen/cinevol/v1/scene_pb.js";
 import type { Api } from "./api.js";
 import type { MotionToPhoton } from "./stats.js";
 import { plainWords } from "./words.js";
@@ -21,8 +22,8 @@ export interface SessionHandlers {
   frame(frame: Frame): void;
   state(state: SessionState): void;
   notice(notice: Notice): void;
-  /** How the connection is, in words (null: all is well). */
-  banner(text: string | null): void;
+  /** How the connection is, in words; `passing`: it clears itself after a while. */
+  banner(text: string, passing?: boolean): void;
   /** The session cannot go on: why, in words. */
   failed(text: string): void;
 }
@@ -44,6 +45,8 @@ export class LiveSession {
   private closed = false;
   private abort = new AbortController();
   state?: SessionState;
+  /** CreateSession's scene: a named view's camera there carries the eye, target and up it resolves to. */
+  initialScene?: Scene;
 
   private constructor(private readonly api: Api, private readonly handlers: SessionHandlers,
                       private readonly latency: MotionToPhoton, public id: string, readonly volumeId: string) {}
@@ -56,6 +59,7 @@ export class LiveSession {
     });
     api.sessionAddress = created.address;
     const session = new LiveSession(api, handlers, latency, created.sessionId, volumeId);
+    session.initialScene = created.scene;
     void session.watch();
     return session;
   }
@@ -79,6 +83,11 @@ export class LiveSession {
     const earlier = this.pending.get(kind.case);
     this.pending.set(kind.case, { kind, inputAt: Math.min(earlier?.inputAt ?? inputAt, inputAt) });
     void this.send();
+  }
+
+  /** The newest event's sequence number since the attach (0: none). */
+  get lastSeq(): bigint {
+    return this.seq;
   }
 
   /** Is an event of this kind waiting to go? (The page keeps its own camera while one is.) */
@@ -129,7 +138,7 @@ export class LiveSession {
     while (!this.closed) {
       const outcome = await this.watchOnce(() => {
         retryMs = 250;
-        if (lost) this.handlers.banner(null);
+        if (lost) this.handlers.banner("Reconnected: the same session goes on.", true);
         lost = false;
       });
       if (this.closed) return;
@@ -197,7 +206,8 @@ export class LiveSession {
         });
         this.id = created.sessionId;
         this.api.sessionAddress = created.address;
-        this.handlers.banner(`The session ended on the server (${reason}); a new one goes on from its last state.`);
+        this.handlers.banner(`The session ended on the server (${reason}); a new one goes on from its last state.`,
+                             true);
         return true;
       } catch (e) {
         const error = ConnectError.from(e);
