@@ -8,12 +8,16 @@
 #             panel beside a 1280x720 image), on the same cores as the server
 #   still     `cinevol play`: a 3 s orbit, then still until the final frame:
 #             the time from the last event to the refinement's final frame
+#   browser   the page in headless chromium through cinevol-web, the same
+#             scene at 1280x720 and an orbit dragged at 30 moves a second
+#             (bench/web-view.mjs): motion-to-photon measured in the page
 # Prints the load average before each part (the machine is shared: compare
 # runs made at a low load) and writes logs to $OUT.
 #   bash bench/cpu-view-run.sh
 # BIN: the programs' folder (default build); VOLUME, SCENE: the CT and its
 # scene (default CThead); RUNS: the parts (default "loadtest viewer still");
 # BUDGET: the session's interactiveFrameMs (default: the server's).
+# RUNS="loadtest viewer browser" compares the three clients on one server.
 set -uo pipefail
 cd "$(dirname "$0")/.."
 root=$PWD
@@ -56,6 +60,15 @@ for part in ${RUNS:-loadtest viewer still}; do
         --screenshot "$out/viewer.png" --width 1610 --height 720 --max-seconds $((seconds + 60)) \
         > "$out/viewer.log" 2>&1
       echo "rc=$?: $(grep '^cinevol-viewer:' "$out/viewer.log")" ;;
+    browser)
+      rm -f "$out/web.port"
+      "$bin/cinevol-web" --listen 127.0.0.1:0 --port-file "$out/web.port" --server "$address" > "$out/web.log" 2>&1 &
+      web=$!
+      for _ in $(seq 100); do [ -s "$out/web.port" ] && break; sleep 0.1; done
+      node bench/web-view.mjs --gateway "127.0.0.1:$(cat "$out/web.port")" --volume "$(basename "${volume%.*}")" \
+        --scene "$scene" --stream "{$stream}" --seconds "$seconds" --screenshot "$out/browser.png"
+      echo "rc=$?"
+      kill -TERM $web; wait $web ;;
     still)
       rm -rf "$out/still"
       "$bin/cinevol" play --server "$address" --script "$still" --out "$out/still" --timeout 600 \

@@ -4,6 +4,7 @@
 // Run directly (node page.test.mjs): exit 77 (skipped) without chromium.
 import assert from "node:assert/strict";
 import { execFileSync } from "node:child_process";
+import { request } from "node:https";
 import { existsSync, mkdirSync, readFileSync } from "node:fs";
 import { join } from "node:path";
 import { after, before, test } from "node:test";
@@ -187,4 +188,35 @@ test("a plain chromium --screenshot of the page's URL shows a rendered volume", 
   }
   const spread = Math.sqrt(sumSquares / n - (sum / n) ** 2);
   assert.ok(spread > 10, `the view is flat (luminance spread ${spread.toFixed(1)})`);
+});
+
+test("HTTPS towards the browser and TLS towards the server", async () => {
+  const cert = join(scratch, "cert.pem"), key = join(scratch, "key.pem");
+  execFileSync("openssl", ["req", "-x509", "-newkey", "ec", "-pkeyopt", "ec_paramgen_curve:prime256v1", "-nodes",
+    "-days", "2", "-subj", "/CN=localhost", "-addext", "subjectAltName=IP:127.0.0.1,DNS:localhost",
+    "-keyout", key, "-out", cert], { stdio: "ignore" });
+  let tlsServer: Running | undefined, tlsGateway: Running | undefined;
+  try {
+    tlsServer = await startWithPortFile(SERVER, ["--listen", "127.0.0.1:0", "--backend", "cpu", "--tls-cert", cert,
+                                                 "--tls-key", key], "tls-server");
+    tlsGateway = await startWithPortFile(WEB, ["--listen", "127.0.0.1:0", "--tls-cert", cert, "--tls-key", key,
+      "--server", `127.0.0.1:${tlsServer.port}`, "--server-tls-ca", cert], "tls-gateway");
+    const answer = await new Promise<{ status: number; body: string }>((resolve, reject) => {
+      const call = request({ host: "127.0.0.1", port: tlsGateway!.port, method: "POST", ca: readFileSync(cert),
+                             path: "/cinevol.v1.ServerService/GetStatus", headers: { "content-type": "application/json" },
+                             timeout: 30_000 }, (res) => {
+        let body = "";
+        res.on("data", (d) => { body += d; });
+        res.on("end", () => resolve({ status: res.statusCode ?? 0, body }));
+      });
+      call.on("error", reject);
+      call.end("{}");
+    });
+    assert.equal(answer.status, 200, answer.body);
+    assert.ok((JSON.parse(answer.body).presets as string[]).includes("ct-bone"));
+    await assert.rejects(fetch(`http://127.0.0.1:${tlsGateway.port}/healthz`), "no plain HTTP beside TLS");
+  } finally {
+    await stop(tlsGateway);
+    await stop(tlsServer);
+  }
 });

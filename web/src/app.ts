@@ -33,6 +33,7 @@ const KEY_VIEWS: Record<string, ViewName> = {
 };
 const AXES = ["x", "y", "z"] as const;
 const PASSING_MS = 6000;
+const INPUT_RECENT_MS = 100;  // an input event this recent is what an event answers
 const vec3 = (v: V3) => create(Vec3Schema, { x: v.x, y: v.y, z: v.z });
 const AXIS_NAMES = { x: "Right–left", y: "Anterior–posterior", z: "Inferior–superior" };
 
@@ -134,8 +135,10 @@ export class App {
     };
   }
 
-  private post(kind: EventKind, inputAt = now()): void {
-    this.session?.post(kind, inputAt);
+  /** Sends an event; motion-to-photon counts from the input event behind it (or now, for one without). */
+  private post(kind: EventKind): void {
+    const t = now(), input = this.view.inputAt;
+    this.session?.post(kind, t - input < INPUT_RECENT_MS ? input : t);
   }
 
   // ------------------------------------------------------------ the state

@@ -22,6 +22,8 @@ export class View {
   private samples = new Map<number, (s: { width: number; height: number; grid: number[] }) => void>();
   private nextSample = 1;
   onPainted: (meta: FrameMeta, at: number, replaced: number) => void = () => {};
+  /** When the newest pointer, wheel or key event happened (the page's clock, ms since the epoch). */
+  inputAt = 0;
   onError: (text: string) => void = () => {};
 
   constructor(readonly canvas: HTMLCanvasElement) {
@@ -90,6 +92,9 @@ export class View {
     const end = (e: PointerEvent) => pointers.delete(e.pointerId);
     c.addEventListener("pointerup", end);
     c.addEventListener("pointercancel", end);
+    const stamp = (e: Event) => { this.inputAt = performance.timeOrigin + e.timeStamp; };
+    for (const type of ["pointerdown", "pointermove", "wheel"]) c.addEventListener(type, stamp, { capture: true });
+    window.addEventListener("keydown", stamp, { capture: true });
     c.addEventListener("pointermove", (e) => {
       const before = pointers.get(e.pointerId);
       if (!before) return;
