@@ -16,7 +16,8 @@
 #   bash bench/cpu-view-run.sh
 # BIN: the programs' folder (default build); VOLUME, SCENE: the CT and its
 # scene (default CThead); RUNS: the parts (default "loadtest viewer still");
-# BUDGET: the session's interactiveFrameMs (default: the server's).
+# BUDGET: the session's interactiveFrameMs (default: the server's); JPEG: its
+# jpegQuality while moving (default 80).
 # RUNS="loadtest viewer browser" compares the three clients on one server.
 set -uo pipefail
 cd "$(dirname "$0")/.."
@@ -28,6 +29,7 @@ scene=$(realpath "${SCENE:-bench/scenes/ct-head-cthead.json}")
 seconds=${SECONDS_PER_RUN:-20}
 stream='"denoiser": "DENOISER_WRLS"'
 [ -n "${BUDGET:-}" ] && stream="$stream, \"interactiveFrameMs\": $BUDGET"
+[ -n "${JPEG:-}" ] && stream="$stream, \"jpegQuality\": $JPEG"
 mkdir -p "$out"
 out=$(realpath "$out")
 

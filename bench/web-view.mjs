@@ -57,7 +57,8 @@ try {
   const f = s.lastFrame;
   console.log(`browser: ${s.fps.toFixed(1)} fps painted, motion-to-photon p50/p95 ${s.motionToPhoton.p50.toFixed(0)}/` +
               `${s.motionToPhoton.p95.toFixed(0)} ms over ${s.motionToPhoton.count} events, ` +
-              `${(s.bytesPerSecond / 1e6).toFixed(2)} MB/s, last frame ${f.width}x${f.height}` +
+              `${(s.bytesPerSecond / 1e6).toFixed(2)} MB/s, decode and draw p50/p95 ${s.decodeMs.p50.toFixed(1)}/` +
+              `${s.decodeMs.p95.toFixed(1)} ms (worker), last frame ${f.width}x${f.height}` +
               (s.error ? `, error: ${s.error}` : ""));
 } finally {
   await browser.close();

@@ -43,6 +43,7 @@ export class App {
   private readonly latency = new MotionToPhoton();
   private readonly painted = new Rate();
   private readonly received = new Rate();
+  private readonly decodeMs: number[] = [];  // the worker's decode and draw of each frame painted, newest last
   private session?: LiveSession;
   private volume?: VolumeInfo;
   private state?: SessionState;
@@ -60,7 +61,7 @@ export class App {
   readonly firstPaint = new Promise<void>((resolve) => { this.painted1st = resolve; });
 
   constructor(private readonly api: Api) {
-    this.view.onPainted = (meta, at, replaced) => this.onPainted(meta, at, replaced);
+    this.view.onPainted = (meta, at, decodeMs, replaced) => this.onPainted(meta, at, decodeMs, replaced);
     this.view.onError = (text) => this.showError(text);
     this.view.listen({
       orbit: (dx, dy) => this.moveCamera((c) => orbit(c, dx * DEGREES_PER_PIXEL, dy * DEGREES_PER_PIXEL)),
@@ -410,8 +411,10 @@ export class App {
     if (this.messages.length > 20) this.messages.shift();
   }
 
-  private onPainted(meta: FrameMeta, at: number, replaced: number): void {
+  private onPainted(meta: FrameMeta, at: number, decodeMs: number, replaced: number): void {
     this.painted1st();
+    this.decodeMs.push(decodeMs);
+    if (this.decodeMs.length > 500) this.decodeMs.shift();
     this.lastPainted = meta;
     this.replaced = replaced;
     this.framesPainted += 1;
@@ -429,7 +432,8 @@ export class App {
       `${this.painted.perSecond(now()).toFixed(1)} fps painted, ${this.replaced} replaced before painting`,
       `motion-to-photon p50 ${percentile(samples, 0.5).toFixed(0)} ms  p95 ${percentile(samples, 0.95).toFixed(0)} ms` +
         `  (${samples.length})`,
-      `${(this.received.perSecond(now()) / 1e6).toFixed(2)} MB/s received`,
+      `${(this.received.perSecond(now()) / 1e6).toFixed(2)} MB/s received, decode and draw p50 ` +
+        `${percentile(this.decodeMs, 0.5).toFixed(1)} ms`,
       `server ms: render ${ms(t?.renderUs)} denoise ${ms(t?.denoiseUs)} tonemap ${ms(t?.tonemapUs)} ` +
         `encode ${ms(t?.encodeUs)} queue ${ms(t?.queueUs)} total ${ms(t?.serverUs)}`,
     ].join("\n") : "waiting for the first frame";
@@ -444,6 +448,7 @@ export class App {
       lastFrame: this.lastPainted ? { ...this.lastPainted, id: Number(this.lastPainted.id),
                                        lastEventSeq: Number(this.lastPainted.lastEventSeq) } : null,
       motionToPhoton: { p50: percentile(samples, 0.5), p95: percentile(samples, 0.95), count: samples.length },
+      decodeMs: { p50: percentile(this.decodeMs, 0.5), p95: percentile(this.decodeMs, 0.95) },
       fps: this.painted.perSecond(now()), bytesPerSecond: this.received.perSecond(now()),
       preset: this.state?.scene?.transferFunction?.preset ?? "",
     };

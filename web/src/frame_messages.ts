@@ -14,6 +14,6 @@ export type ToWorker =
   | { kind: "sample"; cells: number; id: number };
 
 export type FromWorker =
-  | { painted: FrameMeta; at: number; replaced: number }
+  | { painted: FrameMeta; at: number; decodeMs: number; replaced: number }  // decodeMs: decode and draw
   | { error: string }
   | { sample: { width: number; height: number; grid: number[] }; id: number };

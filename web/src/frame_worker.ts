@@ -18,6 +18,7 @@ async function drain(): Promise<void> {
     const frame = waiting;
     waiting = undefined;
     try {
+      const start = performance.now();
       const bitmap = await createImageBitmap(new Blob([frame.bytes], { type: frame.type }));
       if (canvas && context) {
         if (canvas.width !== bitmap.width || canvas.height !== bitmap.height) {
@@ -27,7 +28,8 @@ async function drain(): Promise<void> {
         context.drawImage(bitmap, 0, 0);
       }
       bitmap.close();
-      post({ painted: frame.meta, at: performance.timeOrigin + performance.now(), replaced });
+      const end = performance.now();
+      post({ painted: frame.meta, at: performance.timeOrigin + end, decodeMs: end - start, replaced });
     } catch (e) {
       post({ error: `frame ${frame.meta.id} could not be decoded: ${e}` });
     }

@@ -21,7 +21,7 @@ export class View {
   private readonly worker: Worker;
   private samples = new Map<number, (s: { width: number; height: number; grid: number[] }) => void>();
   private nextSample = 1;
-  onPainted: (meta: FrameMeta, at: number, replaced: number) => void = () => {};
+  onPainted: (meta: FrameMeta, at: number, decodeMs: number, replaced: number) => void = () => {};
   /** When the newest pointer, wheel or key event happened (the page's clock, ms since the epoch). */
   inputAt = 0;
   onError: (text: string) => void = () => {};
@@ -32,7 +32,7 @@ export class View {
     this.post({ kind: "canvas", canvas: offscreen }, [offscreen]);
     this.worker.onmessage = (e: MessageEvent<FromWorker>) => {
       const m = e.data;
-      if ("painted" in m) this.onPainted(m.painted, m.at, m.replaced);
+      if ("painted" in m) this.onPainted(m.painted, m.at, m.decodeMs, m.replaced);
       else if ("error" in m) this.onError(m.error);
       else this.samples.get(m.id)?.(m.sample), this.samples.delete(m.id);
     };
