@@ -317,7 +317,32 @@ void ApplyDefaults(v1::Scene& scene, unsigned parts) {
 
 namespace {
 
+// Measurements ride with whole scenes (files, CreateSession); no event edits them.
+void ValidateMeasurements(const v1::Scene& scene, Problems& p) {
+  if (scene.measurements_size() > kMaxMeasurements) {
+    p.Add("measurements", fmt::format("{} measurements; at most {}", scene.measurements_size(), kMaxMeasurements));
+    return;
+  }
+  for (int i = 0; i < scene.measurements_size(); ++i) {
+    const v1::Measurement& m = scene.measurements(i);
+    const std::string field = fmt::format("measurements[{}]", i);
+    if (m.name().size() > kMaxMeasurementName) {
+      p.Add(field + ".name", fmt::format("{} characters; at most {}", m.name().size(), kMaxMeasurementName));
+    }
+    if (m.points_size() != 2 && m.points_size() != 3) {
+      p.Add(field + ".points", fmt::format("{} points; a distance has 2, an angle 3", m.points_size()));
+    }
+    for (int k = 0; k < std::min(m.points_size(), 3); ++k) {
+      const v1::Vec3& v = m.points(k);
+      for (const auto& [axis, value] : {std::pair{"x", v.x()}, {"y", v.y()}, {"z", v.z()}}) {
+        p.InRange(fmt::format("{}.points[{}].{}", field, k, axis), value, -1e6f, 1e6f);
+      }
+    }
+  }
+}
+
 void ValidateParts(const v1::Scene& scene, unsigned parts, Problems& p) {
+  if (parts == kEverythingChanged) ValidateMeasurements(scene, p);
   if ((parts & (kCameraChanged | kLightsChanged)) && !v1::SceneFrame_IsValid(scene.frame())) {
     p.Add("frame", fmt::format("unknown frame {}", int(scene.frame())));
   }

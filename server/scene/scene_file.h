@@ -48,6 +48,10 @@ enum SceneChange : unsigned {
   kPictureChanges = kCameraChanged | kTransferFunctionChanged | kLightsChanged | kClippingChanged | kLabelsChanged,
 };
 
+// Scene.measurements: how many, and a name's length at most.
+inline constexpr int kMaxMeasurements = 64;
+inline constexpr std::size_t kMaxMeasurementName = 64;
+
 // Sets every absent `optional` field to its documented default, in the
 // parts given (SceneChange bits; all by default).
 void ApplyDefaults(v1::Scene& scene, unsigned parts = kEverythingChanged);

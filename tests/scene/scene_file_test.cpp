@@ -5,6 +5,7 @@
 #include <google/protobuf/util/message_differencer.h>
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <fstream>
 #include <functional>
@@ -49,6 +50,35 @@ TEST(SceneFile, SaveThenLoadKeepsTheScene) {
   const v1::Scene scene = LoadSceneFile(Examples() / "ct-soft-tissue.json");
   SaveSceneFile(scene, dir / "copy.json");
   EXPECT_TRUE(google::protobuf::util::MessageDifferencer::Equals(scene, LoadSceneFile(dir / "copy.json")));
+}
+
+TEST(SceneFile, MeasurementsAreKeptAndChecked) {
+  ScratchDir dir;
+  v1::Scene scene = LoadSceneFile(Examples() / "ct-soft-tissue.json");
+  v1::Measurement* distance = scene.add_measurements();
+  distance->set_name("tumour long axis");
+  for (float x : {10.0f, 52.5f}) {
+    v1::Vec3* p = distance->add_points();
+    p->set_x(x);
+    p->set_y(-3);
+  }
+  SaveSceneFile(scene, dir / "measured.json");
+  EXPECT_TRUE(google::protobuf::util::MessageDifferencer::Equals(scene, LoadSceneFile(dir / "measured.json")));
+
+  distance->mutable_points(0)->set_z(std::numeric_limits<float>::quiet_NaN());
+  distance->add_points();
+  distance->add_points();
+  scene.add_measurements()->set_name(std::string(kMaxMeasurementName + 1, 'x'));
+  const std::vector<std::string> problems = ValidateScene(scene);
+  const auto names = [&](const std::string& text) {
+    return std::any_of(problems.begin(), problems.end(), [&](const std::string& p) { return p.find(text) == 0; });
+  };
+  EXPECT_TRUE(names("measurements[0].points[0].z")) << ::testing::PrintToString(problems);
+  EXPECT_TRUE(names("measurements[0].points: 4 points")) << ::testing::PrintToString(problems);
+  EXPECT_TRUE(names("measurements[1].name")) << ::testing::PrintToString(problems);
+  for (int i = 0; i < kMaxMeasurements; ++i) scene.add_measurements();
+  EXPECT_TRUE(names("measurements")) << ::testing::PrintToString(problems);
+  EXPECT_EQ(ValidateScene(scene).front().rfind("measurements: ", 0), 0u);
 }
 
 TEST(SceneFile, DefaultsAreFilled) {

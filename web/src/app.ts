@@ -2,10 +2,10 @@
 // the panels that edit it, the stats overlay and the keyboard. Every edit
 // is an event to the server; every control shows the state the server
 // answers.
-import { create } from "@bufbuild/protobuf";
+import { create, toJsonString } from "@bufbuild/protobuf";
 import {
   AreaLightSchema, CameraSchema, ClippingSchema, ClipPlaneSchema, CropBoxSchema, LabelsSchema, LabelStyleSchema,
-  LightSchema, NamedView, SceneFrame, TransferFunctionSchema, Vec3Schema,
+  LightSchema, MeasurementSchema, NamedView, SceneFrame, SceneSchema, TransferFunctionSchema, Vec3Schema,
   type Light, type Scene,
 } from "../gen/cinevol/v1/scene_pb.js";
 import {
@@ -17,8 +17,11 @@ import {
 } from "./camera.js";
 import { sessionQuery } from "./address.js";
 import type { FrameMeta } from "./frame_messages.js";
-import { cropFromFractions, patientBox, toPatient } from "./geometry.js";
+import { cropFromFractions, fromPatient, patientBox, toPatient } from "./geometry.js";
+import { markerAxes } from "./orientation.js";
+import { measurementText, projectToView } from "./measure.js";
 import { PacsPanel } from "./pacs_panel.js";
+import { Reading } from "./reading.js";
 import { LiveSession, now, type EventKind } from "./session.js";
 import { MotionToPhoton, percentile, Rate } from "./stats.js";
 import { TransferEditor } from "./tf_editor.js";
@@ -40,6 +43,7 @@ const AXIS_NAMES = { x: "Right–left", y: "Anterior–posterior", z: "Inferior�
 export class App {
   readonly view = new View($("view"));
   private readonly editor = new TransferEditor($("tf-editor"), $("tf-note"));
+  private readonly reading: Reading;
   private readonly latency = new MotionToPhoton();
   private readonly painted = new Rate();
   private readonly received = new Rate();
@@ -61,6 +65,8 @@ export class App {
   readonly firstPaint = new Promise<void>((resolve) => { this.painted1st = resolve; });
 
   constructor(private readonly api: Api) {
+    this.reading = new Reading(api, () => this.session?.id, (text) => this.showError(text));
+    this.reading.onMeasurementsChanged = () => this.drawMeasurements();
     this.view.onPainted = (meta, at, decodeMs, replaced) => this.onPainted(meta, at, decodeMs, replaced);
     this.view.onError = (text) => this.showError(text);
     this.view.listen({
@@ -69,6 +75,7 @@ export class App {
       zoom: (f) => this.moveCamera((c) => zoom(c, f)),
       windowLevel: (dx, dy) => this.windowLevel(dx, dy),
       turnLight: (dx, dy) => this.turnLight(dx, dy),
+      pick: (x, y) => void this.reading.pickOnView(x, y),
     });
     this.view.followSize((size) => this.post({ case: "resize", value: create(ViewportSchema, size) }));
     this.editor.onEdit = (tf) => this.post({ case: "transferFunction", value: tf });
@@ -149,6 +156,9 @@ export class App {
     const scene = state.scene;
     if (!scene) return;
     if (!this.session?.hasPending("camera")) this.camera = this.cameraOf(scene) ?? this.camera;
+    this.reading.restore(scene.measurements);
+    this.drawMarker();
+    this.drawMeasurements();
     $<HTMLSelectElement>("preset").value = scene.transferFunction?.preset ?? "";
     if (!this.session?.hasPending("transferFunction")) this.editor.show(scene.transferFunction);
     this.showLight(scene);
@@ -163,6 +173,7 @@ export class App {
     this.editor.show(undefined, this.volume?.histogram);
     this.buildCropSliders();
     this.buildLabels();
+    if (this.volume) this.reading.setVolume(this.volume);
   }
 
   // --------------------------------------------------------- the camera
@@ -192,11 +203,62 @@ export class App {
     if (!this.camera || !current) return;
     this.home ??= this.camera;
     this.camera = move(this.camera);
+    this.drawMarker();
+    this.drawMeasurements();
     const { eye, target, up, fovYDeg } = this.camera;
     const camera = create(CameraSchema, current);
     Object.assign(camera, { view: NamedView.NAMED_VIEW_UNSPECIFIED, eye: vec3(eye), target: vec3(target),
                             up: vec3(up), fovYDeg });
     this.post({ case: "camera", value: camera });
+  }
+
+  /** The orientation marker: the patient's axes as the camera sees them, the nearer drawn last. */
+  private drawMarker(): void {
+    const canvas = $<HTMLCanvasElement>("orientation"), g = canvas.getContext("2d");
+    if (!g || !this.camera || !this.volume) return;
+    const half = canvas.width / 2, reach = half * 0.62;
+    g.clearRect(0, 0, canvas.width, canvas.height);
+    g.lineWidth = 2;
+    g.font = "bold 13px system-ui, sans-serif";
+    g.textAlign = "center";
+    g.textBaseline = "middle";
+    const colour: Record<string, string> = { L: "#e66", R: "#e66", P: "#6c6", A: "#6c6", S: "#69f", I: "#69f" };
+    for (const a of markerAxes(this.camera, this.volume.direction, this.state?.scene?.frame === SceneFrame.PATIENT_LPS)) {
+      const x = half + a.x * reach, y = half - a.y * reach;
+      g.globalAlpha = a.depth < 0 ? 0.45 : 1;
+      g.strokeStyle = g.fillStyle = colour[a.letter];
+      g.beginPath();
+      g.moveTo(half, half);
+      g.lineTo(x, y);
+      g.stroke();
+      g.fillText(a.letter, half + a.x * (reach + 10), half - a.y * (reach + 10));
+    }
+    g.globalAlpha = 1;
+  }
+
+  /** The measurements over the 3D view, projected through the camera. */
+  private drawMeasurements(): void {
+    const canvas = $<HTMLCanvasElement>("view-overlay"), view = $<HTMLCanvasElement>("view");
+    const g = canvas.getContext("2d");
+    if (!g) return;
+    canvas.width = view.clientWidth;
+    canvas.height = view.clientHeight;
+    if (!this.camera || !this.volume) return;
+    const patientFrame = this.state?.scene?.frame === SceneFrame.PATIENT_LPS;
+    g.strokeStyle = g.fillStyle = "#4df";
+    g.lineWidth = 2;
+    g.font = "12px system-ui, sans-serif";
+    for (const m of this.reading.measurements) {
+      const points = m.points.map((p) => projectToView(this.camera!, fromPatient(this.volume!, patientFrame, p),
+                                                       canvas.width, canvas.height));
+      if (points.some((p) => !p)) continue;
+      g.beginPath();
+      points.forEach((p, i) => (i ? g.lineTo(p!.x, p!.y) : g.moveTo(p!.x, p!.y)));
+      g.stroke();
+      for (const p of points) g.fillRect(p!.x - 2, p!.y - 2, 4, 4);
+      const last = points[points.length - 1]!;
+      g.fillText(measurementText(m.points), last.x + 6, last.y - 6);
+    }
   }
 
   private namedView(view: ViewName): void {
@@ -359,8 +421,23 @@ export class App {
       finalFormat: $<HTMLInputElement>("lossless").checked ? FinalFormat.PNG : FinalFormat.JPEG }) }));
     $("quality").addEventListener("change", () => this.post({ case: "stream", value: create(StreamSettingsSchema, {
       jpegQuality: Number($<HTMLInputElement>("quality").value) }) }));
+    $("save-scene").addEventListener("click", () => this.saveScene());
     $("show-stats").addEventListener("change", () => { $("stats").hidden = !$<HTMLInputElement>("show-stats").checked; });
     window.addEventListener("keydown", (e) => this.key(e));
+  }
+
+  /** The scene as the server has it, with this page's measurements: a file cinevol render, the viewer and a session open. */
+  private saveScene(): void {
+    const scene = this.state?.scene;
+    if (!scene) return;
+    const saved = create(SceneSchema, scene);
+    saved.measurements = this.reading.measurements.map((m) => create(MeasurementSchema, { points: m.points.map(vec3) }));
+    const link = document.createElement("a");
+    link.href = URL.createObjectURL(new Blob([toJsonString(SceneSchema, saved, { prettySpaces: 2 })],
+                                             { type: "application/json" }));
+    link.download = "cinevol-scene.json";
+    link.click();
+    setTimeout(() => URL.revokeObjectURL(link.href), 1000);
   }
 
   private goHome(): void {

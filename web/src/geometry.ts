@@ -50,3 +50,20 @@ export function toPatient(volume: VolumeInfo, patientFrame: boolean, p: V3, isDi
   const q = turn(p);
   return v3(o.x + half.x + q.x, o.y + half.y + q.y, o.z + half.z + q.z);
 }
+
+/** The inverse of toPatient: a patient point in the camera's frame. */
+export function fromPatient(volume: VolumeInfo, patientFrame: boolean, p: V3): V3 {
+  if (patientFrame) return p;
+  const d = volume.direction.length === 9 ? volume.direction : [1, 0, 0, 0, 1, 0, 0, 0, 1];
+  const centre = toPatient(volume, false, v3(0, 0, 0));
+  const q = v3(p.x - centre.x, p.y - centre.y, p.z - centre.z);
+  return v3(d[0] * q.x + d[3] * q.y + d[6] * q.z, d[1] * q.x + d[4] * q.y + d[7] * q.z, d[2] * q.x + d[5] * q.y + d[8] * q.z);
+}
+
+/** The volume's spacing along a patient axis: that of the index axis most along it. */
+export function spacingAlong(volume: VolumeInfo, axis: "x" | "y" | "z"): number {
+  const d = volume.direction.length === 9 ? volume.direction : [1, 0, 0, 0, 1, 0, 0, 0, 1];
+  const r = { x: 0, y: 1, z: 2 }[axis], s = volume.spacingMm ?? v3(1, 1, 1);
+  const column = [0, 1, 2].reduce((best, c) => Math.abs(d[3 * r + c]) > Math.abs(d[3 * r + best]) ? c : best, 0);
+  return [s.x, s.y, s.z][column];
+}

@@ -12,10 +12,13 @@ export interface ViewInput {
   zoom(factor: number): void;
   windowLevel(dx: number, dy: number): void;
   turnLight(dx: number, dy: number): void;
+  /** A click without a drag: the frame's pixel under it (its own pixels, x right, y down). */
+  pick(x: number, y: number): void;
 }
 
 const MAX_SIDE = 8192;
 const RESIZE_SETTLE_MS = 150;
+const CLICK_SLOP_PX = 4;  // a press that moves less than this is a click (a pick), not a drag
 
 export class View {
   private readonly worker: Worker;
@@ -24,6 +27,7 @@ export class View {
   onPainted: (meta: FrameMeta, at: number, decodeMs: number, replaced: number) => void = () => {};
   /** When the newest pointer, wheel or key event happened (the page's clock, ms since the epoch). */
   inputAt = 0;
+  private frameSize = { width: 0, height: 0 };  // the newest frame painted
   onError: (text: string) => void = () => {};
 
   constructor(readonly canvas: HTMLCanvasElement) {
@@ -32,7 +36,10 @@ export class View {
     this.post({ kind: "canvas", canvas: offscreen }, [offscreen]);
     this.worker.onmessage = (e: MessageEvent<FromWorker>) => {
       const m = e.data;
-      if ("painted" in m) this.onPainted(m.painted, m.at, m.decodeMs, m.replaced);
+      if ("painted" in m) {
+        this.frameSize = { width: m.painted.width, height: m.painted.height };
+        this.onPainted(m.painted, m.at, m.decodeMs, m.replaced);
+      }
       else if ("error" in m) this.onError(m.error);
       else this.samples.get(m.id)?.(m.sample), this.samples.delete(m.id);
     };
@@ -89,9 +96,15 @@ export class View {
            : e.altKey ? "windowLevel"
            : e.ctrlKey ? "light" : "orbit";
     });
-    const end = (e: PointerEvent) => pointers.delete(e.pointerId);
-    c.addEventListener("pointerup", end);
-    c.addEventListener("pointercancel", end);
+    let travelled = 0;
+    c.addEventListener("pointerdown", () => { travelled = 0; });
+    c.addEventListener("pointerup", (e) => {
+      pointers.delete(e.pointerId);
+      const plain = e.button === 0 && !e.shiftKey && !e.altKey && !e.ctrlKey;
+      const at = this.framePixel(e);
+      if (plain && travelled <= CLICK_SLOP_PX && at) input.pick(at.x, at.y);
+    });
+    c.addEventListener("pointercancel", (e) => pointers.delete(e.pointerId));
     const stamp = (e: Event) => { this.inputAt = performance.timeOrigin + e.timeStamp; };
     for (const type of ["pointerdown", "pointermove", "wheel"]) c.addEventListener(type, stamp, { capture: true });
     window.addEventListener("keydown", stamp, { capture: true });
@@ -100,6 +113,7 @@ export class View {
       if (!before) return;
       if (pointers.size === 2) return this.pinch(pointers, e, input);
       const dx = e.clientX - before.x, dy = e.clientY - before.y;
+      travelled += Math.hypot(dx, dy);
       pointers.set(e.pointerId, { x: e.clientX, y: e.clientY });
       if (mode === "orbit") input.orbit(dx, dy);
       else if (mode === "pan") input.pan(dx, dy, c.clientHeight);
@@ -111,6 +125,16 @@ export class View {
       e.preventDefault();
       input.zoom(Math.pow(0.9, -e.deltaY / 100));
     }, { passive: false });
+  }
+
+  /** The frame's pixel under a pointer: the canvas shows the frame fitted whole (object-fit: contain). */
+  framePixel(e: { clientX: number; clientY: number }): { x: number; y: number } | null {
+    const { width, height } = this.frameSize, box = this.canvas.getBoundingClientRect();
+    if (!width || !height) return null;
+    const fit = Math.min(box.width / width, box.height / height);
+    const x = (e.clientX - box.left - (box.width - width * fit) / 2) / fit;
+    const y = (e.clientY - box.top - (box.height - height * fit) / 2) / fit;
+    return x >= 0 && y >= 0 && x < width && y < height ? { x, y } : null;
   }
 
   /** Two fingers: their spread zooms, their midpoint pans. */

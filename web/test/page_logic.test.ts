@@ -4,7 +4,7 @@ import { create } from "@bufbuild/protobuf";
 import { Code, ConnectError } from "@connectrpc/connect";
 import { VolumeInfoSchema } from "../gen/cinevol/v1/service_pb.js";
 import { readAddress, sessionQuery } from "../src/address.js";
-import { cropFromFractions, patientBox, toPatient } from "../src/geometry.js";
+import { cropFromFractions, fromPatient, patientBox, spacingAlong, toPatient } from "../src/geometry.js";
 import { MotionToPhoton, percentile, Rate } from "../src/stats.js";
 import { plainWords } from "../src/words.js";
 
@@ -57,4 +57,35 @@ test("the patient box of an LPS volume and of one flipped along x", () => {
   const crop = cropFromFractions(patientBox(volume), { x: 0, y: 0.5, z: 0 }, { x: 1, y: 1, z: 0.5 });
   assert.deepEqual(crop, { center: { x: -5, y: 15, z: 15 }, size: { x: 10, y: 10, z: 30 } });
   assert.deepEqual(toPatient(volume, false, { x: 0, y: 0, z: 0 }), { x: -5, y: 10, z: 30 });
+});
+
+test("slice pixels and patient positions map both ways; distances and angles", async () => {
+  const { slicePixelToPatient, patientToSlicePixel, distanceMm, angleDeg, measurementText, projectToView } =
+    await import("../src/measure.js");
+  const { SliceImageSchema } = await import("../gen/cinevol/v1/service_pb.js");
+  // An axial slice in radiological convention: rows run to the patient's left (+x), columns to posterior (+y).
+  const image = create(SliceImageSchema, { originMm: { x: -100, y: -50, z: 12 }, rowDirection: { x: 1, y: 0, z: 0 },
+    columnDirection: { x: 0, y: 1, z: 0 }, rowSpacingMm: 0.5, columnSpacingMm: 0.8, width: 400, height: 125 });
+  const p = slicePixelToPatient(image, 10, 20);
+  assert.deepEqual(p, { x: -95, y: -34, z: 12 });
+  const back = patientToSlicePixel(image, { x: -95, y: -34, z: 15 });
+  assert.ok(Math.abs(back.column - 10) < 1e-9 && Math.abs(back.row - 20) < 1e-9 && Math.abs(Math.abs(back.offPlaneMm) - 3) < 1e-9);
+  assert.equal(distanceMm({ x: 0, y: 0, z: 0 }, { x: 3, y: 4, z: 0 }), 5);
+  assert.ok(Math.abs(angleDeg({ x: 1, y: 0, z: 0 }, { x: 0, y: 0, z: 0 }, { x: 0, y: 1, z: 0 }) - 90) < 1e-9);
+  assert.equal(measurementText([{ x: 0, y: 0, z: 0 }, { x: 0, y: 0, z: 42.5 }]), "42.5 mm");
+  const cam = { eye: { x: 0, y: -100, z: 0 }, target: { x: 0, y: 0, z: 0 }, up: { x: 0, y: 0, z: 1 }, fovYDeg: 90 };
+  assert.deepEqual(projectToView(cam, { x: 0, y: 0, z: 0 }, 200, 100), { x: 100, y: 50 });
+  const right = projectToView(cam, { x: 50, y: 0, z: 0 }, 200, 100)!;
+  assert.ok(right.x > 100 && Math.abs(right.y - 50) < 1e-9, "the patient's left (+x) on the right from the front");
+  assert.equal(projectToView(cam, { x: 0, y: -200, z: 0 }, 200, 100), null);
+});
+
+test("patient and camera frames are each other's inverse; spacing along a patient axis", () => {
+  const volume = create(VolumeInfoSchema, { dims: { x: 11, y: 21, z: 31 }, spacingMm: { x: 0.5, y: 1, z: 2 },
+                                            originMm: { x: 3, y: -4, z: 5 }, direction: [0, 1, 0, 1, 0, 0, 0, 0, 1] });
+  const p = { x: 7, y: -2, z: 40 };
+  const back = toPatient(volume, false, fromPatient(volume, false, p));
+  assert.ok(Math.abs(back.x - p.x) + Math.abs(back.y - p.y) + Math.abs(back.z - p.z) < 1e-9);
+  assert.equal(spacingAlong(volume, "x"), 1, "index axis j runs along patient x");
+  assert.equal(spacingAlong(volume, "y"), 0.5);
 });

@@ -1,0 +1,306 @@
+// The reading tools in the page: axial, coronal and sagittal slices beside
+// the 3D view (2x2), rendered by the server through a crosshair; picks on the
+// 3D view and on slices; distance and angle measurements between picked
+// points, drawn here and listed with their values (docs/reading.md).
+import { Code, ConnectError } from "@connectrpc/connect";
+import { SlabProjection, SliceAxis, type SliceImage, type VolumeInfo } from "../gen/cinevol/v1/service_pb.js";
+import type { Api } from "./api.js";
+import { patientBox, spacingAlong } from "./geometry.js";
+import { measurementText, patientToSlicePixel, slicePixelToPatient } from "./measure.js";
+import { add, scale, v3, type V3 } from "./vec.js";
+import { plainWords } from "./words.js";
+
+const $ = <T extends HTMLElement>(id: string) => document.getElementById(id) as T;
+const CLICK_SLOP_PX = 4;
+
+export interface Measurement {
+  points: V3[];  // LPS mm: 2 a distance, 3 an angle
+}
+
+interface PaneSpec {
+  axis: SliceAxis;
+  along: "x" | "y" | "z";  // the patient axis the slice's position runs along
+  element: string;
+}
+
+const PANES: PaneSpec[] = [
+  { axis: SliceAxis.AXIAL, along: "z", element: "slice-axial" },
+  { axis: SliceAxis.CORONAL, along: "y", element: "slice-coronal" },
+  { axis: SliceAxis.SAGITTAL, along: "x", element: "slice-sagittal" },
+];
+
+/** One slice view: its image, what the server said of its geometry, one request in flight and the newest next. */
+class Pane {
+  image?: SliceImage;
+  private url = "";
+  private busy = false;
+  private again = false;
+  readonly img: HTMLImageElement;
+  readonly overlay: HTMLCanvasElement;
+
+  constructor(readonly spec: PaneSpec, private readonly reading: Reading) {
+    const root = $(spec.element);
+    this.img = root.querySelector("img")!;
+    this.overlay = root.querySelector("canvas")!;
+    this.listen(root);
+  }
+
+  async refresh(): Promise<void> {
+    if (this.busy) {
+      this.again = true;
+      return;
+    }
+    this.busy = true;
+    try {
+      do {
+        this.again = false;
+        await this.fetch();
+      } while (this.again);
+    } finally {
+      this.busy = false;
+    }
+  }
+
+  private async fetch(): Promise<void> {
+    const request = this.reading.sliceRequest(this.spec);
+    if (!request) return;
+    try {
+      const image = await this.reading.api.sessions.renderSlice(request);
+      URL.revokeObjectURL(this.url);
+      this.url = URL.createObjectURL(new Blob([image.png.slice()], { type: "image/png" }));
+      this.image = image;
+      this.img.src = this.url;
+      this.img.alt = `${SliceAxis[this.spec.axis].toLowerCase()} slice at ${request.positionMm.toFixed(1)} mm`;
+      const [left, right, top, bottom] = image.edgeLetters;
+      const root = $(this.spec.element);
+      for (const [edge, letter] of Object.entries({ left, right, top, bottom })) {
+        root.querySelector<HTMLElement>(`.edge-${edge}`)!.textContent = letter ?? "";
+      }
+      root.querySelector<HTMLElement>(".slice-label")!.textContent =
+        `${SliceAxis[this.spec.axis]} ${request.positionMm.toFixed(1)} mm · W ${image.window.toFixed(0)} L ${image.level.toFixed(0)}`;
+      this.draw();
+    } catch (e) {
+      this.reading.error(plainWords(e));
+    }
+  }
+
+  /** Crosshair and the measurement points near this plane, over the image. */
+  draw(): void {
+    const image = this.image, g = this.overlay.getContext("2d");
+    if (!image || !g) return;
+    const box = this.img.getBoundingClientRect();
+    this.overlay.width = Math.round(box.width);
+    this.overlay.height = Math.round(box.height);
+    const fit = Math.min(box.width / image.width, box.height / image.height);
+    const ox = (box.width - image.width * fit) / 2, oy = (box.height - image.height * fit) / 2;
+    const at = (p: V3) => {
+      const q = patientToSlicePixel(image, p);
+      return { x: ox + (q.column + 0.5) * fit, y: oy + (q.row + 0.5) * fit, off: Math.abs(q.offPlaneMm) };
+    };
+    g.clearRect(0, 0, this.overlay.width, this.overlay.height);
+    const cross = this.reading.crosshair;
+    if (cross) {
+      const c = at(cross);
+      g.strokeStyle = "rgba(255, 220, 0, 0.7)";
+      g.beginPath();
+      g.moveTo(c.x, 0); g.lineTo(c.x, this.overlay.height);
+      g.moveTo(0, c.y); g.lineTo(this.overlay.width, c.y);
+      g.stroke();
+    }
+    const near = 2 * Math.max(image.rowSpacingMm, image.columnSpacingMm);
+    g.strokeStyle = g.fillStyle = "#4df";
+    for (const m of this.reading.measurements) {
+      const points = m.points.map(at);
+      if (points.some((p) => p.off > near)) continue;
+      g.beginPath();
+      points.forEach((p, i) => (i ? g.lineTo(p.x, p.y) : g.moveTo(p.x, p.y)));
+      g.stroke();
+      g.fillText(measurementText(m.points), points[points.length - 1].x + 6, points[points.length - 1].y);
+    }
+  }
+
+  /** The image pixel under a point of the pane, or null off the image. */
+  private pixelAt(e: PointerEvent | WheelEvent): { column: number; row: number } | null {
+    const image = this.image;
+    if (!image) return null;
+    const box = this.img.getBoundingClientRect();
+    const fit = Math.min(box.width / image.width, box.height / image.height);
+    const column = (e.clientX - box.left - (box.width - image.width * fit) / 2) / fit - 0.5;
+    const row = (e.clientY - box.top - (box.height - image.height * fit) / 2) / fit - 0.5;
+    return column < -0.5 || row < -0.5 || column > image.width - 0.5 || row > image.height - 0.5 ? null : { column, row };
+  }
+
+  private listen(root: HTMLElement): void {
+    root.addEventListener("wheel", (e) => {
+      e.preventDefault();
+      this.reading.step(this.spec.along, Math.sign(e.deltaY));
+    }, { passive: false });
+    let down: { x: number; y: number } | undefined;
+    root.addEventListener("pointerdown", (e) => {
+      down = { x: e.clientX, y: e.clientY };
+      root.setPointerCapture(e.pointerId);
+    });
+    root.addEventListener("pointermove", (e) => {
+      if (!down || e.buttons === 0) return;
+      this.reading.dragWindow(e.movementX, e.movementY);  // window and level, as on the desktop viewer's slices
+    });
+    root.addEventListener("pointerup", (e) => {
+      const moved = down && Math.hypot(e.clientX - down.x, e.clientY - down.y) > CLICK_SLOP_PX;
+      down = undefined;
+      const pixel = this.pixelAt(e);
+      if (moved || !pixel || !this.image) return;
+      const p = slicePixelToPatient(this.image, pixel.column, pixel.row);
+      $("pick-info").textContent = lps(p);
+      this.reading.picked(p);
+    });
+  }
+}
+
+export class Reading {
+  crosshair?: V3;
+  readonly measurements: Measurement[] = [];
+  private measuring: { points: V3[]; wanted: number } | undefined;
+  private window?: { width: number; level: number };
+  private readonly panes: Pane[];
+  private volume?: VolumeInfo;
+  onMeasurementsChanged: () => void = () => {};
+
+  constructor(readonly api: Api, private readonly sessionId: () => string | undefined,
+              readonly error: (text: string) => void) {
+    this.panes = PANES.map((spec) => new Pane(spec, this));
+    $("layout").addEventListener("click", () => this.toggleLayout());
+    for (const id of ["window-preset", "slab", "projection", "slice-clipping"]) {
+      $(id).addEventListener("change", () => {
+        if (id === "window-preset") this.window = undefined;
+        this.refresh();
+      });
+    }
+    $("measure-distance").addEventListener("click", () => this.startMeasuring(2));
+    $("measure-angle").addEventListener("click", () => this.startMeasuring(3));
+    new ResizeObserver(() => this.panes.forEach((p) => p.draw())).observe($("stage"));
+  }
+
+  get shown(): boolean {
+    return $("stage").classList.contains("grid");
+  }
+
+  /** A new volume: the crosshair at its centre, no measurements yet. */
+  setVolume(volume: VolumeInfo): void {
+    this.volume = volume;
+    const box = patientBox(volume);
+    this.crosshair = scale(add(box.min, box.max), 0.5);
+    this.measurements.length = 0;
+    this.listMeasurements();
+    this.refresh();
+  }
+
+  /** Measurements a session's scene brought (a saved scene opened again), where the page has none yet. */
+  restore(saved: readonly { points: readonly { x: number; y: number; z: number }[] }[]): void {
+    if (this.measurements.length > 0 || saved.length === 0) return;
+    for (const m of saved) this.measurements.push({ points: m.points.map((p) => v3(p.x, p.y, p.z)) });
+    this.listMeasurements();
+  }
+
+  refresh(): void {
+    if (this.shown) for (const p of this.panes) void p.refresh();
+  }
+
+  sliceRequest(spec: PaneSpec) {
+    const sessionId = this.sessionId();
+    if (!sessionId || !this.crosshair) return undefined;
+    const preset = $<HTMLSelectElement>("window-preset").value;
+    return {
+      sessionId, axis: spec.axis, positionMm: this.crosshair[spec.along],
+      ...(this.window ? { window: this.window.width, level: this.window.level } : { windowPreset: preset }),
+      slabMm: Number($<HTMLInputElement>("slab").value) || 0,
+      projection: Number($<HTMLSelectElement>("projection").value) as SlabProjection,
+      applyClipping: $<HTMLInputElement>("slice-clipping").checked,
+    };
+  }
+
+  step(along: "x" | "y" | "z", direction: number): void {
+    if (!this.crosshair || !this.volume) return;
+    this.crosshair = { ...this.crosshair, [along]: this.crosshair[along] + direction * spacingAlong(this.volume, along) };
+    this.refresh();
+  }
+
+  dragWindow(dx: number, dy: number): void {
+    const image = this.panes.find((p) => p.image)?.image;
+    if (!image) return;
+    const w = this.window ?? { width: image.window, level: image.level };
+    this.window = { width: Math.max(1, w.width * Math.exp(dx * 0.01)), level: w.level - dy * Math.max(1, w.width / 200) };
+    this.refresh();
+  }
+
+  /** A picked point (from the 3D view or a slice): the crosshair goes there, and a measurement takes it. */
+  picked(point: V3): void {
+    this.crosshair = point;
+    if (this.measuring) {
+      this.measuring.points.push(point);
+      if (this.measuring.points.length === this.measuring.wanted) {
+        this.measurements.push({ points: this.measuring.points });
+        this.measuring = undefined;
+        this.listMeasurements();
+      }
+    }
+    this.refresh();
+    this.panes.forEach((p) => p.draw());
+  }
+
+  /** Asks the server what lies under a pixel of the 3D view (device pixels of its viewport). */
+  async pickOnView(x: number, y: number): Promise<void> {
+    const sessionId = this.sessionId();
+    if (!sessionId) return;
+    try {
+      const hit = await this.api.sessions.pick({ sessionId, x, y });
+      if (!hit.hit || !hit.positionMm) {
+        $("pick-info").textContent = "Nothing there: the ray met no tissue at this opacity.";
+        return;
+      }
+      const p = v3(hit.positionMm.x, hit.positionMm.y, hit.positionMm.z);
+      const unit = this.volume?.valueUnit ? ` ${this.volume.valueUnit}` : "";
+      $("pick-info").textContent = `${lps(p)} · ${hit.value.toFixed(0)}${unit}` +
+        (hit.label ? ` · label ${hit.label.value}${hit.label.name ? ` ${hit.label.name}` : ""}` : "");
+      this.picked(p);
+    } catch (e) {
+      const error = ConnectError.from(e);
+      this.error(error.code === Code.Unimplemented ? "This server cannot pick (it is older than this page)." : plainWords(e));
+    }
+  }
+
+  private startMeasuring(points: number): void {
+    this.measuring = { points: [], wanted: points };
+    $("pick-info").textContent = `Measuring: click ${points} points on the 3D view or the slices.`;
+  }
+
+  private listMeasurements(): void {
+    $("measurements").replaceChildren(...this.measurements.map((m, i) => {
+      const li = document.createElement("li"), remove = document.createElement("button");
+      li.textContent = `${m.points.length === 2 ? "Distance" : "Angle"} ${measurementText(m.points)} `;
+      remove.type = "button";
+      remove.textContent = "Delete";
+      remove.setAttribute("aria-label", `Delete measurement ${i + 1}`);
+      remove.addEventListener("click", () => {
+        this.measurements.splice(i, 1);
+        this.listMeasurements();
+        this.panes.forEach((p) => p.draw());
+      });
+      li.append(remove);
+      return li;
+    }));
+    this.onMeasurementsChanged();
+  }
+
+  private toggleLayout(): void {
+    const grid = $("stage").classList.toggle("grid");
+    $("layout").textContent = grid ? "3D view only" : "Slices beside the 3D view (2x2)";
+    for (const spec of PANES) $(spec.element).hidden = !grid;
+    this.refresh();
+  }
+}
+
+/** A patient position in words: "R 12.0 A 3.5 S 40.0 mm" (LPS signs turned into letters). */
+export function lps(p: V3): string {
+  const part = (v: number, plus: string, minus: string) => `${v >= 0 ? plus : minus} ${Math.abs(v).toFixed(1)}`;
+  return `${part(p.x, "L", "R")} ${part(p.y, "P", "A")} ${part(p.z, "S", "I")} mm`;
+}
