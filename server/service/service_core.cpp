@@ -23,6 +23,7 @@
 #include "io/label_volume.h"
 #include "io/reader_cage.h"
 #include "runtime/metrics.h"
+#include "runtime/reading_calls.h"
 #include "scene/presets.h"
 
 namespace cinevol::service {
@@ -345,6 +346,22 @@ v1::SessionState ServiceCore::SendEvents(const v1::SendEventsRequest& request, c
     throw InputError(fmt::format("events: {} events; at most {} a call", request.events_size(), kMaxEventsPerCall));
   }
   return FindSession(request.session_id(), caller)->OnEvents(request.events(), Clock::now());
+}
+
+v1::SliceImage ServiceCore::RenderSlice(const v1::SliceRequest& request, const Principal& caller) {
+  const std::shared_ptr<Session> session = FindSession(request.session_id(), caller);
+  v1::Scene scene;
+  FrameSettings settings;
+  session->CurrentScene(scene, settings);
+  return SliceOf(request, scene, *session->volume());
+}
+
+v1::PickResult ServiceCore::Pick(const v1::PickRequest& request, const Principal& caller) {
+  const std::shared_ptr<Session> session = FindSession(request.session_id(), caller);
+  v1::Scene scene;
+  FrameSettings settings;
+  session->CurrentScene(scene, settings);
+  return PickOn(request, scene, *session->volume());
 }
 
 std::shared_ptr<LoadSlot> ServiceCore::BeginLoad(const Principal& caller) {

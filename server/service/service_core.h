@@ -112,6 +112,9 @@ class ServiceCore {
   void CloseSession(const std::string& id, const Principal& caller);
   // SendEvents: the batch (at most kMaxEventsPerCall) to the caller's session (Session::OnEvents).
   v1::SessionState SendEvents(const v1::SendEventsRequest& request, const Principal& caller);
+  // The reading tools on the caller's session, with its current scene (runtime/reading_calls.h).
+  v1::SliceImage RenderSlice(const v1::SliceRequest& request, const Principal& caller);
+  v1::PickResult Pick(const v1::PickRequest& request, const Principal& caller);
   // What a still tells its caller. `done` runs once, on a worker, with the
   // image or the error; `progress` (optional) runs at once with 0 samples
   // done, then on the device's worker about twice a second while it renders.

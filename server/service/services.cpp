@@ -464,6 +464,21 @@ grpc::ServerUnaryReactor* SessionServiceImpl::SendEvents(grpc::CallbackServerCon
   });
 }
 
+// Slices and picks grow with the volume (a slab, a long ray): on the setup pool, in the caller's queue.
+grpc::ServerUnaryReactor* SessionServiceImpl::RenderSlice(grpc::CallbackServerContext* context,
+                                                          const v1::SliceRequest* request, v1::SliceImage* response) {
+  return new PooledReactor(context, core_, core_->setup(), [this, request, response](const Principal& caller, auto&) {
+    *response = core_->RenderSlice(*request, caller);
+  });
+}
+
+grpc::ServerUnaryReactor* SessionServiceImpl::Pick(grpc::CallbackServerContext* context, const v1::PickRequest* request,
+                                                   v1::PickResult* response) {
+  return new PooledReactor(context, core_, core_->setup(), [this, request, response](const Principal& caller, auto&) {
+    *response = core_->Pick(*request, caller);
+  });
+}
+
 grpc::ServerUnaryReactor* ServerServiceImpl::GetStatus(grpc::CallbackServerContext* context,
                                                        const v1::GetStatusRequest*, v1::ServerStatus* response) {
   return Answer(core_, context, [&](const Principal& caller) { *response = core_->Status(caller); });

@@ -58,6 +58,10 @@ class SessionServiceImpl final : public v1::SessionService::CallbackService {
                                                              const v1::WatchSessionRequest* request) override;
   grpc::ServerUnaryReactor* SendEvents(grpc::CallbackServerContext* context, const v1::SendEventsRequest* request,
                                        v1::SendEventsResponse* response) override;
+  grpc::ServerUnaryReactor* RenderSlice(grpc::CallbackServerContext* context, const v1::SliceRequest* request,
+                                        v1::SliceImage* response) override;
+  grpc::ServerUnaryReactor* Pick(grpc::CallbackServerContext* context, const v1::PickRequest* request,
+                                 v1::PickResult* response) override;
 
  private:
   ServiceCore* core_;

@@ -125,6 +125,32 @@ test("a window resize changes the frame's size", async () => {
   await alice.screenshot({ path: join(ARTIFACTS, "4-resized.png") });
 });
 
+test("reading: slices beside the 3D view, a pick, a distance measured on a slice", async () => {
+  await alice.click("#layout");
+  await alice.waitForFunction(() => [...document.querySelectorAll<HTMLImageElement>(".slice img")]
+    .every((img) => img.naturalWidth > 0), null, WAIT);
+  const edges = await alice.$$eval("#slice-axial [class^=edge-]", (e) => e.map((x) => x.textContent));
+  assert.deepEqual(edges, ["R", "L", "A", "P"], "axial slices in radiological convention");
+  const axial = await alice.$eval("#slice-axial img", (img) => ({ w: (img as HTMLImageElement).naturalWidth,
+                                                                  h: (img as HTMLImageElement).naturalHeight }));
+  assert.deepEqual(axial, { w: 256, h: 256 }, "one pixel a voxel of the 256^3 phantom");
+  const view = (await alice.locator("#view").boundingBox())!;
+  await alice.mouse.click(view.x + view.width / 2, view.y + view.height / 2);
+  await alice.waitForFunction(() => /HU/.test(document.getElementById("pick-info")!.textContent!), null, WAIT);
+  await alice.click("#measure-distance");
+  const slice = (await alice.locator("#slice-axial img").boundingBox())!;
+  const side = Math.min(slice.width, slice.height);
+  await alice.mouse.click(slice.x + slice.width / 2 - side / 4, slice.y + slice.height / 2);
+  await alice.mouse.click(slice.x + slice.width / 2 + side / 4, slice.y + slice.height / 2);
+  await alice.waitForFunction(() => /Distance \d+\.\d mm/.test(document.getElementById("measurements")!.textContent!),
+                              null, WAIT);
+  const text = await alice.textContent("#measurements") ?? "";
+  const mm = Number(/Distance (\d+\.\d) mm/.exec(text)![1]);
+  assert.ok(Math.abs(mm - 128) < 3, `half the 256 mm slice's width: ${mm} mm`);
+  await alice.screenshot({ path: join(ARTIFACTS, "5-reading.png") });
+  await alice.click("#layout");
+});
+
 test("a wrong token is refused with a message on the page", async () => {
   const page = await browser.newPage();
   await page.goto(`${base()}/?volume=phantom:head#token=wrong-token`);

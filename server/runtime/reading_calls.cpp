@@ -1,0 +1,138 @@
+// SliceOf and PickOn: see reading_calls.h.
+#include "runtime/reading_calls.h"
+
+#include <cmath>
+
+#include <fmt/format.h>
+
+#include "core/error.h"
+#include "encode/image_codecs.h"
+#include "reading/pick.h"
+#include "reading/slice.h"
+#include "scene/scene_builder.h"
+#include "scene/scene_frame.h"
+
+namespace cinevol::service {
+namespace {
+
+Vec3f FromProto(const v1::Vec3& v) { return {v.x(), v.y(), v.z()}; }
+
+void ToProto(Vec3f v, v1::Vec3* out) {
+  out->set_x(v.x);
+  out->set_y(v.y);
+  out->set_z(v.z);
+}
+
+SliceAxis AxisOf(v1::SliceAxis axis) {
+  switch (axis) {
+    case v1::CORONAL: return SliceAxis::kCoronal;
+    case v1::SAGITTAL: return SliceAxis::kSagittal;
+    case v1::OBLIQUE: return SliceAxis::kOblique;
+    case v1::AXIAL:
+    case v1::SLICE_AXIS_UNSPECIFIED: return SliceAxis::kAxial;
+    default: throw InputError(fmt::format("axis: unknown value {}", int(axis)));
+  }
+}
+
+SlabProjection ProjectionOf(v1::SlabProjection projection) {
+  switch (projection) {
+    case v1::MINIMUM: return SlabProjection::kMin;
+    case v1::MEAN: return SlabProjection::kMean;
+    case v1::MAXIMUM:
+    case v1::SLAB_PROJECTION_UNSPECIFIED: return SlabProjection::kMax;
+    default: throw InputError(fmt::format("projection: unknown value {}", int(projection)));
+  }
+}
+
+// The request's window: both numbers given, else a named preset, else
+// "auto" (or nothing): the volume's default (soft tissue for HU, else from
+// the histogram).
+VoiWindow WindowOf(const v1::SliceRequest& request, const Volume& volume) {
+  if (request.has_window() != request.has_level()) throw InputError("window, level: give both or neither");
+  if (request.has_window()) {
+    if (!(request.window() >= 1) || !std::isfinite(request.level())) {
+      throw InputError(fmt::format("window: {} with level {}: the width must be at least 1 and both finite",
+                                   request.window(), request.level()));
+    }
+    return {request.level(), request.window()};
+  }
+  const std::string& name = request.window_preset();
+  if (name.empty() || name == "auto") return name.empty() ? DefaultWindow(volume) : AutoVoiWindow(volume.histogram());
+  if (const auto preset = FindWindowPreset(name)) return *preset;
+  throw InputError(fmt::format("window_preset: '{}' is none of brain, soft-tissue, lung, bone, auto", name));
+}
+
+SliceSpec SpecOf(const v1::SliceRequest& request, const Volume& volume) {
+  SliceSpec spec;
+  spec.axis = AxisOf(request.axis());
+  if (!std::isfinite(request.position_mm())) throw InputError("position_mm: not a finite number");
+  spec.position_mm = float(request.position_mm());
+  if (spec.axis == SliceAxis::kOblique) {
+    spec.point_lps = FromProto(request.point());
+    spec.normal_lps = FromProto(request.normal());
+    spec.row_lps = FromProto(request.row());
+  }
+  spec.window = WindowOf(request, volume);
+  spec.nearest = request.nearest();
+  if (!(request.slab_mm() >= 0 && request.slab_mm() <= 1e4f)) {
+    throw InputError(fmt::format("slab_mm: {} is outside [0, 10000]", request.slab_mm()));
+  }
+  spec.slab_mm = request.slab_mm();
+  spec.projection = ProjectionOf(request.projection());
+  return spec;
+}
+
+}  // namespace
+
+v1::SliceImage SliceOf(const v1::SliceRequest& request, const v1::Scene& scene, const VolumeLease& lease) {
+  const Volume& volume = *lease.volume();
+  const SliceSpec spec = SpecOf(request, volume);
+  const LabelSetup styles = ResolveLabels(scene.labels(), volume);
+  const SliceLabels labels{request.hide_labels() ? nullptr : lease.labels().get(), &styles};
+  const ClipRegion clip = ResolveClipping(scene.clipping(), volume);
+  const SliceImage slice = RenderSlice(volume, labels, request.apply_clipping() ? &clip : nullptr, spec);
+  v1::SliceImage out;
+  const std::vector<std::uint8_t> png = EncodePng(slice.image);
+  out.set_png(std::string(png.begin(), png.end()));
+  const SliceGeometry& g = slice.geometry;
+  out.set_width(std::uint32_t(g.width));
+  out.set_height(std::uint32_t(g.height));
+  ToProto(g.top_left_lps, out.mutable_origin_mm());
+  ToProto(g.row_direction, out.mutable_row_direction());
+  ToProto(g.column_direction, out.mutable_column_direction());
+  out.set_row_spacing_mm(g.pixel_width_mm);
+  out.set_column_spacing_mm(g.pixel_height_mm);
+  for (const std::string* letter : {&g.letters.left, &g.letters.right, &g.letters.top, &g.letters.bottom}) {
+    out.add_edge_letters(*letter);
+  }
+  out.set_window(float(spec.window.width));
+  out.set_level(float(spec.window.center));
+  return out;
+}
+
+v1::PickResult PickOn(const v1::PickRequest& request, const v1::Scene& scene, const VolumeLease& lease) {
+  v1::Scene framed = scene;
+  ToVolumeFrame(framed, VolumePlacement::Of(*lease.volume()));  // the renderers' frame
+  const Picker picker(lease.volume(), lease.labels(), ResolveScene(framed, *lease.volume(), lease.labels().get()));
+  PickSettings settings;
+  if (request.has_threshold()) {
+    if (!(request.threshold() > 0 && request.threshold() <= 1)) {
+      throw InputError(fmt::format("threshold: {} is outside (0, 1]", request.threshold()));
+    }
+    settings.threshold = request.threshold();
+  }
+  if (!(std::isfinite(request.x()) && std::isfinite(request.y()))) throw InputError("x, y: not finite numbers");
+  const PickResult hit = picker.PickPixel(int(std::floor(request.x())), int(std::floor(request.y())), settings);
+  v1::PickResult out;
+  out.set_hit(hit.hit);
+  if (!hit.hit) return out;
+  ToProto(hit.position_lps, out.mutable_position_mm());
+  out.set_value(hit.value);
+  if (hit.label) {
+    out.mutable_label()->set_value(std::uint32_t(hit.label->value));
+    out.mutable_label()->set_name(hit.label->name);
+  }
+  return out;
+}
+
+}  // namespace cinevol::service

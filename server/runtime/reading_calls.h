@@ -1,0 +1,20 @@
+// The reading tools on a session (SessionService.RenderSlice and Pick):
+// the request's fields to the reading module's settings, the session's scene
+// and volume to what they read, and the answer back (docs/reading.md).
+#pragma once
+
+#include "cinevol/v1/scene.pb.h"
+#include "cinevol/v1/service.pb.h"
+#include "runtime/volume_registry.h"
+
+namespace cinevol::service {
+
+// A slice of `volume` through the scene's labels and (on request) clipping,
+// encoded as PNG. Throws InputError naming the request's field.
+v1::SliceImage SliceOf(const v1::SliceRequest& request, const v1::Scene& scene, const VolumeLease& volume);
+
+// What lies under pixel (request.x, request.y) of the scene's camera and
+// viewport. Throws InputError naming the request's field.
+v1::PickResult PickOn(const v1::PickRequest& request, const v1::Scene& scene, const VolumeLease& volume);
+
+}  // namespace cinevol::service
