@@ -8,6 +8,7 @@
 #include <fstream>
 #include <regex>
 
+#include "core/error.h"
 #include "io/label_volume.h"
 #include "io/phantom.h"
 #include "io/volume_loader.h"
@@ -265,7 +266,7 @@ TEST(Pick, TheCommandPrintsTheHitAsJson) {
   std::smatch m;
   ASSERT_TRUE(std::regex_search(output, m, std::regex(R"re("position":\[([^,\]]+),([^,\]]+),([^,\]]+)\])re")))
       << output;
-  EXPECT_NEAR(std::stod(m[2]), -20.0, kHalfVoxel) << output;
+  EXPECT_NEAR(std::stod(m[2].str()), -20.0, kHalfVoxel) << output;
   EXPECT_NE(output.find(R"("hit":true)"), std::string::npos) << output;
   EXPECT_NE(output.find(R"("pixel":[32,32])"), std::string::npos) << output;
   EXPECT_NE(output.find(R"("label":null)"), std::string::npos) << output;
