@@ -109,6 +109,36 @@ TEST(Pick, AnswersTheLabelThereAndNothingWhereTheLabelIsHidden) {
   EXPECT_FALSE(PickCentre(cube, setup, labels).hit) << "the cube and its shell are hidden: nothing else is there";
 }
 
+// The path tracer's first collisions along a ray fall before depth t with
+// probability 1 - exp(-tau(t)): their median is where the accumulated opacity
+// reaches 0.5. A soft cube (0.5 per mm: the median 1.39 mm inside its face)
+// seen face on, every pixel's first collisions over many frames.
+TEST(Pick, StopsAtTheMedianOfThePathTracersFirstCollisions) {
+  const auto cube = CubePhantom();
+  const RenderSetup setup = Looking({0, -400, 0}, Surface(0.5f));
+  CpuRenderer renderer;
+  renderer.SetVolume(cube);
+  renderer.SetTransferFunction(setup.transfer_function);
+  FrameRequest request;
+  request.camera = LookAt({0, -400, 0}, {0, 0, 0}, {0, 0, 1}, 2.0f, 16, 16);  // 14 mm across: all on the face
+  request.max_bounces = 0;
+  std::vector<float> depths;
+  for (int frame = 0; frame < 50; ++frame) {
+    request.frame = std::uint32_t(frame);
+    renderer.Render(request);
+    for (const Vec4f& hit : renderer.FirstHits()) {
+      if (hit.w > 0) depths.push_back(hit.y);
+    }
+  }
+  ASSERT_GT(depths.size(), 10000u) << "a path through the cube almost surely collides";
+  std::nth_element(depths.begin(), depths.begin() + depths.size() / 2, depths.end());
+  const float median = depths[depths.size() / 2];
+  const PickResult r = PickCentre(cube, setup);
+  ASSERT_TRUE(r.hit);
+  EXPECT_NEAR(r.position.y, median, 0.1f) << "the pick and the path tracer disagree on where opacity reaches 0.5";
+  EXPECT_NEAR(r.position.y, -20.0f + std::log(2.0f) / 0.5f, 0.15f) << "ln 2 / sigma_t behind the face";
+}
+
 TEST(Pick, ARayThatMissesTheVolumeHitsNothing) {
   const auto cube = CubePhantom();
   const Picker picker(cube, nullptr, Looking({0, -400, 0}));
