@@ -1,12 +1,11 @@
 // `cinevol pick --scene S --x PX --y PY [--threshold 0.5] [--json]`: what the
 // ray through pixel (PX, PY) of the scene's camera meets, offline (no server):
 // the patient position (LPS mm), the value there and the label, or no hit.
+#include <fmt/format.h>
 #include <google/protobuf/struct.pb.h>
 
 #include <chrono>
 #include <string>
-
-#include <fmt/format.h>
 
 #include "commands.h"
 #include "offline_render.h"
@@ -66,9 +65,11 @@ google::protobuf::Struct PickJson(const PickResult& r, const PickOptions& o) {
 std::string Readable(const PickResult& r, const PickOptions& o, const std::string& unit, double pick_ms) {
   if (!r.hit) return fmt::format("pixel ({}, {}): no hit at opacity {} ({:.3f} ms)", o.x, o.y, o.threshold, pick_ms);
   const std::string label = r.label ? fmt::format(", label {} \"{}\"", r.label->value, r.label->name) : "";
-  return fmt::format("pixel ({}, {}): LPS ({:.2f}, {:.2f}, {:.2f}) mm, value {:g}{}{}, {:.1f} mm from the eye "
-                     "({:.3f} ms)", o.x, o.y, r.position_lps.x, r.position_lps.y, r.position_lps.z, r.value,
-                     unit.empty() ? "" : " " + unit, label, r.distance_mm, pick_ms);
+  return fmt::format(
+      "pixel ({}, {}): LPS ({:.2f}, {:.2f}, {:.2f}) mm, value {:g}{}{}, {:.1f} mm from the eye "
+      "({:.3f} ms)",
+      o.x, o.y, r.position_lps.x, r.position_lps.y, r.position_lps.z, r.value, unit.empty() ? "" : " " + unit, label,
+      r.distance_mm, pick_ms);
 }
 
 void Run(const PickOptions& o) {

@@ -2,10 +2,10 @@
 // and the crossing refined by bisection inside the step that reached it.
 #include "reading/pick.h"
 
+#include <fmt/format.h>
+
 #include <cmath>
 #include <limits>
-
-#include <fmt/format.h>
 
 #include "core/error.h"
 #include "render/classification.h"
@@ -76,8 +76,8 @@ std::optional<float> MarchToThreshold(const RenderScene& s, const Ray& ray, cons
   }
   const OpticalDepth<kCubic, kWithLabels> depth(s, ray);
   // 1 - exp(-tau) >= threshold; a threshold of 1 makes it infinite.
-  const float target = settings.threshold < 1.0f ? -std::log1p(-settings.threshold)
-                                                  : std::numeric_limits<float>::infinity();
+  const float target =
+      settings.threshold < 1.0f ? -std::log1p(-settings.threshold) : std::numeric_limits<float>::infinity();
   float tau = 0.0f;
   if (entered >= 0 && (s.clip.capped >> entered & 1u)) {
     // The integrator meets a capped face with the tissue's opacity as the
@@ -150,8 +150,8 @@ Picker::Picker(std::shared_ptr<const Volume> volume, std::shared_ptr<const Label
 
 PickResult Picker::PickPixel(int x, int y, const PickSettings& settings) const {
   if (x < 0 || y < 0 || x >= camera_.width || y >= camera_.height) {
-    throw InputError(fmt::format("pick: pixel ({}, {}) is outside the {}x{} viewport", x, y, camera_.width,
-                                 camera_.height));
+    throw InputError(
+        fmt::format("pick: pixel ({}, {}) is outside the {}x{} viewport", x, y, camera_.width, camera_.height));
   }
   return PickRay(camera_.GenerateRay(float(x) + 0.5f, float(y) + 0.5f, 0.5f, 0.5f), settings);
 }

@@ -41,8 +41,8 @@ struct PickedLabel {
 
 struct PickResult {
   bool hit = false;
-  Vec3f position_lps;  // patient LPS mm
-  Vec3f position;      // the volume-centred frame the renderers work in (mm)
+  Vec3f position_lps;     // patient LPS mm
+  Vec3f position;         // the volume-centred frame the renderers work in (mm)
   float distance_mm = 0;  // from the ray's origin (the eye)
   // The volume's value there in its units (HU for CT), reconstructed
   // trilinearly whatever the scene's reconstruction: it equals the voxel's

@@ -1,6 +1,8 @@
 // Picking on the 3D view: where the ray through a pixel stops on analytic
 // phantoms (faces, hidden labels, clipping, thresholds), the value it reads
 // on a real CT, measurements between picks, and `cinevol pick` end to end.
+#include "reading/pick.h"
+
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -13,7 +15,6 @@
 #include "io/phantom.h"
 #include "io/volume_loader.h"
 #include "reading/measurements.h"
-#include "reading/pick.h"
 #include "scene/presets.h"
 #include "scene/scene_builder.h"
 #include "scene/scene_file.h"
@@ -307,7 +308,8 @@ TEST(Pick, TheCommandPrintsTheHitAsJson) {
 
   std::tie(code, output) = pick({"--x", "32", "--y", "32", "--threshold", "0.9"});
   ASSERT_EQ(code, 0) << output;
-  EXPECT_TRUE(std::regex_search(output, std::regex(R"(pixel \(32, 32\): LPS \(-?0\.00, -(19\.9|20\.0)\d, -?0\.00\) mm)")))
+  EXPECT_TRUE(
+      std::regex_search(output, std::regex(R"(pixel \(32, 32\): LPS \(-?0\.00, -(19\.9|20\.0)\d, -?0\.00\) mm)")))
       << output;
 
   std::tie(code, output) = pick({"--x", "65", "--y", "0"});
