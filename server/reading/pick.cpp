@@ -17,11 +17,12 @@ namespace {
 // Halvings of the step that crossed the threshold: 1/1024 of 0.25 voxel.
 constexpr int kRefinements = 10;
 
-// The optical depth along one ray, as the integrator classifies the scene.
+// The medium along one ray: extinction and opacity at t from its origin, as the
+// integrator classifies the scene.
 template <bool kCubic, bool kWithLabels>
-class OpticalDepth {
+class RayMedium {
  public:
-  OpticalDepth(const RenderScene& scene, const Ray& ray) : s_(scene), ray_(ray) {}
+  RayMedium(const RenderScene& scene, const Ray& ray) : s_(scene), ray_(ray) {}
 
   float SigmaT(float t) const {
     Classified c;
@@ -74,7 +75,10 @@ std::optional<float> MarchToThreshold(const RenderScene& s, const Ray& ray, cons
       !s.clip.Clip(ray.origin, ray.direction, t0, t1, &entered)) {
     return std::nullopt;
   }
-  const OpticalDepth<kCubic, kWithLabels> depth(s, ray);
+  // Marched from the entry point: steps of a fraction of a voxel stay
+  // steps however far the eye sits (a float t of 1e7 mm could not take them).
+  const RayMedium<kCubic, kWithLabels> depth(s, {ray.origin + ray.direction * t0, ray.direction});
+  const float length = t1 - t0;
   // 1 - exp(-tau) >= threshold; a threshold of 1 makes it infinite.
   const float target =
       settings.threshold < 1.0f ? -std::log1p(-settings.threshold) : std::numeric_limits<float>::infinity();
@@ -82,17 +86,17 @@ std::optional<float> MarchToThreshold(const RenderScene& s, const Ray& ray, cons
   if (entered >= 0 && (s.clip.capped >> entered & 1u)) {
     // The integrator meets a capped face with the tissue's opacity as the
     // chance of a collision there: that share of the light stops at t0.
-    const float cap = depth.Opacity(t0);
+    const float cap = depth.Opacity(0.0f);
     if (cap >= settings.threshold) return t0;
     tau = -std::log1p(-cap);
   }
   const float step = settings.step_voxels * MinComponent(s.volume.spacing);
-  MarchPoint a{t0, depth.SigmaT(t0), tau};
-  while (a.t < t1) {
-    const float t = fminf(a.t + step, t1);
+  MarchPoint a{0.0f, depth.SigmaT(0.0f), tau};
+  while (a.t < length) {
+    const float t = fminf(a.t + step, length);
     const float sigma_t = depth.SigmaT(t);
     const MarchPoint b{t, sigma_t, a.tau + 0.5f * (a.sigma_t + sigma_t) * (t - a.t)};
-    if (b.tau >= target) return RefineCrossing(depth, a, b.t, target);
+    if (b.tau >= target) return t0 + RefineCrossing(depth, a, b.t, target);
     a = b;
   }
   return std::nullopt;

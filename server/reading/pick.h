@@ -26,8 +26,9 @@
 namespace cinevol {
 
 struct PickSettings {
-  // (0, 1]: the accumulated opacity at which the ray stops. 1 is never
-  // reached (the extinction clamp lets e^-32 through per voxel): no hit.
+  // (0, 1]: the accumulated opacity at which the ray stops. 1 is reached
+  // only on a capped clip face of fully opaque tissue; in the volume never
+  // (the extinction clamp lets e^-32 through per voxel): no hit.
   float threshold = 0.5f;
   // (0, 1]: the march's step, in voxels of the smallest spacing; the crossing
   // is then refined inside the last step to 1/1024 of a step.

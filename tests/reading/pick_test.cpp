@@ -147,6 +147,13 @@ TEST(Pick, ARayThatMissesTheVolumeHitsNothing) {
   EXPECT_FALSE(picker.PickRay({{0, -400, 0}, {0, -1, 0}}).hit) << "looking away";
 }
 
+TEST(Pick, AnEyeFarAwayFindsTheSameFace) {
+  const Picker picker(CubePhantom(), nullptr, Looking({0, -400, 0}));
+  const PickResult r = picker.PickRay({{0, -1e7f, 0}, {0, 1, 0}});
+  ASSERT_TRUE(r.hit);
+  EXPECT_NEAR(r.position.y, -20.0f, 2.0f) << "within float's precision at 1e7 mm (1 mm)";
+}
+
 TEST(Pick, APixelOrThresholdOutOfRangeIsRefused) {
   const Picker picker(CubePhantom(), nullptr, Looking({0, -400, 0}));
   EXPECT_THROW(picker.PickPixel(kViewport, 0), InputError);
