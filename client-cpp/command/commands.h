@@ -11,6 +11,7 @@ void AddHealthCommand(CLI::App& app);
 void AddInfoCommand(CLI::App& app);
 void AddLoadtestCommand(CLI::App& app);
 void AddPacsCommand(CLI::App& app);
+void AddPickCommand(CLI::App& app);
 void AddPlayCommand(CLI::App& app);
 void AddSnapshotCommand(CLI::App& app);
 void AddRenderCommand(CLI::App& app);

@@ -18,6 +18,7 @@ int main(int argc, char** argv) {
   cinevol::cli::AddInfoCommand(app);
   cinevol::cli::AddLoadtestCommand(app);
   cinevol::cli::AddPacsCommand(app);
+  cinevol::cli::AddPickCommand(app);
   cinevol::cli::AddPlayCommand(app);
   cinevol::cli::AddSnapshotCommand(app);
   cinevol::cli::AddVolumesCommand(app);

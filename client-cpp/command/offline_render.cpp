@@ -45,23 +45,30 @@ void WriteImage(const ImageRgbF& linear, float exposure, const std::filesystem::
   }
 }
 
+OfflineScene LoadOfflineScene(const v1::Scene& scene, const std::filesystem::path& base_dir) {
+  OfflineScene loaded;
+  loaded.volume = std::make_shared<const Volume>(LoadVolume(scene.volume(), base_dir));
+  if (StylesLabels(scene.labels()) && scene.volume().labels().empty()) {
+    throw InputError("labels: the scene styles labels but volume.labels names no segmentation");
+  }
+  loaded.labels = LoadSceneLabels(scene, *loaded.volume, base_dir);  // with the table where it removes it
+  loaded.scene = scene;
+  ToVolumeFrame(loaded.scene, VolumePlacement::Of(*loaded.volume));  // the renderers' frame
+  return loaded;
+}
+
 OfflineRenderResult RenderToFile(const v1::Scene& scene, const std::filesystem::path& base_dir, int total_spp,
                                  Backend backend, const std::filesystem::path& out) {
   OfflineRenderResult result;
   const auto load_start = std::chrono::steady_clock::now();
-  const auto volume = std::make_shared<const Volume>(LoadVolume(scene.volume(), base_dir));
-  if (StylesLabels(scene.labels()) && scene.volume().labels().empty()) {
-    throw InputError("labels: the scene styles labels but volume.labels names no segmentation");
-  }
-  const auto labels = LoadSceneLabels(scene, *volume, base_dir);  // with the table where it removes it
-  if (scene.labels().remove_table()) result.table = labels ? labels->table_note : "";
-  v1::Scene lit = scene;
-  ToVolumeFrame(lit, VolumePlacement::Of(*volume));  // the renderers' frame
-  if (AddDefaultLights(lit, *volume)) {
+  OfflineScene loaded = LoadOfflineScene(scene, base_dir);
+  if (scene.labels().remove_table()) result.table = loaded.labels ? loaded.labels->table_note : "";
+  v1::Scene& lit = loaded.scene;
+  if (AddDefaultLights(lit, *loaded.volume)) {
     std::fprintf(stderr, "cinevol: the scene has no lights: rendering with the volume's default lights (a key light "
                          "and a sky)\n");
   }
-  FramePipeline pipeline(backend, volume, {}, labels);
+  FramePipeline pipeline(backend, loaded.volume, {}, loaded.labels);
   FrameSettings settings;
   settings.denoiser.method = DenoiseMethod::kNone;
   settings.target_spp = total_spp;

@@ -24,12 +24,16 @@ struct LabelView {
   const LabelMaterial* materials = nullptr;  // by label value, for every value up to the largest present
 
   CINEVOL_HD LabelMaterial At(const VolumeView& grid, Vec3f p) const {
+    return materials[LoadReadOnly(voxels + NearestVoxel(grid, p))];
+  }
+
+  // The index of the voxel nearest p (clamped to the grid): where the label of p is stored.
+  CINEVOL_HD static std::int64_t NearestVoxel(const VolumeView& grid, Vec3f p) {
     const Vec3f q = grid.ToVoxel(p);
     const int x = ClampInt(static_cast<int>(floorf(q.x + 0.5f)), 0, grid.dims.x - 1);
     const int y = ClampInt(static_cast<int>(floorf(q.y + 0.5f)), 0, grid.dims.y - 1);
     const int z = ClampInt(static_cast<int>(floorf(q.z + 0.5f)), 0, grid.dims.z - 1);
-    const std::uint16_t label = LoadReadOnly(voxels + (std::int64_t(z) * grid.dims.y + y) * grid.dims.x + x);
-    return materials[label];
+    return (std::int64_t(z) * grid.dims.y + y) * grid.dims.x + x;
   }
 
  private:

@@ -29,6 +29,9 @@ class CpuRenderer final : public Renderer {
   std::vector<Vec4f> FirstHits() const override { return first_hit_; }
   ImageRgbF Albedo() const override { return {width_, height_, albedo_}; }
   FrameTargets Targets() const override;
+  // The tables the integrator reads here, for deterministic queries that must
+  // classify the scene as it does (picking, server/reading/pick.h).
+  const SceneData& scene_data() const { return data_; }
 
  private:
   int threads_;

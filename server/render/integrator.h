@@ -14,6 +14,7 @@
 #pragma once
 
 #include "core/rng.h"
+#include "render/classification.h"
 #include "render/render_scene.h"
 #include "render/sample_pattern.h"
 #include "render/scattering.h"
@@ -113,33 +114,8 @@ class PathTracer {
  private:
   enum class Collision { kHit, kEscaped, kAbsorbedByBudget };
 
-  // A point's classification: its transfer-table position and its label's style.
-  struct Classified {
-    float entry = 0.0f;
-    LabelMaterial label;
-  };
-
-  // The extinction (per mm) at p.
-  CINEVOL_HD float Extinction(Vec3f p, Classified& c) const {
-    c.entry = s_.transfer.Entry(s_.volume.template SampleAs<kCubic>(p));
-    if constexpr (!kWithLabels) {
-      return s_.transfer.SigmaT(c.entry);
-    } else {
-      c.label = s_.labels.At(s_.volume, p);
-      return fminf(c.label.opacity_scale * s_.transfer.SigmaT(c.entry, c.label.table), s_.transfer.max_sigma_t);
-    }
-  }
-
-  CINEVOL_HD Material MaterialOf(const Classified& c) const {
-    if constexpr (!kWithLabels) {
-      return s_.transfer.MaterialAt(c.entry);
-    } else {
-      Material m = s_.transfer.MaterialAt(c.entry, c.label.table);
-      m.opacity = fminf(1.0f, m.opacity * c.label.opacity_scale);
-      if (c.label.has_color) m.diffuse = c.label.color;
-      return m;
-    }
-  }
+  CINEVOL_HD float Extinction(Vec3f p, Classified& c) const { return ExtinctionAt<kCubic, kWithLabels>(s_, p, c); }
+  CINEVOL_HD Material MaterialOf(const Classified& c) const { return cinevol::MaterialOf<kWithLabels>(s_, c); }
 
   // Delta tracking to the next real collision along the ray. A ray that
   // enters the kept region through a capped face meets the cut tissue there
