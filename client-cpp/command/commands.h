@@ -13,6 +13,7 @@ void AddLoadtestCommand(CLI::App& app);
 void AddPacsCommand(CLI::App& app);
 void AddPlayCommand(CLI::App& app);
 void AddSnapshotCommand(CLI::App& app);
+void AddSliceCommand(CLI::App& app);
 void AddRenderCommand(CLI::App& app);
 void AddStatusCommand(CLI::App& app);
 void AddVolumesCommand(CLI::App& app);

@@ -45,15 +45,21 @@ void WriteImage(const ImageRgbF& linear, float exposure, const std::filesystem::
   }
 }
 
+SceneVolume LoadSceneVolume(const v1::Scene& scene, const std::filesystem::path& base_dir) {
+  SceneVolume loaded;
+  loaded.volume = std::make_shared<const Volume>(LoadVolume(scene.volume(), base_dir));
+  if (StylesLabels(scene.labels()) && scene.volume().labels().empty()) {
+    throw InputError("labels: the scene styles labels but volume.labels names no segmentation");
+  }
+  loaded.labels = LoadSceneLabels(scene, *loaded.volume, base_dir);  // with the table where it removes it
+  return loaded;
+}
+
 OfflineRenderResult RenderToFile(const v1::Scene& scene, const std::filesystem::path& base_dir, int total_spp,
                                  Backend backend, const std::filesystem::path& out) {
   OfflineRenderResult result;
   const auto load_start = std::chrono::steady_clock::now();
-  const auto volume = std::make_shared<const Volume>(LoadVolume(scene.volume(), base_dir));
-  if (StylesLabels(scene.labels()) && scene.volume().labels().empty()) {
-    throw InputError("labels: the scene styles labels but volume.labels names no segmentation");
-  }
-  const auto labels = LoadSceneLabels(scene, *volume, base_dir);  // with the table where it removes it
+  const auto [volume, labels] = LoadSceneVolume(scene, base_dir);
   if (scene.labels().remove_table()) result.table = labels ? labels->table_note : "";
   v1::Scene lit = scene;
   ToVolumeFrame(lit, VolumePlacement::Of(*volume));  // the renderers' frame

@@ -2,9 +2,12 @@
 #pragma once
 
 #include <filesystem>
+#include <memory>
 #include <string>
 
 #include "cinevol/v1/scene.pb.h"
+#include "core/labels.h"
+#include "core/volume.h"
 #include "render/renderer.h"
 
 namespace cinevol::cli {
@@ -18,6 +21,15 @@ struct OfflineRenderResult {
   double paths_per_second = 0;
   std::string table;       // where the scene removes the table: what the search found
 };
+
+// A scene file's volume and segmentation, loaded as every offline command
+// (render, slice) loads them.
+struct SceneVolume {
+  std::shared_ptr<const Volume> volume;
+  std::shared_ptr<const LabelVolume> labels;  // with the table marked where the scene removes it; may be null
+};
+// Throws InputError where the scene styles labels but names no segmentation.
+SceneVolume LoadSceneVolume(const v1::Scene& scene, const std::filesystem::path& base_dir);
 
 // Loads the scene's volume, renders `total_spp` samples per pixel in frames of
 // the scene's spp, and writes `out`: .exr/.pfm linear radiance, .png/.jpg
