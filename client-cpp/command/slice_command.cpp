@@ -32,10 +32,9 @@ const std::map<std::string, SliceAxis> kAxes = {
 const std::map<std::string, SlabProjection> kProjections = {
     {"max", SlabProjection::kMax}, {"min", SlabProjection::kMin}, {"mean", SlabProjection::kMean}};
 
-// --window/--level, else --preset, else the volume's default; `name` says which.
+// --window/--level, else --preset (CLI11 refuses both), else the volume's default; `name` says which.
 VoiWindow ChooseWindow(const SliceOptions& o, const Volume& volume, std::string& name) {
   if (o.window.has_value() != o.level.has_value()) throw InputError("slice: --window and --level go together");
-  if (o.window && !o.preset.empty()) throw InputError("slice: give --window/--level or --preset, not both");
   if (o.window) {
     name = "given";
     return {*o.level, *o.window};

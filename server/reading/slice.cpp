@@ -196,7 +196,7 @@ LabelPaint PaintOf(int label, const LabelStyle& style, float opacity) {
 std::vector<LabelPaint> LabelPaints(const SliceLabels& labels, float opacity) {
   std::vector<LabelPaint> paints;
   if (!labels.volume) return paints;
-  const LabelSetup shown_all;
+  const LabelSetup shown_all{};
   const LabelSetup& setup = labels.setup ? *labels.setup : shown_all;
   for (int value = 0; value < labels.volume->value_count(); ++value) {
     const int label = labels.volume->LabelOf(value);  // derived values (shell, table) are label 0
