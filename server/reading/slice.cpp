@@ -183,14 +183,15 @@ constexpr float kPalette[][3] = {{31, 119, 180}, {255, 127, 14},  {44, 160, 44},
                                  {140, 86, 75},  {227, 119, 194}, {188, 189, 34}, {23, 190, 207}};
 constexpr int kPaletteSize = sizeof(kPalette) / sizeof(kPalette[0]);
 
+float Clamp01(float v) { return std::clamp(v, 0.0f, 1.0f); }
+
 LabelPaint PaintOf(int label, const LabelStyle& style, float opacity) {
   if (label == 0 || style.hidden()) return {};
   const float* fallback = kPalette[(label - 1) % kPaletteSize];
-  const Vec3f rgb =
-      style.has_color
-          ? Vec3f{LinearToSrgb(style.color.x), LinearToSrgb(style.color.y), LinearToSrgb(style.color.z)} * 255.0f
-          : Vec3f{fallback[0], fallback[1], fallback[2]};
-  return {Min(Max(rgb, Vec3f{0, 0, 0}), Vec3f{255, 255, 255}), std::clamp(opacity * style.opacity_scale, 0.0f, 1.0f)};
+  Vec3f rgb{fallback[0], fallback[1], fallback[2]};
+  // A style's colour as 8-bit sRGB, as a colour picker shows it.
+  for (int c = 0; c < 3 && style.has_color; ++c) rgb[c] = std::round(255.0f * LinearToSrgb(Clamp01(style.color[c])));
+  return {rgb, std::clamp(opacity * style.opacity_scale, 0.0f, 1.0f)};
 }
 
 std::vector<LabelPaint> LabelPaints(const SliceLabels& labels, float opacity) {

@@ -97,9 +97,10 @@ TEST(WindowLevel, VoiLinearFollowsTheStandardsThreeBranches) {
 }
 
 TEST(WindowLevel, AutoWindowSpansTheSubjectNotTheBackground) {
-  // An MR-like volume: background 0 around a subject of 100..300.
+  // An MR-like volume: background 0 around a subject of 4096 values spread evenly over 100..300.
   const Volume mr = IndexPhantom([](Vec3f p) {
-    return Within(p, {8, 8, 8}, {23, 23, 23}) ? 100.0f + 200.0f * (p.x - 8) / 15 : 0.0f;
+    const float rank = (p.x - 8) * 256 + (p.y - 8) * 16 + (p.z - 8);
+    return Within(p, {8, 8, 8}, {23, 23, 23}) ? 100.0f + 200.0f * rank / 4095 : 0.0f;
   });
   const VoiWindow w = AutoVoiWindow(mr.histogram());
   EXPECT_NEAR(w.center - 0.5 - (w.width - 1) / 2, 100, 10) << "the window starts near the subject's lowest values";
