@@ -30,7 +30,8 @@ fs::path WriteScene(const ScratchDir& scratch, const std::string& json) {
 TEST(SliceCommand, AnAxialSliceOfAPhantomIsItsVoxelGrid) {
   ScratchDir scratch;
   const fs::path scene =
-      WriteScene(scratch, R"({"volume": {"phantom": {"kind": "CUBE", "size": 40, "spacing": 0.5, "radius": 5}}})");
+      WriteScene(scratch, R"({"volume": {"phantom": {"kind": "CUBE", "size": 40, "spacing": 0.5, "radius": 5}},
+                      "clipping": {"planes": [{"normal": {"x": 1}}]}})");
   const fs::path out = scratch / "axial.png";
   auto [code, output] = Cinevol(scratch, {"slice", "--scene", scene.string(), "--axis", "axial", "--position", "0.25",
                                           "--window", "1", "--level", "500.5", "--out", out.string()});
@@ -42,6 +43,13 @@ TEST(SliceCommand, AnAxialSliceOfAPhantomIsItsVoxelGrid) {
   EXPECT_EQ(image.bytes[0], 0) << "the background (0) at the corner";
   EXPECT_TRUE(Has(output, "axial z=0.25 mm, 40x40 px, 0.5x0.5 mm, window 1 level 500.5")) << output;
   EXPECT_TRUE(Has(output, "left R right L top A bottom P")) << output;
+  EXPECT_EQ(image.bytes[3 * (20 * 40 + 15)], 255) << "the scene's clip plane is ignored without --clip";
+
+  std::tie(code, output) = Cinevol(scratch, {"slice", "--scene", scene.string(), "--position", "0.25", "--window", "1",
+                                             "--level", "500.5", "--clip", "--out", out.string()});
+  ASSERT_EQ(code, 0) << output;
+  EXPECT_EQ(ReadPng(out).bytes[3 * (20 * 40 + 15)], 0) << "--clip: the patient's right (x < 0) is cut away";
+  EXPECT_EQ(ReadPng(out).bytes[3 * (20 * 40 + 20)], 255) << "--clip: the patient's left is kept";
 
   std::tie(code, output) = Cinevol(scratch, {"slice", "--scene", scene.string(), "--axis", "sagittal", "--slab", "4",
                                              "--projection", "mean", "--preset", "bone", "--out", out.string()});
