@@ -105,9 +105,14 @@ struct VoxelGrid {
     return q.x >= -0.5f && q.y >= -0.5f && q.z >= -0.5f && q.x <= float(dims.x) - 0.5f && q.y <= float(dims.y) - 0.5f &&
            q.z <= float(dims.z) - 0.5f;
   }
-  float Nearest(Vec3f q) const {
-    return Stored(int(std::floor(q.x + 0.5f)), int(std::floor(q.y + 0.5f)), int(std::floor(q.z + 0.5f))) + offset;
+  // The index of the voxel nearest q, clamped to the grid: for values and labels alike.
+  std::int64_t NearestIndex(Vec3f q) const {
+    const int x = std::clamp(int(std::floor(q.x + 0.5f)), 0, dims.x - 1);
+    const int y = std::clamp(int(std::floor(q.y + 0.5f)), 0, dims.y - 1);
+    const int z = std::clamp(int(std::floor(q.z + 0.5f)), 0, dims.z - 1);
+    return (std::int64_t(z) * dims.y + y) * dims.x + x;
   }
+  float Nearest(Vec3f q) const { return float(voxels[NearestIndex(q)]) + offset; }
   float Linear(Vec3f q) const {
     const float fx = std::floor(q.x), fy = std::floor(q.y), fz = std::floor(q.z);
     const int x = int(fx), y = int(fy), z = int(fz);
@@ -248,11 +253,7 @@ struct SlicePass {
   // The label overlay at plane sample q (nearest voxel), or nothing.
   LabelPaint PaintAt(Vec3f q) const {
     if (!labels || !Keeps(q)) return {};
-    const int x = int(std::floor(q.x + 0.5f)), y = int(std::floor(q.y + 0.5f)), z = int(std::floor(q.z + 0.5f));
-    const Vec3i d = grid.dims;
-    const std::uint16_t value =
-        labels[(std::int64_t(std::clamp(z, 0, d.z - 1)) * d.y + std::clamp(y, 0, d.y - 1)) * d.x +
-               std::clamp(x, 0, d.x - 1)];
+    const std::uint16_t value = labels[grid.NearestIndex(q)];
     return value < paints.size() ? paints[value] : LabelPaint{};
   }
 
@@ -291,8 +292,9 @@ void RunPass(const Volume& volume, const T* voxels, float offset, const SliceLab
 }
 
 void CheckRenderable(const Volume& volume, const SliceLabels& labels, const SliceSpec& spec) {
-  if (!(spec.window.width >= 1.0) || !std::isfinite(spec.window.center)) {
-    throw InputError(fmt::format("slice: window width {} is below 1 (DICOM VOI LINEAR needs >= 1)", spec.window.width));
+  if (!(spec.window.width >= 1.0 && std::isfinite(spec.window.width)) || !std::isfinite(spec.window.center)) {
+    throw InputError(fmt::format("slice: window width {} and level {}: VOI LINEAR needs a finite width >= 1",
+                                 spec.window.width, spec.window.center));
   }
   if (!(spec.slab_mm >= 0.0f && spec.slab_mm <= 1e4f)) throw InputError("slice: slab thickness outside [0, 1e4] mm");
   if (!(spec.label_opacity >= 0.0f && spec.label_opacity <= 1.0f))
