@@ -17,8 +17,8 @@ namespace cinevol {
 // DICOM Window Center (0028,1050) and Window Width (0028,1051), in the
 // volume's value unit.
 struct VoiWindow {
-  double center = 40;  // level
-  double width = 400;  // >= 1; DICOM forbids less
+  double center = 50;  // level; the default is soft tissue's
+  double width = 350;  // >= 1, as DICOM requires
 };
 
 // VOI LINEAR to [0, 255], rounded to the nearest grey level:
