@@ -14,6 +14,7 @@ void AddPacsCommand(CLI::App& app);
 void AddPickCommand(CLI::App& app);
 void AddPlayCommand(CLI::App& app);
 void AddSnapshotCommand(CLI::App& app);
+void AddSliceCommand(CLI::App& app);
 void AddRenderCommand(CLI::App& app);
 void AddStatusCommand(CLI::App& app);
 void AddVolumesCommand(CLI::App& app);

@@ -15,6 +15,7 @@ int main(int argc, char** argv) {
   app.parse_complete_callback([&] { spdlog::set_level(verbose ? spdlog::level::debug : spdlog::level::info); });
   cinevol::cli::AddDemoCommand(app);
   cinevol::cli::AddRenderCommand(app);
+  cinevol::cli::AddSliceCommand(app);
   cinevol::cli::AddInfoCommand(app);
   cinevol::cli::AddLoadtestCommand(app);
   cinevol::cli::AddPacsCommand(app);

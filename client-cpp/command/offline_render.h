@@ -22,7 +22,7 @@ struct OfflineRenderResult {
 };
 
 // A scene's volume and segmentation loaded as offline commands (render,
-// pick) read them, and the scene in the volume-centred frame the renderers
+// pick, slice) read them, and the scene in the volume-centred frame the renderers
 // work in.
 struct OfflineScene {
   std::shared_ptr<const Volume> volume;

@@ -1,0 +1,381 @@
+// RenderSlice: plan the plane's pixels, then one pass over them in the
+// volume's index space (every step between pixels and slab samples is a
+// fixed offset there).
+#include "reading/slice.h"
+
+#include <fmt/format.h>
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <vector>
+
+#include "core/error.h"
+#include "core/parallel_for.h"
+#include "core/tone_map.h"
+#include "scene/scene_frame.h"
+
+namespace cinevol {
+namespace {
+
+// A plane through `point` with its image axes (unit, perpendicular).
+struct PlaneAxes {
+  Vec3f point, row, column;
+};
+
+PlaneAxes ObliqueAxes(const SliceSpec& spec) {
+  if (!(Length(spec.normal_lps) > 0.0f) || !(Length(spec.row_lps) > 0.0f) || !IsFinite(spec.point_lps)) {
+    throw InputError("slice: an oblique plane needs a finite point and non-zero normal and row directions");
+  }
+  const Vec3f normal = Normalize(spec.normal_lps);
+  const Vec3f row = spec.row_lps - normal * Dot(spec.row_lps, normal);
+  if (!(Length(row) > 1e-3f * Length(spec.row_lps))) throw InputError("slice: the row direction is along the normal");
+  const Vec3f unit_row = Normalize(row);
+  return {spec.point_lps, unit_row, Cross(normal, unit_row)};
+}
+
+PlaneAxes AxesOf(const SliceSpec& spec) {
+  const float p = spec.position_mm;
+  switch (spec.axis) {
+    case SliceAxis::kAxial:
+      return {{0, 0, p}, {1, 0, 0}, {0, 1, 0}};
+    case SliceAxis::kCoronal:
+      return {{0, p, 0}, {1, 0, 0}, {0, 0, -1}};
+    case SliceAxis::kSagittal:
+      return {{p, 0, 0}, {0, 1, 0}, {0, 0, -1}};
+    case SliceAxis::kOblique:
+      break;
+  }
+  return ObliqueAxes(spec);
+}
+
+// The LPS positions of the volume's eight outermost voxel centres.
+std::vector<Vec3f> CornerCentres(const Volume& volume) {
+  const VolumePlacement placement = VolumePlacement::Of(volume);
+  const Vec3f last = ToFloat(volume.dims()) - Vec3f{1, 1, 1};
+  std::vector<Vec3f> corners;
+  for (int i = 0; i < 8; ++i) {
+    const Vec3f index{i & 1 ? last.x : 0.0f, i & 2 ? last.y : 0.0f, i & 4 ? last.z : 0.0f};
+    corners.push_back(placement.DirectionToPatient(index * volume.spacing_mm()) + placement.origin);
+  }
+  return corners;
+}
+
+// The spacing of the index axis closest to `direction`: one pixel per voxel.
+float SpacingAlong(const Volume& volume, Vec3f direction) {
+  int best = 0;
+  float best_cosine = -1;
+  for (int a = 0; a < 3; ++a) {
+    const float cosine = std::abs(Dot(IndexAxisDirection(volume.metadata().direction, a), direction));
+    if (cosine > best_cosine) best = a, best_cosine = cosine;
+  }
+  return volume.spacing_mm()[best];
+}
+
+struct Span {
+  float lo = std::numeric_limits<float>::infinity(), hi = -std::numeric_limits<float>::infinity();
+};
+
+Span ProjectCorners(const std::vector<Vec3f>& corners, Vec3f from, Vec3f direction) {
+  Span span;
+  for (Vec3f c : corners) {
+    const float t = Dot(c - from, direction);
+    span.lo = std::min(span.lo, t), span.hi = std::max(span.hi, t);
+  }
+  return span;
+}
+
+// Pixels covering `span` at `pixel_mm`, the outermost centres on its ends.
+int PixelsOver(Span span, float pixel_mm) { return int(std::lround((span.hi - span.lo) / pixel_mm)) + 1; }
+
+// Voxel values in index space (voxel centres at integers), clamped to the
+// grid at its edges as the renderers' lookups are.
+template <class T>
+struct VoxelGrid {
+  const T* voxels;
+  Vec3i dims;
+  float offset;  // value = stored + offset
+
+  float Stored(int x, int y, int z) const {
+    x = std::clamp(x, 0, dims.x - 1), y = std::clamp(y, 0, dims.y - 1), z = std::clamp(z, 0, dims.z - 1);
+    return float(voxels[(std::int64_t(z) * dims.y + y) * dims.x + x]);
+  }
+  // Within half a voxel of a voxel centre: inside the volume's box.
+  bool Inside(Vec3f q) const {
+    return q.x >= -0.5f && q.y >= -0.5f && q.z >= -0.5f && q.x <= float(dims.x) - 0.5f && q.y <= float(dims.y) - 0.5f &&
+           q.z <= float(dims.z) - 0.5f;
+  }
+  // The index of the voxel nearest q, clamped to the grid: for values and labels alike.
+  std::int64_t NearestIndex(Vec3f q) const {
+    const int x = std::clamp(int(std::floor(q.x + 0.5f)), 0, dims.x - 1);
+    const int y = std::clamp(int(std::floor(q.y + 0.5f)), 0, dims.y - 1);
+    const int z = std::clamp(int(std::floor(q.z + 0.5f)), 0, dims.z - 1);
+    return (std::int64_t(z) * dims.y + y) * dims.x + x;
+  }
+  float Nearest(Vec3f q) const { return float(voxels[NearestIndex(q)]) + offset; }
+  float Linear(Vec3f q) const {
+    const float fx = std::floor(q.x), fy = std::floor(q.y), fz = std::floor(q.z);
+    const int x = int(fx), y = int(fy), z = int(fz);
+    const float tx = q.x - fx, ty = q.y - fy, tz = q.z - fz;
+    auto along_x = [&](int yy, int zz) {
+      const float a = Stored(x, yy, zz);
+      return a + tx * (Stored(x + 1, yy, zz) - a);
+    };
+    const float c00 = along_x(y, z), c10 = along_x(y + 1, z), c01 = along_x(y, z + 1), c11 = along_x(y + 1, z + 1);
+    const float c0 = c00 + ty * (c10 - c00), c1 = c01 + ty * (c11 - c01);
+    return c0 + tz * (c1 - c0) + offset;
+  }
+};
+
+// Where pixel (0, 0)'s plane sample is in index space, and the steps to the
+// next column, the next row and the next slab sample.
+struct IndexSteps {
+  Vec3f first, column, row, slab;
+  int slab_half = 0;  // samples on each side of the plane
+};
+
+// The first pixel's index coordinates within this of a whole number are
+// taken as it: the float round trip through patient space leaves a plane on
+// voxel centres a hair off them, and linear interpolation would blend in the
+// neighbours by that hair. (The steps of an axis-aligned slice come out exact.)
+constexpr float kOnGrid = 1e-4f;
+
+Vec3f SnapToGrid(Vec3f q) {
+  for (int a = 0; a < 3; ++a) {
+    const float whole = std::round(q[a]);
+    if (std::abs(q[a] - whole) < kOnGrid) q[a] = whole;
+  }
+  return q;
+}
+
+IndexSteps StepsOf(const Volume& volume, const SliceGeometry& g, float slab_mm) {
+  const VolumePlacement placement = VolumePlacement::Of(volume);
+  const Vec3f spacing = volume.spacing_mm();
+  auto index_of = [&](Vec3f lps) { return SnapToGrid((placement.PointToVolume(lps) - placement.shift) / spacing); };
+  auto step_of = [&](Vec3f lps_step) { return placement.DirectionToVolume(lps_step) / spacing; };
+  const float slab_step = SlabStep(volume, g.normal);
+  // A hair over half: a slab of exactly k steps keeps its outermost samples.
+  // No further than the volume's diagonal: samples beyond it are never inside.
+  const float reach = std::min(slab_mm / 2, Length(volume.extent_mm()));
+  const int half = int(std::floor(reach / slab_step + 1e-4f));
+  return {index_of(g.top_left_lps), step_of(g.row_direction * g.pixel_width_mm),
+          step_of(g.column_direction * g.pixel_height_mm), step_of(g.normal * slab_step), half};
+}
+
+// The scene's half-spaces (world mm, ResolveClipping) in index space.
+std::vector<Vec4f> ClipInIndexSpace(const ClipRegion* clip, const Volume& volume) {
+  std::vector<Vec4f> half_spaces;
+  if (!clip) return half_spaces;
+  const Vec3f spacing = volume.spacing_mm(), shift = VolumePlacement::Of(volume).shift;
+  // Dot(n, q * spacing + shift) + w = Dot(n * spacing, q) + Dot(n, shift) + w.
+  for (int i = 0; i < clip->count; ++i) {
+    const Vec3f n = Xyz(clip->half_spaces[i]);
+    half_spaces.push_back(ToVec4(n * spacing, Dot(n, shift) + clip->half_spaces[i].w));
+  }
+  return half_spaces;
+}
+
+// What an overlay paints for a stored label value: an sRGB colour (0-255)
+// and its opacity; 0 paints nothing.
+struct LabelPaint {
+  Vec3f rgb;
+  float alpha = 0;
+};
+
+// Labels without a colour of their own take these (sRGB; no grey, which
+// the image is).
+constexpr float kPalette[][3] = {{31, 119, 180}, {255, 127, 14},  {44, 160, 44},  {214, 39, 40}, {148, 103, 189},
+                                 {140, 86, 75},  {227, 119, 194}, {188, 189, 34}, {23, 190, 207}};
+constexpr int kPaletteSize = sizeof(kPalette) / sizeof(kPalette[0]);
+
+float Clamp01(float v) { return std::clamp(v, 0.0f, 1.0f); }
+
+LabelPaint PaintOf(int label, const LabelStyle& style, float opacity) {
+  if (label == 0 || style.hidden()) return {};
+  const float* fallback = kPalette[(label - 1) % kPaletteSize];
+  Vec3f rgb{fallback[0], fallback[1], fallback[2]};
+  // A style's colour as 8-bit sRGB, as a colour picker shows it.
+  for (int c = 0; c < 3 && style.has_color; ++c) rgb[c] = std::round(255.0f * LinearToSrgb(Clamp01(style.color[c])));
+  return {rgb, std::clamp(opacity * style.opacity_scale, 0.0f, 1.0f)};
+}
+
+std::vector<LabelPaint> LabelPaints(const SliceLabels& labels, float opacity) {
+  std::vector<LabelPaint> paints;
+  if (!labels.volume) return paints;
+  const LabelSetup shown_all{};
+  const LabelSetup& setup = labels.setup ? *labels.setup : shown_all;
+  for (int value = 0; value < labels.volume->value_count(); ++value) {
+    const int label = labels.volume->LabelOf(value);  // derived values (shell, table) are label 0
+    paints.push_back(PaintOf(label, setup.StyleOf(label), opacity));
+  }
+  return paints;
+}
+
+// One slice's pass over its pixels.
+template <class T>
+struct SlicePass {
+  VoxelGrid<T> grid;
+  IndexSteps steps;
+  std::vector<Vec4f> clip;                // index space; empty keeps everything
+  const std::uint16_t* labels = nullptr;  // on the grid; null: no overlay
+  std::vector<LabelPaint> paints;         // by stored label value
+  VoiWindow window;
+  bool nearest = false;
+  SlabProjection projection = SlabProjection::kMax;
+
+  bool Keeps(Vec3f q) const {
+    if (!grid.Inside(q)) return false;
+    for (const Vec4f& h : clip) {
+      if (Dot(Xyz(h), q) + h.w < 0.0f) return false;
+    }
+    return true;
+  }
+
+  // The slab's projection through plane sample q; false where no sample is kept.
+  bool Project(Vec3f q, float& value) const {
+    float acc = projection == SlabProjection::kMin   ? std::numeric_limits<float>::infinity()
+                : projection == SlabProjection::kMax ? -std::numeric_limits<float>::infinity()
+                                                     : 0.0f;
+    int kept = 0;
+    for (int j = -steps.slab_half; j <= steps.slab_half; ++j) {
+      const Vec3f s = q + steps.slab * float(j);
+      if (!Keeps(s)) continue;
+      const float v = nearest ? grid.Nearest(s) : grid.Linear(s);
+      acc = projection == SlabProjection::kMin   ? std::min(acc, v)
+            : projection == SlabProjection::kMax ? std::max(acc, v)
+                                                 : acc + v;
+      ++kept;
+    }
+    value = projection == SlabProjection::kMean ? acc / float(std::max(kept, 1)) : acc;
+    return kept > 0;
+  }
+
+  // The label overlay at plane sample q (nearest voxel), or nothing.
+  LabelPaint PaintAt(Vec3f q) const {
+    if (!labels || !Keeps(q)) return {};
+    const std::uint16_t value = labels[grid.NearestIndex(q)];
+    return value < paints.size() ? paints[value] : LabelPaint{};
+  }
+
+  void Pixel(int column, int row, std::uint8_t* rgb) const {
+    const Vec3f q = steps.first + steps.column * float(column) + steps.row * float(row);
+    float value = 0;
+    if (!Project(q, value)) {
+      rgb[0] = rgb[1] = rgb[2] = 0;
+      return;
+    }
+    const float grey = ApplyVoiLinear(value, window);
+    const LabelPaint paint = PaintAt(q);
+    for (int c = 0; c < 3; ++c) rgb[c] = std::uint8_t(grey + (paint.rgb[c] - grey) * paint.alpha + 0.5f);
+  }
+
+  void Run(ImageRgb8& image) const {
+    ParallelFor(image.height, [&](std::int64_t row) {
+      std::uint8_t* line = image.bytes.data() + std::size_t(row) * image.width * 3;
+      for (int column = 0; column < image.width; ++column) Pixel(column, int(row), line + 3 * column);
+    });
+  }
+};
+
+template <class T>
+void RunPass(const Volume& volume, const T* voxels, float offset, const SliceLabels& labels, const ClipRegion* clip,
+             const SliceSpec& spec, SliceImage& out) {
+  SlicePass<T> pass{{voxels, volume.dims(), offset},
+                    StepsOf(volume, out.geometry, spec.slab_mm),
+                    ClipInIndexSpace(clip, volume),
+                    labels.volume ? labels.volume->labels.data() : nullptr,
+                    LabelPaints(labels, spec.label_opacity),
+                    spec.window,
+                    spec.nearest,
+                    spec.projection};
+  pass.Run(out.image);
+}
+
+void CheckRenderable(const Volume& volume, const SliceLabels& labels, const SliceSpec& spec) {
+  if (!(spec.window.width >= 1.0 && std::isfinite(spec.window.width)) || !std::isfinite(spec.window.center)) {
+    throw InputError(fmt::format("slice: window width {} and level {}: VOI LINEAR needs a finite width >= 1",
+                                 spec.window.width, spec.window.center));
+  }
+  if (!(spec.slab_mm >= 0.0f && spec.slab_mm <= 1e4f)) throw InputError("slice: slab thickness outside [0, 1e4] mm");
+  if (!(spec.label_opacity >= 0.0f && spec.label_opacity <= 1.0f))
+    throw InputError("slice: label opacity outside [0, 1]");
+  if (labels.volume &&
+      !(labels.volume->dims == volume.dims() && labels.volume->labels.size() == volume.voxel_count())) {
+    throw InputError("slice: the labels are not on the volume's grid");
+  }
+}
+
+}  // namespace
+
+const char* ToString(SliceAxis axis) {
+  switch (axis) {
+    case SliceAxis::kAxial:
+      return "axial";
+    case SliceAxis::kCoronal:
+      return "coronal";
+    case SliceAxis::kSagittal:
+      return "sagittal";
+    case SliceAxis::kOblique:
+      break;
+  }
+  return "oblique";
+}
+
+const char* ToString(SlabProjection projection) {
+  return projection == SlabProjection::kMax ? "max" : (projection == SlabProjection::kMin ? "min" : "mean");
+}
+
+SliceGeometry PlanSlice(const Volume& volume, const SliceSpec& spec) {
+  const PlaneAxes axes = AxesOf(spec);
+  if (!(spec.pixel_mm >= 0.0f && spec.pixel_mm <= 1e4f)) throw InputError("slice: pixel size outside [0, 1e4] mm");
+  SliceGeometry g;
+  g.row_direction = axes.row;
+  g.column_direction = axes.column;
+  g.normal = Cross(axes.row, axes.column);
+  const bool oblique = spec.axis == SliceAxis::kOblique;
+  const float oblique_mm = spec.pixel_mm > 0.0f ? spec.pixel_mm : MinComponent(volume.spacing_mm());
+  g.pixel_width_mm = oblique ? oblique_mm : SpacingAlong(volume, axes.row);
+  g.pixel_height_mm = oblique ? oblique_mm : SpacingAlong(volume, axes.column);
+  const std::vector<Vec3f> corners = CornerCentres(volume);
+  const Span across = ProjectCorners(corners, axes.point, axes.row);
+  const Span down = ProjectCorners(corners, axes.point, axes.column);
+  g.width = PixelsOver(across, g.pixel_width_mm);
+  g.height = PixelsOver(down, g.pixel_height_mm);
+  if (static_cast<long long>(g.width) * g.height > kMaxSlicePixels) {
+    throw InputError(fmt::format("slice: {}x{} pixels is beyond the limit of {}", g.width, g.height, kMaxSlicePixels));
+  }
+  g.top_left_lps = axes.point + axes.row * across.lo + axes.column * down.lo;
+  g.letters = EdgeLettersOf(g.row_direction, g.column_direction);
+  return g;
+}
+
+PositionRange SlicePositionRange(const Volume& volume, SliceAxis axis) {
+  const int lps_axis = axis == SliceAxis::kAxial ? 2 : (axis == SliceAxis::kCoronal ? 1 : 0);
+  PositionRange range{std::numeric_limits<float>::infinity(), -std::numeric_limits<float>::infinity()};
+  for (Vec3f c : CornerCentres(volume)) {
+    range.lo = std::min(range.lo, c[lps_axis]), range.hi = std::max(range.hi, c[lps_axis]);
+  }
+  return range;
+}
+
+float SlabStep(const Volume& volume, Vec3f normal) {
+  const Vec3f voxels_per_mm = VolumePlacement::Of(volume).DirectionToVolume(Normalize(normal)) / volume.spacing_mm();
+  return 1.0f / Length(voxels_per_mm);
+}
+
+SliceImage RenderSlice(const Volume& volume, const SliceLabels& labels, const ClipRegion* clip, const SliceSpec& spec) {
+  CheckRenderable(volume, labels, spec);
+  SliceImage out;
+  out.geometry = PlanSlice(volume, spec);
+  out.image.width = out.geometry.width;
+  out.image.height = out.geometry.height;
+  out.image.bytes.assign(std::size_t(out.image.width) * out.image.height * 3, 0);
+  if (volume.storage() == VoxelStorage::kUInt16) {
+    RunPass(volume, volume.u16().data(), volume.stored_offset(), labels, clip, spec, out);
+  } else {
+    RunPass(volume, volume.f32().data(), 0.0f, labels, clip, spec, out);
+  }
+  return out;
+}
+
+}  // namespace cinevol

@@ -1,0 +1,116 @@
+// Reading slices rendered on the CPU: axial, coronal, sagittal or oblique
+// planes of a volume through a window/level to 8-bit grey, with slabs
+// (maximum, minimum or mean along the normal), the label overlay and the
+// scene's clipping. Deterministic and final in one pass: the same inputs
+// give the same bytes.
+//
+// Conventions (radiological; docs/reading.md): image x runs along the row
+// direction, image y down the column direction, the normal is row x column.
+//   axial:    row +L, column +P  (R|L at the left|right edges, A top, P bottom)
+//   coronal:  row +L, column +I  (R|L, S top, I bottom)
+//   sagittal: row +P, column +I  (A|P, S top, I bottom)
+#pragma once
+
+#include <string>
+
+#include "core/clip_region.h"
+#include "core/image.h"
+#include "core/labels.h"
+#include "core/vec.h"
+#include "core/volume.h"
+#include "reading/orientation.h"
+#include "reading/window_level.h"
+
+namespace cinevol {
+
+enum class SliceAxis { kAxial, kCoronal, kSagittal, kOblique };
+enum class SlabProjection { kMax, kMin, kMean };
+
+const char* ToString(SliceAxis axis);             // "axial", "coronal", "sagittal", "oblique"
+const char* ToString(SlabProjection projection);  // "max", "min", "mean"
+
+struct SliceSpec {
+  SliceAxis axis = SliceAxis::kAxial;
+  // Axis-aligned slices: the plane's LPS coordinate, mm: z (axial), y (coronal), x (sagittal).
+  float position_mm = 0;
+  // kOblique: a point of the plane, its normal and the direction along an
+  // image row (LPS; made perpendicular to the normal). The column direction
+  // is normal x row.
+  Vec3f point_lps;
+  Vec3f normal_lps{0, 0, 1};
+  Vec3f row_lps{1, 0, 0};
+  // kOblique: mm per pixel, both ways; 0: the volume's smallest spacing. (0, 1e4]
+  // Axis-aligned slices take the volume's own spacing: one pixel per voxel.
+  float pixel_mm = 0;
+  VoiWindow window;
+  bool nearest = false;  // nearest-neighbour values instead of linear (labels are always nearest)
+  // Thickness along the normal, mm, centred on the plane; [0, 1e4]. 0: a
+  // thin slice. Samples lie every volume spacing along the normal (SlabStep)
+  // from -slab/2 to +slab/2, the plane's one included.
+  float slab_mm = 0;
+  SlabProjection projection = SlabProjection::kMax;
+  // [0, 1]: a label's overlay opacity at its style's opacity_scale 1 (scaled by it, capped at 1).
+  float label_opacity = 0.5f;
+};
+
+// Where a slice's pixels lie in the patient.
+struct SliceGeometry {
+  int width = 0, height = 0;
+  Vec3f top_left_lps;         // LPS mm of the centre of pixel (0, 0), the top-left one
+  Vec3f row_direction;        // LPS unit vector: to the next pixel of a row (image +x)
+  Vec3f column_direction;     // LPS unit vector: to the next row (image +y)
+  Vec3f normal;               // row x column
+  float pixel_width_mm = 1;   // between columns
+  float pixel_height_mm = 1;  // between rows
+  EdgeLetters letters;        // at the image's edges
+
+  // LPS mm of image point (column, row): pixel centres at integers, (0, 0)
+  // the top-left pixel's; a pixel's own position exactly.
+  Vec3f PixelToPatient(float column, float row) const {
+    return top_left_lps + row_direction * (column * pixel_width_mm) + column_direction * (row * pixel_height_mm);
+  }
+};
+
+// A segmentation to overlay: its labels on the volume's grid (io/
+// label_volume.h fits them), and how they show (Scene.labels resolved:
+// colour, visible, opacity_scale). No volume: no overlay. No setup: every
+// label shows in the default palette's colours. Label 0 and the derived
+// values (shell, table) are never drawn.
+struct SliceLabels {
+  const LabelVolume* volume = nullptr;
+  const LabelSetup* setup = nullptr;
+};
+
+struct SliceImage {
+  ImageRgb8 image;
+  SliceGeometry geometry;
+};
+
+// The plane and its pixels without rendering them: the image covers the
+// volume's projection onto the plane (voxel centres, the outermost ones on
+// the edge pixels). Throws InputError for a zero normal or row, a row
+// along the normal, or an image beyond kMaxSlicePixels.
+SliceGeometry PlanSlice(const Volume& volume, const SliceSpec& spec);
+
+// Pixels a slice may have: twice the largest grid side, squared.
+inline constexpr long long kMaxSlicePixels = 4LL * kMaxVoxelsPerAxis * kMaxVoxelsPerAxis;
+
+// The LPS coordinates (mm) of the outermost voxel centres along an
+// axis-aligned slice's axis: where position_mm meets the volume.
+struct PositionRange {
+  float lo = 0, hi = 0;
+};
+PositionRange SlicePositionRange(const Volume& volume, SliceAxis axis);
+
+// The distance between slab samples along `normal` (LPS): one voxel's
+// reach along it, the axis's spacing for a normal along an index axis.
+float SlabStep(const Volume& volume, Vec3f normal);
+
+// Renders `spec`'s slice. Pixels with no sample inside the volume (and
+// inside `clip`, where one is given) are black; `clip` is the scene's
+// resolved crop box and clip planes (scene/scene_builder.h ResolveClipping,
+// world mm); null ignores them. Throws InputError for a window narrower
+// than 1, a negative slab or labels on another grid.
+SliceImage RenderSlice(const Volume& volume, const SliceLabels& labels, const ClipRegion* clip, const SliceSpec& spec);
+
+}  // namespace cinevol

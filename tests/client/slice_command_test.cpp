@@ -1,0 +1,106 @@
+// `cinevol slice` as scripts run it (issue 36): a phantom scene's axial
+// slice is its voxel grid, one pixel per voxel; a real CT with its
+// segmentation at the CT's own 512x512; bad requests exit 2 with one line.
+#include <gtest/gtest.h>
+
+#include <fstream>
+
+#include "encode/image_codecs.h"
+#include "service/server_process.h"
+#include "support/test_paths.h"
+
+namespace cinevol::testing {
+namespace {
+
+namespace fs = std::filesystem;
+using namespace std::chrono_literals;
+
+std::pair<int, std::string> Cinevol(const ScratchDir& scratch, const std::vector<std::string>& args) {
+  return RunProgram(CliPath(), args, scratch / "cinevol.log", 120s);
+}
+
+bool Has(const std::string& text, const std::string& part) { return text.find(part) != std::string::npos; }
+
+fs::path WriteScene(const ScratchDir& scratch, const std::string& json) {
+  const fs::path path = scratch / "scene.json";
+  std::ofstream(path) << json;
+  return path;
+}
+
+TEST(SliceCommand, AnAxialSliceOfAPhantomIsItsVoxelGrid) {
+  ScratchDir scratch;
+  const fs::path scene =
+      WriteScene(scratch, R"({"volume": {"phantom": {"kind": "CUBE", "size": 40, "spacing": 0.5, "radius": 5}},
+                      "clipping": {"planes": [{"normal": {"x": 1}}]}})");
+  const fs::path out = scratch / "axial.png";
+  auto [code, output] = Cinevol(scratch, {"slice", "--scene", scene.string(), "--axis", "axial", "--position", "0.25",
+                                          "--window", "1", "--level", "500.5", "--out", out.string()});
+  ASSERT_EQ(code, 0) << output;
+  const ImageRgb8 image = ReadPng(out);
+  EXPECT_EQ(image.width, 40);
+  EXPECT_EQ(image.height, 40);
+  EXPECT_EQ(image.bytes[3 * (20 * 40 + 20)], 255) << "the cube (1000) at the centre";
+  EXPECT_EQ(image.bytes[0], 0) << "the background (0) at the corner";
+  EXPECT_TRUE(Has(output, "axial z=0.25 mm, 40x40 px, 0.5x0.5 mm, window 1 level 500.5")) << output;
+  EXPECT_TRUE(Has(output, "left R right L top A bottom P")) << output;
+  EXPECT_EQ(image.bytes[3 * (20 * 40 + 15)], 255) << "the scene's clip plane is ignored without --clip";
+
+  std::tie(code, output) = Cinevol(scratch, {"slice", "--scene", scene.string(), "--position", "0.25", "--window", "1",
+                                             "--level", "500.5", "--clip", "--out", out.string()});
+  ASSERT_EQ(code, 0) << output;
+  EXPECT_EQ(ReadPng(out).bytes[3 * (20 * 40 + 15)], 0) << "--clip: the patient's right (x < 0) is cut away";
+  EXPECT_EQ(ReadPng(out).bytes[3 * (20 * 40 + 20)], 255) << "--clip: the patient's left is kept";
+
+  std::tie(code, output) = Cinevol(scratch, {"slice", "--scene", scene.string(), "--axis", "sagittal", "--slab", "4",
+                                             "--projection", "mean", "--preset", "bone", "--out", out.string()});
+  ASSERT_EQ(code, 0) << output;
+  EXPECT_TRUE(Has(output, "slab 4 mm mean")) << output;
+  EXPECT_TRUE(Has(output, "left A right P top S bottom I")) << output;
+}
+
+TEST(SliceCommand, BadRequestsExitTwoWithOneLine) {
+  ScratchDir scratch;
+  const fs::path scene = WriteScene(scratch, R"({"volume": {"phantom": {"kind": "SPHERE", "size": 16}}})");
+  const std::string out = (scratch / "s.png").string();
+  auto [code, output] = Cinevol(scratch, {"slice", "--scene", scene.string(), "--position", "50", "--out", out});
+  EXPECT_EQ(code, 2);
+  EXPECT_TRUE(Has(output, "outside the volume's axial range [-7.500, 7.500] mm")) << output;
+  std::tie(code, output) = Cinevol(scratch, {"slice", "--scene", scene.string(), "--window", "80", "--out", out});
+  EXPECT_EQ(code, 2);
+  EXPECT_TRUE(Has(output, "--window and --level go together")) << output;
+  EXPECT_EQ(Cinevol(scratch, {"slice", "--scene", scene.string(), "--axis", "oblique", "--out", out}).first, 2);
+  EXPECT_EQ(Cinevol(scratch, {"slice", "--scene", scene.string(), "--out", (scratch / "s.jpg").string()}).first, 2);
+}
+
+// A real CT (512 x 512 x 20 DICOM, JPEG 2000) with its TotalSegmentator
+// labels: an axial slice at the CT's own spacing, soft tissue, labels painted.
+TEST(SliceCommand, ARealCtSliceKeepsItsGridAndPaintsItsLabels) {
+  CINEVOL_REQUIRE_SHARED_DATA();
+  const fs::path data = SharedData() / "ct-body-totalsegmentator";
+  ScratchDir scratch;
+  const fs::path scene =
+      WriteScene(scratch, R"({"volume": {"dicomFolder": ")" + (data / "example_ct_dicom").string() +
+                              R"(", "labels": ")" + (data / "example_seg_dicom.nii.gz").string() +
+                              R"(", "labelTable": ")" + (data / "labels-total.tsv").string() + R"("}})");
+  const fs::path out = scratch / "ct.png";
+  auto [code, output] =
+      Cinevol(scratch, {"slice", "--scene", scene.string(), "--preset", "soft-tissue", "--out", out.string()});
+  ASSERT_EQ(code, 0) << output;
+  const ImageRgb8 image = ReadPng(out);
+  EXPECT_EQ(image.width, 512);
+  EXPECT_EQ(image.height, 512);
+  EXPECT_TRUE(Has(output, "window 350 level 50 (soft-tissue)")) << output;
+  EXPECT_TRUE(Has(output, "left R right L top A bottom P")) << output;
+  int coloured = 0;
+  for (std::size_t i = 0; i < image.bytes.size(); i += 3) coloured += image.bytes[i] != image.bytes[i + 1];
+  EXPECT_GT(coloured, 1000) << "the segmentation's organs are painted";
+  std::tie(code, output) = Cinevol(scratch, {"slice", "--scene", scene.string(), "--no-labels", "--out", out.string()});
+  ASSERT_EQ(code, 0) << output;
+  const ImageRgb8 grey = ReadPng(out);
+  coloured = 0;
+  for (std::size_t i = 0; i < grey.bytes.size(); i += 3) coloured += grey.bytes[i] != grey.bytes[i + 1];
+  EXPECT_EQ(coloured, 0) << "--no-labels: grey only";
+}
+
+}  // namespace
+}  // namespace cinevol::testing
