@@ -38,6 +38,18 @@ const sample = (page: Page) => page.evaluate(() => (window as any).cinevol.sampl
   Promise<{ width: number; height: number; grid: number[] }>;
 const meanDifference = (a: number[], b: number[]) => a.reduce((s, v, i) => s + Math.abs(v - b[i]), 0) / a.length;
 
+/** Waits until the element's text matches; on timeout says what it showed instead. */
+async function waitForText(page: Page, selector: string, pattern: RegExp): Promise<string> {
+  try {
+    await page.waitForFunction(([sel, source]) => new RegExp(source).test(document.querySelector(sel)!.textContent!),
+                               [selector, pattern.source] as const, WAIT);
+  } catch (e) {
+    throw new Error(`${selector} never matched ${pattern}: it shows "${await page.textContent(selector)}", ` +
+                    `the error line "${await page.textContent("#error")}" (${e})`);
+  }
+  return (await page.textContent(selector)) ?? "";
+}
+
 /** Waits for `count` more frames painted than now. */
 async function framesAfter(page: Page, count: number): Promise<void> {
   const painted = (await status(page)).framesPainted;
@@ -136,15 +148,13 @@ test("reading: slices beside the 3D view, a pick, a distance measured on a slice
   assert.deepEqual(axial, { w: 256, h: 256 }, "one pixel a voxel of the 256^3 phantom");
   const view = (await alice.locator("#view").boundingBox())!;
   await alice.mouse.click(view.x + view.width / 2, view.y + view.height / 2);
-  await alice.waitForFunction(() => /HU/.test(document.getElementById("pick-info")!.textContent!), null, WAIT);
+  await waitForText(alice, "#pick-info", /HU/);
   await alice.click("#measure-distance");
   const slice = (await alice.locator("#slice-axial img").boundingBox())!;
   const side = Math.min(slice.width, slice.height);
   await alice.mouse.click(slice.x + slice.width / 2 - side / 4, slice.y + slice.height / 2);
   await alice.mouse.click(slice.x + slice.width / 2 + side / 4, slice.y + slice.height / 2);
-  await alice.waitForFunction(() => /Distance \d+\.\d mm/.test(document.getElementById("measurements")!.textContent!),
-                              null, WAIT);
-  const text = await alice.textContent("#measurements") ?? "";
+  const text = await waitForText(alice, "#measurements", /Distance \d+\.\d mm/);
   const mm = Number(/Distance (\d+\.\d) mm/.exec(text)![1]);
   assert.ok(Math.abs(mm - 128) < 3, `half the 256 mm slice's width: ${mm} mm`);
   await alice.screenshot({ path: join(ARTIFACTS, "5-reading.png") });
