@@ -348,20 +348,26 @@ v1::SessionState ServiceCore::SendEvents(const v1::SendEventsRequest& request, c
   return FindSession(request.session_id(), caller)->OnEvents(request.events(), Clock::now());
 }
 
-v1::SliceImage ServiceCore::RenderSlice(const v1::SliceRequest& request, const Principal& caller) {
-  const std::shared_ptr<Session> session = FindSession(request.session_id(), caller);
+namespace {
+
+// What the reading tools read of a session: its scene now and its volume.
+std::pair<v1::Scene, std::shared_ptr<VolumeLease>> SceneAndVolume(const Session& session) {
   v1::Scene scene;
   FrameSettings settings;
-  session->CurrentScene(scene, settings);
-  return SliceOf(request, scene, *session->volume());
+  session.CurrentScene(scene, settings);
+  return {std::move(scene), session.volume()};
+}
+
+}  // namespace
+
+v1::SliceImage ServiceCore::RenderSlice(const v1::SliceRequest& request, const Principal& caller) {
+  const auto [scene, volume] = SceneAndVolume(*FindSession(request.session_id(), caller));
+  return SliceOf(request, scene, *volume);
 }
 
 v1::PickResult ServiceCore::Pick(const v1::PickRequest& request, const Principal& caller) {
-  const std::shared_ptr<Session> session = FindSession(request.session_id(), caller);
-  v1::Scene scene;
-  FrameSettings settings;
-  session->CurrentScene(scene, settings);
-  return PickOn(request, scene, *session->volume());
+  const auto [scene, volume] = SceneAndVolume(*FindSession(request.session_id(), caller));
+  return PickOn(request, scene, *volume);
 }
 
 std::shared_ptr<LoadSlot> ServiceCore::BeginLoad(const Principal& caller) {
