@@ -112,6 +112,14 @@ v1::SliceImage SliceOf(const v1::SliceRequest& request, const v1::Scene& scene, 
 
 v1::PickResult PickOn(const v1::PickRequest& request, const v1::Scene& scene, const VolumeLease& lease) {
   v1::Scene framed = scene;
+  if (request.has_frame()) {  // the frame the reader saw: the same camera at that size
+    const v1::Viewport& f = request.frame();
+    if (f.width() < 1 || f.height() < 1 || f.width() > 8192 || f.height() > 8192) {
+      throw InputError(fmt::format("frame: {}x{} is outside [1, 8192] each way", f.width(), f.height()));
+    }
+    framed.mutable_render()->set_width(f.width());
+    framed.mutable_render()->set_height(f.height());
+  }
   ToVolumeFrame(framed, VolumePlacement::Of(*lease.volume()));  // the renderers' frame
   const Picker picker(lease.volume(), lease.labels(), ResolveScene(framed, *lease.volume(), lease.labels().get()));
   PickSettings settings;

@@ -96,6 +96,18 @@ TEST(ReadingCalls, APickAtTheViewsCentreFindsTheHeadAndOnlyItsOwnerMayAsk) {
   EXPECT_GT(hit.value(), 100) << "ct-bone stops on bone, far above water's 0 HU";
   EXPECT_TRUE(std::isfinite(hit.position_mm().x()) && std::isfinite(hit.position_mm().z()));
 
+  // The same point of a frame shown at twice the size (a resize on its way): the same ray.
+  v1::PickRequest shown = request;
+  shown.set_x(96);
+  shown.set_y(64);
+  shown.mutable_frame()->set_width(192);
+  shown.mutable_frame()->set_height(128);
+  v1::PickResult same;
+  ASSERT_TRUE(Pick(*stub, shown, &same, "alice-token").ok());
+  EXPECT_NEAR(same.position_mm().y(), hit.position_mm().y(), 1.0);
+  shown.mutable_frame()->set_width(0);
+  EXPECT_EQ(Pick(*stub, shown, &same, "alice-token").error_code(), grpc::StatusCode::INVALID_ARGUMENT);
+
   EXPECT_EQ(Pick(*stub, request, &hit, "bob-token").error_code(), grpc::StatusCode::PERMISSION_DENIED);
   request.set_x(-3);
   EXPECT_EQ(Pick(*stub, request, &hit, "alice-token").error_code(), grpc::StatusCode::INVALID_ARGUMENT);

@@ -75,7 +75,7 @@ export class App {
       zoom: (f) => this.moveCamera((c) => zoom(c, f)),
       windowLevel: (dx, dy) => this.windowLevel(dx, dy),
       turnLight: (dx, dy) => this.turnLight(dx, dy),
-      pick: (x, y) => void this.reading.pickOnView(x, y),
+      pick: (fx, fy, frame) => void this.reading.pickOnView(fx * frame.width, fy * frame.height, frame),
     });
     this.view.followSize((size) => this.post({ case: "resize", value: create(ViewportSchema, size) }));
     this.editor.onEdit = (tf) => this.post({ case: "transferFunction", value: tf });

@@ -247,12 +247,12 @@ export class Reading {
     this.panes.forEach((p) => p.draw());
   }
 
-  /** Asks the server what lies under a pixel of the 3D view (device pixels of its viewport). */
-  async pickOnView(x: number, y: number): Promise<void> {
+  /** Asks the server what lies under pixel (x, y) of the frame shown, of size `frame` (a resize may be on its way). */
+  async pickOnView(x: number, y: number, frame: { width: number; height: number }): Promise<void> {
     const sessionId = this.sessionId();
     if (!sessionId) return;
     try {
-      const hit = await this.api.sessions.pick({ sessionId, x, y });
+      const hit = await this.api.sessions.pick({ sessionId, x, y, frame });
       if (!hit.hit || !hit.positionMm) {
         $("pick-info").textContent = "Nothing there: the ray met no tissue at this opacity.";
         return;

@@ -12,8 +12,11 @@ export interface ViewInput {
   zoom(factor: number): void;
   windowLevel(dx: number, dy: number): void;
   turnLight(dx: number, dy: number): void;
-  /** A click without a drag: the frame's pixel under it (its own pixels, x right, y down). */
-  pick(x: number, y: number): void;
+  /**
+   * A click without a drag: where on the frame shown, as fractions of its
+   * width and height (x right, y down), and that frame's size.
+   */
+  pick(fx: number, fy: number, frame: { width: number; height: number }): void;
 }
 
 const MAX_SIDE = 8192;
@@ -101,8 +104,8 @@ export class View {
     c.addEventListener("pointerup", (e) => {
       pointers.delete(e.pointerId);
       const plain = e.button === 0 && !e.shiftKey && !e.altKey && !e.ctrlKey;
-      const at = this.framePixel(e);
-      if (plain && travelled <= CLICK_SLOP_PX && at) input.pick(at.x, at.y);
+      const at = this.frameFraction(e);
+      if (plain && travelled <= CLICK_SLOP_PX && at) input.pick(at.x, at.y, this.frameSize);
     });
     c.addEventListener("pointercancel", (e) => pointers.delete(e.pointerId));
     const stamp = (e: Event) => { this.inputAt = performance.timeOrigin + e.timeStamp; };
@@ -127,14 +130,14 @@ export class View {
     }, { passive: false });
   }
 
-  /** The frame's pixel under a pointer: the canvas shows the frame fitted whole (object-fit: contain). */
-  framePixel(e: { clientX: number; clientY: number }): { x: number; y: number } | null {
+  /** Where a pointer is on the frame, as fractions: the canvas shows the frame fitted whole (object-fit: contain). */
+  frameFraction(e: { clientX: number; clientY: number }): { x: number; y: number } | null {
     const { width, height } = this.frameSize, box = this.canvas.getBoundingClientRect();
     if (!width || !height) return null;
     const fit = Math.min(box.width / width, box.height / height);
-    const x = (e.clientX - box.left - (box.width - width * fit) / 2) / fit;
-    const y = (e.clientY - box.top - (box.height - height * fit) / 2) / fit;
-    return x >= 0 && y >= 0 && x < width && y < height ? { x, y } : null;
+    const x = (e.clientX - box.left - (box.width - width * fit) / 2) / (width * fit);
+    const y = (e.clientY - box.top - (box.height - height * fit) / 2) / (height * fit);
+    return x >= 0 && y >= 0 && x < 1 && y < 1 ? { x, y } : null;
   }
 
   /** Two fingers: their spread zooms, their midpoint pans. */
