@@ -232,13 +232,16 @@ void App::RunUiAction(const std::string& json, int line) {
     }
   } else if (name == "measureDistance" || name == "measureAngle") {  // {"measureAngle": true}: the next 3 picks
     if (run) StartMeasurement(name == "measureAngle" ? kAnglePoints : kDistancePoints);
+  } else if (name == "deleteMeasurement") {  // {"deleteMeasurement": 0}: its x button in the Reading panel
+    if (value.kind_case() != Value::kNumberValue) throw InputError(at + ": must be a measurement index");
+    if (run) DeleteMeasurement(int(value.number_value()));
   } else if (name == "quit") {
     if (run) finish_now_ = true;
   } else {
     throw InputError(fmt::format(
         "{}: unknown action (panel, key, drag, wheel, preset, movePoint, addPoint, deletePoint, windowLevel, "
         "snapshot, saveScene, openScene, searchPacs, selectStudy, openSeries, layout2x2, pickAt, clickSlice, "
-        "stepSlice, measureDistance, measureAngle, resizeWindow, settle, screenshot, quit)",
+        "stepSlice, measureDistance, measureAngle, deleteMeasurement, resizeWindow, settle, screenshot, quit)",
         at));
   }
 }

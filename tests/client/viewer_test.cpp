@@ -493,13 +493,15 @@ TEST(Viewer, APacsSeriesIsFoundListedAndOpenedFromItsPanel) {
 
 // The reading tools driven as a reader would: the 2x2 layout fetches the
 // three slices through the crosshair, a click on the 3D view picks, a click
-// on a slice ends a distance measurement, and the saved scene keeps it.
+// on a slice ends a distance measurement and moves the crosshair, and the
+// saved scene keeps the measurement, which opening it brings back.
 TEST(Viewer, PicksShowsSlicesInTwoByTwoAndMeasures) {
   CINEVOL_REQUIRE_VIEWER();
   ScratchDir scratch;
   ServerProcess server(scratch.path());
   ASSERT_TRUE(server.running()) << server.Log();
-  const fs::path grid = scratch.path() / "grid.png", scene = scratch.path() / "measured.json";
+  const fs::path grid = scratch.path() / "grid.png", scene = scratch.path() / "measured.json",
+                 deleted = scratch.path() / "deleted.json", reopened = scratch.path() / "reopened.json";
   const fs::path script =
       WriteScript(scratch.path() / "reading.jsonl", fmt::format(R"({{"session": {{"stream": {{"targetSpp": 4}}}}}}
 {{"at": 0, "ui": {{"settle": true}}}}
@@ -512,8 +514,13 @@ TEST(Viewer, PicksShowsSlicesInTwoByTwoAndMeasures) {
 {{"at": 0.3, "ui": {{"settle": true}}}}
 {{"at": 0.3, "ui": {{"saveScene": "{}"}}}}
 {{"at": 0.3, "ui": {{"screenshot": "{}"}}}}
+{{"at": 0.4, "ui": {{"deleteMeasurement": 0}}}}
+{{"at": 0.4, "ui": {{"saveScene": "{}"}}}}
+{{"at": 0.4, "ui": {{"openScene": "{}"}}}}
+{{"at": 0.4, "ui": {{"saveScene": "{}"}}}}
 )",
-                                                                scene.string(), grid.string()));
+                                                                scene.string(), grid.string(), deleted.string(),
+                                                                scene.string(), reopened.string()));
   const ViewerRun run = RunViewer(scratch.path(), {"--server", server.address(), "--script", script.string()});
   ASSERT_EQ(run.exit_code, 0) << run.output;
 
@@ -527,12 +534,16 @@ TEST(Viewer, PicksShowsSlicesInTwoByTwoAndMeasures) {
     EXPECT_EQ(TextField(slice, "letters").size(), 4u);
   }
   EXPECT_EQ(axes, (std::set<std::string>{"axial", "coronal", "sagittal"})) << run.output;
+  // Three at the start, three through the pick, three through the click on the axial slice.
+  EXPECT_EQ(Reported(run.output, "slice").size(), 9u) << run.output;
   const auto measured = Reported(run.output, "measurement");
   ASSERT_EQ(measured.size(), 1u) << run.output;
   EXPECT_NE(TextField(measured[0], "value").find(" mm"), std::string::npos);
   const v1::Scene saved = LoadSceneFile(scene);
   ASSERT_EQ(saved.measurements_size(), 1) << "the saved scene lost the measurement";
   EXPECT_EQ(saved.measurements(0).points_size(), 2);
+  EXPECT_EQ(LoadSceneFile(deleted).measurements_size(), 0);
+  EXPECT_EQ(LoadSceneFile(reopened).measurements_size(), 1) << "opening the scene did not restore the measurement";
   // The 3D view took the top-left quadrant; the axial slice beside it is an image, not the background.
   const google::protobuf::Struct layout = ReadLayout(grid);
   const Region frame = RegionOf(layout, "frame");
