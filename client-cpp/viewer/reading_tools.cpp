@@ -2,6 +2,7 @@
 // view, the crosshair and the 2x2 layout of slices through it, distance and
 // angle measurements, the orientation marker. The geometry is in
 // reading_view.h; this file holds what needs the window and the connection.
+// Picks and slices go on the connection's quick lane: never behind a still.
 #include <google/protobuf/struct.pb.h>
 #include <imgui.h>
 
@@ -91,7 +92,7 @@ void App::PickAt(float x, float y) {
           Report("pick", report);
         });
       },
-      [](const std::string&) {});
+      [](const std::string&) {}, Lane::kQuick);
 }
 
 void App::SetCrosshair(Vec3f lps) {
@@ -145,7 +146,7 @@ void App::RequestSlice(int pane) {
           if (reading.grid && reading.panes[pane].again) RequestSlice(pane);
         });
       },
-      [](const std::string&) {});
+      [](const std::string&) {}, Lane::kQuick);
 }
 
 void App::ShowSlice(int pane, v1::SliceImage image, const ImageRgb8& pixels) {
