@@ -1,13 +1,15 @@
 // The viewer's reading geometry: slice pixels and patient positions agree
 // both ways, measurements have their textbook values, the 3D projection puts
-// the target at the view's centre, and the orientation marker follows the
-// camera and the volume's direction cosines.
+// points where the server's own camera does, and the orientation marker
+// follows the camera and the volume's direction cosines.
 #include "viewer/reading_view.h"
 
 #include <gtest/gtest.h>
 
 #include <algorithm>
 #include <cmath>
+
+#include "core/camera.h"
 
 namespace cinevol::viewer {
 namespace {
@@ -95,6 +97,19 @@ TEST(ReadingView, TheTargetProjectsToTheViewsCentreAndUpIsUp) {
   ASSERT_TRUE(right);
   EXPECT_GT(right->x, 100) << "looking along +y with z up, +x is on the right";
   EXPECT_FALSE(ProjectToView(camera, {0, -600, 0}, 200, 100)) << "behind the eye";
+}
+
+TEST(ReadingView, TheProjectionIsTheServersPinholeCamera) {
+  const ViewCamera camera{{120, -300, 80}, {10, 5, -20}, {0.1f, 0, 1}, 40};
+  const Camera server = LookAt(camera.eye, camera.target, camera.up, camera.fov_y_deg, 320, 200);
+  for (const Vec3f p : {Vec3f{0, 0, 0}, Vec3f{40, -20, 60}, Vec3f{-70, 30, -10}}) {
+    float px = 0, py = 0;
+    ASSERT_TRUE(server.Project(p, px, py));
+    const auto mine = ProjectToView(camera, p, 320, 200);
+    ASSERT_TRUE(mine);
+    EXPECT_NEAR(mine->x, px, 1e-2f);
+    EXPECT_NEAR(mine->y, py, 1e-2f);
+  }
 }
 
 TEST(ReadingView, TheMarkerShowsThePatientAxesAsTheCameraSeesThem) {
