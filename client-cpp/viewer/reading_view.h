@@ -26,8 +26,8 @@ std::string DescribePick(const v1::PickResult& pick, const std::string& value_un
 
 // A slice image's pixel grid in the patient (SliceImage's geometry).
 struct SliceGeometry {
-  Vec3f origin;                     // LPS mm of the top-left pixel's centre
-  Vec3f row{1, 0, 0}, column{0, 1, 0};  // unit LPS steps along a row and down a column
+  Vec3f origin;                               // LPS mm of the top-left pixel's centre
+  Vec3f row{1, 0, 0}, column{0, 1, 0};        // unit LPS steps along a row and down a column
   float row_spacing = 1, column_spacing = 1;  // mm per pixel along each
   int width = 0, height = 0;
 
