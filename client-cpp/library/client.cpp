@@ -419,6 +419,22 @@ void Client::CloseSession(const std::string& session_id) {
   pool_->Forget(session_id);
 }
 
+v1::SliceImage Client::RenderSlice(v1::SliceRequest request) {
+  auto stub = v1::SessionService::NewStub(pool_->Channel(pool_->AddressOf(request.session_id())));
+  request.set_session_id(pool_->CurrentId(request.session_id()));
+  v1::SliceImage image;
+  Check(stub->RenderSlice(pool_->CallContext().get(), request, &image));
+  return image;
+}
+
+v1::PickResult Client::Pick(v1::PickRequest request) {
+  auto stub = v1::SessionService::NewStub(pool_->Channel(pool_->AddressOf(request.session_id())));
+  request.set_session_id(pool_->CurrentId(request.session_id()));
+  v1::PickResult result;
+  Check(stub->Pick(pool_->CallContext().get(), request, &result));
+  return result;
+}
+
 v1::ServerStatus Client::Status() {
   return OnHome([&](const std::string& home) {
     auto stub = v1::ServerService::NewStub(pool_->Channel(home));

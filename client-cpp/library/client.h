@@ -204,6 +204,11 @@ class Client {
   // to do; CANCELLED when the session ended under it, saying why.
   v1::SnapshotResponse Snapshot(v1::SnapshotRequest request, const SnapshotOptions& options = {});
   void CloseSession(const std::string& session_id);
+  // The reading calls (docs/reading.md), bounded by call_timeout: a slice of
+  // the session's volume as a PNG with its geometry, and what lies under a
+  // pixel of the session's viewport.
+  v1::SliceImage RenderSlice(v1::SliceRequest request);
+  v1::PickResult Pick(v1::PickRequest request);
   // The status of the first server that answered.
   v1::ServerStatus Status();
 

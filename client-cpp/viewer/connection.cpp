@@ -36,7 +36,8 @@ constexpr auto kRetryEvery = std::chrono::seconds(2);
 Connection::Connection(ConnectionSettings settings)
     : settings_(std::move(settings)),
       worker_([this] { Work(); }),
-      requester_([this] { Serve(); }),
+      requester_([this] { Serve(Lane::kLong); }),
+      quick_requester_([this] { Serve(Lane::kQuick); }),
       decoder_([this] { Decode(); }) {}
 
 Connection::~Connection() {
@@ -48,6 +49,7 @@ Connection::~Connection() {
   frame_arrived_.notify_all();
   worker_.join();
   requester_.join();
+  quick_requester_.join();
   decoder_.join();
 }
 
@@ -78,10 +80,11 @@ void Connection::Post(v1::SessionEvent event) {
   wake_.notify_all();
 }
 
-void Connection::Request(std::function<void(Client&)> request, std::function<void(const std::string&)> done) {
+void Connection::Request(std::function<void(Client&)> request, std::function<void(const std::string&)> done,
+                         Lane lane) {
   {
     std::lock_guard lock(mu_);
-    requests_.emplace_back(std::move(request), std::move(done));
+    requests_[int(lane)].waiting.emplace_back(std::move(request), std::move(done));
   }
   wake_.notify_all();
 }
@@ -93,7 +96,8 @@ std::string Connection::TakeWarning() {
 
 bool Connection::idle() const {
   std::lock_guard lock(mu_);
-  return events_.empty() && sending_ == 0 && requests_.empty() && !requesting_;
+  auto quiet = [](const Requests& r) { return r.waiting.empty() && !r.running; };
+  return events_.empty() && sending_ == 0 && quiet(requests_[0]) && quiet(requests_[1]);
 }
 
 std::optional<ViewFrame> Connection::TakeFrame() {
@@ -230,14 +234,15 @@ void Connection::Work() {
   SetStatus(LinkState::kClosed, "closed");
 }
 
-void Connection::Serve() {
+void Connection::Serve(Lane lane) {
+  Requests& mine = requests_[int(lane)];
   std::unique_lock lock(mu_);
   for (;;) {
-    wake_.wait(lock, [this] { return stopping_ || (!requests_.empty() && client_); });
+    wake_.wait(lock, [&] { return stopping_ || (!mine.waiting.empty() && client_); });
     if (stopping_) return;
-    auto [request, done] = std::move(requests_.front());
-    requests_.pop_front();
-    requesting_ = true;
+    auto [request, done] = std::move(mine.waiting.front());
+    mine.waiting.pop_front();
+    mine.running = true;
     const std::shared_ptr<Client> client = client_;  // a reconnect may replace it meanwhile
     lock.unlock();
     std::string error;
@@ -250,7 +255,7 @@ void Connection::Serve() {
     }
     done(error);
     lock.lock();
-    requesting_ = false;
+    mine.running = false;
   }
 }
 

@@ -4,11 +4,14 @@
 //
 // Threads: a worker connects, creates the session and attaches, then sends
 // posted events (camera events coalesced: the newest wins); a requester runs
-// posted requests (loads, uploads, snapshots) in order beside it; the
+// posted requests (loads, uploads, snapshots) in order beside it, and a
+// second one the quick reading calls (picks, slices), so that they never
+// wait behind a minutes-long snapshot or upload; the
 // stream's reader hands frames to a decoder thread, which keeps only the
 // newest (a slow decoder skips frames, never queues).
 #pragma once
 
+#include <array>
 #include <atomic>
 #include <chrono>
 #include <condition_variable>
@@ -43,6 +46,10 @@ struct ViewFrame {
 
 enum class LinkState { kConnecting, kStreaming, kReconnecting, kFailed, kClosed };
 
+// Which requester runs a request: long calls in order, or quick ones (a
+// pick, a slice: a unary call with a deadline) beside them.
+enum class Lane { kLong = 0, kQuick = 1 };
+
 struct LinkStatus {
   LinkState state = LinkState::kConnecting;
   std::string message;  // for people: what is happening or what went wrong
@@ -64,7 +71,8 @@ class Connection {
   void Post(v1::SessionEvent event);
   // Runs `request` with the client once connected; its errors go to `done`
   // (empty on success). Both run on the requester thread.
-  void Request(std::function<void(Client&)> request, std::function<void(const std::string& error)> done);
+  void Request(std::function<void(Client&)> request, std::function<void(const std::string& error)> done,
+               Lane lane = Lane::kLong);
 
   // The newest decoded frame since the last call, if any.
   std::optional<ViewFrame> TakeFrame();
@@ -81,7 +89,7 @@ class Connection {
 
  private:
   void Work();   // connects, sends events
-  void Serve();  // runs requests, so that a long upload holds no event back
+  void Serve(Lane lane);  // runs requests, so that a long upload holds no event back
   void Start();  // connect, resolve the volume, create the session, attach
   bool SendPending();
   void Decode();
@@ -104,8 +112,11 @@ class Connection {
   std::optional<v1::VolumeInfo> volume_;
   std::deque<v1::SessionEvent> events_;
   int sending_ = 0;  // events taken from the queue, not yet sent
-  bool requesting_ = false;  // a request is running
-  std::deque<std::pair<std::function<void(Client&)>, std::function<void(const std::string&)>>> requests_;
+  struct Requests {
+    std::deque<std::pair<std::function<void(Client&)>, std::function<void(const std::string&)>>> waiting;
+    bool running = false;
+  };
+  std::array<Requests, 2> requests_;  // by Lane
   std::map<std::uint64_t, std::chrono::steady_clock::time_point> sent_at_;
   std::atomic<std::uint64_t> last_sent_{0};
   std::atomic<bool> stopping_{false};
@@ -116,7 +127,7 @@ class Connection {
   std::optional<ViewFrame> decoded_;   // newest decoded, not yet taken
   std::chrono::steady_clock::time_point encoded_at_;
 
-  std::thread worker_, requester_, decoder_;
+  std::thread worker_, requester_, quick_requester_, decoder_;
 };
 
 }  // namespace cinevol::viewer

@@ -1,5 +1,5 @@
 // The viewer's panels (volume, PACS, transfer function, lights, render, clipping,
-// labels, scene), its stats overlay and the banner that says what is wrong.
+// labels, reading, scene), its stats overlay and the banner that says what is wrong.
 #include <imgui.h>
 #include <imgui_stdlib.h>
 
@@ -567,11 +567,13 @@ void DrawPanels(App& app) {
   if (Header("Render", app.panels.render)) RenderPanel(app);
   if (Header("Clipping", app.panels.clipping)) ClippingPanel(app);
   if (Header("Labels", app.panels.labels)) LabelsPanel(app);
+  if (Header("Reading", app.panels.reading)) ReadingPanel(app);
   if (Header("Scene and snapshot", app.panels.scene)) ScenePanel(app);
   ImGui::Separator();
   ImGui::Checkbox("stats overlay (F2)", &app.panels.stats);
   if (!app.notice.empty()) ImGui::TextWrapped("%s", app.notice.c_str());
   Hint("drag: orbit; right drag or wheel: zoom; middle or Shift drag: pan;");
+  Hint("click: pick; F3: slices beside the 3D view (wheel: step, drag: window/level, click: crosshair);");
   Hint("A P L R S I: named views; Home: reset; Ctrl+Q: quit");
   ImGui::End();
 }

@@ -73,8 +73,16 @@ bool* Panel(PanelsOpen& p, const std::string& name) {
   if (name == "clipping") return &p.clipping;
   if (name == "labels") return &p.labels;
   if (name == "scene") return &p.scene;
+  if (name == "reading") return &p.reading;
   if (name == "stats") return &p.stats;
   return nullptr;
+}
+
+int SlicePaneIndex(const std::string& name, const std::string& where) {
+  if (name == "axial") return 0;
+  if (name == "coronal") return 1;
+  if (name == "sagittal") return 2;
+  throw InputError(where + ".pane: axial, coronal or sagittal");
 }
 
 int Button(const std::string& name, const std::string& where) {
@@ -108,13 +116,20 @@ void App::RunUiAction(const std::string& json, int line) {
     const Struct& p = Object(value, at);
     bool* open = Panel(panels, Text(Field(p, "name", at), at + ".name"));
     if (!open) {
-      throw InputError(at + ".name: volume, pacs, transferFunction, lights, render, clipping, labels, scene or stats");
+      throw InputError(at + ".name: volume, pacs, transferFunction, lights, render, clipping, labels, reading, "
+                            "scene or stats");
     }
     if (run) *open = !p.fields().count("open") || p.fields().at("open").bool_value();
   } else if (name == "key") {  // {"key": "p"}
     const std::string key = Text(value, at);
-    if (key.size() != 1 && key != "Home" && key != "F2") throw InputError(at + ": one character, Home or F2");
-    if (run) Key(key == "Home" ? SDLK_HOME : key == "F2" ? SDLK_F2 : SDL_Keycode(std::tolower(key[0])));
+    if (key.size() != 1 && key != "Home" && key != "F2" && key != "F3") {
+      throw InputError(at + ": one character, Home, F2 or F3");
+    }
+    const SDL_Keycode code = key == "Home" ? SDLK_HOME
+                             : key == "F2"  ? SDLK_F2
+                             : key == "F3"  ? SDLK_F3
+                                            : SDL_Keycode(std::tolower(key[0]));
+    if (run) Key(code);
   } else if (name == "drag") {  // {"drag": {"button": "left", "dx": 100, "dy": 0, "modifier": "ctrl"}}
     const Struct& d = Object(value, at);
     const int button = Button(d.fields().count("button") ? Text(d.fields().at("button"), at) : "left", at);
@@ -189,13 +204,44 @@ void App::RunUiAction(const std::string& json, int line) {
       panels.pacs = true;
       OpenSeries(series);
     }
+  } else if (name == "layout2x2") {  // {"layout2x2": true}: the 3D view and three slices; false: the 3D view only
+    if (value.kind_case() != Value::kBoolValue) throw InputError(at + ": true or false");
+    if (run && reading.grid != value.bool_value()) ToggleGrid();
+  } else if (name == "pickAt") {  // {"pickAt": {"x": 0.5, "y": 0.5}}: a click there, in fractions of the 3D view
+    const Struct& p = Object(value, at);
+    const double x = Number(p, "x", at), y = Number(p, "y", at);
+    if (x < 0 || x >= 1 || y < 0 || y >= 1) throw InputError(at + ": x and y in [0, 1)");
+    if (run) {
+      const Rect shown = ShownFrame();
+      PickAt(shown.x + float(x) * shown.w, shown.y + float(y) * shown.h);
+    }
+  } else if (name == "clickSlice" || name == "stepSlice") {
+    // {"clickSlice": {"pane": "axial", "x": 0.5, "y": 0.5}}, {"stepSlice": {"pane": "coronal", "steps": 2}}
+    const Struct& p = Object(value, at);
+    const int pane = SlicePaneIndex(Text(Field(p, "pane", at), at + ".pane"), at);
+    if (name == "stepSlice") {
+      const double steps = Number(p, "steps", at);
+      if (run) StepSlice(pane, float(steps));
+    } else {
+      const double x = Number(p, "x", at), y = Number(p, "y", at);
+      if (x < 0 || x >= 1 || y < 0 || y >= 1) throw InputError(at + ": x and y in [0, 1)");
+      if (run) {
+        const Rect shown = ShownSlice(reading.panes[pane]);
+        ClickSlice(pane, shown.x + float(x) * shown.w, shown.y + float(y) * shown.h);
+      }
+    }
+  } else if (name == "measureDistance" || name == "measureAngle") {  // {"measureAngle": true}: the next 3 picks
+    if (run) StartMeasurement(name == "measureAngle" ? kAnglePoints : kDistancePoints);
+  } else if (name == "deleteMeasurement") {  // {"deleteMeasurement": 0}: its x button in the Reading panel
+    if (value.kind_case() != Value::kNumberValue) throw InputError(at + ": must be a measurement index");
+    if (run) DeleteMeasurement(int(value.number_value()));
   } else if (name == "quit") {
     if (run) finish_now_ = true;
   } else {
     throw InputError(fmt::format(
         "{}: unknown action (panel, key, drag, wheel, preset, movePoint, addPoint, deletePoint, windowLevel, "
-        "snapshot, saveScene, openScene, searchPacs, selectStudy, openSeries, resizeWindow, settle, screenshot, "
-        "quit)",
+        "snapshot, saveScene, openScene, searchPacs, selectStudy, openSeries, layout2x2, pickAt, clickSlice, "
+        "stepSlice, measureDistance, measureAngle, deleteMeasurement, resizeWindow, settle, screenshot, quit)",
         at));
   }
 }

@@ -31,6 +31,7 @@ namespace cinevol::viewer {
 namespace {
 
 constexpr float kPanelWidth = 330;          // logical pixels
+constexpr float kClickSlop = 3;             // logical pixels a press may move and still be a click
 constexpr auto kResizeSettle = std::chrono::milliseconds(250);
 constexpr auto kFramePeriod = std::chrono::milliseconds(8);  // at most ~120 displayed frames a second
 constexpr double kSettleSeconds = 1.0;      // scripts: frames after the last event before the screenshot
@@ -157,6 +158,9 @@ App::~App() {
   ImGui_ImplSDL2_Shutdown();
   ImGui::DestroyContext();
   if (texture_) SDL_DestroyTexture(texture_);
+  for (SlicePane& pane : reading.panes) {
+    if (pane.texture) SDL_DestroyTexture(pane.texture);
+  }
   if (renderer_) SDL_DestroyRenderer(renderer_);
   if (window_) SDL_DestroyWindow(window_);
   SDL_Quit();
@@ -201,12 +205,14 @@ int App::Run() {
     ImGui::NewFrame();
     Layout();
     DrawPanels(*this);
+    DrawReadingOverlay(*this);
     if (panels.stats) DrawStatsOverlay(*this);
     DrawStatusBanner(*this, connection->status());
     ImGui::Render();
     SDL_SetRenderDrawColor(renderer_, 24, 26, 30, 255);
     SDL_RenderClear(renderer_);
     DrawFrame();
+    DrawSlices();
     ImGui_ImplSDLRenderer_RenderDrawData(ImGui::GetDrawData());
     for (const std::string& file : screenshots_) WriteScreenshot(file);
     screenshots_.clear();
@@ -256,6 +262,7 @@ void App::AdoptSession() {
   stream = options.session.stream;
   clipping = scene.clipping();
   labels = scene.labels();
+  reading.measurements.assign(scene.measurements().begin(), scene.measurements().end());
 }
 
 void App::SendTransferFunction() {
@@ -329,6 +336,15 @@ void App::SwitchVolume(const std::string& id) {
   pacs.busy = 0;
   pacs.opening = false;
   pacs.progress.reset();
+  ++reading.generation;  // the slices and picks of the old volume, likewise
+  reading.busy = 0;
+  reading.crosshair.reset();
+  reading.pick.reset();
+  reading.pick_text.clear();
+  for (SlicePane& pane : reading.panes) {
+    pane.in_flight = pane.again = false;
+    pane.image.reset();
+  }
   Connect();
 }
 
@@ -540,6 +556,7 @@ void App::SaveScene(const std::string& path) {
   *scene.mutable_render() = render;
   *scene.mutable_clipping() = clipping;
   if (labels.styles_size() > 0 || labels.has_show_unlisted() || labels.remove_table()) *scene.mutable_labels() = labels;
+  for (const v1::Measurement& m : reading.measurements) *scene.add_measurements() = m;
   scene.mutable_render()->set_width(viewport_w_);
   scene.mutable_render()->set_height(viewport_h_);
   if (volume) {
@@ -581,6 +598,7 @@ void App::OpenScene(const std::string& path) {
     SendClipping();
     labels = scene.labels();
     SendLabels();
+    reading.measurements.assign(scene.measurements().begin(), scene.measurements().end());
     const bool styles = scene.labels().styles_size() > 0 || scene.labels().has_show_unlisted();
     notice = styles && !(volume && volume->has_labels())
                  ? fmt::format("opened {}; its label styles wait for a segmentation of this volume", path)
@@ -664,6 +682,13 @@ void App::Layout() {
   const float panel = std::min(kPanelWidth, float(w) * 0.5f);
   panel_area = {0, 0, panel, float(h)};
   frame_area = {panel, 0, float(w) - panel, float(h)};
+  if (!reading.grid) return;
+  // 2x2: the 3D view top left, axial top right, coronal and sagittal below.
+  const float hw = frame_area.w / 2, hh = frame_area.h / 2;
+  frame_area = {panel, 0, hw, hh};
+  reading.panes[0].area = {panel + hw, 0, hw, hh};
+  reading.panes[1].area = {panel, hh, hw, hh};
+  reading.panes[2].area = {panel + hw, hh, hw, hh};
 }
 
 void App::DrawFrame() {
@@ -711,31 +736,62 @@ void App::PumpSdlEvents() {
     ImGui_ImplSDL2_ProcessEvent(&e);
     switch (e.type) {
       case SDL_QUIT: quit_ = true; break;
-      case SDL_MOUSEBUTTONDOWN:
-        if (!io.WantCaptureMouse && frame_area.Contains(float(e.button.x), float(e.button.y))) {
+      case SDL_MOUSEBUTTONDOWN: {
+        const float x = float(e.button.x), y = float(e.button.y);
+        const int pane = SliceAt(x, y);
+        if (!io.WantCaptureMouse && (frame_area.Contains(x, y) || pane >= 0)) {
           drag_button_ = e.button.button;
-          drag_x_ = float(e.button.x);
-          drag_y_ = float(e.button.y);
+          drag_pane_ = pane;
+          drag_x_ = press_x_ = x;
+          drag_y_ = press_y_ = y;
+          dragged_ = false;
         }
         break;
+      }
       case SDL_MOUSEBUTTONUP:
-        if (e.button.button == drag_button_) drag_button_ = 0;
+        if (e.button.button == drag_button_) {
+          if (!dragged_) Click(drag_button_, press_x_, press_y_);
+          drag_button_ = 0;
+        }
         break;
       case SDL_MOUSEMOTION:
         if (drag_button_) {
-          Drag(drag_button_, float(e.motion.x) - drag_x_, float(e.motion.y) - drag_y_, SDL_GetModState());
+          const float dx = float(e.motion.x) - drag_x_, dy = float(e.motion.y) - drag_y_;
+          dragged_ = dragged_ || std::hypot(float(e.motion.x) - press_x_, float(e.motion.y) - press_y_) > kClickSlop;
+          if (drag_pane_ < 0) {
+            Drag(drag_button_, dx, dy, SDL_GetModState());
+          } else if (drag_button_ == SDL_BUTTON_LEFT && dragged_) {
+            SliceWindowLevel(dx, dy);
+          }
           drag_x_ = float(e.motion.x);
           drag_y_ = float(e.motion.y);
         }
         break;
-      case SDL_MOUSEWHEEL:
-        if (!io.WantCaptureMouse) Wheel(float(e.wheel.y));
+      case SDL_MOUSEWHEEL: {
+        if (io.WantCaptureMouse) break;
+        int mx = 0, my = 0;
+        SDL_GetMouseState(&mx, &my);
+        if (const int pane = SliceAt(float(mx), float(my)); pane >= 0) {
+          StepSlice(pane, float(e.wheel.y));
+        } else {
+          Wheel(float(e.wheel.y));
+        }
         break;
+      }
       case SDL_KEYDOWN:
         if (!io.WantCaptureKeyboard) Key(e.key.keysym.sym);
         break;
       default: break;
     }
+  }
+}
+
+void App::Click(int button, float x, float y) {
+  if (button != SDL_BUTTON_LEFT) return;
+  if (const int pane = SliceAt(x, y); pane >= 0) {
+    ClickSlice(pane, x, y);
+  } else {
+    PickAt(x, y);
   }
 }
 
@@ -778,6 +834,10 @@ bool App::Key(SDL_Keycode key) {
   }
   if (key == SDLK_F2) {
     panels.stats = !panels.stats;
+    return true;
+  }
+  if (key == SDLK_F3) {
+    ToggleGrid();
     return true;
   }
   if (session_id.empty()) return false;
@@ -868,7 +928,8 @@ void App::RunScript() {
 bool App::EventsAnswered() const {
   // A resized window is an event not sent yet (it waits for the window to
   // hold still), and the frame on screen is still of the old size.
-  if (camera_dirty_ || ResizePending() || stats.last_frame_id == 0 || pacs.busy > 0) return false;
+  if (camera_dirty_ || ResizePending() || stats.last_frame_id == 0 || pacs.busy > 0 || reading.busy > 0)
+    return false;
   // idle() before last_sent(): once nothing waits to be sent, last_sent()
   // counts every event posted; read first, it could miss events sent meanwhile.
   if (!connection->idle()) return false;

@@ -6,6 +6,7 @@
 #include <SDL.h>
 #include <google/protobuf/struct.pb.h>
 
+#include <array>
 #include <chrono>
 #include <deque>
 #include <functional>
@@ -16,9 +17,11 @@
 #include <thread>
 #include <vector>
 
+#include "core/image.h"
 #include "local_server.h"
 #include "viewer/camera_control.h"
 #include "viewer/connection.h"
+#include "viewer/reading_view.h"
 #include "viewer/transfer_editor.h"
 #include "viewer/viewer.h"
 
@@ -54,7 +57,7 @@ struct ViewerStats {
 // Panels the user can open and close.
 struct PanelsOpen {
   bool volume = true, pacs = false, transfer_function = true, lights = false, render = false, clipping = false,
-       labels = false, scene = false;
+       labels = false, scene = false, reading = true;
   bool stats = true;  // the overlay
 };
 
@@ -75,6 +78,35 @@ struct PacsBrowser {
   std::string source;   // the PACS the studies and series listed came from
   std::string status;   // the panel's status line
   bool failed = false;  // it says what went wrong
+};
+
+// One slice pane of the 2x2 layout: the slice through the crosshair along
+// one patient axis (docs/viewer.md, "Reading").
+struct SlicePane {
+  explicit SlicePane(v1::SliceAxis a) : axis(a) {}
+
+  v1::SliceAxis axis;
+  Rect area;                            // its quadrant, logical pixels
+  std::optional<v1::SliceImage> image;  // the slice shown: its geometry and letters (its PNG dropped)
+  SDL_Texture* texture = nullptr;
+  bool in_flight = false;  // one request at a time per pane
+  bool again = false;      // asked meanwhile: the newest position goes next
+  int received = 0;
+};
+
+// The reading tools: picks, the crosshair, the 2x2 slices, measurements.
+struct ReadingState {
+  bool grid = false;                 // the 3D view and three slices (F3)
+  std::optional<Vec3f> crosshair;    // LPS mm
+  std::optional<v1::PickResult> pick;  // the last pick's answer
+  std::string pick_text;             // and in words (or why it failed)
+  int points_wanted = 0;             // the measurement being made: 2 distance, 3 angle, 0 none
+  std::vector<Vec3f> points;         // its points so far
+  std::vector<v1::Measurement> measurements;  // LPS mm, saved with the scene
+  std::optional<float> window, level;  // the slices' window/level once dragged; else the server's default
+  std::array<SlicePane, 3> panes{SlicePane{v1::AXIAL}, SlicePane{v1::CORONAL}, SlicePane{v1::SAGITTAL}};
+  int busy = 0;  // picks and slices under way (a script's settle waits for them)
+  std::uint64_t generation = 0;  // bumped when the connection closes: older answers come to nothing
 };
 
 class App {
@@ -105,6 +137,7 @@ class App {
   int snapshot_spp = 256;
   std::vector<v1::VolumeInfo> server_volumes;
   PacsBrowser pacs;
+  ReadingState reading;
 
   Rect frame_area, panel_area, stats_area;
 
@@ -127,6 +160,18 @@ class App {
   void SearchPacs(v1::SearchStudiesRequest query);
   void SelectStudy(const std::string& pacs_name, const std::string& study_uid);
   void OpenSeries(const v1::LoadSeriesRequest& request);
+  // The reading tools (reading_tools.cpp). Window positions are logical pixels.
+  void PickAt(float x, float y);        // what lies under that point of the 3D view
+  void SetCrosshair(Vec3f lps);         // and the slices through it
+  void ToggleGrid();                    // the 2x2 layout and back
+  void StepSlice(int pane, float steps);  // by voxels along the pane's axis
+  void SliceWindowLevel(float dx, float dy);  // a drag on a slice
+  void ClickSlice(int pane, float x, float y);  // crosshair (and measurement point) at that pixel
+  void StartMeasurement(int points);    // kDistancePoints or kAnglePoints
+  void DeleteMeasurement(int index);
+  Rect ShownFrame() const;              // where the 3D frame is drawn (empty before one)
+  Rect ShownSlice(const SlicePane& pane) const;  // where a pane's slice is drawn
+  int SliceAt(float x, float y) const;  // the pane there, or -1
   // Runs on the UI thread at the next frame (for results from the worker).
   void Later(std::function<void()> f);
 
@@ -143,6 +188,11 @@ class App {
   void PumpSdlEvents();
   bool TakeFrame();  // true when a new frame arrived
   void PrintSummary() const;
+  void RequestSlice(int pane);
+  void ShowSlice(int pane, v1::SliceImage image, const ImageRgb8& pixels);
+  void AddMeasurementPoint(Vec3f lps);
+  void DrawSlices();
+  void Click(int button, float x, float y);  // a press and release without a drag
   std::string RendererName() const;
   void UploadFrame(const ViewFrame& frame);
   void Layout();
@@ -185,6 +235,9 @@ class App {
   // Mouse drag in progress.
   int drag_button_ = 0;
   float drag_x_ = 0, drag_y_ = 0;
+  float press_x_ = 0, press_y_ = 0;
+  bool dragged_ = false;  // moved far enough since the press to be no click
+  int drag_pane_ = -1;    // the slice pane the drag began on, or -1: the 3D view
 
   // The script: steps with orbits expanded once the volume is known.
   std::optional<cli::SessionScript> script_;
@@ -206,5 +259,8 @@ class App {
 void DrawPanels(App& app);
 void DrawStatsOverlay(App& app);
 void DrawStatusBanner(App& app, const LinkStatus& status);
+// reading_tools.cpp
+void ReadingPanel(App& app);
+void DrawReadingOverlay(App& app);  // measurements, crosshair, orientation marker, slice letters
 
 }  // namespace cinevol::viewer

@@ -121,6 +121,31 @@ TEST(ClientLibrary, ResumesTheStreamAfterTheConnectionIsCut) {
   EXPECT_EQ(client.Status().sessions_size(), 1);
 }
 
+TEST(ClientLibrary, RendersSlicesAndPicksOnASessionAndMapsTheirErrors) {
+  ScratchDir scratch;
+  ServerProcess server(scratch.path());
+  ASSERT_TRUE(server.running()) << server.Log();
+  Client client = server.Connect();
+  const auto created = client.CreateSession(SmallSession());  // phantom:head?size=48, 96x64
+  v1::SliceRequest slice;
+  slice.set_session_id(created.session_id());
+  slice.set_axis(v1::CORONAL);
+  const v1::SliceImage image = client.RenderSlice(slice);
+  EXPECT_EQ(image.width(), 48u);
+  EXPECT_FALSE(image.png().empty());
+  EXPECT_EQ(image.edge_letters_size(), 4);
+
+  v1::PickRequest pick;
+  pick.set_session_id(created.session_id());
+  pick.set_x(48);
+  pick.set_y(32);
+  EXPECT_TRUE(client.Pick(pick).hit()) << "the view's centre is on the head";
+  pick.set_x(-3);
+  EXPECT_EQ(CodeOf([&] { client.Pick(pick); }), grpc::StatusCode::INVALID_ARGUMENT);
+  slice.set_session_id("no-such-session");
+  EXPECT_NE(CodeOf([&] { client.RenderSlice(slice); }), grpc::StatusCode::OK);
+}
+
 TEST(ClientLibrary, ReportsAServerThatIsDownWithinTheConnectTimeout) {
   ClientOptions options;
   options.address = "127.0.0.1:1";

@@ -10,6 +10,7 @@
 #include <cmath>
 #include <fstream>
 #include <random>
+#include <set>
 
 #include <fmt/format.h>
 
@@ -488,6 +489,66 @@ TEST(Viewer, APacsSeriesIsFoundListedAndOpenedFromItsPanel) {
   // Patient fields went to the panel only.
   EXPECT_EQ(output.find(ct.patient_id), std::string::npos) << output;
   EXPECT_EQ(output.find(ct.patient_name), std::string::npos) << output;
+}
+
+// The reading tools driven as a reader would: the 2x2 layout fetches the
+// three slices through the crosshair, a click on the 3D view picks, a click
+// on a slice ends a distance measurement and moves the crosshair, and the
+// saved scene keeps the measurement, which opening it brings back.
+TEST(Viewer, PicksShowsSlicesInTwoByTwoAndMeasures) {
+  CINEVOL_REQUIRE_VIEWER();
+  ScratchDir scratch;
+  ServerProcess server(scratch.path());
+  ASSERT_TRUE(server.running()) << server.Log();
+  const fs::path grid = scratch.path() / "grid.png", scene = scratch.path() / "measured.json",
+                 deleted = scratch.path() / "deleted.json", reopened = scratch.path() / "reopened.json";
+  const fs::path script =
+      WriteScript(scratch.path() / "reading.jsonl", fmt::format(R"({{"session": {{"stream": {{"targetSpp": 4}}}}}}
+{{"at": 0, "ui": {{"settle": true}}}}
+{{"at": 0, "ui": {{"layout2x2": true}}}}
+{{"at": 0.1, "ui": {{"settle": true}}}}
+{{"at": 0.1, "ui": {{"measureDistance": true}}}}
+{{"at": 0.1, "ui": {{"pickAt": {{"x": 0.5, "y": 0.5}}}}}}
+{{"at": 0.2, "ui": {{"settle": true}}}}
+{{"at": 0.2, "ui": {{"clickSlice": {{"pane": "axial", "x": 0.3, "y": 0.5}}}}}}
+{{"at": 0.3, "ui": {{"settle": true}}}}
+{{"at": 0.3, "ui": {{"saveScene": "{}"}}}}
+{{"at": 0.3, "ui": {{"screenshot": "{}"}}}}
+{{"at": 0.4, "ui": {{"deleteMeasurement": 0}}}}
+{{"at": 0.4, "ui": {{"saveScene": "{}"}}}}
+{{"at": 0.4, "ui": {{"openScene": "{}"}}}}
+{{"at": 0.4, "ui": {{"saveScene": "{}"}}}}
+)",
+                                                                scene.string(), grid.string(), deleted.string(),
+                                                                scene.string(), reopened.string()));
+  const ViewerRun run = RunViewer(scratch.path(), {"--server", server.address(), "--script", script.string()});
+  ASSERT_EQ(run.exit_code, 0) << run.output;
+
+  const auto picks = Reported(run.output, "pick");
+  ASSERT_EQ(picks.size(), 1u) << run.output;
+  EXPECT_TRUE(picks[0].fields().at("hit").bool_value()) << "the view's centre is on the head: " << run.output;
+  EXPECT_NE(TextField(picks[0], "text").find(" mm, value "), std::string::npos) << TextField(picks[0], "text");
+  std::set<std::string> axes;
+  for (const auto& slice : Reported(run.output, "slice")) {
+    axes.insert(TextField(slice, "axis"));
+    EXPECT_EQ(TextField(slice, "letters").size(), 4u);
+  }
+  EXPECT_EQ(axes, (std::set<std::string>{"axial", "coronal", "sagittal"})) << run.output;
+  // Three at the start, three through the pick, three through the click on the axial slice.
+  EXPECT_EQ(Reported(run.output, "slice").size(), 9u) << run.output;
+  const auto measured = Reported(run.output, "measurement");
+  ASSERT_EQ(measured.size(), 1u) << run.output;
+  EXPECT_NE(TextField(measured[0], "value").find(" mm"), std::string::npos);
+  const v1::Scene saved = LoadSceneFile(scene);
+  ASSERT_EQ(saved.measurements_size(), 1) << "the saved scene lost the measurement";
+  EXPECT_EQ(saved.measurements(0).points_size(), 2);
+  EXPECT_EQ(LoadSceneFile(deleted).measurements_size(), 0);
+  EXPECT_EQ(LoadSceneFile(reopened).measurements_size(), 1) << "opening the scene did not restore the measurement";
+  // The 3D view took the top-left quadrant; the axial slice beside it is an image, not the background.
+  const google::protobuf::Struct layout = ReadLayout(grid);
+  const Region frame = RegionOf(layout, "frame");
+  const Region axial{frame.x + frame.w, frame.y, frame.w, frame.h};
+  EXPECT_GT(Luminance(ReadPng(grid), axial).second, 10) << "the axial pane is blank";
 }
 
 }  // namespace
