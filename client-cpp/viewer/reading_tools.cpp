@@ -23,17 +23,6 @@ constexpr ImU32 kMeasureColour = IM_COL32(255, 210, 60, 255);
 constexpr ImU32 kCrosshairColour = IM_COL32(80, 220, 255, 220);
 constexpr float kMarkerRadius = 36;  // logical pixels, the orientation marker's half-axis
 
-google::protobuf::Value Number(double v) {
-  google::protobuf::Value value;
-  value.set_number_value(v);
-  return value;
-}
-
-google::protobuf::Value Text(const std::string& s) {
-  google::protobuf::Value value;
-  value.set_string_value(s);
-  return value;
-}
 
 // Fits `w` x `h` (any units) into `area`, centred, keeping the aspect ratio.
 Rect Fit(const Rect& area, float w, float h) {
@@ -87,8 +76,8 @@ void App::PickAt(float x, float y) {
           then();
           google::protobuf::Struct report;
           (*report.mutable_fields())["hit"].set_bool_value(reading.pick && reading.pick->hit());
-          (*report.mutable_fields())["text"] = Text(reading.pick_text);
-          if (reading.pick) (*report.mutable_fields())["value"] = Number(reading.pick->value());
+          (*report.mutable_fields())["text"] = TextValue(reading.pick_text);
+          if (reading.pick) (*report.mutable_fields())["value"] = NumberValue(reading.pick->value());
           Report("pick", report);
         });
       },
@@ -161,12 +150,12 @@ void App::ShowSlice(int pane, v1::SliceImage image, const ImageRgb8& pixels) {
   if (p.texture) SDL_UpdateTexture(p.texture, nullptr, pixels.bytes.data(), pixels.width * 3);
   ++p.received;
   google::protobuf::Struct report;
-  (*report.mutable_fields())["axis"] = Text(kAxisNames[pane]);
-  (*report.mutable_fields())["width"] = Number(image.width());
-  (*report.mutable_fields())["height"] = Number(image.height());
+  (*report.mutable_fields())["axis"] = TextValue(kAxisNames[pane]);
+  (*report.mutable_fields())["width"] = NumberValue(image.width());
+  (*report.mutable_fields())["height"] = NumberValue(image.height());
   std::string letters;
   for (const std::string& l : image.edge_letters()) letters += l;
-  (*report.mutable_fields())["letters"] = Text(letters);
+  (*report.mutable_fields())["letters"] = TextValue(letters);
   Report("slice", report);
   p.image = std::move(image);
 }
@@ -262,8 +251,8 @@ void App::AddMeasurementPoint(Vec3f lps) {
   reading.points.clear();
   notice = fmt::format("{}: {}", m.name(), MeasurementText(m));
   google::protobuf::Struct report;
-  (*report.mutable_fields())["name"] = Text(m.name());
-  (*report.mutable_fields())["value"] = Text(MeasurementText(m));
+  (*report.mutable_fields())["name"] = TextValue(m.name());
+  (*report.mutable_fields())["value"] = TextValue(MeasurementText(m));
   Report("measurement", report);
 }
 

@@ -50,18 +50,6 @@ ValueHistogram ToHistogram(const v1::ValueHistogram& proto) {
 // Refused, or the server cannot be reached (retrying).
 bool Broken(LinkState s) { return s == LinkState::kFailed || s == LinkState::kReconnecting; }
 
-google::protobuf::Value TextValue(const std::string& text) {
-  google::protobuf::Value v;
-  v.set_string_value(text);
-  return v;
-}
-
-google::protobuf::Value NumberValue(double number) {
-  google::protobuf::Value v;
-  v.set_number_value(number);
-  return v;
-}
-
 // What a script's line says of a series: no descriptions, which a site may
 // fill with anything.
 google::protobuf::Value SeriesValue(const v1::SeriesSummary& s) {

@@ -27,6 +27,19 @@
 
 namespace cinevol::viewer {
 
+// JSON values for the lines the viewer reports to scripts (stdout).
+inline google::protobuf::Value TextValue(const std::string& text) {
+  google::protobuf::Value v;
+  v.set_string_value(text);
+  return v;
+}
+
+inline google::protobuf::Value NumberValue(double number) {
+  google::protobuf::Value v;
+  v.set_number_value(number);
+  return v;
+}
+
 using Clock = std::chrono::steady_clock;
 
 // A rectangle in logical (ImGui) pixels.

@@ -15,7 +15,12 @@
 namespace cinevol::service {
 namespace {
 
-Vec3f FromProto(const v1::Vec3& v) { return {v.x(), v.y(), v.z()}; }
+Vec3f Finite(const v1::Vec3& v, const char* field) {
+  if (!(std::isfinite(v.x()) && std::isfinite(v.y()) && std::isfinite(v.z()))) {
+    throw InputError(fmt::format("{}: not finite numbers", field));
+  }
+  return {v.x(), v.y(), v.z()};
+}
 
 void ToProto(Vec3f v, v1::Vec3* out) {
   out->set_x(v.x);
@@ -68,14 +73,17 @@ SliceSpec SpecOf(const v1::SliceRequest& request, const Volume& volume) {
   if (!std::isfinite(request.position_mm())) throw InputError("position_mm: not a finite number");
   spec.position_mm = float(request.position_mm());
   if (spec.axis == SliceAxis::kOblique) {
-    spec.point_lps = FromProto(request.point());
-    spec.normal_lps = FromProto(request.normal());
-    spec.row_lps = FromProto(request.row());
+    spec.point_lps = Finite(request.point(), "point");
+    spec.normal_lps = Finite(request.normal(), "normal");
+    spec.row_lps = Finite(request.row(), "row");
   }
   spec.window = WindowOf(request, volume);
   spec.nearest = request.nearest();
-  if (!(request.slab_mm() >= 0 && request.slab_mm() <= 1e4f)) {
-    throw InputError(fmt::format("slab_mm: {} is outside [0, 10000]", request.slab_mm()));
+  // A slab past the volume's diagonal adds nothing but samples: bounded so, a hostile one holds no worker long.
+  const float diagonal = Length(volume.extent_mm());
+  if (!(request.slab_mm() >= 0 && request.slab_mm() <= diagonal)) {
+    throw InputError(fmt::format("slab_mm: {} is outside [0, {:.0f}] (the volume's diagonal)", request.slab_mm(),
+                                 diagonal));
   }
   spec.slab_mm = request.slab_mm();
   spec.projection = ProjectionOf(request.projection());
