@@ -3,13 +3,12 @@
 // angle measurements, the orientation marker. The geometry is in
 // reading_view.h; this file holds what needs the window and the connection.
 // Picks and slices go on the connection's quick lane: never behind a still.
+#include <fmt/format.h>
 #include <google/protobuf/struct.pb.h>
 #include <imgui.h>
 
 #include <algorithm>
 #include <cmath>
-
-#include <fmt/format.h>
 
 #include "encode/image_codecs.h"
 #include "scene/scene_file.h"
@@ -23,13 +22,16 @@ constexpr ImU32 kMeasureColour = IM_COL32(255, 210, 60, 255);
 constexpr ImU32 kCrosshairColour = IM_COL32(80, 220, 255, 220);
 constexpr float kMarkerRadius = 36;  // logical pixels, the orientation marker's half-axis
 
-
 // Fits `w` x `h` (any units) into `area`, centred, keeping the aspect ratio.
 Rect Fit(const Rect& area, float w, float h) {
   if (w <= 0 || h <= 0) return {};
   const float s = std::min(area.w / w, area.h / h);
   return {area.x + (area.w - w * s) / 2, area.y + (area.h - h * s) / 2, w * s, h * s};
 }
+
+// The slice planes on the 3D view in 3D Slicer's colours: axial red,
+// coronal green, sagittal yellow (panes in the order of ReadingState::panes).
+constexpr ImU32 kPlaneColours[] = {IM_COL32(230, 70, 70, 255), IM_COL32(70, 200, 70, 255), IM_COL32(230, 200, 70, 255)};
 
 // The axis colours of 3D Slicer's marker: L/R red, P/A green, S/I blue.
 ImU32 AxisColour(char letter) {
@@ -144,8 +146,8 @@ void App::ShowSlice(int pane, v1::SliceImage image, const ImageRgb8& pixels) {
   if (p.texture) SDL_QueryTexture(p.texture, nullptr, nullptr, &w, &h);
   if (!p.texture || w != pixels.width || h != pixels.height) {
     if (p.texture) SDL_DestroyTexture(p.texture);
-    p.texture = SDL_CreateTexture(renderer_, SDL_PIXELFORMAT_RGB24, SDL_TEXTUREACCESS_STREAMING, pixels.width,
-                                  pixels.height);
+    p.texture =
+        SDL_CreateTexture(renderer_, SDL_PIXELFORMAT_RGB24, SDL_TEXTUREACCESS_STREAMING, pixels.width, pixels.height);
   }
   if (p.texture) SDL_UpdateTexture(p.texture, nullptr, pixels.bytes.data(), pixels.width * 3);
   ++p.received;
@@ -244,8 +246,8 @@ void App::AddMeasurementPoint(Vec3f lps) {
   if (int(reading.points.size()) < reading.points_wanted) return;
   v1::Measurement m;
   for (Vec3f p : reading.points) *m.add_points() = ToProtoVec3(p);
-  m.set_name(fmt::format("{} {}", m.points_size() == kAnglePoints ? "angle" : "distance",
-                         reading.measurements.size() + 1));
+  m.set_name(
+      fmt::format("{} {}", m.points_size() == kAnglePoints ? "angle" : "distance", reading.measurements.size() + 1));
   reading.measurements.push_back(m);
   reading.points_wanted = 0;
   reading.points.clear();
@@ -267,6 +269,7 @@ void App::DeleteMeasurement(int index) {
 void ReadingPanel(App& app) {
   ReadingState& r = app.reading;
   if (ImGui::Button(r.grid ? "3D view only (F3)" : "Slices beside the 3D view (F3)")) app.ToggleGrid();
+  if (app.volume && app.volume->has_identity()) ImGui::Checkbox("patient details in the corners (F4)", &r.identity);
   ImGui::TextWrapped("pick: %s", r.pick_text.empty() ? "click the 3D view" : r.pick_text.c_str());
   if (r.crosshair) ImGui::Text("crosshair: %s", PatientPosition(*r.crosshair).c_str());
   if (ImGui::Button("Measure distance")) app.StartMeasurement(kDistancePoints);
@@ -308,6 +311,18 @@ void DrawMeasurementsOn3D(App& app, ImDrawList& draw) {
     if (!p) return std::nullopt;
     return ImVec2{shown.x + p->x, shown.y + p->y};
   };
+  if (app.reading.grid) {  // where the three slices cut the volume
+    const Vec3f cross = app.reading.crosshair.value_or(placement.PointToPatient({0, 0, 0}));
+    for (std::size_t i = 0; i < app.reading.panes.size(); ++i) {
+      const int axis = CrossedAxis(app.reading.panes[i].axis);
+      std::vector<ImVec2> outline;
+      for (const Vec3f& corner : SlicePlaneOutline(*app.volume, axis, cross[axis])) {
+        if (const auto p = on_screen(corner)) outline.push_back(*p);
+      }
+      if (outline.size() >= 3)
+        draw.AddPolyline(outline.data(), int(outline.size()), kPlaneColours[i], ImDrawFlags_Closed, 1.5f);
+    }
+  }
   for (const v1::Measurement& m : app.reading.measurements) {
     std::vector<ImVec2> points;
     for (const v1::Vec3& v : m.points()) {
@@ -338,6 +353,25 @@ void DrawOrientationMarker(App& app, ImDrawList& draw) {
     const char text[2] = {axis.letter, 0};
     const ImVec2 size = ImGui::CalcTextSize(text);
     draw.AddText({end.x + axis.x * 8 - size.x / 2, end.y - axis.y * 8 - size.y / 2}, colour, text);
+  }
+}
+
+// A DICOM volume's patient (top left, below the stats overlay where it is
+// open), study and series (top right) in the 3D view's corners.
+void DrawIdentity(App& app, ImDrawList& draw) {
+  const Rect shown = app.ShownFrame();
+  if (!app.reading.identity || !app.volume || !app.volume->has_identity() || shown.w <= 0) return;
+  const IdentityCorners corners = CornersOf(app.volume->identity());
+  const ImU32 colour = IM_COL32(255, 255, 255, 220);
+  const float line = ImGui::GetTextLineHeight(), margin = 8;
+  const float top = shown.y + margin + (app.panels.stats ? app.stats_area.h + margin : 0);
+  for (std::size_t i = 0; i < corners.top_left.size(); ++i) {
+    draw.AddText({shown.x + margin, top + i * line}, colour, corners.top_left[i].c_str());
+  }
+  for (std::size_t i = 0; i < corners.top_right.size(); ++i) {
+    const float width = ImGui::CalcTextSize(corners.top_right[i].c_str()).x;
+    draw.AddText({shown.x + shown.w - margin - width, shown.y + margin + i * line}, colour,
+                 corners.top_right[i].c_str());
   }
 }
 
@@ -387,6 +421,7 @@ void DrawReadingOverlay(App& app) {
   ImDrawList& draw = *ImGui::GetBackgroundDrawList();
   DrawMeasurementsOn3D(app, draw);
   DrawOrientationMarker(app, draw);
+  DrawIdentity(app, draw);
   if (!app.reading.grid) return;
   for (const SlicePane& pane : app.reading.panes) DrawSliceOverlay(app, draw, pane);
 }

@@ -1,10 +1,10 @@
 // The reading tools' geometry: see reading_view.h.
 #include "viewer/reading_view.h"
 
+#include <fmt/format.h>
+
 #include <algorithm>
 #include <cmath>
-
-#include <fmt/format.h>
 
 namespace cinevol::viewer {
 namespace {
@@ -41,7 +41,8 @@ std::string DescribePick(const v1::PickResult& pick, const std::string& value_un
 
 SliceGeometry SliceGeometry::Of(const v1::SliceImage& image) {
   return {ToVec3f(image.origin_mm()), ToVec3f(image.row_direction()), ToVec3f(image.column_direction()),
-          image.row_spacing_mm(), image.column_spacing_mm(), int(image.width()), int(image.height())};
+          image.row_spacing_mm(),     image.column_spacing_mm(),      int(image.width()),
+          int(image.height())};
 }
 
 Vec3f SlicePixelToPatient(const SliceGeometry& slice, float column, float row) {
@@ -118,6 +119,70 @@ float VoxelStepMm(const v1::VolumeInfo& volume, int lps_axis) {
     if (std::fabs(volume.direction(3 * lps_axis + c)) > std::fabs(volume.direction(3 * lps_axis + best))) best = c;
   }
   return spacing[best] > 0 ? spacing[best] : 1.0f;
+}
+
+std::vector<Vec3f> SlicePlaneOutline(const v1::VolumeInfo& volume, int lps_axis, float position_mm) {
+  const VolumePlacement placement = VolumePlacement::Of(volume);
+  const Vec3f extent{(volume.dims().x() - 1) * volume.spacing_mm().x(),
+                     (volume.dims().y() - 1) * volume.spacing_mm().y(),
+                     (volume.dims().z() - 1) * volume.spacing_mm().z()};
+  const auto corner = [&](int bits) {
+    const Vec3f index_mm{(bits & 1) ? extent.x : 0.0f, (bits & 2) ? extent.y : 0.0f, (bits & 4) ? extent.z : 0.0f};
+    return placement.origin + placement.DirectionToPatient(index_mm);
+  };
+  std::vector<Vec3f> points;
+  for (int a = 0; a < 8; ++a) {
+    for (int bit : {1, 2, 4}) {
+      if (a & bit) continue;  // each of the 12 edges once, from its lower corner
+      const Vec3f p = corner(a), q = corner(a | bit);
+      const float da = p[lps_axis] - position_mm, db = q[lps_axis] - position_mm;
+      if (da * db > 0 || da == db) continue;
+      points.push_back(p + (q - p) * (da / (da - db)));
+    }
+  }
+  if (points.size() < 3) return {};
+  // In order around their centre, in the plane's own two axes.
+  const int u = (lps_axis + 1) % 3, w = (lps_axis + 2) % 3;
+  Vec3f centre{0, 0, 0};
+  for (const Vec3f& p : points) centre = centre + p * (1.0f / float(points.size()));
+  std::sort(points.begin(), points.end(), [&](const Vec3f& p, const Vec3f& q) {
+    return std::atan2(p[w] - centre[w], p[u] - centre[u]) < std::atan2(q[w] - centre[w], q[u] - centre[u]);
+  });
+  return points;
+}
+
+std::string PersonName(const std::string& dicom_name) {
+  const std::string alphabetic = dicom_name.substr(0, dicom_name.find('='));
+  std::vector<std::string> parts;
+  for (std::size_t start = 0;;) {
+    const std::size_t caret = alphabetic.find('^', start);
+    std::string part = alphabetic.substr(start, caret == std::string::npos ? std::string::npos : caret - start);
+    while (!part.empty() && part.back() == ' ') part.pop_back();
+    if (!part.empty()) parts.push_back(std::move(part));
+    if (caret == std::string::npos) break;
+    start = caret + 1;
+  }
+  std::string out;
+  for (std::size_t i = 0; i < parts.size(); ++i) out += (i == 0 ? "" : i == 1 ? ", " : " ") + parts[i];
+  return out;
+}
+
+std::string StudyDate(const std::string& dicom_date) {
+  const bool digits = dicom_date.size() == 8 && dicom_date.find_first_not_of("0123456789") == std::string::npos;
+  return digits ? dicom_date.substr(0, 4) + "-" + dicom_date.substr(4, 2) + "-" + dicom_date.substr(6, 2) : dicom_date;
+}
+
+IdentityCorners CornersOf(const v1::PatientIdentity& identity) {
+  IdentityCorners corners;
+  const auto add = [](std::vector<std::string>& lines, const std::string& line) {
+    if (!line.empty()) lines.push_back(line);
+  };
+  add(corners.top_left, PersonName(identity.patient_name()));
+  add(corners.top_left, identity.patient_id().empty() ? "" : "ID " + identity.patient_id());
+  add(corners.top_right, StudyDate(identity.study_date()));
+  add(corners.top_right, identity.study_description());
+  add(corners.top_right, identity.series_description());
+  return corners;
 }
 
 }  // namespace cinevol::viewer

@@ -69,11 +69,31 @@ struct MarkerAxis {
 // them, farthest first so that nearer ones are drawn over them.
 std::vector<MarkerAxis> MarkerAxes(const ViewCamera& camera, const VolumePlacement& placement);
 
+// The top corners of a view for a volume from DICOM: the patient (name, ID)
+// at the left, the study (date, description) and the series at the right;
+// empty lines left out (the bottom corners hold the marker and the stats).
+// Shown on screen only: never printed or logged.
+struct IdentityCorners {
+  std::vector<std::string> top_left, top_right;
+  bool empty() const { return top_left.empty() && top_right.empty(); }
+};
+IdentityCorners CornersOf(const v1::PatientIdentity& identity);
+// A DICOM person name for people: "Doe^John^^Dr" -> "Doe, John Dr" (the
+// family name, then given, middle, prefix and suffix; empty parts left out;
+// of "alphabetic=ideographic=phonetic" the first).
+std::string PersonName(const std::string& dicom_name);
+// "20091203" -> "2009-12-03"; anything else as it is.
+std::string StudyDate(const std::string& dicom_date);
+
 // The patient axis an axis slice crosses (0: x for sagittal, 1: y for
 // coronal, 2: z for axial).
 int CrossedAxis(v1::SliceAxis axis);
 // The slice of `axis` through `crosshair` (LPS mm).
 v1::SliceRequest CrosshairSlice(const std::string& session_id, v1::SliceAxis axis, Vec3f crosshair);
+// Where the plane at `position_mm` along patient axis `lps_axis` cuts the
+// volume's box (its corner voxels' centres, as the slices span it): the
+// polygon's corners in order around it (LPS mm); empty where it misses.
+std::vector<Vec3f> SlicePlaneOutline(const v1::VolumeInfo& volume, int lps_axis, float position_mm);
 // One voxel along patient axis `lps_axis` (mm): the spacing of the volume's
 // index axis that runs most nearly along it.
 float VoxelStepMm(const v1::VolumeInfo& volume, int lps_axis);

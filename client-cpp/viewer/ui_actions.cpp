@@ -1,13 +1,13 @@
 // Session-script "ui" lines: the viewer's own actions, so that a script can
 // drive the window as a person would (docs/viewer.md lists them).
+#include <fmt/format.h>
 #include <google/protobuf/struct.pb.h>
 #include <google/protobuf/util/json_util.h>
 
 #include <cctype>
 #include <cmath>
 #include <initializer_list>
-
-#include <fmt/format.h>
+#include <map>
 
 #include "core/error.h"
 #include "viewer/transfer_edits.h"
@@ -116,19 +116,17 @@ void App::RunUiAction(const std::string& json, int line) {
     const Struct& p = Object(value, at);
     bool* open = Panel(panels, Text(Field(p, "name", at), at + ".name"));
     if (!open) {
-      throw InputError(at + ".name: volume, pacs, transferFunction, lights, render, clipping, labels, reading, "
-                            "scene or stats");
+      throw InputError(at +
+                       ".name: volume, pacs, transferFunction, lights, render, clipping, labels, reading, "
+                       "scene or stats");
     }
     if (run) *open = !p.fields().count("open") || p.fields().at("open").bool_value();
   } else if (name == "key") {  // {"key": "p"}
     const std::string key = Text(value, at);
-    if (key.size() != 1 && key != "Home" && key != "F2" && key != "F3") {
-      throw InputError(at + ": one character, Home, F2 or F3");
-    }
-    const SDL_Keycode code = key == "Home" ? SDLK_HOME
-                             : key == "F2"  ? SDLK_F2
-                             : key == "F3"  ? SDLK_F3
-                                            : SDL_Keycode(std::tolower(key[0]));
+    static const std::map<std::string, SDL_Keycode> kNamed = {
+        {"Home", SDLK_HOME}, {"F2", SDLK_F2}, {"F3", SDLK_F3}, {"F4", SDLK_F4}};
+    if (key.size() != 1 && !kNamed.count(key)) throw InputError(at + ": one character, Home, F2, F3 or F4");
+    const SDL_Keycode code = key.size() == 1 ? SDL_Keycode(std::tolower(key[0])) : kNamed.at(key);
     if (run) Key(code);
   } else if (name == "drag") {  // {"drag": {"button": "left", "dx": 100, "dy": 0, "modifier": "ctrl"}}
     const Struct& d = Object(value, at);

@@ -828,6 +828,10 @@ bool App::Key(SDL_Keycode key) {
     ToggleGrid();
     return true;
   }
+  if (key == SDLK_F4) {
+    reading.identity = !reading.identity;
+    return true;
+  }
   if (session_id.empty()) return false;
   if (key == SDLK_HOME || key == SDLK_SPACE) {
     camera = home;

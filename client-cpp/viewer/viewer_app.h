@@ -110,6 +110,7 @@ struct SlicePane {
 // The reading tools: picks, the crosshair, the 2x2 slices, measurements.
 struct ReadingState {
   bool grid = false;                 // the 3D view and three slices (F3)
+  bool identity = true;              // a DICOM volume's patient and study in the 3D view's corners (F4)
   std::optional<Vec3f> crosshair;    // LPS mm
   std::optional<v1::PickResult> pick;  // the last pick's answer
   std::string pick_text;             // and in words (or why it failed)

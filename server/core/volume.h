@@ -30,21 +30,40 @@ enum class VoxelStorage { kUInt16, kFloat32 };
 
 const char* ToString(VoxelStorage storage);
 
+// DICOM Window Center (0028,1050) and Window Width (0028,1051), in the
+// volume's value unit (reading/window_level.h applies it).
+struct VoiWindow {
+  double center = 50;  // level; the default is soft tissue's
+  double width = 350;  // >= 1, as DICOM requires
+};
+
+// DICOM fields naming who and what a volume shows, for the corners of its
+// reading views: answered to the people who may render it, never logged.
+struct PatientIdentity {
+  std::string patient_name;  // as stored: "FAMILY^GIVEN"
+  std::string patient_id;
+  std::string study_date;  // YYYYMMDD
+  std::string study_description;
+  std::string series_description;
+};
+
 // What a volume is and where it came from; carried along, never rendered.
 struct VolumeMetadata {
-  std::string source;      // the file, folder or phantom it came from
-  std::string modality;    // "CT", "MR", ... or "" when the file does not say
-  std::string value_unit;  // "HU" for CT in Hounsfield units, else ""
+  std::string source;         // the file, folder or phantom it came from
+  std::string modality;       // "CT", "MR", ... or "" when the file does not say
+  std::string value_unit;     // "HU" for CT in Hounsfield units, else ""
   std::string original_type;  // the file's voxel type, e.g. "int16", "uint8 * 2.2086"
   // LPS position (mm) of the centre of voxel (0,0,0), and the LPS direction of
   // each index axis: direction[3*r + c] is row r of the 3x3 matrix whose
   // column c is index axis c.
   std::array<double, 3> origin_mm{0, 0, 0};
   std::array<double, 9> direction{1, 0, 0, 0, 1, 0, 0, 0, 1};
-  std::size_t non_finite_replaced = 0;  // NaN/Inf voxels sanitised on load
-  std::size_t subnormals_flushed = 0;   // values below float's normal range, made 0
-  std::string orientation_override;     // the code a load gave instead of the file's direction, e.g. "LPI"
-  std::vector<std::string> notes;       // what loading changed: a resampling, a mirroring
+  std::size_t non_finite_replaced = 0;     // NaN/Inf voxels sanitised on load
+  std::size_t subnormals_flushed = 0;      // values below float's normal range, made 0
+  std::string orientation_override;        // the code a load gave instead of the file's direction, e.g. "LPI"
+  std::vector<std::string> notes;          // what loading changed: a resampling, a mirroring
+  PatientIdentity identity;                // empty unless it came from DICOM
+  std::optional<VoiWindow> stored_window;  // the window its DICOM gives, if any
 };
 
 // The patient direction each index axis points to most, as three letters

@@ -4,6 +4,7 @@
 #include "io/reader_cage.h"
 
 #include <fcntl.h>
+#include <fmt/format.h>
 #include <linux/landlock.h>
 #include <poll.h>
 #include <signal.h>
@@ -24,8 +25,6 @@
 #include <mutex>
 #include <optional>
 #include <thread>
-
-#include <fmt/format.h>
 
 #include "cinevol/reader/reader.pb.h"
 #include "core/error.h"
@@ -231,9 +230,11 @@ class Spare {
 class ReaderProcess {
  public:
   ReaderProcess(Request request, const std::vector<Input>& inputs, const LoadPolicy& policy)
-      : shown_(request.shown()), limits_(policy.reader), cancel_(policy.cancel),
-        deadline_(Clock::now() + std::chrono::duration_cast<Clock::duration>(
-                                     std::chrono::duration<double>(limits_.wall_seconds))) {
+      : shown_(request.shown()),
+        limits_(policy.reader),
+        cancel_(policy.cancel),
+        deadline_(Clock::now() +
+                  std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(limits_.wall_seconds))) {
     request.set_work_dir(work_dir_.path().string());
     const char* skip = std::getenv("CINEVOL_READER_PRECHECKS");
     request.set_skip_prechecks(skip && std::string_view(skip) == "off");
@@ -310,9 +311,7 @@ class ReaderProcess {
   }
 
   // The child's answer that ends a request (a list, a table).
-  void Answered() {
-    outcome_ = "ok";
-  }
+  void Answered() { outcome_ = "ok"; }
 
   [[noreturn]] void Violation(const std::string& what) {
     outcome_ = "protocol";
@@ -417,8 +416,8 @@ class ReaderProcess {
       }
       if (sig == SIGSYS) {
         outcome_ = "sandbox";
-        throw InputError(fmt::format("{}: the {} reader was stopped by its sandbox (a forbidden system call)",
-                                     shown_, reader_));
+        throw InputError(
+            fmt::format("{}: the {} reader was stopped by its sandbox (a forbidden system call)", shown_, reader_));
       }
       outcome_ = "crashed";
       throw InputError(fmt::format("{}: the {} reader stopped ({})", shown_, reader_, SignalName(sig)));
@@ -451,7 +450,7 @@ class ReaderProcess {
   UniqueFd stderr_;
   ReaderChannel channel_{UniqueFd()};
   std::string stderr_text_;
-  std::string reader_;  // "NRRD", ... for messages
+  std::string reader_;   // "NRRD", ... for messages
   std::string outcome_;  // for the metrics, once known
 };
 
@@ -461,8 +460,8 @@ UniqueFd SealedMemory(std::uint64_t bytes, const std::string& shown) {
   UniqueFd fd(memfd_create("cinevol-voxels", MFD_CLOEXEC | MFD_ALLOW_SEALING));
   if (!fd || ftruncate(fd.get(), off_t(bytes)) != 0 ||
       fcntl(fd.get(), F_ADD_SEALS, F_SEAL_SHRINK | F_SEAL_GROW | F_SEAL_SEAL) != 0) {
-    throw ResourceExhausted(fmt::format("{}: cannot make {} of shared memory ({})", shown, Mib(bytes),
-                                        std::strerror(errno)));
+    throw ResourceExhausted(
+        fmt::format("{}: cannot make {} of shared memory ({})", shown, Mib(bytes), std::strerror(errno)));
   }
   return fd;
 }
@@ -482,6 +481,25 @@ bool AllFinite(const google::protobuf::RepeatedField<double>& values, int count)
   return true;
 }
 
+// DICOM allows 64 characters a field (3 x 64 for a name); more is a
+// violation of the protocol, not a long name.
+bool IdentityFits(const reader::Identity& id) {
+  constexpr std::size_t kMaxBytes = 4 * 3 * 64;  // UTF-8 bytes of 3 x 64 characters
+  for (const std::string* field :
+       {&id.patient_name(), &id.patient_id(), &id.study_date(), &id.study_description(), &id.series_description()}) {
+    if (field->size() > kMaxBytes) return false;
+  }
+  return true;
+}
+
+// The fields as a client may be shown them: UTF-8 (other bytes escaped), no
+// control characters (a corner of a view holds one line each).
+PatientIdentity IdentityOf(const reader::Identity& id) {
+  const auto shown = [](const std::string& field) { return ValidUtf8(LogSafe(field, field.size())); };
+  return {shown(id.patient_name()), shown(id.patient_id()), shown(id.study_date()), shown(id.study_description()),
+          shown(id.series_description())};
+}
+
 // The header as the parent can trust it, or a protocol violation.
 struct CheckedHeader {
   Vec3i dims;
@@ -495,8 +513,9 @@ CheckedHeader Check(const reader::Header& h, ReaderProcess& child, const LoadPol
   CheckedHeader c;
   const auto type = VoxelTypeNamed(h.voxel_type());
   const bool sane = h.dims_size() == 3 && AllFinite(h.spacing_mm(), 3) && AllFinite(h.origin_mm(), 3) &&
-                    AllFinite(h.direction(), 9) && type && h.modality().size() <= 64 &&
-                    h.value_unit().size() <= 64 && h.original_type().size() <= 256 && h.notes_size() <= 8;
+                    AllFinite(h.direction(), 9) && type && h.modality().size() <= 64 && h.value_unit().size() <= 64 &&
+                    h.original_type().size() <= 256 && h.notes_size() <= 8 && IdentityFits(h.identity()) &&
+                    (h.stored_window_size() == 0 || h.stored_window_size() == 2);
   if (!sane) child.Violation("sent a header that does not hold together");
   c.type = *type;
   for (int a = 0; a < 3; ++a) {
@@ -517,6 +536,10 @@ CheckedHeader Check(const reader::Header& h, ReaderProcess& child, const LoadPol
   for (int i = 0; i < 3; ++i) c.meta.origin_mm[i] = h.origin_mm(i);
   for (int i = 0; i < 9; ++i) c.meta.direction[i] = h.direction(i);
   for (const std::string& note : h.notes()) c.meta.notes.push_back(ValidUtf8(LogSafe(note, 512)));
+  c.meta.identity = IdentityOf(h.identity());
+  if (h.stored_window_size() == 2 && AllFinite(h.stored_window(), 2) && h.stored_window(1) >= 1) {
+    c.meta.stored_window = VoiWindow{h.stored_window(0), h.stored_window(1)};
+  }
   return c;
 }
 
@@ -576,8 +599,8 @@ fs::path ReaderPath() {
     const fs::path candidate = dir / "cinevol-reader";
     if (!ec && access(candidate.c_str(), X_OK) == 0) return candidate;
   }
-  throw std::runtime_error(fmt::format("cinevol-reader, which reads every file, is not beside {}: install it there",
-                                       self.string()));
+  throw std::runtime_error(
+      fmt::format("cinevol-reader, which reads every file, is not beside {}: install it there", self.string()));
 }
 
 Volume ReadVolumeFile(const fs::path& file, const formats::References& refs, const LoadPolicy& policy) {

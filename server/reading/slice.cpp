@@ -6,6 +6,7 @@
 #include <fmt/format.h>
 
 #include <algorithm>
+#include <atomic>
 #include <cmath>
 #include <limits>
 #include <vector>
@@ -269,8 +270,9 @@ struct SlicePass {
     for (int c = 0; c < 3; ++c) rgb[c] = std::uint8_t(grey + (paint.rgb[c] - grey) * paint.alpha + 0.5f);
   }
 
-  void Run(ImageRgb8& image) const {
+  void Run(ImageRgb8& image, const std::atomic<bool>* cancel) const {
     ParallelFor(image.height, [&](std::int64_t row) {
+      if (cancel && cancel->load(std::memory_order_relaxed)) return;
       std::uint8_t* line = image.bytes.data() + std::size_t(row) * image.width * 3;
       for (int column = 0; column < image.width; ++column) Pixel(column, int(row), line + 3 * column);
     });
@@ -279,7 +281,7 @@ struct SlicePass {
 
 template <class T>
 void RunPass(const Volume& volume, const T* voxels, float offset, const SliceLabels& labels, const ClipRegion* clip,
-             const SliceSpec& spec, SliceImage& out) {
+             const SliceSpec& spec, const std::atomic<bool>* cancel, SliceImage& out) {
   SlicePass<T> pass{{voxels, volume.dims(), offset},
                     StepsOf(volume, out.geometry, spec.slab_mm),
                     ClipInIndexSpace(clip, volume),
@@ -288,7 +290,7 @@ void RunPass(const Volume& volume, const T* voxels, float offset, const SliceLab
                     spec.window,
                     spec.nearest,
                     spec.projection};
-  pass.Run(out.image);
+  pass.Run(out.image, cancel);
 }
 
 void CheckRenderable(const Volume& volume, const SliceLabels& labels, const SliceSpec& spec) {
@@ -363,7 +365,8 @@ float SlabStep(const Volume& volume, Vec3f normal) {
   return 1.0f / Length(voxels_per_mm);
 }
 
-SliceImage RenderSlice(const Volume& volume, const SliceLabels& labels, const ClipRegion* clip, const SliceSpec& spec) {
+SliceImage RenderSlice(const Volume& volume, const SliceLabels& labels, const ClipRegion* clip, const SliceSpec& spec,
+                       const std::atomic<bool>* cancel) {
   CheckRenderable(volume, labels, spec);
   SliceImage out;
   out.geometry = PlanSlice(volume, spec);
@@ -371,10 +374,11 @@ SliceImage RenderSlice(const Volume& volume, const SliceLabels& labels, const Cl
   out.image.height = out.geometry.height;
   out.image.bytes.assign(std::size_t(out.image.width) * out.image.height * 3, 0);
   if (volume.storage() == VoxelStorage::kUInt16) {
-    RunPass(volume, volume.u16().data(), volume.stored_offset(), labels, clip, spec, out);
+    RunPass(volume, volume.u16().data(), volume.stored_offset(), labels, clip, spec, cancel, out);
   } else {
-    RunPass(volume, volume.f32().data(), 0.0f, labels, clip, spec, out);
+    RunPass(volume, volume.f32().data(), 0.0f, labels, clip, spec, cancel, out);
   }
+  if (cancel && *cancel) throw Cancelled("the slice was cancelled");
   return out;
 }
 

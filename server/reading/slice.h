@@ -11,6 +11,7 @@
 //   sagittal: row +P, column +I  (A|P, S top, I bottom)
 #pragma once
 
+#include <atomic>
 #include <string>
 
 #include "core/clip_region.h"
@@ -110,7 +111,9 @@ float SlabStep(const Volume& volume, Vec3f normal);
 // inside `clip`, where one is given) are black; `clip` is the scene's
 // resolved crop box and clip planes (scene/scene_builder.h ResolveClipping,
 // world mm); null ignores them. Throws InputError for a window narrower
-// than 1, a negative slab or labels on another grid.
-SliceImage RenderSlice(const Volume& volume, const SliceLabels& labels, const ClipRegion* clip, const SliceSpec& spec);
+// than 1, a negative slab or labels on another grid. Once `cancel` is raised
+// (a caller gone), the rows not yet begun are skipped and Cancelled thrown.
+SliceImage RenderSlice(const Volume& volume, const SliceLabels& labels, const ClipRegion* clip, const SliceSpec& spec,
+                       const std::atomic<bool>* cancel = nullptr);
 
 }  // namespace cinevol

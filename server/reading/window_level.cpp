@@ -1,7 +1,12 @@
 // Window presets and the automatic window.
 #include "reading/window_level.h"
 
+#include <fmt/format.h>
+
 #include <algorithm>
+
+#include "core/error.h"
+#include "core/log_safe.h"
 
 namespace cinevol {
 
@@ -33,8 +38,23 @@ VoiWindow AutoVoiWindow(const ValueHistogram& histogram) {
 
 VoiWindow DefaultWindow(const Volume& volume, std::string* name) {
   const bool hounsfield = volume.metadata().value_unit == "HU";
-  if (name) *name = hounsfield ? "soft-tissue" : "auto";
+  const std::optional<VoiWindow>& stored = volume.metadata().stored_window;
+  if (name) *name = stored ? "stored" : hounsfield ? "soft-tissue" : "auto";
+  if (stored) return *stored;
   return hounsfield ? *FindWindowPreset("soft-tissue") : AutoVoiWindow(volume.histogram());
+}
+
+VoiWindow WindowNamed(std::string_view name, const Volume& volume) {
+  if (name.empty()) return DefaultWindow(volume);
+  if (name == "auto") return AutoVoiWindow(volume.histogram());
+  if (name == "stored") {
+    if (volume.metadata().stored_window) return *volume.metadata().stored_window;
+    throw InputError(
+        fmt::format("window preset 'stored': {} stores no window (only DICOM can)", volume.metadata().source));
+  }
+  if (const auto preset = FindWindowPreset(name)) return *preset;
+  throw InputError(
+      fmt::format("window preset '{}' is none of brain, soft-tissue, lung, bone, auto, stored", LogSafe(name)));
 }
 
 }  // namespace cinevol

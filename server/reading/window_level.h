@@ -14,13 +14,6 @@
 
 namespace cinevol {
 
-// DICOM Window Center (0028,1050) and Window Width (0028,1051), in the
-// volume's value unit.
-struct VoiWindow {
-  double center = 50;  // level; the default is soft tissue's
-  double width = 350;  // >= 1, as DICOM requires
-};
-
 // VOI LINEAR to [0, 255], rounded to the nearest grey level:
 //   x <= c - 0.5 - (w-1)/2  -> 0
 //   x >  c - 0.5 + (w-1)/2  -> 255
@@ -51,8 +44,14 @@ std::optional<VoiWindow> FindWindowPreset(std::string_view name);
 // end. For MR and anything without HU.
 VoiWindow AutoVoiWindow(const ValueHistogram& histogram);
 
-// What a slice shows without a window asked for: soft tissue for values in
-// HU, the automatic window otherwise. `name` is set to what was chosen.
+// What a slice shows without a window asked for: the window its DICOM stores
+// where there is one, else soft tissue for values in HU, the automatic window
+// otherwise. `name` is set to what was chosen ("stored", "soft-tissue", "auto").
 VoiWindow DefaultWindow(const Volume& volume, std::string* name = nullptr);
+
+// The window called `name` for `volume`: a preset, "auto", "stored" (its
+// DICOM's) or "" (DefaultWindow). Throws InputError for another name, or for
+// "stored" where the volume stores none.
+VoiWindow WindowNamed(std::string_view name, const Volume& volume);
 
 }  // namespace cinevol

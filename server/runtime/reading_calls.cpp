@@ -1,9 +1,9 @@
 // SliceOf and PickOn: see reading_calls.h.
 #include "runtime/reading_calls.h"
 
-#include <cmath>
-
 #include <fmt/format.h>
+
+#include <cmath>
 
 #include "core/error.h"
 #include "encode/image_codecs.h"
@@ -30,28 +30,36 @@ void ToProto(Vec3f v, v1::Vec3* out) {
 
 SliceAxis AxisOf(v1::SliceAxis axis) {
   switch (axis) {
-    case v1::CORONAL: return SliceAxis::kCoronal;
-    case v1::SAGITTAL: return SliceAxis::kSagittal;
-    case v1::OBLIQUE: return SliceAxis::kOblique;
+    case v1::CORONAL:
+      return SliceAxis::kCoronal;
+    case v1::SAGITTAL:
+      return SliceAxis::kSagittal;
+    case v1::OBLIQUE:
+      return SliceAxis::kOblique;
     case v1::AXIAL:
-    case v1::SLICE_AXIS_UNSPECIFIED: return SliceAxis::kAxial;
-    default: throw InputError(fmt::format("axis: unknown value {}", int(axis)));
+    case v1::SLICE_AXIS_UNSPECIFIED:
+      return SliceAxis::kAxial;
+    default:
+      throw InputError(fmt::format("axis: unknown value {}", int(axis)));
   }
 }
 
 SlabProjection ProjectionOf(v1::SlabProjection projection) {
   switch (projection) {
-    case v1::MINIMUM: return SlabProjection::kMin;
-    case v1::MEAN: return SlabProjection::kMean;
+    case v1::MINIMUM:
+      return SlabProjection::kMin;
+    case v1::MEAN:
+      return SlabProjection::kMean;
     case v1::MAXIMUM:
-    case v1::SLAB_PROJECTION_UNSPECIFIED: return SlabProjection::kMax;
-    default: throw InputError(fmt::format("projection: unknown value {}", int(projection)));
+    case v1::SLAB_PROJECTION_UNSPECIFIED:
+      return SlabProjection::kMax;
+    default:
+      throw InputError(fmt::format("projection: unknown value {}", int(projection)));
   }
 }
 
-// The request's window: both numbers given, else a named preset, else
-// "auto" (or nothing): the volume's default (soft tissue for HU, else from
-// the histogram).
+// The request's window: both numbers given, else a named preset (nothing:
+// the volume's default, reading/window_level.h).
 VoiWindow WindowOf(const v1::SliceRequest& request, const Volume& volume) {
   if (request.has_window() != request.has_level()) throw InputError("window, level: give both or neither");
   if (request.has_window()) {
@@ -61,10 +69,11 @@ VoiWindow WindowOf(const v1::SliceRequest& request, const Volume& volume) {
     }
     return {request.level(), request.window()};
   }
-  const std::string& name = request.window_preset();
-  if (name.empty() || name == "auto") return name.empty() ? DefaultWindow(volume) : AutoVoiWindow(volume.histogram());
-  if (const auto preset = FindWindowPreset(name)) return *preset;
-  throw InputError(fmt::format("window_preset: '{}' is none of brain, soft-tissue, lung, bone, auto", name));
+  try {
+    return WindowNamed(request.window_preset(), volume);
+  } catch (const InputError& e) {
+    throw InputError(fmt::format("window_preset: {}", e.what()));
+  }
 }
 
 SliceSpec SpecOf(const v1::SliceRequest& request, const Volume& volume) {
@@ -82,8 +91,8 @@ SliceSpec SpecOf(const v1::SliceRequest& request, const Volume& volume) {
   // A slab past the volume's diagonal adds nothing but samples: bounded so, a hostile one holds no worker long.
   const float diagonal = Length(volume.extent_mm());
   if (!(request.slab_mm() >= 0 && request.slab_mm() <= diagonal)) {
-    throw InputError(fmt::format("slab_mm: {} is outside [0, {:.0f}] (the volume's diagonal)", request.slab_mm(),
-                                 diagonal));
+    throw InputError(
+        fmt::format("slab_mm: {} is outside [0, {:.0f}] (the volume's diagonal)", request.slab_mm(), diagonal));
   }
   spec.slab_mm = request.slab_mm();
   spec.projection = ProjectionOf(request.projection());
@@ -92,13 +101,14 @@ SliceSpec SpecOf(const v1::SliceRequest& request, const Volume& volume) {
 
 }  // namespace
 
-v1::SliceImage SliceOf(const v1::SliceRequest& request, const v1::Scene& scene, const VolumeLease& lease) {
+v1::SliceImage SliceOf(const v1::SliceRequest& request, const v1::Scene& scene, const VolumeLease& lease,
+                       const std::atomic<bool>* cancel) {
   const Volume& volume = *lease.volume();
   const SliceSpec spec = SpecOf(request, volume);
   const LabelSetup styles = ResolveLabels(scene.labels(), volume);
   const SliceLabels labels{request.hide_labels() ? nullptr : lease.labels().get(), &styles};
   const ClipRegion clip = ResolveClipping(scene.clipping(), volume);
-  const SliceImage slice = RenderSlice(volume, labels, request.apply_clipping() ? &clip : nullptr, spec);
+  const SliceImage slice = RenderSlice(volume, labels, request.apply_clipping() ? &clip : nullptr, spec, cancel);
   v1::SliceImage out;
   const std::vector<std::uint8_t> png = EncodePng(slice.image);
   out.set_png(std::string(png.begin(), png.end()));

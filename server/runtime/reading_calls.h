@@ -3,6 +3,8 @@
 // and volume to what they read, and the answer back (docs/reading.md).
 #pragma once
 
+#include <atomic>
+
 #include "cinevol/v1/scene.pb.h"
 #include "cinevol/v1/service.pb.h"
 #include "runtime/volume_registry.h"
@@ -10,8 +12,10 @@
 namespace cinevol::service {
 
 // A slice of `volume` through the scene's labels and (on request) clipping,
-// encoded as PNG. Throws InputError naming the request's field.
-v1::SliceImage SliceOf(const v1::SliceRequest& request, const v1::Scene& scene, const VolumeLease& volume);
+// encoded as PNG. Throws InputError naming the request's field; Cancelled
+// once `cancel` is raised (the caller gone: a thick slab stops early).
+v1::SliceImage SliceOf(const v1::SliceRequest& request, const v1::Scene& scene, const VolumeLease& volume,
+                       const std::atomic<bool>* cancel = nullptr);
 
 // What lies under pixel (request.x, request.y) of the scene's camera and
 // viewport. Throws InputError naming the request's field.

@@ -8,15 +8,15 @@
 #include <algorithm>
 
 #include "core/error.h"
+#include "core/log_safe.h"
 #include "io/label_volume.h"
-#include "scene/presets.h"
 #include "io/reader_cage.h"
 #include "io/table_finder.h"
 #include "io/volume_kind.h"
 #include "io/volume_loader.h"
 #include "render/prepared_volume.h"
 #include "runtime/errors.h"
-#include "core/log_safe.h"
+#include "scene/presets.h"
 
 namespace fs = std::filesystem;
 
@@ -84,6 +84,23 @@ std::uint64_t LabelBytes(const LabelVolume* labels) {
 // What fitting a segmentation to `image` holds: a label per image voxel.
 std::uint64_t LabelBytesFor(const Volume& image) { return image.voxel_count() * sizeof(std::uint16_t); }
 
+// The DICOM fields a reading view shows (never logged: they name a patient).
+void SetIdentity(const VolumeMetadata& meta, v1::VolumeInfo& info) {
+  const PatientIdentity& id = meta.identity;
+  if (!(id.patient_name + id.patient_id + id.study_date + id.study_description + id.series_description).empty()) {
+    v1::PatientIdentity* out = info.mutable_identity();
+    out->set_patient_name(id.patient_name);
+    out->set_patient_id(id.patient_id);
+    out->set_study_date(id.study_date);
+    out->set_study_description(id.study_description);
+    out->set_series_description(id.series_description);
+  }
+  if (meta.stored_window) {
+    info.mutable_stored_window()->set_center(float(meta.stored_window->center));
+    info.mutable_stored_window()->set_width(float(meta.stored_window->width));
+  }
+}
+
 }  // namespace
 
 class VolumeRegistry::Reservation {
@@ -128,8 +145,7 @@ VolumeLease::VolumeLease(VolumeRegistry* registry, std::string id, std::shared_p
 VolumeLease::~VolumeLease() { registry_->Release(id_); }
 
 VolumeRegistry::VolumeRegistry(std::vector<fs::path> data_roots, VolumeLimits limits)
-    : limits_(limits),
-      upload_dir_(fs::temp_directory_path() / fmt::format("cinevol-uploads-{}", ::getpid())) {
+    : limits_(limits), upload_dir_(fs::temp_directory_path() / fmt::format("cinevol-uploads-{}", ::getpid())) {
   for (const fs::path& root : data_roots) {
     std::error_code ec;
     const fs::path canonical = fs::canonical(root, ec);
@@ -239,8 +255,8 @@ v1::VolumeInfo VolumeRegistry::LoadFromDataRoot(const std::string& path, const s
                                                 const std::string& orientation, const Principal& caller,
                                                 const std::atomic<bool>* cancel) {
   const fs::path resolved = ResolveDataPath(path, "path");
-  const std::string source = resolved.string() + (series_uid.empty() ? "" : "#" + series_uid) +
-                             (orientation.empty() ? "" : "@" + orientation);
+  const std::string source =
+      resolved.string() + (series_uid.empty() ? "" : "#" + series_uid) + (orientation.empty() ? "" : "@" + orientation);
   // Answers name the path as this client wrote it, never where it resolved to.
   const auto as_written = [&](v1::VolumeInfo info) {
     info.set_source(path);
@@ -369,8 +385,8 @@ v1::VolumeInfo VolumeRegistry::Add(const std::string& base_id, const std::string
   e.labels = std::move(table.labels);
   e.table_note = std::move(table.note);
   // The source is a path or a client's file name: patient data, and not for the info log.
-  spdlog::info("volume {}: {}x{}x{}, {} MiB", LogSafe(id), e.volume->dims().x, e.volume->dims().y,
-               e.volume->dims().z, bytes >> 20);
+  spdlog::info("volume {}: {}x{}x{}, {} MiB", LogSafe(id), e.volume->dims().x, e.volume->dims().y, e.volume->dims().z,
+               bytes >> 20);
   return InfoLocked(id, e);
 }
 
@@ -394,9 +410,8 @@ std::shared_ptr<const Volume> VolumeRegistry::VolumeForLabels(const std::string&
   return e.volume;
 }
 
-v1::VolumeInfo VolumeRegistry::LoadLabels(const std::string& id, const std::string& path,
-                                          const std::string& table_path, const Principal& caller,
-                                          const std::atomic<bool>* cancel) {
+v1::VolumeInfo VolumeRegistry::LoadLabels(const std::string& id, const std::string& path, const std::string& table_path,
+                                          const Principal& caller, const std::atomic<bool>* cancel) {
   std::shared_ptr<const LabelVolume> held;
   const std::shared_ptr<const Volume> image = VolumeForLabels(id, caller, &held);
   const fs::path labels = ResolveDataPath(path, "path");
@@ -433,7 +448,7 @@ v1::VolumeInfo VolumeRegistry::AttachLabels(const std::string& id, const std::sh
                                             LabelVolume labels, const Principal& caller, Reservation* reservation) {
   std::shared_ptr<const LabelVolume> last;  // freed outside the lock
   std::lock_guard lock(mu_);
-  reservation->ReleaseLocked();  // the segmentation itself counts from here on
+  reservation->ReleaseLocked();         // the segmentation itself counts from here on
   FindLocked(id, caller, "volume_id");  // it may have gone while the file loaded
   Entry& e = volumes_.at(id);
   if (e.volume != image) {
@@ -489,6 +504,7 @@ v1::VolumeInfo VolumeRegistry::InfoLocked(const std::string& id, const Entry& e)
   info.mutable_notes()->Add(v.metadata().notes.begin(), v.metadata().notes.end());
   info.mutable_table()->set_voxels(e.labels ? e.labels->table_voxels : 0);
   info.mutable_table()->set_note(e.table_note);
+  SetIdentity(v.metadata(), info);
   for (const VolumeCopyStatus& c : VolumeCache::Get().Copies()) {
     if (c.volume != e.volume.get()) continue;
     v1::VolumeCopy* copy = info.add_copies();

@@ -3,7 +3,6 @@
 
 #include <fmt/format.h>
 #include <spdlog/spdlog.h>
-
 #include <sys/random.h>
 
 #include <algorithm>
@@ -12,18 +11,18 @@
 #include <thread>
 
 #include "core/error.h"
+#include "core/log_safe.h"
 #include "core/parallel_for.h"
 #include "core/tone_map.h"
 #include "encode/hdr_images.h"
 #include "encode/image_codecs.h"
-#include "render/prepared_volume.h"
-#include "runtime/errors.h"
-#include "runtime/render_store.h"
-#include "core/log_safe.h"
 #include "io/label_volume.h"
 #include "io/reader_cage.h"
+#include "render/prepared_volume.h"
+#include "runtime/errors.h"
 #include "runtime/metrics.h"
 #include "runtime/reading_calls.h"
+#include "runtime/render_store.h"
 #include "scene/presets.h"
 
 namespace cinevol::service {
@@ -63,15 +62,22 @@ class StillJob final : public Job {
   using Done = std::function<void(grpc::Status, v1::SnapshotResponse)>;
   using Progress = std::function<void(const v1::SnapshotProgress&)>;
   struct Callbacks {
-    Done done;                                 // once, with the image or the error
-    Progress progress;                         // after steps, at most every kProgressPeriod; may be empty
+    Done done;                                   // once, with the image or the error
+    Progress progress;                           // after steps, at most every kProgressPeriod; may be empty
     std::function<std::string()> why_cancelled;  // what raised `cancel`, for the message
   };
   // `cancel`: raised when the caller goes away or the session ends.
   StillJob(std::shared_ptr<VolumeLease> volume, v1::Scene scene, int spp, int max_chunk_spp, v1::ImageFormat format,
            Backend backend, TaskPool* encoder, std::shared_ptr<std::atomic<bool>> cancel, Callbacks callbacks)
-      : volume_(std::move(volume)), scene_(std::move(scene)), spp_(spp), max_chunk_(max_chunk_spp), format_(format),
-        backend_(backend), encoder_(encoder), cancel_(std::move(cancel)), callbacks_(std::move(callbacks)) {}
+      : volume_(std::move(volume)),
+        scene_(std::move(scene)),
+        spp_(spp),
+        max_chunk_(max_chunk_spp),
+        format_(format),
+        backend_(backend),
+        encoder_(encoder),
+        cancel_(std::move(cancel)),
+        callbacks_(std::move(callbacks)) {}
   // A still dropped unfinished (the server stopping) still answers its caller.
   ~StillJob() override {
     if (callbacks_.done) callbacks_.done({grpc::StatusCode::CANCELLED, "the server is shutting down"}, {});
@@ -111,8 +117,8 @@ class StillJob final : public Job {
 
   // The next chunk aims at kStillStep, growing at most twofold a step.
   void AdaptChunk(int chunk, Clock::duration took) {
-    const double ratio = std::chrono::duration<double>(kStillStep).count() /
-                         std::max(1e-4, std::chrono::duration<double>(took).count());
+    const double ratio =
+        std::chrono::duration<double>(kStillStep).count() / std::max(1e-4, std::chrono::duration<double>(took).count());
     chunk_ = std::clamp(int(chunk * std::min(2.0, ratio)), 1, max_chunk_);
   }
 
@@ -187,8 +193,9 @@ ServiceCore::ServiceCore(const ServerOptions& options)
   // Every file is read through cinevol-reader: find it now, not at the first load.
   spdlog::info("reader: {}", reader_cage::ReaderPath().string());
   if (!reader_cage::KernelHasLandlock()) {
-    spdlog::warn("reader: this kernel has no Landlock: readers are walled in by seccomp and rlimits only, and "
-                 "could open any file this server's user may read (docs/security.md#the-reader-cage)");
+    spdlog::warn(
+        "reader: this kernel has no Landlock: readers are walled in by seccomp and rlimits only, and "
+        "could open any file this server's user may read (docs/security.md#the-reader-cage)");
   }
   reader_cage::ObserveOutcomes([](std::string_view outcome) { ServerMetrics().ReaderEnded(outcome); });
   reader_cage::KeepSpareReader();
@@ -273,16 +280,17 @@ MapResolver ServiceCore::ResolveMap() const {
   };
 }
 
-v1::CreateSessionResponse ServiceCore::CreateSession(const v1::CreateSessionRequest& request,
-                                                     const Principal& caller, const std::atomic<bool>& cancelled) {
+v1::CreateSessionResponse ServiceCore::CreateSession(const v1::CreateSessionRequest& request, const Principal& caller,
+                                                     const std::atomic<bool>& cancelled) {
   RequireServing();
   std::shared_ptr<VolumeLease> volume = volumes_.Lease(request.volume_id(), caller);
   v1::SessionState state = InitialState(request, *volume->volume(), options_.limits, ResolveMap());
   const v1::Scene& scene = state.scene();
   if (StylesLabels(scene.labels()) && !volume->has_segmentation()) {
-    throw InputError(fmt::format("scene.labels: volume '{}' has no segmentation; load one first (LoadLabels, or "
-                                 "an upload with header.labels_for)",
-                                 request.volume_id()));
+    throw InputError(
+        fmt::format("scene.labels: volume '{}' has no segmentation; load one first (LoadLabels, or "
+                    "an upload with header.labels_for)",
+                    request.volume_id()));
   }
   *state.mutable_stream() = ToStreamSettings(SessionFrameSettings(backend_, state.stream()));
   {
@@ -303,16 +311,18 @@ v1::CreateSessionResponse ServiceCore::CreateSession(const v1::CreateSessionRequ
   // worker that other sessions share.
   std::shared_ptr<const VolumeCopy> prepared = PrepareOnDevice(*volume, scheduler);
   require_caller();
-  SessionContext context{&scheduler, &encoder_, backend_, &options_.limits, ResolveMap(), &pixels_,
-                         [this](const std::string& id) { Forget(id); }};
+  SessionContext context{
+      &scheduler, &encoder_, backend_, &options_.limits, ResolveMap(), &pixels_, [this](const std::string& id) {
+        Forget(id);
+      }};
   std::shared_ptr<Session> session;
   {
     std::lock_guard lock(mu_);
     RequireServing();  // Drain() raises the flag, then ends what it finds here under mu_
     RequireRoomLocked(caller);
     const std::string id = RandomSessionId();
-    session = std::make_shared<Session>(id, caller.name, std::move(volume), state, std::move(context),
-                                        std::move(prepared));
+    session =
+        std::make_shared<Session>(id, caller.name, std::move(volume), state, std::move(context), std::move(prepared));
     sessions_[id] = session;
   }
   spdlog::info("session {}: created for {} on {}, volume {}, {}x{}", session->id(), LogSafe(caller.name),
@@ -360,9 +370,10 @@ std::pair<v1::Scene, std::shared_ptr<VolumeLease>> SceneAndVolume(const Session&
 
 }  // namespace
 
-v1::SliceImage ServiceCore::RenderSlice(const v1::SliceRequest& request, const Principal& caller) {
+v1::SliceImage ServiceCore::RenderSlice(const v1::SliceRequest& request, const Principal& caller,
+                                        const std::atomic<bool>* cancel) {
   const auto [scene, volume] = SceneAndVolume(*FindSession(request.session_id(), caller));
-  return SliceOf(request, scene, *volume);
+  return SliceOf(request, scene, *volume, cancel);
 }
 
 v1::PickResult ServiceCore::Pick(const v1::PickRequest& request, const Principal& caller) {
@@ -488,7 +499,8 @@ ServiceCore::SnapshotDone ServiceCore::StoreAfter(const v1::SnapshotRequest& req
       });
       (*finish)(stored, stored.ok() ? std::move(still) : v1::SnapshotResponse());
     });
-    if (!queued) (*finish)({grpc::StatusCode::UNAVAILABLE, "the server is shutting down; the still was not stored"}, {});
+    if (!queued)
+      (*finish)({grpc::StatusCode::UNAVAILABLE, "the server is shutting down; the still was not stored"}, {});
   };
 }
 
@@ -518,11 +530,21 @@ void ServiceCore::PublishMetrics(bool devices) const {
   SessionStates states;
   for (const auto& s : sessions) {
     switch (s->Status().state()) {
-      case v1::SessionStatus::STARTING: ++states.starting; break;
-      case v1::SessionStatus::PAUSED: ++states.paused; break;
-      case v1::SessionStatus::IDLE: ++states.idle; break;
-      case v1::SessionStatus::DETACHED: ++states.detached; break;
-      default: ++states.rendering; break;
+      case v1::SessionStatus::STARTING:
+        ++states.starting;
+        break;
+      case v1::SessionStatus::PAUSED:
+        ++states.paused;
+        break;
+      case v1::SessionStatus::IDLE:
+        ++states.idle;
+        break;
+      case v1::SessionStatus::DETACHED:
+        ++states.detached;
+        break;
+      default:
+        ++states.rendering;
+        break;
     }
   }
   Metrics& metrics = ServerMetrics();

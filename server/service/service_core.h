@@ -3,6 +3,8 @@
 // sessions and the limits. The gRPC service classes are thin shells over it.
 #pragma once
 
+#include <grpcpp/support/status.h>
+
 #include <atomic>
 #include <chrono>
 #include <cstdint>
@@ -15,20 +17,18 @@
 #include <string>
 #include <vector>
 
-#include <grpcpp/support/status.h>
-
 #include "cinevol/v1/service.pb.h"
 #include "device/device.h"
-#include "service/auth.h"
-#include "service/call_watch.h"
-#include "service/connection_limits.h"
 #include "runtime/pacs_directory.h"
 #include "runtime/scheduler.h"
 #include "runtime/session.h"
-#include "scene/session_state.h"
 #include "runtime/task_pool.h"
-#include "service/tls.h"
 #include "runtime/volume_registry.h"
+#include "scene/session_state.h"
+#include "service/auth.h"
+#include "service/call_watch.h"
+#include "service/connection_limits.h"
+#include "service/tls.h"
 
 namespace cinevol::service {
 
@@ -40,31 +40,31 @@ inline constexpr int kMaxEventsPerCall = 64;
 struct ServerOptions {
   std::string listen = "127.0.0.1:50051";
   Backend backend = Backend::kAuto;
-  std::vector<int> devices;                              // GPU ids; empty: every usable GPU
-  std::vector<std::filesystem::path> data_roots;         // where clients may load volumes from
-  std::vector<std::string> volumes;                      // preloaded; empty: phantom:head
-  int workers_per_gpu = 4;                               // each its own CUDA stream
-  std::vector<pacs::PacsConfig> pacs;            // --pacs NAME=URL, with the --pacs-* settings
-  std::filesystem::path pacs_credentials;        // --pacs-credentials FILE; empty: none
-  int encode_threads = 0;                                // encodes at once on the compute pool; 0: one per worker
+  std::vector<int> devices;                       // GPU ids; empty: every usable GPU
+  std::vector<std::filesystem::path> data_roots;  // where clients may load volumes from
+  std::vector<std::string> volumes;               // preloaded; empty: phantom:head
+  int workers_per_gpu = 4;                        // each its own CUDA stream
+  std::vector<pacs::PacsConfig> pacs;             // --pacs NAME=URL, with the --pacs-* settings
+  std::filesystem::path pacs_credentials;         // --pacs-credentials FILE; empty: none
+  int encode_threads = 0;                         // encodes at once on the compute pool; 0: one per worker
   int max_sessions = 64;
   int max_sessions_per_principal = 16;
-  std::uint64_t max_total_pixels = 40'000'000;          // viewport pixels of every session together
+  std::uint64_t max_total_pixels = 40'000'000;  // viewport pixels of every session together
   VolumeLimits volume_limits;
-  int max_uploads_per_principal = 2;                     // at once
-  double upload_idle_seconds = 30;                       // an upload that sends nothing this long ends
-  double first_message_seconds = 10;                     // a call that sends no first message this long ends
-  double detached_session_seconds = 60;                  // a detached session waits this long for a new attach
-  double unattached_session_seconds = 15;                // a session never attached waits this long
-  double drain_seconds = 10;                             // SIGTERM to exit, whatever is in flight
+  int max_uploads_per_principal = 2;       // at once
+  double upload_idle_seconds = 30;         // an upload that sends nothing this long ends
+  double first_message_seconds = 10;       // a call that sends no first message this long ends
+  double detached_session_seconds = 60;    // a detached session waits this long for a new attach
+  double unattached_session_seconds = 15;  // a session never attached waits this long
+  double drain_seconds = 10;               // SIGTERM to exit, whatever is in flight
   SessionLimits limits;
   ConnectionLimits connections;
-  std::string port_file;                                 // written with the bound port once listening
-  std::filesystem::path auth_tokens;                     // "TOKEN PRINCIPAL" lines; empty: no authentication
-  TlsOptions tls;                                        // --tls-cert/--tls-key/--tls-client-ca
-  bool insecure_no_auth = false;                         // allow no authentication beyond loopback
-  std::string metrics_listen;                            // HOST:PORT of /metrics (Prometheus); empty: off
-  std::string advertise_address;  // where clients reach this server's sessions; empty: as they came
+  std::string port_file;              // written with the bound port once listening
+  std::filesystem::path auth_tokens;  // "TOKEN PRINCIPAL" lines; empty: no authentication
+  TlsOptions tls;                     // --tls-cert/--tls-key/--tls-client-ca
+  bool insecure_no_auth = false;      // allow no authentication beyond loopback
+  std::string metrics_listen;         // HOST:PORT of /metrics (Prometheus); empty: off
+  std::string advertise_address;      // where clients reach this server's sessions; empty: as they came
 };
 
 // One of a principal's uploads or loads under way (--max-uploads-per-principal).
@@ -85,7 +85,7 @@ struct LoadSlot {
 class ServiceCore {
  public:
   explicit ServiceCore(const ServerOptions& options);  // loads the volumes; throws InputError for bad options
-  ~ServiceCore();  // ends every session, then stops the workers
+  ~ServiceCore();                                      // ends every session, then stops the workers
 
   Principal Authenticate(const grpc::CallbackServerContext& context) const {
     return authenticator_.Authenticate(context);
@@ -113,7 +113,9 @@ class ServiceCore {
   // SendEvents: the batch (at most kMaxEventsPerCall) to the caller's session (Session::OnEvents).
   v1::SessionState SendEvents(const v1::SendEventsRequest& request, const Principal& caller);
   // The reading tools on the caller's session, with its current scene (runtime/reading_calls.h).
-  v1::SliceImage RenderSlice(const v1::SliceRequest& request, const Principal& caller);
+  // `cancel`: raised when the caller goes away; a slab stops early.
+  v1::SliceImage RenderSlice(const v1::SliceRequest& request, const Principal& caller,
+                             const std::atomic<bool>* cancel = nullptr);
   v1::PickResult Pick(const v1::PickRequest& request, const Principal& caller);
   // What a still tells its caller. `done` runs once, on a worker, with the
   // image or the error; `progress` (optional) runs at once with 0 samples
@@ -126,8 +128,8 @@ class ServiceCore {
   // Renders a still of the session's current state on its device. It stops
   // early (CANCELLED, saying why) once `cancel` is raised: by the caller's
   // going away, or the session's end. The session does not expire meanwhile.
-  void Snapshot(const v1::SnapshotRequest& request, const Principal& caller,
-                std::shared_ptr<std::atomic<bool>> cancel, SnapshotCallbacks callbacks);
+  void Snapshot(const v1::SnapshotRequest& request, const Principal& caller, std::shared_ptr<std::atomic<bool>> cancel,
+                SnapshotCallbacks callbacks);
   // What `caller` may see: its own sessions and uploads (an operator: all).
   v1::ServerStatus Status(const Principal& caller) const;
   // Ends sessions detached (or never attached) for longer than the options allow.
@@ -169,7 +171,7 @@ class ServiceCore {
   Backend backend_ = Backend::kCpu;  // resolved: kCpu or kCuda
   Authenticator authenticator_;
   VolumeRegistry volumes_;
-  TaskPool encoder_;  // on ThreadPool::Shared(), beside the CPU's loops
+  TaskPool encoder_;    // on ThreadPool::Shared(), beside the CPU's loops
   ThreadPool waiting_;  // for loader_ and setup_: their tasks mostly wait, so they keep off the compute pool
   TaskPool loader_;
   TaskPool setup_;

@@ -7,10 +7,10 @@
 #include <mutex>
 #include <optional>
 
+#include "core/log_safe.h"
 #include "io/label_volume.h"
 #include "io/volume_loader.h"
 #include "runtime/errors.h"
-#include "core/log_safe.h"
 #include "runtime/metrics.h"
 #include "runtime/series_load.h"
 #include "service/session_stream.h"
@@ -119,8 +119,8 @@ class UploadReactor final : public grpc::ServerReadReactor<v1::UploadVolumeChunk
       }
       CheckSize(h.size_bytes(), "header.size_bytes");
       if (h.label_table().size() > kMaxLabelTableBytes) {
-        throw InputError(fmt::format("header.label_table: {} bytes; at most {}", h.label_table().size(),
-                                     kMaxLabelTableBytes));
+        throw InputError(
+            fmt::format("header.label_table: {} bytes; at most {}", h.label_table().size(), kMaxLabelTableBytes));
       }
       if (!h.label_table().empty() && h.labels_for().empty()) {
         throw InputError("header.label_table: only with header.labels_for (a label volume's names)");
@@ -162,8 +162,8 @@ class UploadReactor final : public grpc::ServerReadReactor<v1::UploadVolumeChunk
     const std::uint64_t limit = core_->volumes().limits().max_upload_bytes;
     if (size > limit) {
       throw LimitExceeded(grpc::StatusCode::RESOURCE_EXHAUSTED, "max-upload-mb",
-                     fmt::format("{}: {} bytes is over this server's upload limit of {} bytes (--max-upload-mb)",
-                                 field, size, limit));
+                          fmt::format("{}: {} bytes is over this server's upload limit of {} bytes (--max-upload-mb)",
+                                      field, size, limit));
     }
     if (size == 0) throw InputError(fmt::format("{}: is 0", field));
   }
@@ -185,10 +185,10 @@ class UploadReactor final : public grpc::ServerReadReactor<v1::UploadVolumeChunk
     const bool queued = core_->loader().Submit([this] {
       const grpc::Status status = Guarded([&] {
         core_->RequireServing();
-        *response_ = labels_for_.empty()
-                         ? core_->volumes().AddUpload(path_, name_, orientation_, caller_, &slot_->cancel)
-                         : core_->volumes().AddUploadedLabels(labels_for_, path_, name_, label_table_, caller_,
-                                                              &slot_->cancel);
+        *response_ =
+            labels_for_.empty()
+                ? core_->volumes().AddUpload(path_, name_, orientation_, caller_, &slot_->cancel)
+                : core_->volumes().AddUploadedLabels(labels_for_, path_, name_, label_table_, caller_, &slot_->cancel);
       });
       ServerMetrics().Upload(status.ok());
       slot_->Release();
@@ -308,12 +308,12 @@ class ProgressStreamReactor final : public grpc::ServerWriteReactor<Update> {
   Update out_, last_;
 };
 
-using SnapshotStreamReactor = ProgressStreamReactor<v1::SnapshotUpdate, v1::SnapshotProgress, v1::SnapshotResponse,
-                                                    &v1::SnapshotUpdate::mutable_progress,
-                                                    &v1::SnapshotUpdate::mutable_still>;
-using SeriesStreamReactor = ProgressStreamReactor<v1::LoadSeriesUpdate, v1::LoadSeriesProgress, v1::VolumeInfo,
-                                                  &v1::LoadSeriesUpdate::mutable_progress,
-                                                  &v1::LoadSeriesUpdate::mutable_volume>;
+using SnapshotStreamReactor =
+    ProgressStreamReactor<v1::SnapshotUpdate, v1::SnapshotProgress, v1::SnapshotResponse,
+                          &v1::SnapshotUpdate::mutable_progress, &v1::SnapshotUpdate::mutable_still>;
+using SeriesStreamReactor =
+    ProgressStreamReactor<v1::LoadSeriesUpdate, v1::LoadSeriesProgress, v1::VolumeInfo,
+                          &v1::LoadSeriesUpdate::mutable_progress, &v1::LoadSeriesUpdate::mutable_volume>;
 
 }  // namespace
 
@@ -338,8 +338,8 @@ grpc::ServerUnaryReactor* VolumeServiceImpl::LoadLabels(grpc::CallbackServerCont
                                                         const v1::LoadLabelsRequest* request,
                                                         v1::VolumeInfo* response) {
   return LoadFromDisk(context, request->path(), [this, request, response](const Principal& caller, LoadSlot& slot) {
-    *response = core_->volumes().LoadLabels(request->volume_id(), request->path(), request->table_path(), caller,
-                                            &slot.cancel);
+    *response =
+        core_->volumes().LoadLabels(request->volume_id(), request->path(), request->table_path(), caller, &slot.cancel);
   });
 }
 
@@ -361,8 +361,7 @@ class LoadReactor final : public grpc::ServerUnaryReactor {
 
 }  // namespace
 
-grpc::ServerUnaryReactor* VolumeServiceImpl::LoadFromDisk(grpc::CallbackServerContext* context,
-                                                          const std::string& path,
+grpc::ServerUnaryReactor* VolumeServiceImpl::LoadFromDisk(grpc::CallbackServerContext* context, const std::string& path,
                                                           std::function<void(const Principal&, LoadSlot&)> load) {
   auto* reactor = new LoadReactor;
   const grpc::Status status = Guarded([&] {
@@ -450,8 +449,8 @@ grpc::ServerUnaryReactor* SessionServiceImpl::CloseSession(grpc::CallbackServerC
   return Answer(core_, context, [&](const Principal& caller) { core_->CloseSession(request->session_id(), caller); });
 }
 
-grpc::ServerWriteReactor<v1::ServerMessage>* SessionServiceImpl::WatchSession(
-    grpc::CallbackServerContext* context, const v1::WatchSessionRequest* request) {
+grpc::ServerWriteReactor<v1::ServerMessage>* SessionServiceImpl::WatchSession(grpc::CallbackServerContext* context,
+                                                                              const v1::WatchSessionRequest* request) {
   return new WatchSessionReactor(context, core_, *request);
 }
 
@@ -459,17 +458,17 @@ grpc::ServerUnaryReactor* SessionServiceImpl::SendEvents(grpc::CallbackServerCon
                                                          const v1::SendEventsRequest* request,
                                                          v1::SendEventsResponse* response) {
   // Answered on the gRPC thread: a batch is at most 64 quick checks and merges under the session's lock.
-  return Answer(core_, context, [&](const Principal& caller) {
-    *response->mutable_state() = core_->SendEvents(*request, caller);
-  });
+  return Answer(core_, context,
+                [&](const Principal& caller) { *response->mutable_state() = core_->SendEvents(*request, caller); });
 }
 
 // Slices and picks grow with the volume (a slab, a long ray): on the setup pool, in the caller's queue.
 grpc::ServerUnaryReactor* SessionServiceImpl::RenderSlice(grpc::CallbackServerContext* context,
                                                           const v1::SliceRequest* request, v1::SliceImage* response) {
-  return new PooledReactor(context, core_, core_->setup(), [this, request, response](const Principal& caller, auto&) {
-    *response = core_->RenderSlice(*request, caller);
-  });
+  return new PooledReactor(context, core_, core_->setup(),
+                           [this, request, response](const Principal& caller, const std::atomic<bool>& cancelled) {
+                             *response = core_->RenderSlice(*request, caller, &cancelled);
+                           });
 }
 
 grpc::ServerUnaryReactor* SessionServiceImpl::Pick(grpc::CallbackServerContext* context, const v1::PickRequest* request,
@@ -522,8 +521,8 @@ void AddSeries(const pacs::SeriesSummary& from, v1::SeriesSummary* to) {
 
 }  // namespace
 
-grpc::ServerUnaryReactor* PacsServiceImpl::ListPacs(grpc::CallbackServerContext* context,
-                                                    const v1::ListPacsRequest*, v1::ListPacsResponse* response) {
+grpc::ServerUnaryReactor* PacsServiceImpl::ListPacs(grpc::CallbackServerContext* context, const v1::ListPacsRequest*,
+                                                    v1::ListPacsResponse* response) {
   return Answer(core_, context, [&](const Principal&) {
     for (const std::string& name : core_->pacs().Names()) response->add_names(name);
   });
@@ -543,18 +542,18 @@ grpc::ServerUnaryReactor* PacsServiceImpl::SearchStudies(grpc::CallbackServerCon
 grpc::ServerUnaryReactor* PacsServiceImpl::SearchSeries(grpc::CallbackServerContext* context,
                                                         const v1::SearchSeriesRequest* request,
                                                         v1::SearchSeriesResponse* response) {
-  return new PooledReactor(context, core_, core_->pacs_calls(),
-                           [this, request, response](const Principal&, const std::atomic<bool>& cancelled) {
-                             const auto client = core_->pacs().Find(request->pacs());
-                             for (const pacs::SeriesSummary& series :
-                                  client->SearchSeries(request->study_uid(), &cancelled)) {
-                               AddSeries(series, response->add_series());
-                             }
-                           });
+  return new PooledReactor(
+      context, core_, core_->pacs_calls(),
+      [this, request, response](const Principal&, const std::atomic<bool>& cancelled) {
+        const auto client = core_->pacs().Find(request->pacs());
+        for (const pacs::SeriesSummary& series : client->SearchSeries(request->study_uid(), &cancelled)) {
+          AddSeries(series, response->add_series());
+        }
+      });
 }
 
 grpc::ServerWriteReactor<v1::LoadSeriesUpdate>* PacsServiceImpl::LoadSeries(grpc::CallbackServerContext* context,
-                                                                           const v1::LoadSeriesRequest* request) {
+                                                                            const v1::LoadSeriesRequest* request) {
   Principal caller;
   std::shared_ptr<const pacs::DicomWebClient> client;
   std::shared_ptr<LoadSlot> slot;  // a client cannot queue loads without end

@@ -140,6 +140,45 @@ TEST(ReadingView, CrosshairSlicesCrossTheirAxisAtTheCrosshair) {
   EXPECT_EQ(sagittal.axis(), v1::SAGITTAL);
 }
 
+TEST(ReadingView, IdentityFillsTheCornersPeopleExpect) {
+  EXPECT_EQ(PersonName("Doe^John^^Dr"), "Doe, John Dr");
+  EXPECT_EQ(PersonName("Yamada^Tarou=\x1b$B;3ED\x1b(B^\x1b$BB@O:\x1b(B"), "Yamada, Tarou");
+  EXPECT_EQ(PersonName("ANONYMOUS"), "ANONYMOUS");
+  EXPECT_EQ(StudyDate("20091203"), "2009-12-03");
+  EXPECT_EQ(StudyDate("2009"), "2009");
+  v1::PatientIdentity id;
+  id.set_patient_name("My Patient Name");
+  id.set_patient_id("123456789");
+  id.set_study_date("20091203");
+  id.set_series_description("T1 axial");
+  const IdentityCorners corners = CornersOf(id);
+  EXPECT_EQ(corners.top_left, (std::vector<std::string>{"My Patient Name", "ID 123456789"}));
+  EXPECT_EQ(corners.top_right, (std::vector<std::string>{"2009-12-03", "T1 axial"}));  // no study description: no line
+  EXPECT_TRUE(CornersOf(v1::PatientIdentity{}).empty());
+}
+
+TEST(ReadingView, ASlicePlanesOutlineIsWhereItCutsTheVolumesBox) {
+  v1::VolumeInfo volume;  // 11 x 21 x 31 voxels of 1 x 1 x 2 mm, RAS-stored: index x runs to the patient's right
+  volume.mutable_dims()->set_x(11);
+  volume.mutable_dims()->set_y(21);
+  volume.mutable_dims()->set_z(31);
+  volume.mutable_spacing_mm()->set_x(1);
+  volume.mutable_spacing_mm()->set_y(1);
+  volume.mutable_spacing_mm()->set_z(2);
+  for (double d : {-1, 0, 0, 0, -1, 0, 0, 0, 1}) volume.add_direction(d);
+  const std::vector<Vec3f> axial = SlicePlaneOutline(volume, 2, 30);
+  ASSERT_EQ(axial.size(), 4u);
+  for (std::size_t i = 0; i < axial.size(); ++i) {
+    EXPECT_FLOAT_EQ(axial[i].z, 30);
+    EXPECT_GE(axial[i].x, -10.001f);
+    EXPECT_LE(axial[i].x, 0.001f);
+    const Vec3f& next = axial[(i + 1) % axial.size()];  // neighbours share a side: no diagonal
+    EXPECT_TRUE(std::fabs(axial[i].x - next.x) < 1e-4f || std::fabs(axial[i].y - next.y) < 1e-4f) << i;
+  }
+  EXPECT_EQ(SlicePlaneOutline(volume, 0, 1).size(), 0u) << "beyond the box: nothing";
+  EXPECT_EQ(SlicePlaneOutline(volume, 0, -5).size(), 4u);
+}
+
 TEST(ReadingView, AVoxelStepFollowsTheIndexAxisAlongThePatientAxis) {
   v1::VolumeInfo volume;
   *volume.mutable_spacing_mm() = ToProtoVec3({0.5f, 0.7f, 2.5f});

@@ -214,5 +214,53 @@ TEST(DicomSeries, TruncatedSliceIsAClearError) {
   EXPECT_NE(error.find(dir.path().string()), std::string::npos) << error;
 }
 
+// What a radiologist's corners show comes out of the cage with the voxels.
+TEST(DicomSeries, IdentityAndStoredWindowComeWithTheVolume) {
+  CINEVOL_REQUIRE_SHARED_DATA();
+  const Volume v = LoadDicomSeries(MrFolder());
+  const PatientIdentity& id = v.metadata().identity;
+  EXPECT_EQ(id.patient_name, "My Patient Name");
+  EXPECT_EQ(id.patient_id, "123456789");
+  EXPECT_EQ(id.study_date, "20091203");
+  EXPECT_EQ(id.study_description, "My Study Name");
+  EXPECT_EQ(id.series_description, "My Special Series For Testing");
+  ASSERT_TRUE(v.metadata().stored_window);
+  EXPECT_EQ(v.metadata().stored_window->center, 268);
+  EXPECT_EQ(v.metadata().stored_window->width, 622);
+}
+
+// Fields from a hostile file: a name that would forge a second line or is
+// not UTF-8 arrives as one escaped line; a window DICOM forbids is none.
+TEST(DicomSeries, HostileIdentityAndWindowAreTamed) {
+  CINEVOL_REQUIRE_SHARED_DATA();
+  ScratchDir dir;
+  CopyAll(SortedFiles(MrFolder()), dir.path());
+  for (const fs::path& f : SortedFiles(dir.path())) {
+    EditHeader(f, [](gdcm::DataSet& ds) {
+      const auto set = [&](gdcm::Tag tag, gdcm::VR vr, const std::string& value) {
+        gdcm::DataElement element(tag);
+        element.SetVR(vr);
+        element.SetByteValue(value.data(), std::uint32_t(value.size()));
+        ds.Replace(element);
+      };
+      set({0x0010, 0x0010}, gdcm::VR::PN, "M\xfcller^Hans\nFORGED");
+      set({0x0028, 0x1051}, gdcm::VR::DS, "0.5 ");  // below DICOM's minimum of 1
+    });
+  }
+  const Volume v = LoadDicomSeries(dir.path());
+  const std::string& name = v.metadata().identity.patient_name;
+  EXPECT_EQ(name.find('\n'), std::string::npos) << name;
+  EXPECT_NE(name.find("FORGED"), std::string::npos) << name;
+  EXPECT_NE(name.find("\\xfc"), std::string::npos) << name;  // Latin-1's u-umlaut, escaped
+  EXPECT_FALSE(v.metadata().stored_window);
+}
+
+// Files without the fields (NIfTI, phantoms) carry none.
+TEST(DicomSeries, OtherFilesCarryNoIdentity) {
+  const Volume v = LoadVolume(ParseVolumeSpec("phantom:head"));
+  EXPECT_TRUE(v.metadata().identity.patient_name.empty());
+  EXPECT_FALSE(v.metadata().stored_window);
+}
+
 }  // namespace
 }  // namespace cinevol

@@ -65,13 +65,13 @@ class PacsServer : public ::testing::Test {
     ASSERT_TRUE(failure_.empty()) << failure_;
     const std::string dicom_web = orthanc_->root_url() + "/dicom-web";
     server_ = std::make_unique<ServerProcess>(
-        scratch_.path(), std::vector<std::string>{
-                             "--data-root", (folder_ / "data").string(),                         //
-                             "--pacs", "orthanc=" + dicom_web,                                  //
-                             "--pacs", "wrong=" + dicom_web,                                    // refused credentials
-                             "--pacs", fmt::format("down=http://127.0.0.1:{}/dicom-web", FreePort()),  //
-                             "--pacs-credentials", (folder_ / "pacs-credentials").string(),     //
-                             "--pacs-timeout-seconds", "10"});
+        scratch_.path(),
+        std::vector<std::string>{"--data-root", (folder_ / "data").string(),  //
+                                 "--pacs", "orthanc=" + dicom_web,            //
+                                 "--pacs", "wrong=" + dicom_web,              // refused credentials
+                                 "--pacs", fmt::format("down=http://127.0.0.1:{}/dicom-web", FreePort()),  //
+                                 "--pacs-credentials", (folder_ / "pacs-credentials").string(),            //
+                                 "--pacs-timeout-seconds", "10"});
     ASSERT_TRUE(server_->running()) << server_->Log();
   }
 
@@ -113,8 +113,7 @@ TEST_F(PacsServer, TheCommandSearchesListsAndLoads) {
   // By patient: the latest study, its largest series.
   std::tie(code, out) = Cli({"pacs", "load", "--pacs", "orthanc", "--patient-id", kCt.patient_id, "--json"});
   ASSERT_EQ(code, 0) << out;
-  EXPECT_NE(out.find(fmt::format(R"("source":"pacs:orthanc/{}/{}")", kCt.study_uid, kCt.series_uid)),
-            std::string::npos)
+  EXPECT_NE(out.find(fmt::format(R"("source":"pacs:orthanc/{}/{}")", kCt.study_uid, kCt.series_uid)), std::string::npos)
       << out;
   EXPECT_NE(out.find(R"("z":20)"), std::string::npos) << out;
 
@@ -124,13 +123,13 @@ TEST_F(PacsServer, TheCommandSearchesListsAndLoads) {
 
   // A session script may name a series.
   const fs::path script = scratch_ / "series.jsonl";
-  std::ofstream(script) << fmt::format(
-      R"({{"session": {{"series": {{"pacs": "orthanc", "studyUid": "{}", "seriesUid": "{}"}}, )"
-      R"("viewport": {{"width": 64, "height": 48}}, "stream": {{"targetSpp": 2}}}}}})",
-      kCt.study_uid, kCt.series_uid)
-                       << "\n";
-  std::tie(code, out) = Cli({"play", "--script", script.string(), "--out", (scratch_ / "play").string(),
-                             "--timeout", "60"});
+  std::ofstream(script)
+      << fmt::format(R"({{"session": {{"series": {{"pacs": "orthanc", "studyUid": "{}", "seriesUid": "{}"}}, )"
+                     R"("viewport": {{"width": 64, "height": 48}}, "stream": {{"targetSpp": 2}}}}}})",
+                     kCt.study_uid, kCt.series_uid)
+      << "\n";
+  std::tie(code, out) =
+      Cli({"play", "--script", script.string(), "--out", (scratch_ / "play").string(), "--timeout", "60"});
   EXPECT_EQ(code, 0) << out;
 }
 
@@ -155,6 +154,12 @@ TEST_F(PacsServer, ASeriesLoadsAsTheSameVolumeAsItsFilesOnDisk) {
   EXPECT_EQ(from_pacs.max_value(), from_disk.max_value());
   EXPECT_EQ(from_pacs.histogram().DebugString(), from_disk.histogram().DebugString());
   EXPECT_EQ(from_pacs.modality(), "CT");
+  // Who it shows, for the corners of a reading view; never in the server's log.
+  EXPECT_EQ(from_pacs.identity().patient_name(), kCt.patient_name);
+  EXPECT_EQ(from_pacs.identity().patient_id(), kCt.patient_id);
+  EXPECT_EQ(from_disk.identity().DebugString(), from_pacs.identity().DebugString());
+  EXPECT_EQ(server_->Log().find(kCt.patient_name), std::string::npos) << server_->Log();
+  EXPECT_EQ(server_->Log().find(kCt.patient_id), std::string::npos) << server_->Log();
 
   // Held: a second load answers at once with the same volume, fetching nothing.
   progress.clear();
@@ -174,17 +179,16 @@ TEST_F(PacsServer, ASnapshotIsStoredBackWithItsRecipe) {
   Client client = server_->Connect();
   const v1::VolumeInfo volume = client.LoadSeries(CtSeries());
   const fs::path png = scratch_ / "render.png";
-  auto [code, out] = Cli({"snapshot", "--volume", volume.id(), "--preset", "ct-bone", "--width", "64", "--height",
-                          "48", "--spp", "2", "--out", png.string(), "--store-to", "orthanc"});
+  auto [code, out] = Cli({"snapshot", "--volume", volume.id(), "--preset", "ct-bone", "--width", "64", "--height", "48",
+                          "--spp", "2", "--out", png.string(), "--store-to", "orthanc"});
   ASSERT_EQ(code, 0) << out;
   const std::size_t at = out.find(", series ");
   ASSERT_NE(at, std::string::npos) << out;
   const std::string series_uid = out.substr(at + 9, out.find(',', at + 9) - at - 9);
 
   std::vector<v1::SeriesSummary> series = client.SearchSeries("orthanc", kCt.study_uid);
-  const auto render = std::find_if(series.begin(), series.end(), [&](const auto& s) {
-    return s.series_uid() == series_uid;
-  });
+  const auto render =
+      std::find_if(series.begin(), series.end(), [&](const auto& s) { return s.series_uid() == series_uid; });
   ASSERT_NE(render, series.end()) << out;
   EXPECT_EQ(render->modality(), "OT");
   EXPECT_EQ(render->description(), "cinevol render: ct-bone");
@@ -202,8 +206,8 @@ TEST_F(PacsServer, ASnapshotIsStoredBackWithItsRecipe) {
   EXPECT_NE(capture.scene_json.find("ct-bone"), std::string::npos) << capture.scene_json;
 
   // A volume from elsewhere has no study to go back to.
-  std::tie(code, out) = Cli({"snapshot", "--volume", "phantom:head?size=48", "--width", "32", "--height", "32",
-                             "--spp", "1", "--out", png.string(), "--store-to", "orthanc"});
+  std::tie(code, out) = Cli({"snapshot", "--volume", "phantom:head?size=48", "--width", "32", "--height", "32", "--spp",
+                             "1", "--out", png.string(), "--store-to", "orthanc"});
   EXPECT_NE(code, 0);
   EXPECT_NE(out.find("did not come from a PACS"), std::string::npos) << out;
 }
@@ -262,8 +266,8 @@ TEST(PacsServerHostile, ALyingPacsCostsItsCallerAnErrorAndNobodyAnythingElse) {
     const std::string body = "--b\r\nContent-Type: application/dicom\r\n\r\n" + part + "\r\n--b--\r\n";
     return Answer(200, "multipart/related; type=\"application/dicom\"; boundary=b", body);
   });
-  ServerProcess server(scratch.path(), {"--pacs", "liar=" + pacs.url() + "/dicom-web", "--max-volume-voxels",
-                                        "100000000"});
+  ServerProcess server(scratch.path(),
+                       {"--pacs", "liar=" + pacs.url() + "/dicom-web", "--max-volume-voxels", "100000000"});
   ASSERT_TRUE(server.running()) << server.Log();
   Client client = server.Connect();
   v1::LoadSeriesRequest load;

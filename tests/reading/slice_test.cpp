@@ -110,6 +110,25 @@ TEST(WindowLevel, AutoWindowSpansTheSubjectNotTheBackground) {
   EXPECT_EQ(name, "auto") << "no HU: the automatic window";
 }
 
+// The window a DICOM stores is a choice of its own, and the default.
+TEST(WindowLevel, TheStoredWindowIsChosenByNameAndByDefault) {
+  VolumeMetadata meta;
+  meta.value_unit = "HU";
+  meta.stored_window = VoiWindow{268, 622};
+  const Volume dicom({4, 4, 4}, {1, 1, 1}, std::vector<float>(64, 0.0f), meta);
+  EXPECT_EQ(WindowNamed("stored", dicom).width, 622);
+  EXPECT_EQ(WindowNamed("", dicom).center, 268) << "the DICOM's window first";
+  EXPECT_EQ(WindowNamed("lung", dicom).center, -600);
+  std::string name;
+  DefaultWindow(dicom, &name);
+  EXPECT_EQ(name, "stored");
+  meta.stored_window.reset();
+  const Volume other({4, 4, 4}, {1, 1, 1}, std::vector<float>(64, 0.0f), meta);
+  EXPECT_EQ(WindowNamed("", other).center, 50) << "soft tissue for HU";
+  EXPECT_THROW(WindowNamed("stored", other), InputError);
+  EXPECT_THROW(WindowNamed("liver", other), InputError);
+}
+
 // Cubes of known values in air, each through the brain window: the centre
 // pixel's grey is the formula's, for 16-bit and float storage alike.
 TEST(Slice, APhantomCubeThroughAWindowGivesTheFormulasGreyLevels) {
@@ -208,6 +227,17 @@ Vec3f BrightCentroid(const SliceImage& slice, int from_column, int to_column, in
     }
   }
   return sum / std::max(n, 1.0f);
+}
+
+// A caller gone: a raised flag stops the slab at once, with Cancelled.
+TEST(Slice, ARaisedCancelFlagStopsTheSlice) {
+  const Volume cubes = IndexPhantom([](Vec3f) { return 0.0f; });
+  SliceSpec slab = Axial(14);
+  slab.slab_mm = 12;
+  std::atomic<bool> cancel{true};
+  EXPECT_THROW(RenderSlice(cubes, {}, nullptr, slab, &cancel), Cancelled);
+  cancel = false;
+  EXPECT_NO_THROW(RenderSlice(cubes, {}, nullptr, slab, &cancel));
 }
 
 // The same patient stored three ways: a marker on the patient's left, one

@@ -24,6 +24,8 @@ mkdirSync(ARTIFACTS, { recursive: true });
 const CHROMIUM_ARGS = ["--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run",
   "--disable-background-networking", "--disable-component-update", "--disable-sync"];
 const WAIT = { timeout: 90_000, polling: 100 };
+// A DICOM series with a patient and study (the identity step skips without it).
+const MR_DICOM = join(process.env.CINEVOL_SHARED_DATA ?? "", "mr-chest-dicom-seg3d");
 
 let server: Running, gateway: Running, browser: Browser, alice: Page;
 const base = () => `http://127.0.0.1:${gateway.port}`;
@@ -71,8 +73,9 @@ async function startGateway(port = 0): Promise<Running> {
 
 before(async () => {
   const tokens = tokensFile("alice-token alice\nbob-token bob\n");
-  server = await startWithPortFile(SERVER, ["--listen", "127.0.0.1:0", "--backend", "cpu", "--auth-tokens", tokens],
-                                   "server");
+  const dicom = existsSync(MR_DICOM) ? ["--volume", "phantom:head", "--volume", MR_DICOM] : [];
+  server = await startWithPortFile(SERVER, ["--listen", "127.0.0.1:0", "--backend", "cpu", "--auth-tokens", tokens,
+                                            ...dicom], "server");
   gateway = await startGateway();
   browser = await chromium.launch({ executablePath: CHROMIUM, args: CHROMIUM_ARGS, timeout: 60_000 });
   alice = await browser.newPage({ viewport: { width: 960, height: 540 } });
@@ -146,6 +149,18 @@ test("reading: slices beside the 3D view, a pick, a distance measured on a slice
   const axial = await alice.$eval("#slice-axial img", (img) => ({ w: (img as HTMLImageElement).naturalWidth,
                                                                   h: (img as HTMLImageElement).naturalHeight }));
   assert.deepEqual(axial, { w: 256, h: 256 }, "one pixel a voxel of the 256^3 phantom");
+  const planeColours = await alice.$eval("#view-overlay", (c) => {
+    const canvas = c as HTMLCanvasElement, { data } = canvas.getContext("2d")!.getImageData(0, 0, canvas.width, canvas.height);
+    const seen = { red: 0, green: 0, yellow: 0 };
+    for (let i = 0; i < data.length; i += 4) {
+      const [r, g, b, a] = [data[i], data[i + 1], data[i + 2], data[i + 3]];
+      if (a < 200 || b > 100) continue;
+      if (r > 200 && g < 100) seen.red++; else if (r < 100 && g > 170) seen.green++; else if (r > 200 && g > 170) seen.yellow++;
+    }
+    return seen;
+  });
+  assert.ok(planeColours.red > 20 && planeColours.green > 20 && planeColours.yellow > 20,
+            `the three slice planes outlined on the 3D view: ${JSON.stringify(planeColours)}`);
   const view = (await alice.locator("#view").boundingBox())!;
   await alice.mouse.click(view.x + view.width / 2, view.y + view.height / 2);
   await waitForText(alice, "#pick-info", /HU/);
@@ -159,6 +174,24 @@ test("reading: slices beside the 3D view, a pick, a distance measured on a slice
   assert.ok(Math.abs(mm - 128) < 3, `half the 256 mm slice's width: ${mm} mm`);
   await alice.screenshot({ path: join(ARTIFACTS, "5-reading.png") });
   await alice.click("#layout");
+});
+
+test("a DICOM volume's patient and study show in the corners until F4 hides them", async (t) => {
+  if (!existsSync(MR_DICOM)) return t.skip(`no shared data at ${MR_DICOM}`);
+  const page = await browser.newPage({ viewport: { width: 800, height: 450 } });
+  await page.goto(`${base()}/?volume=mr-chest-dicom-seg3d#token=alice-token`);
+  await page.waitForFunction(() => (window as any).cinevol?.status().framesPainted >= 1, null, WAIT);
+  assert.ok(await page.isVisible("#identity"), "shown by default");
+  assert.equal(await page.textContent("#identity-top-left"), "My Patient Name\nID 123456789");
+  assert.equal(await page.textContent("#identity-top-right"),
+               "2009-12-03\nMy Study Name\nMy Special Series For Testing");
+  assert.ok(await page.$("#window-preset option[value=stored]"), "the DICOM's own window is offered");
+  await page.screenshot({ path: join(ARTIFACTS, "5-identity.png") });
+  await page.keyboard.press("F4");
+  assert.ok(!(await page.isVisible("#identity")), "F4 hides them");
+  await page.close();
+  // The phantom has none: nothing in the corners.
+  assert.ok(!(await alice.isVisible("#identity")));
 });
 
 test("a wrong token is refused with a message on the page", async () => {

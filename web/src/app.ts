@@ -9,7 +9,7 @@ import {
   type Light, type Scene,
 } from "../gen/cinevol/v1/scene_pb.js";
 import {
-  FinalFormat, LightListSchema, StreamSettingsSchema, ViewportSchema, type Frame, type SessionState, type VolumeInfo,
+  FinalFormat, LightListSchema, SliceAxis, StreamSettingsSchema, ViewportSchema, type Frame, type SessionState, type VolumeInfo,
 } from "../gen/cinevol/v1/service_pb.js";
 import type { Api } from "./api.js";
 import {
@@ -18,6 +18,7 @@ import {
 import { sessionQuery } from "./address.js";
 import type { FrameMeta } from "./frame_messages.js";
 import { cropFromFractions, fromPatient, patientBox, toPatient } from "./geometry.js";
+import { identityCorners } from "./identity.js";
 import { markerAxes } from "./orientation.js";
 import { measurementText, projectToView } from "./measure.js";
 import { PacsPanel } from "./pacs_panel.js";
@@ -35,6 +36,10 @@ const KEY_VIEWS: Record<string, ViewName> = {
   a: "ANTERIOR", p: "POSTERIOR", l: "LEFT", r: "RIGHT", s: "SUPERIOR", i: "INFERIOR",
 };
 const AXES = ["x", "y", "z"] as const;
+/** The slice planes on the 3D view in 3D Slicer's colours: axial red, coronal green, sagittal yellow. */
+const PLANE_COLOURS: Partial<Record<SliceAxis, string>> = {
+  [SliceAxis.AXIAL]: "#e44", [SliceAxis.CORONAL]: "#4c4", [SliceAxis.SAGITTAL]: "#ec4",
+};
 const PASSING_MS = 6000;
 const INPUT_RECENT_MS = 100;  // an input event this recent is what an event answers
 const vec3 = (v: V3) => create(Vec3Schema, { x: v.x, y: v.y, z: v.z });
@@ -66,7 +71,7 @@ export class App {
 
   constructor(private readonly api: Api) {
     this.reading = new Reading(api, () => this.session?.id, (text) => this.showError(text));
-    this.reading.onMeasurementsChanged = () => this.drawMeasurements();
+    this.reading.onOverlayChanged = () => this.drawOverlay();
     this.view.onPainted = (meta, at, decodeMs, replaced) => this.onPainted(meta, at, decodeMs, replaced);
     this.view.onError = (text) => this.showError(text);
     this.view.listen({
@@ -158,7 +163,7 @@ export class App {
     if (!this.session?.hasPending("camera")) this.camera = this.cameraOf(scene) ?? this.camera;
     this.reading.restore(scene.measurements);
     this.drawMarker();
-    this.drawMeasurements();
+    this.drawOverlay();
     $<HTMLSelectElement>("preset").value = scene.transferFunction?.preset ?? "";
     if (!this.session?.hasPending("transferFunction")) this.editor.show(scene.transferFunction);
     this.showLight(scene);
@@ -174,6 +179,17 @@ export class App {
     this.buildCropSliders();
     this.buildLabels();
     if (this.volume) this.reading.setVolume(this.volume);
+    this.showIdentity();
+  }
+
+  /** A DICOM volume's patient, study and series in the 3D view's corners, unless the user hid them (F4). */
+  private showIdentity(): void {
+    const id = this.volume?.identity;
+    $<HTMLInputElement>("show-identity").disabled = !id;
+    const corners = id ? identityCorners(id) : { topLeft: [], topRight: [] };
+    $("identity-top-left").textContent = corners.topLeft.join("\n");
+    $("identity-top-right").textContent = corners.topRight.join("\n");
+    $("identity").hidden = !id || !$<HTMLInputElement>("show-identity").checked;
   }
 
   // --------------------------------------------------------- the camera
@@ -204,7 +220,7 @@ export class App {
     this.home ??= this.camera;
     this.camera = move(this.camera);
     this.drawMarker();
-    this.drawMeasurements();
+    this.drawOverlay();
     const { eye, target, up, fovYDeg } = this.camera;
     const camera = create(CameraSchema, current);
     Object.assign(camera, { view: NamedView.NAMED_VIEW_UNSPECIFIED, eye: vec3(eye), target: vec3(target),
@@ -236,8 +252,8 @@ export class App {
     g.globalAlpha = 1;
   }
 
-  /** The measurements over the 3D view, projected through the camera. */
-  private drawMeasurements(): void {
+  /** Over the 3D view, projected through the camera: the slices' planes (2x2 layout) and the measurements. */
+  private drawOverlay(): void {
     const canvas = $<HTMLCanvasElement>("view-overlay"), view = $<HTMLCanvasElement>("view");
     const g = canvas.getContext("2d");
     if (!g) return;
@@ -245,12 +261,23 @@ export class App {
     canvas.height = view.clientHeight;
     if (!this.camera || !this.volume) return;
     const patientFrame = this.state?.scene?.frame === SceneFrame.PATIENT_LPS;
+    const onView = (p: V3) => projectToView(this.camera!, fromPatient(this.volume!, patientFrame, p),
+                                            canvas.width, canvas.height);
+    g.lineWidth = 1.5;
+    for (const plane of this.reading.slicePlanes()) {
+      const points = plane.outline.map(onView);
+      if (points.length === 0 || points.some((p) => !p)) continue;
+      g.strokeStyle = PLANE_COLOURS[plane.axis] ?? "#ccc";
+      g.beginPath();
+      points.forEach((p, i) => (i ? g.lineTo(p!.x, p!.y) : g.moveTo(p!.x, p!.y)));
+      g.closePath();
+      g.stroke();
+    }
     g.strokeStyle = g.fillStyle = "#4df";
     g.lineWidth = 2;
     g.font = "12px system-ui, sans-serif";
     for (const m of this.reading.measurements) {
-      const points = m.points.map((p) => projectToView(this.camera!, fromPatient(this.volume!, patientFrame, p),
-                                                       canvas.width, canvas.height));
+      const points = m.points.map(onView);
       if (points.some((p) => !p)) continue;
       g.beginPath();
       points.forEach((p, i) => (i ? g.lineTo(p!.x, p!.y) : g.moveTo(p!.x, p!.y)));
@@ -423,6 +450,7 @@ export class App {
       jpegQuality: Number($<HTMLInputElement>("quality").value) }) }));
     $("save-scene").addEventListener("click", () => this.saveScene());
     $("show-stats").addEventListener("change", () => { $("stats").hidden = !$<HTMLInputElement>("show-stats").checked; });
+    $("show-identity").addEventListener("change", () => this.showIdentity());
     window.addEventListener("keydown", (e) => this.key(e));
   }
 
@@ -445,7 +473,7 @@ export class App {
     if (home) this.moveCamera(() => home);
   }
 
-  /** The desktop viewer's keys: A P L R S I named views, Home or Space the first view, F2 the statistics. */
+  /** The desktop viewer's keys: A P L R S I named views, Home or Space the first view, F2 the statistics, F4 the patient. */
   private key(e: KeyboardEvent): void {
     const target = e.target as HTMLElement;
     if (target.matches("input:not([type=checkbox]):not([type=range]), select, textarea")) return;
@@ -453,6 +481,10 @@ export class App {
       const box = $<HTMLInputElement>("show-stats");
       box.checked = !box.checked;
       $("stats").hidden = !box.checked;
+    } else if (e.key === "F4") {
+      const box = $<HTMLInputElement>("show-identity");
+      box.checked = !box.checked;
+      this.showIdentity();
     } else if (e.key === "Home" || e.key === " ") {
       this.goHome();
     } else if (!e.ctrlKey && !e.altKey && !e.metaKey && KEY_VIEWS[e.key.toLowerCase()] !== undefined) {

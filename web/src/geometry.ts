@@ -67,3 +67,36 @@ export function spacingAlong(volume: VolumeInfo, axis: "x" | "y" | "z"): number 
   const column = [0, 1, 2].reduce((best, c) => Math.abs(d[3 * r + c]) > Math.abs(d[3 * r + best]) ? c : best, 0);
   return [s.x, s.y, s.z][column];
 }
+
+/**
+ * Where the plane at `position` mm along patient axis `axis` cuts the volume's
+ * box (its corner voxels' centres, as the slices span it): the polygon's
+ * corners in order around it, LPS mm; empty where the plane misses the box.
+ */
+export function slicePlaneOutline(volume: VolumeInfo, axis: "x" | "y" | "z", position: number): V3[] {
+  const d = volume.direction.length === 9 ? volume.direction : [1, 0, 0, 0, 1, 0, 0, 0, 1];
+  const o = volume.originMm ?? v3(0, 0, 0), s = volume.spacingMm ?? v3(1, 1, 1), n = volume.dims ?? v3(1, 1, 1);
+  const extent = [(n.x - 1) * s.x, (n.y - 1) * s.y, (n.z - 1) * s.z];
+  const corner = (bits: number): V3 => {
+    const i = [bits & 1, (bits >> 1) & 1, (bits >> 2) & 1].map((bit, c) => bit * extent[c]);
+    const at = (r: number) => d[3 * r] * i[0] + d[3 * r + 1] * i[1] + d[3 * r + 2] * i[2];
+    return v3(o.x + at(0), o.y + at(1), o.z + at(2));
+  };
+  const points: V3[] = [];
+  for (let a = 0; a < 8; ++a) {
+    for (const bit of [1, 2, 4]) {
+      if (a & bit) continue;  // each of the 12 edges once, from its lower corner
+      const p = corner(a), q = corner(a | bit);
+      const da = p[axis] - position, db = q[axis] - position;
+      if (da * db > 0 || da === db) continue;
+      const t = da / (da - db);
+      points.push(v3(p.x + t * (q.x - p.x), p.y + t * (q.y - p.y), p.z + t * (q.z - p.z)));
+    }
+  }
+  if (points.length < 3) return [];
+  // In order around their centre, in the plane's own two axes.
+  const [u, w] = (["x", "y", "z"] as const).filter((k) => k !== axis);
+  const cu = points.reduce((sum, p) => sum + p[u], 0) / points.length;
+  const cw = points.reduce((sum, p) => sum + p[w], 0) / points.length;
+  return points.sort((p, q) => Math.atan2(p[w] - cw, p[u] - cu) - Math.atan2(q[w] - cw, q[u] - cu));
+}

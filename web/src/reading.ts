@@ -5,7 +5,7 @@
 import { Code, ConnectError } from "@connectrpc/connect";
 import { SlabProjection, SliceAxis, type SliceImage, type VolumeInfo } from "../gen/cinevol/v1/service_pb.js";
 import type { Api } from "./api.js";
-import { patientBox, spacingAlong } from "./geometry.js";
+import { patientBox, slicePlaneOutline, spacingAlong } from "./geometry.js";
 import { measurementText, patientToSlicePixel, slicePixelToPatient } from "./measure.js";
 import { add, scale, v3, type V3 } from "./vec.js";
 import { plainWords } from "./words.js";
@@ -163,7 +163,8 @@ export class Reading {
   private window?: { width: number; level: number };
   private readonly panes: Pane[];
   private volume?: VolumeInfo;
-  onMeasurementsChanged: () => void = () => {};
+  /** Called when what the 3D view draws over itself changes: the measurements, the crosshair's slice planes. */
+  onOverlayChanged: () => void = () => {};
 
   constructor(readonly api: Api, private readonly sessionId: () => string | undefined,
               readonly error: (text: string) => void) {
@@ -191,7 +192,20 @@ export class Reading {
     this.crosshair = scale(add(box.min, box.max), 0.5);
     this.measurements.length = 0;
     this.listMeasurements();
+    this.offerStoredWindow(volume);
     this.refresh();
+  }
+
+  /** The window the volume's DICOM stores, as a choice of its own where there is one. */
+  private offerStoredWindow(volume: VolumeInfo): void {
+    const select = $<HTMLSelectElement>("window-preset");
+    select.querySelector("option[value=stored]")?.remove();
+    const w = volume.storedWindow;
+    if (!w) {
+      if (select.value === "stored") select.value = "";
+      return;
+    }
+    select.add(new Option(`stored in the DICOM ${w.width}/${w.center}`, "stored"), 1);
   }
 
   /** Measurements a session's scene brought (a saved scene opened again), where the page has none yet. */
@@ -203,6 +217,14 @@ export class Reading {
 
   refresh(): void {
     if (this.shown) for (const p of this.panes) void p.refresh();
+    this.onOverlayChanged();
+  }
+
+  /** Where the three slices cut the volume, for the 3D view: each plane's outline (LPS mm); none unless shown. */
+  slicePlanes(): { axis: SliceAxis; outline: V3[] }[] {
+    const cross = this.crosshair, volume = this.volume;
+    if (!this.shown || !cross || !volume) return [];
+    return PANES.map((spec) => ({ axis: spec.axis, outline: slicePlaneOutline(volume, spec.along, cross[spec.along]) }));
   }
 
   sliceRequest(spec: PaneSpec) {
@@ -288,7 +310,7 @@ export class Reading {
       li.append(remove);
       return li;
     }));
-    this.onMeasurementsChanged();
+    this.onOverlayChanged();
   }
 
   private toggleLayout(): void {

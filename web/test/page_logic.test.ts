@@ -89,3 +89,38 @@ test("patient and camera frames are each other's inverse; spacing along a patien
   assert.equal(spacingAlong(volume, "x"), 1, "index axis j runs along patient x");
   assert.equal(spacingAlong(volume, "y"), 0.5);
 });
+
+test("a DICOM identity fills the corners people expect", async () => {
+  const { personName, studyDate, identityCorners } = await import("../src/identity.js");
+  const { PatientIdentitySchema } = await import("../gen/cinevol/v1/service_pb.js");
+  assert.equal(personName("Doe^John^^Dr"), "Doe, John Dr");
+  assert.equal(personName("Yamada^Tarou=\u5c71\u7530^\u592a\u90ce"), "Yamada, Tarou");
+  assert.equal(personName("ANONYMOUS"), "ANONYMOUS");
+  assert.equal(studyDate("20091203"), "2009-12-03");
+  assert.equal(studyDate("2009"), "2009");
+  const corners = identityCorners(create(PatientIdentitySchema, {
+    patientName: "My Patient Name", patientId: "123456789", studyDate: "20091203", seriesDescription: "T1 axial" }));
+  assert.deepEqual(corners, { topLeft: ["My Patient Name", "ID 123456789"], topRight: ["2009-12-03", "T1 axial"] });
+});
+
+test("a slice plane's outline is where it cuts the volume's box, in order around it", async () => {
+  const { slicePlaneOutline } = await import("../src/geometry.js");
+  // 11 x 21 x 31 voxels of 1 x 1 x 2 mm at the origin, LPS: the box spans 10 x 20 x 60 mm.
+  const volume = create(VolumeInfoSchema, { dims: { x: 11, y: 21, z: 31 }, spacingMm: { x: 1, y: 1, z: 2 },
+    originMm: { x: 0, y: 0, z: 0 }, direction: [1, 0, 0, 0, 1, 0, 0, 0, 1] });
+  const axial = slicePlaneOutline(volume, "z", 30);
+  assert.equal(axial.length, 4);
+  for (const p of axial) assert.equal(p.z, 30);
+  const xs = axial.map((p) => p.x).sort((a, b) => a - b), ys = axial.map((p) => p.y).sort((a, b) => a - b);
+  assert.deepEqual([xs[0], xs[3], ys[0], ys[3]], [0, 10, 0, 20]);
+  for (let i = 0; i < 4; ++i) {  // neighbours share an edge of the rectangle: no diagonal
+    const p = axial[i], q = axial[(i + 1) % 4];
+    assert.ok(p.x === q.x || p.y === q.y, `corner ${i} to ${i + 1} runs along an edge`);
+  }
+  assert.deepEqual(slicePlaneOutline(volume, "x", 11), [], "beyond the box: nothing");
+  // RAS-stored: the plane still lies where the patient coordinate says.
+  const ras = create(VolumeInfoSchema, { ...volume, direction: [-1, 0, 0, 0, -1, 0, 0, 0, 1] });
+  const sagittal = slicePlaneOutline(ras, "x", -5);
+  assert.equal(sagittal.length, 4);
+  for (const p of sagittal) assert.equal(p.x, -5);
+});

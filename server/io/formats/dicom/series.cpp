@@ -1,6 +1,7 @@
 // DICOM series: GDCM scans the headers, cinevol groups, sorts and checks them.
 #include "io/formats/dicom/series.h"
 
+#include <fmt/format.h>
 #include <gdcmScanner.h>
 
 #include <algorithm>
@@ -8,8 +9,6 @@
 #include <cstdint>
 #include <map>
 #include <sstream>
-
-#include <fmt/format.h>
 
 #include "core/error.h"
 #include "io/formats/dicom/checks.h"
@@ -30,6 +29,12 @@ const gdcm::Tag kSliceThickness(0x0018, 0x0050);
 const gdcm::Tag kPhotometric(0x0028, 0x0004);
 const gdcm::Tag kRescaleIntercept(0x0028, 0x1052);
 const gdcm::Tag kRescaleSlope(0x0028, 0x1053);
+const gdcm::Tag kWindowCenter(0x0028, 0x1050);
+const gdcm::Tag kWindowWidth(0x0028, 0x1051);
+const gdcm::Tag kPatientName(0x0010, 0x0010);
+const gdcm::Tag kPatientId(0x0010, 0x0020);
+const gdcm::Tag kStudyDate(0x0008, 0x0020);
+const gdcm::Tag kStudyDescription(0x0008, 0x1030);
 
 // Slices whose positions along the normal differ by more than this fraction
 // of the typical gap count as unevenly spaced.
@@ -55,7 +60,6 @@ struct Scan {
   }
 };
 
-
 // Scans `files`' headers. Files whose structure is not sound DICOM are
 // left out (with the pre-checks on), and so are files GDCM cannot parse.
 void ScanFiles(const std::vector<reader::DicomFile>& files, const reader::ReadOptions& options, Scan& scan) {
@@ -67,7 +71,8 @@ void ScanFiles(const std::vector<reader::DicomFile>& files, const reader::ReadOp
     if (!options.prechecks || StructureIsSound(f.path)) sound.push_back(f.path);
   }
   for (const gdcm::Tag& t : {kSeriesUid, kSeriesDescription, kModality, kImagePosition, kImageOrientation, kRows,
-                             kColumns, kSliceThickness, kPhotometric, kRescaleIntercept, kRescaleSlope}) {
+                             kColumns, kSliceThickness, kPhotometric, kRescaleIntercept, kRescaleSlope, kWindowCenter,
+                             kWindowWidth, kPatientName, kPatientId, kStudyDate, kStudyDescription}) {
     scan.scanner.AddTag(t);
   }
   if (!sound.empty() && !scan.scanner.Scan(sound)) {
@@ -136,8 +141,7 @@ std::vector<SeriesFiles> GroupSeries(const Scan& scan) {
 
 // Sorts `files` along their normal and checks the spacing: gantry tilt is
 // measured, duplicate positions and uneven gaps refused.
-SeriesGeometry CheckGeometry(const Scan& scan, const std::vector<std::string>& files,
-                             const std::string& where) {
+SeriesGeometry CheckGeometry(const Scan& scan, const std::vector<std::string>& files, const std::string& where) {
   SeriesGeometry g;
   const std::vector<double> iop = Numbers(Value(scan, files[0], kImageOrientation));
   if (iop.size() != 6) {
@@ -168,10 +172,10 @@ SeriesGeometry CheckGeometry(const Scan& scan, const std::vector<std::string>& f
   for (std::size_t i = 1; i < g.slices.size(); ++i) {
     const double gap = g.slices[i].along_normal - g.slices[i - 1].along_normal;
     if (gap < 1e-3) {
-      throw InputError(fmt::format(
-          "{}: {} and {} lie at the same position ({:.3f} mm along the normal): duplicate slices "
-          "or several acquisitions in one series",
-          where, scan.Name(g.slices[i - 1].file), scan.Name(g.slices[i].file), g.slices[i].along_normal));
+      throw InputError(
+          fmt::format("{}: {} and {} lie at the same position ({:.3f} mm along the normal): duplicate slices "
+                      "or several acquisitions in one series",
+                      where, scan.Name(g.slices[i - 1].file), scan.Name(g.slices[i].file), g.slices[i].along_normal));
     }
     gaps.push_back(gap);
   }
@@ -180,10 +184,10 @@ SeriesGeometry CheckGeometry(const Scan& scan, const std::vector<std::string>& f
   g.slice_gap_mm = sorted[sorted.size() / 2];
   for (std::size_t i = 0; i < gaps.size(); ++i) {
     if (std::abs(gaps[i] - g.slice_gap_mm) > kGapTolerance * g.slice_gap_mm) {
-      throw InputError(fmt::format(
-          "{}: uneven slice spacing: {:.3f} mm between {} and {} where the series' gap is {:.3f} "
-          "mm (missing slices?); cinevol loads evenly spaced series only",
-          where, gaps[i], scan.Name(g.slices[i].file), scan.Name(g.slices[i + 1].file), g.slice_gap_mm));
+      throw InputError(
+          fmt::format("{}: uneven slice spacing: {:.3f} mm between {} and {} where the series' gap is {:.3f} "
+                      "mm (missing slices?); cinevol loads evenly spaced series only",
+                      where, gaps[i], scan.Name(g.slices[i].file), scan.Name(g.slices[i + 1].file), g.slice_gap_mm));
     }
   }
   // Gantry tilt: the stack's direction leaves the slice normal.
@@ -221,9 +225,10 @@ void CheckGreyScale(const Scan& scan, const std::vector<std::string>& files, con
   for (const std::string& f : files) {
     const std::string pi = Value(scan, f, kPhotometric);
     if (pi != "MONOCHROME1" && pi != "MONOCHROME2" && !pi.empty()) {
-      throw InputError(fmt::format("{}: {} has Photometric Interpretation '{}'; cinevol reads grey-scale series "
-                                   "(MONOCHROME1 or MONOCHROME2)",
-                                   where, scan.Name(f), pi.substr(0, 32)));
+      throw InputError(
+          fmt::format("{}: {} has Photometric Interpretation '{}'; cinevol reads grey-scale series "
+                      "(MONOCHROME1 or MONOCHROME2)",
+                      where, scan.Name(f), pi.substr(0, 32)));
     }
   }
 }
@@ -238,6 +243,27 @@ bool SameRescale(const Scan& scan, const std::vector<std::string>& files) {
     }
   }
   return true;
+}
+
+// The first slice's patient and study fields, for the reading view's corners.
+reader::Identity IdentityOf(const Scan& scan, const std::string& file) {
+  reader::Identity id;
+  id.set_patient_name(Value(scan, file, kPatientName));
+  id.set_patient_id(Value(scan, file, kPatientId));
+  id.set_study_date(Value(scan, file, kStudyDate));
+  id.set_study_description(Value(scan, file, kStudyDescription));
+  id.set_series_description(Value(scan, file, kSeriesDescription));
+  return id;
+}
+
+// The first of the file's windows (both tags may hold several, "40\\400"):
+// {center, width}, or empty when either is missing, not a number, or the
+// width is below 1 (DICOM requires >= 1).
+std::vector<double> StoredWindow(const Scan& scan, const std::string& file) {
+  const std::vector<double> centers = Numbers(Value(scan, file, kWindowCenter));
+  const std::vector<double> widths = Numbers(Value(scan, file, kWindowWidth));
+  if (centers.empty() || widths.empty() || !(widths[0] >= 1)) return {};
+  return {centers[0], widths[0]};
 }
 
 }  // namespace
@@ -271,6 +297,8 @@ SortedSeries ChooseSeries(const std::vector<reader::DicomFile>& files, const std
   for (const Slice& s : sorted.geometry.slices) files_sorted.push_back(s.file);
   sorted.modality = Value(scan, files_sorted[0], kModality);
   sorted.rescaled_alike = SameRescale(scan, files_sorted);
+  sorted.identity = IdentityOf(scan, files_sorted[0]);
+  sorted.stored_window = StoredWindow(scan, files_sorted[0]);
   return sorted;
 }
 

@@ -38,8 +38,10 @@ struct SortedSeries {
   std::string shown;  // what messages call the folder
   reader::Series info;
   SeriesGeometry geometry;
-  std::string modality;        // the first slice's
-  bool rescaled_alike = true;  // every slice with the same rescale slope and intercept
+  std::string modality;               // the first slice's
+  bool rescaled_alike = true;         // every slice with the same rescale slope and intercept
+  reader::Identity identity;          // the first slice's patient and study fields
+  std::vector<double> stored_window;  // the first slice's first window: center, width; or empty
 };
 
 // The series `files` hold, largest first. Files whose structure is not sound
