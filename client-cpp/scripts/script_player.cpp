@@ -1,12 +1,12 @@
 // Play: the send/receive loop and its measurements.
 #include "script_player.h"
 
+#include <fmt/format.h>
+
 #include <algorithm>
 #include <cmath>
 #include <map>
 #include <regex>
-
-#include <fmt/format.h>
 
 namespace cinevol::cli {
 namespace {
@@ -36,7 +36,7 @@ void AddFrame(const v1::Frame& f, SessionStream& stream, Clock::time_point now, 
   last_id = std::max(last_id, f.frame_id());
   const auto& t = f.timings();
   const double stages[] = {double(t.render_us()), double(t.denoise_us()), double(t.tonemap_us()),
-                           double(t.encode_us()), double(t.queue_us()), double(t.server_us())};
+                           double(t.encode_us()), double(t.queue_us()),   double(t.server_us())};
   for (int i = 0; i < 6; ++i) r.stage_us_sum[i] += stages[i];
   ++r.stage_frames;
   latency_ms = 0;
@@ -95,6 +95,7 @@ PlayResult Play(SessionStream& stream, const std::vector<ScriptStep>& steps, con
   std::size_t next = 0;
   double lap = 0;  // timeline offset of the current loop
   std::uint64_t answered = 0, last_id = 0, last_sent = 0;
+  std::uint64_t applied = 0;  // the newest event a frame or a state answered
   bool final_after_last = false;
   int resumes = stream.resumes();
   double next_report = 1;
@@ -106,10 +107,17 @@ PlayResult Play(SessionStream& stream, const std::vector<ScriptStep>& steps, con
       next = 0;
       lap += period;
     }
-    // Send every step that is due.
+    // Send every step that is due; a call waits until the events before it are applied.
+    bool call_waits = false;  // a due call waits for a frame or state that answers them
     while (next < steps.size() && lap + steps[next].at <= now) {
-      if (!steps[next].ui.empty()) {  // viewer actions: nothing to send
+      if (!steps[next].ui.empty() || (steps[next].call && !o.on_call)) {  // nothing to send
         ++next;
+        continue;
+      }
+      if (steps[next].call) {
+        call_waits = applied < last_sent;
+        if (call_waits) break;
+        o.on_call(steps[next++]);
         continue;
       }
       if (const std::uint64_t seq = stream.Send(steps[next].event)) {
@@ -122,14 +130,16 @@ PlayResult Play(SessionStream& stream, const std::vector<ScriptStep>& steps, con
     }
     if (stream.resumes() != resumes) {  // a new connection numbers events from 1 again
       resumes = stream.resumes();
-      answered = last_sent = 0;
+      answered = last_sent = applied = 0;
       line_of_seq.clear();
     }
-    const double until = std::min({o.max_seconds, next < steps.size() ? lap + steps[next].at : o.max_seconds,
-                                   next_report});
+    const double next_at = next < steps.size() && !call_waits ? lap + steps[next].at : o.max_seconds;
+    const double until = std::min({o.max_seconds, next_at, next_report});
     const auto wait = std::chrono::duration<double>(std::max(0.0, until - SecondsSince(start)));
     auto message = stream.Next(std::chrono::duration_cast<std::chrono::milliseconds>(wait));
+    if (message && message->has_state()) applied = std::max(applied, message->state().last_event_seq());
     if (message && message->has_frame()) {
+      applied = std::max(applied, message->frame().last_event_seq());
       const v1::Frame& f = message->frame();
       double latency = 0;
       AddFrame(f, stream, Clock::now(), answered, last_id, r, latency);

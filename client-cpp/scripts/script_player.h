@@ -21,6 +21,10 @@ struct PlayOptions {
   double max_seconds = 60;  // the run never lasts longer
   bool loop = false;        // repeat the timeline (every max(last step's time, 1 s)) until max_seconds
   bool wait_final = true;   // after the last step, wait for the frame that ends refinement
+  // Makes a step's reading call ("slice" and "pick" lines, ScriptStep::call)
+  // once the server has applied every event sent before it (a frame or a
+  // state answered them), on the playing thread. Unset: such steps are skipped.
+  std::function<void(const ScriptStep&)> on_call;
 };
 
 struct ReceivedFrame {

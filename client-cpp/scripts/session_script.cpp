@@ -2,16 +2,17 @@
 // name the field as the proto spells it.
 #include "session_script.h"
 
+#include <fmt/format.h>
 #include <google/protobuf/struct.pb.h>
 #include <google/protobuf/util/json_util.h>
 
 #include <algorithm>
+#include <cctype>
 #include <cmath>
 #include <cstdio>
 #include <fstream>
+#include <map>
 #include <sstream>
-
-#include <fmt/format.h>
 
 #include "core/error.h"
 #include "scene/scene_file.h"
@@ -23,9 +24,9 @@ using google::protobuf::Message;
 using google::protobuf::Struct;
 using google::protobuf::Value;
 
-std::string ToJson(const Value& value) {
+std::string ToJson(const Message& message) {
   std::string json;
-  google::protobuf::util::MessageToJsonString(value, &json);
+  google::protobuf::util::MessageToJsonString(message, &json);
   return json;
 }
 
@@ -158,6 +159,53 @@ ScriptSession ParseSession(const Value& value, const std::string& where, const s
   return s;
 }
 
+// "out": a file name the player writes under its slices/ folder, and nowhere else.
+std::string SliceFileName(const Value& value, const std::string& where) {
+  if (value.kind_case() != Value::kStringValue) throw InputError(where + ": must be a string");
+  const std::string& name = value.string_value();
+  const bool plain = name.find('/') == std::string::npos && name.find('\\') == std::string::npos &&
+                     name.find("..") == std::string::npos &&
+                     std::none_of(name.begin(), name.end(), [](unsigned char c) { return c < 0x20; });
+  if (!plain || name.size() <= 4 || name.compare(name.size() - 4, 4, ".png") != 0) {
+    throw InputError(
+        fmt::format("{}: '{}' is not a file name ending in .png (no '/' or '..': it is written in the "
+                    "run's slices/ folder)",
+                    where, name));
+  }
+  return name;
+}
+
+// A "slice" line: a SliceRequest in proto3 JSON plus "out". Its enums may be
+// written as the command line writes them ("axial" for "AXIAL").
+ScriptCall ParseSlice(const Value& value, const std::string& where) {
+  if (!value.has_struct_value()) throw InputError(where + ": must be an object");
+  Struct request = value.struct_value();
+  auto& fields = *request.mutable_fields();
+  ScriptCall call;
+  const auto out = fields.find("out");
+  if (out == fields.end()) throw InputError(where + ".out: missing (the PNG's file name, written in slices/)");
+  call.out = SliceFileName(out->second, where + ".out");
+  fields.erase("out");
+  for (const char* key : {"axis", "projection"}) {
+    const auto it = fields.find(key);
+    if (it == fields.end() || it->second.kind_case() != Value::kStringValue) continue;
+    std::string name = it->second.string_value();
+    std::transform(name.begin(), name.end(), name.begin(), [](unsigned char c) { return std::toupper(c); });
+    it->second.set_string_value(name);
+  }
+  ParseInto(ToJson(request), call.slice.emplace(), where);
+  if (!call.slice->session_id().empty()) throw InputError(where + ".sessionId: set by the player, not the script");
+  return call;
+}
+
+ScriptCall ParsePick(const Value& value, const std::string& where) {
+  if (!value.has_struct_value()) throw InputError(where + ": must be an object");
+  ScriptCall call;
+  ParseInto(ToJson(value), call.pick.emplace(), where);
+  if (!call.pick->session_id().empty()) throw InputError(where + ".sessionId: set by the player, not the script");
+  return call;
+}
+
 }  // namespace
 
 SessionScript ParseScript(const std::string& text, const std::string& name, const std::filesystem::path& base_dir) {
@@ -167,6 +215,7 @@ SessionScript ParseScript(const std::string& text, const std::string& name, cons
   int number = 0;
   bool seen_session = false;
   double last_at = 0;
+  std::map<std::string, int> slice_files;  // out -> the line that writes it
   for (std::string line; std::getline(lines, line);) {
     ++number;
     const std::string where = fmt::format("{} line {}", name, number);
@@ -192,8 +241,10 @@ SessionScript ParseScript(const std::string& text, const std::string& name, cons
     }
     last_at = step.at;
     if (fields.size() != 2) {
-      throw InputError(where + ": an event line holds \"at\" and one event (camera, lights, transferFunction, "
-                               "render, stream, resize, clipping, pause, resume), \"orbit\" or \"ui\"");
+      throw InputError(where +
+                       ": an event line holds \"at\" and one event (camera, lights, transferFunction, "
+                       "render, stream, resize, clipping, pause, resume), \"orbit\", \"ui\", \"slice\" "
+                       "or \"pick\"");
     }
     for (const auto& [key, value] : fields) {
       if (key == "at") continue;
@@ -203,13 +254,22 @@ SessionScript ParseScript(const std::string& text, const std::string& name, cons
       } else if (key == "ui") {
         if (!value.has_struct_value()) throw InputError(where + ": ui: must be an object");
         step.ui = ToJson(value);
+      } else if (key == "slice") {
+        step.call = ParseSlice(value, where + ": slice");
+        const auto [first, fresh] = slice_files.try_emplace(step.call->out, number);
+        if (!fresh) {
+          throw InputError(
+              fmt::format("{}: slice.out: {} is written by line {} already", where, step.call->out, first->second));
+        }
+      } else if (key == "pick") {
+        step.call = ParsePick(value, where + ": pick");
       } else if (key == "seq") {
         throw InputError(where + ": seq: set by the player, not the script");
       } else {
         ParseInto(fmt::format("{{\"{}\": {}}}", key, ToJson(value)), step.event, where);
       }
     }
-    script.steps.push_back(std::move(step));
+    (step.call ? script.calls : script.steps).push_back(std::move(step));
   }
   if (script.session.viewport.width() == 0) {  // no session line
     script.session.viewport.set_width(640);
@@ -226,8 +286,7 @@ SessionScript LoadScript(const std::filesystem::path& file) {
   return ParseScript(text.str(), file.string(), std::filesystem::absolute(file).parent_path());
 }
 
-v1::Camera OrbitCamera(const v1::VolumeInfo& volume, double degrees, double elevation_degrees,
-                       double distance_scale) {
+v1::Camera OrbitCamera(const v1::VolumeInfo& volume, double degrees, double elevation_degrees, double distance_scale) {
   const double ex = volume.dims().x() * volume.spacing_mm().x(), ey = volume.dims().y() * volume.spacing_mm().y(),
                ez = volume.dims().z() * volume.spacing_mm().z();
   const double radius = 0.5 * std::sqrt(ex * ex + ey * ey + ez * ez);
@@ -256,14 +315,21 @@ std::vector<ScriptStep> ExpandOrbits(const std::vector<ScriptStep>& steps, const
       ScriptStep camera;
       camera.at = s.at + s.orbit.seconds * i / count;
       camera.line = s.line;
-      *camera.event.mutable_camera() =
-          OrbitCamera(volume, s.orbit.start_degrees + s.orbit.degrees * i / count, s.orbit.elevation_degrees,
-                      s.orbit.distance_scale);
+      *camera.event.mutable_camera() = OrbitCamera(volume, s.orbit.start_degrees + s.orbit.degrees * i / count,
+                                                   s.orbit.elevation_degrees, s.orbit.distance_scale);
       out.push_back(std::move(camera));
     }
   }
   std::stable_sort(out.begin(), out.end(), [](const ScriptStep& a, const ScriptStep& b) { return a.at < b.at; });
   return out;
+}
+
+std::vector<ScriptStep> WithCalls(std::vector<ScriptStep> steps, const std::vector<ScriptStep>& calls) {
+  steps.insert(steps.end(), calls.begin(), calls.end());
+  std::stable_sort(steps.begin(), steps.end(), [](const ScriptStep& a, const ScriptStep& b) {
+    return a.at < b.at || (a.at == b.at && a.line < b.line);
+  });
+  return steps;
 }
 
 void SayWhenUnlit(const v1::Scene& scene, const std::string& file) {

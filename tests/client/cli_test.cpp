@@ -92,9 +92,9 @@ TEST(CinevolCli, PlayAndSnapshotAgainstAServer) {
   EXPECT_TRUE(Eventually([&] { return server.Connect().Status().sessions().empty(); }, 10s))
       << "play closes its session";
 
-  std::tie(code, output) = Cinevol(scratch, {"snapshot", "--server", server.address(), "--volume",
-                                             "phantom:head?size=48", "--width", "80", "--height", "60", "--spp", "8",
-                                             "--out", (scratch / "still.png").string()});
+  std::tie(code, output) =
+      Cinevol(scratch, {"snapshot", "--server", server.address(), "--volume", "phantom:head?size=48", "--width", "80",
+                        "--height", "60", "--spp", "8", "--out", (scratch / "still.png").string()});
   ASSERT_EQ(code, 0) << output;
   EXPECT_EQ(ReadPng(scratch / "still.png").width, 80);
   std::tie(code, output) = Cinevol(scratch, {"snapshot", "--server", server.address(), "--width", "80", "--height",
@@ -103,11 +103,79 @@ TEST(CinevolCli, PlayAndSnapshotAgainstAServer) {
   EXPECT_EQ(ReadExr(scratch / "still.exr").height, 60);
 }
 
+std::vector<std::string> CsvLines(const fs::path& path) {
+  std::ifstream in(path);
+  std::vector<std::string> lines;
+  for (std::string line; std::getline(in, line);) lines.push_back(line);
+  return lines;
+}
+
+// A script's slice and pick lines (docs/client.md): the slice in slices/ at
+// the volume's own grid, a pick on the head and one past it in picks.csv,
+// each made once the events before it are applied: the last pick sees the
+// head from its left, though a server taking one event a second reads that
+// camera event a quarter of a second after the one before (it paces its
+// reads). A slice the server refuses ends the run naming its line.
+TEST(CinevolCli, PlayWritesTheScriptsSlicesAndPicks) {
+  ScratchDir scratch;
+  ServerProcess server(scratch.path(), {"--max-events-per-second", "1"});
+  ASSERT_TRUE(server.running()) << server.Log();
+  WriteText(
+      scratch / "reading.jsonl",
+      R"({"session": {"volume": "phantom:head?size=48", "preset": "ct-bone", "viewport": {"width": 96, "height": 64}, "stream": {"targetSpp": 4}}}
+{"at": 0.0, "camera": {"view": "ANTERIOR"}}
+{"at": 0.1, "slice": {"axis": "coronal", "positionMm": 0.5, "windowPreset": "bone", "out": "coronal.png"}}
+{"at": 0.1, "pick": {"x": 48, "y": 32}}
+{"at": 0.2, "pick": {"x": 0.5, "y": 0.5, "threshold": 0.5}}
+{"at": 0.2, "render": {"maxBounces": 4}}
+{"at": 0.2, "camera": {"view": "LEFT"}}
+{"at": 0.2, "pick": {"x": 48, "y": 32}}
+)");
+  const auto out = scratch / "played";
+  auto [code, output] = Cinevol(scratch, {"play", "--server", server.address(), "--script",
+                                          (scratch / "reading.jsonl").string(), "--out", out.string()});
+  ASSERT_EQ(code, 0) << output;
+  EXPECT_NE(output.find("wrote 1 slices to"), std::string::npos) << output;
+  EXPECT_NE(output.find("wrote 3 picks to"), std::string::npos) << output;
+  const ImageRgb8 coronal = ReadPng(out / "slices" / "coronal.png");
+  EXPECT_EQ(coronal.width, 48) << "one pixel per voxel: x across";
+  EXPECT_EQ(coronal.height, 48) << "z down";
+
+  const std::vector<std::string> picks = CsvLines(out / "picks.csv");
+  ASSERT_EQ(picks.size(), 4u) << output;
+  EXPECT_EQ(picks[0], "line,at,x,y,hit,lps_x_mm,lps_y_mm,lps_z_mm,value,label_value,label_name");
+  const std::regex hit("([0-9]+),([0-9.]+),48,32,1,([-0-9.e]+),([-0-9.e]+),([-0-9.e]+),([-0-9.e]+),,");
+  std::smatch m;
+  ASSERT_TRUE(std::regex_match(picks[1], m, hit)) << picks[1];
+  EXPECT_EQ(m[1], "4");
+  EXPECT_EQ(m[2], "0.1");
+  EXPECT_LT(std::stod(m[4]), -5) << "seen from the front, the hit is on the anterior (-y) side: " << picks[1];
+  EXPECT_GT(std::stod(m[6]), 100) << "ct-bone stops on bone, far above water's 0 HU: " << picks[1];
+  EXPECT_EQ(picks[2], "5,0.2,0.5,0.5,0,,,,,,") << "the corner's ray passes the head";
+  ASSERT_TRUE(std::regex_match(picks[3], m, hit)) << picks[3];
+  EXPECT_EQ(m[1], "8");
+  EXPECT_GT(std::stod(m[3]), 5) << "after the LEFT view: on the patient's left (+x) side: " << picks[3];
+
+  WriteText(scratch / "refused.jsonl",
+            R"({"session": {"volume": "phantom:head?size=48", "viewport": {"width": 96, "height": 64}}}
+{"at": 0.1, "slice": {"axis": "coronal", "windowPreset": "soup", "out": "soup.png"}}
+)");
+  std::tie(code, output) = Cinevol(scratch, {"play", "--server", server.address(), "--script",
+                                             (scratch / "refused.jsonl").string(), "--out", out.string()});
+  EXPECT_EQ(code, 3) << output;
+  EXPECT_NE(output.find("INVALID_ARGUMENT: script line 2: slice: window_preset: 'soup'"), std::string::npos) << output;
+  EXPECT_TRUE(Eventually([&] { return server.Connect().Status().sessions().empty(); }, 10s))
+      << "play closes its session";
+}
+
 TEST(CinevolCli, LoadtestReportsJsonForScripts) {
   ScratchDir scratch;
   ServerProcess server(scratch.path());
   ASSERT_TRUE(server.running()) << server.Log();
-  WriteText(scratch / "script.jsonl", kScript);
+  // Slice and pick lines are skipped: a load test measures the stream.
+  WriteText(scratch / "script.jsonl", std::string(kScript) + R"({"at": 0.7, "slice": {"out": "axial.png"}}
+{"at": 0.7, "pick": {"x": 48, "y": 32}}
+)");
   const auto [code, output] =
       Cinevol(scratch, {"loadtest", "--server", server.address(), "--sessions", "2", "--seconds", "2", "--script",
                         (scratch / "script.jsonl").string(), "--json"});
@@ -248,9 +316,9 @@ TEST(CinevolCli, ASceneWithoutLightsIsLitByTheVolumesDefaultLights) {
 
   ServerProcess server(scratch.path());
   ASSERT_TRUE(server.running()) << server.Log();
-  std::tie(code, output) = Cinevol(scratch, {"snapshot", "--server", server.address(), "--scene",
-                                             (scratch / "unlit.json").string(), "--width", "64", "--height", "48",
-                                             "--spp", "8", "--out", (scratch / "served.png").string()});
+  std::tie(code, output) =
+      Cinevol(scratch, {"snapshot", "--server", server.address(), "--scene", (scratch / "unlit.json").string(),
+                        "--width", "64", "--height", "48", "--spp", "8", "--out", (scratch / "served.png").string()});
   ASSERT_EQ(code, 0) << output;
   EXPECT_NE(output.find("unlit.json: no lights: the session takes the volume's default lights"), std::string::npos)
       << output;

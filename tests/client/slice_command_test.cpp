@@ -1,11 +1,16 @@
 // `cinevol slice` as scripts run it (issue 36): a phantom scene's axial
-// slice is its voxel grid, one pixel per voxel; a real CT with its
-// segmentation at the CT's own 512x512; bad requests exit 2 with one line.
+// slice is its voxel grid, one pixel per voxel; an oblique slice of a ball is
+// its analytic circle; a real CT with its segmentation at the CT's own
+// 512x512; bad requests exit 2 with one line.
 #include <gtest/gtest.h>
 
+#include <algorithm>
+#include <cmath>
 #include <fstream>
 
 #include "encode/image_codecs.h"
+#include "io/phantom.h"
+#include "reading/slice.h"
 #include "service/server_process.h"
 #include "support/test_paths.h"
 
@@ -70,6 +75,81 @@ TEST(SliceCommand, BadRequestsExitTwoWithOneLine) {
   EXPECT_TRUE(Has(output, "--window and --level go together")) << output;
   EXPECT_EQ(Cinevol(scratch, {"slice", "--scene", scene.string(), "--axis", "oblique", "--out", out}).first, 2);
   EXPECT_EQ(Cinevol(scratch, {"slice", "--scene", scene.string(), "--out", (scratch / "s.jpg").string()}).first, 2);
+}
+
+// A ball of radius 20 mm about LPS 0, cut by a plane 7 mm from its centre:
+// `--axis oblique` shows the analytic circle of radius sqrt(20^2 - 7^2), every
+// pixel more than a millimetre inside it white and outside it black, where
+// the library's geometry for the same flags puts the pixels.
+TEST(SliceCommand, AnObliqueSliceOfASphereIsItsAnalyticCircle) {
+  ScratchDir scratch;
+  v1::Phantom ball;
+  ball.set_kind(v1::Phantom::SPHERE);
+  ball.set_size(64);
+  ball.set_radius(20);
+  const fs::path scene =
+      WriteScene(scratch, R"({"volume": {"phantom": {"kind": "SPHERE", "size": 64, "radius": 20}}})");
+  const fs::path out = scratch / "oblique.png";
+  auto [code, output] =
+      Cinevol(scratch, {"slice", "--scene", scene.string(), "--axis", "oblique", "--point", "3,4,5", "--normal",
+                        "1,2,2", "--row", "2,-1,0", "--window", "1", "--level", "500.5", "--out", out.string()});
+  ASSERT_EQ(code, 0) << output;
+  EXPECT_TRUE(Has(output, "oblique through 3,4,5 mm, normal 0.3333,0.6667,0.6667, row 0.8944,-0.4472,0,")) << output;
+  const ImageRgb8 image = ReadPng(out);
+
+  SliceSpec spec;
+  spec.axis = SliceAxis::kOblique;
+  spec.point_lps = {3, 4, 5};
+  spec.normal_lps = Normalize(Vec3f{1, 2, 2});
+  spec.row_lps = Normalize(Vec3f{2, -1, 0});
+  const SliceGeometry g = PlanSlice(MakePhantom(ball), spec);
+  ASSERT_EQ(image.width, g.width);
+  ASSERT_EQ(image.height, g.height);
+  EXPECT_FLOAT_EQ(g.pixel_width_mm, 1) << "the volume's spacing";
+  const float plane_offset = Dot(Vec3f{3, 4, 5}, g.normal);  // the centre's distance from the plane
+  ASSERT_NEAR(plane_offset, 7, 1e-4f);
+  const float circle_radius = std::sqrt(20.0f * 20.0f - plane_offset * plane_offset);
+  int white = 0, wrong = 0;
+  for (int row = 0; row < image.height; ++row) {
+    for (int column = 0; column < image.width; ++column) {
+      const int grey = image.bytes[3 * (std::size_t(row) * image.width + column)];
+      white += grey == 255;
+      const float from_centre = Length(g.PixelToPatient(float(column), float(row)));
+      // Within a millimetre of the sphere, interpolation between voxels decides.
+      if (from_centre <= 19) wrong += grey != 255;
+      if (from_centre >= 21) wrong += grey != 0;
+    }
+  }
+  EXPECT_EQ(wrong, 0) << "pixels off the analytic circle";
+  EXPECT_NEAR(std::sqrt(white / float(M_PI)), circle_radius, 0.5f) << "the disc's area gives the circle's radius";
+}
+
+TEST(SliceCommand, BadObliqueFlagsExitTwoSayingWhy) {
+  ScratchDir scratch;
+  const fs::path scene = WriteScene(scratch, R"({"volume": {"phantom": {"kind": "SPHERE", "size": 16}}})");
+  const std::string out = (scratch / "s.png").string();
+  auto expect_refused = [&](std::vector<std::string> flags, const std::string& message) {
+    std::vector<std::string> args{"slice", "--scene", scene.string(), "--out", out};
+    args.insert(args.end(), flags.begin(), flags.end());
+    const auto [code, output] = Cinevol(scratch, args);
+    EXPECT_EQ(code, 2) << output;
+    EXPECT_TRUE(Has(output, message)) << "expected '" << message << "' in: " << output;
+    EXPECT_LE(std::count(output.begin(), output.end(), '\n'), 2) << output;
+  };
+  expect_refused({"--axis", "oblique"}, "--axis oblique needs --normal X,Y,Z");
+  expect_refused({"--axis", "oblique", "--normal", "0,0,0"}, "--normal 0,0,0: a direction must not be zero");
+  expect_refused({"--axis", "oblique", "--normal", "nan,0,1"}, "each number must be finite");
+  expect_refused({"--axis", "oblique", "--normal", "0,inf,1"}, "each number must be finite");
+  expect_refused({"--axis", "oblique", "--normal", "1,2"}, "--normal '1,2': give three numbers X,Y,Z");
+  expect_refused({"--axis", "oblique", "--normal", "1,2,3,4"}, "give three numbers");
+  expect_refused({"--axis", "oblique", "--normal", "0,0,1", "--point", "1;2;3"}, "--point '1;2;3'");
+  expect_refused({"--axis", "oblique", "--normal", "0,0,1", "--row", "0,0,-2"},
+                 "--row 0,0,-2 lies along --normal 0,0,1");
+  expect_refused({"--axis", "oblique", "--normal", "0,0,1", "--position", "2"},
+                 "--position is for axial, coronal and sagittal");
+  expect_refused({"--axis", "oblique", "--normal", "0,0,1", "--point", "0,0,50"}, "misses the volume");
+  expect_refused({"--axis", "coronal", "--normal", "0,1,0"}, "--point, --normal and --row are for --axis oblique");
+  expect_refused({"--point", "0,0,0"}, "--point, --normal and --row are for --axis oblique");
 }
 
 // A real CT (512 x 512 x 20 DICOM, JPEG 2000) with its TotalSegmentator
