@@ -48,15 +48,9 @@ VoiWindow ChooseWindow(const SliceOptions& o, const Volume& volume, std::string&
     name = "given";
     return {*o.level, *o.window};
   }
-  if (o.preset == "auto") {
-    name = "auto";
-    return AutoVoiWindow(volume.histogram());
-  }
-  if (!o.preset.empty()) {
-    name = o.preset;
-    return *FindWindowPreset(o.preset);
-  }
-  return DefaultWindow(volume, &name);
+  if (o.preset.empty()) return DefaultWindow(volume, &name);
+  name = o.preset;
+  return WindowNamed(o.preset, volume);
 }
 
 float ChoosePosition(const SliceOptions& o, const Volume& volume, SliceAxis axis) {
@@ -231,10 +225,11 @@ void AddSliceCommand(CLI::App& app) {
   auto* window =
       cmd->add_option("--window", o->window, "Window width (>= 1), with --level")->check(CLI::Range(1.0, 1e9));
   auto* level = cmd->add_option("--level", o->level, "Window centre, with --window");
-  std::vector<std::string> presets{"auto"};
+  std::vector<std::string> presets{"auto", "stored"};
   for (const WindowPreset& p : WindowPresets()) presets.push_back(p.name);
   cmd->add_option("--preset", o->preset,
-                  "brain, soft-tissue, lung, bone or auto (default: soft-tissue for HU, else auto)")
+                  "brain, soft-tissue, lung, bone, auto or stored (the DICOM's own; default: stored where there "
+                  "is one, else soft-tissue for HU, else auto)")
       ->check(CLI::IsMember(presets))
       ->excludes(window)
       ->excludes(level);

@@ -54,7 +54,7 @@ VoiWindow WindowNamed(std::string_view name, const Volume& volume) {
   }
   if (const auto preset = FindWindowPreset(name)) return *preset;
   throw InputError(
-      fmt::format("window preset '{}' is none of brain, soft-tissue, lung, bone, auto, stored", LogSafe(name)));
+      fmt::format("'{}' is none of brain, soft-tissue, lung, bone, auto, stored", LogSafe(name)));
 }
 
 }  // namespace cinevol
