@@ -1,10 +1,14 @@
-// `cinevol loadtest --server ADDR --sessions N --seconds S [--script FILE]`:
-// N concurrent sessions, each playing a script in a loop (by default an orbit
-// with camera events at a fixed rate, as a dragging mouse sends them), for S
-// seconds. Reports frames per second, event-to-frame latency, the server's
-// stage times, bytes, dropped frames and errors by status code, as a table
-// or JSON.
+// `cinevol loadtest --server ADDR --sessions N --seconds S [--script FILE]
+// [--viewers V]`: N concurrent sessions, each playing a script in a loop (by
+// default an orbit with camera events at a fixed rate, as a dragging mouse
+// sends them), for S seconds, each shared with V viewers watching by a link
+// (docs/sharing.md). Reports frames per second, event-to-frame latency, the
+// server's stage times, bytes, dropped frames, the viewers' frames per second
+// and errors by status code, as a table or JSON.
+#include <algorithm>
+#include <atomic>
 #include <cmath>
+#include <numeric>
 #include <cstdio>
 #include <fstream>
 #include <map>
@@ -16,6 +20,7 @@
 #include "connection_options.h"
 #include "scene/scene_file.h"
 #include "script_player.h"
+#include "sharing_calls.h"
 
 namespace cinevol::cli {
 namespace {
@@ -34,6 +39,7 @@ struct LoadtestOptions {
   double degrees_per_second = 120;
   int jpeg_quality = 80;
   float interactive_frame_ms = -1;  // < 0: the server's default (70 ms on a CPU server, else off)
+  int viewers = 0;  // per session, watching by a link
   bool json = false;
   std::string out;
 };
@@ -42,6 +48,7 @@ struct SessionResult {
   std::string id;
   std::string server;  // where the session lived (the one it ended on)
   PlayResult play;
+  std::vector<double> viewer_fps;  // each viewer's frames received a second
   std::string error;  // status code name (or CLIENT), empty when none
   std::string error_message;
 };
@@ -79,6 +86,49 @@ SessionScript MakeScript(const LoadtestOptions& o) {
   return s;
 }
 
+double Mean(const std::vector<double>& v) { return std::accumulate(v.begin(), v.end(), 0.0) / double(v.size()); }
+
+// `count` viewers watching `session_id` by a link until `stop`: each one's
+// frames a second, counted on threads of their own.
+class Viewers {
+ public:
+  Viewers(Client& client, const std::string& session_id, int count) {
+    if (count == 0) return;
+    v1::ShareSessionRequest share;
+    share.set_session_id(session_id);
+    const std::string secret = client.Share(share).secret();
+    frames_.resize(count);
+    for (int i = 0; i < count; ++i) {
+      watches_.push_back(client.Watch(secret));
+      threads_.emplace_back([this, i] {
+        while (!stop_) {
+          const auto message = watches_[i]->Next(std::chrono::milliseconds(100));
+          if (message && message->has_frame()) ++frames_[i];
+          if (!message && watches_[i]->ended()) return;
+        }
+      });
+    }
+    start_ = std::chrono::steady_clock::now();
+  }
+  // Stops them; each viewer's frames a second.
+  std::vector<double> Stop() {
+    const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start_).count();
+    stop_ = true;
+    for (auto& w : watches_) w->Cancel();
+    for (std::thread& t : threads_) t.join();
+    std::vector<double> fps;
+    for (std::uint64_t n : frames_) fps.push_back(double(n) / std::max(seconds, 1e-3));
+    return fps;
+  }
+
+ private:
+  std::vector<std::unique_ptr<SessionWatch>> watches_;
+  std::vector<std::uint64_t> frames_;
+  std::vector<std::thread> threads_;
+  std::atomic<bool> stop_{false};
+  std::chrono::steady_clock::time_point start_;
+};
+
 SessionResult RunSession(const LoadtestOptions& o, Client& client, const SessionScript& script,
                          const v1::VolumeInfo& volume, int index) {
   SessionResult r;
@@ -89,11 +139,13 @@ SessionResult RunSession(const LoadtestOptions& o, Client& client, const Session
     std::vector<ScriptStep> steps = script.steps;
     for (ScriptStep& s : steps) s.orbit.start_degrees += 37.0 * index;  // sessions look at different sides
     auto stream = client.Attach(r.id);
+    Viewers viewers(client, r.id, o.viewers);
     PlayOptions play;
     play.max_seconds = o.seconds;
     play.loop = true;
     play.wait_final = false;
     r.play = Play(*stream, ExpandOrbits(steps, volume), play);
+    r.viewer_fps = viewers.Stop();
     r.server = client.SessionAddress(r.id);  // a failover may have moved it
     if (!r.play.status.ok()) {
       r.error = StatusCodeName(r.play.status.error_code());
@@ -114,6 +166,7 @@ SessionResult RunSession(const LoadtestOptions& o, Client& client, const Session
 
 struct Summary {
   double fps_min = INFINITY, fps_total = 0, fps_mean = 0;
+  std::vector<double> viewer_fps;  // every viewer of every session
   std::vector<double> latencies;
   std::uint64_t frames = 0, bytes = 0, dropped = 0;
   PlayResult stages;  // stage sums over every session
@@ -126,6 +179,7 @@ Summary Summarise(const std::vector<SessionResult>& results) {
     if (!r.error.empty()) ++s.errors[r.error];
     s.fps_min = std::min(s.fps_min, r.play.fps());
     s.fps_total += r.play.fps();
+    s.viewer_fps.insert(s.viewer_fps.end(), r.viewer_fps.begin(), r.viewer_fps.end());
     s.latencies.insert(s.latencies.end(), r.play.latency_ms.begin(), r.play.latency_ms.end());
     s.frames += r.play.frames;
     s.bytes += r.play.bytes;
@@ -166,6 +220,10 @@ std::string Table(const LoadtestOptions& o, const SessionScript& script, const s
   if (s.stages.smaller_frames > 0) {
     t += fmt::format("frames rendered smaller while moving (interactive resolution): {} of {} ({:.0f}%)\n",
                      s.stages.smaller_frames, s.frames, 100.0 * double(s.stages.smaller_frames) / double(s.frames));
+  }
+  if (!s.viewer_fps.empty()) {
+    t += fmt::format("viewers: {} per session by a link; frames received a second: mean {:.1f}, min {:.1f}\n",
+                     o.viewers, Mean(s.viewer_fps), *std::min_element(s.viewer_fps.begin(), s.viewer_fps.end()));
   }
   for (const auto& [code, n] : s.errors) t += fmt::format("errors {}: {}\n", code, n);
   std::map<std::string, int> per_server;
@@ -208,7 +266,10 @@ std::string Json(const LoadtestOptions& o, const SessionScript& script, const st
                    s.bytes, s.dropped, s.stages.smaller_frames);
   for (int i = 0; i < 7; ++i)
     j += fmt::format("{}\"{}\": {}", i ? ", " : "", kStageNames[i], number(s.stages.StageMs(i)));
-  j += "}, \"errors\": {";
+  j += fmt::format("}}, \"viewers\": {}, \"viewer_fps_mean\": {}, \"viewer_fps_min\": {}", o.viewers,
+                   number(s.viewer_fps.empty() ? NAN : Mean(s.viewer_fps)),
+                   number(s.viewer_fps.empty() ? NAN : *std::min_element(s.viewer_fps.begin(), s.viewer_fps.end())));
+  j += ", \"errors\": {";
   bool first = true;
   for (const auto& [code, n] : s.errors) {
     j += fmt::format("{}\"{}\": {}", first ? "" : ", ", code, n);
@@ -270,6 +331,11 @@ void AddLoadtestCommand(CLI::App& app) {
                   "Frame-time budget while the view moves: frames render smaller to meet it "
                   "(0: always full size; default: the server's, 70 ms on the CPU backend, else 0) (orbit)")
       ->check(CLI::Range(0.0f, 10000.0f));
+  cmd->add_option("--viewers", o->viewers,
+                  "Viewers per session, watching it by a link (docs/sharing.md): the presenter's fps with them, "
+                  "and theirs")
+      ->check(CLI::Range(0, 1000))
+      ->capture_default_str();
   cmd->add_flag("--json", o->json, "Print JSON instead of a table");
   cmd->add_option("--out", o->out, "Also append the report to this file");
   cmd->callback([o] {
