@@ -1,6 +1,8 @@
 #!/usr/bin/env bash
 # Packs the built programs, their libraries and the data sets the GPU checks
 # use into .gpu/bundle.tar.xz (kept out of git) for bench/gpu-run.sh.
+# NO_DICOM=1 leaves the DICOM series out (the carry limit is 64 MiB with the
+# working tree; only the reading and DICOM checks need it).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 stage=$(mktemp -d)
@@ -10,7 +12,7 @@ mkdir -p "$stage/data"
 cp -r ../shared/data/ct-head-cthead "$stage/data/"
 cp ../shared/data/ct-body-totalsegmentator/aorta_ct_cropped.nii.gz "$stage/data/"
 cp ../shared/data/mr-head-seg3d-nifti/MR.nii.gz "$stage/data/"
-cp -r ../shared/data/mr-chest-dicom-seg3d "$stage/data/"
+[ "${NO_DICOM:-0}" = 1 ] || cp -r ../shared/data/mr-chest-dicom-seg3d "$stage/data/"
 # As under ../shared/data, for scene files that name it (bench/clinical-run.sh).
 mkdir -p "$stage/data/ct-body-totalsegmentator"
 cp ../shared/data/ct-body-totalsegmentator/{pulmonary_ct_cropped.nii.gz,example_ct_sm.nii.gz,example_seg.nii.gz,labels-total.tsv} \

@@ -88,18 +88,20 @@ SessionScript MakeScript(const LoadtestOptions& o) {
 
 double Mean(const std::vector<double>& v) { return std::accumulate(v.begin(), v.end(), 0.0) / double(v.size()); }
 
-// `count` viewers watching `session_id` by a link until `stop`: each one's
+// `count` viewers watching `session_id` by a link until `stop`, each on a
+// connection of its own as people on their own machines are: each one's
 // frames a second, counted on threads of their own.
 class Viewers {
  public:
-  Viewers(Client& client, const std::string& session_id, int count) {
+  Viewers(const ConnectionOptions& connection, Client& owner, const std::string& session_id, int count) {
     if (count == 0) return;
     v1::ShareSessionRequest share;
     share.set_session_id(session_id);
-    const std::string secret = client.Share(share).secret();
+    const std::string secret = owner.Share(share).secret();
     frames_.resize(count);
     for (int i = 0; i < count; ++i) {
-      watches_.push_back(client.Watch(secret));
+      clients_.push_back(std::make_unique<Client>(Connect(connection)));
+      watches_.push_back(clients_.back()->Watch(secret));
       threads_.emplace_back([this, i] {
         while (!stop_) {
           const auto message = watches_[i]->Next(std::chrono::milliseconds(100));
@@ -122,6 +124,7 @@ class Viewers {
   }
 
  private:
+  std::vector<std::unique_ptr<Client>> clients_;
   std::vector<std::unique_ptr<SessionWatch>> watches_;
   std::vector<std::uint64_t> frames_;
   std::vector<std::thread> threads_;
@@ -139,7 +142,7 @@ SessionResult RunSession(const LoadtestOptions& o, Client& client, const Session
     std::vector<ScriptStep> steps = script.steps;
     for (ScriptStep& s : steps) s.orbit.start_degrees += 37.0 * index;  // sessions look at different sides
     auto stream = client.Attach(r.id);
-    Viewers viewers(client, r.id, o.viewers);
+    Viewers viewers(o.connection, client, r.id, o.viewers);
     PlayOptions play;
     play.max_seconds = o.seconds;
     play.loop = true;

@@ -119,6 +119,10 @@ std::shared_ptr<grpc::Channel> ServerPool::Channel(const std::string& address) {
     args.SetInt(GRPC_ARG_KEEPALIVE_TIME_MS, int(options_.keepalive.count()));
     args.SetInt(GRPC_ARG_KEEPALIVE_TIMEOUT_MS, int(options_.keepalive_timeout.count()));
     args.SetInt(GRPC_ARG_HTTP2_MAX_PINGS_WITHOUT_DATA, 0);  // a stream of a refined session sends nothing for long
+    // A Client's connections are its own, not shared with other Clients in
+    // the process: a server's limit of streams per connection is then one
+    // client's, as it is across machines (loadtest's viewers rely on it).
+    args.SetInt(GRPC_ARG_USE_LOCAL_SUBCHANNEL_POOL, 1);
     channel = grpc::CreateCustomChannel(address, credentials_, args);
   }
   return channel;
