@@ -92,13 +92,12 @@ export class App {
     this.share = new SharePanel(api, () => this.session?.id, (text) => this.showError(text));
     this.view.onPainted = (meta, at, decodeMs, replaced) => this.onPainted(meta, at, decodeMs, replaced);
     this.view.onError = (text) => this.showError(text);
-    const drives = <A extends unknown[]>(f: (...a: A) => void) => (...a: A) => { if (this.driving) f(...a); };
     this.view.listen({
-      orbit: drives((dx, dy) => this.moveCamera((c) => orbit(c, dx * DEGREES_PER_PIXEL, dy * DEGREES_PER_PIXEL))),
-      pan: drives((dx, dy, h) => this.moveCamera((c) => pan(c, dx, dy, h))),
-      zoom: drives((f) => this.moveCamera((c) => zoom(c, f))),
-      windowLevel: drives((dx, dy) => this.windowLevel(dx, dy)),
-      turnLight: drives((dx, dy) => this.turnLight(dx, dy)),
+      orbit: (dx, dy) => this.moveCamera((c) => orbit(c, dx * DEGREES_PER_PIXEL, dy * DEGREES_PER_PIXEL)),
+      pan: (dx, dy, h) => this.moveCamera((c) => pan(c, dx, dy, h)),
+      zoom: (f) => this.moveCamera((c) => zoom(c, f)),
+      windowLevel: (dx, dy) => this.windowLevel(dx, dy),
+      turnLight: (dx, dy) => this.turnLight(dx, dy),
       pick: (fx, fy, frame) => {
         // Not by a share: Pick, as RenderSlice, names the session, which only its owner may.
         if (!this.session?.grant) void this.reading.pickOnView(fx * frame.width, fy * frame.height, frame);
@@ -333,7 +332,7 @@ export class App {
 
   private moveCamera(move: (c: ViewCamera) => ViewCamera): void {
     const current = this.state?.scene?.camera;
-    if (!this.camera || !current) return;
+    if (!this.camera || !current || !this.driving) return;
     this.home ??= this.camera;
     this.camera = move(this.camera);
     this.drawMarker();
@@ -426,7 +425,7 @@ export class App {
 
   private windowLevel(dx: number, dy: number): void {
     const tf = this.state?.scene?.transferFunction;
-    if (!tf || tf.points.length === 0 || !this.volume) return;
+    if (!tf || tf.points.length === 0 || !this.volume || !this.driving) return;
     const range = this.volume.maxValue - this.volume.minValue || 1;
     this.post({ case: "transferFunction", value: applyWindowLevel(tf, (-dy * range) / 500, Math.exp(dx * 0.005)) });
   }
@@ -463,6 +462,7 @@ export class App {
   }
 
   private turnLight(dx: number, dy: number): void {
+    if (!this.driving) return;
     const value = (id: string) => Number($<HTMLInputElement>(id).value);
     const azimuth = ((value("light-azimuth") + dx * DEGREES_PER_PIXEL + 540) % 360) - 180;
     const elevation = Math.max(-89, Math.min(89, value("light-elevation") - dy * DEGREES_PER_PIXEL));
