@@ -1,9 +1,14 @@
 import assert from "node:assert/strict";
 import { test } from "node:test";
+import { create } from "@bufbuild/protobuf";
 import { Code, ConnectError } from "@connectrpc/connect";
+import { PointerSchema, SessionStateSchema } from "../gen/cinevol/v1/service_pb.js";
 import { readAddress, shareLink, withoutToken } from "../src/address.js";
+import type { Api } from "../src/api.js";
 import { echoedName, fitted, fromFrame, othersPointers, Throttle, toFrame } from "../src/pointers.js";
+import { LiveSession } from "../src/session.js";
 import { expiresIn, holder, ownName, presence } from "../src/share.js";
+import { MotionToPhoton } from "../src/stats.js";
 import { shareWords } from "../src/words.js";
 
 const SECRET = "cvg_g0123456789abcdef_00112233445566778899aabbccddeeff";
@@ -114,4 +119,93 @@ test("a revoked or expired share, and a user's share without its token, in plain
   assert.match(shareWords(new ConnectError("grant g1 expired", Code.PermissionDenied)), /expired/);
   assert.match(shareWords(new ConnectError("no token", Code.Unauthenticated)), /your own token/);
   assert.match(shareWords(new ConnectError("down", Code.Unavailable)), /cannot be reached/, "the rest as for one's own");
+});
+
+/** A server that answers a share's calls as cinevol-server does, recording them. */
+function fakeServer(watch: (signal: AbortSignal) => AsyncIterable<unknown>, send: () => Promise<unknown>) {
+  const calls: { method: string; request: Record<string, unknown> }[] = [];
+  const api = {
+    sessionAddress: "",
+    sessions: {
+      watchSession: (request: Record<string, unknown>, options: { signal: AbortSignal }) => {
+        calls.push({ method: "watchSession", request });
+        return watch(options.signal);
+      },
+      sendEvents: (request: Record<string, unknown>) => {
+        calls.push({ method: "sendEvents", request });
+        return send();
+      },
+      closeSession: async (request: Record<string, unknown>) => { calls.push({ method: "closeSession", request }); },
+      createSession: async (request: Record<string, unknown>) => { calls.push({ method: "createSession", request }); },
+    },
+  };
+  return { api: api as unknown as Api, calls };
+}
+
+function handlersFor(seen: { refused: string[][]; failed: { text: string; code?: Code }[]; states: number }) {
+  return {
+    attached: () => {}, frame: () => {}, notice: () => {}, banner: () => {},
+    state: () => { seen.states += 1; },
+    refused: (kinds: string[]) => { seen.refused.push(kinds); },
+    failed: (text: string, code?: Code) => { seen.failed.push({ text, code }); },
+  };
+}
+
+const settle = () => new Promise((r) => setTimeout(r, 20));
+
+test("a share's session: its grant in every call, pointers outside the frames' numbering, never closed by a viewer", async () => {
+  const state = { kind: { case: "state", value: create(SessionStateSchema, { presenter: "alice", viewers: 1 }) } };
+  let refusePointer = false;
+  const { api, calls } = fakeServer(async function* (signal) {
+    yield state;
+    await new Promise((r) => signal.addEventListener("abort", r));
+  }, async () => {
+    if (refusePointer) throw new ConnectError("pointer: grant g1 does not share its holder's pointer", Code.PermissionDenied);
+    return { state: undefined };
+  });
+  const seen = { refused: [] as string[][], failed: [] as { text: string; code?: Code }[], states: 0 };
+  const session = LiveSession.watchShared(api, handlersFor(seen), new MotionToPhoton(), SECRET);
+  await settle();
+  assert.equal(seen.states, 1);
+  assert.deepEqual(calls[0], { method: "watchSession", request: { sessionId: "", grant: SECRET } });
+  session.post({ case: "pointer", value: create(PointerSchema, { x: 0.5, y: 0.25 }) });
+  await settle();
+  const sent = calls.find((c) => c.method === "sendEvents")!.request;
+  assert.equal(sent.grant, SECRET);
+  assert.equal(session.lastSeq, 0n, "a pointer is not an event a frame answers");
+  assert.deepEqual(session.sentKinds, { pointer: 1 });
+  refusePointer = true;
+  session.post({ case: "pointer", value: create(PointerSchema, { hidden: true }) });
+  await settle();
+  assert.deepEqual(seen.refused, [["pointer"]], "a refused pointer is told as such; the watch goes on");
+  assert.equal(seen.failed.length, 0);
+  session.close();
+  await settle();
+  assert.ok(!calls.some((c) => c.method === "closeSession"), "a viewer leaving does not end the owner's session");
+});
+
+test("a revoked share ends the watch in plain words, with no new session made from it", async () => {
+  const { api, calls } = fakeServer(async function* () {
+    yield { kind: { case: "state", value: create(SessionStateSchema, { presenter: "alice", viewers: 1 }) } };
+    throw new ConnectError("grant g1 was revoked by the session's owner", Code.PermissionDenied);
+  }, async () => ({}));
+  const seen = { refused: [] as string[][], failed: [] as { text: string; code?: Code }[], states: 0 };
+  LiveSession.watchShared(api, handlersFor(seen), new MotionToPhoton(), SECRET);
+  await settle();
+  assert.equal(seen.failed.length, 1);
+  assert.match(seen.failed[0].text, /share has ended: its owner revoked it.*grant g1 was revoked/);
+  assert.equal(seen.failed[0].code, Code.PermissionDenied);
+  assert.deepEqual(calls.map((c) => c.method), ["watchSession"], "no retry, no CreateSession");
+});
+
+test("a share's session that ended on the server is not made again as one's own", async () => {
+  const { api, calls } = fakeServer(async function* () {
+    yield* [];
+    throw new ConnectError("grant g1: its session has ended", Code.NotFound);
+  }, async () => ({}));
+  const seen = { refused: [] as string[][], failed: [] as { text: string; code?: Code }[], states: 0 };
+  LiveSession.watchShared(api, handlersFor(seen), new MotionToPhoton(), SECRET);
+  await settle();
+  assert.match(seen.failed[0]?.text ?? "", /shared session ended on the server/);
+  assert.ok(!calls.some((c) => c.method === "createSession"));
 });
