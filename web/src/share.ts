@@ -47,7 +47,7 @@ export function expiresIn(expiresUnixSeconds: number, nowUnixSeconds: number): s
 }
 
 export class SharePanel {
-  private grants: Grant[] = [];
+  private asked = 0;  // ListShares calls made: an answer older than the newest is dropped
 
   constructor(private readonly api: Api, private readonly sessionId: () => string | undefined,
               private readonly error: (text: string) => void) {
@@ -97,13 +97,16 @@ export class SharePanel {
     const sessionId = this.sessionId();
     const panel = $<HTMLDetailsElement>("share");
     if (!sessionId || panel.hidden || !panel.open) return;  // the list is seen only while the panel is open
+    const call = ++this.asked;
+    let grants: Grant[];
     try {
-      this.grants = (await this.api.sessions.listShares({ sessionId })).grants;
+      grants = (await this.api.sessions.listShares({ sessionId })).grants;
     } catch (e) {
       return this.error(plainWords(e));
     }
+    if (call !== this.asked) return;
     const now = Date.now() / 1000;
-    $("share-grants").replaceChildren(...this.grants.map((g) => {
+    $("share-grants").replaceChildren(...grants.map((g) => {
       const li = document.createElement("li"), name = holder(g);
       const role = g.role === ShareRole.PRESENTER ? "presenter" : "viewer";
       li.textContent = `${name} · ${role}${g.allowPointer ? " · pointer" : ""} · ` +
@@ -114,7 +117,7 @@ export class SharePanel {
       }
       return li;
     }));
-    $<HTMLButtonElement>("share-take-back").disabled = !this.grants.some((g) => g.role === ShareRole.PRESENTER);
+    $<HTMLButtonElement>("share-take-back").disabled = !grants.some((g) => g.role === ShareRole.PRESENTER);
   }
 
   private button(text: string, label: string, click: () => Promise<void>): HTMLButtonElement {
