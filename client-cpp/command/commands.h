@@ -13,6 +13,7 @@ void AddLoadtestCommand(CLI::App& app);
 void AddPacsCommand(CLI::App& app);
 void AddPickCommand(CLI::App& app);
 void AddPlayCommand(CLI::App& app);
+void AddShareCommands(CLI::App& app);  // share, shares, revoke, handover, watch
 void AddSnapshotCommand(CLI::App& app);
 void AddSliceCommand(CLI::App& app);
 void AddRenderCommand(CLI::App& app);

@@ -24,6 +24,7 @@ int main(int argc, char** argv) {
   cinevol::cli::AddSnapshotCommand(app);
   cinevol::cli::AddVolumesCommand(app);
   cinevol::cli::AddStatusCommand(app);
+  cinevol::cli::AddShareCommands(app);
   cinevol::cli::AddHealthCommand(app);
   try {
     app.parse(argc, argv);

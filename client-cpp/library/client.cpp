@@ -5,6 +5,7 @@
 
 #include "encode/image_codecs.h"
 #include "server_pool.h"
+#include "sharing_calls.h"
 #include "snapshot_call.h"
 #include "pacs_calls.h"
 #include "volume_calls.h"
@@ -433,6 +434,45 @@ v1::PickResult Client::Pick(v1::PickRequest request) {
   v1::PickResult result;
   Check(stub->Pick(pool_->CallContext().get(), request, &result));
   return result;
+}
+
+v1::Grant Client::Share(v1::ShareSessionRequest request) {
+  auto stub = v1::SessionService::NewStub(pool_->Channel(pool_->AddressOf(request.session_id())));
+  request.set_session_id(pool_->CurrentId(request.session_id()));
+  v1::Grant grant;
+  Check(stub->ShareSession(pool_->CallContext().get(), request, &grant));
+  return grant;
+}
+
+std::vector<v1::Grant> Client::ListShares(const std::string& session_id) {
+  auto stub = v1::SessionService::NewStub(pool_->Channel(pool_->AddressOf(session_id)));
+  v1::ListSharesRequest request;
+  request.set_session_id(pool_->CurrentId(session_id));
+  v1::ListSharesResponse response;
+  Check(stub->ListShares(pool_->CallContext().get(), request, &response));
+  return {response.grants().begin(), response.grants().end()};
+}
+
+std::uint32_t Client::RevokeShare(const std::string& session_id, const std::string& grant_id) {
+  auto stub = v1::SessionService::NewStub(pool_->Channel(pool_->AddressOf(session_id)));
+  v1::RevokeShareRequest request;
+  request.set_session_id(pool_->CurrentId(session_id));
+  request.set_grant_id(grant_id);
+  v1::RevokeShareResponse response;
+  Check(stub->RevokeShare(pool_->CallContext().get(), request, &response));
+  return response.streams_ended();
+}
+
+std::string Client::HandOver(v1::HandOverRequest request) {
+  auto stub = v1::SessionService::NewStub(pool_->Channel(pool_->AddressOf(request.session_id())));
+  if (!request.session_id().empty()) request.set_session_id(pool_->CurrentId(request.session_id()));
+  v1::HandOverResponse response;
+  Check(stub->HandOver(pool_->CallContext().get(), request, &response));
+  return response.presenter();
+}
+
+std::unique_ptr<SessionWatch> Client::Watch(const std::string& grant) {
+  return std::make_unique<SessionWatch>(channel(), grant, pool_->options().token);
 }
 
 v1::ServerStatus Client::Status() {

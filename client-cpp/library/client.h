@@ -91,6 +91,7 @@ struct SnapshotOptions {
 std::string DescribeProgress(const v1::SnapshotProgress& progress);
 
 class ServerPool;
+class SessionWatch;
 
 // One attached session stream. A thread reads the server's messages into a
 // queue (or hands them to on_message); Next takes them in order.
@@ -209,6 +210,17 @@ class Client {
   // pixel of the session's viewport.
   v1::SliceImage RenderSlice(v1::SliceRequest request);
   v1::PickResult Pick(v1::PickRequest request);
+  // Sharing (docs/sharing.md). The owner's calls: a grant (its secret is in
+  // this answer only), the session's grants, a revocation (the number of
+  // streams it ended), the presenter role handed over (request.grant_id
+  // empty: back to the owner; with request.grant, by the presenter).
+  v1::Grant Share(v1::ShareSessionRequest request);
+  std::vector<v1::Grant> ListShares(const std::string& session_id);
+  std::uint32_t RevokeShare(const std::string& session_id, const std::string& grant_id);
+  std::string HandOver(v1::HandOverRequest request);
+  // Watches a shared session by a grant's secret, on the first server that
+  // answered; this client's token goes with it (a principal's grant needs it).
+  std::unique_ptr<SessionWatch> Watch(const std::string& grant);
   // The status of the first server that answered.
   v1::ServerStatus Status();
 

@@ -29,6 +29,7 @@ struct Grant {
   std::string created_by;  // the principal that shared the session
   std::string principal;   // who may use it (their own token signs them in); empty: a link
   GrantRole role = GrantRole::kViewer;
+  bool allow_pointer = false;  // the holder's pointer is shared (a presenter's always is)
   Clock::time_point expires;
   SystemClock::time_point expires_wall;  // the same, for people and answers
 

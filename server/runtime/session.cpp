@@ -7,9 +7,9 @@
 
 #include <utility>
 
+#include "core/log_safe.h"
 #include "io/label_volume.h"
 #include "runtime/errors.h"
-#include "core/log_safe.h"
 #include "runtime/metrics.h"
 
 namespace cinevol::service {
@@ -29,7 +29,7 @@ constexpr int kMaxJpegBands = 4;
 
 // What one step renders, taken under the lock.
 struct Session::Work {
-  bool update = false;  // scene and settings changed since the pipeline saw them
+  bool update = false;   // scene and settings changed since the pipeline saw them
   unsigned changes = 0;  // SceneChange bits: what the events changed
   v1::Scene scene;
   FrameSettings settings;
@@ -73,6 +73,7 @@ Session::Session(std::string id, std::string owner, std::shared_ptr<VolumeLease>
       batched_(kReadPacing * context_.limits->max_events_per_second, since_),
       prepared_(std::move(prepared)) {
   context_.pixels->Exchange(0, pixels_);
+  current_.set_presenter(owner_);  // until a grant presents (docs/sharing.md)
   ++context_.scheduler->sessions;
 }
 
@@ -95,7 +96,7 @@ void Session::Attach(FrameStream* stream) {
     stream_ = stream;
     state_ = State::kRendering;
     cancel_ = false;
-    last_event_seq_ = 0;  // sequence numbers count per stream
+    last_event_seq_ = last_owner_seq_ = 0;  // sequence numbers count per stream
     current_.set_last_event_seq(0);
     current_.set_paused(false);  // an attach resumes
     event_unrendered_ = false;
@@ -107,9 +108,86 @@ void Session::Attach(FrameStream* stream) {
   Wake();
 }
 
+void Session::AttachWatcher(FrameStream* stream, const std::string& grant_id) {
+  AddWatcher(stream, grant_id);
+  Wake();
+}
+
+void Session::AddWatcher(FrameStream* stream, const std::string& grant_id) {
+  std::lock_guard lock(mu_);
+  if (state_ == State::kEnded) throw RpcError(grpc::StatusCode::NOT_FOUND, fmt::format("session '{}' has ended", id_));
+  if (int(watchers_.size()) >= context_.limits->max_viewers_per_session) {
+    throw LimitExceeded(grpc::StatusCode::RESOURCE_EXHAUSTED, "max-viewers-per-session",
+                        fmt::format("session '{}' has {} viewers, this server's limit (--max-viewers-per-session)", id_,
+                                    watchers_.size()));
+  }
+  watchers_.push_back({stream, grant_id});
+  current_.set_viewers(std::uint32_t(watchers_.size()));
+  stream->SendNotice(v1::Notice::INFO, fmt::format("watching session '{}' on {}", id_, context_.scheduler->name()));
+  SendStateLocked();  // everyone learns the count; the newcomer the scene
+  if (newest_frame_) {
+    stream->OfferFrame(*newest_frame_, Clock::now());
+  } else if (stream_ && state_ == State::kIdle) {
+    state_ = State::kRendering;  // the first watcher: one more frame shows it the view
+  }
+}
+
+int Session::EndWatchers(const std::string& grant_id, const grpc::Status& status) {
+  std::lock_guard lock(mu_);
+  int ended = 0;
+  for (const Watcher& w : watchers_) {
+    if (w.grant_id != grant_id) continue;
+    w.stream->End(status);  // its OnDone detaches it
+    ++ended;
+  }
+  return ended;
+}
+
+int Session::Watching(const std::string& grant_id) const {
+  std::lock_guard lock(mu_);
+  return int(
+      std::count_if(watchers_.begin(), watchers_.end(), [&](const Watcher& w) { return w.grant_id == grant_id; }));
+}
+
+void Session::SetPresenter(const std::string& who) {
+  std::lock_guard lock(mu_);
+  current_.set_presenter(who);
+  SendStateLocked();
+}
+
+void Session::OnPointer(const std::string& who, const v1::Pointer& pointer, Clock::time_point arrival) {
+  std::lock_guard lock(mu_);
+  PointLocked(who, pointer, arrival);
+}
+
+void Session::PointLocked(const std::string& who, const v1::Pointer& pointer, Clock::time_point arrival) {
+  if (!(pointer.x() >= 0 && pointer.x() <= 1 && pointer.y() >= 0 && pointer.y() <= 1)) {
+    throw InputError(fmt::format("pointer: ({}, {}) is outside the frame, [0, 1] each way", pointer.x(), pointer.y()));
+  }
+  auto [it, fresh] = pointers_.try_emplace(who, PointerSender{TokenBucket(kPointerRate, arrival)});
+  if (!it->second.rate.Take(arrival)) return;  // a pointer moves on: the next move shows it
+  it->second.visible = !pointer.hidden();
+  it->second.shown.set_who(who);
+  it->second.shown.set_x(pointer.x());
+  it->second.shown.set_y(pointer.y());
+  current_.clear_pointers();
+  for (const auto& [sender, p] : pointers_) {
+    if (p.visible) *current_.add_pointers() = p.shown;
+  }
+  SendStateLocked();
+}
+
 void Session::Detach(FrameStream* stream) {
   {
     std::lock_guard lock(mu_);
+    const auto watcher =
+        std::find_if(watchers_.begin(), watchers_.end(), [&](const Watcher& w) { return w.stream == stream; });
+    if (watcher != watchers_.end()) {  // a watcher leaves; the session goes on as it was
+      watchers_.erase(watcher);
+      current_.set_viewers(std::uint32_t(watchers_.size()));
+      SendStateLocked();
+      return;
+    }
     if (stream_ != stream) return;
     sent_before_ += stream_->frames_sent();
     dropped_before_ += stream_->frames_dropped();
@@ -138,7 +216,7 @@ void Session::OnEvent(const v1::SessionEvent& event, Clock::time_point arrival) 
 }
 
 v1::SessionState Session::OnEvents(const google::protobuf::RepeatedPtrField<v1::SessionEvent>& events,
-                                   Clock::time_point arrival) {
+                                   Clock::time_point arrival, bool from_grant) {
   std::exception_ptr bad;
   v1::SessionState state;
   {
@@ -147,14 +225,14 @@ v1::SessionState Session::OnEvents(const google::protobuf::RepeatedPtrField<v1::
       throw RpcError(grpc::StatusCode::NOT_FOUND, fmt::format("session '{}' has ended", id_));
     }
     if (!batched_.Take(arrival, events.size())) {
-      throw LimitExceeded(grpc::StatusCode::RESOURCE_EXHAUSTED, "max-events-per-second",
-                          fmt::format("events: more than {} events a second to session '{}' ({} x "
-                                      "--max-events-per-second); none of these {} was applied",
-                                      kReadPacing * context_.limits->max_events_per_second, id_, kReadPacing,
-                                      events.size()));
+      throw LimitExceeded(
+          grpc::StatusCode::RESOURCE_EXHAUSTED, "max-events-per-second",
+          fmt::format("events: more than {} events a second to session '{}' ({} x "
+                      "--max-events-per-second); none of these {} was applied",
+                      kReadPacing * context_.limits->max_events_per_second, id_, kReadPacing, events.size()));
     }
     try {
-      for (const v1::SessionEvent& event : events) OnEventLocked(event, arrival);
+      for (const v1::SessionEvent& event : events) OnEventLocked(event, arrival, from_grant);
     } catch (...) {
       bad = std::current_exception();  // the events before it stay applied
     }
@@ -165,10 +243,23 @@ v1::SessionState Session::OnEvents(const google::protobuf::RepeatedPtrField<v1::
   return state;
 }
 
-void Session::OnEventLocked(const v1::SessionEvent& event, Clock::time_point arrival) {
+v1::SessionState Session::CurrentState() const {
+  std::lock_guard lock(mu_);
+  return current_;
+}
+
+void Session::OnEventLocked(v1::SessionEvent event, Clock::time_point arrival, bool from_grant) {
   ServerMetrics().EventReceived();
-  if (event.seq() <= last_event_seq_ && last_event_seq_ > 0) {
-    throw InputError(fmt::format("event {}: seq must increase (the last was {})", event.seq(), last_event_seq_));
+  if (event.has_pointer()) {  // shared at once; no frame answers it
+    PointLocked(owner_, event.pointer(), arrival);
+    return;
+  }
+  if (from_grant) {
+    event.set_seq(last_event_seq_ + 1);
+  } else if (event.seq() <= last_owner_seq_ && last_owner_seq_ > 0) {
+    throw InputError(fmt::format("event {}: seq must increase (the last was {})", event.seq(), last_owner_seq_));
+  } else {
+    last_owner_seq_ = event.seq();
   }
   if (event.has_pause() || event.has_resume() || events_.Take(arrival)) {
     ApplyCoalescedLocked();  // what came earlier applies first
@@ -194,9 +285,10 @@ void Session::ApplyCoalescedLocked() {
 
 void Session::ApplyLocked(const v1::SessionEvent& event, Clock::time_point arrival) {
   if (event.has_labels() && StylesLabels(event.labels()) && !volume_->has_segmentation()) {
-    throw InputError(fmt::format("event {}: labels: volume '{}' had no segmentation when this session began; load "
-                                 "one (LoadLabels) and start a new session",
-                                 event.seq(), volume_->id()));
+    throw InputError(
+        fmt::format("event {}: labels: volume '{}' had no segmentation when this session began; load "
+                    "one (LoadLabels) and start a new session",
+                    event.seq(), volume_->id()));
   }
   const v1::Viewport viewport = current_.viewport();
   const std::uint64_t applied_seq = current_.last_event_seq();
@@ -235,7 +327,8 @@ void Session::ApplyLocked(const v1::SessionEvent& event, Clock::time_point arriv
 }
 
 void Session::SendStateLocked() {
-  stream_->SendState(current_);
+  if (stream_) stream_->SendState(current_);
+  for (const Watcher& w : watchers_) w.stream->SendState(current_);
   state_unsent_ = false;
 }
 
@@ -256,6 +349,8 @@ void Session::End(const grpc::Status& status) {
       stream_->EndSession(status);
     }
     stream_ = nullptr;
+    for (const Watcher& w : watchers_) w.stream->EndSession(status);
+    watchers_.clear();
   }
   if (status.ok()) {
     spdlog::info("session {}: closed", id_);
@@ -269,10 +364,10 @@ void Session::End(const grpc::Status& status) {
 void Session::Drain() {
   {
     std::lock_guard lock(mu_);
-    if (stream_) {
-      stream_->SendNotice(v1::Notice::WARNING,
-                          "the server is shutting down (draining): this stream ends now; reconnect to another server");
-    }
+    const std::string notice =
+        "the server is shutting down (draining): this stream ends now; reconnect to another server";
+    if (stream_) stream_->SendNotice(v1::Notice::WARNING, notice);
+    for (const Watcher& w : watchers_) w.stream->SendNotice(v1::Notice::WARNING, notice);
   }
   End({grpc::StatusCode::UNAVAILABLE, "the server is shutting down"});
 }
@@ -440,6 +535,9 @@ void Session::Deliver(v1::Frame frame, Clock::time_point origin) {
     --encodes_in_flight_;
     if (stream_ && frame.frame_id() > last_offered_id_) {
       last_offered_id_ = frame.frame_id();
+      // Encoded once: each watcher's slot gets the same bytes.
+      for (const Watcher& w : watchers_) w.stream->OfferFrame(frame, origin);
+      if (!watchers_.empty()) newest_frame_ = frame;  // for the next watcher, from the first on
       stream_->OfferFrame(std::move(frame), origin);
     } else {
       ++frames_stale_;
@@ -458,12 +556,22 @@ v1::SessionStatus Session::Status() const {
   s.set_device(context_.scheduler->name());
   *s.mutable_viewport() = current_.viewport();
   switch (state_) {
-    case State::kStarting: s.set_state(v1::SessionStatus::STARTING); break;
-    case State::kIdle: s.set_state(v1::SessionStatus::IDLE); break;
-    case State::kPaused: s.set_state(v1::SessionStatus::PAUSED); break;
+    case State::kStarting:
+      s.set_state(v1::SessionStatus::STARTING);
+      break;
+    case State::kIdle:
+      s.set_state(v1::SessionStatus::IDLE);
+      break;
+    case State::kPaused:
+      s.set_state(v1::SessionStatus::PAUSED);
+      break;
     case State::kDetached:
-    case State::kEnded: s.set_state(v1::SessionStatus::DETACHED); break;
-    default: s.set_state(v1::SessionStatus::RENDERING); break;
+    case State::kEnded:
+      s.set_state(v1::SessionStatus::DETACHED);
+      break;
+    default:
+      s.set_state(v1::SessionStatus::RENDERING);
+      break;
   }
   s.set_frames_rendered(frames_rendered_);
   s.set_frames_sent(sent_before_ + (stream_ ? stream_->frames_sent() : 0));

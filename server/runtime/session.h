@@ -2,11 +2,15 @@
 // viewer's stream merge into the scene (the latest camera wins); the
 // session's scheduler calls Step, which renders one frame when there is
 // something to show and room to send it, and hands it to the encoder pool;
-// the encoded frame goes to the attached stream's newest-wins slot.
+// the encoded frame goes to the attached stream's newest-wins slot, and to
+// the slot of every watcher of a shared session (docs/sharing.md): rendered
+// and encoded once, a slow watcher drops frames and never slows the others.
 //
 // Device memory (the pipeline) exists only while a stream is attached: when
 // the stream ends the next step frees it, and a later attach rebuilds it.
 #pragma once
+
+#include <grpcpp/support/status.h>
 
 #include <atomic>
 #include <chrono>
@@ -15,19 +19,18 @@
 #include <map>
 #include <memory>
 #include <mutex>
+#include <optional>
 #include <string>
 #include <vector>
 
-#include <grpcpp/support/status.h>
-
 #include "cinevol/v1/service.pb.h"
 #include "pipeline/frame_pipeline.h"
-#include "runtime/scheduler.h"
-#include "scene/session_state.h"
 #include "runtime/frame_encoding.h"
+#include "runtime/scheduler.h"
 #include "runtime/task_pool.h"
 #include "runtime/token_bucket.h"
 #include "runtime/volume_registry.h"
+#include "scene/session_state.h"
 
 namespace cinevol::service {
 
@@ -37,6 +40,8 @@ using Clock = std::chrono::steady_clock;
 // --max-events-per-second: StreamSession paces its reads so, SendEvents
 // refuses past it. The session coalesces those past --max-events-per-second.
 inline constexpr int kReadPacing = 4;
+// Pointer moves a second one sender may share (docs/sharing.md).
+inline constexpr int kPointerRate = 30;
 
 // The write side of the stream attached to a session: one write in flight,
 // and behind it one slot where a newer frame replaces an older one.
@@ -82,7 +87,7 @@ struct SessionContext {
   TaskPool* encoder = nullptr;
   Backend backend = Backend::kCpu;
   const SessionLimits* limits = nullptr;
-  MapResolver resolve_map;  // environment maps: inside the data roots
+  MapResolver resolve_map;        // environment maps: inside the data roots
   PixelBudget* pixels = nullptr;  // the session holds its viewport's pixels from creation to destruction
   std::function<void(const std::string& session_id)> on_end;  // the registry forgets it
 };
@@ -110,6 +115,21 @@ class Session final : public Job, public std::enable_shared_from_this<Session> {
   // device memory; OnWritable says a write finished.
   void Attach(FrameStream* stream);
   void Detach(FrameStream* stream);
+  // A watcher of a shared session, by grant `grant_id`: it gets every state
+  // and every frame delivered from now on (the newest at once), never paces
+  // rendering and never takes the session over. Throws NOT_FOUND once the
+  // session ended, RESOURCE_EXHAUSTED past --max-viewers-per-session.
+  void AttachWatcher(FrameStream* stream, const std::string& grant_id);
+  // Ends the watchers by `grant_id` with `status` (revoked, expired); returns how many.
+  int EndWatchers(const std::string& grant_id, const grpc::Status& status);
+  // Streams open by `grant_id` now.
+  int Watching(const std::string& grant_id) const;
+  // Who drives the session now, for every stream's state (the owner, or a
+  // presenter grant's holder).
+  void SetPresenter(const std::string& who);
+  // `who`'s pointer (the owner, a grant's holder), shared with every stream
+  // at once. Past kPointerRate a second from one sender, moves are dropped.
+  void OnPointer(const std::string& who, const v1::Pointer& pointer, Clock::time_point arrival);
   void OnWritable(FrameStream* stream);
   // Applies an event (scene/session_state.h's ApplyEvent, this server's
   // limits); throws InputError (or RpcError) for a bad one. Events
@@ -126,8 +146,13 @@ class Session final : public Job, public std::enable_shared_from_this<Session> {
   // reads, and would otherwise cost the session's lock a check or merge for
   // every event a client can send. Events before an attach change the scene
   // (the attach sends it); pause and resume only matter to an attached stream.
+  // `from_grant`: a presenter's batch (docs/sharing.md): the session numbers
+  // its events itself, after the newest it has, and answers their numbers in
+  // the state; the owner's numbering goes on undisturbed.
   v1::SessionState OnEvents(const google::protobuf::RepeatedPtrField<v1::SessionEvent>& events,
-                            Clock::time_point arrival);
+                            Clock::time_point arrival, bool from_grant = false);
+  // The state now, as the streams get it.
+  v1::SessionState CurrentState() const;
   // Ends the session: the stream finishes with `status`, memory is freed and
   // the registry forgets it. Later calls do nothing.
   void End(const grpc::Status& status);
@@ -160,13 +185,15 @@ class Session final : public Job, public std::enable_shared_from_this<Session> {
   struct Work;
   bool CanRenderLocked() const;
   // OnEvent's work, mu_ held; throws for a bad event.
-  void OnEventLocked(const v1::SessionEvent& event, Clock::time_point arrival);
+  void OnEventLocked(v1::SessionEvent event, Clock::time_point arrival, bool from_grant = false);
+  // Sends current_ to every stream: the owner's (when attached) and the watchers'.
   // Applies one event now; throws for a bad one (the scene stays as it was).
   void ApplyLocked(const v1::SessionEvent& event, Clock::time_point arrival);
   // Applies the coalesced events; ends nothing, throws for a bad one.
   void ApplyCoalescedLocked();
-  // Sends current_ to the stream (which must be attached).
   void SendStateLocked();
+  void PointLocked(const std::string& who, const v1::Pointer& pointer, Clock::time_point arrival);
+  void AddWatcher(FrameStream* stream, const std::string& grant_id);  // AttachWatcher under mu_, before the wake
   // The encode stage (frame_encoding.h) on the encoder pool, then Deliver.
   void Encode(DisplayFrame frame, const FrameStamp& stamp, int quality);
   void Deliver(v1::Frame frame, Clock::time_point origin);
@@ -178,11 +205,25 @@ class Session final : public Job, public std::enable_shared_from_this<Session> {
 
   mutable std::mutex mu_;
   FrameStream* stream_ = nullptr;
-  v1::SessionState current_;  // what events made of the session; its stream settings all set
-  FrameSettings settings_;     // current_.stream() on this backend
-  bool dirty_ = true;          // current_ changed since the pipeline last saw it
-  bool state_unsent_ = true;   // current_ changed since the stream last got it
-  unsigned changes_ = kEverythingChanged;  // SceneChange bits since the pipeline last saw the scene
+  struct Watcher {
+    FrameStream* stream;
+    std::string grant_id;
+  };
+  std::vector<Watcher> watchers_;
+  // The newest frame delivered, for a watcher that joins (kept once the
+  // session has had a watcher: an unshared session pays nothing for it).
+  std::optional<v1::Frame> newest_frame_;
+  struct PointerSender {
+    TokenBucket rate;
+    v1::SharedPointer shown;
+    bool visible = false;
+  };
+  std::map<std::string, PointerSender> pointers_;  // by who
+  v1::SessionState current_;                       // what events made of the session; its stream settings all set
+  FrameSettings settings_;                         // current_.stream() on this backend
+  bool dirty_ = true;                              // current_ changed since the pipeline last saw it
+  bool state_unsent_ = true;                       // current_ changed since the stream last got it
+  unsigned changes_ = kEverythingChanged;          // SceneChange bits since the pipeline last saw the scene
   // Where the session is in its life. kRendering, kIdle and kPaused have a
   // stream attached (stream_ set); the others do not.
   enum class State {
@@ -195,6 +236,7 @@ class Session final : public Job, public std::enable_shared_from_this<Session> {
   };
   State state_ = State::kStarting;
   std::uint64_t last_event_seq_ = 0;
+  std::uint64_t last_owner_seq_ = 0;  // the owner's numbering (the stream's or its SendEvents')
   Clock::time_point last_event_arrival_;
   bool event_unrendered_ = false;  // an event arrived since the last frame began
   Clock::time_point since_;        // creation or last detach
@@ -202,13 +244,13 @@ class Session final : public Job, public std::enable_shared_from_this<Session> {
   std::uint64_t next_frame_id_ = 1;
   std::uint64_t last_offered_id_ = 0;
   std::uint64_t frames_rendered_ = 0;
-  std::uint64_t frames_stale_ = 0;  // finished encoding after a newer frame: never sent
+  std::uint64_t frames_stale_ = 0;                      // finished encoding after a newer frame: never sent
   std::uint64_t sent_before_ = 0, dropped_before_ = 0;  // by streams that ended
   int accumulated_spp_ = 0;
   bool holds_device_memory_ = false;
-  std::uint64_t pixels_ = 0;  // held in the context's PixelBudget
-  TokenBucket events_;        // events applied at once; past it, coalesced
-  TokenBucket batched_;       // SendEvents' events: kReadPacing x --max-events-per-second
+  std::uint64_t pixels_ = 0;                   // held in the context's PixelBudget
+  TokenBucket events_;                         // events applied at once; past it, coalesced
+  TokenBucket batched_;                        // SendEvents' events: kReadPacing x --max-events-per-second
   std::map<int, v1::SessionEvent> coalesced_;  // by SessionEvent::KindCase, oldest first applied
   Clock::time_point coalesced_arrival_;
 
@@ -218,10 +260,10 @@ class Session final : public Job, public std::enable_shared_from_this<Session> {
   // the events: a still CPU frame in flight stops (FramePipeline::SetPreempt).
   std::atomic<bool> preempt_{false};
   std::vector<std::weak_ptr<std::atomic<bool>>> stills_;  // raised when the session ends
-  int stills_rendering_ = 0;  // BeginStill without EndStill: the session does not expire
+  int stills_rendering_ = 0;                              // BeginStill without EndStill: the session does not expire
   std::string end_reason_;
 
-  std::unique_ptr<FramePipeline> pipeline_;  // touched only inside Step
+  std::unique_ptr<FramePipeline> pipeline_;     // touched only inside Step
   std::shared_ptr<const VolumeCopy> prepared_;  // until the first pipeline holds it; touched only inside Step
 };
 

@@ -31,6 +31,7 @@ struct SessionLimits {
   int max_tf_points = 256;                       // transfer-function control points
   int max_lights = 16;
   int max_events_per_second = 240;               // per stream; past it events are coalesced
+  int max_viewers_per_session = 50;              // streams watching a shared session (docs/sharing.md)
 };
 
 // What an event changed: SceneChange bits, and these.

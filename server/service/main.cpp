@@ -29,6 +29,9 @@ void AddLimitOptions(CLI::App& app, ServerOptions& o) {
   limit("--max-sessions", o.max_sessions, "Sessions held at once", 1, 100000);
   limit("--max-sessions-per-principal", o.max_sessions_per_principal, "Sessions one principal holds at once", 1,
         100000);
+  limit("--max-viewers-per-session", s.max_viewers_per_session, "Streams watching one shared session", 1, 100000);
+  limit("--max-grants-per-principal", o.max_grants_per_principal, "Shares (grants) one principal holds at once", 1,
+        100000);
   limit("--max-pixels", s.max_pixels, "Largest viewport, width x height", 1ull, 8192ull * 8192ull);
   limit("--max-total-pixels", o.max_total_pixels, "Viewport pixels of all sessions together", 1ull, 1ull << 40);
   limit("--max-frame-spp", s.max_frame_spp, "Samples per pixel of one streamed frame", 1, 65536);

@@ -3,11 +3,8 @@
 
 #include <fmt/format.h>
 #include <spdlog/spdlog.h>
-#include <sys/random.h>
 
 #include <algorithm>
-#include <cerrno>
-#include <system_error>
 #include <thread>
 
 #include "core/error.h"
@@ -29,20 +26,6 @@ namespace cinevol::service {
 namespace {
 
 std::string CpuName() { return fmt::format("cpu ({} threads)", DefaultThreadCount()); }
-
-// A session id: 128 random bits in hex. Ids are not secrets (ownership is
-// checked on every call), but they must not be guessable either.
-std::string RandomSessionId() {
-  unsigned char bytes[16];
-  for (std::size_t got = 0; got < sizeof bytes;) {
-    const ssize_t n = getrandom(bytes + got, sizeof bytes - got, 0);
-    if (n < 0 && errno != EINTR) throw std::system_error(errno, std::generic_category(), "getrandom");
-    if (n > 0) got += std::size_t(n);
-  }
-  std::string id;
-  for (unsigned char b : bytes) id += fmt::format("{:02x}", b);
-  return id;
-}
 
 // How long one step of a still should take: other sessions' frames on the
 // same device wait at most this long behind it, a cancel is seen within it,
@@ -189,7 +172,9 @@ ServiceCore::ServiceCore(const ServerOptions& options)
       setup_("setup", waiting_, 2),
       pacs_calls_("pacs", waiting_, 2),
       pacs_(options.pacs, options.pacs_credentials),
-      pixels_(options.max_total_pixels) {
+      pixels_(options.max_total_pixels),
+      sharing_(authenticator_, options.max_grants_per_principal, [this](const std::string& id) { return Find(id); },
+               [this](const std::string& id, const Principal& caller) { return FindSession(id, caller); }) {
   // Every file is read through cinevol-reader: find it now, not at the first load.
   spdlog::info("reader: {}", reader_cage::ReaderPath().string());
   if (!reader_cage::KernelHasLandlock()) {
@@ -320,7 +305,8 @@ v1::CreateSessionResponse ServiceCore::CreateSession(const v1::CreateSessionRequ
     std::lock_guard lock(mu_);
     RequireServing();  // Drain() raises the flag, then ends what it finds here under mu_
     RequireRoomLocked(caller);
-    const std::string id = RandomSessionId();
+    // 128 random bits: ids are not secrets (ownership is checked on every call), nor guessable.
+    const std::string id = RandomHex(16);
     session =
         std::make_shared<Session>(id, caller.name, std::move(volume), state, std::move(context), std::move(prepared));
     sessions_[id] = session;
@@ -335,13 +321,14 @@ v1::CreateSessionResponse ServiceCore::CreateSession(const v1::CreateSessionRequ
   return response;
 }
 
+std::shared_ptr<Session> ServiceCore::Find(const std::string& id) const {
+  std::lock_guard lock(mu_);
+  auto it = sessions_.find(id);
+  return it == sessions_.end() ? nullptr : it->second;
+}
+
 std::shared_ptr<Session> ServiceCore::FindSession(const std::string& id, const Principal& caller) const {
-  std::shared_ptr<Session> session;
-  {
-    std::lock_guard lock(mu_);
-    auto it = sessions_.find(id);
-    if (it != sessions_.end()) session = it->second;
-  }
+  std::shared_ptr<Session> session = Find(id);
   if (!session) throw RpcError(grpc::StatusCode::NOT_FOUND, fmt::format("session_id: no session '{}'", id));
   if (!caller.is_operator) RequireOwner(caller, session->owner(), fmt::format("session '{}'", id));
   return session;
@@ -351,10 +338,14 @@ void ServiceCore::CloseSession(const std::string& id, const Principal& caller) {
   FindSession(id, caller)->End({grpc::StatusCode::OK, "session closed"});
 }
 
-v1::SessionState ServiceCore::SendEvents(const v1::SendEventsRequest& request, const Principal& caller) {
+void ServiceCore::RequireBatchSize(const v1::SendEventsRequest& request) const {
   if (request.events_size() > kMaxEventsPerCall) {
     throw InputError(fmt::format("events: {} events; at most {} a call", request.events_size(), kMaxEventsPerCall));
   }
+}
+
+v1::SessionState ServiceCore::SendEvents(const v1::SendEventsRequest& request, const Principal& caller) {
+  RequireBatchSize(request);
   return FindSession(request.session_id(), caller)->OnEvents(request.events(), Clock::now());
 }
 
@@ -428,6 +419,7 @@ bool ServiceCore::HasRoomForSession() const {
 bool ServiceCore::HasRoomLocked() const { return !draining_ && int(sessions_.size()) < options_.max_sessions; }
 
 void ServiceCore::Forget(const std::string& id) {
+  sharing_.SessionEnded(id);
   std::shared_ptr<Session> last;  // may be the last reference: released outside the lock
   std::lock_guard lock(mu_);
   auto it = sessions_.find(id);
@@ -505,6 +497,7 @@ ServiceCore::SnapshotDone ServiceCore::StoreAfter(const v1::SnapshotRequest& req
 }
 
 void ServiceCore::ExpireDetachedSessions() {
+  sharing_.ExpireGrants();
   const Clock::time_point now = Clock::now();
   const auto detached = Seconds(options_.detached_session_seconds);
   const auto unattached = Seconds(options_.unattached_session_seconds);

@@ -28,6 +28,7 @@
 #include "service/auth.h"
 #include "service/call_watch.h"
 #include "service/connection_limits.h"
+#include "service/sharing.h"
 #include "service/tls.h"
 
 namespace cinevol::service {
@@ -49,6 +50,7 @@ struct ServerOptions {
   int encode_threads = 0;                         // encodes at once on the compute pool; 0: one per worker
   int max_sessions = 64;
   int max_sessions_per_principal = 16;
+  int max_grants_per_principal = 32;  // shares a principal has made and not revoked (docs/sharing.md)
   std::uint64_t max_total_pixels = 40'000'000;  // viewport pixels of every session together
   VolumeLimits volume_limits;
   int max_uploads_per_principal = 2;       // at once
@@ -109,9 +111,13 @@ class ServiceCore {
   v1::CreateSessionResponse CreateSession(const v1::CreateSessionRequest& request, const Principal& caller,
                                           const std::atomic<bool>& cancelled);
   std::shared_ptr<Session> FindSession(const std::string& id, const Principal& caller) const;
+  // Shares of sessions: grants and what their holders may do (sharing.h).
+  Sharing& sharing() { return sharing_; }
   void CloseSession(const std::string& id, const Principal& caller);
   // SendEvents: the batch (at most kMaxEventsPerCall) to the caller's session (Session::OnEvents).
   v1::SessionState SendEvents(const v1::SendEventsRequest& request, const Principal& caller);
+  // Throws InputError past kMaxEventsPerCall events.
+  void RequireBatchSize(const v1::SendEventsRequest& request) const;
   // The reading tools on the caller's session, with its current scene (runtime/reading_calls.h).
   // `cancel`: raised when the caller goes away; a slab stops early.
   v1::SliceImage RenderSlice(const v1::SliceRequest& request, const Principal& caller,
@@ -132,7 +138,8 @@ class ServiceCore {
                 SnapshotCallbacks callbacks);
   // What `caller` may see: its own sessions and uploads (an operator: all).
   v1::ServerStatus Status(const Principal& caller) const;
-  // Ends sessions detached (or never attached) for longer than the options allow.
+  // Ends sessions detached (or never attached) for longer than the options
+  // allow, and the streams of grants past their expiry.
   void ExpireDetachedSessions();
   // Sets the metrics' gauges (metrics.h): sessions by state, volume memory,
   // shed connections; with `devices`, the GPUs' memory in use too.
@@ -166,6 +173,7 @@ class ServiceCore {
   SnapshotDone StoreAfter(const v1::SnapshotRequest& request, const Session& session, const Principal& caller,
                           const v1::Scene& scene, std::shared_ptr<std::atomic<bool>> cancel, SnapshotDone done);
   void Forget(const std::string& id);
+  std::shared_ptr<Session> Find(const std::string& id) const;  // whoever owns it; null when none
 
   ServerOptions options_;
   Backend backend_ = Backend::kCpu;  // resolved: kCpu or kCuda
@@ -180,6 +188,7 @@ class ServiceCore {
   CallWatch calls_;
   PixelBudget pixels_;
   std::vector<std::unique_ptr<Scheduler>> schedulers_;
+  Sharing sharing_;
   const Clock::time_point started_ = Clock::now();
   std::atomic<bool> draining_{false};
 

@@ -458,8 +458,44 @@ grpc::ServerUnaryReactor* SessionServiceImpl::SendEvents(grpc::CallbackServerCon
                                                          const v1::SendEventsRequest* request,
                                                          v1::SendEventsResponse* response) {
   // Answered on the gRPC thread: a batch is at most 64 quick checks and merges under the session's lock.
+  if (!request->grant().empty()) {  // a grant's holder: the grant decides (a link needs no token)
+    grpc::ServerUnaryReactor* reactor = context->DefaultReactor();
+    reactor->Finish(Guarded([&] {
+      core_->RequireBatchSize(*request);
+      *response->mutable_state() = core_->sharing().SendEvents(*request, *context);
+    }));
+    return reactor;
+  }
   return Answer(core_, context,
                 [&](const Principal& caller) { *response->mutable_state() = core_->SendEvents(*request, caller); });
+}
+
+// Sharing (sharing.h): quick map work under a lock, on the gRPC thread.
+grpc::ServerUnaryReactor* SessionServiceImpl::ShareSession(grpc::CallbackServerContext* context,
+                                                           const v1::ShareSessionRequest* request,
+                                                           v1::Grant* response) {
+  return Answer(core_, context, [&](const Principal& caller) { *response = core_->sharing().Share(*request, caller); });
+}
+
+grpc::ServerUnaryReactor* SessionServiceImpl::ListShares(grpc::CallbackServerContext* context,
+                                                         const v1::ListSharesRequest* request,
+                                                         v1::ListSharesResponse* response) {
+  return Answer(core_, context, [&](const Principal& caller) { *response = core_->sharing().List(*request, caller); });
+}
+
+grpc::ServerUnaryReactor* SessionServiceImpl::RevokeShare(grpc::CallbackServerContext* context,
+                                                          const v1::RevokeShareRequest* request,
+                                                          v1::RevokeShareResponse* response) {
+  return Answer(core_, context,
+                [&](const Principal& caller) { *response = core_->sharing().Revoke(*request, caller); });
+}
+
+grpc::ServerUnaryReactor* SessionServiceImpl::HandOver(grpc::CallbackServerContext* context,
+                                                       const v1::HandOverRequest* request,
+                                                       v1::HandOverResponse* response) {
+  grpc::ServerUnaryReactor* reactor = context->DefaultReactor();  // the owner's token, or the presenter's grant
+  reactor->Finish(Guarded([&] { *response = core_->sharing().HandOver(*request, *context); }));
+  return reactor;
 }
 
 // Slices and picks grow with the volume (a slab, a long ray): on the setup pool, in the caller's queue.

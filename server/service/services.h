@@ -58,6 +58,14 @@ class SessionServiceImpl final : public v1::SessionService::CallbackService {
                                                              const v1::WatchSessionRequest* request) override;
   grpc::ServerUnaryReactor* SendEvents(grpc::CallbackServerContext* context, const v1::SendEventsRequest* request,
                                        v1::SendEventsResponse* response) override;
+  grpc::ServerUnaryReactor* ShareSession(grpc::CallbackServerContext* context, const v1::ShareSessionRequest* request,
+                                         v1::Grant* response) override;
+  grpc::ServerUnaryReactor* ListShares(grpc::CallbackServerContext* context, const v1::ListSharesRequest* request,
+                                       v1::ListSharesResponse* response) override;
+  grpc::ServerUnaryReactor* RevokeShare(grpc::CallbackServerContext* context, const v1::RevokeShareRequest* request,
+                                        v1::RevokeShareResponse* response) override;
+  grpc::ServerUnaryReactor* HandOver(grpc::CallbackServerContext* context, const v1::HandOverRequest* request,
+                                     v1::HandOverResponse* response) override;
   grpc::ServerUnaryReactor* RenderSlice(grpc::CallbackServerContext* context, const v1::SliceRequest* request,
                                         v1::SliceImage* response) override;
   grpc::ServerUnaryReactor* Pick(grpc::CallbackServerContext* context, const v1::PickRequest* request,

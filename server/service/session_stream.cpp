@@ -4,6 +4,8 @@
 
 #include <fmt/format.h>
 
+#include <algorithm>
+
 #include "runtime/errors.h"
 #include "runtime/metrics.h"
 #include "service/service_core.h"
@@ -16,12 +18,16 @@ std::shared_ptr<Session> FrameWriter<Reactor>::session() const {
 }
 
 template <class Reactor>
-void FrameWriter<Reactor>::AttachTo(std::shared_ptr<Session> session) {
+void FrameWriter<Reactor>::AttachTo(std::shared_ptr<Session> session, const std::string& grant_id) {
   {
     std::lock_guard lock(mu_);
     session_ = session;
   }
-  session->Attach(this);
+  if (grant_id.empty()) {
+    session->Attach(this);
+  } else {
+    session->AttachWatcher(this, grant_id);
+  }
 }
 
 template <class Reactor>
@@ -67,7 +73,15 @@ void FrameWriter<Reactor>::SendMessage(v1::ServerMessage message) {
   std::lock_guard lock(mu_);
   if (finished_ || finish_after_write_) return;
   if (writing_) {
-    messages_.push_back(std::move(message));
+    // A state is the whole state: a newer one replaces one still waiting, so
+    // a slow reader's queue stays as short as its notices.
+    const auto waiting =
+        std::find_if(messages_.begin(), messages_.end(), [](const v1::ServerMessage& m) { return m.has_state(); });
+    if (message.has_state() && waiting != messages_.end()) {
+      *waiting = std::move(message);
+    } else {
+      messages_.push_back(std::move(message));
+    }
     return;
   }
   StartWriteLocked(std::move(message), false);
@@ -147,8 +161,8 @@ void FrameWriter<Reactor>::OnWriteDone(bool ok) {
     }
     if (finished_) return;
     if (!ok) {
-      FinishLocked(finish_after_write_.value_or(
-          grpc::Status(grpc::StatusCode::UNAVAILABLE, "the stream to the client broke")));
+      FinishLocked(
+          finish_after_write_.value_or(grpc::Status(grpc::StatusCode::UNAVAILABLE, "the stream to the client broke")));
       return;
     }
     if (!messages_.empty()) {  // before an end that waits (a notice says why it ends) and the next frame
@@ -280,8 +294,14 @@ WatchSessionReactor::WatchSessionReactor(grpc::CallbackServerContext* context, S
                                          const v1::WatchSessionRequest& request)
     : FrameWriter(context) {
   // Writes may start here, before gRPC holds the reactor: it keeps them until then.
-  const grpc::Status status =
-      Guarded([&] { AttachTo(core->FindSession(request.session_id(), core->Authenticate(*context))); });
+  const grpc::Status status = Guarded([&] {
+    if (request.grant().empty()) {
+      AttachTo(core->FindSession(request.session_id(), core->Authenticate(*context)));
+      return;
+    }
+    const GrantAccess access = core->sharing().Access(*context, request.session_id(), request.grant());
+    AttachTo(access.session, access.grant.id);
+  });
   if (!status.ok()) End(status);
 }
 

@@ -16,10 +16,10 @@
 #include <optional>
 
 #include "cinevol/v1/service.grpc.pb.h"
-#include "service/auth.h"
-#include "service/call_watch.h"
 #include "runtime/session.h"
 #include "runtime/token_bucket.h"
+#include "service/auth.h"
+#include "service/call_watch.h"
 
 namespace cinevol::service {
 
@@ -52,8 +52,10 @@ class FrameWriter : public Reactor, public FrameStream {
   explicit FrameWriter(grpc::CallbackServerContext* context) : context_(context) {}
 
   // Makes this call `session`'s stream; the stream attached before ends with
-  // ABORTED. Throws (NOT_FOUND) when the session has ended.
-  void AttachTo(std::shared_ptr<Session> session);
+  // ABORTED. With a `grant_id`, a watcher's stream instead (Session::
+  // AttachWatcher): nobody's stream ends. Throws (NOT_FOUND) when the
+  // session has ended.
+  void AttachTo(std::shared_ptr<Session> session, const std::string& grant_id = {});
   void DetachFromSession();
   std::shared_ptr<Session> session() const;  // null until AttachTo
   void FinishLocked(const grpc::Status& status);

@@ -209,6 +209,47 @@ void ExpectCleanError(const std::pair<int, std::string>& result, int code, const
   EXPECT_LE(std::count(result.second.begin(), result.second.end(), '\n'), 2) << result.second;
 }
 
+// The sharing commands are contracts: share prints the secret alone on its
+// last line, watch writes frames and frames.csv as play does, revoke ends it.
+TEST(CinevolCli, ShareWatchSharesAndRevoke) {
+  ScratchDir scratch;
+  ServerProcess server(scratch.path());
+  ASSERT_TRUE(server.running()) << server.Log();
+  Client owner = server.Connect();
+  const auto created = owner.CreateSession(SmallSession());
+  auto stream = owner.Attach(created.session_id());
+  ASSERT_TRUE(WaitFinal(*stream)) << stream->status().error_message();
+  const std::string& id = created.session_id();
+
+  auto [code, output] = Cinevol(scratch, {"share", id, "--link", "--expires", "15m", "--server", server.address()});
+  ASSERT_EQ(code, 0) << output;
+  std::string secret = output.substr(0, output.find_last_not_of('\n') + 1);
+  secret = secret.substr(secret.find_last_of('\n') + 1);
+  EXPECT_EQ(secret.rfind("cvg_", 0), 0u) << output;
+
+  const auto out = scratch / "watched";
+  std::tie(code, output) = Cinevol(scratch, {"watch", "--server", server.address(), "--grant", secret, "--seconds",
+                                             "2", "--out", out.string()});
+  ASSERT_EQ(code, 0) << output;
+  EXPECT_NE(output.find("watched anonymous presenting"), std::string::npos) << output;
+  EXPECT_GE(CountLines(out / "frames.csv"), 2) << "a header and the newest frame at least";
+
+  std::tie(code, output) = Cinevol(scratch, {"shares", id, "--server", server.address()});
+  ASSERT_EQ(code, 0) << output;
+  EXPECT_NE(output.find("link"), std::string::npos) << output;
+  EXPECT_EQ(output.find(secret), std::string::npos) << "a list never shows a secret";
+  const std::string grant_id = secret.substr(4, secret.find('_', 4) - 4);
+  std::tie(code, output) = Cinevol(scratch, {"revoke", id, grant_id, "--server", server.address()});
+  ASSERT_EQ(code, 0) << output;
+  std::tie(code, output) = Cinevol(scratch, {"watch", "--server", server.address(), "--grant", secret, "--seconds",
+                                             "2", "--out", (scratch / "again").string()});
+  EXPECT_NE(code, 0);
+  EXPECT_NE(output.find("PERMISSION_DENIED"), std::string::npos) << output;
+  std::tie(code, output) = Cinevol(scratch, {"share", id, "--server", server.address()});
+  EXPECT_NE(code, 0) << "neither --principal nor --link";
+  EXPECT_NE(output.find("--principal P or --link"), std::string::npos) << output;
+}
+
 TEST(CinevolCli, ErrorsAreClearWithANonZeroExit) {
   ScratchDir scratch;
   std::ofstream(scratch / "tokens") << "good-token alice\n";
