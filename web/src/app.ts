@@ -49,7 +49,7 @@ const PASSING_MS = 6000;
 const INPUT_RECENT_MS = 100;  // an input event this recent is what an event answers
 const vec3 = (v: V3) => create(Vec3Schema, { x: v.x, y: v.y, z: v.z });
 const AXIS_NAMES = { x: "Right–left", y: "Anterior–posterior", z: "Inferior–superior" };
-/** The controls that send events: disabled while this page does not drive (a viewer, or the owner who handed over). */
+/** The controls that send events: disabled while this page does not drive (a share's viewer). */
 const DRIVING = "#preset, #view-controls button, #clipping input, #labels-panel input, #light input, #lossless, #quality";
 
 export class App {
@@ -89,7 +89,7 @@ export class App {
   constructor(private readonly api: Api) {
     this.reading = new Reading(api, () => this.session?.id, (text) => this.showError(text));
     this.reading.onOverlayChanged = () => this.drawOverlay();
-    this.share = new SharePanel(api, () => this.session?.id, (text) => this.showError(text));
+    this.share = new SharePanel(api, () => this.session?.id, (text) => this.showError(text), () => this.pinCamera());
     this.view.onPainted = (meta, at, decodeMs, replaced) => this.onPainted(meta, at, decodeMs, replaced);
     this.view.onError = (text) => this.showError(text);
     this.view.listen({
@@ -221,11 +221,19 @@ export class App {
     return this.echoedName ?? ownName(this.session?.owner, this.session?.grant ?? "");
   }
 
-  /** Whether this page drives: the owner unless it handed the role over, a share's holder while it presents. */
+  /** Whether this page drives: the owner always (as the server lets it), a share's holder while it presents. */
   private presents(state: SessionState): boolean {
-    const me = this.ownName();
-    if (!this.session?.grant) return !state.presenter || me === undefined || state.presenter === me;
-    return state.presenter !== "" && state.presenter === me;
+    return !this.session?.grant || (state.presenter !== "" && state.presenter === this.ownName());
+  }
+
+  /**
+   * Before sharing: a named view's camera sent as its eye and target (the
+   * same picture), so that a share's presenter, whose page knows no volume to
+   * resolve the view with, can orbit from it.
+   */
+  private pinCamera(): void {
+    const camera = this.state?.scene?.camera;
+    if (camera && !camera.eye) this.moveCamera((c) => c);
   }
 
   private setDriving(on: boolean): void {
@@ -262,7 +270,7 @@ export class App {
     if (before && before.presenter !== state.presenter) this.pointerRefused = false;  // a hand-over may allow it now
     const driving = this.presents(state);
     if (driving !== this.driving) this.setDriving(driving);
-    const line = presence(state, driving, Boolean(this.session?.grant));
+    const line = presence(state, this.ownName(), Boolean(this.session?.grant));
     $("presence").textContent = line;
     $("presence").hidden = !line;
     if (before?.viewers !== state.viewers || before?.presenter !== state.presenter) void this.share.refresh();

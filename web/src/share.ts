@@ -28,12 +28,17 @@ export function ownName(owner: string | undefined, grant: string): string | unde
   return id ? `link ${id}` : undefined;
 }
 
-/** The line over the view: who presents and how many watch; empty for a session of one's own nobody watches. */
-export function presence(state: { presenter: string; viewers: number }, presenting: boolean, shared: boolean): string {
+/**
+ * The line over the view: who presents and how many watch; empty for a
+ * session of one's own nobody watches. `me`: this page's name as the server
+ * writes it; `shared`: this page watches by a share.
+ */
+export function presence(state: { presenter: string; viewers: number }, me: string | undefined, shared: boolean): string {
   const watching = `${state.viewers} ${state.viewers === 1 ? "viewer" : "viewers"}`;
-  if (shared) return presenting ? `You present · ${watching}` : `Watching ${state.presenter || "the owner"} · ${watching}`;
-  if (state.viewers === 0 && presenting) return "";
-  return presenting ? `Shared · ${watching}` : `${state.presenter} presents · ${watching} (Share: Take back)`;
+  const mine = state.presenter !== "" && state.presenter === me;
+  if (shared) return mine ? `You present · ${watching}` : `Watching ${state.presenter || "the owner"} · ${watching}`;
+  if (state.viewers === 0) return "";
+  return mine || !state.presenter || !me ? `Shared · ${watching}` : `${state.presenter} presents · ${watching}`;
 }
 
 /** How long until a grant expires, in words: "in 2 h 5 min", "in 40 s", "expired". */
@@ -49,8 +54,9 @@ export function expiresIn(expiresUnixSeconds: number, nowUnixSeconds: number): s
 export class SharePanel {
   private asked = 0;  // ListShares calls made: an answer older than the newest is dropped
 
+  /** `beforeShare`: what the page does before a grant is made (App pins a named view's camera). */
   constructor(private readonly api: Api, private readonly sessionId: () => string | undefined,
-              private readonly error: (text: string) => void) {
+              private readonly error: (text: string) => void, private readonly beforeShare: () => void) {
     $("share-create").addEventListener("click", () => void this.share());
     $("share-copy").addEventListener("click", () => void this.copy());
     $("share-take-back").addEventListener("click", () => void this.handOver(""));
@@ -68,6 +74,7 @@ export class SharePanel {
     if (!sessionId) return;
     const principal = $<HTMLInputElement>("share-principal").value.trim();
     const role = Number($<HTMLSelectElement>("share-role").value) as ShareRole;
+    this.beforeShare();
     try {
       const grant = await this.api.sessions.shareSession({
         sessionId, principal, role, expiresSeconds: Number($<HTMLSelectElement>("share-expires").value),

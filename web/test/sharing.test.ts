@@ -98,11 +98,11 @@ test("one's own name: the owner's principal, a link's holder from its secret", (
 });
 
 test("the line over the view: who presents and how many watch", () => {
-  assert.equal(presence({ presenter: "alice", viewers: 2 }, false, true), "Watching alice · 2 viewers");
-  assert.equal(presence({ presenter: "link g1", viewers: 1 }, true, true), "You present · 1 viewer");
-  assert.equal(presence({ presenter: "alice", viewers: 0 }, true, false), "", "one's own session, unwatched: nothing");
-  assert.equal(presence({ presenter: "alice", viewers: 3 }, true, false), "Shared · 3 viewers");
-  assert.match(presence({ presenter: "bob", viewers: 3 }, false, false), /^bob presents · 3 viewers/);
+  assert.equal(presence({ presenter: "alice", viewers: 2 }, "link g1", true), "Watching alice · 2 viewers");
+  assert.equal(presence({ presenter: "link g1", viewers: 1 }, "link g1", true), "You present · 1 viewer");
+  assert.equal(presence({ presenter: "alice", viewers: 0 }, "alice", false), "", "one's own session, unwatched: nothing");
+  assert.equal(presence({ presenter: "alice", viewers: 3 }, "alice", false), "Shared · 3 viewers");
+  assert.equal(presence({ presenter: "bob", viewers: 3 }, "alice", false), "bob presents · 3 viewers");
 });
 
 test("a grant's expiry in words", () => {
