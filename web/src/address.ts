@@ -1,13 +1,16 @@
 // What the page's URL asks for (a contract: other viewers link to it):
 //   /?volume=ID[&preset=P][&session=S]#token=T
-// The token rides in the fragment, so it never reaches a server log, a
-// proxy or a Referer; the page takes it out of the address bar once read.
+//   /#grant=SECRET[&token=T]          a shared session (docs/web.md, "Sharing a session")
+// The token and a grant's secret ride in the fragment, so they never reach a
+// server log, a proxy or a Referer; the page takes them out of the address
+// bar once read.
 
 export interface PageAddress {
   volume?: string;
   preset?: string;
   session?: string;  // join an existing session of one's own (a reload resumes it)
   token?: string;
+  grant?: string;    // a share's secret: watch (or present) the session it names
 }
 
 export function readAddress(search: string, hash: string): PageAddress {
@@ -15,10 +18,10 @@ export function readAddress(search: string, hash: string): PageAddress {
   const fragment = new URLSearchParams(hash.replace(/^#/, ""));
   const pick = (p: URLSearchParams, key: string) => p.get(key)?.trim() || undefined;
   return { volume: pick(query, "volume"), preset: pick(query, "preset"), session: pick(query, "session"),
-           token: pick(fragment, "token") };
+           token: pick(fragment, "token"), grant: pick(fragment, "grant") };
 }
 
-/** The address to show once the token is read: the same query, no fragment. */
+/** The address to show once the token or grant is read: the same query, no fragment. */
 export function withoutToken(pathname: string, search: string): string {
   return pathname + search;
 }
@@ -28,4 +31,9 @@ export function sessionQuery(search: string, sessionId: string): string {
   const query = new URLSearchParams(search);
   query.set("session", sessionId);
   return "?" + query.toString();
+}
+
+/** The link a share's holder opens: the secret in the fragment, as the token is. */
+export function shareLink(origin: string, secret: string): string {
+  return `${origin}/#grant=${encodeURIComponent(secret)}`;
 }

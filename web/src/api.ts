@@ -1,5 +1,6 @@
 // The server's services as the page calls them: gRPC-web to the gateway that
-// served the page, the token in each call's `authorization` header.
+// served the page, the token (where there is one: a link's holder has none)
+// in each call's `authorization` header.
 import { createClient, type Client, type Interceptor } from "@connectrpc/connect";
 import { createGrpcWebTransport } from "@connectrpc/connect-web";
 import { PacsService, ServerService, SessionService, VolumeService } from "../gen/cinevol/v1/service_pb.js";
@@ -17,9 +18,9 @@ export interface Api {
   pacs: Client<typeof PacsService>;
 }
 
-export function connect(token: string, baseUrl: string): Api {
+export function connect(token: string | undefined, baseUrl: string): Api {
   const withToken: Interceptor = (next) => (request) => {
-    request.header.set("authorization", `Bearer ${token}`);
+    if (token) request.header.set("authorization", `Bearer ${token}`);
     const inSession = request.service.typeName === SessionService.typeName && request.method.name !== "CreateSession";
     if (inSession && api.sessionAddress) request.header.set("cinevol-session-address", api.sessionAddress);
     return next(request);

@@ -1,15 +1,18 @@
 // The page once signed in: the volumes and PACS, a session on the 3D view,
-// the panels that edit it, the stats overlay and the keyboard. Every edit
-// is an event to the server; every control shows the state the server
-// answers.
+// the panels that edit it, the stats overlay and the keyboard; or a session
+// shared with this page (#grant=), watched, and driven while this page
+// presents. Every edit is an event to the server; every control shows the
+// state the server answers.
 import { create, toJsonString } from "@bufbuild/protobuf";
+import { Code, type ConnectError } from "@connectrpc/connect";
 import {
   AreaLightSchema, CameraSchema, ClippingSchema, ClipPlaneSchema, CropBoxSchema, LabelsSchema, LabelStyleSchema,
   LightSchema, MeasurementSchema, NamedView, SceneFrame, SceneSchema, TransferFunctionSchema, Vec3Schema,
   type Light, type Scene,
 } from "../gen/cinevol/v1/scene_pb.js";
 import {
-  FinalFormat, LightListSchema, SliceAxis, StreamSettingsSchema, ViewportSchema, type Frame, type SessionState, type VolumeInfo,
+  FinalFormat, LightListSchema, PointerSchema, SliceAxis, StreamSettingsSchema, ViewportSchema, type Frame, type SessionState,
+  type VolumeInfo,
 } from "../gen/cinevol/v1/service_pb.js";
 import type { Api } from "./api.js";
 import {
@@ -22,14 +25,16 @@ import { identityCorners } from "./identity.js";
 import { markerAxes } from "./orientation.js";
 import { measurementText, projectToView } from "./measure.js";
 import { PacsPanel } from "./pacs_panel.js";
+import { drawPointers, echoedName, othersPointers, Throttle, type Fraction, type FrameRect, type Pointer } from "./pointers.js";
 import { Reading } from "./reading.js";
 import { LiveSession, now, type EventKind } from "./session.js";
+import { ownName, presence, SharePanel } from "./share.js";
 import { MotionToPhoton, percentile, Rate } from "./stats.js";
 import { TransferEditor } from "./tf_editor.js";
 import { applyWindowLevel } from "./transfer.js";
 import { add, len, norm, scale, sub, v3, type V3 } from "./vec.js";
 import { View } from "./view.js";
-import { plainWords } from "./words.js";
+import { plainWords, shareWords } from "./words.js";
 
 const $ = <T extends HTMLElement>(id: string) => document.getElementById(id) as T;
 const KEY_VIEWS: Record<string, ViewName> = {
@@ -44,11 +49,14 @@ const PASSING_MS = 6000;
 const INPUT_RECENT_MS = 100;  // an input event this recent is what an event answers
 const vec3 = (v: V3) => create(Vec3Schema, { x: v.x, y: v.y, z: v.z });
 const AXIS_NAMES = { x: "Right–left", y: "Anterior–posterior", z: "Inferior–superior" };
+/** The controls that send events: disabled while this page does not drive (a share's viewer). */
+const DRIVING = "#preset, #view-controls button, #clipping input, #labels-panel input, #light input, #lossless, #quality";
 
 export class App {
   readonly view = new View($("view"));
   private readonly editor = new TransferEditor($("tf-editor"), $("tf-note"));
   private readonly reading: Reading;
+  private readonly share: SharePanel;
   private readonly latency = new MotionToPhoton();
   private readonly painted = new Rate();
   private readonly received = new Rate();
@@ -62,16 +70,26 @@ export class App {
   private lastPainted?: FrameMeta;
   private replaced = 0;
   private framesPainted = 0;
+  private readonly frameIds: number[] = [];  // the frames painted, newest last (tests compare a watcher's with the owner's)
+  private readonly pointer = new Throttle<Fraction | null>((at) => this.sendPointer(at));
+  private pointerSent?: Fraction;       // where this page's pointer went last (undefined: hidden)
+  private pointerRefused = false;       // this share does not allow a pointer (until the presenter changes)
+  private echoedName?: string;          // one's own name, from the server's echo of one's pointer
+  private drawnPointers: Pointer[] = [];
+  private driving = true;
   private errorText = "";
   private bannerText = "";
   private readonly messages: string[] = [];  // what the banner and the error line said, newest last
   private painted1st!: () => void;
+  /** The server refused the page's token (or a user's share came without one): main.ts asks for one. */
+  onTokenRefused: () => void = () => {};
   /** Settles with the first frame painted, or with a failure shown. */
   readonly firstPaint = new Promise<void>((resolve) => { this.painted1st = resolve; });
 
   constructor(private readonly api: Api) {
     this.reading = new Reading(api, () => this.session?.id, (text) => this.showError(text));
     this.reading.onOverlayChanged = () => this.drawOverlay();
+    this.share = new SharePanel(api, () => this.session?.id, (text) => this.showError(text), () => this.pinCamera());
     this.view.onPainted = (meta, at, decodeMs, replaced) => this.onPainted(meta, at, decodeMs, replaced);
     this.view.onError = (text) => this.showError(text);
     this.view.listen({
@@ -80,7 +98,11 @@ export class App {
       zoom: (f) => this.moveCamera((c) => zoom(c, f)),
       windowLevel: (dx, dy) => this.windowLevel(dx, dy),
       turnLight: (dx, dy) => this.turnLight(dx, dy),
-      pick: (fx, fy, frame) => void this.reading.pickOnView(fx * frame.width, fy * frame.height, frame),
+      pick: (fx, fy, frame) => {
+        // Not by a share: Pick, as RenderSlice, names the session, which only its owner may.
+        if (!this.session?.grant) void this.reading.pickOnView(fx * frame.width, fy * frame.height, frame);
+      },
+      point: (at) => this.point(at),
     });
     this.view.followSize((size) => this.post({ case: "resize", value: create(ViewportSchema, size) }));
     this.editor.onEdit = (tf) => this.post({ case: "transferFunction", value: tf });
@@ -89,7 +111,8 @@ export class App {
   }
 
   /** Fills the lists, then opens what the address names. Throws (in words) when the token is refused. */
-  async boot(address: { volume?: string; preset?: string; session?: string }): Promise<void> {
+  async boot(address: { volume?: string; preset?: string; session?: string; grant?: string }): Promise<void> {
+    if (address.grant) return this.watchShared(address.grant);
     const status = await this.api.server.getStatus({});
     const presets = $<HTMLSelectElement>("preset");
     presets.replaceChildren(new Option("(choose a preset)", ""), ...status.presets.map((p) => new Option(p, p)));
@@ -109,6 +132,7 @@ export class App {
       this.describeVolume();
       this.session = await LiveSession.create(this.api, this.handlers(), this.latency, volumeId,
                                               this.view.devicePixels(), preset);
+      this.share.show(true);
     } catch (e) {
       this.showError(plainWords(e));
     }
@@ -117,6 +141,7 @@ export class App {
   private async join(sessionId: string): Promise<void> {
     try {
       this.session = await LiveSession.join(this.api, this.handlers(), this.latency, sessionId);
+      this.share.show(true);
       if (this.session.volumeId) {
         this.volume = await this.api.volumes.describeVolume({ volumeId: this.session.volumeId });
         this.describeVolume();
@@ -124,6 +149,21 @@ export class App {
     } catch (e) {
       this.showError(plainWords(e));
     }
+  }
+
+  /**
+   * A session shared with this page: watched with its grant, which allows no
+   * volumes of one's own, no sharing and no reading tools (they name the
+   * session, which only its owner may); the controls drive only while this
+   * page presents. A link needs no token; the presets list needs one.
+   */
+  private watchShared(grant: string): void {
+    for (const id of ["open", "reading"]) $(id).hidden = true;
+    this.setDriving(false);
+    void this.api.server.getStatus({}).then((status) => {
+      $<HTMLSelectElement>("preset").replaceChildren(...status.presets.map((p) => new Option(p, p)));
+    }).catch(() => {});
+    this.session = LiveSession.watchShared(this.api, this.handlers(), this.latency, grant);
   }
 
   private addVolume(volume: VolumeInfo): void {
@@ -135,7 +175,7 @@ export class App {
 
   private handlers() {
     return {
-      attached: (id: string) => history.replaceState(null, "", sessionQuery(location.search, id)),
+      attached: (id: string) => id && history.replaceState(null, "", sessionQuery(location.search, id)),
       frame: (frame: Frame) => {
         this.lastFrame = frame;
         this.received.add(now(), frame.image.value?.byteLength ?? 0);
@@ -143,25 +183,109 @@ export class App {
       },
       state: (state: SessionState) => this.adopt(state),
       notice: (n: { message: string }) => this.setBanner(n.message, true),
+      refused: (kinds: EventKind["case"][], error: ConnectError) => this.refused(kinds, error),
       banner: (text: string, passing?: boolean) => this.setBanner(text, passing),
-      failed: (text: string) => this.showError(text),
+      failed: (text: string, code?: Code) => {
+        this.showError(text);
+        $("presence").hidden = true;
+        if (code === Code.Unauthenticated) this.onTokenRefused();
+      },
     };
   }
 
-  /** Sends an event; motion-to-photon counts from the input event behind it (or now, for one without). */
+  /**
+   * Sends an event, where this page may: a pointer always; the viewport only
+   * from the owner's window; the rest while it drives. Motion-to-photon
+   * counts from the input event behind it (or now, for one without).
+   */
   private post(kind: EventKind): void {
+    const may = kind.case === "pointer" || (kind.case === "resize" ? !this.session?.grant : this.driving);
+    if (!may) return;
     const t = now(), input = this.view.inputAt;
     this.session?.post(kind, t - input < INPUT_RECENT_MS ? input : t);
+  }
+
+  private refused(kinds: EventKind["case"][], error: ConnectError): void {
+    if (error.code === Code.PermissionDenied && kinds.every((k) => k === "pointer")) {
+      this.pointerRefused = true;
+      this.setBanner("Your pointer is not shown to the others: this share does not allow it.", true);
+      return;
+    }
+    this.setBanner(plainWords(error), true);
+  }
+
+  // ------------------------------------------------- a shared session
+
+  /** This page's name as the server writes it (SessionState.presenter, pointers' `who`). */
+  private ownName(): string | undefined {
+    return this.echoedName ?? ownName(this.session?.owner, this.session?.grant ?? "");
+  }
+
+  /** Whether this page drives: the owner always (as the server lets it), a share's holder while it presents. */
+  private presents(state: SessionState): boolean {
+    return !this.session?.grant || (state.presenter !== "" && state.presenter === this.ownName());
+  }
+
+  /**
+   * Before sharing: a named view's camera sent as its eye and target (the
+   * same picture), so that a share's presenter, whose page knows no volume to
+   * resolve the view with, can orbit from it.
+   */
+  private pinCamera(): void {
+    const camera = this.state?.scene?.camera;
+    if (camera && !camera.eye) this.moveCamera((c) => c);
+  }
+
+  private setDriving(on: boolean): void {
+    this.driving = on;
+    document.body.classList.toggle("watching", !on);
+    for (const control of document.querySelectorAll<HTMLInputElement>(DRIVING)) control.disabled = !on;
+    $("hand-back").hidden = !on || !this.session?.grant;
+  }
+
+  /** A share's presenter gives the role back to the owner. */
+  private async handBack(): Promise<void> {
+    try {
+      await this.api.sessions.handOver({ grant: this.session?.grant ?? "", grantId: "" });
+    } catch (e) {
+      this.showError(shareWords(e));
+    }
+  }
+
+  /** This page's pointer over the frame, while anyone watches: at most 20 a second, `null` once it leaves. */
+  private point(at: Fraction | null): void {
+    if (!this.state?.viewers || this.pointerRefused || (!at && !this.pointerSent)) return;
+    this.pointer.push(at);
+  }
+
+  private sendPointer(at: Fraction | null): void {
+    this.pointerSent = at ?? undefined;
+    this.post({ case: "pointer", value: create(PointerSchema, at ? { x: at.x, y: at.y } : { hidden: true }) });
+  }
+
+  /** Who presents and how many watch; the share's list follows its watchers. */
+  private adoptSharing(state: SessionState): void {
+    const before = this.state;
+    this.echoedName = echoedName(state.pointers, this.pointerSent) ?? this.echoedName;
+    if (before && before.presenter !== state.presenter) this.pointerRefused = false;  // a hand-over may allow it now
+    const driving = this.presents(state);
+    if (driving !== this.driving) this.setDriving(driving);
+    const line = presence(state, this.ownName(), Boolean(this.session?.grant));
+    $("presence").textContent = line;
+    $("presence").hidden = !line;
+    if (before?.viewers !== state.viewers || before?.presenter !== state.presenter) void this.share.refresh();
   }
 
   // ------------------------------------------------------------ the state
 
   private adopt(state: SessionState): void {
+    this.adoptSharing(state);
     this.state = state;
     const scene = state.scene;
     if (!scene) return;
     if (!this.session?.hasPending("camera")) this.camera = this.cameraOf(scene) ?? this.camera;
-    this.reading.restore(scene.measurements);
+    if (this.session?.grant) this.reading.follow(scene.measurements);  // a watcher measures nothing of its own
+    else this.reading.restore(scene.measurements);
     this.drawMarker();
     this.drawOverlay();
     $<HTMLSelectElement>("preset").value = scene.transferFunction?.preset ?? "";
@@ -216,7 +340,7 @@ export class App {
 
   private moveCamera(move: (c: ViewCamera) => ViewCamera): void {
     const current = this.state?.scene?.camera;
-    if (!this.camera || !current) return;
+    if (!this.camera || !current || !this.driving) return;
     this.home ??= this.camera;
     this.camera = move(this.camera);
     this.drawMarker();
@@ -252,17 +376,30 @@ export class App {
     g.globalAlpha = 1;
   }
 
-  /** Over the 3D view, projected through the camera: the slices' planes (2x2 layout) and the measurements. */
+  /**
+   * Over the 3D view, where the frame shows: the slices' planes (2x2 layout)
+   * and the measurements projected through the camera, and everyone else's
+   * pointer in a shared session.
+   */
   private drawOverlay(): void {
     const canvas = $<HTMLCanvasElement>("view-overlay"), view = $<HTMLCanvasElement>("view");
     const g = canvas.getContext("2d");
     if (!g) return;
     canvas.width = view.clientWidth;
     canvas.height = view.clientHeight;
-    if (!this.camera || !this.volume) return;
-    const patientFrame = this.state?.scene?.frame === SceneFrame.PATIENT_LPS;
-    const onView = (p: V3) => projectToView(this.camera!, fromPatient(this.volume!, patientFrame, p),
-                                            canvas.width, canvas.height);
+    const rect = this.view.frameRect() ?? { left: 0, top: 0, width: canvas.width, height: canvas.height };
+    this.drawPlanesAndMeasurements(g, rect);
+    this.drawnPointers = othersPointers(this.state?.pointers ?? [], this.ownName());
+    drawPointers(g, this.drawnPointers, rect);
+  }
+
+  private drawPlanesAndMeasurements(g: CanvasRenderingContext2D, rect: FrameRect): void {
+    const camera = this.camera, volume = this.volume, patientFrame = this.state?.scene?.frame === SceneFrame.PATIENT_LPS;
+    if (!camera || (!volume && !patientFrame)) return;  // a watcher knows no volume: a scene in patient space only
+    const onView = (p: V3) => {
+      const q = projectToView(camera, volume ? fromPatient(volume, patientFrame, p) : p, rect.width, rect.height);
+      return q && { x: rect.left + q.x, y: rect.top + q.y };
+    };
     g.lineWidth = 1.5;
     for (const plane of this.reading.slicePlanes()) {
       const points = plane.outline.map(onView);
@@ -296,7 +433,7 @@ export class App {
 
   private windowLevel(dx: number, dy: number): void {
     const tf = this.state?.scene?.transferFunction;
-    if (!tf || tf.points.length === 0 || !this.volume) return;
+    if (!tf || tf.points.length === 0 || !this.volume || !this.driving) return;
     const range = this.volume.maxValue - this.volume.minValue || 1;
     this.post({ case: "transferFunction", value: applyWindowLevel(tf, (-dy * range) / 500, Math.exp(dx * 0.005)) });
   }
@@ -333,6 +470,7 @@ export class App {
   }
 
   private turnLight(dx: number, dy: number): void {
+    if (!this.driving) return;
     const value = (id: string) => Number($<HTMLInputElement>(id).value);
     const azimuth = ((value("light-azimuth") + dx * DEGREES_PER_PIXEL + 540) % 360) - 180;
     const elevation = Math.max(-89, Math.min(89, value("light-elevation") - dy * DEGREES_PER_PIXEL));
@@ -449,6 +587,7 @@ export class App {
     $("quality").addEventListener("change", () => this.post({ case: "stream", value: create(StreamSettingsSchema, {
       jpegQuality: Number($<HTMLInputElement>("quality").value) }) }));
     $("save-scene").addEventListener("click", () => this.saveScene());
+    $("hand-back").addEventListener("click", () => void this.handBack());
     $("show-stats").addEventListener("change", () => { $("stats").hidden = !$<HTMLInputElement>("show-stats").checked; });
     $("show-identity").addEventListener("change", () => this.showIdentity());
     window.addEventListener("keydown", (e) => this.key(e));
@@ -522,6 +661,9 @@ export class App {
 
   private onPainted(meta: FrameMeta, at: number, decodeMs: number, replaced: number): void {
     this.painted1st();
+    this.frameIds.push(Number(meta.id));
+    if (this.frameIds.length > 64) this.frameIds.shift();
+    if (meta.width !== this.lastPainted?.width || meta.height !== this.lastPainted?.height) this.drawOverlay();
     this.decodeMs.push(decodeMs);
     if (this.decodeMs.length > 500) this.decodeMs.shift();
     this.lastPainted = meta;
@@ -560,6 +702,9 @@ export class App {
       decodeMs: { p50: percentile(this.decodeMs, 0.5), p95: percentile(this.decodeMs, 0.95) },
       fps: this.painted.perSecond(now()), bytesPerSecond: this.received.perSecond(now()),
       preset: this.state?.scene?.transferFunction?.preset ?? "",
+      eventsByKind: { ...this.session?.sentKinds }, frameIds: [...this.frameIds],
+      presenter: this.state?.presenter ?? "", viewers: this.state?.viewers ?? 0, driving: this.driving,
+      pointers: this.drawnPointers.map((p) => ({ who: p.who, x: p.x, y: p.y })),
     };
   }
 }

@@ -1,12 +1,14 @@
-// The page's entry: read the address (?volume=ID&preset=P#token=T), sign in,
-// and hand over to the App. The token leaves the address bar at once and
-// stays in this tab's session storage, so a reload resumes.
+// The page's entry: read the address (?volume=ID&preset=P#token=T, or a
+// shared session's #grant=SECRET), sign in, and hand over to the App. The
+// token and the grant leave the address bar at once and stay in this tab's
+// session storage, so a reload resumes.
 import { connect } from "./api.js";
-import { readAddress, withoutToken } from "./address.js";
+import { readAddress, withoutToken, type PageAddress } from "./address.js";
 import { App } from "./app.js";
 import { plainWords } from "./words.js";
 
 const TOKEN_KEY = "cinevol-token";
+const GRANT_KEY = "cinevol-grant";
 const HOLD_LOAD_MS = 30_000;
 
 /**
@@ -25,15 +27,20 @@ function holdLoadUntil(done: Promise<unknown>): void {
   void Promise.race([done, new Promise((r) => setTimeout(r, HOLD_LOAD_MS))]).finally(release);
 }
 
-async function signIn(token: string): Promise<void> {
+/** One App for the page: with a token (one's own sessions, or a user's share) or none (a link's share). */
+async function start(token: string | undefined, address: PageAddress): Promise<void> {
   const app = new App(connect(token, location.origin));
   (window as unknown as { cinevol: unknown }).cinevol = {
     status: () => app.status(),
     sample: (cells?: number) => app.view.sample(cells),
   };
   holdLoadUntil(app.firstPaint);
+  app.onTokenRefused = () => {  // a user's share opened without (or with a wrong) token
+    sessionStorage.removeItem(TOKEN_KEY);
+    askForToken();
+  };
   try {
-    await app.boot(readAddress(location.search, ""));
+    await app.boot(address);
   } catch (e) {
     app.showError(plainWords(e));
     sessionStorage.removeItem(TOKEN_KEY);
@@ -54,10 +61,12 @@ function askForToken(): void {
 }
 
 const address = readAddress(location.search, location.hash);
-if (address.token) {
-  sessionStorage.setItem(TOKEN_KEY, address.token);
-  history.replaceState(null, "", withoutToken(location.pathname, location.search));
-}
-const token = sessionStorage.getItem(TOKEN_KEY);
-if (token) void signIn(token);
+if (address.token) sessionStorage.setItem(TOKEN_KEY, address.token);
+if (address.grant) sessionStorage.setItem(GRANT_KEY, address.grant);
+if (address.token || address.grant) history.replaceState(null, "", withoutToken(location.pathname, location.search));
+const token = sessionStorage.getItem(TOKEN_KEY) ?? undefined;
+// A share is watched again on a reload, unless the query names a volume or session of one's own.
+const grant = address.grant ?? (address.volume || address.session ? undefined : sessionStorage.getItem(GRANT_KEY) ?? undefined);
+if (grant) void start(token, { ...address, grant });
+else if (token) void start(token, address);
 else askForToken();

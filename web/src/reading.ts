@@ -17,6 +17,8 @@ export interface Measurement {
   points: V3[];  // LPS mm: 2 a distance, 3 an angle
 }
 
+type SavedMeasurements = readonly { points: readonly { x: number; y: number; z: number }[] }[];
+
 interface PaneSpec {
   axis: SliceAxis;
   along: "x" | "y" | "z";  // the patient axis the slice's position runs along
@@ -209,9 +211,15 @@ export class Reading {
   }
 
   /** Measurements a session's scene brought (a saved scene opened again), where the page has none yet. */
-  restore(saved: readonly { points: readonly { x: number; y: number; z: number }[] }[]): void {
+  restore(saved: SavedMeasurements): void {
     if (this.measurements.length > 0 || saved.length === 0) return;
-    for (const m of saved) this.measurements.push({ points: m.points.map((p) => v3(p.x, p.y, p.z)) });
+    this.follow(saved);
+  }
+
+  /** The scene's measurements and no others: what a watcher of a shared session shows. */
+  follow(saved: SavedMeasurements): void {
+    this.measurements.splice(0, this.measurements.length,
+                             ...saved.map((m) => ({ points: m.points.map((p) => v3(p.x, p.y, p.z)) })));
     this.listMeasurements();
   }
 

@@ -2,17 +2,19 @@
 // (WatchSession), send its events in batches (SendEvents), and keep going
 // through a lost connection or gateway: the same session resumed, or a new
 // one made from the last state the server sent when the old one is gone.
-// The page never re-derives the state from its events: it shows what the
-// server answers.
+// A shared session (a grant's secret, docs/web.md "Sharing a session") is
+// watched and driven the same way, the grant in each call; it never makes a
+// session of its own. The page never re-derives the state from its events:
+// it shows what the server answers.
 import { create, type MessageInitShape } from "@bufbuild/protobuf";
 import { Code, ConnectError } from "@connectrpc/connect";
 import {
-  NoticeSchema, Notice_Level, SessionEventSchema, type Frame, type Notice, type SessionEvent, type SessionState, type ViewportSchema,
+  SessionEventSchema, type Frame, type Notice, type SessionEvent, type SessionState, type ViewportSchema,
 } from "../gen/cinevol/v1/service_pb.js";
 import type { Scene } from "../gen/cinevol/v1/scene_pb.js";
 import type { Api } from "./api.js";
 import type { MotionToPhoton } from "./stats.js";
-import { plainWords } from "./words.js";
+import { plainWords, shareWords } from "./words.js";
 
 /** One kind of event, e.g. { case: "camera", value: camera }. */
 export type EventKind = Exclude<SessionEvent["kind"], { case: undefined }>;
@@ -22,10 +24,12 @@ export interface SessionHandlers {
   frame(frame: Frame): void;
   state(state: SessionState): void;
   notice(notice: Notice): void;
+  /** The server refused a batch of events (of these kinds); the session goes on. */
+  refused(kinds: EventKind["case"][], error: ConnectError): void;
   /** How the connection is, in words; `passing`: it clears itself after a while. */
   banner(text: string, passing?: boolean): void;
-  /** The session cannot go on: why, in words. */
-  failed(text: string): void;
+  /** The session cannot go on: why, in words, and the server's code where it refused. */
+  failed(text: string, code?: Code): void;
 }
 
 const ENDED_TRAILER = "cinevol-session-ended";
@@ -39,6 +43,7 @@ const FINAL = new Set([Code.Unauthenticated, Code.PermissionDenied, Code.Aborted
 
 export class LiveSession {
   private seq = 0n;
+  private answeredSeq = 0n;  // the newest event a frame will answer (a pointer changes no picture)
   private readonly pending = new Map<string, { kind: EventKind; inputAt: number }>();
   private sending = false;
   private attached = false;
@@ -47,9 +52,15 @@ export class LiveSession {
   state?: SessionState;
   /** CreateSession's scene: a named view's camera there carries the eye, target and up it resolves to. */
   initialScene?: Scene;
+  /** The owner's principal as the server names it (ServerStatus), where known: pointers and the presenter use it. */
+  owner?: string;
+  /** Events sent since the page opened, by kind. */
+  readonly sentKinds: Partial<Record<EventKind["case"], number>> = {};
 
+  /** `grant`: a share's secret; the session is then the grant's (`id` may stay empty) and never one's own. */
   private constructor(private readonly api: Api, private readonly handlers: SessionHandlers,
-                      private readonly latency: MotionToPhoton, public id: string, readonly volumeId: string) {}
+                      private readonly latency: MotionToPhoton, public id: string, readonly volumeId: string,
+                      readonly grant = "") {}
 
   /** A new session of `volumeId` (its preset or the volume's default), watched at once. */
   static async create(api: Api, handlers: SessionHandlers, latency: MotionToPhoton, volumeId: string,
@@ -60,6 +71,9 @@ export class LiveSession {
     api.sessionAddress = created.address;
     const session = new LiveSession(api, handlers, latency, created.sessionId, volumeId);
     session.initialScene = created.scene;
+    void api.server.getStatus({}).then((s) => {
+      session.owner = s.sessions.find((x) => x.sessionId === session.id)?.owner;
+    }).catch(() => {});
     void session.watch();
     return session;
   }
@@ -68,8 +82,16 @@ export class LiveSession {
   static async join(api: Api, handlers: SessionHandlers, latency: MotionToPhoton,
                     sessionId: string): Promise<LiveSession> {
     const status = await api.server.getStatus({});
-    const volumeId = status.sessions.find((s) => s.sessionId === sessionId)?.volumeId ?? "";
-    const session = new LiveSession(api, handlers, latency, sessionId, volumeId);
+    const mine = status.sessions.find((s) => s.sessionId === sessionId);
+    const session = new LiveSession(api, handlers, latency, sessionId, mine?.volumeId ?? "");
+    session.owner = mine?.owner;
+    void session.watch();
+    return session;
+  }
+
+  /** The session a share's secret names (#grant=), watched as its holder: a viewer, or its presenter. */
+  static watchShared(api: Api, handlers: SessionHandlers, latency: MotionToPhoton, grant: string): LiveSession {
+    const session = new LiveSession(api, handlers, latency, "", "", grant);
     void session.watch();
     return session;
   }
@@ -85,9 +107,9 @@ export class LiveSession {
     void this.send();
   }
 
-  /** The newest event's sequence number since the attach (0: none). */
+  /** The newest sequence number since the attach of an event a frame answers (0: none). */
   get lastSeq(): bigint {
-    return this.seq;
+    return this.answeredSeq;
   }
 
   /** Is an event of this kind waiting to go? (The page keeps its own camera while one is.) */
@@ -95,10 +117,15 @@ export class LiveSession {
     return this.pending.has(kind);
   }
 
+  /** Stops watching; one's own session also ends on the server (a shared one goes on for its owner). */
   close(): void {
     this.closed = true;
     this.abort.abort();
-    this.api.sessions.closeSession({ sessionId: this.id }).catch(() => {});
+    if (!this.grant) this.api.sessions.closeSession({ sessionId: this.id }).catch(() => {});
+  }
+
+  private words(e: unknown): string {
+    return this.grant ? shareWords(e) : plainWords(e);
   }
 
   private async send(): Promise<void> {
@@ -108,16 +135,19 @@ export class LiveSession {
     this.pending.clear();
     const events = batch.map(({ kind, inputAt }) => {
       this.seq += 1n;
-      this.latency.sent(this.seq, inputAt);
+      this.sentKinds[kind.case] = (this.sentKinds[kind.case] ?? 0) + 1;
+      // Motion-to-photon for the owner's events: a pointer changes no picture, and the server numbers a share's own.
+      if (kind.case !== "pointer") this.answeredSeq = this.seq;
+      if (kind.case !== "pointer" && !this.grant) this.latency.sent(this.seq, inputAt);
       return create(SessionEventSchema, { seq: this.seq, kind });
     });
     try {
-      const answer = await this.api.sessions.sendEvents({ sessionId: this.id, events });
+      const answer = await this.api.sessions.sendEvents({ sessionId: this.id, events, grant: this.grant });
       if (answer.state) this.adopt(answer.state);
     } catch (e) {
       const error = ConnectError.from(e);
       if (FINAL.has(error.code) || error.code === Code.ResourceExhausted || error.code === Code.FailedPrecondition) {
-        this.handlers.notice(create(NoticeSchema, { level: Notice_Level.WARNING, message: plainWords(error) }));
+        this.handlers.refused(batch.map((b) => b.kind.case), error);
       } else {  // the connection broke: the events go again once the watch is back
         for (const b of batch) if (!this.pending.has(b.kind.case)) this.pending.set(b.kind.case, b);
       }
@@ -142,7 +172,7 @@ export class LiveSession {
         lost = false;
       });
       if (this.closed) return;
-      if (outcome.kind === "failed") return this.handlers.failed(outcome.text);
+      if (outcome.kind === "failed") return this.handlers.failed(outcome.text, outcome.code);
       if (outcome.kind === "closed") return this.handlers.failed("The session was closed on the server.");
       if (outcome.kind === "lost") {
         lost = true;
@@ -151,24 +181,25 @@ export class LiveSession {
         retryMs = Math.min(2 * retryMs, MAX_RETRY_MS);
         continue;
       }
-      // The session itself ended (drained, failed, expired while away): go on in a new one.
+      // The session itself ended (drained, failed, expired while away): go on in a new one, unless it was someone else's.
+      if (this.grant) return this.handlers.failed(`The shared session ended on the server (${outcome.text}).`);
       if (!(await this.recreate(outcome.text))) return;
     }
   }
 
   /** One WatchSession call, until it ends: what ended it. */
   private async watchOnce(onAttach: () => void): Promise<
-      { kind: "failed" | "lost" | "ended"; text: string } | { kind: "closed" }> {
+      { kind: "lost" | "ended"; text: string } | { kind: "failed"; text: string; code: Code } | { kind: "closed" }> {
     this.abort = new AbortController();
     let ended = false;
     try {
-      const messages = this.api.sessions.watchSession({ sessionId: this.id }, {
+      const messages = this.api.sessions.watchSession({ sessionId: this.id, grant: this.grant }, {
         signal: this.abort.signal, onTrailer: (t) => { ended = t.has(ENDED_TRAILER); },
       });
       for await (const m of messages) {
         if (!this.attached) {  // the first message (the state) says the attach took: numbering starts again
           this.attached = true;
-          this.seq = 0n;
+          this.seq = this.answeredSeq = 0n;
           this.latency.reset();
           onAttach();
           this.handlers.attached(this.id);
@@ -184,7 +215,7 @@ export class LiveSession {
       if (error.metadata.has(ENDED_TRAILER) || error.code === Code.NotFound) {
         return { kind: "ended", text: error.rawMessage || "it no longer exists" };
       }
-      if (FINAL.has(error.code)) return { kind: "failed", text: plainWords(error) };
+      if (FINAL.has(error.code)) return { kind: "failed", text: this.words(error), code: error.code };
       return { kind: "lost", text: error.rawMessage || "no answer" };
     } finally {
       this.attached = false;

@@ -2,9 +2,11 @@
 // device pixels and following the window, and the pointer and touch input
 // over it (as the desktop viewer: drag orbits, shift-drag or the middle
 // button pans, the right button or the wheel zooms, alt-drag sets window and
-// level, ctrl-drag turns the key light; one finger orbits, two pinch and pan).
+// level, ctrl-drag turns the key light; one finger orbits, two pinch and pan;
+// where the pointer is, for a shared session's pointers).
 import type { Frame } from "../gen/cinevol/v1/service_pb.js";
 import type { FrameMeta, FromWorker, ToWorker } from "./frame_messages.js";
+import { fitted, toFrame, type Fraction, type FrameRect } from "./pointers.js";
 
 export interface ViewInput {
   orbit(dx: number, dy: number): void;
@@ -17,6 +19,8 @@ export interface ViewInput {
    * width and height (x right, y down), and that frame's size.
    */
   pick(fx: number, fy: number, frame: { width: number; height: number }): void;
+  /** Where the pointer is on the frame shown, with or without a button down; null once it leaves the frame. */
+  point(at: Fraction | null): void;
 }
 
 const MAX_SIDE = 8192;
@@ -112,6 +116,7 @@ export class View {
     for (const type of ["pointerdown", "pointermove", "wheel"]) c.addEventListener(type, stamp, { capture: true });
     window.addEventListener("keydown", stamp, { capture: true });
     c.addEventListener("pointermove", (e) => {
+      if (e.pointerType !== "touch") input.point(this.frameFraction(e));
       const before = pointers.get(e.pointerId);
       if (!before) return;
       if (pointers.size === 2) return this.pinch(pointers, e, input);
@@ -124,6 +129,7 @@ export class View {
       else if (mode === "windowLevel") input.windowLevel(dx, dy);
       else input.turnLight(dx, dy);
     });
+    c.addEventListener("pointerleave", () => input.point(null));
     c.addEventListener("wheel", (e) => {
       e.preventDefault();
       input.zoom(Math.pow(0.9, -e.deltaY / 100));
@@ -131,13 +137,16 @@ export class View {
   }
 
   /** Where a pointer is on the frame, as fractions: the canvas shows the frame fitted whole (object-fit: contain). */
-  frameFraction(e: { clientX: number; clientY: number }): { x: number; y: number } | null {
-    const { width, height } = this.frameSize, box = this.canvas.getBoundingClientRect();
+  frameFraction(e: { clientX: number; clientY: number }): Fraction | null {
+    const box = this.canvas.getBoundingClientRect(), rect = this.frameRect();
+    return rect ? toFrame({ x: e.clientX - box.left, y: e.clientY - box.top }, rect) : null;
+  }
+
+  /** Where the newest frame painted shows in the canvas (CSS pixels from its top left); null before the first. */
+  frameRect(): FrameRect | null {
+    const { width, height } = this.frameSize;
     if (!width || !height) return null;
-    const fit = Math.min(box.width / width, box.height / height);
-    const x = (e.clientX - box.left - (box.width - width * fit) / 2) / (width * fit);
-    const y = (e.clientY - box.top - (box.height - height * fit) / 2) / (height * fit);
-    return x >= 0 && y >= 0 && x < 1 && y < 1 ? { x, y } : null;
+    return fitted(this.canvas.getBoundingClientRect(), this.frameSize);
   }
 
   /** Two fingers: their spread zooms, their midpoint pans. */

@@ -2,7 +2,9 @@
 // (which names the field, the id or the limit).
 import { Code, ConnectError } from "@connectrpc/connect";
 
-const LEAD: Partial<Record<Code, string>> = {
+type Leads = Partial<Record<Code, string>>;
+
+const LEAD: Leads = {
   [Code.Unauthenticated]: "The server did not accept your token. Check it and sign in again.",
   [Code.PermissionDenied]: "That belongs to another user, or your token does not allow it.",
   [Code.NotFound]: "Not found on the server.",
@@ -16,9 +18,28 @@ const LEAD: Partial<Record<Code, string>> = {
   [Code.Canceled]: "The call was cancelled.",
 };
 
-export function plainWords(e: unknown): string {
+// What the same codes mean to someone watching by a share (#grant=): the
+// server checks the grant on every call and ends its stream when it goes.
+const SHARE_LEAD: Leads = {
+  ...LEAD,
+  [Code.PermissionDenied]: "This share has ended: its owner revoked it, or it expired. Ask them for a new link.",
+  [Code.Unauthenticated]: "This share is for a named user: sign in with your own token to open it.",
+  [Code.NotFound]: "The shared session no longer exists.",
+  [Code.ResourceExhausted]: "The shared session has as many viewers as it may have, or the server is at one of its limits.",
+};
+
+function inWords(e: unknown, leads: Leads): string {
   const error = ConnectError.from(e);
-  const lead = LEAD[error.code] ?? "The server failed to answer.";
+  const lead = leads[error.code] ?? "The server failed to answer.";
   const detail = error.rawMessage.trim();
   return detail && !lead.includes(detail) ? `${lead} (${detail})` : lead;
+}
+
+export function plainWords(e: unknown): string {
+  return inWords(e, LEAD);
+}
+
+/** A refusal to the holder of a share (a revoked or expired grant, a principal's grant without its token). */
+export function shareWords(e: unknown): string {
+  return inWords(e, SHARE_LEAD);
 }
