@@ -5,16 +5,16 @@
 // (docs/sharing.md). Reports frames per second, event-to-frame latency, the
 // server's stage times, bytes, dropped frames, the viewers' frames per second
 // and errors by status code, as a table or JSON.
+#include <fmt/format.h>
+
 #include <algorithm>
 #include <atomic>
 #include <cmath>
-#include <numeric>
 #include <cstdio>
 #include <fstream>
 #include <map>
+#include <numeric>
 #include <thread>
-
-#include <fmt/format.h>
 
 #include "commands.h"
 #include "connection_options.h"
@@ -34,12 +34,12 @@ struct LoadtestOptions {
   std::string denoiser = "wrls";
   std::string volume;  // default: the script's (volume, load or upload), else the server's first volume
   std::string preset = "ct-bone";
-  std::string scene;   // a scene file to start from instead of the preset (its volume is ignored)
+  std::string scene;  // a scene file to start from instead of the preset (its volume is ignored)
   double event_hz = 120;
   double degrees_per_second = 120;
   int jpeg_quality = 80;
   float interactive_frame_ms = -1;  // < 0: the server's default (70 ms on a CPU server, else off)
-  int viewers = 0;  // per session, watching by a link
+  int viewers = 0;                  // per session, watching by a link
   bool json = false;
   std::string out;
 };
@@ -49,14 +49,15 @@ struct SessionResult {
   std::string server;  // where the session lived (the one it ended on)
   PlayResult play;
   std::vector<double> viewer_fps;  // each viewer's frames received a second
-  std::string error;  // status code name (or CLIENT), empty when none
+  std::string error;               // status code name (or CLIENT), empty when none
   std::string error_message;
 };
 
 v1::Denoiser ParseDenoiser(const std::string& name) {
   static const std::map<std::string, v1::Denoiser> kNames = {
-      {"none", v1::DENOISER_NONE}, {"accumulate", v1::DENOISER_ACCUMULATE}, {"knn", v1::DENOISER_KNN},
-      {"guided", v1::DENOISER_GUIDED}, {"svgf", v1::DENOISER_SVGF}, {"wrls", v1::DENOISER_WRLS}};
+      {"none", v1::DENOISER_NONE}, {"accumulate", v1::DENOISER_ACCUMULATE},
+      {"knn", v1::DENOISER_KNN},   {"guided", v1::DENOISER_GUIDED},
+      {"svgf", v1::DENOISER_SVGF}, {"wrls", v1::DENOISER_WRLS}};
   return kNames.at(name);
 }
 
@@ -258,15 +259,17 @@ std::string Json(const LoadtestOptions& o, const SessionScript& script, const st
       script.session.viewport.height(), o.script.empty() ? "built-in orbit" : o.script);
   for (std::size_t i = 0; i < results.size(); ++i) {
     const SessionResult& r = results[i];
-    j += fmt::format("{}\n  {{\"id\": \"{}\", \"server\": \"{}\", \"frames\": {}, \"fps\": {}, \"latency_ms\": {}, "
-                     "\"bytes\": {}, \"dropped\": {}, \"error\": \"{}\"}}",
-                     i ? "," : "", r.id, r.server, r.play.frames, number(r.play.fps()), latency(r.play.latency_ms),
-                     r.play.bytes, r.play.dropped, r.error);
+    j += fmt::format(
+        "{}\n  {{\"id\": \"{}\", \"server\": \"{}\", \"frames\": {}, \"fps\": {}, \"latency_ms\": {}, "
+        "\"bytes\": {}, \"dropped\": {}, \"error\": \"{}\"}}",
+        i ? "," : "", r.id, r.server, r.play.frames, number(r.play.fps()), latency(r.play.latency_ms), r.play.bytes,
+        r.play.dropped, r.error);
   }
-  j += fmt::format("],\n \"overall\": {{\"frames\": {}, \"fps_mean\": {}, \"fps_min\": {}, \"fps_total\": {}, "
-                   "\"latency_ms\": {}, \"bytes\": {}, \"dropped\": {}, \"smaller_frames\": {}, \"stage_ms\": {{",
-                   s.frames, number(s.fps_mean), number(s.fps_min), number(s.fps_total), latency(s.latencies),
-                   s.bytes, s.dropped, s.stages.smaller_frames);
+  j += fmt::format(
+      "],\n \"overall\": {{\"frames\": {}, \"fps_mean\": {}, \"fps_min\": {}, \"fps_total\": {}, "
+      "\"latency_ms\": {}, \"bytes\": {}, \"dropped\": {}, \"smaller_frames\": {}, \"stage_ms\": {{",
+      s.frames, number(s.fps_mean), number(s.fps_min), number(s.fps_total), latency(s.latencies), s.bytes, s.dropped,
+      s.stages.smaller_frames);
   for (int i = 0; i < 7; ++i)
     j += fmt::format("{}\"{}\": {}", i ? ", " : "", kStageNames[i], number(s.stages.StageMs(i)));
   j += fmt::format("}}, \"viewers\": {}, \"viewer_fps_mean\": {}, \"viewer_fps_min\": {}", o.viewers,
@@ -311,12 +314,14 @@ void AddLoadtestCommand(CLI::App& app) {
   auto o = std::make_shared<LoadtestOptions>();
   AddConnectionOptions(cmd, o->connection);
   cmd->add_option("--sessions", o->sessions, "Concurrent sessions")->check(CLI::Range(1, 1024))->capture_default_str();
-  cmd->add_option("--seconds", o->seconds, "How long each session runs")->check(CLI::Range(0.1, 3600.0))
+  cmd->add_option("--seconds", o->seconds, "How long each session runs")
+      ->check(CLI::Range(0.1, 3600.0))
       ->capture_default_str();
   cmd->add_option("--script", o->script, "Session script (JSON Lines) each session plays in a loop; default: an orbit");
   cmd->add_option("--width", o->width, "Viewport width (orbit)")->check(CLI::Range(1, 8192))->capture_default_str();
   cmd->add_option("--height", o->height, "Viewport height (orbit)")->check(CLI::Range(1, 8192))->capture_default_str();
-  cmd->add_option("--spp", o->spp, "Samples per pixel per frame (orbit)")->check(CLI::Range(1, 256))
+  cmd->add_option("--spp", o->spp, "Samples per pixel per frame (orbit)")
+      ->check(CLI::Range(1, 256))
       ->capture_default_str();
   cmd->add_option("--denoiser", o->denoiser, "none, accumulate, knn, guided, svgf or wrls (orbit)")
       ->check(CLI::IsMember({"none", "accumulate", "knn", "guided", "svgf", "wrls"}))
@@ -328,7 +333,8 @@ void AddLoadtestCommand(CLI::App& app) {
   cmd->add_option("--event-hz", o->event_hz, "Camera events per second per session (orbit)")
       ->check(CLI::Range(0.1, 1000.0))
       ->capture_default_str();
-  cmd->add_option("--jpeg-quality", o->jpeg_quality, "JPEG quality (orbit)")->check(CLI::Range(1, 100))
+  cmd->add_option("--jpeg-quality", o->jpeg_quality, "JPEG quality (orbit)")
+      ->check(CLI::Range(1, 100))
       ->capture_default_str();
   cmd->add_option("--interactive-frame-ms", o->interactive_frame_ms,
                   "Frame-time budget while the view moves: frames render smaller to meet it "

@@ -11,6 +11,7 @@
 #include "io/label_volume.h"
 #include "runtime/errors.h"
 #include "runtime/metrics.h"
+#include "scene/scene_file.h"
 
 namespace cinevol::service {
 namespace {
@@ -252,6 +253,13 @@ void Session::OnEventLocked(v1::SessionEvent event, Clock::time_point arrival, b
   ServerMetrics().EventReceived();
   if (event.has_pointer()) {  // shared at once; no frame answers it
     PointLocked(owner_, event.pointer(), arrival);
+    return;
+  }
+  if (event.has_measurements()) {  // the same: the picture does not change
+    const std::vector<std::string> problems = ValidateMeasurements(event.measurements().measurements());
+    if (!problems.empty()) throw InputError(fmt::format("event {}: {}", event.seq(), problems.front()));
+    *current_.mutable_scene()->mutable_measurements() = event.measurements().measurements();
+    SendStateLocked();
     return;
   }
   if (from_grant) {

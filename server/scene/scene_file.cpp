@@ -1,6 +1,7 @@
 // Scene JSON through protobuf's own JSON mapping, plus defaults and validation.
 #include "scene/scene_file.h"
 
+#include <fmt/format.h>
 #include <google/protobuf/util/json_util.h>
 
 #include <algorithm>
@@ -8,8 +9,6 @@
 #include <fstream>
 #include <set>
 #include <sstream>
-
-#include <fmt/format.h>
 
 #include "core/error.h"
 #include "core/labels.h"
@@ -25,9 +24,7 @@ namespace {
 // Collects problems; each names its field by its JSON path.
 class Problems {
  public:
-  void Add(const std::string& field, const std::string& what) {
-    list_.push_back(fmt::format("{}: {}", field, what));
-  }
+  void Add(const std::string& field, const std::string& what) { list_.push_back(fmt::format("{}: {}", field, what)); }
   void Finite(const std::string& field, float v) {
     if (!std::isfinite(v)) Add(field, fmt::format("{} is not a finite number", v));
   }
@@ -126,7 +123,6 @@ void ValidateVolume(const v1::VolumeSource& v, Problems& p) {
   if (!v.label_table().empty() && v.labels().empty()) p.Add("volume.labelTable", "names labels: set volume.labels too");
 }
 
-
 // `f`: the field's name in messages.
 void ValidateTransferFunction(const v1::TransferFunction& tf, const std::string& f, Problems& p) {
   if (tf.points().empty() && !tf.preset().empty() && !IsPreset(tf.preset())) {
@@ -168,8 +164,8 @@ void ValidateLabels(const v1::Labels& labels, Problems& p) {
     }
   }
   if (own > kMaxLabelTransferFunctions) {
-    p.Add("labels.styles", fmt::format("{} labels with their own transfer function; at most {}", own,
-                                       kMaxLabelTransferFunctions));
+    p.Add("labels.styles",
+          fmt::format("{} labels with their own transfer function; at most {}", own, kMaxLabelTransferFunctions));
   }
 }
 
@@ -317,14 +313,14 @@ void ApplyDefaults(v1::Scene& scene, unsigned parts) {
 
 namespace {
 
-// Measurements ride with whole scenes (files, CreateSession); no event edits them.
-void ValidateMeasurements(const v1::Scene& scene, Problems& p) {
-  if (scene.measurements_size() > kMaxMeasurements) {
-    p.Add("measurements", fmt::format("{} measurements; at most {}", scene.measurements_size(), kMaxMeasurements));
+// Measurements ride with whole scenes (files, CreateSession) and with their own event.
+void ValidateMeasurements(const google::protobuf::RepeatedPtrField<v1::Measurement>& measurements, Problems& p) {
+  if (measurements.size() > kMaxMeasurements) {
+    p.Add("measurements", fmt::format("{} measurements; at most {}", measurements.size(), kMaxMeasurements));
     return;
   }
-  for (int i = 0; i < scene.measurements_size(); ++i) {
-    const v1::Measurement& m = scene.measurements(i);
+  for (int i = 0; i < measurements.size(); ++i) {
+    const v1::Measurement& m = measurements[i];
     const std::string field = fmt::format("measurements[{}]", i);
     if (m.name().size() > kMaxMeasurementName) {
       p.Add(field + ".name", fmt::format("{} characters; at most {}", m.name().size(), kMaxMeasurementName));
@@ -342,7 +338,7 @@ void ValidateMeasurements(const v1::Scene& scene, Problems& p) {
 }
 
 void ValidateParts(const v1::Scene& scene, unsigned parts, Problems& p) {
-  if (parts == kEverythingChanged) ValidateMeasurements(scene, p);
+  if (parts == kEverythingChanged) ValidateMeasurements(scene.measurements(), p);
   if ((parts & (kCameraChanged | kLightsChanged)) && !v1::SceneFrame_IsValid(scene.frame())) {
     p.Add("frame", fmt::format("unknown frame {}", int(scene.frame())));
   }
@@ -368,6 +364,12 @@ std::vector<std::string> ValidateScene(const v1::Scene& scene) {
   return p.Take();
 }
 
+std::vector<std::string> ValidateMeasurements(const google::protobuf::RepeatedPtrField<v1::Measurement>& measurements) {
+  Problems p;
+  ValidateMeasurements(measurements, p);
+  return p.Take();
+}
+
 std::vector<std::string> ValidateSceneParts(const v1::Scene& scene, unsigned parts) {
   Problems p;
   ValidateParts(scene, parts, p);
@@ -383,8 +385,8 @@ void CheckScene(const v1::Scene& scene) {
 
 v1::Scene ParseSceneJson(std::string_view json, const fs::path& base_dir) {
   v1::Scene scene;
-  const auto status = google::protobuf::util::JsonStringToMessage(
-      google::protobuf::StringPiece(json.data(), json.size()), &scene);
+  const auto status =
+      google::protobuf::util::JsonStringToMessage(google::protobuf::StringPiece(json.data(), json.size()), &scene);
   if (!status.ok()) {
     throw InputError(fmt::format("not a cinevol.v1.Scene in JSON: {}", status.message().as_string()));
   }

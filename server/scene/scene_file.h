@@ -62,6 +62,8 @@ std::vector<std::string> ValidateScene(const v1::Scene& scene);
 // source (a session names its volume apart).
 std::vector<std::string> ValidateSceneParts(const v1::Scene& scene, unsigned parts = kEverythingChanged);
 
+// The problems of a list of measurements (Scene.measurements, a measurements event).
+std::vector<std::string> ValidateMeasurements(const google::protobuf::RepeatedPtrField<v1::Measurement>& measurements);
 // Throws InputError listing ValidateScene's problems, if any.
 void CheckScene(const v1::Scene& scene);
 

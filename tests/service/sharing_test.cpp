@@ -225,6 +225,18 @@ TEST(Sharing, APresenterDrivesHandsOverAndPointersReachEveryone) {
       << "the owner's stream hears of it";
   ExpectDenied([&] { viewer.Send({Point(2, 0)}); }, grpc::StatusCode::INVALID_ARGUMENT, "pointer");
 
+  // The owner's measurements reach every watcher through the state.
+  v1::SessionEvent measured;
+  v1::Measurement* m = measured.mutable_measurements()->add_measurements();
+  for (float z : {0.0f, 42.0f}) {
+    v1::Vec3* p = m->add_points();
+    p->set_z(z);
+  }
+  ASSERT_GT(stream->Send(measured), 0u);
+  EXPECT_TRUE(Eventually([&] { return viewer.state() && viewer.state()->scene().measurements_size() == 1; }, 10s))
+      << "the viewer's state carries the owner's measurement";
+  ExpectDenied([&] { viewer.Send({measured}); }, grpc::StatusCode::PERMISSION_DENIED, "viewer's");
+
   v1::HandOverRequest back;
   back.set_session_id(created.session_id());
   EXPECT_EQ(alice.HandOver(back), "alice");

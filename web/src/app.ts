@@ -11,8 +11,8 @@ import {
   type Light, type Scene,
 } from "../gen/cinevol/v1/scene_pb.js";
 import {
-  FinalFormat, LightListSchema, PointerSchema, SliceAxis, StreamSettingsSchema, ViewportSchema, type Frame, type SessionState,
-  type VolumeInfo,
+  FinalFormat, LightListSchema, MeasurementListSchema, PointerSchema, SliceAxis, StreamSettingsSchema, ViewportSchema,
+  type Frame, type SessionState, type VolumeInfo,
 } from "../gen/cinevol/v1/service_pb.js";
 import type { Api } from "./api.js";
 import {
@@ -89,6 +89,8 @@ export class App {
   constructor(private readonly api: Api) {
     this.reading = new Reading(api, () => this.session?.id, (text) => this.showError(text));
     this.reading.onOverlayChanged = () => this.drawOverlay();
+    this.reading.onMeasurementsEdited = (list) => this.post({ case: "measurements", value: create(MeasurementListSchema, {
+      measurements: list.map((m) => create(MeasurementSchema, { points: m.points.map(vec3) })) }) });
     this.share = new SharePanel(api, () => this.session?.id, (text) => this.showError(text), () => this.pinCamera());
     this.view.onPainted = (meta, at, decodeMs, replaced) => this.onPainted(meta, at, decodeMs, replaced);
     this.view.onError = (text) => this.showError(text);

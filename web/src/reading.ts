@@ -167,6 +167,8 @@ export class Reading {
   private volume?: VolumeInfo;
   /** Called when what the 3D view draws over itself changes: the measurements, the crosshair's slice planes. */
   onOverlayChanged: () => void = () => {};
+  /** Called when the reader adds or deletes a measurement: the session's scene (and its watchers) get the list. */
+  onMeasurementsEdited: (measurements: readonly Measurement[]) => void = () => {};
 
   constructor(readonly api: Api, private readonly sessionId: () => string | undefined,
               readonly error: (text: string) => void) {
@@ -271,6 +273,7 @@ export class Reading {
         this.measurements.push({ points: this.measuring.points });
         this.measuring = undefined;
         this.listMeasurements();
+        this.onMeasurementsEdited(this.measurements);
       }
     }
     this.refresh();
@@ -314,6 +317,7 @@ export class Reading {
         this.measurements.splice(i, 1);
         this.listMeasurements();
         this.panes.forEach((p) => p.draw());
+        this.onMeasurementsEdited(this.measurements);
       });
       li.append(remove);
       return li;

@@ -38,12 +38,15 @@ const sleep = (ms: number) => new Promise((r) => setTimeout(r, ms));
 export const now = () => performance.timeOrigin + performance.now();
 
 // Refusals that another try would meet again.
+// Events no frame answers: they change no picture (the state shares them).
+const UNANSWERED = new Set<EventKind["case"]>(["pointer", "measurements"]);
+
 const FINAL = new Set([Code.Unauthenticated, Code.PermissionDenied, Code.Aborted, Code.InvalidArgument,
                        Code.Unimplemented]);
 
 export class LiveSession {
   private seq = 0n;
-  private answeredSeq = 0n;  // the newest event a frame will answer (a pointer changes no picture)
+  private answeredSeq = 0n;  // the newest event a frame will answer (UNANSWERED kinds change no picture)
   private readonly pending = new Map<string, { kind: EventKind; inputAt: number }>();
   private sending = false;
   private attached = false;
@@ -136,9 +139,9 @@ export class LiveSession {
     const events = batch.map(({ kind, inputAt }) => {
       this.seq += 1n;
       this.sentKinds[kind.case] = (this.sentKinds[kind.case] ?? 0) + 1;
-      // Motion-to-photon for the owner's events: a pointer changes no picture, and the server numbers a share's own.
-      if (kind.case !== "pointer") this.answeredSeq = this.seq;
-      if (kind.case !== "pointer" && !this.grant) this.latency.sent(this.seq, inputAt);
+      // Motion-to-photon for the owner's events that change the picture; the server numbers a share's own.
+      if (!UNANSWERED.has(kind.case)) this.answeredSeq = this.seq;
+      if (!UNANSWERED.has(kind.case) && !this.grant) this.latency.sent(this.seq, inputAt);
       return create(SessionEventSchema, { seq: this.seq, kind });
     });
     try {
