@@ -731,8 +731,8 @@ TEST(Viewer, WatchesASharedSessionByItsGrantAndCannotDriveIt) {
 {{"at": 1, "ui": {{"screenshot": "{}"}}}}
 )",
                                                                                   shot.string()));
-  BackgroundViewer viewer(
-      scratch.path(), {"--server", server.address(), "--grant", session.grant.secret(), "--script", script.string()});
+  BackgroundViewer viewer(scratch.path(), {"--server", server.address(), "--grant", session.grant.secret(), "--script",
+                                           script.string(), "--max-seconds", "40"});
   ASSERT_TRUE(viewer.started());
   // Meanwhile the owner reads its stream: the states say what the session is and who points.
   std::optional<v1::SharedPointer> pointer;
