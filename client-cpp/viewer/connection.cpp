@@ -1,12 +1,14 @@
 // The viewer's network side: a worker thread for calls and events, the
-// stream's reader for frames, a decoder thread for JPEG.
+// stream's reader (or a watch's) for frames, a decoder thread for JPEG.
 #include "viewer/connection.h"
 
 #include <fmt/format.h>
 
+#include <algorithm>
 #include <utility>
 
 #include "script_player.h"
+#include "viewer/sharing_view.h"
 
 namespace cinevol::viewer {
 namespace {
@@ -22,14 +24,24 @@ bool Refused(grpc::StatusCode code) {
 
 std::string Describe(grpc::StatusCode code, const std::string& message) {
   switch (code) {
-    case grpc::StatusCode::UNAUTHENTICATED: return "the server does not accept this token: " + message;
-    case grpc::StatusCode::PERMISSION_DENIED: return "the server refused: " + message;
-    case grpc::StatusCode::UNAVAILABLE: return "cannot reach the server: " + message;
-    default: return message;  // it starts with its code
+    case grpc::StatusCode::UNAUTHENTICATED:
+      return "the server does not accept this token: " + message;
+    case grpc::StatusCode::PERMISSION_DENIED:
+      return "the server refused: " + message;
+    case grpc::StatusCode::UNAVAILABLE:
+      return "cannot reach the server: " + message;
+    default:
+      return message;  // it starts with its code
   }
 }
 
 constexpr auto kRetryEvery = std::chrono::seconds(2);
+constexpr std::size_t kMaxBatch = 64;  // events in one SendEvents (docs/api.md)
+
+// Whether an event waiting last is replaced by a newer one of its kind.
+bool Replaces(const v1::SessionEvent& newer, const v1::SessionEvent& older) {
+  return (newer.has_camera() && older.has_camera()) || (newer.has_pointer() && older.has_pointer());
+}
 
 }  // namespace
 
@@ -71,8 +83,8 @@ std::optional<v1::VolumeInfo> Connection::volume() const {
 void Connection::Post(v1::SessionEvent event) {
   {
     std::lock_guard lock(mu_);
-    if (event.has_camera() && !events_.empty() && events_.back().has_camera()) {
-      events_.back() = std::move(event);  // the newest camera wins
+    if (!events_.empty() && Replaces(event, events_.back())) {
+      events_.back() = std::move(event);  // the newest camera (or pointer) wins
     } else {
       events_.push_back(std::move(event));
     }
@@ -98,6 +110,16 @@ bool Connection::idle() const {
   std::lock_guard lock(mu_);
   auto quiet = [](const Requests& r) { return r.waiting.empty() && !r.running; };
   return events_.empty() && sending_ == 0 && quiet(requests_[0]) && quiet(requests_[1]);
+}
+
+std::optional<v1::SessionState> Connection::TakeState() {
+  std::lock_guard lock(mu_);
+  return std::exchange(state_, std::nullopt);
+}
+
+bool Connection::TakePointerRefused() {
+  std::lock_guard lock(mu_);
+  return std::exchange(pointer_refused_, false);
 }
 
 std::optional<ViewFrame> Connection::TakeFrame() {
@@ -129,6 +151,7 @@ void Connection::Start() {
     client_ = client;
   }
   wake_.notify_all();  // requests may have waited for a connection
+  if (watching()) return Watch(*client);
   // After the first start, the volume it resolved to (an upload is not sent again).
   v1::VolumeInfo volume;
   if (!resolved_volume_.empty()) {
@@ -148,19 +171,7 @@ void Connection::Start() {
   resolved_volume_ = volume.id();
   const v1::CreateSessionResponse created = client->CreateSession(request);
   StreamOptions options;
-  options.on_message = [this](const v1::ServerMessage& m) {
-    if (m.has_notice() && m.notice().level() == v1::Notice::WARNING) {
-      std::lock_guard lock(mu_);
-      warning_ = m.notice().message();
-    }
-    if (!m.has_frame()) return;
-    {
-      std::lock_guard lock(frame_mu_);
-      encoded_ = m.frame();
-      encoded_at_ = Clock::now();
-    }
-    frame_arrived_.notify_one();
-  };
+  options.on_message = [this](const v1::ServerMessage& m) { OnMessage(m); };
   stream_ = client->Attach(created.session_id(), options);
   {
     std::lock_guard lock(mu_);
@@ -171,7 +182,82 @@ void Connection::Start() {
   SetStatus(LinkState::kStreaming, fmt::format("{} on {}", volume.id(), created.device()));
 }
 
+void Connection::Watch(Client& client) {
+  watch_ = client.Watch(settings_.grant);
+  // The watch queues what it reads; this thread hands it on as a stream's reader does.
+  watch_reader_ = std::jthread([this, watch = watch_.get()](std::stop_token stop) {
+    while (!stop.stop_requested()) {
+      if (const auto message = watch->Next(std::chrono::milliseconds(100))) {
+        OnMessage(*message);
+      } else if (watch->ended()) {
+        return;
+      }
+    }
+  });
+  {
+    std::lock_guard lock(mu_);
+    sent_at_.clear();
+  }
+  // The grant's id names it; its secret is never shown.
+  SetStatus(LinkState::kStreaming, fmt::format("watching a shared session (grant {})", GrantIdOf(settings_.grant)));
+}
+
+void Connection::OnMessage(const v1::ServerMessage& m) {
+  if (m.has_notice() && m.notice().level() == v1::Notice::WARNING) {
+    std::lock_guard lock(mu_);
+    warning_ = m.notice().message();
+  }
+  if (m.has_state()) {
+    std::lock_guard lock(mu_);
+    state_ = m.state();
+  }
+  if (!m.has_frame()) return;
+  {
+    std::lock_guard lock(frame_mu_);
+    encoded_ = m.frame();
+    encoded_at_ = Clock::now();
+  }
+  frame_arrived_.notify_one();
+}
+
+std::optional<grpc::Status> Connection::Ended() const {
+  if (stream_ && stream_->ended()) return stream_->status();
+  if (watch_ && watch_->ended()) return watch_->status();
+  return std::nullopt;
+}
+
+void Connection::Detach() {
+  if (stream_) {
+    if (auto state = stream_->state()) carried_ = std::move(state);
+  }
+  watch_reader_ = {};  // stops and joins it before its watch goes
+  watch_.reset();
+  stream_.reset();
+}
+
+bool Connection::Ending(const grpc::Status& s) {
+  const std::string said = fmt::format("{}: {}", StatusCodeName(s.error_code()), s.error_message());
+  if (watching()) {
+    // A revoked or expired grant, a session that ended (OK: its owner closed
+    // it; NOT_FOUND: it is gone): for good. A lost connection: watch again.
+    const bool over = s.ok() || Refused(s.error_code());
+    SetStatus(over ? LinkState::kFailed : LinkState::kReconnecting,
+              s.ok() ? "the shared session has ended: " + s.error_message()
+                     : Describe(s.error_code(), said) + (over ? "" : " (watching again)"));
+    return !over;
+  }
+  // NOT_FOUND here: the server no longer knows the session (it restarted).
+  const bool refused = Refused(s.error_code()) && s.error_code() != grpc::StatusCode::NOT_FOUND;
+  SetStatus(refused ? LinkState::kFailed : LinkState::kReconnecting,
+            Describe(s.error_code(), said) + (refused ? "" : " (starting a new session)"));
+  return !refused;
+}
+
 bool Connection::SendPending() {
+  if (watch_) {
+    SendAsGrant();
+    return true;
+  }
   std::unique_lock lock(mu_);
   while (!events_.empty()) {
     v1::SessionEvent event = std::move(events_.front());
@@ -181,7 +267,8 @@ bool Connection::SendPending() {
     const std::uint64_t seq = stream_->Send(event);
     lock.lock();
     --sending_;
-    if (seq == 0) return false;  // the stream ended or is reconnecting: the event is dropped
+    if (seq == 0) return false;         // the stream ended or is reconnecting: the event is dropped
+    if (event.has_pointer()) continue;  // no frame answers a pointer
     sent_at_[seq] = Clock::now();
     last_sent_ = seq;
     while (sent_at_.size() > 4096) sent_at_.erase(sent_at_.begin());
@@ -189,35 +276,67 @@ bool Connection::SendPending() {
   return true;
 }
 
+// A grant holder's events, in batches: the session numbers them, and its
+// answer says up to which one it applied. A refusal drops the batch: a
+// viewer's pointer where its grant does not share it, or a viewer's drive
+// (the UI sends none; the presenter may have changed meanwhile).
+void Connection::SendAsGrant() {
+  std::vector<v1::SessionEvent> batch;
+  {
+    std::lock_guard lock(mu_);
+    while (!events_.empty() && batch.size() < kMaxBatch) {
+      batch.push_back(std::move(events_.front()));
+      events_.pop_front();
+    }
+    if (batch.empty()) return;
+    ++sending_;
+  }
+  const bool drives = std::any_of(batch.begin(), batch.end(), [](const auto& e) { return !e.has_pointer(); });
+  const Clock::time_point sent = Clock::now();
+  std::optional<v1::SessionState> state;
+  std::optional<RpcError> refused;
+  try {
+    state = watch_->Send(batch);
+  } catch (const RpcError& e) {
+    refused = e;
+  }
+  std::lock_guard lock(mu_);
+  --sending_;
+  if (refused) {
+    if (drives || refused->code() != grpc::StatusCode::PERMISSION_DENIED) {
+      warning_ = Describe(refused->code(), refused->what());
+    } else {
+      pointer_refused_ = true;
+    }
+  } else if (drives) {
+    sent_at_[state->last_event_seq()] = sent;
+    last_sent_ = state->last_event_seq();
+  }
+}
+
 void Connection::Work() {
   auto next_try = Clock::now();
   std::unique_lock lock(mu_);
   while (!stopping_) {
     lock.unlock();
-    if (!stream_ && Clock::now() >= next_try) {
+    if (!stream_ && !watch_ && Clock::now() >= next_try) {
       try {
         Start();
       } catch (const RpcError& e) {
         const bool refused = Refused(e.code());
         SetStatus(refused ? LinkState::kFailed : LinkState::kReconnecting,
                   Describe(e.code(), e.what()) + (refused ? "" : " (retrying)"));
-        stream_.reset();
+        Detach();
         next_try = refused ? Clock::time_point::max() : Clock::now() + kRetryEvery;
       } catch (const std::exception& e) {
         SetStatus(LinkState::kFailed, e.what());
         next_try = Clock::time_point::max();
       }
-    } else if (stream_ && stream_->ended()) {
-      const grpc::Status s = stream_->status();
-      // NOT_FOUND here: the server no longer knows the session (it restarted).
-      const bool refused = Refused(s.error_code()) && s.error_code() != grpc::StatusCode::NOT_FOUND;
-      SetStatus(refused ? LinkState::kFailed : LinkState::kReconnecting,
-                Describe(s.error_code(), fmt::format("{}: {}", StatusCodeName(s.error_code()), s.error_message())) +
-                    (refused ? "" : " (starting a new session)"));
-      if (auto state = stream_->state()) carried_ = std::move(state);
-      stream_.reset();
-      next_try = refused ? Clock::time_point::max() : Clock::now() + kRetryEvery;
-    } else if (stream_) {
+    } else if (const std::optional<grpc::Status> ended = Ended()) {
+      const bool again = Ending(*ended);
+      Detach();
+      next_try = again ? Clock::now() + kRetryEvery : Clock::time_point::max();
+    } else if (stream_ || watch_) {
       SendPending();
     }
     lock.lock();
@@ -231,6 +350,8 @@ void Connection::Work() {
     }
     stream_->Finish(std::chrono::seconds(2));
   }
+  if (watch_) watch_->Cancel();  // a watcher leaves; the session goes on for its owner
+  Detach();
   SetStatus(LinkState::kClosed, "closed");
 }
 

@@ -2,13 +2,15 @@
 // posts events and requests and reads the newest decoded frame and the
 // connection's state; it never waits on the server.
 //
-// Threads: a worker connects, creates the session and attaches, then sends
-// posted events (camera events coalesced: the newest wins); a requester runs
+// Threads: a worker connects, creates the session and attaches (or, given a
+// grant, watches another's session: docs/sharing.md), then sends posted
+// events (camera and pointer events coalesced: the newest wins); a requester runs
 // posted requests (loads, uploads, snapshots) in order beside it, and a
 // second one the quick reading calls (picks, slices), so that they never
 // wait behind a minutes-long snapshot or upload; the
-// stream's reader hands frames to a decoder thread, which keeps only the
-// newest (a slow decoder skips frames, never queues).
+// stream's reader (a watch's: a thread that takes its messages) hands frames
+// to a decoder thread, which keeps only the newest (a slow decoder skips
+// frames, never queues).
 #pragma once
 
 #include <array>
@@ -27,18 +29,22 @@
 
 #include "client.h"
 #include "session_script.h"
+#include "sharing_calls.h"
 
 namespace cinevol::viewer {
 
 struct ConnectionSettings {
   ClientOptions client;
   cli::ScriptSession session;  // the volume (id, load or upload), preset or scene, stream settings
+  // A grant's secret: watch the session it names (WatchSession) instead of
+  // creating one; events go as the grant holder's (SendEvents).
+  std::string grant;
 };
 
 // A decoded frame and what the server said about it.
 struct ViewFrame {
   RgbImage image;
-  v1::Frame info;  // without its image
+  v1::Frame info;               // without its image
   std::size_t image_bytes = 0;  // encoded, as received
   double decode_ms = 0;
   std::chrono::steady_clock::time_point received;
@@ -67,7 +73,8 @@ class Connection {
   std::optional<v1::CreateSessionResponse> session() const;
   std::optional<v1::VolumeInfo> volume() const;
 
-  // Queues an event. Camera events replace a camera event still waiting.
+  // Queues an event. Camera and pointer events replace one of their kind
+  // still waiting last.
   void Post(v1::SessionEvent event);
   // Runs `request` with the client once connected; its errors go to `done`
   // (empty on success). Both run on the requester thread.
@@ -82,16 +89,27 @@ class Connection {
   std::uint64_t last_sent() const { return last_sent_; }
   // The server's newest warning notice since the last call ("" if none).
   std::string TakeWarning();
+  // The session's newest state since the last call (presenter, viewers, pointers: docs/sharing.md).
+  std::optional<v1::SessionState> TakeState();
+  // Whether the server refused a grant holder's pointer since the last call.
+  bool TakePointerRefused();
+  bool watching() const { return !settings_.grant.empty(); }
   // No event waits to be sent and no request to finish.
   bool idle() const;
   // Raised when the connection closes: a long request (a snapshot) stops on it.
   const std::atomic<bool>& stopping() const { return stopping_; }
 
  private:
-  void Work();   // connects, sends events
-  void Serve(Lane lane);  // runs requests, so that a long upload holds no event back
-  void Start();  // connect, resolve the volume, create the session, attach
+  void Work();                                       // connects, sends events
+  void Serve(Lane lane);                             // runs requests, so that a long upload holds no event back
+  void Start();                                      // connect, resolve the volume, create the session, attach
+  void Watch(Client& client);                        // the grant's session instead
+  void OnMessage(const v1::ServerMessage& message);  // on the stream's reader or the watch's
+  std::optional<grpc::Status> Ended() const;         // the stream's or watch's end, once it ended
+  bool Ending(const grpc::Status& status);           // says why; whether to try again
+  void Detach();
   bool SendPending();
+  void SendAsGrant();
   void Decode();
   void SetStatus(LinkState state, std::string message);
 
@@ -103,11 +121,15 @@ class Connection {
   // library's failover does, so the view stays as it was.
   std::optional<v1::SessionState> carried_;
   std::unique_ptr<SessionStream> stream_;
+  std::unique_ptr<SessionWatch> watch_;  // with a grant, instead of stream_
+  std::jthread watch_reader_;            // hands the watch's messages to OnMessage
 
   mutable std::mutex mu_;
   std::condition_variable wake_;
   LinkStatus status_;
   std::string warning_;
+  std::optional<v1::SessionState> state_;  // newest, not yet taken
+  bool pointer_refused_ = false;
   std::optional<v1::CreateSessionResponse> session_;
   std::optional<v1::VolumeInfo> volume_;
   std::deque<v1::SessionEvent> events_;
@@ -123,8 +145,8 @@ class Connection {
 
   std::mutex frame_mu_;
   std::condition_variable frame_arrived_;
-  std::optional<v1::Frame> encoded_;   // newest undecoded
-  std::optional<ViewFrame> decoded_;   // newest decoded, not yet taken
+  std::optional<v1::Frame> encoded_;  // newest undecoded
+  std::optional<ViewFrame> decoded_;  // newest decoded, not yet taken
   std::chrono::steady_clock::time_point encoded_at_;
 
   std::thread worker_, requester_, quick_requester_, decoder_;

@@ -1,8 +1,8 @@
 // cinevol-viewer: connects to a cinevol-server (or starts one on the
 // built-in phantom) and shows a session in a window (docs/viewer.md).
-#include <CLI/CLI.hpp>
 #include <spdlog/spdlog.h>
 
+#include <CLI/CLI.hpp>
 #include <cstdio>
 
 #include "core/error.h"
@@ -17,10 +17,16 @@ int main(int argc, char** argv) {
           "Server address HOST:PORT, or a deployment's servers separated by commas (default: start a local server on "
           "the phantom)");
   std::string volume, load, upload, preset;
-  app.add_option("--volume", volume, "Volume id on the server (default: its first)");
-  app.add_option("--load", load, "Load this file or DICOM folder from the server's data roots first");
-  app.add_option("--upload", upload, "Upload this local volume file first")->check(CLI::ExistingFile);
-  app.add_option("--preset", preset, "Transfer-function preset (default: the volume's default)");
+  auto* grant = app.add_option("--grant", o.grant,
+                               "Watch a shared session by its grant's secret (cvg_..., from the owner's Share panel or "
+                               "`cinevol share`) instead of creating one; needs --server");
+  for (CLI::Option* option :
+       {app.add_option("--volume", volume, "Volume id on the server (default: its first)"),
+        app.add_option("--load", load, "Load this file or DICOM folder from the server's data roots first"),
+        app.add_option("--upload", upload, "Upload this local volume file first")->check(CLI::ExistingFile),
+        app.add_option("--preset", preset, "Transfer-function preset (default: the volume's default)")}) {
+    option->excludes(grant);  // the owner's session has its volume and scene
+  }
   app.add_option("--backend", o.backend, "Backend of the local server: auto, cpu or cuda")
       ->check(CLI::IsMember({"auto", "cpu", "cuda"}));
   app.add_option("--script", o.script, "Play a session script (with UI actions), then exit")->check(CLI::ExistingFile);
@@ -38,6 +44,7 @@ int main(int argc, char** argv) {
     o.session.upload = upload;
     o.session.preset = preset;
     if (!o.screenshot.empty() && o.script.empty()) throw cinevol::InputError("--screenshot needs --script");
+    if (!o.grant.empty() && o.local_server) throw cinevol::InputError("--grant needs --server: where the session is");
     return cinevol::viewer::RunViewer(std::move(o));
   } catch (const CLI::ParseError& e) {
     // --help prints and exits 0; a bad flag is bad input, exit 2 as documented

@@ -1,5 +1,6 @@
 // The viewer's panels (volume, PACS, transfer function, lights, render, clipping,
-// labels, reading, scene), its stats overlay and the banner that says what is wrong.
+// labels, reading, scene, share), its stats overlay and the banner that says what is wrong.
+#include <fmt/format.h>
 #include <imgui.h>
 #include <imgui_stdlib.h>
 
@@ -11,20 +12,18 @@
 #include <utility>
 #include <vector>
 
-#include <fmt/format.h>
-
 #include "scene/presets.h"
 #include "viewer/viewer_app.h"
 
 namespace cinevol::viewer {
-namespace {
 
-// Grey help text, wrapped to the panel.
 void Hint(const char* text) {
   ImGui::PushStyleColor(ImGuiCol_Text, ImGui::GetStyleColorVec4(ImGuiCol_TextDisabled));
   ImGui::TextWrapped("%s", text);
   ImGui::PopStyleColor();
 }
+
+namespace {
 
 // Text fields grow with what is typed (imgui_stdlib).
 bool InputPath(const char* label, std::string& text) { return ImGui::InputText(label, &text); }
@@ -217,8 +216,7 @@ void TransferPanel(App& app) {
     }
     ImGui::EndCombo();
   }
-  if (app.volume &&
-      TransferFunctionEditor("##tf", app.transfer, app.volume->histogram(), app.editor, 140.0f)) {
+  if (app.volume && TransferFunctionEditor("##tf", app.transfer, app.volume->histogram(), app.editor, 140.0f)) {
     app.SendTransferFunction();
   }
   Hint("Alt + drag in the view: window (sideways), level (up/down)");
@@ -372,7 +370,8 @@ bool ClipPlanes(App& app, const float lo[3], const float hi[3]) {
     const float length = std::max(1e-6f, std::sqrt(n[0] * n[0] + n[1] * n[1] + n[2] * n[2]));
     // The plane as an offset from the volume's centre along its unit normal.
     float offset = ((plane->point().x() - centre[0]) * n[0] + (plane->point().y() - centre[1]) * n[1] +
-                    (plane->point().z() - centre[2]) * n[2]) / length;
+                    (plane->point().z() - centre[2]) * n[2]) /
+                   length;
     bool moved = ImGui::DragFloat3("normal (L P S)", n, 0.01f, -1.0f, 1.0f, "%.2f");
     moved |= ImGui::SliderFloat("offset mm", &offset, -reach, reach, "%.0f");
     bool cap = plane->cap();
@@ -554,33 +553,53 @@ bool Header(const char* label, bool& open) {
   return open;
 }
 
+// A panel whose controls send events: greyed out while a grant's holder only watches.
+void DrivingPanel(App& app, const char* label, bool& open, void (*panel)(App&)) {
+  if (!Header(label, open)) return;
+  ImGui::BeginDisabled(app.Watching() && !app.Drives());
+  panel(app);
+  ImGui::EndDisabled();
+}
+
 }  // namespace
 
 void DrawPanels(App& app) {
   ImGui::SetNextWindowPos({app.panel_area.x, app.panel_area.y});
   ImGui::SetNextWindowSize({app.panel_area.w, app.panel_area.h});
   ImGui::Begin("cinevol", nullptr, ImGuiWindowFlags_NoMove | ImGuiWindowFlags_NoResize | ImGuiWindowFlags_NoCollapse);
-  if (Header("Volume", app.panels.volume)) VolumePanel(app);
-  if (!app.pacs.names.empty() && Header("PACS", app.panels.pacs)) PacsPanel(app);
-  if (Header("Transfer function", app.panels.transfer_function)) TransferPanel(app);
-  if (Header("Lights", app.panels.lights)) LightsPanel(app);
-  if (Header("Render", app.panels.render)) RenderPanel(app);
-  if (Header("Clipping", app.panels.clipping)) ClippingPanel(app);
-  if (Header("Labels", app.panels.labels)) LabelsPanel(app);
-  if (Header("Reading", app.panels.reading)) ReadingPanel(app);
-  if (Header("Scene and snapshot", app.panels.scene)) ScenePanel(app);
+  // A grant's holder watches another's session: what it can do is there.
+  if (app.Watching()) WatchingPanel(app);
+  if (!app.Watching() && Header("Volume", app.panels.volume)) VolumePanel(app);
+  if (!app.Watching() && !app.pacs.names.empty() && Header("PACS", app.panels.pacs)) PacsPanel(app);
+  DrivingPanel(app, "Transfer function", app.panels.transfer_function, TransferPanel);
+  DrivingPanel(app, "Lights", app.panels.lights, LightsPanel);
+  DrivingPanel(app, "Render", app.panels.render, RenderPanel);
+  if (!app.Watching()) {  // these need the session's volume or its owner
+    if (Header("Clipping", app.panels.clipping)) ClippingPanel(app);
+    if (Header("Labels", app.panels.labels)) LabelsPanel(app);
+    if (Header("Reading", app.panels.reading)) ReadingPanel(app);
+    if (Header("Scene and snapshot", app.panels.scene)) ScenePanel(app);
+    const bool listed = app.panels.share;
+    if (Header("Share", app.panels.share)) {
+      if (!listed) app.ListShares();  // opened: the grants as they are now
+      SharePanel(app);
+    }
+  }
   ImGui::Separator();
   ImGui::Checkbox("stats overlay (F2)", &app.panels.stats);
   if (!app.notice.empty()) ImGui::TextWrapped("%s", app.notice.c_str());
   Hint("drag: orbit; right drag or wheel: zoom; middle or Shift drag: pan;");
   Hint("click: pick; F3: slices beside the 3D view (wheel: step, drag: window/level, click: crosshair);");
   Hint("A P L R S I: named views; Home: reset; Ctrl+Q: quit");
+  if (app.Watching())
+    Hint("watching: the presenter drives; your mouse over the view is your pointer, where the grant shares it");
   ImGui::End();
 }
 
 void DrawStatsOverlay(App& app) {
   const ViewerStats& s = app.stats;
-  ImGui::SetNextWindowPos({app.frame_area.x + 10, app.frame_area.y + 10});
+  const float top = app.banner_area.h > 0 ? app.banner_area.y + app.banner_area.h + 6 : app.frame_area.y + 10;
+  ImGui::SetNextWindowPos({app.frame_area.x + 10, top});  // below the line of a shared session
   ImGui::SetNextWindowBgAlpha(0.6f);
   ImGui::Begin("stats", nullptr,
                ImGuiWindowFlags_NoDecoration | ImGuiWindowFlags_AlwaysAutoResize | ImGuiWindowFlags_NoInputs |
@@ -619,7 +638,11 @@ void DrawStatusBanner(App& app, const LinkStatus& status) {
                    (status.state == LinkState::kStreaming && app.stats.last_frame_id > 0);
   ImGui::SetNextWindowPos({app.frame_area.x + app.frame_area.w * 0.5f, app.frame_area.y + app.frame_area.h * 0.5f},
                           ImGuiCond_Always, {0.5f, 0.5f});
-  ImGui::SetNextWindowSize({std::min(520.0f, app.frame_area.w - 20), 0});
+  // Sized to the text now: an auto-fit would lag a changed message by frames (a screenshot may come first).
+  const float width = std::min(520.0f, app.frame_area.w - 20);
+  const ImVec2 padding = ImGui::GetStyle().WindowPadding;
+  ImGui::SetNextWindowSize(
+      {width, ImGui::CalcTextSize(text.c_str(), nullptr, false, width - 2 * padding.x).y + 2 * padding.y});
   ImGui::Begin("status", nullptr, ImGuiWindowFlags_NoDecoration | ImGuiWindowFlags_NoSavedSettings);
   if (bad) ImGui::PushStyleColor(ImGuiCol_Text, ImVec4(1.0f, 0.55f, 0.45f, 1.0f));
   ImGui::TextWrapped("%s", text.c_str());

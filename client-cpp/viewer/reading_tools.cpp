@@ -95,6 +95,7 @@ void App::SetCrosshair(Vec3f lps) {
 // ----------------------------------------------------------------- slices
 
 void App::ToggleGrid() {
+  if (Watching()) return;  // slices are the owner's calls
   reading.grid = !reading.grid;
   if (!reading.grid) return;
   // Without a pick yet, the slices go through the volume's centre.

@@ -74,6 +74,7 @@ bool* Panel(PanelsOpen& p, const std::string& name) {
   if (name == "labels") return &p.labels;
   if (name == "scene") return &p.scene;
   if (name == "reading") return &p.reading;
+  if (name == "share") return &p.share;
   if (name == "stats") return &p.stats;
   return nullptr;
 }
@@ -90,6 +91,30 @@ int Button(const std::string& name, const std::string& where) {
   if (name == "middle") return SDL_BUTTON_MIDDLE;
   if (name == "right") return SDL_BUTTON_RIGHT;
   throw InputError(where + ": button: left, middle or right");
+}
+
+bool Flag(const Struct& s, const std::string& key, const std::string& where) {
+  const auto it = s.fields().find(key);
+  if (it == s.fields().end()) return false;
+  if (it->second.kind_case() != Value::kBoolValue) throw InputError(fmt::format("{}: {}: true or false", where, key));
+  return it->second.bool_value();
+}
+
+// {"link": true} or {"principal": "bob"}, "role", "expiresSeconds", "allowPointer".
+v1::ShareSessionRequest ShareRequest(const Struct& s, const std::string& where) {
+  v1::ShareSessionRequest request;
+  const bool link = Flag(s, "link", where);
+  if (s.fields().count("principal")) request.set_principal(Text(s.fields().at("principal"), where + ".principal"));
+  if (link == !request.principal().empty())
+    throw InputError(where + ": \"link\": true or a \"principal\" (one of them)");
+  const std::string role = s.fields().count("role") ? Text(s.fields().at("role"), where + ".role") : "viewer";
+  if (role != "viewer" && role != "presenter") throw InputError(where + ".role: viewer or presenter");
+  request.set_role(role == "presenter" ? v1::PRESENTER : v1::VIEWER);
+  const double expires = Number(s, "expiresSeconds", where, 0);
+  if (expires < 0 || expires > 604800) throw InputError(where + ".expiresSeconds: [1, 604800]; 0 or none: 2 hours");
+  request.set_expires_seconds(std::uint32_t(expires));
+  request.set_allow_pointer(Flag(s, "allowPointer", where));
+  return request;
 }
 
 SDL_Keymod Modifier(const std::string& name, const std::string& where) {
@@ -118,7 +143,7 @@ void App::RunUiAction(const std::string& json, int line) {
     if (!open) {
       throw InputError(at +
                        ".name: volume, pacs, transferFunction, lights, render, clipping, labels, reading, "
-                       "scene or stats");
+                       "scene, share or stats");
     }
     if (run) *open = !p.fields().count("open") || p.fields().at("open").bool_value();
   } else if (name == "key") {  // {"key": "p"}
@@ -233,13 +258,44 @@ void App::RunUiAction(const std::string& json, int line) {
   } else if (name == "deleteMeasurement") {  // {"deleteMeasurement": 0}: its x button in the Reading panel
     if (value.kind_case() != Value::kNumberValue) throw InputError(at + ": must be a measurement index");
     if (run) DeleteMeasurement(int(value.number_value()));
+  } else if (name == "share") {  // {"share": {"link": true, "role": "viewer", "allowPointer": true}}
+    const v1::ShareSessionRequest request = ShareRequest(Object(value, at), at);
+    if (run && Watching()) throw InputError(at + ": only the session's owner shares it (this viewer has --grant)");
+    if (run) {
+      panels.share = true;  // a screenshot shows the secret and the grants
+      Share(request);
+    }
+  } else if (name == "handover" || name == "revoke") {  // {"handover": {"grant": "g..."}}; "last": the newest made here
+    std::string grant = Text(Field(Object(value, at), "grant", at), at + ".grant");
+    if (name == "revoke" && grant.empty()) throw InputError(at + ".grant: a grant's id, or \"last\"");
+    if (run && Watching() && !(name == "handover" && grant.empty())) {
+      throw InputError(at + ": a grant's holder only gives the presenter's role back (\"grant\": \"\")");
+    }
+    if (run && grant == "last") {
+      if (!sharing.made) throw InputError(at + ": no grant made yet (\"last\")");
+      grant = sharing.made->id();
+    }
+    if (run) name == "handover" ? HandOver(grant) : Revoke(grant);
+  } else if (name == "listShares") {  // {"listShares": true}
+    if (run && Watching()) throw InputError(at + ": only the session's owner lists its grants");
+    if (run) ListShares();
+  } else if (name == "pointer") {  // {"pointer": {"x": 0.2, "y": 0.4}}: the mouse there over the 3D view
+    const Struct& p = Object(value, at);
+    std::optional<PointerShare::At> where;  // {"pointer": {"hidden": true}}: it left the view
+    if (!Flag(p, "hidden", at)) {
+      const double x = Number(p, "x", at), y = Number(p, "y", at);
+      if (x < 0 || x > 1 || y < 0 || y > 1) throw InputError(at + ": x and y in [0, 1]");
+      where = PointerShare::At{float(x), float(y)};
+    }
+    if (run) PointAt(where);
   } else if (name == "quit") {
     if (run) finish_now_ = true;
   } else {
     throw InputError(fmt::format(
         "{}: unknown action (panel, key, drag, wheel, preset, movePoint, addPoint, deletePoint, windowLevel, "
         "snapshot, saveScene, openScene, searchPacs, selectStudy, openSeries, layout2x2, pickAt, clickSlice, "
-        "stepSlice, measureDistance, measureAngle, deleteMeasurement, resizeWindow, settle, screenshot, quit)",
+        "stepSlice, measureDistance, measureAngle, deleteMeasurement, share, listShares, handover, revoke, pointer, "
+        "resizeWindow, settle, screenshot, quit)",
         at));
   }
 }

@@ -11,13 +11,14 @@ namespace cinevol::viewer {
 
 struct ViewerOptions {
   cli::ConnectionOptions connection;
-  bool local_server = false;    // no --server: start cinevol-server on the phantom, stop it on exit
-  std::string backend = "auto";  // of the local server
-  cli::ScriptSession session;   // the volume and the scene or preset to start from
-  std::string script;           // a session script to play, with UI actions
-  std::string screenshot;       // where to write the window when the script ends
+  bool local_server = false;       // no --server: start cinevol-server on the phantom, stop it on exit
+  std::string backend = "auto";    // of the local server
+  cli::ScriptSession session;      // the volume and the scene or preset to start from
+  std::string grant;               // --grant: watch the shared session it names instead (docs/sharing.md)
+  std::string script;              // a session script to play, with UI actions
+  std::string screenshot;          // where to write the window when the script ends
   int width = 1280, height = 800;  // window size in logical pixels
-  double max_seconds = 120;     // scripts: give up after this long
+  double max_seconds = 120;        // scripts: give up after this long
 };
 
 // Opens the window and runs until the user closes it or the script ends.

@@ -2,6 +2,7 @@
 // keys, session scripts and screenshots.
 #include "viewer/viewer_app.h"
 
+#include <fmt/format.h>
 #include <google/protobuf/struct.pb.h>
 #include <google/protobuf/util/json_util.h>
 #include <imgui.h>
@@ -16,25 +17,23 @@
 #include <fstream>
 #include <thread>
 
-#include <fmt/format.h>
-
 #include "core/error.h"
 #include "encode/image_codecs.h"
-#include "scene/scene_frame.h"
+#include "io/volume_loader.h"
 #include "scene/presets.h"
 #include "scene/scene_file.h"
-#include "io/volume_loader.h"
+#include "scene/scene_frame.h"
 #include "script_player.h"
 #include "viewer/transfer_edits.h"
 
 namespace cinevol::viewer {
 namespace {
 
-constexpr float kPanelWidth = 330;          // logical pixels
-constexpr float kClickSlop = 3;             // logical pixels a press may move and still be a click
+constexpr float kPanelWidth = 330;  // logical pixels
+constexpr float kClickSlop = 3;     // logical pixels a press may move and still be a click
 constexpr auto kResizeSettle = std::chrono::milliseconds(250);
 constexpr auto kFramePeriod = std::chrono::milliseconds(8);  // at most ~120 displayed frames a second
-constexpr double kSettleSeconds = 1.0;      // scripts: frames after the last event before the screenshot
+constexpr double kSettleSeconds = 1.0;  // scripts: frames after the last event before the screenshot
 
 double Ms(Clock::duration d) { return std::chrono::duration<double, std::milli>(d).count(); }
 
@@ -104,7 +103,7 @@ App::App(ViewerOptions o) : options(std::move(o)) {
       if (!step.ui.empty()) RunUiAction(step.ui, -step.line);  // a dry run: checks every action
     }
   }
-  OpenDisplay();  // first: without one there is nothing to start a server for
+  OpenDisplay();               // first: without one there is nothing to start a server for
   if (options.local_server) {  // before the window: a window that waits for it would not answer
     const auto log = std::filesystem::temp_directory_path() / fmt::format("cinevol-viewer-{}.log", getpid());
     std::fprintf(stderr, "cinevol-viewer: starting a local cinevol-server (log: %s)...\n", log.c_str());
@@ -155,14 +154,18 @@ App::~App() {
 }
 
 void App::Connect() {
-  ConnectionSettings settings{cli::ToClientOptions(options.connection), options.session};
+  ConnectionSettings settings{cli::ToClientOptions(options.connection), options.session, options.grant};
   // The session starts at the size the window shows it.
   viewport_w_ = Pixels(frame_area.w);
   viewport_h_ = Pixels(frame_area.h);
   settings.session.viewport.set_width(viewport_w_);
   settings.session.viewport.set_height(viewport_h_);
   connection = std::make_unique<Connection>(std::move(settings));
-  ListPacs();  // each connection asks: the panel shows only where the server names a PACS
+  if (Watching()) {
+    sharing.me = GuessedHolderName(options.grant);  // until the pointer's echo names it
+  } else {
+    ListPacs();  // each connection asks: the panel shows only where the server names a PACS
+  }
 }
 
 int App::Run() {
@@ -177,16 +180,18 @@ int App::Run() {
     }
     for (auto& f : later) f();
     AdoptSession();
+    FollowSharing();
     if (std::string warning = connection->TakeWarning(); !warning.empty()) notice = warning;
     const bool new_frame = TakeFrame();
     RunScript();
     ResizeViewportWhenSettled();
-    if (camera_dirty_ && !session_id.empty()) {  // one camera event per displayed frame
+    if (camera_dirty_ && Drives()) {  // one camera event per displayed frame
       v1::SessionEvent e;
       *e.mutable_camera() = ToProto(camera);
-      connection->Post(std::move(e));
+      Post(std::move(e));
       camera_dirty_ = false;
     }
+    SharePointer();
 
     ImGui_ImplSDLRenderer_NewFrame();
     ImGui_ImplSDL2_NewFrame();
@@ -194,6 +199,7 @@ int App::Run() {
     Layout();
     DrawPanels(*this);
     DrawReadingOverlay(*this);
+    DrawSharingOverlay(*this);
     if (panels.stats) DrawStatsOverlay(*this);
     DrawStatusBanner(*this, connection->status());
     ImGui::Render();
@@ -230,45 +236,63 @@ void App::Later(std::function<void()> f) {
 void App::AdoptSession() {
   const std::optional<v1::CreateSessionResponse> s = connection->session();
   if (!s || s->session_id() == session_id) return;
-  const bool restore = !session_id.empty() && volume && connection->volume() &&
-                       volume->id() == connection->volume()->id();
+  const bool restore =
+      !session_id.empty() && volume && connection->volume() && volume->id() == connection->volume()->id();
   session_id = s->session_id();
   stats.last_frame_id = 0;
+  // A new session has no grants: a restarted server forgot them.
+  SharingState fresh;
+  fresh.form = sharing.form;  // the panel's fields stay as typed
+  fresh.generation = sharing.generation + 1;
+  sharing = std::move(fresh);
+  LearnOwnName();
   // The server lost our session: the connection created it again from the
   // server's last state of it (Connection::carried_), which is what we show.
   if (restore) return;
   volume = connection->volume();
-  const v1::Scene& scene = s->scene();
-  camera = home = FromProto(scene.camera(), ViewCamera{});
+  camera = ViewCamera{};
+  ShowScene(s->scene());
+  home = camera;
+  stream = options.session.stream;
+  reading.measurements.assign(s->scene().measurements().begin(), s->scene().measurements().end());
+}
+
+void App::ShowScene(const v1::Scene& scene) {
+  // A named view without its eye (an event's) turns about the camera shown.
+  const v1::Camera& c = scene.camera();
+  const bool named = c.view() != v1::NAMED_VIEW_UNSPECIFIED && !c.has_eye();
+  camera = named && volume ? NamedView(camera, c.view(), volume->direction()) : FromProto(c, camera);
   transfer = scene.transfer_function();
-  if (transfer.points().empty()) {
+  if (transfer.points().empty() && volume) {
     const std::string preset = transfer.preset().empty() ? volume->default_preset() : transfer.preset();
     transfer = MakePreset(preset, AutoWindow(ToHistogram(volume->histogram())));
   }
   lights.mutable_lights()->CopyFrom(scene.lights());
   render = scene.render();
-  stream = options.session.stream;
   clipping = scene.clipping();
   labels = scene.labels();
-  reading.measurements.assign(scene.measurements().begin(), scene.measurements().end());
+}
+
+void App::Post(v1::SessionEvent event) {
+  if (Drives()) connection->Post(std::move(event));
 }
 
 void App::SendTransferFunction() {
   v1::SessionEvent e;
   *e.mutable_transfer_function() = transfer;
-  connection->Post(std::move(e));
+  Post(std::move(e));
 }
 
 void App::SendClipping() {
   v1::SessionEvent e;
   *e.mutable_clipping() = clipping;
-  connection->Post(std::move(e));
+  Post(std::move(e));
 }
 
 void App::SendLights() {
   v1::SessionEvent e;
   *e.mutable_lights() = lights;
-  connection->Post(std::move(e));
+  Post(std::move(e));
 }
 
 void App::SendRender() {
@@ -276,7 +300,7 @@ void App::SendRender() {
   e.mutable_render()->set_spp(render.spp());
   e.mutable_render()->set_max_bounces(render.max_bounces());
   e.mutable_render()->set_reconstruction(render.reconstruction() == v1::TRICUBIC ? v1::TRICUBIC : v1::TRILINEAR);
-  connection->Post(std::move(e));
+  Post(std::move(e));
 }
 
 void App::SendLabels() {
@@ -289,20 +313,22 @@ void App::SendLabels() {
   } else {
     return;  // nothing the session can style
   }
-  connection->Post(std::move(e));
+  Post(std::move(e));
 }
 
 void App::SendStream() {
   v1::SessionEvent e;
   *e.mutable_stream() = stream;
-  connection->Post(std::move(e));
+  Post(std::move(e));
 }
 
 void App::SendCamera() { camera_dirty_ = true; }
 
 void App::ChoosePreset(const std::string& name) {
-  if (!volume) return;
-  transfer = MakePreset(name, AutoWindow(ToHistogram(volume->histogram())));
+  // Without the volume (another's session) the server fits the preset.
+  transfer.Clear();
+  transfer.set_preset(name);
+  if (volume) transfer = MakePreset(name, AutoWindow(ToHistogram(volume->histogram())));
   editor = {};
   SendTransferFunction();
 }
@@ -324,6 +350,8 @@ void App::SwitchVolume(const std::string& id) {
   pacs.busy = 0;
   pacs.opening = false;
   pacs.progress.reset();
+  ++sharing.generation;  // and the old session's grants
+  sharing.busy = 0;
   ++reading.generation;  // the slices and picks of the old volume, likewise
   reading.busy = 0;
   reading.crosshair.reset();
@@ -483,8 +511,8 @@ void App::OpenSeries(const v1::LoadSeriesRequest& request) {
 void App::Opened(const v1::LoadSeriesRequest& request, const v1::VolumeInfo& opened) {
   pacs.opening = false;
   pacs.progress.reset();
-  pacs.status = fmt::format("opened {} ({} x {} x {})", opened.id(), opened.dims().x(), opened.dims().y(),
-                            opened.dims().z());
+  pacs.status =
+      fmt::format("opened {} ({} x {} x {})", opened.id(), opened.dims().x(), opened.dims().y(), opened.dims().z());
   google::protobuf::Struct report;
   auto& fields = *report.mutable_fields();
   fields["pacs"] = TextValue(request.pacs());
@@ -549,7 +577,7 @@ void App::SaveScene(const std::string& path) {
   scene.mutable_render()->set_height(viewport_h_);
   if (volume) {
     *scene.mutable_volume() = ParseVolumeSpec(volume->source());  // a phantom stays a phantom
-    ToPatientFrame(scene, VolumePlacement::Of(*volume));  // one frame for the whole file, as its clipping
+    ToPatientFrame(scene, VolumePlacement::Of(*volume));          // one frame for the whole file, as its clipping
   }
   google::protobuf::util::JsonPrintOptions print;
   print.add_whitespace = true;
@@ -653,8 +681,8 @@ void App::UploadFrame(const ViewFrame& frame) {
   const RgbImage& image = frame.image;
   if (!texture_ || texture_w_ != image.width || texture_h_ != image.height) {
     if (texture_) SDL_DestroyTexture(texture_);
-    texture_ = SDL_CreateTexture(renderer_, SDL_PIXELFORMAT_RGB24, SDL_TEXTUREACCESS_STREAMING, image.width,
-                                 image.height);
+    texture_ =
+        SDL_CreateTexture(renderer_, SDL_PIXELFORMAT_RGB24, SDL_TEXTUREACCESS_STREAMING, image.width, image.height);
     texture_w_ = image.width;
     texture_h_ = image.height;
   }
@@ -696,6 +724,7 @@ void App::DrawFrame() {
 int App::Pixels(float logical) const { return std::max(16, int(std::lround(logical * pixel_scale_))); }
 
 void App::ResizeViewportWhenSettled() {
+  if (Watching()) return;  // the owner's window sets the session's size; its frames are fitted here
   const int w = Pixels(frame_area.w), h = Pixels(frame_area.h);
   if (w == viewport_w_ && h == viewport_h_) return;
   if (w != pending_w_ || h != pending_h_) {
@@ -710,10 +739,12 @@ void App::ResizeViewportWhenSettled() {
   v1::SessionEvent e;
   e.mutable_resize()->set_width(w);
   e.mutable_resize()->set_height(h);
-  connection->Post(std::move(e));
+  Post(std::move(e));
 }
 
-bool App::ResizePending() const { return Pixels(frame_area.w) != viewport_w_ || Pixels(frame_area.h) != viewport_h_; }
+bool App::ResizePending() const {
+  return !Watching() && (Pixels(frame_area.w) != viewport_w_ || Pixels(frame_area.h) != viewport_h_);
+}
 
 // ------------------------------------------------------- mouse and keys
 
@@ -723,7 +754,9 @@ void App::PumpSdlEvents() {
   while (SDL_PollEvent(&e)) {
     ImGui_ImplSDL2_ProcessEvent(&e);
     switch (e.type) {
-      case SDL_QUIT: quit_ = true; break;
+      case SDL_QUIT:
+        quit_ = true;
+        break;
       case SDL_MOUSEBUTTONDOWN: {
         const float x = float(e.button.x), y = float(e.button.y);
         const int pane = SliceAt(x, y);
@@ -742,7 +775,15 @@ void App::PumpSdlEvents() {
           drag_button_ = 0;
         }
         break;
+      case SDL_WINDOWEVENT:
+        if (e.window.event == SDL_WINDOWEVENT_LEAVE) PointAt(std::nullopt);
+        break;
       case SDL_MOUSEMOTION:
+        if (const Rect shown = ShownFrame(); shown.Contains(float(e.motion.x), float(e.motion.y))) {
+          PointAt(PointerShare::At{(float(e.motion.x) - shown.x) / shown.w, (float(e.motion.y) - shown.y) / shown.h});
+        } else {
+          PointAt(std::nullopt);
+        }
         if (drag_button_) {
           const float dx = float(e.motion.x) - drag_x_, dy = float(e.motion.y) - drag_y_;
           dragged_ = dragged_ || std::hypot(float(e.motion.x) - press_x_, float(e.motion.y) - press_y_) > kClickSlop;
@@ -769,7 +810,8 @@ void App::PumpSdlEvents() {
       case SDL_KEYDOWN:
         if (!io.WantCaptureKeyboard) Key(e.key.keysym.sym);
         break;
-      default: break;
+      default:
+        break;
     }
   }
 }
@@ -784,7 +826,7 @@ void App::Click(int button, float x, float y) {
 }
 
 void App::Drag(int button, float dx, float dy, SDL_Keymod mods) {
-  if (session_id.empty()) return;
+  if (!Drives()) return;                                  // a viewer watches
   if (button == SDL_BUTTON_LEFT && (mods & KMOD_CTRL)) {  // the key light
     for (v1::Light& l : *lights.mutable_lights()) {
       if (!l.has_area()) continue;
@@ -809,7 +851,7 @@ void App::Drag(int button, float dx, float dy, SDL_Keymod mods) {
 }
 
 void App::Wheel(float steps) {
-  if (session_id.empty()) return;
+  if (!Drives()) return;
   Zoom(camera, std::pow(0.9f, steps));
   SendCamera();
 }
@@ -832,16 +874,16 @@ bool App::Key(SDL_Keycode key) {
     reading.identity = !reading.identity;
     return true;
   }
-  if (session_id.empty()) return false;
+  if (!Drives()) return false;
   if (key == SDLK_HOME || key == SDLK_SPACE) {
     camera = home;
     SendCamera();
     return true;
   }
-  if (mods & (KMOD_CTRL | KMOD_ALT)) return false;
-  static const std::pair<SDL_Keycode, v1::NamedView> kViews[] = {
-      {SDLK_a, v1::ANTERIOR}, {SDLK_p, v1::POSTERIOR}, {SDLK_l, v1::LEFT},
-      {SDLK_r, v1::RIGHT},    {SDLK_s, v1::SUPERIOR},  {SDLK_i, v1::INFERIOR}};
+  if ((mods & (KMOD_CTRL | KMOD_ALT)) || !volume) return false;  // named views follow the volume's axes
+  static const std::pair<SDL_Keycode, v1::NamedView> kViews[] = {{SDLK_a, v1::ANTERIOR}, {SDLK_p, v1::POSTERIOR},
+                                                                 {SDLK_l, v1::LEFT},     {SDLK_r, v1::RIGHT},
+                                                                 {SDLK_s, v1::SUPERIOR}, {SDLK_i, v1::INFERIOR}};
   for (const auto& [k, view] : kViews) {
     if (k != key) continue;
     camera = NamedView(camera, view, volume->direction());
@@ -866,7 +908,7 @@ void App::RunScript() {
     // It starts with the first frame, or once the server has failed for a
     // second (its UI actions still run: a screenshot shows the message).
     const bool broken = Broken(connection->status().state) && Clock::now() - started_ > std::chrono::seconds(1);
-    if (!broken && (stats.last_frame_id == 0 || !volume)) return;
+    if (!broken && (stats.last_frame_id == 0 || (!volume && !Watching()))) return;
     steps_ = cli::ExpandOrbits(script_->steps, volume.value_or(v1::VolumeInfo{}));
     script_start_ = Clock::now();
   }
@@ -891,9 +933,9 @@ void App::RunScript() {
       continue;
     }
     const v1::SessionEvent& e = step.event;
-    if (!volume) continue;  // no session: events have nowhere to go
-    if (e.has_camera()) {  // kept here, so that the mouse goes on from it
-      camera = e.camera().view() != v1::NAMED_VIEW_UNSPECIFIED
+    if (!Drives()) continue;  // no session, or a viewer's: events have nowhere to go
+    if (e.has_camera()) {     // kept here, so that the mouse goes on from it
+      camera = e.camera().view() != v1::NAMED_VIEW_UNSPECIFIED && volume
                    ? NamedView(camera, e.camera().view(), volume->direction())
                    : FromProto(e.camera(), camera);
       SendCamera();
@@ -901,7 +943,7 @@ void App::RunScript() {
     }
     if (e.has_transfer_function()) {
       transfer = e.transfer_function();
-      if (transfer.points().empty()) {
+      if (transfer.points().empty() && volume) {
         ChoosePreset(transfer.preset().empty() ? volume->default_preset() : transfer.preset());
         continue;
       }
@@ -913,14 +955,15 @@ void App::RunScript() {
     if (e.has_stream()) stream.MergeFrom(e.stream());
     if (e.has_clipping()) clipping = e.clipping();
     if (e.has_labels()) labels = e.labels();
-    connection->Post(e);
+    Post(e);
   }
 }
 
 bool App::EventsAnswered() const {
   // A resized window is an event not sent yet (it waits for the window to
   // hold still), and the frame on screen is still of the old size.
-  if (camera_dirty_ || ResizePending() || stats.last_frame_id == 0 || pacs.busy > 0 || reading.busy > 0)
+  if (camera_dirty_ || ResizePending() || stats.last_frame_id == 0 || pacs.busy > 0 || reading.busy > 0 ||
+      sharing.busy > 0)
     return false;
   // idle() before last_sent(): once nothing waits to be sent, last_sent()
   // counts every event posted; read first, it could miss events sent meanwhile.
@@ -931,7 +974,10 @@ bool App::EventsAnswered() const {
 bool App::ScriptDone() {
   const LinkStatus status = connection->status();
   const bool broken = Broken(status.state);
-  if (finish_now_ || (broken && script_start_ && next_step_ >= steps_.size())) {
+  // A watch the server ended for good (a revoked or expired grant, the
+  // session's end) cannot come back: nothing later in the script can run.
+  const bool watch_over = Watching() && status.state == LinkState::kFailed && script_start_;
+  if (finish_now_ || watch_over || (broken && script_start_ && next_step_ >= steps_.size())) {
     if (broken && exit_code_ == 0) {
       exit_code_ = 3;
       std::fprintf(stderr, "cinevol-viewer: %s\n", status.message.c_str());
@@ -969,12 +1015,11 @@ void App::WriteScreenshot(const std::string& path) {
   const LinkStatus status = connection->status();
   std::string escaped;
   for (char c : status.message) escaped += (c == '"' || c == '\\') ? std::string("\\") + c : std::string(1, c);
-  std::ofstream(std::filesystem::path(path).replace_extension(".layout.json"))
-      << fmt::format("{{\"window\": [{}, {}], \"frame\": {}, \"panel\": {}, \"stats\": {}, \"frameId\": {}, "
-                     "\"frameSize\": [{}, {}], \"accumulatedSpp\": {}, \"state\": {}, \"message\": \"{}\"}}\n",
-                     w, h, rect(frame_area), rect(panel_area), panels.stats ? rect(stats_area) : "null",
-                     stats.last.frame_id(), stats.last.width(), stats.last.height(), stats.last.accumulated_spp(),
-                     int(status.state), escaped);
+  std::ofstream(std::filesystem::path(path).replace_extension(".layout.json")) << fmt::format(
+      "{{\"window\": [{}, {}], \"frame\": {}, \"panel\": {}, \"stats\": {}, \"frameId\": {}, "
+      "\"frameSize\": [{}, {}], \"accumulatedSpp\": {}, \"state\": {}, \"message\": \"{}\"}}\n",
+      w, h, rect(frame_area), rect(panel_area), panels.stats ? rect(stats_area) : "null", stats.last.frame_id(),
+      stats.last.width(), stats.last.height(), stats.last.accumulated_spp(), int(status.state), escaped);
 }
 
 }  // namespace cinevol::viewer

@@ -1,6 +1,7 @@
 // The viewer's state and UI thread: what the user sees and edits, kept in
 // step with the session through the Connection. viewer_app.cpp runs the
-// loop, input and scripts; panels.cpp draws the panels and overlay.
+// loop, input and scripts; panels.cpp draws the panels and overlay;
+// reading_tools.cpp and share_panel.cpp hold the reading and sharing tools.
 #pragma once
 
 #include <SDL.h>
@@ -22,6 +23,7 @@
 #include "viewer/camera_control.h"
 #include "viewer/connection.h"
 #include "viewer/reading_view.h"
+#include "viewer/sharing_view.h"
 #include "viewer/transfer_editor.h"
 #include "viewer/viewer.h"
 
@@ -50,8 +52,8 @@ struct Rect {
 
 // What the viewer measures, for the stats overlay and docs/performance.md.
 struct ViewerStats {
-  std::deque<Clock::time_point> displayed;  // frames shown in the last second
-  std::deque<double> latency_ms;            // event-to-frame, the last 200 events
+  std::deque<Clock::time_point> displayed;                      // frames shown in the last second
+  std::deque<double> latency_ms;                                // event-to-frame, the last 200 events
   std::deque<std::pair<Clock::time_point, std::size_t>> bytes;  // the last second
   std::uint64_t last_frame_id = 0, dropped = 0;
   double decode_ms = 0, upload_ms = 0, draw_ms = 0;  // the viewer's own cost, last frame
@@ -59,7 +61,7 @@ struct ViewerStats {
   // only when a script runs: a viewer left open would grow them for ever).
   std::vector<double> all_decode_ms, all_ui_ms, all_latency_ms;  // ui: upload and draw on the UI thread
   std::size_t all_bytes = 0;
-  v1::Frame last;               // the newest frame's header
+  v1::Frame last;                // the newest frame's header
   Clock::time_point last_shown;  // when it arrived
 
   double Fps() const;
@@ -70,7 +72,7 @@ struct ViewerStats {
 // Panels the user can open and close.
 struct PanelsOpen {
   bool volume = true, pacs = false, transfer_function = true, lights = false, render = false, clipping = false,
-       labels = false, scene = false, reading = true;
+       labels = false, scene = false, reading = true, share = false;
   bool stats = true;  // the overlay
 };
 
@@ -109,18 +111,44 @@ struct SlicePane {
 
 // The reading tools: picks, the crosshair, the 2x2 slices, measurements.
 struct ReadingState {
-  bool grid = false;                 // the 3D view and three slices (F3)
-  bool identity = true;              // a DICOM volume's patient and study in the 3D view's corners (F4)
-  std::optional<Vec3f> crosshair;    // LPS mm
-  std::optional<v1::PickResult> pick;  // the last pick's answer
-  std::string pick_text;             // and in words (or why it failed)
-  int points_wanted = 0;             // the measurement being made: 2 distance, 3 angle, 0 none
-  std::vector<Vec3f> points;         // its points so far
+  bool grid = false;                          // the 3D view and three slices (F3)
+  bool identity = true;                       // a DICOM volume's patient and study in the 3D view's corners (F4)
+  std::optional<Vec3f> crosshair;             // LPS mm
+  std::optional<v1::PickResult> pick;         // the last pick's answer
+  std::string pick_text;                      // and in words (or why it failed)
+  int points_wanted = 0;                      // the measurement being made: 2 distance, 3 angle, 0 none
+  std::vector<Vec3f> points;                  // its points so far
   std::vector<v1::Measurement> measurements;  // LPS mm, saved with the scene
-  std::optional<float> window, level;  // the slices' window/level once dragged; else the server's default
+  std::optional<float> window, level;         // the slices' window/level once dragged; else the server's default
   std::array<SlicePane, 3> panes{SlicePane{v1::AXIAL}, SlicePane{v1::CORONAL}, SlicePane{v1::SAGITTAL}};
-  int busy = 0;  // picks and slices under way (a script's settle waits for them)
+  int busy = 0;                  // picks and slices under way (a script's settle waits for them)
   std::uint64_t generation = 0;  // bumped when the connection closes: older answers come to nothing
+};
+
+// Sharing (docs/viewer.md, "Sharing"): the owner's Share panel, and what
+// everyone sees of a shared session.
+struct ShareForm {
+  bool link = true;  // a link; else a grant for `principal`
+  std::string principal;
+  bool presenter = false;  // the role: presenter, else viewer
+  int expiry = 2;          // index into the panel's choices (2 hours)
+  bool allow_pointer = false;
+};
+
+struct SharingState {
+  ShareForm form;                 // the Share panel's
+  std::optional<v1::Grant> made;  // the newest grant made here: its secret shows until hidden
+  std::vector<v1::Grant> grants;  // ListShares' answer
+  std::string status;             // the panel's status line
+  bool failed = false;            // it says what went wrong
+  int busy = 0;                   // calls under way (a script's settle waits for them)
+  std::uint64_t generation = 0;   // bumped when the session changes: older answers come to nothing
+  // The session as shared.
+  std::optional<v1::SessionState> state;  // the newest: presenter, viewers, pointers
+  std::string me;                         // this viewer's name as the server writes it ("": not known yet)
+  std::string reported;                   // the last "sharing" line a script was told (it hears of changes only)
+  PointerShare pointer;                   // this viewer's pointer over the 3D view
+  bool pointer_refused = false;           // the grant does not share it (until the presenter changes)
 };
 
 class App {
@@ -133,30 +161,31 @@ class App {
   ViewerOptions options;
   std::unique_ptr<cli::LocalServer> local_server;
   std::unique_ptr<Connection> connection;
-  std::string session_id;           // of the session the state below belongs to
+  std::string session_id;  // of the session the state below belongs to
   std::optional<v1::VolumeInfo> volume;
-  ViewCamera camera, home;          // home: where the session started (reset)
-  v1::TransferFunction transfer;    // always explicit points in data units
+  ViewCamera camera, home;        // home: where the session started (reset)
+  v1::TransferFunction transfer;  // always explicit points in data units
   TransferEditorState editor;
   v1::LightList lights;
-  v1::RenderSettings render;        // spp per frame, bounces
-  v1::StreamSettings stream;        // denoiser, JPEG quality, target spp
-  v1::Clipping clipping;            // the crop box and clip planes (patient mm)
-  v1::Labels labels;                // the segmentation's label styles
+  v1::RenderSettings render;  // spp per frame, bounces
+  v1::StreamSettings stream;  // denoiser, JPEG quality, target spp
+  v1::Clipping clipping;      // the crop box and clip planes (patient mm)
+  v1::Labels labels;          // the segmentation's label styles
   PanelsOpen panels;
   ViewerStats stats;
-  std::string notice;               // the last message for people (a result or an error)
+  std::string notice;  // the last message for people (a result or an error)
   // Text fields of the panels.
   std::string load_path, upload_path, scene_path = "view.json", snapshot_path = "snapshot.png";
   int snapshot_spp = 256;
   std::vector<v1::VolumeInfo> server_volumes;
   PacsBrowser pacs;
   ReadingState reading;
+  SharingState sharing;
 
-  Rect frame_area, panel_area, stats_area;
+  Rect frame_area, panel_area, stats_area, banner_area;  // banner_area: the line over a shared view (empty: none)
 
   // --- actions, shared by the panels, the mouse and keys, and scripts ----
-  void SendCamera();                // at most once per displayed frame
+  void SendCamera();  // at most once per displayed frame
   void SendTransferFunction();
   void SendLights();
   void SendRender();
@@ -175,17 +204,29 @@ class App {
   void SelectStudy(const std::string& pacs_name, const std::string& study_uid);
   void OpenSeries(const v1::LoadSeriesRequest& request);
   // The reading tools (reading_tools.cpp). Window positions are logical pixels.
-  void PickAt(float x, float y);        // what lies under that point of the 3D view
-  void SetCrosshair(Vec3f lps);         // and the slices through it
-  void ToggleGrid();                    // the 2x2 layout and back
-  void StepSlice(int pane, float steps);  // by voxels along the pane's axis
-  void SliceWindowLevel(float dx, float dy);  // a drag on a slice
+  void PickAt(float x, float y);                // what lies under that point of the 3D view
+  void SetCrosshair(Vec3f lps);                 // and the slices through it
+  void ToggleGrid();                            // the 2x2 layout and back
+  void StepSlice(int pane, float steps);        // by voxels along the pane's axis
+  void SliceWindowLevel(float dx, float dy);    // a drag on a slice
   void ClickSlice(int pane, float x, float y);  // crosshair (and measurement point) at that pixel
-  void StartMeasurement(int points);    // kDistancePoints or kAnglePoints
+  void StartMeasurement(int points);            // kDistancePoints or kAnglePoints
   void DeleteMeasurement(int index);
-  Rect ShownFrame() const;              // where the 3D frame is drawn (empty before one)
+  Rect ShownFrame() const;                       // where the 3D frame is drawn (empty before one)
   Rect ShownSlice(const SlicePane& pane) const;  // where a pane's slice is drawn
-  int SliceAt(float x, float y) const;  // the pane there, or -1
+  int SliceAt(float x, float y) const;           // the pane there, or -1
+  // Sharing (share_panel.cpp), the owner's calls on the connection's quick
+  // lane; their answers land in `sharing` (and, in a script run, on stdout).
+  void Share(v1::ShareSessionRequest request);
+  void ListShares();
+  void Revoke(const std::string& grant_id);
+  // Makes a grant the presenter; "": back to the owner (by a presenter's grant: gives the role back).
+  void HandOver(const std::string& grant_id);
+  bool Watching() const { return !options.grant.empty(); }  // another's session, by a grant
+  bool Presents() const;  // this viewer is the presenter (the owner also while nobody else is)
+  bool Drives() const;    // its events go to the session now: its own session, or presenting by a grant
+  // The mouse over the 3D view, in fractions of the frame; nullopt: it left.
+  void PointAt(std::optional<PointerShare::At> at);
   // Runs on the UI thread at the next frame (for results from the worker).
   void Later(std::function<void()> f);
 
@@ -198,7 +239,18 @@ class App {
   // SDL's video; throws InputError (exit 2) where there is no display.
   void OpenDisplay();
   void Connect();
-  void AdoptSession();            // a new session: take its scene, or restore ours onto it
+  void AdoptSession();                     // a new session: take its scene, or restore ours onto it
+  void ShowScene(const v1::Scene& scene);  // the panels and camera show it
+  void Post(v1::SessionEvent event);       // to the session, while this viewer drives
+  // Sharing (share_panel.cpp): the newest state (a session another drives is
+  // followed), this viewer's pointer, the calls and their answers.
+  void FollowSharing();
+  void ReportSharing();
+  void SharePointer();
+  void LearnOwnName();
+  void SharingCall(const std::string& action, std::function<std::function<void()>(Client&)> call);
+  void Shared(const v1::Grant& grant);
+  void SharingFailed(const std::string& action, grpc::StatusCode code, const std::string& message);
   void PumpSdlEvents();
   bool TakeFrame();  // true when a new frame arrived
   void PrintSummary() const;
@@ -259,8 +311,8 @@ class App {
   std::size_t next_step_ = 0;
   std::optional<Clock::time_point> script_start_, settled_since_;
   Clock::time_point last_script_tick_;
-  bool finish_now_ = false;  // quit action or out of time: screenshot and stop
-  bool settling_ = false;    // a "settle" action waits for the frame of every event sent
+  bool finish_now_ = false;               // quit action or out of time: screenshot and stop
+  bool settling_ = false;                 // a "settle" action waits for the frame of every event sent
   std::vector<std::string> screenshots_;  // to write once this frame is drawn
   Clock::time_point started_ = Clock::now();
 
@@ -270,11 +322,16 @@ class App {
 };
 
 // panels.cpp
+void Hint(const char* text);  // grey help text, wrapped to the panel
 void DrawPanels(App& app);
 void DrawStatsOverlay(App& app);
 void DrawStatusBanner(App& app, const LinkStatus& status);
 // reading_tools.cpp
 void ReadingPanel(App& app);
 void DrawReadingOverlay(App& app);  // measurements, crosshair, orientation marker, slice letters
+// share_panel.cpp
+void SharePanel(App& app);          // the owner's: share, the grants, hand over, take back
+void WatchingPanel(App& app);       // a grant holder's: who presents, give the role back
+void DrawSharingOverlay(App& app);  // the line over the view and everyone else's pointers
 
 }  // namespace cinevol::viewer

@@ -2,6 +2,7 @@
 // server on loopback, driven by session scripts with UI actions; the tests
 // read its screenshots (and the layout file written beside each: where the
 // frame, the panels and the stats overlay are).
+#include <fmt/format.h>
 #include <google/protobuf/struct.pb.h>
 #include <google/protobuf/util/json_util.h>
 #include <gtest/gtest.h>
@@ -12,14 +13,13 @@
 #include <random>
 #include <set>
 
-#include <fmt/format.h>
-
 #include "encode/image_codecs.h"
 #include "pacs/orthanc_process.h"
 #include "pacs/stamped_series.h"
 #include "scene/scene_file.h"
 #include "service/server_process.h"
 #include "service/service_test_support.h"
+#include "sharing_calls.h"
 #include "support/test_paths.h"
 
 namespace cinevol::testing {
@@ -33,8 +33,8 @@ constexpr const char* kViewer = CINEVOL_VIEWER_PATH;
 constexpr const char* kViewer = "";
 #endif
 
-#define CINEVOL_REQUIRE_VIEWER()                                                                  \
-  do {                                                                                            \
+#define CINEVOL_REQUIRE_VIEWER()                                                                          \
+  do {                                                                                                    \
     if (!fs::exists(kViewer)) GTEST_SKIP() << "cinevol-viewer was not built (libsdl2-dev, libimgui-dev)"; \
     if (std::system("command -v xvfb-run > /dev/null") != 0) GTEST_SKIP() << "xvfb-run not found (xvfb)"; \
   } while (0)
@@ -55,8 +55,12 @@ std::vector<std::string> XvfbRunArgs(const std::vector<std::string>& viewer_args
     if (!fs::exists(fmt::format("/tmp/.X{}-lock", display)) && !fs::exists(fmt::format("/tmp/.X11-unix/X{}", display)))
       break;
   }
-  std::vector<std::string> all{"-n", std::to_string(display), "-s", "-screen 0 1024x768x24", "timeout", "90", kViewer,
-                               "--width", "640", "--height", "400"};
+  std::vector<std::string> all{"-n",      std::to_string(display),
+                               "-s",      "-screen 0 1024x768x24",
+                               "timeout", "90",
+                               kViewer,   "--width",
+                               "640",     "--height",
+                               "400"};
   all.insert(all.end(), viewer_args.begin(), viewer_args.end());
   return all;
 }
@@ -187,8 +191,8 @@ TEST(Viewer, ShowsTheVolumeStatsAndPanelsAndFollowsEdits) {
 )",
                               a.string(), b.string(), edited_png.string(), scene.string(), still.string(),
                               cut_scene.string(), cut_png.string(), saved_cut.string()));
-  const ViewerRun run = RunViewer(scratch.path(), {"--server", server.address(), "--script", script.string(),
-                                             "--screenshot", c.string()});
+  const ViewerRun run = RunViewer(
+      scratch.path(), {"--server", server.address(), "--script", script.string(), "--screenshot", c.string()});
   ASSERT_EQ(run.exit_code, 0) << run.output;
 
   // a, b and the edit share one window size (the resize comes last).
@@ -243,8 +247,8 @@ TEST(Viewer, AScreenshotPrecedesLaterLinesAndTheEndWaitsForTheResizedFrame) {
 {{"at": 0, "ui": {{"resizeWindow": {{"width": 700, "height": 420}}}}}}
 )",
                                                                before.string()));
-  const ViewerRun run = RunViewer(scratch.path(), {"--server", server.address(), "--script", script.string(),
-                                                   "--screenshot", last.string()});
+  const ViewerRun run = RunViewer(
+      scratch.path(), {"--server", server.address(), "--script", script.string(), "--screenshot", last.string()});
   ASSERT_EQ(run.exit_code, 0) << run.output;
 
   auto window_width = [](const google::protobuf::Struct& layout) {
@@ -270,9 +274,10 @@ TEST(Viewer, ASessionLostWithItsServerIsReplacedWithTheViewersState) {
 {{"at": 0, "ui": {{"screenshot": "{}"}}}}
 {{"at": 0.2, "ui": {{"preset": "ct-soft-tissue"}}}}
 {{"at": 12, "ui": {{"key": "p"}}}}
-)", first.string()));
-  const auto args = XvfbRunArgs({"--server", server->address(), "--script", script.string(), "--screenshot",
-                                  last.string()});
+)",
+                                                                                    first.string()));
+  const auto args =
+      XvfbRunArgs({"--server", server->address(), "--script", script.string(), "--screenshot", last.string()});
   const pid_t viewer = Spawn("/usr/bin/xvfb-run", args, scratch.path() / "viewer.log");
   ASSERT_GT(viewer, 0);
   // Once the first frame is on screen, the server dies and another takes its port.
@@ -446,7 +451,8 @@ TEST(Viewer, APacsSeriesIsFoundListedAndOpenedFromItsPanel) {
 {{"at": 0, "ui": {{"settle": true}}}}
 {{"at": 0, "ui": {{"screenshot": "{3}"}}}}
 {{"at": 4, "ui": {{"settle": true}}}}
-)", ct.patient_id, ct.study_uid, ct.series_uid, shot.string()));
+)",
+                                                  ct.patient_id, ct.study_uid, ct.series_uid, shot.string()));
   const auto args = XvfbRunArgs({"--server", server.address(), "--script", script.string(), "--max-seconds", "80"});
   const pid_t viewer = Spawn("/usr/bin/xvfb-run", args, scratch.path() / "viewer.log");
   ASSERT_GT(viewer, 0);
@@ -503,7 +509,8 @@ TEST(Viewer, PicksShowsSlicesInTwoByTwoAndMeasures) {
   const fs::path grid = scratch.path() / "grid.png", scene = scratch.path() / "measured.json",
                  deleted = scratch.path() / "deleted.json", reopened = scratch.path() / "reopened.json";
   const fs::path script =
-      WriteScript(scratch.path() / "reading.jsonl", fmt::format(R"({{"session": {{"stream": {{"targetSpp": 4}}}}}}
+      WriteScript(scratch.path() / "reading.jsonl",
+                  fmt::format(R"({{"session": {{"stream": {{"targetSpp": 4}}}}}}
 {{"at": 0, "ui": {{"settle": true}}}}
 {{"at": 0, "ui": {{"layout2x2": true}}}}
 {{"at": 0.1, "ui": {{"settle": true}}}}
@@ -519,8 +526,7 @@ TEST(Viewer, PicksShowsSlicesInTwoByTwoAndMeasures) {
 {{"at": 0.4, "ui": {{"openScene": "{}"}}}}
 {{"at": 0.4, "ui": {{"saveScene": "{}"}}}}
 )",
-                                                                scene.string(), grid.string(), deleted.string(),
-                                                                scene.string(), reopened.string()));
+                              scene.string(), grid.string(), deleted.string(), scene.string(), reopened.string()));
   const ViewerRun run = RunViewer(scratch.path(), {"--server", server.address(), "--script", script.string()});
   ASSERT_EQ(run.exit_code, 0) << run.output;
 
@@ -549,6 +555,256 @@ TEST(Viewer, PicksShowsSlicesInTwoByTwoAndMeasures) {
   const Region frame = RegionOf(layout, "frame");
   const Region axial{frame.x + frame.w, frame.y, frame.w, frame.h};
   EXPECT_GT(Luminance(ReadPng(grid), axial).second, 10) << "the axial pane is blank";
+}
+
+// ------------------------------------------------------------ sharing
+
+std::string ReadText(const fs::path& file) {
+  std::ifstream in(file);
+  return {std::istreambuf_iterator<char>(in), {}};
+}
+
+// A viewer run in the background, for tests that act while it runs.
+class BackgroundViewer {
+ public:
+  BackgroundViewer(const fs::path& scratch, const std::vector<std::string>& args)
+      : log_(scratch / "viewer.log"), pid_(Spawn("/usr/bin/xvfb-run", XvfbRunArgs(args), log_)) {}
+  ~BackgroundViewer() {
+    if (pid_ > 0 && status_ == -1) kill(pid_, SIGTERM);  // a failed test; the viewer's own timeout ends it too
+  }
+  bool started() const { return pid_ > 0; }
+  // What it printed, up to its last whole line.
+  std::string Output() const {
+    const std::string text = ReadText(log_);
+    return text.substr(0, text.rfind('\n') + 1);
+  }
+  // Whether it exited within `within`.
+  bool Wait(std::chrono::milliseconds within) {
+    if (status_ == -1) status_ = WaitExit(pid_, within);
+    return status_ != -1;
+  }
+  int exit_code() const { return status_ != -1 && WIFEXITED(status_) ? WEXITSTATUS(status_) : -1; }
+  // Its first "cinevol-viewer: ACTION {...}" line, waiting up to `within` while it runs.
+  std::optional<google::protobuf::Struct> AwaitReport(const std::string& action, std::chrono::seconds within) {
+    const auto end = std::chrono::steady_clock::now() + within;
+    for (;;) {
+      if (const auto lines = Reported(Output(), action); !lines.empty()) return lines.front();
+      if (Wait(std::chrono::milliseconds(100)) || std::chrono::steady_clock::now() > end) return std::nullopt;
+    }
+  }
+
+ private:
+  fs::path log_;
+  pid_t pid_;
+  int status_ = -1;
+};
+
+// The watch's messages until one meets `want`; false once the call ended or `within` passed.
+bool WatchUntil(SessionWatch& watch, const std::function<bool(const v1::ServerMessage&)>& want,
+                std::chrono::seconds within) {
+  const auto end = std::chrono::steady_clock::now() + within;
+  while (std::chrono::steady_clock::now() < end) {
+    const auto message = watch.Next(std::chrono::milliseconds(200));
+    if (message && want(*message)) return true;
+    if (!message && watch.ended()) return false;
+  }
+  return false;
+}
+
+std::function<bool(const v1::ServerMessage&)> PresenterIs(const std::string& who, bool is = true) {
+  return [=](const v1::ServerMessage& m) { return m.has_state() && (m.state().presenter() == who) == is; };
+}
+
+v1::SessionEvent PointerEvent(float x, float y) {
+  v1::SessionEvent e;
+  e.mutable_pointer()->set_x(x);
+  e.mutable_pointer()->set_y(y);
+  return e;
+}
+
+// A session of the test's own, streaming, shared as a link viewer whose pointer is shown.
+struct SharedSession {
+  explicit SharedSession(ServerProcess& server) : owner(server.Connect()) {
+    v1::CreateSessionRequest request = SmallSession("ct-bone", 96, 64);
+    request.mutable_stream()->set_target_spp(4);
+    created = owner.CreateSession(request);
+    stream = owner.Attach(created.session_id());
+    v1::ShareSessionRequest share;
+    share.set_session_id(created.session_id());
+    share.set_role(v1::VIEWER);
+    share.set_allow_pointer(true);
+    grant = owner.Share(share);
+  }
+  Client owner;
+  v1::CreateSessionResponse created;
+  std::unique_ptr<SessionStream> stream;
+  v1::Grant grant;
+};
+
+// The owner's Share panel, scripted: it shares a link; a watcher holding the
+// secret it reports (the client library, no token) gets frames and shows its
+// pointer; the owner hands it the presenter's role, it drives, and the owner
+// takes the role back. The viewer hears of each step.
+TEST(Viewer, SharesALinkThatIsWatchedAndHandsThePresentersRoleOverAndBack) {
+  CINEVOL_REQUIRE_VIEWER();
+  ScratchDir scratch;
+  ServerProcess server(scratch.path());
+  ASSERT_TRUE(server.running()) << server.Log();
+  const fs::path presented = scratch.path() / "presented.png";
+  const fs::path script =
+      WriteScript(scratch.path() / "share.jsonl", fmt::format(R"({{"session": {{"stream": {{"targetSpp": 2}}}}}}
+{{"at": 0, "ui": {{"settle": true}}}}
+{{"at": 0, "ui": {{"share": {{"link": true, "role": "viewer", "allowPointer": true}}}}}}
+{{"at": 0, "ui": {{"settle": true}}}}
+{{"at": 6, "ui": {{"handover": {{"grant": "last"}}}}}}
+{{"at": 6, "ui": {{"settle": true}}}}
+{{"at": 14, "ui": {{"screenshot": "{}"}}}}
+{{"at": 14, "ui": {{"handover": {{"grant": ""}}}}}}
+{{"at": 14, "ui": {{"settle": true}}}}
+)",
+                                                              presented.string()));
+  BackgroundViewer viewer(scratch.path(), {"--server", server.address(), "--script", script.string()});
+  ASSERT_TRUE(viewer.started());
+  const auto shared = viewer.AwaitReport("share", std::chrono::seconds(60));
+  ASSERT_TRUE(shared) << viewer.Output();
+  const std::string id = TextField(*shared, "id"), secret = TextField(*shared, "secret"), link = "link " + id;
+  ASSERT_EQ(secret.rfind("cvg_" + id + "_", 0), 0u) << secret;
+
+  SessionWatch watch(grpc::CreateChannel(server.address(), grpc::InsecureChannelCredentials()), secret, "");
+  EXPECT_TRUE(WatchUntil(
+      watch, [](const v1::ServerMessage& m) { return m.has_frame(); }, std::chrono::seconds(60)))
+      << watch.status().error_message();
+  EXPECT_NO_THROW(watch.Send({PointerEvent(0.25f, 0.75f)})) << "the link was shared with its pointer";
+  v1::SessionEvent left;
+  left.mutable_camera()->set_view(v1::LEFT);
+  ExpectRpcError([&] { watch.Send({left}); }, grpc::StatusCode::PERMISSION_DENIED, "viewer's");
+  ASSERT_TRUE(WatchUntil(watch, PresenterIs(link), std::chrono::seconds(60))) << "no hand-over: " << viewer.Output();
+  EXPECT_NO_THROW(watch.Send({left})) << "the presenter drives";
+  EXPECT_TRUE(WatchUntil(watch, PresenterIs(link, false), std::chrono::seconds(60)))
+      << "the owner did not take it back";
+  ExpectRpcError([&] { watch.Send({left}); }, grpc::StatusCode::PERMISSION_DENIED, "viewer's");
+  watch.Cancel();
+  ASSERT_TRUE(viewer.Wait(std::chrono::seconds(100))) << viewer.Output();
+  const std::string output = viewer.Output();
+  EXPECT_EQ(viewer.exit_code(), 0) << output;
+
+  // It heard of its watcher, of the watcher's pointer and of the presenter it made.
+  bool watched = false, pointed = false, presenting = false;
+  for (const auto& line : Reported(output, "sharing")) {
+    watched |= line.fields().at("viewers").number_value() == 1;
+    for (const auto& who : line.fields().at("pointers").list_value().values()) pointed |= who.string_value() == link;
+    presenting |= TextField(line, "banner") == link + " presents · 1 viewer (Share: Take back)";
+  }
+  EXPECT_TRUE(watched) << output;
+  EXPECT_TRUE(pointed) << output;
+  EXPECT_TRUE(presenting) << output;
+  const auto handovers = Reported(output, "handover");
+  ASSERT_EQ(handovers.size(), 2u) << output;
+  EXPECT_EQ(TextField(handovers[0], "presenter"), link);
+  EXPECT_EQ(TextField(handovers[1], "presenter"), "anonymous");
+  const google::protobuf::Struct layout = ReadLayout(presented);
+  EXPECT_EQ(layout.fields().at("state").number_value(), 1) << TextField(layout, "message");
+  EXPECT_GT(layout.fields().at("frameId").number_value(), 0);
+}
+
+// A viewer started with --grant watches a session the test made and shared:
+// its frames at the session's size under "Watching <owner>"; its pointer
+// reaches the owner; its drag, wheel, key and preset change nothing there.
+TEST(Viewer, WatchesASharedSessionByItsGrantAndCannotDriveIt) {
+  CINEVOL_REQUIRE_VIEWER();
+  ScratchDir scratch;
+  ServerProcess server(scratch.path());
+  ASSERT_TRUE(server.running()) << server.Log();
+  SharedSession session(server);
+  ASSERT_TRUE(WaitFinal(*session.stream)) << session.stream->status().error_message();
+  const v1::SessionState before = session.stream->state().value_or(v1::SessionState{});
+  const std::string link = "link " + session.grant.id();
+  const fs::path shot = scratch.path() / "watching.png";
+  const fs::path script = WriteScript(scratch.path() / "watch.jsonl", fmt::format(R"({{"session": {{}}}}
+{{"at": 0, "ui": {{"settle": true}}}}
+{{"at": 0, "ui": {{"drag": {{"button": "left", "dx": 150, "dy": 40}}}}}}
+{{"at": 0, "ui": {{"wheel": 3}}}}
+{{"at": 0, "ui": {{"key": "l"}}}}
+{{"at": 0, "ui": {{"preset": "ct-soft-tissue"}}}}
+{{"at": 0, "ui": {{"pointer": {{"x": 0.25, "y": 0.75}}}}}}
+{{"at": 1, "ui": {{"settle": true}}}}
+{{"at": 1, "ui": {{"screenshot": "{}"}}}}
+)",
+                                                                                  shot.string()));
+  BackgroundViewer viewer(scratch.path(), {"--server", server.address(), "--grant", session.grant.secret(), "--script",
+                                           script.string(), "--max-seconds", "40"});
+  ASSERT_TRUE(viewer.started());
+  // Meanwhile the owner reads its stream: the states say what the session is and who points.
+  std::optional<v1::SharedPointer> pointer;
+  auto read_states = [&] {
+    while (const auto m = session.stream->Next(std::chrono::milliseconds(0))) {
+      if (!m->has_state()) continue;
+      for (const v1::SharedPointer& p : m->state().pointers()) {
+        if (p.who() == link) pointer = p;
+      }
+    }
+  };
+  while (!viewer.Wait(std::chrono::milliseconds(50))) read_states();
+  read_states();
+  const std::string output = viewer.Output();
+  EXPECT_EQ(viewer.exit_code(), 0) << output;
+
+  const auto lines = Reported(output, "sharing");
+  ASSERT_FALSE(lines.empty()) << output;
+  EXPECT_EQ(TextField(lines.back(), "presenter"), "anonymous") << output;
+  EXPECT_EQ(TextField(lines.back(), "banner"), "Watching anonymous · 1 viewer") << output;
+  EXPECT_FALSE(lines.back().fields().at("drives").bool_value()) << output;
+  ASSERT_TRUE(pointer) << "the viewer's pointer did not reach the owner: " << output;
+  EXPECT_FLOAT_EQ(pointer->x(), 0.25f);
+  EXPECT_FLOAT_EQ(pointer->y(), 0.75f);
+  const v1::SessionState after = session.stream->state().value_or(v1::SessionState{});
+  EXPECT_EQ(after.last_event_seq(), before.last_event_seq()) << "an event of the viewer's was applied";
+  EXPECT_EQ(after.scene().camera().DebugString(), before.scene().camera().DebugString());
+  EXPECT_EQ(after.scene().transfer_function().DebugString(), before.scene().transfer_function().DebugString());
+  EXPECT_EQ(output.find(session.grant.secret()), std::string::npos) << "the secret is never printed";
+  // Its screenshot: the session's frame at the session's own size, fitted into the view.
+  const google::protobuf::Struct layout = ReadLayout(shot);
+  EXPECT_EQ(layout.fields().at("state").number_value(), 1) << TextField(layout, "message");
+  EXPECT_GT(layout.fields().at("frameId").number_value(), 0);
+  const auto& size = layout.fields().at("frameSize").list_value().values();
+  EXPECT_EQ(size[0].number_value(), 96);
+  EXPECT_EQ(size[1].number_value(), 64);
+  EXPECT_GT(Luminance(ReadPng(shot), RegionOf(layout, "frame")).second, 10) << "no frame shown";
+}
+
+// Revoking the grant ends the watching viewer at once, with the server's
+// words in its banner and on stderr (exit 3).
+TEST(Viewer, ARevokedGrantEndsTheWatchWithTheServersWords) {
+  CINEVOL_REQUIRE_VIEWER();
+  ScratchDir scratch;
+  ServerProcess server(scratch.path());
+  ASSERT_TRUE(server.running()) << server.Log();
+  SharedSession session(server);
+  const fs::path watching = scratch.path() / "watching.png", last = scratch.path() / "last.png";
+  const fs::path script = WriteScript(scratch.path() / "revoked.jsonl", fmt::format(R"({{"session": {{}}}}
+{{"at": 0, "ui": {{"settle": true}}}}
+{{"at": 0, "ui": {{"screenshot": "{}"}}}}
+{{"at": 60, "ui": {{"quit": true}}}}
+)",
+                                                                                    watching.string()));
+  BackgroundViewer viewer(scratch.path(), {"--server", server.address(), "--grant", session.grant.secret(), "--script",
+                                           script.string(), "--screenshot", last.string()});
+  ASSERT_TRUE(viewer.started());
+  const fs::path shown = fs::path(watching).replace_extension(".layout.json");
+  for (int i = 0; i < 600 && !fs::exists(shown) && !viewer.Wait(std::chrono::milliseconds(100)); ++i) {
+  }
+  ASSERT_TRUE(fs::exists(shown)) << "it never showed the session: " << viewer.Output();
+  const auto revoked = std::chrono::steady_clock::now();
+  EXPECT_EQ(session.owner.RevokeShare(session.created.session_id(), session.grant.id()), 1u);
+  ASSERT_TRUE(viewer.Wait(std::chrono::seconds(60))) << viewer.Output();
+  EXPECT_LT(std::chrono::steady_clock::now() - revoked, std::chrono::seconds(20)) << "it did not end at once";
+  const std::string output = viewer.Output(), said = fmt::format("grant {} was revoked", session.grant.id());
+  EXPECT_EQ(viewer.exit_code(), 3) << output;
+  EXPECT_NE(output.find(said), std::string::npos) << output;
+  const google::protobuf::Struct layout = ReadLayout(last);
+  EXPECT_EQ(layout.fields().at("state").number_value(), 3) << TextField(layout, "message");
+  EXPECT_NE(TextField(layout, "message").find(said), std::string::npos) << TextField(layout, "message");
+  EXPECT_GT(Luminance(ReadPng(last), RegionOf(layout, "frame")).second, 5) << "no banner drawn";
 }
 
 }  // namespace
