@@ -267,8 +267,8 @@ bool Connection::SendPending() {
     const std::uint64_t seq = stream_->Send(event);
     lock.lock();
     --sending_;
-    if (seq == 0) return false;         // the stream ended or is reconnecting: the event is dropped
-    if (event.has_pointer()) continue;  // no frame answers a pointer
+    if (seq == 0) return false;  // the stream ended or is reconnecting: the event is dropped
+    if (event.has_pointer() || event.has_measurements()) continue;  // no frame answers these: they change no picture
     sent_at_[seq] = Clock::now();
     last_sent_ = seq;
     while (sent_at_.size() > 4096) sent_at_.erase(sent_at_.begin());

@@ -252,6 +252,7 @@ void App::AddMeasurementPoint(Vec3f lps) {
   reading.measurements.push_back(m);
   reading.points_wanted = 0;
   reading.points.clear();
+  SendMeasurements();
   notice = fmt::format("{}: {}", m.name(), MeasurementText(m));
   google::protobuf::Struct report;
   (*report.mutable_fields())["name"] = TextValue(m.name());
@@ -262,7 +263,15 @@ void App::AddMeasurementPoint(Vec3f lps) {
 void App::DeleteMeasurement(int index) {
   if (index >= 0 && index < int(reading.measurements.size())) {
     reading.measurements.erase(reading.measurements.begin() + index);
+    SendMeasurements();
   }
+}
+
+void App::SendMeasurements() {
+  v1::SessionEvent e;
+  v1::MeasurementList& list = *e.mutable_measurements();  // set even when empty: the last one deleted
+  for (const v1::Measurement& m : reading.measurements) *list.add_measurements() = m;
+  Post(std::move(e));  // into the session's scene: everyone watching sees them (docs/sharing.md)
 }
 
 // ----------------------------------------------------------------- panel

@@ -93,6 +93,10 @@ void App::FollowSharing() {
   // holder starts from it, and goes on from it once it presents).
   if (!Presents() || (first && Watching())) {
     ShowScene(sharing.state->scene());
+    if (Watching()) {  // a watcher shows the session's measurements, and has none of its own
+      const auto& shared = sharing.state->scene().measurements();
+      reading.measurements.assign(shared.begin(), shared.end());
+    }
     stream = sharing.state->stream();
     if (first && Watching()) home = camera;  // Home goes back to where it joined
   }

@@ -212,6 +212,8 @@ class App {
   void ClickSlice(int pane, float x, float y);  // crosshair (and measurement point) at that pixel
   void StartMeasurement(int points);            // kDistancePoints or kAnglePoints
   void DeleteMeasurement(int index);
+  // The measurements into the session's scene (a measurements event), for everyone watching.
+  void SendMeasurements();
   Rect ShownFrame() const;                       // where the 3D frame is drawn (empty before one)
   Rect ShownSlice(const SlicePane& pane) const;  // where a pane's slice is drawn
   int SliceAt(float x, float y) const;           // the pane there, or -1

@@ -109,12 +109,12 @@ void Session::Attach(FrameStream* stream) {
   Wake();
 }
 
-void Session::AttachWatcher(FrameStream* stream, const std::string& grant_id) {
-  AddWatcher(stream, grant_id);
+void Session::AttachWatcher(FrameStream* stream, const std::string& grant_id, const std::string& holder) {
+  AddWatcher(stream, grant_id, holder);
   Wake();
 }
 
-void Session::AddWatcher(FrameStream* stream, const std::string& grant_id) {
+void Session::AddWatcher(FrameStream* stream, const std::string& grant_id, const std::string& holder) {
   std::lock_guard lock(mu_);
   if (state_ == State::kEnded) throw RpcError(grpc::StatusCode::NOT_FOUND, fmt::format("session '{}' has ended", id_));
   if (int(watchers_.size()) >= context_.limits->max_viewers_per_session) {
@@ -122,7 +122,7 @@ void Session::AddWatcher(FrameStream* stream, const std::string& grant_id) {
                         fmt::format("session '{}' has {} viewers, this server's limit (--max-viewers-per-session)", id_,
                                     watchers_.size()));
   }
-  watchers_.push_back({stream, grant_id});
+  watchers_.push_back({stream, grant_id, holder});
   current_.set_viewers(std::uint32_t(watchers_.size()));
   stream->SendNotice(v1::Notice::INFO, fmt::format("watching session '{}' on {}", id_, context_.scheduler->name()));
   SendStateLocked();  // everyone learns the count; the newcomer the scene
@@ -171,11 +171,15 @@ void Session::PointLocked(const std::string& who, const v1::Pointer& pointer, Cl
   it->second.shown.set_who(who);
   it->second.shown.set_x(pointer.x());
   it->second.shown.set_y(pointer.y());
+  ShowPointersLocked();
+  SendStateLocked();
+}
+
+void Session::ShowPointersLocked() {
   current_.clear_pointers();
   for (const auto& [sender, p] : pointers_) {
     if (p.visible) *current_.add_pointers() = p.shown;
   }
-  SendStateLocked();
 }
 
 void Session::Detach(FrameStream* stream) {
@@ -184,7 +188,11 @@ void Session::Detach(FrameStream* stream) {
     const auto watcher =
         std::find_if(watchers_.begin(), watchers_.end(), [&](const Watcher& w) { return w.stream == stream; });
     if (watcher != watchers_.end()) {  // a watcher leaves; the session goes on as it was
+      const std::string holder = watcher->holder;
       watchers_.erase(watcher);
+      const bool still_watching =
+          std::any_of(watchers_.begin(), watchers_.end(), [&](const Watcher& w) { return w.holder == holder; });
+      if (!still_watching && pointers_.erase(holder) > 0) ShowPointersLocked();  // its pointer goes with it
       current_.set_viewers(std::uint32_t(watchers_.size()));
       SendStateLocked();
       return;

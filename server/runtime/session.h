@@ -119,7 +119,8 @@ class Session final : public Job, public std::enable_shared_from_this<Session> {
   // and every frame delivered from now on (the newest at once), never paces
   // rendering and never takes the session over. Throws NOT_FOUND once the
   // session ended, RESOURCE_EXHAUSTED past --max-viewers-per-session.
-  void AttachWatcher(FrameStream* stream, const std::string& grant_id);
+  // `holder`: who watches (Grant::holder()), whose pointer goes when its last stream does.
+  void AttachWatcher(FrameStream* stream, const std::string& grant_id, const std::string& holder);
   // Ends the watchers by `grant_id` with `status` (revoked, expired); returns how many.
   int EndWatchers(const std::string& grant_id, const grpc::Status& status);
   // Streams open by `grant_id` now.
@@ -193,7 +194,9 @@ class Session final : public Job, public std::enable_shared_from_this<Session> {
   void ApplyCoalescedLocked();
   void SendStateLocked();
   void PointLocked(const std::string& who, const v1::Pointer& pointer, Clock::time_point arrival);
-  void AddWatcher(FrameStream* stream, const std::string& grant_id);  // AttachWatcher under mu_, before the wake
+  void AddWatcher(FrameStream* stream, const std::string& grant_id, const std::string& holder);
+  // current_.pointers from pointers_, the visible ones.
+  void ShowPointersLocked();  // AttachWatcher under mu_, before the wake
   // The encode stage (frame_encoding.h) on the encoder pool, then Deliver.
   void Encode(DisplayFrame frame, const FrameStamp& stamp, int quality);
   void Deliver(v1::Frame frame, Clock::time_point origin);
@@ -207,7 +210,7 @@ class Session final : public Job, public std::enable_shared_from_this<Session> {
   FrameStream* stream_ = nullptr;
   struct Watcher {
     FrameStream* stream;
-    std::string grant_id;
+    std::string grant_id, holder;
   };
   std::vector<Watcher> watchers_;
   // The newest frame delivered, for a watcher that joins (kept once the

@@ -18,7 +18,8 @@ std::shared_ptr<Session> FrameWriter<Reactor>::session() const {
 }
 
 template <class Reactor>
-void FrameWriter<Reactor>::AttachTo(std::shared_ptr<Session> session, const std::string& grant_id) {
+void FrameWriter<Reactor>::AttachTo(std::shared_ptr<Session> session, const std::string& grant_id,
+                                    const std::string& holder) {
   {
     std::lock_guard lock(mu_);
     session_ = session;
@@ -26,7 +27,7 @@ void FrameWriter<Reactor>::AttachTo(std::shared_ptr<Session> session, const std:
   if (grant_id.empty()) {
     session->Attach(this);
   } else {
-    session->AttachWatcher(this, grant_id);
+    session->AttachWatcher(this, grant_id, holder);
   }
 }
 
@@ -300,7 +301,7 @@ WatchSessionReactor::WatchSessionReactor(grpc::CallbackServerContext* context, S
       return;
     }
     const GrantAccess access = core->sharing().Access(*context, request.session_id(), request.grant());
-    AttachTo(access.session, access.grant.id);
+    AttachTo(access.session, access.grant.id, access.grant.holder());
   });
   if (!status.ok()) End(status);
 }

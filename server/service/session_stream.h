@@ -55,7 +55,7 @@ class FrameWriter : public Reactor, public FrameStream {
   // ABORTED. With a `grant_id`, a watcher's stream instead (Session::
   // AttachWatcher): nobody's stream ends. Throws (NOT_FOUND) when the
   // session has ended.
-  void AttachTo(std::shared_ptr<Session> session, const std::string& grant_id = {});
+  void AttachTo(std::shared_ptr<Session> session, const std::string& grant_id = {}, const std::string& holder = {});
   void DetachFromSession();
   std::shared_ptr<Session> session() const;  // null until AttachTo
   void FinishLocked(const grpc::Status& status);

@@ -167,7 +167,7 @@ v1::SessionState Sharing::SendEvents(const v1::SendEventsRequest& request, const
   if (!drives.empty() && grant.role != GrantRole::kPresenter) {
     throw Denied(fmt::format("events: grant {} is a viewer's; a viewer's only event is its pointer", grant.id));
   }
-  if (drives.size() < request.events_size() && !grant.allow_pointer) {
+  if (drives.size() < request.events_size() && !grant.allow_pointer && grant.role != GrantRole::kPresenter) {
     throw Denied(fmt::format("pointer: grant {} does not share its holder's pointer (allow_pointer)", grant.id));
   }
   if (!drives.empty()) access.session->OnEvents(drives, arrival, /*from_grant=*/true);

@@ -246,6 +246,11 @@ TEST(Sharing, APresenterDrivesHandsOverAndPointersReachEveryone) {
   to_link.set_grant_id(pointing.id());
   EXPECT_EQ(alice.HandOver(to_link), "link " + pointing.id());
   EXPECT_EQ(viewer.Send({Camera(v1::RIGHT)}).scene().camera().view(), v1::RIGHT) << "the link drives now";
+
+  // A watcher that leaves takes its pointer with it.
+  viewer.Cancel();
+  EXPECT_TRUE(Eventually([&] { return stream->state() && stream->state()->pointers_size() == 0; }, 10s))
+      << "a departed viewer's pointer stays on everyone's screen";
 }
 
 // A viewer that stops reading costs only its own frames.
