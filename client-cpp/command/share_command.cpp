@@ -125,12 +125,13 @@ void RunWatch(const WatchOptions& o) {
     ++frames;
     recorder.Add({message->frame(), std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count()});
   }
-  watch->Cancel();
+  // Ended by the server (revoked, expired, the session gone) before the time was up: its words, exit 1.
   const grpc::Status status = watch->ended() ? watch->status() : grpc::Status::OK;
+  watch->Cancel();
   fmt::print("watched {} presenting for {:.1f} s: {} frames into {}\n", presenter.empty() ? "?" : presenter,
              std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count(), frames,
              recorder.csv_path().string());
-  Check(status);  // a revoked or expired grant, an ended session: the server's words, exit 1
+  Check(status);
 }
 
 }  // namespace

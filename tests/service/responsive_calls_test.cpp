@@ -210,8 +210,12 @@ TEST(ResponsiveCalls, ADrainAnswersCreationsStillQueued) {
   ServerProcess& server = *labelled.server;
   const v1::CreateSessionRequest request = labelled.Request();
 
-  // Eight callers at once: two creations run, the others wait their turn.
-  constexpr int kCallers = 8;
+  // Twelve callers at once: two creations run, the others wait their turn,
+  // a queue long enough (about six creations' time) that a SIGTERM sent
+  // after 200 ms finds some still waiting even on 2 busy cores, where the
+  // answers counted before it may be stale by the time the server drains
+  // (eight callers once all ran before the drain under the full suite).
+  constexpr int kCallers = 12;
   std::vector<std::unique_ptr<Client>> clients;
   for (int i = 0; i < kCallers; ++i) clients.push_back(std::make_unique<Client>(server.Connect()));
   std::mutex mu;
