@@ -12,8 +12,7 @@ namespace {
 
 // Colours of tissue, as in the first presets.
 constexpr PresetColor kBone{0.92f, 0.88f, 0.78f}, kSkin{0.90f, 0.62f, 0.52f},
-    kFat{0.95f, 0.82f, 0.6f}, kMuscle{0.78f, 0.32f, 0.28f}, kBlood{0.85f, 0.15f, 0.12f},
-    kLung{0.88f, 0.72f, 0.68f}, kGrey{0.85f, 0.8f, 0.75f};
+    kFat{0.95f, 0.82f, 0.6f}, kMuscle{0.78f, 0.32f, 0.28f}, kBlood{0.85f, 0.15f, 0.12f}, kGrey{0.85f, 0.8f, 0.75f};
 
 // One merged control point of a Slicer preset: its value (HU, or an
 // intensity already divided by the reference maximum), Slicer's scalar
