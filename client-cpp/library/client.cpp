@@ -437,10 +437,12 @@ v1::PickResult Client::Pick(v1::PickRequest request) {
 }
 
 v1::Grant Client::Share(v1::ShareSessionRequest request) {
-  auto stub = v1::SessionService::NewStub(pool_->Channel(pool_->AddressOf(request.session_id())));
-  request.set_session_id(pool_->CurrentId(request.session_id()));
+  const std::string route = request.session_id();
+  auto stub = v1::SessionService::NewStub(pool_->Channel(pool_->AddressOf(route)));
+  request.set_session_id(pool_->CurrentId(route));
   v1::Grant grant;
   Check(stub->ShareSession(pool_->CallContext().get(), request, &grant));
+  pool_->RememberGrant(route, request, grant);  // restored where a failover moves the session
   return grant;
 }
 
@@ -472,7 +474,9 @@ std::string Client::HandOver(v1::HandOverRequest request) {
 }
 
 std::unique_ptr<SessionWatch> Client::Watch(const std::string& grant) {
-  return std::make_unique<SessionWatch>(channel(), grant, pool_->options().token);
+  std::vector<std::shared_ptr<grpc::Channel>> channels;
+  for (const std::string& server : pool_->Servers()) channels.push_back(pool_->Channel(server));
+  return std::make_unique<SessionWatch>(std::move(channels), grant, pool_->options().token);
 }
 
 v1::ServerStatus Client::Status() {

@@ -219,7 +219,8 @@ class Client {
   std::uint32_t RevokeShare(const std::string& session_id, const std::string& grant_id);
   std::string HandOver(v1::HandOverRequest request);
   // Watches a shared session by a grant's secret, on the first server that
-  // answered; this client's token goes with it (a principal's grant needs it).
+  // answered, following it to the others when a failover moves it; this
+  // client's token goes with it (a principal's grant needs it).
   std::unique_ptr<SessionWatch> Watch(const std::string& grant);
   // The status of the first server that answered.
   v1::ServerStatus Status();

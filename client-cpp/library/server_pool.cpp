@@ -334,14 +334,52 @@ Placement ServerPool::Relocate(const std::string& id, std::vector<v1::SessionEve
     request = route->state->request();
   }
   Placement placed = Place(request, route->server);
-  std::lock_guard lock(mu_);
-  replay = route->state->Unanswered();
-  route->state->Recreated();
-  route->current_id = placed.response.session_id();
-  route->address = placed.address;
-  route->server = placed.server;
-  routes_[route->current_id] = route;
+  std::vector<v1::ShareSessionRequest> grants;
+  {
+    std::lock_guard lock(mu_);
+    replay = route->state->Unanswered();
+    route->state->Recreated();
+    route->current_id = placed.response.session_id();
+    route->address = placed.address;
+    route->server = placed.server;
+    routes_[route->current_id] = route;
+    grants = route->grants;
+  }
+  RestoreGrants(placed.address, placed.response.session_id(), grants);
   return placed;
+}
+
+void ServerPool::RememberGrant(const std::string& id, const v1::ShareSessionRequest& request, const v1::Grant& grant) {
+  std::lock_guard lock(mu_);
+  auto it = routes_.find(id);
+  if (it == routes_.end()) return;  // not this client's session: it cannot move it either
+  v1::ShareSessionRequest kept = request;
+  kept.set_restore_secret(grant.secret());
+  kept.set_expires_seconds(std::uint32_t(std::max<std::int64_t>(grant.expires_unix_seconds(), 0)));
+  it->second->grants.push_back(std::move(kept));
+}
+
+void ServerPool::RestoreGrants(const std::string& address, const std::string& id,
+                               const std::vector<v1::ShareSessionRequest>& grants) {
+  auto stub = v1::SessionService::NewStub(Channel(address));
+  const std::int64_t now =
+      std::chrono::duration_cast<std::chrono::seconds>(std::chrono::system_clock::now().time_since_epoch()).count();
+  for (v1::ShareSessionRequest request : grants) {
+    const std::int64_t left = std::int64_t(request.expires_seconds()) - now;
+    if (left < 1) continue;
+    request.set_session_id(id);
+    request.set_expires_seconds(std::uint32_t(left));
+    v1::Grant restored;
+    stub->ShareSession(CallContext().get(), request, &restored);  // refused: its viewers stop following
+  }
+}
+
+std::vector<std::string> ServerPool::Servers() const {
+  std::vector<std::string> out{home()};
+  for (const std::string& s : servers_) {
+    if (s != out.front()) out.push_back(s);
+  }
+  return out;
 }
 
 }  // namespace cinevol

@@ -34,12 +34,12 @@ namespace cinevol {
 
 // How the client got a volume, to get it again on another server.
 struct VolumeOrigin {
-  std::string home;                // the server whose id it is
-  v1::LoadVolumeRequest load;      // LoadVolume, under the server's data roots (path empty: not loaded)
-  v1::LoadSeriesRequest series;    // LoadSeries, from a PACS (series_uid empty: not loaded)
-  std::filesystem::path upload;    // UploadVolume, a local file
+  std::string home;                             // the server whose id it is
+  v1::LoadVolumeRequest load;                   // LoadVolume, under the server's data roots (path empty: not loaded)
+  v1::LoadSeriesRequest series;                 // LoadSeries, from a PACS (series_uid empty: not loaded)
+  std::filesystem::path upload;                 // UploadVolume, a local file
   v1::UploadVolumeChunk::Header upload_fields;  // and its header's fields beyond name and size
-  std::string labels_path, labels_table_path;  // LoadLabels
+  std::string labels_path, labels_table_path;   // LoadLabels
   std::filesystem::path labels_upload, labels_upload_table;  // UploadLabels
 };
 
@@ -104,15 +104,25 @@ class ServerPool {
   // the events to send on its new stream (SessionState::Unanswered). Throws
   // RpcError when no server takes it.
   Placement Relocate(const std::string& id, std::vector<v1::SessionEvent>& replay);
+  // A grant the client made for session `id` (Client::Share): Relocate
+  // restores it, secret and expiry, where the session moves (docs/sharing.md).
+  void RememberGrant(const std::string& id, const v1::ShareSessionRequest& request, const v1::Grant& grant);
+  // Every server's address, the home first: where a watcher looks for its session.
+  std::vector<std::string> Servers() const;
 
  private:
   struct Route {
     std::string current_id, address, server;
     std::optional<SessionState> state;
+    std::vector<v1::ShareSessionRequest> grants;  // restore_secret set, expires_seconds: the Unix end
   };
+  // Re-makes `grants` on `address` for session `id` there; a grant that has
+  // expired or is refused is left behind (its viewers then stop following).
+  void RestoreGrants(const std::string& address, const std::string& id,
+                     const std::vector<v1::ShareSessionRequest>& grants);
   struct Room {
     std::string server;
-    long free = -1;  // sessions it takes, as it said; -1: full, draining or unreachable
+    long free = -1;           // sessions it takes, as it said; -1: full, draining or unreachable
     long created_before = 0;  // created_[server] before it was asked
   };
 
@@ -134,11 +144,11 @@ class ServerPool {
 
   mutable std::mutex mu_;
   std::map<std::string, std::shared_ptr<grpc::Channel>> channels_;
-  std::map<std::string, VolumeOrigin> volumes_;                   // by id on their origin's home
+  std::map<std::string, VolumeOrigin> volumes_;                        // by id on their origin's home
   std::map<std::pair<std::string, std::string>, std::string> copies_;  // (server, that id) -> id there
-  std::map<std::string, std::shared_ptr<Route>> routes_;           // by every id the session had
-  std::map<std::string, long> placing_;                            // creations under way, by server
-  std::map<std::string, long> created_;                            // creations done, by server
+  std::map<std::string, std::shared_ptr<Route>> routes_;               // by every id the session had
+  std::map<std::string, long> placing_;                                // creations under way, by server
+  std::map<std::string, long> created_;                                // creations done, by server
 };
 
 }  // namespace cinevol

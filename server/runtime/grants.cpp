@@ -8,13 +8,30 @@
 #include <algorithm>
 #include <cerrno>
 #include <system_error>
+#include <tuple>
 
+#include "core/error.h"
 #include "runtime/errors.h"
 
 namespace cinevol::service {
 namespace {
 
 constexpr std::string_view kSecretPrefix = "cvg_";
+
+bool IsHex(std::string_view s) { return !s.empty() && s.find_first_not_of("0123456789abcdef") == std::string::npos; }
+
+// "cvg_g<16 hex>_<32 hex>" as its id and key; nullopt for anything else.
+std::optional<std::pair<std::string, std::string>> SplitSecret(const std::string& secret) {
+  if (!secret.starts_with(kSecretPrefix)) return std::nullopt;
+  const std::size_t split = secret.find('_', kSecretPrefix.size());
+  if (split == std::string::npos) return std::nullopt;
+  std::string id = secret.substr(kSecretPrefix.size(), split - kSecretPrefix.size());
+  std::string key = secret.substr(split + 1);
+  if (id.size() != 17 || id[0] != 'g' || !IsHex(std::string_view(id).substr(1)) || key.size() != 32 || !IsHex(key)) {
+    return std::nullopt;
+  }
+  return std::pair{std::move(id), std::move(key)};
+}
 
 }  // namespace
 
@@ -32,12 +49,19 @@ std::string RandomHex(std::size_t bytes) {
 
 const char* ToString(GrantRole role) { return role == GrantRole::kPresenter ? "presenter" : "viewer"; }
 
-std::pair<Grant, std::string> GrantRegistry::Create(Grant grant, std::chrono::seconds lifetime) {
+std::pair<Grant, std::string> GrantRegistry::Create(Grant grant, std::chrono::seconds lifetime,
+                                                    const std::string& restore_secret) {
   grant.id = "g" + RandomHex(8);
+  std::string key = RandomHex(16);
+  if (!restore_secret.empty()) {
+    const auto parts = SplitSecret(restore_secret);
+    if (!parts) throw InputError("restore_secret: not a grant's secret (cvg_<id>_<32 hex>)");
+    std::tie(grant.id, key) = *parts;
+  }
   grant.expires = Grant::Clock::now() + lifetime;
   grant.expires_wall = Grant::SystemClock::now() + lifetime;
-  const std::string key = RandomHex(16);
   std::lock_guard lock(mu_);
+  if (grants_.count(grant.id)) throw InputError(fmt::format("restore_secret: grant {} is held here already", grant.id));
   const auto created = std::count_if(grants_.begin(), grants_.end(), [&](const auto& entry) {
     return entry.second.grant.created_by == grant.created_by;
   });
@@ -53,11 +77,9 @@ std::pair<Grant, std::string> GrantRegistry::Create(Grant grant, std::chrono::se
 
 std::optional<Grant> GrantRegistry::FindBySecret(const std::string& secret) const {
   // "cvg_<id>_<key>": the id finds the entry, the key is compared in constant time.
-  if (!secret.starts_with(kSecretPrefix)) return std::nullopt;
-  const std::size_t split = secret.find('_', kSecretPrefix.size());
-  if (split == std::string::npos) return std::nullopt;
-  const std::string id = secret.substr(kSecretPrefix.size(), split - kSecretPrefix.size());
-  const std::string key = secret.substr(split + 1);
+  const auto parts = SplitSecret(secret);
+  if (!parts) return std::nullopt;
+  const auto& [id, key] = *parts;
   std::lock_guard lock(mu_);
   const auto it = grants_.find(id);
   if (it == grants_.end() || it->second.key.size() != key.size()) return std::nullopt;

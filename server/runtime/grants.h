@@ -46,7 +46,11 @@ class GrantRegistry {
   // returns it with its secret: "cvg_<id>_<32 hex>" (128 random bits), the
   // only time the secret is seen. Throws LimitExceeded past
   // --max-grants-per-principal grants created by grant.created_by.
-  std::pair<Grant, std::string> Create(Grant grant, std::chrono::seconds lifetime);
+  // With `restore_secret` ("cvg_<id>_<key>", made by another server), the
+  // grant keeps that id and secret; InputError for a malformed one, or an id
+  // this server already holds.
+  std::pair<Grant, std::string> Create(Grant grant, std::chrono::seconds lifetime,
+                                       const std::string& restore_secret = {});
 
   // The unexpired grant `secret` names, compared in constant time; nullopt
   // for a malformed, unknown, expired or revoked one.

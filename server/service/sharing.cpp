@@ -70,7 +70,7 @@ v1::Grant Sharing::Share(const v1::ShareSessionRequest& request, const Principal
   grant.principal = ValidUtf8(LogSafe(request.principal(), kMaxPrincipalLength));
   grant.role = RoleOf(request.role());
   grant.allow_pointer = request.allow_pointer() || grant.role == GrantRole::kPresenter;
-  auto [made, secret] = grants_.Create(grant, LifetimeOf(request.expires_seconds()));
+  auto [made, secret] = grants_.Create(grant, LifetimeOf(request.expires_seconds()), request.restore_secret());
   if (made.role == GrantRole::kPresenter) {  // one presenter at a time: this one takes over
     for (const Grant& other : grants_.OfSession(made.session_id)) {
       if (other.id != made.id && other.role == GrantRole::kPresenter) grants_.SetRole(other.id, GrantRole::kViewer);

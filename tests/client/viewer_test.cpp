@@ -670,7 +670,7 @@ TEST(Viewer, SharesALinkThatIsWatchedAndHandsThePresentersRoleOverAndBack) {
   const std::string id = TextField(*shared, "id"), secret = TextField(*shared, "secret"), link = "link " + id;
   ASSERT_EQ(secret.rfind("cvg_" + id + "_", 0), 0u) << secret;
 
-  SessionWatch watch(grpc::CreateChannel(server.address(), grpc::InsecureChannelCredentials()), secret, "");
+  SessionWatch watch({grpc::CreateChannel(server.address(), grpc::InsecureChannelCredentials())}, secret, "");
   EXPECT_TRUE(WatchUntil(
       watch, [](const v1::ServerMessage& m) { return m.has_frame(); }, std::chrono::seconds(60)))
       << watch.status().error_message();

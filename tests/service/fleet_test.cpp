@@ -12,6 +12,7 @@
 #include "server_process.h"
 #include "service_test_support.h"
 #include "session_state.h"
+#include "sharing_calls.h"
 #include "support/test_paths.h"
 
 namespace cinevol::testing {
@@ -75,7 +76,9 @@ TEST(Placement, ANewSessionGoesWhereThereIsMostRoomAndItsAnswerSaysWhere) {
 
   // The session's own calls go where it lives.
   auto stream = both.Attach(third.session_id());
-  EXPECT_TRUE(WaitFrame(*stream, [](const v1::Frame&) { return true; }, 30s)) << b->Log();
+  EXPECT_TRUE(WaitFrame(
+      *stream, [](const v1::Frame&) { return true; }, 30s))
+      << b->Log();
   v1::SnapshotRequest still;
   still.set_session_id(third.session_id());
   still.set_spp(1);
@@ -167,7 +170,9 @@ TEST(Failover, WhenItsServerDiesTheStreamCreatesTheSessionAgainFromItsLastStateO
   StreamOptions options;
   options.resume_timeout = 1s;  // a dead server is given up on soon
   auto stream = both.Attach(created.session_id(), options);
-  ASSERT_TRUE(WaitFrame(*stream, [](const v1::Frame&) { return true; }, 30s)) << a->Log();
+  ASSERT_TRUE(WaitFrame(
+      *stream, [](const v1::Frame&) { return true; }, 30s))
+      << a->Log();
 
   // The state to carry over: a new camera, a new viewport, new stream settings.
   v1::SessionEvent camera = Orbit(9);
@@ -179,7 +184,8 @@ TEST(Failover, WhenItsServerDiesTheStreamCreatesTheSessionAgainFromItsLastStateO
   v1::SessionEvent quality;
   quality.mutable_stream()->set_jpeg_quality(55);
   const std::uint64_t last = stream->Send(quality);
-  ASSERT_TRUE(WaitFrame(*stream, [&](const v1::Frame& f) { return f.last_event_seq() >= last; }, 30s));
+  ASSERT_TRUE(WaitFrame(
+      *stream, [&](const v1::Frame& f) { return f.last_event_seq() >= last; }, 30s));
   // The server's state came before that frame: the events applied as it applies them.
   const std::optional<v1::SessionState> on_a = stream->state();
   ASSERT_TRUE(on_a);
@@ -191,7 +197,8 @@ TEST(Failover, WhenItsServerDiesTheStreamCreatesTheSessionAgainFromItsLastStateO
 
   const auto killed = std::chrono::steady_clock::now();
   ASSERT_EQ(kill(a->pid(), SIGKILL), 0);
-  const auto after = WaitFrame(*stream, [&](const v1::Frame&) { return stream->failovers() > 0; }, 60s);
+  const auto after = WaitFrame(
+      *stream, [&](const v1::Frame&) { return stream->failovers() > 0; }, 60s);
   ASSERT_TRUE(after) << "no frame after the failover; stream status: " << stream->status().error_message();
   RecordProperty("seconds_from_sigkill_to_a_frame_from_the_other_server",
                  std::to_string(std::chrono::duration<double>(std::chrono::steady_clock::now() - killed).count()));
@@ -226,6 +233,56 @@ TEST(Failover, WhenItsServerDiesTheStreamCreatesTheSessionAgainFromItsLastStateO
   a.reset();  // already dead: Stop finds it gone
 }
 
+// Failover keeps the board together: the owner's client restores its grants
+// where the session moves, and viewers watching by a link follow it there.
+TEST(Failover, ViewersOfASharedSessionFollowItToAnotherServer) {
+  ScratchDir scratch;
+  auto [a, b] = StartTwo(scratch.path(), {}, {});
+  ASSERT_TRUE(a->running() && b->running()) << a->Log() << b->Log();
+  Client owner = ConnectToBoth(*a, *b);
+  const auto created = owner.CreateSession(SmallSession("ct-bone", 96, 64, 4));
+  const bool on_a = created.address() == a->address();
+  ServerProcess& holder = on_a ? *a : *b;
+  StreamOptions options;
+  options.resume_timeout = 1s;  // a dead server is given up on soon
+  auto stream = owner.Attach(created.session_id(), options);
+  ASSERT_TRUE(WaitFrame(
+      *stream, [](const v1::Frame&) { return true; }, 30s))
+      << holder.Log();
+  v1::ShareSessionRequest share;
+  share.set_session_id(created.session_id());
+  const v1::Grant link = owner.Share(share);
+
+  // Viewers who know both servers (the deployment's address), not where the session is.
+  std::vector<std::unique_ptr<Client>> people;
+  std::vector<std::unique_ptr<SessionWatch>> viewers;
+  for (int i = 0; i < 3; ++i) {
+    people.push_back(std::make_unique<Client>(ConnectToBoth(*a, *b)));
+    viewers.push_back(people.back()->Watch(link.secret()));
+  }
+  auto frame_after = [](SessionWatch& watch, const std::function<bool()>& when) -> bool {
+    for (int i = 0; i < 2000; ++i) {
+      const auto message = watch.Next(100ms);
+      if (message && message->has_frame() && when()) return true;
+      if (!message && watch.ended()) return false;
+    }
+    return false;
+  };
+  for (auto& v : viewers) ASSERT_TRUE(frame_after(*v, [] { return true; })) << v->status().error_message();
+
+  ASSERT_EQ(kill(holder.pid(), SIGKILL), 0);
+  ASSERT_TRUE(WaitFrame(
+      *stream, [&](const v1::Frame&) { return stream->failovers() > 0; }, 60s))
+      << stream->status().error_message();
+  for (auto& v : viewers) {
+    const SessionWatch& watch = *v;
+    EXPECT_TRUE(frame_after(*v, [&] { return watch.follows() > 0; }))
+        << "the viewer did not follow the session: " << v->status().error_message();
+  }
+  EXPECT_TRUE(Holds(on_a ? *b : *a, stream->session_id()));
+  (on_a ? a : b).reset();  // already dead: Stop finds it gone
+}
+
 // An upgrade: the pod drains (SIGTERM) and its sessions move, without
 // waiting out the resume timeout: the draining server's trailers say the
 // session ended, so there is nothing to resume.
@@ -237,11 +294,13 @@ TEST(Failover, ADrainingServersSessionsMoveToAnotherAtOnce) {
   const auto created = both.CreateSession(SmallSession());
   ASSERT_EQ(created.address(), a->address());
   auto stream = both.Attach(created.session_id());  // the default resume timeout, 5 s
-  ASSERT_TRUE(WaitFrame(*stream, [](const v1::Frame&) { return true; }, 30s));
+  ASSERT_TRUE(WaitFrame(
+      *stream, [](const v1::Frame&) { return true; }, 30s));
 
   const auto drained = std::chrono::steady_clock::now();
   ASSERT_EQ(kill(a->pid(), SIGTERM), 0);
-  const auto after = WaitFrame(*stream, [&](const v1::Frame&) { return stream->failovers() > 0; }, 30s);
+  const auto after = WaitFrame(
+      *stream, [&](const v1::Frame&) { return stream->failovers() > 0; }, 30s);
   ASSERT_TRUE(after) << stream->status().error_message();
   const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - drained).count();
   RecordProperty("seconds_from_sigterm_to_a_frame_from_the_other_server", std::to_string(seconds));
@@ -266,11 +325,13 @@ TEST(Failover, AServerThatHangsIsFoundOutByKeepaliveAndItsSessionsMove) {
   StreamOptions stream_options;
   stream_options.resume_timeout = 1s;
   auto stream = both.Attach(created.session_id(), stream_options);
-  ASSERT_TRUE(WaitFrame(*stream, [](const v1::Frame&) { return true; }, 30s));
+  ASSERT_TRUE(WaitFrame(
+      *stream, [](const v1::Frame&) { return true; }, 30s));
 
   const auto hung = std::chrono::steady_clock::now();
   ASSERT_EQ(kill(a->pid(), SIGSTOP), 0);
-  const auto after = WaitFrame(*stream, [&](const v1::Frame&) { return stream->failovers() > 0; }, 30s);
+  const auto after = WaitFrame(
+      *stream, [&](const v1::Frame&) { return stream->failovers() > 0; }, 30s);
   const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - hung).count();
   kill(a->pid(), SIGKILL);
   ASSERT_TRUE(after) << "no move in 30 s: " << stream->status().error_message();
@@ -288,7 +349,8 @@ TEST(Failover, AStreamOfASessionItDidNotCreateEndsAsBefore) {
   StreamOptions options;
   options.resume_timeout = 500ms;
   auto stream = both.Attach(created.session_id(), options);
-  ASSERT_TRUE(WaitFrame(*stream, [](const v1::Frame&) { return true; }, 30s));
+  ASSERT_TRUE(WaitFrame(
+      *stream, [](const v1::Frame&) { return true; }, 30s));
   ASSERT_EQ(kill(a->pid(), SIGKILL), 0);
   EXPECT_TRUE(Eventually([&] { return stream->ended(); }, 20s));
   EXPECT_EQ(stream->status().error_code(), grpc::StatusCode::UNAVAILABLE);

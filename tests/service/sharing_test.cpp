@@ -100,7 +100,7 @@ TEST(Sharing, TwentyViewersSeeThePresentersFramesEncodedOnce) {
   EXPECT_EQ(s.server->Log().find(link.secret()), std::string::npos) << "a secret is never logged";
   const auto bare = s.Bare();
   std::vector<std::unique_ptr<SessionWatch>> viewers;
-  for (int i = 0; i < 20; ++i) viewers.push_back(std::make_unique<SessionWatch>(bare, link.secret(), ""));
+  for (int i = 0; i < 20; ++i) viewers.push_back(std::make_unique<SessionWatch>(std::vector{bare}, link.secret(), ""));
   for (auto& v : viewers) ASSERT_TRUE(FrameAfter(*v, 0)) << "the newest frame at once: " << v->status().error_message();
 
   // The presenter moves; every viewer receives that refinement's final frame.
@@ -156,7 +156,7 @@ TEST(Sharing, GrantsAreCheckedAndRevokingOrExpiryEndsTheirStreams) {
   ASSERT_TRUE(FrameAfter(*bobs, 0)) << bobs->status().error_message();
   auto carols = carol.Watch(for_bob.secret());
   EXPECT_EQ(Ended(*carols).error_code(), grpc::StatusCode::PERMISSION_DENIED) << "bob's grant is not carol's";
-  auto tokenless = SessionWatch(s.Bare(), for_bob.secret(), "");
+  auto tokenless = SessionWatch({s.Bare()}, for_bob.secret(), "");
   EXPECT_EQ(Ended(tokenless).error_code(), grpc::StatusCode::UNAUTHENTICATED);
   auto forged = carol.Watch(for_bob.secret().substr(0, for_bob.secret().size() - 1) + "0");
   EXPECT_EQ(Ended(*forged).error_code(), grpc::StatusCode::PERMISSION_DENIED);
@@ -184,7 +184,7 @@ TEST(Sharing, GrantsAreCheckedAndRevokingOrExpiryEndsTheirStreams) {
   EXPECT_EQ(Ended(*bob.Watch(for_bob.secret())).error_code(), grpc::StatusCode::PERMISSION_DENIED);
 
   const v1::Grant brief = Share(alice, created.session_id(), "", v1::VIEWER, false, 2);
-  auto watcher = SessionWatch(s.Bare(), brief.secret(), "");
+  auto watcher = SessionWatch({s.Bare()}, brief.secret(), "");
   ASSERT_TRUE(FrameAfter(watcher, 0)) << watcher.status().error_message();
   const grpc::Status expired = Ended(watcher);
   EXPECT_EQ(expired.error_code(), grpc::StatusCode::PERMISSION_DENIED);
@@ -206,7 +206,7 @@ TEST(Sharing, APresenterDrivesHandsOverAndPointersReachEveryone) {
   const v1::Grant presenter = Share(alice, created.session_id(), "bob", v1::PRESENTER);
   const v1::Grant pointing = Share(alice, created.session_id(), "", v1::VIEWER, /*allow_pointer=*/true);
   auto bobs = bob.Watch(presenter.secret());
-  auto viewer = SessionWatch(s.Bare(), pointing.secret(), "");
+  auto viewer = SessionWatch({s.Bare()}, pointing.secret(), "");
   ASSERT_TRUE(FrameAfter(*bobs, 0)) << bobs->status().error_message();
   ASSERT_TRUE(FrameAfter(viewer, 0)) << viewer.status().error_message();
 
@@ -287,9 +287,9 @@ TEST(Sharing, LimitsAndBadRequestsAreRefusedByName) {
   auto stream = alice.Attach(created.session_id());
   ASSERT_TRUE(WaitFinal(*stream)) << stream->status().error_message();
   const v1::Grant link = Share(alice, created.session_id(), "", v1::VIEWER);
-  auto one = SessionWatch(s.Bare(), link.secret(), ""), two = SessionWatch(s.Bare(), link.secret(), "");
+  auto one = SessionWatch({s.Bare()}, link.secret(), ""), two = SessionWatch({s.Bare()}, link.secret(), "");
   ASSERT_TRUE(FrameAfter(one, 0) && FrameAfter(two, 0));
-  auto three = SessionWatch(s.Bare(), link.secret(), "");
+  auto three = SessionWatch({s.Bare()}, link.secret(), "");
   const grpc::Status full = Ended(three);
   EXPECT_EQ(full.error_code(), grpc::StatusCode::RESOURCE_EXHAUSTED);
   EXPECT_NE(full.error_message().find("--max-viewers-per-session"), std::string::npos) << full.error_message();
@@ -300,6 +300,12 @@ TEST(Sharing, LimitsAndBadRequestsAreRefusedByName) {
   ExpectDenied([&] { Share(alice, created.session_id(), "", v1::VIEWER, false, 700000); },
                grpc::StatusCode::INVALID_ARGUMENT, "expires_seconds");
   ExpectDenied([&] { alice.RevokeShare(created.session_id(), "gnope"); }, grpc::StatusCode::NOT_FOUND, "grant_id");
+  v1::ShareSessionRequest restore;
+  restore.set_session_id(created.session_id());
+  restore.set_restore_secret("cvg_g1234_short");
+  ExpectDenied([&] { alice.Share(restore); }, grpc::StatusCode::INVALID_ARGUMENT, "restore_secret");
+  restore.set_restore_secret(link.secret());  // a grant this server holds already
+  ExpectDenied([&] { alice.Share(restore); }, grpc::StatusCode::INVALID_ARGUMENT, "held here already");
   // The session's end ends its watchers and forgets its grants.
   alice.CloseSession(created.session_id());
   EXPECT_TRUE(Ended(one).ok() || Ended(one).error_code() != grpc::StatusCode::DEADLINE_EXCEEDED);
