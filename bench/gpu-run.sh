@@ -26,6 +26,11 @@ for scene in ${BENCH_SCENES:-ct-head-cthead:ct-head-cthead/DERIVED_CThead.nhdr c
   "$bin/cinevol-bench" render --scene "bench/scenes/${scene%%:*}.json" --volume "$data/${scene#*:}" \
     --backend cuda --frames 100 --warmup 10 --out "$out/performance.md" > "$out/bench-${scene%%:*}.log" 2>&1
   echo "bench ${scene%%:*} rc=$?"
+  if [ -x "$bin/cinevol-bench-before" ]; then  # the earlier build packed with BEFORE=
+    "$bin/cinevol-bench-before" render --scene "bench/scenes/${scene%%:*}.json" --volume "$data/${scene#*:}" \
+      --backend cuda --frames 100 --warmup 10 --out "$out/performance-before.md" > "$out/before-${scene%%:*}.log" 2>&1
+    echo "bench before ${scene%%:*} rc=$?"
+  fi
 done
 for scene in ${DENOISE_SCENES:-ct-head-cthead:ct-head-cthead/DERIVED_CThead.nhdr ct-aorta-bone:aorta_ct_cropped.nii.gz}; do
   "$bin/cinevol-bench" denoise --scene "bench/scenes/${scene%%:*}.json" --volume "$data/${scene#*:}" \
@@ -33,4 +38,4 @@ for scene in ${DENOISE_SCENES:-ct-head-cthead:ct-head-cthead/DERIVED_CThead.nhdr
   echo "denoise bench ${scene%%:*} rc=$?"
 done
 ${EXTRA:-true}
-cat "$out/performance.md" 2>/dev/null
+cat "$out/performance-before.md" "$out/performance.md" 2>/dev/null

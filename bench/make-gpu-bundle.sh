@@ -3,11 +3,17 @@
 # use into .gpu/bundle.tar.xz (kept out of git) for bench/gpu-run.sh.
 # NO_DICOM=1 leaves the DICOM series out (the carry limit is 64 MiB with the
 # working tree; only the reading and DICOM checks need it).
+# BEFORE=PATH packs an earlier build's cinevol-bench as cinevol-bench-before,
+# for tables of before and after in one run (bench/gpu-run.sh).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 stage=$(mktemp -d)
 ../shared/tools/device-bundle.sh "$stage" build/cinevol build/cinevol-server build/cinevol-reader build/cinevol-bench build/cinevol-viewer \
   build/tests/cinevol_tests
+if [ -n "${BEFORE:-}" ]; then
+  cp -L "$BEFORE" "$stage/bin/cinevol-bench-before"
+  strip --strip-unneeded "$stage/bin/cinevol-bench-before"
+fi
 mkdir -p "$stage/data"
 cp -r ../shared/data/ct-head-cthead "$stage/data/"
 cp ../shared/data/ct-body-totalsegmentator/aorta_ct_cropped.nii.gz "$stage/data/"

@@ -258,9 +258,8 @@ class Wrls final : public DenoiserBase<B> {
     std::swap(feature_, prev_feature_);
     std::swap(model_, prev_model_);
     B::ForEachPixel(w, h, ReprojectHistoryPass{rv, prev_feature_.data(), b_.data()});
-    B::ForEachPixel(w, h, WrlsTemporalPass{rv, input, b_.data(), prev_model_.data(), feature_.data(), model_.data(), s,
-                                           still_frames_, FeatureRatioRows(input, rv)});
-    B::ForEachPixel(w, h, WrlsPredictPass{feature_.data(), model_.data(), a_.data(), w, s.young_variance});
+    B::ForEachPixel(w, h, WrlsTemporalPass{rv, input, b_.data(), prev_model_.data(), feature_.data(), model_.data(),
+                                           a_.data(), s, still_frames_, FeatureRatioRows(input, rv)});
     B::ForEachPixel(w, h, CoveragePass{frame.first_hit, coverage_.data(), w, h});
     for (int level = 0; level < s.atrous_iterations; ++level) {
       RunAtrousLevel<B>(AtrousPass{a_.data(), b_.data(), frame.first_hit, coverage_.data(), frame.camera, w, h,

@@ -259,7 +259,20 @@ CINEVOL_HD Vec4f WindowMean(const Vec4f* rows, int width, int height, int x, int
   return ToVec4(n > 0.0f ? sum / n : Vec3f{}, n);
 }
 
-// Pass 1: the temporal feature and the model update, per pixel.
+// Each pixel's model evaluated at its feature, with the variance it
+// predicts: rgb and w. The paper's blend of the neighbours' predictions (Sec.
+// 5.3) measured 2.0 dB worse on the CThead orbit at 720p, and evaluating the
+// neighbours' models at the centre's feature (its other reading) 1.1 dB worse
+// still (docs/denoising.md): the a-trous levels do the spatial work.
+CINEVOL_HD Vec4f Prediction(const WrlsModel& m, Vec3f z, float young_variance) {
+  if (!IsFinite(z)) return ToVec4(z, 0.0f);
+  const Vec3f out = m.beta0 * m.scale + m.beta1 * z;
+  const float v = PredictionVariance(m, z, young_variance);
+  return ToVec4(IsFinite(out) ? Max(out, Vec3f{}) : z, isfinite(v) ? v : 0.0f);
+}
+
+// Pass 1: the temporal feature, the model update and the model's prediction
+// (Prediction), per pixel.
 struct WrlsTemporalPass {
   ReprojectionView rv;
   const Vec3f* input;          // this frame's noisy radiance
@@ -267,6 +280,7 @@ struct WrlsTemporalPass {
   const WrlsModel* prev_model;
   Vec3f* feature;              // z of this frame
   WrlsModel* model;
+  Vec4f* prediction;           // the model at z: rgb, w its variance
   WrlsSettings s;
   int still_frames;            // frames the view has stayed still (0: it moved or changed)
   const Vec4f* feature_ratio_rows;  // FeatureRatioRowsPass; null: no rescaling
@@ -378,37 +392,12 @@ struct WrlsTemporalPass {
       if (!Healthy(m, s.max_coefficient)) Refit(m, z, s.initial_p);
     }
     model[i] = m;
+    prediction[i] = Prediction(m, z, s.young_variance);
   }
 };
 
-// Pass 2: each pixel's model evaluated at its feature, with the variance
-// it predicts. The paper's blend of the neighbours' predictions (Sec. 5.3)
-// measured 2.0 dB worse on the CThead orbit at 720p, and evaluating the
-// neighbours' models at the centre's feature (its other reading) 1.1 dB
-// worse still (docs/denoising.md): the a-trous levels do the spatial work.
-struct WrlsPredictPass {
-  const Vec3f* feature;
-  const WrlsModel* model;
-  Vec4f* output;  // rgb prediction, w its variance
-  int width;
-  float young_variance;
-
-  CINEVOL_HD void operator()(int x, int y) const {
-    const int i = y * width + x;
-    const Vec3f z = feature[i];
-    if (!IsFinite(z)) {
-      output[i] = ToVec4(z, 0.0f);
-      return;
-    }
-    const WrlsModel& m = model[i];
-    const Vec3f out = m.beta0 * m.scale + m.beta1 * z;
-    const float v = PredictionVariance(m, z, young_variance);
-    output[i] = ToVec4(IsFinite(out) ? Max(out, Vec3f{}) : z, isfinite(v) ? v : 0.0f);
-  }
-};
-
-// Pass 4: temporal stabilisation of the output (WrlsSettings::stabilize_*).
-// The history is clipped to this frame's estimate +- clamp_sigma deviations
+// Pass 3, after the a-trous levels: temporal stabilisation of the output
+// (WrlsSettings::stabilize_*). The history is clipped to this frame's estimate +- clamp_sigma deviations
 // (Salvi's variance clipping; the deviation counts the 3x3 spread and the
 // variance the fit predicts), so a real change (a light moving, the transfer
 // function edited) passes through and only noise is averaged. The box is

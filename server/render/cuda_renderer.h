@@ -38,12 +38,15 @@ class CudaRenderer final : public Renderer {
  private:
   int brick_size_;
   bool use_texture_;  // RendererOptions::volume_texture
+  bool regenerate_;   // RendererOptions::path_regeneration
   // The voxels on this GPU, shared. Declared before device_: the frames in
   // flight end (~Device) before the voxels may go.
   std::shared_ptr<const VolumeCopy> volume_;
+  std::shared_ptr<const float> majorants_;  // on this GPU, shared like the voxels
   struct Device;  // CUDA objects; defined in the .cu file
   std::unique_ptr<Device> device_;
   void UploadTables();  // the transfer tables and the majorants, after SceneData changed them
+  void AcquireMajorants();
 
   SceneData data_;
   int width_ = 0, height_ = 0;

@@ -159,6 +159,30 @@ std::shared_ptr<const LabelCopy> VolumeCache::AcquireLabels(const std::shared_pt
                     [&] { return std::make_shared<const LabelCopy>(labels, brick_size, device); });
 }
 
+std::shared_ptr<const std::vector<float>> VolumeCache::AcquireMajorants(
+    const MajorantKey& key, const std::function<std::vector<float>()>& build) {
+  return FindOrMake(majorants_, key, [&] { return std::make_shared<const std::vector<float>>(build()); });
+}
+
+#if CINEVOL_WITH_CUDA
+std::shared_ptr<const float> VolumeCache::AcquireMajorantsOnGpu(
+    const std::shared_ptr<const std::vector<float>>& majorants, int gpu) {
+  // The device copy holds the host one: its key's address stays that set's.
+  return FindOrMake(gpu_majorants_, std::tuple{gpu, majorants.get()}, [&] {
+    std::shared_ptr<const float> uploaded = UploadMajorants(*majorants, gpu);
+    return std::shared_ptr<const float>(uploaded.get(), [uploaded, majorants](const float*) {});
+  });
+}
+#endif
+
+std::size_t VolumeCache::MajorantSets() const {
+  std::lock_guard lock(mu_);
+  std::size_t n = 0;
+  for (const auto& [key, slot] : majorants_) n += slot->value.use_count() > 0;
+  for (const auto& [key, slot] : gpu_majorants_) n += slot->value.use_count() > 0;
+  return n;
+}
+
 std::vector<VolumeCopyStatus> VolumeCache::Copies() const {
   std::lock_guard lock(mu_);
   std::vector<VolumeCopyStatus> out;

@@ -11,6 +11,7 @@
 
 #include <cstddef>
 #include <cstdint>
+#include <functional>
 #include <map>
 #include <memory>
 #include <mutex>
@@ -134,12 +135,31 @@ class LabelCopy {
   std::shared_ptr<const std::uint16_t> gpu_;  // freed on its GPU with the last owner
 };
 
+// What a volume's majorants depend on beyond its prepared bricks: the
+// reconstruction (its margin), the segmentation and the extinction each label
+// value gets (every transfer table's, each value's opacity scale and table).
+// Renderers whose keys are equal share one set of majorants.
+struct MajorantKey {
+  const PreparedVolume* volume = nullptr;
+  Reconstruction reconstruction = Reconstruction::kTrilinear;
+  const LabelCopy* labels = nullptr;
+  std::vector<float> sigma_t;       // every table's extinctions, as TransferTable holds them
+  std::vector<float> label_scales;  // per label value: opacity scale, table index
+
+  bool operator<(const MajorantKey& o) const {
+    return std::tie(volume, reconstruction, labels, sigma_t, label_scales) <
+           std::tie(o.volume, o.reconstruction, o.labels, o.sigma_t, o.label_scales);
+  }
+};
+
 #if CINEVOL_WITH_CUDA
 // Copies the prepared voxels to GPU `gpu`; the pointer frees them there (from
 // any thread). Defined in volume_upload.cu.
 std::shared_ptr<const GpuVoxels> UploadVoxels(const PreparedVolume& prepared, int gpu, bool texture);
 // The same for a segmentation's label voxels.
 std::shared_ptr<const std::uint16_t> UploadLabels(const LabelVolume& labels, int gpu);
+// The same for majorants.
+std::shared_ptr<const float> UploadMajorants(const std::vector<float>& majorants, int gpu);
 #endif
 
 // One copy as the cache reports it.
@@ -165,8 +185,22 @@ class VolumeCache {
   std::shared_ptr<const LabelCopy> AcquireLabels(const std::shared_ptr<const LabelVolume>& labels, Vec3i brick_size,
                                                  int device);
 
+  // The majorants of `key`, made by `build` on first use and shared while
+  // any renderer holds them: sessions of one volume with one classification
+  // build and hold them once.
+  std::shared_ptr<const std::vector<float>> AcquireMajorants(const MajorantKey& key,
+                                                             const std::function<std::vector<float>()>& build);
+#if CINEVOL_WITH_CUDA
+  // Shared majorants on GPU `gpu`, uploaded once.
+  std::shared_ptr<const float> AcquireMajorantsOnGpu(const std::shared_ptr<const std::vector<float>>& majorants,
+                                                     int gpu);
+#endif
+
   // The live copies, by device then volume.
   std::vector<VolumeCopyStatus> Copies() const;
+  // Sets of majorants held, on the host (shared by CPU and CUDA renderers)
+  // and on GPUs.
+  std::size_t MajorantSets() const;
 
  private:
   // One key's value; `build` serialises building it, the cache's lock guards
@@ -189,6 +223,8 @@ class VolumeCache {
   Slots<std::tuple<const Volume*, int>, PreparedVolume> prepared_;          // volume, brick size
   Slots<std::tuple<int, const Volume*, int, bool>, VolumeCopy> copies_;  // device, volume, brick size, texture
   Slots<std::tuple<int, const LabelVolume*, int>, LabelCopy> labels_;     // device, labels, brick size (x)
+  Slots<MajorantKey, std::vector<float>> majorants_;
+  Slots<std::tuple<int, const std::vector<float>*>, float> gpu_majorants_;  // device, host majorants
 };
 
 }  // namespace cinevol

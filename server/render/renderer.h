@@ -26,7 +26,7 @@
 namespace cinevol {
 
 // Bumped whenever the integrator's output changes: keys cached reference images.
-inline constexpr int kRendererVersion = 2;  // 2: free-flight steps from the segment start, extinction clamp
+inline constexpr int kRendererVersion = 3;  // 3: the next direction drawn before the shadow ray
 
 // Picks the smallest specialised integrator for the scene.
 inline constexpr unsigned kAutoFeatures = ~0u;
@@ -114,6 +114,9 @@ struct RendererOptions {
   // CUDA: sample the volume through the texture unit (device/volume_texture.h);
   // false reads the voxel buffer, as the CPU does (to measure what it buys).
   bool volume_texture = true;
+  // CUDA: lanes take a new path when theirs ends (path regeneration); false
+  // runs one thread per pixel (to measure what it buys).
+  bool path_regeneration = true;
   int cpu_threads = 0;  // 0: every hardware thread (or CINEVOL_THREADS)
 };
 

@@ -137,6 +137,18 @@ void SceneData::UpdateTables() {
 }
 
 void SceneData::UpdateMajorants() {
+  MajorantKey key{volume_.get(), reconstruction_, labels_.get(), table_.sigma_t, {}};
+  if (labels_) {
+    for (const LabelMaterial& m : label_materials_) {
+      key.label_scales.push_back(m.opacity_scale);
+      key.label_scales.push_back(float(m.table));
+    }
+  }
+  majorants_ = VolumeCache::Get().AcquireMajorants(key, [this] { return BuildMajorants(); });
+  ++majorant_builds_;
+}
+
+std::vector<float> SceneData::BuildMajorants() const {
   const RenderScene view = HostView();
   const BrickRanges& ranges = volume_->brick_ranges(reconstruction_);
   const std::size_t n = TransferTable::kEntries;
@@ -144,23 +156,23 @@ void SceneData::UpdateMajorants() {
     return ComputeMajorants(ranges, table_.sigma_t.data() + k * n, int(n), view.transfer.entry_scale,
                             view.transfer.entry_offset);
   };
-  majorants_ = majorants_of_table(0);
+  std::vector<float> majorants = majorants_of_table(0);
   if (labels_) {
     // A brick's bound is the largest over the labels it holds, each label's
     // table bound scaled by its opacity scale (0 for hidden labels).
-    std::vector<std::vector<float>> by_table{majorants_};
+    std::vector<std::vector<float>> by_table{majorants};
     for (std::size_t k = 1; k * n < table_.sigma_t.size(); ++k) by_table.push_back(majorants_of_table(int(k)));
-    for (std::size_t b = 0; b < majorants_.size(); ++b) {
+    for (std::size_t b = 0; b < majorants.size(); ++b) {
       float bound = 0.0f;
       const BrickLabels& present = labels_->brick_labels();
       for (std::uint32_t i = present.offsets[b]; i < present.offsets[b + 1]; ++i) {
         const LabelMaterial& m = label_materials_[present.labels[i]];
         bound = std::max(bound, m.opacity_scale * by_table[m.table][b]);
       }
-      majorants_[b] = std::min(bound, view.transfer.max_sigma_t);  // as the integrator clamps scaled extinction
+      majorants[b] = std::min(bound, view.transfer.max_sigma_t);  // as the integrator clamps scaled extinction
     }
   }
-  ++majorant_builds_;
+  return majorants;
 }
 
 void SceneData::SetLights(const LightSetup& setup) {
@@ -200,7 +212,7 @@ RenderScene SceneData::HostView() const {
         range > 0 ? float(value_scale * double(MinComponent(v.spacing_mm())) / range) : 0.0f;
     s.transfer.max_sigma_t = MaxExtinction(v.spacing_mm());
 
-    s.majorants.majorant = majorants_.data();
+    s.majorants.majorant = majorants_ ? majorants_->data() : nullptr;
     s.majorants.bricks = volume_->brick_ranges(reconstruction_).bricks;
     s.majorants.box_min = s.volume.box_min;
     s.majorants.inv_brick_size = Vec3f{1, 1, 1} / (v.spacing_mm() * ToFloat(volume_->brick_size()));

@@ -1,7 +1,7 @@
 // Host-side tables of one renderer (CPU or CUDA): the transfer tables (the
 // image's, then the labels' own) and the majorants they imply over the shared
-// prepared volume's bricks, the labels' materials, lights and the environment
-// map's sampling tables.
+// prepared volume's bricks (shared too, by renderers that classify alike), the
+// labels' materials, lights and the environment map's sampling tables.
 #pragma once
 
 #include <cstdint>
@@ -59,9 +59,16 @@ class SceneData {
 
   bool has_volume() const { return volume_ != nullptr; }
   const PreparedVolume& volume() const { return *volume_; }
-  const std::vector<float>& majorants() const { return majorants_; }
-  // How many times the majorants were rebuilt (volume and transfer-function
-  // changes): tests check that a camera move rebuilds none.
+  // The majorants, shared with every renderer of the volume with the same
+  // classification (VolumeCache::AcquireMajorants).
+  const std::shared_ptr<const std::vector<float>>& shared_majorants() const { return majorants_; }
+  const std::vector<float>& majorants() const {
+    static const std::vector<float> kNone;
+    return majorants_ ? *majorants_ : kNone;
+  }
+  // How many times the majorants were derived anew (volume and
+  // transfer-function changes; built, or found shared): tests check that a
+  // camera move derives none.
   std::uint64_t majorant_builds() const { return majorant_builds_; }
   // The image's table, then the labels' own, kEntries each.
   const TransferTable& table() const { return table_; }
@@ -77,6 +84,7 @@ class SceneData {
  private:
   void UpdateTables();
   void UpdateMajorants();
+  std::vector<float> BuildMajorants() const;
 
   std::shared_ptr<const PreparedVolume> volume_;
   Reconstruction reconstruction_ = Reconstruction::kTrilinear;
@@ -85,7 +93,7 @@ class SceneData {
   LabelSetup label_setup_;
   std::vector<LabelMaterial> label_materials_;  // by label value
   TransferTable table_;
-  std::vector<float> majorants_;
+  std::shared_ptr<const std::vector<float>> majorants_;
   std::uint64_t majorant_builds_ = 0;
   LightSetup lights_;
   EnvironmentDistribution environment_;

@@ -69,4 +69,19 @@ std::shared_ptr<const std::uint16_t> UploadLabels(const LabelVolume& labels, int
   });
 }
 
+std::shared_ptr<const float> UploadMajorants(const std::vector<float>& majorants, int gpu) {
+  OnGpu on(gpu);
+  auto owned = std::make_shared<DeviceBuffer<float>>();
+  owned->Upload(majorants);
+  CINEVOL_CUDA_CHECK(cudaStreamSynchronize(cudaStreamPerThread));  // read next on other streams
+  const float* data = owned->data();
+  return std::shared_ptr<const float>(data, [owned = std::move(owned), gpu](const float*) mutable {
+    int previous = 0;  // as for the voxels: free it on its GPU, ignore errors
+    cudaGetDevice(&previous);
+    cudaSetDevice(gpu);
+    owned.reset();
+    cudaSetDevice(previous);
+  });
+}
+
 }  // namespace cinevol

@@ -8,6 +8,7 @@
 
 #include "io/phantom.h"
 #include "scene/presets.h"
+#include "scene/scene_builder.h"
 #include "scene/scene_file.h"
 #include "pipeline/frame_pipeline.h"
 #include "render/renderer.h"
@@ -69,6 +70,30 @@ double MeanOf(const ImageRgbF& image) {
   double sum = 0;
   for (const Vec3f& p : image.pixels) sum += p.x + p.y + p.z;
   return sum / double(image.pixels.size());
+}
+
+// Sessions of one volume that classify it alike (one preset) build and hold
+// its majorants once; another transfer function gets its own, and the shared
+// set goes with its last renderer.
+TEST(VolumeCache, RenderersThatClassifyAlikeShareTheirMajorants) {
+  const auto volume = SmallHead();
+  const auto prepared = VolumeCache::Get().Acquire(volume, kDefaultBrickSize, kHostDevice);
+  const std::size_t sets_before = VolumeCache::Get().MajorantSets();
+  {
+    SceneData a, b, c;
+    for (SceneData* d : {&a, &b, &c}) d->SetVolume(prepared->prepared_ptr());
+    a.SetTransferFunction(HeadTransferFunction());
+    b.SetTransferFunction(HeadTransferFunction());
+    TransferFunction denser = HeadTransferFunction();
+    denser.density_scale *= 2;
+    c.SetTransferFunction(denser);
+    EXPECT_EQ(a.shared_majorants(), b.shared_majorants());
+    EXPECT_NE(a.shared_majorants(), c.shared_majorants());
+    EXPECT_EQ(VolumeCache::Get().MajorantSets(), sets_before + 2);
+    b.SetReconstruction(Reconstruction::kTricubic);  // wider margins: other bricks' bounds
+    EXPECT_NE(a.shared_majorants(), b.shared_majorants());
+  }
+  EXPECT_EQ(VolumeCache::Get().MajorantSets(), sets_before);
 }
 
 TEST(VolumeCache, TwoRenderersOnOneVolumeShareOneCopy) {
@@ -207,8 +232,10 @@ TEST(VolumeCache, RenderersOfOneSegmentationShareOneLabelCopy) {
   }
 }
 
-// What a 720p session's pipeline adds on the GPU beyond the shared voxels
-// (printed for docs/architecture.md; the GPU's free memory tells the rest).
+// What a 720p session's pipeline adds on the GPU beyond the shared voxels,
+// and what that is made of: the renderer's frame buffers, the denoiser's and
+// the rest of the pipeline (display, refinement), each measured by the GPU's
+// free memory (2 MiB pages) around it. Printed for docs/performance.md.
 TEST(VolumeCache, PrintsTheDeviceMemoryOfA720pSession) {
   CINEVOL_REQUIRE_CUDA();
   const auto volume = SmallHead();
@@ -216,19 +243,48 @@ TEST(VolumeCache, PrintsTheDeviceMemoryOfA720pSession) {
   scene.mutable_render()->set_width(1280);
   scene.mutable_render()->set_height(720);
   ApplyDefaults(scene);
-  const std::size_t free_before = ListGpus().at(0).free_bytes;
+  const auto free_mib = [] { return double(ListGpus().at(0).free_bytes) / (1 << 20); };
+  const double free_before = free_mib();
   FramePipeline first(Backend::kCuda, volume);
   first.Update(scene, FrameSettings{});
   first.RenderFrame();
-  const std::size_t free_one = ListGpus().at(0).free_bytes;
+  const double free_one = free_mib();
   FramePipeline second(Backend::kCuda, volume);
   second.Update(scene, FrameSettings{});
   second.RenderFrame();
-  const std::size_t free_two = ListGpus().at(0).free_bytes;
+  const double free_two = free_mib();
   std::printf("first 720p session: %.1f MiB; each further one: %.1f MiB (shared voxels: %.1f MiB)\n",
-              (double(free_before) - double(free_one)) / (1 << 20), (double(free_one) - double(free_two)) / (1 << 20),
-              double(CopiesOf(volume).at(0).bytes) / (1 << 20));
+              free_before - free_one, free_one - free_two, double(CopiesOf(volume).at(0).bytes) / (1 << 20));
   EXPECT_EQ(CopiesOf(volume).size(), 1u);
+
+  // The parts, one by one, as a session's pipeline makes them.
+  const RenderSetup setup = ResolveScene(scene, *volume, nullptr);
+  auto renderer = CreateRenderer(Backend::kCuda);
+  renderer->SetVolume(volume);
+  renderer->SetTransferFunction(setup.transfer_function);
+  renderer->SetLights(setup.lights);
+  FrameRequest request;
+  request.camera = setup.camera;
+  request.spp = setup.spp;
+  const double before_renderer = free_mib();
+  renderer->Render(request);
+  renderer->LastFrameMilliseconds();
+  const double after_renderer = free_mib();
+  auto denoiser = CreateDenoiser(Backend::kCuda, FrameSettings{}.denoiser);
+  const FrameTargets targets = renderer->Targets();
+  DenoiseFrame frame;
+  frame.width = setup.camera.width;
+  frame.height = setup.camera.height;
+  frame.radiance = targets.radiance;
+  frame.first_hit = targets.first_hit;
+  frame.albedo = targets.albedo;
+  frame.camera = setup.camera;
+  denoiser->Denoise(frame);
+  const double after_denoiser = free_mib();
+  const double renderer_mib = before_renderer - after_renderer, denoiser_mib = after_renderer - after_denoiser;
+  std::printf("of a session: renderer %.1f MiB, denoiser (%s) %.1f MiB, the rest of the pipeline %.1f MiB\n",
+              renderer_mib, ToString(FrameSettings{}.denoiser.method), denoiser_mib,
+              (free_one - free_two) - renderer_mib - denoiser_mib);
 }
 #endif
 
