@@ -1,6 +1,7 @@
 // The render service end to end on the CPU backend: a real cinevol-server on
 // loopback, real gRPC, frames that follow camera, transfer-function and light
 // edits, snapshots, two sessions apart, idle refinement that stops.
+#include <cstdlib>
 #include <gtest/gtest.h>
 
 #include <thread>
@@ -185,7 +186,20 @@ TEST(SessionStream, AClippingEventCutsAndClearingItRestores) {
   const auto psnr = [](const RgbImage& x, const RgbImage& y) {
     return Psnr(ImageRgb8{x.width, x.height, x.rgb}, ImageRgb8{y.width, y.height, y.rgb});
   };
-  EXPECT_LT(psnr(a, b), 20.0) << "the cut image still shows the head";
+  // The share of pixels that differ between two images by more than noise does.
+  const auto share_unlike = [](const RgbImage& x, const RgbImage& y) {
+    size_t unlike = 0;
+    for (size_t i = 0; i < x.rgb.size(); i += 3)
+      for (int k = 0; k < 3; ++k)
+        if (std::abs(int(x.rgb[i + k]) - int(y.rgb[i + k])) > 24) {
+          ++unlike;
+          break;
+        }
+    return double(unlike) / double(x.rgb.size() / 3);
+  };
+  // The head covers about 14% of this frame. (A PSNR bound against the whole
+  // image sat too close to what it measured, 19.7 dB, under a loaded suite.)
+  EXPECT_GT(share_unlike(a, b), 0.07) << "the cut image still shows the head";
   EXPECT_GT(psnr(a, c), 30.0) << "clearing the clipping brings the head back";
 }
 
