@@ -80,6 +80,21 @@ struct VolumeBenchOptions {
 // Load, summaries (histogram, block ranges), kind and framing per volume.
 int RunVolumeBench(const VolumeBenchOptions& options);
 
+struct ScaleBenchOptions {
+  std::string volume;                      // the CT to resample
+  std::vector<int> slices{256, 1024, 2048};
+  int pixels = 512;                        // per slice edge
+  float slice_mm = 0.8f;
+  int frames = 30;
+  int sessions = 32;                       // for the room left beside them
+  std::string scratch;                     // where the resampled files go (removed after); default: temp
+  std::string out;
+  std::string command_line;
+};
+// A CT resampled to more and more slices: read, prepare, upload, first frame,
+// frame time and memory (needs a GPU).
+int RunScaleBench(const ScaleBenchOptions& options);
+
 struct CageBenchOptions : VolumeBenchOptions {
   int runs = 7;  // loads each way, alternating
 };

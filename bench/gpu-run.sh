@@ -36,6 +36,11 @@ for scene in ${DENOISE_SCENES:-ct-head-cthead:ct-head-cthead/DERIVED_CThead.nhdr
   "$bin/cinevol-bench" denoise --scene "bench/scenes/${scene%%:*}.json" --volume "$data/${scene#*:}" \
     --backend cuda --out "$out/performance.md" > "$out/denoise-${scene%%:*}.log" 2>&1
   echo "denoise bench ${scene%%:*} rc=$?"
+  if [ -x "$bin/cinevol-bench-before" ]; then
+    "$bin/cinevol-bench-before" denoise --scene "bench/scenes/${scene%%:*}.json" --volume "$data/${scene#*:}" \
+      --backend cuda --out "$out/performance-before.md" > "$out/denoise-before-${scene%%:*}.log" 2>&1
+    echo "denoise bench before ${scene%%:*} rc=$?"
+  fi
 done
 ${EXTRA:-true}
 cat "$out/performance-before.md" "$out/performance.md" 2>/dev/null

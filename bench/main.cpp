@@ -109,6 +109,19 @@ int main(int argc, char** argv) {
   g->add_option("--out", cage.out, "Append the Markdown table to this file");
   g->callback([&] { cinevol::bench::RunCageBench(cage); });
 
+  cinevol::bench::ScaleBenchOptions scale;
+  scale.command_line = command_line;
+  auto* sc = app.add_subcommand("scale", "A CT resampled to more slices: load to first frame, frame time, memory (GPU)");
+  sc->add_option("--volume", scale.volume, "The CT to resample")->required();
+  sc->add_option("--slices", scale.slices, "Slice counts, one row each")->capture_default_str();
+  sc->add_option("--pixels", scale.pixels, "Pixels along each slice's edge")->check(CLI::Range(16, 1024));
+  sc->add_option("--slice-mm", scale.slice_mm, "Distance between slices")->check(CLI::Range(0.1f, 10.0f));
+  sc->add_option("--frames", scale.frames, "720p frames timed after the first")->check(CLI::Range(1, 1000));
+  sc->add_option("--sessions", scale.sessions, "Sessions the room left for a volume is counted beside");
+  sc->add_option("--scratch", scale.scratch, "Folder for the resampled files (removed after each row)");
+  sc->add_option("--out", scale.out, "Append the Markdown table to this file");
+  sc->callback([&] { cinevol::bench::RunScaleBench(scale); });
+
   cinevol::bench::ReconstructionBenchOptions reconstruction;
   reconstruction.command_line = command_line;
   reconstruction.width = reconstruction.height = 512;

@@ -21,7 +21,7 @@ cp ../shared/data/mr-head-seg3d-nifti/MR.nii.gz "$stage/data/"
 [ "${NO_DICOM:-0}" = 1 ] || cp -r ../shared/data/mr-chest-dicom-seg3d "$stage/data/"
 # As under ../shared/data, for scene files that name it (bench/clinical-run.sh).
 mkdir -p "$stage/data/ct-body-totalsegmentator"
-cp ../shared/data/ct-body-totalsegmentator/{pulmonary_ct_cropped.nii.gz,example_ct_sm.nii.gz,example_seg.nii.gz,labels-total.tsv} \
+cp ../shared/data/ct-body-totalsegmentator/{pulmonary_ct_cropped.nii.gz,example_ct.nii.gz,example_ct_sm.nii.gz,example_seg.nii.gz,labels-total.tsv} \
   "$stage/data/ct-body-totalsegmentator/"
 chmod -R u+w "$stage"
 mkdir -p .gpu
