@@ -71,6 +71,17 @@ struct EventBenchOptions : SceneOptions {
 // What a camera event costs the server before a frame renders, step by step.
 int RunEventBench(const EventBenchOptions& options);
 
+struct EncodeBenchOptions : SceneOptions {
+  int frames = 50, warmup = 5;
+  int quality = 80;                 // [1, 100]
+  float degrees_per_frame = 1.0f;   // camera orbit speed
+  std::string jpeg_encoder = "auto";  // as cinevol-server's: nvjpeg measured beside the CPU where chosen
+};
+
+// A frame's JPEG on the CPU (whole and in bands) and with nvJPEG on the GPU:
+// times, bytes and decoded PSNR.
+int RunEncodeBench(const EncodeBenchOptions& options);
+
 struct VolumeBenchOptions {
   std::vector<std::string> volumes;  // files, folders or phantom specs
   std::string out;

@@ -42,5 +42,12 @@ for scene in ${DENOISE_SCENES:-ct-head-cthead:ct-head-cthead/DERIVED_CThead.nhdr
     echo "denoise bench before ${scene%%:*} rc=$?"
   fi
 done
+# Each JPEG encoder on the same frames (JPEG_ENCODER=auto notes nvJPEG's absence instead of failing).
+for scene in ${ENCODE_SCENES:-ct-head-cthead:ct-head-cthead/DERIVED_CThead.nhdr}; do
+  "$bin/cinevol-bench" encode --scene "bench/scenes/${scene%%:*}.json" --volume "$data/${scene#*:}" \
+    --backend cuda --jpeg-encoder "${JPEG_ENCODER:-nvjpeg}" --frames 100 --warmup 10 \
+    --out "$out/performance.md" > "$out/encode-${scene%%:*}.log" 2>&1
+  echo "encode bench ${scene%%:*} rc=$?"
+done
 ${EXTRA:-true}
 cat "$out/performance-before.md" "$out/performance.md" 2>/dev/null

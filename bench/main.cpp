@@ -78,6 +78,19 @@ int main(int argc, char** argv) {
       ->capture_default_str();
   d->add_option("--degrees-per-frame", denoise.degrees_per_frame, "Camera orbit speed")->capture_default_str();
   d->callback([&] { cinevol::bench::RunDenoiseBench(denoise); });
+  cinevol::bench::EncodeBenchOptions encode;
+  encode.command_line = command_line;
+  auto* j = app.add_subcommand("encode", "A frame's JPEG on the CPU and with nvJPEG on the GPU: ms, bytes, PSNR");
+  cinevol::bench::AddSceneOptions(j, encode);
+  j->add_option("--frames", encode.frames, "Timed frames")->capture_default_str();
+  j->add_option("--warmup", encode.warmup, "Untimed frames first")->capture_default_str();
+  j->add_option("--quality", encode.quality, "JPEG quality")->check(CLI::Range(1, 100))->capture_default_str();
+  j->add_option("--degrees-per-frame", encode.degrees_per_frame, "Camera orbit speed")->capture_default_str();
+  j->add_option("--jpeg-encoder", encode.jpeg_encoder,
+                "auto (nvJPEG beside the CPU where it loads), cpu (the CPU alone) or nvjpeg (refused where it cannot run)")
+      ->check(CLI::IsMember({"auto", "cpu", "nvjpeg"}))
+      ->capture_default_str();
+  j->callback([&] { cinevol::bench::RunEncodeBench(encode); });
   cinevol::bench::RefineBenchOptions refine;
   refine.command_line = command_line;
   auto* f =

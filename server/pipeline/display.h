@@ -2,8 +2,10 @@
 // or refined: pipeline/refine.h) to 8-bit sRGB, convert to
 // JPEG's YCbCr with the session's chroma subsampling, and copy the planes to
 // the host (1.5 bytes a pixel at 4:2:0, instead of 12 of radiance), where the
-// JPEG encoder takes them as they are. Runs on the backend that rendered the
-// frame, from one source (device/cpu_backend.h, cuda_backend.cuh).
+// JPEG encoder takes them as they are; or, with a device JPEG encoder
+// (pipeline/jpeg_encoder.h), encode them where they lie and copy only the
+// JPEG. Runs on the backend that rendered the frame, from one source
+// (device/cpu_backend.h, cuda_backend.cuh).
 #pragma once
 
 #include <atomic>
@@ -15,6 +17,7 @@
 #include "core/tone_map.h"
 #include "core/vec.h"
 #include "core/ycc.h"
+#include "pipeline/jpeg_encoder.h"
 #include "pipeline/upsample.h"
 
 namespace cinevol {
@@ -86,6 +89,9 @@ class Display {
   // The same for `source` (width x height, backend memory) upsampled to the
   // inputs' size as Upsampler::Run does; inputs.radiance is not read.
   virtual ImageYcc8 RunUpsampled(const DisplayInputs& inputs, const Vec3f* source, int width, int height) = 0;
+  // The planes Run makes, encoded by `encoder` on the backend's device at
+  // `quality`: only the JPEG leaves it.
+  virtual EncodedJpeg RunJpeg(const DisplayInputs& inputs, DeviceJpegEncoder& encoder, int quality) = 0;
   // The same pixels as 8-bit sRGB (inputs.chroma does not apply), for a
   // frame that goes out losslessly: once per refinement, so not pipelined.
   virtual ImageRgb8 RunRgb(const DisplayInputs& inputs) = 0;
@@ -146,6 +152,11 @@ class DisplayOn final : public Display {
     return Planes(in, Pixel<UpsampledRadiance>(in, {up}));
   }
 
+  EncodedJpeg RunJpeg(const DisplayInputs& in, DeviceJpegEncoder& encoder, int quality) override {
+    const YccPlanes planes = WritePlanes(in, Pixel<FrameRadiance>(in, {in.radiance, in.width}));
+    return {in.width, in.height, encoder.Encode(planes, quality)};
+  }
+
   ImageRgb8 RunRgb(const DisplayInputs& in) override {
     ImageRgb8 image{in.width, in.height, std::vector<std::uint8_t>(std::size_t(in.width) * in.height * 3)};
     planes_.Resize(image.bytes.size());
@@ -162,12 +173,19 @@ class DisplayOn final : public Display {
     return {radiance, tone_map_, exp2f(in.exposure)};
   }
 
+  // The planes in backend memory (planes_), written.
   template <class P>
-  ImageYcc8 Planes(const DisplayInputs& in, const P& pixel) {
-    const std::size_t bytes = YccBytes(in.width, in.height, in.chroma);
-    planes_.Resize(bytes);
+  YccPlanes WritePlanes(const DisplayInputs& in, const P& pixel) {
+    planes_.Resize(YccBytes(in.width, in.height, in.chroma));
     const YccPlanes out = YccPlanes::Of(planes_.data(), in.width, in.height, in.chroma);
     B::ForEachPixel(ChromaWidth(in.width, in.chroma), ChromaHeight(in.height, in.chroma), DisplayPass<P>{pixel, out});
+    return out;
+  }
+
+  template <class P>
+  ImageYcc8 Planes(const DisplayInputs& in, const P& pixel) {
+    WritePlanes(in, pixel);
+    const std::size_t bytes = planes_.size();
     const std::shared_ptr<HostBuffer> host = ring_.Next(bytes);
     planes_.Download(host->data());
     return {in.width, in.height, in.chroma, std::shared_ptr<const std::uint8_t>(host, host->data()), bytes};

@@ -5,6 +5,9 @@
 #include <chrono>
 #include <cmath>
 #include <iterator>
+#include <stdexcept>
+
+#include "core/error.h"
 
 namespace cinevol {
 namespace {
@@ -98,6 +101,18 @@ FramePipeline::FramePipeline(Backend backend, std::shared_ptr<const Volume> volu
 }
 
 FramePipeline::~FramePipeline() = default;
+
+void FramePipeline::SetJpegEncoder(JpegEncoderKind kind) {
+  device_jpeg_.reset();
+  if (kind == JpegEncoderKind::kCpu) return;
+  if (kind != JpegEncoderKind::kNvjpeg) throw std::logic_error("SetJpegEncoder takes ChooseJpegEncoder's choice");
+  if (renderer_->backend() != Backend::kCuda) throw InputError("--jpeg-encoder nvjpeg: frames render on the CPU");
+  const NvjpegLookup& nvjpeg = ProcessNvjpeg();
+  if (!nvjpeg.library) throw InputError("--jpeg-encoder nvjpeg: " + nvjpeg.why_not);
+#if CINEVOL_WITH_CUDA
+  device_jpeg_ = MakeNvjpegEncoder(nvjpeg.library);
+#endif
+}
 
 void FramePipeline::Update(const v1::Scene& scene, const FrameSettings& settings, unsigned changes) {
   if (!has_scene_) changes = kEverythingChanged;
@@ -324,15 +339,19 @@ DisplayFrame FramePipeline::RenderFrame() {
   in.chroma = settings_.chroma;
   out.accumulated_spp = accumulated_spp_;
   out.final = Converged();
+  out.jpeg_quality = out.final ? settings_.final_jpeg_quality : settings_.jpeg_quality;
   last_frame_final_ = out.final;
   if (out.final && settings_.final_png) {
     out.final_rgb = display_->RunRgb(in);
   } else if (upsample_in_display) {
     out.image = display_->RunUpsampled(in, denoised, camera.width, camera.height);
+  } else if (device_jpeg_) {
+    out.jpeg = display_->RunJpeg(in, *device_jpeg_, out.jpeg_quality);
+    out.encode_ms = device_jpeg_->LastMilliseconds();
   } else {
     out.image = display_->Run(in);
   }
-  out.display_ms = MillisecondsSince(display_start);
+  out.display_ms = MillisecondsSince(display_start) - out.encode_ms;
   cost_.Observe({std::int64_t(camera.width) * camera.height, spp, out.render_ms, out.denoise_ms,
                  out.display_ms - refine_ms, refine_ms});
   return out;

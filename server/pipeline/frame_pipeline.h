@@ -4,7 +4,8 @@
 // scene's spp, denoises, combines the denoised image with the accumulation
 // per pixel by their estimated errors (idle refinement), tone maps and
 // converts to JPEG's YCbCr planes on the device and copies them to pinned
-// host memory, ready for EncodeJpeg on any thread.
+// host memory, ready for EncodeJpeg on any thread (or, with SetJpegEncoder's
+// nvJPEG, encodes them on the GPU and copies only the JPEG).
 //
 // The service drives one per session; `cinevol render` and the benches
 // drive the same object. CUDA work goes to the calling thread's current GPU
@@ -30,6 +31,7 @@
 #include "scene/scene_file.h"  // SceneChange: what an update changes, as the events that made it say
 #include "pipeline/display.h"
 #include "pipeline/frame_cost.h"
+#include "pipeline/jpeg_encoder.h"
 #include "pipeline/refine.h"
 #include "pipeline/upsample.h"
 #include "render/renderer.h"
@@ -114,8 +116,10 @@ enum class InteractivePolicy {
 // A frame ready to encode, with what it cost. The planes are at the
 // settings' chroma subsampling; ToRgb (core/ycc.h) gives the pixels back.
 struct DisplayFrame {
-  ImageYcc8 image;          // empty where final_rgb holds the frame
+  ImageYcc8 image;          // empty where final_rgb or jpeg holds the frame
   ImageRgb8 final_rgb;      // the final frame, where FrameSettings::final_png asks for its exact pixels
+  EncodedJpeg jpeg;         // the frame encoded on the GPU, where SetJpegEncoder asks for nvJPEG
+  int jpeg_quality = 0;     // the settings' quality for this frame (final or not): jpeg's, or the one to encode at
   int accumulated_spp = 0;  // samples per pixel behind it since the scene last changed
   bool final = false;       // refinement reached its error target or target_spp with this frame
   float estimated_error = -1;  // refined frames: the image's estimated relative error; < 0 unknown
@@ -125,6 +129,7 @@ struct DisplayFrame {
   // accumulation restarted.
   bool preempted = false;
   double render_ms = 0, denoise_ms = 0, display_ms = 0;  // display_ms: upsampling, refinement and display
+  double encode_ms = 0;  // the GPU's encode of jpeg (after display_ms); 0 where the caller encodes
 };
 
 class FramePipeline {
@@ -166,6 +171,12 @@ class FramePipeline {
   // integrator; `cinevol-bench render` forces kAllFeatures to measure what
   // specialisation buys.
   void SetRenderFeatures(unsigned features) { render_features_ = features; }
+  // kCpu (the default): frames leave the device as planes (DisplayFrame::image)
+  // for the caller to encode. kNvjpeg: frames that would leave as planes are
+  // encoded by nvJPEG on the GPU instead (DisplayFrame::jpeg); takes
+  // ChooseJpegEncoder's choice. Throws InputError where nvJPEG cannot encode
+  // this pipeline's frames; call on the pipeline's thread.
+  void SetJpegEncoder(JpegEncoderKind kind);
 
   int accumulated_spp() const { return accumulated_spp_; }
   // Bumped by every transfer-function or light rebuild.
@@ -215,6 +226,7 @@ class FramePipeline {
   std::unique_ptr<Display> display_;
   std::unique_ptr<Upsampler> upsampler_;
   std::unique_ptr<Refiner> refiner_;
+  std::unique_ptr<DeviceJpegEncoder> device_jpeg_;  // null: frames leave as planes
   bool last_frame_blended_ = false;  // the last frame showed refiner_'s blend
   ClipRegion clip_;                  // the scene's, resolved: named views frame what it keeps
   FrameSettings settings_;

@@ -18,7 +18,7 @@ std::uint32_t MicrosBetween(Clock::time_point from, Clock::time_point to) {
   return static_cast<std::uint32_t>(std::chrono::duration_cast<std::chrono::microseconds>(to - from).count());
 }
 
-v1::Frame EncodeFrame(const DisplayFrame& display, const FrameStamp& stamp, int quality, int bands) {
+v1::Frame EncodeFrame(const DisplayFrame& display, const FrameStamp& stamp, int bands) {
   v1::Frame frame;
   const Clock::time_point start = Clock::now();
   if (!display.final_rgb.bytes.empty()) {
@@ -26,14 +26,20 @@ v1::Frame EncodeFrame(const DisplayFrame& display, const FrameStamp& stamp, int 
     frame.set_png(png.data(), png.size());
     frame.set_width(display.final_rgb.width);
     frame.set_height(display.final_rgb.height);
+  } else if (!display.jpeg.bytes.empty()) {  // encoded on the GPU already
+    frame.set_jpeg(display.jpeg.bytes.data(), display.jpeg.bytes.size());
+    frame.set_width(display.jpeg.width);
+    frame.set_height(display.jpeg.height);
   } else {
-    const std::vector<std::uint8_t> jpeg = EncodeJpeg(display.image, quality, bands);
+    const std::vector<std::uint8_t> jpeg = EncodeJpeg(display.image, display.jpeg_quality, bands);
     frame.set_jpeg(jpeg.data(), jpeg.size());
     frame.set_width(display.image.width);
     frame.set_height(display.image.height);
   }
-  frame.mutable_timings()->set_encode_us(MicrosBetween(start, Clock::now()));
-  ServerMetrics().ObserveStage(Stage::kEncode, std::chrono::duration<double>(Clock::now() - start).count());
+  // The GPU's encode counts as the encode stage, not the display's.
+  const double encode_s = std::chrono::duration<double>(Clock::now() - start).count() + display.encode_ms / 1000.0;
+  frame.mutable_timings()->set_encode_us(Micros(encode_s * 1000.0));
+  ServerMetrics().ObserveStage(Stage::kEncode, encode_s);
   frame.set_frame_id(stamp.frame_id);
   frame.set_accumulated_spp(display.accumulated_spp);
   frame.set_last_event_seq(stamp.event_seq);

@@ -21,11 +21,11 @@ struct FrameStamp {
   std::uint32_t queue_us = 0;                 // from the event's arrival to the render's start
 };
 
-// The frame message for `display`: its image at `quality` (JPEG in up to
-// `bands` bands on idle threads; the final frame as PNG where the display
-// carries one), the stamp's header and every stage's time. Throws what the
-// encoder throws.
-v1::Frame EncodeFrame(const DisplayFrame& display, const FrameStamp& stamp, int quality, int bands);
+// The frame message for `display`: its image at its jpeg_quality (JPEG in up
+// to `bands` bands on idle threads; the JPEG the GPU made where it carries
+// one; the final frame as PNG where it carries one), the stamp's header and
+// every stage's time. Throws what the encoder throws.
+v1::Frame EncodeFrame(const DisplayFrame& display, const FrameStamp& stamp, int bands);
 
 std::uint32_t MicrosBetween(std::chrono::steady_clock::time_point from, std::chrono::steady_clock::time_point to);
 

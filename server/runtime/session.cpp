@@ -479,6 +479,7 @@ bool Session::Step() {
       prepared_.reset();  // the renderer holds the copy now (VolumeCache)
       pipeline_->SetCancel(&cancel_);
       pipeline_->SetPreempt(&preempt_);
+      pipeline_->SetJpegEncoder(context_.jpeg_encoder);
     }
     if (work.update) pipeline_->Update(work.scene, work.settings, work.changes);
     frame = pipeline_->RenderFrame();
@@ -519,20 +520,19 @@ bool Session::Step() {
     // An event during the render still gets its frame.
     if (frame.final && !event_unrendered_ && state_ == State::kRendering) state_ = State::kIdle;
   }
-  const int quality = frame.final ? work.settings.final_jpeg_quality : work.settings.jpeg_quality;
-  Encode(std::move(frame), work.stamp, quality);  // at the settings' chroma, as displayed
+  Encode(std::move(frame), work.stamp);  // at the settings' chroma and quality, as displayed
   std::lock_guard lock(mu_);
   return CanRenderLocked();
 }
 
-void Session::Encode(DisplayFrame display, const FrameStamp& stamp, int quality) {
-  context_.encoder->Submit([self = shared_from_this(), display = std::move(display), stamp, quality]() {
+void Session::Encode(DisplayFrame display, const FrameStamp& stamp) {
+  context_.encoder->Submit([self = shared_from_this(), display = std::move(display), stamp]() {
     // Idle encoder threads mean idle cores: a lone session's frame encodes
     // in bands on them and reaches its viewer sooner; a busy pool encodes whole.
     const int bands = std::min(1 + self->context_.encoder->idle(), kMaxJpegBands);
     v1::Frame frame;
     try {
-      frame = EncodeFrame(display, stamp, quality, bands);
+      frame = EncodeFrame(display, stamp, bands);
     } catch (...) {
       {
         std::lock_guard lock(self->mu_);

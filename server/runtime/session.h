@@ -86,6 +86,7 @@ struct SessionContext {
   Scheduler* scheduler = nullptr;
   TaskPool* encoder = nullptr;
   Backend backend = Backend::kCpu;
+  JpegEncoderKind jpeg_encoder = JpegEncoderKind::kCpu;  // ChooseJpegEncoder's, once per server
   const SessionLimits* limits = nullptr;
   MapResolver resolve_map;        // environment maps: inside the data roots
   PixelBudget* pixels = nullptr;  // the session holds its viewport's pixels from creation to destruction
@@ -198,7 +199,7 @@ class Session final : public Job, public std::enable_shared_from_this<Session> {
   // current_.pointers from pointers_, the visible ones.
   void ShowPointersLocked();  // AttachWatcher under mu_, before the wake
   // The encode stage (frame_encoding.h) on the encoder pool, then Deliver.
-  void Encode(DisplayFrame frame, const FrameStamp& stamp, int quality);
+  void Encode(DisplayFrame frame, const FrameStamp& stamp);
   void Deliver(v1::Frame frame, Clock::time_point origin);
   void Wake() { context_.scheduler->Wake(shared_from_this()); }
 

@@ -102,7 +102,7 @@ struct PacsFlags {
   }
 };
 
-void AddOptions(CLI::App& app, ServerOptions& o, std::string& backend, PacsFlags& pacs) {
+void AddOptions(CLI::App& app, ServerOptions& o, std::string& backend, std::string& jpeg_encoder, PacsFlags& pacs) {
   app.set_config("--config", "", "Read these settings from a TOML/INI file (keys as the long flags)");
   app.add_option("--listen", o.listen, "HOST:PORT to listen on (port 0: any free port)")->capture_default_str();
   app.add_option("--backend", backend, "auto (CUDA when a GPU is usable), cpu or cuda")
@@ -119,6 +119,11 @@ void AddOptions(CLI::App& app, ServerOptions& o, std::string& backend, PacsFlags
   app.add_option("--encode-threads", o.encode_threads,
                  "frames encoded at once, on the compute threads (0: one per thread)")
       ->check(CLI::Range(0, 256))
+      ->capture_default_str();
+  app.add_option("--jpeg-encoder", jpeg_encoder,
+                 "Where frames become JPEG: auto (nvJPEG on the rendering GPU where libnvjpeg loads, else the "
+                 "CPU), cpu (libjpeg-turbo, in bands) or nvjpeg (refused at start where it cannot run)")
+      ->check(CLI::IsMember({"auto", "cpu", "nvjpeg"}))
       ->capture_default_str();
   app.add_option("--detached-session-seconds", o.detached_session_seconds,
                  "How long a session whose stream ended waits for a new one before it ends")
@@ -175,9 +180,10 @@ int main(int argc, char** argv) {
   CLI::App app{"cinevol-server: remote volumetric path tracing with real-time denoising, over gRPC"};
   ServerOptions options;
   std::string backend = "auto";
+  std::string jpeg_encoder = "auto";
   bool verbose = false;
   PacsFlags pacs;
-  AddOptions(app, options, backend, pacs);
+  AddOptions(app, options, backend, jpeg_encoder, pacs);
   app.add_flag("-v,--verbose", verbose, "Log debug detail");
   try {
     app.parse(argc, argv);
@@ -196,6 +202,7 @@ int main(int argc, char** argv) {
   pthread_sigmask(SIG_BLOCK, &signals, nullptr);
   try {
     options.backend = cinevol::ParseBackend(backend);
+    options.jpeg_encoder = cinevol::ParseJpegEncoder(jpeg_encoder);
     options.pacs = pacs.Configs();
     cinevol::service::CheckListenPolicy(options.listen, !options.auth_tokens.empty(), options.tls.mutual(),
                                         options.insecure_no_auth);

@@ -206,6 +206,7 @@ ServiceCore::ServiceCore(const ServerOptions& options)
     if (!options.devices.empty()) throw InputError("--devices: names GPUs, but the backend is the CPU");
     schedulers_.push_back(std::make_unique<Scheduler>(CpuName(), std::nullopt, 1));
   }
+  jpeg_encoder_ = ChooseJpegEncoder(options.jpeg_encoder, backend_);
   const std::vector<std::string> preload =
       options.volumes.empty() ? std::vector<std::string>{"phantom:head"} : options.volumes;
   for (const std::string& spec : preload) volumes_.AddFromSpec(spec);
@@ -297,7 +298,7 @@ v1::CreateSessionResponse ServiceCore::CreateSession(const v1::CreateSessionRequ
   std::shared_ptr<const VolumeCopy> prepared = PrepareOnDevice(*volume, scheduler);
   require_caller();
   SessionContext context{
-      &scheduler, &encoder_, backend_, &options_.limits, ResolveMap(), &pixels_, [this](const std::string& id) {
+      &scheduler, &encoder_, backend_, jpeg_encoder_, &options_.limits, ResolveMap(), &pixels_, [this](const std::string& id) {
         Forget(id);
       }};
   std::shared_ptr<Session> session;

@@ -48,6 +48,7 @@ struct ServerOptions {
   std::vector<pacs::PacsConfig> pacs;             // --pacs NAME=URL, with the --pacs-* settings
   std::filesystem::path pacs_credentials;         // --pacs-credentials FILE; empty: none
   int encode_threads = 0;                         // encodes at once on the compute pool; 0: one per worker
+  JpegEncoderKind jpeg_encoder = JpegEncoderKind::kAuto;  // --jpeg-encoder: nvJPEG on the GPU where it loads
   int max_sessions = 64;
   int max_sessions_per_principal = 16;
   int max_grants_per_principal = 32;  // shares a principal has made and not revoked (docs/sharing.md)
@@ -177,6 +178,7 @@ class ServiceCore {
 
   ServerOptions options_;
   Backend backend_ = Backend::kCpu;  // resolved: kCpu or kCuda
+  JpegEncoderKind jpeg_encoder_ = JpegEncoderKind::kCpu;  // resolved: kCpu or kNvjpeg
   Authenticator authenticator_;
   VolumeRegistry volumes_;
   TaskPool encoder_;    // on ThreadPool::Shared(), beside the CPU's loops

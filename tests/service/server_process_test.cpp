@@ -127,6 +127,22 @@ TEST(CinevolServer, RefusesBadSettingsWithAMessage) {
   }
 }
 
+// On the CPU backend nvJPEG cannot run, library or not (CI has neither a GPU
+// nor libnvjpeg: there the message names the missing library).
+TEST(CinevolServer, RefusesNvjpegWhereItCannotRunNamingWhy) {
+  ScratchDir scratch;
+  auto [code, out] =
+      RunServer(scratch, {"--jpeg-encoder", "nvjpeg", "--volume", "phantom:cube?size=8", "--backend", "cpu"});
+  EXPECT_EQ(code, 2) << out;
+  EXPECT_NE(out.find("--jpeg-encoder nvjpeg: "), std::string::npos) << out;
+  const bool named = out.find("libnvjpeg not found") != std::string::npos ||
+                     out.find("frames render on the CPU") != std::string::npos;
+  EXPECT_TRUE(named) << out;
+  std::tie(code, out) = RunServer(scratch, {"--jpeg-encoder", "gpu", "--backend", "cpu"});
+  EXPECT_NE(code, 0) << out;
+  EXPECT_NE(out.find("--jpeg-encoder"), std::string::npos) << out;
+}
+
 TEST(CinevolServer, StopsInOrderOnSigtermWithAStreamOpen) {
   ScratchDir scratch;
   ServerProcess server(scratch.path());
