@@ -18,7 +18,7 @@ ncu=$(command -v ncu || ls /usr/local/cuda/bin/ncu 2>/dev/null)
 for scene in ${SCENES:-ct-aorta-bone:aorta_ct_cropped.nii.gz ct-head-cthead:ct-head-cthead/DERIVED_CThead.nhdr}; do
   name=${scene%%:*} volume=$data/${scene#*:}
   # The path tracer: the fourth launch of its kernel (after warm-up).
-  "$ncu" --kernel-name regex:'Regenerating|PerPixel|RenderKernel' --launch-skip 3 --launch-count 1 \
+  "$ncu" --kernel-name regex:RenderKernel --launch-skip 3 --launch-count 1 \
     --section SpeedOfLight --section Occupancy --section LaunchStats --section WarpStateStats \
     --section SourceCounters --section MemoryWorkloadAnalysis \
     "$bin/${BENCH:-cinevol-bench}" render --scene "bench/scenes/$name.json" --volume "$volume" --backend cuda \

@@ -20,7 +20,6 @@ struct Config {
   bool specialised;
   bool volume_texture = true;
   Reconstruction reconstruction = Reconstruction::kTrilinear;
-  bool path_regeneration = true;
 };
 
 struct Result {
@@ -33,7 +32,6 @@ Result Measure(const RenderBenchOptions& o, const Config& c, const LoadedScene& 
   RendererOptions options;
   options.brick_size = c.brick_size;
   options.volume_texture = c.volume_texture;
-  options.path_regeneration = c.path_regeneration;
   FramePipeline pipeline(ParseBackend(o.backend), loaded.volume, options, loaded.labels);
   pipeline.SetRenderFeatures(c.specialised ? kAutoFeatures : kAllFeatures);
   FrameSettings settings;
@@ -79,8 +77,6 @@ int RunRenderBench(const RenderBenchOptions& o) {
   for (int b : {8, 16}) configs.push_back({fmt::format("{}^3 bricks, specialised", b), b, true});
   if (ParseBackend(o.backend) != Backend::kCpu) {
     configs.push_back({"voxels read from a buffer, not the texture unit", kDefaultBrickSize, true, false});
-    configs.push_back({"one thread per pixel, no path regeneration", kDefaultBrickSize, true, true,
-                       Reconstruction::kTrilinear, false});
   }
   configs.push_back({"tricubic reconstruction", kDefaultBrickSize, true, true, Reconstruction::kTricubic});
   double base = 0;

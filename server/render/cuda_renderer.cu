@@ -1,6 +1,6 @@
 // CudaRenderer: uploads SceneData's tables, takes the GPU's shared copy of
 // the voxels, and launches the path tracer over the image: lanes that take a
-// new path whenever theirs ends (path regeneration), or one thread per pixel.
+// new path whenever theirs ends (path regeneration).
 #include "render/cuda_renderer.h"
 
 #include <cooperative_groups.h>
@@ -60,7 +60,7 @@ __device__ bool TakePixel(unsigned* next_item, const RenderScene& s, int& x, int
 // whole parameter block into local memory per thread.
 template <unsigned kFeatures>
 __global__ void __launch_bounds__(kThreads, kMinBlocksPerSm)
-    RegeneratingKernel(const __grid_constant__ RenderScene scene, const FrameTargets targets, unsigned* next_item) {
+    RenderKernel(const __grid_constant__ RenderScene scene, const FrameTargets targets, unsigned* next_item) {
   PathTracer<kFeatures> tracer(scene);
   PixelSamples pixel;
   int x, y;
@@ -82,26 +82,11 @@ __global__ void __launch_bounds__(kThreads, kMinBlocksPerSm)
   }
 }
 
-// One thread per pixel, each path to its end: what regeneration is measured
-// against (RendererOptions::path_regeneration off).
-template <unsigned kFeatures>
-__global__ void __launch_bounds__(kThreads, kMinBlocksPerSm)
-    PerPixelKernel(const __grid_constant__ RenderScene scene, const FrameTargets targets, unsigned*) {
-  int x, y;
-  const unsigned item = blockIdx.x * kThreads + threadIdx.x;
-  if (!PixelOfItem(item, scene.camera.width, scene.camera.height, x, y)) return;
-  RenderPixel<kFeatures>(scene, x, y, targets);
-}
-
 using Kernel = void (*)(const RenderScene, const FrameTargets, unsigned*);
 
 template <unsigned... kVariant>
-std::array<Kernel, sizeof...(kVariant)> MakeRegenerating(std::integer_sequence<unsigned, kVariant...>) {
-  return {&RegeneratingKernel<VariantFeatures(kVariant)>...};
-}
-template <unsigned... kVariant>
-std::array<Kernel, sizeof...(kVariant)> MakePerPixel(std::integer_sequence<unsigned, kVariant...>) {
-  return {&PerPixelKernel<VariantFeatures(kVariant)>...};
+std::array<Kernel, sizeof...(kVariant)> MakeKernels(std::integer_sequence<unsigned, kVariant...>) {
+  return {&RenderKernel<VariantFeatures(kVariant)>...};
 }
 
 // Blocks of `kernel` the current GPU runs at once.
@@ -141,10 +126,7 @@ struct CudaRenderer::Device {
 };
 
 CudaRenderer::CudaRenderer(const RendererOptions& options)
-    : brick_size_(options.brick_size),
-      use_texture_(options.volume_texture),
-      regenerate_(options.path_regeneration),
-      device_(std::make_unique<Device>()) {
+    : brick_size_(options.brick_size), use_texture_(options.volume_texture), device_(std::make_unique<Device>()) {
   device_->next_item.Resize(1);
 }
 CudaRenderer::~CudaRenderer() = default;
@@ -237,21 +219,14 @@ void CudaRenderer::Render(const FrameRequest& request) {
   scene.environment.map.conditional_cdf = d.env_conditional.data();
   last_features_ = ApplyRequest(request, scene);
 
-  static const auto kRegenerating = MakeRegenerating(std::make_integer_sequence<unsigned, kIntegratorVariants>());
-  static const auto kPerPixel = MakePerPixel(std::make_integer_sequence<unsigned, kIntegratorVariants>());
+  static const auto kKernels = MakeKernels(std::make_integer_sequence<unsigned, kIntegratorVariants>());
   const unsigned variant = VariantOf(last_features_);
+  // As many blocks as run at once: more would only wait for work to end.
+  int& blocks = d.resident_blocks[variant];
+  if (blocks == 0) blocks = ResidentBlocks(kKernels[variant]);
   CINEVOL_CUDA_CHECK(cudaEventRecord(d.start, d.stream));
-  if (regenerate_) {
-    d.next_item.Zero(d.stream);
-    // As many blocks as run at once: more would only wait for work to end.
-    int& blocks = d.resident_blocks[variant];
-    if (blocks == 0) blocks = ResidentBlocks(kRegenerating[variant]);
-    kRegenerating[variant]<<<blocks, kThreads, 0, d.stream>>>(scene, Targets(), d.next_item.data());
-  } else {
-    const int items = ((w + kTileWidth - 1) / kTileWidth) * ((h + kTileHeight - 1) / kTileHeight) *
-                      (kTileWidth * kTileHeight);
-    kPerPixel[variant]<<<(items + kThreads - 1) / kThreads, kThreads, 0, d.stream>>>(scene, Targets(), nullptr);
-  }
+  d.next_item.Zero(d.stream);
+  kKernels[variant]<<<blocks, kThreads, 0, d.stream>>>(scene, Targets(), d.next_item.data());
   CINEVOL_CUDA_CHECK_LAUNCH();
   CINEVOL_CUDA_CHECK(cudaEventRecord(d.stop, d.stream));
   ++accumulated_frames_;

@@ -38,7 +38,6 @@ class CudaRenderer final : public Renderer {
  private:
   int brick_size_;
   bool use_texture_;  // RendererOptions::volume_texture
-  bool regenerate_;   // RendererOptions::path_regeneration
   // The voxels on this GPU, shared. Declared before device_: the frames in
   // flight end (~Device) before the voxels may go.
   std::shared_ptr<const VolumeCopy> volume_;

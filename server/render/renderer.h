@@ -114,9 +114,6 @@ struct RendererOptions {
   // CUDA: sample the volume through the texture unit (device/volume_texture.h);
   // false reads the voxel buffer, as the CPU does (to measure what it buys).
   bool volume_texture = true;
-  // CUDA: lanes take a new path when theirs ends (path regeneration); false
-  // runs one thread per pixel (to measure what it buys).
-  bool path_regeneration = true;
   int cpu_threads = 0;  // 0: every hardware thread (or CINEVOL_THREADS)
 };
 
