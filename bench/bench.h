@@ -41,6 +41,7 @@ void Report(const SceneOptions& options, const std::string& table);
 
 struct RenderBenchOptions : SceneOptions {
   int frames = 50, warmup = 5;
+  bool default_only = false;
 };
 
 int RunRenderBench(const RenderBenchOptions& options);

@@ -67,6 +67,7 @@ int main(int argc, char** argv) {
   cinevol::bench::AddSceneOptions(r, render);
   r->add_option("--frames", render.frames, "Timed frames")->capture_default_str();
   r->add_option("--warmup", render.warmup, "Untimed frames first")->capture_default_str();
+  r->add_flag("--default-only", render.default_only, "Only the default configuration (its first row)");
   r->callback([&] { cinevol::bench::RunRenderBench(render); });
   cinevol::bench::DenoiseBenchOptions denoise;
   denoise.command_line = command_line;

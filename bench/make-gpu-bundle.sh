@@ -3,13 +3,16 @@
 # use into .gpu/bundle.tar.xz (kept out of git) for bench/gpu-run.sh.
 # NO_DICOM=1 leaves the DICOM series out (the carry limit is 64 MiB with the
 # working tree; only the reading and DICOM checks need it).
+# PROGRAMS="cinevol-server ..." packs only those of build/ (the carry limit
+# again: a run of tests and benches needs neither the client nor the viewer).
 # BEFORE=PATH packs an earlier build's cinevol-bench as cinevol-bench-before,
 # for tables of before and after in one run (bench/gpu-run.sh).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 stage=$(mktemp -d)
-../shared/tools/device-bundle.sh "$stage" build/cinevol build/cinevol-server build/cinevol-reader build/cinevol-bench build/cinevol-viewer \
-  build/tests/cinevol_tests
+programs=${PROGRAMS:-cinevol cinevol-server cinevol-reader cinevol-bench cinevol-viewer tests/cinevol_tests}
+# shellcheck disable=SC2086  # the programs are words
+../shared/tools/device-bundle.sh "$stage" $(printf 'build/%s ' $programs)
 if [ -n "${BEFORE:-}" ]; then
   cp -L "$BEFORE" "$stage/bin/cinevol-bench-before"
   strip --strip-unneeded "$stage/bin/cinevol-bench-before"
@@ -25,6 +28,6 @@ cp ../shared/data/ct-body-totalsegmentator/{pulmonary_ct_cropped.nii.gz,example_
   "$stage/data/ct-body-totalsegmentator/"
 chmod -R u+w "$stage"
 mkdir -p .gpu
-tar -I 'xz -T0 -6' -cf .gpu/bundle.tar.xz -C "$stage" .
+tar -I 'xz -T0 -9e' -cf .gpu/bundle.tar.xz -C "$stage" .
 rm -rf "$stage"
 du -h .gpu/bundle.tar.xz

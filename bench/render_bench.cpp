@@ -79,6 +79,7 @@ int RunRenderBench(const RenderBenchOptions& o) {
     configs.push_back({"voxels read from a buffer, not the texture unit", kDefaultBrickSize, true, false});
   }
   configs.push_back({"tricubic reconstruction", kDefaultBrickSize, true, true, Reconstruction::kTricubic});
+  if (o.default_only) configs.resize(1);
   double base = 0;
   for (const Config& c : configs) {
     const Result r = Measure(o, c, loaded);

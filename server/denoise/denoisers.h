@@ -255,9 +255,9 @@ class Wrls final : public DenoiserBase<B> {
     const WrlsSettings& s = this->settings_.wrls;
     const int w = this->width_, h = this->height_;
     still_frames_ = rv.still ? still_frames_ + 1 : 0;
-    std::swap(feature_, prev_feature_);
     std::swap(model_, prev_model_);
-    B::ForEachPixel(w, h, ReprojectHistoryPass{rv, prev_feature_.data(), b_.data()});
+    // The previous feature, reprojected: the temporal pass then overwrites it.
+    B::ForEachPixel(w, h, ReprojectHistoryPass{rv, feature_.data(), b_.data()});
     B::ForEachPixel(w, h, WrlsTemporalPass{rv, input, b_.data(), prev_model_.data(), feature_.data(), model_.data(),
                                            a_.data(), s, still_frames_, FeatureRatioRows(input, rv)});
     B::ForEachPixel(w, h, CoveragePass{frame.first_hit, coverage_.data(), w, h});
@@ -271,9 +271,7 @@ class Wrls final : public DenoiserBase<B> {
 
   void Allocate(std::size_t n) override {
     stable_.Resize(n);
-    prev_stable_.Resize(n);
     feature_.Resize(n);
-    prev_feature_.Resize(n);
     model_.Resize(n);
     prev_model_.Resize(n);
     a_.Resize(n);
@@ -299,15 +297,17 @@ class Wrls final : public DenoiserBase<B> {
   void Stabilize(const ReprojectionView& rv, Vec3f* output) {
     const WrlsSettings& s = this->settings_.wrls;
     const int w = this->width_, h = this->height_;
-    std::swap(stable_, prev_stable_);
-    B::ForEachPixel(w, h, ReprojectHistoryPass{rv, prev_stable_.data(), b_.data()});
+    // The previous output, reprojected: the stabiliser then overwrites it.
+    B::ForEachPixel(w, h, ReprojectHistoryPass{rv, stable_.data(), b_.data()});
     B::ForEachPixel(w, h, HistoryOffsetRowsPass{a_.data(), b_.data(), offset_rows_.data(), w, s.stabilize_recenter});
     B::ForEachPixel(w, h, WrlsStabilizePass{a_.data(), b_.data(), offset_rows_.data(), output, stable_.data(), w, h,
                                             s.stabilize_history, s.stabilize_clamp, s.stabilize_recenter});
   }
 
-  typename DenoiserBase<B>::template Buffer<Vec3f> feature_, prev_feature_;
-  typename DenoiserBase<B>::template Buffer<Vec3f> stable_, prev_stable_;  // stabilised outputs
+  // One frame each: read (reprojected) before they are written.
+  typename DenoiserBase<B>::template Buffer<Vec3f> feature_;
+  typename DenoiserBase<B>::template Buffer<Vec3f> stable_;  // the stabilised output
+  // Two frames: the temporal pass reads other pixels' previous models.
   typename DenoiserBase<B>::template Buffer<WrlsModel> model_, prev_model_;
   typename DenoiserBase<B>::template Buffer<Vec4f> a_, b_;  // prediction and its variance, per a-trous level
   typename DenoiserBase<B>::template Buffer<Vec4f> offset_rows_;  // row sums of a recentering or rescaling window

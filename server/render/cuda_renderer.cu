@@ -1,9 +1,7 @@
-// CudaRenderer: uploads SceneData's tables, takes the GPU's shared copy of
-// the voxels, and launches the path tracer over the image: lanes that take a
-// new path whenever theirs ends (path regeneration).
+// CudaRenderer: uploads SceneData's tables, takes the GPU's shared copies of
+// the voxels and the majorants, and launches RenderPixel<F> over the image,
+// one thread per pixel.
 #include "render/cuda_renderer.h"
-
-#include <cooperative_groups.h>
 
 #include <array>
 #include <utility>
@@ -14,88 +12,32 @@
 namespace cinevol {
 
 using cuda::DeviceBuffer;
-namespace cg = cooperative_groups;
 
 namespace {
 
-// 64 threads a block; neighbouring paths touch neighbouring voxels, so lanes
-// take pixels in tiles of 8x4 (a warp's worth) along rows of tiles.
-constexpr int kThreads = 64;
-constexpr int kTileWidth = 8, kTileHeight = 4;
+// 8x8 pixel blocks: neighbouring paths touch neighbouring voxels.
+constexpr int kBlock = 8;
 // Blocks per SM the register allocation must allow: 10 caps the integrator at
-// 96 registers, measured fastest on an H100 against 1 (220 registers), 8 (128)
-// and 12 (80); docs/performance.md.
+// 96 registers (22% occupancy, a few spills), measured fastest on an H100
+// against 1 (220 registers), 8 (128) and 12 (80); docs/performance.md.
 constexpr int kMinBlocksPerSm = 10;
 
-// The pixel of work item `item` (tiles of 8x4 pixels, row by row), or false
-// past the image's edge.
-__device__ bool PixelOfItem(unsigned item, int width, int height, int& x, int& y) {
-  const unsigned tiles_per_row = (width + kTileWidth - 1) / kTileWidth;
-  const unsigned tile = item / (kTileWidth * kTileHeight), in_tile = item % (kTileWidth * kTileHeight);
-  x = int(tile % tiles_per_row) * kTileWidth + int(in_tile % kTileWidth);
-  y = int(tile / tiles_per_row) * kTileHeight + int(in_tile / kTileWidth);
-  return x < width && y < height;
-}
-
-// The next pixel for the calling lane from the frame's work counter, or
-// false when none is left. The lanes asking together take one atomic add.
-__device__ bool TakePixel(unsigned* next_item, const RenderScene& s, int& x, int& y) {
-  const unsigned items = ((s.camera.width + kTileWidth - 1) / kTileWidth) *
-                         ((s.camera.height + kTileHeight - 1) / kTileHeight) * (kTileWidth * kTileHeight);
-  while (true) {
-    const cg::coalesced_group asking = cg::coalesced_threads();
-    unsigned first = 0;
-    if (asking.thread_rank() == 0) first = atomicAdd(next_item, asking.size());
-    const unsigned item = asking.shfl(first, 0) + asking.thread_rank();
-    if (item >= items) return false;
-    if (PixelOfItem(item, s.camera.width, s.camera.height, x, y)) return true;
-  }
-}
-
-// Path regeneration: each lane advances its path one step at a time and,
-// when it ends, starts the pixel's next sample or takes the next pixel, so
-// the lanes of a warp stay busy until the frame's work runs out. Launched
-// with as many blocks as the GPU holds at once. __grid_constant__: the
-// integrator takes the scene by reference, which would otherwise copy the
-// whole parameter block into local memory per thread.
+// __grid_constant__: the integrator takes the scene by reference, which would
+// otherwise copy the whole parameter block into local memory per thread.
 template <unsigned kFeatures>
-__global__ void __launch_bounds__(kThreads, kMinBlocksPerSm)
-    RenderKernel(const __grid_constant__ RenderScene scene, const FrameTargets targets, unsigned* next_item) {
-  PathTracer<kFeatures> tracer(scene);
-  PixelSamples pixel;
-  int x, y;
-  if (!TakePixel(next_item, scene, x, y)) return;
-  pixel = PixelSamples(scene, x, y);
-  tracer.Start(pixel.CameraRay(scene, 0), pixel.Random(0));
-  int sample = 0;  // the one being traced
-  while (true) {
-    tracer.Advance();
-    if (!tracer.done()) continue;
-    pixel.Add(scene, tracer.result());
-    if (++sample == scene.spp) {
-      pixel.Write(scene, targets);
-      if (!TakePixel(next_item, scene, x, y)) return;
-      pixel = PixelSamples(scene, x, y);
-      sample = 0;
-    }
-    tracer.Start(pixel.CameraRay(scene, sample), pixel.Random(sample));
-  }
+__global__ void __launch_bounds__(kBlock* kBlock, kMinBlocksPerSm)
+    RenderKernel(const __grid_constant__ RenderScene scene, const FrameTargets targets) {
+  const int x = blockIdx.x * blockDim.x + threadIdx.x;
+  const int y = blockIdx.y * blockDim.y + threadIdx.y;
+  if (x >= scene.camera.width || y >= scene.camera.height) return;
+  RenderPixel<kFeatures>(scene, x, y, targets);
 }
 
-using Kernel = void (*)(const RenderScene, const FrameTargets, unsigned*);
+using Kernel = void (*)(const RenderScene, const FrameTargets);
 
 template <unsigned... kVariant>
 std::array<Kernel, sizeof...(kVariant)> MakeKernels(std::integer_sequence<unsigned, kVariant...>) {
   return {&RenderKernel<VariantFeatures(kVariant)>...};
-}
-
-// Blocks of `kernel` the current GPU runs at once.
-int ResidentBlocks(Kernel kernel) {
-  int gpu = 0, sms = 0, per_sm = 0;
-  CINEVOL_CUDA_CHECK(cudaGetDevice(&gpu));
-  CINEVOL_CUDA_CHECK(cudaDeviceGetAttribute(&sms, cudaDevAttrMultiProcessorCount, gpu));
-  CINEVOL_CUDA_CHECK(cudaOccupancyMaxActiveBlocksPerMultiprocessor(&per_sm, kernel, kThreads, 0));
-  return sms * (per_sm > 0 ? per_sm : 1);
 }
 
 }  // namespace
@@ -111,8 +53,6 @@ struct CudaRenderer::Device {
   DeviceBuffer<LabelMaterial> label_materials;
   DeviceBuffer<Vec3f> radiance, accumulated, albedo;
   DeviceBuffer<Vec4f> first_hit;
-  DeviceBuffer<unsigned> next_item;  // the regenerating kernel's work counter
-  std::array<int, kIntegratorVariants> resident_blocks{};  // of each regenerating kernel, once known
 
   Device() {
     CINEVOL_CUDA_CHECK(cudaEventCreate(&start));
@@ -126,9 +66,7 @@ struct CudaRenderer::Device {
 };
 
 CudaRenderer::CudaRenderer(const RendererOptions& options)
-    : brick_size_(options.brick_size), use_texture_(options.volume_texture), device_(std::make_unique<Device>()) {
-  device_->next_item.Resize(1);
-}
+    : brick_size_(options.brick_size), use_texture_(options.volume_texture), device_(std::make_unique<Device>()) {}
 CudaRenderer::~CudaRenderer() = default;
 
 void CudaRenderer::SetVolume(std::shared_ptr<const Volume> volume) {
@@ -220,13 +158,10 @@ void CudaRenderer::Render(const FrameRequest& request) {
   last_features_ = ApplyRequest(request, scene);
 
   static const auto kKernels = MakeKernels(std::make_integer_sequence<unsigned, kIntegratorVariants>());
-  const unsigned variant = VariantOf(last_features_);
-  // As many blocks as run at once: more would only wait for work to end.
-  int& blocks = d.resident_blocks[variant];
-  if (blocks == 0) blocks = ResidentBlocks(kKernels[variant]);
+  const dim3 block(kBlock, kBlock);
+  const dim3 grid((w + kBlock - 1) / kBlock, (h + kBlock - 1) / kBlock);
   CINEVOL_CUDA_CHECK(cudaEventRecord(d.start, d.stream));
-  d.next_item.Zero(d.stream);
-  kKernels[variant]<<<blocks, kThreads, 0, d.stream>>>(scene, Targets(), d.next_item.data());
+  kKernels[VariantOf(last_features_)]<<<grid, block, 0, d.stream>>>(scene, Targets());
   CINEVOL_CUDA_CHECK_LAUNCH();
   CINEVOL_CUDA_CHECK(cudaEventRecord(d.stop, d.stream));
   ++accumulated_frames_;

@@ -1,7 +1,7 @@
 // The CUDA backend: the shared per-pixel integrator as one kernel per
 // feature set. Scene data live in device memory, uploaded when they change
-// (the voxels once per GPU, shared with every renderer there: VolumeCache);
-// frames stay on the device for the CUDA denoiser.
+// (the voxels and the majorants once per GPU, shared with every renderer
+// there: VolumeCache); frames stay on the device for the CUDA denoiser.
 #pragma once
 
 #include <memory>
@@ -38,10 +38,10 @@ class CudaRenderer final : public Renderer {
  private:
   int brick_size_;
   bool use_texture_;  // RendererOptions::volume_texture
-  // The voxels on this GPU, shared. Declared before device_: the frames in
-  // flight end (~Device) before the voxels may go.
+  // The voxels and majorants on this GPU, shared. Declared before device_:
+  // the frames in flight end (~Device) before they may go.
   std::shared_ptr<const VolumeCopy> volume_;
-  std::shared_ptr<const float> majorants_;  // on this GPU, shared like the voxels
+  std::shared_ptr<const float> majorants_;
   struct Device;  // CUDA objects; defined in the .cu file
   std::unique_ptr<Device> device_;
   void UploadTables();  // the transfer tables and the majorants, after SceneData changed them

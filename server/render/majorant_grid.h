@@ -34,7 +34,6 @@ struct MajorantSegment {
 // must lie inside the volume's box over that range (clip it first).
 class MajorantIterator {
  public:
-  CINEVOL_HD MajorantIterator() = default;  // visits nothing
   CINEVOL_HD MajorantIterator(const MajorantGridView& grid, Vec3f o, Vec3f d, float t_min, float t_max)
       : grid_(&grid), t_min_(t_min), t_max_(t_max) {
     const Vec3f p = (o + d * t_min - grid.box_min) * grid.inv_brick_size;
@@ -91,9 +90,9 @@ class MajorantIterator {
     return s;
   }
 
-  const MajorantGridView* grid_ = nullptr;
-  float t_min_ = 0, t_max_ = 0;
-  AxisState x_{}, y_{}, z_{};
+  const MajorantGridView* grid_;
+  float t_min_, t_max_;
+  AxisState x_, y_, z_;
 };
 
 // Hard cap on the tentative collisions of one path, over all its tracking

@@ -170,7 +170,12 @@ std::shared_ptr<const float> VolumeCache::AcquireMajorantsOnGpu(
   // The device copy holds the host one: its key's address stays that set's.
   return FindOrMake(gpu_majorants_, std::tuple{gpu, majorants.get()}, [&] {
     std::shared_ptr<const float> uploaded = UploadMajorants(*majorants, gpu);
-    return std::shared_ptr<const float>(uploaded.get(), [uploaded, majorants](const float*) {});
+    // The deleter lets go of both when the last renderer does (the cache's
+    // weak reference keeps a deleter, and what it holds, alive until then).
+    return std::shared_ptr<const float>(uploaded.get(), [uploaded, held = majorants](const float*) mutable {
+      uploaded.reset();
+      held.reset();
+    });
   });
 }
 #endif

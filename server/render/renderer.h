@@ -26,7 +26,7 @@
 namespace cinevol {
 
 // Bumped whenever the integrator's output changes: keys cached reference images.
-inline constexpr int kRendererVersion = 3;  // 3: the next direction drawn before the shadow ray
+inline constexpr int kRendererVersion = 2;  // 2: free-flight steps from the segment start, extinction clamp
 
 // Picks the smallest specialised integrator for the scene.
 inline constexpr unsigned kAutoFeatures = ~0u;

@@ -516,9 +516,8 @@ FrameCost CostOf(const SceneData& data, const Camera& camera, int spp, int max_b
     for (int x = 0; x < camera.width; ++x) {
       for (int k = 0; k < spp; ++k) {
         Pcg32 rng(HashCombine(y, x), std::uint64_t(k));
-        PathTracer<kAllFeatures> tracer(s);
-        const Ray ray = camera.GenerateRay(x + rng.Uniform(), y + rng.Uniform(), 0.5f, 0.5f);
-        tracer.Trace(ray, rng);
+        PathTracer<kAllFeatures> tracer(s, rng);
+        tracer.Trace(camera.GenerateRay(x + rng.Uniform(), y + rng.Uniform(), 0.5f, 0.5f));
         total += tracer.collisions();
         cost.max_per_path = std::max(cost.max_per_path, tracer.collisions());
         cost.budget_ends += tracer.budget_ends();

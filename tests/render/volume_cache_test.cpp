@@ -232,6 +232,21 @@ TEST(VolumeCache, RenderersOfOneSegmentationShareOneLabelCopy) {
   }
 }
 
+// On a GPU too: one set of majorants on the host and one on the device for
+// two renderers that classify alike, both gone with the renderers.
+TEST(VolumeCache, CudaRenderersShareTheirMajorantsOnTheGpu) {
+  CINEVOL_REQUIRE_CUDA();
+  const auto volume = SmallHead();
+  const std::size_t sets_before = VolumeCache::Get().MajorantSets();
+  {
+    auto a = CreateRenderer(Backend::kCuda), b = CreateRenderer(Backend::kCuda);
+    RenderFrames(*a, volume, 1);
+    RenderFrames(*b, volume, 1);
+    EXPECT_EQ(VolumeCache::Get().MajorantSets(), sets_before + 2);
+  }
+  EXPECT_EQ(VolumeCache::Get().MajorantSets(), sets_before);
+}
+
 // What a 720p session's pipeline adds on the GPU beyond the shared voxels,
 // and what that is made of: the renderer's frame buffers, the denoiser's and
 // the rest of the pipeline (display, refinement), each measured by the GPU's
