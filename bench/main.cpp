@@ -127,7 +127,9 @@ int main(int argc, char** argv) {
   scale.command_line = command_line;
   auto* sc = app.add_subcommand("scale", "A CT resampled to more slices: load to first frame, frame time, memory (GPU)");
   sc->add_option("--volume", scale.volume, "The CT to resample")->required();
-  sc->add_option("--slices", scale.slices, "Slice counts, one row each")->capture_default_str();
+  sc->add_option("--slices", scale.slices, "Slice counts, one row each (comma-separated)")
+      ->delimiter(',')
+      ->capture_default_str();
   sc->add_option("--pixels", scale.pixels, "Pixels along each slice's edge")->check(CLI::Range(16, 1024));
   sc->add_option("--slice-mm", scale.slice_mm, "Distance between slices")->check(CLI::Range(0.1f, 10.0f));
   sc->add_option("--frames", scale.frames, "720p frames timed after the first")->check(CLI::Range(1, 1000));

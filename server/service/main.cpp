@@ -121,8 +121,8 @@ void AddOptions(CLI::App& app, ServerOptions& o, std::string& backend, std::stri
       ->check(CLI::Range(0, 256))
       ->capture_default_str();
   app.add_option("--jpeg-encoder", jpeg_encoder,
-                 "Where frames become JPEG: auto (nvJPEG on the rendering GPU where libnvjpeg loads, else the "
-                 "CPU), cpu (libjpeg-turbo, in bands) or nvjpeg (refused at start where it cannot run)")
+                 "Where frames become JPEG: cpu (libjpeg-turbo, in bands), nvjpeg (on the rendering GPU; refused "
+                 "at start where it cannot run) or auto (nvJPEG where libnvjpeg loads, else the CPU)")
       ->check(CLI::IsMember({"auto", "cpu", "nvjpeg"}))
       ->capture_default_str();
   app.add_option("--detached-session-seconds", o.detached_session_seconds,
@@ -180,7 +180,9 @@ int main(int argc, char** argv) {
   CLI::App app{"cinevol-server: remote volumetric path tracing with real-time denoising, over gRPC"};
   ServerOptions options;
   std::string backend = "auto";
-  std::string jpeg_encoder = "auto";
+  // The CPU by default: nvJPEG is faster for one session but collapses under
+  // many (docs/performance.md, "JPEG on the GPU").
+  std::string jpeg_encoder = "cpu";
   bool verbose = false;
   PacsFlags pacs;
   AddOptions(app, options, backend, jpeg_encoder, pacs);
