@@ -260,12 +260,19 @@ struct SvgfVariancePass {
   }
 };
 
-// The share of the 5x5 window's pixels whose samples hit the volume. In
-// semi-transparent tissue whether a pixel's few samples collide is itself
-// random, so this share, not the pixel's own flag, tells a real silhouette
-// (a jump from 0 to 1) from transparency (a noisy middle).
-struct CoveragePass {
+// What the a-trous levels stop at, once per frame (five levels read it):
+// each pixel's depth, the distance from the eye to its nearest first hit
+// (kEscapedDepth where every sample escaped), and its coverage, the share of
+// the 5x5 window's pixels whose samples hit the volume. In semi-transparent
+// tissue whether a pixel's few samples collide is itself random, so this
+// share, not the pixel's own flag, tells a real silhouette (a jump from 0 to
+// 1) from transparency (a noisy middle).
+inline constexpr float kEscapedDepth = 3.4e38f;
+
+struct EdgeGuidesPass {
   const Vec4f* first_hit;
+  Vec3f eye;
+  float* depth;
   float* coverage;
   int width, height;
 
@@ -279,7 +286,9 @@ struct CoveragePass {
         n += 1.0f;
       }
     }
-    coverage[y * width + x] = hits / n;
+    const int i = y * width + x;
+    coverage[i] = hits / n;
+    depth[i] = Escaped(first_hit[i]) ? kEscapedDepth : Length(Xyz(first_hit[i]) - eye);
   }
 };
 
@@ -315,15 +324,12 @@ CINEVOL_HD Vec4f AtrousTaps(const Vec4f* in, int x, int y, int width, int height
 struct AtrousPass {
   const Vec4f* in;
   Vec4f* out;
-  const Vec4f* first_hit;
-  const float* coverage;  // CoveragePass
-  Camera camera;
+  const float* depth;     // EdgeGuidesPass
+  const float* coverage;  // EdgeGuidesPass
   int width, height, step;
   float sigma_luminance, sigma_depth;
 
-  CINEVOL_HD float Depth(int k) const {
-    return Escaped(first_hit[k]) ? 3.4e38f : Length(Xyz(first_hit[k]) - camera.eye);
-  }
+  CINEVOL_HD static bool Hit(float depth) { return depth < kEscapedDepth; }
 
   // A full silhouette (coverage 0 against 1) weighs e^-6; the +-0.1 noise of
   // coverage in transparent tissue about e^-0.6.
@@ -343,10 +349,10 @@ struct AtrousPass {
     }
     const float l = Luminance(Xyz(in[i]));
     const float l_scale = 1.0f / (sigma_luminance * sqrtf(fmaxf(variance / vw, 0.0f)) + 1e-10f);
-    const float z = Depth(i);
+    const float z = depth[i];
     const float z_scale = 1.0f / (sigma_depth * 0.01f * fmaxf(z, 1e-3f) * float(step) + 1e-6f);
     out[i] = AtrousTaps(in, x, y, width, height, step, [&](int k, Vec4f q) {
-      const float dz = Escaped(first_hit[i]) || Escaped(first_hit[k]) ? 0.0f : fabsf(Depth(k) - z);
+      const float dz = Hit(z) && Hit(depth[k]) ? fabsf(depth[k] - z) : 0.0f;
       const float dc = fabsf(coverage[k] - coverage[i]);
       return expf(-fabsf(Luminance(Xyz(q)) - l) * l_scale - dz * z_scale - dc * kCoverageStop);
     });

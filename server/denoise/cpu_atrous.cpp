@@ -1,6 +1,6 @@
 // One a-trous level (baselines.h, AtrousPass) on the CPU, as rows that GCC
 // vectorises: the per-tap weights of the functor, computed for a whole row
-// at a time from planes (luminance, depth, the level's colour and variance)
+// at a time from planes (luminance, escaped, the level's colour and variance)
 // instead of pixel by pixel from the frame's structures. The a-trous levels
 // were most of a CPU frame's denoising (five levels of 25 taps, each tap an
 // expf and a square root: 48% of a 720p CPU server's profile). The rows and
@@ -28,7 +28,7 @@ namespace {
 struct AtrousPlanes {
   ColourPlanes colour;         // the level's colour and variance
   const float* l;              // luminance of the colour
-  const float* depth;          // AtrousPass::Depth
+  const float* depth;          // EdgeGuidesPass
   const float* escaped;        // 1 where the ray escaped
   const float* coverage;
   const float* l_scale;        // the centre's luminance stop: 1 / (sigma sqrt(blurred variance))
@@ -69,20 +69,19 @@ void FillPlanes(const AtrousPass& pass, std::vector<float>* planes, int y) {
         vw += kw;
       }
     }
-    const float z = pass.Depth(i);
+    const float z = pass.depth[i];
     planes[0][i] = c.x;
     planes[1][i] = c.y;
     planes[2][i] = c.z;
     planes[3][i] = c.w;
     planes[4][i] = Luminance(Xyz(c));
-    planes[5][i] = z;
-    planes[6][i] = Escaped(pass.first_hit[i]) ? 1.0f : 0.0f;
-    planes[7][i] = 1.0f / (pass.sigma_luminance * sqrtf(fmaxf(variance / vw, 0.0f)) + 1e-10f);
-    planes[8][i] = 1.0f / (pass.sigma_depth * 0.01f * fmaxf(z, 1e-3f) * float(pass.step) + 1e-6f);
+    planes[5][i] = AtrousPass::Hit(z) ? 0.0f : 1.0f;
+    planes[6][i] = 1.0f / (pass.sigma_luminance * sqrtf(fmaxf(variance / vw, 0.0f)) + 1e-10f);
+    planes[7][i] = 1.0f / (pass.sigma_depth * 0.01f * fmaxf(z, 1e-3f) * float(pass.step) + 1e-6f);
   }
 }
 
-constexpr int kPlanes = 9;  // 36 bytes a pixel
+constexpr int kPlanes = 8;  // 32 bytes a pixel
 
 }  // namespace
 
@@ -91,8 +90,8 @@ void CpuAtrousLevel(const AtrousPass& pass) {
   std::vector<float>* const planes = ThreadPlanes(kPlanes, std::size_t(w) * h);
   ParallelFor(h, [&](std::int64_t y) { FillPlanes(pass, planes, int(y)); });
   const AtrousPlanes p{{planes[0].data(), planes[1].data(), planes[2].data(), planes[3].data()},
-                       planes[4].data(), planes[5].data(), planes[6].data(), pass.coverage,
-                       planes[7].data(), planes[8].data()};
+                       planes[4].data(), pass.depth, planes[5].data(), pass.coverage,
+                       planes[6].data(), planes[7].data()};
   CpuAtrousRows(w, h, pass.step, pass.out, [&](AtrousRowSums s, const AtrousRowTap& tap) { AddTap(p, s, tap); });
 }
 

@@ -43,14 +43,15 @@ TEST(VectorisableExp, KeepsTheEdgeCasesOfExpf) {
 struct Frame {
   int width, height;
   std::vector<Vec4f> image, first_hit;
-  std::vector<float> coverage;
+  std::vector<float> depth, coverage;
   Camera camera;
 };
 
 // Noisy radiance over a silhouette, with escaped pixels, a band of depths
 // and odd sizes (the taps' clipping at every edge).
 Frame NoisyFrame(int width, int height) {
-  Frame f{width, height, {}, {}, std::vector<float>(std::size_t(width) * height), {}};
+  const std::size_t n = std::size_t(width) * height;
+  Frame f{width, height, {}, {}, std::vector<float>(n), std::vector<float>(n), {}};
   f.camera = LookAt({0, -300, 0}, {0, 0, 0}, {0, 0, 1}, 30, width, height);
   Pcg32 rng(11, 3);
   for (int y = 0; y < height; ++y) {
@@ -61,7 +62,8 @@ Frame NoisyFrame(int width, int height) {
       f.first_hit.push_back(hit ? Vec4f{20.0f * rng.Uniform(), float(y), float(x), 1} : Vec4f{});
     }
   }
-  CpuBackend::ForEachPixel(width, height, CoveragePass{f.first_hit.data(), f.coverage.data(), width, height});
+  CpuBackend::ForEachPixel(width, height, EdgeGuidesPass{f.first_hit.data(), f.camera.eye, f.depth.data(),
+                                                         f.coverage.data(), width, height});
   return f;
 }
 
@@ -69,8 +71,9 @@ TEST(CpuAtrousLevel, AgreesWithThePerPixelPass) {
   for (const int step : {1, 2, 4, 16}) {
     Frame f = NoisyFrame(53, 37);
     std::vector<Vec4f> functor(f.image.size()), rows(f.image.size());
-    const AtrousPass pass{f.image.data(), functor.data(), f.first_hit.data(), f.coverage.data(), f.camera,
-                          f.width,        f.height,       step,          4.0f,          8.0f};
+    const AtrousPass pass{f.image.data(), functor.data(), f.depth.data(), f.coverage.data(),
+                          f.width,        f.height,       step,         4.0f,
+                          8.0f};
     CpuBackend::ForEachPixel(f.width, f.height, pass);
     AtrousPass row_pass = pass;
     row_pass.out = rows.data();
@@ -89,8 +92,7 @@ TEST(CpuAtrousLevel, CarriesANonFiniteInputAsThePassDoes) {
   Frame f = NoisyFrame(20, 12);
   f.image[5 * 20 + 7].x = std::numeric_limits<float>::quiet_NaN();
   std::vector<Vec4f> functor(f.image.size()), rows(f.image.size());
-  const AtrousPass pass{f.image.data(), functor.data(), f.first_hit.data(), f.coverage.data(), f.camera, 20, 12, 1,
-                        4.0f,           8.0f};
+  const AtrousPass pass{f.image.data(), functor.data(), f.depth.data(), f.coverage.data(), 20, 12, 1, 4.0f, 8.0f};
   CpuBackend::ForEachPixel(20, 12, pass);
   AtrousPass row_pass = pass;
   row_pass.out = rows.data();
