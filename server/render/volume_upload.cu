@@ -54,13 +54,17 @@ std::shared_ptr<const GpuVoxels> UploadVoxels(const PreparedVolume& prepared, in
   });
 }
 
-std::shared_ptr<const std::uint16_t> UploadLabels(const LabelVolume& labels, int gpu) {
+namespace {
+
+// `values` in a buffer on `gpu`; the pointer frees it there (from any thread).
+template <class T>
+std::shared_ptr<const T> UploadBuffer(const std::vector<T>& values, int gpu) {
   OnGpu on(gpu);
-  auto owned = std::make_shared<DeviceBuffer<std::uint16_t>>();
-  owned->Upload(labels.labels);
+  auto owned = std::make_shared<DeviceBuffer<T>>();
+  owned->Upload(values);
   CINEVOL_CUDA_CHECK(cudaStreamSynchronize(cudaStreamPerThread));  // read next on other streams
-  const std::uint16_t* data = owned->data();  // before the deleter takes `owned`
-  return std::shared_ptr<const std::uint16_t>(data, [owned = std::move(owned), gpu](const std::uint16_t*) mutable {
+  const T* data = owned->data();  // before the deleter takes `owned`
+  return std::shared_ptr<const T>(data, [owned = std::move(owned), gpu](const T*) mutable {
     int previous = 0;  // as for the voxels: free it on its GPU, ignore errors
     cudaGetDevice(&previous);
     cudaSetDevice(gpu);
@@ -69,19 +73,14 @@ std::shared_ptr<const std::uint16_t> UploadLabels(const LabelVolume& labels, int
   });
 }
 
+}  // namespace
+
+std::shared_ptr<const std::uint16_t> UploadLabels(const LabelVolume& labels, int gpu) {
+  return UploadBuffer(labels.labels, gpu);
+}
+
 std::shared_ptr<const float> UploadMajorants(const std::vector<float>& majorants, int gpu) {
-  OnGpu on(gpu);
-  auto owned = std::make_shared<DeviceBuffer<float>>();
-  owned->Upload(majorants);
-  CINEVOL_CUDA_CHECK(cudaStreamSynchronize(cudaStreamPerThread));  // read next on other streams
-  const float* data = owned->data();
-  return std::shared_ptr<const float>(data, [owned = std::move(owned), gpu](const float*) mutable {
-    int previous = 0;  // as for the voxels: free it on its GPU, ignore errors
-    cudaGetDevice(&previous);
-    cudaSetDevice(gpu);
-    owned.reset();
-    cudaSetDevice(previous);
-  });
+  return UploadBuffer(majorants, gpu);
 }
 
 }  // namespace cinevol
