@@ -146,7 +146,7 @@ export class LiveSession {
     });
     try {
       const answer = await this.api.sessions.sendEvents({ sessionId: this.id, events, grant: this.grant });
-      if (answer.state) this.adopt(answer.state);
+      if (answer.state) this.adopt(this.withStreamSharing(answer.state));
     } catch (e) {
       const error = ConnectError.from(e);
       if (FINAL.has(error.code) || error.code === Code.ResourceExhausted || error.code === Code.FailedPrecondition) {
@@ -163,6 +163,21 @@ export class LiveSession {
   private adopt(state: SessionState): void {
     this.state = state;
     this.handlers.state(state);
+  }
+
+  /**
+   * A SendEvents answer is the state when the server took the call; who
+   * presents, who watches and their pointers change by others' calls, which
+   * the stream tells in order. An answer that comes back after the stream's
+   * newer word (a hand-over while a pointer was in flight) would bring the old
+   * presenter back, so those parts stay the stream's.
+   */
+  private withStreamSharing(answer: SessionState): SessionState {
+    if (!this.state) return answer;
+    answer.presenter = this.state.presenter;
+    answer.viewers = this.state.viewers;
+    answer.pointers = this.state.pointers;
+    return answer;
   }
 
   private async watch(): Promise<void> {

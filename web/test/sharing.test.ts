@@ -184,6 +184,29 @@ test("a share's session: its grant in every call, pointers outside the frames' n
   assert.ok(!calls.some((c) => c.method === "closeSession"), "a viewer leaving does not end the owner's session");
 });
 
+test("a SendEvents answer taken before a hand-over does not bring the old presenter back", async () => {
+  let handOver: () => void = () => {};
+  const { api } = fakeServer(async function* (signal) {
+    yield { kind: { case: "state", value: create(SessionStateSchema, { presenter: "alice", viewers: 1 }) } };
+    await new Promise<void>((r) => { handOver = r; });
+    yield { kind: { case: "state", value: create(SessionStateSchema, { presenter: "link g1", viewers: 1 }) } };
+    await new Promise((r) => signal.addEventListener("abort", r));
+  }, async () => {
+    handOver();  // the stream says "link g1" while this answer, taken before, is on its way
+    await settle();
+    return { state: create(SessionStateSchema, { presenter: "alice", viewers: 1, lastEventSeq: 1n }) };
+  });
+  const seen = { refused: [] as string[][], failed: [] as { text: string; code?: Code }[], states: 0 };
+  const session = LiveSession.watchShared(api, handlersFor(seen), new MotionToPhoton(), SECRET);
+  await settle();
+  session.post({ case: "pointer", value: create(PointerSchema, { x: 0.5, y: 0.5 }) });
+  await settle();
+  await settle();
+  assert.equal(session.state?.presenter, "link g1", "the stream's newer presenter stands");
+  assert.equal(session.state?.lastEventSeq, 1n, "the answer's own part is taken");
+  session.close();
+});
+
 test("a revoked share ends the watch in plain words, with no new session made from it", async () => {
   const { api, calls } = fakeServer(async function* () {
     yield { kind: { case: "state", value: create(SessionStateSchema, { presenter: "alice", viewers: 1 }) } };
