@@ -22,26 +22,22 @@ if [ "${SANITIZE:-1}" = 1 ]; then
   echo "memcheck rc=$?: $(grep -E 'ERROR SUMMARY' "$out/memcheck.log" | head -1)"
 fi
 
-for scene in ${BENCH_SCENES:-ct-head-cthead:ct-head-cthead/DERIVED_CThead.nhdr ct-aorta-bone:aorta_ct_cropped.nii.gz}; do
-  "$bin/cinevol-bench" render --scene "bench/scenes/${scene%%:*}.json" --volume "$data/${scene#*:}" \
-    --backend cuda --frames 100 --warmup 10 --out "$out/performance.md" > "$out/bench-${scene%%:*}.log" 2>&1
-  echo "bench ${scene%%:*} rc=$?"
-  if [ -x "$bin/cinevol-bench-before" ]; then  # the earlier build packed with BEFORE=
-    "$bin/cinevol-bench-before" render --scene "bench/scenes/${scene%%:*}.json" --volume "$data/${scene#*:}" \
-      --backend cuda --frames 100 --warmup 10 --out "$out/performance-before.md" > "$out/before-${scene%%:*}.log" 2>&1
-    echo "bench before ${scene%%:*} rc=$?"
-  fi
-done
-for scene in ${DENOISE_SCENES:-ct-head-cthead:ct-head-cthead/DERIVED_CThead.nhdr ct-aorta-bone:aorta_ct_cropped.nii.gz}; do
-  "$bin/cinevol-bench" denoise --scene "bench/scenes/${scene%%:*}.json" --volume "$data/${scene#*:}" \
-    --backend cuda --out "$out/performance.md" > "$out/denoise-${scene%%:*}.log" 2>&1
-  echo "denoise bench ${scene%%:*} rc=$?"
-  if [ -x "$bin/cinevol-bench-before" ]; then
-    "$bin/cinevol-bench-before" denoise --scene "bench/scenes/${scene%%:*}.json" --volume "$data/${scene#*:}" \
-      --backend cuda --out "$out/performance-before.md" > "$out/denoise-before-${scene%%:*}.log" 2>&1
-    echo "denoise bench before ${scene%%:*} rc=$?"
-  fi
-done
+# bench LABEL SUBCOMMAND SCENE:VOLUME [FLAGS...]: this build's bench, then the
+# earlier build's where one was packed with BEFORE= (its tables apart).
+bench() {
+  local label=$1 command=$2 scene=$3
+  shift 3
+  "$bin/cinevol-bench" "$command" --scene "bench/scenes/${scene%%:*}.json" --volume "$data/${scene#*:}" \
+    --backend cuda "$@" --out "$out/performance.md" > "$out/$label-${scene%%:*}.log" 2>&1
+  echo "$label ${scene%%:*} rc=$?"
+  [ -x "$bin/cinevol-bench-before" ] || return 0
+  "$bin/cinevol-bench-before" "$command" --scene "bench/scenes/${scene%%:*}.json" --volume "$data/${scene#*:}" \
+    --backend cuda "$@" --out "$out/performance-before.md" > "$out/$label-before-${scene%%:*}.log" 2>&1
+  echo "$label before ${scene%%:*} rc=$?"
+}
+both="ct-head-cthead:ct-head-cthead/DERIVED_CThead.nhdr ct-aorta-bone:aorta_ct_cropped.nii.gz"
+for scene in ${BENCH_SCENES:-$both}; do bench bench render "$scene" --frames 100 --warmup 10; done
+for scene in ${DENOISE_SCENES:-$both}; do bench denoise denoise "$scene"; done
 # Each JPEG encoder on the same frames (JPEG_ENCODER=auto notes nvJPEG's absence instead of failing).
 for scene in ${ENCODE_SCENES:-ct-head-cthead:ct-head-cthead/DERIVED_CThead.nhdr}; do
   "$bin/cinevol-bench" encode --scene "bench/scenes/${scene%%:*}.json" --volume "$data/${scene#*:}" \

@@ -128,6 +128,7 @@ int main(int argc, char** argv) {
   auto* sc = app.add_subcommand("scale", "A CT resampled to more slices: load to first frame, frame time, memory (GPU)");
   sc->add_option("--volume", scale.volume, "The CT to resample")->required();
   sc->add_option("--slices", scale.slices, "Slice counts, one row each (comma-separated)")
+      ->check(CLI::Range(1, 8192))
       ->delimiter(',')
       ->capture_default_str();
   sc->add_option("--pixels", scale.pixels, "Pixels along each slice's edge")->check(CLI::Range(16, 1024));

@@ -71,12 +71,7 @@ v1::Grant Sharing::Share(const v1::ShareSessionRequest& request, const Principal
   grant.role = RoleOf(request.role());
   grant.allow_pointer = request.allow_pointer() || grant.role == GrantRole::kPresenter;
   auto [made, secret] = grants_.Create(grant, LifetimeOf(request.expires_seconds()), request.restore_secret());
-  if (made.role == GrantRole::kPresenter) {  // one presenter at a time: this one takes over
-    for (const Grant& other : grants_.OfSession(made.session_id)) {
-      if (other.id != made.id && other.role == GrantRole::kPresenter) grants_.SetRole(other.id, GrantRole::kViewer);
-    }
-    session->SetPresenter(made.holder());
-  }
+  if (made.role == GrantRole::kPresenter) MakePresenter(*session, made.id, made.holder());  // it takes over
   // The id names the grant in the log; the principal is a name the owner typed, the secret never appears.
   spdlog::info("session {}: shared as {} ({}, {})", session->id(), made.id, made.link() ? "link" : "principal",
                ToString(made.role));
@@ -108,6 +103,13 @@ v1::RevokeShareResponse Sharing::Revoke(const v1::RevokeShareRequest& request, c
   return out;
 }
 
+void Sharing::MakePresenter(Session& session, const std::string& grant_id, const std::string& presenter) {
+  for (const Grant& grant : grants_.OfSession(session.id())) {
+    grants_.SetRole(grant.id, grant.id == grant_id ? GrantRole::kPresenter : GrantRole::kViewer);
+  }
+  session.SetPresenter(presenter);
+}
+
 v1::HandOverResponse Sharing::HandOver(const v1::HandOverRequest& request, const grpc::CallbackServerContext& context) {
   std::shared_ptr<Session> session;
   if (request.grant().empty()) {
@@ -129,10 +131,7 @@ v1::HandOverResponse Sharing::HandOver(const v1::HandOverRequest& request, const
     }
     presenter = next->holder();
   }
-  for (const Grant& grant : grants_.OfSession(session->id())) {
-    grants_.SetRole(grant.id, grant.id == request.grant_id() ? GrantRole::kPresenter : GrantRole::kViewer);
-  }
-  session->SetPresenter(presenter);
+  MakePresenter(*session, request.grant_id(), presenter);
   v1::HandOverResponse out;
   out.set_presenter(presenter);
   return out;

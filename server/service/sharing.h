@@ -53,6 +53,9 @@ class Sharing {
 
  private:
   v1::Grant ToProto(const Grant& grant, const Session* session) const;
+  // One presenter at a time: grant `grant_id` presents (empty: the owner,
+  // as `presenter`), every other grant of the session views.
+  void MakePresenter(Session& session, const std::string& grant_id, const std::string& presenter);
 
   const Authenticator& authenticator_;
   GrantRegistry grants_;
