@@ -8,6 +8,7 @@
 #include <chrono>
 #include <stdexcept>
 
+#include "device/cuda_buffer.h"
 #include "pipeline/jpeg_encoder.h"
 
 namespace cinevol {
@@ -15,10 +16,6 @@ namespace {
 
 void Check(nvjpegStatus_t status, const char* call) {
   if (status != NVJPEG_STATUS_SUCCESS) throw std::runtime_error(fmt::format("{} failed: nvJPEG status {}", call, int(status)));
-}
-
-void Check(cudaError_t error, const char* call) {
-  if (error != cudaSuccess) throw std::runtime_error(fmt::format("{} failed: {}", call, cudaGetErrorString(error)));
 }
 
 nvjpegChromaSubsampling_t ToNvjpeg(ChromaSubsampling chroma) {
@@ -52,7 +49,7 @@ class NvjpegEncoder final : public DeviceJpegEncoder {
 
   std::vector<std::uint8_t> Encode(const YccPlanes& planes, int quality) override {
     // The display's kernel first, so the time measured is the encode's alone.
-    Check(cudaStreamSynchronize(Stream()), "cudaStreamSynchronize");
+    CINEVOL_CUDA_CHECK(cudaStreamSynchronize(Stream()));
     const auto start = std::chrono::steady_clock::now();
     SetParams(std::clamp(quality, 1, 100), planes.chroma);
     Check(lib_->encode_yuv(handle_, state_, params_, &Source(planes), ToNvjpeg(planes.chroma), planes.width,
@@ -64,7 +61,7 @@ class NvjpegEncoder final : public DeviceJpegEncoder {
     std::vector<std::uint8_t> jpeg(length);
     Check(lib_->encode_retrieve_bitstream(handle_, state_, jpeg.data(), &length, Stream()),
           "nvjpegEncodeRetrieveBitstream");
-    Check(cudaStreamSynchronize(Stream()), "cudaStreamSynchronize");
+    CINEVOL_CUDA_CHECK(cudaStreamSynchronize(Stream()));
     jpeg.resize(length);
     last_ms_ = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
     return jpeg;
