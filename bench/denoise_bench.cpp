@@ -16,13 +16,6 @@
 namespace cinevol::bench {
 namespace {
 
-// RMS difference of two 8-bit images, in [0, 1] units.
-double RmsDifference(const ImageRgb8& a, const ImageRgb8& b) {
-  double sum = 0;
-  for (std::size_t i = 0; i < a.bytes.size(); ++i) sum += Sqr((float(a.bytes[i]) - float(b.bytes[i])) / 255.0f);
-  return std::sqrt(sum / double(a.bytes.size()));
-}
-
 struct Method {
   DenoiseMethod method;
   bool demodulate;

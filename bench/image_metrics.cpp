@@ -7,6 +7,7 @@
 #include <stdexcept>
 
 #include "core/parallel_for.h"
+#include "core/sampling.h"
 #include "core/tone_map.h"
 
 namespace cinevol {
@@ -138,6 +139,12 @@ double TemporalError(const ImageRgb8& image, const ImageRgb8& previous_image, co
     sum += std::abs((Luma(image, i) - Luma(previous_image, i)) - (Luma(reference, i) - Luma(previous_reference, i)));
   }
   return sum / double(n);
+}
+
+double RmsDifference(const ImageRgb8& a, const ImageRgb8& b) {
+  double sum = 0;
+  for (std::size_t i = 0; i < a.bytes.size(); ++i) sum += Sqr((float(a.bytes[i]) - float(b.bytes[i])) / 255.0f);
+  return std::sqrt(sum / double(a.bytes.size()));
 }
 
 }  // namespace cinevol

@@ -24,5 +24,8 @@ double Ssim(const ImageRgb8& image, const ImageRgb8& reference);
 // luma, in [0, 1] units: flicker and lag that the reference does not have.
 double TemporalError(const ImageRgb8& image, const ImageRgb8& previous_image, const ImageRgb8& reference,
                      const ImageRgb8& previous_reference);
+// The RMS difference of two images over all channels, in [0, 1] units: on
+// consecutive frames of a still view, the flicker a viewer sees.
+double RmsDifference(const ImageRgb8& a, const ImageRgb8& b);
 
 }  // namespace cinevol

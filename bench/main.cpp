@@ -6,6 +6,7 @@
 
 #include "scene/scene_frame.h"
 #include "bench.h"
+#include "resampled_volume.h"
 #include "tradeoff_study.h"
 #include "core/error.h"
 #include "core/parallel_for.h"
@@ -139,6 +140,20 @@ int main(int argc, char** argv) {
   sc->add_option("--out", scale.out, "Append the Markdown table to this file");
   sc->callback([&] { cinevol::bench::RunScaleBench(scale); });
 
+  std::string resample_volume, resample_out;
+  std::vector<int> resample_size;
+  auto* rs = app.add_subcommand("resample", "A volume resampled onto another grid over its box, as a 16-bit NRRD");
+  rs->add_option("--volume", resample_volume, "Volume file, folder or phantom")->required();
+  rs->add_option("--size", resample_size, "Voxels along x,y,z (comma-separated)")
+      ->required()
+      ->expected(3)
+      ->delimiter(',')
+      ->check(CLI::Range(1, 8192));
+  rs->add_option("--out", resample_out, "The NRRD to write")->required();
+  rs->callback([&] {
+    cinevol::bench::RunResample(resample_volume, {resample_size[0], resample_size[1], resample_size[2]}, resample_out);
+  });
+
   cinevol::bench::ReconstructionBenchOptions reconstruction;
   reconstruction.command_line = command_line;
   reconstruction.width = reconstruction.height = 512;
@@ -191,7 +206,7 @@ int main(int argc, char** argv) {
                  "NAME=SCENE_FILE[,VOLUME] (repeatable); SCENE_FILE preset:NAME or preset:default is a session's "
                  "scene for that preset (with VOLUME)")
       ->required();
-  t->add_option("--scenario", scenarios, "orbit, area-light, point-light, tf-edit, static, transparent (default all)");
+  t->add_option("--scenario", scenarios, "orbit, area-light, point-light, tf-edit, static, transparent, sun-sky (default all)");
   t->add_option("--width", study.width, "Frame width")->capture_default_str();
   t->add_option("--height", study.height, "Frame height")->capture_default_str();
   t->add_option("--frames-scale", study.frames_scale, "Scenario lengths times this")->capture_default_str();

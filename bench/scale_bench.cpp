@@ -13,11 +13,11 @@
 #include <fstream>
 
 #include "bench.h"
-#include "core/parallel_for.h"
 #include "device/device.h"
 #include "io/volume_loader.h"
 #include "pipeline/frame_pipeline.h"
 #include "render/prepared_volume.h"
+#include "resampled_volume.h"
 #include "scene/presets.h"
 #include "scene/scene_file.h"
 
@@ -34,47 +34,6 @@ double Milliseconds(F&& f) {
 }
 
 double MiB(double bytes) { return bytes / double(1 << 20); }
-
-// `source` resampled to `dims` over the same box in x and y, `slice_mm` apart in z.
-std::vector<std::int16_t> Resample(const Volume& source, Vec3i dims) {
-  const Vec3i s = source.dims();
-  std::vector<std::int16_t> out(std::size_t(dims.x) * dims.y * dims.z);
-  const auto value = [&](int x, int y, int z) {
-    return source.Value(std::clamp(x, 0, s.x - 1), std::clamp(y, 0, s.y - 1), std::clamp(z, 0, s.z - 1));
-  };
-  ParallelFor(dims.z, [&](std::int64_t z) {
-    // Voxel centres map onto the source's: (i + 0.5) s / n - 0.5.
-    const float fz = (float(z) + 0.5f) * float(s.z) / float(dims.z) - 0.5f;
-    const int z0 = int(std::floor(fz));
-    const float wz = fz - float(z0);
-    for (int y = 0; y < dims.y; ++y) {
-      const float fy = (float(y) + 0.5f) * float(s.y) / float(dims.y) - 0.5f;
-      const int y0 = int(std::floor(fy));
-      const float wy = fy - float(y0);
-      for (int x = 0; x < dims.x; ++x) {
-        const float fx = (float(x) + 0.5f) * float(s.x) / float(dims.x) - 0.5f;
-        const int x0 = int(std::floor(fx));
-        const float wx = fx - float(x0);
-        float v = 0;
-        for (int k = 0; k < 8; ++k) {
-          const int dx = k & 1, dy = k >> 1 & 1, dz = k >> 2;
-          v += (dx ? wx : 1 - wx) * (dy ? wy : 1 - wy) * (dz ? wz : 1 - wz) * value(x0 + dx, y0 + dy, z0 + dz);
-        }
-        out[(std::size_t(z) * dims.y + y) * dims.x + x] = std::int16_t(std::clamp(std::lround(v), -32768L, 32767L));
-      }
-    }
-  });
-  return out;
-}
-
-void WriteNrrd(const fs::path& file, Vec3i dims, Vec3f spacing, const std::vector<std::int16_t>& voxels) {
-  std::ofstream out(file, std::ios::binary);
-  out << fmt::format("NRRD0004\ntype: short\ndimension: 3\nsizes: {} {} {}\nspacings: {} {} {}\n"
-                     "encoding: raw\nendian: little\n\n",
-                     dims.x, dims.y, dims.z, spacing.x, spacing.y, spacing.z);
-  out.write(reinterpret_cast<const char*>(voxels.data()), std::streamsize(voxels.size() * sizeof(std::int16_t)));
-  if (!out) throw std::runtime_error("cannot write " + file.string());
-}
 
 double FreeGpuMiB() { return MiB(double(ListGpus().at(0).free_bytes)); }
 
@@ -134,7 +93,7 @@ int RunScaleBench(const ScaleBenchOptions& o) {
   for (const int slices : o.slices) {
     const Vec3i dims{o.pixels, o.pixels, slices};
     const fs::path file = scratch / fmt::format("ct-{}x{}x{}.nrrd", dims.x, dims.y, dims.z);
-    WriteNrrd(file, dims, {box.x / float(dims.x), box.y / float(dims.y), o.slice_mm}, Resample(source, dims));
+    WriteNrrd(file, dims, {box.x / float(dims.x), box.y / float(dims.y), o.slice_mm}, Resample(source, dims), source);
     const Row r = Measure(o, file, dims);
     fs::remove(file);
     rows.push_back(r);

@@ -2,7 +2,7 @@
 # The speed/accuracy study on the GPU machine (docs/tradeoff.md), from the
 # bundle of bench/make-gpu-bundle.sh. One run per dataset keeps each under the
 # machine's per-command limit:
-#   DATASET=ct-head-cthead bash bench/tradeoff-run.sh     # or mr-head, phantom, ct-aorta
+#   DATASET=ct-head-cthead bash bench/tradeoff-run.sh     # or mr-head, mr-head-256, phantom, ct-aorta
 # EXTRA passes more flags to cinevol-bench tradeoff (e.g. "--variants-only");
 # LIMIT (seconds) stops the study early and still packs its log.
 # Results (CSV, JSON, Markdown, half-size images) go to $OUT/tradeoff-$DATASET.tgz.
@@ -16,6 +16,10 @@ data=/tmp/cv/data
 case "${DATASET:?set DATASET}" in
   ct-head-cthead) spec="ct-head-cthead=bench/scenes/ct-head-cthead.json,$data/ct-head-cthead/DERIVED_CThead.nhdr" ;;
   mr-head) spec="mr-head=examples/mr-head.json,$data/MR.nii.gz" ;;
+  mr-head-256) # the shared T1 head on the reported head's grid (256x256x120, issue 38)
+    [ -f /tmp/cv/mr-head-256.nrrd ] ||
+      /tmp/cv/bin/cinevol-bench resample --volume "$data/MR.nii.gz" --size 256,256,120 --out /tmp/cv/mr-head-256.nrrd
+    spec="mr-head-256=examples/mr-head.json,/tmp/cv/mr-head-256.nrrd" ;;
   phantom) spec="phantom=examples/ct-bone.json,phantom:head" ;;
   ct-aorta) spec="ct-aorta=bench/scenes/ct-aorta-bone.json,$data/aorta_ct_cropped.nii.gz" ;;
   *) echo "unknown DATASET $DATASET"; exit 2 ;;

@@ -92,7 +92,34 @@ TransferFunction TransparentShells(const Volume& volume) {
   return tf;
 }
 
-std::vector<Scenario> MakeScenarios(const RenderSetup& base, const Volume& volume, float frames_scale) {
+// The lighting an MR head was reported under (issue 38), as examples/mr-head.json
+// sets it: a lateral view (from the patient's left), a directional light of
+// intensity 3 and a uniform sky of 0.4; the camera orbits 1 degree a frame.
+Scenario SunSky(v1::Scene scene, const Volume& volume, int frames) {
+  scene.mutable_camera()->Clear();
+  scene.mutable_camera()->set_view(v1::LEFT);
+  scene.mutable_camera()->set_fov_y_deg(30);
+  scene.clear_lights();
+  v1::DirectionalLight& sun = *scene.add_lights()->mutable_directional();
+  sun.mutable_direction()->set_x(0.5f);
+  sun.mutable_direction()->set_y(0.6f);
+  sun.mutable_direction()->set_z(-0.6f);
+  sun.mutable_color()->set_r(1);
+  sun.mutable_color()->set_g(0.97f);
+  sun.mutable_color()->set_b(0.92f);
+  sun.set_intensity(3);
+  v1::EnvironmentLight& sky = *scene.add_lights()->mutable_environment();
+  sky.mutable_uniform()->set_r(0.4f);
+  sky.mutable_uniform()->set_g(0.4f);
+  sky.mutable_uniform()->set_b(0.42f);
+  sky.set_intensity(1);
+  const RenderSetup lit = ResolveScene(scene, volume);
+  return {"sun-sky", frames, {lit.transfer_function}, {lit.lights},
+          [camera = lit.camera](int t) { return Orbit(camera, 1.0f * t); }};
+}
+
+std::vector<Scenario> MakeScenarios(const v1::Scene& scene, const RenderSetup& base, const Volume& volume,
+                                    float frames_scale) {
   auto frames = [&](int n) { return std::max(3, static_cast<int>(std::lround(n * frames_scale))); };
   const Camera camera = base.camera;
   const Vec3f centre = camera.eye + camera.forward * camera.focal_distance;
@@ -147,6 +174,7 @@ std::vector<Scenario> MakeScenarios(const RenderSetup& base, const Volume& volum
   s.push_back({"static", frames(60), {base.transfer_function}, {base.lights}, [camera](int) { return camera; }});
   s.push_back({"transparent", frames(30), {TransparentShells(volume)}, {base.lights},
                [camera](int t) { return Orbit(camera, 0.5f * t); }});
+  s.push_back(SunSky(scene, volume, frames(30)));
   return s;
 }
 
@@ -253,6 +281,46 @@ struct Context {
   float exposure = 0;
 };
 
+// What the viewer sees of `frame`: through JPEG where `jpeg_quality` is set
+// (its time in `encode_ms`), at the study's size.
+ImageRgb8 Shown(const Context& ctx, const DisplayFrame& frame, int jpeg_quality, double* encode_ms) {
+  ImageRgb8 shown;
+  if (jpeg_quality > 0) {
+    const Clock::time_point encode_start = Clock::now();
+    const std::vector<std::uint8_t> jpeg = EncodeJpeg(frame.image, jpeg_quality);
+    *encode_ms = MsSince(encode_start);
+    shown = DecodeJpeg(jpeg);
+  } else {
+    shown = ToRgb(frame.image);
+  }
+  return Upsample(shown, ctx.o.width, ctx.o.height);
+}
+
+// Flicker on a still view, as `cinevol-bench denoise` measures it: the
+// scenario's first frame held while a fresh pipeline renders it again and
+// again; the mean RMS change between consecutive displayed frames after the
+// first kFlickerWarmup. No reference is needed: nothing changes.
+constexpr int kFlickerFrames = 16, kFlickerWarmup = 8;
+double StillFlicker(const Context& ctx, const ScenarioFrame& f, RenderSetup setup, const FrameSettings& settings,
+                    int jpeg_quality) {
+  const int width = setup.camera.width, height = setup.camera.height;  // the configuration's scale
+  setup.camera = f.camera;
+  setup.camera.width = width;
+  setup.camera.height = height;
+  setup.transfer_function = *f.tf;
+  setup.lights = *f.lights;
+  FramePipeline pipeline(ctx.backend, ctx.volume);
+  pipeline.Update(setup, settings);
+  double sum = 0, encode_ms = 0;
+  ImageRgb8 previous;
+  for (int t = 0; t < kFlickerFrames; ++t) {
+    const ImageRgb8 shown = Shown(ctx, pipeline.RenderFrame(), jpeg_quality, &encode_ms);
+    if (t > kFlickerWarmup) sum += RmsDifference(shown, previous);
+    previous = shown;
+  }
+  return sum / (kFlickerFrames - kFlickerWarmup - 1);
+}
+
 RunResult RunConfig(const Context& ctx, const Scenario& scenario, const References& refs, const StudyConfig& c,
                     const fs::path& images, int image_frame) {
   RunResult run;
@@ -291,25 +359,16 @@ RunResult RunConfig(const Context& ctx, const Scenario& scenario, const Referenc
     fr.render_ms = frame.render_ms;
     fr.denoise_ms = frame.denoise_ms;
     fr.tonemap_ms = frame.display_ms;
-    const ImageYcc8& planes = frame.image;
-    ImageRgb8 shown;
-    if (c.jpeg_quality > 0) {
-      const Clock::time_point encode_start = Clock::now();
-      const std::vector<std::uint8_t> jpeg = EncodeJpeg(planes, c.jpeg_quality);
-      fr.encode_ms = MsSince(encode_start);
-      shown = DecodeJpeg(jpeg);
-    } else {
-      shown = ToRgb(planes);
-    }
-    shown = Upsample(shown, ctx.o.width, ctx.o.height);
+    const ImageRgb8 shown = Shown(ctx, frame, c.jpeg_quality, &fr.encode_ms);
     fr.psnr = Psnr(shown, refs.display[t]);
     fr.ssim = Ssim(shown, refs.display[t]);
     fr.rel_mse = RelativeMse(UpsampleHdr(pipeline.DenoisedRadiance(), ctx.o.width, ctx.o.height), refs.hdr[t]);
     if (t > 0) fr.temporal = TemporalError(shown, previous, refs.display[t], refs.display[t - 1]);
     if (!images.empty() && t == image_frame) WriteFile(images, EncodeJpeg(Half(shown), 92));
-    previous = std::move(shown);
+    previous = shown;
     run.frames.push_back(fr);
   }
+  run.flicker = StillFlicker(ctx, scenario.At(0), setup, settings, c.jpeg_quality);
   return run;
 }
 
@@ -427,7 +486,7 @@ std::vector<StudyConfig> StudyConfigs(bool quick) {
 }
 
 std::vector<std::string> ScenarioNames() {
-  return {"orbit", "area-light", "point-light", "tf-edit", "static", "transparent"};
+  return {"orbit", "area-light", "point-light", "tf-edit", "static", "transparent", "sun-sky"};
 }
 
 double RunResult::Mean(double FrameResult::*field) const {
@@ -507,11 +566,11 @@ void WriteJson(const fs::path& path, const StudyOptions& o, const std::string& d
     out << fmt::format(
         "{}\n  {{\"dataset\": \"{}\", \"scenario\": \"{}\", \"knob\": \"{}\", \"config\": \"{}\", \"method\": \"{}\", "
         "\"demodulate\": {}, \"spp\": {}, \"bounces\": {}, \"jpeg_quality\": {}, \"scale\": {}, \"frames\": {}, "
-        "\"psnr\": {:.4f}, \"ssim\": {:.5f}, \"rel_mse\": {:.6g}, \"temporal\": {:.6f}, \"ms\": {{\"render\": {:.4f}, "
+        "\"psnr\": {:.4f}, \"ssim\": {:.5f}, \"rel_mse\": {:.6g}, \"temporal\": {:.6f}, \"flicker\": {:.6f}, \"ms\": {{\"render\": {:.4f}, "
         "\"denoise\": {:.4f}, \"tonemap\": {:.4f}, \"encode\": {:.4f}, \"total\": {:.4f}}}}}",
         i ? "," : "", r.dataset, r.scenario, c.knob, c.Label(), ToString(c.method), c.demodulate ? "true" : "false",
         c.spp, c.bounces, c.jpeg_quality, c.scale, r.frames.size(), r.Mean(&FrameResult::psnr),
-        r.Mean(&FrameResult::ssim), r.Mean(&FrameResult::rel_mse), r.Mean(&FrameResult::temporal),
+        r.Mean(&FrameResult::ssim), r.Mean(&FrameResult::rel_mse), r.Mean(&FrameResult::temporal), r.flicker,
         r.Mean(&FrameResult::render_ms), r.Mean(&FrameResult::denoise_ms), r.Mean(&FrameResult::tonemap_ms),
         r.Mean(&FrameResult::encode_ms), r.MeanMs());
   }
@@ -570,7 +629,7 @@ std::vector<RunResult> RunStudy(const StudyOptions& o) {
     const RenderSetup setup = ResolveScene(scene, *volume);
     ctx.exposure = setup.exposure;
     ctx.volume = volume;
-    for (const Scenario& s : MakeScenarios(setup, *volume, o.frames_scale)) {
+    for (const Scenario& s : MakeScenarios(scene, setup, *volume, o.frames_scale)) {
       if (!o.scenarios.empty() && std::find(o.scenarios.begin(), o.scenarios.end(), s.name) == o.scenarios.end()) {
         continue;
       }
@@ -590,9 +649,9 @@ std::vector<RunResult> RunStudy(const StudyOptions& o) {
             images.empty() || c.knob != "denoiser" ? fs::path() : images / (Slug(c.Label()) + ".jpg");
         RunResult run = RunConfig(ctx, s, refs, c, image, image_frame);
         run.dataset = d.name;
-        std::fprintf(stderr, "  %-22s PSNR %6.2f  SSIM %.4f  temporal %.4f  %7.2f ms\n", c.Label().c_str(),
-                     run.Mean(&FrameResult::psnr), run.Mean(&FrameResult::ssim), run.Mean(&FrameResult::temporal),
-                     run.MeanMs());
+        std::fprintf(stderr, "  %-22s PSNR %6.2f  SSIM %.4f  temporal %.4f  flicker %.4f  %7.2f ms\n",
+                     c.Label().c_str(), run.Mean(&FrameResult::psnr), run.Mean(&FrameResult::ssim),
+                     run.Mean(&FrameResult::temporal), run.flicker, run.MeanMs());
         results.push_back(std::move(run));
       }
     }
@@ -613,13 +672,13 @@ std::string SummaryTable(const std::vector<RunResult>& results) {
     const std::string heading = r.dataset + " / " + r.scenario;
     if (heading != current) {
       current = heading;
-      t += fmt::format("\n#### {} ({} frames)\n\n| configuration | PSNR dB | SSIM | relMSE | temporal error | ms "
-                       "(render + denoise + tone map + encode) |\n|---|---|---|---|---|---|\n",
+      t += fmt::format("\n#### {} ({} frames)\n\n| configuration | PSNR dB | SSIM | relMSE | temporal error | "
+                       "flicker (still) | ms (render + denoise + tone map + encode) |\n|---|---|---|---|---|---|---|\n",
                        heading, r.frames.size());
     }
-    t += fmt::format("| {} | {:.2f} | {:.4f} | {:.4g} | {:.4f} | {:.2f} ({:.2f} + {:.2f} + {:.2f} + {:.2f}) |\n",
+    t += fmt::format("| {} | {:.2f} | {:.4f} | {:.4g} | {:.4f} | {:.4f} | {:.2f} ({:.2f} + {:.2f} + {:.2f} + {:.2f}) |\n",
                      r.config.Label(), r.Mean(&FrameResult::psnr), r.Mean(&FrameResult::ssim),
-                     r.Mean(&FrameResult::rel_mse), r.Mean(&FrameResult::temporal), r.MeanMs(),
+                     r.Mean(&FrameResult::rel_mse), r.Mean(&FrameResult::temporal), r.flicker, r.MeanMs(),
                      r.Mean(&FrameResult::render_ms), r.Mean(&FrameResult::denoise_ms),
                      r.Mean(&FrameResult::tonemap_ms), r.Mean(&FrameResult::encode_ms));
   }

@@ -52,7 +52,7 @@ std::vector<StudyConfig> StudyConfigs(bool quick);
 
 struct StudyOptions {
   std::vector<Dataset> datasets;
-  std::vector<std::string> scenarios;  // empty: all (orbit, area-light, point-light, tf-edit, static, transparent)
+  std::vector<std::string> scenarios;  // empty: all (ScenarioNames())
   std::vector<StudyConfig> configs;
   int width = 1280, height = 720;
   float frames_scale = 1;  // scenario lengths times this (CI: small)
@@ -75,6 +75,7 @@ struct RunResult {
   std::string dataset, scenario;
   StudyConfig config;
   std::vector<FrameResult> frames;
+  double flicker = 0;  // RMS change between displayed frames of the first frame's view held still
   // Means over frames; temporal over frames 1.. ; times over all frames.
   double Mean(double FrameResult::*field) const;
   double MeanMs() const;  // render + denoise + tone map + encode

@@ -1,7 +1,8 @@
 // A tiny CPU run of the speed/accuracy study (docs/tradeoff.md): every
 // scenario on the head phantom at 96x64, every denoiser. It guards the
 // study's numbers (nothing NaN) and wRLS's standing: well above the noisy
-// input everywhere, and not behind SVGF on the camera orbit.
+// input everywhere, steadier than SVGF on every still view, and not behind
+// SVGF on the camera orbit.
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -43,8 +44,10 @@ TEST(TradeoffStudy, TinyRunKeepsWrlsAheadAndNumbersFinite) {
   const std::vector<RunResult> results = RunStudy(o);
   ASSERT_EQ(results.size(), ScenarioNames().size() * o.configs.size());
 
-  std::map<std::string, std::map<std::string, double>> psnr;  // scenario -> config -> mean PSNR
+  std::map<std::string, std::map<std::string, double>> psnr, flicker;  // scenario -> config -> mean
   for (const RunResult& r : results) {
+    ASSERT_TRUE(std::isfinite(r.flicker)) << r.scenario << " " << r.config.Label();
+    flicker[r.scenario][r.config.Label()] = r.flicker;
     for (const FrameResult& f : r.frames) {
       for (double v : {f.psnr, f.ssim, f.rel_mse, f.temporal, f.render_ms, f.denoise_ms, f.tonemap_ms, f.encode_ms}) {
         ASSERT_TRUE(std::isfinite(v)) << r.scenario << " " << r.config.Label() << " frame " << f.frame;
@@ -54,6 +57,9 @@ TEST(TradeoffStudy, TinyRunKeepsWrlsAheadAndNumbersFinite) {
   }
   for (const auto& [scenario, by_config] : psnr) {
     EXPECT_GT(by_config.at("wrls"), by_config.at("none") + 3.0) << scenario;
+    // wRLS's point is a steady picture (issue 38 asks a third of SVGF's
+    // flicker at 720p; at this size it is 0.31-0.41).
+    EXPECT_LT(flicker[scenario]["wrls"], 0.5 * flicker[scenario]["svgf"]) << scenario;
   }
   EXPECT_GE(psnr["orbit"]["wrls"], psnr["orbit"]["svgf"]) << "wRLS fell behind SVGF on the camera orbit";
   EXPECT_GT(psnr["static"]["wrls"], psnr["static"]["svgf"]) << "a still view should converge";
