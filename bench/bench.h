@@ -50,6 +50,7 @@ struct DenoiseBenchOptions : SceneOptions {
   int frames = 24, warmup = 8;
   int reference_spp = 512;         // 0: timings only
   float degrees_per_frame = 1.0f;  // camera orbit speed
+  std::vector<std::string> variants;  // "NAME:key=value,..." (tradeoff_study.h, Variant): more rows
 };
 
 int RunDenoiseBench(const DenoiseBenchOptions& options);

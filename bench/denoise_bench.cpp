@@ -8,6 +8,7 @@
 #include <fmt/format.h>
 
 #include "bench.h"
+#include "core/error.h"
 #include "image_metrics.h"
 #include "core/ycc.h"
 #include "pipeline/frame_pipeline.h"
@@ -17,9 +18,16 @@ namespace cinevol::bench {
 namespace {
 
 struct Method {
-  DenoiseMethod method;
-  bool demodulate;
+  std::string label;
+  DenoiserSettings settings;
 };
+
+Method Plain(DenoiseMethod method, bool demodulate) {
+  Method m{ToString(method), {}};
+  m.settings.method = method;
+  m.settings.demodulate = demodulate;
+  return m;
+}
 
 }  // namespace
 
@@ -38,36 +46,48 @@ int RunDenoiseBench(const DenoiseBenchOptions& o) {
     references.push_back(RenderReference(backend, loaded.volume, view(t), o.reference_spp, setup.max_bounces, t));
   }
 
-  const Method methods[] = {{DenoiseMethod::kNone, false},         {DenoiseMethod::kAccumulate, false},
-                            {DenoiseMethod::kKnn, false},          {DenoiseMethod::kGuidedFilter, false},
-                            {DenoiseMethod::kSvgf, false},         {DenoiseMethod::kSvgf, true},
-                            {DenoiseMethod::kWrls, false},         {DenoiseMethod::kWrls, true}};
+  std::vector<Method> methods = {Plain(DenoiseMethod::kNone, false),         Plain(DenoiseMethod::kAccumulate, false),
+                                 Plain(DenoiseMethod::kKnn, false),          Plain(DenoiseMethod::kGuidedFilter, false),
+                                 Plain(DenoiseMethod::kSvgf, false),         Plain(DenoiseMethod::kSvgf, true),
+                                 Plain(DenoiseMethod::kWrls, false),         Plain(DenoiseMethod::kWrls, true)};
+  for (const std::string& spec : o.variants) {
+    const StudyConfig c = Variant(spec);
+    if (c.spp != StudyConfig{}.spp) throw InputError(fmt::format("--variant {}: the bench renders the scene's spp", spec));
+    Method m = Plain(c.method, false);
+    m.label = c.Label();
+    m.settings.wrls = c.wrls;
+    m.settings.svgf = c.svgf;
+    methods.push_back(m);
+  }
   std::string table = fmt::format(
       "\n### Denoisers on {} ({})\n\n`{}`\n\n{}x{}, {} spp/frame, camera orbiting {} degrees per frame, {} frames; "
       "times: median over frames {}..{}; PSNR (tone-mapped) against {} spp per frame, mean over the same frames; "
+      "level: the mean luminance's offset from the reference's (a bias the PSNR hides in), same frames; "
       "flicker: RMS change between consecutive tone-mapped outputs of a static camera (the same frames again, "
       "camera still; the noisy input's is the first row)\n\n"
-      "| method | demodulated | median ms | p90 ms | PSNR dB (moving) | flicker (static) "
-      "|\n|---|---|---|---|---|---|\n",
+      "| method | demodulated | median ms | p90 ms | PSNR dB (moving) | level % | flicker (static) "
+      "|\n|---|---|---|---|---|---|---|\n",
       o.scene, DeviceDescription(o.backend), o.command_line, setup.camera.width, setup.camera.height, setup.spp,
       o.degrees_per_frame, o.frames, o.warmup, o.frames - 1, o.reference_spp);
   for (const Method& m : methods) {
     FrameSettings settings;
-    settings.denoiser.method = m.method;
-    settings.denoiser.demodulate = m.demodulate;
+    settings.denoiser = m.settings;
     settings.refine = false;  // the denoiser's output alone, however many samples pile up
     settings.chroma = ChromaSubsampling::k444;  // flicker on the displayed pixels, before JPEG
     // The same seed renders the same noisy frames for every method: frame t
     // of a fresh pipeline is sampled as frame t.
     FramePipeline moving(backend, loaded.volume);
     std::vector<double> ms;
-    double psnr = 0;
+    double psnr = 0, level = 0;
     for (int t = 0; t < o.frames; ++t) {
       moving.Update(view(t), settings, kCameraChanged);
       const DisplayFrame frame = moving.RenderFrame();
       if (t < o.warmup) continue;
       ms.push_back(frame.denoise_ms);
-      if (!references.empty()) psnr += DisplayPsnr(moving.DenoisedRadiance(), references[t]) / (o.frames - o.warmup);
+      if (references.empty()) continue;
+      const ImageRgbF denoised = moving.DenoisedRadiance();
+      psnr += DisplayPsnr(denoised, references[t]) / (o.frames - o.warmup);
+      level += LevelBias(denoised, references[t]) / (o.frames - o.warmup);
     }
     // Flicker on a static camera: frame-to-frame change of what the viewer sees.
     FramePipeline still(backend, loaded.volume);
@@ -80,9 +100,12 @@ int RunDenoiseBench(const DenoiseBenchOptions& o) {
       previous = shown;
     }
     std::sort(ms.begin(), ms.end());
-    table += fmt::format("| {} | {} | {:.3f} | {:.3f} | {} | {:.4f} |\n", ToString(m.method),
-                         m.demodulate ? "yes" : "no", ms[ms.size() / 2], ms[ms.size() * 9 / 10],
-                         references.empty() ? std::string("-") : fmt::format("{:.2f}", psnr), flicker);
+    auto measured = [&](const char* format, double value) {
+      return references.empty() ? std::string("-") : fmt::format(fmt::runtime(format), value);
+    };
+    table += fmt::format("| {} | {} | {:.3f} | {:.3f} | {} | {} | {:.4f} |\n", m.label,
+                         m.settings.demodulate ? "yes" : "no", ms[ms.size() / 2], ms[ms.size() * 9 / 10],
+                         measured("{:.2f}", psnr), measured("{:+.2f}", 100 * level), flicker);
   }
   Report(o, table);
   return 0;

@@ -35,6 +35,16 @@ double DisplayPsnr(const ImageRgbF& image, const ImageRgbF& reference) {
   return mse > 0 ? 10.0 * std::log10(1.0 / mse) : 100.0;
 }
 
+double LevelBias(const ImageRgbF& image, const ImageRgbF& reference) {
+  CheckSameSize(image, reference);
+  double sum = 0, reference_sum = 0;
+  for (std::size_t i = 0; i < image.pixels.size(); ++i) {
+    sum += IsFinite(image.pixels[i]) ? Luminance(image.pixels[i]) : 0.0f;
+    reference_sum += Luminance(reference.pixels[i]);
+  }
+  return reference_sum > 0 ? sum / reference_sum - 1.0 : 0.0;
+}
+
 double RelativeMse(const ImageRgbF& image, const ImageRgbF& reference) {
   CheckSameSize(image, reference);
   double sum = 0;

@@ -10,6 +10,10 @@ namespace cinevol {
 // PSNR in dB of `image` against `reference` after tone mapping.
 double DisplayPsnr(const ImageRgbF& image, const ImageRgbF& reference);
 
+// The mean luminance of `image` relative to the reference's, minus 1: a
+// denoiser's bias, which PSNR mixes with its noise.
+double LevelBias(const ImageRgbF& image, const ImageRgbF& reference);
+
 // Mean over pixels and channels of (x - r)^2 / (r^2 + 1e-2).
 double RelativeMse(const ImageRgbF& image, const ImageRgbF& reference);
 

@@ -79,6 +79,7 @@ int main(int argc, char** argv) {
   d->add_option("--reference-spp", denoise.reference_spp, "Samples per pixel of the reference (0: no PSNR)")
       ->capture_default_str();
   d->add_option("--degrees-per-frame", denoise.degrees_per_frame, "Camera orbit speed")->capture_default_str();
+  d->add_option("--variant", denoise.variants, "NAME:key=value,...: a wRLS or SVGF variant, one more row (repeatable)");
   d->callback([&] { cinevol::bench::RunDenoiseBench(denoise); });
   cinevol::bench::EncodeBenchOptions encode;
   encode.command_line = command_line;
@@ -211,7 +212,9 @@ int main(int argc, char** argv) {
   t->add_option("--height", study.height, "Frame height")->capture_default_str();
   t->add_option("--frames-scale", study.frames_scale, "Scenario lengths times this")->capture_default_str();
   t->add_option("--reference-spp", study.reference_spp, "Samples per pixel of the references")->capture_default_str();
-  t->add_option("--reference-bounces", study.reference_bounces, "Bounces of the references")->capture_default_str();
+  t->add_option("--reference-bounces", study.reference_bounces,
+                "Bounces of the bounces sweep's references (the others: their own)")
+      ->capture_default_str();
   t->add_option("--cache", cache, "Folder of cached reference EXRs")->capture_default_str();
   t->add_option("--out", out, "Results folder: tradeoff.csv, .json, .md, images/")->capture_default_str();
   t->add_option("--backend", study.backend, "auto, cpu or cuda")->capture_default_str();

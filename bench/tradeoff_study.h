@@ -57,6 +57,11 @@ struct StudyOptions {
   int width = 1280, height = 720;
   float frames_scale = 1;  // scenario lengths times this (CI: small)
   int reference_spp = 1024;
+  // The bounces sweep's references: long paths, the truth the sweep is
+  // measured against. Every other configuration is compared with the
+  // converged image of what it renders (references at its own bounces): a
+  // denoiser's error, not the bias of shorter paths, which a denoiser that
+  // leans bright would partly cancel (docs/tradeoff.md).
   int reference_bounces = 8;
   std::filesystem::path cache = "bench-cache";  // references, as EXR
   std::filesystem::path out;                     // tradeoff.csv, tradeoff.json, images/ (none when empty)

@@ -40,7 +40,7 @@ const char* ToString(DenoiseMethod method);
 struct WrlsSettings {
   float alpha = 0.75f;  // [0, 1): weight of the reprojected history in the feature z (Eq. 12); 0.8, 0.85 cost CThead's
                         // lights 0.6-0.7 dB
-  float bandwidth = 0.75f;  // h > 0: sample weight exp(-d^2 / h^2) (Eq. 13); smaller is more stable, more biased
+  float bandwidth = 0.75f;  // h > 0: sample weight exp(-d^2 / h^2) (Eq. 13, wrls.h SampleWeight); smaller is steadier
   float lambda = 0.998f;    // (0, 1]: forgetting factor; 1 never forgets
   // > 0: a reset model's inverse covariance, diagonal, in normalised units.
   // A firm prior (0.1, not 1: +0.4-1.0 dB on orbits, edits and still views)

@@ -31,8 +31,9 @@
 //
 // the weight that minimises the expected squared error, w^2 E + (1 - w)^2 B =
 // B E / (B + E). The accumulation takes over wherever it is the better
-// estimate, and everywhere as its error falls (measured: never below the
-// mean once blending starts, tests/pipeline/refine_test.cpp). The same
+// estimate, and everywhere as its error falls (measured: within 0.3 dB of
+// the mean once blending starts, ahead of it at the end,
+// tests/pipeline/refine_test.cpp). The same
 // expected error, over the image, is what refinement stops at
 // (FrameSettings::error_target). Runs on the backend that rendered the frame.
 #pragma once

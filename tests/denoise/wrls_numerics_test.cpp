@@ -108,5 +108,13 @@ TEST(WrlsNumerics, OutliersGetNoWeight) {
   EXPECT_NEAR(SampleWeight({2, 2, 2}, {1, 1, 1}, 0.75f, 0.0f), std::exp(-1.0f / 0.5625f), 1e-6f);
 }
 
+TEST(WrlsNumerics, ASampleBelowTheFeatureWeighsAsOneAsFarAbove) {
+  // Weighing dark samples less (the paper's min(|sample|, |z|)) leaned the
+  // fit bright by 1.4-1.6% on real volumes.
+  EXPECT_NEAR(SampleWeight({0.5f, 0.5f, 0.5f}, {1, 1, 1}, 0.75f, 1e-6f),
+              SampleWeight({1.5f, 1.5f, 1.5f}, {1, 1, 1}, 0.75f, 1e-6f), 1e-6f);
+  EXPECT_GT(SampleWeight({0, 0, 0}, {1, 1, 1}, 0.75f, 1e-6f), 0.1f) << "a black sample is no outlier of a dim feature";
+}
+
 }  // namespace
 }  // namespace cinevol
