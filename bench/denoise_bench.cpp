@@ -64,9 +64,9 @@ int RunDenoiseBench(const DenoiseBenchOptions& o) {
       "times: median over frames {}..{}; PSNR (tone-mapped) against {} spp per frame, mean over the same frames; "
       "level: the mean luminance's offset from the reference's (a bias the PSNR hides in), same frames; "
       "flicker: RMS change between consecutive tone-mapped outputs of a static camera (the same frames again, "
-      "camera still; the noisy input's is the first row)\n\n"
+      "camera still; the noisy input's is the first row), and the same before 8-bit rounding\n\n"
       "| method | demodulated | median ms | p90 ms | PSNR dB (moving) | level % | flicker (static) "
-      "|\n|---|---|---|---|---|---|---|\n",
+      "| before rounding |\n|---|---|---|---|---|---|---|---|\n",
       o.scene, DeviceDescription(o.backend), o.command_line, setup.camera.width, setup.camera.height, setup.spp,
       o.degrees_per_frame, o.frames, o.warmup, o.frames - 1, o.reference_spp);
   for (const Method& m : methods) {
@@ -92,20 +92,26 @@ int RunDenoiseBench(const DenoiseBenchOptions& o) {
     // Flicker on a static camera: frame-to-frame change of what the viewer sees.
     FramePipeline still(backend, loaded.volume);
     still.Update(view(0), settings);
-    double flicker = 0;
+    double flicker = 0, unrounded = 0;
     ImageRgb8 previous;
+    ImageRgbF previous_radiance;
     for (int t = 0; t < o.frames; ++t) {
       const ImageRgb8 shown = ToRgb(still.RenderFrame().image);
-      if (t > o.warmup) flicker += RmsDifference(shown, previous) / (o.frames - o.warmup - 1);
+      ImageRgbF radiance = still.DenoisedRadiance();
+      if (t > o.warmup) {
+        flicker += RmsDifference(shown, previous) / (o.frames - o.warmup - 1);
+        unrounded += DisplayRmsDifference(radiance, previous_radiance) / (o.frames - o.warmup - 1);
+      }
       previous = shown;
+      previous_radiance = std::move(radiance);
     }
     std::sort(ms.begin(), ms.end());
     auto measured = [&](const char* format, double value) {
       return references.empty() ? std::string("-") : fmt::format(fmt::runtime(format), value);
     };
-    table += fmt::format("| {} | {} | {:.3f} | {:.3f} | {} | {} | {:.4f} |\n", m.label,
+    table += fmt::format("| {} | {} | {:.3f} | {:.3f} | {} | {} | {:.4f} | {:.4f} |\n", m.label,
                          m.settings.demodulate ? "yes" : "no", ms[ms.size() / 2], ms[ms.size() * 9 / 10],
-                         measured("{:.2f}", psnr), measured("{:+.2f}", 100 * level), flicker);
+                         measured("{:.2f}", psnr), measured("{:+.2f}", 100 * level), flicker, unrounded);
   }
   Report(o, table);
   return 0;

@@ -22,7 +22,9 @@ void CheckSameSize(const ImageRgbF& a, const ImageRgbF& b) {
 float Displayed(float linear) { return LinearToSrgb(AcesFilm(std::isfinite(linear) ? linear : 0.0f)); }
 }  // namespace
 
-double DisplayPsnr(const ImageRgbF& image, const ImageRgbF& reference) {
+namespace {
+// Mean over pixels and channels of the squared difference of display values.
+double DisplayMse(const ImageRgbF& image, const ImageRgbF& reference) {
   CheckSameSize(image, reference);
   double mse = 0;
   for (std::size_t i = 0; i < image.pixels.size(); ++i) {
@@ -31,9 +33,16 @@ double DisplayPsnr(const ImageRgbF& image, const ImageRgbF& reference) {
       mse += d * d;
     }
   }
-  mse /= 3.0 * image.pixels.size();
+  return mse / (3.0 * image.pixels.size());
+}
+}  // namespace
+
+double DisplayPsnr(const ImageRgbF& image, const ImageRgbF& reference) {
+  const double mse = DisplayMse(image, reference);
   return mse > 0 ? 10.0 * std::log10(1.0 / mse) : 100.0;
 }
+
+double DisplayRmsDifference(const ImageRgbF& a, const ImageRgbF& b) { return std::sqrt(DisplayMse(a, b)); }
 
 double LevelBias(const ImageRgbF& image, const ImageRgbF& reference) {
   CheckSameSize(image, reference);

@@ -10,6 +10,11 @@ namespace cinevol {
 // PSNR in dB of `image` against `reference` after tone mapping.
 double DisplayPsnr(const ImageRgbF& image, const ImageRgbF& reference);
 
+// The RMS difference of two HDR images once tone-mapped to display values in
+// [0, 1] (as DisplayPsnr, before 8-bit rounding): flicker without the
+// rounding's own, which flips codes on changes of a fraction of a code.
+double DisplayRmsDifference(const ImageRgbF& a, const ImageRgbF& b);
+
 // The mean luminance of `image` relative to the reference's, minus 1: a
 // denoiser's bias, which PSNR mixes with its noise.
 double LevelBias(const ImageRgbF& image, const ImageRgbF& reference);

@@ -299,10 +299,11 @@ ImageRgb8 Shown(const Context& ctx, const DisplayFrame& frame, int jpeg_quality,
 // Flicker on a still view, as `cinevol-bench denoise` measures it: the
 // scenario's first frame held while a fresh pipeline renders it again and
 // again; the mean RMS change between consecutive displayed frames after the
-// first kFlickerWarmup. No reference is needed: nothing changes.
+// first kFlickerWarmup, and between their display values before 8-bit
+// rounding. No reference is needed: nothing changes.
 constexpr int kFlickerFrames = 16, kFlickerWarmup = 8;
-double StillFlicker(const Context& ctx, const ScenarioFrame& f, RenderSetup setup, const FrameSettings& settings,
-                    int jpeg_quality) {
+void MeasureStillFlicker(const Context& ctx, const ScenarioFrame& f, RenderSetup setup, const FrameSettings& settings,
+                         int jpeg_quality, RunResult& run) {
   const int width = setup.camera.width, height = setup.camera.height;  // the configuration's scale
   setup.camera = f.camera;
   setup.camera.width = width;
@@ -311,14 +312,20 @@ double StillFlicker(const Context& ctx, const ScenarioFrame& f, RenderSetup setu
   setup.lights = *f.lights;
   FramePipeline pipeline(ctx.backend, ctx.volume);
   pipeline.Update(setup, settings);
-  double sum = 0, encode_ms = 0;
+  double encode_ms = 0;
+  const double measured = kFlickerFrames - kFlickerWarmup - 1;
   ImageRgb8 previous;
+  ImageRgbF previous_radiance;
   for (int t = 0; t < kFlickerFrames; ++t) {
     const ImageRgb8 shown = Shown(ctx, pipeline.RenderFrame(), jpeg_quality, &encode_ms);
-    if (t > kFlickerWarmup) sum += RmsDifference(shown, previous);
+    ImageRgbF radiance = pipeline.DenoisedRadiance();
+    if (t > kFlickerWarmup) {
+      run.flicker += RmsDifference(shown, previous) / measured;
+      run.flicker_unrounded += DisplayRmsDifference(radiance, previous_radiance) / measured;
+    }
     previous = shown;
+    previous_radiance = std::move(radiance);
   }
-  return sum / (kFlickerFrames - kFlickerWarmup - 1);
 }
 
 RunResult RunConfig(const Context& ctx, const Scenario& scenario, const References& refs, const StudyConfig& c,
@@ -368,7 +375,7 @@ RunResult RunConfig(const Context& ctx, const Scenario& scenario, const Referenc
     previous = shown;
     run.frames.push_back(fr);
   }
-  run.flicker = StillFlicker(ctx, scenario.At(0), setup, settings, c.jpeg_quality);
+  MeasureStillFlicker(ctx, scenario.At(0), setup, settings, c.jpeg_quality, run);
   return run;
 }
 
@@ -567,13 +574,14 @@ void WriteJson(const fs::path& path, const StudyOptions& o, const std::string& d
     out << fmt::format(
         "{}\n  {{\"dataset\": \"{}\", \"scenario\": \"{}\", \"knob\": \"{}\", \"config\": \"{}\", \"method\": \"{}\", "
         "\"demodulate\": {}, \"spp\": {}, \"bounces\": {}, \"jpeg_quality\": {}, \"scale\": {}, \"frames\": {}, "
-        "\"psnr\": {:.4f}, \"ssim\": {:.5f}, \"rel_mse\": {:.6g}, \"temporal\": {:.6f}, \"flicker\": {:.6f}, \"ms\": {{\"render\": {:.4f}, "
-        "\"denoise\": {:.4f}, \"tonemap\": {:.4f}, \"encode\": {:.4f}, \"total\": {:.4f}}}}}",
+        "\"psnr\": {:.4f}, \"ssim\": {:.5f}, \"rel_mse\": {:.6g}, \"temporal\": {:.6f}, \"flicker\": {:.6f}, "
+        "\"flicker_unrounded\": {:.6f}, \"ms\": {{\"render\": {:.4f}, \"denoise\": {:.4f}, \"tonemap\": {:.4f}, "
+        "\"encode\": {:.4f}, \"total\": {:.4f}}}}}",
         i ? "," : "", r.dataset, r.scenario, c.knob, c.Label(), ToString(c.method), c.demodulate ? "true" : "false",
         c.spp, c.bounces, c.jpeg_quality, c.scale, r.frames.size(), r.Mean(&FrameResult::psnr),
         r.Mean(&FrameResult::ssim), r.Mean(&FrameResult::rel_mse), r.Mean(&FrameResult::temporal), r.flicker,
-        r.Mean(&FrameResult::render_ms), r.Mean(&FrameResult::denoise_ms), r.Mean(&FrameResult::tonemap_ms),
-        r.Mean(&FrameResult::encode_ms), r.MeanMs());
+        r.flicker_unrounded, r.Mean(&FrameResult::render_ms), r.Mean(&FrameResult::denoise_ms),
+        r.Mean(&FrameResult::tonemap_ms), r.Mean(&FrameResult::encode_ms), r.MeanMs());
   }
   out << "]}\n";
 }
@@ -660,9 +668,9 @@ std::vector<RunResult> RunStudy(const StudyOptions& o) {
         const int bounces = c.knob == "bounces" ? o.reference_bounces : c.bounces;
         RunResult run = RunConfig(ctx, s, references(bounces), c, image, image_frame);
         run.dataset = d.name;
-        std::fprintf(stderr, "  %-22s PSNR %6.2f  SSIM %.4f  temporal %.4f  flicker %.4f  %7.2f ms\n",
+        std::fprintf(stderr, "  %-22s PSNR %6.2f  SSIM %.4f  temporal %.4f  flicker %.4f (%.4f)  %7.2f ms\n",
                      c.Label().c_str(), run.Mean(&FrameResult::psnr), run.Mean(&FrameResult::ssim),
-                     run.Mean(&FrameResult::temporal), run.flicker, run.MeanMs());
+                     run.Mean(&FrameResult::temporal), run.flicker, run.flicker_unrounded, run.MeanMs());
         results.push_back(std::move(run));
       }
     }
@@ -684,14 +692,15 @@ std::string SummaryTable(const std::vector<RunResult>& results) {
     if (heading != current) {
       current = heading;
       t += fmt::format("\n#### {} ({} frames)\n\n| configuration | PSNR dB | SSIM | relMSE | temporal error | "
-                       "flicker (still) | ms (render + denoise + tone map + encode) |\n|---|---|---|---|---|---|---|\n",
+                       "flicker (still; before rounding) | ms (render + denoise + tone map + encode) |\n"
+                       "|---|---|---|---|---|---|---|\n",
                        heading, r.frames.size());
     }
-    t += fmt::format("| {} | {:.2f} | {:.4f} | {:.4g} | {:.4f} | {:.4f} | {:.2f} ({:.2f} + {:.2f} + {:.2f} + {:.2f}) |\n",
-                     r.config.Label(), r.Mean(&FrameResult::psnr), r.Mean(&FrameResult::ssim),
-                     r.Mean(&FrameResult::rel_mse), r.Mean(&FrameResult::temporal), r.flicker, r.MeanMs(),
-                     r.Mean(&FrameResult::render_ms), r.Mean(&FrameResult::denoise_ms),
-                     r.Mean(&FrameResult::tonemap_ms), r.Mean(&FrameResult::encode_ms));
+    t += fmt::format(
+        "| {} | {:.2f} | {:.4f} | {:.4g} | {:.4f} | {:.4f}; {:.4f} | {:.2f} ({:.2f} + {:.2f} + {:.2f} + {:.2f}) |\n",
+        r.config.Label(), r.Mean(&FrameResult::psnr), r.Mean(&FrameResult::ssim), r.Mean(&FrameResult::rel_mse),
+        r.Mean(&FrameResult::temporal), r.flicker, r.flicker_unrounded, r.MeanMs(), r.Mean(&FrameResult::render_ms),
+        r.Mean(&FrameResult::denoise_ms), r.Mean(&FrameResult::tonemap_ms), r.Mean(&FrameResult::encode_ms));
   }
   return t;
 }

@@ -80,7 +80,9 @@ struct RunResult {
   std::string dataset, scenario;
   StudyConfig config;
   std::vector<FrameResult> frames;
-  double flicker = 0;  // RMS change between displayed frames of the first frame's view held still
+  // RMS change between displayed frames of the first frame's view held
+  // still, and between their display values before 8-bit rounding.
+  double flicker = 0, flicker_unrounded = 0;
   // Means over frames; temporal over frames 1.. ; times over all frames.
   double Mean(double FrameResult::*field) const;
   double MeanMs() const;  // render + denoise + tone map + encode
