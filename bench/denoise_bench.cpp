@@ -29,9 +29,28 @@ Method Plain(DenoiseMethod method, bool demodulate) {
   return m;
 }
 
+// Every denoiser, plainly and demodulated, then the options' variants.
+std::vector<Method> Methods(const DenoiseBenchOptions& o) {
+  std::vector<Method> methods = {Plain(DenoiseMethod::kNone, false),         Plain(DenoiseMethod::kAccumulate, false),
+                                 Plain(DenoiseMethod::kKnn, false),          Plain(DenoiseMethod::kGuidedFilter, false),
+                                 Plain(DenoiseMethod::kSvgf, false),         Plain(DenoiseMethod::kSvgf, true),
+                                 Plain(DenoiseMethod::kWrls, false),         Plain(DenoiseMethod::kWrls, true)};
+  for (const std::string& spec : o.variants) {
+    const StudyConfig c = Variant(spec);
+    if (c.spp != StudyConfig{}.spp) throw InputError(fmt::format("--variant {}: the bench renders the scene's spp", spec));
+    Method m = Plain(c.method, false);
+    m.label = c.Label();
+    m.settings.wrls = c.wrls;
+    m.settings.svgf = c.svgf;
+    methods.push_back(m);
+  }
+  return methods;
+}
+
 }  // namespace
 
 int RunDenoiseBench(const DenoiseBenchOptions& o) {
+  const std::vector<Method> methods = Methods(o);  // bad variants fail before any rendering
   const LoadedScene loaded = LoadScene(o);
   const RenderSetup& setup = loaded.setup;
   const Backend backend = Resolve(ParseBackend(o.backend), "denoise bench");
@@ -46,19 +65,6 @@ int RunDenoiseBench(const DenoiseBenchOptions& o) {
     references.push_back(RenderReference(backend, loaded.volume, view(t), o.reference_spp, setup.max_bounces, t));
   }
 
-  std::vector<Method> methods = {Plain(DenoiseMethod::kNone, false),         Plain(DenoiseMethod::kAccumulate, false),
-                                 Plain(DenoiseMethod::kKnn, false),          Plain(DenoiseMethod::kGuidedFilter, false),
-                                 Plain(DenoiseMethod::kSvgf, false),         Plain(DenoiseMethod::kSvgf, true),
-                                 Plain(DenoiseMethod::kWrls, false),         Plain(DenoiseMethod::kWrls, true)};
-  for (const std::string& spec : o.variants) {
-    const StudyConfig c = Variant(spec);
-    if (c.spp != StudyConfig{}.spp) throw InputError(fmt::format("--variant {}: the bench renders the scene's spp", spec));
-    Method m = Plain(c.method, false);
-    m.label = c.Label();
-    m.settings.wrls = c.wrls;
-    m.settings.svgf = c.svgf;
-    methods.push_back(m);
-  }
   std::string table = fmt::format(
       "\n### Denoisers on {} ({})\n\n`{}`\n\n{}x{}, {} spp/frame, camera orbiting {} degrees per frame, {} frames; "
       "times: median over frames {}..{}; PSNR (tone-mapped) against {} spp per frame, mean over the same frames; "

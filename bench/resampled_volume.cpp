@@ -38,7 +38,7 @@ std::vector<std::int16_t> Resample(const Volume& source, Vec3i dims) {
           const int dx = k & 1, dy = k >> 1 & 1, dz = k >> 2;
           v += (dx ? wx : 1 - wx) * (dy ? wy : 1 - wy) * (dz ? wz : 1 - wz) * value(x0 + dx, y0 + dy, z0 + dz);
         }
-        out[(std::size_t(z) * dims.y + y) * dims.x + x] = std::int16_t(std::clamp(std::lround(v), -32768L, 32767L));
+        out[(std::size_t(z) * dims.y + y) * dims.x + x] = std::int16_t(std::lround(std::clamp(v, -32768.0f, 32767.0f)));
       }
     }
   });
@@ -73,6 +73,10 @@ void RunResample(const std::string& spec, Vec3i dims, const std::filesystem::pat
     throw InputError(fmt::format("--size {}x{}x{}: each side at least 1, at most 2^31 voxels", dims.x, dims.y, dims.z));
   }
   const Volume source = LoadVolume(ParseVolumeSpec(spec));
+  if (source.min_value() < -32768.0f || source.max_value() > 32767.0f) {
+    throw InputError(fmt::format("{}: values {} to {} do not fit a 16-bit NRRD", spec, source.min_value(),
+                                 source.max_value()));
+  }
   const Vec3f spacing = source.extent_mm() / ToFloat(dims);
   WriteNrrd(file, dims, spacing, Resample(source, dims), source);
   std::printf("%s: %dx%dx%d, %.3fx%.3fx%.3f mm (from %dx%dx%d)\n", file.c_str(), dims.x, dims.y, dims.z, spacing.x,

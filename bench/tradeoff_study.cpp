@@ -4,6 +4,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <cstdlib>
 #include <fstream>
 #include <functional>
 #include <map>
@@ -424,7 +425,11 @@ StudyConfig Variant(const std::string& spec) {
   }
   for (const auto& [key, text] : items) {
     if (key == "method") continue;
-    const float v = std::stof(text);
+    char* end = nullptr;
+    const float v = std::strtof(text.c_str(), &end);
+    if (text.empty() || *end != '\0' || !std::isfinite(v)) {
+      throw InputError(fmt::format("--variant {}: {}={} is not a finite number", spec, key, text));
+    }
     if (key == "spp") {
       if (!(v >= 1.0f && v <= 1024.0f)) throw InputError(fmt::format("--variant {}: spp must be 1 to 1024", spec));
       c.spp = int(v);

@@ -24,6 +24,9 @@ TEST(TradeoffStudy, VariantsParseTheirKeysAndNameBadOnes) {
   EXPECT_EQ(Variant("d:method=svgf,sigma_depth=8,spp=4").method, DenoiseMethod::kSvgf);
   EXPECT_THROW(Variant("z:spp=0"), InputError);
   EXPECT_THROW(Variant("u:no_such_key=1"), InputError);
+  EXPECT_THROW(Variant("n:alpha=abc"), InputError);
+  EXPECT_THROW(Variant("n:alpha=nan"), InputError);
+  EXPECT_THROW(Variant("n:alpha=0.5x"), InputError);
   EXPECT_THROW(Variant("k:method=knn"), InputError);
   EXPECT_THROW(Variant("r:rescale=0"), InputError) << "the study settled rescaling: it cannot be turned off";
   EXPECT_THROW(Variant("b:radius=2"), InputError) << "the paper's spatial blend left the code";
