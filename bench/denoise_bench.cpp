@@ -20,6 +20,7 @@ namespace {
 struct Method {
   std::string label;
   DenoiserSettings settings;
+  bool hold_codes = true;  // FrameSettings::hold_codes
 };
 
 Method Plain(DenoiseMethod method, bool demodulate) {
@@ -42,6 +43,7 @@ std::vector<Method> Methods(const DenoiseBenchOptions& o) {
     m.label = c.Label();
     m.settings.wrls = c.wrls;
     m.settings.svgf = c.svgf;
+    m.hold_codes = c.hold_codes;
     methods.push_back(m);
   }
   return methods;
@@ -78,6 +80,7 @@ int RunDenoiseBench(const DenoiseBenchOptions& o) {
   for (const Method& m : methods) {
     FrameSettings settings;
     settings.denoiser = m.settings;
+    settings.hold_codes = m.hold_codes;
     settings.refine = false;  // the denoiser's output alone, however many samples pile up
     settings.chroma = ChromaSubsampling::k444;  // flicker on the displayed pixels, before JPEG
     // The same seed renders the same noisy frames for every method: frame t

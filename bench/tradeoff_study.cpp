@@ -340,6 +340,7 @@ RunResult RunConfig(const Context& ctx, const Scenario& scenario, const Referenc
   settings.denoiser.wrls = c.wrls;
   settings.denoiser.svgf = c.svgf;
   settings.refine = false;  // every frame as it looks while interacting
+  settings.hold_codes = c.hold_codes;
   // Without JPEG, full chroma: the displayed pixels, give or take YCbCr rounding.
   settings.chroma = c.jpeg_quality > 0 ? ChromaSubsampling::k420 : ChromaSubsampling::k444;
   FramePipeline pipeline(ctx.backend, ctx.volume);
@@ -400,6 +401,7 @@ const std::map<std::string, int WrlsSettings::*> kWrlsIntKeys = {
     {"atrous", &WrlsSettings::atrous_iterations},
     {"still", &WrlsSettings::max_still_frames},
     {"recenter", &WrlsSettings::stabilize_recenter},
+    {"stabilize_still", &WrlsSettings::stabilize_still_frames},
     {"rescale", &WrlsSettings::feature_rescale},
 };
 
@@ -433,6 +435,9 @@ StudyConfig Variant(const std::string& spec) {
     if (key == "spp") {
       if (!(v >= 1.0f && v <= 1024.0f)) throw InputError(fmt::format("--variant {}: spp must be 1 to 1024", spec));
       c.spp = int(v);
+    } else if (key == "hold") {
+      if (v != 0.0f && v != 1.0f) throw InputError(fmt::format("--variant {}: hold is 0 or 1", spec));
+      c.hold_codes = v != 0.0f;
     } else if (c.method == DenoiseMethod::kSvgf) {
       if (key == "sigma_luminance") c.svgf.sigma_luminance = v;
       else if (key == "sigma_depth") c.svgf.sigma_depth = v;

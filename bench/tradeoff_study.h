@@ -33,6 +33,7 @@ struct StudyConfig {
   int bounces = 4;       // scattering events per path
   int jpeg_quality = 0;  // 0: the display image as rendered (no JPEG)
   float scale = 1;       // resolution scale: rendered smaller, upsampled for display
+  bool hold_codes = true;  // FrameSettings::hold_codes
   std::string variant;   // a named variant (ablations); empty: the defaults
   WrlsSettings wrls;
   SvgfSettings svgf;
@@ -44,7 +45,8 @@ struct StudyConfig {
 // sigma_depth, still, residual_rate, drift, young, firefly, stabilize,
 // stabilize_clamp, recenter, rescale, rescale_sigma (WrlsSettings);
 // method=svgf makes it an SVGF variant (keys sigma_luminance, sigma_depth).
-// Either method also takes spp (samples per pixel per frame).
+// Either method also takes spp (samples per pixel per frame) and hold (0:
+// the display rounds every frame plainly, FrameSettings::hold_codes).
 StudyConfig Variant(const std::string& spec);
 
 // The baseline and one-at-a-time sweeps of every knob; `quick` a small subset.

@@ -92,6 +92,11 @@ struct WrlsSettings {
   // estimate over (2r + 1)^2 taps 2 pixels apart, so a shading change does
   // not lag (wrls.h, HistoryOffsetRowsPass; 3 reads as 5).
   int stabilize_recenter = 5;
+  // On a still view the output accumulates as the feature does: the history
+  // weight grows as 1 - 1/(n + 1) over the n still frames, up to this many,
+  // and is not recentred (nothing moved; recentering would pass on the
+  // estimate's frame-to-frame change). 0: the moving view's rule always.
+  int stabilize_still_frames = 0;
   friend bool operator==(const WrlsSettings&, const WrlsSettings&);  // defaulted in denoiser.cpp
 };
 

@@ -295,15 +295,22 @@ class Wrls final : public DenoiserBase<B> {
     return offset_rows_.data();
   }
 
-  // The estimate in a_ blended with the previous output, recentred.
+  // The estimate in a_ blended with the previous output: recentred while
+  // the view moves, accumulated while it holds still.
   void Stabilize(const ReprojectionView& rv, Vec3f* output) {
     const WrlsSettings& s = this->settings_.wrls;
     const int w = this->width_, h = this->height_;
+    const int still = MinInt(still_frames_, s.stabilize_still_frames);
+    const float weight = fmaxf(s.stabilize_history, 1.0f - 1.0f / float(still + 1));
     // The previous output, reprojected: the stabiliser then overwrites it.
     B::ForEachPixel(w, h, ReprojectHistoryPass{rv, stable_.data(), b_.data()});
-    B::ForEachPixel(w, h, HistoryOffsetRowsPass{a_.data(), b_.data(), offset_rows_.data(), w, s.stabilize_recenter});
-    B::ForEachPixel(w, h, WrlsStabilizePass{a_.data(), b_.data(), offset_rows_.data(), output, stable_.data(), w, h,
-                                            s.stabilize_history, s.stabilize_clamp, s.stabilize_recenter});
+    const Vec4f* offsets = nullptr;
+    if (still == 0) {
+      B::ForEachPixel(w, h, HistoryOffsetRowsPass{a_.data(), b_.data(), offset_rows_.data(), w, s.stabilize_recenter});
+      offsets = offset_rows_.data();
+    }
+    B::ForEachPixel(w, h, WrlsStabilizePass{a_.data(), b_.data(), offsets, output, stable_.data(), w, h, weight,
+                                            s.stabilize_clamp, s.stabilize_recenter});
   }
 
   // One frame each: read (reprojected) before they are written.

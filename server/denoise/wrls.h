@@ -414,7 +414,7 @@ struct WrlsTemporalPass {
 struct WrlsStabilizePass {
   const Vec4f* current;      // this frame's estimate: colour, predicted variance
   const Vec4f* history;      // ReprojectHistoryPass
-  const Vec4f* offset_rows;  // HistoryOffsetRowsPass
+  const Vec4f* offset_rows;  // HistoryOffsetRowsPass; null: not recentred (a still view)
   Vec3f* output;             // the denoiser's output
   Vec3f* kept;               // the same, kept as the next frame's history
   int width, height;
@@ -429,7 +429,7 @@ struct WrlsStabilizePass {
     Vec3f out = c;
     if (history[i].w != 0.0f) {
       Vec3f h = Xyz(history[i]);
-      h = Max(h - Xyz(WindowMean(offset_rows, width, height, x, y, recenter)), Vec3f{});
+      if (offset_rows) h = Max(h - Xyz(WindowMean(offset_rows, width, height, x, y, recenter)), Vec3f{});
       Vec3f sum{}, sum_sq{};
       float n = 0.0f;
       for (int dy = -1; dy <= 1; ++dy) {

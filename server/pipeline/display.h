@@ -27,13 +27,17 @@ struct DisplayInputs {
   const Vec3f* radiance = nullptr;  // backend memory: linear, what the frame shows
   float exposure = 0;               // stops
   ChromaSubsampling chroma = ChromaSubsampling::k420;
+  // Each pixel keeps the codes the display showed last where they are
+  // within a code of its value (HoldsCode, FrameSettings::hold_codes);
+  // false: plain rounding (a final frame shows its exact codes).
+  bool hold_codes = false;
 };
 
 // The tone map of core/tone_map.h, evaluated (GPUs; the CPU uses the same
 // codes from a table: pipeline/tone_map_table.h).
 struct FormulaToneMap {
-  CINEVOL_HD void operator()(Vec3f c, float exposure_scale, std::uint8_t* rgb) const {
-    ToneMapPixel(c, exposure_scale, rgb);
+  CINEVOL_HD void operator()(Vec3f c, float exposure_scale, const std::uint8_t* held, std::uint8_t* rgb) const {
+    ToneMapPixel(c, exposure_scale, held, rgb);
   }
 };
 
@@ -50,14 +54,31 @@ struct UpsampledRadiance {
   CINEVOL_HD Vec3f operator()(int x, int y) const { return pass.Sample(x, y); }
 };
 
+// The codes a display showed last frame, RGB per pixel in backend memory:
+// read where `hold`, written always. A pixel is written only by the call
+// that reads it (a chroma block's edge padding calls it again, and gets
+// the same codes back).
+struct ShownCodes {
+  std::uint8_t* codes;
+  int width;
+  bool hold;
+};
+
 // A pixel's displayed 8-bit sRGB.
 template <class Radiance = FrameRadiance, class ToneMap = FormulaToneMap>
 struct DisplayedPixel {
   Radiance radiance;
   ToneMap tone_map;
   float exposure_scale;
+  ShownCodes shown;
 
-  CINEVOL_HD void operator()(int x, int y, std::uint8_t* rgb) const { tone_map(radiance(x, y), exposure_scale, rgb); }
+  CINEVOL_HD void operator()(int x, int y, std::uint8_t* rgb) const {
+    std::uint8_t* last = shown.codes + 3 * (std::size_t(y) * shown.width + x);
+    tone_map(radiance(x, y), exposure_scale, shown.hold ? last : nullptr, rgb);
+    last[0] = rgb[0];
+    last[1] = rgb[1];
+    last[2] = rgb[2];
+  }
 };
 
 // Runs over the chroma planes: each call converts the pixel block behind one
@@ -168,9 +189,13 @@ class DisplayOn final : public Display {
   }
 
  private:
+  // Also readies the shown codes: a frame of another size holds none.
   template <class Radiance>
-  DisplayedPixel<Radiance, ToneMap> Pixel(const DisplayInputs& in, Radiance radiance) const {
-    return {radiance, tone_map_, exp2f(in.exposure)};
+  DisplayedPixel<Radiance, ToneMap> Pixel(const DisplayInputs& in, Radiance radiance) {
+    const std::size_t codes = std::size_t(in.width) * in.height * 3;
+    const bool same_size = shown_.size() == codes;
+    if (!same_size) shown_.Resize(codes);
+    return {radiance, tone_map_, exp2f(in.exposure), {shown_.data(), in.width, in.hold_codes && same_size}};
   }
 
   // The planes in backend memory (planes_), written.
@@ -194,6 +219,7 @@ class DisplayOn final : public Display {
   ToneMap tone_map_;
   using HostBuffer = typename B::template HostBuffer<std::uint8_t>;
   typename B::template Buffer<std::uint8_t> planes_;
+  typename B::template Buffer<std::uint8_t> shown_;  // ShownCodes: the last frame's
   FrameBufferRing<HostBuffer> ring_;
 };
 

@@ -340,6 +340,7 @@ DisplayFrame FramePipeline::RenderFrame() {
   out.accumulated_spp = accumulated_spp_;
   out.final = Converged();
   out.jpeg_quality = out.final ? settings_.final_jpeg_quality : settings_.jpeg_quality;
+  in.hold_codes = settings_.hold_codes && !out.final;
   last_frame_final_ = out.final;
   if (out.final && settings_.final_png) {
     out.final_rgb = display_->RunRgb(in);

@@ -84,6 +84,11 @@ struct FrameSettings {
   // false: every frame shows the denoiser's output alone, never the
   // accumulation (the benches measure frames as they look while interacting).
   bool refine = true;
+  // A pixel keeps the 8-bit codes it showed last frame while its value stays
+  // within a code of them (core/tone_map.h, HoldsCode): a still view's noise
+  // no longer flips codes at rounding steps. A final frame shows its exact
+  // codes. false: every frame rounds plainly (the benches' comparison).
+  bool hold_codes = true;
 };
 
 // A streamed session's settings on `backend`: the defaults (on the CPU,

@@ -22,16 +22,19 @@ class ToneMapTable {
   // Built once, on first use (about 8,000 evaluations of the curve).
   static const ToneMapTable& Get();
 
-  // What ToneMapPixel(c, exposure_scale, rgb) writes.
-  void Map(Vec3f c, float exposure_scale, std::uint8_t* rgb) const {
+  // What ToneMapPixel(c, exposure_scale, held, rgb) writes (where `held`
+  // is kept, up to the few ulps of HoldsCode's wobble).
+  void Map(Vec3f c, float exposure_scale, const std::uint8_t* held, std::uint8_t* rgb) const {
     if (!IsFinite(c)) {
       rgb[0] = rgb[1] = rgb[2] = 0;
       return;
     }
-    rgb[0] = Code(c.x * exposure_scale);
-    rgb[1] = Code(c.y * exposure_scale);
-    rgb[2] = Code(c.z * exposure_scale);
+    for (int i = 0; i < 3; ++i) {
+      const float v = c[i] * exposure_scale;
+      rgb[i] = held && Holds(v, held[i]) ? held[i] : Code(v);
+    }
   }
+  void Map(Vec3f c, float exposure_scale, std::uint8_t* rgb) const { Map(c, exposure_scale, nullptr, rgb); }
 
   std::uint8_t Code(float v) const {
     int code = 0;
@@ -40,6 +43,10 @@ class ToneMapTable {
   }
   // The least scaled radiance shown as `code` (1..255) or more.
   float step(int code) const { return first_[code]; }
+
+  // HoldsCode(DisplayPosition(v), held), from the values where the position
+  // crosses held - 1 and held + 1.
+  bool Holds(float v, std::uint8_t held) const { return v >= whole_[held > 0 ? held - 1 : 0] && v < whole_[held + 1]; }
 
   // How far from a step (bisection's crossing) the table looks for the
   // wobble: 5 times the widest window the exhaustive check found.
@@ -51,12 +58,15 @@ class ToneMapTable {
 
   float first_[256];       // [k]: the least value with a code of k or more ([0] is never read)
   float last_below_[256];  // [k]: the greatest value with a code below k (-inf for k = 0)
+  float whole_[257];       // [k]: the least value whose DisplayPosition is k or more (-inf for k = 0; +inf: none)
 };
 
 // The tone map a CPU display runs: the table.
 struct TableToneMap {
   const ToneMapTable* table;
-  void operator()(Vec3f c, float exposure_scale, std::uint8_t* rgb) const { table->Map(c, exposure_scale, rgb); }
+  void operator()(Vec3f c, float exposure_scale, const std::uint8_t* held, std::uint8_t* rgb) const {
+    table->Map(c, exposure_scale, held, rgb);
+  }
 };
 
 }  // namespace cinevol

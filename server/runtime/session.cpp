@@ -165,7 +165,7 @@ void Session::PointLocked(const std::string& who, const v1::Pointer& pointer, Cl
   if (!(pointer.x() >= 0 && pointer.x() <= 1 && pointer.y() >= 0 && pointer.y() <= 1)) {
     throw InputError(fmt::format("pointer: ({}, {}) is outside the frame, [0, 1] each way", pointer.x(), pointer.y()));
   }
-  auto [it, fresh] = pointers_.try_emplace(who, PointerSender{TokenBucket(kPointerRate, arrival)});
+  auto [it, fresh] = pointers_.try_emplace(who, PointerSender{TokenBucket(kPointerRate, arrival), {}});
   if (!it->second.rate.Take(arrival)) return;  // a pointer moves on: the next move shows it
   it->second.visible = !pointer.hidden();
   it->second.shown.set_who(who);

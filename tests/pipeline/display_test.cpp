@@ -15,6 +15,7 @@
 #include <vector>
 
 #include "core/tone_map.h"
+#include "core/ycc.h"
 #include "io/phantom.h"
 #include "pipeline/display.h"
 #include "pipeline/tone_map_table.h"
@@ -172,6 +173,75 @@ TEST(ToneMapTable, BlacksOutNonFinitePixelsAndScalesByTheExposure) {
   }
 }
 
+// Where a held code stays (within a whole code of the value), the table
+// keeps it as the formula does; elsewhere both round. They may differ only
+// a few ulps from a hold's edge.
+TEST(ToneMapTable, HoldsTheCodesTheFormulaHolds) {
+  const ToneMapTable& table = ToneMapTable::Get();
+  int held_somewhere = 0;
+  for (float v = 1e-4f; v < 40.0f; v *= 1.0007f) {
+    std::uint8_t plain[3];
+    ToneMapPixel(Vec3f{v, v, v}, 1.0f, plain);
+    for (int delta = -2; delta <= 2; ++delta) {
+      const int k = int(plain[0]) + delta;
+      if (k < 0 || k > 255) continue;
+      const std::uint8_t held[3] = {std::uint8_t(k), std::uint8_t(k), std::uint8_t(k)};
+      std::uint8_t formula[3], looked_up[3];
+      ToneMapPixel(Vec3f{v, v, v}, 1.0f, held, formula);
+      table.Map(Vec3f{v, v, v}, 1.0f, held, looked_up);
+      if (looked_up[0] != formula[0]) {
+        EXPECT_NEAR(std::fabs(DisplayPosition(v) - float(k)), 1.0f, 1e-3f) << "at " << v << ", held " << k;
+      }
+      held_somewhere += formula[0] == k && k != plain[0];
+      EXPECT_LE(std::fabs(DisplayPosition(v) - float(formula[0])), 1.0f) << "at " << v;
+    }
+  }
+  EXPECT_GT(held_somewhere, 1000);
+}
+
+// The scaled radiance whose DisplayPosition is `position`, by bisection.
+float ValueAtPosition(float position) {
+  float lo = 0.0f, hi = 100.0f;
+  for (int i = 0; i < 100; ++i) (DisplayPosition(0.5f * (lo + hi)) < position ? lo : hi) = 0.5f * (lo + hi);
+  return hi;
+}
+
+// The grey every pixel of a frame of `value` shows, through `display`.
+int ShownGrey(Display& display, float value, bool hold, int width = 8, int height = 4) {
+  const std::vector<Vec3f> radiance(std::size_t(width) * height, Vec3f{value, value, value});
+  DisplayInputs in = InputsFor(radiance.data(), width, height, ChromaSubsampling::k444);
+  in.exposure = 0;
+  in.hold_codes = hold;
+  const ImageRgb8 shown = ToRgb(display.Run(in));
+  for (std::uint8_t code : shown.bytes) EXPECT_EQ(code, shown.bytes[0]);
+  return shown.bytes[0];
+}
+
+// A value that straddles a rounding step flips plain codes every frame; a
+// held code stays until the value is a whole code from it. A frame of
+// another size, or one that asks for exact codes, rounds plainly.
+TEST(DisplayPlanes, ACodeHoldsWhileItsValueStaysWithinACode) {
+  const float below = ValueAtPosition(100.3f), above = ValueAtPosition(100.7f);
+  const auto plain = MakeCpuDisplay();
+  for (int frame = 0; frame < 4; ++frame) {
+    EXPECT_EQ(ShownGrey(*plain, below, false), 100);
+    EXPECT_EQ(ShownGrey(*plain, above, false), 101);
+  }
+  const auto held = MakeCpuDisplay();
+  EXPECT_EQ(ShownGrey(*held, above, true), 101);  // the first frame has nothing to hold
+  for (int frame = 0; frame < 4; ++frame) {
+    EXPECT_EQ(ShownGrey(*held, below, true), 101);
+    EXPECT_EQ(ShownGrey(*held, above, true), 101);
+  }
+  EXPECT_EQ(ShownGrey(*held, ValueAtPosition(100.1f), true), 101);
+  EXPECT_EQ(ShownGrey(*held, ValueAtPosition(99.9f), true), 100);  // a whole code away
+  EXPECT_EQ(ShownGrey(*held, ValueAtPosition(100.8f), true), 100);
+  EXPECT_EQ(ShownGrey(*held, above, false), 101);                    // exact codes, also kept
+  EXPECT_EQ(ShownGrey(*held, below, true), 101);
+  EXPECT_EQ(ShownGrey(*held, below, true, 9, 4), 100);               // another size: nothing held
+  EXPECT_EQ(ShownGrey(*held, ValueAtPosition(140.2f), true, 9, 4), 140);
+}
+
 // A moving CPU frame is upsampled inside the display: the same planes as the
 // upsampler's image through the display.
 TEST(DisplayPass, UpsamplingOnTheWayGivesTheUpsampledImagesPlanes) {
@@ -221,6 +291,21 @@ TEST(DisplayPlanes, CudaMatchesCpu) {
     const int strides[3] = {b.PlaneWidth(0), b.PlaneWidth(1), b.PlaneWidth(2)};
     // Only the GPU's float rounding (powf, fused multiply-adds) differs.
     EXPECT_LE(MaxPlaneDifference(a, b_planes, strides), 1) << "chroma " << int(chroma);
+  }
+  // The next frame holds the codes each display showed: the same on both
+  // (the codes of the frames before may differ by one, so a fresh pair).
+  const auto gpu_held = MakeCudaDisplay(), cpu_held = MakeCpuDisplay();
+  for (int frame = 0; frame < 2; ++frame) {
+    req.frame = std::uint32_t(frame + 1);  // new noise: some codes hold, some move
+    renderer->Render(req);
+    DisplayInputs gin = InputsFor(renderer->Targets().radiance, w, h, ChromaSubsampling::k444);
+    const ImageRgbF next = renderer->Radiance();
+    DisplayInputs cin = InputsFor(next.pixels.data(), w, h, ChromaSubsampling::k444);
+    gin.hold_codes = cin.hold_codes = true;
+    const ImageYcc8 a = gpu_held->Run(gin), b = cpu_held->Run(cin);
+    const std::uint8_t* const b_planes[3] = {b.Plane(0), b.Plane(1), b.Plane(2)};
+    const int strides[3] = {b.PlaneWidth(0), b.PlaneWidth(1), b.PlaneWidth(2)};
+    EXPECT_LE(MaxPlaneDifference(a, b_planes, strides), 1) << "frame " << frame;
   }
 }
 #endif

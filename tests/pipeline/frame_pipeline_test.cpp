@@ -91,6 +91,7 @@ TEST(FramePipeline, ResolvedScenesAndFramesWithoutRefinement) {
   settings.refine = false;
   settings.target_spp = 4;
   settings.denoiser.method = DenoiseMethod::kNone;
+  settings.hold_codes = false;  // each frame's codes its own, as a fresh display's
   from_proto.Update(scene, settings);
   resolved.Update(ResolveScene(scene, *volume), settings);
   for (int i = 0; i < 3; ++i) {
@@ -106,6 +107,33 @@ TEST(FramePipeline, ResolvedScenesAndFramesWithoutRefinement) {
     EXPECT_EQ(Bytes(b.image), Bytes(MakeCpuDisplay()->Run(in))) << "frame " << i << ": refinement is off";
   }
   EXPECT_TRUE(resolved.Converged());
+}
+
+// A still view through wRLS: once it has settled, most of what changes
+// from frame to frame is 8-bit rounding of values that barely move. Held
+// codes (FrameSettings::hold_codes) take most of that away.
+TEST(FramePipeline, HeldCodesSteadyAStillView) {
+  auto volume = SmallHead();
+  const v1::Scene scene = SmallScene(*volume, 64, 48, 2);
+  FrameSettings settings;
+  settings.refine = false;  // the denoiser's output, frame after frame
+  settings.chroma = ChromaSubsampling::k444;
+  auto flicker = [&](bool hold) {
+    settings.hold_codes = hold;
+    FramePipeline pipeline(Backend::kCpu, volume);
+    pipeline.Update(scene, settings);
+    ImageYcc8 last;
+    double change = 0;
+    for (int frame = 0; frame < 16; ++frame) {
+      ImageYcc8 shown = pipeline.RenderFrame().image;
+      if (frame > 8) change += MeanAbsDiff(shown, last);
+      last = std::move(shown);
+    }
+    return change;
+  };
+  const double plain = flicker(false), held = flicker(true);
+  EXPECT_GT(plain, 0.0);
+  EXPECT_LT(held, 0.8 * plain) << "plain " << plain << ", held " << held;
 }
 
 TEST(FramePipeline, ResizeChangesTheFrameSize) {
