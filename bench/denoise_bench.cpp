@@ -72,9 +72,10 @@ int RunDenoiseBench(const DenoiseBenchOptions& o) {
       "times: median over frames {}..{}; PSNR (tone-mapped) against {} spp per frame, mean over the same frames; "
       "level: the mean luminance's offset from the reference's (a bias the PSNR hides in), same frames; "
       "flicker: RMS change between consecutive tone-mapped outputs of a static camera (the same frames again, "
-      "camera still; the noisy input's is the first row), and the same before 8-bit rounding\n\n"
+      "camera still; the noisy input's is the first row), and the same before 8-bit rounding; PSNR (static): those "
+      "frames against the first frame's reference\n\n"
       "| method | demodulated | median ms | p90 ms | PSNR dB (moving) | level % | flicker (static) "
-      "| before rounding |\n|---|---|---|---|---|---|---|---|\n",
+      "| before rounding | PSNR dB (static) |\n|---|---|---|---|---|---|---|---|---|\n",
       o.scene, DeviceDescription(o.backend), o.command_line, setup.camera.width, setup.camera.height, setup.spp,
       o.degrees_per_frame, o.frames, o.warmup, o.frames - 1, o.reference_spp);
   for (const Method& m : methods) {
@@ -101,7 +102,7 @@ int RunDenoiseBench(const DenoiseBenchOptions& o) {
     // Flicker on a static camera: frame-to-frame change of what the viewer sees.
     FramePipeline still(backend, loaded.volume);
     still.Update(view(0), settings);
-    double flicker = 0, unrounded = 0;
+    double flicker = 0, unrounded = 0, still_psnr = 0;
     ImageRgb8 previous;
     ImageRgbF previous_radiance;
     for (int t = 0; t < o.frames; ++t) {
@@ -110,6 +111,7 @@ int RunDenoiseBench(const DenoiseBenchOptions& o) {
       if (t > o.warmup) {
         flicker += RmsDifference(shown, previous) / (o.frames - o.warmup - 1);
         unrounded += DisplayRmsDifference(radiance, previous_radiance) / (o.frames - o.warmup - 1);
+        if (!references.empty()) still_psnr += DisplayPsnr(radiance, references[0]) / (o.frames - o.warmup - 1);
       }
       previous = shown;
       previous_radiance = std::move(radiance);
@@ -118,9 +120,10 @@ int RunDenoiseBench(const DenoiseBenchOptions& o) {
     auto measured = [&](const char* format, double value) {
       return references.empty() ? std::string("-") : fmt::format(fmt::runtime(format), value);
     };
-    table += fmt::format("| {} | {} | {:.3f} | {:.3f} | {} | {} | {:.4f} | {:.4f} |\n", m.label,
+    table += fmt::format("| {} | {} | {:.3f} | {:.3f} | {} | {} | {:.4f} | {:.4f} | {} |\n", m.label,
                          m.settings.demodulate ? "yes" : "no", ms[ms.size() / 2], ms[ms.size() * 9 / 10],
-                         measured("{:.2f}", psnr), measured("{:+.2f}", 100 * level), flicker, unrounded);
+                         measured("{:.2f}", psnr), measured("{:+.2f}", 100 * level), flicker, unrounded,
+                         measured("{:.2f}", still_psnr));
   }
   Report(o, table);
   return 0;

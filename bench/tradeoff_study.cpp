@@ -301,10 +301,11 @@ ImageRgb8 Shown(const Context& ctx, const DisplayFrame& frame, int jpeg_quality,
 // scenario's first frame held while a fresh pipeline renders it again and
 // again; the mean RMS change between consecutive displayed frames after the
 // first kFlickerWarmup, and between their display values before 8-bit
-// rounding. No reference is needed: nothing changes.
+// rounding; and the same frames' PSNR against `reference` (the first
+// frame's): what a still view costs its accuracy.
 constexpr int kFlickerFrames = 16, kFlickerWarmup = 8;
 void MeasureStillFlicker(const Context& ctx, const ScenarioFrame& f, RenderSetup setup, const FrameSettings& settings,
-                         int jpeg_quality, RunResult& run) {
+                         int jpeg_quality, const ImageRgb8& reference, RunResult& run) {
   const int width = setup.camera.width, height = setup.camera.height;  // the configuration's scale
   setup.camera = f.camera;
   setup.camera.width = width;
@@ -323,6 +324,7 @@ void MeasureStillFlicker(const Context& ctx, const ScenarioFrame& f, RenderSetup
     if (t > kFlickerWarmup) {
       run.flicker += RmsDifference(shown, previous) / measured;
       run.flicker_unrounded += DisplayRmsDifference(radiance, previous_radiance) / measured;
+      run.still_psnr += Psnr(shown, reference) / measured;
     }
     previous = shown;
     previous_radiance = std::move(radiance);
@@ -377,7 +379,7 @@ RunResult RunConfig(const Context& ctx, const Scenario& scenario, const Referenc
     previous = shown;
     run.frames.push_back(fr);
   }
-  MeasureStillFlicker(ctx, scenario.At(0), setup, settings, c.jpeg_quality, run);
+  MeasureStillFlicker(ctx, scenario.At(0), setup, settings, c.jpeg_quality, refs.display[0], run);
   return run;
 }
 
@@ -585,12 +587,12 @@ void WriteJson(const fs::path& path, const StudyOptions& o, const std::string& d
         "{}\n  {{\"dataset\": \"{}\", \"scenario\": \"{}\", \"knob\": \"{}\", \"config\": \"{}\", \"method\": \"{}\", "
         "\"demodulate\": {}, \"spp\": {}, \"bounces\": {}, \"jpeg_quality\": {}, \"scale\": {}, \"frames\": {}, "
         "\"psnr\": {:.4f}, \"ssim\": {:.5f}, \"rel_mse\": {:.6g}, \"temporal\": {:.6f}, \"flicker\": {:.6f}, "
-        "\"flicker_unrounded\": {:.6f}, \"ms\": {{\"render\": {:.4f}, \"denoise\": {:.4f}, \"tonemap\": {:.4f}, "
+        "\"flicker_unrounded\": {:.6f}, \"still_psnr\": {:.4f}, \"ms\": {{\"render\": {:.4f}, \"denoise\": {:.4f}, \"tonemap\": {:.4f}, "
         "\"encode\": {:.4f}, \"total\": {:.4f}}}}}",
         i ? "," : "", r.dataset, r.scenario, c.knob, c.Label(), ToString(c.method), c.demodulate ? "true" : "false",
         c.spp, c.bounces, c.jpeg_quality, c.scale, r.frames.size(), r.Mean(&FrameResult::psnr),
         r.Mean(&FrameResult::ssim), r.Mean(&FrameResult::rel_mse), r.Mean(&FrameResult::temporal), r.flicker,
-        r.flicker_unrounded, r.Mean(&FrameResult::render_ms), r.Mean(&FrameResult::denoise_ms),
+        r.flicker_unrounded, r.still_psnr, r.Mean(&FrameResult::render_ms), r.Mean(&FrameResult::denoise_ms),
         r.Mean(&FrameResult::tonemap_ms), r.Mean(&FrameResult::encode_ms), r.MeanMs());
   }
   out << "]}\n";
@@ -678,9 +680,10 @@ std::vector<RunResult> RunStudy(const StudyOptions& o) {
         const int bounces = c.knob == "bounces" ? o.reference_bounces : c.bounces;
         RunResult run = RunConfig(ctx, s, references(bounces), c, image, image_frame);
         run.dataset = d.name;
-        std::fprintf(stderr, "  %-22s PSNR %6.2f  SSIM %.4f  temporal %.4f  flicker %.4f (%.4f)  %7.2f ms\n",
+        std::fprintf(stderr, "  %-22s PSNR %6.2f  SSIM %.4f  temporal %.4f  flicker %.4f (%.4f; %.2f dB)  %7.2f ms\n",
                      c.Label().c_str(), run.Mean(&FrameResult::psnr), run.Mean(&FrameResult::ssim),
-                     run.Mean(&FrameResult::temporal), run.flicker, run.flicker_unrounded, run.MeanMs());
+                     run.Mean(&FrameResult::temporal), run.flicker, run.flicker_unrounded, run.still_psnr,
+                     run.MeanMs());
         results.push_back(std::move(run));
       }
     }
@@ -702,14 +705,15 @@ std::string SummaryTable(const std::vector<RunResult>& results) {
     if (heading != current) {
       current = heading;
       t += fmt::format("\n#### {} ({} frames)\n\n| configuration | PSNR dB | SSIM | relMSE | temporal error | "
-                       "flicker (still; before rounding) | ms (render + denoise + tone map + encode) |\n"
+                       "still view: flicker; before rounding; PSNR dB | ms (render + denoise + tone map + encode) |\n"
                        "|---|---|---|---|---|---|---|\n",
                        heading, r.frames.size());
     }
     t += fmt::format(
-        "| {} | {:.2f} | {:.4f} | {:.4g} | {:.4f} | {:.4f}; {:.4f} | {:.2f} ({:.2f} + {:.2f} + {:.2f} + {:.2f}) |\n",
+        "| {} | {:.2f} | {:.4f} | {:.4g} | {:.4f} | {:.4f}; {:.4f}; {:.2f} | {:.2f} ({:.2f} + {:.2f} + {:.2f} + {:.2f}) "
+        "|\n",
         r.config.Label(), r.Mean(&FrameResult::psnr), r.Mean(&FrameResult::ssim), r.Mean(&FrameResult::rel_mse),
-        r.Mean(&FrameResult::temporal), r.flicker, r.flicker_unrounded, r.MeanMs(), r.Mean(&FrameResult::render_ms),
+        r.Mean(&FrameResult::temporal), r.flicker, r.flicker_unrounded, r.still_psnr, r.MeanMs(), r.Mean(&FrameResult::render_ms),
         r.Mean(&FrameResult::denoise_ms), r.Mean(&FrameResult::tonemap_ms), r.Mean(&FrameResult::encode_ms));
   }
   return t;

@@ -83,8 +83,9 @@ struct RunResult {
   StudyConfig config;
   std::vector<FrameResult> frames;
   // RMS change between displayed frames of the first frame's view held
-  // still, and between their display values before 8-bit rounding.
-  double flicker = 0, flicker_unrounded = 0;
+  // still, and between their display values before 8-bit rounding; the
+  // same frames' PSNR against the first frame's reference.
+  double flicker = 0, flicker_unrounded = 0, still_psnr = 0;
   // Means over frames; temporal over frames 1.. ; times over all frames.
   double Mean(double FrameResult::*field) const;
   double MeanMs() const;  // render + denoise + tone map + encode

@@ -21,31 +21,20 @@ CINEVOL_HD float AcesFilm(float x) {
 
 // A channel's place on the 8-bit scale before rounding, [0, 255]: its code
 // is this rounded. `scaled`: linear radiance times 2^exposure.
-CINEVOL_HD float DisplayPosition(float scaled) { return LinearToSrgb(AcesFilm(scaled)) * 255.0f; }
-
-// Whether a channel that showed `held` last frame keeps showing it at
-// `position`: while it is less than a whole code from it. Noise that
-// straddles a rounding step then no longer flips the code frame after frame
-// (most of a still view's flicker once a denoiser has settled:
-// docs/tradeoff.md); a shown code is at most one code from its value
-// instead of half a code (FrameSettings::hold_codes).
-CINEVOL_HD bool HoldsCode(float position, std::uint8_t held) {
-  return position >= float(held) - 1.0f && position < float(held) + 1.0f;
+CINEVOL_HD float DisplayPosition(float scaled) {
+  return fminf(fmaxf(LinearToSrgb(AcesFilm(scaled)) * 255.0f, 0.0f), 255.0f);
 }
 
-// Linear radiance to 8-bit sRGB; exposure_scale = 2^exposure. `held`: the
-// codes the pixel showed last frame, kept where HoldsCode says (nullptr:
-// plain rounding). A non-finite pixel is black.
-CINEVOL_HD void ToneMapPixel(Vec3f c, float exposure_scale, const std::uint8_t* held, std::uint8_t* rgb) {
+// Linear radiance to 8-bit sRGB; exposure_scale = 2^exposure. `position`,
+// where not null, gets each channel's DisplayPosition. A non-finite pixel
+// is black.
+CINEVOL_HD void ToneMapPixel(Vec3f c, float exposure_scale, std::uint8_t* rgb, float* position = nullptr) {
   const bool finite = IsFinite(c);
   for (int i = 0; i < 3; ++i) {
-    const float position = finite ? DisplayPosition(c[i] * exposure_scale) : 0.0f;
-    const auto code = static_cast<std::uint8_t>(fminf(fmaxf(position + 0.5f, 0.0f), 255.0f));
-    rgb[i] = held && finite && HoldsCode(position, held[i]) ? held[i] : code;
+    const float v = finite ? LinearToSrgb(AcesFilm(c[i] * exposure_scale)) : 0.0f;
+    rgb[i] = static_cast<std::uint8_t>(fminf(fmaxf(v * 255.0f + 0.5f, 0.0f), 255.0f));
+    if (position) position[i] = fminf(fmaxf(v * 255.0f, 0.0f), 255.0f);
   }
-}
-CINEVOL_HD void ToneMapPixel(Vec3f c, float exposure_scale, std::uint8_t* rgb) {
-  ToneMapPixel(c, exposure_scale, nullptr, rgb);
 }
 
 // The whole image, on the host; exposure in stops.

@@ -95,8 +95,10 @@ struct WrlsSettings {
   // On a still view the output accumulates as the feature does: the history
   // weight grows as 1 - 1/(n + 1) over the n still frames, up to this many,
   // and is not recentred (nothing moved; recentering would pass on the
-  // estimate's frame-to-frame change). 0: the moving view's rule always.
-  int stabilize_still_frames = 0;
+  // estimate's frame-to-frame change). It takes the still view's flicker
+  // before rounding to a half or less (docs/tradeoff.md); 0: the moving
+  // view's rule always.
+  int stabilize_still_frames = 32;
   friend bool operator==(const WrlsSettings&, const WrlsSettings&);  // defaulted in denoiser.cpp
 };
 

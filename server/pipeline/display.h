@@ -27,17 +27,17 @@ struct DisplayInputs {
   const Vec3f* radiance = nullptr;  // backend memory: linear, what the frame shows
   float exposure = 0;               // stops
   ChromaSubsampling chroma = ChromaSubsampling::k420;
-  // Each pixel keeps the codes the display showed last where they are
-  // within a code of its value (HoldsCode, FrameSettings::hold_codes);
-  // false: plain rounding (a final frame shows its exact codes).
+  // Each plane sample keeps the code the display showed last frame while
+  // its value is within a code of it (core/ycc.h HeldCode,
+  // FrameSettings::hold_codes); false: plain rounding (a final frame).
   bool hold_codes = false;
 };
 
 // The tone map of core/tone_map.h, evaluated (GPUs; the CPU uses the same
 // codes from a table: pipeline/tone_map_table.h).
 struct FormulaToneMap {
-  CINEVOL_HD void operator()(Vec3f c, float exposure_scale, const std::uint8_t* held, std::uint8_t* rgb) const {
-    ToneMapPixel(c, exposure_scale, held, rgb);
+  CINEVOL_HD void operator()(Vec3f c, float exposure_scale, std::uint8_t* rgb, float* position) const {
+    ToneMapPixel(c, exposure_scale, rgb, position);
   }
 };
 
@@ -54,41 +54,30 @@ struct UpsampledRadiance {
   CINEVOL_HD Vec3f operator()(int x, int y) const { return pass.Sample(x, y); }
 };
 
-// The codes a display showed last frame, RGB per pixel in backend memory:
-// read where `hold`, written always. A pixel is written only by the call
-// that reads it (a chroma block's edge padding calls it again, and gets
-// the same codes back).
-struct ShownCodes {
-  std::uint8_t* codes;
-  int width;
-  bool hold;
-};
-
 // A pixel's displayed 8-bit sRGB.
 template <class Radiance = FrameRadiance, class ToneMap = FormulaToneMap>
 struct DisplayedPixel {
   Radiance radiance;
   ToneMap tone_map;
   float exposure_scale;
-  ShownCodes shown;
 
-  CINEVOL_HD void operator()(int x, int y, std::uint8_t* rgb) const {
-    std::uint8_t* last = shown.codes + 3 * (std::size_t(y) * shown.width + x);
-    tone_map(radiance(x, y), exposure_scale, shown.hold ? last : nullptr, rgb);
-    last[0] = rgb[0];
-    last[1] = rgb[1];
-    last[2] = rgb[2];
+  // `position`, where not null: the values before rounding (DisplayPosition).
+  CINEVOL_HD void operator()(int x, int y, std::uint8_t* rgb, float* position = nullptr) const {
+    tone_map(radiance(x, y), exposure_scale, rgb, position);
   }
 };
 
 // Runs over the chroma planes: each call converts the pixel block behind one
 // chroma sample (one pixel at 4:4:4).
+// `hold`: `out` holds the previous frame's planes, kept where they are
+// within a code (DisplayInputs::hold_codes).
 template <class Pixel>
 struct DisplayPass {
   Pixel pixel;
   YccPlanes out;
+  bool hold;
 
-  CINEVOL_HD void operator()(int cx, int cy) const { WriteYccBlock(out, cx, cy, pixel); }
+  CINEVOL_HD void operator()(int cx, int cy) const { WriteYccBlock(out, cx, cy, pixel, hold); }
 };
 
 // The displayed pixels themselves, interleaved RGB: a lossless final frame.
@@ -181,6 +170,7 @@ class DisplayOn final : public Display {
   ImageRgb8 RunRgb(const DisplayInputs& in) override {
     ImageRgb8 image{in.width, in.height, std::vector<std::uint8_t>(std::size_t(in.width) * in.height * 3)};
     planes_.Resize(image.bytes.size());
+    planes_layout_ = {};
     using P = DisplayedPixel<FrameRadiance, ToneMap>;
     B::ForEachPixel(in.width, in.height, DisplayRgbPass<P>{Pixel<FrameRadiance>(in, {in.radiance, in.width}),
                                                            planes_.data(), in.width});
@@ -189,21 +179,21 @@ class DisplayOn final : public Display {
   }
 
  private:
-  // Also readies the shown codes: a frame of another size holds none.
   template <class Radiance>
-  DisplayedPixel<Radiance, ToneMap> Pixel(const DisplayInputs& in, Radiance radiance) {
-    const std::size_t codes = std::size_t(in.width) * in.height * 3;
-    const bool same_size = shown_.size() == codes;
-    if (!same_size) shown_.Resize(codes);
-    return {radiance, tone_map_, exp2f(in.exposure), {shown_.data(), in.width, in.hold_codes && same_size}};
+  DisplayedPixel<Radiance, ToneMap> Pixel(const DisplayInputs& in, Radiance radiance) const {
+    return {radiance, tone_map_, exp2f(in.exposure)};
   }
 
   // The planes in backend memory (planes_), written.
   template <class P>
   YccPlanes WritePlanes(const DisplayInputs& in, const P& pixel) {
+    const PlanesLayout& last = planes_layout_;
+    const bool hold = in.hold_codes && last.width == in.width && last.height == in.height && last.chroma == in.chroma;
     planes_.Resize(YccBytes(in.width, in.height, in.chroma));
+    planes_layout_ = {in.width, in.height, in.chroma};
     const YccPlanes out = YccPlanes::Of(planes_.data(), in.width, in.height, in.chroma);
-    B::ForEachPixel(ChromaWidth(in.width, in.chroma), ChromaHeight(in.height, in.chroma), DisplayPass<P>{pixel, out});
+    B::ForEachPixel(ChromaWidth(in.width, in.chroma), ChromaHeight(in.height, in.chroma),
+                    DisplayPass<P>{pixel, out, hold});
     return out;
   }
 
@@ -218,8 +208,14 @@ class DisplayOn final : public Display {
 
   ToneMap tone_map_;
   using HostBuffer = typename B::template HostBuffer<std::uint8_t>;
+  // The last frame's planes (or RunRgb's pixels), written in place: a frame
+  // of the same layout holds their codes.
   typename B::template Buffer<std::uint8_t> planes_;
-  typename B::template Buffer<std::uint8_t> shown_;  // ShownCodes: the last frame's
+  struct PlanesLayout {
+    int width = 0, height = 0;  // 0: planes_ holds no planes
+    ChromaSubsampling chroma = ChromaSubsampling::k420;
+  };
+  PlanesLayout planes_layout_;
   FrameBufferRing<HostBuffer> ring_;
 };
 

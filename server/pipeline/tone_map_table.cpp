@@ -41,21 +41,6 @@ ToneMapTable::ToneMapTable() {
     first_[code] = std::bit_cast<float>(first);
     last_below_[code] = std::bit_cast<float>(last_below);
   }
-  // Where the position crosses each whole code, for HoldsCode: a plain
-  // bisection (a wobble moves a hold's edge by a few ulps, not a code).
-  whole_[0] = -INFINITY;
-  for (int k = 1; k <= 256; ++k) {
-    std::uint32_t lo = 0, hi = std::bit_cast<std::uint32_t>(FLT_MAX);
-    if (DisplayPosition(FLT_MAX) < float(k)) {
-      whole_[k] = INFINITY;
-      continue;
-    }
-    while (hi - lo > 1) {
-      const std::uint32_t mid = lo + (hi - lo) / 2;
-      (DisplayPosition(std::bit_cast<float>(mid)) >= float(k) ? hi : lo) = mid;
-    }
-    whole_[k] = std::bit_cast<float>(hi);
-  }
 }
 
 const ToneMapTable& ToneMapTable::Get() {

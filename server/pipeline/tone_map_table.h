@@ -13,6 +13,7 @@
 
 #include <cstdint>
 
+#include "core/tone_map.h"
 #include "core/vec.h"
 
 namespace cinevol {
@@ -22,19 +23,17 @@ class ToneMapTable {
   // Built once, on first use (about 8,000 evaluations of the curve).
   static const ToneMapTable& Get();
 
-  // What ToneMapPixel(c, exposure_scale, held, rgb) writes (where `held`
-  // is kept, up to the few ulps of HoldsCode's wobble).
-  void Map(Vec3f c, float exposure_scale, const std::uint8_t* held, std::uint8_t* rgb) const {
-    if (!IsFinite(c)) {
-      rgb[0] = rgb[1] = rgb[2] = 0;
-      return;
-    }
+  // What ToneMapPixel(c, exposure_scale, rgb, position) writes, the
+  // positions within a tenth of a code (Position): a held code's edge moves
+  // by no more.
+  void Map(Vec3f c, float exposure_scale, std::uint8_t* rgb, float* position = nullptr) const {
+    const bool finite = IsFinite(c);
     for (int i = 0; i < 3; ++i) {
-      const float v = c[i] * exposure_scale;
-      rgb[i] = held && Holds(v, held[i]) ? held[i] : Code(v);
+      const float v = finite ? c[i] * exposure_scale : 0.0f;
+      rgb[i] = Code(v);
+      if (position) position[i] = Position(v, rgb[i]);
     }
   }
-  void Map(Vec3f c, float exposure_scale, std::uint8_t* rgb) const { Map(c, exposure_scale, nullptr, rgb); }
 
   std::uint8_t Code(float v) const {
     int code = 0;
@@ -44,9 +43,15 @@ class ToneMapTable {
   // The least scaled radiance shown as `code` (1..255) or more.
   float step(int code) const { return first_[code]; }
 
-  // HoldsCode(DisplayPosition(v), held), from the values where the position
-  // crosses held - 1 and held + 1.
-  bool Holds(float v, std::uint8_t held) const { return v >= whole_[held > 0 ? held - 1 : 0] && v < whole_[held + 1]; }
+  // DisplayPosition(v) for v of `code`: linear between the steps around it
+  // (the curve is smooth within a step); the formula for the last code,
+  // whose step has no upper end.
+  float Position(float v, std::uint8_t code) const {
+    if (code == 255) return DisplayPosition(v);
+    const float lo = code == 0 ? 0.0f : first_[code], hi = first_[code + 1];
+    const float t = fminf(fmaxf((v - lo) / (hi - lo), 0.0f), 1.0f);
+    return code == 0 ? 0.5f * t : float(code) - 0.5f + t;
+  }
 
   // How far from a step (bisection's crossing) the table looks for the
   // wobble: 5 times the widest window the exhaustive check found.
@@ -58,14 +63,13 @@ class ToneMapTable {
 
   float first_[256];       // [k]: the least value with a code of k or more ([0] is never read)
   float last_below_[256];  // [k]: the greatest value with a code below k (-inf for k = 0)
-  float whole_[257];       // [k]: the least value whose DisplayPosition is k or more (-inf for k = 0; +inf: none)
 };
 
 // The tone map a CPU display runs: the table.
 struct TableToneMap {
   const ToneMapTable* table;
-  void operator()(Vec3f c, float exposure_scale, const std::uint8_t* held, std::uint8_t* rgb) const {
-    table->Map(c, exposure_scale, held, rgb);
+  void operator()(Vec3f c, float exposure_scale, std::uint8_t* rgb, float* position) const {
+    table->Map(c, exposure_scale, rgb, position);
   }
 };
 

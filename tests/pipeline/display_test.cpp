@@ -173,30 +173,19 @@ TEST(ToneMapTable, BlacksOutNonFinitePixelsAndScalesByTheExposure) {
   }
 }
 
-// Where a held code stays (within a whole code of the value), the table
-// keeps it as the formula does; elsewhere both round. They may differ only
-// a few ulps from a hold's edge.
-TEST(ToneMapTable, HoldsTheCodesTheFormulaHolds) {
+// The table's values before rounding (for held codes) are the formula's
+// within a tenth of a code (the curve bends most within the wide steps
+// near saturation).
+TEST(ToneMapTable, GivesTheFormulasPositionsWithinATenthOfACode) {
   const ToneMapTable& table = ToneMapTable::Get();
-  int held_somewhere = 0;
-  for (float v = 1e-4f; v < 40.0f; v *= 1.0007f) {
-    std::uint8_t plain[3];
-    ToneMapPixel(Vec3f{v, v, v}, 1.0f, plain);
-    for (int delta = -2; delta <= 2; ++delta) {
-      const int k = int(plain[0]) + delta;
-      if (k < 0 || k > 255) continue;
-      const std::uint8_t held[3] = {std::uint8_t(k), std::uint8_t(k), std::uint8_t(k)};
-      std::uint8_t formula[3], looked_up[3];
-      ToneMapPixel(Vec3f{v, v, v}, 1.0f, held, formula);
-      table.Map(Vec3f{v, v, v}, 1.0f, held, looked_up);
-      if (looked_up[0] != formula[0]) {
-        EXPECT_NEAR(std::fabs(DisplayPosition(v) - float(k)), 1.0f, 1e-3f) << "at " << v << ", held " << k;
-      }
-      held_somewhere += formula[0] == k && k != plain[0];
-      EXPECT_LE(std::fabs(DisplayPosition(v) - float(formula[0])), 1.0f) << "at " << v;
-    }
+  for (float v = -1.0f; v < 40.0f; v = v < 1e-4f ? v + 1e-6f : v * 1.0003f) {
+    std::uint8_t codes[3];
+    float formula[3], looked_up[3];
+    ToneMapPixel(Vec3f{v, v, v}, 1.0f, codes, formula);
+    table.Map(Vec3f{v, v, v}, 1.0f, codes, looked_up);
+    ASSERT_NEAR(looked_up[0], formula[0], 0.1f) << "at " << v;
+    ASSERT_NEAR(looked_up[0], float(codes[0]), 0.5f) << "at " << v;
   }
-  EXPECT_GT(held_somewhere, 1000);
 }
 
 // The scaled radiance whose DisplayPosition is `position`, by bisection.
@@ -219,7 +208,8 @@ int ShownGrey(Display& display, float value, bool hold, int width = 8, int heigh
 
 // A value that straddles a rounding step flips plain codes every frame; a
 // held code stays until the value is a whole code from it. A frame of
-// another size, or one that asks for exact codes, rounds plainly.
+// another size, or one that asks for exact codes, rounds plainly. (Grey:
+// the luma is the grey's code, the chroma 128.)
 TEST(DisplayPlanes, ACodeHoldsWhileItsValueStaysWithinACode) {
   const float below = ValueAtPosition(100.3f), above = ValueAtPosition(100.7f);
   const auto plain = MakeCpuDisplay();
