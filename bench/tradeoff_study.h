@@ -43,7 +43,8 @@ struct StudyConfig {
 // "NAME:key=value,..." -> a wRLS configuration with those settings changed.
 // Keys: alpha, bandwidth, lambda, initial_p, atrous, sigma_luminance,
 // sigma_depth, still, residual_rate, drift, young, firefly, stabilize,
-// stabilize_clamp, recenter, rescale, rescale_sigma (WrlsSettings);
+// stabilize_clamp, recenter, stabilize_still, rescale, rescale_sigma
+// (WrlsSettings);
 // method=svgf makes it an SVGF variant (keys sigma_luminance, sigma_depth).
 // Either method also takes spp (samples per pixel per frame) and hold (0:
 // the display rounds every frame plainly, FrameSettings::hold_codes).

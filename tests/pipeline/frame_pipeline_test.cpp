@@ -111,7 +111,7 @@ TEST(FramePipeline, ResolvedScenesAndFramesWithoutRefinement) {
 
 // A still view through wRLS: once it has settled, most of what changes
 // from frame to frame is 8-bit rounding of values that barely move. Held
-// codes (FrameSettings::hold_codes) take half of it away here (0.50 of
+// codes (FrameSettings::hold_codes) take half of it away here (0.54 of
 // the plain change at 64x48).
 TEST(FramePipeline, HeldCodesSteadyAStillView) {
   auto volume = SmallHead();
@@ -134,7 +134,7 @@ TEST(FramePipeline, HeldCodesSteadyAStillView) {
   };
   const double plain = flicker(false), held = flicker(true);
   EXPECT_GT(plain, 0.0);
-  EXPECT_LT(held, 0.6 * plain) << "plain " << plain << ", held " << held;
+  EXPECT_LT(held, 0.7 * plain) << "plain " << plain << ", held " << held;
 }
 
 TEST(FramePipeline, ResizeChangesTheFrameSize) {
