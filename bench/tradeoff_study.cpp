@@ -455,8 +455,9 @@ StudyConfig Variant(const std::string& spec) {
   // 0 turned these stages off until the study settled them (docs/denoising.md).
   const WrlsSettings& w = c.wrls;
   if (w.feature_rescale < 1 || w.feature_rescale > 8 || w.stabilize_recenter < 1 || w.stabilize_recenter > 8 ||
-      !(w.drift_sigma > 0)) {
-    throw InputError(fmt::format("--variant {}: rescale and recenter take 1 to 8, drift more than 0", spec));
+      !(w.drift_sigma > 0) || w.stabilize_still_frames < 0) {
+    throw InputError(fmt::format(
+        "--variant {}: rescale and recenter take 1 to 8, drift more than 0, stabilize_still 0 or more", spec));
   }
   return c;
 }
@@ -587,8 +588,8 @@ void WriteJson(const fs::path& path, const StudyOptions& o, const std::string& d
         "{}\n  {{\"dataset\": \"{}\", \"scenario\": \"{}\", \"knob\": \"{}\", \"config\": \"{}\", \"method\": \"{}\", "
         "\"demodulate\": {}, \"spp\": {}, \"bounces\": {}, \"jpeg_quality\": {}, \"scale\": {}, \"frames\": {}, "
         "\"psnr\": {:.4f}, \"ssim\": {:.5f}, \"rel_mse\": {:.6g}, \"temporal\": {:.6f}, \"flicker\": {:.6f}, "
-        "\"flicker_unrounded\": {:.6f}, \"still_psnr\": {:.4f}, \"ms\": {{\"render\": {:.4f}, \"denoise\": {:.4f}, \"tonemap\": {:.4f}, "
-        "\"encode\": {:.4f}, \"total\": {:.4f}}}}}",
+        "\"flicker_unrounded\": {:.6f}, \"still_psnr\": {:.4f}, \"ms\": {{\"render\": {:.4f}, \"denoise\": {:.4f}, "
+        "\"tonemap\": {:.4f}, \"encode\": {:.4f}, \"total\": {:.4f}}}}}",
         i ? "," : "", r.dataset, r.scenario, c.knob, c.Label(), ToString(c.method), c.demodulate ? "true" : "false",
         c.spp, c.bounces, c.jpeg_quality, c.scale, r.frames.size(), r.Mean(&FrameResult::psnr),
         r.Mean(&FrameResult::ssim), r.Mean(&FrameResult::rel_mse), r.Mean(&FrameResult::temporal), r.flicker,
@@ -713,8 +714,9 @@ std::string SummaryTable(const std::vector<RunResult>& results) {
         "| {} | {:.2f} | {:.4f} | {:.4g} | {:.4f} | {:.4f}; {:.4f}; {:.2f} | {:.2f} ({:.2f} + {:.2f} + {:.2f} + {:.2f}) "
         "|\n",
         r.config.Label(), r.Mean(&FrameResult::psnr), r.Mean(&FrameResult::ssim), r.Mean(&FrameResult::rel_mse),
-        r.Mean(&FrameResult::temporal), r.flicker, r.flicker_unrounded, r.still_psnr, r.MeanMs(), r.Mean(&FrameResult::render_ms),
-        r.Mean(&FrameResult::denoise_ms), r.Mean(&FrameResult::tonemap_ms), r.Mean(&FrameResult::encode_ms));
+        r.Mean(&FrameResult::temporal), r.flicker, r.flicker_unrounded, r.still_psnr, r.MeanMs(),
+        r.Mean(&FrameResult::render_ms), r.Mean(&FrameResult::denoise_ms), r.Mean(&FrameResult::tonemap_ms),
+        r.Mean(&FrameResult::encode_ms));
   }
   return t;
 }

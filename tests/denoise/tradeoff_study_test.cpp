@@ -22,6 +22,12 @@ TEST(TradeoffStudy, VariantsParseTheirKeysAndNameBadOnes) {
   EXPECT_EQ(c.wrls.feature_rescale, 3);
   EXPECT_FLOAT_EQ(c.wrls.alpha, 0.5f);
   EXPECT_EQ(Variant("d:method=svgf,sigma_depth=8,spp=4").method, DenoiseMethod::kSvgf);
+  const StudyConfig plain = Variant("p:method=svgf,hold=0"), still = Variant("s:stabilize_still=0");
+  EXPECT_FALSE(plain.hold_codes);
+  EXPECT_TRUE(still.hold_codes);
+  EXPECT_EQ(still.wrls.stabilize_still_frames, 0);
+  EXPECT_THROW(Variant("h:hold=0.5"), InputError);
+  EXPECT_THROW(Variant("s:stabilize_still=-1"), InputError);
   EXPECT_THROW(Variant("z:spp=0"), InputError);
   EXPECT_THROW(Variant("u:no_such_key=1"), InputError);
   EXPECT_THROW(Variant("n:alpha=abc"), InputError);
