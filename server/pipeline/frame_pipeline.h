@@ -84,10 +84,10 @@ struct FrameSettings {
   // false: every frame shows the denoiser's output alone, never the
   // accumulation (the benches measure frames as they look while interacting).
   bool refine = true;
-  // A pixel keeps the 8-bit codes it showed last frame while its value stays
-  // within a code of them (core/tone_map.h, HoldsCode): a still view's noise
-  // no longer flips codes at rounding steps. A final frame shows its exact
-  // codes. false: every frame rounds plainly (the benches' comparison).
+  // Each YCbCr sample keeps the code it showed last frame while its exact
+  // value stays within a code of it (core/ycc.h, HeldCode): a still view's
+  // noise no longer flips codes at rounding steps. A final frame shows its
+  // exact codes. false: every frame rounds plainly (the benches' comparison).
   bool hold_codes = true;
 };
 
