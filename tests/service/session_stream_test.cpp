@@ -60,23 +60,29 @@ TEST(SessionStream, FramesFollowCameraTransferFunctionAndLightEdits) {
   EXPECT_GT(moved->frame_id(), base->frame_id());
   EXPECT_GT(MeanAbsDiff(before, Decode(*moved)), 2.0);
 
-  // A transfer-function edit: skin instead of bone.
+  // A transfer-function edit: muscle under the skin instead of bone. (Two
+  // finals of one state differ by 0.9-1.9 on average at 16 spp; this edit
+  // moves the image by about 5, soft tissue by only about 2.)
   v1::SessionEvent tf;
-  tf.mutable_transfer_function()->set_preset("ct-soft-tissue");
+  tf.mutable_transfer_function()->set_preset("ct-muscle");
   const std::uint64_t tf_seq = stream->Send(tf);
-  const auto skin = WaitFinal(*stream, tf_seq);
-  ASSERT_TRUE(skin);
-  EXPECT_GT(MeanAbsDiff(Decode(*moved), Decode(*skin)), 2.0);
+  const auto muscle = WaitFinal(*stream, tf_seq);
+  ASSERT_TRUE(muscle);
+  EXPECT_GT(MeanAbsDiff(Decode(*moved), Decode(*muscle)), 3.0);
 
-  // A light edit: only the dim sky is left, so the image darkens.
+  // A light edit: only the sky is left, at a quarter of its intensity, so
+  // the image darkens.
   v1::SessionEvent lights;
   for (const v1::Light& l : created.scene().lights()) {
-    if (l.has_environment()) *lights.mutable_lights()->add_lights() = l;
+    if (!l.has_environment()) continue;
+    v1::Light* sky = lights.mutable_lights()->add_lights();
+    *sky = l;
+    sky->mutable_environment()->set_intensity(0.25f * l.environment().intensity());
   }
   const std::uint64_t light_seq = stream->Send(lights);
   const auto dim = WaitFinal(*stream, light_seq);
   ASSERT_TRUE(dim);
-  EXPECT_LT(MeanLevel(Decode(*dim)), MeanLevel(Decode(*skin)) - 2.0);
+  EXPECT_LT(MeanLevel(Decode(*dim)), MeanLevel(Decode(*muscle)) - 10.0);
   EXPECT_GT(light_seq, tf_seq);
 
   // Stills of the current state, as PNG and EXR.
