@@ -113,14 +113,15 @@ TEST(SessionStream, TwoSessionsSeeOnlyTheirOwnState) {
   ASSERT_TRUE(server.running()) << server.Log();
   Client client = server.Connect();
   const auto a = client.CreateSession(SmallSession("ct-bone"));
-  const auto b = client.CreateSession(SmallSession("ct-soft-tissue"));
+  const auto b = client.CreateSession(SmallSession("ct-muscle"));
   ASSERT_NE(a.session_id(), b.session_id());
   auto stream_a = client.Attach(a.session_id());
   auto stream_b = client.Attach(b.session_id());
   const auto a0 = WaitFinal(*stream_a);
   const auto b0 = WaitFinal(*stream_b);
   ASSERT_TRUE(a0 && b0);
-  EXPECT_GT(MeanAbsDiff(Decode(*a0), Decode(*b0)), 2.0) << "different transfer functions";
+  // About 5 apart; two finals of one state differ by 1-2 at 16 spp.
+  EXPECT_GT(MeanAbsDiff(Decode(*a0), Decode(*b0)), 3.0) << "different transfer functions";
 
   const std::uint64_t seq = stream_a->Send(CameraView(v1::SUPERIOR));
   ASSERT_TRUE(WaitFinal(*stream_a, seq));
