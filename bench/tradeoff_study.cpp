@@ -447,6 +447,8 @@ StudyConfig Variant(const std::string& spec) {
     } else if (auto f = kWrlsFloatKeys.find(key); f != kWrlsFloatKeys.end()) {
       c.wrls.*(f->second) = v;
     } else if (auto n = kWrlsIntKeys.find(key); n != kWrlsIntKeys.end()) {
+      // A float beyond int's range would not convert (undefined): refused.
+      if (!(std::fabs(v) <= 1e6f)) throw InputError(fmt::format("--variant {}: {}={} is out of range", spec, key, text));
       c.wrls.*(n->second) = int(v);
     } else {
       throw InputError(fmt::format("--variant {}: unknown key '{}'", spec, key));
