@@ -16,6 +16,14 @@
 #define CINEVOL_DEVICE_PASS 0
 #endif
 
+// Unrolls the loop that follows in nvcc's device pass (GCC's -Wall would
+// warn of the pragma).
+#if CINEVOL_DEVICE_PASS
+#define CINEVOL_UNROLL _Pragma("unroll")
+#else
+#define CINEVOL_UNROLL
+#endif
+
 // Loads through the read-only data cache on the GPU; a plain load elsewhere.
 template <class T>
 CINEVOL_HD T LoadReadOnly(const T* p) {

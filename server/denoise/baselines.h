@@ -298,16 +298,27 @@ struct EdgeGuidesPass {
 // neighbour at index k with colour and variance q. The colour is averaged
 // with the weights; the variance in w goes through with their squares.
 // denoise/cpu_passes.h has the same taps as vectorised rows (CpuAtrousRows).
-template <class EdgeStop>
-CINEVOL_HD Vec4f AtrousTaps(const Vec4f* in, int x, int y, int width, int height, int step, const EdgeStop& stop) {
+//
+// On the GPU these levels are bound by instruction issue, not memory, so the
+// taps are unrolled: away from the frame's edges without bounds checks, and
+// for the levels' own steps (1 to 16) with the offsets known when compiled,
+// so a tap's loads need no address arithmetic (kStep 0: `step` at run time).
+template <int kStep, bool kChecked, class EdgeStop>
+CINEVOL_HD Vec4f AtrousTapsUnrolled(const Vec4f* in, int x, int y, int width, int height, int step,
+                                    const EdgeStop& stop) {
+  if (kStep > 0) step = kStep;
   const float kernel[3] = {3.0f / 8.0f, 1.0f / 4.0f, 1.0f / 16.0f};
   Vec3f sum{};
   float var_sum = 0.0f, weight = 0.0f;
+CINEVOL_UNROLL
   for (int dy = -2; dy <= 2; ++dy) {
+    const int ny = y + dy * step;
+    if (kChecked && (ny < 0 || ny >= height)) continue;
+    const int row = ny * width + x;
+CINEVOL_UNROLL
     for (int dx = -2; dx <= 2; ++dx) {
-      const int nx = x + dx * step, ny = y + dy * step;
-      if (nx < 0 || ny < 0 || nx >= width || ny >= height) continue;
-      const int k = ny * width + nx;
+      if (kChecked && (x + dx * step < 0 || x + dx * step >= width)) continue;
+      const int k = row + dx * step;
       const Vec4f q = in[k];
       const float w = kernel[dx < 0 ? -dx : dx] * kernel[dy < 0 ? -dy : dy] * stop(k, q);
       sum += Xyz(q) * w;
@@ -316,6 +327,22 @@ CINEVOL_HD Vec4f AtrousTaps(const Vec4f* in, int x, int y, int width, int height
     }
   }
   return ToVec4(sum / weight, var_sum / (weight * weight));
+}
+
+template <class EdgeStop>
+CINEVOL_HD Vec4f AtrousTaps(const Vec4f* in, int x, int y, int width, int height, int step, const EdgeStop& stop) {
+  const int reach = 2 * step;
+  if (x < reach || y < reach || x + reach >= width || y + reach >= height) {
+    return AtrousTapsUnrolled<0, true>(in, x, y, width, height, step, stop);
+  }
+  switch (step) {
+    case 1: return AtrousTapsUnrolled<1, false>(in, x, y, width, height, step, stop);
+    case 2: return AtrousTapsUnrolled<2, false>(in, x, y, width, height, step, stop);
+    case 4: return AtrousTapsUnrolled<4, false>(in, x, y, width, height, step, stop);
+    case 8: return AtrousTapsUnrolled<8, false>(in, x, y, width, height, step, stop);
+    case 16: return AtrousTapsUnrolled<16, false>(in, x, y, width, height, step, stop);
+    default: return AtrousTapsUnrolled<0, false>(in, x, y, width, height, step, stop);
+  }
 }
 
 // One a-trous level (SVGF's, and wRLS's spatial stage): AtrousTaps stopped
@@ -334,6 +361,7 @@ struct AtrousPass {
   // A full silhouette (coverage 0 against 1) weighs e^-6; the +-0.1 noise of
   // coverage in transparent tissue about e^-0.6.
   static constexpr float kCoverageStop = 6.0f;
+  static constexpr float kLog2e = 1.44269504088896341f;
 
   CINEVOL_HD void operator()(int x, int y) const {
     const int i = y * width + x;
@@ -347,14 +375,19 @@ struct AtrousPass {
         vw += w;
       }
     }
+    // The stops in powers of 2 (exp2f is the GPU's native exponential):
+    // e^-(a + b + c) = 2^-(a + b + c) log2(e). A centre that escaped
+    // compares no depths (scale 0); a tap that escaped is not compared either.
     const float l = Luminance(Xyz(in[i]));
-    const float l_scale = 1.0f / (sigma_luminance * sqrtf(fmaxf(variance / vw, 0.0f)) + 1e-10f);
+    const float l_scale = kLog2e / (sigma_luminance * sqrtf(fmaxf(variance / vw, 0.0f)) + 1e-10f);
     const float z = depth[i];
-    const float z_scale = 1.0f / (sigma_depth * 0.01f * fmaxf(z, 1e-3f) * float(step) + 1e-6f);
+    const float z_scale = Hit(z) ? kLog2e / (sigma_depth * 0.01f * fmaxf(z, 1e-3f) * float(step) + 1e-6f) : 0.0f;
+    const float c = coverage[i];
     out[i] = AtrousTaps(in, x, y, width, height, step, [&](int k, Vec4f q) {
-      const float dz = Hit(z) && Hit(depth[k]) ? fabsf(depth[k] - z) : 0.0f;
-      const float dc = fabsf(coverage[k] - coverage[i]);
-      return expf(-fabsf(Luminance(Xyz(q)) - l) * l_scale - dz * z_scale - dc * kCoverageStop);
+      const float zk = depth[k];
+      const float dz = Hit(zk) ? fabsf(zk - z) : 0.0f;
+      return exp2f(-(fabsf(Luminance(Xyz(q)) - l) * l_scale + dz * z_scale +
+                     fabsf(coverage[k] - c) * (kCoverageStop * kLog2e)));
     });
   }
 };
