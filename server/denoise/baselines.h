@@ -267,13 +267,17 @@ struct SvgfVariancePass {
 // tissue whether a pixel's few samples collide is itself random, so this
 // share, not the pixel's own flag, tells a real silhouette (a jump from 0 to
 // 1) from transparency (a noisy middle).
+// Packed, since every a-trous tap reads both: one 8-byte load.
 inline constexpr float kEscapedDepth = 3.4e38f;
+
+struct alignas(8) EdgeGuide {
+  float depth, coverage;
+};
 
 struct EdgeGuidesPass {
   const Vec4f* first_hit;
   Vec3f eye;
-  float* depth;
-  float* coverage;
+  EdgeGuide* guides;
   int width, height;
 
   CINEVOL_HD void operator()(int x, int y) const {
@@ -287,8 +291,7 @@ struct EdgeGuidesPass {
       }
     }
     const int i = y * width + x;
-    coverage[i] = hits / n;
-    depth[i] = Escaped(first_hit[i]) ? kEscapedDepth : Length(Xyz(first_hit[i]) - eye);
+    guides[i] = {Escaped(first_hit[i]) ? kEscapedDepth : Length(Xyz(first_hit[i]) - eye), hits / n};
   }
 };
 
@@ -351,8 +354,7 @@ CINEVOL_HD Vec4f AtrousTaps(const Vec4f* in, int x, int y, int width, int height
 struct AtrousPass {
   const Vec4f* in;
   Vec4f* out;
-  const float* depth;     // EdgeGuidesPass
-  const float* coverage;  // EdgeGuidesPass
+  const EdgeGuide* guides;  // EdgeGuidesPass
   int width, height, step;
   float sigma_luminance, sigma_depth;
 
@@ -380,14 +382,14 @@ struct AtrousPass {
     // compares no depths (scale 0); a tap that escaped is not compared either.
     const float l = Luminance(Xyz(in[i]));
     const float l_scale = kLog2e / (sigma_luminance * sqrtf(fmaxf(variance / vw, 0.0f)) + 1e-10f);
-    const float z = depth[i];
+    const EdgeGuide centre = guides[i];
+    const float z = centre.depth;
     const float z_scale = Hit(z) ? kLog2e / (sigma_depth * 0.01f * fmaxf(z, 1e-3f) * float(step) + 1e-6f) : 0.0f;
-    const float c = coverage[i];
     out[i] = AtrousTaps(in, x, y, width, height, step, [&](int k, Vec4f q) {
-      const float zk = depth[k];
-      const float dz = Hit(zk) ? fabsf(zk - z) : 0.0f;
+      const EdgeGuide g = guides[k];
+      const float dz = Hit(g.depth) ? fabsf(g.depth - z) : 0.0f;
       return exp2f(-(fabsf(Luminance(Xyz(q)) - l) * l_scale + dz * z_scale +
-                     fabsf(coverage[k] - c) * (kCoverageStop * kLog2e)));
+                     fabsf(g.coverage - centre.coverage) * (kCoverageStop * kLog2e)));
     });
   }
 };

@@ -24,7 +24,8 @@
 namespace cinevol {
 namespace {
 
-// What the taps read, one plane per quantity, for contiguous loads.
+// What the taps read, one plane per quantity, for contiguous loads (the
+// edge guides too, which the GPU reads packed).
 struct AtrousPlanes {
   ColourPlanes colour;         // the level's colour and variance
   const float* l;              // luminance of the colour
@@ -69,7 +70,7 @@ void FillPlanes(const AtrousPass& pass, std::vector<float>* planes, int y) {
         vw += kw;
       }
     }
-    const float z = pass.depth[i];
+    const float z = pass.guides[i].depth;
     planes[0][i] = c.x;
     planes[1][i] = c.y;
     planes[2][i] = c.z;
@@ -78,10 +79,12 @@ void FillPlanes(const AtrousPass& pass, std::vector<float>* planes, int y) {
     planes[5][i] = AtrousPass::Hit(z) ? 0.0f : 1.0f;
     planes[6][i] = 1.0f / (pass.sigma_luminance * sqrtf(fmaxf(variance / vw, 0.0f)) + 1e-10f);
     planes[7][i] = 1.0f / (pass.sigma_depth * 0.01f * fmaxf(z, 1e-3f) * float(pass.step) + 1e-6f);
+    planes[8][i] = z;
+    planes[9][i] = pass.guides[i].coverage;
   }
 }
 
-constexpr int kPlanes = 8;  // 32 bytes a pixel
+constexpr int kPlanes = 10;  // 40 bytes a pixel
 
 }  // namespace
 
@@ -90,7 +93,7 @@ void CpuAtrousLevel(const AtrousPass& pass) {
   std::vector<float>* const planes = ThreadPlanes(kPlanes, std::size_t(w) * h);
   ParallelFor(h, [&](std::int64_t y) { FillPlanes(pass, planes, int(y)); });
   const AtrousPlanes p{{planes[0].data(), planes[1].data(), planes[2].data(), planes[3].data()},
-                       planes[4].data(), pass.depth, planes[5].data(), pass.coverage,
+                       planes[4].data(), planes[8].data(), planes[5].data(), planes[9].data(),
                        planes[6].data(), planes[7].data()};
   CpuAtrousRows(w, h, pass.step, pass.out, [&](AtrousRowSums s, const AtrousRowTap& tap) { AddTap(p, s, tap); });
 }

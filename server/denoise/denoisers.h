@@ -218,9 +218,9 @@ class Svgf final : public DenoiserBase<B> {
     std::swap(history_, prev_history_);
     B::ForEachPixel(w, h, SvgfTemporalPass{rv, input, prev_history_.data(), history_.data(), s});
     B::ForEachPixel(w, h, SvgfVariancePass{history_.data(), frame.first_hit, a_.data(), w, h});
-    B::ForEachPixel(w, h, EdgeGuidesPass{frame.first_hit, frame.camera.eye, depth_.data(), coverage_.data(), w, h});
+    B::ForEachPixel(w, h, EdgeGuidesPass{frame.first_hit, frame.camera.eye, guides_.data(), w, h});
     for (int level = 0; level < s.iterations; ++level) {
-      RunAtrousLevel<B>(AtrousPass{a_.data(), b_.data(), depth_.data(), coverage_.data(), w, h,
+      RunAtrousLevel<B>(AtrousPass{a_.data(), b_.data(), guides_.data(), w, h,
                                    1 << level, s.sigma_luminance, s.sigma_depth});
       if (level == 0) B::ForEachPixel(w, h, SvgfFeedbackPass{b_.data(), history_.data(), w});
       std::swap(a_, b_);
@@ -232,14 +232,13 @@ class Svgf final : public DenoiserBase<B> {
     prev_history_.Resize(n);
     a_.Resize(n);
     b_.Resize(n);
-    depth_.Resize(n);
-    coverage_.Resize(n);
+    guides_.Resize(n);
   }
 
  private:
   typename DenoiserBase<B>::template Buffer<SvgfHistory> history_, prev_history_;
   typename DenoiserBase<B>::template Buffer<Vec4f> a_, b_;
-  typename DenoiserBase<B>::template Buffer<float> depth_, coverage_;  // EdgeGuidesPass
+  typename DenoiserBase<B>::template Buffer<EdgeGuide> guides_;  // EdgeGuidesPass
 };
 
 // wRLS: the feature's history reprojected (and rescaled where the light or
@@ -261,9 +260,9 @@ class Wrls final : public DenoiserBase<B> {
     B::ForEachPixel(w, h, ReprojectHistoryPass{rv, feature_.data(), b_.data()});
     B::ForEachPixel(w, h, WrlsTemporalPass{rv, input, b_.data(), prev_model_.data(), feature_.data(), model_.data(),
                                            a_.data(), s, still_frames_, FeatureRatioRows(input, rv)});
-    B::ForEachPixel(w, h, EdgeGuidesPass{frame.first_hit, frame.camera.eye, depth_.data(), coverage_.data(), w, h});
+    B::ForEachPixel(w, h, EdgeGuidesPass{frame.first_hit, frame.camera.eye, guides_.data(), w, h});
     for (int level = 0; level < s.atrous_iterations; ++level) {
-      RunAtrousLevel<B>(AtrousPass{a_.data(), b_.data(), depth_.data(), coverage_.data(), w, h,
+      RunAtrousLevel<B>(AtrousPass{a_.data(), b_.data(), guides_.data(), w, h,
                                    1 << level, s.atrous_sigma_luminance, s.atrous_sigma_depth});
       std::swap(a_, b_);
     }
@@ -278,8 +277,7 @@ class Wrls final : public DenoiserBase<B> {
     a_.Resize(n);
     b_.Resize(n);
     offset_rows_.Resize(n);
-    depth_.Resize(n);
-    coverage_.Resize(n);
+    guides_.Resize(n);
   }
   void ResetHistory() override { still_frames_ = 0; }
 
@@ -320,7 +318,7 @@ class Wrls final : public DenoiserBase<B> {
   typename DenoiserBase<B>::template Buffer<WrlsModel> model_, prev_model_;
   typename DenoiserBase<B>::template Buffer<Vec4f> a_, b_;  // prediction and its variance, per a-trous level
   typename DenoiserBase<B>::template Buffer<Vec4f> offset_rows_;  // row sums of a recentering or rescaling window
-  typename DenoiserBase<B>::template Buffer<float> depth_, coverage_;  // EdgeGuidesPass
+  typename DenoiserBase<B>::template Buffer<EdgeGuide> guides_;  // EdgeGuidesPass
   int still_frames_ = 0;
 };
 

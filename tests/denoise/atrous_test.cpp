@@ -20,13 +20,12 @@ constexpr int kSize = 48;
 // settings wRLS uses.
 std::vector<Vec4f> Atrous(std::vector<Vec4f> image, const std::vector<Vec4f>& first_hit) {
   const Camera camera = LookAt({0, -300, 0}, {0, 0, 0}, {0, 0, 1}, 30, kSize, kSize);
-  std::vector<float> depth(image.size()), coverage(image.size());
-  CpuBackend::ForEachPixel(kSize, kSize,
-                           EdgeGuidesPass{first_hit.data(), camera.eye, depth.data(), coverage.data(), kSize, kSize});
+  std::vector<EdgeGuide> guides(image.size());
+  CpuBackend::ForEachPixel(kSize, kSize, EdgeGuidesPass{first_hit.data(), camera.eye, guides.data(), kSize, kSize});
   std::vector<Vec4f> out(image.size());
   for (int level = 0; level < 5; ++level) {
-    CpuBackend::ForEachPixel(kSize, kSize, AtrousPass{image.data(), out.data(), depth.data(), coverage.data(), kSize,
-                                                      kSize, 1 << level, 4.0f, 8.0f});
+    CpuBackend::ForEachPixel(kSize, kSize, AtrousPass{image.data(), out.data(), guides.data(), kSize, kSize,
+                                                      1 << level, 4.0f, 8.0f});
     image.swap(out);
   }
   return image;

@@ -43,7 +43,7 @@ TEST(VectorisableExp, KeepsTheEdgeCasesOfExpf) {
 struct Frame {
   int width, height;
   std::vector<Vec4f> image, first_hit;
-  std::vector<float> depth, coverage;
+  std::vector<EdgeGuide> guides;
   Camera camera;
 };
 
@@ -51,7 +51,7 @@ struct Frame {
 // and odd sizes (the taps' clipping at every edge).
 Frame NoisyFrame(int width, int height) {
   const std::size_t n = std::size_t(width) * height;
-  Frame f{width, height, {}, {}, std::vector<float>(n), std::vector<float>(n), {}};
+  Frame f{width, height, {}, {}, std::vector<EdgeGuide>(n), {}};
   f.camera = LookAt({0, -300, 0}, {0, 0, 0}, {0, 0, 1}, 30, width, height);
   Pcg32 rng(11, 3);
   for (int y = 0; y < height; ++y) {
@@ -62,8 +62,7 @@ Frame NoisyFrame(int width, int height) {
       f.first_hit.push_back(hit ? Vec4f{20.0f * rng.Uniform(), float(y), float(x), 1} : Vec4f{});
     }
   }
-  CpuBackend::ForEachPixel(width, height, EdgeGuidesPass{f.first_hit.data(), f.camera.eye, f.depth.data(),
-                                                         f.coverage.data(), width, height});
+  CpuBackend::ForEachPixel(width, height, EdgeGuidesPass{f.first_hit.data(), f.camera.eye, f.guides.data(), width, height});
   return f;
 }
 
@@ -71,9 +70,7 @@ TEST(CpuAtrousLevel, AgreesWithThePerPixelPass) {
   for (const int step : {1, 2, 4, 16}) {
     Frame f = NoisyFrame(53, 37);
     std::vector<Vec4f> functor(f.image.size()), rows(f.image.size());
-    const AtrousPass pass{f.image.data(), functor.data(), f.depth.data(), f.coverage.data(),
-                          f.width,        f.height,       step,         4.0f,
-                          8.0f};
+    const AtrousPass pass{f.image.data(), functor.data(), f.guides.data(), f.width, f.height, step, 4.0f, 8.0f};
     CpuBackend::ForEachPixel(f.width, f.height, pass);
     AtrousPass row_pass = pass;
     row_pass.out = rows.data();
@@ -92,7 +89,7 @@ TEST(CpuAtrousLevel, CarriesANonFiniteInputAsThePassDoes) {
   Frame f = NoisyFrame(20, 12);
   f.image[5 * 20 + 7].x = std::numeric_limits<float>::quiet_NaN();
   std::vector<Vec4f> functor(f.image.size()), rows(f.image.size());
-  const AtrousPass pass{f.image.data(), functor.data(), f.depth.data(), f.coverage.data(), 20, 12, 1, 4.0f, 8.0f};
+  const AtrousPass pass{f.image.data(), functor.data(), f.guides.data(), 20, 12, 1, 4.0f, 8.0f};
   CpuBackend::ForEachPixel(20, 12, pass);
   AtrousPass row_pass = pass;
   row_pass.out = rows.data();
