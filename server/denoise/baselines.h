@@ -281,11 +281,12 @@ struct EdgeGuidesPass {
   int width, height;
 
   CINEVOL_HD void operator()(int x, int y) const {
+    const bool inside = x >= 2 && y >= 2 && x + 2 < width && y + 2 < height;  // no tap to check
     float hits = 0.0f, n = 0.0f;
     for (int dy = -2; dy <= 2; ++dy) {
       for (int dx = -2; dx <= 2; ++dx) {
         const int nx = x + dx, ny = y + dy;
-        if (nx < 0 || ny < 0 || nx >= width || ny >= height) continue;
+        if (!inside && (nx < 0 || ny < 0 || nx >= width || ny >= height)) continue;
         hits += Escaped(first_hit[ny * width + nx]) ? 0.0f : 1.0f;
         n += 1.0f;
       }
@@ -367,29 +368,30 @@ struct AtrousPass {
 
   CINEVOL_HD void operator()(int x, int y) const {
     const int i = y * width + x;
-    // Gaussian-blurred variance at the centre steadies the luminance stop.
-    float variance = 0.0f, vw = 0.0f;
-    for (int dy = -1; dy <= 1; ++dy) {
-      for (int dx = -1; dx <= 1; ++dx) {
-        const int nx = MinInt(MaxInt(x + dx, 0), width - 1), ny = MinInt(MaxInt(y + dy, 0), height - 1);
-        const float w = (dx == 0 ? 0.5f : 0.25f) * (dy == 0 ? 0.5f : 0.25f);
-        variance += in[ny * width + nx].w * w;
-        vw += w;
+    // Gaussian-blurred variance at the centre steadies the luminance stop
+    // (the frame's edge pixels repeated beyond it).
+    const int xs[3] = {MaxInt(x - 1, 0), x, MinInt(x + 1, width - 1)};
+    const int ys[3] = {MaxInt(y - 1, 0), y, MinInt(y + 1, height - 1)};
+    float variance = 0.0f;  // the weights sum to 1
+    for (int r = 0; r < 3; ++r) {
+      for (int c = 0; c < 3; ++c) {
+        variance += in[ys[r] * width + xs[c]].w * ((r == 1 ? 0.5f : 0.25f) * (c == 1 ? 0.5f : 0.25f));
       }
     }
-    // The stops in powers of 2 (exp2f is the GPU's native exponential):
-    // e^-(a + b + c) = 2^-(a + b + c) log2(e). A centre that escaped
-    // compares no depths (scale 0); a tap that escaped is not compared either.
+    // The stops in powers of 2 (the GPU's native exponential): e^-(a + b +
+    // c) = 2^-(a + b + c) log2(e); the centre tap weighs 2^0, so the sum of
+    // weights is never 0. A centre that escaped compares no depths (scale
+    // 0); a tap that escaped is not compared either.
     const float l = Luminance(Xyz(in[i]));
-    const float l_scale = kLog2e / (sigma_luminance * sqrtf(fmaxf(variance / vw, 0.0f)) + 1e-10f);
+    const float l_scale = kLog2e / (sigma_luminance * sqrtf(fmaxf(variance, 0.0f)) + 1e-10f);
     const EdgeGuide centre = guides[i];
     const float z = centre.depth;
     const float z_scale = Hit(z) ? kLog2e / (sigma_depth * 0.01f * fmaxf(z, 1e-3f) * float(step) + 1e-6f) : 0.0f;
     out[i] = AtrousTaps(in, x, y, width, height, step, [&](int k, Vec4f q) {
       const EdgeGuide g = guides[k];
       const float dz = Hit(g.depth) ? fabsf(g.depth - z) : 0.0f;
-      return exp2f(-(fabsf(Luminance(Xyz(q)) - l) * l_scale + dz * z_scale +
-                     fabsf(g.coverage - centre.coverage) * (kCoverageStop * kLog2e)));
+      return FastExp2(-(fabsf(Luminance(Xyz(q)) - l) * l_scale + dz * z_scale +
+                        fabsf(g.coverage - centre.coverage) * (kCoverageStop * kLog2e)));
     });
   }
 };
