@@ -267,9 +267,9 @@ struct SvgfVariancePass {
 // tissue whether a pixel's few samples collide is itself random, so this
 // share, not the pixel's own flag, tells a real silhouette (a jump from 0 to
 // 1) from transparency (a noisy middle).
-// Packed, since every a-trous tap reads both: one 8-byte load.
 inline constexpr float kEscapedDepth = 3.4e38f;
 
+// Both in one, since every a-trous tap reads both: one 8-byte load.
 struct alignas(8) EdgeGuide {
   float depth, coverage;
 };
@@ -314,12 +314,12 @@ CINEVOL_HD Vec4f AtrousTapsUnrolled(const Vec4f* in, int x, int y, int width, in
   const float kernel[3] = {3.0f / 8.0f, 1.0f / 4.0f, 1.0f / 16.0f};
   Vec3f sum{};
   float var_sum = 0.0f, weight = 0.0f;
-CINEVOL_UNROLL
+  CINEVOL_UNROLL
   for (int dy = -2; dy <= 2; ++dy) {
     const int ny = y + dy * step;
     if (kChecked && (ny < 0 || ny >= height)) continue;
     const int row = ny * width + x;
-CINEVOL_UNROLL
+    CINEVOL_UNROLL
     for (int dx = -2; dx <= 2; ++dx) {
       if (kChecked && (x + dx * step < 0 || x + dx * step >= width)) continue;
       const int k = row + dx * step;

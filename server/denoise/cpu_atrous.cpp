@@ -9,7 +9,9 @@
 //
 // The maths is the functor's, operation for operation and in the same order
 // (taps in the same order, the same sums), except e^x: glibc's expf does not
-// vectorise, so VectorisableExp (cpu_passes.h) stands in for it.
+// vectorise, so VectorisableExp (cpu_passes.h) stands in for it, where the
+// functor takes 2 to the power of the exponent times log2(e) (FastExp2, the
+// GPU's own instruction).
 // The row kernel is built for AVX2 and for the baseline x86-64 (SSE2), picked
 // at run time; both give the same results (no FMA contraction: ISO C++ mode).
 #include <cmath>
