@@ -457,9 +457,10 @@ StudyConfig Variant(const std::string& spec) {
   // 0 turned these stages off until the study settled them (docs/denoising.md).
   const WrlsSettings& w = c.wrls;
   if (w.feature_rescale < 1 || w.feature_rescale > 8 || w.stabilize_recenter < 1 || w.stabilize_recenter > 8 ||
-      !(w.drift_sigma > 0) || w.stabilize_still_frames < 0) {
-    throw InputError(fmt::format(
-        "--variant {}: rescale and recenter take 1 to 8, drift more than 0, stabilize_still 0 or more", spec));
+      !(w.drift_sigma > 0) || w.stabilize_still_frames < 0 || w.atrous_iterations < 0 || w.atrous_iterations > 8) {
+    throw InputError(fmt::format("--variant {}: rescale and recenter take 1 to 8, atrous 0 to 8, drift more than 0, "
+                                 "stabilize_still 0 or more",
+                                 spec));
   }
   return c;
 }

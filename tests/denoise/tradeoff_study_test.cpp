@@ -29,6 +29,7 @@ TEST(TradeoffStudy, VariantsParseTheirKeysAndNameBadOnes) {
   EXPECT_THROW(Variant("h:hold=0.5"), InputError);
   EXPECT_THROW(Variant("s:stabilize_still=-1"), InputError);
   EXPECT_THROW(Variant("s:stabilize_still=1e10"), InputError) << "beyond an int";
+  EXPECT_THROW(Variant("a:atrous=40"), InputError) << "a step of 2^39 pixels";
   EXPECT_THROW(Variant("z:spp=0"), InputError);
   EXPECT_THROW(Variant("u:no_such_key=1"), InputError);
   EXPECT_THROW(Variant("n:alpha=abc"), InputError);
