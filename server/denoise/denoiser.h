@@ -90,7 +90,7 @@ struct WrlsSettings {
       4.0f;  // >= 0: width of the clip box in deviations (wide: recentering takes the lag; 4 and 100 read the same)
   // [1, 8]: the history is first shifted by its mean offset from the
   // estimate over (2r + 1)^2 taps 2 pixels apart, so a shading change does
-  // not lag (wrls.h, HistoryOffsetRowsPass; 3 reads as 5).
+  // not lag (wrls.h, HistoryOffsetTap; 3 reads as 5).
   int stabilize_recenter = 5;
   // On a still view the output accumulates as the feature does: the history
   // weight grows as 1 - 1/(n + 1) over the n still frames, up to this many,

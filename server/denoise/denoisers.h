@@ -288,8 +288,8 @@ class Wrls final : public DenoiserBase<B> {
     const WrlsSettings& s = this->settings_.wrls;
     if (rv.still) return nullptr;
     const int w = this->width_, h = this->height_;
-    B::ForEachPixel(w, h, FeatureRatioRowsPass{input, b_.data(), offset_rows_.data(), w, s.feature_rescale,
-                                               s.firefly_clamp});
+    B::RowWindowSums(w, h, s.feature_rescale, kWindowTapStride, FeatureRatioTap{input, b_.data(), w, s.firefly_clamp},
+                     offset_rows_.data());
     return offset_rows_.data();
   }
 
@@ -304,7 +304,8 @@ class Wrls final : public DenoiserBase<B> {
     B::ForEachPixel(w, h, ReprojectHistoryPass{rv, stable_.data(), b_.data()});
     const Vec4f* offsets = nullptr;
     if (still == 0) {
-      B::ForEachPixel(w, h, HistoryOffsetRowsPass{a_.data(), b_.data(), offset_rows_.data(), w, s.stabilize_recenter});
+      B::RowWindowSums(w, h, s.stabilize_recenter, kWindowTapStride, HistoryOffsetTap{a_.data(), b_.data(), w},
+                       offset_rows_.data());
       offsets = offset_rows_.data();
     }
     B::ForEachPixel(w, h, WrlsStabilizePass{a_.data(), b_.data(), offsets, output, stable_.data(), w, h, weight,

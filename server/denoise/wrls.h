@@ -2,7 +2,7 @@
 // host and device.
 //
 // Per pixel: a temporal feature z (Eq. 12; its reprojected history first
-// rescaled by the window's change of light, FeatureRatioRowsPass), then per
+// rescaled by the window's change of light, FeatureRatioTap), then per
 // channel a linear model I ~ beta0 + beta1 z updated by weighted recursive
 // least squares (Eqs. 9-11, 13, 14); a second pass evaluates each pixel's
 // model, with the variance it predicts; after the a-trous levels (baselines.h) a last pass
@@ -198,68 +198,53 @@ struct ReprojectHistoryPass {
 // history is shifted by its mean offset from the estimate over (2 recenter +
 // 1)^2 taps 2 pixels apart. A change of shading moves a whole region the same
 // way and is taken out of the history (no lag), while noise, different from
-// pixel to pixel, mostly averages away in the window. First the row sums: per
-// pixel, the sum of (history - estimate) over the reprojected pixels among the
-// 2 recenter + 1 taps on its row, and in w how many there are; WindowMean adds
-// them up down the column, so the window costs 2 (2 recenter + 1) reads.
-struct HistoryOffsetRowsPass {
+// pixel to pixel, mostly averages away in the window. A tap is a pixel's
+// history - estimate, and in w 1, where it was reprojected (0 elsewhere):
+// the backend's RowWindowSums add them up along rows, WindowMean down the
+// columns, so the window costs 2 (2 recenter + 1) reads.
+struct HistoryOffsetTap {
   const Vec4f* current;  // this frame's estimate
   const Vec4f* history;  // ReprojectHistoryPass
-  Vec4f* rows;
-  int width, recenter;
+  int width;
 
-  CINEVOL_HD void operator()(int x, int y) const {
-    Vec3f sum{};
-    float n = 0.0f;
-    for (int dx = -recenter; dx <= recenter; ++dx) {
-      const int nx = x + 2 * dx;
-      if (nx < 0 || nx >= width) continue;
-      const int k = y * width + nx;
-      if (history[k].w == 0.0f) continue;
-      sum += Xyz(history[k]) - Xyz(current[k]);
-      n += 1.0f;
-    }
-    rows[y * width + x] = ToVec4(sum, n);
+  CINEVOL_HD Vec4f operator()(int x, int y) const {
+    const int k = y * width + x;
+    if (history[k].w == 0.0f) return {};
+    return ToVec4(Xyz(history[k]) - Xyz(current[k]), 1.0f);
   }
 };
 
 // The feature's rescaling (WrlsSettings::feature_rescale): as the
 // stabiliser's recentering, but a ratio, since a light changes radiance in
 // proportion (dark and bright tissue in one window brighten by the same
-// factor). Row sums of the history's and the input's luminance over the
-// reprojected taps (x, y) and how many (w). An input tap counts at most
+// factor). A tap is the luminance of the history (x) and of the input (y)
+// and 1 (w) where the history was reprojected. An input tap counts at most
 // firefly_clamp times its history, so a firefly does not scale the window.
-struct FeatureRatioRowsPass {
+struct FeatureRatioTap {
   const Vec3f* input;
   const Vec4f* history;  // ReprojectHistoryPass over the previous feature
-  Vec4f* rows;
-  int width, radius;
+  int width;
   float firefly_clamp;
 
-  CINEVOL_HD void operator()(int x, int y) const {
-    float history_sum = 0.0f, input_sum = 0.0f, n = 0.0f;
-    for (int dx = -radius; dx <= radius; ++dx) {
-      const int nx = x + 2 * dx;
-      if (nx < 0 || nx >= width) continue;
-      const int k = y * width + nx;
-      if (history[k].w == 0.0f || !IsFinite(input[k])) continue;
-      const float h = Luminance(Xyz(history[k]));
-      history_sum += h;
-      input_sum += fminf(fmaxf(Luminance(input[k]), 0.0f), firefly_clamp * h);
-      n += 1.0f;
-    }
-    rows[y * width + x] = {history_sum, input_sum, 0.0f, n};
+  CINEVOL_HD Vec4f operator()(int x, int y) const {
+    const int k = y * width + x;
+    if (history[k].w == 0.0f || !IsFinite(input[k])) return {};
+    const float h = Luminance(Xyz(history[k]));
+    return {h, fminf(fmaxf(Luminance(input[k]), 0.0f), firefly_clamp * h), 0.0f, 1.0f};
   }
 };
 
-// Row sums (HistoryOffsetRowsPass, FeatureRatioRowsPass) added up over the
+// The row sums of the window taps above are 2 pixels apart.
+inline constexpr int kWindowTapStride = 2;
+
+// Row sums of HistoryOffsetTap or FeatureRatioTap added up over the
 // column's taps: the window's mean of what the rows summed, and in w over how
 // many pixels.
 CINEVOL_HD Vec4f WindowMean(const Vec4f* rows, int width, int height, int x, int y, int radius) {
   Vec3f sum{};
   float n = 0.0f;
   for (int dy = -radius; dy <= radius; ++dy) {
-    const int ny = y + 2 * dy;
+    const int ny = y + kWindowTapStride * dy;
     if (ny < 0 || ny >= height) continue;
     const Vec4f row = rows[ny * width + x];
     sum += Xyz(row);
@@ -292,7 +277,7 @@ struct WrlsTemporalPass {
   Vec4f* prediction;           // the model at z: rgb, w its variance
   WrlsSettings s;
   int still_frames;            // frames the view has stayed still (0: it moved or changed)
-  const Vec4f* feature_ratio_rows;  // FeatureRatioRowsPass; null: no rescaling
+  const Vec4f* feature_ratio_rows;  // row sums of FeatureRatioTap; null: no rescaling
 
   // Variance of the input's luminance over the 7x7 window (SVGF's first
   // estimate too): a 3x3 window at 2 spp misjudges the noise by 2x either way,
@@ -411,12 +396,12 @@ struct WrlsTemporalPass {
 // variance the fit predicts), so a real change (a light moving, the transfer
 // function edited) passes through and only noise is averaged. The box is
 // centred on the pixel, not on the 3x3 mean, so that it does not blur edges.
-// The history is first recentred on the estimate (HistoryOffsetRowsPass), so
+// The history is first recentred on the estimate (HistoryOffsetTap), so
 // a change of shading passes whole and noise keeps being smoothed.
 struct WrlsStabilizePass {
   const Vec4f* current;      // this frame's estimate: colour, predicted variance
   const Vec4f* history;      // ReprojectHistoryPass
-  const Vec4f* offset_rows;  // HistoryOffsetRowsPass; null: not recentred (a still view)
+  const Vec4f* offset_rows;  // row sums of HistoryOffsetTap; null: not recentred (a still view)
   Vec3f* output;             // the denoiser's output
   Vec3f* kept;               // the same, kept as the next frame's history
   int width, height;

@@ -7,11 +7,26 @@
 #include <algorithm>
 #include <chrono>
 #include <cstddef>
+#include <stdexcept>
+#include <string>
 #include <vector>
 
 #include "core/parallel_for.h"
 
 namespace cinevol {
+
+// How far a row window may reach either side (RowWindowSums), on either
+// backend: a GPU block holds its segment's taps and that much more in
+// shared memory.
+inline constexpr int kMaxRowReach = 32;
+
+inline void CheckRowReach(int radius, int stride) {
+  if (radius < 0 || stride < 1 || radius * stride > kMaxRowReach) {
+    throw std::invalid_argument("RowWindowSums: a window of radius " + std::to_string(radius) + " and stride " +
+                                std::to_string(stride) + " reaches beyond " + std::to_string(kMaxRowReach) +
+                                " pixels");
+  }
+}
 
 struct CpuBackend {
   template <class T>
@@ -43,6 +58,30 @@ struct CpuBackend {
   }
 
   static constexpr std::int64_t kMinPixelsPerThread = 16384;
+
+  // Sums of a per-pixel quantity along each row: out[y * width + x] = the
+  // sum of tap(x + stride * k, y) for k = -radius..radius, in that order,
+  // taps beyond the row adding nothing. Each tap is evaluated once (the
+  // windows overlap), so a tap may cost what a pixel's share of work costs.
+  // radius * stride <= kMaxRowReach.
+  template <class Tap, class T>
+  static void RowWindowSums(int width, int height, int radius, int stride, const Tap& tap, T* out) {
+    CheckRowReach(radius, stride);
+    ParallelFor(height, [&](std::int64_t row) {
+      thread_local std::vector<T> taps;
+      taps.resize(std::size_t(width));
+      const int y = int(row);
+      for (int x = 0; x < width; ++x) taps[std::size_t(x)] = tap(x, y);
+      for (int x = 0; x < width; ++x) {
+        T sum{};
+        for (int k = -radius; k <= radius; ++k) {
+          const int nx = x + stride * k;
+          if (nx >= 0 && nx < width) sum = sum + taps[std::size_t(nx)];
+        }
+        out[std::size_t(y) * width + x] = sum;
+      }
+    }, std::int64_t(width) * height < kMinPixelsPerThread ? 1 : 0);
+  }
 
   // Wall-clock timing of a sequence of passes.
   class Timer {

@@ -44,7 +44,8 @@ TEST_P(CudaDenoiser, AgreesWithCpu) {
   s.method = GetParam().method;
   s.demodulate = GetParam().demodulate;
   auto gpu = CreateDenoiser(Backend::kCuda, s), cpu = CreateDenoiser(Backend::kCpu, s);
-  const int w = 64, h = 48;
+  // Wider than a GPU row segment (RowWindowSums), so windows cross one.
+  const int w = 272, h = 32;
   for (int t = 0; t < 12; ++t) {
     FrameRequest req;
     req.camera = LookAt({400.0f * std::cos(0.05f * t), -400.0f * std::sin(0.05f * t + 1.5f), 50}, {0, 0, 0},

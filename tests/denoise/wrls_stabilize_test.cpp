@@ -1,11 +1,13 @@
 // wRLS's output stabilisation (WrlsStabilizePass and its recentering window's
-// HistoryOffsetRowsPass, WindowMean) in isolation: the clip box
+// HistoryOffsetTap summed by RowWindowSums, WindowMean) in isolation: the clip box
 // lets a shading change through only partly; recentering the history on its
 // mean offset over the window lets it through whole, and noise is still
 // averaged.
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <stdexcept>
+#include <string>
 #include <vector>
 
 #include "core/rng.h"
@@ -41,8 +43,8 @@ WrlsStabilizePass MakePass(const Frames& f, int recenter, std::vector<Vec4f>& ro
   rows.resize(f.current.size());
   out.resize(f.current.size());
   kept.resize(f.current.size());
-  CpuBackend::ForEachPixel(kSize, kSize, HistoryOffsetRowsPass{f.current.data(), f.history.data(), rows.data(),
-                                                               kSize, recenter});
+  CpuBackend::RowWindowSums(kSize, kSize, recenter, kWindowTapStride,
+                            HistoryOffsetTap{f.current.data(), f.history.data(), kSize}, rows.data());
   return {f.current.data(), f.history.data(), rows.data(), out.data(), kept.data(), kSize, kSize, 0.5f, 4.0f, recenter};
 }
 
@@ -103,6 +105,23 @@ TEST(WrlsStabilize, TheRowSumsGiveTheWindowMean) {
       }
     }
     EXPECT_NEAR(WindowMean(pass.offset_rows, kSize, kSize, x, y, kRecenter).x, sum / n, 1e-5) << x << "," << y;
+  }
+}
+
+// A window wider than a GPU block's shared taps is refused by name, on
+// either backend (the check is the same), not read out of bounds.
+TEST(RowWindowSums, AWindowReachingTooFarIsRefused) {
+  constexpr int kWidth = 2 * kMaxRowReach + 16, kHeight = 2;
+  std::vector<Vec4f> rows(kWidth * kHeight);
+  const auto tap = [](int, int) { return Vec4f{1, 1, 1, 1}; };
+  CpuBackend::RowWindowSums(kWidth, kHeight, kMaxRowReach / 2, 2, tap, rows.data());
+  EXPECT_EQ(rows[kWidth + kWidth / 2].w, float(kMaxRowReach + 1));  // every tap within the row
+  EXPECT_EQ(rows[kWidth].w, float(kMaxRowReach / 2 + 1));            // the row's first pixel: half the window
+  try {
+    CpuBackend::RowWindowSums(kWidth, kHeight, kMaxRowReach / 2 + 1, 2, tap, rows.data());
+    FAIL() << "a reach of " << kMaxRowReach + 2 << " pixels was taken";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find("reaches beyond 32 pixels"), std::string::npos) << e.what();
   }
 }
 
