@@ -274,27 +274,48 @@ struct alignas(8) EdgeGuide {
   float depth, coverage;
 };
 
+// The coverage window's half width (5x5), and a pixel's tap in it: 1 where
+// its samples hit the volume. The backend's RowWindowSums add the taps up
+// along rows, EdgeGuidesPass down the columns: a pixel's first hit is read
+// once, not 25 times.
+inline constexpr int kCoverageRadius = 2;
+
+struct HitTap {
+  const Vec4f* first_hit;
+  int width;
+  CINEVOL_HD float operator()(int x, int y) const { return Escaped(first_hit[y * width + x]) ? 0.0f : 1.0f; }
+};
+
 struct EdgeGuidesPass {
   const Vec4f* first_hit;
+  const float* row_hits;  // RowWindowSums of HitTap over kCoverageRadius
   Vec3f eye;
   EdgeGuide* guides;
   int width, height;
 
   CINEVOL_HD void operator()(int x, int y) const {
-    const bool inside = x >= 2 && y >= 2 && x + 2 < width && y + 2 < height;  // no tap to check
-    float hits = 0.0f, n = 0.0f;
-    for (int dy = -2; dy <= 2; ++dy) {
-      for (int dx = -2; dx <= 2; ++dx) {
-        const int nx = x + dx, ny = y + dy;
-        if (!inside && (nx < 0 || ny < 0 || nx >= width || ny >= height)) continue;
-        hits += Escaped(first_hit[ny * width + nx]) ? 0.0f : 1.0f;
-        n += 1.0f;
-      }
+    float hits = 0.0f;
+    int rows = 0;
+    for (int dy = -kCoverageRadius; dy <= kCoverageRadius; ++dy) {
+      const int ny = y + dy;
+      if (ny < 0 || ny >= height) continue;
+      hits += row_hits[ny * width + x];
+      ++rows;
     }
+    const int columns = MinInt(x + kCoverageRadius, width - 1) - MaxInt(x - kCoverageRadius, 0) + 1;
     const int i = y * width + x;
-    guides[i] = {Escaped(first_hit[i]) ? kEscapedDepth : Length(Xyz(first_hit[i]) - eye), hits / n};
+    guides[i] = {Escaped(first_hit[i]) ? kEscapedDepth : Length(Xyz(first_hit[i]) - eye),
+                 hits / float(rows * columns)};
   }
 };
+
+// The edge guides of a frame on backend B; `row_hits` is scratch of a
+// frame's size.
+template <class B>
+void ComputeEdgeGuides(const Vec4f* first_hit, Vec3f eye, int width, int height, float* row_hits, EdgeGuide* guides) {
+  B::RowWindowSums(width, height, kCoverageRadius, 1, HitTap{first_hit, width}, row_hits);
+  B::ForEachPixel(width, height, EdgeGuidesPass{first_hit, row_hits, eye, guides, width, height});
+}
 
 // The a-trous taps every such filter shares (AtrousPass; the refinement's
 // MeanFilterPass, pipeline/refine.h): 5x5 B-spline taps `step` apart around

@@ -218,7 +218,7 @@ class Svgf final : public DenoiserBase<B> {
     std::swap(history_, prev_history_);
     B::ForEachPixel(w, h, SvgfTemporalPass{rv, input, prev_history_.data(), history_.data(), s});
     B::ForEachPixel(w, h, SvgfVariancePass{history_.data(), frame.first_hit, a_.data(), w, h});
-    B::ForEachPixel(w, h, EdgeGuidesPass{frame.first_hit, frame.camera.eye, guides_.data(), w, h});
+    ComputeEdgeGuides<B>(frame.first_hit, frame.camera.eye, w, h, row_hits_.data(), guides_.data());
     for (int level = 0; level < s.iterations; ++level) {
       RunAtrousLevel<B>(AtrousPass{a_.data(), b_.data(), guides_.data(), w, h,
                                    1 << level, s.sigma_luminance, s.sigma_depth});
@@ -233,12 +233,14 @@ class Svgf final : public DenoiserBase<B> {
     a_.Resize(n);
     b_.Resize(n);
     guides_.Resize(n);
+    row_hits_.Resize(n);
   }
 
  private:
   typename DenoiserBase<B>::template Buffer<SvgfHistory> history_, prev_history_;
   typename DenoiserBase<B>::template Buffer<Vec4f> a_, b_;
-  typename DenoiserBase<B>::template Buffer<EdgeGuide> guides_;  // EdgeGuidesPass
+  typename DenoiserBase<B>::template Buffer<EdgeGuide> guides_;  // ComputeEdgeGuides
+  typename DenoiserBase<B>::template Buffer<float> row_hits_;   // its scratch
 };
 
 // wRLS: the feature's history reprojected (and rescaled where the light or
@@ -260,7 +262,7 @@ class Wrls final : public DenoiserBase<B> {
     B::ForEachPixel(w, h, ReprojectHistoryPass{rv, feature_.data(), b_.data()});
     B::ForEachPixel(w, h, WrlsTemporalPass{rv, input, b_.data(), prev_model_.data(), feature_.data(), model_.data(),
                                            a_.data(), s, still_frames_, FeatureRatioRows(input, rv)});
-    B::ForEachPixel(w, h, EdgeGuidesPass{frame.first_hit, frame.camera.eye, guides_.data(), w, h});
+    ComputeEdgeGuides<B>(frame.first_hit, frame.camera.eye, w, h, row_hits_.data(), guides_.data());
     for (int level = 0; level < s.atrous_iterations; ++level) {
       RunAtrousLevel<B>(AtrousPass{a_.data(), b_.data(), guides_.data(), w, h,
                                    1 << level, s.atrous_sigma_luminance, s.atrous_sigma_depth});
@@ -278,6 +280,7 @@ class Wrls final : public DenoiserBase<B> {
     b_.Resize(n);
     offset_rows_.Resize(n);
     guides_.Resize(n);
+    row_hits_.Resize(n);
   }
   void ResetHistory() override { still_frames_ = 0; }
 
@@ -319,7 +322,8 @@ class Wrls final : public DenoiserBase<B> {
   typename DenoiserBase<B>::template Buffer<WrlsModel> model_, prev_model_;
   typename DenoiserBase<B>::template Buffer<Vec4f> a_, b_;  // prediction and its variance, per a-trous level
   typename DenoiserBase<B>::template Buffer<Vec4f> offset_rows_;  // row sums of a recentering or rescaling window
-  typename DenoiserBase<B>::template Buffer<EdgeGuide> guides_;  // EdgeGuidesPass
+  typename DenoiserBase<B>::template Buffer<EdgeGuide> guides_;  // ComputeEdgeGuides
+  typename DenoiserBase<B>::template Buffer<float> row_hits_;   // its scratch
   int still_frames_ = 0;
 };
 

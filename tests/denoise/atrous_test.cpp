@@ -21,7 +21,8 @@ constexpr int kSize = 48;
 std::vector<Vec4f> Atrous(std::vector<Vec4f> image, const std::vector<Vec4f>& first_hit) {
   const Camera camera = LookAt({0, -300, 0}, {0, 0, 0}, {0, 0, 1}, 30, kSize, kSize);
   std::vector<EdgeGuide> guides(image.size());
-  CpuBackend::ForEachPixel(kSize, kSize, EdgeGuidesPass{first_hit.data(), camera.eye, guides.data(), kSize, kSize});
+  std::vector<float> row_hits(image.size());
+  ComputeEdgeGuides<CpuBackend>(first_hit.data(), camera.eye, kSize, kSize, row_hits.data(), guides.data());
   std::vector<Vec4f> out(image.size());
   for (int level = 0; level < 5; ++level) {
     CpuBackend::ForEachPixel(kSize, kSize, AtrousPass{image.data(), out.data(), guides.data(), kSize, kSize,

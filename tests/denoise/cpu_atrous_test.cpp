@@ -62,7 +62,8 @@ Frame NoisyFrame(int width, int height) {
       f.first_hit.push_back(hit ? Vec4f{20.0f * rng.Uniform(), float(y), float(x), 1} : Vec4f{});
     }
   }
-  CpuBackend::ForEachPixel(width, height, EdgeGuidesPass{f.first_hit.data(), f.camera.eye, f.guides.data(), width, height});
+  std::vector<float> row_hits(n);
+  ComputeEdgeGuides<CpuBackend>(f.first_hit.data(), f.camera.eye, width, height, row_hits.data(), f.guides.data());
   return f;
 }
 
