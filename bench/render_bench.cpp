@@ -74,7 +74,7 @@ int RunRenderBench(const RenderBenchOptions& o) {
                                  {"no empty-space skipping (global majorant)", 0, true},
                                  {"no specialisation (all features)", kDefaultBrickSize, false},
                                  {"neither", 0, false}};
-  for (int b : {8, 16}) configs.push_back({fmt::format("{}^3 bricks, specialised", b), b, true});
+  for (int b : {2, 3, 8, 16}) configs.push_back({fmt::format("{}^3 bricks, specialised", b), b, true});
   if (ParseBackend(o.backend) != Backend::kCpu) {
     configs.push_back({"voxels read from a buffer, not the texture unit", kDefaultBrickSize, true, false});
   }
