@@ -23,8 +23,8 @@ inline constexpr int kMaxRowReach = 32;
 inline void CheckRowReach(int radius, int stride) {
   if (radius < 0 || stride < 1 || radius * stride > kMaxRowReach) {
     throw std::invalid_argument("RowWindowSums: a window of radius " + std::to_string(radius) + " and stride " +
-                                std::to_string(stride) + " reaches beyond " + std::to_string(kMaxRowReach) +
-                                " pixels");
+                                std::to_string(stride) + " (needs radius >= 0, stride >= 1 and a reach of at most " +
+                                std::to_string(kMaxRowReach) + " pixels)");
   }
 }
 
@@ -61,8 +61,9 @@ struct CpuBackend {
 
   // Sums of a per-pixel quantity along each row: out[y * width + x] = the
   // sum of tap(x + stride * k, y) for k = -radius..radius, in that order,
-  // taps beyond the row adding nothing. Each tap is evaluated once (the
-  // windows overlap), so a tap may cost what a pixel's share of work costs.
+  // taps beyond the row adding nothing. The windows overlap, so each tap is
+  // evaluated once (on a GPU, once per row segment that reads it) and may
+  // cost what a pixel's share of work costs.
   // radius * stride <= kMaxRowReach.
   template <class Tap, class T>
   static void RowWindowSums(int width, int height, int radius, int stride, const Tap& tap, T* out) {
