@@ -15,6 +15,26 @@
 
 namespace cinevol {
 
+// The edge guides the a-trous levels stop at (ComputeEdgeGuides), with
+// their scratch: a frame's worth, for SVGF and wRLS alike.
+template <class B>
+class EdgeGuides {
+ public:
+  void Resize(std::size_t n) {
+    guides_.Resize(n);
+    row_hits_.Resize(n);
+  }
+  const EdgeGuide* Compute(const DenoiseFrame& frame) {
+    ComputeEdgeGuides<B>(frame.first_hit, frame.camera.eye, frame.width, frame.height, row_hits_.data(),
+                         guides_.data());
+    return guides_.data();
+  }
+
+ private:
+  typename B::template Buffer<EdgeGuide> guides_;
+  typename B::template Buffer<float> row_hits_;
+};
+
 // What every method shares: frame size, optional demodulation, the previous
 // frame's camera and first hits for reprojection, the output, timing.
 template <class B>
@@ -218,9 +238,9 @@ class Svgf final : public DenoiserBase<B> {
     std::swap(history_, prev_history_);
     B::ForEachPixel(w, h, SvgfTemporalPass{rv, input, prev_history_.data(), history_.data(), s});
     B::ForEachPixel(w, h, SvgfVariancePass{history_.data(), frame.first_hit, a_.data(), w, h});
-    ComputeEdgeGuides<B>(frame.first_hit, frame.camera.eye, w, h, row_hits_.data(), guides_.data());
+    const EdgeGuide* guides = guides_.Compute(frame);
     for (int level = 0; level < s.iterations; ++level) {
-      RunAtrousLevel<B>(AtrousPass{a_.data(), b_.data(), guides_.data(), w, h,
+      RunAtrousLevel<B>(AtrousPass{a_.data(), b_.data(), guides, w, h,
                                    1 << level, s.sigma_luminance, s.sigma_depth});
       if (level == 0) B::ForEachPixel(w, h, SvgfFeedbackPass{b_.data(), history_.data(), w});
       std::swap(a_, b_);
@@ -233,14 +253,12 @@ class Svgf final : public DenoiserBase<B> {
     a_.Resize(n);
     b_.Resize(n);
     guides_.Resize(n);
-    row_hits_.Resize(n);
   }
 
  private:
   typename DenoiserBase<B>::template Buffer<SvgfHistory> history_, prev_history_;
   typename DenoiserBase<B>::template Buffer<Vec4f> a_, b_;
-  typename DenoiserBase<B>::template Buffer<EdgeGuide> guides_;  // ComputeEdgeGuides
-  typename DenoiserBase<B>::template Buffer<float> row_hits_;   // its scratch
+  EdgeGuides<B> guides_;
 };
 
 // wRLS: the feature's history reprojected (and rescaled where the light or
@@ -262,9 +280,9 @@ class Wrls final : public DenoiserBase<B> {
     B::ForEachPixel(w, h, ReprojectHistoryPass{rv, feature_.data(), b_.data()});
     B::ForEachPixel(w, h, WrlsTemporalPass{rv, input, b_.data(), prev_model_.data(), feature_.data(), model_.data(),
                                            a_.data(), s, still_frames_, FeatureRatioRows(input, rv)});
-    ComputeEdgeGuides<B>(frame.first_hit, frame.camera.eye, w, h, row_hits_.data(), guides_.data());
+    const EdgeGuide* guides = guides_.Compute(frame);
     for (int level = 0; level < s.atrous_iterations; ++level) {
-      RunAtrousLevel<B>(AtrousPass{a_.data(), b_.data(), guides_.data(), w, h,
+      RunAtrousLevel<B>(AtrousPass{a_.data(), b_.data(), guides, w, h,
                                    1 << level, s.atrous_sigma_luminance, s.atrous_sigma_depth});
       std::swap(a_, b_);
     }
@@ -280,7 +298,6 @@ class Wrls final : public DenoiserBase<B> {
     b_.Resize(n);
     offset_rows_.Resize(n);
     guides_.Resize(n);
-    row_hits_.Resize(n);
   }
   void ResetHistory() override { still_frames_ = 0; }
 
@@ -322,8 +339,7 @@ class Wrls final : public DenoiserBase<B> {
   typename DenoiserBase<B>::template Buffer<WrlsModel> model_, prev_model_;
   typename DenoiserBase<B>::template Buffer<Vec4f> a_, b_;  // prediction and its variance, per a-trous level
   typename DenoiserBase<B>::template Buffer<Vec4f> offset_rows_;  // row sums of a recentering or rescaling window
-  typename DenoiserBase<B>::template Buffer<EdgeGuide> guides_;  // ComputeEdgeGuides
-  typename DenoiserBase<B>::template Buffer<float> row_hits_;   // its scratch
+  EdgeGuides<B> guides_;
   int still_frames_ = 0;
 };
 
