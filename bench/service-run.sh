@@ -8,7 +8,8 @@
 # SERVER=path runs another build's cinevol-server (e.g. the previous release,
 # to rerun its table in the same session); LABEL names its files and rows.
 # EXTRA adds loadtest flags (e.g. "--interactive-frame-ms 16"), SERVER_EXTRA
-# server flags (e.g. "--encode-threads 1": every frame encodes whole).
+# server flags (e.g. "--encode-threads 1": every frame encodes whole);
+# WORKERS sets --workers-per-gpu (default: the server's).
 set -uo pipefail
 cd "$(dirname "$0")/.."
 out=${OUT:-gpu-out}
@@ -26,12 +27,12 @@ label=${LABEL:-new}
 # Busy share of all CPUs between two reads of /proc/stat.
 cpu_ticks() { awk '/^cpu /{print $2+$3+$4+$7+$8+$9, $2+$3+$4+$5+$6+$7+$8+$9}' /proc/stat; }
 
-run() {  # run N WORKERS_PER_GPU
-  local n=$1 workers=$2 port_file=/tmp/cv/port-$1-$2
-  local tag=$label-$n-$workers
+run() {  # run N [WORKERS_PER_GPU] (none: the server's default)
+  local n=$1 workers=${2:-} port_file=/tmp/cv/port-$1-${2:-default}
+  local tag=$label-$n-${workers:-default}
   rm -f "$port_file"
   "$server_bin" --listen 127.0.0.1:0 --port-file "$port_file" --backend cuda --volume "$volume" \
-    --workers-per-gpu "$workers" --max-sessions 256 --max-sessions-per-principal 256 \
+    ${workers:+--workers-per-gpu "$workers"} --max-sessions 256 --max-sessions-per-principal 256 \
     --max-total-pixels 300000000 ${SERVER_EXTRA:-} > "$runs/server-$tag.log" 2>&1 &
   local server=$!
   for _ in $(seq 300); do [ -s "$port_file" ] && break; sleep 0.1; done
@@ -51,11 +52,11 @@ run() {  # run N WORKERS_PER_GPU
   cpu=$(awk -v b="$((busy1-busy0))" -v t="$((total1-total0))" 'BEGIN{printf "%.0f", 100*b/t}')
   { echo "#### $label, $n sessions"
     cat "$runs/loadtest-$tag.md"
-    echo "GPU utilisation (nvidia-smi, mean of non-zero samples): ${gpu}%; GPU memory used (peak): ${mem} MiB; CPU busy (all $(nproc) cores, server and client): ${cpu}%; workers per GPU: $workers"
+    echo "GPU utilisation (nvidia-smi, mean of non-zero samples): ${gpu}%; GPU memory used (peak): ${mem} MiB; CPU busy (all $(nproc) cores, server and client): ${cpu}%; workers per GPU: ${workers:-the default}"
     echo; } >> "$out/service.md"
 }
 
 nvidia-smi --query-gpu=name,memory.total,driver_version --format=csv,noheader | tee "$out/gpu.txt"
-for n in ${SESSIONS:-1 4 8 16}; do run "$n" "${WORKERS:-4}"; done
+for n in ${SESSIONS:-1 4 8 16}; do run "$n" "${WORKERS:-}"; done
 for n in ${SERIAL_SESSIONS-8}; do run "$n" 1; done  # one worker: sessions' CUDA work serialised
 cat "$out/service.md"

@@ -7,7 +7,8 @@
 
 namespace cinevol::service {
 
-Scheduler::Scheduler(std::string name, std::optional<int> gpu, int workers) : name_(std::move(name)), gpu_(gpu) {
+Scheduler::Scheduler(std::string name, std::optional<int> gpu, int workers, std::int64_t pixels_in_flight)
+    : name_(std::move(name)), gpu_(gpu), max_pixels_in_flight_(pixels_in_flight) {
   for (int i = 0; i < std::max(workers, 1); ++i) workers_.emplace_back([this] { Work(); });
 }
 
@@ -50,6 +51,12 @@ int Scheduler::queued() const {
   return static_cast<int>(ready_.size());
 }
 
+bool Scheduler::CanStartLocked() const {
+  if (ready_.empty()) return false;
+  return max_pixels_in_flight_ <= 0 || pixels_in_flight_ == 0 ||
+         pixels_in_flight_ + ready_.front()->StepPixels() <= max_pixels_in_flight_;
+}
+
 void Scheduler::Work() {
   if (gpu_) {
     try {
@@ -63,17 +70,21 @@ void Scheduler::Work() {
     std::shared_ptr<Job> job;
     {
       std::unique_lock lock(mu_);
-      cv_.wait(lock, [&] { return stopping_ || !ready_.empty(); });
+      cv_.wait(lock, [&] { return stopping_ || CanStartLocked(); });
       if (stopping_) return;
       job = std::move(ready_.front());
       ready_.pop_front();
       job->state_ = Job::State::kRunning;
+      job->step_pixels_ = job->StepPixels();
+      pixels_in_flight_ += job->step_pixels_;
     }
     const auto start = std::chrono::steady_clock::now();
     const bool more = job->Step();
     busy_ns_ += std::chrono::duration_cast<std::chrono::nanoseconds>(std::chrono::steady_clock::now() - start).count();
     {
       std::lock_guard lock(mu_);
+      pixels_in_flight_ -= job->step_pixels_;
+      if (max_pixels_in_flight_ > 0) cv_.notify_all();  // room for steps that waited on the budget
       if (more || job->state_ == Job::State::kRunningWoken) {
         job->state_ = Job::State::kQueued;
         ready_.push_back(std::move(job));

@@ -6,7 +6,12 @@
 //
 // On a GPU each worker's CUDA work runs on its own per-thread default stream:
 // frames of different sessions overlap on the device instead of queueing
-// behind one lock. On the CPU one worker suffices (a frame uses every core).
+// behind one lock. What runs at once is bounded in pixels, not in steps: a
+// step starts while the pixels of the steps running stay within the budget
+// (one step always may). Full-size frames then run a few at a time, each
+// finishing soon after its event, and small interactive frames many at a
+// time, enough to keep the GPU busy (docs/performance.md, "Pixels in
+// flight"). On the CPU one worker suffices (a frame uses every core).
 #pragma once
 
 #include <atomic>
@@ -29,17 +34,23 @@ class Job {
   // One step on a worker bound to the scheduler's device; returns whether the
   // job has more work now. Must not throw.
   virtual bool Step() = 0;
+  // The pixels the next step renders, for the scheduler's budget. Called
+  // under the scheduler's lock: must not block.
+  virtual std::int64_t StepPixels() const = 0;
 
  private:
   friend class Scheduler;
   enum class State { kIdle, kQueued, kRunning, kRunningWoken };
-  State state_ = State::kIdle;  // guarded by the scheduler's mutex
+  State state_ = State::kIdle;     // guarded by the scheduler's mutex
+  std::int64_t step_pixels_ = 0;  // its running step's, against the budget; likewise
 };
 
 class Scheduler {
  public:
   // gpu: the CUDA device the workers bind to; nullopt for the CPU.
-  Scheduler(std::string name, std::optional<int> gpu, int workers);
+  // pixels_in_flight: the steps running at once render at most this many
+  // pixels together (one step always may); 0: no bound but the workers.
+  Scheduler(std::string name, std::optional<int> gpu, int workers, std::int64_t pixels_in_flight = 0);
   ~Scheduler();  // Stop()
   Scheduler(const Scheduler&) = delete;
   Scheduler& operator=(const Scheduler&) = delete;
@@ -63,6 +74,7 @@ class Scheduler {
 
  private:
   void Work();
+  bool CanStartLocked() const;
 
   std::string name_;
   std::optional<int> gpu_;
@@ -70,6 +82,8 @@ class Scheduler {
   std::condition_variable cv_;
   std::deque<std::shared_ptr<Job>> ready_;
   bool stopping_ = false;
+  const std::int64_t max_pixels_in_flight_;
+  std::int64_t pixels_in_flight_ = 0;
   std::atomic<std::int64_t> busy_ns_{0};
   std::vector<std::thread> workers_;
 };

@@ -74,6 +74,7 @@ Session::Session(std::string id, std::string owner, std::shared_ptr<VolumeLease>
       batched_(kReadPacing * context_.limits->max_events_per_second, since_),
       prepared_(std::move(prepared)) {
   context_.pixels->Exchange(0, pixels_);
+  SetStepPixelsLocked(pixels_, render_scale_);
   current_.set_presenter(owner_);  // until a grant presents (docs/sharing.md)
   ++context_.scheduler->sessions;
 }
@@ -323,6 +324,7 @@ void Session::ApplyLocked(const v1::SessionEvent& event, Clock::time_point arriv
       throw LimitExceeded(e.code(), e.flag(), fmt::format("event {}: resize: {}", event.seq(), e.what()));
     }
     pixels_ = pixels;
+    SetStepPixelsLocked(pixels_, render_scale_);
   }
   if (changes & kStreamChanged) settings_ = SessionFrameSettings(context_.backend, current_.stream());
   // Every event but a pause gets a frame that answers it. Only an attached
@@ -427,6 +429,11 @@ bool Session::CanRenderLocked() const {
   return stills_rendering_ == 0 || dirty_ || event_unrendered_ || !coalesced_.empty();
 }
 
+void Session::SetStepPixelsLocked(std::uint64_t viewport_pixels, float render_scale) {
+  render_scale_ = render_scale;
+  step_pixels_ = std::int64_t(double(viewport_pixels) * render_scale * render_scale);
+}
+
 bool Session::Step() {
   Work work;
   bool release = false;
@@ -517,6 +524,7 @@ bool Session::Step() {
     std::lock_guard lock(mu_);
     ++frames_rendered_;
     accumulated_spp_ = frame.accumulated_spp;
+    SetStepPixelsLocked(pixels_, frame.resolution_scale);
     // An event during the render still gets its frame.
     if (frame.final && !event_unrendered_ && state_ == State::kRendering) state_ = State::kIdle;
   }

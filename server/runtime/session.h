@@ -182,9 +182,12 @@ class Session final : public Job, public std::enable_shared_from_this<Session> {
   bool ended() const;
 
   bool Step() override;
+  // The viewport at the last frame's resolution scale (interactive frames).
+  std::int64_t StepPixels() const override { return step_pixels_.load(std::memory_order_relaxed); }
 
  private:
   struct Work;
+  void SetStepPixelsLocked(std::uint64_t viewport_pixels, float render_scale);
   bool CanRenderLocked() const;
   // OnEvent's work, mu_ held; throws for a bad event.
   void OnEventLocked(v1::SessionEvent event, Clock::time_point arrival, bool from_grant = false);
@@ -253,6 +256,8 @@ class Session final : public Job, public std::enable_shared_from_this<Session> {
   int accumulated_spp_ = 0;
   bool holds_device_memory_ = false;
   std::uint64_t pixels_ = 0;                   // held in the context's PixelBudget
+  float render_scale_ = 1;                     // the last frame's resolution scale
+  std::atomic<std::int64_t> step_pixels_{0};   // pixels_ x render_scale_^2: StepPixels
   TokenBucket events_;                         // events applied at once; past it, coalesced
   TokenBucket batched_;                        // SendEvents' events: kReadPacing x --max-events-per-second
   std::map<int, v1::SessionEvent> coalesced_;  // by SessionEvent::KindCase, oldest first applied

@@ -116,6 +116,11 @@ void AddOptions(CLI::App& app, ServerOptions& o, std::string& backend, std::stri
   app.add_option("--workers-per-gpu", o.workers_per_gpu, "Render threads per GPU, each with its own CUDA stream")
       ->check(CLI::Range(1, 64))
       ->capture_default_str();
+  app.add_option("--pixels-in-flight-per-gpu", o.pixels_in_flight_per_gpu,
+                 "Pixels the frames rendering at once on a GPU may have together (one frame always may; 0: no "
+                 "bound but the workers)")
+      ->check(CLI::Range(std::int64_t(0), std::int64_t(1) << 40))
+      ->capture_default_str();
   app.add_option("--encode-threads", o.encode_threads,
                  "frames encoded at once, on the compute threads (0: one per thread)")
       ->check(CLI::Range(0, 256))

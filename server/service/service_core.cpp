@@ -66,6 +66,10 @@ class StillJob final : public Job {
     if (callbacks_.done) callbacks_.done({grpc::StatusCode::CANCELLED, "the server is shutting down"}, {});
   }
 
+  std::int64_t StepPixels() const override {
+    return std::int64_t(scene_.render().width()) * scene_.render().height();
+  }
+
   bool Step() override {
     try {
       if (*cancel_) throw Cancelled("the snapshot was cancelled");
@@ -195,7 +199,7 @@ ServiceCore::ServiceCore(const ServerOptions& options)
                           std::find(options.devices.begin(), options.devices.end(), gpu.index) != options.devices.end();
       if (!wanted) continue;
       schedulers_.push_back(std::make_unique<Scheduler>(fmt::format("cuda:{} {}", gpu.index, gpu.name), gpu.index,
-                                                        options.workers_per_gpu));
+                                                        options.workers_per_gpu, options.pixels_in_flight_per_gpu));
     }
     for (int d : options.devices) {
       if (std::none_of(gpus.begin(), gpus.end(), [d](const GpuInfo& g) { return g.index == d; })) {

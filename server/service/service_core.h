@@ -44,7 +44,10 @@ struct ServerOptions {
   std::vector<int> devices;                       // GPU ids; empty: every usable GPU
   std::vector<std::filesystem::path> data_roots;  // where clients may load volumes from
   std::vector<std::string> volumes;               // preloaded; empty: phantom:head
-  int workers_per_gpu = 4;                        // each its own CUDA stream
+  int workers_per_gpu = 16;                       // each its own CUDA stream
+  // Frames rendering at once on a GPU render at most this many pixels
+  // together: four 720p frames, or sixteen interactive ones at half size.
+  std::int64_t pixels_in_flight_per_gpu = 4 * 1280 * 720;
   std::vector<pacs::PacsConfig> pacs;             // --pacs NAME=URL, with the --pacs-* settings
   std::filesystem::path pacs_credentials;         // --pacs-credentials FILE; empty: none
   int encode_threads = 0;                         // encodes at once on the compute pool; 0: one per worker

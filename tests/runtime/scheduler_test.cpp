@@ -1,0 +1,83 @@
+// Scheduler: steps start while the pixels of the steps running stay within
+// the budget, one step always may, and without a budget the workers bound.
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <atomic>
+#include <chrono>
+#include <memory>
+#include <thread>
+#include <vector>
+
+#include "runtime/scheduler.h"
+
+namespace cinevol::service {
+namespace {
+
+using namespace std::chrono_literals;
+
+// Counts the pixels of every FakeFrame stepping at once, and the most seen.
+struct InFlight {
+  std::atomic<std::int64_t> pixels{0}, most{0};
+  std::atomic<int> steps{0};
+};
+
+// A job of `steps` steps of `pixels` each; a step holds its worker 5 ms.
+class FakeFrame final : public Job {
+ public:
+  FakeFrame(InFlight& in_flight, std::int64_t pixels, int steps)
+      : in_flight_(in_flight), pixels_(pixels), left_(steps) {}
+
+  std::int64_t StepPixels() const override { return pixels_; }
+  bool Step() override {
+    const std::int64_t now = in_flight_.pixels += pixels_;
+    std::int64_t most = in_flight_.most;
+    while (now > most && !in_flight_.most.compare_exchange_weak(most, now)) {
+    }
+    std::this_thread::sleep_for(5ms);
+    in_flight_.pixels -= pixels_;
+    ++in_flight_.steps;
+    return --left_ > 0;
+  }
+
+ private:
+  InFlight& in_flight_;
+  const std::int64_t pixels_;
+  int left_;
+};
+
+// Runs `jobs` (pixels each) of 10 steps on 8 workers under `budget`; returns
+// the most pixels seen stepping at once.
+std::int64_t MostInFlight(const std::vector<std::int64_t>& jobs, std::int64_t budget) {
+  InFlight in_flight;
+  {
+    Scheduler scheduler("test", std::nullopt, 8, budget);
+    for (std::int64_t pixels : jobs) scheduler.Wake(std::make_shared<FakeFrame>(in_flight, pixels, 10));
+    const auto deadline = std::chrono::steady_clock::now() + 30s;
+    while (in_flight.steps < int(jobs.size()) * 10 && std::chrono::steady_clock::now() < deadline) {
+      std::this_thread::sleep_for(1ms);
+    }
+    EXPECT_EQ(in_flight.steps, int(jobs.size()) * 10) << "every step ran";
+  }
+  return in_flight.most;
+}
+
+TEST(Scheduler, StepsRunningAtOnceStayWithinThePixelBudget) {
+  // Four frames of 100 fit a budget of 400; eight jobs on eight workers would run all at once.
+  const std::int64_t most = MostInFlight(std::vector<std::int64_t>(8, 100), 400);
+  EXPECT_LE(most, 400);
+  EXPECT_GE(most, 200) << "more than one step ran at once";
+  // Small frames run many at once.
+  EXPECT_GT(MostInFlight(std::vector<std::int64_t>(8, 25), 400), 100);
+}
+
+TEST(Scheduler, AStepLargerThanTheBudgetRunsAlone) {
+  EXPECT_EQ(MostInFlight({1000, 1000, 1000}, 400), 1000);
+}
+
+TEST(Scheduler, WithoutABudgetTheWorkersBound) {
+  EXPECT_GT(MostInFlight(std::vector<std::int64_t>(8, 100), 0), 400);
+}
+
+}  // namespace
+}  // namespace cinevol::service
