@@ -70,15 +70,19 @@ int RunRenderBench(const RenderBenchOptions& o) {
     table.insert(table.find("| configuration"), fmt::format("segmentation {} with {} label styles\n\n",
                                                             loaded.labels->source, loaded.setup.labels.styles.size()));
   }
-  std::vector<Config> configs = {{"default: 4^3 bricks, specialised", kDefaultBrickSize, true},
-                                 {"no empty-space skipping (global majorant)", 0, true},
-                                 {"no specialisation (all features)", kDefaultBrickSize, false},
-                                 {"neither", 0, false}};
-  for (int b : {2, 3, 8, 16}) configs.push_back({fmt::format("{}^3 bricks, specialised", b), b, true});
-  if (ParseBackend(o.backend) != Backend::kCpu) {
-    configs.push_back({"voxels read from a buffer, not the texture unit", kDefaultBrickSize, true, false});
+  const int auto_bricks = BrickSizeFor(*volume);
+  std::vector<Config> configs = {
+      {fmt::format("default: {}^3 bricks (for its spacing), specialised", auto_bricks), kAutoBrickSize, true},
+      {"no empty-space skipping (global majorant)", 0, true},
+      {"no specialisation (all features)", kAutoBrickSize, false},
+      {"neither", 0, false}};
+  for (int b : {2, 3, 4, 8, 16}) {
+    if (b != auto_bricks) configs.push_back({fmt::format("{}^3 bricks, specialised", b), b, true});
   }
-  configs.push_back({"tricubic reconstruction", kDefaultBrickSize, true, true, Reconstruction::kTricubic});
+  if (ParseBackend(o.backend) != Backend::kCpu) {
+    configs.push_back({"voxels read from a buffer, not the texture unit", kAutoBrickSize, true, false});
+  }
+  configs.push_back({"tricubic reconstruction", kAutoBrickSize, true, true, Reconstruction::kTricubic});
   if (o.default_only) configs.resize(1);
   double base = 0;
   for (const Config& c : configs) {

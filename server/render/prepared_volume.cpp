@@ -29,6 +29,10 @@ BrickRanges ComputeBrickRanges(const std::uint16_t* voxels, Vec3i dims, Vec3i br
   return r;
 }
 
+int BrickSizeFor(const Volume& volume) {
+  return float(kDefaultBrickSize) * MinComponent(volume.spacing_mm()) > kMaxBrickMm ? 2 : kDefaultBrickSize;
+}
+
 PreparedVolume::PreparedVolume(std::shared_ptr<const Volume> volume, int brick_size) : volume_(std::move(volume)) {
   const Volume& v = *volume_;
   if (v.storage() == VoxelStorage::kUInt16) {
@@ -49,6 +53,7 @@ PreparedVolume::PreparedVolume(std::shared_ptr<const Volume> volume, int brick_s
     }, 0, 1 << 16);
     voxels_ = quantised_.data();
   }
+  if (brick_size == kAutoBrickSize) brick_size = BrickSizeFor(v);
   brick_size_ = brick_size > 0 ? Vec3i{brick_size, brick_size, brick_size} : v.dims();
   bricks_ = ComputeBrickRanges(voxels_, v.dims(), brick_size_, LookupMargin(Reconstruction::kTrilinear));
   cubic_bricks_ = ComputeBrickRanges(voxels_, v.dims(), brick_size_, LookupMargin(Reconstruction::kTricubic));
@@ -145,6 +150,7 @@ std::shared_ptr<const T> VolumeCache::FindOrMake(Slots<Key, T>& slots, const Key
 std::shared_ptr<const VolumeCopy> VolumeCache::Acquire(const std::shared_ptr<const Volume>& volume, int brick_size,
                                                        int device, bool texture) {
   texture = texture && device != kHostDevice;  // the host has one kind of copy
+  if (brick_size == kAutoBrickSize) brick_size = BrickSizeFor(*volume);
   return FindOrMake(copies_, std::tuple{device, volume.get(), brick_size, texture}, [&] {
     std::shared_ptr<const PreparedVolume> prepared = FindOrMake(prepared_, std::tuple{volume.get(), brick_size}, [&] {
       return std::make_shared<const PreparedVolume>(volume, brick_size);

@@ -25,9 +25,20 @@
 
 namespace cinevol {
 
-// Bricks are this many voxels along each axis by default: 4^3 measured
+// Bricks are this many voxels along each axis for most volumes: 4^3 measured
 // faster than 8^3 and 16^3 on CPU and GPU (docs/performance.md).
 inline constexpr int kDefaultBrickSize = 4;
+// A brick size that asks for BrickSizeFor(volume): RendererOptions' default.
+inline constexpr int kAutoBrickSize = -1;
+// Bricks wider than this along the volume's finest axis bound too much at
+// once: a coarse scan's 4^3 bricks mix vessels and bone with the fat around
+// them, and its paths take many tentative collisions.
+inline constexpr float kMaxBrickMm = 5.0f;
+// kDefaultBrickSize voxels, or 2 where those would span more than kMaxBrickMm
+// (voxels coarser than 1.25 mm): 2^3 bricks measured 14-23% faster on CTs of
+// 1.5 and 3 mm voxels, 4^3 9-10% faster on heads of 0.9-1 mm
+// (docs/performance.md, "Brick size from the voxel spacing").
+int BrickSizeFor(const Volume& volume);
 
 // Min and max stored value of each brick, including the margin that lookups
 // inside the brick read (one voxel for trilinear, two for tricubic). (Volume::block_ranges is
@@ -44,8 +55,9 @@ BrickRanges ComputeBrickRanges(const std::uint16_t* voxels, Vec3i dims, Vec3i br
 class PreparedVolume {
  public:
   // Quantises float volumes to 16 bits over their range; 16-bit volumes are
-  // used as they are. brick_size voxels per brick edge; 0: one brick spanning
-  // the volume (empty-space skipping off, to measure what bricks buy).
+  // used as they are. brick_size voxels per brick edge (kAutoBrickSize:
+  // BrickSizeFor); 0: one brick spanning the volume (empty-space skipping
+  // off, to measure what bricks buy).
   PreparedVolume(std::shared_ptr<const Volume> volume, int brick_size);
 
   const Volume& volume() const { return *volume_; }
@@ -175,8 +187,8 @@ class VolumeCache {
   // The process's cache: every session, still and offline render shares it.
   static VolumeCache& Get();
 
-  // The copy of `volume` with `brick_size` bricks on `device`, built on first
-  // use. Thread-safe: callers asking for the same copy at once get one copy,
+  // The copy of `volume` with `brick_size` bricks (kAutoBrickSize:
+  // BrickSizeFor) on `device`, built on first use. Thread-safe: callers asking for the same copy at once get one copy,
   // built once; only they wait for it.
   // `texture`: on a GPU, held as a texture where one fits (RendererOptions::volume_texture).
   std::shared_ptr<const VolumeCopy> Acquire(const std::shared_ptr<const Volume>& volume, int brick_size, int device,

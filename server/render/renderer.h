@@ -109,8 +109,9 @@ class Renderer {
 
 struct RendererOptions {
   // Voxels per majorant-grid brick edge: bricks skip empty space and bound
-  // dense space tightly. 0: no bricks, one global majorant.
-  int brick_size = kDefaultBrickSize;
+  // dense space tightly. kAutoBrickSize: BrickSizeFor the volume's spacing;
+  // 0: no bricks, one global majorant.
+  int brick_size = kAutoBrickSize;
   // CUDA: sample the volume through the texture unit (device/volume_texture.h);
   // false reads the voxel buffer, as the CPU does (to measure what it buys).
   bool volume_texture = true;

@@ -180,5 +180,25 @@ TEST(MajorantIterator, VisitsBricksInOrderWithoutGaps) {
   }
 }
 
+// Coarse scans get 2^3 bricks, others 4^3, decided by the finest axis; the
+// cache keys the copy by the size chosen, so asking for it by name shares it.
+TEST(MajorantGrid, BricksAreSmallerInCoarseScans) {
+  auto volume_with_spacing = [](Vec3f spacing) {
+    VolumeMetadata meta;
+    meta.source = "spacing";
+    return std::make_shared<const Volume>(Vec3i{8, 8, 8}, spacing, std::vector<float>(512, 0.0f), meta);
+  };
+  EXPECT_EQ(BrickSizeFor(*volume_with_spacing({1, 1, 2})), 4);           // CThead
+  EXPECT_EQ(BrickSizeFor(*volume_with_spacing({0.7f, 0.7f, 3})), 4);     // thick slices, fine in-plane
+  EXPECT_EQ(BrickSizeFor(*volume_with_spacing({1.25f, 1.25f, 1.25f})), 4);
+  EXPECT_EQ(BrickSizeFor(*volume_with_spacing({1.5f, 1.5f, 1.5f})), 2);  // the aorta crop
+  EXPECT_EQ(BrickSizeFor(*volume_with_spacing({3, 3, 3})), 2);
+  const auto coarse = volume_with_spacing({1.5f, 1.5f, 1.5f});
+  const auto chosen = VolumeCache::Get().Acquire(coarse, kAutoBrickSize, kHostDevice);
+  EXPECT_EQ(chosen->prepared().brick_size(), (Vec3i{2, 2, 2}));
+  EXPECT_EQ(VolumeCache::Get().Acquire(coarse, 2, kHostDevice), chosen);
+  EXPECT_EQ(PreparedVolume(coarse, kAutoBrickSize).brick_size(), (Vec3i{2, 2, 2}));
+}
+
 }  // namespace
 }  // namespace cinevol
