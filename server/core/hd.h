@@ -39,6 +39,19 @@ CINEVOL_HD float FastExp2(float x) {
 #endif
 }
 
+// log2(x) as the GPU's special function unit gives it (lg2.approx.ftz:
+// within 2^-22 absolute for x in [0.5, 2], subnormal x flushed to 0, giving
+// -inf), in one instruction where logf takes about twenty; log2f on the host.
+CINEVOL_HD float FastLog2(float x) {
+#if CINEVOL_DEVICE_PASS
+  float r;
+  asm("lg2.approx.ftz.f32 %0, %1;" : "=f"(r) : "f"(x));
+  return r;
+#else
+  return log2f(x);
+#endif
+}
+
 // Loads through the read-only data cache on the GPU; a plain load elsewhere.
 template <class T>
 CINEVOL_HD T LoadReadOnly(const T* p) {

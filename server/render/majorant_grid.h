@@ -118,9 +118,12 @@ CINEVOL_HD TrackResult SampleMajorant(const MajorantGridView& grid, Vec3f o, Vec
     // Steps add up from the segment's start, not onto t: far from the ray's
     // origin a step smaller than t's precision would leave t where it was.
     const float length = seg.t_max - seg.t_min;
+    // An exponential step is -ln(1 - u) / sigma = log2(1 - u) * (-ln 2 / sigma):
+    // one division a segment, not one a step.
+    const float step_scale = -0.69314718f / seg.sigma_maj;
     float dt = 0.0f;
     while (true) {
-      dt -= logf(1.0f - rng.Uniform()) / seg.sigma_maj;
+      dt += FastLog2(1.0f - rng.Uniform()) * step_scale;
       if (dt >= length) break;  // memoryless: restart in the next segment
       if (--budget < 0) return TrackResult::kBudgetExhausted;
       if (!on_collision(fminf(seg.t_min + dt, seg.t_max), seg.sigma_maj)) return TrackResult::kStopped;
