@@ -35,7 +35,7 @@ inline constexpr int kAutoBrickSize = -1;
 // them, and its paths take many tentative collisions.
 inline constexpr float kMaxBrickMm = 5.0f;
 // kDefaultBrickSize voxels, or 2 where those would span more than kMaxBrickMm
-// (voxels coarser than 1.25 mm): 2^3 bricks measured 14-23% faster on CTs of
+// (voxels coarser than 1.25 mm): 2^3 bricks measured 15-24% faster on CTs of
 // 1.5 and 3 mm voxels, 4^3 9-10% faster on heads of 0.9-1 mm
 // (docs/performance.md, "Brick size from the voxel spacing").
 int BrickSizeFor(const Volume& volume);
@@ -188,8 +188,9 @@ class VolumeCache {
   static VolumeCache& Get();
 
   // The copy of `volume` with `brick_size` bricks (kAutoBrickSize:
-  // BrickSizeFor) on `device`, built on first use. Thread-safe: callers asking for the same copy at once get one copy,
-  // built once; only they wait for it.
+  // BrickSizeFor) on `device`, built on first use. Thread-safe: callers
+  // asking for the same copy at once get one copy, built once; only they
+  // wait for it.
   // `texture`: on a GPU, held as a texture where one fits (RendererOptions::volume_texture).
   std::shared_ptr<const VolumeCopy> Acquire(const std::shared_ptr<const Volume>& volume, int brick_size, int device,
                                             bool texture = true);
