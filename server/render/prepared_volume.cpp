@@ -29,8 +29,9 @@ BrickRanges ComputeBrickRanges(const std::uint16_t* voxels, Vec3i dims, Vec3i br
   return r;
 }
 
-int BrickSizeFor(const Volume& volume) {
-  return float(kDefaultBrickSize) * MinComponent(volume.spacing_mm()) > kMaxBrickMm ? 2 : kDefaultBrickSize;
+int BrickSizeFor(Vec3f spacing_mm, std::size_t voxels) {
+  const bool coarse = float(kDefaultBrickSize) * MinComponent(spacing_mm) > kMaxBrickMm;
+  return coarse && voxels <= kMaxVoxels / 8 ? 2 : kDefaultBrickSize;
 }
 
 PreparedVolume::PreparedVolume(std::shared_ptr<const Volume> volume, int brick_size) : volume_(std::move(volume)) {

@@ -37,8 +37,12 @@ inline constexpr float kMaxBrickMm = 5.0f;
 // kDefaultBrickSize voxels, or 2 where those would span more than kMaxBrickMm
 // (voxels coarser than 1.25 mm): 2^3 bricks measured 15-24% faster on CTs of
 // 1.5 and 3 mm voxels, 4^3 9-10% faster on heads of 0.9-1 mm
-// (docs/performance.md, "Brick size from the voxel spacing").
-int BrickSizeFor(const Volume& volume);
+// (docs/performance.md, "Brick size from the voxel spacing"). Only volumes
+// of at most kMaxVoxels / 8 voxels take 2^3: their bricks are then never
+// more than 4^3 bricks of the largest volume, so the brick ranges and
+// majorants stay within the memory they took before.
+int BrickSizeFor(Vec3f spacing_mm, std::size_t voxels);
+inline int BrickSizeFor(const Volume& volume) { return BrickSizeFor(volume.spacing_mm(), volume.voxel_count()); }
 
 // Min and max stored value of each brick, including the margin that lookups
 // inside the brick read (one voxel for trilinear, two for tricubic). (Volume::block_ranges is

@@ -180,8 +180,9 @@ TEST(MajorantIterator, VisitsBricksInOrderWithoutGaps) {
   }
 }
 
-// Coarse scans get 2^3 bricks, others 4^3, decided by the finest axis; the
-// cache keys the copy by the size chosen, so asking for it by name shares it.
+// Coarse scans get 2^3 bricks, others 4^3, decided by the finest axis and
+// bounded by the voxel count; the cache keys the copy by the size chosen, so
+// asking for it by name shares it.
 TEST(MajorantGrid, BricksAreSmallerInCoarseScans) {
   auto volume_with_spacing = [](Vec3f spacing) {
     VolumeMetadata meta;
@@ -193,6 +194,9 @@ TEST(MajorantGrid, BricksAreSmallerInCoarseScans) {
   EXPECT_EQ(BrickSizeFor(*volume_with_spacing({1.25f, 1.25f, 1.25f})), 4);
   EXPECT_EQ(BrickSizeFor(*volume_with_spacing({1.5f, 1.5f, 1.5f})), 2);  // the aorta crop
   EXPECT_EQ(BrickSizeFor(*volume_with_spacing({3, 3, 3})), 2);
+  // A coarse scan too large for 2^3 bricks within 4^3's memory keeps 4^3.
+  EXPECT_EQ(BrickSizeFor({3, 3, 3}, kMaxVoxels / 8), 2);
+  EXPECT_EQ(BrickSizeFor({3, 3, 3}, kMaxVoxels / 8 + 1), 4);
   const auto coarse = volume_with_spacing({1.5f, 1.5f, 1.5f});
   const auto chosen = VolumeCache::Get().Acquire(coarse, kAutoBrickSize, kHostDevice);
   EXPECT_EQ(chosen->prepared().brick_size(), (Vec3i{2, 2, 2}));
