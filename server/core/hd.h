@@ -11,6 +11,15 @@
 #define CINEVOL_HD inline
 #endif
 
+// As CINEVOL_HD, but kept out of line on the device: for a path the kernels
+// rarely or never take, whose code would otherwise be copied into every hot
+// loop that calls it (longer loops, more instruction-cache misses).
+#if defined(__CUDACC__)
+#define CINEVOL_HD_COLD __host__ __device__ __noinline__
+#else
+#define CINEVOL_HD_COLD inline
+#endif
+
 // True in nvcc's device pass only (inside a CINEVOL_HD body).
 #if defined(__CUDA_ARCH__)
 #define CINEVOL_DEVICE_PASS 1

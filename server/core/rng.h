@@ -23,29 +23,33 @@ CINEVOL_HD std::uint64_t HashCombine(std::uint64_t a, std::uint64_t b) {
   return MixBits(a ^ (b + 0x9e3779b97f4a7c15ULL + (a << 6) + (a >> 2)));
 }
 
-// PCG32 (O'Neill 2014): 64-bit state, 32-bit output, selectable stream.
+// PCG32 (O'Neill 2014) in its 32-bit form, RXS-M-XS: 32-bit state and output,
+// one stream per odd increment. The path tracer draws a number per tentative
+// collision, so its generator is on the hot path: the 64-bit PCG32 took
+// about fifteen instructions and four registers a draw, this one about
+// nine and two (docs/performance.md). A stream repeats after 2^32 draws; a path
+// draws at most about 2^17 (kMaxPathCollisions).
 class Pcg32 {
  public:
-  CINEVOL_HD Pcg32(std::uint64_t seed, std::uint64_t stream) : state_(0), inc_((stream << 1u) | 1u) {
-    NextUInt();
-    state_ += seed;
+  CINEVOL_HD Pcg32(std::uint64_t seed, std::uint64_t stream)
+      : state_(static_cast<std::uint32_t>(seed ^ (seed >> 32))),
+        inc_(static_cast<std::uint32_t>(MixBits(stream ^ (seed & 0xffffffff00000000ULL)) << 1u) | 1u) {
     NextUInt();
   }
 
   CINEVOL_HD std::uint32_t NextUInt() {
-    const std::uint64_t old = state_;
-    state_ = old * 0x5851f42d4c957f2dULL + inc_;
-    const std::uint32_t xorshifted = static_cast<std::uint32_t>(((old >> 18u) ^ old) >> 27u);
-    const std::uint32_t rot = static_cast<std::uint32_t>(old >> 59u);
-    return (xorshifted >> rot) | (xorshifted << ((32u - rot) & 31u));
+    const std::uint32_t old = state_;
+    state_ = old * 747796405u + inc_;
+    const std::uint32_t word = ((old >> ((old >> 28u) + 4u)) ^ old) * 277803737u;
+    return (word >> 22u) ^ word;
   }
 
   // Uniform in [0, 1): 24 random bits, so 1 - u is never 0.
   CINEVOL_HD float Uniform() { return static_cast<float>(NextUInt() >> 8) * 0x1p-24f; }
 
  private:
-  std::uint64_t state_;
-  std::uint64_t inc_;
+  std::uint32_t state_;
+  std::uint32_t inc_;
 };
 
 }  // namespace cinevol

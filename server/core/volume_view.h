@@ -56,10 +56,20 @@ struct VolumeView {
   }
 
   CINEVOL_HD float SampleTrilinear(Vec3f p) const {
-    const Vec3f q = ToVoxel(p);
 #if CINEVOL_DEVICE_PASS
-    if (texture) return 65535.0f * tex3D<float>(texture, q.x + 0.5f, q.y + 0.5f, q.z + 0.5f);
+    if (texture) {  // texel centres at i + 0.5, as ToVoxel's +0.5 gives them
+      const Vec3f t = (p - box_min) * inv_spacing;
+      return 65535.0f * tex3D<float>(texture, t.x, t.y, t.z);
+    }
 #endif
+    return TrilinearFromVoxels(p);
+  }
+
+  // The voxels read one by one: the CPU's path, and a GPU's where the volume
+  // exceeds its texture size (out of line there, so the kernels carry its
+  // code once, not at every lookup).
+  CINEVOL_HD_COLD float TrilinearFromVoxels(Vec3f p) const {
+    const Vec3f q = ToVoxel(p);
     const float fx = floorf(q.x), fy = floorf(q.y), fz = floorf(q.z);
     const int x = static_cast<int>(fx), y = static_cast<int>(fy), z = static_cast<int>(fz);
     const float tx = q.x - fx, ty = q.y - fy, tz = q.z - fz;
@@ -76,12 +86,12 @@ struct VolumeView {
   // non-negative and sum to 1, so the value stays within those voxels'
   // range: the majorant grid bounds it with a two-voxel brick margin.
   CINEVOL_HD float SampleTricubic(Vec3f p) const {
-    const Vec3f q = ToVoxel(p);
-    const Vec3f f{floorf(q.x), floorf(q.y), floorf(q.z)};
-    Vec3f w[4];
-    BSplineWeights(q - f, w);
 #if CINEVOL_DEVICE_PASS
     if (texture) {
+      const Vec3f q = ToVoxel(p);
+      const Vec3f f{floorf(q.x), floorf(q.y), floorf(q.z)};
+      Vec3f w[4];
+      BSplineWeights(q - f, w);
       // GPU Gems 2, ch. 20: each axis's four weights as two linear fetches
       // placed between voxel pairs, so 8 hardware trilinear fetches do it.
       const Vec3f g0 = w[0] + w[1], g1 = w[2] + w[3];
@@ -94,6 +104,15 @@ struct VolumeView {
       return 65535.0f * (a + b);
     }
 #endif
+    return TricubicFromVoxels(p);
+  }
+
+  // As TrilinearFromVoxels, for SampleTricubic.
+  CINEVOL_HD_COLD float TricubicFromVoxels(Vec3f p) const {
+    const Vec3f q = ToVoxel(p);
+    const Vec3f f{floorf(q.x), floorf(q.y), floorf(q.z)};
+    Vec3f w[4];
+    BSplineWeights(q - f, w);
     const int x = static_cast<int>(f.x) - 1, y = static_cast<int>(f.y) - 1, z = static_cast<int>(f.z) - 1;
     float sum = 0.0f;
     for (int k = 0; k < 4; ++k) {

@@ -17,10 +17,12 @@ namespace {
 
 // 8x8 pixel blocks: neighbouring paths touch neighbouring voxels.
 constexpr int kBlock = 8;
-// Blocks per SM the register allocation must allow: 10 caps the integrator at
-// 96 registers (22% occupancy, a few spills), measured fastest on an H100
-// against 1 (220 registers), 8 (128) and 12 (80); docs/performance.md.
-constexpr int kMinBlocksPerSm = 10;
+// Blocks per SM the register allocation must allow: 16 caps the integrator at
+// 64 registers (50% occupancy). With the 32-bit random generator and the
+// voxel buffer's code out of line it is the fastest on an H100 against 10
+// (96 registers, 31%), 12 (80) and 20 (48): CThead 1.21 ms against 1.41 at 10
+// before those changes; docs/performance.md.
+constexpr int kMinBlocksPerSm = 16;
 
 // __grid_constant__: the integrator takes the scene by reference, which would
 // otherwise copy the whole parameter block into local memory per thread.

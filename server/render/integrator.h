@@ -140,10 +140,10 @@ class PathTracer {
     }
     bool found = false;
     const TrackResult r = SampleMajorant(s_.majorants, ray.origin, ray.direction, t0, t1, rng_, budget_,
-                                         [&](float t, float sigma_maj) {
+                                         [&](float t, float inv_majorant) {
                                            Classified c;
-                                           if (rng_.Uniform() * sigma_maj >=
-                                               Extinction(ray.origin + ray.direction * t, c))
+                                           if (rng_.Uniform() >=
+                                               Extinction(ray.origin + ray.direction * t, c) * inv_majorant)
                                              return true;
                                            t_hit = t;
                                            hit = c;
@@ -162,9 +162,9 @@ class PathTracer {
     t1 = fminf(t1, distance);
     if (!(t0 < t1)) return 1.0f;
     float transmittance = 1.0f;
-    const TrackResult r = SampleMajorant(s_.majorants, p, w, t0, t1, rng_, budget_, [&](float t, float sigma_maj) {
+    const TrackResult r = SampleMajorant(s_.majorants, p, w, t0, t1, rng_, budget_, [&](float t, float inv_majorant) {
       Classified c;
-      transmittance *= fmaxf(0.0f, 1.0f - Extinction(p + w * t, c) / sigma_maj);
+      transmittance *= fmaxf(0.0f, 1.0f - Extinction(p + w * t, c) * inv_majorant);
       if (transmittance < 0.05f) {
         if (rng_.Uniform() < 0.75f) {
           transmittance = 0.0f;

@@ -106,8 +106,10 @@ inline constexpr int kMaxPathCollisions = 1 << 16;
 enum class TrackResult { kLeftRange, kStopped, kBudgetExhausted };
 
 // Draws tentative collisions along o + t d in [t_min, t_max]. For each one
-// calls on_collision(t, sigma_maj), which returns false to stop. Each
-// collision takes one from `budget`; none left: kBudgetExhausted.
+// calls on_collision(t, inv_majorant), with 1 / the majorant there (a
+// multiplication then compares or weighs the extinction, not a division a
+// collision), which returns false to stop. Each collision takes one from
+// `budget`; none left: kBudgetExhausted.
 template <class OnCollision>
 CINEVOL_HD TrackResult SampleMajorant(const MajorantGridView& grid, Vec3f o, Vec3f d, float t_min,
                                       float t_max, Pcg32& rng, int& budget, OnCollision&& on_collision) {
@@ -120,13 +122,14 @@ CINEVOL_HD TrackResult SampleMajorant(const MajorantGridView& grid, Vec3f o, Vec
     const float length = seg.t_max - seg.t_min;
     // An exponential step is -ln(1 - u) / sigma = log2(1 - u) * (-ln 2 / sigma):
     // one division a segment, not one a step.
-    const float step_scale = -0.69314718f / seg.sigma_maj;
+    const float inv_majorant = 1.0f / seg.sigma_maj;
+    const float step_scale = -0.69314718f * inv_majorant;
     float dt = 0.0f;
     while (true) {
       dt += FastLog2(1.0f - rng.Uniform()) * step_scale;
       if (dt >= length) break;  // memoryless: restart in the next segment
       if (--budget < 0) return TrackResult::kBudgetExhausted;
-      if (!on_collision(fminf(seg.t_min + dt, seg.t_max), seg.sigma_maj)) return TrackResult::kStopped;
+      if (!on_collision(fminf(seg.t_min + dt, seg.t_max), inv_majorant)) return TrackResult::kStopped;
     }
   }
   return TrackResult::kLeftRange;
