@@ -32,6 +32,9 @@ CINEVOL_HD std::uint64_t HashCombine(std::uint64_t a, std::uint64_t b) {
 // draws at most about 2^17 (kMaxPathCollisions).
 class Pcg32 {
  public:
+  // The state from the seed, the increment from the stream and the seed's
+  // high half: neighbouring pixels then run different sequences, not one
+  // sequence from different starts.
   CINEVOL_HD Pcg32(std::uint64_t seed, std::uint64_t stream)
       : state_(static_cast<std::uint32_t>(seed ^ (seed >> 32))),
         inc_(static_cast<std::uint32_t>(MixBits(stream ^ (seed & 0xffffffff00000000ULL)) << 1u) | 1u) {

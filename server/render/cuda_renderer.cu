@@ -21,7 +21,7 @@ constexpr int kBlock = 8;
 // 64 registers (50% occupancy). With the 32-bit random generator and the
 // voxel buffer's code out of line it is the fastest on an H100 against 10
 // (96 registers, 31%), 12 (80) and 20 (48): CThead 1.21 ms against 1.41 at 10
-// before those changes; docs/performance.md.
+// before those changes (H100); docs/performance.md.
 constexpr int kMinBlocksPerSm = 16;
 
 // __grid_constant__: the integrator takes the scene by reference, which would
