@@ -27,9 +27,10 @@ CINEVOL_HD std::uint64_t HashCombine(std::uint64_t a, std::uint64_t b) {
 // PCG32 (O'Neill 2014) in its 32-bit form, RXS-M-XS: 32-bit state and output,
 // one stream per odd increment. The path tracer draws a number per tentative
 // collision, so its generator is on the hot path: the 64-bit PCG32 took
-// about fifteen instructions and four registers a draw, this one about
-// nine and two (docs/performance.md). A stream repeats after 2^32 draws; a path
-// draws at most about 2^17 (kMaxPathCollisions).
+// about fifteen instructions a draw (Nsight Compute's listing) and four
+// registers of state, this one half the state and 32-bit arithmetic only
+// (docs/performance.md). A stream repeats after 2^32 draws; a path draws at
+// most about 2^17 (kMaxPathCollisions).
 class Pcg32 {
  public:
   // The state from the seed, the increment from the stream and the seed's
