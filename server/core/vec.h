@@ -60,7 +60,12 @@ CINEVOL_HD float MaxComponent(Vec3f a) { return fmaxf(a.x, fmaxf(a.y, a.z)); }
 CINEVOL_HD float MinComponent(Vec3f a) { return fminf(a.x, fminf(a.y, a.z)); }
 CINEVOL_HD Vec3f Lerp(Vec3f a, Vec3f b, float t) { return a + (b - a) * t; }
 CINEVOL_HD float Luminance(Vec3f rgb) { return 0.2126f * rgb.x + 0.7152f * rgb.y + 0.0722f * rgb.z; }
-CINEVOL_HD bool IsFinite(Vec3f a) { return isfinite(a.x) && isfinite(a.y) && isfinite(a.z); }
+// & rather than &&: three comparisons and no branches on the GPU (on bools:
+// the device's isfinite may return any non-zero int for true).
+CINEVOL_HD bool IsFinite(Vec3f a) {
+  const bool x = isfinite(a.x), y = isfinite(a.y), z = isfinite(a.z);
+  return x & y & z;
+}
 CINEVOL_HD Vec4f operator+(Vec4f a, Vec4f b) { return {a.x + b.x, a.y + b.y, a.z + b.z, a.w + b.w}; }
 CINEVOL_HD Vec3f Xyz(Vec4f a) { return {a.x, a.y, a.z}; }
 CINEVOL_HD Vec4f ToVec4(Vec3f a, float w) { return {a.x, a.y, a.z, w}; }

@@ -291,6 +291,7 @@ struct EdgeGuidesPass {
   const float* row_hits;  // RowWindowSums of HitTap over kCoverageRadius
   Vec3f eye;
   EdgeGuide* guides;
+  Vec4f* kept_first_hit;  // null, or where the first hits are copied on the way
   int width, height;
 
   CINEVOL_HD void operator()(int x, int y) const {
@@ -304,24 +305,30 @@ struct EdgeGuidesPass {
     }
     const int columns = MinInt(x + kCoverageRadius, width - 1) - MaxInt(x - kCoverageRadius, 0) + 1;
     const int i = y * width + x;
-    guides[i] = {Escaped(first_hit[i]) ? kEscapedDepth : Length(Xyz(first_hit[i]) - eye),
-                 hits / float(rows * columns)};
+    const Vec4f hit = first_hit[i];
+    guides[i] = {Escaped(hit) ? kEscapedDepth : Length(Xyz(hit) - eye), hits / float(rows * columns)};
+    if (kept_first_hit) kept_first_hit[i] = hit;
   }
 };
 
 // The edge guides of a frame on backend B; `row_hits` is scratch of a
-// frame's size.
+// frame's size. A temporal denoiser keeps the first hits for its next frame
+// in `kept_first_hit` on the way (saving a copy): by then this frame's
+// reprojection must be done with the previous ones.
 template <class B>
-void ComputeEdgeGuides(const Vec4f* first_hit, Vec3f eye, int width, int height, float* row_hits, EdgeGuide* guides) {
+void ComputeEdgeGuides(const Vec4f* first_hit, Vec3f eye, int width, int height, float* row_hits, EdgeGuide* guides,
+                       Vec4f* kept_first_hit = nullptr) {
   B::RowWindowSums(width, height, kCoverageRadius, 1, HitTap{first_hit, width}, row_hits);
-  B::ForEachPixel(width, height, EdgeGuidesPass{first_hit, row_hits, eye, guides, width, height});
+  B::ForEachPixel(width, height, EdgeGuidesPass{first_hit, row_hits, eye, guides, kept_first_hit, width, height});
 }
 
 // The a-trous taps every such filter shares (AtrousPass; the refinement's
 // MeanFilterPass, pipeline/refine.h): 5x5 B-spline taps `step` apart around
-// (x, y), each weighed by the kernel times stop(k, q), the edge stop for the
-// neighbour at index k with colour and variance q. The colour is averaged
-// with the weights; the variance in w goes through with their squares.
+// (x, y), each weighed by stop(k, q, log2_kernel): the kernel's weight
+// (2^log2_kernel) times the edge stop for the neighbour at index k with
+// colour and variance q (the stop folds the kernel into its exponent, one
+// multiplication less a tap). The colour is averaged with the weights; the
+// variance in w goes through with their squares.
 // denoise/cpu_passes.h has the same taps as vectorised rows (CpuAtrousRows).
 //
 // On the GPU these levels are bound by instruction issue, not memory, so the
@@ -332,7 +339,8 @@ template <int kStep, bool kChecked, class EdgeStop>
 CINEVOL_HD Vec4f AtrousTapsUnrolled(const Vec4f* in, int x, int y, int width, int height, int step,
                                     const EdgeStop& stop) {
   if (kStep > 0) step = kStep;
-  const float kernel[3] = {3.0f / 8.0f, 1.0f / 4.0f, 1.0f / 16.0f};
+  // log2 of 3/8, 1/4 and 1/16
+  const float log2_kernel[3] = {-1.41503749927884381f, -2.0f, -4.0f};
   Vec3f sum{};
   float var_sum = 0.0f, weight = 0.0f;
   CINEVOL_UNROLL
@@ -345,7 +353,7 @@ CINEVOL_HD Vec4f AtrousTapsUnrolled(const Vec4f* in, int x, int y, int width, in
       if (kChecked && (x + dx * step < 0 || x + dx * step >= width)) continue;
       const int k = row + dx * step;
       const Vec4f q = in[k];
-      const float w = kernel[dx < 0 ? -dx : dx] * kernel[dy < 0 ? -dy : dy] * stop(k, q);
+      const float w = stop(k, q, log2_kernel[dx < 0 ? -dx : dx] + log2_kernel[dy < 0 ? -dy : dy]);
       sum += Xyz(q) * w;
       var_sum += q.w * w * w;
       weight += w;
@@ -400,19 +408,23 @@ struct AtrousPass {
       }
     }
     // The stops in powers of 2 (the GPU's native exponential): e^-(a + b +
-    // c) = 2^-(a + b + c) log2(e); the centre tap weighs 2^0, so the sum of
-    // weights is never 0. A centre that escaped compares no depths (scale
-    // 0); a tap that escaped is not compared either.
+    // c) = 2^-(a + b + c) log2(e); the centre tap weighs its kernel weight
+    // alone (its differences are 0), so the sum of weights is never 0. A
+    // centre that escaped compares no depths (scale 0); a tap that escaped is
+    // not compared either.
     const float l = Luminance(Xyz(in[i]));
     const float l_scale = kLog2e / (sigma_luminance * sqrtf(fmaxf(variance, 0.0f)) + 1e-10f);
     const EdgeGuide centre = guides[i];
     const float z = centre.depth;
     const float z_scale = Hit(z) ? kLog2e / (sigma_depth * 0.01f * fmaxf(z, 1e-3f) * float(step) + 1e-6f) : 0.0f;
-    out[i] = AtrousTaps(in, x, y, width, height, step, [&](int k, Vec4f q) {
+    // Each tap's exponent is a chain of fused multiply-adds that starts from
+    // the kernel's (-log2_kernel). The luminance is computed as l was, so
+    // the centre's difference is exactly 0 whatever l_scale.
+    out[i] = AtrousTaps(in, x, y, width, height, step, [&](int k, Vec4f q, float log2_kernel) {
       const EdgeGuide g = guides[k];
-      const float dz = Hit(g.depth) ? fabsf(g.depth - z) : 0.0f;
-      return FastExp2(-(fabsf(Luminance(Xyz(q)) - l) * l_scale + dz * z_scale +
-                        fabsf(g.coverage - centre.coverage) * (kCoverageStop * kLog2e)));
+      const float dz = Hit(g.depth) ? g.depth - z : 0.0f;
+      const float e = fmaf(fabsf(Luminance(Xyz(q)) - l), l_scale, -log2_kernel);
+      return FastExp2(-fmaf(fabsf(g.coverage - centre.coverage), kCoverageStop * kLog2e, fmaf(fabsf(dz), z_scale, e)));
     });
   }
 };

@@ -16,7 +16,8 @@
 namespace cinevol {
 
 // The edge guides the a-trous levels stop at (ComputeEdgeGuides), with
-// their scratch: a frame's worth, for SVGF and wRLS alike.
+// their scratch: a frame's worth, for SVGF and wRLS alike. They also keep
+// the frame's first hits for the next frame's reprojection.
 template <class B>
 class EdgeGuides {
  public:
@@ -24,9 +25,9 @@ class EdgeGuides {
     guides_.Resize(n);
     row_hits_.Resize(n);
   }
-  const EdgeGuide* Compute(const DenoiseFrame& frame) {
+  const EdgeGuide* Compute(const DenoiseFrame& frame, Vec4f* kept_first_hit) {
     ComputeEdgeGuides<B>(frame.first_hit, frame.camera.eye, frame.width, frame.height, row_hits_.data(),
-                         guides_.data());
+                         guides_.data(), kept_first_hit);
     return guides_.data();
   }
 
@@ -69,7 +70,7 @@ class DenoiserBase : public Denoiser {
     rv.still = SameScene(frame);
     Run(frame, input, rv, output_.data());
     if (settings_.demodulate) B::ForEachPixel(width_, height_, RemodulatePass{frame.albedo, output_.data(), width_});
-    prev_first_hit_.CopyFrom(frame.first_hit, pixels());
+    if (!KeepsFirstHits()) prev_first_hit_.CopyFrom(frame.first_hit, pixels());
     prev_camera_ = frame.camera;
     has_history_ = true;
     timer_.Stop();
@@ -84,6 +85,10 @@ class DenoiserBase : public Denoiser {
   virtual void Run(const DenoiseFrame& frame, const Vec3f* input, const ReprojectionView& rv, Vec3f* output) = 0;
   virtual void Allocate(std::size_t pixels) = 0;
   virtual void ResetHistory() {}
+  // True for a method that copies each frame's first hits to kept_first_hit()
+  // itself, once it is done with the previous ones.
+  virtual bool KeepsFirstHits() const { return false; }
+  Vec4f* kept_first_hit() { return prev_first_hit_.data(); }
 
   std::size_t pixels() const { return std::size_t(width_) * height_; }
   // True when nothing but the samples changed since the last frame.
@@ -238,7 +243,7 @@ class Svgf final : public DenoiserBase<B> {
     std::swap(history_, prev_history_);
     B::ForEachPixel(w, h, SvgfTemporalPass{rv, input, prev_history_.data(), history_.data(), s});
     B::ForEachPixel(w, h, SvgfVariancePass{history_.data(), frame.first_hit, a_.data(), w, h});
-    const EdgeGuide* guides = guides_.Compute(frame);
+    const EdgeGuide* guides = guides_.Compute(frame, this->kept_first_hit());
     for (int level = 0; level < s.iterations; ++level) {
       RunAtrousLevel<B>(AtrousPass{a_.data(), b_.data(), guides, w, h,
                                    1 << level, s.sigma_luminance, s.sigma_depth});
@@ -254,6 +259,7 @@ class Svgf final : public DenoiserBase<B> {
     b_.Resize(n);
     guides_.Resize(n);
   }
+  bool KeepsFirstHits() const override { return true; }
 
  private:
   typename DenoiserBase<B>::template Buffer<SvgfHistory> history_, prev_history_;
@@ -276,22 +282,27 @@ class Wrls final : public DenoiserBase<B> {
     const int w = this->width_, h = this->height_;
     still_frames_ = rv.still ? still_frames_ + 1 : 0;
     std::swap(model_, prev_model_);
-    // The previous feature, reprojected: the temporal pass then overwrites it.
-    B::ForEachPixel(w, h, ReprojectHistoryPass{rv, feature_.data(), b_.data()});
-    B::ForEachPixel(w, h, WrlsTemporalPass{rv, input, b_.data(), prev_model_.data(), feature_.data(), model_.data(),
-                                           a_.data(), s, still_frames_, FeatureRatioRows(input, rv)});
-    const EdgeGuide* guides = guides_.Compute(frame);
+    // The previous feature and output, reprojected: the temporal pass and the
+    // stabiliser then overwrite them.
+    B::ForEachPixel(w, h, ReprojectHistoriesPass{rv, feature_.data(), stable_.data(), b_.data(), stable_history_.data(),
+                                                 previous_pixel_.data()});
+    B::ForEachPixel(w, h, WrlsTemporalPass{rv, input, b_.data(), previous_pixel_.data(), prev_model_.data(),
+                                           feature_.data(), model_.data(), a_.data(), s, still_frames_,
+                                           FeatureRatioRows(input, rv)});
+    const EdgeGuide* guides = guides_.Compute(frame, this->kept_first_hit());
     for (int level = 0; level < s.atrous_iterations; ++level) {
       RunAtrousLevel<B>(AtrousPass{a_.data(), b_.data(), guides, w, h,
                                    1 << level, s.atrous_sigma_luminance, s.atrous_sigma_depth});
       std::swap(a_, b_);
     }
-    Stabilize(rv, output);
+    Stabilize(output);
   }
 
   void Allocate(std::size_t n) override {
     stable_.Resize(n);
+    stable_history_.Resize(n);
     feature_.Resize(n);
+    previous_pixel_.Resize(n);
     model_.Resize(n);
     prev_model_.Resize(n);
     a_.Resize(n);
@@ -300,6 +311,7 @@ class Wrls final : public DenoiserBase<B> {
     guides_.Resize(n);
   }
   void ResetHistory() override { still_frames_ = 0; }
+  bool KeepsFirstHits() const override { return true; }
 
  private:
   // The row sums the temporal pass rescales the feature's history (in b_)
@@ -315,26 +327,26 @@ class Wrls final : public DenoiserBase<B> {
 
   // The estimate in a_ blended with the previous output: recentred while
   // the view moves, accumulated while it holds still.
-  void Stabilize(const ReprojectionView& rv, Vec3f* output) {
+  void Stabilize(Vec3f* output) {
     const WrlsSettings& s = this->settings_.wrls;
     const int w = this->width_, h = this->height_;
     const int still = MinInt(still_frames_, s.stabilize_still_frames);
     const float weight = fmaxf(s.stabilize_history, 1.0f - 1.0f / float(still + 1));
-    // The previous output, reprojected: the stabiliser then overwrites it.
-    B::ForEachPixel(w, h, ReprojectHistoryPass{rv, stable_.data(), b_.data()});
     const Vec4f* offsets = nullptr;
     if (still == 0) {
-      B::RowWindowSums(w, h, s.stabilize_recenter, kWindowTapStride, HistoryOffsetTap{a_.data(), b_.data(), w},
-                       offset_rows_.data());
+      B::RowWindowSums(w, h, s.stabilize_recenter, kWindowTapStride,
+                       HistoryOffsetTap{a_.data(), stable_history_.data(), w}, offset_rows_.data());
       offsets = offset_rows_.data();
     }
-    B::ForEachPixel(w, h, WrlsStabilizePass{a_.data(), b_.data(), offsets, output, stable_.data(), w, h, weight,
-                                            s.stabilize_clamp, s.stabilize_recenter});
+    B::ForEachPixel(w, h, WrlsStabilizePass{a_.data(), stable_history_.data(), offsets, output, stable_.data(), w, h,
+                                            weight, s.stabilize_clamp, s.stabilize_recenter});
   }
 
   // One frame each: read (reprojected) before they are written.
   typename DenoiserBase<B>::template Buffer<Vec3f> feature_;
   typename DenoiserBase<B>::template Buffer<Vec3f> stable_;  // the stabilised output
+  typename DenoiserBase<B>::template Buffer<Vec4f> stable_history_;  // the previous one, reprojected
+  typename DenoiserBase<B>::template Buffer<int> previous_pixel_;  // ReprojectHistoriesPass
   // Two frames: the temporal pass reads other pixels' previous models.
   typename DenoiserBase<B>::template Buffer<WrlsModel> model_, prev_model_;
   typename DenoiserBase<B>::template Buffer<Vec4f> a_, b_;  // prediction and its variance, per a-trous level

@@ -178,19 +178,29 @@ CINEVOL_HD void AdaptForgetting(WrlsModel& m, float luminance_error, float w, co
   m.drift = 0.0f;
 }
 
-// A previous frame's image (the feature or the stabilised output),
-// reprojected to this frame: rgb, and w = 1 where it could be (0 on
-// disocclusion).
-struct ReprojectHistoryPass {
+// wRLS's two histories, the previous frame's feature and its stabilised
+// output, reprojected to this frame in one pass (one reprojection a pixel):
+// rgb, and w = 1 where it could be (0 on disocclusion). It also keeps each
+// pixel's nearest previous pixel (-1: none), whose model the temporal pass
+// continues.
+struct ReprojectHistoriesPass {
   ReprojectionView rv;
-  const Vec3f* previous;
-  Vec4f* history;
+  const Vec3f* previous_feature;
+  const Vec3f* previous_output;
+  Vec4f* feature_history;
+  Vec4f* output_history;
+  int* previous_pixel;
 
   CINEVOL_HD void operator()(int x, int y) const {
+    const int i = rv.Index(x, y);
     const Reprojection r = Reproject(rv, x, y);
-    Vec3f h;
-    const bool ok = r.valid && SampleHistory(rv, previous, r, rv.first_hit[rv.Index(x, y)], h) && IsFinite(h);
-    history[rv.Index(x, y)] = ok ? ToVec4(h, 1.0f) : Vec4f{};
+    const Vec4f hit = rv.first_hit[i];
+    Vec3f f, o;
+    const bool has_f = r.valid && SampleHistory(rv, previous_feature, r, hit, f) && IsFinite(f);
+    const bool has_o = r.valid && SampleHistory(rv, previous_output, r, hit, o) && IsFinite(o);
+    feature_history[i] = has_f ? ToVec4(f, 1.0f) : Vec4f{};
+    output_history[i] = has_o ? ToVec4(o, 1.0f) : Vec4f{};
+    previous_pixel[i] = r.valid ? rv.Index(r.nx, r.ny) : -1;
   }
 };
 
@@ -204,7 +214,7 @@ struct ReprojectHistoryPass {
 // columns, so the window costs 2 (2 recenter + 1) reads.
 struct HistoryOffsetTap {
   const Vec4f* current;  // this frame's estimate
-  const Vec4f* history;  // ReprojectHistoryPass
+  const Vec4f* history;  // ReprojectHistoriesPass's output history
   int width;
 
   CINEVOL_HD Vec4f operator()(int x, int y) const {
@@ -222,7 +232,7 @@ struct HistoryOffsetTap {
 // firefly_clamp times its history, so a firefly does not scale the window.
 struct FeatureRatioTap {
   const Vec3f* input;
-  const Vec4f* history;  // ReprojectHistoryPass over the previous feature
+  const Vec4f* history;  // ReprojectHistoriesPass's feature history
   int width;
   float firefly_clamp;
 
@@ -270,7 +280,8 @@ CINEVOL_HD Vec4f Prediction(const WrlsModel& m, Vec3f z, float young_variance) {
 struct WrlsTemporalPass {
   ReprojectionView rv;
   const Vec3f* input;          // this frame's noisy radiance
-  const Vec4f* prev_feature;   // z of the previous frame, reprojected (ReprojectHistoryPass)
+  const Vec4f* prev_feature;   // z of the previous frame, reprojected (ReprojectHistoriesPass)
+  const int* previous_pixel;   // ReprojectHistoriesPass
   const WrlsModel* prev_model;
   Vec3f* feature;              // z of this frame
   WrlsModel* model;
@@ -279,17 +290,50 @@ struct WrlsTemporalPass {
   int still_frames;            // frames the view has stayed still (0: it moved or changed)
   const Vec4f* feature_ratio_rows;  // row sums of FeatureRatioTap; null: no rescaling
 
+  // The finite inputs of the 3x3 window: their colour box, and the sum and
+  // count of the centre's neighbours' brightest channel.
+  struct Neighbourhood {
+    Vec3f lo{3.4e38f, 3.4e38f, 3.4e38f}, hi{-3.4e38f, -3.4e38f, -3.4e38f};
+    float level_sum = 0.0f;
+    int count = 0;
+  };
+
+  // Unrolled; kChecked tests each tap against the frame's edges (a pixel on
+  // them), which a pixel inside skips.
+  template <bool kChecked>
+  CINEVOL_HD Neighbourhood Neighbours(int x, int y) const {
+    Neighbourhood n;
+    CINEVOL_UNROLL
+    for (int dy = -1; dy <= 1; ++dy) {
+      CINEVOL_UNROLL
+      for (int dx = -1; dx <= 1; ++dx) {
+        if (kChecked && !rv.InBounds(x + dx, y + dy)) continue;
+        const Vec3f c = input[rv.Index(x + dx, y + dy)];
+        if (!IsFinite(c)) continue;
+        n.lo = Min(n.lo, c);
+        n.hi = Max(n.hi, c);
+        if (dx != 0 || dy != 0) {
+          n.level_sum += MaxComponent(c);
+          ++n.count;
+        }
+      }
+    }
+    return n;
+  }
+
   // Variance of the input's luminance over the 7x7 window (SVGF's first
   // estimate too): a 3x3 window at 2 spp misjudges the noise by 2x either way,
   // and the first frames' a-trous levels stop on it.
+  // The window is clamped to the frame once, not tested tap by tap, and a tap
+  // counts where its luminance is finite (so are its channels then).
   CINEVOL_HD float LocalLuminanceVariance(int x, int y) const {
+    const int x0 = MaxInt(x - 3, 0), x1 = MinInt(x + 3, rv.width - 1);
+    const int y0 = MaxInt(y - 3, 0), y1 = MinInt(y + 3, rv.height - 1);
     float sum = 0.0f, sum_sq = 0.0f, n = 0.0f;
-    for (int dy = -3; dy <= 3; ++dy) {
-      for (int dx = -3; dx <= 3; ++dx) {
-        if (!rv.InBounds(x + dx, y + dy)) continue;
-        const Vec3f c = input[rv.Index(x + dx, y + dy)];
-        if (!IsFinite(c)) continue;
-        const float l = Luminance(c);
+    for (int ny = y0; ny <= y1; ++ny) {
+      for (int nx = x0; nx <= x1; ++nx) {
+        const float l = Luminance(input[rv.Index(nx, ny)]);
+        if (!isfinite(l)) continue;
         sum += l;
         sum_sq += l * l;
         n += 1.0f;
@@ -322,24 +366,13 @@ struct WrlsTemporalPass {
     // The 3x3 neighbourhood: its colour box rectifies the history; the mean
     // level of the centre's neighbours (with the history) caps what a firefly
     // can add to z.
-    Vec3f lo{3.4e38f, 3.4e38f, 3.4e38f}, hi{-3.4e38f, -3.4e38f, -3.4e38f};
-    float neighbour_sum = 0.0f;
-    int neighbours = 0;
-    for (int dy = -1; dy <= 1; ++dy) {
-      for (int dx = -1; dx <= 1; ++dx) {
-        if (!rv.InBounds(x + dx, y + dy)) continue;
-        const Vec3f c = input[rv.Index(x + dx, y + dy)];
-        if (!IsFinite(c)) continue;
-        lo = Min(lo, c);
-        hi = Max(hi, c);
-        if (dx != 0 || dy != 0) {
-          neighbour_sum += MaxComponent(c);
-          ++neighbours;
-        }
-      }
-    }
-    const Reprojection r = Reproject(rv, x, y);
-    const WrlsModel* previous = r.valid ? &prev_model[rv.Index(r.nx, r.ny)] : nullptr;
+    const bool inside = x > 0 && y > 0 && x + 1 < rv.width && y + 1 < rv.height;
+    const Neighbourhood around = inside ? Neighbours<false>(x, y) : Neighbours<true>(x, y);
+    const Vec3f lo = around.lo, hi = around.hi;
+    const float neighbour_sum = around.level_sum;
+    const int neighbours = around.count;
+    const int p = previous_pixel[i];
+    const WrlsModel* previous = p >= 0 ? &prev_model[p] : nullptr;
     const bool has_history = previous && prev_feature[i].w != 0.0f;
     Vec3f history = Xyz(prev_feature[i]);
     // A still view's history is exact: it is not rectified, and it weighs as
@@ -400,7 +433,7 @@ struct WrlsTemporalPass {
 // a change of shading passes whole and noise keeps being smoothed.
 struct WrlsStabilizePass {
   const Vec4f* current;      // this frame's estimate: colour, predicted variance
-  const Vec4f* history;      // ReprojectHistoryPass
+  const Vec4f* history;      // ReprojectHistoriesPass's output history
   const Vec4f* offset_rows;  // row sums of HistoryOffsetTap; null: not recentred (a still view)
   Vec3f* output;             // the denoiser's output
   Vec3f* kept;               // the same, kept as the next frame's history

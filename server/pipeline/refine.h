@@ -128,10 +128,10 @@ struct MeanFilterPass {
     const int i = y * width + x;
     const Vec4f c = in[i];
     const float inv_l = 1.0f / (fmaxf(Luminance(Xyz(c)), 0.0f) + dark);
-    out[i] = AtrousTaps(in, x, y, width, height, step, [&](int, Vec4f q) {
+    out[i] = AtrousTaps(in, x, y, width, height, step, [&](int, Vec4f q, float log2_kernel) {
       const float difference = fmaxf(fabsf(q.x - c.x), fmaxf(fabsf(q.y - c.y), fabsf(q.z - c.z))) * inv_l;
       const float noise = kMeanFilterSigma * sqrtf(c.w + q.w) + 1e-7f;
-      return expf(-difference / noise);
+      return FastExp2(log2_kernel - difference / noise * 1.44269504088896341f);  // kernel * e^(-difference / noise)
     });
   }
 };
