@@ -335,6 +335,9 @@ void ComputeEdgeGuides(const Vec4f* first_hit, Vec3f eye, int width, int height,
 // taps are unrolled: away from the frame's edges without bounds checks, and
 // for the levels' own steps (1 to 16) with the offsets known when compiled,
 // so a tap's loads need no address arithmetic (kStep 0: `step` at run time).
+// log2(e): the stops' exponentials are powers of 2, e^x = 2^(x log2(e)).
+inline constexpr float kLog2e = 1.44269504088896341f;
+
 template <int kStep, bool kChecked, class EdgeStop>
 CINEVOL_HD Vec4f AtrousTapsUnrolled(const Vec4f* in, int x, int y, int width, int height, int step,
                                     const EdgeStop& stop) {
@@ -393,7 +396,6 @@ struct AtrousPass {
   // A full silhouette (coverage 0 against 1) weighs e^-6; the +-0.1 noise of
   // coverage in transparent tissue about e^-0.6.
   static constexpr float kCoverageStop = 6.0f;
-  static constexpr float kLog2e = 1.44269504088896341f;
 
   CINEVOL_HD void operator()(int x, int y) const {
     const int i = y * width + x;

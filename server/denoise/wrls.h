@@ -368,9 +368,6 @@ struct WrlsTemporalPass {
     // can add to z.
     const bool inside = x > 0 && y > 0 && x + 1 < rv.width && y + 1 < rv.height;
     const Neighbourhood around = inside ? Neighbours<false>(x, y) : Neighbours<true>(x, y);
-    const Vec3f lo = around.lo, hi = around.hi;
-    const float neighbour_sum = around.level_sum;
-    const int neighbours = around.count;
     const int p = previous_pixel[i];
     const WrlsModel* previous = p >= 0 ? &prev_model[p] : nullptr;
     const bool has_history = previous && prev_feature[i].w != 0.0f;
@@ -379,9 +376,9 @@ struct WrlsTemporalPass {
     // many samples as it holds, so z becomes the running mean.
     const bool still = still_frames > 0 && has_history;
     if (has_history && !still && feature_ratio_rows) history = Rescaled(history, x, y, *previous);
-    if (has_history && !still && lo.x <= hi.x) history = Min(Max(history, lo), hi);
+    if (has_history && !still && around.lo.x <= around.hi.x) history = Min(Max(history, around.lo), around.hi);
 
-    const float level = fmaxf(neighbours > 0 ? neighbour_sum / float(neighbours) : 0.0f,
+    const float level = fmaxf(around.count > 0 ? around.level_sum / float(around.count) : 0.0f,
                               has_history ? MaxComponent(history) : 0.0f);
     const float cap = s.firefly_clamp * level;
     Vec3f entering = sample_ok ? Min(Max(sample, Vec3f{}), Vec3f{cap, cap, cap}) : Vec3f{};

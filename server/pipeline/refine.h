@@ -131,7 +131,7 @@ struct MeanFilterPass {
     out[i] = AtrousTaps(in, x, y, width, height, step, [&](int, Vec4f q, float log2_kernel) {
       const float difference = fmaxf(fabsf(q.x - c.x), fmaxf(fabsf(q.y - c.y), fabsf(q.z - c.z))) * inv_l;
       const float noise = kMeanFilterSigma * sqrtf(c.w + q.w) + 1e-7f;
-      return FastExp2(log2_kernel - difference / noise * 1.44269504088896341f);  // kernel * e^(-difference / noise)
+      return FastExp2(log2_kernel - difference / noise * kLog2e);  // kernel * e^(-difference / noise)
     });
   }
 };
