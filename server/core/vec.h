@@ -60,8 +60,8 @@ CINEVOL_HD float MaxComponent(Vec3f a) { return fmaxf(a.x, fmaxf(a.y, a.z)); }
 CINEVOL_HD float MinComponent(Vec3f a) { return fminf(a.x, fminf(a.y, a.z)); }
 CINEVOL_HD Vec3f Lerp(Vec3f a, Vec3f b, float t) { return a + (b - a) * t; }
 CINEVOL_HD float Luminance(Vec3f rgb) { return 0.2126f * rgb.x + 0.7152f * rgb.y + 0.0722f * rgb.z; }
-// & rather than &&: three comparisons and no branches on the GPU (on bools:
-// the device's isfinite may return any non-zero int for true).
+// & rather than &&: no short-circuit, so the three tests need no branch (on
+// bools: the device's isfinite may return any non-zero int for true).
 CINEVOL_HD bool IsFinite(Vec3f a) {
   const bool x = isfinite(a.x), y = isfinite(a.y), z = isfinite(a.z);
   return x & y & z;
