@@ -8,8 +8,37 @@
 
 namespace cinevol {
 
+// The backend's passes overlap their launches (programmatic dependent
+// launch, sm_90): a pass's blocks are scheduled while the previous pass's
+// last blocks still run, and wait here, at their start, until that pass has
+// finished and its writes are visible. Each pass lets the next be scheduled
+// once all its own blocks have started. A denoiser's frame is a dozen short
+// passes, each of which otherwise starts only after the last one drained.
+// Waiting for the previous pass whole keeps stream order: it waited too.
+__device__ __forceinline__ void OverlapWithAdjacentPasses() {
+  asm volatile("griddepcontrol.launch_dependents;" ::: "memory");
+  asm volatile("griddepcontrol.wait;" ::: "memory");
+}
+
+// Launches a backend pass on the calling thread's default stream, allowed
+// to overlap the pass before it (OverlapWithAdjacentPasses).
+template <class... Params, class... Args>
+void LaunchPass(void (*kernel)(Params...), dim3 grid, dim3 block, Args... args) {
+  cudaLaunchAttribute overlap{};
+  overlap.id = cudaLaunchAttributeProgrammaticStreamSerialization;
+  overlap.val.programmaticStreamSerializationAllowed = 1;
+  cudaLaunchConfig_t config{};
+  config.gridDim = grid;
+  config.blockDim = block;
+  config.stream = cudaStreamPerThread;
+  config.attrs = &overlap;
+  config.numAttrs = 1;
+  CINEVOL_CUDA_CHECK(cudaLaunchKernelEx(&config, kernel, args...));
+}
+
 template <class F>
 __global__ void ForEachPixelKernel(const F f, int width, int height) {
+  OverlapWithAdjacentPasses();
   const int x = blockIdx.x * blockDim.x + threadIdx.x;
   const int y = blockIdx.y * blockDim.y + threadIdx.y;
   if (x < width && y < height) f(x, y);
@@ -23,6 +52,7 @@ template <class Tap, class T>
 __global__ void RowWindowSumsKernel(const Tap tap, T* out, int width, int radius, int stride) {
   // Raw storage: a __shared__ array may not have a type with initialisers.
   __shared__ alignas(alignof(T)) unsigned char storage[(kRowSegment + 2 * kMaxRowReach) * sizeof(T)];
+  OverlapWithAdjacentPasses();
   T* taps = reinterpret_cast<T*>(storage);
   const int y = blockIdx.y, first = blockIdx.x * kRowSegment, reach = radius * stride;
   for (int t = threadIdx.x; t < kRowSegment + 2 * reach; t += kRowSegment) {
@@ -50,8 +80,7 @@ struct CudaBackend {
     // denoisers' passes (H200), whose taps mostly run along rows.
     const dim3 block(32, 4);
     const dim3 grid((width + block.x - 1) / block.x, (height + block.y - 1) / block.y);
-    ForEachPixelKernel<<<grid, block, 0, cudaStreamPerThread>>>(f, width, height);
-    CINEVOL_CUDA_CHECK_LAUNCH();
+    LaunchPass(ForEachPixelKernel<F>, grid, block, f, width, height);
   }
 
   // As CpuBackend::RowWindowSums (the same sums, in the same order).
@@ -59,8 +88,7 @@ struct CudaBackend {
   static void RowWindowSums(int width, int height, int radius, int stride, const Tap& tap, T* out) {
     CheckRowReach(radius, stride);
     const dim3 grid((width + kRowSegment - 1) / kRowSegment, height);
-    RowWindowSumsKernel<<<grid, kRowSegment, 0, cudaStreamPerThread>>>(tap, out, width, radius, stride);
-    CINEVOL_CUDA_CHECK_LAUNCH();
+    LaunchPass(RowWindowSumsKernel<Tap, T>, grid, dim3(kRowSegment), tap, out, width, radius, stride);
   }
 
   // CUDA-event timing of a sequence of passes.

@@ -349,7 +349,11 @@ TEST(Hardening, QuietCallsAndSessionsExpire) {
 
 TEST(Hardening, AnExpensiveFrameStopsWhenItsSessionCloses) {
   ScratchDir scratch;
-  ServerProcess server(scratch.path(), {"--max-bounces", "256", "--max-frame-samples", "100000000"});
+  // On the CPU backend: it stops a frame within a pixel; a CUDA frame is
+  // bounded by the per-frame sample limit instead (FrameRequest::cancel), and
+  // on a GPU this one takes well under a second.
+  ServerProcess server(scratch.path(),
+                       {"--backend", "cpu", "--max-bounces", "256", "--max-frame-samples", "100000000"});
   ASSERT_TRUE(server.running()) << server.Log();
   Client client = server.Connect();
   // A white, dense, purely scattering box: every path takes all its 256 bounces.
