@@ -74,7 +74,7 @@ struct TemporalFeaturePass {
     const Vec3f c = IsFinite(input[i]) ? input[i] : Vec3f{};
     const Reprojection r = Reproject(rv, x, y);
     Vec3f history;
-    feature[i] = r.valid && SampleHistory(rv, prev_feature, r, rv.first_hit[i], history)
+    feature[i] = r.valid && HistoryTaps(rv, r, rv.first_hit[i]).Sample(prev_feature, history)
                      ? history * alpha + c * (1.0f - alpha)
                      : c;
   }
@@ -262,12 +262,14 @@ struct SvgfVariancePass {
 
 // What the a-trous levels stop at, once per frame (five levels read it):
 // each pixel's depth, the distance from the eye to its nearest first hit
-// (kEscapedDepth where every sample escaped), and its coverage, the share of
+// (NaN where every sample escaped: kEscapedDepth), and its coverage, the share of
 // the 5x5 window's pixels whose samples hit the volume. In semi-transparent
 // tissue whether a pixel's few samples collide is itself random, so this
 // share, not the pixel's own flag, tells a real silhouette (a jump from 0 to
 // 1) from transparency (a noisy middle).
-inline constexpr float kEscapedDepth = 3.4e38f;
+// NaN, so that a depth difference with an escaped pixel is NaN, which an
+// a-trous tap's fmaxf drops (AtrousPass): no test in a tap.
+inline constexpr float kEscapedDepth = __builtin_nanf("");
 
 // Both in one, since every a-trous tap reads both: one 8-byte load.
 struct alignas(8) EdgeGuide {
@@ -391,7 +393,7 @@ struct AtrousPass {
   int width, height, step;
   float sigma_luminance, sigma_depth;
 
-  CINEVOL_HD static bool Hit(float depth) { return depth < kEscapedDepth; }
+  CINEVOL_HD static bool Hit(float depth) { return !std::isnan(depth); }
 
   // A full silhouette (coverage 0 against 1) weighs e^-6; the +-0.1 noise of
   // coverage in transparent tissue about e^-0.6.
@@ -412,8 +414,9 @@ struct AtrousPass {
     // The stops in powers of 2 (the GPU's native exponential): e^-(a + b +
     // c) = 2^-(a + b + c) log2(e); the centre tap weighs its kernel weight
     // alone (its differences are 0), so the sum of weights is never 0. A
-    // centre that escaped compares no depths (scale 0); a tap that escaped is
-    // not compared either.
+    // pixel that escaped compares no depths: its depth is NaN (kEscapedDepth),
+    // and so is the depth term, which fmaxf drops (for two hits the term is
+    // >= 0, so fmaxf keeps it).
     const float l = Luminance(Xyz(in[i]));
     const float l_scale = kLog2e / (sigma_luminance * sqrtf(fmaxf(variance, 0.0f)) + 1e-10f);
     const EdgeGuide centre = guides[i];
@@ -424,9 +427,9 @@ struct AtrousPass {
     // the centre's difference is exactly 0 whatever l_scale.
     out[i] = AtrousTaps(in, x, y, width, height, step, [&](int k, Vec4f q, float log2_kernel) {
       const EdgeGuide g = guides[k];
-      const float dz = Hit(g.depth) ? g.depth - z : 0.0f;
       const float e = fmaf(fabsf(Luminance(Xyz(q)) - l), l_scale, -log2_kernel);
-      return FastExp2(-fmaf(fabsf(g.coverage - centre.coverage), kCoverageStop * kLog2e, fmaf(fabsf(dz), z_scale, e)));
+      const float ez = fmaxf(fmaf(fabsf(g.depth - z), z_scale, e), e);
+      return FastExp2(-fmaf(fabsf(g.coverage - centre.coverage), kCoverageStop * kLog2e, ez));
     });
   }
 };

@@ -77,32 +77,46 @@ CINEVOL_HD Reprojection Reproject(const ReprojectionView& v, int x, int y) {
   return r;
 }
 
-// Bilinear fetch of a previous-frame buffer at r's continuous position, over
-// the taps that saw the same kind of thing as `hit`. False when none did.
-template <class T>
-CINEVOL_HD bool SampleHistory(const ReprojectionView& v, const T* history, const Reprojection& r, const Vec4f& hit,
-                              T& out) {
-  if (v.still) {
-    out = history[v.Index(r.nx, r.ny)];
-    return true;
-  }
-  const int x0 = static_cast<int>(floorf(r.x)), y0 = static_cast<int>(floorf(r.y));
-  const float fx = r.x - float(x0), fy = r.y - float(y0);
-  T sum{};
-  float weight = 0.0f;
-  for (int dy = 0; dy <= 1; ++dy) {
-    for (int dx = 0; dx <= 1; ++dx) {
-      const int sx = x0 + dx, sy = y0 + dy;
+// The bilinear taps of a valid reprojection r: the four previous pixels
+// around its continuous position, each weighed where it saw the same kind of
+// thing as `hit` (0 elsewhere; a still view: the pixel itself). Histories
+// read at one position share them (Sample). The taps are unrolled, so they
+// stay in registers on the GPU.
+struct HistoryTaps {
+  int index[4] = {};
+  float weight[4] = {};
+  float total = 0.0f;
+
+  CINEVOL_HD HistoryTaps(const ReprojectionView& v, const Reprojection& r, const Vec4f& hit) {
+    if (v.still) {
+      index[0] = v.Index(r.nx, r.ny);
+      weight[0] = total = 1.0f;
+      return;
+    }
+    const int x0 = static_cast<int>(floorf(r.x)), y0 = static_cast<int>(floorf(r.y));
+    const float fx = r.x - float(x0), fy = r.y - float(y0);
+    CINEVOL_UNROLL
+    for (int k = 0; k < 4; ++k) {
+      const int dx = k & 1, dy = k >> 1, sx = x0 + dx, sy = y0 + dy;
       if (!v.InBounds(sx, sy) || Escaped(v.prev_first_hit[v.Index(sx, sy)]) != Escaped(hit)) continue;
-      const float w = (dx ? fx : 1.0f - fx) * (dy ? fy : 1.0f - fy);
-      if (w <= 0.0f) continue;
-      sum = sum + history[v.Index(sx, sy)] * w;
-      weight += w;
+      index[k] = v.Index(sx, sy);
+      weight[k] = fmaxf((dx ? fx : 1.0f - fx) * (dy ? fy : 1.0f - fy), 0.0f);
+      total += weight[k];
     }
   }
-  if (weight <= 0.0f) return false;
-  out = sum * (1.0f / weight);
-  return true;
-}
+
+  // The history at the position: false where no tap saw the same kind of thing.
+  template <class T>
+  CINEVOL_HD bool Sample(const T* history, T& out) const {
+    if (!(total > 0.0f)) return false;
+    T sum{};
+    CINEVOL_UNROLL
+    for (int k = 0; k < 4; ++k) {
+      if (weight[k] > 0.0f) sum = sum + history[index[k]] * weight[k];
+    }
+    out = sum * (1.0f / total);
+    return true;
+  }
+};
 
 }  // namespace cinevol

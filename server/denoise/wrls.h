@@ -196,8 +196,12 @@ struct ReprojectHistoriesPass {
     const Reprojection r = Reproject(rv, x, y);
     const Vec4f hit = rv.first_hit[i];
     Vec3f f, o;
-    const bool has_f = r.valid && SampleHistory(rv, previous_feature, r, hit, f) && IsFinite(f);
-    const bool has_o = r.valid && SampleHistory(rv, previous_output, r, hit, o) && IsFinite(o);
+    bool has_f = false, has_o = false;
+    if (r.valid) {
+      const HistoryTaps taps(rv, r, hit);
+      has_f = taps.Sample(previous_feature, f) && IsFinite(f);
+      has_o = taps.Sample(previous_output, o) && IsFinite(o);
+    }
     feature_history[i] = has_f ? ToVec4(f, 1.0f) : Vec4f{};
     output_history[i] = has_o ? ToVec4(o, 1.0f) : Vec4f{};
     previous_pixel[i] = r.valid ? rv.Index(r.nx, r.ny) : -1;
