@@ -262,13 +262,13 @@ struct SvgfVariancePass {
 
 // What the a-trous levels stop at, once per frame (five levels read it):
 // each pixel's depth, the distance from the eye to its nearest first hit
-// (NaN where every sample escaped: kEscapedDepth), and its coverage, the share of
+// (kEscapedDepth where every sample escaped), and its coverage, the share of
 // the 5x5 window's pixels whose samples hit the volume. In semi-transparent
 // tissue whether a pixel's few samples collide is itself random, so this
 // share, not the pixel's own flag, tells a real silhouette (a jump from 0 to
 // 1) from transparency (a noisy middle).
-// NaN, so that a depth difference with an escaped pixel is NaN, which an
-// a-trous tap's fmaxf drops (AtrousPass): no test in a tap.
+// kEscapedDepth is NaN: a depth difference with an escaped pixel is then NaN,
+// which an a-trous tap's fmaxf drops (AtrousPass), with no test in the tap.
 inline constexpr float kEscapedDepth = __builtin_nanf("");
 
 // Both in one, since every a-trous tap reads both: one 8-byte load.
