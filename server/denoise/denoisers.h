@@ -348,7 +348,7 @@ class Wrls final : public DenoiserBase<B> {
   typename DenoiserBase<B>::template Buffer<Vec4f> stable_history_;  // the previous one, reprojected
   typename DenoiserBase<B>::template Buffer<int> previous_pixel_;  // ReprojectHistoriesPass
   // Two frames: the temporal pass reads other pixels' previous models.
-  typename DenoiserBase<B>::template Buffer<WrlsModel> model_, prev_model_;
+  typename DenoiserBase<B>::template Buffer<StoredWrlsModel> model_, prev_model_;
   typename DenoiserBase<B>::template Buffer<Vec4f> a_, b_;  // prediction and its variance, per a-trous level
   typename DenoiserBase<B>::template Buffer<Vec4f> offset_rows_;  // row sums of a recentering or rescaling window
   EdgeGuides<B> guides_;

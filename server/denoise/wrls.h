@@ -24,6 +24,9 @@
 //   a non-positive-definite P or a coefficient beyond max_coefficient.
 #pragma once
 
+#include <cstdint>
+#include <cstring>
+
 #include "core/sampling.h"
 #include "denoise/denoiser.h"
 #include "denoise/reprojection.h"
@@ -50,6 +53,91 @@ struct alignas(16) WrlsModel {
 };
 
 inline constexpr float kWrlsMinScale = 1e-20f;
+
+// IEEE half precision (round to nearest, ties to even), host and device:
+// the GPU's conversion instructions, and the same rounding in software.
+CINEVOL_HD std::uint16_t ToHalf(float f) {
+#ifdef __CUDA_ARCH__
+  std::uint16_t h;
+  asm("cvt.rn.f16.f32 %0, %1;" : "=h"(h) : "f"(f));
+  return h;
+#else
+  std::uint32_t x;
+  std::memcpy(&x, &f, sizeof x);
+  const std::uint32_t sign = (x >> 16) & 0x8000u;
+  x &= 0x7fffffffu;
+  if (x >= 0x7f800000u) return std::uint16_t(sign | (x > 0x7f800000u ? 0x7e00u : 0x7c00u));  // NaN, infinity
+  if (x >= 0x477ff000u) return std::uint16_t(sign | 0x7c00u);  // rounds to 65520 or more: infinity
+  std::uint32_t h, rest, half_step;
+  if (x >= 0x38800000u) {  // normal
+    h = (x - 0x38000000u) >> 13;
+    rest = x & 0x1fffu;
+    half_step = 0x1000u;
+  } else {  // a subnormal half (or 0): the significand shifted to units of 2^-24
+    if (x < 0x33000000u) return std::uint16_t(sign);
+    const std::uint32_t significand = (x & 0x7fffffu) | 0x800000u, shift = 126u - (x >> 23);
+    h = significand >> shift;
+    rest = significand & ((1u << shift) - 1u);
+    half_step = 1u << (shift - 1u);
+  }
+  h += rest > half_step || (rest == half_step && (h & 1u));
+  return std::uint16_t(sign | h);
+#endif
+}
+
+CINEVOL_HD float FromHalf(std::uint16_t h) {
+#ifdef __CUDA_ARCH__
+  float f;
+  asm("cvt.f32.f16 %0, %1;" : "=f"(f) : "h"(h));
+  return f;
+#else
+  const std::uint32_t sign = std::uint32_t(h & 0x8000u) << 16, exponent = (h >> 10) & 0x1fu, mantissa = h & 0x3ffu;
+  if (exponent == 0) {  // 0 or subnormal: exact in single precision
+    const float v = float(mantissa) * 5.9604644775390625e-8f;  // 2^-24
+    return sign ? -v : v;
+  }
+  const std::uint32_t x = sign | (exponent == 31 ? 0x7f800000u | (mantissa << 13) : ((exponent + 112u) << 23) | (mantissa << 13));
+  float f;
+  std::memcpy(&f, &x, sizeof f);
+  return f;
+#endif
+}
+
+// A model as stored between frames: 64 bytes, four 16-byte accesses on the
+// GPU. beta0 and beta1 are kept in half precision (they are bounded by
+// max_coefficient, 1e4, within its range); P must stay single precision
+// (half costs 0.4-0.8 dB, docs/performance.md).
+struct alignas(16) StoredWrlsModel {
+  float scale, residual, samples, drift;
+  Vec3f p00, p01, p11;
+  std::uint16_t beta0[3], beta1[3];
+};
+static_assert(sizeof(StoredWrlsModel) == 64);
+
+CINEVOL_HD StoredWrlsModel Store(const WrlsModel& m) {
+  StoredWrlsModel s{m.scale, m.residual, m.samples, m.drift, m.p00, m.p01, m.p11, {}, {}};
+  for (int c = 0; c < 3; ++c) {
+    s.beta0[c] = ToHalf(m.beta0[c]);
+    s.beta1[c] = ToHalf(m.beta1[c]);
+  }
+  return s;
+}
+
+CINEVOL_HD WrlsModel Load(const StoredWrlsModel& s) {
+  WrlsModel m;
+  m.scale = s.scale;
+  m.residual = s.residual;
+  m.samples = s.samples;
+  m.drift = s.drift;
+  m.p00 = s.p00;
+  m.p01 = s.p01;
+  m.p11 = s.p11;
+  for (int c = 0; c < 3; ++c) {
+    m.beta0[c] = FromHalf(s.beta0[c]);
+    m.beta1[c] = FromHalf(s.beta1[c]);
+  }
+  return m;
+}
 
 CINEVOL_HD float MeanComponent(Vec3f v) { return (v.x + v.y + v.z) * (1.0f / 3.0f); }
 
@@ -286,9 +374,9 @@ struct WrlsTemporalPass {
   const Vec3f* input;          // this frame's noisy radiance
   const Vec4f* prev_feature;   // z of the previous frame, reprojected (ReprojectHistoriesPass)
   const int* previous_pixel;   // ReprojectHistoriesPass
-  const WrlsModel* prev_model;
+  const StoredWrlsModel* prev_model;
   Vec3f* feature;              // z of this frame
-  WrlsModel* model;
+  StoredWrlsModel* model;
   Vec4f* prediction;           // the model at z: rgb, w its variance
   WrlsSettings s;
   int still_frames;            // frames the view has stayed still (0: it moved or changed)
@@ -373,13 +461,13 @@ struct WrlsTemporalPass {
     const bool inside = x > 0 && y > 0 && x + 1 < rv.width && y + 1 < rv.height;
     const Neighbourhood around = inside ? Neighbours<false>(x, y) : Neighbours<true>(x, y);
     const int p = previous_pixel[i];
-    const WrlsModel* previous = p >= 0 ? &prev_model[p] : nullptr;
-    const bool has_history = previous && prev_feature[i].w != 0.0f;
+    const WrlsModel previous = p >= 0 ? Load(prev_model[p]) : WrlsModel{};
+    const bool has_history = p >= 0 && prev_feature[i].w != 0.0f;
     Vec3f history = Xyz(prev_feature[i]);
     // A still view's history is exact: it is not rectified, and it weighs as
     // many samples as it holds, so z becomes the running mean.
     const bool still = still_frames > 0 && has_history;
-    if (has_history && !still && feature_ratio_rows) history = Rescaled(history, x, y, *previous);
+    if (has_history && !still && feature_ratio_rows) history = Rescaled(history, x, y, previous);
     if (has_history && !still && around.lo.x <= around.hi.x) history = Min(Max(history, around.lo), around.hi);
 
     const float level = fmaxf(around.count > 0 ? around.level_sum / float(around.count) : 0.0f,
@@ -388,7 +476,7 @@ struct WrlsTemporalPass {
     Vec3f entering = sample_ok ? Min(Max(sample, Vec3f{}), Vec3f{cap, cap, cap}) : Vec3f{};
     if (!sample_ok && has_history) entering = history;
 
-    WrlsModel m = previous ? *previous : InitialModel(entering, s.initial_p);
+    WrlsModel m = p >= 0 ? previous : InitialModel(entering, s.initial_p);
     if (!Healthy(m, s.max_coefficient)) Refit(m, entering, s.initial_p);
     // Eq. 12, all three channels together, with the sample's share starting
     // as a running mean (1, 1/2, 1/3, ...) down to the paper's 1 - alpha, or
@@ -419,7 +507,7 @@ struct WrlsTemporalPass {
       for (int c = 0; c < 3; ++c) UpdateChannel(m, c, z[c] * inv_scale, sample[c] * inv_scale, w, s);
       if (!Healthy(m, s.max_coefficient)) Refit(m, z, s.initial_p);
     }
-    model[i] = m;
+    model[i] = Store(m);
     prediction[i] = Prediction(m, z, s.young_variance);
   }
 };

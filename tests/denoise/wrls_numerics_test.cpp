@@ -2,6 +2,9 @@
 // a zero weight, exact rescaling, adaptive forgetting, a young model's variance.
 #include <gtest/gtest.h>
 
+#include <cmath>
+#include <cstdint>
+
 #include "denoise/wrls.h"
 
 namespace cinevol {
@@ -114,6 +117,33 @@ TEST(WrlsNumerics, ASampleBelowTheFeatureWeighsAsOneAsFarAbove) {
   EXPECT_NEAR(SampleWeight({0.5f, 0.5f, 0.5f}, {1, 1, 1}, 0.75f, 1e-6f),
               SampleWeight({1.5f, 1.5f, 1.5f}, {1, 1, 1}, 0.75f, 1e-6f), 1e-6f);
   EXPECT_GT(SampleWeight({0, 0, 0}, {1, 1, 1}, 0.75f, 1e-6f), 0.1f) << "a black sample is no outlier of a dim feature";
+}
+
+// The stored model's half precision rounds as the GPU's conversion does (to
+// nearest, ties to even): every half reads back as itself, a value between
+// two neighbours goes to the nearer, a tie to the even one; beyond 65504
+// (and past 65520) it overflows to infinity; NaN stays NaN.
+TEST(WrlsNumerics, HalfPrecisionRoundsToNearestEven) {
+  for (std::uint32_t bits = 0; bits < 0x7c00u; ++bits) {  // the finite positive halves
+    const auto h = std::uint16_t(bits), next = std::uint16_t(bits + 1);
+    const float a = FromHalf(h), b = FromHalf(next);
+    ASSERT_EQ(ToHalf(a), h) << bits;
+    ASSERT_EQ(ToHalf(-a), std::uint16_t(h | 0x8000u)) << bits;
+    if (next == 0x7c00u) break;  // b is infinity
+    const float middle = 0.5f * (a + b);  // exact: a and b are 11-bit numbers
+    ASSERT_EQ(ToHalf(middle), (h & 1u) ? next : h) << bits;
+    ASSERT_EQ(ToHalf(std::nextafter(middle, 0.0f)), h) << bits;
+    ASSERT_EQ(ToHalf(std::nextafter(middle, b)), next) << bits;
+  }
+  EXPECT_EQ(ToHalf(65519.0f), 0x7bffu);
+  EXPECT_EQ(ToHalf(65520.0f), 0x7c00u);
+  EXPECT_EQ(ToHalf(3.4e38f), 0x7c00u);
+  EXPECT_EQ(ToHalf(1e-9f), 0u);
+  EXPECT_TRUE(std::isnan(FromHalf(ToHalf(std::nanf("")))));
+  const WrlsModel m = InitialModel({1, 2, 3}, 0.1f);
+  const WrlsModel back = Load(Store(m));
+  EXPECT_EQ(back.beta1[2], 1.0f);
+  EXPECT_EQ(back.p11[1], m.p11[1]);
 }
 
 }  // namespace
