@@ -45,14 +45,14 @@ std::optional<VoxelType> VoxelTypeNamed(std::string_view name) {
   return std::nullopt;
 }
 
-MemoryBlock::MemoryBlock(void* data, std::size_t bytes, Release release)
-    : data_(data), bytes_(bytes), mapped_(bytes), release_(std::move(release)) {}
+MemoryBlock::MemoryBlock(void* data, std::size_t bytes, Pages pages, Release release)
+    : data_(data), bytes_(bytes), mapped_(bytes), pages_(pages), release_(std::move(release)) {}
 
 MemoryBlock MemoryBlock::Allocate(std::size_t bytes) {
   if (bytes == 0) return {};
   void* p = mmap(nullptr, bytes, PROT_READ | PROT_WRITE, MAP_PRIVATE | MAP_ANONYMOUS, -1, 0);
   if (p == MAP_FAILED) throw std::bad_alloc();
-  return {p, bytes, [](void* data, std::size_t size) { munmap(data, size); }};
+  return {p, bytes, Pages::kOwn, [](void* data, std::size_t size) { munmap(data, size); }};
 }
 
 MemoryBlock::~MemoryBlock() {
@@ -63,6 +63,7 @@ MemoryBlock::MemoryBlock(MemoryBlock&& other) noexcept
     : data_(std::exchange(other.data_, nullptr)),
       bytes_(std::exchange(other.bytes_, 0)),
       mapped_(std::exchange(other.mapped_, 0)),
+      pages_(other.pages_),
       release_(std::move(other.release_)) {}
 
 MemoryBlock::MemoryBlock(const MemoryBlock& other) : MemoryBlock(Allocate(other.bytes_)) {
@@ -80,6 +81,7 @@ MemoryBlock& MemoryBlock::operator=(MemoryBlock&& other) noexcept {
     data_ = std::exchange(other.data_, nullptr);
     bytes_ = std::exchange(other.bytes_, 0);
     mapped_ = std::exchange(other.mapped_, 0);
+    pages_ = other.pages_;
     release_ = std::move(other.release_);
   }
   return *this;
@@ -88,6 +90,9 @@ MemoryBlock& MemoryBlock::operator=(MemoryBlock&& other) noexcept {
 void MemoryBlock::Shrink(std::size_t bytes) {
   if (bytes >= bytes_) return;
   bytes_ = bytes;
+  // Heap memory shares its pages with other allocations and malloc's own
+  // records, which advising the pages away would zero.
+  if (pages_ != Pages::kOwn) return;
   const std::size_t page = PageSize();
   const std::size_t keep = (bytes + page - 1) / page * page;
   if (keep >= mapped_ || reinterpret_cast<std::uintptr_t>(data_) % page != 0) return;

@@ -51,15 +51,19 @@ std::optional<VoxelType> VoxelTypeNamed(std::string_view name);
 bool IsInteger(VoxelType type);
 
 // One block of memory that gives itself back when dropped: anonymous pages
-// (untouched, so uncommitted, until written) or a mapping made elsewhere (a
-// reader's shared memory). A copy is a fresh anonymous block.
+// (untouched, so uncommitted, until written), a mapping made elsewhere (a
+// reader's shared memory) or memory from the heap (a vector's). A copy is a
+// fresh anonymous block.
 class MemoryBlock {
  public:
   using Release = std::function<void(void* data, std::size_t bytes)>;
+  // Whether the block's pages are its own (a mapping) or shared with other
+  // memory (the heap's): only its own pages may be given back by Shrink.
+  enum class Pages { kOwn, kShared };
 
   MemoryBlock() = default;
   // Takes `data` (`bytes` long), given back through `release`.
-  MemoryBlock(void* data, std::size_t bytes, Release release);
+  MemoryBlock(void* data, std::size_t bytes, Pages pages, Release release);
   // Fresh anonymous pages; throws std::bad_alloc.
   static MemoryBlock Allocate(std::size_t bytes);
   ~MemoryBlock();
@@ -71,14 +75,16 @@ class MemoryBlock {
   void* data() const { return data_; }
   // The bytes in use: the whole block, or less after Shrink.
   std::size_t bytes() const { return bytes_; }
-  // Keeps the first `bytes` (at most bytes()); the whole pages past them go
-  // back to the system at once, also for shared memory.
+  // Keeps the first `bytes` (at most bytes()); where the pages are the
+  // block's own, the whole pages past them go back to the system at once,
+  // also for shared memory.
   void Shrink(std::size_t bytes);
 
  private:
   void* data_ = nullptr;
   std::size_t bytes_ = 0;
   std::size_t mapped_ = 0;  // what `release_` gives back
+  Pages pages_ = Pages::kShared;
   Release release_;
 };
 

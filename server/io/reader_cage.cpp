@@ -470,7 +470,7 @@ UniqueFd SealedMemory(std::uint64_t bytes, const std::string& shown) {
 MemoryBlock MapMemory(UniqueFd fd, std::uint64_t bytes, const std::string& shown) {
   void* data = mmap(nullptr, bytes, PROT_READ | PROT_WRITE, MAP_SHARED | MAP_POPULATE, fd.get(), 0);
   if (data == MAP_FAILED) throw ResourceExhausted(fmt::format("{}: cannot map {} of voxels", shown, Mib(bytes)));
-  return {data, bytes, [](void* p, std::size_t size) { munmap(p, size); }};
+  return {data, bytes, MemoryBlock::Pages::kOwn, [](void* p, std::size_t size) { munmap(p, size); }};
 }
 
 bool AllFinite(const google::protobuf::RepeatedField<double>& values, int count) {

@@ -2,7 +2,10 @@
 
 #include <gtest/gtest.h>
 
+#include <unistd.h>
+
 #include <cmath>
+#include <cstdlib>
 #include <cstring>
 #include <limits>
 #include <numeric>
@@ -113,6 +116,38 @@ MemoryBlock BlockOf(std::vector<T> values) {
   MemoryBlock block = MemoryBlock::Allocate(values.size() * sizeof(T));
   std::memcpy(block.data(), values.data(), values.size() * sizeof(T));
   return block;
+}
+
+// A vector's memory shares its pages with the heap's other allocations and
+// malloc's records: shrinking it gives no page back, so the memory past it
+// keeps its contents. (Advising those pages away zeroed the heap's top chunk
+// when a volume of floats, page-aligned by chance, was stored in 16 bits;
+// malloc then aborted.)
+TEST(MemoryBlock, ShrinkingHeapMemoryLeavesTheMemoryPastItAlone) {
+  const std::size_t page = std::size_t(sysconf(_SC_PAGESIZE));
+  auto* heap = static_cast<unsigned char*>(std::aligned_alloc(page, 4 * page));
+  ASSERT_NE(heap, nullptr);
+  std::memset(heap, 0xab, 4 * page);
+  const std::size_t end = 2 * page + 100;
+  {
+    MemoryBlock block(heap, end, MemoryBlock::Pages::kShared, [](void*, std::size_t) {});
+    block.Shrink(10);
+    EXPECT_EQ(block.bytes(), 10u);
+  }
+  for (std::size_t i = 0; i < 10; ++i) ASSERT_EQ(heap[i], 0xab) << "kept byte " << i;
+  for (std::size_t i = end; i < 4 * page; ++i) ASSERT_EQ(heap[i], 0xab) << "byte " << i - end << " past the block";
+  std::free(heap);
+}
+
+// A block's own pages past what it keeps go back to the system.
+TEST(MemoryBlock, ShrinkingItsOwnPagesGivesThemBack) {
+  const std::size_t page = std::size_t(sysconf(_SC_PAGESIZE));
+  MemoryBlock block = MemoryBlock::Allocate(4 * page);
+  std::memset(block.data(), 0xab, 4 * page);
+  block.Shrink(10);
+  const auto* bytes = static_cast<const unsigned char*>(block.data());
+  EXPECT_EQ(bytes[9], 0xab);
+  EXPECT_EQ(bytes[page], 0) << "the second page was not given back";
 }
 
 TEST(Volume, KeepsValuesUpToTheLargestMagnitudeExactly) {
