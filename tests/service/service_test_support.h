@@ -102,14 +102,23 @@ void ExpectRpcError(F&& call, grpc::StatusCode code, const std::string& text) {
 }
 
 // The samples per pixel at which a still of `session` takes about `seconds`
-// on this server, from the time of a small one (machines and their load
+// on this server, from the time of smaller ones (machines and their load
 // differ; a test that needs a still longer than some limit asks for this).
+// The probes grow until one takes a tenth of `seconds`: on many cores a
+// small still's fixed costs would pass for its samples' and make the still
+// several times too short.
 inline int SppForSeconds(Client& client, const std::string& session, double seconds) {
-  constexpr int kProbeSpp = 8;
   v1::SnapshotRequest probe;
   probe.set_session_id(session);
-  probe.set_spp(kProbeSpp);
-  const double per_spp = std::max(1e-4, client.Snapshot(probe).render_us() * 1e-6 / kProbeSpp);
+  int spp = 8;
+  double per_spp = 0;
+  for (int i = 0; i < 4; ++i) {
+    probe.set_spp(spp);
+    const double taken = client.Snapshot(probe).render_us() * 1e-6;
+    per_spp = std::max(1e-6, taken / spp);
+    if (taken >= 0.1 * seconds || spp >= 2048) break;
+    spp = std::min(2048, int(spp * std::clamp(0.15 * seconds / std::max(taken, 1e-4), 2.0, 16.0)));
+  }
   return std::clamp(int(seconds / per_spp), 16, 16384);
 }
 
