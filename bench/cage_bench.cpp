@@ -88,7 +88,7 @@ Volume LoadInProcess(const fs::path& path) {
   const reader::Header& h = reply.header();
   VolumeMetadata meta;
   meta.source = path.string();
-  MemoryBlock block(memory->data(), memory->size(), MemoryBlock::Pages::kShared,
+  MemoryBlock block(memory->data(), memory->size(), MemoryBlock::Pages::kHeap,
                     [memory](void*, std::size_t) { delete memory; });
   return Volume({int(h.dims(0)), int(h.dims(1)), int(h.dims(2))},
                 {float(h.spacing_mm(0)), float(h.spacing_mm(1)), float(h.spacing_mm(2))},

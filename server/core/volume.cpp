@@ -156,7 +156,7 @@ std::vector<Volume::ValueRange> BlockRanges(const V* values, float offset, Vec3i
 
 MemoryBlock FloatBlock(std::vector<float> values) {
   auto* owned = new std::vector<float>(std::move(values));
-  return {owned->data(), owned->size() * sizeof(float), MemoryBlock::Pages::kShared,
+  return {owned->data(), owned->size() * sizeof(float), MemoryBlock::Pages::kHeap,
           [owned](void*, std::size_t) { delete owned; }};
 }
 

@@ -57,9 +57,10 @@ bool IsInteger(VoxelType type);
 class MemoryBlock {
  public:
   using Release = std::function<void(void* data, std::size_t bytes)>;
-  // Whether the block's pages are its own (a mapping) or shared with other
-  // memory (the heap's): only its own pages may be given back by Shrink.
-  enum class Pages { kOwn, kShared };
+  // Whether the block's pages are its own (a mapping, shared memory
+  // included) or the heap's, which other allocations share: only its own
+  // pages may be given back by Shrink.
+  enum class Pages { kOwn, kHeap };
 
   MemoryBlock() = default;
   // Takes `data` (`bytes` long), given back through `release`.
@@ -84,7 +85,7 @@ class MemoryBlock {
   void* data_ = nullptr;
   std::size_t bytes_ = 0;
   std::size_t mapped_ = 0;  // what `release_` gives back
-  Pages pages_ = Pages::kShared;
+  Pages pages_ = Pages::kHeap;
   Release release_;
 };
 

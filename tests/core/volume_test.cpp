@@ -130,7 +130,7 @@ TEST(MemoryBlock, ShrinkingHeapMemoryLeavesTheMemoryPastItAlone) {
   std::memset(heap, 0xab, 4 * page);
   const std::size_t end = 2 * page + 100;
   {
-    MemoryBlock block(heap, end, MemoryBlock::Pages::kShared, [](void*, std::size_t) {});
+    MemoryBlock block(heap, end, MemoryBlock::Pages::kHeap, [](void*, std::size_t) {});
     block.Shrink(10);
     EXPECT_EQ(block.bytes(), 10u);
   }
