@@ -25,9 +25,9 @@ void CheckVolumeGeometry(Vec3i dims, Vec3f spacing_mm, const std::string& what) 
       throw InputError(fmt::format("{}: dimension {} is {}, outside [1, {}]", what, "xyz"[a],
                                    dims[a], kMaxVoxelsPerAxis));
     }
-    if (!(spacing_mm[a] > 0.0f) || !std::isfinite(spacing_mm[a]) || spacing_mm[a] > 1e4f) {
-      throw InputError(fmt::format("{}: spacing {} is {} mm, outside (0, 1e4]", what, "xyz"[a],
-                                   spacing_mm[a]));
+    if (!(spacing_mm[a] >= kMinSpacingMm && spacing_mm[a] <= kMaxSpacingMm)) {  // NaN too
+      throw InputError(fmt::format("{}: spacing {} is {:g} mm, outside [{:g}, {:g}]", what, "xyz"[a],
+                                   spacing_mm[a], kMinSpacingMm, kMaxSpacingMm));
     }
   }
   const std::size_t count = std::size_t(dims.x) * std::size_t(dims.y) * std::size_t(dims.z);

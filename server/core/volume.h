@@ -19,6 +19,11 @@ namespace cinevol {
 // Limits that reject absurd headers before any memory is touched.
 inline constexpr int kMaxVoxelsPerAxis = 8192;
 inline constexpr std::size_t kMaxVoxels = std::size_t{1} << 30;  // 2 GiB as 16-bit
+// Voxel spacing, mm: from 0.1 um (beyond any micro-CT) to 10 m. Below the
+// lower bound every millimetre-to-voxel conversion (a table search's radius,
+// a slab's samples, a ray's steps) becomes a count no integer holds.
+inline constexpr float kMinSpacingMm = 1e-4f;
+inline constexpr float kMaxSpacingMm = 1e4f;
 // Voxel values are held within +-kMaxVoxelMagnitude: float32 reaches 3.4e38,
 // but a transfer function's table and the quantisation to 16 bits subtract
 // and scale values, and need the headroom to stay finite.

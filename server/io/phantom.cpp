@@ -159,8 +159,8 @@ PhantomParams ResolveParams(const v1::Phantom& spec) {
   if (p.size < 1 || p.size > 1024) {
     throw InputError(fmt::format("phantom.size: {} is outside [1, 1024]", p.size));
   }
-  if (!(p.spacing > 0.0f && p.spacing <= 100.0f)) {
-    throw InputError(fmt::format("phantom.spacing: {} mm is outside (0, 100]", p.spacing));
+  if (!(p.spacing >= kMinSpacingMm && p.spacing <= 100.0f)) {
+    throw InputError(fmt::format("phantom.spacing: {:g} mm is outside [{:g}, 100]", p.spacing, kMinSpacingMm));
   }
   if (!std::isfinite(p.value) || !std::isfinite(p.background) || !(p.radius >= 0.0f) ||
       !std::isfinite(p.radius)) {

@@ -98,9 +98,12 @@ void Searcher::Threshold(float threshold, std::uint8_t bit) {
   });
 }
 
+// Voxels within `mm` along each axis; never more than the axis holds (a
+// window wider than the volume is clipped at its faces anyway).
 Vec3i Searcher::Radius(float mm) const {
-  const Vec3f s = volume_.spacing_mm();
-  return {int(std::lround(mm / s.x)), int(std::lround(mm / s.y)), int(std::lround(mm / s.z))};
+  Vec3i r;
+  for (int a = 0; a < 3; ++a) r[a] = int(std::min(std::round(double(mm) / volume_.spacing_mm()[a]), double(dims_[a])));
+  return r;
 }
 
 void Searcher::Box(Vec3i k, std::uint8_t from, std::uint8_t to, bool erode) {

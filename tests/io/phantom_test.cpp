@@ -49,6 +49,7 @@ TEST(Phantom, RejectsOutOfRangeParameters) {
   EXPECT_THROW(ParseVolumeSpec("phantom:cube?colour=1"), InputError);
   EXPECT_THROW(ParseVolumeSpec("phantom:teapot"), InputError);
   EXPECT_THROW(LoadVolume(ParseVolumeSpec("phantom:cube?spacing=-1")), InputError);
+  EXPECT_THROW(LoadVolume(ParseVolumeSpec("phantom:cube?spacing=0.00000001")), InputError);  // below 1e-4 mm
 }
 
 }  // namespace
