@@ -87,7 +87,32 @@ Span ProjectCorners(const std::vector<Vec3f>& corners, Vec3f from, Vec3f directi
 }
 
 // Pixels covering `span` at `pixel_mm`, the outermost centres on its ends.
-int PixelsOver(Span span, float pixel_mm) { return int(std::lround((span.hi - span.lo) / pixel_mm)) + 1; }
+// The pixel size keeps it within kMaxSliceSide (FitToScreen).
+int PixelsOver(Span span, float pixel_mm) {
+  return int(std::min(std::round(double(span.hi - span.lo) / pixel_mm), double(kMaxSliceSide - 1))) + 1;
+}
+
+// How much larger pixels must be for both spans to fit kMaxSliceSide (1: they fit).
+double FitToScreen(Span across, Span down, float pixel_width_mm, float pixel_height_mm) {
+  const double longest = std::max(double(across.hi - across.lo) / pixel_width_mm,
+                                  double(down.hi - down.lo) / pixel_height_mm);
+  return std::max(1.0, longest / (kMaxSliceSide - 1));
+}
+
+// The slab's samples on each side of the plane, and the step between them:
+// the volume's step along the normal, or further apart where the slice would
+// otherwise take more than kMaxSliceSamples. A hair over half: a slab of
+// exactly k steps keeps its outermost samples. No further than the volume's
+// diagonal: samples beyond it are never inside.
+void PlanSlab(const Volume& volume, float slab_mm, SliceGeometry& g) {
+  g.slab_step_mm = SlabStep(volume, g.normal);
+  const double reach = std::min(double(slab_mm) / 2, double(Length(volume.extent_mm())));
+  const double wanted = std::floor(reach / g.slab_step_mm + 1e-4);
+  const long long pixels = static_cast<long long>(g.width) * g.height;
+  const double affordable = std::floor((double(kMaxSliceSamples) / double(pixels) - 1) / 2);
+  g.slab_half = int(std::max(0.0, std::min(wanted, affordable)));
+  if (wanted > affordable && g.slab_half > 0) g.slab_step_mm = float(reach / g.slab_half);
+}
 
 // Voxel values in index space (voxel centres at integers), clamped to the
 // grid at its edges as the renderers' lookups are.
@@ -149,18 +174,13 @@ Vec3f SnapToGrid(Vec3f q) {
   return q;
 }
 
-IndexSteps StepsOf(const Volume& volume, const SliceGeometry& g, float slab_mm) {
+IndexSteps StepsOf(const Volume& volume, const SliceGeometry& g) {
   const VolumePlacement placement = VolumePlacement::Of(volume);
   const Vec3f spacing = volume.spacing_mm();
   auto index_of = [&](Vec3f lps) { return SnapToGrid((placement.PointToVolume(lps) - placement.shift) / spacing); };
   auto step_of = [&](Vec3f lps_step) { return placement.DirectionToVolume(lps_step) / spacing; };
-  const float slab_step = SlabStep(volume, g.normal);
-  // A hair over half: a slab of exactly k steps keeps its outermost samples.
-  // No further than the volume's diagonal: samples beyond it are never inside.
-  const float reach = std::min(slab_mm / 2, Length(volume.extent_mm()));
-  const int half = int(std::floor(reach / slab_step + 1e-4f));
   return {index_of(g.top_left_lps), step_of(g.row_direction * g.pixel_width_mm),
-          step_of(g.column_direction * g.pixel_height_mm), step_of(g.normal * slab_step), half};
+          step_of(g.column_direction * g.pixel_height_mm), step_of(g.normal * g.slab_step_mm), g.slab_half};
 }
 
 // The scene's half-spaces (world mm, ResolveClipping) in index space.
@@ -270,27 +290,27 @@ struct SlicePass {
     for (int c = 0; c < 3; ++c) rgb[c] = std::uint8_t(grey + (paint.rgb[c] - grey) * paint.alpha + 0.5f);
   }
 
-  void Run(ImageRgb8& image, const std::atomic<bool>* cancel) const {
+  void Run(ImageRgb8& image, const std::atomic<bool>* cancel, int threads) const {
     ParallelFor(image.height, [&](std::int64_t row) {
       if (cancel && cancel->load(std::memory_order_relaxed)) return;
       std::uint8_t* line = image.bytes.data() + std::size_t(row) * image.width * 3;
       for (int column = 0; column < image.width; ++column) Pixel(column, int(row), line + 3 * column);
-    });
+    }, threads);
   }
 };
 
 template <class T>
 void RunPass(const Volume& volume, const T* voxels, float offset, const SliceLabels& labels, const ClipRegion* clip,
-             const SliceSpec& spec, const std::atomic<bool>* cancel, SliceImage& out) {
+             const SliceSpec& spec, const std::atomic<bool>* cancel, int threads, SliceImage& out) {
   SlicePass<T> pass{{voxels, volume.dims(), offset},
-                    StepsOf(volume, out.geometry, spec.slab_mm),
+                    StepsOf(volume, out.geometry),
                     ClipInIndexSpace(clip, volume),
                     labels.volume ? labels.volume->labels.data() : nullptr,
                     LabelPaints(labels, spec.label_opacity),
                     spec.window,
                     spec.nearest,
                     spec.projection};
-  pass.Run(out.image, cancel);
+  pass.Run(out.image, cancel, threads);
 }
 
 void CheckRenderable(const Volume& volume, const SliceLabels& labels, const SliceSpec& spec) {
@@ -298,7 +318,6 @@ void CheckRenderable(const Volume& volume, const SliceLabels& labels, const Slic
     throw InputError(fmt::format("slice: window width {} and level {}: VOI LINEAR needs a finite width >= 1",
                                  spec.window.width, spec.window.center));
   }
-  if (!(spec.slab_mm >= 0.0f && spec.slab_mm <= 1e4f)) throw InputError("slice: slab thickness outside [0, 1e4] mm");
   if (!(spec.label_opacity >= 0.0f && spec.label_opacity <= 1.0f))
     throw InputError("slice: label opacity outside [0, 1]");
   if (labels.volume &&
@@ -330,6 +349,7 @@ const char* ToString(SlabProjection projection) {
 SliceGeometry PlanSlice(const Volume& volume, const SliceSpec& spec) {
   const PlaneAxes axes = AxesOf(spec);
   if (!(spec.pixel_mm >= 0.0f && spec.pixel_mm <= 1e4f)) throw InputError("slice: pixel size outside [0, 1e4] mm");
+  if (!(spec.slab_mm >= 0.0f && spec.slab_mm <= 1e4f)) throw InputError("slice: slab thickness outside [0, 1e4] mm");
   SliceGeometry g;
   g.row_direction = axes.row;
   g.column_direction = axes.column;
@@ -341,11 +361,12 @@ SliceGeometry PlanSlice(const Volume& volume, const SliceSpec& spec) {
   const std::vector<Vec3f> corners = CornerCentres(volume);
   const Span across = ProjectCorners(corners, axes.point, axes.row);
   const Span down = ProjectCorners(corners, axes.point, axes.column);
+  const double enlarge = FitToScreen(across, down, g.pixel_width_mm, g.pixel_height_mm);
+  g.pixel_width_mm = float(g.pixel_width_mm * enlarge);
+  g.pixel_height_mm = float(g.pixel_height_mm * enlarge);
   g.width = PixelsOver(across, g.pixel_width_mm);
   g.height = PixelsOver(down, g.pixel_height_mm);
-  if (static_cast<long long>(g.width) * g.height > kMaxSlicePixels) {
-    throw InputError(fmt::format("slice: {}x{} pixels is beyond the limit of {}", g.width, g.height, kMaxSlicePixels));
-  }
+  PlanSlab(volume, spec.slab_mm, g);
   g.top_left_lps = axes.point + axes.row * across.lo + axes.column * down.lo;
   g.letters = EdgeLettersOf(g.row_direction, g.column_direction);
   return g;
@@ -366,7 +387,7 @@ float SlabStep(const Volume& volume, Vec3f normal) {
 }
 
 SliceImage RenderSlice(const Volume& volume, const SliceLabels& labels, const ClipRegion* clip, const SliceSpec& spec,
-                       const std::atomic<bool>* cancel) {
+                       const std::atomic<bool>* cancel, int threads) {
   CheckRenderable(volume, labels, spec);
   SliceImage out;
   out.geometry = PlanSlice(volume, spec);
@@ -374,9 +395,9 @@ SliceImage RenderSlice(const Volume& volume, const SliceLabels& labels, const Cl
   out.image.height = out.geometry.height;
   out.image.bytes.assign(std::size_t(out.image.width) * out.image.height * 3, 0);
   if (volume.storage() == VoxelStorage::kUInt16) {
-    RunPass(volume, volume.u16().data(), volume.stored_offset(), labels, clip, spec, cancel, out);
+    RunPass(volume, volume.u16().data(), volume.stored_offset(), labels, clip, spec, cancel, threads, out);
   } else {
-    RunPass(volume, volume.f32().data(), 0.0f, labels, clip, spec, cancel, out);
+    RunPass(volume, volume.f32().data(), 0.0f, labels, clip, spec, cancel, threads, out);
   }
   if (cancel && *cancel) throw Cancelled("the slice was cancelled");
   return out;

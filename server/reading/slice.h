@@ -42,12 +42,14 @@ struct SliceSpec {
   Vec3f row_lps{1, 0, 0};
   // kOblique: mm per pixel, both ways; 0: the volume's smallest spacing. (0, 1e4]
   // Axis-aligned slices take the volume's own spacing: one pixel per voxel.
+  // Either grows where the image would be larger than kMaxSliceSide.
   float pixel_mm = 0;
   VoiWindow window;
   bool nearest = false;  // nearest-neighbour values instead of linear (labels are always nearest)
   // Thickness along the normal, mm, centred on the plane; [0, 1e4]. 0: a
   // thin slice. Samples lie every volume spacing along the normal (SlabStep)
-  // from -slab/2 to +slab/2, the plane's one included.
+  // from -slab/2 to +slab/2, the plane's one included; further apart where
+  // the slice would take more than kMaxSliceSamples.
   float slab_mm = 0;
   SlabProjection projection = SlabProjection::kMax;
   // [0, 1]: a label's overlay opacity at its style's opacity_scale 1 (scaled by it, capped at 1).
@@ -63,6 +65,8 @@ struct SliceGeometry {
   Vec3f normal;               // row x column
   float pixel_width_mm = 1;   // between columns
   float pixel_height_mm = 1;  // between rows
+  int slab_half = 0;          // slab samples on each side of the plane
+  float slab_step_mm = 0;     // between slab samples along the normal
   EdgeLetters letters;        // at the image's edges
 
   // LPS mm of image point (column, row): pixel centres at integers, (0, 0)
@@ -87,14 +91,20 @@ struct SliceImage {
   SliceGeometry geometry;
 };
 
-// The plane and its pixels without rendering them: the image covers the
-// volume's projection onto the plane (voxel centres, the outermost ones on
-// the edge pixels). Throws InputError for a zero normal or row, a row
-// along the normal, or an image beyond kMaxSlicePixels.
-SliceGeometry PlanSlice(const Volume& volume, const SliceSpec& spec);
+// A slice is bounded by what a screen shows, not by millimetres: its longer
+// side has at most kMaxSliceSide pixels (larger pixels where the plane would
+// need more), and pixels times slab samples stay within kMaxSliceSamples
+// (slab samples further apart where a thick slab would need more). So no
+// spacing or slab, however hostile, makes a slice that holds a worker for long.
+inline constexpr int kMaxSliceSide = 4096;
+inline constexpr long long kMaxSliceSamples = 1LL << 27;
 
-// Pixels a slice may have: twice the largest grid side, squared.
-inline constexpr long long kMaxSlicePixels = 4LL * kMaxVoxelsPerAxis * kMaxVoxelsPerAxis;
+// The plane, its pixels and slab samples without rendering them: the image
+// covers the volume's projection onto the plane (voxel centres, the
+// outermost ones on the edge pixels), within the bounds above. Throws
+// InputError for a zero normal or row, a row along the normal, or a pixel
+// size or slab outside their ranges.
+SliceGeometry PlanSlice(const Volume& volume, const SliceSpec& spec);
 
 // The LPS coordinates (mm) of the outermost voxel centres along an
 // axis-aligned slice's axis: where position_mm meets the volume.
@@ -112,8 +122,10 @@ float SlabStep(const Volume& volume, Vec3f normal);
 // resolved crop box and clip planes (scene/scene_builder.h ResolveClipping,
 // world mm); null ignores them. Throws InputError for a window narrower
 // than 1, a negative slab or labels on another grid. Once `cancel` is raised
-// (a caller gone), the rows not yet begun are skipped and Cancelled thrown.
+// (a caller gone, a deadline passed), the rows not yet begun are skipped and
+// Cancelled thrown. `threads`: at most this many take part (0: every one of
+// the compute pool; a server gives each slice its share).
 SliceImage RenderSlice(const Volume& volume, const SliceLabels& labels, const ClipRegion* clip, const SliceSpec& spec,
-                       const std::atomic<bool>* cancel = nullptr);
+                       const std::atomic<bool>* cancel = nullptr, int threads = 0);
 
 }  // namespace cinevol

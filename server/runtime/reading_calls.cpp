@@ -76,7 +76,9 @@ VoiWindow WindowOf(const v1::SliceRequest& request, const Volume& volume) {
   }
 }
 
-SliceSpec SpecOf(const v1::SliceRequest& request, const Volume& volume) {
+}  // namespace
+
+SliceSpec SliceSpecOf(const v1::SliceRequest& request, const Volume& volume) {
   SliceSpec spec;
   spec.axis = AxisOf(request.axis());
   if (!std::isfinite(request.position_mm())) throw InputError("position_mm: not a finite number");
@@ -96,19 +98,21 @@ SliceSpec SpecOf(const v1::SliceRequest& request, const Volume& volume) {
   }
   spec.slab_mm = request.slab_mm();
   spec.projection = ProjectionOf(request.projection());
+  if (!(request.pixel_mm() >= 0 && request.pixel_mm() <= 1e4f)) {
+    throw InputError(fmt::format("pixel_mm: {} is outside [0, 1e4]", request.pixel_mm()));
+  }
+  spec.pixel_mm = request.pixel_mm();
   return spec;
 }
 
-}  // namespace
-
 v1::SliceImage SliceOf(const v1::SliceRequest& request, const v1::Scene& scene, const VolumeLease& lease,
-                       const std::atomic<bool>* cancel) {
+                       const std::atomic<bool>* cancel, int threads) {
   const Volume& volume = *lease.volume();
-  const SliceSpec spec = SpecOf(request, volume);
+  const SliceSpec spec = SliceSpecOf(request, volume);
   const LabelSetup styles = ResolveLabels(scene.labels(), volume);
   const SliceLabels labels{request.hide_labels() ? nullptr : lease.labels().get(), &styles};
   const ClipRegion clip = ResolveClipping(scene.clipping(), volume);
-  const SliceImage slice = RenderSlice(volume, labels, request.apply_clipping() ? &clip : nullptr, spec, cancel);
+  const SliceImage slice = RenderSlice(volume, labels, request.apply_clipping() ? &clip : nullptr, spec, cancel, threads);
   v1::SliceImage out;
   const std::vector<std::uint8_t> png = EncodePng(slice.image);
   out.set_png(std::string(png.begin(), png.end()));
@@ -123,6 +127,8 @@ v1::SliceImage SliceOf(const v1::SliceRequest& request, const v1::Scene& scene, 
   for (const std::string* letter : {&g.letters.left, &g.letters.right, &g.letters.top, &g.letters.bottom}) {
     out.add_edge_letters(*letter);
   }
+  out.set_slab_samples(std::uint32_t(2 * g.slab_half + 1));
+  out.set_slab_step_mm(g.slab_step_mm);
   out.set_window(float(spec.window.width));
   out.set_level(float(spec.window.center));
   return out;

@@ -7,15 +7,21 @@
 
 #include "cinevol/v1/scene.pb.h"
 #include "cinevol/v1/service.pb.h"
+#include "reading/slice.h"
 #include "runtime/volume_registry.h"
 
 namespace cinevol::service {
 
+// What `request` asks of a slice of `volume`. Throws InputError naming the
+// request's field.
+SliceSpec SliceSpecOf(const v1::SliceRequest& request, const Volume& volume);
+
 // A slice of `volume` through the scene's labels and (on request) clipping,
 // encoded as PNG. Throws InputError naming the request's field; Cancelled
-// once `cancel` is raised (the caller gone: a thick slab stops early).
+// once `cancel` is raised (the caller gone, the deadline passed: a thick slab
+// stops early). `threads`: at most this many render it (0: all).
 v1::SliceImage SliceOf(const v1::SliceRequest& request, const v1::Scene& scene, const VolumeLease& volume,
-                       const std::atomic<bool>* cancel = nullptr);
+                       const std::atomic<bool>* cancel = nullptr, int threads = 0);
 
 // What lies under pixel (request.x, request.y) of the scene's camera and
 // viewport. Throws InputError naming the request's field.

@@ -123,6 +123,13 @@ void Session::AddWatcher(FrameStream* stream, const std::string& grant_id, const
                         fmt::format("session '{}' has {} viewers, this server's limit (--max-viewers-per-session)", id_,
                                     watchers_.size()));
   }
+  const auto by_grant = std::count_if(watchers_.begin(), watchers_.end(), [&](const Watcher& w) { return w.grant_id == grant_id; });
+  if (by_grant >= context_.limits->max_viewers_per_grant) {
+    throw LimitExceeded(grpc::StatusCode::RESOURCE_EXHAUSTED, "max-viewers-per-grant",
+                        fmt::format("this share of session '{}' has {} viewers, this server's limit for one share "
+                                    "(--max-viewers-per-grant); ask the owner for a share of your own",
+                                    id_, by_grant));
+  }
   watchers_.push_back({stream, grant_id, holder});
   current_.set_viewers(std::uint32_t(watchers_.size()));
   stream->SendNotice(v1::Notice::INFO, fmt::format("watching session '{}' on {}", id_, context_.scheduler->name()));

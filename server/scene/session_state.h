@@ -32,6 +32,7 @@ struct SessionLimits {
   int max_lights = 16;
   int max_events_per_second = 240;               // per stream; past it events are coalesced
   int max_viewers_per_session = 50;              // streams watching a shared session (docs/sharing.md)
+  int max_viewers_per_grant = 25;                // of them by one grant: a link never takes every seat
 };
 
 // What an event changed: SceneChange bits, and these.

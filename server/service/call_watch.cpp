@@ -3,10 +3,11 @@
 
 namespace cinevol::service {
 
-CallWatch::Id CallWatch::Watch(grpc::CallbackServerContext* context, Clock::duration patience) {
+CallWatch::Id CallWatch::Watch(grpc::CallbackServerContext* context, Clock::duration patience,
+                               std::atomic<bool>* overdue) {
   std::lock_guard lock(mu_);
   const Id id = next_++;
-  calls_[id] = {context, Clock::now() + patience};
+  calls_[id] = {context, Clock::now() + patience, overdue};
   return id;
 }
 
@@ -23,12 +24,16 @@ void CallWatch::Forget(Id id) {
 
 void CallWatch::CancelOverdue(Clock::time_point now) {
   // Under the lock: a reactor forgets its call before it is deleted, so every
-  // context here is alive. TryCancel only marks the call; the reactor's
-  // OnCancel and OnDone run later on gRPC's threads.
+  // context and flag here is alive. TryCancel only marks the call; the
+  // reactor's OnCancel and OnDone run later on gRPC's threads.
   std::lock_guard lock(mu_);
   for (auto it = calls_.begin(); it != calls_.end();) {
     if (it->second.deadline <= now) {
-      it->second.context->TryCancel();
+      if (it->second.overdue) {
+        it->second.overdue->store(true);
+      } else {
+        it->second.context->TryCancel();
+      }
       it = calls_.erase(it);
     } else {
       ++it;

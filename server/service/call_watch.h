@@ -1,11 +1,14 @@
-// Calls that must keep moving: a stream that sends no attach, an upload that
-// stops sending. Each is watched with a deadline that its progress pushes
-// back; the server's sweep cancels the calls past theirs, so a client that
-// opens calls and goes quiet cannot hold memory or a slot for long.
+// Calls that must keep moving or end: a stream that sends no attach, an
+// upload that stops sending, a unary call's work past the server's deadline.
+// Each is watched with a deadline that its progress may push back; the
+// server's sweep (five times a second) cancels the calls past theirs, so a
+// client that opens calls and goes quiet, or asks for endless work, cannot
+// hold memory, a slot or a worker for long.
 #pragma once
 
 #include <grpcpp/server_context.h>
 
+#include <atomic>
 #include <chrono>
 #include <cstdint>
 #include <map>
@@ -19,8 +22,9 @@ class CallWatch {
   using Id = std::uint64_t;
 
   // Watches `context` until Forget; it is cancelled once `patience` passes
-  // without a Touch.
-  Id Watch(grpc::CallbackServerContext* context, Clock::duration patience);
+  // without a Touch. With `overdue`, that flag is raised instead: the call's
+  // own work sees it, stops and finishes the call with DEADLINE_EXCEEDED.
+  Id Watch(grpc::CallbackServerContext* context, Clock::duration patience, std::atomic<bool>* overdue = nullptr);
   void Touch(Id id, Clock::duration patience);
   // Call before the reactor is deleted (OnDone at the latest).
   void Forget(Id id);
@@ -32,6 +36,7 @@ class CallWatch {
   struct Entry {
     grpc::CallbackServerContext* context;
     Clock::time_point deadline;
+    std::atomic<bool>* overdue;
   };
   mutable std::mutex mu_;
   std::map<Id, Entry> calls_;

@@ -30,6 +30,7 @@ void AddLimitOptions(CLI::App& app, ServerOptions& o) {
   limit("--max-sessions-per-principal", o.max_sessions_per_principal, "Sessions one principal holds at once", 1,
         100000);
   limit("--max-viewers-per-session", s.max_viewers_per_session, "Streams watching one shared session", 1, 100000);
+  limit("--max-viewers-per-grant", s.max_viewers_per_grant, "Of them, streams by one share (a link)", 1, 100000);
   limit("--max-grants-per-principal", o.max_grants_per_principal, "Shares (grants) one principal holds at once", 1,
         100000);
   limit("--max-pixels", s.max_pixels, "Largest viewport, width x height", 1ull, 8192ull * 8192ull);
@@ -46,6 +47,9 @@ void AddLimitOptions(CLI::App& app, ServerOptions& o) {
   limit("--unattached-session-seconds", o.unattached_session_seconds,
         "How long a new session waits for its first stream", 0.5, 86400.0);
   limit("--first-message-seconds", o.first_message_seconds, "How long a stream may take to attach", 0.5, 3600.0);
+  limit("--max-call-seconds", o.call_seconds,
+        "A unary call's work at most, queued or running (a slice, a pick, a search, a new session's framing)", 0.1,
+        86400.0);
   VolumeLimits& v = o.volume_limits;
   app.add_option_function<std::uint64_t>("--max-upload-mb", [&v](std::uint64_t mb) { v.max_upload_bytes = mb << 20; },
                                          "Largest volume upload, MiB (default 2048)")

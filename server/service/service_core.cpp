@@ -165,16 +165,22 @@ class StillJob final : public Job {
 
 }  // namespace
 
+// Tasks at once in the pools on `waiting_` (loads and PACS calls mostly wait on a peer or a reader).
+constexpr int kLoaders = 4, kSetups = 2, kReaders = 2, kPacsCalls = 4;
+
 ServiceCore::ServiceCore(const ServerOptions& options)
     : options_(options),
       authenticator_(options.auth_tokens.empty() ? Authenticator() : Authenticator(options.auth_tokens)),
       volumes_(options.data_roots, options.volume_limits),
       encoder_("encoder", ThreadPool::Shared(),
                options.encode_threads > 0 ? options.encode_threads : ThreadPool::Shared().workers()),
-      waiting_(6),
-      loader_("loader", waiting_, 2),
-      setup_("setup", waiting_, 2),
-      pacs_calls_("pacs", waiting_, 2),
+      // Each pool keeps a slot free of any one caller (and of any one PACS).
+      waiting_(kLoaders + kSetups + kReaders + kPacsCalls),
+      loader_("loader", waiting_, {.max_running = kLoaders, .max_running_per_queue = 2, .max_running_per_group = 2}),
+      setup_("setup", waiting_, {.max_running = kSetups, .max_running_per_queue = 1}),
+      reading_("reading", waiting_, {.max_running = kReaders, .max_running_per_queue = 1}),
+      pacs_calls_("pacs", waiting_,
+                  {.max_running = kPacsCalls, .max_running_per_queue = 1, .max_running_per_group = 2}),
       pacs_(options.pacs, options.pacs_credentials),
       pixels_(options.max_total_pixels),
       sharing_(authenticator_, options.max_grants_per_principal, [this](const std::string& id) { return Find(id); },
@@ -219,6 +225,7 @@ ServiceCore::ServiceCore(const ServerOptions& options)
 ServiceCore::~ServiceCore() {
   pacs_calls_.Stop();  // its searches use pacs_
   setup_.Stop();       // first: what it creates is ended below
+  reading_.Stop();
   std::vector<std::shared_ptr<Session>> open;
   {
     std::lock_guard lock(mu_);
@@ -366,10 +373,14 @@ std::pair<v1::Scene, std::shared_ptr<VolumeLease>> SceneAndVolume(const Session&
 
 }  // namespace
 
+int ServiceCore::SliceThreads() const {
+  return std::max(1, ThreadPool::Shared().workers() / (2 * reading_.max_running()));
+}
+
 v1::SliceImage ServiceCore::RenderSlice(const v1::SliceRequest& request, const Principal& caller,
                                         const std::atomic<bool>* cancel) {
   const auto [scene, volume] = SceneAndVolume(*FindSession(request.session_id(), caller));
-  return SliceOf(request, scene, *volume, cancel);
+  return SliceOf(request, scene, *volume, cancel, SliceThreads());
 }
 
 v1::PickResult ServiceCore::Pick(const v1::PickRequest& request, const Principal& caller) {

@@ -60,6 +60,7 @@ struct ServerOptions {
   int max_uploads_per_principal = 2;       // at once
   double upload_idle_seconds = 30;         // an upload that sends nothing this long ends
   double first_message_seconds = 10;       // a call that sends no first message this long ends
+  double call_seconds = 60;                // a unary call's work (a slice, a search, a framing) at most
   double detached_session_seconds = 60;    // a detached session waits this long for a new attach
   double unattached_session_seconds = 15;  // a session never attached waits this long
   double drain_seconds = 10;               // SIGTERM to exit, whatever is in flight
@@ -103,7 +104,14 @@ class ServiceCore {
   // framing over its volume and segmentation. Queues by caller, so one
   // caller's creations delay another's by one at most per thread.
   TaskPool& setup() { return setup_; }
-  // PACS searches: network calls, apart from loads (which may take minutes).
+  // Slices and picks: compute that grows with a volume and a request, apart
+  // from the setup pool, so a heavy slab never delays another's CreateSession.
+  TaskPool& reading() { return reading_; }
+  // The compute threads one slice may use: its share of the pool, so that
+  // slices at once leave half of it to the sessions' frames.
+  int SliceThreads() const;
+  // PACS searches: network calls, apart from loads (which may take minutes);
+  // grouped by PACS, so one that stalls holds half of the slots at most.
   TaskPool& pacs_calls() { return pacs_calls_; }
   PacsDirectory& pacs() { return pacs_; }
   CallWatch& calls() { return calls_; }
@@ -188,6 +196,7 @@ class ServiceCore {
   ThreadPool waiting_;  // for loader_ and setup_: their tasks mostly wait, so they keep off the compute pool
   TaskPool loader_;
   TaskPool setup_;
+  TaskPool reading_;
   TaskPool pacs_calls_;
   PacsDirectory pacs_;
   CallWatch calls_;

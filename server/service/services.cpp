@@ -28,34 +28,58 @@ grpc::ServerUnaryReactor* Answer(ServiceCore* core, grpc::CallbackServerContext*
 }
 
 // A unary call answered from a pool, never on a gRPC thread: for work that
-// grows with a volume. The reactor finishes from the pool, in the caller's
-// queue there (pools take turns between callers). A caller that goes away
-// before its turn is answered CANCELLED without the work, which may check
-// `cancelled` between its steps.
+// grows with a volume or waits on a peer. The reactor finishes from the pool,
+// in the caller's queue there (pools take turns between callers). `stop`, which
+// the work checks between its steps, is raised when the caller goes away
+// (answered CANCELLED) or when the call has taken --max-call-seconds since it
+// came, queued or running (DEADLINE_EXCEEDED): no call holds a worker for long.
 class PooledReactor final : public grpc::ServerUnaryReactor {
  public:
-  using Work = std::function<void(const Principal& caller, const std::atomic<bool>& cancelled)>;
+  using Work = std::function<void(const Principal& caller, const std::atomic<bool>& stop)>;
 
-  PooledReactor(grpc::CallbackServerContext* context, ServiceCore* core, TaskPool& pool, Work work) {
+  PooledReactor(grpc::CallbackServerContext* context, ServiceCore* core, TaskPool& pool, const char* what, Work work,
+                const std::string& group = {})
+      : core_(core), what_(what) {
     const grpc::Status status = Guarded([&] {
       const Principal caller = core->Authenticate(*context);
       core->RequireServing();
+      watch_ = core->calls().Watch(context, Seconds(core->options().call_seconds), &stop_);
       const bool queued = pool.Submit(
           [this, caller, work = std::move(work)] {
+            grpc::Status s = Stopped();
+            if (s.ok()) s = Guarded([&] { work(caller, stop_); });
+            if (!s.ok() && stop_) s = Stopped();  // the work's own Cancelled, said as why it stopped
             // Nothing of `this` is touched after Finish: OnDone may delete it at once.
-            Finish(cancelled_ ? grpc::Status(grpc::StatusCode::CANCELLED, "the caller went away")
-                              : Guarded([&] { work(caller, cancelled_); }));
+            Finish(s);
           },
-          caller.name);
+          caller.name, group);
       if (!queued) throw RpcError(grpc::StatusCode::UNAVAILABLE, "the server is shutting down");
     });
     if (!status.ok()) Finish(status);
   }
-  void OnCancel() override { cancelled_ = true; }
-  void OnDone() override { delete this; }
+  void OnCancel() override {
+    caller_gone_ = true;
+    stop_ = true;
+  }
+  void OnDone() override {
+    if (watch_) core_->calls().Forget(watch_);
+    delete this;
+  }
 
  private:
-  std::atomic<bool> cancelled_{false};
+  grpc::Status Stopped() const {
+    if (caller_gone_) return {grpc::StatusCode::CANCELLED, "the caller went away"};
+    if (!stop_) return grpc::Status::OK;
+    return {grpc::StatusCode::DEADLINE_EXCEEDED,
+            fmt::format("{} took longer than this server's {} s a call (--max-call-seconds)", what_,
+                        core_->options().call_seconds)};
+  }
+
+  ServiceCore* core_;
+  const char* what_;
+  CallWatch::Id watch_ = 0;
+  std::atomic<bool> stop_{false};
+  std::atomic<bool> caller_gone_{false};
 };
 
 // An upload: chunks go straight to a private file (memory stays bounded),
@@ -193,7 +217,7 @@ class UploadReactor final : public grpc::ServerReadReactor<v1::UploadVolumeChunk
       ServerMetrics().Upload(status.ok());
       slot_->Release();
       Finish(status);
-    });
+    }, caller_.name);
     if (!queued) {
       loading_ = false;  // OnDone removes the file
       Fail({grpc::StatusCode::UNAVAILABLE, "the server is shutting down"});
@@ -379,7 +403,7 @@ grpc::ServerUnaryReactor* VolumeServiceImpl::LoadFromDisk(grpc::CallbackServerCo
       });
       slot->Release();
       reactor->Finish(status);
-    });
+    }, caller.name);
     if (!queued) {
       slot->Release();
       throw RpcError(grpc::StatusCode::UNAVAILABLE, "the server is shutting down");
@@ -411,9 +435,9 @@ grpc::ServerUnaryReactor* VolumeServiceImpl::UnloadVolume(grpc::CallbackServerCo
 grpc::ServerUnaryReactor* SessionServiceImpl::CreateSession(grpc::CallbackServerContext* context,
                                                             const v1::CreateSessionRequest* request,
                                                             v1::CreateSessionResponse* response) {
-  return new PooledReactor(context, core_, core_->setup(),
-                           [this, request, response](const Principal& caller, const std::atomic<bool>& cancelled) {
-                             *response = core_->CreateSession(*request, caller, cancelled);
+  return new PooledReactor(context, core_, core_->setup(), "CreateSession",
+                           [this, request, response](const Principal& caller, const std::atomic<bool>& stop) {
+                             *response = core_->CreateSession(*request, caller, stop);
                            });
 }
 
@@ -498,20 +522,22 @@ grpc::ServerUnaryReactor* SessionServiceImpl::HandOver(grpc::CallbackServerConte
   return reactor;
 }
 
-// Slices and picks grow with the volume (a slab, a long ray): on the setup pool, in the caller's queue.
+// Slices and picks grow with the volume (a slab, a long ray): on the reading
+// pool, in the caller's queue, apart from the setup pool that CreateSession waits on.
 grpc::ServerUnaryReactor* SessionServiceImpl::RenderSlice(grpc::CallbackServerContext* context,
                                                           const v1::SliceRequest* request, v1::SliceImage* response) {
-  return new PooledReactor(context, core_, core_->setup(),
-                           [this, request, response](const Principal& caller, const std::atomic<bool>& cancelled) {
-                             *response = core_->RenderSlice(*request, caller, &cancelled);
+  return new PooledReactor(context, core_, core_->reading(), "RenderSlice",
+                           [this, request, response](const Principal& caller, const std::atomic<bool>& stop) {
+                             *response = core_->RenderSlice(*request, caller, &stop);
                            });
 }
 
 grpc::ServerUnaryReactor* SessionServiceImpl::Pick(grpc::CallbackServerContext* context, const v1::PickRequest* request,
                                                    v1::PickResult* response) {
-  return new PooledReactor(context, core_, core_->setup(), [this, request, response](const Principal& caller, auto&) {
-    *response = core_->Pick(*request, caller);
-  });
+  return new PooledReactor(context, core_, core_->reading(), "Pick",
+                           [this, request, response](const Principal& caller, auto&) {
+                             *response = core_->Pick(*request, caller);
+                           });
 }
 
 grpc::ServerUnaryReactor* ServerServiceImpl::GetStatus(grpc::CallbackServerContext* context,
@@ -567,25 +593,29 @@ grpc::ServerUnaryReactor* PacsServiceImpl::ListPacs(grpc::CallbackServerContext*
 grpc::ServerUnaryReactor* PacsServiceImpl::SearchStudies(grpc::CallbackServerContext* context,
                                                          const v1::SearchStudiesRequest* request,
                                                          v1::SearchStudiesResponse* response) {
-  return new PooledReactor(context, core_, core_->pacs_calls(),
-                           [this, request, response](const Principal&, const std::atomic<bool>& cancelled) {
-                             const auto client = core_->pacs().Find(request->pacs());
-                             const auto studies = client->SearchStudies(ToQuery(*request), &cancelled);
-                             for (const pacs::StudySummary& study : studies) AddStudy(study, response->add_studies());
-                           });
+  return new PooledReactor(
+      context, core_, core_->pacs_calls(), "SearchStudies",
+      [this, request, response](const Principal&, const std::atomic<bool>& stop) {
+        const auto client = core_->pacs().Find(request->pacs());
+        for (const pacs::StudySummary& study : client->SearchStudies(ToQuery(*request), &stop)) {
+          AddStudy(study, response->add_studies());
+        }
+      },
+      request->pacs());
 }
 
 grpc::ServerUnaryReactor* PacsServiceImpl::SearchSeries(grpc::CallbackServerContext* context,
                                                         const v1::SearchSeriesRequest* request,
                                                         v1::SearchSeriesResponse* response) {
   return new PooledReactor(
-      context, core_, core_->pacs_calls(),
-      [this, request, response](const Principal&, const std::atomic<bool>& cancelled) {
+      context, core_, core_->pacs_calls(), "SearchSeries",
+      [this, request, response](const Principal&, const std::atomic<bool>& stop) {
         const auto client = core_->pacs().Find(request->pacs());
-        for (const pacs::SeriesSummary& series : client->SearchSeries(request->study_uid(), &cancelled)) {
+        for (const pacs::SeriesSummary& series : client->SearchSeries(request->study_uid(), &stop)) {
           AddSeries(series, response->add_series());
         }
-      });
+      },
+      request->pacs());
 }
 
 grpc::ServerWriteReactor<v1::LoadSeriesUpdate>* PacsServiceImpl::LoadSeries(grpc::CallbackServerContext* context,
@@ -616,7 +646,7 @@ grpc::ServerWriteReactor<v1::LoadSeriesUpdate>* PacsServiceImpl::LoadSeries(grpc
         slot->Release();
         reactor->Complete(s, std::move(volume));
       },
-      caller.name);
+      caller.name, request->pacs());
   if (!queued) {
     slot->Release();
     reactor->Complete({grpc::StatusCode::UNAVAILABLE, "the server is shutting down"}, {});

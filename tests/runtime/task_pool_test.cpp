@@ -87,5 +87,73 @@ TEST(TaskPool, RunsAtMostItsShareOfThePool) {
   EXPECT_GE(most, 1);
 }
 
+// One caller's backlog of slow tasks keeps to its share: another caller's
+// task runs beside them at once, not after one of them.
+TEST(TaskPool, AQueueKeepsToItsShareOfTheRunningSlots) {
+  ThreadPool workers(4);
+  TaskPool pool("test", workers, {.max_running = 2, .max_running_per_queue = 1});
+  std::mutex mu;
+  std::condition_variable cv;
+  bool release = false, bob_ran = false;
+  int alice_running = 0, alice_most = 0;
+  for (int i = 0; i < 3; ++i) {
+    pool.Submit([&] {
+      std::unique_lock lock(mu);
+      alice_most = std::max(alice_most, ++alice_running);
+      cv.wait_for(lock, 30s, [&] { return release; });
+      --alice_running;
+    }, "alice");
+  }
+  pool.Submit([&] {
+    std::lock_guard lock(mu);
+    bob_ran = true;
+    cv.notify_all();
+  }, "bob");
+  {
+    std::unique_lock lock(mu);
+    // Alice's first task still holds its slot: Bob's ran in the other.
+    EXPECT_TRUE(cv.wait_for(lock, 30s, [&] { return bob_ran; }));
+    EXPECT_EQ(alice_running, 1);
+    release = true;
+  }
+  cv.notify_all();
+  pool.Stop();
+  EXPECT_EQ(alice_most, 1);
+  EXPECT_EQ(pool.queued(), 0);
+}
+
+// Tasks that wait on one stalled peer (a group) hold no more than its share:
+// a task of another group, even of the same caller, runs beside them.
+TEST(TaskPool, AGroupKeepsToItsShareOfTheRunningSlots) {
+  ThreadPool workers(4);
+  TaskPool pool("test", workers, {.max_running = 3, .max_running_per_group = 2});
+  std::mutex mu;
+  std::condition_variable cv;
+  bool release = false, healthy_ran = false;
+  int stalled_running = 0, stalled_most = 0;
+  for (int i = 0; i < 4; ++i) {
+    pool.Submit([&] {
+      std::unique_lock lock(mu);
+      stalled_most = std::max(stalled_most, ++stalled_running);
+      cv.notify_all();
+      cv.wait_for(lock, 30s, [&] { return release; });
+      --stalled_running;
+    }, "user" + std::to_string(i), "stalled-pacs");
+  }
+  pool.Submit([&] {
+    std::lock_guard lock(mu);
+    healthy_ran = true;
+    cv.notify_all();
+  }, "user0", "healthy-pacs");
+  {
+    std::unique_lock lock(mu);
+    EXPECT_TRUE(cv.wait_for(lock, 30s, [&] { return healthy_ran && stalled_running == 2; }));
+    release = true;
+  }
+  cv.notify_all();
+  pool.Stop();
+  EXPECT_EQ(stalled_most, 2);
+}
+
 }  // namespace
 }  // namespace cinevol::service

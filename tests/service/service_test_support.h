@@ -2,6 +2,7 @@
 #pragma once
 
 #include <algorithm>
+#include <atomic>
 #include <chrono>
 #include <cmath>
 #include <fstream>
@@ -168,5 +169,57 @@ inline double ReadingFps(SessionStream& stream, std::chrono::milliseconds durati
   }
   return frames / std::chrono::duration<double>(duration).count();
 }
+
+// A neighbour that reads normally on a thread of its own (ReadingFps's
+// camera events at 60 Hz) while a test attacks the server: its frames per
+// second and the longest gap between two of its frames, taken when it stops.
+class Witness {
+ public:
+  struct Report {
+    double fps = 0;
+    double longest_gap_s = 0;
+  };
+  explicit Witness(SessionStream& stream) : stream_(stream), thread_([this] { Read(); }) {}
+  ~Witness() { Stop(); }
+  Witness(const Witness&) = delete;
+  Witness& operator=(const Witness&) = delete;
+
+  // Ends the reading (at once; the test's own limits bound what it waited on).
+  Report Stop() {
+    stop_ = true;
+    if (thread_.joinable()) thread_.join();
+    return report_;
+  }
+
+ private:
+  void Read() {
+    while (stream_.Next(0ms)) {  // frames that arrived before the measurement
+    }
+    int frames = 0, step = 0;
+    const auto start = std::chrono::steady_clock::now();
+    auto next = start, last_frame = start;
+    while (!stop_ && std::chrono::steady_clock::now() - start < 600s) {
+      const auto now = std::chrono::steady_clock::now();
+      if (now >= next) {
+        stream_.Send(Orbit(step++));
+        next += 16ms;
+      }
+      if (auto m = stream_.Next(5ms); m && m->has_frame()) {
+        const auto at = std::chrono::steady_clock::now();
+        report_.longest_gap_s = std::max(report_.longest_gap_s, std::chrono::duration<double>(at - last_frame).count());
+        last_frame = at;
+        ++frames;
+      }
+    }
+    const auto end = std::chrono::steady_clock::now();
+    report_.longest_gap_s = std::max(report_.longest_gap_s, std::chrono::duration<double>(end - last_frame).count());
+    report_.fps = frames / std::max(1e-3, std::chrono::duration<double>(end - start).count());
+  }
+
+  SessionStream& stream_;
+  std::atomic<bool> stop_{false};
+  Report report_;
+  std::thread thread_;
+};
 
 }  // namespace cinevol::testing

@@ -277,10 +277,12 @@ TEST(Sharing, AViewerThatStopsReadingDoesNotSlowThePresenter) {
   stuck_context.TryCancel();
 }
 
-// Limits: viewers per session, grants per principal; bad requests named.
+// Limits: viewers per session and per grant (one link never takes every
+// seat), grants per principal; bad requests named.
 TEST(Sharing, LimitsAndBadRequestsAreRefusedByName) {
   ScratchDir scratch;
-  TokenServer s(scratch.path(), {"--max-viewers-per-session", "2", "--max-grants-per-principal", "2"});
+  TokenServer s(scratch.path(), {"--max-viewers-per-session", "3", "--max-viewers-per-grant", "2",
+                                 "--max-grants-per-principal", "3"});
   ASSERT_TRUE(s.server->running()) << s.server->Log();
   Client alice = s.server->Connect("alice-token");
   const auto created = alice.CreateSession(SmallSession());
@@ -290,7 +292,14 @@ TEST(Sharing, LimitsAndBadRequestsAreRefusedByName) {
   auto one = SessionWatch({s.Bare()}, link.secret(), ""), two = SessionWatch({s.Bare()}, link.secret(), "");
   ASSERT_TRUE(FrameAfter(one, 0) && FrameAfter(two, 0));
   auto three = SessionWatch({s.Bare()}, link.secret(), "");
-  const grpc::Status full = Ended(three);
+  const grpc::Status link_full = Ended(three);
+  EXPECT_EQ(link_full.error_code(), grpc::StatusCode::RESOURCE_EXHAUSTED);
+  EXPECT_NE(link_full.error_message().find("--max-viewers-per-grant"), std::string::npos) << link_full.error_message();
+  const v1::Grant another = Share(alice, created.session_id(), "", v1::VIEWER);
+  auto four = SessionWatch({s.Bare()}, another.secret(), "");
+  ASSERT_TRUE(FrameAfter(four, 0)) << "another link still gets a seat";
+  auto five = SessionWatch({s.Bare()}, another.secret(), "");
+  const grpc::Status full = Ended(five);
   EXPECT_EQ(full.error_code(), grpc::StatusCode::RESOURCE_EXHAUSTED);
   EXPECT_NE(full.error_message().find("--max-viewers-per-session"), std::string::npos) << full.error_message();
 
