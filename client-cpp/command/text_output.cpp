@@ -13,17 +13,39 @@ namespace cinevol::cli {
 namespace {
 
 // What an unset string field reads as.
-std::string OrDash(const std::string& text) { return text.empty() ? "-" : text; }
+std::string OrDash(const std::string& text) { return text.empty() ? "-" : Printable(text); }
 
 }  // namespace
 
-void PrintTable(const std::vector<TextRow>& rows) {
-  std::vector<std::size_t> widths;
-  for (const TextRow& row : rows) {
-    widths.resize(std::max(widths.size(), row.size()));
-    for (std::size_t c = 0; c < row.size(); ++c) widths[c] = std::max(widths[c], row[c].size());
+std::string Printable(std::string_view text) {
+  std::string out;
+  for (std::size_t i = 0; i < text.size();) {
+    const auto c = static_cast<unsigned char>(text[i]);
+    const bool c1 = c == 0xc2 && i + 1 < text.size() && static_cast<unsigned char>(text[i + 1]) < 0xa0;  // U+0080..9F
+    if (c < 0x20 || c == 0x7f || c1) {
+      for (std::size_t k = 0; k < (c1 ? 2u : 1u); ++k) {
+        out += fmt::format("\\x{:02x}", static_cast<unsigned char>(text[i + k]));
+      }
+      i += c1 ? 2 : 1;
+    } else {
+      out += char(c);
+      ++i;
+    }
   }
-  for (const TextRow& row : rows) {
+  return out;
+}
+
+void PrintTable(const std::vector<TextRow>& rows) {
+  std::vector<TextRow> shown = rows;  // cells come from servers and PACS: no control character reaches the terminal
+  std::vector<std::size_t> widths;
+  for (TextRow& row : shown) {
+    widths.resize(std::max(widths.size(), row.size()));
+    for (std::size_t c = 0; c < row.size(); ++c) {
+      row[c] = Printable(row[c]);
+      widths[c] = std::max(widths[c], row[c].size());
+    }
+  }
+  for (const TextRow& row : shown) {
     std::string line;
     for (std::size_t c = 0; c < row.size(); ++c) {
       line += c + 1 < row.size() ? fmt::format("{:<{}}  ", row[c], widths[c]) : row[c];

@@ -6,6 +6,7 @@
 
 #include <cstdint>
 #include <string>
+#include <string_view>
 #include <vector>
 
 #include "cinevol/v1/service.pb.h"
@@ -13,6 +14,11 @@
 namespace cinevol::cli {
 
 using TextRow = std::vector<std::string>;
+
+// `text` for a terminal: control characters (C0, DEL, C1: ESC, CR, CSI...)
+// written as \xNN, so a name from a PACS cannot move the cursor or rewrite
+// what was printed.
+std::string Printable(std::string_view text);
 
 // Rows in columns padded to their widest cell; the first row is the header.
 void PrintTable(const std::vector<TextRow>& rows);

@@ -2,44 +2,41 @@
 #include "pacs/dicom_json.h"
 
 #include <fmt/format.h>
-#include <google/protobuf/util/json_util.h>
 
+#include <algorithm>
 #include <cctype>
 #include <cmath>
 #include <stdexcept>
 
+#include "core/log_safe.h"
+
 namespace cinevol::pacs {
 namespace {
 
-using google::protobuf::ListValue;
-using google::protobuf::Struct;
-using google::protobuf::Value;
+using Kind = JsonDocument::Kind;
+using Ref = JsonDocument::Ref;
 
 constexpr std::int64_t kMaxCount = std::int64_t{1} << 31;
-// DICOM JSON nests three levels per sequence; 32 allows sequences 10 deep, more than a
-// search or store answer holds, and stays inside protobuf's own recursion limit.
+// DICOM JSON nests three levels per sequence; 32 allows sequences 10 deep,
+// more than a search or store answer holds.
 constexpr int kMaxJsonDepth = 32;
 
-std::string Cut(const std::string& text) { return text.substr(0, kMaxDicomText); }
-
-std::string TextOf(const Value& value) {
-  if (value.kind_case() == Value::kStringValue) return Cut(value.string_value());
-  if (value.kind_case() == Value::kNumberValue && std::isfinite(value.number_value())) {
-    return fmt::format("{}", value.number_value());
-  }
+std::string TextOf(Ref value) {
+  if (value.is(Kind::kString)) return CleanText(value.text());
+  if (value.is(Kind::kNumber) && std::isfinite(value.number())) return fmt::format("{}", value.number());
   return {};
 }
 
-std::optional<std::int64_t> CountOf(const Value& value) {
-  if (value.kind_case() == Value::kNumberValue) {
-    const double number = value.number_value();
+std::optional<std::int64_t> CountOf(Ref value) {
+  if (value.is(Kind::kNumber)) {
+    const double number = value.number();
     if (!std::isfinite(number) || number < 0 || number >= double(kMaxCount) || number != std::floor(number)) {
       return std::nullopt;
     }
     return static_cast<std::int64_t>(number);
   }
-  if (value.kind_case() != Value::kStringValue) return std::nullopt;
-  std::string_view text = value.string_value();
+  if (!value.is(Kind::kString)) return std::nullopt;
+  std::string_view text = value.text();
   while (!text.empty() && text.front() == ' ') text.remove_prefix(1);  // IS values may be space-padded
   while (!text.empty() && text.back() == ' ') text.remove_suffix(1);
   if (text.empty() || text.size() > 10) return std::nullopt;
@@ -54,94 +51,78 @@ std::optional<std::int64_t> CountOf(const Value& value) {
 
 }  // namespace
 
-const ListValue* DicomJsonDataset::Values(std::uint32_t tag) const {
+std::string CleanText(std::string_view text, std::size_t max_bytes) {
+  static constexpr std::string_view kReplacement = "\xEF\xBF\xBD";  // U+FFFD
+  std::string clean;
+  while (!text.empty()) {
+    const std::size_t length = Utf8SequenceLength(text);
+    const std::string_view character = length > 0 ? text.substr(0, length) : kReplacement;
+    if (clean.size() + character.size() > max_bytes) break;
+    clean += character;
+    text.remove_prefix(std::max<std::size_t>(length, 1));
+  }
+  return clean;
+}
+
+std::vector<Ref> DicomJsonDataset::Values(std::uint32_t tag) const {
   // PS3.18 F.2 writes tags in upper-case hex; some servers write lower case.
   for (const std::string& key : {fmt::format("{:08X}", tag), fmt::format("{:08x}", tag)}) {
-    const auto attribute = object_->fields().find(key);
-    if (attribute == object_->fields().end() || !attribute->second.has_struct_value()) continue;
-    const auto& fields = attribute->second.struct_value().fields();
-    const auto values = fields.find("Value");
-    if (values == fields.end() || !values->second.has_list_value()) return nullptr;
-    return &values->second.list_value();
+    const Ref attribute = object_.member(key);
+    if (!attribute.is(Kind::kObject)) continue;
+    return attribute.member("Value").children();  // none unless an array
   }
-  return nullptr;
+  return {};
 }
 
 std::string DicomJsonDataset::Text(std::uint32_t tag) const {
-  const ListValue* values = Values(tag);
-  return values != nullptr && values->values_size() > 0 ? TextOf(values->values(0)) : std::string();
+  const std::vector<Ref> values = Values(tag);
+  return values.empty() ? std::string() : TextOf(values.front());
 }
 
 std::vector<std::string> DicomJsonDataset::Texts(std::uint32_t tag, std::size_t max_values) const {
   std::vector<std::string> texts;
-  const ListValue* values = Values(tag);
-  for (int i = 0; values != nullptr && i < values->values_size() && texts.size() < max_values; ++i) {
-    std::string text = TextOf(values->values(i));
+  for (Ref value : Values(tag)) {
+    if (texts.size() >= max_values) break;
+    std::string text = TextOf(value);
     if (!text.empty()) texts.push_back(std::move(text));
   }
   return texts;
 }
 
 std::string DicomJsonDataset::PersonName(std::uint32_t tag) const {
-  const ListValue* values = Values(tag);
-  if (values == nullptr || values->values_size() == 0) return {};
-  const Value& first = values->values(0);
-  if (!first.has_struct_value()) return TextOf(first);
-  const auto& groups = first.struct_value().fields();
-  const auto alphabetic = groups.find("Alphabetic");
-  return alphabetic == groups.end() ? std::string() : TextOf(alphabetic->second);
+  const std::vector<Ref> values = Values(tag);
+  if (values.empty()) return {};
+  const Ref first = values.front();
+  return first.is(Kind::kObject) ? TextOf(first.member("Alphabetic")) : TextOf(first);
 }
 
 std::optional<std::int64_t> DicomJsonDataset::Count(std::uint32_t tag) const {
-  const ListValue* values = Values(tag);
-  if (values == nullptr || values->values_size() == 0) return std::nullopt;
-  return CountOf(values->values(0));
+  const std::vector<Ref> values = Values(tag);
+  return values.empty() ? std::nullopt : CountOf(values.front());
 }
 
 std::vector<DicomJsonDataset> DicomJsonDataset::Items(std::uint32_t tag, std::size_t max_items) const {
   std::vector<DicomJsonDataset> items;
-  const ListValue* values = Values(tag);
-  for (int i = 0; values != nullptr && i < values->values_size() && items.size() < max_items; ++i) {
-    if (values->values(i).has_struct_value()) items.emplace_back(values->values(i).struct_value());
+  for (Ref value : Values(tag)) {
+    if (items.size() >= max_items) break;
+    if (value.is(Kind::kObject)) items.emplace_back(value);
   }
   return items;
 }
 
-bool NestsDeeperThan(std::string_view json, int limit) {
-  int depth = 0;
-  bool in_string = false;
-  for (std::size_t i = 0; i < json.size(); ++i) {
-    const char c = json[i];
-    if (in_string) {
-      if (c == '\\') ++i;  // an escaped character, perhaps a quote
-      if (c == '"') in_string = false;
-    } else if (c == '"') {
-      in_string = true;
-    } else if (c == '[' || c == '{') {
-      if (++depth > limit) return true;
-    } else if (c == ']' || c == '}') {
-      --depth;
-    }
-  }
-  return false;
-}
-
-std::vector<DicomJsonDataset> ParseDicomJson(std::string_view json, Value& storage) {
-  storage.Clear();
-  if (NestsDeeperThan(json, kMaxJsonDepth)) {
-    throw std::invalid_argument(fmt::format("the answer nests more than {} levels deep", kMaxJsonDepth));
-  }
-  const auto status = google::protobuf::util::JsonStringToMessage(std::string(json), &storage);
-  if (!status.ok()) throw std::invalid_argument("the answer is not valid JSON");
+std::vector<DicomJsonDataset> ParseDicomJson(std::string_view json, JsonDocument& storage,
+                                             const std::atomic<bool>* cancel) {
+  storage = JsonDocument::Parse(json, {.max_depth = kMaxJsonDepth}, cancel);
+  const Ref root = storage.root();
   std::vector<DicomJsonDataset> datasets;
-  if (storage.has_struct_value()) {
-    datasets.emplace_back(storage.struct_value());
-  } else if (storage.has_list_value()) {
-    for (const Value& item : storage.list_value().values()) {
-      if (item.has_struct_value()) datasets.emplace_back(item.struct_value());
+  if (root.is(Kind::kObject)) {
+    datasets.emplace_back(root);
+  } else if (root.is(Kind::kArray)) {
+    for (Ref item : root.children()) {
+      if (item.is(Kind::kObject)) datasets.emplace_back(item);
     }
-  } else if (storage.kind_case() != Value::kNullValue) {  // some servers answer an empty search with null
-    throw std::invalid_argument("the answer is JSON, but neither an array of data sets nor one data set");
+  } else if (!root.is(Kind::kNull)) {  // some servers answer an empty search with null
+    throw JsonError("the answer is JSON, but neither an array of data sets nor one data set");
   }
   return datasets;
 }

@@ -1,27 +1,32 @@
 // The DICOM JSON model (PS3.18 F.2) that QIDO-RS and STOW-RS answer in, read
 // defensively: an attribute that is missing, of the wrong JSON type or absurd
-// reads as absent, never as a crash. Parsed by protobuf's JSON parser into
-// google::protobuf::Value, which the build has already.
+// reads as absent, never as a crash. Parsed by JsonDocument, whose bounds no
+// answer gets past (json_document.h).
 #pragma once
 
-#include <google/protobuf/struct.pb.h>
-
+#include <atomic>
 #include <cstdint>
 #include <optional>
 #include <string>
 #include <string_view>
 #include <vector>
 
+#include "pacs/json_document.h"
+
 namespace cinevol::pacs {
 
-// The longest text kept from one attribute's value (a PN or LO holds 64
-// characters per value); longer values are cut here.
+// The longest text kept from one attribute's value, in bytes (a PN or LO holds
+// 64 characters per value); longer values are cut here, between characters.
 constexpr std::size_t kMaxDicomText = 256;
+
+// `text` as valid UTF-8 of at most `max_bytes`: each malformed sequence
+// becomes U+FFFD, and a cut never splits a character.
+std::string CleanText(std::string_view text, std::size_t max_bytes = kMaxDicomText);
 
 // One data set (one JSON object, tags as keys).
 class DicomJsonDataset {
  public:
-  explicit DicomJsonDataset(const google::protobuf::Struct& object) : object_(&object) {}
+  explicit DicomJsonDataset(JsonDocument::Ref object) : object_(object) {}
 
   // The first value of `tag` as text (a string, or a number written out); empty when absent or not text.
   std::string Text(std::uint32_t tag) const;
@@ -35,21 +40,18 @@ class DicomJsonDataset {
   std::vector<DicomJsonDataset> Items(std::uint32_t tag, std::size_t max_items) const;
 
  private:
-  // The "Value" array of `tag`, or null.
-  const google::protobuf::ListValue* Values(std::uint32_t tag) const;
-  const google::protobuf::Struct* object_;
+  // The "Value" array of `tag`'s items; empty when absent.
+  std::vector<JsonDocument::Ref> Values(std::uint32_t tag) const;
+  JsonDocument::Ref object_;
 };
 
-// Whether `json`'s arrays and objects nest deeper than `limit`, in one pass.
-// Checked before protobuf's parser sees a text: deep nesting costs that
-// parser time quadratic in the depth (100,000 levels: minutes).
-bool NestsDeeperThan(std::string_view json, int limit);
-
 // A DICOM JSON answer: an array of data sets (QIDO-RS) or one data set
-// (STOW-RS answers), parsed into `storage`. Throws std::invalid_argument when
-// `json` is not JSON of that shape; objects inside that are not data sets are
-// skipped.
-std::vector<DicomJsonDataset> ParseDicomJson(std::string_view json, google::protobuf::Value& storage);
+// (STOW-RS answers), parsed into `storage`. Throws JsonError (an
+// std::invalid_argument) when `json` is not JSON of that shape within the
+// limits; Cancelled once `cancel` is raised. Objects inside that are not data
+// sets are skipped.
+std::vector<DicomJsonDataset> ParseDicomJson(std::string_view json, JsonDocument& storage,
+                                             const std::atomic<bool>* cancel = nullptr);
 
 // True for a DICOM UID: 1 to 64 characters of digits and dots, no empty
 // component. (Leading zeros, which PS3.5 forbids, are let through: some

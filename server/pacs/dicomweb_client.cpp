@@ -168,7 +168,7 @@ std::vector<StudySummary> DicomWebClient::SearchStudies(const StudyQuery& query,
                                                         const std::atomic<bool>* cancel) const {
   CheckStudyQuery(query);
   const int limit = std::min(query.limit, config_.max_search_results);
-  google::protobuf::Value storage;
+  JsonDocument storage;
   const auto datasets = FetchDicomJson(config_, "a search for studies",
                                        config_.base_url + "/studies" + StudySearchQuery(query, limit), cancel, storage);
   std::vector<StudySummary> studies;
@@ -185,7 +185,7 @@ std::vector<SeriesSummary> DicomWebClient::SearchSeries(const std::string& study
   std::string query;
   AddParameter(query, "limit", std::to_string(config_.max_search_results));
   AddIncludeFields(query, kSeriesFields);
-  google::protobuf::Value storage;
+  JsonDocument storage;
   const auto datasets = FetchDicomJson(config_, "a search for a study's series",
                                        StudyUrl(config_, study_uid) + "/series" + query, cancel, storage);
   std::vector<SeriesSummary> series;
@@ -204,7 +204,7 @@ std::vector<InstanceSummary> DicomWebClient::ListInstances(const std::string& st
   AddParameter(query, "limit", std::to_string(config_.max_instances + 1));
   AddIncludeFields(query, kInstanceFields);
   const std::string what = "a listing of a series' instances";
-  google::protobuf::Value storage;
+  JsonDocument storage;
   const auto datasets =
       FetchDicomJson(config_, what, SeriesUrl(config_, study_uid, series_uid) + "/instances" + query, cancel, storage);
   std::vector<InstanceSummary> instances;

@@ -6,6 +6,7 @@
 
 #include <atomic>
 #include <cstdint>
+#include <filesystem>
 #include <functional>
 #include <optional>
 #include <string>
@@ -70,10 +71,11 @@ struct RetrieveCallbacks {
   // Before any instance is fetched, with the instances the PACS lists (at most
   // max_instances of them): throw to refuse the series (its memory, say).
   std::function<void(const std::vector<InstanceSummary>&)> on_listing;
-  // Each instance's DICOM Part 10 bytes as they arrive, in any order. Called
-  // from the fetching threads but one call at a time; throwing stops the
-  // retrieve with that exception.
-  std::function<void(const InstanceSummary& instance, std::string&& bytes)> on_instance;
+  // Each instance once its DICOM Part 10 file is written, in any order: the
+  // file, and its size in bytes. Called from the fetching threads but one
+  // call at a time; throwing stops the retrieve with that exception.
+  std::function<void(const InstanceSummary& instance, const std::filesystem::path& file, std::uint64_t bytes)>
+      on_instance;
   // Instances done of the total, after each on_instance.
   std::function<void(std::size_t done, std::size_t total)> on_progress;
 };
@@ -109,15 +111,20 @@ class DicomWebClient {
                                              const std::atomic<bool>* cancel = nullptr) const;
 
   // Lists the series' instances, then fetches each (WADO-RS, multipart/related,
-  // as stored: no transcoding on the PACS) on at most parallel_fetches threads,
-  // handing each to `callbacks.on_instance`. Before any fetch: OverLimit past
-  // max_instances, InputError for a bad UID. While fetching: OverLimit past
+  // as stored: no transcoding on the PACS) on at most parallel_fetches threads
+  // into `folder` (which must exist): each answer streams to disk as it comes
+  // (memory stays flat whatever the PACS sends), its one instance is cut out
+  // to `NNNNNN.dcm` (its index in the listing) and handed to
+  // `callbacks.on_instance`. Before any fetch: OverLimit past max_instances,
+  // InputError for a bad UID. While fetching: OverLimit past
   // max_response_bytes for one instance or max_series_bytes for all, PacsError
   // for a failing PACS or a malformed answer, Cancelled once `cancel` is set
   // (within about a second); the transfers in flight are aborted on any of
-  // these. Returns once every instance was handed over.
+  // these. Returns once every instance was handed over; what it wrote stays
+  // in `folder`, the caller's to remove.
   RetrieveStats RetrieveSeries(const std::string& study_uid, const std::string& series_uid,
-                               const RetrieveCallbacks& callbacks, const std::atomic<bool>* cancel = nullptr) const;
+                               const std::filesystem::path& folder, const RetrieveCallbacks& callbacks,
+                               const std::atomic<bool>* cancel = nullptr) const;
 
   // STOW-RS: posts `instances` (DICOM Part 10 files of study `study_uid`) to
   // /studies/{study} as one multipart/related body. Throws PacsError unless the

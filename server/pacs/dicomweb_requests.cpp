@@ -50,7 +50,7 @@ void CheckStatus(const PacsConfig& config, const HttpResponse& response, const s
 }
 
 std::vector<DicomJsonDataset> FetchDicomJson(const PacsConfig& config, const std::string& what, const std::string& url,
-                                             const std::atomic<bool>* cancel, google::protobuf::Value& storage) {
+                                             const std::atomic<bool>* cancel, JsonDocument& storage) {
   HttpRequest request;
   request.what = what;
   request.url = url;
@@ -63,17 +63,17 @@ std::vector<DicomJsonDataset> FetchDicomJson(const PacsConfig& config, const std
   CheckStatus(config, response, what, {200, 204});
   if (response.status == 204 || response.body.empty()) return {};
   try {
-    return ParseDicomJson(response.body, storage);
-  } catch (const std::invalid_argument& e) {
+    return ParseDicomJson(response.body, storage, cancel);
+  } catch (const JsonError& e) {
     throw PacsError(fmt::format("PACS '{}' answered {} with what is not DICOM JSON: {}", config.name, what, e.what()),
                     response.status);
   }
 }
 
-std::vector<DicomJsonDataset> TryParseDicomJson(const std::string& body, google::protobuf::Value& storage) {
+std::vector<DicomJsonDataset> TryParseDicomJson(const std::string& body, JsonDocument& storage) {
   try {
     return ParseDicomJson(body, storage);
-  } catch (const std::invalid_argument&) {
+  } catch (const JsonError&) {
     return {};
   }
 }

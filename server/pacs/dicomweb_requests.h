@@ -3,7 +3,6 @@
 // under its cap. Internal to server/pacs.
 #pragma once
 
-#include <google/protobuf/struct.pb.h>
 
 #include <atomic>
 #include <initializer_list>
@@ -63,11 +62,11 @@ void CheckStatus(const PacsConfig& config, const HttpResponse& response, const s
 // GETs `url` asking for DICOM JSON (at most max_json_bytes), checks the status
 // (200, or 204 for nothing) and parses the answer into `storage`.
 std::vector<DicomJsonDataset> FetchDicomJson(const PacsConfig& config, const std::string& what, const std::string& url,
-                                             const std::atomic<bool>* cancel, google::protobuf::Value& storage);
+                                             const std::atomic<bool>* cancel, JsonDocument& storage);
 
 // The parsed DICOM JSON of a body that should hold it, or nothing where it does
 // not (a PACS may answer an error with HTML).
-std::vector<DicomJsonDataset> TryParseDicomJson(const std::string& body, google::protobuf::Value& storage);
+std::vector<DicomJsonDataset> TryParseDicomJson(const std::string& body, JsonDocument& storage);
 
 // True when `bytes` look like a DICOM Part 10 file: a 128-byte preamble, then "DICM".
 bool IsPart10(std::string_view bytes);

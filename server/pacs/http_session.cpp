@@ -3,8 +3,10 @@
 
 #include <curl/curl.h>
 #include <fmt/format.h>
+#include <unistd.h>
 
 #include <algorithm>
+#include <cerrno>
 #include <mutex>
 #include <stdexcept>
 
@@ -20,7 +22,7 @@ void InitialiseCurlOnce() {
 }
 
 // Why a transfer stopped before its end, when it was our doing.
-enum class Stop { kNone, kBodyCap, kBudget, kCancelled };
+enum class Stop { kNone, kBodyCap, kBudget, kCancelled, kWriteFailed };
 
 struct Transfer {
   const HttpRequest& request;
@@ -30,12 +32,24 @@ struct Transfer {
 
 bool IsSet(const std::atomic<bool>* flag) { return flag != nullptr && flag->load(); }
 
+// Writes all of `bytes` to `fd`; false on any error.
+bool WriteAll(int fd, const char* data, std::size_t bytes) {
+  while (bytes > 0) {
+    const ssize_t n = ::write(fd, data, bytes);
+    if (n < 0 && errno == EINTR) continue;
+    if (n <= 0) return false;
+    data += n, bytes -= std::size_t(n);
+  }
+  return true;
+}
+
 // libcurl's write callback: the cap and the budget are checked before a byte
-// is kept, so an answer never holds more than its cap in memory.
+// is kept, so an answer never holds more than its cap, in memory or on disk.
 std::size_t OnBody(char* data, std::size_t size, std::size_t count, void* user) {
   auto& transfer = *static_cast<Transfer*>(user);
   const std::size_t bytes = size * count;
-  if (transfer.response.body.size() + bytes > transfer.request.max_body_bytes) {
+  HttpResponse& response = transfer.response;
+  if (response.body_bytes + bytes > transfer.request.max_body_bytes) {
     transfer.stop = Stop::kBodyCap;
     return 0;  // anything but `bytes` aborts the transfer
   }
@@ -43,7 +57,15 @@ std::size_t OnBody(char* data, std::size_t size, std::size_t count, void* user) 
     transfer.stop = Stop::kBudget;
     return 0;
   }
-  transfer.response.body.append(data, bytes);
+  if (transfer.request.body_fd >= 0) {
+    if (!WriteAll(transfer.request.body_fd, data, bytes)) {
+      transfer.stop = Stop::kWriteFailed;
+      return 0;
+    }
+  } else {
+    response.body.append(data, bytes);
+  }
+  response.body_bytes += bytes;
   return bytes;
 }
 
@@ -68,6 +90,10 @@ std::string LimitFlag(std::string_view limit_name) {
 [[noreturn]] void ThrowFailure(const PacsConfig& config, const HttpRequest& request, CURLcode code, Stop stop) {
   const std::string& name = config.name;
   if (stop == Stop::kCancelled) throw Cancelled(fmt::format("PACS '{}': {} cancelled", name, request.what));
+  if (stop == Stop::kWriteFailed) {
+    throw std::runtime_error(fmt::format("PACS '{}': the answer to {} could not be written to the server's disk", name,
+                                         request.what));
+  }
   if (stop == Stop::kBudget) {
     throw OverLimit("pacs-max-series-bytes",
                     fmt::format("PACS '{}': {} passed the limit of {} bytes for one series (max_series_bytes)", name,

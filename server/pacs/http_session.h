@@ -46,12 +46,16 @@ struct HttpRequest {
   const std::atomic<bool>* cancel = nullptr;
   // Like `cancel`, for the caller's own reasons (another transfer of the same series failed).
   const std::atomic<bool>* abandon = nullptr;
+  // An open file the body is written to as it arrives, instead of
+  // HttpResponse::body: an instance, which may be large, never sits in memory.
+  int body_fd = -1;
 };
 
 struct HttpResponse {
   long status = 0;
   std::string content_type;
-  std::string body;
+  std::string body;             // empty when the request gave body_fd
+  std::uint64_t body_bytes = 0;  // received, wherever they went
 };
 
 // One libcurl handle for one PACS, reused from request to request so that its
@@ -66,7 +70,8 @@ class HttpSession {
   // Performs `request` and returns whatever status the PACS answered (checking
   // it is the caller's). Throws PacsError when there is no answer (unreachable,
   // timed out, TLS), OverLimit when the body passes its cap or the budget,
-  // Cancelled when `request.cancel` was set.
+  // Cancelled when `request.cancel` was set, std::runtime_error when the body
+  // cannot be written to `request.body_fd`.
   HttpResponse Perform(const HttpRequest& request);
 
  private:

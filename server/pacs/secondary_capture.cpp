@@ -189,8 +189,13 @@ void CheckImage(const SecondaryCaptureImage& image) {
 }
 
 // Parses `json` as one JSON object into `value`; false when it is not one, or nests too deep to parse safely.
+// JsonDocument checks it first within its bounds, so protobuf's more lenient parser sees only strict JSON.
 bool ParseJsonObject(const std::string& json, Value& value) {
-  if (NestsDeeperThan(json, kMaxRecipeDepth)) return false;
+  try {
+    if (!JsonDocument::Parse(json, {.max_depth = kMaxRecipeDepth}).root().is(JsonDocument::Kind::kObject)) return false;
+  } catch (const JsonError&) {
+    return false;
+  }
   return google::protobuf::util::JsonStringToMessage(json, &value).ok() && value.has_struct_value();
 }
 

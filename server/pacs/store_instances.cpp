@@ -46,7 +46,7 @@ std::string FailureReasonName(std::int64_t reason) {
 
 StoreAnswer ReadStoreAnswer(const std::string& body, std::size_t max_items) {
   StoreAnswer answer;
-  google::protobuf::Value storage;
+  JsonDocument storage;
   const std::vector<DicomJsonDataset> datasets = TryParseDicomJson(body, storage);
   if (datasets.empty()) return answer;
   const DicomJsonDataset& top = datasets.front();

@@ -4,7 +4,6 @@
 #include <fmt/format.h>
 
 #include <filesystem>
-#include <fstream>
 
 #include "core/volume.h"
 #include "io/volume_loader.h"
@@ -65,12 +64,8 @@ v1::VolumeInfo LoadSeries(const pacs::DicomWebClient& pacs, VolumeRegistry& volu
     news.set_instances_total(instances.size());
     progress(news);
   };
-  std::size_t written = 0;
-  callbacks.on_instance = [&](const pacs::InstanceSummary&, std::string&& bytes) {
-    std::ofstream out(folder / fmt::format("{:06}.dcm", written++), std::ios::binary);
-    out.write(bytes.data(), std::streamsize(bytes.size()));
-    if (!out) throw std::runtime_error("cannot write a retrieved instance to " + folder.string());
-    news.set_bytes(news.bytes() + bytes.size());
+  callbacks.on_instance = [&](const pacs::InstanceSummary&, const fs::path&, std::uint64_t bytes) {
+    news.set_bytes(news.bytes() + bytes);
   };
   callbacks.on_progress = [&](std::size_t done, std::size_t total) {
     news.set_instances_done(done);
@@ -78,7 +73,7 @@ v1::VolumeInfo LoadSeries(const pacs::DicomWebClient& pacs, VolumeRegistry& volu
     progress(news);
   };
   try {
-    pacs.RetrieveSeries(request.study_uid(), request.series_uid(), callbacks, cancel);
+    pacs.RetrieveSeries(request.study_uid(), request.series_uid(), folder, callbacks, cancel);
   } catch (...) {
     std::error_code ec;
     fs::remove_all(folder, ec);

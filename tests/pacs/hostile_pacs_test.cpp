@@ -14,6 +14,7 @@
 #include "pacs/loopback_http_server.h"
 #include "pacs/pacs_error.h"
 #include "support/error_of.h"
+#include "support/test_paths.h"
 
 namespace cinevol::pacs {
 namespace {
@@ -83,10 +84,11 @@ PacsConfig ConfigFor(const LoopbackHttpServer& server) {
 RetrieveStats RetrieveAll(const PacsConfig& config, std::atomic<int>* delivered = nullptr,
                           const std::atomic<bool>* cancel = nullptr) {
   RetrieveCallbacks callbacks;
-  callbacks.on_instance = [delivered](const InstanceSummary&, std::string&&) {
+  callbacks.on_instance = [delivered](const InstanceSummary&, const std::filesystem::path&, std::uint64_t) {
     if (delivered != nullptr) ++*delivered;
   };
-  return DicomWebClient(config).RetrieveSeries(kStudy, kSeries, callbacks, cancel);
+  const cinevol::testing::ScratchDir folder;
+  return DicomWebClient(config).RetrieveSeries(kStudy, kSeries, folder.path(), callbacks, cancel);
 }
 
 TEST(PacsHostileServer, RedirectIsNotFollowed) {
@@ -245,8 +247,8 @@ TEST(PacsHostileServer, BadUidsAndQueriesAreRefusedBeforeAnyRequest) {
   for (const std::string& bad :
        std::vector<std::string>{"", "1.2/../../system", "1.2?x=1", "1..2", "1.2%2F", "http://elsewhere/",
                                 std::string(65, '1'), std::string("1.2\0.3", 6)}) {
-    EXPECT_THROW(client.RetrieveSeries(kStudy, bad, {}), InputError) << bad;
-    EXPECT_THROW(client.RetrieveSeries(bad, kSeries, {}), InputError) << bad;
+    EXPECT_THROW(client.RetrieveSeries(kStudy, bad, "/nonexistent", {}), InputError) << bad;
+    EXPECT_THROW(client.RetrieveSeries(bad, kSeries, "/nonexistent", {}), InputError) << bad;
     EXPECT_THROW(client.SearchSeries(bad), InputError) << bad;
     EXPECT_THROW(client.StoreInstances(bad, {dicom}), InputError) << bad;
   }

@@ -29,6 +29,8 @@ namespace {
 namespace fs = std::filesystem;
 using cinevol::testing::ErrorOf;
 using cinevol::testing::OrthancProcess;
+using cinevol::testing::ReadWholeFile;
+using cinevol::testing::ScratchDir;
 using cinevol::testing::SeriesStamp;
 using cinevol::testing::StampedSeries;
 
@@ -113,11 +115,13 @@ class PacsOrthanc : public ::testing::Test {
     Retrieved retrieved;
     RetrieveCallbacks callbacks;
     callbacks.on_listing = [&](const std::vector<InstanceSummary>& listed) { retrieved.listed = listed; };
-    callbacks.on_instance = [&](const InstanceSummary& instance, std::string&& bytes) {
-      retrieved.bytes[instance.sop_instance_uid] = std::move(bytes);
+    callbacks.on_instance = [&](const InstanceSummary& instance, const std::filesystem::path& file, std::uint64_t) {
+      retrieved.bytes[instance.sop_instance_uid] = ReadWholeFile(file);
     };
     callbacks.on_progress = [&](std::size_t done, std::size_t) { retrieved.progress.push_back(done); };
-    retrieved.stats = DicomWebClient(config).RetrieveSeries(stamp.study_uid, stamp.series_uid, callbacks, cancel);
+    const ScratchDir folder;
+    retrieved.stats =
+        DicomWebClient(config).RetrieveSeries(stamp.study_uid, stamp.series_uid, folder.path(), callbacks, cancel);
     return retrieved;
   }
 
@@ -264,9 +268,10 @@ TEST_F(PacsOrthanc, MaxInstancesRefusesTheSeriesBeforeAnyFetch) {
   bool fetched = false;
   RetrieveCallbacks callbacks;
   callbacks.on_listing = [&](const auto&) { fetched = true; };
-  callbacks.on_instance = [&](const auto&, std::string&&) { fetched = true; };
+  callbacks.on_instance = [&](const auto&, const auto&, auto) { fetched = true; };
+  const ScratchDir folder;
   try {
-    DicomWebClient(config).RetrieveSeries(kCt.study_uid, kCt.series_uid, callbacks);
+    DicomWebClient(config).RetrieveSeries(kCt.study_uid, kCt.series_uid, folder.path(), callbacks);
     ADD_FAILURE() << "a series of 20 retrieved under max_instances 5";
   } catch (const OverLimit& e) {
     EXPECT_EQ(e.flag(), "pacs-max-instances");
@@ -281,9 +286,10 @@ TEST_F(PacsOrthanc, SeriesByteCapStopsTheRetrievePartWay) {
   config.max_series_bytes = 3 * ct_.instances.front().bytes.size();  // about 3 of the 20 instances
   std::atomic<int> delivered{0};
   RetrieveCallbacks callbacks;
-  callbacks.on_instance = [&](const auto&, std::string&&) { ++delivered; };
+  callbacks.on_instance = [&](const auto&, const auto&, auto) { ++delivered; };
+  const ScratchDir folder;
   try {
-    DicomWebClient(config).RetrieveSeries(kCt.study_uid, kCt.series_uid, callbacks);
+    DicomWebClient(config).RetrieveSeries(kCt.study_uid, kCt.series_uid, folder.path(), callbacks);
     ADD_FAILURE() << "retrieved past max_series_bytes";
   } catch (const OverLimit& e) {
     EXPECT_EQ(e.flag(), "pacs-max-series-bytes");
@@ -305,12 +311,14 @@ TEST_F(PacsOrthanc, CancelStopsTheRetrieveAndDeliversNothingAfter) {
   std::size_t delivered = 0;
   std::chrono::steady_clock::time_point cancelled_at;
   RetrieveCallbacks callbacks;
-  callbacks.on_instance = [&](const auto&, std::string&&) {
+  callbacks.on_instance = [&](const auto&, const auto&, auto) {
     ++delivered;
     cancelled_at = std::chrono::steady_clock::now();
     cancel = true;
   };
-  EXPECT_THROW(DicomWebClient(Config()).RetrieveSeries(kCt.study_uid, kCt.series_uid, callbacks, &cancel), Cancelled);
+  const ScratchDir folder;
+  EXPECT_THROW(DicomWebClient(Config()).RetrieveSeries(kCt.study_uid, kCt.series_uid, folder.path(), callbacks, &cancel),
+               Cancelled);
   EXPECT_EQ(delivered, 1u);
   EXPECT_LT(std::chrono::steady_clock::now() - cancelled_at, std::chrono::seconds(2));
 }

@@ -2,13 +2,16 @@
 // `--pacs NAME=URL`, the credentials file, multipart bodies, DICOM JSON, UIDs.
 #include <gtest/gtest.h>
 
+#include <atomic>
 #include <chrono>
+#include <cmath>
 #include <string>
 
 #include "core/error.h"
 #include "pacs/dicom_json.h"
 #include "pacs/multipart.h"
 #include "pacs/pacs_config.h"
+#include "support/error_of.h"
 
 namespace cinevol::pacs {
 namespace {
@@ -183,7 +186,7 @@ TEST(PacsDicomJson, HostileValuesReadAsAbsent) {
     "not a data set", 42,
     {"0020000e": {"vr": "UI", "Value": ["4.5.6"]}}
   ])";
-  google::protobuf::Value storage;
+  JsonDocument storage;
   const auto datasets = ParseDicomJson(json, storage);
   ASSERT_EQ(datasets.size(), 2u);
   EXPECT_EQ(datasets[0].Text(0x0020000D), "1.2.3");
@@ -198,7 +201,7 @@ TEST(PacsDicomJson, HostileValuesReadAsAbsent) {
 }
 
 TEST(PacsDicomJson, DeepNestingAndGarbageAreErrorsNotHangsOrCrashes) {
-  google::protobuf::Value storage;
+  JsonDocument storage;
   const auto start = std::chrono::steady_clock::now();
   EXPECT_THROW(ParseDicomJson(std::string(1000000, '[') + std::string(1000000, ']'), storage), std::invalid_argument);
   EXPECT_THROW(ParseDicomJson("[\"\\\"[[\"" + std::string(33, '{'), storage), std::invalid_argument);
@@ -215,6 +218,56 @@ TEST(PacsDicomJson, DeepNestingAndGarbageAreErrorsNotHangsOrCrashes) {
   EXPECT_THROW(ParseDicomJson("\"a string\"", storage), std::invalid_argument);
   EXPECT_TRUE(ParseDicomJson("[]", storage).empty());
   EXPECT_TRUE(ParseDicomJson("null", storage).empty());
+}
+
+// The attack that passed the old depth check: a single-quoted string (which a
+// lenient parser takes) holding a double quote hid 100,000 levels from it.
+TEST(PacsDicomJson, OnlyStrictJsonIsRead) {
+  JsonDocument storage;
+  const std::string hidden = "['\"', " + std::string(100000, '[') + std::string(100000, ']') + "]";
+  const auto start = std::chrono::steady_clock::now();
+  EXPECT_THROW(ParseDicomJson(hidden, storage), JsonError);
+  for (const char* lenient : {"['a']", "[1,]", "{\"a\":1,}", "[NaN]", "[Infinity]", "[01]", "[1.]", "[.5]", "[+1]",
+                              "// comment\n[]", "[\"tab\there\"]", "[\"\\x41\"]", "{a:1}", "[] []", "[\"\\u12\"]"}) {
+    EXPECT_THROW(ParseDicomJson(lenient, storage), JsonError) << lenient;
+  }
+  EXPECT_LT(std::chrono::steady_clock::now() - start, std::chrono::seconds(1));
+  const JsonDocument doc = JsonDocument::Parse(R"({"s":"\u00e9\ud83d\ude00\ud800x\"\/","n":-1.5e3,"big":1e999,"t":true})");
+  EXPECT_EQ(doc.root().member("s").text(), "\u00e9\U0001F600\uFFFDx\"/");
+  EXPECT_EQ(doc.root().member("n").number(), -1500);
+  EXPECT_TRUE(std::isinf(doc.root().member("big").number()));
+  EXPECT_TRUE(doc.root().member("t").is(JsonDocument::Kind::kTrue));
+  EXPECT_FALSE(doc.root().member("absent").valid());
+}
+
+// Memory is bounded by the count of values, known before it is taken; a
+// raised flag stops the parse.
+TEST(PacsDicomJson, ValuesAreCountedAndTheParseCanBeCancelled) {
+  std::string many = "[";
+  for (int i = 0; i < 2000; ++i) many += "[],";
+  many += "0]";
+  const std::string error = cinevol::testing::ErrorOf<JsonError>([&] { JsonDocument::Parse(many, {.max_values = 1000}); });
+  EXPECT_NE(error.find("more than 1000 values"), std::string::npos) << error;
+  EXPECT_NO_THROW(JsonDocument::Parse(many, {.max_values = 5000}));
+  const std::atomic<bool> cancel{true};
+  EXPECT_THROW(JsonDocument::Parse(std::string(1 << 20, ' ') + "[]", {}, &cancel), Cancelled);
+}
+
+// A text cut to kMaxDicomText never splits a character, and malformed UTF-8
+// becomes U+FFFD: a client that checks UTF-8 takes every answer.
+TEST(PacsDicomJson, TextsAreValidUtf8CutBetweenCharacters) {
+  const std::string e_acute = "\xC3\xA9";  // two bytes
+  std::string name;
+  for (int i = 0; i < 200; ++i) name += e_acute;
+  const std::string cut = CleanText(name);
+  EXPECT_EQ(cut.size(), kMaxDicomText);
+  EXPECT_EQ(CleanText("a" + name).size(), kMaxDicomText - 1);  // 255 bytes: the 128th character does not fit
+  EXPECT_EQ(CleanText("ok\xFF\xC3(\xED\xA0\x80\xF4\x90\x80\x80z"), "ok\uFFFD\uFFFD(\uFFFD\uFFFD\uFFFD\uFFFD\uFFFD\uFFFD\uFFFDz");
+  JsonDocument storage;
+  const auto datasets = ParseDicomJson("[{\"00100010\":{\"vr\":\"PN\",\"Value\":[{\"Alphabetic\":\"a" + name + "\"}]}}]",
+                                       storage);
+  ASSERT_EQ(datasets.size(), 1u);
+  EXPECT_EQ(datasets[0].PersonName(0x00100010), CleanText("a" + name));
 }
 
 }  // namespace

@@ -12,6 +12,7 @@
 #include <atomic>
 #include <fstream>
 #include <memory>
+#include <thread>
 
 #include "pacs/dicomweb_client.h"
 #include "pacs/loopback_http_server.h"
@@ -29,6 +30,9 @@ namespace fs = std::filesystem;
 using namespace std::chrono_literals;
 
 const SeriesStamp kCt{"2.25.3410001", "2.25.3410001.1", "CINEVOL-SRV-CT", "Cinevol^Server"};
+// The same CT with a Pixel Spacing of 1e-10 mm: it once crashed the server (a
+// table search's box radius in voxels overflowed an int).
+const SeriesStamp kTinySpacing{"2.25.3410002", "2.25.3410002.1", "CINEVOL-SRV-TINY", "Cinevol^Tiny", "1e-10\\1e-10"};
 
 class PacsServer : public ::testing::Test {
  protected:
@@ -46,8 +50,11 @@ class PacsServer : public ::testing::Test {
     }
     const auto files = DicomFilesIn(SharedData() / "ct-body-totalsegmentator/example_ct_dicom");
     const StampedSeries ct = StampSeries(files, kCt, folder_ / "data" / "ct");
-    for (const auto& instance : ct.instances) {
-      if (orthanc_->Upload(instance.bytes) != 200) failure_ = "Orthanc refused an upload";
+    const StampedSeries tiny = StampSeries({files.begin(), files.begin() + 3}, kTinySpacing, folder_ / "data" / "tiny");
+    for (const StampedSeries* series : {&ct, &tiny}) {
+      for (const auto& instance : series->instances) {
+        if (orthanc_->Upload(instance.bytes) != 200) failure_ = "Orthanc refused an upload";
+      }
     }
     const pacs::PacsConfig config = orthanc_->Pacs();
     std::ofstream(folder_ / "pacs-credentials")
@@ -196,8 +203,11 @@ TEST_F(PacsServer, ASnapshotIsStoredBackWithItsRecipe) {
   // Its bytes, through the DICOMweb client: a cinevol render of this series.
   std::string bytes;
   pacs::RetrieveCallbacks callbacks;
-  callbacks.on_instance = [&](const pacs::InstanceSummary&, std::string&& b) { bytes = std::move(b); };
-  pacs::DicomWebClient(orthanc_->Pacs()).RetrieveSeries(kCt.study_uid, series_uid, callbacks);
+  callbacks.on_instance = [&](const pacs::InstanceSummary&, const std::filesystem::path& file, std::uint64_t) {
+    bytes = ReadWholeFile(file);
+  };
+  const ScratchDir folder;
+  pacs::DicomWebClient(orthanc_->Pacs()).RetrieveSeries(kCt.study_uid, series_uid, folder.path(), callbacks);
   const pacs::ReadCapture capture = pacs::ReadSecondaryCapture(bytes);
   EXPECT_EQ(capture.source_series_uid, kCt.series_uid);
   EXPECT_EQ(capture.patient_id, kCt.patient_id);
@@ -246,6 +256,18 @@ TEST_F(PacsServer, APacsThatIsDownOrRefusesIsAClearErrorAndNobodyElsesProblem) {
   EXPECT_EQ(server_->Log().find("not-the-password"), std::string::npos) << "a secret in the log";
 }
 
+// A Pixel Spacing of 1e-10 mm, from a data root or from the PACS: refused by
+// name when the geometry is checked, and the server goes on.
+TEST_F(PacsServer, ATinySpacingIsRefusedByNameFromDiskAndFromThePacs) {
+  Client client = server_->Connect();
+  ExpectRpcError([&] { client.LoadVolume("tiny"); }, grpc::StatusCode::INVALID_ARGUMENT, "spacing");
+  v1::LoadSeriesRequest request = CtSeries();
+  request.set_study_uid(kTinySpacing.study_uid);
+  request.set_series_uid(kTinySpacing.series_uid);
+  ExpectRpcError([&] { client.LoadSeries(request); }, grpc::StatusCode::INVALID_ARGUMENT, "outside [0.0001, 10000]");
+  ExpectServing(client);
+}
+
 // A PACS that lies: its listing claims a matrix past the server's limits, or
 // its instances are not DICOM. Each load ends in a clear error, the first
 // before any instance is fetched; the server and its other callers go on.
@@ -283,6 +305,164 @@ TEST(PacsServerHostile, ALyingPacsCostsItsCallerAnErrorAndNobodyAnythingElse) {
   EXPECT_EQ(client.ListVolumes().size(), 1u) << "nothing held but the phantom";
   EXPECT_TRUE(client.Status().accepting_sessions());
   EXPECT_FALSE(client.CreateSession(SmallSession()).session_id().empty());
+}
+
+// What a hostile PACS answers a search with: an array that hides 100,000
+// levels of nesting behind a single-quoted string (which a lenient parser
+// takes and a depth check that knows only double quotes skips), and 16 MiB of
+// empty arrays. Each costs its caller a clear error within seconds and the
+// server a bounded amount of memory; a neighbour's stream goes on.
+TEST(PacsServerHostile, SearchAnswersThatHideDepthOrSwellAreRefusedFast) {
+  ScratchDir scratch;
+  const std::string hidden = "['\"', " + std::string(100000, '[') + std::string(100000, ']') + "]";
+  std::string swollen = "[";
+  while (swollen.size() < (std::size_t{16} << 20) - 8) swollen += "[],";
+  swollen += "[]]";
+  std::atomic<int> asked{0};
+  LoopbackHttpServer pacs([&](const HttpRequestSeen&) {
+    return Answer(200, "application/dicom+json", asked++ % 2 == 0 ? hidden : swollen);
+  });
+  ServerProcess server(scratch.path(), {"--pacs", "hostile=" + pacs.url() + "/dicom-web"});
+  ASSERT_TRUE(server.running()) << server.Log();
+  Client client = server.Connect();
+  const auto neighbour = client.CreateSession(SmallSession("ct-bone", 96, 64, 65536));
+  auto stream = client.Attach(neighbour.session_id());
+  ASSERT_TRUE(WaitFrame(*stream, [](const v1::Frame&) { return true; }));
+  const double resident_before = server.ResidentMiB();
+  Witness witness(*stream);
+  v1::SearchStudiesRequest search;
+  search.set_pacs("hostile");
+  for (const char* expected : {"not JSON: a value expected, not '''", "more than 1048576 values"}) {
+    const auto start = std::chrono::steady_clock::now();
+    ExpectRpcError([&] { client.SearchStudies(search); }, grpc::StatusCode::FAILED_PRECONDITION, expected);
+    EXPECT_LT(std::chrono::steady_clock::now() - start, 10s) << expected;
+  }
+  const Witness::Report seen = witness.Stop();
+  EXPECT_LT(server.ResidentMiB() - resident_before, 256.0) << "a 16 MiB answer cost this much memory";
+  EXPECT_LT(seen.longest_gap_s, 1.0) << "the neighbour's stream stopped";
+  ExpectServing(client);
+}
+
+// A PACS whose instance answers never end: the bodies stream to disk as they
+// come, counted against --pacs-max-series-mb, so the load ends with that limit
+// named and the server's memory stays where it was.
+TEST(PacsServerHostile, EndlessInstanceBodiesCostDiskWithinTheLimitNotMemory) {
+  ScratchDir scratch;
+  const std::string kListing = "/dicom-web/studies/1.2.3/series/4.5.6/instances";
+  LoopbackHttpServer pacs([&](const HttpRequestSeen& request) {
+    if (request.target.rfind(kListing + "?", 0) == 0) {
+      std::string json = "[";
+      for (int i = 1; i <= 4; ++i) {
+        json += fmt::format(R"({}{{"00080018":{{"vr":"UI","Value":["4.5.6.{}"]}},"00280010":{{"vr":"US","Value":[16]}},)"
+                            R"("00280011":{{"vr":"US","Value":[16]}}}})",
+                            i > 1 ? "," : "", i);
+      }
+      return Answer(200, "application/dicom+json", json + "]");
+    }
+    HttpAnswer endless;  // no Content-Length: the cap can only be kept as the bytes come
+    endless.head = "HTTP/1.1 200 OK\r\nContent-Type: multipart/related; type=\"application/dicom\"; boundary=b\r\n"
+                   "Connection: close\r\n\r\n";
+    endless.body = "--b\r\nContent-Type: application/dicom\r\n\r\n" + std::string(128, '\0') + "DICM";
+    endless.filler_bytes = std::size_t{1} << 30;
+    return endless;
+  });
+  ServerProcess server(scratch.path(), {"--pacs", "endless=" + pacs.url() + "/dicom-web", "--pacs-max-series-mb",
+                                        "256", "--pacs-timeout-seconds", "60"});
+  ASSERT_TRUE(server.running()) << server.Log();
+  Client client = server.Connect();
+  const double resident_before = server.ResidentMiB();
+  std::atomic<bool> done{false};
+  double resident_most = resident_before;
+  std::thread sampler([&] {
+    for (int i = 0; i < 6000 && !done; ++i) {
+      resident_most = std::max(resident_most, server.ResidentMiB());
+      std::this_thread::sleep_for(10ms);
+    }
+  });
+  v1::LoadSeriesRequest load;
+  load.set_pacs("endless");
+  load.set_study_uid("1.2.3");
+  load.set_series_uid("4.5.6");
+  ExpectRpcError([&] { client.LoadSeries(load); }, grpc::StatusCode::INVALID_ARGUMENT, "(max_series_bytes)");
+  done = true;
+  sampler.join();
+  EXPECT_LT(resident_most - resident_before, 64.0) << "256 MiB of instance bodies went through memory";
+  EXPECT_GE(pacs.bytes_sent(), std::size_t{200} << 20) << "the bodies did come";
+  ExpectServing(client);
+}
+
+// Searches of a PACS that stalls hold at most half the server's PACS slots,
+// and one caller's loads from it at most half its loaders: another caller's
+// search of a healthy PACS and upload go on at once.
+TEST(PacsServerHostile, AStalledPacsHoldsOnlyItsShare) {
+  ScratchDir scratch;
+  LoopbackHttpServer stalled([](const HttpRequestSeen& request) {
+    HttpAnswer answer = Answer(200, "application/dicom+json",
+                               request.target.find("/instances?") != std::string::npos
+                                   ? R"([{"00080018":{"vr":"UI","Value":["4.5.6.1"]}}])"
+                                   : "[]");
+    if (request.target.find("/instances?") == std::string::npos) answer.delay = 25s;  // cut short when it stops
+    return answer;
+  });
+  LoopbackHttpServer healthy([](const HttpRequestSeen&) { return Answer(200, "application/dicom+json", "[]"); });
+  std::ofstream(scratch / "tokens") << "alice-token alice\nbob-token bob\n";
+  WriteSmallNrrd(scratch / "small.nrrd");
+  ServerProcess server(scratch.path(), {"--auth-tokens", (scratch / "tokens").string(), "--pacs",
+                                        "stalled=" + stalled.url() + "/dicom-web", "--pacs",
+                                        "healthy=" + healthy.url() + "/dicom-web", "--pacs-timeout-seconds", "30",
+                                        "--max-uploads-per-principal", "8"});
+  ASSERT_TRUE(server.running()) << server.Log();
+  std::vector<std::thread> alice;
+  for (int i = 0; i < 4; ++i) {
+    alice.emplace_back([&, i] {
+      Client client = server.Connect("alice-token");
+      try {
+        if (i % 2 == 0) {
+          v1::SearchStudiesRequest search;
+          search.set_pacs("stalled");
+          client.SearchStudies(search);
+        } else {
+          v1::LoadSeriesRequest load;
+          load.set_pacs("stalled");
+          load.set_study_uid("1.2.3");
+          load.set_series_uid("4.5.6");
+          client.LoadSeries(load);
+        }
+      } catch (const std::exception&) {  // the stalled PACS's time-outs, or the server's end
+      }
+    });
+  }
+  std::this_thread::sleep_for(1s);  // alice's calls are in
+  Client bob = server.Connect("bob-token");
+  v1::SearchStudiesRequest search;
+  search.set_pacs("healthy");
+  auto start = std::chrono::steady_clock::now();
+  EXPECT_TRUE(bob.SearchStudies(search).empty());
+  EXPECT_LT(std::chrono::steady_clock::now() - start, 5s) << "bob's search waited on alice's stalled PACS";
+  start = std::chrono::steady_clock::now();
+  EXPECT_FALSE(bob.UploadVolume(scratch / "small.nrrd").id().empty());
+  EXPECT_LT(std::chrono::steady_clock::now() - start, 5s) << "bob's upload waited on alice's loads";
+  server.Stop();  // ends alice's calls
+  for (std::thread& t : alice) t.join();
+}
+
+// `cinevol pacs search` prints what a PACS names a patient: an escape
+// sequence or a carriage return in it reaches the terminal as text.
+TEST(PacsServerHostile, ControlCharactersInNamesAreEscapedOnTheTerminal) {
+  ScratchDir scratch;
+  LoopbackHttpServer pacs([](const HttpRequestSeen&) {
+    return Answer(200, "application/dicom+json",
+                  R"([{"0020000D":{"vr":"UI","Value":["1.2.3"]},"00100010":{"vr":"PN","Value":[{"Alphabetic":)"
+                  R"("EVIL\u001b[2J\rDOE\u009b1m"}]}}])");
+  });
+  ServerProcess server(scratch.path(), {"--pacs", "hostile=" + pacs.url() + "/dicom-web"});
+  ASSERT_TRUE(server.running()) << server.Log();
+  const auto [code, out] = RunProgram(CliPath(), {"pacs", "search", "--pacs", "hostile", "--server", server.address()},
+                                      scratch / "cli.log", 60s);
+  ASSERT_EQ(code, 0) << out;
+  EXPECT_NE(out.find("EVIL\\x1b[2J\\x0dDOE\\xc2\\x9b1m"), std::string::npos) << out;
+  EXPECT_EQ(out.find('\x1b'), std::string::npos) << "a raw escape reached the terminal";
+  EXPECT_EQ(out.find('\r'), std::string::npos);
 }
 
 }  // namespace

@@ -411,8 +411,11 @@ TEST(SecondaryCaptureOrthanc, StoredInTheSourceStudyIsFoundBySearchWithItsRecipe
 
   std::string retrieved;
   RetrieveCallbacks callbacks;
-  callbacks.on_instance = [&](const InstanceSummary&, std::string&& bytes) { retrieved = std::move(bytes); };
-  client.RetrieveSeries(stamp.study_uid, uids.series_uid, callbacks);
+  callbacks.on_instance = [&](const InstanceSummary&, const std::filesystem::path& file, std::uint64_t) {
+    retrieved = cinevol::testing::ReadWholeFile(file);
+  };
+  const cinevol::testing::ScratchDir folder;
+  client.RetrieveSeries(stamp.study_uid, uids.series_uid, folder.path(), callbacks);
   EXPECT_EQ(retrieved, capture) << "the PACS keeps the file as sent";
   const ReadCapture read = ReadSecondaryCapture(retrieved);
   EXPECT_EQ(read.recipe_json, ReadSecondaryCapture(capture).recipe_json);

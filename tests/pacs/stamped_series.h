@@ -22,6 +22,7 @@ struct SeriesStamp {
   std::string series_uid;  // instance i (from 1) gets SOP Instance UID series_uid + "." + i
   std::string patient_id;
   std::string patient_name;
+  std::string pixel_spacing = {};  // Pixel Spacing (0028,0030) written over the source's ("1e-10\\1e-10"); empty: kept
 };
 
 struct StampedInstance {
@@ -75,6 +76,13 @@ inline std::string StampCopy(const std::filesystem::path& source, const std::fil
   SetAttribute<0x0020, 0x000e>(data, stamp.series_uid);
   SetAttribute<0x0010, 0x0020>(data, stamp.patient_id);
   SetAttribute<0x0010, 0x0010>(data, stamp.patient_name);
+  if (!stamp.pixel_spacing.empty()) {  // DS, two values: written as text, padded to an even length
+    std::string text = stamp.pixel_spacing + (stamp.pixel_spacing.size() % 2 ? " " : "");
+    gdcm::DataElement spacing(gdcm::Tag(0x0028, 0x0030));
+    spacing.SetVR(gdcm::VR::DS);
+    spacing.SetByteValue(text.data(), std::uint32_t(text.size()));
+    data.Replace(spacing);
+  }
   // The file meta header names the instance too; a PACS may check they agree.
   gdcm::FileMetaInformation& meta = reader.GetFile().GetHeader();
   SetAttribute<0x0002, 0x0002>(meta, sop_class_uid);
