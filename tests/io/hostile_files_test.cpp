@@ -175,6 +175,24 @@ TEST(HostileFiles, InsideRootsLoadsADetachedPairInside) {
   }
 }
 
+// A NIfTI-1 pair: the header in .hdr (348 bytes), the 4x4x4 int16 voxels in
+// the .img from its vox_offset 0. Either name loads it, whole.
+TEST(HostileFiles, InsideRootsLoadsANiftiPair) {
+  Layout l;
+  std::string voxels;
+  for (std::int16_t i = 0; i < 64; ++i) voxels.append(reinterpret_cast<const char*>(&i), 2);
+  WriteBytes(l.root / "pair.hdr", Nifti("ni1", "", 0).substr(0, 348));
+  WriteBytes(l.root / "pair.img", voxels);
+  for (const char* name : {"pair.hdr", "pair.img"}) {
+    const Volume v = LoadVolumeFile(l.root / name, InsideRoots(l.root));
+    EXPECT_EQ(v.dims().x, 4) << name;
+    EXPECT_EQ(v.Value(1, 2, 3), 1.0f + 2 * 4 + 3 * 16) << name;
+  }
+  WriteBytes(l.root / "pair.img", voxels.substr(0, 100));  // cut short: refused, never padded with zeros
+  const std::string what = LoadMessage([&] { return LoadVolumeFile(l.root / "pair.hdr", InsideRoots(l.root)); });
+  EXPECT_TRUE(Has(what, "truncated")) << what;
+}
+
 TEST(HostileFiles, InsideRootsRefusesFilesOutsideAlikeWhetherTheyExistOrNot) {
   Layout l;
   fs::create_symlink(l.secret, l.root / "link.raw");

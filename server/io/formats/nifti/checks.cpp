@@ -9,6 +9,7 @@
 #include <zlib.h>
 
 #include <algorithm>
+#include <array>
 #include <cctype>
 #include <cmath>
 #include <cstdint>
@@ -149,18 +150,70 @@ std::string NiftiHeaderProblem(const fs::path& path) {
   return "";
 }
 
+// `path`'s name in lower case without a ".gz": "x.hdr" for "X.HDR.gz".
+std::string PlainLowerName(const fs::path& path) {
+  std::string name = path.filename().string();
+  std::transform(name.begin(), name.end(), name.begin(), [](unsigned char c) { return char(std::tolower(c)); });
+  if (name.size() > 3 && name.compare(name.size() - 3, 3, ".gz") == 0) name.resize(name.size() - 3);
+  return name;
+}
+
+// The files beside `path` with its name and one of `endings` in its place
+// (.hdr for an .img, say), those that are regular files.
+using Endings = std::array<const char*, 4>;
+
+std::vector<fs::path> Siblings(const fs::path& path, const Endings& endings) {
+  const std::string base = path.filename().string().substr(0, PlainLowerName(path).size() - 4);
+  std::vector<fs::path> found;
+  for (const char* ending : endings) {
+    const fs::path sibling = path.parent_path() / (base + ending);
+    if (sibling != path && file_checks::IsRegularFile(sibling)) found.push_back(sibling);
+  }
+  return found;
+}
+
+constexpr Endings kHeaderEndings{".hdr", ".HDR", ".hdr.gz", ".HDR.gz"};
+constexpr Endings kImageEndings{".img", ".IMG", ".img.gz", ".IMG.gz"};
+
+// The file that holds `path`'s header and the one that holds its voxels: a
+// .nii holds both; of a .hdr/.img pair each is found beside the other.
+struct HeaderAndVoxels {
+  fs::path header, voxels;
+};
+HeaderAndVoxels PartsOf(const fs::path& path) {
+  const std::string name = PlainLowerName(path);
+  const std::string ext = name.size() > 4 ? name.substr(name.size() - 4) : "";
+  const auto first = [](const std::vector<fs::path>& files) { return files.empty() ? fs::path() : files.front(); };
+  if (ext == ".hdr") return {path, first(Siblings(path, kImageEndings))};
+  if (ext == ".img") return {first(Siblings(path, kHeaderEndings)), path};
+  return {path, path};
+}
+
 }  // namespace
 
 // ITK's NIfTI reader pads a short payload with zeros instead of failing, so
-// the payload is counted here first (gz or plain: zlib reads both). Returns
-// "" when the file holds every voxel, else what is missing.
+// the payload is counted here first (gz or plain: zlib reads both), in the
+// file that holds it (the .img of a pair, from its vox_offset). Returns ""
+// when the file holds every voxel, else what is missing.
 std::string PayloadProblem(const fs::path& path) {
+  const HeaderAndVoxels parts = PartsOf(path);
+  if (parts.header.empty()) return "the .hdr beside this .img is missing";
+  if (parts.voxels.empty()) return "the .img beside this .hdr is missing";
   NiftiFile file;
-  if (std::string problem = OpenNifti(path, file); !problem.empty()) return problem;
+  if (std::string problem = OpenNifti(parts.header, file); !problem.empty()) return problem;
   const auto& h = file.h;
   const bool swap = file.swap;
   const int header_size = file.header_size;
-  gzFile f = file.f;
+  NiftiFile pair_voxels;  // the .img's own, opened without reading a header
+  if (parts.voxels != parts.header) {
+    const int fd = file_checks::OpenRegularFile(parts.voxels);
+    pair_voxels.f = fd < 0 ? nullptr : gzdopen(fd, "rb");
+    if (!pair_voxels.f) {
+      if (fd >= 0) close(fd);
+      return "cannot open the .img of the pair";
+    }
+  }
+  gzFile f = pair_voxels.f ? pair_voxels.f : file.f;
   std::int64_t voxels = 1, bitpix = 0, offset = 0;
   if (header_size == 348) {
     const int ndim = std::clamp<int>(swap ? Swapped(h.n1.dim[0]) : h.n1.dim[0], 1, 7);
@@ -178,7 +231,7 @@ std::string PayloadProblem(const fs::path& path) {
     return fmt::format("vox_offset {} is outside [0, {}]", offset, kMaxNiftiOffset);
   }
   const std::int64_t expected = offset + voxels * bitpix / 8;
-  std::int64_t total = header_size == 348 ? sizeof(nifti_1_header) : sizeof(nifti_2_header);
+  std::int64_t total = pair_voxels.f ? 0 : header_size == 348 ? sizeof(nifti_1_header) : sizeof(nifti_2_header);
   std::vector<char> buffer(1 << 20);
   // Inflates only what the header promises (whose voxel count was checked
   // already): a small .nii.gz can expand without bound.
@@ -200,18 +253,12 @@ std::string PayloadProblem(const fs::path& path) {
 // optionally .gz) and parses the header while ReadImageInformation runs, so
 // the header (an .img's is in the .hdr beside it) is checked before that.
 void CheckHeaders(const fs::path& path, const std::string& shown) {
-  std::string name = path.filename().string();
-  std::transform(name.begin(), name.end(), name.begin(), [](unsigned char c) { return char(std::tolower(c)); });
-  if (name.size() > 3 && name.compare(name.size() - 3, 3, ".gz") == 0) name.resize(name.size() - 3);
+  const std::string name = PlainLowerName(path);
   const std::string ext = name.size() > 4 ? name.substr(name.size() - 4) : "";
   std::vector<fs::path> headers;
   if (ext == ".nii" || ext == ".hdr") headers.push_back(path);
-  if (ext == ".img") {
-    const std::string base = path.filename().string().substr(0, name.size() - 4);
-    for (const char* hdr : {".hdr", ".HDR", ".hdr.gz", ".HDR.gz"}) headers.push_back(path.parent_path() / (base + hdr));
-  }
+  if (ext == ".img") headers = Siblings(path, kHeaderEndings);
   for (const fs::path& header : headers) {
-    if (header != path && !file_checks::IsRegularFile(header)) continue;
     const std::string problem = NiftiHeaderProblem(header);
     if (!problem.empty()) throw InputError(fmt::format("{}: {}", shown, problem));
   }
