@@ -4,17 +4,28 @@
 //   1: SessionEvent         -> ApplyEvent on a session's state
 //   2: SnapshotRequest      -> SnapshotSpp for the session's viewport
 //   3: StreamSettings       -> a stream event's check and its frame settings
+//   4: a volume's geometry, then a SliceRequest -> what the server does with
+//      both: the geometry check (dimensions to 2^32, any spacing), then on a
+//      small volume of that spacing the CT table search, a new session's
+//      framing and the slice's plan (and render, where it is small)
 // against a default SessionLimits, a 16^3 head phantom and a VolumeRegistry
 // with no data roots (environment maps are refused, as on such a server). InputError, RpcError (std::exceptions) are
-// the expected refusals; crashes, sanitizer reports and an accepted scene that fails validation are bugs.
+// the expected refusals; crashes, sanitizer reports, an accepted scene that fails validation and a slice past its
+// bounds are bugs.
 #include <cstddef>
 #include <cstdint>
 #include <cstdlib>
+#include <cstring>
+#include <optional>
+#include <vector>
 #include <exception>
 #include <memory>
 
 #include "cinevol/v1/service.pb.h"
 #include "io/phantom.h"
+#include "io/table_finder.h"
+#include "reading/slice.h"
+#include "runtime/reading_calls.h"
 #include "scene/scene_file.h"
 #include "scene/session_state.h"
 #include "runtime/volume_registry.h"
@@ -89,6 +100,60 @@ void Event(const v1::SessionEvent& event) {
   CheckState(state, world->limits);
 }
 
+// Kind 4's input: the dimensions (a small volume is made of the first
+// dimension's low bits, as the fuzzer cannot allocate 2^31 voxels) and the
+// spacing as they came, then the slice request's wire form.
+struct Geometry {
+  std::uint32_t dims[3];
+  float spacing[3];
+};
+
+void Geometric(const std::uint8_t* data, std::size_t size) {
+  Geometry g;
+  if (size < sizeof g) return;
+  std::memcpy(&g, data, sizeof g);
+  const cv::Vec3f spacing{g.spacing[0], g.spacing[1], g.spacing[2]};
+  try {
+    cv::CheckVolumeGeometry({int(std::min<std::uint32_t>(g.dims[0], INT32_MAX)),
+                             int(std::min<std::uint32_t>(g.dims[1], INT32_MAX)),
+                             int(std::min<std::uint32_t>(g.dims[2], INT32_MAX))},
+                            spacing, "fuzz");
+  } catch (const std::exception&) {
+  }
+  v1::SliceRequest request;
+  if (!request.ParseFromArray(data + sizeof g, int(size - sizeof g))) return;
+  const cv::Vec3i small{1 + int(g.dims[0] % 12), 1 + int(g.dims[1] % 12), 1 + int(g.dims[2] % 12)};
+  std::vector<float> values(std::size_t(small.x) * small.y * small.z);
+  for (std::size_t i = 0; i < values.size(); ++i) values[i] = float(int(i * 37 % 2000) - 1000);  // air to bone, HU
+  cv::VolumeMetadata meta;
+  meta.modality = "CT";
+  meta.value_unit = "HU";
+  std::optional<cv::Volume> volume;
+  try {
+    volume.emplace(small, spacing, std::move(values), meta);
+  } catch (const std::exception&) {
+    return;  // the geometry check refused it
+  }
+  cv::FindTable(*volume);
+  v1::CreateSessionRequest create;
+  create.mutable_viewport()->set_width(32);
+  create.mutable_viewport()->set_height(24);
+  try {
+    CheckState(cv::InitialState(create, *volume, world->limits, world->resolve_map), world->limits);
+  } catch (const std::exception&) {
+  }
+  try {
+    const cv::SliceSpec spec = cv::service::SliceSpecOf(request, *volume);
+    const cv::SliceGeometry plan = cv::PlanSlice(*volume, spec);
+    const long long pixels = static_cast<long long>(plan.width) * plan.height;
+    if (plan.width < 1 || plan.height < 1 || std::max(plan.width, plan.height) > cv::kMaxSliceSide) std::abort();
+    if (plan.slab_half < 0 || pixels * (2LL * plan.slab_half + 1) > cv::kMaxSliceSamples) std::abort();
+    if (!cv::IsFinite(plan.top_left_lps) || !(plan.pixel_width_mm > 0) || !(plan.pixel_height_mm > 0)) std::abort();
+    if (pixels * (2LL * plan.slab_half + 1) <= (1 << 16)) cv::RenderSlice(*volume, {}, nullptr, spec);
+  } catch (const std::exception&) {
+  }
+}
+
 }  // namespace
 
 extern "C" int LLVMFuzzerInitialize(int*, char***) {
@@ -99,7 +164,7 @@ extern "C" int LLVMFuzzerInitialize(int*, char***) {
 
 extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {
   if (size < 1 || size > (1 << 16)) return 0;
-  const int kind = data[0] % 4;
+  const int kind = data[0] % 5;
   const std::uint8_t* wire = data + 1;
   const int wire_size = int(size - 1);
   switch (kind) {
@@ -138,6 +203,9 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
       Event(event);
       break;
     }
+    case 4:
+      Geometric(wire, std::size_t(wire_size));
+      break;
   }
   return 0;
 }

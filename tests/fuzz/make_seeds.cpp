@@ -70,7 +70,7 @@ std::string Voxels(int n) {
   return v;
 }
 
-std::string Nifti(int n) {
+std::string Nifti(int n, float spacing = 1.0f) {
   nifti_1_header h;
   std::memset(&h, 0, sizeof h);
   h.sizeof_hdr = 348;
@@ -78,7 +78,7 @@ std::string Nifti(int n) {
   h.dim[1] = h.dim[2] = h.dim[3] = short(n);
   h.datatype = DT_INT16;
   h.bitpix = 16;
-  h.pixdim[1] = h.pixdim[2] = h.pixdim[3] = 1.0f;
+  h.pixdim[1] = h.pixdim[2] = h.pixdim[3] = spacing;
   h.vox_offset = 352;
   h.scl_slope = 1.0f;
   h.qform_code = 1;
@@ -350,6 +350,39 @@ std::string ReadText(const fs::path& path) {
   return s.str();
 }
 
+// fuzz_requests' kind 4: a volume's geometry at the extremes (dimensions 1
+// to 2^31, spacing 1e-12 to 1e6 mm), then a slice request (oblique, a thick
+// slab; axial).
+void WriteGeometrySeeds(const fs::path& out) {
+  struct Extreme {
+    const char* name;
+    std::uint32_t dims[3];
+    float spacing[3];
+  };
+  const Extreme extremes[] = {{"tiny", {16, 16, 16}, {1e-12f, 1e-12f, 1e-12f}},
+                              {"smallest", {8, 8, 8}, {1e-4f, 1e-4f, 1e-4f}},
+                              {"sky", {2, 2, 2}, {0.62f, 1e4f, 1e4f}},
+                              {"huge", {2147483647u, 1, 1}, {1e6f, 1e6f, 1e6f}},
+                              {"widest", {8192, 8192, 16}, {0.5f, 0.5f, 1e-6f}}};
+  for (const Extreme& e : extremes) {
+    v1::SliceRequest slice;
+    slice.set_axis(v1::OBLIQUE);
+    slice.mutable_normal()->set_x(1);
+    slice.mutable_normal()->set_z(1);
+    slice.mutable_row()->set_y(1);
+    slice.set_slab_mm(9999);
+    slice.set_projection(v1::MEAN);
+    std::string geometry(sizeof e.dims + sizeof e.spacing, '\0');
+    std::memcpy(geometry.data(), e.dims, sizeof e.dims);
+    std::memcpy(geometry.data() + sizeof e.dims, e.spacing, sizeof e.spacing);
+    Write(out / (std::string("geometry-") + e.name), 4, geometry + slice.SerializeAsString());
+    v1::SliceRequest axial;
+    axial.set_axis(v1::AXIAL);
+    axial.set_position_mm(1e-3);
+    Write(out / (std::string("geometry-") + e.name + "-axial"), 4, geometry + axial.SerializeAsString());
+  }
+}
+
 // fuzz_requests' seeds: the message type byte, then the wire form.
 void WriteMessage(const fs::path& path, char kind, const google::protobuf::Message& m) {
   Write(path, kind, m.SerializeAsString());
@@ -409,6 +442,7 @@ bool WriteRequestSeeds(const fs::path& out) {
   stream.set_final_jpeg_quality(90);
   stream.set_target_spp(64);
   WriteMessage(out / "stream", 3, stream);
+  WriteGeometrySeeds(out);
   return true;
 }
 
@@ -431,6 +465,12 @@ int main(int argc, char** argv) {
   std::memcpy(pair.data() + 344, "ni1\0", 4);  // a .hdr/.img pair's magic: an upload refuses it
   Write(out / "nifti1-pair-magic.nii", kNii, pair);
   Write(out / "nifti1.nii.gz", kNiiGz, Gzip(Nifti(4)));
+  // Geometry at the extremes: refused by name, never a crash.
+  Write(out / "nifti1-spacing-1e-12.nii", kNii, Nifti(4, 1e-12f));
+  Write(out / "nifti1-spacing-1e6.nii", kNii, Nifti(4, 1e6f));
+  Write(out / "huge-dims.nrrd", kNrrd,
+        "NRRD0004\ntype: short\ndimension: 3\nsizes: 2147483647 1 1\nspacings: 1e-12 1 1e6\nencoding: raw\n"
+        "endian: little\n\n" + v);
   Write(out / "raw.nrrd", kNrrd,
         "NRRD0004\ntype: short\ndimension: 3\nsizes: 4 4 4\nspacings: 0.5 0.5 2\nencoding: raw\n"
         "endian: little\n\n" + v);
