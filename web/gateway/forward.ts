@@ -8,6 +8,7 @@ import type { DescService } from "@bufbuild/protobuf";
 import {
   Code, ConnectError, createClient, type CallOptions, type ConnectRouter, type HandlerContext, type Transport,
 } from "@connectrpc/connect";
+import type { SessionHost } from "./options.js";
 
 /** The call to the server made on behalf of the browser's call: its token, deadline and cancellation. */
 function passThrough(ctx: HandlerContext): CallOptions {
@@ -73,23 +74,31 @@ export function forwardService(router: ConnectRouter, service: DescService, pick
 export const SESSION_ADDRESS_HEADER = "cinevol-session-address";
 const MAX_ROUTES = 256;
 
+/** Whether a session's address is one --session-hosts allows: a host of whole labels under a suffix, on its port. */
+export function isSessionHost(address: string, hosts: SessionHost[]): boolean {
+  const m = /^((?:[a-z0-9-]+\.)*[a-z0-9-]+):(\d{1,5})$/i.exec(address);
+  if (!m) return false;
+  const host = m[1].toLowerCase(), port = Number(m[2]);
+  return hosts.some((h) => port === h.port && (host === h.suffix || host.endsWith("." + h.suffix)));
+}
+
 /**
  * Behind a load balancer a session lives on one server, which CreateSession
  * names; the page sends that address back with the session's calls. The
- * gateway goes there only when the host ends with one of the operator's
- * suffixes (--session-hosts), so no caller can point it anywhere else.
+ * gateway goes there only when the host lies under one of the operator's
+ * suffixes, on that suffix's port (--session-hosts), so no caller can point it
+ * anywhere else.
  */
 export class SessionRoutes {
   private readonly transports = new Map<string, Transport>();
 
-  constructor(private readonly fallback: Transport, private readonly suffixes: string[],
+  constructor(private readonly fallback: Transport, private readonly hosts: SessionHost[],
               private readonly make: (address: string) => Transport) {}
 
   pick(ctx: HandlerContext): Transport {
     const address = ctx.requestHeader.get(SESSION_ADDRESS_HEADER);
-    if (!address || this.suffixes.length === 0) return this.fallback;
-    const m = /^([a-z0-9.-]+):(\d{1,5})$/i.exec(address);
-    if (!m || !this.suffixes.some((s) => m[1].toLowerCase().endsWith(s.toLowerCase()))) {
+    if (!address || this.hosts.length === 0) return this.fallback;
+    if (!isSessionHost(address, this.hosts)) {
       throw new ConnectError(`${SESSION_ADDRESS_HEADER}: cinevol-web does not route to '${address}' (--session-hosts)`,
                              Code.PermissionDenied);
     }

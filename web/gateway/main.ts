@@ -6,8 +6,10 @@ import http2 from "node:http2";
 import type { AddressInfo } from "node:net";
 import { connectNodeAdapter, createGrpcTransport } from "@connectrpc/connect-node";
 import { PacsService, ServerService, SessionService, VolumeService } from "../gen/cinevol/v1/service_pb.js";
+import { ConnectionGuard } from "./connections.js";
 import { forwardService, SessionRoutes } from "./forward.js";
 import { parseOptions, UsageError, USAGE, type GatewayOptions } from "./options.js";
+import { refuse, RequestChecks } from "./request_checks.js";
 import { StaticFiles } from "./static_files.js";
 
 // A batch of events with its transfer functions stays far below this; a
@@ -26,7 +28,7 @@ function start(o: GatewayOptions): void {
   const files = new StaticFiles(o.staticDir);
   const server = serverTransport(o, o.server);
   const sessions = new SessionRoutes(server, o.sessionHosts, (address) => serverTransport(o, address));
-  const handler = connectNodeAdapter({
+  const translate = connectNodeAdapter({
     routes: (router) => {
       for (const service of [VolumeService, PacsService, ServerService]) forwardService(router, service, () => server);
       forwardService(router, SessionService, (ctx) => sessions.pick(ctx));
@@ -34,11 +36,25 @@ function start(o: GatewayOptions): void {
     readMaxBytes: MAX_REQUEST_BYTES,
     fallback: (req, res) => files.serve(req, res),
   });
+  const guard = new ConnectionGuard(o.maxConnectionsPerAddress, o.timeouts);
+  const checks = new RequestChecks(o.host, o.allowedHosts);
+  const handler = (req: http.IncomingMessage | http2.Http2ServerRequest,
+                   res: http.ServerResponse | http2.Http2ServerResponse) => {
+    guard.requestStarted(req, res);
+    const refusal = checks.refusal(req);
+    if (refusal) refuse(res, refusal);
+    else translate(req, res);
+  };
   const listener = o.tls
     ? http2.createSecureServer({ cert: o.tls.cert, key: o.tls.key, allowHTTP1: true,
+                                 handshakeTimeout: o.timeouts.tlsHandshakeMs,
                                  settings: { maxConcurrentStreams: 64 } }, handler)
     : http.createServer(handler);
   listener.maxConnections = o.maxConnections;
+  // Node's own keep-alive timer (HTTP/1.1, plain or over TLS) agrees with the guard's and tells clients
+  // (Keep-Alive: timeout=N); the HTTP/2 server has the property too, untyped.
+  (listener as http.Server).keepAliveTimeout = o.timeouts.idleMs;
+  guard.attach(listener, Boolean(o.tls));
   listener.on("error", (e: NodeJS.ErrnoException) => {
     console.error(`cinevol-web: cannot listen on ${o.host}:${o.port}: ${e.code ?? e.message}`);
     process.exit(1);

@@ -1,6 +1,7 @@
 // cinevol-web's command line (a contract: scripts and checks use these names).
 import { readFileSync } from "node:fs";
 import { parseArgs } from "node:util";
+import { canonicalHostName } from "./request_checks.js";
 
 export interface GatewayOptions {
   host: string;
@@ -11,13 +12,31 @@ export interface GatewayOptions {
   serverTls?: { ca?: Buffer; cert?: Buffer; key?: Buffer; serverName?: string };
   staticDir: string;
   maxConnections: number;
-  sessionHosts: string[];   // DNS suffixes a session's own server may have (SessionRoutes)
+  maxConnectionsPerAddress: number;  // 0: no limit (behind a proxy every client has its address)
+  timeouts: Timeouts;
+  allowedHosts: string[];   // host names the gateway answers besides its own (RequestChecks)
+  sessionHosts: SessionHost[];  // where a session's own server may be (SessionRoutes)
+}
+
+/** How long a connection may say nothing useful before it is closed (ConnectionGuard), in ms. */
+export interface Timeouts {
+  tlsHandshakeMs: number;  // from the TCP connection to a finished TLS handshake
+  headersMs: number;       // from the connection (after TLS) to its first complete request or HTTP/2 stream
+  idleMs: number;          // with no request or stream open, after the last one ended
+}
+
+/** A --session-hosts entry: hosts equal to `suffix` or ending in "." + suffix, on `port` only. */
+export interface SessionHost {
+  suffix: string;
+  port: number;
 }
 
 export const USAGE = `usage: cinevol-web --listen HOST:PORT [--port-file F] --server ADDR
                    [--tls-cert F --tls-key F]
                    [--server-tls-ca F [--server-tls-cert F --server-tls-key F] [--server-tls-name N]]
-                   [--session-hosts SUFFIX[,SUFFIX...]] [--max-connections N]
+                   [--session-hosts SUFFIX[:PORT][,...]] [--allowed-hosts NAME[,NAME...]]
+                   [--max-connections N] [--max-connections-per-address N]
+                   [--tls-handshake-timeout S] [--headers-timeout S] [--idle-timeout S]
 Serves the cinevol page and translates gRPC-web and Connect to cinevol-server's gRPC.
 Open http://HOST:PORT/?volume=ID#token=T. Defaults: --listen 127.0.0.1:8080, --server 127.0.0.1:50051.`;
 
@@ -60,6 +79,11 @@ export function parseOptions(argv: string[]): GatewayOptions {
       "server-tls-key": { type: "string" },
       "server-tls-name": { type: "string" },
       "max-connections": { type: "string", default: "256" },
+      "max-connections-per-address": { type: "string", default: "32" },
+      "tls-handshake-timeout": { type: "string", default: "10" },
+      "headers-timeout": { type: "string", default: "10" },
+      "idle-timeout": { type: "string", default: "60" },
+      "allowed-hosts": { type: "string", default: "" },
       "session-hosts": { type: "string", default: "" },
       static: { type: "string" },
       help: { type: "boolean" },
@@ -67,7 +91,7 @@ export function parseOptions(argv: string[]): GatewayOptions {
   });
   if (values.help) throw new UsageError("");
   const { host, port } = parseHostPort(values.listen!, "--listen");
-  parseHostPort(values.server!, "--server");
+  const server = parseHostPort(values.server!, "--server");
   if (!values.static) throw new UsageError("--static: the built page's folder is required (the cinevol-web script sets it)");
   if (Boolean(values["tls-cert"]) !== Boolean(values["tls-key"])) {
     throw new UsageError("--tls-cert and --tls-key go together");
@@ -79,10 +103,6 @@ export function parseOptions(argv: string[]): GatewayOptions {
   if (!isLoopback(host) && !values["tls-cert"]) {
     throw new UsageError(`--listen ${values.listen}: beyond loopback the page and its tokens need TLS: ` +
                          "give --tls-cert and --tls-key");
-  }
-  const maxConnections = Number(values["max-connections"]);
-  if (!Number.isInteger(maxConnections) || maxConnections < 1) {
-    throw new UsageError(`--max-connections: '${values["max-connections"]}' is not a positive whole number`);
   }
   const tls = values["tls-cert"]
     ? { cert: readFlagFile(values["tls-cert"], "--tls-cert")!, key: readFlagFile(values["tls-key"], "--tls-key")! }
@@ -98,7 +118,51 @@ export function parseOptions(argv: string[]): GatewayOptions {
     : undefined;
   return {
     host, port, portFile: values["port-file"], server: values.server!, tls, serverTls,
-    staticDir: values.static, maxConnections,
-    sessionHosts: values["session-hosts"]!.split(",").map((h) => h.trim()).filter(Boolean),
+    staticDir: values.static,
+    maxConnections: wholeNumber(values["max-connections"]!, "--max-connections", 1),
+    maxConnectionsPerAddress: wholeNumber(values["max-connections-per-address"]!, "--max-connections-per-address", 0),
+    timeouts: {
+      tlsHandshakeMs: seconds(values["tls-handshake-timeout"]!, "--tls-handshake-timeout"),
+      headersMs: seconds(values["headers-timeout"]!, "--headers-timeout"),
+      idleMs: seconds(values["idle-timeout"]!, "--idle-timeout"),
+    },
+    allowedHosts: list(values["allowed-hosts"]!).map(allowedHost),
+    sessionHosts: list(values["session-hosts"]!).map((entry) => parseSessionHost(entry, server.port)),
   };
+}
+
+function list(text: string): string[] {
+  return text.split(",").map((item) => item.trim()).filter(Boolean);
+}
+
+function wholeNumber(text: string, flag: string, least: number): number {
+  const n = Number(text);
+  if (!Number.isInteger(n) || n < least) throw new UsageError(`${flag}: '${text}' is not a whole number >= ${least}`);
+  return n;
+}
+
+// A day at most: node's timers take no more than 24.8 days, and fire at once beyond.
+const MAX_SECONDS = 86400;
+
+/** Seconds (fractions allowed, for tests) in (0, a day], as milliseconds. */
+function seconds(text: string, flag: string): number {
+  const s = Number(text);
+  if (!(s > 0 && s <= MAX_SECONDS)) {
+    throw new UsageError(`${flag}: '${text}' is not a number of seconds in (0, ${MAX_SECONDS}]`);
+  }
+  return Math.ceil(s * 1000);
+}
+
+function allowedHost(name: string): string {
+  const canonical = canonicalHostName(name);
+  if (!canonical) throw new UsageError(`--allowed-hosts: '${name}' is not a host name (give names without ports)`);
+  return canonical;
+}
+
+/** SUFFIX or SUFFIX:PORT; a leading dot is allowed; the port defaults to --server's. */
+export function parseSessionHost(entry: string, serverPort: number): SessionHost {
+  const m = /^\.?((?:[a-z0-9-]+\.)*[a-z0-9-]+)(?::(\d{1,5}))?$/i.exec(entry);
+  const port = m?.[2] === undefined ? serverPort : Number(m[2]);
+  if (!m || port < 1 || port > 65535) throw new UsageError(`--session-hosts: '${entry}' is not SUFFIX or SUFFIX:PORT`);
+  return { suffix: m[1].toLowerCase(), port };
 }
