@@ -84,6 +84,15 @@ def check_web(name, objects):
     args = " ".join(pod["containers"][0]["args"])
     for flag in ("--tls-cert=", "--server-tls-ca=", "--session-hosts=.cinevol-server-pods."):
         check(flag in args, f"{name}: cinevol-web runs without {flag}")
+    # Every host an Ingress sends to cinevol-web must be one it answers (it refuses others: DNS rebinding).
+    allowed_hosts = [a.split("=", 1)[1].split(",") for a in pod["containers"][0]["args"]
+                     if a.startswith("--allowed-hosts=")]
+    allowed_hosts = [h for hosts in allowed_hosts for h in hosts]
+    for ingress in (o for o in objects if o["kind"] == "Ingress"):
+        for rule in ingress["spec"].get("rules", []):
+            to_web = any(p["backend"]["service"]["name"] == "cinevol-web" for p in rule["http"]["paths"])
+            check(not to_web or rule["host"] in allowed_hosts,
+                  f"{name}: cinevol-web would refuse the Ingress's host {rule['host']} (--allowed-hosts)")
     check(pod["securityContext"].get("runAsNonRoot") is True, f"{name}: cinevol-web may run as root")
     check(pod["containers"][0]["securityContext"].get("readOnlyRootFilesystem") is True,
           f"{name}: cinevol-web's file system is writable")
