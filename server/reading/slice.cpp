@@ -24,9 +24,17 @@ struct PlaneAxes {
   Vec3f point, row, column;
 };
 
+// A direction that normalises: finite, not zero, its length not overflowing.
+bool IsDirection(Vec3f v) {
+  const float length = Length(v);
+  return length > 0.0f && std::isfinite(length);
+}
+
 PlaneAxes ObliqueAxes(const SliceSpec& spec) {
-  if (!(Length(spec.normal_lps) > 0.0f) || !(Length(spec.row_lps) > 0.0f) || !IsFinite(spec.point_lps)) {
-    throw InputError("slice: an oblique plane needs a finite point and non-zero normal and row directions");
+  if (!IsDirection(spec.normal_lps) || !IsDirection(spec.row_lps) || !IsFinite(spec.point_lps) ||
+      !(MaxComponent(Abs(spec.point_lps)) <= kMaxPlaneMm)) {
+    throw InputError(fmt::format("slice: an oblique plane needs a point within {:g} mm of the origin and finite, "
+                                 "non-zero normal and row directions", kMaxPlaneMm));
   }
   const Vec3f normal = Normalize(spec.normal_lps);
   const Vec3f row = spec.row_lps - normal * Dot(spec.row_lps, normal);
@@ -347,6 +355,9 @@ const char* ToString(SlabProjection projection) {
 }
 
 SliceGeometry PlanSlice(const Volume& volume, const SliceSpec& spec) {
+  if (!(std::abs(spec.position_mm) <= kMaxPlaneMm)) {
+    throw InputError(fmt::format("slice: the position is outside [-{:g}, {:g}] mm", kMaxPlaneMm, kMaxPlaneMm));
+  }
   const PlaneAxes axes = AxesOf(spec);
   if (!(spec.pixel_mm >= 0.0f && spec.pixel_mm <= 1e4f)) throw InputError("slice: pixel size outside [0, 1e4] mm");
   if (!(spec.slab_mm >= 0.0f && spec.slab_mm <= 1e4f)) throw InputError("slice: slab thickness outside [0, 1e4] mm");

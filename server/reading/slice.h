@@ -98,6 +98,9 @@ struct SliceImage {
 // spacing or slab, however hostile, makes a slice that holds a worker for long.
 inline constexpr int kMaxSliceSide = 4096;
 inline constexpr long long kMaxSliceSamples = 1LL << 27;
+// A plane's position or point, mm from the patient's origin: far beyond any
+// volume (8192 voxels of 10^4 mm), near enough that float arithmetic stays finite.
+inline constexpr float kMaxPlaneMm = 1e9f;
 
 // The plane, its pixels and slab samples without rendering them: the image
 // covers the volume's projection onto the plane (voxel centres, the

@@ -6,6 +6,7 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <functional>
 
@@ -349,6 +350,36 @@ TEST(Slice, BadSpecsAreRefused) {
   spec.axis = SliceAxis::kOblique;
   spec.row_lps = spec.normal_lps;
   EXPECT_THROW(RenderSlice(air, {}, nullptr, spec), InputError);
+  // Found by fuzz_requests: a position past float's range made an infinite span, and its pixel count no int.
+  for (float far : {INFINITY, -1e30f, 2e9f}) {
+    spec = Axial(3);
+    spec.position_mm = far;
+    EXPECT_THROW(PlanSlice(air, spec), InputError) << far;
+    spec = Axial(3);
+    spec.axis = SliceAxis::kOblique;
+    spec.point_lps = {0, far, 0};
+    EXPECT_THROW(PlanSlice(air, spec), InputError) << far;
+    spec.point_lps = {};
+    spec.normal_lps = {far, 1, 0};  // a length that overflows
+    if (std::isinf(Length(spec.normal_lps))) EXPECT_THROW(PlanSlice(air, spec), InputError) << far;
+  }
+}
+
+// Whatever the plane asks, a slice is what a screen shows: at most
+// kMaxSliceSide pixels a side and kMaxSliceSamples samples.
+TEST(Slice, APlaneOfAnySizeOrSlabIsBoundedByTheScreen) {
+  const Volume air = IndexPhantom([](Vec3f) { return 0.0f; });
+  SliceSpec spec = Axial(3);
+  spec.axis = SliceAxis::kOblique;
+  spec.normal_lps = {1, 1, 1};
+  spec.pixel_mm = 1e-4f;
+  spec.slab_mm = 1e4f;
+  const SliceGeometry g = PlanSlice(air, spec);
+  EXPECT_EQ(std::max(g.width, g.height), kMaxSliceSide);
+  EXPECT_NEAR(g.pixel_width_mm / g.pixel_height_mm, 1.0f, 1e-6f) << "pixels grow alike both ways";
+  EXPECT_LE(static_cast<long long>(g.width) * g.height * (2 * g.slab_half + 1), kMaxSliceSamples);
+  EXPECT_GT(g.slab_half, 0);
+  EXPECT_GT(g.slab_step_mm, SlabStep(air, g.normal)) << "the slab's samples spread";
 }
 
 }  // namespace
