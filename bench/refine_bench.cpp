@@ -4,8 +4,10 @@
 // image, 4:4:4, before JPEG), for the refinement the pipeline does now (per
 // pixel, by estimated error: pipeline/refine.h) beside the previous
 // release's global blend (the denoiser's output alone up to 16 spp, then
-// towards the mean with log(spp), the mean alone at target_spp), on the same
-// samples.
+// towards the mean with log(spp), the mean alone at target_spp) and beside
+// the raw mean of the samples (what `cinevol render` wrote before it
+// refined), on the same samples.
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <filesystem>
@@ -87,7 +89,7 @@ int RunRefineBench(const RefineBenchOptions& o) {
     }
   }
 
-  Curve before, after;
+  Curve before, after, raw;
   std::vector<int> spp;
   std::vector<float> estimate;
   std::vector<double> measured;  // the refined image's relative error against the reference
@@ -105,6 +107,8 @@ int RunRefineBench(const RefineBenchOptions& o) {
     const DisplayFrame b = now.RenderFrame();
     after_ms += std::chrono::duration<double, std::milli>(Clock::now() - start).count();
     const ImageRgb8 x = ShownOnCpu(shown_before, setup.exposure), y = ToRgb(b.image);
+    const ImageRgb8 mean = ShownOnCpu(now.AccumulatedRadiance(), setup.exposure);
+    raw.psnr.push_back(Psnr(mean, reference_shown));
     before.psnr.push_back(Psnr(x, reference_shown));
     before.ssim.push_back(Ssim(x, reference_shown));
     before.ms.push_back(before_ms);
@@ -121,16 +125,16 @@ int RunRefineBench(const RefineBenchOptions& o) {
       "\n### Still frames on {} ({})\n\n`{}`\n\n{}x{}, {} spp a frame, {} orbit frames then a still camera; "
       "PSNR and SSIM of the displayed image (8-bit, 4:4:4, before JPEG) against {} spp; ms: wall clock since "
       "the camera stopped; estimate: the refined image's estimated relative error\n\n"
-      "| spp | previous PSNR | SSIM | ms | refined PSNR | SSIM | ms | estimate | measured |\n"
-      "|---|---|---|---|---|---|---|---|---|\n",
+      "| spp | raw mean PSNR | previous PSNR | SSIM | ms | refined PSNR | SSIM | ms | estimate | measured |\n"
+      "|---|---|---|---|---|---|---|---|---|---|\n",
       o.scene, DeviceDescription(o.backend), o.command_line, setup.camera.width, setup.camera.height, setup.spp,
       o.orbit_frames, o.reference_spp);
   for (std::size_t i = 0; i < spp.size(); ++i) {
     const bool power_of_two = (spp[i] & (spp[i] - 1)) == 0;
     if (!power_of_two && i + 1 != spp.size()) continue;
-    table += fmt::format("| {} | {:.2f} | {:.4f} | {:.0f} | {:.2f} | {:.4f} | {:.0f} | {:.4f} | {:.4f} |\n", spp[i],
-                         before.psnr[i], before.ssim[i], before.ms[i], after.psnr[i], after.ssim[i], after.ms[i],
-                         estimate[i], measured[i]);
+    table += fmt::format("| {} | {:.2f} | {:.2f} | {:.4f} | {:.0f} | {:.2f} | {:.4f} | {:.0f} | {:.4f} | {:.4f} |\n",
+                         spp[i], raw.psnr[i], before.psnr[i], before.ssim[i], before.ms[i], after.psnr[i],
+                         after.ssim[i], after.ms[i], estimate[i], measured[i]);
   }
   auto reach = [&](const Curve& c, double db) {
     const int i = FirstAt(c, db);
@@ -140,6 +144,12 @@ int RunRefineBench(const RefineBenchOptions& o) {
                        "40 dB reached: previous {}, refined {}; final: previous {:.2f} dB, refined {:.2f} dB\n",
                        LargestDrop(before), LargestDrop(after), reach(before, 40), reach(after, 40),
                        before.psnr.back(), after.psnr.back());
+  for (int at : {16, 32, 64}) {  // the refined still against the raw mean of the same samples
+    const auto i = std::find(spp.begin(), spp.end(), at) - spp.begin();
+    if (std::size_t(i) == spp.size()) continue;
+    table += fmt::format("at {} spp: raw mean {:.2f} dB, refined {:.2f} dB ({:+.2f} dB)\n", at, raw.psnr[i],
+                         after.psnr[i], after.psnr[i] - raw.psnr[i]);
+  }
   for (float target : {0.03f, 0.02f, 0.01f}) {
     std::size_t i = 0;
     while (i + 1 < spp.size() && !(estimate[i] >= 0 && estimate[i] <= target)) ++i;

@@ -1,4 +1,5 @@
-// `cinevol pick --scene S --x PX --y PY [--threshold 0.5] [--json]`: what the
+// `cinevol pick (--scene S | --volume PATH [--preset P --width W --height H]) --x PX --y PY
+// [--threshold 0.5] [--json]`: what the
 // ray through pixel (PX, PY) of the scene's camera meets, offline (no server):
 // the patient position (LPS mm), the value there and the label, or no hit.
 #include <fmt/format.h>
@@ -18,7 +19,7 @@ namespace cinevol::cli {
 namespace {
 
 struct PickOptions {
-  std::string scene;
+  SceneSource source;
   int x = 0, y = 0;
   float threshold = 0.5f;
   bool json = false;
@@ -73,7 +74,7 @@ std::string Readable(const PickResult& r, const PickOptions& o, const std::strin
 }
 
 void Run(const PickOptions& o) {
-  const OfflineScene loaded = LoadOfflineScene(LoadSceneFile(o.scene), {});
+  const OfflineScene loaded = LoadOfflineScene(o.source);
   const Picker picker(loaded.volume, loaded.labels, ResolveScene(loaded.scene, *loaded.volume, loaded.labels.get()));
   PickSettings settings;
   settings.threshold = o.threshold;
@@ -89,7 +90,7 @@ void Run(const PickOptions& o) {
 void AddPickCommand(CLI::App& app) {
   auto* cmd = app.add_subcommand("pick", "What the ray through a pixel of a scene's view meets, no server");
   auto o = std::make_shared<PickOptions>();
-  cmd->add_option("--scene", o->scene, "Scene file (JSON of cinevol.v1.Scene)")->required();
+  AddSceneSource(cmd, o->source, SceneFlags::kWithPresetAndSize);
   cmd->add_option("--x", o->x, "Pixel column, from the left of the scene's viewport")->required();
   cmd->add_option("--y", o->y, "Pixel row, from the top")->required();
   cmd->add_option("--threshold", o->threshold, "Accumulated opacity at which the ray stops, (0, 1] (default 0.5)")

@@ -121,6 +121,9 @@ void Run(const PlayCommandOptions& o) {
   const v1::VolumeInfo volume =
       o.volume.empty() ? ResolveVolume(client, script.session) : ResolveVolume(client, o.volume);
   const auto created = client.CreateSession(SessionRequest(script.session, volume.id()));
+  // At once, while it plays: `cinevol share --session ID` needs it.
+  fmt::print("session {} on {}\n", created.session_id(), created.device());
+  std::fflush(stdout);
   FrameRecorder recorder(o.out);
   ReadingRecorder reading(client, created.session_id(), o.out);
   auto stream = client.Attach(created.session_id());

@@ -1,7 +1,8 @@
-// `cinevol slice --scene S [--axis axial|coronal|sagittal --position MM | --axis oblique --point X,Y,Z
+// `cinevol slice (--scene S | --volume PATH) [--axis axial|coronal|sagittal --position MM | --axis oblique --point X,Y,Z
 // --normal X,Y,Z [--row X,Y,Z]] [--window W --level L | --preset NAME] [--slab MM --projection max|min|mean]
-// [--nearest] [--no-labels] [--clip] --out F.png`: a reading slice of a scene's volume (docs/reading.md), axis
-// slices at the volume's own pixel spacing, oblique ones at its smallest; no server involved.
+// [--nearest] [--no-labels] [--clip] [--native-pixels] --out F.png`: a reading slice of a scene's volume
+// (docs/reading.md), square pixels at the smaller in-plane spacing (--native-pixels: axis slices at the
+// volume's own spacing, one pixel a voxel), oblique ones at its smallest; no server involved.
 #include <fmt/format.h>
 
 #include <array>
@@ -24,7 +25,8 @@ namespace cinevol::cli {
 namespace {
 
 struct SliceOptions {
-  std::string scene, out, axis = "axial", preset, projection = "max";
+  SceneSource source;
+  std::string out, axis = "axial", preset, projection = "max";  // preset: the window's
   std::optional<float> position_mm;  // default: the volume's middle along the axis
   // --axis oblique: "X,Y,Z" in LPS. point: mm (default: the volume's centre); normal and row: directions
   // (row default: +L, or +P for a normal mostly along x).
@@ -32,6 +34,7 @@ struct SliceOptions {
   std::optional<double> window, level;
   float slab_mm = 0;
   bool nearest = false, no_labels = false, clip = false;
+  bool native_pixels = false;  // axis slices: one pixel a voxel, not square where the voxels are not
 };
 
 const std::map<std::string, SliceAxis> kAxes = {{"axial", SliceAxis::kAxial},
@@ -182,6 +185,8 @@ SliceSpec SpecOf(const SliceOptions& o, const Volume& volume, std::string& windo
     if (o.point || o.normal || o.row) throw InputError("slice: --point, --normal and --row are for --axis oblique");
     spec.position_mm = ChoosePosition(o, volume, spec.axis);
   }
+  // Image viewers show every pixel square: anisotropic voxels are resampled unless asked not to be.
+  if (spec.axis != SliceAxis::kOblique && !o.native_pixels) spec.pixel_mm = SquarePixelMm(volume, spec.axis);
   spec.window = ChooseWindow(o, volume, window_name);
   spec.nearest = o.nearest;
   spec.slab_mm = o.slab_mm;
@@ -191,8 +196,8 @@ SliceSpec SpecOf(const SliceOptions& o, const Volume& volume, std::string& windo
 
 void Run(const SliceOptions& o) {
   if (std::filesystem::path(o.out).extension() != ".png") throw InputError("slice: --out must be a .png file");
-  const v1::Scene scene = LoadSceneFile(o.scene);
-  const OfflineScene loaded = LoadOfflineScene(scene, {});
+  const OfflineScene loaded = LoadOfflineScene(o.source);
+  const v1::Scene& scene = loaded.scene;
   const Volume& volume = *loaded.volume;
   std::string window_name;
   const SliceSpec spec = SpecOf(o, volume, window_name);
@@ -211,12 +216,13 @@ void Run(const SliceOptions& o) {
 void AddSliceCommand(CLI::App& app) {
   auto* cmd = app.add_subcommand("slice", "Write a window/levelled slice of a scene's volume as PNG, no server");
   auto o = std::make_shared<SliceOptions>();
-  cmd->add_option("--scene", o->scene, "Scene file (JSON of cinevol.v1.Scene)")->required();
+  AddSceneSource(cmd, o->source, SceneFlags::kWithoutPresetOrSize);  // --preset is the window's here
   cmd->add_option("--out", o->out, "Output image (.png)")->required();
   cmd->add_option("--axis", o->axis, "axial, coronal, sagittal or oblique")
       ->check(CLI::IsMember({"axial", "coronal", "sagittal", "oblique"}));
   cmd->add_option("--position", o->position_mm,
-                  "LPS mm along the axis: z axial, y coronal, x sagittal (default: middle)");
+                  "LPS mm along the axis: z axial, y coronal, x sagittal (default: middle)")
+      ->check(CLI::Range(-1e6, 1e6));
   cmd->add_option("--point", o->point, "Oblique: a point of the plane, X,Y,Z LPS mm (default: the volume's centre)");
   cmd->add_option("--normal", o->normal, "Oblique: the plane's normal, X,Y,Z (LPS)");
   cmd->add_option("--row", o->row,
@@ -237,6 +243,9 @@ void AddSliceCommand(CLI::App& app) {
   cmd->add_option("--projection", o->projection, "Through a slab: max, min or mean")
       ->check(CLI::IsMember({"max", "min", "mean"}));
   cmd->add_flag("--nearest", o->nearest, "Nearest-neighbour values instead of linear interpolation");
+  cmd->add_flag("--native-pixels", o->native_pixels,
+                "Axis slices: one pixel a voxel (not square where the voxels are not); default: square pixels at "
+                "the smaller in-plane spacing");
   cmd->add_flag("--no-labels", o->no_labels, "Leave out the segmentation's overlay");
   cmd->add_flag("--clip", o->clip, "Show the scene's crop box and clip planes (cut away: black)");
   cmd->callback([o] { Run(*o); });

@@ -366,9 +366,10 @@ SliceGeometry PlanSlice(const Volume& volume, const SliceSpec& spec) {
   g.column_direction = axes.column;
   g.normal = Cross(axes.row, axes.column);
   const bool oblique = spec.axis == SliceAxis::kOblique;
-  const float oblique_mm = spec.pixel_mm > 0.0f ? spec.pixel_mm : MinComponent(volume.spacing_mm());
-  g.pixel_width_mm = oblique ? oblique_mm : SpacingAlong(volume, axes.row);
-  g.pixel_height_mm = oblique ? oblique_mm : SpacingAlong(volume, axes.column);
+  const float square_mm = spec.pixel_mm > 0.0f ? spec.pixel_mm : MinComponent(volume.spacing_mm());
+  const bool square = oblique || spec.pixel_mm > 0.0f;
+  g.pixel_width_mm = square ? square_mm : SpacingAlong(volume, axes.row);
+  g.pixel_height_mm = square ? square_mm : SpacingAlong(volume, axes.column);
   const std::vector<Vec3f> corners = CornerCentres(volume);
   const Span across = ProjectCorners(corners, axes.point, axes.row);
   const Span down = ProjectCorners(corners, axes.point, axes.column);
@@ -390,6 +391,13 @@ PositionRange SlicePositionRange(const Volume& volume, SliceAxis axis) {
     range.lo = std::min(range.lo, c[lps_axis]), range.hi = std::max(range.hi, c[lps_axis]);
   }
   return range;
+}
+
+float SquarePixelMm(const Volume& volume, SliceAxis axis) {
+  SliceSpec spec;
+  spec.axis = axis;
+  const PlaneAxes axes = AxesOf(spec);
+  return std::min(SpacingAlong(volume, axes.row), SpacingAlong(volume, axes.column));
 }
 
 float SlabStep(const Volume& volume, Vec3f normal) {

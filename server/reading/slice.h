@@ -40,9 +40,11 @@ struct SliceSpec {
   Vec3f point_lps;
   Vec3f normal_lps{0, 0, 1};
   Vec3f row_lps{1, 0, 0};
-  // kOblique: mm per pixel, both ways; 0: the volume's smallest spacing. (0, 1e4]
-  // Axis-aligned slices take the volume's own spacing: one pixel per voxel.
-  // Either grows where the image would be larger than kMaxSliceSide.
+  // Square pixels of this many mm, [0, 1e4]. 0: an oblique slice's are square
+  // at the volume's smallest spacing, an axis-aligned slice's take the
+  // volume's own spacing along each image axis (one pixel per voxel, not
+  // square where the voxels are not: SquarePixelMm squares them). Either
+  // grows where the image would be larger than kMaxSliceSide.
   float pixel_mm = 0;
   VoiWindow window;
   bool nearest = false;  // nearest-neighbour values instead of linear (labels are always nearest)
@@ -115,6 +117,11 @@ struct PositionRange {
   float lo = 0, hi = 0;
 };
 PositionRange SlicePositionRange(const Volume& volume, SliceAxis axis);
+
+// The pixel size that squares an axis-aligned slice's pixels without losing
+// detail: the smaller of the volume's spacings along its two image axes
+// (what image viewers, which show every pixel square, need).
+float SquarePixelMm(const Volume& volume, SliceAxis axis);
 
 // The distance between slab samples along `normal` (LPS): one voxel's
 // reach along it, the axis's spacing for a normal along an index axis.

@@ -77,6 +77,7 @@ TEST(CinevolCli, PlayAndSnapshotAgainstAServer) {
                         out.string(), "--target-spp", "12", "--error-target", "0", "--final-format", "png"});
   ASSERT_EQ(code, 0) << output;
   EXPECT_NE(output.find("12 events"), std::string::npos) << output;  // 11 orbit cameras and the edit
+  EXPECT_EQ(output.rfind("session ", 0), 0u) << "the session's id comes first, for `cinevol share`: " << output;
   std::ifstream csv(out / "frames.csv");
   std::string header, line, last;
   std::getline(csv, header);

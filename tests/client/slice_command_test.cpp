@@ -32,6 +32,63 @@ fs::path WriteScene(const ScratchDir& scratch, const std::string& json) {
   return path;
 }
 
+// A ball of radius 10 mm (1000 in 0) on a grid of 0.5 x 0.5 x 2 mm voxels, as NRRD.
+fs::path WriteAnisotropicBall(const ScratchDir& scratch) {
+  const fs::path path = scratch / "ball.nrrd";
+  constexpr int kX = 60, kY = 60, kZ = 15;
+  std::ofstream out(path, std::ios::binary);
+  out << "NRRD0004\ntype: short\ndimension: 3\nsizes: " << kX << " " << kY << " " << kZ
+      << "\nspacings: 0.5 0.5 2\nencoding: raw\nendian: little\n\n";
+  for (int z = 0; z < kZ; ++z) {
+    for (int y = 0; y < kY; ++y) {
+      for (int x = 0; x < kX; ++x) {
+        const double dx = (x + 0.5 - kX / 2.0) * 0.5, dy = (y + 0.5 - kY / 2.0) * 0.5, dz = (z + 0.5 - kZ / 2.0) * 2;
+        const std::int16_t v = dx * dx + dy * dy + dz * dz <= 100 ? 1000 : 0;
+        out.write(reinterpret_cast<const char*>(&v), 2);
+      }
+    }
+  }
+  return path;
+}
+
+// The bright pixels' extent across and down the image (its widest row and tallest column).
+std::pair<int, int> BrightExtent(const ImageRgb8& image) {
+  int widest = 0, tallest = 0;
+  for (int y = 0; y < image.height; ++y) {
+    int n = 0;
+    for (int x = 0; x < image.width; ++x) n += image.bytes[3 * (std::size_t(y) * image.width + x)] > 127;
+    widest = std::max(widest, n);
+  }
+  for (int x = 0; x < image.width; ++x) {
+    int n = 0;
+    for (int y = 0; y < image.height; ++y) n += image.bytes[3 * (std::size_t(y) * image.width + x)] > 127;
+    tallest = std::max(tallest, n);
+  }
+  return {widest, tallest};
+}
+
+// Image viewers show every pixel square: a coronal slice of anisotropic
+// voxels is resampled to square pixels (the ball is round), or with
+// --native-pixels keeps one pixel a voxel (the ball 4x squashed), and the
+// line says the pixel size either way. --volume needs no scene file.
+TEST(SliceCommand, CoronalSlicesOfAnisotropicVoxelsHaveSquarePixels) {
+  ScratchDir scratch;
+  const fs::path ball = WriteAnisotropicBall(scratch), out = scratch / "coronal.png";
+  auto [code, output] = Cinevol(scratch, {"slice", "--volume", ball.string(), "--axis", "coronal", "--window", "1",
+                                          "--level", "500", "--out", out.string()});
+  ASSERT_EQ(code, 0) << output;
+  EXPECT_TRUE(Has(output, "0.5x0.5 mm")) << output;
+  auto [wide, tall] = BrightExtent(ReadPng(out));
+  EXPECT_NEAR(wide, 40, 2) << "20 mm across at 0.5 mm a pixel";
+  EXPECT_NEAR(tall, wide, 0.08 * wide) << "the ball is round";
+  std::tie(code, output) = Cinevol(scratch, {"slice", "--volume", ball.string(), "--axis", "coronal", "--window", "1",
+                                             "--level", "500", "--native-pixels", "--out", out.string()});
+  ASSERT_EQ(code, 0) << output;
+  EXPECT_TRUE(Has(output, "0.5x2 mm")) << output;
+  std::tie(wide, tall) = BrightExtent(ReadPng(out));
+  EXPECT_NEAR(wide, 4 * tall, 0.25 * wide) << "one pixel a voxel: 2 mm rows";
+}
+
 TEST(SliceCommand, AnAxialSliceOfAPhantomIsItsVoxelGrid) {
   ScratchDir scratch;
   const fs::path scene =
