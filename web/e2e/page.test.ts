@@ -11,6 +11,7 @@ import { after, before, test } from "node:test";
 import { chromium, type Browser, type Page } from "playwright-core";
 import { decodePng } from "./png.js";
 import { scratch, startWithPortFile, stop, tokensFile, type Running } from "./processes.js";
+import { crosshairOn, discOn, writeSphereNrrd } from "./sphere.js";
 
 const CHROMIUM = process.env.CINEVOL_CHROMIUM ?? "/usr/bin/chromium";
 if (!existsSync(CHROMIUM)) {
@@ -28,7 +29,10 @@ const WAIT = { timeout: 90_000, polling: 100 };
 const MR_DICOM = join(process.env.CINEVOL_SHARED_DATA ?? "", "mr-chest-dicom-seg3d");
 
 let server: Running, gateway: Running, browser: Browser, alice: Page;
+let openServer: Running, openGateway: Running;  // a server that needs no token, holding only the sphere below
 const base = () => `http://127.0.0.1:${gateway.port}`;
+// A sphere of 20 mm radius in voxels of 0.8 x 0.8 x 2 mm: 72 x 72 x 32 of them span 56.8 x 56.8 x 62 mm.
+const SPHERE = { dims: [72, 72, 32], spacingMm: [0.8, 0.8, 2], radiusMm: 20 } as const;
 
 interface PageStatus {
   sessionId: string; eventsSent: number; messages: string[]; framesPainted: number; error: string; banner: string; preset: string;
@@ -53,6 +57,14 @@ async function waitForText(page: Page, selector: string, pattern: RegExp): Promi
                     `the error line "${await page.textContent("#error")}" (${e})`);
   }
   return (await page.textContent(selector)) ?? "";
+}
+
+/** The messages over the view that can be seen: one at most (an error never beside a banner or "waiting"). */
+async function messagesShown(page: Page): Promise<string[]> {
+  const shown = await page.$$eval("#banner, #error", (lines) => lines.filter((l) => l.getClientRects().length > 0)
+    .map((l) => l.textContent ?? ""));
+  const stats = await page.textContent("#stats") ?? "";
+  return /waiting/i.test(stats) ? [...shown, stats] : shown;
 }
 
 /** Waits for `count` more frames painted than now. */
@@ -99,6 +111,12 @@ before(async () => {
   server = await startWithPortFile(SERVER, ["--listen", "127.0.0.1:0", "--backend", "cpu", "--auth-tokens", tokens,
                                             ...dicom], "server");
   gateway = await startGateway();
+  const sphere = join(scratch, "sphere.nrrd");
+  writeSphereNrrd(sphere, [...SPHERE.dims], [...SPHERE.spacingMm], SPHERE.radiusMm);
+  openServer = await startWithPortFile(SERVER, ["--listen", "127.0.0.1:0", "--backend", "cpu", "--volume", sphere],
+                                       "open-server");
+  openGateway = await startWithPortFile(WEB, ["--listen", "127.0.0.1:0", "--server", `127.0.0.1:${openServer.port}`],
+                                        "open-gateway");
   browser = await chromium.launch({ executablePath: CHROMIUM, args: CHROMIUM_ARGS, timeout: 60_000 });
   alice = await browser.newPage({ viewport: { width: 960, height: 540 } });
 });
@@ -107,6 +125,8 @@ after(async () => {
   await browser?.close().catch(() => {});
   await stop(gateway);
   await stop(server);
+  await stop(openGateway);
+  await stop(openServer);
 });
 
 test("the page opens from its URL, signs in from the fragment and streams at the canvas's size", async () => {
@@ -120,6 +140,8 @@ test("the page opens from its URL, signs in from the fragment and streams at the
   });
   assert.deepEqual({ width: s.lastFrame!.width, height: s.lastFrame!.height }, canvas);
   assert.equal(s.error, "");
+  assert.equal(await alice.inputValue("#volumes"), "phantom:head", "the volume list shows the volume open");
+  assert.ok((await messagesShown(alice)).length <= 1, JSON.stringify(await messagesShown(alice)));
   await alice.screenshot({ path: join(ARTIFACTS, "1-streams.png") });
 });
 
@@ -201,7 +223,18 @@ test("reading: slices beside the 3D view, a pick, a distance measured on a slice
 test("a DICOM volume's patient and study show in the corners until F4 hides them", async (t) => {
   if (!existsSync(MR_DICOM)) return t.skip(`no shared data at ${MR_DICOM}`);
   const page = await browser.newPage({ viewport: { width: 800, height: 450 } });
-  await page.goto(`${base()}/?volume=mr-chest-dicom-seg3d#token=alice-token`);
+  // Not waiting for the load (held until the first frame): the banner says what the page waits for until then, and
+  // then the server's notice for a few seconds, below the corners, never over them.
+  await page.goto(`${base()}/?volume=mr-chest-dicom-seg3d#token=alice-token`, { waitUntil: "domcontentloaded" });
+  await page.waitForFunction(() => ["identity", "banner"].every((id) => document.getElementById(id)!.getClientRects().length),
+                             null, WAIT);
+  const boxes = await page.$$eval("#identity-top-left, #identity-top-right, #banner", (e) => e.map((x) => x.getBoundingClientRect()));
+  const [topLeft, topRight, banner] = boxes.map((b) => ({ left: b.left, right: b.right, top: b.top, bottom: b.bottom }));
+  for (const corner of [topLeft, topRight]) {
+    const overlaps = corner.left < banner.right && banner.left < corner.right && corner.top < banner.bottom &&
+                     banner.top < corner.bottom;
+    assert.ok(!overlaps, `the banner ${JSON.stringify(banner)} covers a patient corner ${JSON.stringify(corner)}`);
+  }
   await page.waitForFunction(() => (window as any).cinevol?.status().framesPainted >= 1, null, WAIT);
   assert.ok(await page.isVisible("#identity"), "shown by default");
   assert.equal(await page.textContent("#identity-top-left"), "My Patient Name\nID 123456789");
@@ -209,6 +242,11 @@ test("a DICOM volume's patient and study show in the corners until F4 hides them
                "2009-12-03\nMy Study Name\nMy Special Series For Testing");
   assert.ok(await page.$("#window-preset option[value=stored]"), "the DICOM's own window is offered");
   await page.screenshot({ path: join(ARTIFACTS, "5-identity.png") });
+  await page.keyboard.press("F3");  // in the 2x2 they keep to the 3D view's corners
+  const [view, right] = await page.$$eval("#view, #identity-top-right", (e) => e.map((x) => x.getBoundingClientRect().right));
+  assert.ok(right <= view && view - right < 20, `the study's corner ends at ${right}, the 3D view at ${view}`);
+  await page.screenshot({ path: join(ARTIFACTS, "5-identity-2x2.png") });
+  await page.keyboard.press("F3");
   await page.keyboard.press("F4");
   assert.ok(!(await page.isVisible("#identity")), "F4 hides them");
   await page.close();
@@ -222,7 +260,89 @@ test("a wrong token is refused with a message on the page", async () => {
   await page.waitForFunction(() => document.getElementById("error")!.textContent!.length > 0, null, WAIT);
   assert.match(await page.textContent("#error") ?? "", /did not accept your token/);
   assert.ok(await page.isVisible("#sign-in"), "the sign-in form is offered again");
+  assert.deepEqual(await messagesShown(page), [await page.textContent("#error")], "the error alone, no waiting beside it");
   await page.screenshot({ path: join(ARTIFACTS, "5-wrong-token.png") });
+  await page.close();
+});
+
+test("a server that needs a token says so beside a sign-in field, and streams once it is entered", async () => {
+  const page = await browser.newPage({ viewport: { width: 800, height: 450 } });
+  await page.goto(`${base()}/?volume=phantom:head`);
+  await page.waitForSelector("#sign-in", { state: "visible", timeout: WAIT.timeout });
+  assert.match(await page.textContent("#error") ?? "", /This server needs a token: enter yours/);
+  assert.match(await page.textContent("#sign-in") ?? "", /sign in with the token/);
+  assert.deepEqual(await messagesShown(page), [await page.textContent("#error")]);
+  await page.screenshot({ path: join(ARTIFACTS, "5-token-needed.png") });
+  await page.fill("#token", "alice-token");
+  await Promise.all([page.waitForEvent("load", { timeout: WAIT.timeout }), page.press("#token", "Enter")]);
+  await page.waitForFunction(() => (window as any).cinevol?.status().framesPainted >= 1, null, WAIT);
+  assert.ok(!(await page.isVisible("#sign-in")), "signed in");
+  assert.equal((await status(page)).error, "");
+  await page.close();
+});
+
+test("a server without tokens: the page opens at once; a sphere in 0.8 x 0.8 x 2 mm voxels is round on all three " +
+     "slices (F3), its crosshair, edge letters and a measurement in millimetres", async () => {
+  const page = await browser.newPage({ viewport: { width: 1200, height: 800 } });
+  await page.goto(`http://127.0.0.1:${openGateway.port}/?volume=sphere`);
+  const opened = await until(page, (s) => s.framesPainted >= 1, "a frame without a token");
+  assert.equal(opened.error, "");
+  assert.ok(!(await page.isVisible("#sign-in")), "no token asked for");
+  assert.equal(await page.inputValue("#volumes"), "sphere");
+  assert.ok((await messagesShown(page)).length <= 1, JSON.stringify(await messagesShown(page)));
+
+  await page.keyboard.press("F3");
+  assert.ok(await page.$eval("#stage", (e) => e.classList.contains("grid")), "F3: the 2x2 layout");
+  await page.selectOption("#window-preset", "soft-tissue");  // 350 wide about 50: mid-grey on the sphere's surface
+  await page.waitForFunction(() => [...document.querySelectorAll<HTMLImageElement>(".slice img")].every((img) =>
+    img.complete && img.naturalWidth > 0 && img.parentElement!.querySelector(".slice-window")!.textContent === "W 350 L 50"),
+                             null, WAIT);
+  const axes = ["axial", "coronal", "sagittal"] as const;
+  const shot = async (axis: string) => decodePng(await page.locator(`#slice-${axis} img`).screenshot());
+  // The image alone, then with the crosshair over it (the page's CSP allows no style sheet from here: each element's own).
+  const overlays = (visibility: string) => page.$$eval(".slice canvas, .slice span", (parts, v) => {
+    for (const part of parts) (part as HTMLElement).style.visibility = v;
+  }, visibility);
+  await overlays("hidden");
+  const discs = Object.fromEntries(await Promise.all(axes.map(async (a) => [a, discOn(await shot(a))] as const)));
+  await overlays("");
+  await page.screenshot({ path: join(ARTIFACTS, "13-sphere-2x2.png") });
+  for (const axis of axes) {
+    const { width, height, x, y } = discs[axis];
+    assert.ok(width > 150, `${axis}: the sphere drawn ${width.toFixed(1)} pixels wide`);
+    assert.ok(Math.abs(width / height - 1) < 0.03, `${axis}: the sphere drawn ${width.toFixed(1)} x ${height.toFixed(1)} pixels`);
+    const cross = crosshairOn(await shot(axis));  // through the volume's centre, the sphere's
+    assert.ok(Math.hypot(cross.x - x, cross.y - y) < 2.5,
+              `${axis}: the crosshair at ${JSON.stringify(cross)}, the sphere's centre at ${x.toFixed(1)}, ${y.toFixed(1)}`);
+  }
+  const letters = await page.$eval("#slice-coronal", (pane) => {
+    const img = pane.querySelector("img")!.getBoundingClientRect();
+    const gap = (edge: string) => {
+      const r = pane.querySelector(`.edge-${edge}`)!.getBoundingClientRect();
+      return { left: r.left - img.left, right: img.right - r.right, top: r.top - img.top, bottom: img.bottom - r.bottom }[edge]!;
+    };
+    return { left: gap("left"), right: gap("right"), top: gap("top"), bottom: gap("bottom") };
+  });
+  for (const [edge, gap] of Object.entries(letters)) {
+    assert.ok(gap >= -1 && gap < 8, `coronal: the ${edge} letter ${gap.toFixed(1)} pixels inside the image's ${edge} edge`);
+  }
+
+  // Across the coronal slice, down its 2 mm rows and along its 0.8 mm columns: both read the diameter.
+  const coronal = (await page.locator("#slice-coronal img").boundingBox())!, disc = discs.coronal;
+  for (const [dx, dy] of [[0, disc.height / 2], [disc.width / 2, 0]]) {
+    const before = (await page.$$("#measurements li")).length;
+    await page.click("#measure-distance");
+    await page.mouse.click(coronal.x + disc.x - dx, coronal.y + disc.y - dy);
+    await page.mouse.click(coronal.x + disc.x + dx, coronal.y + disc.y + dy);
+    await page.waitForFunction((n) => document.querySelectorAll("#measurements li").length > n, before, WAIT);
+    const text = await page.textContent(`#measurements li:nth-child(${before + 1})`) ?? "";
+    const mm = Number(/Distance (\d+\.\d) mm/.exec(text)?.[1]);
+    assert.ok(Math.abs(mm - 2 * SPHERE.radiusMm) < 0.8, `a ${dx ? "horizontal" : "vertical"} measurement reads "${text}"`);
+  }
+  await page.screenshot({ path: join(ARTIFACTS, "14-sphere-measured.png") });
+  await page.keyboard.press("F3");
+  assert.ok(await page.$eval("#stage", (e) => !e.classList.contains("grid")), "F3 again: the 3D view alone");
+  assert.ok(!(await page.isVisible("#slice-coronal")));
   await page.close();
 });
 

@@ -24,6 +24,7 @@ import { cropFromFractions, fromPatient, patientBox, toPatient } from "./geometr
 import { identityCorners } from "./identity.js";
 import { markerAxes } from "./orientation.js";
 import { measurementText, projectToView } from "./measure.js";
+import { messageToShow, type Messages } from "./messages.js";
 import { PacsPanel } from "./pacs_panel.js";
 import { drawPointers, echoedName, othersPointers, Throttle, type Fraction, type FrameRect, type Pointer } from "./pointers.js";
 import { Reading } from "./reading.js";
@@ -77,8 +78,7 @@ export class App {
   private echoedName?: string;          // one's own name, from the server's echo of one's pointer
   private drawnPointers: Pointer[] = [];
   private driving = true;
-  private errorText = "";
-  private bannerText = "";
+  private readonly said: Messages = { error: "", banner: "", waiting: "Connecting to the server…" };
   private readonly messages: string[] = [];  // what the banner and the error line said, newest last
   private painted1st!: () => void;
   /** The server refused the page's token (or a user's share came without one): main.ts asks for one. */
@@ -109,6 +109,7 @@ export class App {
     this.view.followSize((size) => this.post({ case: "resize", value: create(ViewportSchema, size) }));
     this.editor.onEdit = (tf) => this.post({ case: "transferFunction", value: tf });
     this.wirePanels();
+    this.showMessage();
     setInterval(() => this.drawStats(), 250);
   }
 
@@ -120,20 +121,26 @@ export class App {
     presets.replaceChildren(new Option("(choose a preset)", ""), ...status.presets.map((p) => new Option(p, p)));
     const volumes = await this.api.volumes.listVolumes({});
     $<HTMLSelectElement>("volumes").replaceChildren(...volumes.volumes.map((v) => new Option(v.id, v.id)));
-    void new PacsPanel(this.api, (volume) => this.addVolume(volume), (t) => this.setBanner(t),
+    void new PacsPanel(this.api, (volume) => void this.open(volume.id), (t) => this.setBanner(t),
                        (t) => this.showError(t)).start();
+    // An address that names no volume opens the server's first, as the desktop viewer does: never a blank view.
+    const volumeId = address.volume ?? volumes.volumes[0]?.id;
     if (address.session) await this.join(address.session);
-    else if (address.volume) await this.open(address.volume, address.preset);
+    else if (volumeId) await this.open(volumeId, address.preset);
+    else this.setWaiting("The server holds no volume yet: open a study from the PACS, on the left, where it has one.");
   }
 
   async open(volumeId: string, preset?: string): Promise<void> {
     this.session?.close();
     this.showError("");
+    this.showOpenVolume(volumeId);
+    this.setWaiting(`Opening ${volumeId}…`);
     try {
       this.volume = await this.api.volumes.describeVolume({ volumeId });
       this.describeVolume();
       this.session = await LiveSession.create(this.api, this.handlers(), this.latency, volumeId,
                                               this.view.devicePixels(), preset);
+      this.setWaiting("Waiting for the first frame…");
       this.share.show(true);
     } catch (e) {
       this.showError(plainWords(e));
@@ -141,10 +148,13 @@ export class App {
   }
 
   private async join(sessionId: string): Promise<void> {
+    this.setWaiting("Joining the session…");
     try {
       this.session = await LiveSession.join(this.api, this.handlers(), this.latency, sessionId);
+      this.setWaiting("Waiting for the first frame…");
       this.share.show(true);
       if (this.session.volumeId) {
+        this.showOpenVolume(this.session.volumeId);
         this.volume = await this.api.volumes.describeVolume({ volumeId: this.session.volumeId });
         this.describeVolume();
       }
@@ -162,17 +172,18 @@ export class App {
   private watchShared(grant: string): void {
     for (const id of ["open", "reading"]) $(id).hidden = true;
     this.setDriving(false);
+    this.setWaiting("Waiting for the shared session's first frame…");
     void this.api.server.getStatus({}).then((status) => {
       $<HTMLSelectElement>("preset").replaceChildren(...status.presets.map((p) => new Option(p, p)));
     }).catch(() => {});
     this.session = LiveSession.watchShared(this.api, this.handlers(), this.latency, grant);
   }
 
-  private addVolume(volume: VolumeInfo): void {
+  /** The volume list shows the volume open (one from a PACS, or not listed yet, added to it). */
+  private showOpenVolume(volumeId: string): void {
     const select = $<HTMLSelectElement>("volumes");
-    if (![...select.options].some((o) => o.value === volume.id)) select.add(new Option(volume.id, volume.id));
-    select.value = volume.id;
-    void this.open(volume.id);
+    if (![...select.options].some((o) => o.value === volumeId)) select.add(new Option(volumeId, volumeId));
+    select.value = volumeId;
   }
 
   private handlers() {
@@ -614,19 +625,16 @@ export class App {
     if (home) this.moveCamera(() => home);
   }
 
-  /** The desktop viewer's keys: A P L R S I named views, Home or Space the first view, F2 the statistics, F4 the patient. */
+  /**
+   * The desktop viewer's keys: F2 the statistics, F3 the 2x2 layout, F4 the
+   * patient (wherever the keyboard is: no field types them); and, outside
+   * the fields, A P L R S I named views, Home or Space the first view.
+   */
   private key(e: KeyboardEvent): void {
+    if (this.functionKey(e.key)) return e.preventDefault();
     const target = e.target as HTMLElement;
     if (target.matches("input:not([type=checkbox]):not([type=range]), select, textarea")) return;
-    if (e.key === "F2") {
-      const box = $<HTMLInputElement>("show-stats");
-      box.checked = !box.checked;
-      $("stats").hidden = !box.checked;
-    } else if (e.key === "F4") {
-      const box = $<HTMLInputElement>("show-identity");
-      box.checked = !box.checked;
-      this.showIdentity();
-    } else if (e.key === "Home" || e.key === " ") {
+    if (e.key === "Home" || e.key === " ") {
       this.goHome();
     } else if (!e.ctrlKey && !e.altKey && !e.metaKey && KEY_VIEWS[e.key.toLowerCase()] !== undefined) {
       this.namedView(KEY_VIEWS[e.key.toLowerCase()]);
@@ -636,23 +644,56 @@ export class App {
     e.preventDefault();
   }
 
+  /** F2, F3 and F4; false for any other key. */
+  private functionKey(key: string): boolean {
+    const toggle = (id: string) => {
+      const box = $<HTMLInputElement>(id);
+      box.checked = !box.checked;
+    };
+    if (key === "F2") {
+      toggle("show-stats");
+      $("stats").hidden = !$<HTMLInputElement>("show-stats").checked;
+    } else if (key === "F3") {
+      if (!this.session?.grant) this.reading.toggleLayout();  // a share's holder has no reading tools
+    } else if (key === "F4") {
+      toggle("show-identity");
+      this.showIdentity();
+    } else {
+      return false;
+    }
+    return true;
+  }
+
   // ------------------------------------------------- messages and stats
 
   /** Says how things are; a passing message clears itself unless another came meanwhile. */
   private setBanner(text: string, passing = false): void {
     this.remember(text);
-    this.bannerText = text;
-    $("banner").textContent = text;
-    $("banner").hidden = !text;
-    if (passing) setTimeout(() => this.bannerText === text && this.setBanner(""), PASSING_MS);
+    this.said.banner = text;
+    this.showMessage();
+    if (passing) setTimeout(() => this.said.banner === text && this.setBanner(""), PASSING_MS);
   }
 
   showError(text: string): void {
     this.remember(text);
     if (text) this.painted1st();  // nothing more will come to wait for
-    this.errorText = text;
-    $("error").textContent = text;
-    $("error").hidden = !text;
+    this.said.error = text;
+    this.showMessage();
+  }
+
+  /** What the page waits for, said while nothing else is; "" once there is a picture. */
+  private setWaiting(text: string): void {
+    this.said.waiting = text;
+    this.showMessage();
+  }
+
+  /** One message at a time over the view: the error line (an alert) or the banner (a polite status). */
+  private showMessage(): void {
+    const shown = messageToShow(this.said);
+    for (const kind of ["error", "banner"] as const) {
+      $(kind).textContent = shown?.kind === kind ? shown.text : "";
+      $(kind).hidden = shown?.kind !== kind;
+    }
   }
 
   private remember(text: string): void {
@@ -663,6 +704,7 @@ export class App {
 
   private onPainted(meta: FrameMeta, at: number, decodeMs: number, replaced: number): void {
     this.painted1st();
+    if (this.said.waiting) this.setWaiting("");
     this.frameIds.push(Number(meta.id));
     if (this.frameIds.length > 64) this.frameIds.shift();
     if (meta.width !== this.lastPainted?.width || meta.height !== this.lastPainted?.height) this.drawOverlay();
@@ -689,15 +731,15 @@ export class App {
         `${percentile(this.decodeMs, 0.5).toFixed(1)} ms`,
       `server ms: render ${ms(t?.renderUs)} denoise ${ms(t?.denoiseUs)} tonemap ${ms(t?.tonemapUs)} ` +
         `encode ${ms(t?.encodeUs)} queue ${ms(t?.queueUs)} total ${ms(t?.serverUs)}`,
-    ].join("\n") : "waiting for the first frame";
+    ].join("\n") : "";  // before a frame the line over the view says what the page waits for
   }
 
   /** What tests and scripts read (window.cinevol). */
   status() {
     const samples = this.latency.samples;
     return {
-      sessionId: this.session?.id ?? "", eventsSent: Number(this.session?.lastSeq ?? 0n), framesPainted: this.framesPainted, error: this.errorText,
-      banner: this.bannerText, messages: [...this.messages],
+      sessionId: this.session?.id ?? "", eventsSent: Number(this.session?.lastSeq ?? 0n), framesPainted: this.framesPainted,
+      error: this.said.error, banner: this.said.banner, shown: messageToShow(this.said), messages: [...this.messages],
       lastFrame: this.lastPainted ? { ...this.lastPainted, id: Number(this.lastPainted.id),
                                        lastEventSeq: Number(this.lastPainted.lastEventSeq) } : null,
       motionToPhoton: { p50: percentile(samples, 0.5), p95: percentile(samples, 0.95), count: samples.length },

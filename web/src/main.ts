@@ -5,7 +5,7 @@
 import { connect } from "./api.js";
 import { readAddress, withoutToken, type PageAddress } from "./address.js";
 import { App } from "./app.js";
-import { plainWords } from "./words.js";
+import { plainWords, signInWords, tokenRefused } from "./words.js";
 
 const TOKEN_KEY = "cinevol-token";
 const GRANT_KEY = "cinevol-grant";
@@ -27,7 +27,11 @@ function holdLoadUntil(done: Promise<unknown>): void {
   void Promise.race([done, new Promise((r) => setTimeout(r, HOLD_LOAD_MS))]).finally(release);
 }
 
-/** One App for the page: with a token (one's own sessions, or a user's share) or none (a link's share). */
+/**
+ * One App for the page: with a token (one's own sessions, or a user's share)
+ * or none (a server that needs none, or a link's share). A server that wants
+ * a token says so, and the page asks for it in words.
+ */
 async function start(token: string | undefined, address: PageAddress): Promise<void> {
   const app = new App(connect(token, location.origin));
   (window as unknown as { cinevol: unknown }).cinevol = {
@@ -42,9 +46,9 @@ async function start(token: string | undefined, address: PageAddress): Promise<v
   try {
     await app.boot(address);
   } catch (e) {
-    app.showError(plainWords(e));
-    sessionStorage.removeItem(TOKEN_KEY);
-    askForToken();
+    if (!tokenRefused(e)) return app.showError(plainWords(e));
+    app.showError(signInWords(e, token !== undefined));
+    app.onTokenRefused();
   }
 }
 
@@ -58,6 +62,7 @@ function askForToken(): void {
     sessionStorage.setItem(TOKEN_KEY, token);
     location.reload();  // one App per page: a fresh start with the new token
   };
+  document.getElementById("token")!.focus();
 }
 
 const address = readAddress(location.search, location.hash);
@@ -67,6 +72,5 @@ if (address.token || address.grant) history.replaceState(null, "", withoutToken(
 const token = sessionStorage.getItem(TOKEN_KEY) ?? undefined;
 // A share is watched again on a reload, unless the query names a volume or session of one's own.
 const grant = address.grant ?? (address.volume || address.session ? undefined : sessionStorage.getItem(GRANT_KEY) ?? undefined);
-if (grant) void start(token, { ...address, grant });
-else if (token) void start(token, address);
-else askForToken();
+// Without a token too: a server that needs none opens at once, one that does says so (start above).
+void start(token, { ...address, grant });

@@ -6,7 +6,8 @@ import { Code, ConnectError } from "@connectrpc/connect";
 import { SlabProjection, SliceAxis, type SliceImage, type VolumeInfo } from "../gen/cinevol/v1/service_pb.js";
 import type { Api } from "./api.js";
 import { patientBox, slicePlaneOutline, spacingAlong } from "./geometry.js";
-import { measurementText, patientToSlicePixel, slicePixelToPatient } from "./measure.js";
+import { measurementText, paneToPatient, patientToPane, shownSlice } from "./measure.js";
+import type { FrameRect } from "./pointers.js";
 import { add, scale, v3, type V3 } from "./vec.js";
 import { plainWords } from "./words.js";
 
@@ -37,14 +38,15 @@ class Pane {
   private url = "";
   private busy = false;
   private again = false;
-  readonly img: HTMLImageElement;
-  readonly overlay: HTMLCanvasElement;
+  private readonly root: HTMLElement;
+  private readonly img: HTMLImageElement;
+  private readonly overlay: HTMLCanvasElement;
 
   constructor(readonly spec: PaneSpec, private readonly reading: Reading) {
-    const root = $(spec.element);
-    this.img = root.querySelector("img")!;
-    this.overlay = root.querySelector("canvas")!;
-    this.listen(root);
+    this.root = $(spec.element);
+    this.img = this.root.querySelector("img")!;
+    this.overlay = this.root.querySelector("canvas")!;
+    this.listen();
   }
 
   async refresh(): Promise<void> {
@@ -72,48 +74,54 @@ class Pane {
       this.url = URL.createObjectURL(new Blob([image.png.slice()], { type: "image/png" }));
       this.image = image;
       this.img.src = this.url;
-      this.img.alt = `${SliceAxis[this.spec.axis].toLowerCase()} slice at ${request.positionMm.toFixed(1)} mm`;
+      const name = SliceAxis[this.spec.axis];
+      this.img.alt = `${name.toLowerCase()} slice at ${request.positionMm.toFixed(1)} mm`;
       const [left, right, top, bottom] = image.edgeLetters;
-      const root = $(this.spec.element);
       for (const [edge, letter] of Object.entries({ left, right, top, bottom })) {
-        root.querySelector<HTMLElement>(`.edge-${edge}`)!.textContent = letter ?? "";
+        this.part(`.edge-${edge}`).textContent = letter ?? "";
       }
-      root.querySelector<HTMLElement>(".slice-label")!.textContent =
-        `${SliceAxis[this.spec.axis]} ${request.positionMm.toFixed(1)} mm · W ${image.window.toFixed(0)} L ${image.level.toFixed(0)}`;
+      this.part(".slice-label").textContent = `${name} ${request.positionMm.toFixed(1)} mm`;
+      this.part(".slice-window").textContent = `W ${image.window.toFixed(0)} L ${image.level.toFixed(0)}`;
       this.draw();
     } catch (e) {
       this.reading.error(plainWords(e));
     }
   }
 
-  /** Crosshair and the measurement points near this plane, over the image. */
+  private part(selector: string): HTMLElement {
+    return this.root.querySelector<HTMLElement>(selector)!;
+  }
+
+  /** Where the image shows in the pane now (CSS px from the pane's top left): in millimetres, fitted whole. */
+  private shown(image: SliceImage): FrameRect {
+    return shownSlice({ width: this.root.clientWidth, height: this.root.clientHeight }, image);
+  }
+
+  /** The image where it shows with its edge letters; over it the crosshair and the measurements near its plane. */
   draw(): void {
     const image = this.image, g = this.overlay.getContext("2d");
     if (!image || !g) return;
-    const box = this.img.getBoundingClientRect();
-    this.overlay.width = Math.round(box.width);
-    this.overlay.height = Math.round(box.height);
-    const fit = Math.min(box.width / image.width, box.height / image.height);
-    const ox = (box.width - image.width * fit) / 2, oy = (box.height - image.height * fit) / 2;
-    const at = (p: V3) => {
-      const q = patientToSlicePixel(image, p);
-      return { x: ox + (q.column + 0.5) * fit, y: oy + (q.row + 0.5) * fit, off: Math.abs(q.offPlaneMm) };
-    };
-    g.clearRect(0, 0, this.overlay.width, this.overlay.height);
+    const shown = this.shown(image);
+    this.place(shown);
+    const dpr = window.devicePixelRatio || 1;
+    this.overlay.width = Math.round(this.root.clientWidth * dpr);
+    this.overlay.height = Math.round(this.root.clientHeight * dpr);
+    g.scale(dpr, dpr);
+    const at = (p: V3) => patientToPane(image, shown, p);
     const cross = this.reading.crosshair;
     if (cross) {
       const c = at(cross);
       g.strokeStyle = "rgba(255, 220, 0, 0.7)";
       g.beginPath();
-      g.moveTo(c.x, 0); g.lineTo(c.x, this.overlay.height);
-      g.moveTo(0, c.y); g.lineTo(this.overlay.width, c.y);
+      g.moveTo(c.x, shown.top); g.lineTo(c.x, shown.top + shown.height);
+      g.moveTo(shown.left, c.y); g.lineTo(shown.left + shown.width, c.y);
       g.stroke();
     }
-    const near = 2 * Math.max(image.rowSpacingMm, image.columnSpacingMm);
+    const near = this.reading.voxelAcross(this.spec.along);  // within a voxel of the plane, as the desktop viewer
     g.strokeStyle = g.fillStyle = "#4df";
     for (const m of this.reading.measurements) {
       const points = m.points.map(at);
-      if (points.some((p) => p.off > near)) continue;
+      if (points.some((p) => Math.abs(p.offPlaneMm) > near)) continue;
       g.beginPath();
       points.forEach((p, i) => (i ? g.lineTo(p.x, p.y) : g.moveTo(p.x, p.y)));
       g.stroke();
@@ -121,18 +129,29 @@ class Pane {
     }
   }
 
-  /** The image pixel under a point of the pane, or null off the image. */
-  private pixelAt(e: PointerEvent | WheelEvent): { column: number; row: number } | null {
-    const image = this.image;
-    if (!image) return null;
-    const box = this.img.getBoundingClientRect();
-    const fit = Math.min(box.width / image.width, box.height / image.height);
-    const column = (e.clientX - box.left - (box.width - image.width * fit) / 2) / fit - 0.5;
-    const row = (e.clientY - box.top - (box.height - image.height * fit) / 2) / fit - 0.5;
-    return column < -0.5 || row < -0.5 || column > image.width - 0.5 || row > image.height - 0.5 ? null : { column, row };
+  /** The image in its millimetre rectangle; each edge letter at the middle of its edge, inside it. */
+  private place(shown: FrameRect): void {
+    const px = (v: number) => `${v.toFixed(1)}px`;
+    Object.assign(this.img.style, { left: px(shown.left), top: px(shown.top), width: px(shown.width),
+                                    height: px(shown.height) });
+    const right = shown.left + shown.width, bottom = shown.top + shown.height;
+    const middle = { x: shown.left + shown.width / 2, y: shown.top + shown.height / 2 };
+    const edges = { left: [shown.left, middle.y], right: [right, middle.y], top: [middle.x, shown.top],
+                    bottom: [middle.x, bottom] };
+    for (const [edge, [x, y]] of Object.entries(edges)) {
+      Object.assign(this.part(`.edge-${edge}`).style, { left: px(x), top: px(y) });
+    }
   }
 
-  private listen(root: HTMLElement): void {
+  /** The patient position under a pointer, or null off the image. */
+  private patientAt(e: PointerEvent): V3 | null {
+    if (!this.image) return null;
+    const box = this.root.getBoundingClientRect();
+    return paneToPatient(this.image, this.shown(this.image), { x: e.clientX - box.left, y: e.clientY - box.top });
+  }
+
+  private listen(): void {
+    const root = this.root;
     root.addEventListener("wheel", (e) => {
       e.preventDefault();
       this.reading.step(this.spec.along, Math.sign(e.deltaY));
@@ -149,9 +168,8 @@ class Pane {
     root.addEventListener("pointerup", (e) => {
       const moved = down && Math.hypot(e.clientX - down.x, e.clientY - down.y) > CLICK_SLOP_PX;
       down = undefined;
-      const pixel = this.pixelAt(e);
-      if (moved || !pixel || !this.image) return;
-      const p = slicePixelToPatient(this.image, pixel.column, pixel.row);
+      const p = moved ? null : this.patientAt(e);
+      if (!p) return;
       $("pick-info").textContent = lps(p);
       this.reading.picked(p);
     });
@@ -250,9 +268,14 @@ export class Reading {
     };
   }
 
+  /** One voxel across a slice's plane (mm): the spacing of the volume's index axis along that patient axis. */
+  voxelAcross(along: "x" | "y" | "z"): number {
+    return this.volume ? spacingAlong(this.volume, along) : 1;
+  }
+
   step(along: "x" | "y" | "z", direction: number): void {
-    if (!this.crosshair || !this.volume) return;
-    this.crosshair = { ...this.crosshair, [along]: this.crosshair[along] + direction * spacingAlong(this.volume, along) };
+    if (!this.crosshair) return;
+    this.crosshair = { ...this.crosshair, [along]: this.crosshair[along] + direction * this.voxelAcross(along) };
     this.refresh();
   }
 
@@ -325,7 +348,8 @@ export class Reading {
     this.onOverlayChanged();
   }
 
-  private toggleLayout(): void {
+  /** The 2x2 layout on or off (the button, or F3 as in the desktop viewer). */
+  toggleLayout(): void {
     const grid = $("stage").classList.toggle("grid");
     $("layout").textContent = grid ? "3D view only" : "Slices beside the 3D view (2x2)";
     for (const spec of PANES) $(spec.element).hidden = !grid;

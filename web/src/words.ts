@@ -39,6 +39,20 @@ export function plainWords(e: unknown): string {
   return inWords(e, LEAD);
 }
 
+/** Whether the server refused the caller's token, or asked for one. */
+export function tokenRefused(e: unknown): boolean {
+  return ConnectError.from(e).code === Code.Unauthenticated;
+}
+
+/**
+ * Why the page asks for a token, in words: a server that needs one and was
+ * sent none (its own message is for programs: send the metadata ...), or one
+ * that did not accept the token sent.
+ */
+export function signInWords(e: unknown, sentToken: boolean): string {
+  return sentToken ? plainWords(e) : "This server needs a token: enter yours in the Token field to sign in.";
+}
+
 /** A refusal to the holder of a share (a revoked or expired grant, a principal's grant without its token). */
 export function shareWords(e: unknown): string {
   return inWords(e, SHARE_LEAD);

@@ -5,8 +5,9 @@ import { Code, ConnectError } from "@connectrpc/connect";
 import { VolumeInfoSchema } from "../gen/cinevol/v1/service_pb.js";
 import { readAddress, sessionQuery } from "../src/address.js";
 import { cropFromFractions, fromPatient, patientBox, spacingAlong, toPatient } from "../src/geometry.js";
+import { messageToShow } from "../src/messages.js";
 import { MotionToPhoton, percentile, Rate } from "../src/stats.js";
-import { plainWords } from "../src/words.js";
+import { plainWords, signInWords, tokenRefused } from "../src/words.js";
 
 test("the address: volume and preset in the query, the token only from the fragment", () => {
   const a = readAddress("?volume=phantom%3Ahead&preset=ct-bone&token=leak", "#token=s3cret");
@@ -123,4 +124,23 @@ test("a slice plane's outline is where it cuts the volume's box, in order around
   const sagittal = slicePlaneOutline(ras, "x", -5);
   assert.equal(sagittal.length, 4);
   for (const p of sagittal) assert.equal(p.x, -5);
+});
+
+test("one message at a time: an error before news, news before waiting", () => {
+  assert.deepEqual(messageToShow({ error: "refused", banner: "reconnected", waiting: "Waiting for the first frame…" }),
+                   { kind: "error", text: "refused" });
+  assert.deepEqual(messageToShow({ error: "", banner: "reconnected", waiting: "Waiting…" }), { kind: "banner", text: "reconnected" });
+  assert.deepEqual(messageToShow({ error: "", banner: "", waiting: "Waiting…" }), { kind: "banner", text: "Waiting…" });
+  assert.equal(messageToShow({ error: "", banner: "", waiting: "" }), null);
+});
+
+test("a server that needs a token says so in words; a token it refuses is named as such", () => {
+  const needed = new ConnectError("this server needs a token: send the metadata 'authorization: Bearer <token>'",
+                                  Code.Unauthenticated);
+  assert.ok(tokenRefused(needed));
+  assert.ok(!tokenRefused(new ConnectError("down", Code.Unavailable)), "an unreachable server asks for no token");
+  assert.match(signInWords(needed, false), /needs a token: enter yours/);
+  assert.doesNotMatch(signInWords(needed, false), /metadata/, "the server's words for programs are not shown");
+  assert.match(signInWords(new ConnectError("the bearer token is not valid", Code.Unauthenticated), true),
+               /did not accept your token.*not valid/);
 });
