@@ -18,6 +18,7 @@ void AddSnapshotCommand(CLI::App& app);
 void AddSliceCommand(CLI::App& app);
 void AddRenderCommand(CLI::App& app);
 void AddStatusCommand(CLI::App& app);
+void AddViewCommand(CLI::App& app);
 void AddVolumesCommand(CLI::App& app);
 
 }  // namespace cinevol::cli

@@ -14,6 +14,7 @@ int main(int argc, char** argv) {
   app.add_flag("-v,--verbose", verbose, "Log debug detail");
   app.parse_complete_callback([&] { spdlog::set_level(verbose ? spdlog::level::debug : spdlog::level::info); });
   cinevol::cli::AddDemoCommand(app);
+  cinevol::cli::AddViewCommand(app);
   cinevol::cli::AddRenderCommand(app);
   cinevol::cli::AddSliceCommand(app);
   cinevol::cli::AddInfoCommand(app);

@@ -3,11 +3,10 @@
 // Tables for people, proto3 JSON (--json) for scripts.
 #include <fmt/format.h>
 
-#include <algorithm>
-
 #include "commands.h"
 #include "connection_options.h"
 #include "core/error.h"
+#include "pacs_load.h"
 #include "text_output.h"
 
 namespace cinevol::cli {
@@ -81,39 +80,10 @@ void Series(const PacsOptions& o) {
   PrintTable(rows);
 }
 
-// The patient's latest study (by date) of those a search by ID finds.
-std::string LatestStudy(Client& client, const PacsOptions& o) {
-  v1::SearchStudiesRequest request;
-  request.set_pacs(o.search.pacs());
-  request.set_patient_id(o.search.patient_id());
-  const auto studies = client.SearchStudies(request);
-  if (studies.empty()) throw InputError(fmt::format("--patient-id: no study of '{}' in PACS '{}'",
-                                                    o.search.patient_id(), o.search.pacs()));
-  return std::max_element(studies.begin(), studies.end(), [](const auto& a, const auto& b) {
-           return a.study_date() < b.study_date();
-         })->study_uid();
-}
-
-// The study's series with the most instances.
-std::string LargestSeries(Client& client, const std::string& pacs, const std::string& study) {
-  const auto series = client.SearchSeries(pacs, study);
-  if (series.empty()) throw InputError(fmt::format("--study: study {} has no series in PACS '{}'", study, pacs));
-  return std::max_element(series.begin(), series.end(), [](const auto& a, const auto& b) {
-           return a.instance_count() < b.instance_count();
-         })->series_uid();
-}
-
 void Load(const PacsOptions& o) {
-  if (o.study.empty() == o.search.patient_id().empty()) {
-    throw InputError("give --study UID (with --series UID or not) or --patient-id ID, one of them");
-  }
   Client client = Connect(o.connection);
-  v1::LoadSeriesRequest request;
-  request.set_pacs(o.search.pacs());
-  request.set_study_uid(o.study.empty() ? LatestStudy(client, o) : o.study);
-  request.set_series_uid(o.series.empty() ? LargestSeries(client, request.pacs(), request.study_uid()) : o.series);
-  request.set_orientation(o.orientation);
-  const v1::VolumeInfo volume = client.LoadSeries(request, [&](const v1::LoadSeriesProgress& p) {
+  const PacsLoad load{o.search.pacs(), o.study, o.search.patient_id(), o.series, o.orientation};
+  const v1::VolumeInfo volume = LoadFromPacs(client, load, [&](const v1::LoadSeriesProgress& p) {
     if (!o.json) fmt::print(stderr, "{}: {} of {} instances, {}\n", p.stage(), p.instances_done(),
                             p.instances_total(), Bytes(p.bytes()));
   });

@@ -1,7 +1,7 @@
-// A cinevol-server of our own on a free loopback port, for commands that
-// run end to end on one machine (`cinevol demo`, `cinevol-viewer` with no
-// --server). It is the binary beside the running program, and it stops, by
-// its process id, when this object goes.
+// Programs of our own on free loopback ports, for commands that run end to
+// end on one machine (`cinevol demo`, `cinevol view`, `cinevol-viewer` with
+// no --server): the cinevol-server and cinevol-web beside the running
+// program, each stopped, by its process id, when its object goes.
 #pragma once
 
 #include <sys/types.h>
@@ -12,22 +12,49 @@
 
 namespace cinevol::cli {
 
-class LocalServer {
+// A program beside this one, started with `args` and `--port-file F`, that
+// writes the port it listens on to F.
+class LocalProgram {
  public:
-  // Starts the server (`backend`: auto, cpu or cuda; the built-in head
-  // phantom unless `extra` flags name volumes) writing its log to `log`, and
-  // waits until it listens. Throws InputError when it cannot start or stops
-  // at start.
-  LocalServer(const std::string& backend, const std::filesystem::path& log, const std::vector<std::string>& extra = {});
-  ~LocalServer();  // SIGTERM, then SIGKILL after 15 s
-  LocalServer(const LocalServer&) = delete;
-  LocalServer& operator=(const LocalServer&) = delete;
+  // Starts `name` writing its log to `log` and waits until it listens (up to
+  // 120 s: a server may build its phantom first). Throws InputError when it
+  // is not beside this program, cannot start or stops at start.
+  LocalProgram(const std::string& name, std::vector<std::string> args, const std::filesystem::path& log);
+  ~LocalProgram();  // SIGTERM, then SIGKILL after 15 s
+  LocalProgram(const LocalProgram&) = delete;
+  LocalProgram& operator=(const LocalProgram&) = delete;
 
-  std::string address() const;  // 127.0.0.1:PORT
+  int port() const { return port_; }
+  pid_t pid() const { return pid_; }
 
  private:
+  std::string name_;
   pid_t pid_ = -1;
   int port_ = 0;
+};
+
+// cinevol-server on 127.0.0.1, a free port.
+class LocalServer {
+ public:
+  // `backend`: auto, cpu or cuda; the built-in head phantom unless `extra`
+  // flags name volumes.
+  LocalServer(const std::string& backend, const std::filesystem::path& log, std::vector<std::string> extra = {});
+  std::string address() const;  // 127.0.0.1:PORT
+  pid_t pid() const { return program_.pid(); }
+
+ private:
+  LocalProgram program_;
+};
+
+// cinevol-web, the browser page's gateway, on 127.0.0.1 (a free port) for `server`.
+class LocalGateway {
+ public:
+  LocalGateway(const std::string& server, const std::filesystem::path& log, std::vector<std::string> extra = {});
+  std::string url() const;  // http://127.0.0.1:PORT/
+  pid_t pid() const { return program_.pid(); }
+
+ private:
+  LocalProgram program_;
 };
 
 }  // namespace cinevol::cli
