@@ -199,6 +199,11 @@ void Volume::SummariseValues() {
   }
 }
 
+void Volume::SetValueUnit(std::string unit, std::string why) {
+  metadata_.value_unit = std::move(unit);
+  metadata_.notes.push_back(std::move(why));
+}
+
 void Volume::Reorient(const std::array<double, 9>& direction, const std::string& code) {
   metadata_.notes.push_back(fmt::format("orientation {} given at load, the file's being {}", code,
                                         OrientationCode(metadata_.direction)));

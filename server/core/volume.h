@@ -95,6 +95,9 @@ class Volume {
   // file's (`code` names it: an override for files without an orientation,
   // or a wrong one); the origin stays where voxel (0,0,0) is.
   void Reorient(const std::array<double, 9>& direction, const std::string& code);
+  // Takes the values as being in `unit` (a file that did not say: "HU" for a
+  // CT its values show to be in HU), with a note saying why.
+  void SetValueUnit(std::string unit, std::string why);
 
   Vec3i dims() const { return dims_; }
   Vec3f spacing_mm() const { return spacing_mm_; }

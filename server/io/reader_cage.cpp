@@ -32,6 +32,7 @@
 #include "io/file_checks.h"
 #include "io/label_volume.h"
 #include "io/reader_channel.h"
+#include "io/volume_kind.h"
 
 extern char** environ;
 
@@ -543,6 +544,16 @@ CheckedHeader Check(const reader::Header& h, ReaderProcess& child, const LoadPol
   return c;
 }
 
+// A CT whose file did not say its unit (NIfTI, NRRD, VTK have no field for
+// it) but whose values are judged HU (air near -1000, bone above 300) reads
+// in HU everywhere, as a DICOM CT does: the slices' default window, picks,
+// lists.
+void TakeHuWhereJudged(Volume& volume) {
+  if (!volume.metadata().value_unit.empty()) return;
+  const VolumeKindJudgement kind = JudgeVolumeKind(volume);
+  if (kind.kind == v1::CT_HU) volume.SetValueUnit("HU", "values taken as HU: " + kind.reason);
+}
+
 // The volume a child announced with `reply`: reserved, read, then built.
 Volume ReceiveVolume(ReaderProcess& child, const Reply& reply, const LoadPolicy& policy) {
   if (reply.reply_case() != Reply::kHeader) child.Violation("answered out of turn");
@@ -553,7 +564,9 @@ Volume ReceiveVolume(ReaderProcess& child, const Reply& reply, const LoadPolicy&
   child.Proceed(memory.get(), bytes);
   child.Finish();
   // The child is gone: nobody else can change the memory now.
-  return Volume(h.dims, h.spacing, h.type, MapMemory(std::move(memory), bytes, child.shown()), std::move(h.meta));
+  Volume volume(h.dims, h.spacing, h.type, MapMemory(std::move(memory), bytes, child.shown()), std::move(h.meta));
+  TakeHuWhereJudged(volume);
+  return volume;
 }
 
 std::string Relative(const fs::path& file, const fs::path& folder) {

@@ -83,6 +83,18 @@ TEST(RealDicom, CtIsRescaledToHounsfieldUnits) {
   EXPECT_GT(v.max_value(), 1000.0f);  // bone
 }
 
+// A CT in HU from a format with no field for its unit (NIfTI) reads in HU
+// as the DICOM does, saying why; an MR does not.
+TEST(RealNifti, ACtJudgedInHuReadsInHu) {
+  CINEVOL_REQUIRE_SHARED_DATA();
+  const Volume ct = LoadVolume(ParseVolumeSpec((SharedData() / "ct-body-totalsegmentator/example_ct.nii.gz").string()));
+  EXPECT_EQ(ct.metadata().value_unit, "HU");
+  ASSERT_FALSE(ct.metadata().notes.empty());
+  EXPECT_EQ(ct.metadata().notes.back().rfind("values taken as HU: ", 0), 0u) << ct.metadata().notes.back();
+  const Volume mr = LoadVolume(ParseVolumeSpec((SharedData() / "mr-head-seg3d-nifti/MR.nii.gz").string()));
+  EXPECT_EQ(mr.metadata().value_unit, "");
+}
+
 TEST(RealDicom, SlicesAreSortedAlongTheNormal) {
   CINEVOL_REQUIRE_SHARED_DATA();
   const Volume v = LoadVolume(ParseVolumeSpec((SharedData() / "mr-chest-dicom-seg3d").string()));
