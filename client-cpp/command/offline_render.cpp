@@ -112,6 +112,9 @@ OfflineScene LoadOfflineScene(const SceneSource& source) {
   request.mutable_viewport()->set_width(std::uint32_t(source.width));
   request.mutable_viewport()->set_height(std::uint32_t(source.height));
   loaded.scene = InitialState(request, *loaded.volume, SessionLimits{}).scene();
+  if (const std::string misfit = PresetMisfit(source.preset, *loaded.volume); !misfit.empty()) {
+    std::fprintf(stderr, "cinevol: %s\n", misfit.c_str());
+  }
   *loaded.scene.mutable_volume() = from;
   if (source.remove_table) loaded.scene.mutable_labels()->set_remove_table(true);
   return Finish(std::move(loaded), {});

@@ -6,6 +6,7 @@
 #include <fmt/format.h>
 
 #include <array>
+#include <cstdio>
 #include <chrono>
 #include <cmath>
 #include <cstdlib>
@@ -208,6 +209,9 @@ void Run(const SliceOptions& o) {
   const SliceImage slice = RenderSlice(volume, labels, o.clip ? &clip : nullptr, spec);
   const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   WriteFile(o.out, EncodePng(slice.image));
+  if (const std::string misfit = WindowMisfit(o.preset, volume); !misfit.empty()) {
+    std::fprintf(stderr, "cinevol: %s\n", misfit.c_str());
+  }
   fmt::print("{}\n", Describe(o, spec, slice.geometry, window_name, seconds));
 }
 

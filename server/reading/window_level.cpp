@@ -57,4 +57,11 @@ VoiWindow WindowNamed(std::string_view name, const Volume& volume) {
       fmt::format("'{}' is none of brain, soft-tissue, lung, bone, auto, stored", LogSafe(name)));
 }
 
+std::string WindowMisfit(std::string_view name, const Volume& volume) {
+  if (!FindWindowPreset(name) || volume.metadata().value_unit == "HU") return {};
+  return fmt::format("window '{}' is in Hounsfield units, and this volume's values are not: 'auto' spreads its own "
+                     "values over the grey range",
+                     LogSafe(name));
+}
+
 }  // namespace cinevol

@@ -54,4 +54,8 @@ VoiWindow DefaultWindow(const Volume& volume, std::string* name = nullptr);
 // "stored" where the volume stores none.
 VoiWindow WindowNamed(std::string_view name, const Volume& volume);
 
+// Where window `name` does not fit `volume` (a window in HU on values that
+// are not), a sentence saying so; else empty.
+std::string WindowMisfit(std::string_view name, const Volume& volume);
+
 }  // namespace cinevol

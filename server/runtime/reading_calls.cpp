@@ -129,6 +129,7 @@ v1::SliceImage SliceOf(const v1::SliceRequest& request, const v1::Scene& scene, 
   }
   out.set_slab_samples(std::uint32_t(2 * g.slab_half + 1));
   out.set_slab_step_mm(g.slab_step_mm);
+  out.set_notice(WindowMisfit(request.window_preset(), volume));
   out.set_window(float(spec.window.width));
   out.set_level(float(spec.window.center));
   return out;

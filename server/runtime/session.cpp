@@ -11,6 +11,7 @@
 #include "io/label_volume.h"
 #include "runtime/errors.h"
 #include "runtime/metrics.h"
+#include "scene/presets.h"
 #include "scene/scene_file.h"
 
 namespace cinevol::service {
@@ -106,6 +107,7 @@ void Session::Attach(FrameStream* stream) {
     state_unsent_ = true;
     stream_->SendNotice(v1::Notice::INFO,
                         fmt::format("attached to session '{}' on {}", id_, context_.scheduler->name()));
+    NoteMisfitLocked();
   }
   Wake();
 }
@@ -301,6 +303,15 @@ void Session::OnEventLocked(v1::SessionEvent event, Clock::time_point arrival, b
   if (!event.has_pause() && !event.has_resume() && !event.has_stream()) preempt_ = true;  // the picture changes
 }
 
+void Session::NoteMisfitLocked() {
+  const std::string& preset = current_.scene().transfer_function().preset();
+  if (!stream_ || preset.empty() || misfits_noted_.count(preset)) return;
+  const std::string misfit = PresetMisfit(preset, *volume_->volume());
+  if (misfit.empty()) return;
+  misfits_noted_.insert(preset);
+  stream_->SendNotice(v1::Notice::WARNING, misfit);
+}
+
 void Session::ApplyCoalescedLocked() {
   std::map<int, v1::SessionEvent> events;
   events.swap(coalesced_);
@@ -334,6 +345,7 @@ void Session::ApplyLocked(const v1::SessionEvent& event, Clock::time_point arriv
     SetStepPixelsLocked(pixels_, render_scale_);
   }
   if (changes & kStreamChanged) settings_ = SessionFrameSettings(context_.backend, current_.stream());
+  if (changes & kTransferFunctionChanged) NoteMisfitLocked();
   // Every event but a pause gets a frame that answers it. Only an attached
   // session pauses or resumes: one without a stream (SendEvents before a
   // watch, or after the end) keeps its state, so that it still expires.

@@ -17,6 +17,7 @@
 #include <cstdint>
 #include <functional>
 #include <map>
+#include <set>
 #include <memory>
 #include <mutex>
 #include <optional>
@@ -194,6 +195,9 @@ class Session final : public Job, public std::enable_shared_from_this<Session> {
   // Sends current_ to every stream: the owner's (when attached) and the watchers'.
   // Applies one event now; throws for a bad one (the scene stays as it was).
   void ApplyLocked(const v1::SessionEvent& event, Clock::time_point arrival);
+  // Warns the stream, once a session for each preset, where the scene's
+  // transfer-function preset does not fit the volume (PresetMisfit).
+  void NoteMisfitLocked();
   // Applies the coalesced events; ends nothing, throws for a bad one.
   void ApplyCoalescedLocked();
   void SendStateLocked();
@@ -261,6 +265,7 @@ class Session final : public Job, public std::enable_shared_from_this<Session> {
   TokenBucket events_;                         // events applied at once; past it, coalesced
   TokenBucket batched_;                        // SendEvents' events: kReadPacing x --max-events-per-second
   std::map<int, v1::SessionEvent> coalesced_;  // by SessionEvent::KindCase, oldest first applied
+  std::set<std::string> misfits_noted_;        // presets NoteMisfitLocked warned of
   Clock::time_point coalesced_arrival_;
 
   // Raised when the session ends or its stream goes: the frame in flight stops.

@@ -363,6 +363,28 @@ std::string DefaultPreset(v1::VolumeKind kind) {
 
 std::string DefaultPreset(const Volume& volume) { return DefaultPreset(JudgeVolumeKind(volume).kind); }
 
+std::string PresetMisfit(std::string_view name, const Volume& volume) {
+  if (!IsPreset(name)) return {};
+  const PresetDefinition& preset = FindPreset(name);
+  const VolumeKindJudgement kind = JudgeVolumeKind(volume);
+  const std::string fitting = DefaultPreset(kind.kind);
+  if (preset.scale == PresetScale::kHu && kind.kind != v1::CT_HU) {
+    return fmt::format("preset '{}' is for CT in Hounsfield units, and this volume is {} ({}): its colours and "
+                       "opacities fall on other values; '{}' is this volume's default",
+                       name, v1::VolumeKind_Name(kind.kind), kind.reason, fitting);
+  }
+  if (name.substr(0, 3) == "mr-" && kind.kind == v1::CT_HU) {
+    return fmt::format("preset '{}' is for MR, and this volume is CT in HU; '{}' is its default", name, fitting);
+  }
+  if (preset.contrast == ContrastRule::kOnBloodPool && kind.kind == v1::CT_HU &&
+      !(FindBloodPool(volume.histogram()).peak > 0)) {
+    return fmt::format("preset '{}' shows contrast-filled vessels, and this CT has no blood-pool peak (150 to 700 HU): "
+                       "without contrast, vessels do not stand out from soft tissue",
+                       name);
+  }
+  return {};
+}
+
 v1::Scene MakePresetScene(std::string_view preset, const Volume& volume) {
   FindPreset(preset);  // throws, naming the presets
   v1::Scene scene;

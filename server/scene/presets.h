@@ -69,6 +69,11 @@ float FindDensePhase(const ValueHistogram& histogram, float lo);
 // presets mapped onto `window`. Throws InputError for an unknown name.
 v1::TransferFunction MakePreset(std::string_view name, const ValueWindow& window);
 
+// Where `preset` does not fit `volume`, a sentence saying so and what would
+// (a CT preset in HU on MR or on CT not in HU, an MR preset on CT in HU, an
+// angiography preset on a CT without a blood-pool peak); else empty.
+std::string PresetMisfit(std::string_view preset, const Volume& volume);
+
 // The preset a volume of this kind shows by default.
 std::string DefaultPreset(v1::VolumeKind kind);
 std::string DefaultPreset(const Volume& volume);

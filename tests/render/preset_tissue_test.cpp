@@ -396,6 +396,27 @@ TEST(BloodPool, APlainCtHasNone) {
   }
 }
 
+// A preset that does not fit the data says so: angiography on a CT without
+// contrast, a CT preset in HU on MR, an MR preset on CT; a fitting one says nothing.
+TEST(PresetMisfit, PresetsThatDoNotFitTheDataSaySo) {
+  CINEVOL_REQUIRE_SHARED_DATA();
+  const Volume contrast = LoadVolumeFile(SharedData() / "ct-body-totalsegmentator" / "aorta_ct_cropped.nii.gz");
+  const Volume plain = LoadVolumeFile(SharedData() / "ct-body-totalsegmentator" / "example_ct_sm.nii.gz");
+  const Volume mr = LoadVolumeFile(SharedData() / "mr-head-seg3d-nifti" / "MR.nii.gz");
+  EXPECT_EQ(PresetMisfit("ct-vessels", contrast), "");
+  EXPECT_EQ(PresetMisfit("ct-bone", plain), "");
+  EXPECT_EQ(PresetMisfit("mr-default", mr), "");
+  const std::string no_pool = PresetMisfit("ct-vessels", plain);
+  EXPECT_NE(no_pool.find("no blood-pool peak"), std::string::npos) << no_pool;
+  const std::string hu_on_mr = PresetMisfit("ct-bone", mr);
+  // The MR NIfTI names no modality: its kind is OTHER, whose default is 'auto'.
+  EXPECT_NE(hu_on_mr.find("for CT in Hounsfield units, and this volume is OTHER"), std::string::npos) << hu_on_mr;
+  EXPECT_NE(hu_on_mr.find("'auto' is this volume's default"), std::string::npos) << hu_on_mr;
+  const std::string mr_on_ct = PresetMisfit("mr-t2-brain", plain);
+  EXPECT_NE(mr_on_ct.find("is for MR"), std::string::npos) << mr_on_ct;
+  EXPECT_EQ(PresetMisfit("no-such-preset", mr), "") << "an unknown preset is refused elsewhere, by name";
+}
+
 // --- Phantoms: an MR head in a localizer frame, a micro-CT of a mouse ---------
 
 float Noise(std::mt19937& rng, float sigma) { return std::normal_distribution<float>(0.0f, sigma)(rng); }

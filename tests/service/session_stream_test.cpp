@@ -329,6 +329,39 @@ TEST(SessionStream, PauseStopsFramesAndResumeBringsThemBack) {
   EXPECT_TRUE(WaitFrame(*stream, [seq](const v1::Frame& f) { return f.last_event_seq() >= seq; }, 30s));
 }
 
+// A preset that does not fit the volume is said once a session, as a
+// warning on the stream: an MR preset on the CT phantom at the start, the
+// angiography preset (no contrast in the phantom) when an edit picks it;
+// picking either again says nothing more.
+TEST(SessionStream, APresetThatDoesNotFitTheVolumeIsSaidOnce) {
+  ScratchDir scratch;
+  ServerProcess server(scratch.path());
+  ASSERT_TRUE(server.running()) << server.Log();
+  Client client = server.Connect();
+  const auto created = client.CreateSession(SmallSession("mr-t2-brain", 64, 48, 4));
+  auto stream = client.Attach(created.session_id());
+  std::vector<std::string> warnings;
+  auto read_until_final = [&](std::uint64_t seq) {
+    const auto end = std::chrono::steady_clock::now() + 60s;
+    while (std::chrono::steady_clock::now() < end) {
+      const auto m = stream->Next(200ms);
+      if (m && m->has_notice() && m->notice().level() == v1::Notice::WARNING) warnings.push_back(m->notice().message());
+      if (m && m->has_frame() && m->frame().final() && m->frame().last_event_seq() >= seq) return true;
+    }
+    return false;
+  };
+  ASSERT_TRUE(read_until_final(0));
+  ASSERT_EQ(warnings.size(), 1u);
+  EXPECT_NE(warnings[0].find("preset 'mr-t2-brain' is for MR"), std::string::npos) << warnings[0];
+  for (const char* preset : {"ct-vessels", "mr-t2-brain", "ct-vessels", "ct-bone"}) {
+    v1::SessionEvent edit;
+    edit.mutable_transfer_function()->set_preset(preset);
+    ASSERT_TRUE(read_until_final(stream->Send(edit))) << preset;
+  }
+  ASSERT_EQ(warnings.size(), 2u);
+  EXPECT_NE(warnings[1].find("preset 'ct-vessels' shows contrast-filled vessels"), std::string::npos) << warnings[1];
+}
+
 TEST(SessionStream, ASecondAttachTakesTheSessionOver) {
   ScratchDir scratch;
   ServerProcess server(scratch.path());
