@@ -89,6 +89,7 @@ export class App {
   constructor(private readonly api: Api) {
     this.reading = new Reading(api, () => this.session?.id, (text) => this.showError(text));
     this.reading.onOverlayChanged = () => this.drawOverlay();
+    this.reading.onNotice = (text) => this.setBanner(text, true);
     this.reading.onMeasurementsEdited = (list) => this.post({ case: "measurements", value: create(MeasurementListSchema, {
       measurements: list.map((m) => create(MeasurementSchema, { points: m.points.map(vec3) })) }) });
     this.share = new SharePanel(api, () => this.session?.id, (text) => this.showError(text), () => this.pinCamera());

@@ -82,6 +82,7 @@ class Pane {
       }
       this.part(".slice-label").textContent = `${name} ${request.positionMm.toFixed(1)} mm`;
       this.part(".slice-window").textContent = `W ${image.window.toFixed(0)} L ${image.level.toFixed(0)}`;
+      this.reading.note(image.notice);
       this.draw();
     } catch (e) {
       this.reading.error(plainWords(e));
@@ -187,6 +188,16 @@ export class Reading {
   onOverlayChanged: () => void = () => {};
   /** Called when the reader adds or deletes a measurement: the session's scene (and its watchers) get the list. */
   onMeasurementsEdited: (measurements: readonly Measurement[]) => void = () => {};
+  /** Called once for each thing the server says of the slices (a window in HU on values that are not). */
+  onNotice: (text: string) => void = () => {};
+  private readonly noted = new Set<string>();
+
+  /** A slice's notice, passed on the first time it is said. */
+  note(notice: string): void {
+    if (!notice || this.noted.has(notice)) return;
+    this.noted.add(notice);
+    this.onNotice(notice);
+  }
 
   constructor(readonly api: Api, private readonly sessionId: () => string | undefined,
               readonly error: (text: string) => void) {
