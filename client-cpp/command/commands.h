@@ -6,6 +6,11 @@
 
 namespace cinevol::cli {
 
+// --resample-uneven's help, alike in every command that may read a DICOM series.
+inline constexpr const char* kResampleUnevenHelp =
+    "A DICOM series whose slices lie unevenly apart is resampled onto an even grid (its smallest gap, a note "
+    "naming the largest) instead of refused";
+
 void AddDemoCommand(CLI::App& app);
 void AddHealthCommand(CLI::App& app);
 void AddInfoCommand(CLI::App& app);

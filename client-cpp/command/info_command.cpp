@@ -19,6 +19,7 @@ namespace {
 struct InfoOptions {
   std::string path;
   std::string orientation;  // overrides the file's ("LPI")
+  bool resample_uneven = false;
   std::string labels, label_table;  // a segmentation of it, and the table naming its labels
 };
 
@@ -26,6 +27,7 @@ void PrintInfo(const InfoOptions& o) {
   const std::string& spec = o.path;
   v1::VolumeSource source = ParseVolumeSpec(spec);
   source.set_orientation(o.orientation);
+  source.set_resample_uneven(o.resample_uneven);
   if (source.has_dicom_folder()) {
     const auto series = ListDicomSeries(source.dicom_folder());
     fmt::print("series:       {} in the folder (the largest loads)\n", series.size());
@@ -75,6 +77,7 @@ void AddInfoCommand(CLI::App& app) {
   auto o = std::make_shared<InfoOptions>();
   cmd->add_option("path", o->path, "Volume file, DICOM folder, or phantom:head|cube|sphere[?size=N&...]")
       ->required();
+  cmd->add_flag("--resample-uneven", o->resample_uneven, kResampleUnevenHelp);
   cmd->add_option("--orientation", o->orientation,
                   "Where index axes x, y, z point in the patient, overriding the file's: three letters from L/R, "
                   "P/A, S/I (e.g. LPS; LPI for a head stored top down)");

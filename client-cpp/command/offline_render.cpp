@@ -1,6 +1,8 @@
 // RenderToFile: load, then accumulate through the frame pipeline, write.
 #include "offline_render.h"
 
+#include "commands.h"
+
 #include <chrono>
 #include <cstdio>
 
@@ -80,6 +82,7 @@ void AddSceneSource(CLI::App* cmd, SceneSource& source, SceneFlags flags) {
   auto* volume = cmd->add_option("--volume", source.volume_path,
                                  "Instead of --scene: a volume file or DICOM folder, shown as a new session shows it");
   scene->excludes(volume);
+  cmd->add_flag("--resample-uneven", source.resample_uneven, kResampleUnevenHelp)->needs(volume);
   if (flags == SceneFlags::kWithPresetAndSize) {
     cmd->add_option("--preset", source.preset, "With --volume: the transfer-function preset (default: the volume's)")
         ->needs(volume);
@@ -102,6 +105,7 @@ OfflineScene LoadOfflineScene(const SceneSource& source) {
   v1::VolumeSource from;
   if (std::filesystem::is_directory(source.volume_path)) {
     from.set_dicom_folder(source.volume_path);
+    from.set_resample_uneven(source.resample_uneven);
   } else {
     from.set_file(source.volume_path);
   }

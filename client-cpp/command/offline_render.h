@@ -46,6 +46,7 @@ struct SceneSource {
   std::string preset;       // --preset, with --volume
   int width = 1024, height = 768;  // --width, --height, with --volume
   bool remove_table = false;       // sets the scene's labels.removeTable (render's --remove-table)
+  bool resample_uneven = false;    // --resample-uneven, with --volume (a DICOM folder)
 };
 // Which flags of SceneSource a command takes besides --scene and --volume.
 enum class SceneFlags {

@@ -18,6 +18,7 @@ struct PacsOptions {
   v1::SearchStudiesRequest search;  // search's fields; load's --patient-id
   std::string dates;                // --date FROM-TO
   std::string study, series, orientation;
+  bool resample_uneven = false;
 };
 
 // "20240101-20241231", "20240101-" or "-20241231" into the request's range.
@@ -82,7 +83,7 @@ void Series(const PacsOptions& o) {
 
 void Load(const PacsOptions& o) {
   Client client = Connect(o.connection);
-  const PacsLoad load{o.search.pacs(), o.study, o.search.patient_id(), o.series, o.orientation};
+  const PacsLoad load{o.search.pacs(), o.study, o.search.patient_id(), o.series, o.orientation, o.resample_uneven};
   const v1::VolumeInfo volume = LoadFromPacs(client, load, [&](const v1::LoadSeriesProgress& p) {
     if (!o.json) fmt::print(stderr, "{}: {} of {} instances, {}\n", p.stage(), p.instances_done(),
                             p.instances_total(), Bytes(p.bytes()));
@@ -131,6 +132,7 @@ void AddPacsCommand(CLI::App& app) {
   load->add_option("--series", o->series, "Series Instance UID (default: the study's with the most instances)");
   load->add_option("--patient-id", *o->search.mutable_patient_id(), "Instead of --study: the patient's latest study");
   load->add_option("--orientation", o->orientation, "Where index axes x, y, z point, overriding the files' (LPS)");
+  load->add_flag("--resample-uneven", o->resample_uneven, kResampleUnevenHelp);
 }
 
 }  // namespace cinevol::cli

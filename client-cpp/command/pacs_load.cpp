@@ -45,6 +45,7 @@ v1::VolumeInfo LoadFromPacs(Client& client, const PacsLoad& load,
   request.set_study_uid(load.study.empty() ? LatestStudy(client, load) : load.study);
   request.set_series_uid(load.series.empty() ? LargestSeries(client, request.pacs(), request.study_uid()) : load.series);
   request.set_orientation(load.orientation);
+  request.set_resample_uneven(load.resample_uneven);
   return client.LoadSeries(request, progress);
 }
 

@@ -16,6 +16,7 @@ struct PacsLoad {
   std::string patient_id;  // the patient, whose latest study (by date) is taken
   std::string series;      // Series Instance UID; empty: the study's with the most instances
   std::string orientation;
+  bool resample_uneven = false;
 };
 
 // Throws InputError unless exactly one of study and patient_id is given, or

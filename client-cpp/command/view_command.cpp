@@ -83,7 +83,9 @@ v1::VolumeInfo LoadVolume(Client& client, const ViewOptions& o) {
     load.pacs = o.pacs.substr(0, o.pacs.find('='));
     return LoadFromPacs(client, load, progress);
   }
-  if (!o.remote) return client.LoadVolume(fs::path(o.path).filename().string());  // inside the data root
+  if (!o.remote) {  // inside the data root
+    return client.LoadVolume(fs::path(o.path).filename().string(), {}, {}, o.load.resample_uneven);
+  }
   if (fs::is_directory(o.path)) {
     throw InputError("view: a DICOM folder reaches a remote server through its data roots or PACS; upload a file, or "
                      "leave out --server");
@@ -179,6 +181,7 @@ void AddViewCommand(CLI::App& app) {
   cmd->add_option("--study", o->load.study, "With --pacs: a Study Instance UID instead of --patient-id");
   cmd->add_option("--series", o->load.series, "With --study: the series (default: the study's largest)");
   cmd->add_option("--preset", o->preset, "The transfer-function preset (default: the volume's)");
+  cmd->add_flag("--resample-uneven", o->load.resample_uneven, kResampleUnevenHelp);
   cmd->add_option("--backend", o->backend, "The server started here: auto, cpu or cuda")
       ->check(CLI::IsMember({"auto", "cpu", "cuda"}));
   cmd->add_option("--logs", o->logs, "Where the started programs write their logs")->capture_default_str();

@@ -18,6 +18,7 @@ struct VolumesOptions {
   std::string argument;  // the path, file or id the subcommand acts on
   std::string series;    // load: a DICOM folder's series
   std::string orientation;  // load, upload: overrides the file's ("LPI")
+  bool resample_uneven = false;  // load: a DICOM series' uneven gaps resampled
   std::string volume_id, table;  // labels: the volume they segment, and their label table
   bool upload = false;           // labels: the path is a local file to send
 };
@@ -41,7 +42,7 @@ void List(const VolumesOptions& o) {
 }
 
 void Load(const VolumesOptions& o) {
-  Show(Connect(o.connection).LoadVolume(o.argument, o.series, o.orientation), o.json);
+  Show(Connect(o.connection).LoadVolume(o.argument, o.series, o.orientation, o.resample_uneven), o.json);
 }
 
 void Upload(const VolumesOptions& o) {
@@ -112,6 +113,7 @@ void AddVolumesCommand(CLI::App& app) {
       ->required();
   load->add_option("--series", o->series, "DICOM folders: the SeriesInstanceUID to load (default the largest)");
   load->add_option("--orientation", o->orientation, kOrientationHelp);
+  load->add_flag("--resample-uneven", o->resample_uneven, kResampleUnevenHelp);
 
   auto* upload = AddVolumesSubcommand(
       volumes, "upload", "Send a local volume file (.nii, .nii.gz, .nrrd, .nrrd.gz, .mha, .vtk) to the server", Upload,

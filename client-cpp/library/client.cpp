@@ -298,13 +298,14 @@ std::vector<v1::VolumeInfo> Client::ListVolumes() {
 }
 
 v1::VolumeInfo Client::LoadVolume(const std::string& path, const std::string& series_uid,
-                                  const std::string& orientation) {
+                                  const std::string& orientation, bool resample_uneven) {
   return OnHome([&](const std::string& home) {
     VolumeOrigin origin;
     origin.home = home;
     origin.load.set_path(path);
     origin.load.set_series_uid(series_uid);
     origin.load.set_orientation(orientation);
+    origin.load.set_resample_uneven(resample_uneven);
     v1::VolumeInfo info = VolumeCalls(*pool_, home).Load(origin.load);
     pool_->RememberVolume(info.id(), origin);
     return info;

@@ -169,9 +169,11 @@ class Client {
   // another when it stops answering); a volume loaded or uploaded here is
   // loaded or uploaded again on another server where a session of it goes.
   std::vector<v1::VolumeInfo> ListVolumes();
-  // `orientation` ("LPI") overrides the file's (docs/volumes-and-scenes.md).
+  // `orientation` ("LPI") overrides the file's (docs/volumes-and-scenes.md);
+  // `resample_uneven` resamples a DICOM series with uneven slice gaps instead
+  // of refusing it.
   v1::VolumeInfo LoadVolume(const std::string& path, const std::string& series_uid = {},
-                            const std::string& orientation = {});
+                            const std::string& orientation = {}, bool resample_uneven = false);
   v1::VolumeInfo UploadVolume(const std::filesystem::path& file, const std::string& orientation = {},
                               std::size_t chunk_bytes = 1 << 20);
   // A segmentation for a loaded volume: a label volume on the server (under

@@ -633,6 +633,7 @@ Volume ReadDicomSeries(const std::vector<Input>& files, const std::string& serie
   request.set_shown(policy.label);
   request.set_series_uid(series_uid);
   request.set_max_voxels(policy.max_voxels);
+  request.set_resample_uneven(policy.resample_uneven);
   ReaderProcess child(request, files, policy);
   return ReceiveVolume(child, child.Receive(), policy);
 }

@@ -143,8 +143,11 @@ Volume LoadVolume(const v1::VolumeSource& source, const fs::path& base_dir, cons
     switch (source.source_case()) {
       case v1::VolumeSource::kFile:
         return LoadVolumeFile(Resolve(source.file(), base_dir), policy);
-      case v1::VolumeSource::kDicomFolder:
-        return LoadDicomSeries(Resolve(source.dicom_folder(), base_dir), source.series_uid(), policy);
+      case v1::VolumeSource::kDicomFolder: {
+        LoadPolicy series_policy = policy;
+        series_policy.resample_uneven = policy.resample_uneven || source.resample_uneven();
+        return LoadDicomSeries(Resolve(source.dicom_folder(), base_dir), source.series_uid(), series_policy);
+      }
       case v1::VolumeSource::kPhantom:
         return MakePhantom(source.phantom());
       default:

@@ -50,6 +50,9 @@ struct LoadPolicy {
   std::function<void(std::uint64_t bytes)> reserve;
   // Once raised, the load stops within a second (Cancelled).
   const std::atomic<bool>* cancel = nullptr;
+  // A DICOM series with uneven slice gaps is resampled onto an even grid at
+  // its smallest gap (a note names the largest) instead of refused.
+  bool resample_uneven = false;
 };
 
 // Loads what `source` names; relative paths resolve against `base_dir`;

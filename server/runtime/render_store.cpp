@@ -11,9 +11,8 @@
 
 namespace cinevol::service {
 
-std::string PacsSource(const PacsOrigin& origin, const std::string& orientation) {
-  return fmt::format("pacs:{}/{}/{}{}", origin.pacs, origin.study_uid, origin.series_uid,
-                     orientation.empty() ? "" : "@" + orientation);
+std::string PacsSource(const PacsOrigin& origin, const std::string& suffix) {
+  return fmt::format("pacs:{}/{}/{}{}", origin.pacs, origin.study_uid, origin.series_uid, suffix);
 }
 
 std::optional<PacsOrigin> ParsePacsSource(const std::string& source) {

@@ -18,7 +18,8 @@ namespace cinevol::service {
 struct PacsOrigin {
   std::string pacs, study_uid, series_uid;
 };
-std::string PacsSource(const PacsOrigin& origin, const std::string& orientation);
+// "pacs:NAME/STUDY/SERIES" and `suffix`, how it was read (ReadChoices::Suffix).
+std::string PacsSource(const PacsOrigin& origin, const std::string& suffix);
 // Nothing for a source that is not a PACS's.
 std::optional<PacsOrigin> ParsePacsSource(const std::string& source);
 

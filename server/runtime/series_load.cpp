@@ -50,8 +50,9 @@ v1::VolumeInfo LoadSeries(const pacs::DicomWebClient& pacs, VolumeRegistry& volu
   pacs::CheckUid(request.study_uid(), "study_uid");
   pacs::CheckUid(request.series_uid(), "series_uid");
   if (!request.orientation().empty()) ParseOrientation(request.orientation(), "orientation");
+  const ReadChoices choices{request.orientation(), request.resample_uneven()};
   const std::string source =
-      PacsSource({pacs.config().name, request.study_uid(), request.series_uid()}, request.orientation());
+      PacsSource({pacs.config().name, request.study_uid(), request.series_uid()}, choices.Suffix());
   if (std::optional<v1::VolumeInfo> held = volumes.FindHeld(source, caller)) return *held;
 
   const fs::path folder = NewScratchFolder(volumes.upload_dir());
@@ -81,7 +82,7 @@ v1::VolumeInfo LoadSeries(const pacs::DicomWebClient& pacs, VolumeRegistry& volu
   }
   news.set_stage("reading");
   progress(news);
-  return volumes.AddRetrievedSeries(folder, source, request.orientation(), caller, cancel);
+  return volumes.AddRetrievedSeries(folder, source, choices, caller, cancel);
 }
 
 }  // namespace cinevol::service

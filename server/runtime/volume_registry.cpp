@@ -246,17 +246,21 @@ v1::VolumeInfo VolumeRegistry::AddFromSpec(const std::string& spec) {
   const fs::path path = fs::absolute(spec).lexically_normal();
   LoadPolicy policy;
   policy.reader = limits_.reader;
+  policy.resample_uneven = limits_.resample_uneven;
   Volume volume = LoadVolume(source, {}, policy);
   FoundTable table = SearchTable(volume, nullptr, nullptr);
   return Add(BaseIdOf(path), path.string(), spec, std::move(volume), "", false, nullptr, std::move(table));
 }
 
+std::string ReadChoices::Suffix() const {
+  return (orientation.empty() ? "" : "@" + orientation) + (resample_uneven ? "@even" : "");
+}
+
 v1::VolumeInfo VolumeRegistry::LoadFromDataRoot(const std::string& path, const std::string& series_uid,
-                                                const std::string& orientation, const Principal& caller,
+                                                const ReadChoices& choices, const Principal& caller,
                                                 const std::atomic<bool>* cancel) {
   const fs::path resolved = ResolveDataPath(path, "path");
-  const std::string source =
-      resolved.string() + (series_uid.empty() ? "" : "#" + series_uid) + (orientation.empty() ? "" : "@" + orientation);
+  const std::string source = resolved.string() + (series_uid.empty() ? "" : "#" + series_uid) + choices.Suffix();
   // Answers name the path as this client wrote it, never where it resolved to.
   const auto as_written = [&](v1::VolumeInfo info) {
     info.set_source(path);
@@ -275,7 +279,8 @@ v1::VolumeInfo VolumeRegistry::LoadFromDataRoot(const std::string& path, const s
   } else {
     request.set_file(resolved.string());
   }
-  request.set_orientation(orientation);
+  request.set_orientation(choices.orientation);
+  request.set_resample_uneven(choices.resample_uneven || limits_.resample_uneven);
   Reservation reservation(this, caller.name, false, "the volume");
   Volume volume = LoadVolume(request, {}, PolicyFor("path '" + path + "'", false, cancel, &reservation));
   FoundTable table = SearchTable(volume, &reservation, cancel);
@@ -296,7 +301,7 @@ v1::VolumeInfo VolumeRegistry::AddUpload(const fs::path& file, const std::string
 }
 
 v1::VolumeInfo VolumeRegistry::AddRetrievedSeries(const fs::path& folder, const std::string& source,
-                                                  const std::string& orientation, const Principal& caller,
+                                                  const ReadChoices& choices, const Principal& caller,
                                                   const std::atomic<bool>* cancel) {
   struct RemoveFolder {
     const fs::path& folder;
@@ -307,7 +312,8 @@ v1::VolumeInfo VolumeRegistry::AddRetrievedSeries(const fs::path& folder, const 
   } remove{folder};
   v1::VolumeSource request;
   request.set_dicom_folder(folder.string());
-  request.set_orientation(orientation);
+  request.set_orientation(choices.orientation);
+  request.set_resample_uneven(choices.resample_uneven || limits_.resample_uneven);
   Reservation reservation(this, caller.name, true, "the series");
   Volume volume = LoadVolume(request, {}, PolicyFor(source, true, cancel, &reservation));
   FoundTable table = SearchTable(volume, &reservation, cancel);

@@ -54,12 +54,22 @@ class VolumeLease {
   std::shared_ptr<const LabelVolume> labels_;
 };
 
+// How a caller asks for a volume to be read. A volume so read is another
+// than the same source read as it is.
+struct ReadChoices {
+  std::string orientation;       // overrides the file's ("LPI"; docs/volumes-and-scenes.md)
+  bool resample_uneven = false;  // a DICOM series' uneven slice gaps resampled onto an even grid, not refused
+  // What the choices add to a source's key: "@LPI", "@even", or nothing.
+  std::string Suffix() const;
+};
+
 struct VolumeLimits {
   std::uint64_t max_upload_bytes = 2048ull << 20;        // one upload's file
   std::uint64_t max_voxels = 1ull << 30;                  // one volume
   std::uint64_t max_total_bytes = 32ull << 30;            // every volume held, host memory
   std::uint64_t max_upload_bytes_per_principal = 8ull << 30;  // voxel memory of one principal's uploads
   ReaderLimits reader;                                    // each load's reader child
+  bool resample_uneven = false;  // --resample-uneven: every DICOM series' uneven gaps resampled, not refused
 };
 
 class VolumeRegistry {
@@ -77,11 +87,8 @@ class VolumeRegistry {
 
   // A client's request: a file or DICOM folder under a data root, which may
   // name other files only inside the data roots.
-  // `orientation` ("LPI") overrides the file's; a volume so loaded is another
-  // than the same file loaded as it is.
-  v1::VolumeInfo LoadFromDataRoot(const std::string& path, const std::string& series_uid,
-                                  const std::string& orientation, const Principal& caller,
-                                  const std::atomic<bool>* cancel = nullptr);
+  v1::VolumeInfo LoadFromDataRoot(const std::string& path, const std::string& series_uid, const ReadChoices& choices,
+                                  const Principal& caller, const std::atomic<bool>* cancel = nullptr);
   // A client's upload, written to `file` (in upload_dir()) by the service;
   // `file_name` is the name the client gave. It may name no other file. The
   // file is removed.
@@ -91,9 +98,9 @@ class VolumeRegistry {
 
   // A series retrieved from a PACS into `folder` (in upload_dir(); removed):
   // read as a DICOM folder, held for `caller` alone like an upload, its
-  // source `source` ("pacs:NAME/STUDY_UID/SERIES_UID").
+  // source `source` ("pacs:NAME/STUDY_UID/SERIES_UID" and the choices' suffix).
   v1::VolumeInfo AddRetrievedSeries(const std::filesystem::path& folder, const std::string& source,
-                                    const std::string& orientation, const Principal& caller,
+                                    const ReadChoices& choices, const Principal& caller,
                                     const std::atomic<bool>* cancel = nullptr);
   // The volume `caller` already holds from `source`, if any.
   std::optional<v1::VolumeInfo> FindHeld(const std::string& source, const Principal& caller) const;

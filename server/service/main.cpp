@@ -70,6 +70,10 @@ void AddLimitOptions(CLI::App& app, ServerOptions& o) {
                      v.max_upload_bytes_per_principal >> 20))
       ->check(CLI::Range(1, 1 << 30))
       ->group("Limits");
+  app.add_flag("--resample-uneven", v.resample_uneven,
+               "Resample DICOM series with uneven slice gaps onto an even grid (their smallest gap) instead of "
+               "refusing them; a request may ask for it alone")
+      ->group("Limits");
   limit("--reader-cpu-seconds", v.reader.cpu_seconds, "CPU time of one file's reader (cinevol-reader)", 1.0, 86400.0);
   limit("--reader-seconds", v.reader.wall_seconds, "Time one file's reader may take from start to answer", 1.0,
         86400.0);

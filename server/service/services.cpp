@@ -353,7 +353,8 @@ grpc::ServerUnaryReactor* VolumeServiceImpl::LoadVolume(grpc::CallbackServerCont
                                                         const v1::LoadVolumeRequest* request,
                                                         v1::VolumeInfo* response) {
   return LoadFromDisk(context, request->path(), [this, request, response](const Principal& caller, LoadSlot& slot) {
-    *response = core_->volumes().LoadFromDataRoot(request->path(), request->series_uid(), request->orientation(),
+    *response = core_->volumes().LoadFromDataRoot(request->path(), request->series_uid(),
+                                                  {request->orientation(), request->resample_uneven()},
                                                   caller, &slot.cancel);
   });
 }

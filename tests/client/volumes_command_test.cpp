@@ -96,6 +96,30 @@ TEST(VolumesCommand, LoadsAPathUnderTheDataRootsAndRefusesOthers) {
   ExpectCleanError(s.Run({"volumes", "load", "sub/missing.nrrd"}), 3, "does not exist");
 }
 
+// A DICOM series with a missing slice: refused by name, then loaded
+// resampled with --resample-uneven, its note saying so.
+TEST(VolumesCommand, AnUnevenSeriesLoadsResampledWhenAsked) {
+  CINEVOL_REQUIRE_SHARED_DATA();
+  VolumesServer s;
+  ASSERT_TRUE(s.server->running()) << s.server->Log();
+  const fs::path series = s.root / "uneven";
+  fs::create_directories(series);
+  std::vector<fs::path> files;
+  for (const auto& e : fs::directory_iterator(SharedData() / "mr-chest-dicom-seg3d")) {
+    if (e.path().filename() != "README.txt") files.push_back(e.path());
+  }
+  std::sort(files.begin(), files.end());
+  files.erase(files.begin() + 7);
+  for (const fs::path& f : files) fs::copy_file(f, series / f.filename());
+  auto [code, output] = s.Run({"volumes", "load", "uneven"});
+  EXPECT_EQ(code, 3) << output;
+  EXPECT_TRUE(Has(output, "uneven slice spacing")) << output;
+  EXPECT_TRUE(Has(output, "(--resample-uneven)")) << output;
+  std::tie(code, output) = s.Run({"volumes", "load", "uneven", "--resample-uneven"});
+  ASSERT_EQ(code, 0) << output;
+  EXPECT_TRUE(Has(output, "resampled onto an even grid of 2.5 mm")) << output;
+}
+
 TEST(VolumesCommand, UploadsSelfContainedFilesOnly) {
   VolumesServer s;
   ASSERT_TRUE(s.server->running()) << s.server->Log();

@@ -139,6 +139,36 @@ TEST(DicomSeries, MissingSliceIsRefused) {
   EXPECT_NE(error.find("5.000 mm"), std::string::npos) << "names the gap: " << error;
 }
 
+// Asked to, a series with missing slices loads resampled onto an even grid
+// at its smallest gap: the slices it has keep their values, a missing one is
+// the mean of its neighbours, and a note names the largest gap.
+TEST(DicomSeries, UnevenGapsAreResampledWhenAsked) {
+  CINEVOL_REQUIRE_SHARED_DATA();
+  ScratchDir dir;
+  auto files = SortedFiles(MrFolder());
+  files.erase(files.begin() + 12, files.begin() + 14);  // 7.5 mm between slices 11 and 14
+  files.erase(files.begin() + 5);                       // 5 mm between slices 4 and 6
+  CopyAll(files, dir.path());
+  EXPECT_NE(LoadError(dir.path()).find("(--resample-uneven)"), std::string::npos) << LoadError(dir.path());
+  LoadPolicy asked;
+  asked.resample_uneven = true;
+  const Volume even = LoadDicomSeries(dir.path(), {}, asked);
+  const Volume original = LoadDicomSeries(MrFolder());
+  ASSERT_EQ(even.dims(), original.dims()) << "the whole span at the smallest gap: 20 slices again";
+  EXPECT_FLOAT_EQ(even.spacing_mm().z, original.spacing_mm().z);
+  ASSERT_FALSE(even.metadata().notes.empty());
+  EXPECT_NE(even.metadata().notes.back().find("gaps run to 7.5 mm"), std::string::npos) << even.metadata().notes.back();
+  const Vec3i d = even.dims();
+  for (int x = 0; x < d.x; x += 37) {
+    for (int y = 0; y < d.y; y += 41) {
+      EXPECT_FLOAT_EQ(even.Value(x, y, 4), original.Value(x, y, 4));
+      EXPECT_FLOAT_EQ(even.Value(x, y, 14), original.Value(x, y, 14));
+      EXPECT_NEAR(even.Value(x, y, 5), 0.5f * (original.Value(x, y, 4) + original.Value(x, y, 6)), 1e-3f);
+      EXPECT_NEAR(even.Value(x, y, 12), (2 * original.Value(x, y, 11) + original.Value(x, y, 14)) / 3, 1e-2f);
+    }
+  }
+}
+
 TEST(DicomSeries, FilesInAnyOrderAreSortedByPosition) {
   CINEVOL_REQUIRE_SHARED_DATA();
   ScratchDir dir;

@@ -56,7 +56,9 @@ export class PacsPanel {
 
   private async load(studyUid: string, seriesUid: string): Promise<void> {
     try {
-      for await (const update of this.api.pacs.loadSeries({ pacs: this.pacs(), studyUid, seriesUid })) {
+      // Refused by default, as on the server: a series with missing slices is resampled only when asked.
+      const resampleUneven = ($("pacs-resample-uneven") as HTMLInputElement).checked;
+      for await (const update of this.api.pacs.loadSeries({ pacs: this.pacs(), studyUid, seriesUid, resampleUneven })) {
         if (update.update.case === "progress") {
           const p = update.update.value;
           this.banner(`Loading the series: ${p.stage} ${p.instancesDone}/${p.instancesTotal} images`);

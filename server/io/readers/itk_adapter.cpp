@@ -379,7 +379,7 @@ class DicomSeriesRead final : public reader::VolumeRead {
     }
     const std::array<int, 3> dims{int(std::min<std::uint64_t>(io->GetDimensions(0), 1u << 30)),
                                   int(std::min<std::uint64_t>(io->GetDimensions(1), 1u << 30)),
-                                  int(std::min<std::uint64_t>(files_.size() * frames, 1u << 30))};
+                                  int(std::min<std::uint64_t>(g.GridSlices() * frames, 1u << 30))};
     CheckVolumeGeometry({dims[0], dims[1], dims[2]},
                         {float(io->GetSpacing(0)), float(io->GetSpacing(1)), float(g.slice_gap_mm)}, where_);
     const std::uint64_t voxels = std::uint64_t(dims[0]) * std::uint64_t(dims[1]) * std::uint64_t(dims[2]);
@@ -416,47 +416,84 @@ class DicomSeriesRead final : public reader::VolumeRead {
     header_.set_original_type(original);
     slice_voxels_ = std::size_t(dims[0]) * std::size_t(dims[1]) * std::size_t(frames);
     if (g.tilt_deg > dicom::kMaxTiltDeg) Shear(g, io->GetSpacing(0), io->GetSpacing(1), dims);
+    if (g.uneven) Even(g);
   }
 
   void Read(void* memory, std::size_t bytes) override {
     const std::size_t voxel_bytes = BytesPerVoxel(*VoxelTypeNamed(header_.voxel_type()));
-    if (bytes != slice_voxels_ * voxel_bytes * files_.size()) {
+    const std::size_t slices = positions_.empty() ? files_.size() : grid_slices_;
+    if (bytes != slice_voxels_ * voxel_bytes * slices) {
       throw InputError(fmt::format("{}: {} bytes of memory for the series' voxels", where_, bytes));
     }
-    std::vector<char> scratch;
-    for (std::size_t k = 0; k < files_.size(); ++k) {
-      auto io = itk::GDCMImageIO::New();
-      char* out = static_cast<char*>(memory) + k * slice_voxels_ * voxel_bytes;
-      try {
-        io->SetFileName(files_[k]);
-        io->ReadImageInformation();
-        const std::size_t n = io->GetImageSizeInPixels();
-        if (io->GetNumberOfComponents() != 1 || n != slice_voxels_ ||
-            (rescaled_alike_ && io->GetComponentType() != type_)) {
-          throw InputError(fmt::format("{}: a slice of series {} differs from the first in size or voxel type",
-                                       where_, dicom::Describe(series_)));
-        }
-        itk::ImageIORegion region(io->GetNumberOfDimensions());
-        for (unsigned a = 0; a < io->GetNumberOfDimensions(); ++a) {
-          region.SetIndex(a, 0);
-          region.SetSize(a, io->GetDimensions(a));
-        }
-        io->SetIORegion(region);
-        if (rescaled_alike_ && shifts_.empty()) {
-          io->Read(out);
-        } else {
-          scratch.resize(io->GetImageSizeInBytes());
-          io->Read(scratch.data());
-          ToFloat(io->GetComponentType(), scratch.data(), reinterpret_cast<float*>(out), n);
-          if (!shifts_.empty()) ShiftSlice(reinterpret_cast<float*>(out), shifts_[k], io->GetComponentType());
-        }
-      } catch (const itk::ExceptionObject& e) {
-        throw Failed(e);
-      }
-    }
+    if (!positions_.empty()) return ReadEven(static_cast<float*>(memory));
+    for (std::size_t k = 0; k < files_.size(); ++k) DecodeSlice(k, static_cast<char*>(memory) + k * slice_voxels_ * voxel_bytes);
   }
 
  private:
+  // Slice k's voxels into `out`: as stored where the series is rescaled alike
+  // and straight, else as float32 (shifted onto the regular grid where tilted).
+  void DecodeSlice(std::size_t k, char* out) {
+    auto io = itk::GDCMImageIO::New();
+    try {
+      io->SetFileName(files_[k]);
+      io->ReadImageInformation();
+      const std::size_t n = io->GetImageSizeInPixels();
+      if (io->GetNumberOfComponents() != 1 || n != slice_voxels_ ||
+          (rescaled_alike_ && io->GetComponentType() != type_)) {
+        throw InputError(fmt::format("{}: a slice of series {} differs from the first in size or voxel type", where_,
+                                     dicom::Describe(series_)));
+      }
+      itk::ImageIORegion region(io->GetNumberOfDimensions());
+      for (unsigned a = 0; a < io->GetNumberOfDimensions(); ++a) {
+        region.SetIndex(a, 0);
+        region.SetSize(a, io->GetDimensions(a));
+      }
+      io->SetIORegion(region);
+      if (header_.voxel_type() != "float32") {
+        io->Read(out);
+        return;
+      }
+      scratch_.resize(io->GetImageSizeInBytes());
+      io->Read(scratch_.data());
+      ToFloat(io->GetComponentType(), scratch_.data(), reinterpret_cast<float*>(out), n);
+      if (!shifts_.empty()) ShiftSlice(reinterpret_cast<float*>(out), shifts_[k], io->GetComponentType());
+    } catch (const itk::ExceptionObject& e) {
+      throw Failed(e);
+    }
+  }
+
+  // An unevenly spaced series: every slice of the even grid interpolated
+  // linearly along the normal between the two slices around it, which are
+  // decoded once each, in order (two slices in memory at a time).
+  void Even(const dicom::SeriesGeometry& g) {
+    for (const dicom::Slice& s : g.slices) positions_.push_back(s.along_normal - g.slices.front().along_normal);
+    grid_slices_ = g.GridSlices();
+    gap_mm_ = g.slice_gap_mm;
+    header_.set_voxel_type("float32");
+    header_.add_notes(fmt::format("resampled onto an even grid of {:.3g} mm along the slices' normal (the "
+                                  "series' smallest gap): its gaps run to {:.3g} mm, the largest between {}",
+                                  g.slice_gap_mm, g.largest_gap_mm, g.largest_gap_between));
+  }
+
+  void ReadEven(float* memory) {
+    std::vector<float> below(slice_voxels_), above(slice_voxels_);
+    std::size_t k = 0;  // the slices decoded: k below, k + 1 above
+    DecodeSlice(0, reinterpret_cast<char*>(below.data()));
+    DecodeSlice(std::min<std::size_t>(1, files_.size() - 1), reinterpret_cast<char*>(above.data()));
+    for (std::size_t z = 0; z < grid_slices_; ++z) {
+      const double at = std::min(double(z) * gap_mm_, positions_.back());
+      while (k + 2 < positions_.size() && positions_[k + 1] < at) {
+        ++k;
+        std::swap(below, above);
+        DecodeSlice(k + 1, reinterpret_cast<char*>(above.data()));
+      }
+      const double span = positions_[k + 1] - positions_[k];
+      const float w = float(std::clamp(span > 0 ? (at - positions_[k]) / span : 0.0, 0.0, 1.0));
+      float* out = memory + z * slice_voxels_;
+      for (std::size_t i = 0; i < slice_voxels_; ++i) out[i] = below[i] + w * (above[i] - below[i]);
+    }
+  }
+
   // A gantry-tilted series: each slice's offset in its own plane (voxels along
   // row and column) from where a regular grid puts it; read as float32.
   void Shear(const dicom::SeriesGeometry& g, double row_mm, double col_mm,
@@ -511,6 +548,10 @@ class DicomSeriesRead final : public reader::VolumeRead {
   std::size_t slice_voxels_ = 0;
   std::vector<std::array<double, 2>> shifts_;  // per slice, for a tilted series; empty otherwise
   int width_ = 0, height_ = 0;
+  std::vector<double> positions_;  // per slice, mm along the normal from the first, for an uneven series; else empty
+  std::size_t grid_slices_ = 0;    // the even grid's slices, for an uneven series
+  double gap_mm_ = 0;
+  std::vector<char> scratch_;      // a slice as stored, on its way to float32
 };
 
 }  // namespace

@@ -106,6 +106,7 @@ Reply Job::Answer() {
   options.shown = request_.shown();
   options.max_voxels = request_.max_voxels();
   options.prechecks = !request_.skip_prechecks();
+  options.resample_uneven = request_.resample_uneven();
   options.scratch_fd = scratch_.get();
   options.scratch_path = scratch_path_;
   std::vector<DicomFile> dicom;

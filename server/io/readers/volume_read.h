@@ -19,6 +19,7 @@ struct ReadOptions {
   std::string shown;                // what messages call the input
   std::uint64_t max_voxels = 0;
   bool prechecks = true;            // the checks in front of the third-party readers
+  bool resample_uneven = false;     // DICOM series: uneven slice gaps resampled, not refused
   int scratch_fd = -1;              // an empty file for a rewritten header, and its path
   std::filesystem::path scratch_path;
 };

@@ -139,9 +139,20 @@ std::vector<SeriesFiles> GroupSeries(const Scan& scan) {
   return out;
 }
 
+}  // namespace
+
+std::size_t SeriesGeometry::GridSlices() const {
+  if (!uneven) return slices.size();
+  const double span = slices.back().along_normal - slices.front().along_normal;
+  return std::size_t(std::floor(span / slice_gap_mm + 1e-6)) + 1;
+}
+
+namespace {
+
 // Sorts `files` along their normal and checks the spacing: gantry tilt is
 // measured, duplicate positions and uneven gaps refused.
-SeriesGeometry CheckGeometry(const Scan& scan, const std::vector<std::string>& files, const std::string& where) {
+SeriesGeometry CheckGeometry(const Scan& scan, const std::vector<std::string>& files, const std::string& where,
+                             bool resample_uneven) {
   SeriesGeometry g;
   const std::vector<double> iop = Numbers(Value(scan, files[0], kImageOrientation));
   if (iop.size() != 6) {
@@ -183,12 +194,22 @@ SeriesGeometry CheckGeometry(const Scan& scan, const std::vector<std::string>& f
   std::nth_element(sorted.begin(), sorted.begin() + sorted.size() / 2, sorted.end());
   g.slice_gap_mm = sorted[sorted.size() / 2];
   for (std::size_t i = 0; i < gaps.size(); ++i) {
-    if (std::abs(gaps[i] - g.slice_gap_mm) > kGapTolerance * g.slice_gap_mm) {
+    if (std::abs(gaps[i] - g.slice_gap_mm) <= kGapTolerance * g.slice_gap_mm) continue;
+    if (!resample_uneven) {
       throw InputError(
           fmt::format("{}: uneven slice spacing: {:.3f} mm between {} and {} where the series' gap is {:.3f} "
-                      "mm (missing slices?); cinevol loads evenly spaced series only",
+                      "mm (missing slices?); cinevol loads it resampled onto an even grid when asked to "
+                      "(--resample-uneven)",
                       where, gaps[i], scan.Name(g.slices[i].file), scan.Name(g.slices[i + 1].file), g.slice_gap_mm));
     }
+    g.uneven = true;
+  }
+  if (g.uneven) {
+    const auto largest = std::max_element(gaps.begin(), gaps.end()) - gaps.begin();
+    g.largest_gap_mm = gaps[std::size_t(largest)];
+    g.largest_gap_between = fmt::format("{} and {}", scan.Name(g.slices[std::size_t(largest)].file),
+                                        scan.Name(g.slices[std::size_t(largest) + 1].file));
+    g.slice_gap_mm = *std::min_element(gaps.begin(), gaps.end());
   }
   // Gantry tilt: the stack's direction leaves the slice normal.
   const Slice& first = g.slices.front();
@@ -291,7 +312,7 @@ SortedSeries ChooseSeries(const std::vector<reader::DicomFile>& files, const std
   SortedSeries sorted;
   sorted.shown = scan.shown;
   sorted.info = series.info;
-  sorted.geometry = CheckGeometry(scan, series.files, scan.shown);
+  sorted.geometry = CheckGeometry(scan, series.files, scan.shown, options.resample_uneven);
   CheckGreyScale(scan, series.files, scan.shown);
   std::vector<std::string> files_sorted;
   for (const Slice& s : sorted.geometry.slices) files_sorted.push_back(s.file);

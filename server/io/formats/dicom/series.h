@@ -31,6 +31,13 @@ struct SeriesGeometry {
   // Above kMaxTiltDeg: the stack is sheared along its slices (a gantry tilt):
   // each slice is shifted in its own plane onto a regular grid, as Slicer does.
   double tilt_deg = 0;
+  // Gaps that differ (ReadOptions::resample_uneven): the slices are resampled
+  // along the normal onto an even grid of slice_gap_mm, the smallest gap.
+  bool uneven = false;
+  double largest_gap_mm = 0;
+  std::string largest_gap_between;  // "A and B", the files around it
+  // The slices the even grid has: all of them where the gaps are even.
+  std::size_t GridSlices() const;
 };
 
 // One series chosen, its slices sorted and checked: what the adapter decodes.
