@@ -155,11 +155,13 @@ CINEVOL_HD std::uint64_t QuantizeBlock(const PlaneView& plane, int bx, int by, c
 // Where the blocks of a frame lie, MCU by MCU in scan order: luma's blocks
 // of the MCU (2x2 at 4:2:0, 2x1 at 4:2:2, one at 4:4:4) row by row, then Cb,
 // then Cr. Blocks past a component's last block of samples are padding
-// (libjpeg's dummy blocks: the previous block's DC, no AC).
+// (libjpeg's dummy blocks: the previous block's DC, no AC). Fields are
+// scalars, not arrays, so that kernels keep them in registers.
 struct McuLayout {
   int luma_across = 1, luma_down = 1;  // luma blocks per MCU
   int mcus_across = 0, mcus_down = 0;
-  int blocks_across[3] = {}, blocks_down[3] = {};  // blocks holding samples, per component
+  int luma_blocks_across = 0, luma_blocks_down = 0;      // blocks holding samples
+  int chroma_blocks_across = 0, chroma_blocks_down = 0;  // likewise, for Cb and for Cr
 
   CINEVOL_HD static McuLayout Of(int width, int height, ChromaSubsampling chroma) {
     McuLayout m;
@@ -167,10 +169,10 @@ struct McuLayout {
     m.luma_down = chroma == ChromaSubsampling::k420 ? 2 : 1;
     m.mcus_across = (width + 8 * m.luma_across - 1) / (8 * m.luma_across);
     m.mcus_down = (height + 8 * m.luma_down - 1) / (8 * m.luma_down);
-    const int chroma_width = ChromaWidth(width, chroma), chroma_height = ChromaHeight(height, chroma);
-    m.blocks_across[0] = (width + 7) / 8, m.blocks_down[0] = (height + 7) / 8;
-    m.blocks_across[1] = m.blocks_across[2] = (chroma_width + 7) / 8;
-    m.blocks_down[1] = m.blocks_down[2] = (chroma_height + 7) / 8;
+    m.luma_blocks_across = (width + 7) / 8;
+    m.luma_blocks_down = (height + 7) / 8;
+    m.chroma_blocks_across = (ChromaWidth(width, chroma) + 7) / 8;
+    m.chroma_blocks_down = (ChromaHeight(height, chroma) + 7) / 8;
     return m;
   }
   CINEVOL_HD int luma_blocks() const { return luma_across * luma_down; }
@@ -192,11 +194,17 @@ CINEVOL_HD BlockPosition PositionOf(const McuLayout& m, int mcu, int j) {
   if (p.component == 0) {
     p.bx = mx * m.luma_across + j % m.luma_across;
     p.by = my * m.luma_down + j / m.luma_across;
+    p.padding = p.bx >= m.luma_blocks_across || p.by >= m.luma_blocks_down;
   } else {
     p.bx = mx, p.by = my;
+    p.padding = p.bx >= m.chroma_blocks_across || p.by >= m.chroma_blocks_down;
   }
-  p.padding = p.bx >= m.blocks_across[p.component] || p.by >= m.blocks_down[p.component];
   return p;
+}
+
+// Plane c of `planes`, chosen without indexing (kernels keep the three in registers).
+CINEVOL_HD const PlaneView& PlaneOf(const FramePlanes& planes, int c) {
+  return c == 0 ? planes.plane[0] : (c == 1 ? planes.plane[1] : planes.plane[2]);
 }
 
 // A Huffman table as the coder uses it: each symbol's code and its length in
@@ -300,6 +308,9 @@ CINEVOL_HD void CodeBlock(int dc, const std::int16_t* zigzag, std::uint64_t nonz
   if (previous < kBlockSamples - 1) sink.Put(ac_codes.code[0], ac_codes.length[0]);  // EOB
 }
 
+// The marker's second byte between intervals i and i + 1: RST0..RST7 in turn.
+CINEVOL_HD std::uint8_t RestartMarker(int i) { return std::uint8_t(0xD0 + i % 8); }
+
 // A block ready to code: its zigzag coefficients (null for padding) and which
 // are not zero.
 struct QuantizedBlock {
@@ -307,21 +318,23 @@ struct QuantizedBlock {
   std::uint64_t nonzero = 0;
 };
 
-// Codes `blocks` blocks (whole MCUs, in scan order) as one restart interval:
+// Codes `mcus` MCUs (their blocks in scan order) as one restart interval:
 // the DC predictions start at 0 and the bits end on a byte. `block(i)` gives
-// the i-th block as a QuantizedBlock.
+// the interval's i-th block as a QuantizedBlock.
 template <class BlockSource>
-CINEVOL_HD void CodeInterval(const McuLayout& layout, int blocks, const JpegTables& tables,
-                             const BlockSource& block, BitSink& sink) {
-  int last_dc[3] = {0, 0, 0};
-  const int per_mcu = layout.blocks_per_mcu();
-  for (int i = 0; i < blocks; ++i) {
-    const int component = layout.component(i % per_mcu);
-    const int table = component == 0 ? 0 : 1;
-    const QuantizedBlock b = block(i);
-    // Padding repeats the DC before it: a difference of 0.
-    const int dc = b.zigzag ? b.zigzag[0] : last_dc[component];
-    CodeBlock(dc, b.zigzag, b.nonzero, last_dc[component], tables.dc[table], tables.ac[table], sink);
+CINEVOL_HD void CodeInterval(const McuLayout& layout, int mcus, const JpegTables& tables, const BlockSource& block,
+                             BitSink& sink) {
+  int last_y = 0, last_cb = 0, last_cr = 0;
+  // Padding repeats the DC before it: a difference of 0.
+  auto code = [&](const QuantizedBlock& b, int& last_dc, int table) {
+    const int dc = b.zigzag ? b.zigzag[0] : last_dc;
+    CodeBlock(dc, b.zigzag, b.nonzero, last_dc, tables.dc[table], tables.ac[table], sink);
+  };
+  const int luma = layout.luma_blocks();
+  for (int m = 0, i = 0; m < mcus; ++m) {
+    for (int j = 0; j < luma; ++j) code(block(i++), last_y, 0);
+    code(block(i++), last_cb, 1);
+    code(block(i++), last_cr, 1);
   }
   sink.PadToByte();
 }

@@ -35,11 +35,11 @@ std::vector<std::uint8_t> EncodeJpegInIntervals(const ImageYcc8& image, int qual
       const jpeg::BlockPosition at = jpeg::PositionOf(layout, first_mcu + b / per_mcu, b % per_mcu);
       if (at.padding) return jpeg::QuantizedBlock{};
       const jpeg::QuantDivisor* divisors = tables.coding.divisor[at.component == 0 ? 0 : 1];
-      return jpeg::QuantizedBlock{zigzag,
-                                  jpeg::QuantizeBlock(planes.plane[at.component], at.bx, at.by, divisors, zigzag)};
+      const jpeg::PlaneView& plane = jpeg::PlaneOf(planes, at.component);
+      return jpeg::QuantizedBlock{zigzag, jpeg::QuantizeBlock(plane, at.bx, at.by, divisors, zigzag)};
     };
     jpeg::BitSink sink(interval.data(), int(interval.size()));
-    jpeg::CodeInterval(layout, mcus * layout.blocks_per_mcu(), tables.coding, block, sink);
+    jpeg::CodeInterval(layout, mcus, tables.coding, block, sink);
     if (i > 0) out.insert(out.end(), {0xFF, jpeg::RestartMarker(i - 1)});
     out.insert(out.end(), interval.begin(), interval.begin() + sink.length());
   }

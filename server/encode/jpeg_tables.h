@@ -29,8 +29,7 @@ const QualityTables& TablesFor(int quality);
 std::vector<std::uint8_t> FrameHeader(int width, int height, ChromaSubsampling chroma, int quality,
                                       int mcus_per_interval);
 
-// The marker between intervals i and i + 1 (RST0..RST7 in turn), and the end.
-inline std::uint8_t RestartMarker(int i) { return std::uint8_t(0xD0 + i % 8); }
+// The end of every frame.
 inline constexpr std::uint8_t kEndOfImage[2] = {0xFF, 0xD9};
 
 // The most bytes one block's coded data can take: a DC difference (code and

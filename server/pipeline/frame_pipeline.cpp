@@ -105,11 +105,16 @@ FramePipeline::~FramePipeline() = default;
 void FramePipeline::SetJpegEncoder(JpegEncoderKind kind) {
   device_jpeg_.reset();
   if (kind == JpegEncoderKind::kCpu) return;
-  if (kind != JpegEncoderKind::kNvjpeg) throw std::logic_error("SetJpegEncoder takes ChooseJpegEncoder's choice");
-  if (renderer_->backend() != Backend::kCuda) throw InputError("--jpeg-encoder nvjpeg: frames render on the CPU");
-  const NvjpegLookup& nvjpeg = ProcessNvjpeg();
-  if (!nvjpeg.library) throw InputError("--jpeg-encoder nvjpeg: " + nvjpeg.why_not);
+  if (kind == JpegEncoderKind::kAuto) throw std::logic_error("SetJpegEncoder takes ChooseJpegEncoder's choice");
+  const char* flag = kind == JpegEncoderKind::kCuda ? "--jpeg-encoder cuda" : "--jpeg-encoder nvjpeg";
+  if (renderer_->backend() != Backend::kCuda) throw InputError(std::string(flag) + ": frames render on the CPU");
 #if CINEVOL_WITH_CUDA
+  if (kind == JpegEncoderKind::kCuda) {
+    device_jpeg_ = MakeCudaJpegEncoder();
+    return;
+  }
+  const NvjpegLookup& nvjpeg = ProcessNvjpeg();
+  if (!nvjpeg.library) throw InputError(std::string(flag) + ": " + nvjpeg.why_not);
   device_jpeg_ = MakeNvjpegEncoder(nvjpeg.library);
 #endif
 }
@@ -349,6 +354,7 @@ DisplayFrame FramePipeline::RenderFrame() {
   } else if (device_jpeg_) {
     out.jpeg = display_->RunJpeg(in, *device_jpeg_, out.jpeg_quality);
     out.encode_ms = device_jpeg_->LastMilliseconds();
+    if (out.jpeg.bytes.empty()) out.image = display_->LastPlanes();  // given back: the host encodes it
   } else {
     out.image = display_->Run(in);
   }

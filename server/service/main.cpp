@@ -29,6 +29,10 @@ void AddLimitOptions(CLI::App& app, ServerOptions& o) {
   limit("--max-sessions", o.max_sessions, "Sessions held at once", 1, 100000);
   limit("--max-sessions-per-principal", o.max_sessions_per_principal, "Sessions one principal holds at once", 1,
         100000);
+  limit("--min-session-fps", o.min_session_fps,
+        "On a GPU server, refuse a new session where every session on its GPU would then get fewer frames a second "
+        "than this, by what the GPU was seen to render while busy (0: never)",
+        0.0, 1000.0);
   limit("--max-viewers-per-session", s.max_viewers_per_session, "Streams watching one shared session", 1, 100000);
   limit("--max-viewers-per-grant", s.max_viewers_per_grant, "Of them, streams by one share (a link)", 1, 100000);
   limit("--max-grants-per-principal", o.max_grants_per_principal, "Shares (grants) one principal holds at once", 1,
@@ -130,9 +134,10 @@ void AddOptions(CLI::App& app, ServerOptions& o, std::string& backend, std::stri
       ->check(CLI::Range(0, 256))
       ->capture_default_str();
   app.add_option("--jpeg-encoder", jpeg_encoder,
-                 "Where frames become JPEG: cpu (libjpeg-turbo, in bands), nvjpeg (on the rendering GPU; refused "
-                 "at start where it cannot run) or auto (nvJPEG where libnvjpeg loads, else the CPU)")
-      ->check(CLI::IsMember({"auto", "cpu", "nvjpeg"}))
+                 "Where frames become JPEG: cpu (libjpeg-turbo, in bands), cuda (cinevol's coder on the rendering "
+                 "GPU), nvjpeg (NVIDIA's, on the rendering GPU; refused at start where it cannot run) or auto (cuda "
+                 "on a GPU server, else cpu)")
+      ->check(CLI::IsMember({"auto", "cpu", "cuda", "nvjpeg"}))
       ->capture_default_str();
   app.add_option("--detached-session-seconds", o.detached_session_seconds,
                  "How long a session whose stream ended waits for a new one before it ends")
@@ -189,9 +194,10 @@ int main(int argc, char** argv) {
   CLI::App app{"cinevol-server: remote volumetric path tracing with real-time denoising, over gRPC"};
   ServerOptions options;
   std::string backend = "auto";
-  // The CPU by default: nvJPEG is faster for one session but collapses under
-  // many (docs/performance.md, "JPEG on the GPU").
-  std::string jpeg_encoder = "cpu";
+  // auto: on a GPU server, cinevol's own coder on the GPU that renders each
+  // frame (the host's cores stay free of JPEG under any load); libjpeg-turbo
+  // on a CPU server (docs/performance.md, "JPEG on the GPU").
+  std::string jpeg_encoder = "auto";
   bool verbose = false;
   PacsFlags pacs;
   AddOptions(app, options, backend, jpeg_encoder, pacs);

@@ -54,6 +54,11 @@ struct ServerOptions {
   JpegEncoderKind jpeg_encoder = JpegEncoderKind::kAuto;  // --jpeg-encoder: nvJPEG on the GPU where it loads
   int max_sessions = 64;
   int max_sessions_per_principal = 16;
+  // [0; 1000] frames a second every session on a GPU must keep when another
+  // joins: a new session is refused (RESOURCE_EXHAUSTED) where, by the pixels
+  // a second that GPU was seen to render while busy, round-robin would give
+  // each fewer (Scheduler::Admits). 0: no such check. CPU servers never check.
+  double min_session_fps = 30;
   int max_grants_per_principal = 32;  // shares a principal has made and not revoked (docs/sharing.md)
   std::uint64_t max_total_pixels = 40'000'000;  // viewport pixels of every session together
   VolumeLimits volume_limits;
@@ -178,7 +183,9 @@ class ServiceCore {
   void RequireRoomLocked(const Principal& caller) const;
   // Environment maps a scene names: resolved inside the data roots.
   MapResolver ResolveMap() const;
-  Scheduler& LeastLoaded();
+  // The least loaded device that admits a session rendering `pixels` a frame
+  // (--min-session-fps); throws LimitExceeded where none does.
+  Scheduler& Admitting(std::int64_t pixels);
   // `done`, after the still is stored as request.store_to asks (on the PACS
   // pool). Throws at once when it cannot be: an unknown PACS, a volume that
   // did not come from one.
