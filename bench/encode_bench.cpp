@@ -90,7 +90,7 @@ std::vector<JpegEncoderKind> DeviceEncoders(const std::string& flag, Backend bac
 
 std::string DeviceEncoderName(JpegEncoderKind kind) {
   return kind == JpegEncoderKind::kCuda
-             ? fmt::format("cuda: cinevol's coder, {}-MCU intervals", CudaJpegSettings{}.mcus_per_interval)
+             ? fmt::format("cuda: cinevol's coder, {}-block intervals", CudaJpegSettings{}.blocks_per_interval)
              : "nvjpeg: " + ProcessNvjpeg().library->name;
 }
 

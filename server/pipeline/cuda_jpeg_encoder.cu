@@ -138,7 +138,7 @@ class CudaJpegEncoder final : public DeviceJpegEncoder {
   std::vector<std::uint8_t> Encode(const YccPlanes& planes, int quality) override {
     quality = std::clamp(quality, 1, 100);
     const jpeg::McuLayout layout = jpeg::McuLayout::Of(planes.width, planes.height, planes.chroma);
-    const int mcus_per_interval = settings_.mcus_per_interval;
+    const int mcus_per_interval = settings_.mcus_per_interval(planes.chroma);
     const int intervals = (layout.mcus() + mcus_per_interval - 1) / mcus_per_interval;
     const int blocks_per_interval = mcus_per_interval * layout.blocks_per_mcu();
     const int slot_capacity = blocks_per_interval * settings_.slot_bytes_per_block;
@@ -190,7 +190,7 @@ class CudaJpegEncoder final : public DeviceJpegEncoder {
     auto it = headers_.find(key);
     if (it == headers_.end()) {
       it = headers_.emplace(key, jpeg::FrameHeader(planes.width, planes.height, planes.chroma, quality,
-                                                   settings_.mcus_per_interval)).first;
+                                                   settings_.mcus_per_interval(planes.chroma))).first;
     }
     std::vector<std::uint8_t> jpeg;
     jpeg.reserve(it->second.size() + std::size_t(length) + 2);
@@ -232,8 +232,8 @@ class CudaJpegEncoder final : public DeviceJpegEncoder {
 namespace {
 
 void CheckCudaJpegSettings(const CudaJpegSettings& s) {
-  if (s.mcus_per_interval < 1 || s.mcus_per_interval > kMaxMcusPerInterval) {
-    throw std::invalid_argument("CudaJpegSettings::mcus_per_interval out of [1, 32]");
+  if (s.blocks_per_interval < 6 || s.blocks_per_interval > kMaxBlocksPerInterval) {
+    throw std::invalid_argument("CudaJpegSettings::blocks_per_interval out of [6, 192]");
   }
   if (s.slot_bytes_per_block < 8 || s.slot_bytes_per_block > jpeg::kMaxBytesPerBlock) {
     throw std::invalid_argument("CudaJpegSettings::slot_bytes_per_block out of range");

@@ -6,6 +6,7 @@
 // nvJPEG (loaded at run time: encode/nvjpeg_library.h).
 #pragma once
 
+#include <algorithm>
 #include <cstdint>
 #include <memory>
 #include <string_view>
@@ -54,24 +55,31 @@ class DeviceJpegEncoder {
   virtual double LastMilliseconds() const = 0;
 };
 
-// The GPU coder's most MCUs in a restart interval: an interval's blocks sit
-// in one thread block's shared memory (26 KB at 32 MCUs of 4:2:0).
-inline constexpr int kMaxMcusPerInterval = 32;
+// The GPU coder's most blocks in a restart interval: an interval's blocks sit
+// in one thread block's shared memory (26 KB at 192).
+inline constexpr int kMaxBlocksPerInterval = 192;
 
 // How the GPU's own coder cuts and holds a frame.
 struct CudaJpegSettings {
-  // [1; kMaxMcusPerInterval] MCUs a restart interval holds. Each interval is
+  // [6; kMaxBlocksPerInterval] 8x8 blocks a restart interval holds, in whole
+  // MCUs (96: 16 MCUs at 4:2:0, 24 at 4:2:2, 32 at 4:4:4). Each interval is
   // one thread block, coded by one thread after the DCT: shorter intervals
   // finish sooner, but each costs a 2-byte marker, padding to a byte and DCs
-  // coded afresh (16 MCUs: +0.3% on a 720p 4:2:0 frame, +1.1% at 4:4:4;
+  // coded afresh (96 blocks: +2.6% on a noisy 720p 4:2:0 frame;
   // tests/encode/jpeg_intervals_test.cpp).
-  int mcus_per_interval = 16;
+  int blocks_per_interval = 96;
   // [8; jpeg::kMaxBytesPerBlock] bytes of device memory a block's coded data
   // may take in its interval's slot (2.7 MiB a 720p 4:2:0 frame at 128; a
   // 720p frame at quality 80 codes in about 2 bytes a block, white noise at
   // quality 100 in about 100). A frame an interval of which needs more is
   // given back to the host's encoder.
   int slot_bytes_per_block = 128;
+
+  // The MCUs of an interval at `chroma` (3 to 6 blocks each).
+  int mcus_per_interval(ChromaSubsampling chroma) const {
+    const int blocks_per_mcu = chroma == ChromaSubsampling::k420 ? 6 : (chroma == ChromaSubsampling::k422 ? 4 : 3);
+    return std::max(1, blocks_per_interval / blocks_per_mcu);
+  }
 };
 
 #if CINEVOL_WITH_CUDA
@@ -79,7 +87,8 @@ struct CudaJpegSettings {
 // nvJPEG call that failed.
 std::unique_ptr<DeviceJpegEncoder> MakeNvjpegEncoder(std::shared_ptr<const NvjpegLibrary> library);
 // The GPU's own coder on the calling thread's GPU and stream; the same bytes
-// as EncodeJpegInIntervals (encode/jpeg_intervals.h) at settings.mcus_per_interval.
+// as EncodeJpegInIntervals (encode/jpeg_intervals.h) at
+// settings.mcus_per_interval(chroma).
 // Throws std::invalid_argument for settings out of range.
 std::unique_ptr<DeviceJpegEncoder> MakeCudaJpegEncoder(const CudaJpegSettings& settings = {});
 // Host planes copied to this thread's GPU and encoded there by one coder, in

@@ -55,10 +55,11 @@ TEST(CudaJpegEncoder, WritesTheCpuCodersBytes) {
     for (const auto& [w, h] : {std::pair{1280, 720}, std::pair{173, 131}, std::pair{37, 21}, std::pair{1, 1}}) {
       const ImageYcc8 planes = Planes(w, h, chroma);
       for (int quality : {50, 80, 95}) {
-        for (int mcus : {1, 16, 32}) {
-          const std::vector<std::uint8_t> gpu = EncodeOnGpu(planes, quality, {.mcus_per_interval = mcus});
-          EXPECT_EQ(gpu, EncodeJpegInIntervals(planes, quality, mcus))
-              << "chroma " << int(chroma) << ", " << w << "x" << h << " q" << quality << ", " << mcus << " MCUs";
+        for (int blocks : {6, 96, kMaxBlocksPerInterval}) {
+          const CudaJpegSettings settings{.blocks_per_interval = blocks};
+          const std::vector<std::uint8_t> gpu = EncodeOnGpu(planes, quality, settings);
+          EXPECT_EQ(gpu, EncodeJpegInIntervals(planes, quality, settings.mcus_per_interval(chroma)))
+              << "chroma " << int(chroma) << ", " << w << "x" << h << " q" << quality << ", " << blocks << " blocks";
         }
       }
     }
@@ -69,7 +70,8 @@ TEST(CudaJpegEncoder, GivesBackAFrameTooDenseForItsRoom) {
   CINEVOL_REQUIRE_CUDA();
   const ImageYcc8 noise = Planes(64, 64, ChromaSubsampling::k444, 1.0f);
   EXPECT_TRUE(EncodeOnGpu(noise, 100, {.slot_bytes_per_block = 8}).empty()) << "the host encodes it instead";
-  EXPECT_EQ(EncodeOnGpu(noise, 100, {}), EncodeJpegInIntervals(noise, 100, CudaJpegSettings{}.mcus_per_interval))
+  EXPECT_EQ(EncodeOnGpu(noise, 100, {}),
+            EncodeJpegInIntervals(noise, 100, CudaJpegSettings{}.mcus_per_interval(ChromaSubsampling::k444)))
       << "the default room holds white noise at quality 100";
 }
 
@@ -81,7 +83,8 @@ TEST(CudaJpegEncoder, FramesLargerThanAnyBeforeStillJoinWhole) {
   const std::vector<std::vector<std::uint8_t>> encoded = EncodeOnGpu(frames, 95, {});
   ASSERT_EQ(encoded.size(), frames.size());
   for (std::size_t i = 0; i < frames.size(); ++i) {
-    EXPECT_EQ(encoded[i], EncodeJpegInIntervals(frames[i], 95, CudaJpegSettings{}.mcus_per_interval)) << "frame " << i;
+    const int mcus = CudaJpegSettings{}.mcus_per_interval(ChromaSubsampling::k420);
+    EXPECT_EQ(encoded[i], EncodeJpegInIntervals(frames[i], 95, mcus)) << "frame " << i;
   }
   EXPECT_GT(encoded[1].size(), 8 * encoded[0].size()) << "the noisy frame outgrew the first guess";
 }
