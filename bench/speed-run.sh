@@ -9,7 +9,7 @@
 #   pair       loadtests of both builds, alternating: PAIR_SESSIONS (1 32 64) at 1280x720
 #   sweep      this build's loadtest over SWEEP (1 8 16 32 48 64 96 128) sessions,
 #              full size and (SWEEP_INTERACTIVE) with --interactive-frame-ms 33
-#   big        one 3840x2160 and one 2560x1440 session, both builds alternating
+#   big        one 3840x2160 and one 2560x1440 session, both builds alternating, BIG_RUNS (2) times
 #   admission  --min-session-fps 30, ADMIT_SESSIONS (64) arriving over RAMP (8) seconds: the
 #              sessions past capacity refused, the rest at >= 30 fps
 #   cpujpeg    this build with --jpeg-encoder cpu, CPUJPEG_SESSIONS (1 64)
@@ -122,7 +122,7 @@ step_sweep() {
 
 step_big() {
   table_header "One large session, both builds alternating"
-  for run in 1 2; do
+  for run in $(seq "${BIG_RUNS:-2}"); do
     for build in bin-before bin; do
       loadtest big "$build" 1 3840 2160
       loadtest big "$build" 1 2560 1440
