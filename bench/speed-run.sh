@@ -13,6 +13,8 @@
 #   admission  --min-session-fps 30, ADMIT_SESSIONS (64) arriving over RAMP (8) seconds: the
 #              sessions past capacity refused, the rest at >= 30 fps
 #   cpujpeg    this build with --jpeg-encoder cpu, CPUJPEG_SESSIONS (1 64)
+#   wait       this build with --gpu-wait in WAITS (auto block yield): WAIT_SESSIONS (1 128) full
+#              size, WAIT_INTERACTIVE (128) with --interactive-frame-ms 33
 #   memory     the device memory per added 720p session (VolumeCache test)
 # SECONDS_PER_RUN (8) is each loadtest's length. This build's servers run with
 # --min-session-fps 0 (MIN_FPS) but in the admission step, SERVER_EXTRA adds flags.
@@ -20,7 +22,8 @@ set -uo pipefail
 bundle=${BUNDLE:-.gpu61}
 out=${OUT:-gpu-out}
 cv=/tmp/cv
-mkdir -p "$out" "$cv"
+logs=$cv/logs  # every run's logs, packed into $out/logs.tar.xz at the end (few files come back)
+mkdir -p "$out" "$cv" "$logs"
 [ -x "$cv/bin/cinevol-server" ] || tar xJf "$bundle/bundle.tar.xz" -C "$cv"
 export LD_LIBRARY_PATH=$cv/lib
 volume=$cv/data/ct-head-cthead/DERIVED_CThead.nhdr
@@ -44,22 +47,22 @@ loadtest() {
   [ "$build" = bin ] && extra="--min-session-fps ${MIN_FPS:-0} $extra"
   "$cv/$build/cinevol-server" --listen 127.0.0.1:0 --port-file "$port_file" --backend cuda --volume "$volume" \
     --max-sessions 256 --max-sessions-per-principal 256 --max-total-pixels 2000000000 $extra \
-    > "$out/server-$tag.log" 2>&1 &
+    > "$logs/server-$tag.log" 2>&1 &
   local server=$!
   for _ in $(seq 300); do [ -s "$port_file" ] && break; sleep 0.1; done
-  nvidia-smi --query-gpu=utilization.gpu,memory.used --format=csv,noheader,nounits -lms 250 > "$out/smi-$tag.txt" &
+  nvidia-smi --query-gpu=utilization.gpu,memory.used --format=csv,noheader,nounits -lms 250 > "$logs/smi-$tag.txt" &
   local smi=$! cpu0
   cpu0=$(cpu_seconds $server)
   local start=$SECONDS
   "$cv/bin/cinevol" loadtest --server "127.0.0.1:$(cat "$port_file")" --sessions "$n" --seconds "$seconds" \
-    --width "$w" --height "$h" --spp 2 --denoiser wrls --scene "$scene" --json "$@" > "$out/loadtest-$tag.json" \
-    2> "$out/loadtest-$tag.err"
+    --width "$w" --height "$h" --spp 2 --denoiser wrls --scene "$scene" --json "$@" > "$logs/loadtest-$tag.json" \
+    2> "$logs/loadtest-$tag.err"
   local rc=$? elapsed=$((SECONDS - start)) cpu1
   cpu1=$(cpu_seconds $server)
   kill $smi
   kill -TERM $server
   wait $server
-  python3 - "$out/loadtest-$tag.json" "$out/smi-$tag.txt" "$label" "$build" "$w" "$h" "$cpu0" "$cpu1" "$elapsed" \
+  python3 - "$logs/loadtest-$tag.json" "$logs/smi-$tag.txt" "$label" "$build" "$w" "$h" "$cpu0" "$cpu1" "$elapsed" \
     "$rc" >> "$table" <<'EOF'
 import json, sys
 path, smi, label, build, w, h, cpu0, cpu1, elapsed, rc = sys.argv[1:]
@@ -92,19 +95,19 @@ table_header() {
 
 step_tests() {
   "$cv/bin/cinevol_tests" --gtest_filter="${TESTS:-*Cuda*:*Nvjpeg*:*JpegIntervals*:FramePipeline.*:VolumeCache.*}" \
-    > "$out/gpu-tests.log" 2>&1
-  echo "tests rc=$?: $(grep -E '^\[  (PASSED|FAILED) ' "$out/gpu-tests.log" | tr '\n' ' ')" | tee -a "$table"
-  grep -E '^\[  FAILED  \]' "$out/gpu-tests.log" | head -20 >> "$table"
+    > "$logs/gpu-tests.log" 2>&1
+  echo "tests rc=$?: $(grep -E '^\[  (PASSED|FAILED) ' "$logs/gpu-tests.log" | tr '\n' ' ')" | tee -a "$table"
+  grep -E '^\[  FAILED  \]' "$logs/gpu-tests.log" | head -20 >> "$table"
 }
 
 step_encode() {
   for build in bin bin-before; do
     "$cv/$build/cinevol-bench" encode --scene "$scene" --volume "$volume" --backend cuda \
-      --jpeg-encoder "${JPEG_ENCODER:-auto}" --frames 100 --warmup 10 --out "$out/encode-$build.md" \
-      > "$out/encode-$build.log" 2>&1
+      --jpeg-encoder "${JPEG_ENCODER:-auto}" --frames 100 --warmup 10 --out "$logs/encode-$build.md" \
+      > "$logs/encode-$build.log" 2>&1
     echo "encode bench $build rc=$?"
   done
-  cat "$out/encode-bin.md" >> "$table"
+  cat "$logs/encode-bin.md" >> "$table"
 }
 
 step_pair() {
@@ -142,11 +145,24 @@ step_cpujpeg() {
   done
 }
 
+step_wait() {
+  table_header "How render threads wait for the GPU (--gpu-wait), this build"
+  for wait in ${WAITS:-auto block yield}; do
+    local saved=${SERVER_EXTRA:-}
+    SERVER_EXTRA="$saved --gpu-wait $wait"
+    for n in ${WAIT_SESSIONS:-1 128}; do loadtest "wait-$wait" bin "$n" 1280 720; done
+    for n in ${WAIT_INTERACTIVE:-128}; do loadtest "wait-$wait-i33" bin "$n" 1280 720 --interactive-frame-ms 33; done
+    SERVER_EXTRA=$saved
+  done
+}
+
 step_memory() {
-  "$cv/bin/cinevol_tests" --gtest_filter='VolumeCache.PrintsTheDeviceMemoryOfA720pSession' > "$out/memory.log" 2>&1
-  { echo; echo "Device memory ($(gpu_name)):"; grep -iE 'MiB|session' "$out/memory.log" | head -12; } >> "$table"
+  "$cv/bin/cinevol_tests" --gtest_filter='VolumeCache.PrintsTheDeviceMemoryOfA720pSession' > "$logs/memory.log" 2>&1
+  { echo; echo "Device memory ($(gpu_name)):"; grep -iE 'MiB|session' "$logs/memory.log" | head -12; } >> "$table"
 }
 
 nvidia-smi --query-gpu=name,memory.total,driver_version --format=csv,noheader | tee "$out/gpu.txt"
 for step in ${STEPS:-tests encode pair}; do "step_$step"; done
+# Only a few files come back: the logs travel in one archive.
+tar -C "$logs" -cJf "$out/logs.tar.xz" . 2> /dev/null
 cat "$table"

@@ -305,7 +305,6 @@ DisplayFrame FramePipeline::RenderFrame() {
     out.preempted = true;
     return out;
   }
-  out.render_ms = renderer_->LastFrameMilliseconds();
   accumulated_spp_ += spp;
 
   const FrameTargets t = renderer_->Targets();
@@ -359,6 +358,9 @@ DisplayFrame FramePipeline::RenderFrame() {
     out.image = display_->Run(in);
   }
   out.display_ms = MillisecondsSince(display_start) - out.encode_ms;
+  // Read once the frame is done: reading it sooner would wait for the render
+  // before the denoiser's passes are queued behind it.
+  out.render_ms = renderer_->LastFrameMilliseconds();
   cost_.Observe({std::int64_t(camera.width) * camera.height, spp, out.render_ms, out.denoise_ms,
                  out.display_ms - refine_ms, refine_ms});
   return out;

@@ -110,7 +110,8 @@ struct PacsFlags {
   }
 };
 
-void AddOptions(CLI::App& app, ServerOptions& o, std::string& backend, std::string& jpeg_encoder, PacsFlags& pacs) {
+void AddOptions(CLI::App& app, ServerOptions& o, std::string& backend, std::string& jpeg_encoder, std::string& gpu_wait,
+                PacsFlags& pacs) {
   app.set_config("--config", "", "Read these settings from a TOML/INI file (keys as the long flags)");
   app.add_option("--listen", o.listen, "HOST:PORT to listen on (port 0: any free port)")->capture_default_str();
   app.add_option("--backend", backend, "auto (CUDA when a GPU is usable), cpu or cuda")
@@ -123,6 +124,11 @@ void AddOptions(CLI::App& app, ServerOptions& o, std::string& backend, std::stri
                  "(repeatable; default phantom:head)");
   app.add_option("--workers-per-gpu", o.workers_per_gpu, "Render threads per GPU, each with its own CUDA stream")
       ->check(CLI::Range(1, 64))
+      ->capture_default_str();
+  app.add_option("--gpu-wait", gpu_wait,
+                 "How render threads wait for their GPU: auto (CUDA's choice: spinning), spin, yield (spin, but "
+                 "give the core away between checks) or block (sleep until the GPU is done)")
+      ->check(CLI::IsMember({"auto", "spin", "yield", "block"}))
       ->capture_default_str();
   app.add_option("--pixels-in-flight-per-gpu", o.pixels_in_flight_per_gpu,
                  "Pixels the frames rendering at once on a GPU may have together (one frame always may; 0: no "
@@ -198,9 +204,10 @@ int main(int argc, char** argv) {
   // frame (the host's cores stay free of JPEG under any load); libjpeg-turbo
   // on a CPU server (docs/performance.md, "JPEG on the GPU").
   std::string jpeg_encoder = "auto";
+  std::string gpu_wait = "auto";
   bool verbose = false;
   PacsFlags pacs;
-  AddOptions(app, options, backend, jpeg_encoder, pacs);
+  AddOptions(app, options, backend, jpeg_encoder, gpu_wait, pacs);
   app.add_flag("-v,--verbose", verbose, "Log debug detail");
   try {
     app.parse(argc, argv);
@@ -220,6 +227,7 @@ int main(int argc, char** argv) {
   try {
     options.backend = cinevol::ParseBackend(backend);
     options.jpeg_encoder = cinevol::ParseJpegEncoder(jpeg_encoder);
+    options.gpu_wait = cinevol::ParseGpuWait(gpu_wait);
     options.pacs = pacs.Configs();
     cinevol::service::CheckListenPolicy(options.listen, !options.auth_tokens.empty(), options.tls.mutual(),
                                         options.insecure_no_auth);

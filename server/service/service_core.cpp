@@ -204,6 +204,7 @@ ServiceCore::ServiceCore(const ServerOptions& options)
       const bool wanted = options.devices.empty() ||
                           std::find(options.devices.begin(), options.devices.end(), gpu.index) != options.devices.end();
       if (!wanted) continue;
+      SetGpuWait(gpu.index, options.gpu_wait);  // before its workers start
       schedulers_.push_back(std::make_unique<Scheduler>(fmt::format("cuda:{} {}", gpu.index, gpu.name), gpu.index,
                                                         options.workers_per_gpu, options.pixels_in_flight_per_gpu));
     }
