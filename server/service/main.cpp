@@ -126,8 +126,8 @@ void AddOptions(CLI::App& app, ServerOptions& o, std::string& backend, std::stri
       ->check(CLI::Range(1, 64))
       ->capture_default_str();
   app.add_option("--gpu-wait", gpu_wait,
-                 "How render threads wait for their GPU: auto (CUDA's choice: spinning), spin, yield (spin, but "
-                 "give the core away between checks) or block (sleep until the GPU is done)")
+                 "How render threads wait for their GPU: yield (spin, but give the core to other threads between "
+                 "checks), auto (CUDA's choice: spinning), spin or block (sleep until the GPU is done)")
       ->check(CLI::IsMember({"auto", "spin", "yield", "block"}))
       ->capture_default_str();
   app.add_option("--pixels-in-flight-per-gpu", o.pixels_in_flight_per_gpu,
@@ -204,7 +204,7 @@ int main(int argc, char** argv) {
   // frame (the host's cores stay free of JPEG under any load); libjpeg-turbo
   // on a CPU server (docs/performance.md, "JPEG on the GPU").
   std::string jpeg_encoder = "auto";
-  std::string gpu_wait = "auto";
+  std::string gpu_wait = "yield";
   bool verbose = false;
   PacsFlags pacs;
   AddOptions(app, options, backend, jpeg_encoder, gpu_wait, pacs);

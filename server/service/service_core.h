@@ -45,7 +45,9 @@ struct ServerOptions {
   std::vector<std::filesystem::path> data_roots;  // where clients may load volumes from
   std::vector<std::string> volumes;               // preloaded; empty: phantom:head
   int workers_per_gpu = 16;                       // each its own CUDA stream
-  GpuWait gpu_wait = GpuWait::kAuto;              // how workers wait for their GPU (device/device.h)
+  // How workers wait for their GPU (device/device.h): yield measured best
+  // with one session and with 128 (docs/performance.md, issue 61).
+  GpuWait gpu_wait = GpuWait::kYield;
   // Frames rendering at once on a GPU render at most this many pixels
   // together: four 720p frames, or sixteen interactive ones at half size.
   std::int64_t pixels_in_flight_per_gpu = 4 * 1280 * 720;
