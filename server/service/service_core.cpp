@@ -246,19 +246,24 @@ std::string ServiceCore::DeviceSummary() const {
   return fmt::format("{}", fmt::join(names, ", "));
 }
 
-Scheduler& ServiceCore::Admitting(std::int64_t pixels) {
+Scheduler* ServiceCore::Admitting(std::int64_t pixels) const {
   const double min_fps = backend_ == Backend::kCuda ? options_.min_session_fps : 0.0;
   Scheduler* best = nullptr;
   for (const auto& s : schedulers_) {
     if (s->Admits(pixels, min_fps) && (!best || s->sessions < best->sessions)) best = s.get();
   }
-  if (best) return *best;
-  const Scheduler& busiest = *schedulers_.front();
+  return best;
+}
+
+Scheduler& ServiceCore::RequireAdmitting(std::int64_t pixels) const {
+  if (Scheduler* scheduler = Admitting(pixels)) return *scheduler;
+  const Scheduler& first = *schedulers_.front();
   throw LimitExceeded(grpc::StatusCode::RESOURCE_EXHAUSTED, "min-session-fps",
                       fmt::format("every GPU is at capacity: another session of {} pixels a frame would take the "
                                   "sessions there under {} frames a second ({} rendered {:.0f} Mpixels a second "
                                   "while busy; --min-session-fps)",
-                                  pixels, min_fps, busiest.name(), busiest.saturated_pixel_rate() / 1e6));
+                                  pixels, options_.min_session_fps, first.name(),
+                                  first.saturated_pixel_rate() / 1e6));
 }
 
 namespace {
@@ -328,7 +333,7 @@ v1::CreateSessionResponse ServiceCore::CreateSession(const v1::CreateSessionRequ
   v1::Scene answered = scene;
   AddResolvedCamera(answered, *volume->volume(), volume->labels().get());
   require_caller();
-  Scheduler& scheduler = Admitting(AdmissionPixels(state, backend_));
+  Scheduler& scheduler = RequireAdmitting(AdmissionPixels(state, backend_));
   // The volume reaches the device here, not inside the first frame on a
   // worker that other sessions share.
   std::shared_ptr<const VolumeCopy> prepared = PrepareOnDevice(*volume, scheduler);
@@ -457,7 +462,10 @@ bool ServiceCore::HasRoomForSession() const {
   return HasRoomLocked();
 }
 
-bool ServiceCore::HasRoomLocked() const { return !draining_ && int(sessions_.size()) < options_.max_sessions; }
+bool ServiceCore::HasRoomLocked() const {
+  constexpr std::int64_t kReadinessPixels = 1280 * 720;  // the session readiness vouches for
+  return !draining_ && int(sessions_.size()) < options_.max_sessions && Admitting(kReadinessPixels) != nullptr;
+}
 
 void ServiceCore::Forget(const std::string& id) {
   sharing_.SessionEnded(id);

@@ -175,7 +175,9 @@ class ServiceCore {
   // ends with a notice, frames and stills in flight are cancelled.
   void Drain();
   bool draining() const { return draining_; }
-  // Whether CreateSession would find room for one more session (readiness).
+  // Whether CreateSession would find room for one more session (readiness):
+  // within --max-sessions, not draining, and on a GPU server a GPU that
+  // admits a full-size 720p session (--min-session-fps).
   bool HasRoomForSession() const;
   // Throws UNAVAILABLE while draining.
   void RequireServing() const;
@@ -187,8 +189,10 @@ class ServiceCore {
   // Environment maps a scene names: resolved inside the data roots.
   MapResolver ResolveMap() const;
   // The least loaded device that admits a session rendering `pixels` a frame
-  // (--min-session-fps); throws LimitExceeded where none does.
-  Scheduler& Admitting(std::int64_t pixels);
+  // (--min-session-fps); null where none does.
+  Scheduler* Admitting(std::int64_t pixels) const;
+  // The same, throwing LimitExceeded (naming the flag) where none does.
+  Scheduler& RequireAdmitting(std::int64_t pixels) const;
   // `done`, after the still is stored as request.store_to asks (on the PACS
   // pool). Throws at once when it cannot be: an unknown PACS, a volume that
   // did not come from one.
