@@ -77,7 +77,7 @@ struct EncodeBenchOptions : SceneOptions {
   int frames = 50, warmup = 5;
   int quality = 80;                 // [1, 100]
   float degrees_per_frame = 1.0f;   // camera orbit speed
-  std::string jpeg_encoder = "auto";  // as cinevol-server's: nvjpeg measured beside the CPU where chosen
+  std::string jpeg_encoder = "auto";  // the GPU encoders measured beside the CPU (main.cpp's flag)
 };
 
 // A frame's JPEG on the CPU (whole and in bands) and with nvJPEG on the GPU:

@@ -1,8 +1,8 @@
 // `cinevol-bench encode`: a streamed frame's JPEG made each way the server can
 // make it, from the same rendered frames of a camera orbit: libjpeg-turbo on
 // the CPU from the planes copied to the host (whole, and in the 4 bands a
-// lone session gets), and nvJPEG on the GPU from the planes where they lie
-// (--jpeg-encoder, as the server's flag). Per way: the display and encode
+// lone session gets), and on the GPU from the planes where they lie:
+// cinevol's coder and nvJPEG (--jpeg-encoder). Per way: the display and encode
 // times, the JPEG's size, and its decoded PSNR against the displayed image and
 // against the CPU's JPEG of the same frame.
 // Prints a Markdown table (and appends it to --out) for docs/performance.md.
@@ -72,20 +72,45 @@ std::string Row(const std::string& name, const Samples& s) {
 
 }  // namespace
 
+namespace {
+
+// The GPU encoders --jpeg-encoder asks for on `backend`: auto takes
+// cinevol's coder on a GPU, and nvJPEG beside it where it loads.
+std::vector<JpegEncoderKind> DeviceEncoders(const std::string& flag, Backend backend) {
+  const JpegEncoderKind requested = ParseJpegEncoder(flag);
+  if (requested != JpegEncoderKind::kAuto) {
+    const JpegEncoderKind chosen = ChooseJpegEncoder(requested, backend);
+    return chosen == JpegEncoderKind::kCpu ? std::vector<JpegEncoderKind>{} : std::vector{chosen};
+  }
+  std::vector<JpegEncoderKind> kinds;
+  if (ChooseJpegEncoder(requested, backend) == JpegEncoderKind::kCuda) kinds.push_back(JpegEncoderKind::kCuda);
+  if (backend == Backend::kCuda && ProcessNvjpeg().library) kinds.push_back(JpegEncoderKind::kNvjpeg);
+  return kinds;
+}
+
+std::string DeviceEncoderName(JpegEncoderKind kind) {
+  return kind == JpegEncoderKind::kCuda
+             ? fmt::format("cuda: cinevol's coder, {}-block intervals", CudaJpegSettings{}.blocks_per_interval)
+             : "nvjpeg: " + ProcessNvjpeg().library->name;
+}
+
+}  // namespace
+
 int RunEncodeBench(const EncodeBenchOptions& o) {
   const LoadedScene loaded = LoadScene(o);
   const Backend backend = Resolve(ParseBackend(o.backend), "--backend");
-  const JpegEncoderKind gpu_encoder = ChooseJpegEncoder(ParseJpegEncoder(o.jpeg_encoder), backend);
+  const std::vector<JpegEncoderKind> device_kinds = DeviceEncoders(o.jpeg_encoder, backend);
   FrameSettings settings;
   settings.jpeg_quality = o.quality;
   settings.refine = false;  // frames as they look while the view moves, every one displayed anew
   FramePipeline cpu(backend, loaded.volume, {}, loaded.labels);
-  std::unique_ptr<FramePipeline> gpu;
-  if (gpu_encoder == JpegEncoderKind::kNvjpeg) {
-    gpu = std::make_unique<FramePipeline>(backend, loaded.volume, RendererOptions{}, loaded.labels);
-    gpu->SetJpegEncoder(JpegEncoderKind::kNvjpeg);
+  std::vector<std::unique_ptr<FramePipeline>> devices;
+  for (JpegEncoderKind kind : device_kinds) {
+    devices.push_back(std::make_unique<FramePipeline>(backend, loaded.volume, RendererOptions{}, loaded.labels));
+    devices.back()->SetJpegEncoder(kind);
   }
-  Samples whole, banded, nvjpeg;
+  Samples whole, banded;
+  std::vector<Samples> on_device(devices.size());
   RenderSetup view = loaded.setup;
   for (int f = 0; f < o.warmup + o.frames; ++f) {
     view.camera = Orbit(loaded.setup.camera, float(f) * o.degrees_per_frame);
@@ -95,17 +120,19 @@ int RunEncodeBench(const EncodeBenchOptions& o) {
     double whole_ms = 0, banded_ms = 0;
     const std::vector<std::uint8_t> cpu_jpeg = TimedCpuEncode(planes, 1, whole_ms);
     const std::vector<std::uint8_t> banded_jpeg = TimedCpuEncode(planes, 4, banded_ms);
-    DisplayFrame device;
-    if (gpu) {
-      gpu->Update(view, settings, changes);
-      device = gpu->RenderFrame();
+    std::vector<DisplayFrame> encoded;
+    for (auto& device : devices) {
+      device->Update(view, settings, changes);
+      encoded.push_back(device->RenderFrame());
     }
     if (f < o.warmup) continue;
     const ImageRgb8 displayed = ToRgb(planes.image);
     const ImageRgb8 cpu_decoded = DecodeJpeg(cpu_jpeg);
     Add(whole, planes.display_ms, whole_ms, cpu_jpeg, displayed, cpu_decoded);
     Add(banded, planes.display_ms, banded_ms, banded_jpeg, displayed, cpu_decoded);
-    if (gpu) Add(nvjpeg, device.display_ms, device.encode_ms, device.jpeg.bytes, displayed, cpu_decoded);
+    for (std::size_t d = 0; d < devices.size(); ++d) {
+      Add(on_device[d], encoded[d].display_ms, encoded[d].encode_ms, encoded[d].jpeg.bytes, displayed, cpu_decoded);
+    }
   }
 
   const RenderSetup& setup = loaded.setup;
@@ -119,11 +146,8 @@ int RunEncodeBench(const EncodeBenchOptions& o) {
       setup.spp, o.degrees_per_frame, o.frames, o.warmup);
   table += Row("cpu: libjpeg-turbo, whole", whole);
   table += Row("cpu: libjpeg-turbo, 4 bands", banded);
-  if (gpu) {
-    table += Row("nvjpeg: " + ProcessNvjpeg().library->name, nvjpeg);
-  } else {
-    table += fmt::format("\nnvJPEG not measured: --jpeg-encoder {} chose the CPU.\n", o.jpeg_encoder);
-  }
+  for (std::size_t d = 0; d < devices.size(); ++d) table += Row(DeviceEncoderName(device_kinds[d]), on_device[d]);
+  if (devices.empty()) table += fmt::format("\nNo GPU encoder measured: --jpeg-encoder {}.\n", o.jpeg_encoder);
   Report(o, table);
   return 0;
 }

@@ -90,8 +90,9 @@ int main(int argc, char** argv) {
   j->add_option("--quality", encode.quality, "JPEG quality")->check(CLI::Range(1, 100))->capture_default_str();
   j->add_option("--degrees-per-frame", encode.degrees_per_frame, "Camera orbit speed")->capture_default_str();
   j->add_option("--jpeg-encoder", encode.jpeg_encoder,
-                "auto (nvJPEG beside the CPU where it loads), cpu (the CPU alone) or nvjpeg (refused where it cannot run)")
-      ->check(CLI::IsMember({"auto", "cpu", "nvjpeg"}))
+                "auto (on a GPU: cinevol's coder, and nvJPEG where it loads, beside the CPU), cpu (the CPU alone), "
+                "cuda or nvjpeg (that one beside the CPU; refused where it cannot run)")
+      ->check(CLI::IsMember({"auto", "cpu", "cuda", "nvjpeg"}))
       ->capture_default_str();
   j->callback([&] { cinevol::bench::RunEncodeBench(encode); });
   cinevol::bench::RefineBenchOptions refine;

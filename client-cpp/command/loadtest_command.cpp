@@ -1,14 +1,15 @@
 // `cinevol loadtest --server ADDR --sessions N --seconds S [--script FILE]
-// [--viewers V]`: N concurrent sessions, each playing a script in a loop (by
-// default an orbit with camera events at a fixed rate, as a dragging mouse
-// sends them), for S seconds, each shared with V viewers watching by a link
-// (docs/sharing.md). Reports frames per second, event-to-frame latency, the
+// [--viewers V] [--ramp-seconds R]`: N concurrent sessions (starting evenly
+// over R seconds), each playing a script in a loop (by default an orbit with
+// camera events at a fixed rate, as a dragging mouse sends them), for S
+// seconds, each shared with V viewers watching by a link (docs/sharing.md). Reports frames per second, event-to-frame latency, the
 // server's stage times, bytes, dropped frames, the viewers' frames per second
 // and errors by status code, as a table or JSON.
 #include <fmt/format.h>
 
 #include <algorithm>
 #include <atomic>
+#include <chrono>
 #include <cmath>
 #include <cstdio>
 #include <fstream>
@@ -29,6 +30,7 @@ struct LoadtestOptions {
   ConnectionOptions connection;
   int sessions = 1;
   double seconds = 10;
+  double ramp_seconds = 0;  // sessions start evenly over this long; 0: all at once
   std::string script;  // a session script played in a loop; default: an orbit
   int width = 1280, height = 720, spp = 2;
   std::string denoiser = "wrls";
@@ -296,7 +298,10 @@ int Run(const LoadtestOptions& o) {
   std::vector<SessionResult> results(o.sessions);
   std::vector<std::thread> threads;
   for (int i = 0; i < o.sessions; ++i) {
-    threads.emplace_back([&, i] { results[i] = RunSession(o, client, script, volume, i); });
+    threads.emplace_back([&, i] {
+      std::this_thread::sleep_for(std::chrono::duration<double>(o.ramp_seconds * i / o.sessions));
+      results[i] = RunSession(o, client, script, volume, i);
+    });
   }
   for (std::thread& t : threads) t.join();
   const Summary summary = Summarise(results);
@@ -316,6 +321,10 @@ void AddLoadtestCommand(CLI::App& app) {
   cmd->add_option("--sessions", o->sessions, "Concurrent sessions")->check(CLI::Range(1, 1024))->capture_default_str();
   cmd->add_option("--seconds", o->seconds, "How long each session runs")
       ->check(CLI::Range(0.1, 3600.0))
+      ->capture_default_str();
+  cmd->add_option("--ramp-seconds", o->ramp_seconds,
+                  "Start the sessions evenly over this many seconds, as viewers arrive, not all at once")
+      ->check(CLI::Range(0.0, 3600.0))
       ->capture_default_str();
   cmd->add_option("--script", o->script, "Session script (JSON Lines) each session plays in a loop; default: an orbit");
   cmd->add_option("--width", o->width, "Viewport width (orbit)")->check(CLI::Range(1, 8192))->capture_default_str();

@@ -31,7 +31,17 @@ Backend Resolve(Backend choice, std::string_view what) {
   return cuda ? Backend::kCuda : Backend::kCpu;
 }
 
+GpuWait ParseGpuWait(std::string_view name) {
+  if (name == "auto") return GpuWait::kAuto;
+  if (name == "spin") return GpuWait::kSpin;
+  if (name == "yield") return GpuWait::kYield;
+  if (name == "block") return GpuWait::kBlock;
+  throw InputError(fmt::format("unknown GPU wait '{}': use auto, spin, yield or block", name));
+}
+
 #if !CINEVOL_WITH_CUDA
+void SetGpuWait(int index, GpuWait) { throw InputError(fmt::format("GPU {}: this build has no CUDA backend", index)); }
+
 bool CudaAvailable(std::string* description) {
   if (description) *description = "this build has no CUDA backend (nvcc was not found)";
   return false;

@@ -39,4 +39,17 @@ std::vector<GpuInfo> ListGpus();
 // and used on this thread allocate and run there.
 void UseGpu(int index);
 
+// How a host thread waits for its GPU work (a stream or event sync): kAuto is
+// CUDA's choice (spin while the process has fewer GPU contexts than cores),
+// kSpin burns its core and wakes at once, kYield spins but gives the core to
+// other threads in between, kBlock sleeps until the GPU's interrupt wakes it
+// (tens of microseconds later; no core spent).
+enum class GpuWait { kAuto, kSpin, kYield, kBlock };
+
+// "auto", "spin", "yield" or "block"; throws InputError otherwise.
+GpuWait ParseGpuWait(std::string_view name);
+// Sets how threads wait for GPU `index` (cudaSetDeviceFlags), for the whole
+// process, whether or not its context has started.
+void SetGpuWait(int index, GpuWait wait);
+
 }  // namespace cinevol

@@ -54,4 +54,14 @@ std::vector<GpuInfo> ListGpus() {
 
 void UseGpu(int index) { CINEVOL_CUDA_CHECK(cudaSetDevice(index)); }
 
+void SetGpuWait(int index, GpuWait wait) {
+  constexpr unsigned kFlags[] = {cudaDeviceScheduleAuto, cudaDeviceScheduleSpin, cudaDeviceScheduleYield,
+                                 cudaDeviceScheduleBlockingSync};
+  int current = 0;
+  CINEVOL_CUDA_CHECK(cudaGetDevice(&current));
+  CINEVOL_CUDA_CHECK(cudaSetDevice(index));
+  CINEVOL_CUDA_CHECK(cudaSetDeviceFlags(kFlags[static_cast<int>(wait)]));
+  CINEVOL_CUDA_CHECK(cudaSetDevice(current));
+}
+
 }  // namespace cinevol

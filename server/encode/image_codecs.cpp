@@ -15,6 +15,7 @@
 
 #include "core/error.h"
 #include "core/parallel_for.h"
+#include "encode/libjpeg_errors.h"
 
 namespace fs = std::filesystem;
 
@@ -33,19 +34,6 @@ void CheckImage(const ImageYcc8& image) {
       image.size < YccBytes(image.width, image.height, image.chroma)) {
     throw std::invalid_argument("YCbCr planes do not match their size");
   }
-}
-
-// libjpeg reports errors through a callback that must not return.
-struct JpegError {
-  jpeg_error_mgr mgr;
-  std::jmp_buf jump;
-  char message[JMSG_LENGTH_MAX];
-};
-
-void OnJpegError(j_common_ptr cinfo) {
-  auto* err = reinterpret_cast<JpegError*>(cinfo->err);
-  (*cinfo->err->format_message)(cinfo, err->message);
-  std::longjmp(err->jump, 1);
 }
 
 // One JPEG from `space` input; write_lines(cinfo) feeds the started

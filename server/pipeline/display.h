@@ -100,8 +100,11 @@ class Display {
   // inputs' size as Upsampler::Run does; inputs.radiance is not read.
   virtual ImageYcc8 RunUpsampled(const DisplayInputs& inputs, const Vec3f* source, int width, int height) = 0;
   // The planes Run makes, encoded by `encoder` on the backend's device at
-  // `quality`: only the JPEG leaves it.
+  // `quality`: only the JPEG leaves it. Its bytes are empty where the
+  // encoder gave the frame back: LastPlanes() then has them for the host.
   virtual EncodedJpeg RunJpeg(const DisplayInputs& inputs, DeviceJpegEncoder& encoder, int quality) = 0;
+  // The last Run's or RunJpeg's planes, copied to the host as Run returns them.
+  virtual ImageYcc8 LastPlanes() = 0;
   // The same pixels as 8-bit sRGB (inputs.chroma does not apply), for a
   // frame that goes out losslessly: once per refinement, so not pipelined.
   virtual ImageRgb8 RunRgb(const DisplayInputs& inputs) = 0;
@@ -167,6 +170,14 @@ class DisplayOn final : public Display {
     return {in.width, in.height, encoder.Encode(planes, quality)};
   }
 
+  ImageYcc8 LastPlanes() override {
+    const PlanesLayout& layout = planes_layout_;
+    const std::size_t bytes = planes_.size();
+    const std::shared_ptr<HostBuffer> host = ring_.Next(bytes);
+    planes_.Download(host->data());
+    return {layout.width, layout.height, layout.chroma, std::shared_ptr<const std::uint8_t>(host, host->data()), bytes};
+  }
+
   ImageRgb8 RunRgb(const DisplayInputs& in) override {
     ImageRgb8 image{in.width, in.height, std::vector<std::uint8_t>(std::size_t(in.width) * in.height * 3)};
     planes_.Resize(image.bytes.size());
@@ -200,11 +211,9 @@ class DisplayOn final : public Display {
   template <class P>
   ImageYcc8 Planes(const DisplayInputs& in, const P& pixel) {
     WritePlanes(in, pixel);
-    const std::size_t bytes = planes_.size();
-    const std::shared_ptr<HostBuffer> host = ring_.Next(bytes);
-    planes_.Download(host->data());
-    return {in.width, in.height, in.chroma, std::shared_ptr<const std::uint8_t>(host, host->data()), bytes};
+    return LastPlanes();
   }
+
 
   ToneMap tone_map_;
   using HostBuffer = typename B::template HostBuffer<std::uint8_t>;

@@ -105,11 +105,16 @@ FramePipeline::~FramePipeline() = default;
 void FramePipeline::SetJpegEncoder(JpegEncoderKind kind) {
   device_jpeg_.reset();
   if (kind == JpegEncoderKind::kCpu) return;
-  if (kind != JpegEncoderKind::kNvjpeg) throw std::logic_error("SetJpegEncoder takes ChooseJpegEncoder's choice");
-  if (renderer_->backend() != Backend::kCuda) throw InputError("--jpeg-encoder nvjpeg: frames render on the CPU");
-  const NvjpegLookup& nvjpeg = ProcessNvjpeg();
-  if (!nvjpeg.library) throw InputError("--jpeg-encoder nvjpeg: " + nvjpeg.why_not);
+  if (kind == JpegEncoderKind::kAuto) throw std::logic_error("SetJpegEncoder takes ChooseJpegEncoder's choice");
+  const char* flag = kind == JpegEncoderKind::kCuda ? "--jpeg-encoder cuda" : "--jpeg-encoder nvjpeg";
+  if (renderer_->backend() != Backend::kCuda) throw InputError(std::string(flag) + ": frames render on the CPU");
 #if CINEVOL_WITH_CUDA
+  if (kind == JpegEncoderKind::kCuda) {
+    device_jpeg_ = MakeCudaJpegEncoder();
+    return;
+  }
+  const NvjpegLookup& nvjpeg = ProcessNvjpeg();
+  if (!nvjpeg.library) throw InputError(std::string(flag) + ": " + nvjpeg.why_not);
   device_jpeg_ = MakeNvjpegEncoder(nvjpeg.library);
 #endif
 }
@@ -300,7 +305,6 @@ DisplayFrame FramePipeline::RenderFrame() {
     out.preempted = true;
     return out;
   }
-  out.render_ms = renderer_->LastFrameMilliseconds();
   accumulated_spp_ += spp;
 
   const FrameTargets t = renderer_->Targets();
@@ -349,10 +353,14 @@ DisplayFrame FramePipeline::RenderFrame() {
   } else if (device_jpeg_) {
     out.jpeg = display_->RunJpeg(in, *device_jpeg_, out.jpeg_quality);
     out.encode_ms = device_jpeg_->LastMilliseconds();
+    if (out.jpeg.bytes.empty()) out.image = display_->LastPlanes();  // given back: the host encodes it
   } else {
     out.image = display_->Run(in);
   }
   out.display_ms = MillisecondsSince(display_start) - out.encode_ms;
+  // Read once the frame is done: reading it sooner would wait for the render
+  // before the denoiser's passes are queued behind it.
+  out.render_ms = renderer_->LastFrameMilliseconds();
   cost_.Observe({std::int64_t(camera.width) * camera.height, spp, out.render_ms, out.denoise_ms,
                  out.display_ms - refine_ms, refine_ms});
   return out;

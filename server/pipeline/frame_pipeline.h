@@ -177,10 +177,11 @@ class FramePipeline {
   // specialisation buys.
   void SetRenderFeatures(unsigned features) { render_features_ = features; }
   // kCpu (the default): frames leave the device as planes (DisplayFrame::image)
-  // for the caller to encode. kNvjpeg: frames that would leave as planes are
-  // encoded by nvJPEG on the GPU instead (DisplayFrame::jpeg); takes
-  // ChooseJpegEncoder's choice. Throws InputError where nvJPEG cannot encode
-  // this pipeline's frames; call on the pipeline's thread.
+  // for the caller to encode. kCuda, kNvjpeg: frames that would leave as
+  // planes are encoded on the GPU instead (DisplayFrame::jpeg; the planes
+  // still, where the encoder gives a frame back); takes ChooseJpegEncoder's
+  // choice. Throws InputError where that encoder cannot encode this
+  // pipeline's frames; call on the pipeline's thread.
   void SetJpegEncoder(JpegEncoderKind kind);
 
   int accumulated_spp() const { return accumulated_spp_; }

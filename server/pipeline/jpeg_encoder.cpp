@@ -30,8 +30,9 @@ std::string WhyNoNvjpeg(Backend backend, const NvjpegLookup& nvjpeg) {
 JpegEncoderKind ParseJpegEncoder(std::string_view name) {
   if (name == "auto") return JpegEncoderKind::kAuto;
   if (name == "cpu") return JpegEncoderKind::kCpu;
+  if (name == "cuda") return JpegEncoderKind::kCuda;
   if (name == "nvjpeg") return JpegEncoderKind::kNvjpeg;
-  throw InputError(fmt::format("--jpeg-encoder: '{}' is not auto, cpu or nvjpeg", name));
+  throw InputError(fmt::format("--jpeg-encoder: '{}' is not auto, cpu, cuda or nvjpeg", name));
 }
 
 const char* ToString(JpegEncoderKind kind) {
@@ -40,6 +41,8 @@ const char* ToString(JpegEncoderKind kind) {
       return "auto";
     case JpegEncoderKind::kCpu:
       return "cpu";
+    case JpegEncoderKind::kCuda:
+      return "cuda";
     case JpegEncoderKind::kNvjpeg:
       return "nvjpeg";
   }
@@ -61,18 +64,20 @@ const NvjpegLookup& ProcessNvjpeg() {
 }
 
 JpegEncoderKind ChooseJpegEncoder(JpegEncoderKind requested, Backend backend, const NvjpegLookup& nvjpeg) {
-  if (requested == JpegEncoderKind::kCpu) {
-    spdlog::info("JPEG encoder: cpu (libjpeg-turbo, in bands), as --jpeg-encoder asks");
+  if (requested == JpegEncoderKind::kCpu || (requested == JpegEncoderKind::kAuto && backend != Backend::kCuda)) {
+    spdlog::info("JPEG encoder: cpu (libjpeg-turbo, in bands){}",
+                 requested == JpegEncoderKind::kCpu ? ", as --jpeg-encoder asks" : ": frames render on the CPU");
     return JpegEncoderKind::kCpu;
   }
-  const std::string why_not = WhyNoNvjpeg(backend, nvjpeg);
-  if (why_not.empty()) {
-    spdlog::info("JPEG encoder: nvjpeg ({}) on the GPU that renders each frame", nvjpeg.library->name);
-    return JpegEncoderKind::kNvjpeg;
+  if (requested != JpegEncoderKind::kNvjpeg) {  // auto or cuda
+    if (backend != Backend::kCuda) throw InputError("--jpeg-encoder cuda: frames render on the CPU");
+    spdlog::info("JPEG encoder: cuda (cinevol's coder on the GPU that renders each frame)");
+    return JpegEncoderKind::kCuda;
   }
-  if (requested == JpegEncoderKind::kNvjpeg) throw InputError("--jpeg-encoder nvjpeg: " + why_not);
-  spdlog::info("JPEG encoder: cpu (libjpeg-turbo, in bands): {}", why_not);
-  return JpegEncoderKind::kCpu;
+  const std::string why_not = WhyNoNvjpeg(backend, nvjpeg);
+  if (!why_not.empty()) throw InputError("--jpeg-encoder nvjpeg: " + why_not);
+  spdlog::info("JPEG encoder: nvjpeg ({}) on the GPU that renders each frame", nvjpeg.library->name);
+  return JpegEncoderKind::kNvjpeg;
 }
 
 }  // namespace cinevol

@@ -35,6 +35,7 @@ void Scheduler::Wake(std::shared_ptr<Job> job) {
       case Job::State::kIdle:
         job->state_ = Job::State::kQueued;
         ready_.push_back(std::move(job));
+        NoteQueueLocked();
         break;
       case Job::State::kRunning:
         job->state_ = Job::State::kRunningWoken;
@@ -44,6 +45,23 @@ void Scheduler::Wake(std::shared_ptr<Job> job) {
     }
   }
   cv_.notify_one();
+}
+
+void Scheduler::AddSessionPixels(std::int64_t delta) {
+  std::lock_guard lock(mu_);
+  session_pixels_ += delta;
+}
+
+bool Scheduler::Admits(std::int64_t pixels, double min_fps) const {
+  std::lock_guard lock(mu_);
+  const double rate = meter_.saturated_rate();
+  if (min_fps <= 0 || rate <= 0) return true;
+  return rate / double(session_pixels_ + pixels) >= min_fps;
+}
+
+double Scheduler::saturated_pixel_rate() const {
+  std::lock_guard lock(mu_);
+  return meter_.saturated_rate();
 }
 
 int Scheduler::queued() const {
@@ -74,20 +92,24 @@ void Scheduler::Work() {
       if (stopping_) return;
       job = std::move(ready_.front());
       ready_.pop_front();
+      NoteQueueLocked();
       job->state_ = Job::State::kRunning;
       job->step_pixels_ = job->StepPixels();
       pixels_in_flight_ += job->step_pixels_;
     }
     const auto start = std::chrono::steady_clock::now();
     const bool more = job->Step();
-    busy_ns_ += std::chrono::duration_cast<std::chrono::nanoseconds>(std::chrono::steady_clock::now() - start).count();
+    const auto end = std::chrono::steady_clock::now();
+    busy_ns_ += std::chrono::duration_cast<std::chrono::nanoseconds>(end - start).count();
     {
       std::lock_guard lock(mu_);
+      meter_.StepDone(job->step_pixels_, end);
       pixels_in_flight_ -= job->step_pixels_;
       if (max_pixels_in_flight_ > 0) cv_.notify_all();  // room for steps that waited on the budget
       if (more || job->state_ == Job::State::kRunningWoken) {
         job->state_ = Job::State::kQueued;
         ready_.push_back(std::move(job));
+        NoteQueueLocked();
         cv_.notify_one();
       } else {
         job->state_ = Job::State::kIdle;

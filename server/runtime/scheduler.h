@@ -26,6 +26,8 @@
 #include <thread>
 #include <vector>
 
+#include "runtime/throughput.h"
+
 namespace cinevol::service {
 
 class Job {
@@ -72,9 +74,23 @@ class Scheduler {
   std::atomic<int> sessions{0};
   std::atomic<std::uint64_t> frames_rendered{0};
 
+  // Admission (--min-session-fps). The sessions placed here keep the sum of
+  // the pixels their frames render (viewport x last scale^2) up to date.
+  void AddSessionPixels(std::int64_t delta);
+  // Whether a session whose frames render `pixels` may join without taking
+  // every session here under `min_fps` when all want frames: round-robin
+  // then gives each rate / (their pixels + `pixels`) frames a second, where
+  // rate is what the device rendered while steps waited for it
+  // (ThroughputMeter). Yes while no such rate has been seen, and for min_fps 0.
+  bool Admits(std::int64_t pixels, double min_fps) const;
+  // Pixels a second while saturated; 0 before that was seen.
+  double saturated_pixel_rate() const;
+
  private:
   void Work();
   bool CanStartLocked() const;
+  // Tells the meter whether steps wait in the queue now.
+  void NoteQueueLocked() { meter_.SetWaiting(!ready_.empty(), std::chrono::steady_clock::now()); }
 
   std::string name_;
   std::optional<int> gpu_;
@@ -85,6 +101,8 @@ class Scheduler {
   const std::int64_t max_pixels_in_flight_;
   std::int64_t pixels_in_flight_ = 0;
   std::atomic<std::int64_t> busy_ns_{0};
+  ThroughputMeter meter_;                      // guarded by mu_
+  std::int64_t session_pixels_ = 0;            // likewise
   std::vector<std::thread> workers_;
 };
 

@@ -82,6 +82,7 @@ Session::Session(std::string id, std::string owner, std::shared_ptr<VolumeLease>
 
 Session::~Session() {
   --context_.scheduler->sessions;
+  context_.scheduler->AddSessionPixels(-step_pixels_.load());
   context_.pixels->Exchange(pixels_, 0);
 }
 
@@ -450,7 +451,8 @@ bool Session::CanRenderLocked() const {
 
 void Session::SetStepPixelsLocked(std::uint64_t viewport_pixels, float render_scale) {
   render_scale_ = render_scale;
-  step_pixels_ = std::int64_t(double(viewport_pixels) * render_scale * render_scale);
+  const std::int64_t pixels = std::int64_t(double(viewport_pixels) * render_scale * render_scale);
+  context_.scheduler->AddSessionPixels(pixels - step_pixels_.exchange(pixels));
 }
 
 bool Session::Step() {

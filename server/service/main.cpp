@@ -29,6 +29,10 @@ void AddLimitOptions(CLI::App& app, ServerOptions& o) {
   limit("--max-sessions", o.max_sessions, "Sessions held at once", 1, 100000);
   limit("--max-sessions-per-principal", o.max_sessions_per_principal, "Sessions one principal holds at once", 1,
         100000);
+  limit("--min-session-fps", o.min_session_fps,
+        "On a GPU server, refuse a new session where every session on its GPU would then get fewer frames a second "
+        "than this, by what the GPU was seen to render while busy (0: never)",
+        0.0, 1000.0);
   limit("--max-viewers-per-session", s.max_viewers_per_session, "Streams watching one shared session", 1, 100000);
   limit("--max-viewers-per-grant", s.max_viewers_per_grant, "Of them, streams by one share (a link)", 1, 100000);
   limit("--max-grants-per-principal", o.max_grants_per_principal, "Shares (grants) one principal holds at once", 1,
@@ -110,7 +114,8 @@ struct PacsFlags {
   }
 };
 
-void AddOptions(CLI::App& app, ServerOptions& o, std::string& backend, std::string& jpeg_encoder, PacsFlags& pacs) {
+void AddOptions(CLI::App& app, ServerOptions& o, std::string& backend, std::string& jpeg_encoder, std::string& gpu_wait,
+                PacsFlags& pacs) {
   app.set_config("--config", "", "Read these settings from a TOML/INI file (keys as the long flags)");
   app.add_option("--listen", o.listen, "HOST:PORT to listen on (port 0: any free port)")->capture_default_str();
   app.add_option("--backend", backend, "auto (CUDA when a GPU is usable), cpu or cuda")
@@ -124,6 +129,11 @@ void AddOptions(CLI::App& app, ServerOptions& o, std::string& backend, std::stri
   app.add_option("--workers-per-gpu", o.workers_per_gpu, "Render threads per GPU, each with its own CUDA stream")
       ->check(CLI::Range(1, 64))
       ->capture_default_str();
+  app.add_option("--gpu-wait", gpu_wait,
+                 "How render threads wait for their GPU: yield (spin, but give the core to other threads between "
+                 "checks), auto (CUDA's choice: spinning), spin or block (sleep until the GPU is done)")
+      ->check(CLI::IsMember({"auto", "spin", "yield", "block"}))
+      ->capture_default_str();
   app.add_option("--pixels-in-flight-per-gpu", o.pixels_in_flight_per_gpu,
                  "Pixels the frames rendering at once on a GPU may have together (one frame always may; 0: no "
                  "bound but the workers)")
@@ -134,9 +144,10 @@ void AddOptions(CLI::App& app, ServerOptions& o, std::string& backend, std::stri
       ->check(CLI::Range(0, 256))
       ->capture_default_str();
   app.add_option("--jpeg-encoder", jpeg_encoder,
-                 "Where frames become JPEG: cpu (libjpeg-turbo, in bands), nvjpeg (on the rendering GPU; refused "
-                 "at start where it cannot run) or auto (nvJPEG where libnvjpeg loads, else the CPU)")
-      ->check(CLI::IsMember({"auto", "cpu", "nvjpeg"}))
+                 "Where frames become JPEG: cpu (libjpeg-turbo, in bands), cuda (cinevol's coder on the rendering "
+                 "GPU), nvjpeg (NVIDIA's, on the rendering GPU; refused at start where it cannot run) or auto (cuda "
+                 "on a GPU server, else cpu)")
+      ->check(CLI::IsMember({"auto", "cpu", "cuda", "nvjpeg"}))
       ->capture_default_str();
   app.add_option("--detached-session-seconds", o.detached_session_seconds,
                  "How long a session whose stream ended waits for a new one before it ends")
@@ -193,12 +204,14 @@ int main(int argc, char** argv) {
   CLI::App app{"cinevol-server: remote volumetric path tracing with real-time denoising, over gRPC"};
   ServerOptions options;
   std::string backend = "auto";
-  // The CPU by default: nvJPEG is faster for one session but collapses under
-  // many (docs/performance.md, "JPEG on the GPU").
-  std::string jpeg_encoder = "cpu";
+  // auto: on a GPU server, cinevol's own coder on the GPU that renders each
+  // frame (the host's cores stay free of JPEG under any load); libjpeg-turbo
+  // on a CPU server (docs/performance.md, "JPEG on the GPU").
+  std::string jpeg_encoder = "auto";
+  std::string gpu_wait = "yield";
   bool verbose = false;
   PacsFlags pacs;
-  AddOptions(app, options, backend, jpeg_encoder, pacs);
+  AddOptions(app, options, backend, jpeg_encoder, gpu_wait, pacs);
   app.add_flag("-v,--verbose", verbose, "Log debug detail");
   try {
     app.parse(argc, argv);
@@ -218,6 +231,7 @@ int main(int argc, char** argv) {
   try {
     options.backend = cinevol::ParseBackend(backend);
     options.jpeg_encoder = cinevol::ParseJpegEncoder(jpeg_encoder);
+    options.gpu_wait = cinevol::ParseGpuWait(gpu_wait);
     options.pacs = pacs.Configs();
     cinevol::service::CheckListenPolicy(options.listen, !options.auth_tokens.empty(), options.tls.mutual(),
                                         options.insecure_no_auth);

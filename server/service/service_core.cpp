@@ -204,6 +204,7 @@ ServiceCore::ServiceCore(const ServerOptions& options)
       const bool wanted = options.devices.empty() ||
                           std::find(options.devices.begin(), options.devices.end(), gpu.index) != options.devices.end();
       if (!wanted) continue;
+      SetGpuWait(gpu.index, options.gpu_wait);  // before its workers start
       schedulers_.push_back(std::make_unique<Scheduler>(fmt::format("cuda:{} {}", gpu.index, gpu.name), gpu.index,
                                                         options.workers_per_gpu, options.pixels_in_flight_per_gpu));
     }
@@ -245,10 +246,39 @@ std::string ServiceCore::DeviceSummary() const {
   return fmt::format("{}", fmt::join(names, ", "));
 }
 
-Scheduler& ServiceCore::LeastLoaded() {
-  return **std::min_element(schedulers_.begin(), schedulers_.end(),
-                            [](const auto& a, const auto& b) { return a->sessions < b->sessions; });
+Scheduler* ServiceCore::Admitting(std::int64_t pixels) const {
+  const double min_fps = backend_ == Backend::kCuda ? options_.min_session_fps : 0.0;
+  Scheduler* best = nullptr;
+  for (const auto& s : schedulers_) {
+    if (s->Admits(pixels, min_fps) && (!best || s->sessions < best->sessions)) best = s.get();
+  }
+  return best;
 }
+
+Scheduler& ServiceCore::RequireAdmitting(std::int64_t pixels) const {
+  if (Scheduler* scheduler = Admitting(pixels)) return *scheduler;
+  const Scheduler& first = *schedulers_.front();
+  throw LimitExceeded(grpc::StatusCode::RESOURCE_EXHAUSTED, "min-session-fps",
+                      fmt::format("every GPU is at capacity: another session of {} pixels a frame would take the "
+                                  "sessions there under {} frames a second ({} rendered {:.0f} Mpixels a second "
+                                  "while busy; --min-session-fps)",
+                                  pixels, options_.min_session_fps, first.name(),
+                                  first.saturated_pixel_rate() / 1e6));
+}
+
+namespace {
+
+// The pixels a new session's frames render for admission: its viewport, at
+// the smallest interactive scale where it has an interactive budget (under
+// load it steps down to that).
+std::int64_t AdmissionPixels(const v1::SessionState& state, Backend backend) {
+  const std::int64_t viewport = std::int64_t(state.viewport().width()) * state.viewport().height();
+  if (SessionFrameSettings(backend, state.stream()).interactive_frame_ms <= 0) return viewport;
+  const float smallest = std::end(kInteractiveScales)[-1];
+  return std::int64_t(double(viewport) * smallest * smallest);
+}
+
+}  // namespace
 
 void ServiceCore::RequireServing() const {
   if (draining_) throw RpcError(grpc::StatusCode::UNAVAILABLE, "the server is shutting down");
@@ -303,7 +333,7 @@ v1::CreateSessionResponse ServiceCore::CreateSession(const v1::CreateSessionRequ
   v1::Scene answered = scene;
   AddResolvedCamera(answered, *volume->volume(), volume->labels().get());
   require_caller();
-  Scheduler& scheduler = LeastLoaded();
+  Scheduler& scheduler = RequireAdmitting(AdmissionPixels(state, backend_));
   // The volume reaches the device here, not inside the first frame on a
   // worker that other sessions share.
   std::shared_ptr<const VolumeCopy> prepared = PrepareOnDevice(*volume, scheduler);
@@ -432,7 +462,10 @@ bool ServiceCore::HasRoomForSession() const {
   return HasRoomLocked();
 }
 
-bool ServiceCore::HasRoomLocked() const { return !draining_ && int(sessions_.size()) < options_.max_sessions; }
+bool ServiceCore::HasRoomLocked() const {
+  constexpr std::int64_t kReadinessPixels = 1280 * 720;  // the session readiness vouches for
+  return !draining_ && int(sessions_.size()) < options_.max_sessions && Admitting(kReadinessPixels) != nullptr;
+}
 
 void ServiceCore::Forget(const std::string& id) {
   sharing_.SessionEnded(id);

@@ -45,6 +45,9 @@ struct ServerOptions {
   std::vector<std::filesystem::path> data_roots;  // where clients may load volumes from
   std::vector<std::string> volumes;               // preloaded; empty: phantom:head
   int workers_per_gpu = 16;                       // each its own CUDA stream
+  // How workers wait for their GPU (device/device.h): yield measured best
+  // with one session and with 128 (docs/performance.md, issue 61).
+  GpuWait gpu_wait = GpuWait::kYield;
   // Frames rendering at once on a GPU render at most this many pixels
   // together: four 720p frames, or sixteen interactive ones at half size.
   std::int64_t pixels_in_flight_per_gpu = 4 * 1280 * 720;
@@ -54,6 +57,11 @@ struct ServerOptions {
   JpegEncoderKind jpeg_encoder = JpegEncoderKind::kAuto;  // --jpeg-encoder: nvJPEG on the GPU where it loads
   int max_sessions = 64;
   int max_sessions_per_principal = 16;
+  // [0; 1000] frames a second every session on a GPU must keep when another
+  // joins: a new session is refused (RESOURCE_EXHAUSTED) where, by the pixels
+  // a second that GPU was seen to render while busy, round-robin would give
+  // each fewer (Scheduler::Admits). 0: no such check. CPU servers never check.
+  double min_session_fps = 30;
   int max_grants_per_principal = 32;  // shares a principal has made and not revoked (docs/sharing.md)
   std::uint64_t max_total_pixels = 40'000'000;  // viewport pixels of every session together
   VolumeLimits volume_limits;
@@ -167,7 +175,9 @@ class ServiceCore {
   // ends with a notice, frames and stills in flight are cancelled.
   void Drain();
   bool draining() const { return draining_; }
-  // Whether CreateSession would find room for one more session (readiness).
+  // Whether CreateSession would find room for one more session (readiness):
+  // within --max-sessions, not draining, and on a GPU server a GPU that
+  // admits a full-size 720p session (--min-session-fps).
   bool HasRoomForSession() const;
   // Throws UNAVAILABLE while draining.
   void RequireServing() const;
@@ -178,7 +188,11 @@ class ServiceCore {
   void RequireRoomLocked(const Principal& caller) const;
   // Environment maps a scene names: resolved inside the data roots.
   MapResolver ResolveMap() const;
-  Scheduler& LeastLoaded();
+  // The least loaded device that admits a session rendering `pixels` a frame
+  // (--min-session-fps); null where none does.
+  Scheduler* Admitting(std::int64_t pixels) const;
+  // The same, throwing LimitExceeded (naming the flag) where none does.
+  Scheduler& RequireAdmitting(std::int64_t pixels) const;
   // `done`, after the still is stored as request.store_to asks (on the PACS
   // pool). Throws at once when it cannot be: an unknown PACS, a volume that
   // did not come from one.

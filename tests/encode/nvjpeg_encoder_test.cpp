@@ -1,5 +1,5 @@
-// nvJPEG, loaded at run time: a missing or wrong library is reported and the
-// CPU encodes instead, a request for nvJPEG that cannot run is refused naming
+// nvJPEG, loaded at run time: a missing or wrong library is reported, "auto"
+// needs none of it, a request for nvJPEG that cannot run is refused naming
 // why, and on a GPU with nvJPEG a rendered frame's JPEG decodes like the CPU's.
 #include <gtest/gtest.h>
 
@@ -60,8 +60,8 @@ TEST(JpegEncoderChoice, ParsesTheFlag) {
   EXPECT_THROW(ParseJpegEncoder("gpu"), InputError);
 }
 
-TEST(JpegEncoderChoice, AutoEncodesOnTheCpuWithoutNvjpeg) {
-  EXPECT_EQ(ChooseJpegEncoder(JpegEncoderKind::kAuto, Backend::kCuda, kMissing), JpegEncoderKind::kCpu);
+TEST(JpegEncoderChoice, AutoTakesTheGpusOwnCoderWithoutNvjpeg) {
+  EXPECT_EQ(ChooseJpegEncoder(JpegEncoderKind::kAuto, Backend::kCuda, kMissing), JpegEncoderKind::kCuda);
   EXPECT_EQ(ChooseJpegEncoder(JpegEncoderKind::kAuto, Backend::kCpu, kMissing), JpegEncoderKind::kCpu);
   EXPECT_EQ(ChooseJpegEncoder(JpegEncoderKind::kCpu, Backend::kCuda, kMissing), JpegEncoderKind::kCpu);
   // This machine's own search, whatever it finds, never throws; without a

@@ -1,5 +1,7 @@
 // Scheduler: steps start while the pixels of the steps running stay within
 // the budget, one step always may, and without a budget the workers bound.
+// Its throughput counts only windows in which steps waited for the device,
+// and admission divides it among the sessions' pixels.
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -77,6 +79,65 @@ TEST(Scheduler, AStepLargerThanTheBudgetRunsAlone) {
 
 TEST(Scheduler, WithoutABudgetTheWorkersBound) {
   EXPECT_GT(MostInFlight(std::vector<std::int64_t>(8, 100), 0), 400);
+}
+
+using Clock = ThroughputMeter::Clock;
+
+TEST(ThroughputMeter, CountsOnlyWindowsInWhichStepsWaited) {
+  const Clock::time_point t0{};
+  ThroughputMeter meter({.window = 1000ms, .saturated_share = 0.9}, t0);
+  meter.StepDone(500, t0 + 500ms);
+  meter.StepDone(500, t0 + 1000ms);
+  EXPECT_EQ(meter.saturated_rate(), 0.0) << "nothing waited: the device was not the limit";
+  meter.SetWaiting(true, t0 + 1000ms);
+  meter.StepDone(3000, t0 + 1500ms);
+  meter.StepDone(3000, t0 + 2000ms);
+  EXPECT_DOUBLE_EQ(meter.saturated_rate(), 6000.0) << "pixels a second of a window spent waiting";
+  meter.SetWaiting(false, t0 + 2500ms);
+  meter.StepDone(100, t0 + 3000ms);
+  EXPECT_DOUBLE_EQ(meter.saturated_rate(), 6000.0) << "half a window waiting keeps the last saturated rate";
+}
+
+// A job whose steps take 2 ms each, for ever, until stopped.
+class BusyFrame final : public Job {
+ public:
+  explicit BusyFrame(std::int64_t pixels) : pixels_(pixels) {}
+  std::int64_t StepPixels() const override { return pixels_; }
+  bool Step() override {
+    std::this_thread::sleep_for(2ms);
+    return !stop;
+  }
+  std::atomic<bool> stop{false};
+
+ private:
+  const std::int64_t pixels_;
+};
+
+TEST(Scheduler, AdmitsWhileEverySessionKeepsTheFrameRate) {
+  Scheduler scheduler("test", std::nullopt, 1, 0);
+  EXPECT_TRUE(scheduler.Admits(1000, 30)) << "no saturated rate seen yet";
+  // One worker, four jobs of 1000 pixels: 500 steps a second, 500,000 pixels a second.
+  std::vector<std::shared_ptr<BusyFrame>> jobs;
+  for (int i = 0; i < 4; ++i) {
+    jobs.push_back(std::make_shared<BusyFrame>(1000));
+    scheduler.AddSessionPixels(1000);
+    scheduler.Wake(jobs.back());
+  }
+  const auto deadline = std::chrono::steady_clock::now() + 10s;
+  while (scheduler.saturated_pixel_rate() == 0 && std::chrono::steady_clock::now() < deadline) {
+    std::this_thread::sleep_for(10ms);
+  }
+  for (auto& job : jobs) job->stop = true;
+  const double rate = scheduler.saturated_pixel_rate();
+  ASSERT_GT(rate, 0) << "four jobs waiting for one worker saturate it";
+  EXPECT_LT(rate, 510000.0);
+  // The four sessions get rate / 4000 frames a second each; a fifth of 1000 pixels makes it rate / 5000.
+  const double fifth = rate / 5000.0;
+  EXPECT_TRUE(scheduler.Admits(1000, 0.9 * fifth));
+  EXPECT_FALSE(scheduler.Admits(1000, 1.1 * fifth));
+  EXPECT_TRUE(scheduler.Admits(1000, 0)) << "0: no check";
+  scheduler.AddSessionPixels(-4000);
+  EXPECT_TRUE(scheduler.Admits(1000, 1.1 * fifth)) << "the sessions ended";
 }
 
 }  // namespace

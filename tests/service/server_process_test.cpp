@@ -128,7 +128,8 @@ TEST(CinevolServer, RefusesBadSettingsWithAMessage) {
 }
 
 // On the CPU backend nvJPEG cannot run, library or not (CI has neither a GPU
-// nor libnvjpeg: there the message names the missing library).
+// nor libnvjpeg: there the message names the missing library), nor can the
+// GPU's own coder.
 TEST(CinevolServer, RefusesNvjpegWhereItCannotRunNamingWhy) {
   ScratchDir scratch;
   auto [code, out] =
@@ -141,6 +142,11 @@ TEST(CinevolServer, RefusesNvjpegWhereItCannotRunNamingWhy) {
   std::tie(code, out) = RunServer(scratch, {"--jpeg-encoder", "gpu", "--backend", "cpu"});
   EXPECT_NE(code, 0) << out;
   EXPECT_NE(out.find("--jpeg-encoder"), std::string::npos) << out;
+  // The GPU's own coder needs frames rendered on a GPU too.
+  std::tie(code, out) =
+      RunServer(scratch, {"--jpeg-encoder", "cuda", "--volume", "phantom:cube?size=8", "--backend", "cpu"});
+  EXPECT_EQ(code, 2) << out;
+  EXPECT_NE(out.find("--jpeg-encoder cuda: frames render on the CPU"), std::string::npos) << out;
 }
 
 TEST(CinevolServer, StopsInOrderOnSigtermWithAStreamOpen) {

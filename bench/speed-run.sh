@@ -1,0 +1,177 @@
+#!/usr/bin/env bash
+# Issue 61's measurements on the GPU machine, each step's builds alternating
+# in one call: the bundle of bench/make-speed-bundle.sh holds this build
+# (bin/) and the one before (bin-before/), both with their libraries.
+#   BUNDLE=.gpu61 STEPS="tests encode pair sweep big admission" bash run.sh
+# Steps (each writes logs to $OUT and rows to $OUT/table.md, printed last):
+#   tests      the GPU tests of this build (TESTS: a gtest filter)
+#   encode     cinevol-bench encode: every JPEG encoder on the same frames
+#   pair       loadtests of both builds, alternating: PAIR_SESSIONS (1 32 64) at 1280x720
+#   sweep      this build's loadtest over SWEEP (1 8 16 32 48 64 96 128) sessions,
+#              full size and (SWEEP_INTERACTIVE) with --interactive-frame-ms 33
+#   big        one 3840x2160 and one 2560x1440 session, both builds alternating, BIG_RUNS (2) times
+#   admission  --min-session-fps 30, ADMIT_SESSIONS (64) arriving over RAMP (8) seconds, each
+#              running ADMIT_SECONDS (SECONDS_PER_RUN): the
+#              sessions past capacity refused, the rest at >= 30 fps
+#   cpujpeg    this build with --jpeg-encoder cpu, CPUJPEG_SESSIONS (1 64)
+#   wait       this build with --gpu-wait in WAITS (auto block yield): WAIT_SESSIONS (1 128) full
+#              size, WAIT_INTERACTIVE (128) with --interactive-frame-ms 33
+#   memory     the device memory per added 720p session (VolumeCache test)
+# SECONDS_PER_RUN (8) is each loadtest's length. Every session of a loadtest
+# shares one connection: servers allow 1024 streams on it (128 by default, which
+# 128 sessions' streams fill, and their closing calls then wait for a stream). This build's servers run with
+# --min-session-fps 0 (MIN_FPS) but in the admission step, SERVER_EXTRA adds flags.
+set -uo pipefail
+bundle=${BUNDLE:-.gpu61}
+out=${OUT:-gpu-out}
+cv=/tmp/cv
+logs=$cv/logs  # every run's logs, packed into $out/logs.tar.xz at the end (few files come back)
+mkdir -p "$out" "$cv" "$logs"
+[ -x "$cv/bin/cinevol-server" ] || tar xJf "$bundle/bundle.tar.xz" -C "$cv"
+export LD_LIBRARY_PATH=$cv/lib
+volume=$cv/data/ct-head-cthead/DERIVED_CThead.nhdr
+scene=$cv/scenes/ct-head-cthead.json
+seconds=${SECONDS_PER_RUN:-8}
+table=$out/table.md
+export CINEVOL_SERVER=$cv/bin/cinevol-server CINEVOL_CLI=$cv/bin/cinevol
+
+gpu_name() { nvidia-smi --query-gpu=name --format=csv,noheader | head -1; }
+
+# CPU seconds (user + system) a process has used so far.
+cpu_seconds() { awk '{printf "%.2f", ($14 + $15) / 100}' "/proc/$1/stat" 2>/dev/null || echo 0; }
+
+# loadtest LABEL BUILD SESSIONS WIDTH HEIGHT [LOADTEST FLAGS...]: a fresh server
+# of BUILD (bin or bin-before) on CThead, SESSIONS orbiting sessions; one row.
+loadtest() {
+  local label=$1 build=$2 n=$3 w=$4 h=$5
+  shift 5
+  local tag="$label-$build-$n-${w}x$h" port_file=$cv/port-$RANDOM extra=${SERVER_EXTRA:-}
+  # Admission off unless MIN_FPS asks (the build before has no such flag).
+  [ "$build" = bin ] && extra="--min-session-fps ${MIN_FPS:-0} $extra"
+  "$cv/$build/cinevol-server" --listen 127.0.0.1:0 --port-file "$port_file" --backend cuda --volume "$volume" \
+    --max-sessions 256 --max-sessions-per-principal 256 --max-total-pixels 2000000000 \
+    --max-streams-per-connection 1024 $extra \
+    > "$logs/server-$tag.log" 2>&1 &
+  local server=$!
+  for _ in $(seq 300); do [ -s "$port_file" ] && break; sleep 0.1; done
+  nvidia-smi --query-gpu=utilization.gpu,memory.used --format=csv,noheader,nounits -lms 250 > "$logs/smi-$tag.txt" &
+  local smi=$! cpu0
+  cpu0=$(cpu_seconds $server)
+  local start=$SECONDS
+  "$cv/bin/cinevol" loadtest --server "127.0.0.1:$(cat "$port_file")" --sessions "$n" --seconds "$seconds" \
+    --width "$w" --height "$h" --spp 2 --denoiser wrls --scene "$scene" --json "$@" > "$logs/loadtest-$tag.json" \
+    2> "$logs/loadtest-$tag.err"
+  local rc=$? elapsed=$((SECONDS - start)) cpu1
+  cpu1=$(cpu_seconds $server)
+  kill $smi
+  kill -TERM $server
+  wait $server
+  python3 - "$logs/loadtest-$tag.json" "$logs/smi-$tag.txt" "$label" "$build" "$w" "$h" "$cpu0" "$cpu1" "$elapsed" \
+    "$rc" >> "$table" <<'EOF'
+import json, sys
+path, smi, label, build, w, h, cpu0, cpu1, elapsed, rc = sys.argv[1:]
+try:
+    r = json.load(open(path))
+except Exception as e:
+    print(f"| {label} | {build} | ? | {w}x{h} | loadtest failed (rc {rc}): {e} |"); sys.exit()
+o = r["overall"]; s = o["stage_ms"]
+# Sessions that streamed (an error at the end, e.g. a close past its deadline,
+# does not undo their frames); refused ones count apart.
+served = [p for p in r["per_session"] if p["frames"] > 0]
+fps = [p["fps"] for p in served]
+util = [l.split(",") for l in open(smi) if l.strip()]
+busy = [float(u) for u, m in util if float(u) > 0]
+mem = max((float(m) for u, m in util), default=0)
+errors = ", ".join(f"{k} {v}" for k, v in o["errors"].items()) or "-"
+cores = (float(cpu1) - float(cpu0)) / max(float(elapsed), 1)
+each = f"{sum(fps)/len(fps):.1f} ({min(fps):.1f})" if fps else "-"
+print(f"| {label} | {build} | {len(r['per_session'])} ({len(served)} served) | {w}x{h} | {each} "
+      f"| {sum(fps):.0f} | {o['latency_ms']['p50']:.1f} / {o['latency_ms']['p95']:.1f} | render {s['render']:.2f}, "
+      f"denoise {s['denoise']:.2f}, display {s['tonemap']:.2f}, encode {s['encode']:.2f}, queue {s['queue']:.2f} "
+      f"| {sum(busy)/max(len(busy),1):.0f}% | {mem:.0f} | {cores:.1f} | {o['dropped']} | {errors} |")
+EOF
+  echo "loadtest $tag rc=$rc"
+}
+
+table_header() {
+  { echo; echo "### $1 ($(gpu_name), $(date -u +%F))"; echo
+    echo "| run | build | sessions | size | fps each (min) | frames/s | p50 / p95 ms | stages ms | GPU busy | GPU MiB | server cores | dropped | errors |"
+    echo "|---|---|---|---|---|---|---|---|---|---|---|---|---|"; } >> "$table"
+}
+
+step_tests() {
+  "$cv/bin/cinevol_tests" --gtest_filter="${TESTS:-*Cuda*:*Nvjpeg*:*JpegIntervals*:FramePipeline.*:VolumeCache.*}" \
+    > "$logs/gpu-tests.log" 2>&1
+  echo "tests rc=$?: $(grep -E '^\[  (PASSED|FAILED) ' "$logs/gpu-tests.log" | tr '\n' ' ')" | tee -a "$table"
+  grep -E '^\[  FAILED  \]' "$logs/gpu-tests.log" | head -20 >> "$table"
+}
+
+step_encode() {
+  for build in bin bin-before; do
+    "$cv/$build/cinevol-bench" encode --scene "$scene" --volume "$volume" --backend cuda \
+      --jpeg-encoder "${JPEG_ENCODER:-auto}" --frames 100 --warmup 10 --out "$logs/encode-$build.md" \
+      > "$logs/encode-$build.log" 2>&1
+    echo "encode bench $build rc=$?"
+  done
+  cat "$logs/encode-bin.md" >> "$table"
+}
+
+step_pair() {
+  table_header "Both builds alternating, 1280x720"
+  for n in ${PAIR_SESSIONS:-1 32 64}; do
+    for build in bin-before bin; do loadtest pair "$build" "$n" 1280 720; done
+  done
+}
+
+step_sweep() {
+  table_header "Sessions added, this build, 1280x720"
+  for n in ${SWEEP:-1 8 16 32 48 64 96 128}; do loadtest sweep bin "$n" 1280 720; done
+  for n in ${SWEEP_INTERACTIVE:-64 128}; do loadtest interactive33 bin "$n" 1280 720 --interactive-frame-ms 33; done
+}
+
+step_big() {
+  table_header "One large session, both builds alternating"
+  for run in $(seq "${BIG_RUNS:-2}"); do
+    for build in bin-before bin; do
+      loadtest big "$build" 1 3840 2160
+      loadtest big "$build" 1 2560 1440
+    done
+  done
+}
+
+step_admission() {
+  table_header "Admission (--min-session-fps 30): sessions arriving over ${RAMP:-8} s, each ${ADMIT_SECONDS:-$seconds} s"
+  local saved=$seconds
+  seconds=${ADMIT_SECONDS:-$seconds}
+  MIN_FPS=30 loadtest admission bin "${ADMIT_SESSIONS:-64}" 1280 720 --ramp-seconds "${RAMP:-8}"
+  seconds=$saved
+}
+
+step_cpujpeg() {
+  table_header "This build with the CPU's JPEG encoder"
+  for n in ${CPUJPEG_SESSIONS:-1 64}; do
+    SERVER_EXTRA="${SERVER_EXTRA:-} --jpeg-encoder cpu" loadtest cpu-jpeg bin "$n" 1280 720
+  done
+}
+
+step_wait() {
+  table_header "How render threads wait for the GPU (--gpu-wait), this build"
+  for wait in ${WAITS:-auto block yield}; do
+    local saved=${SERVER_EXTRA:-}
+    SERVER_EXTRA="$saved --gpu-wait $wait"
+    for n in ${WAIT_SESSIONS:-1 128}; do loadtest "wait-$wait" bin "$n" 1280 720; done
+    for n in ${WAIT_INTERACTIVE:-128}; do loadtest "wait-$wait-i33" bin "$n" 1280 720 --interactive-frame-ms 33; done
+    SERVER_EXTRA=$saved
+  done
+}
+
+step_memory() {
+  "$cv/bin/cinevol_tests" --gtest_filter='VolumeCache.PrintsTheDeviceMemoryOfA720pSession' > "$logs/memory.log" 2>&1
+  { echo; echo "Device memory ($(gpu_name)):"; grep -iE 'MiB|session' "$logs/memory.log" | head -12; } >> "$table"
+}
+
+nvidia-smi --query-gpu=name,memory.total,driver_version --format=csv,noheader | tee "$out/gpu.txt"
+for step in ${STEPS:-tests encode pair}; do "step_$step"; done
+# Only a few files come back: the logs travel in one archive.
+tar -C "$logs" -cJf "$out/logs.tar.xz" . 2> /dev/null
+cat "$table"
