@@ -38,6 +38,55 @@ ImageRgb8 Shrink(const ImageRgb8& image, int width) {
   return out;
 }
 
+// A 3x5 pixel font for the captions: the rows of each glyph, three bits each
+// (the high bit leftmost), for the few characters a caption holds.
+struct Glyph {
+  char c;
+  std::uint8_t rows[5];
+};
+constexpr Glyph kGlyphs[] = {
+    {'0', {7, 5, 5, 5, 7}}, {'1', {2, 6, 2, 2, 7}}, {'2', {7, 1, 7, 4, 7}}, {'3', {7, 1, 7, 1, 7}},
+    {'4', {5, 5, 7, 1, 1}}, {'5', {7, 4, 7, 1, 7}}, {'6', {7, 4, 7, 5, 7}}, {'7', {7, 1, 1, 1, 1}},
+    {'8', {7, 5, 7, 5, 7}}, {'9', {7, 5, 7, 1, 7}}, {'.', {0, 0, 0, 0, 2}}, {'s', {0, 3, 6, 1, 6}},
+    {'p', {0, 6, 5, 6, 4}}, {' ', {0, 0, 0, 0, 0}}};
+constexpr int kGlyphScale = 2;  // screen pixels a font pixel
+
+// Writes `text` in white on a dark band at the bottom left of `image`.
+void Caption(ImageRgb8& image, const std::string& text) {
+  const int advance = 4 * kGlyphScale, height = 5 * kGlyphScale, pad = kGlyphScale;
+  const int band_h = std::min(image.height, height + 2 * pad);
+  const int band_w = std::min(image.width, int(text.size()) * advance + 2 * pad);
+  auto set = [&](int x, int y, std::uint8_t v) {
+    if (x < 0 || y < 0 || x >= image.width || y >= image.height) return;
+    std::uint8_t* p = &image.bytes[(std::size_t(y) * image.width + x) * 3];
+    p[0] = p[1] = p[2] = v;
+  };
+  const int top = image.height - band_h;
+  for (int y = top; y < image.height; ++y) {
+    for (int x = 0; x < band_w; ++x) set(x, y, 0);
+  }
+  for (std::size_t i = 0; i < text.size(); ++i) {
+    const Glyph* glyph = std::find_if(std::begin(kGlyphs), std::end(kGlyphs), [&](const Glyph& g) { return g.c == text[i]; });
+    if (glyph == std::end(kGlyphs)) continue;
+    for (int row = 0; row < 5; ++row) {
+      for (int col = 0; col < 3; ++col) {
+        if (!(glyph->rows[row] & (4 >> col))) continue;
+        for (int dy = 0; dy < kGlyphScale; ++dy) {
+          for (int dx = 0; dx < kGlyphScale; ++dx) {
+            set(pad + int(i) * advance + col * kGlyphScale + dx, top + pad + row * kGlyphScale + dy, 255);
+          }
+        }
+      }
+    }
+  }
+}
+
+// A frame's image, JPEG or PNG.
+ImageRgb8 DecodeFrameFile(const std::filesystem::path& path) {
+  const std::vector<std::uint8_t> bytes = ReadBytes(path);
+  return path.extension() == ".png" ? DecodePng(bytes) : DecodeJpeg(bytes);
+}
+
 }  // namespace
 
 FrameRecorder::FrameRecorder(const std::filesystem::path& folder, double max_per_second)
@@ -57,7 +106,7 @@ void FrameRecorder::Add(const ReceivedFrame& r) {
     const std::filesystem::path path =
         frames_dir_ / fmt::format("frame-{:06}.{}", f.frame_id(), f.has_png() ? "png" : "jpg");
     WriteFile(path, std::vector<std::uint8_t>(EncodedImage(f).begin(), EncodedImage(f).end()));
-    written_.push_back(path);
+    written_.push_back({path, r.at, int(f.accumulated_spp())});
     file = path.filename().string();
   }
   const auto& t = f.timings();
@@ -67,14 +116,15 @@ void FrameRecorder::Add(const ReceivedFrame& r) {
                       r.latency_ms > 0 ? fmt::format("{:.3f}", r.latency_ms) : std::string(), file);
 }
 
-void WriteContactSheet(const std::vector<std::filesystem::path>& frames, const std::filesystem::path& out, int count,
+void WriteContactSheet(const std::vector<WrittenFrame>& frames, const std::filesystem::path& out, int count,
                        int columns, int thumb_width) {
   if (frames.empty()) throw InputError("no frames for a contact sheet");
   const int n = std::min<int>(count, static_cast<int>(frames.size()));
   std::vector<ImageRgb8> thumbs;
   for (int i = 0; i < n; ++i) {
-    const std::size_t pick = n == 1 ? frames.size() - 1 : std::size_t(i) * (frames.size() - 1) / (n - 1);
-    thumbs.push_back(Shrink(DecodeJpeg(ReadBytes(frames[pick])), thumb_width));
+    const WrittenFrame& frame = frames[n == 1 ? frames.size() - 1 : std::size_t(i) * (frames.size() - 1) / (n - 1)];
+    thumbs.push_back(Shrink(DecodeFrameFile(frame.path), thumb_width));
+    Caption(thumbs.back(), fmt::format("{:.1f} s {} spp", frame.at, frame.accumulated_spp));
   }
   constexpr int kGap = 4;
   const int cols = std::min(columns, n), rows = (n + cols - 1) / cols;

@@ -13,6 +13,14 @@
 
 namespace cinevol::cli {
 
+// A frame written to disk: where, when it came (seconds into the run) and
+// the samples per pixel behind it.
+struct WrittenFrame {
+  std::filesystem::path path;
+  double at = 0;
+  int accumulated_spp = 0;
+};
+
 class FrameRecorder {
  public:
   // Frames go to `folder`/frames/, the CSV to `folder`/frames.csv.
@@ -21,7 +29,7 @@ class FrameRecorder {
 
   void Add(const ReceivedFrame& received);
 
-  const std::vector<std::filesystem::path>& written() const { return written_; }
+  const std::vector<WrittenFrame>& written() const { return written_; }
   const std::filesystem::path& csv_path() const { return csv_path_; }
 
  private:
@@ -29,12 +37,13 @@ class FrameRecorder {
   std::ofstream csv_;
   double max_per_second_;
   double next_write_at_ = 0;
-  std::vector<std::filesystem::path> written_;
+  std::vector<WrittenFrame> written_;
 };
 
 // Up to `count` frames from `frames`, evenly spaced, shrunk to `thumb_width`
-// pixels wide and laid out `columns` to a row, as a PNG at `out`.
-void WriteContactSheet(const std::vector<std::filesystem::path>& frames, const std::filesystem::path& out,
-                       int count = 16, int columns = 4, int thumb_width = 240);
+// pixels wide and laid out `columns` to a row, each captioned with its time
+// and samples per pixel ("12.3 s 64 spp"), as a PNG at `out`.
+void WriteContactSheet(const std::vector<WrittenFrame>& frames, const std::filesystem::path& out, int count = 16,
+                       int columns = 4, int thumb_width = 320);
 
 }  // namespace cinevol::cli

@@ -47,7 +47,8 @@ TEST(CinevolCli, DemoRunsThroughARealServer) {
   EXPECT_NE(output.find("fps"), std::string::npos) << "progress and summary";
   EXPECT_NE(output.find("latency p50/p95/p99"), std::string::npos) << output;
   EXPECT_NE(output.find("refined to "), std::string::npos) << output;
-  EXPECT_NE(output.find("% estimated error or 128 spp"), std::string::npos) << output;
+  EXPECT_NE(output.find("% estimated error or 64 spp"), std::string::npos) << "a CPU refines to 64: " << output;
+  EXPECT_NE(output.find("example_ct.nii.gz"), std::string::npos) << "the shared data's CT, not the phantom: " << output;
   const ImageRgb8 sheet = ReadPng(out / "contact-sheet.png");
   EXPECT_GT(sheet.width, 400);
   int frames = 0;

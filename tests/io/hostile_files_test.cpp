@@ -175,6 +175,28 @@ TEST(HostileFiles, InsideRootsLoadsADetachedPairInside) {
   }
 }
 
+// A file that states no orientation says so in a note naming what was
+// assumed; one that states its space does not.
+TEST(HostileFiles, AnOrientationAssumedIsNoted) {
+  Layout l;
+  const std::string voxels(8, '\1');
+  WriteBytes(l.root / "plain.nrrd", "NRRD0004\ntype: uchar\ndimension: 3\nsizes: 2 2 2\nencoding: raw\n\n" + voxels);
+  WriteBytes(l.root / "placed.nrrd",
+             "NRRD0004\ntype: uchar\ndimension: 3\nsizes: 2 2 2\nspace: left-posterior-superior\n"
+             "space directions: (1,0,0) (0,1,0) (0,0,1)\nencoding: raw\n\n" + voxels);
+  WriteBytes(l.root / "plain.nii", Nifti("n+1", std::string(128, '\0')));
+  auto noted = [&](const char* name) {
+    const Volume v = LoadVolumeFile(l.root / name, InsideRoots(l.root));
+    for (const std::string& note : v.metadata().notes) {
+      if (Has(note, "the file states no orientation")) return note;
+    }
+    return std::string();
+  };
+  EXPECT_TRUE(Has(noted("plain.nrrd"), "taken as LPS")) << noted("plain.nrrd");
+  EXPECT_EQ(noted("placed.nrrd"), "");
+  EXPECT_TRUE(Has(noted("plain.nii"), "taken as LPS")) << "NIfTI without qform or sform: " << noted("plain.nii");
+}
+
 // A NIfTI-1 pair: the header in .hdr (348 bytes), the 4x4x4 int16 voxels in
 // the .img from its vox_offset 0. Either name loads it, whole.
 TEST(HostileFiles, InsideRootsLoadsANiftiPair) {

@@ -268,12 +268,30 @@ class ItkVolumeRead final : public reader::VolumeRead {
       for (unsigned r = 0; r < n && r < axis.size(); ++r) direction[3 * r + c] = axis[r];
     }
     SetGeometry(header_, dims, spacing, origin, direction);
+    if (!StatesOrientation()) {
+      std::array<double, 9> held;
+      std::copy(header_.direction().begin(), header_.direction().end(), held.begin());
+      header_.add_notes(fmt::format("the file states no orientation: its index axes are taken as {} (--orientation "
+                                    "gives the true one)",
+                                    OrientationCode(held)));
+    }
     header_.set_voxel_type(VoxelTypeOf(io_->GetComponentType()));
     // The type as stored in the file: NIfTI's datatype where ITK converts.
     const std::string stored = nifti::StoredType(*io_);
     header_.set_original_type(stored.empty() ? ComponentName(io_->GetComponentType()) : stored);
     header_.set_modality(format_ == Format::kMetaImage ? metaimage::Modality(*io_) : "");
     if (header_.modality() == "CT") header_.set_value_unit("HU");
+  }
+
+  // Whether the file says where its axes point; where not, the direction the
+  // reader gives is an assumption, which the header notes.
+  bool StatesOrientation() const {
+    switch (format_) {
+      case Format::kNifti: return nifti::StatesOrientation(path_);
+      case Format::kNrrd: return nrrd::StatesOrientation(path_, shown_);
+      case Format::kMetaImage: return metaimage::StatesOrientation(path_, shown_);
+      default: return false;  // VTK legacy structured points have no orientation
+    }
   }
 
   void Read(void* memory, std::size_t bytes) override {

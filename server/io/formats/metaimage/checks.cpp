@@ -56,6 +56,22 @@ Fields ReadFields(const fs::path& path, const std::string& shown) {
   return h;
 }
 
+}  // namespace
+
+bool StatesOrientation(const fs::path& path, const std::string& shown) {
+  const std::string head = file_checks::ReadHead(path, kMaxHeaderBytes, shown);
+  for (const std::string& line : Lines(head)) {
+    const std::size_t eq = line.find('=');
+    if (eq == std::string::npos) continue;
+    const std::string key = TrimBlanks(line.substr(0, eq));
+    if (key == "TransformMatrix" || key == "Orientation" || key == "Rotation") return true;
+    if (key == "ElementDataFile") break;
+  }
+  return false;
+}
+
+namespace {
+
 // MetaIO's own reading of a header's fields (CompressedDataSize has no
 // accessor: a pointer to the protected member, named through a derived class).
 struct MetaFields : MetaImage {

@@ -18,6 +18,10 @@ namespace cinevol::formats::metaimage {
 // 255 characters between separators, an NDims outside 1 to 10.
 void CheckHeaderText(const std::filesystem::path& path, const std::string& shown);
 
+// Whether the header states where its axes point (TransformMatrix,
+// Orientation or Rotation); without one, MetaIO assumes the identity.
+bool StatesOrientation(const std::filesystem::path& path, const std::string& shown);
+
 // The text of a header whose ElementDataFile names where the cage placed the
 // files (`named`, in the header's order): a single file, or a LIST.
 std::string RewrittenHeader(const std::filesystem::path& header, const std::vector<std::filesystem::path>& named,

@@ -191,6 +191,19 @@ HeaderAndVoxels PartsOf(const fs::path& path) {
 
 }  // namespace
 
+bool StatesOrientation(const fs::path& path) {
+  const HeaderAndVoxels parts = PartsOf(path);
+  NiftiFile file;
+  if (parts.header.empty() || !OpenNifti(parts.header, file).empty()) return false;
+  const auto& h = file.h;
+  const bool swap = file.swap;
+  if (file.header_size == 348) {
+    if (!NiftiOneMagic(h.n1)) return false;  // Analyze 7.5: no orientation fields
+    return (swap ? Swapped(h.n1.qform_code) : h.n1.qform_code) > 0 || (swap ? Swapped(h.n1.sform_code) : h.n1.sform_code) > 0;
+  }
+  return (swap ? Swapped(h.n2.qform_code) : h.n2.qform_code) > 0 || (swap ? Swapped(h.n2.sform_code) : h.n2.sform_code) > 0;
+}
+
 // ITK's NIfTI reader pads a short payload with zeros instead of failing, so
 // the payload is counted here first (gz or plain: zlib reads both), in the
 // file that holds it (the .img of a pair, from its vox_offset). Returns ""

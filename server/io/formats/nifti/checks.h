@@ -19,6 +19,11 @@ namespace cinevol::formats::nifti {
 // before that.
 void CheckHeaders(const std::filesystem::path& path, const std::string& shown);
 
+// Whether the header (an .img's is in the .hdr beside it) states where its
+// axes point: a qform or sform code above 0. Analyze and NIfTI with both
+// codes 0 state none, and the reader assumes one.
+bool StatesOrientation(const std::filesystem::path& path);
+
 // "" when the file (gz or plain) holds every voxel its header promises,
 // else what is missing. Inflates no more than the header promises.
 std::string PayloadProblem(const std::filesystem::path& path);

@@ -85,6 +85,14 @@ bool IsSpaceWithSpacingsError(const std::string& description) {
 // (extra values, trailing blanks) aborts it under _FORTIFY_SOURCE. Real
 // lines are a few dozen characters; free text ("content", comments and
 // key/value pairs) is not limited.
+bool StatesOrientation(const fs::path& path, const std::string& shown) {
+  for (const std::string& line : ParseHeader(path, shown).lines) {
+    const std::string field = FieldName(line);
+    if (field == "space" || field == "spacedirections") return true;
+  }
+  return false;
+}
+
 void CheckHeaderText(const fs::path& path, const std::string& shown) {
   constexpr std::size_t kMaxFieldLine = 512;
   const Header h = ParseHeader(path, shown);

@@ -18,6 +18,10 @@ namespace cinevol::formats::nrrd {
 // Throws InputError for a per-axis field line longer than teem's buffers.
 void CheckHeaderText(const std::filesystem::path& path, const std::string& shown);
 
+// Whether the header states where its axes point ("space" or "space
+// directions"); without either, teem's reader assumes one.
+bool StatesOrientation(const std::filesystem::path& path, const std::string& shown);
+
 // "" when the file (attached voxels) or its one data file holds every voxel
 // `io` (the header as ITK read it) expects, as teem will read them; else
 // what is wrong. Lists and patterns are not checked.
