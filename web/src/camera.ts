@@ -1,7 +1,10 @@
 // Camera and key-light motion as the desktop viewer does it
 // (client-cpp/viewer/camera_control.cpp): a turntable orbit about the target,
 // zoom along the view, pan in the view plane, the key light turned about the
-// target like the eye. World space is the server's: patient mm.
+// target like the eye. World space is the session's volume-centred frame
+// (mm), where the state's camera and lights are. Named views are the
+// server's: the page asks for one with an event and shows what it answers.
+import type { Camera } from "../gen/cinevol/v1/scene_pb.js";
 import { add, cross, dot, len, norm, scale, sub, v3, type V3 } from "./vec.js";
 
 export interface ViewCamera {
@@ -9,6 +12,13 @@ export interface ViewCamera {
   target: V3;
   up: V3;
   fovYDeg: number;
+}
+
+/** A state's camera as numbers; undefined without an eye and a target (a server older than the page). */
+export function fromCamera(c: Camera | undefined): ViewCamera | undefined {
+  if (!c?.eye || !c.target) return undefined;
+  return { eye: v3(c.eye.x, c.eye.y, c.eye.z), target: v3(c.target.x, c.target.y, c.target.z),
+           up: c.up ? v3(c.up.x, c.up.y, c.up.z) : v3(0, 0, 1), fovYDeg: c.fovYDeg ?? 30 };
 }
 
 /** Degrees the eye turns per CSS pixel dragged (the desktop viewer's 0.4). */
@@ -85,29 +95,4 @@ export function setLightDirection(light: AreaLightPose, c: ViewCamera, azimuthDe
     edgeU: rotate(light.edgeU, k, degrees),
     edgeV: rotate(light.edgeV, k, degrees),
   };
-}
-
-export type ViewName = "ANTERIOR" | "POSTERIOR" | "LEFT" | "RIGHT" | "SUPERIOR" | "INFERIOR";
-
-/**
- * A named view about the current target at the current distance, as the
- * desktop viewer and the server's NamedViewDirections turn it: lateral and
- * frontal views keep the head up; axial views put anterior up and the
- * patient's right on the viewer's left. `direction`: the volume's direction
- * cosines (row-major, LPS), needed where the camera is in the volume-centred
- * frame; `patientFrame`: the camera is in patient coordinates already.
- */
-export function namedView(c: ViewCamera, view: ViewName, direction: readonly number[],
-                          patientFrame: boolean): ViewCamera {
-  const L = v3(1, 0, 0), P = v3(0, 1, 0), S = v3(0, 0, 1), minus = (a: V3) => scale(a, -1);
-  const [toEye, up] = {
-    ANTERIOR: [minus(P), S], POSTERIOR: [P, S], LEFT: [L, S], RIGHT: [minus(L), S],
-    SUPERIOR: [S, minus(P)], INFERIOR: [minus(S), minus(P)],
-  }[view];
-  const d = direction.length === 9 && !patientFrame ? direction : [1, 0, 0, 0, 1, 0, 0, 0, 1];
-  // Patient to the volume-centred frame: the transposed direction matrix.
-  const toWorld = (p: V3) => v3(d[0] * p.x + d[3] * p.y + d[6] * p.z, d[1] * p.x + d[4] * p.y + d[7] * p.z,
-                                d[2] * p.x + d[5] * p.y + d[8] * p.z);
-  const distance = len(sub(c.eye, c.target));
-  return { ...c, eye: add(c.target, scale(toWorld(toEye), distance)), up: toWorld(up) };
 }

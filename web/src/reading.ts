@@ -1,18 +1,19 @@
-// The reading tools in the page: axial, coronal and sagittal slices beside
-// the 3D view (2x2), rendered by the server through a crosshair; picks on the
-// 3D view and on slices; distance and angle measurements between picked
-// points, drawn here and listed with their values (docs/reading.md).
+// The reading tools in the page: the 2x2 layout (axial, coronal and
+// sagittal slices beside the 3D view, rendered by the server through a
+// crosshair: slice_pane.ts), picks on the 3D view and on slices, and
+// distance and angle measurements between picked points, listed with their
+// values (docs/reading.md). Patient coordinates throughout; where the volume
+// lies is the state's placement.
 import { Code, ConnectError } from "@connectrpc/connect";
-import { SlabProjection, SliceAxis, type SliceImage, type VolumeInfo } from "../gen/cinevol/v1/service_pb.js";
+import { SlabProjection, SliceAxis, type VolumeInfo } from "../gen/cinevol/v1/service_pb.js";
 import type { Api } from "./api.js";
-import { patientBox, slicePlaneOutline, spacingAlong } from "./geometry.js";
-import { measurementText, paneToPatient, patientToPane, shownSlice } from "./measure.js";
-import type { FrameRect } from "./pointers.js";
-import { add, scale, v3, type V3 } from "./vec.js";
+import { measurementText } from "./measure.js";
+import { centre, samePlacement, slicePlaneOutline, spacingAlong, type Axis, type Placement } from "./placement.js";
+import { lps, Pane, PANES, type PaneSpec, type SliceReader } from "./slice_pane.js";
+import { v3, type V3 } from "./vec.js";
 import { plainWords } from "./words.js";
 
 const $ = <T extends HTMLElement>(id: string) => document.getElementById(id) as T;
-const CLICK_SLOP_PX = 4;
 
 export interface Measurement {
   points: V3[];  // LPS mm: 2 a distance, 3 an angle
@@ -20,170 +21,14 @@ export interface Measurement {
 
 type SavedMeasurements = readonly { points: readonly { x: number; y: number; z: number }[] }[];
 
-interface PaneSpec {
-  axis: SliceAxis;
-  along: "x" | "y" | "z";  // the patient axis the slice's position runs along
-  element: string;
-}
-
-const PANES: PaneSpec[] = [
-  { axis: SliceAxis.AXIAL, along: "z", element: "slice-axial" },
-  { axis: SliceAxis.CORONAL, along: "y", element: "slice-coronal" },
-  { axis: SliceAxis.SAGITTAL, along: "x", element: "slice-sagittal" },
-];
-
-/** One slice view: its image, what the server said of its geometry, one request in flight and the newest next. */
-class Pane {
-  image?: SliceImage;
-  private url = "";
-  private busy = false;
-  private again = false;
-  private readonly root: HTMLElement;
-  private readonly img: HTMLImageElement;
-  private readonly overlay: HTMLCanvasElement;
-
-  constructor(readonly spec: PaneSpec, private readonly reading: Reading) {
-    this.root = $(spec.element);
-    this.img = this.root.querySelector("img")!;
-    this.overlay = this.root.querySelector("canvas")!;
-    this.listen();
-  }
-
-  async refresh(): Promise<void> {
-    if (this.busy) {
-      this.again = true;
-      return;
-    }
-    this.busy = true;
-    try {
-      do {
-        this.again = false;
-        await this.fetch();
-      } while (this.again);
-    } finally {
-      this.busy = false;
-    }
-  }
-
-  private async fetch(): Promise<void> {
-    const request = this.reading.sliceRequest(this.spec);
-    if (!request) return;
-    try {
-      const image = await this.reading.api.sessions.renderSlice(request);
-      URL.revokeObjectURL(this.url);
-      this.url = URL.createObjectURL(new Blob([image.png.slice()], { type: "image/png" }));
-      this.image = image;
-      this.img.src = this.url;
-      const name = SliceAxis[this.spec.axis];
-      this.img.alt = `${name.toLowerCase()} slice at ${request.positionMm.toFixed(1)} mm`;
-      const [left, right, top, bottom] = image.edgeLetters;
-      for (const [edge, letter] of Object.entries({ left, right, top, bottom })) {
-        this.part(`.edge-${edge}`).textContent = letter ?? "";
-      }
-      this.part(".slice-label").textContent = `${name} ${request.positionMm.toFixed(1)} mm`;
-      this.part(".slice-window").textContent = `W ${image.window.toFixed(0)} L ${image.level.toFixed(0)}`;
-      this.reading.note(image.notice);
-      this.draw();
-    } catch (e) {
-      this.reading.error(plainWords(e));
-    }
-  }
-
-  private part(selector: string): HTMLElement {
-    return this.root.querySelector<HTMLElement>(selector)!;
-  }
-
-  /** Where the image shows in the pane now (CSS px from the pane's top left): in millimetres, fitted whole. */
-  private shown(image: SliceImage): FrameRect {
-    return shownSlice({ width: this.root.clientWidth, height: this.root.clientHeight }, image);
-  }
-
-  /** The image where it shows with its edge letters; over it the crosshair and the measurements near its plane. */
-  draw(): void {
-    const image = this.image, g = this.overlay.getContext("2d");
-    if (!image || !g) return;
-    const shown = this.shown(image);
-    this.place(shown);
-    const dpr = window.devicePixelRatio || 1;
-    this.overlay.width = Math.round(this.root.clientWidth * dpr);
-    this.overlay.height = Math.round(this.root.clientHeight * dpr);
-    g.scale(dpr, dpr);
-    const at = (p: V3) => patientToPane(image, shown, p);
-    const cross = this.reading.crosshair;
-    if (cross) {
-      const c = at(cross);
-      g.strokeStyle = "rgba(255, 220, 0, 0.7)";
-      g.beginPath();
-      g.moveTo(c.x, shown.top); g.lineTo(c.x, shown.top + shown.height);
-      g.moveTo(shown.left, c.y); g.lineTo(shown.left + shown.width, c.y);
-      g.stroke();
-    }
-    const near = this.reading.voxelAcross(this.spec.along);  // within a voxel of the plane, as the desktop viewer
-    g.strokeStyle = g.fillStyle = "#4df";
-    for (const m of this.reading.measurements) {
-      const points = m.points.map(at);
-      if (points.some((p) => Math.abs(p.offPlaneMm) > near)) continue;
-      g.beginPath();
-      points.forEach((p, i) => (i ? g.lineTo(p.x, p.y) : g.moveTo(p.x, p.y)));
-      g.stroke();
-      g.fillText(measurementText(m.points), points[points.length - 1].x + 6, points[points.length - 1].y);
-    }
-  }
-
-  /** The image in its millimetre rectangle; each edge letter at the middle of its edge, inside it. */
-  private place(shown: FrameRect): void {
-    const px = (v: number) => `${v.toFixed(1)}px`;
-    Object.assign(this.img.style, { left: px(shown.left), top: px(shown.top), width: px(shown.width),
-                                    height: px(shown.height) });
-    const right = shown.left + shown.width, bottom = shown.top + shown.height;
-    const middle = { x: shown.left + shown.width / 2, y: shown.top + shown.height / 2 };
-    const edges = { left: [shown.left, middle.y], right: [right, middle.y], top: [middle.x, shown.top],
-                    bottom: [middle.x, bottom] };
-    for (const [edge, [x, y]] of Object.entries(edges)) {
-      Object.assign(this.part(`.edge-${edge}`).style, { left: px(x), top: px(y) });
-    }
-  }
-
-  /** The patient position under a pointer, or null off the image. */
-  private patientAt(e: PointerEvent): V3 | null {
-    if (!this.image) return null;
-    const box = this.root.getBoundingClientRect();
-    return paneToPatient(this.image, this.shown(this.image), { x: e.clientX - box.left, y: e.clientY - box.top });
-  }
-
-  private listen(): void {
-    const root = this.root;
-    root.addEventListener("wheel", (e) => {
-      e.preventDefault();
-      this.reading.step(this.spec.along, Math.sign(e.deltaY));
-    }, { passive: false });
-    let down: { x: number; y: number } | undefined;
-    root.addEventListener("pointerdown", (e) => {
-      down = { x: e.clientX, y: e.clientY };
-      root.setPointerCapture(e.pointerId);
-    });
-    root.addEventListener("pointermove", (e) => {
-      if (!down || e.buttons === 0) return;
-      this.reading.dragWindow(e.movementX, e.movementY);  // window and level, as on the desktop viewer's slices
-    });
-    root.addEventListener("pointerup", (e) => {
-      const moved = down && Math.hypot(e.clientX - down.x, e.clientY - down.y) > CLICK_SLOP_PX;
-      down = undefined;
-      const p = moved ? null : this.patientAt(e);
-      if (!p) return;
-      $("pick-info").textContent = lps(p);
-      this.reading.picked(p);
-    });
-  }
-}
-
-export class Reading {
+export class Reading implements SliceReader {
   crosshair?: V3;
   readonly measurements: Measurement[] = [];
   private measuring: { points: V3[]; wanted: number } | undefined;
   private window?: { width: number; level: number };
   private readonly panes: Pane[];
   private volume?: VolumeInfo;
+  private placement?: Placement;
   /** Called when what the 3D view draws over itself changes: the measurements, the crosshair's slice planes. */
   onOverlayChanged: () => void = () => {};
   /** Called when the reader adds or deletes a measurement: the session's scene (and its watchers) get the list. */
@@ -221,8 +66,7 @@ export class Reading {
   /** A new volume: the crosshair at its centre, no measurements yet. */
   setVolume(volume: VolumeInfo): void {
     this.volume = volume;
-    const box = patientBox(volume);
-    this.crosshair = scale(add(box.min, box.max), 0.5);
+    this.crosshair = this.placement && centre(this.placement);
     this.measurements.length = 0;
     this.listMeasurements();
     this.offerStoredWindow(volume);
@@ -239,6 +83,14 @@ export class Reading {
       return;
     }
     select.add(new Option(`stored in the DICOM ${w.width}/${w.center}`, "stored"), 1);
+  }
+
+  /** Where the volume lies (the state's placement); a new place puts the crosshair at its centre. */
+  place(placement: Placement | undefined): void {
+    if (samePlacement(placement, this.placement)) return;
+    this.placement = placement;
+    this.crosshair = placement && centre(placement);
+    this.refresh();
   }
 
   /** Measurements a session's scene brought (a saved scene opened again), where the page has none yet. */
@@ -261,9 +113,9 @@ export class Reading {
 
   /** Where the three slices cut the volume, for the 3D view: each plane's outline (LPS mm); none unless shown. */
   slicePlanes(): { axis: SliceAxis; outline: V3[] }[] {
-    const cross = this.crosshair, volume = this.volume;
-    if (!this.shown || !cross || !volume) return [];
-    return PANES.map((spec) => ({ axis: spec.axis, outline: slicePlaneOutline(volume, spec.along, cross[spec.along]) }));
+    const cross = this.crosshair, placement = this.placement;
+    if (!this.shown || !cross || !placement) return [];
+    return PANES.map((spec) => ({ axis: spec.axis, outline: slicePlaneOutline(placement, spec.along, cross[spec.along]) }));
   }
 
   sliceRequest(spec: PaneSpec) {
@@ -280,11 +132,11 @@ export class Reading {
   }
 
   /** One voxel across a slice's plane (mm): the spacing of the volume's index axis along that patient axis. */
-  voxelAcross(along: "x" | "y" | "z"): number {
-    return this.volume ? spacingAlong(this.volume, along) : 1;
+  voxelAcross(along: Axis): number {
+    return this.placement ? spacingAlong(this.placement, along) : 1;
   }
 
-  step(along: "x" | "y" | "z", direction: number): void {
+  step(along: Axis, direction: number): void {
     if (!this.crosshair) return;
     this.crosshair = { ...this.crosshair, [along]: this.crosshair[along] + direction * this.voxelAcross(along) };
     this.refresh();
@@ -368,8 +220,3 @@ export class Reading {
   }
 }
 
-/** A patient position in words: "R 12.0 A 3.5 S 40.0 mm" (LPS signs turned into letters). */
-export function lps(p: V3): string {
-  const part = (v: number, plus: string, minus: string) => `${v >= 0 ? plus : minus} ${Math.abs(v).toFixed(1)}`;
-  return `${part(p.x, "L", "R")} ${part(p.y, "P", "A")} ${part(p.z, "S", "I")} mm`;
-}

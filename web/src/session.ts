@@ -11,7 +11,6 @@ import { Code, ConnectError } from "@connectrpc/connect";
 import {
   SessionEventSchema, type Frame, type Notice, type SessionEvent, type SessionState, type ViewportSchema,
 } from "../gen/cinevol/v1/service_pb.js";
-import type { Scene } from "../gen/cinevol/v1/scene_pb.js";
 import type { Api } from "./api.js";
 import type { MotionToPhoton } from "./stats.js";
 import { plainWords, shareWords } from "./words.js";
@@ -48,13 +47,13 @@ export class LiveSession {
   private seq = 0n;
   private answeredSeq = 0n;  // the newest event a frame will answer (UNANSWERED kinds change no picture)
   private readonly pending = new Map<string, { kind: EventKind; inputAt: number }>();
+  private readonly inFlight = new Set<string>();          // the kinds of the batch on its way
+  private readonly sentSeq = new Map<string, bigint>();  // the newest event of each kind sent since the attach
   private sending = false;
   private attached = false;
   private closed = false;
   private abort = new AbortController();
   state?: SessionState;
-  /** CreateSession's scene: a named view's camera there carries the eye, target and up it resolves to. */
-  initialScene?: Scene;
   /** The owner's principal as the server names it (ServerStatus), where known: pointers and the presenter use it. */
   owner?: string;
   /** Events sent since the page opened, by kind. */
@@ -73,7 +72,6 @@ export class LiveSession {
     });
     api.sessionAddress = created.address;
     const session = new LiveSession(api, handlers, latency, created.sessionId, volumeId);
-    session.initialScene = created.scene;
     void api.server.getStatus({}).then((s) => {
       session.owner = s.sessions.find((x) => x.sessionId === session.id)?.owner;
     }).catch(() => {});
@@ -115,9 +113,17 @@ export class LiveSession {
     return this.answeredSeq;
   }
 
-  /** Is an event of this kind waiting to go? (The page keeps its own camera while one is.) */
-  hasPending(kind: EventKind["case"]): boolean {
-    return this.pending.has(kind);
+  /**
+   * Is this page's own edit of this kind newer than `state`: waiting to go,
+   * on its way, or answered by a state that does not include it yet (the
+   * server applies events past its rate before the next frame)? While it
+   * is, the page shows its own edit (the camera it drags, the points it
+   * moves); after, the state's. A share's events are numbered by the
+   * server, so for a share only the first two count.
+   */
+  ahead(kind: EventKind["case"], state: SessionState | undefined): boolean {
+    if (this.pending.has(kind) || this.inFlight.has(kind)) return true;
+    return !this.grant && state !== undefined && (this.sentSeq.get(kind) ?? 0n) > state.lastEventSeq;
   }
 
   /** Stops watching; one's own session also ends on the server (a shared one goes on for its owner). */
@@ -138,6 +144,8 @@ export class LiveSession {
     this.pending.clear();
     const events = batch.map(({ kind, inputAt }) => {
       this.seq += 1n;
+      this.inFlight.add(kind.case);
+      this.sentSeq.set(kind.case, this.seq);
       this.sentKinds[kind.case] = (this.sentKinds[kind.case] ?? 0) + 1;
       // Motion-to-photon for the owner's events that change the picture; the server numbers a share's own.
       if (!UNANSWERED.has(kind.case)) this.answeredSeq = this.seq;
@@ -146,11 +154,15 @@ export class LiveSession {
     });
     try {
       const answer = await this.api.sessions.sendEvents({ sessionId: this.id, events, grant: this.grant });
+      this.inFlight.clear();
       if (answer.state) this.adopt(this.withStreamSharing(answer.state));
     } catch (e) {
+      this.inFlight.clear();
       const error = ConnectError.from(e);
       if (FINAL.has(error.code) || error.code === Code.ResourceExhausted || error.code === Code.FailedPrecondition) {
+        for (const b of batch) this.sentSeq.delete(b.kind.case);  // refused: the state is the truth again
         this.handlers.refused(batch.map((b) => b.kind.case), error);
+        if (this.state) this.handlers.state(this.state);  // the page shows the state again, not its refused edit
       } else {  // the connection broke: the events go again once the watch is back
         for (const b of batch) if (!this.pending.has(b.kind.case)) this.pending.set(b.kind.case, b);
       }
@@ -218,6 +230,7 @@ export class LiveSession {
         if (!this.attached) {  // the first message (the state) says the attach took: numbering starts again
           this.attached = true;
           this.seq = this.answeredSeq = 0n;
+          this.sentSeq.clear();
           this.latency.reset();
           onAttach();
           this.handlers.attached(this.id);

@@ -54,9 +54,8 @@ export function expiresIn(expiresUnixSeconds: number, nowUnixSeconds: number): s
 export class SharePanel {
   private asked = 0;  // ListShares calls made: an answer older than the newest is dropped
 
-  /** `beforeShare`: what the page does before a grant is made (App pins a named view's camera). */
   constructor(private readonly api: Api, private readonly sessionId: () => string | undefined,
-              private readonly error: (text: string) => void, private readonly beforeShare: () => void) {
+              private readonly error: (text: string) => void) {
     $("share-create").addEventListener("click", () => void this.share());
     $("share-copy").addEventListener("click", () => void this.copy());
     $("share-take-back").addEventListener("click", () => void this.handOver(""));
@@ -74,7 +73,6 @@ export class SharePanel {
     if (!sessionId) return;
     const principal = $<HTMLInputElement>("share-principal").value.trim();
     const role = Number($<HTMLSelectElement>("share-role").value) as ShareRole;
-    this.beforeShare();
     try {
       const grant = await this.api.sessions.shareSession({
         sessionId, principal, role, expiresSeconds: Number($<HTMLSelectElement>("share-expires").value),

@@ -51,11 +51,12 @@ test("setting the key light's direction reads back as the same direction", () =>
 
 test("the orientation marker: seen from the front, the patient's left is on the viewer's right and S is up", async () => {
   const { markerAxes } = await import("../src/orientation.js");
-  const axes = Object.fromEntries(markerAxes(start, [], true).map((a) => [a.letter, a]));
+  const place = (direction: number[]) => ({ direction, originMm: v3(0, 0, 0), spacingMm: v3(1, 1, 1), dims: v3(9, 9, 9) });
+  const axes = Object.fromEntries(markerAxes(start, place([1, 0, 0, 0, 1, 0, 0, 0, 1])).map((a) => [a.letter, a]));
   assert.ok(axes.L.x > 0.99 && axes.R.x < -0.99, "L on the right (anterior view, radiological habit)");
   assert.ok(axes.S.y > 0.99 && axes.I.y < -0.99);
   assert.ok(axes.A.depth > 0.99, "anterior points at the viewer");
   // A volume stored flipped in x (RAS-like columns): the marker still follows the patient.
-  const flipped = Object.fromEntries(markerAxes({ ...start }, [-1, 0, 0, 0, 1, 0, 0, 0, 1], false).map((a) => [a.letter, a]));
+  const flipped = Object.fromEntries(markerAxes({ ...start }, place([-1, 0, 0, 0, 1, 0, 0, 0, 1])).map((a) => [a.letter, a]));
   assert.ok(flipped.L.x < -0.99, "in the volume frame the same camera now sees the patient's left on its left");
 });

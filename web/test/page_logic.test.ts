@@ -2,9 +2,12 @@ import assert from "node:assert/strict";
 import { test } from "node:test";
 import { create } from "@bufbuild/protobuf";
 import { Code, ConnectError } from "@connectrpc/connect";
-import { VolumeInfoSchema } from "../gen/cinevol/v1/service_pb.js";
+import { VolumePlacementSchema } from "../gen/cinevol/v1/service_pb.js";
 import { readAddress, sessionQuery } from "../src/address.js";
-import { cropFromFractions, fromPatient, patientBox, spacingAlong, toPatient } from "../src/geometry.js";
+import {
+  centre, cropFromFractions, directionToPatient, directionToVolume, patientBox, placementOf, samePlacement,
+  slicePlaneOutline, spacingAlong, toPatient, toVolume, type Placement,
+} from "../src/placement.js";
 import { messageToShow } from "../src/messages.js";
 import { MotionToPhoton, percentile, Rate } from "../src/stats.js";
 import { plainWords, signInWords, tokenRefused } from "../src/words.js";
@@ -49,15 +52,34 @@ test("refusals come in plain words with the server's own message", () => {
   assert.match(plainWords(new Error("boom")), /failed/);
 });
 
+/** 11 x 21 x 31 voxels at the origin (LPS unless `direction` says otherwise). */
+const placed = (spacing: [number, number, number], direction = [1, 0, 0, 0, 1, 0, 0, 0, 1],
+                origin = { x: 0, y: 0, z: 0 }): Placement =>
+  ({ direction, originMm: origin, spacingMm: { x: spacing[0], y: spacing[1], z: spacing[2] }, dims: { x: 11, y: 21, z: 31 } });
+
 test("the patient box of an LPS volume and of one flipped along x", () => {
-  const volume = create(VolumeInfoSchema, { dims: { x: 11, y: 21, z: 31 }, spacingMm: { x: 1, y: 1, z: 2 },
-                                            originMm: { x: 0, y: 0, z: 0 } });
-  assert.deepEqual(patientBox(volume), { min: { x: 0, y: 0, z: 0 }, max: { x: 10, y: 20, z: 60 } });
-  volume.direction = [-1, 0, 0, 0, 1, 0, 0, 0, 1];
-  assert.deepEqual(patientBox(volume).min, { x: -10, y: 0, z: 0 });
-  const crop = cropFromFractions(patientBox(volume), { x: 0, y: 0.5, z: 0 }, { x: 1, y: 1, z: 0.5 });
+  assert.deepEqual(patientBox(placed([1, 1, 2])), { min: { x: 0, y: 0, z: 0 }, max: { x: 10, y: 20, z: 60 } });
+  const flipped = placed([1, 1, 2], [-1, 0, 0, 0, 1, 0, 0, 0, 1]);
+  assert.deepEqual(patientBox(flipped).min, { x: -10, y: 0, z: 0 });
+  const crop = cropFromFractions(patientBox(flipped), { x: 0, y: 0.5, z: 0 }, { x: 1, y: 1, z: 0.5 });
   assert.deepEqual(crop, { center: { x: -5, y: 15, z: 15 }, size: { x: 10, y: 10, z: 30 } });
-  assert.deepEqual(toPatient(volume, false, { x: 0, y: 0, z: 0 }), { x: -5, y: 10, z: 30 });
+  assert.deepEqual(toPatient(flipped, { x: 0, y: 0, z: 0 }), { x: -5, y: 10, z: 30 });
+  assert.deepEqual(centre(flipped), { x: -5, y: 10, z: 30 }, "the volume-centred frame's origin");
+});
+
+test("a state's placement is read whole or not at all, and compared by value", () => {
+  const message = create(VolumePlacementSchema, { direction: [0, 1, 0, 1, 0, 0, 0, 0, 1], originMm: { x: 1, y: 2, z: 3 },
+                                                  spacingMm: { x: 0.5, y: 0.5, z: 2 }, dims: { x: 4, y: 5, z: 6 } });
+  const p = placementOf(message)!;
+  assert.deepEqual(p, { direction: [0, 1, 0, 1, 0, 0, 0, 0, 1], originMm: { x: 1, y: 2, z: 3 },
+                        spacingMm: { x: 0.5, y: 0.5, z: 2 }, dims: { x: 4, y: 5, z: 6 } });
+  assert.ok(samePlacement(p, placementOf(create(VolumePlacementSchema, message))));
+  const { spacingMm, dims } = message;
+  const moved = create(VolumePlacementSchema, { direction: message.direction, originMm: { x: 1, y: 2, z: 4 }, spacingMm, dims });
+  assert.ok(!samePlacement(p, placementOf(moved)));
+  assert.equal(placementOf(create(VolumePlacementSchema, { originMm: message.originMm, spacingMm, dims })), undefined,
+               "no direction: no placement (a server older than the page), never a guessed identity");
+  assert.equal(placementOf(undefined), undefined);
 });
 
 test("slice pixels and patient positions map both ways; distances and angles", async () => {
@@ -81,12 +103,14 @@ test("slice pixels and patient positions map both ways; distances and angles", a
   assert.equal(projectToView(cam, { x: 0, y: -200, z: 0 }, 200, 100), null);
 });
 
-test("patient and camera frames are each other's inverse; spacing along a patient axis", () => {
-  const volume = create(VolumeInfoSchema, { dims: { x: 11, y: 21, z: 31 }, spacingMm: { x: 0.5, y: 1, z: 2 },
-                                            originMm: { x: 3, y: -4, z: 5 }, direction: [0, 1, 0, 1, 0, 0, 0, 0, 1] });
+test("patient and volume-centred frames are each other's inverse; spacing along a patient axis", () => {
+  const volume = placed([0.5, 1, 2], [0, 1, 0, 1, 0, 0, 0, 0, 1], { x: 3, y: -4, z: 5 });
   const p = { x: 7, y: -2, z: 40 };
-  const back = toPatient(volume, false, fromPatient(volume, false, p));
+  const back = toPatient(volume, toVolume(volume, p));
   assert.ok(Math.abs(back.x - p.x) + Math.abs(back.y - p.y) + Math.abs(back.z - p.z) < 1e-9);
+  const d = { x: 0.6, y: 0, z: 0.8 }, turned = directionToVolume(volume, directionToPatient(volume, d));
+  assert.ok(Math.abs(turned.x - d.x) + Math.abs(turned.y - d.y) + Math.abs(turned.z - d.z) < 1e-12);
+  assert.deepEqual(directionToPatient(volume, { x: 1, y: 0, z: 0 }), { x: 0, y: 1, z: 0 }, "index axis i runs along P");
   assert.equal(spacingAlong(volume, "x"), 1, "index axis j runs along patient x");
   assert.equal(spacingAlong(volume, "y"), 0.5);
 });
@@ -105,10 +129,8 @@ test("a DICOM identity fills the corners people expect", async () => {
 });
 
 test("a slice plane's outline is where it cuts the volume's box, in order around it", async () => {
-  const { slicePlaneOutline } = await import("../src/geometry.js");
   // 11 x 21 x 31 voxels of 1 x 1 x 2 mm at the origin, LPS: the box spans 10 x 20 x 60 mm.
-  const volume = create(VolumeInfoSchema, { dims: { x: 11, y: 21, z: 31 }, spacingMm: { x: 1, y: 1, z: 2 },
-    originMm: { x: 0, y: 0, z: 0 }, direction: [1, 0, 0, 0, 1, 0, 0, 0, 1] });
+  const volume = placed([1, 1, 2]);
   const axial = slicePlaneOutline(volume, "z", 30);
   assert.equal(axial.length, 4);
   for (const p of axial) assert.equal(p.z, 30);
@@ -120,7 +142,7 @@ test("a slice plane's outline is where it cuts the volume's box, in order around
   }
   assert.deepEqual(slicePlaneOutline(volume, "x", 11), [], "beyond the box: nothing");
   // RAS-stored: the plane still lies where the patient coordinate says.
-  const ras = create(VolumeInfoSchema, { ...volume, direction: [-1, 0, 0, 0, -1, 0, 0, 0, 1] });
+  const ras = placed([1, 1, 2], [-1, 0, 0, 0, -1, 0, 0, 0, 1]);
   const sagittal = slicePlaneOutline(ras, "x", -5);
   assert.equal(sagittal.length, 4);
   for (const p of sagittal) assert.equal(p.x, -5);
