@@ -41,7 +41,9 @@ async function bundle() {
   const node = { ...common, platform: "node", format: "esm", target: "node18", outExtension: { ".js": ".mjs" },
     banner: { js: "import { createRequire } from 'node:module'; const require = createRequire(import.meta.url);" } };
   await esbuild.build({ ...node, entryPoints: { gateway: join(here, "gateway", "main.ts") }, outdir: out });
-  await esbuild.build({ ...node, entryPoints: tests("test"), outdir: join(out, "tests") });
+  // The unit tests read the golden cases from the checkout they were built from (CINEVOL_GOLDEN overrides).
+  await esbuild.build({ ...node, entryPoints: tests("test"), outdir: join(out, "tests"),
+                        define: { CINEVOL_SOURCE_DIR: JSON.stringify(resolve(here, "..")) } });
   await esbuild.build({ ...node, entryPoints: tests("e2e"), outdir: join(out, "e2e"), external: ["playwright-core"] });
   // The end-to-end tests find playwright-core from the build tree through this link.
   rmSync(join(out, "node_modules"), { force: true });

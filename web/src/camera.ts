@@ -24,6 +24,12 @@ export function fromCamera(c: Camera | undefined): ViewCamera | undefined {
 /** Degrees the eye turns per CSS pixel dragged (the desktop viewer's 0.4). */
 export const DEGREES_PER_PIXEL = 0.4;
 
+/** The zoom factor of a right-button drag of `dy` pixels (down: farther). */
+export const dragZoomFactor = (dy: number): number => Math.exp(dy * 0.01);
+
+/** The zoom factor of `steps` wheel steps (positive: closer; a step is 100 of a wheel event's deltaY). */
+export const wheelZoomFactor = (steps: number): number => Math.pow(0.9, steps);
+
 /** Rodrigues' rotation of v about the unit axis k. */
 export function rotate(v: V3, k: V3, degrees: number): V3 {
   const a = (degrees * Math.PI) / 180, c = Math.cos(a), s = Math.sin(a);
@@ -46,6 +52,11 @@ export function orbit(c: ViewCamera, yawDeg: number, pitchDeg: number): ViewCame
   offset = rotate(offset, turnedRight, -pitchDeg);
   const eye = add(c.target, offset);
   return { ...c, eye, up: norm(cross(turnedRight, sub(c.target, eye))) };
+}
+
+/** An orbit by a drag of (dx, dy) pixels: yaw and pitch of DEGREES_PER_PIXEL a pixel. */
+export function orbitByDrag(c: ViewCamera, dx: number, dy: number): ViewCamera {
+  return orbit(c, dx * DEGREES_PER_PIXEL, dy * DEGREES_PER_PIXEL);
 }
 
 /** Moves the eye towards the target (factor < 1: closer), never nearer than 1 mm. */

@@ -8,7 +8,7 @@
 import { create } from "@bufbuild/protobuf";
 import { CameraSchema, NamedView, Vec3Schema, type Camera } from "../gen/cinevol/v1/scene_pb.js";
 import type { SessionState } from "../gen/cinevol/v1/service_pb.js";
-import { DEGREES_PER_PIXEL, fromCamera, orbit, pan, zoom, type ViewCamera } from "./camera.js";
+import { fromCamera, orbitByDrag, pan, zoom, type ViewCamera } from "./camera.js";
 import { markerAxes } from "./orientation.js";
 import type { PageLink } from "./page_link.js";
 import type { V3 } from "./vec.js";
@@ -44,7 +44,7 @@ export class Navigation {
   }
 
   orbit(dx: number, dy: number): void {
-    this.move((c) => orbit(c, dx * DEGREES_PER_PIXEL, dy * DEGREES_PER_PIXEL));
+    this.move((c) => orbitByDrag(c, dx, dy));
   }
 
   pan(dx: number, dy: number, viewportHeight: number): void {

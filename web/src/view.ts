@@ -5,6 +5,7 @@
 // level, ctrl-drag turns the key light; one finger orbits, two pinch and pan;
 // where the pointer is, for a shared session's pointers).
 import type { Frame } from "../gen/cinevol/v1/service_pb.js";
+import { dragZoomFactor, wheelZoomFactor } from "./camera.js";
 import type { FrameMeta, FromWorker, ToWorker } from "./frame_messages.js";
 import { fitted, toFrame, type Fraction, type FrameRect } from "./pointers.js";
 
@@ -125,14 +126,14 @@ export class View {
       pointers.set(e.pointerId, { x: e.clientX, y: e.clientY });
       if (mode === "orbit") input.orbit(dx, dy);
       else if (mode === "pan") input.pan(dx, dy, c.clientHeight);
-      else if (mode === "zoom") input.zoom(Math.exp(dy * 0.01));
+      else if (mode === "zoom") input.zoom(dragZoomFactor(dy));
       else if (mode === "windowLevel") input.windowLevel(dx, dy);
       else input.turnLight(dx, dy);
     });
     c.addEventListener("pointerleave", () => input.point(null));
     c.addEventListener("wheel", (e) => {
       e.preventDefault();
-      input.zoom(Math.pow(0.9, -e.deltaY / 100));
+      input.zoom(wheelZoomFactor(-e.deltaY / 100));
     }, { passive: false });
   }
 
