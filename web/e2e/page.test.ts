@@ -163,6 +163,27 @@ test("an orbit drag changes the picture", async () => {
   await alice.screenshot({ path: join(ARTIFACTS, "2-orbited.png") });
 });
 
+test("a named view turns about the current target at the current distance, on the server (A P L R S I)", async () => {
+  const box = (await alice.locator("#view").boundingBox())!;
+  await alice.mouse.move(box.x + box.width / 2, box.y + box.height / 2);
+  await alice.mouse.wheel(0, 100);  // a step back first: the view keeps the distance it finds
+  await settled(alice);
+  const before = (await status(alice)).camera!;
+  await alice.keyboard.press("l");
+  const turned = await until(alice, (s) => s.camera !== null && Math.abs(s.camera.eye.x - before.eye.x) > 1,
+                             "the left view's camera in the state");
+  const c = turned.camera!, distance = (k: typeof c) => Math.hypot(k.eye.x - k.target.x, k.eye.y - k.target.y,
+                                                                   k.eye.z - k.target.z);
+  assert.ok(Math.abs(distance(c) - distance(before)) < 1e-3 * distance(before),
+            `the distance went from ${distance(before)} to ${distance(c)}`);
+  for (const k of ["x", "y", "z"] as const) assert.ok(Math.abs(c.target[k] - before.target[k]) < 1e-3, `target.${k}`);
+  // The phantom lies in LPS: the left view looks from the patient's left (+x), head up.
+  assert.ok((c.eye.x - c.target.x) / distance(c) > 0.999, JSON.stringify(c));
+  assert.ok(c.up.z > 0.999, JSON.stringify(c));
+  assert.equal((await status(alice)).error, "");
+  await settled(alice);
+});
+
 test("a preset changes the picture", async () => {
   const before = await sample(alice);
   const current = (await status(alice)).preset;

@@ -58,7 +58,7 @@ export class Navigation {
   /** A named view about the current target at the current distance: the server turns it, the state says where. */
   namedView(view: ViewName): void {
     const c = this.camera;
-    if (!c || !this.link.driving) return;
+    if (!c || !this.link.driving || !this.link.state) return;
     this.home ??= c;
     this.turning = true;
     this.send({ view: NamedView[view], eye: vec3(c.eye), target: vec3(c.target), up: undefined, fovYDeg: c.fovYDeg });
@@ -73,7 +73,7 @@ export class Navigation {
   }
 
   private move(step: (c: ViewCamera) => ViewCamera): void {
-    if (!this.camera || this.turning || !this.link.driving) return;
+    if (!this.camera || this.turning || !this.link.driving || !this.link.state) return;
     this.home ??= this.camera;
     const c = this.camera = step(this.camera);
     this.drawMarker();

@@ -44,6 +44,7 @@ export class PageLink {
   /** A new session of a volume of the server's (its preset, or the volume's default); false where it failed, in words. */
   async open(volumeId: string, viewport: { width: number; height: number }, preset?: string): Promise<boolean> {
     this.session?.close();
+    this.state = this.placement = undefined;  // the old session's, until the new one's first state
     this.said.showError("");
     this.said.setWaiting(`Opening ${volumeId}…`);
     try {

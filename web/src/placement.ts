@@ -34,7 +34,10 @@ export function placementOf(p: VolumePlacement | undefined): Placement | undefin
 /** Whether two placements put the volume in the same place (a new one moves the crosshair and the crop box). */
 export function samePlacement(a: Placement | undefined, b: Placement | undefined): boolean {
   const numbers = (p: Placement) => [...p.direction, ...[p.originMm, p.spacingMm, p.dims].flatMap((q) => [q.x, q.y, q.z])];
-  return a === b || (a !== undefined && b !== undefined && numbers(a).every((n, i) => n === numbers(b)[i]));
+  if (a === b) return true;
+  if (a === undefined || b === undefined) return false;
+  const x = numbers(a), y = numbers(b);
+  return x.length === y.length && x.every((n, i) => n === y[i]);
 }
 
 /** D v: a direction of the volume-centred frame (index axes) in the patient. */

@@ -46,7 +46,7 @@ export class TransferPanel {
   /** Alt-drag: window (horizontal) and level (vertical), in steps of the volume's value range. */
   windowLevel(dx: number, dy: number): void {
     const tf = this.tf, volume = this.link.volume;
-    if (!tf || tf.points.length === 0 || !volume || !this.link.driving) return;
+    if (!tf || tf.points.length === 0 || !volume || !this.link.state || !this.link.driving) return;
     const range = volume.maxValue - volume.minValue || 1;
     const edited = applyWindowLevel(tf, (-dy * range) / 500, Math.exp(dx * 0.005));
     this.editor.show(edited);
@@ -54,7 +54,7 @@ export class TransferPanel {
   }
 
   private edit(tf: TransferFunction): void {
-    if (!this.link.driving) return;
+    if (!this.link.driving || !this.link.state) return;  // none before a new session's first state
     this.tf = tf;
     this.link.post({ case: "transferFunction", value: tf });
   }
