@@ -135,17 +135,17 @@ std::vector<MarkerAxis> MarkerAxes(const ViewCamera& camera, const Placement& pl
   return axes;
 }
 
-SliceGeometry SliceGeometry::Of(const v1::SliceImage& image) {
+SliceGrid SliceGrid::Of(const v1::SliceImage& image) {
   return {ToVec3d(image.origin_mm()), ToVec3d(image.row_direction()), ToVec3d(image.column_direction()),
           image.row_spacing_mm(),     image.column_spacing_mm(),      int(image.width()),
           int(image.height())};
 }
 
-Vec3d SlicePixelToPatient(const SliceGeometry& slice, double column, double row) {
+Vec3d SlicePixelToPatient(const SliceGrid& slice, double column, double row) {
   return slice.origin + slice.row * (column * slice.row_spacing) + slice.column * (row * slice.column_spacing);
 }
 
-SlicePixel PatientToSlicePixel(const SliceGeometry& slice, Vec3d lps) {
+SlicePixel PatientToSlicePixel(const SliceGrid& slice, Vec3d lps) {
   const Vec3d d = lps - slice.origin;
   return {Dot(d, slice.row) / slice.row_spacing, Dot(d, slice.column) / slice.column_spacing,
           Dot(d, Normalized(Cross(slice.row, slice.column)))};

@@ -78,21 +78,21 @@ struct MarkerAxis {
 std::vector<MarkerAxis> MarkerAxes(const ViewCamera& camera, const Placement& placement);
 
 // A slice image's pixel grid in the patient (SliceImage's geometry).
-struct SliceGeometry {
+struct SliceGrid {
   Vec3d origin;                                // LPS mm of the top-left pixel's centre
   Vec3d row{1, 0, 0}, column{0, 1, 0};         // unit LPS steps along a row and down a column
   double row_spacing = 1, column_spacing = 1;  // mm per pixel along each
   int width = 0, height = 0;
 
-  static SliceGeometry Of(const v1::SliceImage& image);
+  static SliceGrid Of(const v1::SliceImage& image);
 };
 // Pixel centres at whole numbers: (0, 0) is the top-left pixel's centre.
-Vec3d SlicePixelToPatient(const SliceGeometry& slice, double column, double row);
+Vec3d SlicePixelToPatient(const SliceGrid& slice, double column, double row);
 struct SlicePixel {
   double column = 0, row = 0;
   double off_plane_mm = 0;  // signed distance from the slice's plane, along row x column
 };
-SlicePixel PatientToSlicePixel(const SliceGeometry& slice, Vec3d lps);
+SlicePixel PatientToSlicePixel(const SliceGrid& slice, Vec3d lps);
 
 double DistanceMm(Vec3d a, Vec3d b);
 // The angle at `vertex` between the rays to `a` and `b`, in degrees.

@@ -1,5 +1,5 @@
 // The viewer's network side: a worker thread for calls and events, the
-// stream's reader (or a watch's) for frames, a decoder thread for JPEG.
+// stream's reader (or a watch's) for frames, requesters for calls.
 #include "viewer/connection.h"
 
 #include <fmt/format.h>
@@ -36,7 +36,8 @@ std::string Describe(grpc::StatusCode code, const std::string& message) {
 }
 
 constexpr auto kRetryEvery = std::chrono::seconds(2);
-constexpr std::size_t kMaxBatch = 64;  // events in one SendEvents (docs/api.md)
+constexpr std::size_t kMaxBatch = 64;         // events in one SendEvents (docs/api.md)
+constexpr std::size_t kTicketsKept = 4096;  // where the newest events went; older ones count as dropped
 
 // Whether an event waiting last is replaced by a newer one of its kind.
 bool Replaces(const v1::SessionEvent& newer, const v1::SessionEvent& older) {
@@ -47,22 +48,20 @@ bool Replaces(const v1::SessionEvent& newer, const v1::SessionEvent& older) {
 
 Connection::Connection(ConnectionSettings settings)
     : settings_(std::move(settings)),
+      decoder_([this](const std::string& error) { SetStatus(LinkState::kStreaming, error); }),
       worker_([this] { Work(); }),
       requester_([this] { Serve(Lane::kLong); }),
-      quick_requester_([this] { Serve(Lane::kQuick); }),
-      decoder_([this] { Decode(); }) {}
+      quick_requester_([this] { Serve(Lane::kQuick); }) {}
 
 Connection::~Connection() {
   {
-    std::scoped_lock lock(mu_, frame_mu_);  // no waiter misses it
+    std::lock_guard lock(mu_);  // no waiter misses it
     stopping_ = true;
   }
   wake_.notify_all();
-  frame_arrived_.notify_all();
   worker_.join();
   requester_.join();
   quick_requester_.join();
-  decoder_.join();
 }
 
 LinkStatus Connection::status() const {
@@ -80,16 +79,38 @@ std::optional<v1::VolumeInfo> Connection::volume() const {
   return volume_;
 }
 
-void Connection::Post(v1::SessionEvent event) {
+std::uint64_t Connection::Post(v1::SessionEvent event) {
+  std::uint64_t ticket = 0;
   {
     std::lock_guard lock(mu_);
-    if (!events_.empty() && Replaces(event, events_.back())) {
-      events_.back() = std::move(event);  // the newest camera (or pointer) wins
+    ticket = next_ticket_++;
+    if (!events_.empty() && Replaces(event, events_.back().event)) {
+      DeliveredLocked({events_.back().ticket}, 0);  // the newest camera (or pointer) wins
+      events_.back() = {ticket, std::move(event)};
     } else {
-      events_.push_back(std::move(event));
+      events_.push_back({ticket, std::move(event)});
     }
   }
   wake_.notify_all();
+  return ticket;
+}
+
+Delivery Connection::DeliveryOf(std::uint64_t ticket) const {
+  std::lock_guard lock(mu_);
+  const auto it = delivered_.find(ticket);
+  if (it != delivered_.end()) {
+    const bool gone = it->second.seq == 0 || it->second.epoch != epoch_;  // a reattached stream numbers anew
+    return gone ? Delivery{Delivery::kDropped, 0} : Delivery{Delivery::kSent, it->second.seq};
+  }
+  const bool waiting = std::any_of(events_.begin(), events_.end(), [&](const Queued& q) { return q.ticket == ticket; }) ||
+                       std::find(sending_.begin(), sending_.end(), ticket) != sending_.end();
+  // Not queued, not sent: older than the tickets kept, or posted to no stream.
+  return waiting || ticket >= next_ticket_ ? Delivery{} : Delivery{Delivery::kDropped, 0};
+}
+
+void Connection::DeliveredLocked(const std::vector<std::uint64_t>& tickets, std::uint64_t seq) {
+  for (std::uint64_t ticket : tickets) delivered_[ticket] = {seq, epoch_};
+  while (delivered_.size() > kTicketsKept) delivered_.erase(delivered_.begin());
 }
 
 void Connection::Request(std::function<void(Client&)> request, std::function<void(const std::string&)> done,
@@ -109,7 +130,7 @@ std::string Connection::TakeWarning() {
 bool Connection::idle() const {
   std::lock_guard lock(mu_);
   auto quiet = [](const Requests& r) { return r.waiting.empty() && !r.running; };
-  return events_.empty() && sending_ == 0 && quiet(requests_[0]) && quiet(requests_[1]);
+  return events_.empty() && sending_.empty() && quiet(requests_[0]) && quiet(requests_[1]);
 }
 
 std::optional<v1::SessionState> Connection::TakeState() {
@@ -122,12 +143,7 @@ bool Connection::TakePointerRefused() {
   return std::exchange(pointer_refused_, false);
 }
 
-std::optional<ViewFrame> Connection::TakeFrame() {
-  std::lock_guard lock(frame_mu_);
-  std::optional<ViewFrame> frame = std::move(decoded_);
-  decoded_.reset();
-  return frame;
-}
+std::optional<ViewFrame> Connection::TakeFrame() { return decoder_.Take(); }
 
 std::optional<Clock::time_point> Connection::SentAt(std::uint64_t seq) const {
   std::lock_guard lock(mu_);
@@ -173,6 +189,7 @@ void Connection::Start() {
   StreamOptions options;
   options.on_message = [this](const v1::ServerMessage& m) { OnMessage(m); };
   stream_ = client->Attach(created.session_id(), options);
+  first_epoch_ = epoch_ + 1;  // nothing sent before counts on this stream
   {
     std::lock_guard lock(mu_);
     volume_ = volume;
@@ -211,13 +228,7 @@ void Connection::OnMessage(const v1::ServerMessage& m) {
     std::lock_guard lock(mu_);
     state_ = m.state();
   }
-  if (!m.has_frame()) return;
-  {
-    std::lock_guard lock(frame_mu_);
-    encoded_ = m.frame();
-    encoded_at_ = Clock::now();
-  }
-  frame_arrived_.notify_one();
+  if (m.has_frame()) decoder_.Offer(m.frame());
 }
 
 std::optional<grpc::Status> Connection::Ended() const {
@@ -258,15 +269,17 @@ bool Connection::SendPending() {
     SendAsGrant();
     return true;
   }
+  epoch_ = first_epoch_ + stream_->resumes() + stream_->failovers();
   std::unique_lock lock(mu_);
   while (!events_.empty()) {
-    v1::SessionEvent event = std::move(events_.front());
+    auto [ticket, event] = std::move(events_.front());
     events_.pop_front();
-    ++sending_;
+    sending_ = {ticket};
     lock.unlock();
     const std::uint64_t seq = stream_->Send(event);
     lock.lock();
-    --sending_;
+    sending_.clear();
+    DeliveredLocked({ticket}, seq);
     if (seq == 0) return false;  // the stream ended or is reconnecting: the event is dropped
     if (event.has_pointer() || event.has_measurements()) continue;  // no frame answers these: they change no picture
     sent_at_[seq] = Clock::now();
@@ -285,11 +298,11 @@ void Connection::SendAsGrant() {
   {
     std::lock_guard lock(mu_);
     while (!events_.empty() && batch.size() < kMaxBatch) {
-      batch.push_back(std::move(events_.front()));
+      sending_.push_back(events_.front().ticket);
+      batch.push_back(std::move(events_.front().event));
       events_.pop_front();
     }
     if (batch.empty()) return;
-    ++sending_;
   }
   const bool drives = std::any_of(batch.begin(), batch.end(), [](const auto& e) { return !e.has_pointer(); });
   const Clock::time_point sent = Clock::now();
@@ -301,7 +314,9 @@ void Connection::SendAsGrant() {
     refused = e;
   }
   std::lock_guard lock(mu_);
-  --sending_;
+  // The session numbers a grant holder's events: its answer says up to which one it applied.
+  DeliveredLocked(sending_, refused ? 0 : state->last_event_seq());
+  sending_.clear();
   if (refused) {
     if (drives || refused->code() != grpc::StatusCode::PERMISSION_DENIED) {
       warning_ = Describe(refused->code(), refused->what());
@@ -377,34 +392,6 @@ void Connection::Serve(Lane lane) {
     done(error);
     lock.lock();
     mine.running = false;
-  }
-}
-
-void Connection::Decode() {
-  std::unique_lock lock(frame_mu_);
-  for (;;) {
-    frame_arrived_.wait(lock, [this] { return encoded_.has_value() || stopping_; });
-    if (!encoded_) return;
-    v1::Frame frame = std::move(*encoded_);
-    encoded_.reset();
-    const Clock::time_point received = encoded_at_;
-    lock.unlock();
-    ViewFrame view;
-    const auto start = Clock::now();
-    try {
-      view.image = DecodeFrame(frame);
-    } catch (const std::exception& e) {
-      SetStatus(LinkState::kStreaming, std::string("a frame could not be decoded: ") + e.what());
-      lock.lock();
-      continue;
-    }
-    view.decode_ms = std::chrono::duration<double, std::milli>(Clock::now() - start).count();
-    view.image_bytes = EncodedImage(frame).size();
-    frame.clear_image();
-    view.info = std::move(frame);
-    view.received = received;
-    lock.lock();
-    decoded_ = std::move(view);
   }
 }
 

@@ -9,8 +9,9 @@
 // second one the quick reading calls (picks, slices), so that they never
 // wait behind a minutes-long snapshot or upload; the
 // stream's reader (a watch's: a thread that takes its messages) hands frames
-// to a decoder thread, which keeps only the newest (a slow decoder skips
-// frames, never queues).
+// to the FrameDecoder, which keeps only the newest (a slow decoder skips
+// frames, never queues). Each event posted gets a ticket, by which the shown
+// session learns when the server has answered it (shown_session.h).
 #pragma once
 
 #include <array>
@@ -30,6 +31,8 @@
 #include "client.h"
 #include "session_script.h"
 #include "sharing_calls.h"
+#include "viewer/frame_decoder.h"
+#include "viewer/shown_session.h"
 
 namespace cinevol::viewer {
 
@@ -39,15 +42,6 @@ struct ConnectionSettings {
   // A grant's secret: watch the session it names (WatchSession) instead of
   // creating one; events go as the grant holder's (SendEvents).
   std::string grant;
-};
-
-// A decoded frame and what the server said about it.
-struct ViewFrame {
-  RgbImage image;
-  v1::Frame info;               // without its image
-  std::size_t image_bytes = 0;  // encoded, as received
-  double decode_ms = 0;
-  std::chrono::steady_clock::time_point received;
 };
 
 enum class LinkState { kConnecting, kStreaming, kReconnecting, kFailed, kClosed };
@@ -69,13 +63,15 @@ class Connection {
   Connection& operator=(const Connection&) = delete;
 
   LinkStatus status() const;
-  // Set once the session exists: its scene (named views resolved), volume and device.
+  // Set once the session exists: its scene (resolved), volume and device.
   std::optional<v1::CreateSessionResponse> session() const;
   std::optional<v1::VolumeInfo> volume() const;
 
-  // Queues an event. Camera and pointer events replace one of their kind
-  // still waiting last.
-  void Post(v1::SessionEvent event);
+  // Queues an event; returns its ticket. Camera and pointer events replace
+  // one of their kind still waiting last (its ticket is dropped).
+  std::uint64_t Post(v1::SessionEvent event);
+  // Where the event of `ticket` stands: waiting, sent (as which seq), or dropped.
+  Delivery DeliveryOf(std::uint64_t ticket) const;
   // Runs `request` with the client once connected; its errors go to `done`
   // (empty on success). Both run on the requester thread.
   void Request(std::function<void(Client&)> request, std::function<void(const std::string& error)> done,
@@ -110,7 +106,8 @@ class Connection {
   void Detach();
   bool SendPending();
   void SendAsGrant();
-  void Decode();
+  // Records where the tickets went: as `seq` (0: dropped); mu_ held.
+  void DeliveredLocked(const std::vector<std::uint64_t>& tickets, std::uint64_t seq);
   void SetStatus(LinkState state, std::string message);
 
   const ConnectionSettings settings_;
@@ -132,8 +129,22 @@ class Connection {
   bool pointer_refused_ = false;
   std::optional<v1::CreateSessionResponse> session_;
   std::optional<v1::VolumeInfo> volume_;
-  std::deque<v1::SessionEvent> events_;
-  int sending_ = 0;  // events taken from the queue, not yet sent
+  struct Queued {
+    std::uint64_t ticket;
+    v1::SessionEvent event;
+  };
+  std::deque<Queued> events_;
+  std::uint64_t next_ticket_ = 1;
+  std::vector<std::uint64_t> sending_;  // tickets taken from the queue, not yet sent
+  // Tickets sent (and their seq) or dropped (0), the newest few thousand,
+  // with the stream's reattachments then: a seq counts on its own stream only.
+  struct Delivered {
+    std::uint64_t seq;
+    int epoch;
+  };
+  std::map<std::uint64_t, Delivered> delivered_;
+  std::atomic<int> epoch_{0};  // streams started, resumed and moved so far
+  int first_epoch_ = 0;        // the current stream's first (worker thread)
   struct Requests {
     std::deque<std::pair<std::function<void(Client&)>, std::function<void(const std::string&)>>> waiting;
     bool running = false;
@@ -143,13 +154,8 @@ class Connection {
   std::atomic<std::uint64_t> last_sent_{0};
   std::atomic<bool> stopping_{false};
 
-  std::mutex frame_mu_;
-  std::condition_variable frame_arrived_;
-  std::optional<v1::Frame> encoded_;  // newest undecoded
-  std::optional<ViewFrame> decoded_;  // newest decoded, not yet taken
-  std::chrono::steady_clock::time_point encoded_at_;
-
-  std::thread worker_, requester_, quick_requester_, decoder_;
+  FrameDecoder decoder_;
+  std::thread worker_, requester_, quick_requester_;
 };
 
 }  // namespace cinevol::viewer

@@ -1,5 +1,8 @@
 // Session-script "ui" lines: the viewer's own actions, so that a script can
-// drive the window as a person would (docs/viewer.md lists them).
+// drive the window as a person would (docs/viewer.md lists them). Each is
+// checked when the script loads, and runs when its time comes.
+#include "viewer/ui_actions.h"
+
 #include <fmt/format.h>
 #include <google/protobuf/struct.pb.h>
 #include <google/protobuf/util/json_util.h>
@@ -10,8 +13,9 @@
 #include <map>
 
 #include "core/error.h"
+#include "viewer/reading_view.h"
+#include "viewer/script_runner.h"
 #include "viewer/transfer_edits.h"
-#include "viewer/viewer_app.h"
 
 namespace cinevol::viewer {
 namespace {
@@ -125,12 +129,171 @@ SDL_Keymod Modifier(const std::string& name, const std::string& where) {
   throw InputError(where + ": modifier: shift, ctrl or alt");
 }
 
+
+// Transfer-function edits start from the points shown; those of a preset
+// asked for before them come first (the script runner waits for them).
+ShownSession& session(ActionTarget& t) { return t.rooms.link.shown(); }
+
+UiAction ParseTransferEdit(const std::string& name, const Value& value, const std::string& at) {
+  if (name == "movePoint") {  // {"movePoint": {"index": 2, "value": 300, "opacity": 0.8}}
+    const Struct& p = Object(value, at);
+    const int index = int(Number(p, "index", at));
+    const float v = float(Number(p, "value", at)), o = float(Number(p, "opacity", at));
+    return [=](ActionTarget& t) {
+      v1::TransferFunction tf = session(t).scene().transfer_function();
+      if (!MoveTransferPoint(tf, index, v, o)) {
+        throw InputError(fmt::format("{}: no point {} (the transfer function has {})", at, index, tf.points_size()));
+      }
+      session(t).SetTransferFunction(tf);
+    };
+  }
+  if (name == "addPoint") {  // {"addPoint": {"value": 300, "opacity": 0.5}}
+    const Struct& p = Object(value, at);
+    const float v = float(Number(p, "value", at)), o = float(Number(p, "opacity", at));
+    return [=](ActionTarget& t) {
+      v1::TransferFunction tf = session(t).scene().transfer_function();
+      if (AddTransferPoint(tf, v, o) >= 0) session(t).SetTransferFunction(tf);
+    };
+  }
+  if (name == "deletePoint") {  // {"deletePoint": 1}
+    if (value.kind_case() != Value::kNumberValue) throw InputError(at + ": must be a point index");
+    return [=, index = int(value.number_value())](ActionTarget& t) {
+      v1::TransferFunction tf = session(t).scene().transfer_function();
+      if (DeleteTransferPoint(tf, index)) session(t).SetTransferFunction(tf);
+    };
+  }
+  // {"windowLevel": {"level": 100, "window": 1.5}}
+  const Struct& p = Object(value, at);
+  const float level = float(Number(p, "level", at, 0)), window = float(Number(p, "window", at, 1));
+  return [=](ActionTarget& t) {
+    v1::TransferFunction tf = session(t).scene().transfer_function();
+    ApplyWindowLevel(tf, level, window);
+    session(t).SetTransferFunction(tf);
+  };
+}
+
+// The PACS panel's actions; none for another name.
+UiAction ParsePacsAction(const std::string& name, const Value& value, const std::string& at) {
+  if (name == "searchPacs") {  // {"searchPacs": {"pacs": "main", "patientId": "123", "modality": "CT"}}
+    const auto query = PacsRequest<v1::SearchStudiesRequest>(value, at, {"pacs"});
+    return [query](ActionTarget& t) {
+      t.rooms.panels.pacs = true;  // a screenshot shows what the panel found
+      t.rooms.pacs.Search(query);
+    };
+  }
+  if (name == "selectStudy") {  // {"selectStudy": {"pacs": "main", "studyUid": "1.2.3"}}
+    const auto study = PacsRequest<v1::SearchSeriesRequest>(value, at, {"pacs", "studyUid"});
+    return [study](ActionTarget& t) {
+      t.rooms.panels.pacs = true;
+      t.rooms.pacs.SelectStudy(study.pacs(), study.study_uid());
+    };
+  }
+  if (name == "openSeries") {  // {"openSeries": {"pacs": "main", "studyUid": "1.2.3", "seriesUid": "1.2.3.4"}}
+    const auto series = PacsRequest<v1::LoadSeriesRequest>(value, at, {"pacs", "studyUid", "seriesUid"});
+    return [series](ActionTarget& t) {
+      t.rooms.panels.pacs = true;
+      t.rooms.pacs.OpenSeries(series);
+    };
+  }
+  return {};
+}
+
+// A fraction of a view's width or height, as a click names it.
+double Fraction(const Struct& p, const std::string& key, const std::string& at) {
+  const double f = Number(p, key, at);
+  if (f < 0 || f >= 1) throw InputError(at + ": x and y in [0, 1)");
+  return f;
+}
+
+// The reading tools' actions; none for another name.
+UiAction ParseReadingAction(const std::string& name, const Value& value, const std::string& at) {
+  if (name == "layout2x2") {  // {"layout2x2": true}: the 3D view and three slices; false: the 3D view only
+    if (value.kind_case() != Value::kBoolValue) throw InputError(at + ": true or false");
+    return [grid = value.bool_value()](ActionTarget& t) {
+      if (t.rooms.reading.grid != grid) t.rooms.reading.ToggleGrid();
+    };
+  }
+  if (name == "pickAt") {  // {"pickAt": {"x": 0.5, "y": 0.5}}: a click there, in fractions of the 3D view
+    const Struct& p = Object(value, at);
+    const double x = Fraction(p, "x", at), y = Fraction(p, "y", at);
+    return [x, y](ActionTarget& t) {
+      const Rect shown = t.rooms.screen.ShownFrame();
+      t.rooms.reading.PickAt(shown.x + float(x) * shown.w, shown.y + float(y) * shown.h);
+    };
+  }
+  if (name == "clickSlice" || name == "stepSlice") {
+    // {"clickSlice": {"pane": "axial", "x": 0.5, "y": 0.5}}, {"stepSlice": {"pane": "coronal", "steps": 2}}
+    const Struct& p = Object(value, at);
+    const int pane = SlicePaneIndex(Text(Field(p, "pane", at), at + ".pane"), at);
+    if (name == "stepSlice") {
+      return [pane, steps = float(Number(p, "steps", at))](ActionTarget& t) { t.rooms.reading.StepSlice(pane, steps); };
+    }
+    const double x = Fraction(p, "x", at), y = Fraction(p, "y", at);
+    return [pane, x, y](ActionTarget& t) {
+      const Rect shown = t.rooms.reading.ShownSlice(pane);
+      t.rooms.reading.ClickSlice(pane, shown.x + float(x) * shown.w, shown.y + float(y) * shown.h);
+    };
+  }
+  if (name == "measureDistance" || name == "measureAngle") {  // {"measureAngle": true}: the next 3 picks
+    return [points = name == "measureAngle" ? kAnglePoints : kDistancePoints](ActionTarget& t) {
+      t.rooms.reading.StartMeasurement(points);
+    };
+  }
+  if (name == "deleteMeasurement") {  // {"deleteMeasurement": 0}: its x button in the Reading panel
+    if (value.kind_case() != Value::kNumberValue) throw InputError(at + ": must be a measurement index");
+    return [index = int(value.number_value())](ActionTarget& t) { t.rooms.reading.DeleteMeasurement(index); };
+  }
+  return {};
+}
+
+// Sharing's actions; none for another name.
+UiAction ParseSharingAction(const std::string& name, const Value& value, const std::string& at) {
+  if (name == "share") {  // {"share": {"link": true, "role": "viewer", "allowPointer": true}}
+    const v1::ShareSessionRequest request = ShareRequest(Object(value, at), at);
+    return [request, at](ActionTarget& t) {
+      if (t.rooms.link.Watching()) throw InputError(at + ": only the session's owner shares it (this viewer has --grant)");
+      t.rooms.panels.share = true;  // a screenshot shows the secret and the grants
+      t.rooms.sharing.Share(request);
+    };
+  }
+  if (name == "handover" || name == "revoke") {  // {"handover": {"grant": "g..."}}; "last": the newest made here
+    const std::string grant = Text(Field(Object(value, at), "grant", at), at + ".grant");
+    if (name == "revoke" && grant.empty()) throw InputError(at + ".grant: a grant's id, or \"last\"");
+    return [name, grant, at](ActionTarget& t) {
+      Sharing& sharing = t.rooms.sharing;
+      if (t.rooms.link.Watching() && !(name == "handover" && grant.empty())) {
+        throw InputError(at + ": a grant's holder only gives the presenter's role back (\"grant\": \"\")");
+      }
+      std::string id = grant;
+      if (grant == "last") {
+        if (!sharing.made) throw InputError(at + ": no grant made yet (\"last\")");
+        id = sharing.made->id();
+      }
+      name == "handover" ? sharing.HandOver(id) : sharing.Revoke(id);
+    };
+  }
+  if (name == "listShares") {  // {"listShares": true}
+    return [at](ActionTarget& t) {
+      if (t.rooms.link.Watching()) throw InputError(at + ": only the session's owner lists its grants");
+      t.rooms.sharing.ListShares();
+    };
+  }
+  if (name == "pointer") {  // {"pointer": {"x": 0.2, "y": 0.4}}: the mouse there over the 3D view
+    const Struct& p = Object(value, at);
+    std::optional<PointerShare::At> where;  // {"pointer": {"hidden": true}}: it left the view
+    if (!Flag(p, "hidden", at)) {
+      const double x = Number(p, "x", at), y = Number(p, "y", at);
+      if (x < 0 || x > 1 || y < 0 || y > 1) throw InputError(at + ": x and y in [0, 1]");
+      where = PointerShare::At{float(x), float(y)};
+    }
+    return [where](ActionTarget& t) { t.rooms.sharing.PointAt(where); };
+  }
+  return {};
+}
+
 }  // namespace
 
-// `line` < 0: check the action only (at load, before anything runs).
-void App::RunUiAction(const std::string& json, int line) {
-  const bool run = line > 0;
-  const std::string where = fmt::format("{} line {}: ui", options.script, std::abs(line));
+UiAction ParseUiAction(const std::string& json, const std::string& where) {
   Struct action;
   if (!google::protobuf::util::JsonStringToMessage(json, &action).ok() || action.fields().size() != 1) {
     throw InputError(where + ": one action per line");
@@ -139,165 +302,77 @@ void App::RunUiAction(const std::string& json, int line) {
   const std::string at = where + "." + name;
   if (name == "panel") {  // {"panel": {"name": "lights", "open": true}}
     const Struct& p = Object(value, at);
-    bool* open = Panel(panels, Text(Field(p, "name", at), at + ".name"));
-    if (!open) {
+    const std::string panel = Text(Field(p, "name", at), at + ".name");
+    if (PanelsOpen all; !Panel(all, panel)) {
       throw InputError(at +
                        ".name: volume, pacs, transferFunction, lights, render, clipping, labels, reading, "
                        "scene, share or stats");
     }
-    if (run) *open = !p.fields().count("open") || p.fields().at("open").bool_value();
-  } else if (name == "key") {  // {"key": "p"}
+    const bool open = !p.fields().count("open") || p.fields().at("open").bool_value();
+    return [panel, open](ActionTarget& t) { *Panel(t.rooms.panels, panel) = open; };
+  }
+  if (name == "key") {  // {"key": "p"}
     const std::string key = Text(value, at);
     static const std::map<std::string, SDL_Keycode> kNamed = {
         {"Home", SDLK_HOME}, {"F2", SDLK_F2}, {"F3", SDLK_F3}, {"F4", SDLK_F4}};
     if (key.size() != 1 && !kNamed.count(key)) throw InputError(at + ": one character, Home, F2, F3 or F4");
     const SDL_Keycode code = key.size() == 1 ? SDL_Keycode(std::tolower(key[0])) : kNamed.at(key);
-    if (run) Key(code);
-  } else if (name == "drag") {  // {"drag": {"button": "left", "dx": 100, "dy": 0, "modifier": "ctrl"}}
+    return [code](ActionTarget& t) { t.input.Key(code); };
+  }
+  if (name == "drag") {  // {"drag": {"button": "left", "dx": 100, "dy": 0, "modifier": "ctrl"}}
     const Struct& d = Object(value, at);
     const int button = Button(d.fields().count("button") ? Text(d.fields().at("button"), at) : "left", at);
     const SDL_Keymod mods = Modifier(d.fields().count("modifier") ? Text(d.fields().at("modifier"), at) : "", at);
-    const double dx = Number(d, "dx", at, 0), dy = Number(d, "dy", at, 0);
-    if (run) Drag(button, float(dx), float(dy), mods);
-  } else if (name == "wheel") {  // {"wheel": 2}
+    const float dx = float(Number(d, "dx", at, 0)), dy = float(Number(d, "dy", at, 0));
+    return [=](ActionTarget& t) { t.input.Drag(button, dx, dy, mods); };
+  }
+  if (name == "wheel") {  // {"wheel": 2}
     if (value.kind_case() != Value::kNumberValue) throw InputError(at + ": must be a number");
-    if (run) Wheel(float(value.number_value()));
-  } else if (name == "preset") {
-    const std::string preset = Text(value, at);
-    if (run) ChoosePreset(preset);
-  } else if (name == "movePoint") {  // {"movePoint": {"index": 2, "value": 300, "opacity": 0.8}}
-    const Struct& p = Object(value, at);
-    const int index = int(Number(p, "index", at));
-    const double v = Number(p, "value", at), o = Number(p, "opacity", at);
-    if (run) {
-      if (!MoveTransferPoint(transfer, index, float(v), float(o))) {
-        throw InputError(
-            fmt::format("{}: no point {} (the transfer function has {})", at, index, transfer.points_size()));
-      }
-      SendTransferFunction();
-    }
-  } else if (name == "addPoint") {  // {"addPoint": {"value": 300, "opacity": 0.5}}
-    const Struct& p = Object(value, at);
-    const double v = Number(p, "value", at), o = Number(p, "opacity", at);
-    if (run && AddTransferPoint(transfer, float(v), float(o)) >= 0) SendTransferFunction();
-  } else if (name == "deletePoint") {  // {"deletePoint": 1}
-    if (value.kind_case() != Value::kNumberValue) throw InputError(at + ": must be a point index");
-    if (run && DeleteTransferPoint(transfer, int(value.number_value()))) SendTransferFunction();
-  } else if (name == "windowLevel") {  // {"windowLevel": {"level": 100, "window": 1.5}}
-    const Struct& p = Object(value, at);
-    const double level = Number(p, "level", at, 0), window = Number(p, "window", at, 1);
-    if (run) {
-      ApplyWindowLevel(transfer, float(level), float(window));
-      SendTransferFunction();
-    }
-  } else if (name == "snapshot") {  // {"snapshot": {"file": "still.png", "spp": 64}}
+    return [steps = float(value.number_value())](ActionTarget& t) { t.input.Wheel(steps); };
+  }
+  if (name == "preset") {  // the server fits it to the volume
+    return [preset = Text(value, at)](ActionTarget& t) { t.rooms.link.shown().ChoosePreset(preset); };
+  }
+  if (name == "movePoint" || name == "addPoint" || name == "deletePoint" || name == "windowLevel") {
+    return ParseTransferEdit(name, value, at);
+  }
+  if (name == "snapshot") {  // {"snapshot": {"file": "still.png", "spp": 64}}
     const Struct& p = Object(value, at);
     const std::string file = Text(Field(p, "file", at), at + ".file");
-    const double spp = Number(p, "spp", at, 256);
-    if (run) Snapshot(file, int(spp));
-  } else if (name == "saveScene" || name == "openScene") {
+    const int spp = int(Number(p, "spp", at, 256));
+    return [file, spp](ActionTarget& t) { t.rooms.files.Snapshot(file, spp); };
+  }
+  if (name == "saveScene" || name == "openScene") {
     const std::string file = Text(value, at);
-    if (run) name == "saveScene" ? SaveScene(file) : OpenScene(file);
-  } else if (name == "resizeWindow") {  // {"resizeWindow": {"width": 800, "height": 500}}
+    if (name == "saveScene") return [file](ActionTarget& t) { t.rooms.files.Save(file); };
+    return [file](ActionTarget& t) { t.rooms.files.Open(file); };
+  }
+  if (name == "resizeWindow") {  // {"resizeWindow": {"width": 800, "height": 500}}
     const Struct& p = Object(value, at);
     const double w = Number(p, "width", at), h = Number(p, "height", at);
-    if (w < 200 || h < 150 || w > 8192 || h > 8192)
+    if (w < 200 || h < 150 || w > 8192 || h > 8192) {
       throw InputError(at + ": width and height in [200, 8192] x [150, 8192]");
-    if (run) SDL_SetWindowSize(window_, int(w), int(h));
-  } else if (name == "screenshot") {  // {"screenshot": "step.png"}: the window once this frame is drawn
-    const std::string file = Text(value, at);
-    if (run) screenshots_.push_back(file);
-  } else if (name == "settle") {  // {"settle": true}: the script waits until every event sent has its frame
-    if (run) settling_ = true;
-  } else if (name == "searchPacs") {  // {"searchPacs": {"pacs": "main", "patientId": "123", "modality": "CT"}}
-    const auto query = PacsRequest<v1::SearchStudiesRequest>(value, at, {"pacs"});
-    if (run) {
-      panels.pacs = true;  // a screenshot shows what the panel found
-      SearchPacs(query);
     }
-  } else if (name == "selectStudy") {  // {"selectStudy": {"pacs": "main", "studyUid": "1.2.3"}}
-    const auto study = PacsRequest<v1::SearchSeriesRequest>(value, at, {"pacs", "studyUid"});
-    if (run) {
-      panels.pacs = true;
-      SelectStudy(study.pacs(), study.study_uid());
-    }
-  } else if (name == "openSeries") {  // {"openSeries": {"pacs": "main", "studyUid": "1.2.3", "seriesUid": "1.2.3.4"}}
-    const auto series = PacsRequest<v1::LoadSeriesRequest>(value, at, {"pacs", "studyUid", "seriesUid"});
-    if (run) {
-      panels.pacs = true;
-      OpenSeries(series);
-    }
-  } else if (name == "layout2x2") {  // {"layout2x2": true}: the 3D view and three slices; false: the 3D view only
-    if (value.kind_case() != Value::kBoolValue) throw InputError(at + ": true or false");
-    if (run && reading.grid != value.bool_value()) ToggleGrid();
-  } else if (name == "pickAt") {  // {"pickAt": {"x": 0.5, "y": 0.5}}: a click there, in fractions of the 3D view
-    const Struct& p = Object(value, at);
-    const double x = Number(p, "x", at), y = Number(p, "y", at);
-    if (x < 0 || x >= 1 || y < 0 || y >= 1) throw InputError(at + ": x and y in [0, 1)");
-    if (run) {
-      const Rect shown = ShownFrame();
-      PickAt(shown.x + float(x) * shown.w, shown.y + float(y) * shown.h);
-    }
-  } else if (name == "clickSlice" || name == "stepSlice") {
-    // {"clickSlice": {"pane": "axial", "x": 0.5, "y": 0.5}}, {"stepSlice": {"pane": "coronal", "steps": 2}}
-    const Struct& p = Object(value, at);
-    const int pane = SlicePaneIndex(Text(Field(p, "pane", at), at + ".pane"), at);
-    if (name == "stepSlice") {
-      const double steps = Number(p, "steps", at);
-      if (run) StepSlice(pane, float(steps));
-    } else {
-      const double x = Number(p, "x", at), y = Number(p, "y", at);
-      if (x < 0 || x >= 1 || y < 0 || y >= 1) throw InputError(at + ": x and y in [0, 1)");
-      if (run) {
-        const Rect shown = ShownSlice(reading.panes[pane]);
-        ClickSlice(pane, shown.x + float(x) * shown.w, shown.y + float(y) * shown.h);
-      }
-    }
-  } else if (name == "measureDistance" || name == "measureAngle") {  // {"measureAngle": true}: the next 3 picks
-    if (run) StartMeasurement(name == "measureAngle" ? kAnglePoints : kDistancePoints);
-  } else if (name == "deleteMeasurement") {  // {"deleteMeasurement": 0}: its x button in the Reading panel
-    if (value.kind_case() != Value::kNumberValue) throw InputError(at + ": must be a measurement index");
-    if (run) DeleteMeasurement(int(value.number_value()));
-  } else if (name == "share") {  // {"share": {"link": true, "role": "viewer", "allowPointer": true}}
-    const v1::ShareSessionRequest request = ShareRequest(Object(value, at), at);
-    if (run && Watching()) throw InputError(at + ": only the session's owner shares it (this viewer has --grant)");
-    if (run) {
-      panels.share = true;  // a screenshot shows the secret and the grants
-      Share(request);
-    }
-  } else if (name == "handover" || name == "revoke") {  // {"handover": {"grant": "g..."}}; "last": the newest made here
-    std::string grant = Text(Field(Object(value, at), "grant", at), at + ".grant");
-    if (name == "revoke" && grant.empty()) throw InputError(at + ".grant: a grant's id, or \"last\"");
-    if (run && Watching() && !(name == "handover" && grant.empty())) {
-      throw InputError(at + ": a grant's holder only gives the presenter's role back (\"grant\": \"\")");
-    }
-    if (run && grant == "last") {
-      if (!sharing.made) throw InputError(at + ": no grant made yet (\"last\")");
-      grant = sharing.made->id();
-    }
-    if (run) name == "handover" ? HandOver(grant) : Revoke(grant);
-  } else if (name == "listShares") {  // {"listShares": true}
-    if (run && Watching()) throw InputError(at + ": only the session's owner lists its grants");
-    if (run) ListShares();
-  } else if (name == "pointer") {  // {"pointer": {"x": 0.2, "y": 0.4}}: the mouse there over the 3D view
-    const Struct& p = Object(value, at);
-    std::optional<PointerShare::At> where;  // {"pointer": {"hidden": true}}: it left the view
-    if (!Flag(p, "hidden", at)) {
-      const double x = Number(p, "x", at), y = Number(p, "y", at);
-      if (x < 0 || x > 1 || y < 0 || y > 1) throw InputError(at + ": x and y in [0, 1]");
-      where = PointerShare::At{float(x), float(y)};
-    }
-    if (run) PointAt(where);
-  } else if (name == "quit") {
-    if (run) finish_now_ = true;
-  } else {
-    throw InputError(fmt::format(
-        "{}: unknown action (panel, key, drag, wheel, preset, movePoint, addPoint, deletePoint, windowLevel, "
-        "snapshot, saveScene, openScene, searchPacs, selectStudy, openSeries, layout2x2, pickAt, clickSlice, "
-        "stepSlice, measureDistance, measureAngle, deleteMeasurement, share, listShares, handover, revoke, pointer, "
-        "resizeWindow, settle, screenshot, quit)",
-        at));
+    return [w, h](ActionTarget& t) { t.rooms.screen.Resize(int(w), int(h)); };
   }
+  if (name == "screenshot") {  // {"screenshot": "step.png"}: the window once this turn is drawn
+    return [file = Text(value, at)](ActionTarget& t) { t.runner.Screenshot(file); };
+  }
+  if (name == "settle") {  // {"settle": true}: the script waits until every event sent has its frame
+    return [](ActionTarget& t) { t.runner.Settle(); };
+  }
+  if (name == "quit") {
+    return [](ActionTarget& t) { t.runner.Finish(); };
+  }
+  if (UiAction pacs = ParsePacsAction(name, value, at)) return pacs;
+  if (UiAction reading = ParseReadingAction(name, value, at)) return reading;
+  if (UiAction sharing = ParseSharingAction(name, value, at)) return sharing;
+  throw InputError(fmt::format(
+      "{}: unknown action (panel, key, drag, wheel, preset, movePoint, addPoint, deletePoint, windowLevel, "
+      "snapshot, saveScene, openScene, searchPacs, selectStudy, openSeries, layout2x2, pickAt, clickSlice, "
+      "stepSlice, measureDistance, measureAngle, deleteMeasurement, share, listShares, handover, revoke, pointer, "
+      "resizeWindow, settle, screenshot, quit)",
+      at));
 }
 
 }  // namespace cinevol::viewer

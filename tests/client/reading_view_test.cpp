@@ -1,7 +1,8 @@
-// The viewer's reading geometry: slice pixels and patient positions agree
-// both ways, measurements have their textbook values, the 3D projection puts
-// points where the server's own camera does, and the orientation marker
-// follows the camera and the volume's direction cosines.
+// The viewer's reading tools: their words, and the client library's geometry
+// under them: slice pixels and patient positions agree both ways,
+// measurements have their textbook values, the 3D projection puts points
+// where the server's own camera does, and the orientation marker follows the
+// camera and the volume's direction cosines.
 #include "viewer/reading_view.h"
 
 #include <gtest/gtest.h>
@@ -14,13 +15,13 @@
 namespace cinevol::viewer {
 namespace {
 
-void ExpectNear(Vec3f a, Vec3f b, float tolerance = 1e-4f) {
+void ExpectNear(Vec3d a, Vec3d b, double tolerance = 1e-4) {
   for (int i = 0; i < 3; ++i) EXPECT_NEAR(a[i], b[i], tolerance) << "component " << i;
 }
 
 // An axial slice as the server sends it: the patient's right on the image's
 // left (rows run to +x), anterior at the top (columns run to +y).
-SliceGeometry Axial() { return {{-10, -20, 30}, {1, 0, 0}, {0, 1, 0}, 0.5f, 0.75f, 40, 60}; }
+SliceGrid Axial() { return {{-10, -20, 30}, {1, 0, 0}, {0, 1, 0}, 0.5f, 0.75f, 40, 60}; }
 
 const MarkerAxis& Find(const std::vector<MarkerAxis>& axes, char letter) {
   return *std::find_if(axes.begin(), axes.end(), [&](const MarkerAxis& a) { return a.letter == letter; });
@@ -35,7 +36,7 @@ TEST(ReadingView, APickIsDescribedWithItsUnitAndLabel) {
   v1::PickResult pick;
   EXPECT_NE(DescribePick(pick, "HU").find("no hit"), std::string::npos);
   pick.set_hit(true);
-  *pick.mutable_position_mm() = ToProtoVec3({1, -2, 3});
+  *pick.mutable_position_mm() = ToProto(Vec3d{1, -2, 3});
   pick.set_value(412.34f);
   EXPECT_EQ(DescribePick(pick, "HU"), "L 1.0 A 2.0 S 3.0 mm, value 412.3 HU");
   pick.mutable_label()->set_value(3);
@@ -44,10 +45,10 @@ TEST(ReadingView, APickIsDescribedWithItsUnitAndLabel) {
 }
 
 TEST(ReadingView, SlicePixelsAndPatientPositionsAgreeBothWays) {
-  const SliceGeometry slice = Axial();
+  const SliceGrid slice = Axial();
   ExpectNear(SlicePixelToPatient(slice, 0, 0), {-10, -20, 30});
-  ExpectNear(SlicePixelToPatient(slice, 4, 2), {-8, -18.5f, 30});
-  const SlicePixel back = PatientToSlicePixel(slice, {-8, -18.5f, 32});
+  ExpectNear(SlicePixelToPatient(slice, 4, 2), {-8, -18.5, 30});
+  const SlicePixel back = PatientToSlicePixel(slice, {-8, -18.5, 32});
   EXPECT_NEAR(back.column, 4, 1e-4f);
   EXPECT_NEAR(back.row, 2, 1e-4f);
   EXPECT_NEAR(back.off_plane_mm, 2, 1e-4f) << "rows x columns points to +z (superior)";
@@ -55,31 +56,31 @@ TEST(ReadingView, SlicePixelsAndPatientPositionsAgreeBothWays) {
 
 TEST(ReadingView, SliceGeometryComesFromTheImage) {
   v1::SliceImage image;
-  *image.mutable_origin_mm() = ToProtoVec3({1, 2, 3});
-  *image.mutable_row_direction() = ToProtoVec3({0, 1, 0});
-  *image.mutable_column_direction() = ToProtoVec3({0, 0, -1});
+  *image.mutable_origin_mm() = ToProto(Vec3d{1, 2, 3});
+  *image.mutable_row_direction() = ToProto(Vec3d{0, 1, 0});
+  *image.mutable_column_direction() = ToProto(Vec3d{0, 0, -1});
   image.set_row_spacing_mm(2);
   image.set_column_spacing_mm(3);
   image.set_width(10);
   image.set_height(20);
-  const SliceGeometry g = SliceGeometry::Of(image);
+  const SliceGrid g = SliceGrid::Of(image);
   ExpectNear(SlicePixelToPatient(g, 1, 1), {1, 4, 0});
   EXPECT_EQ(g.width, 10);
   EXPECT_EQ(g.height, 20);
 }
 
 TEST(ReadingView, DistancesAndAnglesHaveTheirTextbookValues) {
-  EXPECT_FLOAT_EQ(DistanceMm({0, 0, 0}, {3, 4, 0}), 5);
+  EXPECT_DOUBLE_EQ(DistanceMm({0, 0, 0}, {3, 4, 0}), 5);
   EXPECT_NEAR(AngleDeg({1, 0, 0}, {0, 0, 0}, {0, 1, 0}), 90, 1e-4f);
   EXPECT_NEAR(AngleDeg({1, 0, 0}, {0, 0, 0}, {1, 1, 0}), 45, 1e-3f);
   EXPECT_NEAR(AngleDeg({1, 0, 0}, {0, 0, 0}, {2, 0, 0}), 0, 5e-2f) << "clamped: no NaN for parallel rays";
   v1::Measurement m;
-  *m.add_points() = ToProtoVec3({0, 0, 0});
-  *m.add_points() = ToProtoVec3({0, 42.5f, 0});
+  *m.add_points() = ToProto(Vec3d{0, 0, 0});
+  *m.add_points() = ToProto(Vec3d{0, 42.5f, 0});
   EXPECT_EQ(MeasurementText(m), "42.5 mm");
-  *m.add_points() = ToProtoVec3({10, 42.5f, 0});
+  *m.add_points() = ToProto(Vec3d{10, 42.5f, 0});
   EXPECT_EQ(MeasurementText(m), "90.0 deg");
-  *m.add_points() = ToProtoVec3({1, 1, 1});
+  *m.add_points() = ToProto(Vec3d{1, 1, 1});
   EXPECT_EQ(MeasurementText(m), "") << "four points measure nothing";
 }
 
@@ -90,7 +91,7 @@ TEST(ReadingView, TheTargetProjectsToTheViewsCentreAndUpIsUp) {
   EXPECT_NEAR(centre->x, 100, 1e-3f);
   EXPECT_NEAR(centre->y, 50, 1e-3f);
   // A point at the top edge of the field of view: tan(15 deg) * 500 mm up.
-  const auto top = ProjectToView(camera, {0, 0, 500 * std::tan(15 * 3.14159265f / 180)}, 200, 100);
+  const auto top = ProjectToView(camera, {0, 0, 500 * std::tan(15 * M_PI / 180)}, 200, 100);
   ASSERT_TRUE(top);
   EXPECT_NEAR(top->y, 0, 1e-2f);
   const auto right = ProjectToView(camera, {10, 0, 0}, 200, 100);
@@ -100,11 +101,12 @@ TEST(ReadingView, TheTargetProjectsToTheViewsCentreAndUpIsUp) {
 }
 
 TEST(ReadingView, TheProjectionIsTheServersPinholeCamera) {
-  const ViewCamera camera{{120, -300, 80}, {10, 5, -20}, {0.1f, 0, 1}, 40};
-  const Camera server = LookAt(camera.eye, camera.target, camera.up, camera.fov_y_deg, 320, 200);
-  for (const Vec3f p : {Vec3f{0, 0, 0}, Vec3f{40, -20, 60}, Vec3f{-70, 30, -10}}) {
+  const ViewCamera camera{{120, -300, 80}, {10, 5, -20}, {0.1, 0, 1}, 40};
+  const auto f = [](Vec3d v) { return Vec3f{float(v.x), float(v.y), float(v.z)}; };
+  const Camera server = LookAt(f(camera.eye), f(camera.target), f(camera.up), float(camera.fov_y_deg), 320, 200);
+  for (const Vec3d p : {Vec3d{0, 0, 0}, Vec3d{40, -20, 60}, Vec3d{-70, 30, -10}}) {
     float px = 0, py = 0;
-    ASSERT_TRUE(server.Project(p, px, py));
+    ASSERT_TRUE(server.Project(f(p), px, py));
     const auto mine = ProjectToView(camera, p, 320, 200);
     ASSERT_TRUE(mine);
     EXPECT_NEAR(mine->x, px, 1e-2f);
@@ -116,7 +118,7 @@ TEST(ReadingView, TheMarkerShowsThePatientAxesAsTheCameraSeesThem) {
   // From the front (anterior view): the patient's left is on the viewer's
   // right, superior up, posterior away from the viewer.
   const ViewCamera front{{0, -500, 0}, {0, 0, 0}, {0, 0, 1}, 30};
-  const std::vector<MarkerAxis> axes = MarkerAxes(front, VolumePlacement{});
+  const std::vector<MarkerAxis> axes = MarkerAxes(front, Placement{});
   ASSERT_EQ(axes.size(), 6u);
   EXPECT_NEAR(Find(axes, 'L').x, 1, 1e-5f);
   EXPECT_NEAR(Find(axes, 'S').y, 1, 1e-5f);
@@ -125,13 +127,12 @@ TEST(ReadingView, TheMarkerShowsThePatientAxesAsTheCameraSeesThem) {
   EXPECT_EQ(axes.back().letter, 'A');
   // A volume whose first index axis runs to the patient's right: the
   // volume-centred frame turns with it, so L is now on the viewer's left.
-  VolumePlacement flipped;
-  flipped.direction = {-1, 0, 0, 0, 1, 0, 0, 0, 1};
+  const Placement flipped({-1, 0, 0, 0, 1, 0, 0, 0, 1}, {0, 0, 0}, {1, 1, 1}, {1, 1, 1});
   EXPECT_NEAR(Find(MarkerAxes(front, flipped), 'L').x, -1, 1e-5f);
 }
 
 TEST(ReadingView, CrosshairSlicesCrossTheirAxisAtTheCrosshair) {
-  const Vec3f crosshair{1, 2, 3};
+  const Vec3d crosshair{1, 2, 3};
   EXPECT_FLOAT_EQ(CrosshairSlice("s", v1::AXIAL, crosshair).position_mm(), 3);
   EXPECT_FLOAT_EQ(CrosshairSlice("s", v1::CORONAL, crosshair).position_mm(), 2);
   const v1::SliceRequest sagittal = CrosshairSlice("s", v1::SAGITTAL, crosshair);
@@ -166,27 +167,28 @@ TEST(ReadingView, ASlicePlanesOutlineIsWhereItCutsTheVolumesBox) {
   volume.mutable_spacing_mm()->set_y(1);
   volume.mutable_spacing_mm()->set_z(2);
   for (double d : {-1, 0, 0, 0, -1, 0, 0, 0, 1}) volume.add_direction(d);
-  const std::vector<Vec3f> axial = SlicePlaneOutline(volume, 2, 30);
+  const Placement placement = Placement::Of(volume);
+  const std::vector<Vec3d> axial = placement.SlicePlaneOutline(2, 30);
   ASSERT_EQ(axial.size(), 4u);
   for (std::size_t i = 0; i < axial.size(); ++i) {
     EXPECT_FLOAT_EQ(axial[i].z, 30);
     EXPECT_GE(axial[i].x, -10.001f);
     EXPECT_LE(axial[i].x, 0.001f);
-    const Vec3f& next = axial[(i + 1) % axial.size()];  // neighbours share a side: no diagonal
+    const Vec3d& next = axial[(i + 1) % axial.size()];  // neighbours share a side: no diagonal
     EXPECT_TRUE(std::fabs(axial[i].x - next.x) < 1e-4f || std::fabs(axial[i].y - next.y) < 1e-4f) << i;
   }
-  EXPECT_EQ(SlicePlaneOutline(volume, 0, 1).size(), 0u) << "beyond the box: nothing";
-  EXPECT_EQ(SlicePlaneOutline(volume, 0, -5).size(), 4u);
+  EXPECT_EQ(placement.SlicePlaneOutline(0, 1).size(), 0u) << "beyond the box: nothing";
+  EXPECT_EQ(placement.SlicePlaneOutline(0, -5).size(), 4u);
 }
 
 TEST(ReadingView, AVoxelStepFollowsTheIndexAxisAlongThePatientAxis) {
   v1::VolumeInfo volume;
-  *volume.mutable_spacing_mm() = ToProtoVec3({0.5f, 0.7f, 2.5f});
-  EXPECT_FLOAT_EQ(VoxelStepMm(volume, 2), 2.5f);
+  *volume.mutable_spacing_mm() = ToProto(Vec3d{0.5, 0.7, 2.5});
+  EXPECT_FLOAT_EQ(Placement::Of(volume).VoxelStepMm(2), 2.5f);
   // Index axis 2 runs along y and axis 1 along z (a coronal acquisition).
   for (double d : {1, 0, 0, 0, 0, 1, 0, 1, 0}) volume.add_direction(d);
-  EXPECT_FLOAT_EQ(VoxelStepMm(volume, 2), 0.7f);
-  EXPECT_FLOAT_EQ(VoxelStepMm(volume, 1), 2.5f);
+  EXPECT_FLOAT_EQ(Placement::Of(volume).VoxelStepMm(2), 0.7f);
+  EXPECT_FLOAT_EQ(Placement::Of(volume).VoxelStepMm(1), 2.5f);
 }
 
 }  // namespace

@@ -68,7 +68,7 @@ Placement PlacementOf(const Struct& s) {
   return {direction, VecOf(s, "origin_mm"), VecOf(s, "spacing_mm"), VecOf(s, "dims")};
 }
 
-SliceGeometry SliceOf(const Struct& s) {
+SliceGrid SliceOf(const Struct& s) {
   return {VecOf(s, "origin_mm"),         VecOf(s, "row_direction"),    VecOf(s, "column_direction"),
           Number(s, "row_spacing_mm"),   Number(s, "column_spacing_mm"), int(Number(s, "width")),
           int(Number(s, "height"))};

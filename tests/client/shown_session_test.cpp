@@ -1,0 +1,204 @@
+// What the viewer shows and sends (viewer/shown_session.h): the server's
+// state, with this viewer's unanswered edits over it; a preset or a named
+// view goes for the server to work out, never worked out here.
+#include "viewer/shown_session.h"
+
+#include <gtest/gtest.h>
+
+#include <map>
+#include <vector>
+
+namespace cinevol::viewer {
+namespace {
+
+// Where the edits go: a record, with deliveries the test decides.
+class RecordingSink : public EventSink {
+ public:
+  bool drives = true;
+  std::vector<v1::SessionEvent> posted;
+  std::map<std::uint64_t, Delivery> deliveries;  // by ticket; absent: waiting
+
+  bool Drives() const override { return drives; }
+  std::uint64_t Post(v1::SessionEvent event) override {
+    posted.push_back(std::move(event));
+    return posted.size();  // the ticket: 1, 2, ...
+  }
+  Delivery DeliveryOf(std::uint64_t ticket) const override {
+    const auto it = deliveries.find(ticket);
+    return it == deliveries.end() ? Delivery{} : it->second;
+  }
+  // The last event posted went out as `seq`.
+  void Sent(std::uint64_t seq) { deliveries[posted.size()] = {Delivery::kSent, seq}; }
+};
+
+v1::TransferFunction Points(std::initializer_list<std::pair<float, float>> points, const std::string& preset = "") {
+  v1::TransferFunction tf;
+  tf.set_preset(preset);
+  for (auto [value, opacity] : points) {
+    v1::TransferFunctionPoint& p = *tf.add_points();
+    p.set_value(value);
+    p.set_opacity(opacity);
+  }
+  return tf;
+}
+
+// A resolved state, as the server sends it: numbers, points, where the volume lies.
+v1::SessionState Resolved(std::uint64_t seq) {
+  v1::SessionState state;
+  *state.mutable_scene()->mutable_camera() = ToProto(ViewCamera{{0, -500, 0}, {0, 0, 0}, {0, 0, 1}, 30});
+  *state.mutable_scene()->mutable_transfer_function() = Points({{-1000, 0}, {300, 0.1f}, {2000, 0.9f}}, "ct-soft-tissue");
+  state.mutable_scene()->mutable_render()->set_spp(2);
+  state.mutable_scene()->mutable_render()->set_max_bounces(4);
+  state.mutable_stream()->set_jpeg_quality(80);
+  state.set_last_event_seq(seq);
+  return state;
+}
+
+// Bug 1 of issue 56: the viewer expanded presets itself, for a 1 mm voxel
+// (ten times too dense on a 0.1 mm micro-CT). It now sends the preset's
+// name alone; the server fits it to the volume's values and spacing, and the
+// points shown are the server's.
+TEST(ShownSession, ChoosingAPresetSendsItsNameForTheServerToFitNotPoints) {
+  RecordingSink sink;
+  ShownSession session(sink);
+  session.Start(Resolved(0));
+  session.ChoosePreset("ct-bone");
+  ASSERT_EQ(sink.posted.size(), 1u);
+  const v1::SessionEvent& sent = sink.posted.back();
+  ASSERT_TRUE(sent.has_transfer_function());
+  EXPECT_EQ(sent.transfer_function().preset(), "ct-bone");
+  EXPECT_EQ(sent.transfer_function().points_size(), 0) << "the viewer expanded the preset itself";
+  EXPECT_TRUE(session.Resolving());
+  EXPECT_EQ(session.ResolvingPreset(), "ct-bone");
+  EXPECT_EQ(session.scene().transfer_function().preset(), "ct-soft-tissue") << "no points of its own meanwhile";
+  sink.Sent(7);
+  v1::SessionState fitted = Resolved(7);  // fitted to a 0.1 mm micro-CT: what the server says, shown as it says
+  *fitted.mutable_scene()->mutable_transfer_function() = Points({{150, 0}, {400, 0.4f}, {3000, 1}}, "ct-bone");
+  session.Adopt(fitted);
+  EXPECT_FALSE(session.Resolving());
+  ASSERT_EQ(session.scene().transfer_function().points_size(), 3);
+  EXPECT_FLOAT_EQ(session.scene().transfer_function().points(1).value(), 400);
+  EXPECT_EQ(session.scene().transfer_function().preset(), "ct-bone");
+}
+
+TEST(ShownSession, ANamedViewGoesAsTheViewAboutTheCurrentTargetAndShowsTheServersNumbers) {
+  RecordingSink sink;
+  ShownSession session(sink);
+  v1::SessionState first = Resolved(0);
+  *first.mutable_scene()->mutable_camera() = ToProto(ViewCamera{{10, -290, 20}, {10, 10, 20}, {0, 0, 1}, 30});
+  session.Start(first);
+  session.TurnTo(v1::LEFT);
+  ASSERT_EQ(sink.posted.size(), 1u);
+  const v1::Camera& asked = sink.posted.back().camera();
+  EXPECT_EQ(asked.view(), v1::LEFT);
+  EXPECT_FLOAT_EQ(asked.target().y(), 10) << "the target to turn about";
+  EXPECT_FLOAT_EQ(asked.eye().y(), -290) << "the eye: how far from it";
+  EXPECT_TRUE(session.Resolving());
+  EXPECT_DOUBLE_EQ(session.camera().eye.y, -290) << "the camera shown stays until the server's numbers come";
+  sink.Sent(3);
+  v1::SessionState turned = Resolved(3);
+  *turned.mutable_scene()->mutable_camera() = ToProto(ViewCamera{{310, 10, 20}, {10, 10, 20}, {0, 0, 1}, 30});
+  session.Adopt(turned);
+  EXPECT_FALSE(session.Resolving());
+  EXPECT_DOUBLE_EQ(session.camera().eye.x, 310);
+}
+
+TEST(ShownSession, ADragShowsAtOnceGoesOncePerFlushAndHoldsUntilAnswered) {
+  RecordingSink sink;
+  ShownSession session(sink);
+  session.Start(Resolved(0));
+  ViewCamera c = session.camera();
+  Orbit(c, 10, 0);
+  session.SetCamera(c);
+  Orbit(c, 10, 0);
+  session.SetCamera(c);
+  EXPECT_TRUE(sink.posted.empty()) << "the camera waits for the frame's flush";
+  EXPECT_TRUE(session.camera_waiting());
+  EXPECT_NEAR(session.camera().eye.x, c.eye.x, 1e-4) << "shown at once: the next drag goes on from it";
+  EXPECT_TRUE(session.Flush());
+  EXPECT_FALSE(session.Flush()) << "once a frame";
+  ASSERT_EQ(sink.posted.size(), 1u);
+  sink.Sent(5);
+  session.Adopt(Resolved(4));  // a state from before the drag: the drag still shows
+  EXPECT_NEAR(session.camera().eye.x, c.eye.x, 1e-4);
+  v1::SessionState answered = Resolved(5);
+  *answered.mutable_scene()->mutable_camera() = sink.posted.back().camera();
+  answered.mutable_scene()->mutable_camera()->mutable_eye()->set_z(1);  // as the server keeps it
+  session.Adopt(answered);
+  EXPECT_FALSE(session.Pending());
+  EXPECT_NEAR(session.camera().eye.z, 1, 1e-6) << "answered: the server's state shows";
+}
+
+TEST(ShownSession, WhileAnotherDrivesNothingGoesAndTheSessionShowsAsTheServerHasIt) {
+  RecordingSink sink;
+  sink.drives = false;
+  ShownSession session(sink);
+  session.Start(Resolved(0));
+  session.ChoosePreset("ct-bone");
+  session.SetCamera({{1, 2, 3}, {0, 0, 0}, {0, 0, 1}, 30});
+  session.SetClipping(v1::Clipping{});
+  EXPECT_FALSE(session.Flush());
+  EXPECT_TRUE(sink.posted.empty());
+  EXPECT_FALSE(session.Pending());
+  v1::SessionState moved = Resolved(9);
+  *moved.mutable_scene()->mutable_camera() = ToProto(ViewCamera{{0, 0, 700}, {0, 0, 0}, {0, 1, 0}, 30});
+  session.Adopt(moved);
+  EXPECT_DOUBLE_EQ(session.camera().eye.z, 700) << "the presenter's camera";
+}
+
+TEST(ShownSession, AnEditThatCannotReachTheServerGivesWayToItsState) {
+  RecordingSink sink;
+  ShownSession session(sink);
+  session.Start(Resolved(0));
+  session.SetTransferFunction(Points({{0, 0}, {100, 1}}));
+  EXPECT_EQ(session.scene().transfer_function().points_size(), 2);
+  sink.deliveries[1] = {Delivery::kDropped, 0};  // its stream ended under it
+  session.Settle();
+  EXPECT_EQ(session.scene().transfer_function().points_size(), 3) << "the server's points";
+}
+
+TEST(ShownSession, MeasurementsAreAnsweredWhenTheStateHoldsThem) {
+  RecordingSink sink;
+  ShownSession session(sink);
+  session.Start(Resolved(4));
+  v1::Measurement m;
+  m.set_name("distance 1");
+  *m.add_points() = ToProto(Vec3d{0, 0, 0});
+  *m.add_points() = ToProto(Vec3d{0, 42.5, 0});
+  session.SetMeasurements({m});
+  EXPECT_EQ(session.scene().measurements_size(), 1);
+  sink.Sent(5);  // the stream numbers it; no state counts it
+  session.Adopt(Resolved(4));
+  EXPECT_EQ(session.scene().measurements_size(), 1) << "not held yet: still shown as sent";
+  v1::SessionState held = Resolved(4);
+  *held.mutable_scene()->add_measurements() = m;
+  session.Adopt(held);
+  EXPECT_FALSE(session.Pending());
+  session.SetMeasurements({});  // the last one deleted: an empty list goes
+  ASSERT_TRUE(sink.posted.back().has_measurements());
+  EXPECT_EQ(sink.posted.back().measurements().measurements_size(), 0);
+  EXPECT_EQ(session.scene().measurements_size(), 0);
+}
+
+TEST(ShownSession, RenderAndStreamEditsChangeTheFieldsTheySetAsTheServerMerges) {
+  RecordingSink sink;
+  ShownSession session(sink);
+  session.Start(Resolved(0));
+  v1::RenderSettings render;
+  render.set_spp(8);
+  session.SetRender(render);
+  EXPECT_EQ(session.scene().render().spp(), 8u);
+  EXPECT_EQ(session.scene().render().max_bounces(), 4u) << "bounces as the server has them";
+  v1::SessionEvent quality;
+  quality.mutable_stream()->set_target_spp(64);
+  session.Send(quality);
+  v1::SessionEvent denoiser;
+  denoiser.mutable_stream()->set_denoiser(v1::DENOISER_SVGF);
+  session.Send(denoiser);
+  EXPECT_EQ(session.state().stream().target_spp(), 64u) << "a script's second stream line kept the first's field";
+  EXPECT_EQ(session.state().stream().denoiser(), v1::DENOISER_SVGF);
+  EXPECT_EQ(session.state().stream().jpeg_quality(), 80u);
+}
+
+}  // namespace
+}  // namespace cinevol::viewer
