@@ -75,9 +75,9 @@ void ScriptRunner::Tick() {
     }
     if (!r.link.Drives()) continue;  // no session, or a viewer's: events have nowhere to go
     v1::SessionEvent event = step.event;
-    v1::TransferFunction* tf = event.mutable_transfer_function();
-    if (event.has_transfer_function() && tf->points().empty() && tf->preset().empty() && r.link.volume()) {
-      tf->set_preset(r.link.volume()->default_preset());  // as a session that names none starts
+    const bool no_points = event.has_transfer_function() && event.transfer_function().points().empty();
+    if (no_points && event.transfer_function().preset().empty() && r.link.volume()) {
+      event.mutable_transfer_function()->set_preset(r.link.volume()->default_preset());  // as a session naming none
     }
     // The panels show what the lines set, as if they had set it; the server resolves a view or a preset.
     r.link.shown().Send(std::move(event));

@@ -386,6 +386,49 @@ TEST(Viewer, ScriptedClippingAndLabelsShowInItsPanels) {
   EXPECT_FALSE(scene.labels().show_unlisted());
 }
 
+// Issue 56, bug 1: the viewer expanded presets itself, for a 1 mm voxel (ten
+// times too dense on a 0.1 mm micro-CT). Now it sends the preset's name and
+// shows the server's points: what it saves is what a session the server
+// starts with that preset on the same volume holds, and the scene file reads back.
+TEST(Viewer, APresetIsTheServersFitToTheVolumeNotTheViewers) {
+  CINEVOL_REQUIRE_VIEWER();
+  ScratchDir scratch;
+  const std::string micro_ct = "phantom:sphere?size=48&spacing=0.1";
+  ServerProcess server(scratch.path(), {"--volume", micro_ct});
+  ASSERT_TRUE(server.running()) << server.Log();
+  Client client = server.Connect();
+  v1::CreateSessionRequest reference;
+  reference.set_volume_id(micro_ct);
+  reference.set_preset("ct-bone");
+  reference.mutable_viewport()->set_width(64);
+  reference.mutable_viewport()->set_height(48);
+  const v1::CreateSessionResponse fitted = client.CreateSession(reference);
+  client.CloseSession(fitted.session_id());
+  const v1::TransferFunction& want = fitted.scene().transfer_function();
+  ASSERT_GT(want.points_size(), 1) << "the server did not expand the preset";
+  const fs::path saved = scratch.path() / "saved.json";
+  const fs::path script = WriteScript(scratch.path() / "preset.jsonl", fmt::format(R"({{"session": {{"preset": "ct-soft-tissue", "stream": {{"targetSpp": 2}}}}}}
+{{"at": 0, "ui": {{"preset": "ct-bone"}}}}
+{{"at": 0, "ui": {{"settle": true}}}}
+{{"at": 0, "ui": {{"saveScene": "{}"}}}}
+)",
+                                                                                  saved.string()));
+  const ViewerRun run =
+      RunViewer(scratch.path(), {"--server", server.address(), "--volume", micro_ct, "--script", script.string()});
+  ASSERT_EQ(run.exit_code, 0) << run.output;
+  const v1::Scene scene = LoadSceneFile(saved);
+  EXPECT_EQ(scene.frame(), v1::PATIENT_LPS);
+  const v1::TransferFunction& got = scene.transfer_function();
+  EXPECT_EQ(got.preset(), "ct-bone");
+  ASSERT_EQ(got.points_size(), want.points_size()) << got.DebugString() << want.DebugString();
+  for (int i = 0; i < want.points_size(); ++i) {
+    EXPECT_NEAR(got.points(i).value(), want.points(i).value(), 1e-3) << "point " << i;
+    EXPECT_NEAR(got.points(i).opacity(), want.points(i).opacity(), 1e-6) << "point " << i;
+  }
+  EXPECT_NEAR(got.density_scale(), want.density_scale(), 1e-6 * std::max(1.0f, want.density_scale()))
+      << "the density is the server's fit to 0.1 mm voxels";
+}
+
 // The Struct a script run printed for a PACS action: every "cinevol-viewer: ACTION {...}" line of `output`.
 std::vector<google::protobuf::Struct> Reported(const std::string& output, const std::string& action) {
   std::vector<google::protobuf::Struct> lines;
