@@ -78,8 +78,7 @@ void VolumePanel(Rooms& r) {
   Hint("a local .nii, .nii.gz, .nrrd, .mha or .vtk file");
 }
 
-void ScenePanel(Rooms& r) {
-  SceneFiles& f = r.files;
+void ScenePanel(SceneFiles& f) {
   ImGui::InputText("scene file", &f.scene_path);
   if (ImGui::Button("Open")) f.Open(f.scene_path);
   ImGui::SameLine();
@@ -97,19 +96,19 @@ bool Header(const char* label, bool& open) {
 }
 
 // A panel whose controls send events: greyed out while a grant's holder only watches.
-void DrivingPanel(Rooms& r, const char* label, bool& open, void (*panel)(Rooms&)) {
+void DrivingPanel(const SessionLink& link, const char* label, bool& open, const std::function<void()>& panel) {
   if (!Header(label, open)) return;
-  ImGui::BeginDisabled(r.link.Watching() && !r.link.Drives());
-  panel(r);
+  ImGui::BeginDisabled(link.Watching() && !link.Drives());
+  panel();
   ImGui::EndDisabled();
 }
 
 // What the banner says, or nothing while frames keep up.
-std::string BannerText(const Rooms& r, const LinkStatus& status) {
+std::string BannerText(const SessionLink& link, const ViewerStats& stats, const LinkStatus& status) {
   if (status.state != LinkState::kStreaming) return status.message;
-  if (r.stats.last_frame_id == 0) return "waiting for the first frame...";
-  const double waiting = std::chrono::duration<double>(Clock::now() - r.stats.last_shown).count();
-  if (r.stats.last.last_event_seq() < r.link.connection().last_sent() && waiting > 3) {
+  if (stats.last_frame_id == 0) return "waiting for the first frame...";
+  const double waiting = std::chrono::duration<double>(Clock::now() - stats.last_shown).count();
+  if (stats.last.last_event_seq() < link.connection().last_sent() && waiting > 3) {
     return fmt::format("the server has not answered for {:.0f} s: it may be busy or the network slow", waiting);
   }
   return {};
@@ -125,21 +124,22 @@ void DrawPanels(Rooms& r) {
   ImGui::SetNextWindowSize({area.w, area.h});
   ImGui::Begin("cinevol", nullptr, ImGuiWindowFlags_NoMove | ImGuiWindowFlags_NoResize | ImGuiWindowFlags_NoCollapse);
   // A grant's holder watches another's session: what it can do is there.
-  if (watching) WatchingPanel(r);
+  SessionLink& link = r.link;
+  if (watching) WatchingPanel(r.sharing, link);
   if (!watching && Header("Volume", open.volume)) VolumePanel(r);
   if (!watching && !r.pacs.names.empty() && Header("PACS", open.pacs)) PacsPanel(r.pacs);
-  DrivingPanel(r, "Transfer function", open.transfer_function, TransferPanel);
-  DrivingPanel(r, "Lights", open.lights, LightsPanel);
-  DrivingPanel(r, "Render", open.render, RenderPanel);
+  DrivingPanel(link, "Transfer function", open.transfer_function, [&] { TransferPanel(link, r.editor); });
+  DrivingPanel(link, "Lights", open.lights, [&] { LightsPanel(link.shown()); });
+  DrivingPanel(link, "Render", open.render, [&] { RenderPanel(link.shown()); });
   if (!watching) {  // these need the session's volume or its owner
-    if (Header("Clipping", open.clipping)) ClippingPanel(r);
-    if (Header("Labels", open.labels)) LabelsPanel(r);
-    if (Header("Reading", open.reading)) ReadingPanel(r);
-    if (Header("Scene and snapshot", open.scene)) ScenePanel(r);
+    if (Header("Clipping", open.clipping)) ClippingPanel(link);
+    if (Header("Labels", open.labels)) LabelsPanel(link);
+    if (Header("Reading", open.reading)) ReadingPanel(r.reading, link);
+    if (Header("Scene and snapshot", open.scene)) ScenePanel(r.files);
     const bool listed = open.share;
     if (Header("Share", open.share)) {
       if (!listed) r.sharing.ListShares();  // opened: the grants as they are now
-      SharePanel(r);
+      SharePanel(r.sharing, link);
     }
   }
   ImGui::Separator();
@@ -152,11 +152,10 @@ void DrawPanels(Rooms& r) {
   ImGui::End();
 }
 
-void DrawStatsOverlay(Rooms& r) {
-  r.overlays.stats = {};
-  if (!r.panels.stats) return;
-  const ViewerStats& s = r.stats;
-  const Rect frame = r.screen.frame_area(), banner = r.overlays.banner;
+void DrawStatsOverlay(const ViewerStats& s, const Screen& screen, OverlayAreas& overlays, bool open) {
+  overlays.stats = {};
+  if (!open) return;
+  const Rect frame = screen.frame_area(), banner = overlays.banner;
   const float top = banner.h > 0 ? banner.y + banner.h + 6 : frame.y + 10;
   ImGui::SetNextWindowPos({frame.x + 10, top});  // below the line of a shared session
   ImGui::SetNextWindowBgAlpha(0.6f);
@@ -175,17 +174,17 @@ void DrawStatsOverlay(Rooms& r) {
   ImGui::Text("viewer: decode %.1f  upload %.1f  draw %.1f ms", s.decode_ms, s.upload_ms, s.draw_ms);
   ImGui::Text("%.2f MB/s   %llu frames dropped", s.BytesPerSecond() / 1e6, (unsigned long long)s.dropped);
   const ImVec2 pos = ImGui::GetWindowPos(), size = ImGui::GetWindowSize();
-  r.overlays.stats = {pos.x, pos.y, size.x, size.y};
+  overlays.stats = {pos.x, pos.y, size.x, size.y};
   ImGui::End();
 }
 
-void DrawStatusBanner(Rooms& r) {
-  const LinkStatus status = r.link.status();
-  const std::string text = BannerText(r, status);
+void DrawStatusBanner(const SessionLink& link, const ViewerStats& stats, const Screen& screen) {
+  const LinkStatus status = link.status();
+  const std::string text = BannerText(link, stats, status);
   if (text.empty()) return;
   const bool bad = status.state == LinkState::kFailed || status.state == LinkState::kReconnecting ||
-                   (status.state == LinkState::kStreaming && r.stats.last_frame_id > 0);
-  const Rect frame = r.screen.frame_area();
+                   (status.state == LinkState::kStreaming && stats.last_frame_id > 0);
+  const Rect frame = screen.frame_area();
   ImGui::SetNextWindowPos({frame.x + frame.w * 0.5f, frame.y + frame.h * 0.5f}, ImGuiCond_Always, {0.5f, 0.5f});
   // Sized to the text now: an auto-fit would lag a changed message by frames (a screenshot may come first).
   const float width = std::min(520.0f, frame.w - 20);

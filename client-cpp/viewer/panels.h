@@ -33,7 +33,7 @@ struct OverlayAreas {
   Rect stats, banner;  // banner: the line over a shared view
 };
 
-// The rooms the panels show and act through.
+// Every room, for what lays them all out (the side panel) or reaches them all (scripts).
 struct Rooms {
   ViewerContext& context;
   SessionLink& link;
@@ -50,24 +50,32 @@ struct Rooms {
   std::function<void(const std::string&)> switch_volume;  // look at another of the server's volumes
 };
 
+// The side panel: every room's panel under its header.
 void DrawPanels(Rooms& rooms);
-void DrawStatsOverlay(Rooms& rooms);
-void DrawStatusBanner(Rooms& rooms);
 void Hint(const char* text);  // grey help text, wrapped to the panel
 
-// The panels of one room each (panels.cpp calls them under their headers).
-void TransferPanel(Rooms& rooms);
-void LightsPanel(Rooms& rooms);
-void RenderPanel(Rooms& rooms);
-void ClippingPanel(Rooms& rooms);
-void LabelsPanel(Rooms& rooms);
+// The panels, each given the rooms it shows and acts through (DrawPanels
+// calls them under their headers).
+void TransferPanel(SessionLink& link, TransferEditorState& editor);
+void LightsPanel(ShownSession& session);
+void RenderPanel(ShownSession& session);
+void ClippingPanel(SessionLink& link);
+void LabelsPanel(SessionLink& link);
 void PacsPanel(PacsBrowser& pacs);
-void ReadingPanel(Rooms& rooms);
-void SharePanel(Rooms& rooms);     // the owner's: share, the grants, hand over, take back
-void WatchingPanel(Rooms& rooms);  // a grant holder's: who presents, give the role back
+void ReadingPanel(ReadingTools& reading, const SessionLink& link);
+void SharePanel(Sharing& sharing, const SessionLink& link);     // the owner's: share, the grants, hand over, take back
+void WatchingPanel(Sharing& sharing, const SessionLink& link);  // a grant holder's: who presents, give the role back
 
-// Over the views.
-void DrawReadingOverlay(Rooms& rooms);  // measurements, crosshair, slice planes, marker, identity, slice letters
-void DrawSharingOverlay(Rooms& rooms);  // the line over the view and everyone else's pointers
+// Over the views, in this order (each below the next).
+// Measurements, crosshair and slice planes on the 3D view, the marker, a DICOM volume's identity
+// (below the stats overlay, `stats_height` tall), the slices' letters and positions.
+void DrawReadingOverlay(const ReadingTools& reading, const SessionLink& link, const Screen& screen,
+                        float stats_height);
+// The line over a shared view (where it went: `banner`) and everyone else's pointers.
+void DrawSharingOverlay(const SessionLink& link, const Screen& screen, Rect& banner);
+// The stats (F2), below the line of a shared view; where it went in overlays.stats.
+void DrawStatsOverlay(const ViewerStats& stats, const Screen& screen, OverlayAreas& overlays, bool open);
+// What is wrong, in the middle of the view; nothing while frames keep up.
+void DrawStatusBanner(const SessionLink& link, const ViewerStats& stats, const Screen& screen);
 
 }  // namespace cinevol::viewer

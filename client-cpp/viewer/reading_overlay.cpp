@@ -31,10 +31,9 @@ ImU32 AxisColour(char letter) {
 
 }  // namespace
 
-void ReadingPanel(Rooms& rooms) {
-  ReadingTools& r = rooms.reading;
+void ReadingPanel(ReadingTools& r, const SessionLink& link) {
   if (ImGui::Button(r.grid ? "3D view only (F3)" : "Slices beside the 3D view (F3)")) r.ToggleGrid();
-  const auto& volume = rooms.link.volume();
+  const auto& volume = link.volume();
   if (volume && volume->has_identity()) ImGui::Checkbox("patient details in the corners (F4)", &r.identity);
   ImGui::TextWrapped("pick: %s", r.pick_text.empty() ? "click the 3D view" : r.pick_text.c_str());
   if (r.crosshair) ImGui::Text("crosshair: %s", PatientPosition(*r.crosshair).c_str());
@@ -46,7 +45,7 @@ void ReadingPanel(Rooms& rooms) {
     ImGui::SameLine();
     if (ImGui::SmallButton("cancel")) r.CancelMeasurement();
   }
-  const auto& measurements = rooms.link.shown().scene().measurements();
+  const auto& measurements = link.shown().scene().measurements();
   int deleted = -1;  // acted on after the list: it changes the list drawn
   for (int i = 0; i < measurements.size(); ++i) {
     const v1::Measurement& m = measurements[i];
@@ -61,6 +60,14 @@ void ReadingPanel(Rooms& rooms) {
 
 namespace {
 
+// What the reading overlay draws from.
+struct Overlay {
+  const ReadingTools& reading;
+  const SessionLink& link;
+  const Screen& screen;
+  float stats_height;  // the stats overlay's, over the identity's top-left corner (0: closed)
+};
+
 // A measurement's polyline through `points`, already on screen.
 void DrawPolyline(ImDrawList& draw, const std::vector<ImVec2>& points, const std::string& label) {
   for (std::size_t i = 0; i + 1 < points.size(); ++i) draw.AddLine(points[i], points[i + 1], kMeasureColour, 2);
@@ -68,11 +75,11 @@ void DrawPolyline(ImDrawList& draw, const std::vector<ImVec2>& points, const std
   if (!points.empty()) draw.AddText({points.back().x + 6, points.back().y - 6}, kMeasureColour, label.c_str());
 }
 
-void DrawMeasurementsOn3D(Rooms& rooms, const Placement& placement, ImDrawList& draw) {
-  const Rect shown = rooms.screen.ShownFrame();
+void DrawMeasurementsOn3D(const Overlay& o, const Placement& placement, ImDrawList& draw) {
+  const Rect shown = o.screen.ShownFrame();
   if (shown.w <= 0) return;
-  const ReadingTools& reading = rooms.reading;
-  const ViewCamera camera = rooms.link.shown().camera();
+  const ReadingTools& reading = o.reading;
+  const ViewCamera camera = o.link.shown().camera();
   auto on_screen = [&](Vec3d lps) -> std::optional<ImVec2> {
     // Measurements are in patient mm; the camera lives in the volume-centred frame.
     const auto p = ProjectToView(camera, placement.ToVolume(lps), shown.w, shown.h);
@@ -91,7 +98,7 @@ void DrawMeasurementsOn3D(Rooms& rooms, const Placement& placement, ImDrawList& 
         draw.AddPolyline(outline.data(), int(outline.size()), kPlaneColours[i], ImDrawFlags_Closed, 1.5f);
     }
   }
-  for (const v1::Measurement& m : rooms.link.shown().scene().measurements()) {
+  for (const v1::Measurement& m : o.link.shown().scene().measurements()) {
     std::vector<ImVec2> points;
     for (const v1::Vec3& v : m.points()) {
       if (const auto p = on_screen(ToVec3d(v))) points.push_back(*p);
@@ -109,11 +116,11 @@ void DrawMeasurementsOn3D(Rooms& rooms, const Placement& placement, ImDrawList& 
   }
 }
 
-void DrawOrientationMarker(Rooms& rooms, const Placement& placement, ImDrawList& draw) {
-  const Rect shown = rooms.screen.ShownFrame();
+void DrawOrientationMarker(const Overlay& o, const Placement& placement, ImDrawList& draw) {
+  const Rect shown = o.screen.ShownFrame();
   if (shown.w <= 0) return;
   const ImVec2 centre{shown.x + shown.w - kMarkerRadius - 16, shown.y + shown.h - kMarkerRadius - 16};
-  for (const MarkerAxis& axis : MarkerAxes(rooms.link.shown().camera(), placement)) {
+  for (const MarkerAxis& axis : MarkerAxes(o.link.shown().camera(), placement)) {
     const float x = float(axis.x), y = float(axis.y);
     const ImVec2 end{centre.x + x * kMarkerRadius, centre.y - y * kMarkerRadius};
     const bool near = axis.depth >= 0;  // the half-axes towards the viewer in full, the far ones dim
@@ -127,14 +134,14 @@ void DrawOrientationMarker(Rooms& rooms, const Placement& placement, ImDrawList&
 
 // A DICOM volume's patient (top left, below the stats overlay where it is
 // open), study and series (top right) in the 3D view's corners.
-void DrawIdentity(Rooms& rooms, ImDrawList& draw) {
-  const Rect shown = rooms.screen.ShownFrame();
-  const auto& volume = rooms.link.volume();
-  if (!rooms.reading.identity || !volume || !volume->has_identity() || shown.w <= 0) return;
+void DrawIdentity(const Overlay& o, ImDrawList& draw) {
+  const Rect shown = o.screen.ShownFrame();
+  const auto& volume = o.link.volume();
+  if (!o.reading.identity || !volume || !volume->has_identity() || shown.w <= 0) return;
   const IdentityCorners corners = CornersOf(volume->identity());
   const ImU32 colour = IM_COL32(255, 255, 255, 220);
   const float line = ImGui::GetTextLineHeight(), margin = 8;
-  const float top = shown.y + margin + (rooms.panels.stats ? rooms.overlays.stats.h + margin : 0);
+  const float top = shown.y + margin + (o.stats_height > 0 ? o.stats_height + margin : 0);
   for (std::size_t i = 0; i < corners.top_left.size(); ++i) {
     draw.AddText({shown.x + margin, top + i * line}, colour, corners.top_left[i].c_str());
   }
@@ -145,12 +152,12 @@ void DrawIdentity(Rooms& rooms, ImDrawList& draw) {
   }
 }
 
-void DrawSliceOverlay(Rooms& rooms, ImDrawList& draw, int index) {
-  const SlicePane& pane = rooms.reading.panes[index];
-  const Rect shown = rooms.reading.ShownSlice(index);
+void DrawSliceOverlay(const Overlay& o, ImDrawList& draw, int index) {
+  const SlicePane& pane = o.reading.panes[index];
+  const Rect shown = o.reading.ShownSlice(index);
   if (!pane.image || shown.w <= 0) return;
   const SliceGrid g = SliceGrid::Of(*pane.image);
-  const auto placement = rooms.link.placement();
+  const auto placement = o.link.placement();
   const double near_mm = placement ? placement->VoxelStepMm(CrossedAxis(pane.axis)) : 1.0;
   auto on_screen = [&](Vec3d lps) {
     const SlicePixel p = PatientToSlicePixel(g, lps);
@@ -158,7 +165,7 @@ void DrawSliceOverlay(Rooms& rooms, ImDrawList& draw, int index) {
                             shown.y + float((p.row + 0.5) / g.height) * shown.h},
                      std::fabs(p.off_plane_mm) <= near_mm};
   };
-  for (const v1::Measurement& m : rooms.link.shown().scene().measurements()) {  // those in or near the slice's plane
+  for (const v1::Measurement& m : o.link.shown().scene().measurements()) {  // those in or near the slice's plane
     std::vector<ImVec2> points;
     bool near = true;
     for (const v1::Vec3& v : m.points()) {
@@ -168,8 +175,8 @@ void DrawSliceOverlay(Rooms& rooms, ImDrawList& draw, int index) {
     }
     if (near) DrawPolyline(draw, points, MeasurementText(m));
   }
-  if (rooms.reading.crosshair) {
-    const ImVec2 c = on_screen(*rooms.reading.crosshair).first;
+  if (o.reading.crosshair) {
+    const ImVec2 c = on_screen(*o.reading.crosshair).first;
     draw.AddLine({shown.x, c.y}, {shown.x + shown.w, c.y}, kCrosshairColour & 0x80FFFFFF);
     draw.AddLine({c.x, shown.y}, {c.x, shown.y + shown.h}, kCrosshairColour & 0x80FFFFFF);
   }
@@ -183,22 +190,24 @@ void DrawSliceOverlay(Rooms& rooms, ImDrawList& draw, int index) {
   draw.AddText({mid_x - 4, shown.y + shown.h - 18}, white, letters[3].c_str());
   // An axis slice's origin lies in its plane: its coordinate along the crossed axis is the slice's.
   const int axis = CrossedAxis(pane.axis);
-  const Rect area = rooms.screen.pane_area(index);
+  const Rect area = o.screen.pane_area(index);
   draw.AddText({area.x + 6, area.y + 4}, white, fmt::format("{} {:.1f} mm", kPaneNames[index], g.origin[axis]).c_str());
 }
 
 }  // namespace
 
-void DrawReadingOverlay(Rooms& rooms) {
+void DrawReadingOverlay(const ReadingTools& reading, const SessionLink& link, const Screen& screen,
+                        float stats_height) {
+  const Overlay o{reading, link, screen, stats_height};
   ImDrawList& draw = *ImGui::GetBackgroundDrawList();
   // Where the volume lies: the session's state says (a watcher's too), else the volume's description.
-  if (const auto placement = rooms.link.placement()) {
-    DrawMeasurementsOn3D(rooms, *placement, draw);
-    DrawOrientationMarker(rooms, *placement, draw);
+  if (const auto placement = link.placement()) {
+    DrawMeasurementsOn3D(o, *placement, draw);
+    DrawOrientationMarker(o, *placement, draw);
   }
-  DrawIdentity(rooms, draw);
-  if (!rooms.reading.grid) return;
-  for (int pane = 0; pane < Screen::kPanes; ++pane) DrawSliceOverlay(rooms, draw, pane);
+  DrawIdentity(o, draw);
+  if (!reading.grid) return;
+  for (int pane = 0; pane < Screen::kPanes; ++pane) DrawSliceOverlay(o, draw, pane);
 }
 
 }  // namespace cinevol::viewer

@@ -15,24 +15,24 @@
 
 namespace cinevol::viewer {
 
-void TransferPanel(Rooms& r) {
-  ShownSession& session = r.link.shown();
+void TransferPanel(SessionLink& link, TransferEditorState& editor) {
+  ShownSession& session = link.shown();
   v1::TransferFunction tf = session.scene().transfer_function();
   const std::string asked = session.ResolvingPreset();
   const std::string current = !asked.empty() ? asked : tf.preset().empty() ? "(edited)" : tf.preset();
   if (ImGui::BeginCombo("preset", current.c_str())) {
-    for (const std::string& name : r.link.presets()) {  // the server's; it fits the one chosen to the volume
+    for (const std::string& name : link.presets()) {  // the server's; it fits the one chosen to the volume
       if (ImGui::Selectable(name.c_str(), name == current)) {
         session.ChoosePreset(name);
-        r.editor = {};
+        editor = {};
       }
     }
     ImGui::EndCombo();
   }
   if (!asked.empty()) {
     Hint("the server fits the preset to this volume...");
-  } else if (r.link.volume() &&
-             TransferFunctionEditor("##tf", tf, r.link.volume()->histogram(), r.editor, 140.0f)) {
+  } else if (link.volume() &&
+             TransferFunctionEditor("##tf", tf, link.volume()->histogram(), editor, 140.0f)) {
     session.SetTransferFunction(tf);
   }
   Hint("Alt + drag in the view: window (sideways), level (up/down)");
@@ -50,8 +50,7 @@ v1::AreaLight* KeyLight(google::protobuf::RepeatedPtrField<v1::Light>& lights) {
 
 }  // namespace
 
-void LightsPanel(Rooms& r) {
-  ShownSession& session = r.link.shown();
+void LightsPanel(ShownSession& session) {
   google::protobuf::RepeatedPtrField<v1::Light> lights = session.scene().lights();
   bool changed = false;
   if (v1::AreaLight* key = KeyLight(lights)) {
@@ -153,8 +152,7 @@ bool StreamControls(v1::StreamSettings& stream) {
 
 }  // namespace
 
-void RenderPanel(Rooms& r) {
-  ShownSession& session = r.link.shown();
+void RenderPanel(ShownSession& session) {
   v1::RenderSettings render = Sampling(session.scene().render());
   v1::StreamSettings stream = session.state().stream();
   for (const Quality& q : kQualities) {
@@ -277,14 +275,14 @@ bool CropRanges(v1::CropBox& box, const float lo[3], const float hi[3]) {
 }  // namespace
 
 // A crop box along the patient's axes, as ranges over the volume's extent, and clip planes.
-void ClippingPanel(Rooms& r) {
-  const std::optional<Placement> placement = r.link.placement();
+void ClippingPanel(SessionLink& link) {
+  const std::optional<Placement> placement = link.placement();
   if (!placement) return;
   double lo_mm[3], hi_mm[3];
   PatientBounds(*placement, lo_mm, hi_mm);
   const float lo[3] = {float(lo_mm[0]), float(lo_mm[1]), float(lo_mm[2])};
   const float hi[3] = {float(hi_mm[0]), float(hi_mm[1]), float(hi_mm[2])};
-  v1::Clipping clipping = r.link.shown().scene().clipping();
+  v1::Clipping clipping = link.shown().scene().clipping();
   bool changed = false;
   bool crop = clipping.has_crop_box();
   if (ImGui::Checkbox("crop box", &crop)) {
@@ -302,7 +300,7 @@ void ClippingPanel(Rooms& r) {
   }
   changed |= ClipPlanes(clipping, lo, hi);
   if (clipping.has_crop_box()) changed |= CropRanges(*clipping.mutable_crop_box(), lo, hi);
-  if (changed) r.link.shown().SetClipping(clipping);
+  if (changed) link.shown().SetClipping(clipping);
 }
 
 namespace {
@@ -371,10 +369,10 @@ bool LabelRows(const v1::VolumeInfo& volume, v1::Labels& labels, bool unlisted) 
 }  // namespace
 
 // Each label of the volume's segmentation: shown or hidden, its colour; and the table switch.
-void LabelsPanel(Rooms& r) {
-  const std::optional<v1::VolumeInfo>& volume = r.link.volume();
+void LabelsPanel(SessionLink& link) {
+  const std::optional<v1::VolumeInfo>& volume = link.volume();
   if (!volume) return;
-  v1::Labels labels = r.link.shown().scene().labels();
+  v1::Labels labels = link.shown().scene().labels();
   bool changed = TableSwitch(*volume, labels);
   if (!volume->has_labels()) {
     Hint("this volume has no segmentation: `cinevol volumes labels ID SEG` loads one, for sessions started after");
@@ -392,7 +390,7 @@ void LabelsPanel(Rooms& r) {
       changed = true;
     }
   }
-  if (changed) SetLabelsFor(r.link.shown(), volume, labels);
+  if (changed) SetLabelsFor(link.shown(), volume, labels);
 }
 
 }  // namespace cinevol::viewer

@@ -88,15 +88,15 @@ void MadeGrant(Sharing& sharing) {
 }
 
 // Who presents, and the owner's way back.
-void PresenterLine(Rooms& r) {
-  const v1::SessionState* state = r.link.live_state();
+void PresenterLine(Sharing& sharing, const SessionLink& link) {
+  const v1::SessionState* state = link.live_state();
   if (!state) return;
-  if (r.link.Presents()) {
+  if (link.Presents()) {
     ImGui::TextWrapped("You present · %u watching", state->viewers());
     return;
   }
   ImGui::TextWrapped("%s presents · %u watching", state->presenter().c_str(), state->viewers());
-  if (ImGui::Button("Take back")) r.sharing.HandOver("");
+  if (ImGui::Button("Take back")) sharing.HandOver("");
 }
 
 // The session's grants, each with its revocation and hand-over.
@@ -142,11 +142,11 @@ void StatusLine(const Sharing& sharing) {
   if (sharing.failed) ImGui::PopStyleColor();
 }
 
-void DrawPointers(Rooms& r, const v1::SessionState& state, ImDrawList& draw) {
-  const Rect shown = r.screen.ShownFrame();
+void DrawPointers(const SessionLink& link, const Screen& screen, const v1::SessionState& state, ImDrawList& draw) {
+  const Rect shown = screen.ShownFrame();
   if (shown.w <= 0) return;
   for (const v1::SharedPointer& p : state.pointers()) {
-    if (p.who() == r.link.me()) continue;  // one's own is the mouse
+    if (p.who() == link.me()) continue;  // one's own is the mouse
     const ImVec2 at{shown.x + p.x() * shown.w, shown.y + p.y() * shown.h};
     const ImU32 colour = PointerColour(p.who());
     draw.AddCircleFilled(at, 5, colour);
@@ -157,46 +157,46 @@ void DrawPointers(Rooms& r, const v1::SessionState& state, ImDrawList& draw) {
 
 }  // namespace
 
-void SharePanel(Rooms& r) {
-  if (r.link.session_id().empty()) {
+void SharePanel(Sharing& sharing, const SessionLink& link) {
+  if (link.session_id().empty()) {
     Hint("once the session has started");
     return;
   }
-  ShareFields(r.sharing);
-  MadeGrant(r.sharing);
+  ShareFields(sharing);
+  MadeGrant(sharing);
   ImGui::Separator();
-  PresenterLine(r);
-  GrantsTable(r.sharing);
-  if (ImGui::SmallButton("Refresh")) r.sharing.ListShares();
-  StatusLine(r.sharing);
+  PresenterLine(sharing, link);
+  GrantsTable(sharing);
+  if (ImGui::SmallButton("Refresh")) sharing.ListShares();
+  StatusLine(sharing);
 }
 
-void WatchingPanel(Rooms& r) {
-  const v1::SessionState* state = r.link.live_state();
+void WatchingPanel(Sharing& sharing, const SessionLink& link) {
+  const v1::SessionState* state = link.live_state();
   if (!state) {
-    const bool over = r.link.status().state == LinkState::kFailed;
+    const bool over = link.status().state == LinkState::kFailed;
     ImGui::TextWrapped(
         "%s", over ? "no longer watching: the message over the view says why" : "joining the shared session...");
     return;
   }
-  ImGui::TextWrapped("%s", PresenceLine(*state, r.link.Presents(), true).c_str());
-  if (r.link.Presents()) {
+  ImGui::TextWrapped("%s", PresenceLine(*state, link.Presents(), true).c_str());
+  if (link.Presents()) {
     Hint("you present: the camera, transfer function, lights and render settings are yours to change");
-    if (ImGui::Button("Give the role back")) r.sharing.HandOver("");
+    if (ImGui::Button("Give the role back")) sharing.HandOver("");
   } else {
     Hint("the presenter drives: the view and the panels below follow the session");
   }
-  StatusLine(r.sharing);
+  StatusLine(sharing);
   ImGui::Separator();
 }
 
-void DrawSharingOverlay(Rooms& r) {
-  r.overlays.banner = {};
-  const v1::SessionState* state = r.link.live_state();
+void DrawSharingOverlay(const SessionLink& link, const Screen& screen, Rect& banner) {
+  banner = {};
+  const v1::SessionState* state = link.live_state();
   if (!state) return;
-  DrawPointers(r, *state, *ImGui::GetBackgroundDrawList());
-  const std::string line = PresenceLine(*state, r.link.Presents(), r.link.Watching());
-  const Rect frame = r.screen.frame_area();
+  DrawPointers(link, screen, *state, *ImGui::GetBackgroundDrawList());
+  const std::string line = PresenceLine(*state, link.Presents(), link.Watching());
+  const Rect frame = screen.frame_area();
   if (line.empty()) return;
   // Centred at the top of the view, wrapped where the view is narrow.
   const ImVec2 padding = ImGui::GetStyle().WindowPadding;
@@ -213,7 +213,7 @@ void DrawSharingOverlay(Rooms& r) {
   ImGui::TextWrapped("%s", line.c_str());
   ImGui::PopStyleColor();
   const ImVec2 pos = ImGui::GetWindowPos(), size = ImGui::GetWindowSize();
-  r.overlays.banner = {pos.x, pos.y, size.x, size.y};
+  banner = {pos.x, pos.y, size.x, size.y};
   ImGui::End();
 }
 

@@ -101,10 +101,10 @@ void App::Turn() {
   screen_->BeginTurn();
   screen_->Layout(reading_->grid);
   DrawPanels(*rooms_);
-  DrawReadingOverlay(*rooms_);
-  DrawSharingOverlay(*rooms_);
-  DrawStatsOverlay(*rooms_);
-  DrawStatusBanner(*rooms_);
+  DrawReadingOverlay(*reading_, *link_, *screen_, overlays_.stats.h);
+  DrawSharingOverlay(*link_, *screen_, overlays_.banner);
+  DrawStatsOverlay(stats_, *screen_, overlays_, panels_.stats);
+  DrawStatusBanner(*link_, stats_, *screen_);
   screen_->EndTurn(reading_->grid, reading_->ShownSlices());
   if (script_) {
     script_->WriteScreenshots();
