@@ -55,10 +55,9 @@ int RunEventBench(const EventBenchOptions& o) {
   request.mutable_viewport()->set_width(o.width > 0 ? o.width : 1280);
   request.mutable_viewport()->set_height(o.height > 0 ? o.height : 720);
   const SessionLimits limits;
-  v1::SessionState state = InitialState(request, *loaded.volume, limits);
-  AddResolvedCamera(*state.mutable_scene(), *loaded.volume, loaded.labels.get());
-  const v1::Camera start = state.scene().camera();
-  state.mutable_scene()->mutable_camera()->clear_view();  // events carry eye and target, as a viewer's do
+  const SceneContext context{*loaded.volume, loaded.labels.get()};
+  v1::SessionState state = InitialState(request, context, limits);
+  const v1::Camera start = state.scene().camera();  // numbers: events carry eye and target, as a viewer's do
 
   FramePipeline pipeline(Backend::kCpu, loaded.volume, {}, loaded.labels);
   pipeline.Update(state.scene(), SessionFrameSettings(Backend::kCpu));
@@ -67,7 +66,7 @@ int RunEventBench(const EventBenchOptions& o) {
   for (int i = 0; i < o.events; ++i) {
     const v1::SessionEvent event = CameraAt(i, start);
     auto t = Clock::now();
-    const unsigned changes = ApplyEvent(state, event, &limits);
+    const unsigned changes = ApplyEvent(state, event, context, &limits);
     rule.Add(t);
 
     t = Clock::now();

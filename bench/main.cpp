@@ -11,6 +11,7 @@
 #include "core/error.h"
 #include "core/parallel_for.h"
 #include "io/label_volume.h"
+#include "io/reader_cage.h"
 #include "scene/scene_file.h"
 #include "io/volume_loader.h"
 #include "render/renderer.h"
@@ -37,7 +38,7 @@ LoadedScene LoadScene(const SceneOptions& o) {
   s.volume = std::make_shared<const Volume>(LoadVolume(s.scene.volume()));
   ToVolumeFrame(s.scene, VolumePlacement::Of(*s.volume));  // the renderers' frame
   s.labels = LoadSceneLabels(s.scene, *s.volume);  // with the table where the scene removes it
-  s.setup = ResolveScene(s.scene, *s.volume, s.labels.get());
+  s.setup = ResolveScene(s.scene, *s.volume, s.labels.get(), [](const std::string& map) { return reader_cage::ReadEnvironmentMap(map); });
   return s;
 }
 

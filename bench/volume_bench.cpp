@@ -8,7 +8,7 @@
 #include "bench.h"
 #include "scene/presets.h"
 #include "scene/scene_file.h"
-#include "io/volume_kind.h"
+#include "scene/volume_kind.h"
 #include "io/volume_loader.h"
 
 namespace cinevol::bench {

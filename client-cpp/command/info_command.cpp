@@ -10,7 +10,7 @@
 #include "io/label_volume.h"
 #include "scene/presets.h"
 #include "text_output.h"
-#include "io/volume_kind.h"
+#include "scene/volume_kind.h"
 #include "io/volume_loader.h"
 
 namespace cinevol::cli {

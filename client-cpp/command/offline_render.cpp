@@ -65,6 +65,8 @@ OfflineScene Finish(OfflineScene loaded, const std::filesystem::path& base_dir) 
   }
   loaded.labels = LoadSceneLabels(scene, *loaded.volume, base_dir);  // with the table where it removes it
   ToVolumeFrame(loaded.scene, VolumePlacement::Of(*loaded.volume));  // the renderers' frame
+  // A named view frames what the scene shows, labels and table removal included, as a session's does.
+  ResolveSceneModel(loaded.scene, {*loaded.volume, loaded.labels.get()});
   return loaded;
 }
 
@@ -111,11 +113,10 @@ OfflineScene LoadOfflineScene(const SceneSource& source) {
   }
   OfflineScene loaded;
   loaded.volume = std::make_shared<const Volume>(LoadVolume(from));
-  v1::CreateSessionRequest request;
-  if (!source.preset.empty()) request.set_preset(source.preset);
-  request.mutable_viewport()->set_width(std::uint32_t(source.width));
-  request.mutable_viewport()->set_height(std::uint32_t(source.height));
-  loaded.scene = InitialState(request, *loaded.volume, SessionLimits{}).scene();
+  loaded.scene = MakePresetScene(source.preset.empty() ? DefaultPreset(*loaded.volume) : source.preset, *loaded.volume);
+  loaded.scene.mutable_render()->set_width(std::uint32_t(source.width));
+  loaded.scene.mutable_render()->set_height(std::uint32_t(source.height));
+  ApplyDefaults(loaded.scene);
   if (const std::string misfit = PresetMisfit(source.preset, *loaded.volume); !misfit.empty()) {
     std::fprintf(stderr, "cinevol: %s\n", misfit.c_str());
   }

@@ -74,7 +74,8 @@ std::string Readable(const PickResult& r, const PickOptions& o, const std::strin
 }
 
 void Run(const PickOptions& o) {
-  const OfflineScene loaded = LoadOfflineScene(o.source);
+  OfflineScene loaded = LoadOfflineScene(o.source);
+  loaded.scene.clear_lights();  // a pick follows rays to the first hit: no light, no environment map read
   const Picker picker(loaded.volume, loaded.labels, ResolveScene(loaded.scene, *loaded.volume, loaded.labels.get()));
   PickSettings settings;
   settings.threshold = o.threshold;

@@ -85,7 +85,8 @@ class Connection {
   std::uint64_t last_sent() const { return last_sent_; }
   // The server's newest warning notice since the last call ("" if none).
   std::string TakeWarning();
-  // The session's newest state since the last call (presenter, viewers, pointers: docs/sharing.md).
+  // The session's newest state since the last call: what the viewer shows
+  // (shown_session.h), and who presents, watches and points (docs/sharing.md).
   std::optional<v1::SessionState> TakeState();
   // Whether the server refused a grant holder's pointer since the last call.
   bool TakePointerRefused();

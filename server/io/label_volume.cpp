@@ -312,8 +312,6 @@ LabelVolume LoadLabelVolume(const std::filesystem::path& path, const Volume& ima
   return FitLabels(labels, image, shown);
 }
 
-bool StylesLabels(const v1::Labels& labels) { return labels.styles_size() > 0 || labels.has_show_unlisted(); }
-
 v1::LabelSet ToLabelSet(const LabelVolume& labels) {
   v1::LabelSet set;
   set.set_source(labels.source);

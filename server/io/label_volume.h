@@ -54,10 +54,6 @@ void FollowImageOrientation(Volume& labels, const Volume& image);
 // LoadVolumeFile under `policy`, FollowImageOrientation, then FitLabels.
 LabelVolume LoadLabelVolume(const std::filesystem::path& path, const Volume& image, const LoadPolicy& policy = {});
 
-// Whether `labels` styles a segmentation's labels (styles, show_unlisted),
-// which needs one; remove_table alone does not.
-bool StylesLabels(const v1::Labels& labels);
-
 // What the API and `cinevol info` say of a segmentation: every label present
 // and every label the table names.
 v1::LabelSet ToLabelSet(const LabelVolume& labels);

@@ -138,52 +138,10 @@ float HeadValue(Vec3f p, float h) {
   return v;
 }
 
-struct PhantomParams {
-  v1::Phantom::Kind kind;
-  int size;
-  float spacing, value, background, radius;
-};
-
-PhantomParams ResolveParams(const v1::Phantom& spec) {
-  PhantomParams p;
-  p.kind = spec.kind();
-  const bool head = p.kind == v1::Phantom::HEAD;
-  p.size = spec.has_size() ? static_cast<int>(spec.size()) : (head ? 256 : 64);
-  p.spacing = spec.has_spacing() ? spec.spacing() : 1.0f;
-  p.value = spec.has_value() ? spec.value() : 1000.0f;
-  p.background = spec.has_background() ? spec.background() : 0.0f;
-  const float extent = p.size * p.spacing;
-  p.radius = spec.has_radius() ? spec.radius()
-                               : (p.kind == v1::Phantom::SPHERE ? 0.4f * extent : 0.5f * extent);
-  if (p.kind == v1::Phantom::KIND_UNSPECIFIED) throw InputError("phantom: kind is not set");
-  if (p.size < 1 || p.size > 1024) {
-    throw InputError(fmt::format("phantom.size: {} is outside [1, 1024]", p.size));
-  }
-  if (!(p.spacing >= kMinSpacingMm && p.spacing <= 100.0f)) {
-    throw InputError(fmt::format("phantom.spacing: {:g} mm is outside [{:g}, 100]", p.spacing, kMinSpacingMm));
-  }
-  if (!std::isfinite(p.value) || !std::isfinite(p.background) || !(p.radius >= 0.0f) ||
-      !std::isfinite(p.radius)) {
-    throw InputError("phantom: value, background and radius must be finite, radius >= 0");
-  }
-  return p;
-}
-
 }  // namespace
 
-void ValidatePhantom(const v1::Phantom& spec) { ResolveParams(spec); }
-
-std::string PhantomName(const v1::Phantom& spec) {
-  switch (spec.kind()) {
-    case v1::Phantom::HEAD: return "phantom:head";
-    case v1::Phantom::CUBE: return "phantom:cube";
-    case v1::Phantom::SPHERE: return "phantom:sphere";
-    default: return "phantom:?";
-  }
-}
-
 Volume MakePhantom(const v1::Phantom& spec) {
-  const PhantomParams p = ResolveParams(spec);
+  const PhantomSpec p = ResolvePhantom(spec);
   const int n = p.size;
   const float half = 0.5f * n * p.spacing;
   std::vector<float> values(std::size_t(n) * n * n);

@@ -5,17 +5,12 @@
 
 #include "cinevol/v1/scene.pb.h"
 #include "core/volume.h"
+#include "scene/phantom_spec.h"
 
 namespace cinevol {
 
 // Generates the phantom `spec` describes (defaults in scene.proto). The head
 // is in HU, 256^3 at 1 mm by default; its tissues follow a real CT's values.
 Volume MakePhantom(const v1::Phantom& spec);
-
-// Throws InputError naming the field when `spec` is out of range.
-void ValidatePhantom(const v1::Phantom& spec);
-
-// "phantom:head", "phantom:cube" or "phantom:sphere".
-std::string PhantomName(const v1::Phantom& spec);
 
 }  // namespace cinevol

@@ -32,7 +32,7 @@
 #include "io/file_checks.h"
 #include "io/label_volume.h"
 #include "io/reader_channel.h"
-#include "io/volume_kind.h"
+#include "scene/volume_kind.h"
 
 extern char** environ;
 
@@ -705,6 +705,12 @@ ImageRgbF ReadExrImage(const fs::path& file, const std::string& shown, const Loa
   const Vec3f* p = static_cast<const Vec3f*>(block.data());
   image.pixels.assign(p, p + pixels);  // as the file holds them: ResolveLights makes them radiance
   return image;
+}
+
+ImageRgbF ReadEnvironmentMap(const std::string& path, const std::atomic<bool>* cancel) {
+  LoadPolicy policy;
+  policy.cancel = cancel;
+  return ReadExrImage(path, "environment map '" + fs::path(path).filename().string() + "'", policy);
 }
 
 }  // namespace cinevol::reader_cage

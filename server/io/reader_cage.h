@@ -15,6 +15,7 @@
 // (SIGABRT)"). docs/security.md tells the whole story.
 #pragma once
 
+#include <atomic>
 #include <filesystem>
 #include <functional>
 #include <map>
@@ -57,6 +58,11 @@ std::map<int, std::string> ReadLabelTableText(const std::string& text, const std
 
 // An OpenEXR image as linear RGB.
 ImageRgbF ReadExrImage(const std::filesystem::path& file, const std::string& shown, const LoadPolicy& policy);
+
+// A scene light's environment map (an EXR named by its path): what
+// scene/scene_builder.h's EnvironmentMapReader is given. Raising `cancel`
+// stops the read (Cancelled).
+ImageRgbF ReadEnvironmentMap(const std::string& path, const std::atomic<bool>* cancel = nullptr);
 
 // How loads end, for the metrics: "ok", "refused" (the reader named a problem
 // with the input), or how the reader was stopped: "crashed" (a signal),

@@ -12,7 +12,7 @@
 
 #include "core/error.h"
 #include "core/parallel_for.h"
-#include "io/volume_kind.h"
+#include "scene/volume_kind.h"
 
 namespace cinevol {
 namespace {

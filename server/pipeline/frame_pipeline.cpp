@@ -8,6 +8,7 @@
 #include <stdexcept>
 
 #include "core/error.h"
+#include "io/reader_cage.h"
 
 namespace cinevol {
 namespace {
@@ -121,16 +122,13 @@ void FramePipeline::SetJpegEncoder(JpegEncoderKind kind) {
 
 void FramePipeline::Update(const v1::Scene& scene, const FrameSettings& settings, unsigned changes) {
   if (!has_scene_) changes = kEverythingChanged;
-  // Named views frame what the transfer function and the labels show and the
-  // clipping keeps, so they follow their edits.
-  if ((changes & (kTransferFunctionChanged | kClippingChanged | kLabelsChanged)) &&
-      scene.camera().view() != v1::NAMED_VIEW_UNSPECIFIED) {
-    changes |= kCameraChanged;
-  }
   if (changes & kTransferFunctionChanged) {
     SetTransferFunction(ResolveTransferFunction(scene.transfer_function(), *volume_));
   }
-  if (changes & kLightsChanged) renderer_->SetLights(ResolveLights(scene.lights(), cancel_));
+  if (changes & kLightsChanged) {
+    renderer_->SetLights(
+        ResolveLights(scene.lights(), [this](const std::string& map) { return reader_cage::ReadEnvironmentMap(map, cancel_); }));
+  }
   if (changes & kClippingChanged) {
     clip_ = ResolveClipping(scene.clipping(), *volume_);
     renderer_->SetClipRegion(clip_);
@@ -139,9 +137,8 @@ void FramePipeline::Update(const v1::Scene& scene, const FrameSettings& settings
     SetLabels(ResolveLabels(scene.labels(), *volume_));
   }
   if (changes & kSamplingChanged) renderer_->SetReconstruction(ResolveReconstruction(scene.render().reconstruction()));
-  if (changes & kCameraChanged) {
-    camera_ = ResolveCamera(scene.camera(), scene.render(), *volume_, transfer_function_,
-                            {clip_, labels_ ? &label_blocks_ : nullptr});
+  if (changes & kCameraChanged) {  // sessions send numbers; a named view here frames what the TF shows and the clipping keeps
+    camera_ = ResolveCamera(scene.camera(), scene.render(), *volume_, transfer_function_, {clip_});
   }
   spp_ = static_cast<int>(scene.render().spp());
   max_bounces_ = static_cast<int>(scene.render().max_bounces());
@@ -170,7 +167,6 @@ void FramePipeline::Update(const RenderSetup& setup, const FrameSettings& settin
 
 void FramePipeline::SetLabels(const LabelSetup& setup) {
   renderer_->SetLabels(labels_, setup);
-  if (labels_) label_blocks_ = BlocksWithVisibleLabels(*volume_, *labels_, setup);  // for framing
 }
 
 void FramePipeline::SetTransferFunction(TransferFunction tf) {

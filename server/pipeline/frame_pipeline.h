@@ -226,7 +226,6 @@ class FramePipeline {
 
   std::shared_ptr<const Volume> volume_;
   std::shared_ptr<const LabelVolume> labels_;
-  std::vector<bool> label_blocks_;  // BlocksWithVisibleLabels of the current styles, for named views
   std::unique_ptr<Renderer> renderer_;
   std::unique_ptr<Denoiser> denoiser_;
   std::unique_ptr<Display> display_;

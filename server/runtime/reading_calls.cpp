@@ -146,6 +146,7 @@ v1::PickResult PickOn(const v1::PickRequest& request, const v1::Scene& scene, co
     framed.mutable_render()->set_height(f.height());
   }
   ToVolumeFrame(framed, VolumePlacement::Of(*lease.volume()));  // the renderers' frame
+  framed.clear_lights();  // a pick follows rays to the first hit: no light, no environment map read
   const Picker picker(lease.volume(), lease.labels(), ResolveScene(framed, *lease.volume(), lease.labels().get()));
   PickSettings settings;
   if (request.has_threshold()) {

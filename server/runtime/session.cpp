@@ -67,6 +67,7 @@ Session::Session(std::string id, std::string owner, std::shared_ptr<VolumeLease>
       owner_(std::move(owner)),
       volume_(std::move(volume)),
       context_(std::move(context)),
+      scene_context_{*volume_->volume(), volume_->labels().get(), volume_->id(), context_.resolve_map},
       current_(std::move(state)),
       settings_(SessionFrameSettings(context_.backend, current_.stream())),
       since_(Clock::now()),
@@ -173,24 +174,9 @@ void Session::OnPointer(const std::string& who, const v1::Pointer& pointer, Cloc
 }
 
 void Session::PointLocked(const std::string& who, const v1::Pointer& pointer, Clock::time_point arrival) {
-  if (!(pointer.x() >= 0 && pointer.x() <= 1 && pointer.y() >= 0 && pointer.y() <= 1)) {
-    throw InputError(fmt::format("pointer: ({}, {}) is outside the frame, [0, 1] each way", pointer.x(), pointer.y()));
-  }
-  auto [it, fresh] = pointers_.try_emplace(who, PointerSender{TokenBucket(kPointerRate, arrival), {}});
-  if (!it->second.rate.Take(arrival)) return;  // a pointer moves on: the next move shows it
-  it->second.visible = !pointer.hidden();
-  it->second.shown.set_who(who);
-  it->second.shown.set_x(pointer.x());
-  it->second.shown.set_y(pointer.y());
-  ShowPointersLocked();
-  SendStateLocked();
-}
-
-void Session::ShowPointersLocked() {
-  current_.clear_pointers();
-  for (const auto& [sender, p] : pointers_) {
-    if (p.visible) *current_.add_pointers() = p.shown;
-  }
+  TokenBucket& rate = pointer_rates_.try_emplace(who, kPointerRate, arrival).first->second;
+  if (!rate.Take(arrival)) return;  // a pointer moves on: the next move shows it
+  if (ApplyPointer(current_, who, pointer)) SendStateLocked();
 }
 
 void Session::Detach(FrameStream* stream) {
@@ -203,7 +189,10 @@ void Session::Detach(FrameStream* stream) {
       watchers_.erase(watcher);
       const bool still_watching =
           std::any_of(watchers_.begin(), watchers_.end(), [&](const Watcher& w) { return w.holder == holder; });
-      if (!still_watching && pointers_.erase(holder) > 0) ShowPointersLocked();  // its pointer goes with it
+      if (!still_watching) {  // its pointer goes with it
+        pointer_rates_.erase(holder);
+        HidePointer(current_, holder);
+      }
       current_.set_viewers(std::uint32_t(watchers_.size()));
       SendStateLocked();
       return;
@@ -275,9 +264,7 @@ void Session::OnEventLocked(v1::SessionEvent event, Clock::time_point arrival, b
     return;
   }
   if (event.has_measurements()) {  // the same: the picture does not change
-    const std::vector<std::string> problems = ValidateMeasurements(event.measurements().measurements());
-    if (!problems.empty()) throw InputError(fmt::format("event {}: {}", event.seq(), problems.front()));
-    *current_.mutable_scene()->mutable_measurements() = event.measurements().measurements();
+    ApplyEvent(current_, event, scene_context_, context_.limits);
     SendStateLocked();
     return;
   }
@@ -292,11 +279,7 @@ void Session::OnEventLocked(v1::SessionEvent event, Clock::time_point arrival, b
     ApplyCoalescedLocked();  // what came earlier applies first
     ApplyLocked(event, arrival);
   } else {
-    // Over the rate: kept, unchecked, for the next frame; each kind keeps its latest.
-    auto [it, fresh] = coalesced_.try_emplace(int(event.kind_case()), event);
-    const bool merges = event.has_render() || event.has_stream();  // set fields change, as ApplyEvent does
-    if (!fresh && merges) it->second.MergeFrom(event);
-    if (!fresh && !merges) it->second = event;
+    CoalesceEvent(coalesced_, event);  // over the rate: kept for the next frame
     last_event_seq_ = event.seq();
     coalesced_arrival_ = arrival;
     ServerMetrics().EventCoalesced();
@@ -320,16 +303,10 @@ void Session::ApplyCoalescedLocked() {
 }
 
 void Session::ApplyLocked(const v1::SessionEvent& event, Clock::time_point arrival) {
-  if (event.has_labels() && StylesLabels(event.labels()) && !volume_->has_segmentation()) {
-    throw InputError(
-        fmt::format("event {}: labels: volume '{}' had no segmentation when this session began; load "
-                    "one (LoadLabels) and start a new session",
-                    event.seq(), volume_->id()));
-  }
   const v1::Viewport viewport = current_.viewport();
   const std::uint64_t applied_seq = current_.last_event_seq();
   const unsigned changes =
-      ApplyEvent(current_, event, context_.limits, context_.resolve_map);  // as it was if it throws
+      ApplyEvent(current_, event, scene_context_, context_.limits);  // as it was if it throws
   const std::uint64_t pixels = std::uint64_t(current_.viewport().width()) * current_.viewport().height();
   if (pixels != pixels_) {
     try {

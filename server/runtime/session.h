@@ -203,8 +203,6 @@ class Session final : public Job, public std::enable_shared_from_this<Session> {
   void SendStateLocked();
   void PointLocked(const std::string& who, const v1::Pointer& pointer, Clock::time_point arrival);
   void AddWatcher(FrameStream* stream, const std::string& grant_id, const std::string& holder);
-  // current_.pointers from pointers_, the visible ones.
-  void ShowPointersLocked();  // AttachWatcher under mu_, before the wake
   // The encode stage (frame_encoding.h) on the encoder pool, then Deliver.
   void Encode(DisplayFrame frame, const FrameStamp& stamp);
   void Deliver(v1::Frame frame, Clock::time_point origin);
@@ -213,6 +211,7 @@ class Session final : public Job, public std::enable_shared_from_this<Session> {
   const std::string id_, owner_;
   const std::shared_ptr<VolumeLease> volume_;
   const SessionContext context_;
+  const SceneContext scene_context_;  // what ApplyEvent resolves the scene against: the volume as leased
 
   mutable std::mutex mu_;
   FrameStream* stream_ = nullptr;
@@ -224,12 +223,7 @@ class Session final : public Job, public std::enable_shared_from_this<Session> {
   // The newest frame delivered, for a watcher that joins (kept once the
   // session has had a watcher: an unshared session pays nothing for it).
   std::optional<v1::Frame> newest_frame_;
-  struct PointerSender {
-    TokenBucket rate;
-    v1::SharedPointer shown;
-    bool visible = false;
-  };
-  std::map<std::string, PointerSender> pointers_;  // by who
+  std::map<std::string, TokenBucket> pointer_rates_;  // by who: a pointer's moves past its rate are dropped
   v1::SessionState current_;                       // what events made of the session; its stream settings all set
   FrameSettings settings_;                         // current_.stream() on this backend
   bool dirty_ = true;                              // current_ changed since the pipeline last saw it

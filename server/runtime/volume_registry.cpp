@@ -12,7 +12,7 @@
 #include "io/label_volume.h"
 #include "io/reader_cage.h"
 #include "io/table_finder.h"
-#include "io/volume_kind.h"
+#include "scene/volume_kind.h"
 #include "io/volume_loader.h"
 #include "render/prepared_volume.h"
 #include "runtime/errors.h"

@@ -10,7 +10,8 @@
 
 #include "core/error.h"
 #include "scene/scene_builder.h"
-#include "io/volume_kind.h"
+#include "scene/scene_frame.h"
+#include "scene/volume_kind.h"
 
 namespace cinevol {
 namespace {
@@ -149,18 +150,12 @@ void CropToSubject(const Volume& volume, v1::Scene& scene) {
   const Vec3f half = volume.extent_mm() * 0.5f;
   const Vec3f lo = Max(ToFloat(blocks->first) * block_mm - half, -half);
   const Vec3f hi = Min(ToFloat(AddI(blocks->second, 1)) * block_mm - half, half);
-  // World (index mm, centred) to LPS: origin + D (w - shift), shift as in
-  // ResolveClipping's PatientFrame.
-  const auto& d = volume.metadata().direction;
-  const auto& o = volume.metadata().origin_mm;
-  const Vec3f w = (lo + hi) * 0.5f - (volume.spacing_mm() * 0.5f - half);
+  const VolumePlacement placement = VolumePlacement::Of(volume);
   v1::CropBox* box = scene.mutable_clipping()->mutable_crop_box();
-  SetVec(box->mutable_center(), {float(o[0] + d[0] * w.x + d[1] * w.y + d[2] * w.z),
-                                 float(o[1] + d[3] * w.x + d[4] * w.y + d[5] * w.z),
-                                 float(o[2] + d[6] * w.x + d[7] * w.y + d[8] * w.z)});
+  SetVec(box->mutable_center(), placement.PointToPatient((lo + hi) * 0.5f));
   SetVec(box->mutable_size(), hi - lo);
-  SetVec(box->mutable_axis_x(), {float(d[0]), float(d[3]), float(d[6])});
-  SetVec(box->mutable_axis_y(), {float(d[1]), float(d[4]), float(d[7])});
+  SetVec(box->mutable_axis_x(), placement.DirectionToPatient({1, 0, 0}));
+  SetVec(box->mutable_axis_y(), placement.DirectionToPatient({0, 1, 0}));
 }
 
 }  // namespace
@@ -350,6 +345,16 @@ v1::TransferFunction MakePreset(std::string_view name, const ValueWindow& window
     SetColor(out->mutable_emission(), p.emission);
   }
   return tf;
+}
+
+v1::TransferFunction ExpandTransferFunction(const v1::TransferFunction& tf, const Volume& volume) {
+  if (!tf.points().empty()) return tf;
+  v1::TransferFunction expanded =
+      MakePreset(tf.preset().empty() ? DefaultPreset(volume) : tf.preset(), AutoWindow(volume));
+  if (tf.has_density_scale()) expanded.set_density_scale(tf.density_scale());
+  if (tf.has_gradient_factor()) expanded.set_gradient_factor(tf.gradient_factor());
+  expanded.set_phase_g(tf.phase_g());
+  return expanded;
 }
 
 std::string DefaultPreset(v1::VolumeKind kind) {

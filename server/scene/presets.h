@@ -69,6 +69,11 @@ float FindDensePhase(const ValueHistogram& histogram, float lo);
 // presets mapped onto `window`. Throws InputError for an unknown name.
 v1::TransferFunction MakePreset(std::string_view name, const ValueWindow& window);
 
+// `tf` as points. Without points: its preset (or, with no preset either,
+// the volume's default) expanded for the volume's values and spacing, with
+// the preset's density scale and gradient factor where `tf` sets none, and
+// the preset's name. With points: `tf` as it is.
+v1::TransferFunction ExpandTransferFunction(const v1::TransferFunction& tf, const Volume& volume);
 // Where `preset` does not fit `volume`, a sentence saying so and what would
 // (a CT preset in HU on MR or on CT not in HU, an MR preset on CT in HU, an
 // angiography preset on a CT without a blood-pool peak); else empty.

@@ -6,9 +6,8 @@
 #include <cmath>
 
 #include "core/blocks.h"
-#include "encode/image_codecs.h"
+#include "core/error.h"
 #include "scene/presets.h"
-#include "io/reader_cage.h"
 #include "scene/scene_file.h"
 
 namespace cinevol {
@@ -125,20 +124,15 @@ std::vector<Vec3f> VisibleCorners(const Volume& volume, const TransferFunction& 
 }
 
 TransferFunction ResolveTransferFunction(const v1::TransferFunction& proto, const Volume& volume) {
-  const std::string preset = proto.preset().empty() ? DefaultPreset(volume) : proto.preset();
-  const v1::TransferFunction expanded =
-      proto.points().empty() ? MakePreset(preset, AutoWindow(volume)) : proto;
+  const v1::TransferFunction expanded = ExpandTransferFunction(proto, volume);
   TransferFunction tf;
   for (const auto& p : expanded.points()) {
     tf.points.push_back({p.value(), p.opacity(), ToColor(p.diffuse()), ToColor(p.specular()), p.roughness(),
                          ToColor(p.emission())});
   }
-  // A preset supplies its own density and gradient factor unless the scene sets them.
-  tf.density_scale = proto.points().empty() && !proto.has_density_scale() ? expanded.density_scale()
-                                                                          : proto.density_scale();
-  tf.gradient_factor = proto.points().empty() && !proto.has_gradient_factor() ? expanded.gradient_factor()
-                                                                              : proto.gradient_factor();
-  tf.phase_g = proto.phase_g();
+  tf.density_scale = expanded.density_scale();
+  tf.gradient_factor = expanded.gradient_factor();
+  tf.phase_g = expanded.phase_g();
   return tf;
 }
 
@@ -181,7 +175,13 @@ Camera ResolveCamera(const v1::Camera& proto, const v1::RenderSettings& render, 
   const int width = static_cast<int>(render.width()), height = static_cast<int>(render.height());
   const float fov = proto.fov_y_deg();
   Vec3f eye, target, up{0, 0, 1};
-  if (proto.view() != v1::NAMED_VIEW_UNSPECIFIED) {
+  if (proto.view() != v1::NAMED_VIEW_UNSPECIFIED && proto.has_eye() && proto.has_target()) {
+    // A view button: the same target and distance, seen from the view's side.
+    const ViewDirections view = NamedViewDirections(proto.view(), volume.metadata().direction);
+    target = ToVec(proto.target());
+    eye = target + view.to_eye * Length(ToVec(proto.eye()) - target);
+    up = view.up;
+  } else if (proto.view() != v1::NAMED_VIEW_UNSPECIFIED) {
     const ViewDirections view = NamedViewDirections(proto.view(), volume.metadata().direction);
     const Framing framing = FrameView(VisibleCorners(volume, tf, in_view), view, fov, float(width) / float(height));
     target = framing.target;
@@ -200,7 +200,8 @@ Camera ResolveCamera(const v1::Camera& proto, const v1::RenderSettings& render, 
   return c;
 }
 
-LightSetup ResolveLights(const google::protobuf::RepeatedPtrField<v1::Light>& lights, const std::atomic<bool>* cancel) {
+LightSetup ResolveLights(const google::protobuf::RepeatedPtrField<v1::Light>& lights,
+                         const EnvironmentMapReader& read_map) {
   LightSetup setup;
   for (const v1::Light& l : lights) {
     Light light;
@@ -245,10 +246,8 @@ LightSetup ResolveLights(const google::protobuf::RepeatedPtrField<v1::Light>& li
           if (e.gradient().has_up()) env.up = Normalize(ToVec(e.gradient().up()));
         } else {
           env.kind = Environment::Kind::kMap;
-          LoadPolicy policy;
-          policy.cancel = cancel;
-          env.map = reader_cage::ReadExrImage(
-              e.map(), "environment map '" + std::filesystem::path(e.map()).filename().string() + "'", policy);
+          if (!read_map) throw InputError("lights: an environment map needs a reader here, and none was given");
+          env.map = read_map(e.map());
           // Texels become radiance under the scene's limit (kMaxRadiance): a
           // map's NaN, infinite or negative texels give none.
           for (Vec3f& p : env.map.pixels) {
@@ -270,7 +269,8 @@ LightSetup ResolveLights(const google::protobuf::RepeatedPtrField<v1::Light>& li
   return setup;
 }
 
-RenderSetup ResolveScene(const v1::Scene& scene, const Volume& volume, const LabelVolume* labels) {
+RenderSetup ResolveScene(const v1::Scene& scene, const Volume& volume, const LabelVolume* labels,
+                         const EnvironmentMapReader& read_map) {
   RenderSetup setup;
   setup.transfer_function = ResolveTransferFunction(scene.transfer_function(), volume);
   setup.clip = ResolveClipping(scene.clipping(), volume);
@@ -279,7 +279,7 @@ RenderSetup ResolveScene(const v1::Scene& scene, const Volume& volume, const Lab
       labels ? BlocksWithVisibleLabels(volume, *labels, setup.labels) : std::vector<bool>();
   setup.camera = ResolveCamera(scene.camera(), scene.render(), volume, setup.transfer_function,
                                {setup.clip, labels ? &label_blocks : nullptr});
-  setup.lights = ResolveLights(scene.lights());
+  setup.lights = ResolveLights(scene.lights(), read_map);
   setup.spp = static_cast<int>(scene.render().spp());
   setup.max_bounces = static_cast<int>(scene.render().max_bounces());
   setup.seed = scene.render().seed();

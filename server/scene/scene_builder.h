@@ -4,12 +4,14 @@
 #pragma once
 
 #include <array>
-#include <atomic>
+#include <functional>
+#include <string>
 #include <vector>
 
 #include "cinevol/v1/scene.pb.h"
 #include "core/camera.h"
 #include "core/clip_region.h"
+#include "core/image.h"
 #include "core/labels.h"
 #include "core/lights.h"
 #include "core/transfer_function.h"
@@ -75,7 +77,9 @@ Framing FrameView(const std::vector<Vec3f>& points, const ViewDirections& view, 
 
 // With neither points nor a preset, the volume's default preset.
 TransferFunction ResolveTransferFunction(const v1::TransferFunction& tf, const Volume& volume);
-// Named views frame what `tf` shows of the volume and `in_view` keeps (FrameView).
+// A named view with eye and target set turns about the target at their
+// distance; without, it frames what `tf` shows of the volume and `in_view`
+// keeps (FrameView).
 Camera ResolveCamera(const v1::Camera& camera, const v1::RenderSettings& render, const Volume& volume,
                      const TransferFunction& tf, const InView& in_view = InView());
 // Unspecified is trilinear: tricubic costs 2.2 to 3.3 times the frame time
@@ -83,13 +87,17 @@ Camera ResolveCamera(const v1::Camera& camera, const v1::RenderSettings& render,
 Reconstruction ResolveReconstruction(v1::Reconstruction reconstruction);
 // Label styles, their own transfer functions resolved against the volume.
 LabelSetup ResolveLabels(const v1::Labels& labels, const Volume& volume);
-// An environment map is read through the reader cage; raising `cancel`
-// stops that read (Cancelled).
+// An environment map's texels (linear RGB) from its path: the scene model
+// opens no file itself; io/reader_cage.h's ReadEnvironmentMap reads one
+// through the reader cage.
+using EnvironmentMapReader = std::function<ImageRgbF(const std::string& path)>;
+// An environment map needs `read_map` (InputError without one).
 LightSetup ResolveLights(const google::protobuf::RepeatedPtrField<v1::Light>& lights,
-                         const std::atomic<bool>* cancel = nullptr);
+                         const EnvironmentMapReader& read_map = {});
 
 // All of the above; the scene must have passed CheckScene. `labels`: the
 // volume's segmentation, where it has one.
-RenderSetup ResolveScene(const v1::Scene& scene, const Volume& volume, const LabelVolume* labels = nullptr);
+RenderSetup ResolveScene(const v1::Scene& scene, const Volume& volume, const LabelVolume* labels = nullptr,
+                         const EnvironmentMapReader& read_map = {});
 
 }  // namespace cinevol

@@ -12,7 +12,7 @@
 
 #include "core/error.h"
 #include "core/labels.h"
-#include "io/phantom.h"
+#include "scene/phantom_spec.h"
 #include "scene/presets.h"
 #include "scene/scene_fields.h"
 
@@ -171,12 +171,14 @@ void ValidateLabels(const v1::Labels& labels, Problems& p) {
 
 void ValidateCamera(const v1::Camera& c, Problems& p) {
   if (!v1::NamedView_IsValid(c.view())) p.Add("camera.view", fmt::format("unknown named view {}", int(c.view())));
-  if (c.view() == v1::NAMED_VIEW_UNSPECIFIED && c.has_eye()) {
+  const bool named = c.view() != v1::NAMED_VIEW_UNSPECIFIED;
+  // A named view uses eye and target only when both are set (turned about the target).
+  if (named ? c.has_eye() && c.has_target() : c.has_eye()) {
     p.Vec("camera.eye", c.eye());
     p.Vec("camera.target", c.target());
     const v1::Vec3 forward = Sub(c.target(), c.eye());
     if (Norm(forward) == 0.0) p.Add("camera.target", "equals camera.eye; the camera has no direction");
-    if (c.has_up()) {
+    if (!named && c.has_up()) {
       p.Direction("camera.up", c.up());
       if (Norm(c.up()) >= kMinDirectionLength && Norm(forward) > 0.0 &&
           CrossNorm(forward, c.up()) <= 1e-6 * Norm(forward) * Norm(c.up())) {
@@ -363,6 +365,8 @@ std::vector<std::string> ValidateScene(const v1::Scene& scene) {
   ValidateParts(scene, kEverythingChanged, p);
   return p.Take();
 }
+
+bool StylesLabels(const v1::Labels& labels) { return labels.styles_size() > 0 || labels.has_show_unlisted(); }
 
 std::vector<std::string> ValidateMeasurements(const google::protobuf::RepeatedPtrField<v1::Measurement>& measurements) {
   Problems p;

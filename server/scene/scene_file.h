@@ -64,6 +64,9 @@ std::vector<std::string> ValidateSceneParts(const v1::Scene& scene, unsigned par
 
 // The problems of a list of measurements (Scene.measurements, a measurements event).
 std::vector<std::string> ValidateMeasurements(const google::protobuf::RepeatedPtrField<v1::Measurement>& measurements);
+// Whether `labels` styles a segmentation's labels (styles, show_unlisted),
+// which needs one; remove_table alone does not.
+bool StylesLabels(const v1::Labels& labels);
 // Throws InputError listing ValidateScene's problems, if any.
 void CheckScene(const v1::Scene& scene);
 

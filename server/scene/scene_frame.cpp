@@ -46,15 +46,34 @@ VolumePlacement VolumePlacement::Of(const Volume& volume) {
           volume.spacing_mm() * 0.5f - volume.extent_mm() * 0.5f};
 }
 
-VolumePlacement VolumePlacement::Of(const v1::VolumeInfo& volume) {
+namespace {
+
+// VolumeInfo and v1::VolumePlacement give a placement in the same four fields.
+template <class Message>
+VolumePlacement FromFields(const Message& m) {
   VolumePlacement p;
-  if (volume.direction_size() == 9)
-    std::copy(volume.direction().begin(), volume.direction().end(), p.direction.begin());
-  p.origin = ToVec(volume.origin_mm());
-  const Vec3f spacing = ToVec(volume.spacing_mm());
-  const Vec3f extent{float(volume.dims().x()) * spacing.x, float(volume.dims().y()) * spacing.y,
-                     float(volume.dims().z()) * spacing.z};
+  if (m.direction_size() == 9) std::copy(m.direction().begin(), m.direction().end(), p.direction.begin());
+  p.origin = ToVec(m.origin_mm());
+  const Vec3f spacing = ToVec(m.spacing_mm());
+  const Vec3f extent{float(m.dims().x()) * spacing.x, float(m.dims().y()) * spacing.y, float(m.dims().z()) * spacing.z};
   p.shift = spacing * 0.5f - extent * 0.5f;
+  return p;
+}
+
+}  // namespace
+
+VolumePlacement VolumePlacement::Of(const v1::VolumeInfo& volume) { return FromFields(volume); }
+VolumePlacement VolumePlacement::Of(const v1::VolumePlacement& placement) { return FromFields(placement); }
+
+v1::VolumePlacement PlacementMessage(const Volume& volume) {
+  const VolumeMetadata& m = volume.metadata();
+  v1::VolumePlacement p;
+  for (double d : m.direction) p.add_direction(d);
+  Set(p.mutable_origin_mm(), Vec3f{float(m.origin_mm[0]), float(m.origin_mm[1]), float(m.origin_mm[2])});
+  Set(p.mutable_spacing_mm(), volume.spacing_mm());
+  p.mutable_dims()->set_x(std::uint32_t(volume.dims().x));
+  p.mutable_dims()->set_y(std::uint32_t(volume.dims().y));
+  p.mutable_dims()->set_z(std::uint32_t(volume.dims().z));
   return p;
 }
 

@@ -22,12 +22,16 @@ struct VolumePlacement {
 
   static VolumePlacement Of(const Volume& volume);
   static VolumePlacement Of(const v1::VolumeInfo& volume);
+  static VolumePlacement Of(const v1::VolumePlacement& placement);
 
   Vec3f DirectionToVolume(Vec3f lps) const;  // D^T lps
   Vec3f DirectionToPatient(Vec3f v) const;   // D v
   Vec3f PointToVolume(Vec3f lps) const { return DirectionToVolume(lps - origin) + shift; }
   Vec3f PointToPatient(Vec3f v) const { return DirectionToPatient(v - shift) + origin; }
 };
+
+// SessionState.placement for `volume`.
+v1::VolumePlacement PlacementMessage(const Volume& volume);
 
 // Moves the camera and lights of a PATIENT_LPS scene into the volume-centred
 // frame (frame unset after); a scene already there stays as it is.

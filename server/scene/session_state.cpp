@@ -3,6 +3,8 @@
 
 #include <fmt/format.h>
 
+#include <algorithm>
+
 #include "core/error.h"
 #include "scene/presets.h"
 #include "scene/scene_builder.h"
@@ -98,6 +100,57 @@ void CheckRange(float v, float lo, float hi, const std::string& field) {
   if (!(v >= lo && v <= hi)) throw InputError(fmt::format("{}: {} is outside [{}, {}]", field, v, lo, hi));
 }
 
+// The scene's presets as points: its transfer function's and every label
+// style's own (`parts`: kTransferFunctionChanged, kLabelsChanged).
+void ExpandPresets(v1::Scene& scene, unsigned parts, const Volume& volume) {
+  if (parts & kTransferFunctionChanged) {
+    *scene.mutable_transfer_function() = ExpandTransferFunction(scene.transfer_function(), volume);
+  }
+  for (int i = 0; (parts & kLabelsChanged) && i < scene.labels().styles_size(); ++i) {
+    v1::LabelStyle* style = scene.mutable_labels()->mutable_styles(i);
+    if (style->has_transfer_function()) {
+      *style->mutable_transfer_function() = ExpandTransferFunction(style->transfer_function(), volume);
+    }
+  }
+}
+
+// Label styles need a segmentation; table removal does not. `began`: the
+// session exists already (its volume is as it was when it began).
+void CheckSegmentation(const v1::Labels& labels, const SceneContext& context, const std::string& field,
+                       bool began) {
+  if (!StylesLabels(labels) || (context.labels && context.labels->segmentation)) return;
+  throw InputError(began ? fmt::format("{}: volume '{}' had no segmentation when this session began; load one "
+                                       "(LoadLabels) and start a new session",
+                                       field, context.volume_id)
+                         : fmt::format("{}: volume '{}' has no segmentation; load one first (LoadLabels, or an "
+                                       "upload with header.labels_for)",
+                                       field, context.volume_id));
+}
+
+void SetVec(v1::Vec3* v, Vec3f p) {
+  v->set_x(p.x);
+  v->set_y(p.y);
+  v->set_z(p.z);
+}
+
+// A named view as numbers (eye, target, up; `view` cleared), framing what
+// the scene shows of the volume (or turned about the given target).
+void ResolveNamedView(v1::Scene& scene, const SceneContext& context) {
+  v1::Camera& proto = *scene.mutable_camera();
+  if (proto.view() == v1::NAMED_VIEW_UNSPECIFIED) return;
+  const Volume& volume = context.volume;
+  const TransferFunction tf = ResolveTransferFunction(scene.transfer_function(), volume);
+  const LabelVolume* labels = context.labels;
+  const std::vector<bool> label_blocks =
+      labels ? BlocksWithVisibleLabels(volume, *labels, ResolveLabels(scene.labels(), volume)) : std::vector<bool>();
+  const Camera c = ResolveCamera(proto, scene.render(), volume, tf,
+                                 {ResolveClipping(scene.clipping(), volume), labels ? &label_blocks : nullptr});
+  SetVec(proto.mutable_eye(), c.eye);
+  SetVec(proto.mutable_target(), c.eye + c.forward * c.focal_distance);
+  SetVec(proto.mutable_up(), c.up);
+  proto.clear_view();
+}
+
 // Edits the scene part the event names (PartsOf says which).
 void ApplyToScene(const v1::SessionEvent& event, v1::Scene& scene, const std::string& prefix) {
   switch (event.kind_case()) {
@@ -178,11 +231,12 @@ void CheckStreamSettings(const v1::StreamSettings& edit, const std::string& fiel
   if (edit.has_error_target()) CheckRange(edit.error_target(), 0.0f, 1.0f, field + ".error_target");
 }
 
-v1::SessionState InitialState(const v1::CreateSessionRequest& request, const Volume& volume,
-                              const SessionLimits& limits, const MapResolver& resolve_map) {
+v1::SessionState InitialState(const v1::CreateSessionRequest& request, const SceneContext& context,
+                              const SessionLimits& limits) {
   if (!request.has_viewport()) throw InputError("viewport: not set");
   CheckViewport(request.viewport(), "viewport", &limits);
   CheckStreamSettings(request.stream(), "stream");
+  const Volume& volume = context.volume;
   v1::SessionState state;
   v1::Scene& scene = *state.mutable_scene();
   switch (request.initial_case()) {
@@ -206,33 +260,24 @@ v1::SessionState InitialState(const v1::CreateSessionRequest& request, const Vol
   CheckCost(scene, kEverythingChanged, "scene.", limits);  // before the work of defaults and validation
   ApplyDefaults(scene);
   CheckParts(scene, kEverythingChanged, "scene.");
+  CheckSegmentation(scene.labels(), context, "scene.labels", false);
+  ExpandPresets(scene, kEverythingChanged, volume);
   CheckCost(scene, kEverythingChanged, "scene.", limits);
-  ResolveEnvironmentMaps(scene, resolve_map);
+  ResolveEnvironmentMaps(scene, context.resolve_map);
+  ResolveNamedView(scene, context);  // after the presets: it frames what they show
   *state.mutable_viewport() = request.viewport();
   *state.mutable_stream() = request.stream();
+  *state.mutable_placement() = PlacementMessage(volume);
   return state;
 }
 
-void AddResolvedCamera(v1::Scene& scene, const Volume& volume, const LabelVolume* labels) {
-  v1::Camera& proto = *scene.mutable_camera();
-  if (proto.view() == v1::NAMED_VIEW_UNSPECIFIED) return;
-  const TransferFunction tf = ResolveTransferFunction(scene.transfer_function(), volume);
-  const std::vector<bool> label_blocks =
-      labels ? BlocksWithVisibleLabels(volume, *labels, ResolveLabels(scene.labels(), volume)) : std::vector<bool>();
-  const Camera c = ResolveCamera(proto, scene.render(), volume, tf,
-                                 {ResolveClipping(scene.clipping(), volume), labels ? &label_blocks : nullptr});
-  auto set = [](v1::Vec3* v, Vec3f p) {
-    v->set_x(p.x);
-    v->set_y(p.y);
-    v->set_z(p.z);
-  };
-  set(proto.mutable_eye(), c.eye);
-  set(proto.mutable_target(), c.eye + c.forward * c.focal_distance);
-  set(proto.mutable_up(), c.up);
+void ResolveSceneModel(v1::Scene& scene, const SceneContext& context) {
+  ExpandPresets(scene, kEverythingChanged, context.volume);
+  ResolveNamedView(scene, context);
 }
 
-unsigned ApplyEvent(v1::SessionState& state, const v1::SessionEvent& event, const SessionLimits* limits,
-                    const MapResolver& resolve_map) {
+unsigned ApplyEvent(v1::SessionState& state, const v1::SessionEvent& event, const SceneContext& context,
+                    const SessionLimits* limits) {
   const std::string prefix = fmt::format("event {}: ", event.seq());
   auto with_prefix = [&](auto check) {
     try {
@@ -258,6 +303,15 @@ unsigned ApplyEvent(v1::SessionState& state, const v1::SessionEvent& event, cons
       state.mutable_stream()->MergeFrom(event.stream());  // set fields change
       changes = kStreamChanged;
       break;
+    case v1::SessionEvent::kMeasurements: {
+      // Shared at once, beside the event queue: the newest event applied stays as it was.
+      const std::vector<std::string> problems = ValidateMeasurements(event.measurements().measurements());
+      if (!problems.empty()) throw InputError(prefix + problems.front());
+      *state.mutable_scene()->mutable_measurements() = event.measurements().measurements();
+      return kMeasurementsChanged;
+    }
+    case v1::SessionEvent::kPointer:
+      throw InputError(prefix + "pointer: a pointer is its sender's (ApplyPointer)");
     case v1::SessionEvent::KIND_NOT_SET:
       throw InputError(prefix + "no event kind set");
     default: {
@@ -269,9 +323,14 @@ unsigned ApplyEvent(v1::SessionState& state, const v1::SessionEvent& event, cons
       try {
         ApplyToScene(event, scene, prefix);
         ApplyDefaults(scene, changes);  // an unset fov takes its default, as in a scene file
-        if (changes & kLightsChanged) ResolveEnvironmentMaps(scene, resolve_map);
-        if (limits) CheckCost(scene, changes, prefix, *limits);
+        if (changes & kLightsChanged) ResolveEnvironmentMaps(scene, context.resolve_map);
         CheckParts(scene, changes, prefix);
+        if (changes & kLabelsChanged) {
+          with_prefix([&] { CheckSegmentation(scene.labels(), context, "labels", true); });
+        }
+        ExpandPresets(scene, changes, context.volume);
+        if (limits) CheckCost(scene, changes, prefix, *limits);
+        if (changes & kCameraChanged) ResolveNamedView(scene, context);
       } catch (...) {
         RestoreParts(scene, saved, changes);
         throw;
@@ -281,6 +340,46 @@ unsigned ApplyEvent(v1::SessionState& state, const v1::SessionEvent& event, cons
   }
   state.set_last_event_seq(std::max(state.last_event_seq(), event.seq()));
   return changes;
+}
+
+unsigned ApplyPointer(v1::SessionState& state, const std::string& who, const v1::Pointer& pointer) {
+  if (!(pointer.x() >= 0 && pointer.x() <= 1 && pointer.y() >= 0 && pointer.y() <= 1)) {
+    throw InputError(fmt::format("pointer: ({}, {}) is outside the frame, [0, 1] each way", pointer.x(), pointer.y()));
+  }
+  if (pointer.hidden()) return HidePointer(state, who);
+  auto& pointers = *state.mutable_pointers();
+  // Listed by who, each once.
+  auto at = std::lower_bound(pointers.begin(), pointers.end(), who,
+                             [](const v1::SharedPointer& p, const std::string& w) { return p.who() < w; });
+  if (at == pointers.end() || at->who() != who) {
+    const int index = int(at - pointers.begin());
+    pointers.Add()->set_who(who);
+    for (int i = pointers.size() - 1; i > index; --i) pointers.SwapElements(i, i - 1);
+    at = pointers.begin() + index;
+  } else if (at->x() == pointer.x() && at->y() == pointer.y()) {
+    return 0;
+  }
+  at->set_x(pointer.x());
+  at->set_y(pointer.y());
+  return kPointersChanged;
+}
+
+unsigned HidePointer(v1::SessionState& state, const std::string& who) {
+  auto& pointers = *state.mutable_pointers();
+  const auto shown = std::find_if(pointers.begin(), pointers.end(), [&](const auto& p) { return p.who() == who; });
+  if (shown == pointers.end()) return 0;
+  pointers.erase(shown);
+  return kPointersChanged;
+}
+
+void CoalesceEvent(std::map<int, v1::SessionEvent>& waiting, const v1::SessionEvent& event) {
+  auto [it, fresh] = waiting.try_emplace(int(event.kind_case()), event);
+  if (fresh) return;
+  if (event.has_render() || event.has_stream()) {
+    it->second.MergeFrom(event);  // set fields change; the seq is the newest
+  } else {
+    it->second = event;
+  }
 }
 
 int SnapshotSpp(const v1::SnapshotRequest& request, std::uint64_t pixels, const SessionLimits& limits) {

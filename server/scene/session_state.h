@@ -1,14 +1,16 @@
-// A session's state and what events do to it: the one place that says what
-// an event means. The server applies events with its limits and answers
-// with the state they produced (ServerMessage.state); the client library
-// applies the same rules to events the server has not answered yet, so that
-// a session re-created elsewhere (failover) is the one its viewer saw.
-// Problems throw InputError naming the field ("event 7: camera.eye.x: ..."),
-// OverLimit where a limit of this server is what the request breaks.
+// A session's state and every rule of what events do to it: the one place
+// that says what an event means (runtime/ keeps the queues and the pacing).
+// The server applies events with its limits and answers with the state they
+// produced (ServerMessage.state), resolved: named views as numbers, presets
+// as points, the volume's placement given, so that no client works any of
+// it out again. Problems throw InputError naming the field ("event 7:
+// camera.eye.x: ..."), OverLimit where a limit of this server is what the
+// request breaks.
 #pragma once
 
 #include <cstdint>
 #include <functional>
+#include <map>
 #include <string>
 
 #include "cinevol/v1/service.pb.h"
@@ -37,32 +39,58 @@ struct SessionLimits {
 
 // What an event changed: SceneChange bits, and these.
 enum SessionChange : unsigned {
-  kStreamChanged = 1u << 6,  // stream settings (denoiser, quality, budgets, refinement)
-  kPauseChanged = 1u << 7,   // paused or resumed
+  kStreamChanged = 1u << 6,        // stream settings (denoiser, quality, budgets, refinement)
+  kPauseChanged = 1u << 7,         // paused or resumed
+  kMeasurementsChanged = 1u << 8,  // the reader's measurements: shared at once, no frame answers them
+  kPointersChanged = 1u << 9,      // someone's pointer: the same
 };
 
 // The server's path for a light's environment map named in `field`: only
 // inside its data roots (it throws otherwise). Empty: names stay as written.
 using MapResolver = std::function<std::string(const std::string& map, const std::string& field)>;
 
+// What a session's scene is resolved against.
+struct SceneContext {
+  const Volume& volume;
+  // Its segmentation (or only its table) when the session began, where it
+  // has one: label styles need a segmentation; named views frame labels.
+  const LabelVolume* labels = nullptr;
+  std::string volume_id;   // for messages
+  MapResolver resolve_map;  // empty: environment map names stay as written
+};
+
 // The state a new session starts from: the request's scene or preset (else
 // the volume's default preset), its viewport and stream settings, defaults
-// filled, validated against `limits`; a scene without lights gets the
-// volume's default lights. Its camera is not resolved yet (AddResolvedCamera).
-v1::SessionState InitialState(const v1::CreateSessionRequest& request, const Volume& volume,
-                              const SessionLimits& limits, const MapResolver& resolve_map = {});
+// filled, validated against `limits`, then resolved: a scene without lights
+// gets the volume's default lights, presets become points, a named view
+// becomes numbers (framing scans the volume's blocks: milliseconds to
+// seconds for 512^3), and the placement is the volume's.
+v1::SessionState InitialState(const v1::CreateSessionRequest& request, const SceneContext& context,
+                              const SessionLimits& limits);
 
-// Fills a named view's eye, target and up (the view stays set) with what it
-// resolves to for `volume`, framing what the scene shows.
-void AddResolvedCamera(v1::Scene& scene, const Volume& volume, const LabelVolume* labels);
+// What InitialState resolves after its checks, for a scene rendered
+// without a session (in the volume-centred frame, defaults filled): its
+// presets as points and its named view as numbers.
+void ResolveSceneModel(v1::Scene& scene, const SceneContext& context);
 
 // Applies `event` to `state` and returns what changed (SceneChange and
 // SessionChange bits; 0 where it changed nothing). Only the parts the event
-// touches are defaulted and validated. `limits`: null checks the scene's own
-// ranges only (a client that does not know the server's limits). Throws,
-// leaving `state` as it was.
-unsigned ApplyEvent(v1::SessionState& state, const v1::SessionEvent& event, const SessionLimits* limits,
-                    const MapResolver& resolve_map = {});
+// touches are defaulted, validated and resolved. `limits`: null checks the
+// scene's own ranges only. Throws, leaving `state` as it was.
+unsigned ApplyEvent(v1::SessionState& state, const v1::SessionEvent& event, const SceneContext& context,
+                    const SessionLimits* limits);
+
+// `who`'s pointer on the shared view (SessionState.pointers, by who), or
+// hidden; kPointersChanged, or 0 where nothing changed. Throws InputError
+// for a position outside the frame.
+unsigned ApplyPointer(v1::SessionState& state, const std::string& who, const v1::Pointer& pointer);
+// Hides `who`'s pointer (they left); kPointersChanged where it was shown.
+unsigned HidePointer(v1::SessionState& state, const std::string& who);
+
+// Events past the event rate wait, unchecked, for the next frame: each kind
+// keeps its latest, render and stream settings merged (set fields change,
+// as ApplyEvent does). `waiting` is by SessionEvent::kind_case.
+void CoalesceEvent(std::map<int, v1::SessionEvent>& waiting, const v1::SessionEvent& event);
 
 // Checks the fields `edit` sets; `field` prefixes messages.
 void CheckStreamSettings(const v1::StreamSettings& edit, const std::string& field);

@@ -311,15 +311,6 @@ v1::CreateSessionResponse ServiceCore::CreateSession(const v1::CreateSessionRequ
                                                      const std::atomic<bool>& cancelled) {
   RequireServing();
   std::shared_ptr<VolumeLease> volume = volumes_.Lease(request.volume_id(), caller);
-  v1::SessionState state = InitialState(request, *volume->volume(), options_.limits, ResolveMap());
-  const v1::Scene& scene = state.scene();
-  if (StylesLabels(scene.labels()) && !volume->has_segmentation()) {
-    throw InputError(
-        fmt::format("scene.labels: volume '{}' has no segmentation; load one first (LoadLabels, or "
-                    "an upload with header.labels_for)",
-                    request.volume_id()));
-  }
-  *state.mutable_stream() = ToStreamSettings(SessionFrameSettings(backend_, state.stream()));
   {
     std::lock_guard lock(mu_);
     RequireRoomLocked(caller);  // before the framing: a refusal costs no scan
@@ -327,11 +318,12 @@ v1::CreateSessionResponse ServiceCore::CreateSession(const v1::CreateSessionRequ
   auto require_caller = [&] {
     if (cancelled) throw Cancelled("CreateSession: the caller went away; no session was created");
   };
-  // The answer shows a named view's camera as framed: over the volume's
-  // blocks and, with a segmentation, every label voxel. Seconds for 512^3.
-  require_caller();
-  v1::Scene answered = scene;
-  AddResolvedCamera(answered, *volume->volume(), volume->labels().get());
+  // Resolving frames a named view over the volume's blocks and, with a
+  // segmentation, every label voxel: seconds for 512^3.
+  const SceneContext scene_context{*volume->volume(), volume->labels().get(), volume->id(), ResolveMap()};
+  v1::SessionState state = InitialState(request, scene_context, options_.limits);
+  const v1::Scene& scene = state.scene();
+  *state.mutable_stream() = ToStreamSettings(SessionFrameSettings(backend_, state.stream()));
   require_caller();
   Scheduler& scheduler = RequireAdmitting(AdmissionPixels(state, backend_));
   // The volume reaches the device here, not inside the first frame on a
@@ -357,7 +349,7 @@ v1::CreateSessionResponse ServiceCore::CreateSession(const v1::CreateSessionRequ
                scheduler.name(), LogSafe(request.volume_id()), scene.render().width(), scene.render().height());
   v1::CreateSessionResponse response;
   response.set_session_id(session->id());
-  *response.mutable_scene() = std::move(answered);
+  *response.mutable_scene() = scene;
   response.set_device(scheduler.name());
   response.set_address(options_.advertise_address);
   return response;

@@ -429,6 +429,38 @@ TEST(Viewer, APresetIsTheServersFitToTheVolumeNotTheViewers) {
       << "the density is the server's fit to 0.1 mm voxels";
 }
 
+// A view key sends the view with the camera's eye and target: the server
+// turns the camera about the same target at the same distance, and what the
+// viewer shows (and saves) is the server's numbers. The script's next line
+// waits for them.
+TEST(Viewer, AViewKeyTurnsAboutTheSameTargetAtTheSameDistance) {
+  CINEVOL_REQUIRE_VIEWER();
+  ScratchDir scratch;
+  ServerProcess server(scratch.path());
+  ASSERT_TRUE(server.running()) << server.Log();
+  const fs::path before = scratch.path() / "before.json", after = scratch.path() / "after.json";
+  const fs::path script = WriteScript(scratch.path() / "view.jsonl", fmt::format(R"({{"session": {{"stream": {{"targetSpp": 2}}}}}}
+{{"at": 0, "ui": {{"drag": {{"button": "middle", "dx": 30, "dy": 10}}}}}}
+{{"at": 0, "ui": {{"wheel": 2}}}}
+{{"at": 0, "ui": {{"settle": true}}}}
+{{"at": 0, "ui": {{"saveScene": "{}"}}}}
+{{"at": 0, "ui": {{"key": "l"}}}}
+{{"at": 0, "ui": {{"saveScene": "{}"}}}}
+)",
+                                                                              before.string(), after.string()));
+  const ViewerRun run = RunViewer(scratch.path(), {"--server", server.address(), "--script", script.string()});
+  ASSERT_EQ(run.exit_code, 0) << run.output;
+  // Both in patient coordinates: distances and the left are the patient's.
+  const v1::Camera a = LoadSceneFile(before).camera(), b = LoadSceneFile(after).camera();
+  const auto vec = [](const v1::Vec3& v) { return Vec3f{v.x(), v.y(), v.z()}; };
+  EXPECT_LT(Length(vec(b.target()) - vec(a.target())), 1e-2f) << "the target moved";
+  const float distance = Length(vec(a.eye()) - vec(a.target()));
+  EXPECT_NEAR(Length(vec(b.eye()) - vec(b.target())), distance, 1e-2f) << "the distance changed";
+  const Vec3f to_eye = Normalize(vec(b.eye()) - vec(b.target()));
+  EXPECT_GT(to_eye.x, 0.999f) << "the eye is not on the patient's left";
+  EXPECT_EQ(b.view(), v1::NAMED_VIEW_UNSPECIFIED) << "the file holds the numbers";
+}
+
 // The Struct a script run printed for a PACS action: every "cinevol-viewer: ACTION {...}" line of `output`.
 std::vector<google::protobuf::Struct> Reported(const std::string& output, const std::string& action) {
   std::vector<google::protobuf::Struct> lines;

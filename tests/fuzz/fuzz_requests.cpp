@@ -60,7 +60,7 @@ v1::SessionState MakeSession(const World& w) {
   create.mutable_viewport()->set_width(64);
   create.mutable_viewport()->set_height(48);
   create.set_preset("ct-bone");
-  return cv::InitialState(create, w.volume, w.limits, w.resolve_map);
+  return cv::InitialState(create, {w.volume, nullptr, "head", w.resolve_map}, w.limits);
 }
 
 // What the service relies on after a request was accepted.
@@ -93,7 +93,7 @@ void CheckState(const v1::SessionState& state, const SessionLimits& limits) {
 void Event(const v1::SessionEvent& event) {
   v1::SessionState state = world->session;
   try {
-    cv::ApplyEvent(state, event, &world->limits, world->resolve_map);
+    cv::ApplyEvent(state, event, {world->volume, nullptr, "head", world->resolve_map}, &world->limits);
   } catch (const std::exception&) {
     return;
   }
@@ -139,7 +139,7 @@ void Geometric(const std::uint8_t* data, std::size_t size) {
   create.mutable_viewport()->set_width(32);
   create.mutable_viewport()->set_height(24);
   try {
-    CheckState(cv::InitialState(create, *volume, world->limits, world->resolve_map), world->limits);
+    CheckState(cv::InitialState(create, {*volume, nullptr, "geometry", world->resolve_map}, world->limits), world->limits);
   } catch (const std::exception&) {
   }
   try {
@@ -173,7 +173,7 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
       if (!request.ParseFromArray(wire, wire_size)) return 0;
       v1::SessionState state;
       try {
-        state = cv::InitialState(request, world->volume, world->limits, world->resolve_map);
+        state = cv::InitialState(request, {world->volume, nullptr, "head", world->resolve_map}, world->limits);
       } catch (const std::exception&) {
         return 0;
       }

@@ -13,7 +13,7 @@
 #include "scene/presets.h"
 #include "scene/scene_file.h"
 #include "io/table_finder.h"
-#include "io/volume_kind.h"
+#include "scene/volume_kind.h"
 #include "io/volume_loader.h"
 #include "pipeline/frame_pipeline.h"
 #include "support/patient_on_table.h"

@@ -20,6 +20,7 @@
 #include "render_test_scenes.h"
 #include "encode/hdr_images.h"
 #include "encode/image_codecs.h"
+#include "io/reader_cage.h"
 #include "scene/scene_file.h"
 #include "support/small_scene.h"
 #include "support/test_paths.h"
@@ -470,7 +471,7 @@ TEST(ValuesAtTheExtremes, EnvironmentMapsAtTheExtremesResolveToFiniteLight) {
     sky->set_map((dir / "sky.exr").string());
     sky->set_rotation_deg(degrees);
     sky->set_intensity(kMaxRadiance);
-    const LightSetup lights = ResolveLights(scene.lights());
+    const LightSetup lights = ResolveLights(scene.lights(), [](const std::string& map) { return reader_cage::ReadEnvironmentMap(map); });
     ASSERT_EQ(lights.environment.kind, Environment::Kind::kMap);
     EXPECT_LE(std::abs(lights.environment.rotation), kPi) << degrees;
     if (degrees == 725.0f) {

@@ -21,7 +21,7 @@
 #include "scene/presets.h"
 #include "scene/scene_builder.h"
 #include "scene/scene_file.h"
-#include "io/volume_kind.h"
+#include "scene/volume_kind.h"
 #include "io/volume_loader.h"
 #include "pipeline/frame_pipeline.h"
 #include "support/test_paths.h"

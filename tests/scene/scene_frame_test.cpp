@@ -93,7 +93,7 @@ TEST(SceneFrame, ASessionOfAPatientSceneHoldsItInTheVolumeFrame) {
   scene.set_frame(v1::PATIENT_LPS);
   *scene.mutable_camera()->mutable_eye() = V(-100, -400, 950);
   *scene.mutable_camera()->mutable_target() = V(-100, 50, 950);
-  const v1::SessionState state = InitialState(request, volume, {});
+  const v1::SessionState state = InitialState(request, SceneContext{volume}, {});
   EXPECT_EQ(state.scene().frame(), v1::SCENE_FRAME_UNSPECIFIED);
   const Vec3f eye = VolumePlacement::Of(volume).PointToVolume({-100, -400, 950});
   EXPECT_NEAR(state.scene().camera().eye().z(), eye.z, 1e-3f);

@@ -4,26 +4,40 @@
 
 #include <gtest/gtest.h>
 
+#include <cmath>
+#include <map>
+
 #include "core/error.h"
 #include "io/phantom.h"
 
 namespace cinevol {
 namespace {
 
-Volume Head() {
-  v1::Phantom head;
-  head.set_kind(v1::Phantom::HEAD);
-  head.set_size(16);
-  return MakePhantom(head);
+const Volume& Head() {
+  static const Volume head = [] {
+    v1::Phantom spec;
+    spec.set_kind(v1::Phantom::HEAD);
+    spec.set_size(16);
+    return MakePhantom(spec);
+  }();
+  return head;
 }
 
-v1::SessionState Started(const SessionLimits& limits = {}) {
+const SceneContext kHead{Head()};
+
+v1::SessionState Started(const SessionLimits& limits = {}, const SceneContext& context = kHead) {
   v1::CreateSessionRequest request;
   request.set_preset("ct-bone");
   request.mutable_viewport()->set_width(96);
   request.mutable_viewport()->set_height(64);
   request.mutable_stream()->set_target_spp(16);
-  return InitialState(request, Head(), limits);
+  return InitialState(request, context, limits);
+}
+
+v1::SessionEvent Numbered(std::uint64_t seq) {
+  v1::SessionEvent e;
+  e.set_seq(seq);
+  return e;
 }
 
 TEST(SessionEvents, EachEventReplacesOrMergesItsPartAndSaysWhatChanged) {
@@ -36,7 +50,7 @@ TEST(SessionEvents, EachEventReplacesOrMergesItsPartAndSaysWhatChanged) {
   e.set_seq(1);
   e.mutable_camera()->mutable_eye()->set_x(100);
   e.mutable_camera()->mutable_target()->set_y(1);
-  EXPECT_EQ(ApplyEvent(state, e, &limits), unsigned(kCameraChanged));
+  EXPECT_EQ(ApplyEvent(state, e, kHead, &limits), unsigned(kCameraChanged));
   EXPECT_EQ(state.scene().camera().eye().x(), 100);
   EXPECT_EQ(state.scene().camera().fov_y_deg(), 30) << "an unset fov takes its default";
   EXPECT_EQ(state.last_event_seq(), 1u);
@@ -44,7 +58,7 @@ TEST(SessionEvents, EachEventReplacesOrMergesItsPartAndSaysWhatChanged) {
   e.Clear();
   e.set_seq(2);
   e.mutable_render()->set_spp(8);
-  EXPECT_EQ(ApplyEvent(state, e, &limits), unsigned(kSamplingChanged));
+  EXPECT_EQ(ApplyEvent(state, e, kHead, &limits), unsigned(kSamplingChanged));
   EXPECT_EQ(state.scene().render().spp(), 8u);
   EXPECT_EQ(state.scene().render().max_bounces(), 4u) << "unset render fields stay";
 
@@ -52,39 +66,39 @@ TEST(SessionEvents, EachEventReplacesOrMergesItsPartAndSaysWhatChanged) {
   e.set_seq(3);
   e.mutable_resize()->set_width(320);
   e.mutable_resize()->set_height(200);
-  EXPECT_EQ(ApplyEvent(state, e, &limits), unsigned(kCameraChanged));
+  EXPECT_EQ(ApplyEvent(state, e, kHead, &limits), unsigned(kCameraChanged));
   EXPECT_EQ(state.viewport().width(), 320u);
   EXPECT_EQ(state.scene().render().height(), 200u);
 
   e.Clear();
   e.set_seq(4);
   e.mutable_stream()->set_jpeg_quality(50);
-  EXPECT_EQ(ApplyEvent(state, e, &limits), unsigned(kStreamChanged));
+  EXPECT_EQ(ApplyEvent(state, e, kHead, &limits), unsigned(kStreamChanged));
   EXPECT_EQ(state.stream().jpeg_quality(), 50u);
   EXPECT_EQ(state.stream().target_spp(), 16u) << "unset stream fields stay";
 
   e.Clear();
   e.set_seq(5);
   e.mutable_lights();  // no lights at all
-  EXPECT_EQ(ApplyEvent(state, e, &limits), unsigned(kLightsChanged));
+  EXPECT_EQ(ApplyEvent(state, e, kHead, &limits), unsigned(kLightsChanged));
   EXPECT_EQ(state.scene().lights_size(), 0);
 
   e.Clear();
   e.set_seq(6);
   e.mutable_clipping()->add_planes()->mutable_normal()->set_x(1);
-  EXPECT_EQ(ApplyEvent(state, e, &limits), unsigned(kClippingChanged));
+  EXPECT_EQ(ApplyEvent(state, e, kHead, &limits), unsigned(kClippingChanged));
   EXPECT_EQ(state.scene().clipping().planes_size(), 1);
 
   e.Clear();
   e.set_seq(7);
   e.mutable_pause();
-  EXPECT_EQ(ApplyEvent(state, e, &limits), unsigned(kPauseChanged));
+  EXPECT_EQ(ApplyEvent(state, e, kHead, &limits), unsigned(kPauseChanged));
   EXPECT_TRUE(state.paused());
-  EXPECT_EQ(ApplyEvent(state, e, &limits), 0u) << "paused already";
+  EXPECT_EQ(ApplyEvent(state, e, kHead, &limits), 0u) << "paused already";
   e.Clear();
   e.set_seq(8);
   e.mutable_resume();
-  EXPECT_EQ(ApplyEvent(state, e, &limits), unsigned(kPauseChanged));
+  EXPECT_EQ(ApplyEvent(state, e, kHead, &limits), unsigned(kPauseChanged));
   EXPECT_FALSE(state.paused());
 }
 
@@ -97,7 +111,7 @@ TEST(SessionEvents, ABadEventNamesItsFieldAndLeavesTheStateAsItWas) {
   e.mutable_camera()->mutable_eye()->set_x(1);  // eye == target
   e.mutable_camera()->mutable_target()->set_x(1);
   try {
-    ApplyEvent(state, e, &limits);
+    ApplyEvent(state, e, kHead, &limits);
     FAIL() << "accepted";
   } catch (const InputError& error) {
     EXPECT_NE(std::string(error.what()).find("event 9: camera"), std::string::npos) << error.what();
@@ -107,8 +121,8 @@ TEST(SessionEvents, ABadEventNamesItsFieldAndLeavesTheStateAsItWas) {
   e.Clear();
   e.set_seq(10);
   e.mutable_render()->set_spp(1000);
-  EXPECT_THROW(ApplyEvent(state, e, &limits), OverLimit) << "over --max-frame-spp";
-  EXPECT_NO_THROW(ApplyEvent(state, e, nullptr)) << "no limits: only the scene's own ranges";
+  EXPECT_THROW(ApplyEvent(state, e, kHead, &limits), OverLimit) << "over --max-frame-spp";
+  EXPECT_NO_THROW(ApplyEvent(state, e, kHead, nullptr)) << "no limits: only the scene's own ranges";
 }
 
 // A camera event checks the camera and the frame, not the rest: a transfer
@@ -118,19 +132,18 @@ TEST(SessionEvents, OnlyWhatAnEventTouchesIsChecked) {
   SessionLimits roomy;
   roomy.max_tf_points = 1000;
   v1::SessionState state = Started(roomy);
-  for (int i = 0; i < 300; ++i) {
-    v1::TransferFunctionPoint* p = state.mutable_scene()->mutable_transfer_function()->add_points();
-    p->set_value(2000.0f + float(i));
-  }
+  v1::TransferFunction& tf = *state.mutable_scene()->mutable_transfer_function();
+  const float last = tf.points(tf.points_size() - 1).value();
+  for (int i = 1; i <= 300; ++i) tf.add_points()->set_value(last + float(i));
   const SessionLimits tight;
   v1::SessionEvent e;
   e.set_seq(1);
   e.mutable_camera()->set_view(v1::LEFT);
-  EXPECT_EQ(ApplyEvent(state, e, &tight), unsigned(kCameraChanged));
+  EXPECT_EQ(ApplyEvent(state, e, kHead, &tight), unsigned(kCameraChanged));
   e.Clear();
   e.set_seq(2);
   *e.mutable_transfer_function() = state.scene().transfer_function();
-  EXPECT_THROW(ApplyEvent(state, e, &tight), OverLimit);
+  EXPECT_THROW(ApplyEvent(state, e, kHead, &tight), OverLimit);
 }
 
 TEST(SessionEvents, ARecreatedSessionStartsWhereTheStateIs) {
@@ -139,12 +152,168 @@ TEST(SessionEvents, ARecreatedSessionStartsWhereTheStateIs) {
   e.set_seq(1);
   e.mutable_resize()->set_width(48);
   e.mutable_resize()->set_height(32);
-  ApplyEvent(state, e, nullptr);
+  ApplyEvent(state, e, kHead, nullptr);
   const v1::CreateSessionRequest again = RecreateRequest(state, "head");
   EXPECT_EQ(again.volume_id(), "head");
   EXPECT_EQ(again.viewport().width(), 48u);
-  const v1::SessionState recreated = InitialState(again, Head(), {});
+  const v1::SessionState recreated = InitialState(again, kHead, {});
   EXPECT_EQ(recreated.scene().SerializeAsString(), state.scene().SerializeAsString());
+}
+
+// The state is resolved: clients show it and work nothing out again.
+TEST(ResolvedState, TheCameraIsNumbersThePresetPointsAndThePlacementTheVolumes) {
+  const v1::SessionState state = Started();
+  const v1::Camera& camera = state.scene().camera();
+  EXPECT_EQ(camera.view(), v1::NAMED_VIEW_UNSPECIFIED) << "the preset's anterior view, turned into numbers";
+  EXPECT_TRUE(camera.has_eye() && camera.has_target() && camera.has_up());
+  EXPECT_LT(camera.eye().y(), camera.target().y()) << "anterior: the eye in front of the face (-y in LPS)";
+  const v1::TransferFunction& tf = state.scene().transfer_function();
+  EXPECT_EQ(tf.preset(), "ct-bone") << "the name stays, for showing";
+  EXPECT_GE(tf.points_size(), 2);
+  EXPECT_TRUE(tf.has_density_scale() && tf.has_gradient_factor());
+  const v1::VolumePlacement& p = state.placement();
+  ASSERT_EQ(p.direction_size(), 9);
+  EXPECT_EQ(p.dims().x(), 16u);
+  EXPECT_FLOAT_EQ(p.spacing_mm().x(), Head().spacing_mm().x);
+}
+
+// Bug 2 of issue 56: after a transfer-function edit the server framed a
+// named view again while clients kept the eye from creation, so the next
+// drag jumped. The camera is numbers from the start and stays.
+TEST(ResolvedState, ATransferFunctionEditLeavesTheCameraWhereItWas) {
+  v1::SessionState state = Started();
+  const std::string camera = state.scene().camera().SerializeAsString();
+  v1::SessionEvent e = Numbered(1);
+  e.mutable_transfer_function()->set_preset("ct-soft-tissue");  // shows more of the head than bone does
+  EXPECT_EQ(ApplyEvent(state, e, kHead, nullptr), unsigned(kTransferFunctionChanged));
+  EXPECT_EQ(state.scene().camera().SerializeAsString(), camera);
+  EXPECT_EQ(state.scene().transfer_function().preset(), "ct-soft-tissue");
+  EXPECT_GE(state.scene().transfer_function().points_size(), 2) << "the preset expanded on the server";
+}
+
+// Bug 1 of issue 56: the desktop viewer expanded presets itself with a 1 mm
+// voxel, 10x too dense on 0.1 mm data. A preset is expanded once, on the
+// server, with the volume's spacing.
+TEST(ResolvedState, APresetIsExpandedWithTheVolumesSpacing) {
+  auto density = [](float spacing) {
+    v1::Phantom spec;
+    spec.set_kind(v1::Phantom::SPHERE);
+    spec.set_size(16);
+    spec.set_spacing(spacing);
+    const Volume sphere = MakePhantom(spec);
+    v1::CreateSessionRequest request;
+    request.set_preset("auto");  // extinction per voxel
+    request.mutable_viewport()->set_width(32);
+    request.mutable_viewport()->set_height(32);
+    v1::SessionState state = InitialState(request, SceneContext{sphere}, {});
+    v1::SessionEvent e = Numbered(1);
+    e.mutable_transfer_function()->set_preset("auto");
+    ApplyEvent(state, e, SceneContext{sphere}, nullptr);
+    return state.scene().transfer_function().density_scale();
+  };
+  const float coarse = density(1.0f), fine = density(0.1f);
+  ASSERT_GT(coarse, 0.0f);
+  EXPECT_NEAR(fine / coarse, 10.0f, 0.01f);
+}
+
+// A view button sends the view with the eye and target it turns about.
+TEST(ResolvedState, ANamedViewTurnsAboutTheTargetAtItsDistance) {
+  v1::SessionState state = Started();
+  v1::SessionEvent e = Numbered(1);
+  v1::Camera& c = *e.mutable_camera();
+  c.set_view(v1::LEFT);
+  c.mutable_eye()->set_y(-200);
+  c.mutable_target()->set_x(5);
+  ASSERT_EQ(ApplyEvent(state, e, kHead, nullptr), unsigned(kCameraChanged));
+  const v1::Camera& turned = state.scene().camera();
+  EXPECT_EQ(turned.view(), v1::NAMED_VIEW_UNSPECIFIED);
+  EXPECT_FLOAT_EQ(turned.target().x(), 5.0f);
+  const float dx = turned.eye().x() - 5.0f, dy = turned.eye().y(), dz = turned.eye().z();
+  EXPECT_NEAR(std::sqrt(dx * dx + dy * dy + dz * dz), std::sqrt(25.0f + 200.0f * 200.0f), 1e-2f);
+  EXPECT_NEAR(dx, std::sqrt(25.0f + 200.0f * 200.0f), 1e-2f) << "the patient's left is +x in LPS";
+  EXPECT_NEAR(turned.up().z(), 1.0f, 1e-6f) << "the head up";
+
+  e = Numbered(2);
+  e.mutable_camera()->set_view(v1::SUPERIOR);  // no eye: framed whole
+  ApplyEvent(state, e, kHead, nullptr);
+  EXPECT_GT(state.scene().camera().eye().z(), 0.0f);
+  EXPECT_EQ(state.scene().camera().view(), v1::NAMED_VIEW_UNSPECIFIED);
+}
+
+// Every rule of a session's scene is here: measurements, pointers, label
+// styles without a segmentation, coalescing.
+TEST(SessionRules, MeasurementsAreCheckedAndSharedBesideTheQueue) {
+  v1::SessionState state = Started();
+  v1::SessionEvent e = Numbered(5);
+  v1::Measurement* m = e.mutable_measurements()->add_measurements();
+  m->set_name("gap");
+  m->add_points()->set_x(1);
+  m->add_points()->set_x(2);
+  EXPECT_EQ(ApplyEvent(state, e, kHead, nullptr), unsigned(kMeasurementsChanged));
+  EXPECT_EQ(state.scene().measurements_size(), 1);
+  EXPECT_EQ(state.last_event_seq(), 0u) << "measurements skip the event queue";
+  m->clear_points();
+  EXPECT_THROW(ApplyEvent(state, e, kHead, nullptr), InputError) << "a measurement of no points";
+  EXPECT_EQ(state.scene().measurements_size(), 1);
+}
+
+TEST(SessionRules, PointersAreListedByWhoAndHiddenOnesGo) {
+  v1::SessionState state = Started();
+  v1::Pointer p;
+  p.set_x(0.5f);
+  p.set_y(0.25f);
+  EXPECT_EQ(ApplyPointer(state, "zoe", p), unsigned(kPointersChanged));
+  EXPECT_EQ(ApplyPointer(state, "ada", p), unsigned(kPointersChanged));
+  EXPECT_EQ(ApplyPointer(state, "ada", p), 0u) << "not moved";
+  ASSERT_EQ(state.pointers_size(), 2);
+  EXPECT_EQ(state.pointers(0).who(), "ada");
+  p.set_x(1.5f);
+  EXPECT_THROW(ApplyPointer(state, "ada", p), InputError);
+  p.set_x(0.5f);
+  p.set_hidden(true);
+  EXPECT_EQ(ApplyPointer(state, "zoe", p), unsigned(kPointersChanged));
+  EXPECT_EQ(HidePointer(state, "ada"), unsigned(kPointersChanged));
+  EXPECT_EQ(HidePointer(state, "ada"), 0u);
+  EXPECT_EQ(state.pointers_size(), 0);
+}
+
+TEST(SessionRules, LabelStylesNeedTheSegmentationTheSessionBeganWith) {
+  v1::SessionState state = Started();
+  v1::SessionEvent e = Numbered(1);
+  e.mutable_labels()->add_styles()->set_value(3);
+  try {
+    ApplyEvent(state, e, SceneContext{Head(), nullptr, "head"}, nullptr);
+    FAIL() << "accepted";
+  } catch (const InputError& error) {
+    EXPECT_NE(std::string(error.what()).find("event 1: labels: volume 'head' had no segmentation"),
+              std::string::npos)
+        << error.what();
+  }
+  e.mutable_labels()->clear_styles();
+  e.mutable_labels()->set_remove_table(true);
+  EXPECT_EQ(ApplyEvent(state, e, kHead, nullptr), unsigned(kLabelsChanged)) << "table removal needs none";
+}
+
+TEST(SessionRules, WaitingEventsKeepEachKindsLatestAndMergeSettings) {
+  std::map<int, v1::SessionEvent> waiting;
+  v1::SessionEvent e = Numbered(1);
+  e.mutable_render()->set_spp(4);
+  CoalesceEvent(waiting, e);
+  e = Numbered(2);
+  e.mutable_render()->set_max_bounces(2);
+  CoalesceEvent(waiting, e);
+  e = Numbered(3);
+  e.mutable_camera()->mutable_eye()->set_x(1);
+  CoalesceEvent(waiting, e);
+  e = Numbered(4);
+  e.mutable_camera()->mutable_eye()->set_x(2);
+  CoalesceEvent(waiting, e);
+  ASSERT_EQ(waiting.size(), 2u);
+  const v1::SessionEvent& render = waiting.at(v1::SessionEvent::kRender);
+  EXPECT_EQ(render.render().spp(), 4u);
+  EXPECT_EQ(render.render().max_bounces(), 2u);
+  EXPECT_EQ(render.seq(), 2u);
+  EXPECT_EQ(waiting.at(v1::SessionEvent::kCamera).camera().eye().x(), 2.0f);
 }
 
 }  // namespace

@@ -3,7 +3,7 @@
 // soft-tissue peak near 1024 and bone far above it. Anything else (MR without
 // metadata, 8-bit exports, micro-CT) cannot be told apart reliably by its
 // histogram, and is "other": its default preset adapts to the histogram.
-#include "io/volume_kind.h"
+#include "scene/volume_kind.h"
 
 #include <fmt/format.h>
 
