@@ -156,6 +156,8 @@ TEST(TableOverTheApi, AnUploadedCtSaysItHasATableAndOneSwitchRemovesIt) {
   behind.mutable_camera()->set_view(v1::POSTERIOR);
   const auto shown = WaitFinal(*stream, stream->Send(behind));
   ASSERT_TRUE(shown) << stream->status().error_message();
+  ASSERT_TRUE(stream->state().has_value());
+  const v1::Camera behind_camera = stream->state()->scene().camera();  // the view as the server resolved it
   v1::SessionEvent remove;
   remove.mutable_labels()->set_remove_table(true);
   const auto removed = WaitFinal(*stream, stream->Send(remove));
@@ -168,11 +170,12 @@ TEST(TableOverTheApi, AnUploadedCtSaysItHasATableAndOneSwitchRemovesIt) {
   EXPECT_GT(change, 2.0) << "the table goes";
   EXPECT_LT(MeanAbsDiff(Decode(*shown), Decode(*shown_again)), change / 2) << "and comes back";
 
-  // The same switch in the scene a session starts from.
+  // The same switch in the scene a session starts from, seen with the same
+  // camera (removing the table does not move it).
   v1::CreateSessionRequest removed_from_start = request;
   removed_from_start.clear_preset();
   *removed_from_start.mutable_scene() = created.scene();
-  removed_from_start.mutable_scene()->mutable_camera()->set_view(v1::POSTERIOR);
+  *removed_from_start.mutable_scene()->mutable_camera() = behind_camera;
   removed_from_start.mutable_scene()->mutable_labels()->set_remove_table(true);
   const v1::CreateSessionResponse second = client.CreateSession(removed_from_start);
   EXPECT_TRUE(second.scene().labels().remove_table());
