@@ -66,7 +66,7 @@ std::pair<Grant, std::string> GrantRegistry::Create(Grant grant, std::chrono::se
     return entry.second.grant.created_by == grant.created_by;
   });
   if (created >= max_per_principal_) {
-    throw LimitExceeded(grpc::StatusCode::RESOURCE_EXHAUSTED, "max-grants-per-principal",
+    throw LimitExceeded("max-grants-per-principal",
                         fmt::format("you have {} grants, this server's limit (--max-grants-per-principal): revoke "
                                     "one first",
                                     created));

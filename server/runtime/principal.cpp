@@ -9,7 +9,7 @@ namespace cinevol::service {
 
 void RequireOwner(const Principal& caller, const std::string& owner, const std::string& what) {
   if (caller.name != owner) {
-    throw RpcError(grpc::StatusCode::PERMISSION_DENIED, fmt::format("{} belongs to another user", what));
+    throw RpcError::PermissionDenied(fmt::format("{} belongs to another user", what));
   }
 }
 

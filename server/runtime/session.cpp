@@ -42,7 +42,7 @@ void PixelBudget::Exchange(std::uint64_t release, std::uint64_t take) {
   std::lock_guard lock(mu_);
   const std::uint64_t next = used_ - std::min(release, used_) + take;
   if (take > release && next > limit_) {
-    throw LimitExceeded(grpc::StatusCode::RESOURCE_EXHAUSTED, "max-total-pixels",
+    throw LimitExceeded("max-total-pixels",
                         fmt::format("viewport: {} pixels more would pass this server's limit of {} pixels for "
                                     "all sessions together (--max-total-pixels; {} in use)",
                                     take - release, limit_, used_));
@@ -91,12 +91,12 @@ void Session::Attach(FrameStream* stream) {
   {
     std::lock_guard lock(mu_);
     if (state_ == State::kEnded) {
-      throw RpcError(grpc::StatusCode::NOT_FOUND, fmt::format("session '{}' has ended", id_));
+      throw RpcError::NotFound(fmt::format("session '{}' has ended", id_));
     }
     if (stream_) {
       sent_before_ += stream_->frames_sent();
       dropped_before_ += stream_->frames_dropped();
-      stream_->End({grpc::StatusCode::ABORTED, fmt::format("another stream attached to session '{}'", id_)});
+      stream_->End(RpcError::Aborted(fmt::format("another stream attached to session '{}'", id_)).status());
     }
     stream_ = stream;
     state_ = State::kRendering;
@@ -121,15 +121,15 @@ void Session::AttachWatcher(FrameStream* stream, const std::string& grant_id, co
 
 void Session::AddWatcher(FrameStream* stream, const std::string& grant_id, const std::string& holder) {
   std::lock_guard lock(mu_);
-  if (state_ == State::kEnded) throw RpcError(grpc::StatusCode::NOT_FOUND, fmt::format("session '{}' has ended", id_));
+  if (state_ == State::kEnded) throw RpcError::NotFound(fmt::format("session '{}' has ended", id_));
   if (int(watchers_.size()) >= context_.limits->max_viewers_per_session) {
-    throw LimitExceeded(grpc::StatusCode::RESOURCE_EXHAUSTED, "max-viewers-per-session",
+    throw LimitExceeded("max-viewers-per-session",
                         fmt::format("session '{}' has {} viewers, this server's limit (--max-viewers-per-session)", id_,
                                     watchers_.size()));
   }
   const auto by_grant = std::count_if(watchers_.begin(), watchers_.end(), [&](const Watcher& w) { return w.grant_id == grant_id; });
   if (by_grant >= context_.limits->max_viewers_per_grant) {
-    throw LimitExceeded(grpc::StatusCode::RESOURCE_EXHAUSTED, "max-viewers-per-grant",
+    throw LimitExceeded("max-viewers-per-grant",
                         fmt::format("this share of session '{}' has {} viewers, this server's limit for one share "
                                     "(--max-viewers-per-grant); ask the owner for a share of your own",
                                     id_, by_grant));
@@ -231,11 +231,11 @@ v1::SessionState Session::OnEvents(const google::protobuf::RepeatedPtrField<v1::
   {
     std::lock_guard lock(mu_);
     if (state_ == State::kEnded) {
-      throw RpcError(grpc::StatusCode::NOT_FOUND, fmt::format("session '{}' has ended", id_));
+      throw RpcError::NotFound(fmt::format("session '{}' has ended", id_));
     }
     if (!batched_.Take(arrival, events.size())) {
       throw LimitExceeded(
-          grpc::StatusCode::RESOURCE_EXHAUSTED, "max-events-per-second",
+          "max-events-per-second",
           fmt::format("events: more than {} events a second to session '{}' ({} x "
                       "--max-events-per-second); none of these {} was applied",
                       kReadPacing * context_.limits->max_events_per_second, id_, kReadPacing, events.size()));
@@ -317,7 +317,7 @@ void Session::ApplyLocked(const v1::SessionEvent& event, Clock::time_point arriv
       current_.mutable_scene()->mutable_render()->set_width(viewport.width());
       current_.mutable_scene()->mutable_render()->set_height(viewport.height());
       current_.set_last_event_seq(applied_seq);
-      throw LimitExceeded(e.code(), e.flag(), fmt::format("event {}: resize: {}", event.seq(), e.what()));
+      throw LimitExceeded(e.flag(), fmt::format("event {}: resize: {}", event.seq(), e.what()));
     }
     pixels_ = pixels;
     SetStepPixelsLocked(pixels_, render_scale_);
@@ -384,7 +384,7 @@ void Session::Drain() {
     if (stream_) stream_->SendNotice(v1::Notice::WARNING, notice);
     for (const Watcher& w : watchers_) w.stream->SendNotice(v1::Notice::WARNING, notice);
   }
-  End({grpc::StatusCode::UNAVAILABLE, "the server is shutting down"});
+  End(RpcError::Unavailable("the server is shutting down").status());
 }
 
 void Session::BeginStill(const std::shared_ptr<std::atomic<bool>>& flag) {

@@ -170,11 +170,10 @@ bool VolumeRegistry::IsUploadableName(const std::string& file_name) {
 
 fs::path VolumeRegistry::ResolveDataPath(const std::string& path, const std::string& field) const {
   if (data_roots_.empty()) {
-    throw RpcError(
-        grpc::StatusCode::PERMISSION_DENIED,
+    throw RpcError::PermissionDenied(
         fmt::format("{}: this server has no data root (--data-root): it loads nothing from its disk", field));
   }
-  if (path.empty()) throw RpcError(grpc::StatusCode::INVALID_ARGUMENT, fmt::format("{}: is empty", field));
+  if (path.empty()) throw RpcError::InvalidArgument(fmt::format("{}: is empty", field));
   const fs::path requested = fs::path(path).is_absolute() ? fs::path(path) : data_roots_.front() / path;
   // First the path as written (`..` climbing out), then where its symlinks lead.
   const fs::path lexical = requested.lexically_normal();
@@ -182,18 +181,17 @@ fs::path VolumeRegistry::ResolveDataPath(const std::string& path, const std::str
     return std::any_of(data_roots_.begin(), data_roots_.end(), [&](const fs::path& r) { return IsInside(p, r); });
   };
   const std::string outside = fmt::format("{}: '{}' is outside the server's data roots", field, path);
-  if (!inside_a_root(lexical)) throw RpcError(grpc::StatusCode::PERMISSION_DENIED, outside);
+  if (!inside_a_root(lexical)) throw RpcError::PermissionDenied(outside);
   std::error_code ec;
   const fs::path canonical = fs::canonical(requested, ec);
-  if (ec) throw RpcError(grpc::StatusCode::NOT_FOUND, fmt::format("{}: '{}' does not exist", field, path));
+  if (ec) throw RpcError::NotFound(fmt::format("{}: '{}' does not exist", field, path));
   if (!inside_a_root(canonical)) {
-    throw RpcError(grpc::StatusCode::PERMISSION_DENIED, outside + " (a symlink leads out)");
+    throw RpcError::PermissionDenied(outside + " (a symlink leads out)");
   }
   // FIFOs, sockets and devices would block a reader or never end.
   const fs::file_type type = fs::status(canonical, ec).type();
   if (type != fs::file_type::regular && type != fs::file_type::directory) {
-    throw RpcError(grpc::StatusCode::INVALID_ARGUMENT,
-                   fmt::format("{}: '{}' is not a regular file or folder", field, path));
+    throw RpcError::InvalidArgument(fmt::format("{}: '{}' is not a regular file or folder", field, path));
   }
   return canonical;
 }
@@ -223,14 +221,14 @@ void VolumeRegistry::CheckRoomLocked(std::uint64_t bytes, const std::string& own
     }
     if (const auto it = reserved_uploads_.find(owner); it != reserved_uploads_.end()) owners += it->second;
     if (owners + bytes > limits_.max_upload_bytes_per_principal) {
-      throw LimitExceeded(grpc::StatusCode::RESOURCE_EXHAUSTED, "max-upload-memory-mb",
+      throw LimitExceeded("max-upload-memory-mb",
                           fmt::format("your uploads hold {}; this one needs {} more, over the limit of {} per user "
                                       "(--max-upload-memory-mb): unload one first",
                                       Mib(owners), Mib(bytes), Mib(limits_.max_upload_bytes_per_principal)));
     }
   }
   if (total + bytes > limits_.max_total_bytes) {
-    throw LimitExceeded(grpc::StatusCode::RESOURCE_EXHAUSTED, "max-volume-memory-mb",
+    throw LimitExceeded("max-volume-memory-mb",
                         fmt::format("{} needs {}; this server holds {} of volumes and allows {} "
                                     "(--max-volume-memory-mb)",
                                     what, Mib(bytes), Mib(total), Mib(limits_.max_total_bytes)));
@@ -334,7 +332,7 @@ std::optional<v1::VolumeInfo> VolumeRegistry::FindHeld(const std::string& source
 void VolumeRegistry::RequireRoom(std::uint64_t voxels, std::uint64_t bytes, const Principal& caller,
                                  const std::string& what) const {
   if (voxels > limits_.max_voxels) {
-    throw LimitExceeded(grpc::StatusCode::RESOURCE_EXHAUSTED, "max-volume-voxels",
+    throw LimitExceeded("max-volume-voxels",
                         fmt::format("{} has {} voxels; this server loads at most {} (--max-volume-voxels)", what,
                                     voxels, limits_.max_voxels));
   }
@@ -407,10 +405,10 @@ std::shared_ptr<const Volume> VolumeRegistry::VolumeForLabels(const std::string&
   std::lock_guard lock(mu_);
   const Entry& e = FindLocked(id, caller, "volume_id");
   if (!caller.is_operator && e.owner != caller.name) {
-    throw RpcError(grpc::StatusCode::PERMISSION_DENIED,
-                   fmt::format("volume_id: volume '{}' was loaded by {}; only its owner or an operator may load its "
-                               "segmentation",
-                               id, e.owner.empty() ? "the operator" : "another user"));
+    throw RpcError::PermissionDenied(
+        fmt::format("volume_id: volume '{}' was loaded by {}; only its owner or an operator may load its "
+                    "segmentation",
+                    id, e.owner.empty() ? "the operator" : "another user"));
   }
   *held = e.labels;
   return e.volume;
@@ -458,8 +456,8 @@ v1::VolumeInfo VolumeRegistry::AttachLabels(const std::string& id, const std::sh
   FindLocked(id, caller, "volume_id");  // it may have gone while the file loaded
   Entry& e = volumes_.at(id);
   if (e.volume != image) {
-    throw RpcError(grpc::StatusCode::ABORTED,
-                   fmt::format("volume_id: volume '{}' was replaced while its segmentation loaded; load it again", id));
+    throw RpcError::Aborted(
+        fmt::format("volume_id: volume '{}' was replaced while its segmentation loaded; load it again", id));
   }
   const std::uint64_t bytes = LabelBytes(&labels), replaced = LabelBytes(e.labels.get());
   CheckRoomLocked(bytes > replaced ? bytes - replaced : 0, e.owner, false, "the segmentation");
@@ -472,10 +470,9 @@ v1::VolumeInfo VolumeRegistry::AttachLabels(const std::string& id, const std::sh
 const VolumeRegistry::Entry& VolumeRegistry::FindLocked(const std::string& id, const Principal& caller,
                                                         const std::string& field) const {
   auto it = volumes_.find(id);
-  if (it == volumes_.end()) throw RpcError(grpc::StatusCode::NOT_FOUND, fmt::format("{}: no volume '{}'", field, id));
+  if (it == volumes_.end()) throw RpcError::NotFound(fmt::format("{}: no volume '{}'", field, id));
   if (it->second.upload && !caller.is_operator && it->second.owner != caller.name) {
-    throw RpcError(grpc::StatusCode::PERMISSION_DENIED,
-                   fmt::format("{}: volume '{}' was uploaded by another user", field, id));
+    throw RpcError::PermissionDenied(fmt::format("{}: volume '{}' was uploaded by another user", field, id));
   }
   return it->second;
 }
@@ -543,13 +540,13 @@ void VolumeRegistry::Unload(const std::string& id, const Principal& caller) {
   std::lock_guard lock(mu_);
   const Entry& e = FindLocked(id, caller, "volume_id");
   if (!caller.is_operator && e.owner != caller.name) {
-    throw RpcError(grpc::StatusCode::PERMISSION_DENIED,
-                   fmt::format("volume_id: volume '{}' was loaded by {}; only its owner or an operator may unload it",
-                               id, e.owner.empty() ? "the operator" : "another user"));
+    throw RpcError::PermissionDenied(
+        fmt::format("volume_id: volume '{}' was loaded by {}; only its owner or an operator may unload it", id,
+                    e.owner.empty() ? "the operator" : "another user"));
   }
   if (e.leases > 0) {
-    throw RpcError(grpc::StatusCode::FAILED_PRECONDITION,
-                   fmt::format("volume '{}' is in use by {} session(s) or still(s); close them first", id, e.leases));
+    throw RpcError::FailedPrecondition(
+        fmt::format("volume '{}' is in use by {} session(s) or still(s); close them first", id, e.leases));
   }
   auto it = volumes_.find(id);
   last = std::move(it->second.volume);

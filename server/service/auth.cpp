@@ -118,8 +118,7 @@ Principal Authenticator::Authenticate(const grpc::CallbackServerContext& context
   // Two principals' tokens in one call: which one names the caller would be
   // a guess, so neither does.
   if (const std::size_t headers = metadata.count("authorization"); headers > 1) {
-    throw RpcError(grpc::StatusCode::UNAUTHENTICATED,
-                   fmt::format("the call carries {} 'authorization' headers; send one", headers));
+    throw RpcError::Unauthenticated(fmt::format("the call carries {} 'authorization' headers; send one", headers));
   }
   const auto header = metadata.find("authorization");
   std::optional<std::string> authorization;
@@ -137,8 +136,7 @@ Principal Authenticator::Authenticate(const grpc::AuthContext* auth_context, con
         !names.empty() || !auth_context->FindPropertyValues("x509_pem_cert").empty();
     if (has_certificate) {
       if (names.empty() || names.front().empty()) {
-        throw RpcError(grpc::StatusCode::UNAUTHENTICATED,
-                       "the client certificate has no subject common name (CN) to name the caller");
+        throw RpcError::Unauthenticated("the client certificate has no subject common name (CN) to name the caller");
       }
       certificate_name.emplace(View(names.front()));
     }
@@ -151,8 +149,7 @@ Principal Authenticator::Authenticate(const grpc::AuthContext* auth_context, con
                       std::equal(kBearer.begin(), kBearer.end(), value.begin(),
                                  [](char a, char b) { return a == std::tolower(static_cast<unsigned char>(b)); });
   if (!bearer) {
-    throw RpcError(grpc::StatusCode::UNAUTHENTICATED,
-                   "this server needs a token: send the metadata 'authorization: Bearer <token>'");
+    throw RpcError::Unauthenticated("this server needs a token: send the metadata 'authorization: Bearer <token>'");
   }
   const Digest digest = Hash(value.substr(kBearer.size()));
   const std::shared_ptr<const Entries> entries = tokens_->Current();
@@ -161,7 +158,7 @@ Principal Authenticator::Authenticate(const grpc::AuthContext* auth_context, con
     const bool equal = CRYPTO_memcmp(entry.digest.data(), digest.data(), digest.size()) == 0;
     match = equal ? &entry : match;
   }
-  if (match == nullptr) throw RpcError(grpc::StatusCode::UNAUTHENTICATED, "the bearer token is not valid");
+  if (match == nullptr) throw RpcError::Unauthenticated("the bearer token is not valid");
   return match->principal;
 }
 

@@ -42,7 +42,7 @@ class ReflectionReactor final : public grpc::ServerBidiReactor<ServerReflectionR
 
   void OnWriteDone(bool ok) override {
     if (!ok) {
-      Finish({grpc::StatusCode::UNAVAILABLE, "the stream to the client broke"});
+      Finish(RpcError::Unavailable("the stream to the client broke").status());
       return;
     }
     StartRead(&request_);
@@ -56,10 +56,11 @@ class ReflectionReactor final : public grpc::ServerBidiReactor<ServerReflectionR
     response.set_valid_host(request.host());
     *response.mutable_original_request() = request;
     const pb::DescriptorPool& pool = *pb::DescriptorPool::generated_pool();
-    auto not_found = [&](const std::string& what) {
-      response.mutable_error_response()->set_error_code(int(grpc::StatusCode::NOT_FOUND));
-      response.mutable_error_response()->set_error_message(what);
+    auto fail = [&](const grpc::Status& status) {
+      response.mutable_error_response()->set_error_code(int(status.error_code()));
+      response.mutable_error_response()->set_error_message(status.error_message());
     };
+    auto not_found = [&](const std::string& what) { fail(RpcError::NotFound(what).status()); };
     switch (request.message_request_case()) {
       case ServerReflectionRequest::kListServices:
         for (const std::string& name : *services_)
@@ -102,8 +103,7 @@ class ReflectionReactor final : public grpc::ServerBidiReactor<ServerReflectionR
         }
         break;
       default:
-        response.mutable_error_response()->set_error_code(int(grpc::StatusCode::INVALID_ARGUMENT));
-        response.mutable_error_response()->set_error_message("the request asks nothing (set one of its fields)");
+        fail(RpcError::InvalidArgument("the request asks nothing (set one of its fields)").status());
         break;
     }
     return response;

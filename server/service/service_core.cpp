@@ -63,7 +63,7 @@ class StillJob final : public Job {
         callbacks_(std::move(callbacks)) {}
   // A still dropped unfinished (the server stopping) still answers its caller.
   ~StillJob() override {
-    if (callbacks_.done) callbacks_.done({grpc::StatusCode::CANCELLED, "the server is shutting down"}, {});
+    if (callbacks_.done) callbacks_.done(RpcError::Cancelled("the server is shutting down").status(), {});
   }
 
   std::int64_t StepPixels() const override {
@@ -124,8 +124,9 @@ class StillJob final : public Job {
   grpc::Status Failure(std::exception_ptr error, int done) const {
     const grpc::Status status = ToStatus(error);
     if (status.error_code() != grpc::StatusCode::CANCELLED || !*cancel_ || !callbacks_.why_cancelled) return status;
-    return {grpc::StatusCode::CANCELLED,
-            fmt::format("the snapshot stopped at {} of {} spp: {}", done, spp_, callbacks_.why_cancelled())};
+    return RpcError::Cancelled(
+               fmt::format("the snapshot stopped at {} of {} spp: {}", done, spp_, callbacks_.why_cancelled()))
+        .status();
   }
 
   void Finish() {
@@ -232,7 +233,7 @@ ServiceCore::~ServiceCore() {
     std::lock_guard lock(mu_);
     for (auto& [id, s] : sessions_) open.push_back(s);
   }
-  for (auto& s : open) s->End({grpc::StatusCode::UNAVAILABLE, "the server is shutting down"});
+  for (auto& s : open) s->End(RpcError::Unavailable("the server is shutting down").status());
   open.clear();
   // Workers first (encoders wake them), then the pools (their tasks hold sessions).
   for (auto& s : schedulers_) s->Stop();
@@ -258,12 +259,11 @@ Scheduler* ServiceCore::Admitting(std::int64_t pixels) const {
 Scheduler& ServiceCore::RequireAdmitting(std::int64_t pixels) const {
   if (Scheduler* scheduler = Admitting(pixels)) return *scheduler;
   const Scheduler& first = *schedulers_.front();
-  throw LimitExceeded(grpc::StatusCode::RESOURCE_EXHAUSTED, "min-session-fps",
+  throw LimitExceeded("min-session-fps",
                       fmt::format("every GPU is at capacity: another session of {} pixels a frame would take the "
                                   "sessions there under {} frames a second ({} rendered {:.0f} Mpixels a second "
                                   "while busy; --min-session-fps)",
-                                  pixels, options_.min_session_fps, first.name(),
-                                  first.saturated_pixel_rate() / 1e6));
+                                  pixels, options_.min_session_fps, first.name(), first.saturated_pixel_rate() / 1e6));
 }
 
 namespace {
@@ -281,20 +281,19 @@ std::int64_t AdmissionPixels(const v1::SessionState& state, Backend backend) {
 }  // namespace
 
 void ServiceCore::RequireServing() const {
-  if (draining_) throw RpcError(grpc::StatusCode::UNAVAILABLE, "the server is shutting down");
+  if (draining_) throw RpcError::Unavailable("the server is shutting down");
 }
 
 void ServiceCore::RequireRoomLocked(const Principal& caller) const {
   if (int(sessions_.size()) >= options_.max_sessions) {
-    throw LimitExceeded(
-        grpc::StatusCode::RESOURCE_EXHAUSTED, "max-sessions",
-        fmt::format("this server holds its maximum of {} sessions (--max-sessions)", options_.max_sessions));
+    throw LimitExceeded("max-sessions", fmt::format("this server holds its maximum of {} sessions (--max-sessions)",
+                                                    options_.max_sessions));
   }
   const auto own = std::count_if(sessions_.begin(), sessions_.end(),
                                  [&](const auto& entry) { return entry.second->owner() == caller.name; });
   if (own >= options_.max_sessions_per_principal) {
     throw LimitExceeded(
-        grpc::StatusCode::RESOURCE_EXHAUSTED, "max-sessions-per-principal",
+        "max-sessions-per-principal",
         fmt::format("you hold {} sessions, this server's limit per user (--max-sessions-per-principal): "
                     "close one first",
                     own));
@@ -363,13 +362,13 @@ std::shared_ptr<Session> ServiceCore::Find(const std::string& id) const {
 
 std::shared_ptr<Session> ServiceCore::FindSession(const std::string& id, const Principal& caller) const {
   std::shared_ptr<Session> session = Find(id);
-  if (!session) throw RpcError(grpc::StatusCode::NOT_FOUND, fmt::format("session_id: no session '{}'", id));
+  if (!session) throw RpcError::NotFound(fmt::format("session_id: no session '{}'", id));
   if (!caller.is_operator) RequireOwner(caller, session->owner(), fmt::format("session '{}'", id));
   return session;
 }
 
 void ServiceCore::CloseSession(const std::string& id, const Principal& caller) {
-  FindSession(id, caller)->End({grpc::StatusCode::OK, "session closed"});
+  FindSession(id, caller)->End(OkStatus("session closed"));
 }
 
 void ServiceCore::RequireBatchSize(const v1::SendEventsRequest& request) const {
@@ -415,7 +414,7 @@ std::shared_ptr<LoadSlot> ServiceCore::BeginLoad(const Principal& caller) {
   std::lock_guard lock(mu_);
   int& count = loads_[caller.name];
   if (count >= options_.max_uploads_per_principal) {
-    throw LimitExceeded(grpc::StatusCode::RESOURCE_EXHAUSTED, "max-uploads-per-principal",
+    throw LimitExceeded("max-uploads-per-principal",
                         fmt::format("you have {} uploads or loads under way, this server's limit "
                                     "(--max-uploads-per-principal)",
                                     count));
@@ -517,10 +516,10 @@ ServiceCore::SnapshotDone ServiceCore::StoreAfter(const v1::SnapshotRequest& req
   const v1::VolumeInfo volume = volumes_.Describe(session.volume()->id(), caller);
   const std::optional<PacsOrigin> origin = ParsePacsSource(volume.source());
   if (!origin) {
-    throw RpcError(grpc::StatusCode::FAILED_PRECONDITION,
-                   fmt::format("store_to: volume '{}' did not come from a PACS (it is {}); a render goes back into "
-                               "the study of a series loaded with LoadSeries",
-                               volume.id(), LogSafe(volume.source(), 80)));
+    throw RpcError::FailedPrecondition(
+        fmt::format("store_to: volume '{}' did not come from a PACS (it is {}); a render goes back into "
+                    "the study of a series loaded with LoadSeries",
+                    volume.id(), LogSafe(volume.source(), 80)));
   }
   const auto from = pacs_.Find(origin->pacs, "store_to");
   auto finish = std::make_shared<SnapshotDone>(std::move(done));  // called once, whoever runs it
@@ -532,8 +531,7 @@ ServiceCore::SnapshotDone ServiceCore::StoreAfter(const v1::SnapshotRequest& req
       });
       (*finish)(stored, stored.ok() ? std::move(still) : v1::SnapshotResponse());
     });
-    if (!queued)
-      (*finish)({grpc::StatusCode::UNAVAILABLE, "the server is shutting down; the still was not stored"}, {});
+    if (!queued) (*finish)(RpcError::Unavailable("the server is shutting down; the still was not stored").status(), {});
   };
 }
 
@@ -550,8 +548,9 @@ void ServiceCore::ExpireDetachedSessions() {
     }
   }
   for (auto& s : expired) {
-    s->End({grpc::StatusCode::DEADLINE_EXCEEDED,
-            "no stream attached in time (--detached-session-seconds, --unattached-session-seconds)"});
+    s->End(RpcError::DeadlineExceeded(
+               "no stream attached in time (--detached-session-seconds, --unattached-session-seconds)")
+               .status());
   }
 }
 

@@ -53,7 +53,7 @@ class PooledReactor final : public grpc::ServerUnaryReactor {
             Finish(s);
           },
           caller.name, group);
-      if (!queued) throw RpcError(grpc::StatusCode::UNAVAILABLE, "the server is shutting down");
+      if (!queued) throw RpcError::Unavailable("the server is shutting down");
     });
     if (!status.ok()) Finish(status);
   }
@@ -68,11 +68,11 @@ class PooledReactor final : public grpc::ServerUnaryReactor {
 
  private:
   grpc::Status Stopped() const {
-    if (caller_gone_) return {grpc::StatusCode::CANCELLED, "the caller went away"};
+    if (caller_gone_) return RpcError::Cancelled("the caller went away").status();
     if (!stop_) return grpc::Status::OK;
-    return {grpc::StatusCode::DEADLINE_EXCEEDED,
-            fmt::format("{} took longer than this server's {} s a call (--max-call-seconds)", what_,
-                        core_->options().call_seconds)};
+    return RpcError::DeadlineExceeded(fmt::format("{} took longer than this server's {} s a call (--max-call-seconds)",
+                                                  what_, core_->options().call_seconds))
+        .status();
   }
 
   ServiceCore* core_;
@@ -185,7 +185,7 @@ class UploadReactor final : public grpc::ServerReadReactor<v1::UploadVolumeChunk
   void CheckSize(std::uint64_t size, const char* field) const {
     const std::uint64_t limit = core_->volumes().limits().max_upload_bytes;
     if (size > limit) {
-      throw LimitExceeded(grpc::StatusCode::RESOURCE_EXHAUSTED, "max-upload-mb",
+      throw LimitExceeded("max-upload-mb",
                           fmt::format("{}: {} bytes is over this server's upload limit of {} bytes (--max-upload-mb)",
                                       field, size, limit));
     }
@@ -194,13 +194,14 @@ class UploadReactor final : public grpc::ServerReadReactor<v1::UploadVolumeChunk
 
   void Complete() {
     if (!file_.is_open()) {
-      Fail({grpc::StatusCode::INVALID_ARGUMENT, "header: no header was sent"});
+      Fail(RpcError::InvalidArgument("header: no header was sent").status());
       return;
     }
     file_.close();
     if (received_ != expected_) {
-      Fail({grpc::StatusCode::INVALID_ARGUMENT,
-            fmt::format("data: {} bytes received, header.size_bytes said {}", received_, expected_)});
+      Fail(RpcError::InvalidArgument(
+               fmt::format("data: {} bytes received, header.size_bytes said {}", received_, expected_))
+               .status());
       return;
     }
     loading_ = true;  // the loader removes the file
@@ -220,7 +221,7 @@ class UploadReactor final : public grpc::ServerReadReactor<v1::UploadVolumeChunk
     }, caller_.name);
     if (!queued) {
       loading_ = false;  // OnDone removes the file
-      Fail({grpc::StatusCode::UNAVAILABLE, "the server is shutting down"});
+      Fail(RpcError::Unavailable("the server is shutting down").status());
     }
   }
 
@@ -319,7 +320,7 @@ class ProgressStreamReactor final : public grpc::ServerWriteReactor<Update> {
       if (status_->ok() && !*cancel_) {
         this->StartWriteAndFinish(&last_, grpc::WriteOptions(), *status_);
       } else {
-        this->Finish(status_->ok() ? grpc::Status(grpc::StatusCode::CANCELLED, "the caller went away") : *status_);
+        this->Finish(status_->ok() ? RpcError::Cancelled("the caller went away").status() : *status_);
       }
     }
   }
@@ -407,7 +408,7 @@ grpc::ServerUnaryReactor* VolumeServiceImpl::LoadFromDisk(grpc::CallbackServerCo
     }, caller.name);
     if (!queued) {
       slot->Release();
-      throw RpcError(grpc::StatusCode::UNAVAILABLE, "the server is shutting down");
+      throw RpcError::Unavailable("the server is shutting down");
     }
   });
   if (!status.ok()) reactor->Finish(status);
@@ -650,7 +651,7 @@ grpc::ServerWriteReactor<v1::LoadSeriesUpdate>* PacsServiceImpl::LoadSeries(grpc
       caller.name, request->pacs());
   if (!queued) {
     slot->Release();
-    reactor->Complete({grpc::StatusCode::UNAVAILABLE, "the server is shutting down"}, {});
+    reactor->Complete(RpcError::Unavailable("the server is shutting down").status(), {});
   }
   return reactor;
 }

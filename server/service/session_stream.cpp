@@ -162,8 +162,7 @@ void FrameWriter<Reactor>::OnWriteDone(bool ok) {
     }
     if (finished_) return;
     if (!ok) {
-      FinishLocked(
-          finish_after_write_.value_or(grpc::Status(grpc::StatusCode::UNAVAILABLE, "the stream to the client broke")));
+      FinishLocked(finish_after_write_.value_or(RpcError::Unavailable("the stream to the client broke").status()));
       return;
     }
     if (!messages_.empty()) {  // before an end that waits (a notice says why it ends) and the next frame
@@ -191,7 +190,7 @@ void FrameWriter<Reactor>::OnWriteDone(bool ok) {
 
 template <class Reactor>
 void FrameWriter<Reactor>::OnCancel() {
-  End({grpc::StatusCode::CANCELLED, "the client went away"});
+  End(RpcError::Cancelled("the client went away").status());
 }
 
 template class FrameWriter<BidiSessionReactor>;
@@ -222,7 +221,7 @@ void SessionStreamReactor::OnReadDone(bool ok) {
   if (!session) {
     core_->calls().Forget(watch_);
     if (!in_.has_attach()) {
-      End({grpc::StatusCode::INVALID_ARGUMENT, "attach: the first message must attach to a session"});
+      End(RpcError::InvalidArgument("attach: the first message must attach to a session").status());
       return;
     }
     const grpc::Status status = Guarded([&] { HandleAttach(in_.attach()); });
@@ -231,7 +230,7 @@ void SessionStreamReactor::OnReadDone(bool ok) {
       return;
     }
   } else if (in_.has_attach()) {
-    End({grpc::StatusCode::INVALID_ARGUMENT, "attach: this stream is already attached"});
+    End(RpcError::InvalidArgument("attach: this stream is already attached").status());
     return;
   } else {
     const grpc::Status status = Guarded([&] { session->OnEvent(in_.event(), arrival); });

@@ -15,8 +15,6 @@ constexpr std::chrono::seconds kDefaultLifetime = std::chrono::hours(2);
 constexpr std::uint32_t kMinLifetimeSeconds = 1, kMaxLifetimeSeconds = 7 * 24 * 3600;
 constexpr std::size_t kMaxPrincipalLength = 256;
 
-RpcError Denied(const std::string& message) { return RpcError(grpc::StatusCode::PERMISSION_DENIED, message); }
-
 std::chrono::seconds LifetimeOf(std::uint32_t seconds) {
   if (seconds == 0) return kDefaultLifetime;
   if (seconds < kMinLifetimeSeconds || seconds > kMaxLifetimeSeconds) {
@@ -91,14 +89,14 @@ v1::RevokeShareResponse Sharing::Revoke(const v1::RevokeShareRequest& request, c
   const std::shared_ptr<Session> session = owned_(request.session_id(), caller);
   const std::optional<Grant> grant = grants_.Find(request.grant_id());
   if (!grant || grant->session_id != session->id() || !grants_.Revoke(grant->id)) {
-    throw RpcError(grpc::StatusCode::NOT_FOUND,
-                   fmt::format("grant_id: session '{}' has no grant '{}'", session->id(), LogSafe(request.grant_id())));
+    throw RpcError::NotFound(
+        fmt::format("grant_id: session '{}' has no grant '{}'", session->id(), LogSafe(request.grant_id())));
   }
   if (grant->role == GrantRole::kPresenter) session->SetPresenter(session->owner());
   v1::RevokeShareResponse out;
   out.set_streams_ended(std::uint32_t(session->EndWatchers(
       grant->id,
-      {grpc::StatusCode::PERMISSION_DENIED, fmt::format("grant {} was revoked by the session's owner", grant->id)})));
+      RpcError::PermissionDenied(fmt::format("grant {} was revoked by the session's owner", grant->id)).status())));
   spdlog::info("session {}: grant {} revoked, {} streams ended", session->id(), grant->id, out.streams_ended());
   return out;
 }
@@ -117,7 +115,7 @@ v1::HandOverResponse Sharing::HandOver(const v1::HandOverRequest& request, const
   } else {
     GrantAccess access = Access(context, request.session_id(), request.grant());
     if (access.grant.role != GrantRole::kPresenter) {
-      throw Denied(
+      throw RpcError::PermissionDenied(
           fmt::format("grant {} is a viewer's: only the owner or the presenter hands the role over", access.grant.id));
     }
     session = std::move(access.session);
@@ -126,8 +124,8 @@ v1::HandOverResponse Sharing::HandOver(const v1::HandOverRequest& request, const
   if (!request.grant_id().empty()) {
     const std::optional<Grant> next = grants_.Find(request.grant_id());
     if (!next || next->session_id != session->id()) {
-      throw RpcError(grpc::StatusCode::NOT_FOUND, fmt::format("grant_id: session '{}' has no grant '{}'", session->id(),
-                                                              LogSafe(request.grant_id())));
+      throw RpcError::NotFound(
+          fmt::format("grant_id: session '{}' has no grant '{}'", session->id(), LogSafe(request.grant_id())));
     }
     presenter = next->holder();
   }
@@ -140,18 +138,19 @@ v1::HandOverResponse Sharing::HandOver(const v1::HandOverRequest& request, const
 GrantAccess Sharing::Access(const grpc::CallbackServerContext& context, const std::string& session_id,
                             const std::string& secret) const {
   const std::optional<Grant> grant = grants_.FindBySecret(secret);
-  if (!grant) throw Denied("grant: not valid (mistyped, revoked or expired)");
+  if (!grant) throw RpcError::PermissionDenied("grant: not valid (mistyped, revoked or expired)");
   if (!session_id.empty() && session_id != grant->session_id) {
-    throw Denied(fmt::format("grant {}: not for session '{}'", grant->id, LogSafe(session_id)));
+    throw RpcError::PermissionDenied(fmt::format("grant {}: not for session '{}'", grant->id, LogSafe(session_id)));
   }
   if (!grant->link()) {  // a principal's grant: that principal's own token too
     const Principal caller = authenticator_.Authenticate(context);
     if (caller.name != grant->principal) {
-      throw Denied(fmt::format("grant {} is for another principal than {}", grant->id, LogSafe(caller.name)));
+      throw RpcError::PermissionDenied(
+          fmt::format("grant {} is for another principal than {}", grant->id, LogSafe(caller.name)));
     }
   }
   std::shared_ptr<Session> session = find_(grant->session_id);
-  if (!session) throw RpcError(grpc::StatusCode::NOT_FOUND, fmt::format("grant {}: its session has ended", grant->id));
+  if (!session) throw RpcError::NotFound(fmt::format("grant {}: its session has ended", grant->id));
   return {std::move(session), *grant};
 }
 
@@ -164,10 +163,12 @@ v1::SessionState Sharing::SendEvents(const v1::SendEventsRequest& request, const
     if (!event.has_pointer()) *drives.Add() = event;
   }
   if (!drives.empty() && grant.role != GrantRole::kPresenter) {
-    throw Denied(fmt::format("events: grant {} is a viewer's; a viewer's only event is its pointer", grant.id));
+    throw RpcError::PermissionDenied(
+        fmt::format("events: grant {} is a viewer's; a viewer's only event is its pointer", grant.id));
   }
   if (drives.size() < request.events_size() && !grant.allow_pointer && grant.role != GrantRole::kPresenter) {
-    throw Denied(fmt::format("pointer: grant {} does not share its holder's pointer (allow_pointer)", grant.id));
+    throw RpcError::PermissionDenied(
+        fmt::format("pointer: grant {} does not share its holder's pointer (allow_pointer)", grant.id));
   }
   if (!drives.empty()) access.session->OnEvents(drives, arrival, /*from_grant=*/true);
   for (const v1::SessionEvent& event : request.events()) {
@@ -181,7 +182,7 @@ void Sharing::ExpireGrants() {
     const std::shared_ptr<Session> session = find_(grant.session_id);
     if (!session) continue;
     if (grant.role == GrantRole::kPresenter) session->SetPresenter(session->owner());
-    session->EndWatchers(grant.id, {grpc::StatusCode::PERMISSION_DENIED, fmt::format("grant {} expired", grant.id)});
+    session->EndWatchers(grant.id, RpcError::PermissionDenied(fmt::format("grant {} expired", grant.id)).status());
   }
 }
 
