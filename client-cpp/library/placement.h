@@ -7,7 +7,7 @@
 //
 //   lps = origin + D * (v + (dims - 1) * spacing / 2)
 //
-// web/src/geometry.ts is the page's twin; tests/golden/view_math.json holds
+// web/src/placement.ts is the page's twin; tests/golden/view_math.json holds
 // the cases both meet.
 #pragma once
 

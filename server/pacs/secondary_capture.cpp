@@ -330,6 +330,10 @@ void PutSeriesAndInstance(gdcm::DataSet& data, const SecondaryCaptureUids& uids,
   Put(data, gdcm::Tag(0x0020, 0x0011), gdcm::VR::IS, std::to_string(kRenderSeriesNumber));
   Put(data, gdcm::Tag(0x0020, 0x0013), gdcm::VR::IS, "1");
   Put(data, gdcm::Tag(0x0020, 0x0020), gdcm::VR::CS, "");  // Patient Orientation: type 2, unknown for a render
+  // Laterality: type 2C, required for a paired body part. The source
+  // series' body part is not known here, so it is sent empty, "unknown"
+  // (dciodvfy: an error when absent, a warning when empty; docs/pacs.md).
+  Put(data, gdcm::Tag(0x0020, 0x0060), gdcm::VR::CS, "");
   Put(data, gdcm::Tag(0x0008, 0x0008), gdcm::VR::CS, "DERIVED\\SECONDARY");
   for (const gdcm::Tag& date :
        {gdcm::Tag(0x0008, 0x0012), gdcm::Tag(0x0008, 0x0021), gdcm::Tag(0x0008, 0x0023), gdcm::Tag(0x0018, 0x1012)}) {

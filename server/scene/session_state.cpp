@@ -133,18 +133,27 @@ void SetVec(v1::Vec3* v, Vec3f p) {
   v->set_z(p.z);
 }
 
-// A named view as numbers (eye, target, up; `view` cleared), framing what
-// the scene shows of the volume (or turned about the given target).
+// A named view as numbers (eye, target, up; `view` cleared): turned about
+// the camera's target at its distance, which reads no voxel, or where there
+// is no eye and target (a new session's scene), framing what the scene shows
+// (the transfer function's blocks, and every label voxel where a label is
+// hidden: a scan of the volume).
 void ResolveNamedView(v1::Scene& scene, const SceneContext& context) {
   v1::Camera& proto = *scene.mutable_camera();
   if (proto.view() == v1::NAMED_VIEW_UNSPECIFIED) return;
   const Volume& volume = context.volume;
-  const TransferFunction tf = ResolveTransferFunction(scene.transfer_function(), volume);
-  const LabelVolume* labels = context.labels;
-  const std::vector<bool> label_blocks =
-      labels ? BlocksWithVisibleLabels(volume, *labels, ResolveLabels(scene.labels(), volume)) : std::vector<bool>();
-  const Camera c = ResolveCamera(proto, scene.render(), volume, tf,
-                                 {ResolveClipping(scene.clipping(), volume), labels ? &label_blocks : nullptr});
+  TransferFunction tf;
+  InView in_view;
+  std::vector<bool> label_blocks;
+  if (!(proto.has_eye() && proto.has_target())) {
+    tf = ResolveTransferFunction(scene.transfer_function(), volume);
+    in_view.clip = ResolveClipping(scene.clipping(), volume);
+    if (context.labels) {
+      label_blocks = BlocksWithVisibleLabels(volume, *context.labels, ResolveLabels(scene.labels(), volume));
+      in_view.label_blocks = &label_blocks;
+    }
+  }
+  const Camera c = ResolveCamera(proto, scene.render(), volume, tf, in_view);
   SetVec(proto.mutable_eye(), c.eye);
   SetVec(proto.mutable_target(), c.eye + c.forward * c.focal_distance);
   SetVec(proto.mutable_up(), c.up);
@@ -154,7 +163,21 @@ void ResolveNamedView(v1::Scene& scene, const SceneContext& context) {
 // Edits the scene part the event names (PartsOf says which).
 void ApplyToScene(const v1::SessionEvent& event, v1::Scene& scene, const std::string& prefix) {
   switch (event.kind_case()) {
-    case v1::SessionEvent::kCamera: *scene.mutable_camera() = event.camera(); break;
+    case v1::SessionEvent::kCamera: {
+      const v1::Camera& camera = event.camera();
+      if (camera.view() != v1::NAMED_VIEW_UNSPECIFIED && !(camera.has_eye() && camera.has_target())) {
+        // A view button turns about the current target at its distance (as
+        // Slicer's do), never framing: that would read the volume on the
+        // thread that read the event.
+        const v1::Vec3 eye = scene.camera().eye(), target = scene.camera().target();
+        *scene.mutable_camera() = camera;
+        *scene.mutable_camera()->mutable_eye() = eye;
+        *scene.mutable_camera()->mutable_target() = target;
+      } else {
+        *scene.mutable_camera() = camera;
+      }
+      break;
+    }
     case v1::SessionEvent::kLights: *scene.mutable_lights() = event.lights().lights(); break;
     case v1::SessionEvent::kTransferFunction: *scene.mutable_transfer_function() = event.transfer_function(); break;
     case v1::SessionEvent::kRender: {

@@ -233,11 +233,15 @@ TEST(ResolvedState, ANamedViewTurnsAboutTheTargetAtItsDistance) {
   EXPECT_NEAR(dx, std::sqrt(25.0f + 200.0f * 200.0f), 1e-2f) << "the patient's left is +x in LPS";
   EXPECT_NEAR(turned.up().z(), 1.0f, 1e-6f) << "the head up";
 
+  // Without an eye and target, about the current camera's: an event never
+  // frames (that reads the volume on the thread that read the event).
   e = Numbered(2);
-  e.mutable_camera()->set_view(v1::SUPERIOR);  // no eye: framed whole
+  e.mutable_camera()->set_view(v1::SUPERIOR);
   ApplyEvent(state, e, kHead, nullptr);
-  EXPECT_GT(state.scene().camera().eye().z(), 0.0f);
-  EXPECT_EQ(state.scene().camera().view(), v1::NAMED_VIEW_UNSPECIFIED);
+  const v1::Camera& above = state.scene().camera();
+  EXPECT_EQ(above.view(), v1::NAMED_VIEW_UNSPECIFIED);
+  EXPECT_FLOAT_EQ(above.target().x(), 5.0f);
+  EXPECT_NEAR(above.eye().z() - above.target().z(), std::sqrt(25.0f + 200.0f * 200.0f), 1e-2f) << "from above";
 }
 
 // Every rule of a session's scene is here: measurements, pointers, label
