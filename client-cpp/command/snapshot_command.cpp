@@ -107,7 +107,7 @@ void Run(const SnapshotOptions& o) {
   fmt::print("wrote {}: {}x{}, {} spp, rendered in {:.2f} s\n", o.out, still.width(), still.height(), still.spp(),
              still.render_us() / 1e6);
   if (still.has_stored()) {
-    const v1::StoredRender& s = still.stored();
+    const v1::StoredObject& s = still.stored();
     fmt::print("stored in PACS '{}': study {}, series {}, instance {}\n", s.pacs(), s.study_uid(), s.series_uid(),
                s.sop_instance_uid());
   }

@@ -25,8 +25,6 @@ std::optional<PacsOrigin> ParsePacsSource(const std::string& source) {
   return PacsOrigin{rest.substr(0, first), rest.substr(first + 1, second - first - 1), rest.substr(second + 1)};
 }
 
-namespace {
-
 pacs::SourceStudy StudyOf(const pacs::DicomWebClient& from, const PacsOrigin& origin,
                           const std::atomic<bool>* cancel) {
   pacs::StudyQuery query;
@@ -34,7 +32,7 @@ pacs::SourceStudy StudyOf(const pacs::DicomWebClient& from, const PacsOrigin& or
   query.limit = 1;
   const std::vector<pacs::StudySummary> found = from.SearchStudies(query, cancel);
   if (found.empty() || found[0].study_uid != origin.study_uid) {
-    throw pacs::PacsError(fmt::format("PACS '{}' no longer holds study {}: the render has nowhere to go",
+    throw pacs::PacsError(fmt::format("PACS '{}' no longer holds study {}: nothing can go back into it",
                                       origin.pacs, origin.study_uid), 404);
   }
   const pacs::StudySummary& s = found[0];
@@ -54,15 +52,22 @@ pacs::SourceStudy StudyOf(const pacs::DicomWebClient& from, const PacsOrigin& or
   return study;
 }
 
-}  // namespace
-
-v1::StoredRender StoreRender(const pacs::DicomWebClient& to, const pacs::DicomWebClient& from,
+v1::StoredObject StoreRender(const pacs::DicomWebClient& to, const pacs::DicomWebClient& from,
                              const PacsOrigin& origin, const v1::SnapshotResponse& still, const v1::Scene& scene,
-                             const std::string& version, const std::atomic<bool>* cancel) {
+                             const VolumePlacement& placement, const std::string& version,
+                             const std::atomic<bool>* cancel) {
   const ImageRgb8 image = DecodePng({still.image().begin(), still.image().end()});
+  // The recipe is the scene as a scene file says it: in patient coordinates
+  // (frame PATIENT_LPS, so it does not depend on how a reader centres the
+  // volume), with the still's samples per pixel, not the session's per frame.
+  v1::Scene recipe_scene = scene;
+  ToPatientFrame(recipe_scene, placement);
+  recipe_scene.mutable_render()->set_spp(still.spp());
+  recipe_scene.mutable_render()->set_width(still.width());
+  recipe_scene.mutable_render()->set_height(still.height());
   pacs::RenderRecipe recipe;
   google::protobuf::util::JsonPrintOptions options;
-  if (!google::protobuf::util::MessageToJsonString(scene, &recipe.scene_json, options).ok()) {
+  if (!google::protobuf::util::MessageToJsonString(recipe_scene, &recipe.scene_json, options).ok()) {
     throw std::runtime_error("the scene could not be written as JSON for the recipe");
   }
   recipe.source_series_uid = origin.series_uid;
@@ -72,7 +77,7 @@ v1::StoredRender StoreRender(const pacs::DicomWebClient& to, const pacs::DicomWe
   const pacs::SecondaryCaptureImage pixels{image.width, image.height, image.bytes};
   const std::string capture = pacs::MakeSecondaryCapture(StudyOf(from, origin, cancel), pixels, recipe, &uids);
   to.StoreInstances(origin.study_uid, {capture}, cancel);
-  v1::StoredRender stored;
+  v1::StoredObject stored;
   stored.set_pacs(to.config().name);
   stored.set_study_uid(uids.study_uid);
   stored.set_series_uid(uids.series_uid);

@@ -10,6 +10,8 @@
 #include "cinevol/v1/scene.pb.h"
 #include "cinevol/v1/service.pb.h"
 #include "pacs/dicomweb_client.h"
+#include "pacs/secondary_capture.h"
+#include "scene/scene_frame.h"
 
 namespace cinevol::service {
 
@@ -23,11 +25,18 @@ std::string PacsSource(const PacsOrigin& origin, const std::string& suffix);
 // Nothing for a source that is not a PACS's.
 std::optional<PacsOrigin> ParsePacsSource(const std::string& source);
 
+// The patient and study attributes of `origin`'s study as `from` (its PACS)
+// answers them (QIDO-RS), for an object sent back into it (a render, a
+// measurement report); PacsError (404) where the PACS no longer holds it.
+pacs::SourceStudy StudyOf(const pacs::DicomWebClient& from, const PacsOrigin& origin, const std::atomic<bool>* cancel);
+
 // Stores `still` (a PNG) on `to` in the study `origin` names, whose patient
-// and study attributes `from` (the source PACS) answers; `scene` and
-// `version` make the recipe. Throws PacsError, InputError, Cancelled.
-v1::StoredRender StoreRender(const pacs::DicomWebClient& to, const pacs::DicomWebClient& from,
+// and study attributes `from` (the source PACS) answers; `scene` (the
+// session's, volume-centred; `placement` moves it to patient coordinates)
+// and `version` make the recipe. Throws PacsError, InputError, Cancelled.
+v1::StoredObject StoreRender(const pacs::DicomWebClient& to, const pacs::DicomWebClient& from,
                              const PacsOrigin& origin, const v1::SnapshotResponse& still, const v1::Scene& scene,
-                             const std::string& version, const std::atomic<bool>* cancel);
+                             const VolumePlacement& placement, const std::string& version,
+                             const std::atomic<bool>* cancel);
 
 }  // namespace cinevol::service

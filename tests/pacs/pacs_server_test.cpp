@@ -187,7 +187,7 @@ TEST_F(PacsServer, ASnapshotIsStoredBackWithItsRecipe) {
   const v1::VolumeInfo volume = client.LoadSeries(CtSeries());
   const fs::path png = scratch_ / "render.png";
   auto [code, out] = Cli({"snapshot", "--volume", volume.id(), "--preset", "ct-bone", "--width", "64", "--height", "48",
-                          "--spp", "2", "--out", png.string(), "--store-to", "orthanc"});
+                          "--spp", "6", "--out", png.string(), "--store-to", "orthanc"});
   ASSERT_EQ(code, 0) << out;
   const std::size_t at = out.find(", series ");
   ASSERT_NE(at, std::string::npos) << out;
@@ -214,6 +214,9 @@ TEST_F(PacsServer, ASnapshotIsStoredBackWithItsRecipe) {
   EXPECT_EQ(capture.preset, "ct-bone");
   EXPECT_EQ(capture.width, 64);
   EXPECT_NE(capture.scene_json.find("ct-bone"), std::string::npos) << capture.scene_json;
+  // The still's samples, not the session's per frame; in patient coordinates.
+  EXPECT_NE(capture.scene_json.find("\"spp\":6"), std::string::npos) << capture.scene_json;
+  EXPECT_NE(capture.scene_json.find("\"frame\":\"PATIENT_LPS\""), std::string::npos) << capture.scene_json;
 
   // A volume from elsewhere has no study to go back to.
   std::tie(code, out) = Cli({"snapshot", "--volume", "phantom:head?size=48", "--width", "32", "--height", "32", "--spp",
