@@ -37,6 +37,12 @@ void CheckStatus(const PacsConfig& config, const HttpResponse& response, const s
                                 name, what, status),
                     status);
   }
+  if ((status == 401 || status == 403) && config.credentials.kind == PacsCredentials::Kind::kForward) {
+    throw PacsError(fmt::format("PACS '{}' refused the caller's token for {} (HTTP {}; --pacs-auth forward sends "
+                                "it as given)",
+                                name, what, status),
+                    status);
+  }
   if (status == 401 || status == 403) {
     throw PacsError(fmt::format("PACS '{}' refused cinevol's credentials for {} (HTTP {}): check its entry in the "
                                 "credentials file",

@@ -163,7 +163,7 @@ void HttpSession::SetCommonOptions() {
     Set(curl, CURLOPT_HTTPAUTH, static_cast<long>(CURLAUTH_BASIC));
     Set(curl, CURLOPT_USERNAME, credentials.user.c_str());
     Set(curl, CURLOPT_PASSWORD, credentials.password.c_str());
-  } else if (credentials.kind == PacsCredentials::Kind::kBearer) {
+  } else if (credentials.kind == PacsCredentials::Kind::kBearer || credentials.kind == PacsCredentials::Kind::kForward) {
     Set(curl, CURLOPT_HTTPAUTH, static_cast<long>(CURLAUTH_BEARER));
     Set(curl, CURLOPT_XOAUTH2_BEARER, credentials.token.c_str());
   }

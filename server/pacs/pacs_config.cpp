@@ -81,6 +81,24 @@ PacsCredentials CredentialsFromWords(std::string_view kind, std::string_view sec
 
 }  // namespace
 
+PacsCredentials ForwardedCredentials(std::string_view token) {
+  constexpr std::size_t kMaxToken = 8192;
+  std::size_t end = token.find_last_not_of('=');
+  end = end == std::string_view::npos ? 0 : end + 1;
+  const bool token_chars = end > 0 && std::all_of(token.begin(), token.begin() + end, [](char c) {
+    return std::isalnum(static_cast<unsigned char>(c)) || std::string_view("-._~+/").find(c) != std::string_view::npos;
+  });
+  if (token.size() > kMaxToken || !token_chars) {
+    throw InputError(fmt::format("the bearer token is not one a PACS can be sent (RFC 6750: 1 to {} of A-Z a-z 0-9 "
+                                 "- . _ ~ + /, then '='s)",
+                                 kMaxToken));
+  }
+  PacsCredentials credentials;
+  credentials.kind = PacsCredentials::Kind::kForward;
+  credentials.token = std::string(token);
+  return credentials;
+}
+
 bool IsValidPacsName(std::string_view name) {
   if (name.empty() || name.size() > 64) return false;
   return std::all_of(name.begin(), name.end(),

@@ -15,12 +15,20 @@ namespace cinevol::pacs {
 // How cinevol proves who it is to one PACS. The secrets live here and in the
 // credentials file only: never in a URL, a log line or an exception message.
 struct PacsCredentials {
-  enum class Kind { kNone, kBasic, kBearer };
+  // kForward: each call carries the caller's own bearer token (--pacs-auth
+  // forward): the directory's configuration has none, a call's client the
+  // caller's (ForwardedCredentials).
+  enum class Kind { kNone, kBasic, kBearer, kForward };
   Kind kind = Kind::kNone;
   std::string user;      // kBasic
   std::string password;  // kBasic
-  std::string token;     // kBearer
+  std::string token;     // kBearer, kForward
 };
+
+// `token`, the caller's bearer token, as the credentials of one call to a
+// PACS that takes it. InputError unless it is an RFC 6750 token (1 to 8192 of
+// A-Z a-z 0-9 - . _ ~ + /, then '='s): nothing else reaches a header.
+PacsCredentials ForwardedCredentials(std::string_view token);
 
 // One DICOMweb service. Every field has a default a hospital network can live
 // with; ValidatePacsConfig names the field that is out of its range.

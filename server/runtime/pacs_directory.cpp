@@ -9,6 +9,7 @@
 
 #include "core/error.h"
 #include "core/log_safe.h"
+#include "runtime/errors.h"
 
 namespace cinevol::service {
 
@@ -25,6 +26,13 @@ PacsDirectory::PacsDirectory(std::vector<pacs::PacsConfig> configs, std::filesys
       throw InputError(fmt::format("--pacs-credentials: names PACS '{}', which no --pacs names", LogSafe(name, 64)));
     }
   }
+  for (const pacs::PacsConfig& c : configs_) {
+    if (c.credentials.kind == pacs::PacsCredentials::Kind::kForward && credentials.count(c.name)) {
+      throw InputError(fmt::format("--pacs-credentials: names PACS '{}', which takes the caller's token "
+                                   "(--pacs-auth forward): one or the other",
+                                   c.name));
+    }
+  }
   std::lock_guard lock(mu_);
   BuildClientsLocked(credentials);
 }
@@ -32,18 +40,32 @@ PacsDirectory::PacsDirectory(std::vector<pacs::PacsConfig> configs, std::filesys
 void PacsDirectory::BuildClientsLocked(const std::map<std::string, pacs::PacsCredentials>& credentials) {
   std::map<std::string, std::shared_ptr<const pacs::DicomWebClient>> clients;
   for (pacs::PacsConfig config : configs_) {
-    if (auto it = credentials.find(config.name); it != credentials.end()) config.credentials = it->second;
+    const bool forwards = config.credentials.kind == pacs::PacsCredentials::Kind::kForward;
+    if (auto it = credentials.find(config.name); it != credentials.end() && !forwards) config.credentials = it->second;
     const std::string name = config.name;  // the right side is evaluated first, and moves `config`
     clients[name] = std::make_shared<const pacs::DicomWebClient>(std::move(config));
   }
   clients_ = std::move(clients);  // calls under way keep the clients they found
 }
 
-std::shared_ptr<const pacs::DicomWebClient> PacsDirectory::Find(const std::string& name, const char* field) const {
+std::shared_ptr<const pacs::DicomWebClient> PacsDirectory::Find(const std::string& name, const Principal& caller,
+                                                                const char* field) const {
+  std::shared_ptr<const pacs::DicomWebClient> found;
   {
     std::lock_guard lock(mu_);
-    if (auto it = clients_.find(name); it != clients_.end()) return it->second;
+    if (auto it = clients_.find(name); it != clients_.end()) found = it->second;
   }
+  if (found && found->config().credentials.kind == pacs::PacsCredentials::Kind::kForward) {
+    if (caller.bearer_token.empty()) {
+      throw RpcError::Unauthenticated(fmt::format("{}: PACS '{}' takes the caller's own token (--pacs-auth forward); "
+                                                  "send the metadata 'authorization: Bearer <token>'",
+                                                  field, name));
+    }
+    pacs::PacsConfig config = found->config();
+    config.credentials = pacs::ForwardedCredentials(caller.bearer_token);
+    return std::make_shared<const pacs::DicomWebClient>(std::move(config));  // for this call only
+  }
+  if (found) return found;
   if (configs_.empty()) throw InputError(fmt::format("{}: this server names no PACS (--pacs NAME=URL)", field));
   throw InputError(fmt::format("{}: no PACS named '{}'; this server names {} (a PACS is named, never given by URL)",
                                field, LogSafe(name, 64), fmt::join(Names(), ", ")));

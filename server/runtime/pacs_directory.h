@@ -12,6 +12,7 @@
 #include <vector>
 
 #include "pacs/dicomweb_client.h"
+#include "runtime/principal.h"
 
 namespace cinevol::service {
 
@@ -22,9 +23,12 @@ class PacsDirectory {
   // naming the option, the PACS or the file's line).
   PacsDirectory(std::vector<pacs::PacsConfig> configs, std::filesystem::path credentials_file);
 
-  // The client for PACS `name`; InputError naming the field `field` and the
+  // The client for PACS `name` acting for `caller` (with their bearer token
+  // where the PACS takes it: --pacs-auth forward; UNAUTHENTICATED when the
+  // call carried none); InputError naming the field `field` and the
   // configured names when there is none (a URL in its place included).
-  std::shared_ptr<const pacs::DicomWebClient> Find(const std::string& name, const char* field = "pacs") const;
+  std::shared_ptr<const pacs::DicomWebClient> Find(const std::string& name, const Principal& caller,
+                                                   const char* field = "pacs") const;
   std::vector<std::string> Names() const;
   bool empty() const { return configs_.empty(); }
 

@@ -10,6 +10,9 @@ namespace cinevol::service {
 struct Principal {
   std::string name;
   bool is_operator = false;
+  // The bearer token the call carried, as given: only for a PACS that takes
+  // the caller's own (--pacs-auth forward). Never logged.
+  std::string bearer_token;
 };
 
 // Throws RpcError(PERMISSION_DENIED) unless `caller` is `owner`.

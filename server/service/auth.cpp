@@ -4,6 +4,7 @@
 #include "service/auth.h"
 
 #include <fmt/format.h>
+#include <fmt/ranges.h>
 #include <grpcpp/security/auth_context.h>
 #include <openssl/crypto.h>
 #include <openssl/sha.h>
@@ -30,6 +31,11 @@ Digest Hash(std::string_view token) {
   Digest digest{};
   SHA256(reinterpret_cast<const unsigned char*>(token.data()), token.size(), digest.data());
   return digest;
+}
+
+// The first 8 bytes of `digest` in hex: a name for a token that is not the token.
+std::string HexPrefix(const Digest& digest) {
+  return fmt::format("{:02x}", fmt::join(digest.begin(), digest.begin() + 8, ""));
 }
 
 struct Entry {
@@ -141,17 +147,24 @@ Principal Authenticator::Authenticate(const grpc::AuthContext* auth_context, con
       certificate_name.emplace(View(names.front()));
     }
   }
-  if (!tokens_) return {certificate_name.value_or("anonymous"), false};
-
   constexpr std::string_view kBearer = "bearer ";
   const std::string_view value = authorization ? std::string_view(*authorization) : std::string_view();
   const bool bearer = value.size() > kBearer.size() &&
                       std::equal(kBearer.begin(), kBearer.end(), value.begin(),
                                  [](char a, char b) { return a == std::tolower(static_cast<unsigned char>(b)); });
+  const std::string_view token = bearer ? value.substr(kBearer.size()) : std::string_view();
+  if (!tokens_) {
+    Principal open{certificate_name.value_or("anonymous"), false};
+    if (forwards_tokens_ && bearer) {
+      if (!certificate_name) open.name = "bearer:" + HexPrefix(Hash(token));
+      open.bearer_token = std::string(token);
+    }
+    return open;
+  }
   if (!bearer) {
     throw RpcError::Unauthenticated("this server needs a token: send the metadata 'authorization: Bearer <token>'");
   }
-  const Digest digest = Hash(value.substr(kBearer.size()));
+  const Digest digest = Hash(token);
   const std::shared_ptr<const Entries> entries = tokens_->Current();
   const Entry* match = nullptr;
   for (const Entry& entry : *entries) {  // every entry, whatever matched
@@ -159,7 +172,9 @@ Principal Authenticator::Authenticate(const grpc::AuthContext* auth_context, con
     match = equal ? &entry : match;
   }
   if (match == nullptr) throw RpcError::Unauthenticated("the bearer token is not valid");
-  return match->principal;
+  Principal known = match->principal;
+  if (forwards_tokens_) known.bearer_token = std::string(token);
+  return known;
 }
 
 bool ReloadAllTokenFiles() {

@@ -46,6 +46,11 @@ class Authenticator {
   // Re-reads the token file. On error (InputError naming file and line) the
   // tokens in use stay. Without a token file it does nothing.
   void Reload();
+  // For a PACS that takes the caller's own token (--pacs-auth forward): each
+  // principal carries its call's bearer token, and without a token file a
+  // token (not a certificate) names the caller, "bearer:" and 16 hex digits
+  // of its SHA-256, so one user's PACS data never reaches another's calls.
+  void ForwardBearerTokens() { forwards_tokens_ = true; }
   bool has_tokens() const { return tokens_ != nullptr; }
   std::size_t token_count() const;
 
@@ -53,6 +58,7 @@ class Authenticator {
 
  private:
   std::shared_ptr<TokenFile> tokens_;  // null: no token file
+  bool forwards_tokens_ = false;
 };
 
 // Reloads the token file of every Authenticator alive in this process (the

@@ -5,12 +5,14 @@
 #include <fmt/format.h>
 #include <spdlog/spdlog.h>
 
+#include <algorithm>
 #include <csignal>
 #include <cstdio>
 #include <regex>
 #include <thread>
 
 #include "core/error.h"
+#include "core/log_safe.h"
 #include "service/server.h"
 
 namespace {
@@ -94,6 +96,7 @@ void AddLimitOptions(CLI::App& app, ServerOptions& o) {
 // The --pacs flags as given; PacsConfigs once parsed.
 struct PacsFlags {
   std::vector<std::string> specs;
+  std::vector<std::string> auth;  // --pacs-auth: "forward" (every PACS) or "NAME=forward"
   std::string ca_file;
   double timeout_seconds = 120;
   int parallel_fetches = 4;
@@ -107,10 +110,25 @@ struct PacsFlags {
       c.request_timeout = std::chrono::milliseconds(std::int64_t(timeout_seconds * 1000));
       c.parallel_fetches = parallel_fetches;
       c.max_series_bytes = max_series_mb << 20;
+      if (Forwards(c.name)) c.credentials.kind = cinevol::pacs::PacsCredentials::Kind::kForward;
       cinevol::pacs::ValidatePacsConfig(c);
       configs.push_back(std::move(c));
     }
+    for (const std::string& a : auth) {
+      const bool named = a.size() > 8 && a.ends_with("=forward");
+      const std::string name = named ? a.substr(0, a.size() - 8) : "";
+      const bool known = std::any_of(configs.begin(), configs.end(), [&](const auto& c) { return c.name == name; });
+      if (a != "forward" && !(named && known)) {
+        throw cinevol::InputError(fmt::format("--pacs-auth: '{}' is neither 'forward' nor NAME=forward for a --pacs NAME",
+                                              cinevol::LogSafe(a, 80)));
+      }
+    }
     return configs;
+  }
+
+  // Whether PACS `name` takes the caller's own token.
+  bool Forwards(const std::string& name) const {
+    return std::any_of(auth.begin(), auth.end(), [&](const std::string& a) { return a == "forward" || a == name + "=forward"; });
   }
 };
 
@@ -182,6 +200,9 @@ void AddOptions(CLI::App& app, ServerOptions& o, std::string& backend, std::stri
                  "(repeatable; docs/pacs.md)");
   app.add_option("--pacs-credentials", o.pacs_credentials,
                  "File of 'NAME basic USER:PASSWORD' or 'NAME bearer TOKEN' lines for the --pacs; SIGHUP reloads it");
+  app.add_option("--pacs-auth", pacs.auth,
+                 "'forward': every --pacs gets the caller's own bearer token (OAuth/OIDC-gated DICOMweb) instead of "
+                 "stored credentials; 'NAME=forward': that PACS only (repeatable; docs/pacs.md)");
   app.add_option("--pacs-ca", pacs.ca_file, "PEM CA certificates to verify https PACS with (default: the system's)");
   app.add_option("--pacs-timeout-seconds", pacs.timeout_seconds, "The longest one request to a PACS may take")
       ->check(CLI::Range(0.1, 3600.0))

@@ -186,6 +186,10 @@ ServiceCore::ServiceCore(const ServerOptions& options)
       pixels_(options.max_total_pixels),
       sharing_(authenticator_, options.max_grants_per_principal, [this](const std::string& id) { return Find(id); },
                [this](const std::string& id, const Principal& caller) { return FindSession(id, caller); }) {
+  const bool forwards = std::any_of(options.pacs.begin(), options.pacs.end(), [](const pacs::PacsConfig& c) {
+    return c.credentials.kind == pacs::PacsCredentials::Kind::kForward;
+  });
+  if (forwards) authenticator_.ForwardBearerTokens();
   // Every file is read through cinevol-reader: find it now, not at the first load.
   spdlog::info("reader: {}", reader_cage::ReaderPath().string());
   if (!reader_cage::KernelHasLandlock()) {
@@ -511,7 +515,7 @@ ServiceCore::SnapshotDone ServiceCore::StoreAfter(const v1::SnapshotRequest& req
                                                   const Principal& caller, const v1::Scene& scene,
                                                   std::shared_ptr<std::atomic<bool>> cancel, SnapshotDone done) {
   // Checked before a sample is rendered: the PACS named, the volume's own PACS and study.
-  const auto to = pacs_.Find(request.store_to(), "store_to");
+  const auto to = pacs_.Find(request.store_to(), caller, "store_to");
   if (request.format() == v1::EXR) throw InputError("store_to: a render goes to a PACS as PNG; leave format unset");
   const v1::VolumeInfo volume = volumes_.Describe(session.volume()->id(), caller);
   const std::optional<PacsOrigin> origin = ParsePacsSource(volume.source());
@@ -521,7 +525,7 @@ ServiceCore::SnapshotDone ServiceCore::StoreAfter(const v1::SnapshotRequest& req
                     "the study of a series loaded with LoadSeries",
                     volume.id(), LogSafe(volume.source(), 80)));
   }
-  const auto from = pacs_.Find(origin->pacs, "store_to");
+  const auto from = pacs_.Find(origin->pacs, caller, "store_to");
   auto finish = std::make_shared<SnapshotDone>(std::move(done));  // called once, whoever runs it
   const VolumePlacement placement = VolumePlacement::Of(*session.volume()->volume());
   return [this, to, from, origin = *origin, scene, placement, cancel, finish](grpc::Status status,

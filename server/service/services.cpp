@@ -597,8 +597,8 @@ grpc::ServerUnaryReactor* PacsServiceImpl::SearchStudies(grpc::CallbackServerCon
                                                          v1::SearchStudiesResponse* response) {
   return new PooledReactor(
       context, core_, core_->pacs_calls(), "SearchStudies",
-      [this, request, response](const Principal&, const std::atomic<bool>& stop) {
-        const auto client = core_->pacs().Find(request->pacs());
+      [this, request, response](const Principal& caller, const std::atomic<bool>& stop) {
+        const auto client = core_->pacs().Find(request->pacs(), caller);
         for (const pacs::StudySummary& study : client->SearchStudies(ToQuery(*request), &stop)) {
           AddStudy(study, response->add_studies());
         }
@@ -611,8 +611,8 @@ grpc::ServerUnaryReactor* PacsServiceImpl::SearchSeries(grpc::CallbackServerCont
                                                         v1::SearchSeriesResponse* response) {
   return new PooledReactor(
       context, core_, core_->pacs_calls(), "SearchSeries",
-      [this, request, response](const Principal&, const std::atomic<bool>& stop) {
-        const auto client = core_->pacs().Find(request->pacs());
+      [this, request, response](const Principal& caller, const std::atomic<bool>& stop) {
+        const auto client = core_->pacs().Find(request->pacs(), caller);
         for (const pacs::SeriesSummary& series : client->SearchSeries(request->study_uid(), &stop)) {
           AddSeries(series, response->add_series());
         }
@@ -628,7 +628,7 @@ grpc::ServerWriteReactor<v1::LoadSeriesUpdate>* PacsServiceImpl::LoadSeries(grpc
   const grpc::Status status = Guarded([&] {
     caller = core_->Authenticate(*context);
     core_->RequireServing();
-    client = core_->pacs().Find(request->pacs());
+    client = core_->pacs().Find(request->pacs(), caller);
     slot = core_->BeginLoad(caller);
   });
   // The call's cancelling (the caller gone, a failed write) raises the slot's flag, as Drain does.

@@ -21,6 +21,7 @@
 #include "pacs/stamped_series.h"
 #include "service/server_process.h"
 #include "service/service_test_support.h"
+#include "support/error_of.h"
 #include "support/test_paths.h"
 
 namespace cinevol::testing {
@@ -447,6 +448,40 @@ TEST(PacsServerHostile, AStalledPacsHoldsOnlyItsShare) {
   EXPECT_LT(std::chrono::steady_clock::now() - start, 5s) << "bob's upload waited on alice's loads";
   server.Stop();  // ends alice's calls
   for (std::thread& t : alice) t.join();
+}
+
+// --pacs-auth forward: the PACS sees each caller's own token, never the
+// server's; a call without one is refused naming the flag; without a token
+// file each token is its own principal; the server never logs a token.
+TEST(PacsServerHostile, ForwardedTokensReachThePacsAndNameTheirCallers) {
+  ScratchDir scratch;
+  LoopbackHttpServer pacs([](const HttpRequestSeen& request) {
+    const bool alice = request.head.find("Authorization: Bearer alice.oidc-token==") != std::string::npos;
+    return alice ? Answer(200, "application/dicom+json", R"([{"0020000D":{"vr":"UI","Value":["1.2.3"]}}])")
+                 : Answer(401, "text/plain", "who are you?");
+  });
+  ServerProcess server(scratch.path(), {"--pacs", "gated=" + pacs.url() + "/dicom-web", "--pacs-auth", "forward"});
+  ASSERT_TRUE(server.running()) << server.Log();
+  v1::SearchStudiesRequest search;
+  search.set_pacs("gated");
+  EXPECT_EQ(server.Connect("alice.oidc-token==").SearchStudies(search).size(), 1u) << "alice's own token";
+  const std::string refused = ErrorOf<std::exception>([&] { server.Connect("mallory-token").SearchStudies(search); });
+  EXPECT_NE(refused.find("refused the caller's token"), std::string::npos) << refused;
+  const std::string tokenless = ErrorOf<std::exception>([&] { server.Connect().SearchStudies(search); });
+  EXPECT_NE(tokenless.find("--pacs-auth forward"), std::string::npos) << tokenless;
+  const std::string header = ErrorOf<std::exception>([&] { server.Connect("evil; X-Injected: 1").SearchStudies(search); });
+  EXPECT_NE(header.find("RFC 6750"), std::string::npos) << "a token that is no RFC 6750 token never reaches a header";
+  for (const HttpRequestSeen& seen : pacs.requests()) {
+    EXPECT_EQ(seen.head.find("X-Injected"), std::string::npos) << seen.head;
+  }
+
+  // Each token its own principal: alice's upload is not mallory's to see.
+  WriteSmallNrrd(scratch / "small.nrrd");
+  const std::string id = server.Connect("alice.oidc-token==").UploadVolume(scratch / "small.nrrd").id();
+  const std::string hidden = ErrorOf<std::exception>([&] { server.Connect("mallory-token").DescribeVolume(id); });
+  EXPECT_FALSE(hidden.empty()) << "another token's caller saw alice's volume";
+  server.Stop();
+  EXPECT_EQ(server.Log().find("oidc-token"), std::string::npos) << "a token reached the log";
 }
 
 // `cinevol pacs search` prints what a PACS names a patient: an escape
