@@ -15,6 +15,7 @@ void AddDemoCommand(CLI::App& app);
 void AddHealthCommand(CLI::App& app);
 void AddInfoCommand(CLI::App& app);
 void AddLoadtestCommand(CLI::App& app);
+void AddMeasurementsCommand(CLI::App& app);  // measurements store, load
 void AddPacsCommand(CLI::App& app);
 void AddPickCommand(CLI::App& app);
 void AddPlayCommand(CLI::App& app);

@@ -336,6 +336,17 @@ v1::VolumeInfo Client::LoadSeries(const v1::LoadSeriesRequest& request,
   });
 }
 
+v1::StoredObject Client::StoreMeasurements(const std::string& session_id, const std::string& pacs) {
+  v1::StoreMeasurementsRequest request;
+  request.set_session_id(pool_->CurrentId(session_id));
+  request.set_pacs(pacs);
+  return PacsCalls(*pool_, pool_->AddressOf(session_id)).StoreMeasurements(request);  // where the session lives
+}
+
+v1::LoadMeasurementsResponse Client::LoadMeasurements(const v1::LoadMeasurementsRequest& request) {
+  return OnHome([&](const std::string& home) { return PacsCalls(*pool_, home).LoadMeasurements(request); });
+}
+
 v1::VolumeInfo Client::UploadVolume(const std::filesystem::path& file, const std::string& orientation,
                                     std::size_t chunk_bytes) {
   return OnHome([&](const std::string& home) {
@@ -410,6 +421,16 @@ v1::SnapshotResponse Client::Snapshot(v1::SnapshotRequest request, const Snapsho
   v1::SnapshotResponse response;
   Check(stub->Snapshot(pool_->CallContext(limit).get(), request, &response));
   return response;
+}
+
+v1::SessionState Client::SendEvents(const std::string& session_id, const std::vector<v1::SessionEvent>& events) {
+  auto stub = v1::SessionService::NewStub(pool_->Channel(pool_->AddressOf(session_id)));
+  v1::SendEventsRequest request;
+  request.set_session_id(pool_->CurrentId(session_id));
+  for (const v1::SessionEvent& event : events) *request.add_events() = event;
+  v1::SendEventsResponse response;
+  Check(stub->SendEvents(pool_->CallContext().get(), request, &response));
+  return response.state();
 }
 
 void Client::CloseSession(const std::string& session_id) {

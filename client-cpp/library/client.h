@@ -192,6 +192,11 @@ class Client {
   v1::VolumeInfo LoadSeries(const v1::LoadSeriesRequest& request,
                             const std::function<void(const v1::LoadSeriesProgress&)>& on_progress = {});
   void UnloadVolume(const std::string& volume_id);
+  // A session's measurements stored on PACS `pacs` as a DICOM SR measurement
+  // report, into the study of the session's volume (which came from a PACS);
+  // and a report read back as measurements (docs/pacs.md).
+  v1::StoredObject StoreMeasurements(const std::string& session_id, const std::string& pacs);
+  v1::LoadMeasurementsResponse LoadMeasurements(const v1::LoadMeasurementsRequest& request);
 
   // With several servers, on the one with the most room (ServerStatus).
   // The session's calls below go where it lives (CreateSessionResponse's
@@ -210,6 +215,8 @@ class Client {
   // The reading calls (docs/reading.md), bounded by call_timeout: a slice of
   // the session's volume as a PNG with its geometry, and what lies under a
   // pixel of the session's viewport.
+  // Events for a session without a stream (SendEvents): the state after them.
+  v1::SessionState SendEvents(const std::string& session_id, const std::vector<v1::SessionEvent>& events);
   v1::SliceImage RenderSlice(v1::SliceRequest request);
   v1::PickResult Pick(v1::PickRequest request);
   // Sharing (docs/sharing.md). The owner's calls: a grant (its secret is in

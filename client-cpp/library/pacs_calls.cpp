@@ -42,4 +42,16 @@ v1::VolumeInfo PacsCalls::LoadSeries(const v1::LoadSeriesRequest& request,
   return volume;
 }
 
+v1::StoredObject PacsCalls::StoreMeasurements(const v1::StoreMeasurementsRequest& request) {
+  v1::StoredObject response;
+  Check(stub_->StoreMeasurements(pool_.CallContext().get(), request, &response));
+  return response;
+}
+
+v1::LoadMeasurementsResponse PacsCalls::LoadMeasurements(const v1::LoadMeasurementsRequest& request) {
+  v1::LoadMeasurementsResponse response;
+  Check(stub_->LoadMeasurements(pool_.CallContext().get(), request, &response));
+  return response;
+}
+
 }  // namespace cinevol

@@ -24,6 +24,8 @@ class PacsCalls {
   // Progress as the server sends it, then the volume.
   v1::VolumeInfo LoadSeries(const v1::LoadSeriesRequest& request,
                             const std::function<void(const v1::LoadSeriesProgress&)>& on_progress = {});
+  v1::StoredObject StoreMeasurements(const v1::StoreMeasurementsRequest& request);
+  v1::LoadMeasurementsResponse LoadMeasurements(const v1::LoadMeasurementsRequest& request);
 
  private:
   ServerPool& pool_;

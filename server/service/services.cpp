@@ -11,6 +11,7 @@
 #include "io/label_volume.h"
 #include "io/volume_loader.h"
 #include "runtime/errors.h"
+#include "runtime/measurement_store.h"
 #include "runtime/metrics.h"
 #include "runtime/series_load.h"
 #include "service/session_stream.h"
@@ -654,6 +655,42 @@ grpc::ServerWriteReactor<v1::LoadSeriesUpdate>* PacsServiceImpl::LoadSeries(grpc
     reactor->Complete(RpcError::Unavailable("the server is shutting down").status(), {});
   }
   return reactor;
+}
+
+// Measurement reports (issue 57): on the PACS pool, as searches are, grouped by the PACS they go to or come from.
+grpc::ServerUnaryReactor* PacsServiceImpl::StoreMeasurements(grpc::CallbackServerContext* context,
+                                                             const v1::StoreMeasurementsRequest* request,
+                                                             v1::StoredObject* response) {
+  return new PooledReactor(
+      context, core_, core_->pacs_calls(), "StoreMeasurements",
+      [this, request, response](const Principal& caller, const std::atomic<bool>& stop) {
+        // Its owner (or an operator), or its presenter by a principal's grant.
+        const std::shared_ptr<Session> session = core_->sharing().OwnedOrPresented(request->session_id(), caller);
+        const auto to = core_->pacs().Find(request->pacs(), caller, "pacs");
+        const v1::SessionState state = session->CurrentState();
+        if (state.scene().measurements().empty()) {
+          throw RpcError::FailedPrecondition(
+              fmt::format("session '{}' has no measurements to store", session->id()));
+        }
+        Principal owner;  // the volume is the owner's, whoever presents
+        owner.name = session->owner();
+        const PacsOrigin origin = MeasuredOrigin(core_->volumes().Describe(session->volume()->id(), owner));
+        const auto from = core_->pacs().Find(origin.pacs, caller, "pacs");
+        *response = service::StoreMeasurements(*to, *from, origin, state.scene().measurements(), CINEVOL_VERSION,
+                                               &stop);
+      },
+      request->pacs());
+}
+
+grpc::ServerUnaryReactor* PacsServiceImpl::LoadMeasurements(grpc::CallbackServerContext* context,
+                                                            const v1::LoadMeasurementsRequest* request,
+                                                            v1::LoadMeasurementsResponse* response) {
+  return new PooledReactor(
+      context, core_, core_->pacs_calls(), "LoadMeasurements",
+      [this, request, response](const Principal& caller, const std::atomic<bool>& stop) {
+        *response = service::LoadMeasurements(*core_->pacs().Find(request->pacs(), caller), *request, &stop);
+      },
+      request->pacs());
 }
 
 }  // namespace cinevol::service

@@ -88,6 +88,12 @@ class PacsServiceImpl final : public v1::PacsService::CallbackService {
                                          v1::SearchSeriesResponse* response) override;
   grpc::ServerWriteReactor<v1::LoadSeriesUpdate>* LoadSeries(grpc::CallbackServerContext* context,
                                                              const v1::LoadSeriesRequest* request) override;
+  grpc::ServerUnaryReactor* StoreMeasurements(grpc::CallbackServerContext* context,
+                                              const v1::StoreMeasurementsRequest* request,
+                                              v1::StoredObject* response) override;
+  grpc::ServerUnaryReactor* LoadMeasurements(grpc::CallbackServerContext* context,
+                                             const v1::LoadMeasurementsRequest* request,
+                                             v1::LoadMeasurementsResponse* response) override;
 
  private:
   ServiceCore* core_;

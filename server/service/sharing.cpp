@@ -101,6 +101,15 @@ v1::RevokeShareResponse Sharing::Revoke(const v1::RevokeShareRequest& request, c
   return out;
 }
 
+std::shared_ptr<Session> Sharing::OwnedOrPresented(const std::string& id, const Principal& caller) const {
+  if (const std::shared_ptr<Session> session = find_(id)) {
+    for (const Grant& grant : grants_.OfSession(session->id())) {
+      if (grant.role == GrantRole::kPresenter && !grant.link() && grant.principal == caller.name) return session;
+    }
+  }
+  return owned_(id, caller);
+}
+
 void Sharing::MakePresenter(Session& session, const std::string& grant_id, const std::string& presenter) {
   for (const Grant& grant : grants_.OfSession(session.id())) {
     grants_.SetRole(grant.id, grant.id == grant_id ? GrantRole::kPresenter : GrantRole::kViewer);

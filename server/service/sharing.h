@@ -42,6 +42,11 @@ class Sharing {
   // bad, revoked or expired grant, one for another session or principal.
   GrantAccess Access(const grpc::CallbackServerContext& context, const std::string& session_id,
                      const std::string& secret) const;
+  // Session `id` for a call its owner (or an operator) or its presenter may
+  // make with a token alone (StoreMeasurements): the presenter by a
+  // principal's grant, whose token names them (a link's holder has none).
+  // NOT_FOUND or PERMISSION_DENIED as ServiceCore::FindSession.
+  std::shared_ptr<Session> OwnedOrPresented(const std::string& id, const Principal& caller) const;
   // SendEvents by a grant's holder: a presenter's events as the owner's, a
   // viewer's pointer (where allowed); anything else PERMISSION_DENIED.
   v1::SessionState SendEvents(const v1::SendEventsRequest& request, const grpc::CallbackServerContext& context);

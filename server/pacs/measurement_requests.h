@@ -1,0 +1,27 @@
+// The DICOMweb requests a measurement report needs beyond DicomWebClient's own: what the measured series is (its
+// frame of reference and images, QIDO-RS), and one instance's bytes in memory (WADO-RS), both bounded.
+#pragma once
+
+#include <atomic>
+#include <cstddef>
+#include <string>
+
+#include "pacs/dicomweb_client.h"
+#include "pacs/measurement_report.h"
+
+namespace cinevol::pacs {
+
+// QIDO-RS /studies/{s}/series/{se}/instances with includefield 00200052 and 00080016: the series' images (at most
+// max_instances) and the Frame of Reference UID they share; where the listing leaves it out, WADO-RS metadata of
+// one instance says it. PacsError for a series whose instances name none or several; OverLimit past
+// max_instances; InputError for a bad UID.
+ReportSource DescribeMeasuredSeries(const DicomWebClient& pacs, const std::string& study_uid,
+                                    const std::string& series_uid, const std::atomic<bool>* cancel = nullptr);
+
+// WADO-RS /studies/{s}/series/{se}/instances/{i}, as stored: the one DICOM Part 10 instance the answer holds, at
+// most `max_bytes` (InputError past it, naming the limit). PacsError for a failing PACS or a malformed answer.
+std::string RetrieveInstance(const DicomWebClient& pacs, const std::string& study_uid, const std::string& series_uid,
+                             const std::string& sop_instance_uid, std::size_t max_bytes,
+                             const std::atomic<bool>* cancel = nullptr);
+
+}  // namespace cinevol::pacs

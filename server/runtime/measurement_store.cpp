@@ -1,0 +1,98 @@
+// StoreMeasurements and LoadMeasurements: the study and series asked of the PACS, the report made or read, STOW-RS
+// and WADO-RS.
+#include "runtime/measurement_store.h"
+
+#include <fmt/format.h>
+
+#include "core/error.h"
+#include "core/log_safe.h"
+#include "pacs/measurement_report.h"
+#include "pacs/measurement_requests.h"
+#include "pacs/pacs_error.h"
+#include "runtime/errors.h"
+
+namespace cinevol::service {
+
+PacsOrigin MeasuredOrigin(const v1::VolumeInfo& volume) {
+  const std::optional<PacsOrigin> origin = ParsePacsSource(volume.source());
+  if (!origin) {
+    throw RpcError::FailedPrecondition(
+        fmt::format("volume '{}' did not come from a PACS (it is {}); measurements go back into the study of a "
+                    "series loaded with LoadSeries, in its frame of reference",
+                    volume.id(), LogSafe(volume.source(), 80)));
+  }
+  // "@even" (uneven gaps resampled) keeps the files' patient coordinates; any other "@" is an orientation given
+  // over the files', which moves them.
+  std::string how = volume.source().substr(volume.source().find(origin->series_uid) + origin->series_uid.size());
+  if (how.rfind("@even", 0) == 0) how.erase(0, 5);
+  if (!how.empty()) {
+    throw RpcError::FailedPrecondition(
+        fmt::format("volume '{}' was read with its orientation overridden ({}): its patient coordinates are not "
+                    "those of the series' frame of reference, so its measurements cannot be stored in it",
+                    volume.id(), LogSafe(how, 16)));
+  }
+  return *origin;
+}
+
+v1::StoredObject StoreMeasurements(const pacs::DicomWebClient& to, const pacs::DicomWebClient& from,
+                                   const PacsOrigin& origin,
+                                   const google::protobuf::RepeatedPtrField<v1::Measurement>& measurements,
+                                   const std::string& version, const std::atomic<bool>* cancel) {
+  std::vector<pacs::ReportMeasurement> report;
+  for (const v1::Measurement& m : measurements) {
+    pacs::ReportMeasurement& r = report.emplace_back();
+    r.name = m.name();
+    for (const v1::Vec3& p : m.points()) r.points.push_back({p.x(), p.y(), p.z()});
+  }
+  const pacs::SourceStudy study = StudyOf(from, origin, cancel);
+  const pacs::ReportSource source = pacs::DescribeMeasuredSeries(from, origin.study_uid, origin.series_uid, cancel);
+  pacs::MeasurementReportUids uids;
+  const std::string bytes = pacs::MakeMeasurementReport(study, source, report, version, &uids);
+  to.StoreInstances(origin.study_uid, {bytes}, cancel);
+  v1::StoredObject stored;
+  stored.set_pacs(to.config().name);
+  stored.set_study_uid(uids.study_uid);
+  stored.set_series_uid(uids.series_uid);
+  stored.set_sop_instance_uid(uids.sop_instance_uid);
+  return stored;
+}
+
+v1::LoadMeasurementsResponse LoadMeasurements(const pacs::DicomWebClient& pacs,
+                                              const v1::LoadMeasurementsRequest& request,
+                                              const std::atomic<bool>* cancel) {
+  pacs::CheckUid(request.study_uid(), "study_uid");
+  pacs::CheckUid(request.series_uid(), "series_uid");
+  std::string instance = request.sop_instance_uid();
+  if (instance.empty()) {
+    const std::vector<pacs::InstanceSummary> listed =
+        pacs.ListInstances(request.study_uid(), request.series_uid(), cancel);
+    if (listed.size() != 1) {
+      throw InputError(fmt::format("sop_instance_uid: series {} holds {} instances; name the report",
+                                   request.series_uid(), listed.size()));
+    }
+    instance = listed.front().sop_instance_uid;
+  }
+  const pacs::ReadReport read =
+      pacs::ReadMeasurementReport(pacs::RetrieveInstance(pacs, request.study_uid(), request.series_uid(), instance,
+                                                         pacs::kMaxReportBytes, cancel));
+  if (read.uids.sop_instance_uid != instance) {
+    throw pacs::PacsError(fmt::format("PACS '{}' answered a retrieve of report {} with another instance",
+                                      pacs.config().name, instance));
+  }
+  v1::LoadMeasurementsResponse response;
+  for (const pacs::ReportMeasurement& m : read.measurements) {
+    v1::Measurement* out = response.add_measurements();
+    out->set_name(m.name);
+    for (const auto& p : m.points) {
+      v1::Vec3* point = out->add_points();
+      point->set_x(float(p[0]));
+      point->set_y(float(p[1]));
+      point->set_z(float(p[2]));
+    }
+  }
+  response.set_frame_of_reference_uid(read.frame_of_reference_uid);
+  response.set_source_series_uid(read.source_series_uid);
+  return response;
+}
+
+}  // namespace cinevol::service
