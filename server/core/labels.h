@@ -28,7 +28,8 @@ struct DerivedLabel {
 struct LabelVolume {
   Vec3i dims;                          // the image's
   std::vector<std::uint16_t> labels;   // one value per image voxel, x fastest: a label or a derived value
-  std::map<int, std::string> names;    // from the label table
+  std::map<int, std::string> names;    // from the label table (a DICOM SEG's segment labels)
+  std::map<int, Vec3f> colors;         // a DICOM SEG's recommended display colours: sRGB, each in [0, 1]
   std::map<int, std::uint64_t> voxels; // voxels per label present (derived values count as 0)
   std::string source;                  // the file it came from
   std::string note;                    // how it was fitted to the image's grid, when it was

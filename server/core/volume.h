@@ -69,6 +69,9 @@ struct VolumeMetadata {
   std::vector<std::string> notes;          // what loading changed: a resampling, a mirroring
   PatientIdentity identity;                // empty unless it came from DICOM
   std::optional<VoiWindow> stored_window;  // the window its DICOM gives, if any
+  // DICOM's Frame of Reference UID (0020,0052): the patient space its
+  // positions are in; empty where the file names none (NIfTI, NRRD, ...).
+  std::string frame_of_reference_uid;
 };
 
 // The patient direction each index axis points to most, as three letters

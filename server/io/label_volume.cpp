@@ -13,6 +13,7 @@
 
 #include "core/error.h"
 #include "core/parallel_for.h"
+#include "io/dicom_seg.h"
 #include "io/file_checks.h"
 #include "io/reader_cage.h"
 #include "io/table_finder.h"
@@ -306,6 +307,7 @@ void CopyTable(const LabelVolume& from, LabelVolume& to) {
 }
 
 LabelVolume LoadLabelVolume(const std::filesystem::path& path, const Volume& image, const LoadPolicy& policy) {
+  if (IsDicomSegmentation(path)) return LoadSegmentation(path, image, policy);
   const std::string shown = file_checks::Shown(path, policy);
   Volume labels = LoadVolumeFile(path, policy);
   FollowImageOrientation(labels, image);
@@ -319,6 +321,12 @@ v1::LabelSet ToLabelSet(const LabelVolume& labels) {
   std::map<int, v1::LabelName> names;
   for (const auto& [value, voxels] : labels.voxels) names[value].set_voxels(voxels);
   for (const auto& [value, name] : labels.names) names[value].set_name(name);
+  for (const auto& [value, color] : labels.colors) {
+    v1::Color& c = *names[value].mutable_color();
+    c.set_r(color.x);
+    c.set_g(color.y);
+    c.set_b(color.z);
+  }
   for (auto& [value, n] : names) {
     n.set_value(std::uint32_t(value));
     *set.add_names() = std::move(n);

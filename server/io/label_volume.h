@@ -51,7 +51,8 @@ void CopyTable(const LabelVolume& from, LabelVolume& to);
 // override) takes the same: it was stored as the image was.
 void FollowImageOrientation(Volume& labels, const Volume& image);
 
-// LoadVolumeFile under `policy`, FollowImageOrientation, then FitLabels.
+// LoadVolumeFile under `policy`, FollowImageOrientation, then FitLabels; a
+// DICOM SEG (a .dcm file, a DICOM file, a folder) through LoadSegmentation.
 LabelVolume LoadLabelVolume(const std::filesystem::path& path, const Volume& image, const LoadPolicy& policy = {});
 
 // What the API and `cinevol info` say of a segmentation: every label present

@@ -17,6 +17,7 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <atomic>
 #include <chrono>
 #include <cmath>
@@ -482,6 +483,16 @@ bool AllFinite(const google::protobuf::RepeatedField<double>& values, int count)
   return true;
 }
 
+// A DICOM UID: 1 to 64 digits and dots, no empty component; anything else
+// from a file counts as none.
+bool IsUid(std::string_view uid) {
+  if (uid.empty() || uid.size() > 64 || uid.front() == '.' || uid.back() == '.') return false;
+  for (std::size_t i = 0; i < uid.size(); ++i) {
+    if (uid[i] == '.' ? uid[i + 1] == '.' : !(uid[i] >= '0' && uid[i] <= '9')) return false;
+  }
+  return true;
+}
+
 // DICOM allows 64 characters a field (3 x 64 for a name); more is a
 // violation of the protocol, not a long name.
 bool IdentityFits(const reader::Identity& id) {
@@ -541,6 +552,7 @@ CheckedHeader Check(const reader::Header& h, ReaderProcess& child, const LoadPol
   if (h.stored_window_size() == 2 && AllFinite(h.stored_window(), 2) && h.stored_window(1) >= 1) {
     c.meta.stored_window = VoiWindow{h.stored_window(0), h.stored_window(1)};
   }
+  if (IsUid(h.frame_of_reference_uid())) c.meta.frame_of_reference_uid = h.frame_of_reference_uid();
   return c;
 }
 
@@ -594,6 +606,8 @@ std::string ReaderName(int request_kind, const std::string& file_name) {
       return "DICOM";
     case Request::LABEL_TABLE:
       return "label table";
+    case Request::DICOM_SEG:
+      return "DICOM SEG";
     case Request::EXR_IMAGE:
       return "OpenEXR";
     default:
@@ -650,6 +664,74 @@ std::vector<DicomSeriesInfo> ListDicomSeries(const std::vector<Input>& files, co
   for (const reader::Series& s : reply.series_list().series()) {
     out.push_back({ValidUtf8(s.uid()), ValidUtf8(s.description()), ValidUtf8(s.modality()), ValidUtf8(s.size()),
                    std::size_t(s.file_count())});
+  }
+  return out;
+}
+
+SegmentationRead ReadSegmentation(const std::vector<Input>& files, const Volume& image, const LoadPolicy& policy) {
+  Request request;
+  request.set_kind(Request::DICOM_SEG);
+  request.set_shown(policy.label);
+  request.set_max_voxels(policy.max_voxels);
+  reader::Grid& grid = *request.mutable_target();
+  const VolumeMetadata& meta = image.metadata();
+  for (int a = 0; a < 3; ++a) {
+    grid.add_dims(std::uint32_t(image.dims()[a]));
+    grid.add_spacing_mm(image.spacing_mm()[a]);
+    grid.add_origin_mm(meta.origin_mm[a]);
+  }
+  grid.mutable_direction()->Add(meta.direction.begin(), meta.direction.end());
+  ReaderProcess child(request, files, policy);
+  const Reply reply = child.Receive();
+  if (reply.reply_case() != Reply::kHeader || !reply.header().has_segmentation()) child.Violation("answered out of turn");
+  const reader::Header& h = reply.header();
+  const reader::Segmentation& seg = h.segmentation();
+  bool sane = h.dims_size() == 3 && h.voxel_type() == "uint16" && h.notes_size() <= 8 &&
+              (seg.type() == "BINARY" || seg.type() == "FRACTIONAL") && seg.segments_size() >= 1 &&
+              seg.segments_size() <= 1024 && seg.frames_outside() < seg.frames() &&
+              h.frame_of_reference_uid().size() <= 64;
+  for (int a = 0; sane && a < 3; ++a) sane = h.dims(a) == std::uint32_t(image.dims()[a]);
+  SegmentationRead out;
+  std::vector<bool> is_segment(65536, false);
+  for (int i = 0; sane && i < seg.segments_size(); ++i) {
+    const reader::Segment& s = seg.segments(i);
+    sane = s.number() >= 1 && s.number() <= 65535 && !is_segment[s.number()] && s.label().size() <= 1024 &&
+           (s.cielab_size() == 0 || s.cielab_size() == 3);
+    for (int k = 0; sane && k < s.cielab_size(); ++k) sane = s.cielab(k) <= 65535;
+    if (!sane) break;
+    is_segment[s.number()] = true;
+    SegmentationRead::Segment& mine = out.segments.emplace_back();
+    mine.number = int(s.number());
+    mine.label = ValidUtf8(LogSafe(s.label(), 256));
+    mine.has_cielab = s.cielab_size() == 3;
+    for (int k = 0; k < s.cielab_size(); ++k) mine.cielab[k] = std::uint16_t(s.cielab(k));
+  }
+  if (!sane) child.Violation("sent a segmentation header that does not hold together");
+  std::sort(out.segments.begin(), out.segments.end(), [](const auto& a, const auto& b) { return a.number < b.number; });
+  out.type = seg.type();
+  out.frames = seg.frames();
+  out.frames_outside = seg.frames_outside();
+  for (const std::string& note : h.notes()) out.notes.push_back(ValidUtf8(LogSafe(note, 512)));
+  if (IsUid(h.frame_of_reference_uid())) out.frame_of_reference_uid = h.frame_of_reference_uid();
+  const std::string& volume_frame = meta.frame_of_reference_uid;
+  if (!volume_frame.empty() && out.frame_of_reference_uid != volume_frame) {
+    throw InputError(fmt::format("{}: its frame of reference ({}) is not the volume's ({}): it segments another "
+                                 "acquisition's patient space",
+                                 child.shown(), out.frame_of_reference_uid.empty() ? "none" : out.frame_of_reference_uid,
+                                 volume_frame));
+  }
+  const std::uint64_t bytes = image.voxel_count() * sizeof(std::uint16_t);
+  if (policy.reserve) policy.reserve(2 * bytes);
+  UniqueFd memory = SealedMemory(bytes, child.shown());
+  child.Proceed(memory.get(), bytes);
+  child.Finish();
+  const MemoryBlock block = MapMemory(std::move(memory), bytes, child.shown());
+  const auto* labels = static_cast<const std::uint16_t*>(block.data());
+  out.labels.assign(labels, labels + image.voxel_count());
+  for (std::uint16_t label : out.labels) {
+    if (label != 0 && !is_segment[label]) {
+      throw InputError(fmt::format("{}: the DICOM SEG reader wrote label {}, which is no segment", child.shown(), label));
+    }
   }
   return out;
 }

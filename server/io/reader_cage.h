@@ -15,7 +15,9 @@
 // (SIGABRT)"). docs/security.md tells the whole story.
 #pragma once
 
+#include <array>
 #include <atomic>
+#include <cstdint>
 #include <filesystem>
 #include <functional>
 #include <map>
@@ -48,6 +50,29 @@ Volume ReadDicomSeries(const std::vector<Input>& files, const std::string& serie
 
 // The series `files` hold, largest first.
 std::vector<DicomSeriesInfo> ListDicomSeries(const std::vector<Input>& files, const LoadPolicy& policy);
+
+// A DICOM SEG placed onto a volume's grid (io/dicom_seg.h makes it labels).
+struct SegmentationRead {
+  struct Segment {
+    int number = 0;       // the label value
+    std::string label;    // Segment Label, valid UTF-8
+    bool has_cielab = false;
+    std::array<std::uint16_t, 3> cielab{};  // Recommended Display CIELab Value, DICOM's scaled PCS
+  };
+  std::vector<std::uint16_t> labels;  // one per voxel of the volume, x fastest: a segment number or 0
+  std::vector<Segment> segments;      // ascending numbers
+  std::string type;                   // "BINARY" or "FRACTIONAL"
+  std::string frame_of_reference_uid;
+  std::uint32_t frames = 0, frames_outside = 0;
+  std::vector<std::string> notes;     // what placing it found (frames outside, overlaps)
+};
+
+// The SEG among `files` (one file, or a folder's: exactly one SEG among
+// them) onto `image`'s grid. A SEG in another frame of reference than the
+// image's (where the image has one) is refused naming both, before any
+// memory is reserved; policy.reserve is asked for twice the labels' bytes
+// (the shared memory and the copy).
+SegmentationRead ReadSegmentation(const std::vector<Input>& files, const Volume& image, const LoadPolicy& policy);
 
 // A label table file (`value<TAB>name` lines); messages call it `shown`.
 std::map<int, std::string> ReadLabelTable(const std::filesystem::path& file, const std::string& shown,

@@ -9,6 +9,7 @@
 
 #include "core/error.h"
 #include "core/log_safe.h"
+#include "io/dicom_seg.h"
 #include "io/label_volume.h"
 #include "io/reader_cage.h"
 #include "io/table_finder.h"
@@ -401,14 +402,15 @@ std::uint64_t VolumeRegistry::HeldBytesLocked() const {
 }
 
 std::shared_ptr<const Volume> VolumeRegistry::VolumeForLabels(const std::string& id, const Principal& caller,
-                                                              std::shared_ptr<const LabelVolume>* held) const {
+                                                              std::shared_ptr<const LabelVolume>* held,
+                                                              const std::string& field) const {
   std::lock_guard lock(mu_);
-  const Entry& e = FindLocked(id, caller, "volume_id");
+  const Entry& e = FindLocked(id, caller, field);
   if (!caller.is_operator && e.owner != caller.name) {
     throw RpcError::PermissionDenied(
-        fmt::format("volume_id: volume '{}' was loaded by {}; only its owner or an operator may load its "
+        fmt::format("{}: volume '{}' was loaded by {}; only its owner or an operator may load its "
                     "segmentation",
-                    id, e.owner.empty() ? "the operator" : "another user"));
+                    field, id, e.owner.empty() ? "the operator" : "another user"));
   }
   *held = e.labels;
   return e.volume;
@@ -422,12 +424,43 @@ v1::VolumeInfo VolumeRegistry::LoadLabels(const std::string& id, const std::stri
   const fs::path table = table_path.empty() ? fs::path() : ResolveDataPath(table_path, "table_path");
   Reservation reservation(this, caller.name, false, "the segmentation");
   const std::string shown = "path '" + path + "'";
-  Volume file = LoadVolumeFile(labels, PolicyFor(shown, false, cancel, &reservation));
-  FollowImageOrientation(file, *image);
-  reservation.Add(LabelBytesFor(*image));
-  LabelVolume loaded = FitLabels(file, *image, shown);
+  LabelVolume loaded;
+  if (IsDicomSegmentation(labels)) {  // a DICOM SEG: placed in the reader cage, its memory reserved there
+    loaded = LoadSegmentation(labels, *image, PolicyFor(shown, false, cancel, &reservation));
+  } else {
+    Volume file = LoadVolumeFile(labels, PolicyFor(shown, false, cancel, &reservation));
+    FollowImageOrientation(file, *image);
+    reservation.Add(LabelBytesFor(*image));
+    loaded = FitLabels(file, *image, shown);
+  }
   if (held) CopyTable(*held, loaded);  // the table found when the volume loaded stays marked
-  if (!table.empty()) loaded.names = LoadLabelTable(table, "table_path '" + table_path + "'");
+  if (!table.empty()) {  // a SEG's own names stay where the table names no other
+    for (auto& [value, name] : LoadLabelTable(table, "table_path '" + table_path + "'")) loaded.names[value] = name;
+  }
+  return AttachLabels(id, image, std::move(loaded), caller, &reservation);
+}
+
+void VolumeRegistry::RequireLabelsAllowed(const std::string& id, const Principal& caller,
+                                          const std::string& field) const {
+  std::shared_ptr<const LabelVolume> held;
+  VolumeForLabels(id, caller, &held, field);
+}
+
+v1::VolumeInfo VolumeRegistry::AddRetrievedLabels(const std::string& id, const fs::path& folder,
+                                                  const std::string& source, const Principal& caller,
+                                                  const std::atomic<bool>* cancel) {
+  struct RemoveFolder {
+    const fs::path& folder;
+    ~RemoveFolder() {
+      std::error_code ec;
+      fs::remove_all(folder, ec);
+    }
+  } remove{folder};
+  std::shared_ptr<const LabelVolume> held;
+  const std::shared_ptr<const Volume> image = VolumeForLabels(id, caller, &held, "labels_for");
+  Reservation reservation(this, caller.name, false, "the segmentation");
+  LabelVolume loaded = LoadSegmentation(folder, *image, PolicyFor(source, true, cancel, &reservation));
+  if (held) CopyTable(*held, loaded);
   return AttachLabels(id, image, std::move(loaded), caller, &reservation);
 }
 

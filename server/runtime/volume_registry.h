@@ -114,6 +114,15 @@ class VolumeRegistry {
   // created afterwards. Only the volume's owner or an operator may.
   v1::VolumeInfo LoadLabels(const std::string& id, const std::string& path, const std::string& table_path,
                             const Principal& caller, const std::atomic<bool>* cancel = nullptr);
+  // A DICOM SEG retrieved from a PACS into `folder` (in upload_dir();
+  // removed) as volume `id`'s segmentation, as LoadLabels loads a SEG file;
+  // `source` ("pacs:NAME/STUDY_UID/SERIES_UID") names it.
+  v1::VolumeInfo AddRetrievedLabels(const std::string& id, const std::filesystem::path& folder,
+                                    const std::string& source, const Principal& caller,
+                                    const std::atomic<bool>* cancel = nullptr);
+  // Throws unless `caller` may load a segmentation for volume `id`
+  // (NOT_FOUND, PERMISSION_DENIED); messages name the request's `field`.
+  void RequireLabelsAllowed(const std::string& id, const Principal& caller, const std::string& field) const;
   // The same from an upload written to `file` (removed), with the table's text.
   v1::VolumeInfo AddUploadedLabels(const std::string& id, const std::filesystem::path& file,
                                    const std::string& file_name, const std::string& table, const Principal& caller,
@@ -175,7 +184,8 @@ class VolumeRegistry {
   v1::VolumeInfo InfoLocked(const std::string& id, const Entry& e) const;
   // The volume `id` for attaching labels: its owner's or an operator's; `held`: the labels it holds now.
   std::shared_ptr<const Volume> VolumeForLabels(const std::string& id, const Principal& caller,
-                                                std::shared_ptr<const LabelVolume>* held) const;
+                                                std::shared_ptr<const LabelVolume>* held,
+                                                const std::string& field = "volume_id") const;
   // Holds `labels`, fitted to `image`, for volume `id` if that is still `image`.
   v1::VolumeInfo AttachLabels(const std::string& id, const std::shared_ptr<const Volume>& image, LabelVolume labels,
                               const Principal& caller, Reservation* reservation);

@@ -426,6 +426,7 @@ class DicomSeriesRead final : public reader::VolumeRead {
     header_.set_value_unit(header_.modality() == "CT" ? "HU" : "");
     *header_.mutable_identity() = series.identity;
     for (double v : series.stored_window) header_.add_stored_window(v);
+    header_.set_frame_of_reference_uid(series.frame_of_reference_uid);
     std::string original = ComponentName(io->GetInternalComponentType());
     if (io->GetRescaleSlope() != 1.0 || io->GetRescaleIntercept() != 0.0) {
       original +=

@@ -19,6 +19,7 @@
 #include "io/readers/itk_adapter.h"
 #include "io/readers/reading.h"
 #include "io/readers/sandbox.h"
+#include "io/readers/seg_reader.h"
 
 namespace {
 
@@ -98,6 +99,7 @@ int main(int argc, char** argv) {
   try {
     reader::SetLimits(args.address_space, args.address_space_max, args.cpu_seconds);
     itk_adapter::WarmUp();  // before the request: a spare does it while it waits
+    reader::WarmUpSegmentations();  // DCMTK's dictionary, which the sandbox leaves unreadable
     std::vector<UniqueFd> inputs;
     reader::Request request = ReceiveRequest(channel, inputs);
     std::vector<int> fds;

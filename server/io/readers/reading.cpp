@@ -15,6 +15,7 @@
 #include "encode/image_codecs.h"
 #include "io/formats/format.h"
 #include "io/label_volume.h"
+#include "io/readers/seg_reader.h"
 #include "io/readers/volume_read.h"
 
 namespace fs = std::filesystem;
@@ -110,7 +111,8 @@ Reply Job::Answer() {
   options.scratch_fd = scratch_.get();
   options.scratch_path = scratch_path_;
   std::vector<DicomFile> dicom;
-  if (request_.kind() == Request::DICOM_SERIES || request_.kind() == Request::DICOM_LIST) {
+  if (request_.kind() == Request::DICOM_SERIES || request_.kind() == Request::DICOM_LIST ||
+      request_.kind() == Request::DICOM_SEG) {
     for (std::size_t i = 0; i < inputs_.size(); ++i) dicom.push_back({InputPath(i), request_.file_names(int(i))});
   }
   Reply reply;
@@ -128,6 +130,10 @@ Reply Job::Answer() {
       break;
     case Request::DICOM_LIST:
       *reply.mutable_series_list() = ListDicomSeries(dicom, options);
+      break;
+    case Request::DICOM_SEG:
+      volume_ = OpenSegmentation(dicom, request_.target(), options);
+      *reply.mutable_header() = volume_->header();
       break;
     case Request::LABEL_TABLE: {  // read through its descriptor: an upload's table is a memfd
       const std::string text = ReadAll(inputs_[0].get(), kMaxLabelTableBytes + 1);

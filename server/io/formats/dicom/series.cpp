@@ -35,6 +35,7 @@ const gdcm::Tag kPatientName(0x0010, 0x0010);
 const gdcm::Tag kPatientId(0x0010, 0x0020);
 const gdcm::Tag kStudyDate(0x0008, 0x0020);
 const gdcm::Tag kStudyDescription(0x0008, 0x1030);
+const gdcm::Tag kFrameOfReference(0x0020, 0x0052);
 
 // Slices whose positions along the normal differ by more than this fraction
 // of the typical gap count as unevenly spaced.
@@ -72,7 +73,8 @@ void ScanFiles(const std::vector<reader::DicomFile>& files, const reader::ReadOp
   }
   for (const gdcm::Tag& t : {kSeriesUid, kSeriesDescription, kModality, kImagePosition, kImageOrientation, kRows,
                              kColumns, kSliceThickness, kPhotometric, kRescaleIntercept, kRescaleSlope, kWindowCenter,
-                             kWindowWidth, kPatientName, kPatientId, kStudyDate, kStudyDescription}) {
+                             kWindowWidth, kPatientName, kPatientId, kStudyDate, kStudyDescription,
+                             kFrameOfReference}) {
     scan.scanner.AddTag(t);
   }
   if (!sound.empty() && !scan.scanner.Scan(sound)) {
@@ -320,6 +322,7 @@ SortedSeries ChooseSeries(const std::vector<reader::DicomFile>& files, const std
   sorted.rescaled_alike = SameRescale(scan, files_sorted);
   sorted.identity = IdentityOf(scan, files_sorted[0]);
   sorted.stored_window = StoredWindow(scan, files_sorted[0]);
+  sorted.frame_of_reference_uid = Value(scan, files_sorted[0], kFrameOfReference);
   return sorted;
 }
 

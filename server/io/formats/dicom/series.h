@@ -49,6 +49,7 @@ struct SortedSeries {
   bool rescaled_alike = true;         // every slice with the same rescale slope and intercept
   reader::Identity identity;          // the first slice's patient and study fields
   std::vector<double> stored_window;  // the first slice's first window: center, width; or empty
+  std::string frame_of_reference_uid;  // the first slice's (0020,0052); empty when it names none
 };
 
 // The series `files` hold, largest first. Files whose structure is not sound
