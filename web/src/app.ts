@@ -79,13 +79,25 @@ export class App {
     this.transfer.offer(status.presets, true);
     const volumes = await this.api.volumes.listVolumes({});
     $<HTMLSelectElement>("volumes").replaceChildren(...volumes.volumes.map((v) => new Option(v.id, v.id)));
-    void new PacsPanel(this.api, (volume) => void this.open(volume.id), (t) => this.said.setBanner(t),
-                       (t) => this.said.showError(t)).start();
+    void new PacsPanel(this.api, {
+      loaded: (volume) => void this.open(volume.id),
+      measured: (measurements) => this.measure(measurements),
+      sessionId: () => this.link.session?.id,
+      volumeId: () => this.link.session?.volumeId,
+      banner: (t) => this.said.setBanner(t),
+      error: (t) => this.said.showError(t),
+    }).start();
     // An address that names no volume opens the server's first, as the desktop viewer does: never a blank view.
     const volumeId = address.volume ?? volumes.volumes[0]?.id;
     if (address.session) await this.join(address.session);
     else if (volumeId) await this.open(volumeId, address.preset);
     else this.said.setWaiting("The server holds no volume yet: open a study from the PACS, on the left, where it has one.");
+  }
+
+  /** Measurements from a report: the page's own from now on, and the session's. */
+  private measure(measurements: readonly { points: readonly { x: number; y: number; z: number }[] }[]): void {
+    this.reading.follow(measurements);
+    this.reading.onMeasurementsEdited(this.reading.measurements);
   }
 
   async open(volumeId: string, preset?: string): Promise<void> {

@@ -1,14 +1,27 @@
 // The PACS panel: the server's PACS names, a study search, a study's series,
-// and a series loaded as a volume (its progress in the banner).
+// and a series opened: images loaded as a volume (its progress in the
+// banner), a measurement report (SR) as the session's measurements, a
+// segmentation (SEG) as the open volume's labels; and the session's
+// measurements stored back as a report (docs/web.md).
+import type { Measurement } from "../gen/cinevol/v1/scene_pb.js";
 import type { VolumeInfo } from "../gen/cinevol/v1/service_pb.js";
 import type { Api } from "./api.js";
 import { plainWords } from "./words.js";
 
 const $ = <T extends HTMLElement>(id: string) => document.getElementById(id) as T;
 
+/** What the panel acts on in the rest of the page. */
+export interface PacsPanelHooks {
+  loaded: (volume: VolumeInfo) => void;
+  measured: (measurements: readonly Measurement[]) => void;
+  sessionId: () => string | undefined;
+  volumeId: () => string | undefined;
+  banner: (text: string) => void;
+  error: (text: string) => void;
+}
+
 export class PacsPanel {
-  constructor(private readonly api: Api, private readonly loaded: (volume: VolumeInfo) => void,
-              private readonly banner: (text: string) => void, private readonly error: (text: string) => void) {}
+  constructor(private readonly api: Api, private readonly hooks: PacsPanelHooks) {}
 
   async start(): Promise<void> {
     try {
@@ -17,6 +30,7 @@ export class PacsPanel {
       $<HTMLSelectElement>("pacs-name").replaceChildren(...names.map((n) => new Option(n, n)));
       $("pacs").hidden = false;
       $("pacs-search").addEventListener("click", () => void this.search());
+      $("pacs-store-measurements").addEventListener("click", () => void this.storeMeasurements());
     } catch {
       // A server without PACS (or an older one) shows no panel.
     }
@@ -38,7 +52,7 @@ export class PacsPanel {
         open: () => void this.series(s.studyUid),
       })), "No study found.");
     } catch (e) {
-      this.error(plainWords(e));
+      this.hooks.error(plainWords(e));
     }
   }
 
@@ -47,29 +61,58 @@ export class PacsPanel {
       const { series } = await this.api.pacs.searchSeries({ pacs: this.pacs(), studyUid });
       this.list(series.map((s) => ({
         text: `${s.modality} · ${s.description || "(no description)"} · ${s.instanceCount ?? "?"} images`,
-        open: () => void this.load(studyUid, s.seriesUid),
+        open: () => void (s.modality === "SR" ? this.loadMeasurements(studyUid, s.seriesUid)
+                          : this.load(studyUid, s.seriesUid, s.modality === "SEG")),
       })), "The study has no series.");
     } catch (e) {
-      this.error(plainWords(e));
+      this.hooks.error(plainWords(e));
     }
   }
 
-  private async load(studyUid: string, seriesUid: string): Promise<void> {
+  /** A series as a volume; a segmentation as the open volume's labels. */
+  private async load(studyUid: string, seriesUid: string, segmentation: boolean): Promise<void> {
+    const { banner, error, loaded } = this.hooks;
+    const labelsFor = segmentation ? this.hooks.volumeId() ?? "" : "";
+    if (segmentation && !labelsFor) return error("Open the images this segmentation belongs to first.");
     try {
       // Refused by default, as on the server: a series with missing slices is resampled only when asked.
       const resampleUneven = ($("pacs-resample-uneven") as HTMLInputElement).checked;
-      for await (const update of this.api.pacs.loadSeries({ pacs: this.pacs(), studyUid, seriesUid, resampleUneven })) {
+      for await (const update of this.api.pacs.loadSeries({ pacs: this.pacs(), studyUid, seriesUid, resampleUneven,
+                                                            labelsFor })) {
         if (update.update.case === "progress") {
           const p = update.update.value;
-          this.banner(`Loading the series: ${p.stage} ${p.instancesDone}/${p.instancesTotal} images`);
+          banner(`Loading the series: ${p.stage} ${p.instancesDone}/${p.instancesTotal} images`);
         } else if (update.update.case === "volume") {
-          this.banner("");
-          this.loaded(update.update.value);
+          banner("");
+          loaded(update.update.value);
         }
       }
     } catch (e) {
-      this.banner("");
-      this.error(plainWords(e));
+      banner("");
+      error(plainWords(e));
+    }
+  }
+
+  /** A measurement report's distances and angles, as this session's measurements. */
+  private async loadMeasurements(studyUid: string, seriesUid: string): Promise<void> {
+    try {
+      const report = await this.api.pacs.loadMeasurements({ pacs: this.pacs(), studyUid, seriesUid });
+      this.hooks.measured(report.measurements);
+      this.hooks.banner(`${report.measurements.length} measurement(s) from the report`);
+    } catch (e) {
+      this.hooks.error(plainWords(e));
+    }
+  }
+
+  /** The session's measurements, stored in its study on the chosen PACS as a report. */
+  private async storeMeasurements(): Promise<void> {
+    const sessionId = this.hooks.sessionId();
+    if (!sessionId) return this.hooks.error("No session is open: there is nothing to store.");
+    try {
+      const stored = await this.api.pacs.storeMeasurements({ sessionId, pacs: this.pacs() });
+      this.hooks.banner(`Measurements stored on ${stored.pacs}: series ${stored.seriesUid}`);
+    } catch (e) {
+      this.hooks.error(plainWords(e));
     }
   }
 
