@@ -21,7 +21,7 @@ packages=(
   xvfb xauth                    # the viewer's tests run it on a virtual display
   python3-yaml yamllint         # tests/deploy: the Kubernetes and Compose manifests' checks
   libcurl4-openssl-dev          # server/pacs: DICOMweb (QIDO-RS, WADO-RS, STOW-RS) over HTTP and HTTPS
-  libdcmtk-dev                  # cinevol-reader: DICOM SEG (dcmdata); the tests write SEGs with dcmseg
+  libdcmtk-dev                  # cinevol-reader: DICOM SEG (dcmdata); the tests write SEGs with dcmseg; server/pacs: SR measurement reports written with dcmsr
   orthanc orthanc-dicomweb      # tests/pacs: a real PACS with its DICOMweb plugin, started by the tests
   dcmtk dicom3tools             # tests/pacs: DCMTK's dcmdump/dcm2pnm and dciodvfy check every object cinevol writes
   chromium                      # web/e2e: the page tested in a real headless browser
