@@ -5,6 +5,7 @@
 
 #include <filesystem>
 
+#include "core/error.h"
 #include "core/volume.h"
 #include "io/volume_loader.h"
 #include "runtime/render_store.h"
@@ -42,6 +43,48 @@ fs::path NewScratchFolder(const fs::path& under) {
   return folder;
 }
 
+// A SEG series holds one SEG; a series of more instances is another kind of series.
+constexpr std::size_t kMaxSegInstances = 16;
+
+// LoadSeriesRequest.labels_for: the SEG series as that volume's segmentation.
+v1::VolumeInfo LoadSegmentationSeries(const pacs::DicomWebClient& pacs, VolumeRegistry& volumes,
+                                      const v1::LoadSeriesRequest& request, const Principal& caller,
+                                      const std::atomic<bool>* cancel, const SeriesProgress& progress) {
+  volumes.RequireLabelsAllowed(request.labels_for(), caller, "labels_for");
+  const std::string source = PacsSource({pacs.config().name, request.study_uid(), request.series_uid()}, "");
+  const fs::path folder = NewScratchFolder(volumes.upload_dir());
+  v1::LoadSeriesProgress news;
+  news.set_stage("retrieving");
+  pacs::RetrieveCallbacks callbacks;
+  callbacks.on_listing = [&](const std::vector<pacs::InstanceSummary>& instances) {
+    if (instances.size() > kMaxSegInstances) {
+      throw InputError(fmt::format("series_uid: series {} holds {} instances; a DICOM SEG series for labels_for holds "
+                                   "one SEG (at most {} instances are fetched)",
+                                   request.series_uid(), instances.size(), kMaxSegInstances));
+    }
+    news.set_instances_total(instances.size());
+    progress(news);
+  };
+  callbacks.on_instance = [&](const pacs::InstanceSummary&, const fs::path&, std::uint64_t bytes) {
+    news.set_bytes(news.bytes() + bytes);
+  };
+  callbacks.on_progress = [&](std::size_t done, std::size_t total) {
+    news.set_instances_done(done);
+    news.set_instances_total(total);
+    progress(news);
+  };
+  try {
+    pacs.RetrieveSeries(request.study_uid(), request.series_uid(), folder, callbacks, cancel);
+  } catch (...) {
+    std::error_code ec;
+    fs::remove_all(folder, ec);
+    throw;
+  }
+  news.set_stage("reading");
+  progress(news);
+  return volumes.AddRetrievedLabels(request.labels_for(), folder, source, caller, cancel);
+}
+
 }  // namespace
 
 v1::VolumeInfo LoadSeries(const pacs::DicomWebClient& pacs, VolumeRegistry& volumes,
@@ -50,6 +93,7 @@ v1::VolumeInfo LoadSeries(const pacs::DicomWebClient& pacs, VolumeRegistry& volu
   pacs::CheckUid(request.study_uid(), "study_uid");
   pacs::CheckUid(request.series_uid(), "series_uid");
   if (!request.orientation().empty()) ParseOrientation(request.orientation(), "orientation");
+  if (!request.labels_for().empty()) return LoadSegmentationSeries(pacs, volumes, request, caller, cancel, progress);
   const ReadChoices choices{request.orientation(), request.resample_uneven()};
   const std::string source =
       PacsSource({pacs.config().name, request.study_uid(), request.series_uid()}, choices.Suffix());

@@ -20,6 +20,9 @@ using SeriesProgress = std::function<void(const v1::LoadSeriesProgress&)>;
 
 // Run it off the gRPC threads: seconds to minutes. A series the caller
 // already holds is answered at once. `cancel` stops it within a second.
+// With labels_for, the series is a DICOM SEG: fetched the same way, read in
+// the reader cage as that volume's segmentation (io/dicom_seg.h), and the
+// answer is that volume.
 v1::VolumeInfo LoadSeries(const pacs::DicomWebClient& pacs, VolumeRegistry& volumes,
                           const v1::LoadSeriesRequest& request, const Principal& caller,
                           const std::atomic<bool>* cancel, const SeriesProgress& progress);
