@@ -16,6 +16,7 @@
 #include <cmath>
 #include <ctime>
 #include <functional>
+#include <map>
 #include <mutex>
 #include <numbers>
 #include <optional>
@@ -365,6 +366,34 @@ std::string MakeMeasurementReport(const SourceStudy& study, const ReportSource& 
   return bytes;
 }
 
+void PlaceOnImage(ReportMeasurement& m, const ImagePlane& plane) {
+  const Point row{plane.orientation[0], plane.orientation[1], plane.orientation[2]};
+  const Point column{plane.orientation[3], plane.orientation[4], plane.orientation[5]};
+  const auto dot = [](const Point& a, const Point& b) { return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]; };
+  constexpr double kTolerance = 1e-3;
+  if (std::abs(dot(row, row) - 1) > kTolerance || std::abs(dot(column, column) - 1) > kTolerance ||
+      std::abs(dot(row, column)) > kTolerance) {
+    throw InputError(fmt::format("image {}: its Image Orientation (Patient) is not two unit vectors at right angles",
+                                 m.image_uid));
+  }
+  if (!(plane.spacing[0] > 0 && plane.spacing[1] > 0 && plane.spacing[0] < 1e4 && plane.spacing[1] < 1e4)) {
+    throw InputError(fmt::format("image {}: its Pixel Spacing is not within (0, 1e4) mm", m.image_uid));
+  }
+  for (Point& p : m.points) {
+    // Column x runs along the row, spaced by the column spacing; row y down the column, by the row spacing.
+    const double along_row = (p[0] - 0.5) * plane.spacing[1], down_column = (p[1] - 0.5) * plane.spacing[0];
+    for (int axis = 0; axis < 3; ++axis) {
+      p[axis] = plane.position[axis] + row[axis] * along_row + column[axis] * down_column;
+      if (!std::isfinite(p[axis]) || std::abs(p[axis]) > kMaxCoordinate) {
+        throw InputError(fmt::format("image {}: a point lands beyond +-1e6 mm", m.image_uid));
+      }
+    }
+  }
+  m.image_uid.clear();
+  m.image_study_uid.clear();
+  m.image_series_uid.clear();
+}
+
 // ---- Reading ----
 
 namespace {
@@ -379,6 +408,9 @@ constexpr std::uint32_t kCodeMeaning = 0x00080104;
 constexpr std::uint32_t kLongCodeValue = 0x00080119;
 constexpr std::uint32_t kUrnCodeValue = 0x00080120;
 constexpr std::uint32_t kReferencedSeriesSequence = 0x00081115;
+constexpr std::uint32_t kReferencedSopInstanceUid = 0x00081155;
+constexpr std::uint32_t kReferencedFrameNumber = 0x00081160;
+constexpr std::uint32_t kReferencedSopSequence = 0x00081199;
 constexpr std::uint32_t kStudyInstanceUid = 0x0020000D;
 constexpr std::uint32_t kSeriesInstanceUid = 0x0020000E;
 constexpr std::uint32_t kMeasurementUnitsCodeSequence = 0x004008EA;
@@ -434,7 +466,7 @@ class ReportReader {
                                    Clean(ValueType(root), 16), Clean(title.value, 64), Clean(title.scheme, 16),
                                    Clean(title.meaning, 64)));
     }
-    report.source_series_uid = EvidenceSeries(root);
+    report.source_series_uid = ReadEvidence(root);
     bool imaging = false;
     for (const Part10Item* child : d_.Items(root, tag::kContentSequence)) {
       if (ValueType(*child) != "CONTAINER" || !ConceptName(*child).Is(kImagingMeasurements)) continue;
@@ -458,8 +490,8 @@ class ReportReader {
                                    report.measurements.size(), kMaxReportMeasurements));
     }
     if (report.measurements.empty() && report.skipped > 0) {
-      throw InputError(fmt::format("the report holds {} measurement{}, none a distance or an angle in 3D coordinates "
-                                   "(SCOORD3D) that cinevol reads",
+      throw InputError(fmt::format("the report holds {} measurement{}, none a distance or an angle that cinevol reads "
+                                   "(in 3D coordinates, or 2D on a single-frame image)",
                                    report.skipped, report.skipped == 1 ? "" : "s"));
     }
     report.frame_of_reference_uid = frame_of_reference_;
@@ -503,14 +535,22 @@ class ReportReader {
   }
   CodeRead ConceptName(const Part10Item& item) const { return CodeOf(item, tag::kConceptNameCodeSequence); }
 
-  std::string EvidenceSeries(const Part10Item& root) const {
+  // The first series the evidence references; and where each instance it lists lies (evidence_).
+  std::string ReadEvidence(const Part10Item& root) {
+    std::string first;
     for (const Part10Item* study : d_.Items(root, tag::kCurrentEvidence)) {
+      const std::string study_uid = d_.Text(*study, tag::kStudyInstanceUid).value_or("");
       for (const Part10Item* series : d_.Items(*study, tag::kReferencedSeriesSequence)) {
         const std::string uid = d_.Text(*series, tag::kSeriesInstanceUid).value_or("");
-        if (IsValidUid(uid)) return uid;
+        if (!IsValidUid(uid)) continue;
+        if (first.empty()) first = uid;
+        for (const Part10Item* instance : d_.Items(*series, tag::kReferencedSopSequence)) {
+          const std::string sop = d_.Text(*instance, tag::kReferencedSopInstanceUid).value_or("");
+          if (IsValidUid(sop)) evidence_.emplace(sop, std::pair{IsValidUid(study_uid) ? study_uid : "", uid});
+        }
       }
     }
-    return {};
+    return first;
   }
 
   // The group's name: OHIF's free-text label (a Finding or Finding Site coded
@@ -531,26 +571,68 @@ class ReportReader {
     return tracking;
   }
 
-  // The SCOORD3D a NUM is inferred from, as points; nullopt (counted as skipped) when it has none that cinevol reads.
-  std::optional<std::vector<Point>> Coordinates(const Part10Item& num) {
+  // Graphic Data of `item` (a SCOORD or SCOORD3D of `dimensions` coordinates a point): 2 to 4 points, finite and
+  // within +-1e6; nullopt (skipped) for a graphic type or a number of points that is no distance or angle.
+  std::optional<std::vector<Point>> GraphicPoints(const Part10Item& item, std::size_t dimensions) const {
+    const std::string graphic = d_.Text(item, tag::kGraphicType).value_or("");
+    if (graphic != "POLYLINE" && graphic != "MULTIPOINT") return std::nullopt;
+    const Part10Element* data = d_.Find(item, tag::kGraphicData);
+    if (data == nullptr) throw InputError("coordinates without Graphic Data (0070,0022)");
+    if (!data->Is("FL") && !data->Is("FD")) {
+      throw InputError(fmt::format("DICOM: (0070,0022) has VR {}; FL (32-bit floats) was expected", data->Vr()));
+    }
+    const std::size_t values = data->value.size() / (data->Is("FD") ? 8 : 4);
+    if (values < 2 * dimensions || values > 4 * dimensions) return std::nullopt;  // a longer polyline is neither
+    const std::vector<double> flat = d_.Floats(item, tag::kGraphicData, 4 * dimensions);
+    if (flat.size() % dimensions != 0) {
+      throw InputError("coordinates whose Graphic Data is not a whole number of points");
+    }
+    for (double c : flat) {
+      if (!std::isfinite(c)) throw InputError("its coordinates hold a value that is not finite (NaN or infinity)");
+      if (std::abs(c) > kMaxCoordinate) throw InputError("its coordinates lie beyond +-1e6 mm");
+    }
+    std::vector<Point> points;
+    for (std::size_t i = 0; i < flat.size(); i += dimensions) {
+      points.push_back({flat[i], flat[i + 1], dimensions == 3 ? flat[i + 2] : 0.0});
+    }
+    return points;
+  }
+
+  // The one single-frame image a SCOORD was selected from (its IMAGE child); empty where it names none, or a frame
+  // of a multi-frame image (whose planes lie per frame).
+  std::string SelectedImage(const Part10Item& scoord) const {
+    for (const Part10Item* item : d_.Items(scoord, tag::kContentSequence)) {
+      if (ValueType(*item) != "IMAGE") continue;
+      const std::vector<const Part10Item*> references = d_.Items(*item, tag::kReferencedSopSequence);
+      if (references.size() != 1) return {};
+      const std::string frame = d_.Text(*references.front(), tag::kReferencedFrameNumber).value_or("");
+      if (!frame.empty() && frame != "1") return {};
+      const std::string uid = d_.Text(*references.front(), tag::kReferencedSopInstanceUid).value_or("");
+      return IsValidUid(uid) ? uid : std::string();
+    }
+    return {};
+  }
+
+  // What a NUM is inferred from: 3D points, or 2D points on an image; nullopt (counted as skipped) when it has
+  // neither that cinevol reads.
+  std::optional<ReportMeasurement> Coordinates(const Part10Item& num) {
     for (const Part10Item* item : d_.Items(num, tag::kContentSequence)) {
-      if (ValueType(*item) != "SCOORD3D") continue;
-      const std::string graphic = d_.Text(*item, tag::kGraphicType).value_or("");
-      if (graphic != "POLYLINE" && graphic != "MULTIPOINT") return std::nullopt;
-      const Part10Element* data = d_.Find(*item, tag::kGraphicData);
-      if (data == nullptr) throw InputError("a SCOORD3D without Graphic Data (0070,0022)");
-      if (!data->Is("FL") && !data->Is("FD")) {
-        throw InputError(fmt::format("DICOM: (0070,0022) has VR {}; FL (32-bit floats) was expected", data->Vr()));
+      const std::string type = ValueType(*item);
+      if (type == "SCOORD") {
+        const std::string image = SelectedImage(*item);
+        std::optional<std::vector<Point>> points = GraphicPoints(*item, 2);
+        if (image.empty() || !points) return std::nullopt;
+        ReportMeasurement m;
+        m.points = std::move(*points);
+        m.image_uid = image;
+        if (const auto it = evidence_.find(image); it != evidence_.end()) {
+          std::tie(m.image_study_uid, m.image_series_uid) = it->second;
+        }
+        return m;
       }
-      const std::size_t bytes_per_value = data->Is("FD") ? 8 : 4;
-      const std::size_t values = data->value.size() / bytes_per_value;
-      if (values < 6 || values > 12) return std::nullopt;  // 2 to 4 points; a longer polyline is no distance or angle
-      const std::vector<double> flat = d_.Floats(*item, tag::kGraphicData, 12);
-      if (flat.size() % 3 != 0) throw InputError("a SCOORD3D whose Graphic Data is not a whole number of (x, y, z)");
-      for (double c : flat) {
-        if (!std::isfinite(c)) throw InputError("its coordinates hold a value that is not finite (NaN or infinity)");
-        if (std::abs(c) > kMaxCoordinate) throw InputError("its coordinates lie beyond +-1e6 mm");
-      }
+      if (type != "SCOORD3D") continue;
+      std::optional<std::vector<Point>> points = GraphicPoints(*item, 3);
+      if (!points) return std::nullopt;
       const std::string frame = d_.Text(*item, tag::kReferencedFrameOfReferenceUid).value_or("");
       if (!IsValidUid(frame)) {
         throw InputError("a SCOORD3D without a valid Referenced Frame of Reference UID (3006,0024)");
@@ -561,9 +643,9 @@ class ReportReader {
                                      "report in one",
                                      frame, frame_of_reference_));
       }
-      std::vector<Point> points;
-      for (std::size_t i = 0; i < flat.size(); i += 3) points.push_back({flat[i], flat[i + 1], flat[i + 2]});
-      return points;
+      ReportMeasurement m;
+      m.points = std::move(*points);
+      return m;
     }
     return std::nullopt;
   }
@@ -572,25 +654,27 @@ class ReportReader {
     const std::string name = GroupName(group);
     struct Found {
       std::string meaning;
-      std::vector<Point> points;
+      ReportMeasurement measurement;
     };
     std::vector<Found> found;
     for (const Part10Item* item : d_.Items(group, tag::kContentSequence)) {
       if (ValueType(*item) != "NUM") continue;
-      std::optional<std::vector<Point>> points = Coordinates(*item);
-      if (points && points->size() == 4 && Distance((*points)[1], (*points)[2]) <= kSameMiddlePoint) {
-        points = std::vector<Point>{(*points)[0], (*points)[1], (*points)[3]};
+      std::optional<ReportMeasurement> m = Coordinates(*item);
+      if (m && m->points.size() == 4 && Distance(m->points[1], m->points[2]) <= kSameMiddlePoint) {
+        m->points = {m->points[0], m->points[1], m->points[3]};
       }
-      if (!points || (points->size() != 2 && points->size() != 3) || !UnitsAgree(*item, points->size())) {
+      if (!m || (m->points.size() != 2 && m->points.size() != 3) || !UnitsAgree(*item, m->points.size())) {
         ++report.skipped;
         continue;
       }
-      found.push_back({Clean(ConceptName(*item).meaning, kMaxNameBytes), std::move(*points)});
+      found.push_back({Clean(ConceptName(*item).meaning, kMaxNameBytes), std::move(*m)});
     }
     for (Found& f : found) {
-      std::string label = name;
-      if (found.size() > 1) label = name.empty() ? f.meaning : Clean(name + ": " + f.meaning, kMaxNameBytes);
-      report.measurements.push_back({std::move(label), std::move(f.points)});
+      f.measurement.name = name;
+      if (found.size() > 1) {
+        f.measurement.name = name.empty() ? f.meaning : Clean(name + ": " + f.meaning, kMaxNameBytes);
+      }
+      report.measurements.push_back(std::move(f.measurement));
       if (report.measurements.size() > kMaxReportMeasurements) return;  // refused by the caller
     }
   }
@@ -608,6 +692,7 @@ class ReportReader {
   const Part10Dataset& d_;
   std::string charset_;
   std::string frame_of_reference_;
+  std::map<std::string, std::pair<std::string, std::string>> evidence_;  // instance: study, series
   std::size_t groups_ = 0;
 };
 

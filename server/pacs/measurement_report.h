@@ -27,7 +27,25 @@ inline constexpr std::size_t kMaxReportBytes = std::size_t{16} << 20;
 struct ReportMeasurement {
   std::string name;  // at most 64 characters, UTF-8; may be empty
   std::vector<std::array<double, 3>> points;
+  // Read from 2D coordinates on an image (SCOORD): `points` are (column, row, 0) in that image's pixels until
+  // PlaceOnImage puts them in patient coordinates. Empty for 3D coordinates.
+  std::string image_uid;         // the image's SOP Instance UID
+  std::string image_study_uid;   // its study and series, as the report's evidence lists them (empty where it does not)
+  std::string image_series_uid;
 };
+
+// Where an image lies in patient coordinates (its Image Plane module).
+struct ImagePlane {
+  std::array<double, 3> position{};     // (0020,0032) the centre of its first pixel, LPS mm
+  std::array<double, 6> orientation{};  // (0020,0037) the direction along a row (columns increasing), then down a column
+  std::array<double, 2> spacing{};      // (0028,0030) mm between rows, then between columns
+  std::string frame_of_reference_uid;   // (0020,0052)
+};
+
+// `m`'s pixel points on `plane` as patient coordinates (SCOORD's pixels: (0, 0) is the top left corner of the top
+// left pixel, whose centre is (0.5, 0.5)), its image fields cleared. InputError for a plane that is none
+// (orientation not two unit vectors at right angles, spacing not positive) or points that land beyond +-1e6 mm.
+void PlaceOnImage(ReportMeasurement& m, const ImagePlane& plane);
 
 // One image of the series measured, for the report's image library and evidence.
 struct ReportImage {
@@ -62,17 +80,19 @@ std::string MakeMeasurementReport(const SourceStudy& study, const ReportSource& 
 // What ReadMeasurementReport finds.
 struct ReadReport {
   std::vector<ReportMeasurement> measurements;
-  std::string frame_of_reference_uid;  // the one every coordinate is in
+  std::string frame_of_reference_uid;  // the one every 3D coordinate is in (empty where there are none)
   std::string source_series_uid;       // the series its evidence references, where it says (the first)
   MeasurementReportUids uids;
-  // Measurements it holds that are neither a distance nor an angle in 3D
-  // coordinates (areas, 2D coordinates on an image, a Cobb angle of 4 free points).
+  // Measurements it holds that are neither a distance nor an angle (areas,
+  // ROIs, a Cobb angle of 4 free points, coordinates on a frame of a multi-frame image).
   std::size_t skipped = 0;
 };
 
 // Reads a TID 1500 measurement report (Enhanced, Comprehensive, Comprehensive 3D or Extensible SR, as cinevol,
 // OHIF and others write it): each NUM of a measurement group inferred from a SCOORD3D POLYLINE of 2 points (a
-// distance) or 3 (an angle; 4 where the middle two coincide, as OHIF writes an angle). The name is the group's
+// distance) or 3 (an angle; 4 where the middle two coincide, as OHIF writes an angle); or from a SCOORD of as many
+// on one single-frame image, left in its pixels for the caller to place (ReportMeasurement::image_uid,
+// PlaceOnImage). The name is the group's
 // free-text finding where it has one (OHIF's label), else its Tracking Identifier, cut to 64 characters.
 // Throws InputError saying what is wrong: not Part 10 or beyond the parser's bounds (part10_reader.h), not an SR
 // or not TID 1500, a wrong value type, coordinates that are not finite or beyond +-1e6 mm, coordinates in several

@@ -4,6 +4,8 @@
 #include <fmt/format.h>
 
 #include <algorithm>
+#include <charconv>
+#include <cmath>
 #include <set>
 
 #include "core/error.h"
@@ -16,6 +18,9 @@ namespace {
 
 constexpr std::uint32_t kSopClassUid = 0x00080016;
 constexpr std::uint32_t kFrameOfReferenceUid = 0x00200052;
+constexpr std::uint32_t kImagePositionPatient = 0x00200032;
+constexpr std::uint32_t kImageOrientationPatient = 0x00200037;
+constexpr std::uint32_t kPixelSpacing = 0x00280030;
 // Room for a multipart answer's delimiters and part headers around the instance.
 constexpr std::size_t kMultipartOverhead = 64 << 10;
 
@@ -76,6 +81,50 @@ ReportSource DescribeMeasuredSeries(const DicomWebClient& pacs, const std::strin
   }
   source.frame_of_reference_uid = *frames.begin();
   return source;
+}
+
+ImagePlane FetchImagePlane(const DicomWebClient& pacs, const std::string& study_uid, const std::string& series_uid,
+                           const std::string& sop_instance_uid, const std::atomic<bool>* cancel) {
+  const PacsConfig& config = pacs.config();
+  CheckUid(sop_instance_uid, "the image's SOP Instance UID");
+  JsonDocument storage;
+  const auto datasets =
+      FetchDicomJson(config, "a retrieve of an image's metadata",
+                     SeriesUrl(config, study_uid, series_uid) + "/instances/" + EscapeUrlComponent(sop_instance_uid) +
+                         "/metadata",
+                     cancel, storage);
+  // Numbers as DICOM JSON gives them (JSON numbers, or DS strings), each finite.
+  const auto numbers = [](const DicomJsonDataset& dataset, std::uint32_t tag, std::size_t count) {
+    std::vector<double> values;
+    for (std::string_view text : dataset.Texts(tag, count + 1)) {
+      while (!text.empty() && text.front() == ' ') text.remove_prefix(1);  // DS may be padded, and signed
+      while (!text.empty() && text.back() == ' ') text.remove_suffix(1);
+      if (!text.empty() && text.front() == '+') text.remove_prefix(1);
+      double value = 0;
+      const char* end = text.data() + text.size();
+      const auto [at, error] = std::from_chars(text.data(), end, value);
+      if (error != std::errc() || at != end || !std::isfinite(value)) return std::vector<double>{};
+      values.push_back(value);
+    }
+    return values.size() == count ? values : std::vector<double>{};
+  };
+  if (datasets.size() == 1) {
+    const DicomJsonDataset& image = datasets.front();
+    const std::vector<double> position = numbers(image, kImagePositionPatient, 3);
+    const std::vector<double> orientation = numbers(image, kImageOrientationPatient, 6);
+    const std::vector<double> spacing = numbers(image, kPixelSpacing, 2);
+    if (!position.empty() && !orientation.empty() && !spacing.empty()) {
+      ImagePlane plane;
+      std::copy(position.begin(), position.end(), plane.position.begin());
+      std::copy(orientation.begin(), orientation.end(), plane.orientation.begin());
+      std::copy(spacing.begin(), spacing.end(), plane.spacing.begin());
+      plane.frame_of_reference_uid = image.Text(kFrameOfReferenceUid);
+      return plane;
+    }
+  }
+  throw PacsError(fmt::format("PACS '{}': image {} has no plane in its metadata (Image Position and Orientation "
+                              "(Patient), Pixel Spacing), so 2D coordinates on it have no place in the patient",
+                              config.name, sop_instance_uid));
 }
 
 std::string RetrieveInstance(const DicomWebClient& pacs, const std::string& study_uid, const std::string& series_uid,

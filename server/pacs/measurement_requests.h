@@ -18,6 +18,11 @@ namespace cinevol::pacs {
 ReportSource DescribeMeasuredSeries(const DicomWebClient& pacs, const std::string& study_uid,
                                     const std::string& series_uid, const std::atomic<bool>* cancel = nullptr);
 
+// WADO-RS metadata of one image: where it lies (ImagePlane). PacsError where the PACS's answer gives no plane (an
+// image without one, or a multi-frame image, whose planes lie per frame); InputError for a bad UID.
+ImagePlane FetchImagePlane(const DicomWebClient& pacs, const std::string& study_uid, const std::string& series_uid,
+                           const std::string& sop_instance_uid, const std::atomic<bool>* cancel = nullptr);
+
 // WADO-RS /studies/{s}/series/{se}/instances/{i}, as stored: the one DICOM Part 10 instance the answer holds, at
 // most `max_bytes` (InputError past it, naming the limit). PacsError for a failing PACS or a malformed answer.
 std::string RetrieveInstance(const DicomWebClient& pacs, const std::string& study_uid, const std::string& series_uid,

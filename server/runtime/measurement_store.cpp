@@ -4,9 +4,12 @@
 
 #include <fmt/format.h>
 
+#include <map>
+
 #include "core/error.h"
 #include "core/log_safe.h"
 #include "pacs/measurement_report.h"
+#include "pacs/dicom_json.h"
 #include "pacs/measurement_requests.h"
 #include "pacs/pacs_error.h"
 #include "runtime/errors.h"
@@ -57,6 +60,43 @@ v1::StoredObject StoreMeasurements(const pacs::DicomWebClient& to, const pacs::D
   return stored;
 }
 
+namespace {
+
+// Measurements a report made on images in their pixels, put in patient coordinates with each image's plane (WADO-RS
+// metadata, once an image: at most one fetch a measurement), all in one frame of reference with its 3D ones.
+void PlaceOnImages(const pacs::DicomWebClient& pacs, const std::string& study_uid, pacs::ReadReport& read,
+                   const std::atomic<bool>* cancel) {
+  std::map<std::string, pacs::ImagePlane> planes;
+  for (pacs::ReportMeasurement& m : read.measurements) {
+    if (m.image_uid.empty()) continue;
+    if (m.image_series_uid.empty()) {
+      throw InputError(fmt::format("measurement '{}' lies on image {}, which the report's evidence places in no "
+                                   "series",
+                                   m.name, m.image_uid));
+    }
+    auto it = planes.find(m.image_uid);
+    if (it == planes.end()) {
+      const std::string& study = m.image_study_uid.empty() ? study_uid : m.image_study_uid;
+      it = planes.emplace(m.image_uid, pacs::FetchImagePlane(pacs, study, m.image_series_uid, m.image_uid, cancel))
+               .first;
+    }
+    const std::string& frame = it->second.frame_of_reference_uid;
+    if (!pacs::IsValidUid(frame)) {
+      throw pacs::PacsError(fmt::format("PACS '{}': image {} names no Frame of Reference UID", pacs.config().name,
+                                        m.image_uid));
+    }
+    if (read.frame_of_reference_uid.empty()) read.frame_of_reference_uid = frame;
+    if (frame != read.frame_of_reference_uid) {
+      throw InputError(fmt::format("measurement '{}' lies on an image in frame of reference {}, others in {}; "
+                                   "cinevol reads a report in one",
+                                   m.name, frame, read.frame_of_reference_uid));
+    }
+    pacs::PlaceOnImage(m, it->second);
+  }
+}
+
+}  // namespace
+
 v1::LoadMeasurementsResponse LoadMeasurements(const pacs::DicomWebClient& pacs,
                                               const v1::LoadMeasurementsRequest& request,
                                               const std::atomic<bool>* cancel) {
@@ -72,13 +112,14 @@ v1::LoadMeasurementsResponse LoadMeasurements(const pacs::DicomWebClient& pacs,
     }
     instance = listed.front().sop_instance_uid;
   }
-  const pacs::ReadReport read =
+  pacs::ReadReport read =
       pacs::ReadMeasurementReport(pacs::RetrieveInstance(pacs, request.study_uid(), request.series_uid(), instance,
                                                          pacs::kMaxReportBytes, cancel));
   if (read.uids.sop_instance_uid != instance) {
     throw pacs::PacsError(fmt::format("PACS '{}' answered a retrieve of report {} with another instance",
                                       pacs.config().name, instance));
   }
+  PlaceOnImages(pacs, request.study_uid(), read, cancel);
   v1::LoadMeasurementsResponse response;
   for (const pacs::ReportMeasurement& m : read.measurements) {
     v1::Measurement* out = response.add_measurements();

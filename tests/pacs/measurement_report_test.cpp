@@ -16,6 +16,7 @@
 
 #include "core/error.h"
 #include "pacs/dicom_json.h"
+#include "pacs/handmade_sr.h"
 #include "pacs/measurement_requests.h"
 #include "pacs/orthanc_process.h"
 #include "pacs/part10_reader.h"
@@ -27,9 +28,9 @@ namespace cinevol::pacs {
 namespace {
 
 namespace fs = std::filesystem;
-using cinevol::testing::ErrorOf;
+using namespace cinevol::testing;  // ErrorOf, and reports written by hand (handmade_sr.h)
 
-constexpr const char* kFrame = "2.25.3400357.9";
+constexpr const char* kFrame = kHandmadeFrame;
 
 SourceStudy Study() {
   SourceStudy study;
@@ -100,118 +101,6 @@ void WriteFile(const fs::path& path, const std::string& bytes) {
   out << bytes;
 }
 
-// ---- DICOM written by hand: what no library would write ----
-
-std::string Le16(std::uint16_t v) { return {char(v & 0xff), char(v >> 8)}; }
-std::string Le32(std::uint32_t v) { return Le16(std::uint16_t(v & 0xffff)) + Le16(std::uint16_t(v >> 16)); }
-std::string TagBytes(std::uint32_t tag) { return Le16(std::uint16_t(tag >> 16)) + Le16(std::uint16_t(tag & 0xffff)); }
-
-// One element in explicit VR little endian, its value padded to an even length.
-std::string Element(std::uint32_t tag, const std::string& vr, std::string value) {
-  if (value.size() % 2) value += vr == "UI" ? '\0' : ' ';
-  const bool long_length = vr == "OB" || vr == "SQ" || vr == "UN" || vr == "UT" || vr == "UC" || vr == "UR";
-  return TagBytes(tag) + vr + (long_length ? Le16(0) + Le32(std::uint32_t(value.size())) : Le16(std::uint16_t(value.size()))) +
-         value;
-}
-
-std::string Floats(const std::vector<float>& values) {
-  std::string bytes(values.size() * 4, '\0');
-  std::memcpy(bytes.data(), values.data(), bytes.size());
-  return bytes;
-}
-
-// A sequence and its items, each of undefined length.
-std::string Sequence(std::uint32_t tag, const std::vector<std::string>& items) {
-  std::string bytes = TagBytes(tag) + "SQ" + Le16(0) + Le32(0xffffffff);
-  for (const std::string& item : items) bytes += TagBytes(0xfffee000) + Le32(0xffffffff) + item + TagBytes(0xfffee00d) + Le32(0);
-  return bytes + TagBytes(0xfffee0dd) + Le32(0);
-}
-
-// Elements by tag, written in tag order.
-using Elements = std::map<std::uint32_t, std::string>;
-std::string Join(const Elements& elements) {
-  std::string bytes;
-  for (const auto& [tag, element] : elements) bytes += element;
-  return bytes;
-}
-
-std::string Part10(const std::string& dataset, const std::string& syntax = "1.2.840.10008.1.2.1") {
-  return std::string(128, '\0') + "DICM" + Element(0x00020010, "UI", syntax) + dataset;
-}
-
-struct CodeTriple {
-  std::string value, scheme, meaning;
-};
-
-std::string CodeItem(const CodeTriple& c) {
-  return Element(0x00080100, "SH", c.value) + Element(0x00080102, "SH", c.scheme) + Element(0x00080104, "LO", c.meaning);
-}
-
-Elements ContentItem(const std::string& relation, const std::string& type, const CodeTriple& concept_name) {
-  return {{0x0040A010, Element(0x0040A010, "CS", relation)},
-          {0x0040A040, Element(0x0040A040, "CS", type)},
-          {0x0040A043, Sequence(0x0040A043, {CodeItem(concept_name)})}};
-}
-
-Elements WithChildren(Elements item, const std::vector<Elements>& children) {
-  std::vector<std::string> items;
-  for (const Elements& child : children) items.push_back(Join(child));
-  item[0x0040A730] = Sequence(0x0040A730, items);
-  return item;
-}
-
-Elements Scoord3d(const std::vector<float>& xyz, const std::string& frame = kFrame) {
-  Elements item{{0x0040A010, Element(0x0040A010, "CS", "INFERRED FROM")},
-                {0x0040A040, Element(0x0040A040, "CS", "SCOORD3D")},
-                {0x00700022, Element(0x00700022, "FL", Floats(xyz))},
-                {0x00700023, Element(0x00700023, "CS", "POLYLINE")},
-                {0x30060024, Element(0x30060024, "UI", frame)}};
-  return item;
-}
-
-Elements Num(const CodeTriple& concept_name, const std::string& units, const std::string& value, const Elements& coordinates) {
-  Elements num = ContentItem("CONTAINS", "NUM", concept_name);
-  num[0x0040A300] = Sequence(0x0040A300, {Sequence(0x004008EA, {CodeItem({units, "UCUM", units})}) +
-                                          Element(0x0040A30A, "DS", value)});
-  return WithChildren(num, {coordinates});
-}
-
-Elements Tracking(const std::string& text) {
-  Elements item = ContentItem("HAS OBS CONTEXT", "TEXT", {"112039", "DCM", "Tracking Identifier"});
-  item[0x0040A160] = Element(0x0040A160, "UT", text);
-  return item;
-}
-
-Elements FreeTextFinding(const std::string& label) {
-  Elements item = ContentItem("CONTAINS", "CODE", {"121071", "DCM", "Finding"});
-  item[0x0040A168] = Sequence(0x0040A168, {CodeItem({"CORNERSTONEFREETEXT", "CORNERSTONEJS", label})});
-  return item;
-}
-
-Elements Group(std::vector<Elements> children) {
-  return WithChildren(ContentItem("CONTAINS", "CONTAINER", {"125007", "DCM", "Measurement Group"}), children);
-}
-
-// A TID 1500 report around `groups`, with `root_extra` elements beside the root's own.
-std::string Report(const std::vector<Elements>& groups, Elements root_extra = {}) {
-  Elements root{{0x00080005, Element(0x00080005, "CS", "ISO_IR 192")},
-                {0x00080016, Element(0x00080016, "UI", kComprehensive3dSrSopClass)},
-                {0x00080018, Element(0x00080018, "UI", "2.25.3400359.1.1")},
-                {0x0020000D, Element(0x0020000D, "UI", "2.25.3400359")},
-                {0x0020000E, Element(0x0020000E, "UI", "2.25.3400359.1")},
-                {0x0040A040, Element(0x0040A040, "CS", "CONTAINER")},
-                {0x0040A043, Sequence(0x0040A043, {CodeItem({"126000", "DCM", "Imaging Measurement Report"})})},
-                {0x0040A375, Sequence(0x0040A375, {Sequence(0x00081115, {Element(0x0020000E, "UI", "2.25.3400359.7")}) +
-                                                   Element(0x0020000D, "UI", "2.25.3400359")})}};
-  const Elements imaging =
-      WithChildren(ContentItem("CONTAINS", "CONTAINER", {"126010", "DCM", "Imaging Measurements"}), groups);
-  root = WithChildren(root, {ContentItem("CONTAINS", "CONTAINER", {"111028", "DCM", "Image Library"}), imaging});
-  for (auto& [tag, element] : root_extra) root[tag] = element;
-  return Part10(Join(root));
-}
-
-const CodeTriple kLength{"410668003", "SCT", "Length"};
-const CodeTriple kCobbAngle{"285285000", "SCT", "Cobb angle"};
 
 // ---- cinevol's own reports ----
 
@@ -344,7 +233,7 @@ TEST(MeasurementReport, BadInputsAreRefusedNamingTheField) {
 // ---- Others' reports ----
 
 // As OHIF (dcmjs, Cornerstone3D) writes 3D measurements: the label in a free-text Finding, a length, an angle as a
-// Cobb angle's polyline whose middle two points coincide; and a 2D length on an image, which cinevol skips.
+// Cobb angle's polyline whose middle two points coincide; and a 2D length that names no image, which is skipped.
 TEST(MeasurementReport, ReadsAReportAsOhifWritesIt) {
   const Elements length_2d = WithChildren(
       ContentItem("INFERRED FROM", "SCOORD", {"121112", "DCM", "Source of Measurement"}), {});
@@ -363,11 +252,58 @@ TEST(MeasurementReport, ReadsAReportAsOhifWritesIt) {
   EXPECT_EQ(read.source_series_uid, "2.25.3400359.7");
 }
 
-TEST(MeasurementReport, AReportOfOnly2dCoordinatesSaysWhyNothingWasRead) {
+// As OHIF writes a measurement made on a slice: 2D coordinates on an image that the evidence lists, left in its
+// pixels for the caller to place with the image's plane.
+TEST(MeasurementReport, Reads2dMeasurementsOnAnImageForTheCallerToPlace) {
+  HandmadeReport about;
+  about.sop_class = "1.2.840.10008.5.1.4.1.1.88.33";  // Comprehensive SR: OHIF's
+  about.evidence_instances = {{"1.2.840.10008.5.1.4.1.1.2", "2.25.3400359.7.3"}};
+  const std::string report = Report(
+      {Group({Tracking("Cornerstone3DTools@^0.1.0:Length"), FreeTextFinding("node"),
+              Num(kLength, "mm", "28.3", Scoord({10.5f, 20.5f, 30.5f, 40.5f}, "2.25.3400359.7.3"))})},
+      {}, about);
+  const ReadReport read = ReadMeasurementReport(report);
+  ASSERT_EQ(read.measurements.size(), 1u);
+  const ReportMeasurement& m = read.measurements[0];
+  EXPECT_EQ(m.name, "node");
+  EXPECT_EQ(m.image_uid, "2.25.3400359.7.3");
+  EXPECT_EQ(m.image_series_uid, "2.25.3400359.7");
+  EXPECT_EQ(m.image_study_uid, "2.25.3400359");
+  ASSERT_EQ(m.points.size(), 2u);
+  EXPECT_EQ(m.points[1], (std::array<double, 3>{30.5, 40.5, 0}));
+  EXPECT_EQ(read.frame_of_reference_uid, "") << "the image's plane names it";
+  EXPECT_EQ(read.skipped, 0u);
+}
+
+TEST(MeasurementReport, PlaceOnImageFollowsTheImagesPlane) {
+  // An axial slice: the first pixel's centre (0.5, 0.5) is its position; columns run along x 0.75 mm apart, rows
+  // down y 0.5 mm apart.
+  ReportMeasurement m{"d", {{0.5, 0.5, 0}, {10.5, 20.5, 0}}, "2.25.1", "2.25.2", "2.25.3"};
+  PlaceOnImage(m, {{-100, -200, 50}, {1, 0, 0, 0, 1, 0}, {0.5, 0.75}, "2.25.9"});
+  EXPECT_EQ(m.points[0], (std::array<double, 3>{-100, -200, 50}));
+  EXPECT_EQ(m.points[1], (std::array<double, 3>{-92.5, -190, 50}));
+  EXPECT_TRUE(m.image_uid.empty() && m.image_series_uid.empty() && m.image_study_uid.empty());
+  // A sagittal one: along a row is anterior to posterior (+y), down a column is superior to inferior (-z).
+  ReportMeasurement sagittal{"s", {{3.5, 5.5, 0}}, "2.25.1", "", ""};
+  PlaceOnImage(sagittal, {{10, -50, 80}, {0, 1, 0, 0, 0, -1}, {2, 1}, "2.25.9"});
+  EXPECT_EQ(sagittal.points[0], (std::array<double, 3>{10, -47, 70}));
+  ReportMeasurement bad{"b", {{1, 1, 0}}, "2.25.1", "", ""};
+  EXPECT_NE(ErrorOf<InputError>([&] { PlaceOnImage(bad, {{0, 0, 0}, {1, 0, 0, 1, 0, 0}, {1, 1}, ""}); })
+                .find("image 2.25.1: its Image Orientation (Patient) is not two unit vectors at right angles"),
+            std::string::npos);
+  EXPECT_NE(ErrorOf<InputError>([&] { PlaceOnImage(bad, {{0, 0, 0}, {1, 0, 0, 0, 1, 0}, {0, 1}, ""}); })
+                .find("Pixel Spacing"),
+            std::string::npos);
+}
+
+TEST(MeasurementReport, AReportOfNothingItReadsSaysWhy) {
+  // 2D coordinates that name no image, and a polygon of five points.
   const Elements length_2d = ContentItem("INFERRED FROM", "SCOORD", {"121112", "DCM", "Source of Measurement"});
-  const std::string message = ErrorOf<InputError>(
-      [&] { ReadMeasurementReport(Report({Group({Num(kLength, "mm", "5", length_2d)})})); });
-  EXPECT_NE(message.find("holds 1 measurement, none a distance or an angle in 3D coordinates"), std::string::npos)
+  const std::string message = ErrorOf<InputError>([&] {
+    ReadMeasurementReport(Report({Group({Num(kLength, "mm", "5", length_2d)}),
+                                  Group({Num(kLength, "mm", "5", Scoord3d(std::vector<float>(15, 1.0f)))})}));
+  });
+  EXPECT_NE(message.find("holds 2 measurements, none a distance or an angle that cinevol reads"), std::string::npos)
       << message;
 }
 

@@ -3,12 +3,15 @@
 // within 0.01 mm; who may store (the owner, a principal presenting, nobody else); what cannot be stored or read is
 // refused by name.
 #include <fmt/format.h>
+#include <gdcmAttribute.h>
+#include <gdcmReader.h>
 #include <gtest/gtest.h>
 
 #include <fstream>
 #include <memory>
 
 #include "pacs/dicomweb_client.h"
+#include "pacs/handmade_sr.h"
 #include "pacs/orthanc_process.h"
 #include "pacs/stamped_series.h"
 #include "service/server_process.h"
@@ -179,6 +182,57 @@ TEST_F(MeasurementsServer, StoredFromOneSessionAndLoadedIntoAnotherWithinAHundre
   ExpectSameMeasurements(loaded.measurements(), event.measurements().measurements());
   EXPECT_EQ(loaded.source_series_uid(), kCt.series_uid);
   EXPECT_EQ(loaded.frame_of_reference_uid(), "1.3.12.2.1107.5.1.4.60064.30000022120807274275100000041");
+}
+
+// A report as OHIF writes a length measured on a slice (2D coordinates on the image, in a Comprehensive SR): placed
+// in patient coordinates with that slice's plane, which the server asks the PACS for.
+TEST_F(MeasurementsServer, ALengthOnASliceAsOhifWritesItIsPlacedWithTheSlicesPlane) {
+  gdcm::Reader slice;
+  slice.SetFileName((folder_ / "ct" / "2.dcm").c_str());
+  ASSERT_TRUE(slice.Read());
+  gdcm::Attribute<0x0020, 0x0032> position;
+  gdcm::Attribute<0x0020, 0x0037> orientation;
+  gdcm::Attribute<0x0028, 0x0030> spacing;
+  position.SetFromDataSet(slice.GetFile().GetDataSet());
+  orientation.SetFromDataSet(slice.GetFile().GetDataSet());
+  spacing.SetFromDataSet(slice.GetFile().GetDataSet());
+  HandmadeReport about;
+  about.study_uid = kCt.study_uid;
+  about.series_uid = "2.25.3410571.99";
+  about.instance_uid = "2.25.3410571.99.1";
+  about.sop_class = "1.2.840.10008.5.1.4.1.1.88.33";
+  about.patient_id = kCt.patient_id;
+  about.evidence_series = kCt.series_uid;
+  about.evidence_instances = {{"1.2.840.10008.5.1.4.1.1.2", kCt.series_uid + ".2"}};
+  const std::vector<float> pixels{100.5f, 200.5f, 140.25f, 260.75f};
+  const std::string report = Report({Group({Tracking("Cornerstone3DTools@^0.1.0:Length"), FreeTextFinding("node"),
+                                            Num(kLength, "mm", "10", Scoord(pixels, kCt.series_uid + ".2"))})},
+                                    {}, about);
+  pacs::DicomWebClient(orthanc_->Pacs()).StoreInstances(kCt.study_uid, {report});
+
+  Client alice = server_->Connect("alice-token");
+  v1::LoadMeasurementsRequest request;
+  request.set_pacs("orthanc");
+  request.set_study_uid(kCt.study_uid);
+  request.set_series_uid(about.series_uid);
+  const v1::LoadMeasurementsResponse loaded = alice.LoadMeasurements(request);
+  ASSERT_EQ(loaded.measurements_size(), 1);
+  EXPECT_EQ(loaded.measurements(0).name(), "node");
+  EXPECT_EQ(loaded.frame_of_reference_uid(), "1.3.12.2.1107.5.1.4.60064.30000022120807274275100000041");
+  ASSERT_EQ(loaded.measurements(0).points_size(), 2);
+  for (int k = 0; k < 2; ++k) {
+    // The centre of pixel (0, 0) is (0.5, 0.5): columns along the row, rows down the column.
+    const double column = pixels[2 * k] - 0.5, row = pixels[2 * k + 1] - 0.5;
+    double expected[3];
+    for (int axis = 0; axis < 3; ++axis) {
+      expected[axis] = position.GetValue(axis) + orientation.GetValue(axis) * column * spacing.GetValue(1) +
+                       orientation.GetValue(3 + axis) * row * spacing.GetValue(0);
+    }
+    const v1::Vec3& p = loaded.measurements(0).points(k);
+    EXPECT_NEAR(p.x(), expected[0], 0.01);
+    EXPECT_NEAR(p.y(), expected[1], 0.01);
+    EXPECT_NEAR(p.z(), expected[2], 0.01);
+  }
 }
 
 TEST_F(MeasurementsServer, TheOwnerAndAPrincipalPresentingMayStoreNobodyElse) {
