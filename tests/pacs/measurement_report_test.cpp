@@ -188,6 +188,30 @@ TEST(MeasurementReport, DciodvfyFindsNoErrorAndNoWarning) {
   }
 }
 
+// The same report as DCMTK's dcmconv writes it again in the other syntaxes: implicit VR little endian read (the
+// parser knows the VRs of what it reads there), undefined lengths read, deflated and big endian refused by name.
+TEST(MeasurementReport, ReadsItsOwnAsDcmconvWritesItInOtherSyntaxes) {
+  ASSERT_TRUE(Installed("dcmconv")) << "dcmconv (DCMTK) is not installed: run scripts/install-deps.sh";
+  cinevol::testing::ScratchDir scratch;
+  const fs::path sr = scratch / "report.dcm";
+  WriteFile(sr, MakeMeasurementReport(Study(), Source(), Measurements(), "0.9.0"));
+  const auto converted = [&](const std::string& flags) {
+    const fs::path out = scratch / "converted.dcm";
+    const CommandResult result = RunCommand("dcmconv " + flags + " '" + sr.string() + "' '" + out.string() + "'");
+    EXPECT_EQ(result.status, 0) << flags << ": " << result.output;
+    return cinevol::testing::ReadWholeFile(out);
+  };
+  for (const char* flags : {"+ti", "+ti +e", "+te +e"}) {  // +e: sequences and items of undefined length
+    const ReadReport read = ReadMeasurementReport(converted(flags));
+    ExpectSamePoints(read.measurements, Measurements());
+    EXPECT_EQ(read.frame_of_reference_uid, kFrame) << flags;
+    EXPECT_EQ(read.source_series_uid, Study().series_uid) << flags;
+  }
+  EXPECT_NE(ErrorOf<InputError>([&] { ReadMeasurementReport(converted("+td")); }).find("deflated"), std::string::npos);
+  EXPECT_NE(ErrorOf<InputError>([&] { ReadMeasurementReport(converted("+tb")); }).find("big endian"),
+            std::string::npos);
+}
+
 TEST(MeasurementReport, BadInputsAreRefusedNamingTheField) {
   const auto refusal = [](SourceStudy study, ReportSource source, std::vector<ReportMeasurement> measurements) {
     return ErrorOf<InputError>([&] { MakeMeasurementReport(study, source, measurements, "0.9.0"); });
