@@ -27,7 +27,8 @@ constexpr std::size_t kMultipartOverhead = 64 << 10;
 }  // namespace
 
 ReportSource DescribeMeasuredSeries(const DicomWebClient& pacs, const std::string& study_uid,
-                                    const std::string& series_uid, const std::atomic<bool>* cancel) {
+                                    const std::string& series_uid, const std::string& known_frame,
+                                    const std::atomic<bool>* cancel) {
   const PacsConfig& config = pacs.config();
   const std::string series_url = SeriesUrl(config, study_uid, series_uid);
   const std::string what = "a listing of the measured series' images";
@@ -57,6 +58,7 @@ ReportSource DescribeMeasuredSeries(const DicomWebClient& pacs, const std::strin
   if (source.images.empty()) {
     throw PacsError(fmt::format("PACS '{}' lists no instances of the measured series", config.name), 404);
   }
+  if (frames.empty() && IsValidUid(known_frame)) frames.insert(known_frame);
   if (frames.empty()) {  // a PACS need not answer every includefield: one instance's metadata says it
     JsonDocument metadata_storage;
     const auto metadata =
@@ -78,6 +80,11 @@ ReportSource DescribeMeasuredSeries(const DicomWebClient& pacs, const std::strin
     throw PacsError(fmt::format("PACS '{}': the measured series' instances name {} frames of reference; a report "
                                 "names one",
                                 config.name, frames.size()));
+  }
+  if (IsValidUid(known_frame) && *frames.begin() != known_frame) {
+    throw PacsError(fmt::format("PACS '{}' names frame of reference {} for the measured series, whose files named {} "
+                                "when it was read",
+                                config.name, *frames.begin(), known_frame));
   }
   source.frame_of_reference_uid = *frames.begin();
   return source;

@@ -12,11 +12,13 @@
 namespace cinevol::pacs {
 
 // QIDO-RS /studies/{s}/series/{se}/instances with includefield 00200052 and 00080016: the series' images (at most
-// max_instances) and the Frame of Reference UID they share; where the listing leaves it out, WADO-RS metadata of
-// one instance says it. PacsError for a series whose instances name none or several; OverLimit past
-// max_instances; InputError for a bad UID.
+// max_instances) and the Frame of Reference UID they share; where the listing leaves it out, `known_frame` (the
+// one the volume read from the files), else WADO-RS metadata of one instance, says it. PacsError for a series
+// whose instances name none or several, or another than `known_frame`; OverLimit past max_instances; InputError
+// for a bad UID.
 ReportSource DescribeMeasuredSeries(const DicomWebClient& pacs, const std::string& study_uid,
-                                    const std::string& series_uid, const std::atomic<bool>* cancel = nullptr);
+                                    const std::string& series_uid, const std::string& known_frame = {},
+                                    const std::atomic<bool>* cancel = nullptr);
 
 // WADO-RS metadata of one image: where it lies (ImagePlane). PacsError where the PACS's answer gives no plane (an
 // image without one, or a multi-frame image, whose planes lie per frame); InputError for a bad UID.

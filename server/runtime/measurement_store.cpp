@@ -16,7 +16,7 @@
 
 namespace cinevol::service {
 
-PacsOrigin MeasuredOrigin(const v1::VolumeInfo& volume) {
+PacsOrigin MeasuredOrigin(const v1::VolumeInfo& volume, const VolumeMetadata& metadata) {
   const std::optional<PacsOrigin> origin = ParsePacsSource(volume.source());
   if (!origin) {
     throw RpcError::FailedPrecondition(
@@ -24,21 +24,19 @@ PacsOrigin MeasuredOrigin(const v1::VolumeInfo& volume) {
                     "series loaded with LoadSeries, in its frame of reference",
                     volume.id(), LogSafe(volume.source(), 80)));
   }
-  // "@even" (uneven gaps resampled) keeps the files' patient coordinates; any other "@" is an orientation given
-  // over the files', which moves them.
-  std::string how = volume.source().substr(volume.source().find(origin->series_uid) + origin->series_uid.size());
-  if (how.rfind("@even", 0) == 0) how.erase(0, 5);
-  if (!how.empty()) {
+  // Resampling (uneven gaps, a tilt) keeps the files' patient coordinates; an orientation given over the files' moves
+  // them.
+  if (!metadata.orientation_override.empty()) {
     throw RpcError::FailedPrecondition(
-        fmt::format("volume '{}' was read with its orientation overridden ({}): its patient coordinates are not "
+        fmt::format("volume '{}' was read with its orientation overridden (@{}): its patient coordinates are not "
                     "those of the series' frame of reference, so its measurements cannot be stored in it",
-                    volume.id(), LogSafe(how, 16)));
+                    volume.id(), LogSafe(metadata.orientation_override, 16)));
   }
   return *origin;
 }
 
 v1::StoredObject StoreMeasurements(const pacs::DicomWebClient& to, const pacs::DicomWebClient& from,
-                                   const PacsOrigin& origin,
+                                   const PacsOrigin& origin, const std::string& frame,
                                    const google::protobuf::RepeatedPtrField<v1::Measurement>& measurements,
                                    const std::string& version, const std::atomic<bool>* cancel) {
   std::vector<pacs::ReportMeasurement> report;
@@ -48,7 +46,8 @@ v1::StoredObject StoreMeasurements(const pacs::DicomWebClient& to, const pacs::D
     for (const v1::Vec3& p : m.points()) r.points.push_back({p.x(), p.y(), p.z()});
   }
   const pacs::SourceStudy study = StudyOf(from, origin, cancel);
-  const pacs::ReportSource source = pacs::DescribeMeasuredSeries(from, origin.study_uid, origin.series_uid, cancel);
+  const pacs::ReportSource source =
+      pacs::DescribeMeasuredSeries(from, origin.study_uid, origin.series_uid, frame, cancel);
   pacs::MeasurementReportUids uids;
   const std::string bytes = pacs::MakeMeasurementReport(study, source, report, version, &uids);
   to.StoreInstances(origin.study_uid, {bytes}, cancel);

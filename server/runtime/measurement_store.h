@@ -7,21 +7,23 @@
 #include <string>
 
 #include "cinevol/v1/service.pb.h"
+#include "core/volume.h"
 #include "pacs/dicomweb_client.h"
 #include "runtime/render_store.h"
 
 namespace cinevol::service {
 
-// Where the volume a session measures came from, for a report stored into its study. FAILED_PRECONDITION when it
-// did not come from a PACS, or was read with its orientation overridden (its patient coordinates are then not
-// those of the series' frame of reference).
-PacsOrigin MeasuredOrigin(const v1::VolumeInfo& volume);
+// Where the volume a session measures came from (`info`, `metadata`), for a report stored into its study.
+// FAILED_PRECONDITION when it did not come from a PACS, or was read with its orientation overridden (its patient
+// coordinates are then not those of the series' frame of reference).
+PacsOrigin MeasuredOrigin(const v1::VolumeInfo& info, const VolumeMetadata& metadata);
 
 // Stores `measurements` (patient coordinates of the volume loaded from `origin`) on `to` as a Comprehensive 3D SR
 // in `origin`'s study, whose patient and study attributes, images and frame of reference `from` (the source PACS)
-// answers; `version` is cinevol's. Throws PacsError, InputError (a measurement the report cannot hold), Cancelled.
+// answers (`frame`: the one the volume's files named, may be empty; the PACS must agree); `version` is cinevol's.
+// Throws PacsError, InputError (a measurement the report cannot hold), Cancelled.
 v1::StoredObject StoreMeasurements(const pacs::DicomWebClient& to, const pacs::DicomWebClient& from,
-                                   const PacsOrigin& origin,
+                                   const PacsOrigin& origin, const std::string& frame,
                                    const google::protobuf::RepeatedPtrField<v1::Measurement>& measurements,
                                    const std::string& version, const std::atomic<bool>* cancel);
 

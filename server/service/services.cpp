@@ -674,10 +674,11 @@ grpc::ServerUnaryReactor* PacsServiceImpl::StoreMeasurements(grpc::CallbackServe
         }
         Principal owner;  // the volume is the owner's, whoever presents
         owner.name = session->owner();
-        const PacsOrigin origin = MeasuredOrigin(core_->volumes().Describe(session->volume()->id(), owner));
+        const VolumeMetadata& read = session->volume()->volume()->metadata();
+        const PacsOrigin origin = MeasuredOrigin(core_->volumes().Describe(session->volume()->id(), owner), read);
         const auto from = core_->pacs().Find(origin.pacs, caller, "pacs");
-        *response = service::StoreMeasurements(*to, *from, origin, state.scene().measurements(), CINEVOL_VERSION,
-                                               &stop);
+        *response = service::StoreMeasurements(*to, *from, origin, read.frame_of_reference_uid,
+                                               state.scene().measurements(), CINEVOL_VERSION, &stop);
       },
       request->pacs());
 }

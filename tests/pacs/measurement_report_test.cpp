@@ -19,6 +19,7 @@
 #include "pacs/handmade_sr.h"
 #include "pacs/measurement_requests.h"
 #include "pacs/orthanc_process.h"
+#include "pacs/pacs_error.h"
 #include "pacs/part10_reader.h"
 #include "pacs/stamped_series.h"
 #include "support/error_of.h"
@@ -460,6 +461,13 @@ TEST(MeasurementReportOrthanc, StoredRetrievedAndReadWithinAHundredthOfAMillimet
   const DicomWebClient client(orthanc.Pacs());
 
   const ReportSource source = DescribeMeasuredSeries(client, stamp.study_uid, stamp.series_uid);
+  // The files' own frame agrees; another is refused naming both.
+  EXPECT_EQ(DescribeMeasuredSeries(client, stamp.study_uid, stamp.series_uid, source.frame_of_reference_uid)
+                .frame_of_reference_uid,
+            source.frame_of_reference_uid);
+  const std::string other = ErrorOf<PacsError>(
+      [&] { DescribeMeasuredSeries(client, stamp.study_uid, stamp.series_uid, "2.25.77"); });
+  EXPECT_NE(other.find("whose files named 2.25.77"), std::string::npos) << other;
   EXPECT_EQ(source.frame_of_reference_uid, "1.3.12.2.1107.5.1.4.60064.30000022120807274275100000041");
   ASSERT_EQ(source.images.size(), 3u);
   EXPECT_EQ(source.images[0].sop_class_uid, "1.2.840.10008.5.1.4.1.1.2");
