@@ -112,9 +112,9 @@ void AddMeasurementsCommand(CLI::App& app) {
       "measurements", "A session's measurements to and from a PACS, as a DICOM SR measurement report (docs/pacs.md)");
   measurements->require_subcommand(1);
   std::shared_ptr<MeasurementsOptions> o;
-  auto* store = AddSubcommand(measurements, "store",
-                              "Store a session's measurements into the study of its volume (loaded from a PACS)",
-                              Store, o);
+  auto* store =
+      AddSubcommand(measurements, "store",
+                    "Store a session's measurements into the study of its volume (loaded from a PACS)", Store, o);
   store->add_option("--session", o->session, "The session whose measurements are stored")->required();
   store->add_option("--to", o->to, "The PACS to store them on, by the name the server gives it")->required();
 

@@ -29,7 +29,7 @@
 namespace cinevol::pacs {
 namespace {
 
-constexpr double kMaxCoordinate = 1e6;  // mm, as a session's measurements
+constexpr double kMaxCoordinate = 1e6;     // mm, as a session's measurements
 constexpr std::size_t kMaxNameBytes = 64;  // a session's (scene_file.h): bytes
 
 // ---- Codes (PS3.16) ----
@@ -208,8 +208,7 @@ void AddMeasurementGroup(Tree& tree, std::size_t measurements_node, const Report
   const bool angle = m.points.size() == 3;
   const double value =
       angle ? *AngleDegrees(m.points[0], m.points[1], m.points[2]) : Distance(m.points[0], m.points[1]);
-  const std::size_t num =
-      tree.Add(group, DSRTypes::RT_contains, DSRTypes::VT_Num, angle ? kAngle : kLength);
+  const std::size_t num = tree.Add(group, DSRTypes::RT_contains, DSRTypes::VT_Num, angle ? kAngle : kLength);
   Require(tree.Item().setNumericValue(
               DSRNumericMeasurementValue(Decimal(value).c_str(), (angle ? kDegree : kMillimetre).Entry())),
           "measured value");
@@ -276,16 +275,15 @@ std::string MakeMeasurementReport(const SourceStudy& study, const ReportSource& 
 
   DSRDocument document(DSRTypes::DT_Comprehensive3DSR);
   Require(document.createNewSeriesInStudy(study_uid.c_str()), "the study");
-  const bool ascii = IsAscii(study.patient_name) && IsAscii(study.patient_id) && IsAscii(study.study_id) &&
-                     IsAscii(study.accession_number) && IsAscii(study.referring_physician) &&
-                     IsAscii(study.study_description) &&
-                     std::all_of(measurements.begin(), measurements.end(),
-                                 [](const ReportMeasurement& m) { return IsAscii(m.name); });
+  const bool ascii =
+      IsAscii(study.patient_name) && IsAscii(study.patient_id) && IsAscii(study.study_id) &&
+      IsAscii(study.accession_number) && IsAscii(study.referring_physician) && IsAscii(study.study_description) &&
+      std::all_of(measurements.begin(), measurements.end(), [](const ReportMeasurement& m) { return IsAscii(m.name); });
   if (!ascii) Require(document.setSpecificCharacterSetType(DSRTypes::CS_UTF8), "the character set");
   using Setter = OFCondition (DSRDocument::*)(const OFString&, const OFBool);
   const auto set = [&](const char* field, const std::string& value, std::size_t max_characters, Setter setter) {
-    SetChecked(std::string("source.") + field, value, max_characters, setter == &DSRDocument::setPatientName ||
-                                                                          setter == &DSRDocument::setReferringPhysicianName,
+    SetChecked(std::string("source.") + field, value, max_characters,
+               setter == &DSRDocument::setPatientName || setter == &DSRDocument::setReferringPhysicianName,
                [&](const OFString& v, OFBool check) { return (document.*setter)(v, check); });
   };
   set("patient_name", study.patient_name, 64, &DSRDocument::setPatientName);  // PN: 64 a group
@@ -309,9 +307,8 @@ std::string MakeMeasurementReport(const SourceStudy& study, const ReportSource& 
   Require(document.setSeriesDate(now.date.c_str()), "Series Date");
   Require(document.setSeriesTime(now.time.c_str()), "Series Time");
   for (const ReportImage& image : source.images) {
-    Require(document.getCurrentRequestedProcedureEvidence().addItem(study_uid.c_str(), series_uid.c_str(),
-                                                                     image.sop_class_uid.c_str(),
-                                                                     image.sop_instance_uid.c_str()),
+    Require(document.getCurrentRequestedProcedureEvidence().addItem(
+                study_uid.c_str(), series_uid.c_str(), image.sop_class_uid.c_str(), image.sop_instance_uid.c_str()),
             "the evidence");
   }
 
@@ -349,8 +346,7 @@ std::string MakeMeasurementReport(const SourceStudy& study, const ReportSource& 
               "an image library entry");
     }
   }
-  const std::size_t imaging =
-      tree.Add(root, DSRTypes::RT_contains, DSRTypes::VT_Container, kImagingMeasurements);
+  const std::size_t imaging = tree.Add(root, DSRTypes::RT_contains, DSRTypes::VT_Container, kImagingMeasurements);
   Require(tree.Item().setContinuityOfContent(DSRTypes::COC_Separate), "measurements continuity");
   for (const ReportMeasurement& m : measurements) AddMeasurementGroup(tree, imaging, m, source.frame_of_reference_uid);
 
@@ -373,8 +369,8 @@ void PlaceOnImage(ReportMeasurement& m, const ImagePlane& plane) {
   constexpr double kTolerance = 1e-3;
   if (std::abs(dot(row, row) - 1) > kTolerance || std::abs(dot(column, column) - 1) > kTolerance ||
       std::abs(dot(row, column)) > kTolerance) {
-    throw InputError(fmt::format("image {}: its Image Orientation (Patient) is not two unit vectors at right angles",
-                                 m.image_uid));
+    throw InputError(
+        fmt::format("image {}: its Image Orientation (Patient) is not two unit vectors at right angles", m.image_uid));
   }
   if (!(plane.spacing[0] > 0 && plane.spacing[1] > 0 && plane.spacing[0] < 1e4 && plane.spacing[1] < 1e4)) {
     throw InputError(fmt::format("image {}: its Pixel Spacing is not within (0, 1e4) mm", m.image_uid));
@@ -453,18 +449,20 @@ class ReportReader {
     ReadReport report;
     const std::string sop_class = d_.Text(root, tag::kSopClassUid).value_or("");
     if (std::find(std::begin(kReportClasses), std::end(kReportClasses), sop_class) == std::end(kReportClasses)) {
-      throw InputError(fmt::format("not a measurement report: SOP class {} is not a structured report cinevol reads "
-                                   "(Enhanced, Comprehensive, Comprehensive 3D or Extensible SR)",
-                                   sop_class.empty() ? "(none)" : Clean(sop_class, 64)));
+      throw InputError(
+          fmt::format("not a measurement report: SOP class {} is not a structured report cinevol reads "
+                      "(Enhanced, Comprehensive, Comprehensive 3D or Extensible SR)",
+                      sop_class.empty() ? "(none)" : Clean(sop_class, 64)));
     }
-    report.uids = {d_.Text(root, tag::kStudyInstanceUid).value_or(""), d_.Text(root, tag::kSeriesInstanceUid).value_or(""),
+    report.uids = {d_.Text(root, tag::kStudyInstanceUid).value_or(""),
+                   d_.Text(root, tag::kSeriesInstanceUid).value_or(""),
                    d_.Text(root, tag::kSopInstanceUid).value_or("")};
     const CodeRead title = ConceptName(root);
     if (ValueType(root) != "CONTAINER" || !title.Is(kImagingMeasurementReport)) {
-      throw InputError(fmt::format("not a measurement report (TID 1500): its root is a {} ({}, {}, \"{}\"), not a "
-                                   "CONTAINER (126000, DCM, \"Imaging Measurement Report\")",
-                                   Clean(ValueType(root), 16), Clean(title.value, 64), Clean(title.scheme, 16),
-                                   Clean(title.meaning, 64)));
+      throw InputError(fmt::format(
+          "not a measurement report (TID 1500): its root is a {} ({}, {}, \"{}\"), not a "
+          "CONTAINER (126000, DCM, \"Imaging Measurement Report\")",
+          Clean(ValueType(root), 16), Clean(title.value, 64), Clean(title.scheme, 16), Clean(title.meaning, 64)));
     }
     report.source_series_uid = ReadEvidence(root);
     bool imaging = false;
@@ -482,17 +480,19 @@ class ReportReader {
       }
     }
     if (!imaging) {
-      throw InputError("not a measurement report cinevol reads: it holds no Imaging Measurements container (126010, "
-                       "DCM)");
+      throw InputError(
+          "not a measurement report cinevol reads: it holds no Imaging Measurements container (126010, "
+          "DCM)");
     }
     if (report.measurements.size() > kMaxReportMeasurements) {
       throw InputError(fmt::format("the report holds {} distances and angles; a session holds at most {}",
                                    report.measurements.size(), kMaxReportMeasurements));
     }
     if (report.measurements.empty() && report.skipped > 0) {
-      throw InputError(fmt::format("the report holds {} measurement{}, none a distance or an angle that cinevol reads "
-                                   "(in 3D coordinates, or 2D on a single-frame image)",
-                                   report.skipped, report.skipped == 1 ? "" : "s"));
+      throw InputError(
+          fmt::format("the report holds {} measurement{}, none a distance or an angle that cinevol reads "
+                      "(in 3D coordinates, or 2D on a single-frame image)",
+                      report.skipped, report.skipped == 1 ? "" : "s"));
     }
     report.frame_of_reference_uid = frame_of_reference_;
     return report;
@@ -562,7 +562,8 @@ class ReportReader {
       const CodeRead concept_name = ConceptName(*item);
       if (type == "CODE") {
         const CodeRead value = CodeOf(*item, tag::kConceptCodeSequence);
-        if (value.value == "CORNERSTONEFREETEXT" || value.value == "CS3DTEXT") return Clean(value.meaning, kMaxNameBytes);
+        if (value.value == "CORNERSTONEFREETEXT" || value.value == "CS3DTEXT")
+          return Clean(value.meaning, kMaxNameBytes);
       }
       if (type == "TEXT" && concept_name.Is(kTrackingIdentifier) && tracking.empty()) {
         tracking = Clean(d_.Text(*item, tag::kTextValue).value_or(""), kMaxNameBytes);
@@ -639,9 +640,10 @@ class ReportReader {
       }
       if (frame_of_reference_.empty()) frame_of_reference_ = frame;
       if (frame != frame_of_reference_) {
-        throw InputError(fmt::format("its coordinates are in frame of reference {}, others' in {}; cinevol reads a "
-                                     "report in one",
-                                     frame, frame_of_reference_));
+        throw InputError(
+            fmt::format("its coordinates are in frame of reference {}, others' in {}; cinevol reads a "
+                        "report in one",
+                        frame, frame_of_reference_));
       }
       ReportMeasurement m;
       m.points = std::move(*points);

@@ -29,17 +29,18 @@ struct ReportMeasurement {
   std::vector<std::array<double, 3>> points;
   // Read from 2D coordinates on an image (SCOORD): `points` are (column, row, 0) in that image's pixels until
   // PlaceOnImage puts them in patient coordinates. Empty for 3D coordinates.
-  std::string image_uid;         // the image's SOP Instance UID
-  std::string image_study_uid;   // its study and series, as the report's evidence lists them (empty where it does not)
+  std::string image_uid;        // the image's SOP Instance UID
+  std::string image_study_uid;  // its study and series, as the report's evidence lists them (empty where it does not)
   std::string image_series_uid;
 };
 
 // Where an image lies in patient coordinates (its Image Plane module).
 struct ImagePlane {
-  std::array<double, 3> position{};     // (0020,0032) the centre of its first pixel, LPS mm
-  std::array<double, 6> orientation{};  // (0020,0037) the direction along a row (columns increasing), then down a column
-  std::array<double, 2> spacing{};      // (0028,0030) mm between rows, then between columns
-  std::string frame_of_reference_uid;   // (0020,0052)
+  std::array<double, 3> position{};  // (0020,0032) the centre of its first pixel, LPS mm
+  std::array<double, 6>
+      orientation{};                   // (0020,0037) the direction along a row (columns increasing), then down a column
+  std::array<double, 2> spacing{};     // (0028,0030) mm between rows, then between columns
+  std::string frame_of_reference_uid;  // (0020,0052)
 };
 
 // `m`'s pixel points on `plane` as patient coordinates (SCOORD's pixels: (0, 0) is the top left corner of the top

@@ -33,10 +33,11 @@ ReportSource DescribeMeasuredSeries(const DicomWebClient& pacs, const std::strin
   const std::string series_url = SeriesUrl(config, study_uid, series_uid);
   const std::string what = "a listing of the measured series' images";
   JsonDocument storage;
-  const auto datasets = FetchDicomJson(
-      config, what,
-      series_url + fmt::format("/instances?limit={}&includefield=00200052&includefield=00080016", config.max_instances + 1),
-      cancel, storage);
+  const auto datasets =
+      FetchDicomJson(config, what,
+                     series_url + fmt::format("/instances?limit={}&includefield=00200052&includefield=00080016",
+                                              config.max_instances + 1),
+                     cancel, storage);
   ReportSource source;
   std::set<std::string> frames, seen;
   for (const DicomJsonDataset& dataset : datasets) {
@@ -61,30 +62,32 @@ ReportSource DescribeMeasuredSeries(const DicomWebClient& pacs, const std::strin
   if (frames.empty() && IsValidUid(known_frame)) frames.insert(known_frame);
   if (frames.empty()) {  // a PACS need not answer every includefield: one instance's metadata says it
     JsonDocument metadata_storage;
-    const auto metadata =
-        FetchDicomJson(config, "a retrieve of an instance's metadata",
-                       series_url + "/instances/" + EscapeUrlComponent(source.images.front().sop_instance_uid) +
-                           "/metadata",
-                       cancel, metadata_storage);
+    const auto metadata = FetchDicomJson(
+        config, "a retrieve of an instance's metadata",
+        series_url + "/instances/" + EscapeUrlComponent(source.images.front().sop_instance_uid) + "/metadata", cancel,
+        metadata_storage);
     for (const DicomJsonDataset& dataset : metadata) {
       const std::string frame = dataset.Text(kFrameOfReferenceUid);
       if (IsValidUid(frame)) frames.insert(frame);
     }
   }
   if (frames.empty()) {
-    throw PacsError(fmt::format("PACS '{}': the measured series names no Frame of Reference UID (0020,0052), so its "
-                                "patient coordinates have no frame a report could name",
-                                config.name));
+    throw PacsError(
+        fmt::format("PACS '{}': the measured series names no Frame of Reference UID (0020,0052), so its "
+                    "patient coordinates have no frame a report could name",
+                    config.name));
   }
   if (frames.size() > 1) {
-    throw PacsError(fmt::format("PACS '{}': the measured series' instances name {} frames of reference; a report "
-                                "names one",
-                                config.name, frames.size()));
+    throw PacsError(
+        fmt::format("PACS '{}': the measured series' instances name {} frames of reference; a report "
+                    "names one",
+                    config.name, frames.size()));
   }
   if (IsValidUid(known_frame) && *frames.begin() != known_frame) {
-    throw PacsError(fmt::format("PACS '{}' names frame of reference {} for the measured series, whose files named {} "
-                                "when it was read",
-                                config.name, *frames.begin(), known_frame));
+    throw PacsError(
+        fmt::format("PACS '{}' names frame of reference {} for the measured series, whose files named {} "
+                    "when it was read",
+                    config.name, *frames.begin(), known_frame));
   }
   source.frame_of_reference_uid = *frames.begin();
   return source;
@@ -95,11 +98,10 @@ ImagePlane FetchImagePlane(const DicomWebClient& pacs, const std::string& study_
   const PacsConfig& config = pacs.config();
   CheckUid(sop_instance_uid, "the image's SOP Instance UID");
   JsonDocument storage;
-  const auto datasets =
-      FetchDicomJson(config, "a retrieve of an image's metadata",
-                     SeriesUrl(config, study_uid, series_uid) + "/instances/" + EscapeUrlComponent(sop_instance_uid) +
-                         "/metadata",
-                     cancel, storage);
+  const auto datasets = FetchDicomJson(
+      config, "a retrieve of an image's metadata",
+      SeriesUrl(config, study_uid, series_uid) + "/instances/" + EscapeUrlComponent(sop_instance_uid) + "/metadata",
+      cancel, storage);
   // Numbers as DICOM JSON gives them (JSON numbers, or DS strings), each finite.
   const auto numbers = [](const DicomJsonDataset& dataset, std::uint32_t tag, std::size_t count) {
     std::vector<double> values;
@@ -129,9 +131,10 @@ ImagePlane FetchImagePlane(const DicomWebClient& pacs, const std::string& study_
       return plane;
     }
   }
-  throw PacsError(fmt::format("PACS '{}': image {} has no plane in its metadata (Image Position and Orientation "
-                              "(Patient), Pixel Spacing), so 2D coordinates on it have no place in the patient",
-                              config.name, sop_instance_uid));
+  throw PacsError(
+      fmt::format("PACS '{}': image {} has no plane in its metadata (Image Position and Orientation "
+                  "(Patient), Pixel Spacing), so 2D coordinates on it have no place in the patient",
+                  config.name, sop_instance_uid));
 }
 
 std::string RetrieveInstance(const DicomWebClient& pacs, const std::string& study_uid, const std::string& series_uid,
@@ -166,9 +169,10 @@ std::string RetrieveInstance(const DicomWebClient& pacs, const std::string& stud
                     response.status);
   }
   if (part.size() > max_bytes) {
-    throw InputError(fmt::format("PACS '{}': the instance is {} bytes, larger than {} bytes, the most cinevol reads "
-                                 "of one",
-                                 config.name, part.size(), max_bytes));
+    throw InputError(
+        fmt::format("PACS '{}': the instance is {} bytes, larger than {} bytes, the most cinevol reads "
+                    "of one",
+                    config.name, part.size(), max_bytes));
   }
   return std::string(part);
 }

@@ -38,17 +38,17 @@ bool HasLongLength(std::string_view vr) {
 }
 
 bool IsKnownVr(std::string_view vr) {
-  for (const char* v : {"AE", "AS", "AT", "CS", "DA", "DS", "DT", "FD", "FL", "IS", "LO", "LT", "OB", "OD", "OF",
-                        "OL", "OV", "OW", "PN", "SH", "SL", "SQ", "SS", "ST", "SV", "TM", "UC", "UI", "UL", "UN",
-                        "UR", "US", "UT", "UV"}) {
+  for (const char* v :
+       {"AE", "AS", "AT", "CS", "DA", "DS", "DT", "FD", "FL", "IS", "LO", "LT", "OB", "OD", "OF", "OL", "OV",
+        "OW", "PN", "SH", "SL", "SQ", "SS", "ST", "SV", "TM", "UC", "UI", "UL", "UN", "UR", "US", "UT", "UV"}) {
     if (vr == v) return true;
   }
   return false;
 }
 
 bool IsStringVr(std::string_view vr) {
-  for (const char* v : {"AE", "AS", "CS", "DA", "DS", "DT", "IS", "LO", "LT", "PN", "SH", "ST", "TM", "UC", "UI", "UR",
-                        "UT"}) {
+  for (const char* v :
+       {"AE", "AS", "CS", "DA", "DS", "DT", "IS", "LO", "LT", "PN", "SH", "ST", "TM", "UC", "UI", "UR", "UT"}) {
     if (vr == v) return true;
   }
   return false;
@@ -74,9 +74,8 @@ const char* ImplicitVr(std::uint32_t tag) {
       {0x0040A730, "SQ"}, {0x0040DB00, "CS"}, {0x00700022, "FL"}, {0x00700023, "CS"}, {0x30060024, "UI"},
   };
   const auto* end = std::end(kKnown);
-  const auto* it = std::lower_bound(std::begin(kKnown), end, tag, [](const Known& k, std::uint32_t t) {
-    return k.tag < t;
-  });
+  const auto* it =
+      std::lower_bound(std::begin(kKnown), end, tag, [](const Known& k, std::uint32_t t) { return k.tag < t; });
   return it != end && it->tag == tag ? it->vr : "UN";
 }
 
@@ -92,8 +91,7 @@ std::string TagName(std::uint32_t tag) { return fmt::format("({:04X},{:04X})", t
 
 class Part10Parser {
  public:
-  Part10Parser(Part10Dataset& out, const Part10Limits& limits)
-      : out_(out), limits_(limits), bytes_(*out.bytes_) {}
+  Part10Parser(Part10Dataset& out, const Part10Limits& limits) : out_(out), limits_(limits), bytes_(*out.bytes_) {}
 
   void Run() {
     if (bytes_.size() < kPreamble + 4 || bytes_.substr(kPreamble, 4) != "DICM") {
@@ -103,8 +101,9 @@ class Part10Parser {
     ReadMeta(pos);
     const std::string& syntax = out_.transfer_syntax_;
     if (syntax == kDeflatedExplicit) {
-      Fail(pos, "transfer syntax 1.2.840.10008.1.2.1.99 (deflated explicit VR little endian), which cinevol does "
-                "not read: store the report uncompressed");
+      Fail(pos,
+           "transfer syntax 1.2.840.10008.1.2.1.99 (deflated explicit VR little endian), which cinevol does "
+           "not read: store the report uncompressed");
     }
     if (syntax == kExplicitBig) Fail(pos, "transfer syntax 1.2.840.10008.1.2.2 (explicit VR big endian, retired)");
     if (syntax != kExplicitLittle && syntax != kImplicitLittle) {
@@ -231,8 +230,8 @@ class Part10Parser {
         }
       } else {
         if (h.length == kUndefinedLength) {
-          Fail(start, fmt::format("element {} ({}) of undefined length, which only a sequence may have",
-                                  TagName(tag), element.Vr()));
+          Fail(start, fmt::format("element {} ({}) of undefined length, which only a sequence may have", TagName(tag),
+                                  element.Vr()));
         }
         Need(pos, h.length, limit, fmt::format("the value of {}", TagName(tag)).c_str());
         element.value = bytes_.substr(pos, h.length);
@@ -287,8 +286,8 @@ class Part10Parser {
 
 Part10Dataset Part10Dataset::Read(std::string bytes, const Part10Limits& limits) {
   if (bytes.size() > limits.max_bytes) {
-    throw InputError(fmt::format("DICOM: the object is {} bytes; cinevol reads at most {}", bytes.size(),
-                                 limits.max_bytes));
+    throw InputError(
+        fmt::format("DICOM: the object is {} bytes; cinevol reads at most {}", bytes.size(), limits.max_bytes));
   }
   Part10Dataset dataset;
   dataset.bytes_ = std::make_unique<const std::string>(std::move(bytes));
@@ -338,7 +337,8 @@ std::vector<double> Part10Dataset::Floats(const Part10Item& item, std::uint32_t 
   }
   const std::size_t count = element->value.size() / size;
   if (count > max_values) {
-    throw InputError(fmt::format("DICOM: {} holds {} values; at most {} were expected", TagName(tag), count, max_values));
+    throw InputError(
+        fmt::format("DICOM: {} holds {} values; at most {} were expected", TagName(tag), count, max_values));
   }
   std::vector<double> values(count);
   for (std::size_t i = 0; i < count; ++i) {

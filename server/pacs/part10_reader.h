@@ -15,7 +15,7 @@ namespace cinevol::pacs {
 // What one read may take. Memory is known before it is taken: at most
 // max_elements elements and max_items items, each a few words, besides the bytes.
 struct Part10Limits {
-  std::size_t max_bytes = std::size_t{32} << 20;  // [132; 1 GiB] - the whole file
+  std::size_t max_bytes = std::size_t{32} << 20;    // [132; 1 GiB] - the whole file
   std::size_t max_elements = std::size_t{1} << 18;  // data elements, every level together
   std::size_t max_items = std::size_t{1} << 15;     // sequence items, every sequence together
   int max_depth = 24;                               // [1; 64] - sequences nested in sequences

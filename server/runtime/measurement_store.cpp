@@ -8,8 +8,8 @@
 
 #include "core/error.h"
 #include "core/log_safe.h"
-#include "pacs/measurement_report.h"
 #include "pacs/dicom_json.h"
+#include "pacs/measurement_report.h"
 #include "pacs/measurement_requests.h"
 #include "pacs/pacs_error.h"
 #include "runtime/errors.h"
@@ -69,9 +69,10 @@ void PlaceOnImages(const pacs::DicomWebClient& pacs, const std::string& study_ui
   for (pacs::ReportMeasurement& m : read.measurements) {
     if (m.image_uid.empty()) continue;
     if (m.image_series_uid.empty()) {
-      throw InputError(fmt::format("measurement '{}' lies on image {}, which the report's evidence places in no "
-                                   "series",
-                                   m.name, m.image_uid));
+      throw InputError(
+          fmt::format("measurement '{}' lies on image {}, which the report's evidence places in no "
+                      "series",
+                      m.name, m.image_uid));
     }
     auto it = planes.find(m.image_uid);
     if (it == planes.end()) {
@@ -81,14 +82,15 @@ void PlaceOnImages(const pacs::DicomWebClient& pacs, const std::string& study_ui
     }
     const std::string& frame = it->second.frame_of_reference_uid;
     if (!pacs::IsValidUid(frame)) {
-      throw pacs::PacsError(fmt::format("PACS '{}': image {} names no Frame of Reference UID", pacs.config().name,
-                                        m.image_uid));
+      throw pacs::PacsError(
+          fmt::format("PACS '{}': image {} names no Frame of Reference UID", pacs.config().name, m.image_uid));
     }
     if (read.frame_of_reference_uid.empty()) read.frame_of_reference_uid = frame;
     if (frame != read.frame_of_reference_uid) {
-      throw InputError(fmt::format("measurement '{}' lies on an image in frame of reference {}, others in {}; "
-                                   "cinevol reads a report in one",
-                                   m.name, frame, read.frame_of_reference_uid));
+      throw InputError(
+          fmt::format("measurement '{}' lies on an image in frame of reference {}, others in {}; "
+                      "cinevol reads a report in one",
+                      m.name, frame, read.frame_of_reference_uid));
     }
     pacs::PlaceOnImage(m, it->second);
   }
@@ -111,12 +113,11 @@ v1::LoadMeasurementsResponse LoadMeasurements(const pacs::DicomWebClient& pacs,
     }
     instance = listed.front().sop_instance_uid;
   }
-  pacs::ReadReport read =
-      pacs::ReadMeasurementReport(pacs::RetrieveInstance(pacs, request.study_uid(), request.series_uid(), instance,
-                                                         pacs::kMaxReportBytes, cancel));
+  pacs::ReadReport read = pacs::ReadMeasurementReport(
+      pacs::RetrieveInstance(pacs, request.study_uid(), request.series_uid(), instance, pacs::kMaxReportBytes, cancel));
   if (read.uids.sop_instance_uid != instance) {
-    throw pacs::PacsError(fmt::format("PACS '{}' answered a retrieve of report {} with another instance",
-                                      pacs.config().name, instance));
+    throw pacs::PacsError(
+        fmt::format("PACS '{}' answered a retrieve of report {} with another instance", pacs.config().name, instance));
   }
   PlaceOnImages(pacs, request.study_uid(), read, cancel);
   v1::LoadMeasurementsResponse response;

@@ -17,14 +17,16 @@ inline constexpr const char* kHandmadeFrame = "2.25.3400357.9";
 
 inline std::string Le16(std::uint16_t v) { return {char(v & 0xff), char(v >> 8)}; }
 inline std::string Le32(std::uint32_t v) { return Le16(std::uint16_t(v & 0xffff)) + Le16(std::uint16_t(v >> 16)); }
-inline std::string TagBytes(std::uint32_t tag) { return Le16(std::uint16_t(tag >> 16)) + Le16(std::uint16_t(tag & 0xffff)); }
+inline std::string TagBytes(std::uint32_t tag) {
+  return Le16(std::uint16_t(tag >> 16)) + Le16(std::uint16_t(tag & 0xffff));
+}
 
 // One element in explicit VR little endian, its value padded to an even length.
 inline std::string Element(std::uint32_t tag, const std::string& vr, std::string value) {
   if (value.size() % 2) value += vr == "UI" ? '\0' : ' ';
   const bool long_length = vr == "OB" || vr == "SQ" || vr == "UN" || vr == "UT" || vr == "UC" || vr == "UR";
-  return TagBytes(tag) + vr + (long_length ? Le16(0) + Le32(std::uint32_t(value.size())) : Le16(std::uint16_t(value.size()))) +
-         value;
+  return TagBytes(tag) + vr +
+         (long_length ? Le16(0) + Le32(std::uint32_t(value.size())) : Le16(std::uint16_t(value.size()))) + value;
 }
 
 inline std::string Floats(const std::vector<float>& values) {
@@ -36,7 +38,8 @@ inline std::string Floats(const std::vector<float>& values) {
 // A sequence and its items, each of undefined length.
 inline std::string Sequence(std::uint32_t tag, const std::vector<std::string>& items) {
   std::string bytes = TagBytes(tag) + "SQ" + Le16(0) + Le32(0xffffffff);
-  for (const std::string& item : items) bytes += TagBytes(0xfffee000) + Le32(0xffffffff) + item + TagBytes(0xfffee00d) + Le32(0);
+  for (const std::string& item : items)
+    bytes += TagBytes(0xfffee000) + Le32(0xffffffff) + item + TagBytes(0xfffee00d) + Le32(0);
   return bytes + TagBytes(0xfffee0dd) + Le32(0);
 }
 
@@ -61,7 +64,8 @@ struct CodeTriple {
 };
 
 inline std::string CodeItem(const CodeTriple& c) {
-  return Element(0x00080100, "SH", c.value) + Element(0x00080102, "SH", c.scheme) + Element(0x00080104, "LO", c.meaning);
+  return Element(0x00080100, "SH", c.value) + Element(0x00080102, "SH", c.scheme) +
+         Element(0x00080104, "LO", c.meaning);
 }
 
 inline Elements ContentItem(const std::string& relation, const std::string& type, const CodeTriple& concept_name) {
@@ -86,10 +90,11 @@ inline Elements Scoord3d(const std::vector<float>& xyz, const std::string& frame
   return item;
 }
 
-inline Elements Num(const CodeTriple& concept_name, const std::string& units, const std::string& value, const Elements& coordinates) {
+inline Elements Num(const CodeTriple& concept_name, const std::string& units, const std::string& value,
+                    const Elements& coordinates) {
   Elements num = ContentItem("CONTAINS", "NUM", concept_name);
-  num[0x0040A300] = Sequence(0x0040A300, {Sequence(0x004008EA, {CodeItem({units, "UCUM", units})}) +
-                                          Element(0x0040A30A, "DS", value)});
+  num[0x0040A300] = Sequence(
+      0x0040A300, {Sequence(0x004008EA, {CodeItem({units, "UCUM", units})}) + Element(0x0040A30A, "DS", value)});
   return WithChildren(num, {coordinates});
 }
 
@@ -138,8 +143,8 @@ inline std::string Report(const std::vector<Elements>& groups, const Elements& r
                 {0x0020000E, Element(0x0020000E, "UI", about.series_uid)},
                 {0x0040A040, Element(0x0040A040, "CS", "CONTAINER")},
                 {0x0040A043, Sequence(0x0040A043, {CodeItem({"126000", "DCM", "Imaging Measurement Report"})})},
-                {0x0040A375, Sequence(0x0040A375, {Sequence(0x00081115, {series}) +
-                                                   Element(0x0020000D, "UI", about.study_uid)})}};
+                {0x0040A375,
+                 Sequence(0x0040A375, {Sequence(0x00081115, {series}) + Element(0x0020000D, "UI", about.study_uid)})}};
   const Elements imaging =
       WithChildren(ContentItem("CONTAINS", "CONTAINER", {"126010", "DCM", "Imaging Measurements"}), groups);
   root = WithChildren(root, {ContentItem("CONTAINS", "CONTAINER", {"111028", "DCM", "Image Library"}), imaging});
@@ -152,8 +157,8 @@ inline Elements Scoord(const std::vector<float>& xy, const std::string& image_ui
                        const std::string& sop_class = "1.2.840.10008.5.1.4.1.1.2") {
   Elements image{{0x0040A010, Element(0x0040A010, "CS", "SELECTED FROM")},
                  {0x0040A040, Element(0x0040A040, "CS", "IMAGE")},
-                 {0x00081199, Sequence(0x00081199, {Element(0x00081150, "UI", sop_class) +
-                                                    Element(0x00081155, "UI", image_uid)})}};
+                 {0x00081199,
+                  Sequence(0x00081199, {Element(0x00081150, "UI", sop_class) + Element(0x00081155, "UI", image_uid)})}};
   Elements item{{0x0040A010, Element(0x0040A010, "CS", "INFERRED FROM")},
                 {0x0040A040, Element(0x0040A040, "CS", "SCOORD")},
                 {0x00700022, Element(0x00700022, "FL", Floats(xy))},

@@ -53,7 +53,8 @@ SourceStudy Study() {
 ReportSource Source() {
   ReportSource source;
   source.frame_of_reference_uid = kFrame;
-  for (int i = 1; i <= 3; ++i) source.images.push_back({"1.2.840.10008.5.1.4.1.1.2", "2.25.3400351.1." + std::to_string(i)});
+  for (int i = 1; i <= 3; ++i)
+    source.images.push_back({"1.2.840.10008.5.1.4.1.1.2", "2.25.3400351.1." + std::to_string(i)});
   return source;
 }
 
@@ -101,7 +102,6 @@ void WriteFile(const fs::path& path, const std::string& bytes) {
   std::ofstream out(path, std::ios::binary);
   out << bytes;
 }
-
 
 // ---- cinevol's own reports ----
 
@@ -244,7 +244,10 @@ TEST(MeasurementReport, BadInputsAreRefusedNamingTheField) {
       {refusal(Study(), no_frame, Measurements()), "source.frame_of_reference_uid"},
       {refusal(Study(), Source(), {}), "measurements is empty"},
       {refusal(Study(), Source(), std::vector<ReportMeasurement>(65, Measurements()[0])), "measurements holds 65"},
-      {refusal(Study(), Source(), with([](auto& m) { m[1].points.pop_back(); m[1].points.pop_back(); })),
+      {refusal(Study(), Source(), with([](auto& m) {
+                 m[1].points.pop_back();
+                 m[1].points.pop_back();
+               })),
        "measurements[1].points holds 1"},
       {refusal(Study(), Source(), with([&](auto& m) { m[0].points[1][2] = nan; })), "measurements[0].points"},
       {refusal(Study(), Source(), with([](auto& m) { m[2].points[0][0] = 2e6; })), "measurements[2].points"},
@@ -252,7 +255,8 @@ TEST(MeasurementReport, BadInputsAreRefusedNamingTheField) {
        "measurements[1].points is an angle one of whose arms has no length"},
       {refusal(Study(), Source(), with([](auto& m) { m[0].name = "\xff\xfe"; })), "measurements[0].name"},
   };
-  for (const auto& [message, field] : cases) EXPECT_NE(message.find(field), std::string::npos) << field << ": " << message;
+  for (const auto& [message, field] : cases)
+    EXPECT_NE(message.find(field), std::string::npos) << field << ": " << message;
 }
 
 // ---- Others' reports ----
@@ -260,8 +264,8 @@ TEST(MeasurementReport, BadInputsAreRefusedNamingTheField) {
 // As OHIF (dcmjs, Cornerstone3D) writes 3D measurements: the label in a free-text Finding, a length, an angle as a
 // Cobb angle's polyline whose middle two points coincide; and a 2D length that names no image, which is skipped.
 TEST(MeasurementReport, ReadsAReportAsOhifWritesIt) {
-  const Elements length_2d = WithChildren(
-      ContentItem("INFERRED FROM", "SCOORD", {"121112", "DCM", "Source of Measurement"}), {});
+  const Elements length_2d =
+      WithChildren(ContentItem("INFERRED FROM", "SCOORD", {"121112", "DCM", "Source of Measurement"}), {});
   const std::string report = Report({
       Group({Tracking("Cornerstone3DTools@^0.1.0:Length"), FreeTextFinding("aorta"),
              Num(kLength, "mm", "42.1", Scoord3d({1.5f, 2.5f, 3.5f, 10.25f, -20.5f, 30.75f}))}),
@@ -283,10 +287,10 @@ TEST(MeasurementReport, Reads2dMeasurementsOnAnImageForTheCallerToPlace) {
   HandmadeReport about;
   about.sop_class = "1.2.840.10008.5.1.4.1.1.88.33";  // Comprehensive SR: OHIF's
   about.evidence_instances = {{"1.2.840.10008.5.1.4.1.1.2", "2.25.3400359.7.3"}};
-  const std::string report = Report(
-      {Group({Tracking("Cornerstone3DTools@^0.1.0:Length"), FreeTextFinding("node"),
-              Num(kLength, "mm", "28.3", Scoord({10.5f, 20.5f, 30.5f, 40.5f}, "2.25.3400359.7.3"))})},
-      {}, about);
+  const std::string report =
+      Report({Group({Tracking("Cornerstone3DTools@^0.1.0:Length"), FreeTextFinding("node"),
+                     Num(kLength, "mm", "28.3", Scoord({10.5f, 20.5f, 30.5f, 40.5f}, "2.25.3400359.7.3"))})},
+             {}, about);
   const ReadReport read = ReadMeasurementReport(report);
   ASSERT_EQ(read.measurements.size(), 1u);
   const ReportMeasurement& m = read.measurements[0];
@@ -313,11 +317,13 @@ TEST(MeasurementReport, PlaceOnImageFollowsTheImagesPlane) {
   PlaceOnImage(sagittal, {{10, -50, 80}, {0, 1, 0, 0, 0, -1}, {2, 1}, "2.25.9"});
   EXPECT_EQ(sagittal.points[0], (std::array<double, 3>{10, -47, 70}));
   ReportMeasurement bad{"b", {{1, 1, 0}}, "2.25.1", "", ""};
-  EXPECT_NE(ErrorOf<InputError>([&] { PlaceOnImage(bad, {{0, 0, 0}, {1, 0, 0, 1, 0, 0}, {1, 1}, ""}); })
-                .find("image 2.25.1: its Image Orientation (Patient) is not two unit vectors at right angles"),
+  EXPECT_NE(ErrorOf<InputError>([&] {
+              PlaceOnImage(bad, {{0, 0, 0}, {1, 0, 0, 1, 0, 0}, {1, 1}, ""});
+            }).find("image 2.25.1: its Image Orientation (Patient) is not two unit vectors at right angles"),
             std::string::npos);
-  EXPECT_NE(ErrorOf<InputError>([&] { PlaceOnImage(bad, {{0, 0, 0}, {1, 0, 0, 0, 1, 0}, {0, 1}, ""}); })
-                .find("Pixel Spacing"),
+  EXPECT_NE(ErrorOf<InputError>([&] {
+              PlaceOnImage(bad, {{0, 0, 0}, {1, 0, 0, 0, 1, 0}, {0, 1}, ""});
+            }).find("Pixel Spacing"),
             std::string::npos);
 }
 
@@ -357,8 +363,8 @@ TEST(MeasurementReportHostile, NanAndInfiniteCoordinatesAreRefusedByName) {
 TEST(MeasurementReportHostile, WrongValueTypesAreRefusedByName) {
   Elements text_coordinates = Scoord3d({0, 0, 0, 1, 1, 1});
   text_coordinates[0x00700022] = Element(0x00700022, "DS", "0\\0\\0\\1\\1\\1");
-  std::string message = ErrorOf<InputError>(
-      [&] { ReadMeasurementReport(Report({Group({Num(kLength, "mm", "1", text_coordinates)})})); });
+  std::string message =
+      ErrorOf<InputError>([&] { ReadMeasurementReport(Report({Group({Num(kLength, "mm", "1", text_coordinates)})})); });
   EXPECT_NE(message.find("(0070,0022) has VR DS; FL (32-bit floats) was expected"), std::string::npos) << message;
 
   Elements float_type = Num(kLength, "mm", "1", Scoord3d({0, 0, 0, 1, 1, 1}));
@@ -400,7 +406,8 @@ TEST(MeasurementReportHostile, WhatIsNotAMeasurementReportIsRefused) {
             std::string::npos);
   const std::string deflated = Part10(Element(0x00080016, "UI", kComprehensive3dSrSopClass), "1.2.840.10008.1.2.1.99");
   EXPECT_NE(ErrorOf<InputError>([&] { ReadMeasurementReport(deflated); }).find("deflated"), std::string::npos);
-  const std::string other_root = Report({}, {{0x0040A043, Sequence(0x0040A043, {CodeItem({"18748-4", "LN", "Report"})})}});
+  const std::string other_root =
+      Report({}, {{0x0040A043, Sequence(0x0040A043, {CodeItem({"18748-4", "LN", "Report"})})}});
   std::string message = ErrorOf<InputError>([&] { ReadMeasurementReport(other_root); });
   EXPECT_NE(message.find("not a measurement report (TID 1500): its root is a CONTAINER (18748-4, LN, \"Report\")"),
             std::string::npos)
@@ -452,8 +459,8 @@ TEST(MeasurementReportOrthanc, StoredRetrievedAndReadWithinAHundredthOfAMillimet
   if (!missing.empty()) GTEST_SKIP() << missing << "; skipping";
   cinevol::testing::ScratchDir scratch;
   const cinevol::testing::SeriesStamp stamp{"2.25.3400352", "2.25.3400352.1", "CINEVOL-SR-2", "Cinevol^Sr"};
-  const auto ct = cinevol::testing::DicomFilesIn(cinevol::testing::SharedData() / "ct-body-totalsegmentator" /
-                                                 "example_ct_dicom");
+  const auto ct =
+      cinevol::testing::DicomFilesIn(cinevol::testing::SharedData() / "ct-body-totalsegmentator" / "example_ct_dicom");
   const auto seeded = cinevol::testing::StampSeries({ct.begin(), ct.begin() + 3}, stamp, scratch / "ct");
   cinevol::testing::OrthancProcess orthanc(scratch.path());
   ASSERT_TRUE(orthanc.running()) << orthanc.Log();
@@ -465,8 +472,8 @@ TEST(MeasurementReportOrthanc, StoredRetrievedAndReadWithinAHundredthOfAMillimet
   EXPECT_EQ(DescribeMeasuredSeries(client, stamp.study_uid, stamp.series_uid, source.frame_of_reference_uid)
                 .frame_of_reference_uid,
             source.frame_of_reference_uid);
-  const std::string other = ErrorOf<PacsError>(
-      [&] { DescribeMeasuredSeries(client, stamp.study_uid, stamp.series_uid, "2.25.77"); });
+  const std::string other =
+      ErrorOf<PacsError>([&] { DescribeMeasuredSeries(client, stamp.study_uid, stamp.series_uid, "2.25.77"); });
   EXPECT_NE(other.find("whose files named 2.25.77"), std::string::npos) << other;
   EXPECT_EQ(source.frame_of_reference_uid, "1.3.12.2.1107.5.1.4.60064.30000022120807274275100000041");
   ASSERT_EQ(source.images.size(), 3u);
@@ -482,7 +489,8 @@ TEST(MeasurementReportOrthanc, StoredRetrievedAndReadWithinAHundredthOfAMillimet
   EXPECT_EQ(client.StoreInstances(stamp.study_uid, {report}).stored_sop_instance_uids,
             std::vector<std::string>{uids.sop_instance_uid});
   const std::vector<SeriesSummary> series = client.SearchSeries(stamp.study_uid);
-  const auto sr = std::find_if(series.begin(), series.end(), [&](const auto& s) { return s.series_uid == uids.series_uid; });
+  const auto sr =
+      std::find_if(series.begin(), series.end(), [&](const auto& s) { return s.series_uid == uids.series_uid; });
   ASSERT_NE(sr, series.end());
   EXPECT_EQ(sr->modality, "SR");
 

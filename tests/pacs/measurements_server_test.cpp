@@ -106,10 +106,10 @@ class MeasurementsServer : public ::testing::Test {
     if (!skip_.empty()) GTEST_SKIP() << skip_ << "; skipping";
     ASSERT_TRUE(failure_.empty()) << failure_;
     server_ = std::make_unique<ServerProcess>(
-        scratch_.path(), std::vector<std::string>{"--pacs", "orthanc=" + orthanc_->root_url() + "/dicom-web",
-                                                  "--pacs-credentials", (folder_ / "pacs-credentials").string(),
-                                                  "--auth-tokens", (folder_ / "tokens").string(),
-                                                  "--pacs-timeout-seconds", "10"});
+        scratch_.path(),
+        std::vector<std::string>{"--pacs", "orthanc=" + orthanc_->root_url() + "/dicom-web", "--pacs-credentials",
+                                 (folder_ / "pacs-credentials").string(), "--auth-tokens",
+                                 (folder_ / "tokens").string(), "--pacs-timeout-seconds", "10"});
     ASSERT_TRUE(server_->running()) << server_->Log();
   }
 
@@ -152,14 +152,15 @@ TEST_F(MeasurementsServer, StoredFromOneSessionAndLoadedIntoAnotherWithinAHundre
   ASSERT_FALSE(series_uid.empty()) << out;
 
   const std::vector<v1::SeriesSummary> series = alice.SearchSeries("orthanc", kCt.study_uid);
-  const auto sr = std::find_if(series.begin(), series.end(), [&](const auto& s) { return s.series_uid() == series_uid; });
+  const auto sr =
+      std::find_if(series.begin(), series.end(), [&](const auto& s) { return s.series_uid() == series_uid; });
   ASSERT_NE(sr, series.end()) << out;
   EXPECT_EQ(sr->modality(), "SR");
   EXPECT_EQ(sr->description(), "cinevol measurements");
 
   // Printed, then sent to another session as its measurements.
-  std::tie(code, out) = Cli({"measurements", "load", "--pacs", "orthanc", "--study", kCt.study_uid, "--series",
-                             series_uid});
+  std::tie(code, out) =
+      Cli({"measurements", "load", "--pacs", "orthanc", "--study", kCt.study_uid, "--series", series_uid});
   ASSERT_EQ(code, 0) << out;
   for (const char* expected : {"lesion", "distance", "angle", "mm", "deg", "frame of reference 1.3.12.2.1107.5.1.4"}) {
     EXPECT_NE(out.find(expected), std::string::npos) << expected << "\n" << out;
@@ -294,8 +295,8 @@ TEST_F(MeasurementsServer, WhatCannotBeStoredOrReadIsRefusedByName) {
   EXPECT_EQ(code, grpc::StatusCode::INVALID_ARGUMENT);
 
   // A series of images is no report: several instances, or one that is no SR.
-  auto [exit_code, out] = Cli({"measurements", "load", "--pacs", "orthanc", "--study", kCt.study_uid, "--series",
-                               kCt.series_uid});
+  auto [exit_code, out] =
+      Cli({"measurements", "load", "--pacs", "orthanc", "--study", kCt.study_uid, "--series", kCt.series_uid});
   EXPECT_EQ(exit_code, 3) << out;  // a refused call
   EXPECT_NE(out.find("holds 4 instances; name the report"), std::string::npos) << out;
   std::tie(exit_code, out) = Cli({"measurements", "load", "--pacs", "orthanc", "--study", kCt.study_uid, "--series",
