@@ -17,7 +17,7 @@ struct PacsOptions {
   bool json = false;
   v1::SearchStudiesRequest search;  // search's fields; load's --patient-id
   std::string dates;                // --date FROM-TO
-  std::string study, series, orientation;
+  std::string study, series, orientation, labels_for;
   bool resample_uneven = false;
 };
 
@@ -83,7 +83,8 @@ void Series(const PacsOptions& o) {
 
 void Load(const PacsOptions& o) {
   Client client = Connect(o.connection);
-  const PacsLoad load{o.search.pacs(), o.study, o.search.patient_id(), o.series, o.orientation, o.resample_uneven};
+  const PacsLoad load{o.search.pacs(), o.study, o.search.patient_id(), o.series, o.orientation, o.resample_uneven,
+                      o.labels_for};
   const v1::VolumeInfo volume = LoadFromPacs(client, load, [&](const v1::LoadSeriesProgress& p) {
     if (!o.json) fmt::print(stderr, "{}: {} of {} instances, {}\n", p.stage(), p.instances_done(),
                             p.instances_total(), Bytes(p.bytes()));
@@ -133,6 +134,8 @@ void AddPacsCommand(CLI::App& app) {
   load->add_option("--patient-id", *o->search.mutable_patient_id(), "Instead of --study: the patient's latest study");
   load->add_option("--orientation", o->orientation, "Where index axes x, y, z point, overriding the files' (LPS)");
   load->add_flag("--resample-uneven", o->resample_uneven, kResampleUnevenHelp);
+  load->add_option("--labels-for", o->labels_for,
+                   "A volume you hold: --series is a DICOM SEG, loaded as that volume's labels");
 }
 
 }  // namespace cinevol::cli

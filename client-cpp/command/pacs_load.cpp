@@ -40,12 +40,16 @@ v1::VolumeInfo LoadFromPacs(Client& client, const PacsLoad& load,
   if (load.study.empty() == load.patient_id.empty()) {
     throw InputError("give --study UID (with --series UID or not) or --patient-id ID, one of them");
   }
+  if (!load.labels_for.empty() && load.series.empty()) {
+    throw InputError("--labels-for needs --series: the DICOM SEG series to load as the volume's labels");
+  }
   v1::LoadSeriesRequest request;
   request.set_pacs(load.pacs);
   request.set_study_uid(load.study.empty() ? LatestStudy(client, load) : load.study);
   request.set_series_uid(load.series.empty() ? LargestSeries(client, request.pacs(), request.study_uid()) : load.series);
   request.set_orientation(load.orientation);
   request.set_resample_uneven(load.resample_uneven);
+  request.set_labels_for(load.labels_for);
   return client.LoadSeries(request, progress);
 }
 

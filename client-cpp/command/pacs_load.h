@@ -17,6 +17,7 @@ struct PacsLoad {
   std::string series;      // Series Instance UID; empty: the study's with the most instances
   std::string orientation;
   bool resample_uneven = false;
+  std::string labels_for;  // a volume id: the series is a DICOM SEG, loaded as that volume's labels
 };
 
 // Throws InputError unless exactly one of study and patient_id is given, or

@@ -153,9 +153,19 @@ void PrintVolume(const v1::VolumeInfo& v) {
 void PrintLabels(const v1::LabelSet& labels) {
   fmt::print("labels:          {} values from {}\n", labels.names_size(), labels.source());
   if (!labels.note().empty()) fmt::print("                 {}\n", labels.note());
+  // A DICOM SEG's recommended colours, as sRGB hex.
+  const bool colours =
+      std::any_of(labels.names().begin(), labels.names().end(), [](const v1::LabelName& n) { return n.has_color(); });
   std::vector<TextRow> rows{{"  VALUE", "NAME", "VOXELS"}};
+  if (colours) rows[0].push_back("COLOUR");
+  const auto hex = [](float c) { return int(std::lround(std::clamp(c, 0.0f, 1.0f) * 255)); };
   for (const v1::LabelName& n : labels.names()) {
     rows.push_back({"  " + std::to_string(n.value()), OrDash(n.name()), std::to_string(n.voxels())});
+    if (colours) {
+      rows.back().push_back(
+          n.has_color() ? fmt::format("#{:02x}{:02x}{:02x}", hex(n.color().r()), hex(n.color().g()), hex(n.color().b()))
+                        : "-");
+    }
   }
   PrintTable(rows);
 }

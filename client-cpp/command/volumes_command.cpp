@@ -122,10 +122,13 @@ void AddVolumesCommand(CLI::App& app) {
   upload->add_option("--orientation", o->orientation, kOrientationHelp);
 
   auto* labels = AddVolumesSubcommand(
-      volumes, "labels", "Load a segmentation (a label volume, NIfTI or NRRD) for a volume the server holds", Labels,
-      o);
+      volumes, "labels",
+      "Load a segmentation (a label volume, NIfTI or NRRD; or a DICOM SEG, .dcm) for a volume the server holds",
+      Labels, o);
   labels->add_option("id", o->volume_id, "Volume id the labels segment")->required();
-  labels->add_option("path", o->argument, "Label volume: a path on the server, or a local file with --upload")
+  labels->add_option("path", o->argument,
+                     "Label volume or DICOM SEG (a .dcm, or on the server a folder holding one): a path on the "
+                     "server, or a local file with --upload")
       ->required();
   labels->add_option("--table", o->table, "Label table (`value<TAB>name` lines), on the server or local with --upload");
   labels->add_flag("--upload", o->upload, "Send local files instead of naming files on the server");

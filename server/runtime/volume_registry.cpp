@@ -472,12 +472,17 @@ v1::VolumeInfo VolumeRegistry::AddUploadedLabels(const std::string& id, const fs
   const std::shared_ptr<const Volume> image = VolumeForLabels(id, caller, &held);
   const std::string shown = "upload:" + file_name;
   Reservation reservation(this, caller.name, false, "the segmentation");
-  Volume labels = LoadVolumeFile(file, PolicyFor(shown, true, cancel, &reservation));
-  FollowImageOrientation(labels, *image);
-  reservation.Add(LabelBytesFor(*image));
-  LabelVolume loaded = FitLabels(labels, *image, shown);
+  LabelVolume loaded;
+  if (IsDicomSegmentation(file)) {  // a .dcm: the service lets only a DICOM SEG's labels through
+    loaded = LoadSegmentation(file, *image, PolicyFor(shown, true, cancel, &reservation));
+  } else {
+    Volume labels = LoadVolumeFile(file, PolicyFor(shown, true, cancel, &reservation));
+    FollowImageOrientation(labels, *image);
+    reservation.Add(LabelBytesFor(*image));
+    loaded = FitLabels(labels, *image, shown);
+  }
   if (held) CopyTable(*held, loaded);  // the table found when the volume loaded stays marked
-  loaded.names = reader_cage::ReadLabelTableText(table, "header.label_table");
+  for (auto& [value, name] : reader_cage::ReadLabelTableText(table, "header.label_table")) loaded.names[value] = name;
   return AttachLabels(id, image, std::move(loaded), caller, &reservation);
 }
 

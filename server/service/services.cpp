@@ -136,10 +136,12 @@ class UploadReactor final : public grpc::ServerReadReactor<v1::UploadVolumeChunk
     if (chunk.has_header()) {
       if (file_.is_open()) throw InputError("header: sent twice; send it once, first");
       const auto& h = chunk.header();
-      if (!VolumeRegistry::IsUploadableName(h.file_name()) || h.file_name().size() > 255) {
+      const bool seg = !h.labels_for().empty() && Extension(h.file_name()) == ".dcm";  // a DICOM SEG's labels
+      if ((!VolumeRegistry::IsUploadableName(h.file_name()) && !seg) || h.file_name().size() > 255) {
         throw InputError(
             fmt::format("header.file_name: '{}' is not .nii, .nii.gz, .nrrd, .nrrd.gz, .mha or .vtk (formats "
-                        "whose voxels travel in the one file), up to 255 characters",
+                        "whose voxels travel in the one file), nor a DICOM SEG (.dcm) with header.labels_for, up "
+                        "to 255 characters",
                         LogSafe(h.file_name(), 64)));
       }
       CheckSize(h.size_bytes(), "header.size_bytes");

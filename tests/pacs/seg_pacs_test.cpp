@@ -102,6 +102,7 @@ class SegFromPacs : public ::testing::Test {
     g.rows = y1 - y0 + 1;
     const Vec3f s = image_->spacing_mm();
     for (int r = 0; r < 3; ++r) g.origin[r] += x0 * s.x * g.along_row[r] + y0 * s.y * g.down_column[r];
+    std::printf("SEG frames: %dx%d of the CT's %dx%d, from (%d, %d)\n", g.columns, g.rows, n.x, n.y, x0, y0);
     g.label = [x0, y0, n](int c, int r, int k) { return int(labels_[(std::size_t(k) * n.y + y0 + r) * n.x + x0 + c]); };
     return g;
   }
@@ -181,7 +182,25 @@ TEST_F(SegFromPacs, ASegSeriesLoadsAsTheLabelsOfTheVolumeItSegments) {
   const v1::VolumeInfo from_disk = client.LoadLabels(ct.id(), "seg/seg.dcm");
   ExpectTheNiftisLabels(from_disk.labels());
   EXPECT_EQ(from_disk.labels().source(), "path 'seg/seg.dcm'");
-  client.LoadSeries(Series(kSegSeries, ct.id()));  // the PACS's again
+  // The command: the PACS's again, each label with its name and colour; and offline, the file on the CT's files.
+  auto [code, out] = RunProgram(CliPath(),
+                                {"pacs", "load", "--pacs", "orthanc", "--study", kSegCt.study_uid, "--series",
+                                 kSegSeries, "--labels-for", ct.id(), "--server", server_->address()},
+                                scratch_ / "cli.log", 120s);
+  ASSERT_EQ(code, 0) << out;
+  EXPECT_NE(out.find(fmt::format("pacs:orthanc/{}/{}", kSegCt.study_uid, kSegSeries)), std::string::npos) << out;
+  const Vec3d spleen_rgb = SegColor(1);
+  const std::string spleen_hex =
+      fmt::format("#{:02x}{:02x}{:02x}", int(std::lround(spleen_rgb[0] * 255)), int(std::lround(spleen_rgb[1] * 255)),
+                  int(std::lround(spleen_rgb[2] * 255)));
+  EXPECT_NE(out.find("spleen"), std::string::npos) << out;
+  EXPECT_NE(out.find(spleen_hex), std::string::npos) << spleen_hex << " in " << out;
+  std::tie(code, out) = RunProgram(
+      CliPath(),
+      {"info", (folder_ / "data" / "ct").string(), "--labels", (folder_ / "data" / "seg" / "seg.dcm").string()},
+      scratch_ / "info.log", 120s);
+  ASSERT_EQ(code, 0) << out;
+  EXPECT_NE(out.find("DICOM SEG (BINARY, 117 segments"), std::string::npos) << out;
 
   // Sessions style its labels as any segmentation's: the liver hidden, the spleen red, the table removed.
   v1::CreateSessionRequest request = SmallSession("ct-bone");
@@ -268,6 +287,13 @@ TEST_F(SegFromPacs, LabelsForNamesAVolumeOfTheCallersAndASegSeries) {
   const v1::VolumeInfo ct = client.LoadSeries(Series(kSegCt.series_uid));
   ExpectRpcError([&] { client.LoadSeries(Series(kSegCt.series_uid, ct.id())); }, grpc::StatusCode::INVALID_ARGUMENT,
                  "holds 20 instances");
+  // An upload: a SEG travels as a volume's labels only.
+  const fs::path seg = folder_ / "data" / "seg" / "seg.dcm";
+  const v1::VolumeInfo uploaded = client.UploadLabels(ct.id(), seg);
+  EXPECT_EQ(uploaded.labels().source(), "upload:seg.dcm");
+  ExpectTheNiftisLabels(uploaded.labels());
+  ExpectRpcError([&] { client.UploadVolume(seg); }, grpc::StatusCode::INVALID_ARGUMENT,
+                 "nor a DICOM SEG (.dcm) with header.labels_for");
   // The phantom is the operator's: only its owner or an operator may label it.
   ExpectRpcError([&] { client.LoadSeries(Series(kSegSeries, "phantom:head?size=48")); },
                  grpc::StatusCode::PERMISSION_DENIED, "labels_for");
