@@ -197,6 +197,20 @@ TEST_F(DicomSeg, AFolderHoldingTheSegAmongOtherFilesLoadsIt) {
             std::string::npos);
 }
 
+// Implicit VR (the reader needs DCMTK's dictionary, which it loads before
+// its sandbox shuts the files) and deflated load alike; big endian is refused.
+TEST_F(DicomSeg, ImplicitAndDeflatedSyntaxesLoadAlike) {
+  const auto same = [](DcmDataset&) {};
+  for (const E_TransferSyntax syntax : {EXS_LittleEndianImplicit, EXS_DeflatedLittleEndianExplicit}) {
+    const fs::path file = scratch_ / fmt::format("syntax-{}.dcm", int(syntax));
+    testing::EditSeg(AxialSeg(true), file, same, syntax);
+    ExpectSameLabels(LoadLabelVolume(file, *image_), labels_);
+  }
+  const fs::path big = scratch_ / "big-endian.dcm";
+  testing::EditSeg(AxialSeg(true), big, same, EXS_BigEndianExplicit);
+  EXPECT_NE(MessageOf([&] { LoadLabelVolume(big, *image_); }).find("is not read"), std::string::npos);
+}
+
 // The image with a frame of reference, as a DICOM series has one.
 Volume WithFrameOfReference(const Volume& image, const std::string& uid) {
   std::vector<float> values(image.voxel_count());

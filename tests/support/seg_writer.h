@@ -72,12 +72,12 @@ inline void Check(const OFCondition& c, const std::string& what) {
 // Loads a SEG (or any DICOM file) with dcmdata, lets `edit` change its data
 // set, and writes it to `to`: hostile variants of a valid SEG.
 inline void EditSeg(const std::filesystem::path& from, const std::filesystem::path& to,
-                    const std::function<void(DcmDataset&)>& edit) {
+                    const std::function<void(DcmDataset&)>& edit, E_TransferSyntax syntax = EXS_LittleEndianExplicit) {
   DcmFileFormat file;
   Check(file.loadFile(from.c_str()), "load");
   Check(file.loadAllDataIntoMemory(), "load");  // `to` may be `from`
   edit(*file.getDataset());
-  Check(file.saveFile(to.c_str(), EXS_LittleEndianExplicit), "save");
+  Check(file.saveFile(to.c_str(), syntax), "save");
 }
 
 // A fractional SEG of 0 and 255 made binary, its frames packed as PS3.5 8.1.1
