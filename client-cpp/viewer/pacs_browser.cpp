@@ -158,10 +158,27 @@ v1::LoadSeriesRequest PacsBrowser::SelectedSeries() const {
   return request;
 }
 
-void PacsBrowser::OpenSeries(const v1::LoadSeriesRequest& request) {
+std::string PacsBrowser::ModalityOf(const std::string& series_uid) const {
+  const auto it = std::find_if(series.begin(), series.end(),
+                               [&](const v1::SeriesSummary& s) { return s.series_uid() == series_uid; });
+  return it == series.end() ? "" : it->modality();
+}
+
+void PacsBrowser::OpenSeries(const v1::LoadSeriesRequest& images) {
   if (opening) {
     status = "a series is opening already: wait for it";
     return;
+  }
+  const std::string modality = ModalityOf(images.series_uid());
+  if (modality == "SR") return OpenMeasurements(images);
+  v1::LoadSeriesRequest request = images;
+  if (modality == "SEG") {  // the labels of the volume looked at, in its frame of reference
+    if (!link_.volume()) {
+      status = "open the images this segmentation belongs to first";
+      failed = true;
+      return;
+    }
+    request.set_labels_for(link_.volume()->id());
   }
   opening = true;
   progress.reset();
@@ -175,6 +192,44 @@ void PacsBrowser::OpenSeries(const v1::LoadSeriesRequest& request) {
     };
     return std::function<void()>(
         [this, request, opened = client.LoadSeries(request, on_progress)] { Opened(request, opened); });
+  });
+}
+
+void PacsBrowser::OpenMeasurements(const v1::LoadSeriesRequest& series) {
+  v1::LoadMeasurementsRequest request;
+  request.set_pacs(series.pacs());
+  request.set_study_uid(series.study_uid());
+  request.set_series_uid(series.series_uid());
+  status = "reading the measurement report...";
+  Call("openMeasurements", request.pacs(), [this, request](Client& client) -> std::function<void()> {
+    const v1::LoadMeasurementsResponse report = client.LoadMeasurements(request);
+    return [this, report] {
+      link_.shown().SetMeasurements({report.measurements().begin(), report.measurements().end()});
+      status = fmt::format("{} measurement(s) from the report", report.measurements_size());
+      google::protobuf::Struct said;
+      (*said.mutable_fields())["measurements"] = NumberValue(report.measurements_size());
+      context_.log.Report("openMeasurements", said);
+    };
+  });
+}
+
+void PacsBrowser::StoreMeasurements(const std::string& pacs_name) {
+  const std::string session_id = link_.session_id();
+  if (session_id.empty()) {
+    status = "no session is open: there is nothing to store";
+    failed = true;
+    return;
+  }
+  status = fmt::format("storing the measurements on {}...", pacs_name);
+  Call("storeMeasurements", pacs_name, [this, session_id, pacs_name](Client& client) -> std::function<void()> {
+    const v1::StoredObject stored = client.StoreMeasurements(session_id, pacs_name);
+    return [this, stored] {
+      status = fmt::format("measurements stored on {}: series {}", stored.pacs(), stored.series_uid());
+      google::protobuf::Struct said;
+      (*said.mutable_fields())["pacs"] = TextValue(stored.pacs());
+      (*said.mutable_fields())["seriesUid"] = TextValue(stored.series_uid());
+      context_.log.Report("storeMeasurements", said);
+    };
   });
 }
 

@@ -1,5 +1,8 @@
 // The PACS browser (docs/viewer.md, "PACS"): the server's PACS, a search's
-// studies, a study's series, and a series opened as the volume looked at.
+// studies, a study's series, and a series opened by what it is: images as
+// the volume looked at, a measurement report (SR) as the session's
+// measurements, a segmentation (SEG) as the open volume's labels; and the
+// session's measurements stored back as a report.
 // Its calls run on the connection's long lane; their answers come back on
 // the UI thread. Patient fields stay here and on screen: never printed or logged.
 #pragma once
@@ -24,6 +27,8 @@ class PacsBrowser {
   void SelectStudy(const std::string& pacs_name, const std::string& study_uid);
   void OpenSeries(const v1::LoadSeriesRequest& request);
   v1::LoadSeriesRequest SelectedSeries() const;
+  // The session's measurements as a report in its study on PACS `pacs_name`.
+  void StoreMeasurements(const std::string& pacs_name);
   // The connection closed: calls queued on it never run and those running
   // are not heard of, so nothing waits for them.
   void Forget();
@@ -51,6 +56,9 @@ class PacsBrowser {
   void ShowSeries(const std::string& pacs_name, const std::string& study_uid,
                   const std::vector<v1::SeriesSummary>& series);
   void Opened(const v1::LoadSeriesRequest& request, const v1::VolumeInfo& opened);
+  // The modality of a series of the study listed ("" where it is not listed).
+  std::string ModalityOf(const std::string& series_uid) const;
+  void OpenMeasurements(const v1::LoadSeriesRequest& series);
   void Failed(const std::string& action, const std::string& pacs_name, grpc::StatusCode code,
               const std::string& message);
 

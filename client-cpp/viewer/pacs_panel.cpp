@@ -1,5 +1,6 @@
 // The PACS panel: the search fields, the studies found, a study's series and
-// Open, with the series' progress while the server fetches it.
+// Open (images, a measurement report or a segmentation, by modality), with
+// the series' progress while the server fetches it; Store measurements.
 #include <fmt/format.h>
 #include <imgui.h>
 #include <imgui_stdlib.h>
@@ -113,6 +114,8 @@ void PacsPanel(PacsBrowser& pacs) {
   StudiesTable(pacs);
   SeriesTable(pacs);
   OpenButton(pacs);
+  if (ImGui::Button("Store measurements")) pacs.StoreMeasurements(pacs.query.pacs());
+  if (ImGui::IsItemHovered()) ImGui::SetTooltip("The session's measurements, as a DICOM SR in its study on this PACS");
   if (pacs.status.empty()) return;
   if (pacs.failed) ImGui::PushStyleColor(ImGuiCol_Text, ImVec4(1.0f, 0.55f, 0.45f, 1.0f));
   ImGui::TextWrapped("%s", pacs.status.c_str());

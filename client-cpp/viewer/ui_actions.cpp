@@ -188,6 +188,13 @@ UiAction ParsePacsAction(const std::string& name, const Value& value, const std:
       t.rooms.pacs.SelectStudy(study.pacs(), study.study_uid());
     };
   }
+  if (name == "storeMeasurements") {  // {"storeMeasurements": {"pacs": "main"}}
+    const auto store = PacsRequest<v1::StoreMeasurementsRequest>(value, at, {"pacs"});
+    return [store](ActionTarget& t) {
+      t.rooms.panels.pacs = true;
+      t.rooms.pacs.StoreMeasurements(store.pacs());
+    };
+  }
   if (name == "openSeries") {  // {"openSeries": {"pacs": "main", "studyUid": "1.2.3", "seriesUid": "1.2.3.4"}}
     const auto series = PacsRequest<v1::LoadSeriesRequest>(value, at, {"pacs", "studyUid", "seriesUid"});
     return [series](ActionTarget& t) {
@@ -369,7 +376,7 @@ UiAction ParseUiAction(const std::string& json, const std::string& where) {
   if (UiAction sharing = ParseSharingAction(name, value, at)) return sharing;
   throw InputError(fmt::format(
       "{}: unknown action (panel, key, drag, wheel, preset, movePoint, addPoint, deletePoint, windowLevel, "
-      "snapshot, saveScene, openScene, searchPacs, selectStudy, openSeries, layout2x2, pickAt, clickSlice, "
+      "snapshot, saveScene, openScene, searchPacs, selectStudy, openSeries, storeMeasurements, layout2x2, pickAt, clickSlice, "
       "stepSlice, measureDistance, measureAngle, deleteMeasurement, share, listShares, handover, revoke, pointer, "
       "resizeWindow, settle, screenshot, quit)",
       at));

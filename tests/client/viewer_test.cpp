@@ -575,6 +575,83 @@ TEST(Viewer, APacsSeriesIsFoundListedAndOpenedFromItsPanel) {
   EXPECT_EQ(output.find(ct.patient_name), std::string::npos) << output;
 }
 
+// Measurements to the PACS and back (issue 57): a distance measured on a
+// series from a real Orthanc is stored from the panel as an SR; a second
+// viewer opens the series, then the report from the study's series list,
+// and shows the same measurement (points within 0.01 mm).
+TEST(Viewer, MeasurementsGoToThePacsAsAReportAndComeBack) {
+  CINEVOL_REQUIRE_VIEWER();
+  if (const std::string missing = OrthancProcess::WhatIsMissing(); !missing.empty()) GTEST_SKIP() << missing;
+  CINEVOL_REQUIRE_SHARED_DATA();
+  const SeriesStamp ct{"2.25.3410301", "2.25.3410301.1", "CINEVOL-VIEWER-SR", "Cinevol^Report"};
+  ScratchDir scratch;
+  fs::create_directories(scratch.path() / "orthanc");
+  OrthancProcess orthanc(scratch.path() / "orthanc");
+  ASSERT_TRUE(orthanc.running()) << orthanc.Log();
+  const auto files = DicomFilesIn(SharedData() / "ct-body-totalsegmentator/example_ct_dicom");
+  for (const StampedInstance& instance : StampSeries(files, ct, scratch.path() / "stamped").instances) {
+    ASSERT_EQ(orthanc.Upload(instance.bytes), 200) << "Orthanc refused an upload";
+  }
+  const pacs::PacsConfig pacs = orthanc.Pacs();
+  const fs::path credentials = scratch.path() / "pacs-credentials";
+  std::ofstream(credentials) << "orthanc basic " << pacs.credentials.user << ":" << pacs.credentials.password << "\n";
+  ServerProcess server(scratch.path(), {"--pacs", "orthanc=" + pacs.base_url, "--pacs-credentials",
+                                        credentials.string(), "--pacs-timeout-seconds", "10"});
+  ASSERT_TRUE(server.running()) << server.Log();
+  const std::string open_images = fmt::format(
+      R"({{"at": 0, "ui": {{"openSeries": {{"pacs": "orthanc", "studyUid": "{}", "seriesUid": "{}"}}}}}})",
+      ct.study_uid, ct.series_uid);
+
+  const fs::path measured = scratch.path() / "measured.json";
+  const fs::path store = WriteScript(scratch.path() / "store.jsonl", fmt::format(R"({{"session": {{"stream": {{"targetSpp": 2}}}}}}
+{}
+{{"at": 0, "ui": {{"settle": true}}}}
+{{"at": 0, "ui": {{"layout2x2": true}}}}
+{{"at": 0.1, "ui": {{"settle": true}}}}
+{{"at": 0.1, "ui": {{"measureDistance": true}}}}
+{{"at": 0.1, "ui": {{"pickAt": {{"x": 0.5, "y": 0.5}}}}}}
+{{"at": 0.2, "ui": {{"settle": true}}}}
+{{"at": 0.2, "ui": {{"clickSlice": {{"pane": "axial", "x": 0.3, "y": 0.5}}}}}}
+{{"at": 0.3, "ui": {{"settle": true}}}}
+{{"at": 0.3, "ui": {{"storeMeasurements": {{"pacs": "orthanc"}}}}}}
+{{"at": 0.3, "ui": {{"settle": true}}}}
+{{"at": 0.3, "ui": {{"saveScene": "{}"}}}}
+)",
+                                                                                    open_images, measured.string()));
+  const ViewerRun stored = RunViewer(scratch.path(), {"--server", server.address(), "--script", store.string()});
+  ASSERT_EQ(stored.exit_code, 0) << stored.output;
+  const auto reports = Reported(stored.output, "storeMeasurements");
+  ASSERT_EQ(reports.size(), 1u) << stored.output;
+  const std::string report_series = TextField(reports[0], "seriesUid");
+  const v1::Scene before = LoadSceneFile(measured);
+  ASSERT_EQ(before.measurements_size(), 1) << stored.output;
+
+  const fs::path restored = scratch.path() / "restored.json";
+  const fs::path load = WriteScript(scratch.path() / "load.jsonl", fmt::format(R"({{"session": {{"stream": {{"targetSpp": 2}}}}}}
+{}
+{{"at": 0, "ui": {{"settle": true}}}}
+{{"at": 0, "ui": {{"selectStudy": {{"pacs": "orthanc", "studyUid": "{}"}}}}}}
+{{"at": 0, "ui": {{"settle": true}}}}
+{{"at": 0, "ui": {{"openSeries": {{"pacs": "orthanc", "studyUid": "{}", "seriesUid": "{}"}}}}}}
+{{"at": 0, "ui": {{"settle": true}}}}
+{{"at": 0.2, "ui": {{"saveScene": "{}"}}}}
+)",
+                                                                                  open_images, ct.study_uid, ct.study_uid,
+                                                                                  report_series, restored.string()));
+  const ViewerRun loaded = RunViewer(scratch.path(), {"--server", server.address(), "--script", load.string()});
+  ASSERT_EQ(loaded.exit_code, 0) << loaded.output;
+  EXPECT_EQ(Reported(loaded.output, "openSeries").size(), 1u) << "the report opened as a volume: " << loaded.output;
+  const v1::Scene after = LoadSceneFile(restored);
+  ASSERT_EQ(after.measurements_size(), 1) << loaded.output;
+  ASSERT_EQ(after.measurements(0).points_size(), 2);
+  for (int i = 0; i < 2; ++i) {
+    const v1::Vec3 &a = before.measurements(0).points(i), &b = after.measurements(0).points(i);
+    EXPECT_NEAR(a.x(), b.x(), 0.01);
+    EXPECT_NEAR(a.y(), b.y(), 0.01);
+    EXPECT_NEAR(a.z(), b.z(), 0.01);
+  }
+}
+
 // The reading tools driven as a reader would: the 2x2 layout fetches the
 // three slices through the crosshair, a click on the 3D view picks, a click
 // on a slice ends a distance measurement and moves the crosshair, and the
