@@ -133,7 +133,7 @@ class SegmentationRead final : public VolumeRead {
  public:
   SegmentationRead(const std::vector<DicomFile>& files, const Grid& target, const ReadOptions& options)
       : shown_(options.shown) {
-    ReadTarget(target, options);
+    ReadTarget(target);
     const DicomFile& chosen = ChooseSeg(files, shown_);
     const OFCondition loaded =
         file_.loadFile(chosen.path.c_str(), EXS_Unknown, EGL_noChange, kMaxReadLength, ERM_autoDetect);
@@ -162,7 +162,7 @@ class SegmentationRead final : public VolumeRead {
   }
 
  private:
-  void ReadTarget(const Grid& t, const ReadOptions& options) {
+  void ReadTarget(const Grid& t) {
     if (t.dims_size() != 3 || t.spacing_mm_size() != 3 || t.origin_mm_size() != 3 || t.direction_size() != 9) {
       throw std::runtime_error("a request without the volume's grid");
     }
@@ -174,7 +174,7 @@ class SegmentationRead final : public VolumeRead {
       origin_[a] = t.origin_mm(a);
       for (int r = 0; r < 3; ++r) axis_[a][r] = t.direction(3 * r + a) * t.spacing_mm(a);  // index axis a, in mm
     }
-    if (voxels_ > options.max_voxels) throw std::runtime_error("a target past the voxel limit");
+    if (voxels_ > kMaxVoxels) throw std::runtime_error("a target past the voxel limit");
     target_ = t;
   }
 
@@ -367,6 +367,13 @@ class SegmentationRead final : public VolumeRead {
     }
     for (auto& list : frames_of_plane_) {  // the highest segment number written last: it wins where they overlap
       std::stable_sort(list.begin(), list.end(), [&](int a, int b) { return frames_[a].segment < frames_[b].segment; });
+      const Frame& first = frames_[std::size_t(list.front())];
+      bool shared = true;
+      for (int f : list) {
+        shared = shared && std::abs(frames_[std::size_t(f)].u0 - first.u0) < 1e-3 * column_spacing_ &&
+                 std::abs(frames_[std::size_t(f)].v0 - first.v0) < 1e-3 * row_spacing_;
+      }
+      shared_origin_.push_back(shared);
     }
     double gap = 0;
     for (std::size_t i = 1; i < planes_.size(); ++i) {
@@ -421,8 +428,32 @@ class SegmentationRead final : public VolumeRead {
     return 2 * int(pixels_[at]) >= max_fraction_;
   }
 
+  // Calls `mark(pixel)` for every pixel of `frame` in its segment: bits
+  // (eight zero pixels skipped at a time) or fractions at half the maximum.
+  template <class Mark>
+  void ForEachSet(std::size_t frame, Mark&& mark) const {
+    const std::size_t n = std::size_t(rows_) * std::size_t(columns_), base = frame * n;
+    if (max_fraction_ != 0) {
+      for (std::size_t p = 0; p < n; ++p) {
+        if (2 * int(pixels_[base + p]) >= max_fraction_) mark(p);
+      }
+      return;
+    }
+    for (std::size_t bit = base, end = base + n; bit < end;) {
+      if ((bit & 7) == 0 && bit + 8 <= end && pixels_[bit >> 3] == 0) {
+        bit += 8;
+        continue;
+      }
+      if ((pixels_[bit >> 3] >> (bit & 7)) & 1) mark(bit - base);
+      ++bit;
+    }
+  }
+
   // Each target voxel takes the segment of the nearest frame pixel in the
   // nearest plane within half a slice spacing; `out` (when given) gets it.
+  // Where the volume's slices lie in the SEG's planes and a plane's frames
+  // share their origin (as writers make them), the plane's frames are first
+  // merged into one image of labels; else each voxel looks at each frame.
   Placement Place(std::uint16_t* out) const {
     const Vec3d o{origin_[0], origin_[1], origin_[2]};
     // Along the normal, the row and the column: affine in the voxel index.
@@ -434,29 +465,75 @@ class SegmentationRead final : public VolumeRead {
       dv[a] = Dot(axis_[a], column_);
     }
     const double half = 0.5 * slice_spacing_ * (1 + 1e-6);
+    const bool parallel = std::abs(dd[0]) * dims_[0] + std::abs(dd[1]) * dims_[1] < 1e-3 * slice_spacing_;
     std::unique_ptr<std::atomic<bool>[]> met(new std::atomic<bool>[frames_.size()]());
     std::vector<std::uint64_t> overlaps(dims_[2], 0);
+    const auto nearest_plane = [&](double d) -> int {
+      auto it = std::lower_bound(planes_.begin(), planes_.end(), d);
+      if (it == planes_.end() || (it != planes_.begin() && d - *(it - 1) < *it - d)) --it;
+      return std::abs(d - *it) > half ? -1 : int(it - planes_.begin());
+    };
+    const auto pixel = [&](double u, double v, const Frame& frame, std::size_t* at) {
+      const double c = std::floor((u - frame.u0) / column_spacing_ + 0.5);
+      const double r = std::floor((v - frame.v0) / row_spacing_ + 0.5);
+      if (!(c >= 0 && c < columns_ && r >= 0 && r < rows_)) return false;
+      *at = std::size_t(r) * std::size_t(columns_) + std::size_t(c);
+      return true;
+    };
     ParallelFor(dims_[2], [&](std::int64_t z) {
       std::uint64_t overlapping = 0;
+      const double zd = double(z);
+      const int slice_plane =
+          parallel ? nearest_plane(d0 + dd[0] * 0.5 * dims_[0] + dd[1] * 0.5 * dims_[1] + dd[2] * zd) : -1;
+      if (parallel && slice_plane < 0) return;  // the whole slice between planes or beyond them
+      if (parallel && shared_origin_[std::size_t(slice_plane)]) {
+        const std::vector<int>& list = frames_of_plane_[std::size_t(slice_plane)];
+        std::vector<std::uint16_t> image(std::size_t(rows_) * std::size_t(columns_), 0);
+        std::vector<bool> overlapped(list.size() > 1 ? image.size() : 0, false);
+        for (int f : list) {
+          const auto segment = std::uint16_t(frames_[std::size_t(f)].segment);
+          ForEachSet(std::size_t(f), [&](std::size_t p) {
+            if (image[p] != 0 && image[p] != segment) overlapped[p] = true;
+            image[p] = segment;
+          });
+        }
+        const Frame& first = frames_[std::size_t(list.front())];
+        bool hit = false;
+        for (int y = 0; y < dims_[1]; ++y) {
+          for (int x = 0; x < dims_[0]; ++x) {
+            std::size_t at = 0;
+            if (!pixel(u0 + du[0] * x + du[1] * y + du[2] * zd, v0 + dv[0] * x + dv[1] * y + dv[2] * zd, first, &at)) {
+              continue;
+            }
+            hit = true;
+            if (!overlapped.empty() && overlapped[at]) ++overlapping;
+            if (out) out[(std::size_t(z) * dims_[1] + y) * dims_[0] + x] = image[at];
+          }
+        }
+        for (int f : list) {
+          if (hit) met[f].store(true, std::memory_order_relaxed);
+        }
+        overlaps[std::size_t(z)] = overlapping;
+        return;
+      }
       for (int y = 0; y < dims_[1]; ++y) {
         for (int x = 0; x < dims_[0]; ++x) {
-          const double d = d0 + dd[0] * x + dd[1] * y + dd[2] * double(z);
-          auto it = std::lower_bound(planes_.begin(), planes_.end(), d);
-          if (it == planes_.end() || (it != planes_.begin() && d - *(it - 1) < *it - d)) --it;
-          if (std::abs(d - *it) > half) continue;
-          const double u = u0 + du[0] * x + du[1] * y + du[2] * double(z);
-          const double v = v0 + dv[0] * x + dv[1] * y + dv[2] * double(z);
+          const int plane = parallel ? slice_plane : nearest_plane(d0 + dd[0] * x + dd[1] * y + dd[2] * zd);
+          if (plane < 0) continue;
+          const double u = u0 + du[0] * x + du[1] * y + du[2] * zd;
+          const double v = v0 + dv[0] * x + dv[1] * y + dv[2] * zd;
           int label = 0;
-          for (int f : frames_of_plane_[std::size_t(it - planes_.begin())]) {
+          bool overlap = false;
+          for (int f : frames_of_plane_[std::size_t(plane)]) {
             const Frame& frame = frames_[std::size_t(f)];
-            const double c = std::floor((u - frame.u0) / column_spacing_ + 0.5);
-            const double r = std::floor((v - frame.v0) / row_spacing_ + 0.5);
-            if (!(c >= 0 && c < columns_ && r >= 0 && r < rows_)) continue;
+            std::size_t at = 0;
+            if (!pixel(u, v, frame, &at)) continue;
             if (!met[f].load(std::memory_order_relaxed)) met[f].store(true, std::memory_order_relaxed);
-            if (!Set(std::size_t(f), std::size_t(r) * std::size_t(columns_) + std::size_t(c))) continue;
-            if (label != 0 && label != frame.segment) ++overlapping;
+            if (!Set(std::size_t(f), at)) continue;
+            overlap = overlap || (label != 0 && label != frame.segment);
             label = frame.segment;
           }
+          if (overlap) ++overlapping;
           if (out) out[(std::size_t(z) * dims_[1] + y) * dims_[0] + x] = std::uint16_t(label);
         }
       }
@@ -511,6 +588,7 @@ class SegmentationRead final : public VolumeRead {
   std::vector<double> stated_gaps_;  // the first frame's Spacing Between Slices and Slice Thickness (0: none)
   std::vector<double> planes_;       // ascending
   std::vector<std::vector<int>> frames_of_plane_;
+  std::vector<bool> shared_origin_;  // a plane's frames all start at one point
   const Uint8* pixels_ = nullptr;
   std::vector<std::string> notes_;
 };
