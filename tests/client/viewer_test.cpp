@@ -493,6 +493,39 @@ std::string PacsSessionSource(Client& client) {
   return {};
 }
 
+// A real Orthanc (tests/pacs/orthanc_process.h) holding the shared JPEG 2000
+// CT stamped as `ct`, and a server that names it "orthanc" with its
+// credentials. `why` says what did not start.
+struct PacsWithCt {
+  PacsWithCt(const fs::path& scratch, const SeriesStamp& ct) {
+    fs::create_directories(scratch / "orthanc");
+    orthanc = std::make_unique<OrthancProcess>(scratch / "orthanc");
+    if (!orthanc->running()) {
+      why = orthanc->Log();
+      return;
+    }
+    const auto files = DicomFilesIn(SharedData() / "ct-body-totalsegmentator/example_ct_dicom");
+    for (const StampedInstance& instance : StampSeries(files, ct, scratch / "stamped").instances) {
+      if (orthanc->Upload(instance.bytes) != 200) {
+        why = "Orthanc refused an upload";
+        return;
+      }
+    }
+    const pacs::PacsConfig pacs = orthanc->Pacs();
+    const fs::path credentials = scratch / "pacs-credentials";
+    std::ofstream(credentials) << "orthanc basic " << pacs.credentials.user << ":" << pacs.credentials.password << "\n";
+    server = std::make_unique<ServerProcess>(scratch, std::vector<std::string>{"--pacs", "orthanc=" + pacs.base_url,
+                                                                              "--pacs-credentials", credentials.string(),
+                                                                              "--pacs-timeout-seconds", "10"});
+    if (!server->running()) why = server->Log();
+  }
+  bool ready() const { return server && server->running(); }
+
+  std::unique_ptr<OrthancProcess> orthanc;
+  std::unique_ptr<ServerProcess> server;
+  std::string why;
+};
+
 // The PACS panel against a real Orthanc (tests/pacs/orthanc_process.h) holding the shared JPEG 2000 CT, stamped:
 // a script searches a PACS the server does not name (an error), then by patient ID, lists the study's series and
 // opens one. The viewer prints what it found (UIDs, no patient fields), and its session moves to the series.
@@ -502,19 +535,9 @@ TEST(Viewer, APacsSeriesIsFoundListedAndOpenedFromItsPanel) {
   CINEVOL_REQUIRE_SHARED_DATA();
   const SeriesStamp ct{"2.25.3410201", "2.25.3410201.1", "CINEVOL-VIEWER-CT", "Cinevol^Viewer"};
   ScratchDir scratch;
-  fs::create_directories(scratch.path() / "orthanc");
-  OrthancProcess orthanc(scratch.path() / "orthanc");
-  ASSERT_TRUE(orthanc.running()) << orthanc.Log();
-  const auto files = DicomFilesIn(SharedData() / "ct-body-totalsegmentator/example_ct_dicom");
-  for (const StampedInstance& instance : StampSeries(files, ct, scratch.path() / "stamped").instances) {
-    ASSERT_EQ(orthanc.Upload(instance.bytes), 200) << "Orthanc refused an upload";
-  }
-  const pacs::PacsConfig pacs = orthanc.Pacs();
-  const fs::path credentials = scratch.path() / "pacs-credentials";
-  std::ofstream(credentials) << "orthanc basic " << pacs.credentials.user << ":" << pacs.credentials.password << "\n";
-  ServerProcess server(scratch.path(), {"--pacs", "orthanc=" + pacs.base_url, "--pacs-credentials",
-                                        credentials.string(), "--pacs-timeout-seconds", "10"});
-  ASSERT_TRUE(server.running()) << server.Log();
+  const PacsWithCt stack(scratch.path(), ct);
+  ASSERT_TRUE(stack.ready()) << stack.why;
+  const ServerProcess& server = *stack.server;
 
   const fs::path shot = scratch.path() / "opened.png";
   // Each action waits for the one before (settle); the last line keeps the session a while for the checks below.
@@ -585,19 +608,9 @@ TEST(Viewer, MeasurementsGoToThePacsAsAReportAndComeBack) {
   CINEVOL_REQUIRE_SHARED_DATA();
   const SeriesStamp ct{"2.25.3410301", "2.25.3410301.1", "CINEVOL-VIEWER-SR", "Cinevol^Report"};
   ScratchDir scratch;
-  fs::create_directories(scratch.path() / "orthanc");
-  OrthancProcess orthanc(scratch.path() / "orthanc");
-  ASSERT_TRUE(orthanc.running()) << orthanc.Log();
-  const auto files = DicomFilesIn(SharedData() / "ct-body-totalsegmentator/example_ct_dicom");
-  for (const StampedInstance& instance : StampSeries(files, ct, scratch.path() / "stamped").instances) {
-    ASSERT_EQ(orthanc.Upload(instance.bytes), 200) << "Orthanc refused an upload";
-  }
-  const pacs::PacsConfig pacs = orthanc.Pacs();
-  const fs::path credentials = scratch.path() / "pacs-credentials";
-  std::ofstream(credentials) << "orthanc basic " << pacs.credentials.user << ":" << pacs.credentials.password << "\n";
-  ServerProcess server(scratch.path(), {"--pacs", "orthanc=" + pacs.base_url, "--pacs-credentials",
-                                        credentials.string(), "--pacs-timeout-seconds", "10"});
-  ASSERT_TRUE(server.running()) << server.Log();
+  const PacsWithCt stack(scratch.path(), ct);
+  ASSERT_TRUE(stack.ready()) << stack.why;
+  const ServerProcess& server = *stack.server;
   const std::string open_images = fmt::format(
       R"({{"at": 0, "ui": {{"openSeries": {{"pacs": "orthanc", "studyUid": "{}", "seriesUid": "{}"}}}}}})",
       ct.study_uid, ct.series_uid);
