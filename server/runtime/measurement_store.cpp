@@ -50,13 +50,7 @@ v1::StoredObject StoreMeasurements(const pacs::DicomWebClient& to, const pacs::D
       pacs::DescribeMeasuredSeries(from, origin.study_uid, origin.series_uid, frame, cancel);
   pacs::MeasurementReportUids uids;
   const std::string bytes = pacs::MakeMeasurementReport(study, source, report, version, &uids);
-  to.StoreInstances(origin.study_uid, {bytes}, cancel);
-  v1::StoredObject stored;
-  stored.set_pacs(to.config().name);
-  stored.set_study_uid(uids.study_uid);
-  stored.set_series_uid(uids.series_uid);
-  stored.set_sop_instance_uid(uids.sop_instance_uid);
-  return stored;
+  return StoreInstance(to, bytes, uids.study_uid, uids.series_uid, uids.sop_instance_uid, cancel);
 }
 
 namespace {

@@ -76,12 +76,18 @@ v1::StoredObject StoreRender(const pacs::DicomWebClient& to, const pacs::DicomWe
   pacs::SecondaryCaptureUids uids;
   const pacs::SecondaryCaptureImage pixels{image.width, image.height, image.bytes};
   const std::string capture = pacs::MakeSecondaryCapture(StudyOf(from, origin, cancel), pixels, recipe, &uids);
-  to.StoreInstances(origin.study_uid, {capture}, cancel);
+  return StoreInstance(to, capture, uids.study_uid, uids.series_uid, uids.sop_instance_uid, cancel);
+}
+
+v1::StoredObject StoreInstance(const pacs::DicomWebClient& to, const std::string& bytes, const std::string& study_uid,
+                               const std::string& series_uid, const std::string& sop_instance_uid,
+                               const std::atomic<bool>* cancel) {
+  to.StoreInstances(study_uid, {bytes}, cancel);
   v1::StoredObject stored;
   stored.set_pacs(to.config().name);
-  stored.set_study_uid(uids.study_uid);
-  stored.set_series_uid(uids.series_uid);
-  stored.set_sop_instance_uid(uids.sop_instance_uid);
+  stored.set_study_uid(study_uid);
+  stored.set_series_uid(series_uid);
+  stored.set_sop_instance_uid(sop_instance_uid);
   return stored;
 }
 

@@ -30,6 +30,12 @@ std::optional<PacsOrigin> ParsePacsSource(const std::string& source);
 // measurement report); PacsError (404) where the PACS no longer holds it.
 pacs::SourceStudy StudyOf(const pacs::DicomWebClient& from, const PacsOrigin& origin, const std::atomic<bool>* cancel);
 
+// Stores one instance (`bytes`, made with these UIDs) on `to` with STOW-RS
+// and says where it went.
+v1::StoredObject StoreInstance(const pacs::DicomWebClient& to, const std::string& bytes, const std::string& study_uid,
+                               const std::string& series_uid, const std::string& sop_instance_uid,
+                               const std::atomic<bool>* cancel);
+
 // Stores `still` (a PNG) on `to` in the study `origin` names, whose patient
 // and study attributes `from` (the source PACS) answers; `scene` (the
 // session's, volume-centred; `placement` moves it to patient coordinates)
