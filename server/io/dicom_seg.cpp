@@ -65,6 +65,13 @@ LabelVolume LoadSegmentation(const fs::path& path, const Volume& image, const Lo
     file_checks::RequireInsideRoots(path, labelled, shown);
     inputs.push_back({path, path.filename().string()});
   }
+  if (!image.metadata().orientation_override.empty()) {
+    throw InputError(
+        fmt::format("{}: the volume was read with the orientation {} over its files', so its patient "
+                    "coordinates are not the ones a DICOM SEG's frames are placed in; load it without "
+                    "an orientation",
+                    shown, image.metadata().orientation_override));
+  }
   reader_cage::SegmentationRead read = reader_cage::ReadSegmentation(inputs, image, labelled);
   LabelVolume out;
   out.dims = image.dims();

@@ -29,9 +29,11 @@ Vec3f DicomLabToRgb(const std::array<std::uint16_t, 3>& lab);
 // as `image`'s segmentation: segment numbers are the labels, segment labels
 // their names ("segment N" where it has none), recommended display colours
 // their colours; partial-volume shells added (AddShells). Refused (InputError
-// naming the file): a SEG in another frame of reference than the image's,
-// one whose frames all miss the image, more than 1024 segments, frame counts
-// that disagree, and whatever docs/pacs.md's "DICOM SEG" lists.
+// naming the file): a SEG of an image read with an orientation override (its
+// patient coordinates are not its files'), one in another frame of reference
+// than the image's, one whose frames all miss the image, more than 1024
+// segments, frame counts that disagree, and whatever docs/pacs.md's "The
+// segmentation reader" lists.
 LabelVolume LoadSegmentation(const std::filesystem::path& path, const Volume& image, const LoadPolicy& policy = {});
 
 }  // namespace cinevol

@@ -226,6 +226,10 @@ TEST_F(DicomSeg, TheFrameOfReferenceMustBeTheVolumes) {
   const LabelVolume seg = LoadLabelVolume(file, same);
   ExpectSameLabels(seg, labels_);
   EXPECT_EQ(seg.note.find("no frame of reference"), std::string::npos) << seg.note;
+  Volume reoriented = WithFrameOfReference(*image_, SegOptions().frame_of_reference_uid);
+  ApplyOrientation(reoriented, "RAS", "orientation");
+  EXPECT_NE(MessageOf([&] { LoadLabelVolume(file, reoriented); }).find("read with the orientation RAS"),
+            std::string::npos);
   const Volume other = WithFrameOfReference(*image_, "2.25.999");
   EXPECT_NE(MessageOf([&] {
               LoadLabelVolume(file, other);
