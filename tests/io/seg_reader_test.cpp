@@ -177,6 +177,52 @@ TEST_F(DicomSeg, ACoarserSegIsPlacedNearestNeighbour) {
   ExpectSameLabels(seg, want);
 }
 
+TEST_F(DicomSeg, FramesOutsideTheVolumeAreCountedAndFramesBetweenItsSlicesAreNot) {
+  // Twice as many planes as the volume has slices: every second one falls
+  // between two slices, inside the volume, and no voxel takes it.
+  const Vec3i n = image_->dims();
+  SegGrid fine = testing::AxialGrid(*image_, labels_);
+  fine.planes = 2 * n.z - 1;
+  for (double& step : fine.plane_step) step /= 2;
+  fine.label = [&](int c, int r, int k) { return int(labels_[(std::size_t(k / 2) * n.y + r) * n.x + c]); };
+  const fs::path file = scratch_ / "fine.dcm";
+  testing::WriteSeg(file, fine, Options());
+  const LabelVolume seg = LoadLabelVolume(file, *image_);
+  ExpectSameLabels(seg, labels_);
+  EXPECT_EQ(seg.note.find("outside"), std::string::npos) << seg.note;
+
+  // The upper half of the slices' frames moved a metre up: outside, and said so.
+  DcmFileFormat original;
+  ASSERT_TRUE(original.loadFile(AxialSeg().c_str()).good());
+  const fs::path half = scratch_ / "half.dcm";
+  std::size_t moved = 0;
+  const double middle =
+      image_->metadata().origin_mm[2] + image_->metadata().direction[8] * image_->spacing_mm().z * (n.z / 2 - 0.5);
+  const bool up = image_->metadata().direction[8] > 0;
+  testing::EditSeg(AxialSeg(), half, [&](DcmDataset& data) {
+    DcmSequenceOfItems* frames = nullptr;
+    data.findAndGetSequence(DCM_PerFrameFunctionalGroupsSequence, frames);
+    for (unsigned long f = 0; f < frames->card(); ++f) {
+      DcmItem* place = nullptr;
+      frames->getItem(f)->findAndGetSequenceItem(DCM_PlanePositionSequence, place, 0);
+      Float64 x = 0, y = 0, z = 0;
+      place->findAndGetFloat64(DCM_ImagePositionPatient, x, 0);
+      place->findAndGetFloat64(DCM_ImagePositionPatient, y, 1);
+      place->findAndGetFloat64(DCM_ImagePositionPatient, z, 2);
+      if ((z > middle) != up) continue;
+      ++moved;
+      place->putAndInsertString(DCM_ImagePositionPatient,
+                                (testing::Ds(x) + "\\" + testing::Ds(y) + "\\" + testing::Ds(z + 1000)).c_str());
+    }
+  });
+  ASSERT_GT(moved, 0u);
+  const LabelVolume upper_gone = LoadLabelVolume(half, *image_);
+  EXPECT_NE(upper_gone.note.find(fmt::format("{} of its", moved)), std::string::npos) << upper_gone.note;
+  std::vector<std::uint16_t> want = labels_;
+  std::fill(want.begin() + std::ptrdiff_t(std::size_t(n.z / 2) * n.y * n.x), want.end(), 0);
+  ExpectSameLabels(upper_gone, want);
+}
+
 TEST_F(DicomSeg, AFolderHoldingTheSegAmongOtherFilesLoadsIt) {
   const fs::path folder = scratch_ / "folder";
   fs::create_directories(folder);

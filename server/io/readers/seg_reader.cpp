@@ -143,17 +143,16 @@ class SegmentationRead final : public VolumeRead {
     ReadSegments(data);
     ReadFrames(data);
     Plan();
-    ReadPixels(data);
-    const Placement placed = Place(nullptr);
     std::uint32_t outside = 0;
-    for (bool met : placed.frame_met) outside += met ? 0 : 1;
+    for (const Frame& frame : frames_) outside += FrameMeetsVolume(frame) ? 0 : 1;
     if (outside == frames_.size()) {
       throw InputError(fmt::format(
           "{}: none of its {} frames lies in the volume's grid ({}x{}x{} voxels): it segments another region or "
           "another volume",
           shown_, frames_.size(), dims_[0], dims_[1], dims_[2]));
     }
-    FillHeader(placed, outside);
+    ReadPixels(data);
+    FillHeader(Place(nullptr), outside);
   }
 
   void Read(void* memory, std::size_t bytes) override {
@@ -175,6 +174,18 @@ class SegmentationRead final : public VolumeRead {
       for (int r = 0; r < 3; ++r) axis_[a][r] = t.direction(3 * r + a) * t.spacing_mm(a);  // index axis a, in mm
     }
     if (voxels_ > kMaxVoxels) throw std::runtime_error("a target past the voxel limit");
+    // The inverse of the matrix whose columns are axis_: patient offsets to voxel indices.
+    const auto& m = axis_;
+    const double det = m[0][0] * (m[1][1] * m[2][2] - m[2][1] * m[1][2]) -
+                       m[1][0] * (m[0][1] * m[2][2] - m[2][1] * m[0][2]) +
+                       m[2][0] * (m[0][1] * m[1][2] - m[1][1] * m[0][2]);
+    if (!(std::abs(det) > 0)) throw std::runtime_error("a target whose axes are singular");
+    for (int a = 0; a < 3; ++a) {
+      const Vec3d& p = m[std::size_t((a + 1) % 3)];
+      const Vec3d& q = m[std::size_t((a + 2) % 3)];
+      index_from_patient_[std::size_t(a)] = {(p[1] * q[2] - p[2] * q[1]) / det, (p[2] * q[0] - p[0] * q[2]) / det,
+                                             (p[0] * q[1] - p[1] * q[0]) / det};
+    }
     target_ = t;
   }
 
@@ -428,6 +439,42 @@ class SegmentationRead final : public VolumeRead {
     return 2 * int(pixels_[at]) >= max_fraction_;
   }
 
+  // Whether the frame's rectangle (its pixels' extent) meets the volume's box
+  // (its voxels' extent): separating axes, in the volume's index space.
+  bool FrameMeetsVolume(const Frame& frame) const {
+    const auto index = [&](double u, double v) {  // patient (row, column, normal coordinates) to voxel index
+      Vec3d p, q{};
+      for (int r = 0; r < 3; ++r) p[r] = u * row_[r] + v * column_[r] + frame.along_normal * normal_[r] - origin_[r];
+      for (int r = 0; r < 3; ++r) q[r] = Dot(index_from_patient_[r], p);
+      return q;
+    };
+    const double u0 = frame.u0 - 0.5 * column_spacing_, v0 = frame.v0 - 0.5 * row_spacing_;
+    const double u1 = u0 + columns_ * column_spacing_, v1 = v0 + rows_ * row_spacing_;
+    const std::array<Vec3d, 4> corners{index(u0, v0), index(u1, v0), index(u1, v1), index(u0, v1)};
+    const auto minus = [](const Vec3d& a, const Vec3d& b) { return Vec3d{a[0] - b[0], a[1] - b[1], a[2] - b[2]}; };
+    const auto cross = [](const Vec3d& a, const Vec3d& b) {
+      return Vec3d{a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]};
+    };
+    const Vec3d e1 = minus(corners[1], corners[0]), e2 = minus(corners[3], corners[0]);
+    std::vector<Vec3d> axes{{1, 0, 0}, {0, 1, 0}, {0, 0, 1}, cross(e1, e2)};
+    for (const Vec3d& edge : {e1, e2}) {
+      for (int a = 0; a < 3; ++a) axes.push_back(cross(edge, axes[std::size_t(a)]));
+    }
+    for (const Vec3d& axis : axes) {
+      double low = 1e300, high = -1e300, centre = 0, reach = 0;
+      for (const Vec3d& c : corners) {
+        low = std::min(low, Dot(c, axis));
+        high = std::max(high, Dot(c, axis));
+      }
+      for (int a = 0; a < 3; ++a) {
+        centre += 0.5 * (dims_[a] - 1) * axis[std::size_t(a)];
+        reach += 0.5 * dims_[a] * std::abs(axis[std::size_t(a)]);
+      }
+      if (high < centre - reach || low > centre + reach) return false;
+    }
+    return true;
+  }
+
   // Calls `mark(pixel)` for every pixel of `frame` in its segment: bits
   // (eight zero pixels skipped at a time) or fractions at half the maximum.
   template <class Mark>
@@ -561,6 +608,9 @@ class SegmentationRead final : public VolumeRead {
     s.set_frames_outside(outside);
     if (outside > 0)
       notes_.push_back(fmt::format("{} of its {} frames lie outside the volume", outside, frames_.size()));
+    if (std::none_of(placed.frame_met.begin(), placed.frame_met.end(), [](bool met) { return met; })) {
+      notes_.push_back("no voxel centre lies within half a slice of its frames: no voxel takes a segment");
+    }
     if (placed.overlaps > 0) {
       notes_.push_back(fmt::format("{} voxels lie in more than one segment: each takes the highest segment number",
                                    placed.overlaps));
@@ -576,6 +626,7 @@ class SegmentationRead final : public VolumeRead {
   std::uint64_t voxels_ = 0;
   Vec3d origin_{};
   std::array<Vec3d, 3> axis_{};
+  std::array<Vec3d, 3> index_from_patient_{};  // rows of the inverse of [axis_0 axis_1 axis_2]
   // The SEG.
   std::string type_, frame_of_reference_;
   int rows_ = 0, columns_ = 0;
