@@ -512,7 +512,9 @@ class SegmentationRead final : public VolumeRead {
       dv[a] = Dot(axis_[a], column_);
     }
     const double half = 0.5 * slice_spacing_ * (1 + 1e-6);
-    const bool parallel = std::abs(dd[0]) * dims_[0] + std::abs(dd[1]) * dims_[1] < 1e-3 * slice_spacing_;
+    // Merged images take 3 bytes a pixel a thread: frames of up to 2^24 pixels are merged.
+    const bool parallel = std::abs(dd[0]) * dims_[0] + std::abs(dd[1]) * dims_[1] < 1e-3 * slice_spacing_ &&
+                          std::uint64_t(rows_) * std::uint64_t(columns_) <= (std::uint64_t{1} << 24);
     std::unique_ptr<std::atomic<bool>[]> met(new std::atomic<bool>[frames_.size()]());
     std::vector<std::uint64_t> overlaps(dims_[2], 0);
     const auto nearest_plane = [&](double d) -> int {
