@@ -114,7 +114,7 @@ class ServerPool {
   struct Route {
     std::string current_id, address, server;
     std::optional<SessionState> state;
-    std::vector<v1::ShareSessionRequest> grants;  // restore_secret set, expires_seconds: the Unix end
+    std::vector<v1::ShareSessionRequest> grants = {};  // restore_secret set, expires_seconds: the Unix end
   };
   // Re-makes `grants` on `address` for session `id` there; a grant that has
   // expired or is refused is left behind (its viewers then stop following).

@@ -29,9 +29,9 @@ struct ReportMeasurement {
   std::vector<std::array<double, 3>> points;
   // Read from 2D coordinates on an image (SCOORD): `points` are (column, row, 0) in that image's pixels until
   // PlaceOnImage puts them in patient coordinates. Empty for 3D coordinates.
-  std::string image_uid;        // the image's SOP Instance UID
-  std::string image_study_uid;  // its study and series, as the report's evidence lists them (empty where it does not)
-  std::string image_series_uid;
+  std::string image_uid = {};        // the image's SOP Instance UID
+  std::string image_study_uid = {};  // its study and series, as the report's evidence lists them (empty where it does not)
+  std::string image_series_uid = {};
 };
 
 // Where an image lies in patient coordinates (its Image Plane module).

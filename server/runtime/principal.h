@@ -12,7 +12,7 @@ struct Principal {
   bool is_operator = false;
   // The bearer token the call carried, as given: only for a PACS that takes
   // the caller's own (--pacs-auth forward). Never logged.
-  std::string bearer_token;
+  std::string bearer_token = {};
 };
 
 // Throws RpcError(PERMISSION_DENIED) unless `caller` is `owner`.

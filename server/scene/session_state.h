@@ -55,8 +55,8 @@ struct SceneContext {
   // Its segmentation (or only its table) when the session began, where it
   // has one: label styles need a segmentation; named views frame labels.
   const LabelVolume* labels = nullptr;
-  std::string volume_id;   // for messages
-  MapResolver resolve_map;  // empty: environment map names stay as written
+  std::string volume_id = {};   // for messages
+  MapResolver resolve_map = {};  // empty: environment map names stay as written
 };
 
 // The state a new session starts from: the request's scene or preset (else

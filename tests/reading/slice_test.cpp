@@ -361,7 +361,9 @@ TEST(Slice, BadSpecsAreRefused) {
     EXPECT_THROW(PlanSlice(air, spec), InputError) << far;
     spec.point_lps = {};
     spec.normal_lps = {far, 1, 0};  // a length that overflows
-    if (std::isinf(Length(spec.normal_lps))) EXPECT_THROW(PlanSlice(air, spec), InputError) << far;
+    if (std::isinf(Length(spec.normal_lps))) {
+      EXPECT_THROW(PlanSlice(air, spec), InputError) << far;
+    }
   }
 }
 
