@@ -127,6 +127,20 @@ void CheckSegmentation(const v1::Labels& labels, const SceneContext& context, co
                                        field, context.volume_id));
 }
 
+// A DICOM SEG's recommended display colours as the labels' styles, where the
+// scene styles no label: segments show as their makers coloured them, as in
+// other viewers. A scene that styles labels keeps its own.
+void AddRecommendedColours(v1::Scene& scene, const SceneContext& context) {
+  if (!context.labels || context.labels->colors.empty() || scene.labels().styles_size() > 0) return;
+  for (const auto& [value, rgb] : context.labels->colors) {
+    v1::LabelStyle& style = *scene.mutable_labels()->add_styles();
+    style.set_value(std::uint32_t(value));
+    style.mutable_color()->set_r(rgb.x);
+    style.mutable_color()->set_g(rgb.y);
+    style.mutable_color()->set_b(rgb.z);
+  }
+}
+
 void SetVec(v1::Vec3* v, Vec3f p) {
   v->set_x(p.x);
   v->set_y(p.y);
@@ -284,6 +298,7 @@ v1::SessionState InitialState(const v1::CreateSessionRequest& request, const Sce
   ApplyDefaults(scene);
   CheckParts(scene, kEverythingChanged, "scene.");
   CheckSegmentation(scene.labels(), context, "scene.labels", false);
+  AddRecommendedColours(scene, context);
   ExpandPresets(scene, kEverythingChanged, volume);
   CheckCost(scene, kEverythingChanged, "scene.", limits);
   ResolveEnvironmentMaps(scene, context.resolve_map);

@@ -217,6 +217,33 @@ TEST(ResolvedState, APresetIsExpandedWithTheVolumesSpacing) {
 }
 
 // A view button sends the view with the eye and target it turns about.
+// A DICOM SEG's recommended colours become the labels' styles of a scene
+// that styles none; a scene's own styles stay as they are.
+TEST(ResolvedState, ASegsRecommendedColoursAreTheLabelStyles) {
+  LabelVolume seg;
+  seg.dims = Head().dims();
+  seg.labels.assign(std::size_t(seg.dims.x) * seg.dims.y * seg.dims.z, 0);
+  seg.labels[seg.labels.size() / 2] = 3;
+  seg.names = {{3, "liver"}};
+  seg.colors = {{3, Vec3f{0.8f, 0.2f, 0.1f}}};
+  seg.voxels = {{3, 1}};
+  const SceneContext context{Head(), &seg};
+  const v1::SessionState state = Started({}, context);
+  ASSERT_EQ(state.scene().labels().styles_size(), 1);
+  const v1::LabelStyle& style = state.scene().labels().styles(0);
+  EXPECT_EQ(style.value(), 3u);
+  EXPECT_FLOAT_EQ(style.color().r(), 0.8f);
+  EXPECT_FLOAT_EQ(style.color().b(), 0.1f);
+
+  v1::CreateSessionRequest request;
+  request.mutable_viewport()->set_width(32);
+  request.mutable_viewport()->set_height(32);
+  request.mutable_scene()->mutable_labels()->add_styles()->set_value(3);  // the reader's own: no colour
+  const v1::SessionState own = InitialState(request, context, {});
+  ASSERT_EQ(own.scene().labels().styles_size(), 1);
+  EXPECT_FALSE(own.scene().labels().styles(0).has_color());
+}
+
 TEST(ResolvedState, ANamedViewTurnsAboutTheTargetAtItsDistance) {
   v1::SessionState state = Started();
   v1::SessionEvent e = Numbered(1);
