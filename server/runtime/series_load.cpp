@@ -4,6 +4,7 @@
 #include <fmt/format.h>
 
 #include <filesystem>
+#include <functional>
 
 #include "core/error.h"
 #include "core/volume.h"
@@ -43,25 +44,18 @@ fs::path NewScratchFolder(const fs::path& under) {
   return folder;
 }
 
-// A SEG series holds one SEG; a series of more instances is another kind of series.
-constexpr std::size_t kMaxSegInstances = 16;
-
-// LoadSeriesRequest.labels_for: the SEG series as that volume's segmentation.
-v1::VolumeInfo LoadSegmentationSeries(const pacs::DicomWebClient& pacs, VolumeRegistry& volumes,
-                                      const v1::LoadSeriesRequest& request, const Principal& caller,
-                                      const std::atomic<bool>* cancel, const SeriesProgress& progress) {
-  volumes.RequireLabelsAllowed(request.labels_for(), caller, "labels_for");
-  const std::string source = PacsSource({pacs.config().name, request.study_uid(), request.series_uid()}, "");
+// Retrieves the series `request` names into a new scratch folder with its
+// progress; `check_listing` sees the PACS's listing before any instance comes
+// (it throws to refuse). The folder goes if the retrieve fails.
+using ListingCheck = std::function<void(const std::vector<pacs::InstanceSummary>&)>;
+fs::path Retrieve(const pacs::DicomWebClient& pacs, VolumeRegistry& volumes, const v1::LoadSeriesRequest& request,
+                  const ListingCheck& check_listing, const std::atomic<bool>* cancel, const SeriesProgress& progress) {
   const fs::path folder = NewScratchFolder(volumes.upload_dir());
   v1::LoadSeriesProgress news;
   news.set_stage("retrieving");
   pacs::RetrieveCallbacks callbacks;
   callbacks.on_listing = [&](const std::vector<pacs::InstanceSummary>& instances) {
-    if (instances.size() > kMaxSegInstances) {
-      throw InputError(fmt::format("series_uid: series {} holds {} instances; a DICOM SEG series for labels_for holds "
-                                   "one SEG (at most {} instances are fetched)",
-                                   request.series_uid(), instances.size(), kMaxSegInstances));
-    }
+    check_listing(instances);
     news.set_instances_total(instances.size());
     progress(news);
   };
@@ -82,6 +76,26 @@ v1::VolumeInfo LoadSegmentationSeries(const pacs::DicomWebClient& pacs, VolumeRe
   }
   news.set_stage("reading");
   progress(news);
+  return folder;
+}
+
+// A SEG series holds one SEG; a series of more instances is another kind of series.
+constexpr std::size_t kMaxSegInstances = 16;
+
+// LoadSeriesRequest.labels_for: the SEG series as that volume's segmentation.
+v1::VolumeInfo LoadSegmentationSeries(const pacs::DicomWebClient& pacs, VolumeRegistry& volumes,
+                                      const v1::LoadSeriesRequest& request, const Principal& caller,
+                                      const std::atomic<bool>* cancel, const SeriesProgress& progress) {
+  volumes.RequireLabelsAllowed(request.labels_for(), caller, "labels_for");
+  const std::string source = PacsSource({pacs.config().name, request.study_uid(), request.series_uid()}, "");
+  const auto one_seg = [&](const std::vector<pacs::InstanceSummary>& instances) {
+    if (instances.size() > kMaxSegInstances) {
+      throw InputError(fmt::format("series_uid: series {} holds {} instances; a DICOM SEG series for labels_for holds "
+                                   "one SEG (at most {} instances are fetched)",
+                                   request.series_uid(), instances.size(), kMaxSegInstances));
+    }
+  };
+  const fs::path folder = Retrieve(pacs, volumes, request, one_seg, cancel, progress);
   return volumes.AddRetrievedLabels(request.labels_for(), folder, source, caller, cancel);
 }
 
@@ -99,33 +113,11 @@ v1::VolumeInfo LoadSeries(const pacs::DicomWebClient& pacs, VolumeRegistry& volu
       PacsSource({pacs.config().name, request.study_uid(), request.series_uid()}, choices.Suffix());
   if (std::optional<v1::VolumeInfo> held = volumes.FindHeld(source, caller)) return *held;
 
-  const fs::path folder = NewScratchFolder(volumes.upload_dir());
-  v1::LoadSeriesProgress news;
-  news.set_stage("retrieving");
-  pacs::RetrieveCallbacks callbacks;
-  callbacks.on_listing = [&](const std::vector<pacs::InstanceSummary>& instances) {
+  const auto within_limits = [&](const std::vector<pacs::InstanceSummary>& instances) {
     const SeriesSize size = SizeOf(instances);
     volumes.RequireRoom(size.voxels, size.bytes, caller, fmt::format("series {}", request.series_uid()));
-    news.set_instances_total(instances.size());
-    progress(news);
   };
-  callbacks.on_instance = [&](const pacs::InstanceSummary&, const fs::path&, std::uint64_t bytes) {
-    news.set_bytes(news.bytes() + bytes);
-  };
-  callbacks.on_progress = [&](std::size_t done, std::size_t total) {
-    news.set_instances_done(done);
-    news.set_instances_total(total);
-    progress(news);
-  };
-  try {
-    pacs.RetrieveSeries(request.study_uid(), request.series_uid(), folder, callbacks, cancel);
-  } catch (...) {
-    std::error_code ec;
-    fs::remove_all(folder, ec);
-    throw;
-  }
-  news.set_stage("reading");
-  progress(news);
+  const fs::path folder = Retrieve(pacs, volumes, request, within_limits, cancel, progress);
   return volumes.AddRetrievedSeries(folder, source, choices, caller, cancel);
 }
 
