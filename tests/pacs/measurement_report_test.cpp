@@ -23,6 +23,7 @@
 #include "pacs/part10_reader.h"
 #include "pacs/stamped_series.h"
 #include "support/error_of.h"
+#include "support/shell_command.h"
 #include "support/test_paths.h"
 
 namespace cinevol::pacs {
@@ -78,29 +79,6 @@ void ExpectSamePoints(const std::vector<ReportMeasurement>& read, const std::vec
       }
     }
   }
-}
-
-struct CommandResult {
-  int status = -1;
-  std::string output;  // stdout and stderr
-};
-
-CommandResult RunCommand(const std::string& command) {
-  CommandResult result;
-  FILE* pipe = popen((command + " 2>&1").c_str(), "r");
-  if (pipe == nullptr) return result;
-  char buffer[4096];
-  for (std::size_t n; (n = fread(buffer, 1, sizeof buffer, pipe)) > 0;) result.output.append(buffer, n);
-  const int status = pclose(pipe);
-  result.status = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-  return result;
-}
-
-bool Installed(const std::string& program) { return RunCommand("command -v " + program).status == 0; }
-
-void WriteFile(const fs::path& path, const std::string& bytes) {
-  std::ofstream out(path, std::ios::binary);
-  out << bytes;
 }
 
 // ---- cinevol's own reports ----
