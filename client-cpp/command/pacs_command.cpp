@@ -7,6 +7,7 @@
 #include "connection_options.h"
 #include "core/error.h"
 #include "pacs_load.h"
+#include "scene/scene_file.h"
 #include "text_output.h"
 
 namespace cinevol::cli {
@@ -18,6 +19,7 @@ struct PacsOptions {
   v1::SearchStudiesRequest search;  // search's fields; load's --patient-id
   std::string dates;                // --date FROM-TO
   std::string study, series, orientation, labels_for;
+  std::string presentation, scene_out;  // load --presentation UID [--scene-out FILE]
   bool resample_uneven = false;
 };
 
@@ -81,16 +83,43 @@ void Series(const PacsOptions& o) {
   PrintTable(rows);
 }
 
+// A presentation state's scene and the series it presents, loaded: the scene goes to --scene-out.
+v1::LoadPresentationResponse LoadPresentation(Client& client, const PacsOptions& o, PacsLoad& load) {
+  if (!o.search.patient_id().empty()) throw InputError("--presentation: give no --patient-id; the state names its series");
+  v1::LoadPresentationRequest request;
+  request.set_pacs(o.search.pacs());
+  request.set_sop_instance_uid(o.presentation);
+  request.set_study_uid(o.study);
+  request.set_series_uid(o.series);
+  v1::LoadPresentationResponse presentation = client.LoadPresentation(request);
+  load.study = presentation.study_uid();
+  load.series = presentation.series_uid();
+  return presentation;
+}
+
 void Load(const PacsOptions& o) {
   Client client = Connect(o.connection);
-  const PacsLoad load{o.search.pacs(), o.study, o.search.patient_id(), o.series, o.orientation, o.resample_uneven,
-                      o.labels_for};
+  PacsLoad load{o.search.pacs(), o.study, o.search.patient_id(), o.series, o.orientation, o.resample_uneven,
+                o.labels_for};
+  std::optional<v1::LoadPresentationResponse> presentation;
+  if (!o.presentation.empty()) presentation = LoadPresentation(client, o, load);
   const v1::VolumeInfo volume = LoadFromPacs(client, load, [&](const v1::LoadSeriesProgress& p) {
     if (!o.json) fmt::print(stderr, "{}: {} of {} instances, {}\n", p.stage(), p.instances_done(),
                             p.instances_total(), Bytes(p.bytes()));
   });
+  if (presentation && !o.scene_out.empty()) SaveSceneFile(presentation->scene(), o.scene_out);
   if (o.json) return PrintJson(volume);
   PrintVolume(volume);
+  if (presentation) {
+    fmt::print("presentation state {}: {}{}\n", presentation->label(), presentation->description(),
+               presentation->has_rendered()
+                   ? fmt::format(" (rendered as instance {})", presentation->rendered().sop_instance_uid())
+                   : "");
+    if (!o.scene_out.empty()) {
+      fmt::print("its scene: {} (cinevol snapshot --volume {} --scene {} --out still.png)\n", o.scene_out,
+                 volume.id(), o.scene_out);
+    }
+  }
 }
 
 CLI::App* AddPacsSubcommand(CLI::App* pacs, const std::string& name, const std::string& help,
@@ -134,6 +163,10 @@ void AddPacsCommand(CLI::App& app) {
   load->add_option("--patient-id", *o->search.mutable_patient_id(), "Instead of --study: the patient's latest study");
   load->add_option("--orientation", o->orientation, "Where index axes x, y, z point, overriding the files' (LPS)");
   load->add_flag("--resample-uneven", o->resample_uneven, kResampleUnevenHelp);
+  load->add_option("--presentation", o->presentation,
+                   "A Volume Rendering Volumetric Presentation State's SOP Instance UID: loads the series it "
+                   "presents (--study and --series may say where the state lies)");
+  load->add_option("--scene-out", o->scene_out, "With --presentation: write the scene it presents to this file");
   load->add_option("--labels-for", o->labels_for,
                    "A volume you hold: --series is a DICOM SEG, loaded as that volume's labels");
 }

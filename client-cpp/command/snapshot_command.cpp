@@ -111,6 +111,11 @@ void Run(const SnapshotOptions& o) {
     fmt::print("stored in PACS '{}': study {}, series {}, instance {}\n", s.pacs(), s.study_uid(), s.series_uid(),
                s.sop_instance_uid());
   }
+  if (still.has_presentation()) {
+    const v1::StoredObject& p = still.presentation();
+    fmt::print("its presentation state: series {}, instance {} (cinevol pacs load --pacs {} --presentation {})\n",
+               p.series_uid(), p.sop_instance_uid(), p.pacs(), p.sop_instance_uid());
+  }
 }
 
 }  // namespace
@@ -128,7 +133,8 @@ void AddSnapshotCommand(CLI::App& app) {
   cmd->add_option("--height", o->height, "Height of a new session")->check(CLI::Range(1, 8192))->capture_default_str();
   cmd->add_option("--store-to", o->store_to,
                   "A PACS the server names: store the still there too, as a DICOM Secondary Capture in the study "
-                  "of the volume (one loaded with `cinevol pacs load`), its recipe inside");
+                  "of the volume (one loaded with `cinevol pacs load`), its recipe inside, and a Volume Rendering "
+                  "Volumetric Presentation State beside it");
   cmd->add_option("--spp", o->spp, "Samples per pixel")->check(CLI::Range(1, 16384))->capture_default_str();
   cmd->add_option("--timeout", o->timeout,
                   "Seconds the whole still may take (0: no limit; it ends anyway when the server reports no "

@@ -347,6 +347,10 @@ v1::LoadMeasurementsResponse Client::LoadMeasurements(const v1::LoadMeasurements
   return OnHome([&](const std::string& home) { return PacsCalls(*pool_, home).LoadMeasurements(request); });
 }
 
+v1::LoadPresentationResponse Client::LoadPresentation(const v1::LoadPresentationRequest& request) {
+  return OnHome([&](const std::string& home) { return PacsCalls(*pool_, home).LoadPresentation(request); });
+}
+
 v1::VolumeInfo Client::UploadVolume(const std::filesystem::path& file, const std::string& orientation,
                                     std::size_t chunk_bytes) {
   return OnHome([&](const std::string& home) {

@@ -54,4 +54,10 @@ v1::LoadMeasurementsResponse PacsCalls::LoadMeasurements(const v1::LoadMeasureme
   return response;
 }
 
+v1::LoadPresentationResponse PacsCalls::LoadPresentation(const v1::LoadPresentationRequest& request) {
+  v1::LoadPresentationResponse response;
+  Check(stub_->LoadPresentation(pool_.CallContext().get(), request, &response));
+  return response;
+}
+
 }  // namespace cinevol

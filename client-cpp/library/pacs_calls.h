@@ -26,6 +26,7 @@ class PacsCalls {
                             const std::function<void(const v1::LoadSeriesProgress&)>& on_progress = {});
   v1::StoredObject StoreMeasurements(const v1::StoreMeasurementsRequest& request);
   v1::LoadMeasurementsResponse LoadMeasurements(const v1::LoadMeasurementsRequest& request);
+  v1::LoadPresentationResponse LoadPresentation(const v1::LoadPresentationRequest& request);
 
  private:
   ServerPool& pool_;

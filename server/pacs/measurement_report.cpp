@@ -4,25 +4,21 @@
 #include <dcmtk/config/osconfig.h>  // first, as DCMTK asks
 #include <dcmtk/dcmdata/dcdeftag.h>
 #include <dcmtk/dcmdata/dcfilefo.h>
-#include <dcmtk/dcmdata/dcostrmb.h>
 #include <dcmtk/dcmsr/dsrdoc.h>
 #include <dcmtk/dcmsr/dsrnumvl.h>
 #include <dcmtk/dcmsr/dsrsc3vl.h>
-#include <dcmtk/oflog/oflog.h>
 #include <fmt/format.h>
 
 #include <algorithm>
-#include <chrono>
 #include <cmath>
-#include <ctime>
 #include <functional>
 #include <map>
-#include <mutex>
 #include <numbers>
 #include <optional>
 #include <set>
 
 #include "core/error.h"
+#include "pacs/dcmtk_writing.h"
 #include "pacs/dicom_json.h"
 #include "pacs/part10_reader.h"
 
@@ -64,55 +60,8 @@ constexpr Code kDegree{"deg", "UCUM", "deg"};
 
 // ---- Writing ----
 
-[[noreturn]] void Refuse(const std::string& field, const std::string& why) {
-  throw InputError(fmt::format("{} {}", field, why));
-}
-
 void Require(const OFCondition& condition, const std::string& what) {
-  if (condition.bad()) throw std::runtime_error(fmt::format("the measurement report: {}: {}", what, condition.text()));
-}
-
-// DCMTK's messages go to its own logger; a server keeps only its errors.
-void QuietDcmtk() {
-  static std::once_flag once;
-  std::call_once(once, [] { OFLog::configure(OFLogger::ERROR_LOG_LEVEL); });
-}
-
-std::string WithoutTrailingSpaces(std::string text) {
-  while (!text.empty() && (text.back() == ' ' || text.back() == '\0')) text.pop_back();
-  return text;
-}
-
-bool IsAscii(const std::string& text) {
-  return std::all_of(text.begin(), text.end(), [](char c) { return static_cast<unsigned char>(c) < 0x80; });
-}
-
-// Characters, not bytes: the VRs' limits count characters.
-std::size_t CharacterCount(const std::string& utf8) {
-  return std::size_t(std::count_if(utf8.begin(), utf8.end(), [](char c) { return (c & 0xC0) != 0x80; }));
-}
-
-// A study attribute set through DCMTK, which checks it against its VR and VM, and at most `max_characters` long
-// (for a PN, each of its groups): refused, never cut (a changed copy would no longer match the study).
-void SetChecked(const std::string& field, const std::string& value, std::size_t max_characters, bool person_name,
-                const std::function<OFCondition(const OFString&, OFBool)>& set) {
-  const std::string clean = WithoutTrailingSpaces(value);
-  if (CleanText(clean, clean.size() + 1) != clean) Refuse(field, "is not valid UTF-8");
-  if (std::any_of(clean.begin(), clean.end(), [](char c) { return static_cast<unsigned char>(c) < 0x20; })) {
-    Refuse(field, "holds a control character");
-  }
-  std::size_t start = 0;
-  for (std::size_t groups = 0; start <= clean.size(); ++groups) {
-    const std::size_t end = person_name ? std::min(clean.find('=', start), clean.size()) : clean.size();
-    const std::size_t characters = CharacterCount(clean.substr(start, end - start));
-    if (characters > max_characters || groups == 3) {
-      Refuse(field, fmt::format("is longer than its VR allows ({} characters{})", max_characters,
-                                person_name ? " in each of at most 3 groups" : ""));
-    }
-    start = end + 1;
-  }
-  const OFCondition done = set(clean.c_str(), OFTrue);
-  if (done.bad()) Refuse(field, fmt::format("is not what its VR allows ({})", done.text()));
+  pacs::Require(condition, "the measurement report", what);
 }
 
 std::string Decimal(double value) {
@@ -219,39 +168,6 @@ void AddMeasurementGroup(Tree& tree, std::size_t measurements_node, const Report
   Require(tree.Item().setSpatialCoordinates3D(coordinates), "coordinates");
 }
 
-struct Now {
-  std::string date, time;
-};
-
-Now CurrentDateTime() {
-  const std::time_t t = std::chrono::system_clock::to_time_t(std::chrono::system_clock::now());
-  std::tm local{};
-  localtime_r(&t, &local);
-  char date[16], time[16];
-  std::strftime(date, sizeof date, "%Y%m%d", &local);
-  std::strftime(time, sizeof time, "%H%M%S", &local);
-  return {date, time};
-}
-
-std::string ToPart10(DcmFileFormat& file) {
-  std::string out;
-  std::vector<char> buffer(std::size_t{1} << 16);
-  DcmOutputBufferStream stream(buffer.data(), offile_off_t(buffer.size()));
-  file.transferInit();
-  OFCondition written = EC_StreamNotifyClient;
-  while (written == EC_StreamNotifyClient) {
-    written = file.write(stream, EXS_LittleEndianExplicit, EET_ExplicitLength, nullptr, EGL_recalcGL,
-                         EPD_withoutPadding, 0, 0, 0, EWM_createNewMeta);
-    void* data = nullptr;
-    offile_off_t length = 0;
-    stream.flushBuffer(data, length);
-    out.append(static_cast<const char*>(data), std::size_t(length));
-  }
-  file.transferEnd();
-  Require(written, "encoding");
-  return out;
-}
-
 }  // namespace
 
 std::string MakeMeasurementReport(const SourceStudy& study, const ReportSource& source,
@@ -301,7 +217,7 @@ std::string MakeMeasurementReport(const SourceStudy& study, const ReportSource& 
   Require(document.setInstanceNumber("1"), "Instance Number");
   Require(document.setManufacturer("cinevol"), "Manufacturer");
   Require(document.setSoftwareVersions(version.c_str()), "Software Versions");
-  const Now now = CurrentDateTime();
+  const DicomNow now = CurrentDateTime();
   Require(document.setContentDate(now.date.c_str()), "Content Date");
   Require(document.setContentTime(now.time.c_str()), "Content Time");
   Require(document.setSeriesDate(now.date.c_str()), "Series Date");
@@ -357,7 +273,7 @@ std::string MakeMeasurementReport(const SourceStudy& study, const ReportSource& 
   MeasurementReportUids uids{study_uid, NewUid(), NewUid()};
   Require(dataset.putAndInsertString(DCM_SeriesInstanceUID, uids.series_uid.c_str()), "Series Instance UID");
   Require(dataset.putAndInsertString(DCM_SOPInstanceUID, uids.sop_instance_uid.c_str()), "SOP Instance UID");
-  const std::string bytes = ToPart10(file);
+  const std::string bytes = ToPart10(file, "the measurement report");
   if (uids_out != nullptr) *uids_out = uids;
   return bytes;
 }

@@ -1,4 +1,4 @@
-// A measured series described, and one instance retrieved into memory.
+// A source series described, and one instance retrieved into memory.
 #include "pacs/measurement_requests.h"
 
 #include <fmt/format.h>
@@ -26,12 +26,12 @@ constexpr std::size_t kMultipartOverhead = 64 << 10;
 
 }  // namespace
 
-ReportSource DescribeMeasuredSeries(const DicomWebClient& pacs, const std::string& study_uid,
+ReportSource DescribeSourceSeries(const DicomWebClient& pacs, const std::string& study_uid,
                                     const std::string& series_uid, const std::string& known_frame,
                                     const std::atomic<bool>* cancel) {
   const PacsConfig& config = pacs.config();
   const std::string series_url = SeriesUrl(config, study_uid, series_uid);
-  const std::string what = "a listing of the measured series' images";
+  const std::string what = "a listing of the source series' images";
   JsonDocument storage;
   const auto datasets =
       FetchDicomJson(config, what,
@@ -57,7 +57,7 @@ ReportSource DescribeMeasuredSeries(const DicomWebClient& pacs, const std::strin
     source.images.push_back(std::move(image));
   }
   if (source.images.empty()) {
-    throw PacsError(fmt::format("PACS '{}' lists no instances of the measured series", config.name), 404);
+    throw PacsError(fmt::format("PACS '{}' lists no instances of the source series", config.name), 404);
   }
   if (frames.empty() && IsValidUid(known_frame)) frames.insert(known_frame);
   if (frames.empty()) {  // a PACS need not answer every includefield: one instance's metadata says it
@@ -73,19 +73,19 @@ ReportSource DescribeMeasuredSeries(const DicomWebClient& pacs, const std::strin
   }
   if (frames.empty()) {
     throw PacsError(
-        fmt::format("PACS '{}': the measured series names no Frame of Reference UID (0020,0052), so its "
+        fmt::format("PACS '{}': the source series names no Frame of Reference UID (0020,0052), so its "
                     "patient coordinates have no frame a report could name",
                     config.name));
   }
   if (frames.size() > 1) {
     throw PacsError(
-        fmt::format("PACS '{}': the measured series' instances name {} frames of reference; a report "
+        fmt::format("PACS '{}': the source series' instances name {} frames of reference; a report "
                     "names one",
                     config.name, frames.size()));
   }
   if (IsValidUid(known_frame) && *frames.begin() != known_frame) {
     throw PacsError(
-        fmt::format("PACS '{}' names frame of reference {} for the measured series, whose files named {} "
+        fmt::format("PACS '{}' names frame of reference {} for the source series, whose files named {} "
                     "when it was read",
                     config.name, *frames.begin(), known_frame));
   }
@@ -135,6 +135,27 @@ ImagePlane FetchImagePlane(const DicomWebClient& pacs, const std::string& study_
       fmt::format("PACS '{}': image {} has no plane in its metadata (Image Position and Orientation "
                   "(Patient), Pixel Spacing), so 2D coordinates on it have no place in the patient",
                   config.name, sop_instance_uid));
+}
+
+InstanceLocation FindInstance(const DicomWebClient& pacs, const std::string& sop_instance_uid,
+                              const std::atomic<bool>* cancel) {
+  const PacsConfig& config = pacs.config();
+  CheckUid(sop_instance_uid, "sop_instance_uid");
+  JsonDocument storage;
+  const auto found = FetchDicomJson(config, "a search for an instance",
+                                    config.base_url + "/instances?limit=2&includefield=0020000D&includefield=0020000E"
+                                                      "&SOPInstanceUID=" + EscapeUrlComponent(sop_instance_uid),
+                                    cancel, storage);
+  if (found.empty()) {
+    throw PacsError(fmt::format("PACS '{}' holds no instance {}", config.name, sop_instance_uid), 404);
+  }
+  const InstanceLocation place{found.front().Text(tag::kStudyInstanceUid), found.front().Text(tag::kSeriesInstanceUid)};
+  if (found.size() > 1 || !IsValidUid(place.study_uid) || !IsValidUid(place.series_uid)) {
+    throw PacsError(fmt::format("PACS '{}' answered a search for instance {} with {} places or no valid study and "
+                                "series UIDs",
+                                config.name, sop_instance_uid, found.size()));
+  }
+  return place;
 }
 
 std::string RetrieveInstance(const DicomWebClient& pacs, const std::string& study_uid, const std::string& series_uid,

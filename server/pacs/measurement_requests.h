@@ -1,5 +1,6 @@
-// The DICOMweb requests a measurement report needs beyond DicomWebClient's own: what the measured series is (its
-// frame of reference and images, QIDO-RS), and one instance's bytes in memory (WADO-RS), both bounded.
+// The DICOMweb requests a measurement report and a presentation state need beyond DicomWebClient's own: what their
+// source series is (its frame of reference and images, QIDO-RS), and one instance's bytes in memory (WADO-RS), both
+// bounded.
 #pragma once
 
 #include <atomic>
@@ -16,7 +17,7 @@ namespace cinevol::pacs {
 // one the volume read from the files), else WADO-RS metadata of one instance, says it. PacsError for a series
 // whose instances name none or several, or another than `known_frame`; OverLimit past max_instances; InputError
 // for a bad UID.
-ReportSource DescribeMeasuredSeries(const DicomWebClient& pacs, const std::string& study_uid,
+ReportSource DescribeSourceSeries(const DicomWebClient& pacs, const std::string& study_uid,
                                     const std::string& series_uid, const std::string& known_frame = {},
                                     const std::atomic<bool>* cancel = nullptr);
 
@@ -24,6 +25,17 @@ ReportSource DescribeMeasuredSeries(const DicomWebClient& pacs, const std::strin
 // image without one, or a multi-frame image, whose planes lie per frame); InputError for a bad UID.
 ImagePlane FetchImagePlane(const DicomWebClient& pacs, const std::string& study_uid, const std::string& series_uid,
                            const std::string& sop_instance_uid, const std::atomic<bool>* cancel = nullptr);
+
+// Where an instance lies: its study and series.
+struct InstanceLocation {
+  std::string study_uid;
+  std::string series_uid;
+};
+
+// QIDO-RS /instances?SOPInstanceUID=...: the study and series of the instance, by its UID alone. PacsError (404)
+// where the PACS holds none, or answers with more than one place or UIDs that are not UIDs; InputError for a bad UID.
+InstanceLocation FindInstance(const DicomWebClient& pacs, const std::string& sop_instance_uid,
+                              const std::atomic<bool>* cancel = nullptr);
 
 // WADO-RS /studies/{s}/series/{se}/instances/{i}, as stored: the one DICOM Part 10 instance the answer holds, at
 // most `max_bytes` (InputError past it, naming the limit). PacsError for a failing PACS or a malformed answer.

@@ -54,8 +54,8 @@ bool IsStringVr(std::string_view vr) {
   return false;
 }
 
-// The VRs of the tags an SR reader reads, for implicit VR files, which do not
-// say: the sequences to walk into, and the values read. Any other tag there is UN.
+// The VRs of the tags cinevol's readers read (a measurement report's, a presentation state's), for implicit VR
+// files, which do not say: the sequences to walk into, and the values read. Any other tag there is UN.
 const char* ImplicitVr(std::uint32_t tag) {
   struct Known {
     std::uint32_t tag;
@@ -65,13 +65,22 @@ const char* ImplicitVr(std::uint32_t tag) {
       {0x00080005, "CS"}, {0x00080016, "UI"}, {0x00080018, "UI"}, {0x00080060, "CS"}, {0x00080100, "SH"},
       {0x00080102, "SH"}, {0x00080103, "SH"}, {0x00080104, "LO"}, {0x00080105, "CS"}, {0x00080110, "SQ"},
       {0x00080119, "UC"}, {0x00080120, "UR"}, {0x00081032, "SQ"}, {0x00081110, "SQ"}, {0x00081111, "SQ"},
-      {0x00081115, "SQ"}, {0x00081150, "UI"}, {0x00081155, "UI"}, {0x00081160, "IS"}, {0x00081199, "SQ"},
-      {0x0020000D, "UI"}, {0x0020000E, "UI"}, {0x00200052, "UI"}, {0x004008EA, "SQ"}, {0x0040A010, "CS"},
+      {0x00081115, "SQ"}, {0x00081140, "SQ"}, {0x0008114A, "SQ"}, {0x00081150, "UI"}, {0x00081155, "UI"},
+      {0x00081160, "IS"}, {0x00081199, "SQ"}, {0x00081200, "SQ"}, {0x0020000D, "UI"}, {0x0020000E, "UI"},
+      {0x00200052, "UI"}, {0x00281050, "DS"}, {0x00281051, "DS"}, {0x00281101, "US"}, {0x00281102, "US"},
+      {0x00281103, "US"}, {0x00281104, "US"}, {0x00281201, "OW"}, {0x00281202, "OW"}, {0x00281203, "OW"},
+      {0x00281204, "OW"}, {0x0028140F, "CS"}, {0x00281410, "CS"}, {0x004008EA, "SQ"}, {0x0040A010, "CS"},
       {0x0040A040, "CS"}, {0x0040A043, "SQ"}, {0x0040A050, "CS"}, {0x0040A073, "SQ"}, {0x0040A078, "SQ"},
       {0x0040A07A, "SQ"}, {0x0040A124, "UI"}, {0x0040A160, "UT"}, {0x0040A168, "SQ"}, {0x0040A195, "SQ"},
       {0x0040A300, "SQ"}, {0x0040A301, "SQ"}, {0x0040A30A, "DS"}, {0x0040A360, "SQ"}, {0x0040A370, "SQ"},
       {0x0040A372, "SQ"}, {0x0040A375, "SQ"}, {0x0040A385, "SQ"}, {0x0040A504, "SQ"}, {0x0040A525, "SQ"},
-      {0x0040A730, "SQ"}, {0x0040DB00, "CS"}, {0x00700022, "FL"}, {0x00700023, "CS"}, {0x30060024, "UI"},
+      {0x0040A730, "SQ"}, {0x0040DB00, "CS"}, {0x00700022, "FL"}, {0x00700023, "CS"}, {0x00700080, "CS"},
+      {0x00700081, "LO"}, {0x00701104, "SQ"}, {0x00701201, "SQ"}, {0x00701202, "CS"}, {0x00701204, "CS"},
+      {0x00701207, "US"}, {0x00701209, "UI"}, {0x0070120A, "SQ"}, {0x0070120B, "CS"}, {0x0070120C, "US"},
+      {0x00701301, "SQ"}, {0x00701302, "CS"}, {0x00701303, "FD"}, {0x00701304, "SQ"}, {0x00701305, "FD"},
+      {0x00701306, "FD"}, {0x00701309, "US"}, {0x00701602, "CS"}, {0x00701603, "FD"}, {0x00701604, "FD"},
+      {0x00701605, "FD"}, {0x00701606, "FD"}, {0x00701703, "FD"}, {0x00701801, "SQ"}, {0x00701802, "CS"},
+      {0x00701803, "SQ"}, {0x00701804, "US"}, {0x00701A08, "SQ"}, {0x00701A09, "LO"}, {0x30060024, "UI"},
   };
   const auto* end = std::end(kKnown);
   const auto* it =
@@ -103,11 +112,11 @@ class Part10Parser {
     if (syntax == kDeflatedExplicit) {
       Fail(pos,
            "transfer syntax 1.2.840.10008.1.2.1.99 (deflated explicit VR little endian), which cinevol does "
-           "not read: store the report uncompressed");
+           "not read: store it uncompressed");
     }
     if (syntax == kExplicitBig) Fail(pos, "transfer syntax 1.2.840.10008.1.2.2 (explicit VR big endian, retired)");
     if (syntax != kExplicitLittle && syntax != kImplicitLittle) {
-      Fail(pos, fmt::format("transfer syntax {}, which a structured report does not travel in (explicit or implicit "
+      Fail(pos, fmt::format("transfer syntax {}, which cinevol does not read (it reads explicit or implicit "
                             "VR little endian)",
                             syntax.substr(0, 64)));
     }

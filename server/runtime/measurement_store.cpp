@@ -47,10 +47,11 @@ v1::StoredObject StoreMeasurements(const pacs::DicomWebClient& to, const pacs::D
   }
   const pacs::SourceStudy study = StudyOf(from, origin, cancel);
   const pacs::ReportSource source =
-      pacs::DescribeMeasuredSeries(from, origin.study_uid, origin.series_uid, frame, cancel);
+      pacs::DescribeSourceSeries(from, origin.study_uid, origin.series_uid, frame, cancel);
   pacs::MeasurementReportUids uids;
   const std::string bytes = pacs::MakeMeasurementReport(study, source, report, version, &uids);
-  return StoreInstance(to, bytes, uids.study_uid, uids.series_uid, uids.sop_instance_uid, cancel);
+  to.StoreInstances(uids.study_uid, {bytes}, cancel);
+  return StoredObjectOf(to, uids.study_uid, uids.series_uid, uids.sop_instance_uid);
 }
 
 namespace {

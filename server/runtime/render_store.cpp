@@ -7,7 +7,10 @@
 #include "core/error.h"
 #include "encode/image_codecs.h"
 #include "pacs/pacs_error.h"
+#include "pacs/measurement_requests.h"
 #include "pacs/secondary_capture.h"
+#include "runtime/presentation_store.h"
+#include "scene/presets.h"
 
 namespace cinevol::service {
 
@@ -52,16 +55,15 @@ pacs::SourceStudy StudyOf(const pacs::DicomWebClient& from, const PacsOrigin& or
   return study;
 }
 
-v1::StoredObject StoreRender(const pacs::DicomWebClient& to, const pacs::DicomWebClient& from,
-                             const PacsOrigin& origin, const v1::SnapshotResponse& still, const v1::Scene& scene,
-                             const VolumePlacement& placement, const std::string& version,
-                             const std::atomic<bool>* cancel) {
+void StoreRender(const pacs::DicomWebClient& to, const pacs::DicomWebClient& from, const PacsOrigin& origin,
+                 v1::SnapshotResponse& still, const v1::Scene& scene, const Volume& volume, const std::string& version,
+                 const std::atomic<bool>* cancel) {
   const ImageRgb8 image = DecodePng({still.image().begin(), still.image().end()});
   // The recipe is the scene as a scene file says it: in patient coordinates
   // (frame PATIENT_LPS, so it does not depend on how a reader centres the
   // volume), with the still's samples per pixel, not the session's per frame.
   v1::Scene recipe_scene = scene;
-  ToPatientFrame(recipe_scene, placement);
+  ToPatientFrame(recipe_scene, VolumePlacement::Of(volume));
   recipe_scene.mutable_render()->set_spp(still.spp());
   recipe_scene.mutable_render()->set_width(still.width());
   recipe_scene.mutable_render()->set_height(still.height());
@@ -73,16 +75,35 @@ v1::StoredObject StoreRender(const pacs::DicomWebClient& to, const pacs::DicomWe
   recipe.source_series_uid = origin.series_uid;
   recipe.cinevol_version = version;
   recipe.preset = scene.transfer_function().preset();
-  pacs::SecondaryCaptureUids uids;
+  const pacs::SourceStudy study = StudyOf(from, origin, cancel);
+  pacs::SecondaryCaptureUids capture_uids;
   const pacs::SecondaryCaptureImage pixels{image.width, image.height, image.bytes};
-  const std::string capture = pacs::MakeSecondaryCapture(StudyOf(from, origin, cancel), pixels, recipe, &uids);
-  return StoreInstance(to, capture, uids.study_uid, uids.series_uid, uids.sop_instance_uid, cancel);
+  std::vector<std::string> instances{pacs::MakeSecondaryCapture(study, pixels, recipe, &capture_uids)};
+
+  // Beside it, the presentation state that renders it again, where the volume's patient coordinates are the
+  // series' (not where a load overrode its orientation).
+  pacs::PresentationStateUids presentation_uids;
+  if (volume.metadata().orientation_override.empty()) {
+    *recipe_scene.mutable_transfer_function() = ExpandTransferFunction(scene.transfer_function(), volume);
+    pacs::PresentationState state = PresentationOf(recipe_scene, volume);
+    state.rendered_sop_class_uid = pacs::kSecondaryCaptureSopClass;
+    state.rendered_sop_instance_uid = capture_uids.sop_instance_uid;
+    state.rendered_series_uid = capture_uids.series_uid;
+    const pacs::ReportSource source = pacs::DescribeSourceSeries(from, origin.study_uid, origin.series_uid,
+                                                                 volume.metadata().frame_of_reference_uid, cancel);
+    instances.push_back(pacs::MakePresentationState(study, source, state, version, &presentation_uids));
+  }
+  to.StoreInstances(capture_uids.study_uid, instances, cancel);
+  *still.mutable_stored() = StoredObjectOf(to, capture_uids.study_uid, capture_uids.series_uid,
+                                           capture_uids.sop_instance_uid);
+  if (!presentation_uids.sop_instance_uid.empty()) {
+    *still.mutable_presentation() = StoredObjectOf(to, presentation_uids.study_uid, presentation_uids.series_uid,
+                                                   presentation_uids.sop_instance_uid);
+  }
 }
 
-v1::StoredObject StoreInstance(const pacs::DicomWebClient& to, const std::string& bytes, const std::string& study_uid,
-                               const std::string& series_uid, const std::string& sop_instance_uid,
-                               const std::atomic<bool>* cancel) {
-  to.StoreInstances(study_uid, {bytes}, cancel);
+v1::StoredObject StoredObjectOf(const pacs::DicomWebClient& to, const std::string& study_uid,
+                                const std::string& series_uid, const std::string& sop_instance_uid) {
   v1::StoredObject stored;
   stored.set_pacs(to.config().name);
   stored.set_study_uid(study_uid);

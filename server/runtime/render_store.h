@@ -1,6 +1,7 @@
 // Renders sent back: a still of a volume that came from a PACS, stored into
 // the source's study as a DICOM Secondary Capture (pacs/secondary_capture.h)
-// with its recipe, so a picture in the report can be rendered again.
+// with its recipe and a presentation state beside it, so a picture in the
+// report can be rendered again, by cinevol or another viewer.
 #pragma once
 
 #include <atomic>
@@ -30,19 +31,20 @@ std::optional<PacsOrigin> ParsePacsSource(const std::string& source);
 // measurement report); PacsError (404) where the PACS no longer holds it.
 pacs::SourceStudy StudyOf(const pacs::DicomWebClient& from, const PacsOrigin& origin, const std::atomic<bool>* cancel);
 
-// Stores one instance (`bytes`, made with these UIDs) on `to` with STOW-RS
-// and says where it went.
-v1::StoredObject StoreInstance(const pacs::DicomWebClient& to, const std::string& bytes, const std::string& study_uid,
-                               const std::string& series_uid, const std::string& sop_instance_uid,
-                               const std::atomic<bool>* cancel);
+// Where an instance stored on `to` went.
+v1::StoredObject StoredObjectOf(const pacs::DicomWebClient& to, const std::string& study_uid,
+                                const std::string& series_uid, const std::string& sop_instance_uid);
 
 // Stores `still` (a PNG) on `to` in the study `origin` names, whose patient
-// and study attributes `from` (the source PACS) answers; `scene` (the
-// session's, volume-centred; `placement` moves it to patient coordinates)
-// and `version` make the recipe. Throws PacsError, InputError, Cancelled.
-v1::StoredObject StoreRender(const pacs::DicomWebClient& to, const pacs::DicomWebClient& from,
-                             const PacsOrigin& origin, const v1::SnapshotResponse& still, const v1::Scene& scene,
-                             const VolumePlacement& placement, const std::string& version,
-                             const std::atomic<bool>* cancel);
+// and study attributes, images and frame of reference `from` (the source PACS)
+// answers: a Secondary Capture with its recipe (`scene`, the session's,
+// volume-centred, of `volume`; `version`), and beside it, in the same STOW-RS,
+// a Volume Rendering Volumetric Presentation State that renders it again
+// (presentation_store.h; not where the volume's orientation was overridden,
+// as its patient coordinates are then not the series'). Sets `still.stored`
+// and `still.presentation`. Throws PacsError, InputError, Cancelled.
+void StoreRender(const pacs::DicomWebClient& to, const pacs::DicomWebClient& from, const PacsOrigin& origin,
+                 v1::SnapshotResponse& still, const v1::Scene& scene, const Volume& volume, const std::string& version,
+                 const std::atomic<bool>* cancel);
 
 }  // namespace cinevol::service

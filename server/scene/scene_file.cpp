@@ -117,7 +117,9 @@ void ValidateVolume(const v1::VolumeSource& v, Problems& p) {
       }
       break;
     default:
-      p.Add("volume", "no source given (file, dicomFolder or phantom)");
+      // A scene for a volume named elsewhere (a session's volume_id, `--volume ID`): a presentation state's, or a
+      // PACS series'. What loads a scene's own volume says when it has none (volume_loader.cpp).
+      if (!v.labels().empty() || !v.series_uid().empty()) p.Add("volume", "no source given (file, dicomFolder or phantom)");
   }
   if (!v.labels().empty() && v.has_phantom()) p.Add("volume.labels", "phantoms have no segmentation");
   if (!v.label_table().empty() && v.labels().empty()) p.Add("volume.labelTable", "names labels: set volume.labels too");

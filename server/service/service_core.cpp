@@ -527,14 +527,13 @@ ServiceCore::SnapshotDone ServiceCore::StoreAfter(const v1::SnapshotRequest& req
   }
   const auto from = pacs_.Find(origin->pacs, caller, "store_to");
   auto finish = std::make_shared<SnapshotDone>(std::move(done));  // called once, whoever runs it
-  const VolumePlacement placement = VolumePlacement::Of(*session.volume()->volume());
-  return [this, to, from, origin = *origin, scene, placement, cancel, finish](grpc::Status status,
-                                                                             v1::SnapshotResponse still) {
+  std::shared_ptr<const Volume> volume_held = session.volume()->volume();
+  return [this, to, from, origin = *origin, scene, volume_held, cancel, finish](grpc::Status status,
+                                                                               v1::SnapshotResponse still) {
     if (!status.ok()) return (*finish)(std::move(status), std::move(still));
     const bool queued = pacs_calls_.Submit([=, still = std::move(still)]() mutable {
       const grpc::Status stored = Guarded([&] {
-        *still.mutable_stored() =
-            StoreRender(*to, *from, origin, still, scene, placement, CINEVOL_VERSION, cancel.get());
+        StoreRender(*to, *from, origin, still, scene, *volume_held, CINEVOL_VERSION, cancel.get());
       });
       (*finish)(stored, stored.ok() ? std::move(still) : v1::SnapshotResponse());
     });

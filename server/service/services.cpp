@@ -13,6 +13,7 @@
 #include "runtime/errors.h"
 #include "runtime/measurement_store.h"
 #include "runtime/metrics.h"
+#include "runtime/presentation_store.h"
 #include "runtime/series_load.h"
 #include "service/session_stream.h"
 
@@ -692,6 +693,17 @@ grpc::ServerUnaryReactor* PacsServiceImpl::LoadMeasurements(grpc::CallbackServer
       context, core_, core_->pacs_calls(), "LoadMeasurements",
       [this, request, response](const Principal& caller, const std::atomic<bool>& stop) {
         *response = service::LoadMeasurements(*core_->pacs().Find(request->pacs(), caller), *request, &stop);
+      },
+      request->pacs());
+}
+
+grpc::ServerUnaryReactor* PacsServiceImpl::LoadPresentation(grpc::CallbackServerContext* context,
+                                                            const v1::LoadPresentationRequest* request,
+                                                            v1::LoadPresentationResponse* response) {
+  return new PooledReactor(
+      context, core_, core_->pacs_calls(), "LoadPresentation",
+      [this, request, response](const Principal& caller, const std::atomic<bool>& stop) {
+        *response = service::LoadPresentation(*core_->pacs().Find(request->pacs(), caller), *request, &stop);
       },
       request->pacs());
 }

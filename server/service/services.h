@@ -94,6 +94,9 @@ class PacsServiceImpl final : public v1::PacsService::CallbackService {
   grpc::ServerUnaryReactor* LoadMeasurements(grpc::CallbackServerContext* context,
                                              const v1::LoadMeasurementsRequest* request,
                                              v1::LoadMeasurementsResponse* response) override;
+  grpc::ServerUnaryReactor* LoadPresentation(grpc::CallbackServerContext* context,
+                                             const v1::LoadPresentationRequest* request,
+                                             v1::LoadPresentationResponse* response) override;
 
  private:
   ServiceCore* core_;

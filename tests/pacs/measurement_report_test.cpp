@@ -445,13 +445,13 @@ TEST(MeasurementReportOrthanc, StoredRetrievedAndReadWithinAHundredthOfAMillimet
   for (const auto& instance : seeded.instances) ASSERT_EQ(orthanc.Upload(instance.bytes), 200);
   const DicomWebClient client(orthanc.Pacs());
 
-  const ReportSource source = DescribeMeasuredSeries(client, stamp.study_uid, stamp.series_uid);
+  const ReportSource source = DescribeSourceSeries(client, stamp.study_uid, stamp.series_uid);
   // The files' own frame agrees; another is refused naming both.
-  EXPECT_EQ(DescribeMeasuredSeries(client, stamp.study_uid, stamp.series_uid, source.frame_of_reference_uid)
+  EXPECT_EQ(DescribeSourceSeries(client, stamp.study_uid, stamp.series_uid, source.frame_of_reference_uid)
                 .frame_of_reference_uid,
             source.frame_of_reference_uid);
   const std::string other =
-      ErrorOf<PacsError>([&] { DescribeMeasuredSeries(client, stamp.study_uid, stamp.series_uid, "2.25.77"); });
+      ErrorOf<PacsError>([&] { DescribeSourceSeries(client, stamp.study_uid, stamp.series_uid, "2.25.77"); });
   EXPECT_NE(other.find("whose files named 2.25.77"), std::string::npos) << other;
   EXPECT_EQ(source.frame_of_reference_uid, "1.3.12.2.1107.5.1.4.60064.30000022120807274275100000041");
   ASSERT_EQ(source.images.size(), 3u);

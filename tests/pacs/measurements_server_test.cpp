@@ -303,7 +303,7 @@ TEST_F(MeasurementsServer, WhatCannotBeStoredOrReadIsRefusedByName) {
                                   kCt.series_uid, "--instance", kCt.series_uid + ".1"});
   EXPECT_EQ(exit_code, 3) << out;  // a refused call
   // The CT is JPEG 2000: refused by its transfer syntax before a byte of its data set is read.
-  EXPECT_NE(out.find("transfer syntax 1.2.840.10008.1.2.4.90, which a structured report does not travel in"),
+  EXPECT_NE(out.find("transfer syntax 1.2.840.10008.1.2.4.90, which cinevol does not read"),
             std::string::npos)
       << out;
   std::tie(exit_code, out) = Cli({"measurements", "load", "--pacs", "orthanc", "--study", "1.2.x", "--series", "1.2"});

@@ -9,11 +9,14 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <cmath>
 #include <atomic>
 #include <fstream>
 #include <memory>
 #include <thread>
 
+#include "image_files.h"
+#include "pacs/dicom_json.h"
 #include "pacs/dicomweb_client.h"
 #include "pacs/loopback_http_server.h"
 #include "pacs/orthanc_process.h"
@@ -224,6 +227,61 @@ TEST_F(PacsServer, ASnapshotIsStoredBackWithItsRecipe) {
                              "1", "--out", png.string(), "--store-to", "orthanc"});
   EXPECT_NE(code, 0);
   EXPECT_NE(out.find("did not come from a PACS"), std::string::npos) << out;
+}
+
+// PSNR (dB) of two 8-bit RGB pictures of one size.
+double Psnr8(const RgbImage& a, const RgbImage& b) {
+  double squared = 0;
+  for (std::size_t i = 0; i < a.rgb.size(); ++i) squared += std::pow(double(a.rgb[i]) - double(b.rgb[i]), 2);
+  const double mse = squared / double(a.rgb.size());
+  return mse == 0 ? 99.0 : 10 * std::log10(255.0 * 255.0 / mse);
+}
+
+// "KEY VALUE," after `key` in a command's output.
+std::string Word(const std::string& out, const std::string& key) {
+  const std::size_t at = out.find(key);
+  if (at == std::string::npos) return {};
+  const std::size_t start = at + key.size();
+  return out.substr(start, out.find_first_of(" ,)\n", start) - start);
+}
+
+// A still stored with --store-to has a Volume Rendering Volumetric Presentation State beside it, in a PR series of
+// the study: loaded by its UID alone, it loads the series and gives back the scene, which renders the same still.
+TEST_F(PacsServer, APresentationStateBesideTheStillRendersItAgain) {
+  Client client = server_->Connect();
+  const v1::VolumeInfo volume = client.LoadSeries(CtSeries());
+  // A crop box and a clip plane, so the cropping goes through the standard's attributes too.
+  const fs::path scene_file = scratch_ / "cropped.json";
+  std::ofstream(scene_file) << R"({"transferFunction": {"preset": "ct-bone"}, "clipping": {"cropBox": {)"
+                            << R"("center": {"x": 0, "y": -150, "z": -20}, "size": {"x": 250, "y": 200, "z": 400}},)"
+                            << R"("planes": [{"point": {"x": 30, "y": 0, "z": 0}, "normal": {"x": -1, "y": 0, "z": 0}, "cap": true}]},)"
+                            << R"("render": {"seed": 7}})";
+  const fs::path first = scratch_ / "first.png", again = scratch_ / "again.png";
+  auto [code, out] = Cli({"snapshot", "--volume", volume.id(), "--scene", scene_file.string(), "--width", "64",
+                          "--height", "48", "--spp", "6", "--out", first.string(), "--store-to", "orthanc"});
+  ASSERT_EQ(code, 0) << out;
+  const std::string state_uid = Word(out, "--presentation ");
+  ASSERT_TRUE(pacs::IsValidUid(state_uid)) << out;
+  const std::vector<v1::SeriesSummary> series = client.SearchSeries("orthanc", kCt.study_uid);
+  EXPECT_TRUE(std::any_of(series.begin(), series.end(), [](const v1::SeriesSummary& s) {
+    return s.modality() == "PR" && s.description() == "cinevol presentation";
+  }));
+
+  // By its UID alone: the series it presents, loaded, and its scene in a file.
+  const fs::path presented = scratch_ / "presented.json";
+  std::tie(code, out) = Cli({"pacs", "load", "--pacs", "orthanc", "--presentation", state_uid, "--scene-out",
+                             presented.string()});
+  ASSERT_EQ(code, 0) << out;
+  EXPECT_NE(out.find(volume.id()), std::string::npos) << out;  // the same series: the volume already held
+  EXPECT_NE(out.find("presentation state CINEVOL_RENDER: cinevol render: ct-bone"), std::string::npos) << out;
+  const std::string scene_json = ReadWholeFile(presented);
+  EXPECT_NE(scene_json.find("\"cap\": true"), std::string::npos) << scene_json;
+  std::tie(code, out) = Cli({"snapshot", "--volume", volume.id(), "--scene", presented.string(), "--width", "64",
+                             "--height", "48", "--spp", "6", "--out", again.string()});
+  ASSERT_EQ(code, 0) << out;
+  const double psnr = Psnr8(DecodePngImage(ReadWholeFile(first)), DecodePngImage(ReadWholeFile(again)));
+  EXPECT_GE(psnr, 40.0) << "the still rendered again from its presentation state";
+  RecordProperty("psnr_db", std::to_string(psnr));
 }
 
 TEST_F(PacsServer, NamesThatAreNotTheServersUrlsAndBadUidsAreRefusedByName) {

@@ -81,6 +81,12 @@ TEST(SceneFile, MeasurementsAreKeptAndChecked) {
   EXPECT_EQ(ValidateScene(scene).front().rfind("measurements: ", 0), 0u);
 }
 
+// A scene for a volume named elsewhere (`cinevol snapshot --volume ID --scene F`, a presentation state's) names none.
+TEST(SceneFile, ASceneForAVolumeNamedElsewhereNamesNone) {
+  const v1::Scene scene = ParseSceneJson(R"({"transferFunction": {"preset": "ct-bone"}})");
+  EXPECT_EQ(scene.volume().source_case(), v1::VolumeSource::SOURCE_NOT_SET);
+}
+
 TEST(SceneFile, DefaultsAreFilled) {
   const v1::Scene s = ParseSceneJson(R"({"volume": {"phantom": {"kind": "CUBE"}},
                                          "transferFunction": {"points": [{"value": 0, "opacity": 1}]}})");
@@ -195,7 +201,11 @@ INSTANTIATE_TEST_SUITE_P(
         Rule{"HugeHeight", [](v1::Scene& s) { s.mutable_render()->set_height(100000); }, "render.height"},
         Rule{"ZeroSpp", [](v1::Scene& s) { s.mutable_render()->set_spp(0); }, "render.spp"},
         Rule{"TooManyBounces", [](v1::Scene& s) { s.mutable_render()->set_max_bounces(100000); }, "render.maxBounces"},
-        Rule{"NoVolume", [](v1::Scene& s) { s.clear_volume(); }, "volume"},
+        Rule{"LabelsOfNoVolume",
+             [](v1::Scene& s) {
+               s.clear_volume();
+               s.mutable_volume()->set_labels("seg.nii.gz");
+             }, "volume"},
         Rule{"NegativePhantomSize", [](v1::Scene& s) { s.mutable_volume()->mutable_phantom()->set_spacing(-1); },
              "volume.phantom"},
         Rule{"ZeroCropSize", [](v1::Scene& s) { s.mutable_clipping()->mutable_crop_box()->mutable_size()->set_x(1); },
