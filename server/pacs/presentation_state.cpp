@@ -102,8 +102,8 @@ void CheckGeometry(const RenderGeometry& g) {
 void CheckCropping(const Cropping& c) {
   if (c.bounding_box) CheckFinite(c.bounding_box->data(), 6, "cropping.bounding_box");
   for (const auto& set : c.plane_sets) {
-    if (set.empty() || set.size() > kMaxPresentationPlanes) {
-      Refuse("cropping.plane_sets", fmt::format("holds a set of {} planes; 1 to {}", set.size(), kMaxPresentationPlanes));
+    if (set.empty() || set.size() > kMaxPlanesInASet) {
+      Refuse("cropping.plane_sets", fmt::format("holds a set of {} planes; 1 to {}", set.size(), kMaxPlanesInASet));
     }
     for (const CroppingPlane& p : set) {
       CheckFinite(p.plane.data(), 4, "cropping.plane_sets");

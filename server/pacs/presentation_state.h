@@ -21,8 +21,10 @@ inline constexpr const char* kVolumeRenderingPresentationSopClass = "1.2.840.100
 inline constexpr int kPresentationSeriesNumber = 9902;
 // Entries of the RGBA palette a transfer function is sampled into.
 inline constexpr int kPaletteEntries = 4096;
-// The most clip planes cinevol reads from one (a scene's limit, scene.proto).
-inline constexpr std::size_t kMaxPresentationPlanes = 6;
+// The most cropping planes in one set, and cinevol reads from one in all: a crop box's six faces and a scene's six
+// clip planes (scene.proto).
+inline constexpr std::size_t kMaxPlanesInASet = 6;
+inline constexpr std::size_t kMaxPresentationPlanes = 12;
 inline constexpr std::size_t kMaxPresentationBytes = std::size_t{16} << 20;
 
 using Vec3d = std::array<double, 3>;

@@ -183,14 +183,14 @@ v1::Clipping ClippingOf(const pacs::Cropping& cropping, const std::array<double,
       continue;
     }
     for (const pacs::CroppingPlane& p : set) {
-      if (clipping.planes_size() == int(pacs::kMaxPresentationPlanes)) {
-        throw InputError(fmt::format("the presentation state crops by more planes than a scene holds ({})",
-                                     pacs::kMaxPresentationPlanes));
+      if (clipping.planes_size() == int(pacs::kMaxPlanesInASet)) {
+        throw InputError(fmt::format("the presentation state crops by more clip planes than a scene holds ({})",
+                                     pacs::kMaxPlanesInASet));
       }
       v1::ClipPlane* plane = clipping.add_planes();
       *plane = ClipPlaneOf(p);
-      for (const v1::ClipPlane& theirs : recipe.clipping().planes()) {
-        if (SamePlane(p, PlaneOf(ToD(theirs.point()), ToD(theirs.normal())))) plane->set_cap(theirs.cap());
+      for (const v1::ClipPlane& theirs : recipe.clipping().planes()) {  // the same plane: the recipe's, with its cap
+        if (SamePlane(p, PlaneOf(ToD(theirs.point()), ToD(theirs.normal())))) *plane = theirs;
       }
     }
   }
