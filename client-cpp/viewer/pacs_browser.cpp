@@ -29,7 +29,7 @@ std::string LargestSeries(const std::vector<v1::SeriesSummary>& series) {
 
 }  // namespace
 
-PacsBrowser::PacsBrowser(ViewerContext& context, SessionLink& link, std::function<void(const std::string&)> open_volume)
+PacsBrowser::PacsBrowser(ViewerContext& context, SessionLink& link, OpenVolume open_volume)
     : context_(context), link_(link), open_volume_(std::move(open_volume)) {}
 
 void PacsBrowser::Forget() {
@@ -171,6 +171,7 @@ void PacsBrowser::OpenSeries(const v1::LoadSeriesRequest& images) {
   }
   const std::string modality = ModalityOf(images.series_uid());
   if (modality == "SR") return OpenMeasurements(images);
+  if (modality == "PR") return OpenPresentation(images);
   v1::LoadSeriesRequest request = images;
   if (modality == "SEG") {  // the labels of the volume looked at, in its frame of reference
     if (!link_.volume()) {
@@ -192,6 +193,30 @@ void PacsBrowser::OpenSeries(const v1::LoadSeriesRequest& images) {
     };
     return std::function<void()>(
         [this, request, opened = client.LoadSeries(request, on_progress)] { Opened(request, opened); });
+  });
+}
+
+void PacsBrowser::OpenPresentation(const v1::LoadSeriesRequest& series) {
+  v1::LoadPresentationRequest request;
+  request.set_pacs(series.pacs());
+  request.set_study_uid(series.study_uid());
+  request.set_series_uid(series.series_uid());
+  opening = true;
+  progress.reset();
+  status = "reading the presentation state...";
+  Call("openPresentation", request.pacs(), [this, request, generation = generation_](Client& client) {
+    const v1::LoadPresentationResponse presented = client.LoadPresentation(request);
+    v1::LoadSeriesRequest images;
+    images.set_pacs(request.pacs());
+    images.set_study_uid(presented.study_uid());
+    images.set_series_uid(presented.series_uid());
+    auto on_progress = [this, generation](const v1::LoadSeriesProgress& p) {
+      context_.ui.Later([this, generation, p] {
+        if (generation == generation_ && opening) progress = p;
+      });
+    };
+    return std::function<void()>([this, images, opened = client.LoadSeries(images, on_progress),
+                                  scene = presented.scene()] { Opened(images, opened, scene); });
   });
 }
 
@@ -233,7 +258,8 @@ void PacsBrowser::StoreMeasurements(const std::string& pacs_name) {
   });
 }
 
-void PacsBrowser::Opened(const v1::LoadSeriesRequest& request, const v1::VolumeInfo& opened) {
+void PacsBrowser::Opened(const v1::LoadSeriesRequest& request, const v1::VolumeInfo& opened,
+                         std::optional<v1::Scene> scene) {
   opening = false;
   progress.reset();
   status = fmt::format("opened {} ({} x {} x {})", opened.id(), opened.dims().x(), opened.dims().y(), opened.dims().z());
@@ -244,8 +270,9 @@ void PacsBrowser::Opened(const v1::LoadSeriesRequest& request, const v1::VolumeI
   fields["seriesUid"] = TextValue(request.series_uid());
   fields["volumeId"] = TextValue(opened.id());
   fields["source"] = TextValue(opened.source());
+  if (scene) fields["presentation"].set_bool_value(true);  // opened in a presentation state's scene
   context_.log.Report("openSeries", report);
-  open_volume_(opened.id());  // as a click on one of the server's volumes does
+  open_volume_(opened.id(), std::move(scene));  // as a click on one of the server's volumes does
 }
 
 }  // namespace cinevol::viewer

@@ -1,5 +1,5 @@
 // The PACS panel: the search fields, the studies found, a study's series and
-// Open (images, a measurement report or a segmentation, by modality), with
+// Open (images, a measurement report, a segmentation or a presentation state, by modality), with
 // the series' progress while the server fetches it; Store measurements.
 #include <fmt/format.h>
 #include <imgui.h>

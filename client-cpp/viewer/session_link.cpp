@@ -35,14 +35,14 @@ void SessionLink::Connect(int width, int height) {
       [](const std::string&) {});  // a server that will not say (a link's holder has no token): no list
 }
 
-void SessionLink::SwitchVolume(const std::string& volume_id) {
+void SessionLink::SwitchVolume(const std::string& volume_id, std::optional<v1::Scene> scene) {
   cli::ScriptSession& s = settings_.session;
   s.volume = volume_id;
   s.load.clear();
   s.upload.clear();
   s.series.reset();
-  s.preset.clear();  // the new volume's default
-  s.scene.reset();
+  s.preset.clear();  // without a scene: the new volume's default
+  s.scene = std::move(scene);
   // Closing the old session may wait on the network: not on this thread.
   retired_.emplace_back([old = std::move(connection_)]() mutable { old.reset(); });
   session_id_.clear();

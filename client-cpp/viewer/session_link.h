@@ -25,9 +25,10 @@ class SessionLink : private EventSink {
 
   // Connects, starting the session at `width` x `height` pixels.
   void Connect(int width, int height);
-  // Opens volume `volume_id` instead, the new volume's default preset: a new
-  // connection (the old one closes on a thread of its own).
-  void SwitchVolume(const std::string& volume_id);
+  // Opens volume `volume_id` instead, in `scene` (a presentation state's)
+  // or the new volume's default preset: a new connection (the old one closes
+  // on a thread of its own).
+  void SwitchVolume(const std::string& volume_id, std::optional<v1::Scene> scene = std::nullopt);
 
   // What a UI turn brought.
   struct Turn {

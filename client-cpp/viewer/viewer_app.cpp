@@ -31,7 +31,8 @@ App::App(ViewerOptions options)
   link_ = std::make_unique<SessionLink>(
       context_, ConnectionSettings{cli::ToClientOptions(options_.connection), options_.session, options_.grant});
   reading_ = std::make_unique<ReadingTools>(context_, *link_, *screen_);
-  pacs_ = std::make_unique<PacsBrowser>(context_, *link_, [this](const std::string& id) { SwitchVolume(id); });
+  pacs_ = std::make_unique<PacsBrowser>(
+      context_, *link_, [this](const std::string& id, std::optional<v1::Scene> scene) { SwitchVolume(id, std::move(scene)); });
   sharing_ = std::make_unique<Sharing>(context_, *link_, options_.connection.server, options_.local_server);
   files_ = std::make_unique<SceneFiles>(context_, *link_);
   input_ = std::make_unique<MouseAndKeys>(*link_, *screen_, *reading_, *sharing_, panels_);
@@ -54,8 +55,8 @@ App::~App() {
   screen_.reset();
 }
 
-void App::SwitchVolume(const std::string& volume_id) {
-  link_->SwitchVolume(volume_id);
+void App::SwitchVolume(const std::string& volume_id, std::optional<v1::Scene> scene) {
+  link_->SwitchVolume(volume_id, std::move(scene));
   stats_.StartOver();  // a script's settle waits for the new session's first frame
   pacs_->Forget();
   sharing_->Forget();

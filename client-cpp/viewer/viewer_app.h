@@ -32,7 +32,7 @@ class App {
 
  private:
   // Another of the server's volumes: a new session, and nothing of the old one's calls waited for.
-  void SwitchVolume(const std::string& volume_id);
+  void SwitchVolume(const std::string& volume_id, std::optional<v1::Scene> scene = std::nullopt);
   void Turn();  // one turn of the loop
   bool TakeFrame();  // true when a new frame arrived
 

@@ -665,6 +665,64 @@ TEST(Viewer, MeasurementsGoToThePacsAsAReportAndComeBack) {
   }
 }
 
+// A still's presentation state opened from the study's series list (issue 57): the viewer loads the series it
+// presents and starts its session in the state's scene: the camera, the transfer function and the clip plane the
+// still was stored with.
+TEST(Viewer, APresentationStateOpensItsSeriesInItsScene) {
+  CINEVOL_REQUIRE_VIEWER();
+  if (const std::string missing = OrthancProcess::WhatIsMissing(); !missing.empty()) GTEST_SKIP() << missing;
+  CINEVOL_REQUIRE_SHARED_DATA();
+  const SeriesStamp ct{"2.25.3410401", "2.25.3410401.1", "CINEVOL-VIEWER-PR", "Cinevol^Presented"};
+  ScratchDir scratch;
+  const PacsWithCt stack(scratch.path(), ct);
+  ASSERT_TRUE(stack.ready()) << stack.why;
+  const ServerProcess& server = *stack.server;
+  v1::LoadSeriesRequest series;
+  series.set_pacs("orthanc");
+  series.set_study_uid(ct.study_uid);
+  series.set_series_uid(ct.series_uid);
+  const v1::VolumeInfo volume = server.Connect().LoadSeries(series);
+  const fs::path scene = scratch.path() / "stored.json";
+  std::ofstream(scene) << R"({"frame": "PATIENT_LPS", "transferFunction": {"preset": "ct-bone"},
+    "camera": {"eye": {"x": 40, "y": -700, "z": -100}, "target": {"x": 0, "y": -150, "z": -100}, "fovYDeg": 25},
+    "clipping": {"planes": [{"point": {"x": 20, "y": 0, "z": 0}, "normal": {"x": -1, "y": 0, "z": 0}}]}})";
+  const auto [code, out] = RunProgram(CliPath(),
+                                      {"snapshot", "--server", server.address(), "--volume", volume.id(), "--scene",
+                                       scene.string(), "--width", "64", "--height", "48", "--spp", "2", "--out",
+                                       (scratch.path() / "still.png").string(), "--store-to", "orthanc"},
+                                      scratch.path() / "cli.log", std::chrono::seconds(120));
+  ASSERT_EQ(code, 0) << out;
+  const std::size_t at = out.find("its presentation state: series ");
+  ASSERT_NE(at, std::string::npos) << out;
+  const std::string presentation_series = out.substr(at + 31, out.find(',', at) - at - 31);
+
+  const fs::path opened = scratch.path() / "opened.json";
+  const fs::path script = WriteScript(scratch.path() / "presentation.jsonl", fmt::format(R"({{"session": {{"stream": {{"targetSpp": 2}}}}}}
+{{"at": 0, "ui": {{"settle": true}}}}
+{{"at": 0, "ui": {{"selectStudy": {{"pacs": "orthanc", "studyUid": "{0}"}}}}}}
+{{"at": 0, "ui": {{"settle": true}}}}
+{{"at": 0, "ui": {{"openSeries": {{"pacs": "orthanc", "studyUid": "{0}", "seriesUid": "{1}"}}}}}}
+{{"at": 0, "ui": {{"settle": true}}}}
+{{"at": 0.2, "ui": {{"saveScene": "{2}"}}}}
+)",
+                                                                                      ct.study_uid, presentation_series,
+                                                                                      opened.string()));
+  const ViewerRun run = RunViewer(scratch.path(), {"--server", server.address(), "--script", script.string()});
+  ASSERT_EQ(run.exit_code, 0) << run.output;
+  const auto reports = Reported(run.output, "openSeries");
+  ASSERT_EQ(reports.size(), 1u) << run.output;
+  EXPECT_EQ(TextField(reports[0], "seriesUid"), ct.series_uid) << "the series it presents, not the PR series";
+  EXPECT_TRUE(reports[0].fields().at("presentation").bool_value());
+  const v1::Scene shown = LoadSceneFile(opened);
+  EXPECT_NEAR(shown.camera().eye().x(), 40, 0.01);
+  EXPECT_NEAR(shown.camera().eye().y(), -700, 0.01);
+  EXPECT_NEAR(shown.camera().target().y(), -150, 0.01);
+  EXPECT_NEAR(shown.camera().fov_y_deg(), 25, 1e-3);
+  EXPECT_EQ(shown.transfer_function().preset(), "ct-bone");
+  ASSERT_EQ(shown.clipping().planes_size(), 1) << run.output;
+  EXPECT_NEAR(shown.clipping().planes(0).point().x(), 20, 0.01);
+}
+
 // The reading tools driven as a reader would: the 2x2 layout fetches the
 // three slices through the crosshair, a click on the 3D view picks, a click
 // on a slice ends a distance measurement and moves the crosshair, and the

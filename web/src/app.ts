@@ -20,7 +20,7 @@ import { PacsPanel } from "./pacs_panel.js";
 import { PageLink } from "./page_link.js";
 import { IdentityCorners, LabelsPanel, OutputPanel, sceneMeasurements } from "./panels.js";
 import { Reading } from "./reading.js";
-import type { EventKind } from "./session.js";
+import type { EventKind, SessionStart } from "./session.js";
 import { SharePanel } from "./share.js";
 import { Sharing } from "./sharing.js";
 import { StatsPanel } from "./stats_panel.js";
@@ -80,7 +80,7 @@ export class App {
     const volumes = await this.api.volumes.listVolumes({});
     $<HTMLSelectElement>("volumes").replaceChildren(...volumes.volumes.map((v) => new Option(v.id, v.id)));
     void new PacsPanel(this.api, {
-      loaded: (volume) => void this.open(volume.id),
+      loaded: (volume, scene) => void this.open(volume.id, { scene }),
       measured: (measurements) => this.measure(measurements),
       sessionId: () => this.link.session?.id,
       volumeId: () => this.link.session?.volumeId,
@@ -90,7 +90,7 @@ export class App {
     // An address that names no volume opens the server's first, as the desktop viewer does: never a blank view.
     const volumeId = address.volume ?? volumes.volumes[0]?.id;
     if (address.session) await this.join(address.session);
-    else if (volumeId) await this.open(volumeId, address.preset);
+    else if (volumeId) await this.open(volumeId, { preset: address.preset });
     else this.said.setWaiting("The server holds no volume yet: open a study from the PACS, on the left, where it has one.");
   }
 
@@ -100,9 +100,9 @@ export class App {
     this.reading.onMeasurementsEdited(this.reading.measurements);
   }
 
-  async open(volumeId: string, preset?: string): Promise<void> {
+  async open(volumeId: string, start: SessionStart = {}): Promise<void> {
     this.showOpenVolume(volumeId);
-    if (await this.link.open(volumeId, this.view.devicePixels(), preset)) this.share.show(true);
+    if (await this.link.open(volumeId, this.view.devicePixels(), start)) this.share.show(true);
   }
 
   private async join(sessionId: string): Promise<void> {

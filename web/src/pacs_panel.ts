@@ -1,9 +1,10 @@
 // The PACS panel: the server's PACS names, a study search, a study's series,
 // and a series opened: images loaded as a volume (its progress in the
 // banner), a measurement report (SR) as the session's measurements, a
-// segmentation (SEG) as the open volume's labels; and the session's
-// measurements stored back as a report (docs/web.md).
-import type { Measurement } from "../gen/cinevol/v1/scene_pb.js";
+// segmentation (SEG) as the open volume's labels, a presentation state (PR)
+// as the series it presents in its scene; and the session's measurements
+// stored back as a report (docs/web.md).
+import type { Measurement, Scene } from "../gen/cinevol/v1/scene_pb.js";
 import type { VolumeInfo } from "../gen/cinevol/v1/service_pb.js";
 import type { Api } from "./api.js";
 import { plainWords } from "./words.js";
@@ -12,7 +13,8 @@ const $ = <T extends HTMLElement>(id: string) => document.getElementById(id) as 
 
 /** What the panel acts on in the rest of the page. */
 export interface PacsPanelHooks {
-  loaded: (volume: VolumeInfo) => void;
+  /** A volume loaded; `scene`: the presentation state's it is opened in. */
+  loaded: (volume: VolumeInfo, scene?: Scene) => void;
   measured: (measurements: readonly Measurement[]) => void;
   sessionId: () => string | undefined;
   volumeId: () => string | undefined;
@@ -62,6 +64,7 @@ export class PacsPanel {
       this.list(series.map((s) => ({
         text: `${s.modality} · ${s.description || "(no description)"} · ${s.instanceCount ?? "?"} images`,
         open: () => void (s.modality === "SR" ? this.loadMeasurements(studyUid, s.seriesUid)
+                          : s.modality === "PR" ? this.loadPresentation(studyUid, s.seriesUid)
                           : this.load(studyUid, s.seriesUid, s.modality === "SEG")),
       })), "The study has no series.");
     } catch (e) {
@@ -69,8 +72,8 @@ export class PacsPanel {
     }
   }
 
-  /** A series as a volume; a segmentation as the open volume's labels. */
-  private async load(studyUid: string, seriesUid: string, segmentation: boolean): Promise<void> {
+  /** A series as a volume (in `scene` where given); a segmentation as the open volume's labels. */
+  private async load(studyUid: string, seriesUid: string, segmentation: boolean, scene?: Scene): Promise<void> {
     const { banner, error, loaded } = this.hooks;
     const labelsFor = segmentation ? this.hooks.volumeId() ?? "" : "";
     if (segmentation && !labelsFor) return error("Open the images this segmentation belongs to first.");
@@ -84,12 +87,22 @@ export class PacsPanel {
           banner(`Loading the series: ${p.stage} ${p.instancesDone}/${p.instancesTotal} images`);
         } else if (update.update.case === "volume") {
           banner("");
-          loaded(update.update.value);
+          loaded(update.update.value, scene);
         }
       }
     } catch (e) {
       banner("");
       error(plainWords(e));
+    }
+  }
+
+  /** A presentation state (a still's recipe, or another viewer's): the series it presents, opened in its scene. */
+  private async loadPresentation(studyUid: string, seriesUid: string): Promise<void> {
+    try {
+      const presented = await this.api.pacs.loadPresentation({ pacs: this.pacs(), studyUid, seriesUid });
+      await this.load(presented.studyUid, presented.seriesUid, false, presented.scene);
+    } catch (e) {
+      this.hooks.error(plainWords(e));
     }
   }
 

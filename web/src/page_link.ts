@@ -10,7 +10,7 @@ import type { Frame, Notice, SessionState, VolumeInfo } from "../gen/cinevol/v1/
 import type { Api } from "./api.js";
 import type { MessageLine } from "./message_line.js";
 import { placementOf, type Placement } from "./placement.js";
-import { LiveSession, now, type EventKind, type SessionHandlers } from "./session.js";
+import { LiveSession, now, type EventKind, type SessionHandlers, type SessionStart } from "./session.js";
 import type { MotionToPhoton } from "./stats.js";
 import { plainWords } from "./words.js";
 
@@ -41,15 +41,15 @@ export class PageLink {
     return Boolean(this.session?.grant);
   }
 
-  /** A new session of a volume of the server's (its preset, or the volume's default); false where it failed, in words. */
-  async open(volumeId: string, viewport: { width: number; height: number }, preset?: string): Promise<boolean> {
+  /** A new session of a volume of the server's (a scene, a preset, or the volume's default); false where it failed, in words. */
+  async open(volumeId: string, viewport: { width: number; height: number }, start: SessionStart = {}): Promise<boolean> {
     this.session?.close();
     this.state = this.placement = undefined;  // the old session's, until the new one's first state
     this.said.showError("");
     this.said.setWaiting(`Opening ${volumeId}…`);
     try {
       await this.describe(volumeId);
-      this.session = await LiveSession.create(this.api, this.sessionHandlers(), this.latency, volumeId, viewport, preset);
+      this.session = await LiveSession.create(this.api, this.sessionHandlers(), this.latency, volumeId, viewport, start);
       this.said.setWaiting("Waiting for the first frame…");
       return true;
     } catch (e) {

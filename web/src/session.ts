@@ -8,12 +8,19 @@
 // it shows what the server answers.
 import { create, type MessageInitShape } from "@bufbuild/protobuf";
 import { Code, ConnectError } from "@connectrpc/connect";
+import type { Scene } from "../gen/cinevol/v1/scene_pb.js";
 import {
   SessionEventSchema, type Frame, type Notice, type SessionEvent, type SessionState, type ViewportSchema,
 } from "../gen/cinevol/v1/service_pb.js";
 import type { Api } from "./api.js";
 import type { MotionToPhoton } from "./stats.js";
 import { plainWords, shareWords } from "./words.js";
+
+/** How a new session starts: a scene (a presentation state's), a preset, or neither (the volume's default). */
+export interface SessionStart {
+  preset?: string;
+  scene?: Scene;
+}
 
 /** One kind of event, e.g. { case: "camera", value: camera }. */
 export type EventKind = Exclude<SessionEvent["kind"], { case: undefined }>;
@@ -64,12 +71,12 @@ export class LiveSession {
                       private readonly latency: MotionToPhoton, public id: string, readonly volumeId: string,
                       readonly grant = "") {}
 
-  /** A new session of `volumeId` (its preset or the volume's default), watched at once. */
+  /** A new session of `volumeId` (its scene, its preset or the volume's default), watched at once. */
   static async create(api: Api, handlers: SessionHandlers, latency: MotionToPhoton, volumeId: string,
-                      viewport: MessageInitShape<typeof ViewportSchema>, preset?: string): Promise<LiveSession> {
-    const created = await api.sessions.createSession({
-      volumeId, viewport, initial: preset ? { case: "preset", value: preset } : { case: undefined },
-    });
+                      viewport: MessageInitShape<typeof ViewportSchema>, start: SessionStart = {}): Promise<LiveSession> {
+    const initial = start.scene ? { case: "scene" as const, value: start.scene }
+      : start.preset ? { case: "preset" as const, value: start.preset } : { case: undefined };
+    const created = await api.sessions.createSession({ volumeId, viewport, initial });
     api.sessionAddress = created.address;
     const session = new LiveSession(api, handlers, latency, created.sessionId, volumeId);
     void api.server.getStatus({}).then((s) => {
