@@ -22,6 +22,8 @@ packages=(
   python3-yaml yamllint         # tests/deploy: the Kubernetes and Compose manifests' checks
   libcurl4-openssl-dev          # server/pacs: DICOMweb (QIDO-RS, WADO-RS, STOW-RS) over HTTP and HTTPS
   libdcmtk-dev                  # cinevol-reader: DICOM SEG (dcmdata); the tests write SEGs with dcmseg; server/pacs: SR measurement reports written with dcmsr
+  libavcodec-dev libavformat-dev libswscale-dev libavutil-dev   # server/video: movies as H.264 (libx264) in MP4
+  ffmpeg                        # tests: ffprobe counts a movie's frames
   liblcms2-dev                  # server/pacs: the sRGB ICC profile a presentation state's output colours are in
   orthanc orthanc-dicomweb      # tests/pacs: a real PACS with its DICOMweb plugin, started by the tests
   dcmtk dicom3tools             # tests/pacs: DCMTK's dcmdump/dcm2pnm and dciodvfy check every object cinevol writes

@@ -16,6 +16,7 @@ void AddHealthCommand(CLI::App& app);
 void AddInfoCommand(CLI::App& app);
 void AddLoadtestCommand(CLI::App& app);
 void AddMeasurementsCommand(CLI::App& app);  // measurements store, load
+void AddMovieCommand(CLI::App& app);
 void AddPacsCommand(CLI::App& app);
 void AddPickCommand(CLI::App& app);
 void AddPlayCommand(CLI::App& app);

@@ -21,6 +21,7 @@ int main(int argc, char** argv) {
   cinevol::cli::AddLoadtestCommand(app);
   cinevol::cli::AddPacsCommand(app);
   cinevol::cli::AddMeasurementsCommand(app);
+  cinevol::cli::AddMovieCommand(app);
   cinevol::cli::AddPickCommand(app);
   cinevol::cli::AddPlayCommand(app);
   cinevol::cli::AddSnapshotCommand(app);
