@@ -4,6 +4,10 @@
 #include <fmt/format.h>
 
 #include <chrono>
+#include <filesystem>
+#include <fstream>
+#include <iterator>
+#include <optional>
 #include <cmath>
 #include <numbers>
 
@@ -25,6 +29,7 @@ constexpr int kMaxFrames = 3600;  // two minutes at 30 frames/s: a movie, not a 
 struct MovieOptions {
   ConnectionOptions connection;
   std::string volume, preset, scene, out, sweep;
+  std::string store_to;  // a PACS: the movie also goes there as DICOM video, into its volume's study
   double orbit = 0;  // degrees about the view's up axis through its target
   bool orbit_given = false, phases = false;
   double seconds = 4;
@@ -90,6 +95,25 @@ v1::Clipping SweepClipping(const v1::VolumeInfo& volume, int axis, int frame, in
   return clipping;
 }
 
+// The DICOM stream sent to the server, which stores it in the study of the session's volume.
+void StoreMovie(Client& client, const MovieOptions& o, const std::string& session_id,
+                const std::filesystem::path& stream_file, int frames) {
+  std::ifstream in(stream_file, std::ios::binary);
+  const std::string h264{std::istreambuf_iterator<char>(in), {}};
+  std::filesystem::remove(stream_file);
+  v1::StoreMovieChunk::Header header;
+  header.set_session_id(session_id);
+  header.set_pacs(o.store_to);
+  header.set_width(std::uint32_t(o.width));
+  header.set_height(std::uint32_t(o.height));
+  header.set_fps(std::uint32_t(o.fps));
+  header.set_frames(std::uint32_t(frames));
+  header.set_description(o.orbit_given ? fmt::format("orbit {:g} deg", o.orbit) : "sweep " + o.sweep);
+  const v1::StoredObject stored = client.StoreMovie(header, h264);
+  fmt::print("stored in PACS '{}': study {}, series {}, instance {}\n", stored.pacs(), stored.study_uid(),
+             stored.series_uid(), stored.sop_instance_uid());
+}
+
 void Run(const MovieOptions& o) {
   if (int(o.orbit_given) + int(!o.sweep.empty()) + int(o.phases) != 1) {
     throw InputError("give one path: --orbit DEGREES, --sweep AXIS or --phases");
@@ -107,6 +131,14 @@ void Run(const MovieOptions& o) {
                                  volume.id()));
   }
   H264Writer writer(o.out, VideoContainer::kMp4, video);  // checks the size and rate before a still is rendered
+  // For DICOM: the same frames as an H.264 byte stream within level 4.1, the one DICOM's transfer syntax names.
+  const std::filesystem::path stream_file = o.out + ".h264";
+  std::optional<H264Writer> dicom_stream;
+  if (!o.store_to.empty()) {
+    VideoSettings dicom = video;
+    dicom.dicom_level = true;
+    dicom_stream.emplace(stream_file, VideoContainer::kAnnexB, dicom);
+  }
   ScriptSession s;
   s.preset = o.preset;
   if (!o.scene.empty()) s.scene = LoadSceneFile(o.scene);
@@ -124,19 +156,24 @@ void Run(const MovieOptions& o) {
       request.set_session_id(created.session_id());
       request.set_spp(std::uint32_t(o.spp));
       const v1::SnapshotResponse still = client.Snapshot(request);
-      writer.Add(DecodePngImage(still.image()).rgb);
+      const RgbImage image = DecodePngImage(still.image());
+      writer.Add(image.rgb);
+      if (dicom_stream) dicom_stream->Add(image.rgb);
       const double elapsed = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
       fmt::print(stderr, "movie: frame {}/{}, {} spp, {:.1f} s, about {:.0f} s left\n", frame + 1, frames, still.spp(),
                  elapsed, elapsed / (frame + 1) * (frames - frame - 1));
     }
     writer.Finish();
+    if (dicom_stream) dicom_stream->Finish();
   } catch (...) {
+    std::filesystem::remove(stream_file);
     try {
       client.CloseSession(created.session_id());
     } catch (const RpcError&) {  // the session already ended: what failed says why
     }
     throw;
   }
+  if (dicom_stream) StoreMovie(client, o, created.session_id(), stream_file, frames);
   client.CloseSession(created.session_id());
   const double elapsed = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   fmt::print("wrote {}: {} frames of {}x{} at {} frames/s ({:.1f} s), {} spp each, rendered in {:.1f} s\n", o.out,
@@ -166,6 +203,9 @@ void AddMovieCommand(CLI::App& app) {
       ->check(CLI::Range(0, 51))
       ->capture_default_str();
   cmd->add_option("--out", o->out, "Output movie (.mp4)")->required();
+  cmd->add_option("--store-to", o->store_to,
+                  "A PACS the server names: store the movie there too, as DICOM video (MPEG-4 AVC), in the study of "
+                  "the volume (one loaded with `cinevol pacs load`); at most 1920x1080 at 30 frames/s");
   cmd->callback([o] { Run(*o); });
 }
 

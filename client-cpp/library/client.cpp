@@ -347,6 +347,13 @@ v1::LoadMeasurementsResponse Client::LoadMeasurements(const v1::LoadMeasurements
   return OnHome([&](const std::string& home) { return PacsCalls(*pool_, home).LoadMeasurements(request); });
 }
 
+v1::StoredObject Client::StoreMovie(const v1::StoreMovieChunk::Header& header, const std::string& h264) {
+  constexpr std::size_t kChunkBytes = 512 << 10;  // within the server's message limit
+  v1::StoreMovieChunk::Header sent = header;
+  sent.set_session_id(pool_->CurrentId(header.session_id()));
+  return PacsCalls(*pool_, pool_->AddressOf(header.session_id())).StoreMovie(sent, h264, kChunkBytes);  // where the session lives
+}
+
 v1::LoadPresentationResponse Client::LoadPresentation(const v1::LoadPresentationRequest& request) {
   return OnHome([&](const std::string& home) { return PacsCalls(*pool_, home).LoadPresentation(request); });
 }

@@ -199,6 +199,8 @@ class Client {
   v1::StoredObject StoreMeasurements(const std::string& session_id, const std::string& pacs);
   v1::LoadMeasurementsResponse LoadMeasurements(const v1::LoadMeasurementsRequest& request);
   v1::LoadPresentationResponse LoadPresentation(const v1::LoadPresentationRequest& request);
+  // A movie's H.264 Annex B stream stored as DICOM video in the study of the session's volume (docs/pacs.md).
+  v1::StoredObject StoreMovie(const v1::StoreMovieChunk::Header& header, const std::string& h264);
 
   // With several servers, on the one with the most room (ServerStatus).
   // The session's calls below go where it lives (CreateSessionResponse's

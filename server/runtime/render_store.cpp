@@ -112,4 +112,13 @@ v1::StoredObject StoredObjectOf(const pacs::DicomWebClient& to, const std::strin
   return stored;
 }
 
+v1::StoredObject StoreMovie(const pacs::DicomWebClient& to, const pacs::DicomWebClient& from,
+                            const PacsOrigin& origin, const pacs::MovieStream& movie, const std::string& version,
+                            const std::atomic<bool>* cancel) {
+  pacs::SecondaryCaptureUids uids;
+  const std::string bytes = pacs::MakeMovieCapture(StudyOf(from, origin, cancel), movie, version, &uids);
+  to.StoreInstances(uids.study_uid, {bytes}, cancel);
+  return StoredObjectOf(to, uids.study_uid, uids.series_uid, uids.sop_instance_uid);
+}
+
 }  // namespace cinevol::service

@@ -12,6 +12,7 @@
 #include "cinevol/v1/service.pb.h"
 #include "pacs/dicomweb_client.h"
 #include "pacs/secondary_capture.h"
+#include "pacs/video_capture.h"
 #include "scene/scene_frame.h"
 
 namespace cinevol::service {
@@ -46,5 +47,12 @@ v1::StoredObject StoredObjectOf(const pacs::DicomWebClient& to, const std::strin
 void StoreRender(const pacs::DicomWebClient& to, const pacs::DicomWebClient& from, const PacsOrigin& origin,
                  v1::SnapshotResponse& still, const v1::Scene& scene, const Volume& volume, const std::string& version,
                  const std::atomic<bool>* cancel);
+
+// Stores `movie` (an H.264 stream) on `to` in the study `origin` names, as a
+// DICOM Multi-frame True Color Secondary Capture (pacs/video_capture.h).
+// Throws PacsError, InputError, Cancelled.
+v1::StoredObject StoreMovie(const pacs::DicomWebClient& to, const pacs::DicomWebClient& from,
+                            const PacsOrigin& origin, const pacs::MovieStream& movie, const std::string& version,
+                            const std::atomic<bool>* cancel);
 
 }  // namespace cinevol::service

@@ -94,6 +94,8 @@ class PacsServiceImpl final : public v1::PacsService::CallbackService {
   grpc::ServerUnaryReactor* LoadMeasurements(grpc::CallbackServerContext* context,
                                              const v1::LoadMeasurementsRequest* request,
                                              v1::LoadMeasurementsResponse* response) override;
+  grpc::ServerReadReactor<v1::StoreMovieChunk>* StoreMovie(grpc::CallbackServerContext* context,
+                                                           v1::StoredObject* response) override;
   grpc::ServerUnaryReactor* LoadPresentation(grpc::CallbackServerContext* context,
                                              const v1::LoadPresentationRequest* request,
                                              v1::LoadPresentationResponse* response) override;
