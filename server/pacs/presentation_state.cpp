@@ -121,6 +121,17 @@ void CheckClassification(const Classification& c) {
   if (!std::isfinite(c.window_center) || !std::isfinite(c.window_width) || !(c.window_width > 0)) {
     Refuse("classification.window", "is not a finite centre and a positive width");
   }
+  if (!(c.sampling_step_mm > 0) || c.sampling_step_mm > kMaxCoordinate) {
+    Refuse("classification.sampling_step_mm", "is not a positive length");
+  }
+}
+
+void CheckShading(const Shading& s) {
+  CheckFinite(s.light_direction.data(), 3, "shading.light_direction");
+  if (std::abs(Length(s.light_direction) - 1) > 1e-6) Refuse("shading.light_direction", "is not a unit vector");
+  for (const double v : {s.ambient, s.diffuse, s.specular, s.shininess}) {
+    if (!(v >= 0 && v <= 1)) Refuse("shading", "has an intensity or shininess outside [0, 1]");
+  }
 }
 
 void CheckLabel(const std::string& label) {
@@ -247,14 +258,15 @@ void WriteViewAndGeometry(DcmDataset& d, const PresentationState& s) {
   PutDoubles(d, DCM_ViewpointUpDirection, g.up.data(), 3, "Viewpoint Up Direction");
   PutDoubles(d, DCM_RenderFieldOfView, g.field_of_view.data(), 6, "Render Field of View");
   Put(d, DCM_RenderingMethod, "VOLUME_RENDERED", "Rendering Method");
-  // Render Shading: a Phong stand-in for the path tracer's lights, for viewers that implement the model.
+  PutDoubles(d, DCM_SamplingStepSize, &s.classification.sampling_step_mm, 1, "Sampling Step Size");
+  // Render Shading: a Phong stand-in for the path tracer's lights and materials, for viewers that implement it.
+  const Shading& shading = s.shading;
   Put(d, DCM_ShadingStyle, "DOUBLESIDED", "Shading Style");
-  const double ambient = 0.3, diffuse = 0.7, specular = 0.2, shininess = 0.5;
-  PutDoubles(d, DCM_AmbientReflectionIntensity, &ambient, 1, "Ambient Reflection Intensity");
-  PutDoubles(d, DCM_LightDirection, s.light_direction.data(), 3, "Light Direction");
-  PutDoubles(d, DCM_DiffuseReflectionIntensity, &diffuse, 1, "Diffuse Reflection Intensity");
-  PutDoubles(d, DCM_SpecularReflectionIntensity, &specular, 1, "Specular Reflection Intensity");
-  PutDoubles(d, DCM_Shininess, &shininess, 1, "Shininess");
+  PutDoubles(d, DCM_AmbientReflectionIntensity, &shading.ambient, 1, "Ambient Reflection Intensity");
+  PutDoubles(d, DCM_LightDirection, shading.light_direction.data(), 3, "Light Direction");
+  PutDoubles(d, DCM_DiffuseReflectionIntensity, &shading.diffuse, 1, "Diffuse Reflection Intensity");
+  PutDoubles(d, DCM_SpecularReflectionIntensity, &shading.specular, 1, "Specular Reflection Intensity");
+  PutDoubles(d, DCM_Shininess, &shading.shininess, 1, "Shininess");
 }
 
 void WriteDisplay(DcmDataset& d, const PresentationState& s, const std::string& input_set_uid) {
@@ -338,8 +350,7 @@ std::string MakePresentationState(const SourceStudy& study, const ReportSource& 
   CheckGeometry(state.geometry);
   CheckCropping(state.cropping);
   CheckClassification(state.classification);
-  CheckFinite(state.light_direction.data(), 3, "light_direction");
-  if (!(Length(state.light_direction) > 0)) Refuse("light_direction", "is no direction");
+  CheckShading(state.shading);
   CheckLabel(state.label);
   if (state.recipe_json.size() > kMaxRecipeBytes) Refuse("recipe_json", "is longer than 4 MiB");
   if (version.empty() || version.size() > 64 || !IsAscii(version)) Refuse("version", "is not 1 to 64 ASCII characters");
@@ -399,7 +410,9 @@ constexpr std::uint32_t kRenderedImage = 0x00701104, kInputs = 0x00701201, kInpu
 constexpr std::uint32_t kCroppings = 0x00701301, kCroppingMethod = 0x00701302, kBoundingBox = 0x00701303,
                         kObliquePlanes = 0x00701304, kPlane = 0x00701305, kCroppingNumber = 0x00701309;
 constexpr std::uint32_t kProjection = 0x00701602, kViewpoint = 0x00701603, kLookAt = 0x00701604, kUp = 0x00701605,
-                        kFieldOfView = 0x00701606, kLightDirection = 0x00701703;
+                        kFieldOfView = 0x00701606, kSamplingStep = 0x00701607;
+constexpr std::uint32_t kShadingStyle = 0x00701701, kAmbient = 0x00701702, kLightDirection = 0x00701703,
+                        kDiffuse = 0x00701704, kSpecular = 0x00701705, kShininess = 0x00701706;
 constexpr std::uint32_t kComponents = 0x00701801, kComponentType = 0x00701802, kStreams = 0x00701A08,
                         kRgbaDescription = 0x00701A09;
 }  // namespace tags
@@ -631,8 +644,35 @@ class PresentationReader {
     } catch (const InputError& e) {
       throw InputError(fmt::format("the presentation state's view: {}", e.what()));
     }
+    if (d_.Find(root_, tags::kSamplingStep) != nullptr) {
+      const double step = Numbers(root_, tags::kSamplingStep, 1, "Sampling Step Size")[0];
+      if (!(step > 0)) throw InputError("the presentation state's Sampling Step Size (0070,1607) is not positive");
+      s.classification.sampling_step_mm = step;
+    }
+    ReadShading(s.shading);
+  }
+
+  // Render Shading where it is there (else an unshaded rendering, A.80.2.4.3: no specular light).
+  void ReadShading(Shading& shading) const {
+    if (d_.Find(root_, tags::kShadingStyle) == nullptr) {
+      shading = {{0, 0, -1}, 1, 0, 0, 0};
+      return;
+    }
+    const auto unit = [&](std::uint32_t tag, const char* name, double absent) {
+      if (d_.Find(root_, tag) == nullptr) return absent;
+      const double v = Numbers(root_, tag, 1, name)[0];
+      if (!(v >= 0 && v <= 1)) throw InputError(fmt::format("the presentation state's {} is outside [0, 1]", name));
+      return v;
+    };
+    shading.ambient = unit(tags::kAmbient, "Ambient Reflection Intensity", 0);
+    shading.diffuse = unit(tags::kDiffuse, "Diffuse Reflection Intensity", 0);
+    shading.specular = unit(tags::kSpecular, "Specular Reflection Intensity", 0);
+    shading.shininess = unit(tags::kShininess, "Shininess", 0.5);
     if (d_.Find(root_, tags::kLightDirection) != nullptr) {
-      vec(tags::kLightDirection, "Light Direction", s.light_direction);
+      const std::vector<double> v = Numbers(root_, tags::kLightDirection, 3, "Light Direction");
+      const double length = std::hypot(v[0], v[1], v[2]);
+      if (!(length > 0)) throw InputError("the presentation state's Light Direction (0070,1703) is no direction");
+      shading.light_direction = {v[0] / length, v[1] / length, v[2] / length};
     }
   }
 

@@ -54,12 +54,22 @@ struct Cropping {
 };
 
 // Render Display (C.11.32): the input's values (after its modality rescale) windowed linearly onto the palette, whose
-// entries are [0, 1] colours and opacities as 16-bit numbers (65535 = 1).
+// entries are [0, 1] colours and opacities as 16-bit numbers (65535 = 1). An entry's alpha is the opacity of a
+// sample one Sampling Step Size long (Volume Render Geometry), as a ray caster composites it.
 struct Classification {
   double window_center = 0;  // the VOI window: [center - width/2, center + width/2] onto entries [0, N - 1]
   double window_width = 1;
   std::vector<std::array<std::uint16_t, 4>> rgba;  // N = kPaletteEntries entries: red, green, blue, alpha
   std::string description;                         // RGBA Transfer Function Description: the preset, say
+  double sampling_step_mm = 1;                     // (0070,1607): the step an alpha is the opacity of; > 0
+};
+
+// Render Shading (C.11.31): a Phong model lit from one white light at infinity.
+struct Shading {
+  Vec3d light_direction{0, 0, -1};  // where the light travels; a unit vector
+  double ambient = 0.3, diffuse = 0.7;
+  double specular = 0.2;   // [0, 1]
+  double shininess = 0.5;  // [0, 1]: 1 the smoothest
 };
 
 // What a presentation state holds, as cinevol writes and reads it.
@@ -67,9 +77,8 @@ struct PresentationState {
   RenderGeometry geometry;
   Cropping cropping;
   Classification classification;
-  // Render Shading (C.11.31), a Phong model lit from one white light at infinity: what a viewer without a path
-  // tracer can approximate cinevol's lighting with. Not read back (the recipe's lights are).
-  Vec3d light_direction{0, 0, -1};
+  // What a viewer without a path tracer can approximate cinevol's lighting and materials with.
+  Shading shading;
   std::string label = "CINEVOL_RENDER";  // Content Label, CS: A-Z 0-9 _ and space, at most 16
   std::string description;               // Content Description, LO: at most 64 characters
   // Rendered Image Reference: the Secondary Capture stored with it (may be empty).

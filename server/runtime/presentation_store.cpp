@@ -203,25 +203,33 @@ std::uint16_t Quantized(float unit) {
   return std::uint16_t(std::lround(65535.0 * std::clamp(double(unit), 0.0, 1.0)));
 }
 
-// `tf` (points) sampled onto the palette over its points' values: [first, last] is the window.
+double DensityScale(const v1::TransferFunction& tf) { return tf.has_density_scale() ? tf.density_scale() : 1.0; }
+
+// `tf` (points) sampled onto the palette over its points' values: [first, last] is the window. An entry's alpha is
+// the opacity of one sampling step through its extinction (opacity times the density scale, per mm): 1 - e^(-sigma
+// step), with the step that makes the densest entry's e^-1, so the 16 bits cover the extinctions the function has.
 pacs::Classification ClassificationOf(const v1::TransferFunction& tf) {
   TransferFunction function;
+  double densest = 0;
   for (const v1::TransferFunctionPoint& p : tf.points()) {
     TransferPoint& point = function.points.emplace_back();
     point.value = p.value();
     point.opacity = p.opacity();
     point.diffuse = {p.diffuse().r(), p.diffuse().g(), p.diffuse().b()};
+    densest = std::max(densest, p.opacity() * DensityScale(tf));
   }
   pacs::Classification c;
   const double lo = function.points.front().value, hi = function.points.back().value;
   c.window_width = hi > lo ? hi - lo : 1;
   c.window_center = hi > lo ? (lo + hi) / 2 : lo;
   c.description = tf.preset().substr(0, 64);
+  c.sampling_step_mm = densest > 0 ? std::clamp(1 / densest, 1e-3, 100.0) : 1;
   c.rgba.resize(pacs::kPaletteEntries);
   for (int i = 0; i < pacs::kPaletteEntries; ++i) {
     const double value = c.window_center - c.window_width / 2 + c.window_width * i / (pacs::kPaletteEntries - 1);
     const TransferPoint p = Evaluate(function, float(value));
-    c.rgba[i] = {Quantized(p.diffuse.x), Quantized(p.diffuse.y), Quantized(p.diffuse.z), Quantized(p.opacity)};
+    const double alpha = 1 - std::exp(-p.opacity * DensityScale(tf) * c.sampling_step_mm);
+    c.rgba[i] = {Quantized(p.diffuse.x), Quantized(p.diffuse.y), Quantized(p.diffuse.z), Quantized(float(alpha))};
   }
   return c;
 }
@@ -239,15 +247,27 @@ bool SamePalette(const pacs::Classification& a, const pacs::Classification& b) {
   return true;
 }
 
-// A palette as transfer-function points: at most 256 of its entries, evenly spaced, the last included.
-v1::TransferFunction PointsOf(const pacs::Classification& c) {
+// A palette as transfer-function points: at most 256 of its entries, evenly spaced, the last included; each alpha
+// back to an extinction over the sampling step, the densest one's the density scale. The shading's specular
+// intensity and shininess become every point's specular colour and roughness.
+v1::TransferFunction PointsOf(const pacs::Classification& c, const pacs::Shading& shading) {
   v1::TransferFunction tf;
   const std::size_t n = c.rgba.size(), points = std::min<std::size_t>(n, 256);
+  const auto extinction = [&](std::size_t i) {  // per mm; an opaque entry as the 16 bits' most
+    return -std::log(1 - std::min(c.rgba[i][3], std::uint16_t(65534)) / 65535.0) / c.sampling_step_mm;
+  };
+  double densest = 0;
+  for (std::size_t i = 0; i < n; ++i) densest = std::max(densest, extinction(i));
+  tf.set_density_scale(float(densest > 0 ? densest : 1));
   for (std::size_t k = 0; k < points; ++k) {
     const std::size_t i = k * (n - 1) / (points - 1);
     v1::TransferFunctionPoint* p = tf.add_points();
     p->set_value(float(c.window_center - c.window_width / 2 + c.window_width * double(i) / double(n - 1)));
-    p->set_opacity(float(c.rgba[i][3] / 65535.0));
+    p->set_opacity(float(densest > 0 ? extinction(i) / densest : 0));
+    p->mutable_specular()->set_r(float(shading.specular));
+    p->mutable_specular()->set_g(float(shading.specular));
+    p->mutable_specular()->set_b(float(shading.specular));
+    p->set_roughness(float(1 - shading.shininess));
     p->mutable_diffuse()->set_r(float(c.rgba[i][0] / 65535.0));
     p->mutable_diffuse()->set_g(float(c.rgba[i][1] / 65535.0));
     p->mutable_diffuse()->set_b(float(c.rgba[i][2] / 65535.0));
@@ -256,6 +276,25 @@ v1::TransferFunction PointsOf(const pacs::Classification& c) {
 }
 
 // The direction light travels from the scene's first light that has one; else down the view.
+Vec3d LightDirectionOf(const v1::Scene& scene);
+
+// The Phong stand-in: the light's direction; the transfer function's mean specular colour and smoothness.
+pacs::Shading ShadingOf(const v1::Scene& scene) {
+  pacs::Shading shading;
+  shading.light_direction = LightDirectionOf(scene);
+  double specular = 0, roughness = 0;
+  const auto& points = scene.transfer_function().points();
+  for (const v1::TransferFunctionPoint& p : points) {
+    specular += (p.specular().r() + p.specular().g() + p.specular().b()) / 3;
+    roughness += p.roughness();
+  }
+  if (!points.empty()) {
+    shading.specular = std::clamp(specular / points.size(), 0.0, 1.0);
+    shading.shininess = std::clamp(1 - roughness / points.size(), 0.0, 1.0);
+  }
+  return shading;
+}
+
 Vec3d LightDirectionOf(const v1::Scene& scene) {
   const Vec3d target = ToD(scene.camera().target());
   for (const v1::Light& light : scene.lights()) {
@@ -277,7 +316,7 @@ pacs::PresentationState PresentationOf(const v1::Scene& scene, const Volume& vol
   state.geometry = GeometryOf(scene.camera(), scene.render(), Norm({extent.x, extent.y, extent.z}));
   state.cropping = CroppingOf(scene.clipping(), volume.metadata().direction);
   state.classification = ClassificationOf(scene.transfer_function());
-  state.light_direction = LightDirectionOf(scene);
+  state.shading = ShadingOf(scene);
   state.description = scene.transfer_function().preset().empty()
                           ? std::string("cinevol render")
                           : fmt::format("cinevol render: {}", scene.transfer_function().preset()).substr(0, 64);
@@ -321,8 +360,7 @@ v1::Scene SceneOf(const pacs::ReadPresentation& read, const std::array<double, 6
   const bool recipe_palette = recipe.transfer_function().points_size() > 0 &&
                               SamePalette(ClassificationOf(recipe.transfer_function()), state.classification);
   if (!recipe_palette) {
-    v1::TransferFunction tf = PointsOf(state.classification);
-    if (recipe.transfer_function().has_density_scale()) tf.set_density_scale(recipe.transfer_function().density_scale());
+    v1::TransferFunction tf = PointsOf(state.classification, state.shading);
     if (recipe.transfer_function().has_gradient_factor()) {
       tf.set_gradient_factor(recipe.transfer_function().gradient_factor());
     }

@@ -684,7 +684,7 @@ TEST(Viewer, APresentationStateOpensItsSeriesInItsScene) {
   const v1::VolumeInfo volume = server.Connect().LoadSeries(series);
   const fs::path scene = scratch.path() / "stored.json";
   std::ofstream(scene) << R"({"frame": "PATIENT_LPS", "transferFunction": {"preset": "ct-bone"},
-    "camera": {"eye": {"x": 40, "y": -700, "z": -100}, "target": {"x": 0, "y": -150, "z": -100}, "fovYDeg": 25},
+    "camera": {"eye": {"x": 40, "y": -700, "z": -785}, "target": {"x": 0, "y": -150, "z": -785}, "fovYDeg": 25},
     "clipping": {"planes": [{"point": {"x": 20, "y": 0, "z": 0}, "normal": {"x": -1, "y": 0, "z": 0}}]}})";
   const auto [code, out] = RunProgram(CliPath(),
                                       {"snapshot", "--server", server.address(), "--volume", volume.id(), "--scene",

@@ -24,6 +24,7 @@
 #include "pacs/orthanc_process.h"
 #include "pacs/secondary_capture.h"
 #include "pacs/stamped_series.h"
+#include "scene/scene_file.h"
 #include "service/server_process.h"
 #include "service/service_test_support.h"
 #include "support/error_of.h"
@@ -253,12 +254,19 @@ std::string Word(const std::string& out, const std::string& key) {
 TEST_F(PacsServer, APresentationStateBesideTheStillRendersItAgain) {
   Client client = server_->Connect();
   const v1::VolumeInfo volume = client.LoadSeries(CtSeries());
-  // A crop box and a clip plane, so the cropping goes through the standard's attributes too.
+  // A crop box (the middle of the CT across, all of it down and along) and a capped clip plane through its centre,
+  // so the cropping goes through the standard's attributes too.
+  const v1::Vec3& origin = volume.origin_mm();
+  const double extent[3] = {volume.dims().x() * volume.spacing_mm().x(), volume.dims().y() * volume.spacing_mm().y(),
+                            volume.dims().z() * volume.spacing_mm().z()};
+  const double center[3] = {origin.x() + extent[0] / 2, origin.y() + extent[1] / 2, origin.z() + extent[2] / 2};
   const fs::path scene_file = scratch_ / "cropped.json";
-  std::ofstream(scene_file) << R"({"transferFunction": {"preset": "ct-bone"}, "clipping": {"cropBox": {)"
-                            << R"("center": {"x": 0, "y": -150, "z": -20}, "size": {"x": 250, "y": 200, "z": 400}},)"
-                            << R"("planes": [{"point": {"x": 30, "y": 0, "z": 0}, "normal": {"x": -1, "y": 0, "z": 0}, "cap": true}]},)"
-                            << R"("render": {"seed": 7}})";
+  std::ofstream(scene_file) << fmt::format(
+      R"({{"transferFunction": {{"preset": "ct-bone"}}, "clipping": {{"cropBox": {{)"
+      R"("center": {{"x": {}, "y": {}, "z": {}}}, "size": {{"x": {}, "y": {}, "z": {}}}}},)"
+      R"("planes": [{{"point": {{"x": {}, "y": 0, "z": 0}}, "normal": {{"x": -1, "y": 0, "z": 0}}, "cap": true}}]}},)"
+      R"("render": {{"seed": 7}}}})",
+      center[0], center[1], center[2], extent[0] * 0.6, extent[1] * 2, extent[2] * 2, center[0] + 20);
   const fs::path first = scratch_ / "first.png", again = scratch_ / "again.png";
   auto [code, out] = Cli({"snapshot", "--volume", volume.id(), "--scene", scene_file.string(), "--width", "64",
                           "--height", "48", "--spp", "6", "--out", first.string(), "--store-to", "orthanc"});
@@ -283,12 +291,17 @@ TEST_F(PacsServer, APresentationStateBesideTheStillRendersItAgain) {
                              "--height", "48", "--spp", "6", "--out", again.string()});
   ASSERT_EQ(code, 0) << out;
   const RgbImage stored = DecodePngImage(ReadWholeFile(first));
+  std::size_t shown = 0;  // pixels of the CT, not the background (the top left corner's)
+  for (std::size_t i = 0; i < stored.rgb.size(); i += 3) shown += std::abs(int(stored.rgb[i]) - int(stored.rgb[0])) > 10;
+  EXPECT_GT(shown, stored.rgb.size() / 3 / 20) << "the still shows the CT";
   const double psnr = Psnr8(stored, DecodePngImage(ReadWholeFile(again)));
   EXPECT_GE(psnr, 40.0) << "the still rendered again from its presentation state";
   RecordProperty("psnr_db", std::to_string(psnr));
 
   // As another system would hold it: without cinevol's private block (DCMTK's dcmodify takes it out and gives the
-  // copy its own UID), the standard's attributes alone render the same picture: view, crop, colours and opacities.
+  // copy its own UID), the standard's attributes alone render nearly the same picture: the view, the crop, the
+  // colours, the extinctions and the shading's materials; not the gradient factor, the cap or per-point materials,
+  // which only cinevol's recipe says (34 dB here, docs/pacs.md).
   ASSERT_TRUE(Installed("dcmodify")) << "dcmodify (DCMTK) is not installed: run scripts/install-deps.sh";
   const pacs::DicomWebClient orthanc(orthanc_->Pacs());
   const pacs::InstanceLocation place = pacs::FindInstance(orthanc, state_uid);
@@ -304,11 +317,15 @@ TEST_F(PacsServer, APresentationStateBesideTheStillRendersItAgain) {
   std::tie(code, out) = Cli({"pacs", "load", "--pacs", "orthanc", "--presentation", foreign_uid, "--scene-out",
                              presented.string()});
   ASSERT_EQ(code, 0) << out;
+  v1::Scene standard_scene = LoadSceneFile(presented);  // the same seed, which only the recipe says
+  EXPECT_EQ(standard_scene.render().seed(), 0u);
+  standard_scene.mutable_render()->set_seed(7);
+  SaveSceneFile(standard_scene, presented);
   std::tie(code, out) = Cli({"snapshot", "--volume", volume.id(), "--scene", presented.string(), "--width", "64",
                              "--height", "48", "--spp", "6", "--out", again.string()});
   ASSERT_EQ(code, 0) << out;
   const double standard_psnr = Psnr8(stored, DecodePngImage(ReadWholeFile(again)));
-  EXPECT_GE(standard_psnr, 40.0) << "the still rendered from the standard's attributes alone";
+  EXPECT_GE(standard_psnr, 30.0) << "the still rendered from the standard's attributes alone";
   RecordProperty("standard_only_psnr_db", std::to_string(standard_psnr));
 }
 

@@ -148,7 +148,10 @@ TEST(PresentationState, AStateWithoutARecipeIsReadFromTheStandardsAttributes) {
   EXPECT_FLOAT_EQ(tf.points(0).value(), -200);
   EXPECT_FLOAT_EQ(tf.points(255).value(), 1500);
   EXPECT_NEAR(tf.points(255).opacity(), 1, 1e-4);
+  EXPECT_NEAR(tf.density_scale(), 3, 3e-3);  // the densest extinction, through alpha over the sampling step
   EXPECT_NEAR(tf.points(0).diffuse().r(), 0.9, 1e-4);
+  EXPECT_NEAR(tf.points(0).specular().r(), 0.1 / 3, 1e-4);  // the shading's: the points' mean specular
+  EXPECT_NEAR(tf.points(0).roughness(), (0.4 + 0.2 + 0) / 3, 1e-4);
   EXPECT_EQ(tf.preset(), "ct-bone");
   v1::Scene with_defaults = scene;  // as a session takes it
   ApplyDefaults(with_defaults);
@@ -167,9 +170,12 @@ TEST(PresentationState, TheStandardsAttributesWinOverTheRecipe) {
   EXPECT_FLOAT_EQ(scene.camera().eye().y(), -900);
   EXPECT_FLOAT_EQ(scene.camera().exposure(), 0.5f);  // what the IOD cannot say stays the recipe's
   EXPECT_EQ(scene.lights_size(), 1);
-  EXPECT_EQ(scene.transfer_function().points_size(), 256);
-  EXPECT_NEAR(scene.transfer_function().points(255).opacity(), 0.5, 1e-4);
-  EXPECT_FLOAT_EQ(scene.transfer_function().density_scale(), 3);
+  const v1::TransferFunction& tf = scene.transfer_function();
+  EXPECT_EQ(tf.points_size(), 256);  // the palette's: the edited opacities
+  const double edited = -std::log(1 - state.classification.rgba.back()[3] / 65535.0) /
+                        state.classification.sampling_step_mm;
+  EXPECT_NEAR(tf.points(255).opacity() * tf.density_scale(), edited, 1e-3 * edited);
+  EXPECT_LT(tf.density_scale(), 2);  // half the alpha: less than the recipe's 3
   EXPECT_FALSE(scene.clipping().has_crop_box());
   EXPECT_TRUE(scene.clipping().planes(0).cap());  // the same plane: the recipe's cap
 }

@@ -31,10 +31,9 @@ const CLI = process.env.CINEVOL_CLI ?? "", LOOPBACK_BIND = process.env.CINEVOL_L
 const CT = { studyUid: "2.25.3410501", seriesUid: "2.25.3410501.1", patientId: "CINEVOL-WEB-PR-1",
              patientName: "Cinevol^Web" };
 // The still's scene (Viewer.APresentationStateOpensItsSeriesInItsScene's): a bone preset, seen from in front of
-// the patient (-y), in patient coordinates. It looks past the CT's slab (z -766.5 to -804.5), so its pictures are
-// background: what is checked is the scene the session starts in, not a picture.
+// the patient (-y), in patient coordinates, at the height of the CT's slab (z -766.5 to -804.5).
 const STILL_SCENE = { frame: "PATIENT_LPS", transferFunction: { preset: "ct-bone" },
-                      camera: { eye: { x: 40, y: -700, z: -100 }, target: { x: 0, y: -150, z: -100 }, fovYDeg: 25 } };
+                      camera: { eye: { x: 40, y: -700, z: -785 }, target: { x: 0, y: -150, z: -785 }, fovYDeg: 25 } };
 
 const run = {} as { orthanc: Orthanc; server: Running; gateway: Running; browser: Browser; page: Page };
 
