@@ -1,5 +1,6 @@
 #include "pacs/dcmtk_writing.h"
 
+#include <dcmtk/dcmdata/dcdeftag.h>
 #include <dcmtk/dcmdata/dcostrmb.h>
 #include <dcmtk/oflog/oflog.h>
 #include <fmt/format.h>
@@ -75,14 +76,41 @@ DicomNow CurrentDateTime() {
   return {date, time};
 }
 
-std::string ToPart10(DcmFileFormat& file, std::string_view document) {
+void PutText(DcmItem& item, const DcmTagKey& tag, const std::string& field, const std::string& value,
+             std::size_t max_characters, bool person_name) {
+  SetChecked(field, value, max_characters, person_name, [&](const OFString& v, OFBool) {
+    OFCondition put = item.putAndInsertOFStringArray(tag, v);
+    DcmElement* element = nullptr;
+    if (put.good()) put = item.findAndGetElement(tag, element);
+    return put.good() ? element->checkValue("1") : put;
+  });
+}
+
+void PutStudyAttributes(DcmItem& item, const SourceStudy& study) {
+  const auto put = [&](const char* field, const std::string& value, std::size_t max_characters, const DcmTagKey& tag,
+                       bool person_name = false) {
+    PutText(item, tag, std::string("source.") + field, value, max_characters, person_name);
+  };
+  put("patient_name", study.patient_name, 64, DCM_PatientName, true);  // PN: 64 a group
+  put("patient_id", study.patient_id, 64, DCM_PatientID);              // LO
+  put("patient_birth_date", study.patient_birth_date, 8, DCM_PatientBirthDate);
+  put("patient_sex", study.patient_sex, 16, DCM_PatientSex);
+  put("study_id", study.study_id, 16, DCM_StudyID);  // SH
+  put("study_date", study.study_date, 8, DCM_StudyDate);
+  put("study_time", study.study_time, 16, DCM_StudyTime);
+  put("accession_number", study.accession_number, 16, DCM_AccessionNumber);
+  put("referring_physician", study.referring_physician, 64, DCM_ReferringPhysicianName, true);
+  put("study_description", study.study_description, 64, DCM_StudyDescription);
+}
+
+std::string ToPart10(DcmFileFormat& file, std::string_view document, E_TransferSyntax syntax) {
   std::string out;
-  std::vector<char> buffer(std::size_t{1} << 16);
+  std::vector<char> buffer(std::size_t{1} << 20);
   DcmOutputBufferStream stream(buffer.data(), offile_off_t(buffer.size()));
   file.transferInit();
   OFCondition written = EC_StreamNotifyClient;
   while (written == EC_StreamNotifyClient) {
-    written = file.write(stream, EXS_LittleEndianExplicit, EET_ExplicitLength, nullptr, EGL_recalcGL,
+    written = file.write(stream, syntax, EET_ExplicitLength, nullptr, EGL_recalcGL,
                          EPD_withoutPadding, 0, 0, 0, EWM_createNewMeta);
     void* data = nullptr;
     offile_off_t length = 0;

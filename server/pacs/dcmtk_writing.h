@@ -9,6 +9,8 @@
 #include <string>
 #include <string_view>
 
+#include "pacs/secondary_capture.h"
+
 namespace cinevol::pacs {
 
 // InputError "<field> <why>".
@@ -36,7 +38,16 @@ struct DicomNow {
 };
 DicomNow CurrentDateTime();
 
-// `file` as Part 10 bytes in explicit VR little endian, with new file meta information.
-std::string ToPart10(DcmFileFormat& file, std::string_view document);
+// Text from outside (a study's attributes, a description) put into `item`, where DCMTK checks it against its VR,
+// at most `max_characters` long: refused naming `field`, never cut.
+void PutText(DcmItem& item, const DcmTagKey& tag, const std::string& field, const std::string& value,
+             std::size_t max_characters, bool person_name = false);
+
+// The patient and study attributes of `study` copied into `item` (PutText: "source.<field>" names a refused one).
+void PutStudyAttributes(DcmItem& item, const SourceStudy& study);
+
+// `file` as Part 10 bytes in `syntax` (explicit VR little endian, or one whose pixel data the file already holds
+// encapsulated), with new file meta information.
+std::string ToPart10(DcmFileFormat& file, std::string_view document, E_TransferSyntax syntax = EXS_LittleEndianExplicit);
 
 }  // namespace cinevol::pacs

@@ -143,35 +143,6 @@ void CheckLabel(const std::string& label) {
 
 // ---- Writing, module by module ----
 
-// Text from outside (the study's attributes, descriptions) set where DCMTK checks it against its VR, at most
-// `max_characters` long: refused naming `field`, never cut.
-void PutText(DcmItem& item, const DcmTagKey& tag, const std::string& field, const std::string& value,
-             std::size_t max_characters, bool person_name = false) {
-  SetChecked(field, value, max_characters, person_name, [&](const OFString& v, OFBool) {
-    OFCondition put = item.putAndInsertOFStringArray(tag, v);
-    DcmElement* element = nullptr;
-    if (put.good()) put = item.findAndGetElement(tag, element);
-    return put.good() ? element->checkValue("1") : put;
-  });
-}
-
-void WritePatientAndStudy(DcmDataset& d, const SourceStudy& study) {
-  const auto set = [&](const char* field, const std::string& value, std::size_t max_characters,
-                       const DcmTagKey& tag, bool person_name = false) {
-    PutText(d, tag, std::string("source.") + field, value, max_characters, person_name);
-  };
-  set("patient_name", study.patient_name, 64, DCM_PatientName, true);
-  set("patient_id", study.patient_id, 64, DCM_PatientID);
-  set("patient_birth_date", study.patient_birth_date, 8, DCM_PatientBirthDate);
-  set("patient_sex", study.patient_sex, 16, DCM_PatientSex);
-  set("study_id", study.study_id, 16, DCM_StudyID);
-  set("study_date", study.study_date, 8, DCM_StudyDate);
-  set("study_time", study.study_time, 16, DCM_StudyTime);
-  set("accession_number", study.accession_number, 16, DCM_AccessionNumber);
-  set("referring_physician", study.referring_physician, 64, DCM_ReferringPhysicianName, true);
-  set("study_description", study.study_description, 64, DCM_StudyDescription);
-}
-
 void WriteSeriesAndEquipment(DcmDataset& d, const PresentationStateUids& uids, const std::string& frame,
                              const std::string& version, const DicomNow& now) {
   Put(d, DCM_Modality, "PR", "Modality");
@@ -369,7 +340,7 @@ std::string MakePresentationState(const SourceStudy& study, const ReportSource& 
   Put(d, DCM_InstanceCreationDate, now.date, "Instance Creation Date");
   Put(d, DCM_InstanceCreationTime, now.time, "Instance Creation Time");
   Put(d, DCM_StudyInstanceUID, study_uid, "Study Instance UID");
-  WritePatientAndStudy(d, study);
+  PutStudyAttributes(d, study);
   WriteSeriesAndEquipment(d, uids, source.frame_of_reference_uid, version, now);
   WriteIdentification(d, state, now);
   const std::string input_set_uid = NewUid();

@@ -4,7 +4,6 @@
 #include <dcmtk/config/osconfig.h>  // first, as DCMTK asks
 #include <dcmtk/dcmdata/dcdeftag.h>
 #include <dcmtk/dcmdata/dcfilefo.h>
-#include <dcmtk/dcmdata/dcostrmb.h>
 #include <dcmtk/dcmdata/dcpixel.h>
 #include <dcmtk/dcmdata/dcpixseq.h>
 #include <dcmtk/dcmdata/dcpxitem.h>
@@ -52,28 +51,6 @@ void CheckMovie(const MovieStream& m) {
   if (m.description.size() > 48) Refuse("movie description", "is longer than 48 characters");
 }
 
-void PutStudy(DcmDataset& d, const SourceStudy& study) {
-  const auto set = [&](const char* field, const std::string& value, std::size_t most, const DcmTagKey& tag,
-                       bool person = false) {
-    SetChecked(std::string("source.") + field, value, most, person, [&](const OFString& v, OFBool) {
-      OFCondition put = d.putAndInsertOFStringArray(tag, v);
-      DcmElement* element = nullptr;
-      if (put.good()) put = d.findAndGetElement(tag, element);
-      return put.good() ? element->checkValue("1") : put;
-    });
-  };
-  set("patient_name", study.patient_name, 64, DCM_PatientName, true);
-  set("patient_id", study.patient_id, 64, DCM_PatientID);
-  set("patient_birth_date", study.patient_birth_date, 8, DCM_PatientBirthDate);
-  set("patient_sex", study.patient_sex, 16, DCM_PatientSex);
-  set("study_id", study.study_id, 16, DCM_StudyID);
-  set("study_date", study.study_date, 8, DCM_StudyDate);
-  set("study_time", study.study_time, 16, DCM_StudyTime);
-  set("accession_number", study.accession_number, 16, DCM_AccessionNumber);
-  set("referring_physician", study.referring_physician, 64, DCM_ReferringPhysicianName, true);
-  set("study_description", study.study_description, 64, DCM_StudyDescription);
-}
-
 // The stream in one fragment after an empty offset table (PS3.5 8.2.8, A.4).
 void PutPixelData(DcmDataset& d, const std::string& h264) {
   auto sequence = std::make_unique<DcmPixelSequence>(DCM_PixelSequenceTag);
@@ -87,25 +64,6 @@ void PutPixelData(DcmDataset& d, const std::string& h264) {
   auto pixels = std::make_unique<DcmPixelData>(DCM_PixelData);
   pixels->putOriginalRepresentation(EXS_MPEG4HighProfileLevel4_1, nullptr, sequence.release());
   Require(d.insert(pixels.release(), true), kDocument, "Pixel Data");
-}
-
-std::string Encoded(DcmFileFormat& file) {
-  std::string out;
-  std::vector<char> buffer(std::size_t{1} << 20);
-  DcmOutputBufferStream stream(buffer.data(), offile_off_t(buffer.size()));
-  file.transferInit();
-  OFCondition written = EC_StreamNotifyClient;
-  while (written == EC_StreamNotifyClient) {
-    written = file.write(stream, EXS_MPEG4HighProfileLevel4_1, EET_ExplicitLength, nullptr, EGL_recalcGL,
-                         EPD_withoutPadding, 0, 0, 0, EWM_createNewMeta);
-    void* data = nullptr;
-    offile_off_t length = 0;
-    stream.flushBuffer(data, length);
-    out.append(static_cast<const char*>(data), std::size_t(length));
-  }
-  file.transferEnd();
-  Require(written, kDocument, "encoding");
-  return out;
 }
 
 }  // namespace
@@ -132,7 +90,7 @@ std::string MakeMovieCapture(const SourceStudy& study, const MovieStream& movie,
   Put(d, DCM_InstanceCreationDate, now.date, "Instance Creation Date");
   Put(d, DCM_InstanceCreationTime, now.time, "Instance Creation Time");
   Put(d, DCM_StudyInstanceUID, study_uid, "Study Instance UID");
-  PutStudy(d, study);
+  PutStudyAttributes(d, study);
   // General Series, SC Equipment, General Image.
   Put(d, DCM_Modality, "OT", "Modality");
   Put(d, DCM_SeriesInstanceUID, uids.series_uid, "Series Instance UID");
@@ -170,7 +128,7 @@ std::string MakeMovieCapture(const SourceStudy& study, const MovieStream& movie,
   Put(d, DCM_CineRate, std::to_string(movie.fps), "Cine Rate");
   Put(d, DCM_RecommendedDisplayFrameRate, std::to_string(movie.fps), "Recommended Display Frame Rate");
   PutPixelData(d, movie.h264);
-  const std::string bytes = Encoded(file);
+  const std::string bytes = ToPart10(file, kDocument, EXS_MPEG4HighProfileLevel4_1);
   if (uids_out != nullptr) *uids_out = uids;
   return bytes;
 }
