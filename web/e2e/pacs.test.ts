@@ -103,6 +103,30 @@ test("a still stored with its presentation state opens from the re-listed series
   await page.screenshot({ path: join(ARTIFACTS, "pacs-2-presentation.png") });
 });
 
+test("an IHE Invoke Image Display launch opens the study it names, and a malformed one is refused with 400", async () => {
+  const { page } = run;
+  const base = `http://127.0.0.1:${run.gateway.port}`;
+  for (const launch of [`/IHEInvokeImageDisplay?requestType=STUDY&studyUID=${CT.studyUid}&viewerType=IHE_BIR`,
+                        `/iid?requestType=PATIENT&patientID=${encodeURIComponent(`${CT.patientId}^^^&1.2.3&ISO`)}`]) {
+    const before = await status(page).catch(() => undefined);
+    await page.goto(base + launch);
+    const opened = await until(page, (s) => s.sessionId !== "" && s.sessionId !== before?.sessionId &&
+                               s.framesPainted > 0, `a session of the CT from ${launch}`);
+    assert.equal(opened.error, "");
+    const volume = await describe(await page.inputValue("#volumes"));
+    assert.equal((volume as unknown as { source: string }).source,
+                 `pacs:orthanc/${CT.studyUid}/${CT.seriesUid}`, `the CT opened from ${launch}`);
+  }
+  for (const [launch, reason] of [["/iid?requestType=SERIES&studyUID=1.2", "requestType: 'SERIES'"],
+                                  ["/IHEInvokeImageDisplay?requestType=STUDY", "give studyUID or accessionNumber"]]) {
+    const answer = await fetch(base + launch);
+    assert.equal(answer.status, 400, launch);
+    const said = await answer.text();
+    assert.ok(said.includes(reason), `${launch}: ${said}`);
+  }
+  await page.screenshot({ path: join(ARTIFACTS, "pacs-3-iid.png") });
+});
+
 /** Searches by the CT's patient ID and opens the one study found: its series are listed. */
 async function listSeries(page: Page): Promise<void> {
   await page.fill("#pacs-query", CT.patientId);

@@ -1,7 +1,9 @@
 // The page's files, read once at start into memory: a request can name only
-// one of them, never a path on the disk.
+// one of them, never a path on the disk. An IHE IID launch address is the
+// page, once its query is checked (src/iid.ts).
 import { readdirSync, readFileSync } from "node:fs";
 import { join } from "node:path";
+import { IID_PATHS, readIid } from "../src/iid.js";
 
 /** What serve() needs of a node request and response (HTTP/1.1 or HTTP/2 alike). */
 interface Request {
@@ -60,7 +62,15 @@ export class StaticFiles {
       res.end("ok\n");
       return;
     }
-    const file = this.files.get(path === "/" ? "/index.html" : path);
+    if (IID_PATHS.includes(path)) {
+      const iid = readIid(new URLSearchParams((req.url ?? "").slice(path.length + 1)));
+      if (typeof iid === "string") {
+        res.writeHead(400, { "content-type": "text/plain; charset=utf-8", "cache-control": "no-store" });
+        res.end(`Invoke Image Display: ${iid}\n`);
+        return;
+      }
+    }
+    const file = this.files.get(path === "/" || IID_PATHS.includes(path) ? "/index.html" : path);
     if (!file) {
       res.writeHead(404, { "content-type": "text/plain" });
       res.end("not found\n");

@@ -1,9 +1,12 @@
 // What the page's URL asks for (a contract: other viewers link to it):
 //   /?volume=ID[&preset=P][&session=S]#token=T
 //   /#grant=SECRET[&token=T]          a shared session (docs/web.md, "Sharing a session")
+//   /iid?requestType=STUDY&studyUID=UID#token=T   an IHE IID launch (iid.ts)
 // The token and a grant's secret ride in the fragment, so they never reach a
 // server log, a proxy or a Referer; the page takes them out of the address
 // bar once read.
+
+import { IID_PATHS, readIid, type IidRequest } from "./iid.js";
 
 export interface PageAddress {
   volume?: string;
@@ -11,14 +14,17 @@ export interface PageAddress {
   session?: string;  // join an existing session of one's own (a reload resumes it)
   token?: string;
   grant?: string;    // a share's secret: watch (or present) the session it names
+  iid?: IidRequest;  // an IID launch: the study (or the patient's latest) to open from the PACS
 }
 
-export function readAddress(search: string, hash: string): PageAddress {
+export function readAddress(search: string, hash: string, pathname = "/"): PageAddress {
   const query = new URLSearchParams(search);
   const fragment = new URLSearchParams(hash.replace(/^#/, ""));
   const pick = (p: URLSearchParams, key: string) => p.get(key)?.trim() || undefined;
+  const iid = IID_PATHS.includes(pathname) ? readIid(query) : undefined;  // the gateway refused a malformed one
   return { volume: pick(query, "volume"), preset: pick(query, "preset"), session: pick(query, "session"),
-           token: pick(fragment, "token"), grant: pick(fragment, "grant") };
+           token: pick(fragment, "token"), grant: pick(fragment, "grant"),
+           iid: typeof iid === "object" ? iid : undefined };
 }
 
 /** The address to show once the token or grant is read: the same query, no fragment. */

@@ -8,7 +8,7 @@ import { create } from "@bufbuild/protobuf";
 import { Code, type ConnectError } from "@connectrpc/connect";
 import { MeasurementListSchema, ViewportSchema, type Frame, type SessionState, type VolumeInfo } from "../gen/cinevol/v1/service_pb.js";
 import type { Api } from "./api.js";
-import { sessionQuery } from "./address.js";
+import { sessionQuery, type PageAddress } from "./address.js";
 import { ClippingPanel } from "./clipping_panel.js";
 import type { FrameMeta } from "./frame_messages.js";
 import { listenToKeys } from "./keys.js";
@@ -73,23 +73,25 @@ export class App {
   }
 
   /** Fills the lists, then opens what the address names. Throws (in words) when the token is refused. */
-  async boot(address: { volume?: string; preset?: string; session?: string; grant?: string }): Promise<void> {
+  async boot(address: PageAddress): Promise<void> {
     if (address.grant) return this.watchShared(address.grant);
     const status = await this.api.server.getStatus({});
     this.transfer.offer(status.presets, true);
     const volumes = await this.api.volumes.listVolumes({});
     $<HTMLSelectElement>("volumes").replaceChildren(...volumes.volumes.map((v) => new Option(v.id, v.id)));
-    void new PacsPanel(this.api, {
+    const pacs = new PacsPanel(this.api, {
       loaded: (volume, scene) => void this.open(volume.id, { scene }),
       measured: (measurements) => this.measure(measurements),
       sessionId: () => this.link.session?.id,
       volumeId: () => this.link.session?.volumeId,
       banner: (t) => this.said.setBanner(t),
       error: (t) => this.said.showError(t),
-    }).start();
+    });
+    const listed = pacs.start();
     // An address that names no volume opens the server's first, as the desktop viewer does: never a blank view.
     const volumeId = address.volume ?? volumes.volumes[0]?.id;
     if (address.session) await this.join(address.session);
+    else if (address.iid) await listed.then(() => pacs.openIid(address.iid!));
     else if (volumeId) await this.open(volumeId, { preset: address.preset });
     else this.said.setWaiting("The server holds no volume yet: open a study from the PACS, on the left, where it has one.");
   }

@@ -65,7 +65,7 @@ function askForToken(): void {
   document.getElementById("token")!.focus();
 }
 
-const address = readAddress(location.search, location.hash);
+const address = readAddress(location.search, location.hash, location.pathname);
 if (address.token) sessionStorage.setItem(TOKEN_KEY, address.token);
 if (address.grant) sessionStorage.setItem(GRANT_KEY, address.grant);
 if (address.token || address.grant) history.replaceState(null, "", withoutToken(location.pathname, location.search));

@@ -7,6 +7,7 @@
 import type { Measurement, Scene } from "../gen/cinevol/v1/scene_pb.js";
 import type { VolumeInfo } from "../gen/cinevol/v1/service_pb.js";
 import type { Api } from "./api.js";
+import type { IidRequest } from "./iid.js";
 import { plainWords } from "./words.js";
 
 const $ = <T extends HTMLElement>(id: string) => document.getElementById(id) as T;
@@ -22,12 +23,18 @@ export interface PacsPanelHooks {
   error: (text: string) => void;
 }
 
+/** What a study holds that is not images to look at: reports, segmentations, presentation states, renders. */
+const NOT_IMAGES = new Set(["SR", "SEG", "PR", "KO", "DOC", "OT"]);
+
 export class PacsPanel {
+  private names: string[] = [];
+
   constructor(private readonly api: Api, private readonly hooks: PacsPanelHooks) {}
 
   async start(): Promise<void> {
     try {
       const { names } = await this.api.pacs.listPacs({});
+      this.names = names;
       if (names.length === 0) return;
       $<HTMLSelectElement>("pacs-name").replaceChildren(...names.map((n) => new Option(n, n)));
       $("pacs").hidden = false;
@@ -36,6 +43,38 @@ export class PacsPanel {
     } catch {
       // A server without PACS (or an older one) shows no panel.
     }
+  }
+
+  /**
+   * An IHE IID launch (iid.ts): the study it names (its first, by UID or accession number) or the patient's most
+   * recent, opened as its largest image series in the default preset; what cannot be found is said in words.
+   */
+  async openIid(iid: IidRequest): Promise<void> {
+    const pacs = iid.pacs ?? this.names[0];
+    if (!pacs || !this.names.includes(pacs)) {
+      return this.hooks.error(pacs ? `The server names no PACS '${pacs}' (it names ${this.names.join(", ") || "none"}).`
+                                   : "The server names no PACS, so a launch naming a study has nothing to open.");
+    }
+    $<HTMLSelectElement>("pacs-name").value = pacs;
+    try {
+      const studyUid = await this.iidStudy(pacs, iid);
+      if (!studyUid) return this.hooks.error(`PACS '${pacs}' has no study for this launch.`);
+      await this.series(studyUid);  // listed in the panel too
+      const { series } = await this.api.pacs.searchSeries({ pacs, studyUid });
+      const images = series.filter((s) => !NOT_IMAGES.has(s.modality))
+        .sort((a, b) => Number(b.instanceCount ?? 0n) - Number(a.instanceCount ?? 0n));
+      if (images.length === 0) return this.hooks.error(`Study ${studyUid} on '${pacs}' holds no images to show.`);
+      await this.load(studyUid, images[0].seriesUid, false);
+    } catch (e) {
+      this.hooks.error(plainWords(e));
+    }
+  }
+
+  private async iidStudy(pacs: string, iid: IidRequest): Promise<string | undefined> {
+    if (iid.studyUids.length > 0) return iid.studyUids[0];
+    const { studies } = await this.api.pacs.searchStudies(iid.requestType === "STUDY"
+      ? { pacs, accessionNumber: iid.accessionNumbers[0] } : { pacs, patientId: iid.patientId });
+    return [...studies].sort((a, b) => b.studyDate.localeCompare(a.studyDate))[0]?.studyUid;
   }
 
   private pacs(): string {

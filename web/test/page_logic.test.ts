@@ -14,7 +14,8 @@ import { plainWords, signInWords, tokenRefused } from "../src/words.js";
 
 test("the address: volume and preset in the query, the token only from the fragment", () => {
   const a = readAddress("?volume=phantom%3Ahead&preset=ct-bone&token=leak", "#token=s3cret");
-  assert.deepEqual(a, { volume: "phantom:head", preset: "ct-bone", session: undefined, token: "s3cret", grant: undefined });
+  assert.deepEqual(a, { volume: "phantom:head", preset: "ct-bone", session: undefined, token: "s3cret", grant: undefined,
+                        iid: undefined });
   assert.equal(readAddress("", "").token, undefined);
   assert.equal(sessionQuery("?volume=v", "abc"), "?volume=v&session=abc");
 });
