@@ -40,6 +40,9 @@ constexpr auto kProgressPeriod = std::chrono::milliseconds(500);
 // chunk on the CPU) it checks whether anyone still wants the result. A
 // chunk's samples follow the device's pace: about kStillStep of work, never
 // more than one streamed frame's budget.
+// A JPEG still (a DICOMweb rendered resource asks for one): near the PNG, a fraction of its bytes.
+constexpr int kStillJpegQuality = 95;
+
 class StillJob final : public Job {
  public:
   using Done = std::function<void(grpc::Status, v1::SnapshotResponse)>;
@@ -138,10 +141,13 @@ class StillJob final : public Job {
                       done = std::exchange(callbacks_.done, nullptr), volume = volume_] {
       v1::SnapshotResponse response;
       const grpc::Status status = Guarded([&] {
-        const bool exr = format == v1::EXR;
-        const std::vector<std::uint8_t> bytes = exr ? EncodeExr(image) : EncodePng(ToneMap(image, exposure));
+        const std::vector<std::uint8_t> bytes = format == v1::EXR    ? EncodeExr(image)
+                                                : format == v1::JPEG ? EncodeJpeg(ToneMap(image, exposure),
+                                                                                  kStillJpegQuality,
+                                                                                  ChromaSubsampling::k444)
+                                                                     : EncodePng(ToneMap(image, exposure));
         response.set_image(bytes.data(), bytes.size());
-        response.set_format(exr ? v1::EXR : v1::PNG);
+        response.set_format(format == v1::EXR || format == v1::JPEG ? format : v1::PNG);
         response.set_width(image.width);
         response.set_height(image.height);
         response.set_spp(spp);
@@ -516,7 +522,9 @@ ServiceCore::SnapshotDone ServiceCore::StoreAfter(const v1::SnapshotRequest& req
                                                   std::shared_ptr<std::atomic<bool>> cancel, SnapshotDone done) {
   // Checked before a sample is rendered: the PACS named, the volume's own PACS and study.
   const auto to = pacs_.Find(request.store_to(), caller, "store_to");
-  if (request.format() == v1::EXR) throw InputError("store_to: a render goes to a PACS as PNG; leave format unset");
+  if (request.format() == v1::EXR || request.format() == v1::JPEG) {
+    throw InputError("store_to: a render goes to a PACS as PNG; leave format unset");
+  }
   const v1::VolumeInfo volume = volumes_.Describe(session.volume()->id(), caller);
   const std::optional<PacsOrigin> origin = ParsePacsSource(volume.source());
   if (!origin) {

@@ -127,6 +127,53 @@ test("an IHE Invoke Image Display launch opens the study it names, and a malform
   await page.screenshot({ path: join(ARTIFACTS, "pacs-3-iid.png") });
 });
 
+test("the DICOMweb origin renders the series by URL: 3D as JPEG and PNG, an MPR slab, the parameters used", async () => {
+  const series = `http://127.0.0.1:${run.gateway.port}/dicom-web/orthanc/studies/${CT.studyUid}/series/${CT.seriesUid}`;
+  const jpeg = await fetch(`${series}/rendered3D?orientation=a&viewport=128,96&quality=30`,
+                           { headers: { accept: "image/jpeg" } });
+  assert.equal(jpeg.status, 200, await jpeg.clone().text());
+  assert.equal(jpeg.headers.get("content-type"), "image/jpeg");
+  assert.deepEqual(jpegSize(Buffer.from(await jpeg.arrayBuffer())), { width: 128, height: 96 });
+  const png = await fetch(`${series}/rendered3d?orientation=l&viewport=64,48&quality=20&accept=image/png`);
+  assert.equal(png.status, 200);
+  assert.deepEqual(pngSize(Buffer.from(await png.arrayBuffer())), { width: 64, height: 48 });
+  const view = "viewpointposition=0,-700,-785&viewpointlookat=0,-150,-785&viewpointup=0,0,1";
+  const meta = await fetch(`${series}/rendered3D?${view}&viewport=64,48&renderedvolumetricmetadata=yes`);
+  assert.equal(meta.headers.get("content-type"), "application/dicom+json");
+  const [used] = await meta.json() as Record<string, { Value: number[] }>[];
+  assert.equal(used["0070120D"].Value[0], "VOLUME_RENDERED" as unknown as number);
+  assert.equal(used["00280011"].Value[0], 64);
+  const mpr = await fetch(`${series}/renderedmpr?renderingmethod=maximum_ip&mprslab=10&${view}&window=400,40,linear`,
+                          { headers: { accept: "image/png" } });
+  assert.equal(mpr.status, 200, await mpr.clone().text());
+  assert.ok(pngSize(Buffer.from(await mpr.arrayBuffer())).width > 100, "a slab across the CT");
+  for (const [url, status, said] of [
+    [`${series}/rendered3D?renderingmethod=maximum_ip`, 400, "renderingmethod"],
+    [`${series}/rendered3D?viewport=0,10`, 400, "viewport"],
+    [`${series}/renderedmpr?renderingmethod=average_ip`, 400, "viewpointposition"],
+    [`${series}/rendered3D?accept=video/mp4`, 406, "video"],
+    [`http://127.0.0.1:${run.gateway.port}/dicom-web/orthanc/studies/${CT.studyUid}/series/2.25.999/rendered3D`, 404, ""],
+    [`http://127.0.0.1:${run.gateway.port}/dicom-web/nope/studies/1.2/series/1.2/rendered3D`, 400, "nope"],
+  ] as [string, number, string][]) {
+    const answer = await fetch(url);
+    const text = await answer.text();
+    assert.equal(answer.status, status, `${url}: ${text}`);
+    assert.ok(text.includes(said), `${url}: ${text}`);
+  }
+});
+
+/** A baseline or progressive JPEG's size, from its first start-of-frame marker. */
+function jpegSize(jpeg: Buffer): { width: number; height: number } {
+  for (let at = 2; at + 9 < jpeg.length;) {
+    const marker = jpeg[at + 1], length = jpeg.readUInt16BE(at + 2);
+    if (marker >= 0xc0 && marker <= 0xc2) return { height: jpeg.readUInt16BE(at + 5), width: jpeg.readUInt16BE(at + 7) };
+    at += 2 + length;
+  }
+  throw new Error("no JPEG frame header");
+}
+
+const pngSize = (png: Buffer) => ({ width: png.readUInt32BE(16), height: png.readUInt32BE(20) });
+
 /** Searches by the CT's patient ID and opens the one study found: its series are listed. */
 async function listSeries(page: Page): Promise<void> {
   await page.fill("#pacs-query", CT.patientId);

@@ -9,6 +9,7 @@ import { PacsService, ServerService, SessionService, VolumeService } from "../ge
 import { ConnectionGuard } from "./connections.js";
 import { forwardService, SessionRoutes } from "./forward.js";
 import { parseOptions, UsageError, USAGE, type GatewayOptions } from "./options.js";
+import { answerRendered } from "./rendered.js";
 import { refuse, RequestChecks } from "./request_checks.js";
 import { StaticFiles } from "./static_files.js";
 
@@ -43,7 +44,7 @@ function start(o: GatewayOptions): void {
     guard.requestStarted(req, res);
     const refusal = checks.refusal(req);
     if (refusal) refuse(res, refusal);
-    else translate(req, res);
+    else if (!answerRendered(server, req, res)) translate(req, res);
   };
   const listener = o.tls
     ? http2.createSecureServer({ cert: o.tls.cert, key: o.tls.key, allowHTTP1: true,

@@ -1,0 +1,263 @@
+// A DICOMweb origin for rendered volumes (PS3.18 2024d+, "Rendered 3D and MPR" resources of Supplement 228, query
+// parameters of 8.3.5): any DICOMweb client asks for a path-traced or MPR picture of a series of one of the server's
+// PACS by URL, and gets it as PNG or JPEG (docs/web.md, "Rendered volumes by URL"):
+//   GET /dicom-web/{pacs}/studies/{study}/series/{series}/rendered3D?orientation=a&viewport=512,512&quality=80
+//   GET /dicom-web/{pacs}/studies/{study}/series/{series}/renderedmpr?renderingmethod=maximum_ip&mprslab=20
+//       &viewpointposition=x,y,z&viewpointlookat=x,y,z&viewpointup=x,y,z&window=400,40,linear
+// The series comes through the server's LoadSeries (its limits, cache and reader cage), the picture from a session
+// of the caller's own (their bearer token goes through as it came), which ends with the answer.
+import { create } from "@bufbuild/protobuf";
+import { Code, ConnectError, createClient, type CallOptions, type Transport } from "@connectrpc/connect";
+import { NamedView, SceneFrame, SceneSchema, type Scene } from "../gen/cinevol/v1/scene_pb.js";
+import { ImageFormat, PacsService, SessionService, SlabProjection, SliceAxis } from "../gen/cinevol/v1/service_pb.js";
+
+/** The resource a path names, or undefined for a path that is not one. */
+const PATH = /^\/dicom-web\/([A-Za-z0-9_.-]{1,64})\/studies\/([0-9.]{1,64})\/series\/([0-9.]{1,64})\/(rendered3d|renderedmpr)$/i;
+
+type Vec = [number, number, number];
+
+export interface RenderedRequest {
+  pacs: string;
+  studyUid: string;
+  seriesUid: string;
+  kind: "rendered3d" | "renderedmpr";
+  method: "volume_rendered" | "maximum_ip" | "minimum_ip" | "average_ip";
+  orientation?: "a" | "p" | "r" | "l" | "h" | "f";
+  position?: Vec;
+  lookAt?: Vec;
+  up?: Vec;
+  slabMm: number;
+  window?: { center: number; width: number };
+  viewport: { width: number; height: number };
+  quality: number;  // 1 to 100
+  accept: "image/jpeg" | "image/png" | "application/dicom+json";
+}
+
+/** A refusal as the standard's status codes say it: 400 a bad value, 406 a media type not offered. */
+export class Refusal extends Error {
+  constructor(readonly status: number, message: string) {
+    super(message);
+  }
+}
+
+const MAX_SIDE = 4096;
+
+function numbers(query: URLSearchParams, name: string, count: number): number[] | undefined {
+  const text = query.get(name);
+  if (text === null) return undefined;
+  const values = text.split(",").map((v) => Number(v.trim()));
+  if (values.length !== count || values.some((v) => !Number.isFinite(v) || Math.abs(v) > 1e7)) {
+    throw new Refusal(400, `${name}: '${text}' is not ${count} numbers`);
+  }
+  return values;
+}
+
+function vec(query: URLSearchParams, name: string): Vec | undefined {
+  return numbers(query, name, 3) as Vec | undefined;
+}
+
+/** The media type answered: the `accept` parameter, else the Accept header's first one offered (JPEG by default). */
+function mediaType(query: URLSearchParams, acceptHeader: string | undefined): RenderedRequest["accept"] {
+  if (query.get("renderedvolumetricmetadata") === "yes") return "application/dicom+json";
+  const asked = (query.get("accept") ?? acceptHeader ?? "image/jpeg").split(",").map((t) => t.split(";")[0].trim());
+  for (const type of asked) {
+    if (type === "image/jpeg" || type === "image/png") return type;
+    if (type === "image/*" || type === "*/*") return "image/jpeg";
+  }
+  const video = asked.some((t) => t.startsWith("video/"));
+  throw new Refusal(406, video ? "a swivel animation as video is not offered yet; ask for image/jpeg or image/png"
+                               : `none of '${asked.join(", ")}' is offered: image/jpeg or image/png`);
+}
+
+/** The request a URL makes, or a Refusal; undefined where the path is not a rendered resource. */
+export function readRendered(path: string, search: string, acceptHeader?: string): RenderedRequest | undefined {
+  const match = PATH.exec(path);
+  if (!match) return undefined;
+  const query = new URLSearchParams(search);
+  const kind = match[4].toLowerCase() as RenderedRequest["kind"];
+  const method = (query.get("renderingmethod") ?? (kind === "rendered3d" ? "volume_rendered" : "maximum_ip"));
+  if (!["volume_rendered", "maximum_ip", "minimum_ip", "average_ip"].includes(method)) {
+    throw new Refusal(400, `renderingmethod: '${method}' is not volume_rendered, maximum_ip, minimum_ip or average_ip`);
+  }
+  if ((kind === "rendered3d") !== (method === "volume_rendered")) {
+    throw new Refusal(400, `renderingmethod: ${method} is ${kind === "rendered3d" ? "an MPR's (renderedmpr)" :
+                                                            "a 3D rendering's (rendered3D)"}`);
+  }
+  const orientation = query.get("orientation") ?? undefined;
+  if (orientation !== undefined && !["a", "p", "r", "l", "h", "f"].includes(orientation)) {
+    throw new Refusal(400, `orientation: '${orientation}' is not a, p, r, l, h or f`);
+  }
+  const [vw, vh] = numbers(query, "viewport", 2) ?? [512, 512];
+  if (![vw, vh].every((n) => Number.isInteger(n) && n >= 1 && n <= MAX_SIDE)) {
+    throw new Refusal(400, `viewport: each side a whole number in [1, ${MAX_SIDE}]`);
+  }
+  const quality = Number(query.get("quality") ?? "75");
+  if (!Number.isInteger(quality) || quality < 1 || quality > 100) throw new Refusal(400, "quality: 1 to 100");
+  const slab = Number(query.get("mprslab") ?? "0");
+  if (!Number.isFinite(slab) || slab < 0 || slab > 1e4) throw new Refusal(400, "mprslab: a thickness in mm, 0 to 1e4");
+  let window: RenderedRequest["window"];
+  const windowText = query.get("window");
+  if (windowText !== null) {
+    const [center, width, shape] = windowText.split(",");
+    if (!Number.isFinite(Number(center)) || !(Number(width) > 0) || (shape ?? "").toLowerCase() !== "linear") {
+      throw new Refusal(400, `window: '${windowText}' is not center,width,linear (cinevol applies linear windows)`);
+    }
+    window = { center: Number(center), width: Number(width) };
+  }
+  const request: RenderedRequest = {
+    pacs: match[1], studyUid: match[2], seriesUid: match[3], kind, method: method as RenderedRequest["method"],
+    orientation: orientation as RenderedRequest["orientation"], position: vec(query, "viewpointposition"),
+    lookAt: vec(query, "viewpointlookat"), up: vec(query, "viewpointup"), slabMm: slab, window,
+    viewport: { width: vw, height: vh }, quality, accept: mediaType(query, acceptHeader),
+  };
+  if ((request.position === undefined) !== (request.lookAt === undefined)) {
+    throw new Refusal(400, "viewpointposition and viewpointlookat: give both or neither");
+  }
+  if (kind === "renderedmpr" && request.position === undefined) {
+    throw new Refusal(400, "renderedmpr: viewpointposition and viewpointlookat say the plane (through the look-at " +
+                           "point, across the view)");
+  }
+  return request;
+}
+
+const VIEWS: Record<string, NamedView> = {
+  a: NamedView.ANTERIOR, p: NamedView.POSTERIOR, r: NamedView.RIGHT, l: NamedView.LEFT, h: NamedView.SUPERIOR,
+  f: NamedView.INFERIOR,
+};
+
+// Samples per pixel from the quality: 1 at 1, 2^10 at 100, 64 at 60.
+const sppOf = (quality: number) => Math.max(1, Math.round(2 ** (quality / 10)));
+
+const sub = (a: Vec, b: Vec): Vec => [a[0] - b[0], a[1] - b[1], a[2] - b[2]];
+const cross = (a: Vec, b: Vec): Vec => [a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]];
+const xyz = (v: Vec) => ({ x: v[0], y: v[1], z: v[2] });
+
+/** A 3D view's scene: its camera in the patient (viewpoint parameters) or a named view; the volume's default preset. */
+function sceneOf(r: RenderedRequest): Scene | undefined {
+  if (r.kind !== "rendered3d") return undefined;
+  if (r.position && r.lookAt) {
+    return create(SceneSchema, { frame: SceneFrame.PATIENT_LPS,
+                                 camera: { eye: xyz(r.position), target: xyz(r.lookAt), up: r.up && xyz(r.up) } });
+  }
+  return r.orientation ? create(SceneSchema, { camera: { view: VIEWS[r.orientation] } }) : undefined;
+}
+
+/** The standard's status for a failure the server reported. */
+export function statusOf(e: unknown): { status: number; message: string } {
+  const error = ConnectError.from(e);
+  const status: Partial<Record<Code, number>> = {
+    [Code.InvalidArgument]: 400, [Code.NotFound]: 404, [Code.Unauthenticated]: 401, [Code.PermissionDenied]: 403,
+    [Code.ResourceExhausted]: 413, [Code.FailedPrecondition]: 400, [Code.Unavailable]: 503,
+    [Code.DeadlineExceeded]: 504,
+  };
+  return { status: status[error.code] ?? 500, message: error.rawMessage };
+}
+
+export interface Rendered {
+  type: string;
+  body: Buffer;
+}
+
+/** Renders `r` with the server behind `transport`, as the caller whose Authorization header is `authorization`. */
+export async function render(transport: Transport, r: RenderedRequest, authorization: string | undefined,
+                             signal: AbortSignal): Promise<Rendered> {
+  const headers = new Headers();
+  if (authorization) headers.set("authorization", authorization);
+  const call: CallOptions = { headers, signal, timeoutMs: 300_000 };
+  const pacs = createClient(PacsService, transport), sessions = createClient(SessionService, transport);
+  let volumeId = "";
+  for await (const update of pacs.loadSeries({ pacs: r.pacs, studyUid: r.studyUid, seriesUid: r.seriesUid }, call)) {
+    if (update.update.case === "volume") volumeId = update.update.value.id;
+  }
+  const scene = sceneOf(r);
+  const created = await sessions.createSession({
+    volumeId, viewport: { width: r.viewport.width, height: r.viewport.height },
+    initial: scene ? { case: "scene", value: scene } : { case: undefined },
+  }, call);
+  try {
+    if (r.accept === "application/dicom+json") return metadata(r, created.scene);
+    if (r.kind === "rendered3d") {
+      const still = await sessions.snapshot({
+        sessionId: created.sessionId, spp: sppOf(r.quality),
+        format: r.accept === "image/png" ? ImageFormat.PNG : ImageFormat.JPEG,
+      }, call);
+      return { type: r.accept, body: Buffer.from(still.image) };
+    }
+    const normal = sub(r.lookAt!, r.position!);
+    const slice = await sessions.renderSlice({
+      sessionId: created.sessionId, axis: SliceAxis.OBLIQUE, point: xyz(r.lookAt!), normal: xyz(normal),
+      row: xyz(cross(normal, r.up ?? [0, 0, 1])), slabMm: r.slabMm,
+      projection: { maximum_ip: SlabProjection.MAXIMUM, minimum_ip: SlabProjection.MINIMUM,
+                    average_ip: SlabProjection.MEAN, volume_rendered: SlabProjection.MAXIMUM }[r.method],
+      ...(r.window ? { window: r.window.width, level: r.window.center } : {}),
+    }, call);
+    if (r.accept === "image/jpeg") throw new Refusal(406, "an MPR is offered as image/png");
+    return { type: "image/png", body: Buffer.from(slice.png) };
+  } finally {
+    await sessions.closeSession({ sessionId: created.sessionId }, call).catch(() => {});
+  }
+}
+
+/** The parameters used, as DICOM JSON (PS3.18 Annex K): the view the session resolved, the method and size. */
+function metadata(r: RenderedRequest, scene: Scene | undefined): Rendered {
+  const camera = scene?.camera;
+  const fd = (v: { x: number; y: number; z: number } | undefined) => ({ vr: "FD", Value: v ? [v.x, v.y, v.z] : [] });
+  const body = {
+    "00701602": { vr: "CS", Value: ["PERSPECTIVE"] },
+    "00701603": fd(camera?.eye), "00701604": fd(camera?.target), "00701605": fd(camera?.up),
+    "0070120D": { vr: "CS", Value: [r.method.toUpperCase()] },
+    "00280010": { vr: "US", Value: [r.viewport.height] }, "00280011": { vr: "US", Value: [r.viewport.width] },
+  };
+  return { type: "application/dicom+json", body: Buffer.from(JSON.stringify([body])) };
+}
+
+/** What answer() needs of a node request and response (HTTP/1.1 or HTTP/2 alike). */
+interface Request {
+  url?: string;
+  method?: string;
+  headers: Record<string, string | string[] | undefined>;
+  on(event: "close", listener: () => void): unknown;
+}
+interface Response {
+  writeHead(status: number, headers: Record<string, string | number>): unknown;
+  end(body: Buffer | string): unknown;
+  writableEnded: boolean;
+}
+
+/** Answers a rendered-volume request with its picture or the standard's status; false where `req` names none. */
+export function answerRendered(transport: Transport, req: Request, res: Response): boolean {
+  const [path, search = ""] = (req.url ?? "/").split("?", 2);
+  const header = (name: string) => { const v = req.headers[name]; return Array.isArray(v) ? v.join(",") : v; };
+  let request: RenderedRequest | undefined;
+  try {
+    request = readRendered(path, search, header("accept"));
+  } catch (e) {
+    if (!(e instanceof Refusal)) throw e;
+    reply(res, e.status, e.message);
+    return true;
+  }
+  if (!request) return false;
+  if (req.method !== "GET") {
+    reply(res, 405, "a rendered resource answers GET");
+    return true;
+  }
+  const gone = new AbortController();
+  req.on("close", () => gone.abort());
+  render(transport, request, header("authorization"), gone.signal).then(
+    (picture) => {
+      if (res.writableEnded) return;
+      res.writeHead(200, { "content-type": picture.type, "content-length": picture.body.length,
+                           "cache-control": "no-store" });
+      res.end(picture.body);
+    },
+    (e: unknown) => {
+      const { status, message } = e instanceof Refusal ? { status: e.status, message: e.message } : statusOf(e);
+      if (!res.writableEnded) reply(res, status, message);
+    });
+  return true;
+}
+
+function reply(res: Response, status: number, message: string): void {
+  res.writeHead(status, { "content-type": "text/plain; charset=utf-8", "cache-control": "no-store" });
+  res.end(`${message}\n`);
+}
