@@ -100,6 +100,14 @@ test("a still stored with its presentation state opens from the re-listed series
   assert.ok(near(target, STILL_SCENE.camera.target), `the target is at ${JSON.stringify(target)} in the patient`);
   assert.equal(presented.preset, "ct-bone");
   assert.equal((await status(page)).error, "");
+  // The same state as a DICOMweb target: its series rendered in its scene.
+  const [, stateSeries, stateUid] = /its presentation state: series ([0-9.]+), instance ([0-9.]+)/.exec(stored)!;
+  const state = `http://127.0.0.1:${run.gateway.port}/dicom-web/orthanc/studies/${CT.studyUid}/series/${stateSeries}` +
+                `/instances/${stateUid}/rendered3D`;
+  const picture = await fetch(`${state}?viewport=64,48&quality=20`, { headers: { accept: "image/png" } });
+  assert.equal(picture.status, 200, await picture.clone().text());
+  assert.deepEqual(pngSize(Buffer.from(await picture.arrayBuffer())), { width: 64, height: 48 });
+  assert.equal((await fetch(`${state}?renderingmethod=volume_rendered`)).status, 400, "what the state says");
   await page.screenshot({ path: join(ARTIFACTS, "pacs-2-presentation.png") });
 });
 

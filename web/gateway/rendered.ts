@@ -4,6 +4,8 @@
 //   GET /dicom-web/{pacs}/studies/{study}/series/{series}/rendered3D?orientation=a&viewport=512,512&quality=80
 //   GET /dicom-web/{pacs}/studies/{study}/series/{series}/renderedmpr?renderingmethod=maximum_ip&mprslab=20
 //       &viewpointposition=x,y,z&viewpointlookat=x,y,z&viewpointup=x,y,z&window=400,40,linear
+//   GET /dicom-web/{pacs}/studies/{study}/series/{series}/instances/{presentation state}/rendered3D
+//       (a Volume Rendering Volumetric Presentation State: the series it presents, in its scene)
 // The series comes through the server's LoadSeries (its limits, cache and reader cage), the picture from a session
 // of the caller's own (their bearer token goes through as it came), which ends with the answer.
 import { create } from "@bufbuild/protobuf";
@@ -12,7 +14,8 @@ import { NamedView, SceneFrame, SceneSchema, type Scene } from "../gen/cinevol/v
 import { ImageFormat, PacsService, SessionService, SlabProjection, SliceAxis } from "../gen/cinevol/v1/service_pb.js";
 
 /** The resource a path names, or undefined for a path that is not one. */
-const PATH = /^\/dicom-web\/([A-Za-z0-9_.-]{1,64})\/studies\/([0-9.]{1,64})\/series\/([0-9.]{1,64})\/(rendered3d|renderedmpr)$/i;
+const PATH =
+  /^\/dicom-web\/([A-Za-z0-9_.-]{1,64})\/studies\/([0-9.]{1,64})\/series\/([0-9.]{1,64})(?:\/instances\/([0-9.]{1,64}))?\/(rendered3d|renderedmpr)$/i;
 
 type Vec = [number, number, number];
 
@@ -20,6 +23,7 @@ export interface RenderedRequest {
   pacs: string;
   studyUid: string;
   seriesUid: string;
+  presentationUid?: string;  // the target is a presentation state: its scene, its series
   kind: "rendered3d" | "renderedmpr";
   method: "volume_rendered" | "maximum_ip" | "minimum_ip" | "average_ip";
   orientation?: "a" | "p" | "r" | "l" | "h" | "f";
@@ -74,7 +78,15 @@ export function readRendered(path: string, search: string, acceptHeader?: string
   const match = PATH.exec(path);
   if (!match) return undefined;
   const query = new URLSearchParams(search);
-  const kind = match[4].toLowerCase() as RenderedRequest["kind"];
+  const kind = match[5].toLowerCase() as RenderedRequest["kind"];
+  const presentationUid = match[4];
+  if (presentationUid !== undefined) {
+    if (kind !== "rendered3d") throw new Refusal(400, "an instance renders as rendered3D (a presentation state)");
+    // PS3.18 8.3.5: these say what a presentation state already says.
+    const says = ["renderingmethod", "swivelrange", "animationstepsize", "animationrate", "renderedvolumetricmetadata"]
+      .find((name) => query.has(name));
+    if (says) throw new Refusal(400, `${says}: a presentation state's rendering says it`);
+  }
   const method = (query.get("renderingmethod") ?? (kind === "rendered3d" ? "volume_rendered" : "maximum_ip"));
   if (!["volume_rendered", "maximum_ip", "minimum_ip", "average_ip"].includes(method)) {
     throw new Refusal(400, `renderingmethod: '${method}' is not volume_rendered, maximum_ip, minimum_ip or average_ip`);
@@ -105,7 +117,8 @@ export function readRendered(path: string, search: string, acceptHeader?: string
     window = { center: Number(center), width: Number(width) };
   }
   const request: RenderedRequest = {
-    pacs: match[1], studyUid: match[2], seriesUid: match[3], kind, method: method as RenderedRequest["method"],
+    pacs: match[1], studyUid: match[2], seriesUid: match[3], presentationUid, kind,
+    method: method as RenderedRequest["method"],
     orientation: orientation as RenderedRequest["orientation"], position: vec(query, "viewpointposition"),
     lookAt: vec(query, "viewpointlookat"), up: vec(query, "viewpointup"), slabMm: slab, window,
     viewport: { width: vw, height: vh }, quality, accept: mediaType(query, acceptHeader),
@@ -165,11 +178,18 @@ export async function render(transport: Transport, r: RenderedRequest, authoriza
   if (authorization) headers.set("authorization", authorization);
   const call: CallOptions = { headers, signal, timeoutMs: 300_000 };
   const pacs = createClient(PacsService, transport), sessions = createClient(SessionService, transport);
+  let series = { studyUid: r.studyUid, seriesUid: r.seriesUid }, scene = sceneOf(r);
+  if (r.presentationUid) {  // its series in its scene, a camera asked for over its own
+    const presented = await pacs.loadPresentation({ pacs: r.pacs, studyUid: r.studyUid, seriesUid: r.seriesUid,
+                                                    sopInstanceUid: r.presentationUid }, call);
+    series = { studyUid: presented.studyUid, seriesUid: presented.seriesUid };
+    scene = presented.scene;
+    if (scene && scene.camera && (r.position || r.orientation)) scene.camera = sceneOf(r)?.camera ?? scene.camera;
+  }
   let volumeId = "";
-  for await (const update of pacs.loadSeries({ pacs: r.pacs, studyUid: r.studyUid, seriesUid: r.seriesUid }, call)) {
+  for await (const update of pacs.loadSeries({ pacs: r.pacs, ...series }, call)) {
     if (update.update.case === "volume") volumeId = update.update.value.id;
   }
-  const scene = sceneOf(r);
   const created = await sessions.createSession({
     volumeId, viewport: { width: r.viewport.width, height: r.viewport.height },
     initial: scene ? { case: "scene", value: scene } : { case: undefined },
