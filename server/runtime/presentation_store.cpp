@@ -11,8 +11,6 @@
 #include "core/transfer_function.h"
 #include "pacs/measurement_requests.h"
 #include "pacs/pacs_error.h"
-#include "scene/presets.h"
-#include "scene/scene_builder.h"
 
 namespace cinevol::service {
 namespace {
