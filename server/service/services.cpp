@@ -294,7 +294,7 @@ class StoreMovieReactor final : public grpc::ServerReadReactor<v1::StoreMovieChu
       core_->sharing().OwnedOrPresented(h.session_id(), caller_);  // a stranger sends no data
       core_->pacs().Find(h.pacs(), caller_, "header.pacs");
       if (h.size_bytes() == 0 || h.size_bytes() > pacs::kMaxMovieBytes) {
-        throw InputError(fmt::format("header.size_bytes: {}; 1 to {} (a minute of 1080p)", h.size_bytes(),
+        throw InputError(fmt::format("header.size_bytes: {}; 1 to {} (about a minute of 1080p)", h.size_bytes(),
                                      pacs::kMaxMovieBytes));
       }
       header_ = h;
