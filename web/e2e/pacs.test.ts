@@ -4,22 +4,25 @@
 // study, its CT series opens as a session that streams; then a still stored by
 // the CLI (snapshot --store-to) leaves a presentation state in the study,
 // which the re-listed series show as "PR" and which opens in the still's
-// scene. Run directly (node pacs.test.mjs): exit 77 (skipped) without chromium
-// or the shared data, a failure without Orthanc (CI must run it).
+// scene; the page's own measurement stored as an SR that a new session of the
+// CT reads back; a DICOM SEG of the CT (seg_fixture.ts) opened as its labels.
+// Run directly (node pacs.test.mjs): exit 77 (skipped) without chromium or
+// the shared data, a failure without Orthanc (CI must run it).
 import assert from "node:assert/strict";
 import { execFile } from "node:child_process";
-import { existsSync, mkdirSync, rmSync, writeFileSync } from "node:fs";
+import { existsSync, mkdirSync, readdirSync, readFileSync, rmSync, writeFileSync } from "node:fs";
 import { join } from "node:path";
 import { promisify } from "node:util";
 import { after, before, test } from "node:test";
 import { chromium, type Browser, type Page } from "playwright-core";
 import {
-  ARTIFACTS, CHROMIUM, CHROMIUM_ARGS, SERVER, status, until, WAIT, WEB, type V,
+  ARTIFACTS, CHROMIUM, CHROMIUM_ARGS, drag, SERVER, status, until, WAIT, waitForText, WEB, type PageStatus, type V,
 } from "./page_harness.js";
 import {
   credentialsLine, dicomWeb, stampCt, startOrthanc, stopOrthanc, upload, whatIsMissing, type Orthanc,
 } from "./orthanc.js";
 import { scratch, startWithPortFile, stop, type Running } from "./processes.js";
+import { ctSlice, dicomLab, segmentationFile, type SegFrame, type Vec3 } from "./seg_fixture.js";
 
 const SHARED_DATA = process.env.CINEVOL_SHARED_DATA ?? "";
 if (!existsSync(SHARED_DATA)) {
@@ -60,7 +63,7 @@ after(async () => {
   await stop(run.gateway);
   await stop(run.server);
   await stopOrthanc(run.orthanc);
-  for (const folder of ["orthanc", "stamped"]) rmSync(join(scratch, folder), { recursive: true, force: true });
+  for (const made of ["orthanc", "stamped", "seg.dcm"]) rmSync(join(scratch, made), { recursive: true, force: true });
 });
 
 test("a study found by patient ID lists its CT series, which opens as a session that streams", async () => {
@@ -90,9 +93,11 @@ test("a still stored with its presentation state opens from the re-listed series
   assert.match(stored, /its presentation state: series /);
   await listSeries(page);
   await openListed(page, /^PR · /);
-  const presented = await until(page, (s) => s.sessionId !== first.sessionId && s.camera !== null,
-                                "a session of the presentation state");
-  await until(page, (s) => s.framesPainted > presented.framesPainted, "a frame of the presented session");
+  const opened = await until(page, (s) => s.sessionId !== first.sessionId, "a session of the presentation state");
+  // The camera shown is the last session's until the new one's first state, which comes before its frames: two
+  // frames painted since the new session began (one may be the last of the old), so the state came.
+  const presented = await until(page, (s) => s.framesPainted > opened.framesPainted + 1 && s.camera !== null,
+                                "a frame of the presented session");
   // The state's camera lies in the volume-centred frame; the still's scene said where in the patient.
   const volume = await describe(await page.inputValue("#volumes"));
   const eye = toPatient(presented.camera!.eye, volume), target = toPatient(presented.camera!.target, volume);
@@ -170,6 +175,77 @@ test("the DICOMweb origin renders the series by URL: 3D as JPEG and PNG, an MPR 
   }
 });
 
+test("measurements go to the PACS as an SR and come back", async () => {
+  const { page } = run;
+  await openCt(page);
+  await measureOnAxialSlice(page);
+  const measured = await pageMeasurements(page);
+  assert.equal(measured.length, 1, "the page holds the distance measured");
+  await measurementsApplied(page);
+  const said = await sayingAfter(page, () => page.click("#pacs-store-measurements"),
+                                 /Measurements stored on orthanc: series [0-9.]+/, "the measurements stored");
+  const srSeries = /series ([0-9.]+)/.exec(said)![1];
+  // What the PACS holds: the same points, measured on the CT series.
+  const report = await cliJson<{ measurements: { points: Partial<V>[] }[]; sourceSeriesUid: string }>(["measurements",
+    "load", "--pacs", "orthanc", "--study", CT.studyUid, "--series", srSeries]);
+  assert.equal(report.sourceSeriesUid, CT.seriesUid);
+  assertSamePoints(report.measurements.map((m) => m.points.map(point)), measured, "the report on the PACS");
+
+  // Listed again: the report's series; then a new session of the CT, which has no measurements until it reads them.
+  const measuredIn = await status(page);
+  await listSeries(page);
+  assert.match(await openListed(page, /^CT · /), /20 images/);
+  assert.match((await page.locator("#pacs-results button", { hasText: /^SR · / }).allTextContents()).join("|"),
+               /^SR · cinevol measurements · 1 images$/);
+  await newSession(page, measuredIn, "a new session of the CT");
+  assert.deepEqual(await pageMeasurements(page), [], "a new session starts without measurements");
+  assert.equal(await page.locator("#measurements li").count(), 0);
+  await sayingAfter(page, () => openListed(page, /^SR · /), /^1 measurement\(s\) from the report$/, "the report read");
+  assertSamePoints(await pageMeasurements(page), measured, "the page's measurement read from the report");
+  await waitForText(page, "#measurements", /Distance \d+\.\d mm/);
+  assert.equal((await status(page)).error, "");
+  await page.screenshot({ path: join(ARTIFACTS, "pacs-5-measurements.png") });
+});
+
+test("a DICOM SEG of the study loads as the open volume's labels", async () => {
+  const { page } = run;
+  const seg = writeSeg(join(scratch, "seg.dcm"));
+  await upload(run.orthanc, [seg.file]);
+  const ct = await openCt(page);
+  const volumeId = await page.inputValue("#volumes");
+  await listSeries(page);
+  assert.match(await openListed(page, /^SEG · /), /cinevol e2e segmentation · 1 images/);
+  // The labels come with the volume: the page opens it again, in a session of its own, and lists them.
+  await newSession(page, ct, "a session of the CT with its labels");
+  try {
+    await page.waitForFunction((n) => document.querySelectorAll("#labels li").length === n, SEG_SEGMENTS.length, WAIT);
+  } catch (e) {
+    throw new Error(`the labels panel lists "${await page.textContent("#labels")}" (${e})`);
+  }
+  assert.deepEqual((await page.locator("#labels li").allTextContents()).map((t) => t.trim()),
+                   SEG_SEGMENTS.map((s) => `${s.number} ${s.label}`));
+  assert.ok(await page.isVisible("#labels-panel"), "the labels panel shows");
+  assert.equal(await page.inputValue("#volumes"), volumeId, "the labels are the open volume's");
+  // The server's word: every segment with its name, its voxels (the frames lie on the CT's planes and pixels) and
+  // its colour (red and green in CIELab).
+  const { labels } = await cliJson<{ labels: { source: string; note: string; names: LabelName[] } }>(
+    ["volumes", "describe", volumeId]);
+  assert.equal(labels.source, `pacs:orthanc/${CT.studyUid}/${SEG.seriesUid}`);
+  assert.match(labels.note, /DICOM SEG \(BINARY, 2 segments, 9 frames\)/);
+  for (const [i, segment] of SEG_SEGMENTS.entries()) {
+    const name = labels.names.find((n) => n.value === segment.number);
+    assert.ok(name, `segment ${segment.number} among ${JSON.stringify(labels.names)}`);
+    assert.equal(name.name, segment.label);
+    assert.equal(Number(name.voxels), seg.voxels[i], `segment ${segment.number}'s voxels`);
+    const rgb = [name.color?.r ?? 0, name.color?.g ?? 0, name.color?.b ?? 0];
+    assert.ok(rgb.every((c, k) => Math.abs(c - segment.rgb[k]) < 0.1), `segment ${segment.number} is ${rgb}`);
+  }
+  const shown = await status(page);
+  assert.equal(shown.error, "");
+  assert.ok(!(await page.isVisible("#error")), "no error line");
+  await page.screenshot({ path: join(ARTIFACTS, "pacs-6-seg.png") });
+});
+
 /** A baseline or progressive JPEG's size, from its first start-of-frame marker. */
 function jpegSize(jpeg: Buffer): { width: number; height: number } {
   for (let at = 2; at + 9 < jpeg.length;) {
@@ -236,3 +312,120 @@ function toPatient(v: V, p: Placement): V {
 }
 
 const near = (a: V, b: V) => Math.abs(a.x - b.x) < 0.01 && Math.abs(a.y - b.y) < 0.01 && Math.abs(a.z - b.z) < 0.01;
+
+/** Opens the CT from the PACS list in a new session: its status once a frame of it is painted. */
+async function openCt(page: Page): Promise<PageStatus> {
+  const before = await status(page);
+  await listSeries(page);
+  assert.match(await openListed(page, /^CT · /), /20 images/);
+  return newSession(page, before, "a new session of the CT");
+}
+
+/** Waits for a session other than `before`'s, and a frame of it; fails on an error shown. */
+async function newSession(page: Page, before: PageStatus, what: string): Promise<PageStatus> {
+  const opened = await until(page, (s) => s.error !== "" || s.sessionId !== before.sessionId, what);
+  assert.equal(opened.error, "", what);
+  return until(page, (s) => s.framesPainted > opened.framesPainted, `a frame of ${what}`);
+}
+
+/** A distance measured across the middle of the axial slice (2x2 layout), half its 500 mm wide. */
+async function measureOnAxialSlice(page: Page): Promise<void> {
+  await page.click("#layout");
+  await page.waitForFunction(() => [...document.querySelectorAll<HTMLImageElement>(".slice img")]
+    .every((img) => img.naturalWidth > 0), null, WAIT);
+  await page.click("#measure-distance");
+  const slice = (await page.locator("#slice-axial img").boundingBox())!;
+  const side = Math.min(slice.width, slice.height);
+  await page.mouse.click(slice.x + slice.width / 2 - side / 4, slice.y + slice.height / 2);
+  await page.mouse.click(slice.x + slice.width / 2 + side / 4, slice.y + slice.height / 2);
+  const mm = Number(/Distance (\d+\.\d) mm/.exec(await waitForText(page, "#measurements", /Distance \d+\.\d mm/))![1]);
+  assert.ok(Math.abs(mm - 250) < 5, `half the CT's 500 mm wide slice: ${mm} mm`);
+  await page.click("#layout");
+}
+
+/**
+ * The session has the page's measurements: they go in a SendEvents of their
+ * own kind, which no frame answers; events go one batch at a time, so a
+ * frame answering a drag sent after them comes once they are applied.
+ */
+async function measurementsApplied(page: Page): Promise<void> {
+  const before = await status(page);
+  assert.ok((before.eventsByKind.measurements ?? 0) > 0, "the measurement went to the session");
+  await drag(page, 4, 0);
+  await until(page, (s) => s.eventsSent > before.eventsSent && s.lastFrame !== null &&
+              s.lastFrame.lastEventSeq >= s.eventsSent, "a frame answering a drag after the measurement");
+}
+
+/** Does `act`, then waits until the page says something matching `pattern` (failing on an error); what it said. */
+async function sayingAfter(page: Page, act: () => Promise<unknown>, pattern: RegExp, what: string): Promise<string> {
+  const said = (s: PageStatus) => s.messages.filter((m) => pattern.test(m));
+  const before = said(await status(page)).length;
+  await act();
+  const s = await until(page, (t) => t.error !== "" || said(t).length > before, what);
+  assert.equal(s.error, "", what);
+  return said(s).at(-1)!;
+}
+
+/** The page's own measurements (LPS mm), as it saves them with the scene (the Output panel's button). */
+async function pageMeasurements(page: Page): Promise<V[][]> {
+  const [download] = await Promise.all([page.waitForEvent("download", { timeout: WAIT.timeout }),
+                                        page.$eval("#save-scene", (b) => (b as HTMLButtonElement).click())]);
+  const scene: { measurements?: { points: Partial<V>[] }[] } = JSON.parse(readFileSync(await download.path(), "utf8"));
+  return (scene.measurements ?? []).map((m) => m.points.map(point));
+}
+
+const point = (p: Partial<V>): V => ({ x: p.x ?? 0, y: p.y ?? 0, z: p.z ?? 0 });  // proto3 JSON leaves zeros out
+
+function assertSamePoints(got: V[][], want: V[][], what: string): void {
+  const said = `${what}: ${JSON.stringify(got)}, measured ${JSON.stringify(want)}`;
+  assert.equal(got.length, want.length, said);
+  got.forEach((m, i) => {
+    assert.equal(m.length, want[i].length, said);
+    m.forEach((p, k) => assert.ok(near(p, want[i][k]), said));
+  });
+}
+
+/** What the CLI prints with --json (proto3 JSON of the server's answer). */
+async function cliJson<T>(args: string[]): Promise<T> {
+  const { stdout } = await promisify(execFile)(CLI, [...args, "--json", "--server", `127.0.0.1:${run.server.port}`],
+                                               { timeout: 30_000 });
+  return JSON.parse(stdout) as T;
+}
+
+interface LabelName { value?: number; name?: string; voxels?: string; color?: { r?: number; g?: number; b?: number } }
+
+const SEG = { seriesUid: `${CT.studyUid}.7`, sopInstanceUid: `${CT.studyUid}.7.1` };
+// A crop of 64 x 64 pixels of the CT's planes from its pixel (224, 224): a square of 32 pixels on planes 4 to 8, a
+// disc of radius 12 on planes 11 to 14 (of the 20, in order along their normal), red and green.
+const SEG_CROP = { from: 224, size: 64 };
+const SEG_SEGMENTS = [
+  { number: 1, label: "cinevol square", cielab: dicomLab(53.24, 80.09, 67.2), rgb: [1, 0, 0], planes: [4, 5, 6, 7, 8],
+    set: (c: number, r: number) => c >= 8 && c < 40 && r >= 8 && r < 40 },
+  { number: 2, label: "cinevol disc", cielab: dicomLab(87.73, -86.18, 83.18), rgb: [0, 1, 0], planes: [11, 12, 13, 14],
+    set: (c: number, r: number) => (c - 44) ** 2 + (r - 44) ** 2 <= 144 },
+];
+
+/** The SEG of SEG_SEGMENTS on the stamped CT's planes, in its study and frame of reference; each segment's voxels. */
+function writeSeg(file: string): { file: string; voxels: number[] } {
+  const folder = join(scratch, "stamped");
+  const slices = readdirSync(folder).map((f) => ctSlice(join(folder, f)));
+  assert.equal(slices.length, 20);
+  const o = slices[0].orientation, [rowSpacing, columnSpacing] = slices[0].pixelSpacingMm;
+  const normal = [o[1] * o[5] - o[2] * o[4], o[2] * o[3] - o[0] * o[5], o[0] * o[4] - o[1] * o[3]];
+  const along = (p: Vec3) => p[0] * normal[0] + p[1] * normal[1] + p[2] * normal[2];
+  slices.sort((a, b) => along(a.positionMm) - along(b.positionMm));
+  // Pixel (c, r) of a plane lies at its position + c column spacings along the row + r row spacings down the column.
+  const corner = (p: Vec3) =>
+    p.map((v, k) => v + SEG_CROP.from * (columnSpacing * o[k] + rowSpacing * o[3 + k])) as Vec3;
+  const frames: SegFrame[] = SEG_SEGMENTS.flatMap((s) => s.planes.map((k) => ({
+    segment: s.number, positionMm: corner(slices[k].positionMm), set: s.set })));
+  writeFileSync(file, segmentationFile({
+    ...SEG, studyUid: CT.studyUid, patientId: CT.patientId, patientName: CT.patientName,
+    studyDate: slices[0].studyDate, frameOfReferenceUid: slices[0].frameOfReferenceUid,
+    rows: SEG_CROP.size, columns: SEG_CROP.size, orientation: o, pixelSpacingMm: slices[0].pixelSpacingMm,
+    sliceSpacingMm: along(slices[1].positionMm) - along(slices[0].positionMm),
+  }, SEG_SEGMENTS, frames));
+  const crop = [...Array(SEG_CROP.size * SEG_CROP.size).keys()];
+  return { file, voxels: SEG_SEGMENTS.map((s) => s.planes.length *
+    crop.filter((i) => s.set(i % SEG_CROP.size, Math.floor(i / SEG_CROP.size))).length) };
+}
