@@ -107,6 +107,10 @@ void Load(const PacsOptions& o) {
     if (!o.json) fmt::print(stderr, "{}: {} of {} instances, {}\n", p.stage(), p.instances_done(),
                             p.instances_total(), Bytes(p.bytes()));
   });
+  if (presentation && !presentation->labels_series_uid().empty()) {  // the segments it shows: the volume's labels
+    const PacsLoad labels{o.search.pacs(), load.study, "", presentation->labels_series_uid(), "", false, volume.id()};
+    LoadFromPacs(client, labels, [](const v1::LoadSeriesProgress&) {});
+  }
   if (presentation && !o.scene_out.empty()) SaveSceneFile(presentation->scene(), o.scene_out);
   if (o.json) return PrintJson(volume);
   PrintVolume(volume);

@@ -215,8 +215,14 @@ void PacsBrowser::OpenPresentation(const v1::LoadSeriesRequest& series) {
         if (generation == generation_ && opening) progress = p;
       });
     };
-    return std::function<void()>([this, images, opened = client.LoadSeries(images, on_progress),
-                                  scene = presented.scene()] { Opened(images, opened, scene); });
+    v1::VolumeInfo opened = client.LoadSeries(images, on_progress);
+    if (!presented.labels_series_uid().empty()) {  // the SEG whose segments it styles: the volume's labels
+      v1::LoadSeriesRequest labels = images;
+      labels.set_series_uid(presented.labels_series_uid());
+      labels.set_labels_for(opened.id());
+      opened = client.LoadSeries(labels, on_progress);
+    }
+    return std::function<void()>([this, images, opened, scene = presented.scene()] { Opened(images, opened, scene); });
   });
 }
 

@@ -12,6 +12,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <map>
 #include <memory>
 #include <stdexcept>
 
@@ -134,6 +135,22 @@ void CheckShading(const Shading& s) {
   }
 }
 
+void CheckSegmentation(const Segmentation& seg) {
+  if (!IsValidUid(seg.sop_instance_uid) || !IsValidUid(seg.series_uid)) {
+    Refuse("segmentation", "names a SEG whose UIDs are not DICOM UIDs");
+  }
+  if (seg.styled.empty() || seg.styled.size() > kMaxPresentationSegments) {
+    Refuse("segmentation.styled", fmt::format("holds {} segments; 1 to {}", seg.styled.size(), kMaxPresentationSegments));
+  }
+  for (const SegmentShown& shown : seg.shown) {
+    if (std::find(seg.styled.begin(), seg.styled.end(), shown.number) == seg.styled.end()) {
+      Refuse("segmentation.shown", fmt::format("shows segment {}, which it does not style", shown.number));
+    }
+    CheckClassification(shown.palette);
+  }
+  if (!seg.show_unlisted && seg.shown.empty()) Refuse("segmentation", "shows nothing");
+}
+
 void CheckLabel(const std::string& label) {
   const bool cs = !label.empty() && label.size() <= 16 && std::all_of(label.begin(), label.end(), [](char c) {
     return (c >= 'A' && c <= 'Z') || (c >= '0' && c <= '9') || c == '_' || c == ' ';
@@ -172,7 +189,32 @@ void WriteIdentification(DcmDataset& d, const PresentationState& s, const DicomN
   }
 }
 
-// One VOLUME input (the series' images), cropped as a whole (Global Crop) where the scene crops.
+// One input of the volume and how it is cropped and classified.
+struct Input {
+  std::uint16_t crop = 0;  // its own Cropping Specification Number; 0: none
+  const Classification* palette = nullptr;
+};
+
+// The volume's inputs: the image's classification, cropped by every segment the scene styles (EXCLUDE_SEG), then
+// each segment shown, cropped to it (INCLUDE_SEG) with its own. Without a segmentation, the image's alone.
+std::vector<Input> Inputs(const PresentationState& s, std::uint16_t first_specification) {
+  if (!s.segmentation) return {{0, &s.classification}};
+  std::vector<Input> inputs;
+  std::uint16_t next = first_specification;
+  const Segmentation& seg = *s.segmentation;
+  if (seg.show_unlisted) inputs.push_back({seg.styled.empty() ? std::uint16_t(0) : next++, &s.classification});
+  for (const SegmentShown& shown : seg.shown) inputs.push_back({next++, &shown.palette});
+  return inputs;
+}
+
+void PutSegReference(DcmItem& spec, const Segmentation& seg, const std::vector<std::uint16_t>& segments) {
+  DcmItem& reference = NewItem(spec, DCM_ReferencedImageSequence, "the SEG's reference");
+  PutReference(reference, kSegmentationSopClass, seg.sop_instance_uid);
+  Require(reference.putAndInsertUint16Array(DCM_ReferencedSegmentNumber, segments.data(), unsigned(segments.size())),
+          kDocument, "Referenced Segment Number");
+}
+
+// The volume (the series' images) as the inputs above; the scene's crop box and planes crop every one (Global Crop).
 void WriteRelationshipAndCropping(DcmDataset& d, const ReportSource& source, const PresentationState& s,
                                   const std::string& input_set_uid) {
   DcmItem& set = NewItem(d, DCM_VolumetricPresentationInputSetSequence, "Input Set Sequence");
@@ -182,37 +224,48 @@ void WriteRelationshipAndCropping(DcmDataset& d, const ReportSource& source, con
     PutReference(NewItem(set, DCM_ReferencedImageSequence, "Referenced Image Sequence"), image.sop_class_uid,
                  image.sop_instance_uid);
   }
-  DcmItem& input = NewItem(d, DCM_VolumetricPresentationStateInputSequence, "Input Sequence");
-  PutShort(input, DCM_VolumetricPresentationInputNumber, 1, "Input Number");
-  Put(input, DCM_VolumetricPresentationInputSetUID, input_set_uid, "Input Set UID");
-  Put(input, DCM_WindowCenter, fmt::format("{:.10g}", s.classification.window_center).substr(0, 16), "Window Center");
-  Put(input, DCM_WindowWidth, fmt::format("{:.10g}", s.classification.window_width).substr(0, 16), "Window Width");
-  Put(input, DCM_Crop, "NO", "Crop");  // per input: the Volume Rendering class allows none (PS3.4 B.5.1.24)
-
-  std::vector<std::uint16_t> specifications;
-  const auto add_specification = [&](const char* method) -> DcmItem& {
+  std::vector<std::uint16_t> global;
+  std::uint16_t specifications = 0;
+  const auto specification = [&](const char* method) -> DcmItem& {
     DcmItem& item = NewItem(d, DCM_VolumeCroppingSequence, "Volume Cropping Sequence");
-    specifications.push_back(std::uint16_t(specifications.size() + 1));
-    PutShort(item, DCM_CroppingSpecificationNumber, specifications.back(), "Cropping Specification Number");
+    PutShort(item, DCM_CroppingSpecificationNumber, ++specifications, "Cropping Specification Number");
     Put(item, DCM_VolumeCroppingMethod, method, "Volume Cropping Method");
     return item;
   };
   if (s.cropping.bounding_box) {
-    PutDoubles(add_specification("BOUNDING_BOX"), DCM_BoundingBoxCrop, s.cropping.bounding_box->data(), 6,
+    PutDoubles(specification("BOUNDING_BOX"), DCM_BoundingBoxCrop, s.cropping.bounding_box->data(), 6,
                "Bounding Box Crop");
+    global.push_back(specifications);
   }
   for (const std::vector<CroppingPlane>& planes : s.cropping.plane_sets) {
-    DcmItem& item = add_specification("OBLIQUE_PLANES");
+    DcmItem& item = specification("OBLIQUE_PLANES");
     for (const CroppingPlane& p : planes) {
       DcmItem& plane = NewItem(item, DCM_ObliqueCroppingPlaneSequence, "Oblique Cropping Plane Sequence");
       PutDoubles(plane, DCM_Plane, p.plane.data(), 4, "Plane");
       PutDoubles(plane, DCM_PlaneNormal, p.plane.data(), 3, "Plane Normal");
     }
+    global.push_back(specifications);
   }
-  Put(d, DCM_GlobalCrop, specifications.empty() ? "NO" : "YES", "Global Crop");
-  if (!specifications.empty()) {
-    Require(d.putAndInsertUint16Array(DCM_GlobalCroppingSpecificationIndex, specifications.data(),
-                                      unsigned(specifications.size())),
+  const std::vector<Input> inputs = Inputs(s, std::uint16_t(specifications + 1));
+  if (s.segmentation) {  // the specifications Inputs numbered, in its order
+    const Segmentation& seg = *s.segmentation;
+    if (seg.show_unlisted && !seg.styled.empty()) PutSegReference(specification("EXCLUDE_SEG"), seg, seg.styled);
+    for (const SegmentShown& shown : seg.shown) PutSegReference(specification("INCLUDE_SEG"), seg, {shown.number});
+  }
+  for (std::size_t i = 0; i < inputs.size(); ++i) {
+    DcmItem& input = NewItem(d, DCM_VolumetricPresentationStateInputSequence, "Input Sequence");
+    const Classification& c = *inputs[i].palette;
+    PutShort(input, DCM_VolumetricPresentationInputNumber, std::uint16_t(i + 1), "Input Number");
+    Put(input, DCM_VolumetricPresentationInputSetUID, input_set_uid, "Input Set UID");
+    Put(input, DCM_WindowCenter, fmt::format("{:.10g}", c.window_center).substr(0, 16), "Window Center");
+    Put(input, DCM_WindowWidth, fmt::format("{:.10g}", c.window_width).substr(0, 16), "Window Width");
+    // The Volume Rendering class allows no input a crop of its own (PS3.4 B.5.1.24); the Segmented one crops by SEG.
+    Put(input, DCM_Crop, inputs[i].crop == 0 ? "NO" : "YES", "Crop");
+    if (inputs[i].crop != 0) PutShort(input, DCM_CroppingSpecificationIndex, inputs[i].crop, "Cropping Specification Index");
+  }
+  Put(d, DCM_GlobalCrop, global.empty() ? "NO" : "YES", "Global Crop");
+  if (!global.empty()) {
+    Require(d.putAndInsertUint16Array(DCM_GlobalCroppingSpecificationIndex, global.data(), unsigned(global.size())),
             kDocument, "Global Cropping Specification Index");
   }
 }
@@ -240,19 +293,16 @@ void WriteViewAndGeometry(DcmDataset& d, const PresentationState& s) {
   PutDoubles(d, DCM_Shininess, &shading.shininess, 1, "Shininess");
 }
 
-void WriteDisplay(DcmDataset& d, const PresentationState& s, const std::string& input_set_uid) {
-  Put(d, DCM_PixelPresentation, "TRUE_COLOR", "Pixel Presentation");
-  DcmItem& stream = NewItem(d, DCM_VolumeStreamSequence, "Volume Stream Sequence");
-  Put(stream, DCM_VolumetricPresentationInputSetUID, input_set_uid, "Input Set UID");
+// One ONE_TO_RGBA component: input `number` through `c`'s palette.
+void WriteComponent(DcmItem& stream, std::uint16_t number, const Classification& c) {
   DcmItem& component =
       NewItem(stream, DCM_PresentationStateClassificationComponentSequence, "Classification Component Sequence");
-  if (!s.classification.description.empty()) {
-    PutText(component, DCM_RGBATransferFunctionDescription, "classification.description",
-            s.classification.description, 64);
+  if (!c.description.empty()) {
+    PutText(component, DCM_RGBATransferFunctionDescription, "classification.description", c.description, 64);
   }
   Put(component, DCM_ComponentType, "ONE_TO_RGBA", "Component Type");
   PutShort(NewItem(component, DCM_ComponentInputSequence, "Component Input Sequence"),
-           DCM_VolumetricPresentationInputIndex, 1, "Input Index");
+           DCM_VolumetricPresentationInputIndex, number, "Input Index");
   Put(component, DCM_RGBLUTTransferFunction, "TABLE", "RGB LUT Transfer Function");
   Put(component, DCM_AlphaLUTTransferFunction, "TABLE", "Alpha LUT Transfer Function");
   const std::uint16_t descriptor[3] = {std::uint16_t(kPaletteEntries), 0, 16};
@@ -262,15 +312,25 @@ void WriteDisplay(DcmDataset& d, const PresentationState& s, const std::string& 
                                     DCM_AlphaPaletteColorLookupTableDescriptor};
   const DcmTagKey data[4] = {DCM_RedPaletteColorLookupTableData, DCM_GreenPaletteColorLookupTableData,
                              DCM_BluePaletteColorLookupTableData, DCM_AlphaPaletteColorLookupTableData};
-  std::vector<Uint16> channel(s.classification.rgba.size());
-  for (int c = 0; c < 4; ++c) {
+  std::vector<Uint16> channel(c.rgba.size());
+  for (int k = 0; k < 4; ++k) {
     // Red, green and blue descriptors are "US or SS": US, as their first mapped value is 0.
-    Require(component.putAndInsertUint16Array(DcmTag(descriptors[c], EVR_US), descriptor, 3), kDocument,
+    Require(component.putAndInsertUint16Array(DcmTag(descriptors[k], EVR_US), descriptor, 3), kDocument,
             "a palette descriptor");
-    for (std::size_t i = 0; i < channel.size(); ++i) channel[i] = s.classification.rgba[i][c];
-    Require(component.putAndInsertUint16Array(DcmTag(data[c], EVR_OW), channel.data(), unsigned(channel.size())),
+    for (std::size_t i = 0; i < channel.size(); ++i) channel[i] = c.rgba[i][k];
+    Require(component.putAndInsertUint16Array(DcmTag(data[k], EVR_OW), channel.data(), unsigned(channel.size())),
             kDocument, "a palette");
   }
+}
+
+// One volume stream whose components classify the inputs in order (the Segmented class blends each over the ones
+// before it, B over A).
+void WriteDisplay(DcmDataset& d, const PresentationState& s, const std::string& input_set_uid) {
+  Put(d, DCM_PixelPresentation, "TRUE_COLOR", "Pixel Presentation");
+  DcmItem& stream = NewItem(d, DCM_VolumeStreamSequence, "Volume Stream Sequence");
+  Put(stream, DCM_VolumetricPresentationInputSetUID, input_set_uid, "Input Set UID");
+  const std::vector<Input> inputs = Inputs(s, 1);
+  for (std::size_t i = 0; i < inputs.size(); ++i) WriteComponent(stream, std::uint16_t(i + 1), *inputs[i].palette);
   PutEmptySequence(d, DCM_PresentationStateCompositorComponentSequence, "Compositor Component Sequence");
   const std::vector<Uint8> icc = SrgbIccProfile();
   Require(d.putAndInsertUint8Array(DCM_ICCProfile, icc.data(), unsigned(icc.size())), kDocument, "ICC Profile");
@@ -285,6 +345,12 @@ void WriteReferences(DcmDataset& d, const std::string& source_series, const Repo
   for (const ReportImage& image : source.images) {
     PutReference(NewItem(series, DCM_ReferencedInstanceSequence, "Referenced Instance Sequence"),
                  image.sop_class_uid, image.sop_instance_uid);
+  }
+  if (s.segmentation) {
+    DcmItem& seg = NewItem(d, DCM_ReferencedSeriesSequence, "Referenced Series Sequence");
+    Put(seg, DCM_SeriesInstanceUID, s.segmentation->series_uid, "Series Instance UID");
+    PutReference(NewItem(seg, DCM_ReferencedInstanceSequence, "Referenced Instance Sequence"), kSegmentationSopClass,
+                 s.segmentation->sop_instance_uid);
   }
   if (!s.rendered_sop_instance_uid.empty()) {
     DcmItem& rendered = NewItem(d, DCM_ReferencedSeriesSequence, "Referenced Series Sequence");
@@ -322,6 +388,7 @@ std::string MakePresentationState(const SourceStudy& study, const ReportSource& 
   CheckCropping(state.cropping);
   CheckClassification(state.classification);
   CheckShading(state.shading);
+  if (state.segmentation) CheckSegmentation(*state.segmentation);
   CheckLabel(state.label);
   if (state.recipe_json.size() > kMaxRecipeBytes) Refuse("recipe_json", "is longer than 4 MiB");
   if (version.empty() || version.size() > 64 || !IsAscii(version)) Refuse("version", "is not 1 to 64 ASCII characters");
@@ -335,7 +402,9 @@ std::string MakePresentationState(const SourceStudy& study, const ReportSource& 
   if (!ascii) Put(d, DCM_SpecificCharacterSet, "ISO_IR 192", "Specific Character Set");
   const PresentationStateUids uids{study_uid, NewUid(), NewUid()};
   const DicomNow now = CurrentDateTime();
-  Put(d, DCM_SOPClassUID, kVolumeRenderingPresentationSopClass, "SOP Class UID");
+  Put(d, DCM_SOPClassUID,
+      state.segmentation ? kSegmentedVolumeRenderingPresentationSopClass : kVolumeRenderingPresentationSopClass,
+      "SOP Class UID");
   Put(d, DCM_SOPInstanceUID, uids.sop_instance_uid, "SOP Instance UID");
   Put(d, DCM_InstanceCreationDate, now.date, "Instance Creation Date");
   Put(d, DCM_InstanceCreationTime, now.time, "Instance Creation Time");
@@ -384,8 +453,9 @@ constexpr std::uint32_t kProjection = 0x00701602, kViewpoint = 0x00701603, kLook
                         kFieldOfView = 0x00701606, kSamplingStep = 0x00701607;
 constexpr std::uint32_t kShadingStyle = 0x00701701, kAmbient = 0x00701702, kLightDirection = 0x00701703,
                         kDiffuse = 0x00701704, kSpecular = 0x00701705, kShininess = 0x00701706;
-constexpr std::uint32_t kComponents = 0x00701801, kComponentType = 0x00701802, kStreams = 0x00701A08,
-                        kRgbaDescription = 0x00701A09;
+constexpr std::uint32_t kComponents = 0x00701801, kComponentType = 0x00701802, kComponentInputs = 0x00701803,
+                        kInputIndex = 0x00701804, kStreams = 0x00701A08, kRgbaDescription = 0x00701A09;
+constexpr std::uint32_t kInputNumber = 0x00701207, kCropIndex = 0x00701205, kReferencedSegment = 0x0062000B;
 }  // namespace tags
 
 class PresentationReader {
@@ -395,13 +465,13 @@ class PresentationReader {
   ReadPresentation Run() {
     ReadPresentation out;
     const std::string sop_class = Text(root_, tags::kSopClassUid, "SOP Class UID");
-    if (sop_class != kVolumeRenderingPresentationSopClass) {
-      const bool other_volume_rendering = sop_class == UID_SegmentedVolumeRenderingVolumetricPresentationStateStorage ||
-                                          sop_class == UID_MultipleVolumeRenderingVolumetricPresentationStateStorage;
-      throw InputError(fmt::format("not a Volume Rendering Volumetric Presentation State ({}): its SOP class is {}{}",
+    segmented_ = sop_class == kSegmentedVolumeRenderingPresentationSopClass;
+    if (sop_class != kVolumeRenderingPresentationSopClass && !segmented_) {
+      const bool several = sop_class == UID_MultipleVolumeRenderingVolumetricPresentationStateStorage;
+      throw InputError(fmt::format("not a Volume Rendering Volumetric Presentation State ({}, or its Segmented kind): "
+                                   "its SOP class is {}{}",
                                    kVolumeRenderingPresentationSopClass, Clean(sop_class, 64),
-                                   other_volume_rendering ? ", whose several inputs or streams cinevol does not read"
-                                                          : ""));
+                                   several ? ", whose several volume streams cinevol does not read" : ""));
     }
     out.uids = {Uid(root_, tags::kStudyUid, "Study Instance UID"), Uid(root_, tags::kSeriesUid, "Series Instance UID"),
                 Uid(root_, tags::kSopInstanceUid, "SOP Instance UID")};
@@ -409,12 +479,12 @@ class PresentationReader {
     PresentationState& s = out.state;
     s.label = Clean(Text(root_, tags::kContentLabel, "Content Label"), 16);
     s.description = Clean(d_.Text(root_, tags::kContentDescription).value_or(""), 64);
-    const std::string input_set_uid = ReadInput(s.classification);
+    const std::string input_set_uid = ReadInputSet();
     FindSource(out);
     out.input_images = images_;
-    ReadCropping(s.cropping);
+    ReadCroppings(s.cropping);
     ReadGeometry(s);
-    ReadDisplay(s.classification, input_set_uid);
+    ReadInputs(s, input_set_uid);
     ReadRendered(s);
     s.recipe_json = Recipe();
     return out;
@@ -504,8 +574,8 @@ class PresentationReader {
     return *items.front();
   }
 
-  // The one VOLUME input and its window; its set's images go to images_.
-  std::string ReadInput(Classification& c) {
+  // The one VOLUME input set; its images go to images_.
+  std::string ReadInputSet() {
     const Part10Item& set = One(root_, tags::kInputSets, "Volumetric Presentation Input Set Sequence",
                                 " (a presentation of several volumes is not read)");
     if (Text(set, tags::kInputType, "Presentation Input Type") != "VOLUME") {
@@ -515,15 +585,11 @@ class PresentationReader {
       images_.push_back(Uid(*image, tags::kReferencedSopInstance, "Referenced SOP Instance UID"));
     }
     if (images_.empty()) Missing("Referenced Image Sequence of its input", tags::kReferencedImage);
-    const std::string set_uid = Uid(set, tags::kInputSetUid, "Volumetric Presentation Input Set UID");
-    const Part10Item& input = One(root_, tags::kInputs, "Volumetric Presentation State Input Sequence",
-                                  " (a presentation of several inputs is not read)");
-    if (Uid(input, tags::kInputSetUid, "Volumetric Presentation Input Set UID") != set_uid) {
-      throw InputError("the presentation state's input names an input set it does not hold");
-    }
-    if (d_.Text(input, tags::kCrop).value_or("NO") == "YES") {
-      throw InputError("the presentation state crops its input by itself (Crop YES), which cinevol does not read");
-    }
+    return Uid(set, tags::kInputSetUid, "Volumetric Presentation Input Set UID");
+  }
+
+  // An input's window onto its palette.
+  void ReadWindow(const Part10Item& input, Classification& c) const {
     if (d_.Find(input, tags::kWindowCenter) == nullptr) {
       throw InputError("the presentation state's input has no Window Center (0028,1050): cinevol reads a window, "
                        "not a VOI LUT Sequence");
@@ -531,7 +597,99 @@ class PresentationReader {
     c.window_center = Decimal(input, tags::kWindowCenter, "Window Center");
     c.window_width = Decimal(input, tags::kWindowWidth, "Window Width");
     if (!(c.window_width > 0)) throw InputError("the presentation state's Window Width (0028,1051) is not positive");
-    return set_uid;
+  }
+
+  // The inputs and their classifications: one (Volume Rendering), or the image's and its segments' through a SEG
+  // (Segmented Volume Rendering: Segmentation).
+  void ReadInputs(PresentationState& s, const std::string& set_uid) {
+    const std::vector<const Part10Item*> inputs = d_.Items(root_, tags::kInputs);
+    if (inputs.empty() || inputs.size() > kMaxPresentationSegments + 1) {
+      throw InputError(fmt::format("the presentation state holds {} inputs; cinevol reads 1 to {}", inputs.size(),
+                                   kMaxPresentationSegments + 1));
+    }
+    if (!segmented_ && inputs.size() != 1) throw InputError("the presentation state holds several inputs");
+    const std::map<std::uint16_t, Classification> palettes = ReadPalettes(set_uid);
+    Segmentation seg;
+    bool base = false;
+    for (const Part10Item* input : inputs) {
+      if (Uid(*input, tags::kInputSetUid, "Volumetric Presentation Input Set UID") != set_uid) {
+        throw InputError("the presentation state's input names an input set it does not hold");
+      }
+      const std::vector<std::uint16_t> number = Shorts(*input, tags::kInputNumber, "Volumetric Presentation Input Number");
+      const auto palette = number.size() == 1 ? palettes.find(number[0]) : palettes.end();
+      if (palette == palettes.end()) throw InputError("the presentation state classifies no input it holds");
+      Classification c = palette->second;
+      ReadWindow(*input, c);
+      c.sampling_step_mm = step_;  // one Sampling Step Size for every input
+      const SegCrop crop = d_.Text(*input, tags::kCrop).value_or("NO") == "YES" ? SegCropOf(*input) : SegCrop{};
+      if (crop.include) {
+        if (crop.segments.size() != 1) throw InputError("the presentation state shows several segments as one input");
+        seg.shown.push_back({crop.segments.front(), std::move(c)});
+      } else {
+        if (base) throw InputError("the presentation state classifies the image twice");
+        base = true;
+        seg.styled = crop.segments;
+        s.classification = std::move(c);
+      }
+      if (!crop.seg_instance.empty()) {
+        if (!seg.sop_instance_uid.empty() && seg.sop_instance_uid != crop.seg_instance) {
+          throw InputError("the presentation state crops by several SEGs");
+        }
+        seg.sop_instance_uid = crop.seg_instance;
+      }
+    }
+    if (!segmented_) return;
+    if (!base) s.classification = seg.shown.front().palette;  // the image's, as its first segment's
+    seg.show_unlisted = base;
+    for (const SegmentShown& shown : seg.shown) {
+      if (std::find(seg.styled.begin(), seg.styled.end(), shown.number) == seg.styled.end()) {
+        seg.styled.push_back(shown.number);
+      }
+    }
+    if (seg.sop_instance_uid.empty()) throw InputError("the Segmented presentation state crops by no SEG");
+    seg.series_uid = SeriesOf(seg.sop_instance_uid);
+    s.segmentation = std::move(seg);
+  }
+
+  // What an input's own cropping says: the SEG and its segments, included or excluded.
+  struct SegCrop {
+    bool include = false;
+    std::vector<std::uint16_t> segments;
+    std::string seg_instance;
+  };
+
+  SegCrop SegCropOf(const Part10Item& input) const {
+    if (!segmented_) {
+      throw InputError("the presentation state crops its input by itself (Crop YES), which its class does not allow");
+    }
+    SegCrop crop;
+    for (const std::uint16_t index : Shorts(input, tags::kCropIndex, "Cropping Specification Index")) {
+      const auto spec = specifications_.find(index);
+      if (spec == specifications_.end()) throw InputError("the presentation state crops by a specification it lacks");
+      const std::string method = Text(*spec->second, tags::kCroppingMethod, "Volume Cropping Method");
+      if (method != "INCLUDE_SEG" && method != "EXCLUDE_SEG") {
+        throw InputError(fmt::format("the presentation state crops an input by {}; cinevol reads INCLUDE_SEG and "
+                                     "EXCLUDE_SEG there", Clean(method, 16)));
+      }
+      crop.include = method == "INCLUDE_SEG";
+      const Part10Item& reference = One(*spec->second, tags::kReferencedImage, "Referenced Image Sequence", "");
+      crop.seg_instance = Uid(reference, tags::kReferencedSopInstance, "SEG's SOP Instance UID");
+      crop.segments = Shorts(reference, tags::kReferencedSegment, "Referenced Segment Number");
+    }
+    return crop;
+  }
+
+  // The series of an instance the Common Instance Reference lists.
+  std::string SeriesOf(const std::string& instance_uid) const {
+    for (const Part10Item* series : d_.Items(root_, tags::kReferencedSeries)) {
+      for (const Part10Item* instance : d_.Items(*series, tags::kReferencedInstance)) {
+        if (d_.Text(*instance, tags::kReferencedSopInstance).value_or("") == instance_uid) {
+          return Uid(*series, tags::kSeriesUid, "Series Instance UID");
+        }
+      }
+    }
+    throw InputError(fmt::format("the presentation state's Common Instance Reference lists no series of {}",
+                                 Clean(instance_uid, 64)));
   }
 
   // The input's series (and study): the Common Instance Reference item that holds its first image.
@@ -561,22 +719,27 @@ class PresentationReader {
     throw InputError("the presentation state's Common Instance Reference places its input's images in no series");
   }
 
-  void ReadCropping(Cropping& c) const {
-    if (d_.Text(root_, tags::kGlobalCrop).value_or("NO") != "YES") return;
-    const std::vector<std::uint16_t> wanted = Shorts(root_, tags::kGlobalCropIndex, "Global Cropping Specification Index");
-    std::size_t planes = 0;
+  // Every cropping specification by its number; the global ones into `c`.
+  void ReadCroppings(Cropping& c) {
     for (const Part10Item* spec : d_.Items(root_, tags::kCroppings)) {
       const std::vector<std::uint16_t> number = Shorts(*spec, tags::kCroppingNumber, "Cropping Specification Number");
-      if (number.size() != 1 || std::find(wanted.begin(), wanted.end(), number[0]) == wanted.end()) continue;
-      const std::string method = Text(*spec, tags::kCroppingMethod, "Volume Cropping Method");
+      if (number.size() == 1) specifications_[number[0]] = spec;
+    }
+    if (d_.Text(root_, tags::kGlobalCrop).value_or("NO") != "YES") return;
+    std::size_t planes = 0;
+    for (const std::uint16_t index : Shorts(root_, tags::kGlobalCropIndex, "Global Cropping Specification Index")) {
+      const auto found = specifications_.find(index);
+      if (found == specifications_.end()) throw InputError("the presentation state crops by a specification it lacks");
+      const Part10Item& spec = *found->second;
+      const std::string method = Text(spec, tags::kCroppingMethod, "Volume Cropping Method");
       if (method == "BOUNDING_BOX") {
         if (c.bounding_box) throw InputError("the presentation state crops to several bounding boxes");
-        const std::vector<double> box = Numbers(*spec, tags::kBoundingBox, 6, "Bounding Box Crop");
+        const std::vector<double> box = Numbers(spec, tags::kBoundingBox, 6, "Bounding Box Crop");
         c.bounding_box.emplace();
         std::copy(box.begin(), box.end(), c.bounding_box->begin());
       } else if (method == "OBLIQUE_PLANES" || method == "OBLIQUE_PLANE" || method == "OBLIQUE") {
         std::vector<CroppingPlane>& set = c.plane_sets.emplace_back();
-        for (const Part10Item* item : d_.Items(*spec, tags::kObliquePlanes)) {
+        for (const Part10Item* item : d_.Items(spec, tags::kObliquePlanes)) {
           const std::vector<double> abcd = Numbers(*item, tags::kPlane, 4, "Plane");
           const double norm = std::hypot(abcd[0], abcd[1], abcd[2]);
           if (!(norm > 0)) throw InputError("the presentation state crops by a plane with no normal");
@@ -587,14 +750,14 @@ class PresentationReader {
         }
         if (set.empty()) Missing("Oblique Cropping Plane Sequence", tags::kObliquePlanes);
       } else {
-        throw InputError(fmt::format("the presentation state crops by {}, which cinevol does not read (it reads "
-                                     "BOUNDING_BOX and OBLIQUE_PLANES)",
+        throw InputError(fmt::format("the presentation state crops every input by {}, which cinevol does not read "
+                                     "(it reads BOUNDING_BOX and OBLIQUE_PLANES there)",
                                      Clean(method, 16)));
       }
     }
   }
 
-  void ReadGeometry(PresentationState& s) const {
+  void ReadGeometry(PresentationState& s) {
     RenderGeometry& g = s.geometry;
     const std::string projection = Text(root_, tags::kProjection, "Render Projection");
     if (projection != "PERSPECTIVE" && projection != "ORTHOGRAPHIC") {
@@ -618,7 +781,7 @@ class PresentationReader {
     if (d_.Find(root_, tags::kSamplingStep) != nullptr) {
       const double step = Numbers(root_, tags::kSamplingStep, 1, "Sampling Step Size")[0];
       if (!(step > 0)) throw InputError("the presentation state's Sampling Step Size (0070,1607) is not positive");
-      s.classification.sampling_step_mm = step;
+      step_ = step;
     }
     ReadShading(s.shading);
   }
@@ -647,17 +810,28 @@ class PresentationReader {
     }
   }
 
-  // One stream of one ONE_TO_RGBA component: its palette as 16-bit RGBA.
-  void ReadDisplay(Classification& c, const std::string& input_set_uid) const {
+  // One stream; each ONE_TO_RGBA component's palette as 16-bit RGBA, by the input it classifies.
+  std::map<std::uint16_t, Classification> ReadPalettes(const std::string& input_set_uid) const {
     const Part10Item& stream = One(root_, tags::kStreams, "Volume Stream Sequence", " (several volumes are not read)");
     if (Uid(stream, tags::kInputSetUid, "Volumetric Presentation Input Set UID") != input_set_uid) {
       throw InputError("the presentation state's volume stream names an input set it does not hold");
     }
-    const Part10Item& component = One(stream, tags::kComponents, "Presentation State Classification Component Sequence",
-                                      " (layered classifications are not read)");
-    if (Text(component, tags::kComponentType, "Component Type") != "ONE_TO_RGBA") {
-      throw InputError("the presentation state's classification is not ONE_TO_RGBA");
+    std::map<std::uint16_t, Classification> palettes;
+    for (const Part10Item* component : d_.Items(stream, tags::kComponents)) {
+      if (Text(*component, tags::kComponentType, "Component Type") != "ONE_TO_RGBA") {
+        throw InputError("the presentation state's classification is not ONE_TO_RGBA");
+      }
+      const Part10Item& input = One(*component, tags::kComponentInputs, "Component Input Sequence", "");
+      const std::vector<std::uint16_t> index = Shorts(input, tags::kInputIndex, "Volumetric Presentation Input Index");
+      if (index.size() != 1 || palettes.count(index[0]) > 0) {
+        throw InputError("the presentation state classifies an input twice, or names none");
+      }
+      ReadPalette(*component, palettes[index[0]]);
     }
+    return palettes;
+  }
+
+  void ReadPalette(const Part10Item& component, Classification& c) const {
     c.description = Clean(d_.Text(component, tags::kRgbaDescription).value_or(""), 64);
     const std::string rgb = Text(component, tags::kRgbTransfer, "RGB LUT Transfer Function");
     const std::string alpha = Text(component, tags::kAlphaTransfer, "Alpha LUT Transfer Function");
@@ -731,6 +905,9 @@ class PresentationReader {
   Part10Dataset d_;
   const Part10Item& root_;
   std::vector<std::string> images_;
+  bool segmented_ = false;  // the Segmented Volume Rendering class
+  double step_ = 1;         // Sampling Step Size (0070,1607): what every palette's alphas are opacities of
+  std::map<std::uint16_t, const Part10Item*> specifications_;  // Volume Cropping items by their number
 };
 
 }  // namespace

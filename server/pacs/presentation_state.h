@@ -17,6 +17,11 @@ namespace cinevol::pacs {
 
 // Volume Rendering Volumetric Presentation State Storage (PS3.4 B.5).
 inline constexpr const char* kVolumeRenderingPresentationSopClass = "1.2.840.10008.5.1.4.1.1.11.9";
+// ... and its Segmented kind: segments of a referenced DICOM SEG, each cropped by it and coloured by its own palette.
+inline constexpr const char* kSegmentedVolumeRenderingPresentationSopClass = "1.2.840.10008.5.1.4.1.1.11.10";
+inline constexpr const char* kSegmentationSopClass = "1.2.840.10008.5.1.4.1.1.66.4";
+// The most segments one shows on its own.
+inline constexpr std::size_t kMaxPresentationSegments = 64;
 // Its series number: past the renders (kRenderSeriesNumber) and reports (kMeasurementSeriesNumber).
 inline constexpr int kPresentationSeriesNumber = 9902;
 // Entries of the RGBA palette a transfer function is sampled into.
@@ -72,6 +77,23 @@ struct Shading {
   double shininess = 0.5;  // [0, 1]: 1 the smoothest
 };
 
+// One segment of the referenced SEG shown with its own palette (the image's, in its colour and opacity).
+struct SegmentShown {
+  std::uint16_t number = 0;  // Segment Number: the label value
+  Classification palette;
+};
+
+// The segments a presentation state shows through a SEG (the Segmented Volume Rendering class): the image's
+// classification for what no styled segment covers (where `show_unlisted`), each shown segment's own over it
+// (B over A, in order), a styled segment not shown hidden.
+struct Segmentation {
+  std::string sop_instance_uid;       // the SEG
+  std::string series_uid;
+  std::vector<std::uint16_t> styled;  // taken out of the image's classification
+  std::vector<SegmentShown> shown;
+  bool show_unlisted = true;
+};
+
 // What a presentation state holds, as cinevol writes and reads it.
 struct PresentationState {
   RenderGeometry geometry;
@@ -85,6 +107,8 @@ struct PresentationState {
   std::string rendered_sop_class_uid;
   std::string rendered_sop_instance_uid;
   std::string rendered_series_uid;
+  // Set: the Segmented Volume Rendering class, through the SEG it names.
+  std::optional<Segmentation> segmentation;
   // cinevol's recipe (the scene as proto3 JSON) in a private block: what the IOD has no place for (lights,
   // materials, samples and seed). Empty for a presentation state another system wrote.
   std::string recipe_json;

@@ -11,6 +11,7 @@
 #include "core/transfer_function.h"
 #include "pacs/measurement_requests.h"
 #include "pacs/pacs_error.h"
+#include "scene/scene_file.h"
 
 namespace cinevol::service {
 namespace {
@@ -206,7 +207,7 @@ double DensityScale(const v1::TransferFunction& tf) { return tf.has_density_scal
 // `tf` (points) sampled onto the palette over its points' values: [first, last] is the window. An entry's alpha is
 // the opacity of one sampling step through its extinction (opacity times the density scale, per mm): 1 - e^(-sigma
 // step), with the step that makes the densest entry's e^-1, so the 16 bits cover the extinctions the function has.
-pacs::Classification ClassificationOf(const v1::TransferFunction& tf) {
+pacs::Classification ClassificationOf(const v1::TransferFunction& tf, std::optional<double> step = std::nullopt) {
   TransferFunction function;
   double densest = 0;
   for (const v1::TransferFunctionPoint& p : tf.points()) {
@@ -221,7 +222,7 @@ pacs::Classification ClassificationOf(const v1::TransferFunction& tf) {
   c.window_width = hi > lo ? hi - lo : 1;
   c.window_center = hi > lo ? (lo + hi) / 2 : lo;
   c.description = tf.preset().substr(0, 64);
-  c.sampling_step_mm = densest > 0 ? std::clamp(1 / densest, 1e-3, 100.0) : 1;
+  c.sampling_step_mm = step ? *step : densest > 0 ? std::clamp(1 / densest, 1e-3, 100.0) : 1;
   c.rgba.resize(pacs::kPaletteEntries);
   for (int i = 0; i < pacs::kPaletteEntries; ++i) {
     const double value = c.window_center - c.window_width / 2 + c.window_width * i / (pacs::kPaletteEntries - 1);
@@ -273,6 +274,85 @@ v1::TransferFunction PointsOf(const pacs::Classification& c, const pacs::Shading
   return tf;
 }
 
+// ---- Label styles through a SEG ----
+
+// A label's palette: the image's transfer function in its colour, its extinction times its opacity scale, over the
+// image's sampling step (one Sampling Step Size for every input).
+pacs::Classification SegmentPalette(const v1::TransferFunction& tf, const v1::LabelStyle& style, double step) {
+  v1::TransferFunction styled = tf;
+  for (v1::TransferFunctionPoint& p : *styled.mutable_points()) {
+    if (style.has_color()) *p.mutable_diffuse() = style.color();
+  }
+  styled.set_density_scale(float(DensityScale(tf) * (style.has_opacity_scale() ? style.opacity_scale() : 1.0)));
+  return ClassificationOf(styled, step);
+}
+
+pacs::Segmentation SegmentationOf(const v1::Scene& scene, const SegSource& source, double step) {
+  pacs::Segmentation seg;
+  seg.sop_instance_uid = source.sop_instance_uid;
+  seg.series_uid = source.series_uid;
+  seg.show_unlisted = !scene.labels().has_show_unlisted() || scene.labels().show_unlisted();
+  for (const v1::LabelStyle& style : scene.labels().styles()) {
+    seg.styled.push_back(std::uint16_t(style.value()));
+    if (style.has_visible() && !style.visible()) continue;
+    seg.shown.push_back({std::uint16_t(style.value()), SegmentPalette(scene.transfer_function(), style, step)});
+  }
+  return seg;
+}
+
+// The entry where a palette is most opaque.
+std::size_t Densest(const pacs::Classification& c) {
+  std::size_t densest = 0;
+  for (std::size_t i = 0; i < c.rgba.size(); ++i) densest = c.rgba[i][3] > c.rgba[densest][3] ? i : densest;
+  return densest;
+}
+
+// Label styles as the standard says them: a shown segment's colour at its palette's most opaque entry, its opacity
+// scale the ratio of its extinction there to the image's; a styled segment not shown, hidden.
+v1::Labels LabelsOf(const pacs::Segmentation& seg, const pacs::Classification& image) {
+  v1::Labels labels;
+  if (!seg.show_unlisted) labels.set_show_unlisted(false);
+  const auto extinction = [](const pacs::Classification& c, std::size_t i) {
+    return -std::log(1 - std::min(c.rgba[i][3], std::uint16_t(65534)) / 65535.0) / c.sampling_step_mm;
+  };
+  for (const std::uint16_t value : seg.styled) {
+    v1::LabelStyle& style = *labels.add_styles();
+    style.set_value(value);
+    const auto shown = std::find_if(seg.shown.begin(), seg.shown.end(),
+                                    [&](const pacs::SegmentShown& s) { return s.number == value; });
+    if (shown == seg.shown.end()) {
+      style.set_visible(false);
+      continue;
+    }
+    const std::size_t at = Densest(shown->palette);
+    style.mutable_color()->set_r(float(shown->palette.rgba[at][0] / 65535.0));
+    style.mutable_color()->set_g(float(shown->palette.rgba[at][1] / 65535.0));
+    style.mutable_color()->set_b(float(shown->palette.rgba[at][2] / 65535.0));
+    const bool comparable = seg.show_unlisted && image.rgba.size() == shown->palette.rgba.size();
+    const double base = comparable ? extinction(image, at) : 0;
+    if (base > 0) style.set_opacity_scale(float(extinction(shown->palette, at) / base));
+  }
+  return labels;
+}
+
+// The recipe's label styles where they say what the standard's do (the same labels shown and hidden, colours within
+// a step of 255): they keep what the standard cannot (a label's own transfer function).
+bool SameLabels(const v1::Labels& standard, const v1::Labels& recipe) {
+  const auto shows_unlisted = [](const v1::Labels& l) { return !l.has_show_unlisted() || l.show_unlisted(); };
+  if (standard.styles_size() != recipe.styles_size() || shows_unlisted(standard) != shows_unlisted(recipe)) return false;
+  for (int i = 0; i < standard.styles_size(); ++i) {
+    const v1::LabelStyle &a = standard.styles(i), &b = recipe.styles(i);
+    const bool a_visible = !a.has_visible() || a.visible(), b_visible = !b.has_visible() || b.visible();
+    if (a.value() != b.value() || a_visible != b_visible) return false;
+    if (a_visible && b.has_color() &&
+        (std::abs(a.color().r() - b.color().r()) > 2 / 255.0 || std::abs(a.color().g() - b.color().g()) > 2 / 255.0 ||
+         std::abs(a.color().b() - b.color().b()) > 2 / 255.0)) {
+      return false;
+    }
+  }
+  return true;
+}
+
 // The direction light travels from the scene's first light that has one; else down the view.
 Vec3d LightDirectionOf(const v1::Scene& scene);
 
@@ -308,12 +388,15 @@ Vec3d LightDirectionOf(const v1::Scene& scene) {
 
 }  // namespace
 
-pacs::PresentationState PresentationOf(const v1::Scene& scene, const Volume& volume) {
+pacs::PresentationState PresentationOf(const v1::Scene& scene, const Volume& volume, const std::optional<SegSource>& seg) {
   pacs::PresentationState state;
   const Vec3f extent = volume.extent_mm();
   state.geometry = GeometryOf(scene.camera(), scene.render(), Norm({extent.x, extent.y, extent.z}));
   state.cropping = CroppingOf(scene.clipping(), volume.metadata().direction);
   state.classification = ClassificationOf(scene.transfer_function());
+  if (seg && StylesLabels(scene.labels()) && scene.labels().styles_size() > 0) {
+    state.segmentation = SegmentationOf(scene, *seg, state.classification.sampling_step_mm);
+  }
   state.shading = ShadingOf(scene);
   state.description = scene.transfer_function().preset().empty()
                           ? std::string("cinevol render")
@@ -365,6 +448,10 @@ v1::Scene SceneOf(const pacs::ReadPresentation& read, const std::array<double, 6
     tf.set_preset(state.classification.description);
     *scene.mutable_transfer_function() = std::move(tf);
   }
+  if (state.segmentation) {
+    const v1::Labels labels = LabelsOf(*state.segmentation, state.classification);
+    *scene.mutable_labels() = SameLabels(labels, recipe.labels()) ? recipe.labels() : labels;
+  }
   return scene;
 }
 
@@ -409,6 +496,7 @@ v1::LoadPresentationResponse LoadPresentation(const pacs::DicomWebClient& pacs,
   response.set_series_uid(read.source_series_uid);
   response.set_label(read.state.label);
   response.set_description(read.state.description);
+  if (read.state.segmentation) response.set_labels_series_uid(read.state.segmentation->series_uid);
   if (!read.state.rendered_sop_instance_uid.empty()) {
     v1::StoredObject& rendered = *response.mutable_rendered();
     rendered.set_pacs(pacs.config().name);

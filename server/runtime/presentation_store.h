@@ -23,10 +23,19 @@
 
 namespace cinevol::service {
 
+// The DICOM SEG a volume's labels came from (a series of the same study on the same PACS).
+struct SegSource {
+  std::string sop_instance_uid;
+  std::string series_uid;
+};
+
 // What of `scene` a presentation state says. `scene` is in patient coordinates (frame PATIENT_LPS) with its transfer
 // function as points (ExpandTransferFunction), its render size that of the still; `volume` is what it shows (its
-// axes decide whether a crop box is a bounding box or six planes; its extent the far distance).
-pacs::PresentationState PresentationOf(const v1::Scene& scene, const Volume& volume);
+// axes decide whether a crop box is a bounding box or six planes; its extent the far distance). Where the scene
+// styles labels that came from `seg`, the segments through it (the Segmented kind): each visible style in its colour
+// and opacity over the image's transfer function (a label's own transfer function stays in the recipe).
+pacs::PresentationState PresentationOf(const v1::Scene& scene, const Volume& volume,
+                                       const std::optional<SegSource>& seg = std::nullopt);
 
 // The scene `read` presents, in patient coordinates (frame PATIENT_LPS, no volume). `volume_axes` are the input
 // series' row and column directions (Image Orientation (Patient)), the axes of a bounding box. Throws InputError for

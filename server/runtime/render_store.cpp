@@ -55,9 +55,23 @@ pacs::SourceStudy StudyOf(const pacs::DicomWebClient& from, const PacsOrigin& or
   return study;
 }
 
+namespace {
+
+// The SEG the volume's labels came from, where it is a series of the study on the same PACS (its one instance).
+std::optional<SegSource> SegOf(const pacs::DicomWebClient& from, const PacsOrigin& origin,
+                               const std::string& labels_source, const std::atomic<bool>* cancel) {
+  const std::optional<PacsOrigin> seg = ParsePacsSource(labels_source);
+  if (!seg || seg->pacs != origin.pacs || seg->study_uid != origin.study_uid) return std::nullopt;
+  const std::vector<pacs::InstanceSummary> instances = from.ListInstances(seg->study_uid, seg->series_uid, cancel);
+  if (instances.size() != 1) return std::nullopt;
+  return SegSource{instances.front().sop_instance_uid, seg->series_uid};
+}
+
+}  // namespace
+
 void StoreRender(const pacs::DicomWebClient& to, const pacs::DicomWebClient& from, const PacsOrigin& origin,
-                 v1::SnapshotResponse& still, const v1::Scene& scene, const Volume& volume, const std::string& version,
-                 const std::atomic<bool>* cancel) {
+                 v1::SnapshotResponse& still, const v1::Scene& scene, const Volume& volume,
+                 const std::string& labels_source, const std::string& version, const std::atomic<bool>* cancel) {
   const ImageRgb8 image = DecodePng({still.image().begin(), still.image().end()});
   // The recipe is the scene as a scene file says it: in patient coordinates
   // (frame PATIENT_LPS, so it does not depend on how a reader centres the
@@ -85,7 +99,8 @@ void StoreRender(const pacs::DicomWebClient& to, const pacs::DicomWebClient& fro
   pacs::PresentationStateUids presentation_uids;
   if (volume.metadata().orientation_override.empty()) {
     *recipe_scene.mutable_transfer_function() = ExpandTransferFunction(scene.transfer_function(), volume);
-    pacs::PresentationState state = PresentationOf(recipe_scene, volume);
+    pacs::PresentationState state =
+        PresentationOf(recipe_scene, volume, SegOf(from, origin, labels_source, cancel));
     state.rendered_sop_class_uid = pacs::kSecondaryCaptureSopClass;
     state.rendered_sop_instance_uid = capture_uids.sop_instance_uid;
     state.rendered_series_uid = capture_uids.series_uid;

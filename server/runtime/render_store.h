@@ -42,11 +42,14 @@ v1::StoredObject StoredObjectOf(const pacs::DicomWebClient& to, const std::strin
 // volume-centred, of `volume`; `version`), and beside it, in the same STOW-RS,
 // a Volume Rendering Volumetric Presentation State that renders it again
 // (presentation_store.h; not where the volume's orientation was overridden,
-// as its patient coordinates are then not the series'). Sets `still.stored`
-// and `still.presentation`. Throws PacsError, InputError, Cancelled.
+// as its patient coordinates are then not the series'), its label styles
+// through the DICOM SEG the labels came from where that is a series of the
+// same study (`labels_source`, VolumeInfo.labels.source). Sets
+// `still.stored` and `still.presentation`. Throws PacsError, InputError,
+// Cancelled.
 void StoreRender(const pacs::DicomWebClient& to, const pacs::DicomWebClient& from, const PacsOrigin& origin,
-                 v1::SnapshotResponse& still, const v1::Scene& scene, const Volume& volume, const std::string& version,
-                 const std::atomic<bool>* cancel);
+                 v1::SnapshotResponse& still, const v1::Scene& scene, const Volume& volume,
+                 const std::string& labels_source, const std::string& version, const std::atomic<bool>* cancel);
 
 // Stores `movie` (an H.264 stream) on `to` in the study `origin` names, as a
 // DICOM Multi-frame True Color Secondary Capture (pacs/video_capture.h).

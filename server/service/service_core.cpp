@@ -536,12 +536,13 @@ ServiceCore::SnapshotDone ServiceCore::StoreAfter(const v1::SnapshotRequest& req
   const auto from = pacs_.Find(origin->pacs, caller, "store_to");
   auto finish = std::make_shared<SnapshotDone>(std::move(done));  // called once, whoever runs it
   std::shared_ptr<const Volume> volume_held = session.volume()->volume();
-  return [this, to, from, origin = *origin, scene, volume_held, cancel, finish](grpc::Status status,
-                                                                               v1::SnapshotResponse still) {
+  const std::string labels_source = volume.has_labels() ? volume.labels().source() : std::string();
+  return [this, to, from, origin = *origin, scene, volume_held, labels_source, cancel,
+          finish](grpc::Status status, v1::SnapshotResponse still) {
     if (!status.ok()) return (*finish)(std::move(status), std::move(still));
     const bool queued = pacs_calls_.Submit([=, still = std::move(still)]() mutable {
       const grpc::Status stored = Guarded([&] {
-        StoreRender(*to, *from, origin, still, scene, *volume_held, CINEVOL_VERSION, cancel.get());
+        StoreRender(*to, *from, origin, still, scene, *volume_held, labels_source, CINEVOL_VERSION, cancel.get());
       });
       (*finish)(stored, stored.ok() ? std::move(still) : v1::SnapshotResponse());
     });

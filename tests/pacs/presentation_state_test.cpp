@@ -213,6 +213,7 @@ std::vector<std::string> ConformanceProblems(const std::string& bytes) {
     if (d.Find(item, tag) == nullptr) problems.push_back(fmt::format("{}: Type 2 {} missing", where, TagName(tag)));
   };
   const Part10Item& root = d.root();
+  const bool segmented = d.Text(root, 0x00080016).value_or("") == kSegmentedVolumeRenderingPresentationSopClass;
   for (std::uint32_t tag : {0x00100010u, 0x00100020u, 0x00100030u, 0x00100040u}) type2(root, tag, "Patient");
   type1(root, 0x0020000D, "General Study");
   for (std::uint32_t tag : {0x00080020u, 0x00080030u, 0x00080090u, 0x00200010u, 0x00080050u}) {
@@ -240,16 +241,20 @@ std::vector<std::string> ConformanceProblems(const std::string& bytes) {
     }
   }
   const std::vector<const Part10Item*> inputs = d.Items(root, 0x00701201);
-  if (inputs.size() != 1) problems.push_back("B.5.1.24: one input item");
+  if (!segmented && inputs.size() != 1) problems.push_back("B.5.1.24: one input item");
+  bool crops = d.Text(root, 0x0070120B).value_or("") == "YES";
   for (const Part10Item* input : inputs) {
     for (std::uint32_t tag : {0x00701207u, 0x00701209u, 0x00701204u, 0x00281050u, 0x00281051u}) {
       type1(*input, tag, "Input item");
     }
-    if (d.Text(*input, 0x00701204).value_or("") != "NO") problems.push_back("B.5.1.24: Crop NO");
+    const bool crop = d.Text(*input, 0x00701204).value_or("") == "YES";
+    if (!segmented && crop) problems.push_back("B.5.1.24: Crop NO");
+    if (crop) type1(*input, 0x00701205, "Cropping Specification Index (1C: Crop YES)");
+    crops |= crop;
   }
-  if (d.Text(root, 0x0070120B).value_or("") == "YES") {
-    type1(root, 0x0070120C, "Global Cropping Specification Index (1C)");
-    type1(root, 0x00701301, "Volume Cropping (C: Global Crop YES)");
+  if (d.Text(root, 0x0070120B).value_or("") == "YES") type1(root, 0x0070120C, "Global Cropping Specification Index (1C)");
+  if (crops) {
+    type1(root, 0x00701301, "Volume Cropping (C: a crop)");
     for (const Part10Item* spec : d.Items(root, 0x00701301)) {
       for (std::uint32_t tag : {0x00701309u, 0x00701302u}) type1(*spec, tag, "Volume Cropping item");
       const std::string method = d.Text(*spec, 0x00701302).value_or("");
@@ -261,6 +266,11 @@ std::vector<std::string> ConformanceProblems(const std::string& bytes) {
         for (const Part10Item* plane : d.Items(*spec, 0x00701304)) {
           if (d.Floats(*plane, 0x00701305, 5).size() != 4) problems.push_back("Plane: VM 4");
           if (d.Floats(*plane, 0x00701306, 4).size() != 3) problems.push_back("Plane Normal: VM 3");
+        }
+      } else if (method == "INCLUDE_SEG" || method == "EXCLUDE_SEG") {
+        type1(*spec, 0x00081140, "Referenced Image Sequence (1C: a SEG crop)");
+        for (const Part10Item* seg : d.Items(*spec, 0x00081140)) {
+          for (std::uint32_t tag : {0x00081150u, 0x00081155u, 0x0062000Bu}) type1(*seg, tag, "the SEG's reference");
         }
       } else {
         problems.push_back("Volume Cropping Method: " + method);
@@ -283,6 +293,7 @@ std::vector<std::string> ConformanceProblems(const std::string& bytes) {
   for (const Part10Item* stream : streams) {
     type1(*stream, 0x00701209, "Volume Stream item");
     type1(*stream, 0x00701801, "Volume Stream item");
+    if (d.Items(*stream, 0x00701801).size() != inputs.size()) problems.push_back("a component an input");
     for (const Part10Item* component : d.Items(*stream, 0x00701801)) {
       for (std::uint32_t tag : {0x00701802u, 0x00701803u, 0x0028140Fu, 0x00281410u, 0x00281101u, 0x00281102u,
                                 0x00281103u, 0x00281104u, 0x00281201u, 0x00281202u, 0x00281203u, 0x00281204u}) {
@@ -302,6 +313,39 @@ std::vector<std::string> ConformanceProblems(const std::string& bytes) {
     problems.push_back("ICC Profile: not an ICC profile");
   }
   return problems;
+}
+
+// Label styles through the SEG the labels came from (the Segmented kind): each visible style its own palette
+// (INCLUDE_SEG), the styled ones out of the image's (EXCLUDE_SEG); read back as the same styles, with or without
+// cinevol's recipe.
+TEST(PresentationState, LabelStylesGoThroughTheSegTheLabelsCameFrom) {
+  v1::Scene scene = Scene();
+  *scene.mutable_labels() = ParseSceneJson(R"({"labels": {"styles": [
+      {"value": 1, "color": {"r": 1, "g": 0.1, "b": 0.1}, "opacityScale": 0.5}, {"value": 5, "visible": false}]}})")
+                                .labels();
+  const service::SegSource seg{"2.25.3400574.1", "2.25.3400574"};
+  PresentationState state = service::PresentationOf(scene, TestVolume(), seg);
+  ASSERT_TRUE(state.segmentation);
+  const std::string bytes = MakePresentationState(Study(), Source(), state, "0.9.0");
+  const std::vector<std::string> problems = ConformanceProblems(bytes);
+  EXPECT_TRUE(problems.empty()) << fmt::format("{}", fmt::join(problems, "\n"));
+  const ReadPresentation read = ReadPresentationState(bytes);
+  ASSERT_TRUE(read.state.segmentation);
+  EXPECT_EQ(read.state.segmentation->sop_instance_uid, seg.sop_instance_uid);
+  EXPECT_EQ(read.state.segmentation->series_uid, seg.series_uid);
+  EXPECT_EQ(read.state.segmentation->styled, (std::vector<std::uint16_t>{1, 5}));
+  EXPECT_TRUE(read.state.segmentation->show_unlisted);
+  EXPECT_EQ(service::SceneOf(read, kAxialAxes).labels().DebugString(), scene.labels().DebugString());
+
+  state.recipe_json.clear();  // another system's copy
+  const v1::Labels labels =
+      service::SceneOf(ReadPresentationState(MakePresentationState(Study(), Source(), state, "0.9.0")), kAxialAxes)
+          .labels();
+  ASSERT_EQ(labels.styles_size(), 2);
+  EXPECT_NEAR(labels.styles(0).color().r(), 1, 1e-4);
+  EXPECT_NEAR(labels.styles(0).color().g(), 0.1, 1e-4);
+  EXPECT_NEAR(labels.styles(0).opacity_scale(), 0.5, 1e-3);
+  EXPECT_FALSE(labels.styles(1).visible());
 }
 
 TEST(PresentationState, FollowsTheIodsModuleTables) {

@@ -9,12 +9,18 @@
 #include <gtest/gtest.h>
 
 #include <chrono>
+#include <cmath>
+#include <iterator>
 #include <fstream>
 
+#include "encode/image_codecs.h"
 #include "io/label_volume.h"
 #include "io/volume_loader.h"
+#include "pacs/measurement_requests.h"
 #include "pacs/orthanc_process.h"
+#include "pacs/presentation_state.h"
 #include "pacs/stamped_series.h"
+#include "scene/scene_file.h"
 #include "service/server_process.h"
 #include "service/service_test_support.h"
 #include "support/seg_writer.h"
@@ -219,6 +225,64 @@ TEST_F(SegFromPacs, ASegSeriesLoadsAsTheLabelsOfTheVolumeItSegments) {
   EXPECT_TRUE(WaitFrame(
       *stream, [](const v1::Frame&) { return true; }, 60s))
       << stream->status().error_message();
+}
+
+// A still of the labelled CT stored with --store-to (issue 57): its presentation state is the Segmented kind, the
+// spleen shown red and the liver hidden through the SEG the labels came from. Loaded by its UID it brings back the
+// series, the SEG as its labels and the styles, and renders the same still.
+TEST_F(SegFromPacs, AStillsLabelStylesGoThroughTheSegInItsPresentationState) {
+  Client client = server_->Connect();
+  const v1::VolumeInfo ct = client.LoadSeries(Series(kSegCt.series_uid));
+  client.LoadSeries(Series(kSegSeries, ct.id()));
+  const fs::path scene = scratch_ / "styled.json", first = scratch_ / "first.png", again = scratch_ / "again.png",
+                 presented = scratch_ / "presented.json";
+  std::ofstream(scene) << R"({"transferFunction": {"preset": "ct-soft-tissue"}, "render": {"seed": 7}, "labels":)"
+                       << R"( {"styles": [{"value": 1, "color": {"r": 1, "g": 0.1, "b": 0.1}}, {"value": 5, "visible": false}]}})";
+  const auto cli = [&](std::vector<std::string> args) {
+    args.insert(args.end(), {"--server", server_->address()});
+    return RunProgram(CliPath(), args, scratch_ / "cli.log", 120s);
+  };
+  auto [code, out] = cli({"snapshot", "--volume", ct.id(), "--scene", scene.string(), "--width", "64", "--height",
+                          "48", "--spp", "6", "--out", first.string(), "--store-to", "orthanc"});
+  ASSERT_EQ(code, 0) << out;
+  const std::size_t at = out.find("--presentation ");
+  ASSERT_NE(at, std::string::npos) << out;
+  const std::string state = out.substr(at + 15, out.find(')', at) - at - 15);
+  // The Segmented kind, through the SEG: the spleen shown, the liver taken out of the image's classification.
+  const pacs::DicomWebClient orthanc(orthanc_->Pacs());
+  const pacs::InstanceLocation place = pacs::FindInstance(orthanc, state);
+  const pacs::ReadPresentation stored =
+      pacs::ReadPresentationState(pacs::RetrieveInstance(orthanc, place.study_uid, place.series_uid, state, 16 << 20));
+  ASSERT_TRUE(stored.state.segmentation);
+  EXPECT_EQ(stored.state.segmentation->series_uid, kSegSeries);
+  EXPECT_EQ(stored.state.segmentation->styled, (std::vector<std::uint16_t>{1, 5}));
+  ASSERT_EQ(stored.state.segmentation->shown.size(), 1u);
+  EXPECT_EQ(stored.state.segmentation->shown[0].number, 1);
+  std::tie(code, out) = cli({"pacs", "load", "--pacs", "orthanc", "--presentation", state, "--scene-out",
+                             presented.string()});
+  ASSERT_EQ(code, 0) << out;
+  const v1::Scene shown = LoadSceneFile(presented);
+  ASSERT_EQ(shown.labels().styles_size(), 2) << shown.DebugString();
+  EXPECT_EQ(shown.labels().styles(0).value(), 1u);
+  EXPECT_NEAR(shown.labels().styles(0).color().r(), 1, 0.01);
+  EXPECT_EQ(shown.labels().styles(1).value(), 5u);
+  EXPECT_FALSE(shown.labels().styles(1).visible());
+  EXPECT_EQ(client.DescribeVolume(ct.id()).labels().source(),
+            fmt::format("pacs:orthanc/{}/{}", kSegCt.study_uid, kSegSeries));
+  std::tie(code, out) = cli({"snapshot", "--volume", ct.id(), "--scene", presented.string(), "--width", "64",
+                             "--height", "48", "--spp", "6", "--out", again.string()});
+  ASSERT_EQ(code, 0) << out;
+  const auto read = [](const fs::path& png) {
+    std::ifstream in(png, std::ios::binary);
+    return DecodePng(std::vector<std::uint8_t>(std::istreambuf_iterator<char>(in), {}));
+  };
+  const ImageRgb8 a = read(first), b = read(again);
+  double squared = 0;
+  for (std::size_t i = 0; i < a.bytes.size(); ++i) squared += std::pow(double(a.bytes[i]) - double(b.bytes[i]), 2);
+  const double mse = squared / double(a.bytes.size());
+  const double psnr = mse == 0 ? 99 : 10 * std::log10(255.0 * 255.0 / mse);
+  EXPECT_GE(psnr, 40.0) << "the labelled still rendered again from its presentation state";
+  RecordProperty("psnr_db", std::to_string(psnr));
 }
 
 TEST_F(SegFromPacs, HostileSegsFromThePacsAreRefusedByNameAndTheServerGoesOn) {

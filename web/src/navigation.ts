@@ -28,9 +28,10 @@ export class Navigation {
 
   constructor(private readonly link: PageLink) {}
 
-  /** A new volume's session: Home becomes its first camera. */
+  /** A new volume's session: Home becomes its first camera; until its first state there is none to show. */
   reset(): void {
     this.home = undefined;
+    this.camera = undefined;
     this.turning = false;
   }
 

@@ -111,8 +111,12 @@ export class PacsPanel {
     }
   }
 
-  /** A series as a volume (in `scene` where given); a segmentation as the open volume's labels. */
-  private async load(studyUid: string, seriesUid: string, segmentation: boolean, scene?: Scene): Promise<void> {
+  /**
+   * A series as a volume (in `scene` where given, its labels from the SEG series `labels` where named); a
+   * segmentation as the open volume's labels.
+   */
+  private async load(studyUid: string, seriesUid: string, segmentation: boolean, scene?: Scene,
+                     labels?: string): Promise<void> {
     const { banner, error, loaded } = this.hooks;
     const labelsFor = segmentation ? this.hooks.volumeId() ?? "" : "";
     if (segmentation && !labelsFor) return error("Open the images this segmentation belongs to first.");
@@ -126,7 +130,14 @@ export class PacsPanel {
           banner(`Loading the series: ${p.stage} ${p.instancesDone}/${p.instancesTotal} images`);
         } else if (update.update.case === "volume") {
           banner("");
-          loaded(update.update.value, scene);
+          let volume = update.update.value;
+          if (labels) {
+            for await (const u of this.api.pacs.loadSeries({ pacs: this.pacs(), studyUid, seriesUid: labels,
+                                                             labelsFor: volume.id })) {
+              if (u.update.case === "volume") volume = u.update.value;
+            }
+          }
+          loaded(volume, scene);
         }
       }
     } catch (e) {
@@ -139,7 +150,8 @@ export class PacsPanel {
   private async loadPresentation(studyUid: string, seriesUid: string): Promise<void> {
     try {
       const presented = await this.api.pacs.loadPresentation({ pacs: this.pacs(), studyUid, seriesUid });
-      await this.load(presented.studyUid, presented.seriesUid, false, presented.scene);
+      await this.load(presented.studyUid, presented.seriesUid, false, presented.scene,
+                      presented.labelsSeriesUid || undefined);
     } catch (e) {
       this.hooks.error(plainWords(e));
     }
