@@ -17,13 +17,8 @@
 namespace cinevol::service {
 
 PacsOrigin MeasuredOrigin(const v1::VolumeInfo& volume, const VolumeMetadata& metadata) {
-  const std::optional<PacsOrigin> origin = ParsePacsSource(volume.source());
-  if (!origin) {
-    throw RpcError::FailedPrecondition(
-        fmt::format("volume '{}' did not come from a PACS (it is {}); measurements go back into the study of a "
-                    "series loaded with LoadSeries, in its frame of reference",
-                    volume.id(), LogSafe(volume.source(), 80)));
-  }
+  const PacsOrigin origin = OriginOf(
+      volume, "measurements go back into the study of a series loaded with LoadSeries, in its frame of reference");
   // Resampling (uneven gaps, a tilt) keeps the files' patient coordinates; an orientation given over the files' moves
   // them.
   if (!metadata.orientation_override.empty()) {
@@ -32,7 +27,7 @@ PacsOrigin MeasuredOrigin(const v1::VolumeInfo& volume, const VolumeMetadata& me
                     "those of the series' frame of reference, so its measurements cannot be stored in it",
                     volume.id(), LogSafe(metadata.orientation_override, 16)));
   }
-  return *origin;
+  return origin;
 }
 
 v1::StoredObject StoreMeasurements(const pacs::DicomWebClient& to, const pacs::DicomWebClient& from,

@@ -5,10 +5,12 @@
 #include <google/protobuf/util/json_util.h>
 
 #include "core/error.h"
+#include "core/log_safe.h"
 #include "encode/image_codecs.h"
 #include "pacs/pacs_error.h"
 #include "pacs/measurement_requests.h"
 #include "pacs/secondary_capture.h"
+#include "runtime/errors.h"
 #include "runtime/presentation_store.h"
 #include "scene/presets.h"
 
@@ -26,6 +28,15 @@ std::optional<PacsOrigin> ParsePacsSource(const std::string& source) {
   const std::size_t first = rest.find('/'), second = rest.find('/', first + 1);
   if (first == std::string::npos || second == std::string::npos) return std::nullopt;
   return PacsOrigin{rest.substr(0, first), rest.substr(first + 1, second - first - 1), rest.substr(second + 1)};
+}
+
+PacsOrigin OriginOf(const v1::VolumeInfo& volume, std::string_view why, std::string_view field) {
+  const std::optional<PacsOrigin> origin = ParsePacsSource(volume.source());
+  if (!origin) {
+    throw RpcError::FailedPrecondition(fmt::format("{}volume '{}' did not come from a PACS (it is {}); {}", field,
+                                                   volume.id(), LogSafe(volume.source(), 80), why));
+  }
+  return *origin;
 }
 
 pacs::SourceStudy StudyOf(const pacs::DicomWebClient& from, const PacsOrigin& origin,

@@ -7,6 +7,7 @@
 #include <atomic>
 #include <optional>
 #include <string>
+#include <string_view>
 
 #include "cinevol/v1/scene.pb.h"
 #include "cinevol/v1/service.pb.h"
@@ -26,6 +27,9 @@ struct PacsOrigin {
 std::string PacsSource(const PacsOrigin& origin, const std::string& suffix);
 // Nothing for a source that is not a PACS's.
 std::optional<PacsOrigin> ParsePacsSource(const std::string& source);
+// Where `volume` came from, for an object that goes back into its study; FAILED_PRECONDITION "<field>volume 'ID'
+// did not come from a PACS (it is SOURCE); <why>" for a volume from elsewhere.
+PacsOrigin OriginOf(const v1::VolumeInfo& volume, std::string_view why, std::string_view field = {});
 
 // The patient and study attributes of `origin`'s study as `from` (its PACS)
 // answers them (QIDO-RS), for an object sent back into it (a render, a

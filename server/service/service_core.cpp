@@ -526,18 +526,13 @@ ServiceCore::SnapshotDone ServiceCore::StoreAfter(const v1::SnapshotRequest& req
     throw InputError("store_to: a render goes to a PACS as PNG; leave format unset");
   }
   const v1::VolumeInfo volume = volumes_.Describe(session.volume()->id(), caller);
-  const std::optional<PacsOrigin> origin = ParsePacsSource(volume.source());
-  if (!origin) {
-    throw RpcError::FailedPrecondition(
-        fmt::format("store_to: volume '{}' did not come from a PACS (it is {}); a render goes back into "
-                    "the study of a series loaded with LoadSeries",
-                    volume.id(), LogSafe(volume.source(), 80)));
-  }
-  const auto from = pacs_.Find(origin->pacs, caller, "store_to");
+  const PacsOrigin origin =
+      OriginOf(volume, "a render goes back into the study of a series loaded with LoadSeries", "store_to: ");
+  const auto from = pacs_.Find(origin.pacs, caller, "store_to");
   auto finish = std::make_shared<SnapshotDone>(std::move(done));  // called once, whoever runs it
   std::shared_ptr<const Volume> volume_held = session.volume()->volume();
   const std::string labels_source = volume.has_labels() ? volume.labels().source() : std::string();
-  return [this, to, from, origin = *origin, scene, volume_held, labels_source, cancel,
+  return [this, to, from, origin, scene, volume_held, labels_source, cancel,
           finish](grpc::Status status, v1::SnapshotResponse still) {
     if (!status.ok()) return (*finish)(std::move(status), std::move(still));
     const bool queued = pacs_calls_.Submit([=, still = std::move(still)]() mutable {

@@ -331,15 +331,10 @@ class StoreMovieReactor final : public grpc::ServerReadReactor<v1::StoreMovieChu
         Principal owner;  // the volume is the owner's, whoever presents
         owner.name = session->owner();
         const v1::VolumeInfo volume = core_->volumes().Describe(session->volume()->id(), owner);
-        const std::optional<PacsOrigin> origin = ParsePacsSource(volume.source());
-        if (!origin) {
-          throw RpcError::FailedPrecondition(
-              fmt::format("volume '{}' did not come from a PACS (it is {}); a movie goes back into the study of a "
-                          "series loaded with LoadSeries",
-                          volume.id(), LogSafe(volume.source(), 80)));
-        }
-        const auto from = core_->pacs().Find(origin->pacs, caller_, "header.pacs");
-        *response_ = StoreMovie(*to, *from, *origin, movie_, CINEVOL_VERSION, &slot_->cancel);
+        const PacsOrigin origin =
+            OriginOf(volume, "a movie goes back into the study of a series loaded with LoadSeries");
+        const auto from = core_->pacs().Find(origin.pacs, caller_, "header.pacs");
+        *response_ = StoreMovie(*to, *from, origin, movie_, CINEVOL_VERSION, &slot_->cancel);
       });
       slot_->Release();
       Finish(status);
