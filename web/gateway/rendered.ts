@@ -7,15 +7,24 @@
 //   GET /dicom-web/{pacs}/studies/{study}/series/{series}/instances/{presentation state}/rendered3D
 //       (a Volume Rendering Volumetric Presentation State: the series it presents, in its scene)
 // The series comes through the server's LoadSeries (its limits, cache and reader cage), the picture from a session
-// of the caller's own (their bearer token goes through as it came), which ends with the answer.
+// of the caller's own (their bearer token goes through as it came, or the one a signed URL stands for:
+// signed_urls.ts), which ends with the answer.
 import { create } from "@bufbuild/protobuf";
 import { Code, ConnectError, createClient, type CallOptions, type Transport } from "@connectrpc/connect";
 import { NamedView, SceneFrame, SceneSchema, type Scene } from "../gen/cinevol/v1/scene_pb.js";
-import { ImageFormat, PacsService, SessionService, SlabProjection, SliceAxis } from "../gen/cinevol/v1/service_pb.js";
+import {
+  ImageFormat, PacsService, SessionService, SlabProjection, SliceAxis, type VolumeInfo,
+} from "../gen/cinevol/v1/service_pb.js";
+import { centreIn, decodePng, encodePng } from "./png.js";
+import type { SignedUrls } from "./signed_urls.js";
 
 /** The resource a path names, or undefined for a path that is not one. */
 const PATH =
   /^\/dicom-web\/([A-Za-z0-9_.-]{1,64})\/studies\/([0-9.]{1,64})\/series\/([0-9.]{1,64})(?:\/instances\/([0-9.]{1,64}))?\/(rendered3d|renderedmpr)$/i;
+/** A rendered resource's shape whatever its segments hold (a URL where the PACS name goes, a UID that is not one). */
+const SHAPE = /^\/dicom-web\/(.*)\/studies\/.*\/series\/.*\/(?:rendered3d|renderedmpr)$/is;
+/** The query parameter that carries a signed URL's capability (signed_urls.ts). */
+export const SIGNATURE = "signature";
 
 type Vec = [number, number, number];
 
@@ -33,6 +42,7 @@ export interface RenderedRequest {
   slabMm: number;
   window?: { center: number; width: number };
   viewport: { width: number; height: number };
+  viewportGiven: boolean;  // an MPR without one is at the volume's resolution, with one exactly that size
   quality: number;  // 1 to 100
   accept: "image/jpeg" | "image/png" | "application/dicom+json";
 }
@@ -73,10 +83,19 @@ function mediaType(query: URLSearchParams, acceptHeader: string | undefined): Re
                                : `none of '${asked.join(", ")}' is offered: image/jpeg or image/png`);
 }
 
+/** An MPR is PNG (lossless, as reading needs): PNG or a wildcard among the types asked gets it, else 406. */
+function mprMediaType(query: URLSearchParams, acceptHeader: string | undefined,
+                      chosen: RenderedRequest["accept"]): RenderedRequest["accept"] {
+  if (chosen !== "image/jpeg") return chosen;
+  const asked = (query.get("accept") ?? acceptHeader ?? "*/*").split(",").map((t) => t.split(";")[0].trim());
+  if (asked.some((t) => ["image/png", "image/*", "*/*"].includes(t))) return "image/png";
+  throw new Refusal(406, `none of '${asked.join(", ")}' is offered for an MPR: image/png (lossless)`);
+}
+
 /** The request a URL makes, or a Refusal; undefined where the path is not a rendered resource. */
 export function readRendered(path: string, search: string, acceptHeader?: string): RenderedRequest | undefined {
   const match = PATH.exec(path);
-  if (!match) return undefined;
+  if (!match) return misshapen(path);
   const query = new URLSearchParams(search);
   const kind = match[5].toLowerCase() as RenderedRequest["kind"];
   const presentationUid = match[4];
@@ -99,7 +118,7 @@ export function readRendered(path: string, search: string, acceptHeader?: string
   if (orientation !== undefined && !["a", "p", "r", "l", "h", "f"].includes(orientation)) {
     throw new Refusal(400, `orientation: '${orientation}' is not a, p, r, l, h or f`);
   }
-  const [vw, vh] = numbers(query, "viewport", 2) ?? [512, 512];
+  const asked = numbers(query, "viewport", 2), [vw, vh] = asked ?? [512, 512];
   if (![vw, vh].every((n) => Number.isInteger(n) && n >= 1 && n <= MAX_SIDE)) {
     throw new Refusal(400, `viewport: each side a whole number in [1, ${MAX_SIDE}]`);
   }
@@ -121,7 +140,9 @@ export function readRendered(path: string, search: string, acceptHeader?: string
     method: method as RenderedRequest["method"],
     orientation: orientation as RenderedRequest["orientation"], position: vec(query, "viewpointposition"),
     lookAt: vec(query, "viewpointlookat"), up: vec(query, "viewpointup"), slabMm: slab, window,
-    viewport: { width: vw, height: vh }, quality, accept: mediaType(query, acceptHeader),
+    viewport: { width: vw, height: vh }, viewportGiven: asked !== undefined, quality,
+    accept: kind === "renderedmpr" ? mprMediaType(query, acceptHeader, mediaType(query, acceptHeader))
+                                   : mediaType(query, acceptHeader),
   };
   if ((request.position === undefined) !== (request.lookAt === undefined)) {
     throw new Refusal(400, "viewpointposition and viewpointlookat: give both or neither");
@@ -133,6 +154,21 @@ export function readRendered(path: string, search: string, acceptHeader?: string
   return request;
 }
 
+/** Why a path under /dicom-web/ names no rendered resource (400 for a segment that is not a name, else 404). */
+function misshapen(path: string): undefined {
+  if (!/^\/dicom-web(\/|$)/i.test(path)) return undefined;
+  const quoted = (text: string) => `'${text.length > 80 ? `${text.slice(0, 80)}...` : text}'`;
+  const shape = SHAPE.exec(path);
+  if (shape && !/^[A-Za-z0-9_.-]{1,64}$/.test(shape[1])) {
+    throw new Refusal(400, `pacs: ${quoted(shape[1])} is not a PACS name: one of the server's --pacs names ` +
+                           "(letters, digits, '_', '.', '-'), never an address");
+  }
+  if (shape) throw new Refusal(400, "studies, series, instances: each UID is digits and dots, 64 at most");
+  throw new Refusal(404, `${quoted(path)} is not a rendered resource: ` +
+                         "/dicom-web/{pacs}/studies/{study}/series/{series}[/instances/{instance}]/rendered3D or " +
+                         "renderedmpr (or POST /dicom-web/signed-url)");
+}
+
 const VIEWS: Record<string, NamedView> = {
   a: NamedView.ANTERIOR, p: NamedView.POSTERIOR, r: NamedView.RIGHT, l: NamedView.LEFT, h: NamedView.SUPERIOR,
   f: NamedView.INFERIOR,
@@ -142,7 +178,9 @@ const VIEWS: Record<string, NamedView> = {
 const sppOf = (quality: number) => Math.max(1, Math.round(2 ** (quality / 10)));
 
 const sub = (a: Vec, b: Vec): Vec => [a[0] - b[0], a[1] - b[1], a[2] - b[2]];
+const dot = (a: Vec, b: Vec) => a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
 const cross = (a: Vec, b: Vec): Vec => [a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]];
+const scale = (a: Vec, s: number): Vec => [a[0] * s, a[1] * s, a[2] * s];
 const xyz = (v: Vec) => ({ x: v[0], y: v[1], z: v[2] });
 
 /** A 3D view's scene: its camera in the patient (viewpoint parameters) or a named view; the volume's default preset. */
@@ -153,6 +191,84 @@ function sceneOf(r: RenderedRequest): Scene | undefined {
                                  camera: { eye: xyz(r.position), target: xyz(r.lookAt), up: r.up && xyz(r.up) } });
   }
   return r.orientation ? create(SceneSchema, { camera: { view: VIEWS[r.orientation] } }) : undefined;
+}
+
+/** Where a volume lies in the patient, as VolumeInfo says it. */
+export interface Placement {
+  direction: number[];  // row-major: column c is index axis c's direction in the patient
+  originMm: Vec;        // voxel (0, 0, 0)'s centre, LPS mm
+  spacingMm: Vec;
+  dims: Vec;
+}
+
+export function placementOf(v: VolumeInfo): Placement {
+  const triple = (p: { x: number; y: number; z: number } | undefined): Vec => [p?.x ?? 0, p?.y ?? 0, p?.z ?? 0];
+  return { direction: v.direction.length === 9 ? v.direction : [1, 0, 0, 0, 1, 0, 0, 0, 1],
+           originMm: triple(v.originMm), spacingMm: triple(v.spacingMm), dims: triple(v.dims) };
+}
+
+/** An MPR's plane and sampling, as RenderSlice takes them. */
+export interface MprPlan {
+  point: Vec;        // the look-at point, on the plane (LPS mm)
+  normal: Vec;       // unit, from the viewpoint to the look-at point
+  row: Vec;          // unit, across the normal: the image's rows run along it (the view's right)
+  pixelMm: number;   // 0: the server's own (the volume's smallest spacing, as `cinevol slice`)
+  slabMm: number;    // as asked, or as far as the volume reaches from the plane on its far side
+  slabNote?: string; // what became of a slab thicker than the volume
+}
+
+// The slice's pixels over `span` mm at `pixelMm`, the outermost centres on its ends (server/reading/slice.cpp).
+const pixelsOver = (span: number, pixelMm: number) => Math.round(span / pixelMm) + 1;
+
+/**
+ * The plane of an MPR through the look-at point across the view, the row along the view's right (`viewpointup`,
+ * default the patient's head, up the image), and the pixel size that fits the whole cross-section of the volume
+ * into the viewport with square pixels (the server's own where it already fits exactly, as `cinevol slice` makes
+ * it). A slab reaching past the volume on both sides projects all of it: it is cut to what the volume reaches
+ * (a voxel more), which samples the same voxels, and the note says so.
+ */
+export function planMpr(r: RenderedRequest, volume: Placement): MprPlan {
+  const towards = sub(r.lookAt!, r.position!), length = Math.hypot(...towards);
+  if (!(length > 1e-6)) throw new Refusal(400, "viewpointposition and viewpointlookat are one point: no view");
+  const normal = scale(towards, 1 / length);
+  const across = cross(normal, r.up ?? [0, 0, 1]), acrossLength = Math.hypot(...across);
+  if (!(acrossLength > 1e-3 * Math.hypot(...(r.up ?? [0, 0, 1])))) {
+    throw new Refusal(400, "viewpointup lies along the view (from viewpointposition to viewpointlookat)");
+  }
+  const row = scale(across, 1 / acrossLength), column = cross(normal, row);
+  const corners = cornerCentres(volume);
+  const span = (axis: Vec) => {
+    const t = corners.map((c) => dot(sub(c, r.lookAt!), axis));
+    return { lo: Math.min(...t), hi: Math.max(...t) };
+  };
+  const plan: MprPlan = { point: r.lookAt!, normal, row, pixelMm: 0, slabMm: r.slabMm };
+  const depth = span(normal), reach = Math.max(depth.hi, -depth.lo) + Math.max(...volume.spacingMm);
+  if (r.slabMm / 2 > reach) {
+    plan.slabMm = 2 * reach;
+    plan.slabNote = `mprslab: ${r.slabMm} mm reaches past the volume, which lies within ` +
+                    `${Math.max(depth.hi, -depth.lo).toFixed(1)} mm of the plane: the slab projects all of it`;
+  }
+  if (!r.viewportGiven) return plan;
+  const wide = span(row), tall = span(column), { width, height } = r.viewport;
+  const own = Math.min(...volume.spacingMm);
+  if (own > 0 && pixelsOver(wide.hi - wide.lo, own) === width && pixelsOver(tall.hi - tall.lo, own) === height) {
+    return plan;
+  }
+  const fitted = Math.max((wide.hi - wide.lo) / Math.max(width - 1, 1), (tall.hi - tall.lo) / Math.max(height - 1, 1));
+  plan.pixelMm = Math.min(1e4, Math.max(1e-3, fitted));
+  return plan;
+}
+
+/** The patient positions of the volume's eight outermost voxel centres. */
+function cornerCentres(v: Placement): Vec[] {
+  const corners: Vec[] = [];
+  for (let i = 0; i < 8; ++i) {
+    const mm = [0, 1, 2].map((a) => ((i >> a) & 1 ? v.dims[a] - 1 : 0) * v.spacingMm[a]);
+    corners.push([0, 1, 2].map((row) => v.originMm[row] +
+                                        dot([v.direction[3 * row], v.direction[3 * row + 1], v.direction[3 * row + 2]],
+                                            mm as Vec)) as Vec);
+  }
+  return corners;
 }
 
 /** The standard's status for a failure the server reported. */
@@ -169,6 +285,7 @@ export function statusOf(e: unknown): { status: number; message: string } {
 export interface Rendered {
   type: string;
   body: Buffer;
+  warning?: string;  // said in a Warning header (299), as PS3.18 does for a parameter the answer departs from
 }
 
 /** Renders `r` with the server behind `transport`, as the caller whose Authorization header is `authorization`. */
@@ -186,10 +303,14 @@ export async function render(transport: Transport, r: RenderedRequest, authoriza
     scene = presented.scene;
     if (scene && scene.camera && (r.position || r.orientation)) scene.camera = sceneOf(r)?.camera ?? scene.camera;
   }
-  let volumeId = "";
+  let volume: VolumeInfo | undefined;
   for await (const update of pacs.loadSeries({ pacs: r.pacs, ...series }, call)) {
-    if (update.update.case === "volume") volumeId = update.update.value.id;
+    if (update.update.case === "volume") volume = update.update.value;
   }
+  if (!volume) throw new Refusal(502, "the server loaded the series but did not say which volume it made");
+  // An MPR's plane is checked before a session is made for it.
+  const plan = r.kind === "renderedmpr" ? planMpr(r, placementOf(volume)) : undefined;
+  const volumeId = volume.id;
   const created = await sessions.createSession({
     volumeId, viewport: { width: r.viewport.width, height: r.viewport.height },
     initial: scene ? { case: "scene", value: scene } : { case: undefined },
@@ -203,16 +324,17 @@ export async function render(transport: Transport, r: RenderedRequest, authoriza
       }, call);
       return { type: r.accept, body: Buffer.from(still.image) };
     }
-    const normal = sub(r.lookAt!, r.position!);
     const slice = await sessions.renderSlice({
-      sessionId: created.sessionId, axis: SliceAxis.OBLIQUE, point: xyz(r.lookAt!), normal: xyz(normal),
-      row: xyz(cross(normal, r.up ?? [0, 0, 1])), slabMm: r.slabMm,
+      sessionId: created.sessionId, axis: SliceAxis.OBLIQUE, point: xyz(plan!.point), normal: xyz(plan!.normal),
+      row: xyz(plan!.row), slabMm: plan!.slabMm, pixelMm: plan!.pixelMm,
       projection: { maximum_ip: SlabProjection.MAXIMUM, minimum_ip: SlabProjection.MINIMUM,
                     average_ip: SlabProjection.MEAN, volume_rendered: SlabProjection.MAXIMUM }[r.method],
       ...(r.window ? { window: r.window.width, level: r.window.center } : {}),
     }, call);
-    if (r.accept === "image/jpeg") throw new Refusal(406, "an MPR is offered as image/png");
-    return { type: "image/png", body: Buffer.from(slice.png) };
+    const { width, height } = r.viewport;
+    const fits = !r.viewportGiven || (slice.width === width && slice.height === height);
+    return { type: "image/png", warning: plan!.slabNote,
+             body: fits ? Buffer.from(slice.png) : encodePng(centreIn(decodePng(Buffer.from(slice.png)), width, height)) };
   } finally {
     await sessions.closeSession({ sessionId: created.sessionId }, call).catch(() => {});
   }
@@ -226,48 +348,70 @@ function metadata(r: RenderedRequest, scene: Scene | undefined): Rendered {
     "00701602": { vr: "CS", Value: ["PERSPECTIVE"] },
     "00701603": fd(camera?.eye), "00701604": fd(camera?.target), "00701605": fd(camera?.up),
     "0070120D": { vr: "CS", Value: [r.method.toUpperCase()] },
-    "00280010": { vr: "US", Value: [r.viewport.height] }, "00280011": { vr: "US", Value: [r.viewport.width] },
+    // An MPR without a viewport is at the volume's resolution: its size is the plane's, not said here.
+    ...(r.kind === "rendered3d" || r.viewportGiven
+      ? { "00280010": { vr: "US", Value: [r.viewport.height] }, "00280011": { vr: "US", Value: [r.viewport.width] } }
+      : {}),
   };
   return { type: "application/dicom+json", body: Buffer.from(JSON.stringify([body])) };
 }
 
 /** What answer() needs of a node request and response (HTTP/1.1 or HTTP/2 alike). */
-interface Request {
+export interface Request {
   url?: string;
   method?: string;
   headers: Record<string, string | string[] | undefined>;
   on(event: "close", listener: () => void): unknown;
 }
-interface Response {
+export interface Response {
   writeHead(status: number, headers: Record<string, string | number>): unknown;
   end(body: Buffer | string): unknown;
   writableEnded: boolean;
 }
 
-/** Answers a rendered-volume request with its picture or the standard's status; false where `req` names none. */
-export function answerRendered(transport: Transport, req: Request, res: Response): boolean {
-  const [path, search = ""] = (req.url ?? "/").split("?", 2);
+/** The resource a signed URL is good for: the path's PACS, study, series, instance and kind (its query may vary). */
+export const scopeOf = (r: RenderedRequest) =>
+  `/dicom-web/${r.pacs}/studies/${r.studyUid}/series/${r.seriesUid}` +
+  `${r.presentationUid ? `/instances/${r.presentationUid}` : ""}/${r.kind === "rendered3d" ? "rendered3D" : "renderedmpr"}`;
+
+/** A request's path and query (the query without its "?"; a "?" inside it stays). */
+export function splitUrl(url: string): [string, string] {
+  const at = url.indexOf("?");
+  return at < 0 ? [url, ""] : [url.slice(0, at), url.slice(at + 1)];
+}
+
+/**
+ * Answers a rendered-volume request with its picture or the standard's status; false where `req` names none. A
+ * request carrying a signed URL's capability (`signature`) is served as the caller who had it made, where `signed`
+ * holds it for this resource.
+ */
+export function answerRendered(transport: Transport, req: Request, res: Response, signed?: SignedUrls): boolean {
+  const [path, search] = splitUrl(req.url ?? "/");
   const header = (name: string) => { const v = req.headers[name]; return Array.isArray(v) ? v.join(",") : v; };
-  let request: RenderedRequest | undefined;
+  let request: RenderedRequest | undefined, authorization = header("authorization");
   try {
     request = readRendered(path, search, header("accept"));
+    if (!request) return false;
+    if (req.method !== "GET") throw new Refusal(405, "a rendered resource answers GET");
+    const capability = new URLSearchParams(search).get(SIGNATURE);
+    if (capability !== null) {
+      if (authorization) throw new Refusal(400, "give a signed URL or an Authorization header, not both");
+      if (!signed) throw new Refusal(401, "this gateway makes no signed URLs");
+      authorization = signed.redeem(capability, scopeOf(request));
+    }
   } catch (e) {
     if (!(e instanceof Refusal)) throw e;
     reply(res, e.status, e.message);
     return true;
   }
-  if (!request) return false;
-  if (req.method !== "GET") {
-    reply(res, 405, "a rendered resource answers GET");
-    return true;
-  }
   const gone = new AbortController();
   req.on("close", () => gone.abort());
-  render(transport, request, header("authorization"), gone.signal).then(
+  render(transport, request, authorization, gone.signal).then(
     (picture) => {
       if (res.writableEnded) return;
       res.writeHead(200, { "content-type": picture.type, "content-length": picture.body.length,
-                           "cache-control": "no-store" });
+                           "cache-control": "no-store", "x-content-type-options": "nosniff",
+                           ...(picture.warning ? { warning: `299 cinevol-web ${JSON.stringify(picture.warning)}` } : {}) });
       res.end(picture.body);
     },
     (e: unknown) => {
@@ -277,7 +421,8 @@ export function answerRendered(transport: Transport, req: Request, res: Response
   return true;
 }
 
-function reply(res: Response, status: number, message: string): void {
-  res.writeHead(status, { "content-type": "text/plain; charset=utf-8", "cache-control": "no-store" });
+export function reply(res: Response, status: number, message: string): void {
+  res.writeHead(status, { "content-type": "text/plain; charset=utf-8", "cache-control": "no-store",
+                          "x-content-type-options": "nosniff" });
   res.end(`${message}\n`);
 }

@@ -1,0 +1,242 @@
+// The DICOMweb origin's rendered resources (gateway/rendered.ts) and their signed URLs (gateway/signed_urls.ts):
+// what is refused before anything is loaded, an MPR's plane and size, and a signed URL served as its caller only
+// for its resource and only until it expires, against an in-memory server.
+import assert from "node:assert/strict";
+import { test } from "node:test";
+import { Code, ConnectError, createRouterTransport } from "@connectrpc/connect";
+import { PacsService, ServerService, SessionService } from "../gen/cinevol/v1/service_pb.js";
+import { centreIn, decodePng, encodePng } from "../gateway/png.js";
+import {
+  answerRendered, planMpr, readRendered, Refusal, scopeOf, type Placement, type RenderedRequest,
+} from "../gateway/rendered.js";
+import { answerSigning, readSigningRequest, SignedUrls, DEFAULT_LIMITS } from "../gateway/signed_urls.js";
+
+const SERIES = "/dicom-web/main/studies/1.2.3/series/1.2.3.4";
+const VIEW = "viewpointposition=0,-500,0&viewpointlookat=0,0,0&viewpointup=0,0,1";
+
+/** The refusal `readRendered` throws for a URL, as status and message. */
+function refusal(url: string, accept?: string): { status: number; message: string } {
+  const [path, search = ""] = url.split("?");
+  try {
+    readRendered(path, search, accept);
+  } catch (e) {
+    if (e instanceof Refusal) return { status: e.status, message: e.message };
+    throw e;
+  }
+  assert.fail(`${url} was not refused`);
+}
+
+test("bad parameters are refused with the standard's status and a message, before anything is loaded", () => {
+  const cases: [string, number, RegExp][] = [
+    [`${SERIES}/rendered3D?renderingmethod=raytraced`, 400, /renderingmethod: 'raytraced' is not/],
+    [`${SERIES}/rendered3D?viewpointposition=NaN,0,0&viewpointlookat=0,0,0`, 400, /viewpointposition: 'NaN,0,0'/],
+    [`${SERIES}/rendered3D?viewpointposition=1e400,0,0&viewpointlookat=0,0,0`, 400, /viewpointposition/],
+    [`${SERIES}/rendered3D?viewport=1000000,1000000`, 400, /viewport: each side a whole number in \[1, 4096\]/],
+    [`${SERIES}/rendered3D?viewport=512`, 400, /viewport: '512' is not 2 numbers/],
+    [`${SERIES}/renderedmpr?${VIEW}&mprslab=1e6`, 400, /mprslab: a thickness in mm, 0 to 1e4/],
+    [`${SERIES}/renderedmpr?${VIEW}&mprslab=NaN`, 400, /mprslab/],
+    [`${SERIES}/rendered3D?quality=0`, 400, /quality: 1 to 100/],
+    [`${SERIES}/rendered3D?orientation=x`, 400, /orientation/],
+    [`${SERIES}/renderedmpr?${VIEW}&window=400,40,sigmoid`, 400, /window: '400,40,sigmoid'/],
+    [`${SERIES}/renderedmpr?${VIEW}&accept=image/jpeg`, 406, /offered for an MPR: image\/png/],
+    ["/dicom-web/http://127.0.0.1:9/pacs/studies/1.2/series/1.2/rendered3D", 400, /pacs: 'http:\/\/127\.0\.0\.1:9\/pacs' is not a PACS name/],
+    ["/dicom-web/http%3A%2F%2F10.0.0.1%2F/studies/1.2/series/1.2/rendered3D", 400, /pacs: .* never an address/],
+    ["/dicom-web/main/studies/1.2/series/1.2';--/rendered3D", 400, /UID is digits and dots/],
+    ["/dicom-web/main/studies/1.2/series/1.2/thumbnail", 404, /is not a rendered resource/],
+    ["/dicom-web/", 404, /is not a rendered resource/],
+  ];
+  for (const [url, status, said] of cases) {
+    const got = refusal(url);
+    assert.equal(got.status, status, `${url}: ${got.message}`);
+    assert.match(got.message, said, url);
+  }
+  assert.equal(readRendered("/index.html", ""), undefined, "the page's own paths are not the origin's");
+});
+
+test("an MPR is PNG: the default, a wildcard or PNG among the types asked", () => {
+  const accept = (header?: string) => readRendered(`${SERIES}/renderedmpr`, VIEW, header)!.accept;
+  assert.equal(accept(), "image/png");
+  assert.equal(accept("*/*"), "image/png");
+  assert.equal(accept("image/jpeg, image/png;q=0.5"), "image/png");
+  assert.equal(refusal(`${SERIES}/renderedmpr?${VIEW}`, "image/jpeg").status, 406);
+  assert.equal(readRendered(`${SERIES}/rendered3D`, "")!.accept, "image/jpeg", "a 3D view stays JPEG by default");
+});
+
+// 100 x 80 x 20 voxels of 1 x 1 x 2 mm, index axes along the patient's: x 0..99, y 0..79, z 0..38 mm.
+const BOX: Placement = { direction: [1, 0, 0, 0, 1, 0, 0, 0, 1], originMm: [0, 0, 0], spacingMm: [1, 1, 2],
+                         dims: [100, 80, 20] };
+const mpr = (query: string) => readRendered(`${SERIES}/renderedmpr`, query) as RenderedRequest;
+const near = (a: number[], b: number[]) => a.every((v, i) => Math.abs(v - b[i]) < 1e-9);
+
+test("an MPR's plane: through the look-at point across the view, rows along the view's right", () => {
+  // From in front of the patient (anterior, -y) looking back, the head up: a coronal plane, the patient's left on
+  // the image's right (+x).
+  const plan = planMpr(mpr("viewpointposition=50,-500,19&viewpointlookat=50,40,19&viewpointup=0,0,1"), BOX);
+  assert.ok(near(plan.normal, [0, 1, 0]) && near(plan.row, [1, 0, 0]), JSON.stringify(plan));
+  assert.deepEqual(plan.point, [50, 40, 19]);
+  assert.equal(plan.pixelMm, 0, "no viewport: the volume's own resolution");
+  assert.throws(() => planMpr(mpr("viewpointposition=0,0,0&viewpointlookat=0,0,0"), BOX), /one point/);
+  assert.throws(() => planMpr(mpr("viewpointposition=0,0,-9&viewpointlookat=0,0,0&viewpointup=0,0,1"), BOX),
+                /viewpointup lies along the view/);
+});
+
+test("an MPR with a viewport: the server's own pixels where they fit it exactly, else the section fitted", () => {
+  const view = "viewpointposition=50,-500,19&viewpointlookat=50,40,19&viewpointup=0,0,1";
+  // The coronal section is 99 x 38 mm between its outermost voxel centres: 100 x 39 pixels of 1 mm.
+  assert.equal(planMpr(mpr(`${view}&viewport=100,39`), BOX).pixelMm, 0);
+  // 50 x 50: the width limits, 99 mm over 49 pixel steps; 30 x 300: the height, 38 mm over 29.
+  assert.ok(Math.abs(planMpr(mpr(`${view}&viewport=50,50`), BOX).pixelMm - 99 / 49) < 1e-9);
+  assert.ok(Math.abs(planMpr(mpr(`${view}&viewport=300,30`), BOX).pixelMm - 38 / 29) < 1e-9);
+  assert.ok(Math.abs(planMpr(mpr(`${view}&viewport=1,1`), BOX).pixelMm - 99) < 1e-9);
+});
+
+test("a slab thicker than the volume projects all of it: cut to what the volume reaches, and said", () => {
+  const view = "viewpointposition=50,-500,19&viewpointlookat=50,40,19&viewpointup=0,0,1";
+  assert.equal(planMpr(mpr(`${view}&mprslab=20`), BOX).slabNote, undefined);
+  const whole = planMpr(mpr(`${view}&mprslab=5000`), BOX);
+  // The volume lies 40 mm behind and 39 mm in front of the plane; a voxel (2 mm) more on each side.
+  assert.equal(whole.slabMm, 2 * (40 + 2));
+  assert.match(whole.slabNote!, /mprslab: 5000 mm reaches past the volume, which lies within 40\.0 mm of the plane/);
+});
+
+test("a slice is centred in the viewport: bordered in black where smaller, cropped evenly where larger", () => {
+  const image = { width: 3, height: 2, channels: 3, pixels: Uint8Array.from({ length: 18 }, (_, i) => i + 1) };
+  const round = decodePng(encodePng(image));
+  assert.deepEqual({ ...round, pixels: [...round.pixels] }, { ...image, pixels: [...image.pixels] });
+  const bordered = centreIn(image, 5, 4);
+  assert.deepEqual([...bordered.pixels.subarray(0, 15)], Array(15).fill(0), "the top row is border");
+  assert.deepEqual([...bordered.pixels.subarray(18, 27)], [1, 2, 3, 4, 5, 6, 7, 8, 9], "row 1 from column 1");
+  assert.deepEqual([...centreIn(image, 1, 1).pixels], [4, 5, 6], "the middle pixel of the top row");
+});
+
+test("a signed URL stands for its caller at its resource until it expires; others are refused", () => {
+  let now = 1_000_000;
+  const urls = new SignedUrls(DEFAULT_LIMITS, () => now);
+  const scope = `${SERIES}/rendered3D`;
+  const { capability, expiresAtMs } = urls.issue("Bearer alice-token", scope, 60);
+  assert.match(capability, /^[A-Za-z0-9_-]{43}$/, "256 random bits, URL-safe");
+  assert.ok(!capability.includes("alice"));
+  assert.equal(expiresAtMs, now + 60_000);
+  assert.equal(urls.redeem(capability, scope), "Bearer alice-token");
+  const refused = (cap: string, at: string) => {
+    try {
+      urls.redeem(cap, at);
+    } catch (e) {
+      return e as Refusal;
+    }
+    assert.fail("not refused");
+  };
+  assert.equal(refused(capability, `${SERIES}/renderedmpr`).status, 403);
+  assert.equal(refused(capability, "/dicom-web/main/studies/1.2.3/series/9.9/rendered3D").status, 403);
+  assert.equal(refused(`${capability.slice(0, -1)}A`, scope).status, 401, "a forged one");
+  now += 60_000;
+  const expired = refused(capability, scope);
+  assert.equal(expired.status, 401);
+  assert.match(expired.message, /expired at/);
+  assert.equal(urls.size, 0, "an expired one is dropped");
+});
+
+test("signed URLs are bounded: per token and overall, expired ones no longer counted", () => {
+  let now = 0;
+  const urls = new SignedUrls({ ...DEFAULT_LIMITS, maxAlive: 3, maxAlivePerToken: 2 }, () => now);
+  urls.issue("Bearer a", "s", 10);
+  urls.issue("Bearer a", "s", 20);
+  assert.throws(() => urls.issue("Bearer a", "s", 10), (e: Refusal) => e.status === 429 && /this token holds 2/.test(e.message));
+  urls.issue("Bearer b", "s", 10);
+  assert.throws(() => urls.issue("Bearer c", "s", 10), (e: Refusal) => e.status === 429 && /gateway holds 3/.test(e.message));
+  now = 10_000;  // a's first and b's expire
+  urls.issue("Bearer a", "s", 10);
+  urls.issue("Bearer c", "s", 10);
+  assert.equal(urls.size, 3);
+});
+
+test("a signing request names a rendered resource by path and whole seconds within the limit", () => {
+  const ok = readSigningRequest(JSON.stringify({ url: `${SERIES}/rendered3d?viewport=64,64`, expiresIn: 300 }),
+                                DEFAULT_LIMITS);
+  assert.deepEqual(ok, { url: `${SERIES}/rendered3d?viewport=64,64`, scope: `${SERIES}/rendered3D`, lifetimeS: 300 });
+  assert.equal(readSigningRequest(JSON.stringify({ url: `${SERIES}/rendered3D` }), DEFAULT_LIMITS).lifetimeS, 60);
+  for (const [body, said] of [
+    ["{", /not JSON/],
+    [JSON.stringify({ url: `http://127.0.0.1:1${SERIES}/rendered3D` }), /no scheme or host/],
+    [JSON.stringify({ url: `${SERIES}/rendered3D`, expiresIn: 301 }), /expiresIn: whole seconds, 1 to 300/],
+    [JSON.stringify({ url: `${SERIES}/rendered3D`, expiresIn: 0.5 }), /expiresIn/],
+    [JSON.stringify({ url: `${SERIES}/rendered3D?signature=x` }), /already carries a signature/],
+    [JSON.stringify({ url: `${SERIES}/rendered3D?viewport=0,0` }), /url: viewport/],
+    [JSON.stringify({ url: "/dicom-web/signed-url" }), /url: .* is not a rendered resource/],
+  ] as [string, RegExp][]) {
+    assert.throws(() => readSigningRequest(body, DEFAULT_LIMITS), (e: Refusal) => e.status === 400 && said.test(e.message),
+                  body);
+  }
+});
+
+/** A server in memory: alice's token is known; a still is the caller's token as text. */
+const server = () => createRouterTransport((router) => {
+  const caller = (headers: Headers) => {
+    const token = headers.get("authorization");
+    if (token !== "Bearer alice-token") throw new ConnectError("the bearer token is not valid", Code.Unauthenticated);
+    return token;
+  };
+  router.service(ServerService, { getStatus: (_, ctx) => (caller(ctx.requestHeader), {}) });
+  router.service(PacsService, {
+    async *loadSeries(_, ctx) {
+      caller(ctx.requestHeader);
+      yield { update: { case: "volume", value: { id: "pacs-volume" } } };
+    },
+  });
+  router.service(SessionService, {
+    createSession: (_, ctx) => (caller(ctx.requestHeader), { sessionId: "s1" }),
+    snapshot: (_, ctx) => ({ image: Buffer.from(`still for ${caller(ctx.requestHeader)}`) }),
+    closeSession: () => ({}),
+  });
+});
+
+interface Answer { status: number; headers: Record<string, string | number>; body: string }
+
+/** A node-like request and a response that resolves with what was answered. */
+function exchange(method: string, url: string, headers: Record<string, string>, body = "") {
+  let done!: (a: Answer) => void;
+  const answered = new Promise<Answer>((r) => { done = r; });
+  let status = 0, sent: Record<string, string | number> = {};
+  const res = {
+    writableEnded: false,
+    writeHead: (s: number, h: Record<string, string | number>) => { status = s; sent = h; },
+    end(b: Buffer | string) { this.writableEnded = true; done({ status, headers: sent, body: String(b) }); },
+  };
+  const req = { url, method, headers, on: () => req, async *[Symbol.asyncIterator]() { yield Buffer.from(body); } };
+  return { req, res, answered };
+}
+
+test("through the gateway's handlers: a signed URL is made for a valid token and served with no header", async () => {
+  const transport = server(), urls = new SignedUrls();
+  const sign = async (authorization: string, asked: object) => {
+    const { req, res, answered } = exchange("POST", "/dicom-web/signed-url", { authorization }, JSON.stringify(asked));
+    assert.ok(answerSigning(transport, urls, req, res));
+    return answered;
+  };
+  const get = async (url: string, headers: Record<string, string> = {}) => {
+    const { req, res, answered } = exchange("GET", url, headers);
+    assert.ok(answerRendered(transport, req, res, urls));
+    return answered;
+  };
+  const made = await sign("Bearer alice-token", { url: `${SERIES}/rendered3D?viewport=64,48`, expiresIn: 30 });
+  assert.equal(made.status, 200, made.body);
+  const { url, expiresIn } = JSON.parse(made.body) as { url: string; expiresIn: number };
+  assert.equal(expiresIn, 30);
+  assert.ok(url.startsWith(`${SERIES}/rendered3D?viewport=64,48&signature=`) && !url.includes("alice"), url);
+  const still = await get(url);
+  assert.equal(still.status, 200, still.body);
+  assert.equal(still.body, "still for Bearer alice-token", "served as alice");
+  assert.equal((await get(url.replace("viewport=64,48", "viewport=32,32"))).status, 200, "its query may differ");
+  assert.equal((await get(url.replace("rendered3D", "renderedmpr") + `&${VIEW}`)).status, 403);
+  assert.equal((await get(url.replace(/signature=.*/, "signature=forged"))).status, 401);
+  assert.equal((await get(url, { authorization: "Bearer alice-token" })).status, 400, "a signature or a header");
+  assert.equal((await sign("Bearer mallory", { url: `${SERIES}/rendered3D` })).status, 401, "a token the server refuses");
+  assert.equal(urls.size, 1, "nothing held for a refused token");
+  const unsigned = exchange("POST", "/dicom-web/signed-url", {}, JSON.stringify({ url: `${SERIES}/rendered3D` }));
+  answerSigning(transport, urls, unsigned.req, unsigned.res);
+  assert.equal((await unsigned.answered).status, 401);
+  const fetched = exchange("GET", "/dicom-web/signed-url", { authorization: "Bearer alice-token" });
+  answerSigning(transport, urls, fetched.req, fetched.res);
+  assert.equal((await fetched.answered).status, 405);
+  assert.equal(scopeOf(readRendered(`${SERIES}/rendered3d`, "")!), `${SERIES}/rendered3D`);
+});
