@@ -87,7 +87,8 @@ export async function upload(orthanc: Orthanc, files: string[]): Promise<void> {
   }
 }
 
-function authorization(orthanc: Orthanc): Record<string, string> {
+/** The Authorization header that opens Orthanc's REST and DICOMweb APIs. */
+export function authorization(orthanc: Orthanc): Record<string, string> {
   return { Authorization: `Basic ${Buffer.from(`${USER}:${orthanc.password}`).toString("base64")}` };
 }
 

@@ -6,6 +6,11 @@
 // which the re-listed series show as "PR" and which opens in the still's
 // scene; the page's own measurement stored as an SR that a new session of the
 // CT reads back; a DICOM SEG of the CT (seg_fixture.ts) opened as its labels.
+// The DICOMweb origin (gateway/rendered.ts): each kind by URL, bad parameters
+// refused with nothing touched, a third-party client (dicomweb-client) reading
+// the series from Orthanc and its renderings from cinevol-web, an MPR that is
+// `cinevol slice` of the same plane, and signed URLs for <img> against a
+// second server that needs tokens.
 // Run directly (node pacs.test.mjs): exit 77 (skipped) without chromium or
 // the shared data, a failure without Orthanc (CI must run it).
 import assert from "node:assert/strict";
@@ -14,14 +19,17 @@ import { existsSync, mkdirSync, readdirSync, readFileSync, rmSync, writeFileSync
 import { join } from "node:path";
 import { promisify } from "node:util";
 import { after, before, test } from "node:test";
+import { api as dicomweb } from "dicomweb-client";
 import { chromium, type Browser, type Page } from "playwright-core";
 import {
   ARTIFACTS, CHROMIUM, CHROMIUM_ARGS, drag, SERVER, status, until, WAIT, waitForText, WEB, type PageStatus, type V,
 } from "./page_harness.js";
 import {
-  credentialsLine, dicomWeb, stampCt, startOrthanc, stopOrthanc, upload, whatIsMissing, type Orthanc,
+  authorization, credentialsLine, dicomWeb, stampCt, startOrthanc, stopOrthanc, upload, whatIsMissing, type Orthanc,
 } from "./orthanc.js";
-import { scratch, startWithPortFile, stop, type Running } from "./processes.js";
+import { decodePng } from "./png.js";
+import { scratch, startWithPortFile, stop, tokensFile, type Running } from "./processes.js";
+import { FetchXhr } from "./xhr.js";
 import { ctSlice, dicomLab, segmentationFile, type SegFrame, type Vec3 } from "./seg_fixture.js";
 
 const SHARED_DATA = process.env.CINEVOL_SHARED_DATA ?? "";
@@ -38,7 +46,8 @@ const CT = { studyUid: "2.25.3410501", seriesUid: "2.25.3410501.1", patientId: "
 const STILL_SCENE = { frame: "PATIENT_LPS", transferFunction: { preset: "ct-bone" },
                       camera: { eye: { x: 40, y: -700, z: -785 }, target: { x: 0, y: -150, z: -785 }, fovYDeg: 25 } };
 
-const run = {} as { orthanc: Orthanc; server: Running; gateway: Running; browser: Browser; page: Page };
+const run = {} as { orthanc: Orthanc; server: Running; gateway: Running; browser: Browser; page: Page;
+                    tokenServer?: Running; tokenGateway?: Running };
 
 before(async () => {
   const missing = whatIsMissing(LOOPBACK_BIND);
@@ -62,6 +71,8 @@ after(async () => {
   await run.browser?.close().catch(() => {});
   await stop(run.gateway);
   await stop(run.server);
+  await stop(run.tokenGateway);
+  await stop(run.tokenServer);
   await stopOrthanc(run.orthanc);
   for (const made of ["orthanc", "stamped", "seg.dcm"]) rmSync(join(scratch, made), { recursive: true, force: true });
 });
@@ -160,19 +171,165 @@ test("the DICOMweb origin renders the series by URL: 3D as JPEG and PNG, an MPR 
                           { headers: { accept: "image/png" } });
   assert.equal(mpr.status, 200, await mpr.clone().text());
   assert.ok(pngSize(Buffer.from(await mpr.arrayBuffer())).width > 100, "a slab across the CT");
+  // The issue's bad parameters: each refused with the standard's status and a message, and nothing else touched
+  // (no session made or left, no volume loaded).
+  const origin = `http://127.0.0.1:${run.gateway.port}/dicom-web`;
+  const held = await serverHolds();
   for (const [url, status, said] of [
     [`${series}/rendered3D?renderingmethod=maximum_ip`, 400, "renderingmethod"],
+    [`${series}/rendered3D?renderingmethod=raytraced`, 400, "renderingmethod: 'raytraced' is not"],
     [`${series}/rendered3D?viewport=0,10`, 400, "viewport"],
+    [`${series}/rendered3D?viewport=1000000,1000000`, 400, "viewport: each side a whole number in [1, 4096]"],
+    [`${series}/rendered3D?viewpointposition=NaN,0,0&viewpointlookat=0,0,0`, 400, "viewpointposition: 'NaN,0,0'"],
+    [`${series}/renderedmpr?viewpointposition=0,0,NaN&viewpointlookat=0,0,0`, 400, "viewpointposition"],
+    [`${series}/renderedmpr?${view}&mprslab=1e6`, 400, "mprslab: a thickness in mm, 0 to 1e4"],
     [`${series}/renderedmpr?renderingmethod=average_ip`, 400, "viewpointposition"],
+    [`${series}/renderedmpr?${view}&accept=image/jpeg`, 406, "image/png"],
     [`${series}/rendered3D?accept=video/mp4`, 406, "video"],
-    [`http://127.0.0.1:${run.gateway.port}/dicom-web/orthanc/studies/${CT.studyUid}/series/2.25.999/rendered3D`, 404, ""],
-    [`http://127.0.0.1:${run.gateway.port}/dicom-web/nope/studies/1.2/series/1.2/rendered3D`, 400, "nope"],
+    [`${origin}/orthanc/studies/${CT.studyUid}/series/2.25.999/rendered3D`, 404, ""],
+    [`${origin}/nope/studies/1.2/series/1.2/rendered3D`, 400, "nope"],
+    [`${origin}/http://127.0.0.1:9/dicom-web/studies/1.2/series/1.2/rendered3D`, 400, "is not a PACS name"],
+    [`${origin}/${encodeURIComponent("http://127.0.0.1:9/")}/studies/1.2/series/1.2/rendered3D`, 400, "never an address"],
+    [`${origin}/orthanc/studies/${CT.studyUid}/series/${CT.seriesUid}/thumbnail`, 404, "not a rendered resource"],
   ] as [string, number, string][]) {
     const answer = await fetch(url);
     const text = await answer.text();
     assert.equal(answer.status, status, `${url}: ${text}`);
     assert.ok(text.includes(said), `${url}: ${text}`);
   }
+  assert.deepEqual(await serverHolds(), held, "the refusals left the server as it was");
+});
+
+test("a third-party DICOMweb client reads the series from Orthanc and its renderings from cinevol-web", async () => {
+  // dicomweb-client (npm) speaks XMLHttpRequest, which node has not: a small one over fetch (xhr.ts).
+  (globalThis as { XMLHttpRequest?: unknown }).XMLHttpRequest = FetchXhr;
+  const pacs = new dicomweb.DICOMwebClient({ url: dicomWeb(run.orthanc), headers: authorization(run.orthanc),
+                                             verbose: false, singlepart: false });
+  const instances = await pacs.retrieveSeriesMetadata({ studyInstanceUID: CT.studyUid,
+                                                        seriesInstanceUID: CT.seriesUid, request: {} });
+  assert.equal(instances.length, 20, "the series' 20 images");
+  const value = (i: number, tag: string) => (instances[i] as Record<string, { Value: number[] }>)[tag].Value;
+  const zs = instances.map((_, i) => value(i, "00200032")[2]);
+  const [x0, y0] = value(0, "00200032"), [rowMm, columnMm] = value(0, "00280030");
+  const columns = value(0, "00280011")[0], rows = value(0, "00280010")[0];
+  // The middle of the series, from what the PACS says of it: the look-at point of the views below.
+  const middle = [x0 + ((columns - 1) * columnMm) / 2, y0 + ((rows - 1) * rowMm) / 2,
+                  (Math.min(...zs) + Math.max(...zs)) / 2];
+  console.log(`# the series from Orthanc: ${columns}x${rows} px, z ${Math.min(...zs)} to ${Math.max(...zs)} mm`);
+
+  // Rendered resources have no method of their own in the client: its generic image and JSON requests.
+  const origin = new dicomweb.DICOMwebClient({ url: `http://127.0.0.1:${run.gateway.port}/dicom-web/orthanc`,
+                                               verbose: false, singlepart: false }) as unknown as GenericRequests;
+  const series = `${origin.wadoURL}/studies/${CT.studyUid}/series/${CT.seriesUid}`;
+  const [jpeg] = await origin._httpGetImage(`${series}/rendered3D`, [{ mediaType: "image/jpeg" }],
+                                            { orientation: "a", viewport: "96,64", quality: 20 });
+  const still = Buffer.from(jpeg);
+  assert.deepEqual([still[0], still[1], still.at(-2), still.at(-1)], [0xff, 0xd8, 0xff, 0xd9], "JPEG's SOI and EOI");
+  assert.deepEqual(jpegSize(still), { width: 96, height: 64 });
+  const decoded = await decodedInBrowser(still, "image/jpeg");
+  assert.deepEqual([decoded.width, decoded.height], [96, 64], "Chromium decodes the JPEG");
+  assert.ok(decoded.mean > 1, `the anterior view shows the CT (mean ${decoded.mean})`);
+
+  const view = { viewpointposition: `${middle[0]},${middle[1] - 600},${middle[2]}`,
+                 viewpointlookat: middle.join(","), viewpointup: "0,0,1" };
+  const mprQuery = { renderingmethod: "maximum_ip", mprslab: "10", ...view, window: "400,40,linear",
+                     viewport: "160,120" };
+  const [slab] = await origin._httpGetImage(`${series}/renderedmpr`, [{ mediaType: "image/png" }], mprQuery);
+  const mpr = decodePng(Buffer.from(slab));
+  assert.deepEqual([mpr.width, mpr.height], [160, 120], "the MPR at the viewport's size");
+  assert.ok(mpr.pixels.some((v) => v > 50), "the slab shows the CT");
+  const plain = await fetch(`${series}/renderedmpr?${new URLSearchParams(mprQuery)}`);
+  assert.ok(Buffer.from(await plain.arrayBuffer()).equals(Buffer.from(slab)), "plain fetch, the same slab");
+
+  const used = await origin._httpGetApplicationJson(`${series}/rendered3D`,
+    { ...view, viewport: "96,64", renderedvolumetricmetadata: "yes" }) as Record<string, { Value: unknown[] }>[];
+  assert.equal(used[0]["0070120D"].Value[0], "VOLUME_RENDERED");
+  const target = used[0]["00701604"].Value as number[];
+  assert.ok(target.every((v, k) => Math.abs(v - middle[k]) < 0.05), `the look-at point as asked, in the patient: ${target}`);
+  assert.deepEqual([used[0]["00280011"].Value[0], used[0]["00280010"].Value[0]], [96, 64]);
+});
+
+test("an MPR at the size `cinevol slice` makes of the same plane is its slice; another size fits the section", async () => {
+  const series = `http://127.0.0.1:${run.gateway.port}/dicom-web/orthanc/studies/${CT.studyUid}/series/${CT.seriesUid}`;
+  // A coronal plane seen from in front (the view's right the patient's left), through the CT's slab.
+  const view = "viewpointposition=0,-700,-785&viewpointlookat=0,-150,-785&viewpointup=0,0,1";
+  for (const slabMm of [10, 5000]) {
+    const made = decodePng(await cliSlice(slabMm));
+    const answer = await fetch(`${series}/renderedmpr?renderingmethod=maximum_ip&mprslab=${slabMm}&${view}` +
+                               `&window=400,40,linear&viewport=${made.width},${made.height}`);
+    assert.equal(answer.status, 200, await answer.clone().text());
+    // A slab thicker than the volume is answered (the projection of all of it), and the answer says so.
+    if (slabMm > 1000) assert.match(answer.headers.get("warning") ?? "", /^299 cinevol-web ".*projects all of it"$/);
+    const mpr = decodePng(Buffer.from(await answer.arrayBuffer()));
+    assert.deepEqual([mpr.width, mpr.height, mpr.channels], [made.width, made.height, made.channels]);
+    // The same voxels (the PACS's files are the ones the CLI reads), the same plane and the same slice code
+    // (server/reading/slice.cpp) at the same pixel size: at most a level of rounding apart.
+    const { mean, most } = difference(mpr.pixels, made.pixels);
+    console.log(`# slab ${slabMm} mm: ${made.width}x${made.height} px, mean difference ${mean}, most ${most}`);
+    assert.ok(most <= 1, `slab ${slabMm} mm: the MPR and cinevol slice differ by up to ${most} levels`);
+  }
+  // A square viewport: the section, wider than tall, fitted across it, centred between black bands.
+  const square = decodePng(Buffer.from(await (await fetch(
+    `${series}/renderedmpr?renderingmethod=maximum_ip&mprslab=10&${view}&window=400,40,linear&viewport=200,200`))
+    .arrayBuffer()));
+  assert.deepEqual([square.width, square.height], [200, 200]);
+  const rowLit = (y: number) => square.pixels.subarray(y * 600, (y + 1) * 600).some((v) => v > 0);
+  const lit = [...Array(200).keys()].filter(rowLit);
+  assert.ok(lit.length > 0 && lit.length < 100, `the section is a band (${lit.length} rows)`);
+  assert.ok(Math.abs(lit[0] + lit.at(-1)! - 199) <= 2, `centred: rows ${lit[0]} to ${lit.at(-1)}`);
+});
+
+test("a signed URL serves an <img> with no token, for its resource only, until it expires", async () => {
+  // A server that needs tokens, on the same Orthanc, behind its own gateway.
+  const tokens = tokensFile("alice-token alice\n");
+  run.tokenServer = await startWithPortFile(SERVER, ["--listen", "127.0.0.1:0", "--backend", "cpu",
+    "--auth-tokens", tokens, "--pacs", `orthanc=${dicomWeb(run.orthanc)}`,
+    "--pacs-credentials", join(scratch, "pacs-credentials"), "--pacs-timeout-seconds", "10"], "token-server");
+  run.tokenGateway = await startWithPortFile(WEB, ["--listen", "127.0.0.1:0", "--server",
+                                                   `127.0.0.1:${run.tokenServer.port}`], "token-gateway");
+  const base = `http://127.0.0.1:${run.tokenGateway.port}`;
+  const path = `/dicom-web/orthanc/studies/${CT.studyUid}/series/${CT.seriesUid}/rendered3D`;
+  const sign = (body: object, token = "alice-token") => fetch(`${base}/dicom-web/signed-url`, {
+    method: "POST", headers: { authorization: `Bearer ${token}`, "content-type": "application/json" },
+    body: JSON.stringify(body) });
+  assert.equal((await fetch(`${base}${path}?viewport=64,48`)).status, 401, "the server needs a token");
+
+  const made = await sign({ url: `${path}?orientation=a&viewport=64,48&quality=20&accept=image/png`, expiresIn: 120 });
+  assert.equal(made.status, 200, await made.clone().text());
+  const { url, expires } = await made.json() as { url: string; expires: string };
+  assert.ok(!url.includes("alice-token") && /[?&]signature=[A-Za-z0-9_-]{43}$/.test(url), url);
+  assert.ok(Math.abs(Date.parse(expires) - Date.now() - 120_000) < 10_000, expires);
+  const picture = await fetch(base + url);  // no Authorization header
+  assert.equal(picture.status, 200, await picture.clone().text());
+  assert.deepEqual(decodePng(Buffer.from(await picture.arrayBuffer())).width, 64);
+  // An <img> of a page of another origin (about:blank: no CSP of ours), as a report would hold it.
+  const page = await run.browser.newPage();
+  try {
+    await page.setContent(`<img id="still" src="${base}${url.replace("viewport=64,48", "viewport=40,30")}">`);
+    await page.waitForFunction(() => (document.getElementById("still") as HTMLImageElement).complete, null, WAIT);
+    assert.equal(await page.$eval("#still", (img) => (img as HTMLImageElement).naturalWidth), 40, "the <img> loaded");
+  } finally {
+    await page.close();
+  }
+  const capability = /signature=(.*)$/.exec(url)![1];
+  for (const [asked, status, said] of [
+    [`${path.replace("rendered3D", "renderedmpr")}?viewpointposition=0,-700,-785&viewpointlookat=0,-150,-785` +
+     `&signature=${capability}`, 403, "not this resource"],
+    [`${path.replace(CT.seriesUid, `${CT.seriesUid}.9`)}?signature=${capability}`, 403, "not this resource"],
+    [`${path}?signature=${capability.slice(0, -2)}AA`, 401, "not one this gateway made"],
+  ] as [string, number, string][]) {
+    const answer = await fetch(base + asked);
+    const text = await answer.text();
+    assert.equal(answer.status, status, `${asked}: ${text}`);
+    assert.ok(text.includes(said), `${asked}: ${text}`);
+  }
+  const brief = await (await sign({ url: `${path}?viewport=32,32&quality=1`, expiresIn: 1 })).json() as { url: string };
+  await new Promise((r) => setTimeout(r, 1500));
+  const expired = await fetch(base + brief.url);
+  assert.equal(expired.status, 401);
+  assert.match(await expired.text(), /expired/);
+  assert.equal((await sign({ url: path }, "mallory-token")).status, 401, "a token the server refuses gets none");
+  assert.equal((await sign({ url: path, expiresIn: 3600 })).status, 400, "longer than 300 s");
 });
 
 test("measurements go to the PACS as an SR and come back", async () => {
@@ -245,6 +402,53 @@ test("a DICOM SEG of the study loads as the open volume's labels", async () => {
   assert.ok(!(await page.isVisible("#error")), "no error line");
   await page.screenshot({ path: join(ARTIFACTS, "pacs-6-seg.png") });
 });
+
+/** What dicomweb-client's generic requests answer (private in its types, the way to ask for other resources). */
+interface GenericRequests {
+  wadoURL: string;
+  _httpGetImage(url: string, mediaTypes: { mediaType: string }[], params: object): Promise<ArrayBuffer[]>;
+  _httpGetApplicationJson(url: string, params: object): Promise<unknown>;
+}
+
+/** The server's sessions and volumes, to compare before and after what should touch neither. */
+async function serverHolds(): Promise<{ sessions: number; volumes: string[] }> {
+  const s = await cliJson<{ sessions?: unknown[]; volumes?: { id: string }[] }>(["status"]);
+  return { sessions: s.sessions?.length ?? 0, volumes: (s.volumes ?? []).map((v) => v.id).sort() };
+}
+
+/** A picture decoded by Chromium (createImageBitmap): its size and mean value. */
+async function decodedInBrowser(bytes: Buffer, type: string): Promise<{ width: number; height: number; mean: number }> {
+  return run.page.evaluate(async ([base64, mime]) => {
+    const bitmap = await createImageBitmap(new Blob([Uint8Array.from(atob(base64), (c) => c.charCodeAt(0))],
+                                                    { type: mime }));
+    const canvas = new OffscreenCanvas(bitmap.width, bitmap.height), context = canvas.getContext("2d")!;
+    context.drawImage(bitmap, 0, 0);
+    const rgba = context.getImageData(0, 0, bitmap.width, bitmap.height).data;
+    let sum = 0;
+    for (let i = 0; i < rgba.length; i += 4) sum += rgba[i] + rgba[i + 1] + rgba[i + 2];
+    return { width: bitmap.width, height: bitmap.height, mean: sum / (rgba.length * 0.75) };
+  }, [bytes.toString("base64"), type] as const);
+}
+
+/** `cinevol slice` of the stamped CT (the files Orthanc holds) on the coronal plane the MPR test asks for. */
+async function cliSlice(slabMm: number): Promise<Buffer> {
+  const out = join(ARTIFACTS, `pacs-slice-${slabMm}.png`);
+  await promisify(execFile)(CLI, ["slice", "--volume", join(scratch, "stamped"), "--axis", "oblique",
+    "--point", "0,-150,-785", "--normal", "0,1,0", "--row", "1,0,0", "--window", "400", "--level", "40",
+    "--slab", String(slabMm), "--projection", "max", "--no-labels", "--out", out], { timeout: 120_000 });
+  return readFileSync(out);
+}
+
+/** The mean and largest absolute difference of two pictures' bytes. */
+function difference(a: Uint8Array, b: Uint8Array): { mean: number; most: number } {
+  let sum = 0, most = 0;
+  for (let i = 0; i < a.length; ++i) {
+    const d = Math.abs(a[i] - b[i]);
+    sum += d;
+    most = Math.max(most, d);
+  }
+  return { mean: sum / a.length, most };
+}
 
 /** A baseline or progressive JPEG's size, from its first start-of-frame marker. */
 function jpegSize(jpeg: Buffer): { width: number; height: number } {

@@ -259,14 +259,17 @@ export function planMpr(r: RenderedRequest, volume: Placement): MprPlan {
   return plan;
 }
 
+const add = (a: Vec, b: Vec): Vec => [a[0] + b[0], a[1] + b[1], a[2] + b[2]];
+/** D v: a vector of the volume's index axes (mm) in the patient. */
+const rotate = (p: Placement, v: Vec): Vec =>
+  [0, 1, 2].map((row) => dot([p.direction[3 * row], p.direction[3 * row + 1], p.direction[3 * row + 2]], v)) as Vec;
+
 /** The patient positions of the volume's eight outermost voxel centres. */
 function cornerCentres(v: Placement): Vec[] {
   const corners: Vec[] = [];
   for (let i = 0; i < 8; ++i) {
-    const mm = [0, 1, 2].map((a) => ((i >> a) & 1 ? v.dims[a] - 1 : 0) * v.spacingMm[a]);
-    corners.push([0, 1, 2].map((row) => v.originMm[row] +
-                                        dot([v.direction[3 * row], v.direction[3 * row + 1], v.direction[3 * row + 2]],
-                                            mm as Vec)) as Vec);
+    const mm = [0, 1, 2].map((a) => ((i >> a) & 1 ? v.dims[a] - 1 : 0) * v.spacingMm[a]) as Vec;
+    corners.push(add(v.originMm, rotate(v, mm)));
   }
   return corners;
 }
@@ -316,7 +319,7 @@ export async function render(transport: Transport, r: RenderedRequest, authoriza
     initial: scene ? { case: "scene", value: scene } : { case: undefined },
   }, call);
   try {
-    if (r.accept === "application/dicom+json") return metadata(r, created.scene);
+    if (r.accept === "application/dicom+json") return metadata(r, created.scene, placementOf(volume));
     if (r.kind === "rendered3d") {
       const still = await sessions.snapshot({
         sessionId: created.sessionId, spp: sppOf(r.quality),
@@ -340,13 +343,21 @@ export async function render(transport: Transport, r: RenderedRequest, authoriza
   }
 }
 
-/** The parameters used, as DICOM JSON (PS3.18 Annex K): the view the session resolved, the method and size. */
-function metadata(r: RenderedRequest, scene: Scene | undefined): Rendered {
-  const camera = scene?.camera;
-  const fd = (v: { x: number; y: number; z: number } | undefined) => ({ vr: "FD", Value: v ? [v.x, v.y, v.z] : [] });
+/** The parameters used, as DICOM JSON (PS3.18 Annex K): the view the session resolved (in the patient, LPS mm, as
+ * the viewpoint parameters are), the method and size. */
+function metadata(r: RenderedRequest, scene: Scene | undefined, volume: Placement): Rendered {
+  const camera = scene?.camera, inPatient = scene?.frame === SceneFrame.PATIENT_LPS;
+  const triple = (v: { x: number; y: number; z: number }): Vec => [v.x, v.y, v.z];
+  // The volume-centred frame's point v lies at origin + D (v + (dims - 1) spacing / 2) in the patient.
+  const point = (v: Vec) => add(volume.originMm, rotate(volume, v.map((c, a) =>
+    c + ((volume.dims[a] - 1) * volume.spacingMm[a]) / 2) as Vec));
+  const fd = (v: { x: number; y: number; z: number } | undefined, kind: "point" | "direction") => ({
+    vr: "FD", Value: !v ? [] : inPatient ? triple(v) : kind === "point" ? point(triple(v)) : rotate(volume, triple(v)),
+  });
   const body = {
     "00701602": { vr: "CS", Value: ["PERSPECTIVE"] },
-    "00701603": fd(camera?.eye), "00701604": fd(camera?.target), "00701605": fd(camera?.up),
+    "00701603": fd(camera?.eye, "point"), "00701604": fd(camera?.target, "point"),
+    "00701605": fd(camera?.up, "direction"),
     "0070120D": { vr: "CS", Value: [r.method.toUpperCase()] },
     // An MPR without a viewport is at the volume's resolution: its size is the plane's, not said here.
     ...(r.kind === "rendered3d" || r.viewportGiven
