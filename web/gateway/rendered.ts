@@ -21,8 +21,6 @@ import type { SignedUrls } from "./signed_urls.js";
 /** The resource a path names, or undefined for a path that is not one. */
 const PATH =
   /^\/dicom-web\/([A-Za-z0-9_.-]{1,64})\/studies\/([0-9.]{1,64})\/series\/([0-9.]{1,64})(?:\/instances\/([0-9.]{1,64}))?\/(rendered3d|renderedmpr)$/i;
-/** A rendered resource's shape whatever its segments hold (a URL where the PACS name goes, a UID that is not one). */
-const SHAPE = /^\/dicom-web\/(.*)\/studies\/.*\/series\/.*\/(?:rendered3d|renderedmpr)$/is;
 /** The query parameter that carries a signed URL's capability (signed_urls.ts). */
 export const SIGNATURE = "signature";
 
@@ -158,12 +156,16 @@ export function readRendered(path: string, search: string, acceptHeader?: string
 function misshapen(path: string): undefined {
   if (!/^\/dicom-web(\/|$)/i.test(path)) return undefined;
   const quoted = (text: string) => `'${text.length > 80 ? `${text.slice(0, 80)}...` : text}'`;
-  const shape = SHAPE.exec(path);
-  if (shape && !/^[A-Za-z0-9_.-]{1,64}$/.test(shape[1])) {
-    throw new Refusal(400, `pacs: ${quoted(shape[1])} is not a PACS name: one of the server's --pacs names ` +
+  // A rendered resource's shape whatever its segments hold (a URL where the PACS name goes, a UID that is not
+  // one), found by searching, not by a pattern that could backtrack over a long path.
+  const studies = path.indexOf("/studies/", "/dicom-web/".length);
+  const shaped = studies > 0 && path.indexOf("/series/", studies) > 0 && /\/(?:rendered3d|renderedmpr)$/i.test(path);
+  const pacs = path.slice("/dicom-web/".length, studies);
+  if (shaped && !/^[A-Za-z0-9_.-]{1,64}$/.test(pacs)) {
+    throw new Refusal(400, `pacs: ${quoted(pacs)} is not a PACS name: one of the server's --pacs names ` +
                            "(letters, digits, '_', '.', '-'), never an address");
   }
-  if (shape) throw new Refusal(400, "studies, series, instances: each UID is digits and dots, 64 at most");
+  if (shaped) throw new Refusal(400, "studies, series, instances: each UID is digits and dots, 64 at most");
   throw new Refusal(404, `${quoted(path)} is not a rendered resource: ` +
                          "/dicom-web/{pacs}/studies/{study}/series/{series}[/instances/{instance}]/rendered3D or " +
                          "renderedmpr (or POST /dicom-web/signed-url)");

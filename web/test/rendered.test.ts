@@ -51,6 +51,10 @@ test("bad parameters are refused with the standard's status and a message, befor
     assert.match(got.message, said, url);
   }
   assert.equal(readRendered("/index.html", ""), undefined, "the page's own paths are not the origin's");
+  const long = `/dicom-web/${"x/studies/1/series/".repeat(800)}rendered3`;  // 16 KB, as large as node lets a URL be
+  const started = performance.now();
+  assert.equal(refusal(long).status, 404);
+  assert.ok(performance.now() - started < 100, "a long path is refused in linear time");
 });
 
 test("an MPR is PNG: the default, a wildcard or PNG among the types asked", () => {
