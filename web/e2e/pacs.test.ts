@@ -302,10 +302,17 @@ test("a signed URL serves an <img> with no token, for its resource only, until i
   const picture = await fetch(base + url);  // no Authorization header
   assert.equal(picture.status, 200, await picture.clone().text());
   assert.deepEqual(decodePng(Buffer.from(await picture.arrayBuffer())).width, 64);
-  // An <img> of a page of another origin (about:blank: no CSP of ours), as a report would hold it.
+  // An <img> on a page of another origin, as a report would hold it: the other gateway's /healthz, a page with no
+  // policy of ours, on loopback as the signed URL is.
   const page = await run.browser.newPage();
   try {
-    await page.setContent(`<img id="still" src="${base}${url.replace("viewport=64,48", "viewport=40,30")}">`);
+    await page.goto(`http://127.0.0.1:${run.gateway.port}/healthz`);
+    await page.evaluate((src) => {
+      const img = document.createElement("img");
+      img.id = "still";
+      img.src = src;
+      document.body.append(img);
+    }, `${base}${url.replace("viewport=64,48", "viewport=40,30")}`);
     await page.waitForFunction(() => (document.getElementById("still") as HTMLImageElement).complete, null, WAIT);
     assert.equal(await page.$eval("#still", (img) => (img as HTMLImageElement).naturalWidth), 40, "the <img> loaded");
   } finally {
