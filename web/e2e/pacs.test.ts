@@ -232,7 +232,7 @@ test("a third-party DICOMweb client reads the series from Orthanc and its render
 
   const view = { viewpointposition: `${middle[0]},${middle[1] - 600},${middle[2]}`,
                  viewpointlookat: middle.join(","), viewpointup: "0,0,1" };
-  const mprQuery = { renderingmethod: "maximum_ip", mprslab: "10", ...view, window: "400,40,linear",
+  const mprQuery = { renderingmethod: "maximum_ip", mprslab: "10", ...view, window: "40,400,linear",
                      viewport: "160,120" };
   const [slab] = await origin._httpGetImage(`${series}/renderedmpr`, [{ mediaType: "image/png" }], mprQuery);
   const mpr = decodePng(Buffer.from(slab));
@@ -251,16 +251,19 @@ test("a third-party DICOMweb client reads the series from Orthanc and its render
 
 test("an MPR at the size `cinevol slice` makes of the same plane is its slice; another size fits the section", async () => {
   const series = `http://127.0.0.1:${run.gateway.port}/dicom-web/orthanc/studies/${CT.studyUid}/series/${CT.seriesUid}`;
-  // A coronal plane seen from in front (the view's right the patient's left), through the CT's slab.
+  // A coronal plane seen from in front (the view's right the patient's left), through the CT's slab; a soft-tissue
+  // window (PS3.18: window=center,width; the CLI's --window is the width, --level the centre).
   const view = "viewpointposition=0,-700,-785&viewpointlookat=0,-150,-785&viewpointup=0,0,1";
   for (const slabMm of [10, 5000]) {
     const made = decodePng(await cliSlice(slabMm));
     const answer = await fetch(`${series}/renderedmpr?renderingmethod=maximum_ip&mprslab=${slabMm}&${view}` +
-                               `&window=400,40,linear&viewport=${made.width},${made.height}`);
+                               `&window=40,400,linear&viewport=${made.width},${made.height}`);
     assert.equal(answer.status, 200, await answer.clone().text());
     // A slab thicker than the volume is answered (the projection of all of it), and the answer says so.
     if (slabMm > 1000) assert.match(answer.headers.get("warning") ?? "", /^299 cinevol-web ".*projects all of it"$/);
-    const mpr = decodePng(Buffer.from(await answer.arrayBuffer()));
+    const answered = Buffer.from(await answer.arrayBuffer());
+    writeFileSync(join(ARTIFACTS, `pacs-mpr-${slabMm}.png`), answered);
+    const mpr = decodePng(answered);
     assert.deepEqual([mpr.width, mpr.height, mpr.channels], [made.width, made.height, made.channels]);
     // The same voxels (the PACS's files are the ones the CLI reads), the same plane and the same slice code
     // (server/reading/slice.cpp) at the same pixel size: at most a level of rounding apart.
@@ -270,7 +273,7 @@ test("an MPR at the size `cinevol slice` makes of the same plane is its slice; a
   }
   // A square viewport: the section, wider than tall, fitted across it, centred between black bands.
   const square = decodePng(Buffer.from(await (await fetch(
-    `${series}/renderedmpr?renderingmethod=maximum_ip&mprslab=10&${view}&window=400,40,linear&viewport=200,200`))
+    `${series}/renderedmpr?renderingmethod=maximum_ip&mprslab=10&${view}&window=40,400,linear&viewport=200,200`))
     .arrayBuffer()));
   assert.deepEqual([square.width, square.height], [200, 200]);
   const rowLit = (y: number) => square.pixels.subarray(y * 600, (y + 1) * 600).some((v) => v > 0);
