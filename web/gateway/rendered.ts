@@ -15,7 +15,7 @@ import { NamedView, SceneFrame, SceneSchema, type Scene } from "../gen/cinevol/v
 import {
   ImageFormat, PacsService, SessionService, SlabProjection, SliceAxis, type VolumeInfo,
 } from "../gen/cinevol/v1/service_pb.js";
-import { centreIn, decodePng, encodePng } from "./png.js";
+import { fitPng } from "./png.js";
 import type { SignedUrls } from "./signed_urls.js";
 
 /** The resource a path names, or undefined for a path that is not one. */
@@ -339,7 +339,7 @@ export async function render(transport: Transport, r: RenderedRequest, authoriza
     const { width, height } = r.viewport;
     const fits = !r.viewportGiven || (slice.width === width && slice.height === height);
     return { type: "image/png", warning: plan!.slabNote,
-             body: fits ? Buffer.from(slice.png) : encodePng(centreIn(decodePng(Buffer.from(slice.png)), width, height)) };
+             body: fits ? Buffer.from(slice.png) : await fitPng(Buffer.from(slice.png), width, height) };
   } finally {
     await sessions.closeSession({ sessionId: created.sessionId }, call).catch(() => {});
   }

@@ -5,7 +5,8 @@ import assert from "node:assert/strict";
 import { test } from "node:test";
 import { Code, ConnectError, createRouterTransport } from "@connectrpc/connect";
 import { PacsService, ServerService, SessionService } from "../gen/cinevol/v1/service_pb.js";
-import { centreIn, decodePng, encodePng } from "../gateway/png.js";
+import { assemble, centreIn, decodePng, encodePng, fitPng } from "../gateway/png.js";
+import { deflateSync } from "node:zlib";
 import {
   answerRendered, planMpr, readRendered, Refusal, scopeOf, type Placement, type RenderedRequest,
 } from "../gateway/rendered.js";
@@ -111,6 +112,18 @@ test("a slice is centred in the viewport: bordered in black where smaller, cropp
   assert.deepEqual([...bordered.pixels.subarray(0, 15)], Array(15).fill(0), "the top row is border");
   assert.deepEqual([...bordered.pixels.subarray(18, 27)], [1, 2, 3, 4, 5, 6, 7, 8, 9], "row 1 from column 1");
   assert.deepEqual([...centreIn(image, 1, 1).pixels], [4, 5, 6], "the middle pixel of the top row");
+});
+
+test("a PNG fitted off the event loop is the same picture centred; every row filter is undone", async () => {
+  const image = { width: 3, height: 2, channels: 3, pixels: Uint8Array.from({ length: 18 }, (_, i) => 10 * i) };
+  const fitted = decodePng(await fitPng(encodePng(image), 5, 4));
+  assert.deepEqual([...fitted.pixels], [...centreIn(image, 5, 4).pixels]);
+  // The 2 x 2 RGB picture [[1 2 3, 4 5 6], [7 8 9, 10 11 12]] with its rows filtered sub then up, and average then
+  // Paeth: each filter byte, then the row less its predictor.
+  const filtered = (raw: number[]) => assemble({ width: 2, height: 2, channels: 3 }, deflateSync(Buffer.from(raw)));
+  for (const raw of [[1, 1, 2, 3, 3, 3, 3, 2, 6, 6, 6, 6, 6, 6], [3, 1, 2, 3, 4, 4, 5, 4, 6, 6, 6, 3, 3, 3]]) {
+    assert.deepEqual([...decodePng(filtered(raw)).pixels], [1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12], `${raw}`);
+  }
 });
 
 test("a signed URL stands for its caller at its resource until it expires; others are refused", () => {
