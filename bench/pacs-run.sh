@@ -28,37 +28,10 @@ cleanup() {
 }
 trap cleanup EXIT
 
-free_port() { python3 -c 'import socket; s=socket.socket(); s.bind(("127.0.0.1",0)); print(s.getsockname()[1])'; }
-now() { date +%s.%N; }
-median() { sort -g | awk '{a[NR]=$1} END {print a[int((NR+1)/2)]}'; }
-
-# Stamped copies: one study and series, an instance UID per file.
-study=2.25.77000001 uid=2.25.77000001.1
-mkdir -p "$work/series"
-i=0
-for f in "$series"/*; do
-  case "$f" in *README* | *.txt | *.md) continue ;; esac
-  i=$((i + 1))
-  cp "$f" "$work/series/$i.dcm"
-  dcmodify -nb -q -i "(0020,000d)=$study" -i "(0020,000e)=$uid" -i "(0008,0018)=$uid.$i" \
-    -i "(0010,0020)=CINEVOL-BENCH" "$work/series/$i.dcm"
-done
-
-port=$(free_port)
-cat > "$work/orthanc.json" << JSON
-{ "Name": "cinevol-bench", "HttpPort": $port, "DicomServerEnabled": false, "RemoteAccessAllowed": false,
-  "AuthenticationEnabled": false, "StorageDirectory": "$work/storage", "IndexDirectory": "$work/storage",
-  "Plugins": ["/usr/share/orthanc/plugins/libOrthancDicomWeb.so"], "DicomWeb": {"Enable": true, "Root": "/dicom-web/"} }
-JSON
-LD_PRELOAD=$PWD/$bin/tests/libcinevol_loopback_bind.so Orthanc "$work/orthanc.json" > "$work/orthanc.log" 2>&1 &
-pids+=($!)
-for _ in $(seq 100); do curl -sf "http://127.0.0.1:$port/system" > /dev/null && break; sleep 0.1; done
-for f in "$work"/series/*.dcm; do
-  curl -sf -X POST --data-binary @"$f" "http://127.0.0.1:$port/instances" > /dev/null
-done
-url="http://127.0.0.1:$port/dicom-web"
+# shellcheck source=bench/orthanc-seeded.sh
+. bench/orthanc-seeded.sh
 bytes=$(du -cb "$work"/series/*.dcm | tail -1 | cut -f1)
-echo "series: $i instances, $((bytes / 1024)) KiB ($series); $(nproc) cores; load average $(cut -d' ' -f1-3 /proc/loadavg)"
+echo "series: $instances instances, $((bytes / 1024)) KiB ($series); $(nproc) cores; load average $(cut -d' ' -f1-3 /proc/loadavg)"
 
 for _ in $(seq "$runs"); do
   t0=$(now)

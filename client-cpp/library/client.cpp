@@ -347,13 +347,6 @@ v1::LoadMeasurementsResponse Client::LoadMeasurements(const v1::LoadMeasurements
   return OnHome([&](const std::string& home) { return PacsCalls(*pool_, home).LoadMeasurements(request); });
 }
 
-v1::StoredObject Client::StoreMovie(const v1::StoreMovieChunk::Header& header, const std::string& h264) {
-  constexpr std::size_t kChunkBytes = 512 << 10;  // within the server's message limit
-  v1::StoreMovieChunk::Header sent = header;
-  sent.set_session_id(pool_->CurrentId(header.session_id()));
-  return PacsCalls(*pool_, pool_->AddressOf(header.session_id())).StoreMovie(sent, h264, kChunkBytes);  // where the session lives
-}
-
 v1::LoadPresentationResponse Client::LoadPresentation(const v1::LoadPresentationRequest& request) {
   return OnHome([&](const std::string& home) { return PacsCalls(*pool_, home).LoadPresentation(request); });
 }
@@ -432,6 +425,23 @@ v1::SnapshotResponse Client::Snapshot(v1::SnapshotRequest request, const Snapsho
   v1::SnapshotResponse response;
   Check(stub->Snapshot(pool_->CallContext(limit).get(), request, &response));
   return response;
+}
+
+v1::Movie Client::RenderMovie(v1::MovieRequest request,
+                              const std::function<void(const v1::MovieProgress&)>& on_progress) {
+  auto stub = v1::SessionService::NewStub(pool_->Channel(pool_->AddressOf(request.session_id())));
+  request.set_session_id(pool_->CurrentId(request.session_id()));
+  auto context = pool_->CallContext(std::nullopt);  // a movie takes as long as its frames: progress says how long
+  auto reader = stub->RenderMovie(context.get(), request);
+  v1::MovieUpdate update;
+  std::optional<v1::Movie> movie;
+  while (reader->Read(&update)) {
+    if (update.has_progress() && on_progress) on_progress(update.progress());
+    if (update.has_movie()) movie = std::move(*update.mutable_movie());
+  }
+  Check(reader->Finish());
+  if (!movie) throw RpcError({grpc::StatusCode::INTERNAL, "the server ended the movie without it"});
+  return std::move(*movie);
 }
 
 v1::SessionState Client::SendEvents(const std::string& session_id, const std::vector<v1::SessionEvent>& events) {

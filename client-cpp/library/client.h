@@ -199,8 +199,6 @@ class Client {
   v1::StoredObject StoreMeasurements(const std::string& session_id, const std::string& pacs);
   v1::LoadMeasurementsResponse LoadMeasurements(const v1::LoadMeasurementsRequest& request);
   v1::LoadPresentationResponse LoadPresentation(const v1::LoadPresentationRequest& request);
-  // A movie's H.264 Annex B stream stored as DICOM video in the study of the session's volume (docs/pacs.md).
-  v1::StoredObject StoreMovie(const v1::StoreMovieChunk::Header& header, const std::string& h264);
 
   // With several servers, on the one with the most room (ServerStatus).
   // The session's calls below go where it lives (CreateSessionResponse's
@@ -215,6 +213,10 @@ class Client {
   // (the timeout, or the server's silence), how far the still came and what
   // to do; CANCELLED when the session ended under it, saying why.
   v1::SnapshotResponse Snapshot(v1::SnapshotRequest request, const SnapshotOptions& options = {});
+  // A movie of the session's view along a path (RenderMovie; docs/movies.md): `on_progress` with each report (the
+  // first as soon as the server takes it), the MP4 once its last frame is in. No deadline: it lasts as long as its
+  // frames take; the caller stops it by ending the process or the session.
+  v1::Movie RenderMovie(v1::MovieRequest request, const std::function<void(const v1::MovieProgress&)>& on_progress = {});
   void CloseSession(const std::string& session_id);
   // The reading calls (docs/reading.md), bounded by call_timeout: a slice of
   // the session's volume as a PNG with its geometry, and what lies under a

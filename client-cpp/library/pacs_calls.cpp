@@ -54,25 +54,6 @@ v1::LoadMeasurementsResponse PacsCalls::LoadMeasurements(const v1::LoadMeasureme
   return response;
 }
 
-v1::StoredObject PacsCalls::StoreMovie(v1::StoreMovieChunk::Header header, const std::string& h264,
-                                      std::size_t chunk_bytes) {
-  v1::StoredObject stored;
-  auto context = pool_.CallContext();
-  auto writer = stub_->StoreMovie(context.get(), &stored);
-  header.set_size_bytes(h264.size());
-  v1::StoreMovieChunk first;
-  *first.mutable_header() = std::move(header);
-  bool open = writer->Write(first);
-  for (std::size_t at = 0; open && at < h264.size(); at += chunk_bytes) {
-    v1::StoreMovieChunk chunk;
-    chunk.set_data(h264.substr(at, chunk_bytes));
-    open = writer->Write(chunk);
-  }
-  writer->WritesDone();
-  Check(writer->Finish());
-  return stored;
-}
-
 v1::LoadPresentationResponse PacsCalls::LoadPresentation(const v1::LoadPresentationRequest& request) {
   v1::LoadPresentationResponse response;
   Check(stub_->LoadPresentation(pool_.CallContext().get(), request, &response));

@@ -27,7 +27,6 @@ class PacsCalls {
   v1::StoredObject StoreMeasurements(const v1::StoreMeasurementsRequest& request);
   v1::LoadMeasurementsResponse LoadMeasurements(const v1::LoadMeasurementsRequest& request);
   v1::LoadPresentationResponse LoadPresentation(const v1::LoadPresentationRequest& request);
-  v1::StoredObject StoreMovie(v1::StoreMovieChunk::Header header, const std::string& h264, std::size_t chunk_bytes);
 
  private:
   ServerPool& pool_;

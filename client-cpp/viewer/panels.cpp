@@ -87,6 +87,15 @@ void ScenePanel(SceneFiles& f) {
   ImGui::InputText("snapshot", &f.snapshot_path);
   ImGui::SliderInt("snapshot spp", &f.snapshot_spp, 1, 4096, "%d", ImGuiSliderFlags_Logarithmic);
   if (ImGui::Button("Take snapshot (.png or .exr)")) f.Snapshot(f.snapshot_path, f.snapshot_spp);
+  ImGui::Separator();
+  ImGui::InputText("movie", &f.movie_path);
+  ImGui::Combo("path", &f.movie_path_kind, "orbit (a whole turn)\0sweep axial\0sweep coronal\0sweep sagittal\0");
+  ImGui::SliderFloat("seconds", &f.movie_seconds, 1, 60, "%.0f");
+  ImGui::SliderInt("movie spp", &f.movie_spp, 1, 1024, "%d", ImGuiSliderFlags_Logarithmic);
+  if (ImGui::Button("Record movie (.mp4, 25 frames/s)")) {
+    constexpr v1::SliceAxis kPaths[] = {v1::SLICE_AXIS_UNSPECIFIED, v1::AXIAL, v1::CORONAL, v1::SAGITTAL};
+    f.Movie(f.movie_path, kPaths[f.movie_path_kind], f.movie_seconds, f.movie_spp);
+  }
 }
 
 bool Header(const char* label, bool& open) {

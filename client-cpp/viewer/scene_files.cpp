@@ -124,6 +124,40 @@ void SceneFiles::Snapshot(const std::string& path, int spp) {
       });
 }
 
+void SceneFiles::Movie(const std::string& path, v1::SliceAxis sweep_axis, double seconds, int spp) {
+  if (fs::path(path).extension() != ".mp4") {
+    context_.notice = fmt::format("movie {}: use .mp4", path);
+    return;
+  }
+  v1::MovieRequest request;
+  request.set_session_id(link_.session_id());
+  if (sweep_axis == v1::SLICE_AXIS_UNSPECIFIED) {
+    request.set_orbit_degrees(360);
+  } else {
+    request.set_sweep(sweep_axis);
+  }
+  request.set_seconds(seconds);
+  request.set_spp(spp);
+  context_.notice = fmt::format("recording {} at {} spp a frame...", path, spp);
+  link_.connection().Request(
+      [this, request, path](Client& client) {
+        const v1::Movie movie = client.RenderMovie(request, [this, path](const v1::MovieProgress& p) {
+          context_.ui.Later([this, path, p] {
+            context_.notice = fmt::format("recording {}: frame {} of {}", path, p.frames_done(), p.frames());
+          });
+        });
+        WriteBytesFile(path, movie.mp4());
+        context_.ui.Later([this, path, frames = movie.frames(), us = movie.render_us()] {
+          context_.notice = fmt::format("wrote {} ({} frames, {:.1f} s to render)", path, frames, us / 1e6);
+        });
+      },
+      [this, path](const std::string& error) {
+        if (!error.empty()) {
+          context_.ui.Later([this, path, error] { context_.notice = fmt::format("movie {}: {}", path, error); });
+        }
+      });
+}
+
 void SceneFiles::Save(const std::string& path) {
   // The session's scene as the server resolved it: the camera as numbers, the
   // transfer function as points (with its preset's name), and the rest.

@@ -1,5 +1,5 @@
-// The Scene panel's files: a still of the session (Take snapshot), the
-// session's scene written to a file (Save: camera and lights in patient
+// The Scene panel's files: a still of the session (Take snapshot), a movie of
+// it (Record movie), the session's scene written to a file (Save: camera and lights in patient
 // coordinates beside its clipping, as cinevol render reads it) and a file's
 // scene applied to the session (Open) as edits, which the server resolves.
 #pragma once
@@ -17,12 +17,17 @@ class SceneFiles {
   SceneFiles(ViewerContext& context, SessionLink& link) : context_(context), link_(link) {}
 
   void Snapshot(const std::string& path, int spp);  // .png or .exr; the line under the panels follows it
+  // A movie of the session's view (RenderMovie: a whole orbit, or a sweep across `sweep_axis` where it is not
+  // unspecified), written to `path` (.mp4); the line under the panels follows it.
+  void Movie(const std::string& path, v1::SliceAxis sweep_axis, double seconds, int spp);
   void Save(const std::string& path);
   void Open(const std::string& path);
 
   // The panel's fields.
-  std::string scene_path = "view.json", snapshot_path = "snapshot.png";
-  int snapshot_spp = 256;
+  std::string scene_path = "view.json", snapshot_path = "snapshot.png", movie_path = "movie.mp4";
+  int snapshot_spp = 256, movie_spp = 32;
+  int movie_path_kind = 0;  // 0: orbit; 1, 2, 3: a sweep, axial, coronal, sagittal
+  float movie_seconds = 4;
 
  private:
   ViewerContext& context_;

@@ -349,6 +349,20 @@ UiAction ParseUiAction(const std::string& json, const std::string& where) {
     const int spp = int(Number(p, "spp", at, 256));
     return [file, spp](ActionTarget& t) { t.rooms.files.Snapshot(file, spp); };
   }
+  if (name == "movie") {  // {"movie": {"file": "orbit.mp4", "seconds": 2, "spp": 16, "sweep": "axial"}}: no sweep, an orbit
+    const Struct& p = Object(value, at);
+    const std::string file = Text(Field(p, "file", at), at + ".file");
+    const double seconds = Number(p, "seconds", at, 4);
+    const int spp = int(Number(p, "spp", at, 32));
+    v1::SliceAxis sweep = v1::SLICE_AXIS_UNSPECIFIED;
+    if (p.fields().contains("sweep")) {
+      const std::string axis = Text(p.fields().at("sweep"), at + ".sweep");
+      sweep = axis == "axial" ? v1::AXIAL : axis == "coronal" ? v1::CORONAL : axis == "sagittal" ? v1::SAGITTAL
+                                                                                                 : v1::OBLIQUE;
+      if (sweep == v1::OBLIQUE) throw InputError(at + ".sweep: axial, coronal or sagittal");
+    }
+    return [file, sweep, seconds, spp](ActionTarget& t) { t.rooms.files.Movie(file, sweep, seconds, spp); };
+  }
   if (name == "saveScene" || name == "openScene") {
     const std::string file = Text(value, at);
     if (name == "saveScene") return [file](ActionTarget& t) { t.rooms.files.Save(file); };
@@ -376,7 +390,7 @@ UiAction ParseUiAction(const std::string& json, const std::string& where) {
   if (UiAction sharing = ParseSharingAction(name, value, at)) return sharing;
   throw InputError(fmt::format(
       "{}: unknown action (panel, key, drag, wheel, preset, movePoint, addPoint, deletePoint, windowLevel, "
-      "snapshot, saveScene, openScene, searchPacs, selectStudy, openSeries, storeMeasurements, layout2x2, pickAt, clickSlice, "
+      "snapshot, movie, saveScene, openScene, searchPacs, selectStudy, openSeries, storeMeasurements, layout2x2, pickAt, clickSlice, "
       "stepSlice, measureDistance, measureAngle, deleteMeasurement, share, listShares, handover, revoke, pointer, "
       "resizeWindow, settle, screenshot, quit)",
       at));

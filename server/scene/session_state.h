@@ -29,6 +29,7 @@ struct SessionLimits {
   int max_bounces = 64;
   int max_snapshot_spp = 16384;
   std::uint64_t max_snapshot_samples = 1ull << 31;  // spp x pixels of one still
+  std::uint64_t max_movie_samples = 1ull << 37;     // frames x spp x pixels of one movie: 2,000 720p frames at 64 spp
   int default_snapshot_spp = 256;
   int max_tf_points = 256;                       // transfer-function control points
   int max_lights = 16;

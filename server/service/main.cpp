@@ -46,6 +46,7 @@ void AddLimitOptions(CLI::App& app, ServerOptions& o) {
   limit("--max-bounces", s.max_bounces, "Scattering events per path", 0, 256);
   limit("--max-snapshot-spp", s.max_snapshot_spp, "Samples per pixel of a snapshot", 1, 1 << 20);
   limit("--max-snapshot-samples", s.max_snapshot_samples, "Samples (spp x pixels) of a snapshot", 1ull, 1ull << 50);
+  limit("--max-movie-samples", s.max_movie_samples, "Samples (frames x spp x pixels) of a movie", 1ull, 1ull << 50);
   limit("--max-tf-points", s.max_tf_points, "Transfer-function control points", 1, 1 << 20);
   limit("--max-lights", s.max_lights, "Lights in a scene", 0, 1 << 16);
   limit("--max-events-per-second", s.max_events_per_second, "Events one stream applies per second (more coalesce)",

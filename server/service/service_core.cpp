@@ -21,154 +21,37 @@
 #include "runtime/reading_calls.h"
 #include "runtime/render_store.h"
 #include "scene/presets.h"
+#include "scene/movie_path.h"
+#include "service/movie_render.h"
+#include "service/still_job.h"
 
 namespace cinevol::service {
 namespace {
 
 std::string CpuName() { return fmt::format("cpu ({} threads)", DefaultThreadCount()); }
 
-// How long one step of a still should take: other sessions' frames on the
-// same device wait at most this long behind it, a cancel is seen within it,
-// and progress is reported at about this pace.
-constexpr auto kStillStep = std::chrono::milliseconds(250);
-// Progress updates at most this often (each is a message to the client).
-constexpr auto kProgressPeriod = std::chrono::milliseconds(500);
+// A movie's frames refine to this many samples per pixel unless it says otherwise: near a still's quality, in a
+// fraction of its time (docs/movies.md).
+constexpr std::uint32_t kDefaultMovieSpp = 64;
 
-// A snapshot: accumulates `spp` samples a chunk per step on the session's
-// device, with its own pipeline (the session's history stays untouched),
-// then encodes on the encoder pool. Between chunks (and between rows of a
-// chunk on the CPU) it checks whether anyone still wants the result. A
-// chunk's samples follow the device's pace: about kStillStep of work, never
-// more than one streamed frame's budget.
 // A JPEG still (a DICOMweb rendered resource asks for one): near the PNG, a fraction of its bytes.
 constexpr int kStillJpegQuality = 95;
 
-class StillJob final : public Job {
- public:
-  using Done = std::function<void(grpc::Status, v1::SnapshotResponse)>;
-  using Progress = std::function<void(const v1::SnapshotProgress&)>;
-  struct Callbacks {
-    Done done;                                   // once, with the image or the error
-    Progress progress;                           // after steps, at most every kProgressPeriod; may be empty
-    std::function<std::string()> why_cancelled;  // what raised `cancel`, for the message
-  };
-  // `cancel`: raised when the caller goes away or the session ends.
-  StillJob(std::shared_ptr<VolumeLease> volume, v1::Scene scene, int spp, int max_chunk_spp, v1::ImageFormat format,
-           Backend backend, TaskPool* encoder, std::shared_ptr<std::atomic<bool>> cancel, Callbacks callbacks)
-      : volume_(std::move(volume)),
-        scene_(std::move(scene)),
-        spp_(spp),
-        max_chunk_(max_chunk_spp),
-        format_(format),
-        backend_(backend),
-        encoder_(encoder),
-        cancel_(std::move(cancel)),
-        callbacks_(std::move(callbacks)) {}
-  // A still dropped unfinished (the server stopping) still answers its caller.
-  ~StillJob() override {
-    if (callbacks_.done) callbacks_.done(RpcError::Cancelled("the server is shutting down").status(), {});
-  }
+v1::SnapshotResponse EncodeStill(const StillRadiance& still, v1::ImageFormat format) {
+  const std::vector<std::uint8_t> bytes =
+      format == v1::EXR    ? EncodeExr(still.image)
+      : format == v1::JPEG ? EncodeJpeg(ToneMap(still.image, still.exposure), kStillJpegQuality, ChromaSubsampling::k444)
+                           : EncodePng(ToneMap(still.image, still.exposure));
+  v1::SnapshotResponse response;
+  response.set_image(bytes.data(), bytes.size());
+  response.set_format(format == v1::EXR || format == v1::JPEG ? format : v1::PNG);
+  response.set_width(still.image.width);
+  response.set_height(still.image.height);
+  response.set_spp(still.spp);
+  response.set_render_us(still.render_us);
+  return response;
+}
 
-  std::int64_t StepPixels() const override {
-    return std::int64_t(scene_.render().width()) * scene_.render().height();
-  }
-
-  bool Step() override {
-    try {
-      if (*cancel_) throw Cancelled("the snapshot was cancelled");
-      if (!pipeline_) Start();
-      const Clock::time_point begin = Clock::now();
-      const int chunk = std::min(chunk_, spp_ - pipeline_->accumulated_spp());
-      pipeline_->Accumulate(chunk);
-      AdaptChunk(chunk, Clock::now() - begin);
-      if (!pipeline_->Converged()) {
-        ReportProgress();
-        return true;
-      }
-      Finish();
-    } catch (...) {
-      const int done = pipeline_ ? pipeline_->accumulated_spp() : 0;
-      pipeline_.reset();
-      std::exchange(callbacks_.done, nullptr)(Failure(std::current_exception(), done), {});
-    }
-    return false;
-  }
-
- private:
-  void Start() {
-    start_ = Clock::now();
-    pipeline_ = std::make_unique<FramePipeline>(backend_, volume_->volume(), RendererOptions{}, volume_->labels());
-    pipeline_->SetCancel(cancel_.get());
-    FrameSettings settings;
-    settings.denoiser.method = DenoiseMethod::kNone;
-    settings.target_spp = spp_;
-    pipeline_->Update(scene_, settings);
-  }
-
-  // The next chunk aims at kStillStep, growing at most twofold a step.
-  void AdaptChunk(int chunk, Clock::duration took) {
-    const double ratio =
-        std::chrono::duration<double>(kStillStep).count() / std::max(1e-4, std::chrono::duration<double>(took).count());
-    chunk_ = std::clamp(int(chunk * std::min(2.0, ratio)), 1, max_chunk_);
-  }
-
-  void ReportProgress() {
-    const Clock::time_point now = Clock::now();
-    if (!callbacks_.progress || now - last_progress_ < kProgressPeriod) return;
-    last_progress_ = now;
-    v1::SnapshotProgress p;
-    p.set_spp_done(std::uint32_t(pipeline_->accumulated_spp()));
-    p.set_spp(std::uint32_t(spp_));
-    p.set_elapsed_us(std::uint64_t(std::chrono::duration_cast<std::chrono::microseconds>(now - start_).count()));
-    callbacks_.progress(p);
-  }
-
-  // The error's status; a cancel says what cancelled it and how far it came.
-  grpc::Status Failure(std::exception_ptr error, int done) const {
-    const grpc::Status status = ToStatus(error);
-    if (status.error_code() != grpc::StatusCode::CANCELLED || !*cancel_ || !callbacks_.why_cancelled) return status;
-    return RpcError::Cancelled(
-               fmt::format("the snapshot stopped at {} of {} spp: {}", done, spp_, callbacks_.why_cancelled()))
-        .status();
-  }
-
-  void Finish() {
-    ImageRgbF image = pipeline_->AccumulatedRadiance();
-    const float exposure = pipeline_->exposure();
-    pipeline_.reset();
-    const auto render_us = std::chrono::duration_cast<std::chrono::microseconds>(Clock::now() - start_).count();
-    encoder_->Submit([image = std::move(image), exposure, render_us, spp = spp_, format = format_,
-                      done = std::exchange(callbacks_.done, nullptr), volume = volume_] {
-      v1::SnapshotResponse response;
-      const grpc::Status status = Guarded([&] {
-        const std::vector<std::uint8_t> bytes = format == v1::EXR    ? EncodeExr(image)
-                                                : format == v1::JPEG ? EncodeJpeg(ToneMap(image, exposure),
-                                                                                  kStillJpegQuality,
-                                                                                  ChromaSubsampling::k444)
-                                                                     : EncodePng(ToneMap(image, exposure));
-        response.set_image(bytes.data(), bytes.size());
-        response.set_format(format == v1::EXR || format == v1::JPEG ? format : v1::PNG);
-        response.set_width(image.width);
-        response.set_height(image.height);
-        response.set_spp(spp);
-        response.set_render_us(render_us);
-      });
-      done(status, std::move(response));
-    });
-  }
-
-  std::shared_ptr<VolumeLease> volume_;
-  v1::Scene scene_;
-  int spp_, max_chunk_;
-  int chunk_ = 1;  // the first step is short, whatever the device: progress comes soon
-  v1::ImageFormat format_;
-  Backend backend_;
-  TaskPool* encoder_;
-  std::shared_ptr<std::atomic<bool>> cancel_;  // the pipeline's frames check it too
-  Callbacks callbacks_;
-  std::unique_ptr<FramePipeline> pipeline_;
-  Clock::time_point start_, last_progress_;
-};
 
 }  // namespace
 
@@ -502,9 +385,15 @@ void ServiceCore::Snapshot(const v1::SnapshotRequest& request, const Principal& 
   // The session does not expire while its still renders (EndStill).
   session->BeginStill(cancel);
   StillJob::Callbacks job;
-  job.done = [session, done = std::move(callbacks.done)](grpc::Status status, v1::SnapshotResponse response) {
+  job.done = [session, format = request.format(), encoder = &encoder_, done = std::move(callbacks.done)](
+                 grpc::Status status, StillRadiance still) mutable {
     session->EndStill();
-    done(std::move(status), std::move(response));
+    if (!status.ok()) return done(std::move(status), {});
+    encoder->Submit([still = std::move(still), format, done = std::move(done)] {
+      v1::SnapshotResponse response;
+      const grpc::Status encoded = Guarded([&] { response = EncodeStill(still, format); });
+      done(encoded, std::move(response));
+    });
   };
   job.progress = std::move(callbacks.progress);
   job.why_cancelled = [session] {
@@ -512,9 +401,79 @@ void ServiceCore::Snapshot(const v1::SnapshotRequest& request, const Principal& 
     return why.empty() ? std::string("its caller went away")
                        : fmt::format("its session '{}' ended: {}", session->id(), why);
   };
-  session->scheduler()->Wake(std::make_shared<StillJob>(session->volume(), std::move(scene), spp, max_chunk,
-                                                        request.format(), backend_, &encoder_, std::move(cancel),
-                                                        std::move(job)));
+  session->scheduler()->Wake(std::make_shared<StillJob>(session->volume(), std::move(scene), spp, max_chunk, backend_,
+                                                        std::move(cancel), std::move(job)));
+}
+
+void ServiceCore::RenderMovie(const v1::MovieRequest& request, const Principal& caller,
+                              std::shared_ptr<std::atomic<bool>> cancel, MovieCallbacks callbacks) {
+  RequireServing();
+  const std::shared_ptr<Session> session = sharing_.OwnedOrPresented(request.session_id(), caller);
+  MovieRender::Plan plan;
+  plan.request = request;
+  plan.frames = MovieFrames(request);
+  FrameSettings settings;
+  session->CurrentScene(plan.start, settings);
+  MovieFrame(plan.start, request, *session->volume()->volume(), 0, plan.frames);  // throws for a path it cannot take
+  const std::uint64_t pixels = std::uint64_t(plan.start.render().width()) * plan.start.render().height();
+  v1::SnapshotRequest still;
+  still.set_spp(request.has_spp() ? request.spp() : kDefaultMovieSpp);
+  plan.spp = SnapshotSpp(still, pixels, options_.limits);
+  plan.max_chunk_spp =
+      int(std::clamp<std::uint64_t>(options_.limits.max_frame_samples / std::max<std::uint64_t>(pixels, 1), 1, 8));
+  const std::uint64_t samples = std::uint64_t(plan.frames) * std::uint64_t(plan.spp) * pixels;
+  if (samples > options_.limits.max_movie_samples) {
+    throw OverLimit("max-movie-samples",
+                    fmt::format("{} frames of {} spp at {} pixels are {} samples, over this server's limit of {} "
+                                "(--max-movie-samples)",
+                                plan.frames, plan.spp, pixels, samples, options_.limits.max_movie_samples));
+  }
+  if (request.has_crf() && request.crf() > 51) throw InputError(fmt::format("crf: {} is outside [0, 51]", request.crf()));
+  plan.crf = request.has_crf() ? int(request.crf()) : 18;
+  MovieRender::Callbacks movie;
+  movie.progress = std::move(callbacks.progress);
+  if (request.store_to().empty()) {
+    movie.done = [done = std::move(callbacks.done)](grpc::Status status, v1::Movie answer, std::string) {
+      done(std::move(status), std::move(answer));
+    };
+  } else {
+    movie.done = StoreMovieAfter(request, *session, caller, cancel, std::move(callbacks.done));
+  }
+  MovieRender::Start(session, std::move(plan), backend_, encoder_, std::move(cancel), std::move(movie));
+}
+
+std::function<void(grpc::Status, v1::Movie, std::string)> ServiceCore::StoreMovieAfter(
+    const v1::MovieRequest& request, const Session& session, const Principal& caller,
+    std::shared_ptr<std::atomic<bool>> cancel, MovieDone done) {
+  const auto to = pacs_.Find(request.store_to(), caller, "store_to");
+  Principal owner;  // the volume is the owner's, whoever presents
+  owner.name = session.owner();
+  const v1::VolumeInfo volume = volumes_.Describe(session.volume()->id(), owner);
+  const PacsOrigin origin =
+      OriginOf(volume, "a movie goes back into the study of a series loaded with LoadSeries", "store_to: ");
+  const auto from = pacs_.Find(origin.pacs, caller, "store_to");
+  const std::string description = request.path_case() == v1::MovieRequest::kOrbitDegrees
+                                      ? fmt::format("orbit {:g} deg", request.orbit_degrees())
+                                      : "sweep " + v1::SliceAxis_Name(request.sweep());
+  auto finish = std::make_shared<MovieDone>(std::move(done));  // called once, whoever runs it
+  return [this, to, from, origin, description, cancel, finish, queue = caller.name, group = request.store_to()](
+             grpc::Status status, v1::Movie movie, std::string h264) {
+    if (!status.ok()) return (*finish)(std::move(status), {});
+    auto stream = std::make_shared<pacs::MovieStream>();
+    stream->width = int(movie.width());
+    stream->height = int(movie.height());
+    stream->fps = int(movie.fps());
+    stream->frames = int(movie.frames());
+    stream->h264 = std::move(h264);
+    stream->description = description;
+    const bool queued = pacs_calls_.Submit([=, movie = std::move(movie)]() mutable {
+      const grpc::Status stored = Guarded([&] {
+        *movie.mutable_stored() = StoreMovie(*to, *from, origin, *stream, CINEVOL_VERSION, cancel.get());
+      });
+      (*finish)(stored, stored.ok() ? std::move(movie) : v1::Movie());
+    }, queue, group);
+    if (!queued) (*finish)(RpcError::Unavailable("the server is shutting down; the movie was not stored").status(), {});
+  };
 }
 
 ServiceCore::SnapshotDone ServiceCore::StoreAfter(const v1::SnapshotRequest& request, const Session& session,

@@ -156,6 +156,16 @@ class ServiceCore {
   // going away, or the session's end. The session does not expire meanwhile.
   void Snapshot(const v1::SnapshotRequest& request, const Principal& caller, std::shared_ptr<std::atomic<bool>> cancel,
                 SnapshotCallbacks callbacks);
+  // A movie of the session's view along the request's path (MovieRender), checked before its first frame: the
+  // path, the frames, their cost against --max-movie-samples, and the PACS of `store_to`. Stored there after the
+  // last frame, on the PACS pool; `done` runs once with the movie or the error. Its owner or presenter may.
+  using MovieDone = std::function<void(grpc::Status, v1::Movie)>;
+  struct MovieCallbacks {
+    MovieDone done;
+    std::function<void(const v1::MovieProgress&)> progress;
+  };
+  void RenderMovie(const v1::MovieRequest& request, const Principal& caller,
+                   std::shared_ptr<std::atomic<bool>> cancel, MovieCallbacks callbacks);
   // What `caller` may see: its own sessions and uploads (an operator: all).
   v1::ServerStatus Status(const Principal& caller) const;
   // Ends sessions detached (or never attached) for longer than the options
@@ -198,6 +208,12 @@ class ServiceCore {
   // did not come from one.
   SnapshotDone StoreAfter(const v1::SnapshotRequest& request, const Session& session, const Principal& caller,
                           const v1::Scene& scene, std::shared_ptr<std::atomic<bool>> cancel, SnapshotDone done);
+  // The same for a movie's request.store_to: the movie's `done`, after it is stored.
+  std::function<void(grpc::Status, v1::Movie, std::string)> StoreMovieAfter(const v1::MovieRequest& request,
+                                                                           const Session& session,
+                                                                           const Principal& caller,
+                                                                           std::shared_ptr<std::atomic<bool>> cancel,
+                                                                           MovieDone done);
   void Forget(const std::string& id);
   std::shared_ptr<Session> Find(const std::string& id) const;  // whoever owns it; null when none
 

@@ -250,108 +250,6 @@ class UploadReactor final : public grpc::ServerReadReactor<v1::UploadVolumeChunk
   bool loading_ = false;
 };
 
-// A movie sent back (StoreMovie): its stream comes into memory, counted against its header's size (at most
-// pacs::kMaxMovieBytes) before a byte is kept, then goes to the PACS from the PACS pool. The caller must own or
-// present the session, which is checked before any data. It holds one of the caller's load slots, and ends when
-// the client stays silent for --upload-idle-seconds.
-class StoreMovieReactor final : public grpc::ServerReadReactor<v1::StoreMovieChunk> {
- public:
-  StoreMovieReactor(grpc::CallbackServerContext* context, ServiceCore* core, v1::StoredObject* response)
-      : core_(core), response_(response) {
-    const grpc::Status status = Guarded([&] {
-      caller_ = core_->Authenticate(*context);
-      core_->RequireServing();
-      slot_ = core_->BeginLoad(caller_);
-    });
-    if (!status.ok()) {
-      Finish(status);
-      return;
-    }
-    watch_ = core_->calls().Watch(context, Seconds(core_->options().upload_idle_seconds));
-    StartRead(&chunk_);
-  }
-
-  void OnReadDone(bool ok) override {
-    if (!ok) return Complete();
-    core_->calls().Touch(watch_, Seconds(core_->options().upload_idle_seconds));
-    const grpc::Status status = Guarded([&] { Take(chunk_); });
-    if (!status.ok()) return Finish(status);
-    StartRead(&chunk_);
-  }
-  void OnCancel() override {
-    if (slot_) slot_->cancel = true;
-  }
-  void OnDone() override {
-    if (watch_) core_->calls().Forget(watch_);
-    delete this;
-  }
-
- private:
-  void Take(const v1::StoreMovieChunk& chunk) {
-    if (chunk.has_header()) {
-      if (header_) throw InputError("header: sent twice; send it once, first");
-      const v1::StoreMovieChunk::Header& h = chunk.header();
-      core_->sharing().OwnedOrPresented(h.session_id(), caller_);  // a stranger sends no data
-      core_->pacs().Find(h.pacs(), caller_, "header.pacs");
-      if (h.size_bytes() == 0 || h.size_bytes() > pacs::kMaxMovieBytes) {
-        throw InputError(fmt::format("header.size_bytes: {}; 1 to {} (about a minute of 1080p)", h.size_bytes(),
-                                     pacs::kMaxMovieBytes));
-      }
-      header_ = h;
-      movie_.h264.reserve(h.size_bytes());
-      return;
-    }
-    if (!header_) throw InputError("header: the first message must be the header");
-    if (movie_.h264.size() + chunk.data().size() > header_->size_bytes()) {
-      throw InputError(fmt::format("data: more bytes than header.size_bytes ({})", header_->size_bytes()));
-    }
-    movie_.h264 += chunk.data();
-  }
-
-  void Complete() {
-    if (!header_) return Finish(RpcError::InvalidArgument("header: no header was sent").status());
-    if (movie_.h264.size() != header_->size_bytes()) {
-      return Finish(RpcError::InvalidArgument(fmt::format("data: {} bytes received, header.size_bytes said {}",
-                                                          movie_.h264.size(), header_->size_bytes()))
-                        .status());
-    }
-    core_->calls().Forget(watch_);  // everything came: the PACS's timeouts bound the rest
-    watch_ = 0;
-    const v1::StoreMovieChunk::Header& h = *header_;
-    movie_.width = int(std::min<std::uint32_t>(h.width(), 1u << 16));
-    movie_.height = int(std::min<std::uint32_t>(h.height(), 1u << 16));
-    movie_.fps = int(std::min<std::uint32_t>(h.fps(), 1u << 16));
-    movie_.frames = int(std::min<std::uint32_t>(h.frames(), 1u << 20));
-    movie_.description = h.description();
-    const bool queued = core_->pacs_calls().Submit([this] {
-      const grpc::Status status = Guarded([&] {
-        core_->RequireServing();
-        const std::shared_ptr<Session> session = core_->sharing().OwnedOrPresented(header_->session_id(), caller_);
-        const auto to = core_->pacs().Find(header_->pacs(), caller_, "header.pacs");
-        Principal owner;  // the volume is the owner's, whoever presents
-        owner.name = session->owner();
-        const v1::VolumeInfo volume = core_->volumes().Describe(session->volume()->id(), owner);
-        const PacsOrigin origin =
-            OriginOf(volume, "a movie goes back into the study of a series loaded with LoadSeries");
-        const auto from = core_->pacs().Find(origin.pacs, caller_, "header.pacs");
-        *response_ = StoreMovie(*to, *from, origin, movie_, CINEVOL_VERSION, &slot_->cancel);
-      });
-      slot_->Release();
-      Finish(status);
-    }, caller_.name, header_->pacs());
-    if (!queued) Finish(RpcError::Unavailable("the server is shutting down").status());
-  }
-
-  ServiceCore* core_;
-  v1::StoredObject* response_;
-  Principal caller_;
-  std::shared_ptr<LoadSlot> slot_;
-  CallWatch::Id watch_ = 0;
-  v1::StoreMovieChunk chunk_;
-  std::optional<v1::StoreMovieChunk::Header> header_;
-  pacs::MovieStream movie_;
-};
-
 // A still: the job learns through `cancel_` that its caller went away.
 class SnapshotReactor final : public grpc::ServerUnaryReactor {
  public:
@@ -442,6 +340,8 @@ class ProgressStreamReactor final : public grpc::ServerWriteReactor<Update> {
 using SnapshotStreamReactor =
     ProgressStreamReactor<v1::SnapshotUpdate, v1::SnapshotProgress, v1::SnapshotResponse,
                           &v1::SnapshotUpdate::mutable_progress, &v1::SnapshotUpdate::mutable_still>;
+using MovieStreamReactor = ProgressStreamReactor<v1::MovieUpdate, v1::MovieProgress, v1::Movie,
+                                                 &v1::MovieUpdate::mutable_progress, &v1::MovieUpdate::mutable_movie>;
 using SeriesStreamReactor =
     ProgressStreamReactor<v1::LoadSeriesUpdate, v1::LoadSeriesProgress, v1::VolumeInfo,
                           &v1::LoadSeriesUpdate::mutable_progress, &v1::LoadSeriesUpdate::mutable_volume>;
@@ -570,6 +470,19 @@ grpc::ServerWriteReactor<v1::SnapshotUpdate>* SessionServiceImpl::StreamSnapshot
       reactor->Complete(std::move(s), std::move(r));
     };
     core_->Snapshot(*request, core_->Authenticate(*context), reactor->cancel(), std::move(callbacks));
+  });
+  if (!status.ok()) reactor->Complete(status, {});
+  return reactor;
+}
+
+grpc::ServerWriteReactor<v1::MovieUpdate>* SessionServiceImpl::RenderMovie(grpc::CallbackServerContext* context,
+                                                                           const v1::MovieRequest* request) {
+  auto* reactor = new MovieStreamReactor;
+  const grpc::Status status = Guarded([&] {
+    ServiceCore::MovieCallbacks callbacks;
+    callbacks.progress = [reactor](const v1::MovieProgress& p) { reactor->Offer(p); };
+    callbacks.done = [reactor](grpc::Status s, v1::Movie m) { reactor->Complete(std::move(s), std::move(m)); };
+    core_->RenderMovie(*request, core_->Authenticate(*context), reactor->cancel(), std::move(callbacks));
   });
   if (!status.ok()) reactor->Complete(status, {});
   return reactor;
@@ -797,11 +710,6 @@ grpc::ServerUnaryReactor* PacsServiceImpl::LoadMeasurements(grpc::CallbackServer
         *response = service::LoadMeasurements(*core_->pacs().Find(request->pacs(), caller), *request, &stop);
       },
       request->pacs());
-}
-
-grpc::ServerReadReactor<v1::StoreMovieChunk>* PacsServiceImpl::StoreMovie(grpc::CallbackServerContext* context,
-                                                                          v1::StoredObject* response) {
-  return new StoreMovieReactor(context, core_, response);
 }
 
 grpc::ServerUnaryReactor* PacsServiceImpl::LoadPresentation(grpc::CallbackServerContext* context,

@@ -52,6 +52,8 @@ class SessionServiceImpl final : public v1::SessionService::CallbackService {
                                      v1::SnapshotResponse* response) override;
   grpc::ServerWriteReactor<v1::SnapshotUpdate>* StreamSnapshot(grpc::CallbackServerContext* context,
                                                                const v1::SnapshotRequest* request) override;
+  grpc::ServerWriteReactor<v1::MovieUpdate>* RenderMovie(grpc::CallbackServerContext* context,
+                                                        const v1::MovieRequest* request) override;
   grpc::ServerUnaryReactor* CloseSession(grpc::CallbackServerContext* context, const v1::CloseSessionRequest* request,
                                          v1::CloseSessionResponse* response) override;
   grpc::ServerWriteReactor<v1::ServerMessage>* WatchSession(grpc::CallbackServerContext* context,
@@ -94,8 +96,6 @@ class PacsServiceImpl final : public v1::PacsService::CallbackService {
   grpc::ServerUnaryReactor* LoadMeasurements(grpc::CallbackServerContext* context,
                                              const v1::LoadMeasurementsRequest* request,
                                              v1::LoadMeasurementsResponse* response) override;
-  grpc::ServerReadReactor<v1::StoreMovieChunk>* StoreMovie(grpc::CallbackServerContext* context,
-                                                           v1::StoredObject* response) override;
   grpc::ServerUnaryReactor* LoadPresentation(grpc::CallbackServerContext* context,
                                              const v1::LoadPresentationRequest* request,
                                              v1::LoadPresentationResponse* response) override;

@@ -1,6 +1,6 @@
-// `cinevol movie` (issue 58): a session's refined stills along an orbit or a sweep, encoded as H.264 in an MP4 that
-// FFmpeg's own tools read back with the frame count, size and profile asked for; the frames move as the path says;
-// what cannot be a movie is refused before a still is rendered.
+// `cinevol movie` (issue 58): a session's refined stills along an orbit or a sweep, rendered and encoded by the
+// server's RenderMovie as H.264 in an MP4 that FFmpeg's own tools read back with the frame count, size and profile
+// asked for; the frames move as the path says; what cannot be a movie is refused before a still is rendered.
 #include <fmt/format.h>
 #include <gtest/gtest.h>
 
@@ -67,7 +67,7 @@ TEST_F(MovieCommand, AnOrbitIsAnH264Mp4OfItsFramesWhichTurn) {
   const auto [code, said] = Movie({"--orbit", "360", "--seconds", "1.2", "--fps", "10", "--width", "96", "--height",
                                    "64", "--spp", "4", "--out", out.string()});
   ASSERT_EQ(code, 0) << said;
-  EXPECT_TRUE(Has(said, "movie: frame 12/12")) << said;  // progress while it renders
+  EXPECT_TRUE(Has(said, "movie: frame 0/12, 4 spp each")) << said;  // progress as soon as the server takes it
   EXPECT_TRUE(Has(said, "wrote " + out.string() + ": 12 frames of 96x64 at 10 frames/s")) << said;
   const std::string probed = Probe(out);
   for (const char* expected : {"codec_name=h264", "profile=High", "width=96", "height=64", "nb_read_frames=12",
@@ -77,6 +77,11 @@ TEST_F(MovieCommand, AnOrbitIsAnH264Mp4OfItsFramesWhichTurn) {
   // A quarter turn apart the head looks different; the loop's last frame is a step short of the first.
   const ImageRgb8 first = Frame(out, 0, scratch_ / "0.png"), quarter = Frame(out, 3, scratch_ / "3.png");
   EXPECT_GT(MeanDifference(first, quarter), 2.0);
+  // The server encoded it in its temporary folder and left nothing there.
+  const std::string mine = fmt::format("cinevol-movie-{}-", server_->pid());
+  for (const auto& entry : fs::directory_iterator(fs::temp_directory_path())) {
+    EXPECT_NE(entry.path().filename().string().rfind(mine, 0), 0u) << entry.path();
+  }
 }
 
 TEST_F(MovieCommand, ASweepMovesACutThroughTheVolume) {

@@ -339,11 +339,10 @@ TEST_F(PacsServer, AMovieIsStoredAsDicomVideoThatValidatesAndPlays) {
   auto [code, out] = Cli({"movie", "--volume", volume.id(), "--preset", "ct-bone", "--orbit", "90", "--seconds", "0.4",
                           "--fps", "10", "--width", "64", "--height", "48", "--spp", "2", "--out", movie.string(),
                           "--store-to", "orthanc"});
-  ASSERT_EQ(code, 0) << out;
+  ASSERT_EQ(code, 0) << out << server_->Log();
   const std::string series_uid = Word(out, "stored in PACS 'orthanc': study " + kCt.study_uid + ", series ");
   const std::string instance_uid = Word(out, ", instance ");
   ASSERT_TRUE(pacs::IsValidUid(series_uid) && pacs::IsValidUid(instance_uid)) << out;
-  EXPECT_FALSE(fs::exists(movie.string() + ".h264")) << "the DICOM stream's file stays behind";
   const std::vector<v1::SeriesSummary> series = client.SearchSeries("orthanc", kCt.study_uid);
   EXPECT_TRUE(std::any_of(series.begin(), series.end(), [&](const v1::SeriesSummary& s) {
     return s.series_uid() == series_uid && s.modality() == "OT" && s.description() == "cinevol movie: orbit 90 deg";
@@ -368,7 +367,7 @@ TEST_F(PacsServer, AMovieIsStoredAsDicomVideoThatValidatesAndPlays) {
     EXPECT_NE(probed.output.find(expected), std::string::npos) << expected << "\n" << probed.output;
   }
 
-  // A movie of a volume from elsewhere has no study to go into: said, and the MP4 is still written.
+  // A movie of a volume from elsewhere has no study to go into: said before a frame is rendered.
   std::tie(code, out) = Cli({"movie", "--volume", "phantom:head?size=48", "--orbit", "90", "--seconds", "0.2", "--fps",
                              "10", "--width", "32", "--height", "32", "--spp", "1", "--out", movie.string(),
                              "--store-to", "orthanc"});
@@ -381,29 +380,34 @@ TEST_F(PacsServer, AMovieIsStoredAsDicomVideoThatValidatesAndPlays) {
   EXPECT_NE(out.find("at most 1920x1080 at 30 frames/s"), std::string::npos) << out;
 }
 
-// What StoreMovie cannot store is refused by name: no such session or PACS (before any byte is kept), a stream that
-// is not H.264.
-TEST_F(PacsServer, AMovieThatCannotBeStoredIsRefusedByName) {
+// What RenderMovie cannot make or store is refused by name before a frame renders: no such session, an unknown
+// PACS, no path, a sweep across no patient axis, a cost over --max-movie-samples.
+TEST_F(PacsServer, AMovieThatCannotBeMadeIsRefusedByName) {
   Client client = server_->Connect();
   v1::CreateSessionRequest request = SmallSession();
   request.set_volume_id(client.LoadSeries(CtSeries()).id());
-  v1::StoreMovieChunk::Header header;
-  header.set_session_id(client.CreateSession(request).session_id());
-  header.set_pacs("orthanc");
-  header.set_width(64);
-  header.set_height(48);
-  header.set_fps(10);
-  header.set_frames(4);
-  ExpectRpcError([&] { client.StoreMovie(header, std::string(4096, 'x')); }, grpc::StatusCode::INVALID_ARGUMENT,
-                 "not an H.264 Annex B stream");
-  v1::StoreMovieChunk::Header nowhere = header;
-  nowhere.set_pacs("nope");
-  ExpectRpcError([&] { client.StoreMovie(nowhere, std::string(4096, 'x')); }, grpc::StatusCode::INVALID_ARGUMENT,
-                 "header.pacs");
-  v1::StoreMovieChunk::Header nobody = header;
+  v1::MovieRequest movie;
+  movie.set_session_id(client.CreateSession(request).session_id());
+  movie.set_orbit_degrees(90);
+  movie.set_seconds(0.4);
+  movie.set_fps(10);
+  v1::MovieRequest nowhere = movie;
+  nowhere.set_store_to("nope");
+  ExpectRpcError([&] { client.RenderMovie(nowhere); }, grpc::StatusCode::INVALID_ARGUMENT, "store_to");
+  v1::MovieRequest nobody = movie;
   nobody.set_session_id("no-such-session");
-  ExpectRpcError([&] { client.StoreMovie(nobody, std::string(4096, 'x')); }, grpc::StatusCode::NOT_FOUND,
-                 "no-such-session");
+  ExpectRpcError([&] { client.RenderMovie(nobody); }, grpc::StatusCode::NOT_FOUND, "no-such-session");
+  v1::MovieRequest pathless = movie;
+  pathless.clear_orbit_degrees();
+  ExpectRpcError([&] { client.RenderMovie(pathless); }, grpc::StatusCode::INVALID_ARGUMENT, "give orbit_degrees or sweep");
+  v1::MovieRequest oblique = movie;
+  oblique.set_sweep(v1::OBLIQUE);
+  ExpectRpcError([&] { client.RenderMovie(oblique); }, grpc::StatusCode::INVALID_ARGUMENT, "sweep");
+  v1::MovieRequest costly = movie;
+  costly.set_seconds(120);
+  costly.set_fps(30);
+  costly.set_spp(16384);
+  ExpectRpcError([&] { client.RenderMovie(costly); }, grpc::StatusCode::INVALID_ARGUMENT, "--max-movie-samples");
   EXPECT_TRUE(client.Status().accepting_sessions());
 }
 

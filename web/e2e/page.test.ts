@@ -93,6 +93,26 @@ test("a preset changes the picture", async () => {
   await alice.screenshot({ path: join(ARTIFACTS, "3-preset.png") });
 });
 
+test("a movie recorded on the page is made by the server and saved as an MP4 of its frames", async () => {
+  const { alice } = run;
+  await alice.locator("#output summary").click();
+  await alice.selectOption("#movie-path", "orbit");
+  await alice.fill("#movie-seconds", "1");
+  await alice.selectOption("#movie-quality", "4");
+  const [download] = await Promise.all([alice.waitForEvent("download", { timeout: 120_000 }),
+                                        alice.click("#movie-record")]);
+  assert.equal(download.suggestedFilename(), "cinevol-movie.mp4");
+  const saved = join(scratch, "page-movie.mp4");
+  await download.saveAs(saved);
+  const probed = execFileSync("ffprobe", ["-v", "error", "-count_frames", "-select_streams", "v:0", "-show_entries",
+                                          "stream=codec_name,nb_read_frames", "-of", "default=nw=1", saved]).toString();
+  assert.match(probed, /codec_name=h264/);
+  assert.match(probed, /nb_read_frames=25/);
+  const said = (await status(alice)).messages;
+  assert.ok(said.some((m) => /Movie recorded: 25 frames/.test(m)), JSON.stringify(said));
+  await alice.locator("#output summary").click();
+});
+
 test("a window resize changes the frame's size", async () => {
   const { alice } = run;
   const before = (await status(alice)).lastFrame!;

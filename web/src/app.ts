@@ -14,6 +14,7 @@ import type { FrameMeta } from "./frame_messages.js";
 import { listenToKeys } from "./keys.js";
 import { LightPanel } from "./light_panel.js";
 import { MessageLine } from "./message_line.js";
+import { MoviePanel } from "./movie_panel.js";
 import { Navigation, type ViewName } from "./navigation.js";
 import { drawOverlay } from "./overlay.js";
 import { PacsPanel } from "./pacs_panel.js";
@@ -67,6 +68,7 @@ export class App {
     this.reading.onMeasurementsEdited = (list) => link.post({ case: "measurements", value: create(MeasurementListSchema, {
       measurements: sceneMeasurements(list) }) });
     this.output = new OutputPanel(link, () => this.reading.measurements);
+    new MoviePanel(api, () => link.session?.id, (text) => this.said.setBanner(text), (text) => this.said.showError(text));
     this.share = new SharePanel(api, () => link.session?.id, (text) => this.said.showError(text));
     this.sharing = new Sharing(link, this.share, this.said);
     this.listen();

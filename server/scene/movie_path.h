@@ -1,0 +1,22 @@
+// A movie's path (SessionService.RenderMovie): how a still scene changes from
+// frame to frame. The camera turns about its target (an orbit), or a clip
+// plane moves across a patient axis through the volume (a sweep).
+#pragma once
+
+#include "cinevol/v1/scene.pb.h"
+#include "cinevol/v1/service.pb.h"
+#include "core/volume.h"
+
+namespace cinevol {
+
+inline constexpr int kMaxMovieFrames = 3600;  // two minutes at 30 frames/s: a movie, not a stream
+
+// The request's frame count (seconds x fps), or InputError naming what is out of range.
+int MovieFrames(const v1::MovieRequest& request);
+
+// Frame `frame` of `frames`: `start` (a session's scene, volume-centred) along the request's path. On a sweep the
+// plane is in patient coordinates, as clipping is.
+v1::Scene MovieFrame(const v1::Scene& start, const v1::MovieRequest& request, const Volume& volume, int frame,
+                     int frames);
+
+}  // namespace cinevol
