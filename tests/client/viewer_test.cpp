@@ -20,6 +20,7 @@
 #include "service/server_process.h"
 #include "service/service_test_support.h"
 #include "sharing_calls.h"
+#include "support/shell_command.h"
 #include "support/test_paths.h"
 
 namespace cinevol::testing {
@@ -158,7 +159,8 @@ TEST(Viewer, ShowsTheVolumeStatsAndPanelsAndFollowsEdits) {
   ASSERT_TRUE(server.running()) << server.Log();
   const fs::path a = scratch.path() / "a.png", b = scratch.path() / "b.png", c = scratch.path() / "c.png",
                  edited_png = scratch.path() / "edited.png", scene = scratch.path() / "view.json",
-                 still = scratch.path() / "still.png", cut_png = scratch.path() / "cut.png",
+                 still = scratch.path() / "still.png", movie = scratch.path() / "orbit.mp4",
+                 cut_png = scratch.path() / "cut.png",
                  cut_scene = scratch.path() / "cut.json", saved_cut = scratch.path() / "saved-cut.json";
   // The example scene with a crop that keeps nothing of the head: opened, the
   // view shows the background (lit as before: the lights are the example's).
@@ -185,6 +187,7 @@ TEST(Viewer, ShowsTheVolumeStatsAndPanelsAndFollowsEdits) {
 {{"at": 0.4, "ui": {{"screenshot": "{}"}}}}
 {{"at": 0.4, "ui": {{"saveScene": "{}"}}}}
 {{"at": 0.4, "ui": {{"snapshot": {{"file": "{}", "spp": 4}}}}}}
+{{"at": 0.4, "ui": {{"movie": {{"file": "{}", "seconds": 0.4, "spp": 1}}}}}}
 {{"at": 0.45, "ui": {{"panel": {{"name": "clipping", "open": true}}}}}}
 {{"at": 0.45, "ui": {{"openScene": "{}"}}}}
 {{"at": 0.5, "ui": {{"settle": true}}}}
@@ -193,7 +196,7 @@ TEST(Viewer, ShowsTheVolumeStatsAndPanelsAndFollowsEdits) {
 {{"at": 0.6, "ui": {{"resizeWindow": {{"width": 700, "height": 420}}}}}}
 )",
                               a.string(), b.string(), edited_png.string(), scene.string(), still.string(),
-                              cut_scene.string(), cut_png.string(), saved_cut.string()));
+                              movie.string(), cut_scene.string(), cut_png.string(), saved_cut.string()));
   const ViewerRun run = RunViewer(
       scratch.path(), {"--server", server.address(), "--script", script.string(), "--screenshot", c.string()});
   ASSERT_EQ(run.exit_code, 0) << run.output;
@@ -227,6 +230,11 @@ TEST(Viewer, ShowsTheVolumeStatsAndPanelsAndFollowsEdits) {
   // The scene it saved is one `cinevol render` reads; the snapshot is a PNG.
   EXPECT_NO_THROW(LoadSceneFile(scene));
   EXPECT_GT(ReadPng(still).width, 0);
+  // The movie the server made: 10 frames (0.4 s at 25 frames/s) of H.264, written here.
+  const CommandResult probed = RunCommand("ffprobe -v error -count_frames -select_streams v:0 -show_entries "
+                                          "stream=codec_name,nb_read_frames -of default=nw=1 '" + movie.string() + "'");
+  EXPECT_NE(probed.output.find("codec_name=h264"), std::string::npos) << probed.output << run.output;
+  EXPECT_NE(probed.output.find("nb_read_frames=10"), std::string::npos) << probed.output;
   // The window was resized: the session's viewport followed the frame area.
   const auto& size = layout.fields().at("frameSize").list_value().values();
   EXPECT_EQ(layout.fields().at("window").list_value().values(0).number_value(), 700);

@@ -14,7 +14,7 @@
 // Run directly (node pacs.test.mjs): exit 77 (skipped) without chromium or
 // the shared data, a failure without Orthanc (CI must run it).
 import assert from "node:assert/strict";
-import { execFile } from "node:child_process";
+import { execFile, execFileSync } from "node:child_process";
 import { existsSync, mkdirSync, readdirSync, readFileSync, rmSync, writeFileSync } from "node:fs";
 import { join } from "node:path";
 import { promisify } from "node:util";
@@ -171,6 +171,19 @@ test("the DICOMweb origin renders the series by URL: 3D as JPEG and PNG, an MPR 
                           { headers: { accept: "image/png" } });
   assert.equal(mpr.status, 200, await mpr.clone().text());
   assert.ok(pngSize(Buffer.from(await mpr.arrayBuffer())).width > 100, "a slab across the CT");
+  // A swivel: a quarter turn, 30 degrees a frame at 10 frames a second, is an MP4 of 3 frames (ffprobe decodes them).
+  const swivel = await fetch(`${series}/rendered3D?orientation=a&viewport=64,48&quality=10&swivelrange=90` +
+                             "&animationstepsize=30&animationrate=10", { headers: { accept: "video/mp4" } });
+  assert.equal(swivel.status, 200, await swivel.clone().text());
+  assert.equal(swivel.headers.get("content-type"), "video/mp4");
+  const video = join(scratch, "swivel.mp4");
+  writeFileSync(video, Buffer.from(await swivel.arrayBuffer()));
+  const probed = execFileSync("ffprobe", ["-v", "error", "-count_frames", "-select_streams", "v:0", "-show_entries",
+                                          "stream=codec_name,width,height,nb_read_frames", "-of", "default=nw=1",
+                                          video]).toString();
+  for (const expected of ["codec_name=h264", "width=64", "height=48", "nb_read_frames=3"]) {
+    assert.ok(probed.includes(expected), `${expected} in ${probed}`);
+  }
   // The issue's bad parameters: each refused with the standard's status and a message, and nothing else touched
   // (no session made or left, no volume loaded).
   const origin = `http://127.0.0.1:${run.gateway.port}/dicom-web`;
@@ -185,7 +198,9 @@ test("the DICOMweb origin renders the series by URL: 3D as JPEG and PNG, an MPR 
     [`${series}/renderedmpr?${view}&mprslab=1e6`, 400, "mprslab: a thickness in mm, 0 to 1e4"],
     [`${series}/renderedmpr?renderingmethod=average_ip`, 400, "viewpointposition"],
     [`${series}/renderedmpr?${view}&accept=image/jpeg`, 406, "image/png"],
-    [`${series}/rendered3D?accept=video/mp4`, 406, "video"],
+    [`${series}/rendered3D?accept=video/mp4`, 400, "swivelrange: a video of a rendered volume is a swivel"],
+    [`${series}/rendered3D?swivelrange=360&animationstepsize=0.01`, 400, "at most 3600"],
+    [`${series}/renderedmpr?${view}&swivelrange=90`, 400, "swivel"],
     [`${origin}/orthanc/studies/${CT.studyUid}/series/2.25.999/rendered3D`, 404, ""],
     [`${origin}/nope/studies/1.2/series/1.2/rendered3D`, 400, "nope"],
     [`${origin}/http://127.0.0.1:9/dicom-web/studies/1.2/series/1.2/rendered3D`, 400, "is not a PACS name"],

@@ -1,16 +1,18 @@
 // A DICOMweb origin for rendered volumes (PS3.18 2024d+, "Rendered 3D and MPR" resources of Supplement 228, query
 // parameters of 8.3.5): any DICOMweb client asks for a path-traced or MPR picture of a series of one of the server's
-// PACS by URL, and gets it as PNG or JPEG (docs/web.md, "Rendered volumes by URL"):
+// PACS by URL, and gets it as PNG or JPEG, or a swivel as MP4 (docs/web.md, "Rendered volumes by URL"):
 //   GET /dicom-web/{pacs}/studies/{study}/series/{series}/rendered3D?orientation=a&viewport=512,512&quality=80
+//   GET /dicom-web/{pacs}/studies/{study}/series/{series}/rendered3D?swivelrange=360&animationstepsize=2
+//       &animationrate=25 (Accept: video/mp4)
 //   GET /dicom-web/{pacs}/studies/{study}/series/{series}/renderedmpr?renderingmethod=maximum_ip&mprslab=20
-//       &viewpointposition=x,y,z&viewpointlookat=x,y,z&viewpointup=x,y,z&window=400,40,linear
+//       &viewpointposition=x,y,z&viewpointlookat=x,y,z&viewpointup=x,y,z&window=40,400,linear
 //   GET /dicom-web/{pacs}/studies/{study}/series/{series}/instances/{presentation state}/rendered3D
 //       (a Volume Rendering Volumetric Presentation State: the series it presents, in its scene)
 // The series comes through the server's LoadSeries (its limits, cache and reader cage), the picture from a session
 // of the caller's own (their bearer token goes through as it came, or the one a signed URL stands for:
 // signed_urls.ts), which ends with the answer.
 import { create } from "@bufbuild/protobuf";
-import { Code, ConnectError, createClient, type CallOptions, type Transport } from "@connectrpc/connect";
+import { Code, ConnectError, createClient, type CallOptions, type Client, type Transport } from "@connectrpc/connect";
 import { NamedView, SceneFrame, SceneSchema, type Scene } from "../gen/cinevol/v1/scene_pb.js";
 import {
   ImageFormat, PacsService, SessionService, SlabProjection, SliceAxis, type VolumeInfo,
@@ -42,7 +44,10 @@ export interface RenderedRequest {
   viewport: { width: number; height: number };
   viewportGiven: boolean;  // an MPR without one is at the volume's resolution, with one exactly that size
   quality: number;  // 1 to 100
-  accept: "image/jpeg" | "image/png" | "application/dicom+json";
+  // A swivel animation (video/mp4): the camera turned `degrees` about its up axis through its target, `stepDegrees` a
+  // frame, `rate` frames a second: SessionService.RenderMovie's orbit (docs/movies.md).
+  swivel?: { degrees: number; stepDegrees: number; rate: number };
+  accept: "image/jpeg" | "image/png" | "application/dicom+json" | "video/mp4";
 }
 
 /** A refusal as the standard's status codes say it: 400 a bad value, 406 a media type not offered. */
@@ -68,17 +73,50 @@ function vec(query: URLSearchParams, name: string): Vec | undefined {
   return numbers(query, name, 3) as Vec | undefined;
 }
 
-/** The media type answered: the `accept` parameter, else the Accept header's first one offered (JPEG by default). */
+/**
+ * The media type answered: the `accept` parameter, else the Accept header's first one offered. A swivel is a video
+ * (video/mp4); anything else an image (JPEG by default).
+ */
 function mediaType(query: URLSearchParams, acceptHeader: string | undefined): RenderedRequest["accept"] {
   if (query.get("renderedvolumetricmetadata") === "yes") return "application/dicom+json";
-  const asked = (query.get("accept") ?? acceptHeader ?? "image/jpeg").split(",").map((t) => t.split(";")[0].trim());
+  const swivel = query.has("swivelrange");
+  const asked = (query.get("accept") ?? acceptHeader ?? (swivel ? "video/mp4" : "image/jpeg")).split(",")
+    .map((t) => t.split(";")[0].trim());
   for (const type of asked) {
-    if (type === "image/jpeg" || type === "image/png") return type;
-    if (type === "image/*" || type === "*/*") return "image/jpeg";
+    if (swivel && ["video/mp4", "video/*", "*/*"].includes(type)) return "video/mp4";
+    if (!swivel && (type === "image/jpeg" || type === "image/png")) return type;
+    if (!swivel && (type === "image/*" || type === "*/*")) return "image/jpeg";
   }
-  const video = asked.some((t) => t.startsWith("video/"));
-  throw new Refusal(406, video ? "a swivel animation as video is not offered yet; ask for image/jpeg or image/png"
-                               : `none of '${asked.join(", ")}' is offered: image/jpeg or image/png`);
+  if (!swivel && asked.some((t) => t.startsWith("video/"))) {
+    throw new Refusal(400, "swivelrange: a video of a rendered volume is a swivel; give its range in degrees");
+  }
+  throw new Refusal(406, swivel ? `none of '${asked.join(", ")}' is offered for a swivel animation: video/mp4`
+                                : `none of '${asked.join(", ")}' is offered: image/jpeg or image/png`);
+}
+
+const MAX_SWIVEL_FRAMES = 3600;  // RenderMovie's most
+
+/** swivelrange (degrees), animationstepsize (degrees a frame, default 2) and animationrate (frames a second, 25). */
+function swivelOf(query: URLSearchParams): RenderedRequest["swivel"] {
+  if (!query.has("swivelrange")) {
+    const stray = ["animationstepsize", "animationrate"].find((name) => query.has(name));
+    if (stray) throw new Refusal(400, `${stray}: says how a swivel animates; give swivelrange too`);
+    return undefined;
+  }
+  const degrees = Number(query.get("swivelrange"));
+  const stepDegrees = Number(query.get("animationstepsize") ?? "2");
+  const rate = Number(query.get("animationrate") ?? "25");
+  if (!Number.isFinite(degrees) || degrees === 0 || Math.abs(degrees) > 3600) {
+    throw new Refusal(400, "swivelrange: degrees, non-zero, at most 3600 either way");
+  }
+  if (!(stepDegrees > 0 && stepDegrees <= 360)) throw new Refusal(400, "animationstepsize: degrees a frame, (0, 360]");
+  if (!Number.isInteger(rate) || rate < 1 || rate > 60) throw new Refusal(400, "animationrate: frames a second, 1 to 60");
+  const frames = Math.ceil(Math.abs(degrees) / stepDegrees);
+  if (frames > MAX_SWIVEL_FRAMES) {
+    throw new Refusal(400, `animationstepsize: ${degrees} degrees at ${stepDegrees} a frame is ${frames} frames; ` +
+                           `at most ${MAX_SWIVEL_FRAMES}`);
+  }
+  return { degrees, stepDegrees, rate };
 }
 
 /** An MPR is PNG (lossless, as reading needs): PNG or a wildcard among the types asked gets it, else 406. */
@@ -138,12 +176,16 @@ export function readRendered(path: string, search: string, acceptHeader?: string
     method: method as RenderedRequest["method"],
     orientation: orientation as RenderedRequest["orientation"], position: vec(query, "viewpointposition"),
     lookAt: vec(query, "viewpointlookat"), up: vec(query, "viewpointup"), slabMm: slab, window,
-    viewport: { width: vw, height: vh }, viewportGiven: asked !== undefined, quality,
+    viewport: { width: vw, height: vh }, viewportGiven: asked !== undefined, quality, swivel: swivelOf(query),
     accept: kind === "renderedmpr" ? mprMediaType(query, acceptHeader, mediaType(query, acceptHeader))
                                    : mediaType(query, acceptHeader),
   };
   if ((request.position === undefined) !== (request.lookAt === undefined)) {
     throw new Refusal(400, "viewpointposition and viewpointlookat: give both or neither");
+  }
+  if (kind === "renderedmpr" && request.swivel) throw new Refusal(400, "swivelrange: an MPR does not swivel");
+  if (request.swivel && request.viewport.width % 2 + request.viewport.height % 2 > 0) {
+    throw new Refusal(400, "viewport: a swivel's video needs each side even (4:2:0 chroma)");
   }
   if (kind === "renderedmpr" && request.position === undefined) {
     throw new Refusal(400, "renderedmpr: viewpointposition and viewpointlookat say the plane (through the look-at " +
@@ -322,6 +364,7 @@ export async function render(transport: Transport, r: RenderedRequest, authoriza
   }, call);
   try {
     if (r.accept === "application/dicom+json") return metadata(r, created.scene, placementOf(volume));
+    if (r.swivel) return { type: "video/mp4", body: await swivel(sessions, created.sessionId, r, call) };
     if (r.kind === "rendered3d") {
       const still = await sessions.snapshot({
         sessionId: created.sessionId, spp: sppOf(r.quality),
@@ -343,6 +386,19 @@ export async function render(transport: Transport, r: RenderedRequest, authoriza
   } finally {
     await sessions.closeSession({ sessionId: created.sessionId }, call).catch(() => {});
   }
+}
+
+/** A swivel animation: the session's view turned as the request says, a movie the server makes (RenderMovie). */
+async function swivel(sessions: Client<typeof SessionService>, sessionId: string, r: RenderedRequest,
+                      call: CallOptions): Promise<Buffer> {
+  const { degrees, stepDegrees, rate } = r.swivel!;
+  const frames = Math.ceil(Math.abs(degrees) / stepDegrees);
+  for await (const update of sessions.renderMovie({
+    sessionId, path: { case: "orbitDegrees", value: degrees }, seconds: frames / rate, fps: rate, spp: sppOf(r.quality),
+  }, call)) {
+    if (update.update.case === "movie") return Buffer.from(update.update.value.mp4);
+  }
+  throw new Refusal(502, "the server ended the swivel without its video");
 }
 
 /** The parameters used, as DICOM JSON (PS3.18 Annex K): the view the session resolved (in the patient, LPS mm, as

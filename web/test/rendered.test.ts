@@ -58,6 +58,31 @@ test("bad parameters are refused with the standard's status and a message, befor
   assert.ok(performance.now() - started < 100, "a long path is refused in linear time");
 });
 
+test("a swivel is a video (video/mp4): its range, step and rate read, and what cannot be one refused", () => {
+  const swivel = (query: string, accept?: string) => readRendered(`${SERIES}/rendered3D`, query, accept)!;
+  const turn = swivel("swivelrange=90&animationstepsize=30&animationrate=10&viewport=64,48");
+  assert.equal(turn.accept, "video/mp4", "a swivel's default media type");
+  assert.deepEqual(turn.swivel, { degrees: 90, stepDegrees: 30, rate: 10 });
+  assert.deepEqual(swivel("swivelrange=-360", "video/*").swivel, { degrees: -360, stepDegrees: 2, rate: 25 });
+  assert.equal(swivel("", "image/jpeg").swivel, undefined, "a still has none");
+  const cases: [string, string | undefined, number, RegExp][] = [
+    ["accept=video/mp4", undefined, 400, /swivelrange: a video of a rendered volume is a swivel/],
+    ["swivelrange=90&accept=image/png", undefined, 406, /offered for a swivel animation: video\/mp4/],
+    ["swivelrange=NaN", undefined, 400, /swivelrange: degrees/],
+    ["swivelrange=0", undefined, 400, /swivelrange: degrees, non-zero/],
+    ["swivelrange=360&animationstepsize=0.01", undefined, 400, /36000 frames; at most 3600/],
+    ["swivelrange=360&animationrate=120", undefined, 400, /animationrate: frames a second, 1 to 60/],
+    ["animationrate=10", undefined, 400, /animationrate: says how a swivel animates; give swivelrange too/],
+    ["swivelrange=90&viewport=63,48", undefined, 400, /viewport: a swivel's video needs each side even/],
+  ];
+  for (const [query, accept, status, said] of cases) {
+    const got = refusal(`${SERIES}/rendered3D?${query}`, accept);
+    assert.equal(got.status, status, `${query}: ${got.message}`);
+    assert.match(got.message, said, query);
+  }
+  assert.match(refusal(`${SERIES}/renderedmpr?${VIEW}&swivelrange=90`).message, /an MPR does not swivel|video\/mp4/);
+});
+
 test("an MPR is PNG: the default, a wildcard or PNG among the types asked", () => {
   const accept = (header?: string) => readRendered(`${SERIES}/renderedmpr`, VIEW, header)!.accept;
   assert.equal(accept(), "image/png");
