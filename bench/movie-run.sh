@@ -29,7 +29,7 @@ timed() {  # timed LABEL COMMAND...: seconds the command took, its output to the
   start=$(date +%s.%N)
   "${@:2}" >> "$out/movie-client.log" 2>&1 || echo "$1 failed: see $out/movie-client.log" >&2
   end=$(date +%s.%N)
-  echo "$end - $start" | bc
+  awk -v a="$start" -v b="$end" 'BEGIN{print b - a}'
 }
 
 cold=$(timed cold "$bin/cinevol" snapshot --server "$address" --width 512 --height 512 \
@@ -42,7 +42,7 @@ movie=$(timed movie "$bin/cinevol" movie --server "$address" --orbit 360 --secon
   echo "| backend | volume | 512x512 still, cold (s) | held (s) | 720p movie: ${seconds} s at ${fps} frames/s (s) | seconds per second of video |"
   echo "|---|---|---|---|---|---|"
   printf "| %s | %s | %.2f | %.2f | %.1f | %.1f |\n" "$backend" "$(basename "$volume")" "$cold" "$held" "$movie" \
-    "$(echo "$movie / $seconds" | bc -l)"
+    "$(awk -v m="$movie" -v s="$seconds" 'BEGIN{print m / s}')"
   echo
   echo "$spp spp a pixel for the stills and each frame; $(nproc) CPU cores; $(nvidia-smi --query-gpu=name --format=csv,noheader 2>/dev/null | head -1)"
 } | tee "$out/movie.md"

@@ -30,7 +30,10 @@ trap cleanup EXIT
 pids+=($!)
 for _ in $(seq 100); do [ -s "$work/port" ] && break; sleep 0.1; done
 address=127.0.0.1:$(cat "$work/port")
-"$bin/cinevol-web" --listen 127.0.0.1:0 --port-file "$work/web.port" --server "$address" > "$work/web.log" 2>&1 &
+# The requests all come from loopback: the gateway's limit of connections from one address (32 by default, against
+# one client holding them all) is raised so that they stand for REQUESTS clients.
+"$bin/cinevol-web" --listen 127.0.0.1:0 --port-file "$work/web.port" --server "$address" \
+  --max-connections-per-address $((requests + 8)) > "$work/web.log" 2>&1 &
 pids+=($!)
 for _ in $(seq 100); do [ -s "$work/web.port" ] && break; sleep 0.1; done
 rendered="http://127.0.0.1:$(cat "$work/web.port")/dicom-web/bench/studies/$study/series/$uid/rendered3D"

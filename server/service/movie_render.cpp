@@ -1,6 +1,7 @@
 #include "service/movie_render.h"
 
 #include <fmt/format.h>
+#include <spdlog/spdlog.h>
 #include <unistd.h>
 
 #include <chrono>
@@ -99,9 +100,12 @@ void MovieRender::Render(int frame) {
 }
 
 void MovieRender::Encode(int frame, const StillRadiance& still) {
+  const Clock::time_point begin = Clock::now();
   const ImageRgb8 image = ToneMap(still.image, still.exposure);
   mp4_->Add(image.bytes);
   if (dicom_) dicom_->Add(image.bytes);
+  render_us_ += still.render_us;
+  encode_us_ += MicrosecondsSince(begin);
   if (std::filesystem::file_size(mp4_path_) > kMaxMovieMp4Bytes) {
     throw OverLimit("max-movie-bytes", fmt::format("the movie passed {} MiB at frame {} of {}; ask for fewer frames, "
                                                    "a smaller viewport or a higher crf",
@@ -142,6 +146,9 @@ void MovieRender::Finish() {
   movie.set_frames(std::uint32_t(plan_.frames));
   movie.set_spp(std::uint32_t(plan_.spp));
   movie.set_render_us(MicrosecondsSince(start_));
+  spdlog::info("session {}: a movie of {} frames of {}x{} at {} spp in {:.1f} s: a frame's still {:.1f} ms, its "
+               "encoding {:.1f} ms", session_->id(), plan_.frames, movie.width(), movie.height(), plan_.spp,
+               movie.render_us() * 1e-6, render_us_ * 1e-3 / plan_.frames, encode_us_ * 1e-3 / plan_.frames);
   session_->EndStill();
   std::exchange(callbacks_.done, nullptr)(grpc::Status::OK, std::move(movie), std::move(dicom_stream));
 }

@@ -65,6 +65,7 @@ class MovieRender : public std::enable_shared_from_this<MovieRender> {
   std::filesystem::path mp4_path_, dicom_path_;
   std::optional<H264Writer> mp4_, dicom_;
   Clock::time_point start_ = Clock::now(), last_progress_ = start_;
+  std::uint64_t render_us_ = 0, encode_us_ = 0;  // the frames' stills and their encoding, for the log
 };
 
 }  // namespace cinevol::service

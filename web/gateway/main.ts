@@ -10,6 +10,7 @@ import { ConnectionGuard } from "./connections.js";
 import { forwardService, SessionRoutes } from "./forward.js";
 import { parseOptions, UsageError, USAGE, type GatewayOptions } from "./options.js";
 import { answerRendered } from "./rendered.js";
+import { RenderQueue } from "./render_queue.js";
 import { refuse, RequestChecks } from "./request_checks.js";
 import { answerSigning, SignedUrls } from "./signed_urls.js";
 import { StaticFiles } from "./static_files.js";
@@ -41,12 +42,13 @@ function start(o: GatewayOptions): void {
   const guard = new ConnectionGuard(o.maxConnectionsPerAddress, o.timeouts);
   const checks = new RequestChecks(o.host, o.allowedHosts);
   const signed = new SignedUrls();
+  const queue = new RenderQueue();
   const handler = (req: http.IncomingMessage | http2.Http2ServerRequest,
                    res: http.ServerResponse | http2.Http2ServerResponse) => {
     guard.requestStarted(req, res);
     const refusal = checks.refusal(req);
     if (refusal) refuse(res, refusal);
-    else if (!answerSigning(server, signed, req, res) && !answerRendered(server, req, res, signed)) translate(req, res);
+    else if (!answerSigning(server, signed, req, res) && !answerRendered(server, req, res, queue, signed)) translate(req, res);
   };
   const listener = o.tls
     ? http2.createSecureServer({ cert: o.tls.cert, key: o.tls.key, allowHTTP1: true,

@@ -18,6 +18,7 @@ import {
   ImageFormat, PacsService, SessionService, SlabProjection, SliceAxis, type VolumeInfo,
 } from "../gen/cinevol/v1/service_pb.js";
 import { fitPng } from "./png.js";
+import type { RenderQueue } from "./render_queue.js";
 import type { SignedUrls } from "./signed_urls.js";
 
 /** The resource a path names, or undefined for a path that is not one. */
@@ -323,7 +324,7 @@ export function statusOf(e: unknown): { status: number; message: string } {
   const error = ConnectError.from(e);
   const status: Partial<Record<Code, number>> = {
     [Code.InvalidArgument]: 400, [Code.NotFound]: 404, [Code.Unauthenticated]: 401, [Code.PermissionDenied]: 403,
-    [Code.ResourceExhausted]: 413, [Code.FailedPrecondition]: 400, [Code.Unavailable]: 503,
+    [Code.ResourceExhausted]: 429, [Code.FailedPrecondition]: 400, [Code.Unavailable]: 503,
     [Code.DeadlineExceeded]: 504,
   };
   return { status: status[error.code] ?? 500, message: error.rawMessage };
@@ -454,7 +455,8 @@ export function splitUrl(url: string): [string, string] {
  * request carrying a signed URL's capability (`signature`) is served as the caller who had it made, where `signed`
  * holds it for this resource.
  */
-export function answerRendered(transport: Transport, req: Request, res: Response, signed?: SignedUrls): boolean {
+export function answerRendered(transport: Transport, req: Request, res: Response, queue: RenderQueue,
+                               signed?: SignedUrls): boolean {
   const [path, search] = splitUrl(req.url ?? "/");
   const header = (name: string) => { const v = req.headers[name]; return Array.isArray(v) ? v.join(",") : v; };
   let request: RenderedRequest | undefined, authorization = header("authorization");
@@ -475,7 +477,7 @@ export function answerRendered(transport: Transport, req: Request, res: Response
   }
   const gone = new AbortController();
   req.on("close", () => gone.abort());
-  render(transport, request, authorization, gone.signal).then(
+  queue.run(authorization, gone.signal, () => render(transport, request, authorization, gone.signal)).then(
     (picture) => {
       if (res.writableEnded) return;
       res.writeHead(200, { "content-type": picture.type, "content-length": picture.body.length,

@@ -10,6 +10,7 @@ import { deflateSync } from "node:zlib";
 import {
   answerRendered, planMpr, readRendered, Refusal, scopeOf, type Placement, type RenderedRequest,
 } from "../gateway/rendered.js";
+import { RenderQueue } from "../gateway/render_queue.js";
 import { answerSigning, readSigningRequest, SignedUrls, DEFAULT_LIMITS } from "../gateway/signed_urls.js";
 
 const SERIES = "/dicom-web/main/studies/1.2.3/series/1.2.3.4";
@@ -257,7 +258,7 @@ test("through the gateway's handlers: a signed URL is made for a valid token and
   };
   const get = async (url: string, headers: Record<string, string> = {}) => {
     const { req, res, answered } = exchange("GET", url, headers);
-    assert.ok(answerRendered(transport, req, res, urls));
+    assert.ok(answerRendered(transport, req, res, new RenderQueue(), urls));
     return answered;
   };
   const made = await sign("Bearer alice-token", { url: `${SERIES}/rendered3D?viewport=64,48`, expiresIn: 30 });
@@ -281,4 +282,50 @@ test("through the gateway's handlers: a signed URL is made for a valid token and
   answerSigning(transport, urls, fetched.req, fetched.res);
   assert.equal((await fetched.answered).status, 405);
   assert.equal(scopeOf(readRendered(`${SERIES}/rendered3d`, "")!), `${SERIES}/rendered3D`);
+});
+
+test("rendered requests wait their turn: a caller's burst is held to its share, callers served in turn", async () => {
+  const queue = new RenderQueue({ perCaller: 2, atOnce: 3, waitingPerCaller: 3, waiting: 8 });
+  const turn = () => new Promise((r) => setImmediate(r));
+  const started: string[] = [], release: (() => void)[] = [];
+  const ask = (who: string, signal = new AbortController().signal) => queue.run(`Bearer ${who}`, signal, () => {
+    started.push(who);
+    return new Promise<string>((done) => release.push(() => done(who)));
+  });
+  const burst = [1, 2, 3, 4, 5].map(() => ask("alice"));
+  await turn();
+  assert.deepEqual(started, ["alice", "alice"], "two of alice's at once, her share");
+  const gone = new AbortController();
+  const bob = ask("bob"), carol = ask("carol", gone.signal);
+  await turn();
+  assert.deepEqual(started, ["alice", "alice", "bob"], "bob at once beside her, in the third slot");
+  const overflow = await ask("alice").then(() => 0, (e: Refusal) => e.status);
+  assert.equal(overflow, 429, "alice's sixth waits in no line: hers holds three");
+  gone.abort();
+  assert.equal(await carol.then(() => 0, (e: Refusal) => e.status), 499, "carol left before her turn");
+  release.shift()!();  // one of alice's ends: her next starts (bob's slot stays his)
+  await turn();
+  assert.deepEqual(started.slice(3), ["alice"]);
+  while (release.length) {
+    release.shift()!();
+    await turn();
+  }
+  assert.deepEqual(await Promise.all([...burst, bob]), ["alice", "alice", "alice", "alice", "alice", "bob"]);
+  assert.deepEqual(queue.counts, { running: 0, waiting: 0 });
+});
+
+test("callers waiting are served in turn, one request each", async () => {
+  const queue = new RenderQueue({ perCaller: 1, atOnce: 1, waitingPerCaller: 10, waiting: 100 });
+  const order: string[] = [], release: (() => void)[] = [];
+  const ask = (who: string) => queue.run(who, new AbortController().signal, () => {
+    order.push(who);
+    return new Promise<void>((done) => release.push(done));
+  });
+  const all = [ask("a"), ask("a"), ask("a"), ask("b"), ask("c")];
+  while (order.length < 5) {
+    await new Promise((r) => setImmediate(r));
+    release.shift()?.();
+  }
+  await Promise.all(all);
+  assert.deepEqual(order, ["a", "a", "b", "c", "a"], "after a's first, a, b and c take turns in the order they came");
 });
