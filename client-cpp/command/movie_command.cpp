@@ -20,7 +20,7 @@ struct MovieOptions {
   ConnectionOptions connection;
   std::string volume, preset, scene, out, sweep;
   std::string store_to;  // a PACS: the movie also goes there as DICOM video, into its volume's study
-  double orbit = 0;  // degrees about the view's up axis through its target
+  double orbit = 0;      // degrees about the view's up axis through its target
   bool orbit_given = false, phases = false;
   double seconds = 4;
   int fps = 25, width = 640, height = 480, spp = 64, crf = 18;
@@ -53,8 +53,8 @@ void Run(const MovieOptions& o) {
   Client client = Connect(o.connection);
   const v1::VolumeInfo volume = ResolveVolume(client, o.volume);
   if (o.phases) {
-    throw InputError(fmt::format("--phases: volume '{}' holds one phase; a movie of phases needs a time series",
-                                 volume.id()));
+    throw InputError(
+        fmt::format("--phases: volume '{}' holds one phase; a movie of phases needs a time series", volume.id()));
   }
   ScriptSession s;
   s.preset = o.preset;
@@ -67,8 +67,7 @@ void Run(const MovieOptions& o) {
   try {
     movie = client.RenderMovie(request, [](const v1::MovieProgress& p) {
       const double elapsed = p.elapsed_us() * 1e-6;
-      fmt::print(stderr, "movie: frame {}/{}, {} spp each, {:.1f} s{}\n", p.frames_done(), p.frames(), p.spp(),
-                 elapsed,
+      fmt::print(stderr, "movie: frame {}/{}, {} spp each, {:.1f} s{}\n", p.frames_done(), p.frames(), p.spp(), elapsed,
                  p.frames_done() == 0 ? std::string()
                                       : fmt::format(", about {:.0f} s left",
                                                     elapsed / p.frames_done() * (p.frames() - p.frames_done())));
@@ -106,11 +105,15 @@ void AddMovieCommand(CLI::App& app) {
       ->each([o](const std::string&) { o->orbit_given = true; });
   cmd->add_option("--sweep", o->sweep, "Move a clip plane through the volume along x|y|z (sagittal|coronal|axial)");
   cmd->add_flag("--phases", o->phases, "Play the volume's phases (a time series)");
-  cmd->add_option("--seconds", o->seconds, "Length of the movie")->check(CLI::Range(0.04, 600.0))->capture_default_str();
+  cmd->add_option("--seconds", o->seconds, "Length of the movie")
+      ->check(CLI::Range(0.04, 600.0))
+      ->capture_default_str();
   cmd->add_option("--fps", o->fps, "Frames per second")->check(CLI::Range(1, 60))->capture_default_str();
   cmd->add_option("--width", o->width, "Width, even")->check(CLI::Range(16, 4096))->capture_default_str();
   cmd->add_option("--height", o->height, "Height, even")->check(CLI::Range(16, 4096))->capture_default_str();
-  cmd->add_option("--spp", o->spp, "Samples per pixel of each frame")->check(CLI::Range(1, 16384))->capture_default_str();
+  cmd->add_option("--spp", o->spp, "Samples per pixel of each frame")
+      ->check(CLI::Range(1, 16384))
+      ->capture_default_str();
   cmd->add_option("--crf", o->crf, "H.264 constant quality: 0 lossless, 18 visually lossless, 51 worst")
       ->check(CLI::Range(0, 51))
       ->capture_default_str();

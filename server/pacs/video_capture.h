@@ -14,7 +14,7 @@ inline constexpr const char* kMpeg4HighProfileLevel41 = "1.2.840.10008.1.2.4.102
 // Its series number: past the renders (9900), reports (9901) and presentation states (9902).
 inline constexpr int kMovieSeriesNumber = 9903;
 // The largest stream cinevol stores: about a minute of 1080p at visually lossless quality (5 to 10 Mbit/s).
-// It is held in memory while it is received and wrapped (three copies at most), on a pool of four.
+// It is held in memory while it is read from the encoder's file and wrapped (three copies at most), on a pool of four.
 inline constexpr std::size_t kMaxMovieBytes = std::size_t{64} << 20;
 
 struct MovieStream {

@@ -72,11 +72,15 @@ std::pair<double, double> Extent(const Volume& volume, int axis) {
 
 int SweepAxis(v1::SliceAxis axis) {
   switch (axis) {
-    case v1::SAGITTAL: return 0;
-    case v1::CORONAL: return 1;
+    case v1::SAGITTAL:
+      return 0;
+    case v1::CORONAL:
+      return 1;
     case v1::AXIAL:
-    case v1::SLICE_AXIS_UNSPECIFIED: return 2;
-    default: throw InputError(fmt::format("sweep: {} is not AXIAL, CORONAL or SAGITTAL", int(axis)));
+    case v1::SLICE_AXIS_UNSPECIFIED:
+      return 2;
+    default:
+      throw InputError(fmt::format("sweep: {} is not AXIAL, CORONAL or SAGITTAL", int(axis)));
   }
 }
 
@@ -113,8 +117,11 @@ int MovieFrames(const v1::MovieRequest& request) {
         throw InputError(fmt::format("orbit_degrees: {:g} is outside [-3600, 3600]", request.orbit_degrees()));
       }
       break;
-    case v1::MovieRequest::kSweep: SweepAxis(request.sweep()); break;
-    default: throw InputError("path: give orbit_degrees or sweep");
+    case v1::MovieRequest::kSweep:
+      SweepAxis(request.sweep());
+      break;
+    default:
+      throw InputError("path: give orbit_degrees or sweep");
   }
   return int(frames);
 }

@@ -86,10 +86,12 @@ void MovieRender::Render(int frame) {
     StillJob::Callbacks job;
     job.done = [self = shared_from_this(), frame](grpc::Status status, StillRadiance still) {
       if (!status.ok()) return self->Fail(std::move(status));
-      const bool queued = self->encoder_.Submit([self, frame, still = std::move(still)] {
-        const grpc::Status encoded = Guarded([&] { self->Encode(frame, still); });
-        if (!encoded.ok()) self->Fail(encoded);
-      }, self->session_->id());
+      const bool queued = self->encoder_.Submit(
+          [self, frame, still = std::move(still)] {
+            const grpc::Status encoded = Guarded([&] { self->Encode(frame, still); });
+            if (!encoded.ok()) self->Fail(encoded);
+          },
+          self->session_->id());
       if (!queued) self->Fail(RpcError::Unavailable("the server is shutting down").status());
     };
     job.why_cancelled = [self = shared_from_this()] { return self->WhyCancelled(); };
@@ -132,9 +134,10 @@ void MovieRender::Finish() {
   if (dicom_) {
     dicom_->Finish();
     if (std::filesystem::file_size(dicom_path_) > pacs::kMaxMovieBytes) {
-      throw OverLimit("max-movie-bytes", fmt::format("store_to: the DICOM stream is {} bytes, over the {} MiB a "
-                                                     "stored movie may have", std::filesystem::file_size(dicom_path_),
-                                                     pacs::kMaxMovieBytes >> 20));
+      throw OverLimit("max-movie-bytes",
+                      fmt::format("store_to: the DICOM stream is {} bytes, over the {} MiB a "
+                                  "stored movie may have",
+                                  std::filesystem::file_size(dicom_path_), pacs::kMaxMovieBytes >> 20));
     }
     dicom_stream = ReadAll(dicom_path_);
   }
@@ -146,9 +149,11 @@ void MovieRender::Finish() {
   movie.set_frames(std::uint32_t(plan_.frames));
   movie.set_spp(std::uint32_t(plan_.spp));
   movie.set_render_us(MicrosecondsSince(start_));
-  spdlog::info("session {}: a movie of {} frames of {}x{} at {} spp in {:.1f} s: a frame's still {:.1f} ms, its "
-               "encoding {:.1f} ms", session_->id(), plan_.frames, movie.width(), movie.height(), plan_.spp,
-               movie.render_us() * 1e-6, render_us_ * 1e-3 / plan_.frames, encode_us_ * 1e-3 / plan_.frames);
+  spdlog::info(
+      "session {}: a movie of {} frames of {}x{} at {} spp in {:.1f} s: a frame's still {:.1f} ms, its "
+      "encoding {:.1f} ms",
+      session_->id(), plan_.frames, movie.width(), movie.height(), plan_.spp, movie.render_us() * 1e-6,
+      render_us_ * 1e-3 / plan_.frames, encode_us_ * 1e-3 / plan_.frames);
   session_->EndStill();
   std::exchange(callbacks_.done, nullptr)(grpc::Status::OK, std::move(movie), std::move(dicom_stream));
 }

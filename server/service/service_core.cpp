@@ -38,10 +38,14 @@ constexpr std::uint32_t kDefaultMovieSpp = 64;
 constexpr int kStillJpegQuality = 95;
 
 v1::SnapshotResponse EncodeStill(const StillRadiance& still, v1::ImageFormat format) {
-  const std::vector<std::uint8_t> bytes =
-      format == v1::EXR    ? EncodeExr(still.image)
-      : format == v1::JPEG ? EncodeJpeg(ToneMap(still.image, still.exposure), kStillJpegQuality, ChromaSubsampling::k444)
-                           : EncodePng(ToneMap(still.image, still.exposure));
+  std::vector<std::uint8_t> bytes;
+  if (format == v1::EXR) {
+    bytes = EncodeExr(still.image);
+  } else if (format == v1::JPEG) {
+    bytes = EncodeJpeg(ToneMap(still.image, still.exposure), kStillJpegQuality, ChromaSubsampling::k444);
+  } else {
+    bytes = EncodePng(ToneMap(still.image, still.exposure));
+  }
   v1::SnapshotResponse response;
   response.set_image(bytes.data(), bytes.size());
   response.set_format(format == v1::EXR || format == v1::JPEG ? format : v1::PNG);
@@ -428,7 +432,9 @@ void ServiceCore::RenderMovie(const v1::MovieRequest& request, const Principal& 
                                 "(--max-movie-samples)",
                                 plan.frames, plan.spp, pixels, samples, options_.limits.max_movie_samples));
   }
-  if (request.has_crf() && request.crf() > 51) throw InputError(fmt::format("crf: {} is outside [0, 51]", request.crf()));
+  if (request.has_crf() && request.crf() > 51) {
+    throw InputError(fmt::format("crf: {} is outside [0, 51]", request.crf()));
+  }
   plan.crf = request.has_crf() ? int(request.crf()) : 18;
   MovieRender::Callbacks movie;
   movie.progress = std::move(callbacks.progress);

@@ -89,7 +89,8 @@ void StillJob::ReportProgress() {
 grpc::Status StillJob::Failure(std::exception_ptr error, int done) const {
   const grpc::Status status = ToStatus(error);
   if (status.error_code() != grpc::StatusCode::CANCELLED || !*cancel_ || !callbacks_.why_cancelled) return status;
-  return RpcError::Cancelled(fmt::format("the still stopped at {} of {} spp: {}", done, spp_, callbacks_.why_cancelled()))
+  return RpcError::Cancelled(
+             fmt::format("the still stopped at {} of {} spp: {}", done, spp_, callbacks_.why_cancelled()))
       .status();
 }
 

@@ -27,7 +27,7 @@ namespace cinevol::service {
 // A still's radiance before it is tone mapped and encoded.
 struct StillRadiance {
   ImageRgbF image;
-  float exposure = 1;      // the scene's, for ToneMap
+  float exposure = 1;  // the scene's, for ToneMap
   int spp = 0;
   std::int64_t render_us = 0;
 };
