@@ -104,7 +104,7 @@ void Sweep(v1::Clipping& clipping, const Volume& volume, int axis, double t) {
 }  // namespace
 
 int MovieFrames(const v1::MovieRequest& request) {
-  const int fps = request.fps() == 0 ? 25 : int(request.fps());
+  const int fps = MovieFps(request);
   if (fps > 60) throw InputError(fmt::format("fps: {} is outside [1, 60]", request.fps()));
   const double frames = std::round(request.seconds() * fps);
   if (!(frames >= 1 && frames <= kMaxMovieFrames)) {

@@ -13,6 +13,8 @@ inline constexpr int kMaxMovieFrames = 3600;  // two minutes at 30 frames/s: a m
 
 // The request's frame count (seconds x fps), or InputError naming what is out of range.
 int MovieFrames(const v1::MovieRequest& request);
+// Its frames a second: MovieRequest.fps, or 25 where unset.
+inline int MovieFps(const v1::MovieRequest& request) { return request.fps() == 0 ? 25 : int(request.fps()); }
 
 // Frame `frame` of `frames`: `start` (a session's scene, volume-centred) along the request's path. On a sweep the
 // plane is in patient coordinates, as clipping is.

@@ -59,7 +59,7 @@ MovieRender::MovieRender(std::shared_ptr<Session> session, Plan plan, Backend ba
   VideoSettings video;
   video.width = plan_.start.render().width();
   video.height = plan_.start.render().height();
-  video.fps = plan_.request.fps() == 0 ? 25 : int(plan_.request.fps());
+  video.fps = MovieFps(plan_.request);
   video.crf = plan_.crf;
   mp4_path_ = TemporaryPath(".mp4");
   mp4_.emplace(mp4_path_, VideoContainer::kMp4, video);
@@ -145,7 +145,7 @@ void MovieRender::Finish() {
   movie.set_mp4(ReadAll(mp4_path_));
   movie.set_width(std::uint32_t(plan_.start.render().width()));
   movie.set_height(std::uint32_t(plan_.start.render().height()));
-  movie.set_fps(plan_.request.fps() == 0 ? 25 : plan_.request.fps());
+  movie.set_fps(std::uint32_t(MovieFps(plan_.request)));
   movie.set_frames(std::uint32_t(plan_.frames));
   movie.set_spp(std::uint32_t(plan_.spp));
   movie.set_render_us(MicrosecondsSince(start_));
