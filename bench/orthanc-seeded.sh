@@ -1,9 +1,17 @@
 # shellcheck shell=bash disable=SC2154,SC2034  # the caller gives bin, work, series; uses url
-# Sourced by the PACS benches (bench/pacs-run.sh, bench/rendered-run.sh): Debian's Orthanc with its DICOMweb
-# plugin on a free loopback port of its own, seeded with stamped copies of a shared DICOM series (one study and
-# series, an instance UID per file, as the shared series lack them). Needs $bin (the build), $work (a scratch folder)
-# and $series (the folder of DICOM files) and the array pids (stopped by the caller's trap); sets port, url, study,
-# uid and instances.
+# Sourced by the PACS benches (bench/pacs-run.sh, bench/rendered-run.sh): a scratch folder ($work) and the list of
+# processes started (pids), both cleaned up on exit; then Debian's Orthanc with its DICOMweb plugin on a free
+# loopback port of its own, seeded with stamped copies of a shared DICOM series (one study and series, an instance
+# UID per file, as the shared series lack them). Needs $bin (the build) and $series (the folder of DICOM files);
+# sets work, pids, port, url, study, uid and instances.
+work=$(mktemp -d /tmp/cinevol-bench.XXXXXX)
+pids=()
+cleanup() {
+  for pid in "${pids[@]}"; do kill "$pid" 2> /dev/null || true; done
+  rm -rf "$work"
+}
+trap cleanup EXIT
+
 free_port() { python3 -c 'import socket; s=socket.socket(); s.bind(("127.0.0.1",0)); print(s.getsockname()[1])'; }
 now() { date +%s.%N; }
 median() { sort -g | awk '{a[NR]=$1} END {print a[int((NR+1)/2)]}'; }

@@ -20,14 +20,6 @@ bin=${BIN:-build}
 series=${SERIES:-../shared/data/ct-body-totalsegmentator/example_ct_dicom}
 fetches=${FETCHES:-1 2 4 8}
 runs=${RUNS:-3}
-work=$(mktemp -d /tmp/cinevol-pacs-bench.XXXXXX)
-pids=()
-cleanup() {
-  for pid in "${pids[@]}"; do kill "$pid" 2> /dev/null || true; done
-  rm -rf "$work"
-}
-trap cleanup EXIT
-
 # shellcheck source=bench/orthanc-seeded.sh
 . bench/orthanc-seeded.sh
 bytes=$(du -cb "$work"/series/*.dcm | tail -1 | cut -f1)

@@ -15,14 +15,6 @@ series=${SERIES:-../shared/data/ct-body-totalsegmentator/example_ct_dicom}
 requests=${REQUESTS:-50}
 quality=${QUALITY:-30}
 seconds=${SECONDS_PER_RUN:-20}
-work=$(mktemp -d /tmp/cinevol-rendered-bench.XXXXXX)
-pids=()
-cleanup() {
-  for pid in "${pids[@]}"; do kill "$pid" 2> /dev/null || true; done
-  rm -rf "$work"
-}
-trap cleanup EXIT
-
 # shellcheck source=bench/orthanc-seeded.sh
 . bench/orthanc-seeded.sh
 "$bin/cinevol-server" --listen 127.0.0.1:0 --port-file "$work/port" --backend cpu --pacs "bench=$url" \
