@@ -351,6 +351,10 @@ v1::LoadPresentationResponse Client::LoadPresentation(const v1::LoadPresentation
   return OnHome([&](const std::string& home) { return PacsCalls(*pool_, home).LoadPresentation(request); });
 }
 
+v1::SliceImage Client::RenderFrame(const v1::RenderFrameRequest& request) {
+  return OnHome([&](const std::string& home) { return PacsCalls(*pool_, home).RenderFrame(request); });
+}
+
 v1::VolumeInfo Client::UploadVolume(const std::filesystem::path& file, const std::string& orientation,
                                     std::size_t chunk_bytes) {
   return OnHome([&](const std::string& home) {

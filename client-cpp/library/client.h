@@ -195,10 +195,13 @@ class Client {
   // A session's measurements stored on PACS `pacs` as a DICOM SR measurement
   // report, into the study of the session's volume (which came from a PACS);
   // and a report read back as measurements (docs/pacs.md). A presentation
-  // state read back as the scene it renders and the series it presents.
+  // state read back as the scene it renders and the series it presents. A
+  // frame of an image of a series this caller loaded, on its own plane and
+  // grid (Supplement 174's rendered frame), bounded by call_timeout.
   v1::StoredObject StoreMeasurements(const std::string& session_id, const std::string& pacs);
   v1::LoadMeasurementsResponse LoadMeasurements(const v1::LoadMeasurementsRequest& request);
   v1::LoadPresentationResponse LoadPresentation(const v1::LoadPresentationRequest& request);
+  v1::SliceImage RenderFrame(const v1::RenderFrameRequest& request);
 
   // With several servers, on the one with the most room (ServerStatus).
   // The session's calls below go where it lives (CreateSessionResponse's

@@ -60,4 +60,10 @@ v1::LoadPresentationResponse PacsCalls::LoadPresentation(const v1::LoadPresentat
   return response;
 }
 
+v1::SliceImage PacsCalls::RenderFrame(const v1::RenderFrameRequest& request) {
+  v1::SliceImage response;
+  Check(stub_->RenderFrame(pool_.CallContext().get(), request, &response));
+  return response;
+}
+
 }  // namespace cinevol

@@ -27,6 +27,7 @@ class PacsCalls {
   v1::StoredObject StoreMeasurements(const v1::StoreMeasurementsRequest& request);
   v1::LoadMeasurementsResponse LoadMeasurements(const v1::LoadMeasurementsRequest& request);
   v1::LoadPresentationResponse LoadPresentation(const v1::LoadPresentationRequest& request);
+  v1::SliceImage RenderFrame(const v1::RenderFrameRequest& request);
 
  private:
   ServerPool& pool_;

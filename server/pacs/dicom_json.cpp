@@ -6,6 +6,7 @@
 #include <algorithm>
 #include <cctype>
 #include <cmath>
+#include <cstdlib>
 #include <stdexcept>
 
 #include "core/log_safe.h"
@@ -47,6 +48,20 @@ std::optional<std::int64_t> CountOf(Ref value) {
   }
   if (count >= kMaxCount) return std::nullopt;
   return count;
+}
+
+// A JSON number, or a numeric string as some servers write DS values ("0.5 "); nothing else.
+std::optional<double> NumberOf(Ref value) {
+  if (value.is(Kind::kNumber)) {
+    return std::isfinite(value.number()) ? std::optional<double>(value.number()) : std::nullopt;
+  }
+  if (!value.is(Kind::kString) || value.text().size() > 32) return std::nullopt;  // a DS holds 16 characters
+  const std::string text(value.text());
+  char* end = nullptr;
+  const double number = std::strtod(text.c_str(), &end);
+  while (end && *end == ' ') ++end;
+  if (end == text.c_str() || !end || *end != '\0' || !std::isfinite(number)) return std::nullopt;
+  return number;
 }
 
 }  // namespace
@@ -99,6 +114,16 @@ std::string DicomJsonDataset::PersonName(std::uint32_t tag) const {
 std::optional<std::int64_t> DicomJsonDataset::Count(std::uint32_t tag) const {
   const std::vector<Ref> values = Values(tag);
   return values.empty() ? std::nullopt : CountOf(values.front());
+}
+
+std::vector<double> DicomJsonDataset::Numbers(std::uint32_t tag, std::size_t max_values) const {
+  std::vector<double> numbers;
+  for (Ref value : Values(tag)) {
+    const std::optional<double> number = NumberOf(value);
+    if (numbers.size() >= max_values || !number) break;
+    numbers.push_back(*number);
+  }
+  return numbers;
 }
 
 std::vector<DicomJsonDataset> DicomJsonDataset::Items(std::uint32_t tag, std::size_t max_items) const {

@@ -36,6 +36,10 @@ class DicomJsonDataset {
   std::string PersonName(std::uint32_t tag) const;
   // The first value of `tag` as a whole number in [0; 2^31), from a JSON number or a numeric string.
   std::optional<std::int64_t> Count(std::uint32_t tag) const;
+  // The first `max_values` values of a numeric attribute (DS, FD, FL, IS: JSON
+  // numbers or numeric strings); a value that is not a finite number ends
+  // the list there.
+  std::vector<double> Numbers(std::uint32_t tag, std::size_t max_values) const;
   // The items of a sequence (SQ) attribute, at most `max_items`.
   std::vector<DicomJsonDataset> Items(std::uint32_t tag, std::size_t max_items) const;
 

@@ -33,8 +33,10 @@ bool IsDirection(Vec3f v) {
 PlaneAxes ObliqueAxes(const SliceSpec& spec) {
   if (!IsDirection(spec.normal_lps) || !IsDirection(spec.row_lps) || !IsFinite(spec.point_lps) ||
       !(MaxComponent(Abs(spec.point_lps)) <= kMaxPlaneMm)) {
-    throw InputError(fmt::format("slice: an oblique plane needs a point within {:g} mm of the origin and finite, "
-                                 "non-zero normal and row directions", kMaxPlaneMm));
+    throw InputError(
+        fmt::format("slice: an oblique plane needs a point within {:g} mm of the origin and finite, "
+                    "non-zero normal and row directions",
+                    kMaxPlaneMm));
   }
   const Vec3f normal = Normalize(spec.normal_lps);
   const Vec3f row = spec.row_lps - normal * Dot(spec.row_lps, normal);
@@ -102,8 +104,8 @@ int PixelsOver(Span span, float pixel_mm) {
 
 // How much larger pixels must be for both spans to fit kMaxSliceSide (1: they fit).
 double FitToScreen(Span across, Span down, float pixel_width_mm, float pixel_height_mm) {
-  const double longest = std::max(double(across.hi - across.lo) / pixel_width_mm,
-                                  double(down.hi - down.lo) / pixel_height_mm);
+  const double longest =
+      std::max(double(across.hi - across.lo) / pixel_width_mm, double(down.hi - down.lo) / pixel_height_mm);
   return std::max(1.0, longest / (kMaxSliceSide - 1));
 }
 
@@ -120,6 +122,25 @@ void PlanSlab(const Volume& volume, float slab_mm, SliceGeometry& g) {
   const double affordable = std::floor((double(kMaxSliceSamples) / double(pixels) - 1) / 2);
   g.slab_half = int(std::max(0.0, std::min(wanted, affordable)));
   if (wanted > affordable && g.slab_half > 0) g.slab_step_mm = float(reach / g.slab_half);
+}
+
+// A slice on the spec's own grid, its top-left pixel on the plane's point.
+SliceGeometry PlanGrid(const Volume& volume, const SliceSpec& spec, const PlaneAxes& axes, SliceGeometry& g) {
+  const SliceSpec::Grid& grid = *spec.grid;
+  const auto size_ok = [](float mm) { return mm > 0.0f && mm <= 1e4f; };
+  if (spec.axis != SliceAxis::kOblique || grid.width < 1 || grid.height < 1 || grid.width > kMaxSliceSide ||
+      grid.height > kMaxSliceSide || !size_ok(grid.pixel_width_mm) || !size_ok(grid.pixel_height_mm)) {
+    throw InputError(
+        fmt::format("slice: a grid of {}x{} pixels of {:g}x{:g} mm: an oblique plane's, each side in "
+                    "[1, {}], each pixel size in (0, 1e4] mm",
+                    grid.width, grid.height, grid.pixel_width_mm, grid.pixel_height_mm, kMaxSliceSide));
+  }
+  g.width = grid.width, g.height = grid.height;
+  g.pixel_width_mm = grid.pixel_width_mm, g.pixel_height_mm = grid.pixel_height_mm;
+  PlanSlab(volume, spec.slab_mm, g);
+  g.top_left_lps = axes.point;
+  g.letters = EdgeLettersOf(g.row_direction, g.column_direction);
+  return g;
 }
 
 // Voxel values in index space (voxel centres at integers), clamped to the
@@ -299,11 +320,14 @@ struct SlicePass {
   }
 
   void Run(ImageRgb8& image, const std::atomic<bool>* cancel, int threads) const {
-    ParallelFor(image.height, [&](std::int64_t row) {
-      if (cancel && cancel->load(std::memory_order_relaxed)) return;
-      std::uint8_t* line = image.bytes.data() + std::size_t(row) * image.width * 3;
-      for (int column = 0; column < image.width; ++column) Pixel(column, int(row), line + 3 * column);
-    }, threads);
+    ParallelFor(
+        image.height,
+        [&](std::int64_t row) {
+          if (cancel && cancel->load(std::memory_order_relaxed)) return;
+          std::uint8_t* line = image.bytes.data() + std::size_t(row) * image.width * 3;
+          for (int column = 0; column < image.width; ++column) Pixel(column, int(row), line + 3 * column);
+        },
+        threads);
   }
 };
 
@@ -370,6 +394,7 @@ SliceGeometry PlanSlice(const Volume& volume, const SliceSpec& spec) {
   const bool square = oblique || spec.pixel_mm > 0.0f;
   g.pixel_width_mm = square ? square_mm : SpacingAlong(volume, axes.row);
   g.pixel_height_mm = square ? square_mm : SpacingAlong(volume, axes.column);
+  if (spec.grid) return PlanGrid(volume, spec, axes, g);
   const std::vector<Vec3f> corners = CornerCentres(volume);
   const Span across = ProjectCorners(corners, axes.point, axes.row);
   const Span down = ProjectCorners(corners, axes.point, axes.column);

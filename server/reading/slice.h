@@ -12,6 +12,7 @@
 #pragma once
 
 #include <atomic>
+#include <optional>
 #include <string>
 
 #include "core/clip_region.h"
@@ -56,6 +57,15 @@ struct SliceSpec {
   SlabProjection projection = SlabProjection::kMax;
   // [0, 1]: a label's overlay opacity at its style's opacity_scale 1 (scaled by it, capped at 1).
   float label_opacity = 0.5f;
+  // A grid of its own instead of the volume's projection onto the plane (a
+  // DICOM frame's: Columns x Rows at its Pixel Spacing): oblique only,
+  // `point_lps` its top-left pixel's centre; each side in [1, kMaxSliceSide],
+  // each pixel size in (0, 1e4] mm. `pixel_mm` is not used.
+  struct Grid {
+    int width = 0, height = 0;
+    float pixel_width_mm = 0, pixel_height_mm = 0;  // between columns, between rows
+  };
+  std::optional<Grid> grid;
 };
 
 // Where a slice's pixels lie in the patient.
@@ -106,7 +116,8 @@ inline constexpr float kMaxPlaneMm = 1e9f;
 
 // The plane, its pixels and slab samples without rendering them: the image
 // covers the volume's projection onto the plane (voxel centres, the
-// outermost ones on the edge pixels), within the bounds above. Throws
+// outermost ones on the edge pixels), within the bounds above, or the
+// spec's own grid. Throws
 // InputError for a zero normal or row, a row along the normal, or a pixel
 // size or slab outside their ranges.
 SliceGeometry PlanSlice(const Volume& volume, const SliceSpec& spec);

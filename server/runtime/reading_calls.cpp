@@ -3,6 +3,7 @@
 
 #include <fmt/format.h>
 
+#include <algorithm>
 #include <cmath>
 
 #include "core/error.h"
@@ -105,14 +106,10 @@ SliceSpec SliceSpecOf(const v1::SliceRequest& request, const Volume& volume) {
   return spec;
 }
 
-v1::SliceImage SliceOf(const v1::SliceRequest& request, const v1::Scene& scene, const VolumeLease& lease,
-                       const std::atomic<bool>* cancel, int threads) {
-  const Volume& volume = *lease.volume();
-  const SliceSpec spec = SliceSpecOf(request, volume);
-  const LabelSetup styles = ResolveLabels(scene.labels(), volume);
-  const SliceLabels labels{request.hide_labels() ? nullptr : lease.labels().get(), &styles};
-  const ClipRegion clip = ResolveClipping(scene.clipping(), volume);
-  const SliceImage slice = RenderSlice(volume, labels, request.apply_clipping() ? &clip : nullptr, spec, cancel, threads);
+namespace {
+
+// A rendered slice as the API answers it: PNG, where its pixels lie, what window it went through.
+v1::SliceImage AnswerOf(const SliceImage& slice, const SliceSpec& spec, std::string notice) {
   v1::SliceImage out;
   const std::vector<std::uint8_t> png = EncodePng(slice.image);
   out.set_png(std::string(png.begin(), png.end()));
@@ -129,10 +126,69 @@ v1::SliceImage SliceOf(const v1::SliceRequest& request, const v1::Scene& scene, 
   }
   out.set_slab_samples(std::uint32_t(2 * g.slab_half + 1));
   out.set_slab_step_mm(g.slab_step_mm);
-  out.set_notice(WindowMisfit(request.window_preset(), volume));
+  out.set_notice(std::move(notice));
   out.set_window(float(spec.window.width));
   out.set_level(float(spec.window.center));
   return out;
+}
+
+Vec3f ToVec(const pacs::Triple& t) { return {float(t[0]), float(t[1]), float(t[2])}; }
+
+// The frame's own grid, or its field of view (pixel edges, not centres) fitted within the viewport in square
+// pixels, centred where it was; the spec's point moves to the grid's top-left pixel centre.
+void PlaceGrid(const pacs::FramePlane& plane, const v1::Viewport* viewport, SliceSpec& spec) {
+  SliceSpec::Grid grid{plane.columns, plane.rows, float(plane.column_spacing_mm), float(plane.row_spacing_mm)};
+  if (viewport) {
+    if (viewport->width() < 1 || viewport->height() < 1 || viewport->width() > std::uint32_t(kMaxSliceSide) ||
+        viewport->height() > std::uint32_t(kMaxSliceSide)) {
+      throw InputError(fmt::format("viewport: {}x{} is outside [1, {}] each way", viewport->width(), viewport->height(),
+                                   kMaxSliceSide));
+    }
+    const double wide = plane.columns * plane.column_spacing_mm, tall = plane.rows * plane.row_spacing_mm;
+    const double pixel = std::max(wide / viewport->width(), tall / viewport->height());
+    grid = {int(std::clamp(std::lround(wide / pixel), 1L, long(viewport->width()))),
+            int(std::clamp(std::lround(tall / pixel), 1L, long(viewport->height()))), float(pixel), float(pixel)};
+  }
+  if (grid.width > kMaxSliceSide || grid.height > kMaxSliceSide) {
+    throw InputError(fmt::format("frame: {} x {} pixels; at most {} a side are rendered, give a viewport", grid.width,
+                                 grid.height, kMaxSliceSide));
+  }
+  // The field's top-left corner, then half a pixel of the new grid in from it.
+  const Vec3f row = ToVec(plane.row), column = ToVec(plane.column);
+  const Vec3f corner =
+      ToVec(plane.position) - row * float(plane.column_spacing_mm / 2) - column * float(plane.row_spacing_mm / 2);
+  spec.point_lps = corner + row * (grid.pixel_width_mm / 2) + column * (grid.pixel_height_mm / 2);
+  spec.grid = grid;
+}
+
+}  // namespace
+
+v1::SliceImage SliceOf(const v1::SliceRequest& request, const v1::Scene& scene, const VolumeLease& lease,
+                       const std::atomic<bool>* cancel, int threads) {
+  const Volume& volume = *lease.volume();
+  const SliceSpec spec = SliceSpecOf(request, volume);
+  const LabelSetup styles = ResolveLabels(scene.labels(), volume);
+  const SliceLabels labels{request.hide_labels() ? nullptr : lease.labels().get(), &styles};
+  const ClipRegion clip = ResolveClipping(scene.clipping(), volume);
+  const SliceImage slice =
+      RenderSlice(volume, labels, request.apply_clipping() ? &clip : nullptr, spec, cancel, threads);
+  return AnswerOf(slice, spec, WindowMisfit(request.window_preset(), volume));
+}
+
+v1::SliceImage FrameOf(const v1::RenderFrameRequest& request, const pacs::FramePlane& plane, const Volume& volume,
+                       const std::atomic<bool>* cancel, int threads) {
+  v1::SliceRequest slice;  // the frame's plane as an oblique slice through its window
+  slice.set_axis(v1::OBLIQUE);
+  const Vec3f row = ToVec(plane.row), column = ToVec(plane.column), normal = Cross(row, column);
+  ToProto(ToVec(plane.position), slice.mutable_point());
+  ToProto(normal, slice.mutable_normal());
+  ToProto(row, slice.mutable_row());
+  if (request.has_window()) slice.set_window(request.window());
+  if (request.has_level()) slice.set_level(request.level());
+  SliceSpec spec = SliceSpecOf(slice, volume);
+  PlaceGrid(plane, request.has_viewport() ? &request.viewport() : nullptr, spec);
+  const SliceImage image = RenderSlice(volume, SliceLabels{}, nullptr, spec, cancel, threads);
+  return AnswerOf(image, spec, WindowMisfit("", volume));
 }
 
 v1::PickResult PickOn(const v1::PickRequest& request, const v1::Scene& scene, const VolumeLease& lease) {

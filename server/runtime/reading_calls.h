@@ -7,6 +7,7 @@
 
 #include "cinevol/v1/scene.pb.h"
 #include "cinevol/v1/service.pb.h"
+#include "pacs/frame_plane.h"
 #include "reading/slice.h"
 #include "runtime/volume_registry.h"
 
@@ -21,6 +22,13 @@ SliceSpec SliceSpecOf(const v1::SliceRequest& request, const Volume& volume);
 // once `cancel` is raised (the caller gone, the deadline passed: a thick slab
 // stops early). `threads`: at most this many render it (0: all).
 v1::SliceImage SliceOf(const v1::SliceRequest& request, const v1::Scene& scene, const VolumeLease& volume,
+                       const std::atomic<bool>* cancel = nullptr, int threads = 0);
+
+// A frame of a DICOM image (PacsService.RenderFrame): `plane`'s pixel grid,
+// or its field of view fitted within request.viewport in square pixels,
+// sampled from `volume` through the request's window (no labels, no
+// clipping). Throws InputError naming the request's field.
+v1::SliceImage FrameOf(const v1::RenderFrameRequest& request, const pacs::FramePlane& plane, const Volume& volume,
                        const std::atomic<bool>* cancel = nullptr, int threads = 0);
 
 // What lies under pixel (request.x, request.y) of the scene's camera and

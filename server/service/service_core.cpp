@@ -20,8 +20,8 @@
 #include "runtime/metrics.h"
 #include "runtime/reading_calls.h"
 #include "runtime/render_store.h"
-#include "scene/presets.h"
 #include "scene/movie_path.h"
+#include "scene/presets.h"
 #include "service/movie_render.h"
 #include "service/still_job.h"
 
@@ -56,7 +56,6 @@ v1::SnapshotResponse EncodeStill(const StillRadiance& still, v1::ImageFormat for
   return response;
 }
 
-
 }  // namespace
 
 // Tasks at once in the pools on `waiting_` (loads and PACS calls mostly wait on a peer or a reader).
@@ -77,8 +76,9 @@ ServiceCore::ServiceCore(const ServerOptions& options)
                   {.max_running = kPacsCalls, .max_running_per_queue = 1, .max_running_per_group = 2}),
       pacs_(options.pacs, options.pacs_credentials),
       pixels_(options.max_total_pixels),
-      sharing_(authenticator_, options.max_grants_per_principal, [this](const std::string& id) { return Find(id); },
-               [this](const std::string& id, const Principal& caller) { return FindSession(id, caller); }) {
+      sharing_(
+          authenticator_, options.max_grants_per_principal, [this](const std::string& id) { return Find(id); },
+          [this](const std::string& id, const Principal& caller) { return FindSession(id, caller); }) {
   const bool forwards = std::any_of(options.pacs.begin(), options.pacs.end(), [](const pacs::PacsConfig& c) {
     return c.credentials.kind == pacs::PacsCredentials::Kind::kForward;
   });
@@ -226,10 +226,9 @@ v1::CreateSessionResponse ServiceCore::CreateSession(const v1::CreateSessionRequ
   // worker that other sessions share.
   std::shared_ptr<const VolumeCopy> prepared = PrepareOnDevice(*volume, scheduler);
   require_caller();
-  SessionContext context{
-      &scheduler, &encoder_, backend_, jpeg_encoder_, &options_.limits, ResolveMap(), &pixels_, [this](const std::string& id) {
-        Forget(id);
-      }};
+  SessionContext context{&scheduler,       &encoder_,    backend_, jpeg_encoder_,
+                         &options_.limits, ResolveMap(), &pixels_, [this](const std::string& id) {
+        Forget(id); }};
   std::shared_ptr<Session> session;
   {
     std::lock_guard lock(mu_);
@@ -304,6 +303,27 @@ v1::SliceImage ServiceCore::RenderSlice(const v1::SliceRequest& request, const P
 v1::PickResult ServiceCore::Pick(const v1::PickRequest& request, const Principal& caller) {
   const auto [scene, volume] = SceneAndVolume(*FindSession(request.session_id(), caller));
   return PickOn(request, scene, *volume);
+}
+
+v1::SliceImage ServiceCore::RenderFrame(const v1::RenderFrameRequest& request, const Principal& caller,
+                                        const std::atomic<bool>* cancel) {
+  pacs::CheckUid(request.study_uid(), "study_uid");
+  pacs::CheckUid(request.series_uid(), "series_uid");
+  const auto pacs = pacs_.Find(request.pacs(), caller, "pacs");
+  // The series as LoadSeries makes it with no choices: its volume's grid is the one the PACS's metadata places.
+  const std::optional<v1::VolumeInfo> held =
+      volumes_.FindHeld(PacsSource({request.pacs(), request.study_uid(), request.series_uid()}, ""), caller);
+  if (!held) {
+    throw RpcError::FailedPrecondition(
+        fmt::format("series {} of PACS '{}' is not loaded by this caller: LoadSeries "
+                    "it first (with no orientation or resampling)",
+                    request.series_uid(), request.pacs()));
+  }
+  const std::shared_ptr<VolumeLease> volume = volumes_.Lease(held->id(), caller);
+  const int frame = int(std::min<std::uint32_t>(request.frame(), 1u << 30));
+  const pacs::FramePlane plane = pacs::FetchFramePlane(*pacs, request.study_uid(), request.series_uid(),
+                                                       request.sop_instance_uid(), frame, cancel);
+  return FrameOf(request, plane, *volume->volume(), cancel, SliceThreads());
 }
 
 std::shared_ptr<LoadSlot> ServiceCore::BeginLoad(const Principal& caller) {
@@ -472,12 +492,14 @@ std::function<void(grpc::Status, v1::Movie, std::string)> ServiceCore::StoreMovi
     stream->frames = int(movie.frames());
     stream->h264 = std::move(h264);
     stream->description = description;
-    const bool queued = pacs_calls_.Submit([=, movie = std::move(movie)]() mutable {
-      const grpc::Status stored = Guarded([&] {
-        *movie.mutable_stored() = StoreMovie(*to, *from, origin, *stream, CINEVOL_VERSION, cancel.get());
-      });
-      (*finish)(stored, stored.ok() ? std::move(movie) : v1::Movie());
-    }, queue, group);
+    const bool queued = pacs_calls_.Submit(
+        [=, movie = std::move(movie)]() mutable {
+          const grpc::Status stored = Guarded([&] {
+            *movie.mutable_stored() = StoreMovie(*to, *from, origin, *stream, CINEVOL_VERSION, cancel.get());
+          });
+          (*finish)(stored, stored.ok() ? std::move(movie) : v1::Movie());
+        },
+        queue, group);
     if (!queued) (*finish)(RpcError::Unavailable("the server is shutting down; the movie was not stored").status(), {});
   };
 }
@@ -497,8 +519,8 @@ ServiceCore::SnapshotDone ServiceCore::StoreAfter(const v1::SnapshotRequest& req
   auto finish = std::make_shared<SnapshotDone>(std::move(done));  // called once, whoever runs it
   std::shared_ptr<const Volume> volume_held = session.volume()->volume();
   const std::string labels_source = volume.has_labels() ? volume.labels().source() : std::string();
-  return [this, to, from, origin, scene, volume_held, labels_source, cancel,
-          finish](grpc::Status status, v1::SnapshotResponse still) {
+  return [this, to, from, origin, scene, volume_held, labels_source, cancel, finish](grpc::Status status,
+                                                                                     v1::SnapshotResponse still) {
     if (!status.ok()) return (*finish)(std::move(status), std::move(still));
     const bool queued = pacs_calls_.Submit([=, still = std::move(still)]() mutable {
       const grpc::Status stored = Guarded([&] {

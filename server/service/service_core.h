@@ -143,6 +143,10 @@ class ServiceCore {
   v1::SliceImage RenderSlice(const v1::SliceRequest& request, const Principal& caller,
                              const std::atomic<bool>* cancel = nullptr);
   v1::PickResult Pick(const v1::PickRequest& request, const Principal& caller);
+  // A rendered frame of an image of a series the caller holds (PacsService.RenderFrame): the frame's plane from
+  // its PACS's metadata, sampled from the volume that series became.
+  v1::SliceImage RenderFrame(const v1::RenderFrameRequest& request, const Principal& caller,
+                             const std::atomic<bool>* cancel = nullptr);
   // What a still tells its caller. `done` runs once, on a worker, with the
   // image or the error; `progress` (optional) runs at once with 0 samples
   // done, then on the device's worker about twice a second while it renders.

@@ -211,18 +211,20 @@ class UploadReactor final : public grpc::ServerReadReactor<v1::UploadVolumeChunk
     loading_ = true;  // the loader removes the file
     // Everything came: the idle watch ends (a load has its reader's limits).
     core_->calls().Forget(watch_);
-    const bool queued = core_->loader().Submit([this] {
-      const grpc::Status status = Guarded([&] {
-        core_->RequireServing();
-        *response_ =
-            labels_for_.empty()
-                ? core_->volumes().AddUpload(path_, name_, orientation_, caller_, &slot_->cancel)
-                : core_->volumes().AddUploadedLabels(labels_for_, path_, name_, label_table_, caller_, &slot_->cancel);
-      });
-      ServerMetrics().Upload(status.ok());
-      slot_->Release();
-      Finish(status);
-    }, caller_.name);
+    const bool queued = core_->loader().Submit(
+        [this] {
+          const grpc::Status status = Guarded([&] {
+            core_->RequireServing();
+            *response_ = labels_for_.empty()
+                             ? core_->volumes().AddUpload(path_, name_, orientation_, caller_, &slot_->cancel)
+                             : core_->volumes().AddUploadedLabels(labels_for_, path_, name_, label_table_, caller_,
+                                                                  &slot_->cancel);
+          });
+          ServerMetrics().Upload(status.ok());
+          slot_->Release();
+          Finish(status);
+        },
+        caller_.name);
     if (!queued) {
       loading_ = false;  // OnDone removes the file
       Fail(RpcError::Unavailable("the server is shutting down").status());
@@ -360,9 +362,9 @@ grpc::ServerUnaryReactor* VolumeServiceImpl::LoadVolume(grpc::CallbackServerCont
                                                         const v1::LoadVolumeRequest* request,
                                                         v1::VolumeInfo* response) {
   return LoadFromDisk(context, request->path(), [this, request, response](const Principal& caller, LoadSlot& slot) {
-    *response = core_->volumes().LoadFromDataRoot(request->path(), request->series_uid(),
-                                                  {request->orientation(), request->resample_uneven()},
-                                                  caller, &slot.cancel);
+    *response =
+        core_->volumes().LoadFromDataRoot(request->path(), request->series_uid(),
+                                          {request->orientation(), request->resample_uneven()}, caller, &slot.cancel);
   });
 }
 
@@ -404,14 +406,16 @@ grpc::ServerUnaryReactor* VolumeServiceImpl::LoadFromDisk(grpc::CallbackServerCo
     // The load holds one of the caller's slots: a client cannot queue loads without end.
     std::shared_ptr<LoadSlot> slot = core_->BeginLoad(caller);
     reactor->Hold(slot);
-    const bool queued = core_->loader().Submit([this, reactor, load = std::move(load), caller, slot] {
-      const grpc::Status status = Guarded([&] {
-        core_->RequireServing();
-        load(caller, *slot);
-      });
-      slot->Release();
-      reactor->Finish(status);
-    }, caller.name);
+    const bool queued = core_->loader().Submit(
+        [this, reactor, load = std::move(load), caller, slot] {
+          const grpc::Status status = Guarded([&] {
+            core_->RequireServing();
+            load(caller, *slot);
+          });
+          slot->Release();
+          reactor->Finish(status);
+        },
+        caller.name);
     if (!queued) {
       slot->Release();
       throw RpcError::Unavailable("the server is shutting down");
@@ -555,10 +559,9 @@ grpc::ServerUnaryReactor* SessionServiceImpl::RenderSlice(grpc::CallbackServerCo
 
 grpc::ServerUnaryReactor* SessionServiceImpl::Pick(grpc::CallbackServerContext* context, const v1::PickRequest* request,
                                                    v1::PickResult* response) {
-  return new PooledReactor(context, core_, core_->reading(), "Pick",
-                           [this, request, response](const Principal& caller, auto&) {
-                             *response = core_->Pick(*request, caller);
-                           });
+  return new PooledReactor(
+      context, core_, core_->reading(), "Pick",
+      [this, request, response](const Principal& caller, auto&) { *response = core_->Pick(*request, caller); });
 }
 
 grpc::ServerUnaryReactor* ServerServiceImpl::GetStatus(grpc::CallbackServerContext* context,
@@ -687,8 +690,7 @@ grpc::ServerUnaryReactor* PacsServiceImpl::StoreMeasurements(grpc::CallbackServe
         const auto to = core_->pacs().Find(request->pacs(), caller, "pacs");
         const v1::SessionState state = session->CurrentState();
         if (state.scene().measurements().empty()) {
-          throw RpcError::FailedPrecondition(
-              fmt::format("session '{}' has no measurements to store", session->id()));
+          throw RpcError::FailedPrecondition(fmt::format("session '{}' has no measurements to store", session->id()));
         }
         Principal owner;  // the volume is the owner's, whoever presents
         owner.name = session->owner();
@@ -721,6 +723,16 @@ grpc::ServerUnaryReactor* PacsServiceImpl::LoadPresentation(grpc::CallbackServer
         *response = service::LoadPresentation(*core_->pacs().Find(request->pacs(), caller), *request, &stop);
       },
       request->pacs());
+}
+
+// A frame is a slice (the reading pool, in the caller's queue) after one small metadata answer from the PACS.
+grpc::ServerUnaryReactor* PacsServiceImpl::RenderFrame(grpc::CallbackServerContext* context,
+                                                       const v1::RenderFrameRequest* request,
+                                                       v1::SliceImage* response) {
+  return new PooledReactor(context, core_, core_->reading(), "RenderFrame",
+                           [this, request, response](const Principal& caller, const std::atomic<bool>& stop) {
+                             *response = core_->RenderFrame(*request, caller, &stop);
+                           });
 }
 
 }  // namespace cinevol::service

@@ -99,6 +99,8 @@ class PacsServiceImpl final : public v1::PacsService::CallbackService {
   grpc::ServerUnaryReactor* LoadPresentation(grpc::CallbackServerContext* context,
                                              const v1::LoadPresentationRequest* request,
                                              v1::LoadPresentationResponse* response) override;
+  grpc::ServerUnaryReactor* RenderFrame(grpc::CallbackServerContext* context, const v1::RenderFrameRequest* request,
+                                        v1::SliceImage* response) override;
 
  private:
   ServiceCore* core_;

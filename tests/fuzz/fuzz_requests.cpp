@@ -8,6 +8,9 @@
 //      both: the geometry check (dimensions to 2^32, any spacing), then on a
 //      small volume of that spacing the CT table search, a new session's
 //      framing and the slice's plan (and render, where it is small)
+//   5: a frame number byte, then an instance's WADO-RS metadata (DICOM JSON)
+//      -> where that frame lies (FramePlaneOf) and its rendered frame from the
+//      head (FrameOf: its own grid where small, else fitted in a viewport)
 // against a default SessionLimits, a 16^3 head phantom and a VolumeRegistry
 // with no data roots (environment maps are refused, as on such a server). InputError, RpcError (std::exceptions) are
 // the expected refusals; crashes, sanitizer reports, an accepted scene that fails validation and a slice past its
@@ -16,19 +19,21 @@
 #include <cstdint>
 #include <cstdlib>
 #include <cstring>
-#include <optional>
-#include <vector>
 #include <exception>
 #include <memory>
+#include <optional>
+#include <vector>
 
 #include "cinevol/v1/service.pb.h"
 #include "io/phantom.h"
 #include "io/table_finder.h"
+#include "pacs/dicom_json.h"
+#include "pacs/frame_plane.h"
 #include "reading/slice.h"
 #include "runtime/reading_calls.h"
+#include "runtime/volume_registry.h"
 #include "scene/scene_file.h"
 #include "scene/session_state.h"
-#include "runtime/volume_registry.h"
 
 namespace cv = cinevol;
 namespace v1 = cinevol::v1;
@@ -114,10 +119,10 @@ void Geometric(const std::uint8_t* data, std::size_t size) {
   std::memcpy(&g, data, sizeof g);
   const cv::Vec3f spacing{g.spacing[0], g.spacing[1], g.spacing[2]};
   try {
-    cv::CheckVolumeGeometry({int(std::min<std::uint32_t>(g.dims[0], INT32_MAX)),
-                             int(std::min<std::uint32_t>(g.dims[1], INT32_MAX)),
-                             int(std::min<std::uint32_t>(g.dims[2], INT32_MAX))},
-                            spacing, "fuzz");
+    cv::CheckVolumeGeometry(
+        {int(std::min<std::uint32_t>(g.dims[0], INT32_MAX)), int(std::min<std::uint32_t>(g.dims[1], INT32_MAX)),
+         int(std::min<std::uint32_t>(g.dims[2], INT32_MAX))},
+        spacing, "fuzz");
   } catch (const std::exception&) {
   }
   v1::SliceRequest request;
@@ -139,7 +144,8 @@ void Geometric(const std::uint8_t* data, std::size_t size) {
   create.mutable_viewport()->set_width(32);
   create.mutable_viewport()->set_height(24);
   try {
-    CheckState(cv::InitialState(create, {*volume, nullptr, "geometry", world->resolve_map}, world->limits), world->limits);
+    CheckState(cv::InitialState(create, {*volume, nullptr, "geometry", world->resolve_map}, world->limits),
+               world->limits);
   } catch (const std::exception&) {
   }
   try {
@@ -154,6 +160,33 @@ void Geometric(const std::uint8_t* data, std::size_t size) {
   }
 }
 
+// Kind 5: hostile metadata places a frame or is refused; a placed frame renders within a slice's bounds.
+void Frame(const std::uint8_t* data, std::size_t size) {
+  if (size < 1) return;
+  cv::pacs::JsonDocument storage;
+  cv::pacs::FramePlane plane;
+  try {
+    const auto datasets =
+        cv::pacs::ParseDicomJson(std::string_view(reinterpret_cast<const char*>(data + 1), size - 1), storage);
+    if (datasets.empty()) return;
+    plane = cv::pacs::FramePlaneOf(datasets.front(), data[0]);
+  } catch (const std::exception&) {
+    return;
+  }
+  v1::RenderFrameRequest request;
+  if (std::int64_t(plane.rows) * plane.columns > (1 << 14)) {
+    request.mutable_viewport()->set_width(1 + data[0] % 64);
+    request.mutable_viewport()->set_height(1 + data[0] / 4 % 64);
+  }
+  try {
+    const v1::SliceImage image = cv::service::FrameOf(request, plane, world->volume);
+    if (image.width() < 1 || image.height() < 1 || std::max(image.width(), image.height()) > cv::kMaxSliceSide) {
+      std::abort();
+    }
+  } catch (const std::exception&) {
+  }
+}
+
 }  // namespace
 
 extern "C" int LLVMFuzzerInitialize(int*, char***) {
@@ -164,7 +197,7 @@ extern "C" int LLVMFuzzerInitialize(int*, char***) {
 
 extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {
   if (size < 1 || size > (1 << 16)) return 0;
-  const int kind = data[0] % 5;
+  const int kind = data[0] % 6;
   const std::uint8_t* wire = data + 1;
   const int wire_size = int(size - 1);
   switch (kind) {
@@ -205,6 +238,9 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
     }
     case 4:
       Geometric(wire, std::size_t(wire_size));
+      break;
+    case 5:
+      Frame(wire, std::size_t(wire_size));
       break;
   }
   return 0;

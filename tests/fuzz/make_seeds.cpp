@@ -18,22 +18,21 @@
 #include <nifti/nifti1.h>
 #include <zlib.h>
 
-#include <sstream>
-
-#include "cinevol/v1/service.pb.h"
-#include "dicom_model.h"
-
+#include <algorithm>
 #include <cstdint>
 #include <cstring>
 #include <filesystem>
+#include <fstream>
 #include <functional>
+#include <iostream>
 #include <map>
 #include <optional>
-#include <algorithm>
-#include <fstream>
-#include <iostream>
+#include <sstream>
 #include <string>
 #include <vector>
+
+#include "cinevol/v1/service.pb.h"
+#include "dicom_model.h"
 
 namespace fs = std::filesystem;
 
@@ -383,6 +382,22 @@ void WriteGeometrySeeds(const fs::path& out) {
   }
 }
 
+// fuzz_requests' kind 5: a frame number, then an instance's metadata: a
+// single-frame axial image, and an enhanced one of two frames.
+void WriteFrameSeeds(const fs::path& out) {
+  const std::string matrix = R"("00280010":{"vr":"US","Value":[8]},"00280011":{"vr":"US","Value":[8]})";
+  Write(out / "frame-single", 5,
+        std::string(1, '\1') + "[{" + matrix + R"(,"00200032":{"vr":"DS","Value":[-8,-8,0]},)" +
+            R"("00200037":{"vr":"DS","Value":[1,0,0,0,1,0]},"00280030":{"vr":"DS","Value":["2","2"]}}])");
+  Write(
+      out / "frame-enhanced", 5,
+      std::string(1, '\2') + "[{" + matrix + R"(,"00280008":{"vr":"IS","Value":["2"]},)" +
+          R"("52009229":{"vr":"SQ","Value":[{"00209116":{"vr":"SQ","Value":[{"00200037":{"vr":"DS",)" +
+          R"("Value":[0,1,0,0,0,-1]}}]},"00289110":{"vr":"SQ","Value":[{"00280030":{"vr":"DS","Value":[1,1]}}]}}]},)" +
+          R"("52009230":{"vr":"SQ","Value":[{"00209113":{"vr":"SQ","Value":[{"00200032":{"vr":"DS","Value":[0,0,1]}}]}},)" +
+          R"({"00209113":{"vr":"SQ","Value":[{"00200032":{"vr":"DS","Value":[0,0,3]}}]}}]}}])");
+}
+
 // fuzz_requests' seeds: the message type byte, then the wire form.
 void WriteMessage(const fs::path& path, char kind, const google::protobuf::Message& m) {
   Write(path, kind, m.SerializeAsString());
@@ -443,6 +458,7 @@ bool WriteRequestSeeds(const fs::path& out) {
   stream.set_target_spp(64);
   WriteMessage(out / "stream", 3, stream);
   WriteGeometrySeeds(out);
+  WriteFrameSeeds(out);
   return true;
 }
 
@@ -470,10 +486,12 @@ int main(int argc, char** argv) {
   Write(out / "nifti1-spacing-1e6.nii", kNii, Nifti(4, 1e6f));
   Write(out / "huge-dims.nrrd", kNrrd,
         "NRRD0004\ntype: short\ndimension: 3\nsizes: 2147483647 1 1\nspacings: 1e-12 1 1e6\nencoding: raw\n"
-        "endian: little\n\n" + v);
+        "endian: little\n\n" +
+            v);
   Write(out / "raw.nrrd", kNrrd,
         "NRRD0004\ntype: short\ndimension: 3\nsizes: 4 4 4\nspacings: 0.5 0.5 2\nencoding: raw\n"
-        "endian: little\n\n" + v);
+        "endian: little\n\n" +
+            v);
   Write(out / "gzip.nrrd", kNrrd,
         "NRRD0004\ntype: short\ndimension: 3\nsizes: 4 4 4\nspace: left-posterior-superior\n"
         "space directions: (1,0,0) (0,1,0) (0,0,1)\nspace origin: (0,0,0)\nencoding: gzip\nendian: little\n\n" +
@@ -482,23 +500,27 @@ int main(int argc, char** argv) {
         "NRRD0004\ntype: float\ndimension: 2\nsizes: 3 2\nencoding: ascii\n\n1 2 3\n4 5 6\n");
   Write(out / "local.mha", kMha,
         "ObjectType = Image\nNDims = 3\nDimSize = 4 4 4\nElementSpacing = 0.5 0.7 2.5\nModality = MET_MOD_CT\n"
-        "ElementType = MET_SHORT\nElementDataFile = LOCAL\n" + v);
+        "ElementType = MET_SHORT\nElementDataFile = LOCAL\n" +
+            v);
   Write(out / "compressed.mha", kMha,
         "ObjectType = Image\nNDims = 3\nDimSize = 4 4 4\nElementType = MET_SHORT\nCompressedData = True\n"
-        "CompressedDataSize = " + std::to_string(Gzip(v).size()) + "\nElementDataFile = LOCAL\n" + Gzip(v));
+        "CompressedDataSize = " +
+            std::to_string(Gzip(v).size()) + "\nElementDataFile = LOCAL\n" + Gzip(v));
   {
     std::string big;
     for (int i = 0; i < 64; ++i) big.push_back(char(i));
     Write(out / "uchar.mha", kMha,
           "ObjectType = Image\nNDims = 3\nBinaryData = True\nBinaryDataByteOrderMSB = False\nDimSize = 4 4 4\n"
-          "ElementType = MET_UCHAR\nElementDataFile = LOCAL\n" + big);
+          "ElementType = MET_UCHAR\nElementDataFile = LOCAL\n" +
+              big);
   }
   {
     std::string be;  // big-endian int16 for VTK binary
     for (std::size_t i = 0; i < v.size(); i += 2) be += std::string{v[i + 1], v[i]};
     Write(out / "binary.vtk", kVtk,
           "# vtk DataFile Version 3.0\nseed\nBINARY\nDATASET STRUCTURED_POINTS\nDIMENSIONS 4 4 4\n"
-          "SPACING 1 1 2\nORIGIN 0 0 0\nPOINT_DATA 64\nSCALARS s short 1\nLOOKUP_TABLE default\n" + be);
+          "SPACING 1 1 2\nORIGIN 0 0 0\nPOINT_DATA 64\nSCALARS s short 1\nLOOKUP_TABLE default\n" +
+              be);
     Write(out / "ascii.vtk", kVtk,
           "# vtk DataFile Version 3.0\nseed\nASCII\nDATASET STRUCTURED_POINTS\nDIMENSIONS 2 2 2\n"
           "SPACING 1 1 1\nORIGIN 0 0 0\nPOINT_DATA 8\nSCALARS s float 1\nLOOKUP_TABLE default\n"

@@ -9,8 +9,10 @@
 
 #include "core/error.h"
 #include "pacs/dicom_json.h"
+#include "pacs/frame_plane.h"
 #include "pacs/multipart.h"
 #include "pacs/pacs_config.h"
+#include "pacs/pacs_error.h"
 #include "support/error_of.h"
 
 namespace cinevol::pacs {
@@ -232,7 +234,8 @@ TEST(PacsDicomJson, OnlyStrictJsonIsRead) {
     EXPECT_THROW(ParseDicomJson(lenient, storage), JsonError) << lenient;
   }
   EXPECT_LT(std::chrono::steady_clock::now() - start, std::chrono::seconds(1));
-  const JsonDocument doc = JsonDocument::Parse(R"({"s":"\u00e9\ud83d\ude00\ud800x\"\/","n":-1.5e3,"big":1e999,"t":true})");
+  const JsonDocument doc =
+      JsonDocument::Parse(R"({"s":"\u00e9\ud83d\ude00\ud800x\"\/","n":-1.5e3,"big":1e999,"t":true})");
   EXPECT_EQ(doc.root().member("s").text(), "\u00e9\U0001F600\uFFFDx\"/");
   EXPECT_EQ(doc.root().member("n").number(), -1500);
   EXPECT_TRUE(std::isinf(doc.root().member("big").number()));
@@ -246,7 +249,8 @@ TEST(PacsDicomJson, ValuesAreCountedAndTheParseCanBeCancelled) {
   std::string many = "[";
   for (int i = 0; i < 2000; ++i) many += "[],";
   many += "0]";
-  const std::string error = cinevol::testing::ErrorOf<JsonError>([&] { JsonDocument::Parse(many, {.max_values = 1000}); });
+  const std::string error =
+      cinevol::testing::ErrorOf<JsonError>([&] { JsonDocument::Parse(many, {.max_values = 1000}); });
   EXPECT_NE(error.find("more than 1000 values"), std::string::npos) << error;
   EXPECT_NO_THROW(JsonDocument::Parse(many, {.max_values = 5000}));
   const std::atomic<bool> cancel{true};
@@ -262,12 +266,98 @@ TEST(PacsDicomJson, TextsAreValidUtf8CutBetweenCharacters) {
   const std::string cut = CleanText(name);
   EXPECT_EQ(cut.size(), kMaxDicomText);
   EXPECT_EQ(CleanText("a" + name).size(), kMaxDicomText - 1);  // 255 bytes: the 128th character does not fit
-  EXPECT_EQ(CleanText("ok\xFF\xC3(\xED\xA0\x80\xF4\x90\x80\x80z"), "ok\uFFFD\uFFFD(\uFFFD\uFFFD\uFFFD\uFFFD\uFFFD\uFFFD\uFFFDz");
+  EXPECT_EQ(CleanText("ok\xFF\xC3(\xED\xA0\x80\xF4\x90\x80\x80z"),
+            "ok\uFFFD\uFFFD(\uFFFD\uFFFD\uFFFD\uFFFD\uFFFD\uFFFD\uFFFDz");
   JsonDocument storage;
-  const auto datasets = ParseDicomJson("[{\"00100010\":{\"vr\":\"PN\",\"Value\":[{\"Alphabetic\":\"a" + name + "\"}]}}]",
-                                       storage);
+  const auto datasets =
+      ParseDicomJson("[{\"00100010\":{\"vr\":\"PN\",\"Value\":[{\"Alphabetic\":\"a" + name + "\"}]}}]", storage);
   ASSERT_EQ(datasets.size(), 1u);
   EXPECT_EQ(datasets[0].PersonName(0x00100010), CleanText("a" + name));
+}
+
+// An instance's metadata as WADO-RS answers it, `attributes` inside its one data set.
+FramePlane PlaneIn(const std::string& attributes, int frame) {
+  JsonDocument storage;
+  const auto datasets = ParseDicomJson("[{" + attributes + "}]", storage);
+  return FramePlaneOf(datasets.at(0), frame);
+}
+
+constexpr const char* kMatrix = R"("00280010":{"vr":"US","Value":[4]},"00280011":{"vr":"US","Value":[6]})";
+constexpr const char* kAxial =
+    R"("00200032":{"vr":"DS","Value":[-10.5,"20",30.25]},"00200037":{"vr":"DS","Value":[1,0,0,0,1,0]},)"
+    R"("00280030":{"vr":"DS","Value":["0.5 ",0.75]})";
+
+// A single-frame image is placed by its top-level attributes, DS values as
+// numbers or as strings.
+TEST(PacsFramePlane, ASingleFrameImageIsPlacedByItsOwnAttributes) {
+  const FramePlane plane = PlaneIn(std::string(kMatrix) + "," + kAxial, 0);
+  EXPECT_EQ(plane.position, (Triple{-10.5, 20, 30.25}));
+  EXPECT_EQ(plane.row, (Triple{1, 0, 0}));
+  EXPECT_EQ(plane.column, (Triple{0, 1, 0}));
+  EXPECT_EQ(plane.rows, 4);
+  EXPECT_EQ(plane.columns, 6);
+  EXPECT_EQ(plane.row_spacing_mm, 0.5);
+  EXPECT_EQ(plane.column_spacing_mm, 0.75);
+  EXPECT_EQ(PlaneIn(std::string(kMatrix) + "," + kAxial, 1).position, plane.position);
+  EXPECT_NE(cinevol::testing::ErrorOf<PacsError>([&] {
+              PlaneIn(std::string(kMatrix) + "," + kAxial, 2);
+            }).find("the instance has 1 frame; frame 2 is not one of them"),
+            std::string::npos);
+}
+
+// An enhanced multi-frame image: each frame's position in its own functional
+// group, orientation and spacing shared; frame 0 names none of several.
+TEST(PacsFramePlane, AnEnhancedImagesFramesArePlacedByTheirFunctionalGroups) {
+  const std::string frame_group = R"({"00209113":{"vr":"SQ","Value":[{"00200032":{"vr":"DS","Value":[0,0,%]}}]}})";
+  std::string per_frame;
+  for (int z : {5, 7, 9}) {
+    std::string group = frame_group;
+    group.replace(group.find('%'), 1, std::to_string(z));
+    per_frame += (per_frame.empty() ? "" : ",") + group;
+  }
+  const std::string enhanced =
+      std::string(kMatrix) + R"(,"00280008":{"vr":"IS","Value":["3"]},)" +
+      R"("52009229":{"vr":"SQ","Value":[{"00209116":{"vr":"SQ","Value":[{"00200037":{"vr":"DS","Value":[0,1,0,0,0,-1]}}]},)"
+      R"("00289110":{"vr":"SQ","Value":[{"00280030":{"vr":"DS","Value":[2,3]}}]}}]},)"
+      R"("52009230":{"vr":"SQ","Value":[)" +
+      per_frame + "]}";
+  const FramePlane second = PlaneIn(enhanced, 2);
+  EXPECT_EQ(second.position, (Triple{0, 0, 7}));
+  EXPECT_EQ(second.row, (Triple{0, 1, 0}));
+  EXPECT_EQ(second.column, (Triple{0, 0, -1}));
+  EXPECT_EQ(second.row_spacing_mm, 2);
+  EXPECT_EQ(PlaneIn(enhanced, 3).position, (Triple{0, 0, 9}));
+  EXPECT_NE(cinevol::testing::ErrorOf<InputError>([&] {
+              PlaneIn(enhanced, 0);
+            }).find("the instance has 3 frames: ask for one"),
+            std::string::npos);
+  EXPECT_NE(cinevol::testing::ErrorOf<PacsError>([&] { PlaneIn(enhanced, 4); }).find("frame 4 is not one"),
+            std::string::npos);
+}
+
+// Metadata that does not place a frame is an error naming what is wrong, never a slice of somewhere.
+TEST(PacsFramePlane, MetadataThatDoesNotPlaceAFrameIsRefusedByName) {
+  const std::string matrix = kMatrix;
+  const auto error = [](const std::string& attributes) {
+    return cinevol::testing::ErrorOf<InputError>([&] { PlaneIn(attributes, 1); });
+  };
+  EXPECT_NE(error(matrix).find("Image Position (Patient) missing"), std::string::npos);
+  const std::string no_spacing =
+      R"("00200032":{"vr":"DS","Value":[0,0,0]},"00200037":{"vr":"DS","Value":[1,0,0,0,1,0]})";
+  EXPECT_NE(error(matrix + "," + no_spacing).find("Pixel Spacing missing"), std::string::npos);
+  const std::string far = R"("00200032":{"vr":"DS","Value":[0,0,1e12]},"00200037":{"vr":"DS","Value":[1,0,0,0,1,0]},)"
+                          R"("00280030":{"vr":"DS","Value":[1,1]})";
+  EXPECT_NE(error(matrix + "," + far).find("not within 1e+09 mm"), std::string::npos);
+  const std::string parallel = R"("00200032":{"vr":"DS","Value":[0,0,0]},"00200037":{"vr":"DS","Value":[1,0,0,1,0,0]},)"
+                               R"("00280030":{"vr":"DS","Value":[1,1]})";
+  EXPECT_NE(error(matrix + "," + parallel).find("not two perpendicular directions"), std::string::npos);
+  const std::string tiny = R"("00200032":{"vr":"DS","Value":[0,0,0]},"00200037":{"vr":"DS","Value":[1,0,0,0,1,0]},)"
+                           R"("00280030":{"vr":"DS","Value":[1e-10,1]})";
+  EXPECT_NE(error(matrix + "," + tiny).find("outside [1e-4, 1e4]"), std::string::npos);
+  const std::string nan = R"("00200032":{"vr":"DS","Value":["NaN",0,0]},"00200037":{"vr":"DS","Value":[1,0,0,0,1,0]},)"
+                          R"("00280030":{"vr":"DS","Value":[1,1]})";
+  EXPECT_NE(error(matrix + "," + nan).find("Image Position (Patient) missing"), std::string::npos);
+  EXPECT_NE(error(std::string(kAxial)).find("Rows is missing"), std::string::npos);
 }
 
 }  // namespace

@@ -9,8 +9,8 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
-#include <cmath>
 #include <atomic>
+#include <cmath>
 #include <fstream>
 #include <memory>
 #include <thread>
@@ -18,10 +18,10 @@
 #include "image_files.h"
 #include "pacs/dicom_json.h"
 #include "pacs/dicomweb_client.h"
-#include "pacs/measurement_requests.h"
-#include "pacs/presentation_state.h"
 #include "pacs/loopback_http_server.h"
+#include "pacs/measurement_requests.h"
 #include "pacs/orthanc_process.h"
+#include "pacs/presentation_state.h"
 #include "pacs/secondary_capture.h"
 #include "pacs/stamped_series.h"
 #include "scene/scene_file.h"
@@ -280,8 +280,8 @@ TEST_F(PacsServer, APresentationStateBesideTheStillRendersItAgain) {
 
   // By its UID alone: the series it presents, loaded, and its scene in a file.
   const fs::path presented = scratch_ / "presented.json";
-  std::tie(code, out) = Cli({"pacs", "load", "--pacs", "orthanc", "--presentation", state_uid, "--scene-out",
-                             presented.string()});
+  std::tie(code, out) =
+      Cli({"pacs", "load", "--pacs", "orthanc", "--presentation", state_uid, "--scene-out", presented.string()});
   ASSERT_EQ(code, 0) << out;
   EXPECT_NE(out.find(volume.id()), std::string::npos) << out;  // the same series: the volume already held
   EXPECT_NE(out.find("presentation state CINEVOL_RENDER: cinevol render: ct-bone"), std::string::npos) << out;
@@ -292,7 +292,8 @@ TEST_F(PacsServer, APresentationStateBesideTheStillRendersItAgain) {
   ASSERT_EQ(code, 0) << out;
   const RgbImage stored = DecodePngImage(ReadWholeFile(first));
   std::size_t shown = 0;  // pixels of the CT, not the background (the top left corner's)
-  for (std::size_t i = 0; i < stored.rgb.size(); i += 3) shown += std::abs(int(stored.rgb[i]) - int(stored.rgb[0])) > 10;
+  for (std::size_t i = 0; i < stored.rgb.size(); i += 3)
+    shown += std::abs(int(stored.rgb[i]) - int(stored.rgb[0])) > 10;
   EXPECT_GT(shown, stored.rgb.size() / 3 / 20) << "the still shows the CT";
   const double psnr = Psnr8(stored, DecodePngImage(ReadWholeFile(again)));
   EXPECT_GE(psnr, 40.0) << "the still rendered again from its presentation state";
@@ -314,8 +315,8 @@ TEST_F(PacsServer, APresentationStateBesideTheStillRendersItAgain) {
   ASSERT_EQ(foreign.find("CINEVOL RECIPE"), std::string::npos);
   orthanc.StoreInstances(place.study_uid, {foreign});
   const std::string foreign_uid = pacs::ReadPresentationState(foreign).uids.sop_instance_uid;
-  std::tie(code, out) = Cli({"pacs", "load", "--pacs", "orthanc", "--presentation", foreign_uid, "--scene-out",
-                             presented.string()});
+  std::tie(code, out) =
+      Cli({"pacs", "load", "--pacs", "orthanc", "--presentation", foreign_uid, "--scene-out", presented.string()});
   ASSERT_EQ(code, 0) << out;
   v1::Scene standard_scene = LoadSceneFile(presented);  // the same seed, which only the recipe says
   EXPECT_EQ(standard_scene.render().seed(), 0u);
@@ -336,9 +337,9 @@ TEST_F(PacsServer, AMovieIsStoredAsDicomVideoThatValidatesAndPlays) {
   Client client = server_->Connect();
   const v1::VolumeInfo volume = client.LoadSeries(CtSeries());
   const fs::path movie = scratch_ / "orbit.mp4";
-  auto [code, out] = Cli({"movie", "--volume", volume.id(), "--preset", "ct-bone", "--orbit", "90", "--seconds", "0.4",
-                          "--fps", "10", "--width", "64", "--height", "48", "--spp", "2", "--out", movie.string(),
-                          "--store-to", "orthanc"});
+  auto [code, out] = Cli({"movie",     "--volume", volume.id(), "--preset", "ct-bone",      "--orbit",    "90",
+                          "--seconds", "0.4",      "--fps",     "10",       "--width",      "64",         "--height",
+                          "48",        "--spp",    "2",         "--out",    movie.string(), "--store-to", "orthanc"});
   ASSERT_EQ(code, 0) << out << server_->Log();
   const std::string series_uid = Word(out, "stored in PACS 'orthanc': study " + kCt.study_uid + ", series ");
   const std::string instance_uid = Word(out, ", instance ");
@@ -360,17 +361,18 @@ TEST_F(PacsServer, AMovieIsStoredAsDicomVideoThatValidatesAndPlays) {
       EXPECT_NE(line.find("<Laterality>"), std::string::npos) << "a warning not in docs/pacs.md: " << line;
     }
   }
-  const CommandResult probed = RunCommand("ffprobe -v error -count_frames -select_streams v:0 -show_entries "
-                                          "stream=codec_name,width,height,nb_read_frames -of default=nw=1 '" +
-                                          stored.string() + "'");
+  const CommandResult probed = RunCommand(
+      "ffprobe -v error -count_frames -select_streams v:0 -show_entries "
+      "stream=codec_name,width,height,nb_read_frames -of default=nw=1 '" +
+      stored.string() + "'");
   for (const char* expected : {"codec_name=h264", "width=64", "height=48", "nb_read_frames=4"}) {
     EXPECT_NE(probed.output.find(expected), std::string::npos) << expected << "\n" << probed.output;
   }
 
   // A movie of a volume from elsewhere has no study to go into: said before a frame is rendered.
-  std::tie(code, out) = Cli({"movie", "--volume", "phantom:head?size=48", "--orbit", "90", "--seconds", "0.2", "--fps",
-                             "10", "--width", "32", "--height", "32", "--spp", "1", "--out", movie.string(),
-                             "--store-to", "orthanc"});
+  std::tie(code, out) =
+      Cli({"movie", "--volume", "phantom:head?size=48", "--orbit", "90", "--seconds", "0.2", "--fps", "10", "--width",
+           "32", "--height", "32", "--spp", "1", "--out", movie.string(), "--store-to", "orthanc"});
   EXPECT_NE(code, 0);
   EXPECT_NE(out.find("did not come from a PACS"), std::string::npos) << out;
   // Beyond what DICOM's H.264 level holds: refused before a still is rendered.
@@ -399,7 +401,8 @@ TEST_F(PacsServer, AMovieThatCannotBeMadeIsRefusedByName) {
   ExpectRpcError([&] { client.RenderMovie(nobody); }, grpc::StatusCode::NOT_FOUND, "no-such-session");
   v1::MovieRequest pathless = movie;
   pathless.clear_orbit_degrees();
-  ExpectRpcError([&] { client.RenderMovie(pathless); }, grpc::StatusCode::INVALID_ARGUMENT, "give orbit_degrees or sweep");
+  ExpectRpcError([&] { client.RenderMovie(pathless); }, grpc::StatusCode::INVALID_ARGUMENT,
+                 "give orbit_degrees or sweep");
   v1::MovieRequest oblique = movie;
   oblique.set_sweep(v1::OBLIQUE);
   ExpectRpcError([&] { client.RenderMovie(oblique); }, grpc::StatusCode::INVALID_ARGUMENT, "sweep");
@@ -408,6 +411,70 @@ TEST_F(PacsServer, AMovieThatCannotBeMadeIsRefusedByName) {
   costly.set_fps(30);
   costly.set_spp(16384);
   ExpectRpcError([&] { client.RenderMovie(costly); }, grpc::StatusCode::INVALID_ARGUMENT, "--max-movie-samples");
+  EXPECT_TRUE(client.Status().accepting_sessions());
+}
+
+// A rendered frame (Supplement 174) of an image of a loaded series lies on
+// that image's own plane and pixel grid, from the PACS's metadata: the same
+// pixels as the axial slice through the volume there. What it cannot render
+// is refused by name.
+TEST_F(PacsServer, AFrameOfAnImageRendersOnItsOwnPlaneAndGrid) {
+  Client client = server_->Connect();
+  v1::RenderFrameRequest frame;
+  frame.set_pacs("orthanc");
+  frame.set_study_uid(kCt.study_uid);
+  frame.set_series_uid(kCt.series_uid);
+  frame.set_sop_instance_uid(kCt.series_uid + ".7");
+  frame.set_window(400);
+  frame.set_level(40);
+  ExpectRpcError([&] { client.RenderFrame(frame); }, grpc::StatusCode::FAILED_PRECONDITION, "LoadSeries it first");
+
+  const v1::VolumeInfo volume = client.LoadSeries(CtSeries());
+  const v1::SliceImage image = client.RenderFrame(frame);
+  EXPECT_EQ(image.width(), volume.dims().x());
+  EXPECT_EQ(image.height(), volume.dims().y());
+  EXPECT_FLOAT_EQ(image.row_spacing_mm(), volume.spacing_mm().x());
+  v1::CreateSessionRequest session = SmallSession();
+  session.set_volume_id(volume.id());
+  v1::SliceRequest axial;
+  axial.set_session_id(client.CreateSession(session).session_id());
+  axial.set_axis(v1::AXIAL);
+  axial.set_position_mm(image.origin_mm().z());
+  axial.set_window(400);
+  axial.set_level(40);
+  axial.set_hide_labels(true);
+  const v1::SliceImage slice = client.RenderSlice(axial);
+  EXPECT_EQ(slice.origin_mm().DebugString(), image.origin_mm().DebugString());
+  const RgbImage from_frame = DecodePngImage(image.png()), from_slice = DecodePngImage(slice.png());
+  ASSERT_EQ(from_frame.rgb.size(), from_slice.rgb.size());
+  int most_apart = 0;
+  for (std::size_t i = 0; i < from_frame.rgb.size(); ++i) {
+    most_apart = std::max(most_apart, std::abs(int(from_frame.rgb[i]) - int(from_slice.rgb[i])));
+  }
+  EXPECT_LE(most_apart, 1) << "grey levels apart";
+  EXPECT_GT(*std::max_element(from_frame.rgb.begin(), from_frame.rgb.end()), 200) << "the body shows";
+
+  // In a viewport: the frame's square field in square pixels, the viewport's shorter side.
+  v1::RenderFrameRequest small = frame;
+  small.mutable_viewport()->set_width(100);
+  small.mutable_viewport()->set_height(60);
+  const v1::SliceImage fitted = client.RenderFrame(small);
+  EXPECT_EQ(fitted.height(), 60u);
+  EXPECT_NEAR(double(fitted.width()),
+              60.0 * volume.dims().x() * volume.spacing_mm().x() / (volume.dims().y() * volume.spacing_mm().y()), 1.0);
+
+  v1::RenderFrameRequest second = frame;
+  second.set_frame(2);
+  ExpectRpcError([&] { client.RenderFrame(second); }, grpc::StatusCode::NOT_FOUND, "frame 2 is not one of them");
+  v1::RenderFrameRequest missing = frame;
+  missing.set_sop_instance_uid(kCt.series_uid + ".99");
+  ExpectRpcError([&] { client.RenderFrame(missing); }, grpc::StatusCode::NOT_FOUND, "orthanc");
+  v1::RenderFrameRequest path = frame;
+  path.set_sop_instance_uid("1.2/../../studies");
+  ExpectRpcError([&] { client.RenderFrame(path); }, grpc::StatusCode::INVALID_ARGUMENT, "sop_instance_uid");
+  v1::RenderFrameRequest huge = frame;
+  huge.mutable_viewport()->set_width(1000000);
+  ExpectRpcError([&] { client.RenderFrame(huge); }, grpc::StatusCode::INVALID_ARGUMENT, "viewport");
   EXPECT_TRUE(client.Status().accepting_sessions());
 }
 
@@ -542,21 +609,23 @@ TEST(PacsServerHostile, EndlessInstanceBodiesCostDiskWithinTheLimitNotMemory) {
     if (request.target.rfind(kListing + "?", 0) == 0) {
       std::string json = "[";
       for (int i = 1; i <= 4; ++i) {
-        json += fmt::format(R"({}{{"00080018":{{"vr":"UI","Value":["4.5.6.{}"]}},"00280010":{{"vr":"US","Value":[16]}},)"
-                            R"("00280011":{{"vr":"US","Value":[16]}}}})",
-                            i > 1 ? "," : "", i);
+        json +=
+            fmt::format(R"({}{{"00080018":{{"vr":"UI","Value":["4.5.6.{}"]}},"00280010":{{"vr":"US","Value":[16]}},)"
+                        R"("00280011":{{"vr":"US","Value":[16]}}}})",
+                        i > 1 ? "," : "", i);
       }
       return Answer(200, "application/dicom+json", json + "]");
     }
     HttpAnswer endless;  // no Content-Length: the cap can only be kept as the bytes come
-    endless.head = "HTTP/1.1 200 OK\r\nContent-Type: multipart/related; type=\"application/dicom\"; boundary=b\r\n"
-                   "Connection: close\r\n\r\n";
+    endless.head =
+        "HTTP/1.1 200 OK\r\nContent-Type: multipart/related; type=\"application/dicom\"; boundary=b\r\n"
+        "Connection: close\r\n\r\n";
     endless.body = "--b\r\nContent-Type: application/dicom\r\n\r\n" + std::string(128, '\0') + "DICM";
     endless.filler_bytes = std::size_t{1} << 30;
     return endless;
   });
-  ServerProcess server(scratch.path(), {"--pacs", "endless=" + pacs.url() + "/dicom-web", "--pacs-max-series-mb",
-                                        "256", "--pacs-timeout-seconds", "60"});
+  ServerProcess server(scratch.path(), {"--pacs", "endless=" + pacs.url() + "/dicom-web", "--pacs-max-series-mb", "256",
+                                        "--pacs-timeout-seconds", "60"});
   ASSERT_TRUE(server.running()) << server.Log();
   Client client = server.Connect();
   const double resident_before = server.ResidentMiB();
@@ -596,10 +665,10 @@ TEST(PacsServerHostile, AStalledPacsHoldsOnlyItsShare) {
   LoopbackHttpServer healthy([](const HttpRequestSeen&) { return Answer(200, "application/dicom+json", "[]"); });
   std::ofstream(scratch / "tokens") << "alice-token alice\nbob-token bob\n";
   WriteSmallNrrd(scratch / "small.nrrd");
-  ServerProcess server(scratch.path(), {"--auth-tokens", (scratch / "tokens").string(), "--pacs",
-                                        "stalled=" + stalled.url() + "/dicom-web", "--pacs",
-                                        "healthy=" + healthy.url() + "/dicom-web", "--pacs-timeout-seconds", "30",
-                                        "--max-uploads-per-principal", "8"});
+  ServerProcess server(
+      scratch.path(),
+      {"--auth-tokens", (scratch / "tokens").string(), "--pacs", "stalled=" + stalled.url() + "/dicom-web", "--pacs",
+       "healthy=" + healthy.url() + "/dicom-web", "--pacs-timeout-seconds", "30", "--max-uploads-per-principal", "8"});
   ASSERT_TRUE(server.running()) << server.Log();
   std::vector<std::thread> alice;
   for (int i = 0; i < 4; ++i) {
@@ -654,7 +723,8 @@ TEST(PacsServerHostile, ForwardedTokensReachThePacsAndNameTheirCallers) {
   EXPECT_NE(refused.find("refused the caller's token"), std::string::npos) << refused;
   const std::string tokenless = ErrorOf<std::exception>([&] { server.Connect().SearchStudies(search); });
   EXPECT_NE(tokenless.find("--pacs-auth forward"), std::string::npos) << tokenless;
-  const std::string header = ErrorOf<std::exception>([&] { server.Connect("evil; X-Injected: 1").SearchStudies(search); });
+  const std::string header =
+      ErrorOf<std::exception>([&] { server.Connect("evil; X-Injected: 1").SearchStudies(search); });
   EXPECT_NE(header.find("RFC 6750"), std::string::npos) << "a token that is no RFC 6750 token never reaches a header";
   for (const HttpRequestSeen& seen : pacs.requests()) {
     EXPECT_EQ(seen.head.find("X-Injected"), std::string::npos) << seen.head;

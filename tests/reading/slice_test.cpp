@@ -384,5 +384,34 @@ TEST(Slice, APlaneOfAnySizeOrSlabIsBoundedByTheScreen) {
   EXPECT_GT(g.slab_step_mm, SlabStep(air, g.normal)) << "the slab's samples spread";
 }
 
+// A slice on a grid of its own (a DICOM frame's): its pixels where the grid
+// says, beyond the volume black, its size whatever the volume's projection.
+TEST(Slice, AGridOfItsOwnSamplesWhereItSaysNotTheVolumesProjection) {
+  const Volume volume = PatientPhantom({20, 24, 10}, {0.7f, 0.9f, 2.5f}, kLps, {-7, -10, 30}, [](Vec3f p) {
+    return std::fmod(std::abs(p.x * 37 + p.y * 11 + p.z * 3), 200.0f) - 100;
+  });
+  SliceSpec spec = Axial(0, {0, 200});
+  spec.axis = SliceAxis::kOblique;
+  spec.point_lps = {-7 + 0.7f * 3, -10 + 0.9f * 5, 30 + 2.5f * 4};  // voxel (3, 5, 4)
+  spec.grid = SliceSpec::Grid{30, 7, 0.7f, 0.9f};
+  const SliceImage slice = RenderSlice(volume, {}, nullptr, spec);
+  ASSERT_EQ(slice.image.width, 30);
+  ASSERT_EQ(slice.image.height, 7);
+  for (int j = 0; j < 7; ++j) {
+    for (int i = 0; i < 30; ++i) {
+      const int expected = 3 + i < 20 ? ApplyVoiLinear(volume.Value(3 + i, 5 + j, 4), spec.window) : 0;
+      ASSERT_EQ(GreyAt(slice, i, j), expected) << i << "," << j;
+    }
+  }
+  for (SliceSpec::Grid bad : {SliceSpec::Grid{0, 7, 1, 1}, SliceSpec::Grid{kMaxSliceSide + 1, 7, 1, 1},
+                              SliceSpec::Grid{30, 7, 0, 1}, SliceSpec::Grid{30, 7, 1, NAN}}) {
+    spec.grid = bad;
+    EXPECT_THROW(PlanSlice(volume, spec), InputError) << bad.width << " " << bad.pixel_width_mm;
+  }
+  spec.grid = SliceSpec::Grid{30, 7, 0.7f, 0.9f};
+  spec.axis = SliceAxis::kAxial;
+  EXPECT_THROW(PlanSlice(volume, spec), InputError) << "a grid is an oblique plane's";
+}
+
 }  // namespace
 }  // namespace cinevol

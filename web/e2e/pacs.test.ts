@@ -270,7 +270,8 @@ test("an MPR at the size `cinevol slice` makes of the same plane is its slice; a
   // window (PS3.18: window=center,width; the CLI's --window is the width, --level the centre).
   const view = "viewpointposition=0,-700,-785&viewpointlookat=0,-150,-785&viewpointup=0,0,1";
   for (const slabMm of [10, 5000]) {
-    const made = decodePng(await cliSlice(slabMm));
+    const made = decodePng(await cliSlice(["--axis", "oblique", "--point", "0,-150,-785", "--normal", "0,1,0", "--row",
+                                           "1,0,0", "--slab", String(slabMm), "--projection", "max"], String(slabMm)));
     const answer = await fetch(`${series}/renderedmpr?renderingmethod=maximum_ip&mprslab=${slabMm}&${view}` +
                                `&window=40,400,linear&viewport=${made.width},${made.height}`);
     assert.equal(answer.status, 200, await answer.clone().text());
@@ -295,6 +296,57 @@ test("an MPR at the size `cinevol slice` makes of the same plane is its slice; a
   const lit = [...Array(200).keys()].filter(rowLit);
   assert.ok(lit.length > 0 && lit.length < 100, `the section is a band (${lit.length} rows)`);
   assert.ok(Math.abs(lit[0] + lit.at(-1)! - 199) <= 2, `centred: rows ${lit[0]} to ${lit.at(-1)}`);
+});
+
+test("a rendered frame (Supplement 174) of an image lies on its own plane and grid: `cinevol slice` there", async () => {
+  (globalThis as { XMLHttpRequest?: unknown }).XMLHttpRequest = FetchXhr;
+  const pacs = new dicomweb.DICOMwebClient({ url: dicomWeb(run.orthanc), headers: authorization(run.orthanc),
+                                             verbose: false, singlepart: false });
+  const instances = await pacs.retrieveSeriesMetadata({ studyInstanceUID: CT.studyUid,
+                                                        seriesInstanceUID: CT.seriesUid, request: {} });
+  const image = instances[7] as Record<string, { Value: (string | number)[] }>;
+  const sopInstanceUID = String(image["00080018"].Value[0]), z = Number(image["00200032"].Value[2]);
+  const [columns, rows] = [Number(image["00280011"].Value[0]), Number(image["00280010"].Value[0])];
+
+  const origin = new dicomweb.DICOMwebClient({ url: `http://127.0.0.1:${run.gateway.port}/dicom-web/orthanc`,
+                                               verbose: false, singlepart: false });
+  const [rendered] = await origin.retrieveInstanceFramesRendered({
+    studyInstanceUID: CT.studyUid, seriesInstanceUID: CT.seriesUid, sopInstanceUID, frameNumbers: "1",
+    mediaTypes: [{ mediaType: "image/png" }], queryParams: { window: "40,400,linear" } }) as ArrayBuffer[];
+  const frame = decodePng(Buffer.from(rendered));
+  assert.deepEqual([frame.width, frame.height], [columns, rows], "the image's own Columns x Rows");
+  const made = decodePng(await cliSlice(["--axis", "axial", "--position", String(z)], `axial-${z}`));
+  assert.deepEqual([made.width, made.height], [columns, rows]);
+  const { mean, most } = difference(frame.pixels, made.pixels);
+  console.log(`# frame 1 of image 8 (z ${z} mm): ${columns}x${rows} px, mean difference ${mean}, most ${most}`);
+  assert.ok(most <= 1, `the frame and cinevol slice differ by up to ${most} levels`);
+  assert.ok(frame.pixels.some((v) => v > 200), "the frame shows the CT");
+
+  const instance = `http://127.0.0.1:${run.gateway.port}/dicom-web/orthanc/studies/${CT.studyUid}/series/` +
+                   `${CT.seriesUid}/instances/${sopInstanceUID}`;
+  const whole = await fetch(`${instance}/rendered?window=40,400,linear`);
+  assert.equal(whole.status, 200, await whole.clone().text());
+  assert.ok(Buffer.from(await whole.arrayBuffer()).equals(Buffer.from(rendered)), "a single-frame image is its frame");
+  const fitted = decodePng(Buffer.from(await (await fetch(`${instance}/frames/1/rendered?viewport=200,100`))
+    .arrayBuffer()));
+  assert.deepEqual([fitted.width, fitted.height], [200, 100], "the viewport's size, the image fitted within it");
+  const held = await serverHolds();
+  for (const [url, status, said] of [
+    [`${instance}/frames/1,2/rendered`, 406, "multi-frame media type"],
+    [`${instance}/frames/0/rendered`, 400, "frame numbers from 1"],
+    [`${instance}/frames/2/rendered`, 404, "frame 2 is not one of them"],
+    [`${instance}/frames/1/rendered?mprslab=10`, 400, "a rendered frame lies on its own plane"],
+    [`${instance}/frames/1/rendered?accept=image/jpeg`, 406, "image/png"],
+    [`${instance}/frames/1/rendered?viewport=1000000,10`, 400, "viewport"],
+    [`${instance.replace(sopInstanceUID, "2.25.999")}/frames/1/rendered`, 404, "2.25.999"],
+    [`${instance}/frames/x/rendered`, 400, "frames: a number"],
+  ] as [string, number, string][]) {
+    const answer = await fetch(url);
+    const text = await answer.text();
+    assert.equal(answer.status, status, `${url}: ${text}`);
+    assert.ok(text.includes(said), `${url}: ${text}`);
+  }
+  assert.deepEqual(await serverHolds(), held, "the refusals left the server as it was");
 });
 
 test("a signed URL serves an <img> with no token, for its resource only, until it expires", async () => {
@@ -456,11 +508,11 @@ async function decodedInBrowser(bytes: Buffer, type: string): Promise<{ width: n
 }
 
 /** `cinevol slice` of the stamped CT (the files Orthanc holds) on the coronal plane the MPR test asks for. */
-async function cliSlice(slabMm: number): Promise<Buffer> {
-  const out = join(ARTIFACTS, `pacs-slice-${slabMm}.png`);
-  await promisify(execFile)(CLI, ["slice", "--volume", join(scratch, "stamped"), "--axis", "oblique",
-    "--point", "0,-150,-785", "--normal", "0,1,0", "--row", "1,0,0", "--window", "400", "--level", "40",
-    "--slab", String(slabMm), "--projection", "max", "--no-labels", "--out", out], { timeout: 120_000 });
+/** `cinevol slice` of the stamped CT's files through a soft-tissue window, with the plane `args` say. */
+async function cliSlice(args: string[], name: string): Promise<Buffer> {
+  const out = join(ARTIFACTS, `pacs-slice-${name}.png`);
+  await promisify(execFile)(CLI, ["slice", "--volume", join(scratch, "stamped"), ...args, "--window", "400",
+    "--level", "40", "--no-labels", "--out", out], { timeout: 120_000 });
   return readFileSync(out);
 }
 

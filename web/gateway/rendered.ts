@@ -8,6 +8,9 @@
 //       &viewpointposition=x,y,z&viewpointlookat=x,y,z&viewpointup=x,y,z&window=40,400,linear
 //   GET /dicom-web/{pacs}/studies/{study}/series/{series}/instances/{presentation state}/rendered3D
 //       (a Volume Rendering Volumetric Presentation State: the series it presents, in its scene)
+//   GET /dicom-web/{pacs}/studies/{study}/series/{series}/instances/{instance}/frames/{frame}/rendered
+//       ?window=40,400,linear&viewport=512,512 (Supplement 174: an image's frame, on its own plane and pixel grid,
+//       sampled from the series' volume; /instances/{instance}/rendered for a single-frame image)
 // The series comes through the server's LoadSeries (its limits, cache and reader cage), the picture from a session
 // of the caller's own (their bearer token goes through as it came, or the one a signed URL stands for:
 // signed_urls.ts), which ends with the answer.
@@ -24,6 +27,9 @@ import type { SignedUrls } from "./signed_urls.js";
 /** The resource a path names, or undefined for a path that is not one. */
 const PATH =
   /^\/dicom-web\/([A-Za-z0-9_.-]{1,64})\/studies\/([0-9.]{1,64})\/series\/([0-9.]{1,64})(?:\/instances\/([0-9.]{1,64}))?\/(rendered3d|renderedmpr)$/i;
+/** A rendered frame (Supplement 174): an image instance, or one of its frames. */
+const FRAME_PATH =
+  /^\/dicom-web\/([A-Za-z0-9_.-]{1,64})\/studies\/([0-9.]{1,64})\/series\/([0-9.]{1,64})\/instances\/([0-9.]{1,64})(?:\/frames\/([0-9,]{1,64}))?\/rendered$/i;
 /** The query parameter that carries a signed URL's capability (signed_urls.ts). */
 export const SIGNATURE = "signature";
 
@@ -34,7 +40,9 @@ export interface RenderedRequest {
   studyUid: string;
   seriesUid: string;
   presentationUid?: string;  // the target is a presentation state: its scene, its series
-  kind: "rendered3d" | "renderedmpr";
+  kind: "rendered3d" | "renderedmpr" | "renderedframe";
+  // A rendered frame's image and frame number (0: the instance itself, a single-frame image).
+  frame?: { instanceUid: string; number: number };
   method: "volume_rendered" | "maximum_ip" | "minimum_ip" | "average_ip";
   orientation?: "a" | "p" | "r" | "l" | "h" | "f";
   position?: Vec;
@@ -120,17 +128,19 @@ function swivelOf(query: URLSearchParams): RenderedRequest["swivel"] {
   return { degrees, stepDegrees, rate };
 }
 
-/** An MPR is PNG (lossless, as reading needs): PNG or a wildcard among the types asked gets it, else 406. */
+/** An MPR or a frame is PNG (lossless, as reading needs): PNG or a wildcard among the types asked gets it, else 406. */
 function mprMediaType(query: URLSearchParams, acceptHeader: string | undefined,
                       chosen: RenderedRequest["accept"]): RenderedRequest["accept"] {
   if (chosen !== "image/jpeg") return chosen;
   const asked = (query.get("accept") ?? acceptHeader ?? "*/*").split(",").map((t) => t.split(";")[0].trim());
   if (asked.some((t) => ["image/png", "image/*", "*/*"].includes(t))) return "image/png";
-  throw new Refusal(406, `none of '${asked.join(", ")}' is offered for an MPR: image/png (lossless)`);
+  throw new Refusal(406, `none of '${asked.join(", ")}' is offered for an MPR or a frame: image/png (lossless)`);
 }
 
 /** The request a URL makes, or a Refusal; undefined where the path is not a rendered resource. */
 export function readRendered(path: string, search: string, acceptHeader?: string): RenderedRequest | undefined {
+  const frameMatch = FRAME_PATH.exec(path);
+  if (frameMatch) return readFrame(frameMatch, new URLSearchParams(search), acceptHeader);
   const match = PATH.exec(path);
   if (!match) return misshapen(path);
   const query = new URLSearchParams(search);
@@ -155,29 +165,14 @@ export function readRendered(path: string, search: string, acceptHeader?: string
   if (orientation !== undefined && !["a", "p", "r", "l", "h", "f"].includes(orientation)) {
     throw new Refusal(400, `orientation: '${orientation}' is not a, p, r, l, h or f`);
   }
-  const asked = numbers(query, "viewport", 2), [vw, vh] = asked ?? [512, 512];
-  if (![vw, vh].every((n) => Number.isInteger(n) && n >= 1 && n <= MAX_SIDE)) {
-    throw new Refusal(400, `viewport: each side a whole number in [1, ${MAX_SIDE}]`);
-  }
-  const quality = Number(query.get("quality") ?? "75");
-  if (!Number.isInteger(quality) || quality < 1 || quality > 100) throw new Refusal(400, "quality: 1 to 100");
   const slab = Number(query.get("mprslab") ?? "0");
   if (!Number.isFinite(slab) || slab < 0 || slab > 1e4) throw new Refusal(400, "mprslab: a thickness in mm, 0 to 1e4");
-  let window: RenderedRequest["window"];
-  const windowText = query.get("window");
-  if (windowText !== null) {
-    const [center, width, shape] = windowText.split(",");
-    if (!Number.isFinite(Number(center)) || !(Number(width) > 0) || (shape ?? "").toLowerCase() !== "linear") {
-      throw new Refusal(400, `window: '${windowText}' is not center,width,linear (cinevol applies linear windows)`);
-    }
-    window = { center: Number(center), width: Number(width) };
-  }
   const request: RenderedRequest = {
     pacs: match[1], studyUid: match[2], seriesUid: match[3], presentationUid, kind,
     method: method as RenderedRequest["method"],
     orientation: orientation as RenderedRequest["orientation"], position: vec(query, "viewpointposition"),
-    lookAt: vec(query, "viewpointlookat"), up: vec(query, "viewpointup"), slabMm: slab, window,
-    viewport: { width: vw, height: vh }, viewportGiven: asked !== undefined, quality, swivel: swivelOf(query),
+    lookAt: vec(query, "viewpointlookat"), up: vec(query, "viewpointup"), slabMm: slab, ...pictureOf(query),
+    swivel: swivelOf(query),
     accept: kind === "renderedmpr" ? mprMediaType(query, acceptHeader, mediaType(query, acceptHeader))
                                    : mediaType(query, acceptHeader),
   };
@@ -195,6 +190,51 @@ export function readRendered(path: string, search: string, acceptHeader?: string
   return request;
 }
 
+/** What says a view of a volume, not a frame's (its plane is its own). */
+const VIEW_PARAMETERS = ["renderingmethod", "orientation", "viewpointposition", "viewpointlookat", "viewpointup",
+  "mprslab", "swivelrange", "animationstepsize", "animationrate", "renderedvolumetricmetadata"];
+
+/** What any rendered picture's query says: its window, size and quality (PS3.18 8.3.5.1). */
+function pictureOf(query: URLSearchParams): Pick<RenderedRequest, "window" | "viewport" | "viewportGiven" | "quality"> {
+  const asked = numbers(query, "viewport", 2), [vw, vh] = asked ?? [512, 512];
+  if (![vw, vh].every((n) => Number.isInteger(n) && n >= 1 && n <= MAX_SIDE)) {
+    throw new Refusal(400, `viewport: each side a whole number in [1, ${MAX_SIDE}]`);
+  }
+  const quality = Number(query.get("quality") ?? "75");
+  if (!Number.isInteger(quality) || quality < 1 || quality > 100) throw new Refusal(400, "quality: 1 to 100");
+  let window: RenderedRequest["window"];
+  const windowText = query.get("window");
+  if (windowText !== null) {
+    const [center, width, shape] = windowText.split(",");
+    if (!Number.isFinite(Number(center)) || !(Number(width) > 0) || (shape ?? "").toLowerCase() !== "linear") {
+      throw new Refusal(400, `window: '${windowText}' is not center,width,linear (cinevol applies linear windows)`);
+    }
+    window = { center: Number(center), width: Number(width) };
+  }
+  return { window, viewport: { width: vw, height: vh }, viewportGiven: asked !== undefined, quality };
+}
+
+/** A rendered frame's request: one frame (a list of several needs a multi-frame media type: 406), its window and
+ * viewport (the frame's field fitted within it), as PNG like an MPR. */
+function readFrame(match: RegExpExecArray, query: URLSearchParams, acceptHeader: string | undefined): RenderedRequest {
+  const stray = VIEW_PARAMETERS.find((name) => query.has(name));
+  if (stray) throw new Refusal(400, `${stray}: says a view of a volume; a rendered frame lies on its own plane`);
+  const list = match[5];  // none: the instance itself (frame 0, a single-frame image's only one)
+  const numbers = list === undefined ? [0] : list.split(",").map(Number);
+  if (list !== undefined && numbers.some((n) => !Number.isSafeInteger(n) || n < 1)) {
+    throw new Refusal(400, `frames: '${list}' is not a list of frame numbers from 1`);
+  }
+  if (numbers.length > 1) {
+    throw new Refusal(406, `frames: ${numbers.length} frames answer only in a multi-frame media type, which cinevol ` +
+                           "does not offer: ask for one frame a request");
+  }
+  return {
+    pacs: match[1], studyUid: match[2], seriesUid: match[3], kind: "renderedframe",
+    frame: { instanceUid: match[4], number: numbers[0] }, method: "maximum_ip", slabMm: 0, ...pictureOf(query),
+    accept: mprMediaType(query, acceptHeader, mediaType(query, acceptHeader)),
+  };
+}
+
 /** Why a path under /dicom-web/ names no rendered resource (400 for a segment that is not a name, else 404). */
 function misshapen(path: string): undefined {
   if (!/^\/dicom-web(\/|$)/i.test(path)) return undefined;
@@ -202,16 +242,19 @@ function misshapen(path: string): undefined {
   // A rendered resource's shape whatever its segments hold (a URL where the PACS name goes, a UID that is not
   // one), found by searching, not by a pattern that could backtrack over a long path.
   const studies = path.indexOf("/studies/", "/dicom-web/".length);
-  const shaped = studies > 0 && path.indexOf("/series/", studies) > 0 && /\/(?:rendered3d|renderedmpr)$/i.test(path);
+  const shaped = studies > 0 && path.indexOf("/series/", studies) > 0 && /\/rendered(?:3d|mpr)?$/i.test(path);
   const pacs = path.slice("/dicom-web/".length, studies);
   if (shaped && !/^[A-Za-z0-9_.-]{1,64}$/.test(pacs)) {
     throw new Refusal(400, `pacs: ${quoted(pacs)} is not a PACS name: one of the server's --pacs names ` +
                            "(letters, digits, '_', '.', '-'), never an address");
   }
-  if (shaped) throw new Refusal(400, "studies, series, instances: each UID is digits and dots, 64 at most");
+  if (shaped) {
+    throw new Refusal(400, "studies, series, instances: each UID is digits and dots, 64 at most; frames: a number");
+  }
   throw new Refusal(404, `${quoted(path)} is not a rendered resource: ` +
                          "/dicom-web/{pacs}/studies/{study}/series/{series}[/instances/{instance}]/rendered3D or " +
-                         "renderedmpr (or POST /dicom-web/signed-url)");
+                         "renderedmpr, .../instances/{instance}[/frames/{frame}]/rendered " +
+                         "(or POST /dicom-web/signed-url)");
 }
 
 const VIEWS: Record<string, NamedView> = {
@@ -356,6 +399,7 @@ export async function render(transport: Transport, r: RenderedRequest, authoriza
     if (update.update.case === "volume") volume = update.update.value;
   }
   if (!volume) throw new Refusal(502, "the server loaded the series but did not say which volume it made");
+  if (r.frame) return frame(pacs, r, call);
   // An MPR's plane is checked before a session is made for it.
   const plan = r.kind === "renderedmpr" ? planMpr(r, placementOf(volume)) : undefined;
   const volumeId = volume.id;
@@ -387,6 +431,18 @@ export async function render(transport: Transport, r: RenderedRequest, authoriza
   } finally {
     await sessions.closeSession({ sessionId: created.sessionId }, call).catch(() => {});
   }
+}
+
+/** A rendered frame: its plane and grid sampled from the series' volume, which the caller now holds (RenderFrame). */
+async function frame(pacs: Client<typeof PacsService>, r: RenderedRequest, call: CallOptions): Promise<Rendered> {
+  const { width, height } = r.viewport;
+  const slice = await pacs.renderFrame({
+    pacs: r.pacs, studyUid: r.studyUid, seriesUid: r.seriesUid, sopInstanceUid: r.frame!.instanceUid,
+    frame: r.frame!.number, ...(r.window ? { window: r.window.width, level: r.window.center } : {}),
+    ...(r.viewportGiven ? { viewport: { width, height } } : {}),
+  }, call);
+  const fits = !r.viewportGiven || (slice.width === width && slice.height === height);
+  return { type: "image/png", body: fits ? Buffer.from(slice.png) : await fitPng(Buffer.from(slice.png), width, height) };
 }
 
 /** A swivel animation: the session's view turned as the request says, a movie the server makes (RenderMovie). */
@@ -440,9 +496,14 @@ export interface Response {
 }
 
 /** The resource a signed URL is good for: the path's PACS, study, series, instance and kind (its query may vary). */
-export const scopeOf = (r: RenderedRequest) =>
-  `/dicom-web/${r.pacs}/studies/${r.studyUid}/series/${r.seriesUid}` +
-  `${r.presentationUid ? `/instances/${r.presentationUid}` : ""}/${r.kind === "rendered3d" ? "rendered3D" : "renderedmpr"}`;
+export const scopeOf = (r: RenderedRequest) => {
+  const series = `/dicom-web/${r.pacs}/studies/${r.studyUid}/series/${r.seriesUid}`;
+  if (r.frame) {
+    return `${series}/instances/${r.frame.instanceUid}${r.frame.number ? `/frames/${r.frame.number}` : ""}/rendered`;
+  }
+  return `${series}${r.presentationUid ? `/instances/${r.presentationUid}` : ""}/` +
+         (r.kind === "rendered3d" ? "rendered3D" : "renderedmpr");
+};
 
 /** A request's path and query (the query without its "?"; a "?" inside it stays). */
 export function splitUrl(url: string): [string, string] {

@@ -40,7 +40,7 @@ test("bad parameters are refused with the standard's status and a message, befor
     [`${SERIES}/rendered3D?quality=0`, 400, /quality: 1 to 100/],
     [`${SERIES}/rendered3D?orientation=x`, 400, /orientation/],
     [`${SERIES}/renderedmpr?${VIEW}&window=400,40,sigmoid`, 400, /window: '400,40,sigmoid'/],
-    [`${SERIES}/renderedmpr?${VIEW}&accept=image/jpeg`, 406, /offered for an MPR: image\/png/],
+    [`${SERIES}/renderedmpr?${VIEW}&accept=image/jpeg`, 406, /offered for an MPR or a frame: image\/png/],
     ["/dicom-web/http://127.0.0.1:9/pacs/studies/1.2/series/1.2/rendered3D", 400, /pacs: 'http:\/\/127\.0\.0\.1:9\/pacs' is not a PACS name/],
     ["/dicom-web/http%3A%2F%2F10.0.0.1%2F/studies/1.2/series/1.2/rendered3D", 400, /pacs: .* never an address/],
     ["/dicom-web/main/studies/1.2/series/1.2';--/rendered3D", 400, /UID is digits and dots/],
@@ -91,6 +91,34 @@ test("an MPR is PNG: the default, a wildcard or PNG among the types asked", () =
   assert.equal(accept("image/jpeg, image/png;q=0.5"), "image/png");
   assert.equal(refusal(`${SERIES}/renderedmpr?${VIEW}`, "image/jpeg").status, 406);
   assert.equal(readRendered(`${SERIES}/rendered3D`, "")!.accept, "image/jpeg", "a 3D view stays JPEG by default");
+});
+
+test("a rendered frame names one frame of an image, its window and viewport; a view's parameters are refused", () => {
+  const instance = `${SERIES}/instances/1.2.3.4.5`;
+  const frame = readRendered(`${instance}/frames/3/rendered`, "window=40,400,linear&viewport=64,32")!;
+  assert.equal(frame.kind, "renderedframe");
+  assert.deepEqual(frame.frame, { instanceUid: "1.2.3.4.5", number: 3 });
+  assert.deepEqual(frame.window, { center: 40, width: 400 });
+  assert.deepEqual([frame.viewport, frame.viewportGiven, frame.accept], [{ width: 64, height: 32 }, true, "image/png"]);
+  assert.deepEqual(readRendered(`${instance}/rendered`, "")!.frame, { instanceUid: "1.2.3.4.5", number: 0 },
+                   "the instance itself: frame 0, a single-frame image's");
+  assert.equal(scopeOf(frame), `${instance}/frames/3/rendered`);
+  assert.equal(scopeOf(readRendered(`${instance}/rendered`, "")!), `${instance}/rendered`);
+  const cases: [string, number, RegExp][] = [
+    [`${instance}/frames/1,2/rendered`, 406, /multi-frame media type/],
+    [`${instance}/frames/0/rendered`, 400, /frame numbers from 1/],
+    [`${instance}/frames/99999999999999999999/rendered`, 400, /frame numbers from 1/],
+    [`${instance}/frames/1/rendered?mprslab=10`, 400, /mprslab: says a view of a volume/],
+    [`${instance}/frames/1/rendered?viewpointposition=0,0,1`, 400, /viewpointposition: says a view/],
+    [`${instance}/frames/1/rendered?window=40,400,sigmoid`, 400, /window: '40,400,sigmoid'/],
+    [`${instance}/frames/1/rendered?accept=image/jpeg`, 406, /offered for an MPR or a frame: image\/png/],
+    [`${instance}/frames/a/rendered`, 400, /frames: a number/],
+  ];
+  for (const [url, status, said] of cases) {
+    const got = refusal(url);
+    assert.equal(got.status, status, `${url}: ${got.message}`);
+    assert.match(got.message, said, url);
+  }
 });
 
 // 100 x 80 x 20 voxels of 1 x 1 x 2 mm, index axes along the patient's: x 0..99, y 0..79, z 0..38 mm.
