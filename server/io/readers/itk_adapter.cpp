@@ -371,17 +371,18 @@ void ToFloat(itk::IOComponentEnum from, const void* in, float* out, std::size_t 
 
 // One series, its slices sorted and its header known; the pixels are
 // decoded slice by slice (GDCM: JPEG 2000 and other compressed transfer
-// syntaxes included; rescale slope and intercept applied).
+// syntaxes included; rescale slope and intercept applied). A time series
+// (several files at each position) is read a phase at a time, each phase's
+// slices on the first phase's grid.
 class DicomSeriesRead final : public reader::VolumeRead {
  public:
   DicomSeriesRead(const dicom::SortedSeries& series, std::uint64_t max_voxels)
-      : where_(series.shown), series_(series.info) {
+      : where_(series.shown), series_(series.info), phase_files_(series.phases) {
     const dicom::SeriesGeometry& g = series.geometry;
-    for (const dicom::Slice& s : g.slices) files_.push_back(s.file);
     auto io = itk::GDCMImageIO::New();
     try {
       // Header sizes are checked before decoding: absurd rows/columns never allocate.
-      io->SetFileName(files_[0]);
+      io->SetFileName(phase_files_[0][0]);
       io->ReadImageInformation();
     } catch (const itk::ExceptionObject& e) {
       throw Failed(e);
@@ -391,7 +392,7 @@ class DicomSeriesRead final : public reader::VolumeRead {
                                    where_, dicom::Describe(series_), io->GetNumberOfComponents()));
     }
     const std::uint64_t frames = io->GetNumberOfDimensions() > 2 ? std::max<std::uint64_t>(1, io->GetDimensions(2)) : 1;
-    if (frames > 1 && files_.size() > 1) {
+    if (frames > 1 && (phase_files_.size() > 1 || phase_files_[0].size() > 1)) {
       throw InputError(fmt::format("{}: series {} has multi-frame files; cinevol reads one such file, or single-frame "
                                    "slices", where_, dicom::Describe(series_)));
     }
@@ -401,9 +402,14 @@ class DicomSeriesRead final : public reader::VolumeRead {
     CheckVolumeGeometry({dims[0], dims[1], dims[2]},
                         {float(io->GetSpacing(0)), float(io->GetSpacing(1)), float(g.slice_gap_mm)}, where_);
     const std::uint64_t voxels = std::uint64_t(dims[0]) * std::uint64_t(dims[1]) * std::uint64_t(dims[2]);
-    if (voxels > max_voxels) {
-      throw InputError(fmt::format("{}: {}x{}x{} = {} voxels exceeds this server's limit of {} voxels", where_,
-                                   dims[0], dims[1], dims[2], voxels, max_voxels));
+    const std::uint64_t phases = phase_files_.size();  // at most kMaxPhases (ChooseSeries)
+    if (voxels * phases > max_voxels) {
+      throw InputError(phases == 1 ? fmt::format("{}: {}x{}x{} = {} voxels exceeds this server's limit of {} voxels",
+                                                 where_, dims[0], dims[1], dims[2], voxels, max_voxels)
+                                   : fmt::format("{}: {}x{}x{} voxels x {} phases = {} voxels exceeds this server's "
+                                                 "limit of {} voxels",
+                                                 where_, dims[0], dims[1], dims[2], phases, voxels * phases,
+                                                 max_voxels));
     }
     // Geometry from the sorted positions, not from the first two files.
     std::array<double, 9> direction;
@@ -436,25 +442,45 @@ class DicomSeriesRead final : public reader::VolumeRead {
     slice_voxels_ = std::size_t(dims[0]) * std::size_t(dims[1]) * std::size_t(frames);
     if (g.tilt_deg > dicom::kMaxTiltDeg) Shear(g, io->GetSpacing(0), io->GetSpacing(1), dims);
     if (g.uneven) Even(g);
+    if (phases > 1) SetPhases(series);
   }
 
-  void Read(void* memory, std::size_t bytes) override {
+  // Phase `phase`'s slices, decoded into `memory` (resampled as the first
+  // phase's geometry asks).
+  void Read(void* memory, std::size_t bytes, int phase) override {
+    if (phase < 0 || std::size_t(phase) >= phase_files_.size()) {
+      throw InputError(fmt::format("{}: no phase {} in a series of {}", where_, phase, phase_files_.size()));
+    }
+    files_ = &phase_files_[std::size_t(phase)];
     const std::size_t voxel_bytes = BytesPerVoxel(*VoxelTypeNamed(header_.voxel_type()));
-    const std::size_t slices = positions_.empty() ? files_.size() : grid_slices_;
+    const std::size_t slices = positions_.empty() ? files_->size() : grid_slices_;
     if (bytes != slice_voxels_ * voxel_bytes * slices) {
       throw InputError(fmt::format("{}: {} bytes of memory for the series' voxels", where_, bytes));
     }
     if (!positions_.empty()) return ReadEven(static_cast<float*>(memory));
-    for (std::size_t k = 0; k < files_.size(); ++k) DecodeSlice(k, static_cast<char*>(memory) + k * slice_voxels_ * voxel_bytes);
+    for (std::size_t k = 0; k < files_->size(); ++k) {
+      DecodeSlice(k, static_cast<char*>(memory) + k * slice_voxels_ * voxel_bytes);
+    }
   }
 
  private:
+  // A time series: its phases, and their times where the files give them.
+  void SetPhases(const dicom::SortedSeries& series) {
+    header_.set_phases(std::uint32_t(phase_files_.size()));
+    for (double t : series.phase_seconds) header_.add_phase_seconds(t);
+    if (series.phase_seconds.empty()) {
+      header_.add_notes(fmt::format("a time series of {} phases ordered by {}; its files give no Trigger Times that "
+                                    "rise phase by phase, so the phases have no times",
+                                    phase_files_.size(), series.phase_order));
+    }
+  }
+
   // Slice k's voxels into `out`: as stored where the series is rescaled alike
   // and straight, else as float32 (shifted onto the regular grid where tilted).
   void DecodeSlice(std::size_t k, char* out) {
     auto io = itk::GDCMImageIO::New();
     try {
-      io->SetFileName(files_[k]);
+      io->SetFileName((*files_)[k]);
       io->ReadImageInformation();
       const std::size_t n = io->GetImageSizeInPixels();
       if (io->GetNumberOfComponents() != 1 || n != slice_voxels_ ||
@@ -498,7 +524,7 @@ class DicomSeriesRead final : public reader::VolumeRead {
     std::vector<float> below(slice_voxels_), above(slice_voxels_);
     std::size_t k = 0;  // the slices decoded: k below, k + 1 above
     DecodeSlice(0, reinterpret_cast<char*>(below.data()));
-    DecodeSlice(std::min<std::size_t>(1, files_.size() - 1), reinterpret_cast<char*>(above.data()));
+    DecodeSlice(std::min<std::size_t>(1, files_->size() - 1), reinterpret_cast<char*>(above.data()));
     for (std::size_t z = 0; z < grid_slices_; ++z) {
       const double at = std::min(double(z) * gap_mm_, positions_.back());
       while (k + 2 < positions_.size() && positions_[k + 1] < at) {
@@ -561,7 +587,8 @@ class DicomSeriesRead final : public reader::VolumeRead {
 
   std::string where_;
   reader::Series series_;
-  std::vector<std::string> files_;  // sorted along the normal
+  std::vector<std::vector<std::string>> phase_files_;  // each phase's files, sorted along the normal
+  const std::vector<std::string>* files_ = nullptr;    // the phase being read's
   itk::IOComponentEnum type_ = itk::IOComponentEnum::UNKNOWNCOMPONENTTYPE;
   bool rescaled_alike_ = true;
   std::size_t slice_voxels_ = 0;

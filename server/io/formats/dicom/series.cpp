@@ -8,9 +8,11 @@
 #include <cmath>
 #include <cstdint>
 #include <map>
+#include <optional>
 #include <sstream>
 
 #include "core/error.h"
+#include "core/volume.h"
 #include "io/formats/dicom/checks.h"
 
 namespace fs = std::filesystem;
@@ -36,6 +38,21 @@ const gdcm::Tag kPatientId(0x0010, 0x0020);
 const gdcm::Tag kStudyDate(0x0008, 0x0020);
 const gdcm::Tag kStudyDescription(0x0008, 0x1030);
 const gdcm::Tag kFrameOfReference(0x0020, 0x0052);
+const gdcm::Tag kTemporalPosition(0x0020, 0x0100);
+const gdcm::Tag kTriggerTime(0x0018, 0x1060);
+const gdcm::Tag kInstanceNumber(0x0020, 0x0013);
+
+// What orders a position's files in time, the first every file of the series
+// has: the Temporal Position Identifier, else the Trigger Time, else the
+// Instance Number.
+struct TimeKey {
+  gdcm::Tag tag;
+  const char* name;
+  const char* unit;
+};
+const TimeKey kTimeKeys[] = {{kTemporalPosition, "Temporal Position Identifier", ""},
+                             {kTriggerTime, "Trigger Time", " ms"},
+                             {kInstanceNumber, "Instance Number", ""}};
 
 // Slices whose positions along the normal differ by more than this fraction
 // of the typical gap count as unevenly spaced.
@@ -74,7 +91,7 @@ void ScanFiles(const std::vector<reader::DicomFile>& files, const reader::ReadOp
   for (const gdcm::Tag& t : {kSeriesUid, kSeriesDescription, kModality, kImagePosition, kImageOrientation, kRows,
                              kColumns, kSliceThickness, kPhotometric, kRescaleIntercept, kRescaleSlope, kWindowCenter,
                              kWindowWidth, kPatientName, kPatientId, kStudyDate, kStudyDescription,
-                             kFrameOfReference}) {
+                             kFrameOfReference, kTemporalPosition, kTriggerTime, kInstanceNumber}) {
     scan.scanner.AddTag(t);
   }
   if (!sound.empty() && !scan.scanner.Scan(sound)) {
@@ -109,6 +126,13 @@ std::vector<double> Numbers(const std::string& s) {
     if (!std::isfinite(out.back())) return {};
   }
   return out;
+}
+
+// The file's value of `tag` where it holds one number; else nothing.
+std::optional<double> Number(const Scan& scan, const std::string& file, const gdcm::Tag& tag) {
+  const std::vector<double> v = Numbers(Value(scan, file, tag));
+  if (v.size() != 1) return std::nullopt;
+  return v[0];
 }
 
 // Files grouped into series. Anonymised data may lack SeriesInstanceUID, so
@@ -151,11 +175,103 @@ std::size_t SeriesGeometry::GridSlices() const {
 
 namespace {
 
+// Slices nearer than this along the normal (mm) lie at one position.
+constexpr double kSamePositionMm = 1e-3;
+
+// A series' files at one position along the normal.
+using Position = std::vector<Slice>;
+
+// `slices`, sorted along the normal, grouped by position.
+std::vector<Position> GroupPositions(const std::vector<Slice>& slices) {
+  std::vector<Position> out;
+  for (const Slice& s : slices) {
+    if (out.empty() || s.along_normal - out.back().back().along_normal >= kSamePositionMm) out.emplace_back();
+    out.back().push_back(s);
+  }
+  return out;
+}
+
+// A time series (several files at a position): each position's files ordered
+// in time by the first of kTimeKeys every file has; refused where two files
+// of a position have the same time (or nothing orders them), where positions
+// hold different counts, or where there are more than kMaxPhases phases. Sets
+// `out`'s phase order and times.
+void OrderPhases(const Scan& scan, const std::vector<std::string>& files, std::vector<Position>& positions,
+                 SortedSeries& out) {
+  const std::string& where = out.shown;
+  const TimeKey* key = nullptr;
+  std::map<std::string, double> time;  // file -> its value of `key`
+  for (const TimeKey& k : kTimeKeys) {
+    std::map<std::string, double> values;
+    for (const std::string& f : files) {
+      const std::optional<double> v = Number(scan, f, k.tag);
+      if (!v) break;
+      values[f] = *v;
+    }
+    if (values.size() == files.size()) {
+      key = &k;
+      time = std::move(values);
+      break;
+    }
+  }
+  // Two files of one position at one time are duplicates, whatever the counts.
+  for (Position& p : positions) {
+    if (key) {
+      std::stable_sort(p.begin(), p.end(), [&](const Slice& a, const Slice& b) { return time[a.file] < time[b.file]; });
+    }
+    for (std::size_t i = 1; i < p.size(); ++i) {
+      if (key && time[p[i].file] != time[p[i - 1].file]) continue;
+      throw InputError(fmt::format(
+          "{}: {} and {} lie at the same position ({:.3f} mm along the normal): duplicate slices or several "
+          "acquisitions in one series ({})",
+          where, scan.Name(p[i - 1].file), scan.Name(p[i].file), p[i].along_normal,
+          key ? fmt::format("both with {} {:g}{}", key->name, time[p[i].file], key->unit)
+              : std::string("no Temporal Position Identifier, Trigger Time or Instance Number orders them in time")));
+    }
+  }
+  // The most common count is the series' phases; a position holding another
+  // is named.
+  std::map<std::size_t, std::size_t> positions_holding;  // files -> positions holding that many
+  for (const Position& p : positions) ++positions_holding[p.size()];
+  const std::size_t phases =
+      std::max_element(positions_holding.begin(), positions_holding.end(),
+                       [](const auto& a, const auto& b) { return a.second < b.second; })->first;
+  for (const Position& p : positions) {
+    if (p.size() == phases) continue;
+    throw InputError(fmt::format("{}: positions hold {} and {} files: not one phase a position ({} files at {:.3f} mm "
+                                 "along the normal, {} among them; a phase missing, or another acquisition?)",
+                                 where, phases, p.size(), p.size(), p.front().along_normal, scan.Name(p.front().file)));
+  }
+  if (phases > std::size_t(kMaxPhases)) {
+    throw InputError(fmt::format("{}: a time series of {} phases ({} files at each of {} position{}); cinevol "
+                                 "reads 1 to {}",
+                                 where, phases, phases, positions.size(), positions.size() == 1 ? "" : "s",
+                                 kMaxPhases));
+  }
+  out.phase_order = key->name;
+  // Each phase's time: the mean of its files' Trigger Times, where every file
+  // has one and the means rise phase by phase.
+  std::vector<double> seconds(phases, 0.0);
+  for (const Position& p : positions) {
+    for (std::size_t k = 0; k < phases; ++k) {
+      const std::optional<double> ms = Number(scan, p[k].file, kTriggerTime);
+      if (!ms) return;
+      seconds[k] += *ms / 1000.0 / double(positions.size());
+    }
+  }
+  for (std::size_t k = 1; k < phases; ++k) {
+    if (!(seconds[k] > seconds[k - 1])) return;
+  }
+  out.phase_seconds = std::move(seconds);
+}
+
 // Sorts `files` along their normal and checks the spacing: gantry tilt is
-// measured, duplicate positions and uneven gaps refused.
-SeriesGeometry CheckGeometry(const Scan& scan, const std::vector<std::string>& files, const std::string& where,
-                             bool resample_uneven) {
-  SeriesGeometry g;
+// measured, duplicate positions and uneven gaps refused. Several files at
+// every position are phases (OrderPhases); the geometry is the first phase's.
+// Sets `out`'s geometry and phases.
+void CheckGeometry(const Scan& scan, const std::vector<std::string>& files, bool resample_uneven, SortedSeries& out) {
+  const std::string& where = out.shown;
+  SeriesGeometry& g = out.geometry;
   const std::vector<double> iop = Numbers(Value(scan, files[0], kImageOrientation));
   if (iop.size() != 6) {
     throw InputError(fmt::format("{}: {} has no usable ImageOrientationPatient", where, scan.Name(files[0])));
@@ -166,25 +282,35 @@ SeriesGeometry CheckGeometry(const Scan& scan, const std::vector<std::string>& f
   g.normal[1] = g.row[2] * g.col[0] - g.row[0] * g.col[2];
   g.normal[2] = g.row[0] * g.col[1] - g.row[1] * g.col[0];
 
+  std::vector<Slice> all;
   for (const std::string& f : files) {
     const std::vector<double> p = Numbers(Value(scan, f, kImagePosition));
     if (p.size() != 3) {
       throw InputError(fmt::format("{}: {} has no usable ImagePositionPatient", where, scan.Name(f)));
     }
-    g.slices.push_back({f, {p[0], p[1], p[2]}, Dot3(p.data(), g.normal)});
+    all.push_back({f, {p[0], p[1], p[2]}, Dot3(p.data(), g.normal)});
   }
-  std::sort(g.slices.begin(), g.slices.end(),
-            [](const Slice& a, const Slice& b) { return a.along_normal < b.along_normal; });
+  std::sort(all.begin(), all.end(), [](const Slice& a, const Slice& b) {
+    return a.along_normal < b.along_normal || (a.along_normal == b.along_normal && a.file < b.file);
+  });
+  std::vector<Position> positions = GroupPositions(all);
+  if (positions.size() < all.size()) OrderPhases(scan, files, positions, out);
+  const std::size_t phases = positions.front().size();
+  out.phases.assign(phases, {});
+  for (const Position& p : positions) {
+    g.slices.push_back(p.front());
+    for (std::size_t k = 0; k < phases; ++k) out.phases[k].push_back(p[k].file);
+  }
   if (g.slices.size() < 2) {
     const std::vector<double> t = Numbers(Value(scan, files[0], kSliceThickness));
     g.slice_gap_mm = t.size() == 1 && t[0] > 0 ? t[0] : 1.0;
-    return g;
+    return;
   }
 
   std::vector<double> gaps;
   for (std::size_t i = 1; i < g.slices.size(); ++i) {
     const double gap = g.slices[i].along_normal - g.slices[i - 1].along_normal;
-    if (gap < 1e-3) {
+    if (gap < kSamePositionMm) {
       throw InputError(
           fmt::format("{}: {} and {} lie at the same position ({:.3f} mm along the normal): duplicate slices "
                       "or several acquisitions in one series",
@@ -220,7 +346,6 @@ SeriesGeometry CheckGeometry(const Scan& scan, const std::vector<std::string>& f
   for (int a = 0; a < 3; ++a) step[a] = last.position[a] - first.position[a];
   const double cos_tilt = Dot3(step, g.normal) / std::sqrt(Dot3(step, step));
   g.tilt_deg = std::acos(std::min(1.0, std::abs(cos_tilt))) * 180.0 / M_PI;
-  return g;
 }
 
 // The largest series, or the largest with `requested` as its UID.
@@ -314,12 +439,11 @@ SortedSeries ChooseSeries(const std::vector<reader::DicomFile>& files, const std
   SortedSeries sorted;
   sorted.shown = scan.shown;
   sorted.info = series.info;
-  sorted.geometry = CheckGeometry(scan, series.files, scan.shown, options.resample_uneven);
+  CheckGeometry(scan, series.files, options.resample_uneven, sorted);
   CheckGreyScale(scan, series.files, scan.shown);
-  std::vector<std::string> files_sorted;
-  for (const Slice& s : sorted.geometry.slices) files_sorted.push_back(s.file);
+  const std::vector<std::string>& files_sorted = sorted.phases.front();
   sorted.modality = Value(scan, files_sorted[0], kModality);
-  sorted.rescaled_alike = SameRescale(scan, files_sorted);
+  sorted.rescaled_alike = SameRescale(scan, series.files);
   sorted.identity = IdentityOf(scan, files_sorted[0]);
   sorted.stored_window = StoredWindow(scan, files_sorted[0]);
   sorted.frame_of_reference_uid = Value(scan, files_sorted[0], kFrameOfReference);

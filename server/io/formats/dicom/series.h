@@ -1,8 +1,10 @@
 // Inside the reader cage: DICOM series from a folder's files. GDCM scans the
 // headers (after checks.h's walk); cinevol groups the files into series,
 // sorts one series' slices along their normal and checks them: gantry tilt
-// measured, uneven gaps, duplicates and colour refused. The ITK/GDCM adapter
-// (readers/itk_adapter.h) decodes the pixels.
+// measured, uneven gaps, duplicates and colour refused. A series whose
+// positions each hold the same number of files is a time series (cardiac
+// phases, a dynamic series): its phases ordered in time at each position.
+// The ITK/GDCM adapter (readers/itk_adapter.h) decodes the pixels.
 #pragma once
 
 #include <string>
@@ -23,7 +25,8 @@ struct Slice {
   double along_normal;
 };
 
-// The checked, sorted geometry of one series.
+// The checked, sorted geometry of one series (of its first phase, which every
+// phase shares).
 struct SeriesGeometry {
   std::vector<Slice> slices;
   double row[3], col[3], normal[3];
@@ -50,13 +53,28 @@ struct SortedSeries {
   reader::Identity identity;          // the first slice's patient and study fields
   std::vector<double> stored_window;  // the first slice's first window: center, width; or empty
   std::string frame_of_reference_uid;  // the first slice's (0020,0052); empty when it names none
+  // Each phase's files in the order of geometry.slices: one phase (the
+  // geometry's files) for a still series; for a time series (N > 1 files at
+  // every position), phase k holds each position's k-th file in time.
+  std::vector<std::vector<std::string>> phases;
+  // A time series: what ordered each position's files (phase_order: "Temporal
+  // Position Identifier", "Trigger Time" or "Instance Number") and each
+  // phase's time in seconds, the mean of its files' Trigger Times (empty
+  // where a file has none, or where the means do not rise phase by phase).
+  std::string phase_order;
+  std::vector<double> phase_seconds;
 };
 
 // The series `files` hold, largest first. Files whose structure is not sound
 // DICOM (with the pre-checks on) and files GDCM cannot parse are left out.
 reader::SeriesList ListSeries(const std::vector<reader::DicomFile>& files, const reader::ReadOptions& options);
 
-// The series of `files` with `series_uid`, or the largest, sorted and checked.
+// The series of `files` with `series_uid`, or the largest, sorted and checked;
+// several files at one position are read as phases where every position holds
+// as many, each ordered by Temporal Position Identifier (0020,0100), else
+// Trigger Time (0018,1060), else Instance Number (0020,0013); refused where
+// the counts differ, two of a position share that key, or there are more
+// phases than kMaxPhases.
 SortedSeries ChooseSeries(const std::vector<reader::DicomFile>& files, const std::string& series_uid,
                           const reader::ReadOptions& options);
 

@@ -1,0 +1,422 @@
+// DICOM series of several phases (4D: cardiac cine, dynamic series): files
+// repeating each slice position are read as a time series, each position's
+// files ordered by Temporal Position Identifier, else Trigger Time, else
+// Instance Number. The real cine (Sunnybrook: 12 positions x 20 phases) and
+// time series made from the MR's slices, with their refusals.
+#include <gdcmAttribute.h>
+#include <gdcmReader.h>
+#include <gdcmWriter.h>
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <map>
+#include <memory>
+#include <numeric>
+#include <random>
+#include <string>
+#include <vector>
+
+#include "core/error.h"
+#include "io/volume_loader.h"
+#include "support/test_paths.h"
+
+namespace cinevol {
+namespace {
+
+using testing::ScratchDir;
+using testing::SharedData;
+namespace fs = std::filesystem;
+
+fs::path CineFolder() { return SharedData() / "4d-mr-cardiac-cine-sunnybrook/dicom"; }
+fs::path MrFolder() { return SharedData() / "mr-chest-dicom-seg3d"; }
+
+VolumeSeries LoadSeries(const fs::path& folder, const LoadPolicy& policy = {}) {
+  v1::VolumeSource source;
+  source.set_dicom_folder(folder.string());
+  return LoadVolumeSeries(source, {}, policy);
+}
+
+std::string SeriesError(const fs::path& folder, const LoadPolicy& policy = {}) {
+  try {
+    LoadSeries(folder, policy);
+  } catch (const InputError& e) {
+    return e.what();
+  }
+  return "(loaded without error)";
+}
+
+std::unique_ptr<gdcm::Reader> ReadDicom(const fs::path& file) {
+  auto reader = std::make_unique<gdcm::Reader>();
+  reader->SetFileName(file.c_str());
+  if (!reader->Read()) throw std::runtime_error("cannot read " + file.string());
+  return reader;
+}
+
+void WriteDicom(gdcm::Reader& reader, const fs::path& file) {
+  gdcm::Writer writer;
+  writer.SetFile(reader.GetFile());
+  writer.SetFileName(file.c_str());
+  if (!writer.Write()) throw std::runtime_error("cannot write " + file.string());
+}
+
+// Rewrites one file's header in place with `edit`.
+template <class Edit>
+void EditHeader(const fs::path& file, Edit edit) {
+  const auto reader = ReadDicom(file);
+  edit(reader->GetFile().GetDataSet());
+  WriteDicom(*reader, file);
+}
+
+void SetTriggerTime(gdcm::DataSet& ds, double ms) {
+  gdcm::Attribute<0x0018, 0x1060> a;
+  a.SetValue(ms);
+  ds.Replace(a.GetAsDataElement());
+}
+
+void SetInstanceNumber(gdcm::DataSet& ds, int n) {
+  gdcm::Attribute<0x0020, 0x0013> a;
+  a.SetValue(n);
+  ds.Replace(a.GetAsDataElement());
+}
+
+void SetTemporalPosition(gdcm::DataSet& ds, int n) {
+  gdcm::Attribute<0x0020, 0x0100> a;
+  a.SetValue(n);
+  ds.Replace(a.GetAsDataElement());
+}
+
+// A file's position along its slices' normal (mm).
+double AlongNormal(const gdcm::DataSet& ds) {
+  gdcm::Attribute<0x0020, 0x0037> iop;
+  iop.Set(ds);
+  gdcm::Attribute<0x0020, 0x0032> ipp;
+  ipp.Set(ds);
+  const double r[3] = {iop.GetValue(0), iop.GetValue(1), iop.GetValue(2)};
+  const double c[3] = {iop.GetValue(3), iop.GetValue(4), iop.GetValue(5)};
+  const double n[3] = {r[1] * c[2] - r[2] * c[1], r[2] * c[0] - r[0] * c[2], r[0] * c[1] - r[1] * c[0]};
+  return ipp.GetValue(0) * n[0] + ipp.GetValue(1) * n[1] + ipp.GetValue(2) * n[2];
+}
+
+// The MR's files in the order of the loaded volume's slices (along the normal).
+std::vector<fs::path> MrSlicesInOrder() {
+  std::vector<std::pair<double, fs::path>> at;
+  for (const auto& e : fs::directory_iterator(MrFolder())) {
+    if (e.path().extension() != ".dcm") continue;
+    at.push_back({AlongNormal(ReadDicom(e.path())->GetFile().GetDataSet()), e.path()});
+  }
+  std::sort(at.begin(), at.end());
+  std::vector<fs::path> out;
+  for (const auto& [along, path] : at) out.push_back(path);
+  return out;
+}
+
+// A time series of 3 phases x `positions` slices written into `dir` from the
+// MR's slices: file (p, i), phase p at position i, holds MR slice
+// i + positions * p moved to MR slice i's position, with Trigger Time
+// kTrigger[p] * (1 + 0.1 i) ms (each position its own heart rate, as a cine's
+// breath holds), Instance Number 1 + positions * p + i (p's order, which the
+// trigger times contradict) and a shuffled file name. `edit` changes each
+// file's header last. Returns the paths, [p][i].
+constexpr std::array<double, 3> kTrigger{300, 100, 200};  // phase order by trigger time: p = 1, 2, 0
+constexpr std::array<int, 3> kByTrigger{1, 2, 0};
+
+template <class Edit>
+std::vector<std::vector<fs::path>> WriteTimeSeries(const fs::path& dir, int positions, Edit edit) {
+  const std::vector<fs::path> mr = MrSlicesInOrder();
+  std::vector<int> names(std::size_t(3 * positions));
+  std::iota(names.begin(), names.end(), 100);
+  std::shuffle(names.begin(), names.end(), std::mt19937(59));
+  std::vector<std::vector<fs::path>> out(3);
+  for (int i = 0; i < positions; ++i) {
+    const gdcm::DataElement position =
+        ReadDicom(mr[std::size_t(i)])->GetFile().GetDataSet().GetDataElement(gdcm::Tag(0x0020, 0x0032));
+    for (int p = 0; p < 3; ++p) {
+      const auto reader = ReadDicom(mr[std::size_t(i + positions * p)]);
+      gdcm::DataSet& ds = reader->GetFile().GetDataSet();
+      ds.Replace(position);
+      SetTriggerTime(ds, kTrigger[std::size_t(p)] * (1 + 0.1 * i));
+      SetInstanceNumber(ds, 1 + positions * p + i);
+      edit(ds, p, i);
+      const fs::path file = dir / ("im" + std::to_string(names[std::size_t(p * positions + i)]) + ".dcm");
+      WriteDicom(*reader, file);
+      out[std::size_t(p)].push_back(file);
+    }
+  }
+  return out;
+}
+
+std::vector<std::vector<fs::path>> WriteTimeSeries(const fs::path& dir, int positions) {
+  return WriteTimeSeries(dir, positions, [](gdcm::DataSet&, int, int) {});
+}
+
+// Whether phase `phase` of `series` holds, at slice i, MR slice i + positions
+// * p (sampled every 7th voxel).
+void ExpectPhaseHolds(const VolumeSeries& series, std::size_t phase, int p, const Volume& mr) {
+  const Volume& v = series.phases[phase];
+  const int positions = v.dims().z;
+  int differing = 0;
+  for (int z = 0; z < positions; ++z) {
+    for (int y = 0; y < v.dims().y; y += 7) {
+      for (int x = 0; x < v.dims().x; x += 7) differing += v.Value(x, y, z) != mr.Value(x, y, z + positions * p);
+    }
+  }
+  EXPECT_EQ(differing, 0) << "phase " << phase << " should hold the copies of phase p = " << p;
+}
+
+// ---------------------------------------------------------------- the real cine
+
+// The Sunnybrook cine: 240 files, 12 positions x 20 cardiac phases, each file
+// its own Frame of Reference UID; ordered by Trigger Time (no Temporal
+// Position Identifier), each phase's time the mean over the 12 positions.
+TEST(DicomPhases, CardiacCineLoadsAsTwentyPhases) {
+  CINEVOL_REQUIRE_SHARED_DATA();
+  const VolumeSeries cine = LoadSeries(CineFolder());
+  ASSERT_EQ(cine.phases.size(), 20u);
+  for (const Volume& phase : cine.phases) {
+    EXPECT_EQ(phase.dims(), (Vec3i{256, 256, 12}));
+    EXPECT_NEAR(phase.spacing_mm().x, 1.367188, 1e-5);
+    EXPECT_NEAR(phase.spacing_mm().z, 10.0, 1e-3);
+    EXPECT_EQ(phase.metadata().modality, "MR");
+    EXPECT_EQ(phase.metadata().origin_mm, cine.phases[0].metadata().origin_mm);
+    EXPECT_EQ(phase.metadata().frame_of_reference_uid, cine.phases[0].metadata().frame_of_reference_uid);
+  }
+  EXPECT_FALSE(cine.phases[0].metadata().frame_of_reference_uid.empty()) << "the first file's, as for one phase";
+
+  // Phase p (from 0) is Instance Number 20 s + p + 1 at slice s: its time the
+  // mean of those files' Trigger Times, from phase 0's.
+  std::array<double, 20> mean_ms{};
+  for (int n = 1; n <= 240; ++n) {
+    gdcm::Attribute<0x0018, 0x1060> trigger;
+    trigger.Set(ReadDicom(CineFolder() / (std::to_string(n) + ".dcm"))->GetFile().GetDataSet());
+    mean_ms[std::size_t((n - 1) % 20)] += trigger.GetValue() / 12;
+  }
+  ASSERT_EQ(cine.seconds.size(), 20u);
+  EXPECT_EQ(cine.seconds[0], 0);
+  for (std::size_t p = 1; p < 20; ++p) {
+    EXPECT_GT(cine.seconds[p], cine.seconds[p - 1]);
+    EXPECT_NEAR(cine.seconds[p], (mean_ms[p] - mean_ms[0]) / 1000, 1e-9) << p;
+  }
+  EXPECT_NEAR(cine.seconds[19], 0.72, 0.05) << "19/20 of a R-R interval of about 0.76 s";
+
+  // The heart moves: every phase differs from the first somewhere.
+  const std::size_t n = cine.phases[0].voxel_count();
+  for (std::size_t p = 1; p < 20; ++p) {
+    std::size_t differing = 0;
+    for (std::size_t i = 0; i < n; ++i) differing += cine.phases[p].ValueAtIndex(i) != cine.phases[0].ValueAtIndex(i);
+    EXPECT_GT(differing, n / 100) << "phase " << p;
+  }
+
+  // Each phase is its 12 files read as a series of one phase.
+  for (int p : {0, 7, 19}) {
+    ScratchDir dir;
+    for (int s = 0; s < 12; ++s) {
+      const std::string name = std::to_string(20 * s + p + 1) + ".dcm";
+      fs::copy_file(CineFolder() / name, dir / name);
+    }
+    const Volume single = LoadDicomSeries(dir.path());
+    const Volume& phase = cine.phases[std::size_t(p)];
+    ASSERT_EQ(single.dims(), phase.dims());
+    EXPECT_EQ(single.metadata().origin_mm, phase.metadata().origin_mm);
+    EXPECT_EQ(single.metadata().direction, phase.metadata().direction);
+    std::size_t differing = 0;
+    for (std::size_t i = 0; i < n; ++i) differing += single.ValueAtIndex(i) != phase.ValueAtIndex(i);
+    EXPECT_EQ(differing, 0u) << "phase " << p;
+  }
+}
+
+// Where one volume is wanted, the cine is refused (not its first phase).
+TEST(DicomPhases, CardiacCineIsNoSingleVolume) {
+  CINEVOL_REQUIRE_SHARED_DATA();
+  EXPECT_THROW(LoadDicomSeries(CineFolder()), InputError);
+}
+
+// The voxel limit counts every phase, before any is read.
+TEST(DicomPhases, VoxelLimitCountsEveryPhase) {
+  CINEVOL_REQUIRE_SHARED_DATA();
+  LoadPolicy policy;
+  policy.max_voxels = std::uint64_t(256) * 256 * 12 * 19;
+  const std::string error = SeriesError(CineFolder(), policy);
+  EXPECT_NE(error.find("20 phases"), std::string::npos) << error;
+  EXPECT_NE(error.find("exceeds this server's limit"), std::string::npos) << error;
+}
+
+// -------------------------------------------------- time series from the MR
+
+// Phases follow Trigger Time, whatever the file names and Instance Numbers
+// say; each phase's time is the mean of its positions' trigger times.
+TEST(DicomPhases, PhasesFollowTriggerTime) {
+  CINEVOL_REQUIRE_SHARED_DATA();
+  ScratchDir dir;
+  WriteTimeSeries(dir.path(), 4);
+  const VolumeSeries series = LoadSeries(dir.path());
+  ASSERT_EQ(series.phases.size(), 3u);
+  const Volume mr = LoadDicomSeries(MrFolder());
+  for (std::size_t k = 0; k < 3; ++k) {
+    ASSERT_EQ(series.phases[k].dims(), (Vec3i{640, 640, 4}));
+    ExpectPhaseHolds(series, k, kByTrigger[k], mr);
+  }
+  EXPECT_EQ(series.phases[0].metadata().origin_mm, mr.metadata().origin_mm);
+  EXPECT_FLOAT_EQ(series.phases[0].spacing_mm().z, mr.spacing_mm().z);
+  // Trigger times kTrigger[p] * (1 + 0.1 i): their mean over i = 0..3 is kTrigger[p] * 1.15.
+  ASSERT_EQ(series.seconds.size(), 3u);
+  EXPECT_NEAR(series.seconds[0], 0, 1e-12);
+  EXPECT_NEAR(series.seconds[1], 0.115, 1e-9);
+  EXPECT_NEAR(series.seconds[2], 0.230, 1e-9);
+}
+
+// The Temporal Position Identifier orders the phases before the Trigger
+// Time; trigger times that then do not rise phase by phase give no times.
+TEST(DicomPhases, TemporalPositionIdentifierComesFirst) {
+  CINEVOL_REQUIRE_SHARED_DATA();
+  ScratchDir dir;
+  constexpr std::array<int, 3> kTemporal{2, 3, 1};  // order: p = 2, 0, 1
+  WriteTimeSeries(dir.path(), 4,
+                  [&](gdcm::DataSet& ds, int p, int) { SetTemporalPosition(ds, kTemporal[std::size_t(p)]); });
+  const VolumeSeries series = LoadSeries(dir.path());
+  ASSERT_EQ(series.phases.size(), 3u);
+  const Volume mr = LoadDicomSeries(MrFolder());
+  ExpectPhaseHolds(series, 0, 2, mr);
+  ExpectPhaseHolds(series, 1, 0, mr);
+  ExpectPhaseHolds(series, 2, 1, mr);
+  EXPECT_TRUE(series.seconds.empty()) << "trigger times 230, 345, 115 ms do not rise";
+  const std::vector<std::string>& notes = series.phases[0].metadata().notes;
+  ASSERT_FALSE(notes.empty());
+  EXPECT_NE(notes.back().find("ordered by Temporal Position Identifier"), std::string::npos) << notes.back();
+}
+
+// Without Trigger Times the Instance Number orders them, and they have no times.
+TEST(DicomPhases, InstanceNumberOrdersWithoutTriggerTimes) {
+  CINEVOL_REQUIRE_SHARED_DATA();
+  ScratchDir dir;
+  constexpr std::array<int, 3> kRank{1, 2, 0};  // Instance Numbers put p = 2 first, then 0, then 1
+  WriteTimeSeries(dir.path(), 4, [&](gdcm::DataSet& ds, int p, int i) {
+    ds.Remove(gdcm::Tag(0x0018, 0x1060));
+    SetInstanceNumber(ds, 1 + 4 * kRank[std::size_t(p)] + i);
+  });
+  const VolumeSeries series = LoadSeries(dir.path());
+  ASSERT_EQ(series.phases.size(), 3u);
+  const Volume mr = LoadDicomSeries(MrFolder());
+  ExpectPhaseHolds(series, 0, 2, mr);
+  ExpectPhaseHolds(series, 1, 0, mr);
+  ExpectPhaseHolds(series, 2, 1, mr);
+  EXPECT_TRUE(series.seconds.empty());
+  ASSERT_FALSE(series.phases[0].metadata().notes.empty());
+  EXPECT_NE(series.phases[0].metadata().notes.back().find("ordered by Instance Number"), std::string::npos)
+      << series.phases[0].metadata().notes.back();
+}
+
+// A time series with gaps that differ (a position missing in every phase)
+// is resampled per phase onto the first phase's even grid, when asked.
+TEST(DicomPhases, UnevenGapsAreResampledInEveryPhase) {
+  CINEVOL_REQUIRE_SHARED_DATA();
+  ScratchDir dir;
+  const auto files = WriteTimeSeries(dir.path(), 5);
+  for (int p = 0; p < 3; ++p) fs::remove(files[std::size_t(p)][2]);  // positions 0, 1, 3, 4 left
+  EXPECT_NE(SeriesError(dir.path()).find("uneven slice spacing"), std::string::npos) << SeriesError(dir.path());
+  LoadPolicy asked;
+  asked.resample_uneven = true;
+  const VolumeSeries series = LoadSeries(dir.path(), asked);
+  ASSERT_EQ(series.phases.size(), 3u);
+  const Volume mr = LoadDicomSeries(MrFolder());
+  for (std::size_t k = 0; k < 3; ++k) {
+    const Volume& v = series.phases[k];
+    ASSERT_EQ(v.dims(), (Vec3i{640, 640, 5}));
+    const int first = 5 * kByTrigger[k];  // the MR slice at position 0 in this phase
+    for (int y = 0; y < 640; y += 53) {
+      for (int x = 0; x < 640; x += 59) {
+        EXPECT_NEAR(v.Value(x, y, 1), mr.Value(x, y, first + 1), 1e-2f);
+        EXPECT_NEAR(v.Value(x, y, 3), mr.Value(x, y, first + 3), 1e-2f);
+        EXPECT_NEAR(v.Value(x, y, 2), 0.5f * (mr.Value(x, y, first + 1) + mr.Value(x, y, first + 3)), 1e-3f);
+      }
+    }
+  }
+}
+
+// A gantry-tilted time series: each phase shifted onto the regular grid as
+// its own slices alone are.
+TEST(DicomPhases, GantryTiltIsResampledInEveryPhase) {
+  CINEVOL_REQUIRE_SHARED_DATA();
+  ScratchDir dir;
+  fs::create_directory(dir / "series");
+  const double per_slice_mm = std::tan(10.0 * M_PI / 180.0) * 2.5;  // 10 degrees over the MR's 2.5 mm gaps
+  const auto files = WriteTimeSeries(dir / "series", 4, [&](gdcm::DataSet& ds, int, int i) {
+    gdcm::Attribute<0x0020, 0x0032> ipp;
+    ipp.Set(ds);
+    ipp.SetValue(ipp.GetValue(1) + per_slice_mm * i, 1);
+    ds.Replace(ipp.GetAsDataElement());
+  });
+  const VolumeSeries series = LoadSeries(dir / "series");
+  ASSERT_EQ(series.phases.size(), 3u);
+  for (std::size_t k = 0; k < 3; ++k) {
+    const Volume& v = series.phases[k];
+    ASSERT_FALSE(v.metadata().notes.empty());
+    EXPECT_NE(v.metadata().notes[0].find("gantry tilt of 10.0 degrees"), std::string::npos) << v.metadata().notes[0];
+    const fs::path alone = dir / ("phase" + std::to_string(k));
+    fs::create_directory(alone);
+    for (const fs::path& f : files[std::size_t(kByTrigger[k])]) fs::copy_file(f, alone / f.filename());
+    const Volume single = LoadDicomSeries(alone);
+    ASSERT_EQ(single.dims(), v.dims());
+    std::size_t differing = 0;
+    for (std::size_t i = 0; i < v.voxel_count(); i += 3) differing += single.ValueAtIndex(i) != v.ValueAtIndex(i);
+    EXPECT_EQ(differing, 0u) << "phase " << k;
+  }
+}
+
+// ------------------------------------------------------------------ refusals
+
+// A phase missing at one position: the counts differ, and the message says so.
+TEST(DicomPhases, PositionsOfUnequalCountsAreRefused) {
+  CINEVOL_REQUIRE_SHARED_DATA();
+  ScratchDir dir;
+  const auto files = WriteTimeSeries(dir.path(), 4);
+  fs::remove(files[1][2]);
+  const std::string error = SeriesError(dir.path());
+  EXPECT_NE(error.find("positions hold 3 and 2 files: not one phase a position"), std::string::npos) << error;
+  EXPECT_NE(error.find(dir.path().string()), std::string::npos) << "names the folder: " << error;
+}
+
+// Two files of one position at one trigger time are duplicates.
+TEST(DicomPhases, SameTriggerTimeTwiceAtAPositionIsRefused) {
+  CINEVOL_REQUIRE_SHARED_DATA();
+  ScratchDir dir;
+  const auto files = WriteTimeSeries(dir.path(), 4);
+  EditHeader(files[2][1], [](gdcm::DataSet& ds) { SetTriggerTime(ds, kTrigger[0] * 1.1); });  // p = 0's at i = 1
+  const std::string error = SeriesError(dir.path());
+  EXPECT_NE(error.find("lie at the same position"), std::string::npos) << error;
+  EXPECT_NE(error.find("duplicate slices"), std::string::npos) << error;
+  EXPECT_NE(error.find("both with Trigger Time 330 ms"), std::string::npos) << error;
+  EXPECT_NE(error.find(files[0][1].filename().string()), std::string::npos) << "names the files: " << error;
+  EXPECT_NE(error.find(files[2][1].filename().string()), std::string::npos) << "names the files: " << error;
+}
+
+// More phases than cinevol holds: refused from the headers.
+TEST(DicomPhases, MorePhasesThanTheLimitAreRefused) {
+  CINEVOL_REQUIRE_SHARED_DATA();
+  ScratchDir dir;
+  // One cine file made 2 x 2 pixels, written 4097 times at one position.
+  const auto reader = ReadDicom(CineFolder() / "1.dcm");
+  gdcm::DataSet& ds = reader->GetFile().GetDataSet();
+  gdcm::Attribute<0x0028, 0x0010> rows;
+  rows.SetValue(2);
+  ds.Replace(rows.GetAsDataElement());
+  gdcm::Attribute<0x0028, 0x0011> columns;
+  columns.SetValue(2);
+  ds.Replace(columns.GetAsDataElement());
+  gdcm::DataElement pixels(gdcm::Tag(0x7fe0, 0x0010));
+  pixels.SetVR(gdcm::VR::OW);
+  const char zeros[8] = {};
+  pixels.SetByteValue(zeros, 8);
+  ds.Replace(pixels);
+  for (int k = 0; k <= kMaxPhases; ++k) {
+    SetTriggerTime(ds, k);
+    WriteDicom(*reader, dir / (std::to_string(k) + ".dcm"));
+  }
+  const std::string error = SeriesError(dir.path());
+  EXPECT_NE(error.find("a time series of 4097 phases"), std::string::npos) << error;
+  EXPECT_NE(error.find("cinevol reads 1 to 4096"), std::string::npos) << error;
+}
+
+}  // namespace
+}  // namespace cinevol
