@@ -1,17 +1,17 @@
 // `cinevol info PATH`: what a volume file, DICOM folder or phantom holds.
+#include <fmt/format.h>
+
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
 
-#include <fmt/format.h>
-
 #include "commands.h"
 #include "core/error.h"
 #include "io/label_volume.h"
-#include "scene/presets.h"
-#include "text_output.h"
-#include "scene/volume_kind.h"
 #include "io/volume_loader.h"
+#include "scene/presets.h"
+#include "scene/volume_kind.h"
+#include "text_output.h"
 
 namespace cinevol::cli {
 namespace {
@@ -23,6 +23,18 @@ struct InfoOptions {
   std::string labels, label_table;  // a segmentation of it, and the table naming its labels
 };
 
+// A time series' phases and their times (the fields above are the first phase's).
+void PrintPhases(const VolumeSeries& series) {
+  fmt::print("phases:       {} (a time series; the fields here are the first phase's)\n", series.phases.size());
+  if (series.seconds.empty()) {
+    fmt::print("phase times:  not given by the input\n");
+    return;
+  }
+  std::string times;
+  for (double t : series.seconds) times += fmt::format("{}{:.3f}", times.empty() ? "" : " ", t);
+  fmt::print("phase times:  {} s\n", times);
+}
+
 void PrintInfo(const InfoOptions& o) {
   const std::string& spec = o.path;
   v1::VolumeSource source = ParseVolumeSpec(spec);
@@ -32,11 +44,12 @@ void PrintInfo(const InfoOptions& o) {
     const auto series = ListDicomSeries(source.dicom_folder());
     fmt::print("series:       {} in the folder (the largest loads)\n", series.size());
     for (const auto& s : series) {
-      fmt::print("  {:<40} {:>5} files  {} {} '{}'\n", s.uid.empty() ? "(no SeriesInstanceUID)" : s.uid,
-                 s.file_count, s.modality, s.size, s.description);
+      fmt::print("  {:<40} {:>5} files  {} {} '{}'\n", s.uid.empty() ? "(no SeriesInstanceUID)" : s.uid, s.file_count,
+                 s.modality, s.size, s.description);
     }
   }
-  const Volume v = LoadVolume(source);
+  const VolumeSeries series = LoadVolumeSeries(source);
+  const Volume& v = series.phases.front();
   const auto& m = v.metadata();
   const Vec3i d = v.dims();
   const Vec3f s = v.spacing_mm(), e = v.extent_mm();
@@ -51,13 +64,15 @@ void PrintInfo(const InfoOptions& o) {
   fmt::print("orientation:  {} (index axes point to patient L/R, P/A, S/I){}\n", OrientationCode(m.direction),
              m.orientation_override.empty() ? "" : ", given with --orientation");
   fmt::print("origin:       {:g}, {:g}, {:g} mm (LPS)\n", m.origin_mm[0], m.origin_mm[1], m.origin_mm[2]);
-  fmt::print("memory:       {:.1f} MiB\n", v.MemoryBytes() / 1048576.0);
+  if (series.phases.size() > 1) PrintPhases(series);
+  std::size_t bytes = 0;
+  for (const Volume& phase : series.phases) bytes += phase.MemoryBytes();
+  fmt::print("memory:       {:.1f} MiB\n", bytes / 1048576.0);
   const VolumeKindJudgement kind = JudgeVolumeKind(v);
   fmt::print("kind:         {} ({})\n", v1::VolumeKind_Name(kind.kind), kind.reason);
   fmt::print("preset:       {} (the default for this kind)\n", DefaultPreset(kind.kind));
   if (m.non_finite_replaced > 0) {
-    fmt::print("sanitised:    {} NaN/Inf voxels replaced by the finite range's ends\n",
-               m.non_finite_replaced);
+    fmt::print("sanitised:    {} NaN/Inf voxels replaced by the finite range's ends\n", m.non_finite_replaced);
   }
   for (const std::string& note : m.notes) fmt::print("note:         {}\n", note);
   if (!o.labels.empty()) {
@@ -75,8 +90,7 @@ void PrintInfo(const InfoOptions& o) {
 void AddInfoCommand(CLI::App& app) {
   auto* cmd = app.add_subcommand("info", "Print what a volume file, DICOM folder or phantom holds");
   auto o = std::make_shared<InfoOptions>();
-  cmd->add_option("path", o->path, "Volume file, DICOM folder, or phantom:head|cube|sphere[?size=N&...]")
-      ->required();
+  cmd->add_option("path", o->path, "Volume file, DICOM folder, or phantom:head|cube|sphere[?size=N&...]")->required();
   cmd->add_flag("--resample-uneven", o->resample_uneven, kResampleUnevenHelp);
   cmd->add_option("--orientation", o->orientation,
                   "Where index axes x, y, z point in the patient, overriding the file's: three letters from L/R, "

@@ -159,6 +159,16 @@ class Volume {
   VolumeMetadata metadata_;
 };
 
+// A time series (4D: cardiac phases, breathing phases, a dynamic series):
+// its phases, alike in grid, voxel type and placement, and each one's time
+// from the first in seconds (empty where the input does not say). A still
+// volume is a series of one phase. At most kMaxPhases phases.
+struct VolumeSeries {
+  std::vector<Volume> phases;
+  std::vector<double> seconds;
+};
+inline constexpr int kMaxPhases = 4096;
+
 // Throws InputError naming `what` when dims or spacing are outside the limits.
 void CheckVolumeGeometry(Vec3i dims, Vec3f spacing_mm, const std::string& what);
 

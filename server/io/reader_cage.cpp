@@ -278,10 +278,12 @@ class ReaderProcess {
   }
 
   // Lets the child write `bytes` into `memory`, with the address space for it.
-  void Proceed(int memory, std::uint64_t bytes) {
+  // The memory for the voxels (or a time series' phase of `all_bytes` in all).
+  void Proceed(int memory, std::uint64_t bytes, std::uint64_t all_bytes = 0) {
     rlimit limit{};
     if (prlimit(pid_, RLIMIT_AS, nullptr, &limit) == 0) {
-      const std::uint64_t wanted = limits_.header_address_space + 2 * bytes + (std::uint64_t{64} << 20);
+      const std::uint64_t wanted =
+          limits_.header_address_space + 2 * std::max(bytes, all_bytes) + (std::uint64_t{64} << 20);
       limit.rlim_cur = std::min<rlim_t>(rlim_t(wanted), limit.rlim_max);
       prlimit(pid_, RLIMIT_AS, &limit, nullptr);
     }
@@ -293,10 +295,15 @@ class ReaderProcess {
     }
   }
 
-  // Waits for `done`, then for the child's clean exit.
-  void Finish() {
+  // Waits for `done` (a phase of a time series written, more to come).
+  void AwaitDone() {
     const Reply reply = Receive();
     if (reply.reply_case() != Reply::kDone) Violation("answered out of turn");
+  }
+
+  // Waits for `done`, then for the child's clean exit.
+  void Finish() {
+    AwaitDone();
     for (const auto end = Clock::now() + std::chrono::seconds(2); Clock::now() < end;) {
       int status = 0;
       if (waitpid(pid_, &status, WNOHANG) == pid_) {
@@ -518,7 +525,9 @@ struct CheckedHeader {
   Vec3f spacing;
   VoxelType type;
   VolumeMetadata meta;
-  std::uint64_t voxels = 0;
+  std::uint64_t voxels = 0;  // a phase's
+  int phases = 1;
+  std::vector<double> seconds;
 };
 
 CheckedHeader Check(const reader::Header& h, ReaderProcess& child, const LoadPolicy& policy) {
@@ -537,9 +546,21 @@ CheckedHeader Check(const reader::Header& h, ReaderProcess& child, const LoadPol
   }
   CheckVolumeGeometry(c.dims, c.spacing, child.shown());
   c.voxels = std::uint64_t(c.dims.x) * std::uint64_t(c.dims.y) * std::uint64_t(c.dims.z);
-  if (c.voxels > policy.max_voxels) {
-    throw InputError(fmt::format("{}: {}x{}x{} = {} voxels exceeds this server's limit of {} voxels", child.shown(),
-                                 c.dims.x, c.dims.y, c.dims.z, c.voxels, policy.max_voxels));
+  c.phases = std::max<int>(1, int(std::min<std::uint32_t>(h.phases(), kMaxPhases + 1u)));
+  if (c.phases > kMaxPhases) child.Violation(fmt::format("announced more than {} phases", kMaxPhases));
+  if (c.voxels * std::uint64_t(c.phases) > policy.max_voxels) {  // every phase counted, before any is read
+    throw InputError(fmt::format("{}: {}x{}x{}{} = {} voxels exceeds this server's limit of {} voxels", child.shown(),
+                                 c.dims.x, c.dims.y, c.dims.z,
+                                 c.phases > 1 ? fmt::format(" voxels x {} phases", c.phases) : "", c.voxels * c.phases,
+                                 policy.max_voxels));
+  }
+  if (h.phase_seconds_size() > 0) {
+    // Times from the first, rising: anything else from a file is no time axis.
+    bool rising = h.phase_seconds_size() == c.phases && AllFinite(h.phase_seconds(), c.phases);
+    for (int k = 1; rising && k < c.phases; ++k) rising = h.phase_seconds(k) > h.phase_seconds(k - 1);
+    if (!rising) child.Violation("sent phase times that are not one rising time a phase");
+    c.seconds.assign(h.phase_seconds().begin(), h.phase_seconds().end());
+    for (double& t : c.seconds) t -= h.phase_seconds(0);
   }
   c.meta.source = child.shown();
   c.meta.modality = ValidUtf8(h.modality());
@@ -559,26 +580,36 @@ CheckedHeader Check(const reader::Header& h, ReaderProcess& child, const LoadPol
 // A CT whose file did not say its unit (NIfTI, NRRD, VTK have no field for
 // it) but whose values are judged HU (air near -1000, bone above 300) reads
 // in HU everywhere, as a DICOM CT does: the slices' default window, picks,
-// lists.
-void TakeHuWhereJudged(Volume& volume) {
-  if (!volume.metadata().value_unit.empty()) return;
-  const VolumeKindJudgement kind = JudgeVolumeKind(volume);
-  if (kind.kind == v1::CT_HU) volume.SetValueUnit("HU", "values taken as HU: " + kind.reason);
+// lists. A time series is judged by its first phase, and all its phases alike.
+void TakeHuWhereJudged(std::vector<Volume>& phases) {
+  if (!phases.front().metadata().value_unit.empty()) return;
+  const VolumeKindJudgement kind = JudgeVolumeKind(phases.front());
+  if (kind.kind != v1::CT_HU) return;
+  for (Volume& volume : phases) volume.SetValueUnit("HU", "values taken as HU: " + kind.reason);
 }
 
-// The volume a child announced with `reply`: reserved, read, then built.
-Volume ReceiveVolume(ReaderProcess& child, const Reply& reply, const LoadPolicy& policy) {
+// The volume (or time series) a child announced with `reply`: every phase
+// reserved, then each read into its own sealed memory and built.
+VolumeSeries ReceiveSeries(ReaderProcess& child, const Reply& reply, const LoadPolicy& policy) {
   if (reply.reply_case() != Reply::kHeader) child.Violation("answered out of turn");
   CheckedHeader h = Check(reply.header(), child, policy);
-  if (policy.reserve) policy.reserve(Volume::BytesToLoad(h.type, h.voxels));
+  if (policy.reserve) policy.reserve(Volume::BytesToLoad(h.type, h.voxels) * std::uint64_t(h.phases));
   const std::uint64_t bytes = h.voxels * BytesPerVoxel(h.type);
-  UniqueFd memory = SealedMemory(bytes, child.shown());
-  child.Proceed(memory.get(), bytes);
+  std::vector<UniqueFd> memories;
+  for (int k = 0; k < h.phases; ++k) {
+    memories.push_back(SealedMemory(bytes, child.shown()));
+    child.Proceed(memories.back().get(), bytes, bytes * std::uint64_t(h.phases));
+    if (k + 1 < h.phases) child.AwaitDone();
+  }
   child.Finish();
   // The child is gone: nobody else can change the memory now.
-  Volume volume(h.dims, h.spacing, h.type, MapMemory(std::move(memory), bytes, child.shown()), std::move(h.meta));
-  TakeHuWhereJudged(volume);
-  return volume;
+  VolumeSeries series;
+  series.seconds = std::move(h.seconds);
+  for (UniqueFd& memory : memories) {
+    series.phases.emplace_back(h.dims, h.spacing, h.type, MapMemory(std::move(memory), bytes, child.shown()), h.meta);
+  }
+  TakeHuWhereJudged(series.phases);
+  return series;
 }
 
 std::string Relative(const fs::path& file, const fs::path& folder) {
@@ -630,7 +661,7 @@ fs::path ReaderPath() {
       fmt::format("cinevol-reader, which reads every file, is not beside {}: install it there", self.string()));
 }
 
-Volume ReadVolumeFile(const fs::path& file, const formats::References& refs, const LoadPolicy& policy) {
+VolumeSeries ReadVolumeFile(const fs::path& file, const formats::References& refs, const LoadPolicy& policy) {
   Request request;
   request.set_kind(Request::VOLUME);
   request.set_shown(file_checks::Shown(file, policy));
@@ -638,10 +669,10 @@ Volume ReadVolumeFile(const fs::path& file, const formats::References& refs, con
   std::vector<Input> inputs{{file, file.filename().string()}};
   for (const fs::path& named : refs.files) inputs.push_back({named, Relative(named, file.parent_path())});
   ReaderProcess child(request, inputs, policy);
-  return ReceiveVolume(child, child.Receive(), policy);
+  return ReceiveSeries(child, child.Receive(), policy);
 }
 
-Volume ReadDicomSeries(const std::vector<Input>& files, const std::string& series_uid, const LoadPolicy& policy) {
+VolumeSeries ReadDicomSeries(const std::vector<Input>& files, const std::string& series_uid, const LoadPolicy& policy) {
   Request request;
   request.set_kind(Request::DICOM_SERIES);
   request.set_shown(policy.label);
@@ -649,7 +680,7 @@ Volume ReadDicomSeries(const std::vector<Input>& files, const std::string& serie
   request.set_max_voxels(policy.max_voxels);
   request.set_resample_uneven(policy.resample_uneven);
   ReaderProcess child(request, files, policy);
-  return ReceiveVolume(child, child.Receive(), policy);
+  return ReceiveSeries(child, child.Receive(), policy);
 }
 
 std::vector<DicomSeriesInfo> ListDicomSeries(const std::vector<Input>& files, const LoadPolicy& policy) {
@@ -683,7 +714,8 @@ SegmentationRead ReadSegmentation(const std::vector<Input>& files, const Volume&
   grid.mutable_direction()->Add(meta.direction.begin(), meta.direction.end());
   ReaderProcess child(request, files, policy);
   const Reply reply = child.Receive();
-  if (reply.reply_case() != Reply::kHeader || !reply.header().has_segmentation()) child.Violation("answered out of turn");
+  if (reply.reply_case() != Reply::kHeader || !reply.header().has_segmentation())
+    child.Violation("answered out of turn");
   const reader::Header& h = reply.header();
   const reader::Segmentation& seg = h.segmentation();
   bool sane = h.dims_size() == 3 && h.voxel_type() == "uint16" && h.notes_size() <= 8 &&
@@ -715,10 +747,10 @@ SegmentationRead ReadSegmentation(const std::vector<Input>& files, const Volume&
   if (IsUid(h.frame_of_reference_uid())) out.frame_of_reference_uid = h.frame_of_reference_uid();
   const std::string& volume_frame = meta.frame_of_reference_uid;
   if (!volume_frame.empty() && out.frame_of_reference_uid != volume_frame) {
-    throw InputError(fmt::format("{}: its frame of reference ({}) is not the volume's ({}): it segments another "
-                                 "acquisition's patient space",
-                                 child.shown(), out.frame_of_reference_uid.empty() ? "none" : out.frame_of_reference_uid,
-                                 volume_frame));
+    throw InputError(fmt::format(
+        "{}: its frame of reference ({}) is not the volume's ({}): it segments another "
+        "acquisition's patient space",
+        child.shown(), out.frame_of_reference_uid.empty() ? "none" : out.frame_of_reference_uid, volume_frame));
   }
   const std::uint64_t bytes = image.voxel_count() * sizeof(std::uint16_t);
   if (policy.reserve) policy.reserve(2 * bytes);
@@ -730,7 +762,8 @@ SegmentationRead ReadSegmentation(const std::vector<Input>& files, const Volume&
   out.labels.assign(labels, labels + image.voxel_count());
   for (std::uint16_t label : out.labels) {
     if (label != 0 && !is_segment[label]) {
-      throw InputError(fmt::format("{}: the DICOM SEG reader wrote label {}, which is no segment", child.shown(), label));
+      throw InputError(
+          fmt::format("{}: the DICOM SEG reader wrote label {}, which is no segment", child.shown(), label));
     }
   }
   return out;

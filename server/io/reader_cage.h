@@ -40,13 +40,14 @@ struct Input {
 };
 
 // A volume file, `refs` the files its header names (already checked against
-// the policy by the caller).
-Volume ReadVolumeFile(const std::filesystem::path& file, const formats::References& refs,
-                      const LoadPolicy& policy);
+// the policy by the caller): a volume, or a time series (a 4-D file).
+VolumeSeries ReadVolumeFile(const std::filesystem::path& file, const formats::References& refs,
+                            const LoadPolicy& policy);
 
 // A DICOM series from `files` (a folder's files); the largest when
 // `series_uid` is empty.
-Volume ReadDicomSeries(const std::vector<Input>& files, const std::string& series_uid, const LoadPolicy& policy);
+VolumeSeries ReadDicomSeries(const std::vector<Input>& files, const std::string& series_uid,
+                             const LoadPolicy& policy);
 
 // The series `files` hold, largest first.
 std::vector<DicomSeriesInfo> ListDicomSeries(const std::vector<Input>& files, const LoadPolicy& policy);

@@ -1,9 +1,9 @@
 // LoadVolume: one entry point for every kind of volume source.
 #include "io/volume_loader.h"
 
-#include <charconv>
-
 #include <fmt/format.h>
+
+#include <charconv>
 
 #include "core/error.h"
 #include "io/file_checks.h"
@@ -68,8 +68,8 @@ v1::Phantom ParsePhantomSpec(std::string_view spec) {
     } else if (key == "radius") {
       p.set_radius(v);
     } else {
-      throw InputError(fmt::format(
-          "unknown phantom parameter '{}': use size, spacing, value, background or radius", key));
+      throw InputError(
+          fmt::format("unknown phantom parameter '{}': use size, spacing, value, background or radius", key));
     }
   }
   return p;
@@ -80,14 +80,18 @@ LoadPolicy Labelled(LoadPolicy policy, const fs::path& path) {
   return policy;
 }
 
-}  // namespace
+VolumeSeries SeriesFromFolder(const fs::path& folder, const std::string& series_uid, const LoadPolicy& policy) {
+  const LoadPolicy labelled = Labelled(policy, folder);
+  return reader_cage::ReadDicomSeries(formats::dicom::FolderFiles(folder, labelled, labelled.label), series_uid,
+                                      labelled);
+}
 
-Volume LoadVolumeFile(const fs::path& path, const LoadPolicy& policy) {
+VolumeSeries SeriesFromFile(const fs::path& path, const LoadPolicy& policy) {
   const std::string shown = file_checks::Shown(path, policy);
   std::error_code ec;
   const fs::file_status status = fs::status(path, ec);
   if (!fs::exists(status)) throw InputError(fmt::format("{}: no such file", shown));
-  if (fs::is_directory(status)) return LoadDicomSeries(path, {}, policy);
+  if (fs::is_directory(status)) return SeriesFromFolder(path, {}, policy);
   file_checks::RequireRegularFile(path, shown);
   file_checks::RequireInsideRoots(path, policy, shown);
   // Before any reader sees the file: the files its header names, found with
@@ -97,15 +101,30 @@ Volume LoadVolumeFile(const fs::path& path, const LoadPolicy& policy) {
   return reader_cage::ReadVolumeFile(path, refs, policy);
 }
 
+// The one volume of `series`; a time series is refused, naming it.
+Volume OnlyPhase(VolumeSeries series) {
+  if (series.phases.size() > 1) {
+    throw InputError(
+        fmt::format("{}: a time series of {} phases, where one volume is read (a server reads every "
+                    "phase: LoadVolume, docs/time-and-fusion.md)",
+                    series.phases.front().metadata().source, series.phases.size()));
+  }
+  return std::move(series.phases.front());
+}
+
+}  // namespace
+
+Volume LoadVolumeFile(const fs::path& path, const LoadPolicy& policy) {
+  return OnlyPhase(SeriesFromFile(path, policy));
+}
+
 std::vector<DicomSeriesInfo> ListDicomSeries(const fs::path& folder, const LoadPolicy& policy) {
   const LoadPolicy labelled = Labelled(policy, folder);
   return reader_cage::ListDicomSeries(formats::dicom::FolderFiles(folder, labelled, labelled.label), labelled);
 }
 
 Volume LoadDicomSeries(const fs::path& folder, const std::string& series_uid, const LoadPolicy& policy) {
-  const LoadPolicy labelled = Labelled(policy, folder);
-  return reader_cage::ReadDicomSeries(formats::dicom::FolderFiles(folder, labelled, labelled.label), series_uid,
-                                      labelled);
+  return OnlyPhase(SeriesFromFolder(folder, series_uid, policy));
 }
 
 v1::VolumeSource ParseVolumeSpec(std::string_view spec) {
@@ -125,10 +144,11 @@ v1::VolumeSource ParseVolumeSpec(std::string_view spec) {
 std::array<double, 9> ParseOrientation(const std::string& code, const std::string& field) {
   const auto direction = DirectionOfCode(code);
   if (!direction) {
-    throw InputError(fmt::format("{}: '{}' is not an orientation: three letters naming where index axes x, y and z "
-                                 "point, one of L/R, one of P/A and one of S/I (e.g. LPS, or LPI for a head stored "
-                                 "top down)",
-                                 field, code.substr(0, 16)));
+    throw InputError(
+        fmt::format("{}: '{}' is not an orientation: three letters naming where index axes x, y and z "
+                    "point, one of L/R, one of P/A and one of S/I (e.g. LPS, or LPI for a head stored "
+                    "top down)",
+                    field, code.substr(0, 16)));
   }
   return *direction;
 }
@@ -137,25 +157,32 @@ void ApplyOrientation(Volume& volume, const std::string& code, const std::string
   if (!code.empty()) volume.Reorient(ParseOrientation(code, field), code);
 }
 
-Volume LoadVolume(const v1::VolumeSource& source, const fs::path& base_dir, const LoadPolicy& policy) {
+VolumeSeries LoadVolumeSeries(const v1::VolumeSource& source, const fs::path& base_dir, const LoadPolicy& policy) {
   if (!source.orientation().empty()) ParseOrientation(source.orientation(), "volume.orientation");  // before reading
-  Volume volume = [&] {
+  VolumeSeries series = [&] {
     switch (source.source_case()) {
       case v1::VolumeSource::kFile:
-        return LoadVolumeFile(Resolve(source.file(), base_dir), policy);
+        return SeriesFromFile(Resolve(source.file(), base_dir), policy);
       case v1::VolumeSource::kDicomFolder: {
         LoadPolicy series_policy = policy;
         series_policy.resample_uneven = policy.resample_uneven || source.resample_uneven();
-        return LoadDicomSeries(Resolve(source.dicom_folder(), base_dir), source.series_uid(), series_policy);
+        return SeriesFromFolder(Resolve(source.dicom_folder(), base_dir), source.series_uid(), series_policy);
       }
-      case v1::VolumeSource::kPhantom:
-        return MakePhantom(source.phantom());
+      case v1::VolumeSource::kPhantom: {
+        VolumeSeries one;
+        one.phases.push_back(MakePhantom(source.phantom()));
+        return one;
+      }
       default:
         throw InputError("volume: no source given (file, dicomFolder or phantom)");
     }
   }();
-  ApplyOrientation(volume, source.orientation(), "volume.orientation");
-  return volume;
+  for (Volume& phase : series.phases) ApplyOrientation(phase, source.orientation(), "volume.orientation");
+  return series;
+}
+
+Volume LoadVolume(const v1::VolumeSource& source, const fs::path& base_dir, const LoadPolicy& policy) {
+  return OnlyPhase(LoadVolumeSeries(source, base_dir, policy));
 }
 
 }  // namespace cinevol

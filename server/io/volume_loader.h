@@ -55,8 +55,13 @@ struct LoadPolicy {
   bool resample_uneven = false;
 };
 
-// Loads what `source` names; relative paths resolve against `base_dir`;
-// source.orientation overrides the file's.
+// Loads what `source` names, every phase of a time series (a 4-D file, a
+// DICOM series of several phases); relative paths resolve against
+// `base_dir`; source.orientation overrides the file's.
+VolumeSeries LoadVolumeSeries(const v1::VolumeSource& source, const std::filesystem::path& base_dir = {},
+                              const LoadPolicy& policy = {});
+// The same where one volume is wanted: a time series is refused, naming it.
+// So are LoadVolumeFile's and LoadDicomSeries'.
 Volume LoadVolume(const v1::VolumeSource& source, const std::filesystem::path& base_dir = {},
                   const LoadPolicy& policy = {});
 

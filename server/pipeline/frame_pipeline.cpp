@@ -32,9 +32,9 @@ Camera Scaled(Camera camera, float scale) {
 namespace {
 
 constexpr std::pair<v1::Denoiser, DenoiseMethod> kDenoisers[] = {
-    {v1::DENOISER_NONE, DenoiseMethod::kNone},   {v1::DENOISER_ACCUMULATE, DenoiseMethod::kAccumulate},
-    {v1::DENOISER_KNN, DenoiseMethod::kKnn},     {v1::DENOISER_GUIDED, DenoiseMethod::kGuidedFilter},
-    {v1::DENOISER_SVGF, DenoiseMethod::kSvgf},   {v1::DENOISER_WRLS, DenoiseMethod::kWrls},
+    {v1::DENOISER_NONE, DenoiseMethod::kNone}, {v1::DENOISER_ACCUMULATE, DenoiseMethod::kAccumulate},
+    {v1::DENOISER_KNN, DenoiseMethod::kKnn},   {v1::DENOISER_GUIDED, DenoiseMethod::kGuidedFilter},
+    {v1::DENOISER_SVGF, DenoiseMethod::kSvgf}, {v1::DENOISER_WRLS, DenoiseMethod::kWrls},
 };
 constexpr std::pair<v1::ChromaSubsampling, ChromaSubsampling> kChromas[] = {
     {v1::CHROMA_444, ChromaSubsampling::k444},
@@ -126,8 +126,8 @@ void FramePipeline::Update(const v1::Scene& scene, const FrameSettings& settings
     SetTransferFunction(ResolveTransferFunction(scene.transfer_function(), *volume_));
   }
   if (changes & kLightsChanged) {
-    renderer_->SetLights(
-        ResolveLights(scene.lights(), [this](const std::string& map) { return reader_cage::ReadEnvironmentMap(map, cancel_); }));
+    renderer_->SetLights(ResolveLights(
+        scene.lights(), [this](const std::string& map) { return reader_cage::ReadEnvironmentMap(map, cancel_); }));
   }
   if (changes & kClippingChanged) {
     clip_ = ResolveClipping(scene.clipping(), *volume_);
@@ -137,7 +137,8 @@ void FramePipeline::Update(const v1::Scene& scene, const FrameSettings& settings
     SetLabels(ResolveLabels(scene.labels(), *volume_));
   }
   if (changes & kSamplingChanged) renderer_->SetReconstruction(ResolveReconstruction(scene.render().reconstruction()));
-  if (changes & kCameraChanged) {  // sessions send numbers; a named view here frames what the TF shows and the clipping keeps
+  if (changes &
+      kCameraChanged) {  // sessions send numbers; a named view here frames what the TF shows and the clipping keeps
     camera_ = ResolveCamera(scene.camera(), scene.render(), *volume_, transfer_function_, {clip_});
   }
   spp_ = static_cast<int>(scene.render().spp());
@@ -166,7 +167,21 @@ void FramePipeline::Update(const RenderSetup& setup, const FrameSettings& settin
 }
 
 void FramePipeline::SetLabels(const LabelSetup& setup) {
+  label_setup_ = setup;
   renderer_->SetLabels(labels_, setup);
+}
+
+void FramePipeline::SetPhase(std::shared_ptr<const Volume> phase) {
+  if (phase == volume_) return;
+  if (phase->dims() != volume_->dims()) throw std::invalid_argument("FramePipeline::SetPhase: another grid");
+  volume_ = std::move(phase);
+  renderer_->SetVolume(volume_);  // forgets the segmentation and the tables: set again
+  if (!has_scene_) return;        // the first Update sets them
+  renderer_->SetTransferFunction(transfer_function_);
+  renderer_->SetLabels(labels_, label_setup_);
+  ++scene_version_;
+  picture_changed_ = true;
+  ResetAccumulation();
 }
 
 void FramePipeline::SetTransferFunction(TransferFunction tf) {
@@ -183,10 +198,10 @@ void FramePipeline::Apply(const FrameSettings& settings, unsigned changes) {
   picture_changed_ |= (changes & kPictureChanges) != 0;
   // On the CPU every edit of the picture is an interaction: a full-size
   // frame after a moved light would take seconds.
-  const unsigned interactions = policy_ == InteractivePolicy::kCostModel
-                                    ? (kCameraChanged | kTransferFunctionChanged | kLightsChanged |
-                                       kClippingChanged | kLabelsChanged)
-                                    : (kCameraChanged | kTransferFunctionChanged);
+  const unsigned interactions =
+      policy_ == InteractivePolicy::kCostModel
+          ? (kCameraChanged | kTransferFunctionChanged | kLightsChanged | kClippingChanged | kLabelsChanged)
+          : (kCameraChanged | kTransferFunctionChanged);
   if (has_scene_ && (changes & interactions)) moved_at_ = Clock::now();
   if (changes & kEverythingChanged) ResetAccumulation();
   settings_ = settings;
@@ -194,8 +209,7 @@ void FramePipeline::Apply(const FrameSettings& settings, unsigned changes) {
 }
 
 bool FramePipeline::Moving() const {
-  return settings_.interactive_frame_ms > 0 &&
-         Clock::now() - moved_at_ < std::chrono::milliseconds(kInteractionHoldMs);
+  return settings_.interactive_frame_ms > 0 && Clock::now() - moved_at_ < std::chrono::milliseconds(kInteractionHoldMs);
 }
 
 float FramePipeline::ChooseScale() {
@@ -217,8 +231,8 @@ float FramePipeline::ChooseScale() {
 int FramePipeline::ChooseCostModelFrame(bool moving) {
   const std::int64_t viewport = std::int64_t(camera_.width) * camera_.height;
   if (moving) {
-    const MovingFrame next = ChooseMovingFrame(cost_, viewport, spp_, settings_.interactive_frame_ms,
-                                               {moving_scale_, moving_spp_});
+    const MovingFrame next =
+        ChooseMovingFrame(cost_, viewport, spp_, settings_.interactive_frame_ms, {moving_scale_, moving_spp_});
     moving_scale_ = next.scale;
     moving_spp_ = next.spp;
     SetScale(next.scale);
@@ -296,7 +310,7 @@ DisplayFrame FramePipeline::RenderFrame() {
   try {
     renderer_->Render(request);
   } catch (const FramePreempted&) {
-    ResetAccumulation();  // it holds part of the frame
+    ResetAccumulation();       // it holds part of the frame
     last_frame_final_ = true;  // the next frame follows an event: no frame time
     out.preempted = true;
     return out;

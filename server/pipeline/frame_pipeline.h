@@ -155,6 +155,12 @@ class FramePipeline {
   // names. Reads only the parts `changes` names (and the sampling and
   // exposure, every time).
   void Update(const RenderSetup& setup, const FrameSettings& settings, unsigned changes = kEverythingChanged);
+  // Shows another phase of the volume's time series (alike in grid: the
+  // segmentation still fits), the scene kept: its tables and majorants are
+  // rebuilt for the phase's values, the accumulation restarts, and the
+  // denoiser is told the picture changed (its history is kept and
+  // reprojected, as for an edit of the transfer function).
+  void SetPhase(std::shared_ptr<const Volume> phase);
 
   // One frame of the scene's spp: render, denoise, refine, tone map.
   DisplayFrame RenderFrame();
@@ -226,6 +232,7 @@ class FramePipeline {
 
   std::shared_ptr<const Volume> volume_;
   std::shared_ptr<const LabelVolume> labels_;
+  LabelSetup label_setup_;  // the segmentation's styles, set again on a phase switch
   std::unique_ptr<Renderer> renderer_;
   std::unique_ptr<Denoiser> denoiser_;
   std::unique_ptr<Display> display_;

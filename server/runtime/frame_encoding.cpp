@@ -45,6 +45,7 @@ v1::Frame EncodeFrame(const DisplayFrame& display, const FrameStamp& stamp, int 
   frame.set_last_event_seq(stamp.event_seq);
   frame.set_final(display.final);
   frame.set_resolution_scale(display.resolution_scale);
+  frame.set_phase(stamp.phase);
   frame.set_estimated_error(std::max(display.estimated_error, 0.0f));
   v1::FrameTimings* t = frame.mutable_timings();
   t->set_render_us(Micros(display.render_ms));

@@ -19,6 +19,7 @@ struct FrameStamp {
   bool answers_event = false;                 // it applies an event no earlier frame applied
   std::chrono::steady_clock::time_point origin;  // that event's arrival, or the render's start when refining
   std::uint32_t queue_us = 0;                 // from the event's arrival to the render's start
+  std::uint32_t phase = 0;                    // of a time series, shown
 };
 
 // The frame message for `display`: its image at its jpeg_quality (JPEG in up

@@ -165,7 +165,7 @@ void PlaceGrid(const pacs::FramePlane& plane, const v1::Viewport* viewport, Slic
 
 v1::SliceImage SliceOf(const v1::SliceRequest& request, const v1::Scene& scene, const VolumeLease& lease,
                        const std::atomic<bool>* cancel, int threads) {
-  const Volume& volume = *lease.volume();
+  const Volume& volume = *lease.phase(int(scene.time().phase()));
   const SliceSpec spec = SliceSpecOf(request, volume);
   const LabelSetup styles = ResolveLabels(scene.labels(), volume);
   const SliceLabels labels{request.hide_labels() ? nullptr : lease.labels().get(), &styles};
@@ -192,6 +192,7 @@ v1::SliceImage FrameOf(const v1::RenderFrameRequest& request, const pacs::FrameP
 }
 
 v1::PickResult PickOn(const v1::PickRequest& request, const v1::Scene& scene, const VolumeLease& lease) {
+  const std::shared_ptr<const Volume>& volume = lease.phase(int(scene.time().phase()));
   v1::Scene framed = scene;
   if (request.has_frame()) {  // the frame the reader saw: the same camera at that size
     const v1::Viewport& f = request.frame();
@@ -201,9 +202,9 @@ v1::PickResult PickOn(const v1::PickRequest& request, const v1::Scene& scene, co
     framed.mutable_render()->set_width(f.width());
     framed.mutable_render()->set_height(f.height());
   }
-  ToVolumeFrame(framed, VolumePlacement::Of(*lease.volume()));  // the renderers' frame
+  ToVolumeFrame(framed, VolumePlacement::Of(*volume));  // the renderers' frame
   framed.clear_lights();  // a pick follows rays to the first hit: no light, no environment map read
-  const Picker picker(lease.volume(), lease.labels(), ResolveScene(framed, *lease.volume(), lease.labels().get()));
+  const Picker picker(volume, lease.labels(), ResolveScene(framed, *volume, lease.labels().get()));
   PickSettings settings;
   if (request.has_threshold()) {
     if (!(request.threshold() > 0 && request.threshold() <= 1)) {

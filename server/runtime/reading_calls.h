@@ -17,10 +17,11 @@ namespace cinevol::service {
 // request's field.
 SliceSpec SliceSpecOf(const v1::SliceRequest& request, const Volume& volume);
 
-// A slice of `volume` through the scene's labels and (on request) clipping,
-// encoded as PNG. Throws InputError naming the request's field; Cancelled
-// once `cancel` is raised (the caller gone, the deadline passed: a thick slab
-// stops early). `threads`: at most this many render it (0: all).
+// A slice of `volume` (a time series' at the scene's phase) through the
+// scene's labels and (on request) clipping, encoded as PNG. Throws
+// InputError naming the request's field; Cancelled once `cancel` is raised
+// (the caller gone, the deadline passed: a thick slab stops early).
+// `threads`: at most this many render it (0: all).
 v1::SliceImage SliceOf(const v1::SliceRequest& request, const v1::Scene& scene, const VolumeLease& volume,
                        const std::atomic<bool>* cancel = nullptr, int threads = 0);
 
@@ -32,7 +33,8 @@ v1::SliceImage FrameOf(const v1::RenderFrameRequest& request, const pacs::FrameP
                        const std::atomic<bool>* cancel = nullptr, int threads = 0);
 
 // What lies under pixel (request.x, request.y) of the scene's camera and
-// viewport. Throws InputError naming the request's field.
+// viewport (a time series' at the scene's phase). Throws InputError naming
+// the request's field.
 v1::PickResult PickOn(const v1::PickRequest& request, const v1::Scene& scene, const VolumeLease& volume);
 
 }  // namespace cinevol::service

@@ -13,6 +13,7 @@
 #include "runtime/metrics.h"
 #include "scene/presets.h"
 #include "scene/scene_file.h"
+#include "scene/time_series.h"
 
 namespace cinevol::service {
 namespace {
@@ -33,6 +34,7 @@ constexpr int kMaxJpegBands = 4;
 struct Session::Work {
   bool update = false;   // scene and settings changed since the pipeline saw them
   unsigned changes = 0;  // SceneChange bits: what the events changed
+  int phase = 0;         // of a time series, to show
   v1::Scene scene;
   FrameSettings settings;
   FrameStamp stamp;
@@ -55,19 +57,24 @@ std::uint64_t PixelBudget::used() const {
   return used_;
 }
 
-std::shared_ptr<const VolumeCopy> PrepareOnDevice(const VolumeLease& volume, const Scheduler& scheduler) {
+std::vector<std::shared_ptr<const VolumeCopy>> PrepareOnDevice(const VolumeLease& volume, const Scheduler& scheduler) {
   const int device = scheduler.gpu().value_or(kHostDevice);
-  return VolumeCache::Get().Acquire(volume.volume(), kSessionRenderer.brick_size, device,
-                                    kSessionRenderer.volume_texture);
+  std::vector<std::shared_ptr<const VolumeCopy>> copies;
+  for (int k = 0; k < volume.phases(); ++k) {
+    copies.push_back(VolumeCache::Get().Acquire(volume.phase(k), kSessionRenderer.brick_size, device,
+                                                kSessionRenderer.volume_texture));
+  }
+  return copies;
 }
 
 Session::Session(std::string id, std::string owner, std::shared_ptr<VolumeLease> volume, v1::SessionState state,
-                 SessionContext context, std::shared_ptr<const VolumeCopy> prepared)
+                 SessionContext context, std::vector<std::shared_ptr<const VolumeCopy>> prepared)
     : id_(std::move(id)),
       owner_(std::move(owner)),
       volume_(std::move(volume)),
       context_(std::move(context)),
-      scene_context_{*volume_->volume(), volume_->labels().get(), volume_->id(), context_.resolve_map},
+      scene_context_{*volume_->volume(), volume_->labels().get(), volume_->id(), context_.resolve_map,
+                     volume_->phases()},
       current_(std::move(state)),
       settings_(SessionFrameSettings(context_.backend, current_.stream())),
       since_(Clock::now()),
@@ -127,7 +134,8 @@ void Session::AddWatcher(FrameStream* stream, const std::string& grant_id, const
                         fmt::format("session '{}' has {} viewers, this server's limit (--max-viewers-per-session)", id_,
                                     watchers_.size()));
   }
-  const auto by_grant = std::count_if(watchers_.begin(), watchers_.end(), [&](const Watcher& w) { return w.grant_id == grant_id; });
+  const auto by_grant =
+      std::count_if(watchers_.begin(), watchers_.end(), [&](const Watcher& w) { return w.grant_id == grant_id; });
   if (by_grant >= context_.limits->max_viewers_per_grant) {
     throw LimitExceeded("max-viewers-per-grant",
                         fmt::format("this share of session '{}' has {} viewers, this server's limit for one share "
@@ -305,8 +313,7 @@ void Session::ApplyCoalescedLocked() {
 void Session::ApplyLocked(const v1::SessionEvent& event, Clock::time_point arrival) {
   const v1::Viewport viewport = current_.viewport();
   const std::uint64_t applied_seq = current_.last_event_seq();
-  const unsigned changes =
-      ApplyEvent(current_, event, scene_context_, context_.limits);  // as it was if it throws
+  const unsigned changes = ApplyEvent(current_, event, scene_context_, context_.limits);  // as it was if it throws
   const std::uint64_t pixels = std::uint64_t(current_.viewport().width()) * current_.viewport().height();
   if (pixels != pixels_) {
     try {
@@ -324,6 +331,10 @@ void Session::ApplyLocked(const v1::SessionEvent& event, Clock::time_point arriv
   }
   if (changes & kStreamChanged) settings_ = SessionFrameSettings(context_.backend, current_.stream());
   if (changes & kTransferFunctionChanged) NoteMisfitLocked();
+  if (changes & kPhaseChanged) {  // playing starts over from the phase it names
+    play_from_ = int(current_.scene().time().phase());
+    play_since_ = arrival;
+  }
   // Every event but a pause gets a frame that answers it. Only an attached
   // session pauses or resumes: one without a stream (SendEvents before a
   // watch, or after the end) keeps its state, so that it still expires.
@@ -339,6 +350,25 @@ void Session::ApplyLocked(const v1::SessionEvent& event, Clock::time_point arriv
   last_event_seq_ = std::max(last_event_seq_, event.seq());
   last_event_arrival_ = arrival;
   event_unrendered_ = true;
+}
+
+int Session::PhaseDueLocked(Clock::time_point now) const {
+  const double elapsed = std::chrono::duration<double>(now - play_since_).count();
+  return PhaseAt(current_.scene().time(), play_from_, elapsed, volume_->phase_seconds(), volume_->phases());
+}
+
+void Session::MakePipeline() {
+  if (prepared_.empty()) prepared_ = PrepareOnDevice(*volume_, *context_.scheduler);  // the cache's, where held
+  pipeline_ = std::make_unique<FramePipeline>(context_.backend, volume_->phase(pipeline_phase_), kSessionRenderer,
+                                              volume_->labels());
+  pipeline_->SetCancel(&cancel_);
+  pipeline_->SetPreempt(&preempt_);
+  pipeline_->SetJpegEncoder(context_.jpeg_encoder);
+}
+
+void Session::DropPipeline() {
+  pipeline_.reset();
+  prepared_.clear();  // the device memory goes with the pipeline
 }
 
 void Session::SendStateLocked() {
@@ -415,6 +445,7 @@ std::string Session::EndReason() const {
 void Session::CurrentScene(v1::Scene& scene, FrameSettings& settings) const {
   std::lock_guard lock(mu_);
   scene = current_.scene();
+  scene.mutable_time()->set_phase(std::uint32_t(PhaseDueLocked(Clock::now())));  // where a playing series is
   settings = settings_;
 }
 
@@ -455,6 +486,7 @@ bool Session::Step() {
         dirty_ = false;
       }
       work.settings = settings_;
+      work.phase = PhaseDueLocked(Clock::now());
       work.stamp.frame_id = next_frame_id_++;
       work.stamp.event_seq = last_event_seq_;
       work.stamp.answers_event = event_unrendered_;
@@ -466,7 +498,7 @@ bool Session::Step() {
     }
   }
   if (release) {
-    pipeline_.reset();
+    DropPipeline();
     if (!bad_event.ok()) End(bad_event);
     return false;
   }
@@ -479,24 +511,24 @@ bool Session::Step() {
   DisplayFrame frame;
   try {
     if (!pipeline_) {
-      pipeline_ =
-          std::make_unique<FramePipeline>(context_.backend, volume_->volume(), kSessionRenderer, volume_->labels());
-      prepared_.reset();  // the renderer holds the copy now (VolumeCache)
-      pipeline_->SetCancel(&cancel_);
-      pipeline_->SetPreempt(&preempt_);
-      pipeline_->SetJpegEncoder(context_.jpeg_encoder);
+      pipeline_phase_ = work.phase;
+      MakePipeline();
+    }
+    if (work.phase != pipeline_phase_) {
+      pipeline_->SetPhase(volume_->phase(work.phase));
+      pipeline_phase_ = work.phase;
     }
     if (work.update) pipeline_->Update(work.scene, work.settings, work.changes);
     frame = pipeline_->RenderFrame();
   } catch (const Cancelled&) {  // the session ended or its stream went: nobody waits for this frame
-    pipeline_.reset();
+    DropPipeline();
     std::lock_guard lock(mu_);
     --encodes_in_flight_;
     holds_device_memory_ = false;
     dirty_ = true;  // a new pipeline takes the scene again
     return false;
   } catch (...) {
-    pipeline_.reset();  // whatever it held may be broken: give the memory back now
+    DropPipeline();  // whatever it held may be broken: give the memory back now
     {
       std::lock_guard lock(mu_);
       --encodes_in_flight_;
@@ -523,9 +555,11 @@ bool Session::Step() {
     ++frames_rendered_;
     accumulated_spp_ = frame.accumulated_spp;
     SetStepPixelsLocked(pixels_, frame.resolution_scale);
-    // An event during the render still gets its frame.
-    if (frame.final && !event_unrendered_ && state_ == State::kRendering) state_ = State::kIdle;
+    // An event during the render still gets its frame; a playing series
+    // renders on for its next phase.
+    if (frame.final && !event_unrendered_ && !PlayingLocked() && state_ == State::kRendering) state_ = State::kIdle;
   }
+  work.stamp.phase = std::uint32_t(work.phase);
   Encode(std::move(frame), work.stamp);  // at the settings' chroma and quality, as displayed
   std::lock_guard lock(mu_);
   return CanRenderLocked();

@@ -97,16 +97,17 @@ struct SessionContext {
 // The session's volume prepared on `scheduler`'s device (its brick ranges,
 // a float volume quantised, the voxels uploaded to a GPU), as its renderer
 // will ask for it: shared with every session of that volume there, built by
-// the first. Slow for a large volume, so CreateSession calls it off the
-// frame and the gRPC threads; throws ResourceExhausted when it does not fit.
-std::shared_ptr<const VolumeCopy> PrepareOnDevice(const VolumeLease& volume, const Scheduler& scheduler);
+// the first. Every phase of a time series, so that a phase switch finds it
+// there. Slow for a large volume, so CreateSession calls it off the frame
+// and the gRPC threads; throws ResourceExhausted when it does not fit.
+std::vector<std::shared_ptr<const VolumeCopy>> PrepareOnDevice(const VolumeLease& volume, const Scheduler& scheduler);
 
 class Session final : public Job, public std::enable_shared_from_this<Session> {
  public:
   // `state`: InitialState's, its stream settings all set (ToStreamSettings).
-  // `prepared`: PrepareOnDevice's, held until the first frame's renderer takes it.
+  // `prepared`: PrepareOnDevice's, held until the first frame's pipeline holds its own.
   Session(std::string id, std::string owner, std::shared_ptr<VolumeLease> volume, v1::SessionState state,
-          SessionContext context, std::shared_ptr<const VolumeCopy> prepared = nullptr);
+          SessionContext context, std::vector<std::shared_ptr<const VolumeCopy>> prepared = {});
   ~Session() override;
 
   const std::string& id() const { return id_; }
@@ -172,7 +173,8 @@ class Session final : public Job, public std::enable_shared_from_this<Session> {
   // Why the session ended (its status message); empty while it lives.
   std::string EndReason() const;
 
-  // What a snapshot renders: the current scene and settings.
+  // What a snapshot renders: the current scene and settings, a time series
+  // at the phase it shows now (Scene.time.phase; while playing, the clock's).
   void CurrentScene(v1::Scene& scene, FrameSettings& settings) const;
   const std::shared_ptr<VolumeLease>& volume() const { return volume_; }
   Scheduler* scheduler() const { return context_.scheduler; }
@@ -207,6 +209,13 @@ class Session final : public Job, public std::enable_shared_from_this<Session> {
   void Encode(DisplayFrame frame, const FrameStamp& stamp);
   void Deliver(v1::Frame frame, Clock::time_point origin);
   void Wake() { context_.scheduler->Wake(shared_from_this()); }
+  // The phase a frame begun at `now` shows: Scene.time's, or while playing
+  // where the clock has reached since it began.
+  int PhaseDueLocked(Clock::time_point now) const;
+  bool PlayingLocked() const { return current_.scene().time().playing() && volume_->phases() > 1; }
+  // Builds the pipeline, and holds every phase's device copy beside it.
+  void MakePipeline();
+  void DropPipeline();
 
   const std::string id_, owner_;
   const std::shared_ptr<VolumeLease> volume_;
@@ -261,6 +270,9 @@ class Session final : public Job, public std::enable_shared_from_this<Session> {
   std::map<int, v1::SessionEvent> coalesced_;  // by SessionEvent::KindCase, oldest first applied
   std::set<std::string> misfits_noted_;        // presets NoteMisfitLocked warned of
   Clock::time_point coalesced_arrival_;
+  // Playing (Scene.time.playing): from which phase, since when.
+  int play_from_ = 0;
+  Clock::time_point play_since_;
 
   // Raised when the session ends or its stream goes: the frame in flight stops.
   std::atomic<bool> cancel_{false};
@@ -271,8 +283,12 @@ class Session final : public Job, public std::enable_shared_from_this<Session> {
   int stills_rendering_ = 0;                              // BeginStill without EndStill: the session does not expire
   std::string end_reason_;
 
-  std::unique_ptr<FramePipeline> pipeline_;     // touched only inside Step
-  std::shared_ptr<const VolumeCopy> prepared_;  // until the first pipeline holds it; touched only inside Step
+  // Touched only inside Step: the pipeline, the phase it shows, and every
+  // phase's device copy while it lives (from creation to the first pipeline:
+  // PrepareOnDevice's).
+  std::unique_ptr<FramePipeline> pipeline_;
+  int pipeline_phase_ = 0;
+  std::vector<std::shared_ptr<const VolumeCopy>> prepared_;
 };
 
 }  // namespace cinevol::service

@@ -13,11 +13,11 @@
 #include "io/label_volume.h"
 #include "io/reader_cage.h"
 #include "io/table_finder.h"
-#include "scene/volume_kind.h"
 #include "io/volume_loader.h"
 #include "render/prepared_volume.h"
 #include "runtime/errors.h"
 #include "scene/presets.h"
+#include "scene/volume_kind.h"
 
 namespace fs = std::filesystem;
 
@@ -31,6 +31,13 @@ bool EndsWith(const std::string& s, const std::string& tail) {
   return s.size() >= tail.size() && std::equal(tail.rbegin(), tail.rend(), s.rbegin(), [](char a, char b) {
            return std::tolower(static_cast<unsigned char>(a)) == std::tolower(static_cast<unsigned char>(b));
          });
+}
+
+// The host memory a volume's phases hold together.
+std::uint64_t PhasesBytes(const std::vector<std::shared_ptr<const Volume>>& phases) {
+  std::uint64_t bytes = 0;
+  for (const auto& phase : phases) bytes += phase->MemoryBytes();
+  return bytes;
 }
 
 // Removes an upload's file however its load ends.
@@ -139,9 +146,13 @@ class VolumeRegistry::Reservation {
   std::uint64_t bytes_ = 0;
 };
 
-VolumeLease::VolumeLease(VolumeRegistry* registry, std::string id, std::shared_ptr<const Volume> volume,
-                         std::shared_ptr<const LabelVolume> labels)
-    : registry_(registry), id_(std::move(id)), volume_(std::move(volume)), labels_(std::move(labels)) {}
+VolumeLease::VolumeLease(VolumeRegistry* registry, std::string id, std::vector<std::shared_ptr<const Volume>> phases,
+                         std::vector<double> seconds, std::shared_ptr<const LabelVolume> labels)
+    : registry_(registry),
+      id_(std::move(id)),
+      phases_(std::move(phases)),
+      seconds_(std::move(seconds)),
+      labels_(std::move(labels)) {}
 
 VolumeLease::~VolumeLease() { registry_->Release(id_); }
 
@@ -218,7 +229,7 @@ void VolumeRegistry::CheckRoomLocked(std::uint64_t bytes, const std::string& own
   if (upload) {
     std::uint64_t owners = 0;
     for (const auto& [id, e] : volumes_) {
-      if (e.upload && e.owner == owner) owners += e.volume->MemoryBytes();
+      if (e.upload && e.owner == owner) owners += PhasesBytes(e.phases);
     }
     if (const auto it = reserved_uploads_.find(owner); it != reserved_uploads_.end()) owners += it->second;
     if (owners + bytes > limits_.max_upload_bytes_per_principal) {
@@ -240,15 +251,15 @@ v1::VolumeInfo VolumeRegistry::AddFromSpec(const std::string& spec) {
   const v1::VolumeSource source = ParseVolumeSpec(spec);
   if (source.has_phantom()) {
     // Built in, without a table: no search (it would take a second of the server's start).
-    return Add(spec, spec, spec, LoadVolume(source), "", false, nullptr, {nullptr, "a phantom: no table"});
+    return Add(spec, spec, spec, LoadVolumeSeries(source), "", false, nullptr, {nullptr, "a phantom: no table"});
   }
   const fs::path path = fs::absolute(spec).lexically_normal();
   LoadPolicy policy;
   policy.reader = limits_.reader;
   policy.resample_uneven = limits_.resample_uneven;
-  Volume volume = LoadVolume(source, {}, policy);
-  FoundTable table = SearchTable(volume, nullptr, nullptr);
-  return Add(BaseIdOf(path), path.string(), spec, std::move(volume), "", false, nullptr, std::move(table));
+  VolumeSeries series = LoadVolumeSeries(source, {}, policy);
+  FoundTable table = SearchTable(series.phases.front(), nullptr, nullptr);
+  return Add(BaseIdOf(path), path.string(), spec, std::move(series), "", false, nullptr, std::move(table));
 }
 
 std::string ReadChoices::Suffix() const {
@@ -281,10 +292,10 @@ v1::VolumeInfo VolumeRegistry::LoadFromDataRoot(const std::string& path, const s
   request.set_orientation(choices.orientation);
   request.set_resample_uneven(choices.resample_uneven || limits_.resample_uneven);
   Reservation reservation(this, caller.name, false, "the volume");
-  Volume volume = LoadVolume(request, {}, PolicyFor("path '" + path + "'", false, cancel, &reservation));
-  FoundTable table = SearchTable(volume, &reservation, cancel);
+  VolumeSeries series = LoadVolumeSeries(request, {}, PolicyFor("path '" + path + "'", false, cancel, &reservation));
+  FoundTable table = SearchTable(series.phases.front(), &reservation, cancel);
   return as_written(
-      Add(BaseIdOf(resolved), source, path, std::move(volume), caller.name, false, &reservation, std::move(table)));
+      Add(BaseIdOf(resolved), source, path, std::move(series), caller.name, false, &reservation, std::move(table)));
 }
 
 v1::VolumeInfo VolumeRegistry::AddUpload(const fs::path& file, const std::string& file_name,
@@ -293,10 +304,12 @@ v1::VolumeInfo VolumeRegistry::AddUpload(const fs::path& file, const std::string
   const RemoveWhenDone remove{file};
   const std::string shown = "upload:" + file_name;
   Reservation reservation(this, caller.name, true, "the volume");
-  Volume volume = LoadVolumeFile(file, PolicyFor(shown, true, cancel, &reservation));
-  ApplyOrientation(volume, orientation, "header.orientation");
-  FoundTable table = SearchTable(volume, &reservation, cancel);
-  return Add(BaseIdOf(file_name), shown, shown, std::move(volume), caller.name, true, &reservation, std::move(table));
+  v1::VolumeSource request;
+  request.set_file(file.string());
+  request.set_orientation(orientation);
+  VolumeSeries series = LoadVolumeSeries(request, {}, PolicyFor(shown, true, cancel, &reservation));
+  FoundTable table = SearchTable(series.phases.front(), &reservation, cancel);
+  return Add(BaseIdOf(file_name), shown, shown, std::move(series), caller.name, true, &reservation, std::move(table));
 }
 
 v1::VolumeInfo VolumeRegistry::AddRetrievedSeries(const fs::path& folder, const std::string& source,
@@ -314,12 +327,12 @@ v1::VolumeInfo VolumeRegistry::AddRetrievedSeries(const fs::path& folder, const 
   request.set_orientation(choices.orientation);
   request.set_resample_uneven(choices.resample_uneven || limits_.resample_uneven);
   Reservation reservation(this, caller.name, true, "the series");
-  Volume volume = LoadVolume(request, {}, PolicyFor(source, true, cancel, &reservation));
-  FoundTable table = SearchTable(volume, &reservation, cancel);
+  VolumeSeries phases = LoadVolumeSeries(request, {}, PolicyFor(source, true, cancel, &reservation));
+  FoundTable table = SearchTable(phases.phases.front(), &reservation, cancel);
   std::string series = source.substr(source.rfind('/') + 1);
   series = series.substr(0, series.find('@'));
   const std::string base_id = "pacs-" + series.substr(series.size() > 12 ? series.size() - 12 : 0);
-  return Add(base_id, source, source, std::move(volume), caller.name, true, &reservation, std::move(table));
+  return Add(base_id, source, source, std::move(phases), caller.name, true, &reservation, std::move(table));
 }
 
 std::optional<v1::VolumeInfo> VolumeRegistry::FindHeld(const std::string& source, const Principal& caller) const {
@@ -358,7 +371,7 @@ VolumeRegistry::FoundTable VolumeRegistry::SearchTable(const Volume& volume, Res
 }
 
 v1::VolumeInfo VolumeRegistry::Add(const std::string& base_id, const std::string& source, const std::string& shown,
-                                   Volume volume, const std::string& owner, bool upload, Reservation* reservation,
+                                   VolumeSeries series, const std::string& owner, bool upload, Reservation* reservation,
                                    FoundTable table) {
   std::shared_ptr<const LabelVolume> unused;  // a table that does not fit, freed outside the lock
   std::lock_guard lock(mu_);
@@ -368,7 +381,8 @@ v1::VolumeInfo VolumeRegistry::Add(const std::string& base_id, const std::string
       if (e.source == source) return InfoLocked(id, e);
     }
   }
-  const std::uint64_t bytes = volume.MemoryBytes();
+  std::uint64_t bytes = 0;
+  for (const Volume& phase : series.phases) bytes += phase.MemoryBytes();
   CheckRoomLocked(bytes, owner, upload, "the volume");
   // The table's labels count like a segmentation; the volume goes in without them where they do not fit.
   if (table.labels) {
@@ -384,20 +398,22 @@ v1::VolumeInfo VolumeRegistry::Add(const std::string& base_id, const std::string
   Entry& e = volumes_[id];
   e.source = source;
   e.shown = shown;
-  e.volume = std::make_shared<const Volume>(std::move(volume));
+  for (Volume& phase : series.phases) e.phases.push_back(std::make_shared<const Volume>(std::move(phase)));
+  e.volume = e.phases.front();
+  e.phase_seconds = std::move(series.seconds);
   e.owner = owner;
   e.upload = upload;
   e.labels = std::move(table.labels);
   e.table_note = std::move(table.note);
   // The source is a path or a client's file name: patient data, and not for the info log.
-  spdlog::info("volume {}: {}x{}x{}, {} MiB", LogSafe(id), e.volume->dims().x, e.volume->dims().y, e.volume->dims().z,
-               bytes >> 20);
+  spdlog::info("volume {}: {}x{}x{}, {} phase{}, {} MiB", LogSafe(id), e.volume->dims().x, e.volume->dims().y,
+               e.volume->dims().z, e.phases.size(), e.phases.size() == 1 ? "" : "s", bytes >> 20);
   return InfoLocked(id, e);
 }
 
 std::uint64_t VolumeRegistry::HeldBytesLocked() const {
   std::uint64_t total = 0;
-  for (const auto& [id, e] : volumes_) total += e.volume->MemoryBytes() + LabelBytes(e.labels.get());
+  for (const auto& [id, e] : volumes_) total += PhasesBytes(e.phases) + LabelBytes(e.labels.get());
   return total;
 }
 
@@ -434,7 +450,7 @@ v1::VolumeInfo VolumeRegistry::LoadLabels(const std::string& id, const std::stri
     loaded = FitLabels(file, *image, shown);
   }
   if (held) CopyTable(*held, loaded);  // the table found when the volume loaded stays marked
-  if (!table.empty()) {  // a SEG's own names stay where the table names no other
+  if (!table.empty()) {                // a SEG's own names stay where the table names no other
     for (auto& [value, name] : LoadLabelTable(table, "table_path '" + table_path + "'")) loaded.names[value] = name;
   }
   return AttachLabels(id, image, std::move(loaded), caller, &reservation);
@@ -528,7 +544,9 @@ v1::VolumeInfo VolumeRegistry::InfoLocked(const std::string& id, const Entry& e)
   *info.mutable_spacing_mm() = ToProto(v.spacing_mm());
   info.set_min_value(v.min_value());
   info.set_max_value(v.max_value());
-  info.set_memory_bytes(v.MemoryBytes());
+  info.set_memory_bytes(PhasesBytes(e.phases));
+  info.set_phases(std::uint32_t(e.phases.size()));
+  info.mutable_phase_seconds()->Add(e.phase_seconds.begin(), e.phase_seconds.end());
   info.set_sessions(e.leases);
   const VolumeKindJudgement kind = JudgeVolumeKind(v);
   info.set_kind(kind.kind);
@@ -574,7 +592,7 @@ std::vector<v1::VolumeInfo> VolumeRegistry::List(const Principal& caller) const 
 }
 
 void VolumeRegistry::Unload(const std::string& id, const Principal& caller) {
-  std::shared_ptr<const Volume> last;  // freed outside the lock
+  std::vector<std::shared_ptr<const Volume>> last;  // freed outside the lock
   std::lock_guard lock(mu_);
   const Entry& e = FindLocked(id, caller, "volume_id");
   if (!caller.is_operator && e.owner != caller.name) {
@@ -587,7 +605,7 @@ void VolumeRegistry::Unload(const std::string& id, const Principal& caller) {
         fmt::format("volume '{}' is in use by {} session(s) or still(s); close them first", id, e.leases));
   }
   auto it = volumes_.find(id);
-  last = std::move(it->second.volume);
+  last = std::move(it->second.phases);
   volumes_.erase(it);
   spdlog::info("volume {}: unloaded", LogSafe(id));
 }
@@ -597,7 +615,7 @@ std::shared_ptr<VolumeLease> VolumeRegistry::Lease(const std::string& id, const 
   FindLocked(id, caller, "volume_id");
   Entry& e = volumes_.at(id);
   ++e.leases;
-  return std::make_shared<VolumeLease>(this, id, e.volume, e.labels);
+  return std::make_shared<VolumeLease>(this, id, e.phases, e.phase_seconds, e.labels);
 }
 
 void VolumeRegistry::Release(const std::string& id) {

@@ -11,6 +11,7 @@
 // volume, all volumes together, and uploads per principal.
 #pragma once
 
+#include <algorithm>
 #include <cstdint>
 #include <filesystem>
 #include <map>
@@ -34,14 +35,24 @@ class VolumeRegistry;
 // A session's or a still's hold on a volume: Unload refuses while one lives.
 class VolumeLease {
  public:
-  VolumeLease(VolumeRegistry* registry, std::string id, std::shared_ptr<const Volume> volume,
-              std::shared_ptr<const LabelVolume> labels);
+  // `phases`: a time series' (the first is the volume), or the one volume;
+  // `seconds`: each phase's time from the first, where the series says.
+  VolumeLease(VolumeRegistry* registry, std::string id, std::vector<std::shared_ptr<const Volume>> phases,
+              std::vector<double> seconds, std::shared_ptr<const LabelVolume> labels);
   ~VolumeLease();
   VolumeLease(const VolumeLease&) = delete;
   VolumeLease& operator=(const VolumeLease&) = delete;
 
   const std::string& id() const { return id_; }
-  const std::shared_ptr<const Volume>& volume() const { return volume_; }
+  // The volume: a time series' first phase.
+  const std::shared_ptr<const Volume>& volume() const { return phases_.front(); }
+  // A time series' phases (one for a still volume), alike in grid; phase(k)
+  // for k past the last is the last.
+  int phases() const { return int(phases_.size()); }
+  const std::shared_ptr<const Volume>& phase(int k) const {
+    return phases_[std::size_t(std::clamp(k, 0, phases() - 1))];
+  }
+  const std::vector<double>& phase_seconds() const { return seconds_; }
   // Its labels when the lease began: the segmentation and the table marked
   // (LabelVolume::segmentation says whether there is a segmentation); null: neither.
   const std::shared_ptr<const LabelVolume>& labels() const { return labels_; }
@@ -50,7 +61,8 @@ class VolumeLease {
  private:
   VolumeRegistry* registry_;
   std::string id_;
-  std::shared_ptr<const Volume> volume_;
+  std::vector<std::shared_ptr<const Volume>> phases_;
+  std::vector<double> seconds_;
   std::shared_ptr<const LabelVolume> labels_;
 };
 
@@ -156,7 +168,9 @@ class VolumeRegistry {
   struct Entry {
     std::string source;  // canonical path (+ series) or phantom spec: loading it twice returns this entry
     std::string shown;   // what answers call it: the path as its loader wrote it, or "upload:NAME"
-    std::shared_ptr<const Volume> volume;
+    std::shared_ptr<const Volume> volume;  // a time series' first phase
+    std::vector<std::shared_ptr<const Volume>> phases;  // every phase, `volume` first; one for a still volume
+    std::vector<double> phase_seconds;                  // from the first, where the input said; else empty
     // Its segmentation, when one is loaded, with the table marked where one
     // was found; or labels marking the table alone (LabelVolume::segmentation false).
     std::shared_ptr<const LabelVolume> labels;
@@ -174,8 +188,10 @@ class VolumeRegistry {
   // Searches `volume` for a table (io/table_finder.h) under `reservation`:
   // skipped, said so in the note, where its memory does not fit.
   FoundTable SearchTable(const Volume& volume, Reservation* reservation, const std::atomic<bool>* cancel);
-  v1::VolumeInfo Add(const std::string& base_id, const std::string& source, const std::string& shown, Volume volume,
-                     const std::string& owner, bool upload, Reservation* reservation = nullptr, FoundTable table = {});
+  // `series`: a time series' phases, or one volume.
+  v1::VolumeInfo Add(const std::string& base_id, const std::string& source, const std::string& shown,
+                     VolumeSeries series, const std::string& owner, bool upload, Reservation* reservation = nullptr,
+                     FoundTable table = {});
   // Throws RESOURCE_EXHAUSTED unless `bytes` more fit the limits (an
   // upload's also its owner's); `what` names it in the message.
   void CheckRoomLocked(std::uint64_t bytes, const std::string& owner, bool upload, const std::string& what) const;

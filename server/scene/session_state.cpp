@@ -9,6 +9,7 @@
 #include "scene/presets.h"
 #include "scene/scene_builder.h"
 #include "scene/scene_frame.h"
+#include "scene/time_series.h"
 
 namespace cinevol {
 namespace {
@@ -298,6 +299,7 @@ v1::SessionState InitialState(const v1::CreateSessionRequest& request, const Sce
   ApplyDefaults(scene);
   CheckParts(scene, kEverythingChanged, "scene.");
   CheckSegmentation(scene.labels(), context, "scene.labels", false);
+  CheckTime(scene.time(), context.phases, "scene.time");
   AddRecommendedColours(scene, context);
   ExpandPresets(scene, kEverythingChanged, volume);
   CheckCost(scene, kEverythingChanged, "scene.", limits);
@@ -348,6 +350,10 @@ unsigned ApplyEvent(v1::SessionState& state, const v1::SessionEvent& event, cons
       *state.mutable_scene()->mutable_measurements() = event.measurements().measurements();
       return kMeasurementsChanged;
     }
+    case v1::SessionEvent::kTime:
+      with_prefix([&] { CheckTime(event.time(), context.phases, "time"); });
+      *state.mutable_scene()->mutable_time() = event.time();
+      return kPhaseChanged;
     case v1::SessionEvent::kPointer:
       throw InputError(prefix + "pointer: a pointer is its sender's (ApplyPointer)");
     case v1::SessionEvent::KIND_NOT_SET:

@@ -44,6 +44,7 @@ enum SessionChange : unsigned {
   kPauseChanged = 1u << 7,         // paused or resumed
   kMeasurementsChanged = 1u << 8,  // the reader's measurements: shared at once, no frame answers them
   kPointersChanged = 1u << 9,      // someone's pointer: the same
+  kPhaseChanged = 1u << 10,        // a time series' phase shown, or its playing (Scene.time)
 };
 
 // The server's path for a light's environment map named in `field`: only
@@ -58,6 +59,7 @@ struct SceneContext {
   const LabelVolume* labels = nullptr;
   std::string volume_id = {};   // for messages
   MapResolver resolve_map = {};  // empty: environment map names stay as written
+  int phases = 1;                // a time series' phases (Scene.time)
 };
 
 // The state a new session starts from: the request's scene or preset (else

@@ -216,7 +216,8 @@ v1::CreateSessionResponse ServiceCore::CreateSession(const v1::CreateSessionRequ
   };
   // Resolving frames a named view over the volume's blocks and, with a
   // segmentation, every label voxel: seconds for 512^3.
-  const SceneContext scene_context{*volume->volume(), volume->labels().get(), volume->id(), ResolveMap()};
+  const SceneContext scene_context{*volume->volume(), volume->labels().get(), volume->id(), ResolveMap(),
+                                   volume->phases()};
   v1::SessionState state = InitialState(request, scene_context, options_.limits);
   const v1::Scene& scene = state.scene();
   *state.mutable_stream() = ToStreamSettings(SessionFrameSettings(backend_, state.stream()));
@@ -224,7 +225,7 @@ v1::CreateSessionResponse ServiceCore::CreateSession(const v1::CreateSessionRequ
   Scheduler& scheduler = RequireAdmitting(AdmissionPixels(state, backend_));
   // The volume reaches the device here, not inside the first frame on a
   // worker that other sessions share.
-  std::shared_ptr<const VolumeCopy> prepared = PrepareOnDevice(*volume, scheduler);
+  std::vector<std::shared_ptr<const VolumeCopy>> prepared = PrepareOnDevice(*volume, scheduler);
   require_caller();
   SessionContext context{&scheduler,       &encoder_,    backend_, jpeg_encoder_,
                          &options_.limits, ResolveMap(), &pixels_, [this](const std::string& id) {
@@ -280,7 +281,7 @@ v1::SessionState ServiceCore::SendEvents(const v1::SendEventsRequest& request, c
 
 namespace {
 
-// What the reading tools read of a session: its scene now and its volume.
+// What the reading tools read of a session: its scene now (a time series at the phase it shows) and its volume.
 std::pair<v1::Scene, std::shared_ptr<VolumeLease>> SceneAndVolume(const Session& session) {
   v1::Scene scene;
   FrameSettings settings;

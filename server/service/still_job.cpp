@@ -59,7 +59,8 @@ bool StillJob::Step() {
 
 void StillJob::Start() {
   start_ = Clock::now();
-  pipeline_ = std::make_unique<FramePipeline>(backend_, volume_->volume(), RendererOptions{}, volume_->labels());
+  pipeline_ = std::make_unique<FramePipeline>(backend_, volume_->phase(int(scene_.time().phase())), RendererOptions{},
+                                              volume_->labels());
   pipeline_->SetCancel(cancel_.get());
   FrameSettings settings;
   settings.denoiser.method = DenoiseMethod::kNone;

@@ -159,12 +159,21 @@ TEST(BadFiles, ComplexVoxelsAreUnsupported) {
   EXPECT_THROW(LoadVolumeFile(dir / "c.nii"), InputError);
 }
 
-TEST(BadFiles, FourDimensionalSeriesAreRefused) {
+// A 4-D file is a time series (issue 59): its phases where a server reads
+// them, refused by name where one volume is read; 5-D is no volume.
+TEST(BadFiles, FourDimensionalFilesAreTimeSeriesAndFiveAreRefused) {
   ScratchDir dir;
   WriteBytes(dir / "t4.nrrd", "NRRD0004\ntype: uchar\ndimension: 4\nsizes: 4 4 4 5\n"
                               "kinds: domain domain domain domain\nencoding: raw\n\n" +
                                   std::string(4 * 4 * 4 * 5, '\1'));
-  ExpectLoadError(dir / "t4.nrrd", "4-D");
+  ExpectLoadError(dir / "t4.nrrd", "a time series of 5 phases");
+  v1::VolumeSource source;
+  source.set_file((dir / "t4.nrrd").string());
+  EXPECT_EQ(LoadVolumeSeries(source).phases.size(), 5u);
+  WriteBytes(dir / "t5.nrrd", "NRRD0004\ntype: uchar\ndimension: 5\nsizes: 4 4 4 2 2\n"
+                              "kinds: domain domain domain domain domain\nencoding: raw\n\n" +
+                                  std::string(4 * 4 * 4 * 4, '\1'));
+  ExpectLoadError(dir / "t5.nrrd", "5-D");
 }
 
 TEST(BadFiles, NonFiniteVoxelsAreSanitisedAndCounted) {

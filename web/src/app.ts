@@ -25,6 +25,7 @@ import type { EventKind, SessionStart } from "./session.js";
 import { SharePanel } from "./share.js";
 import { Sharing } from "./sharing.js";
 import { StatsPanel } from "./stats_panel.js";
+import { TimePanel } from "./time_panel.js";
 import { TransferPanel } from "./transfer_panel.js";
 import { View } from "./view.js";
 import { plainWords } from "./words.js";
@@ -38,6 +39,7 @@ export class App {
   private readonly link: PageLink;
   private readonly navigation: Navigation;
   private readonly transfer: TransferPanel;
+  private readonly time: TimePanel;
   private readonly light: LightPanel;
   private readonly clipping: ClippingPanel;
   private readonly labels: LabelsPanel;
@@ -59,6 +61,7 @@ export class App {
     this.navigation = new Navigation(link);
     this.navigation.onMoved = () => this.drawOverlay();
     this.transfer = new TransferPanel(link);
+    this.time = new TimePanel(link);
     this.light = new LightPanel(link, camera);
     this.clipping = new ClippingPanel(link, camera);
     this.labels = new LabelsPanel(link);
@@ -141,6 +144,7 @@ export class App {
       frame: (frame: Frame) => {
         this.stats.arrived(frame);
         this.view.show(frame);
+        this.time.shown(frame);
       },
       state: (state: SessionState) => this.adopt(state),
       volume: (volume: VolumeInfo | undefined) => this.describeVolume(volume),
@@ -168,6 +172,7 @@ export class App {
     else this.reading.restore(scene.measurements);
     this.drawOverlay();
     this.transfer.adopt(state);
+    this.time.show(scene);
     this.light.show(scene);
     this.clipping.show(scene);
     this.labels.show(scene);
@@ -177,6 +182,7 @@ export class App {
   private describeVolume(volume: VolumeInfo | undefined): void {
     this.navigation.reset();
     this.transfer.setVolume(volume);
+    this.time.setVolume(volume);
     this.clipping.reset();
     this.labels.setVolume(volume);
     if (volume) this.reading.setVolume(volume);

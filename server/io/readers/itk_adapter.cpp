@@ -218,11 +218,14 @@ itk::ImageIOBase::Pointer ReadHeader(const fs::path& path, const std::string& sh
 }
 
 // Throws InputError unless the header describes what cinevol reads: a 2-D or
-// 3-D scalar image of a known type, within the geometry and voxel limits.
+// 3-D scalar image of a known type, or a time series of 3-D ones (a 4-D
+// image: NIfTI's fourth dimension, an NRRD time axis), within the geometry
+// and voxel limits, every phase counted.
 void CheckHeader(const std::string& shown, itk::ImageIOBase& io, std::uint64_t max_voxels) {
   const unsigned dims = io.GetNumberOfDimensions();
-  if (dims < 2 || dims > 3) {
-    throw InputError(fmt::format("{}: a {}-D image; cinevol reads 2-D and 3-D scalar volumes",
+  if (dims < 2 || dims > 4) {
+    throw InputError(fmt::format("{}: a {}-D image; cinevol reads 2-D and 3-D scalar volumes and time series of "
+                                 "3-D ones (4-D)",
                                  shown, dims));
   }
   if (io.GetNumberOfComponents() != 1) {
@@ -236,16 +239,21 @@ void CheckHeader(const std::string& shown, itk::ImageIOBase& io, std::uint64_t m
   }
   Vec3i size{1, 1, 1};
   Vec3f spacing{1, 1, 1};
-  for (unsigned a = 0; a < dims; ++a) {
+  for (unsigned a = 0; a < std::min(dims, 3u); ++a) {  // a fourth is time
     // Sizes past int range are absurd; clamp so the check below names them.
     size[a] = int(std::min<itk::SizeValueType>(io.GetDimensions(a), 1u << 30));
     spacing[a] = float(io.GetSpacing(a));
   }
   CheckVolumeGeometry(size, spacing, shown);
+  const std::uint64_t phases = dims == 4 ? io.GetDimensions(3) : 1;
+  if (phases < 1 || phases > std::uint64_t(kMaxPhases)) {
+    throw InputError(fmt::format("{}: a time series of {} phases; cinevol reads 1 to {}", shown, phases, kMaxPhases));
+  }
   const std::uint64_t voxels = std::uint64_t(size.x) * std::uint64_t(size.y) * std::uint64_t(size.z);
-  if (voxels > max_voxels) {
-    throw InputError(fmt::format("{}: {}x{}x{} = {} voxels exceeds this server's limit of {} voxels", shown,
-                                 size.x, size.y, size.z, voxels, max_voxels));
+  if (voxels * phases > max_voxels) {
+    throw InputError(fmt::format("{}: {}x{}x{}{} = {} voxels exceeds this server's limit of {} voxels", shown, size.x,
+                                 size.y, size.z, phases > 1 ? fmt::format(" voxels x {} phases", phases) : "",
+                                 voxels * phases, max_voxels));
   }
 }
 
@@ -256,7 +264,7 @@ class ItkVolumeRead final : public reader::VolumeRead {
   ItkVolumeRead(itk::ImageIOBase::Pointer io, const fs::path& path, const reader::ReadOptions& options)
       : io_(std::move(io)), format_(FormatOf(*io_)), path_(path), shown_(options.shown),
         prechecks_(options.prechecks) {
-    const unsigned n = io_->GetNumberOfDimensions();
+    const unsigned n = std::min(io_->GetNumberOfDimensions(), 3u);  // a fourth is time
     std::array<int, 3> dims{1, 1, 1};
     std::array<double, 3> spacing{1, 1, 1}, origin{0, 0, 0};
     std::array<double, 9> direction{1, 0, 0, 0, 1, 0, 0, 0, 1};
@@ -268,6 +276,7 @@ class ItkVolumeRead final : public reader::VolumeRead {
       for (unsigned r = 0; r < n && r < axis.size(); ++r) direction[3 * r + c] = axis[r];
     }
     SetGeometry(header_, dims, spacing, origin, direction);
+    if (io_->GetNumberOfDimensions() == 4 && io_->GetDimensions(3) > 1) SetPhases();
     if (!StatesOrientation()) {
       std::array<double, 9> held;
       std::copy(header_.direction().begin(), header_.direction().end(), held.begin());
@@ -283,6 +292,18 @@ class ItkVolumeRead final : public reader::VolumeRead {
     if (header_.modality() == "CT") header_.set_value_unit("HU");
   }
 
+  // A 4-D image's fourth axis as phases, a spacing along it (ITK's, in
+  // seconds: NIfTI's pixdim[4] in its time unit) as their times.
+  void SetPhases() {
+    header_.set_phases(std::uint32_t(io_->GetDimensions(3)));
+    const double step = io_->GetSpacing(3);
+    if (!(std::isfinite(step) && step > 0 && step < 1e6)) {
+      header_.add_notes("a time series whose file gives no time between its phases");
+      return;
+    }
+    for (std::uint32_t k = 0; k < header_.phases(); ++k) header_.add_phase_seconds(k * step);
+  }
+
   // Whether the file says where its axes point; where not, the direction the
   // reader gives is an assumption, which the header notes.
   bool StatesOrientation() const {
@@ -294,16 +315,30 @@ class ItkVolumeRead final : public reader::VolumeRead {
     }
   }
 
-  void Read(void* memory, std::size_t bytes) override {
-    // The payload is checked now, once the parent has counted the memory the
-    // header asks for: a small compressed file may inflate to gigabytes.
+  // A still volume straight into `memory`; a time series whole into the
+  // child's own memory with the first phase, each phase copied out of it.
+  void Read(void* memory, std::size_t bytes, int phase) override {
+    const std::size_t phase_bytes = std::size_t(io_->GetImageSizeInBytes()) / std::size_t(phases());
+    if (bytes != phase_bytes) {
+      throw InputError(fmt::format("{}: {} bytes of memory for {} bytes of voxels", shown_, bytes, phase_bytes));
+    }
+    if (phases() == 1) return ReadAll(memory);
+    if (phase == 0) {
+      all_phases_.resize(std::size_t(io_->GetImageSizeInBytes()));
+      ReadAll(all_phases_.data());
+    }
+    std::memcpy(memory, all_phases_.data() + std::size_t(phase) * phase_bytes, phase_bytes);
+    if (phase + 1 == phases()) std::vector<char>().swap(all_phases_);
+  }
+
+ private:
+  // Every voxel of the file into `memory`, after the payload's check: now,
+  // once the parent has counted the memory the header asks for (a small
+  // compressed file may inflate to gigabytes).
+  void ReadAll(void* memory) {
     if (prechecks_) {
       const std::string problem = PayloadProblem();
       if (!problem.empty()) throw InputError(fmt::format("{}: {}", shown_, problem));
-    }
-    if (bytes != std::size_t(io_->GetImageSizeInBytes())) {
-      throw InputError(fmt::format("{}: {} bytes of memory for {} bytes of voxels", shown_, bytes,
-                                   io_->GetImageSizeInBytes()));
     }
     const unsigned n = io_->GetNumberOfDimensions();
     itk::ImageIORegion region(n);
@@ -319,7 +354,6 @@ class ItkVolumeRead final : public reader::VolumeRead {
     }
   }
 
- private:
   // The format's check that the file holds every voxel, as its reader reads
   // them: "" or what is wrong.
   std::string PayloadProblem() {
@@ -337,6 +371,7 @@ class ItkVolumeRead final : public reader::VolumeRead {
   fs::path path_;
   std::string shown_;
   bool prechecks_;
+  std::vector<char> all_phases_;  // a time series' voxels, from the first phase's read to the last's
 };
 
 // Opens `path` (the file, or the cage's rewrite of its header) with ITK.

@@ -6,6 +6,7 @@
 #include <sys/prctl.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <cstdlib>
 #include <cstring>
 #include <new>
@@ -70,23 +71,28 @@ reader::Request ReceiveRequest(ReaderChannel& channel, std::vector<UniqueFd>& in
   return request;
 }
 
-// Answers the request; for voxels, waits for the memory to write them to.
+// Answers the request; for voxels, waits for the memory to write them to:
+// one memory a phase of a time series, each phase answered before the next.
 void Serve(ReaderChannel& channel, reader::Job& job) {
   const Reply answer = job.Answer();
   Send(channel, answer);
   if (!answer.has_header() && !answer.has_image()) return;
-  reader::Proceed proceed;
-  std::vector<UniqueFd> memory;
-  channel.Receive(proceed, memory);
-  if (proceed.stop() || memory.size() != 1) return;
-  const off_t bytes = lseek(memory[0].get(), 0, SEEK_END);
-  void* data = bytes > 0 ? mmap(nullptr, std::size_t(bytes), PROT_READ | PROT_WRITE, MAP_SHARED, memory[0].get(), 0)
-                         : MAP_FAILED;
-  if (data == MAP_FAILED) throw std::bad_alloc();
-  job.Write(data, std::size_t(bytes));
-  Reply done;
-  done.set_done(true);
-  Send(channel, done);
+  const int phases = answer.has_header() ? std::max<int>(1, int(answer.header().phases())) : 1;
+  for (int phase = 0; phase < phases; ++phase) {
+    reader::Proceed proceed;
+    std::vector<UniqueFd> memory;
+    channel.Receive(proceed, memory);
+    if (proceed.stop() || memory.size() != 1) return;
+    const off_t bytes = lseek(memory[0].get(), 0, SEEK_END);
+    void* data = bytes > 0 ? mmap(nullptr, std::size_t(bytes), PROT_READ | PROT_WRITE, MAP_SHARED, memory[0].get(), 0)
+                           : MAP_FAILED;
+    if (data == MAP_FAILED) throw std::bad_alloc();
+    job.Write(data, std::size_t(bytes), phase);
+    munmap(data, std::size_t(bytes));
+    Reply done;
+    done.set_done(true);
+    Send(channel, done);
+  }
 }
 
 }  // namespace

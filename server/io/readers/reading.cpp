@@ -161,9 +161,10 @@ Reply Job::Answer() {
   return reply;
 }
 
-void Job::Write(void* memory, std::size_t bytes) {
+void Job::Write(void* memory, std::size_t bytes, int phase) {
   if (volume_) {
-    volume_->Read(memory, bytes);
+    if (phase < 0 || phase >= volume_->phases()) throw std::runtime_error("a phase the header did not announce");
+    volume_->Read(memory, bytes, phase);
     return;
   }
   if (bytes != pixels_.size() * sizeof(float)) throw std::runtime_error("memory of the wrong size for the image");
@@ -174,18 +175,20 @@ Reply ReadInProcess(const Request& request, std::vector<UniqueFd> inputs, std::v
   Job job(request, std::move(inputs));
   Reply reply = job.Answer();
   std::uint64_t bytes = 0;
+  int phases = 1;
   if (reply.has_header()) {
     const Header& h = reply.header();
     const auto type = VoxelTypeNamed(h.voxel_type());
     if (!type || h.dims_size() != 3) throw std::runtime_error("a header that does not hold together");
     bytes = std::uint64_t(h.dims(0)) * h.dims(1) * h.dims(2) * BytesPerVoxel(*type);
+    phases = std::max<int>(1, int(h.phases()));
   } else if (reply.has_image()) {
     bytes = std::uint64_t(reply.image().width()) * reply.image().height() * 3 * sizeof(float);
   } else {
     return reply;
   }
-  memory.resize(bytes);
-  job.Write(memory.data(), bytes);
+  memory.resize(bytes * phases);
+  for (int k = 0; k < phases; ++k) job.Write(memory.data() + bytes * k, bytes, k);
   return reply;
 }
 

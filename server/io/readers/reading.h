@@ -32,8 +32,9 @@ class Job {
   // of memory.
   Reply Answer();
   // Writes the voxels (or pixels) Answer's header announced into `memory`,
-  // `bytes` long.
-  void Write(void* memory, std::size_t bytes);
+  // `bytes` long: of phase `phase` of a time series (from 0, in order; one
+  // call a phase).
+  void Write(void* memory, std::size_t bytes, int phase = 0);
 
  private:
   std::string InputPath(std::size_t i) const;  // what the readers open for input i
@@ -48,7 +49,8 @@ class Job {
 
 // The answer to a request and its voxels in this process: what a child
 // would do, for fuzzing and for measuring the cage's cost. `memory` receives
-// the voxels (resized); exceptions as Job's.
+// the voxels (resized; a time series' phases one after another); exceptions
+// as Job's.
 Reply ReadInProcess(const Request& request, std::vector<UniqueFd> inputs, std::vector<unsigned char>& memory);
 
 }  // namespace cinevol::reader

@@ -155,7 +155,7 @@ class SegmentationRead final : public VolumeRead {
     FillHeader(Place(nullptr), outside);
   }
 
-  void Read(void* memory, std::size_t bytes) override {
+  void Read(void* memory, std::size_t bytes, int /*phase: one*/) override {
     if (bytes != voxels_ * sizeof(std::uint16_t)) throw std::runtime_error("memory of the wrong size for the labels");
     Place(static_cast<std::uint16_t*>(memory));
   }

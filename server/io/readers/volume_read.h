@@ -28,8 +28,11 @@ class VolumeRead {
  public:
   virtual ~VolumeRead() = default;
   const Header& header() const { return header_; }
-  // Writes header()'s voxels (dims' product times the type's size) into `memory`.
-  virtual void Read(void* memory, std::size_t bytes) = 0;
+  // Phases of a time series (1 for a still volume): header().phases or 1.
+  int phases() const { return header_.phases() > 1 ? int(header_.phases()) : 1; }
+  // Writes phase `phase`'s voxels (dims' product times the type's size) into
+  // `memory`; a caller asks for each phase once, in order.
+  virtual void Read(void* memory, std::size_t bytes, int phase) = 0;
 
  protected:
   Header header_;

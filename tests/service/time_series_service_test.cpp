@@ -1,0 +1,98 @@
+// A time series on a real cinevol-server (issue 59): its phases and times in
+// VolumeInfo; a session's phase set by an event, shown by frames, slices and
+// picks; playing steps the frames through the phases and loops; what does
+// not fit the series refused by name.
+#include <gtest/gtest.h>
+
+#include <set>
+
+#include "encode/image_codecs.h"
+#include "server_process.h"
+#include "service_test_support.h"
+#include "support/test_paths.h"
+#include "support/time_series_nifti.h"
+
+namespace cinevol::testing {
+namespace {
+
+using namespace std::chrono_literals;
+
+v1::SessionEvent TimeEvent(std::uint64_t seq, int phase, bool playing = false, float rate = 0) {
+  v1::SessionEvent event;
+  event.set_seq(seq);
+  event.mutable_time()->set_phase(std::uint32_t(phase));
+  event.mutable_time()->set_playing(playing);
+  event.mutable_time()->set_phases_per_second(rate);
+  return event;
+}
+
+// The mean column of the bright pixels of an axial slice through the sphere's centre (its 13th slice).
+double SphereColumn(Client& client, const std::string& session, const v1::VolumeInfo& volume) {
+  v1::SliceRequest axial;
+  axial.set_session_id(session);
+  axial.set_axis(v1::AXIAL);
+  axial.set_position_mm(volume.origin_mm().z() + volume.direction(8) * 12);
+  axial.set_window(1);
+  axial.set_level(500);
+  const v1::SliceImage slice = client.RenderSlice(axial);
+  const ImageRgb8 png = DecodePng(std::vector<std::uint8_t>(slice.png().begin(), slice.png().end()));
+  double sum = 0, count = 0;
+  for (int y = 0; y < png.height; ++y) {
+    for (int x = 0; x < png.width; ++x) {
+      if (png.bytes[3 * (std::size_t(y) * png.width + x)] > 128) sum += x, ++count;
+    }
+  }
+  return count > 0 ? sum / count : -1;
+}
+
+TEST(TimeSeriesSession, APhaseEventShowsThatPhaseInFramesSlicesAndPicks) {
+  ScratchDir scratch;
+  WriteMovingSphere(scratch / "sphere.nii", {});
+  ServerProcess server(scratch.path(), {"--data-root", scratch.path().string()});
+  ASSERT_TRUE(server.running()) << server.Log();
+  Client client = server.Connect();
+  const v1::VolumeInfo volume = client.LoadVolume("sphere.nii");
+  EXPECT_EQ(volume.phases(), 5u);
+  ASSERT_EQ(volume.phase_seconds_size(), 5);
+  EXPECT_NEAR(volume.phase_seconds(4), 0.4, 1e-6);
+  EXPECT_GE(volume.memory_bytes(), 5u * 24 * 24 * 24 * 2) << "every phase counted";
+
+  v1::CreateSessionRequest request = SmallSession("ct-bone", 64, 48);
+  request.set_volume_id(volume.id());
+  const auto created = client.CreateSession(request);
+  const double first = SphereColumn(client, created.session_id(), volume);
+  const v1::SessionState after = client.SendEvents(created.session_id(), {TimeEvent(1, 3)});
+  EXPECT_EQ(after.scene().time().phase(), 3u) << after.scene().time().DebugString();
+  EXPECT_NEAR(std::abs(SphereColumn(client, created.session_id(), volume) - first), 3.0, 1e-6)
+      << "three phases on, the sphere is three voxels along";
+
+  auto stream = client.Attach(created.session_id());
+  stream->Send(TimeEvent(2, 2));
+  EXPECT_TRUE(WaitFrame(
+      *stream, [](const v1::Frame& f) { return f.phase() == 2; }, 60s))
+      << "a frame shows phase 2";
+
+  // Playing at 20 phases a second: the frames go through the phases and loop.
+  stream->Send(TimeEvent(3, 0, true, 20));
+  std::set<std::uint32_t> shown;
+  const auto until = std::chrono::steady_clock::now() + 60s;
+  while (shown.size() < 5 && std::chrono::steady_clock::now() < until) {
+    if (auto frame = WaitFrame(
+            *stream, [](const v1::Frame&) { return true; }, 10s)) {
+      shown.insert(frame->phase());
+    }
+  }
+  EXPECT_EQ(shown.size(), 5u) << "every phase was shown while playing";
+
+  // What does not fit the series: refused, the session as it was.
+  ExpectRpcError([&] { client.SendEvents(created.session_id(), {TimeEvent(4, 5)}); },
+                 grpc::StatusCode::INVALID_ARGUMENT, "past the volume's last phase");
+  ExpectRpcError([&] { client.SendEvents(created.session_id(), {TimeEvent(5, 0, true, 1000)}); },
+                 grpc::StatusCode::INVALID_ARGUMENT, "phases_per_second");
+  const auto still = client.CreateSession(SmallSession());
+  ExpectRpcError([&] { client.SendEvents(still.session_id(), {TimeEvent(1, 0, true)}); },
+                 grpc::StatusCode::INVALID_ARGUMENT, "not a time series");
+}
+
+}  // namespace
+}  // namespace cinevol::testing
