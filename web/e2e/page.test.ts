@@ -93,6 +93,40 @@ test("a preset changes the picture", async () => {
   await alice.screenshot({ path: join(ARTIFACTS, "3-preset.png") });
 });
 
+test("a time series: the Time controls show its phases, a phase changes the picture, Play steps through them",
+     async () => {
+  const page = await run.browser.newPage({ viewport: { width: 960, height: 540 } });
+  await page.goto(`http://127.0.0.1:${run.openGateway.port}/?volume=beat`);
+  await until(page, (s) => s.framesPainted >= 1, "a frame of the series");
+  assert.ok(await page.isVisible("#time"), "the Time controls show for a volume of several phases");
+  assert.equal(await page.textContent("#phase-label"), "Phase 1 of 4 (0 ms)");
+  await framesAfter(page, 3);
+  const before = await sample(page);
+  await page.$eval("#phase", (e) => {
+    (e as HTMLInputElement).value = "3";
+    e.dispatchEvent(new Event("input"));
+  });
+  await settled(page);
+  const after = await sample(page);
+  assert.ok(meanDifference(before.grid, after.grid) > 2, "phase 4 moved the ball in the picture");
+  assert.equal(await page.textContent("#phase-label"), "Phase 4 of 4 (150 ms)");
+  await page.screenshot({ path: join(ARTIFACTS, "3-time-series.png") });
+
+  await page.fill("#phase-rate", "8");
+  await page.$eval("#phase-rate", (e) => e.dispatchEvent(new Event("change")));
+  await page.click("#play");
+  await page.waitForFunction(() => document.getElementById("play")!.textContent === "Pause", null, WAIT);
+  const labels = new Set<string>();
+  for (const end = Date.now() + 20_000; labels.size < 4 && Date.now() < end;) {
+    labels.add((await page.textContent("#phase-label")) ?? "");
+    await page.waitForTimeout(50);
+  }
+  assert.equal(labels.size, 4, `playing showed every phase: ${[...labels].join(", ")}`);
+  await page.click("#play");
+  await page.waitForFunction(() => document.getElementById("play")!.textContent === "Play", null, WAIT);
+  await page.close();
+});
+
 test("a movie recorded on the page is made by the server and saved as an MP4 of its frames", async () => {
   const { alice } = run;
   await alice.locator("#output summary").click();

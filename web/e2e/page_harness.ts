@@ -7,7 +7,7 @@ import { existsSync, mkdirSync } from "node:fs";
 import { join } from "node:path";
 import { chromium, type Browser, type Page } from "playwright-core";
 import { scratch, startWithPortFile, stop, tokensFile, type Running } from "./processes.js";
-import { writeSphereNrrd } from "./sphere.js";
+import { writeMovingBallNrrd, writeSphereNrrd } from "./sphere.js";
 
 export const CHROMIUM = process.env.CINEVOL_CHROMIUM ?? "/usr/bin/chromium";
 if (!existsSync(CHROMIUM)) {
@@ -115,8 +115,10 @@ export async function setUp(): Promise<void> {
   run.gateway = await startGateway();
   const sphere = join(scratch, "sphere.nrrd");
   writeSphereNrrd(sphere, [...SPHERE.dims], [...SPHERE.spacingMm], SPHERE.radiusMm);
-  run.openServer = await startWithPortFile(SERVER, ["--listen", "127.0.0.1:0", "--backend", "cpu", "--volume", sphere],
-                                           "open-server");
+  const beat = join(scratch, "beat.nrrd");
+  writeMovingBallNrrd(beat, 32, 4, 6, 0.05);
+  run.openServer = await startWithPortFile(SERVER, ["--listen", "127.0.0.1:0", "--backend", "cpu", "--volume", sphere,
+                                                    "--volume", beat], "open-server");
   run.openGateway = await startWithPortFile(WEB, ["--listen", "127.0.0.1:0", "--server",
                                                   `127.0.0.1:${run.openServer.port}`], "open-gateway");
   run.browser = await chromium.launch({ executablePath: CHROMIUM, args: CHROMIUM_ARGS, timeout: 60_000 });

@@ -87,3 +87,26 @@ export function crosshairOn(png: Png, frame = 3): { x: number; y: number } {
   const most = (counts: number[]) => counts.indexOf(Math.max(...counts));
   return { x: most(columns) + 0.5, y: most(rows) + 0.5 };
 }
+
+/**
+ * A time series (issue 59) as a 4-D NRRD: a ball of 1000 in 0, `radiusMm` in 1 mm voxels, that moves 3 voxels
+ * along x a phase, `secondsApart` between phases (the NRRD's fourth spacing).
+ */
+export function writeMovingBallNrrd(path: string, size: number, phases: number, radiusMm: number,
+                                    secondsApart: number): void {
+  const values = Buffer.alloc(2 * size * size * size * phases);
+  for (let t = 0, at = 0; t < phases; ++t) {
+    for (let k = 0; k < size; ++k) {
+      for (let j = 0; j < size; ++j) {
+        for (let i = 0; i < size; ++i, at += 2) {
+          const r = Math.hypot(i - size / 4 - 3 * t, j - size / 2, k - size / 2);
+          values.writeInt16LE(r <= radiusMm ? 1000 : 0, at);
+        }
+      }
+    }
+  }
+  const header = ["NRRD0004", "type: short", "dimension: 4", `sizes: ${size} ${size} ${size} ${phases}`,
+    `spacings: 1 1 1 ${secondsApart}`, "kinds: domain domain domain time", "encoding: raw", "endian: little", "", ""]
+    .join("\n");
+  writeFileSync(path, Buffer.concat([Buffer.from(header, "latin1"), values]));
+}
