@@ -93,7 +93,9 @@ std::vector<DicomSeriesInfo> ListDicomSeries(const std::filesystem::path& folder
 
 // Loads one series from `folder`: `series_uid`, or the largest when empty.
 // Slices are sorted along the slice normal; gantry tilt, uneven gaps (missing
-// slices), mixed sizes or orientations and duplicate positions are refused.
+// slices), mixed sizes or orientations and duplicate positions are refused,
+// and so is a series of several phases (positions that repeat alike), which
+// LoadVolumeSeries reads.
 Volume LoadDicomSeries(const std::filesystem::path& folder, const std::string& series_uid = {},
                        const LoadPolicy& policy = {});
 

@@ -51,7 +51,8 @@ struct DicomFile {
 };
 
 // One series of `files` (`series_uid`, or the largest): slices sorted along
-// their normal; gantry tilt, uneven gaps, duplicates refused.
+// their normal; positions that repeat alike read as phases of a time series
+// (formats/dicom/series.h); gantry tilt, uneven gaps, duplicates refused.
 std::unique_ptr<VolumeRead> OpenDicomSeries(const std::vector<DicomFile>& files, const std::string& series_uid,
                                             const ReadOptions& options);
 
