@@ -188,7 +188,7 @@ test("the DICOMweb origin renders the series by URL: 3D as JPEG and PNG, an MPR 
   // (no session made or left, no volume loaded).
   const origin = `http://127.0.0.1:${run.gateway.port}/dicom-web`;
   const held = await serverHolds();
-  for (const [url, status, said] of [
+  await expectRefusals(held, [
     [`${series}/rendered3D?renderingmethod=maximum_ip`, 400, "renderingmethod"],
     [`${series}/rendered3D?renderingmethod=raytraced`, 400, "renderingmethod: 'raytraced' is not"],
     [`${series}/rendered3D?viewport=0,10`, 400, "viewport"],
@@ -206,13 +206,7 @@ test("the DICOMweb origin renders the series by URL: 3D as JPEG and PNG, an MPR 
     [`${origin}/http://127.0.0.1:9/dicom-web/studies/1.2/series/1.2/rendered3D`, 400, "is not a PACS name"],
     [`${origin}/${encodeURIComponent("http://127.0.0.1:9/")}/studies/1.2/series/1.2/rendered3D`, 400, "never an address"],
     [`${origin}/orthanc/studies/${CT.studyUid}/series/${CT.seriesUid}/thumbnail`, 404, "not a rendered resource"],
-  ] as [string, number, string][]) {
-    const answer = await fetch(url);
-    const text = await answer.text();
-    assert.equal(answer.status, status, `${url}: ${text}`);
-    assert.ok(text.includes(said), `${url}: ${text}`);
-  }
-  assert.deepEqual(await serverHolds(), held, "the refusals left the server as it was");
+  ]);
 });
 
 test("a third-party DICOMweb client reads the series from Orthanc and its renderings from cinevol-web", async () => {
@@ -331,7 +325,7 @@ test("a rendered frame (Supplement 174) of an image lies on its own plane and gr
     .arrayBuffer()));
   assert.deepEqual([fitted.width, fitted.height], [200, 100], "the viewport's size, the image fitted within it");
   const held = await serverHolds();
-  for (const [url, status, said] of [
+  await expectRefusals(held, [
     [`${instance}/frames/1,2/rendered`, 406, "multi-frame media type"],
     [`${instance}/frames/0/rendered`, 400, "frame numbers from 1"],
     [`${instance}/frames/2/rendered`, 404, "frame 2 is not one of them"],
@@ -340,13 +334,7 @@ test("a rendered frame (Supplement 174) of an image lies on its own plane and gr
     [`${instance}/frames/1/rendered?viewport=1000000,10`, 400, "viewport"],
     [`${instance.replace(sopInstanceUID, "2.25.999")}/frames/1/rendered`, 404, "2.25.999"],
     [`${instance}/frames/x/rendered`, 400, "frames: a number"],
-  ] as [string, number, string][]) {
-    const answer = await fetch(url);
-    const text = await answer.text();
-    assert.equal(answer.status, status, `${url}: ${text}`);
-    assert.ok(text.includes(said), `${url}: ${text}`);
-  }
-  assert.deepEqual(await serverHolds(), held, "the refusals left the server as it was");
+  ]);
 });
 
 test("a signed URL serves an <img> with no token, for its resource only, until it expires", async () => {
@@ -508,6 +496,17 @@ async function decodedInBrowser(bytes: Buffer, type: string): Promise<{ width: n
 }
 
 /** `cinevol slice` of the stamped CT (the files Orthanc holds) on the coronal plane the MPR test asks for. */
+/** Each URL answered with its status and a message holding its words, and the server left holding what it held. */
+async function expectRefusals(held: unknown, cases: [string, number, string][]): Promise<void> {
+  for (const [url, status, said] of cases) {
+    const answer = await fetch(url);
+    const text = await answer.text();
+    assert.equal(answer.status, status, `${url}: ${text}`);
+    assert.ok(text.includes(said), `${url}: ${text}`);
+  }
+  assert.deepEqual(await serverHolds(), held, "the refusals left the server as it was");
+}
+
 /** `cinevol slice` of the stamped CT's files through a soft-tissue window, with the plane `args` say. */
 async function cliSlice(args: string[], name: string): Promise<Buffer> {
   const out = join(ARTIFACTS, `pacs-slice-${name}.png`);
