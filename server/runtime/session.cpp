@@ -358,9 +358,13 @@ int Session::PhaseDueLocked(Clock::time_point now) const {
 }
 
 void Session::MakePipeline() {
-  if (prepared_.empty()) prepared_ = PrepareOnDevice(*volume_, *context_.scheduler);  // the cache's, where held
+  // A time series' phases stay on the device beside the pipeline, for its phase switches (the cache's, where
+  // held); a still volume's one copy is the renderer's alone (the cache counts each holder as a renderer).
+  const bool series = volume_->phases() > 1;
+  if (series && prepared_.empty()) prepared_ = PrepareOnDevice(*volume_, *context_.scheduler);
   pipeline_ = std::make_unique<FramePipeline>(context_.backend, volume_->phase(pipeline_phase_), kSessionRenderer,
                                               volume_->labels());
+  if (!series) prepared_.clear();
   pipeline_->SetCancel(&cancel_);
   pipeline_->SetPreempt(&preempt_);
   pipeline_->SetJpegEncoder(context_.jpeg_encoder);

@@ -283,9 +283,9 @@ class Session final : public Job, public std::enable_shared_from_this<Session> {
   int stills_rendering_ = 0;                              // BeginStill without EndStill: the session does not expire
   std::string end_reason_;
 
-  // Touched only inside Step: the pipeline, the phase it shows, and every
-  // phase's device copy while it lives (from creation to the first pipeline:
-  // PrepareOnDevice's).
+  // Touched only inside Step: the pipeline, the phase it shows, and a time
+  // series' every phase's device copy while it lives (from creation to the
+  // first pipeline: PrepareOnDevice's, for any volume).
   std::unique_ptr<FramePipeline> pipeline_;
   int pipeline_phase_ = 0;
   std::vector<std::shared_ptr<const VolumeCopy>> prepared_;
