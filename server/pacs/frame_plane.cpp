@@ -8,7 +8,7 @@
 #include <optional>
 
 #include "core/error.h"
-#include "pacs/dicomweb_requests.h"
+#include "pacs/dicomweb_requests.h"  // the tags
 #include "pacs/pacs_error.h"
 
 namespace cinevol::pacs {
@@ -119,21 +119,6 @@ FramePlane FramePlaneOf(const DicomJsonDataset& instance, int frame) {
   plane.rows = SideOf(instance, tag::kRows, "Rows");
   plane.columns = SideOf(instance, tag::kColumns, "Columns");
   return plane;
-}
-
-FramePlane FetchFramePlane(const DicomWebClient& pacs, const std::string& study_uid, const std::string& series_uid,
-                           const std::string& instance_uid, int frame, const std::atomic<bool>* cancel) {
-  CheckUid(instance_uid, "sop_instance_uid");
-  const PacsConfig& config = pacs.config();
-  const std::string what = fmt::format("the metadata of instance {}", instance_uid);
-  JsonDocument storage;
-  const std::vector<DicomJsonDataset> datasets = FetchDicomJson(
-      config, what, SeriesUrl(config, study_uid, series_uid) + "/instances/" + instance_uid + "/metadata", cancel,
-      storage);
-  if (datasets.empty()) {
-    throw PacsError(fmt::format("PACS '{}' holds no instance {} in that series", config.name, instance_uid), 404);
-  }
-  return FramePlaneOf(datasets.front(), frame);
 }
 
 }  // namespace cinevol::pacs
