@@ -65,6 +65,11 @@ void PrintInfo(const InfoOptions& o) {
              m.orientation_override.empty() ? "" : ", given with --orientation");
   fmt::print("origin:       {:g}, {:g}, {:g} mm (LPS)\n", m.origin_mm[0], m.origin_mm[1], m.origin_mm[2]);
   if (series.phases.size() > 1) PrintPhases(series);
+  if (m.suv_factor > 0) {
+    fmt::print("SUVbw:        value x {:.6g}\n", m.suv_factor);
+  } else if (!m.suv_refused.empty()) {
+    fmt::print("SUVbw:        none ({})\n", m.suv_refused);
+  }
   std::size_t bytes = 0;
   for (const Volume& phase : series.phases) bytes += phase.MemoryBytes();
   fmt::print("memory:       {:.1f} MiB\n", bytes / 1048576.0);

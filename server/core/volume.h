@@ -72,6 +72,10 @@ struct VolumeMetadata {
   // DICOM's Frame of Reference UID (0020,0052): the patient space its
   // positions are in; empty where the file names none (NIfTI, NRRD, ...).
   std::string frame_of_reference_uid;
+  // A PET's SUVbw per value (value * suv_factor = SUVbw; io/suv.h), 0 where
+  // it has none; suv_refused says why for a PET without (empty otherwise).
+  double suv_factor = 0;
+  std::string suv_refused;
 };
 
 // The patient direction each index axis points to most, as three letters

@@ -33,6 +33,7 @@
 #include "io/file_checks.h"
 #include "io/label_volume.h"
 #include "io/reader_channel.h"
+#include "io/suv.h"
 #include "scene/volume_kind.h"
 
 extern char** environ;
@@ -574,6 +575,11 @@ CheckedHeader Check(const reader::Header& h, ReaderProcess& child, const LoadPol
     c.meta.stored_window = VoiWindow{h.stored_window(0), h.stored_window(1)};
   }
   if (IsUid(h.frame_of_reference_uid())) c.meta.frame_of_reference_uid = h.frame_of_reference_uid();
+  if (h.has_pet()) {  // the child's reading of the file: checked, computed here
+    const SuvbwFactor suv = SuvbwFactorOf(h.pet());
+    c.meta.suv_factor = suv.factor;
+    c.meta.suv_refused = suv.refused;
+  }
   return c;
 }
 

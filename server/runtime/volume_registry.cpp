@@ -547,6 +547,8 @@ v1::VolumeInfo VolumeRegistry::InfoLocked(const std::string& id, const Entry& e)
   info.set_memory_bytes(PhasesBytes(e.phases));
   info.set_phases(std::uint32_t(e.phases.size()));
   info.mutable_phase_seconds()->Add(e.phase_seconds.begin(), e.phase_seconds.end());
+  info.set_suv_factor(v.metadata().suv_factor);
+  info.set_suv_refused(v.metadata().suv_refused);
   info.set_sessions(e.leases);
   const VolumeKindJudgement kind = JudgeVolumeKind(v);
   info.set_kind(kind.kind);

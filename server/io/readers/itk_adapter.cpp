@@ -468,6 +468,7 @@ class DicomSeriesRead final : public reader::VolumeRead {
     *header_.mutable_identity() = series.identity;
     for (double v : series.stored_window) header_.add_stored_window(v);
     header_.set_frame_of_reference_uid(series.frame_of_reference_uid);
+    if (series.pet) *header_.mutable_pet() = *series.pet;
     std::string original = ComponentName(io->GetInternalComponentType());
     if (io->GetRescaleSlope() != 1.0 || io->GetRescaleIntercept() != 0.0) {
       original +=

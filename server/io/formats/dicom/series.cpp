@@ -2,7 +2,9 @@
 #include "io/formats/dicom/series.h"
 
 #include <fmt/format.h>
+#include <gdcmReader.h>
 #include <gdcmScanner.h>
+#include <gdcmSequenceOfItems.h>
 
 #include <algorithm>
 #include <cmath>
@@ -41,6 +43,22 @@ const gdcm::Tag kFrameOfReference(0x0020, 0x0052);
 const gdcm::Tag kTemporalPosition(0x0020, 0x0100);
 const gdcm::Tag kTriggerTime(0x0018, 0x1060);
 const gdcm::Tag kInstanceNumber(0x0020, 0x0013);
+// A PET's attributes for SUVbw (reader.proto's PetDose).
+const gdcm::Tag kUnits(0x0054, 0x1001);
+const gdcm::Tag kDecayCorrection(0x0054, 0x1102);
+const gdcm::Tag kCorrectedImage(0x0028, 0x0051);
+const gdcm::Tag kPatientWeight(0x0010, 0x1030);
+const gdcm::Tag kSeriesDate(0x0008, 0x0021);
+const gdcm::Tag kSeriesTime(0x0008, 0x0031);
+const gdcm::Tag kAcquisitionDate(0x0008, 0x0022);
+const gdcm::Tag kAcquisitionTime(0x0008, 0x0032);
+const gdcm::Tag kPetTags[] = {kUnits,      kDecayCorrection, kCorrectedImage,  kPatientWeight,
+                              kSeriesDate, kSeriesTime,      kAcquisitionDate, kAcquisitionTime};
+const gdcm::Tag kRadiopharmaceuticalInformation(0x0054, 0x0016);  // a sequence; its first item holds:
+const gdcm::Tag kRadiopharmaceuticalStartTime(0x0018, 0x1072);
+const gdcm::Tag kRadionuclideTotalDose(0x0018, 0x1074);
+const gdcm::Tag kRadionuclideHalfLife(0x0018, 0x1075);
+const gdcm::Tag kRadiopharmaceuticalStartDateTime(0x0018, 0x1078);
 
 // What orders a position's files in time, the first every file of the series
 // has: the Temporal Position Identifier, else the Trigger Time, else the
@@ -94,6 +112,7 @@ void ScanFiles(const std::vector<reader::DicomFile>& files, const reader::ReadOp
                              kFrameOfReference, kTemporalPosition, kTriggerTime, kInstanceNumber}) {
     scan.scanner.AddTag(t);
   }
+  for (const gdcm::Tag& t : kPetTags) scan.scanner.AddTag(t);
   if (!sound.empty() && !scan.scanner.Scan(sound)) {
     throw InputError(fmt::format("{}: could not scan the folder's files", scan.shown));
   }
@@ -414,6 +433,83 @@ std::vector<double> StoredWindow(const Scan& scan, const std::string& file) {
   return {centers[0], widths[0]};
 }
 
+// A DICOM string value: trailing spaces and NULs dropped.
+std::string Trimmed(const char* bytes, std::size_t length) {
+  std::string s(bytes, length);
+  while (!s.empty() && (s.back() == ' ' || s.back() == '\0')) s.pop_back();
+  return s;
+}
+
+// The first item of the file's Radiopharmaceutical Information Sequence
+// (0054,0016): its dose, half life and start time into `pet`. GDCM reads the
+// header up to the sequence, never the pixels; a file without it leaves
+// `pet`'s fields empty.
+void ReadRadiopharmaceutical(const std::string& file, reader::PetDose& pet) {
+  gdcm::Reader reader;
+  reader.SetFileName(file.c_str());
+  if (!reader.ReadSelectedTags({kRadiopharmaceuticalInformation})) return;
+  const gdcm::DataSet& ds = reader.GetFile().GetDataSet();
+  if (!ds.FindDataElement(kRadiopharmaceuticalInformation)) return;
+  const gdcm::SmartPointer<gdcm::SequenceOfItems> sq =
+      ds.GetDataElement(kRadiopharmaceuticalInformation).GetValueAsSQ();
+  if (!sq || sq->GetNumberOfItems() < 1) return;
+  const gdcm::DataSet& item = sq->GetItem(1).GetNestedDataSet();
+  const auto text = [&](const gdcm::Tag& tag) {
+    if (!item.FindDataElement(tag)) return std::string();
+    const gdcm::ByteValue* v = item.GetDataElement(tag).GetByteValue();
+    return v ? Trimmed(v->GetPointer(), v->GetLength()) : std::string();
+  };
+  const auto number = [&](const gdcm::Tag& tag) {
+    const std::vector<double> v = Numbers(text(tag));
+    return v.size() == 1 ? v[0] : 0.0;
+  };
+  pet.set_total_dose_bq(number(kRadionuclideTotalDose));
+  pet.set_half_life_s(number(kRadionuclideHalfLife));
+  pet.set_injection_time(text(kRadiopharmaceuticalStartTime));
+  pet.set_injection_datetime(text(kRadiopharmaceuticalStartDateTime));
+}
+
+// A key that orders DICOM dates and times (DA "YYYYMMDD", TM "HHMMSS.FFFFFF"
+// with its later parts optional, or the old "HH:MM:SS") in time.
+std::string AcquisitionOrder(const std::string& date, const std::string& time) {
+  std::string t;
+  for (char c : time) {
+    if (c != ':') t += c;
+  }
+  const std::size_t dot = std::min(t.find('.'), t.size());
+  if (dot < 6) t.insert(dot, 6 - dot, '0');
+  return date + "|" + t;
+}
+
+// A PET's attributes for SUVbw, as its files say them: the first slice's,
+// and the acquisition date and time of the series' earliest file (the scan's
+// start where the series time is later: the parent's io/suv.h decides).
+reader::PetDose PetDoseOf(const Scan& scan, const std::vector<std::string>& files, const std::string& first) {
+  reader::PetDose pet;
+  pet.set_units(Value(scan, first, kUnits));
+  pet.set_decay_correction(Value(scan, first, kDecayCorrection));
+  pet.set_corrected_image(Value(scan, first, kCorrectedImage));
+  const std::optional<double> weight = Number(scan, first, kPatientWeight);
+  pet.set_patient_weight_kg(weight.value_or(0.0));
+  pet.set_series_date(Value(scan, first, kSeriesDate));
+  pet.set_series_time(Value(scan, first, kSeriesTime));
+  const std::string* earliest = nullptr;
+  std::string earliest_key;
+  for (const std::string& f : files) {
+    if (Value(scan, f, kAcquisitionTime).empty()) continue;
+    const std::string key = AcquisitionOrder(Value(scan, f, kAcquisitionDate), Value(scan, f, kAcquisitionTime));
+    if (earliest && key >= earliest_key) continue;
+    earliest = &f;
+    earliest_key = key;
+  }
+  if (earliest) {
+    pet.set_acquisition_date(Value(scan, *earliest, kAcquisitionDate));
+    pet.set_acquisition_time(Value(scan, *earliest, kAcquisitionTime));
+  }
+  ReadRadiopharmaceutical(first, pet);
+  return pet;
+}
+
 }  // namespace
 
 double Dot3(const double* a, const double* b) { return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]; }
@@ -447,6 +543,7 @@ SortedSeries ChooseSeries(const std::vector<reader::DicomFile>& files, const std
   sorted.identity = IdentityOf(scan, files_sorted[0]);
   sorted.stored_window = StoredWindow(scan, files_sorted[0]);
   sorted.frame_of_reference_uid = Value(scan, files_sorted[0], kFrameOfReference);
+  if (sorted.modality == "PT") sorted.pet = PetDoseOf(scan, series.files, files_sorted[0]);
   return sorted;
 }
 

@@ -7,6 +7,7 @@
 // The ITK/GDCM adapter (readers/itk_adapter.h) decodes the pixels.
 #pragma once
 
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -53,6 +54,9 @@ struct SortedSeries {
   reader::Identity identity;          // the first slice's patient and study fields
   std::vector<double> stored_window;  // the first slice's first window: center, width; or empty
   std::string frame_of_reference_uid;  // the first slice's (0020,0052); empty when it names none
+  // A PET (modality PT): what SUVbw needs as the files say it, unchecked (the
+  // parent checks it: io/suv.h); nothing for any other modality.
+  std::optional<reader::PetDose> pet;
   // Each phase's files in the order of geometry.slices: one phase (the
   // geometry's files) for a still series; for a time series (N > 1 files at
   // every position), phase k holds each position's k-th file in time.
