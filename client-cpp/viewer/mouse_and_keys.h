@@ -18,6 +18,7 @@ namespace cinevol::viewer {
 struct PanelsOpen {
   bool volume = true, pacs = false, transfer_function = true, lights = false, render = false, clipping = false,
        labels = false, scene = false, reading = true, share = false;
+  bool time = true;   // shown only for a time series
   bool stats = true;  // the overlay (F2)
 };
 

@@ -78,7 +78,33 @@ void VolumePanel(Rooms& r) {
   Hint("a local .nii, .nii.gz, .nrrd, .mha or .vtk file");
 }
 
-void ScenePanel(SceneFiles& f) {
+// The paths a movie takes, in the combo's order: each sets MovieRequest's path.
+// The phases' loop comes last, so that a still volume is offered the others.
+struct MoviePath {
+  const char* name;
+  void (*set)(v1::MovieRequest&);
+};
+constexpr MoviePath kMoviePaths[] = {
+    {"orbit (a whole turn)", [](v1::MovieRequest& r) { r.set_orbit_degrees(360); }},
+    {"sweep axial", [](v1::MovieRequest& r) { r.set_sweep(v1::AXIAL); }},
+    {"sweep coronal", [](v1::MovieRequest& r) { r.set_sweep(v1::CORONAL); }},
+    {"sweep sagittal", [](v1::MovieRequest& r) { r.set_sweep(v1::SAGITTAL); }},
+    {"phases (the loop)", [](v1::MovieRequest& r) { r.set_phases(true); }},
+};
+constexpr int kPhasesPath = IM_ARRAYSIZE(kMoviePaths) - 1;
+
+// The movie's path: the phases only for a time series (a choice left from one falls back to the orbit).
+void MoviePathCombo(SceneFiles& f, bool time_series) {
+  const int offered = time_series ? IM_ARRAYSIZE(kMoviePaths) : kPhasesPath;
+  if (f.movie_path < 0 || f.movie_path >= offered) f.movie_path = 0;
+  if (!ImGui::BeginCombo("path", kMoviePaths[f.movie_path].name)) return;
+  for (int i = 0; i < offered; ++i) {
+    if (ImGui::Selectable(kMoviePaths[i].name, i == f.movie_path)) f.movie_path = i;
+  }
+  ImGui::EndCombo();
+}
+
+void ScenePanel(SceneFiles& f, bool time_series) {
   ImGui::InputText("scene file", &f.scene_path);
   if (ImGui::Button("Open")) f.Open(f.scene_path);
   ImGui::SameLine();
@@ -88,13 +114,17 @@ void ScenePanel(SceneFiles& f) {
   ImGui::SliderInt("snapshot spp", &f.snapshot_spp, 1, 4096, "%d", ImGuiSliderFlags_Logarithmic);
   if (ImGui::Button("Take snapshot (.png or .exr)")) f.Snapshot(f.snapshot_path, f.snapshot_spp);
   ImGui::Separator();
-  ImGui::InputText("movie", &f.movie_path);
-  ImGui::Combo("path", &f.movie_path_kind, "orbit (a whole turn)\0sweep axial\0sweep coronal\0sweep sagittal\0");
+  ImGui::InputText("movie", &f.movie_file);
+  MoviePathCombo(f, time_series);
   ImGui::SliderFloat("seconds", &f.movie_seconds, 1, 60, "%.0f");
   ImGui::SliderInt("movie spp", &f.movie_spp, 1, 1024, "%d", ImGuiSliderFlags_Logarithmic);
+  if (f.movie_path == kPhasesPath) Hint("from the phase shown, at the Time panel's rate, looping; the camera stays");
   if (ImGui::Button("Record movie (.mp4, 25 frames/s)")) {
-    constexpr v1::SliceAxis kPaths[] = {v1::SLICE_AXIS_UNSPECIFIED, v1::AXIAL, v1::CORONAL, v1::SAGITTAL};
-    f.Movie(f.movie_path, kPaths[f.movie_path_kind], f.movie_seconds, f.movie_spp);
+    v1::MovieRequest request;
+    kMoviePaths[f.movie_path].set(request);
+    request.set_seconds(f.movie_seconds);
+    request.set_spp(f.movie_spp);
+    f.Movie(f.movie_file, request);
   }
 }
 
@@ -137,6 +167,8 @@ void DrawPanels(Rooms& r) {
   if (watching) WatchingPanel(r.sharing, link);
   if (!watching && Header("Volume", open.volume)) VolumePanel(r);
   if (!watching && !r.pacs.names.empty() && Header("PACS", open.pacs)) PacsPanel(r.pacs);
+  const bool time_series = IsTimeSeries(link.volume());
+  if (time_series) DrivingPanel(link, "Time", open.time, [&] { TimePanel(link, r.stats.last); });
   DrivingPanel(link, "Transfer function", open.transfer_function, [&] { TransferPanel(link, r.editor); });
   DrivingPanel(link, "Lights", open.lights, [&] { LightsPanel(link.shown()); });
   DrivingPanel(link, "Render", open.render, [&] { RenderPanel(link.shown()); });
@@ -144,7 +176,7 @@ void DrawPanels(Rooms& r) {
     if (Header("Clipping", open.clipping)) ClippingPanel(link);
     if (Header("Labels", open.labels)) LabelsPanel(link);
     if (Header("Reading", open.reading)) ReadingPanel(r.reading, link);
-    if (Header("Scene and snapshot", open.scene)) ScenePanel(r.files);
+    if (Header("Scene and snapshot", open.scene)) ScenePanel(r.files, time_series);
     const bool listed = open.share;
     if (Header("Share", open.share)) {
       if (!listed) r.sharing.ListShares();  // opened: the grants as they are now

@@ -1,5 +1,5 @@
-// The side panel (volume, PACS, transfer function, lights, render, clipping,
-// labels, reading, scene, share) and what is drawn over the views (stats,
+// The side panel (volume, PACS, time, transfer function, lights, render,
+// clipping, labels, reading, scene, share) and what is drawn over the views (stats,
 // the banner that says what is wrong, the line over a shared view, pointers,
 // measurements, the orientation marker, the slices' letters). Each panel
 // draws one room's state and acts through that room; the edits of the
@@ -56,6 +56,10 @@ void Hint(const char* text);  // grey help text, wrapped to the panel
 
 // The panels, each given the rooms it shows and acts through (DrawPanels
 // calls them under their headers).
+// A time series' phase, Play/Pause and rate (Scene.time); while it plays, it
+// follows the phase of the frame shown (`last`). Nothing for a still volume.
+void TimePanel(SessionLink& link, const v1::Frame& last);
+bool IsTimeSeries(const std::optional<v1::VolumeInfo>& volume);  // several phases
 void TransferPanel(SessionLink& link, TransferEditorState& editor);
 void LightsPanel(ShownSession& session);
 void RenderPanel(ShownSession& session);

@@ -124,21 +124,13 @@ void SceneFiles::Snapshot(const std::string& path, int spp) {
       });
 }
 
-void SceneFiles::Movie(const std::string& path, v1::SliceAxis sweep_axis, double seconds, int spp) {
+void SceneFiles::Movie(const std::string& path, v1::MovieRequest request) {
   if (fs::path(path).extension() != ".mp4") {
     context_.notice = fmt::format("movie {}: use .mp4", path);
     return;
   }
-  v1::MovieRequest request;
   request.set_session_id(link_.session_id());
-  if (sweep_axis == v1::SLICE_AXIS_UNSPECIFIED) {
-    request.set_orbit_degrees(360);
-  } else {
-    request.set_sweep(sweep_axis);
-  }
-  request.set_seconds(seconds);
-  request.set_spp(spp);
-  context_.notice = fmt::format("recording {} at {} spp a frame...", path, spp);
+  context_.notice = fmt::format("recording {} at {} spp a frame...", path, request.spp());
   link_.connection().Request(
       [this, request, path](Client& client) {
         const v1::Movie movie = client.RenderMovie(request, [this, path](const v1::MovieProgress& p) {
@@ -211,6 +203,7 @@ void SceneFiles::Open(const std::string& path) {
   session.SetClipping(scene.clipping());
   SetLabelsFor(session, volume, scene.labels());
   session.SetMeasurements({scene.measurements().begin(), scene.measurements().end()});
+  if (scene.has_time() && volume && volume->phases() > 1) session.SetTime(scene.time());  // as Save wrote it
   const bool styles = scene.labels().styles_size() > 0 || scene.labels().has_show_unlisted();
   context_.notice = styles && !(volume && volume->has_labels())
                         ? fmt::format("opened {}; its label styles wait for a segmentation of this volume", path)

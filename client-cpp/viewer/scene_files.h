@@ -17,16 +17,16 @@ class SceneFiles {
   SceneFiles(ViewerContext& context, SessionLink& link) : context_(context), link_(link) {}
 
   void Snapshot(const std::string& path, int spp);  // .png or .exr; the line under the panels follows it
-  // A movie of the session's view (RenderMovie: a whole orbit, or a sweep across `sweep_axis` where it is not
-  // unspecified), written to `path` (.mp4); the line under the panels follows it.
-  void Movie(const std::string& path, v1::SliceAxis sweep_axis, double seconds, int spp);
+  // A movie of the session's view (RenderMovie) along the path `request` names (an orbit, a sweep, or a
+  // time series' phases), its seconds and spp; written to `path` (.mp4); the line under the panels follows it.
+  void Movie(const std::string& path, v1::MovieRequest request);
   void Save(const std::string& path);
   void Open(const std::string& path);
 
   // The panel's fields.
-  std::string scene_path = "view.json", snapshot_path = "snapshot.png", movie_path = "movie.mp4";
+  std::string scene_path = "view.json", snapshot_path = "snapshot.png", movie_file = "movie.mp4";
   int snapshot_spp = 256, movie_spp = 32;
-  int movie_path_kind = 0;  // 0: orbit; 1, 2, 3: a sweep, axial, coronal, sagittal
+  int movie_path = 0;  // the panel's choice: 0 orbit; 1, 2, 3 a sweep, axial, coronal, sagittal; 4 the phases
   float movie_seconds = 4;
 
  private:

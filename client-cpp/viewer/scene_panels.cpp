@@ -1,5 +1,5 @@
-// The panels that edit the session's scene and settings: transfer function,
-// lights, render, clipping and labels. Each starts from the shown session
+// The panels that edit the session's scene and settings: time, transfer
+// function, lights, render, clipping and labels. Each starts from the shown session
 // (the server's state with this viewer's unanswered edits) and hands its
 // edit back to it.
 #include <fmt/format.h>
@@ -14,6 +14,48 @@
 #include "viewer/scene_files.h"
 
 namespace cinevol::viewer {
+
+bool IsTimeSeries(const std::optional<v1::VolumeInfo>& volume) { return volume && volume->phases() > 1; }
+
+namespace {
+
+// "Phase 3 of 20 (240 ms)": counted from 1, with the phase's time where the series has times.
+std::string PhaseLabel(const v1::VolumeInfo& volume, int phase) {
+  std::string label = fmt::format("Phase {} of {}", phase + 1, volume.phases());
+  if (phase < volume.phase_seconds_size()) label += fmt::format(" ({:.0f} ms)", volume.phase_seconds(phase) * 1e3);
+  return label;
+}
+
+}  // namespace
+
+void TimePanel(SessionLink& link, const v1::Frame& last) {
+  const std::optional<v1::VolumeInfo>& volume = link.volume();
+  if (!IsTimeSeries(volume)) return;
+  ShownSession& session = link.shown();
+  v1::Time time = session.scene().time();
+  const int last_phase = int(volume->phases()) - 1;
+  // Playing is the server's: Scene.time.phase stays where it began, the frames say where it is.
+  int phase = std::min(int(time.playing() ? last.phase() : time.phase()), last_phase);
+  ImGui::Text("%s", PhaseLabel(*volume, phase).c_str());
+  bool changed = false;
+  if (ImGui::SliderInt("phase", &phase, 0, last_phase, "%d", ImGuiSliderFlags_AlwaysClamp)) {
+    time.set_playing(false);  // a phase chosen holds the series there
+    changed = true;
+  }
+  if (ImGui::Button(time.playing() ? "Pause" : "Play")) {
+    time.set_playing(!time.playing());  // paused on the phase shown, played on from it
+    changed = true;
+  }
+  float rate = time.phases_per_second();
+  if (ImGui::SliderFloat("phases/s", &rate, 0, 120, rate > 0 ? "%.1f" : "0: the series' own times",
+                         ImGuiSliderFlags_AlwaysClamp)) {
+    time.set_phases_per_second(rate);
+    changed = true;
+  }
+  if (!changed) return;
+  time.set_phase(std::uint32_t(phase));
+  session.SetTime(time);
+}
 
 void TransferPanel(SessionLink& link, TransferEditorState& editor) {
   ShownSession& session = link.shown();

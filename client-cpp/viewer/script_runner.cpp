@@ -148,9 +148,9 @@ void ScriptRunner::WriteScreenshot(const std::string& path) {
   const v1::Frame& last = r.stats.last;
   std::ofstream(std::filesystem::path(path).replace_extension(".layout.json")) << fmt::format(
       "{{\"window\": [{}, {}], \"frame\": {}, \"panel\": {}, \"stats\": {}, \"frameId\": {}, "
-      "\"frameSize\": [{}, {}], \"accumulatedSpp\": {}, \"state\": {}, \"message\": \"{}\"}}\n",
+      "\"frameSize\": [{}, {}], \"accumulatedSpp\": {}, \"phase\": {}, \"state\": {}, \"message\": \"{}\"}}\n",
       w, h, rect(r.screen.frame_area()), rect(r.screen.panel_area()), r.panels.stats ? rect(r.overlays.stats) : "null",
-      last.frame_id(), last.width(), last.height(), last.accumulated_spp(), int(status.state), escaped);
+      last.frame_id(), last.width(), last.height(), last.accumulated_spp(), last.phase(), int(status.state), escaped);
 }
 
 void ScriptRunner::PrintSummary() const {

@@ -21,6 +21,7 @@ bool Shows(int kind) {
     case v1::SessionEvent::kClipping:
     case v1::SessionEvent::kLabels:
     case v1::SessionEvent::kMeasurements:
+    case v1::SessionEvent::kTime:
       return true;
     default:
       return false;
@@ -110,6 +111,9 @@ void ShownSession::Show() {
         break;
       case v1::SessionEvent::kMeasurements:
         *scene.mutable_measurements() = e.measurements().measurements();
+        break;
+      case v1::SessionEvent::kTime:
+        *scene.mutable_time() = e.time();
         break;
       default:
         break;
@@ -201,6 +205,12 @@ void ShownSession::SetMeasurements(const std::vector<v1::Measurement>& measureme
   v1::SessionEvent e;
   v1::MeasurementList& list = *e.mutable_measurements();  // set even when empty: the last one deleted
   for (const v1::Measurement& m : measurements) *list.add_measurements() = m;
+  Record(std::move(e), true);
+}
+
+void ShownSession::SetTime(const v1::Time& time) {
+  v1::SessionEvent e;
+  *e.mutable_time() = time;
   Record(std::move(e), true);
 }
 

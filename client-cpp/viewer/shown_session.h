@@ -71,6 +71,7 @@ class ShownSession {
   void SetClipping(const v1::Clipping& clipping);
   void SetLabels(const v1::Labels& labels);
   void SetMeasurements(const std::vector<v1::Measurement>& measurements);
+  void SetTime(const v1::Time& time);  // a time series' phase, playing and rate; the server steps it while playing
   // Any event as it is (a script's line): shown as an edit where it is one.
   void Send(v1::SessionEvent event);
   // Posts the camera set since the last flush; whether there was one.

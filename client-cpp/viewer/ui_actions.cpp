@@ -70,6 +70,7 @@ Request PacsRequest(const Value& value, const std::string& where, std::initializ
 
 bool* Panel(PanelsOpen& p, const std::string& name) {
   if (name == "volume") return &p.volume;
+  if (name == "time") return &p.time;
   if (name == "pacs") return &p.pacs;
   if (name == "transferFunction") return &p.transfer_function;
   if (name == "lights") return &p.lights;
@@ -129,6 +130,25 @@ SDL_Keymod Modifier(const std::string& name, const std::string& where) {
   throw InputError(where + ": modifier: shift, ctrl or alt");
 }
 
+// A movie action's path, as the Scene panel's combo offers them: "sweep": an
+// axis, "phases": true the loop of a time series, neither a whole orbit.
+v1::MovieRequest MoviePath(const Struct& p, const std::string& at) {
+  v1::MovieRequest request;
+  const bool sweep = p.fields().contains("sweep");
+  if (Flag(p, "phases", at)) {
+    if (sweep) throw InputError(at + ": \"sweep\" or \"phases\", not both");
+    request.set_phases(true);
+  } else if (!sweep) {
+    request.set_orbit_degrees(360);
+  } else {
+    const std::string axis = Text(p.fields().at("sweep"), at + ".sweep");
+    if (axis != "axial" && axis != "coronal" && axis != "sagittal") {
+      throw InputError(at + ".sweep: axial, coronal or sagittal");
+    }
+    request.set_sweep(axis == "axial" ? v1::AXIAL : axis == "coronal" ? v1::CORONAL : v1::SAGITTAL);
+  }
+  return request;
+}
 
 // Transfer-function edits start from the points shown; those of a preset
 // asked for before them come first (the script runner waits for them).
@@ -312,7 +332,7 @@ UiAction ParseUiAction(const std::string& json, const std::string& where) {
     const std::string panel = Text(Field(p, "name", at), at + ".name");
     if (PanelsOpen all; !Panel(all, panel)) {
       throw InputError(at +
-                       ".name: volume, pacs, transferFunction, lights, render, clipping, labels, reading, "
+                       ".name: volume, pacs, time, transferFunction, lights, render, clipping, labels, reading, "
                        "scene, share or stats");
     }
     const bool open = !p.fields().count("open") || p.fields().at("open").bool_value();
@@ -349,19 +369,13 @@ UiAction ParseUiAction(const std::string& json, const std::string& where) {
     const int spp = int(Number(p, "spp", at, 256));
     return [file, spp](ActionTarget& t) { t.rooms.files.Snapshot(file, spp); };
   }
-  if (name == "movie") {  // {"movie": {"file": "orbit.mp4", "seconds": 2, "spp": 16, "sweep": "axial"}}: no sweep, an orbit
+  if (name == "movie") {  // {"movie": {"file": "beat.mp4", "seconds": 2, "spp": 16, "phases": true}}
     const Struct& p = Object(value, at);
     const std::string file = Text(Field(p, "file", at), at + ".file");
-    const double seconds = Number(p, "seconds", at, 4);
-    const int spp = int(Number(p, "spp", at, 32));
-    v1::SliceAxis sweep = v1::SLICE_AXIS_UNSPECIFIED;
-    if (p.fields().contains("sweep")) {
-      const std::string axis = Text(p.fields().at("sweep"), at + ".sweep");
-      sweep = axis == "axial" ? v1::AXIAL : axis == "coronal" ? v1::CORONAL : axis == "sagittal" ? v1::SAGITTAL
-                                                                                                 : v1::OBLIQUE;
-      if (sweep == v1::OBLIQUE) throw InputError(at + ".sweep: axial, coronal or sagittal");
-    }
-    return [file, sweep, seconds, spp](ActionTarget& t) { t.rooms.files.Movie(file, sweep, seconds, spp); };
+    v1::MovieRequest request = MoviePath(p, at);
+    request.set_seconds(Number(p, "seconds", at, 4));
+    request.set_spp(std::uint32_t(Number(p, "spp", at, 32)));
+    return [file, request](ActionTarget& t) { t.rooms.files.Movie(file, request); };
   }
   if (name == "saveScene" || name == "openScene") {
     const std::string file = Text(value, at);

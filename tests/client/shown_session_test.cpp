@@ -200,5 +200,39 @@ TEST(ShownSession, RenderAndStreamEditsChangeTheFieldsTheySetAsTheServerMerges) 
   EXPECT_EQ(session.state().stream().jpeg_quality(), 80u);
 }
 
+// Issue 59: the Time panel's slider shows the phase chosen while it goes
+// (a drag does not jump back to the server's phase a round trip old), then
+// the server's time once a state answers it; a script's time line is the
+// same edit.
+TEST(ShownSession, ATimeEditShowsAtOnceAndGivesWayToTheServersTime) {
+  RecordingSink sink;
+  ShownSession session(sink);
+  session.Start(Resolved(0));
+  v1::Time time;
+  time.set_phase(3);
+  session.SetTime(time);
+  ASSERT_EQ(sink.posted.size(), 1u);
+  EXPECT_EQ(sink.posted.back().time().phase(), 3u);
+  EXPECT_EQ(session.scene().time().phase(), 3u) << "shown at once";
+  sink.Sent(1);
+  session.Adopt(Resolved(0));  // a state from before it
+  EXPECT_EQ(session.scene().time().phase(), 3u);
+  v1::SessionState answered = Resolved(1);
+  answered.mutable_scene()->mutable_time()->set_phase(3);
+  answered.mutable_scene()->mutable_time()->set_playing(true);  // another client pressed Play meanwhile
+  session.Adopt(answered);
+  EXPECT_FALSE(session.Pending());
+  EXPECT_TRUE(session.scene().time().playing()) << "answered: the server's time shows";
+
+  v1::SessionEvent line;  // {"at": 1, "time": {"phase": 1}}
+  line.mutable_time()->set_phase(1);
+  session.Send(line);
+  EXPECT_EQ(session.scene().time().phase(), 1u);
+  EXPECT_FALSE(session.scene().time().playing());
+  sink.deliveries[2] = {Delivery::kDropped, 0};  // refused: a phase past the last, say
+  session.Settle();
+  EXPECT_EQ(session.scene().time().phase(), 3u) << "the server's phase stands";
+}
+
 }  // namespace
 }  // namespace cinevol::viewer

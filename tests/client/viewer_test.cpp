@@ -22,6 +22,7 @@
 #include "sharing_calls.h"
 #include "support/shell_command.h"
 #include "support/test_paths.h"
+#include "support/time_series_nifti.h"
 
 namespace cinevol::testing {
 namespace {
@@ -438,6 +439,83 @@ TEST(Viewer, APresetIsTheServersFitToTheVolumeNotTheViewers) {
   }
   EXPECT_NEAR(got.density_scale(), want.density_scale(), 1e-6 * std::max(1.0f, want.density_scale()))
       << "the density is the server's fit to 0.1 mm voxels";
+}
+
+// Frame `n` of `movie`, decoded by ffmpeg into `png`.
+ImageRgb8 MovieFrame(const fs::path& movie, int n, const fs::path& png) {
+  const CommandResult decoded = RunCommand(fmt::format(
+      "ffmpeg -v error -y -i '{}' -vf 'select=eq(n\\,{})' -frames:v 1 '{}'", movie.string(), n, png.string()));
+  EXPECT_EQ(decoded.status, 0) << decoded.output;
+  return ReadPng(png);
+}
+
+// The mean column of a bright sphere's pixels over a grey background: where
+// it is across the picture, steady under the path tracer's noise (which
+// alone changes a few samples a pixel by more than a voxel's move does).
+double BrightColumn(const ImageRgb8& img, Region r) {
+  double sum = 0, n = 0;
+  for (int y = r.y; y < r.y + r.h && y < img.height; ++y) {
+    for (int x = r.x; x < r.x + r.w && x < img.width; ++x) {
+      const std::uint8_t* p = &img.bytes[(std::size_t(y) * img.width + x) * 3];
+      if (0.2126 * p[0] + 0.7152 * p[1] + 0.0722 * p[2] > 160) sum += x, ++n;
+    }
+  }
+  EXPECT_GT(n, 100) << "no sphere in the picture";
+  return sum / std::max(1.0, n);
+}
+
+// Issue 59: a time series in the viewer, scripted as a person would use the
+// Time panel and the Scene panel's movie path. A script's time line sets the
+// phase (the one event rule: as the panel's slider sends it); the frames then
+// show that phase (the layout file says which), the sphere three voxels along.
+// The movie's "phases" path records the loop from that phase in the series'
+// own time: 0.1 s a phase at 25 frames/s, frame k shows phase 3 + floor(0.4 k)
+// mod 5: frame 3 phase 4 (a voxel one way), frame 6 phase 0 (three the other),
+// frame 13 phase 3 again.
+TEST(Viewer, ATimeSeriesGoesToThePhaseSetAndRecordsItsLoop) {
+  CINEVOL_REQUIRE_VIEWER();
+  ScratchDir scratch;
+  WriteMovingSphere(scratch / "beat.nii", {});  // five phases, the sphere a voxel along each
+  ServerProcess server(scratch.path(), {"--volume", (scratch / "beat.nii").string()});
+  ASSERT_TRUE(server.running()) << server.Log();
+  const fs::path first = scratch / "first.png", third = scratch / "third.png", movie = scratch / "beat.mp4";
+  const fs::path script = WriteScript(
+      scratch / "beat.jsonl", fmt::format(R"({{"session": {{"preset": "ct-bone", "stream": {{"targetSpp": 2}}}}}}
+{{"at": 0, "ui": {{"panel": {{"name": "stats", "open": false}}}}}}
+{{"at": 0, "ui": {{"panel": {{"name": "time", "open": true}}}}}}
+{{"at": 0, "ui": {{"settle": true}}}}
+{{"at": 0, "ui": {{"screenshot": "{}"}}}}
+{{"at": 0.1, "time": {{"phase": 3}}}}
+{{"at": 0.2, "ui": {{"settle": true}}}}
+{{"at": 0.2, "ui": {{"screenshot": "{}"}}}}
+{{"at": 0.2, "ui": {{"movie": {{"file": "{}", "seconds": 0.6, "spp": 4, "phases": true}}}}}}
+)",
+                                          first.string(), third.string(), movie.string()));
+  const ViewerRun run =
+      RunViewer(scratch.path(), {"--server", server.address(), "--volume", "beat", "--script", script.string()});
+  ASSERT_EQ(run.exit_code, 0) << run.output;
+
+  const google::protobuf::Struct before = ReadLayout(first), after = ReadLayout(third);
+  EXPECT_EQ(before.fields().at("phase").number_value(), 0);
+  EXPECT_EQ(after.fields().at("phase").number_value(), 3) << "the frame after the time line is not of phase 3";
+  const Region frame = RegionOf(before, "frame");
+  EXPECT_GT(std::abs(BrightColumn(ReadPng(third), frame) - BrightColumn(ReadPng(first), frame)), 20)
+      << "three phases on, the sphere did not move across the view";
+
+  const CommandResult probed = RunCommand(
+      "ffprobe -v error -count_frames -select_streams v:0 -show_entries "
+      "stream=nb_read_frames -of default=nw=1 '" +
+      movie.string() + "'");
+  ASSERT_NE(probed.output.find("nb_read_frames=15"), std::string::npos) << probed.output << run.output;
+  auto column = [&](int n) {
+    const ImageRgb8 img = MovieFrame(movie, n, scratch / fmt::format("{}.png", n));
+    return BrightColumn(img, {0, 0, img.width, img.height});
+  };
+  const double phase3 = column(0), phase4 = column(3), phase0 = column(6), again = column(13);
+  EXPECT_LT((phase4 - phase3) * (phase0 - phase3), 0) << "phases 4 and 0 lie on opposite sides of phase 3";
+  EXPECT_GT(std::abs(phase0 - phase3), 2 * std::abs(phase4 - phase3)) << "three voxels, then one";
+  EXPECT_LT(std::abs(again - phase3), 0.1 * std::abs(phase0 - phase3))
+      << "after one beat the loop is not back at phase 3";
 }
 
 // A view key sends the view with the camera's eye and target: the server
