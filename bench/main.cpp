@@ -1,20 +1,19 @@
 // cinevol-bench: measurements for docs/performance.md.
 #include <CLI/CLI.hpp>
-
 #include <cstdio>
 #include <fstream>
 
-#include "scene/scene_frame.h"
 #include "bench.h"
-#include "resampled_volume.h"
-#include "tradeoff_study.h"
 #include "core/error.h"
 #include "core/parallel_for.h"
 #include "io/label_volume.h"
 #include "io/reader_cage.h"
-#include "scene/scene_file.h"
 #include "io/volume_loader.h"
 #include "render/renderer.h"
+#include "resampled_volume.h"
+#include "scene/scene_file.h"
+#include "scene/scene_frame.h"
+#include "tradeoff_study.h"
 
 namespace cinevol::bench {
 
@@ -37,8 +36,9 @@ LoadedScene LoadScene(const SceneOptions& o) {
   if (!o.labels.empty()) s.scene.mutable_volume()->set_labels(o.labels);
   s.volume = std::make_shared<const Volume>(LoadVolume(s.scene.volume()));
   ToVolumeFrame(s.scene, VolumePlacement::Of(*s.volume));  // the renderers' frame
-  s.labels = LoadSceneLabels(s.scene, *s.volume);  // with the table where the scene removes it
-  s.setup = ResolveScene(s.scene, *s.volume, s.labels.get(), [](const std::string& map) { return reader_cage::ReadEnvironmentMap(map); });
+  s.labels = LoadSceneLabels(s.scene, *s.volume);          // with the table where the scene removes it
+  s.setup = ResolveScene(s.scene, *s.volume, s.labels.get(),
+                         [](const std::string& map) { return reader_cage::ReadEnvironmentMap(map); });
   return s;
 }
 
@@ -129,7 +129,8 @@ int main(int argc, char** argv) {
 
   cinevol::bench::ScaleBenchOptions scale;
   scale.command_line = command_line;
-  auto* sc = app.add_subcommand("scale", "A CT resampled to more slices: load to first frame, frame time, memory (GPU)");
+  auto* sc =
+      app.add_subcommand("scale", "A CT resampled to more slices: load to first frame, frame time, memory (GPU)");
   sc->add_option("--volume", scale.volume, "The CT to resample")->required();
   sc->add_option("--slices", scale.slices, "Slice counts, one row each (comma-separated)")
       ->check(CLI::Range(1, 8192))
@@ -206,10 +207,12 @@ int main(int argc, char** argv) {
   std::string out = "tradeoff-results", cache = "bench-cache";
   auto* t = app.add_subcommand("tradeoff", "Quality against time per frame for every knob, on the paper's scenarios");
   t->add_option("--dataset", datasets,
-                 "NAME=SCENE_FILE[,VOLUME] (repeatable); SCENE_FILE preset:NAME or preset:default is a session's "
-                 "scene for that preset (with VOLUME)")
+                "NAME=SCENE_FILE[,VOLUME] (repeatable); SCENE_FILE preset:NAME or preset:default is a session's "
+                "scene for that preset (with VOLUME)")
       ->required();
-  t->add_option("--scenario", scenarios, "orbit, area-light, point-light, tf-edit, static, transparent, sun-sky (default all)");
+  t->add_option("--scenario", scenarios,
+                "orbit, area-light, point-light, tf-edit, static, transparent, sun-sky, beat (a time series: its "
+                "phases with the view still) (default all)");
   t->add_option("--width", study.width, "Frame width")->capture_default_str();
   t->add_option("--height", study.height, "Frame height")->capture_default_str();
   t->add_option("--frames-scale", study.frames_scale, "Scenario lengths times this")->capture_default_str();

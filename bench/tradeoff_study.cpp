@@ -1,6 +1,8 @@
 // The study: scenarios, references, the run of every configuration, results.
 #include "tradeoff_study.h"
 
+#include <fmt/format.h>
+
 #include <algorithm>
 #include <chrono>
 #include <cmath>
@@ -11,18 +13,15 @@
 #include <sstream>
 
 #include "core/error.h"
-
-#include <fmt/format.h>
-
-#include "image_metrics.h"
 #include "core/tone_map.h"
 #include "core/ycc.h"
 #include "encode/hdr_images.h"
 #include "encode/image_codecs.h"
+#include "image_metrics.h"
+#include "io/volume_loader.h"
 #include "scene/presets.h"
 #include "scene/scene_builder.h"
 #include "scene/scene_file.h"
-#include "io/volume_loader.h"
 
 namespace cinevol::bench {
 namespace {
@@ -41,20 +40,31 @@ struct ScenarioFrame {
   Camera camera;
   const TransferFunction* tf = nullptr;
   const LightSetup* lights = nullptr;
+  int phase = 0;  // of a time series
 };
 
 struct Scenario {
   std::string name;
   int frames = 0;
-  std::vector<TransferFunction> tfs;   // one, or one per frame
-  std::vector<LightSetup> lights;      // one, or one per frame
+  std::vector<TransferFunction> tfs;  // one, or one per frame
+  std::vector<LightSetup> lights;     // one, or one per frame
   std::function<Camera(int)> camera;
+  std::function<int(int)> phase = [](int) { return 0; };
+  // The view holds still between frames: no camera bit, so the denoiser
+  // hears of a change only where the scenario makes one (a phase switch).
+  bool still_view = false;
 
   ScenarioFrame At(int t) const {
     return {camera(t), &tfs[std::min<std::size_t>(t, tfs.size() - 1)],
-            &lights[std::min<std::size_t>(t, lights.size() - 1)]};
+            &lights[std::min<std::size_t>(t, lights.size() - 1)], phase(t)};
   }
 };
+
+// A time series played with the view still (a beating heart): the phase
+// steps every kFramesPerPhase frames and loops. At 720p on an H200 a 20-phase
+// cine plays at about 430 frames/s with 30 phases a second, 14 frames a
+// phase (docs/performance.md); 4 is the harder case of a slower device.
+constexpr int kFramesPerPhase = 4;
 
 // `v` turned by `degrees` about the unit `axis`.
 Vec3f Rotate(Vec3f v, Vec3f axis, float degrees) {
@@ -115,19 +125,21 @@ Scenario SunSky(v1::Scene scene, const Volume& volume, int frames) {
   sky.mutable_uniform()->set_b(0.42f);
   sky.set_intensity(1);
   const RenderSetup lit = ResolveScene(scene, volume);
-  return {"sun-sky", frames, {lit.transfer_function}, {lit.lights},
-          [camera = lit.camera](int t) { return Orbit(camera, 1.0f * t); }};
+  return {"sun-sky", frames, {lit.transfer_function}, {lit.lights}, [camera = lit.camera](int t) {
+            return Orbit(camera, 1.0f * t);
+          }};
 }
 
-std::vector<Scenario> MakeScenarios(const v1::Scene& scene, const RenderSetup& base, const Volume& volume,
+std::vector<Scenario> MakeScenarios(const v1::Scene& scene, const RenderSetup& base, const Volume& volume, int phases,
                                     float frames_scale) {
   auto frames = [&](int n) { return std::max(3, static_cast<int>(std::lround(n * frames_scale))); };
   const Camera camera = base.camera;
   const Vec3f centre = camera.eye + camera.forward * camera.focal_distance;
   std::vector<Scenario> s;
 
-  s.push_back({"orbit", frames(30), {base.transfer_function}, {base.lights},
-               [camera](int t) { return Orbit(camera, 1.0f * t); }});
+  s.push_back({"orbit", frames(30), {base.transfer_function}, {base.lights}, [camera](int t) {
+                 return Orbit(camera, 1.0f * t);
+               }});
 
   // A rectangular key light circling the volume, the scene's environment as fill.
   Scenario area{"area-light", frames(30), {base.transfer_function}, {}, [camera](int) { return camera; }};
@@ -173,9 +185,16 @@ std::vector<Scenario> MakeScenarios(const v1::Scene& scene, const RenderSetup& b
   s.push_back(tf_edit);
 
   s.push_back({"static", frames(60), {base.transfer_function}, {base.lights}, [camera](int) { return camera; }});
-  s.push_back({"transparent", frames(30), {TransparentShells(volume)}, {base.lights},
-               [camera](int t) { return Orbit(camera, 0.5f * t); }});
+  s.push_back({"transparent", frames(30), {TransparentShells(volume)}, {base.lights}, [camera](int t) {
+                 return Orbit(camera, 0.5f * t);
+               }});
   s.push_back(SunSky(scene, volume, frames(30)));
+  if (phases > 1) {
+    Scenario beat{"beat", frames(40), {base.transfer_function}, {base.lights}, [camera](int) { return camera; }};
+    beat.phase = [phases](int t) { return (t / kFramesPerPhase) % phases; };
+    beat.still_view = true;
+    s.push_back(beat);
+  }
   return s;
 }
 
@@ -277,9 +296,10 @@ struct References {
 
 struct Context {
   const StudyOptions& o;
-  Backend backend;  // resolved: every pipeline of the study on the same device
-  std::shared_ptr<const Volume> volume;
+  Backend backend;                                    // resolved: every pipeline of the study on the same device
+  std::vector<std::shared_ptr<const Volume>> phases;  // the volume: a time series' phases, or one
   float exposure = 0;
+  const std::shared_ptr<const Volume>& PhaseVolume(int phase = 0) const { return phases[std::size_t(phase)]; }
 };
 
 // What the viewer sees of `frame`: through JPEG where `jpeg_quality` is set
@@ -312,7 +332,7 @@ void MeasureStillFlicker(const Context& ctx, const ScenarioFrame& f, RenderSetup
   setup.camera.height = height;
   setup.transfer_function = *f.tf;
   setup.lights = *f.lights;
-  FramePipeline pipeline(ctx.backend, ctx.volume);
+  FramePipeline pipeline(ctx.backend, ctx.PhaseVolume(f.phase));
   pipeline.Update(setup, settings);
   double encode_ms = 0;
   const double measured = kFlickerFrames - kFlickerWarmup - 1;
@@ -343,9 +363,10 @@ RunResult RunConfig(const Context& ctx, const Scenario& scenario, const Referenc
   settings.denoiser.svgf = c.svgf;
   settings.refine = false;  // every frame as it looks while interacting
   settings.hold_codes = c.hold_codes;
+  settings.phase_history = c.phase_history;
   // Without JPEG, full chroma: the displayed pixels, give or take YCbCr rounding.
   settings.chroma = c.jpeg_quality > 0 ? ChromaSubsampling::k420 : ChromaSubsampling::k444;
-  FramePipeline pipeline(ctx.backend, ctx.volume);
+  FramePipeline pipeline(ctx.backend, ctx.PhaseVolume());
   RenderSetup setup;
   setup.spp = c.spp;
   setup.max_bounces = c.bounces;
@@ -358,12 +379,14 @@ RunResult RunConfig(const Context& ctx, const Scenario& scenario, const Referenc
   ImageRgb8 previous;
   for (int t = 0; t < scenario.frames; ++t) {
     const ScenarioFrame f = scenario.At(t);
-    // The camera bit every frame: each frame's accumulation starts afresh.
-    const unsigned changes = kCameraChanged | ApplyFrame(f, setup, tf, lights);
+    // The camera bit every frame (each frame's accumulation starts afresh),
+    // but where the view holds still.
+    const unsigned changes = (scenario.still_view ? 0u : unsigned(kCameraChanged)) | ApplyFrame(f, setup, tf, lights);
     setup.camera = f.camera;
     setup.camera.width = w;
     setup.camera.height = h;
     pipeline.Update(setup, settings, changes);
+    pipeline.SetPhase(ctx.PhaseVolume(f.phase));
     const DisplayFrame frame = pipeline.RenderFrame();
     FrameResult fr;
     fr.frame = t;
@@ -400,12 +423,17 @@ const std::map<std::string, float WrlsSettings::*> kWrlsFloatKeys = {
     {"stabilize_clamp", &WrlsSettings::stabilize_clamp},
 };
 const std::map<std::string, int WrlsSettings::*> kWrlsIntKeys = {
-    {"atrous", &WrlsSettings::atrous_iterations},
-    {"still", &WrlsSettings::max_still_frames},
-    {"recenter", &WrlsSettings::stabilize_recenter},
-    {"stabilize_still", &WrlsSettings::stabilize_still_frames},
+    {"atrous", &WrlsSettings::atrous_iterations},    {"still", &WrlsSettings::max_still_frames},
+    {"recenter", &WrlsSettings::stabilize_recenter}, {"stabilize_still", &WrlsSettings::stabilize_still_frames},
     {"rescale", &WrlsSettings::feature_rescale},
 };
+
+PhaseHistory ParsePhaseHistory(const std::string& spec, const std::string& text) {
+  if (text == "changed") return PhaseHistory::kChanged;
+  if (text == "reset") return PhaseHistory::kReset;
+  if (text == "kept") return PhaseHistory::kKept;
+  throw InputError(fmt::format("--variant {}: phase_history is changed, reset or kept", spec));
+}
 
 }  // namespace
 
@@ -429,6 +457,10 @@ StudyConfig Variant(const std::string& spec) {
   }
   for (const auto& [key, text] : items) {
     if (key == "method") continue;
+    if (key == "phase_history") {
+      c.phase_history = ParsePhaseHistory(spec, text);
+      continue;
+    }
     char* end = nullptr;
     const float v = std::strtof(text.c_str(), &end);
     if (text.empty() || *end != '\0' || !std::isfinite(v)) {
@@ -441,14 +473,18 @@ StudyConfig Variant(const std::string& spec) {
       if (v != 0.0f && v != 1.0f) throw InputError(fmt::format("--variant {}: hold is 0 or 1", spec));
       c.hold_codes = v != 0.0f;
     } else if (c.method == DenoiseMethod::kSvgf) {
-      if (key == "sigma_luminance") c.svgf.sigma_luminance = v;
-      else if (key == "sigma_depth") c.svgf.sigma_depth = v;
-      else throw InputError(fmt::format("--variant {}: unknown SVGF key '{}'", spec, key));
+      if (key == "sigma_luminance")
+        c.svgf.sigma_luminance = v;
+      else if (key == "sigma_depth")
+        c.svgf.sigma_depth = v;
+      else
+        throw InputError(fmt::format("--variant {}: unknown SVGF key '{}'", spec, key));
     } else if (auto f = kWrlsFloatKeys.find(key); f != kWrlsFloatKeys.end()) {
       c.wrls.*(f->second) = v;
     } else if (auto n = kWrlsIntKeys.find(key); n != kWrlsIntKeys.end()) {
       // A float beyond int's range would not convert (undefined): refused.
-      if (!(std::fabs(v) <= 1e6f)) throw InputError(fmt::format("--variant {}: {}={} is out of range", spec, key, text));
+      if (!(std::fabs(v) <= 1e6f))
+        throw InputError(fmt::format("--variant {}: {}={} is out of range", spec, key, text));
       c.wrls.*(n->second) = int(v);
     } else {
       throw InputError(fmt::format("--variant {}: unknown key '{}'", spec, key));
@@ -458,9 +494,10 @@ StudyConfig Variant(const std::string& spec) {
   const WrlsSettings& w = c.wrls;
   if (w.feature_rescale < 1 || w.feature_rescale > 8 || w.stabilize_recenter < 1 || w.stabilize_recenter > 8 ||
       !(w.drift_sigma > 0) || w.stabilize_still_frames < 0 || w.atrous_iterations < 0 || w.atrous_iterations > 8) {
-    throw InputError(fmt::format("--variant {}: rescale and recenter take 1 to 8, atrous 0 to 8, drift more than 0, "
-                                 "stabilize_still 0 or more",
-                                 spec));
+    throw InputError(
+        fmt::format("--variant {}: rescale and recenter take 1 to 8, atrous 0 to 8, drift more than 0, "
+                    "stabilize_still 0 or more",
+                    spec));
   }
   return c;
 }
@@ -478,8 +515,8 @@ std::string StudyConfig::Label() const {
 
 std::vector<StudyConfig> StudyConfigs(bool quick) {
   std::vector<StudyConfig> configs;
-  const DenoiseMethod all[] = {DenoiseMethod::kNone, DenoiseMethod::kAccumulate, DenoiseMethod::kKnn,
-                               DenoiseMethod::kGuidedFilter, DenoiseMethod::kSvgf, DenoiseMethod::kWrls};
+  const DenoiseMethod all[] = {DenoiseMethod::kNone,         DenoiseMethod::kAccumulate, DenoiseMethod::kKnn,
+                               DenoiseMethod::kGuidedFilter, DenoiseMethod::kSvgf,       DenoiseMethod::kWrls};
   for (DenoiseMethod m : all) {
     if (quick && m != DenoiseMethod::kNone && m != DenoiseMethod::kSvgf && m != DenoiseMethod::kWrls) continue;
     for (bool demodulate : {false, true}) {
@@ -510,7 +547,7 @@ std::vector<StudyConfig> StudyConfigs(bool quick) {
 }
 
 std::vector<std::string> ScenarioNames() {
-  return {"orbit", "area-light", "point-light", "tf-edit", "static", "transparent", "sun-sky"};
+  return {"orbit", "area-light", "point-light", "tf-edit", "static", "transparent", "sun-sky", "beat"};
 }
 
 double RunResult::Mean(double FrameResult::*field) const {
@@ -554,8 +591,7 @@ References LoadReferences(const Context& ctx, const Dataset& d, const std::strin
       view.camera.height = ctx.o.height;
       view.transfer_function = *f.tf;
       view.lights = *f.lights;
-      refs.hdr.push_back(
-          RenderReference(ctx.backend, ctx.volume, view, ctx.o.reference_spp, bounces, t));
+      refs.hdr.push_back(RenderReference(ctx.backend, ctx.PhaseVolume(f.phase), view, ctx.o.reference_spp, bounces, t));
       WriteExr(path, refs.hdr.back());
     }
     refs.display.push_back(ToneMap(refs.hdr.back(), ctx.exposure));
@@ -581,9 +617,10 @@ void WriteCsv(const fs::path& path, const std::vector<RunResult>& results) {
 void WriteJson(const fs::path& path, const StudyOptions& o, const std::string& device,
                const std::vector<RunResult>& results) {
   std::ofstream out(path);
-  out << fmt::format("{{\"command\": \"{}\", \"device\": \"{}\", \"width\": {}, \"height\": {}, \"reference_spp\": {}, "
-                     "\"reference_bounces\": {},\n \"runs\": [",
-                     o.command_line, device, o.width, o.height, o.reference_spp, o.reference_bounces);
+  out << fmt::format(
+      "{{\"command\": \"{}\", \"device\": \"{}\", \"width\": {}, \"height\": {}, \"reference_spp\": {}, "
+      "\"reference_bounces\": {},\n \"runs\": [",
+      o.command_line, device, o.width, o.height, o.reference_spp, o.reference_bounces);
   for (std::size_t i = 0; i < results.size(); ++i) {
     const RunResult& r = results[i];
     const StudyConfig& c = r.config;
@@ -612,8 +649,8 @@ Camera Orbit(const Camera& c, float degrees) {
   return out;
 }
 
-ImageRgbF RenderReference(Backend backend, std::shared_ptr<const Volume> volume, RenderSetup view, int spp,
-                          int bounces, int frame) {
+ImageRgbF RenderReference(Backend backend, std::shared_ptr<const Volume> volume, RenderSetup view, int spp, int bounces,
+                          int frame) {
   FramePipeline pipeline(backend, std::move(volume));  // its frames count the chunks from 0
   FrameSettings settings;
   settings.denoiser.method = DenoiseMethod::kNone;
@@ -629,7 +666,7 @@ ImageRgbF RenderReference(Backend backend, std::shared_ptr<const Volume> volume,
 }
 
 std::vector<RunResult> RunStudy(const StudyOptions& o) {
-  Context ctx{o, Resolve(ParseBackend(o.backend), "study"), nullptr};
+  Context ctx{o, Resolve(ParseBackend(o.backend), "study"), {}};
   std::string device;
   if (!CudaAvailable(&device) || ctx.backend != Backend::kCuda) device = "cpu";
   std::vector<RunResult> results;
@@ -640,7 +677,7 @@ std::vector<RunResult> RunStudy(const StudyOptions& o) {
     v1::Scene scene = preset ? v1::Scene{} : LoadSceneFile(d.scene);
     if (!d.volume.empty()) *scene.mutable_volume() = ParseVolumeSpec(d.volume);
     if (preset) {
-      const Volume loaded = LoadVolume(scene.volume());
+      const Volume loaded = std::move(LoadVolumeSeries(scene.volume()).phases.front());
       const std::string name = d.scene.substr(7);
       const auto source = scene.volume();
       scene = MakePresetScene(name == "default" ? DefaultPreset(loaded) : name, loaded);
@@ -650,11 +687,13 @@ std::vector<RunResult> RunStudy(const StudyOptions& o) {
     scene.mutable_render()->set_width(o.width);
     scene.mutable_render()->set_height(o.height);
     const std::string scene_json = SceneToJson(scene);
-    auto volume = std::make_shared<const Volume>(LoadVolume(scene.volume()));
-    const RenderSetup setup = ResolveScene(scene, *volume);
+    VolumeSeries series = LoadVolumeSeries(scene.volume());
+    ctx.phases.clear();
+    for (Volume& phase : series.phases) ctx.phases.push_back(std::make_shared<const Volume>(std::move(phase)));
+    const Volume& volume = *ctx.PhaseVolume();
+    const RenderSetup setup = ResolveScene(scene, volume);
     ctx.exposure = setup.exposure;
-    ctx.volume = volume;
-    for (const Scenario& s : MakeScenarios(scene, setup, *volume, o.frames_scale)) {
+    for (const Scenario& s : MakeScenarios(scene, setup, volume, int(ctx.phases.size()), o.frames_scale)) {
       if (!o.scenarios.empty() && std::find(o.scenarios.begin(), o.scenarios.end(), s.name) == o.scenarios.end()) {
         continue;
       }
@@ -664,8 +703,8 @@ std::vector<RunResult> RunStudy(const StudyOptions& o) {
         if (it != by_bounces.end()) return it->second;
         const Clock::time_point start = Clock::now();
         it = by_bounces.emplace(bounces, LoadReferences(ctx, d, scene_json, s, bounces)).first;
-        std::fprintf(stderr, "%s/%s: %d frames, references at %d bounces in %.1f s\n", d.name.c_str(),
-                     s.name.c_str(), s.frames, bounces, MsSince(start) / 1000);
+        std::fprintf(stderr, "%s/%s: %d frames, references at %d bounces in %.1f s\n", d.name.c_str(), s.name.c_str(),
+                     s.frames, bounces, MsSince(start) / 1000);
         return it->second;
       };
       const int image_frame = s.frames / 2;
@@ -708,13 +747,15 @@ std::string SummaryTable(const std::vector<RunResult>& results) {
     const std::string heading = r.dataset + " / " + r.scenario;
     if (heading != current) {
       current = heading;
-      t += fmt::format("\n#### {} ({} frames)\n\n| configuration | PSNR dB | SSIM | relMSE | temporal error | "
-                       "still view: flicker; before rounding; PSNR dB | ms (render + denoise + tone map + encode) |\n"
-                       "|---|---|---|---|---|---|---|\n",
-                       heading, r.frames.size());
+      t += fmt::format(
+          "\n#### {} ({} frames)\n\n| configuration | PSNR dB | SSIM | relMSE | temporal error | "
+          "still view: flicker; before rounding; PSNR dB | ms (render + denoise + tone map + encode) |\n"
+          "|---|---|---|---|---|---|---|\n",
+          heading, r.frames.size());
     }
     t += fmt::format(
-        "| {} | {:.2f} | {:.4f} | {:.4g} | {:.4f} | {:.4f}; {:.4f}; {:.2f} | {:.2f} ({:.2f} + {:.2f} + {:.2f} + {:.2f}) "
+        "| {} | {:.2f} | {:.4f} | {:.4g} | {:.4f} | {:.4f}; {:.4f}; {:.2f} | {:.2f} ({:.2f} + {:.2f} + {:.2f} + "
+        "{:.2f}) "
         "|\n",
         r.config.Label(), r.Mean(&FrameResult::psnr), r.Mean(&FrameResult::ssim), r.Mean(&FrameResult::rel_mse),
         r.Mean(&FrameResult::temporal), r.flicker, r.flicker_unrounded, r.still_psnr, r.MeanMs(),

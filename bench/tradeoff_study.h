@@ -13,8 +13,8 @@
 #include "core/camera.h"
 #include "core/image.h"
 #include "denoise/denoiser.h"
-#include "scene/scene_builder.h"
 #include "pipeline/frame_pipeline.h"
+#include "scene/scene_builder.h"
 
 namespace cinevol::bench {
 
@@ -29,12 +29,13 @@ struct StudyConfig {
   std::string knob = "denoiser";  // the sweep it belongs to: denoiser, spp, bounces, jpeg, scale
   DenoiseMethod method = DenoiseMethod::kWrls;
   bool demodulate = false;
-  int spp = 2;           // samples per pixel per frame
-  int bounces = 4;       // scattering events per path
-  int jpeg_quality = 0;  // 0: the display image as rendered (no JPEG)
-  float scale = 1;       // resolution scale: rendered smaller, upsampled for display
-  bool hold_codes = true;  // FrameSettings::hold_codes
-  std::string variant;   // a named variant (ablations); empty: the defaults
+  int spp = 2;                                          // samples per pixel per frame
+  int bounces = 4;                                      // scattering events per path
+  int jpeg_quality = 0;                                 // 0: the display image as rendered (no JPEG)
+  float scale = 1;                                      // resolution scale: rendered smaller, upsampled for display
+  bool hold_codes = true;                               // FrameSettings::hold_codes
+  PhaseHistory phase_history = PhaseHistory::kChanged;  // a time series' phase switch (the beat scenario)
+  std::string variant;                                  // a named variant (ablations); empty: the defaults
   WrlsSettings wrls;
   SvgfSettings svgf;
   std::string Label() const;
@@ -46,8 +47,9 @@ struct StudyConfig {
 // stabilize_clamp, recenter, stabilize_still, rescale, rescale_sigma
 // (WrlsSettings);
 // method=svgf makes it an SVGF variant (keys sigma_luminance, sigma_depth).
-// Either method also takes spp (samples per pixel per frame) and hold (0:
-// the display rounds every frame plainly, FrameSettings::hold_codes).
+// Either method also takes spp (samples per pixel per frame), hold (0:
+// the display rounds every frame plainly, FrameSettings::hold_codes) and
+// phase_history (changed, reset or kept: FrameSettings::phase_history).
 StudyConfig Variant(const std::string& spec);
 
 // The baseline and one-at-a-time sweeps of every knob; `quick` a small subset.
@@ -67,7 +69,7 @@ struct StudyOptions {
   // leans bright would partly cancel (docs/tradeoff.md).
   int reference_bounces = 8;
   std::filesystem::path cache = "bench-cache";  // references, as EXR
-  std::filesystem::path out;                     // tradeoff.csv, tradeoff.json, images/ (none when empty)
+  std::filesystem::path out;                    // tradeoff.csv, tradeoff.json, images/ (none when empty)
   std::string backend = "auto";
   std::string command_line;
 };
@@ -102,8 +104,8 @@ std::vector<RunResult> RunStudy(const StudyOptions& options);
 // transfer function and lights): `spp` samples at `bounces` in chunks of 64,
 // seeded by `frame` alone, accumulated by a FramePipeline of its own.
 Camera Orbit(const Camera& camera, float degrees);
-ImageRgbF RenderReference(Backend backend, std::shared_ptr<const Volume> volume, RenderSetup view, int spp,
-                          int bounces, int frame);
+ImageRgbF RenderReference(Backend backend, std::shared_ptr<const Volume> volume, RenderSetup view, int spp, int bounces,
+                          int frame);
 
 // Markdown: per scenario, every configuration's means.
 std::string SummaryTable(const std::vector<RunResult>& results);

@@ -1,5 +1,6 @@
 // `cinevol movie --server ADDR --volume ID (--orbit DEGREES | --sweep AXIS | --phases) --seconds S --fps F
-// --out F.mp4`: a session's view along a path (the camera about its target, or a clip plane through the volume),
+// --out F.mp4`: a session's view along a path (the camera about its target, a clip plane through the volume, or a
+// time series' phases played in its own time),
 // rendered by the server's RenderMovie (each frame refined to --spp samples, not the live stream's 2) and encoded
 // there as H.264 in an MP4, written here; with --store-to, also stored as DICOM video in the volume's study.
 #include <fmt/format.h>
@@ -40,6 +41,7 @@ v1::MovieRequest MovieRequest(const MovieOptions& o) {
   v1::MovieRequest request;
   if (o.orbit_given) request.set_orbit_degrees(o.orbit);
   if (!o.sweep.empty()) request.set_sweep(SweepAxis(o.sweep));
+  if (o.phases) request.set_phases(true);
   request.set_seconds(o.seconds);
   request.set_fps(std::uint32_t(o.fps));
   request.set_spp(std::uint32_t(o.spp));
@@ -52,7 +54,7 @@ void Run(const MovieOptions& o) {
   v1::MovieRequest request = MovieRequest(o);
   Client client = Connect(o.connection);
   const v1::VolumeInfo volume = ResolveVolume(client, o.volume);
-  if (o.phases) {
+  if (o.phases && volume.phases() < 2) {
     throw InputError(
         fmt::format("--phases: volume '{}' holds one phase; a movie of phases needs a time series", volume.id()));
   }
@@ -104,7 +106,9 @@ void AddMovieCommand(CLI::App& app) {
       ->check(CLI::Range(-3600.0, 3600.0))
       ->each([o](const std::string&) { o->orbit_given = true; });
   cmd->add_option("--sweep", o->sweep, "Move a clip plane through the volume along x|y|z (sagittal|coronal|axial)");
-  cmd->add_flag("--phases", o->phases, "Play the volume's phases (a time series)");
+  cmd->add_flag(
+      "--phases", o->phases,
+      "Play the volume's phases (a time series) in its own time, looping (10 phases/s where it has no times)");
   cmd->add_option("--seconds", o->seconds, "Length of the movie")
       ->check(CLI::Range(0.04, 600.0))
       ->capture_default_str();

@@ -1,13 +1,13 @@
 // Volume: storage choice, sanitising and geometry checks.
 #include "core/volume.h"
 
+#include <fmt/format.h>
+
 #include <algorithm>
 #include <cctype>
 #include <cmath>
 #include <limits>
 #include <type_traits>
-
-#include <fmt/format.h>
 
 #include "core/blocks.h"
 #include "core/error.h"
@@ -15,26 +15,32 @@
 
 namespace cinevol {
 
-const char* ToString(VoxelStorage storage) {
-  return storage == VoxelStorage::kUInt16 ? "uint16" : "float32";
-}
+const char* ToString(VoxelStorage storage) { return storage == VoxelStorage::kUInt16 ? "uint16" : "float32"; }
 
 void CheckVolumeGeometry(Vec3i dims, Vec3f spacing_mm, const std::string& what) {
   for (int a = 0; a < 3; ++a) {
     if (dims[a] < 1 || dims[a] > kMaxVoxelsPerAxis) {
-      throw InputError(fmt::format("{}: dimension {} is {}, outside [1, {}]", what, "xyz"[a],
-                                   dims[a], kMaxVoxelsPerAxis));
+      throw InputError(
+          fmt::format("{}: dimension {} is {}, outside [1, {}]", what, "xyz"[a], dims[a], kMaxVoxelsPerAxis));
     }
     if (!(spacing_mm[a] >= kMinSpacingMm && spacing_mm[a] <= kMaxSpacingMm)) {  // NaN too
-      throw InputError(fmt::format("{}: spacing {} is {:g} mm, outside [{:g}, {:g}]", what, "xyz"[a],
-                                   spacing_mm[a], kMinSpacingMm, kMaxSpacingMm));
+      throw InputError(fmt::format("{}: spacing {} is {:g} mm, outside [{:g}, {:g}]", what, "xyz"[a], spacing_mm[a],
+                                   kMinSpacingMm, kMaxSpacingMm));
     }
   }
   const std::size_t count = std::size_t(dims.x) * std::size_t(dims.y) * std::size_t(dims.z);
   if (count > kMaxVoxels) {
-    throw InputError(fmt::format("{}: {}x{}x{} = {} voxels exceeds the limit of {}", what, dims.x,
-                                 dims.y, dims.z, count, kMaxVoxels));
+    throw InputError(fmt::format("{}: {}x{}x{} = {} voxels exceeds the limit of {}", what, dims.x, dims.y, dims.z,
+                                 count, kMaxVoxels));
   }
+}
+
+void CheckVoxelLimit(Vec3i dims, std::uint64_t phases, std::uint64_t max_voxels, const std::string& what) {
+  const std::uint64_t voxels = std::uint64_t(dims.x) * std::uint64_t(dims.y) * std::uint64_t(dims.z);
+  if (voxels * phases <= max_voxels) return;
+  throw InputError(fmt::format("{}: {}x{}x{}{} = {} voxels exceeds this server's limit of {} voxels", what, dims.x,
+                               dims.y, dims.z, phases > 1 ? fmt::format(" voxels x {} phases", phases) : "",
+                               voxels * phases, max_voxels));
 }
 
 namespace {
@@ -174,16 +180,36 @@ Volume::Volume(Vec3i dims, Vec3f spacing_mm, VoxelType type, MemoryBlock voxels,
                                  ToString(type), dims.x, dims.y, dims.z));
   }
   switch (type) {
-    case VoxelType::kUInt8: Store<std::uint8_t>(std::move(voxels)); break;
-    case VoxelType::kInt8: Store<std::int8_t>(std::move(voxels)); break;
-    case VoxelType::kUInt16: Store<std::uint16_t>(std::move(voxels)); break;
-    case VoxelType::kInt16: Store<std::int16_t>(std::move(voxels)); break;
-    case VoxelType::kUInt32: Store<std::uint32_t>(std::move(voxels)); break;
-    case VoxelType::kInt32: Store<std::int32_t>(std::move(voxels)); break;
-    case VoxelType::kUInt64: Store<std::uint64_t>(std::move(voxels)); break;
-    case VoxelType::kInt64: Store<std::int64_t>(std::move(voxels)); break;
-    case VoxelType::kFloat32: Store<float>(std::move(voxels)); break;
-    case VoxelType::kFloat64: Store<double>(std::move(voxels)); break;
+    case VoxelType::kUInt8:
+      Store<std::uint8_t>(std::move(voxels));
+      break;
+    case VoxelType::kInt8:
+      Store<std::int8_t>(std::move(voxels));
+      break;
+    case VoxelType::kUInt16:
+      Store<std::uint16_t>(std::move(voxels));
+      break;
+    case VoxelType::kInt16:
+      Store<std::int16_t>(std::move(voxels));
+      break;
+    case VoxelType::kUInt32:
+      Store<std::uint32_t>(std::move(voxels));
+      break;
+    case VoxelType::kInt32:
+      Store<std::int32_t>(std::move(voxels));
+      break;
+    case VoxelType::kUInt64:
+      Store<std::uint64_t>(std::move(voxels));
+      break;
+    case VoxelType::kInt64:
+      Store<std::int64_t>(std::move(voxels));
+      break;
+    case VoxelType::kFloat32:
+      Store<float>(std::move(voxels));
+      break;
+    case VoxelType::kFloat64:
+      Store<double>(std::move(voxels));
+      break;
   }
   MakeRightHanded();
   SummariseValues();
@@ -205,8 +231,8 @@ void Volume::SetValueUnit(std::string unit, std::string why) {
 }
 
 void Volume::Reorient(const std::array<double, 9>& direction, const std::string& code) {
-  metadata_.notes.push_back(fmt::format("orientation {} given at load, the file's being {}", code,
-                                        OrientationCode(metadata_.direction)));
+  metadata_.notes.push_back(
+      fmt::format("orientation {} given at load, the file's being {}", code, OrientationCode(metadata_.direction)));
   metadata_.direction = direction;
   metadata_.orientation_override = code;
   MakeRightHanded();
@@ -221,10 +247,13 @@ double Determinant(const std::array<double, 9>& d) {
 
 template <class V>
 void MirrorRows(V* voxels, Vec3i dims) {
-  ParallelFor(std::int64_t(dims.z) * dims.y, [&](std::int64_t row) {
-    V* begin = voxels + std::size_t(row) * dims.x;
-    std::reverse(begin, begin + dims.x);
-  }, 0, 64);
+  ParallelFor(
+      std::int64_t(dims.z) * dims.y,
+      [&](std::int64_t row) {
+        V* begin = voxels + std::size_t(row) * dims.x;
+        std::reverse(begin, begin + dims.x);
+      },
+      0, 64);
 }
 
 }  // namespace
@@ -244,9 +273,10 @@ void Volume::MakeRightHanded() {
     metadata_.origin_mm[r] += d[3 * r] * reach;
     d[3 * r] = -d[3 * r];
   }
-  metadata_.notes.push_back(fmt::format("held mirrored along x, from {} to {}: its index axes were left-handed, "
-                                        "the patient is the same",
-                                        before, OrientationCode(d)));
+  metadata_.notes.push_back(
+      fmt::format("held mirrored along x, from {} to {}: its index axes were left-handed, "
+                  "the patient is the same",
+                  before, OrientationCode(d)));
 }
 
 std::string OrientationCode(const std::array<double, 9>& direction) {
@@ -282,9 +312,10 @@ void Volume::Store(MemoryBlock voxels) {
   const std::size_t n = voxel_count();
   const ValueScan scan = Scan(static_cast<const T*>(voxels.data()), n);
   if (scan.beyond != 0) {
-    throw InputError(fmt::format("{}: a voxel value of {:g} is beyond what cinevol holds: values must lie within "
-                                 "[{:g}, {:g}]",
-                                 metadata_.source, scan.beyond, -kMaxVoxelMagnitude, kMaxVoxelMagnitude));
+    throw InputError(
+        fmt::format("{}: a voxel value of {:g} is beyond what cinevol holds: values must lie within "
+                    "[{:g}, {:g}]",
+                    metadata_.source, scan.beyond, -kMaxVoxelMagnitude, kMaxVoxelMagnitude));
   }
   metadata_.non_finite_replaced = scan.non_finite;
   metadata_.subnormals_flushed = scan.subnormal;
@@ -323,28 +354,23 @@ std::uint64_t Volume::BytesToLoad(VoxelType type, std::uint64_t voxels) {
   const std::uint64_t block = std::max<std::uint64_t>(BytesPerVoxel(type), sizeof(std::uint16_t));
   // 8-bit voxels widen into a new 16-bit block while the reader's is held.
   const std::uint64_t widening = BytesPerVoxel(type) == 1 ? voxels : 0;
-  const std::uint64_t blocks = (voxels + kBlockSize * kBlockSize * kBlockSize - 1) /
-                               (kBlockSize * kBlockSize * kBlockSize);
+  const std::uint64_t blocks =
+      (voxels + kBlockSize * kBlockSize * kBlockSize - 1) / (kBlockSize * kBlockSize * kBlockSize);
   return voxels * block + widening + blocks * sizeof(ValueRange);
 }
 
 Vec3i Volume::block_counts() const { return BlockCounts(dims_, {kBlockSize, kBlockSize, kBlockSize}); }
 
-std::size_t Volume::voxel_count() const {
-  return std::size_t(dims_.x) * std::size_t(dims_.y) * std::size_t(dims_.z);
-}
+std::size_t Volume::voxel_count() const { return std::size_t(dims_.x) * std::size_t(dims_.y) * std::size_t(dims_.z); }
 
 float Volume::ValueAtIndex(std::size_t i) const {
   return storage_ == VoxelStorage::kUInt16 ? float(u16()[i]) + stored_offset_ : f32()[i];
 }
 
-float Volume::Value(int x, int y, int z) const {
-  return ValueAtIndex((std::size_t(z) * dims_.y + y) * dims_.x + x);
-}
+float Volume::Value(int x, int y, int z) const { return ValueAtIndex((std::size_t(z) * dims_.y + y) * dims_.x + x); }
 
 std::size_t Volume::MemoryBytes() const {
-  return voxels_.bytes() + block_ranges_.size() * sizeof(ValueRange) +
-         histogram_.counts.size() * sizeof(std::uint64_t);
+  return voxels_.bytes() + block_ranges_.size() * sizeof(ValueRange) + histogram_.counts.size() * sizeof(std::uint64_t);
 }
 
 }  // namespace cinevol

@@ -176,4 +176,9 @@ inline constexpr int kMaxPhases = 4096;
 // Throws InputError naming `what` when dims or spacing are outside the limits.
 void CheckVolumeGeometry(Vec3i dims, Vec3f spacing_mm, const std::string& what);
 
+// Throws InputError naming `what` when `phases` volumes of `dims` hold more
+// voxels than a server's `max_voxels` (its --max-voxels): every phase
+// counted, before any voxel is read.
+void CheckVoxelLimit(Vec3i dims, std::uint64_t phases, std::uint64_t max_voxels, const std::string& what);
+
 }  // namespace cinevol

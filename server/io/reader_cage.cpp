@@ -549,12 +549,7 @@ CheckedHeader Check(const reader::Header& h, ReaderProcess& child, const LoadPol
   c.voxels = std::uint64_t(c.dims.x) * std::uint64_t(c.dims.y) * std::uint64_t(c.dims.z);
   c.phases = std::max<int>(1, int(std::min<std::uint32_t>(h.phases(), kMaxPhases + 1u)));
   if (c.phases > kMaxPhases) child.Violation(fmt::format("announced more than {} phases", kMaxPhases));
-  if (c.voxels * std::uint64_t(c.phases) > policy.max_voxels) {  // every phase counted, before any is read
-    throw InputError(fmt::format("{}: {}x{}x{}{} = {} voxels exceeds this server's limit of {} voxels", child.shown(),
-                                 c.dims.x, c.dims.y, c.dims.z,
-                                 c.phases > 1 ? fmt::format(" voxels x {} phases", c.phases) : "", c.voxels * c.phases,
-                                 policy.max_voxels));
-  }
+  CheckVoxelLimit(c.dims, std::uint64_t(c.phases), policy.max_voxels, child.shown());  // before any is read
   if (h.phase_seconds_size() > 0) {
     // Times from the first, rising: anything else from a file is no time axis.
     bool rising = h.phase_seconds_size() == c.phases && AllFinite(h.phase_seconds(), c.phases);

@@ -137,6 +137,11 @@ void FramePipeline::Update(const v1::Scene& scene, const FrameSettings& settings
     SetLabels(ResolveLabels(scene.labels(), *volume_));
   }
   if (changes & kSamplingChanged) renderer_->SetReconstruction(ResolveReconstruction(scene.render().reconstruction()));
+  if (changes & kFusionChanged) {
+    const bool fused = scene.has_fusion() && fused_;
+    renderer_->SetFusion(fused ? fused_ : nullptr,
+                         fused ? ResolveFusion(scene.fusion(), *volume_, *fused_) : FusionSetup{});
+  }
   if (changes &
       kCameraChanged) {  // sessions send numbers; a named view here frames what the TF shows and the clipping keeps
     camera_ = ResolveCamera(scene.camera(), scene.render(), *volume_, transfer_function_, {clip_});
@@ -158,6 +163,7 @@ void FramePipeline::Update(const RenderSetup& setup, const FrameSettings& settin
   }
   if (changes & kLabelsChanged) SetLabels(setup.labels);
   if (changes & kSamplingChanged) renderer_->SetReconstruction(setup.reconstruction);
+  if (changes & kFusionChanged) renderer_->SetFusion(setup.fused_volume, setup.fusion);
   if (changes & kCameraChanged) camera_ = setup.camera;
   spp_ = setup.spp;
   max_bounces_ = setup.max_bounces;
@@ -180,8 +186,10 @@ void FramePipeline::SetPhase(std::shared_ptr<const Volume> phase) {
   renderer_->SetTransferFunction(transfer_function_);
   renderer_->SetLabels(labels_, label_setup_);
   ++scene_version_;
-  picture_changed_ = true;
-  ResetAccumulation();
+  ResetAccumulation();  // the samples so far are another phase's
+  if (settings_.phase_history == PhaseHistory::kReset)
+    denoiser_ = CreateDenoiser(renderer_->backend(), settings_.denoiser);
+  picture_changed_ |= settings_.phase_history != PhaseHistory::kKept;
 }
 
 void FramePipeline::SetTransferFunction(TransferFunction tf) {
@@ -194,14 +202,16 @@ void FramePipeline::Apply(const FrameSettings& settings, unsigned changes) {
   if (!has_scene_ || settings.denoiser != settings_.denoiser) {
     denoiser_ = CreateDenoiser(renderer_->backend(), settings.denoiser);  // frames stay in the renderer's memory
   }
-  if (changes & (kTransferFunctionChanged | kLightsChanged | kClippingChanged | kLabelsChanged)) ++scene_version_;
+  if (changes & (kTransferFunctionChanged | kLightsChanged | kClippingChanged | kLabelsChanged | kFusionChanged)) {
+    ++scene_version_;
+  }
   picture_changed_ |= (changes & kPictureChanges) != 0;
   // On the CPU every edit of the picture is an interaction: a full-size
   // frame after a moved light would take seconds.
-  const unsigned interactions =
-      policy_ == InteractivePolicy::kCostModel
-          ? (kCameraChanged | kTransferFunctionChanged | kLightsChanged | kClippingChanged | kLabelsChanged)
-          : (kCameraChanged | kTransferFunctionChanged);
+  const unsigned interactions = policy_ == InteractivePolicy::kCostModel
+                                    ? (kCameraChanged | kTransferFunctionChanged | kLightsChanged | kClippingChanged |
+                                       kLabelsChanged | kFusionChanged)
+                                    : (kCameraChanged | kTransferFunctionChanged);
   if (has_scene_ && (changes & interactions)) moved_at_ = Clock::now();
   if (changes & kEverythingChanged) ResetAccumulation();
   settings_ = settings;

@@ -21,20 +21,20 @@
 #include <vector>
 
 #include "cinevol/v1/scene.pb.h"
+#include "cinevol/v1/service.pb.h"
 #include "core/camera.h"
 #include "core/image.h"
 #include "core/volume.h"
 #include "denoise/denoiser.h"
 #include "encode/image_codecs.h"
-#include "cinevol/v1/service.pb.h"
-#include "scene/scene_builder.h"
-#include "scene/scene_file.h"  // SceneChange: what an update changes, as the events that made it say
 #include "pipeline/display.h"
 #include "pipeline/frame_cost.h"
 #include "pipeline/jpeg_encoder.h"
 #include "pipeline/refine.h"
 #include "pipeline/upsample.h"
 #include "render/renderer.h"
+#include "scene/scene_builder.h"
+#include "scene/scene_file.h"  // SceneChange: what an update changes, as the events that made it say
 
 namespace cinevol {
 
@@ -51,13 +51,23 @@ inline constexpr float kCpuInteractiveFrameMs = 70;
 inline constexpr float kDefaultErrorTarget = 0.02f;
 
 // How frames are made from the scene, beyond what the scene model says.
+// What a phase switch of a time series (FramePipeline::SetPhase) does to the
+// denoiser's history; measured against per-phase references in
+// docs/tradeoff.md, "A beating heart".
+enum class PhaseHistory {
+  kChanged,  // kept and reprojected, the denoiser told the picture changed, as after any edit (the default)
+  kReset,    // dropped: a new denoiser starts from the new phase's first frame
+  kKept,     // kept as though only the samples changed
+};
+
 struct FrameSettings {
-  DenoiserSettings denoiser;      // the method and every knob of it; a change makes a new denoiser
-  int jpeg_quality = 80;          // [1, 100]
-  int final_jpeg_quality = 95;    // [1, 100]: the frame that ends refinement
-  bool final_png = false;         // the frame that ends refinement as lossless 8-bit sRGB instead
+  DenoiserSettings denoiser;  // the method and every knob of it; a change makes a new denoiser
+  PhaseHistory phase_history = PhaseHistory::kChanged;
+  int jpeg_quality = 80;        // [1, 100]
+  int final_jpeg_quality = 95;  // [1, 100]: the frame that ends refinement
+  bool final_png = false;       // the frame that ends refinement as lossless 8-bit sRGB instead
   ChromaSubsampling chroma = ChromaSubsampling::k420;
-  int target_spp = 256;           // >= 1: refinement stops at this many samples per pixel
+  int target_spp = 256;  // >= 1: refinement stops at this many samples per pixel
   // Refinement stops sooner once the refined image's estimated relative
   // error (pipeline/refine.h) is at most this; 0: only at target_spp.
   float error_target = kDefaultErrorTarget;
@@ -121,12 +131,12 @@ enum class InteractivePolicy {
 // A frame ready to encode, with what it cost. The planes are at the
 // settings' chroma subsampling; ToRgb (core/ycc.h) gives the pixels back.
 struct DisplayFrame {
-  ImageYcc8 image;          // empty where final_rgb or jpeg holds the frame
-  ImageRgb8 final_rgb;      // the final frame, where FrameSettings::final_png asks for its exact pixels
-  EncodedJpeg jpeg;         // the frame encoded on the GPU, where SetJpegEncoder asks for nvJPEG
-  int jpeg_quality = 0;     // the settings' quality for this frame (final or not): jpeg's, or the one to encode at
-  int accumulated_spp = 0;  // samples per pixel behind it since the scene last changed
-  bool final = false;       // refinement reached its error target or target_spp with this frame
+  ImageYcc8 image;             // empty where final_rgb or jpeg holds the frame
+  ImageRgb8 final_rgb;         // the final frame, where FrameSettings::final_png asks for its exact pixels
+  EncodedJpeg jpeg;            // the frame encoded on the GPU, where SetJpegEncoder asks for nvJPEG
+  int jpeg_quality = 0;        // the settings' quality for this frame (final or not): jpeg's, or the one to encode at
+  int accumulated_spp = 0;     // samples per pixel behind it since the scene last changed
+  bool final = false;          // refinement reached its error target or target_spp with this frame
   float estimated_error = -1;  // refined frames: the image's estimated relative error; < 0 unknown
   float resolution_scale = 1;  // < 1: rendered at this fraction of the width and height, upsampled
   int spp = 0;                 // samples per pixel this frame rendered
@@ -158,9 +168,11 @@ class FramePipeline {
   // Shows another phase of the volume's time series (alike in grid: the
   // segmentation still fits), the scene kept: its tables and majorants are
   // rebuilt for the phase's values, the accumulation restarts, and the
-  // denoiser is told the picture changed (its history is kept and
-  // reprojected, as for an edit of the transfer function).
+  // denoiser's history goes as FrameSettings::phase_history says.
   void SetPhase(std::shared_ptr<const Volume> phase);
+  // The second volume a scene's fusion names (Scene.fusion; null: none),
+  // before the Update that shows it: scenes name it by id.
+  void SetFusedVolume(std::shared_ptr<const Volume> fused) { fused_ = std::move(fused); }
 
   // One frame of the scene's spp: render, denoise, refine, tone map.
   DisplayFrame RenderFrame();
@@ -232,15 +244,16 @@ class FramePipeline {
 
   std::shared_ptr<const Volume> volume_;
   std::shared_ptr<const LabelVolume> labels_;
-  LabelSetup label_setup_;  // the segmentation's styles, set again on a phase switch
+  std::shared_ptr<const Volume> fused_;  // Scene.fusion's volume, where the scene may fuse one
+  LabelSetup label_setup_;               // the segmentation's styles, set again on a phase switch
   std::unique_ptr<Renderer> renderer_;
   std::unique_ptr<Denoiser> denoiser_;
   std::unique_ptr<Display> display_;
   std::unique_ptr<Upsampler> upsampler_;
   std::unique_ptr<Refiner> refiner_;
   std::unique_ptr<DeviceJpegEncoder> device_jpeg_;  // null: frames leave as planes
-  bool last_frame_blended_ = false;  // the last frame showed refiner_'s blend
-  ClipRegion clip_;                  // the scene's, resolved: named views frame what it keeps
+  bool last_frame_blended_ = false;                 // the last frame showed refiner_'s blend
+  ClipRegion clip_;                                 // the scene's, resolved: named views frame what it keeps
   FrameSettings settings_;
   bool has_scene_ = false;
   TransferFunction transfer_function_;

@@ -19,21 +19,21 @@ constexpr int kRefinements = 10;
 
 // The medium along one ray: extinction and opacity at t from its origin, as the
 // integrator classifies the scene.
-template <bool kCubic, bool kWithLabels>
+template <bool kCubic, bool kWithLabels, bool kWithFusion>
 class RayMedium {
  public:
   RayMedium(const RenderScene& scene, const Ray& ray) : s_(scene), ray_(ray) {}
 
   float SigmaT(float t) const {
     Classified c;
-    return ExtinctionAt<kCubic, kWithLabels>(s_, ray_.origin + ray_.direction * t, c);
+    return ExtinctionAt<kCubic, kWithLabels, kWithFusion>(s_, ray_.origin + ray_.direction * t, c);
   }
 
   // The tissue's opacity at t: what a capped face shows there.
   float Opacity(float t) const {
     Classified c;
-    ExtinctionAt<kCubic, kWithLabels>(s_, ray_.origin + ray_.direction * t, c);
-    return MaterialOf<kWithLabels>(s_, c).opacity;
+    ExtinctionAt<kCubic, kWithLabels, kWithFusion>(s_, ray_.origin + ray_.direction * t, c);
+    return MaterialOf<kWithLabels>(s_, c).opacity;  // a capped face cuts the volume's tissue
   }
 
  private:
@@ -66,7 +66,7 @@ float RefineCrossing(const Depth& depth, MarchPoint a, float t_b, float target) 
 
 // Where the accumulated opacity along `ray` reaches the threshold; nullopt
 // where it never does inside what the volume box and the clipping keep.
-template <bool kCubic, bool kWithLabels>
+template <bool kCubic, bool kWithLabels, bool kWithFusion>
 std::optional<float> MarchToThreshold(const RenderScene& s, const Ray& ray, const PickSettings& settings) {
   float t0, t1;
   int entered;
@@ -77,7 +77,7 @@ std::optional<float> MarchToThreshold(const RenderScene& s, const Ray& ray, cons
   }
   // Marched from the entry point: steps of a fraction of a voxel stay
   // steps however far the eye sits (a float t of 1e7 mm could not take them).
-  const RayMedium<kCubic, kWithLabels> depth(s, {ray.origin + ray.direction * t0, ray.direction});
+  const RayMedium<kCubic, kWithLabels, kWithFusion> depth(s, {ray.origin + ray.direction * t0, ray.direction});
   const float length = t1 - t0;
   // 1 - exp(-tau) >= threshold; a threshold of 1 makes it infinite.
   const float target =
@@ -104,10 +104,16 @@ std::optional<float> MarchToThreshold(const RenderScene& s, const Ray& ray, cons
 
 using MarchFn = std::optional<float> (*)(const RenderScene&, const Ray&, const PickSettings&);
 
+template <bool kCubic, bool kWithLabels>
+MarchFn MarchWithFusion(const RenderScene& s) {
+  return s.fused.present() ? &MarchToThreshold<kCubic, kWithLabels, true>
+                           : &MarchToThreshold<kCubic, kWithLabels, false>;
+}
+
 MarchFn MarchFor(const RenderScene& s) {
   const bool labels = s.labels.voxels != nullptr;
-  if (s.volume.tricubic) return labels ? &MarchToThreshold<true, true> : &MarchToThreshold<true, false>;
-  return labels ? &MarchToThreshold<false, true> : &MarchToThreshold<false, false>;
+  if (s.volume.tricubic) return labels ? MarchWithFusion<true, true>(s) : MarchWithFusion<true, false>(s);
+  return labels ? MarchWithFusion<false, true>(s) : MarchWithFusion<false, false>(s);
 }
 
 // The label of a picked point: its nearest voxel's. A surface is found near
@@ -150,6 +156,11 @@ Picker::Picker(std::shared_ptr<const Volume> volume, std::shared_ptr<const Label
   renderer_.SetClipRegion(setup.clip);
   renderer_.SetReconstruction(setup.reconstruction);
   renderer_.SetLabels(labels_, setup.labels);
+  if (setup.fused_volume) {
+    fused_ = setup.fused_volume;
+    fusion_ = setup.fusion;
+    renderer_.SetFusion(fused_, fusion_);
+  }
 }
 
 PickResult Picker::PickPixel(int x, int y, const PickSettings& settings) const {
@@ -177,7 +188,29 @@ PickResult Picker::Describe(const Ray& ray, float t) const {
   const PreparedVolume& prepared = renderer_.scene_data().volume();
   r.value = scene.volume.SampleTrilinear(r.position) * prepared.value_scale() + prepared.value_offset();
   if (labels_) r.label = LabelAt(*labels_, scene.volume, ray, t);
+  if (fused_) r.fused_value = FusedValueAt(r.position);
   return r;
+}
+
+std::optional<float> Picker::FusedValueAt(Vec3f position) const {
+  const Volume& fused = *fused_;
+  const Vec3f q = fusion_.to_volume(position);  // its volume-centred frame
+  const Vec3f half = fused.extent_mm() * 0.5f;
+  if (!(std::abs(q.x) <= half.x && std::abs(q.y) <= half.y && std::abs(q.z) <= half.z)) return std::nullopt;
+  // Trilinear on its voxels, as the overlay and the integrator sample it.
+  const Vec3f v = (q + half) / fused.spacing_mm() - Vec3f{0.5f, 0.5f, 0.5f};
+  const Vec3i lo{int(std::floor(v.x)), int(std::floor(v.y)), int(std::floor(v.z))};
+  const Vec3f f = v - Vec3f{float(lo.x), float(lo.y), float(lo.z)};
+  auto at = [&](int dx, int dy, int dz) {
+    return fused.Value(std::clamp(lo.x + dx, 0, fused.dims().x - 1), std::clamp(lo.y + dy, 0, fused.dims().y - 1),
+                       std::clamp(lo.z + dz, 0, fused.dims().z - 1));
+  };
+  float value = 0;
+  for (int k = 0; k < 8; ++k) {
+    const int dx = k & 1, dy = k >> 1 & 1, dz = k >> 2 & 1;
+    value += at(dx, dy, dz) * (dx ? f.x : 1 - f.x) * (dy ? f.y : 1 - f.y) * (dz ? f.z : 1 - f.z);
+  }
+  return value * fusion_.value_factor;
 }
 
 }  // namespace cinevol

@@ -53,12 +53,16 @@ struct PickResult {
   // unlabelled voxels around a label (where surfaces are found) that label's.
   // None for the background, the table or without a segmentation.
   std::optional<PickedLabel> label;
+  // The second volume's value there (Scene.fusion; times its value factor,
+  // SUVbw for a PET), linear on its own grid; none without one or outside it.
+  std::optional<float> fused_value;
 };
 
 class Picker {
  public:
-  // `setup`: the scene resolved against `volume` (ResolveScene), its camera
-  // in the volume-centred frame; `labels`: the volume's segmentation (with the
+  // `setup`: the scene resolved against `volume` (ResolveScene; its fusion
+  // with ResolveFusion where it fuses a second volume), its camera in the
+  // volume-centred frame; `labels`: the volume's segmentation (with the
   // table where the scene removes it), or null.
   Picker(std::shared_ptr<const Volume> volume, std::shared_ptr<const LabelVolume> labels, const RenderSetup& setup);
 
@@ -73,9 +77,12 @@ class Picker {
 
  private:
   PickResult Describe(const Ray& ray, float t) const;
+  std::optional<float> FusedValueAt(Vec3f position) const;
 
   std::shared_ptr<const Volume> volume_;
   std::shared_ptr<const LabelVolume> labels_;
+  std::shared_ptr<const Volume> fused_;  // the second volume, where the scene fuses one
+  FusionSetup fusion_;
   Camera camera_;
   CpuRenderer renderer_;  // never renders: it holds the scene's tables as the integrator reads them
 };

@@ -345,6 +345,39 @@ void RunPass(const Volume& volume, const T* voxels, float offset, const SliceLab
   pass.Run(out.image, cancel, threads);
 }
 
+// The second volume over the slice's pixels: each pixel's centre on the
+// plane sampled on its own grid (linear), through the colour map where above
+// the window's bottom.
+template <class T>
+void OverlayFusion(const SliceSpec::Fusion& fusion, const T* voxels, float offset, const SliceGeometry& g,
+                   const std::atomic<bool>* cancel, int threads, ImageRgb8& image) {
+  const Volume& volume = *fusion.volume;
+  const VoxelGrid<T> grid{voxels, volume.dims(), offset};
+  const VolumePlacement placement = VolumePlacement::Of(volume);
+  const Vec3f spacing = volume.spacing_mm();
+  auto index_of = [&](Vec3f lps) { return (placement.PointToVolume(lps) - placement.shift) / spacing; };
+  const Vec3f first = index_of(g.PixelToPatient(0, 0));
+  const Vec3f column = index_of(g.PixelToPatient(1, 0)) - first, row = index_of(g.PixelToPatient(0, 1)) - first;
+  ParallelFor(
+      image.height,
+      [&](std::int64_t y) {
+        if (cancel && cancel->load(std::memory_order_relaxed)) return;
+        std::uint8_t* line = image.bytes.data() + std::size_t(y) * image.width * 3;
+        for (int x = 0; x < image.width; ++x) {
+          const Vec3f q = first + column * float(x) + row * float(y);
+          if (!grid.Inside(q)) continue;
+          const float t = (grid.Linear(q) * fusion.value_factor - fusion.lowest) / fusion.width;
+          if (!(t > 0.0f)) continue;
+          const Vec3f paint = ColorMapAt(fusion.color_map, std::min(t, 1.0f));
+          for (int c = 0; c < 3; ++c) {
+            std::uint8_t& v = line[3 * x + c];
+            v = std::uint8_t(float(v) + (paint[c] - float(v)) * fusion.opacity + 0.5f);
+          }
+        }
+      },
+      threads);
+}
+
 void CheckRenderable(const Volume& volume, const SliceLabels& labels, const SliceSpec& spec) {
   if (!(spec.window.width >= 1.0 && std::isfinite(spec.window.width)) || !std::isfinite(spec.window.center)) {
     throw InputError(fmt::format("slice: window width {} and level {}: VOI LINEAR needs a finite width >= 1",
@@ -355,6 +388,11 @@ void CheckRenderable(const Volume& volume, const SliceLabels& labels, const Slic
   if (labels.volume &&
       !(labels.volume->dims == volume.dims() && labels.volume->labels.size() == volume.voxel_count())) {
     throw InputError("slice: the labels are not on the volume's grid");
+  }
+  const SliceSpec::Fusion& f = spec.fusion;
+  if (f.volume && !(f.width > 0.0f && std::isfinite(f.width) && std::isfinite(f.lowest) &&
+                    std::isfinite(f.value_factor) && f.opacity >= 0.0f && f.opacity <= 1.0f)) {
+    throw InputError("slice: the second volume's window, factor or opacity is out of range");
   }
 }
 
@@ -372,6 +410,26 @@ const char* ToString(SliceAxis axis) {
       break;
   }
   return "oblique";
+}
+
+Vec3f ColorMapAt(SliceColorMap map, float t) {
+  t = std::clamp(t, 0.0f, 1.0f);
+  switch (map) {
+    case SliceColorMap::kGray:
+      return Vec3f{1, 1, 1} * (255.0f * t);
+    case SliceColorMap::kRainbow: {       // blue, cyan, green, yellow, red: hue from 240 to 0 degrees
+      const float h = 4.0f * (1.0f - t);  // sextants 0 (red) to 4 (blue)
+      const float f = h - std::floor(h);
+      const int k = std::min(int(h), 3);
+      const Vec3f stops[5] = {{1, 0, 0}, {1, 1, 0}, {0, 1, 0}, {0, 1, 1}, {0, 0, 1}};
+      return (stops[k] + (stops[k + 1] - stops[k]) * (h >= 4.0f ? 1.0f : f)) * 255.0f;
+    }
+    case SliceColorMap::kHot:
+      break;
+  }
+  // Black, red, yellow, white: red rises over the first third, green the second, blue the last.
+  return Vec3f{std::clamp(3 * t, 0.0f, 1.0f), std::clamp(3 * t - 1, 0.0f, 1.0f), std::clamp(3 * t - 2, 0.0f, 1.0f)} *
+         255.0f;
 }
 
 const char* ToString(SlabProjection projection) {
@@ -442,6 +500,13 @@ SliceImage RenderSlice(const Volume& volume, const SliceLabels& labels, const Cl
     RunPass(volume, volume.u16().data(), volume.stored_offset(), labels, clip, spec, cancel, threads, out);
   } else {
     RunPass(volume, volume.f32().data(), 0.0f, labels, clip, spec, cancel, threads, out);
+  }
+  if (const Volume* fused = spec.fusion.volume) {
+    if (fused->storage() == VoxelStorage::kUInt16) {
+      OverlayFusion(spec.fusion, fused->u16().data(), fused->stored_offset(), out.geometry, cancel, threads, out.image);
+    } else {
+      OverlayFusion(spec.fusion, fused->f32().data(), 0.0f, out.geometry, cancel, threads, out.image);
+    }
   }
   if (cancel && *cancel) throw Cancelled("the slice was cancelled");
   return out;

@@ -27,6 +27,10 @@ namespace cinevol {
 
 enum class SliceAxis { kAxial, kCoronal, kSagittal, kOblique };
 enum class SlabProjection { kMax, kMin, kMean };
+// How a second volume's values colour a slice (Scene.fusion's overlay).
+enum class SliceColorMap { kHot, kRainbow, kGray };
+// The colour at `t` in [0, 1] along the map, each channel in [0, 255].
+Vec3f ColorMapAt(SliceColorMap map, float t);
 
 const char* ToString(SliceAxis axis);             // "axial", "coronal", "sagittal", "oblique"
 const char* ToString(SlabProjection projection);  // "max", "min", "mean"
@@ -66,6 +70,15 @@ struct SliceSpec {
     float pixel_width_mm = 0, pixel_height_mm = 0;  // between columns, between rows
   };
   std::optional<Grid> grid;
+  // A second volume drawn over the slice (Scene.fusion's overlay).
+  struct Fusion {
+    const Volume* volume = nullptr;  // null: none; sampled at the plane, on its own grid, by patient coordinates
+    float value_factor = 1;          // its values are shown times this (a PET's SUVbw factor)
+    float lowest = 0, width = 1;     // the shown values the colour map spans: [lowest, lowest + width], width > 0
+    SliceColorMap color_map = SliceColorMap::kHot;
+    float opacity = 0.5f;  // [0, 1], where a value is above `lowest`; below it nothing is drawn
+  };
+  Fusion fusion;
 };
 
 // Where a slice's pixels lie in the patient.

@@ -30,12 +30,15 @@ template <unsigned kFeatures>
 void RenderFrame(const RenderScene& scene, const FrameTargets& targets, int threads, StopFlags stop) {
   // Every pixel looks at the flags: a pixel costs at most spp paths of
   // bounded cost (integrator.h), so a cancel is seen within that.
-  ParallelFor(scene.camera.height, [&](std::int64_t y) {
-    for (int x = 0; x < scene.camera.width; ++x) {
-      if (stop.Raised()) return;
-      RenderPixel<kFeatures>(scene, x, int(y), targets);
-    }
-  }, threads);
+  ParallelFor(
+      scene.camera.height,
+      [&](std::int64_t y) {
+        for (int x = 0; x < scene.camera.width; ++x) {
+          if (stop.Raised()) return;
+          RenderPixel<kFeatures>(scene, x, int(y), targets);
+        }
+      },
+      threads);
 }
 
 template <unsigned... kVariant>
@@ -57,6 +60,12 @@ void CpuRenderer::SetLabels(std::shared_ptr<const LabelVolume> labels, const Lab
   const bool used = labels && setup.ChangesAnything(*labels);
   data_.SetLabels(used ? VolumeCache::Get().AcquireLabels(labels, data_.volume().brick_size(), kHostDevice) : nullptr,
                   setup);
+}
+
+void CpuRenderer::SetFusion(std::shared_ptr<const Volume> fused, const FusionSetup& setup) {
+  // One brick: its voxels are sampled, never tracked through bricks of their own.
+  fused_ = fused ? VolumeCache::Get().Acquire(fused, 0, kHostDevice) : nullptr;
+  data_.SetFusion(fused_ ? fused_->prepared_ptr() : nullptr, setup);
 }
 
 void CpuRenderer::Render(const FrameRequest& request) {

@@ -18,6 +18,7 @@ class CpuRenderer final : public Renderer {
   void SetClipRegion(const ClipRegion& clip) override { data_.SetClipRegion(clip); }
   void SetReconstruction(Reconstruction r) override { data_.SetReconstruction(r); }
   void SetLabels(std::shared_ptr<const LabelVolume> labels, const LabelSetup& setup) override;
+  void SetFusion(std::shared_ptr<const Volume> fused, const FusionSetup& setup) override;
   void Render(const FrameRequest& request) override;
   void ResetAccumulation() override;
   int accumulated_frames() const override { return accumulated_frames_; }
@@ -37,6 +38,7 @@ class CpuRenderer final : public Renderer {
   int threads_;
   int brick_size_;
   std::shared_ptr<const VolumeCopy> volume_;  // the host copy every CPU renderer of the volume shares
+  std::shared_ptr<const VolumeCopy> fused_;   // the second volume's, where there is one
   SceneData data_;
   int width_ = 0, height_ = 0;
   std::vector<Vec3f> radiance_, accumulated_, albedo_;

@@ -1,12 +1,11 @@
 // CudaRenderer: uploads SceneData's tables, takes the GPU's shared copies of
 // the voxels and the majorants, and launches RenderPixel<F> over the image,
 // one thread per pixel.
-#include "render/cuda_renderer.h"
-
 #include <array>
 #include <utility>
 
 #include "device/cuda_buffer.h"
+#include "render/cuda_renderer.h"
 #include "render/integrator.h"
 
 namespace cinevol {
@@ -53,6 +52,8 @@ struct CudaRenderer::Device {
   DeviceBuffer<Vec4f> diffuse_opacity, specular_roughness, emission, env_texels;
   DeviceBuffer<Light> lights;
   DeviceBuffer<LabelMaterial> label_materials;
+  DeviceBuffer<float> fused_sigma_t;
+  DeviceBuffer<Vec4f> fused_diffuse_opacity, fused_specular_roughness, fused_emission;
   DeviceBuffer<Vec3f> radiance, accumulated, albedo;
   DeviceBuffer<Vec4f> first_hit;
 
@@ -98,6 +99,21 @@ void CudaRenderer::SetLabels(std::shared_ptr<const LabelVolume> labels, const La
   Device& d = *device_;
   d.label_materials.Upload(data_.label_materials(), d.stream);
   UploadTables();
+}
+
+void CudaRenderer::SetFusion(std::shared_ptr<const Volume> fused, const FusionSetup& setup) {
+  int gpu = 0;
+  CINEVOL_CUDA_CHECK(cudaGetDevice(&gpu));
+  // One brick: its voxels are sampled, never tracked through bricks of their own.
+  fused_ = fused ? VolumeCache::Get().Acquire(fused, 0, gpu, use_texture_) : nullptr;
+  data_.SetFusion(fused_ ? fused_->prepared_ptr() : nullptr, setup);
+  const TransferTable& t = data_.fused_table();
+  Device& d = *device_;
+  d.fused_sigma_t.Upload(t.sigma_t, d.stream);
+  d.fused_diffuse_opacity.Upload(t.diffuse_opacity, d.stream);
+  d.fused_specular_roughness.Upload(t.specular_roughness, d.stream);
+  d.fused_emission.Upload(t.emission, d.stream);
+  CINEVOL_CUDA_CHECK(cudaStreamSynchronize(d.stream));
 }
 
 void CudaRenderer::UploadTables() {
@@ -152,6 +168,14 @@ void CudaRenderer::Render(const FrameRequest& request) {
   scene.transfer.diffuse_opacity = d.diffuse_opacity.data();
   scene.transfer.specular_roughness = d.specular_roughness.data();
   scene.transfer.emission = d.emission.data();
+  if (scene.fused.present()) {
+    scene.fused.volume.voxels = fused_->voxels();
+    scene.fused.volume.texture = use_texture_ ? fused_->texture() : 0;
+    scene.fused.transfer.sigma_t = d.fused_sigma_t.data();
+    scene.fused.transfer.diffuse_opacity = d.fused_diffuse_opacity.data();
+    scene.fused.transfer.specular_roughness = d.fused_specular_roughness.data();
+    scene.fused.transfer.emission = d.fused_emission.data();
+  }
   scene.lights = d.lights.data();
   scene.environment.map.texels = d.env_texels.data();
   scene.environment.map.weight = d.env_weight.data();

@@ -23,6 +23,7 @@ class CudaRenderer final : public Renderer {
   void SetClipRegion(const ClipRegion& clip) override { data_.SetClipRegion(clip); }
   void SetReconstruction(Reconstruction r) override;
   void SetLabels(std::shared_ptr<const LabelVolume> labels, const LabelSetup& setup) override;
+  void SetFusion(std::shared_ptr<const Volume> fused, const FusionSetup& setup) override;
   void Render(const FrameRequest& request) override;
   void ResetAccumulation() override;
   int accumulated_frames() const override { return accumulated_frames_; }
@@ -41,6 +42,7 @@ class CudaRenderer final : public Renderer {
   // The voxels and majorants on this GPU, shared. Declared before device_:
   // the frames in flight end (~Device) before they may go.
   std::shared_ptr<const VolumeCopy> volume_;
+  std::shared_ptr<const VolumeCopy> fused_;  // the second volume's, where there is one
   std::shared_ptr<const float> majorants_;
   struct Device;  // CUDA objects; defined in the .cu file
   std::unique_ptr<Device> device_;

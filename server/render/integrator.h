@@ -29,8 +29,8 @@ inline constexpr int kRouletteDepth = 3;
 
 struct PathResult {
   Vec3f radiance;
-  Vec3f first_hit;         // first real collision, when hit
-  Vec3f albedo{1, 1, 1};   // diffuse colour there; 1 for escaped paths (demodulation)
+  Vec3f first_hit;        // first real collision, when hit
+  Vec3f albedo{1, 1, 1};  // diffuse colour there; 1 for escaped paths (demodulation)
   bool hit = false;
 };
 
@@ -44,6 +44,7 @@ class PathTracer {
   static constexpr bool kChooseLight = kFeatures & kSeveralLights;
   static constexpr bool kCubic = kFeatures & kTricubic;
   static constexpr bool kWithLabels = kFeatures & kLabels;
+  static constexpr bool kWithFusion = kFeatures & kFusion;
 
   CINEVOL_HD PathTracer(const RenderScene& scene, Pcg32& rng) : s_(scene), rng_(rng) {}
 
@@ -67,8 +68,8 @@ class PathTracer {
         break;
       }
       const bool from_camera = depth == 0;
-      result.radiance += beta * CrossedLights(ray, c == Collision::kHit ? t_hit : kInfiniteDistance,
-                                              scatter_pdf, from_camera);
+      result.radiance +=
+          beta * CrossedLights(ray, c == Collision::kHit ? t_hit : kInfiniteDistance, scatter_pdf, from_camera);
       if (c == Collision::kEscaped) {
         result.radiance += beta * EscapedRadiance(ray.direction, scatter_pdf, from_camera);
         break;
@@ -80,12 +81,11 @@ class PathTracer {
         result.albedo = m.diffuse;
         result.hit = true;
       }
-      if constexpr (kWithEmission)
-        result.radiance += beta * s_.transfer.Emission(hit.entry, kWithLabels ? hit.label.table : 0);
+      if constexpr (kWithEmission) result.radiance += beta * EmissionOf<kWithLabels, kWithFusion>(s_, hit);
       if (depth >= max_bounces) break;
 
       const Vec3f wo = -ray.direction;
-      const Scatterer sc = MakeScatterer(p, wo, m);
+      const Scatterer sc = MakeScatterer(p, wo, m, hit.fused);
       result.radiance += beta * DirectLight(p, wo, sc);
       // The last scattering event only matters through what its sampled ray
       // can reach: hittable lights or an emitting volume.
@@ -114,8 +114,12 @@ class PathTracer {
  private:
   enum class Collision { kHit, kEscaped, kAbsorbedByBudget };
 
-  CINEVOL_HD float Extinction(Vec3f p, Classified& c) const { return ExtinctionAt<kCubic, kWithLabels>(s_, p, c); }
-  CINEVOL_HD Material MaterialOf(const Classified& c) const { return cinevol::MaterialOf<kWithLabels>(s_, c); }
+  CINEVOL_HD float Extinction(Vec3f p, Classified& c) const {
+    return ExtinctionAt<kCubic, kWithLabels, kWithFusion>(s_, p, c);
+  }
+  CINEVOL_HD Material MaterialOf(const Classified& c) const {
+    return cinevol::MaterialOf<kWithLabels, kWithFusion>(s_, c);
+  }
 
   // Delta tracking to the next real collision along the ray. A ray that
   // enters the kept region through a capped face meets the cut tissue there
@@ -139,17 +143,17 @@ class PathTracer {
       }
     }
     bool found = false;
-    const TrackResult r = SampleMajorant(s_.majorants, ray.origin, ray.direction, t0, t1, rng_, budget_,
-                                         [&](float t, float inv_majorant) {
-                                           Classified c;
-                                           if (rng_.Uniform() >=
-                                               Extinction(ray.origin + ray.direction * t, c) * inv_majorant)
-                                             return true;
-                                           t_hit = t;
-                                           hit = c;
-                                           found = true;
-                                           return false;
-                                         });
+    const TrackResult r = SampleMajorant(
+        s_.majorants, ray.origin, ray.direction, t0, t1, rng_, budget_, [&](float t, float inv_majorant) {
+          Classified c;
+          if (rng_.Uniform() >= Extinction(ray.origin + ray.direction * t, c) * inv_majorant) return true;
+          t_hit = t;
+          hit = c;
+          // Which of two mixed media the collision met, by their shares.
+          if constexpr (kWithFusion) hit.fused = rng_.Uniform() < c.fused_share;
+          found = true;
+          return false;
+        });
     if (r == TrackResult::kBudgetExhausted) return Collision::kAbsorbedByBudget;
     return found ? Collision::kHit : Collision::kEscaped;
   }
@@ -183,9 +187,11 @@ class PathTracer {
 
   CINEVOL_HD float LightSelectionPdf() const { return kChooseLight ? 1.0f / float(SampleableLights()) : 1.0f; }
 
-  // Hybrid scattering: the BRDF with Exposure Render's probability, else the phase function.
-  CINEVOL_HD Scatterer MakeScatterer(Vec3f p, Vec3f wo, const Material& m) {
+  // Hybrid scattering: the BRDF with Exposure Render's probability, else the
+  // phase function. A second volume's medium scatters by its phase function alone.
+  CINEVOL_HD Scatterer MakeScatterer(Vec3f p, Vec3f wo, const Material& m, bool fused) {
     if (cap_) return {true, m.diffuse, m.specular, fmaxf(m.roughness * m.roughness, 1e-3f), cap_normal_, 0.0f};
+    if (kWithFusion && fused) return {false, m.diffuse, {}, 0.0f, {}, s_.fused.transfer.phase_g};
     Scatterer sc{false, m.diffuse, {}, 0.0f, {}, s_.transfer.phase_g};
     if constexpr (kWithGradients) {
       const Vec3f grad = s_.volume.template Gradient<kCubic>(p);
@@ -246,7 +252,7 @@ class PathTracer {
 
   const RenderScene& s_;
   Pcg32& rng_;
-  bool cap_ = false;   // the last collision is on a capped face, with this normal (on the ray's side)
+  bool cap_ = false;  // the last collision is on a capped face, with this normal (on the ray's side)
   Vec3f cap_normal_{};
   int budget_ = kMaxPathCollisions;  // tentative collisions left to the path being traced
   int collisions_ = 0, budget_ends_ = 0;

@@ -17,8 +17,11 @@ namespace cinevol {
 struct MajorantGridView {
   const float* majorant = nullptr;  // bricks.x * bricks.y * bricks.z, x fastest
   Vec3i bricks;
-  Vec3f box_min;           // world mm: the volume's box
-  Vec3f inv_brick_size;    // bricks per mm along each axis
+  Vec3f box_min;         // world mm: the volume's box
+  Vec3f inv_brick_size;  // bricks per mm along each axis
+  // Added to every brick's: a second volume's largest extinction (Scene.fusion),
+  // which the bricks of the scene volume's grid do not bound.
+  float extra = 0.0f;
 
   CINEVOL_HD float At(Vec3i b) const {
     return LoadReadOnly(majorant + (std::int64_t(b.z) * bricks.y + b.y) * bricks.x + b.x);
@@ -46,7 +49,7 @@ class MajorantIterator {
   CINEVOL_HD bool Next(MajorantSegment& seg) {
     if (!(t_min_ < t_max_)) return false;
     seg.t_min = t_min_;
-    seg.sigma_maj = grid_->At({x_.brick, y_.brick, z_.brick});
+    seg.sigma_maj = grid_->At({x_.brick, y_.brick, z_.brick}) + grid_->extra;
     // Step along the axis whose brick boundary comes first. One call per
     // axis, not a reference or an index chosen at run time: that keeps every
     // field in registers on a GPU.
@@ -111,8 +114,8 @@ enum class TrackResult { kLeftRange, kStopped, kBudgetExhausted };
 // collision), which returns false to stop. Each collision takes one from
 // `budget`; none left: kBudgetExhausted.
 template <class OnCollision>
-CINEVOL_HD TrackResult SampleMajorant(const MajorantGridView& grid, Vec3f o, Vec3f d, float t_min,
-                                      float t_max, Pcg32& rng, int& budget, OnCollision&& on_collision) {
+CINEVOL_HD TrackResult SampleMajorant(const MajorantGridView& grid, Vec3f o, Vec3f d, float t_min, float t_max,
+                                      Pcg32& rng, int& budget, OnCollision&& on_collision) {
   MajorantIterator it(grid, o, d, t_min, t_max);
   MajorantSegment seg;
   while (it.Next(seg)) {

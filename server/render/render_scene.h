@@ -6,6 +6,7 @@
 
 #include "core/camera.h"
 #include "core/clip_region.h"
+#include "core/fused_view.h"
 #include "core/label_view.h"
 #include "core/lights.h"
 #include "core/transfer_view.h"
@@ -22,19 +23,20 @@ enum RenderFeature : unsigned {
   kEnvironmentMap = 1u << 2,      // the environment is an HDR map
   kMultipleScattering = 1u << 3,  // maxBounces > 1: the bounce loop and Russian roulette
   kSeveralLights = 1u << 4,       // more than one light to choose from
-  // What clinical scenes add (issue 22). They change what is computed, so a
-  // request never forces them; and they come only with every feature above,
-  // so they add 3 integrators, not 96 (kIntegratorVariants).
+  // What clinical scenes add (issues 22, 59). They change what is computed,
+  // so a request never forces them; and they come only with every feature
+  // above, so they add 7 integrators, not 224 (kIntegratorVariants).
   kTricubic = 1u << 5,  // tricubic reconstruction
   kLabels = 1u << 6,    // a segmentation styles the classification
+  kFusion = 1u << 7,    // a second volume adds its extinction and material (Scene.fusion)
 };
 // Every feature that only specialises, never changes the image.
 inline constexpr unsigned kAllFeatures = (1u << 5) - 1;
-inline constexpr unsigned kClinicalFeatures = kTricubic | kLabels;
+inline constexpr unsigned kClinicalFeatures = kTricubic | kLabels | kFusion;
 
 // The integrators compiled: every subset of kAllFeatures, then kAllFeatures
 // with each non-empty subset of kClinicalFeatures.
-inline constexpr unsigned kIntegratorVariants = (kAllFeatures + 1) + 3;
+inline constexpr unsigned kIntegratorVariants = (kAllFeatures + 1) + 7;
 constexpr unsigned VariantFeatures(unsigned variant) {
   return variant <= kAllFeatures ? variant : kAllFeatures | ((variant - kAllFeatures) << 5);
 }
@@ -48,6 +50,7 @@ struct RenderScene {
   MajorantGridView majorants;
   ClipRegion clip;                // what the crop box and clip planes keep
   LabelView labels;               // the segmentation's styles; none by default
+  FusedView fused;                // a second volume; none by default
   const Light* lights = nullptr;  // in the backend's memory
   int light_count = 0;
   Environment environment;
@@ -81,6 +84,7 @@ inline unsigned FeaturesOf(const RenderScene& scene) {
   if (sampleable > 1) f |= kSeveralLights;
   if (scene.volume.tricubic) f |= kTricubic;
   if (scene.labels.voxels) f |= kLabels;
+  if (scene.fused.present()) f |= kFusion;
   return f;
 }
 

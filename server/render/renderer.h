@@ -32,11 +32,11 @@ inline constexpr int kRendererVersion = 2;  // 2: free-flight steps from the seg
 inline constexpr unsigned kAutoFeatures = ~0u;
 
 struct FrameRequest {
-  Camera camera;            // its width and height set the frame size
-  int spp = 1;              // samples per pixel in this frame, >= 1
-  int max_bounces = 4;      // scattering events per path, >= 0
+  Camera camera;        // its width and height set the frame size
+  int spp = 1;          // samples per pixel in this frame, >= 1
+  int max_bounces = 4;  // scattering events per path, >= 0
   std::uint64_t seed = 0;
-  std::uint32_t frame = 0;  // advance every frame: seeds this frame's samples
+  std::uint32_t frame = 0;            // advance every frame: seeds this frame's samples
   unsigned features = kAutoFeatures;  // or a RenderFeature set to force (at least what the scene uses)
   // When set and raised, the CPU backend stops within a pixel and
   // Render throws Cancelled (the accumulation is then unusable). CUDA frames
@@ -83,6 +83,9 @@ class Renderer {
   virtual void SetReconstruction(Reconstruction r) = 0;
   // A segmentation on the volume's grid (null: none) and how its labels show.
   virtual void SetLabels(std::shared_ptr<const LabelVolume> labels, const LabelSetup& setup) = 0;
+  // A second volume fused with this one (null: none) and how it shows; it
+  // must stay alive and unchanged while the renderer uses it.
+  virtual void SetFusion(std::shared_ptr<const Volume> fused, const FusionSetup& setup) = 0;
 
   // Renders one frame. A new frame size resets the accumulation.
   virtual void Render(const FrameRequest& request) = 0;

@@ -6,7 +6,6 @@
 #include <cmath>
 #include <stdexcept>
 
-
 namespace cinevol {
 
 float MaxExtinction(Vec3f spacing_mm) { return kMaxOpticalDepthPerVoxel / MinComponent(spacing_mm); }
@@ -81,6 +80,20 @@ void SceneData::SetVolume(std::shared_ptr<const PreparedVolume> volume) {
 void SceneData::SetTransferFunction(const TransferFunction& tf) {
   tf_ = tf;
   UpdateTables();
+}
+
+void SceneData::SetFusion(std::shared_ptr<const PreparedVolume> fused, const FusionSetup& setup) {
+  fused_table_ = {};
+  fused_max_sigma_t_ = 0;
+  fused_ = setup.transfer_function.points.empty() ? nullptr : std::move(fused);
+  if (!fused_) return;
+  const Volume& v = fused_->volume();
+  fused_to_volume_ = setup.to_volume;
+  // Clamped as the scene volume's extinction is, at the finer spacing of the two.
+  float max_sigma_t = MaxExtinction(v.spacing_mm());
+  if (volume_) max_sigma_t = std::max(max_sigma_t, MaxExtinction(volume_->volume().spacing_mm()));
+  fused_table_ = BuildTransferTable(setup.transfer_function, v.min_value(), v.max_value(), max_sigma_t);
+  for (float sigma : fused_table_.sigma_t) fused_max_sigma_t_ = std::max(fused_max_sigma_t_, sigma);
 }
 
 void SceneData::SetReconstruction(Reconstruction r) {
@@ -188,12 +201,25 @@ void SceneData::SetLights(const LightSetup& setup) {
   }
 }
 
+namespace {
+
+// Where `table` puts `volume`'s stored voxels: entry = stored * scale + offset.
+void SetEntryMapping(const PreparedVolume& volume, const TransferTable& table, TransferView& view) {
+  // In double: a narrow range (1e-37 wide) or a wide one (2e30) overflows
+  // one factor in float where the product is an ordinary number.
+  const double to_entry = double(TransferTable::kEntries - 1) / (double(table.value_max) - table.value_min);
+  view.entry_scale = float(volume.value_scale() * to_entry);
+  view.entry_offset = float((double(volume.value_offset()) - table.value_min) * to_entry);
+}
+
+}  // namespace
+
 RenderScene SceneData::HostView() const {
   RenderScene s;
   s.clip = clip_;
   if (volume_) {
     const Volume& v = volume_->volume();
-    const float value_scale = volume_->value_scale(), value_offset = volume_->value_offset();
+    const float value_scale = volume_->value_scale();
     s.volume.voxels = volume_->voxels();
     s.volume.dims = v.dims();
     s.volume.spacing = v.spacing_mm();
@@ -202,11 +228,7 @@ RenderScene SceneData::HostView() const {
     s.volume.box_min = -s.volume.box_max;
     s.volume.tricubic = reconstruction_ == Reconstruction::kTricubic;
 
-    // In double: a narrow range (1e-37 wide) or a wide one (2e30) overflows
-    // one factor in float where the product is an ordinary number.
-    const double to_entry = double(TransferTable::kEntries - 1) / (double(table_.value_max) - table_.value_min);
-    s.transfer.entry_scale = float(value_scale * to_entry);
-    s.transfer.entry_offset = float((double(value_offset) - table_.value_min) * to_entry);
+    SetEntryMapping(*volume_, table_, s.transfer);
     const double range = double(v.max_value()) - v.min_value();
     s.transfer.gradient_normaliser =
         range > 0 ? float(value_scale * double(MinComponent(v.spacing_mm())) / range) : 0.0f;
@@ -218,13 +240,30 @@ RenderScene SceneData::HostView() const {
     s.majorants.inv_brick_size = Vec3f{1, 1, 1} / (v.spacing_mm() * ToFloat(volume_->brick_size()));
   }
   if (labels_) s.labels = {labels_->labels().labels.data(), label_materials_.data()};
+  if (fused_) {
+    const Volume& f = fused_->volume();
+    s.fused.volume.voxels = fused_->voxels();
+    s.fused.volume.dims = f.dims();
+    s.fused.volume.spacing = f.spacing_mm();
+    s.fused.volume.inv_spacing = Vec3f{1, 1, 1} / f.spacing_mm();
+    s.fused.volume.box_max = f.extent_mm() * 0.5f;
+    s.fused.volume.box_min = -s.fused.volume.box_max;
+    s.fused.to_volume = fused_to_volume_;
+    SetEntryMapping(*fused_, fused_table_, s.fused.transfer);
+    s.fused.transfer.sigma_t = fused_table_.sigma_t.data();
+    s.fused.transfer.diffuse_opacity = fused_table_.diffuse_opacity.data();
+    s.fused.transfer.specular_roughness = fused_table_.specular_roughness.data();
+    s.fused.transfer.emission = fused_table_.emission.data();
+    s.fused.transfer.phase_g = fused_table_.phase_g;
+    s.majorants.extra = fused_max_sigma_t_;
+  }
   s.transfer.sigma_t = table_.sigma_t.data();
   s.transfer.diffuse_opacity = table_.diffuse_opacity.data();
   s.transfer.specular_roughness = table_.specular_roughness.data();
   s.transfer.emission = table_.emission.data();
   s.transfer.gradient_factor = table_.gradient_factor;
   s.transfer.phase_g = table_.phase_g;
-  s.has_emission = table_.has_emission;
+  s.has_emission = table_.has_emission || (fused_ && fused_table_.has_emission);
 
   s.lights = lights_.lights.data();
   s.light_count = static_cast<int>(lights_.lights.size());
@@ -237,9 +276,13 @@ RenderScene SceneData::HostView() const {
   s.environment.rotation = env.rotation;
   s.environment.visible = env.visible;
   if (env.kind == Environment::Kind::kMap) {
-    s.environment.map = {environment_.texels.data(), environment_.marginal_cdf.data(),
-                         environment_.conditional_cdf.data(), environment_.weight.data(),
-                         environment_.weight_integral, env.map.width, env.map.height};
+    s.environment.map = {environment_.texels.data(),
+                         environment_.marginal_cdf.data(),
+                         environment_.conditional_cdf.data(),
+                         environment_.weight.data(),
+                         environment_.weight_integral,
+                         env.map.width,
+                         env.map.height};
   }
   s.has_hittable_lights = s.environment.kind != Environment::Kind::kNone;
   for (const Light& l : lights_.lights) s.has_hittable_lights |= l.kind == LightKind::kArea;

@@ -35,7 +35,6 @@ float MaxExtinction(Vec3f spacing_mm);
 std::vector<float> ComputeMajorants(const BrickRanges& ranges, const float* sigma_t, int n, float entry_scale,
                                     float entry_offset);
 
-
 // Sampling tables of an environment map (pbrt's Distribution2D).
 struct EnvironmentDistribution {
   std::vector<Vec4f> texels;
@@ -56,6 +55,9 @@ class SceneData {
   // A segmentation of the volume (VolumeCache::AcquireLabels, with the
   // volume's brick size) and how its labels show; null: none.
   void SetLabels(std::shared_ptr<const LabelCopy> labels, const LabelSetup& setup);
+  // A second volume (VolumeCache's copy of it) and how it shows; null, or a
+  // setup whose transfer function has no points: none in 3D.
+  void SetFusion(std::shared_ptr<const PreparedVolume> fused, const FusionSetup& setup);
 
   bool has_volume() const { return volume_ != nullptr; }
   const PreparedVolume& volume() const { return *volume_; }
@@ -74,6 +76,8 @@ class SceneData {
   const TransferTable& table() const { return table_; }
   const LabelCopy* labels() const { return labels_.get(); }
   const std::vector<LabelMaterial>& label_materials() const { return label_materials_; }
+  // The second volume's table (empty without one in 3D).
+  const TransferTable& fused_table() const { return fused_table_; }
   const std::vector<Light>& lights() const { return lights_.lights; }
   const EnvironmentDistribution& environment_distribution() const { return environment_; }
 
@@ -91,6 +95,10 @@ class SceneData {
   TransferFunction tf_;
   std::shared_ptr<const LabelCopy> labels_;
   LabelSetup label_setup_;
+  std::shared_ptr<const PreparedVolume> fused_;  // null: no second volume in 3D
+  AffineMap fused_to_volume_;
+  TransferTable fused_table_;
+  float fused_max_sigma_t_ = 0;                 // its table's largest extinction: added to every majorant
   std::vector<LabelMaterial> label_materials_;  // by label value
   TransferTable table_;
   std::shared_ptr<const std::vector<float>> majorants_;

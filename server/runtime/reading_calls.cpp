@@ -161,12 +161,35 @@ void PlaceGrid(const pacs::FramePlane& plane, const v1::Viewport* viewport, Slic
   spec.grid = grid;
 }
 
+// How slices draw the scene's second volume: its overlay's colour map,
+// window (unset: the volume's range) and opacity, in its shown values.
+SliceSpec::Fusion OverlayOf(const v1::Fusion& fusion, const Volume& fused) {
+  SliceSpec::Fusion overlay;
+  const v1::FusionOverlay& o = fusion.overlay();
+  if (o.opacity() <= 0) return overlay;  // none drawn
+  overlay.volume = &fused;
+  overlay.value_factor = fusion.suv() ? float(fused.metadata().suv_factor) : 1.0f;
+  overlay.opacity = o.opacity();
+  overlay.color_map = o.color_map() == v1::RAINBOW ? SliceColorMap::kRainbow
+                      : o.color_map() == v1::GRAY  ? SliceColorMap::kGray
+                                                   : SliceColorMap::kHot;
+  if (o.has_window()) {
+    overlay.lowest = o.level() - o.window() / 2;
+    overlay.width = o.window();
+  } else {
+    overlay.lowest = fused.min_value() * overlay.value_factor;
+    overlay.width = std::max((fused.max_value() - fused.min_value()) * overlay.value_factor, 1e-30f);
+  }
+  return overlay;
+}
+
 }  // namespace
 
 v1::SliceImage SliceOf(const v1::SliceRequest& request, const v1::Scene& scene, const VolumeLease& lease,
-                       const std::atomic<bool>* cancel, int threads) {
+                       const VolumeLease* fused, const std::atomic<bool>* cancel, int threads) {
   const Volume& volume = *lease.phase(int(scene.time().phase()));
-  const SliceSpec spec = SliceSpecOf(request, volume);
+  SliceSpec spec = SliceSpecOf(request, volume);
+  if (fused && scene.has_fusion()) spec.fusion = OverlayOf(scene.fusion(), *fused->volume());
   const LabelSetup styles = ResolveLabels(scene.labels(), volume);
   const SliceLabels labels{request.hide_labels() ? nullptr : lease.labels().get(), &styles};
   const ClipRegion clip = ResolveClipping(scene.clipping(), volume);
@@ -191,7 +214,8 @@ v1::SliceImage FrameOf(const v1::RenderFrameRequest& request, const pacs::FrameP
   return AnswerOf(image, spec, WindowMisfit("", volume));
 }
 
-v1::PickResult PickOn(const v1::PickRequest& request, const v1::Scene& scene, const VolumeLease& lease) {
+v1::PickResult PickOn(const v1::PickRequest& request, const v1::Scene& scene, const VolumeLease& lease,
+                      const VolumeLease* fused) {
   const std::shared_ptr<const Volume>& volume = lease.phase(int(scene.time().phase()));
   v1::Scene framed = scene;
   if (request.has_frame()) {  // the frame the reader saw: the same camera at that size
@@ -204,7 +228,12 @@ v1::PickResult PickOn(const v1::PickRequest& request, const v1::Scene& scene, co
   }
   ToVolumeFrame(framed, VolumePlacement::Of(*volume));  // the renderers' frame
   framed.clear_lights();  // a pick follows rays to the first hit: no light, no environment map read
-  const Picker picker(volume, lease.labels(), ResolveScene(framed, *volume, lease.labels().get()));
+  RenderSetup setup = ResolveScene(framed, *volume, lease.labels().get());
+  if (fused && framed.has_fusion()) {
+    setup.fused_volume = fused->volume();
+    setup.fusion = ResolveFusion(framed.fusion(), *volume, *setup.fused_volume);
+  }
+  const Picker picker(volume, lease.labels(), setup);
   PickSettings settings;
   if (request.has_threshold()) {
     if (!(request.threshold() > 0 && request.threshold() <= 1)) {
@@ -223,6 +252,7 @@ v1::PickResult PickOn(const v1::PickRequest& request, const v1::Scene& scene, co
     out.mutable_label()->set_value(std::uint32_t(hit.label->value));
     out.mutable_label()->set_name(hit.label->name);
   }
+  if (hit.fused_value) out.set_fused_value(*hit.fused_value);
   return out;
 }
 

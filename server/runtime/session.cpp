@@ -67,14 +67,21 @@ std::vector<std::shared_ptr<const VolumeCopy>> PrepareOnDevice(const VolumeLease
   return copies;
 }
 
-Session::Session(std::string id, std::string owner, std::shared_ptr<VolumeLease> volume, v1::SessionState state,
-                 SessionContext context, std::vector<std::shared_ptr<const VolumeCopy>> prepared)
+Session::Session(std::string id, std::string owner, std::shared_ptr<VolumeLease> volume,
+                 std::shared_ptr<VolumeLease> fused, v1::SessionState state, SessionContext context,
+                 std::vector<std::shared_ptr<const VolumeCopy>> prepared)
     : id_(std::move(id)),
       owner_(std::move(owner)),
       volume_(std::move(volume)),
+      fused_(std::move(fused)),
       context_(std::move(context)),
-      scene_context_{*volume_->volume(), volume_->labels().get(), volume_->id(), context_.resolve_map,
-                     volume_->phases()},
+      scene_context_{*volume_->volume(),
+                     volume_->labels().get(),
+                     volume_->id(),
+                     context_.resolve_map,
+                     volume_->phases(),
+                     fused_ ? fused_->volume().get() : nullptr,
+                     fused_ ? fused_->id() : std::string()},
       current_(std::move(state)),
       settings_(SessionFrameSettings(context_.backend, current_.stream())),
       since_(Clock::now()),
@@ -365,6 +372,7 @@ void Session::MakePipeline() {
   pipeline_ = std::make_unique<FramePipeline>(context_.backend, volume_->phase(pipeline_phase_), kSessionRenderer,
                                               volume_->labels());
   if (!series) prepared_.clear();
+  if (fused_) pipeline_->SetFusedVolume(fused_->volume());
   pipeline_->SetCancel(&cancel_);
   pipeline_->SetPreempt(&preempt_);
   pipeline_->SetJpegEncoder(context_.jpeg_encoder);

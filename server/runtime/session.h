@@ -17,10 +17,10 @@
 #include <cstdint>
 #include <functional>
 #include <map>
-#include <set>
 #include <memory>
 #include <mutex>
 #include <optional>
+#include <set>
 #include <string>
 #include <vector>
 
@@ -106,8 +106,9 @@ class Session final : public Job, public std::enable_shared_from_this<Session> {
  public:
   // `state`: InitialState's, its stream settings all set (ToStreamSettings).
   // `prepared`: PrepareOnDevice's, held until the first frame's pipeline holds its own.
-  Session(std::string id, std::string owner, std::shared_ptr<VolumeLease> volume, v1::SessionState state,
-          SessionContext context, std::vector<std::shared_ptr<const VolumeCopy>> prepared = {});
+  // `fused`: the second volume the state's Scene.fusion may name, or null.
+  Session(std::string id, std::string owner, std::shared_ptr<VolumeLease> volume, std::shared_ptr<VolumeLease> fused,
+          v1::SessionState state, SessionContext context, std::vector<std::shared_ptr<const VolumeCopy>> prepared = {});
   ~Session() override;
 
   const std::string& id() const { return id_; }
@@ -177,6 +178,8 @@ class Session final : public Job, public std::enable_shared_from_this<Session> {
   // at the phase it shows now (Scene.time.phase; while playing, the clock's).
   void CurrentScene(v1::Scene& scene, FrameSettings& settings) const;
   const std::shared_ptr<VolumeLease>& volume() const { return volume_; }
+  // The second volume the session began with (Scene.fusion names it), or null.
+  const std::shared_ptr<VolumeLease>& fused() const { return fused_; }
   Scheduler* scheduler() const { return context_.scheduler; }
   v1::SessionStatus Status() const;
   // Detached for longer than `detached`, or never attached for longer than
@@ -219,6 +222,7 @@ class Session final : public Job, public std::enable_shared_from_this<Session> {
 
   const std::string id_, owner_;
   const std::shared_ptr<VolumeLease> volume_;
+  const std::shared_ptr<VolumeLease> fused_;
   const SessionContext context_;
   const SceneContext scene_context_;  // what ApplyEvent resolves the scene against: the volume as leased
 
@@ -233,11 +237,11 @@ class Session final : public Job, public std::enable_shared_from_this<Session> {
   // session has had a watcher: an unshared session pays nothing for it).
   std::optional<v1::Frame> newest_frame_;
   std::map<std::string, TokenBucket> pointer_rates_;  // by who: a pointer's moves past its rate are dropped
-  v1::SessionState current_;                       // what events made of the session; its stream settings all set
-  FrameSettings settings_;                         // current_.stream() on this backend
-  bool dirty_ = true;                              // current_ changed since the pipeline last saw it
-  bool state_unsent_ = true;                       // current_ changed since the stream last got it
-  unsigned changes_ = kEverythingChanged;          // SceneChange bits since the pipeline last saw the scene
+  v1::SessionState current_;                          // what events made of the session; its stream settings all set
+  FrameSettings settings_;                            // current_.stream() on this backend
+  bool dirty_ = true;                                 // current_ changed since the pipeline last saw it
+  bool state_unsent_ = true;                          // current_ changed since the stream last got it
+  unsigned changes_ = kEverythingChanged;             // SceneChange bits since the pipeline last saw the scene
   // Where the session is in its life. kRendering, kIdle and kPaused have a
   // stream attached (stream_ set); the others do not.
   enum class State {

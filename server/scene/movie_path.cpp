@@ -7,6 +7,7 @@
 #include <numbers>
 
 #include "core/error.h"
+#include "scene/time_series.h"
 
 namespace cinevol {
 namespace {
@@ -101,6 +102,14 @@ void Sweep(v1::Clipping& clipping, const Volume& volume, int axis, double t) {
   plane.set_cap(true);
 }
 
+// The phase frame `frame` shows: where playing from the scene's phase reaches at the frame's time.
+void Loop(v1::Time& time, const MovieVolume& volume, double elapsed_s) {
+  if (volume.phases < 2) throw InputError("phases: the session's volume is not a time series (one phase)");
+  time.set_playing(true);
+  time.set_phase(std::uint32_t(PhaseAt(time, int(time.phase()), elapsed_s, volume.phase_seconds, volume.phases)));
+  time.set_playing(false);  // a still of that phase
+}
+
 }  // namespace
 
 int MovieFrames(const v1::MovieRequest& request) {
@@ -120,20 +129,31 @@ int MovieFrames(const v1::MovieRequest& request) {
     case v1::MovieRequest::kSweep:
       SweepAxis(request.sweep());
       break;
+    case v1::MovieRequest::kPhases:
+      if (!request.phases()) throw InputError("phases: give true to play the phases, or another path");
+      break;
     default:
-      throw InputError("path: give orbit_degrees or sweep");
+      throw InputError("path: give orbit_degrees, sweep or phases");
   }
   return int(frames);
 }
 
-v1::Scene MovieFrame(const v1::Scene& start, const v1::MovieRequest& request, const Volume& volume, int frame,
+v1::Scene MovieFrame(const v1::Scene& start, const v1::MovieRequest& request, const MovieVolume& volume, int frame,
                      int frames) {
   v1::Scene scene = start;
-  if (request.path_case() == v1::MovieRequest::kOrbitDegrees) {
-    const double degrees = request.orbit_degrees();
-    Orbit(*scene.mutable_camera(), degrees, Along(frame, frames, std::abs(degrees) >= 360));
-  } else {
-    Sweep(*scene.mutable_clipping(), volume, SweepAxis(request.sweep()), Along(frame, frames, false));
+  switch (request.path_case()) {
+    case v1::MovieRequest::kOrbitDegrees: {
+      const double degrees = request.orbit_degrees();
+      Orbit(*scene.mutable_camera(), degrees, Along(frame, frames, std::abs(degrees) >= 360));
+      break;
+    }
+    case v1::MovieRequest::kPhases:
+      // A thousandth of a frame in: where frames fall on phase boundaries (10 frames/s on phases 0.1 s apart),
+      // float times from the file would otherwise put some a phase early.
+      Loop(*scene.mutable_time(), volume, (frame + 1e-3) / MovieFps(request));
+      break;
+    default:
+      Sweep(*scene.mutable_clipping(), volume.volume, SweepAxis(request.sweep()), Along(frame, frames, false));
   }
   return scene;
 }

@@ -1,6 +1,5 @@
 // From the proto scene model to renderer inputs.
 #include "scene/scene_builder.h"
-#include "scene/scene_frame.h"
 
 #include <algorithm>
 #include <cmath>
@@ -9,6 +8,7 @@
 #include "core/error.h"
 #include "scene/presets.h"
 #include "scene/scene_file.h"
+#include "scene/scene_frame.h"
 
 namespace cinevol {
 namespace {
@@ -33,12 +33,25 @@ ViewDirections NamedViewDirections(v1::NamedView view, const DirectionCosines& d
   const Vec3f kLeft{1, 0, 0}, kPosterior{0, 1, 0}, kSuperior{0, 0, 1};
   Vec3f to_eye = -kPosterior, up = kSuperior;
   switch (view) {
-    case v1::POSTERIOR: to_eye = kPosterior; break;
-    case v1::LEFT: to_eye = kLeft; break;
-    case v1::RIGHT: to_eye = -kLeft; break;
-    case v1::SUPERIOR: to_eye = kSuperior; up = -kPosterior; break;
-    case v1::INFERIOR: to_eye = -kSuperior; up = -kPosterior; break;
-    default: break;  // ANTERIOR
+    case v1::POSTERIOR:
+      to_eye = kPosterior;
+      break;
+    case v1::LEFT:
+      to_eye = kLeft;
+      break;
+    case v1::RIGHT:
+      to_eye = -kLeft;
+      break;
+    case v1::SUPERIOR:
+      to_eye = kSuperior;
+      up = -kPosterior;
+      break;
+    case v1::INFERIOR:
+      to_eye = -kSuperior;
+      up = -kPosterior;
+      break;
+    default:
+      break;  // ANTERIOR
   }
   return {PatientToWorld(direction, to_eye), PatientToWorld(direction, up)};
 }
@@ -71,7 +84,7 @@ std::vector<bool> BlocksWithVisibleLabels(const Volume& volume, const LabelVolum
   }
   const std::size_t block_count = BlockTotal(blocks);
   if (all_visible) return std::vector<bool>(block_count, true);  // no need to read every voxel
-  std::vector<std::uint8_t> shown(block_count, 0);  // bytes: blocks are written from several threads
+  std::vector<std::uint8_t> shown(block_count, 0);               // bytes: blocks are written from several threads
   const Vec3i size{Volume::kBlockSize, Volume::kBlockSize, Volume::kBlockSize};
   ForEachBlock(volume.dims(), size, 0, [&](std::size_t i, Vec3i lo, Vec3i hi) {
     ForEachVoxel(labels.labels.data(), volume.dims(), lo, hi, [&](std::uint16_t v) { shown[i] |= visible[v]; });
@@ -127,8 +140,8 @@ TransferFunction ResolveTransferFunction(const v1::TransferFunction& proto, cons
   const v1::TransferFunction expanded = ExpandTransferFunction(proto, volume);
   TransferFunction tf;
   for (const auto& p : expanded.points()) {
-    tf.points.push_back({p.value(), p.opacity(), ToColor(p.diffuse()), ToColor(p.specular()), p.roughness(),
-                         ToColor(p.emission())});
+    tf.points.push_back(
+        {p.value(), p.opacity(), ToColor(p.diffuse()), ToColor(p.specular()), p.roughness(), ToColor(p.emission())});
   }
   tf.density_scale = expanded.density_scale();
   tf.gradient_factor = expanded.gradient_factor();
@@ -285,6 +298,20 @@ RenderSetup ResolveScene(const v1::Scene& scene, const Volume& volume, const Lab
   setup.seed = scene.render().seed();
   setup.exposure = scene.camera().exposure();
   setup.reconstruction = ResolveReconstruction(scene.render().reconstruction());
+  return setup;
+}
+
+FusionSetup ResolveFusion(const v1::Fusion& fusion, const Volume& volume, const Volume& fused) {
+  FusionSetup setup;
+  setup.value_factor = fusion.suv() ? float(fused.metadata().suv_factor) : 1.0f;
+  const VolumePlacement from = VolumePlacement::Of(volume), to = VolumePlacement::Of(fused);
+  auto map = [&](Vec3f p) { return to.PointToVolume(from.PointToPatient(p)); };
+  const Vec3f origin = map({0, 0, 0});
+  setup.to_volume = {map({1, 0, 0}) - origin, map({0, 1, 0}) - origin, map({0, 0, 1}) - origin, origin};
+  const v1::TransferFunction& tf = fusion.transfer_function();
+  if (tf.points_size() == 0 && tf.preset().empty()) return setup;  // slices only
+  setup.transfer_function = ResolveTransferFunction(tf, fused);
+  for (TransferPoint& point : setup.transfer_function.points) point.value /= setup.value_factor;
   return setup;
 }
 

@@ -5,12 +5,14 @@
 
 #include <array>
 #include <functional>
+#include <memory>
 #include <string>
 #include <vector>
 
 #include "cinevol/v1/scene.pb.h"
 #include "core/camera.h"
 #include "core/clip_region.h"
+#include "core/fused_view.h"
 #include "core/image.h"
 #include "core/labels.h"
 #include "core/lights.h"
@@ -30,7 +32,11 @@ struct RenderSetup {
   float exposure = 0;  // stops, applied by the tone mapper
   ClipRegion clip;     // what the crop box and clip planes keep
   Reconstruction reconstruction = Reconstruction::kTrilinear;
-  LabelSetup labels;   // how the segmentation's labels show, where there is one
+  LabelSetup labels;  // how the segmentation's labels show, where there is one
+  // A second volume (Scene.fusion) and how it shows; null: none. Resolved by
+  // ResolveFusion where the caller holds one: a scene names it by id.
+  std::shared_ptr<const Volume> fused_volume;
+  FusionSetup fusion;
 };
 
 // A named view in world space: the direction from the volume to the eye
@@ -87,6 +93,13 @@ Camera ResolveCamera(const v1::Camera& camera, const v1::RenderSettings& render,
 Reconstruction ResolveReconstruction(v1::Reconstruction reconstruction);
 // Label styles, their own transfer functions resolved against the volume.
 LabelSetup ResolveLabels(const v1::Labels& labels, const Volume& volume);
+
+// Scene.fusion against the scene's volume and the second volume it names
+// (checked: session_state.h): its transfer function in the second volume's
+// own values (SUVbw divided out with `suv`), the map from the render frame
+// into its volume-centred frame through both volumes' patient coordinates,
+// and the factor its values are shown with.
+FusionSetup ResolveFusion(const v1::Fusion& fusion, const Volume& volume, const Volume& fused);
 // An environment map's texels (linear RGB) from its path: the scene model
 // opens no file itself; io/reader_cage.h's ReadEnvironmentMap reads one
 // through the reader cage.

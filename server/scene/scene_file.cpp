@@ -119,7 +119,8 @@ void ValidateVolume(const v1::VolumeSource& v, Problems& p) {
     default:
       // A scene for a volume named elsewhere (a session's volume_id, `--volume ID`): a presentation state's, or a
       // PACS series'. What loads a scene's own volume says when it has none (volume_loader.cpp).
-      if (!v.labels().empty() || !v.series_uid().empty()) p.Add("volume", "no source given (file, dicomFolder or phantom)");
+      if (!v.labels().empty() || !v.series_uid().empty())
+        p.Add("volume", "no source given (file, dicomFolder or phantom)");
   }
   if (!v.labels().empty() && v.has_phantom()) p.Add("volume.labels", "phantoms have no segmentation");
   if (!v.label_table().empty() && v.labels().empty()) p.Add("volume.labelTable", "names labels: set volume.labels too");
@@ -169,6 +170,21 @@ void ValidateLabels(const v1::Labels& labels, Problems& p) {
     p.Add("labels.styles",
           fmt::format("{} labels with their own transfer function; at most {}", own, kMaxLabelTransferFunctions));
   }
+}
+
+void ValidateFusion(const v1::Fusion& fusion, Problems& p) {
+  if (fusion.has_transfer_function())
+    ValidateTransferFunction(fusion.transfer_function(), "fusion.transferFunction", p);
+  const v1::FusionOverlay& o = fusion.overlay();
+  if (!v1::ColorMap_IsValid(o.color_map())) {
+    p.Add("fusion.overlay.colorMap", fmt::format("unknown colour map {}", int(o.color_map())));
+  }
+  if (o.has_window() != o.has_level()) p.Add("fusion.overlay", "set window and level together, or neither");
+  if (o.has_window() && !(o.window() > 0 && o.window() <= 1e30f)) {
+    p.Add("fusion.overlay.window", fmt::format("{} is not in (0, 1e30]", o.window()));
+  }
+  if (o.has_level()) p.InRange("fusion.overlay.level", o.level(), -1e30, 1e30);
+  if (o.has_opacity()) p.InRange("fusion.overlay.opacity", o.opacity(), 0, 1);
 }
 
 void ValidateCamera(const v1::Camera& c, Problems& p) {
@@ -313,6 +329,13 @@ void ApplyDefaults(v1::Scene& scene, unsigned parts) {
     if (camera.view() == v1::NAMED_VIEW_UNSPECIFIED && !camera.has_eye()) camera.set_view(v1::ANTERIOR);
   }
   if (parts & (kCameraChanged | kSamplingChanged)) FillDefaults(*scene.mutable_render(), RenderNumbers());
+  if ((parts & kFusionChanged) && scene.has_fusion()) {
+    v1::Fusion& fusion = *scene.mutable_fusion();
+    if (fusion.transfer_function().points_size() > 0)
+      FillDefaults(*fusion.mutable_transfer_function(), TransferFunctionNumbers());
+    if (fusion.overlay().color_map() == v1::COLOR_MAP_UNSPECIFIED) fusion.mutable_overlay()->set_color_map(v1::HOT);
+    if (!fusion.overlay().has_opacity()) fusion.mutable_overlay()->set_opacity(0.5f);
+  }
 }
 
 namespace {
@@ -357,6 +380,7 @@ void ValidateParts(const v1::Scene& scene, unsigned parts, Problems& p) {
   if (parts & (kCameraChanged | kSamplingChanged)) ValidateRender(scene.render(), p);
   if (parts & kClippingChanged) ValidateClipping(scene.clipping(), p);
   if (parts & kLabelsChanged) ValidateLabels(scene.labels(), p);
+  if (parts & kFusionChanged) ValidateFusion(scene.fusion(), p);
 }
 
 }  // namespace

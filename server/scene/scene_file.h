@@ -43,9 +43,11 @@ enum SceneChange : unsigned {
   kSamplingChanged = 1u << 3,  // spp, bounces, seed or reconstruction
   kClippingChanged = 1u << 4,  // the crop box or clip planes
   kLabelsChanged = 1u << 5,    // the label styles or table removal
-  kEverythingChanged = (1u << 6) - 1,
+  kFusionChanged = 1u << 6,    // the second volume or how it shows (Scene.fusion)
+  kEverythingChanged = (1u << 7) - 1,
   // What the picture shows (not only how it is sampled): the denoiser's cue.
-  kPictureChanges = kCameraChanged | kTransferFunctionChanged | kLightsChanged | kClippingChanged | kLabelsChanged,
+  kPictureChanges =
+      kCameraChanged | kTransferFunctionChanged | kLightsChanged | kClippingChanged | kLabelsChanged | kFusionChanged,
 };
 
 // Scene.measurements: how many, and a name's length at most.

@@ -65,6 +65,12 @@ void CheckCost(const v1::Scene& scene, unsigned parts, const std::string& prefix
                                   prefix, i, points, limits.max_tf_points));
     }
   }
+  if ((parts & kFusionChanged) && scene.fusion().transfer_function().points_size() > limits.max_tf_points) {
+    throw OverLimit("max-tf-points",
+                    fmt::format("{}fusion.transfer_function.points: {} points, over this server's limit of {} "
+                                "(--max-tf-points)",
+                                prefix, scene.fusion().transfer_function().points_size(), limits.max_tf_points));
+  }
   if ((parts & kLightsChanged) && scene.lights_size() > limits.max_lights) {
     throw OverLimit("max-lights", fmt::format("{}lights: {} lights, over this server's limit of {} (--max-lights)",
                                               prefix, scene.lights_size(), limits.max_lights));
@@ -101,9 +107,15 @@ void CheckRange(float v, float lo, float hi, const std::string& field) {
   if (!(v >= lo && v <= hi)) throw InputError(fmt::format("{}: {} is outside [{}, {}]", field, v, lo, hi));
 }
 
-// The scene's presets as points: its transfer function's and every label
-// style's own (`parts`: kTransferFunctionChanged, kLabelsChanged).
-void ExpandPresets(v1::Scene& scene, unsigned parts, const Volume& volume) {
+// The scene's presets as points: its transfer function's, every label
+// style's own and the second volume's (`parts`: kTransferFunctionChanged,
+// kLabelsChanged, kFusionChanged).
+void ExpandPresets(v1::Scene& scene, unsigned parts, const SceneContext& context) {
+  const Volume& volume = context.volume;
+  if ((parts & kFusionChanged) && scene.has_fusion() && context.fused) {
+    v1::TransferFunction& tf = *scene.mutable_fusion()->mutable_transfer_function();
+    if (tf.points_size() > 0 || !tf.preset().empty()) tf = ExpandTransferFunction(tf, *context.fused);
+  }
   if (parts & kTransferFunctionChanged) {
     *scene.mutable_transfer_function() = ExpandTransferFunction(scene.transfer_function(), volume);
   }
@@ -117,8 +129,7 @@ void ExpandPresets(v1::Scene& scene, unsigned parts, const Volume& volume) {
 
 // Label styles need a segmentation; table removal does not. `began`: the
 // session exists already (its volume is as it was when it began).
-void CheckSegmentation(const v1::Labels& labels, const SceneContext& context, const std::string& field,
-                       bool began) {
+void CheckSegmentation(const v1::Labels& labels, const SceneContext& context, const std::string& field, bool began) {
   if (!StylesLabels(labels) || (context.labels && context.labels->segmentation)) return;
   throw InputError(began ? fmt::format("{}: volume '{}' had no segmentation when this session began; load one "
                                        "(LoadLabels) and start a new session",
@@ -131,6 +142,39 @@ void CheckSegmentation(const v1::Labels& labels, const SceneContext& context, co
 // A DICOM SEG's recommended display colours as the labels' styles, where the
 // scene styles no label: segments show as their makers coloured them, as in
 // other viewers. A scene that styles labels keeps its own.
+// Scene.fusion against the second volume the session began with: that
+// volume, in the same Frame of Reference unless aligned by patient
+// coordinates on request, with SUVbw where asked.
+void CheckFusion(const v1::Fusion& fusion, const SceneContext& context, const std::string& field) {
+  const std::string& id = fusion.volume_id();
+  if (!context.fused || id != context.fused_id) {
+    throw InputError(
+        fmt::format("{}.volume_id: '{}' is not this session's second volume{}; the second volume is "
+                    "chosen when the session is created (docs/time-and-fusion.md)",
+                    field, id, context.fused ? " ('" + context.fused_id + "')" : std::string(" (none)")));
+  }
+  const std::string& ours = context.volume.metadata().frame_of_reference_uid;
+  const std::string& theirs = context.fused->metadata().frame_of_reference_uid;
+  if (!fusion.align_by_patient() && (ours.empty() || theirs != ours)) {
+    throw InputError(
+        fmt::format("{}.align_by_patient: volume '{}' is in Frame of Reference {}, the volume in {}: "
+                    "their patient coordinates need not be one space; set align_by_patient to place it "
+                    "by its patient coordinates as they are",
+                    field, id, theirs.empty() ? "(none given)" : theirs, ours.empty() ? "(none given)" : ours));
+  }
+  const VolumeMetadata& fused = context.fused->metadata();
+  if (fusion.suv() && !(fused.suv_factor > 0)) {
+    throw InputError(fmt::format(
+        "{}.suv: volume '{}' has no SUVbw: {}", field, id,
+        fused.suv_refused.empty() ? "it is no PET with the DICOM attributes SUVbw needs" : fused.suv_refused));
+  }
+  if (fusion.suv() && fusion.transfer_function().points_size() == 0 && !fusion.transfer_function().preset().empty()) {
+    throw InputError(field +
+                     ".transfer_function.preset: a preset is in the volume's own values; with suv give "
+                     "points in SUVbw");
+  }
+}
+
 void AddRecommendedColours(v1::Scene& scene, const SceneContext& context) {
   if (!context.labels || context.labels->colors.empty() || scene.labels().styles_size() > 0) return;
   for (const auto& [value, rgb] : context.labels->colors) {
@@ -193,8 +237,12 @@ void ApplyToScene(const v1::SessionEvent& event, v1::Scene& scene, const std::st
       }
       break;
     }
-    case v1::SessionEvent::kLights: *scene.mutable_lights() = event.lights().lights(); break;
-    case v1::SessionEvent::kTransferFunction: *scene.mutable_transfer_function() = event.transfer_function(); break;
+    case v1::SessionEvent::kLights:
+      *scene.mutable_lights() = event.lights().lights();
+      break;
+    case v1::SessionEvent::kTransferFunction:
+      *scene.mutable_transfer_function() = event.transfer_function();
+      break;
     case v1::SessionEvent::kRender: {
       const v1::RenderSettings& r = event.render();
       if (r.has_width() || r.has_height()) {
@@ -212,9 +260,21 @@ void ApplyToScene(const v1::SessionEvent& event, v1::Scene& scene, const std::st
       scene.mutable_render()->set_width(event.resize().width());
       scene.mutable_render()->set_height(event.resize().height());
       break;
-    case v1::SessionEvent::kClipping: *scene.mutable_clipping() = event.clipping(); break;
-    case v1::SessionEvent::kLabels: *scene.mutable_labels() = event.labels(); break;
-    default: break;
+    case v1::SessionEvent::kClipping:
+      *scene.mutable_clipping() = event.clipping();
+      break;
+    case v1::SessionEvent::kLabels:
+      *scene.mutable_labels() = event.labels();
+      break;
+    case v1::SessionEvent::kFusion:
+      if (event.fusion().volume_id().empty()) {
+        scene.clear_fusion();
+      } else {
+        *scene.mutable_fusion() = event.fusion();
+      }
+      break;
+    default:
+      break;
   }
 }
 
@@ -228,6 +288,7 @@ v1::Scene CopyParts(const v1::Scene& scene, unsigned parts) {
   if (parts & kTransferFunctionChanged) *copy.mutable_transfer_function() = scene.transfer_function();
   if (parts & kClippingChanged) *copy.mutable_clipping() = scene.clipping();
   if (parts & kLabelsChanged) *copy.mutable_labels() = scene.labels();
+  if ((parts & kFusionChanged) && scene.has_fusion()) *copy.mutable_fusion() = scene.fusion();
   return copy;
 }
 
@@ -238,19 +299,35 @@ void RestoreParts(v1::Scene& scene, v1::Scene& saved, unsigned parts) {
   if (parts & kTransferFunctionChanged) scene.mutable_transfer_function()->Swap(saved.mutable_transfer_function());
   if (parts & kClippingChanged) scene.mutable_clipping()->Swap(saved.mutable_clipping());
   if (parts & kLabelsChanged) scene.mutable_labels()->Swap(saved.mutable_labels());
+  if (parts & kFusionChanged) {
+    if (saved.has_fusion()) {
+      scene.mutable_fusion()->Swap(saved.mutable_fusion());
+    } else {
+      scene.clear_fusion();
+    }
+  }
 }
 
 // The scene parts an event edits: its SceneChange bits.
 unsigned PartsOf(const v1::SessionEvent& event) {
   switch (event.kind_case()) {
     case v1::SessionEvent::kCamera:
-    case v1::SessionEvent::kResize: return kCameraChanged;
-    case v1::SessionEvent::kLights: return kLightsChanged;
-    case v1::SessionEvent::kTransferFunction: return kTransferFunctionChanged;
-    case v1::SessionEvent::kRender: return kSamplingChanged;
-    case v1::SessionEvent::kClipping: return kClippingChanged;
-    case v1::SessionEvent::kLabels: return kLabelsChanged;
-    default: return 0;
+    case v1::SessionEvent::kResize:
+      return kCameraChanged;
+    case v1::SessionEvent::kLights:
+      return kLightsChanged;
+    case v1::SessionEvent::kTransferFunction:
+      return kTransferFunctionChanged;
+    case v1::SessionEvent::kRender:
+      return kSamplingChanged;
+    case v1::SessionEvent::kClipping:
+      return kClippingChanged;
+    case v1::SessionEvent::kLabels:
+      return kLabelsChanged;
+    case v1::SessionEvent::kFusion:
+      return kFusionChanged;
+    default:
+      return 0;
   }
 }
 
@@ -281,7 +358,7 @@ v1::SessionState InitialState(const v1::CreateSessionRequest& request, const Sce
     case v1::CreateSessionRequest::kScene:
       scene = request.scene();
       ToVolumeFrame(scene, VolumePlacement::Of(volume));  // sessions hold the renderers' frame
-      AddDefaultLights(scene, volume);  // the answer's scene shows them
+      AddDefaultLights(scene, volume);                    // the answer's scene shows them
       break;
     case v1::CreateSessionRequest::kPreset:
       try {
@@ -290,9 +367,12 @@ v1::SessionState InitialState(const v1::CreateSessionRequest& request, const Sce
         throw InputError(fmt::format("preset: {}", e.what()));
       }
       break;
-    default: scene = MakePresetScene(DefaultPreset(volume), volume); break;
+    default:
+      scene = MakePresetScene(DefaultPreset(volume), volume);
+      break;
   }
-  scene.clear_volume();  // the session renders volume_id
+  scene.clear_volume();                                          // the session renders volume_id
+  if (scene.fusion().volume_id().empty()) scene.clear_fusion();  // a fusion names its volume
   scene.mutable_render()->set_width(request.viewport().width());
   scene.mutable_render()->set_height(request.viewport().height());
   CheckCost(scene, kEverythingChanged, "scene.", limits);  // before the work of defaults and validation
@@ -300,8 +380,9 @@ v1::SessionState InitialState(const v1::CreateSessionRequest& request, const Sce
   CheckParts(scene, kEverythingChanged, "scene.");
   CheckSegmentation(scene.labels(), context, "scene.labels", false);
   CheckTime(scene.time(), context.phases, "scene.time");
+  if (scene.has_fusion()) CheckFusion(scene.fusion(), context, "scene.fusion");
   AddRecommendedColours(scene, context);
-  ExpandPresets(scene, kEverythingChanged, volume);
+  ExpandPresets(scene, kEverythingChanged, context);
   CheckCost(scene, kEverythingChanged, "scene.", limits);
   ResolveEnvironmentMaps(scene, context.resolve_map);
   ResolveNamedView(scene, context);  // after the presets: it frames what they show
@@ -312,7 +393,7 @@ v1::SessionState InitialState(const v1::CreateSessionRequest& request, const Sce
 }
 
 void ResolveSceneModel(v1::Scene& scene, const SceneContext& context) {
-  ExpandPresets(scene, kEverythingChanged, context.volume);
+  ExpandPresets(scene, kEverythingChanged, context);
   ResolveNamedView(scene, context);
 }
 
@@ -372,7 +453,10 @@ unsigned ApplyEvent(v1::SessionState& state, const v1::SessionEvent& event, cons
         if (changes & kLabelsChanged) {
           with_prefix([&] { CheckSegmentation(scene.labels(), context, "labels", true); });
         }
-        ExpandPresets(scene, changes, context.volume);
+        if ((changes & kFusionChanged) && scene.has_fusion()) {
+          with_prefix([&] { CheckFusion(scene.fusion(), context, "fusion"); });
+        }
+        ExpandPresets(scene, changes, context);
         if (limits) CheckCost(scene, changes, prefix, *limits);
         if (changes & kCameraChanged) ResolveNamedView(scene, context);
       } catch (...) {

@@ -31,20 +31,20 @@ struct SessionLimits {
   std::uint64_t max_snapshot_samples = 1ull << 31;  // spp x pixels of one still
   std::uint64_t max_movie_samples = 1ull << 37;     // frames x spp x pixels of one movie: 2,000 720p frames at 64 spp
   int default_snapshot_spp = 256;
-  int max_tf_points = 256;                       // transfer-function control points
+  int max_tf_points = 256;  // transfer-function control points
   int max_lights = 16;
-  int max_events_per_second = 240;               // per stream; past it events are coalesced
-  int max_viewers_per_session = 50;              // streams watching a shared session (docs/sharing.md)
-  int max_viewers_per_grant = 25;                // of them by one grant: a link never takes every seat
+  int max_events_per_second = 240;   // per stream; past it events are coalesced
+  int max_viewers_per_session = 50;  // streams watching a shared session (docs/sharing.md)
+  int max_viewers_per_grant = 25;    // of them by one grant: a link never takes every seat
 };
 
 // What an event changed: SceneChange bits, and these.
 enum SessionChange : unsigned {
-  kStreamChanged = 1u << 6,        // stream settings (denoiser, quality, budgets, refinement)
-  kPauseChanged = 1u << 7,         // paused or resumed
-  kMeasurementsChanged = 1u << 8,  // the reader's measurements: shared at once, no frame answers them
-  kPointersChanged = 1u << 9,      // someone's pointer: the same
-  kPhaseChanged = 1u << 10,        // a time series' phase shown, or its playing (Scene.time)
+  kStreamChanged = 1u << 7,        // stream settings (denoiser, quality, budgets, refinement)
+  kPauseChanged = 1u << 8,         // paused or resumed
+  kMeasurementsChanged = 1u << 9,  // the reader's measurements: shared at once, no frame answers them
+  kPointersChanged = 1u << 10,     // someone's pointer: the same
+  kPhaseChanged = 1u << 11,        // a time series' phase shown, or its playing (Scene.time)
 };
 
 // The server's path for a light's environment map named in `field`: only
@@ -57,9 +57,13 @@ struct SceneContext {
   // Its segmentation (or only its table) when the session began, where it
   // has one: label styles need a segmentation; named views frame labels.
   const LabelVolume* labels = nullptr;
-  std::string volume_id = {};   // for messages
+  std::string volume_id = {};    // for messages
   MapResolver resolve_map = {};  // empty: environment map names stay as written
   int phases = 1;                // a time series' phases (Scene.time)
+  // The second volume the session began with (Scene.fusion.volume_id names
+  // it), where it has one; null: a scene may fuse none.
+  const Volume* fused = nullptr;
+  std::string fused_id = {};
 };
 
 // The state a new session starts from: the request's scene or preset (else

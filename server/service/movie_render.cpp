@@ -82,7 +82,7 @@ MovieRender::~MovieRender() {
 void MovieRender::Render(int frame) {
   const grpc::Status status = Guarded([&] {
     if (*cancel_) throw Cancelled("the movie was cancelled");
-    v1::Scene scene = MovieFrame(plan_.start, plan_.request, *session_->volume()->volume(), frame, plan_.frames);
+    v1::Scene scene = MovieFrame(plan_.start, plan_.request, MovieVolumeOf(*session_->volume()), frame, plan_.frames);
     StillJob::Callbacks job;
     job.done = [self = shared_from_this(), frame](grpc::Status status, StillRadiance still) {
       if (!status.ok()) return self->Fail(std::move(status));
@@ -95,8 +95,9 @@ void MovieRender::Render(int frame) {
       if (!queued) self->Fail(RpcError::Unavailable("the server is shutting down").status());
     };
     job.why_cancelled = [self = shared_from_this()] { return self->WhyCancelled(); };
-    session_->scheduler()->Wake(std::make_shared<StillJob>(session_->volume(), std::move(scene), plan_.spp,
-                                                           plan_.max_chunk_spp, backend_, cancel_, std::move(job)));
+    session_->scheduler()->Wake(std::make_shared<StillJob>(session_->volume(), session_->fused(), std::move(scene),
+                                                           plan_.spp, plan_.max_chunk_spp, backend_, cancel_,
+                                                           std::move(job)));
   });
   if (!status.ok()) Fail(status);
 }

@@ -19,6 +19,7 @@
 #include "device/device.h"
 #include "runtime/session.h"
 #include "runtime/task_pool.h"
+#include "scene/movie_path.h"
 #include "service/still_job.h"
 #include "video/h264_writer.h"
 
@@ -26,6 +27,11 @@ namespace cinevol::service {
 
 // The largest MP4 a movie answers with (one message): about four minutes of 1080p at visually lossless quality.
 inline constexpr std::uintmax_t kMaxMovieMp4Bytes = std::uintmax_t{256} << 20;
+
+// What a movie of `lease`'s volume is of: its first phase, its phases and their times.
+inline MovieVolume MovieVolumeOf(const VolumeLease& lease) {
+  return {*lease.volume(), lease.phases(), lease.phase_seconds()};
+}
 
 class MovieRender : public std::enable_shared_from_this<MovieRender> {
  public:

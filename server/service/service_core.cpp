@@ -203,10 +203,24 @@ MapResolver ServiceCore::ResolveMap() const {
   };
 }
 
+std::shared_ptr<VolumeLease> ServiceCore::LeaseFused(const v1::CreateSessionRequest& request, const Principal& caller) {
+  const std::string& id = request.scene().fusion().volume_id();
+  if (request.initial_case() != v1::CreateSessionRequest::kScene || id.empty()) return nullptr;
+  std::shared_ptr<VolumeLease> fused = volumes_.Lease(id, caller);
+  if (fused->phases() > 1) {
+    throw InputError(
+        fmt::format("scene.fusion.volume_id: volume '{}' is a time series of {} phases; a second volume "
+                    "has one",
+                    id, fused->phases()));
+  }
+  return fused;
+}
+
 v1::CreateSessionResponse ServiceCore::CreateSession(const v1::CreateSessionRequest& request, const Principal& caller,
                                                      const std::atomic<bool>& cancelled) {
   RequireServing();
   std::shared_ptr<VolumeLease> volume = volumes_.Lease(request.volume_id(), caller);
+  std::shared_ptr<VolumeLease> fused = LeaseFused(request, caller);
   {
     std::lock_guard lock(mu_);
     RequireRoomLocked(caller);  // before the framing: a refusal costs no scan
@@ -216,8 +230,13 @@ v1::CreateSessionResponse ServiceCore::CreateSession(const v1::CreateSessionRequ
   };
   // Resolving frames a named view over the volume's blocks and, with a
   // segmentation, every label voxel: seconds for 512^3.
-  const SceneContext scene_context{*volume->volume(), volume->labels().get(), volume->id(), ResolveMap(),
-                                   volume->phases()};
+  const SceneContext scene_context{*volume->volume(),
+                                   volume->labels().get(),
+                                   volume->id(),
+                                   ResolveMap(),
+                                   volume->phases(),
+                                   fused ? fused->volume().get() : nullptr,
+                                   fused ? fused->id() : std::string()};
   v1::SessionState state = InitialState(request, scene_context, options_.limits);
   const v1::Scene& scene = state.scene();
   *state.mutable_stream() = ToStreamSettings(SessionFrameSettings(backend_, state.stream()));
@@ -237,8 +256,8 @@ v1::CreateSessionResponse ServiceCore::CreateSession(const v1::CreateSessionRequ
     RequireRoomLocked(caller);
     // 128 random bits: ids are not secrets (ownership is checked on every call), nor guessable.
     const std::string id = RandomHex(16);
-    session =
-        std::make_shared<Session>(id, caller.name, std::move(volume), state, std::move(context), std::move(prepared));
+    session = std::make_shared<Session>(id, caller.name, std::move(volume), std::move(fused), state, std::move(context),
+                                        std::move(prepared));
     sessions_[id] = session;
   }
   spdlog::info("session {}: created for {} on {}, volume {}, {}x{}", session->id(), LogSafe(caller.name),
@@ -281,12 +300,16 @@ v1::SessionState ServiceCore::SendEvents(const v1::SendEventsRequest& request, c
 
 namespace {
 
-// What the reading tools read of a session: its scene now (a time series at the phase it shows) and its volume.
-std::pair<v1::Scene, std::shared_ptr<VolumeLease>> SceneAndVolume(const Session& session) {
+// What the reading tools read of a session: its scene now (a time series at the phase it shows) and its volumes.
+struct SessionReading {
   v1::Scene scene;
+  std::shared_ptr<VolumeLease> volume, fused;
+};
+SessionReading ReadingOf(const Session& session) {
+  SessionReading reading{{}, session.volume(), session.fused()};
   FrameSettings settings;
-  session.CurrentScene(scene, settings);
-  return {std::move(scene), session.volume()};
+  session.CurrentScene(reading.scene, settings);
+  return reading;
 }
 
 }  // namespace
@@ -297,13 +320,13 @@ int ServiceCore::SliceThreads() const {
 
 v1::SliceImage ServiceCore::RenderSlice(const v1::SliceRequest& request, const Principal& caller,
                                         const std::atomic<bool>* cancel) {
-  const auto [scene, volume] = SceneAndVolume(*FindSession(request.session_id(), caller));
-  return SliceOf(request, scene, *volume, cancel, SliceThreads());
+  const SessionReading r = ReadingOf(*FindSession(request.session_id(), caller));
+  return SliceOf(request, r.scene, *r.volume, r.fused.get(), cancel, SliceThreads());
 }
 
 v1::PickResult ServiceCore::Pick(const v1::PickRequest& request, const Principal& caller) {
-  const auto [scene, volume] = SceneAndVolume(*FindSession(request.session_id(), caller));
-  return PickOn(request, scene, *volume);
+  const SessionReading r = ReadingOf(*FindSession(request.session_id(), caller));
+  return PickOn(request, r.scene, *r.volume, r.fused.get());
 }
 
 v1::SliceImage ServiceCore::RenderFrame(const v1::RenderFrameRequest& request, const Principal& caller,
@@ -426,8 +449,8 @@ void ServiceCore::Snapshot(const v1::SnapshotRequest& request, const Principal& 
     return why.empty() ? std::string("its caller went away")
                        : fmt::format("its session '{}' ended: {}", session->id(), why);
   };
-  session->scheduler()->Wake(std::make_shared<StillJob>(session->volume(), std::move(scene), spp, max_chunk, backend_,
-                                                        std::move(cancel), std::move(job)));
+  session->scheduler()->Wake(std::make_shared<StillJob>(session->volume(), session->fused(), std::move(scene), spp,
+                                                        max_chunk, backend_, std::move(cancel), std::move(job)));
 }
 
 void ServiceCore::RenderMovie(const v1::MovieRequest& request, const Principal& caller,
@@ -439,7 +462,8 @@ void ServiceCore::RenderMovie(const v1::MovieRequest& request, const Principal& 
   plan.frames = MovieFrames(request);
   FrameSettings settings;
   session->CurrentScene(plan.start, settings);
-  MovieFrame(plan.start, request, *session->volume()->volume(), 0, plan.frames);  // throws for a path it cannot take
+  MovieFrame(plan.start, request, MovieVolumeOf(*session->volume()), 0,
+             plan.frames);  // throws for a path it cannot take
   const std::uint64_t pixels = std::uint64_t(plan.start.render().width()) * plan.start.render().height();
   v1::SnapshotRequest still;
   still.set_spp(request.has_spp() ? request.spp() : kDefaultMovieSpp);

@@ -51,9 +51,9 @@ struct ServerOptions {
   // Frames rendering at once on a GPU render at most this many pixels
   // together: four 720p frames, or sixteen interactive ones at half size.
   std::int64_t pixels_in_flight_per_gpu = 4 * 1280 * 720;
-  std::vector<pacs::PacsConfig> pacs;             // --pacs NAME=URL, with the --pacs-* settings
-  std::filesystem::path pacs_credentials;         // --pacs-credentials FILE; empty: none
-  int encode_threads = 0;                         // encodes at once on the compute pool; 0: one per worker
+  std::vector<pacs::PacsConfig> pacs;                     // --pacs NAME=URL, with the --pacs-* settings
+  std::filesystem::path pacs_credentials;                 // --pacs-credentials FILE; empty: none
+  int encode_threads = 0;                                 // encodes at once on the compute pool; 0: one per worker
   JpegEncoderKind jpeg_encoder = JpegEncoderKind::kAuto;  // --jpeg-encoder: nvJPEG on the GPU where it loads
   int max_sessions = 64;
   int max_sessions_per_principal = 16;
@@ -62,7 +62,7 @@ struct ServerOptions {
   // a second that GPU was seen to render while busy, round-robin would give
   // each fewer (Scheduler::Admits). 0: no such check. CPU servers never check.
   double min_session_fps = 30;
-  int max_grants_per_principal = 32;  // shares a principal has made and not revoked (docs/sharing.md)
+  int max_grants_per_principal = 32;            // shares a principal has made and not revoked (docs/sharing.md)
   std::uint64_t max_total_pixels = 40'000'000;  // viewport pixels of every session together
   VolumeLimits volume_limits;
   int max_uploads_per_principal = 2;       // at once
@@ -168,8 +168,8 @@ class ServiceCore {
     MovieDone done;
     std::function<void(const v1::MovieProgress&)> progress;
   };
-  void RenderMovie(const v1::MovieRequest& request, const Principal& caller,
-                   std::shared_ptr<std::atomic<bool>> cancel, MovieCallbacks callbacks);
+  void RenderMovie(const v1::MovieRequest& request, const Principal& caller, std::shared_ptr<std::atomic<bool>> cancel,
+                   MovieCallbacks callbacks);
   // What `caller` may see: its own sessions and uploads (an operator: all).
   v1::ServerStatus Status(const Principal& caller) const;
   // Ends sessions detached (or never attached) for longer than the options
@@ -200,6 +200,9 @@ class ServiceCore {
   bool HasRoomLocked() const;  // mu_ held
   // Throws RESOURCE_EXHAUSTED unless `caller` may hold one more session; mu_ held.
   void RequireRoomLocked(const Principal& caller) const;
+  // The second volume a new session's scene fuses (Scene.fusion.volume_id),
+  // leased for `caller`; null where it names none.
+  std::shared_ptr<VolumeLease> LeaseFused(const v1::CreateSessionRequest& request, const Principal& caller);
   // Environment maps a scene names: resolved inside the data roots.
   MapResolver ResolveMap() const;
   // The least loaded device that admits a session rendering `pixels` a frame
@@ -214,15 +217,15 @@ class ServiceCore {
                           const v1::Scene& scene, std::shared_ptr<std::atomic<bool>> cancel, SnapshotDone done);
   // The same for a movie's request.store_to: the movie's `done`, after it is stored.
   std::function<void(grpc::Status, v1::Movie, std::string)> StoreMovieAfter(const v1::MovieRequest& request,
-                                                                           const Session& session,
-                                                                           const Principal& caller,
-                                                                           std::shared_ptr<std::atomic<bool>> cancel,
-                                                                           MovieDone done);
+                                                                            const Session& session,
+                                                                            const Principal& caller,
+                                                                            std::shared_ptr<std::atomic<bool>> cancel,
+                                                                            MovieDone done);
   void Forget(const std::string& id);
   std::shared_ptr<Session> Find(const std::string& id) const;  // whoever owns it; null when none
 
   ServerOptions options_;
-  Backend backend_ = Backend::kCpu;  // resolved: kCpu or kCuda
+  Backend backend_ = Backend::kCpu;                       // resolved: kCpu or kCuda
   JpegEncoderKind jpeg_encoder_ = JpegEncoderKind::kCpu;  // resolved: kCpu or kNvjpeg
   Authenticator authenticator_;
   VolumeRegistry volumes_;

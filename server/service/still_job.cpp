@@ -20,9 +20,10 @@ constexpr auto kProgressPeriod = std::chrono::milliseconds(500);
 
 }  // namespace
 
-StillJob::StillJob(std::shared_ptr<VolumeLease> volume, v1::Scene scene, int spp, int max_chunk_spp, Backend backend,
-                   std::shared_ptr<std::atomic<bool>> cancel, Callbacks callbacks)
+StillJob::StillJob(std::shared_ptr<VolumeLease> volume, std::shared_ptr<VolumeLease> fused, v1::Scene scene, int spp,
+                   int max_chunk_spp, Backend backend, std::shared_ptr<std::atomic<bool>> cancel, Callbacks callbacks)
     : volume_(std::move(volume)),
+      fused_(std::move(fused)),
       scene_(std::move(scene)),
       spp_(spp),
       max_chunk_(max_chunk_spp),
@@ -61,6 +62,7 @@ void StillJob::Start() {
   start_ = Clock::now();
   pipeline_ = std::make_unique<FramePipeline>(backend_, volume_->phase(int(scene_.time().phase())), RendererOptions{},
                                               volume_->labels());
+  if (fused_) pipeline_->SetFusedVolume(fused_->volume());
   pipeline_->SetCancel(cancel_.get());
   FrameSettings settings;
   settings.denoiser.method = DenoiseMethod::kNone;

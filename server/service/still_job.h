@@ -41,9 +41,10 @@ class StillJob final : public Job {
     std::function<void(const v1::SnapshotProgress&)> progress;
     std::function<std::string()> why_cancelled;  // what raised `cancel`, for the message
   };
-  // `cancel`: raised when the caller goes away or the session ends.
-  StillJob(std::shared_ptr<VolumeLease> volume, v1::Scene scene, int spp, int max_chunk_spp, Backend backend,
-           std::shared_ptr<std::atomic<bool>> cancel, Callbacks callbacks);
+  // `fused`: the second volume the scene's fusion names, or null. `cancel`:
+  // raised when the caller goes away or the session ends.
+  StillJob(std::shared_ptr<VolumeLease> volume, std::shared_ptr<VolumeLease> fused, v1::Scene scene, int spp,
+           int max_chunk_spp, Backend backend, std::shared_ptr<std::atomic<bool>> cancel, Callbacks callbacks);
   // A still dropped unfinished (the server stopping) still answers its caller.
   ~StillJob() override;
 
@@ -57,7 +58,7 @@ class StillJob final : public Job {
   grpc::Status Failure(std::exception_ptr error, int done) const;
   void Finish();
 
-  std::shared_ptr<VolumeLease> volume_;
+  std::shared_ptr<VolumeLease> volume_, fused_;
   v1::Scene scene_;
   int spp_, max_chunk_;
   int chunk_ = 1;  // the first step is short, whatever the device: progress comes soon

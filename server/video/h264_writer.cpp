@@ -35,9 +35,13 @@ void CheckSettings(const VideoSettings& s) {
   if (s.fps < 1 || s.fps > 60) throw InputError(fmt::format("video rate {} frames/s: in [1, 60]", s.fps));
   if (s.crf < 0 || s.crf > 51) throw InputError(fmt::format("video quality (CRF) {}: in [0, 51]", s.crf));
   if (s.dicom_level && (s.width > 1920 || s.height > 1080 || s.fps > 30)) {
-    throw InputError(fmt::format("a DICOM video (H.264 High Profile level 4.1) is at most 1920x1080 at 30 frames/s; "
-                                 "this one is {}x{} at {}",
-                                 s.width, s.height, s.fps));
+    throw InputError(
+        fmt::format("a DICOM video (H.264 High Profile level 4.1) is at most 1920x1080 at 30 frames/s; "
+                    "this one is {}x{} at {}",
+                    s.width, s.height, s.fps));
+  }
+  if (s.dicom_level && s.crf == 0) {
+    throw InputError("a DICOM video is H.264 High Profile, which has no lossless coding: give crf 1 or more");
   }
 }
 
@@ -54,7 +58,8 @@ struct H264Writer::Codec {
   VideoSettings settings;
 
   ~Codec() {
-    if (format != nullptr && !(format->oformat->flags & AVFMT_NOFILE) && format->pb != nullptr) avio_closep(&format->pb);
+    if (format != nullptr && !(format->oformat->flags & AVFMT_NOFILE) && format->pb != nullptr)
+      avio_closep(&format->pb);
     avformat_free_context(format);
     avcodec_free_context(&encoder);
     sws_freeContext(to_yuv);
@@ -107,7 +112,8 @@ H264Writer::H264Writer(const std::filesystem::path& path, VideoContainer contain
   if (c.format->oformat->flags & AVFMT_GLOBALHEADER) c.encoder->flags |= AV_CODEC_FLAG_GLOBAL_HEADER;
   av_opt_set(c.encoder->priv_data, "crf", std::to_string(settings.crf).c_str(), 0);
   av_opt_set(c.encoder->priv_data, "preset", "medium", 0);
-  av_opt_set(c.encoder->priv_data, "profile", "high", 0);
+  // Lossless (crf 0) needs High 4:4:4 Predictive; DICOM's transfer syntax needs High (CheckSettings).
+  av_opt_set(c.encoder->priv_data, "profile", settings.crf == 0 ? "high444" : "high", 0);
   if (settings.dicom_level) av_opt_set(c.encoder->priv_data, "level", "4.1", 0);
   Check(avcodec_open2(c.encoder, x264, nullptr), "opening libx264");
   Check(avcodec_parameters_from_context(c.stream->codecpar, c.encoder), "the stream's parameters");

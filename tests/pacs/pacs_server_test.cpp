@@ -402,7 +402,7 @@ TEST_F(PacsServer, AMovieThatCannotBeMadeIsRefusedByName) {
   v1::MovieRequest pathless = movie;
   pathless.clear_orbit_degrees();
   ExpectRpcError([&] { client.RenderMovie(pathless); }, grpc::StatusCode::INVALID_ARGUMENT,
-                 "give orbit_degrees or sweep");
+                 "give orbit_degrees, sweep or phases");
   v1::MovieRequest oblique = movie;
   oblique.set_sweep(v1::OBLIQUE);
   ExpectRpcError([&] { client.RenderMovie(oblique); }, grpc::StatusCode::INVALID_ARGUMENT, "sweep");

@@ -124,12 +124,43 @@ test("a time series: the Time controls show its phases, a phase changes the pict
   assert.equal(labels.size, 4, `playing showed every phase: ${[...labels].join(", ")}`);
   await page.click("#play");
   await page.waitForFunction(() => document.getElementById("play")!.textContent === "Play", null, WAIT);
+
+  // A movie of the loop: 25 frames of the phases at the Time rate (8 a second), made by the server.
+  await page.locator("#output summary").click();
+  await page.selectOption("#movie-path", "phases");
+  await page.fill("#movie-seconds", "1");
+  await page.selectOption("#movie-quality", "4");
+  const [download] = await Promise.all([page.waitForEvent("download", { timeout: 120_000 }), page.click("#movie-record")]);
+  const saved = join(scratch, "page-loop.mp4");
+  await download.saveAs(saved);
+  assert.match(execFileSync("ffprobe", ["-v", "error", "-count_frames", "-select_streams", "v:0", "-show_entries",
+                                        "stream=nb_read_frames", "-of", "default=nw=1", saved]).toString(),
+               /nb_read_frames=25/);
+  await page.close();
+});
+
+test("a second volume fused by the address: its controls show, a colour map round-trips, its glow changes the picture",
+     async () => {
+  const page = await run.browser.newPage({ viewport: { width: 960, height: 540 } });
+  await page.goto(`http://127.0.0.1:${run.openGateway.port}/?volume=sphere&fuse=hot&align=patient`);
+  await until(page, (s) => s.framesPainted >= 1, "a frame of the fused scene");
+  assert.ok(await page.isVisible("#fusion"), "the second volume's controls show while the scene fuses one");
+  assert.equal(await page.textContent("#fusion-name"), "hot");
+  await page.selectOption("#fusion-map", "GRAY");
+  await settled(page);
+  assert.equal(await page.$eval("#fusion-map", (e) => (e as HTMLSelectElement).value), "GRAY");
+  const glowing = await sample(page);
+  await page.uncheck("#fusion-glow");
+  await settled(page);
+  assert.ok(meanDifference(glowing.grid, (await sample(page)).grid) > 1, "without its glow the picture changed");
+  await page.screenshot({ path: join(ARTIFACTS, "3-fusion.png") });
   await page.close();
 });
 
 test("a movie recorded on the page is made by the server and saved as an MP4 of its frames", async () => {
   const { alice } = run;
   await alice.locator("#output summary").click();
+  assert.ok(await alice.locator("#movie-phases").isHidden(), "no loop to record for a volume of one phase");
   await alice.selectOption("#movie-path", "orbit");
   await alice.fill("#movie-seconds", "1");
   await alice.selectOption("#movie-quality", "4");

@@ -27,7 +27,7 @@ export const MR_DICOM = join(process.env.CINEVOL_SHARED_DATA ?? "", "mr-chest-di
 /** What the tests share, set up before the first: the servers, gateways, the browser and alice's page. */
 export const run = {} as {
   server: Running; gateway: Running; browser: Browser; alice: Page;
-  openServer: Running; openGateway: Running;  // a server that needs no token, holding only the sphere below
+  openServer: Running; openGateway: Running;  // a server that needs no token, holding the spheres and the ball below
 };
 export const base = () => `http://127.0.0.1:${run.gateway.port}`;
 // A sphere of 20 mm radius in voxels of 0.8 x 0.8 x 2 mm: 72 x 72 x 32 of them span 56.8 x 56.8 x 62 mm.
@@ -117,8 +117,10 @@ export async function setUp(): Promise<void> {
   writeSphereNrrd(sphere, [...SPHERE.dims], [...SPHERE.spacingMm], SPHERE.radiusMm);
   const beat = join(scratch, "beat.nrrd");
   writeMovingBallNrrd(beat, 32, 4, 6, 0.05);
+  const hot = join(scratch, "hot.nrrd");  // a larger sphere on the same grid, a halo round the first: a volume to fuse
+  writeSphereNrrd(hot, [...SPHERE.dims], [...SPHERE.spacingMm], SPHERE.radiusMm * 1.4);
   run.openServer = await startWithPortFile(SERVER, ["--listen", "127.0.0.1:0", "--backend", "cpu", "--volume", sphere,
-                                                    "--volume", beat], "open-server");
+                                                    "--volume", beat, "--volume", hot], "open-server");
   run.openGateway = await startWithPortFile(WEB, ["--listen", "127.0.0.1:0", "--server",
                                                   `127.0.0.1:${run.openServer.port}`], "open-gateway");
   run.browser = await chromium.launch({ executablePath: CHROMIUM, args: CHROMIUM_ARGS, timeout: 60_000 });

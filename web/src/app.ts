@@ -6,6 +6,7 @@
 // server; every room shows the state the server answers (page_link.ts).
 import { create } from "@bufbuild/protobuf";
 import { Code, type ConnectError } from "@connectrpc/connect";
+import { SceneSchema } from "../gen/cinevol/v1/scene_pb.js";
 import { MeasurementListSchema, ViewportSchema, type Frame, type SessionState, type VolumeInfo } from "../gen/cinevol/v1/service_pb.js";
 import type { Api } from "./api.js";
 import { sessionQuery, type PageAddress } from "./address.js";
@@ -16,6 +17,7 @@ import { LightPanel } from "./light_panel.js";
 import { MessageLine } from "./message_line.js";
 import { MoviePanel } from "./movie_panel.js";
 import { Navigation, type ViewName } from "./navigation.js";
+import { FusionPanel, fusedStart } from "./fusion_panel.js";
 import { drawOverlay } from "./overlay.js";
 import { PacsPanel } from "./pacs_panel.js";
 import { PageLink } from "./page_link.js";
@@ -40,6 +42,7 @@ export class App {
   private readonly navigation: Navigation;
   private readonly transfer: TransferPanel;
   private readonly time: TimePanel;
+  private readonly fusion: FusionPanel;
   private readonly light: LightPanel;
   private readonly clipping: ClippingPanel;
   private readonly labels: LabelsPanel;
@@ -62,6 +65,7 @@ export class App {
     this.navigation.onMoved = () => this.drawOverlay();
     this.transfer = new TransferPanel(link);
     this.time = new TimePanel(link);
+    this.fusion = new FusionPanel(link, (volumeId) => this.api.volumes.describeVolume({ volumeId }));
     this.light = new LightPanel(link, camera);
     this.clipping = new ClippingPanel(link, camera);
     this.labels = new LabelsPanel(link);
@@ -97,6 +101,7 @@ export class App {
     const volumeId = address.volume ?? volumes.volumes[0]?.id;
     if (address.session) await this.join(address.session);
     else if (address.iid) await listed.then(() => pacs.openIid(address.iid!));
+    else if (volumeId && address.fuse) await this.openFused(volumeId, address, volumes.volumes);
     else if (volumeId) await this.open(volumeId, { preset: address.preset });
     else this.said.setWaiting("The server holds no volume yet: open a study from the PACS, on the left, where it has one.");
   }
@@ -105,6 +110,17 @@ export class App {
   private measure(measurements: readonly { points: readonly { x: number; y: number; z: number }[] }[]): void {
     this.reading.follow(measurements);
     this.reading.onMeasurementsEdited(this.reading.measurements);
+  }
+
+  /** `fuse=ID`: the volume with a second one over it, glowing in 3D and coloured over the slices. */
+  private async openFused(volumeId: string, address: PageAddress, volumes: readonly VolumeInfo[]): Promise<void> {
+    const fused = volumes.find((v) => v.id === address.fuse);
+    if (!fused) return this.said.showError(`The server holds no volume '${address.fuse}' to fuse (fuse=).`);
+    this.fusion.setFused(fused);
+    const scene = create(SceneSchema, {
+      transferFunction: { preset: address.preset ?? "" }, fusion: fusedStart(fused, address.alignByPatient ?? false),
+    });
+    await this.open(volumeId, { scene });
   }
 
   async open(volumeId: string, start: SessionStart = {}): Promise<void> {
@@ -173,6 +189,7 @@ export class App {
     this.drawOverlay();
     this.transfer.adopt(state);
     this.time.show(scene);
+    this.fusion.show(scene);
     this.light.show(scene);
     this.clipping.show(scene);
     this.labels.show(scene);

@@ -1,4 +1,4 @@
-// "Record a movie": the session's view along an orbit or a sweep, made by the server (RenderMovie: every frame a
+// "Record a movie": the session's view along an orbit, a sweep or a time series' phases, made by the server (RenderMovie: every frame a
 // refined still, H.264 in an MP4; docs/movies.md), its progress in the message line, then saved by the browser.
 import { SliceAxis } from "../gen/cinevol/v1/service_pb.js";
 import type { Api } from "./api.js";
@@ -6,11 +6,13 @@ import { plainWords } from "./words.js";
 
 const $ = <T extends HTMLElement>(id: string) => document.getElementById(id) as T;
 
-/** The path a choice names: a whole turn of the camera, or a clip plane across a patient axis. */
-export function moviePath(choice: string): { case: "orbitDegrees"; value: number } | { case: "sweep"; value: SliceAxis } {
+/** The path a choice names: a whole turn of the camera, a clip plane across a patient axis, or the phases played. */
+export function moviePath(choice: string): { case: "orbitDegrees"; value: number } | { case: "sweep"; value: SliceAxis }
+    | { case: "phases"; value: boolean } {
   const sweeps: Record<string, SliceAxis> = {
     "sweep-axial": SliceAxis.AXIAL, "sweep-coronal": SliceAxis.CORONAL, "sweep-sagittal": SliceAxis.SAGITTAL,
   };
+  if (choice === "phases") return { case: "phases", value: true };
   return choice in sweeps ? { case: "sweep", value: sweeps[choice] } : { case: "orbitDegrees", value: 360 };
 }
 

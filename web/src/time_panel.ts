@@ -24,6 +24,7 @@ export class TimePanel {
     this.phases = Math.max(1, volume?.phases ?? 1);
     this.seconds = volume?.phaseSeconds ?? [];
     $("time").hidden = this.phases < 2;
+    $("movie-phases").hidden = this.phases < 2;  // a movie of the loop (Output panel)
     $<HTMLInputElement>("phase").max = String(this.phases - 1);
     this.label(0);
   }

@@ -2,20 +2,26 @@ import assert from "node:assert/strict";
 import { test } from "node:test";
 import { create } from "@bufbuild/protobuf";
 import { Code, ConnectError } from "@connectrpc/connect";
-import { VolumePlacementSchema } from "../gen/cinevol/v1/service_pb.js";
+import { SliceAxis, VolumeInfoSchema, VolumePlacementSchema } from "../gen/cinevol/v1/service_pb.js";
 import { readAddress, sessionQuery } from "../src/address.js";
 import {
   centre, cropFromFractions, directionToPatient, directionToVolume, patientBox, placementOf, samePlacement,
   slicePlaneOutline, spacingAlong, toPatient, toVolume, type Placement,
 } from "../src/placement.js";
 import { messageToShow } from "../src/messages.js";
+import { fusedStart, glowOf } from "../src/fusion_panel.js";
+import { moviePath } from "../src/movie_panel.js";
 import { MotionToPhoton, percentile, Rate } from "../src/stats.js";
 import { plainWords, signInWords, tokenRefused } from "../src/words.js";
 
 test("the address: volume and preset in the query, the token only from the fragment", () => {
   const a = readAddress("?volume=phantom%3Ahead&preset=ct-bone&token=leak", "#token=s3cret");
-  assert.deepEqual(a, { volume: "phantom:head", preset: "ct-bone", session: undefined, token: "s3cret", grant: undefined,
-                        iid: undefined });
+  assert.deepEqual(a, { volume: "phantom:head", preset: "ct-bone", fuse: undefined, alignByPatient: false,
+                        session: undefined, token: "s3cret", grant: undefined, iid: undefined });
+  const fused = readAddress("?volume=ct&fuse=pet&align=patient", "");
+  assert.equal(fused.fuse, "pet");
+  assert.equal(fused.alignByPatient, true);
+  assert.equal(readAddress("?volume=ct&fuse=pet&align=yes", "").alignByPatient, false, "only align=patient aligns");
   assert.equal(readAddress("", "").token, undefined);
   assert.equal(sessionQuery("?volume=v", "abc"), "?volume=v&session=abc");
 });
@@ -166,4 +172,22 @@ test("a server that needs a token says so in words; a token it refuses is named 
   assert.doesNotMatch(signInWords(needed, false), /metadata/, "the server's words for programs are not shown");
   assert.match(signInWords(new ConnectError("the bearer token is not valid", Code.Unauthenticated), true),
                /did not accept your token.*not valid/);
+});
+
+test("a movie's path from the page's choice: a whole turn, a sweep across an axis, or the phases", () => {
+  assert.deepEqual(moviePath("orbit"), { case: "orbitDegrees", value: 360 });
+  assert.deepEqual(moviePath("sweep-coronal"), { case: "sweep", value: SliceAxis.CORONAL });
+  assert.deepEqual(moviePath("phases"), { case: "phases", value: true });
+});
+
+test("a second volume glows above SUVbw 2.5 where it has SUVbw, else over the top 70% of its range", () => {
+  const pet = glowOf({ minValue: 0, maxValue: 40000, suvFactor: 2.5e-4 });
+  assert.deepEqual(pet.points.map((p) => [p.value, p.opacity]), [[2.5, 0], [10, 0.4]]);
+  const mr = glowOf({ minValue: 100, maxValue: 1100, suvFactor: 0 });
+  assert.deepEqual(mr.points.map((p) => [p.value, p.opacity]), [[400, 0], [1100, 0.4]]);
+  assert.ok(mr.points[1].emission!.r > 0, "it emits");
+  const start = fusedStart(create(VolumeInfoSchema, { id: "pet", maxValue: 40000, suvFactor: 2.5e-4 }), true);
+  assert.equal(start.volumeId, "pet");
+  assert.ok(start.suv && start.alignByPatient);
+  assert.equal(start.overlay?.opacity, 0.5);
 });

@@ -4,6 +4,7 @@
 // block the parent receives, in the file's native type.
 #include "io/readers/itk_adapter.h"
 
+#include <fmt/format.h>
 #include <gdcmGlobal.h>
 #include <gdcmTrace.h>
 #include <itkGDCMImageIO.h>
@@ -22,8 +23,6 @@
 #include <mutex>
 #include <regex>
 #include <vector>
-
-#include <fmt/format.h>
 
 #include "core/error.h"
 #include "core/volume.h"
@@ -85,25 +84,37 @@ namespace {
 std::string ComponentName(itk::IOComponentEnum type) {
   using C = itk::IOComponentEnum;
   switch (type) {
-    case C::UCHAR: return "uint8";
-    case C::CHAR: return "int8";
-    case C::USHORT: return "uint16";
-    case C::SHORT: return "int16";
-    case C::UINT: return "uint32";
-    case C::INT: return "int32";
-    case C::ULONG: case C::ULONGLONG: return "uint64";
-    case C::LONG: case C::LONGLONG: return "int64";
-    case C::FLOAT: return "float32";
-    case C::DOUBLE: return "float64";
-    default: return itk::ImageIOBase::GetComponentTypeAsString(type);
+    case C::UCHAR:
+      return "uint8";
+    case C::CHAR:
+      return "int8";
+    case C::USHORT:
+      return "uint16";
+    case C::SHORT:
+      return "int16";
+    case C::UINT:
+      return "uint32";
+    case C::INT:
+      return "int32";
+    case C::ULONG:
+    case C::ULONGLONG:
+      return "uint64";
+    case C::LONG:
+    case C::LONGLONG:
+      return "int64";
+    case C::FLOAT:
+      return "float32";
+    case C::DOUBLE:
+      return "float64";
+    default:
+      return itk::ImageIOBase::GetComponentTypeAsString(type);
   }
 }
 
 // ITK's message without its source location and class prefix ("file.cxx:123:
 // ITK ERROR: Class(0x...): "), with each of `paths` replaced by `shown`: ITK,
 // teem and GDCM quote the paths they open, and messages must not.
-std::string ItkMessage(const itk::ExceptionObject& e, const std::vector<fs::path>& paths,
-                       const std::string& shown) {
+std::string ItkMessage(const itk::ExceptionObject& e, const std::vector<fs::path>& paths, const std::string& shown) {
   std::string d = e.GetDescription();
   const auto colon = d.find("): ");
   if (d.rfind("ITK ERROR", 0) == 0 && colon != std::string::npos) d = d.substr(colon + 3);
@@ -152,8 +163,8 @@ void SetGeometry(reader::Header& header, const std::array<int, 3>& dims, std::ar
     }
   }
   const auto& d = direction;
-  const double det = d[0] * (d[4] * d[8] - d[5] * d[7]) - d[1] * (d[3] * d[8] - d[5] * d[6]) +
-                     d[2] * (d[3] * d[7] - d[4] * d[6]);
+  const double det =
+      d[0] * (d[4] * d[8] - d[5] * d[7]) - d[1] * (d[3] * d[8] - d[5] * d[6]) + d[2] * (d[3] * d[7] - d[4] * d[6]);
   if (!(std::fabs(det) > 1e-6)) direction = {1, 0, 0, 0, 1, 0, 0, 0, 1};
   header.clear_dims();
   header.clear_spacing_mm();
@@ -171,8 +182,17 @@ void SetGeometry(reader::Header& header, const std::array<int, 3>& dims, std::ar
 bool IsSupportedComponent(itk::IOComponentEnum c) {
   using C = itk::IOComponentEnum;
   switch (c) {
-    case C::UCHAR: case C::CHAR: case C::USHORT: case C::SHORT: case C::UINT: case C::INT:
-    case C::ULONG: case C::LONG: case C::ULONGLONG: case C::LONGLONG: case C::FLOAT:
+    case C::UCHAR:
+    case C::CHAR:
+    case C::USHORT:
+    case C::SHORT:
+    case C::UINT:
+    case C::INT:
+    case C::ULONG:
+    case C::LONG:
+    case C::ULONGLONG:
+    case C::LONGLONG:
+    case C::FLOAT:
     case C::DOUBLE:
       return true;
     default:
@@ -205,10 +225,10 @@ itk::ImageIOBase::Pointer ReadHeader(const fs::path& path, const std::string& sh
   itk_adapter::InitToolkits();
   auto io = itk::ImageIOFactory::CreateImageIO(path.c_str(), itk::IOFileModeEnum::ReadMode);
   if (!io) {
-    throw InputError(fmt::format(
-        "{}: not a volume format cinevol reads (NIfTI, NRRD/NHDR, MetaImage, VTK; "
-        "DICOM is read from a folder)",
-        shown));
+    throw InputError(
+        fmt::format("{}: not a volume format cinevol reads (NIfTI, NRRD/NHDR, MetaImage, VTK; "
+                    "DICOM is read from a folder)",
+                    shown));
   }
   io->SetFileName(path.string());
   if (prechecks && FormatOf(*io) == Format::kMetaImage) metaimage::CheckHeaderText(path, shown);
@@ -224,18 +244,18 @@ itk::ImageIOBase::Pointer ReadHeader(const fs::path& path, const std::string& sh
 void CheckHeader(const std::string& shown, itk::ImageIOBase& io, std::uint64_t max_voxels) {
   const unsigned dims = io.GetNumberOfDimensions();
   if (dims < 2 || dims > 4) {
-    throw InputError(fmt::format("{}: a {}-D image; cinevol reads 2-D and 3-D scalar volumes and time series of "
-                                 "3-D ones (4-D)",
-                                 shown, dims));
+    throw InputError(
+        fmt::format("{}: a {}-D image; cinevol reads 2-D and 3-D scalar volumes and time series of "
+                    "3-D ones (4-D)",
+                    shown, dims));
   }
   if (io.GetNumberOfComponents() != 1) {
-    throw InputError(fmt::format("{}: {} components per voxel ({}); cinevol needs one scalar",
-                                 shown, io.GetNumberOfComponents(),
-                                 io.GetPixelTypeAsString(io.GetPixelType())));
+    throw InputError(fmt::format("{}: {} components per voxel ({}); cinevol needs one scalar", shown,
+                                 io.GetNumberOfComponents(), io.GetPixelTypeAsString(io.GetPixelType())));
   }
   if (!IsSupportedComponent(io.GetComponentType())) {
-    throw InputError(fmt::format("{}: unsupported voxel type '{}'", shown,
-                                 io.GetComponentTypeAsString(io.GetComponentType())));
+    throw InputError(
+        fmt::format("{}: unsupported voxel type '{}'", shown, io.GetComponentTypeAsString(io.GetComponentType())));
   }
   Vec3i size{1, 1, 1};
   Vec3f spacing{1, 1, 1};
@@ -249,12 +269,7 @@ void CheckHeader(const std::string& shown, itk::ImageIOBase& io, std::uint64_t m
   if (phases < 1 || phases > std::uint64_t(kMaxPhases)) {
     throw InputError(fmt::format("{}: a time series of {} phases; cinevol reads 1 to {}", shown, phases, kMaxPhases));
   }
-  const std::uint64_t voxels = std::uint64_t(size.x) * std::uint64_t(size.y) * std::uint64_t(size.z);
-  if (voxels * phases > max_voxels) {
-    throw InputError(fmt::format("{}: {}x{}x{}{} = {} voxels exceeds this server's limit of {} voxels", shown, size.x,
-                                 size.y, size.z, phases > 1 ? fmt::format(" voxels x {} phases", phases) : "",
-                                 voxels * phases, max_voxels));
-  }
+  CheckVoxelLimit(size, phases, max_voxels, shown);
 }
 
 // A volume file opened through ITK: the header read and checked, the voxels
@@ -262,8 +277,7 @@ void CheckHeader(const std::string& shown, itk::ImageIOBase& io, std::uint64_t m
 class ItkVolumeRead final : public reader::VolumeRead {
  public:
   ItkVolumeRead(itk::ImageIOBase::Pointer io, const fs::path& path, const reader::ReadOptions& options)
-      : io_(std::move(io)), format_(FormatOf(*io_)), path_(path), shown_(options.shown),
-        prechecks_(options.prechecks) {
+      : io_(std::move(io)), format_(FormatOf(*io_)), path_(path), shown_(options.shown), prechecks_(options.prechecks) {
     const unsigned n = std::min(io_->GetNumberOfDimensions(), 3u);  // a fourth is time
     std::array<int, 3> dims{1, 1, 1};
     std::array<double, 3> spacing{1, 1, 1}, origin{0, 0, 0};
@@ -280,9 +294,10 @@ class ItkVolumeRead final : public reader::VolumeRead {
     if (!StatesOrientation()) {
       std::array<double, 9> held;
       std::copy(header_.direction().begin(), header_.direction().end(), held.begin());
-      header_.add_notes(fmt::format("the file states no orientation: its index axes are taken as {} (--orientation "
-                                    "gives the true one)",
-                                    OrientationCode(held)));
+      header_.add_notes(
+          fmt::format("the file states no orientation: its index axes are taken as {} (--orientation "
+                      "gives the true one)",
+                      OrientationCode(held)));
     }
     header_.set_voxel_type(VoxelTypeOf(io_->GetComponentType()));
     // The type as stored in the file: NIfTI's datatype where ITK converts.
@@ -308,10 +323,14 @@ class ItkVolumeRead final : public reader::VolumeRead {
   // reader gives is an assumption, which the header notes.
   bool StatesOrientation() const {
     switch (format_) {
-      case Format::kNifti: return nifti::StatesOrientation(path_);
-      case Format::kNrrd: return nrrd::StatesOrientation(path_, shown_);
-      case Format::kMetaImage: return metaimage::StatesOrientation(path_, shown_);
-      default: return false;  // VTK legacy structured points have no orientation
+      case Format::kNifti:
+        return nifti::StatesOrientation(path_);
+      case Format::kNrrd:
+        return nrrd::StatesOrientation(path_, shown_);
+      case Format::kMetaImage:
+        return metaimage::StatesOrientation(path_, shown_);
+      default:
+        return false;  // VTK legacy structured points have no orientation
     }
   }
 
@@ -358,11 +377,16 @@ class ItkVolumeRead final : public reader::VolumeRead {
   // them: "" or what is wrong.
   std::string PayloadProblem() {
     switch (format_) {
-      case Format::kNifti: return nifti::PayloadProblem(path_);
-      case Format::kNrrd: return nrrd::PayloadProblem(*io_, path_, shown_);
-      case Format::kMetaImage: return metaimage::PayloadProblem(*io_, path_, shown_);
-      case Format::kVtk: return vtk::PayloadProblem(*io_, path_);
-      default: return "";
+      case Format::kNifti:
+        return nifti::PayloadProblem(path_);
+      case Format::kNrrd:
+        return nrrd::PayloadProblem(*io_, path_, shown_);
+      case Format::kMetaImage:
+        return metaimage::PayloadProblem(*io_, path_, shown_);
+      case Format::kVtk:
+        return vtk::PayloadProblem(*io_, path_);
+      default:
+        return "";
     }
   }
 
@@ -392,15 +416,32 @@ void ToFloat(itk::IOComponentEnum from, const void* in, float* out, std::size_t 
     for (std::size_t i = 0; i < n; ++i) out[i] = float(typed[i]);
   };
   switch (from) {
-    case C::UCHAR: copy(static_cast<const std::uint8_t*>(in)); break;
-    case C::CHAR: copy(static_cast<const std::int8_t*>(in)); break;
-    case C::USHORT: copy(static_cast<const std::uint16_t*>(in)); break;
-    case C::SHORT: copy(static_cast<const std::int16_t*>(in)); break;
-    case C::UINT: copy(static_cast<const std::uint32_t*>(in)); break;
-    case C::INT: copy(static_cast<const std::int32_t*>(in)); break;
-    case C::FLOAT: copy(static_cast<const float*>(in)); break;
-    case C::DOUBLE: copy(static_cast<const double*>(in)); break;
-    default: throw InputError("a slice of a voxel type cinevol does not read");
+    case C::UCHAR:
+      copy(static_cast<const std::uint8_t*>(in));
+      break;
+    case C::CHAR:
+      copy(static_cast<const std::int8_t*>(in));
+      break;
+    case C::USHORT:
+      copy(static_cast<const std::uint16_t*>(in));
+      break;
+    case C::SHORT:
+      copy(static_cast<const std::int16_t*>(in));
+      break;
+    case C::UINT:
+      copy(static_cast<const std::uint32_t*>(in));
+      break;
+    case C::INT:
+      copy(static_cast<const std::int32_t*>(in));
+      break;
+    case C::FLOAT:
+      copy(static_cast<const float*>(in));
+      break;
+    case C::DOUBLE:
+      copy(static_cast<const double*>(in));
+      break;
+    default:
+      throw InputError("a slice of a voxel type cinevol does not read");
   }
 }
 
@@ -428,24 +469,18 @@ class DicomSeriesRead final : public reader::VolumeRead {
     }
     const std::uint64_t frames = io->GetNumberOfDimensions() > 2 ? std::max<std::uint64_t>(1, io->GetDimensions(2)) : 1;
     if (frames > 1 && (phase_files_.size() > 1 || phase_files_[0].size() > 1)) {
-      throw InputError(fmt::format("{}: series {} has multi-frame files; cinevol reads one such file, or single-frame "
-                                   "slices", where_, dicom::Describe(series_)));
+      throw InputError(
+          fmt::format("{}: series {} has multi-frame files; cinevol reads one such file, or single-frame "
+                      "slices",
+                      where_, dicom::Describe(series_)));
     }
     const std::array<int, 3> dims{int(std::min<std::uint64_t>(io->GetDimensions(0), 1u << 30)),
                                   int(std::min<std::uint64_t>(io->GetDimensions(1), 1u << 30)),
                                   int(std::min<std::uint64_t>(g.GridSlices() * frames, 1u << 30))};
     CheckVolumeGeometry({dims[0], dims[1], dims[2]},
                         {float(io->GetSpacing(0)), float(io->GetSpacing(1)), float(g.slice_gap_mm)}, where_);
-    const std::uint64_t voxels = std::uint64_t(dims[0]) * std::uint64_t(dims[1]) * std::uint64_t(dims[2]);
-    const std::uint64_t phases = phase_files_.size();  // at most kMaxPhases (ChooseSeries)
-    if (voxels * phases > max_voxels) {
-      throw InputError(phases == 1 ? fmt::format("{}: {}x{}x{} = {} voxels exceeds this server's limit of {} voxels",
-                                                 where_, dims[0], dims[1], dims[2], voxels, max_voxels)
-                                   : fmt::format("{}: {}x{}x{} voxels x {} phases = {} voxels exceeds this server's "
-                                                 "limit of {} voxels",
-                                                 where_, dims[0], dims[1], dims[2], phases, voxels * phases,
-                                                 max_voxels));
-    }
+    CheckVoxelLimit({dims[0], dims[1], dims[2]}, phase_files_.size(), max_voxels,
+                    where_);  // phases: at most kMaxPhases
     // Geometry from the sorted positions, not from the first two files.
     std::array<double, 9> direction;
     for (int r = 0; r < 3; ++r) {
@@ -455,7 +490,7 @@ class DicomSeriesRead final : public reader::VolumeRead {
     }
     const dicom::Slice& first = g.slices.front();
     SetGeometry(header_, dims, {io->GetSpacing(0), io->GetSpacing(1), g.slice_gap_mm},
-                           {first.position[0], first.position[1], first.position[2]}, direction);
+                {first.position[0], first.position[1], first.position[2]}, direction);
     type_ = io->GetComponentType();
     rescaled_alike_ = series.rescaled_alike;
     header_.set_voxel_type(rescaled_alike_ ? VoxelTypeOf(type_) : "float32");
@@ -478,7 +513,7 @@ class DicomSeriesRead final : public reader::VolumeRead {
     slice_voxels_ = std::size_t(dims[0]) * std::size_t(dims[1]) * std::size_t(frames);
     if (g.tilt_deg > dicom::kMaxTiltDeg) Shear(g, io->GetSpacing(0), io->GetSpacing(1), dims);
     if (g.uneven) Even(g);
-    if (phases > 1) SetPhases(series);
+    if (phase_files_.size() > 1) SetPhases(series);
   }
 
   // Phase `phase`'s slices, decoded into `memory` (resampled as the first
@@ -505,9 +540,10 @@ class DicomSeriesRead final : public reader::VolumeRead {
     header_.set_phases(std::uint32_t(phase_files_.size()));
     for (double t : series.phase_seconds) header_.add_phase_seconds(t);
     if (series.phase_seconds.empty()) {
-      header_.add_notes(fmt::format("a time series of {} phases ordered by {}; its files give no Trigger Times that "
-                                    "rise phase by phase, so the phases have no times",
-                                    phase_files_.size(), series.phase_order));
+      header_.add_notes(
+          fmt::format("a time series of {} phases ordered by {}; its files give no Trigger Times that "
+                      "rise phase by phase, so the phases have no times",
+                      phase_files_.size(), series.phase_order));
     }
   }
 
@@ -551,9 +587,10 @@ class DicomSeriesRead final : public reader::VolumeRead {
     grid_slices_ = g.GridSlices();
     gap_mm_ = g.slice_gap_mm;
     header_.set_voxel_type("float32");
-    header_.add_notes(fmt::format("resampled onto an even grid of {:.3g} mm along the slices' normal (the "
-                                  "series' smallest gap): its gaps run to {:.3g} mm, the largest between {}",
-                                  g.slice_gap_mm, g.largest_gap_mm, g.largest_gap_between));
+    header_.add_notes(
+        fmt::format("resampled onto an even grid of {:.3g} mm along the slices' normal (the "
+                    "series' smallest gap): its gaps run to {:.3g} mm, the largest between {}",
+                    g.slice_gap_mm, g.largest_gap_mm, g.largest_gap_between));
   }
 
   void ReadEven(float* memory) {
@@ -577,8 +614,7 @@ class DicomSeriesRead final : public reader::VolumeRead {
 
   // A gantry-tilted series: each slice's offset in its own plane (voxels along
   // row and column) from where a regular grid puts it; read as float32.
-  void Shear(const dicom::SeriesGeometry& g, double row_mm, double col_mm,
-             const std::array<int, 3>& dims) {
+  void Shear(const dicom::SeriesGeometry& g, double row_mm, double col_mm, const std::array<int, 3>& dims) {
     const dicom::Slice& first = g.slices.front();
     for (std::size_t k = 0; k < g.slices.size(); ++k) {
       double d[3];
@@ -588,9 +624,10 @@ class DicomSeriesRead final : public reader::VolumeRead {
     width_ = dims[0];
     height_ = dims[1];
     header_.set_voxel_type("float32");
-    header_.add_notes(fmt::format("resampled from a gantry tilt of {:.1f} degrees onto a regular grid: each slice "
-                                  "shifted in its own plane",
-                                  g.tilt_deg));
+    header_.add_notes(
+        fmt::format("resampled from a gantry tilt of {:.1f} degrees onto a regular grid: each slice "
+                    "shifted in its own plane",
+                    g.tilt_deg));
   }
 
   // Moves a slice by its offset: the regular grid's voxel (i, j) is the
@@ -607,7 +644,7 @@ class DicomSeriesRead final : public reader::VolumeRead {
         const double fx = x - x0, fy = y - y0;
         auto at = [&](int xi, int yi) {
           return xi < 0 || yi < 0 || xi >= width_ || yi >= height_ ? double(fill)
-                                                                    : double(in[std::size_t(yi) * width_ + xi]);
+                                                                   : double(in[std::size_t(yi) * width_ + xi]);
         };
         const double v = (at(x0, y0) * (1 - fx) + at(x0 + 1, y0) * fx) * (1 - fy) +
                          (at(x0, y0 + 1) * (1 - fx) + at(x0 + 1, y0 + 1) * fx) * fy;
@@ -617,8 +654,8 @@ class DicomSeriesRead final : public reader::VolumeRead {
   }
 
   InputError Failed(const itk::ExceptionObject& e) const {
-    return InputError(fmt::format("{}: cannot decode series {}: {}", where_, dicom::Describe(series_),
-                                  ItkMessage(e, {}, where_)));
+    return InputError(
+        fmt::format("{}: cannot decode series {}: {}", where_, dicom::Describe(series_), ItkMessage(e, {}, where_)));
   }
 
   std::string where_;
@@ -633,7 +670,7 @@ class DicomSeriesRead final : public reader::VolumeRead {
   std::vector<double> positions_;  // per slice, mm along the normal from the first, for an uneven series; else empty
   std::size_t grid_slices_ = 0;    // the even grid's slices, for an uneven series
   double gap_mm_ = 0;
-  std::vector<char> scratch_;      // a slice as stored, on its way to float32
+  std::vector<char> scratch_;  // a slice as stored, on its way to float32
 };
 
 }  // namespace
@@ -685,8 +722,7 @@ std::unique_ptr<VolumeRead> OpenVolumeFile(const fs::path& path, const std::vect
 std::unique_ptr<VolumeRead> OpenDicomSeries(const std::vector<DicomFile>& files, const std::string& series_uid,
                                             const ReadOptions& options) {
   itk_adapter::InitToolkits();
-  return std::make_unique<DicomSeriesRead>(dicom::ChooseSeries(files, series_uid, options),
-                                           options.max_voxels);
+  return std::make_unique<DicomSeriesRead>(dicom::ChooseSeries(files, series_uid, options), options.max_voxels);
 }
 
 SeriesList ListDicomSeries(const std::vector<DicomFile>& files, const ReadOptions& options) {
