@@ -63,8 +63,8 @@ void CpuRenderer::SetLabels(std::shared_ptr<const LabelVolume> labels, const Lab
 }
 
 void CpuRenderer::SetFusion(std::shared_ptr<const Volume> fused, const FusionSetup& setup) {
-  // One brick: its voxels are sampled, never tracked through bricks of their own.
-  fused_ = fused ? VolumeCache::Get().Acquire(fused, 0, kHostDevice) : nullptr;
+  // Its bricks' ranges bound its extinction over each of the first volume's bricks (SceneData).
+  fused_ = fused ? VolumeCache::Get().Acquire(fused, kAutoBrickSize, kHostDevice) : nullptr;
   data_.SetFusion(fused_ ? fused_->prepared_ptr() : nullptr, setup);
 }
 

@@ -52,7 +52,7 @@ struct CudaRenderer::Device {
   DeviceBuffer<Vec4f> diffuse_opacity, specular_roughness, emission, env_texels;
   DeviceBuffer<Light> lights;
   DeviceBuffer<LabelMaterial> label_materials;
-  DeviceBuffer<float> fused_sigma_t;
+  DeviceBuffer<float> fused_sigma_t, fused_majorants;
   DeviceBuffer<Vec4f> fused_diffuse_opacity, fused_specular_roughness, fused_emission;
   DeviceBuffer<Vec3f> radiance, accumulated, albedo;
   DeviceBuffer<Vec4f> first_hit;
@@ -104,8 +104,8 @@ void CudaRenderer::SetLabels(std::shared_ptr<const LabelVolume> labels, const La
 void CudaRenderer::SetFusion(std::shared_ptr<const Volume> fused, const FusionSetup& setup) {
   int gpu = 0;
   CINEVOL_CUDA_CHECK(cudaGetDevice(&gpu));
-  // One brick: its voxels are sampled, never tracked through bricks of their own.
-  fused_ = fused ? VolumeCache::Get().Acquire(fused, 0, gpu, use_texture_) : nullptr;
+  // Its bricks' ranges bound its extinction over each of the first volume's bricks (SceneData).
+  fused_ = fused ? VolumeCache::Get().Acquire(fused, kAutoBrickSize, gpu, use_texture_) : nullptr;
   data_.SetFusion(fused_ ? fused_->prepared_ptr() : nullptr, setup);
   const TransferTable& t = data_.fused_table();
   Device& d = *device_;
@@ -114,6 +114,7 @@ void CudaRenderer::SetFusion(std::shared_ptr<const Volume> fused, const FusionSe
   d.fused_specular_roughness.Upload(t.specular_roughness, d.stream);
   d.fused_emission.Upload(t.emission, d.stream);
   CINEVOL_CUDA_CHECK(cudaStreamSynchronize(d.stream));
+  AcquireMajorants();
 }
 
 void CudaRenderer::UploadTables() {
@@ -132,6 +133,10 @@ void CudaRenderer::AcquireMajorants() {
   CINEVOL_CUDA_CHECK(cudaGetDevice(&gpu));
   const auto& shared = data_.shared_majorants();
   majorants_ = shared && !shared->empty() ? VolumeCache::Get().AcquireMajorantsOnGpu(shared, gpu) : nullptr;
+  // With a second volume, this renderer's own bounds of both (SceneData::fused_majorants).
+  Device& d = *device_;
+  d.fused_majorants.Upload(data_.fused_majorants(), d.stream);
+  CINEVOL_CUDA_CHECK(cudaStreamSynchronize(d.stream));
 }
 
 void CudaRenderer::SetLights(const LightSetup& lights) {
@@ -162,7 +167,7 @@ void CudaRenderer::Render(const FrameRequest& request) {
   RenderScene scene = data_.HostView();
   scene.volume.voxels = volume_->voxels();
   if (use_texture_) scene.volume.texture = volume_->texture();
-  scene.majorants.majorant = majorants_.get();
+  scene.majorants.majorant = data_.fused_majorants().empty() ? majorants_.get() : d.fused_majorants.data();
   if (scene.labels.voxels) scene.labels = {data_.labels()->voxels(), d.label_materials.data()};
   scene.transfer.sigma_t = d.sigma_t.data();
   scene.transfer.diffuse_opacity = d.diffuse_opacity.data();

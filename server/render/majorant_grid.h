@@ -19,9 +19,6 @@ struct MajorantGridView {
   Vec3i bricks;
   Vec3f box_min;         // world mm: the volume's box
   Vec3f inv_brick_size;  // bricks per mm along each axis
-  // Added to every brick's: a second volume's largest extinction (Scene.fusion),
-  // which the bricks of the scene volume's grid do not bound.
-  float extra = 0.0f;
 
   CINEVOL_HD float At(Vec3i b) const {
     return LoadReadOnly(majorant + (std::int64_t(b.z) * bricks.y + b.y) * bricks.x + b.x);
@@ -49,7 +46,7 @@ class MajorantIterator {
   CINEVOL_HD bool Next(MajorantSegment& seg) {
     if (!(t_min_ < t_max_)) return false;
     seg.t_min = t_min_;
-    seg.sigma_maj = grid_->At({x_.brick, y_.brick, z_.brick}) + grid_->extra;
+    seg.sigma_maj = grid_->At({x_.brick, y_.brick, z_.brick});
     // Step along the axis whose brick boundary comes first. One call per
     // axis, not a reference or an index chosen at run time: that keeps every
     // field in registers on a GPU.

@@ -82,18 +82,78 @@ void SceneData::SetTransferFunction(const TransferFunction& tf) {
   UpdateTables();
 }
 
+namespace {
+
+// Where `table` puts `volume`'s stored voxels: entry = stored * scale + offset.
+void SetEntryMapping(const PreparedVolume& volume, const TransferTable& table, TransferView& view) {
+  // In double: a narrow range (1e-37 wide) or a wide one (2e30) overflows
+  // one factor in float where the product is an ordinary number.
+  const double to_entry = double(TransferTable::kEntries - 1) / (double(table.value_max) - table.value_min);
+  view.entry_scale = float(volume.value_scale() * to_entry);
+  view.entry_offset = float((double(volume.value_offset()) - table.value_min) * to_entry);
+}
+
+}  // namespace
+
 void SceneData::SetFusion(std::shared_ptr<const PreparedVolume> fused, const FusionSetup& setup) {
   fused_table_ = {};
-  fused_max_sigma_t_ = 0;
   fused_ = setup.transfer_function.points.empty() ? nullptr : std::move(fused);
-  if (!fused_) return;
-  const Volume& v = fused_->volume();
-  fused_to_volume_ = setup.to_volume;
-  // Clamped as the scene volume's extinction is, at the finer spacing of the two.
-  float max_sigma_t = MaxExtinction(v.spacing_mm());
-  if (volume_) max_sigma_t = std::max(max_sigma_t, MaxExtinction(volume_->volume().spacing_mm()));
-  fused_table_ = BuildTransferTable(setup.transfer_function, v.min_value(), v.max_value(), max_sigma_t);
-  for (float sigma : fused_table_.sigma_t) fused_max_sigma_t_ = std::max(fused_max_sigma_t_, sigma);
+  if (fused_) {
+    const Volume& v = fused_->volume();
+    fused_to_volume_ = setup.to_volume;
+    // Clamped as the scene volume's extinction is, at the finer spacing of the two.
+    float max_sigma_t = MaxExtinction(v.spacing_mm());
+    if (volume_) max_sigma_t = std::max(max_sigma_t, MaxExtinction(volume_->volume().spacing_mm()));
+    fused_table_ = BuildTransferTable(setup.transfer_function, v.min_value(), v.max_value(), max_sigma_t);
+  }
+  UpdateFusedMajorants();
+}
+
+void SceneData::UpdateFusedMajorants() {
+  fused_majorants_.clear();
+  if (!fused_ || !volume_ || !majorants_ || majorants_->empty()) return;
+  // The second volume's bound on each of its own bricks (their ranges hold
+  // the voxels a lookup inside them reads), from its table.
+  TransferView mapping;
+  SetEntryMapping(*fused_, fused_table_, mapping);
+  const BrickRanges& theirs = fused_->brick_ranges(Reconstruction::kTrilinear);
+  const std::vector<float> their_bounds = ComputeMajorants(theirs, fused_table_.sigma_t.data(), TransferTable::kEntries,
+                                                           mapping.entry_scale, mapping.entry_offset);
+  const Volume& f = fused_->volume();
+  const Vec3f their_min = f.extent_mm() * -0.5f, their_brick_mm = f.spacing_mm() * ToFloat(fused_->brick_size());
+  // Each of our bricks: its box mapped into their frame, the bricks of theirs it meets, the largest bound of those.
+  const Volume& v = volume_->volume();
+  const Vec3i ours = volume_->brick_ranges(reconstruction_).bricks;
+  const Vec3f our_min = v.extent_mm() * -0.5f, our_brick_mm = v.spacing_mm() * ToFloat(volume_->brick_size());
+  fused_majorants_ = *majorants_;
+  for (int z = 0; z < ours.z; ++z) {
+    for (int y = 0; y < ours.y; ++y) {
+      for (int x = 0; x < ours.x; ++x) {
+        Vec3f lo{3.4e38f, 3.4e38f, 3.4e38f}, hi = -lo;
+        for (int corner = 0; corner < 8; ++corner) {
+          const Vec3f at = our_min + our_brick_mm * Vec3f{float(x + (corner & 1)), float(y + (corner >> 1 & 1)),
+                                                          float(z + (corner >> 2 & 1))};
+          const Vec3f q = (fused_to_volume_(at) - their_min) / their_brick_mm;
+          lo = Min(lo, q);
+          hi = Max(hi, q);
+        }
+        const Vec3i from{std::max(0, int(std::floor(lo.x))), std::max(0, int(std::floor(lo.y))),
+                         std::max(0, int(std::floor(lo.z)))};
+        const Vec3i to{std::min(theirs.bricks.x - 1, int(std::floor(hi.x))),
+                       std::min(theirs.bricks.y - 1, int(std::floor(hi.y))),
+                       std::min(theirs.bricks.z - 1, int(std::floor(hi.z)))};
+        float bound = 0.0f;
+        for (int k = from.z; k <= to.z; ++k) {
+          for (int j = from.y; j <= to.y; ++j) {
+            for (int i = from.x; i <= to.x; ++i) {
+              bound = std::max(bound, their_bounds[(std::size_t(k) * theirs.bricks.y + j) * theirs.bricks.x + i]);
+            }
+          }
+        }
+        fused_majorants_[(std::size_t(z) * ours.y + y) * ours.x + x] += bound;
+      }
+    }
+  }
 }
 
 void SceneData::SetReconstruction(Reconstruction r) {
@@ -159,6 +219,7 @@ void SceneData::UpdateMajorants() {
   }
   majorants_ = VolumeCache::Get().AcquireMajorants(key, [this] { return BuildMajorants(); });
   ++majorant_builds_;
+  UpdateFusedMajorants();
 }
 
 std::vector<float> SceneData::BuildMajorants() const {
@@ -201,19 +262,6 @@ void SceneData::SetLights(const LightSetup& setup) {
   }
 }
 
-namespace {
-
-// Where `table` puts `volume`'s stored voxels: entry = stored * scale + offset.
-void SetEntryMapping(const PreparedVolume& volume, const TransferTable& table, TransferView& view) {
-  // In double: a narrow range (1e-37 wide) or a wide one (2e30) overflows
-  // one factor in float where the product is an ordinary number.
-  const double to_entry = double(TransferTable::kEntries - 1) / (double(table.value_max) - table.value_min);
-  view.entry_scale = float(volume.value_scale() * to_entry);
-  view.entry_offset = float((double(volume.value_offset()) - table.value_min) * to_entry);
-}
-
-}  // namespace
-
 RenderScene SceneData::HostView() const {
   RenderScene s;
   s.clip = clip_;
@@ -255,7 +303,7 @@ RenderScene SceneData::HostView() const {
     s.fused.transfer.specular_roughness = fused_table_.specular_roughness.data();
     s.fused.transfer.emission = fused_table_.emission.data();
     s.fused.transfer.phase_g = fused_table_.phase_g;
-    s.majorants.extra = fused_max_sigma_t_;
+    if (!fused_majorants_.empty()) s.majorants.majorant = fused_majorants_.data();
   }
   s.transfer.sigma_t = table_.sigma_t.data();
   s.transfer.diffuse_opacity = table_.diffuse_opacity.data();

@@ -68,6 +68,10 @@ class SceneData {
     static const std::vector<float> kNone;
     return majorants_ ? *majorants_ : kNone;
   }
+  // With a second volume in 3D, each brick's majorant plus the largest
+  // extinction the second volume takes over the brick's region: this
+  // renderer's own (the fusion is the session's); empty without one.
+  const std::vector<float>& fused_majorants() const { return fused_majorants_; }
   // How many times the majorants were derived anew (volume and
   // transfer-function changes; built, or found shared): tests check that a
   // camera move derives none.
@@ -89,6 +93,7 @@ class SceneData {
   void UpdateTables();
   void UpdateMajorants();
   std::vector<float> BuildMajorants() const;
+  void UpdateFusedMajorants();
 
   std::shared_ptr<const PreparedVolume> volume_;
   Reconstruction reconstruction_ = Reconstruction::kTrilinear;
@@ -98,7 +103,7 @@ class SceneData {
   std::shared_ptr<const PreparedVolume> fused_;  // null: no second volume in 3D
   AffineMap fused_to_volume_;
   TransferTable fused_table_;
-  float fused_max_sigma_t_ = 0;                 // its table's largest extinction: added to every majorant
+  std::vector<float> fused_majorants_;
   std::vector<LabelMaterial> label_materials_;  // by label value
   TransferTable table_;
   std::shared_ptr<const std::vector<float>> majorants_;
