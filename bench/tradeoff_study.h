@@ -29,13 +29,13 @@ struct StudyConfig {
   std::string knob = "denoiser";  // the sweep it belongs to: denoiser, spp, bounces, jpeg, scale
   DenoiseMethod method = DenoiseMethod::kWrls;
   bool demodulate = false;
-  int spp = 2;                                          // samples per pixel per frame
-  int bounces = 4;                                      // scattering events per path
-  int jpeg_quality = 0;                                 // 0: the display image as rendered (no JPEG)
-  float scale = 1;                                      // resolution scale: rendered smaller, upsampled for display
-  bool hold_codes = true;                               // FrameSettings::hold_codes
-  PhaseHistory phase_history = PhaseHistory::kChanged;  // a time series' phase switch (the beat scenario)
-  std::string variant;                                  // a named variant (ablations); empty: the defaults
+  int spp = 2;                                        // samples per pixel per frame
+  int bounces = 4;                                    // scattering events per path
+  int jpeg_quality = 0;                               // 0: the display image as rendered (no JPEG)
+  float scale = 1;                                    // resolution scale: rendered smaller, upsampled for display
+  bool hold_codes = true;                             // FrameSettings::hold_codes
+  PhaseHistory phase_history = PhaseHistory::kReset;  // a time series' phase switch (the beat scenario)
+  std::string variant;                                // a named variant (ablations); empty: the defaults
   WrlsSettings wrls;
   SvgfSettings svgf;
   std::string Label() const;
