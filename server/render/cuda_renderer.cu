@@ -43,17 +43,36 @@ std::array<Kernel, sizeof...(kVariant)> MakeKernels(std::integer_sequence<unsign
 
 }  // namespace
 
+// A transfer table on the device: what a TransferView points to.
+struct DeviceTable {
+  DeviceBuffer<float> sigma_t;
+  DeviceBuffer<Vec4f> diffuse_opacity, specular_roughness, emission;
+
+  void Upload(const TransferTable& t, cudaStream_t stream) {
+    sigma_t.Upload(t.sigma_t, stream);
+    diffuse_opacity.Upload(t.diffuse_opacity, stream);
+    specular_roughness.Upload(t.specular_roughness, stream);
+    emission.Upload(t.emission, stream);
+    CINEVOL_CUDA_CHECK(cudaStreamSynchronize(stream));
+  }
+  void PointTo(TransferView& view) const {
+    view.sigma_t = sigma_t.data();
+    view.diffuse_opacity = diffuse_opacity.data();
+    view.specular_roughness = specular_roughness.data();
+    view.emission = emission.data();
+  }
+};
+
 // All work goes to the calling thread's default stream (cudaStreamPerThread),
 // where the CUDA denoiser of the same session follows it in order.
 struct CudaRenderer::Device {
   cudaStream_t stream = cudaStreamPerThread;
   cudaEvent_t start = nullptr, stop = nullptr;
-  DeviceBuffer<float> sigma_t, env_weight, env_marginal, env_conditional;
-  DeviceBuffer<Vec4f> diffuse_opacity, specular_roughness, emission, env_texels;
+  DeviceTable table, fused_table;  // the first volume's (and its labels'), the second volume's
+  DeviceBuffer<float> env_weight, env_marginal, env_conditional, fused_majorants;
+  DeviceBuffer<Vec4f> env_texels;
   DeviceBuffer<Light> lights;
   DeviceBuffer<LabelMaterial> label_materials;
-  DeviceBuffer<float> fused_sigma_t, fused_majorants;
-  DeviceBuffer<Vec4f> fused_diffuse_opacity, fused_specular_roughness, fused_emission;
   DeviceBuffer<Vec3f> radiance, accumulated, albedo;
   DeviceBuffer<Vec4f> first_hit;
 
@@ -107,24 +126,12 @@ void CudaRenderer::SetFusion(std::shared_ptr<const Volume> fused, const FusionSe
   // Its bricks' ranges bound its extinction over each of the first volume's bricks (SceneData).
   fused_ = fused ? VolumeCache::Get().Acquire(fused, kAutoBrickSize, gpu, use_texture_) : nullptr;
   data_.SetFusion(fused_ ? fused_->prepared_ptr() : nullptr, setup);
-  const TransferTable& t = data_.fused_table();
-  Device& d = *device_;
-  d.fused_sigma_t.Upload(t.sigma_t, d.stream);
-  d.fused_diffuse_opacity.Upload(t.diffuse_opacity, d.stream);
-  d.fused_specular_roughness.Upload(t.specular_roughness, d.stream);
-  d.fused_emission.Upload(t.emission, d.stream);
-  CINEVOL_CUDA_CHECK(cudaStreamSynchronize(d.stream));
+  device_->fused_table.Upload(data_.fused_table(), device_->stream);
   AcquireMajorants();
 }
 
 void CudaRenderer::UploadTables() {
-  const TransferTable& t = data_.table();
-  Device& d = *device_;
-  d.sigma_t.Upload(t.sigma_t, d.stream);
-  d.diffuse_opacity.Upload(t.diffuse_opacity, d.stream);
-  d.specular_roughness.Upload(t.specular_roughness, d.stream);
-  d.emission.Upload(t.emission, d.stream);
-  CINEVOL_CUDA_CHECK(cudaStreamSynchronize(d.stream));
+  device_->table.Upload(data_.table(), device_->stream);
   AcquireMajorants();
 }
 
@@ -169,17 +176,11 @@ void CudaRenderer::Render(const FrameRequest& request) {
   if (use_texture_) scene.volume.texture = volume_->texture();
   scene.majorants.majorant = data_.fused_majorants().empty() ? majorants_.get() : d.fused_majorants.data();
   if (scene.labels.voxels) scene.labels = {data_.labels()->voxels(), d.label_materials.data()};
-  scene.transfer.sigma_t = d.sigma_t.data();
-  scene.transfer.diffuse_opacity = d.diffuse_opacity.data();
-  scene.transfer.specular_roughness = d.specular_roughness.data();
-  scene.transfer.emission = d.emission.data();
+  d.table.PointTo(scene.transfer);
   if (scene.fused.present()) {
     scene.fused.volume.voxels = fused_->voxels();
     scene.fused.volume.texture = use_texture_ ? fused_->texture() : 0;
-    scene.fused.transfer.sigma_t = d.fused_sigma_t.data();
-    scene.fused.transfer.diffuse_opacity = d.fused_diffuse_opacity.data();
-    scene.fused.transfer.specular_roughness = d.fused_specular_roughness.data();
-    scene.fused.transfer.emission = d.fused_emission.data();
+    d.fused_table.PointTo(scene.fused.transfer);
   }
   scene.lights = d.lights.data();
   scene.environment.map.texels = d.env_texels.data();
