@@ -57,12 +57,17 @@ std::uint64_t PixelBudget::used() const {
   return used_;
 }
 
-std::vector<std::shared_ptr<const VolumeCopy>> PrepareOnDevice(const VolumeLease& volume, const Scheduler& scheduler) {
+std::vector<std::shared_ptr<const VolumeCopy>> PrepareOnDevice(const VolumeLease& volume, const VolumeLease* fused,
+                                                               const Scheduler& scheduler) {
   const int device = scheduler.gpu().value_or(kHostDevice);
   std::vector<std::shared_ptr<const VolumeCopy>> copies;
   for (int k = 0; k < volume.phases(); ++k) {
     copies.push_back(VolumeCache::Get().Acquire(volume.phase(k), kSessionRenderer.brick_size, device,
                                                 kSessionRenderer.volume_texture));
+  }
+  if (fused) {  // as the renderer's SetFusion asks for it
+    copies.push_back(
+        VolumeCache::Get().Acquire(fused->volume(), kAutoBrickSize, device, kSessionRenderer.volume_texture));
   }
   return copies;
 }
@@ -366,12 +371,13 @@ int Session::PhaseDueLocked(Clock::time_point now) const {
 
 void Session::MakePipeline() {
   // A time series' phases stay on the device beside the pipeline, for its phase switches (the cache's, where
-  // held); a still volume's one copy is the renderer's alone (the cache counts each holder as a renderer).
+  // held); a still volume's one copy, and the second volume's, are the renderer's alone (the cache counts each
+  // holder as a renderer): PrepareOnDevice puts the second volume's last.
   const bool series = volume_->phases() > 1;
-  if (series && prepared_.empty()) prepared_ = PrepareOnDevice(*volume_, *context_.scheduler);
+  if (series && prepared_.empty()) prepared_ = PrepareOnDevice(*volume_, nullptr, *context_.scheduler);
   pipeline_ = std::make_unique<FramePipeline>(context_.backend, volume_->phase(pipeline_phase_), kSessionRenderer,
                                               volume_->labels());
-  if (!series) prepared_.clear();
+  prepared_.resize(series ? std::size_t(volume_->phases()) : 0);
   if (fused_) pipeline_->SetFusedVolume(fused_->volume());
   pipeline_->SetCancel(&cancel_);
   pipeline_->SetPreempt(&preempt_);

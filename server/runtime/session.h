@@ -99,8 +99,10 @@ struct SessionContext {
 // will ask for it: shared with every session of that volume there, built by
 // the first. Every phase of a time series, so that a phase switch finds it
 // there. Slow for a large volume, so CreateSession calls it off the frame
-// and the gRPC threads; throws ResourceExhausted when it does not fit.
-std::vector<std::shared_ptr<const VolumeCopy>> PrepareOnDevice(const VolumeLease& volume, const Scheduler& scheduler);
+// and the gRPC threads; throws ResourceExhausted when it does not fit. The
+// second volume a session fuses (`fused`, or null) too.
+std::vector<std::shared_ptr<const VolumeCopy>> PrepareOnDevice(const VolumeLease& volume, const VolumeLease* fused,
+                                                               const Scheduler& scheduler);
 
 class Session final : public Job, public std::enable_shared_from_this<Session> {
  public:
