@@ -28,6 +28,9 @@ packages=(
   orthanc orthanc-dicomweb      # tests/pacs: a real PACS with its DICOMweb plugin, started by the tests
   dcmtk dicom3tools             # tests/pacs: DCMTK's dcmdump/dcm2pnm and dciodvfy check every object cinevol writes
   chromium                      # web/e2e: the page tested in a real headless browser
+  podman runc mmdebstrap        # scripts/images.sh: the images built and run (docs/deploy.md); no registry: a Debian base made here
+  netavark aardvark-dns         # the stack's containers find one another by name (podman's network backend and its DNS)
+  podman-compose                # deploy/compose run by podman (tests/containers)
 )
 
 missing=()
