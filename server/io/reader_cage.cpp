@@ -279,12 +279,14 @@ class ReaderProcess {
   }
 
   // Lets the child write `bytes` into `memory`, with the address space for it.
-  // The memory for the voxels (or a time series' phase of `all_bytes` in all).
+  // The memory for the voxels (or a time series' phase of `all_bytes` in all),
+  // three times: a multi-frame file is decoded whole, its encoded and its
+  // decoded frames beside the memory written.
   void Proceed(int memory, std::uint64_t bytes, std::uint64_t all_bytes = 0) {
     rlimit limit{};
     if (prlimit(pid_, RLIMIT_AS, nullptr, &limit) == 0) {
       const std::uint64_t wanted =
-          limits_.header_address_space + 2 * std::max(bytes, all_bytes) + (std::uint64_t{64} << 20);
+          limits_.header_address_space + 3 * std::max(bytes, all_bytes) + (std::uint64_t{64} << 20);
       limit.rlim_cur = std::min<rlim_t>(rlim_t(wanted), limit.rlim_max);
       prlimit(pid_, RLIMIT_AS, &limit, nullptr);
     }

@@ -286,6 +286,48 @@ bool WriteDicomSeeds(const fs::path& out) {
       f.Set(0x0020, 0x0037, "DS", "1\\0\\0\\0\\1\\0 ");
     });
   }
+  // An enhanced CT: the multi-frame image's plane, pixel measures and rescale
+  // in its Shared Functional Groups, each frame's position and time (Temporal
+  // Position Index, Nominal Cardiac Trigger Delay) in its Per-frame ones:
+  // three phases of one slice.
+  written["enhanced-ct-3-phases.dcm"] = Edited(written["multiframe-uint8.dcm"], [](fz::DicomFile& f) {
+    const auto value = [](std::uint16_t g, std::uint16_t e, const char* vr, const std::string& v) {
+      fz::Element x;
+      x.group = g;
+      x.element = e;
+      x.vr = vr;
+      x.value = v;
+      return x;
+    };
+    const auto sequence = [](std::uint16_t g, std::uint16_t e, std::vector<std::vector<fz::Element>> items) {
+      fz::Element x;
+      x.group = g;
+      x.element = e;
+      x.vr = "SQ";
+      x.kind = fz::Element::Kind::kSequence;
+      for (auto& elements : items) x.items.push_back(fz::Item{std::move(elements)});
+      return x;
+    };
+    std::erase_if(f.data_set, [](const fz::Element& e) { return e.tag() == 0x00200032 || e.tag() == 0x00200037; });
+    f.Set(0x0008, 0x0016, "UI", std::string("1.2.840.10008.5.1.4.1.1.2.1") + '\0');  // Enhanced CT Image Storage
+    f.Set(0x5200, 0x9229, "SQ", "") = sequence(
+        0x5200, 0x9229,
+        {{sequence(0x0020, 0x9116, {{value(0x0020, 0x0037, "DS", "1\\0\\0\\0\\1\\0 ")}}),
+          sequence(0x0028, 0x9110, {{value(0x0018, 0x0050, "DS", "1 "), value(0x0028, 0x0030, "DS", "0.5\\0.5 ")}}),
+          sequence(0x0028, 0x9145, {{value(0x0028, 0x1052, "DS", "0 "), value(0x0028, 0x1053, "DS", "1 ")}})}});
+    std::vector<std::vector<fz::Element>> frames;
+    for (std::uint32_t k = 0; k < 3; ++k) {
+      const double delay_ms = 40.0 * k;
+      std::string ul(4, '\0'), fd(8, '\0');
+      const std::uint32_t index = k + 1;
+      std::memcpy(ul.data(), &index, 4);
+      std::memcpy(fd.data(), &delay_ms, 8);
+      frames.push_back({sequence(0x0018, 0x9118, {{value(0x0020, 0x9153, "FD", fd)}}),
+                        sequence(0x0020, 0x9111, {{value(0x0020, 0x9128, "UL", ul)}}),
+                        sequence(0x0020, 0x9113, {{value(0x0020, 0x0032, "DS", "-1\\-1\\10")}})});
+    }
+    f.Set(0x5200, 0x9230, "SQ", "") = sequence(0x5200, 0x9230, frames);
+  });
   // A palette: 8-bit indices, three 256-entry 16-bit tables.
   written["palette-uint8.dcm"] = Edited(written["uint8.dcm"], [](fz::DicomFile& f) {
     f.Set(0x0028, 0x0004, "CS", "PALETTE COLOR ");

@@ -1,9 +1,13 @@
 // DICOM series of several phases (4D: cardiac cine, dynamic series): files
 // repeating each slice position are read as a time series, each position's
 // files ordered by Temporal Position Identifier, else Trigger Time, else
-// Instance Number. Time series made from the shared MR's slices (a cine in
-// the layout scanners write, and variations), with their refusals.
+// Instance Number; the frames of an enhanced multi-frame file likewise, by
+// their functional groups. Time series made from the shared MR's slices (a
+// cine in the layout scanners write, an enhanced MR, and variations), with
+// their refusals.
 #include <gdcmAttribute.h>
+#include <gdcmItem.h>
+#include <gdcmSequenceOfItems.h>
 #include <gdcmReader.h>
 #include <gdcmWriter.h>
 #include <gtest/gtest.h>
@@ -14,6 +18,7 @@
 #include <map>
 #include <memory>
 #include <numeric>
+#include <optional>
 #include <random>
 #include <string>
 #include <vector>
@@ -392,7 +397,7 @@ TEST(DicomPhases, PositionsOfUnequalCountsAreRefused) {
   const auto files = WriteTimeSeries(dir.path(), 4);
   fs::remove(files[1][2]);
   const std::string error = SeriesError(dir.path());
-  EXPECT_NE(error.find("positions hold 3 and 2 files: not one phase a position"), std::string::npos) << error;
+  EXPECT_NE(error.find("positions hold 3 and 2 slices: not one phase a position"), std::string::npos) << error;
   EXPECT_NE(error.find(dir.path().string()), std::string::npos) << "names the folder: " << error;
 }
 
@@ -435,6 +440,246 @@ TEST(DicomPhases, MorePhasesThanTheLimitAreRefused) {
   const std::string error = SeriesError(dir.path());
   EXPECT_NE(error.find("a time series of 4097 phases"), std::string::npos) << error;
   EXPECT_NE(error.find("cinevol reads 1 to 4096"), std::string::npos) << error;
+}
+
+// ------------------------------------------------ an enhanced multi-frame MR
+
+// A sequence of `items` under `tag`, as scanners write them (undefined lengths).
+gdcm::DataElement Sequence(const gdcm::Tag& tag, const std::vector<gdcm::DataSet>& items) {
+  gdcm::SmartPointer<gdcm::SequenceOfItems> sq = new gdcm::SequenceOfItems;
+  sq->SetLengthToUndefined();
+  for (const gdcm::DataSet& nested : items) {
+    gdcm::Item item;
+    item.SetVLToUndefined();
+    item.SetNestedDataSet(nested);
+    sq->AddItem(item);
+  }
+  gdcm::DataElement de(tag);
+  de.SetVR(gdcm::VR::SQ);
+  de.SetValue(*sq);
+  de.SetVLToUndefined();
+  return de;
+}
+
+gdcm::DataSet Holding(std::initializer_list<gdcm::DataElement> elements) {
+  gdcm::DataSet ds;
+  for (const gdcm::DataElement& e : elements) ds.Replace(e);
+  return ds;
+}
+
+// Frame Content with a Temporal Position Index (where given) and the stack
+// position; Cardiac Synchronization with a Nominal Cardiac Trigger Delay.
+gdcm::DataElement FrameContent(std::optional<unsigned> temporal_index, unsigned in_stack) {
+  gdcm::DataSet content;
+  gdcm::Attribute<0x0020, 0x9057> stack_position;
+  stack_position.SetValue(in_stack);
+  content.Replace(stack_position.GetAsDataElement());
+  if (temporal_index) {
+    gdcm::Attribute<0x0020, 0x9128> index;
+    index.SetValue(*temporal_index);
+    content.Replace(index.GetAsDataElement());
+  }
+  return Sequence(gdcm::Tag(0x0020, 0x9111), {content});
+}
+
+gdcm::DataElement CardiacTrigger(double ms) {
+  gdcm::Attribute<0x0020, 0x9153> delay;
+  delay.SetValue(ms);
+  return Sequence(gdcm::Tag(0x0018, 0x9118), {Holding({delay.GetAsDataElement()})});
+}
+
+gdcm::DataElement Rescale(double slope, double intercept) {
+  gdcm::Attribute<0x0028, 0x1053> s;
+  s.SetValue(slope);
+  gdcm::Attribute<0x0028, 0x1052> i;
+  i.SetValue(intercept);
+  gdcm::Attribute<0x0028, 0x1054> type;
+  type.SetValue("US");
+  return Sequence(gdcm::Tag(0x0028, 0x9145), {Holding({s.GetAsDataElement(), i.GetAsDataElement(),
+                                                       type.GetAsDataElement()})});
+}
+
+// One frame of an enhanced MR: the MR slice whose pixels it holds, the MR
+// slice whose position it takes, and its other per-frame groups.
+struct EnhancedFrame {
+  int pixels_of;
+  int position_of;
+  gdcm::DataSet groups;
+};
+
+// An Enhanced MR Image file of `frames` made from the MR's slices: the first
+// slice's header with its plane, pixel measures and rescale moved into the
+// Shared Functional Groups, each frame's position into its Per-frame ones.
+void WriteEnhancedMr(const fs::path& file, const std::vector<EnhancedFrame>& frames) {
+  const std::vector<fs::path> mr = MrSlicesInOrder();
+  const auto base = ReadDicom(mr[0]);
+  gdcm::DataSet& ds = base->GetFile().GetDataSet();
+  const gdcm::Tag ipp(0x0020, 0x0032), iop(0x0020, 0x0037), spacing(0x0028, 0x0030), thickness(0x0018, 0x0050);
+  const gdcm::DataSet shared =
+      Holding({Sequence(gdcm::Tag(0x0020, 0x9116), {Holding({ds.GetDataElement(iop)})}),
+               Sequence(gdcm::Tag(0x0028, 0x9110),
+                        {Holding({ds.GetDataElement(spacing), ds.GetDataElement(thickness)})}),
+               Rescale(1, 0)});
+  ds.Replace(Sequence(gdcm::Tag(0x5200, 0x9229), {shared}));
+  std::vector<gdcm::DataSet> per_frame;
+  std::string pixels;
+  for (const EnhancedFrame& f : frames) {
+    gdcm::DataSet item = f.groups;
+    const auto at = ReadDicom(mr[std::size_t(f.position_of)]);
+    item.Replace(Sequence(gdcm::Tag(0x0020, 0x9113), {Holding({at->GetFile().GetDataSet().GetDataElement(ipp)})}));
+    per_frame.push_back(item);
+    const auto of = ReadDicom(mr[std::size_t(f.pixels_of)]);
+    const gdcm::ByteValue* bytes = of->GetFile().GetDataSet().GetDataElement(gdcm::Tag(0x7fe0, 0x0010)).GetByteValue();
+    pixels.append(bytes->GetPointer(), bytes->GetLength());
+  }
+  ds.Replace(Sequence(gdcm::Tag(0x5200, 0x9230), per_frame));
+  for (const gdcm::Tag& moved : {ipp, iop, spacing, thickness, gdcm::Tag(0x0028, 0x1052), gdcm::Tag(0x0028, 0x1053)}) {
+    ds.Remove(moved);
+  }
+  gdcm::Attribute<0x0028, 0x0008> number_of_frames;
+  number_of_frames.SetValue(int(frames.size()));
+  ds.Replace(number_of_frames.GetAsDataElement());
+  gdcm::Attribute<0x0008, 0x0016> sop_class;
+  sop_class.SetValue("1.2.840.10008.5.1.4.1.1.4.1");  // Enhanced MR Image Storage
+  ds.Replace(sop_class.GetAsDataElement());
+  base->GetFile().GetHeader().SetDataSetTransferSyntax(gdcm::TransferSyntax::ExplicitVRLittleEndian);
+  gdcm::DataElement pixel_data(gdcm::Tag(0x7fe0, 0x0010));
+  pixel_data.SetVR(gdcm::VR::OW);
+  pixel_data.SetByteValue(pixels.data(), std::uint32_t(pixels.size()));
+  ds.Replace(pixel_data);
+  WriteDicom(*base, file);
+}
+
+// A cine of kCinePhases phases x 2 positions as one enhanced MR, as in
+// WriteCine: frame (p, i) holds MR slice i + 2 p at MR slice i's position,
+// Temporal Position Index p + 1 and Nominal Cardiac Trigger Delay 40 p + 3 i
+// ms; the frames stored in a shuffled order. `edit` changes each frame's
+// groups last.
+template <class Edit>
+void WriteEnhancedCine(const fs::path& file, Edit edit) {
+  std::vector<EnhancedFrame> frames;
+  for (int p = 0; p < kCinePhases; ++p) {
+    for (int i = 0; i < 2; ++i) {
+      EnhancedFrame& f = frames.emplace_back(EnhancedFrame{i + 2 * p, i, {}});
+      f.groups.Replace(FrameContent(unsigned(p + 1), unsigned(i + 1)));
+      f.groups.Replace(CardiacTrigger(40 * p + 3 * i));
+      edit(f.groups, p, i);
+    }
+  }
+  std::shuffle(frames.begin(), frames.end(), std::mt19937(59));
+  WriteEnhancedMr(file, frames);
+}
+
+void WriteEnhancedCine(const fs::path& file) {
+  WriteEnhancedCine(file, [](gdcm::DataSet&, int, int) {});
+}
+
+// One file of 20 frames is 10 phases of 640 x 640 x 2 by their Temporal
+// Position Index, with times from their trigger delays, placed as the MR.
+TEST(DicomPhases, AnEnhancedMultiFrameFileIsReadAsPhasesByTemporalPositionIndex) {
+  CINEVOL_REQUIRE_SHARED_DATA();
+  ScratchDir dir;
+  WriteEnhancedCine(dir / "cine.dcm");
+  const VolumeSeries cine = LoadSeries(dir.path());
+  ASSERT_EQ(cine.phases.size(), std::size_t(kCinePhases));
+  ASSERT_EQ(cine.seconds.size(), std::size_t(kCinePhases));
+  const Volume mr = LoadDicomSeries(MrFolder());
+  for (std::size_t p = 0; p < cine.phases.size(); ++p) {
+    const Volume& phase = cine.phases[p];
+    ASSERT_EQ(phase.dims(), (Vec3i{640, 640, 2}));
+    EXPECT_EQ(phase.metadata().original_type, "uint16") << "stored values, the rescale the identity";
+    ExpectPhaseHolds(cine, p, int(p), mr);
+    EXPECT_NEAR(cine.seconds[p], 0.040 * double(p), 1e-9);
+    EXPECT_EQ(phase.metadata().origin_mm, mr.metadata().origin_mm);
+    EXPECT_EQ(phase.metadata().direction, mr.metadata().direction);
+    EXPECT_FLOAT_EQ(phase.spacing_mm().x, mr.spacing_mm().x);
+    EXPECT_FLOAT_EQ(phase.spacing_mm().y, mr.spacing_mm().y);
+    EXPECT_FLOAT_EQ(phase.spacing_mm().z, mr.spacing_mm().z);
+  }
+}
+
+// Without a Temporal Position Index the trigger delay orders the frames:
+// here it runs against the phases' indices, which are left out.
+TEST(DicomPhases, EnhancedFramesWithoutATemporalIndexFollowTheirTriggerDelay) {
+  CINEVOL_REQUIRE_SHARED_DATA();
+  ScratchDir dir;
+  WriteEnhancedCine(dir / "cine.dcm", [](gdcm::DataSet& groups, int p, int i) {
+    groups.Replace(FrameContent(std::nullopt, unsigned(i + 1)));
+    groups.Replace(CardiacTrigger(40 * (kCinePhases - 1 - p) + 3 * i));  // phase p shown at kCinePhases - 1 - p
+  });
+  const VolumeSeries cine = LoadSeries(dir.path());
+  ASSERT_EQ(cine.phases.size(), std::size_t(kCinePhases));
+  const Volume mr = LoadDicomSeries(MrFolder());
+  for (int k = 0; k < kCinePhases; ++k) ExpectPhaseHolds(cine, std::size_t(k), kCinePhases - 1 - k, mr);
+  EXPECT_NEAR(cine.seconds.back(), 0.040 * (kCinePhases - 1), 1e-9);
+}
+
+// Each frame's own Pixel Value Transformation: phase 3's frames are scaled,
+// every frame rescaled by its own.
+TEST(DicomPhases, EachEnhancedFrameIsRescaledByItsOwnTransformation) {
+  CINEVOL_REQUIRE_SHARED_DATA();
+  ScratchDir dir;
+  WriteEnhancedCine(dir / "cine.dcm", [](gdcm::DataSet& groups, int p, int) {
+    if (p == 3) groups.Replace(Rescale(2, -5));
+  });
+  const VolumeSeries cine = LoadSeries(dir.path());
+  ASSERT_EQ(cine.phases.size(), std::size_t(kCinePhases));
+  const Volume mr = LoadDicomSeries(MrFolder());
+  EXPECT_EQ(cine.phases[3].metadata().original_type, "uint16 (each frame rescaled by its own slope and intercept)");
+  int differing = 0;
+  for (int z = 0; z < 2; ++z) {
+    for (int y = 0; y < 640; y += 31) {
+      for (int x = 0; x < 640; x += 29) {
+        differing += cine.phases[3].Value(x, y, z) != 2 * mr.Value(x, y, z + 6) - 5;
+        differing += cine.phases[4].Value(x, y, z) != mr.Value(x, y, z + 8);
+      }
+    }
+  }
+  EXPECT_EQ(differing, 0);
+}
+
+// Refused by name: a frame in another orientation, a sequence not one item a
+// frame, two frames of one place and time; the voxel limit counts every frame.
+TEST(DicomPhases, BadEnhancedFramesAreRefusedByName) {
+  CINEVOL_REQUIRE_SHARED_DATA();
+  ScratchDir dir;
+  const auto error_of = [&](const std::string& name, auto edit, const LoadPolicy& policy = {}) {
+    const fs::path folder = dir / name;
+    fs::create_directory(folder);
+    WriteEnhancedCine(folder / "cine.dcm", edit);
+    return SeriesError(folder, policy);
+  };
+  std::string error = error_of("tilted", [](gdcm::DataSet& groups, int p, int i) {
+    gdcm::Attribute<0x0020, 0x0037> iop;
+    iop.SetValues(std::array<double, 6>{1, 0, 0, 0, 0.8, 0.6}.data(), 6);
+    if (p == 4 && i == 1) groups.Replace(Sequence(gdcm::Tag(0x0020, 0x9116), {Holding({iop.GetAsDataElement()})}));
+  });
+  EXPECT_NE(error.find("orientation differs from frame 1's"), std::string::npos) << error;
+  EXPECT_NE(error.find("cine.dcm"), std::string::npos) << error;
+
+  error = error_of("twice", [](gdcm::DataSet& groups, int p, int i) {
+    if (p == 7) groups.Replace(FrameContent(6, unsigned(i + 1)));  // phase 6's index again
+  });
+  EXPECT_NE(error.find("both with Temporal Position Index 6"), std::string::npos) << error;
+  EXPECT_NE(error.find("frame "), std::string::npos) << "names the frames: " << error;
+
+  LoadPolicy policy;
+  policy.max_voxels = std::uint64_t(640) * 640 * 2 * 9;  // nine phases fit, not ten
+  error = error_of("limit", [](gdcm::DataSet&, int, int) {}, policy);
+  EXPECT_NE(error.find("640x640x2 voxels x 10 phases"), std::string::npos) << error;
+
+  const fs::path short_file = dir / "short";
+  fs::create_directory(short_file);
+  WriteEnhancedCine(short_file / "cine.dcm");
+  EditHeader(short_file / "cine.dcm", [](gdcm::DataSet& ds) {
+    gdcm::Attribute<0x0028, 0x0008> frames;
+    frames.SetValue(21);
+    ds.Replace(frames.GetAsDataElement());
+  });
+  error = SeriesError(short_file);
+  EXPECT_NE(error.find("Number of Frames is 21 and its Per-frame Functional Groups Sequence holds 20 items"),
+            std::string::npos)
+      << error;
 }
 
 }  // namespace

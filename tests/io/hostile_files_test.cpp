@@ -522,6 +522,26 @@ TEST(HostileFiles, DicomSamplesPerPixelAboveFourNeverReachesGdcm) {
   EXPECT_TRUE(Has(message, "no DICOM files found")) << message;
 }
 
+// GDCM asserted (an abort, in the reader's child) on an odd length inside a
+// sequence of defined length, which the walk skipped whole: fuzz_dicom's
+// enhanced CT seed, first written with a 9-byte Image Position in each
+// frame's functional groups. The walk now goes into such sequences; the seed
+// as written now loads.
+TEST(HostileFiles, DicomOddLengthInsideADefinedLengthSequenceNeverReachesGdcm) {
+  ScratchDir dir;
+  const fs::path corpus = fs::path(CINEVOL_SOURCE_DIR) / "tests/fuzz/corpus/dicom";
+  for (const char* name : {"regression-odd-length-in-defined-sequence.dcm", "enhanced-ct-3-phases.dcm"}) {
+    fs::create_directories(dir / name);
+    fs::copy_file(corpus / name, dir / name / "x.dcm");
+  }
+  const std::string odd = LoadMessage(
+      [&] { return LoadDicomSeries(dir / "regression-odd-length-in-defined-sequence.dcm", {}, Upload()); });
+  EXPECT_TRUE(Has(odd, "no DICOM files found")) << odd;
+  v1::VolumeSource seed;
+  seed.set_dicom_folder((dir / "enhanced-ct-3-phases.dcm").string());
+  EXPECT_EQ(LoadVolumeSeries(seed, {}, Upload()).phases.size(), 3u);
+}
+
 // ITK's factory let GDCM parse any file the volume formats declined (a
 // DICOM meta group in a ".nii.gz" made GDCM assert): a single file is never
 // read as DICOM.

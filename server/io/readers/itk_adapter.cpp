@@ -6,6 +6,7 @@
 
 #include <fmt/format.h>
 #include <gdcmGlobal.h>
+#include <gdcmImageReader.h>
 #include <gdcmTrace.h>
 #include <itkGDCMImageIO.h>
 #include <itkImageIOBase.h>
@@ -20,6 +21,7 @@
 #include <array>
 #include <cmath>
 #include <cstdint>
+#include <cstring>
 #include <mutex>
 #include <regex>
 #include <vector>
@@ -447,18 +449,19 @@ void ToFloat(itk::IOComponentEnum from, const void* in, float* out, std::size_t 
 
 // One series, its slices sorted and its header known; the pixels are
 // decoded slice by slice (GDCM: JPEG 2000 and other compressed transfer
-// syntaxes included; rescale slope and intercept applied). A time series
-// (several files at each position) is read a phase at a time, each phase's
-// slices on the first phase's grid.
+// syntaxes included; rescale slope and intercept applied), or, for an
+// enhanced multi-frame file, frame by frame from the file decoded whole. A
+// time series (several slices at each position) is read a phase at a time,
+// each phase's slices on the first phase's grid.
 class DicomSeriesRead final : public reader::VolumeRead {
  public:
   DicomSeriesRead(const dicom::SortedSeries& series, std::uint64_t max_voxels)
-      : where_(series.shown), series_(series.info), phase_files_(series.phases) {
+      : where_(series.shown), series_(series.info), phase_slices_(series.phases) {
     const dicom::SeriesGeometry& g = series.geometry;
     auto io = itk::GDCMImageIO::New();
     try {
       // Header sizes are checked before decoding: absurd rows/columns never allocate.
-      io->SetFileName(phase_files_[0][0]);
+      io->SetFileName(phase_slices_[0][0].file);
       io->ReadImageInformation();
     } catch (const itk::ExceptionObject& e) {
       throw Failed(e);
@@ -467,19 +470,31 @@ class DicomSeriesRead final : public reader::VolumeRead {
       throw InputError(fmt::format("{}: series {} holds pixels of {} components; cinevol reads grey-scale series",
                                    where_, dicom::Describe(series_), io->GetNumberOfComponents()));
     }
-    const std::uint64_t frames = io->GetNumberOfDimensions() > 2 ? std::max<std::uint64_t>(1, io->GetDimensions(2)) : 1;
-    if (frames > 1 && (phase_files_.size() > 1 || phase_files_[0].size() > 1)) {
+    const std::uint64_t file_frames =
+        io->GetNumberOfDimensions() > 2 ? std::max<std::uint64_t>(1, io->GetDimensions(2)) : 1;
+    if (series.multi_frame) {
+      frame_count_ = phase_slices_.size() * phase_slices_[0].size();
+      if (file_frames != frame_count_) {
+        throw InputError(fmt::format("{}: series {} holds {} frames where its functional groups describe {}",
+                                     where_, dicom::Describe(series_), file_frames, frame_count_));
+      }
+    } else if (file_frames > 1 && (phase_slices_.size() > 1 || phase_slices_[0].size() > 1)) {
       throw InputError(
           fmt::format("{}: series {} has multi-frame files; cinevol reads one such file, or single-frame "
                       "slices",
                       where_, dicom::Describe(series_)));
     }
+    // The frames a slice holds: a file without functional groups is one stack.
+    const std::uint64_t frames = series.multi_frame ? 1 : file_frames;
+    const std::array<double, 2> pixel_mm = g.pixel_spacing_mm[0] > 0
+                                               ? g.pixel_spacing_mm
+                                               : std::array<double, 2>{io->GetSpacing(0), io->GetSpacing(1)};
     const std::array<int, 3> dims{int(std::min<std::uint64_t>(io->GetDimensions(0), 1u << 30)),
                                   int(std::min<std::uint64_t>(io->GetDimensions(1), 1u << 30)),
                                   int(std::min<std::uint64_t>(g.GridSlices() * frames, 1u << 30))};
-    CheckVolumeGeometry({dims[0], dims[1], dims[2]},
-                        {float(io->GetSpacing(0)), float(io->GetSpacing(1)), float(g.slice_gap_mm)}, where_);
-    CheckVoxelLimit({dims[0], dims[1], dims[2]}, phase_files_.size(), max_voxels,
+    CheckVolumeGeometry({dims[0], dims[1], dims[2]}, {float(pixel_mm[0]), float(pixel_mm[1]), float(g.slice_gap_mm)},
+                        where_);
+    CheckVoxelLimit({dims[0], dims[1], dims[2]}, phase_slices_.size(), max_voxels,
                     where_);  // phases: at most kMaxPhases
     // Geometry from the sorted positions, not from the first two files.
     std::array<double, 9> direction;
@@ -489,10 +504,14 @@ class DicomSeriesRead final : public reader::VolumeRead {
       direction[3 * r + 2] = g.normal[r];
     }
     const dicom::Slice& first = g.slices.front();
-    SetGeometry(header_, dims, {io->GetSpacing(0), io->GetSpacing(1), g.slice_gap_mm},
+    SetGeometry(header_, dims, {pixel_mm[0], pixel_mm[1], g.slice_gap_mm},
                 {first.position[0], first.position[1], first.position[2]}, direction);
-    type_ = io->GetComponentType();
-    rescaled_alike_ = series.rescaled_alike;
+    // A multi-frame file's frames are rescaled here, each by its own; other
+    // files as GDCM rescales them.
+    type_ = series.multi_frame ? io->GetInternalComponentType() : io->GetComponentType();
+    const double slope = series.multi_frame ? first.rescale_slope : io->GetRescaleSlope();
+    const double intercept = series.multi_frame ? first.rescale_intercept : io->GetRescaleIntercept();
+    rescaled_alike_ = series.rescaled_alike && (!series.multi_frame || (slope == 1.0 && intercept == 0.0));
     header_.set_voxel_type(rescaled_alike_ ? VoxelTypeOf(type_) : "float32");
     if (header_.voxel_type().empty()) {
       throw InputError(fmt::format("{}: series {} holds voxels of type {}, which cinevol does not read", where_,
@@ -505,54 +524,60 @@ class DicomSeriesRead final : public reader::VolumeRead {
     header_.set_frame_of_reference_uid(series.frame_of_reference_uid);
     if (series.pet) *header_.mutable_pet() = *series.pet;
     std::string original = ComponentName(io->GetInternalComponentType());
-    if (io->GetRescaleSlope() != 1.0 || io->GetRescaleIntercept() != 0.0) {
-      original +=
-          fmt::format(" (rescale slope {:g}, intercept {:g})", io->GetRescaleSlope(), io->GetRescaleIntercept());
+    if (!series.rescaled_alike && series.multi_frame) {
+      original += " (each frame rescaled by its own slope and intercept)";
+    } else if (slope != 1.0 || intercept != 0.0) {
+      original += fmt::format(" (rescale slope {:g}, intercept {:g})", slope, intercept);
     }
     header_.set_original_type(original);
     slice_voxels_ = std::size_t(dims[0]) * std::size_t(dims[1]) * std::size_t(frames);
-    if (g.tilt_deg > dicom::kMaxTiltDeg) Shear(g, io->GetSpacing(0), io->GetSpacing(1), dims);
+    if (g.tilt_deg > dicom::kMaxTiltDeg) Shear(g, pixel_mm[0], pixel_mm[1], dims);
     if (g.uneven) Even(g);
-    if (phase_files_.size() > 1) SetPhases(series);
+    if (phase_slices_.size() > 1) SetPhases(series);
   }
 
   // Phase `phase`'s slices, decoded into `memory` (resampled as the first
   // phase's geometry asks).
   void Read(void* memory, std::size_t bytes, int phase) override {
-    if (phase < 0 || std::size_t(phase) >= phase_files_.size()) {
-      throw InputError(fmt::format("{}: no phase {} in a series of {}", where_, phase, phase_files_.size()));
+    if (phase < 0 || std::size_t(phase) >= phase_slices_.size()) {
+      throw InputError(fmt::format("{}: no phase {} in a series of {}", where_, phase, phase_slices_.size()));
     }
-    files_ = &phase_files_[std::size_t(phase)];
+    slices_ = &phase_slices_[std::size_t(phase)];
     const std::size_t voxel_bytes = BytesPerVoxel(*VoxelTypeNamed(header_.voxel_type()));
-    const std::size_t slices = positions_.empty() ? files_->size() : grid_slices_;
+    const std::size_t slices = positions_.empty() ? slices_->size() : grid_slices_;
     if (bytes != slice_voxels_ * voxel_bytes * slices) {
       throw InputError(fmt::format("{}: {} bytes of memory for the series' voxels", where_, bytes));
     }
-    if (!positions_.empty()) return ReadEven(static_cast<float*>(memory));
-    for (std::size_t k = 0; k < files_->size(); ++k) {
-      DecodeSlice(k, static_cast<char*>(memory) + k * slice_voxels_ * voxel_bytes);
+    if (!positions_.empty()) {
+      ReadEven(static_cast<float*>(memory));
+    } else {
+      for (std::size_t k = 0; k < slices_->size(); ++k) {
+        DecodeSlice(k, static_cast<char*>(memory) + k * slice_voxels_ * voxel_bytes);
+      }
     }
+    if (std::size_t(phase) + 1 == phase_slices_.size()) std::vector<char>().swap(stored_frames_);
   }
 
  private:
   // A time series: its phases, and their times where the files give them.
   void SetPhases(const dicom::SortedSeries& series) {
-    header_.set_phases(std::uint32_t(phase_files_.size()));
+    header_.set_phases(std::uint32_t(phase_slices_.size()));
     for (double t : series.phase_seconds) header_.add_phase_seconds(t);
     if (series.phase_seconds.empty()) {
       header_.add_notes(
           fmt::format("a time series of {} phases ordered by {}; its files give no Trigger Times that "
                       "rise phase by phase, so the phases have no times",
-                      phase_files_.size(), series.phase_order));
+                      phase_slices_.size(), series.phase_order));
     }
   }
 
   // Slice k's voxels into `out`: as stored where the series is rescaled alike
   // and straight, else as float32 (shifted onto the regular grid where tilted).
   void DecodeSlice(std::size_t k, char* out) {
+    if ((*slices_)[k].frame >= 0) return DecodeFrame(k, out);
     auto io = itk::GDCMImageIO::New();
     try {
-      io->SetFileName((*files_)[k]);
+      io->SetFileName((*slices_)[k].file);
       io->ReadImageInformation();
       const std::size_t n = io->GetImageSizeInPixels();
       if (io->GetNumberOfComponents() != 1 || n != slice_voxels_ ||
@@ -579,6 +604,70 @@ class DicomSeriesRead final : public reader::VolumeRead {
     }
   }
 
+  // Slice k, a frame of the multi-frame file, into `out`: as stored where
+  // every frame's rescale is the identity, else as float32 rescaled by its
+  // own (shifted onto the regular grid where tilted).
+  void DecodeFrame(std::size_t k, char* out) {
+    const dicom::Slice& frame = (*slices_)[k];
+    if (stored_frames_.empty()) DecodeFrames(frame.file);
+    const std::size_t stored_bytes = stored_frames_.size() / (frame_count_ * slice_voxels_);
+    const char* stored = stored_frames_.data() + std::size_t(frame.frame) * slice_voxels_ * stored_bytes;
+    if (header_.voxel_type() != "float32") {
+      std::memcpy(out, stored, slice_voxels_ * stored_bytes);
+      return;
+    }
+    float* values = reinterpret_cast<float*>(out);
+    ToFloat(type_, stored, values, slice_voxels_);
+    for (std::size_t i = 0; i < slice_voxels_; ++i) {
+      values[i] = float(double(values[i]) * frame.rescale_slope + frame.rescale_intercept);
+    }
+    if (!shifts_.empty()) ShiftSlice(values, shifts_[k], type_);
+  }
+
+  // Every frame of `file`, as stored, into stored_frames_: GDCM decodes a
+  // compressed file's frames together.
+  void DecodeFrames(const std::string& file) {
+    gdcm::ImageReader reader;
+    reader.SetFileName(file.c_str());
+    if (!reader.Read()) {
+      throw InputError(fmt::format("{}: cannot decode the frames of series {}", where_, dicom::Describe(series_)));
+    }
+    const gdcm::Image& image = reader.GetImage();
+    const std::uint64_t frames = image.GetNumberOfDimensions() > 2 ? image.GetDimension(2) : 1;
+    const std::uint64_t length = image.GetBufferLength();
+    if (image.GetPixelFormat().GetSamplesPerPixel() != 1 || frames != frame_count_ ||
+        std::uint64_t(image.GetDimension(0)) * image.GetDimension(1) != slice_voxels_ ||
+        length != frame_count_ * slice_voxels_ * StoredBytes()) {
+      throw InputError(fmt::format("{}: the frames of series {} decode to {} bytes, not the {} frames of {} "
+                                   "voxels of {} its header describes",
+                                   where_, dicom::Describe(series_), length, frame_count_, slice_voxels_,
+                                   ComponentName(type_)));
+    }
+    stored_frames_.resize(length);
+    if (!image.GetBuffer(stored_frames_.data())) {
+      throw InputError(fmt::format("{}: cannot decode the frames of series {}", where_, dicom::Describe(series_)));
+    }
+  }
+
+  // Bytes of a stored value of type_.
+  std::size_t StoredBytes() const {
+    using C = itk::IOComponentEnum;
+    switch (type_) {
+      case C::UCHAR:
+      case C::CHAR:
+        return 1;
+      case C::USHORT:
+      case C::SHORT:
+        return 2;
+      case C::UINT:
+      case C::INT:
+      case C::FLOAT:
+        return 4;
+      default:
+        return 8;
+    }
+  }
+
   // An unevenly spaced series: every slice of the even grid interpolated
   // linearly along the normal between the two slices around it, which are
   // decoded once each, in order (two slices in memory at a time).
@@ -597,7 +686,7 @@ class DicomSeriesRead final : public reader::VolumeRead {
     std::vector<float> below(slice_voxels_), above(slice_voxels_);
     std::size_t k = 0;  // the slices decoded: k below, k + 1 above
     DecodeSlice(0, reinterpret_cast<char*>(below.data()));
-    DecodeSlice(std::min<std::size_t>(1, files_->size() - 1), reinterpret_cast<char*>(above.data()));
+    DecodeSlice(std::min<std::size_t>(1, slices_->size() - 1), reinterpret_cast<char*>(above.data()));
     for (std::size_t z = 0; z < grid_slices_; ++z) {
       const double at = std::min(double(z) * gap_mm_, positions_.back());
       while (k + 2 < positions_.size() && positions_[k + 1] < at) {
@@ -660,8 +749,8 @@ class DicomSeriesRead final : public reader::VolumeRead {
 
   std::string where_;
   reader::Series series_;
-  std::vector<std::vector<std::string>> phase_files_;  // each phase's files, sorted along the normal
-  const std::vector<std::string>* files_ = nullptr;    // the phase being read's
+  std::vector<std::vector<dicom::Slice>> phase_slices_;  // each phase's slices, sorted along the normal
+  const std::vector<dicom::Slice>* slices_ = nullptr;    // the phase being read's
   itk::IOComponentEnum type_ = itk::IOComponentEnum::UNKNOWNCOMPONENTTYPE;
   bool rescaled_alike_ = true;
   std::size_t slice_voxels_ = 0;
@@ -671,6 +760,10 @@ class DicomSeriesRead final : public reader::VolumeRead {
   std::size_t grid_slices_ = 0;    // the even grid's slices, for an uneven series
   double gap_mm_ = 0;
   std::vector<char> scratch_;  // a slice as stored, on its way to float32
+  // A multi-frame file: its frames, and every frame's stored values from the
+  // first read to the last phase's.
+  std::size_t frame_count_ = 0;
+  std::vector<char> stored_frames_;
 };
 
 }  // namespace

@@ -7,6 +7,7 @@
 #include <gdcmSequenceOfItems.h>
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <cstdint>
 #include <map>
@@ -16,6 +17,7 @@
 #include "core/error.h"
 #include "core/volume.h"
 #include "io/formats/dicom/checks.h"
+#include "io/formats/dicom/frames.h"
 
 namespace fs = std::filesystem;
 
@@ -60,17 +62,19 @@ const gdcm::Tag kRadionuclideTotalDose(0x0018, 0x1074);
 const gdcm::Tag kRadionuclideHalfLife(0x0018, 0x1075);
 const gdcm::Tag kRadiopharmaceuticalStartDateTime(0x0018, 0x1078);
 
-// What orders a position's files in time, the first every file of the series
-// has: the Temporal Position Identifier, else the Trigger Time, else the
-// Instance Number.
+const gdcm::Tag kNumberOfFrames(0x0028, 0x0008);
+
+// What orders a position's slices in time (Slice::time_keys), the first every
+// slice of the series has; the second is a trigger time in ms.
 struct TimeKey {
-  gdcm::Tag tag;
   const char* name;
   const char* unit;
 };
-const TimeKey kTimeKeys[] = {{kTemporalPosition, "Temporal Position Identifier", ""},
-                             {kTriggerTime, "Trigger Time", " ms"},
-                             {kInstanceNumber, "Instance Number", ""}};
+using TimeKeys = std::array<TimeKey, 3>;
+const TimeKeys kFileTimeKeys{
+    {{"Temporal Position Identifier", ""}, {"Trigger Time", " ms"}, {"Instance Number", ""}}};
+const TimeKeys kFrameTimeKeys{
+    {{"Temporal Position Index", ""}, {"Nominal Cardiac Trigger Delay Time", " ms"}, {"frame number", ""}}};
 
 // Slices whose positions along the normal differ by more than this fraction
 // of the typical gap count as unevenly spaced.
@@ -94,6 +98,11 @@ struct Scan {
     const std::string path = folder + (folder.ends_with('/') ? "" : "/") + under;
     return open == std::string::npos ? path : "'" + path + "'";
   }
+
+  // A slice: its file, and its frame where it is one of a multi-frame file's.
+  std::string Name(const Slice& slice) const {
+    return slice.frame < 0 ? Name(slice.file) : fmt::format("{} frame {}", Name(slice.file), slice.frame + 1);
+  }
 };
 
 // Scans `files`' headers. Files whose structure is not sound DICOM are
@@ -109,7 +118,8 @@ void ScanFiles(const std::vector<reader::DicomFile>& files, const reader::ReadOp
   for (const gdcm::Tag& t : {kSeriesUid, kSeriesDescription, kModality, kImagePosition, kImageOrientation, kRows,
                              kColumns, kSliceThickness, kPhotometric, kRescaleIntercept, kRescaleSlope, kWindowCenter,
                              kWindowWidth, kPatientName, kPatientId, kStudyDate, kStudyDescription,
-                             kFrameOfReference, kTemporalPosition, kTriggerTime, kInstanceNumber}) {
+                             kFrameOfReference, kTemporalPosition, kTriggerTime, kInstanceNumber,
+                             kNumberOfFrames}) {
     scan.scanner.AddTag(t);
   }
   for (const gdcm::Tag& t : kPetTags) scan.scanner.AddTag(t);
@@ -129,22 +139,6 @@ std::string Value(const Scan& scan, const std::string& file, const gdcm::Tag& ta
   std::string s = v ? v : "";
   while (!s.empty() && (s.back() == ' ' || s.back() == '\0')) s.pop_back();
   return s;
-}
-
-// Parses a backslash-separated decimal string such as "1\0\0\0\1\0"; empty
-// when any item is not a finite number (NaN and infinities included).
-std::vector<double> Numbers(const std::string& s) {
-  std::vector<double> out;
-  std::stringstream in(s);
-  for (std::string item; std::getline(in, item, '\\');) {
-    try {
-      out.push_back(std::stod(item));
-    } catch (const std::exception&) {
-      return {};
-    }
-    if (!std::isfinite(out.back())) return {};
-  }
-  return out;
 }
 
 // The file's value of `tag` where it holds one number; else nothing.
@@ -210,70 +204,61 @@ std::vector<Position> GroupPositions(const std::vector<Slice>& slices) {
   return out;
 }
 
-// A time series (several files at a position): each position's files ordered
-// in time by the first of kTimeKeys every file has; refused where two files
-// of a position have the same time (or nothing orders them), where positions
-// hold different counts, or where there are more than kMaxPhases phases. Sets
-// `out`'s phase order and times.
-void OrderPhases(const Scan& scan, const std::vector<std::string>& files, std::vector<Position>& positions,
-                 SortedSeries& out) {
+// A time series (several slices at a position): each position's slices
+// ordered in time by the first of `keys` every slice has; refused where two
+// slices of a position have the same time (or nothing orders them), where
+// positions hold different counts, or where there are more than kMaxPhases
+// phases. Sets `out`'s phase order and times.
+void OrderPhases(const Scan& scan, const TimeKeys& keys, std::vector<Position>& positions, SortedSeries& out) {
   const std::string& where = out.shown;
-  const TimeKey* key = nullptr;
-  std::map<std::string, double> time;  // file -> its value of `key`
-  for (const TimeKey& k : kTimeKeys) {
-    std::map<std::string, double> values;
-    for (const std::string& f : files) {
-      const std::optional<double> v = Number(scan, f, k.tag);
-      if (!v) break;
-      values[f] = *v;
+  std::optional<std::size_t> key;
+  for (std::size_t k = 0; k < keys.size() && !key; ++k) {
+    bool every = true;
+    for (const Position& p : positions) {
+      for (const Slice& s : p) every = every && s.time_keys[k].has_value();
     }
-    if (values.size() == files.size()) {
-      key = &k;
-      time = std::move(values);
-      break;
-    }
+    if (every) key = k;
   }
-  // Two files of one position at one time are duplicates, whatever the counts.
+  const auto time = [&](const Slice& s) { return *s.time_keys[*key]; };
+  // Two slices of one position at one time are duplicates, whatever the counts.
   for (Position& p : positions) {
-    if (key) {
-      std::stable_sort(p.begin(), p.end(), [&](const Slice& a, const Slice& b) { return time[a.file] < time[b.file]; });
-    }
+    if (key) std::stable_sort(p.begin(), p.end(), [&](const Slice& a, const Slice& b) { return time(a) < time(b); });
     for (std::size_t i = 1; i < p.size(); ++i) {
-      if (key && time[p[i].file] != time[p[i - 1].file]) continue;
+      if (key && time(p[i]) != time(p[i - 1])) continue;
       throw InputError(fmt::format(
           "{}: {} and {} lie at the same position ({:.3f} mm along the normal): duplicate slices or several "
           "acquisitions in one series ({})",
-          where, scan.Name(p[i - 1].file), scan.Name(p[i].file), p[i].along_normal,
-          key ? fmt::format("both with {} {:g}{}", key->name, time[p[i].file], key->unit)
-              : std::string("no Temporal Position Identifier, Trigger Time or Instance Number orders them in time")));
+          where, scan.Name(p[i - 1]), scan.Name(p[i]), p[i].along_normal,
+          key ? fmt::format("both with {} {:g}{}", keys[*key].name, time(p[i]), keys[*key].unit)
+              : fmt::format("no {}, {} or {} orders them in time", keys[0].name, keys[1].name, keys[2].name)));
     }
   }
   // The most common count is the series' phases; a position holding another
   // is named.
-  std::map<std::size_t, std::size_t> positions_holding;  // files -> positions holding that many
+  std::map<std::size_t, std::size_t> positions_holding;  // slices -> positions holding that many
   for (const Position& p : positions) ++positions_holding[p.size()];
   const std::size_t phases =
       std::max_element(positions_holding.begin(), positions_holding.end(),
                        [](const auto& a, const auto& b) { return a.second < b.second; })->first;
   for (const Position& p : positions) {
     if (p.size() == phases) continue;
-    throw InputError(fmt::format("{}: positions hold {} and {} files: not one phase a position ({} files at {:.3f} mm "
+    throw InputError(fmt::format("{}: positions hold {} and {} slices: not one phase a position ({} at {:.3f} mm "
                                  "along the normal, {} among them; a phase missing, or another acquisition?)",
-                                 where, phases, p.size(), p.size(), p.front().along_normal, scan.Name(p.front().file)));
+                                 where, phases, p.size(), p.size(), p.front().along_normal, scan.Name(p.front())));
   }
   if (phases > std::size_t(kMaxPhases)) {
-    throw InputError(fmt::format("{}: a time series of {} phases ({} files at each of {} position{}); cinevol "
+    throw InputError(fmt::format("{}: a time series of {} phases ({} slices at each of {} position{}); cinevol "
                                  "reads 1 to {}",
                                  where, phases, phases, positions.size(), positions.size() == 1 ? "" : "s",
                                  kMaxPhases));
   }
-  out.phase_order = key->name;
-  // Each phase's time: the mean of its files' Trigger Times, where every file
-  // has one and the means rise phase by phase.
+  out.phase_order = keys[*key].name;
+  // Each phase's time: the mean of its slices' trigger times, where every
+  // slice has one and the means rise phase by phase.
   std::vector<double> seconds(phases, 0.0);
   for (const Position& p : positions) {
     for (std::size_t k = 0; k < phases; ++k) {
-      const std::optional<double> ms = Number(scan, p[k].file, kTriggerTime);
+      const std::optional<double> ms = p[k].time_keys[1];
       if (!ms) return;
       seconds[k] += *ms / 1000.0 / double(positions.size());
     }
@@ -284,45 +269,81 @@ void OrderPhases(const Scan& scan, const std::vector<std::string>& files, std::v
   out.phase_seconds = std::move(seconds);
 }
 
-// Sorts `files` along their normal and checks the spacing: gantry tilt is
-// measured, duplicate positions and uneven gaps refused. Several files at
-// every position are phases (OrderPhases); the geometry is the first phase's.
-// Sets `out`'s geometry and phases.
-void CheckGeometry(const Scan& scan, const std::vector<std::string>& files, bool resample_uneven, SortedSeries& out) {
-  const std::string& where = out.shown;
-  SeriesGeometry& g = out.geometry;
+// The slices' plane from an Image Orientation (Patient): row, column, normal.
+void SetPlane(const double* iop, SeriesGeometry& g) {
+  std::copy(iop, iop + 3, g.row);
+  std::copy(iop + 3, iop + 6, g.col);
+  g.normal[0] = g.row[1] * g.col[2] - g.row[2] * g.col[1];
+  g.normal[1] = g.row[2] * g.col[0] - g.row[0] * g.col[2];
+  g.normal[2] = g.row[0] * g.col[1] - g.row[1] * g.col[0];
+}
+
+// Each file's one image as a slice, the plane the first file's.
+std::vector<Slice> FileSlices(const Scan& scan, const std::vector<std::string>& files, SeriesGeometry& g,
+                              const std::string& where) {
   const std::vector<double> iop = Numbers(Value(scan, files[0], kImageOrientation));
   if (iop.size() != 6) {
     throw InputError(fmt::format("{}: {} has no usable ImageOrientationPatient", where, scan.Name(files[0])));
   }
-  std::copy(iop.begin(), iop.begin() + 3, g.row);
-  std::copy(iop.begin() + 3, iop.end(), g.col);
-  g.normal[0] = g.row[1] * g.col[2] - g.row[2] * g.col[1];
-  g.normal[1] = g.row[2] * g.col[0] - g.row[0] * g.col[2];
-  g.normal[2] = g.row[0] * g.col[1] - g.row[1] * g.col[0];
-
-  std::vector<Slice> all;
+  SetPlane(iop.data(), g);
+  std::vector<Slice> out;
   for (const std::string& f : files) {
     const std::vector<double> p = Numbers(Value(scan, f, kImagePosition));
     if (p.size() != 3) {
       throw InputError(fmt::format("{}: {} has no usable ImagePositionPatient", where, scan.Name(f)));
     }
-    all.push_back({f, {p[0], p[1], p[2]}, Dot3(p.data(), g.normal)});
+    Slice& s = out.emplace_back();
+    s.file = f;
+    std::copy(p.begin(), p.end(), s.position);
+    s.time_keys = {Number(scan, f, kTemporalPosition), Number(scan, f, kTriggerTime),
+                   Number(scan, f, kInstanceNumber)};
   }
+  return out;
+}
+
+// Each frame of an enhanced multi-frame file as a slice, placed, timed and
+// rescaled by its functional groups.
+std::vector<Slice> FrameSlices(const std::string& file, const MultiFrame& m, SeriesGeometry& g) {
+  SetPlane(m.orientation.data(), g);
+  g.pixel_spacing_mm = m.pixel_spacing_mm;
+  std::vector<Slice> out;
+  for (std::size_t f = 0; f < m.frames.size(); ++f) {
+    const Frame& frame = m.frames[f];
+    Slice& s = out.emplace_back();
+    s.file = file;
+    s.frame = int(f);
+    std::copy(frame.position.begin(), frame.position.end(), s.position);
+    s.time_keys = {frame.temporal_position_index, frame.trigger_delay_ms, double(f + 1)};
+    s.rescale_slope = frame.rescale_slope;
+    s.rescale_intercept = frame.rescale_intercept;
+  }
+  return out;
+}
+
+// Sorts `all` along their normal and checks the spacing: gantry tilt is
+// measured, duplicate positions and uneven gaps refused. Several slices at
+// every position are phases (OrderPhases, by `keys`); the geometry is the
+// first phase's; a stack of one position is `thickness_mm` thick (1 mm where
+// 0). Sets `out`'s geometry and phases.
+void CheckGeometry(const Scan& scan, std::vector<Slice> all, const TimeKeys& keys, double thickness_mm,
+                   bool resample_uneven, SortedSeries& out) {
+  const std::string& where = out.shown;
+  SeriesGeometry& g = out.geometry;
+  for (Slice& s : all) s.along_normal = Dot3(s.position, g.normal);
   std::sort(all.begin(), all.end(), [](const Slice& a, const Slice& b) {
-    return a.along_normal < b.along_normal || (a.along_normal == b.along_normal && a.file < b.file);
+    if (a.along_normal != b.along_normal) return a.along_normal < b.along_normal;
+    return a.file != b.file ? a.file < b.file : a.frame < b.frame;
   });
   std::vector<Position> positions = GroupPositions(all);
-  if (positions.size() < all.size()) OrderPhases(scan, files, positions, out);
+  if (positions.size() < all.size()) OrderPhases(scan, keys, positions, out);
   const std::size_t phases = positions.front().size();
   out.phases.assign(phases, {});
   for (const Position& p : positions) {
     g.slices.push_back(p.front());
-    for (std::size_t k = 0; k < phases; ++k) out.phases[k].push_back(p[k].file);
+    for (std::size_t k = 0; k < phases; ++k) out.phases[k].push_back(p[k]);
   }
   if (g.slices.size() < 2) {
-    const std::vector<double> t = Numbers(Value(scan, files[0], kSliceThickness));
-    g.slice_gap_mm = t.size() == 1 && t[0] > 0 ? t[0] : 1.0;
+    g.slice_gap_mm = thickness_mm > 0 ? thickness_mm : 1.0;
     return;
   }
 
@@ -333,7 +354,7 @@ void CheckGeometry(const Scan& scan, const std::vector<std::string>& files, bool
       throw InputError(
           fmt::format("{}: {} and {} lie at the same position ({:.3f} mm along the normal): duplicate slices "
                       "or several acquisitions in one series",
-                      where, scan.Name(g.slices[i - 1].file), scan.Name(g.slices[i].file), g.slices[i].along_normal));
+                      where, scan.Name(g.slices[i - 1]), scan.Name(g.slices[i]), g.slices[i].along_normal));
     }
     gaps.push_back(gap);
   }
@@ -347,15 +368,15 @@ void CheckGeometry(const Scan& scan, const std::vector<std::string>& files, bool
           fmt::format("{}: uneven slice spacing: {:.3f} mm between {} and {} where the series' gap is {:.3f} "
                       "mm (missing slices?); cinevol loads it resampled onto an even grid when asked to "
                       "(--resample-uneven)",
-                      where, gaps[i], scan.Name(g.slices[i].file), scan.Name(g.slices[i + 1].file), g.slice_gap_mm));
+                      where, gaps[i], scan.Name(g.slices[i]), scan.Name(g.slices[i + 1]), g.slice_gap_mm));
     }
     g.uneven = true;
   }
   if (g.uneven) {
     const auto largest = std::max_element(gaps.begin(), gaps.end()) - gaps.begin();
     g.largest_gap_mm = gaps[std::size_t(largest)];
-    g.largest_gap_between = fmt::format("{} and {}", scan.Name(g.slices[std::size_t(largest)].file),
-                                        scan.Name(g.slices[std::size_t(largest) + 1].file));
+    g.largest_gap_between = fmt::format("{} and {}", scan.Name(g.slices[std::size_t(largest)]),
+                                        scan.Name(g.slices[std::size_t(largest) + 1]));
     g.slice_gap_mm = *std::min_element(gaps.begin(), gaps.end());
   }
   // Gantry tilt: the stack's direction leaves the slice normal.
@@ -365,6 +386,28 @@ void CheckGeometry(const Scan& scan, const std::vector<std::string>& files, bool
   for (int a = 0; a < 3; ++a) step[a] = last.position[a] - first.position[a];
   const double cos_tilt = Dot3(step, g.normal) / std::sqrt(Dot3(step, step));
   g.tilt_deg = std::acos(std::min(1.0, std::abs(cos_tilt))) * 180.0 / M_PI;
+}
+
+// The frames of the series' one enhanced multi-frame file; nothing where its
+// files are single-frame, or its one file is a multi-frame image without
+// functional groups (the adapter reads its frames as the slices of one
+// stack). A series of several files, some multi-frame, is refused.
+std::optional<MultiFrame> MultiFrameOf(const Scan& scan, const std::vector<std::string>& files) {
+  std::size_t multi = 0;
+  for (const std::string& f : files) multi += Number(scan, f, kNumberOfFrames).value_or(1) > 1;
+  if (multi == 0) return std::nullopt;
+  if (files.size() > 1) {
+    throw InputError(fmt::format("{}: the series holds {} files, {} of them of several frames; cinevol reads "
+                                 "one multi-frame file a series, or single-frame files",
+                                 scan.shown, files.size(), multi));
+  }
+  return ReadMultiFrame(files[0], scan.Name(files[0]));
+}
+
+bool FramesRescaledAlike(const MultiFrame& m) {
+  return std::all_of(m.frames.begin(), m.frames.end(), [&](const Frame& f) {
+    return f.rescale_slope == m.frames[0].rescale_slope && f.rescale_intercept == m.frames[0].rescale_intercept;
+  });
 }
 
 // The largest series, or the largest with `requested` as its UID.
@@ -431,13 +474,6 @@ std::vector<double> StoredWindow(const Scan& scan, const std::string& file) {
   const std::vector<double> widths = Numbers(Value(scan, file, kWindowWidth));
   if (centers.empty() || widths.empty() || !(widths[0] >= 1)) return {};
   return {centers[0], widths[0]};
-}
-
-// A DICOM string value: trailing spaces and NULs dropped.
-std::string Trimmed(const char* bytes, std::size_t length) {
-  std::string s(bytes, length);
-  while (!s.empty() && (s.back() == ' ' || s.back() == '\0')) s.pop_back();
-  return s;
 }
 
 // The first item of the file's Radiopharmaceutical Information Sequence
@@ -514,6 +550,26 @@ reader::PetDose PetDoseOf(const Scan& scan, const std::vector<std::string>& file
 
 double Dot3(const double* a, const double* b) { return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]; }
 
+std::vector<double> Numbers(const std::string& s) {
+  std::vector<double> out;
+  std::stringstream in(s);
+  for (std::string item; std::getline(in, item, '\\');) {
+    try {
+      out.push_back(std::stod(item));
+    } catch (const std::exception&) {
+      return {};
+    }
+    if (!std::isfinite(out.back())) return {};
+  }
+  return out;
+}
+
+std::string Trimmed(const char* bytes, std::size_t length) {
+  std::string s(bytes, length);
+  while (!s.empty() && (s.back() == ' ' || s.back() == '\0')) s.pop_back();
+  return s;
+}
+
 std::string Describe(const reader::Series& s) {
   return fmt::format("{} '{}' ({}, {} pixels, {} files)", s.uid().empty() ? "(no SeriesInstanceUID)" : s.uid(),
                      s.description(), s.modality(), s.size(), s.file_count());
@@ -535,15 +591,24 @@ SortedSeries ChooseSeries(const std::vector<reader::DicomFile>& files, const std
   SortedSeries sorted;
   sorted.shown = scan.shown;
   sorted.info = series.info;
-  CheckGeometry(scan, series.files, options.resample_uneven, sorted);
+  const std::optional<MultiFrame> multi = MultiFrameOf(scan, series.files);
+  if (multi) {
+    CheckGeometry(scan, FrameSlices(series.files[0], *multi, sorted.geometry), kFrameTimeKeys,
+                  multi->slice_thickness_mm, options.resample_uneven, sorted);
+  } else {
+    const std::vector<double> thickness = Numbers(Value(scan, series.files[0], kSliceThickness));
+    CheckGeometry(scan, FileSlices(scan, series.files, sorted.geometry, scan.shown), kFileTimeKeys,
+                  thickness.size() == 1 ? thickness[0] : 0.0, options.resample_uneven, sorted);
+  }
   CheckGreyScale(scan, series.files, scan.shown);
-  const std::vector<std::string>& files_sorted = sorted.phases.front();
-  sorted.modality = Value(scan, files_sorted[0], kModality);
-  sorted.rescaled_alike = SameRescale(scan, series.files);
-  sorted.identity = IdentityOf(scan, files_sorted[0]);
-  sorted.stored_window = StoredWindow(scan, files_sorted[0]);
-  sorted.frame_of_reference_uid = Value(scan, files_sorted[0], kFrameOfReference);
-  if (sorted.modality == "PT") sorted.pet = PetDoseOf(scan, series.files, files_sorted[0]);
+  const std::string& first = sorted.phases.front().front().file;
+  sorted.modality = Value(scan, first, kModality);
+  sorted.multi_frame = multi.has_value();
+  sorted.rescaled_alike = multi ? FramesRescaledAlike(*multi) : SameRescale(scan, series.files);
+  sorted.identity = IdentityOf(scan, first);
+  sorted.stored_window = multi ? multi->window : StoredWindow(scan, first);
+  sorted.frame_of_reference_uid = Value(scan, first, kFrameOfReference);
+  if (sorted.modality == "PT") sorted.pet = PetDoseOf(scan, series.files, first);
   return sorted;
 }
 
