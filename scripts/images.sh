@@ -18,7 +18,7 @@
 # localhost/debian:bookworm (build stages) and localhost/debian:bookworm-slim
 # (final stages: no manuals, no locales). Each base is made once: the image is
 # kept, and its tar under $CINEVOL_BUILD_DIR/images/. It ends with a table of the
-# images' sizes and build times (also in images/report.tsv).
+# images' sizes and build times (also in images/report-fast.tsv or report-full.tsv).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 root=$PWD
@@ -177,19 +177,26 @@ build_one() {
   args=(--format docker --network host --pull=never --layers "${no_cache[@]}"
         --build-arg BASE=localhost/debian:bookworm --build-arg RUNTIME_BASE=localhost/debian:bookworm-slim)
   context=$root
-  if [ "$fast" = 1 ] && [[ "$image" != orthanc && "$image" != prometheus ]]; then
-    check_build_tree "$image"
-    context=$(prebuilt_context "$image")
-    args+=(--build-arg PROGRAMS_FROM=prebuilt)
+  if [[ "$image" != orthanc && "$image" != prometheus ]]; then
+    if [ "$fast" = 1 ]; then
+      check_build_tree "$image"
+      context=$(prebuilt_context "$image")
+      args+=(--build-arg PROGRAMS_FROM=prebuilt)
+    else
+      # Said even though it is the default: podman skips the stages no build argument names.
+      args+=(--build-arg PROGRAMS_FROM=build)
+    fi
   fi
   say "building $tag ($dockerfile$([ "$fast" = 1 ] && echo ', --fast'))"
   start=$SECONDS
-  podman build "${args[@]}" -f "$root/$dockerfile" -t "$tag" "$context" > "$cache/build-$image.log" 2>&1 ||
-    { tail -30 "$cache/build-$image.log" >&2; die "building $tag failed (the log: $cache/build-$image.log)"; }
+  podman build "${args[@]}" -f "$root/$dockerfile" -t "$tag" "$context" > "$cache/build-$image-$mode.log" 2>&1 ||
+    { tail -30 "$cache/build-$image-$mode.log" >&2; die "building $tag failed (the log: $cache/build-$image-$mode.log)"; }
   printf '%s\t%s\t%s\t%s\n' "$image" "$tag" "$(podman image inspect --format '{{.Size}}' "$tag")" \
-    "$((SECONDS - start))" >> "$cache/report.tsv"
+    "$((SECONDS - start))" >> "$report"
 }
 
+mode=$([ "$fast" = 1 ] && echo fast || echo full)
+report="$cache/report-$mode.tsv"
 mkdir -p "$cache"
 setup_podman
 ensure_base bookworm-slim
@@ -197,9 +204,9 @@ for image in "${images[@]}"; do
   # Only the compiling build stages start from the full base.
   if [ "$fast" = 0 ] && [[ "$image" != orthanc && "$image" != prometheus ]]; then ensure_base bookworm; fi
 done
-: > "$cache/report.tsv"
+: > "$report"
 for image in "${images[@]}"; do build_one "$image"; done
-echo "image                     size      built in ($([ "$fast" = 1 ] && echo fast || echo full)$([ ${#no_cache[@]} -gt 0 ] && echo ', no cache'))"
+echo "image                     size      built in ($mode$([ ${#no_cache[@]} -gt 0 ] && echo ', no cache'))"
 while IFS=$'\t' read -r _ tag bytes seconds; do
   printf '%-25s %5d MB  %4d s\n' "$tag" "$((bytes / 1000000))" "$seconds"
-done < "$cache/report.tsv"
+done < "$report"
