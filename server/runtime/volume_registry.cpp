@@ -6,6 +6,8 @@
 #include <unistd.h>
 
 #include <algorithm>
+#include <functional>
+#include <string_view>
 
 #include "core/error.h"
 #include "core/log_safe.h"
@@ -33,11 +35,26 @@ bool EndsWith(const std::string& s, const std::string& tail) {
          });
 }
 
-// The host memory a volume's phases hold together.
+// The host memory a volume's phases hold together, phases alike counted once.
 std::uint64_t PhasesBytes(const std::vector<std::shared_ptr<const Volume>>& phases) {
   std::uint64_t bytes = 0;
-  for (const auto& phase : phases) bytes += phase->MemoryBytes();
+  for (std::size_t k = 0; k < phases.size(); ++k) {
+    const auto before = phases.begin() + std::ptrdiff_t(k);
+    if (std::find(phases.begin(), before, phases[k]) == before) bytes += phases[k]->MemoryBytes();
+  }
   return bytes;
+}
+
+// A volume's voxels as bytes, as it holds them.
+std::string_view VoxelBytes(const Volume& v) {
+  if (v.storage() == VoxelStorage::kUInt16) {
+    return {reinterpret_cast<const char*>(v.u16().data()), v.u16().size() * sizeof(std::uint16_t)};
+  }
+  return {reinterpret_cast<const char*>(v.f32().data()), v.f32().size() * sizeof(float)};
+}
+
+bool SameVoxels(const Volume& a, const Volume& b) {
+  return a.storage() == b.storage() && a.stored_offset() == b.stored_offset() && VoxelBytes(a) == VoxelBytes(b);
 }
 
 // Removes an upload's file however its load ends.
@@ -110,6 +127,21 @@ void SetIdentity(const VolumeMetadata& meta, v1::VolumeInfo& info) {
 }
 
 }  // namespace
+
+std::vector<std::shared_ptr<const Volume>> ShareAlikePhases(std::vector<Volume> phases) {
+  std::vector<std::shared_ptr<const Volume>> out;
+  std::vector<std::size_t> hashes;  // of each phase's voxels, so only a likely match is compared whole
+  for (Volume& phase : phases) {
+    const std::size_t hash = std::hash<std::string_view>{}(VoxelBytes(phase));
+    std::shared_ptr<const Volume> alike;
+    for (std::size_t k = 0; k < out.size() && !alike; ++k) {
+      if (hashes[k] == hash && SameVoxels(*out[k], phase)) alike = out[k];
+    }
+    hashes.push_back(hash);
+    out.push_back(alike ? alike : std::make_shared<const Volume>(std::move(phase)));
+  }
+  return out;
+}
 
 class VolumeRegistry::Reservation {
  public:
@@ -374,6 +406,7 @@ v1::VolumeInfo VolumeRegistry::Add(const std::string& base_id, const std::string
                                    VolumeSeries series, const std::string& owner, bool upload, Reservation* reservation,
                                    FoundTable table) {
   std::shared_ptr<const LabelVolume> unused;  // a table that does not fit, freed outside the lock
+  std::vector<std::shared_ptr<const Volume>> phases = ShareAlikePhases(std::move(series.phases));  // before the lock
   std::lock_guard lock(mu_);
   if (reservation) reservation->ReleaseLocked();  // the volume itself counts from here on
   if (!upload) {
@@ -381,8 +414,7 @@ v1::VolumeInfo VolumeRegistry::Add(const std::string& base_id, const std::string
       if (e.source == source) return InfoLocked(id, e);
     }
   }
-  std::uint64_t bytes = 0;
-  for (const Volume& phase : series.phases) bytes += phase.MemoryBytes();
+  const std::uint64_t bytes = PhasesBytes(phases);
   CheckRoomLocked(bytes, owner, upload, "the volume");
   // The table's labels count like a segmentation; the volume goes in without them where they do not fit.
   if (table.labels) {
@@ -398,7 +430,7 @@ v1::VolumeInfo VolumeRegistry::Add(const std::string& base_id, const std::string
   Entry& e = volumes_[id];
   e.source = source;
   e.shown = shown;
-  for (Volume& phase : series.phases) e.phases.push_back(std::make_shared<const Volume>(std::move(phase)));
+  e.phases = std::move(phases);
   e.volume = e.phases.front();
   e.phase_seconds = std::move(series.seconds);
   e.owner = owner;

@@ -75,6 +75,14 @@ struct ReadChoices {
   std::string Suffix() const;
 };
 
+// A series' phases as the registry holds them: phases whose voxels are alike
+// (a still stretch of a dynamic series, a baseline repeated) share one
+// Volume, so one host copy, one device copy (the volume cache's, by Volume)
+// and one set of majorants; a switch between them is none
+// (FramePipeline::SetPhase keeps its samples). Found by a hash of each
+// phase's voxels, then compared whole.
+std::vector<std::shared_ptr<const Volume>> ShareAlikePhases(std::vector<Volume> phases);
+
 struct VolumeLimits {
   std::uint64_t max_upload_bytes = 2048ull << 20;        // one upload's file
   std::uint64_t max_voxels = 1ull << 30;                  // one volume

@@ -10,6 +10,7 @@
 #include "server_process.h"
 #include "service_test_support.h"
 #include "support/test_paths.h"
+#include "runtime/volume_registry.h"
 #include "support/time_series_nifti.h"
 
 namespace cinevol::testing {
@@ -92,6 +93,53 @@ TEST(TimeSeriesSession, APhaseEventShowsThatPhaseInFramesSlicesAndPicks) {
   const auto still = client.CreateSession(SmallSession());
   ExpectRpcError([&] { client.SendEvents(still.session_id(), {TimeEvent(1, 0, true)}); },
                  grpc::StatusCode::INVALID_ARGUMENT, "not a time series");
+}
+
+// Phases whose voxels are alike share one Volume (one host and one device
+// copy): a sphere that moves every second phase holds three phases' memory
+// for six, and still shows each phase.
+TEST(TimeSeriesSession, PhasesAlikeShareOneVolume) {
+  const auto ramp = [](float top) {
+    std::vector<float> values(27);
+    for (std::size_t i = 0; i < values.size(); ++i) values[i] = top * float(i) / 26.0f;
+    return Volume({3, 3, 3}, {1, 1, 1}, values, {});
+  };
+  std::vector<Volume> phases;
+  for (float top : {100.0f, 200.0f, 100.0f, 100.0f}) phases.push_back(ramp(top));
+  const auto shared = service::ShareAlikePhases(std::move(phases));
+  ASSERT_EQ(shared.size(), 4u);
+  EXPECT_NE(shared[0], shared[1]);
+  EXPECT_EQ(shared[0], shared[2]);
+  EXPECT_EQ(shared[0], shared[3]);
+
+  ScratchDir scratch;
+  MovingSphere pairs;
+  pairs.phases = 6;
+  pairs.moves_every = 2;
+  WriteMovingSphere(scratch / "pairs.nii", pairs);
+  MovingSphere every;
+  every.phases = 6;
+  WriteMovingSphere(scratch / "every.nii", every);
+  ServerProcess server(scratch.path(), {"--data-root", scratch.path().string()});
+  ASSERT_TRUE(server.running()) << server.Log();
+  Client client = server.Connect();
+  const v1::VolumeInfo alike = client.LoadVolume("pairs.nii");
+  const v1::VolumeInfo distinct = client.LoadVolume("every.nii");
+  EXPECT_EQ(alike.phases(), 6u);
+  EXPECT_EQ(2 * alike.memory_bytes(), distinct.memory_bytes()) << "three distinct phases of six";
+
+  v1::CreateSessionRequest request = SmallSession("ct-bone", 64, 48);
+  request.set_volume_id(alike.id());
+  const std::string session = client.CreateSession(request).session_id();
+  double column[6];
+  for (int k = 0; k < 6; ++k) {
+    client.SendEvents(session, {TimeEvent(std::uint64_t(k + 1), k)});
+    column[k] = SphereColumn(client, session, alike);
+  }
+  for (int k : {0, 2, 4}) {
+    EXPECT_NEAR(column[k + 1], column[k], 1e-6) << "phases " << k << " and " << k + 1 << " are alike";
+    if (k > 0) EXPECT_NEAR(std::abs(column[k] - column[k - 2]), 1.0, 1e-6) << "a voxel along every second phase";
+  }
 }
 
 }  // namespace

@@ -17,8 +17,10 @@ struct MovingSphere {
   int phases = 5;
   float seconds_apart = 0.1f;
   float radius = 5;
-  // Phase k's centre: (first_x + k, size/2, size/2) in voxel indices.
+  // Phase k's centre: (first_x + k / moves_every, size/2, size/2) in voxel
+  // indices: with moves_every 2, phases come in pairs alike.
   int first_x = 8;
+  int moves_every = 1;
   // The header's phase count where it should lie about the file (0: phases).
   int header_phases = 0;
 };
@@ -54,7 +56,7 @@ inline void WriteMovingSphere(const std::filesystem::path& path, const MovingSph
     for (int z = 0; z < n; ++z) {
       for (int y = 0; y < n; ++y) {
         for (int x = 0; x < n; ++x) {
-          const float dx = float(x - sphere.first_x - k), dy = float(y - n / 2), dz = float(z - n / 2);
+          const float dx = float(x - sphere.first_x - k / sphere.moves_every), dy = float(y - n / 2), dz = float(z - n / 2);
           voxels[(std::size_t(z) * n + y) * n + x] = std::sqrt(dx * dx + dy * dy + dz * dz) <= sphere.radius ? 1000 : 0;
         }
       }

@@ -135,9 +135,10 @@ std::optional<MultiFrame> ReadMultiFrame(const std::string& file, const std::str
   const gdcm::SequenceOfItems* items = groups.Items(header, kPerFrameGroups);
   const std::size_t n = items ? items->GetNumberOfItems() : 0;
   if (double(n) != *count) {
-    throw InputError(fmt::format("{}: Number of Frames is {:g} and its Per-frame Functional Groups Sequence "
-                                 "holds {} items: not one a frame",
-                                 name, *count, n));
+    throw InputError(
+        fmt::format("{}: Number of Frames is {:g} and its Per-frame Functional Groups Sequence "
+                    "holds {} items: not one a frame",
+                    name, *count, n));
   }
   MultiFrame out;
   std::vector<double> orientation, spacing;
@@ -155,9 +156,10 @@ std::optional<MultiFrame> ReadMultiFrame(const std::string& file, const std::str
       orientation = o;
       spacing = s;
     } else if (!Alike(o, orientation) || !Alike(s, spacing)) {
-      throw InputError(fmt::format("{}: frame {}'s {} differs from frame 1's; cinevol reads frames of one plane "
-                                   "orientation and pixel spacing",
-                                   name, f + 1, Alike(s, spacing) ? "orientation" : "pixel spacing"));
+      throw InputError(
+          fmt::format("{}: frame {}'s {} differs from frame 1's; cinevol reads frames of one plane "
+                      "orientation and pixel spacing",
+                      name, f + 1, Alike(s, spacing) ? "orientation" : "pixel spacing"));
     }
     if (const gdcm::DataSet* content = groups.Macro(frame, kFrameContent)) {
       fr.temporal_position_index = BinaryNumber<std::uint32_t>(*content, kTemporalPositionIndex);
