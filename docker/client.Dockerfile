@@ -20,6 +20,8 @@ FROM ${BASE} AS build
 WORKDIR /src
 COPY scripts/install-deps.sh scripts/
 COPY web/package.json web/package-lock.json web/
+# npm ci of web/ behind a TLS-inspecting proxy: its CA, mounted for the build only (scripts/images.sh).
+ARG NODE_EXTRA_CA_CERTS
 RUN scripts/install-deps.sh && rm -rf /var/lib/apt/lists/*
 COPY . .
 RUN CINEVOL_CUDA=OFF scripts/build.sh cinevol-server cinevol cinevol-reader cinevol-viewer

@@ -185,6 +185,12 @@ build_one() {
     else
       # Said even though it is the default: podman skips the stages no build argument names.
       args+=(--build-arg PROGRAMS_FROM=build)
+      # Where this host's node trusts an extra CA (a proxy that inspects TLS), the build stage's
+      # npm ci is given the same file, mounted for the build only: no layer keeps it.
+      if [ -n "${NODE_EXTRA_CA_CERTS:-}" ] && [ -f "$NODE_EXTRA_CA_CERTS" ]; then
+        args+=(--volume "$NODE_EXTRA_CA_CERTS:/run/cinevol-build-ca.crt:ro"
+               --build-arg NODE_EXTRA_CA_CERTS=/run/cinevol-build-ca.crt)
+      fi
     fi
   fi
   say "building $tag ($dockerfile$([ "$fast" = 1 ] && echo ', --fast'))"

@@ -31,6 +31,7 @@ packages=(
   podman runc mmdebstrap        # scripts/images.sh: the images built and run (docs/deploy.md); no registry: a Debian base made here
   netavark aardvark-dns         # the stack's containers find one another by name (podman's network backend and its DNS)
   podman-compose                # deploy/compose run by podman (tests/containers)
+  catatonit                     # the pause process of the pods `podman kube play` makes (tests/containers)
 )
 
 missing=()

@@ -35,7 +35,7 @@ log() { printf '[%4d s] %s\n' "$((SECONDS - t0))" "$*"; }
 fail() { log "FAIL: $*"; exit 1; }
 
 missing=()
-for tool in podman podman-compose mmdebstrap runc node openssl curl python3; do
+for tool in podman podman-compose mmdebstrap runc node openssl curl python3 $([ "$full" = 1 ] && echo dcmodify); do
   command -v "$tool" > /dev/null || missing+=("$tool")
 done
 if [ ${#missing[@]} -gt 0 ]; then
@@ -56,6 +56,10 @@ cleanup() {
   local status=$?
   set +e
   if [ -n "${watcher:-}" ]; then kill "$watcher" 2> /dev/null; wait "$watcher" 2> /dev/null; fi
+  local service
+  for service in cinevol web orthanc prometheus; do
+    podman logs "${project}_${service}_1" > "$work/log-$service.txt" 2>&1
+  done
   (cd "$work" && timeout 120 podman-compose -p "$project" -f "$compose_file" down -t 30 > "$work/down.log" 2>&1)
   local ids
   ids=$(podman ps -a -q --filter "label=io.podman.compose.project=$project")
@@ -135,6 +139,12 @@ log "starting the stack $project (podman-compose up)"
 up_started=$SECONDS
 stack_up first
 note "stack up and every HEALTHCHECK passing $((SECONDS - up_started)) s after podman-compose up"
+if [ "$full" = 1 ]; then  # the idle stack's memory: up, no session yet
+  sleep 10
+  podman stats --no-stream --format '{{.Name}} {{.MemUsage}} {{.CPUPerc}}' \
+    "${project}_cinevol_1" "${project}_web_1" "${project}_orthanc_1" "${project}_prometheus_1" > "$work/stats.txt"
+  note "idle: $(sed "s/^${project}_//" "$work/stats.txt" | tr '\n' ';')"
+fi
 wait_for 30 "cinevol-web's /healthz over HTTPS" https_ok /healthz
 node "$root/tests/containers/watch_session.mjs" --url "https://127.0.0.1:$web_port" --ca "$secrets/web/tls.crt" \
   --token "$token" --volume phantom:head --out "$work/first-frame.jpg" --timeout 90 | tee "$work/first-frame.log"
@@ -146,17 +156,24 @@ if [ "$full" = 0 ]; then
 fi
 
 # --- Orthanc seeded from the shared data, searched and loaded through the server.
+# The series has no Series Instance UID, which a PACS requires: copies are given one (DCMTK's dcmodify).
 series="$shared_data/mr-chest-dicom-seg3d"
+mkdir -p "$work/series"
 count=0
 for f in "$series"/*.dcm; do
   [ $((count += 1)) -le 200 ] || fail "more than 200 files in $series"
+  cp "$f" "$work/series/"
+done
+series_uid="2.25.$(python3 -c 'import uuid; print(uuid.uuid4().int)')"
+dcmodify -nb -i "(0020,000e)=$series_uid" "$work/series"/*.dcm || fail "dcmodify could not stamp the series"
+for f in "$work/series"/*.dcm; do
   curl -sf --max-time 20 -u "cinevol:$orthanc_password" -H "Content-Type: application/dicom" \
     --data-binary "@$f" "http://127.0.0.1:$orthanc_port/instances" > /dev/null || fail "Orthanc refused $f"
 done
 note "Orthanc seeded with $count instances of $(basename "$series")"
 "$cli" pacs list --server "$server" --token "$token" | tee "$work/pacs-list.txt"
 "$cli" pacs search --server "$server" --token "$token" --pacs orthanc --modality MR --json > "$work/pacs-search.json"
-study=$(python3 -c 'import json,sys; d=json.load(open(sys.argv[1])); print(d["studies"][0]["studyInstanceUid"])' \
+study=$(python3 -c 'import json,sys; d=json.load(open(sys.argv[1])); print(d["studies"][0]["studyUid"])' \
         "$work/pacs-search.json") || fail "the PACS search found no study: $(head -c 400 "$work/pacs-search.json")"
 start=$SECONDS
 "$cli" pacs load --server "$server" --token "$token" --pacs orthanc --study "$study" --json > "$work/pacs-load.json"
@@ -185,12 +202,6 @@ rules=$(python3 -c 'import json,sys; g=json.load(open(sys.argv[1]))["data"]["gro
 print(" ".join(r["name"] for x in g if x["name"]=="cinevol" for r in x["rules"]))' "$work/prometheus-rules.json")
 [ -n "$rules" ] || fail "Prometheus has not loaded the cinevol rules"
 note "Prometheus: target cinevol up, cinevol_frames_sent_total > 0, rules loaded: $rules"
-
-# --- Memory of the idle stack.
-sleep 5
-podman stats --no-stream --format '{{.Name}} {{.MemUsage}} {{.CPUPerc}}' \
-  "${project}_cinevol_1" "${project}_web_1" "${project}_orthanc_1" "${project}_prometheus_1" | tee "$work/stats.txt"
-note "idle memory: $(tr '\n' ';' < "$work/stats.txt")"
 
 # --- SIGTERM drain: a session streams through the gateway while the server is stopped.
 node "$root/tests/containers/watch_session.mjs" --url "https://127.0.0.1:$web_port" --ca "$secrets/web/tls.crt" \

@@ -63,15 +63,34 @@ def check_overlay(name, objects):
             check(sc.get("readOnlyRootFilesystem") is True, f"{name}/{c['name']}: root filesystem writable")
             check(sc.get("allowPrivilegeEscalation") is False, f"{name}/{c['name']}: privilege escalation allowed")
             check(c["resources"]["limits"].get("nvidia.com/gpu") == 1, f"{name}/{c['name']}: not one GPU per pod")
-            check(c.get("livenessProbe", {}).get("grpc", {}).get("port") == 50051, f"{name}: no gRPC liveness probe")
-            check(c.get("readinessProbe", {}).get("grpc", {}).get("service") == "cinevol.v1.SessionService",
-                  f"{name}: readiness must ask cinevol.v1.SessionService (room for a session)")
+            tls = any(a.startswith("--tls-cert") for a in c.get("args", []))
+            liveness, readiness = health_probe(c.get("livenessProbe", {}), tls), health_probe(c.get("readinessProbe", {}), tls)
+            check(liveness == "", f"{name}: no gRPC health liveness probe the server can answer ({liveness})")
+            check(readiness == "cinevol.v1.SessionService",
+                  f"{name}: readiness must ask cinevol.v1.SessionService (room for a session) ({readiness})")
             mounts = {m["name"]: m for m in c.get("volumeMounts", [])}
             check(mounts.get("data", {}).get("readOnly") is True, f"{name}: data not mounted read-only")
             check(any("--auth-tokens" in a for a in c.get("args", [])), f"{name}: no --auth-tokens")
             check_advertised_address(name, sts, c, objects)
     for policy in (o for o in objects if o["kind"] == "NetworkPolicy"):
         check(policy["spec"]["podSelector"].get("matchLabels"), f"{name}: the NetworkPolicy selects every pod")
+
+
+def health_probe(probe, tls):
+    """The gRPC health service a probe asks of port 50051, or why it cannot: the kubelet's own
+    gRPC probe speaks plaintext, so a server with --tls-cert needs `cinevol health` over TLS."""
+    if "grpc" in probe:
+        if tls:
+            return "a gRPC probe, which speaks plaintext to a TLS-only port"
+        return probe["grpc"].get("service", "") if probe["grpc"].get("port") == 50051 else "another port"
+    command = " ".join(probe.get("exec", {}).get("command", []))
+    m = re.search(r"/cinevol health .*:50051\S*(.*)", command)
+    if not m:
+        return "no probe"
+    if tls and "--tls-ca" not in command:
+        return "`cinevol health` without --tls-ca"
+    service = re.search(r"--service (\S+)", m.group(0))
+    return service.group(1) if service else ""
 
 
 def check_web(name, objects):
