@@ -24,6 +24,11 @@ replicas=${CINEVOL_KUBE_SERVER_PODS:-2}
 t0=$SECONDS
 log() { printf '[%4d s] %s\n' "$((SECONDS - t0))" "$*"; }
 fail() { log "FAIL: $*"; exit 1; }
+# The ConfigMaps' names in $play (podman makes a volume of each).
+configmaps() {
+  [ -f "$play" ] && python3 -c 'import sys, yaml
+print(" ".join(o["metadata"]["name"] for o in yaml.safe_load_all(open(sys.argv[1])) if o and o["kind"] == "ConfigMap"))' "$play"
+}
 
 missing=()
 for tool in podman kubectl catatonit openssl curl python3; do
@@ -36,6 +41,14 @@ if [ ${#missing[@]} -gt 0 ]; then
   exit 77
 fi
 
+# A run killed before its cleanup (a ctest timeout kills outright) leaves its pods, whose names are fixed.
+if [ -f "$work/play.yaml" ]; then
+  timeout 120 podman kube play --down "$work/play.yaml" > /dev/null 2>&1 || true
+  for volume in $(play=$work/play.yaml configmaps); do podman volume rm -f "$volume" > /dev/null 2>&1; done
+  for stale in $(podman network ls --format '{{.Name}}' | grep -E '^cinevol-kube-[0-9]+$'); do
+    kill -0 "${stale#cinevol-kube-}" 2> /dev/null || podman network rm -f "$stale" > /dev/null 2>&1
+  done
+fi
 rm -rf "$work"
 mkdir -p "$work"
 play="$work/play.yaml"
@@ -48,11 +61,16 @@ cleanup() {
   done
   [ -f "$play" ] && timeout 120 podman kube play --down "$play" > "$work/down.log" 2>&1
   for pod in "${pods[@]}"; do podman pod rm -f -t 5 "$pod" > /dev/null 2>&1; done
+  # The ConfigMap's volume, which podman 4.3 leaves after --down.
+  for volume in $(configmaps); do podman volume rm -f "$volume" > /dev/null 2>&1; done
   podman network rm -f "$network" > /dev/null 2>&1
   for pod in "${pods[@]}"; do
     podman pod exists "$pod" && { echo "FAIL: pod $pod was left behind"; status=1; }
   done
   podman network exists "$network" && { echo "FAIL: network $network was left behind"; status=1; }
+  for volume in $(configmaps); do
+    podman volume exists "$volume" && { echo "FAIL: volume $volume was left behind"; status=1; }
+  done
   exit $status
 }
 trap cleanup EXIT

@@ -45,6 +45,16 @@ if [ ${#missing[@]} -gt 0 ]; then
   exit 77
 fi
 
+# A run killed before its cleanup (a ctest timeout kills outright) leaves its project: removed here,
+# by the label podman-compose gives, when the process that named it is gone.
+for stale in $(podman ps -a --format '{{index .Labels "io.podman.compose.project"}}' | grep -E '^cinevol-test-[0-9]+$' | sort -u); do
+  kill -0 "${stale#cinevol-test-}" 2> /dev/null && continue
+  echo "removing the stack $stale, left by a run that was killed"
+  podman rm -f -t 5 $(podman ps -a -q --filter "label=io.podman.compose.project=$stale") > /dev/null
+  podman volume rm -f "${stale}_orthanc-data" "${stale}_prometheus-data" > /dev/null 2>&1
+  podman network rm -f "${stale}_default" > /dev/null 2>&1
+done
+
 rm -rf "$work"
 mkdir -p "$work"
 summary="$work/summary.txt"
