@@ -79,6 +79,11 @@ std::optional<v1::VolumeInfo> Connection::volume() const {
   return volume_;
 }
 
+std::optional<v1::VolumeInfo> Connection::fused_volume() const {
+  std::lock_guard lock(mu_);
+  return fused_volume_;
+}
+
 std::uint64_t Connection::Post(v1::SessionEvent event) {
   std::uint64_t ticket = 0;
   {
@@ -185,7 +190,10 @@ void Connection::Start() {
     *request.mutable_viewport() = carried_->viewport();
   }
   resolved_volume_ = volume.id();
+  Fuse(*client, request);
   const v1::CreateSessionResponse created = client->CreateSession(request);
+  std::optional<v1::VolumeInfo> fused;
+  if (const std::string& id = created.scene().fusion().volume_id(); !id.empty()) fused = client->DescribeVolume(id);
   StreamOptions options;
   options.on_message = [this](const v1::ServerMessage& m) { OnMessage(m); };
   stream_ = client->Attach(created.session_id(), options);
@@ -193,10 +201,28 @@ void Connection::Start() {
   {
     std::lock_guard lock(mu_);
     volume_ = volume;
+    fused_volume_ = fused;
     session_ = created;
     sent_at_.clear();
   }
   SetStatus(LinkState::kStreaming, fmt::format("{} on {}", volume.id(), created.device()));
+}
+
+void Connection::Fuse(Client& client, v1::CreateSessionRequest& request) const {
+  if (settings_.fuse.volume_id.empty() || request.scene().has_fusion()) return;
+  v1::VolumeInfo fused;
+  try {
+    fused = client.DescribeVolume(settings_.fuse.volume_id);
+  } catch (const RpcError& e) {
+    // Which flag named it: "NOT_FOUND: --fuse: volume_id: no volume 'x'".
+    const std::string what = e.what();  // "CODE: message", as RpcError writes it
+    throw RpcError(grpc::Status(e.code(), "--fuse: " + what.substr(what.find(": ") + 2)));
+  }
+  if (!request.has_scene()) {  // a preset (or none: the volume's default) goes in the scene, its oneof's other side
+    const std::string preset = request.preset();
+    request.mutable_scene()->mutable_transfer_function()->set_preset(preset);
+  }
+  *request.mutable_scene()->mutable_fusion() = FusedStart(fused, settings_.fuse.align_by_patient);
 }
 
 void Connection::Watch(Client& client) {

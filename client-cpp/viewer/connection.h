@@ -32,6 +32,7 @@
 #include "session_script.h"
 #include "sharing_calls.h"
 #include "viewer/frame_decoder.h"
+#include "viewer/second_volume.h"
 #include "viewer/shown_session.h"
 
 namespace cinevol::viewer {
@@ -42,6 +43,8 @@ struct ConnectionSettings {
   // A grant's secret: watch the session it names (WatchSession) instead of
   // creating one; events go as the grant holder's (SendEvents).
   std::string grant;
+  // A second volume the session starts with, where its scene names none (--fuse).
+  FuseStart fuse;
 };
 
 enum class LinkState { kConnecting, kStreaming, kReconnecting, kFailed, kClosed };
@@ -66,6 +69,8 @@ class Connection {
   // Set once the session exists: its scene (resolved), volume and device.
   std::optional<v1::CreateSessionResponse> session() const;
   std::optional<v1::VolumeInfo> volume() const;
+  // The second volume's description, while the session fuses one (its glow's values).
+  std::optional<v1::VolumeInfo> fused_volume() const;
 
   // Queues an event; returns its ticket. Camera and pointer events replace
   // one of their kind still waiting last (its ticket is dropped).
@@ -101,6 +106,8 @@ class Connection {
   void Serve(Lane lane);                             // runs requests, so that a long upload holds no event back
   void Start();                                      // connect, resolve the volume, create the session, attach
   void Watch(Client& client);                        // the grant's session instead
+  // --fuse: the second volume in the request's scene, where that names none.
+  void Fuse(Client& client, v1::CreateSessionRequest& request) const;
   void OnMessage(const v1::ServerMessage& message);  // on the stream's reader or the watch's
   std::optional<grpc::Status> Ended() const;         // the stream's or watch's end, once it ended
   bool Ending(const grpc::Status& status);           // says why; whether to try again
@@ -129,7 +136,7 @@ class Connection {
   std::optional<v1::SessionState> state_;  // newest, not yet taken
   bool pointer_refused_ = false;
   std::optional<v1::CreateSessionResponse> session_;
-  std::optional<v1::VolumeInfo> volume_;
+  std::optional<v1::VolumeInfo> volume_, fused_volume_;
   struct Queued {
     std::uint64_t ticket;
     v1::SessionEvent event;

@@ -24,9 +24,15 @@ int main(int argc, char** argv) {
        {app.add_option("--volume", volume, "Volume id on the server (default: its first)"),
         app.add_option("--load", load, "Load this file or DICOM folder from the server's data roots first"),
         app.add_option("--upload", upload, "Upload this local volume file first")->check(CLI::ExistingFile),
-        app.add_option("--preset", preset, "Transfer-function preset (default: the volume's default)")}) {
+        app.add_option("--preset", preset, "Transfer-function preset (default: the volume's default)"),
+        app.add_option("--fuse", o.fuse.volume_id,
+                       "A second volume on the server fused with the first (PET on CT): glowing in 3D, coloured over "
+                       "the slices")}) {
     option->excludes(grant);  // the owner's session has its volume and scene
   }
+  app.add_flag("--align-by-patient", o.fuse.align_by_patient,
+               "With --fuse: place it by patient coordinates though the frames of reference differ")
+      ->needs("--fuse");
   app.add_option("--backend", o.backend, "Backend of the local server: auto, cpu or cuda")
       ->check(CLI::IsMember({"auto", "cpu", "cuda"}));
   app.add_option("--script", o.script, "Play a session script (with UI actions), then exit")->check(CLI::ExistingFile);

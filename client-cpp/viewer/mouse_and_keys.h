@@ -19,6 +19,7 @@ struct PanelsOpen {
   bool volume = true, pacs = false, transfer_function = true, lights = false, render = false, clipping = false,
        labels = false, scene = false, reading = true, share = false;
   bool time = true;   // shown only for a time series
+  bool fusion = true;  // shown only while a second volume is fused
   bool stats = true;  // the overlay (F2)
 };
 

@@ -169,6 +169,7 @@ void DrawPanels(Rooms& r) {
   if (!watching && !r.pacs.names.empty() && Header("PACS", open.pacs)) PacsPanel(r.pacs);
   const bool time_series = IsTimeSeries(link.volume());
   if (time_series) DrivingPanel(link, "Time", open.time, [&] { TimePanel(link, r.stats.last); });
+  if (Fuses(link.shown().scene())) DrivingPanel(link, "Second volume", open.fusion, [&] { FusionPanel(link); });
   DrivingPanel(link, "Transfer function", open.transfer_function, [&] { TransferPanel(link, r.editor); });
   DrivingPanel(link, "Lights", open.lights, [&] { LightsPanel(link.shown()); });
   DrivingPanel(link, "Render", open.render, [&] { RenderPanel(link.shown()); });

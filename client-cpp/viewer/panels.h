@@ -1,4 +1,4 @@
-// The side panel (volume, PACS, time, transfer function, lights, render,
+// The side panel (volume, PACS, time, second volume, transfer function, lights, render,
 // clipping, labels, reading, scene, share) and what is drawn over the views (stats,
 // the banner that says what is wrong, the line over a shared view, pointers,
 // measurements, the orientation marker, the slices' letters). Each panel
@@ -60,6 +60,10 @@ void Hint(const char* text);  // grey help text, wrapped to the panel
 // follows the phase of the frame shown (`last`). Nothing for a still volume.
 void TimePanel(SessionLink& link, const v1::Frame& last);
 bool IsTimeSeries(const std::optional<v1::VolumeInfo>& volume);  // several phases
+// The second volume fused with the session's (Scene.fusion): its name, the
+// slices' overlay (opacity, colour map, window) and its glow in 3D.
+void FusionPanel(SessionLink& link);
+bool Fuses(const v1::Scene& scene);  // a second volume is fused
 void TransferPanel(SessionLink& link, TransferEditorState& editor);
 void LightsPanel(ShownSession& session);
 void RenderPanel(ShownSession& session);

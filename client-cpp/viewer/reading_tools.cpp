@@ -24,6 +24,15 @@ void ReadingTools::Forget() {
     pane.in_flight = pane.again = false;
     pane.image.reset();
   }
+  slices_drawn_from_.clear();
+}
+
+void ReadingTools::FollowScene(const v1::Scene& scene) {
+  // The server draws the second volume's overlay and the phase into each slice.
+  std::string drawn_from = scene.fusion().SerializeAsString() + scene.time().SerializeAsString();
+  if (drawn_from == slices_drawn_from_) return;
+  slices_drawn_from_ = std::move(drawn_from);
+  if (crosshair) SetCrosshair(*crosshair);  // asks only while the slices show
 }
 
 // ------------------------------------------------------------------ picks

@@ -46,6 +46,8 @@ class ReadingTools {
   std::array<Rect, Screen::kPanes> ShownSlices() const;
   // Another volume: the old one's slices and picks come to nothing.
   void Forget();
+  // The server's scene: the slices are asked for again when what they draw from it changed.
+  void FollowScene(const v1::Scene& scene);
   bool busy() const { return busy_ > 0; }  // picks and slices under way (a script's settle waits for them)
 
   // What the panel and the overlay show.
@@ -69,6 +71,7 @@ class ReadingTools {
   Screen& screen_;
   int busy_ = 0;
   std::uint64_t generation_ = 0;  // bumped with Forget: older answers come to nothing
+  std::string slices_drawn_from_;  // the parts of the server's scene the slices shown were drawn from
 };
 
 // Axial, coronal, sagittal: the panes' names, as scripts write them.

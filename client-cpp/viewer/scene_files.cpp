@@ -204,11 +204,18 @@ void SceneFiles::Open(const std::string& path) {
   SetLabelsFor(session, volume, scene.labels());
   session.SetMeasurements({scene.measurements().begin(), scene.measurements().end()});
   if (scene.has_time() && volume && volume->phases() > 1) session.SetTime(scene.time());  // as Save wrote it
+  // The second volume is the session's from its start: a file's shows over that same one only.
+  const bool other_fusion = scene.has_fusion() && scene.fusion().volume_id() != session.scene().fusion().volume_id();
+  if (scene.has_fusion() && !other_fusion) session.SetFusion(scene.fusion());
   const bool styles = scene.labels().styles_size() > 0 || scene.labels().has_show_unlisted();
   context_.notice = styles && !(volume && volume->has_labels())
                         ? fmt::format("opened {}; its label styles wait for a segmentation of this volume", path)
                         : fmt::format("opened {}", path);
   if (scene.lights_size() == 0) context_.notice += " (it has no lights: the lights stay as they were)";
+  if (other_fusion) {
+    context_.notice += fmt::format(" (its second volume {} needs a session started with it: --fuse)",
+                                   scene.fusion().volume_id());
+  }
 }
 
 }  // namespace cinevol::viewer

@@ -1,5 +1,5 @@
-// The panels that edit the session's scene and settings: time, transfer
-// function, lights, render, clipping and labels. Each starts from the shown session
+// The panels that edit the session's scene and settings: time, the second
+// volume, transfer function, lights, render, clipping and labels. Each starts from the shown session
 // (the server's state with this viewer's unanswered edits) and hands its
 // edit back to it.
 #include <fmt/format.h>
@@ -12,6 +12,7 @@
 
 #include "viewer/panels.h"
 #include "viewer/scene_files.h"
+#include "viewer/second_volume.h"
 
 namespace cinevol::viewer {
 
@@ -55,6 +56,76 @@ void TimePanel(SessionLink& link, const v1::Frame& last) {
   if (!changed) return;
   time.set_phase(std::uint32_t(phase));
   session.SetTime(time);
+}
+
+bool Fuses(const v1::Scene& scene) { return !scene.fusion().volume_id().empty(); }
+
+namespace {
+
+// The overlay's colour map, by ColorMap's names (HOT when unset, as the server draws it).
+bool ColorMapCombo(v1::FusionOverlay& overlay) {
+  const v1::ColorMap shown = overlay.color_map() == v1::COLOR_MAP_UNSPECIFIED ? v1::HOT : overlay.color_map();
+  if (!ImGui::BeginCombo("colour map", v1::ColorMap_Name(shown).c_str())) return false;
+  bool changed = false;
+  for (const v1::ColorMap map : {v1::HOT, v1::RAINBOW, v1::GRAY}) {
+    if (ImGui::Selectable(v1::ColorMap_Name(map).c_str(), map == shown) && map != shown) {
+      overlay.set_color_map(map);
+      changed = true;
+    }
+  }
+  ImGui::EndCombo();
+  return changed;
+}
+
+// The overlay's own window and level over the values shown from `lo` to
+// `hi`, or none: the second volume's whole range. Whether one changed.
+bool OverlayWindow(v1::FusionOverlay& overlay, float lo, float hi) {
+  bool own = overlay.has_window();
+  bool changed = ImGui::Checkbox("own window", &own);
+  if (changed && own) {  // starts from the whole range it showed
+    overlay.set_window(std::max(hi - lo, 1e-3f));
+    overlay.set_level(0.5f * (lo + hi));
+  } else if (changed) {
+    overlay.clear_window();
+    overlay.clear_level();
+  }
+  if (!overlay.has_window()) return changed;
+  const float range = std::max(hi - lo, 1e-3f);
+  float window = overlay.window(), level = overlay.level();
+  if (ImGui::SliderFloat("window##overlay", &window, 1e-3f * range, 2 * range, "%.4g", ImGuiSliderFlags_AlwaysClamp)) {
+    overlay.set_window(window);
+    changed = true;
+  }
+  if (ImGui::SliderFloat("level##overlay", &level, lo, hi, "%.4g")) {
+    overlay.set_level(level);
+    changed = true;
+  }
+  return changed;
+}
+
+}  // namespace
+
+void FusionPanel(SessionLink& link) {
+  ShownSession& session = link.shown();
+  v1::Fusion fusion = session.scene().fusion();
+  ImGui::Text("%s%s", fusion.volume_id().c_str(), fusion.suv() ? " (SUVbw)" : "");
+  v1::FusionOverlay& overlay = *fusion.mutable_overlay();
+  float opacity = overlay.has_opacity() ? overlay.opacity() : 0.5f;
+  bool changed = ImGui::SliderFloat("opacity", &opacity, 0, 1, "%.2f", ImGuiSliderFlags_AlwaysClamp);
+  if (changed) overlay.set_opacity(opacity);
+  changed |= ColorMapCombo(overlay);
+  // Its range and glow need its description: the session's own viewer has it, a grant's holder not.
+  if (const std::optional<v1::VolumeInfo>& fused = link.fused_volume()) {
+    const double unit = fusion.suv() ? fused->suv_factor() : 1.0;  // the overlay's window is in SUVbw with suv
+    changed |= OverlayWindow(overlay, float(fused->min_value() * unit), float(fused->max_value() * unit));
+    bool glow = Glows(fusion);
+    if (ImGui::Checkbox("glow in 3D", &glow)) {
+      SetGlow(fusion, glow, *fused);
+      changed = true;
+    }
+  }
+  Hint("the overlay shows in the slices (F3), the glow in the 3D view");
+  if (changed) session.SetFusion(fusion);
 }
 
 void TransferPanel(SessionLink& link, TransferEditorState& editor) {

@@ -43,10 +43,12 @@ void SessionLink::SwitchVolume(const std::string& volume_id, std::optional<v1::S
   s.series.reset();
   s.preset.clear();  // without a scene: the new volume's default
   s.scene = std::move(scene);
+  settings_.fuse = {};  // --fuse was for the volume the viewer started on
   // Closing the old session may wait on the network: not on this thread.
   retired_.emplace_back([old = std::move(connection_)]() mutable { old.reset(); });
   session_id_.clear();
   volume_.reset();
+  fused_volume_.reset();
   live_ = false;
   shown_.Clear();
   Connect(viewport_w_, viewport_h_);
@@ -61,6 +63,7 @@ bool SessionLink::AdoptSession() {
                      volume_->id() == connection_->volume()->id();
   session_id_ = created->session_id();
   volume_ = connection_->volume();
+  fused_volume_ = connection_->fused_volume();
   v1::SessionState first;  // until the state the attach brings
   *first.mutable_scene() = created->scene();
   *first.mutable_stream() = settings_.session.stream;

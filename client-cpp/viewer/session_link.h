@@ -47,6 +47,8 @@ class SessionLink : private EventSink {
   const ShownSession& shown() const { return shown_; }
   const std::string& session_id() const { return session_id_; }
   const std::optional<v1::VolumeInfo>& volume() const { return volume_; }  // none while watching
+  // The second volume's description while the session fuses one (none while watching).
+  const std::optional<v1::VolumeInfo>& fused_volume() const { return fused_volume_; }
   // Where the volume lies: the session's state says, else the volume's description.
   std::optional<Placement> placement() const;
   const ViewCamera& home() const { return home_; }  // where the session started (Home, Space)
@@ -82,7 +84,7 @@ class SessionLink : private EventSink {
   std::unique_ptr<Connection> connection_;
   std::vector<std::jthread> retired_;  // closing the connections of earlier volumes
   std::string session_id_;             // of the session shown
-  std::optional<v1::VolumeInfo> volume_;
+  std::optional<v1::VolumeInfo> volume_, fused_volume_;
   ShownSession shown_{*this};
   ViewCamera home_;
   std::string me_;

@@ -22,6 +22,7 @@ bool Shows(int kind) {
     case v1::SessionEvent::kLabels:
     case v1::SessionEvent::kMeasurements:
     case v1::SessionEvent::kTime:
+    case v1::SessionEvent::kFusion:
       return true;
     default:
       return false;
@@ -114,6 +115,13 @@ void ShownSession::Show() {
         break;
       case v1::SessionEvent::kTime:
         *scene.mutable_time() = e.time();
+        break;
+      case v1::SessionEvent::kFusion:  // an empty volume id removes the second volume
+        if (e.fusion().volume_id().empty()) {
+          scene.clear_fusion();
+        } else {
+          *scene.mutable_fusion() = e.fusion();
+        }
         break;
       default:
         break;
@@ -211,6 +219,12 @@ void ShownSession::SetMeasurements(const std::vector<v1::Measurement>& measureme
 void ShownSession::SetTime(const v1::Time& time) {
   v1::SessionEvent e;
   *e.mutable_time() = time;
+  Record(std::move(e), true);
+}
+
+void ShownSession::SetFusion(const v1::Fusion& fusion) {
+  v1::SessionEvent e;
+  *e.mutable_fusion() = fusion;
   Record(std::move(e), true);
 }
 

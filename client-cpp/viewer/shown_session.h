@@ -72,6 +72,7 @@ class ShownSession {
   void SetLabels(const v1::Labels& labels);
   void SetMeasurements(const std::vector<v1::Measurement>& measurements);
   void SetTime(const v1::Time& time);  // a time series' phase, playing and rate; the server steps it while playing
+  void SetFusion(const v1::Fusion& fusion);  // how the second volume shows (the one the session began with)
   // Any event as it is (a script's line): shown as an edit where it is one.
   void Send(v1::SessionEvent event);
   // Posts the camera set since the last flush; whether there was one.

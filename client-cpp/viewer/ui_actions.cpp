@@ -15,6 +15,7 @@
 #include "core/error.h"
 #include "viewer/reading_view.h"
 #include "viewer/script_runner.h"
+#include "viewer/second_volume.h"
 #include "viewer/transfer_edits.h"
 
 namespace cinevol::viewer {
@@ -71,6 +72,7 @@ Request PacsRequest(const Value& value, const std::string& where, std::initializ
 bool* Panel(PanelsOpen& p, const std::string& name) {
   if (name == "volume") return &p.volume;
   if (name == "time") return &p.time;
+  if (name == "secondVolume") return &p.fusion;
   if (name == "pacs") return &p.pacs;
   if (name == "transferFunction") return &p.transfer_function;
   if (name == "lights") return &p.lights;
@@ -189,6 +191,40 @@ UiAction ParseTransferEdit(const std::string& name, const Value& value, const st
     v1::TransferFunction tf = session(t).scene().transfer_function();
     ApplyWindowLevel(tf, level, window);
     session(t).SetTransferFunction(tf);
+  };
+}
+
+// {"secondVolume": {"opacity": 0.8, "colorMap": "RAINBOW", "window": 2000, "level": 1000, "glow": false}}:
+// the Second volume panel's controls, the fields named changed over the fusion shown.
+UiAction ParseSecondVolume(const Value& value, const std::string& at) {
+  const Struct& p = Object(value, at);
+  const auto named = [&](const char* key) { return p.fields().contains(key); };
+  v1::FusionOverlay overlay;  // merged over the overlay shown: only the fields set change
+  if (named("opacity")) overlay.set_opacity(float(Number(p, "opacity", at)));
+  if (named("colorMap")) {
+    std::string text = Text(p.fields().at("colorMap"), at + ".colorMap");
+    for (char& c : text) c = char(std::toupper(static_cast<unsigned char>(c)));
+    v1::ColorMap map;
+    if (!v1::ColorMap_Parse(text, &map) || map == v1::COLOR_MAP_UNSPECIFIED) {
+      throw InputError(at + ".colorMap: HOT, RAINBOW or GRAY");
+    }
+    overlay.set_color_map(map);
+  }
+  if (named("window") || named("level")) {  // together, as the server takes them
+    overlay.set_window(float(Number(p, "window", at)));
+    overlay.set_level(float(Number(p, "level", at)));
+  }
+  const std::optional<bool> glow = named("glow") ? std::optional(Flag(p, "glow", at)) : std::nullopt;
+  return [=](ActionTarget& t) {
+    v1::Fusion fusion = session(t).scene().fusion();
+    if (!Fuses(session(t).scene())) throw InputError(at + ": the session fuses no second volume (--fuse)");
+    fusion.mutable_overlay()->MergeFrom(overlay);
+    if (glow) {
+      const std::optional<v1::VolumeInfo>& fused = t.rooms.link.fused_volume();
+      if (!fused) throw InputError(at + ".glow: the second volume's description is not known here");
+      SetGlow(fusion, *glow, *fused);
+    }
+    session(t).SetFusion(fusion);
   };
 }
 
@@ -332,8 +368,8 @@ UiAction ParseUiAction(const std::string& json, const std::string& where) {
     const std::string panel = Text(Field(p, "name", at), at + ".name");
     if (PanelsOpen all; !Panel(all, panel)) {
       throw InputError(at +
-                       ".name: volume, pacs, time, transferFunction, lights, render, clipping, labels, reading, "
-                       "scene, share or stats");
+                       ".name: volume, pacs, time, secondVolume, transferFunction, lights, render, clipping, labels, "
+                       "reading, scene, share or stats");
     }
     const bool open = !p.fields().count("open") || p.fields().at("open").bool_value();
     return [panel, open](ActionTarget& t) { *Panel(t.rooms.panels, panel) = open; };
@@ -363,6 +399,7 @@ UiAction ParseUiAction(const std::string& json, const std::string& where) {
   if (name == "movePoint" || name == "addPoint" || name == "deletePoint" || name == "windowLevel") {
     return ParseTransferEdit(name, value, at);
   }
+  if (name == "secondVolume") return ParseSecondVolume(value, at);
   if (name == "snapshot") {  // {"snapshot": {"file": "still.png", "spp": 64}}
     const Struct& p = Object(value, at);
     const std::string file = Text(Field(p, "file", at), at + ".file");
@@ -404,7 +441,7 @@ UiAction ParseUiAction(const std::string& json, const std::string& where) {
   if (UiAction sharing = ParseSharingAction(name, value, at)) return sharing;
   throw InputError(fmt::format(
       "{}: unknown action (panel, key, drag, wheel, preset, movePoint, addPoint, deletePoint, windowLevel, "
-      "snapshot, movie, saveScene, openScene, searchPacs, selectStudy, openSeries, storeMeasurements, layout2x2, pickAt, clickSlice, "
+      "secondVolume, snapshot, movie, saveScene, openScene, searchPacs, selectStudy, openSeries, storeMeasurements, layout2x2, pickAt, clickSlice, "
       "stepSlice, measureDistance, measureAngle, deleteMeasurement, share, listShares, handover, revoke, pointer, "
       "resizeWindow, settle, screenshot, quit)",
       at));

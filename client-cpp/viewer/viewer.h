@@ -6,6 +6,7 @@
 
 #include "connection_options.h"
 #include "session_script.h"
+#include "viewer/second_volume.h"
 
 namespace cinevol::viewer {
 
@@ -14,6 +15,7 @@ struct ViewerOptions {
   bool local_server = false;       // no --server: start cinevol-server on the phantom, stop it on exit
   std::string backend = "auto";    // of the local server
   cli::ScriptSession session;      // the volume and the scene or preset to start from
+  FuseStart fuse;                  // --fuse: a second volume over it
   std::string grant;               // --grant: watch the shared session it names instead (docs/sharing.md)
   std::string script;              // a session script to play, with UI actions
   std::string screenshot;          // where to write the window when the script ends

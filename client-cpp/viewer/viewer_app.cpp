@@ -29,7 +29,7 @@ App::App(ViewerOptions options)
   }
   screen_ = std::make_unique<Screen>(options_.width, options_.height);
   link_ = std::make_unique<SessionLink>(
-      context_, ConnectionSettings{cli::ToClientOptions(options_.connection), options_.session, options_.grant});
+      context_, ConnectionSettings{cli::ToClientOptions(options_.connection), options_.session, options_.grant, options_.fuse});
   reading_ = std::make_unique<ReadingTools>(context_, *link_, *screen_);
   pacs_ = std::make_unique<PacsBrowser>(
       context_, *link_, [this](const std::string& id, std::optional<v1::Scene> scene) { SwitchVolume(id, std::move(scene)); });
@@ -93,6 +93,7 @@ void App::Turn() {
     sharing_->StartOver();
   }
   sharing_->Follow(turn, panels_.share);
+  if (turn.new_state) reading_->FollowScene(link_->shown().server().scene());
   const bool new_frame = TakeFrame();
   if (script_) script_->Tick();
   link_->FollowViewport(screen_->Pixels(screen_->frame_area().w), screen_->Pixels(screen_->frame_area().h));

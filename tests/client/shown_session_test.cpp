@@ -5,6 +5,8 @@
 
 #include <gtest/gtest.h>
 
+#include "viewer/second_volume.h"
+
 #include <map>
 #include <vector>
 
@@ -232,6 +234,89 @@ TEST(ShownSession, ATimeEditShowsAtOnceAndGivesWayToTheServersTime) {
   sink.deliveries[2] = {Delivery::kDropped, 0};  // refused: a phase past the last, say
   session.Settle();
   EXPECT_EQ(session.scene().time().phase(), 3u) << "the server's phase stands";
+}
+
+// Issue 59: the Second volume panel's edit (a colour map, an opacity, the
+// glow turned off) shows at once, then the server's fusion once a state
+// answers it; a refused one gives way to the server's. A script's fusion
+// line removing the second volume shows without it.
+TEST(ShownSession, AFusionEditShowsAtOnceAndGivesWayToTheServersFusion) {
+  RecordingSink sink;
+  ShownSession session(sink);
+  v1::VolumeInfo pet;
+  pet.set_id("pet");
+  pet.set_min_value(0), pet.set_max_value(1000);
+  v1::SessionState first = Resolved(0);
+  *first.mutable_scene()->mutable_fusion() = FusedStart(pet, true);
+  session.Start(first);
+  v1::Fusion fusion = session.scene().fusion();
+  fusion.mutable_overlay()->set_color_map(v1::RAINBOW);
+  fusion.mutable_overlay()->set_opacity(0.9f);
+  SetGlow(fusion, false, pet);
+  session.SetFusion(fusion);
+  ASSERT_EQ(sink.posted.size(), 1u);
+  EXPECT_EQ(sink.posted.back().fusion().volume_id(), "pet") << "the event names the session's second volume";
+  EXPECT_EQ(session.scene().fusion().overlay().color_map(), v1::RAINBOW) << "shown at once";
+  EXPECT_FALSE(Glows(session.scene().fusion()));
+  sink.Sent(1);
+  session.Adopt(first);  // a state from before it
+  EXPECT_EQ(session.scene().fusion().overlay().opacity(), 0.9f);
+  v1::SessionState answered = Resolved(1);
+  *answered.mutable_scene()->mutable_fusion() = fusion;
+  answered.mutable_scene()->mutable_fusion()->mutable_overlay()->set_opacity(0.7f);  // another client's since
+  session.Adopt(answered);
+  EXPECT_FALSE(session.Pending());
+  EXPECT_EQ(session.scene().fusion().overlay().opacity(), 0.7f) << "answered: the server's fusion shows";
+
+  fusion.mutable_overlay()->set_color_map(v1::GRAY);
+  session.SetFusion(fusion);
+  sink.deliveries[2] = {Delivery::kDropped, 0};  // refused: an opacity past 1, say
+  session.Settle();
+  EXPECT_EQ(session.scene().fusion().overlay().color_map(), v1::RAINBOW) << "the server's colour map stands";
+
+  v1::SessionEvent removal;  // {"at": 1, "fusion": {}}
+  removal.mutable_fusion();
+  session.Send(removal);
+  EXPECT_FALSE(session.scene().has_fusion());
+}
+
+// The viewer's --fuse and glow are the page's (web/src/fusion_panel.ts,
+// fusedStart and glowOf): HOT at half opacity, glowing warm over the top
+// 70% of the range, or from SUVbw 2.5 to 10 where the volume has SUVbw.
+TEST(ShownSession, AFusedStartGlowsAsThePagesDoes) {
+  v1::VolumeInfo ct_like;
+  ct_like.set_id("hot");
+  ct_like.set_min_value(-1000), ct_like.set_max_value(1000);
+  const v1::Fusion fusion = FusedStart(ct_like, true);
+  EXPECT_EQ(fusion.volume_id(), "hot");
+  EXPECT_TRUE(fusion.align_by_patient());
+  EXPECT_FALSE(fusion.suv());
+  EXPECT_EQ(fusion.overlay().color_map(), v1::HOT);
+  EXPECT_EQ(fusion.overlay().opacity(), 0.5f);
+  EXPECT_FALSE(fusion.overlay().has_window()) << "the overlay spans the volume's range";
+  const v1::TransferFunction& glow = fusion.transfer_function();
+  ASSERT_EQ(glow.points_size(), 2);
+  EXPECT_FLOAT_EQ(glow.points(0).value(), -400);
+  EXPECT_EQ(glow.points(0).opacity(), 0);
+  EXPECT_EQ(glow.points(0).emission().r(), 0);
+  EXPECT_FLOAT_EQ(glow.points(1).value(), 1000);
+  EXPECT_FLOAT_EQ(glow.points(1).opacity(), 0.4f);
+  EXPECT_FLOAT_EQ(glow.points(1).emission().r(), 6);
+  EXPECT_FLOAT_EQ(glow.points(1).emission().g(), 2.4f);
+  EXPECT_FLOAT_EQ(glow.points(1).diffuse().g(), 0.4f);
+  EXPECT_EQ(glow.density_scale(), 1);
+
+  v1::VolumeInfo pet = ct_like;
+  pet.set_suv_factor(1e-3);
+  const v1::Fusion suv = FusedStart(pet, false);
+  EXPECT_TRUE(suv.suv());
+  EXPECT_FLOAT_EQ(suv.transfer_function().points(0).value(), 2.5f);
+  EXPECT_FLOAT_EQ(suv.transfer_function().points(1).value(), 10);
+  v1::Fusion off = suv;
+  SetGlow(off, false, pet);
+  EXPECT_FALSE(Glows(off)) << "without points it shows in slices alone";
+  SetGlow(off, true, pet);
+  EXPECT_EQ(off.transfer_function().SerializeAsString(), suv.transfer_function().SerializeAsString());
 }
 
 }  // namespace

@@ -518,6 +518,81 @@ TEST(Viewer, ATimeSeriesGoesToThePhaseSetAndRecordsItsLoop) {
       << "after one beat the loop is not back at phase 3";
 }
 
+// Pixels where green stands well above red and blue: the middle of the
+// rainbow map, which the hot map (black, red, yellow, white) never draws.
+int GreenPixels(const ImageRgb8& img, Region r) {
+  int n = 0;
+  for (int y = r.y; y < r.y + r.h && y < img.height; ++y) {
+    for (int x = r.x; x < r.x + r.w && x < img.width; ++x) {
+      const std::uint8_t* p = &img.bytes[(std::size_t(y) * img.width + x) * 3];
+      n += p[1] > p[0] + 40 && p[1] > p[2] + 40;
+    }
+  }
+  return n;
+}
+
+// Issue 59: a second volume in the viewer, started with --fuse on a server
+// holding both (the head phantom and a sphere over it on a coarser grid;
+// neither names a frame of reference, hence --align-by-patient). The session
+// starts as the page's fuse= does: HOT at half opacity, the sphere glowing.
+// The Second volume panel's controls, scripted ("secondVolume": the panel's
+// edit through the shown session), turn the overlay to the rainbow map at
+// 0.9 over a window that puts the sphere's 1000 in its middle and stop the
+// glow: the server's scene has them (the scene saved after the settle), and
+// the axial slice, which the server draws, turns green where the sphere is;
+// the 3D view, without the glow, changes.
+TEST(Viewer, TheSecondVolumePanelChangesTheFusedOverlayOnTheServer) {
+  CINEVOL_REQUIRE_VIEWER();
+  ScratchDir scratch;
+  constexpr const char* kHead = "phantom:head?size=48";
+  constexpr const char* kSphere = "phantom:sphere?size=24&spacing=2";
+  ServerProcess server(scratch.path(), {"--volume", kHead, "--volume", kSphere});
+  ASSERT_TRUE(server.running()) << server.Log();
+  const fs::path start = scratch / "start.png", edited = scratch / "edited.png", start_scene = scratch / "start.json",
+                 edited_scene = scratch / "edited.json";
+  const fs::path script =
+      WriteScript(scratch / "fused.jsonl",
+                  fmt::format(R"({{"session": {{"stream": {{"targetSpp": 4}}}}}}
+{{"at": 0, "ui": {{"panel": {{"name": "stats", "open": false}}}}}}
+{{"at": 0, "ui": {{"panel": {{"name": "secondVolume", "open": true}}}}}}
+{{"at": 0, "ui": {{"layout2x2": true}}}}
+{{"at": 0, "ui": {{"settle": true}}}}
+{{"at": 0, "ui": {{"screenshot": "{}"}}}}
+{{"at": 0, "ui": {{"saveScene": "{}"}}}}
+{{"at": 0.1, "ui": {{"secondVolume": {{"colorMap": "rainbow", "opacity": 0.9, "window": 2000, "level": 1000, "glow": false}}}}}}
+{{"at": 0.2, "ui": {{"settle": true}}}}
+{{"at": 0.2, "ui": {{"screenshot": "{}"}}}}
+{{"at": 0.2, "ui": {{"saveScene": "{}"}}}}
+)",
+                              start.string(), start_scene.string(), edited.string(), edited_scene.string()));
+  const ViewerRun run = RunViewer(scratch.path(), {"--server", server.address(), "--volume", kHead, "--fuse", kSphere,
+                                                   "--align-by-patient", "--script", script.string()});
+  ASSERT_EQ(run.exit_code, 0) << run.output;
+
+  const v1::Fusion began = LoadSceneFile(start_scene).fusion();
+  EXPECT_EQ(began.volume_id(), kSphere);
+  EXPECT_TRUE(began.align_by_patient());
+  EXPECT_EQ(began.overlay().color_map(), v1::HOT);
+  EXPECT_FLOAT_EQ(began.overlay().opacity(), 0.5f);
+  ASSERT_EQ(began.transfer_function().points_size(), 2) << "the sphere glows at first";
+  EXPECT_FLOAT_EQ(began.transfer_function().points(1).emission().r(), 6);
+  const v1::Fusion now = LoadSceneFile(edited_scene).fusion();
+  EXPECT_EQ(now.volume_id(), kSphere);
+  EXPECT_EQ(now.overlay().color_map(), v1::RAINBOW);
+  EXPECT_FLOAT_EQ(now.overlay().opacity(), 0.9f);
+  EXPECT_FLOAT_EQ(now.overlay().window(), 2000);
+  EXPECT_FLOAT_EQ(now.overlay().level(), 1000);
+  EXPECT_EQ(now.transfer_function().points_size(), 0) << "the glow was turned off";
+
+  // The 3D view took the top-left quadrant; the axial slice is beside it.
+  const Region frame = RegionOf(ReadLayout(edited), "frame");
+  const Region axial{frame.x + frame.w, frame.y, frame.w, frame.h};
+  EXPECT_EQ(GreenPixels(ReadPng(start), axial), 0) << "the hot map drew green";
+  EXPECT_GT(GreenPixels(ReadPng(edited), axial), 200)
+      << "the axial slice does not show the sphere through the rainbow map";
+  EXPECT_GT(MeanDifference(ReadPng(start), ReadPng(edited), frame), 10) << "without its glow the 3D view is the same";
+}
+
 // A view key sends the view with the camera's eye and target: the server
 // turns the camera about the same target at the same distance, and what the
 // viewer shows (and saves) is the server's numbers. The script's next line
