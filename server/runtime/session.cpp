@@ -18,9 +18,6 @@
 namespace cinevol::service {
 namespace {
 
-// Every session's renderer: default bricks, the volume texture where it fits.
-const RendererOptions kSessionRenderer{};
-
 // Frames may be encoding while the next renders; more would only be dropped.
 constexpr int kMaxEncodesInFlight = 2;
 // A 720p frame in 4 bands encodes in half the time (2.32 -> 1.09 ms on the
@@ -58,12 +55,12 @@ std::uint64_t PixelBudget::used() const {
 }
 
 std::vector<std::shared_ptr<const VolumeCopy>> PrepareOnDevice(const VolumeLease& volume, const VolumeLease* fused,
-                                                               const Scheduler& scheduler) {
+                                                               const Scheduler& scheduler, std::uint64_t phase_budget) {
   const int device = scheduler.gpu().value_or(kHostDevice);
   std::vector<std::shared_ptr<const VolumeCopy>> copies;
-  for (int k = 0; k < volume.phases(); ++k) {
-    copies.push_back(VolumeCache::Get().Acquire(volume.phase(k), kSessionRenderer.brick_size, device,
-                                                kSessionRenderer.volume_texture));
+  const int window = PhaseCopies::Window(volume, device, phase_budget);
+  for (int k = 0; k < window; ++k) {
+    copies.push_back(CopyOf(volume.phase(k), device));
   }
   if (fused) {  // as the renderer's SetFusion asks for it
     copies.push_back(
@@ -370,15 +367,18 @@ int Session::PhaseDueLocked(Clock::time_point now) const {
 }
 
 void Session::MakePipeline() {
-  // A time series' phases stay on the device beside the pipeline, for its phase switches (the cache's, where
-  // held); a still volume's one copy, and the second volume's, are the renderer's alone (the cache counts each
-  // holder as a renderer): PrepareOnDevice puts the second volume's last.
-  const bool series = volume_->phases() > 1;
-  if (series && prepared_.empty()) prepared_ = PrepareOnDevice(*volume_, nullptr, *context_.scheduler);
+  // A time series' phases stay on the device beside the pipeline, for its phase switches (PhaseCopies: all, or
+  // a window ahead); a still volume's one copy, and the second volume's, are the renderer's alone (the cache
+  // counts each holder as a renderer).
+  if (volume_->phases() > 1) {
+    const int device = context_.scheduler->gpu().value_or(kHostDevice);
+    const int window = PhaseCopies::Window(*volume_, device, context_.limits->max_phase_copy_bytes);
+    phase_copies_ = std::make_unique<PhaseCopies>(*volume_, device, window, context_.setup, id_, pipeline_phase_);
+  }
   pipeline_ = std::make_unique<FramePipeline>(context_.backend, volume_->phase(pipeline_phase_), kSessionRenderer,
                                               volume_->labels());
-  prepared_.resize(series ? std::size_t(volume_->phases()) : 0);
   if (fused_) pipeline_->SetFusedVolume(fused_->volume());
+  prepared_.clear();
   pipeline_->SetCancel(&cancel_);
   pipeline_->SetPreempt(&preempt_);
   pipeline_->SetJpegEncoder(context_.jpeg_encoder);
@@ -386,6 +386,7 @@ void Session::MakePipeline() {
 
 void Session::DropPipeline() {
   pipeline_.reset();
+  phase_copies_.reset();
   prepared_.clear();  // the device memory goes with the pipeline
 }
 
@@ -533,6 +534,7 @@ bool Session::Step() {
       MakePipeline();
     }
     if (work.phase != pipeline_phase_) {
+      if (phase_copies_) phase_copies_->ShowFrom(work.phase);
       pipeline_->SetPhase(volume_->phase(work.phase));
       pipeline_phase_ = work.phase;
     }

@@ -27,6 +27,7 @@
 #include "cinevol/v1/service.pb.h"
 #include "pipeline/frame_pipeline.h"
 #include "runtime/frame_encoding.h"
+#include "runtime/phase_copies.h"
 #include "runtime/scheduler.h"
 #include "runtime/task_pool.h"
 #include "runtime/token_bucket.h"
@@ -92,17 +93,20 @@ struct SessionContext {
   MapResolver resolve_map;        // environment maps: inside the data roots
   PixelBudget* pixels = nullptr;  // the session holds its viewport's pixels from creation to destruction
   std::function<void(const std::string& session_id)> on_end;  // the registry forgets it
+  TaskPool* setup = nullptr;  // builds a time series' phases ahead (PhaseCopies); null: at once
 };
 
 // The session's volume prepared on `scheduler`'s device (its brick ranges,
 // a float volume quantised, the voxels uploaded to a GPU), as its renderer
 // will ask for it: shared with every session of that volume there, built by
-// the first. Every phase of a time series, so that a phase switch finds it
-// there. Slow for a large volume, so CreateSession calls it off the frame
-// and the gRPC threads; throws ResourceExhausted when it does not fit. The
+// the first. A time series' phases as far as `phase_budget` bytes hold them
+// (PhaseCopies::Window: every phase, or the first window), so that a phase
+// switch finds them there. Slow for a large volume, so CreateSession calls it
+// off the frame and the gRPC threads; throws ResourceExhausted when it does
+// not fit, LimitExceeded when the budget holds fewer than two phases. The
 // second volume a session fuses (`fused`, or null) too.
 std::vector<std::shared_ptr<const VolumeCopy>> PrepareOnDevice(const VolumeLease& volume, const VolumeLease* fused,
-                                                               const Scheduler& scheduler);
+                                                               const Scheduler& scheduler, std::uint64_t phase_budget);
 
 class Session final : public Job, public std::enable_shared_from_this<Session> {
  public:
@@ -290,10 +294,11 @@ class Session final : public Job, public std::enable_shared_from_this<Session> {
   std::string end_reason_;
 
   // Touched only inside Step: the pipeline, the phase it shows, and a time
-  // series' every phase's device copy while it lives (from creation to the
-  // first pipeline: PrepareOnDevice's, for any volume).
+  // series' phase copies while it lives (from creation to the first
+  // pipeline: PrepareOnDevice's, for any volume).
   std::unique_ptr<FramePipeline> pipeline_;
   int pipeline_phase_ = 0;
+  std::unique_ptr<PhaseCopies> phase_copies_;
   std::vector<std::shared_ptr<const VolumeCopy>> prepared_;
 };
 

@@ -36,6 +36,9 @@ struct SessionLimits {
   int max_events_per_second = 240;   // per stream; past it events are coalesced
   int max_viewers_per_session = 50;  // streams watching a shared session (docs/sharing.md)
   int max_viewers_per_grant = 25;    // of them by one grant: a link never takes every seat
+  // Device memory a session holds in a time series' phase copies: past it
+  // the phases ahead are kept in a window (runtime/phase_copies.h).
+  std::uint64_t max_phase_copy_bytes = 4096ull << 20;
 };
 
 // What an event changed: SceneChange bits, and these.

@@ -48,6 +48,13 @@ void AddLimitOptions(CLI::App& app, ServerOptions& o) {
   limit("--max-snapshot-samples", s.max_snapshot_samples, "Samples (spp x pixels) of a snapshot", 1ull, 1ull << 50);
   limit("--max-movie-samples", s.max_movie_samples, "Samples (frames x spp x pixels) of a movie", 1ull, 1ull << 50);
   limit("--max-tf-points", s.max_tf_points, "Transfer-function control points", 1, 1 << 20);
+  app.add_option_function<std::uint64_t>(
+         "--max-phase-copies-mb", [&s](std::uint64_t mb) { s.max_phase_copy_bytes = mb << 20; },
+         fmt::format("Device memory one session holds in a time series' phase copies, MiB: past it the phases "
+                     "ahead of the one shown are kept in a window (default {})",
+                     s.max_phase_copy_bytes >> 20))
+      ->check(CLI::Range(1, 1 << 24))
+      ->group("Limits");
   limit("--max-lights", s.max_lights, "Lights in a scene", 0, 1 << 16);
   limit("--max-events-per-second", s.max_events_per_second, "Events one stream applies per second (more coalesce)",
         1, 1 << 20);

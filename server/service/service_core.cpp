@@ -244,11 +244,18 @@ v1::CreateSessionResponse ServiceCore::CreateSession(const v1::CreateSessionRequ
   Scheduler& scheduler = RequireAdmitting(AdmissionPixels(state, backend_));
   // The volume reaches the device here, not inside the first frame on a
   // worker that other sessions share.
-  std::vector<std::shared_ptr<const VolumeCopy>> prepared = PrepareOnDevice(*volume, fused.get(), scheduler);
+  std::vector<std::shared_ptr<const VolumeCopy>> prepared =
+      PrepareOnDevice(*volume, fused.get(), scheduler, options_.limits.max_phase_copy_bytes);
   require_caller();
-  SessionContext context{&scheduler,       &encoder_,    backend_, jpeg_encoder_,
-                         &options_.limits, ResolveMap(), &pixels_, [this](const std::string& id) {
-        Forget(id); }};
+  SessionContext context{&scheduler,
+                         &encoder_,
+                         backend_,
+                         jpeg_encoder_,
+                         &options_.limits,
+                         ResolveMap(),
+                         &pixels_,
+                         [this](const std::string& id) { Forget(id); },
+                         &setup_};
   std::shared_ptr<Session> session;
   {
     std::lock_guard lock(mu_);

@@ -142,5 +142,48 @@ TEST(TimeSeriesSession, PhasesAlikeShareOneVolume) {
   }
 }
 
+// A series past the session's budget for phase copies plays from a window:
+// the device holds the phase shown and the one after it (the budget holds two
+// of six), never the whole series, and every phase still shows while
+// playing; a budget that holds fewer than two is refused at creation.
+TEST(TimeSeriesSession, ASeriesPastItsBudgetPlaysFromAWindow) {
+  ScratchDir scratch;
+  MovingSphere big;
+  big.size = 96;  // a phase's copy about 1.8 MiB: float voxels quantised to 16 bits (an int16 phase needs no copy)
+  big.float_voxels = true;
+  big.phases = 6;
+  big.first_x = 40;
+  WriteMovingSphere(scratch / "big.nii", big);
+  ServerProcess server(scratch.path(), {"--data-root", scratch.path().string(), "--max-phase-copies-mb", "4"});
+  ASSERT_TRUE(server.running()) << server.Log();
+  Client client = server.Connect();
+  const v1::VolumeInfo volume = client.LoadVolume("big.nii");
+  v1::CreateSessionRequest request = SmallSession("ct-bone", 64, 48);
+  request.set_volume_id(volume.id());
+  const auto created = client.CreateSession(request);
+  auto stream = client.Attach(created.session_id());
+  stream->Send(TimeEvent(1, 0, true, 20));
+  std::set<std::uint32_t> shown;
+  std::uint32_t most_copies = 0;
+  const auto until = std::chrono::steady_clock::now() + 60s;
+  while (shown.size() < 6 && std::chrono::steady_clock::now() < until) {
+    if (auto frame = WaitFrame(
+            *stream, [](const v1::Frame&) { return true; }, 10s)) {
+      shown.insert(frame->phase());
+    }
+    most_copies = std::max(most_copies, client.Status().devices(0).volume_copies());
+  }
+  EXPECT_EQ(shown.size(), 6u) << "every phase was shown while playing";
+  EXPECT_GE(most_copies, 2u);
+  EXPECT_LE(most_copies, 3u) << "the window of two, and the renderer's phase while it switches";
+
+  ServerProcess tight(scratch.path(), {"--data-root", scratch.path().string(), "--max-phase-copies-mb", "2"});
+  ASSERT_TRUE(tight.running()) << tight.Log();
+  Client tight_client = tight.Connect();
+  request.set_volume_id(tight_client.LoadVolume("big.nii").id());
+  ExpectRpcError([&] { tight_client.CreateSession(request); }, grpc::StatusCode::RESOURCE_EXHAUSTED,
+                 "--max-phase-copies-mb");
+}
+
 }  // namespace
 }  // namespace cinevol::testing
