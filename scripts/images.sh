@@ -3,7 +3,7 @@
 # (no image registry): the servers (CPU and CUDA), the gateway with the page,
 # the client tools, and the stack's Orthanc and Prometheus. docs/deploy.md.
 #
-#   scripts/images.sh [--fast] [--no-cache] [IMAGE...]
+#   scripts/images.sh [--fast] [--no-cache] [--worktree] [IMAGE...]
 #
 # IMAGE: server-cpu server-gpu client web orthanc prometheus (default: all).
 # --fast: the cinevol images take the build tree's programs (collected by
@@ -11,6 +11,8 @@
 #   is what CI runs. The build tree is build/, or $CINEVOL_BUILD_DIR; it must be
 #   built already (scripts/build.sh). server-gpu needs a tree built with CUDA.
 # --no-cache: every layer again (timing a build from clean).
+# A full build compiles the files of HEAD (git archive), so that edits under way do not
+# slip into an image half made; --worktree builds the working tree as it is instead.
 #
 # On the way it sets podman up as this kind of machine needs (idempotently:
 # a drop-in in /etc/containers/containers.conf.d) and makes the Debian bases
@@ -27,12 +29,14 @@ cache="$build_dir/images"
 all_images=(server-cpu server-gpu client web orthanc prometheus)
 
 fast=0
+worktree=0
 no_cache=()
 images=()
 for a in "$@"; do
   case "$a" in
     --fast) fast=1 ;;
     --no-cache) no_cache=(--no-cache) ;;
+    --worktree) worktree=1 ;;
     -h|--help) sed -n '2,/^set -euo/p' "$0" | sed '$d; s/^# \{0,1\}//'; exit 0 ;;
     server-cpu|server-gpu|client|web|orthanc|prometheus) images+=("$a") ;;
     *) echo "images.sh: unknown argument '$a' (--help)" >&2; exit 2 ;;
@@ -170,6 +174,25 @@ check_build_tree() {
   fi
 }
 
+# The context of a full build: HEAD's files, exported once per commit, or the working tree.
+source_context() {
+  local dir="$cache/context/source" rev
+  if [ "$worktree" = 1 ] || ! rev=$(git -C "$root" rev-parse --verify -q HEAD 2> /dev/null); then
+    echo "$root"
+    return
+  fi
+  if [ "$(cat "$dir.rev" 2> /dev/null)" != "$rev" ]; then
+    rm -rf "$dir"
+    mkdir -p "$dir"
+    git -C "$root" archive --format=tar HEAD | tar -x -C "$dir"
+    echo "$rev" > "$dir.rev"
+  fi
+  if [ -n "$(git -C "$root" status --porcelain --untracked-files=no 2> /dev/null)" ]; then
+    say "building HEAD (${rev:0:12}): the working tree's uncommitted changes are not in the images (--worktree)"
+  fi
+  echo "$dir"
+}
+
 build_one() {
   local image=$1 dockerfile tag context args start
   dockerfile=$(dockerfile_of "$image")
@@ -177,6 +200,7 @@ build_one() {
   args=(--format docker --network host --pull=never --layers "${no_cache[@]}"
         --build-arg BASE=localhost/debian:bookworm --build-arg RUNTIME_BASE=localhost/debian:bookworm-slim)
   context=$root
+  [ "$fast" = 1 ] || context=$(source_context)
   if [[ "$image" != orthanc && "$image" != prometheus ]]; then
     if [ "$fast" = 1 ]; then
       check_build_tree "$image"
@@ -195,7 +219,7 @@ build_one() {
   fi
   say "building $tag ($dockerfile$([ "$fast" = 1 ] && echo ', --fast'))"
   start=$SECONDS
-  podman build "${args[@]}" -f "$root/$dockerfile" -t "$tag" "$context" > "$cache/build-$image-$mode.log" 2>&1 ||
+  podman build "${args[@]}" -f "$([ "$fast" = 1 ] && echo "$root" || echo "$context")/$dockerfile" -t "$tag" "$context" > "$cache/build-$image-$mode.log" 2>&1 ||
     { tail -30 "$cache/build-$image-$mode.log" >&2; die "building $tag failed (the log: $cache/build-$image-$mode.log)"; }
   printf '%s\t%s\t%s\t%s\n' "$image" "$tag" "$(podman image inspect --format '{{.Size}}' "$tag")" \
     "$((SECONDS - start))" >> "$report"
