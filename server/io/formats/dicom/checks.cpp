@@ -111,6 +111,7 @@ class DicomWalk {
     } else {
       length = U32(h + 4);
       at += 8;
+      sequence = group % 2 == 0 && DictionaryVr(group, element) == gdcm::VR::SQ;  // as GDCM reads it
     }
     // GDCM asserts on a sequence or an undefined length in the file meta
     // group (found by fuzz_volume); the standard allows neither there.
@@ -133,6 +134,16 @@ class DicomWalk {
     }
     if (length > std::uint64_t(end - at)) return false;
     if (depth > 0 && length % 2 != 0) return false;  // the standard's even lengths; GDCM asserts in items
+    if (sequence) {
+      // A sequence of defined length is walked like one of undefined length:
+      // GDCM asserts on an odd length inside it when it parses its items (an
+      // enhanced multi-frame file's functional groups, found by fuzz_dicom's seed).
+      const std::int64_t sequence_end = at + length;
+      while (at < sequence_end) {
+        if (!Element(at, sequence_end, explicit_vr, depth + 1, false)) return false;
+      }
+      return true;
+    }
     if (depth == 0) Remember(group, element, at, length, pixel_data);
     if (meta && element == 0x0010 && length <= 64) {  // (0002,0010) Transfer Syntax UID
       transfer_syntax_.assign(length, '\0');
@@ -171,14 +182,20 @@ class DicomWalk {
     return false;
   }
 
+  // A public element's VR in GDCM's dictionary (INVALID where it has none).
+  static gdcm::VR DictionaryVr(unsigned group, unsigned element) {
+    return gdcm::Global::GetInstance()
+        .GetDicts()
+        .GetPublicDict()
+        .GetDictEntry(gdcm::Tag(std::uint16_t(group), std::uint16_t(element)))
+        .GetVR();
+  }
+
   // What GDCM's typed reads take from the dictionary: a public element's
   // explicit VR must be one it accepts for the tag.
   static bool VrFitsDictionary(unsigned group, unsigned element, const std::uint8_t* vr) {
     if (group % 2 != 0) return true;  // private: no dictionary entry
-    const gdcm::DictEntry& entry =
-        gdcm::Global::GetInstance().GetDicts().GetPublicDict().GetDictEntry(gdcm::Tag(std::uint16_t(group),
-                                                                                      std::uint16_t(element)));
-    const gdcm::VR expected = entry.GetVR();
+    const gdcm::VR expected = DictionaryVr(group, element);
     if (expected == gdcm::VR::INVALID) return true;  // not in the dictionary
     const char name[3] = {char(vr[0]), char(vr[1]), 0};
     return expected.Compatible(gdcm::VR(gdcm::VR::GetVRType(name)));
