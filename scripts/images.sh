@@ -200,7 +200,7 @@ build_one() {
   args=(--format docker --network host --pull=never --layers "${no_cache[@]}"
         --build-arg BASE=localhost/debian:bookworm --build-arg RUNTIME_BASE=localhost/debian:bookworm-slim)
   context=$root
-  [ "$fast" = 1 ] || context=$(source_context)
+  [ "$fast" = 1 ] || context=$full_context
   if [[ "$image" != orthanc && "$image" != prometheus ]]; then
     if [ "$fast" = 1 ]; then
       check_build_tree "$image"
@@ -234,6 +234,8 @@ for image in "${images[@]}"; do
   # Only the compiling build stages start from the full base.
   if [ "$fast" = 0 ] && [[ "$image" != orthanc && "$image" != prometheus ]]; then ensure_base bookworm; fi
 done
+# One export for the whole run: a commit made meanwhile does not change the images' sources.
+[ "$fast" = 1 ] || full_context=$(source_context)
 : > "$report"
 for image in "${images[@]}"; do build_one "$image"; done
 echo "image                     size      built in ($mode$([ ${#no_cache[@]} -gt 0 ] && echo ', no cache'))"
