@@ -104,8 +104,7 @@ openssl req -x509 -newkey ec -pkeyopt ec_paramgen_curve:prime256v1 -nodes -days 
   -addext "subjectAltName=IP:127.0.0.1,DNS:localhost" -keyout "$secrets/web/tls.key" -out "$secrets/web/tls.crt" 2> /dev/null
 chmod 644 "$secrets"/*/*
 if [ "$full" = 1 ]; then
-  [ -d "$shared_data/ct-head-headsq" ] || fail "no shared data at $shared_data (CINEVOL_SHARED_DATA)"
-  cp -r "$shared_data/ct-head-headsq" "$work/data/"
+  [ -d "$shared_data/mr-chest-dicom-seg3d" ] || fail "no shared data at $shared_data (CINEVOL_SHARED_DATA)"
 fi
 
 # Four free loopback ports (taken once; podman binds them moments later).
