@@ -3,7 +3,7 @@
 # (no image registry): the servers (CPU and CUDA), the gateway with the page,
 # the client tools, and the stack's Orthanc and Prometheus. docs/deploy.md.
 #
-#   scripts/images.sh [--fast] [--no-cache] [--worktree] [IMAGE...]
+#   scripts/images.sh [--fast] [--no-cache] [--worktree | --rev REV] [IMAGE...]
 #
 # IMAGE: server-cpu server-gpu client web orthanc prometheus (default: all).
 # --fast: the cinevol images take the build tree's programs (collected by
@@ -12,7 +12,8 @@
 #   built already (scripts/build.sh). server-gpu needs a tree built with CUDA.
 # --no-cache: every layer again (timing a build from clean).
 # A full build compiles the files of HEAD (git archive), so that edits under way do not
-# slip into an image half made; --worktree builds the working tree as it is instead.
+# slip into an image half made; --rev REV builds that commit instead, --worktree the
+# working tree as it is.
 #
 # On the way it sets podman up as this kind of machine needs (idempotently:
 # a drop-in in /etc/containers/containers.conf.d) and makes the Debian bases
@@ -30,10 +31,14 @@ all_images=(server-cpu server-gpu client web orthanc prometheus)
 
 fast=0
 worktree=0
+rev=HEAD
 no_cache=()
 images=()
-for a in "$@"; do
+args=("$@")
+for ((i = 0; i < ${#args[@]}; i++)); do
+  a=${args[i]}
   case "$a" in
+    --rev) rev=${args[++i]:-}; [[ "$rev" =~ ^[A-Za-z0-9._/-]+$ ]] || { echo "images.sh: --rev wants a commit" >&2; exit 2; } ;;
     --fast) fast=1 ;;
     --no-cache) no_cache=(--no-cache) ;;
     --worktree) worktree=1 ;;
@@ -176,19 +181,21 @@ check_build_tree() {
 
 # The context of a full build: HEAD's files, exported once per commit, or the working tree.
 source_context() {
-  local dir="$cache/context/source" rev
-  if [ "$worktree" = 1 ] || ! rev=$(git -C "$root" rev-parse --verify -q HEAD 2> /dev/null); then
+  local dir="$cache/context/source" commit
+  if [ "$worktree" = 1 ]; then
     echo "$root"
     return
   fi
-  if [ "$(cat "$dir.rev" 2> /dev/null)" != "$rev" ]; then
+  commit=$(git -C "$root" rev-parse --verify -q "$rev^{commit}" 2> /dev/null) ||
+    { [ "$rev" = HEAD ] && { echo "$root"; return; }; die "--rev $rev: no such commit"; }
+  if [ "$(cat "$dir.rev" 2> /dev/null)" != "$commit" ]; then
     rm -rf "$dir"
     mkdir -p "$dir"
-    git -C "$root" archive --format=tar HEAD | tar -x -C "$dir"
-    echo "$rev" > "$dir.rev"
+    git -C "$root" archive --format=tar "$commit" | tar -x -C "$dir"
+    echo "$commit" > "$dir.rev"
   fi
-  if [ -n "$(git -C "$root" status --porcelain --untracked-files=no 2> /dev/null)" ]; then
-    say "building HEAD (${rev:0:12}): the working tree's uncommitted changes are not in the images (--worktree)"
+  if [ "$rev" = HEAD ] && [ -n "$(git -C "$root" status --porcelain --untracked-files=no 2> /dev/null)" ]; then
+    say "building HEAD (${commit:0:12}): the working tree's uncommitted changes are not in the images (--worktree)"
   fi
   echo "$dir"
 }
