@@ -199,6 +199,18 @@ void WriteCine(const fs::path& dir) {
   }
 }
 
+// A cine of kCinePhases phases as WriteCine's: phase p holds MR slices 2 p
+// and 2 p + 1, 40 ms after the one before.
+void ExpectTheCine(const VolumeSeries& cine, const Volume& mr) {
+  ASSERT_EQ(cine.phases.size(), std::size_t(kCinePhases));
+  ASSERT_EQ(cine.seconds.size(), std::size_t(kCinePhases));
+  for (std::size_t p = 0; p < cine.phases.size(); ++p) {
+    ASSERT_EQ(cine.phases[p].dims(), (Vec3i{640, 640, 2}));
+    ExpectPhaseHolds(cine, p, int(p), mr);
+    EXPECT_NEAR(cine.seconds[p], 0.040 * double(p), 1e-9);
+  }
+}
+
 // Phase p is every position's p-th file by Trigger Time; its time the mean of
 // its files' from phase 0's; one Frame of Reference for all, as for one phase;
 // each phase as its files read alone.
@@ -207,14 +219,9 @@ TEST(DicomPhases, ACineOfTenPhasesLoadsWithTheirTimes) {
   ScratchDir dir;
   WriteCine(dir.path());
   const VolumeSeries cine = LoadSeries(dir.path());
-  ASSERT_EQ(cine.phases.size(), std::size_t(kCinePhases));
-  ASSERT_EQ(cine.seconds.size(), std::size_t(kCinePhases));
   const Volume mr = LoadDicomSeries(MrFolder());
-  for (std::size_t p = 0; p < cine.phases.size(); ++p) {
-    const Volume& phase = cine.phases[p];
-    ASSERT_EQ(phase.dims(), (Vec3i{640, 640, 2}));
-    ExpectPhaseHolds(cine, p, int(p), mr);
-    EXPECT_NEAR(cine.seconds[p], 0.040 * double(p), 1e-9);
+  ASSERT_NO_FATAL_FAILURE(ExpectTheCine(cine, mr));
+  for (const Volume& phase : cine.phases) {
     EXPECT_EQ(phase.metadata().origin_mm, cine.phases[0].metadata().origin_mm);
     EXPECT_EQ(phase.metadata().frame_of_reference_uid, cine.phases[0].metadata().frame_of_reference_uid);
   }
@@ -581,15 +588,10 @@ TEST(DicomPhases, AnEnhancedMultiFrameFileIsReadAsPhasesByTemporalPositionIndex)
   ScratchDir dir;
   WriteEnhancedCine(dir / "cine.dcm");
   const VolumeSeries cine = LoadSeries(dir.path());
-  ASSERT_EQ(cine.phases.size(), std::size_t(kCinePhases));
-  ASSERT_EQ(cine.seconds.size(), std::size_t(kCinePhases));
   const Volume mr = LoadDicomSeries(MrFolder());
-  for (std::size_t p = 0; p < cine.phases.size(); ++p) {
-    const Volume& phase = cine.phases[p];
-    ASSERT_EQ(phase.dims(), (Vec3i{640, 640, 2}));
+  ASSERT_NO_FATAL_FAILURE(ExpectTheCine(cine, mr));
+  for (const Volume& phase : cine.phases) {
     EXPECT_EQ(phase.metadata().original_type, "uint16") << "stored values, the rescale the identity";
-    ExpectPhaseHolds(cine, p, int(p), mr);
-    EXPECT_NEAR(cine.seconds[p], 0.040 * double(p), 1e-9);
     EXPECT_EQ(phase.metadata().origin_mm, mr.metadata().origin_mm);
     EXPECT_EQ(phase.metadata().direction, mr.metadata().direction);
     EXPECT_FLOAT_EQ(phase.spacing_mm().x, mr.spacing_mm().x);
