@@ -6,6 +6,7 @@
 # times from each run's CSV.
 #   BACKEND=cuda BIN=/tmp/cv/bin DATA=/tmp/cv/data bash bench/time-series-run.sh   (on the GPU machine, from a bundle)
 #   BACKEND=cpu WIDTH=320 HEIGHT=180 bash bench/time-series-run.sh                   (here: build/)
+# PHASE_COPIES_MB=N gives the server --max-phase-copies-mb N: the phases held on the device in a window built ahead.
 # Writes a table to $OUT/time-series.md (default ./bench-out) and logs beside it.
 set -uo pipefail
 cd "$(dirname "$0")/.." || exit 1
@@ -21,7 +22,7 @@ series=4d-mr-cardiac-cine-sunnybrook/dicom
 port_file=$(mktemp -u)
 
 "$bin/cinevol-server" --listen 127.0.0.1:0 --port-file "$port_file" --backend "$backend" --data-root "$data" \
-  > "$out/time-series-server.log" 2>&1 &
+  ${PHASE_COPIES_MB:+--max-phase-copies-mb "$PHASE_COPIES_MB"} > "$out/time-series-server.log" 2>&1 &
 server=$!
 trap 'kill -TERM $server 2>/dev/null; wait $server 2>/dev/null; rm -f "$port_file"' EXIT
 for _ in $(seq 600); do [ -s "$port_file" ] && break; sleep 0.1; done
@@ -58,6 +59,7 @@ latency_of() { sed -n 's/.*latency p50\/p95\/p99 \([0-9.\/]*\) ms.*/\1/p' <<< "$
       "$out/$run/frames.csv"
   done
   echo
-  echo "backend $backend; $(nproc) CPU cores; $(nvidia-smi --query-gpu=name --format=csv,noheader 2>/dev/null | head -1)"
+  echo "backend $backend; $(nproc) CPU cores; $(nvidia-smi --query-gpu=name --format=csv,noheader 2>/dev/null | head -1)" \
+    "${PHASE_COPIES_MB:+; --max-phase-copies-mb $PHASE_COPIES_MB}"
   grep -h "volume .*phases" "$out/time-series-server.log" | head -1
 } | tee "$out/time-series.md"
