@@ -60,6 +60,10 @@ struct RefineBenchOptions : SceneOptions {
   int target_spp = 512;    // the curve runs to this many samples per pixel
   int orbit_frames = 8;    // camera moves before it holds still
   std::string csv;         // every step's numbers, for plots (bench/plot_refine.py)
+  std::string variant;     // the denoiser's settings changed as the study's --variant says (empty: the defaults)
+  std::string reference;   // an EXR: the reference read from it where it exists, else rendered and written there
+  int seed = -1;           // >= 0: the frames' seed instead of the scene's
+  int still_ramp = 0;      // > 0: still frames take the scene's spp, then twice the last, up to this (a CPU session's)
 };
 
 // The displayed error of still frames after an orbit, refined against the

@@ -105,6 +105,13 @@ int main(int argc, char** argv) {
   f->add_option("--target-spp", refine.target_spp, "Samples per pixel the curve runs to")->capture_default_str();
   f->add_option("--orbit-frames", refine.orbit_frames, "Camera moves before it holds still")->capture_default_str();
   f->add_option("--csv", refine.csv, "Append every step (spp, ms, PSNR, SSIM, errors) to this CSV");
+  f->add_option("--variant", refine.variant,
+                 "NAME:key=value,...: the denoiser's settings as tradeoff's --variant (spp: the scene's)");
+  f->add_option("--reference", refine.reference, "EXR of the reference: read where it exists, else written");
+  f->add_option("--still-ramp", refine.still_ramp,
+                 "Still frames of the scene's spp, then twice the last up to this many (a CPU session's; 0: off)")
+      ->check(CLI::Range(0, 1024));
+  f->add_option("--seed", refine.seed, "The frames' seed instead of the scene's")->check(CLI::Range(0, 1 << 30));
   f->callback([&] { cinevol::bench::RunRefineBench(refine); });
   cinevol::bench::EventBenchOptions events;
   events.command_line = command_line;

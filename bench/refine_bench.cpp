@@ -17,7 +17,9 @@
 
 #include "bench.h"
 #include "image_metrics.h"
+#include "core/error.h"
 #include "core/ycc.h"
+#include "encode/hdr_images.h"
 #include "pipeline/frame_pipeline.h"
 #include "pipeline/refine.h"
 #include "tradeoff_study.h"
@@ -61,18 +63,38 @@ double LargestDrop(const Curve& c) {
 }  // namespace
 
 int RunRefineBench(const RefineBenchOptions& o) {
-  const LoadedScene loaded = LoadScene(o);
+  LoadedScene loaded = LoadScene(o);
+  if (o.seed >= 0) loaded.setup.seed = std::uint64_t(o.seed);
   const RenderSetup& setup = loaded.setup;
   const Backend backend = Resolve(ParseBackend(o.backend), "refine bench");
   using Clock = std::chrono::steady_clock;
 
-  const ImageRgbF reference = RenderReference(backend, loaded.volume, setup, o.reference_spp, setup.max_bounces, 0);
+  // The reference does not depend on the frames' seed (RenderReference seeds its own chunks).
+  ImageRgbF reference;
+  if (!o.reference.empty() && std::filesystem::exists(o.reference)) {
+    reference = ReadExr(o.reference);
+    if (reference.width != setup.camera.width || reference.height != setup.camera.height)
+      throw InputError(
+          fmt::format("--reference {}: {}x{}, not the frames' size", o.reference, reference.width, reference.height));
+  } else {
+    reference = RenderReference(backend, loaded.volume, setup, o.reference_spp, setup.max_bounces, 0);
+    if (!o.reference.empty()) WriteExr(o.reference, reference);
+  }
   const ImageRgb8 reference_shown = ShownOnCpu(reference, setup.exposure);
 
   // Two pipelines on the same samples: `previous` with refinement off
   // shows the denoiser's output, blended here with its mean as the previous
   // release did; `now` refines as sessions do.
   FrameSettings off, on;
+  if (!o.variant.empty()) {
+    const StudyConfig c = Variant(o.variant);
+    for (FrameSettings* s : {&off, &on}) {
+      s->denoiser.method = c.method;
+      s->denoiser.wrls = c.wrls;
+      s->denoiser.svgf = c.svgf;
+      s->hold_codes = c.hold_codes;
+    }
+  }
   off.refine = false;
   on.target_spp = off.target_spp = o.target_spp;
   on.error_target = 0;  // the whole curve; where the error target stops it is read off the estimates
@@ -95,7 +117,16 @@ int RunRefineBench(const RefineBenchOptions& o) {
   std::vector<double> measured;  // the refined image's relative error against the reference
   const float dark = kDarkGrey / exp2f(setup.exposure);
   double before_ms = 0, after_ms = 0;
+  RenderSetup still = setup;  // the view the orbit ended at
+  still.camera = Orbit(setup.camera, 0.0f);
   while (spp.empty() || spp.back() < o.target_spp) {
+    if (o.still_ramp > 0) {  // a CPU session's still frames: the scene's spp, then doubling, within the target
+      const int done = spp.empty() ? 0 : spp.back();
+      still.spp = std::min(spp.empty() ? setup.spp : std::min(2 * still.spp, std::max(o.still_ramp, setup.spp)),
+                           o.target_spp - done);
+      previous.Update(still, off, 0u);
+      now.Update(still, on, 0u);
+    }
     // The previous release blended on the device in its display pass, at no
     // measurable cost: its time is the frame's, not this host-side blend's.
     Clock::time_point start = Clock::now();

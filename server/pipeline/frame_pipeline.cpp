@@ -347,11 +347,12 @@ DisplayFrame FramePipeline::RenderFrame() {
   } else if (upsample) {
     in.radiance = nullptr;
   } else if (settings_.refine) {
-    // The denoiser's output and the mean of the frames so far, combined per
+    // The denoiser's output and the mean of the samples so far, combined per
     // pixel by their estimated errors.
     const auto refine_start = Clock::now();
     const RefinedImage refined = refiner_->Refine(
-        {camera.width, camera.height, t.radiance, t.accumulated, denoised, renderer_->accumulated_frames(), exposure_});
+        {camera.width, camera.height, t.radiance, t.accumulated, denoised, renderer_->accumulated_frames(), exposure_,
+         spp, accumulated_spp_});
     refine_ms = MillisecondsSince(refine_start);
     in.radiance = refined.radiance;
     last_frame_blended_ = refined.estimated_error >= 0;

@@ -2,8 +2,9 @@
 // per pixel, the denoiser's output d and an estimate a made from the frames
 // accumulated so far, by their estimated errors.
 //
-// The accumulation's estimate. The mean m of the frames has error V, its
-// variance (the spread of the frame means over their count). A variance-
+// The accumulation's estimate. The mean m of the samples (each frame weighs
+// by its samples: VariancePass) has error V, its variance (the spread of the
+// frame means over their count). A variance-
 // guided a-trous filter (SVGF's, steered by V) smooths it where neighbours
 // agree within their noise. Its variance V_f cannot be propagated through
 // the filter's levels (they correlate neighbours, and the weights depend on
@@ -39,7 +40,9 @@
 #pragma once
 
 #include <cmath>
+#include <cstdint>
 #include <memory>
+#include <stdexcept>
 #include <utility>
 
 #include "core/image.h"
@@ -79,31 +82,39 @@ inline double RelativeRmsError(const ImageRgbF& image, const ImageRgbF& referenc
 
 // Before the denoiser: the frame's squares join the accumulation's, an odd
 // frame joins the odd half, and the variance of the mean (mean over
-// channels) is written out.
+// channels) is written out. Frames may differ in samples (a CPU session's
+// still frames take more as they go, frame_cost.h): each weighs by its
+// samples s, as in the accumulation (the sum of every sample), so the mean m
+// is the plain mean of the samples. With the frame means x_i, the weighted
+// squared deviations sum_i s_i (x_i - m)^2 estimate (n - 1) times a sample's
+// variance, and m's variance is that over the samples S; equal frames give
+// the unweighted sample variance of the frames over n.
 struct VariancePass {
   const Vec3f* frame;            // this frame's radiance: the mean of its samples
-  const Vec3f* accumulated_sum;  // sum of frame means, this one included
-  Vec3f* squares;                // sum of squared frame means (this pass adds this frame's)
-  Vec3f* odd_sum;                // sum of frames 1, 3, 5...
-  float* variance;               // of the mean: the sample variance of the frames / frames, relative
+  const Vec3f* accumulated_sum;  // sum of every sample so far, this frame's included
+  Vec3f* squares;                // sum of s_i x_i^2 (this pass adds this frame's)
+  Vec3f* odd_sum;                // sum of the samples of frames 1, 3, 5...
+  float* variance;               // of the mean, relative
   int width, frames;
+  int spp;                       // this frame's samples per pixel
+  float samples;                 // S: samples per pixel in accumulated_sum
   float dark;                    // RelativeScale's floor
 
   CINEVOL_HD void operator()(int x, int y) const {
     const int i = y * width + x;
     const Vec3f r = frame[i];
-    const Vec3f q = (frames == 1 ? Vec3f{} : squares[i]) + r * r;
+    const float s = float(spp);
+    const Vec3f q = (frames == 1 ? Vec3f{} : squares[i]) + r * r * s;
     squares[i] = q;
-    if (frames % 2 == 1) odd_sum[i] = (frames == 1 ? Vec3f{} : odd_sum[i]) + r;
-    const float n = float(frames);
-    const Vec3f m = accumulated_sum[i] * (1.0f / n);
+    if (frames % 2 == 1) odd_sum[i] = (frames == 1 ? Vec3f{} : odd_sum[i]) + r * s;
+    const Vec3f m = accumulated_sum[i] * (1.0f / samples);
     if (frames < 2) {
       variance[i] = 0.0f;
       return;
     }
-    const Vec3f spread = q - m * m * n;  // sum of squared deviations
+    const Vec3f spread = q - m * m * samples;  // sum of weighted squared deviations
     const float sum = fmaxf(spread.x, 0.0f) + fmaxf(spread.y, 0.0f) + fmaxf(spread.z, 0.0f);
-    variance[i] = sum / (3.0f * (n - 1.0f) * n) * RelativeScale(m, dark);
+    variance[i] = sum / (3.0f * (float(frames) - 1.0f) * samples) * RelativeScale(m, dark);
   }
 };
 
@@ -141,20 +152,21 @@ struct MeanFilterPass {
 void CpuAtrousLevel(const MeanFilterPass& pass);
 
 // One half's mean (odd frames, or even ones) and its variance, about twice
-// the whole mean's, packed for MeanFilterPass.
+// the whole mean's (the halves' samples differ by a frame's at most), packed
+// for MeanFilterPass.
 struct HalfMeanPass {
   const Vec3f* accumulated_sum;
   const Vec3f* odd_sum;
   const float* variance;
   Vec4f* out;
-  int width, frames;
+  int width;
+  float half_samples;  // the half's samples per pixel
   bool odd;
 
   CINEVOL_HD void operator()(int x, int y) const {
     const int i = y * width + x;
-    const int odd_frames = (frames + 1) / 2;
     const Vec3f sum = odd ? odd_sum[i] : accumulated_sum[i] - odd_sum[i];
-    out[i] = ToVec4(sum * (1.0f / float(odd ? odd_frames : frames - odd_frames)), 2.0f * variance[i]);
+    out[i] = ToVec4(sum * (1.0f / half_samples), 2.0f * variance[i]);
   }
 };
 
@@ -166,7 +178,7 @@ struct HalfMeanPass {
 struct FilteredPass {
   const Vec3f* accumulated_sum;
   const Vec3f* odd_sum;
-  int frames;
+  float samples, odd_samples;  // per pixel: in accumulated_sum, in odd_sum
   const Vec4f* odd;   // filtered halves
   const Vec4f* even;
   float* change;
@@ -177,10 +189,9 @@ struct FilteredPass {
 
   CINEVOL_HD void operator()(int x, int y) const {
     const int i = y * width + x;
-    const int odd_frames = (frames + 1) / 2;
-    const Vec3f m = accumulated_sum[i] * (1.0f / float(frames));
-    const Vec3f m_odd = odd_sum[i] * (1.0f / float(odd_frames));
-    const Vec3f m_even = (accumulated_sum[i] - odd_sum[i]) * (1.0f / float(frames - odd_frames));
+    const Vec3f m = accumulated_sum[i] * (1.0f / samples);
+    const Vec3f m_odd = odd_sum[i] * (1.0f / odd_samples);
+    const Vec3f m_even = (accumulated_sum[i] - odd_sum[i]) * (1.0f / (samples - odd_samples));
     const Vec3f f_odd = Xyz(odd[i]), f_even = Xyz(even[i]);
     const Vec3f f = (f_odd + f_even) * 0.5f;
     const Vec3f e = f - m, h = (f_odd - f_even) * 0.5f, c1 = f_odd - m_even, c2 = f_even - m_odd;
@@ -215,7 +226,7 @@ CINEVOL_HD void WindowMean(const float* const (&in)[N], float (&out)[N], int x, 
 //   u = (e_f - C) / (e_f + V - 2C),  E = (e_f V - C^2) / (e_f + V - 2C).
 struct EstimatePass {
   const Vec3f* accumulated_sum;
-  float inv_frames;
+  float inv_samples;
   const float* variance;  // V
   const Vec4f* odd;       // filtered halves
   const Vec4f* even;
@@ -238,7 +249,7 @@ struct EstimatePass {
     const float spread = e_f + v - 2.0f * c;
     const float u = spread > 0.0f ? (e_f - c) / spread : 0.0f;
     const Vec3f f = (Xyz(odd[i]) + Xyz(even[i])) * 0.5f;
-    estimate[i] = f + (accumulated_sum[i] * inv_frames - f) * u;
+    estimate[i] = f + (accumulated_sum[i] * inv_samples - f) * u;
     estimate_error[i] = spread > 0.0f ? fmaxf(e_f * v - c * c, 0.0f) / spread : 0.0f;
   }
 };
@@ -306,11 +317,13 @@ struct RowSumPass {
 // One full-size frame, after the denoiser.
 struct RefineInputs {
   int width = 0, height = 0;
-  const Vec3f* frame = nullptr;            // backend memory: this frame's radiance
-  const Vec3f* accumulated_sum = nullptr;  // backend memory: sum of the frames, this one included
+  const Vec3f* frame = nullptr;            // backend memory: this frame's radiance (its samples' mean)
+  const Vec3f* accumulated_sum = nullptr;  // backend memory: sum of every sample, this frame's included
   const Vec3f* denoised = nullptr;         // backend memory
   int frames = 0;                          // in accumulated_sum; 1 restarts the squares
   float exposure = 0;                      // the display's, in stops: errors are weighed as shown
+  int spp = 0;                             // this frame's samples per pixel
+  std::int64_t samples = 0;                // per pixel in accumulated_sum, this frame's included
 };
 
 // What a refined frame shows.
@@ -345,19 +358,25 @@ class RefinerOn final : public Refiner {
     squares_.Resize(n);
     odd_sum_.Resize(n);
     variance_.Resize(n);
+    if (in.frames < 1 || in.spp < 1 || in.samples < in.spp)
+      throw std::invalid_argument("Refiner::Refine: a frame's samples and the accumulation's");
+    if (in.frames == 1) odd_samples_ = 0;
+    if (in.frames % 2 == 1) odd_samples_ += in.spp;
+    const float samples = float(in.samples);
     B::ForEachPixel(w, h, VariancePass{in.frame, in.accumulated_sum, squares_.data(), odd_sum_.data(),
-                                       variance_.data(), w, in.frames, dark});
+                                       variance_.data(), w, in.frames, in.spp, samples, dark});
     width_ = height_ = 0;
     if (in.frames < kMinFramesForError) return {in.denoised, -1.0f};
 
-    const float inv_frames = 1.0f / float(in.frames);
+    const float inv_samples = 1.0f / samples;
     for (auto* buffer : {&shown_, &estimate_}) buffer->Resize(n);
     for (auto* buffer : {&change_, &cross_change_, &filter_variance_, &estimate_error_, &error_}) buffer->Resize(n);
-    const Vec4f* odd = FilterHalf(in, true, dark);
-    const Vec4f* even = FilterHalf(in, false, dark);
-    B::ForEachPixel(w, h, FilteredPass{in.accumulated_sum, odd_sum_.data(), in.frames, odd, even, change_.data(),
-                                       cross_change_.data(), filter_variance_.data(), w, dark});
-    B::ForEachPixel(w, h, EstimatePass{in.accumulated_sum, inv_frames, variance_.data(), odd, even, change_.data(),
+    const float odd_samples = float(odd_samples_);
+    const Vec4f* odd = FilterHalf(in, true, odd_samples, dark);
+    const Vec4f* even = FilterHalf(in, false, samples - odd_samples, dark);
+    B::ForEachPixel(w, h, FilteredPass{in.accumulated_sum, odd_sum_.data(), samples, odd_samples, odd, even,
+                                       change_.data(), cross_change_.data(), filter_variance_.data(), w, dark});
+    B::ForEachPixel(w, h, EstimatePass{in.accumulated_sum, inv_samples, variance_.data(), odd, even, change_.data(),
                                        cross_change_.data(), filter_variance_.data(), estimate_.data(),
                                        estimate_error_.data(), w, h});
     float* difference = change_.data();  // the change is spent
@@ -381,14 +400,15 @@ class RefinerOn final : public Refiner {
  private:
   // One half's mean through kMeanFilterLevels levels; the odd half ends in
   // halves_[1], the even one in halves_[2] (halves_[0] is scratch).
-  const Vec4f* FilterHalf(const RefineInputs& in, bool odd, float dark) {
+  const Vec4f* FilterHalf(const RefineInputs& in, bool odd, float half_samples, float dark) {
     const int w = in.width, h = in.height;
     auto& result = halves_[odd ? 1 : 2];
     for (auto& buffer : halves_) buffer.Resize(std::size_t(w) * h);
     // Ping-pong between scratch and result, ending in result.
     Vec4f* from = kMeanFilterLevels % 2 == 0 ? result.data() : halves_[0].data();
     Vec4f* to = kMeanFilterLevels % 2 == 0 ? halves_[0].data() : result.data();
-    B::ForEachPixel(w, h, HalfMeanPass{in.accumulated_sum, odd_sum_.data(), variance_.data(), from, w, in.frames, odd});
+    B::ForEachPixel(w, h,
+                    HalfMeanPass{in.accumulated_sum, odd_sum_.data(), variance_.data(), from, w, half_samples, odd});
     for (int level = 0; level < kMeanFilterLevels; ++level) {
       RunAtrousLevel<B>(MeanFilterPass{from, to, w, h, 1 << level, dark});
       std::swap(from, to);
@@ -397,6 +417,7 @@ class RefinerOn final : public Refiner {
   }
 
   int width_ = 0, height_ = 0;  // of the last blend; 0 where none
+  std::int64_t odd_samples_ = 0;  // per pixel in odd_sum_
   // 120 bytes a pixel.
   typename B::template Buffer<Vec3f> squares_, odd_sum_, estimate_, shown_;
   typename B::template Buffer<Vec4f> halves_[3];

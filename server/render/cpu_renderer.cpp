@@ -87,18 +87,20 @@ void CpuRenderer::Render(const FrameRequest& request) {
   if (request.preempt && request.preempt->load()) throw FramePreempted();
   last_ms_ = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
   ++accumulated_frames_;
+  accumulated_samples_ += request.spp;
 }
 
 void CpuRenderer::ResetAccumulation() {
   accumulated_.assign(std::size_t(width_) * height_, {});
   accumulated_frames_ = 0;
+  accumulated_samples_ = 0;
 }
 
 ImageRgbF CpuRenderer::Radiance() const { return {width_, height_, radiance_}; }
 
 ImageRgbF CpuRenderer::AccumulatedMean() const {
   ImageRgbF image{width_, height_, accumulated_};
-  const float inv = accumulated_frames_ > 0 ? 1.0f / float(accumulated_frames_) : 0.0f;
+  const float inv = accumulated_samples_ > 0 ? float(1.0 / double(accumulated_samples_)) : 0.0f;
   for (Vec3f& p : image.pixels) p *= inv;
   return image;
 }

@@ -44,6 +44,7 @@ class CpuRenderer final : public Renderer {
   std::vector<Vec3f> radiance_, accumulated_, albedo_;
   std::vector<Vec4f> first_hit_;
   int accumulated_frames_ = 0;
+  std::int64_t accumulated_samples_ = 0;  // per pixel: the accumulation is their sum
   unsigned last_features_ = 0;
   double last_ms_ = 0;
 };

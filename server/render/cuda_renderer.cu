@@ -197,11 +197,13 @@ void CudaRenderer::Render(const FrameRequest& request) {
   CINEVOL_CUDA_CHECK_LAUNCH();
   CINEVOL_CUDA_CHECK(cudaEventRecord(d.stop, d.stream));
   ++accumulated_frames_;
+  accumulated_samples_ += request.spp;
 }
 
 void CudaRenderer::ResetAccumulation() {
   device_->accumulated.Zero(device_->stream);
   accumulated_frames_ = 0;
+  accumulated_samples_ = 0;
 }
 
 double CudaRenderer::LastFrameMilliseconds() const {
@@ -215,7 +217,7 @@ ImageRgbF CudaRenderer::Radiance() const { return {width_, height_, device_->rad
 
 ImageRgbF CudaRenderer::AccumulatedMean() const {
   ImageRgbF image{width_, height_, device_->accumulated.Download(device_->stream)};
-  const float inv = accumulated_frames_ > 0 ? 1.0f / float(accumulated_frames_) : 0.0f;
+  const float inv = accumulated_samples_ > 0 ? float(1.0 / double(accumulated_samples_)) : 0.0f;
   for (Vec3f& p : image.pixels) p *= inv;
   return image;
 }

@@ -52,6 +52,7 @@ class CudaRenderer final : public Renderer {
   SceneData data_;
   int width_ = 0, height_ = 0;
   int accumulated_frames_ = 0;
+  std::int64_t accumulated_samples_ = 0;  // per pixel: the accumulation is their sum
   unsigned last_features_ = 0;
 };
 

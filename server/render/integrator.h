@@ -293,7 +293,10 @@ CINEVOL_HD void RenderPixel(const RenderScene& s, int x, int y, const FrameTarge
   out.radiance[pixel] = radiance;
   out.first_hit[pixel] = first_hit;
   out.albedo[pixel] = albedo / float(s.spp);
-  out.accumulated[pixel] += radiance;
+  // The samples' sum, not their mean: a frame weighs by its samples, so frames
+  // of different spp (a CPU session's still frames, a still's growing chunks)
+  // accumulate the plain mean of every sample (the renderers divide by them).
+  out.accumulated[pixel] += sum;
 }
 
 }  // namespace cinevol
