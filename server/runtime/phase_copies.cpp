@@ -14,7 +14,6 @@
 namespace cinevol::service {
 namespace {
 
-std::string Mib(std::uint64_t bytes) { return fmt::format("{:.1f} MiB", double(bytes) / double(1 << 20)); }
 
 }  // namespace
 

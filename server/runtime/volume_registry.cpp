@@ -88,8 +88,6 @@ bool IsInside(const fs::path& path, const fs::path& root) {
   return root_end == root.end();
 }
 
-std::string Mib(std::uint64_t bytes) { return fmt::format("{:.1f} MiB", double(bytes) / (1 << 20)); }
-
 v1::Vec3 ToProto(Vec3f v) {
   v1::Vec3 p;
   p.set_x(v.x);
@@ -127,6 +125,8 @@ void SetIdentity(const VolumeMetadata& meta, v1::VolumeInfo& info) {
 }
 
 }  // namespace
+
+std::string Mib(std::uint64_t bytes) { return fmt::format("{:.1f} MiB", double(bytes) / (1 << 20)); }
 
 std::vector<std::shared_ptr<const Volume>> ShareAlikePhases(std::vector<Volume> phases) {
   std::vector<std::shared_ptr<const Volume>> out;

@@ -75,6 +75,9 @@ struct ReadChoices {
   std::string Suffix() const;
 };
 
+// "12.3 MiB": memory in the limits' messages.
+std::string Mib(std::uint64_t bytes);
+
 // A series' phases as the registry holds them: phases whose voxels are alike
 // (a still stretch of a dynamic series, a baseline repeated) share one
 // Volume, so one host copy, one device copy (the volume cache's, by Volume)
