@@ -610,7 +610,7 @@ class DicomSeriesRead final : public reader::VolumeRead {
   void DecodeFrame(std::size_t k, char* out) {
     const dicom::Slice& frame = (*slices_)[k];
     if (stored_frames_.empty()) DecodeFrames(frame.file);
-    const std::size_t stored_bytes = stored_frames_.size() / (frame_count_ * slice_voxels_);
+    const std::size_t stored_bytes = StoredBytes();
     const char* stored = stored_frames_.data() + std::size_t(frame.frame) * slice_voxels_ * stored_bytes;
     if (header_.voxel_type() != "float32") {
       std::memcpy(out, stored, slice_voxels_ * stored_bytes);
