@@ -484,6 +484,20 @@ v1::LoadPresentationResponse LoadPresentation(const pacs::DicomWebClient& pacs,
     throw pacs::PacsError(fmt::format("PACS '{}' answered a retrieve of presentation state {} with another instance",
                                       pacs.config().name, instance));
   }
+  // The series it presents, there: a state naming one the PACS lacks is refused by name, not by the first request
+  // that misses it.
+  bool held = false;
+  try {
+    held = !pacs.ListInstances(read.source_study_uid, read.source_series_uid, cancel).empty();
+  } catch (const pacs::PacsError& e) {
+    if (e.http_status() != 404) throw;
+  }
+  if (!held) {
+    throw pacs::PacsError(fmt::format("presentation state {} presents series {} of study {}, which PACS '{}' does not "
+                                      "hold",
+                                      instance, read.source_series_uid, read.source_study_uid, pacs.config().name),
+                          404);
+  }
   // The axes of a bounding box: the input series' (its first image's rows and columns).
   std::array<double, 6> axes{1, 0, 0, 0, 1, 0};
   if (read.state.cropping.bounding_box) {

@@ -328,6 +328,20 @@ TEST_F(PacsServer, APresentationStateBesideTheStillRendersItAgain) {
   const double standard_psnr = Psnr8(stored, DecodePngImage(ReadWholeFile(again)));
   EXPECT_GE(standard_psnr, 30.0) << "the still rendered from the standard's attributes alone";
   RecordProperty("standard_only_psnr_db", std::to_string(standard_psnr));
+
+  // A presentation state naming a series the PACS does not hold: refused by name, and the server serves on.
+  const char* kAbsentSeries = "2.25.404404404";
+  const CommandResult renamed = RunCommand("dcmodify -nb -gin -m '(0008,1115)[0].(0020,000e)=" +
+                                           std::string(kAbsentSeries) + "' '" + copy.string() + "'");
+  ASSERT_EQ(renamed.status, 0) << renamed.output;
+  const std::string orphan = ReadWholeFile(copy);
+  orthanc.StoreInstances(place.study_uid, {orphan});
+  const std::string orphan_uid = pacs::ReadPresentationState(orphan).uids.sop_instance_uid;
+  std::tie(code, out) =
+      Cli({"pacs", "load", "--pacs", "orthanc", "--presentation", orphan_uid, "--scene-out", presented.string()});
+  EXPECT_NE(code, 0) << out;
+  EXPECT_NE(out.find(kAbsentSeries), std::string::npos) << "the refusal names the series: " << out;
+  EXPECT_EQ(client.LoadSeries(CtSeries()).id(), volume.id()) << "the server serves on";
 }
 
 // A movie goes back into the study as DICOM video (issue 58): a Multi-frame True Color Secondary Capture in the
