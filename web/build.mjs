@@ -1,7 +1,7 @@
-// Builds the page, the gateway and the tests into OUT (the CMake build's
-// web/ folder): protoc-gen-es writes the messages and services into gen/,
-// tsc checks the types, esbuild bundles. No network: `npm ci` came first
-// (scripts/install-deps.sh).
+// Builds the page, the gateway, the benches' node clients and the tests into
+// OUT (the CMake build's web/ folder): protoc-gen-es writes the messages and
+// services into gen/, tsc checks the types, esbuild bundles. No network:
+// `npm ci` came first (scripts/install-deps.sh).
 //   node build.mjs --out DIR [--proto DIR]
 import { execFileSync } from "node:child_process";
 import { copyFileSync, mkdirSync, readdirSync, rmSync, symlinkSync } from "node:fs";
@@ -41,6 +41,9 @@ async function bundle() {
   const node = { ...common, platform: "node", format: "esm", target: "node18", outExtension: { ".js": ".mjs" },
     banner: { js: "import { createRequire } from 'node:module'; const require = createRequire(import.meta.url);" } };
   await esbuild.build({ ...node, entryPoints: { gateway: join(here, "gateway", "main.ts") }, outdir: out });
+  // The benches' node clients (bench/web-latency-run.sh).
+  await esbuild.build({ ...node, entryPoints: { "motion-to-photon": join(here, "bench", "motion_to_photon.ts") },
+                        outdir: join(out, "bench") });
   // The unit tests read the golden cases from the checkout they were built from (CINEVOL_GOLDEN overrides).
   await esbuild.build({ ...node, entryPoints: tests("test"), outdir: join(out, "tests"),
                         define: { CINEVOL_SOURCE_DIR: JSON.stringify(resolve(here, "..")) } });
