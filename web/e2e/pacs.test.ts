@@ -10,7 +10,11 @@
 // refused with nothing touched, a third-party client (dicomweb-client) reading
 // the series from Orthanc and its renderings from cinevol-web, an MPR that is
 // `cinevol slice` of the same plane, and signed URLs for <img> against a
-// second server that needs tokens.
+// second server that needs tokens. What cinevol stored is read back from
+// Orthanc by WADO-RS with a second, independent DICOM reader (dcmjs) and its
+// values compared with what cinevol says it wrote: the Secondary Capture's
+// pixels are the still's, the presentation state's camera the scene it gives
+// back, the SR's coordinates and length the page's measurement.
 // Run directly (node pacs.test.mjs): exit 77 (skipped) without chromium or
 // the shared data, a failure without Orthanc (CI must run it).
 import assert from "node:assert/strict";
@@ -19,6 +23,7 @@ import { existsSync, mkdirSync, readdirSync, readFileSync, rmSync, writeFileSync
 import { join } from "node:path";
 import { promisify } from "node:util";
 import { after, before, test } from "node:test";
+import dcmjs, { type Naturalized } from "dcmjs";
 import { api as dicomweb } from "dicomweb-client";
 import { chromium, type Browser, type Page } from "playwright-core";
 import {
@@ -28,6 +33,7 @@ import {
   authorization, credentialsLine, dicomWeb, stampCt, startOrthanc, stopOrthanc, upload, whatIsMissing, type Orthanc,
 } from "./orthanc.js";
 import { decodePng } from "./png.js";
+import type { Pixels } from "../gateway/png.js";
 import { scratch, startWithPortFile, stop, tokensFile, type Running } from "./processes.js";
 import { FetchXhr } from "./xhr.js";
 import { ctSlice, dicomLab, segmentationFile, type SegFrame, type Vec3 } from "./seg_fixture.js";
@@ -125,6 +131,18 @@ test("a still stored with its presentation state opens from the re-listed series
   assert.deepEqual(pngSize(Buffer.from(await picture.arrayBuffer())), { width: 64, height: 48 });
   assert.equal((await fetch(`${state}?renderingmethod=volume_rendered`)).status, 400, "what the state says");
   await page.screenshot({ path: join(ARTIFACTS, "pacs-2-presentation.png") });
+  // Both objects as a second reader (dcmjs) reads them from the PACS: the capture is the still the CLI wrote, the
+  // state presents the CT in the camera of the scene that `cinevol pacs load --presentation` gives back.
+  const [, stillStudy, stillSeries, stillUid] =
+    /stored in PACS 'orthanc': study ([0-9.]+), series ([0-9.]+), instance ([0-9.]+)/.exec(stored)!;
+  assert.equal(stillStudy, CT.studyUid, "the still went into the CT's study");
+  const ct = await ctAsStored();
+  const still = decodePng(readFileSync(join(ARTIFACTS, "pacs-still.png")));
+  assertCaptureIsTheStill(await readBack(stillSeries, stillUid), still);
+  assertStatePresentsTheStill(await readBack(stateSeries, stateUid), ct, { series: stillSeries, instance: stillUid },
+                              await presentedCamera(stateSeries, stateUid));
+  console.log(`# dcmjs read back capture ${stillUid} (${still.width}x${still.height}, the still's pixels) and ` +
+              `presentation state ${stateUid} (the scene's camera, the CT's ${ct.instances.length} images)`);
 });
 
 test("an IHE Invoke Image Display launch opens the study it names, and a malformed one is refused with 400", async () => {
@@ -412,6 +430,8 @@ test("measurements go to the PACS as an SR and come back", async () => {
     "load", "--pacs", "orthanc", "--study", CT.studyUid, "--series", srSeries]);
   assert.equal(report.sourceSeriesUid, CT.seriesUid);
   assertSamePoints(report.measurements.map((m) => m.points.map(point)), measured, "the report on the PACS");
+  // The report as a second reader (dcmjs) reads it: TID 1500's distance on the measured points, in the CT's frame.
+  assertReportHoldsTheDistance(await readBack(srSeries), measured[0], (await ctAsStored()).frameOfReferenceUid);
 
   // Listed again: the report's series; then a new session of the CT, which has no measurements until it reads them.
   const measuredIn = await status(page);
@@ -708,4 +728,152 @@ function writeSeg(file: string): { file: string; voxels: number[] } {
   const crop = [...Array(SEG_CROP.size * SEG_CROP.size).keys()];
   return { file, voxels: SEG_SEGMENTS.map((s) => s.planes.length *
     crop.filter((i) => s.set(i % SEG_CROP.size, Math.floor(i / SEG_CROP.size))).length) };
+}
+
+// ---- Read back by a second reader: dcmjs, over WADO-RS from Orthanc ----
+
+const SECONDARY_CAPTURE = "1.2.840.10008.5.1.4.1.1.7", VOLUME_RENDERING_STATE = "1.2.840.10008.5.1.4.1.1.11.9";
+const COMPREHENSIVE_3D_SR = "1.2.840.10008.5.1.4.1.1.88.34", EXPLICIT_VR_LITTLE_ENDIAN = "1.2.840.10008.1.2.1";
+
+/** A Part 10 file as dcmjs reads it: its transfer syntax and its data set, naturalized. */
+interface ReadBack { transferSyntax: string; data: Naturalized }
+
+/** dicomweb-client on Orthanc's own DICOMweb (XMLHttpRequest over fetch, xhr.ts). */
+function orthancClient(): dicomweb.DICOMwebClient {
+  (globalThis as { XMLHttpRequest?: unknown }).XMLHttpRequest = FetchXhr;
+  return new dicomweb.DICOMwebClient({ url: dicomWeb(run.orthanc), headers: authorization(run.orthanc), verbose: false,
+                                       singlepart: false });
+}
+
+/**
+ * An object of a series cinevol stored in the CT's study, as Orthanc gives it back by WADO-RS (application/dicom,
+ * multipart) and dcmjs reads it: the instance `sopInstanceUid`, or the series' only one.
+ */
+async function readBack(seriesUid: string, sopInstanceUid?: string): Promise<ReadBack> {
+  const files = await orthancClient().retrieveSeries({ studyInstanceUID: CT.studyUid, seriesInstanceUID: seriesUid,
+                                                       request: {} });
+  const read = files.map((part10) => {
+    const file = dcmjs.data.DicomMessage.readFile(part10);
+    return { transferSyntax: String(file.meta["00020010"]?.Value?.[0] ?? ""),
+             data: dcmjs.data.DicomMetaDictionary.naturalizeDataset(file.dict) };
+  });
+  const found = read.filter((r) => sopInstanceUid === undefined || r.data.SOPInstanceUID === sopInstanceUid);
+  assert.equal(found.length, 1, `series ${seriesUid} holds ${read.map((r) => r.data.SOPInstanceUID).join(", ")}`);
+  return found[0];
+}
+
+/** A naturalized attribute's values or items as a list: dcmjs unwraps a single value, and an empty one is null. */
+const all = (value: unknown): unknown[] =>
+  value === null || value === undefined ? [] : Array.isArray(value) ? value : [value];
+const items = (value: unknown) => all(value) as Naturalized[];
+const uidsOf = (references: unknown) => items(references).map((r) => String(r.ReferencedSOPInstanceUID)).sort();
+
+/** A person name's alphabetic group (dcmjs reads PN as { Alphabetic }). */
+function personName(value: unknown): string {
+  const first = all(value)[0];
+  return String(typeof first === "object" && first !== null ? (first as { Alphabetic?: string }).Alphabetic : first);
+}
+
+/** The CT as Orthanc holds it (its metadata): its images' SOP Instance UIDs, sorted, and its frame of reference. */
+async function ctAsStored(): Promise<{ instances: string[]; frameOfReferenceUid: string }> {
+  const metadata = await orthancClient().retrieveSeriesMetadata({ studyInstanceUID: CT.studyUid,
+    seriesInstanceUID: CT.seriesUid, request: {} }) as unknown as Record<string, { Value: string[] }>[];
+  assert.equal(metadata.length, 20, "the CT's 20 images");
+  return { instances: metadata.map((m) => m["00080018"].Value[0]).sort(),
+           frameOfReferenceUid: metadata[0]["00200052"].Value[0] };
+}
+
+/** The capture files under the CT's patient and study, and its pixels are the still's, as lossless as it says. */
+function assertCaptureIsTheStill(capture: ReadBack, still: Pixels): void {
+  const d = capture.data;
+  assert.equal(d.SOPClassUID, SECONDARY_CAPTURE);
+  assert.deepEqual([d.StudyInstanceUID, d.PatientID, personName(d.PatientName)],
+                   [CT.studyUid, CT.patientId, CT.patientName], "the CT's study and patient");
+  assert.ok(String(d.DerivationDescription).includes(`of series ${CT.seriesUid} `), String(d.DerivationDescription));
+  assert.deepEqual([d.Rows, d.Columns], [still.height, still.width], "the still's size");
+  assert.deepEqual([d.SamplesPerPixel, d.PhotometricInterpretation, d.PlanarConfiguration, d.BitsAllocated],
+                   [3, "RGB", 0, 8]);
+  assert.equal(capture.transferSyntax, EXPLICIT_VR_LITTLE_ENDIAN, "the pixels as they were stored");
+  const rgb = still.channels === 3 ? still.pixels : still.pixels.filter((_, i) => i % 4 !== 3);
+  const stored = new Uint8Array(all(d.PixelData)[0] as ArrayBuffer);
+  assert.ok(stored.length === rgb.length || stored.length === rgb.length + 1, `${stored.length} bytes of pixels`);
+  const { most } = difference(stored.subarray(0, rgb.length), rgb);
+  const lossy = d.LossyImageCompression === "01";
+  assert.ok(most <= (lossy ? 1 : 0), `the capture's pixels and the still's differ by up to ${most} levels` +
+            ` (Lossy Image Compression ${String(d.LossyImageCompression)})`);
+}
+
+/**
+ * The state presents the CT's images (input and references), names the capture as its rendered image, and holds
+ * the camera of the scene it gives back: Viewpoint Position, LookAt Point and Up Direction within 1e-3 mm.
+ */
+function assertStatePresentsTheStill(state: ReadBack, ct: { instances: string[]; frameOfReferenceUid: string },
+                                     capture: { series: string; instance: string },
+                                     camera: { eye: V; target: V; up: V }): void {
+  const d = state.data;
+  assert.equal(d.SOPClassUID, VOLUME_RENDERING_STATE, "no labels: the plain kind");
+  assert.deepEqual([d.Modality, d.StudyInstanceUID, d.PatientID, d.FrameOfReferenceUID],
+                   ["PR", CT.studyUid, CT.patientId, ct.frameOfReferenceUid], "the CT's study, patient and frame");
+  const [input] = items(d.VolumetricPresentationInputSetSequence);
+  assert.equal(input?.PresentationInputType, "VOLUME");
+  assert.deepEqual(uidsOf(input.ReferencedImageSequence), ct.instances, "the input: the CT's images");
+  const series = (uid: string) => items(d.ReferencedSeriesSequence).find((s) => s.SeriesInstanceUID === uid);
+  assert.deepEqual(uidsOf(series(CT.seriesUid)?.ReferencedInstanceSequence), ct.instances, "the CT series referenced");
+  assert.deepEqual(uidsOf(series(capture.series)?.ReferencedInstanceSequence), [capture.instance], "the capture's");
+  const rendered = items(d.RenderedImageReferenceSequence);
+  assert.deepEqual(rendered.map((r) => [r.ReferencedSOPClassUID, r.ReferencedSOPInstanceUID]),
+                   [[SECONDARY_CAPTURE, capture.instance]], "the rendered image: the capture");
+  for (const [keyword, want] of [["ViewpointPosition", camera.eye], ["ViewpointLookAtPoint", camera.target],
+                                 ["ViewpointUpDirection", camera.up]] as const) {
+    const got = all(d[keyword]).map(Number);
+    assert.ok(got.length === 3 && got.every((v, k) => Math.abs(v - [want.x, want.y, want.z][k]) <= 1e-3),
+              `${keyword} ${got}, the scene's ${JSON.stringify(want)}`);
+  }
+  assert.ok(near(point(camera.eye), STILL_SCENE.camera.eye) && near(point(camera.target), STILL_SCENE.camera.target),
+            `the still's scene's camera: ${JSON.stringify(camera)}`);
+}
+
+/** `cinevol pacs load --presentation UID --scene-out F`: the camera of the scene the state gives back (LPS mm). */
+async function presentedCamera(stateSeries: string, stateUid: string): Promise<{ eye: V; target: V; up: V }> {
+  const file = join(scratch, "presented-scene.json");
+  await promisify(execFile)(CLI, ["pacs", "load", "--pacs", "orthanc", "--study", CT.studyUid, "--series", stateSeries,
+    "--presentation", stateUid, "--scene-out", file, "--server", `127.0.0.1:${run.server.port}`], { timeout: 60_000 });
+  const scene = JSON.parse(readFileSync(file, "utf8")) as { frame?: string; camera: Record<"eye" | "target" | "up",
+                                                                                         Partial<V>> };
+  assert.equal(scene.frame, "PATIENT_LPS");
+  return { eye: point(scene.camera.eye), target: point(scene.camera.target), up: point(scene.camera.up) };
+}
+
+/**
+ * TID 1500 as dcmjs reads it: Imaging Measurements holds one Measurement Group whose Length (SCT 410668003, mm) is
+ * the distance between `points` and is inferred from a SCOORD3D polyline on them in the CT's frame of reference, all
+ * within 0.01 mm.
+ */
+function assertReportHoldsTheDistance(report: ReadBack, points: V[], frameOfReferenceUid: string): void {
+  const d = report.data;
+  assert.equal(d.SOPClassUID, COMPREHENSIVE_3D_SR);
+  assert.deepEqual([d.StudyInstanceUID, d.PatientID], [CT.studyUid, CT.patientId], "the CT's study and patient");
+  const code = (item: Naturalized) => items(item.ConceptNameCodeSequence)[0]?.CodeValue;
+  const children = (item: Naturalized, valueType: string, concept?: string) => items(item.ContentSequence)
+    .filter((c) => c.ValueType === valueType && (concept === undefined || code(c) === concept));
+  assert.deepEqual([d.ValueType, code(d)], ["CONTAINER", "126000"], "an Imaging Measurement Report");
+  const [imaging, ...more] = children(d, "CONTAINER", "126010");
+  assert.ok(imaging && more.length === 0, "one Imaging Measurements container");
+  const groups = children(imaging, "CONTAINER", "125007");
+  assert.equal(groups.length, 1, "one Measurement Group: the one distance");
+  const [length] = children(groups[0], "NUM", "410668003");
+  assert.ok(length, "the group's Length");
+  const [value] = items(length.MeasuredValueSequence);
+  assert.equal(items(value?.MeasurementUnitsCodeSequence)[0]?.CodeValue, "mm");
+  const [a, b] = points;
+  const distance = Math.hypot(a.x - b.x, a.y - b.y, a.z - b.z);
+  assert.ok(Math.abs(Number(value.NumericValue) - distance) <= 0.01,
+            `Length ${value.NumericValue} mm; measured ${distance} mm`);
+  const [coordinates] = children(length, "SCOORD3D");
+  assert.ok(coordinates, "the Length's SCOORD3D");
+  assert.deepEqual([coordinates.RelationshipType, coordinates.GraphicType], ["INFERRED FROM", "POLYLINE"]);
+  assert.equal(coordinates.ReferencedFrameOfReferenceUID, frameOfReferenceUid, "the CT's frame of reference");
+  const data = all(coordinates.GraphicData).map(Number), want = points.flatMap((p) => [p.x, p.y, p.z]);
+  assert.ok(data.length === want.length && data.every((v, k) => Math.abs(v - want[k]) <= 0.01),
+            `Graphic Data ${data}; measured ${want}`);
 }
