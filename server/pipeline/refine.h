@@ -57,6 +57,14 @@ namespace cinevol {
 inline constexpr int kErrorWindowRadius = 3;
 // Frames before the variance is estimated: fewer give too noisy a spread.
 inline constexpr int kMinFramesForError = 16;
+// The frames a still view's denoiser output remembers: wRLS's accumulates
+// over at most 32 (WrlsSettings::stabilize_still_frames), an average that
+// forgets older ones. B = D + E takes d as sharing every frame of a; measured
+// (docs/tradeoff.md, "Past the denoiser's memory"), that reads B low once the
+// accumulation outgrows this memory, so BlendPass adds one E to B for each
+// further memory's worth of frames: a floor near the variance of a mean of
+// this many frames, since E falls as 1 / frames.
+inline constexpr float kDenoiserMemoryFrames = 32.0f;
 // Linear radiance shown as 2% grey at exposure 0: RelativeScale's floor.
 inline constexpr float kDarkGrey = 0.02f;
 
@@ -291,7 +299,9 @@ struct BlendPass {
     // D = B + E - 2C, C the covariance of d and a. d averages the same
     // frames as a: C = E (exact where d is a plain average of them; on the
     // MR head the measured C was 0.9 E), so B = D + E, here D + (2 - upper) E.
-    const float bias = fmaxf(m[1] + (2.0f - upper) * m[0], 0.0f);
+    // Past the denoiser's memory (kDenoiserMemoryFrames) one more E for each further memory's worth of frames.
+    const float forgotten = fmaxf(float(frames) - kDenoiserMemoryFrames, 0.0f) / kDenoiserMemoryFrames;
+    const float bias = fmaxf(m[1] + (2.0f - upper + forgotten) * m[0], 0.0f);
     const float spread = upper * fmaxf(estimate_error[i], m[0]);
     // No spread and no difference: the accumulation is exact (empty space, or one value).
     const float w = bias + spread > 0.0f ? bias / (bias + spread) : 1.0f;
