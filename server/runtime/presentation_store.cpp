@@ -493,10 +493,10 @@ v1::LoadPresentationResponse LoadPresentation(const pacs::DicomWebClient& pacs,
     if (e.http_status() != 404) throw;
   }
   if (!held) {
-    throw pacs::PacsError(fmt::format("presentation state {} presents series {} of study {}, which PACS '{}' does not "
-                                      "hold",
-                                      instance, read.source_series_uid, read.source_study_uid, pacs.config().name),
-                          404);
+    throw pacs::PacsError(
+        fmt::format("presentation state {} presents series {} of study {}, which PACS '{}' does not hold", instance,
+                    read.source_series_uid, read.source_study_uid, pacs.config().name),
+        404);
   }
   // The axes of a bounding box: the input series' (its first image's rows and columns).
   std::array<double, 6> axes{1, 0, 0, 0, 1, 0};
