@@ -29,6 +29,9 @@ if (!o.gateway || !o.server || !o.volume || !o.scene) {
   throw new Error("usage: --gateway HOST:PORT --server HOST:PORT --volume ID --scene S.json [--seconds S] [--rate HZ]");
 }
 const seconds = Number(o.seconds), rate = Number(o.rate);
+const sceneJson = JSON.parse(readFileSync(o.scene, "utf8"));
+delete sceneJson.volume;  // volumeId says which
+const scene = fromJson(SceneSchema, sceneJson);
 if (!(seconds > 0 && seconds <= 600 && rate > 0 && rate <= 240)) throw new Error("--seconds (0, 600], --rate (0, 240]");
 
 interface PathFigures { path: string; device: string; events: number; answered: number; p50: number; p95: number; max: number;
@@ -47,11 +50,9 @@ function orbited(camera: Camera, radians: number): Camera {
 
 // One session through `sessions`: attach, orbit, measure, close. Bounded by SECONDS plus a grace for the last answers.
 async function measure(path: string, sessions: Client<typeof SessionService>): Promise<PathFigures> {
-  const scene = JSON.parse(readFileSync(o.scene!, "utf8"));
-  delete scene.volume;  // volumeId says which
   const created = await sessions.createSession({
     volumeId: o.volume, viewport: { width: Number(o.width), height: Number(o.height) },
-    initial: { case: "scene", value: fromJson(SceneSchema, scene) },
+    initial: { case: "scene", value: scene },
     stream: fromJson(StreamSettingsSchema, JSON.parse(o.stream!)),
   });
   const sessionId = created.sessionId;
