@@ -17,7 +17,9 @@
 # BIN: the programs' folder (default build); VOLUME, SCENE: the CT and its
 # scene (default CThead); RUNS: the parts (default "loadtest viewer still");
 # BUDGET: the session's interactiveFrameMs (default: the server's); JPEG: its
-# jpegQuality while moving (default 80).
+# jpegQuality while moving (default 80); AT_RENDERED_SIZE=1: the loadtest's
+# and still's frames come at the size they render (framesAtRenderedSize, what
+# the viewer and the page ask for), not upsampled by the server.
 # RUNS="loadtest viewer browser" compares the three clients on one server.
 set -uo pipefail
 cd "$(dirname "$0")/.."
@@ -30,6 +32,7 @@ seconds=${SECONDS_PER_RUN:-20}
 stream='"denoiser": "DENOISER_WRLS"'
 [ -n "${BUDGET:-}" ] && stream="$stream, \"interactiveFrameMs\": $BUDGET"
 [ -n "${JPEG:-}" ] && stream="$stream, \"jpegQuality\": $JPEG"
+[ -n "${AT_RENDERED_SIZE:-}" ] && stream="$stream, \"framesAtRenderedSize\": true"
 mkdir -p "$out"
 out=$(realpath "$out")
 

@@ -41,6 +41,7 @@ struct LoadtestOptions {
   double degrees_per_second = 120;
   int jpeg_quality = 80;
   float interactive_frame_ms = -1;  // < 0: the server's default (70 ms on a CPU server, else off)
+  bool server_upsamples = false;    // smaller frames upsampled by the server, not left to the client
   int viewers = 0;                  // per session, watching by a link
   bool json = false;
   std::string out;
@@ -75,6 +76,7 @@ SessionScript MakeScript(const LoadtestOptions& o) {
   s.session.stream.set_denoiser(ParseDenoiser(o.denoiser));
   s.session.stream.set_jpeg_quality(o.jpeg_quality);
   if (o.interactive_frame_ms >= 0) s.session.stream.set_interactive_frame_ms(o.interactive_frame_ms);
+  s.session.stream.set_frames_at_rendered_size(!o.server_upsamples);  // as cinevol's page and viewer ask
   s.session.stream.set_target_spp(65536);  // keep rendering: every frame counts
   s.session.stream.set_error_target(0);
   ScriptStep spp;
@@ -349,6 +351,9 @@ void AddLoadtestCommand(CLI::App& app) {
                   "Frame-time budget while the view moves: frames render smaller to meet it "
                   "(0: always full size; default: the server's, 70 ms on the CPU backend, else 0) (orbit)")
       ->check(CLI::Range(0.0f, 10000.0f));
+  cmd->add_flag("--server-upsamples", o->server_upsamples,
+                "Frames rendered smaller while the view moves come upsampled to the viewport, as a client that "
+                "cannot stretch them asks (default: at their rendered size, as cinevol's page and viewer ask) (orbit)");
   cmd->add_option("--viewers", o->viewers,
                   "Viewers per session, watching it by a link (docs/sharing.md): the presenter's fps with them, "
                   "and theirs")

@@ -184,6 +184,7 @@ void Connection::Start() {
   }
   if (volume.id().empty()) volume = client->DescribeVolume(cli::ResolveVolume(*client, settings_.session).id());
   v1::CreateSessionRequest request = cli::SessionRequest(settings_.session, volume.id());
+  request.mutable_stream()->set_frames_at_rendered_size(true);  // the screen stretches them
   if (carried_ && volume.id() == resolved_volume_) {
     *request.mutable_scene() = carried_->scene();
     *request.mutable_stream() = carried_->stream();

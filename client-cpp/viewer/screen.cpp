@@ -134,17 +134,19 @@ void Screen::EndTurn(bool grid, const std::array<Rect, kPanes>& slices_shown) {
   ImGui_ImplSDLRenderer_RenderDrawData(ImGui::GetDrawData());
 }
 
-double Screen::UploadFrame(const RgbImage& image) {
+double Screen::UploadFrame(const RgbImage& image, int shown_width, int shown_height) {
   const auto start = std::chrono::steady_clock::now();
   Fill(renderer_, texture_, image);
-  texture_w_ = image.width;
-  texture_h_ = image.height;
+  // A frame that rendered smaller comes at that size: drawn stretched, filtered.
+  if (texture_) SDL_SetTextureScaleMode(texture_, SDL_ScaleModeLinear);
+  frame_w_ = shown_width > 0 ? shown_width : image.width;
+  frame_h_ = shown_height > 0 ? shown_height : image.height;
   return Ms(std::chrono::steady_clock::now() - start);
 }
 
 Rect Screen::ShownFrame() const {
   if (!texture_) return {};
-  return Fit(frame_, float(texture_w_), float(texture_h_));
+  return Fit(frame_, float(frame_w_), float(frame_h_));
 }
 
 void Screen::DrawFrame() {

@@ -50,11 +50,13 @@ class Screen {
   void EndTurn(bool grid, const std::array<Rect, kPanes>& slices_shown);
   void Present() { SDL_RenderPresent(renderer_); }
 
-  // The newest frame onto its texture; returns the milliseconds it took.
-  double UploadFrame(const RgbImage& image);
+  // The newest frame onto its texture, to be shown at `shown_width` x
+  // `shown_height` (the frame's width and height: a frame that rendered
+  // smaller is stretched); returns the milliseconds it took.
+  double UploadFrame(const RgbImage& image, int shown_width, int shown_height);
   bool has_frame() const { return texture_ != nullptr; }
-  int frame_width() const { return texture_w_; }  // the session's viewport, whatever size it is drawn at
-  int frame_height() const { return texture_h_; }
+  int frame_width() const { return frame_w_; }  // the session's viewport, whatever size it is drawn at
+  int frame_height() const { return frame_h_; }
   // Where the frame is drawn (empty before one).
   Rect ShownFrame() const;
   // A pane's slice onto its texture.
@@ -73,7 +75,7 @@ class Screen {
   SDL_Window* window_ = nullptr;
   SDL_Renderer* renderer_ = nullptr;
   SDL_Texture* texture_ = nullptr;
-  int texture_w_ = 0, texture_h_ = 0;
+  int frame_w_ = 0, frame_h_ = 0;
   std::array<SDL_Texture*, kPanes> pane_textures_{};
   float pixel_scale_ = 1;
   bool grid_ = false;

@@ -68,7 +68,7 @@ bool App::TakeFrame() {
   stats_.Age();
   std::optional<ViewFrame> frame = link_->connection().TakeFrame();
   if (!frame) return false;
-  stats_.upload_ms = screen_->UploadFrame(frame->image);
+  stats_.upload_ms = screen_->UploadFrame(frame->image, int(frame->info.width()), int(frame->info.height()));
   stats_.Shown(*frame, link_->connection());
   return true;
 }

@@ -23,7 +23,7 @@ void FrameCostModel::Observe(const FrameCost& c) {
   const bool first = frames_ == 0;
   Blend(render_, c.render_ms / (double(c.pixels) * c.spp), first);
   Blend(denoise_, c.denoise_ms / double(c.pixels), first);
-  Blend(display_, c.display_ms, first);
+  Blend(display_, c.display_ms / double(std::max<std::int64_t>(c.displayed_pixels, 1)), first);
   if (c.refine_ms > 0 || first) Blend(refine_, c.refine_ms, first || refine_ == 0);
   last_ = c;
   ++frames_;
@@ -38,21 +38,22 @@ void FrameCostModel::ObserveInterval(double interval_ms) {
   has_overhead_ = true;
 }
 
-double FrameCostModel::PredictMoving(std::int64_t pixels, int spp) const {
-  return double(pixels) * (render_ * spp + denoise_) + display_ + overhead_;
+double FrameCostModel::PredictMoving(std::int64_t pixels, int spp, std::int64_t displayed_pixels) const {
+  return double(pixels) * (render_ * spp + denoise_) + double(displayed_pixels) * display_ + overhead_;
 }
 
 double FrameCostModel::StillOverhead(std::int64_t pixels) const {
-  return double(pixels) * denoise_ + display_ + refine_;
+  return double(pixels) * (denoise_ + display_) + refine_;
 }
 
 MovingFrame ChooseMovingFrame(const FrameCostModel& model, std::int64_t viewport_pixels, int max_spp,
-                              double budget_ms, MovingFrame current) {
+                              double budget_ms, MovingFrame current, bool at_rendered_size) {
   if (!model.known()) return current;
   max_spp = std::max(max_spp, 1);
   auto predict = [&](const MovingFrame& f) {
     const double side = f.scale;
-    return model.PredictMoving(std::max<std::int64_t>(1, std::llround(double(viewport_pixels) * side * side)), f.spp);
+    const std::int64_t pixels = std::max<std::int64_t>(1, std::llround(double(viewport_pixels) * side * side));
+    return model.PredictMoving(pixels, f.spp, at_rendered_size ? pixels : viewport_pixels);
   };
   // Candidates in order of preference: the larger size first, then more samples.
   std::vector<MovingFrame> candidates;

@@ -2,9 +2,9 @@
 // frames and still frames chosen from it (FramePipeline on the CPU backend).
 //
 // A CPU frame's parts scale differently: the render with pixels times
-// samples, the denoiser with pixels, the upsampling and display with the
-// viewport whatever size rendered, the refinement with the viewport (still
-// frames only), and the rest of the frame interval (waiting for the worker,
+// samples, the denoiser with pixels, the display (and upsampling) with the
+// pixels displayed (the viewport, or what rendered where frames leave at
+// their rendered size), the refinement with the viewport (still frames only), and the rest of the frame interval (waiting for the worker,
 // the encoder running beside the next frame on the same cores) with
 // neither. So one measured frame at any size predicts every other size, and a
 // view that starts moving after a still period gets the right size from its
@@ -35,10 +35,11 @@ inline constexpr int kMaxStillSpp = 8;
 
 // One frame's measured parts, in ms; a part not run is 0.
 struct FrameCost {
-  std::int64_t pixels = 0;  // rendered
+  std::int64_t pixels = 0;            // rendered
+  std::int64_t displayed_pixels = 0;  // tone mapped and encoded: the viewport, or `pixels`
   int spp = 1;
   double render_ms = 0, denoise_ms = 0;
-  double display_ms = 0;  // upsampling (moving frames) and display, at the viewport's size
+  double display_ms = 0;  // upsampling (moving frames) and display
   double refine_ms = 0;   // still frames, at the viewport's size
   double interval_ms = -1;  // from this frame's start to the next one's; < 0: not back to back
 };
@@ -51,8 +52,9 @@ class FrameCostModel {
   void ObserveInterval(double interval_ms);
   bool known() const { return frames_ > 0; }
 
-  // Predicted interval of a moving frame (no refinement) of `pixels` at `spp`.
-  double PredictMoving(std::int64_t pixels, int spp) const;
+  // Predicted interval of a moving frame (no refinement) of `pixels` at
+  // `spp`, displayed at `displayed_pixels`.
+  double PredictMoving(std::int64_t pixels, int spp, std::int64_t displayed_pixels) const;
   double render_ms_per_sample(std::int64_t pixels) const { return render_ * double(pixels); }
   // What a full-size still frame costs besides its render.
   double StillOverhead(std::int64_t pixels) const;
@@ -62,8 +64,8 @@ class FrameCostModel {
 
   int frames_ = 0;
   bool has_overhead_ = false;
-  // Running means: ms per rendered pixel and sample, per denoised pixel; ms
-  // of the display (and upsampling) at the viewport, and of the rest.
+  // Running means: ms per rendered pixel and sample, per denoised pixel, per
+  // displayed pixel; ms of the refinement at the viewport, and of the rest.
   double render_ = 0, denoise_ = 0, display_ = 0, refine_ = 0, overhead_ = 0;
   FrameCost last_;
 };
@@ -78,9 +80,10 @@ struct MovingFrame {
 // `budget_ms`, with hysteresis around `current`: it stays while predicted
 // within the budget, and a larger choice is taken only within
 // kScaleUpMargin of it. Nothing known yet: `current`. None meets it: the
-// smallest size at 1 spp.
+// smallest size at 1 spp. `at_rendered_size`: frames are displayed at the
+// size they render (FrameSettings::frames_at_rendered_size), not the viewport.
 MovingFrame ChooseMovingFrame(const FrameCostModel& model, std::int64_t viewport_pixels, int max_spp,
-                              double budget_ms, MovingFrame current);
+                              double budget_ms, MovingFrame current, bool at_rendered_size = false);
 
 // Samples per pixel for the next still frame at full size: the scene's for
 // the first (the still view shows soon), then doubling while the denoiser and

@@ -60,6 +60,7 @@ FrameSettings SessionFrameSettings(Backend backend, const v1::StreamSettings& st
   if (stream.has_final_jpeg_quality()) s.final_jpeg_quality = int(stream.final_jpeg_quality());
   if (stream.has_target_spp()) s.target_spp = int(stream.target_spp());
   if (stream.has_interactive_frame_ms()) s.interactive_frame_ms = stream.interactive_frame_ms();
+  if (stream.has_frames_at_rendered_size()) s.frames_at_rendered_size = stream.frames_at_rendered_size();
   if (stream.has_error_target()) s.error_target = stream.error_target();
   return s;
 }
@@ -78,6 +79,7 @@ v1::StreamSettings ToStreamSettings(const FrameSettings& s) {
   stream.set_final_jpeg_quality(std::uint32_t(s.final_jpeg_quality));
   stream.set_target_spp(std::uint32_t(s.target_spp));
   stream.set_interactive_frame_ms(s.interactive_frame_ms);
+  stream.set_frames_at_rendered_size(s.frames_at_rendered_size);
   stream.set_error_target(s.error_target);
   return stream;
 }
@@ -241,8 +243,8 @@ float FramePipeline::ChooseScale() {
 int FramePipeline::ChooseCostModelFrame(bool moving) {
   const std::int64_t viewport = std::int64_t(camera_.width) * camera_.height;
   if (moving) {
-    const MovingFrame next =
-        ChooseMovingFrame(cost_, viewport, spp_, settings_.interactive_frame_ms, {moving_scale_, moving_spp_});
+    const MovingFrame next = ChooseMovingFrame(cost_, viewport, spp_, settings_.interactive_frame_ms,
+                                               {moving_scale_, moving_spp_}, settings_.frames_at_rendered_size);
     moving_scale_ = next.scale;
     moving_spp_ = next.spp;
     SetScale(next.scale);
@@ -334,18 +336,24 @@ DisplayFrame FramePipeline::RenderFrame() {
 
   const auto display_start = Clock::now();
   double refine_ms = 0;
-  DisplayInputs in;
-  in.width = camera_.width;
-  in.height = camera_.height;
-  in.exposure = exposure();
-  const bool upsample = scale_ < 1.0f;
+  out.width = camera_.width;
+  out.height = camera_.height;
+  // A smaller frame is upsampled here unless its client stretches it.
+  const bool smaller = scale_ < 1.0f;
+  const bool upsample = smaller && !settings_.frames_at_rendered_size;
   const bool upsample_in_display = upsample && renderer_->backend() == Backend::kCpu;  // no viewport-sized buffer
-  if (upsample && !upsample_in_display) {
+  DisplayInputs in;
+  in.width = upsample ? camera_.width : camera.width;
+  in.height = upsample ? camera_.height : camera.height;
+  in.exposure = exposure();
+  if (smaller) {
     // A moving view shows the denoiser's output alone: its few samples are
     // about to be replaced.
-    in.radiance = upsampler_->Run(denoised, camera.width, camera.height, camera_.width, camera_.height);
-  } else if (upsample) {
-    in.radiance = nullptr;
+    if (!upsample) {
+      in.radiance = denoised;
+    } else if (!upsample_in_display) {
+      in.radiance = upsampler_->Run(denoised, camera.width, camera.height, camera_.width, camera_.height);
+    }
   } else if (settings_.refine) {
     // The denoiser's output and the mean of the samples so far, combined per
     // pixel by their estimated errors.
@@ -382,8 +390,8 @@ DisplayFrame FramePipeline::RenderFrame() {
   // Read once the frame is done: reading it sooner would wait for the render
   // before the denoiser's passes are queued behind it.
   out.render_ms = renderer_->LastFrameMilliseconds();
-  cost_.Observe({std::int64_t(camera.width) * camera.height, spp, out.render_ms, out.denoise_ms,
-                 out.display_ms - refine_ms, refine_ms});
+  cost_.Observe({std::int64_t(camera.width) * camera.height, std::int64_t(in.width) * in.height, spp, out.render_ms,
+                 out.denoise_ms, out.display_ms - refine_ms, refine_ms});
   return out;
 }
 

@@ -93,6 +93,10 @@ struct FrameSettings {
   // (frame_cost.h), and a still frame stops when a newer event preempts it
   // (SetPreempt).
   float interactive_frame_ms = 0;
+  // true: a frame rendered smaller leaves at that size (DisplayFrame::width
+  // says the viewport it is shown at) for the client to stretch: the display
+  // and encode pay for the rendered pixels only. false: upsampled here.
+  bool frames_at_rendered_size = false;
   // false: every frame shows the denoiser's output alone, never the
   // accumulation (the benches measure frames as they look while interacting).
   bool refine = true;
@@ -140,7 +144,8 @@ struct DisplayFrame {
   int accumulated_spp = 0;     // samples per pixel behind it since the scene last changed
   bool final = false;          // refinement reached its error target or target_spp with this frame
   float estimated_error = -1;  // refined frames: the image's estimated relative error; < 0 unknown
-  float resolution_scale = 1;  // < 1: rendered at this fraction of the width and height, upsampled
+  float resolution_scale = 1;  // < 1: rendered at this fraction of the viewport's width and height
+  int width = 0, height = 0;   // the viewport: the size to show the frame at, whatever the image's
   int spp = 0;                 // samples per pixel this frame rendered
   // A newer event stopped the frame (SetPreempt): no image; the
   // accumulation restarted.

@@ -36,6 +36,12 @@ v1::Frame EncodeFrame(const DisplayFrame& display, const FrameStamp& stamp, int 
     frame.set_width(display.image.width);
     frame.set_height(display.image.height);
   }
+  // The size it shows at: the viewport, where the image came smaller
+  // (FrameSettings::frames_at_rendered_size).
+  if (display.width > 0) {
+    frame.set_width(display.width);
+    frame.set_height(display.height);
+  }
   // The GPU's encode counts as the encode stage, not the display's.
   const double encode_s = std::chrono::duration<double>(Clock::now() - start).count() + display.encode_ms / 1000.0;
   frame.mutable_timings()->set_encode_us(Micros(encode_s * 1000.0));

@@ -13,15 +13,17 @@ constexpr std::int64_t k720p = 1280 * 720;
 // render, 300 of denoising, 20 of display, 300 of refinement, nothing else.
 FrameCostModel Measured720p() {
   FrameCostModel model;
-  model.Observe({k720p, 2, 600, 300, 20, 300, 1220});
+  model.Observe({k720p, k720p, 2, 600, 300, 20, 300, 1220});
   return model;
 }
 
 TEST(FrameCostModel, PredictsEverySizeFromOneFrame) {
   const FrameCostModel model = Measured720p();
-  EXPECT_NEAR(model.PredictMoving(k720p, 2), 600 + 300 + 20, 1e-6) << "no refinement while moving";
-  EXPECT_NEAR(model.PredictMoving(k720p / 16, 1), 600.0 / 32 + 300.0 / 16 + 20, 1e-6)
-      << "render per pixel and sample, denoise per pixel, display per viewport";
+  EXPECT_NEAR(model.PredictMoving(k720p, 2, k720p), 600 + 300 + 20, 1e-6) << "no refinement while moving";
+  EXPECT_NEAR(model.PredictMoving(k720p / 16, 1, k720p), 600.0 / 32 + 300.0 / 16 + 20, 1e-6)
+      << "render per pixel and sample, denoise per pixel, display per pixel displayed";
+  EXPECT_NEAR(model.PredictMoving(k720p / 16, 1, k720p / 16), 600.0 / 32 + 300.0 / 16 + 20.0 / 16, 1e-6)
+      << "a frame that leaves at its rendered size displays its own pixels";
   EXPECT_NEAR(model.StillOverhead(k720p), 300 + 20 + 300, 1e-6);
 }
 
@@ -37,11 +39,20 @@ TEST(ChooseMovingFrame, TakesTheLargestSizeThatMeetsTheBudget) {
 
 TEST(ChooseMovingFrame, KeepsItsChoiceUntilALargerOneHasRoomToSpare) {
   FrameCostModel model;
-  model.Observe({k720p / 16, 1, 20, 20, 20, 0, 60});  // 60 ms at 0.25: 0.375 would take 20 + 2.25 * 40 = 110
+  model.Observe({k720p / 16, k720p, 1, 20, 20, 20, 0, 60});  // 60 ms at 0.25: 0.375 would take 20 + 2.25 * 40 = 110
   EXPECT_EQ(ChooseMovingFrame(model, k720p, 1, 100, {0.25f, 1}).scale, 0.25f)
       << "0.375 fits 100 ms, but not within 80% of it";
   EXPECT_EQ(ChooseMovingFrame(model, k720p, 1, 140, {0.25f, 1}).scale, 0.375f);
   EXPECT_EQ(ChooseMovingFrame(model, k720p, 1, 50, {0.25f, 1}).scale, 0.1875f) << "over the budget: down";
+}
+
+TEST(ChooseMovingFrame, CountsTheDisplayAtTheRenderedSizeWhereFramesLeaveAtIt) {
+  FrameCostModel model;
+  model.Observe({k720p / 16, k720p, 1, 10, 10, 40, 0, 60});  // 0.25: 20 ms of render and denoise, 40 of display
+  EXPECT_EQ(ChooseMovingFrame(model, k720p, 1, 70, {0.25f, 1}).scale, 0.25f)
+      << "upsampled: 0.375 would take 2.25 * 20 + 40 = 85 ms";
+  EXPECT_EQ(ChooseMovingFrame(model, k720p, 1, 70, {0.25f, 1}, true).scale, 0.375f)
+      << "at its rendered size: 0.25 takes 20 + 40 / 16 = 22.5 ms, 0.375 51 (within 80% of 70), 0.5 90";
 }
 
 TEST(ChooseMovingFrame, FallsToTheSmallestSizeWhenNothingFits) {
@@ -66,7 +77,7 @@ TEST(ChooseStillSpp, StartsAtTheScenesAndRampsWhileTheOverheadDominates) {
 
 TEST(ChooseStillSpp, StaysAtTheScenesWhereRenderingDominates) {
   FrameCostModel model;
-  model.Observe({k720p, 2, 2000, 10, 5, 10, 2025});
+  model.Observe({k720p, k720p, 2, 2000, 10, 5, 10, 2025});
   EXPECT_EQ(ChooseStillSpp(model, k720p, 2, 2), 2);
 }
 

@@ -13,6 +13,7 @@
 #include <thread>
 #include <vector>
 
+#include "core/ycc.h"
 #include "pipeline/frame_pipeline.h"
 #include "support/small_scene.h"
 
@@ -235,6 +236,59 @@ TEST(CpuLiveView, WithoutABudgetNothingChanges) {
     Zoom(scene, 0.5f);
     pipeline.Update(scene, WithBudget(0), kCameraChanged);
   }
+}
+
+// `image` stretched to width x height as a client does: bilinear between
+// pixel centres, on the displayed 8-bit values.
+ImageRgb8 Stretched(const ImageRgb8& image, int width, int height) {
+  std::vector<Vec3f> source(std::size_t(image.width) * image.height);
+  for (std::size_t i = 0; i < source.size(); ++i) {
+    source[i] = {float(image.bytes[3 * i]), float(image.bytes[3 * i + 1]), float(image.bytes[3 * i + 2])};
+  }
+  const Vec3f* out = MakeCpuUpsampler()->Run(source.data(), image.width, image.height, width, height);
+  ImageRgb8 stretched{width, height, std::vector<std::uint8_t>(std::size_t(width) * height * 3)};
+  for (int i = 0; i < width * height; ++i) {
+    for (int c = 0; c < 3; ++c) stretched.bytes[3 * i + c] = std::uint8_t(std::lround((&out[i].x)[c]));
+  }
+  return stretched;
+}
+
+double Psnr(const ImageRgb8& a, const ImageRgb8& b) {
+  double squared = 0;
+  for (std::size_t i = 0; i < a.bytes.size(); ++i) squared += std::pow(double(a.bytes[i]) - b.bytes[i], 2);
+  return 10 * std::log10(255.0 * 255.0 / std::max(squared / double(a.bytes.size()), 1e-12));
+}
+
+// FrameSettings::frames_at_rendered_size: a smaller frame leaves at its own
+// size, saying the viewport's; stretched by the client it shows what the
+// server's upsampling would have.
+TEST(InteractiveResolution, AFrameAtItsRenderedSizeIsWhatTheServerWouldHaveUpsampled) {
+  auto volume = SmallHead();
+  DisplayFrame frames[2];
+  for (const bool at_rendered_size : {false, true}) {
+    FramePipeline pipeline(Backend::kCpu, volume);
+    v1::Scene scene = SmallScene(*volume, 64, 40, 2);
+    FrameSettings settings = WithBudget(1e-3f);  // no frame meets it: the smallest size at once
+    settings.frames_at_rendered_size = at_rendered_size;
+    pipeline.Update(scene, settings);
+    pipeline.RenderFrame();
+    Zoom(scene, 0.5f);
+    pipeline.Update(scene, settings, kCameraChanged);
+    frames[at_rendered_size] = pipeline.RenderFrame();
+  }
+  const DisplayFrame& upsampled = frames[0];
+  const DisplayFrame& small = frames[1];
+  ASSERT_EQ(small.resolution_scale, kSmallestCpuScale);
+  ASSERT_EQ(upsampled.resolution_scale, kSmallestCpuScale);
+  EXPECT_EQ(small.image.width, 8) << "the rendered size";
+  EXPECT_EQ(small.image.height, 5);
+  EXPECT_EQ(small.width, 64) << "shown at the viewport";
+  EXPECT_EQ(small.height, 40);
+  EXPECT_EQ(upsampled.image.width, 64);
+  EXPECT_EQ(upsampled.width, 64);
+  // Tone mapped before the stretch instead of after, and 4:2:0 chroma of 8x5
+  // pixels instead of 64x40: close, not equal.
+  EXPECT_GT(Psnr(Stretched(ToRgb(small.image), 64, 40), ToRgb(upsampled.image)), 30.0);
 }
 
 TEST(UpsamplePass, InterpolatesBetweenPixelCentresAndClampsAtEdges) {

@@ -1,6 +1,7 @@
 // The render service end to end on the CPU backend: a real cinevol-server on
 // loopback, real gRPC, frames that follow camera, transfer-function and light
 // edits, snapshots, two sessions apart, idle refinement that stops.
+#include <cmath>
 #include <cstdlib>
 #include <gtest/gtest.h>
 
@@ -299,11 +300,30 @@ TEST(SessionStream, AMovingViewStreamsSmallerFramesThenRefinesAtFullSize) {
   const ImageRgb8 small = Decode(*moving);
   EXPECT_EQ(small.width, 96) << "upsampled to the viewport";
   EXPECT_EQ(small.height, 64);
+  EXPECT_EQ(moving->width(), 96u);
 
   const auto refined = WaitFinal(*stream, seq);
   ASSERT_TRUE(refined);
   EXPECT_EQ(refined->resolution_scale(), 1.0f);
   EXPECT_GE(refined->accumulated_spp(), 16u);
+
+  // A client that stretches frames itself gets them at the size they rendered.
+  v1::SessionEvent stretch;
+  stretch.mutable_stream()->set_frames_at_rendered_size(true);
+  stream->Send(stretch);
+  zoom.mutable_camera()->set_fov_y_deg(30.0f);
+  const std::uint64_t seq2 = stream->Send(zoom);
+  const auto rendered = WaitFrame(*stream, [seq2](const v1::Frame& f) { return f.last_event_seq() >= seq2; });
+  ASSERT_TRUE(rendered) << stream->status().error_message();
+  ASSERT_LT(rendered->resolution_scale(), 1.0f);
+  const ImageRgb8 own = Decode(*rendered);
+  EXPECT_EQ(own.width, std::lround(96 * rendered->resolution_scale())) << "the size it rendered";
+  EXPECT_EQ(own.height, std::lround(64 * rendered->resolution_scale()));
+  EXPECT_EQ(rendered->width(), 96u) << "to be shown at the viewport";
+  EXPECT_EQ(rendered->height(), 64u);
+  const auto full = WaitFinal(*stream, seq2);
+  ASSERT_TRUE(full);
+  EXPECT_EQ(Decode(*full).width, 96) << "a still view refines at full size";
 }
 
 TEST(SessionStream, PauseStopsFramesAndResumeBringsThemBack) {

@@ -21,11 +21,14 @@ async function drain(): Promise<void> {
       const start = performance.now();
       const bitmap = await createImageBitmap(new Blob([frame.bytes], { type: frame.type }));
       if (canvas && context) {
-        if (canvas.width !== bitmap.width || canvas.height !== bitmap.height) {
-          canvas.width = bitmap.width;
-          canvas.height = bitmap.height;
+        // The frame's size, which a frame rendered smaller while the view
+        // moves is stretched to (StreamSettings.framesAtRenderedSize).
+        const { width, height } = frame.meta;
+        if (canvas.width !== width || canvas.height !== height) {
+          canvas.width = width;
+          canvas.height = height;
         }
-        context.drawImage(bitmap, 0, 0);
+        context.drawImage(bitmap, 0, 0, width, height);
       }
       bitmap.close();
       const end = performance.now();

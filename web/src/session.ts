@@ -76,7 +76,8 @@ export class LiveSession {
                       viewport: MessageInitShape<typeof ViewportSchema>, start: SessionStart = {}): Promise<LiveSession> {
     const initial = start.scene ? { case: "scene" as const, value: start.scene }
       : start.preset ? { case: "preset" as const, value: start.preset } : { case: undefined };
-    const created = await api.sessions.createSession({ volumeId, viewport, initial });
+    // The frame worker stretches a frame rendered smaller: the server need not upsample it.
+    const created = await api.sessions.createSession({ volumeId, viewport, initial, stream: { framesAtRenderedSize: true } });
     api.sessionAddress = created.address;
     const session = new LiveSession(api, handlers, latency, created.sessionId, volumeId);
     void api.server.getStatus({}).then((s) => {
