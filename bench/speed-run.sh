@@ -16,6 +16,9 @@
 #   cpujpeg    this build with --jpeg-encoder cpu, CPUJPEG_SESSIONS (1 64)
 #   wait       this build with --gpu-wait in WAITS (auto block yield): WAIT_SESSIONS (1 128) full
 #              size, WAIT_INTERACTIVE (128) with --interactive-frame-ms 33
+#   stretch    this build with --interactive-frame-ms 33 over STRETCH_SESSIONS (64 96 128), STRETCH_RUNS (2)
+#              times: frames upsampled by the server (--server-upsamples) and at their rendered
+#              size for the client to stretch (the default), alternating
 #   memory     the device memory per added 720p session (VolumeCache test)
 # SECONDS_PER_RUN (8) is each loadtest's length. Every session of a loadtest
 # shares one connection: servers allow 1024 streams on it (128 by default, which
@@ -24,7 +27,7 @@
 set -uo pipefail
 bundle=${BUNDLE:-.gpu61}
 out=${OUT:-gpu-out}
-cv=/tmp/cv
+cv=${CV:-/tmp/cv}  # where the bundle is unpacked
 logs=$cv/logs  # every run's logs, packed into $out/logs.tar.xz at the end (few files come back)
 mkdir -p "$out" "$cv" "$logs"
 [ -x "$cv/bin/cinevol-server" ] || tar xJf "$bundle/bundle.tar.xz" -C "$cv"
@@ -162,6 +165,16 @@ step_wait() {
     for n in ${WAIT_SESSIONS:-1 128}; do loadtest "wait-$wait" bin "$n" 1280 720; done
     for n in ${WAIT_INTERACTIVE:-128}; do loadtest "wait-$wait-i33" bin "$n" 1280 720 --interactive-frame-ms 33; done
     SERVER_EXTRA=$saved
+  done
+}
+
+step_stretch() {
+  table_header "Interactive frames upsampled by the server or stretched by the client, this build"
+  for run in $(seq "${STRETCH_RUNS:-2}"); do
+    for n in ${STRETCH_SESSIONS:-64 96 128}; do
+      loadtest i33-upsampled bin "$n" 1280 720 --interactive-frame-ms 33 --server-upsamples
+      loadtest i33-stretched bin "$n" 1280 720 --interactive-frame-ms 33
+    done
   done
 }
 
