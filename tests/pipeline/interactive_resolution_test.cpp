@@ -14,7 +14,9 @@
 #include <vector>
 
 #include "core/ycc.h"
+#include "encode/image_codecs.h"
 #include "pipeline/frame_pipeline.h"
+#include "support/gpu.h"
 #include "support/small_scene.h"
 
 namespace cinevol {
@@ -289,6 +291,30 @@ TEST(InteractiveResolution, AFrameAtItsRenderedSizeIsWhatTheServerWouldHaveUpsam
   // Tone mapped before the stretch instead of after, and 4:2:0 chroma of 8x5
   // pixels instead of 64x40: close, not equal.
   EXPECT_GT(Psnr(Stretched(ToRgb(small.image), 64, 40), ToRgb(upsampled.image)), 30.0);
+}
+
+// The GPU's frame at its rendered size, through the GPU's JPEG coder.
+TEST(InteractiveResolution, CudaEncodesAFrameAtItsRenderedSize) {
+  CINEVOL_REQUIRE_CUDA();
+  auto volume = SmallHead();
+  FramePipeline pipeline(Backend::kCuda, volume);
+  pipeline.SetInteractivePolicy(InteractivePolicy::kCostModel);  // the smallest size from the first moving frame
+  pipeline.SetJpegEncoder(JpegEncoderKind::kCuda);
+  v1::Scene scene = SmallScene(*volume, 64, 40, 2);
+  FrameSettings settings = WithBudget(1e-3f);
+  settings.frames_at_rendered_size = true;
+  pipeline.Update(scene, settings);
+  pipeline.RenderFrame();
+  Zoom(scene, 0.5f);
+  pipeline.Update(scene, settings, kCameraChanged);
+  const DisplayFrame moving = pipeline.RenderFrame();
+  ASSERT_EQ(moving.resolution_scale, kSmallestCpuScale);
+  ASSERT_FALSE(moving.jpeg.bytes.empty());
+  const ImageRgb8 decoded = DecodeJpeg(moving.jpeg.bytes);
+  EXPECT_EQ(decoded.width, 8);
+  EXPECT_EQ(decoded.height, 5);
+  EXPECT_EQ(moving.width, 64);
+  EXPECT_EQ(moving.height, 40);
 }
 
 TEST(UpsamplePass, InterpolatesBetweenPixelCentresAndClampsAtEdges) {
