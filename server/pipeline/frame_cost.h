@@ -4,9 +4,9 @@
 // A CPU frame's parts scale differently: the render with pixels times
 // samples, the denoiser with pixels, the display (and upsampling) with the
 // pixels displayed (the viewport, or what rendered where frames leave at
-// their rendered size), the refinement with the viewport (still frames only), and the rest of the frame interval (waiting for the worker,
-// the encoder running beside the next frame on the same cores) with
-// neither. So one measured frame at any size predicts every other size, and a
+// their rendered size), the refinement with the viewport (still frames
+// only), and the rest of the frame interval (waiting for the worker, the
+// encoder running beside the next frame on the same cores) with neither. So one measured frame at any size predicts every other size, and a
 // view that starts moving after a still period gets the right size from its
 // first frame, instead of stepping down one size per few frame times (a
 // full-size CPU frame takes seconds).
