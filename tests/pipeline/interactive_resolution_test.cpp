@@ -15,6 +15,7 @@
 
 #include "core/ycc.h"
 #include "encode/image_codecs.h"
+#include "image_metrics.h"
 #include "pipeline/frame_pipeline.h"
 #include "support/gpu.h"
 #include "support/small_scene.h"
@@ -253,12 +254,6 @@ ImageRgb8 Stretched(const ImageRgb8& image, int width, int height) {
     for (int c = 0; c < 3; ++c) stretched.bytes[3 * i + c] = std::uint8_t(std::lround((&out[i].x)[c]));
   }
   return stretched;
-}
-
-double Psnr(const ImageRgb8& a, const ImageRgb8& b) {
-  double squared = 0;
-  for (std::size_t i = 0; i < a.bytes.size(); ++i) squared += std::pow(double(a.bytes[i]) - b.bytes[i], 2);
-  return 10 * std::log10(255.0 * 255.0 / std::max(squared / double(a.bytes.size()), 1e-12));
 }
 
 // FrameSettings::frames_at_rendered_size: a smaller frame leaves at its own
