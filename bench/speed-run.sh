@@ -19,6 +19,10 @@
 #   stretch    this build with --interactive-frame-ms 33 over STRETCH_SESSIONS (64 96 128), STRETCH_RUNS (2)
 #              times: frames upsampled by the server (--server-upsamples) and at their rendered
 #              size for the client to stretch (the default), alternating
+#   stopgo     both builds alternating, STOPGO_RUNS (2) times: STOPGO_SESSIONS (32 64) sessions
+#              playing bench/scenes/stop-and-go.jsonl (a 60-degree orbit in 1 s, then 0.6 s
+#              at rest, looped; --interactive-frame-ms 33), arriving over 1.6 s: frames
+#              change size each time a view starts and stops moving
 #   memory     the device memory per added 720p session (VolumeCache test)
 # SECONDS_PER_RUN (8) is each loadtest's length. Every session of a loadtest
 # shares one connection: servers allow 1024 streams on it (128 by default, which
@@ -44,7 +48,8 @@ gpu_name() { nvidia-smi --query-gpu=name --format=csv,noheader | head -1; }
 cpu_seconds() { awk '{printf "%.2f", ($14 + $15) / 100}' "/proc/$1/stat" 2>/dev/null || echo 0; }
 
 # loadtest LABEL BUILD SESSIONS WIDTH HEIGHT [LOADTEST FLAGS...]: a fresh server
-# of BUILD (bin or bin-before) on CThead, SESSIONS orbiting sessions; one row.
+# of BUILD (bin or bin-before) on CThead, SESSIONS orbiting sessions (or
+# playing SCRIPT, whose viewport WIDTH x HEIGHT should name); one row.
 loadtest() {
   local label=$1 build=$2 n=$3 w=$4 h=$5
   shift 5
@@ -61,9 +66,10 @@ loadtest() {
   local smi=$! cpu0
   cpu0=$(cpu_seconds $server)
   local start=$SECONDS
+  local what=(--width "$w" --height "$h" --spp 2 --denoiser wrls --scene "$scene")
+  [ -n "${SCRIPT:-}" ] && what=(--script "$SCRIPT")
   "$cv/bin/cinevol" loadtest --server "127.0.0.1:$(cat "$port_file")" --sessions "$n" --seconds "$seconds" \
-    --width "$w" --height "$h" --spp 2 --denoiser wrls --scene "$scene" --json "$@" > "$logs/loadtest-$tag.json" \
-    2> "$logs/loadtest-$tag.err"
+    "${what[@]}" --json "$@" > "$logs/loadtest-$tag.json" 2> "$logs/loadtest-$tag.err"
   local rc=$? elapsed=$((SECONDS - start)) cpu1
   cpu1=$(cpu_seconds $server)
   kill $smi
@@ -89,7 +95,7 @@ errors = ", ".join(f"{k} {v}" for k, v in o["errors"].items()) or "-"
 cores = (float(cpu1) - float(cpu0)) / max(float(elapsed), 1)
 each = f"{sum(fps)/len(fps):.1f} ({min(fps):.1f})" if fps else "-"
 print(f"| {label} | {build} | {len(r['per_session'])} ({len(served)} served) | {w}x{h} | {each} "
-      f"| {sum(fps):.0f} | {o['latency_ms']['p50']:.1f} / {o['latency_ms']['p95']:.1f} | render {s['render']:.2f}, "
+      f"| {sum(fps):.0f} | {o['latency_ms']['p50']:.1f} / {o['latency_ms']['p95']:.1f} / {o['latency_ms']['p99']:.1f} | render {s['render']:.2f}, "
       f"denoise {s['denoise']:.2f}, display {s['tonemap']:.2f}, encode {s['encode']:.2f}, queue {s['queue']:.2f} "
       f"| {sum(busy)/max(len(busy),1):.0f}% | {mem:.0f} | {cores:.1f} | {o['dropped']} | {errors} |")
 EOF
@@ -98,7 +104,7 @@ EOF
 
 table_header() {
   { echo; echo "### $1 ($(gpu_name), $(date -u +%F))"; echo
-    echo "| run | build | sessions | size | fps each (min) | frames/s | p50 / p95 ms | stages ms | GPU busy | GPU MiB | server cores | dropped | errors |"
+    echo "| run | build | sessions | size | fps each (min) | frames/s | p50 / p95 / p99 ms | stages ms | GPU busy | GPU MiB | server cores | dropped | errors |"
     echo "|---|---|---|---|---|---|---|---|---|---|---|---|---|"; } >> "$table"
 }
 
@@ -174,6 +180,17 @@ step_stretch() {
     for n in ${STRETCH_SESSIONS:-64 96 128}; do
       loadtest i33-upsampled bin "$n" 1280 720 --interactive-frame-ms 33 --server-upsamples
       loadtest i33-stretched bin "$n" 1280 720 --interactive-frame-ms 33
+    done
+  done
+}
+
+step_stopgo() {
+  table_header "Views that stop and go (bench/scenes/stop-and-go.jsonl), both builds alternating"
+  for run in $(seq "${STOPGO_RUNS:-2}"); do
+    for n in ${STOPGO_SESSIONS:-32 64}; do
+      for build in bin-before bin; do
+        SCRIPT=$cv/scenes/stop-and-go.jsonl loadtest stopgo "$build" "$n" 1280 720 --ramp-seconds 1.6
+      done
     done
   done
 }

@@ -35,19 +35,28 @@ class DeviceBuffer {
   ~DeviceBuffer() { Free(); }
   DeviceBuffer(const DeviceBuffer&) = delete;
   DeviceBuffer& operator=(const DeviceBuffer&) = delete;
-  DeviceBuffer(DeviceBuffer&& o) noexcept : data_(o.data_), count_(o.count_) { o.data_ = nullptr, o.count_ = 0; }
+  DeviceBuffer(DeviceBuffer&& o) noexcept : data_(o.data_), count_(o.count_), capacity_(o.capacity_) {
+    o.data_ = nullptr, o.count_ = o.capacity_ = 0;
+  }
   DeviceBuffer& operator=(DeviceBuffer&& o) noexcept {
     std::swap(data_, o.data_);
     std::swap(count_, o.count_);
+    std::swap(capacity_, o.capacity_);
     return *this;
   }
 
-  // Reallocates only when the size changes; contents are undefined after.
+  // Contents are undefined after. Keeps the allocation for a size down to a
+  // quarter of it: cudaFree and cudaMalloc wait for the whole GPU, every
+  // session's work on it, and interactive frames (down to half the viewport's
+  // width and height) change size each time a view starts or stops moving.
   void Resize(std::size_t count) {
-    if (count == count_) return;
+    if (count <= capacity_ && count * 4 >= capacity_) {
+      count_ = count;
+      return;
+    }
     Free();
     if (count > 0) CINEVOL_CUDA_CHECK(cudaMalloc(&data_, count * sizeof(T)));
-    count_ = count;
+    count_ = capacity_ = count;
   }
 
   // Work is ordered on the calling thread's default stream (cudaStreamPerThread):
@@ -89,15 +98,16 @@ class DeviceBuffer {
 
   T* data() const { return data_; }
   std::size_t size() const { return count_; }
+  std::size_t capacity() const { return capacity_; }  // elements allocated
 
  private:
   void Free() {
     if (data_) cudaFree(data_);
     data_ = nullptr;
-    count_ = 0;
+    count_ = capacity_ = 0;
   }
   T* data_ = nullptr;
-  std::size_t count_ = 0;
+  std::size_t count_ = 0, capacity_ = 0;
 };
 
 // Page-locked host memory, the target of device-to-host copies that should
