@@ -9,7 +9,8 @@
 #   pair       loadtests of both builds, alternating: PAIR_SESSIONS (1 32 64) at 1280x720
 #   sweep      this build's loadtest over SWEEP (1 8 16 32 48 64 96 128) sessions,
 #              full size and (SWEEP_INTERACTIVE) with --interactive-frame-ms 33
-#   big        one 3840x2160 and one 2560x1440 session, both builds alternating, BIG_RUNS (2) times
+#   big        one 3840x2160 and one 2560x1440 session, both builds alternating, BIG_RUNS (2) times;
+#              with BIG_INTERACTIVE_MS also this build's 3840x2160 with --interactive-frame-ms
 #   admission  --min-session-fps 30, ADMIT_SESSIONS (64) arriving over RAMP (8) seconds, each
 #              running ADMIT_SECONDS (SECONDS_PER_RUN): the
 #              sessions past capacity refused, the rest at >= 30 fps
@@ -145,6 +146,9 @@ step_big() {
       loadtest big "$build" 1 3840 2160
       loadtest big "$build" 1 2560 1440
     done
+    # A reading monitor whose moving frames render smaller to keep its budget.
+    [ -n "${BIG_INTERACTIVE_MS:-}" ] &&
+      loadtest "big-i$BIG_INTERACTIVE_MS" bin 1 3840 2160 --interactive-frame-ms "$BIG_INTERACTIVE_MS"
   done
 }
 
