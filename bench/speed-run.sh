@@ -6,7 +6,8 @@
 # Steps (each writes logs to $OUT and rows to $OUT/table.md, printed last):
 #   tests      the GPU tests of this build (TESTS: a gtest filter)
 #   encode     cinevol-bench encode: every JPEG encoder on the same frames
-#   pair       loadtests of both builds, alternating: PAIR_SESSIONS (1 32 64) at 1280x720
+#   pair       loadtests of both builds, alternating: PAIR_SESSIONS (1 32 64) at 1280x720,
+#              with PAIR_EXTRA's loadtest flags
 #   sweep      this build's loadtest over SWEEP (1 8 16 32 48 64 96 128) sessions,
 #              full size and (SWEEP_INTERACTIVE) with --interactive-frame-ms 33
 #   big        one 3840x2160 and one 2560x1440 session, both builds alternating, BIG_RUNS (2) times;
@@ -55,8 +56,8 @@ loadtest() {
   local label=$1 build=$2 n=$3 w=$4 h=$5
   shift 5
   local tag="$label-$build-$n-${w}x$h" port_file=$cv/port-$RANDOM extra=${SERVER_EXTRA:-}
-  # Admission off unless MIN_FPS asks (the build before has no such flag).
-  [ "$build" = bin ] && extra="--min-session-fps ${MIN_FPS:-0} $extra"
+  # Admission off unless MIN_FPS asks (both builds have the flag since 2026-12-02).
+  extra="--min-session-fps ${MIN_FPS:-0} $extra"
   "$cv/$build/cinevol-server" --listen 127.0.0.1:0 --port-file "$port_file" --backend cuda --volume "$volume" \
     --max-sessions 256 --max-sessions-per-principal 256 --max-total-pixels 2000000000 \
     --max-streams-per-connection 1024 $extra \
@@ -129,7 +130,7 @@ step_encode() {
 step_pair() {
   table_header "Both builds alternating, 1280x720"
   for n in ${PAIR_SESSIONS:-1 32 64}; do
-    for build in bin-before bin; do loadtest pair "$build" "$n" 1280 720; done
+    for build in bin-before bin; do loadtest "pair${PAIR_EXTRA:+-i}" "$build" "$n" 1280 720 ${PAIR_EXTRA:-}; done
   done
 }
 
