@@ -20,7 +20,7 @@ if [ -n "${BEFORE:-}" ]; then
 fi
 mkdir -p "$stage/data" "$stage/scenes"
 cp -r ../shared/data/ct-head-cthead "$stage/data/"
-cp bench/scenes/ct-head-cthead.json bench/scenes/stop-and-go.jsonl "$stage/scenes/"
+cp bench/scenes/ct-head-cthead.json bench/scenes/stop-and-go.jsonl bench/scenes/tf-drag.jsonl "$stage/scenes/"
 mkdir -p "$dest"
 tar -I 'xz -T0 -6' -cf "$dest/bundle.tar.xz" -C "$stage" .
 cp bench/speed-run.sh "$dest/run.sh"

@@ -25,6 +25,9 @@
 #              playing bench/scenes/stop-and-go.jsonl (a 60-degree orbit in 1 s, then 0.6 s
 #              at rest, looped; --interactive-frame-ms 33), arriving over 1.6 s: frames
 #              change size each time a view starts and stops moving
+#   tfdrag     both builds alternating, TFDRAG_RUNS (2) times: TFDRAG_SESSIONS (32 64) full-size
+#              sessions playing bench/scenes/tf-drag.jsonl (CThead's soft-tissue and bone ramps
+#              swept 150 units either way and back in 1 s, 30 transfer-function events a second)
 #   memory     the device memory per added 720p session (VolumeCache test)
 # SECONDS_PER_RUN (8) is each loadtest's length. Every session of a loadtest
 # shares one connection: servers allow 1024 streams on it (128 by default, which
@@ -196,6 +199,15 @@ step_stopgo() {
       for build in bin-before bin; do
         SCRIPT=$cv/scenes/stop-and-go.jsonl loadtest stopgo "$build" "$n" 1280 720 --ramp-seconds 1.6
       done
+    done
+  done
+}
+
+step_tfdrag() {
+  table_header "Transfer functions dragged (bench/scenes/tf-drag.jsonl), both builds alternating"
+  for run in $(seq "${TFDRAG_RUNS:-2}"); do
+    for n in ${TFDRAG_SESSIONS:-32 64}; do
+      for build in bin-before bin; do SCRIPT=$cv/scenes/tf-drag.jsonl loadtest tfdrag "$build" "$n" 1280 720; done
     done
   done
 }
