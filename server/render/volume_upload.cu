@@ -1,9 +1,4 @@
 // A prepared volume's voxels, and a segmentation's labels, in a GPU's memory.
-#include <iterator>
-#include <map>
-#include <mutex>
-#include <vector>
-
 #include "device/cuda_buffer.h"
 #include "device/volume_texture.h"
 #include "render/prepared_volume.h"
@@ -84,69 +79,8 @@ std::shared_ptr<const std::uint16_t> UploadLabels(const LabelVolume& labels, int
   return UploadBuffer(labels.labels, gpu);
 }
 
-namespace {
-
-// Device memory of majorant sets let go, kept for the next set of the same
-// size on the same GPU. A transfer-function drag replaces a session's set with
-// every event (dozens a second), and cudaFree and cudaMalloc wait for the whole
-// GPU, every session's queued work. Past kSpareBytes a GPU's sets are freed.
-class SpareMajorants {
- public:
-  static SpareMajorants& Get() {
-    static SpareMajorants spares;
-    return spares;
-  }
-
-  // The spare buffer of `count` floats on `gpu` let go last, or an empty one.
-  DeviceBuffer<float> Take(int gpu, std::size_t count) {
-    std::lock_guard lock(mu_);
-    std::vector<DeviceBuffer<float>>& spares = spares_[gpu];
-    for (auto it = spares.rbegin(); it != spares.rend(); ++it) {
-      if (it->size() != count) continue;
-      DeviceBuffer<float> taken = std::move(*it);
-      spares.erase(std::next(it).base());
-      bytes_[gpu] -= count * sizeof(float);
-      return taken;
-    }
-    return {};
-  }
-
-  // Keeps `buffer` (its set's last reader let go of it), or frees it on its
-  // GPU when the spares are full. Called on the thread that let go.
-  void Give(int gpu, DeviceBuffer<float> buffer) {
-    {
-      std::lock_guard lock(mu_);
-      const std::size_t bytes = buffer.size() * sizeof(float);
-      if (bytes_[gpu] + bytes <= kSpareBytes) {
-        bytes_[gpu] += bytes;
-        spares_[gpu].push_back(std::move(buffer));
-        return;
-      }
-    }
-    OnGpu on(gpu);
-    buffer = {};  // freed here, while `gpu` is the thread's device
-  }
-
- private:
-  static constexpr std::size_t kSpareBytes = std::size_t(64) << 20;
-  std::mutex mu_;
-  std::map<int, std::vector<DeviceBuffer<float>>> spares_;  // by GPU
-  std::map<int, std::size_t> bytes_;
-};
-
-}  // namespace
-
 std::shared_ptr<const float> UploadMajorants(const std::vector<float>& majorants, int gpu) {
-  OnGpu on(gpu);
-  auto owned = std::make_shared<DeviceBuffer<float>>(SpareMajorants::Get().Take(gpu, majorants.size()));
-  owned->Upload(majorants);
-  CINEVOL_CUDA_CHECK(cudaStreamSynchronize(cudaStreamPerThread));  // read next on other streams
-  const float* data = owned->data();
-  // Its last reader lets go between its frames, its kernels done (each frame
-  // waits for its own), so the memory can hold the next set at once.
-  return std::shared_ptr<const float>(data, [owned = std::move(owned), gpu](const float*) {
-    SpareMajorants::Get().Give(gpu, std::move(*owned));
-  });
+  return UploadBuffer(majorants, gpu);
 }
 
 }  // namespace cinevol

@@ -3,10 +3,6 @@
 // last of them, and rendering exactly what a renderer alone renders.
 #include <gtest/gtest.h>
 
-#if CINEVOL_WITH_CUDA
-#include <cuda_runtime.h>
-#endif
-
 #include <thread>
 #include <vector>
 
@@ -250,24 +246,6 @@ TEST(VolumeCache, CudaRenderersShareTheirMajorantsOnTheGpu) {
   }
   EXPECT_EQ(VolumeCache::Get().MajorantSets(), sets_before);
 }
-
-#if CINEVOL_WITH_CUDA
-// A transfer-function drag replaces a session's majorants with every event:
-// the next set takes the memory of the set let go (cudaFree and cudaMalloc
-// wait for every session's work on the GPU), holding its own values.
-TEST(VolumeCache, CudaMajorantSetsTakeTheMemoryOfSetsLetGo) {
-  CINEVOL_REQUIRE_CUDA();
-  const auto first = std::make_shared<const std::vector<float>>(4096, 1.0f);
-  const auto second = std::make_shared<const std::vector<float>>(4096, 2.0f);
-  const float* memory = VolumeCache::Get().AcquireMajorantsOnGpu(first, 0).get();  // let go at once
-  const auto set = VolumeCache::Get().AcquireMajorantsOnGpu(second, 0);
-  EXPECT_EQ(set.get(), memory);
-  std::vector<float> on_gpu(second->size());
-  ASSERT_EQ(cudaMemcpy(on_gpu.data(), set.get(), on_gpu.size() * sizeof(float), cudaMemcpyDeviceToHost), cudaSuccess);
-  EXPECT_EQ(on_gpu, *second);
-  EXPECT_NE(VolumeCache::Get().AcquireMajorantsOnGpu(first, 0).get(), set.get()) << "a set in use keeps its memory";
-}
-#endif
 
 // What a 720p session's pipeline adds on the GPU beyond the shared voxels,
 // and what that is made of: the renderer's frame buffers, the denoiser's and
