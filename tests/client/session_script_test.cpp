@@ -112,5 +112,26 @@ TEST(SessionScript, TheReadingExampleHasSlicesAndPicks) {
   EXPECT_EQ(script.steps.size(), 2u) << "two camera events";
 }
 
+// The loadtest scripts of bench/speed-run.sh (docs/performance.md): a view that
+// stops and goes with interactive resolution, and a transfer-function drag.
+TEST(SessionScript, TheBenchScriptsMoveAndRestAsTheirStepsSay) {
+  const std::filesystem::path scenes = std::filesystem::path(CINEVOL_SOURCE_DIR) / "bench" / "scenes";
+  const cli::SessionScript stop_and_go = cli::LoadScript(scenes / "stop-and-go.jsonl");
+  EXPECT_EQ(stop_and_go.session.viewport.width(), 1280);
+  EXPECT_EQ(stop_and_go.session.stream.interactive_frame_ms(), 33.0f);
+  EXPECT_TRUE(stop_and_go.session.stream.frames_at_rendered_size());
+  ASSERT_EQ(stop_and_go.steps.size(), 2u);
+  EXPECT_TRUE(stop_and_go.steps[0].is_orbit);
+  EXPECT_EQ(stop_and_go.steps[0].orbit.seconds, 1.0);
+  EXPECT_EQ(stop_and_go.steps[1].at, 1.6) << "then at rest, past the 200 ms the view counts as moving";
+
+  const cli::SessionScript drag = cli::LoadScript(scenes / "tf-drag.jsonl");
+  ASSERT_TRUE(drag.session.scene.has_value());
+  EXPECT_EQ(drag.session.stream.interactive_frame_ms(), 0.0f) << "full-size frames";
+  ASSERT_EQ(drag.steps.size(), 31u);
+  for (const cli::ScriptStep& step : drag.steps) EXPECT_TRUE(step.event.has_transfer_function()) << step.line;
+  EXPECT_EQ(drag.steps.back().at, 1.0);
+}
+
 }  // namespace
 }  // namespace cinevol::testing
