@@ -21,7 +21,7 @@
 #   stretch    this build with --interactive-frame-ms 33 over STRETCH_SESSIONS (64 96 128), STRETCH_RUNS (2)
 #              times: frames upsampled by the server (--server-upsamples) and at their rendered
 #              size for the client to stretch (the default), alternating
-#   stopgo     both builds alternating, STOPGO_RUNS (2) times: STOPGO_SESSIONS (32 64) sessions
+#   stopgo     STOPGO_BUILDS (both) alternating, STOPGO_RUNS (2) times: STOPGO_SESSIONS (32 64) sessions
 #              playing bench/scenes/stop-and-go.jsonl (a 60-degree orbit in 1 s, then 0.6 s
 #              at rest, looped; --interactive-frame-ms 33), arriving over 1.6 s: frames
 #              change size each time a view starts and stops moving
@@ -196,7 +196,7 @@ step_stopgo() {
   table_header "Views that stop and go (bench/scenes/stop-and-go.jsonl), both builds alternating"
   for run in $(seq "${STOPGO_RUNS:-2}"); do
     for n in ${STOPGO_SESSIONS:-32 64}; do
-      for build in bin-before bin; do
+      for build in ${STOPGO_BUILDS:-bin-before bin}; do
         SCRIPT=$cv/scenes/stop-and-go.jsonl loadtest stopgo "$build" "$n" 1280 720 --ramp-seconds 1.6
       done
     done
