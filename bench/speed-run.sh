@@ -192,24 +192,27 @@ step_stretch() {
   done
 }
 
-step_stopgo() {
-  table_header "Views that stop and go (bench/scenes/stop-and-go.jsonl), both builds alternating"
-  for run in $(seq "${STOPGO_RUNS:-2}"); do
-    for n in ${STOPGO_SESSIONS:-32 64}; do
-      for build in ${STOPGO_BUILDS:-bin-before bin}; do
-        SCRIPT=$cv/scenes/stop-and-go.jsonl loadtest stopgo "$build" "$n" 1280 720 --ramp-seconds 1.6
-      done
+# script_runs LABEL SCRIPT RUNS SESSIONS BUILDS [LOADTEST FLAGS...]: loadtests of
+# SCRIPT (its viewport 1280x720) for each count in SESSIONS, the BUILDS alternating.
+script_runs() {
+  local label=$1 script=$2 runs=$3 sessions=$4 builds=$5
+  shift 5
+  for run in $(seq "$runs"); do
+    for n in $sessions; do
+      for build in $builds; do SCRIPT=$script loadtest "$label" "$build" "$n" 1280 720 "$@"; done
     done
   done
 }
 
+step_stopgo() {
+  table_header "Views that stop and go (bench/scenes/stop-and-go.jsonl), both builds alternating"
+  script_runs stopgo "$cv/scenes/stop-and-go.jsonl" "${STOPGO_RUNS:-2}" "${STOPGO_SESSIONS:-32 64}" \
+    "${STOPGO_BUILDS:-bin-before bin}" --ramp-seconds 1.6
+}
+
 step_tfdrag() {
   table_header "Transfer functions dragged (bench/scenes/tf-drag.jsonl), both builds alternating"
-  for run in $(seq "${TFDRAG_RUNS:-2}"); do
-    for n in ${TFDRAG_SESSIONS:-32 64}; do
-      for build in bin-before bin; do SCRIPT=$cv/scenes/tf-drag.jsonl loadtest tfdrag "$build" "$n" 1280 720; done
-    done
-  done
+  script_runs tfdrag "$cv/scenes/tf-drag.jsonl" "${TFDRAG_RUNS:-2}" "${TFDRAG_SESSIONS:-32 64}" "bin-before bin"
 }
 
 step_memory() {
