@@ -103,7 +103,7 @@ struct VariancePass {
   Vec3f* squares;                // sum of s_i x_i^2 (this pass adds this frame's)
   Vec3f* odd_sum;                // sum of the samples of frames 1, 3, 5...
   float* variance;               // of the mean, relative
-  int width, frames;
+  int width, frames;             // frames >= 2: the first frame is read back from the sum at the second
   int spp;                       // this frame's samples per pixel
   float samples;                 // S: samples per pixel in accumulated_sum
   float dark;                    // RelativeScale's floor
@@ -112,17 +112,24 @@ struct VariancePass {
     const int i = y * width + x;
     const Vec3f r = frame[i];
     const float s = float(spp);
-    const Vec3f q = (frames == 1 ? Vec3f{} : squares[i]) + r * r * s;
-    squares[i] = q;
-    if (frames % 2 == 1) odd_sum[i] = (frames == 1 ? Vec3f{} : odd_sum[i]) + r * s;
-    const Vec3f m = accumulated_sum[i] * (1.0f / samples);
-    if (frames < 2) {
-      variance[i] = 0.0f;
-      return;
+    const Vec3f sum = accumulated_sum[i];
+    Vec3f q = r * r * s;
+    if (frames == 2) {
+      // Frame 1 is the sum less this frame's samples (clamped: radiance is
+      // never negative, the difference may round below 0).
+      const float s1 = samples - s;
+      const Vec3f r1 = Max(sum - r * s, Vec3f{}) * (1.0f / s1);
+      q += r1 * r1 * s1;
+      odd_sum[i] = r1 * s1;
+    } else {
+      q += squares[i];
+      if (frames % 2 == 1) odd_sum[i] += r * s;
     }
+    squares[i] = q;
+    const Vec3f m = sum * (1.0f / samples);
     const Vec3f spread = q - m * m * samples;  // sum of weighted squared deviations
-    const float sum = fmaxf(spread.x, 0.0f) + fmaxf(spread.y, 0.0f) + fmaxf(spread.z, 0.0f);
-    variance[i] = sum / (3.0f * (float(frames) - 1.0f) * samples) * RelativeScale(m, dark);
+    const float total = fmaxf(spread.x, 0.0f) + fmaxf(spread.y, 0.0f) + fmaxf(spread.z, 0.0f);
+    variance[i] = total / (3.0f * (float(frames) - 1.0f) * samples) * RelativeScale(m, dark);
   }
 };
 
@@ -349,7 +356,7 @@ class Refiner {
  public:
   virtual ~Refiner() = default;
   // Every full-size frame: takes its radiance into the squares and the odd
-  // or even half, and from
+  // or even half (the first frame's at the second, from the sum), and from
   // kMinFramesForError frames on blends (before, too few frames have too
   // noisy a spread to go by, and the denoiser's output is shown as it is).
   virtual RefinedImage Refine(const RefineInputs& in) = 0;
@@ -370,12 +377,15 @@ class RefinerOn final : public Refiner {
     variance_.Resize(n);
     if (in.frames < 1 || in.spp < 1 || in.samples < in.spp)
       throw std::invalid_argument("Refiner::Refine: a frame's samples and the accumulation's");
-    if (in.frames == 1) odd_samples_ = 0;
+    width_ = height_ = 0;
+    // A first frame adds nothing to the spread: the next frame reads it back
+    // from the sum (every moving frame is a first frame, and skips the pass).
+    if (in.frames == 1) return {in.denoised, -1.0f};
+    if (in.frames == 2) odd_samples_ = in.samples - in.spp;
     if (in.frames % 2 == 1) odd_samples_ += in.spp;
     const float samples = float(in.samples);
     B::ForEachPixel(w, h, VariancePass{in.frame, in.accumulated_sum, squares_.data(), odd_sum_.data(),
                                        variance_.data(), w, in.frames, in.spp, samples, dark});
-    width_ = height_ = 0;
     if (in.frames < kMinFramesForError) return {in.denoised, -1.0f};
 
     const float inv_samples = 1.0f / samples;

@@ -149,6 +149,35 @@ TEST(Refinement, ErrorsAreEstimatedOnlyAfterEnoughFrames) {
   }
 }
 
+// A first frame skips the squares' pass (every moving frame is one): the
+// second frame reads it back from the sum. The spread of frame means of
+// unequal samples, and the odd frames' sum, come out as summed directly.
+TEST(Refinement, TheSecondFrameReadsTheFirstBackFromTheSum) {
+  const Vec3f means[] = {{0.5f, 0.0f, 2.0f}, {0.7f, 0.1f, 1.0f}, {0.2f, 0.0f, 1.5f}, {0.9f, 0.3f, 0.5f}};
+  const int spp[] = {2, 4, 8, 3};
+  const float dark = kDarkGrey;
+  Vec3f sum{}, squares{}, odd_sum{}, kept_squares{}, kept_odd{};
+  float samples = 0, variance = 0;
+  for (int f = 1; f <= 4; ++f) {
+    const Vec3f r = means[f - 1];
+    const float s = float(spp[f - 1]);
+    sum += r * s;
+    samples += s;
+    squares += r * r * s;
+    if (f % 2 == 1) odd_sum += r * s;
+    if (f == 1) continue;  // Refine returns before the pass
+    VariancePass{&r, &sum, &kept_squares, &kept_odd, &variance, 1, f, spp[f - 1], samples, dark}(0, 0);
+    const Vec3f m = sum * (1.0f / samples);
+    const Vec3f spread = squares - m * m * samples;
+    const float expected = (fmaxf(spread.x, 0.0f) + fmaxf(spread.y, 0.0f) + fmaxf(spread.z, 0.0f)) /
+                           (3.0f * float(f - 1) * samples) * RelativeScale(m, dark);
+    EXPECT_NEAR(variance, expected, 1e-5f * expected) << "frame " << f;
+    EXPECT_NEAR(kept_squares.z, squares.z, 1e-5f * squares.z) << "frame " << f;
+    EXPECT_NEAR(kept_odd.x, odd_sum.x, 1e-5f * odd_sum.x) << "frame " << f;
+    EXPECT_EQ(kept_odd.y, odd_sum.y) << "frame " << f << ": a channel at 0 stays 0";
+  }
+}
+
 // A CPU session's still frames take more samples as they go (ChooseStillSpp:
 // the scene's, then twice the last, up to kMaxStillSpp, the last one cut to
 // the cap). Each frame weighs by its samples: the accumulation is the mean of
