@@ -28,8 +28,11 @@
 #   tfdrag     both builds alternating, TFDRAG_RUNS (2) times: TFDRAG_SESSIONS (32 64) full-size
 #              sessions playing bench/scenes/tf-drag.jsonl (CThead's soft-tissue and bone ramps
 #              swept 150 units either way and back in 1 s, 30 transfer-function events a second)
+#   sizes      this build's SIZES_SESSIONS (128) sessions at each of SIZES (1280x720 640x360
+#              320x180), with SIZES_FLAGS' loadtest flags: what a frame costs that does not grow
+#              with its pixels; with SERVER_EXTRA, what a server flag buys at one size
 #   memory     the device memory per added 720p session (VolumeCache test)
-# SECONDS_PER_RUN (8) is each loadtest's length. Every session of a loadtest
+# SECONDS_PER_RUN (8) is each loadtest's length, DENOISER (wrls) its sessions' denoiser. Every session of a loadtest
 # shares one connection: servers allow 1024 streams on it (128 by default, which
 # 128 sessions' streams fill, and their closing calls then wait for a stream). This build's servers run with
 # --min-session-fps 0 (MIN_FPS) but in the admission step, SERVER_EXTRA adds flags.
@@ -71,7 +74,7 @@ loadtest() {
   local smi=$! cpu0
   cpu0=$(cpu_seconds $server)
   local start=$SECONDS
-  local what=(--width "$w" --height "$h" --spp 2 --denoiser wrls --scene "$scene")
+  local what=(--width "$w" --height "$h" --spp 2 --denoiser "${DENOISER:-wrls}" --scene "$scene")
   [ -n "${SCRIPT:-}" ] && what=(--script "$SCRIPT")
   "$cv/bin/cinevol" loadtest --server "127.0.0.1:$(cat "$port_file")" --sessions "$n" --seconds "$seconds" \
     "${what[@]}" --json "$@" > "$logs/loadtest-$tag.json" 2> "$logs/loadtest-$tag.err"
@@ -213,6 +216,14 @@ step_stopgo() {
 step_tfdrag() {
   table_header "Transfer functions dragged (bench/scenes/tf-drag.jsonl), both builds alternating"
   script_runs tfdrag "$cv/scenes/tf-drag.jsonl" "${TFDRAG_RUNS:-2}" "${TFDRAG_SESSIONS:-32 64}" "bin-before bin"
+}
+
+step_sizes() {
+  table_header "This build's sessions at each size (${DENOISER:-wrls}, ${SIZES_FLAGS:-no loadtest flags}; server: ${SERVER_EXTRA:-defaults})"
+  for size in ${SIZES:-1280x720 640x360 320x180}; do
+    # shellcheck disable=SC2086 # SIZES_FLAGS: several flags
+    loadtest sizes bin "${SIZES_SESSIONS:-128}" "${size%x*}" "${size#*x}" ${SIZES_FLAGS:-}
+  done
 }
 
 step_memory() {
