@@ -375,7 +375,9 @@ class RefinerOn final : public Refiner {
     squares_.Resize(n);
     odd_sum_.Resize(n);
     variance_.Resize(n);
-    if (in.frames < 1 || in.spp < 1 || in.samples < in.spp)
+    // Every frame before this one took a sample at least: the second frame
+    // divides by the first's.
+    if (in.frames < 1 || in.spp < 1 || in.samples < std::int64_t(in.spp) + (in.frames - 1))
       throw std::invalid_argument("Refiner::Refine: a frame's samples and the accumulation's");
     width_ = height_ = 0;
     // A first frame adds nothing to the spread: the next frame reads it back

@@ -176,6 +176,11 @@ TEST(Refinement, TheSecondFrameReadsTheFirstBackFromTheSum) {
     EXPECT_NEAR(kept_odd.x, odd_sum.x, 1e-5f * odd_sum.x) << "frame " << f;
     EXPECT_EQ(kept_odd.y, odd_sum.y) << "frame " << f << ": a channel at 0 stays 0";
   }
+  // A second frame whose first took no samples would divide by zero: refused.
+  const Vec3f pixel{1, 1, 1};
+  const auto refiner = MakeCpuRefiner();
+  EXPECT_THROW(refiner->Refine({1, 1, &pixel, &pixel, &pixel, 2, 0.0f, 2, 2}), std::invalid_argument);
+  EXPECT_NO_THROW(refiner->Refine({1, 1, &pixel, &pixel, &pixel, 2, 0.0f, 2, 3}));
 }
 
 // A CPU session's still frames take more samples as they go (ChooseStillSpp:
