@@ -30,6 +30,7 @@ packages=(
   chromium                      # web/e2e: the page tested in a real headless browser
   podman runc mmdebstrap        # scripts/images.sh: the images built and run (docs/deploy.md); no registry: a Debian base made here
   netavark aardvark-dns         # the stack's containers find one another by name (podman's network backend and its DNS)
+  iptables                      # netavark runs it to set up the containers' network (it does not depend on it)
   podman-compose                # deploy/compose run by podman (tests/containers)
   catatonit                     # the pause process of the pods `podman kube play` makes (tests/containers)
 )
