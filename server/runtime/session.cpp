@@ -292,16 +292,17 @@ void Session::OnEventLocked(v1::SessionEvent event, Clock::time_point arrival, b
   } else {
     last_owner_seq_ = event.seq();
   }
+  bool changes_picture = !event.has_pause() && !event.has_resume() && !event.has_stream();
   if (event.has_pause() || event.has_resume() || events_.Take(arrival)) {
     ApplyCoalescedLocked();  // what came earlier applies first
-    ApplyLocked(event, arrival);
+    if (ApplyLocked(event, arrival) == 0) changes_picture = false;
   } else {
     CoalesceEvent(coalesced_, event);  // over the rate: kept for the next frame
     last_event_seq_ = event.seq();
     coalesced_arrival_ = arrival;
     ServerMetrics().EventCoalesced();
   }
-  if (!event.has_pause() && !event.has_resume() && !event.has_stream()) preempt_ = true;  // the picture changes
+  if (changes_picture) preempt_ = true;  // a still frame in progress is moot
 }
 
 void Session::NoteMisfitLocked() {
@@ -319,7 +320,7 @@ void Session::ApplyCoalescedLocked() {
   for (const auto& [kind, event] : events) ApplyLocked(event, coalesced_arrival_);
 }
 
-void Session::ApplyLocked(const v1::SessionEvent& event, Clock::time_point arrival) {
+unsigned Session::ApplyLocked(const v1::SessionEvent& event, Clock::time_point arrival) {
   const v1::Viewport viewport = current_.viewport();
   const std::uint64_t applied_seq = current_.last_event_seq();
   const unsigned changes = ApplyEvent(current_, event, scene_context_, context_.limits);  // as it was if it throws
@@ -359,6 +360,7 @@ void Session::ApplyLocked(const v1::SessionEvent& event, Clock::time_point arriv
   last_event_seq_ = std::max(last_event_seq_, event.seq());
   last_event_arrival_ = arrival;
   event_unrendered_ = true;
+  return changes;
 }
 
 int Session::PhaseDueLocked(Clock::time_point now) const {

@@ -203,14 +203,15 @@ class Session final : public Job, public std::enable_shared_from_this<Session> {
   bool CanRenderLocked() const;
   // OnEvent's work, mu_ held; throws for a bad event.
   void OnEventLocked(v1::SessionEvent event, Clock::time_point arrival, bool from_grant = false);
-  // Sends current_ to every stream: the owner's (when attached) and the watchers'.
-  // Applies one event now; throws for a bad one (the scene stays as it was).
-  void ApplyLocked(const v1::SessionEvent& event, Clock::time_point arrival);
+  // Applies one event now and returns what it changed (ApplyEvent's bits);
+  // throws for a bad one (the scene stays as it was).
+  unsigned ApplyLocked(const v1::SessionEvent& event, Clock::time_point arrival);
   // Warns the stream, once a session for each preset, where the scene's
   // transfer-function preset does not fit the volume (PresetMisfit).
   void NoteMisfitLocked();
   // Applies the coalesced events; ends nothing, throws for a bad one.
   void ApplyCoalescedLocked();
+  // Sends current_ to every stream: the owner's (when attached) and the watchers'.
   void SendStateLocked();
   void PointLocked(const std::string& who, const v1::Pointer& pointer, Clock::time_point arrival);
   void AddWatcher(FrameStream* stream, const std::string& grant_id, const std::string& holder);

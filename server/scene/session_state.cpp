@@ -464,6 +464,12 @@ unsigned ApplyEvent(v1::SessionState& state, const v1::SessionEvent& event, cons
         throw;
       }
       if (event.has_resize()) *state.mutable_viewport() = event.resize();
+      // An event that leaves its parts as they were changes nothing: a view
+      // held still keeps its samples when a client sends its camera again
+      // (a pointer move of no pixel) or an unchanged edit. Bytes compared:
+      // where they differ for equal parts (a -0 for a 0) the event restarts
+      // the view, as every event did before.
+      if (saved.SerializeAsString() == CopyParts(scene, changes).SerializeAsString()) changes = 0;
     }
   }
   state.set_last_event_seq(std::max(state.last_event_seq(), event.seq()));

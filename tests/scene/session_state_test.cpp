@@ -102,6 +102,36 @@ TEST(SessionEvents, EachEventReplacesOrMergesItsPartAndSaysWhatChanged) {
   EXPECT_FALSE(state.paused());
 }
 
+TEST(SessionEvents, AnEventThatLeavesItsPartAsItWasChangesNothing) {
+  const SessionLimits limits;
+  v1::SessionState state = Started();
+  std::uint64_t seq = 0;
+  auto apply = [&](v1::SessionEvent e) {
+    e.set_seq(++seq);
+    return ApplyEvent(state, e, kHead, &limits);
+  };
+  v1::SessionEvent camera;
+  *camera.mutable_camera() = state.scene().camera();
+  EXPECT_EQ(apply(camera), 0u) << "the state's own camera";
+  EXPECT_EQ(state.last_event_seq(), seq) << "answered all the same";
+  camera.mutable_camera()->mutable_eye()->set_x(camera.camera().eye().x() + 1);
+  EXPECT_EQ(apply(camera), unsigned(kCameraChanged));
+  EXPECT_EQ(apply(camera), 0u) << "the same move again";
+
+  v1::SessionEvent tf;
+  *tf.mutable_transfer_function() = state.scene().transfer_function();
+  EXPECT_EQ(apply(tf), 0u);
+  v1::SessionEvent resize;
+  resize.mutable_resize()->set_width(96);
+  resize.mutable_resize()->set_height(64);
+  EXPECT_EQ(apply(resize), 0u) << "the size it has";
+  resize.mutable_resize()->set_width(97);
+  EXPECT_EQ(apply(resize), unsigned(kCameraChanged));
+  v1::SessionEvent lights;
+  *lights.mutable_lights()->mutable_lights() = state.scene().lights();
+  EXPECT_EQ(apply(lights), 0u);
+}
+
 TEST(SessionEvents, ABadEventNamesItsFieldAndLeavesTheStateAsItWas) {
   const SessionLimits limits;
   v1::SessionState state = Started();

@@ -169,6 +169,36 @@ TEST(SessionStream, IdleRefinementReachesTheTargetThenStops) {
   EXPECT_EQ(status->frames_rendered(), frames.size());
 }
 
+// A client that sends its camera again (a pointer move of no pixel) changes
+// nothing: the answer goes on from the samples the view holds, at full size.
+TEST(SessionStream, ACameraSentAgainKeepsTheSamples) {
+  ScratchDir scratch;
+  ServerProcess server(scratch.path());
+  ASSERT_TRUE(server.running()) << server.Log();
+  Client client = server.Connect();
+  const auto created = client.CreateSession(SmallSession());
+  auto stream = client.Attach(created.session_id());
+  const auto base = WaitFinal(*stream);
+  ASSERT_TRUE(base) << stream->status().error_message();
+
+  v1::SessionEvent same;
+  *same.mutable_camera() = created.scene().camera();
+  const std::uint64_t seq = stream->Send(same);
+  const auto answer = WaitFrame(*stream, [seq](const v1::Frame& f) { return f.last_event_seq() >= seq; });
+  ASSERT_TRUE(answer) << stream->status().error_message();
+  EXPECT_GT(answer->accumulated_spp(), base->accumulated_spp()) << "the samples started over";
+  EXPECT_EQ(answer->width(), base->width());
+  EXPECT_TRUE(answer->final());
+
+  // A camera that does move still starts over.
+  v1::SessionEvent moved = same;
+  moved.mutable_camera()->mutable_eye()->set_x(moved.camera().eye().x() + 10);
+  const std::uint64_t moved_seq = stream->Send(moved);
+  const auto restarted = WaitFrame(*stream, [moved_seq](const v1::Frame& f) { return f.last_event_seq() >= moved_seq; });
+  ASSERT_TRUE(restarted);
+  EXPECT_LT(restarted->accumulated_spp(), base->accumulated_spp());
+}
+
 // A clipping event cuts the phantom: a plane keeping only what lies beyond
 // the volume leaves the background, and clearing it brings the head back.
 TEST(SessionStream, AClippingEventCutsAndClearingItRestores) {
