@@ -31,6 +31,9 @@
 #   sizes      this build's SIZES_SESSIONS (128) sessions at each of SIZES (1280x720 640x360
 #              320x180), with SIZES_FLAGS' loadtest flags: what a frame costs that does not grow
 #              with its pixels; with SERVER_EXTRA, what a server flag buys at one size
+#   kernels    Nsight Compute over one session of this build at KERNELS_SIZE (640x360): each kernel's
+#              time, SM time, warps active and shape (bench/kernel_table.py), KERNELS_COUNT (200)
+#              launches after the first KERNELS_SKIP (150); ncu from NCU or the CUDA toolkit
 #   memory     the device memory per added 720p session (VolumeCache test)
 # SECONDS_PER_RUN (8) is each loadtest's length, DENOISER (wrls) its sessions' denoiser. Every session of a loadtest
 # shares one connection: servers allow 1024 streams on it (128 by default, which
@@ -51,6 +54,9 @@ table=$out/table.md
 export CINEVOL_SERVER=$cv/bin/cinevol-server CINEVOL_CLI=$cv/bin/cinevol
 
 gpu_name() { nvidia-smi --query-gpu=name --format=csv,noheader | head -1; }
+
+# Every descendant of a process, by id.
+descendants() { local child; for child in $(pgrep -P "$1"); do echo "$child"; descendants "$child"; done; }
 
 # CPU seconds (user + system) a process has used so far.
 cpu_seconds() { awk '{printf "%.2f", ($14 + $15) / 100}' "/proc/$1/stat" 2>/dev/null || echo 0; }
@@ -224,6 +230,32 @@ step_sizes() {
     # shellcheck disable=SC2086 # SIZES_FLAGS: several flags
     loadtest sizes bin "${SIZES_SESSIONS:-128}" "${size%x*}" "${size#*x}" ${SIZES_FLAGS:-}
   done
+}
+
+step_kernels() {
+  local size=${KERNELS_SIZE:-640x360} port_file=$cv/port-kernels ncu=${NCU:-$(command -v ncu || echo /usr/local/cuda/bin/ncu)}
+  local csv=$logs/kernels-${KERNELS_SIZE:-640x360}.csv
+  # Nsight Compute replays each kernel alone at its own clocks: times a quarter longer than a loadtest's.
+  "$ncu" --target-processes all --launch-skip "${KERNELS_SKIP:-150}" --launch-count "${KERNELS_COUNT:-200}" \
+    --csv --page raw --metrics gpu__time_duration.sum,sm__cycles_active.avg,sm__cycles_elapsed.avg,\
+sm__warps_active.avg.pct_of_peak_sustained_active,launch__grid_size,launch__block_size,launch__registers_per_thread \
+    "$cv/bin/cinevol-server" --listen 127.0.0.1:0 --port-file "$port_file" --backend cuda --volume "$volume" \
+    --min-session-fps 0 > "$csv" 2> "$logs/kernels-ncu.err" &
+  local profiler=$!
+  for _ in $(seq 600); do [ -s "$port_file" ] && break; sleep 0.1; done
+  # Profiled launches are slow (about 0.3 s each): one session, long enough for them all.
+  "$cv/bin/cinevol" loadtest --server "127.0.0.1:$(cat "$port_file")" --sessions 1 --seconds "${KERNELS_SECONDS:-100}" \
+    --width "${size%x*}" --height "${size#*x}" --spp 2 --denoiser "${DENOISER:-wrls}" --scene "$scene" --json \
+    > "$logs/kernels-loadtest.json" 2> "$logs/kernels-loadtest.err"
+  # The server (ncu's descendant, by its process id), so that ncu writes its report.
+  local pid servers=()
+  for pid in $(descendants $profiler); do [ "$(cat "/proc/$pid/comm" 2> /dev/null)" = cinevol-server ] && servers+=("$pid"); done
+  kill -TERM "${servers[@]}" 2> /dev/null
+  for _ in $(seq 600); do kill -0 $profiler 2> /dev/null || break; sleep 0.1; done
+  kill -KILL $profiler "${servers[@]}" 2> /dev/null
+  wait $profiler
+  { echo; echo "### Kernels of one ${size} session, Nsight Compute ($(gpu_name), $(date -u +%F))"; echo
+    python3 "$(dirname "$0")/kernel_table.py" "$csv"; } >> "$table"
 }
 
 step_memory() {
