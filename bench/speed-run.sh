@@ -234,7 +234,7 @@ step_sizes() {
 
 step_kernels() {
   local size=${KERNELS_SIZE:-640x360} port_file=$cv/port-kernels ncu=${NCU:-$(command -v ncu || echo /usr/local/cuda/bin/ncu)}
-  local csv=$logs/kernels-${KERNELS_SIZE:-640x360}.csv
+  local csv=$logs/kernels-$size.csv
   # Nsight Compute replays each kernel alone at its own clocks: times a quarter longer than a loadtest's.
   "$ncu" --target-processes all --launch-skip "${KERNELS_SKIP:-150}" --launch-count "${KERNELS_COUNT:-200}" \
     --csv --page raw --metrics gpu__time_duration.sum,sm__cycles_active.avg,sm__cycles_elapsed.avg,\
