@@ -1,6 +1,7 @@
 // CudaRenderer: uploads SceneData's tables, takes the GPU's shared copies of
-// the voxels and the majorants, and launches RenderPixel<F> over the image,
-// one thread per pixel.
+// the voxels and the majorants, and launches RenderKernel<F> over the image,
+// two threads a pixel where it has two samples or more (up to 2560x1440),
+// else one.
 #include <array>
 #include <utility>
 
@@ -14,27 +15,68 @@ using cuda::DeviceBuffer;
 
 namespace {
 
-// 8x8 pixel blocks: neighbouring paths touch neighbouring voxels.
-constexpr int kBlock = 8;
-// Blocks per SM the register allocation must allow: 16 caps the integrator at
-// 64 registers (50% occupancy). With the 32-bit random generator and the
-// voxel buffer's code out of line it is the fastest on an H100 against 10
-// (96 registers, 31%), 12 (80) and 20 (48): CThead 1.21 ms against 1.41 at 10
-// before those changes (H100); docs/performance.md.
+// 64 threads a block. Blocks per SM the register allocation must allow: 16
+// caps the integrator at 64 registers (50% occupancy). With the 32-bit random
+// generator and the voxel buffer's code out of line it is the fastest on an
+// H100 against 10 (96 registers, 31%), 12 (80) and 20 (48): CThead 1.21 ms
+// against 1.41 at 10 before those changes (H100); docs/performance.md.
+constexpr int kBlockThreads = 64;
 constexpr int kMinBlocksPerSm = 16;
+
+// Threads a pixel: with two samples or more, two lanes share a pixel's
+// samples, so a warp covers a 4x4 tile of pixels rather than 8x4 and its
+// camera rays stay closer together (their voxels and their paths' first
+// steps), and a frame has twice the threads to end its tail with. A block is
+// two warps' tiles, one above the other. On an H200 (CThead, 2 spp) that took
+// 128 sessions at 640x360 7% further and one 720p session 13%, and left
+// 2560x1440 level. A 3840x2160 frame's rays are close already: there two
+// lanes rendered 1% slower than one, so from there on a thread keeps its
+// pixel (docs/performance.md, "Two threads a pixel").
+constexpr long long kMaxPixelsForTwoLanes = 2560LL * 1440;
+int LanesPerPixel(int spp, long long pixels) { return spp >= 2 && pixels <= kMaxPixelsForTwoLanes ? 2 : 1; }
+CINEVOL_HD dim3 BlockPixels(int lanes) { return dim3(8 / lanes, 8); }
+
+// Two lanes of a warp, adjacent, trade their samples' results.
+__device__ PathResult ShuffleFrom(const PathResult& r, int source_lane) {
+  constexpr unsigned kWarp = 0xffffffffu;
+  PathResult o;
+  o.radiance = {__shfl_sync(kWarp, r.radiance.x, source_lane), __shfl_sync(kWarp, r.radiance.y, source_lane),
+                __shfl_sync(kWarp, r.radiance.z, source_lane)};
+  o.first_hit = {__shfl_sync(kWarp, r.first_hit.x, source_lane), __shfl_sync(kWarp, r.first_hit.y, source_lane),
+                 __shfl_sync(kWarp, r.first_hit.z, source_lane)};
+  o.albedo = {__shfl_sync(kWarp, r.albedo.x, source_lane), __shfl_sync(kWarp, r.albedo.y, source_lane),
+              __shfl_sync(kWarp, r.albedo.z, source_lane)};
+  o.hit = __shfl_sync(kWarp, int(r.hit), source_lane) != 0;
+  return o;
+}
 
 // __grid_constant__: the integrator takes the scene by reference, which would
 // otherwise copy the whole parameter block into local memory per thread.
+// With two lanes a pixel, each traces every other sample and both add the
+// pair's results in sample order (the sums RenderPixel makes); every thread
+// of the warp reaches each shuffle, inside the image or not.
 template <unsigned kFeatures>
-__global__ void __launch_bounds__(kBlock* kBlock, kMinBlocksPerSm)
-    RenderKernel(const __grid_constant__ RenderScene scene, const FrameTargets targets) {
-  const int x = blockIdx.x * blockDim.x + threadIdx.x;
-  const int y = blockIdx.y * blockDim.y + threadIdx.y;
-  if (x >= scene.camera.width || y >= scene.camera.height) return;
-  RenderPixel<kFeatures>(scene, x, y, targets);
+__global__ void __launch_bounds__(kBlockThreads, kMinBlocksPerSm)
+    RenderKernel(const __grid_constant__ RenderScene scene, const FrameTargets targets, int lanes) {
+  const dim3 tile = BlockPixels(lanes);
+  const int lane = int(threadIdx.x) % lanes, p = int(threadIdx.x) / lanes;
+  const int x = int(blockIdx.x * tile.x) + p % int(tile.x);
+  const int y = int(blockIdx.y * tile.y) + p / int(tile.x);
+  const bool inside = x < scene.camera.width && y < scene.camera.height;
+  const int pixel_lane0 = int(threadIdx.x % 32u) - lane;
+  PixelSamples samples;
+  for (int first = 0; first < scene.spp; first += lanes) {
+    const int k = first + lane;
+    const PathResult mine = inside && k < scene.spp ? TracePixelSample<kFeatures>(scene, x, y, k) : PathResult{};
+    for (int from = 0; from < lanes; ++from) {
+      const PathResult r = lanes == 1 ? mine : ShuffleFrom(mine, pixel_lane0 + from);
+      if (first + from < scene.spp) samples.Add(r, scene.camera.eye);
+    }
+  }
+  if (inside && lane == 0) samples.Write(targets, y * scene.camera.width + x, scene.spp);
 }
 
-using Kernel = void (*)(const RenderScene, const FrameTargets);
+using Kernel = void (*)(const RenderScene, const FrameTargets, int);
 
 template <unsigned... kVariant>
 std::array<Kernel, sizeof...(kVariant)> MakeKernels(std::integer_sequence<unsigned, kVariant...>) {
@@ -190,10 +232,11 @@ void CudaRenderer::Render(const FrameRequest& request) {
   last_features_ = ApplyRequest(request, scene);
 
   static const auto kKernels = MakeKernels(std::make_integer_sequence<unsigned, kIntegratorVariants>());
-  const dim3 block(kBlock, kBlock);
-  const dim3 grid((w + kBlock - 1) / kBlock, (h + kBlock - 1) / kBlock);
+  const int lanes = LanesPerPixel(request.spp, static_cast<long long>(w) * h);
+  const dim3 tile = BlockPixels(lanes);
+  const dim3 grid((w + tile.x - 1) / tile.x, (h + tile.y - 1) / tile.y);
   CINEVOL_CUDA_CHECK(cudaEventRecord(d.start, d.stream));
-  kKernels[VariantOf(last_features_)]<<<grid, block, 0, d.stream>>>(scene, Targets());
+  kKernels[VariantOf(last_features_)]<<<grid, kBlockThreads, 0, d.stream>>>(scene, Targets(), lanes);
   CINEVOL_CUDA_CHECK_LAUNCH();
   CINEVOL_CUDA_CHECK(cudaEventRecord(d.stop, d.stream));
   ++accumulated_frames_;

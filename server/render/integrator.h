@@ -258,45 +258,62 @@ class PathTracer {
   int collisions_ = 0, budget_ends_ = 0;
 };
 
-// Renders pixel (x, y): spp paths, stratified per frame, seeded by (seed,
-// frame, pixel) so the image does not depend on thread or block order.
+// The k-th of pixel (x, y)'s samples this frame: its paths are stratified
+// per frame and seeded by (seed, frame, pixel, k), so the image depends on
+// neither thread nor block order nor which thread traced which sample.
 template <unsigned kFeatures>
-CINEVOL_HD void RenderPixel(const RenderScene& s, int x, int y, const FrameTargets& out) {
+CINEVOL_HD PathResult TracePixelSample(const RenderScene& s, int x, int y, int k) {
   const int pixel = y * s.camera.width + x;
   const std::uint64_t key = HashCombine(HashCombine(s.seed, s.frame), std::uint64_t(pixel));
   const std::uint32_t pattern = static_cast<std::uint32_t>(key);
+  float fx, fy, lx, ly;
+  CorrelatedMultiJitter(k, s.spp, pattern, fx, fy);
+  CorrelatedMultiJitter(k, s.spp, pattern ^ 0x5bd1e995U, lx, ly);
+  const float px = float(x) + 0.5f + SampleTruncatedGaussian(fx, kPixelFilterSigma, kPixelFilterRadius);
+  const float py = float(y) + 0.5f + SampleTruncatedGaussian(fy, kPixelFilterSigma, kPixelFilterRadius);
+  Pcg32 rng(key, std::uint64_t(k));
+  PathTracer<kFeatures> tracer(s, rng);
+  return tracer.Trace(s.camera.GenerateRay(px, py, lx, ly));
+}
+
+// A pixel's samples, added in sample order (the sums then do not depend on
+// how the samples were shared out), and what the frame's targets get.
+struct PixelSamples {
   Vec3f sum{}, albedo{};
   Vec4f first_hit{};
   float nearest = kInfiniteDistance;
-  for (int k = 0; k < s.spp; ++k) {
-    float fx, fy, lx, ly;
-    CorrelatedMultiJitter(k, s.spp, pattern, fx, fy);
-    CorrelatedMultiJitter(k, s.spp, pattern ^ 0x5bd1e995U, lx, ly);
-    const float px = float(x) + 0.5f + SampleTruncatedGaussian(fx, kPixelFilterSigma, kPixelFilterRadius);
-    const float py = float(y) + 0.5f + SampleTruncatedGaussian(fy, kPixelFilterSigma, kPixelFilterRadius);
-    Pcg32 rng(key, std::uint64_t(k));
-    PathTracer<kFeatures> tracer(s, rng);
-    const PathResult r = tracer.Trace(s.camera.GenerateRay(px, py, lx, ly));
+
+  CINEVOL_HD void Add(const PathResult& r, Vec3f eye) {
     // A non-finite sample would poison the accumulation and the denoiser's
     // history; the integrator is built not to make one, this is the backstop.
     if (IsFinite(r.radiance)) sum += r.radiance;
     albedo += r.albedo;
     if (r.hit) {
-      const float d = Length(r.first_hit - s.camera.eye);
+      const float d = Length(r.first_hit - eye);
       if (d < nearest) {
         nearest = d;
         first_hit = ToVec4(r.first_hit, 1.0f);
       }
     }
   }
-  const Vec3f radiance = sum / float(s.spp);
-  out.radiance[pixel] = radiance;
-  out.first_hit[pixel] = first_hit;
-  out.albedo[pixel] = albedo / float(s.spp);
-  // The samples' sum, not their mean: a frame weighs by its samples, so frames
-  // of different spp (a CPU session's still frames, a still's growing chunks)
-  // accumulate the plain mean of every sample (the renderers divide by them).
-  out.accumulated[pixel] += sum;
+
+  CINEVOL_HD void Write(const FrameTargets& out, int pixel, int spp) const {
+    out.radiance[pixel] = sum / float(spp);
+    out.first_hit[pixel] = first_hit;
+    out.albedo[pixel] = albedo / float(spp);
+    // The samples' sum, not their mean: a frame weighs by its samples, so frames
+    // of different spp (a CPU session's still frames, a still's growing chunks)
+    // accumulate the plain mean of every sample (the renderers divide by them).
+    out.accumulated[pixel] += sum;
+  }
+};
+
+// Renders pixel (x, y): its spp samples, one after the other.
+template <unsigned kFeatures>
+CINEVOL_HD void RenderPixel(const RenderScene& s, int x, int y, const FrameTargets& out) {
+  PixelSamples samples;
+  for (int k = 0; k < s.spp; ++k) samples.Add(TracePixelSample<kFeatures>(s, x, y, k), s.camera.eye);
+  samples.Write(out, y * s.camera.width + x, s.spp);
 }
 
 }  // namespace cinevol

@@ -2,6 +2,7 @@
 // noise on a scene using every feature. Skips where no GPU is usable.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstring>
 
@@ -212,6 +213,35 @@ TEST(CudaRenderer, SameSeedSameImage) {
   };
   const ImageRgbF a = render(), b = render();
   EXPECT_EQ(std::memcmp(a.pixels.data(), b.pixels.data(), a.pixels.size() * sizeof(Vec3f)), 0);
+}
+
+// On the GPU two lanes share a pixel's samples (cuda_renderer.cu). At an odd
+// spp and a size that leaves tiles part empty, each pixel must still add
+// exactly its own samples: the ones the CPU traces from the same seeds. A
+// constant medium keeps both backends on the same paths, so nearly every
+// pixel matches; a sample dropped, doubled or taken from the wrong lane
+// would part most of them.
+TEST(CudaRenderer, PixelsSharedByTwoLanesAddTheCpusSamples) {
+  CINEVOL_REQUIRE_CUDA();
+  auto cpu = CreateRenderer(Backend::kCpu), cuda = CreateRenderer(Backend::kCuda);
+  FrameRequest req;
+  req.camera = testing::AxisCamera(13, 11);
+  req.spp = 3;
+  req.max_bounces = 4;
+  for (Renderer* r : {cpu.get(), cuda.get()}) {
+    r->SetVolume(UniformCube(16, 2.0f));
+    r->SetTransferFunction(ConstantMedium(1.0f / 32.0f, 0.8f));
+    r->SetLights(UniformSky(1.0f));
+    r->Render(req);
+  }
+  const ImageRgbF a = cpu->Radiance(), b = cuda->Radiance();
+  ASSERT_EQ(a.pixels.size(), b.pixels.size());
+  int same = 0;
+  for (std::size_t i = 0; i < a.pixels.size(); ++i) {
+    const float la = Luminance(a.pixels[i]), lb = Luminance(b.pixels[i]);
+    same += std::abs(la - lb) <= 1e-3f * std::max(1.0f, la);
+  }
+  EXPECT_GE(same, int(0.95 * a.pixels.size())) << "pixels whose samples match the CPU's, of " << a.pixels.size();
 }
 
 TEST(CudaRenderer, AbsorbingCubeMatchesBeerLambert) {
