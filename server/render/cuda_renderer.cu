@@ -3,6 +3,7 @@
 // two threads a pixel where it has two samples or more (up to 2560x1440),
 // else one.
 #include <array>
+#include <cstdint>
 #include <utility>
 
 #include "device/cuda_buffer.h"
@@ -32,8 +33,8 @@ constexpr int kMinBlocksPerSm = 16;
 // 2560x1440 level. A 3840x2160 frame's rays are close already: there two
 // lanes rendered 1% slower than one, so from there on a thread keeps its
 // pixel (docs/performance.md, "Two threads a pixel").
-constexpr long long kMaxPixelsForTwoLanes = 2560LL * 1440;
-int LanesPerPixel(int spp, long long pixels) { return spp >= 2 && pixels <= kMaxPixelsForTwoLanes ? 2 : 1; }
+constexpr std::int64_t kMaxPixelsForTwoLanes = std::int64_t(2560) * 1440;
+int LanesPerPixel(int spp, std::int64_t pixels) { return spp >= 2 && pixels <= kMaxPixelsForTwoLanes ? 2 : 1; }
 CINEVOL_HD dim3 BlockPixels(int lanes) { return dim3(8 / lanes, 8); }
 
 // Two lanes of a warp, adjacent, trade their samples' results.
@@ -232,7 +233,7 @@ void CudaRenderer::Render(const FrameRequest& request) {
   last_features_ = ApplyRequest(request, scene);
 
   static const auto kKernels = MakeKernels(std::make_integer_sequence<unsigned, kIntegratorVariants>());
-  const int lanes = LanesPerPixel(request.spp, static_cast<long long>(w) * h);
+  const int lanes = LanesPerPixel(request.spp, std::int64_t(w) * h);
   const dim3 tile = BlockPixels(lanes);
   const dim3 grid((w + tile.x - 1) / tile.x, (h + tile.y - 1) / tile.y);
   CINEVOL_CUDA_CHECK(cudaEventRecord(d.start, d.stream));
