@@ -29,33 +29,34 @@ constexpr int kMinBlocksPerSm = 16;
 // camera rays stay closer together (their voxels and their paths' first
 // steps), and a frame has twice the threads to end its tail with. A block is
 // two warps' tiles, one above the other. On an H200 (CThead, 2 spp) that took
-// 128 sessions at 640x360 7% further and one 720p session 13%, and left
-// 2560x1440 level. A 3840x2160 frame's rays are close already: there two
-// lanes rendered 1% slower than one, so from there on a thread keeps its
-// pixel (docs/performance.md, "Two threads a pixel").
-constexpr std::int64_t kMaxPixelsForTwoLanes = std::int64_t(2560) * 1440;
-int LanesPerPixel(int spp, std::int64_t pixels) { return spp >= 2 && pixels <= kMaxPixelsForTwoLanes ? 2 : 1; }
+// 128 sessions at 640x360 7% further and one 720p session 13%, and, once the
+// lanes met only after their samples, one 3840x2160 session 1.7% over a
+// thread a pixel (docs/performance.md, "Two threads a pixel", "The lanes meet
+// once").
+int LanesPerPixel(int spp) { return spp >= 2 ? 2 : 1; }
 CINEVOL_HD dim3 BlockPixels(int lanes) { return dim3(8 / lanes, 8); }
 
-// Two lanes of a warp, adjacent, trade their samples' results.
-__device__ PathResult ShuffleFrom(const PathResult& r, int source_lane) {
+// The samples lane `source_lane` of the warp added up.
+__device__ PixelSamples ShuffleFrom(const PixelSamples& p, int source_lane) {
   constexpr unsigned kWarp = 0xffffffffu;
-  PathResult o;
-  o.radiance = {__shfl_sync(kWarp, r.radiance.x, source_lane), __shfl_sync(kWarp, r.radiance.y, source_lane),
-                __shfl_sync(kWarp, r.radiance.z, source_lane)};
-  o.first_hit = {__shfl_sync(kWarp, r.first_hit.x, source_lane), __shfl_sync(kWarp, r.first_hit.y, source_lane),
-                 __shfl_sync(kWarp, r.first_hit.z, source_lane)};
-  o.albedo = {__shfl_sync(kWarp, r.albedo.x, source_lane), __shfl_sync(kWarp, r.albedo.y, source_lane),
-              __shfl_sync(kWarp, r.albedo.z, source_lane)};
-  o.hit = __shfl_sync(kWarp, int(r.hit), source_lane) != 0;
+  const auto from = [&](float v) { return __shfl_sync(kWarp, v, source_lane); };
+  PixelSamples o;
+  o.sum = {from(p.sum.x), from(p.sum.y), from(p.sum.z)};
+  o.albedo = {from(p.albedo.x), from(p.albedo.y), from(p.albedo.z)};
+  o.first_hit = {from(p.first_hit.x), from(p.first_hit.y), from(p.first_hit.z), from(p.first_hit.w)};
+  o.nearest = from(p.nearest);
   return o;
 }
 
 // __grid_constant__: the integrator takes the scene by reference, which would
 // otherwise copy the whole parameter block into local memory per thread.
-// With two lanes a pixel, each traces every other sample and both add the
-// pair's results in sample order (the sums RenderPixel makes); every thread
-// of the warp reaches each shuffle, inside the image or not.
+// With two lanes a pixel, lane 0 traces the even samples and lane 1 the odd,
+// and lane 0 adds lane 1's sums to its own: at 1 or 2 spp the sums one thread
+// makes (RenderPixel), beyond that the same to rounding. The lanes meet once,
+// after their samples (every thread of the warp reaches the shuffle, inside
+// the image or not): a shuffle after each sample, with the loop around it,
+// spilled nearly twice the registers and rendered 4K frames 3% slower
+// (docs/performance.md).
 template <unsigned kFeatures>
 __global__ void __launch_bounds__(kBlockThreads, kMinBlocksPerSm)
     RenderKernel(const __grid_constant__ RenderScene scene, const FrameTargets targets, int lanes) {
@@ -64,16 +65,11 @@ __global__ void __launch_bounds__(kBlockThreads, kMinBlocksPerSm)
   const int x = int(blockIdx.x * tile.x) + p % int(tile.x);
   const int y = int(blockIdx.y * tile.y) + p / int(tile.x);
   const bool inside = x < scene.camera.width && y < scene.camera.height;
-  const int pixel_lane0 = int(threadIdx.x % 32u) - lane;
   PixelSamples samples;
-  for (int first = 0; first < scene.spp; first += lanes) {
-    const int k = first + lane;
-    const PathResult mine = inside && k < scene.spp ? TracePixelSample<kFeatures>(scene, x, y, k) : PathResult{};
-    for (int from = 0; from < lanes; ++from) {
-      const PathResult r = lanes == 1 ? mine : ShuffleFrom(mine, pixel_lane0 + from);
-      if (first + from < scene.spp) samples.Add(r, scene.camera.eye);
-    }
+  if (inside) {
+    for (int k = lane; k < scene.spp; k += lanes) samples.Add(TracePixelSample<kFeatures>(scene, x, y, k), scene.camera.eye);
   }
+  if (lanes == 2) samples.Merge(ShuffleFrom(samples, int(threadIdx.x % 32u) ^ 1));
   if (inside && lane == 0) samples.Write(targets, y * scene.camera.width + x, scene.spp);
 }
 
@@ -233,7 +229,7 @@ void CudaRenderer::Render(const FrameRequest& request) {
   last_features_ = ApplyRequest(request, scene);
 
   static const auto kKernels = MakeKernels(std::make_integer_sequence<unsigned, kIntegratorVariants>());
-  const int lanes = LanesPerPixel(request.spp, std::int64_t(w) * h);
+  const int lanes = LanesPerPixel(request.spp);
   const dim3 tile = BlockPixels(lanes);
   const dim3 grid((w + tile.x - 1) / tile.x, (h + tile.y - 1) / tile.y);
   CINEVOL_CUDA_CHECK(cudaEventRecord(d.start, d.stream));

@@ -276,8 +276,7 @@ CINEVOL_HD PathResult TracePixelSample(const RenderScene& s, int x, int y, int k
   return tracer.Trace(s.camera.GenerateRay(px, py, lx, ly));
 }
 
-// A pixel's samples, added in sample order (the sums then do not depend on
-// how the samples were shared out), and what the frame's targets get.
+// A pixel's samples, added in sample order, and what the frame's targets get.
 struct PixelSamples {
   Vec3f sum{}, albedo{};
   Vec4f first_hit{};
@@ -294,6 +293,17 @@ struct PixelSamples {
         nearest = d;
         first_hit = ToVec4(r.first_hit, 1.0f);
       }
+    }
+  }
+
+  // Samples traced apart (another lane's strand, cuda_renderer.cu), added
+  // after this one's; a tie for the nearest hit goes to this one.
+  CINEVOL_HD void Merge(const PixelSamples& later) {
+    sum += later.sum;
+    albedo += later.albedo;
+    if (later.nearest < nearest) {
+      nearest = later.nearest;
+      first_hit = later.first_hit;
     }
   }
 
