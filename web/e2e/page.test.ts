@@ -13,7 +13,7 @@ import { join } from "node:path";
 import { after, before, test } from "node:test";
 import {
   ARTIFACTS, base, CHROMIUM, CHROMIUM_ARGS, framesAfter, meanDifference, messagesShown, run, sample, SERVER, settled,
-  setUp, startGateway, status, tearDown, until, WAIT, WEB,
+  resizeWindow, setUp, startGateway, status, tearDown, until, WAIT, WEB,
 } from "./page_harness.js";
 import { readingTests, sphereTests } from "./page_reading.js";
 import { sharingTests } from "./page_sharing.js";
@@ -128,7 +128,8 @@ test("a time series: the Time controls show its phases, a phase changes the pict
   await page.click("#play");
   await page.waitForFunction(() => document.getElementById("play")!.textContent === "Play", null, WAIT);
 
-  // A movie of the loop: 25 frames of the phases at the Time rate (1 a second), made by the server.
+  // A movie of the loop: 25 frames of the phases at the Time rate (1 a second), made by the server, small.
+  await resizeWindow(page, 720, 240);
   await page.locator("#output summary").click();
   await page.selectOption("#movie-path", "phases");
   await page.fill("#movie-seconds", "1");
@@ -162,6 +163,8 @@ test("a second volume fused by the address: its controls show, a colour map roun
 
 test("a movie recorded on the page is made by the server and saved as an MP4 of its frames", async () => {
   const { alice } = run;
+  const windowSize = alice.viewportSize()!;
+  await resizeWindow(alice, 720, 240);  // a small movie
   await alice.locator("#output summary").click();
   assert.ok(await alice.locator("#movie-phases").isHidden(), "no loop to record for a volume of one phase");
   await alice.selectOption("#movie-path", "orbit");
@@ -179,6 +182,7 @@ test("a movie recorded on the page is made by the server and saved as an MP4 of 
   const said = (await status(alice)).messages;
   assert.ok(said.some((m) => /Movie recorded: 25 frames/.test(m)), JSON.stringify(said));
   await alice.locator("#output summary").click();
+  await resizeWindow(alice, windowSize.width, windowSize.height);
 });
 
 test("a window resize changes the frame's size", async () => {

@@ -102,6 +102,14 @@ export async function settled(page: Page): Promise<void> {
   await framesAfter(page, 2);
 }
 
+/** Sets the page's window (700 pixels wide or more: narrower, the panel goes below) and waits for a frame as wide as
+ *  its canvas, the window less the 320-pixel panel: a movie renders the session's size, and the CPU's movie frames of
+ *  a 640x540 canvas took about a second each. */
+export async function resizeWindow(page: Page, width: number, height: number): Promise<void> {
+  await page.setViewportSize({ width, height });
+  await page.waitForFunction((w) => (window as any).cinevol.status().lastFrame?.width === w, width - 320, WAIT);
+}
+
 export async function startGateway(port = 0): Promise<Running> {
   return startWithPortFile(WEB, ["--listen", `127.0.0.1:${port}`, "--server", `127.0.0.1:${run.server.port}`], "gateway");
 }
