@@ -296,8 +296,8 @@ struct PixelSamples {
     }
   }
 
-  // Samples traced apart (another lane's strand, cuda_renderer.cu), added
-  // after this one's; a tie for the nearest hit goes to this one.
+  // Samples another lane traced (cuda_renderer.cu), added after this one's;
+  // a tie for the nearest hit goes to this one.
   CINEVOL_HD void Merge(const PixelSamples& later) {
     sum += later.sum;
     albedo += later.albedo;
