@@ -9,19 +9,36 @@ scripts/install-deps.sh
 # keep compiling. A build/ the demo configured without CUDA is configured
 # again; CINEVOL_CUDA=OFF keeps it without.
 CINEVOL_CUDA="${CINEVOL_CUDA:-AUTO}" scripts/build.sh
+
+# Short libFuzzer runs (tests/fuzz/run.sh: a clang build in build-fuzz/, then
+# a fixed replay of about 20 s per target, two at a time) in CI, or locally
+# with FUZZ=1; FUZZ=0 skips them. Their build runs beside ctest at the lowest
+# priority: it takes the core that the serial tests (the browser's, the
+# frame-rate ones) leave idle, and yields the other to the tests.
+fuzzing=false
+case "${FUZZ:-${CI:-false}}" in 1 | true) fuzzing=true ;; esac
+fuzz_build_log=$(mktemp)
+if $fuzzing; then
+  nice -n 19 tests/fuzz/run.sh --build-only >"$fuzz_build_log" 2>&1 &
+  fuzz_build=$!
+fi
+
 cd build
 log=$(mktemp)
 status=0
 ctest --output-on-failure -j "$(nproc)" "$@" 2>&1 | tee "$log" || status=$?
 cd ..
-# Short libFuzzer runs (tests/fuzz/run.sh: a clang build in build-fuzz/, then
-# a fixed replay of about 20 s per target; about 5 minutes on 2 cores) in CI,
-# or locally with FUZZ=1;
-# FUZZ=0 skips them. Their summary comes before ctest's line, which stays last.
-if [ "${FUZZ:-${CI:-false}}" = "1" ] || [ "${FUZZ:-${CI:-false}}" = "true" ]; then
+# The fuzz summary comes before ctest's line, which stays last.
+if $fuzzing; then
   echo "---- fuzzing (tests/fuzz/run.sh ${FUZZ_SECONDS:-60}: a replay of seed 1, a fixed count per target)"
-  tests/fuzz/run.sh "${FUZZ_SECONDS:-60}" 2>&1 || { [ "$status" -ne 0 ] || status=1; }
+  if wait "$fuzz_build"; then
+    FUZZ_JOBS="${FUZZ_JOBS:-$(nproc)}" tests/fuzz/run.sh "${FUZZ_SECONDS:-60}" 2>&1 || { [ "$status" -ne 0 ] || status=1; }
+  else
+    echo "fuzz: the build failed:"
+    tail -n 60 "$fuzz_build_log"
+    [ "$status" -ne 0 ] || status=1
+  fi
 fi
 grep -E "tests passed|tests failed" "$log" | tail -1
-rm -f "$log"
+rm -f "$log" "$fuzz_build_log"
 exit "$status"

@@ -7,6 +7,7 @@
 #
 #   tests/fuzz/run.sh [SECONDS_PER_TARGET] [TARGET...]    # default 20 s, all targets
 #   FUZZ_JOBS=2 tests/fuzz/run.sh 300                      # two targets at a time
+#   tests/fuzz/run.sh --build-only                          # the build alone (scripts/test.sh runs it beside ctest)
 #
 # Each target first replays its corpus (the seeds and every input that once
 # crashed, committed as corpus/<target>/regression-*): a failure there is a
@@ -22,6 +23,8 @@
 #   FUZZ_STRICT=1 FUZZ_SEED=$RANDOM FUZZ_RUNS=-1 tests/fuzz/run.sh 300
 set -euo pipefail
 cd "$(dirname "$0")/../.."
+build_only=false
+[ "${1:-}" = --build-only ] && { build_only=true; shift; }
 seconds=${1:-20}
 shift || true
 targets=("$@")
@@ -37,6 +40,7 @@ if [ ! -f "$build/build.ninja" ]; then
     { cat "$build.configure.log"; exit 1; }
 fi
 cmake --build "$build" -j "$(nproc)" --target "${targets[@]}" | { grep -vE '^\[[0-9]+/[0-9]+\] ' || true; }
+$build_only && exit 0
 
 scratch=$(mktemp -d "${TMPDIR:-/tmp}/cinevol-fuzz-XXXXXX")
 trap 'rm -rf "$scratch"' EXIT
