@@ -1,7 +1,6 @@
 // CudaRenderer: uploads SceneData's tables, takes the GPU's shared copies of
 // the voxels and the majorants, and launches RenderKernel<F> over the image,
-// two threads a pixel where it has two samples or more (up to 2560x1440),
-// else one.
+// two threads a pixel where it has two samples or more, else one.
 #include <array>
 #include <cstdint>
 #include <utility>

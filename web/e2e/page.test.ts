@@ -112,9 +112,12 @@ test("a time series: the Time controls show its phases, a phase changes the pict
   assert.equal(await page.textContent("#phase-label"), "Phase 4 of 4 (150 ms)");
   await page.screenshot({ path: join(ARTIFACTS, "3-time-series.png") });
 
-  // One phase a second: slower than a CPU frame under load, so no phase falls
-  // between two frames (at 8 a second, frames a quarter second apart on a busy
-  // 2-core machine showed phases 1, 2 and 4 only).
+  // One phase a second, on a small canvas: slower than a CPU frame under load,
+  // so no phase falls between two frames. At 8 a second, frames a quarter
+  // second apart on a busy 2-core machine showed phases 1, 2 and 4 only; at 1
+  // a second on a 640x540 canvas, while alice's session refined on the other
+  // server, frames up to two seconds apart showed phases 4, 1 and 3.
+  await resizeWindow(page, 720, 240);
   await page.fill("#phase-rate", "1");
   await page.$eval("#phase-rate", (e) => e.dispatchEvent(new Event("change")));
   await page.click("#play");
@@ -129,7 +132,6 @@ test("a time series: the Time controls show its phases, a phase changes the pict
   await page.waitForFunction(() => document.getElementById("play")!.textContent === "Play", null, WAIT);
 
   // A movie of the loop: 25 frames of the phases at the Time rate (1 a second), made by the server, small.
-  await resizeWindow(page, 720, 240);
   await page.locator("#output summary").click();
   await page.selectOption("#movie-path", "phases");
   await page.fill("#movie-seconds", "1");
