@@ -19,7 +19,9 @@ namespace {
 // caps the integrator at 64 registers (50% occupancy). With the 32-bit random
 // generator and the voxel buffer's code out of line it is the fastest on an
 // H100 against 10 (96 registers, 31%), 12 (80) and 20 (48): CThead 1.21 ms
-// against 1.41 at 10 before those changes (H100); docs/performance.md.
+// against 1.41 at 10 before those changes (H100). With two lanes a pixel it
+// still beats 12, 14 (72) and 20 under 128 sessions and at 4K, though it
+// spills more than 72 or 80 (H200; docs/performance.md, "Register caps").
 constexpr int kBlockThreads = 64;
 constexpr int kMinBlocksPerSm = 16;
 

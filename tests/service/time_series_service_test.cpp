@@ -138,7 +138,9 @@ TEST(TimeSeriesSession, PhasesAlikeShareOneVolume) {
   }
   for (int k : {0, 2, 4}) {
     EXPECT_NEAR(column[k + 1], column[k], 1e-6) << "phases " << k << " and " << k + 1 << " are alike";
-    if (k > 0) EXPECT_NEAR(std::abs(column[k] - column[k - 2]), 1.0, 1e-6) << "a voxel along every second phase";
+    if (k > 0) {
+      EXPECT_NEAR(std::abs(column[k] - column[k - 2]), 1.0, 1e-6) << "a voxel along every second phase";
+    }
   }
 }
 
