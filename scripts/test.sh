@@ -17,8 +17,8 @@ CINEVOL_CUDA="${CINEVOL_CUDA:-AUTO}" scripts/build.sh
 # frame-rate ones) leave idle, and yields the other to the tests.
 fuzzing=false
 case "${FUZZ:-${CI:-false}}" in 1 | true) fuzzing=true ;; esac
-fuzz_build_log=$(mktemp)
 if $fuzzing; then
+  fuzz_build_log=$(mktemp)
   nice -n 19 tests/fuzz/run.sh --build-only >"$fuzz_build_log" 2>&1 &
   fuzz_build=$!
 fi
@@ -38,7 +38,8 @@ if $fuzzing; then
     tail -n 60 "$fuzz_build_log"
     [ "$status" -ne 0 ] || status=1
   fi
+  rm -f "$fuzz_build_log"
 fi
 grep -E "tests passed|tests failed" "$log" | tail -1
-rm -f "$log" "$fuzz_build_log"
+rm -f "$log"
 exit "$status"
