@@ -3,7 +3,6 @@
 
 #include <fmt/format.h>
 #include <spdlog/spdlog.h>
-#include <unistd.h>
 
 #include <algorithm>
 #include <functional>
@@ -189,7 +188,7 @@ VolumeLease::VolumeLease(VolumeRegistry* registry, std::string id, std::vector<s
 VolumeLease::~VolumeLease() { registry_->Release(id_); }
 
 VolumeRegistry::VolumeRegistry(std::vector<fs::path> data_roots, VolumeLimits limits)
-    : limits_(limits), upload_dir_(fs::temp_directory_path() / fmt::format("cinevol-uploads-{}", ::getpid())) {
+    : limits_(limits) {
   for (const fs::path& root : data_roots) {
     std::error_code ec;
     const fs::path canonical = fs::canonical(root, ec);
@@ -198,13 +197,6 @@ VolumeRegistry::VolumeRegistry(std::vector<fs::path> data_roots, VolumeLimits li
     }
     data_roots_.push_back(canonical);
   }
-  fs::create_directories(upload_dir_);
-  fs::permissions(upload_dir_, fs::perms::owner_all, fs::perm_options::replace);
-}
-
-VolumeRegistry::~VolumeRegistry() {
-  std::error_code ec;
-  fs::remove_all(upload_dir_, ec);
 }
 
 bool VolumeRegistry::IsUploadableName(const std::string& file_name) {

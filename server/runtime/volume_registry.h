@@ -27,6 +27,7 @@
 #include "core/volume.h"
 #include "io/volume_loader.h"
 #include "runtime/principal.h"
+#include "runtime/upload_folder.h"
 
 namespace cinevol::service {
 
@@ -98,7 +99,6 @@ struct VolumeLimits {
 class VolumeRegistry {
  public:
   VolumeRegistry(std::vector<std::filesystem::path> data_roots, VolumeLimits limits);
-  ~VolumeRegistry();
 
   // The operator's volume: a phantom spec ("phantom:head?size=64"), a file or a
   // DICOM folder anywhere. Loading the same source again returns the first.
@@ -165,7 +165,7 @@ class VolumeRegistry {
   // `field` names the request field in messages.
   std::filesystem::path ResolveDataPath(const std::string& path, const std::string& field) const;
 
-  const std::filesystem::path& upload_dir() const { return upload_dir_; }
+  const std::filesystem::path& upload_dir() const { return upload_folder_.path(); }
   const VolumeLimits& limits() const { return limits_; }
   // The file extensions an upload may have.
   static bool IsUploadableName(const std::string& file_name);
@@ -223,7 +223,7 @@ class VolumeRegistry {
 
   std::vector<std::filesystem::path> data_roots_;  // canonical
   VolumeLimits limits_;
-  std::filesystem::path upload_dir_;
+  UploadFolder upload_folder_;
   mutable std::mutex mu_;
   std::map<std::string, Entry> volumes_;
   std::uint64_t reserved_ = 0;                         // loads under way, together

@@ -19,12 +19,6 @@ namespace {
 
 constexpr auto kProgressPeriod = std::chrono::seconds(1);
 
-// A name of this process's own in the temporary folder.
-std::filesystem::path TemporaryPath(const std::string& extension) {
-  static std::atomic<unsigned> count{0};
-  return std::filesystem::temp_directory_path() / fmt::format("cinevol-movie-{}-{}{}", getpid(), count++, extension);
-}
-
 std::string ReadAll(const std::filesystem::path& path) {
   std::ifstream in(path, std::ios::binary);
   return {std::istreambuf_iterator<char>(in), {}};
@@ -35,6 +29,16 @@ std::uint64_t MicrosecondsSince(Clock::time_point start) {
 }
 
 }  // namespace
+
+MovieRender::TemporaryFile::TemporaryFile(const std::string& extension) {
+  static std::atomic<unsigned> count{0};
+  path = std::filesystem::temp_directory_path() / fmt::format("cinevol-movie-{}-{}{}", getpid(), count++, extension);
+}
+
+MovieRender::TemporaryFile::~TemporaryFile() {
+  std::error_code ignored;
+  std::filesystem::remove(path, ignored);
+}
 
 void MovieRender::Start(std::shared_ptr<Session> session, Plan plan, Backend backend, TaskPool& encoder,
                         std::shared_ptr<std::atomic<bool>> cancel, Callbacks callbacks) {
@@ -61,21 +65,12 @@ MovieRender::MovieRender(std::shared_ptr<Session> session, Plan plan, Backend ba
   video.height = plan_.start.render().height();
   video.fps = MovieFps(plan_.request);
   video.crf = plan_.crf;
-  mp4_path_ = TemporaryPath(".mp4");
-  mp4_.emplace(mp4_path_, VideoContainer::kMp4, video);
+  mp4_.emplace(mp4_file_.path, VideoContainer::kMp4, video);
   if (!plan_.request.store_to().empty()) {
     video.dicom_level = true;
-    dicom_path_ = TemporaryPath(".h264");
-    dicom_.emplace(dicom_path_, VideoContainer::kAnnexB, video);
+    dicom_file_.emplace(".h264");
+    dicom_.emplace(dicom_file_->path, VideoContainer::kAnnexB, video);
   }
-}
-
-MovieRender::~MovieRender() {
-  std::error_code ignored;
-  mp4_.reset();
-  dicom_.reset();
-  std::filesystem::remove(mp4_path_, ignored);
-  if (!dicom_path_.empty()) std::filesystem::remove(dicom_path_, ignored);
 }
 
 // Frame `frame` as a still on the session's device; its radiance goes to the encoder pool, which starts the next.
@@ -109,7 +104,7 @@ void MovieRender::Encode(int frame, const StillRadiance& still) {
   if (dicom_) dicom_->Add(image.bytes);
   render_us_ += still.render_us;
   encode_us_ += MicrosecondsSince(begin);
-  if (std::filesystem::file_size(mp4_path_) > kMaxMovieMp4Bytes) {
+  if (std::filesystem::file_size(mp4_file_.path) > kMaxMovieMp4Bytes) {
     throw OverLimit("max-movie-bytes", fmt::format("the movie passed {} MiB at frame {} of {}; ask for fewer frames, "
                                                    "a smaller viewport or a higher crf",
                                                    kMaxMovieMp4Bytes >> 20, frame + 1, plan_.frames));
@@ -134,16 +129,16 @@ void MovieRender::Finish() {
   std::string dicom_stream;
   if (dicom_) {
     dicom_->Finish();
-    if (std::filesystem::file_size(dicom_path_) > pacs::kMaxMovieBytes) {
+    if (std::filesystem::file_size(dicom_file_->path) > pacs::kMaxMovieBytes) {
       throw OverLimit("max-movie-bytes",
                       fmt::format("store_to: the DICOM stream is {} bytes, over the {} MiB a "
                                   "stored movie may have",
-                                  std::filesystem::file_size(dicom_path_), pacs::kMaxMovieBytes >> 20));
+                                  std::filesystem::file_size(dicom_file_->path), pacs::kMaxMovieBytes >> 20));
     }
-    dicom_stream = ReadAll(dicom_path_);
+    dicom_stream = ReadAll(dicom_file_->path);
   }
   v1::Movie movie;
-  movie.set_mp4(ReadAll(mp4_path_));
+  movie.set_mp4(ReadAll(mp4_file_.path));
   movie.set_width(std::uint32_t(plan_.start.render().width()));
   movie.set_height(std::uint32_t(plan_.start.render().height()));
   movie.set_fps(std::uint32_t(MovieFps(plan_.request)));

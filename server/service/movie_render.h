@@ -51,7 +51,6 @@ class MovieRender : public std::enable_shared_from_this<MovieRender> {
   // wakes the first frame on the session's device.
   static void Start(std::shared_ptr<Session> session, Plan plan, Backend backend, TaskPool& encoder,
                     std::shared_ptr<std::atomic<bool>> cancel, Callbacks callbacks);
-  ~MovieRender();
 
  private:
   MovieRender(std::shared_ptr<Session> session, Plan plan, Backend backend, TaskPool& encoder,
@@ -68,7 +67,18 @@ class MovieRender : public std::enable_shared_from_this<MovieRender> {
   TaskPool& encoder_;
   std::shared_ptr<std::atomic<bool>> cancel_;
   Callbacks callbacks_;
-  std::filesystem::path mp4_path_, dicom_path_;
+  // A file of this process's own in the temporary folder, removed with it, also when the constructor throws.
+  struct TemporaryFile {
+    explicit TemporaryFile(const std::string& extension);
+    TemporaryFile(const TemporaryFile&) = delete;
+    TemporaryFile& operator=(const TemporaryFile&) = delete;
+    ~TemporaryFile();
+    std::filesystem::path path;
+  };
+
+  // Declared before the writers: a writer closes its file before the file goes.
+  TemporaryFile mp4_file_{".mp4"};
+  std::optional<TemporaryFile> dicom_file_;
   std::optional<H264Writer> mp4_, dicom_;
   Clock::time_point start_ = Clock::now(), last_progress_ = start_;
   std::uint64_t render_us_ = 0, encode_us_ = 0;  // the frames' stills and their encoding, for the log

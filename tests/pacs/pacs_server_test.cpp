@@ -394,6 +394,8 @@ TEST_F(PacsServer, AMovieIsStoredAsDicomVideoThatValidatesAndPlays) {
                              "--store-to", "orthanc"});
   EXPECT_NE(code, 0);
   EXPECT_NE(out.find("at most 1920x1080 at 30 frames/s"), std::string::npos) << out;
+  // A refused movie leaves no file behind (the MP4 was open when DICOM's level refused the rate).
+  EXPECT_TRUE(TemporaryFilesNamed(fmt::format("cinevol-movie-{}-", server_->pid())).empty());
 }
 
 // What RenderMovie cannot make or store is refused by name before a frame renders: no such session, an unknown

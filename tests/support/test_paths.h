@@ -7,6 +7,7 @@
 
 #include <filesystem>
 #include <string>
+#include <vector>
 
 namespace cinevol::testing {
 
@@ -38,5 +39,14 @@ class ScratchDir {
  private:
   std::filesystem::path path_;
 };
+
+// What the temporary folder holds whose name begins with `prefix` (a process's own files, left behind or not).
+inline std::vector<std::filesystem::path> TemporaryFilesNamed(const std::string& prefix) {
+  std::vector<std::filesystem::path> found;
+  for (const auto& entry : std::filesystem::directory_iterator(std::filesystem::temp_directory_path())) {
+    if (entry.path().filename().string().rfind(prefix, 0) == 0) found.push_back(entry.path());
+  }
+  return found;
+}
 
 }  // namespace cinevol::testing

@@ -7,7 +7,7 @@
 // Run directly (node gateway_holds.test.mjs) with CINEVOL_SERVER and CINEVOL_WEB set.
 import assert from "node:assert/strict";
 import { execFileSync } from "node:child_process";
-import { existsSync, readFileSync, rmSync } from "node:fs";
+import { existsSync, readFileSync } from "node:fs";
 import http from "node:http";
 import http2 from "node:http2";
 import net from "node:net";
@@ -58,7 +58,6 @@ after(async () => {
   // Short waits: stop() keeps its timer for them after the exit.
   await Promise.all(Object.values(gateways).map((g) => stop(g, "SIGTERM", 1)));
   await stop(server, "SIGTERM", 3);
-  rmSync(scratch, { recursive: true, force: true });
 });
 
 interface Answer {

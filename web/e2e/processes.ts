@@ -1,11 +1,13 @@
 // The real programs an end-to-end test runs: cinevol-server and cinevol-web
 // on free loopback ports, each stopped by its process id.
 import { spawn, type ChildProcess } from "node:child_process";
-import { existsSync, mkdtempSync, readFileSync, writeFileSync } from "node:fs";
+import { existsSync, mkdtempSync, readFileSync, rmSync, writeFileSync } from "node:fs";
 import { tmpdir } from "node:os";
 import { join } from "node:path";
 
+// Every file a test makes goes here; removed when the test process exits.
 export const scratch = mkdtempSync(join(tmpdir(), "cinevol-web-e2e-"));
+process.on("exit", () => rmSync(scratch, { recursive: true, force: true }));
 const sleep = (ms: number) => new Promise((r) => setTimeout(r, ms));
 
 export interface Running {

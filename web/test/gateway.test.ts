@@ -1,5 +1,5 @@
 import assert from "node:assert/strict";
-import { mkdtempSync, writeFileSync } from "node:fs";
+import { mkdtempSync, rmSync, writeFileSync } from "node:fs";
 import { tmpdir } from "node:os";
 import { join } from "node:path";
 import { test } from "node:test";
@@ -24,8 +24,9 @@ test("beyond loopback the gateway needs TLS; half a TLS pair is refused", () => 
   assert.equal(parseOptions(base).port, 8080);
 });
 
-test("only the page's own files are served: no path reaches the disk", () => {
+test("only the page's own files are served: no path reaches the disk", (t) => {
   const dir = mkdtempSync(join(tmpdir(), "cinevol-web-test-"));
+  t.after(() => rmSync(dir, { recursive: true, force: true }));
   writeFileSync(join(dir, "index.html"), "<p>page</p>");
   writeFileSync(join(dir, "app.js"), "1");
   writeFileSync(join(dir, "secret.key"), "no");
