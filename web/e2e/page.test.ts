@@ -95,7 +95,8 @@ test("a preset changes the picture", async () => {
 
 test("a time series: the Time controls show its phases, a phase changes the picture, Play steps through them",
      async () => {
-  const page = await run.browser.newPage({ viewport: { width: 960, height: 540 } });
+  // A small canvas (400x240): the CPU's frames come quickly, and the loop's movie renders at the session's size.
+  const page = await run.browser.newPage({ viewport: { width: 720, height: 240 } });
   await page.goto(`http://127.0.0.1:${run.openGateway.port}/?volume=beat`);
   await until(page, (s) => s.framesPainted >= 1, "a frame of the series");
   assert.ok(await page.isVisible("#time"), "the Time controls show for a volume of several phases");
@@ -112,12 +113,11 @@ test("a time series: the Time controls show its phases, a phase changes the pict
   assert.equal(await page.textContent("#phase-label"), "Phase 4 of 4 (150 ms)");
   await page.screenshot({ path: join(ARTIFACTS, "3-time-series.png") });
 
-  // One phase a second, on a small canvas: slower than a CPU frame under load,
-  // so no phase falls between two frames. At 8 a second, frames a quarter
-  // second apart on a busy 2-core machine showed phases 1, 2 and 4 only; at 1
-  // a second on a 640x540 canvas, while alice's session refined on the other
-  // server, frames up to two seconds apart showed phases 4, 1 and 3.
-  await resizeWindow(page, 720, 240);
+  // One phase a second, on the small canvas: slower than a CPU frame under
+  // load, so no phase falls between two frames. At 8 a second, frames a
+  // quarter second apart on a busy 2-core machine showed phases 1, 2 and 4
+  // only; at 1 a second on a 640x540 canvas, while alice's session refined on
+  // the other server, frames up to two seconds apart showed phases 4, 1 and 3.
   await page.fill("#phase-rate", "1");
   await page.$eval("#phase-rate", (e) => e.dispatchEvent(new Event("change")));
   await page.click("#play");
