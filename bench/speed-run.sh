@@ -35,6 +35,8 @@
 #              time, SM time, warps active and shape (bench/kernel_table.py), KERNELS_COUNT (200)
 #              launches after the first KERNELS_SKIP (150); ncu from NCU or the CUDA toolkit
 #   memory     the device memory per added 720p session (VolumeCache test)
+#   clients    CLIENTS_SESSIONS (8 128) full-size sessions from one loadtest process and from two (CLIENTS=2
+#              splits any step's sessions between that many), alternating
 # SECONDS_PER_RUN (8) is each loadtest's length, DENOISER (wrls) its sessions' denoiser. Every session of a loadtest
 # shares one connection: servers allow 1024 streams on it (128 by default, which
 # 128 sessions' streams fill, and their closing calls then wait for a stream). This build's servers run with
@@ -82,25 +84,38 @@ loadtest() {
   local start=$SECONDS
   local what=(--width "$w" --height "$h" --spp 2 --denoiser "${DENOISER:-wrls}" --scene "$scene")
   [ -n "${SCRIPT:-}" ] && what=(--script "$SCRIPT")
-  "$cv/bin/cinevol" loadtest --server "127.0.0.1:$(cat "$port_file")" --sessions "$n" --seconds "$seconds" \
-    "${what[@]}" --json "$@" > "$logs/loadtest-$tag.json" 2> "$logs/loadtest-$tag.err"
-  local rc=$? elapsed=$((SECONDS - start)) cpu1
+  # CLIENTS loadtest processes at once, each with its share of the sessions.
+  local clients=${CLIENTS:-1} c pids=() rc=0
+  for c in $(seq "$clients"); do
+    "$cv/bin/cinevol" loadtest --server "127.0.0.1:$(cat "$port_file")" --sessions $((n / clients)) \
+      --seconds "$seconds" "${what[@]}" --json "$@" > "$logs/loadtest-$tag-$c.json" 2> "$logs/loadtest-$tag-$c.err" &
+    pids+=($!)
+  done
+  for c in "${pids[@]}"; do wait "$c" || rc=$?; done
+  local elapsed=$((SECONDS - start)) cpu1
   cpu1=$(cpu_seconds $server)
   kill $smi
   kill -TERM $server
   wait $server
-  python3 - "$logs/loadtest-$tag.json" "$logs/smi-$tag.txt" "$label" "$build" "$w" "$h" "$cpu0" "$cpu1" "$elapsed" \
-    "$rc" >> "$table" <<'EOF'
+  python3 - "$logs/smi-$tag.txt" "$label" "$build" "$w" "$h" "$cpu0" "$cpu1" "$elapsed" "$rc" \
+    "$logs"/loadtest-$tag-*.json >> "$table" <<'EOF'
 import json, sys
-path, smi, label, build, w, h, cpu0, cpu1, elapsed, rc = sys.argv[1:]
+smi, label, build, w, h, cpu0, cpu1, elapsed, rc = sys.argv[1:10]
 try:
-    r = json.load(open(path))
+    runs = [json.load(open(path)) for path in sys.argv[10:]]
 except Exception as e:
     print(f"| {label} | {build} | ? | {w}x{h} | loadtest failed (rc {rc}): {e} |"); sys.exit()
-o = r["overall"]; s = o["stage_ms"]
+# With several clients: their sessions together, the worst client's latencies, the mean of their stages.
+o = runs[0]["overall"]
+for r in runs[1:]:
+    for k in o["latency_ms"]: o["latency_ms"][k] = max(o["latency_ms"][k], r["overall"]["latency_ms"][k])
+    o["dropped"] += r["overall"]["dropped"]
+    for k, v in r["overall"]["errors"].items(): o["errors"][k] = o["errors"].get(k, 0) + v
+s = {k: sum(r["overall"]["stage_ms"][k] for r in runs) / len(runs) for k in o["stage_ms"]}
 # Sessions that streamed (an error at the end, e.g. a close past its deadline,
 # does not undo their frames); refused ones count apart.
-served = [p for p in r["per_session"] if p["frames"] > 0]
+sessions = [p for r in runs for p in r["per_session"]]
+served = [p for p in sessions if p["frames"] > 0]
 fps = [p["fps"] for p in served]
 util = [l.split(",") for l in open(smi) if l.strip()]
 busy = [float(u) for u, m in util if float(u) > 0]
@@ -108,7 +123,7 @@ mem = max((float(m) for u, m in util), default=0)
 errors = ", ".join(f"{k} {v}" for k, v in o["errors"].items()) or "-"
 cores = (float(cpu1) - float(cpu0)) / max(float(elapsed), 1)
 each = f"{sum(fps)/len(fps):.1f} ({min(fps):.1f})" if fps else "-"
-print(f"| {label} | {build} | {len(r['per_session'])} ({len(served)} served) | {w}x{h} | {each} "
+print(f"| {label} | {build} | {len(sessions)} ({len(served)} served) | {w}x{h} | {each} "
       f"| {sum(fps):.0f} | {o['latency_ms']['p50']:.1f} / {o['latency_ms']['p95']:.1f} / {o['latency_ms']['p99']:.1f} | render {s['render']:.2f}, "
       f"denoise {s['denoise']:.2f}, display {s['tonemap']:.2f}, encode {s['encode']:.2f}, queue {s['queue']:.2f} "
       f"| {sum(busy)/max(len(busy),1):.0f}% | {mem:.0f} | {cores:.1f} | {o['dropped']} | {errors} |")
@@ -256,6 +271,17 @@ sm__warps_active.avg.pct_of_peak_sustained_active,launch__grid_size,launch__bloc
   wait $profiler
   { echo; echo "### Kernels of one ${size} session, Nsight Compute ($(gpu_name), $(date -u +%F))"; echo
     python3 "$(dirname "$0")/kernel_table.py" "$csv"; } >> "$table"
+}
+
+# Is the loadtest client part of what slows many sessions? CLIENTS_SESSIONS (8 128) full-size sessions from one
+# client and from two, alternating, two rounds.
+step_clients() {
+  table_header "One loadtest client or two, this build, 1280x720"
+  for round in 1 2; do
+    for n in ${CLIENTS_SESSIONS:-8 128}; do
+      for clients in 1 2; do CLIENTS=$clients loadtest "clients-$clients" bin "$n" 1280 720; done
+    done
+  done
 }
 
 step_memory() {
