@@ -138,7 +138,7 @@ class ReflectionReactor final : public grpc::ServerBidiReactor<ServerReflectionR
 
 ReflectionService::ReflectionService(ServiceCore* core, std::vector<std::string> services)
     : core_(core), services_(std::move(services)) {
-  services_.push_back(grpc::reflection::v1alpha::ServerReflection::service_full_name());
+  services_.emplace_back(grpc::reflection::v1alpha::ServerReflection::service_full_name());
   // Links the health service's descriptors in, so that it can be described too.
   (void)grpc::health::v1::HealthCheckRequest::descriptor();
 }
