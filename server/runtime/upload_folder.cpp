@@ -10,6 +10,7 @@
 #include <cerrno>
 #include <cstring>
 #include <string>
+#include <string_view>
 
 #include "core/error.h"
 
@@ -18,7 +19,8 @@ namespace fs = std::filesystem;
 namespace cinevol::service {
 namespace {
 
-constexpr const char* kPrefix = "cinevol-uploads-";
+constexpr std::string_view kPrefix = "cinevol-uploads-";
+constexpr std::string_view kNewPrefix = ".cinevol-uploads-new-";  // while being made: the sweep passes it by
 
 // Opens a folder (never through a symlink) and takes its lock without waiting; -1 where it is held or not ours.
 int OpenLocked(const fs::path& folder) {
@@ -54,12 +56,13 @@ UploadFolder::UploadFolder() {
   RemoveAbandonedFolders(temporary);
   // Made under a name the sweep ignores, locked, then renamed: another server
   // starting at the same moment never sees it unlocked.
-  std::string made = (temporary / ".cinevol-uploads-new-XXXXXX").string();
+  std::string made = (temporary / fmt::format("{}XXXXXX", kNewPrefix)).string();
   if (::mkdtemp(made.data()) == nullptr) {
     throw InputError(fmt::format("cannot make a folder in {}: {}", temporary.string(), std::strerror(errno)));
   }
   lock_fd_ = OpenLocked(made);
-  path_ = temporary / fmt::format("{}{}-{}", kPrefix, ::getpid(), fs::path(made).filename().string().substr(21));
+  const std::string random = fs::path(made).filename().string().substr(kNewPrefix.size());
+  path_ = temporary / fmt::format("{}{}-{}", kPrefix, ::getpid(), random);
   if (lock_fd_ < 0 || ::rename(made.c_str(), path_.c_str()) != 0) {
     const int error = errno;
     if (lock_fd_ >= 0) ::close(lock_fd_);
