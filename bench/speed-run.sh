@@ -7,7 +7,7 @@
 #   tests      the GPU tests of this build (TESTS: a gtest filter)
 #   encode     cinevol-bench encode: every JPEG encoder on the same frames
 #   pair       loadtests of both builds, alternating: PAIR_SESSIONS (1 32 64) at 1280x720,
-#              with PAIR_EXTRA's loadtest flags
+#              with PAIR_EXTRA's loadtest flags, PAIR_ROUNDS (1) times
 #   sweep      this build's loadtest over SWEEP (1 8 16 32 48 64 96 128) sessions,
 #              full size and (SWEEP_INTERACTIVE) with --interactive-frame-ms 33
 #   big        one 3840x2160 and one 2560x1440 session, both builds alternating, BIG_RUNS (2) times;
@@ -34,7 +34,8 @@
 #   kernels    Nsight Compute over one session of this build at KERNELS_SIZE (640x360): each kernel's
 #              time, SM time, warps active and shape (bench/kernel_table.py), KERNELS_COUNT (200)
 #              launches after the first KERNELS_SKIP (150); ncu from NCU or the CUDA toolkit
-#   memory     the device memory per added 720p session (VolumeCache test)
+#   memory     the device memory per added 720p session (VolumeCache test), of each build
+#              whose cinevol_tests the bundle holds
 #   clients    CLIENTS_SESSIONS (8 128) full-size sessions from one loadtest process and from two (CLIENTS=2
 #              splits any step's sessions between that many), alternating
 # SECONDS_PER_RUN (8) is each loadtest's length, DENOISER (wrls) its sessions' denoiser. Every session of a loadtest
@@ -156,8 +157,10 @@ step_encode() {
 
 step_pair() {
   table_header "Both builds alternating, 1280x720"
-  for n in ${PAIR_SESSIONS:-1 32 64}; do
-    for build in bin-before bin; do loadtest "pair${PAIR_EXTRA:+-i}" "$build" "$n" 1280 720 ${PAIR_EXTRA:-}; done
+  for round in $(seq "${PAIR_ROUNDS:-1}"); do
+    for n in ${PAIR_SESSIONS:-1 32 64}; do
+      for build in bin-before bin; do loadtest "pair${PAIR_EXTRA:+-i}" "$build" "$n" 1280 720 ${PAIR_EXTRA:-}; done
+    done
   done
 }
 
@@ -285,8 +288,13 @@ step_clients() {
 }
 
 step_memory() {
-  "$cv/bin/cinevol_tests" --gtest_filter='VolumeCache.PrintsTheDeviceMemoryOfA720pSession' > "$logs/memory.log" 2>&1
-  { echo; echo "Device memory ($(gpu_name)):"; grep -iE 'MiB|session' "$logs/memory.log" | head -12; } >> "$table"
+  for build in bin-before bin; do
+    [ -x "$cv/$build/cinevol_tests" ] || continue
+    "$cv/$build/cinevol_tests" --gtest_filter='VolumeCache.PrintsTheDeviceMemoryOfA720pSession' \
+      > "$logs/memory-$build.log" 2>&1
+    { echo; echo "Device memory, $build ($(gpu_name)):"; grep -iE 'MiB|session' "$logs/memory-$build.log" | head -12; } \
+      >> "$table"
+  done
 }
 
 nvidia-smi --query-gpu=name,memory.total,driver_version --format=csv,noheader | tee "$out/gpu.txt"

@@ -15,25 +15,28 @@
 
 namespace cinevol {
 
-// The edge guides the a-trous levels stop at (ComputeEdgeGuides), with
-// their scratch: a frame's worth, for SVGF and wRLS alike. They also keep
-// the frame's first hits for the next frame's reprojection.
+// The edge guides the a-trous levels stop at (ComputeEdgeGuides), for SVGF
+// and wRLS alike, in this thread's frame scratch (device/frame_scratch.h).
+// They also keep the frame's first hits for the next frame's reprojection.
 template <class B>
-class EdgeGuides {
- public:
-  void Resize(std::size_t n) {
-    guides_.Resize(n);
-    row_hits_.Resize(n);
-  }
-  const EdgeGuide* Compute(const DenoiseFrame& frame, Vec4f* kept_first_hit) {
-    ComputeEdgeGuides<B>(frame.first_hit, frame.camera.eye, frame.width, frame.height, row_hits_.data(),
-                         guides_.data(), kept_first_hit);
-    return guides_.data();
-  }
+const EdgeGuide* FrameEdgeGuides(const DenoiseFrame& frame, Vec4f* kept_first_hit) {
+  const std::size_t n = std::size_t(frame.width) * frame.height;
+  EdgeGuide* guides = B::template FrameScratch<EdgeGuide>(Scratch::kEdgeGuides, n);
+  ComputeEdgeGuides<B>(frame.first_hit, frame.camera.eye, frame.width, frame.height,
+                       B::template FrameScratch<float>(Scratch::kEdgeRowHits, n), guides, kept_first_hit);
+  return guides;
+}
 
- private:
-  typename B::template Buffer<EdgeGuide> guides_;
-  typename B::template Buffer<float> row_hits_;
+// The a-trous levels' pair of buffers (prediction and variance), in this
+// thread's frame scratch: a level reads `in` and writes `out`, then they swap.
+template <class B>
+struct AtrousPair {
+  Vec4f* in;
+  Vec4f* out;
+  explicit AtrousPair(std::size_t n)
+      : in(B::template FrameScratch<Vec4f>(Scratch::kEstimate, n)),
+        out(B::template FrameScratch<Vec4f>(Scratch::kEstimateNext, n)) {}
+  void Swap() { std::swap(in, out); }
 };
 
 // What every method shares: frame size, optional demodulation, the previous
@@ -55,9 +58,9 @@ class DenoiserBase : public Denoiser {
     timer_.Start();
     const Vec3f* input = frame.radiance;
     if (settings_.demodulate) {
-      demodulated_.Resize(pixels());  // only demodulating denoisers pay for it
-      B::ForEachPixel(width_, height_, DemodulatePass{frame.radiance, frame.albedo, demodulated_.data(), width_});
-      input = demodulated_.data();
+      Vec3f* demodulated = B::template FrameScratch<Vec3f>(Scratch::kDemodulated, pixels());
+      B::ForEachPixel(width_, height_, DemodulatePass{frame.radiance, frame.albedo, demodulated, width_});
+      input = demodulated;
     }
     ReprojectionView rv;
     rv.first_hit = frame.first_hit;
@@ -111,7 +114,7 @@ class DenoiserBase : public Denoiser {
     ResetHistory();
   }
 
-  Buffer<Vec3f> output_, demodulated_;
+  Buffer<Vec3f> output_;
   Buffer<Vec4f> prev_first_hit_;
   Camera prev_camera_;  // for reprojection
   typename B::Timer timer_;
@@ -241,30 +244,25 @@ class Svgf final : public DenoiserBase<B> {
     const SvgfSettings& s = this->settings_.svgf;
     const int w = this->width_, h = this->height_;
     std::swap(history_, prev_history_);
+    AtrousPair<B> pair(this->pixels());
     B::ForEachPixel(w, h, SvgfTemporalPass{rv, input, prev_history_.data(), history_.data(), s});
-    B::ForEachPixel(w, h, SvgfVariancePass{history_.data(), frame.first_hit, a_.data(), w, h});
-    const EdgeGuide* guides = guides_.Compute(frame, this->kept_first_hit());
+    B::ForEachPixel(w, h, SvgfVariancePass{history_.data(), frame.first_hit, pair.in, w, h});
+    const EdgeGuide* guides = FrameEdgeGuides<B>(frame, this->kept_first_hit());
     for (int level = 0; level < s.iterations; ++level) {
-      RunAtrousLevel<B>(AtrousPass{a_.data(), b_.data(), guides, w, h,
-                                   1 << level, s.sigma_luminance, s.sigma_depth});
-      if (level == 0) B::ForEachPixel(w, h, SvgfFeedbackPass{b_.data(), history_.data(), w});
-      std::swap(a_, b_);
+      RunAtrousLevel<B>(AtrousPass{pair.in, pair.out, guides, w, h, 1 << level, s.sigma_luminance, s.sigma_depth});
+      if (level == 0) B::ForEachPixel(w, h, SvgfFeedbackPass{pair.out, history_.data(), w});
+      pair.Swap();
     }
-    B::ForEachPixel(w, h, ColorOfPass{a_.data(), output, w});
+    B::ForEachPixel(w, h, ColorOfPass{pair.in, output, w});
   }
   void Allocate(std::size_t n) override {
     history_.Resize(n);
     prev_history_.Resize(n);
-    a_.Resize(n);
-    b_.Resize(n);
-    guides_.Resize(n);
   }
   bool KeepsFirstHits() const override { return true; }
 
  private:
   typename DenoiserBase<B>::template Buffer<SvgfHistory> history_, prev_history_;
-  typename DenoiserBase<B>::template Buffer<Vec4f> a_, b_;
-  EdgeGuides<B> guides_;
 };
 
 // wRLS: the feature's history reprojected (and rescaled where the light or
@@ -282,76 +280,75 @@ class Wrls final : public DenoiserBase<B> {
     const int w = this->width_, h = this->height_;
     still_frames_ = rv.still ? still_frames_ + 1 : 0;
     std::swap(model_, prev_model_);
-    // The previous feature and output, reprojected: the temporal pass and the
-    // stabiliser then overwrite them.
-    B::ForEachPixel(w, h, ReprojectHistoriesPass{rv, feature_.data(), stable_.data(), b_.data(), stable_history_.data(),
-                                                 previous_pixel_.data()});
-    B::ForEachPixel(w, h, WrlsTemporalPass{rv, input, b_.data(), previous_pixel_.data(), prev_model_.data(),
-                                           feature_.data(), model_.data(), a_.data(), s, still_frames_,
-                                           FeatureRatioRows(input, rv)});
-    const EdgeGuide* guides = guides_.Compute(frame, this->kept_first_hit());
+    const std::size_t n = this->pixels();
+    AtrousPair<B> pair(n);
+    Vec4f* output_history = B::template FrameScratch<Vec4f>(Scratch::kOutputHistory, n);
+    int* previous_pixel = B::template FrameScratch<int>(Scratch::kPreviousPixel, n);
+    // The previous feature (into pair.out) and output, reprojected: the
+    // temporal pass and the stabiliser then overwrite their histories.
+    B::ForEachPixel(w, h, ReprojectHistoriesPass{rv, feature_.data(), stable_.data(), pair.out, output_history,
+                                                 previous_pixel});
+    B::ForEachPixel(w, h, WrlsTemporalPass{rv, input, pair.out, previous_pixel, prev_model_.data(), feature_.data(),
+                                           model_.data(), pair.in, s, still_frames_,
+                                           FeatureRatioRows(input, pair.out, rv)});
+    const EdgeGuide* guides = FrameEdgeGuides<B>(frame, this->kept_first_hit());
     for (int level = 0; level < s.atrous_iterations; ++level) {
-      RunAtrousLevel<B>(AtrousPass{a_.data(), b_.data(), guides, w, h,
-                                   1 << level, s.atrous_sigma_luminance, s.atrous_sigma_depth});
-      std::swap(a_, b_);
+      RunAtrousLevel<B>(AtrousPass{pair.in, pair.out, guides, w, h, 1 << level, s.atrous_sigma_luminance,
+                                   s.atrous_sigma_depth});
+      pair.Swap();
     }
-    Stabilize(output);
+    Stabilize(pair.in, output_history, output);
   }
 
   void Allocate(std::size_t n) override {
     stable_.Resize(n);
-    stable_history_.Resize(n);
     feature_.Resize(n);
-    previous_pixel_.Resize(n);
     model_.Resize(n);
     prev_model_.Resize(n);
-    a_.Resize(n);
-    b_.Resize(n);
-    offset_rows_.Resize(n);
-    guides_.Resize(n);
   }
   void ResetHistory() override { still_frames_ = 0; }
   bool KeepsFirstHits() const override { return true; }
 
  private:
-  // The row sums the temporal pass rescales the feature's history (in b_)
-  // with, or null on a still view (its history is exact).
-  const Vec4f* FeatureRatioRows(const Vec3f* input, const ReprojectionView& rv) {
+  // The row sums the temporal pass rescales the feature's reprojected
+  // history with, or null on a still view (its history is exact).
+  const Vec4f* FeatureRatioRows(const Vec3f* input, const Vec4f* feature_history, const ReprojectionView& rv) {
     const WrlsSettings& s = this->settings_.wrls;
     if (rv.still) return nullptr;
     const int w = this->width_, h = this->height_;
-    B::RowWindowSums(w, h, s.feature_rescale, kWindowTapStride, FeatureRatioTap{input, b_.data(), w, s.firefly_clamp},
-                     offset_rows_.data());
-    return offset_rows_.data();
+    Vec4f* rows = RowSums();
+    B::RowWindowSums(w, h, s.feature_rescale, kWindowTapStride,
+                     FeatureRatioTap{input, feature_history, w, s.firefly_clamp}, rows);
+    return rows;
   }
 
-  // The estimate in a_ blended with the previous output: recentred while
-  // the view moves, accumulated while it holds still.
-  void Stabilize(Vec3f* output) {
+  // The estimate blended with the previous output (reprojected): recentred
+  // while the view moves, accumulated while it holds still.
+  void Stabilize(const Vec4f* estimate, const Vec4f* output_history, Vec3f* output) {
     const WrlsSettings& s = this->settings_.wrls;
     const int w = this->width_, h = this->height_;
     const int still = MinInt(still_frames_, s.stabilize_still_frames);
     const float weight = fmaxf(s.stabilize_history, 1.0f - 1.0f / float(still + 1));
     const Vec4f* offsets = nullptr;
     if (still == 0) {
-      B::RowWindowSums(w, h, s.stabilize_recenter, kWindowTapStride,
-                       HistoryOffsetTap{a_.data(), stable_history_.data(), w}, offset_rows_.data());
-      offsets = offset_rows_.data();
+      Vec4f* rows = RowSums();
+      B::RowWindowSums(w, h, s.stabilize_recenter, kWindowTapStride, HistoryOffsetTap{estimate, output_history, w},
+                       rows);
+      offsets = rows;
     }
-    B::ForEachPixel(w, h, WrlsStabilizePass{a_.data(), stable_history_.data(), offsets, output, stable_.data(), w, h,
-                                            weight, s.stabilize_clamp, s.stabilize_recenter});
+    B::ForEachPixel(w, h, WrlsStabilizePass{estimate, output_history, offsets, output, stable_.data(), w, h, weight,
+                                            s.stabilize_clamp, s.stabilize_recenter});
   }
 
-  // One frame each: read (reprojected) before they are written.
+  // Row sums of a recentering or rescaling window, in frame scratch.
+  Vec4f* RowSums() { return B::template FrameScratch<Vec4f>(Scratch::kRowSums, this->pixels()); }
+
+  // One frame each: read (reprojected) before they are written. The frame's
+  // other buffers are frame scratch (AtrousPair, FrameEdgeGuides, Run).
   typename DenoiserBase<B>::template Buffer<Vec3f> feature_;
   typename DenoiserBase<B>::template Buffer<Vec3f> stable_;  // the stabilised output
-  typename DenoiserBase<B>::template Buffer<Vec4f> stable_history_;  // the previous one, reprojected
-  typename DenoiserBase<B>::template Buffer<int> previous_pixel_;  // ReprojectHistoriesPass
   // Two frames: the temporal pass reads other pixels' previous models.
   typename DenoiserBase<B>::template Buffer<StoredWrlsModel> model_, prev_model_;
-  typename DenoiserBase<B>::template Buffer<Vec4f> a_, b_;  // prediction and its variance, per a-trous level
-  typename DenoiserBase<B>::template Buffer<Vec4f> offset_rows_;  // row sums of a recentering or rescaling window
-  EdgeGuides<B> guides_;
   int still_frames_ = 0;
 };
 

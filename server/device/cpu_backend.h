@@ -12,6 +12,7 @@
 #include <vector>
 
 #include "core/parallel_for.h"
+#include "device/frame_scratch.h"
 
 namespace cinevol {
 
@@ -47,6 +48,11 @@ struct CpuBackend {
   // Host memory that Buffer::Download(T*) fills.
   template <class T>
   using HostBuffer = Buffer<T>;
+  // `count` elements of this thread's scratch for `role` (frame_scratch.h).
+  template <class T>
+  static T* FrameScratch(Scratch role, std::size_t count) {
+    return static_cast<T*>(HostScratch(role, count * sizeof(T)));
+  }
 
   // f(x, y) for every pixel; f must not throw. Frames too small to repay
   // starting threads run on the caller's.

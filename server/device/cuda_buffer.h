@@ -10,6 +10,7 @@
 #include <vector>
 
 #include "core/error.h"
+#include "device/frame_scratch.h"
 
 namespace cinevol::cuda {
 
@@ -26,6 +27,16 @@ inline void Check(cudaError_t e, const char* what, const char* file, int line) {
 #define CINEVOL_CUDA_CHECK(call) ::cinevol::cuda::Check((call), #call, __FILE__, __LINE__)
 // After a kernel launch: launch errors now, execution errors at the next sync.
 #define CINEVOL_CUDA_CHECK_LAUNCH() ::cinevol::cuda::Check(cudaGetLastError(), "kernel launch", __FILE__, __LINE__)
+
+// Copies `count` elements of device memory into a host vector, and waits.
+template <class T>
+std::vector<T> Download(const T* device, std::size_t count, cudaStream_t stream = cudaStreamPerThread) {
+  std::vector<T> host(count);
+  if (count == 0) return host;
+  CINEVOL_CUDA_CHECK(cudaMemcpyAsync(host.data(), device, count * sizeof(T), cudaMemcpyDeviceToHost, stream));
+  CINEVOL_CUDA_CHECK(cudaStreamSynchronize(stream));
+  return host;
+}
 
 template <class T>
 class DeviceBuffer {
@@ -80,9 +91,7 @@ class DeviceBuffer {
   }
 
   std::vector<T> Download(cudaStream_t stream = cudaStreamPerThread) const {
-    std::vector<T> host(count_);
-    Download(host.data(), stream);
-    return host;
+    return cuda::Download(data_, count_, stream);
   }
 
   void Zero(cudaStream_t stream = cudaStreamPerThread) {
@@ -109,6 +118,16 @@ class DeviceBuffer {
   T* data_ = nullptr;
   std::size_t count_ = 0, capacity_ = 0;
 };
+
+// This thread's device buffer for `role` on the current GPU
+// (frame_scratch.h): at least `bytes`, grown and never shrunk.
+void* DeviceScratchBytes(Scratch role, std::size_t bytes);
+
+// The same, as `count` elements of T.
+template <class T>
+T* DeviceScratch(Scratch role, std::size_t count) {
+  return static_cast<T*>(DeviceScratchBytes(role, count * sizeof(T)));
+}
 
 // Page-locked host memory, the target of device-to-host copies that should
 // not be staged through a driver buffer. Host code reads it like any memory.

@@ -113,8 +113,12 @@ struct CudaRenderer::Device {
   DeviceBuffer<Vec4f> env_texels;
   DeviceBuffer<Light> lights;
   DeviceBuffer<LabelMaterial> label_materials;
-  DeviceBuffer<Vec3f> radiance, accumulated, albedo;
-  DeviceBuffer<Vec4f> first_hit;
+  DeviceBuffer<Vec3f> accumulated;
+  // The last frame's outputs, in the rendering thread's frame scratch
+  // (device/frame_scratch.h): valid until that thread renders again.
+  Vec3f* radiance = nullptr;
+  Vec3f* albedo = nullptr;
+  Vec4f* first_hit = nullptr;
 
   Device() {
     CINEVOL_CUDA_CHECK(cudaEventCreate(&start));
@@ -202,15 +206,16 @@ void CudaRenderer::Render(const FrameRequest& request) {
   if (!data_.has_volume()) throw std::logic_error("CudaRenderer::Render before SetVolume");
   Device& d = *device_;
   const int w = request.camera.width, h = request.camera.height;
+  const std::size_t pixels = std::size_t(w) * h;
   if (w != width_ || h != height_) {
     width_ = w;
     height_ = h;
-    d.radiance.Resize(std::size_t(w) * h);
-    d.first_hit.Resize(std::size_t(w) * h);
-    d.accumulated.Resize(std::size_t(w) * h);
-    d.albedo.Resize(std::size_t(w) * h);
+    d.accumulated.Resize(pixels);
     ResetAccumulation();
   }
+  d.radiance = cuda::DeviceScratch<Vec3f>(Scratch::kRadiance, pixels);
+  d.albedo = cuda::DeviceScratch<Vec3f>(Scratch::kAlbedo, pixels);
+  d.first_hit = cuda::DeviceScratch<Vec4f>(Scratch::kFirstHit, pixels);
   RenderScene scene = data_.HostView();
   scene.volume.voxels = volume_->voxels();
   if (use_texture_) scene.volume.texture = volume_->texture();
@@ -254,7 +259,7 @@ double CudaRenderer::LastFrameMilliseconds() const {
   return ms;
 }
 
-ImageRgbF CudaRenderer::Radiance() const { return {width_, height_, device_->radiance.Download(device_->stream)}; }
+ImageRgbF CudaRenderer::Radiance() const { return {width_, height_, Download(device_->radiance)}; }
 
 ImageRgbF CudaRenderer::AccumulatedMean() const {
   ImageRgbF image{width_, height_, device_->accumulated.Download(device_->stream)};
@@ -263,12 +268,18 @@ ImageRgbF CudaRenderer::AccumulatedMean() const {
   return image;
 }
 
-std::vector<Vec4f> CudaRenderer::FirstHits() const { return device_->first_hit.Download(device_->stream); }
+std::vector<Vec4f> CudaRenderer::FirstHits() const { return Download(device_->first_hit); }
 
-ImageRgbF CudaRenderer::Albedo() const { return {width_, height_, device_->albedo.Download(device_->stream)}; }
+ImageRgbF CudaRenderer::Albedo() const { return {width_, height_, Download(device_->albedo)}; }
 
 FrameTargets CudaRenderer::Targets() const {
-  return {device_->radiance.data(), device_->first_hit.data(), device_->accumulated.data(), device_->albedo.data()};
+  return {device_->radiance, device_->first_hit, device_->accumulated.data(), device_->albedo};
+}
+
+template <class T>
+std::vector<T> CudaRenderer::Download(const T* frame_scratch) const {
+  if (!frame_scratch) return {};
+  return cuda::Download(frame_scratch, std::size_t(width_) * height_, device_->stream);
 }
 
 }  // namespace cinevol

@@ -48,6 +48,8 @@ class CudaRenderer final : public Renderer {
   std::unique_ptr<Device> device_;
   void UploadTables();  // the transfer tables and the majorants, after SceneData changed them
   void AcquireMajorants();
+  template <class T>
+  std::vector<T> Download(const T* frame_scratch) const;  // the last frame's, to the host
 
   SceneData data_;
   int width_ = 0, height_ = 0;

@@ -99,7 +99,10 @@ class Renderer {
   // (CUDA events) on the GPU, where reading it waits for the frame.
   virtual double LastFrameMilliseconds() const = 0;
 
-  // The last frame's outputs, copied to the host.
+  // The last frame's outputs, copied to the host. On the GPU the radiance,
+  // first hits and albedo are the rendering thread's frame scratch
+  // (device/frame_scratch.h): read them, and Targets(), on that thread
+  // before it renders another frame.
   virtual ImageRgbF Radiance() const = 0;
   virtual ImageRgbF AccumulatedMean() const = 0;
   virtual std::vector<Vec4f> FirstHits() const = 0;

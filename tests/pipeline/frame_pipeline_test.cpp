@@ -171,5 +171,54 @@ TEST(FramePipeline, CudaAgreesWithCpu) {
   }
 }
 
+// Sessions whose frames one thread makes share its frame scratch
+// (device/frame_scratch.h): interleaved, at different sizes, still and
+// moving, each makes the very frames it makes alone.
+class FrameScratchShared : public ::testing::TestWithParam<Backend> {};
+
+TEST_P(FrameScratchShared, InterleavedSessionsMakeTheFramesEachMakesAlone) {
+  if (GetParam() == Backend::kCuda) CINEVOL_REQUIRE_CUDA();
+  auto volume = SmallHead();
+  constexpr int kFrames = 6;
+  FrameSettings settings;
+  settings.interactive_frame_ms = 0;  // full size while moving: no clock in the frames
+  struct Session {
+    v1::Scene scene;
+    float step_mm;  // the camera's move before frames 2 and 4
+    std::unique_ptr<FramePipeline> pipeline;
+    void Start(Backend backend, const std::shared_ptr<const Volume>& volume, const FrameSettings& settings) {
+      pipeline = std::make_unique<FramePipeline>(backend, volume);
+      pipeline->Update(scene, settings);
+    }
+    std::vector<std::uint8_t> Frame(int i, const FrameSettings& settings) {
+      if (i == 2 || i == 4) {
+        v1::Vec3& eye = *scene.mutable_camera()->mutable_eye();
+        eye.set_x(eye.x() + step_mm);
+        pipeline->Update(scene, settings, kCameraChanged);
+      }
+      return Bytes(pipeline->RenderFrame().image);
+    }
+  };
+  const auto start_small = [&] { return Session{SmallScene(*volume, 40, 24), 6.0f, nullptr}; };
+  const auto start_large = [&] { return Session{SmallScene(*volume, 64, 48), -9.0f, nullptr}; };
+  const auto alone = [&](Session session) {
+    session.Start(GetParam(), volume, settings);
+    std::vector<std::vector<std::uint8_t>> frames;
+    for (int i = 0; i < kFrames; ++i) frames.push_back(session.Frame(i, settings));
+    return frames;
+  };
+  const auto small_alone = alone(start_small()), large_alone = alone(start_large());
+  Session small = start_small(), large = start_large();
+  small.Start(GetParam(), volume, settings);
+  large.Start(GetParam(), volume, settings);
+  for (int i = 0; i < kFrames; ++i) {
+    EXPECT_EQ(large.Frame(i, settings), large_alone[std::size_t(i)]) << "the larger session's frame " << i;
+    EXPECT_EQ(small.Frame(i, settings), small_alone[std::size_t(i)]) << "the smaller session's frame " << i;
+  }
+}
+
+INSTANTIATE_TEST_SUITE_P(Backends, FrameScratchShared, ::testing::Values(Backend::kCpu, Backend::kCuda),
+                         [](const ::testing::TestParamInfo<Backend>& info) { return std::string(ToString(info.param)); });
+
 }  // namespace
 }  // namespace cinevol
