@@ -1,15 +1,14 @@
 // Frame scratch: the buffers a frame needs only while it is made (the
 // render's outputs, the denoiser's a-trous pair, its row sums and edge
-// guides), kept per thread rather than per session.
+// guides), held by the frames being made rather than by every session.
 //
-// A thread makes one frame at a time from start to end (a scheduler
-// worker's step, a still, a test), so one buffer per role and thread serves
-// every session whose frames that thread makes. Past a few sessions the
-// memory a frame touches is then the workers' scratch plus its own
-// session's histories, not every session's copy of both: a session holds a
-// third less device memory, and frames find their scratch warm in the
-// GPU's caches and address translations (docs/performance.md, "Frame
-// scratch per worker").
+// A frame takes a set of them for its span and gives it back, so the sets
+// number the frames that run at once, not the sessions: a 720p session
+// holds 210 MiB of the GPU, not 330 (docs/performance.md, "Frame scratch").
+// On the GPU a session's frame (FramePipeline) takes a set from the GPU's
+// pool, sized by the frame's pixels (FrameScratchScope); outside one (tests
+// and benches driving a renderer or denoiser directly) and on the CPU, a
+// thread has its own set: a thread makes one frame at a time.
 #pragma once
 
 #include <cstddef>
@@ -17,8 +16,8 @@
 namespace cinevol {
 
 // What a scratch buffer holds. A pointer to one stays valid, and its
-// contents the frame's, until the same thread asks for the same role again:
-// each role has one writer a frame.
+// contents the frame's, until the frame's scope ends or, outside one, the
+// thread asks for the same role again: each role has one writer a frame.
 enum class Scratch : int {
   kRadiance,           // the render's outputs, read by the denoiser and the refinement
   kFirstHit,
@@ -33,6 +32,24 @@ enum class Scratch : int {
   kDemodulated,        // a demodulating denoiser's input
 };
 inline constexpr int kScratchRoles = int(Scratch::kDemodulated) + 1;
+
+// While it lives, this thread's GPU scratch is a set of the current GPU's
+// pool for a frame of `pixels`, which the frame's work on this thread's
+// stream (cudaStreamPerThread) may use; the next frame to take the set waits
+// for that work on its own stream. Only for frames on a GPU.
+class FrameScratchScope {
+ public:
+  explicit FrameScratchScope(std::size_t pixels);
+  ~FrameScratchScope();
+  FrameScratchScope(const FrameScratchScope&) = delete;
+  FrameScratchScope& operator=(const FrameScratchScope&) = delete;
+
+ private:
+  std::size_t pixels_;
+  int gpu_;
+  void* set_;       // the pool's set
+  void* previous_;  // the set it replaced on this thread
+};
 
 // This thread's host buffer for `role`: at least `bytes`, 16-byte aligned,
 // grown when a frame needs more and never shrunk (a thread's largest frame

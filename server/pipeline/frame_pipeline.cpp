@@ -5,9 +5,11 @@
 #include <chrono>
 #include <cmath>
 #include <iterator>
+#include <optional>
 #include <stdexcept>
 
 #include "core/error.h"
+#include "device/frame_scratch.h"
 #include "io/reader_cage.h"
 
 namespace cinevol {
@@ -290,6 +292,11 @@ void FramePipeline::MeasureFrameTime(Clock::time_point start) {
   last_frame_start_ = start;
 }
 
+std::optional<FrameScratchScope> FramePipeline::GpuFrameScratch(const Camera& camera) const {
+  if (renderer_->backend() != Backend::kCuda) return std::nullopt;  // a CPU thread keeps its own
+  return std::optional<FrameScratchScope>(std::in_place, std::size_t(camera.width) * camera.height);
+}
+
 FrameRequest FramePipeline::Request(int spp) {
   FrameRequest r;
   r.camera = Scaled(camera_, scale_);
@@ -319,6 +326,7 @@ DisplayFrame FramePipeline::RenderFrame() {
   FrameRequest request = Request(spp);
   if (!moving && LiveOnCpu()) request.preempt = preempt_;  // moving frames are what events wait for
   const Camera& camera = request.camera;
+  const auto scratch = GpuFrameScratch(camera);
   try {
     renderer_->Render(request);
   } catch (const FramePreempted&) {
@@ -398,7 +406,9 @@ DisplayFrame FramePipeline::RenderFrame() {
 void FramePipeline::Accumulate(int spp) {
   if (!has_scene_) throw std::logic_error("FramePipeline::Accumulate before Update");
   SetScale(1.0f);
-  renderer_->Render(Request(spp));
+  const FrameRequest request = Request(spp);
+  const auto scratch = GpuFrameScratch(request.camera);
+  renderer_->Render(request);
   accumulated_spp_ += spp;
 }
 

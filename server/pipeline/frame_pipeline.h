@@ -17,6 +17,7 @@
 #include <chrono>
 #include <cstdint>
 #include <memory>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -26,6 +27,7 @@
 #include "core/image.h"
 #include "core/volume.h"
 #include "denoise/denoiser.h"
+#include "device/frame_scratch.h"
 #include "encode/image_codecs.h"
 #include "pipeline/display.h"
 #include "pipeline/frame_cost.h"
@@ -216,7 +218,9 @@ class FramePipeline {
   // target_spp samples behind it.
   bool Converged() const;
   ImageRgbF AccumulatedRadiance() const { return renderer_->AccumulatedMean(); }
-  // The last frame's nearest first real collision per pixel (Renderer::FirstHits).
+  // The last frame's nearest first real collision per pixel (Renderer::FirstHits),
+  // of a CPU pipeline: on a GPU they were the frame's scratch, which any
+  // later frame there may have taken.
   std::vector<Vec4f> FirstHits() const { return renderer_->FirstHits(); }
   // The last frame's denoised linear radiance, before refinement and tone
   // mapping (the benches compare it with references in HDR).
@@ -238,6 +242,9 @@ class FramePipeline {
   // What every update ends with: the denoiser, its cue and the accumulation.
   void Apply(const FrameSettings& settings, unsigned changes);
   FrameRequest Request(int spp);
+  // On a GPU, the frame's scratch from the GPU's pool until it goes out of
+  // scope: once the frame's work is queued (device/frame_scratch.h).
+  std::optional<FrameScratchScope> GpuFrameScratch(const Camera& camera) const;
   bool Moving() const;
   bool LiveOnCpu() const { return policy_ == InteractivePolicy::kCostModel && settings_.interactive_frame_ms > 0; }
   float ChooseScale();

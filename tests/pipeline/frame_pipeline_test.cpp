@@ -4,6 +4,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <thread>
 
 #include "io/phantom.h"
 #include "scene/presets.h"
@@ -215,6 +216,32 @@ TEST_P(FrameScratchShared, InterleavedSessionsMakeTheFramesEachMakesAlone) {
     EXPECT_EQ(large.Frame(i, settings), large_alone[std::size_t(i)]) << "the larger session's frame " << i;
     EXPECT_EQ(small.Frame(i, settings), small_alone[std::size_t(i)]) << "the smaller session's frame " << i;
   }
+}
+
+// Sessions on threads of their own, at once: on a GPU their frames take
+// and give back the pool's sets, each waiting on its stream for the set's
+// last frame; each makes the very frames it makes alone.
+TEST_P(FrameScratchShared, ConcurrentSessionsMakeTheFramesEachMakesAlone) {
+  if (GetParam() == Backend::kCuda) CINEVOL_REQUIRE_CUDA();
+  auto volume = SmallHead();
+  constexpr int kSessions = 4, kFrames = 8;
+  FrameSettings settings;
+  settings.interactive_frame_ms = 0;
+  const auto frames = [&](int session) {
+    v1::Scene scene = SmallScene(*volume, 56 + 4 * session, 40);  // one size class: they share sets
+    scene.mutable_camera()->mutable_eye()->set_y(scene.camera().eye().y() + 7.0f * session);
+    FramePipeline pipeline(GetParam(), volume);
+    pipeline.Update(scene, settings);
+    std::vector<std::vector<std::uint8_t>> out;
+    for (int i = 0; i < kFrames; ++i) out.push_back(Bytes(pipeline.RenderFrame().image));
+    return out;
+  };
+  std::vector<std::vector<std::vector<std::uint8_t>>> alone, together(kSessions);
+  for (int k = 0; k < kSessions; ++k) alone.push_back(frames(k));
+  std::vector<std::thread> threads;
+  for (int k = 0; k < kSessions; ++k) threads.emplace_back([&, k] { together[std::size_t(k)] = frames(k); });
+  for (std::thread& t : threads) t.join();
+  for (int k = 0; k < kSessions; ++k) EXPECT_EQ(together[std::size_t(k)], alone[std::size_t(k)]) << "session " << k;
 }
 
 INSTANTIATE_TEST_SUITE_P(Backends, FrameScratchShared, ::testing::Values(Backend::kCpu, Backend::kCuda),
