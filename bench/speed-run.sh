@@ -1,8 +1,9 @@
 #!/usr/bin/env bash
 # Issue 61's measurements on the GPU machine, each step's builds alternating
 # in one call: the bundle of bench/make-speed-bundle.sh holds this build
-# (bin/) and the one before (bin-before/), both with their libraries.
-#   BUNDLE=.gpu61 STEPS="tests encode pair sweep big admission" bash run.sh
+# (bin/) and the one before (bin-before/); their libraries are unpacked into
+# $CV/lib by the two calls before (see that script).
+#   CV=$PWD/.gpu/cv BUNDLE=.gpu/speed/programs STEPS="tests encode pair sweep big admission" bash run.sh
 # Steps (each writes logs to $OUT and rows to $OUT/table.md, printed last):
 #   tests      the GPU tests of this build (TESTS: a gtest filter)
 #   encode     cinevol-bench encode: every JPEG encoder on the same frames
@@ -36,6 +37,8 @@
 #              launches after the first KERNELS_SKIP (150); ncu from NCU or the CUDA toolkit
 #   memory     the device memory per added 720p session (VolumeCache test), of each build
 #              whose cinevol_tests the bundle holds
+#   identity   both builds' cinevol-bench tradeoff on CThead (640x360, orbit and point light, every
+#              denoiser): the same quality columns and images? (a change that claims the same output)
 #   clients    CLIENTS_SESSIONS (8 128) full-size sessions from one loadtest process and from two (CLIENTS=2
 #              splits any step's sessions between that many), alternating
 # SECONDS_PER_RUN (8) is each loadtest's length, DENOISER (wrls) its sessions' denoiser. Every session of a loadtest
@@ -48,7 +51,8 @@ out=${OUT:-gpu-out}
 cv=${CV:-/tmp/cv}  # where the bundle is unpacked
 logs=$cv/logs  # every run's logs, packed into $out/logs.tar.xz at the end (few files come back)
 mkdir -p "$out" "$cv" "$logs"
-[ -x "$cv/bin/cinevol-server" ] || tar xJf "$bundle/bundle.tar.xz" -C "$cv"
+# Always this bundle's programs: a warm machine may hold another call's.
+rm -rf "$cv/bin" "$cv/bin-before" && tar xJf "$bundle/bundle.tar.xz" -C "$cv"
 export LD_LIBRARY_PATH=$cv/lib
 volume=$cv/data/ct-head-cthead/DERIVED_CThead.nhdr
 scene=$cv/scenes/ct-head-cthead.json
@@ -295,6 +299,22 @@ step_memory() {
     { echo; echo "Device memory, $build ($(gpu_name)):"; grep -iE 'MiB|session' "$logs/memory-$build.log" | head -12; } \
       >> "$table"
   done
+}
+
+step_identity() {
+  local build
+  for build in bin-before bin; do
+    rm -rf "$cv/tradeoff-$build"
+    "$cv/$build/cinevol-bench" tradeoff --dataset "ct=$scene,$volume" --width 640 --height 360 --reference-spp 64 \
+      --frames-scale 0.3 --scenario orbit --scenario point-light --denoisers-only --backend cuda \
+      --cache "$cv/tradeoff-cache" --out "$cv/tradeoff-$build" > "$logs/identity-$build.log" 2>&1
+    echo "tradeoff $build rc=$?"
+  done
+  local a=$cv/tradeoff-bin-before b=$cv/tradeoff-bin same=same differing
+  diff <(cut -d, -f1-15 "$a/tradeoff.csv") <(cut -d, -f1-15 "$b/tradeoff.csv") > /dev/null || same=DIFFERENT
+  differing=$(cd "$a/images" && find . -type f | while read -r f; do cmp -s "$f" "$b/images/$f" || echo "$f"; done | wc -l)
+  { echo; echo "Both builds' study (quality columns, $(wc -l < "$b/tradeoff.csv") rows): $same;" \
+      "images differing: $differing of $(find "$b/images" -type f | wc -l)"; } >> "$table"
 }
 
 nvidia-smi --query-gpu=name,memory.total,driver_version --format=csv,noheader | tee "$out/gpu.txt"
