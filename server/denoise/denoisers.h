@@ -16,7 +16,7 @@
 namespace cinevol {
 
 // The edge guides the a-trous levels stop at (ComputeEdgeGuides), for SVGF
-// and wRLS alike, in this thread's frame scratch (device/frame_scratch.h).
+// and wRLS alike, in frame scratch (device/frame_scratch.h).
 // They also keep the frame's first hits for the next frame's reprojection.
 template <class B>
 const EdgeGuide* FrameEdgeGuides(const DenoiseFrame& frame, Vec4f* kept_first_hit) {
@@ -27,8 +27,8 @@ const EdgeGuide* FrameEdgeGuides(const DenoiseFrame& frame, Vec4f* kept_first_hi
   return guides;
 }
 
-// The a-trous levels' pair of buffers (prediction and variance), in this
-// thread's frame scratch: a level reads `in` and writes `out`, then they swap.
+// The a-trous levels' pair of buffers (prediction and variance), in frame
+// scratch: a level reads `in` and writes `out`, then they swap.
 template <class B>
 struct AtrousPair {
   Vec4f* in;

@@ -73,7 +73,7 @@ struct CudaBackend {
   // Host memory that Buffer::Download(T*) fills at full bus speed.
   template <class T>
   using HostBuffer = cuda::PinnedBuffer<T>;
-  // `count` elements of this thread's scratch for `role` on this GPU (frame_scratch.h).
+  // `count` elements of the frame's scratch for `role` (frame_scratch.h).
   template <class T>
   static T* FrameScratch(Scratch role, std::size_t count) {
     return cuda::DeviceScratch<T>(role, count);

@@ -119,8 +119,9 @@ class DeviceBuffer {
   std::size_t count_ = 0, capacity_ = 0;
 };
 
-// This thread's device buffer for `role` on the current GPU
-// (frame_scratch.h): at least `bytes`, grown and never shrunk.
+// The frame's device buffer for `role` (frame_scratch.h): of its scope's
+// set or, outside one, of this thread's on the current GPU. At least
+// `bytes`, grown and never shrunk.
 void* DeviceScratchBytes(Scratch role, std::size_t bytes);
 
 // The same, as `count` elements of T.

@@ -57,7 +57,7 @@ class ScratchPool {
 
 ScratchPool& PoolOf(int gpu) {
   static std::mutex mu;
-  static std::map<int, std::unique_ptr<ScratchPool>> pools;  // never destroyed while frames may run
+  static std::map<int, std::unique_ptr<ScratchPool>> pools;  // until exit, as VolumeCache
   std::lock_guard lock(mu);
   std::unique_ptr<ScratchPool>& pool = pools[gpu];
   if (!pool) pool = std::make_unique<ScratchPool>();
