@@ -38,7 +38,8 @@
 #   memory     the device memory per added 720p session (VolumeCache test), of each build
 #              whose cinevol_tests the bundle holds
 #   identity   both builds' cinevol-bench tradeoff on CThead (640x360, orbit and point light, every
-#              denoiser): the same quality columns and images? (a change that claims the same output)
+#              denoiser) and refine (a still to 96 spp): the same quality columns and images? (a
+#              change that claims the same output)
 #   clients    CLIENTS_SESSIONS (8 128) full-size sessions from one loadtest process and from two (CLIENTS=2
 #              splits any step's sessions between that many), alternating
 # SECONDS_PER_RUN (8) is each loadtest's length, DENOISER (wrls) its sessions' denoiser. Every session of a loadtest
@@ -315,6 +316,18 @@ step_identity() {
   differing=$(cd "$a/images" && find . -type f | while read -r f; do cmp -s "$f" "$b/images/$f" || echo "$f"; done | wc -l)
   { echo; echo "Both builds' study (quality columns, $(wc -l < "$b/tradeoff.csv") rows): $same;" \
       "images differing: $differing of $(find "$b/images" -type f | wc -l)"; } >> "$table"
+  # A still past the refinement's first error estimate (frame 16): its quality columns.
+  for build in bin-before bin; do
+    rm -f "$cv/refine-$build.csv"
+    "$cv/$build/cinevol-bench" refine --scene "$scene" --volume "$volume" --backend cuda --width 640 --height 360 \
+      --reference-spp 256 --target-spp 96 --orbit-frames 2 --reference "$cv/refine-reference.exr" \
+      --csv "$cv/refine-$build.csv" > "$logs/identity-refine-$build.log" 2>&1
+    echo "refine $build rc=$?"
+  done
+  same=same
+  diff <(cut -d, -f1-7,9,10,12,13 "$cv/refine-bin-before.csv") <(cut -d, -f1-7,9,10,12,13 "$cv/refine-bin.csv") \
+    > /dev/null || same=DIFFERENT
+  echo "Both builds' still (refine bench, quality columns, $(wc -l < "$cv/refine-bin.csv") rows): $same" >> "$table"
 }
 
 nvidia-smi --query-gpu=name,memory.total,driver_version --format=csv,noheader | tee "$out/gpu.txt"

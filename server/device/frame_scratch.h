@@ -1,6 +1,7 @@
 // Frame scratch: the buffers a frame needs only while it is made (the
 // render's outputs, the denoiser's a-trous pair, its row sums and edge
-// guides), held by the frames being made rather than by every session.
+// guides, the refinement's planes), held by the frames being made rather
+// than by every session.
 //
 // A frame takes a set of them for its span and gives it back, so the sets
 // number the frames that run at once, not the sessions: a 720p session
@@ -30,8 +31,11 @@ enum class Scratch : int {
   kEdgeGuides,         // the a-trous levels' edge guides, and their row sums
   kEdgeRowHits,
   kDemodulated,        // a demodulating denoiser's input
+  kRefinePlanes,       // the refinement's blend (pipeline/refine.h): six float planes,
+  kRefineHalves,       // the two halves' means and their ping-pong,
+  kRefineEstimate,     // and the estimate
 };
-inline constexpr int kScratchRoles = int(Scratch::kDemodulated) + 1;
+inline constexpr int kScratchRoles = int(Scratch::kRefineEstimate) + 1;
 
 // While it lives, this thread's GPU scratch is a set of the current GPU's
 // pool for a frame of `pixels`, which the frame's work on this thread's

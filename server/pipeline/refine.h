@@ -50,6 +50,7 @@
 #include "core/vec.h"
 #include "denoise/baselines.h"
 #include "denoise/cpu_passes.h"
+#include "device/frame_scratch.h"
 
 namespace cinevol {
 
@@ -374,7 +375,6 @@ class RefinerOn final : public Refiner {
     const float dark = kDarkGrey / exp2f(in.exposure);
     squares_.Resize(n);
     odd_sum_.Resize(n);
-    variance_.Resize(n);
     // Every frame before this one took a sample at least: the second frame
     // divides by the first's.
     if (in.frames < 1 || in.spp < 1 || in.samples < std::int64_t(in.spp) + (in.frames - 1))
@@ -386,29 +386,28 @@ class RefinerOn final : public Refiner {
     if (in.frames == 2) odd_samples_ = in.samples - in.spp;
     if (in.frames % 2 == 1) odd_samples_ += in.spp;
     const float samples = float(in.samples);
-    B::ForEachPixel(w, h, VariancePass{in.frame, in.accumulated_sum, squares_.data(), odd_sum_.data(),
-                                       variance_.data(), w, in.frames, in.spp, samples, dark});
+    const FramePlanes f(n);
+    B::ForEachPixel(w, h, VariancePass{in.frame, in.accumulated_sum, squares_.data(), odd_sum_.data(), f.variance, w,
+                                       in.frames, in.spp, samples, dark});
     if (in.frames < kMinFramesForError) return {in.denoised, -1.0f};
 
     const float inv_samples = 1.0f / samples;
-    for (auto* buffer : {&shown_, &estimate_}) buffer->Resize(n);
-    for (auto* buffer : {&change_, &cross_change_, &filter_variance_, &estimate_error_, &error_}) buffer->Resize(n);
+    shown_.Resize(n);
     const float odd_samples = float(odd_samples_);
-    const Vec4f* odd = FilterHalf(in, true, odd_samples, dark);
-    const Vec4f* even = FilterHalf(in, false, samples - odd_samples, dark);
-    B::ForEachPixel(w, h, FilteredPass{in.accumulated_sum, odd_sum_.data(), samples, odd_samples, odd, even,
-                                       change_.data(), cross_change_.data(), filter_variance_.data(), w, dark});
-    B::ForEachPixel(w, h, EstimatePass{in.accumulated_sum, inv_samples, variance_.data(), odd, even, change_.data(),
-                                       cross_change_.data(), filter_variance_.data(), estimate_.data(),
-                                       estimate_error_.data(), w, h});
-    float* difference = change_.data();  // the change is spent
-    B::ForEachPixel(w, h, DifferencePass{in.denoised, estimate_.data(), difference, w, dark});
-    B::ForEachPixel(w, h, BlendPass{in.denoised, estimate_.data(), estimate_error_.data(), difference, shown_.data(),
-                                    error_.data(), w, h, in.frames});
+    const Vec4f* odd = FilterHalf(in, true, odd_samples, dark, f);
+    const Vec4f* even = FilterHalf(in, false, samples - odd_samples, dark, f);
+    B::ForEachPixel(w, h, FilteredPass{in.accumulated_sum, odd_sum_.data(), samples, odd_samples, odd, even, f.change,
+                                       f.cross_change, f.filter_variance, w, dark});
+    B::ForEachPixel(w, h, EstimatePass{in.accumulated_sum, inv_samples, f.variance, odd, even, f.change,
+                                       f.cross_change, f.filter_variance, f.estimate, f.estimate_error, w, h});
+    float* difference = f.change;  // the change is spent
+    B::ForEachPixel(w, h, DifferencePass{in.denoised, f.estimate, difference, w, dark});
+    B::ForEachPixel(w, h, BlendPass{in.denoised, f.estimate, f.estimate_error, difference, shown_.data(), f.error, w,
+                                    h, in.frames});
     width_ = w;
     height_ = h;
     row_sums_.Resize(std::size_t(h));
-    B::ForEachPixel(1, h, RowSumPass{error_.data(), row_sums_.data(), w});
+    B::ForEachPixel(1, h, RowSumPass{f.error, row_sums_.data(), w});
     double error = 0;
     for (const float row : row_sums_.Download()) error += row;
     return {shown_.data(), float(std::sqrt(error / double(n)))};
@@ -420,17 +419,37 @@ class RefinerOn final : public Refiner {
   }
 
  private:
-  // One half's mean through kMeanFilterLevels levels; the odd half ends in
-  // halves_[1], the even one in halves_[2] (halves_[0] is scratch).
-  const Vec4f* FilterHalf(const RefineInputs& in, bool odd, float half_samples, float dark) {
+  // What a frame's blend needs only while it is made, in frame scratch
+  // (device/frame_scratch.h): 84 bytes a pixel, which a resting session
+  // otherwise held.
+  struct FramePlanes {
+    float* variance;  // VariancePass's, of the mean, relative
+    float *change, *cross_change, *filter_variance, *estimate_error, *error;
+    Vec4f* halves[3];  // the odd half's mean ends in [1], the even's in [2]; [0] is their ping-pong
+    Vec3f* estimate;
+
+    explicit FramePlanes(std::size_t n) : estimate(B::template FrameScratch<Vec3f>(Scratch::kRefineEstimate, n)) {
+      float* plane = B::template FrameScratch<float>(Scratch::kRefinePlanes, 6 * n);
+      for (float** p : {&variance, &change, &cross_change, &filter_variance, &estimate_error, &error}) {
+        *p = plane;
+        plane += n;
+      }
+      Vec4f* half = B::template FrameScratch<Vec4f>(Scratch::kRefineHalves, 3 * n);
+      for (Vec4f*& h : halves) {
+        h = half;
+        half += n;
+      }
+    }
+  };
+
+  // One half's mean through kMeanFilterLevels levels, in f.halves.
+  const Vec4f* FilterHalf(const RefineInputs& in, bool odd, float half_samples, float dark, const FramePlanes& f) {
     const int w = in.width, h = in.height;
-    auto& result = halves_[odd ? 1 : 2];
-    for (auto& buffer : halves_) buffer.Resize(std::size_t(w) * h);
+    Vec4f* result = f.halves[odd ? 1 : 2];
     // Ping-pong between scratch and result, ending in result.
-    Vec4f* from = kMeanFilterLevels % 2 == 0 ? result.data() : halves_[0].data();
-    Vec4f* to = kMeanFilterLevels % 2 == 0 ? halves_[0].data() : result.data();
-    B::ForEachPixel(w, h,
-                    HalfMeanPass{in.accumulated_sum, odd_sum_.data(), variance_.data(), from, w, half_samples, odd});
+    Vec4f* from = kMeanFilterLevels % 2 == 0 ? result : f.halves[0];
+    Vec4f* to = kMeanFilterLevels % 2 == 0 ? f.halves[0] : result;
+    B::ForEachPixel(w, h, HalfMeanPass{in.accumulated_sum, odd_sum_.data(), f.variance, from, w, half_samples, odd});
     for (int level = 0; level < kMeanFilterLevels; ++level) {
       RunAtrousLevel<B>(MeanFilterPass{from, to, w, h, 1 << level, dark});
       std::swap(from, to);
@@ -440,11 +459,9 @@ class RefinerOn final : public Refiner {
 
   int width_ = 0, height_ = 0;  // of the last blend; 0 where none
   std::int64_t odd_samples_ = 0;  // per pixel in odd_sum_
-  // 120 bytes a pixel.
-  typename B::template Buffer<Vec3f> squares_, odd_sum_, estimate_, shown_;
-  typename B::template Buffer<Vec4f> halves_[3];
-  typename B::template Buffer<float> variance_, change_, cross_change_, filter_variance_, estimate_error_, error_,
-      row_sums_;
+  // 36 bytes a pixel, and the frame's planes (FramePlanes).
+  typename B::template Buffer<Vec3f> squares_, odd_sum_, shown_;
+  typename B::template Buffer<float> row_sums_;
 };
 
 std::unique_ptr<Refiner> MakeCpuRefiner();

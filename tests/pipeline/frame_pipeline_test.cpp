@@ -244,6 +244,22 @@ TEST_P(FrameScratchShared, ConcurrentSessionsMakeTheFramesEachMakesAlone) {
   for (int k = 0; k < kSessions; ++k) EXPECT_EQ(together[std::size_t(k)], alone[std::size_t(k)]) << "session " << k;
 }
 
+// On a GPU a session's frames take their scratch from the GPU's pool, not
+// from the thread that makes them: frames on new threads take the set the
+// first frame made, where sets of their own would take 124 MiB each at 720p.
+TEST(FrameScratch, OnAGpuFramesOnOtherThreadsTakeTheSetThePoolHolds) {
+  CINEVOL_REQUIRE_CUDA();
+  auto volume = SmallHead();
+  FramePipeline pipeline(Backend::kCuda, volume);
+  pipeline.Update(SmallScene(*volume, 1280, 720), FrameSettings{});
+  const auto frame_on_a_new_thread = [&] { std::thread([&] { pipeline.RenderFrame(); }).join(); };
+  const auto free_mib = [] { return double(ListGpus().at(0).free_bytes) / (1 << 20); };
+  frame_on_a_new_thread();
+  const double after_first = free_mib();
+  for (int i = 0; i < 3; ++i) frame_on_a_new_thread();
+  EXPECT_NEAR(free_mib(), after_first, 8.0) << "frames on new threads made scratch of their own";
+}
+
 INSTANTIATE_TEST_SUITE_P(Backends, FrameScratchShared, ::testing::Values(Backend::kCpu, Backend::kCuda),
                          [](const ::testing::TestParamInfo<Backend>& info) { return std::string(ToString(info.param)); });
 
