@@ -5,7 +5,8 @@
 //
 // A frame takes a set of them for its span and gives it back, so the sets
 // number the frames that run at once, not the sessions: a 720p session
-// holds 210 MiB of the GPU, not 330 (docs/performance.md, "Frame scratch").
+// holds 210 MiB of the GPU, not 330 (docs/performance.md, "Frame scratch
+// from a pool").
 // On the GPU a session's frame (FramePipeline) takes a set from the GPU's
 // pool, sized by the frame's pixels (FrameScratchScope); outside one (tests
 // and benches driving a renderer or denoiser directly) and on the CPU, a

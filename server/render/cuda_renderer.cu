@@ -114,8 +114,8 @@ struct CudaRenderer::Device {
   DeviceBuffer<Light> lights;
   DeviceBuffer<LabelMaterial> label_materials;
   DeviceBuffer<Vec3f> accumulated;
-  // The last frame's outputs, in the rendering thread's frame scratch
-  // (device/frame_scratch.h): valid until that thread renders again.
+  // The last frame's outputs, in its frame scratch (device/frame_scratch.h):
+  // valid while the frame's set is, within FramePipeline's frame.
   Vec3f* radiance = nullptr;
   Vec3f* albedo = nullptr;
   Vec4f* first_hit = nullptr;
