@@ -16,7 +16,8 @@ void* HostScratch(Scratch role, std::size_t bytes) {
 
 #ifndef CINEVOL_WITH_CUDA
 // Without CUDA no frame runs on a GPU (frame_scratch.cu has the pool).
-FrameScratchScope::FrameScratchScope(std::size_t pixels) : pixels_(pixels), gpu_(0), set_(nullptr), previous_(nullptr) {}
+FrameScratchScope::FrameScratchScope(std::size_t pixels)
+    : pixels_(pixels), pool_(nullptr), set_(nullptr), previous_(nullptr) {}
 FrameScratchScope::~FrameScratchScope() = default;
 #endif
 

@@ -97,9 +97,13 @@ void* DeviceScratchBytes(Scratch role, std::size_t bytes) {
 }  // namespace cuda
 
 FrameScratchScope::FrameScratchScope(std::size_t pixels)
-    : pixels_(pixels), gpu_(CurrentGpu()), previous_(scoped_set) {
-  ScratchSet* set = PoolOf(gpu_).Take(pixels);
-  CINEVOL_CUDA_CHECK(cudaStreamWaitEvent(cudaStreamPerThread, set->done));
+    : pixels_(pixels), pool_(&PoolOf(CurrentGpu())), previous_(scoped_set) {
+  ScratchPool& pool = *static_cast<ScratchPool*>(pool_);
+  ScratchSet* set = pool.Take(pixels);
+  if (const cudaError_t e = cudaStreamWaitEvent(cudaStreamPerThread, set->done); e != cudaSuccess) {
+    pool.Give(set, pixels);  // back, not lost to the pool
+    CINEVOL_CUDA_CHECK(e);
+  }
   scoped_set = set;
   set_ = set;
 }
@@ -107,7 +111,7 @@ FrameScratchScope::FrameScratchScope(std::size_t pixels)
 FrameScratchScope::~FrameScratchScope() {
   auto* set = static_cast<ScratchSet*>(set_);
   cudaEventRecord(set->done, cudaStreamPerThread);  // a destructor: an error shows at the next check
-  PoolOf(gpu_).Give(set, pixels_);
+  static_cast<ScratchPool*>(pool_)->Give(set, pixels_);
   scoped_set = static_cast<ScratchSet*>(previous_);
 }
 

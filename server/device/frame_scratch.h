@@ -51,8 +51,8 @@ class FrameScratchScope {
 
  private:
   std::size_t pixels_;
-  int gpu_;
-  void* set_;       // the pool's set
+  void* pool_;      // the GPU's pool
+  void* set_;       // the set taken from it
   void* previous_;  // the set it replaced on this thread
 };
 
