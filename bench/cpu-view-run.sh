@@ -23,6 +23,7 @@
 # RUNS="loadtest viewer browser" compares the three clients on one server.
 set -uo pipefail
 cd "$(dirname "$0")/.."
+. scripts/wait-for-port.sh
 root=$PWD
 bin=${BIN:-build}
 out=${OUT:-cpu-view-out}
@@ -42,7 +43,7 @@ rm -f "$port_file"
   > "$out/server.log" 2>&1 &
 server=$!
 trap 'kill -TERM $server; wait $server' EXIT
-for _ in $(seq 600); do [ -s "$port_file" ] && break; sleep 0.1; done
+wait_for_port "$port_file" $server 60 "$out/server.log"
 address=127.0.0.1:$(cat "$port_file")
 echo "server $address ($bin), $(nproc) cores, $(grep -m1 'model name' /proc/cpuinfo | cut -d: -f2)"
 
@@ -69,7 +70,7 @@ for part in ${RUNS:-loadtest viewer still}; do
       rm -f "$out/web.port"
       "$bin/cinevol-web" --listen 127.0.0.1:0 --port-file "$out/web.port" --server "$address" > "$out/web.log" 2>&1 &
       web=$!
-      for _ in $(seq 100); do [ -s "$out/web.port" ] && break; sleep 0.1; done
+      wait_for_port "$out/web.port" $web 10 "$out/web.log"
       node bench/web-view.mjs --gateway "127.0.0.1:$(cat "$out/web.port")" --volume "$(basename "${volume%.*}")" \
         --scene "$scene" --stream "{$stream}" --seconds "$seconds" --screenshot "$out/browser.png"
       echo "rc=$?"

@@ -11,6 +11,7 @@
 #     bash bench/fleet-run.sh /tmp/cv/bin
 set -euo pipefail
 cd "$(dirname "$0")/.."
+. scripts/wait-for-port.sh
 build=${1:-build}
 sessions=${SESSIONS:-8}
 seconds=${SECONDS_PER_RUN:-30}
@@ -29,7 +30,7 @@ start_server() {  # NAME: starts one; its address goes to $scratch/NAME.address
     --volume "$volume" --max-sessions "$sessions" --max-sessions-per-principal "$sessions" \
     > "$scratch/$1.log" 2>&1 &
   pids+=($!)
-  for _ in $(seq 300); do [ -s "$scratch/$1.port" ] && break; sleep 0.1; done
+  wait_for_port "$scratch/$1.port" "${pids[-1]}" 30 "$scratch/$1.log"
   echo "127.0.0.1:$(cat "$scratch/$1.port")" > "$scratch/$1.address"
 }
 start_server a

@@ -8,6 +8,7 @@
 # Writes a table to $OUT/fusion.md (default ./bench-out) and logs beside it.
 set -uo pipefail
 cd "$(dirname "$0")/.." || exit 1
+. scripts/wait-for-port.sh
 out=${OUT:-bench-out}
 mkdir -p "$out"
 bin=${BIN:-build}
@@ -23,7 +24,7 @@ port_file=$(mktemp -u)
   --volume "$study/ct" --volume "$study/pet-ac" > "$out/fusion-server.log" 2>&1 &
 server=$!
 trap 'kill -TERM $server 2>/dev/null; wait $server 2>/dev/null; rm -f "$port_file"' EXIT
-for _ in $(seq 1200); do [ -s "$port_file" ] && break; sleep 0.1; done
+wait_for_port "$port_file" $server 120 "$out/fusion-server.log"
 address=127.0.0.1:$(cat "$port_file")
 
 glow='{"volumeId": "pet-ac", "suv": true, "overlay": {"colorMap": "HOT", "opacity": 0.5},

@@ -7,6 +7,7 @@
 # Writes a table to $OUT/movie.md (default ./bench-out) and logs beside it.
 set -uo pipefail
 cd "$(dirname "$0")/.." || exit 1
+. scripts/wait-for-port.sh
 out=${OUT:-bench-out}
 mkdir -p "$out"
 bin=${BIN:-build}
@@ -21,7 +22,7 @@ port_file=$(mktemp -u)
   > "$out/movie-server.log" 2>&1 &
 server=$!
 trap 'kill -TERM $server 2>/dev/null; wait $server 2>/dev/null; rm -f "$port_file"' EXIT
-for _ in $(seq 600); do [ -s "$port_file" ] && break; sleep 0.1; done
+wait_for_port "$port_file" $server 60 "$out/movie-server.log"
 address=127.0.0.1:$(cat "$port_file")
 
 timed() {  # timed LABEL COMMAND...: seconds the command took, its output to the log

@@ -16,6 +16,7 @@
 # of each, the median printed. Servers stop by pid; everything on loopback.
 set -euo pipefail
 cd "$(dirname "$0")/.."
+. scripts/wait-for-port.sh
 bin=${BIN:-build}
 series=${SERIES:-../shared/data/ct-body-totalsegmentator/example_ct_dicom}
 fetches=${FETCHES:-1 2 4 8}
@@ -37,7 +38,7 @@ done | median | xargs printf "orthanc retrieve (curl, one request): %.3f s\n"
   > "$work/server.log" 2>&1 &
 server=$!
 pids+=($server)
-for _ in $(seq 100); do [ -s "$work/port" ] && break; sleep 0.1; done
+wait_for_port "$work/port" $server 10 "$work/server.log"
 for _ in $(seq "$runs"); do
   t0=$(now)
   "$bin/cinevol" volumes load --server "127.0.0.1:$(cat "$work/port")" series > /dev/null
@@ -57,7 +58,7 @@ for p in $fetches; do
       --pacs-parallel-fetches "$p" > "$work/server.log" 2>&1 &
     server=$!
     pids+=($server)
-    for _ in $(seq 100); do [ -s "$work/port" ] && break; sleep 0.1; done
+    wait_for_port "$work/port" $server 10 "$work/server.log"
     address=127.0.0.1:$(cat "$work/port")
     t0=$(now)
     id=$("$bin/cinevol" pacs load --server "$address" --pacs bench --study "$study" --series "$uid" --json |

@@ -7,6 +7,7 @@
 #   DATASETS="mr-chest-dicom-seg3d" bash bench/preset-thumbnails.sh   # only these (paths under DATA)
 set -euo pipefail
 cd "$(dirname "$0")/.."
+. scripts/wait-for-port.sh
 bin=${BIN:-build}
 data=${DATA:-../shared/data}
 out=${OUT:-docs/presets}
@@ -23,8 +24,7 @@ server=$!
 trap 'kill -TERM $server 2>/dev/null; rm -f "$port_file"' EXIT
 # The server makes its built-in phantom first: on a busy 2-core machine that
 # takes well over 10 s.
-for _ in $(seq 1200); do [ -s "$port_file" ] && break; sleep 0.1; done
-[ -s "$port_file" ] || { echo "cinevol-server did not start: see $log" >&2; exit 1; }
+wait_for_port "$port_file" $server 120 "$log"
 address=127.0.0.1:$(cat "$port_file")
 
 # load PATH: loads a data set and prints its id.

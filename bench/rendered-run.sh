@@ -10,6 +10,7 @@
 # SERIES: the DICOM folder (default the 512x512x20 CT); QUALITY of the requests (default 30: 8 spp).
 set -euo pipefail
 cd "$(dirname "$0")/.."
+. scripts/wait-for-port.sh
 bin=${BIN:-build}
 series=${SERIES:-../shared/data/ct-body-totalsegmentator/example_ct_dicom}
 requests=${REQUESTS:-50}
@@ -20,14 +21,14 @@ seconds=${SECONDS_PER_RUN:-20}
 "$bin/cinevol-server" --listen 127.0.0.1:0 --port-file "$work/port" --backend cpu --pacs "bench=$url" \
   > "$work/server.log" 2>&1 &
 pids+=($!)
-for _ in $(seq 100); do [ -s "$work/port" ] && break; sleep 0.1; done
+wait_for_port "$work/port" "${pids[-1]}" 10 "$work/server.log"
 address=127.0.0.1:$(cat "$work/port")
 # The requests all come from loopback: the gateway's limit of connections from one address (32 by default, against
 # one client holding them all) is raised so that they stand for REQUESTS clients.
 "$bin/cinevol-web" --listen 127.0.0.1:0 --port-file "$work/web.port" --server "$address" \
   --max-connections-per-address $((requests + 8)) > "$work/web.log" 2>&1 &
 pids+=($!)
-for _ in $(seq 100); do [ -s "$work/web.port" ] && break; sleep 0.1; done
+wait_for_port "$work/web.port" "${pids[-1]}" 10 "$work/web.log"
 rendered="http://127.0.0.1:$(cat "$work/web.port")/dicom-web/bench/studies/$study/series/$uid/rendered3D"
 echo "series: $instances instances ($series); $(nproc) cores; load average $(cut -d' ' -f1-3 /proc/loadavg)"
 

@@ -12,6 +12,7 @@
 # WORKERS sets --workers-per-gpu (default: the server's).
 set -uo pipefail
 cd "$(dirname "$0")/.."
+. scripts/wait-for-port.sh
 out=${OUT:-gpu-out}
 runs=/tmp/cv/service-runs  # per-run logs; the tables go to $out/service.md
 mkdir -p "$out" "$runs"
@@ -35,7 +36,7 @@ run() {  # run N [WORKERS_PER_GPU] (none: the server's default)
     ${workers:+--workers-per-gpu "$workers"} --max-sessions 256 --max-sessions-per-principal 256 \
     --max-total-pixels 300000000 ${SERVER_EXTRA:-} > "$runs/server-$tag.log" 2>&1 &
   local server=$!
-  for _ in $(seq 300); do [ -s "$port_file" ] && break; sleep 0.1; done
+  wait_for_port "$port_file" $server 30 "$runs/server-$tag.log"
   nvidia-smi --query-gpu=utilization.gpu,memory.used --format=csv,noheader,nounits -lms 200 > "$runs/gpu-util-$tag.txt" &
   local smi=$!
   read -r busy0 total0 < <(cpu_ticks)

@@ -8,6 +8,7 @@
 #   VIEWERS="0 1 10 50" SECONDS_PER_RUN=10 bash bench/sharing-run.sh
 set -uo pipefail
 cd "$(dirname "$0")/.."
+. scripts/wait-for-port.sh
 out=${OUT:-gpu-out}
 runs=/tmp/cv/sharing-runs
 mkdir -p "$out" "$runs"
@@ -24,7 +25,7 @@ for v in ${VIEWERS:-0 1 10 50}; do
   "$bin/cinevol-server" --listen 127.0.0.1:0 --port-file "$port_file" --backend cuda --volume "$volume" \
     --max-viewers-per-session 1000 > "$runs/server-$v.log" 2>&1 &
   server=$!
-  for _ in $(seq 300); do [ -s "$port_file" ] && break; sleep 0.1; done
+  wait_for_port "$port_file" $server 30 "$runs/server-$v.log"
   "$bin/cinevol" loadtest --server "127.0.0.1:$(cat "$port_file")" --sessions 1 --viewers "$v" \
     --seconds "$seconds" --width 1280 --height 720 --spp 2 --denoiser wrls --scene "$scene" \
     > "$runs/loadtest-$v.md" 2>&1

@@ -47,6 +47,7 @@
 # 128 sessions' streams fill, and their closing calls then wait for a stream). This build's servers run with
 # --min-session-fps 0 (MIN_FPS) but in the admission step, SERVER_EXTRA adds flags.
 set -uo pipefail
+. scripts/wait-for-port.sh  # run from the project root (the device runs there)
 bundle=${BUNDLE:-.gpu61}
 out=${OUT:-gpu-out}
 cv=${CV:-/tmp/cv}  # where the bundle is unpacked
@@ -83,7 +84,7 @@ loadtest() {
     --max-streams-per-connection 1024 $extra \
     > "$logs/server-$tag.log" 2>&1 &
   local server=$!
-  for _ in $(seq 300); do [ -s "$port_file" ] && break; sleep 0.1; done
+  wait_for_port "$port_file" $server 30 "$logs/server-$tag.log"
   nvidia-smi --query-gpu=utilization.gpu,memory.used --format=csv,noheader,nounits -lms 250 > "$logs/smi-$tag.txt" &
   local smi=$! cpu0
   cpu0=$(cpu_seconds $server)
@@ -265,7 +266,7 @@ sm__warps_active.avg.pct_of_peak_sustained_active,launch__grid_size,launch__bloc
     "$cv/bin/cinevol-server" --listen 127.0.0.1:0 --port-file "$port_file" --backend cuda --volume "$volume" \
     --min-session-fps 0 > "$csv" 2> "$logs/kernels-ncu.err" &
   local profiler=$!
-  for _ in $(seq 600); do [ -s "$port_file" ] && break; sleep 0.1; done
+  wait_for_port "$port_file" $profiler 60 "$logs/kernels-ncu.err"
   # Profiled launches are slow (about 0.3 s each): one session, long enough for them all.
   "$cv/bin/cinevol" loadtest --server "127.0.0.1:$(cat "$port_file")" --sessions 1 --seconds "${KERNELS_SECONDS:-100}" \
     --width "${size%x*}" --height "${size#*x}" --spp 2 --denoiser "${DENOISER:-wrls}" --scene "$scene" --json \
@@ -278,7 +279,7 @@ sm__warps_active.avg.pct_of_peak_sustained_active,launch__grid_size,launch__bloc
   kill -KILL $profiler "${servers[@]}" 2> /dev/null
   wait $profiler
   { echo; echo "### Kernels of one ${size} session, Nsight Compute ($(gpu_name), $(date -u +%F))"; echo
-    python3 "$(dirname "$0")/kernel_table.py" "$csv"; } >> "$table"
+    python3 bench/kernel_table.py "$csv"; } >> "$table"
 }
 
 # Is the loadtest client part of what slows many sessions? CLIENTS_SESSIONS (8 128) full-size sessions from one
@@ -331,7 +332,7 @@ step_identity() {
 }
 
 nvidia-smi --query-gpu=name,memory.total,driver_version --format=csv,noheader | tee "$out/gpu.txt"
+# Only a few files come back: the logs travel in one archive, also when a
+# server that does not start (wait_for_port) stops the run.
+trap 'tar -C "$logs" -cJf "$out/logs.tar.xz" . 2> /dev/null; cat "$table" 2> /dev/null' EXIT
 for step in ${STEPS:-tests encode pair}; do "step_$step"; done
-# Only a few files come back: the logs travel in one archive.
-tar -C "$logs" -cJf "$out/logs.tar.xz" . 2> /dev/null
-cat "$table"

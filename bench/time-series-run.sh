@@ -10,6 +10,7 @@
 # Writes a table to $OUT/time-series.md (default ./bench-out) and logs beside it.
 set -uo pipefail
 cd "$(dirname "$0")/.." || exit 1
+. scripts/wait-for-port.sh
 out=${OUT:-bench-out}
 mkdir -p "$out"
 bin=${BIN:-build}
@@ -25,7 +26,7 @@ port_file=$(mktemp -u)
   ${PHASE_COPIES_MB:+--max-phase-copies-mb "$PHASE_COPIES_MB"} > "$out/time-series-server.log" 2>&1 &
 server=$!
 trap 'kill -TERM $server 2>/dev/null; wait $server 2>/dev/null; rm -f "$port_file"' EXIT
-for _ in $(seq 600); do [ -s "$port_file" ] && break; sleep 0.1; done
+wait_for_port "$port_file" $server 60 "$out/time-series-server.log"
 address=127.0.0.1:$(cat "$port_file")
 
 run() {  # run NAME TIME_JSON: plays the series with that Scene.time for $seconds; prints the play line

@@ -8,6 +8,7 @@
 #   bash bench/viewer-run.sh
 set -uo pipefail
 cd "$(dirname "$0")/.."
+. scripts/wait-for-port.sh
 out=${OUT:-gpu-out}
 mkdir -p "$out" /tmp/cv
 [ -x /tmp/cv/bin/cinevol-viewer ] || tar xJf .gpu/bundle.tar.xz -C /tmp/cv
@@ -21,7 +22,7 @@ rm -f "$port_file"
   > "$out/viewer-server.log" 2>&1 &
 server=$!
 trap 'kill -TERM $server; wait $server' EXIT
-for _ in $(seq 300); do [ -s "$port_file" ] && break; sleep 0.1; done
+wait_for_port "$port_file" $server 30 "$out/viewer-server.log"
 address=127.0.0.1:$(cat "$port_file")
 
 # The same orbit for both: 360 degrees at 30 camera events a second.

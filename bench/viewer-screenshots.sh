@@ -7,6 +7,7 @@
 #   BIN=/tmp/cv/bin DATA=/data bash bench/viewer-screenshots.sh
 set -euo pipefail
 cd "$(dirname "$0")/.."
+. scripts/wait-for-port.sh
 root=$PWD
 bin=$root/${BIN:-build}
 data=${DATA:-../shared/data}
@@ -20,7 +21,7 @@ server_args=(--listen 127.0.0.1:0 --port-file "$port_file" --backend "${BACKEND:
 "$bin/cinevol-server" "${server_args[@]}" > "$work/server.log" 2>&1 &
 server=$!
 trap 'kill -TERM $server 2>/dev/null; wait $server 2>/dev/null; rm -rf "$work"' EXIT
-for _ in $(seq 300); do [ -s "$port_file" ] && break; sleep 0.1; done
+wait_for_port "$port_file" $server 30 "$work/server.log"
 address=127.0.0.1:$(cat "$port_file")
 
 # viewer ARGS...: the viewer in a 1600x1000 virtual screen, run in $work.

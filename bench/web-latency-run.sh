@@ -14,6 +14,7 @@
 # StreamSettings as JSON (default wRLS).
 set -euo pipefail
 cd "$(dirname "$0")/.."
+. scripts/wait-for-port.sh
 bin=${BIN:-build}
 node=${NODE:-node}
 out=$(mktemp -d)
@@ -25,13 +26,11 @@ scene=$(realpath "${SCENE:-bench/scenes/ct-head-cthead.json}")
 server=$!
 web=
 trap 'kill -TERM $server ${web:+$web} 2>/dev/null; wait; rm -rf "$out"' EXIT
-for _ in $(seq 600); do [ -s "$out/server.port" ] && break; sleep 0.1; done
-[ -s "$out/server.port" ] || { cat "$out/server.log"; exit 1; }
+wait_for_port "$out/server.port" $server 60 "$out/server.log"
 "$node" "$bin/web/gateway.mjs" --static "$bin/web/static" --listen 127.0.0.1:0 --port-file "$out/web.port" \
   --server "127.0.0.1:$(cat "$out/server.port")" > "$out/web.log" 2>&1 &
 web=$!
-for _ in $(seq 100); do [ -s "$out/web.port" ] && break; sleep 0.1; done
-[ -s "$out/web.port" ] || { cat "$out/web.log"; exit 1; }
+wait_for_port "$out/web.port" $web 10 "$out/web.log"
 echo "$bin/cinevol-server and cinevol-web on loopback, $(nproc) cores, load $(cut -d' ' -f1-3 /proc/loadavg)"
 "$node" "$bin/web/bench/motion-to-photon.mjs" --gateway "127.0.0.1:$(cat "$out/web.port")" \
   --server "127.0.0.1:$(cat "$out/server.port")" --volume "$(basename "${volume%.*}")" --scene "$scene" \

@@ -5,6 +5,7 @@
 #   installed_package_test.sh BUILD_DIR SOURCE_DIR
 set -euo pipefail
 build=$1 source=$2
+. "$source/scripts/wait-for-port.sh"
 work=$(mktemp -d)
 server=
 cleanup() {
@@ -18,8 +19,7 @@ cmake --build "$work/app" > "$work/build.log"
 "$work/prefix/bin/cinevol-server" --listen 127.0.0.1:0 --port-file "$work/port" --backend cpu \
   --volume 'phantom:head?size=48' > "$work/server.log" 2>&1 &
 server=$!
-for _ in $(seq 300); do [ -s "$work/port" ] && break; sleep 0.1; done
-[ -s "$work/port" ] || { echo "the server did not start"; cat "$work/server.log"; exit 1; }
+wait_for_port "$work/port" $server 30 "$work/server.log"
 timeout 60 "$work/app/cinevol-client-app" "127.0.0.1:$(cat "$work/port")" "$work/out"
 test -s "$work/out/refined.jpg" && test -s "$work/out/still.png"
 echo "installed package: built and ran examples/client-app"
