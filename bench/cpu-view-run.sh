@@ -70,7 +70,7 @@ for part in ${RUNS:-loadtest viewer still}; do
       rm -f "$out/web.port"
       "$bin/cinevol-web" --listen 127.0.0.1:0 --port-file "$out/web.port" --server "$address" > "$out/web.log" 2>&1 &
       web=$!
-      wait_for_port "$out/web.port" $web 10 "$out/web.log"
+      wait_for_port "$out/web.port" $web 30 "$out/web.log"
       node bench/web-view.mjs --gateway "127.0.0.1:$(cat "$out/web.port")" --volume "$(basename "${volume%.*}")" \
         --scene "$scene" --stream "{$stream}" --seconds "$seconds" --screenshot "$out/browser.png"
       echo "rc=$?"

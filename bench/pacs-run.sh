@@ -38,7 +38,7 @@ done | median | xargs printf "orthanc retrieve (curl, one request): %.3f s\n"
   > "$work/server.log" 2>&1 &
 server=$!
 pids+=($server)
-wait_for_port "$work/port" $server 10 "$work/server.log"
+wait_for_port "$work/port" $server 30 "$work/server.log"
 for _ in $(seq "$runs"); do
   t0=$(now)
   "$bin/cinevol" volumes load --server "127.0.0.1:$(cat "$work/port")" series > /dev/null
@@ -58,7 +58,7 @@ for p in $fetches; do
       --pacs-parallel-fetches "$p" > "$work/server.log" 2>&1 &
     server=$!
     pids+=($server)
-    wait_for_port "$work/port" $server 10 "$work/server.log"
+    wait_for_port "$work/port" $server 30 "$work/server.log"
     address=127.0.0.1:$(cat "$work/port")
     t0=$(now)
     id=$("$bin/cinevol" pacs load --server "$address" --pacs bench --study "$study" --series "$uid" --json |

@@ -21,14 +21,14 @@ seconds=${SECONDS_PER_RUN:-20}
 "$bin/cinevol-server" --listen 127.0.0.1:0 --port-file "$work/port" --backend cpu --pacs "bench=$url" \
   > "$work/server.log" 2>&1 &
 pids+=($!)
-wait_for_port "$work/port" "${pids[-1]}" 10 "$work/server.log"
+wait_for_port "$work/port" "${pids[-1]}" 30 "$work/server.log"
 address=127.0.0.1:$(cat "$work/port")
 # The requests all come from loopback: the gateway's limit of connections from one address (32 by default, against
 # one client holding them all) is raised so that they stand for REQUESTS clients.
 "$bin/cinevol-web" --listen 127.0.0.1:0 --port-file "$work/web.port" --server "$address" \
   --max-connections-per-address $((requests + 8)) > "$work/web.log" 2>&1 &
 pids+=($!)
-wait_for_port "$work/web.port" "${pids[-1]}" 10 "$work/web.log"
+wait_for_port "$work/web.port" "${pids[-1]}" 30 "$work/web.log"
 rendered="http://127.0.0.1:$(cat "$work/web.port")/dicom-web/bench/studies/$study/series/$uid/rendered3D"
 echo "series: $instances instances ($series); $(nproc) cores; load average $(cut -d' ' -f1-3 /proc/loadavg)"
 

@@ -30,7 +30,7 @@ wait_for_port "$out/server.port" $server 60 "$out/server.log"
 "$node" "$bin/web/gateway.mjs" --static "$bin/web/static" --listen 127.0.0.1:0 --port-file "$out/web.port" \
   --server "127.0.0.1:$(cat "$out/server.port")" > "$out/web.log" 2>&1 &
 web=$!
-wait_for_port "$out/web.port" $web 10 "$out/web.log"
+wait_for_port "$out/web.port" $web 30 "$out/web.log"
 echo "$bin/cinevol-server and cinevol-web on loopback, $(nproc) cores, load $(cut -d' ' -f1-3 /proc/loadavg)"
 "$node" "$bin/web/bench/motion-to-photon.mjs" --gateway "127.0.0.1:$(cat "$out/web.port")" \
   --server "127.0.0.1:$(cat "$out/server.port")" --volume "$(basename "${volume%.*}")" --scene "$scene" \
