@@ -34,19 +34,34 @@ void WriteBytes(const fs::path& path, const std::string& bytes) {
   std::ofstream(path, std::ios::binary).write(bytes.data(), std::streamsize(bytes.size()));
 }
 
-std::string Gzip(const std::string& data) {
-  std::string out(compressBound(uLong(data.size())) + 32, '\0');
+// `data`, then `zeros` zero bytes (fed a MiB at a time), deflated with
+// zlib's `window_bits`: 15 + 16 a gzip file, -15 a raw stream.
+std::string Deflate(const std::string& data, int window_bits, std::size_t zeros = 0) {
   z_stream z{};
-  deflateInit2(&z, 6, Z_DEFLATED, 15 + 16, 8, Z_DEFAULT_STRATEGY);  // +16: gzip wrapper
-  z.next_in = reinterpret_cast<Bytef*>(const_cast<char*>(data.data()));
-  z.avail_in = uInt(data.size());
-  z.next_out = reinterpret_cast<Bytef*>(out.data());
-  z.avail_out = uInt(out.size());
-  deflate(&z, Z_FINISH);
-  out.resize(z.total_out);
+  deflateInit2(&z, 6, Z_DEFLATED, window_bits, 8, Z_DEFAULT_STRATEGY);
+  std::string out;
+  const std::string zero_chunk(std::min<std::size_t>(zeros, std::size_t{1} << 20), '\0');
+  const auto feed = [&](const char* in, std::size_t n, int flush) {
+    z.next_in = reinterpret_cast<Bytef*>(const_cast<char*>(in));
+    z.avail_in = uInt(n);
+    do {
+      char chunk[1 << 16];
+      z.next_out = reinterpret_cast<Bytef*>(chunk);
+      z.avail_out = sizeof chunk;
+      deflate(&z, flush);
+      out.append(chunk, sizeof chunk - z.avail_out);
+    } while (z.avail_out == 0);
+  };
+  feed(data.data(), data.size(), Z_NO_FLUSH);
+  for (std::size_t left = zeros; left > 0; left -= std::min(left, zero_chunk.size())) {
+    feed(zero_chunk.data(), std::min(left, zero_chunk.size()), Z_NO_FLUSH);
+  }
+  feed(nullptr, 0, Z_FINISH);
   deflateEnd(&z);
   return out;
 }
+
+std::string Gzip(const std::string& data) { return Deflate(data, 15 + 16); }
 
 // A NIfTI-1 header (4x4x4 int16) with the given magic, then `payload`.
 std::string Nifti(const char* magic, const std::string& payload, float vox_offset = 352) {
@@ -540,6 +555,107 @@ TEST(HostileFiles, DicomOddLengthInsideADefinedLengthSequenceNeverReachesGdcm) {
   v1::VolumeSource seed;
   seed.set_dicom_folder((dir / "enhanced-ct-3-phases.dcm").string());
   EXPECT_EQ(LoadVolumeSeries(seed, {}, Upload()).phases.size(), 3u);
+}
+
+// Inputs the fuzzers found that aborted GDCM or overran its buffers in the
+// reader's child (tests/fuzz/corpus/dicom/regression-gdcm-*): each is now
+// refused before GDCM sees it, by a refusal that names the file's problem.
+TEST(HostileFiles, DicomFuzzFindingsAreRefusedNamingTheirProblem) {
+  const struct {
+    const char* file;
+    const char* problem;
+  } kFindings[] = {
+      {"gdcm-j2k-larger-than-rows-columns-heap-overflow", "says explicit VR and its first element has no VR"},
+      {"gdcm-rle-segment-count-read-overflow", "the RLE segments of fragment 1 do not fit its header"},
+      {"gdcm-j2k-components-differ-from-samples-assert", "JPEG 2000 stream of fragment 1 describes another image"},
+      {"gdcm-high-bit-above-bits-stored-raw-assert", "High Bit is 7, not Bits Stored (1) - 1"},
+      {"gdcm-bits-allocated-12-raw-assert", "Bits Allocated is 12"},
+      {"gdcm-explicit-syntax-walked-implicit-1g3-length",
+       "its transfer syntax 1.2.840.10008.1.2.1 says explicit VR and its first element has no VR"},
+      {"gdcm-scanner-declared-length-oom", "1.2.840.10008.1.2.2 says explicit VR"},
+  };
+  ScratchDir dir;
+  const fs::path corpus = fs::path(CINEVOL_SOURCE_DIR) / "tests/fuzz/corpus/dicom";
+  for (const auto& finding : kFindings) {
+    fs::create_directories(dir / finding.file);
+    fs::copy_file(corpus / (std::string("regression-") + finding.file + ".dcm"), dir / finding.file / "x.dcm");
+    const std::string message = LoadMessage([&] { return LoadDicomSeries(dir / finding.file, {}, Upload()); });
+    EXPECT_TRUE(Has(message, "x.dcm is not DICOM that cinevol reads: ")) << finding.file << ": " << message;
+    EXPECT_TRUE(Has(message, finding.problem)) << finding.file << ": " << message;
+  }
+}
+
+// An Explicit VR Big Endian file is walked in its own byte order (it went
+// to GDCM unwalked, which asserted on a big-endian file's broken items).
+TEST(HostileFiles, DicomBigEndianIsWalkedAndLoads) {
+  ScratchDir dir;
+  fs::create_directories(dir / "be");
+  fs::copy_file(fs::path(CINEVOL_SOURCE_DIR) / "tests/fuzz/corpus/dicom/explicit-big-endian.dcm", dir / "be" / "x.dcm");
+  EXPECT_EQ(LoadMessage([&] { return LoadDicomSeries(dir / "be", {}, Upload()); }), "(loaded)");
+  fs::create_directories(dir / "broken");
+  fs::copy_file(fs::path(CINEVOL_SOURCE_DIR) / "tests/fuzz/corpus/dicom/regression-gdcm-big-endian-nested-item-retry-assert.dcm",
+                dir / "broken" / "x.dcm");
+  const std::string message = LoadMessage([&] { return LoadDicomSeries(dir / "broken", {}, Upload()); });
+  EXPECT_TRUE(Has(message, "x.dcm is not DICOM that cinevol reads")) << message;
+}
+
+// A raw deflate stream inflated.
+std::string InflateRaw(const std::string& data) {
+  z_stream z{};
+  inflateInit2(&z, -15);
+  z.next_in = reinterpret_cast<Bytef*>(const_cast<char*>(data.data()));
+  z.avail_in = uInt(data.size());
+  std::string out;
+  int ret = Z_OK;
+  while (ret == Z_OK) {
+    char chunk[1 << 16];
+    z.next_out = reinterpret_cast<Bytef*>(chunk);
+    z.avail_out = sizeof chunk;
+    ret = inflate(&z, Z_NO_FLUSH);
+    out.append(chunk, sizeof chunk - z.avail_out);
+  }
+  inflateEnd(&z);
+  return out;
+}
+
+// Where a DICOM file's meta group (explicit VR little endian, after the
+// preamble) ends.
+std::size_t MetaGroupEnd(const std::string& file) {
+  std::size_t at = 132;
+  const auto u16 = [&](std::size_t i) { return unsigned(std::uint8_t(file[i])) | unsigned(std::uint8_t(file[i + 1])) << 8; };
+  while (at + 8 <= file.size() && u16(at) == 0x0002) {
+    const std::string vr = file.substr(at + 4, 2);
+    const bool long_vr = vr == "OB" || vr == "UN" || vr == "SQ" || vr == "UT";
+    at += long_vr ? 12 + (u16(at + 8) | std::size_t(u16(at + 10)) << 16) : 8 + u16(at + 6);
+  }
+  return at;
+}
+
+// Deflated Explicit VR Little Endian went to GDCM unwalked, and fuzz_dicom's
+// deflated inputs aborted it a dozen ways (odd lengths in items, VRs the
+// dictionary does not allow, ...): the data set is walked inflated now, and
+// one that inflates past the walk's limit is refused before GDCM inflates it.
+TEST(HostileFiles, DicomDeflatedDataSetIsWalkedInflated) {
+  ScratchDir dir;
+  std::ifstream seed(fs::path(CINEVOL_SOURCE_DIR) / "tests/fuzz/corpus/dicom/deflated.dcm", std::ios::binary);
+  const std::string file((std::istreambuf_iterator<char>(seed)), std::istreambuf_iterator<char>());
+  const std::size_t data_set = MetaGroupEnd(file);
+  ASSERT_LT(data_set, file.size());
+  std::string inflated = InflateRaw(file.substr(data_set));
+  const std::string bits_allocated("\x28\0\0\x01US\x02\0\x10\0", 10);
+  const std::size_t at = inflated.find(bits_allocated);
+  ASSERT_NE(at, std::string::npos);
+  const auto load = [&](const char* name, const std::string& bytes) {
+    fs::create_directories(dir / name);
+    WriteBytes(dir / name / "x.dcm", bytes);
+    return LoadMessage([&] { return LoadDicomSeries(dir / name, {}, Upload()); });
+  };
+  EXPECT_EQ(load("sound", file.substr(0, data_set) + Deflate(inflated, -15)), "(loaded)");
+  inflated[at + 8] = 12;
+  const std::string bits = load("bits", file.substr(0, data_set) + Deflate(inflated, -15));
+  EXPECT_TRUE(Has(bits, "x.dcm is not DICOM that cinevol reads: Bits Allocated is 12")) << bits;
+  const std::string bomb = load("bomb", file.substr(0, data_set) + Deflate(inflated, -15, std::size_t{300} << 20));
+  EXPECT_TRUE(Has(bomb, "its deflated data set inflates past 256 MiB")) << bomb;
 }
 
 // ITK's factory let GDCM parse any file the volume formats declined (a

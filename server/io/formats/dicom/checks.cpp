@@ -1,8 +1,10 @@
 // The walk over a DICOM file's elements that GDCM's parser does not survive.
 #include "io/formats/dicom/checks.h"
 
+#include <fmt/format.h>
 #include <gdcmDicts.h>
 #include <gdcmGlobal.h>
+#include <zlib.h>
 
 #include <algorithm>
 #include <cstdint>
@@ -11,6 +13,7 @@
 #include <string>
 #include <vector>
 
+#include "core/log_safe.h"
 #include "io/file_checks.h"
 
 namespace fs = std::filesystem;
@@ -28,11 +31,20 @@ class DicomWalk {
  public:
   explicit DicomWalk(std::FILE* f, std::int64_t size) : f_(f), size_(size) {}
 
+  // Empty where the file is sound; else what is wrong with it.
+  std::string Problem() {
+    if (File()) return {};
+    const std::string why = problem_.empty() ? std::string("its elements do not parse") : problem_;
+    return has_preamble_ ? why : "it has no DICOM preamble ('DICM' at byte 128), and as a bare data set " + why;
+  }
+
+ private:
   bool File() {
     std::uint8_t magic[4];
     std::int64_t at = 0;
     if (size_ >= 132 && Read(128, magic, 4) && std::memcmp(magic, "DICM", 4) == 0) {
       at = 132;
+      has_preamble_ = true;
       // The file meta group: explicit VR little endian, group 0002.
       std::uint8_t h[4];
       while (at + 8 <= size_ && Read(at, h, 2) && U16(h) == 0x0002) {
@@ -40,26 +52,52 @@ class DicomWalk {
       }
       // GDCM asserts reading a meta group that the file ends in (found by
       // fuzz_volume); a file without a data set holds no image anyway.
-      if (at == size_) return false;
-      // A data set in big-endian or deflated encoding is not walked here (the
-      // walk reads little-endian bytes as they stand): GDCM reads it in the
-      // cage, where its failure is the load's alone.
-      if (transfer_syntax_ == "1.2.840.10008.1.2.2" || transfer_syntax_ == "1.2.840.10008.1.2.1.99") return true;
+      if (at == size_) return Fail("it ends after its file meta group");
+      // A deflated data set is walked inflated, as GDCM reads it.
+      if (transfer_syntax_ == kDeflated && !Inflate(at)) return false;
     }
     if (at == size_) return true;
-    // The data set: explicit VR when the bytes after the first tag read as a
-    // VR (GDCM guesses the same way when the meta group is absent or wrong).
+    // The data set, in the encoding GDCM first reads it in: the one the meta
+    // group's transfer syntax names (GDCM allocates what an element declares
+    // in that encoding before it would retry in another: 1.2 GB for a 3 KB
+    // file whose syntax says explicit VR and whose elements have none). With
+    // no syntax named, explicit VR where the bytes after the first tag read
+    // as a VR, as GDCM guesses.
+    big_endian_ = transfer_syntax_ == kExplicitBigEndian;
     std::uint8_t h[6];
-    const bool explicit_vr = at + 6 <= size_ && Read(at, h, 6) && IsVr(h + 4);
+    const bool looks_explicit = at + 6 <= size_ && Read(at, h, 6) && IsVr(h + 4);
+    const bool explicit_vr = transfer_syntax_.empty() ? looks_explicit : transfer_syntax_ != kImplicitLittleEndian;
+    if (explicit_vr != looks_explicit) {
+      return Fail(fmt::format("its transfer syntax {} says {} VR and its first element has {} VR",
+                              LogSafe(transfer_syntax_), explicit_vr ? "explicit" : "implicit",
+                              looks_explicit ? "an explicit" : "no"));
+    }
     while (at < size_) {
       if (!Element(at, size_, explicit_vr, 0, false)) return false;
     }
     return PixelModuleIsSound();
   }
 
- private:
-  static unsigned U16(const std::uint8_t* b) { return unsigned(b[0]) | unsigned(b[1]) << 8; }
-  static std::uint32_t U32(const std::uint8_t* b) { return std::uint32_t(U16(b)) | std::uint32_t(U16(b + 2)) << 16; }
+  static constexpr const char* kImplicitLittleEndian = "1.2.840.10008.1.2";
+  static constexpr const char* kExplicitBigEndian = "1.2.840.10008.1.2.2";
+  static constexpr const char* kDeflated = "1.2.840.10008.1.2.1.99";
+
+  // Records the first reason the walk stops at; always false.
+  bool Fail(std::string why) {
+    if (problem_.empty()) problem_ = std::move(why);
+    return false;
+  }
+  static std::string TagName(unsigned group, unsigned element) { return fmt::format("({:04x},{:04x})", group, element); }
+
+  // The data set's numbers, in its byte order (the file meta group's and an
+  // RLE header's are little endian: big_endian_ is false while they are read).
+  unsigned U16(const std::uint8_t* b) const {
+    return big_endian_ ? unsigned(b[0]) << 8 | unsigned(b[1]) : unsigned(b[0]) | unsigned(b[1]) << 8;
+  }
+  std::uint32_t U32(const std::uint8_t* b) const {
+    return big_endian_ ? std::uint32_t(U16(b)) << 16 | std::uint32_t(U16(b + 2))
+                       : std::uint32_t(U16(b)) | std::uint32_t(U16(b + 2)) << 16;
+  }
   static bool IsVr(const std::uint8_t* v) {
     static const char* const kVrs[] = {"AE", "AS", "AT", "CS", "DA", "DS", "DT", "FD", "FL", "IS", "LO",
                                        "LT", "OB", "OD", "OF", "OL", "OW", "PN", "SH", "SL", "SQ", "SS",
@@ -71,37 +109,84 @@ class DicomWalk {
     return std::any_of(std::begin(kLong), std::end(kLong), [&](const char* k) { return std::memcmp(k, v, 2) == 0; });
   }
   bool Read(std::int64_t at, std::uint8_t* out, std::size_t n) {
-    return at >= 0 && at + std::int64_t(n) <= size_ && std::fseek(f_, long(at), SEEK_SET) == 0 &&
-           std::fread(out, 1, n, f_) == n;
+    if (at < 0 || at + std::int64_t(n) > size_) return false;
+    if (!inflated_.empty() && at >= inflated_from_) {
+      std::memcpy(out, inflated_.data() + (at - inflated_from_), n);
+      return true;
+    }
+    return std::fseek(f_, long(at), SEEK_SET) == 0 && std::fread(out, 1, n, f_) == n;
+  }
+
+  // Deflated Explicit VR Little Endian: the data set from `at` on is one raw
+  // deflate stream. It is inflated into memory (kMaxInflated at most: a
+  // deflated image past that is a bomb, not a study), and the walk reads the
+  // inflated bytes in its place, at the same offsets.
+  static constexpr std::int64_t kMaxInflated = std::int64_t{256} << 20;
+  bool Inflate(std::int64_t at) {
+    if (std::fseek(f_, long(at), SEEK_SET) != 0) return Fail("its deflated data set cannot be read");
+    z_stream z{};
+    if (inflateInit2(&z, -15) != Z_OK) return Fail("its deflated data set cannot be inflated");
+    struct End {
+      z_stream* z;
+      ~End() { inflateEnd(z); }
+    } ender{&z};
+    std::vector<unsigned char> in(std::size_t{1} << 16);
+    std::string out;
+    int ret = Z_OK;
+    while (ret != Z_STREAM_END) {
+      if (z.avail_in == 0) {
+        const std::size_t n = std::fread(in.data(), 1, in.size(), f_);
+        if (n == 0) return Fail("its deflated data set ends before its stream does");
+        z.next_in = in.data();
+        z.avail_in = uInt(n);
+      }
+      if (std::int64_t(out.size()) > kMaxInflated) {
+        return Fail(fmt::format("its deflated data set inflates past {} MiB", kMaxInflated >> 20));
+      }
+      const std::size_t before = out.size(), room = std::size_t{1} << 20;
+      out.resize(before + room);
+      z.next_out = reinterpret_cast<unsigned char*>(out.data() + before);
+      z.avail_out = uInt(room);
+      ret = inflate(&z, Z_NO_FLUSH);
+      out.resize(before + (room - z.avail_out));
+      if (ret != Z_OK && ret != Z_STREAM_END) return Fail("its deflated data set is damaged");
+    }
+    if (out.empty()) return Fail("its deflated data set is empty");
+    inflated_ = std::move(out);
+    inflated_from_ = at;
+    size_ = at + std::int64_t(inflated_.size());
+    return true;
   }
 
   // One element at `at` (advanced past it) that must end by `end`.
   bool Element(std::int64_t& at, std::int64_t end, bool explicit_vr, int depth, bool meta) {
-    if (depth > 16 || ++elements_ > 200000) return false;
+    if (depth > 16) return Fail("its sequences nest deeper than 16 levels");
+    if (++elements_ > 200000) return Fail("it holds more than 200,000 elements");
     std::uint8_t h[12];
-    if (at + 8 > end || !Read(at, h, 8)) return false;
+    if (at + 8 > end || !Read(at, h, 8)) return Fail(fmt::format("an element at byte {} runs past its end", at));
     const unsigned group = U16(h), element = U16(h + 2);
+    const std::string tag = TagName(group, element);
     std::uint32_t length;
     bool sequence = false;
     if (group == 0xfffe) {  // item or delimiter: tag and a 4-byte length, never a VR
       length = U32(h + 4);
       at += 8;
-      if (element == 0xe00d || element == 0xe0dd) return length == 0;
-      if (element != 0xe000) return false;
+      if (element == 0xe00d || element == 0xe0dd) return length == 0 || Fail(tag + ", a delimiter, has a length");
+      if (element != 0xe000) return Fail(tag + " stands where an item or an element should");
       if (length == 0xffffffffu) return Items(at, end, explicit_vr, depth + 1, 0xe00d);
-      if (length > std::uint64_t(end - at)) return false;
+      if (length > std::uint64_t(end - at)) return Fail(fmt::format("an item declares {} bytes past its end", length));
       const std::int64_t item_end = at + length;
       while (at < item_end) {
         if (!Element(at, item_end, explicit_vr, depth + 1, false)) return false;
       }
       return true;
     }
-    if (meta && group != 0x0002) return false;
+    if (meta && group != 0x0002) return Fail(tag + " stands in the file meta group");
     if (explicit_vr) {
-      if (!IsVr(h + 4)) return false;
+      if (!IsVr(h + 4)) return Fail(tag + " has no known VR");
       sequence = std::memcmp(h + 4, "SQ", 2) == 0;
       if (IsLongVr(h + 4)) {
-        if (at + 12 > end || !Read(at + 8, h + 8, 4)) return false;
+        if (at + 12 > end || !Read(at + 8, h + 8, 4)) return Fail(tag + " runs past its end");
         length = U32(h + 8);
         at += 12;
       } else {
@@ -115,25 +200,28 @@ class DicomWalk {
     }
     // GDCM asserts on a sequence or an undefined length in the file meta
     // group (found by fuzz_volume); the standard allows neither there.
-    if (meta && (sequence || length == 0xffffffffu)) return false;
+    if (meta && (sequence || length == 0xffffffffu)) return Fail(tag + " in the file meta group is a sequence");
     const bool pixel_data = group == 0x7fe0 && element == 0x0010;
     const bool un = explicit_vr && std::memcmp(h + 4, "UN", 2) == 0;
+    const std::string vr(reinterpret_cast<const char*>(h + 4), 2);
     // GDCM asserts on Pixel Data of another VR, and on an explicit VR that
     // its dictionary does not allow for a public element (Rows as OW).
-    if (explicit_vr && pixel_data && std::memcmp(h + 4, "OB", 2) != 0 && std::memcmp(h + 4, "OW", 2) != 0 && !un) {
-      return false;
+    if (explicit_vr && pixel_data && vr != "OB" && vr != "OW" && !un) return Fail("Pixel Data has VR " + vr);
+    if (explicit_vr && !meta && !un && !VrFitsDictionary(group, element, h + 4)) {
+      return Fail(tag + " has VR " + vr + ", which the DICOM dictionary does not give it");
     }
-    if (explicit_vr && !meta && !un && !VrFitsDictionary(group, element, h + 4)) return false;
     if (length == 0xffffffffu) {
       // Undefined lengths: encapsulated Pixel Data (fragments, each an item
       // of plain bytes), or a sequence; GDCM asserts on any other, and on
       // nested UN sequences it repairs otherwise than this walk reads them.
+      if (pixel_data && depth == 0) pixels_.pixel_data = true;
       if (pixel_data) return Fragments(at, end, depth == 0);
-      if (explicit_vr && !sequence && !(un && depth == 0)) return false;
+      if (explicit_vr && !sequence && !(un && depth == 0)) return Fail(tag + " of VR " + vr + " has an undefined length");
       return Items(at, end, explicit_vr && !un, depth + 1, 0xe0dd);  // implicit VR inside an undefined-length UN
     }
-    if (length > std::uint64_t(end - at)) return false;
-    if (depth > 0 && length % 2 != 0) return false;  // the standard's even lengths; GDCM asserts in items
+    if (length > std::uint64_t(end - at)) return Fail(fmt::format("{} declares {} bytes past its end", tag, length));
+    // The standard's even lengths; GDCM asserts on an odd one in an item.
+    if (depth > 0 && length % 2 != 0) return Fail(fmt::format("{} in a sequence has an odd length ({})", tag, length));
     if (sequence) {
       // A sequence of defined length is walked like one of undefined length:
       // GDCM asserts on an odd length inside it when it parses its items (an
@@ -156,7 +244,9 @@ class DicomWalk {
     // fuzz_volume), in any image, icons included.
     if (group == 0x0028 && element == 0x0002 && !meta) {
       std::uint8_t v[2];
-      if (length < 2 || !Read(at, v, 2) || (U16(v) != 1 && U16(v) != 3 && U16(v) != 4)) return false;
+      if (length < 2 || !Read(at, v, 2) || (U16(v) != 1 && U16(v) != 3 && U16(v) != 4)) {
+        return Fail("Samples per Pixel is not 1, 3 or 4");
+      }
     }
     at += length;
     return true;
@@ -164,22 +254,23 @@ class DicomWalk {
 
   // Items of plain bytes up to the sequence delimiter, which is consumed: the
   // basic offset table, then at least one fragment (GDCM asserts on none).
-  // The top-level image's first fragment is remembered, for its codec's check.
+  // The top-level image's fragments are remembered, for its codec's check.
   bool Fragments(std::int64_t& at, std::int64_t end, bool top_level) {
     for (int items = 0; at + 8 <= end; ++items) {
       std::uint8_t h[8];
-      if (!Read(at, h, 8) || U16(h) != 0xfffe || ++elements_ > 200000) return false;
-      at += 8;
-      if (U16(h + 2) == 0xe0dd) return items >= 2;
-      const std::uint32_t length = U32(h + 4);
-      if (U16(h + 2) != 0xe000 || length > std::uint64_t(end - at)) return false;
-      if (top_level && items == 1) {
-        pixels_.first_fragment = at;
-        pixels_.fragment_length = length;
+      if (!Read(at, h, 8) || U16(h) != 0xfffe || ++elements_ > 200000) {
+        return Fail("Pixel Data's fragments are not items");
       }
+      at += 8;
+      if (U16(h + 2) == 0xe0dd) return items >= 2 || Fail("Pixel Data has no fragment after its offset table");
+      const std::uint32_t length = U32(h + 4);
+      if (U16(h + 2) != 0xe000 || length > std::uint64_t(end - at)) {
+        return Fail("a fragment of Pixel Data runs past its end");
+      }
+      if (top_level && items >= 1) pixels_.fragments.push_back({at, length});
       at += length;
     }
-    return false;
+    return Fail("Pixel Data's fragments have no end");
   }
 
   // A public element's VR in GDCM's dictionary (INVALID where it has none).
@@ -203,10 +294,13 @@ class DicomWalk {
 
   // The top-level image's pixel module, as the walk passes it.
   struct PixelModule {
-    int rows = -1, columns = -1, samples = -1, bits_allocated = -1, bits_stored = -1;
+    int rows = -1, columns = -1, samples = -1, bits_allocated = -1, bits_stored = -1, high_bit = -1;
     bool pixel_data = false;
-    std::int64_t first_fragment = -1;  // encapsulated: the first fragment after the offset table
-    std::uint32_t fragment_length = 0;
+    struct Fragment {
+      std::int64_t at;
+      std::uint32_t length;
+    };
+    std::vector<Fragment> fragments;  // encapsulated: those after the offset table
   };
 
   void Remember(unsigned group, unsigned element, std::int64_t at, std::uint32_t length, bool pixel_data) {
@@ -221,27 +315,61 @@ class DicomWalk {
       case 0x0011: pixels_.columns = value; break;
       case 0x0100: pixels_.bits_allocated = value; break;
       case 0x0101: pixels_.bits_stored = value; break;
+      case 0x0102: pixels_.high_bit = value; break;
       default: break;
     }
   }
 
   // GDCM asserts on a Bits Allocated it has no codec for (12), on Bits
-  // Stored above Bits Allocated or missing, and decodes a JPEG 2000 or RLE
-  // stream that disagrees with the header past its buffers. So the image's
-  // pixel module must hold together, and a compressed image's first fragment
-  // must describe the image the header does.
+  // Stored above Bits Allocated or missing, on a High Bit other than Bits
+  // Stored - 1 (which the CT and MR image modules require), and decodes a
+  // JPEG 2000 or RLE stream that disagrees with the header past its buffers.
+  // So the image's pixel module must hold together, and every frame's
+  // compressed stream must describe the image the header does.
   bool PixelModuleIsSound() {
     const PixelModule& p = pixels_;
     if (!p.pixel_data) return true;
     const bool bits_known = p.bits_allocated == 1 || p.bits_allocated == 8 || p.bits_allocated == 16 ||
                             p.bits_allocated == 32 || p.bits_allocated == 64;
-    if (!bits_known || p.bits_stored < 1 || p.bits_stored > p.bits_allocated) return false;
-    if (p.first_fragment < 0) return true;  // not encapsulated
-    const bool j2k = transfer_syntax_.rfind("1.2.840.10008.1.2.4.9", 0) == 0;
-    const bool rle = transfer_syntax_ == "1.2.840.10008.1.2.5";
-    if (j2k) return J2kFitsHeader();
-    if (rle) return RleFitsHeader();
+    if (p.bits_allocated < 0 || p.bits_stored < 0 || p.high_bit < 0) {
+      return Fail("its image has no Bits Allocated, Bits Stored or High Bit");
+    }
+    if (!bits_known) return Fail(fmt::format("Bits Allocated is {}, not 1, 8, 16, 32 or 64", p.bits_allocated));
+    if (p.bits_stored < 1 || p.bits_stored > p.bits_allocated) {
+      return Fail(fmt::format("Bits Stored is {} with Bits Allocated {}", p.bits_stored, p.bits_allocated));
+    }
+    if (p.high_bit != p.bits_stored - 1) {
+      return Fail(fmt::format("High Bit is {}, not Bits Stored ({}) - 1", p.high_bit, p.bits_stored));
+    }
+    if (p.fragments.empty()) return true;  // not encapsulated
+    if (transfer_syntax_.rfind("1.2.840.10008.1.2.4.9", 0) == 0) {
+      // A frame may span fragments: each one that starts a code stream (or
+      // a JP2 file) is a frame's, and the first fragment must be one.
+      for (std::size_t i = 0; i < p.fragments.size(); ++i) {
+        const Fragment& f = p.fragments[i];
+        if ((i == 0 || StartsJ2k(f)) && !J2kFitsHeader(f)) {
+          return Fail(fmt::format("the JPEG 2000 stream of fragment {} describes another image than its header", i + 1));
+        }
+      }
+    }
+    if (transfer_syntax_ == "1.2.840.10008.1.2.5") {  // RLE: one fragment a frame
+      for (std::size_t i = 0; i < p.fragments.size(); ++i) {
+        if (!RleFitsHeader(p.fragments[i])) return Fail(fmt::format("the RLE segments of fragment {} do not fit its header", i + 1));
+      }
+    }
     return true;
+  }
+
+  using Fragment = PixelModule::Fragment;
+
+  // Whether the fragment begins a JPEG 2000 code stream (SOC, SIZ) or a JP2
+  // file (its signature box).
+  bool StartsJ2k(const Fragment& f) {
+    static const std::uint8_t kCodeStream[4] = {0xff, 0x4f, 0xff, 0x51};
+    static const std::uint8_t kJp2[8] = {0, 0, 0, 0x0c, 'j', 'P', ' ', ' '};
+    std::uint8_t b[8];
+    if (f.length < 8 || !Read(f.at, b, 8)) return false;
+    return std::memcmp(b, kCodeStream, 4) == 0 || std::memcmp(b, kJp2, 8) == 0;
   }
 
   static std::uint32_t Be32(const std::uint8_t* b) {
@@ -250,10 +378,10 @@ class DicomWalk {
 
   // A JPEG 2000 code stream (or a JP2 file's 'jp2c' box) whose SIZ marker
   // gives the header's columns, rows and samples.
-  bool J2kFitsHeader() {
-    const std::size_t n = std::min<std::size_t>(pixels_.fragment_length, 4096);
+  bool J2kFitsHeader(const Fragment& f) {
+    const std::size_t n = std::min<std::size_t>(f.length, 4096);
     std::vector<std::uint8_t> b(n);
-    if (n < 42 || !Read(pixels_.first_fragment, b.data(), n)) return false;
+    if (n < 42 || !Read(f.at, b.data(), n)) return false;
     std::size_t c = 0;  // where the code stream starts
     if (b[0] != 0xff || b[1] != 0x4f) {
       const auto box = std::search(b.begin(), b.end(), std::begin("jp2c"), std::begin("jp2c") + 4);
@@ -270,9 +398,9 @@ class DicomWalk {
 
   // An RLE fragment's header: 1 to 15 segments, one per byte of each sample,
   // their offsets rising from 64 and inside the fragment.
-  bool RleFitsHeader() {
+  bool RleFitsHeader(const Fragment& f) {
     std::uint8_t header[64];
-    if (pixels_.fragment_length < 64 || !Read(pixels_.first_fragment, header, 64)) return false;
+    if (f.length < 64 || !Read(f.at, header, 64)) return false;
     const std::uint32_t segments = U32(header);
     if (segments < 1 || segments > 15 || pixels_.bits_allocated < 8 ||
         segments != std::uint32_t(pixels_.samples) * std::uint32_t(pixels_.bits_allocated / 8)) {
@@ -281,7 +409,7 @@ class DicomWalk {
     std::uint32_t previous = 63;
     for (std::uint32_t i = 0; i < segments; ++i) {
       const std::uint32_t offset = U32(header + 4 + 4 * i);
-      if (offset <= previous || offset >= pixels_.fragment_length) return false;
+      if (offset <= previous || offset >= f.length) return false;
       previous = offset;
     }
     return true;
@@ -298,24 +426,29 @@ class DicomWalk {
       }
       if (!Element(at, end, explicit_vr, depth, false)) return false;
     }
-    return false;
+    return Fail("a sequence or item of undefined length has no end");
   }
 
   std::FILE* f_;
   std::int64_t size_;
   int elements_ = 0;
   std::string transfer_syntax_;  // from the file meta group
+  bool big_endian_ = false;      // the data set's byte order
+  bool has_preamble_ = false;    // 'DICM' at byte 128
+  std::string inflated_;         // a deflated data set, inflated: the bytes from inflated_from_ on
+  std::int64_t inflated_from_ = 0;
+  std::string problem_;          // the first reason the walk stopped
   PixelModule pixels_;
 };
 
 }  // namespace
 
-bool StructureIsSound(const fs::path& path) {
+std::string StructureProblem(const fs::path& path) {
   const file_checks::FileStream f = file_checks::OpenRegularStream(path);
-  if (!f) return false;
   std::error_code ec;
   const auto size = fs::file_size(path, ec);
-  return !ec && DicomWalk(f.get(), std::int64_t(size)).File();
+  if (!f || ec) return "it cannot be opened as a regular file";
+  return DicomWalk(f.get(), std::int64_t(size)).Problem();
 }
 
 }  // namespace cinevol::formats::dicom

@@ -6,14 +6,16 @@
 #pragma once
 
 #include <filesystem>
+#include <string>
 
 namespace cinevol::formats::dicom {
 
-// Whether `path`'s elements, walked here (headers only, nested sequences
-// included), are what GDCM can parse: every VR known, every defined length
-// inside the file, a pixel module that holds together and a compressed first
-// frame that describes the image the header does. A file that fails is not
-// handed to GDCM (it counts as not DICOM).
-bool StructureIsSound(const std::filesystem::path& path);
+// What keeps `path` from being what GDCM can parse, walked here (headers
+// only, nested sequences included, in the encoding its transfer syntax
+// names): every VR known, every defined length inside the file, a pixel
+// module that holds together and a compressed first frame that describes the
+// image the header does. Empty where the file is sound. A file that fails is
+// not handed to GDCM (it counts as not DICOM).
+std::string StructureProblem(const std::filesystem::path& path);
 
 }  // namespace cinevol::formats::dicom

@@ -86,6 +86,7 @@ struct Scan {
   std::size_t files_seen = 0;
   std::map<std::string, std::string> names;  // path -> the file's path under the folder
   std::string shown;                         // what messages call the folder
+  std::string first_problem;                 // "; FILE is not DICOM ...: why", for a refusal
 
   // What messages call a file in the folder: its path under `shown`. Where
   // `shown` ends in a quoted folder ("path 'DIR'"), the file's whole path is
@@ -106,14 +107,20 @@ struct Scan {
 };
 
 // Scans `files`' headers. Files whose structure is not sound DICOM are
-// left out (with the pre-checks on), and so are files GDCM cannot parse.
+// left out (with the pre-checks on), and so are files GDCM cannot parse; where
+// none is left, the refusal names the first unsound file and its problem.
 void ScanFiles(const std::vector<reader::DicomFile>& files, const reader::ReadOptions& options, Scan& scan) {
   scan.shown = options.shown;
   scan.files_seen = files.size();
   std::vector<std::string> sound;
   for (const reader::DicomFile& f : files) {
     scan.names[f.path] = f.name;
-    if (!options.prechecks || StructureIsSound(f.path)) sound.push_back(f.path);
+    const std::string problem = options.prechecks ? StructureProblem(f.path) : std::string();
+    if (problem.empty()) {
+      sound.push_back(f.path);
+    } else if (scan.first_problem.empty()) {
+      scan.first_problem = fmt::format("; {} is not DICOM that cinevol reads: {}", scan.Name(f.path), problem);
+    }
   }
   for (const gdcm::Tag& t : {kSeriesUid, kSeriesDescription, kModality, kImagePosition, kImageOrientation, kRows,
                              kColumns, kSliceThickness, kPhotometric, kRescaleIntercept, kRescaleSlope, kWindowCenter,
@@ -130,7 +137,8 @@ void ScanFiles(const std::vector<reader::DicomFile>& files, const reader::ReadOp
     if (scan.scanner.IsKey(f.c_str())) scan.dicom_files.push_back(f);
   }
   if (scan.dicom_files.empty()) {
-    throw InputError(fmt::format("{}: no DICOM files found ({} files looked at)", scan.shown, scan.files_seen));
+    throw InputError(
+        fmt::format("{}: no DICOM files found ({} files looked at{})", scan.shown, scan.files_seen, scan.first_problem));
   }
 }
 
