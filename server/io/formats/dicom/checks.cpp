@@ -75,7 +75,7 @@ class DicomWalk {
     while (at < size_) {
       if (!Element(at, size_, explicit_vr, 0, false)) return false;
     }
-    return PixelModuleIsSound();
+    return PixelModuleIsSound(pixels_, "") && PixelModuleIsSound(icon_, "its icon: ");
   }
 
   static constexpr const char* kImplicitLittleEndian = "1.2.840.10008.1.2";
@@ -214,9 +214,12 @@ class DicomWalk {
       // Undefined lengths: encapsulated Pixel Data (fragments, each an item
       // of plain bytes), or a sequence; GDCM asserts on any other, and on
       // nested UN sequences it repairs otherwise than this walk reads them.
-      if (pixel_data && depth == 0) pixels_.pixel_data = true;
-      if (pixel_data) return Fragments(at, end, depth == 0);
+      if (pixel_data) {
+        if (PixelModule* module = ModuleAt(depth)) module->pixel_data = true;
+        return Fragments(at, end, depth == 0);
+      }
       if (explicit_vr && !sequence && !(un && depth == 0)) return Fail(tag + " of VR " + vr + " has an undefined length");
+      const IconScope icon(*this, depth == 0 && group == 0x0088 && element == 0x0200);
       return Items(at, end, explicit_vr && !un, depth + 1, 0xe0dd);  // implicit VR inside an undefined-length UN
     }
     if (length > std::uint64_t(end - at)) return Fail(fmt::format("{} declares {} bytes past its end", tag, length));
@@ -226,13 +229,14 @@ class DicomWalk {
       // A sequence of defined length is walked like one of undefined length:
       // GDCM asserts on an odd length inside it when it parses its items (an
       // enhanced multi-frame file's functional groups, found by fuzz_dicom's seed).
+      const IconScope icon(*this, depth == 0 && group == 0x0088 && element == 0x0200);
       const std::int64_t sequence_end = at + length;
       while (at < sequence_end) {
         if (!Element(at, sequence_end, explicit_vr, depth + 1, false)) return false;
       }
       return true;
     }
-    if (depth == 0) Remember(group, element, at, length, pixel_data);
+    if (PixelModule* module = ModuleAt(depth)) Remember(*module, group, element, at, length, pixel_data);
     if (meta && element == 0x0010 && length <= 64) {  // (0002,0010) Transfer Syntax UID
       transfer_syntax_.assign(length, '\0');
       if (!Read(at, reinterpret_cast<std::uint8_t*>(transfer_syntax_.data()), length)) return false;
@@ -295,6 +299,8 @@ class DicomWalk {
   // The top-level image's pixel module, as the walk passes it.
   struct PixelModule {
     int rows = -1, columns = -1, samples = -1, bits_allocated = -1, bits_stored = -1, high_bit = -1;
+    int pixel_representation = 0;
+    std::string photometric;  // trailing spaces trimmed
     bool pixel_data = false;
     struct Fragment {
       std::int64_t at;
@@ -303,43 +309,82 @@ class DicomWalk {
     std::vector<Fragment> fragments;  // encapsulated: those after the offset table
   };
 
-  void Remember(unsigned group, unsigned element, std::int64_t at, std::uint32_t length, bool pixel_data) {
-    if (pixel_data) pixels_.pixel_data = true;
+  // The pixel module an element at `depth` belongs to: the data set's, or
+  // its icon's (GDCM reads an Icon Image Sequence's image too); else none.
+  PixelModule* ModuleAt(int depth) {
+    if (depth == 0) return &pixels_;
+    return in_icon_ && depth == 2 ? &icon_ : nullptr;
+  }
+
+  // While the walk is inside the data set's Icon Image Sequence (0088,0200).
+  struct IconScope {
+    IconScope(DicomWalk& walk, bool icon) : walk(walk), icon(icon) {
+      if (icon) walk.in_icon_ = true;
+    }
+    ~IconScope() {
+      if (icon) walk.in_icon_ = false;
+    }
+    DicomWalk& walk;
+    bool icon;
+  };
+
+  void Remember(PixelModule& module, unsigned group, unsigned element, std::int64_t at, std::uint32_t length,
+                bool pixel_data) {
+    if (pixel_data) module.pixel_data = true;
+    if (group == 0x0028 && element == 0x0004 && length <= 64) {  // Photometric Interpretation
+      std::string& text = module.photometric;
+      text.assign(length, '\0');
+      if (!Read(at, reinterpret_cast<std::uint8_t*>(text.data()), length)) text.clear();
+      while (!text.empty() && (text.back() == ' ' || text.back() == '\0')) text.pop_back();
+      return;
+    }
     if (group != 0x0028 || length < 2) return;
     std::uint8_t v[2];
     if (!Read(at, v, 2)) return;
     const int value = int(U16(v));
     switch (element) {
-      case 0x0002: pixels_.samples = value; break;
-      case 0x0010: pixels_.rows = value; break;
-      case 0x0011: pixels_.columns = value; break;
-      case 0x0100: pixels_.bits_allocated = value; break;
-      case 0x0101: pixels_.bits_stored = value; break;
-      case 0x0102: pixels_.high_bit = value; break;
+      case 0x0002: module.samples = value; break;
+      case 0x0010: module.rows = value; break;
+      case 0x0011: module.columns = value; break;
+      case 0x0100: module.bits_allocated = value; break;
+      case 0x0101: module.bits_stored = value; break;
+      case 0x0102: module.high_bit = value; break;
+      case 0x0103: module.pixel_representation = value; break;
       default: break;
     }
   }
 
   // GDCM asserts on a Bits Allocated it has no codec for (12), on Bits
   // Stored above Bits Allocated or missing, on a High Bit other than Bits
-  // Stored - 1 (which the CT and MR image modules require), and decodes a
-  // JPEG 2000 or RLE stream that disagrees with the header past its buffers.
-  // So the image's pixel module must hold together, and every frame's
-  // compressed stream must describe the image the header does.
-  bool PixelModuleIsSound() {
-    const PixelModule& p = pixels_;
+  // Stored - 1 (which the CT and MR image modules require), on a Pixel
+  // Representation other than 0 or 1, on palettes whose tables disagree,
+  // and decodes a JPEG 2000 or RLE stream that disagrees with the header
+  // past its buffers. So the image's pixel module must hold together and be
+  // grey-scale (cinevol reads no other: series.cpp would refuse a colour
+  // image after GDCM decoded it), and every frame's compressed stream must
+  // describe the image the header does. The same holds for an icon's
+  // (`which` names it in the problem), whose fragments are not checked.
+  bool PixelModuleIsSound(const PixelModule& p, const std::string& which) {
     if (!p.pixel_data) return true;
+    if (!p.photometric.empty() && p.photometric != "MONOCHROME1" && p.photometric != "MONOCHROME2") {
+      return Fail(fmt::format("{}Photometric Interpretation '{}'; cinevol reads grey-scale series "
+                              "(MONOCHROME1 or MONOCHROME2)",
+                              which, LogSafe(p.photometric, 32)));
+    }
+    if (p.pixel_representation != 0 && p.pixel_representation != 1) {
+      return Fail(fmt::format("{}Pixel Representation is {}, not 0 or 1", which, p.pixel_representation));
+    }
     const bool bits_known = p.bits_allocated == 1 || p.bits_allocated == 8 || p.bits_allocated == 16 ||
                             p.bits_allocated == 32 || p.bits_allocated == 64;
     if (p.bits_allocated < 0 || p.bits_stored < 0 || p.high_bit < 0) {
-      return Fail("its image has no Bits Allocated, Bits Stored or High Bit");
+      return Fail(which + "an image without Bits Allocated, Bits Stored or High Bit");
     }
-    if (!bits_known) return Fail(fmt::format("Bits Allocated is {}, not 1, 8, 16, 32 or 64", p.bits_allocated));
+    if (!bits_known) return Fail(fmt::format("{}Bits Allocated is {}, not 1, 8, 16, 32 or 64", which, p.bits_allocated));
     if (p.bits_stored < 1 || p.bits_stored > p.bits_allocated) {
-      return Fail(fmt::format("Bits Stored is {} with Bits Allocated {}", p.bits_stored, p.bits_allocated));
+      return Fail(fmt::format("{}Bits Stored is {} with Bits Allocated {}", which, p.bits_stored, p.bits_allocated));
     }
     if (p.high_bit != p.bits_stored - 1) {
-      return Fail(fmt::format("High Bit is {}, not Bits Stored ({}) - 1", p.high_bit, p.bits_stored));
+      return Fail(fmt::format("{}High Bit is {}, not Bits Stored ({}) - 1", which, p.high_bit, p.bits_stored));
     }
     if (p.fragments.empty()) return true;  // not encapsulated
     if (transfer_syntax_.rfind("1.2.840.10008.1.2.4.9", 0) == 0) {
@@ -377,7 +422,7 @@ class DicomWalk {
   }
 
   // A JPEG 2000 code stream (or a JP2 file's 'jp2c' box) whose SIZ marker
-  // gives the header's columns, rows and samples.
+  // gives the header's columns, rows and samples, at a precision that fits.
   bool J2kFitsHeader(const Fragment& f) {
     const std::size_t n = std::min<std::size_t>(f.length, 4096);
     std::vector<std::uint8_t> b(n);
@@ -393,7 +438,15 @@ class DicomWalk {
     const std::int64_t width = std::int64_t(Be32(siz + 4)) - Be32(siz + 12);
     const std::int64_t height = std::int64_t(Be32(siz + 8)) - Be32(siz + 16);
     const int components = int(siz[36]) << 8 | siz[37];
-    return width == pixels_.columns && height == pixels_.rows && components == pixels_.samples;
+    if (width != pixels_.columns || height != pixels_.rows || components != pixels_.samples) return false;
+    // Each component's precision (Ssiz's low 7 bits, plus 1) within Bits
+    // Allocated: GDCM takes its Bits Stored from the stream, and asserts on
+    // one above Bits Allocated.
+    if (c + 42 + 3 * std::size_t(components) > n) return false;
+    for (int i = 0; i < components; ++i) {
+      if ((siz[38 + 3 * i] & 0x7f) + 1 > pixels_.bits_allocated) return false;
+    }
+    return true;
   }
 
   // An RLE fragment's header: 1 to 15 segments, one per byte of each sample,
@@ -438,7 +491,8 @@ class DicomWalk {
   std::string inflated_;         // a deflated data set, inflated: the bytes from inflated_from_ on
   std::int64_t inflated_from_ = 0;
   std::string problem_;          // the first reason the walk stopped
-  PixelModule pixels_;
+  PixelModule pixels_, icon_;  // the data set's image and its icon's
+  bool in_icon_ = false;        // inside the Icon Image Sequence (IconScope)
 };
 
 }  // namespace

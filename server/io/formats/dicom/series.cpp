@@ -138,7 +138,8 @@ void ScanFiles(const std::vector<reader::DicomFile>& files, const reader::ReadOp
   }
   if (scan.dicom_files.empty()) {
     throw InputError(
-        fmt::format("{}: no DICOM files found ({} files looked at{})", scan.shown, scan.files_seen, scan.first_problem));
+        fmt::format("{}: no DICOM files found{} ({} files looked at{})", scan.shown,
+                    scan.first_problem.empty() ? "" : " that cinevol reads", scan.files_seen, scan.first_problem));
   }
 }
 
