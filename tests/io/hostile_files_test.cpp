@@ -573,6 +573,9 @@ TEST(HostileFiles, DicomFuzzFindingsAreRefusedNamingTheirProblem) {
       {"gdcm-explicit-syntax-walked-implicit-1g3-length",
        "its transfer syntax 1.2.840.10008.1.2.1 says explicit VR and its first element has no VR"},
       {"gdcm-scanner-declared-length-oom", "1.2.840.10008.1.2.2 says explicit VR"},
+      // A file without the preamble whose data set starts with a meta group naming JPEG 2000:
+      // GDCM decoded its 16x16 stream into a 4x4 frame (SIGSEGV in the server's fuzz run).
+      {"j2k-bare-meta-group-larger-than-rows-columns", "the JPEG 2000 stream of fragment 1 describes another image"},
       // A palette icon whose tables disagree with their descriptors (GDCM read the icon's too).
       {"fuzz-20261205-e06a0a51", "its icon: Photometric Interpretation 'PALETTE COLOR'"},
   };

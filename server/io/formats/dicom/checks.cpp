@@ -237,7 +237,10 @@ class DicomWalk {
       return true;
     }
     if (PixelModule* module = ModuleAt(depth)) Remember(*module, group, element, at, length, pixel_data);
-    if (meta && element == 0x0010 && length <= 64) {  // (0002,0010) Transfer Syntax UID
+    // (0002,0010) Transfer Syntax UID: in the file meta group, or in a file
+    // without the preamble whose data set starts with one (GDCM reads that
+    // meta group too, and decodes the pixels by its syntax).
+    if (group == 0x0002 && element == 0x0010 && depth == 0 && transfer_syntax_.empty() && length <= 64) {
       transfer_syntax_.assign(length, '\0');
       if (!Read(at, reinterpret_cast<std::uint8_t*>(transfer_syntax_.data()), length)) return false;
       while (!transfer_syntax_.empty() && (transfer_syntax_.back() == '\0' || transfer_syntax_.back() == ' ')) {
