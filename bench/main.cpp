@@ -1,5 +1,6 @@
 // cinevol-bench: measurements for docs/performance.md.
 #include <CLI/CLI.hpp>
+#include <algorithm>
 #include <cstdio>
 #include <fstream>
 
@@ -237,6 +238,8 @@ int main(int argc, char** argv) {
   t->add_flag("--variants-only", variants_only, "Only none, svgf, the default wrls and the variants");
   bool denoisers_only = false;
   t->add_flag("--denoisers-only", denoisers_only, "Every denoiser, no sweeps of the other knobs");
+  std::string knob;
+  t->add_option("--knob", knob, "Only the default wRLS and this knob's sweep: spp, bounces, jpeg or scale");
   t->callback([&] {
     for (const std::string& spec : datasets) {
       const auto eq = spec.find('='), comma = spec.find(',', eq);
@@ -255,6 +258,15 @@ int main(int argc, char** argv) {
       });
     }
     if (denoisers_only) std::erase_if(study.configs, [](const auto& c) { return c.knob != "denoiser"; });
+    if (!knob.empty()) {
+      if (std::none_of(study.configs.begin(), study.configs.end(), [&](const auto& c) { return c.knob == knob; })) {
+        throw cinevol::InputError("--knob " + knob + ": not a knob this study sweeps (spp, bounces, jpeg, scale)");
+      }
+      std::erase_if(study.configs, [&](const auto& c) {
+        const bool default_wrls = c.knob == "denoiser" && c.method == cinevol::DenoiseMethod::kWrls && !c.demodulate;
+        return c.knob != knob && !default_wrls;
+      });
+    }
     for (const std::string& v : variants) study.configs.push_back(cinevol::bench::Variant(v));
     study.cache = cache;
     study.out = out;

@@ -541,7 +541,7 @@ std::vector<StudyConfig> StudyConfigs(bool quick) {
   if (!quick) sweep("bounces", {1, 2, 4, 8}, [](StudyConfig& c, float v) { c.bounces = int(v); });
   sweep("jpeg", quick ? std::vector<float>{75} : std::vector<float>{50, 75, 90},
         [](StudyConfig& c, float v) { c.jpeg_quality = int(v); });
-  sweep("scale", quick ? std::vector<float>{0.5f} : std::vector<float>{0.125f, 0.25f, 0.5f, 0.75f},
+  sweep("scale", quick ? std::vector<float>{0.5f} : std::vector<float>{0.125f, 0.25f, 0.375f, 0.5f, 0.75f},
         [](StudyConfig& c, float v) { c.scale = v; });
   return configs;
 }

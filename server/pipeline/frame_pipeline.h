@@ -120,8 +120,10 @@ v1::StreamSettings ToStreamSettings(const FrameSettings& settings);
 // The resolution scales interactive frames step through, largest first; how
 // long after the last camera or transfer-function change they end; and how
 // many frame times a scale is measured over before the next step (a step
-// restarts the denoiser's history, so steps are rare).
-inline constexpr float kInteractiveScales[] = {1.0f, 0.75f, 0.5f};
+// restarts the denoiser's history, so steps are rare). 0.375 is for a crowded
+// GPU: 128 sessions on an H200 make 25-26 fps each at 0.5 and 34-36 at 0.375
+// (docs/performance.md; its cost while moving, -5 dB: docs/tradeoff.md).
+inline constexpr float kInteractiveScales[] = {1.0f, 0.75f, 0.5f, 0.375f};
 inline constexpr int kInteractionHoldMs = 200;
 inline constexpr int kFrameTimesPerStep = 3;
 

@@ -13,18 +13,18 @@
 namespace cinevol {
 namespace {
 
-TEST(CudaBuffer, KeepsItsMemoryForFramesDownToAQuarterOfIt) {
+TEST(CudaBuffer, KeepsItsMemoryForFramesDownToAnEighthOfIt) {
   CINEVOL_REQUIRE_CUDA();
   cuda::DeviceBuffer<float> buffer(1000);
   float* const memory = buffer.data();
-  buffer.Resize(250);  // a frame at half the width and height
+  buffer.Resize(141);  // a frame at 0.375 of the width and height
   EXPECT_EQ(buffer.data(), memory);
-  EXPECT_EQ(buffer.size(), 250u);
+  EXPECT_EQ(buffer.size(), 141u);
   buffer.Resize(1000);  // full size again
   EXPECT_EQ(buffer.data(), memory);
   EXPECT_EQ(buffer.size(), 1000u);
-  buffer.Resize(249);  // a much smaller viewport: the memory goes back
-  EXPECT_EQ(buffer.capacity(), 249u);
+  buffer.Resize(124);  // a much smaller viewport: the memory goes back
+  EXPECT_EQ(buffer.capacity(), 124u);
   buffer.Resize(1001);  // a larger one than any before
   EXPECT_EQ(buffer.capacity(), 1001u);
   buffer.Resize(0);

@@ -1,7 +1,7 @@
 // Interactive resolution: while the view moves under a frame-time budget the
 // pipeline renders fewer pixels and upsamples them to the viewport; once it
 // holds still it refines at full size, and only a full-size frame is final.
-// InteractiveResolution.* check the GPU's policy (steps through 0.75 and 0.5)
+// InteractiveResolution.* check the GPU's policy (steps through 0.75, 0.5, 0.375)
 // on the CPU; CpuLiveView.* the CPU's own (sizes and samples from measured
 // costs, preemptible still frames).
 #include <gtest/gtest.h>
@@ -74,6 +74,8 @@ std::vector<float> Move(FramePipeline& pipeline, v1::Scene& scene, const FrameSe
   return scales;
 }
 
+constexpr float kSmallestGpuScale = std::end(kInteractiveScales)[-1];
+
 TEST(InteractiveResolution, AMovingViewStepsDownAndRefinesAtFullSize) {
   auto volume = SmallHead();
   FramePipeline pipeline(Backend::kCpu, volume);
@@ -83,11 +85,12 @@ TEST(InteractiveResolution, AMovingViewStepsDownAndRefinesAtFullSize) {
   pipeline.Update(scene, settings);
   EXPECT_EQ(Render(pipeline).scale, 1.0f) << "nothing moved";
 
-  const std::vector<float> scales = Move(pipeline, scene, settings, kCameraChanged, 0.5f);
-  ASSERT_EQ(scales.back(), 0.5f) << "the scale steps down to the smallest";
+  const std::vector<float> scales = Move(pipeline, scene, settings, kCameraChanged, kSmallestGpuScale);
+  ASSERT_EQ(scales.back(), kSmallestGpuScale) << "the scale steps down to the smallest";
   EXPECT_EQ(std::count(scales.begin(), scales.end(), 1.0f), kFrameTimesPerStep)
       << "a step waits for that many frame times";
   EXPECT_GT(std::count(scales.begin(), scales.end(), 0.75f), 0) << "through 0.75";
+  EXPECT_GT(std::count(scales.begin(), scales.end(), 0.5f), 0) << "through 0.5";
 
   std::this_thread::sleep_for(std::chrono::milliseconds(kInteractionHoldMs + 50));
   Shown still = Render(pipeline);
@@ -99,7 +102,7 @@ TEST(InteractiveResolution, AMovingViewStepsDownAndRefinesAtFullSize) {
 
   Zoom(scene, 0.5f);
   pipeline.Update(scene, settings, kCameraChanged);
-  EXPECT_EQ(Render(pipeline).scale, 0.5f) << "the next interaction starts where the last one ended";
+  EXPECT_EQ(Render(pipeline).scale, kSmallestGpuScale) << "the next interaction starts where the last one ended";
 }
 
 TEST(InteractiveResolution, AFrameWithinTheBudgetStaysFullSize) {
@@ -122,7 +125,8 @@ TEST(InteractiveResolution, AMovingTransferFunctionAlsoScales) {
   v1::Scene scene = SmallScene(*volume, 64, 40, 1);
   pipeline.Update(scene, WithBudget(1e-3f));
   Render(pipeline);
-  EXPECT_EQ(Move(pipeline, scene, WithBudget(1e-3f), kTransferFunctionChanged, 0.5f).back(), 0.5f);
+  EXPECT_EQ(Move(pipeline, scene, WithBudget(1e-3f), kTransferFunctionChanged, kSmallestGpuScale).back(),
+            kSmallestGpuScale);
 }
 
 constexpr float kSmallestCpuScale = kCpuInteractiveScales[std::size(kCpuInteractiveScales) - 1];
@@ -268,7 +272,7 @@ TEST(InteractiveResolution, AFrameAtItsRenderedSizeIsWhatTheServerWouldHaveUpsam
     // picks samples from measured times), so both see the same samples.
     pipeline.SetInteractivePolicy(InteractivePolicy::kSteps);
     v1::Scene scene = SmallScene(*volume, 64, 40, 1);  // 1 spp: no frame ends refinement (target 2)
-    FrameSettings settings = WithBudget(1e-3f);  // no frame meets it: down to the smallest size
+    FrameSettings settings = WithBudget(1e-3f);  // no frame meets it: down through 0.5
     settings.frames_at_rendered_size = at_rendered_size;
     pipeline.Update(scene, settings);
     pipeline.RenderFrame();
