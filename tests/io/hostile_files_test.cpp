@@ -636,6 +636,25 @@ std::size_t MetaGroupEnd(const std::string& file) {
   return at;
 }
 
+// The 64-bit VRs (DICOM 2019): GDCM parses an Extended Offset Table
+// (7FE0,0001-0002, OV), but ITK asks GDCM for each element as text, which
+// asserts on them (the reader stopped by SIGABRT): refused by name.
+TEST(HostileFiles, DicomExtendedOffsetTableIsRefusedByName) {
+  ScratchDir dir;
+  std::ifstream seed(fs::path(CINEVOL_SOURCE_DIR) / "tests/fuzz/corpus/dicom/j2k-lossless-int16.dcm", std::ios::binary);
+  std::string file((std::istreambuf_iterator<char>(seed)), std::istreambuf_iterator<char>());
+  const std::string pixel_data("\xe0\x7f\x10\0OB\0\0\xff\xff\xff\xff", 12);
+  const std::size_t at = file.find(pixel_data);
+  ASSERT_NE(at, std::string::npos);
+  const std::string offsets = std::string("\xe0\x7f\x01\0OV\0\0\x08\0\0\0", 12) + std::string(8, '\0');
+  const std::string lengths = std::string("\xe0\x7f\x02\0OV\0\0\x08\0\0\0", 12) + std::string(8, '\0');
+  file.insert(at, offsets + lengths);
+  fs::create_directories(dir / "eot");
+  WriteBytes(dir / "eot" / "x.dcm", file);
+  const std::string message = LoadMessage([&] { return LoadDicomSeries(dir / "eot", {}, Upload()); });
+  EXPECT_TRUE(Has(message, "x.dcm is not DICOM that cinevol reads: (7fe0,0001) has a 64-bit VR (OV)")) << message;
+}
+
 // Deflated Explicit VR Little Endian went to GDCM unwalked, and fuzz_dicom's
 // deflated inputs aborted it a dozen ways (odd lengths in items, VRs the
 // dictionary does not allow, ...): the data set is walked inflated now, and

@@ -183,6 +183,12 @@ class DicomWalk {
     }
     if (meta && group != 0x0002) return Fail(tag + " stands in the file meta group");
     if (explicit_vr) {
+      // The 64-bit VRs (an Extended Offset Table is OV): GDCM parses them, but
+      // the reader's ITK asks GDCM for every element as text, which asserts.
+      if (std::memcmp(h + 4, "OV", 2) == 0 || std::memcmp(h + 4, "SV", 2) == 0 || std::memcmp(h + 4, "UV", 2) == 0) {
+        return Fail(tag + " has a 64-bit VR (" + std::string(reinterpret_cast<const char*>(h + 4), 2) +
+                    "), which the DICOM reader cannot take");
+      }
       if (!IsVr(h + 4)) return Fail(tag + " has no known VR");
       sequence = std::memcmp(h + 4, "SQ", 2) == 0;
       if (IsLongVr(h + 4)) {
