@@ -516,24 +516,33 @@ TEST(HostileFiles, MalformedDicomNeverReachesGdcm) {
   }
 }
 
+// A file of the fuzz corpora (`relative`: "dicom/NAME" or "volume/NAME").
+std::string CorpusBytes(const std::string& relative) {
+  std::ifstream in(fs::path(CINEVOL_SOURCE_DIR) / "tests/fuzz/corpus" / relative, std::ios::binary);
+  return std::string((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+}
+
+// `bytes` as x.dcm, the one file of folder `name` under `dir`, loaded as a
+// DICOM series: what LoadMessage says of it.
+std::string LoadDicomFile(const ScratchDir& dir, const std::string& name, const std::string& bytes) {
+  fs::create_directories(dir / name);
+  WriteBytes(dir / name / "x.dcm", bytes);
+  return LoadMessage([&] { return LoadDicomSeries(dir / name, {}, Upload()); });
+}
+
 // GDCM asserted (an abort) on Samples per Pixel above 4: fuzz_volume's CT
 // seed with (0028,0002) = 65281.
 TEST(HostileFiles, DicomSamplesPerPixelAboveFourNeverReachesGdcm) {
   ScratchDir dir;
-  std::ifstream seed(fs::path(CINEVOL_SOURCE_DIR) / "tests/fuzz/corpus/volume/ct.dcm", std::ios::binary);
-  std::string ct((std::istreambuf_iterator<char>(seed)), std::istreambuf_iterator<char>());
+  std::string ct = CorpusBytes("volume/ct.dcm");
   ASSERT_GT(ct.size(), 1u);
   ct.erase(0, 1);  // fuzz_volume's format byte
   const std::string spp("\x28\0\x02\0\x02\0\0\0\x01\0", 10);  // implicit VR, US 1
   const auto at = ct.find(spp);
   ASSERT_NE(at, std::string::npos);
-  fs::create_directories(dir / "good");
-  WriteBytes(dir / "good" / "x.dcm", ct);
-  EXPECT_EQ(LoadMessage([&] { return LoadDicomSeries(dir / "good", {}, Upload()); }), "(loaded)");
+  EXPECT_EQ(LoadDicomFile(dir, "good", ct), "(loaded)");
   ct[at + 9] = '\xff';
-  fs::create_directories(dir / "spp");
-  WriteBytes(dir / "spp" / "x.dcm", ct);
-  const std::string message = LoadMessage([&] { return LoadDicomSeries(dir / "spp", {}, Upload()); });
+  const std::string message = LoadDicomFile(dir, "spp", ct);
   EXPECT_TRUE(Has(message, "no DICOM files found")) << message;
 }
 
@@ -580,11 +589,9 @@ TEST(HostileFiles, DicomFuzzFindingsAreRefusedNamingTheirProblem) {
       {"fuzz-20261205-e06a0a51", "its icon: Photometric Interpretation 'PALETTE COLOR'"},
   };
   ScratchDir dir;
-  const fs::path corpus = fs::path(CINEVOL_SOURCE_DIR) / "tests/fuzz/corpus/dicom";
   for (const auto& finding : kFindings) {
-    fs::create_directories(dir / finding.file);
-    fs::copy_file(corpus / (std::string("regression-") + finding.file + ".dcm"), dir / finding.file / "x.dcm");
-    const std::string message = LoadMessage([&] { return LoadDicomSeries(dir / finding.file, {}, Upload()); });
+    const std::string message =
+        LoadDicomFile(dir, finding.file, CorpusBytes(std::string("dicom/regression-") + finding.file + ".dcm"));
     EXPECT_TRUE(Has(message, "x.dcm is not DICOM that cinevol reads: ")) << finding.file << ": " << message;
     EXPECT_TRUE(Has(message, finding.problem)) << finding.file << ": " << message;
   }
@@ -594,13 +601,9 @@ TEST(HostileFiles, DicomFuzzFindingsAreRefusedNamingTheirProblem) {
 // to GDCM unwalked, which asserted on a big-endian file's broken items).
 TEST(HostileFiles, DicomBigEndianIsWalkedAndLoads) {
   ScratchDir dir;
-  fs::create_directories(dir / "be");
-  fs::copy_file(fs::path(CINEVOL_SOURCE_DIR) / "tests/fuzz/corpus/dicom/explicit-big-endian.dcm", dir / "be" / "x.dcm");
-  EXPECT_EQ(LoadMessage([&] { return LoadDicomSeries(dir / "be", {}, Upload()); }), "(loaded)");
-  fs::create_directories(dir / "broken");
-  fs::copy_file(fs::path(CINEVOL_SOURCE_DIR) / "tests/fuzz/corpus/dicom/regression-gdcm-big-endian-nested-item-retry-assert.dcm",
-                dir / "broken" / "x.dcm");
-  const std::string message = LoadMessage([&] { return LoadDicomSeries(dir / "broken", {}, Upload()); });
+  EXPECT_EQ(LoadDicomFile(dir, "be", CorpusBytes("dicom/explicit-big-endian.dcm")), "(loaded)");
+  const std::string message =
+      LoadDicomFile(dir, "broken", CorpusBytes("dicom/regression-gdcm-big-endian-nested-item-retry-assert.dcm"));
   EXPECT_TRUE(Has(message, "x.dcm is not DICOM that cinevol reads")) << message;
 }
 
@@ -641,17 +644,14 @@ std::size_t MetaGroupEnd(const std::string& file) {
 // asserts on them (the reader stopped by SIGABRT): refused by name.
 TEST(HostileFiles, DicomExtendedOffsetTableIsRefusedByName) {
   ScratchDir dir;
-  std::ifstream seed(fs::path(CINEVOL_SOURCE_DIR) / "tests/fuzz/corpus/dicom/j2k-lossless-int16.dcm", std::ios::binary);
-  std::string file((std::istreambuf_iterator<char>(seed)), std::istreambuf_iterator<char>());
+  std::string file = CorpusBytes("dicom/j2k-lossless-int16.dcm");
   const std::string pixel_data("\xe0\x7f\x10\0OB\0\0\xff\xff\xff\xff", 12);
   const std::size_t at = file.find(pixel_data);
   ASSERT_NE(at, std::string::npos);
   const std::string offsets = std::string("\xe0\x7f\x01\0OV\0\0\x08\0\0\0", 12) + std::string(8, '\0');
   const std::string lengths = std::string("\xe0\x7f\x02\0OV\0\0\x08\0\0\0", 12) + std::string(8, '\0');
   file.insert(at, offsets + lengths);
-  fs::create_directories(dir / "eot");
-  WriteBytes(dir / "eot" / "x.dcm", file);
-  const std::string message = LoadMessage([&] { return LoadDicomSeries(dir / "eot", {}, Upload()); });
+  const std::string message = LoadDicomFile(dir, "eot", file);
   EXPECT_TRUE(Has(message, "x.dcm is not DICOM that cinevol reads: (7fe0,0001) has a 64-bit VR (OV)")) << message;
 }
 
@@ -661,24 +661,18 @@ TEST(HostileFiles, DicomExtendedOffsetTableIsRefusedByName) {
 // one that inflates past the walk's limit is refused before GDCM inflates it.
 TEST(HostileFiles, DicomDeflatedDataSetIsWalkedInflated) {
   ScratchDir dir;
-  std::ifstream seed(fs::path(CINEVOL_SOURCE_DIR) / "tests/fuzz/corpus/dicom/deflated.dcm", std::ios::binary);
-  const std::string file((std::istreambuf_iterator<char>(seed)), std::istreambuf_iterator<char>());
+  const std::string file = CorpusBytes("dicom/deflated.dcm");
   const std::size_t data_set = MetaGroupEnd(file);
   ASSERT_LT(data_set, file.size());
   std::string inflated = InflateRaw(file.substr(data_set));
   const std::string bits_allocated("\x28\0\0\x01US\x02\0\x10\0", 10);
   const std::size_t at = inflated.find(bits_allocated);
   ASSERT_NE(at, std::string::npos);
-  const auto load = [&](const char* name, const std::string& bytes) {
-    fs::create_directories(dir / name);
-    WriteBytes(dir / name / "x.dcm", bytes);
-    return LoadMessage([&] { return LoadDicomSeries(dir / name, {}, Upload()); });
-  };
-  EXPECT_EQ(load("sound", file.substr(0, data_set) + Deflate(inflated, -15)), "(loaded)");
+  EXPECT_EQ(LoadDicomFile(dir, "sound", file.substr(0, data_set) + Deflate(inflated, -15)), "(loaded)");
   inflated[at + 8] = 12;
-  const std::string bits = load("bits", file.substr(0, data_set) + Deflate(inflated, -15));
+  const std::string bits = LoadDicomFile(dir, "bits", file.substr(0, data_set) + Deflate(inflated, -15));
   EXPECT_TRUE(Has(bits, "x.dcm is not DICOM that cinevol reads: Bits Allocated is 12")) << bits;
-  const std::string bomb = load("bomb", file.substr(0, data_set) + Deflate(inflated, -15, std::size_t{300} << 20));
+  const std::string bomb = LoadDicomFile(dir, "bomb", file.substr(0, data_set) + Deflate(inflated, -15, std::size_t{300} << 20));
   EXPECT_TRUE(Has(bomb, "its deflated data set inflates past 256 MiB")) << bomb;
 }
 
@@ -687,8 +681,7 @@ TEST(HostileFiles, DicomDeflatedDataSetIsWalkedInflated) {
 // read as DICOM.
 TEST(HostileFiles, DicomContentInAVolumeFileNeverReachesGdcm) {
   ScratchDir dir;
-  std::ifstream seed(fs::path(CINEVOL_SOURCE_DIR) / "tests/fuzz/corpus/volume/ct.dcm", std::ios::binary);
-  const std::string ct((std::istreambuf_iterator<char>(seed)), std::istreambuf_iterator<char>());
+  const std::string ct = CorpusBytes("volume/ct.dcm");
   ASSERT_GT(ct.size(), 1u);
   for (const char* name : {"x.nii.gz", "x.nii", "x.dcm"}) {
     WriteBytes(dir / name, ct.substr(1));

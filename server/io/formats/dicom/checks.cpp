@@ -81,6 +81,8 @@ class DicomWalk {
   static constexpr const char* kImplicitLittleEndian = "1.2.840.10008.1.2";
   static constexpr const char* kExplicitBigEndian = "1.2.840.10008.1.2.2";
   static constexpr const char* kDeflated = "1.2.840.10008.1.2.1.99";
+  static constexpr const char* kRle = "1.2.840.10008.1.2.5";
+  static constexpr const char* kJpeg2000Prefix = "1.2.840.10008.1.2.4.9";  // JPEG 2000 (.90-.93), JPIP (.94, .95)
 
   // Records the first reason the walk stops at; always false.
   bool Fail(std::string why) {
@@ -115,6 +117,15 @@ class DicomWalk {
       return true;
     }
     return std::fseek(f_, long(at), SEEK_SET) == 0 && std::fread(out, 1, n, f_) == n;
+  }
+
+  // A short text value, its padding (trailing spaces and NULs) trimmed;
+  // empty where it cannot be read.
+  std::string ReadText(std::int64_t at, std::uint32_t length) {
+    std::string text(length, '\0');
+    if (!Read(at, reinterpret_cast<std::uint8_t*>(text.data()), length)) return {};
+    while (!text.empty() && (text.back() == ' ' || text.back() == '\0')) text.pop_back();
+    return text;
   }
 
   // Deflated Explicit VR Little Endian: the data set from `at` on is one raw
@@ -165,14 +176,14 @@ class DicomWalk {
     std::uint8_t h[12];
     if (at + 8 > end || !Read(at, h, 8)) return Fail(fmt::format("an element at byte {} runs past its end", at));
     const unsigned group = U16(h), element = U16(h + 2);
-    const std::string tag = TagName(group, element);
+    const auto tag = [&] { return TagName(group, element); };  // for a problem only
     std::uint32_t length;
     bool sequence = false;
     if (group == 0xfffe) {  // item or delimiter: tag and a 4-byte length, never a VR
       length = U32(h + 4);
       at += 8;
-      if (element == 0xe00d || element == 0xe0dd) return length == 0 || Fail(tag + ", a delimiter, has a length");
-      if (element != 0xe000) return Fail(tag + " stands where an item or an element should");
+      if (element == 0xe00d || element == 0xe0dd) return length == 0 || Fail(tag() + ", a delimiter, has a length");
+      if (element != 0xe000) return Fail(tag() + " stands where an item or an element should");
       if (length == 0xffffffffu) return Items(at, end, explicit_vr, depth + 1, 0xe00d);
       if (length > std::uint64_t(end - at)) return Fail(fmt::format("an item declares {} bytes past its end", length));
       const std::int64_t item_end = at + length;
@@ -181,18 +192,18 @@ class DicomWalk {
       }
       return true;
     }
-    if (meta && group != 0x0002) return Fail(tag + " stands in the file meta group");
+    if (meta && group != 0x0002) return Fail(tag() + " stands in the file meta group");
     if (explicit_vr) {
       // The 64-bit VRs (an Extended Offset Table is OV): GDCM parses them, but
       // the reader's ITK asks GDCM for every element as text, which asserts.
       if (std::memcmp(h + 4, "OV", 2) == 0 || std::memcmp(h + 4, "SV", 2) == 0 || std::memcmp(h + 4, "UV", 2) == 0) {
-        return Fail(tag + " has a 64-bit VR (" + std::string(reinterpret_cast<const char*>(h + 4), 2) +
+        return Fail(tag() + " has a 64-bit VR (" + std::string(reinterpret_cast<const char*>(h + 4), 2) +
                     "), which the DICOM reader cannot take");
       }
-      if (!IsVr(h + 4)) return Fail(tag + " has no known VR");
+      if (!IsVr(h + 4)) return Fail(tag() + " has no known VR");
       sequence = std::memcmp(h + 4, "SQ", 2) == 0;
       if (IsLongVr(h + 4)) {
-        if (at + 12 > end || !Read(at + 8, h + 8, 4)) return Fail(tag + " runs past its end");
+        if (at + 12 > end || !Read(at + 8, h + 8, 4)) return Fail(tag() + " runs past its end");
         length = U32(h + 8);
         at += 12;
       } else {
@@ -206,7 +217,7 @@ class DicomWalk {
     }
     // GDCM asserts on a sequence or an undefined length in the file meta
     // group (found by fuzz_volume); the standard allows neither there.
-    if (meta && (sequence || length == 0xffffffffu)) return Fail(tag + " in the file meta group is a sequence");
+    if (meta && (sequence || length == 0xffffffffu)) return Fail(tag() + " in the file meta group is a sequence");
     const bool pixel_data = group == 0x7fe0 && element == 0x0010;
     const bool un = explicit_vr && std::memcmp(h + 4, "UN", 2) == 0;
     const std::string vr(reinterpret_cast<const char*>(h + 4), 2);
@@ -214,7 +225,7 @@ class DicomWalk {
     // its dictionary does not allow for a public element (Rows as OW).
     if (explicit_vr && pixel_data && vr != "OB" && vr != "OW" && !un) return Fail("Pixel Data has VR " + vr);
     if (explicit_vr && !meta && !un && !VrFitsDictionary(group, element, h + 4)) {
-      return Fail(tag + " has VR " + vr + ", which the DICOM dictionary does not give it");
+      return Fail(tag() + " has VR " + vr + ", which the DICOM dictionary does not give it");
     }
     if (length == 0xffffffffu) {
       // Undefined lengths: encapsulated Pixel Data (fragments, each an item
@@ -224,13 +235,13 @@ class DicomWalk {
         if (PixelModule* module = ModuleAt(depth)) module->pixel_data = true;
         return Fragments(at, end, depth == 0);
       }
-      if (explicit_vr && !sequence && !(un && depth == 0)) return Fail(tag + " of VR " + vr + " has an undefined length");
+      if (explicit_vr && !sequence && !(un && depth == 0)) return Fail(tag() + " of VR " + vr + " has an undefined length");
       const IconScope icon(*this, depth == 0 && group == 0x0088 && element == 0x0200);
       return Items(at, end, explicit_vr && !un, depth + 1, 0xe0dd);  // implicit VR inside an undefined-length UN
     }
-    if (length > std::uint64_t(end - at)) return Fail(fmt::format("{} declares {} bytes past its end", tag, length));
+    if (length > std::uint64_t(end - at)) return Fail(fmt::format("{} declares {} bytes past its end", tag(), length));
     // The standard's even lengths; GDCM asserts on an odd one in an item.
-    if (depth > 0 && length % 2 != 0) return Fail(fmt::format("{} in a sequence has an odd length ({})", tag, length));
+    if (depth > 0 && length % 2 != 0) return Fail(fmt::format("{} in a sequence has an odd length ({})", tag(), length));
     if (sequence) {
       // A sequence of defined length is walked like one of undefined length:
       // GDCM asserts on an odd length inside it when it parses its items (an
@@ -247,11 +258,7 @@ class DicomWalk {
     // without the preamble whose data set starts with one (GDCM reads that
     // meta group too, and decodes the pixels by its syntax).
     if (group == 0x0002 && element == 0x0010 && depth == 0 && transfer_syntax_.empty() && length <= 64) {
-      transfer_syntax_.assign(length, '\0');
-      if (!Read(at, reinterpret_cast<std::uint8_t*>(transfer_syntax_.data()), length)) return false;
-      while (!transfer_syntax_.empty() && (transfer_syntax_.back() == '\0' || transfer_syntax_.back() == ' ')) {
-        transfer_syntax_.pop_back();
-      }
+      transfer_syntax_ = ReadText(at, length);
     }
     // GDCM asserts that Samples per Pixel is 1, 3 or 4 (an abort, found by
     // fuzz_volume), in any image, icons included.
@@ -341,10 +348,7 @@ class DicomWalk {
                 bool pixel_data) {
     if (pixel_data) module.pixel_data = true;
     if (group == 0x0028 && element == 0x0004 && length <= 64) {  // Photometric Interpretation
-      std::string& text = module.photometric;
-      text.assign(length, '\0');
-      if (!Read(at, reinterpret_cast<std::uint8_t*>(text.data()), length)) text.clear();
-      while (!text.empty() && (text.back() == ' ' || text.back() == '\0')) text.pop_back();
+      module.photometric = ReadText(at, length);
       return;
     }
     if (group != 0x0028 || length < 2) return;
@@ -396,7 +400,7 @@ class DicomWalk {
       return Fail(fmt::format("{}High Bit is {}, not Bits Stored ({}) - 1", which, p.high_bit, p.bits_stored));
     }
     if (p.fragments.empty()) return true;  // not encapsulated
-    if (transfer_syntax_.rfind("1.2.840.10008.1.2.4.9", 0) == 0) {
+    if (transfer_syntax_.rfind(kJpeg2000Prefix, 0) == 0) {
       // A frame may span fragments: each one that starts a code stream (or
       // a JP2 file) is a frame's, and the first fragment must be one.
       for (std::size_t i = 0; i < p.fragments.size(); ++i) {
@@ -406,7 +410,7 @@ class DicomWalk {
         }
       }
     }
-    if (transfer_syntax_ == "1.2.840.10008.1.2.5") {  // RLE: one fragment a frame
+    if (transfer_syntax_ == kRle) {  // one fragment a frame
       for (std::size_t i = 0; i < p.fragments.size(); ++i) {
         if (!RleFitsHeader(p.fragments[i])) return Fail(fmt::format("the RLE segments of fragment {} do not fit its header", i + 1));
       }

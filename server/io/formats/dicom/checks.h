@@ -13,8 +13,8 @@ namespace cinevol::formats::dicom {
 // What keeps `path` from being what GDCM can parse, walked here (headers
 // only, nested sequences included, in the encoding its transfer syntax
 // names): every VR known, every defined length inside the file, a pixel
-// module that holds together and a compressed first frame that describes the
-// image the header does. Empty where the file is sound. A file that fails is
+// module that holds together and compressed frames that describe the image
+// the header does. Empty where the file is sound. A file that fails is
 // not handed to GDCM (it counts as not DICOM).
 std::string StructureProblem(const std::filesystem::path& path);
 
