@@ -392,6 +392,10 @@ struct AtrousPass {
   const EdgeGuide* guides;  // EdgeGuidesPass
   int width, height, step;
   float sigma_luminance, sigma_depth;
+  // The luminance stop's shape: SVGF's e^-(|dl| / (sigma dev)) (false), or
+  // e^-(dl / (sigma dev))^2 (true), which cuts differences beyond sigma
+  // deviations harder and keeps the noise-sized ones nearer to 1.
+  bool squared_luminance = false;
 
   CINEVOL_HD static bool Hit(float depth) { return !std::isnan(depth); }
 
@@ -418,7 +422,8 @@ struct AtrousPass {
     // and so is the depth term, which fmaxf drops (for two hits the term is
     // >= 0, so fmaxf keeps it).
     const float l = Luminance(Xyz(in[i]));
-    const float l_scale = kLog2e / (sigma_luminance * sqrtf(fmaxf(variance, 0.0f)) + 1e-10f);
+    const float deviation = sigma_luminance * sqrtf(fmaxf(variance, 0.0f)) + 1e-10f;
+    const float l_scale = (squared_luminance ? 1.0f : kLog2e) / deviation;
     const EdgeGuide centre = guides[i];
     const float z = centre.depth;
     const float z_scale = Hit(z) ? kLog2e / (sigma_depth * 0.01f * fmaxf(z, 1e-3f) * float(step) + 1e-6f) : 0.0f;
@@ -427,7 +432,9 @@ struct AtrousPass {
     // the centre's difference is exactly 0 whatever l_scale.
     out[i] = AtrousTaps(in, x, y, width, height, step, [&](int k, Vec4f q, float log2_kernel) {
       const EdgeGuide g = guides[k];
-      const float e = fmaf(fabsf(Luminance(Xyz(q)) - l), l_scale, -log2_kernel);
+      const float dl = fabsf(Luminance(Xyz(q)) - l);
+      const float e = squared_luminance ? fmaf(Sqr(dl * l_scale), kLog2e, -log2_kernel)
+                                        : fmaf(dl, l_scale, -log2_kernel);
       const float ez = fmaxf(fmaf(fabsf(g.depth - z), z_scale, e), e);
       return FastExp2(-fmaf(fabsf(g.coverage - centre.coverage), kCoverageStop * kLog2e, ez));
     });

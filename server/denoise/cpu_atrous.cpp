@@ -38,8 +38,11 @@ struct AtrousPlanes {
   const float* z_scale;        // the centre's depth stop
 };
 
-// Adds a tap to the row's sums.
-__attribute__((target_clones("avx2", "default"))) void AddTap(const AtrousPlanes& p, AtrousRowSums s,
+// Adds a tap to the row's sums: the luminance stop SVGF's (|dl| / (sigma
+// dev)) or squared (AtrousPass::squared_luminance). Inlined into the two
+// row kernels below, each built for AVX2 and the baseline x86-64.
+template <bool kSquared>
+inline __attribute__((always_inline)) void AddEdgeStoppedTap(const AtrousPlanes& p, AtrousRowSums s,
                                                              const AtrousRowTap& tap) {
   const std::ptrdiff_t row = tap.row, neighbour_row = tap.neighbour_row;
   const float *c_l = p.l + row, *c_depth = p.depth + row, *c_escaped = p.escaped + row;
@@ -53,8 +56,19 @@ __attribute__((target_clones("avx2", "default"))) void AddTap(const AtrousPlanes
     const float centre_hit = c_escaped[x] != 0.0f ? 0.0f : depth_step;
     const float dz = n_escaped[x] != 0.0f ? 0.0f : centre_hit;
     const float dc = std::fabs(n_coverage[x] - c_coverage[x]);
-    return -std::fabs(n_l[x] - c_l[x]) * c_l_scale[x] - dz * c_z_scale[x] - dc * AtrousPass::kCoverageStop;
+    const float dl = std::fabs(n_l[x] - c_l[x]) * c_l_scale[x];
+    return -(kSquared ? dl * dl : dl) - dz * c_z_scale[x] - dc * AtrousPass::kCoverageStop;
   });
+}
+
+__attribute__((target_clones("avx2", "default"))) void AddTap(const AtrousPlanes& p, AtrousRowSums s,
+                                                             const AtrousRowTap& tap) {
+  AddEdgeStoppedTap<false>(p, s, tap);
+}
+
+__attribute__((target_clones("avx2", "default"))) void AddTapSquared(const AtrousPlanes& p, AtrousRowSums s,
+                                                                    const AtrousRowTap& tap) {
+  AddEdgeStoppedTap<true>(p, s, tap);
 }
 
 // The planes of one level, per pixel, as the functor computes them.
@@ -97,7 +111,13 @@ void CpuAtrousLevel(const AtrousPass& pass) {
   const AtrousPlanes p{{planes[0].data(), planes[1].data(), planes[2].data(), planes[3].data()},
                        planes[4].data(), planes[8].data(), planes[5].data(), planes[9].data(),
                        planes[6].data(), planes[7].data()};
-  CpuAtrousRows(w, h, pass.step, pass.out, [&](AtrousRowSums s, const AtrousRowTap& tap) { AddTap(p, s, tap); });
+  CpuAtrousRows(w, h, pass.step, pass.out, [&](AtrousRowSums s, const AtrousRowTap& tap) {
+    if (pass.squared_luminance) {
+      AddTapSquared(p, s, tap);
+    } else {
+      AddTap(p, s, tap);
+    }
+  });
 }
 
 }  // namespace cinevol

@@ -79,6 +79,11 @@ struct WrlsSettings {
   // (docs/tradeoff.md, "Four a-trous levels").
   int atrous_iterations = 4;     // [0, 5]
   float atrous_sigma_luminance = 4.0f;  // 3 trades 0.9-2.4% temporal error for 0.1-0.3 dB, 5 the other way
+  // The luminance stop squared (AtrousPass::squared_luminance), a candidate:
+  // at 320x180 on the CPU, with sigma 3, +0.4 to +0.9 dB on the phantom's and
+  // the MR head's orbits for 2% more temporal error (docs/tradeoff.md,
+  // "A squared luminance stop"); not yet measured at 720p.
+  bool atrous_squared_luminance = false;
   // Relative depth tolerance (times 1% of the distance and the step). Loose:
   // the first hit in semi-transparent tissue is itself a noisy estimate
   // (8 against 1: +1.2 dB on the CThead orbit).
@@ -136,6 +141,7 @@ struct SvgfSettings {
   int iterations = 5;          // a-trous levels (step 1, 2, 4, 8, 16)
   float sigma_luminance = 4.0f;
   float sigma_depth = 1.0f;
+  bool squared_luminance = false;  // AtrousPass::squared_luminance; the paper's stop is not squared
   friend bool operator==(const SvgfSettings&, const SvgfSettings&);  // defaulted in denoiser.cpp
 };
 

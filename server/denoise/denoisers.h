@@ -249,7 +249,8 @@ class Svgf final : public DenoiserBase<B> {
     B::ForEachPixel(w, h, SvgfVariancePass{history_.data(), frame.first_hit, pair.in, w, h});
     const EdgeGuide* guides = FrameEdgeGuides<B>(frame, this->kept_first_hit());
     for (int level = 0; level < s.iterations; ++level) {
-      RunAtrousLevel<B>(AtrousPass{pair.in, pair.out, guides, w, h, 1 << level, s.sigma_luminance, s.sigma_depth});
+      RunAtrousLevel<B>(
+          AtrousPass{pair.in, pair.out, guides, w, h, 1 << level, s.sigma_luminance, s.sigma_depth, s.squared_luminance});
       if (level == 0) B::ForEachPixel(w, h, SvgfFeedbackPass{pair.out, history_.data(), w});
       pair.Swap();
     }
@@ -294,7 +295,7 @@ class Wrls final : public DenoiserBase<B> {
     const EdgeGuide* guides = FrameEdgeGuides<B>(frame, this->kept_first_hit());
     for (int level = 0; level < s.atrous_iterations; ++level) {
       RunAtrousLevel<B>(AtrousPass{pair.in, pair.out, guides, w, h, 1 << level, s.atrous_sigma_luminance,
-                                   s.atrous_sigma_depth});
+                                   s.atrous_sigma_depth, s.atrous_squared_luminance});
       pair.Swap();
     }
     Stabilize(pair.in, output_history, output);

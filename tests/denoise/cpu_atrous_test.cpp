@@ -68,19 +68,22 @@ Frame NoisyFrame(int width, int height) {
 }
 
 TEST(CpuAtrousLevel, AgreesWithThePerPixelPass) {
-  for (const int step : {1, 2, 4, 8, 16}) {
-    Frame f = NoisyFrame(97, 83);  // each step has pixels away from the edges
-    std::vector<Vec4f> functor(f.image.size()), rows(f.image.size());
-    const AtrousPass pass{f.image.data(), functor.data(), f.guides.data(), f.width, f.height, step, 4.0f, 8.0f};
-    CpuBackend::ForEachPixel(f.width, f.height, pass);
-    AtrousPass row_pass = pass;
-    row_pass.out = rows.data();
-    CpuAtrousLevel(row_pass);
-    for (std::size_t i = 0; i < rows.size(); ++i) {
-      for (int c = 0; c < 4; ++c) {
-        const float expected = Component(functor[i], c);
-        EXPECT_NEAR(Component(rows[i], c), expected, 2e-6f * std::fabs(expected) + 1e-12f)
-            << "pixel " << i << " channel " << c << " step " << step;
+  for (const bool squared : {false, true}) {
+    for (const int step : {1, 2, 4, 8, 16}) {
+      Frame f = NoisyFrame(97, 83);  // each step has pixels away from the edges
+      std::vector<Vec4f> functor(f.image.size()), rows(f.image.size());
+      const AtrousPass pass{f.image.data(), functor.data(), f.guides.data(), f.width, f.height, step, 4.0f, 8.0f,
+                            squared};
+      CpuBackend::ForEachPixel(f.width, f.height, pass);
+      AtrousPass row_pass = pass;
+      row_pass.out = rows.data();
+      CpuAtrousLevel(row_pass);
+      for (std::size_t i = 0; i < rows.size(); ++i) {
+        for (int c = 0; c < 4; ++c) {
+          const float expected = Component(functor[i], c);
+          EXPECT_NEAR(Component(rows[i], c), expected, 2e-6f * std::fabs(expected) + 1e-12f)
+              << "pixel " << i << " channel " << c << " step " << step << (squared ? " squared" : "");
+        }
       }
     }
   }

@@ -29,6 +29,9 @@ TEST(TradeoffStudy, VariantsParseTheirKeysAndNameBadOnes) {
   EXPECT_TRUE(still.hold_codes);
   EXPECT_EQ(still.wrls.stabilize_still_frames, 0);
   EXPECT_THROW(Variant("h:hold=0.5"), InputError);
+  EXPECT_TRUE(Variant("q:squared=1").wrls.atrous_squared_luminance);
+  EXPECT_TRUE(Variant("q:method=svgf,squared=1").svgf.squared_luminance);
+  EXPECT_THROW(Variant("q:squared=2"), InputError);
   EXPECT_THROW(Variant("s:stabilize_still=-1"), InputError);
   EXPECT_THROW(Variant("s:stabilize_still=1e10"), InputError) << "beyond an int";
   EXPECT_THROW(Variant("a:atrous=40"), InputError) << "a step of 2^39 pixels";
