@@ -80,9 +80,9 @@ struct WrlsSettings {
   int atrous_iterations = 4;     // [0, 5]
   float atrous_sigma_luminance = 4.0f;  // 3 trades 0.9-2.4% temporal error for 0.1-0.3 dB, 5 the other way
   // The luminance stop squared (AtrousPass::squared_luminance), a candidate:
-  // at 320x180 on the CPU, with sigma 3, +0.4 to +0.9 dB on the phantom's and
-  // the MR head's orbits for 2% more temporal error (docs/tradeoff.md,
-  // "A squared luminance stop"); not yet measured at 720p.
+  // with sigma 3, +0.3 to +0.8 dB on the phantom and the MR head at 640x360
+  // on the CPU, for 5-7% more temporal error under moving lights at 320x180
+  // (docs/tradeoff.md, "A squared luminance stop"); not yet run at 720p.
   bool atrous_squared_luminance = false;
   // Relative depth tolerance (times 1% of the distance and the step). Loose:
   // the first hit in semi-transparent tissue is itself a noisy estimate
