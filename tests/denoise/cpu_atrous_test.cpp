@@ -5,6 +5,7 @@
 
 #include <cmath>
 #include <limits>
+#include <string>
 #include <vector>
 
 #include "core/camera.h"
@@ -12,11 +13,10 @@
 #include "denoise/baselines.h"
 #include "device/cpu_backend.h"
 #include "denoise/cpu_passes.h"
+#include "support/functor_and_rows.h"
 
 namespace cinevol {
 namespace {
-
-float Component(const Vec4f& v, int c) { return c == 0 ? v.x : c == 1 ? v.y : c == 2 ? v.z : v.w; }
 
 // Units in the last place between a float and the exact value.
 double Ulps(float value, double exact) {
@@ -71,20 +71,9 @@ TEST(CpuAtrousLevel, AgreesWithThePerPixelPass) {
   for (const bool squared : {false, true}) {
     for (const int step : {1, 2, 4, 8, 16}) {
       Frame f = NoisyFrame(97, 83);  // each step has pixels away from the edges
-      std::vector<Vec4f> functor(f.image.size()), rows(f.image.size());
-      const AtrousPass pass{f.image.data(), functor.data(), f.guides.data(), f.width, f.height, step, 4.0f, 8.0f,
-                            squared};
-      CpuBackend::ForEachPixel(f.width, f.height, pass);
-      AtrousPass row_pass = pass;
-      row_pass.out = rows.data();
-      CpuAtrousLevel(row_pass);
-      for (std::size_t i = 0; i < rows.size(); ++i) {
-        for (int c = 0; c < 4; ++c) {
-          const float expected = Component(functor[i], c);
-          EXPECT_NEAR(Component(rows[i], c), expected, 2e-6f * std::fabs(expected) + 1e-12f)
-              << "pixel " << i << " channel " << c << " step " << step << (squared ? " squared" : "");
-        }
-      }
+      testing::ExpectRowsAgree(testing::FunctorAndRows(AtrousPass{f.image.data(), nullptr, f.guides.data(), f.width,
+                                                                  f.height, step, 4.0f, 8.0f, squared}),
+                               "step " + std::to_string(step) + (squared ? " squared" : ""));
     }
   }
 }
@@ -92,15 +81,8 @@ TEST(CpuAtrousLevel, AgreesWithThePerPixelPass) {
 TEST(CpuAtrousLevel, CarriesANonFiniteInputAsThePassDoes) {
   Frame f = NoisyFrame(20, 12);
   f.image[5 * 20 + 7].x = std::numeric_limits<float>::quiet_NaN();
-  std::vector<Vec4f> functor(f.image.size()), rows(f.image.size());
-  const AtrousPass pass{f.image.data(), functor.data(), f.guides.data(), 20, 12, 1, 4.0f, 8.0f};
-  CpuBackend::ForEachPixel(20, 12, pass);
-  AtrousPass row_pass = pass;
-  row_pass.out = rows.data();
-  CpuAtrousLevel(row_pass);
-  for (std::size_t i = 0; i < rows.size(); ++i) {
-    EXPECT_EQ(std::isnan(rows[i].x), std::isnan(functor[i].x)) << "pixel " << i;
-  }
+  testing::ExpectRowsAgree(
+      testing::FunctorAndRows(AtrousPass{f.image.data(), nullptr, f.guides.data(), 20, 12, 1, 4.0f, 8.0f}), "NaN");
 }
 
 }  // namespace
