@@ -80,7 +80,7 @@ struct WrlsSettings {
   int atrous_iterations = 4;     // [0, 5]
   float atrous_sigma_luminance = 4.0f;  // 3 trades 0.9-2.4% temporal error for 0.1-0.3 dB, 5 the other way
   // The luminance stop squared (AtrousPass::squared_luminance), a candidate:
-  // with sigma 3, +0.3 to +0.8 dB on the phantom and the MR head at 640x360
+  // with sigma 3, +0.3 to +0.8 dB on the phantom, CThead and the MR head at 640x360
   // on the CPU, for 5-7% more temporal error under moving lights at 320x180
   // (docs/tradeoff.md, "A squared luminance stop"); not yet run at 720p.
   bool atrous_squared_luminance = false;
