@@ -111,13 +111,8 @@ void CpuAtrousLevel(const AtrousPass& pass) {
   const AtrousPlanes p{{planes[0].data(), planes[1].data(), planes[2].data(), planes[3].data()},
                        planes[4].data(), planes[8].data(), planes[5].data(), planes[9].data(),
                        planes[6].data(), planes[7].data()};
-  CpuAtrousRows(w, h, pass.step, pass.out, [&](AtrousRowSums s, const AtrousRowTap& tap) {
-    if (pass.squared_luminance) {
-      AddTapSquared(p, s, tap);
-    } else {
-      AddTap(p, s, tap);
-    }
-  });
+  const auto add_tap = pass.squared_luminance ? AddTapSquared : AddTap;
+  CpuAtrousRows(w, h, pass.step, pass.out, [&](AtrousRowSums s, const AtrousRowTap& tap) { add_tap(p, s, tap); });
 }
 
 }  // namespace cinevol

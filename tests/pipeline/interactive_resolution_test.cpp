@@ -74,7 +74,7 @@ std::vector<float> Move(FramePipeline& pipeline, v1::Scene& scene, const FrameSe
   return scales;
 }
 
-constexpr float kSmallestGpuScale = std::end(kInteractiveScales)[-1];
+constexpr float kSmallestGpuScale = kInteractiveScales[std::size(kInteractiveScales) - 1];
 
 TEST(InteractiveResolution, AMovingViewStepsDownAndRefinesAtFullSize) {
   auto volume = SmallHead();
