@@ -1,5 +1,6 @@
 // CUDA denoisers against the CPU ones on the same rendered frames (GPU
-// machine; skips elsewhere): every method, wRLS with demodulation too.
+// machine; skips elsewhere): every method, wRLS with demodulation too, and
+// SVGF and wRLS with the squared luminance stop.
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -16,9 +17,14 @@ namespace {
 struct Case {
   DenoiseMethod method;
   bool demodulate;
+  bool squared_stop = false;  // SvgfSettings::squared_luminance, WrlsSettings::atrous_squared_luminance
 };
 
-void PrintTo(const Case& c, std::ostream* os) { *os << ToString(c.method) << (c.demodulate ? "+demodulation" : ""); }
+std::string CaseName(const Case& c) {
+  return std::string(ToString(c.method)) + (c.demodulate ? "Demodulated" : "") + (c.squared_stop ? "SquaredStop" : "");
+}
+
+void PrintTo(const Case& c, std::ostream* os) { *os << CaseName(c); }
 
 class CudaDenoiser : public ::testing::TestWithParam<Case> {};
 
@@ -43,6 +49,7 @@ TEST_P(CudaDenoiser, AgreesWithCpu) {
   DenoiserSettings s;
   s.method = GetParam().method;
   s.demodulate = GetParam().demodulate;
+  s.svgf.squared_luminance = s.wrls.atrous_squared_luminance = GetParam().squared_stop;
   auto gpu = CreateDenoiser(Backend::kCuda, s), cpu = CreateDenoiser(Backend::kCpu, s);
   // Wider than a GPU row segment (RowWindowSums), so windows cross one.
   const int w = 272, h = 32;
@@ -75,10 +82,9 @@ INSTANTIATE_TEST_SUITE_P(
     ::testing::Values(Case{DenoiseMethod::kNone, false}, Case{DenoiseMethod::kAccumulate, false},
                       Case{DenoiseMethod::kKnn, false}, Case{DenoiseMethod::kGuidedFilter, false},
                       Case{DenoiseMethod::kSvgf, false}, Case{DenoiseMethod::kWrls, false},
-                      Case{DenoiseMethod::kWrls, true}),
-    [](const auto& info) {
-      return std::string(ToString(info.param.method)) + (info.param.demodulate ? "Demodulated" : "");
-    });
+                      Case{DenoiseMethod::kWrls, true}, Case{DenoiseMethod::kSvgf, false, true},
+                      Case{DenoiseMethod::kWrls, false, true}),
+    [](const auto& info) { return CaseName(info.param); });
 
 }  // namespace
 }  // namespace cinevol
