@@ -79,10 +79,10 @@ struct WrlsSettings {
   // (docs/tradeoff.md, "Four a-trous levels").
   int atrous_iterations = 4;     // [0, 5]
   float atrous_sigma_luminance = 4.0f;  // 3 trades 0.9-2.4% temporal error for 0.1-0.3 dB, 5 the other way
-  // The luminance stop squared (AtrousPass::squared_luminance), a candidate:
-  // with sigma 3, +0.3 to +0.8 dB on the phantom, CThead and the MR head at 640x360
-  // on the CPU, for 5-7% more temporal error under moving lights at 320x180
-  // (docs/tradeoff.md, "A squared luminance stop"); not yet run at 720p.
+  // The luminance stop squared (AtrousPass::squared_luminance). At 720p with
+  // sigma 3: +0.4 to +0.8 dB on the aorta crop, up to +0.4 on CThead and the
+  // phantom, -0.1 to -0.5 on the MR head (sigma 4: +0.3 and -0.1; 5-6: the
+  // aorta crop loses): not taken (docs/tradeoff.md, "A squared luminance stop").
   bool atrous_squared_luminance = false;
   // Relative depth tolerance (times 1% of the distance and the step). Loose:
   // the first hit in semi-transparent tissue is itself a noisy estimate
