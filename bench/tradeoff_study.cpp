@@ -421,6 +421,7 @@ const std::map<std::string, float WrlsSettings::*> kWrlsFloatKeys = {
     {"firefly", &WrlsSettings::firefly_clamp},
     {"stabilize", &WrlsSettings::stabilize_history},
     {"stabilize_clamp", &WrlsSettings::stabilize_clamp},
+    {"calibrate", &WrlsSettings::atrous_calibration_floor},
 };
 const std::map<std::string, int WrlsSettings::*> kWrlsIntKeys = {
     {"atrous", &WrlsSettings::atrous_iterations},    {"still", &WrlsSettings::max_still_frames},

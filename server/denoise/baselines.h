@@ -396,8 +396,14 @@ struct AtrousPass {
   // e^-(dl / (sigma dev))^2 (true), which cuts differences beyond sigma
   // deviations harder and keeps the noise-sized ones nearer to 1.
   bool squared_luminance = false;
+  // Null, or the frame's scale of the variance the luminance stop reads
+  // (StopCalibrationPass); the variance carried through the level is not scaled.
+  const float* variance_scale = nullptr;
 
   CINEVOL_HD static bool Hit(float depth) { return !std::isnan(depth); }
+  CINEVOL_HD float StopVariance(float variance) const {
+    return variance_scale ? fmaxf(variance, 0.0f) * *variance_scale : fmaxf(variance, 0.0f);
+  }
 
   // A full silhouette (coverage 0 against 1) weighs e^-6; the +-0.1 noise of
   // coverage in transparent tissue about e^-0.6.
@@ -422,7 +428,7 @@ struct AtrousPass {
     // and so is the depth term, which fmaxf drops (for two hits the term is
     // >= 0, so fmaxf keeps it).
     const float l = Luminance(Xyz(in[i]));
-    const float deviation = sigma_luminance * sqrtf(fmaxf(variance, 0.0f)) + 1e-10f;
+    const float deviation = sigma_luminance * sqrtf(StopVariance(variance)) + 1e-10f;
     const float l_scale = (squared_luminance ? 1.0f : kLog2e) / deviation;
     const EdgeGuide centre = guides[i];
     const float z = centre.depth;
@@ -438,6 +444,73 @@ struct AtrousPass {
       const float ez = fmaxf(fmaf(fabsf(g.depth - z), z_scale, e), e);
       return FastExp2(-fmaf(fabsf(g.coverage - centre.coverage), kCoverageStop * kLog2e, ez));
     });
+  }
+};
+
+// --- The luminance stop's calibration (WrlsSettings::atrous_calibration_floor) --
+//
+// How far the variance the a-trous levels are given is from the spread it
+// should predict, once a frame. Over horizontally adjacent pixels that both
+// hit, r = dl^2 / (var_a + var_b) (their luminance difference against their
+// two variances) is a chi-square of one degree where the variances are right
+// and only noise differs, whose median is kChiSquareMedian; real detail only
+// raises it. The frame's median of r over that median is the scale; the
+// levels then stop at sigma deviations of the scaled variance
+// (AtrousPass::variance_scale).
+// The medians are counted in bins of log2 r (kCalibrationBinsPerOctave to
+// an octave from 2^kCalibrationLowestLog2), the same on either backend.
+inline constexpr int kCalibrationBins = 256;
+inline constexpr float kCalibrationLowestLog2 = -12.0f, kCalibrationBinsPerOctave = 16.0f;
+inline constexpr float kChiSquareMedian = 0.45493642f;
+inline constexpr float kCalibrationHighest = 4.0f;  // the scale never loosens the stop more than this
+
+// Every kCalibrationRowStep-th row is measured: a quarter of a 720p frame's
+// pairs give the same median to the bin.
+inline constexpr int kCalibrationRowStep = 4;
+
+// B::CountInBins's bin of r at (x, row * kCalibrationRowStep), -1 where no
+// pair is measured; over (width, CalibrationRows(height)).
+CINEVOL_HD int CalibrationRows(int height) { return (height + kCalibrationRowStep - 1) / kCalibrationRowStep; }
+
+struct StopCalibrationBin {
+  const Vec4f* estimate;  // colour and variance, as the levels read them
+  const EdgeGuide* guides;
+  int width;
+  CINEVOL_HD int operator()(int x, int row) const {
+    if (x + 1 >= width) return -1;
+    const int i = row * kCalibrationRowStep * width + x;
+    if (!AtrousPass::Hit(guides[i].depth) || !AtrousPass::Hit(guides[i + 1].depth)) return -1;
+    const Vec4f a = estimate[i], b = estimate[i + 1];
+    const float variance = a.w + b.w;
+    if (!(variance > 0.0f) || !isfinite(variance)) return -1;
+    const float dl = Luminance(Xyz(a)) - Luminance(Xyz(b));
+    const float r = dl * dl / variance;
+    if (!isfinite(r)) return -1;  // NaN or infinite colour
+    const float bin = (log2f(fmaxf(r, 1e-30f)) - kCalibrationLowestLog2) * kCalibrationBinsPerOctave;
+    return int(fminf(fmaxf(bin, 0.0f), float(kCalibrationBins - 1)));
+  }
+};
+
+// One thread: the median of the bins (interpolated within its bin) over
+// kChiSquareMedian, kept within [floor, kCalibrationHighest]; 1 where no pair
+// was measured.
+struct StopCalibrationPass {
+  const unsigned* bins;
+  float* scale;
+  float floor;
+  CINEVOL_HD void operator()(int, int) const {
+    unsigned total = 0;
+    for (int b = 0; b < kCalibrationBins; ++b) total += bins[b];
+    float ratio = 1.0f;
+    if (total > 0) {
+      const float half = 0.5f * float(total);
+      float below = 0.0f;
+      int b = 0;
+      while (b + 1 < kCalibrationBins && below + float(bins[b]) < half) below += float(bins[b++]);
+      const float within = bins[b] > 0 ? (half - below) / float(bins[b]) : 0.5f;
+      ratio = exp2f(kCalibrationLowestLog2 + (float(b) + within) / kCalibrationBinsPerOctave) / kChiSquareMedian;
+    }
+    *scale = fminf(fmaxf(ratio, floor), kCalibrationHighest);
   }
 };
 

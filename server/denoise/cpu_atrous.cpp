@@ -93,7 +93,7 @@ void FillPlanes(const AtrousPass& pass, std::vector<float>* planes, int y) {
     planes[3][i] = c.w;
     planes[4][i] = Luminance(Xyz(c));
     planes[5][i] = AtrousPass::Hit(z) ? 0.0f : 1.0f;
-    planes[6][i] = 1.0f / (pass.sigma_luminance * sqrtf(fmaxf(variance / vw, 0.0f)) + 1e-10f);
+    planes[6][i] = 1.0f / (pass.sigma_luminance * sqrtf(pass.StopVariance(variance / vw)) + 1e-10f);
     planes[7][i] = 1.0f / (pass.sigma_depth * 0.01f * fmaxf(z, 1e-3f) * float(pass.step) + 1e-6f);
     planes[8][i] = z;
     planes[9][i] = pass.guides[i].coverage;

@@ -84,6 +84,10 @@ struct WrlsSettings {
   // phantom, -0.1 to -0.5 on the MR head (sigma 4: +0.3 and -0.1; 5-6: the
   // aorta crop loses): not taken (docs/tradeoff.md, "A squared luminance stop").
   bool atrous_squared_luminance = false;
+  // > 0: the levels' variance is first scaled, once a frame, by how far it
+  // is from the spread it predicts (StopCalibrationPass, baselines.h), no
+  // lower than this; 0: not scaled.
+  float atrous_calibration_floor = 0.0f;
   // Relative depth tolerance (times 1% of the distance and the step). Loose:
   // the first hit in semi-transparent tissue is itself a noisy estimate
   // (8 against 1: +1.2 dB on the CThead orbit).

@@ -293,9 +293,10 @@ class Wrls final : public DenoiserBase<B> {
                                            model_.data(), pair.in, s, still_frames_,
                                            FeatureRatioRows(input, pair.out, rv)});
     const EdgeGuide* guides = FrameEdgeGuides<B>(frame, this->kept_first_hit());
+    const float* variance_scale = s.atrous_calibration_floor > 0.0f ? CalibrateStop(pair.in, guides) : nullptr;
     for (int level = 0; level < s.atrous_iterations; ++level) {
       RunAtrousLevel<B>(AtrousPass{pair.in, pair.out, guides, w, h, 1 << level, s.atrous_sigma_luminance,
-                                   s.atrous_sigma_depth, s.atrous_squared_luminance});
+                                   s.atrous_sigma_depth, s.atrous_squared_luminance, variance_scale});
       pair.Swap();
     }
     Stabilize(pair.in, output_history, output);
@@ -306,6 +307,8 @@ class Wrls final : public DenoiserBase<B> {
     feature_.Resize(n);
     model_.Resize(n);
     prev_model_.Resize(n);
+    calibration_bins_.Resize(kCalibrationBins);
+    variance_scale_.Resize(1);
   }
   void ResetHistory() override { still_frames_ = 0; }
   bool KeepsFirstHits() const override { return true; }
@@ -341,6 +344,17 @@ class Wrls final : public DenoiserBase<B> {
                                             s.stabilize_clamp, s.stabilize_recenter});
   }
 
+  // The frame's scale of the variance the luminance stop reads (baselines.h,
+  // StopCalibrationPass), on the device.
+  const float* CalibrateStop(const Vec4f* estimate, const EdgeGuide* guides) {
+    const int w = this->width_;
+    B::template CountInBins<kCalibrationBins>(w, CalibrationRows(this->height_), StopCalibrationBin{estimate, guides, w},
+                                              calibration_bins_.data());
+    B::ForEachPixel(1, 1, StopCalibrationPass{calibration_bins_.data(), variance_scale_.data(),
+                                              this->settings_.wrls.atrous_calibration_floor});
+    return variance_scale_.data();
+  }
+
   // Row sums of a recentering or rescaling window, in frame scratch.
   Vec4f* RowSums() { return B::template FrameScratch<Vec4f>(Scratch::kRowSums, this->pixels()); }
 
@@ -350,6 +364,8 @@ class Wrls final : public DenoiserBase<B> {
   typename DenoiserBase<B>::template Buffer<Vec3f> stable_;  // the stabilised output
   // Two frames: the temporal pass reads other pixels' previous models.
   typename DenoiserBase<B>::template Buffer<StoredWrlsModel> model_, prev_model_;
+  typename DenoiserBase<B>::template Buffer<unsigned> calibration_bins_;
+  typename DenoiserBase<B>::template Buffer<float> variance_scale_;
   int still_frames_ = 0;
 };
 

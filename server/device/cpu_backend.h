@@ -5,8 +5,10 @@
 #pragma once
 
 #include <algorithm>
+#include <array>
 #include <chrono>
 #include <cstddef>
+#include <mutex>
 #include <stdexcept>
 #include <string>
 #include <vector>
@@ -87,6 +89,24 @@ struct CpuBackend {
         }
         out[std::size_t(y) * width + x] = sum;
       }
+    }, std::int64_t(width) * height < kMinPixelsPerThread ? 1 : 0);
+  }
+
+  // A frame's histogram: bins[b] = how many pixels bin(x, y) puts in b
+  // (a bin below 0 or from kBins up counts nowhere), counted from 0. The
+  // counts are integers, the same whatever thread counted a row.
+  template <int kBins, class Bin>
+  static void CountInBins(int width, int height, const Bin& bin, unsigned* bins) {
+    std::fill(bins, bins + kBins, 0u);
+    std::mutex merge;
+    ParallelFor(height, [&](std::int64_t y) {
+      std::array<unsigned, kBins> row{};
+      for (int x = 0; x < width; ++x) {
+        const int b = bin(x, int(y));
+        if (b >= 0 && b < kBins) ++row[std::size_t(b)];
+      }
+      const std::lock_guard<std::mutex> lock(merge);
+      for (int b = 0; b < kBins; ++b) bins[b] += row[std::size_t(b)];
     }, std::int64_t(width) * height < kMinPixelsPerThread ? 1 : 0);
   }
 

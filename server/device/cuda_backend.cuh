@@ -67,6 +67,30 @@ __global__ void RowWindowSumsKernel(const Tap tap, T* out, int width, int radius
   out[y * width + x] = sum;
 }
 
+// CudaBackend::CountInBins: a block counts a column of row segments in
+// shared memory, then adds its non-zero bins to the frame's.
+inline constexpr int kBinRowSegment = 256, kBinRowsPerBlock = 16;
+
+template <int kBins, class Bin>
+__global__ void CountInBinsKernel(const Bin bin, unsigned* bins, int width, int height) {
+  __shared__ unsigned local[kBins];
+  for (int b = threadIdx.x; b < kBins; b += blockDim.x) local[b] = 0;
+  OverlapWithAdjacentPasses();
+  __syncthreads();
+  const int x = blockIdx.x * kBinRowSegment + threadIdx.x;
+  const int last_row = min(height, (blockIdx.y + 1) * kBinRowsPerBlock);
+  for (int y = blockIdx.y * kBinRowsPerBlock; y < last_row; ++y) {
+    // Neighbours mostly share a bin: one atomic per bin a warp touches.
+    const int b = x < width ? bin(x, y) : -1;
+    const unsigned peers = __match_any_sync(0xffffffffu, b);
+    if (b >= 0 && b < kBins && threadIdx.x % 32 == __ffs(peers) - 1) atomicAdd(&local[b], unsigned(__popc(peers)));
+  }
+  __syncthreads();
+  for (int b = threadIdx.x; b < kBins; b += blockDim.x) {
+    if (local[b] != 0) atomicAdd(&bins[b], local[b]);
+  }
+}
+
 struct CudaBackend {
   template <class T>
   using Buffer = cuda::DeviceBuffer<T>;
@@ -94,6 +118,14 @@ struct CudaBackend {
     CheckRowReach(radius, stride);
     const dim3 grid((width + kRowSegment - 1) / kRowSegment, height);
     LaunchPass(RowWindowSumsKernel<Tap, T>, grid, dim3(kRowSegment), tap, out, width, radius, stride);
+  }
+
+  // As CpuBackend::CountInBins (the same counts).
+  template <int kBins, class Bin>
+  static void CountInBins(int width, int height, const Bin& bin, unsigned* bins) {
+    CINEVOL_CUDA_CHECK(cudaMemsetAsync(bins, 0, kBins * sizeof(unsigned), cudaStreamPerThread));
+    const dim3 grid((width + kBinRowSegment - 1) / kBinRowSegment, (height + kBinRowsPerBlock - 1) / kBinRowsPerBlock);
+    LaunchPass(CountInBinsKernel<kBins, Bin>, grid, dim3(kBinRowSegment), bin, bins, width, height);
   }
 
   // CUDA-event timing of a sequence of passes.

@@ -116,5 +116,46 @@ TEST(Atrous, SquaredLuminanceStopKeepsAStepSharper) {
   EXPECT_LT(squared_flat, 0.01) << "input noise 0.087 on average";
 }
 
+// The frame's calibration of the luminance stop (StopCalibrationPass):
+// noise of a known deviation, told its variance right, four times too large
+// and ten times too small; pixels that escaped or are not finite are not
+// measured.
+float Calibration(const std::vector<Vec4f>& image, const std::vector<EdgeGuide>& guides, float floor = 1e-3f) {
+  unsigned bins[kCalibrationBins];
+  CpuBackend::CountInBins<kCalibrationBins>(kSize, CalibrationRows(kSize),
+                                            StopCalibrationBin{image.data(), guides.data(), kSize}, bins);
+  float scale = 0.0f;
+  StopCalibrationPass{bins, &scale, floor}(0, 0);
+  return scale;
+}
+
+TEST(StopCalibration, ReadsTheVarianceAgainstTheSpread) {
+  Pcg32 rng(11, 3);
+  std::vector<Vec4f> noise;
+  for (int i = 0; i < kSize * kSize; ++i) {
+    // Box-Muller: a normal deviate of deviation 0.1 about 1.
+    const float u = rng.Uniform(), v = rng.Uniform();
+    noise.push_back(Grey(1.0f + 0.1f * std::sqrt(-2.0f * std::log(u)) * std::cos(6.2831853f * v), 0.0f));
+  }
+  std::vector<EdgeGuide> guides(noise.size(), EdgeGuide{100.0f, 1.0f});
+  const auto told = [&](float variance) {
+    std::vector<Vec4f> image = noise;
+    for (Vec4f& p : image) p.w = variance;
+    return image;
+  };
+  EXPECT_NEAR(Calibration(told(0.01f), guides), 1.0f, 0.1f);
+  EXPECT_NEAR(Calibration(told(0.04f), guides), 0.25f, 0.025f);
+  EXPECT_NEAR(Calibration(told(0.001f), guides), kCalibrationHighest, 1e-6f) << "loosened beyond the cap";
+  EXPECT_NEAR(Calibration(told(0.04f), guides, 0.5f), 0.5f, 1e-6f) << "tightened below the floor";
+
+  // Escaped pixels, no variance and non-finite colour are not measured: a
+  // frame of nothing else leaves the stop as it is.
+  std::vector<Vec4f> hostile = told(0.04f);
+  for (std::size_t i = 0; i < hostile.size(); i += 3) hostile[i].x = __builtin_nanf("");
+  for (std::size_t i = 1; i < hostile.size(); i += 3) hostile[i].w = 0.0f;
+  for (std::size_t i = 2; i < hostile.size(); i += 3) guides[i].depth = kEscapedDepth;
+  EXPECT_EQ(Calibration(hostile, guides), 1.0f);
+}
+
 }  // namespace
 }  // namespace cinevol

@@ -1,6 +1,6 @@
 // CUDA denoisers against the CPU ones on the same rendered frames (GPU
 // machine; skips elsewhere): every method, wRLS with demodulation too, and
-// SVGF and wRLS with the squared luminance stop.
+// SVGF and wRLS with the squared luminance stop, wRLS with it calibrated.
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -18,10 +18,12 @@ struct Case {
   DenoiseMethod method;
   bool demodulate;
   bool squared_stop = false;  // SvgfSettings::squared_luminance, WrlsSettings::atrous_squared_luminance
+  float calibration_floor = 0.0f;  // WrlsSettings::atrous_calibration_floor
 };
 
 std::string CaseName(const Case& c) {
-  return std::string(ToString(c.method)) + (c.demodulate ? "Demodulated" : "") + (c.squared_stop ? "SquaredStop" : "");
+  return std::string(ToString(c.method)) + (c.demodulate ? "Demodulated" : "") + (c.squared_stop ? "SquaredStop" : "") +
+         (c.calibration_floor > 0.0f ? "Calibrated" : "");
 }
 
 void PrintTo(const Case& c, std::ostream* os) { *os << CaseName(c); }
@@ -50,6 +52,7 @@ TEST_P(CudaDenoiser, AgreesWithCpu) {
   s.method = GetParam().method;
   s.demodulate = GetParam().demodulate;
   s.svgf.squared_luminance = s.wrls.atrous_squared_luminance = GetParam().squared_stop;
+  s.wrls.atrous_calibration_floor = GetParam().calibration_floor;
   auto gpu = CreateDenoiser(Backend::kCuda, s), cpu = CreateDenoiser(Backend::kCpu, s);
   // Wider than a GPU row segment (RowWindowSums), so windows cross one.
   const int w = 272, h = 32;
@@ -83,7 +86,7 @@ INSTANTIATE_TEST_SUITE_P(
                       Case{DenoiseMethod::kKnn, false}, Case{DenoiseMethod::kGuidedFilter, false},
                       Case{DenoiseMethod::kSvgf, false}, Case{DenoiseMethod::kWrls, false},
                       Case{DenoiseMethod::kWrls, true}, Case{DenoiseMethod::kSvgf, false, true},
-                      Case{DenoiseMethod::kWrls, false, true}),
+                      Case{DenoiseMethod::kWrls, false, true}, Case{DenoiseMethod::kWrls, false, true, 0.0625f}),
     [](const auto& info) { return CaseName(info.param); });
 
 }  // namespace
