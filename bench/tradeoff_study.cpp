@@ -422,6 +422,7 @@ const std::map<std::string, float WrlsSettings::*> kWrlsFloatKeys = {
     {"stabilize", &WrlsSettings::stabilize_history},
     {"stabilize_clamp", &WrlsSettings::stabilize_clamp},
     {"calibrate", &WrlsSettings::atrous_calibration_floor},
+    {"calibrate_fall", &WrlsSettings::atrous_calibration_fall},
 };
 const std::map<std::string, int WrlsSettings::*> kWrlsIntKeys = {
     {"atrous", &WrlsSettings::atrous_iterations},    {"still", &WrlsSettings::max_still_frames},

@@ -492,12 +492,14 @@ struct StopCalibrationBin {
 };
 
 // One thread: the median of the bins (interpolated within its bin) over
-// kChiSquareMedian, kept within [floor, kCalibrationHighest]; 1 where no pair
-// was measured.
+// kChiSquareMedian, kept within [floor, kCalibrationHighest] and, unless
+// `fresh`, no lower than `fall` times the previous frame's scale (in *scale);
+// 1 where no pair was measured.
 struct StopCalibrationPass {
   const unsigned* bins;
   float* scale;
-  float floor;
+  float floor, fall;
+  bool fresh;
   CINEVOL_HD void operator()(int, int) const {
     unsigned total = 0;
     for (int b = 0; b < kCalibrationBins; ++b) total += bins[b];
@@ -510,6 +512,7 @@ struct StopCalibrationPass {
       const float within = bins[b] > 0 ? (half - below) / float(bins[b]) : 0.5f;
       ratio = exp2f(kCalibrationLowestLog2 + (float(b) + within) / kCalibrationBinsPerOctave) / kChiSquareMedian;
     }
+    if (!fresh) ratio = fmaxf(ratio, fall * *scale);
     *scale = fminf(fmaxf(ratio, floor), kCalibrationHighest);
   }
 };

@@ -88,6 +88,8 @@ struct WrlsSettings {
   // is from the spread it predicts (StopCalibrationPass, baselines.h), no
   // lower than this; 0: not scaled.
   float atrous_calibration_floor = 0.0f;
+  // [0, 1]: a frame's scale is no lower than this times the previous one's.
+  float atrous_calibration_fall = 0.0f;
   // Relative depth tolerance (times 1% of the distance and the step). Loose:
   // the first hit in semi-transparent tissue is itself a noisy estimate
   // (8 against 1: +1.2 dB on the CThead orbit).

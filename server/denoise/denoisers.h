@@ -309,8 +309,12 @@ class Wrls final : public DenoiserBase<B> {
     prev_model_.Resize(n);
     calibration_bins_.Resize(kCalibrationBins);
     variance_scale_.Resize(1);
+    calibrated_ = false;
   }
-  void ResetHistory() override { still_frames_ = 0; }
+  void ResetHistory() override {
+    still_frames_ = 0;
+    calibrated_ = false;
+  }
   bool KeepsFirstHits() const override { return true; }
 
  private:
@@ -350,8 +354,10 @@ class Wrls final : public DenoiserBase<B> {
     const int w = this->width_;
     B::template CountInBins<kCalibrationBins>(w, CalibrationRows(this->height_), StopCalibrationBin{estimate, guides, w},
                                               calibration_bins_.data());
+    const WrlsSettings& s = this->settings_.wrls;
     B::ForEachPixel(1, 1, StopCalibrationPass{calibration_bins_.data(), variance_scale_.data(),
-                                              this->settings_.wrls.atrous_calibration_floor});
+                                              s.atrous_calibration_floor, s.atrous_calibration_fall, !calibrated_});
+    calibrated_ = true;
     return variance_scale_.data();
   }
 
@@ -367,6 +373,7 @@ class Wrls final : public DenoiserBase<B> {
   typename DenoiserBase<B>::template Buffer<unsigned> calibration_bins_;
   typename DenoiserBase<B>::template Buffer<float> variance_scale_;
   int still_frames_ = 0;
+  bool calibrated_ = false;  // variance_scale_ holds the previous frame's
 };
 
 template <class B>

@@ -120,12 +120,15 @@ TEST(Atrous, SquaredLuminanceStopKeepsAStepSharper) {
 // noise of a known deviation, told its variance right, four times too large
 // and ten times too small; pixels that escaped or are not finite are not
 // measured.
-float Calibration(const std::vector<Vec4f>& image, const std::vector<EdgeGuide>& guides, float floor = 1e-3f) {
+// The scale for `image`; `previous` > 0: the previous frame's, which the
+// scale may fall from only to `fall` times it.
+float Calibration(const std::vector<Vec4f>& image, const std::vector<EdgeGuide>& guides, float floor = 1e-3f,
+                  float previous = 0.0f, float fall = 0.0f) {
   unsigned bins[kCalibrationBins];
   CpuBackend::CountInBins<kCalibrationBins>(kSize, CalibrationRows(kSize),
                                             StopCalibrationBin{image.data(), guides.data(), kSize}, bins);
-  float scale = 0.0f;
-  StopCalibrationPass{bins, &scale, floor}(0, 0);
+  float scale = previous;
+  StopCalibrationPass{bins, &scale, floor, fall, !(previous > 0.0f)}(0, 0);
   return scale;
 }
 
@@ -147,6 +150,8 @@ TEST(StopCalibration, ReadsTheVarianceAgainstTheSpread) {
   EXPECT_NEAR(Calibration(told(0.04f), guides), 0.25f, 0.025f);
   EXPECT_NEAR(Calibration(told(0.001f), guides), kCalibrationHighest, 1e-6f) << "loosened beyond the cap";
   EXPECT_NEAR(Calibration(told(0.04f), guides, 0.5f), 0.5f, 1e-6f) << "tightened below the floor";
+  EXPECT_NEAR(Calibration(told(0.04f), guides, 1e-3f, 1.0f, 0.9f), 0.9f, 1e-6f) << "fell faster than allowed";
+  EXPECT_NEAR(Calibration(told(0.01f), guides, 1e-3f, 0.25f, 0.9f), 1.0f, 0.1f) << "did not rise at once";
 
   // Escaped pixels, no variance and non-finite colour are not measured: a
   // frame of nothing else leaves the stop as it is.
