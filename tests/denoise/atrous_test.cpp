@@ -116,12 +116,8 @@ TEST(Atrous, SquaredLuminanceStopKeepsAStepSharper) {
   EXPECT_LT(squared_flat, 0.01) << "input noise 0.087 on average";
 }
 
-// The frame's calibration of the luminance stop (StopCalibrationPass):
-// noise of a known deviation, told its variance right, four times too large
-// and ten times too small; pixels that escaped or are not finite are not
-// measured.
-// The scale for `image`; `previous` > 0: the previous frame's, which the
-// scale may fall from only to `fall` times it.
+// The calibration's scale for `image`; `previous` > 0: the previous frame's,
+// which the scale may fall from only to `fall` times it.
 float Calibration(const std::vector<Vec4f>& image, const std::vector<EdgeGuide>& guides, float floor = 1e-3f,
                   float previous = 0.0f, float fall = 0.0f) {
   unsigned bins[kCalibrationBins];
@@ -132,6 +128,10 @@ float Calibration(const std::vector<Vec4f>& image, const std::vector<EdgeGuide>&
   return scale;
 }
 
+// The frame's calibration of the luminance stop (StopCalibrationPass):
+// noise of a known deviation, told its variance right, four times too large
+// and ten times too small; pixels that escaped or are not finite are not
+// measured.
 TEST(StopCalibration, ReadsTheVarianceAgainstTheSpread) {
   Pcg32 rng(11, 3);
   std::vector<Vec4f> noise;
