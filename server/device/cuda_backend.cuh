@@ -69,7 +69,7 @@ __global__ void RowWindowSumsKernel(const Tap tap, T* out, int width, int radius
 
 // CudaBackend::CountInBins: a block counts a column of row segments in
 // shared memory, then adds its non-zero bins to the frame's.
-inline constexpr int kBinRowSegment = 256, kBinRowsPerBlock = 2;
+inline constexpr int kBinRowSegment = 256, kBinRowsPerBlock = 16;
 
 template <int kBins, class Bin>
 __global__ void CountInBinsKernel(const Bin bin, unsigned* bins, int width, int height) {
