@@ -349,7 +349,8 @@ class Wrls final : public DenoiserBase<B> {
   }
 
   // The frame's scale of the variance the luminance stop reads (baselines.h,
-  // StopCalibrationPass), on the device.
+  // StopCalibrationPass), left where the levels read it (on a GPU, no wait
+  // for the host).
   const float* CalibrateStop(const Vec4f* estimate, const EdgeGuide* guides) {
     const int w = this->width_;
     B::template CountInBins<kCalibrationBins>(w, CalibrationRows(this->height_), StopCalibrationBin{estimate, guides, w},
