@@ -1,7 +1,8 @@
 // Denoisers at the extremes, on the CPU: hostile input stays finite for every
 // method; wRLS survives 20,000 static frames then a camera move, fireflies of
 // 1e6, black and constant images, NaN/Inf pixels, exposure ranges of 1e8 and
-// resolution changes.
+// resolution changes. wRLS with its calibrated luminance stop takes the same
+// hostile, black, constant and noisy frames.
 #include "denoise/denoiser.h"
 
 #include <gtest/gtest.h>
@@ -19,10 +20,18 @@ namespace {
 
 using testing::SyntheticSequence;
 
-std::unique_ptr<Denoiser> Make(DenoiseMethod method, bool demodulate = false) {
+// `calibrated`: wRLS's squared luminance stop calibrated once a frame, as
+// the study's best such candidate (docs/tradeoff.md, "A calibrated luminance stop").
+std::unique_ptr<Denoiser> Make(DenoiseMethod method, bool demodulate = false, bool calibrated = false) {
   DenoiserSettings s;
   s.method = method;
   s.demodulate = demodulate;
+  if (calibrated) {
+    s.wrls.atrous_squared_luminance = true;
+    s.wrls.atrous_sigma_luminance = 6.5f;
+    s.wrls.atrous_calibration_floor = 0.0625f;
+    s.wrls.atrous_calibration_fall = 0.9f;
+  }
   return CreateDenoiser(Backend::kCpu, s);
 }
 
@@ -39,16 +48,20 @@ double Error(const ImageRgbF& image, const ImageRgbF& truth) { return std::sqrt(
 struct MethodCase {
   DenoiseMethod method;
   bool demodulate;
+  bool calibrated = false;  // Make's
 };
 
-void PrintTo(const MethodCase& c, std::ostream* os) {
-  *os << ToString(c.method) << (c.demodulate ? "+demodulation" : "");
+std::string CaseName(const MethodCase& c) {
+  return std::string(ToString(c.method)) + (c.demodulate ? "Demodulated" : "") +
+         (c.calibrated ? "CalibratedStop" : "");
 }
+
+void PrintTo(const MethodCase& c, std::ostream* os) { *os << CaseName(c); }
 
 class EveryDenoiser : public ::testing::TestWithParam<MethodCase> {};
 
 TEST_P(EveryDenoiser, HostileInputStaysFiniteAndNonNegative) {
-  auto d = Make(GetParam().method, GetParam().demodulate);
+  auto d = Make(GetParam().method, GetParam().demodulate, GetParam().calibrated);
   SyntheticSequence seq(24, 16);
   const float inf = std::numeric_limits<float>::infinity();
   for (int t = 0; t < 30; ++t) {
@@ -65,7 +78,7 @@ TEST_P(EveryDenoiser, HostileInputStaysFiniteAndNonNegative) {
 }
 
 TEST_P(EveryDenoiser, BlackStaysBlack) {
-  auto d = Make(GetParam().method, GetParam().demodulate);
+  auto d = Make(GetParam().method, GetParam().demodulate, GetParam().calibrated);
   SyntheticSequence seq(16, 12);
   for (int t = 0; t < 5; ++t) {
     DenoiseFrame f = seq.Next();
@@ -76,7 +89,7 @@ TEST_P(EveryDenoiser, BlackStaysBlack) {
 }
 
 TEST_P(EveryDenoiser, ConstantStaysConstant) {
-  auto d = Make(GetParam().method, GetParam().demodulate);
+  auto d = Make(GetParam().method, GetParam().demodulate, GetParam().calibrated);
   SyntheticSequence seq(16, 12);
   const Vec3f c{0.2f, 0.5f, 3.0f};
   for (int t = 0; t < 5; ++t) {
@@ -90,7 +103,7 @@ TEST_P(EveryDenoiser, ConstantStaysConstant) {
 }
 
 TEST_P(EveryDenoiser, ReducesNoiseOnAStaticView) {
-  auto d = Make(GetParam().method, GetParam().demodulate);
+  auto d = Make(GetParam().method, GetParam().demodulate, GetParam().calibrated);
   SyntheticSequence seq(48, 32);
   double input_error = 0, output_error = 0;
   for (int t = 0; t < 24; ++t) {
@@ -112,10 +125,9 @@ INSTANTIATE_TEST_SUITE_P(
     ::testing::Values(MethodCase{DenoiseMethod::kNone, false}, MethodCase{DenoiseMethod::kAccumulate, false},
                       MethodCase{DenoiseMethod::kKnn, false}, MethodCase{DenoiseMethod::kGuidedFilter, false},
                       MethodCase{DenoiseMethod::kSvgf, false}, MethodCase{DenoiseMethod::kWrls, false},
-                      MethodCase{DenoiseMethod::kWrls, true}, MethodCase{DenoiseMethod::kSvgf, true}),
-    [](const auto& info) {
-      return std::string(ToString(info.param.method)) + (info.param.demodulate ? "Demodulated" : "");
-    });
+                      MethodCase{DenoiseMethod::kWrls, true}, MethodCase{DenoiseMethod::kSvgf, true},
+                      MethodCase{DenoiseMethod::kWrls, false, true}),
+    [](const auto& info) { return CaseName(info.param); });
 
 // On a static view only one direction of the predictor is excited and P
 // grows as lambda^-n in the other; the trace bound keeps the next move sane.
