@@ -402,7 +402,8 @@ struct AtrousPass {
 
   CINEVOL_HD static bool Hit(float depth) { return !std::isnan(depth); }
   CINEVOL_HD float StopVariance(float variance) const {
-    return variance_scale ? fmaxf(variance, 0.0f) * *variance_scale : fmaxf(variance, 0.0f);
+    const float v = fmaxf(variance, 0.0f);
+    return variance_scale ? v * *variance_scale : v;
   }
 
   // A full silhouette (coverage 0 against 1) weighs e^-6; the +-0.1 noise of
