@@ -495,26 +495,49 @@ struct StopCalibrationBin {
 // One thread: the median of the bins (interpolated within its bin) over
 // kChiSquareMedian, kept within [floor, kCalibrationHighest] and, unless
 // `fresh`, no lower than `fall` times the previous frame's scale (in *scale);
-// 1 where no pair was measured.
+// 1 where no pair was measured. The bins are read in groups of
+// kCalibrationGroup whose loads do not wait on each other (a walk of the
+// bins one by one waits on each load in turn: 0.005 ms a frame more on an
+// H100).
+inline constexpr int kCalibrationGroup = 16;
 struct StopCalibrationPass {
   const unsigned* bins;
   float* scale;
   float floor, fall;
   bool fresh;
+
+  static constexpr int kGroups = kCalibrationBins / kCalibrationGroup;
+
+  // The median's bin plus its place within the bin, given the groups' counts
+  // (integers below 2^24: exact in float, summed in any order).
+  CINEVOL_HD float MedianBin(const unsigned (&groups)[kGroups], unsigned total) const {
+    const float half = 0.5f * float(total);
+    float below = 0.0f;
+    int g = 0;
+    while (g + 1 < kGroups && below + float(groups[g]) < half) below += float(groups[g++]);
+    unsigned counts[kCalibrationGroup];
+    CINEVOL_UNROLL
+    for (int k = 0; k < kCalibrationGroup; ++k) counts[k] = bins[g * kCalibrationGroup + k];
+    int k = 0;
+    while (k + 1 < kCalibrationGroup && below + float(counts[k]) < half) below += float(counts[k++]);
+    const float within = counts[k] > 0 ? (half - below) / float(counts[k]) : 0.5f;
+    return float(g * kCalibrationGroup + k) + within;
+  }
+
   CINEVOL_HD void operator()(int, int) const {
-    unsigned total = 0;
-    for (int b = 0; b < kCalibrationBins; ++b) total += bins[b];
-    float ratio = 1.0f;
-    if (total > 0) {
-      const float half = 0.5f * float(total);
-      float below = 0.0f;
-      int b = 0;
-      while (b + 1 < kCalibrationBins && below + float(bins[b]) < half) below += float(bins[b++]);
-      const float within = bins[b] > 0 ? (half - below) / float(bins[b]) : 0.5f;
-      ratio = exp2f(kCalibrationLowestLog2 + (float(b) + within) / kCalibrationBinsPerOctave) / kChiSquareMedian;
+    unsigned groups[kGroups], total = 0;
+    CINEVOL_UNROLL
+    for (int g = 0; g < kGroups; ++g) {
+      groups[g] = 0;
+      CINEVOL_UNROLL
+      for (int k = 0; k < kCalibrationGroup; ++k) groups[g] += bins[g * kCalibrationGroup + k];
+      total += groups[g];
     }
-    if (!fresh) ratio = fmaxf(ratio, fall * *scale);
-    *scale = fminf(fmaxf(ratio, floor), kCalibrationHighest);
+    const float ratio = total > 0
+        ? exp2f(kCalibrationLowestLog2 + MedianBin(groups, total) / kCalibrationBinsPerOctave) / kChiSquareMedian
+        : 1.0f;
+    const float kept = fresh ? ratio : fmaxf(ratio, fall * *scale);
+    *scale = fminf(fmaxf(kept, floor), kCalibrationHighest);
   }
 };
 

