@@ -89,7 +89,8 @@ struct WrlsSettings {
   // baselines.h), no lower than this; 0: not scaled. With the squared stop at
   // sigma 6.5, a floor of 1/16 and a fall of 0.9, +0.24 dB on average over the
   // study's 28 runs at 720p (-0.05 at worst, +0.95 on the aorta crop), for up
-  // to 5% more temporal error and 3% of the time: off (docs/tradeoff.md, "A
+  // to 5% more temporal error and 3% of the time (a floor of 1/4: -0.02 at
+  // worst, +0.20 on average, up to 3.4%): off (docs/tradeoff.md, "A
   // calibrated luminance stop").
   float atrous_calibration_floor = 0.0f;
   // [0, 1]: a frame's scale is no lower than this times the previous one's
