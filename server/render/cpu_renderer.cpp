@@ -77,6 +77,7 @@ void CpuRenderer::Render(const FrameRequest& request) {
     radiance_.assign(std::size_t(w) * h, {});
     first_hit_.assign(std::size_t(w) * h, {});
     albedo_.assign(std::size_t(w) * h, {});
+    accumulated_.resize(std::size_t(w) * h);
     ResetAccumulation();
   }
   RenderScene scene = data_.HostView();
@@ -91,7 +92,6 @@ void CpuRenderer::Render(const FrameRequest& request) {
 }
 
 void CpuRenderer::ResetAccumulation() {
-  accumulated_.assign(std::size_t(width_) * height_, {});
   accumulated_frames_ = 0;
   accumulated_samples_ = 0;
 }
@@ -99,15 +99,17 @@ void CpuRenderer::ResetAccumulation() {
 ImageRgbF CpuRenderer::Radiance() const { return {width_, height_, radiance_}; }
 
 ImageRgbF CpuRenderer::AccumulatedMean() const {
+  if (accumulated_samples_ == 0) return {width_, height_, std::vector<Vec3f>(accumulated_.size())};
   ImageRgbF image{width_, height_, accumulated_};
-  const float inv = accumulated_samples_ > 0 ? float(1.0 / double(accumulated_samples_)) : 0.0f;
+  const float inv = float(1.0 / double(accumulated_samples_));
   for (Vec3f& p : image.pixels) p *= inv;
   return image;
 }
 
 FrameTargets CpuRenderer::Targets() const {
   auto* self = const_cast<CpuRenderer*>(this);
-  return {self->radiance_.data(), self->first_hit_.data(), self->accumulated_.data(), self->albedo_.data()};
+  return {self->radiance_.data(), self->first_hit_.data(), self->accumulated_.data(), self->albedo_.data(),
+          accumulated_frames_ == 0};
 }
 
 }  // namespace cinevol

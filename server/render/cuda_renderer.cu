@@ -247,7 +247,6 @@ void CudaRenderer::Render(const FrameRequest& request) {
 }
 
 void CudaRenderer::ResetAccumulation() {
-  device_->accumulated.Zero(device_->stream);
   accumulated_frames_ = 0;
   accumulated_samples_ = 0;
 }
@@ -262,8 +261,9 @@ double CudaRenderer::LastFrameMilliseconds() const {
 ImageRgbF CudaRenderer::Radiance() const { return {width_, height_, Download(device_->radiance)}; }
 
 ImageRgbF CudaRenderer::AccumulatedMean() const {
+  if (accumulated_samples_ == 0) return {width_, height_, std::vector<Vec3f>(std::size_t(width_) * height_)};
   ImageRgbF image{width_, height_, device_->accumulated.Download(device_->stream)};
-  const float inv = accumulated_samples_ > 0 ? float(1.0 / double(accumulated_samples_)) : 0.0f;
+  const float inv = float(1.0 / double(accumulated_samples_));
   for (Vec3f& p : image.pixels) p *= inv;
   return image;
 }
@@ -273,7 +273,7 @@ std::vector<Vec4f> CudaRenderer::FirstHits() const { return Download(device_->fi
 ImageRgbF CudaRenderer::Albedo() const { return {width_, height_, Download(device_->albedo)}; }
 
 FrameTargets CudaRenderer::Targets() const {
-  return {device_->radiance, device_->first_hit, device_->accumulated.data(), device_->albedo};
+  return {device_->radiance, device_->first_hit, device_->accumulated.data(), device_->albedo, accumulated_frames_ == 0};
 }
 
 template <class T>

@@ -314,7 +314,11 @@ struct PixelSamples {
     // The samples' sum, not their mean: a frame weighs by its samples, so frames
     // of different spp (a CPU session's still frames, a still's growing chunks)
     // accumulate the plain mean of every sample (the renderers divide by them).
-    out.accumulated[pixel] += sum;
+    if (out.accumulation_starts) {
+      out.accumulated[pixel] = sum;
+    } else {
+      out.accumulated[pixel] += sum;
+    }
   }
 };
 

@@ -282,5 +282,44 @@ TEST(CudaRenderer, FirstHitsAndAccumulationMatchTheCpuLayout) {
   EXPECT_EQ(r->AccumulatedMean().pixels.size(), 64u);
 }
 
+// A reset clears nothing: the frame after it writes the sums instead of adding
+// to them. Two frames, a reset, two more: the accumulation holds the last two only.
+void ExpectAnAccumulationHoldsTheFramesSinceItsReset(Backend backend) {
+  auto r = CreateRenderer(backend);
+  r->SetVolume(UniformCube(16, 2.0f));
+  r->SetTransferFunction(ConstantMedium(0.2f, 0.7f));
+  r->SetLights(UniformSky(1.0f));
+  FrameRequest req;
+  req.camera = testing::AxisCamera(8, 8);
+  req.spp = 2;
+  auto render = [&](int frame) {
+    req.frame = frame;
+    r->Render(req);
+    return r->Radiance().pixels;
+  };
+  render(0);
+  render(1);
+  r->ResetAccumulation();
+  for (const Vec3f& p : r->AccumulatedMean().pixels) EXPECT_EQ(p, (Vec3f{}));
+  const std::vector<Vec3f> a = render(2), b = render(3);
+  EXPECT_EQ(r->accumulated_frames(), 2);
+  const std::vector<Vec3f> mean = r->AccumulatedMean().pixels;
+  ASSERT_EQ(mean.size(), a.size());
+  for (std::size_t i = 0; i < mean.size(); ++i) {
+    const Vec3f expected = (a[i] + b[i]) * 0.5f;
+    EXPECT_NEAR(mean[i].x, expected.x, 1e-5f * (1 + expected.x)) << "pixel " << i;
+    EXPECT_NEAR(mean[i].y, expected.y, 1e-5f * (1 + expected.y)) << "pixel " << i;
+  }
+}
+
+TEST(CpuRenderer, AnAccumulationHoldsTheFramesSinceItsReset) {
+  ExpectAnAccumulationHoldsTheFramesSinceItsReset(Backend::kCpu);
+}
+
+TEST(CudaRenderer, AnAccumulationHoldsTheFramesSinceItsReset) {
+  CINEVOL_REQUIRE_CUDA();
+  ExpectAnAccumulationHoldsTheFramesSinceItsReset(Backend::kCuda);
+}
+
 }  // namespace
 }  // namespace cinevol
