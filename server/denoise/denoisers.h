@@ -287,7 +287,7 @@ class Wrls final : public DenoiserBase<B> {
     int* previous_pixel = B::template FrameScratch<int>(Scratch::kPreviousPixel, n);
     // The previous feature (into pair.out) and output, reprojected: the
     // temporal pass and the stabiliser then overwrite their histories.
-    B::ForEachPixel(w, h, ReprojectHistoriesPass{rv, feature_.data(), stable_.data(), pair.out, output_history,
+    B::ForEachPixel(w, h, ReprojectHistoriesPass{rv, feature_.data(), StableOutput(output), pair.out, output_history,
                                                  previous_pixel});
     B::ForEachPixel(w, h, WrlsTemporalPass{rv, input, pair.out, previous_pixel, prev_model_.data(), feature_.data(),
                                            model_.data(), pair.in, s, still_frames_,
@@ -303,7 +303,7 @@ class Wrls final : public DenoiserBase<B> {
   }
 
   void Allocate(std::size_t n) override {
-    stable_.Resize(n);
+    stable_.Resize(this->settings_.demodulate ? n : 0);
     feature_.Resize(n);
     model_.Resize(n);
     prev_model_.Resize(n);
@@ -344,7 +344,7 @@ class Wrls final : public DenoiserBase<B> {
                        rows);
       offsets = rows;
     }
-    B::ForEachPixel(w, h, WrlsStabilizePass{estimate, output_history, offsets, output, stable_.data(), w, h, weight,
+    B::ForEachPixel(w, h, WrlsStabilizePass{estimate, output_history, offsets, output, StableOutput(output), w, h, weight,
                                             s.stabilize_clamp, s.stabilize_recenter});
   }
 
@@ -362,13 +362,17 @@ class Wrls final : public DenoiserBase<B> {
     return variance_scale_.data();
   }
 
+  // The stabilised output, the next frame's history: the output itself,
+  // unless demodulation remodulates that in place.
+  Vec3f* StableOutput(Vec3f* output) { return this->settings_.demodulate ? stable_.data() : output; }
+
   // Row sums of a recentering or rescaling window, in frame scratch.
   Vec4f* RowSums() { return B::template FrameScratch<Vec4f>(Scratch::kRowSums, this->pixels()); }
 
   // One frame each: read (reprojected) before they are written. The frame's
   // other buffers are frame scratch (AtrousPair, FrameEdgeGuides, Run).
   typename DenoiserBase<B>::template Buffer<Vec3f> feature_;
-  typename DenoiserBase<B>::template Buffer<Vec3f> stable_;  // the stabilised output
+  typename DenoiserBase<B>::template Buffer<Vec3f> stable_;  // the stabilised output, where demodulated
   // Two frames: the temporal pass reads other pixels' previous models.
   typename DenoiserBase<B>::template Buffer<StoredWrlsModel> model_, prev_model_;
   typename DenoiserBase<B>::template Buffer<unsigned> calibration_bins_;

@@ -525,7 +525,7 @@ struct WrlsStabilizePass {
   const Vec4f* history;      // ReprojectHistoriesPass's output history
   const Vec4f* offset_rows;  // row sums of HistoryOffsetTap; null: not recentred (a still view)
   Vec3f* output;             // the denoiser's output
-  Vec3f* kept;               // the same, kept as the next frame's history
+  Vec3f* kept;               // the same, kept as the next frame's history (may be `output`)
   int width, height;
   float history_weight, clamp_sigma;
   int recenter;  // >= 1
@@ -560,7 +560,7 @@ struct WrlsStabilizePass {
     }
     out = IsFinite(out) ? Max(out, Vec3f{}) : Vec3f{};
     output[i] = out;
-    kept[i] = out;
+    if (kept != output) kept[i] = out;
   }
 };
 
