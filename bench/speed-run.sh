@@ -42,7 +42,7 @@
 #              change that claims the same output)
 #   clients    CLIENTS_SESSIONS (8 128) full-size sessions from one loadtest process and from two (CLIENTS=2
 #              splits any step's sessions between that many), alternating
-# SECONDS_PER_RUN (8) is each loadtest's length, DENOISER (wrls) its sessions' denoiser. Every session of a loadtest
+# SECONDS_PER_RUN (8) is each loadtest's length, DENOISER (wrls) its sessions' denoiser, SPP (2) their samples a frame. Every session of a loadtest
 # shares one connection: servers allow 1024 streams on it (128 by default, which
 # 128 sessions' streams fill, and their closing calls then wait for a stream). This build's servers run with
 # --min-session-fps 0 (MIN_FPS) but in the admission step, SERVER_EXTRA adds flags.
@@ -89,7 +89,7 @@ loadtest() {
   local smi=$! cpu0
   cpu0=$(cpu_seconds $server)
   local start=$SECONDS
-  local what=(--width "$w" --height "$h" --spp 2 --denoiser "${DENOISER:-wrls}" --scene "$scene")
+  local what=(--width "$w" --height "$h" --spp "${SPP:-2}" --denoiser "${DENOISER:-wrls}" --scene "$scene")
   [ -n "${SCRIPT:-}" ] && what=(--script "$SCRIPT")
   # CLIENTS loadtest processes at once, each with its share of the sessions.
   local clients=${CLIENTS:-1} c pids=() rc=0
@@ -269,7 +269,7 @@ sm__warps_active.avg.pct_of_peak_sustained_active,launch__grid_size,launch__bloc
   wait_for_port "$port_file" $profiler 60 "$logs/kernels-ncu.err"
   # Profiled launches are slow (about 0.3 s each): one session, long enough for them all.
   "$cv/bin/cinevol" loadtest --server "127.0.0.1:$(cat "$port_file")" --sessions 1 --seconds "${KERNELS_SECONDS:-100}" \
-    --width "${size%x*}" --height "${size#*x}" --spp 2 --denoiser "${DENOISER:-wrls}" --scene "$scene" --json \
+    --width "${size%x*}" --height "${size#*x}" --spp "${SPP:-2}" --denoiser "${DENOISER:-wrls}" --scene "$scene" --json \
     > "$logs/kernels-loadtest.json" 2> "$logs/kernels-loadtest.err"
   # The server (ncu's descendant, by its process id), so that ncu writes its report.
   local pid servers=()
