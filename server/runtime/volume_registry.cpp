@@ -123,6 +123,16 @@ void SetIdentity(const VolumeMetadata& meta, v1::VolumeInfo& info) {
   }
 }
 
+// A retrieved series' download folder, removed however the call ends (the
+// volume it held is read by then, or the call failed).
+struct FolderRemovedOnExit {
+  const fs::path& folder;
+  ~FolderRemovedOnExit() {
+    std::error_code ec;
+    fs::remove_all(folder, ec);
+  }
+};
+
 }  // namespace
 
 std::string Mib(std::uint64_t bytes) { return fmt::format("{:.1f} MiB", double(bytes) / (1 << 20)); }
@@ -339,13 +349,7 @@ v1::VolumeInfo VolumeRegistry::AddUpload(const fs::path& file, const std::string
 v1::VolumeInfo VolumeRegistry::AddRetrievedSeries(const fs::path& folder, const std::string& source,
                                                   const ReadChoices& choices, const Principal& caller,
                                                   const std::atomic<bool>* cancel) {
-  struct RemoveFolder {
-    const fs::path& folder;
-    ~RemoveFolder() {
-      std::error_code ec;
-      fs::remove_all(folder, ec);
-    }
-  } remove{folder};
+  const FolderRemovedOnExit remove{folder};
   v1::VolumeSource request;
   request.set_dicom_folder(folder.string());
   request.set_orientation(choices.orientation);
@@ -489,13 +493,7 @@ void VolumeRegistry::RequireLabelsAllowed(const std::string& id, const Principal
 v1::VolumeInfo VolumeRegistry::AddRetrievedLabels(const std::string& id, const fs::path& folder,
                                                   const std::string& source, const Principal& caller,
                                                   const std::atomic<bool>* cancel) {
-  struct RemoveFolder {
-    const fs::path& folder;
-    ~RemoveFolder() {
-      std::error_code ec;
-      fs::remove_all(folder, ec);
-    }
-  } remove{folder};
+  const FolderRemovedOnExit remove{folder};
   std::shared_ptr<const LabelVolume> held;
   const std::shared_ptr<const Volume> image = VolumeForLabels(id, caller, &held, "labels_for");
   Reservation reservation(this, caller.name, false, "the segmentation");

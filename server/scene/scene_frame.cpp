@@ -46,25 +46,6 @@ VolumePlacement VolumePlacement::Of(const Volume& volume) {
           volume.spacing_mm() * 0.5f - volume.extent_mm() * 0.5f};
 }
 
-namespace {
-
-// VolumeInfo and v1::VolumePlacement give a placement in the same four fields.
-template <class Message>
-VolumePlacement FromFields(const Message& m) {
-  VolumePlacement p;
-  if (m.direction_size() == 9) std::copy(m.direction().begin(), m.direction().end(), p.direction.begin());
-  p.origin = ToVec(m.origin_mm());
-  const Vec3f spacing = ToVec(m.spacing_mm());
-  const Vec3f extent{float(m.dims().x()) * spacing.x, float(m.dims().y()) * spacing.y, float(m.dims().z()) * spacing.z};
-  p.shift = spacing * 0.5f - extent * 0.5f;
-  return p;
-}
-
-}  // namespace
-
-VolumePlacement VolumePlacement::Of(const v1::VolumeInfo& volume) { return FromFields(volume); }
-VolumePlacement VolumePlacement::Of(const v1::VolumePlacement& placement) { return FromFields(placement); }
-
 v1::VolumePlacement PlacementMessage(const Volume& volume) {
   const VolumeMetadata& m = volume.metadata();
   v1::VolumePlacement p;

@@ -21,8 +21,6 @@ struct VolumePlacement {
   Vec3f shift;   // half a voxel less half the extent: voxel 0's centre in the volume-centred frame
 
   static VolumePlacement Of(const Volume& volume);
-  static VolumePlacement Of(const v1::VolumeInfo& volume);
-  static VolumePlacement Of(const v1::VolumePlacement& placement);
 
   Vec3f DirectionToVolume(Vec3f lps) const;  // D^T lps
   Vec3f DirectionToPatient(Vec3f v) const;   // D v
