@@ -3,7 +3,8 @@
 
 #include <algorithm>
 #include <cmath>
-#include <functional>
+
+#include "cinevol/v1/scene_vectors.h"
 
 namespace cinevol {
 namespace {
@@ -19,31 +20,6 @@ Vec3d MultiplyTransposed(const Placement::Direction& d, Vec3d v) {
 }
 
 Vec3d DimsOf(const v1::GridSize& dims) { return {double(dims.x()), double(dims.y()), double(dims.z())}; }
-
-// Every point and direction the camera and lights hold, moved by `point` and
-// `direction` (unset fields stay unset).
-void MoveCameraAndLights(v1::Scene& scene, const std::function<Vec3d(Vec3d)>& point,
-                         const std::function<Vec3d(Vec3d)>& direction) {
-  auto move = [](v1::Vec3* v, const std::function<Vec3d(Vec3d)>& f) { *v = ToProto(f(ToVec3d(*v))); };
-  v1::Camera& camera = *scene.mutable_camera();
-  if (camera.has_eye()) move(camera.mutable_eye(), point);
-  if (camera.has_target()) move(camera.mutable_target(), point);
-  if (camera.has_up()) move(camera.mutable_up(), direction);
-  for (v1::Light& light : *scene.mutable_lights()) {
-    if (light.has_area()) {
-      move(light.mutable_area()->mutable_center(), point);
-      move(light.mutable_area()->mutable_edge_u(), direction);
-      move(light.mutable_area()->mutable_edge_v(), direction);
-    } else if (light.has_point()) {
-      move(light.mutable_point()->mutable_position(), point);
-    } else if (light.has_directional()) {
-      move(light.mutable_directional()->mutable_direction(), direction);
-    } else if (light.has_environment() && light.environment().has_gradient() &&
-               light.environment().gradient().has_up()) {
-      move(light.mutable_environment()->mutable_gradient()->mutable_up(), direction);
-    }
-  }
-}
 
 }  // namespace
 
@@ -118,15 +94,17 @@ std::vector<Vec3d> Placement::SlicePlaneOutline(int lps_axis, double position_mm
 
 void MoveSceneToPatient(v1::Scene& scene, const Placement& p) {
   if (scene.frame() == v1::PATIENT_LPS) return;
-  MoveCameraAndLights(scene, [&](Vec3d v) { return p.ToPatient(v); },
-                      [&](Vec3d v) { return p.DirectionToPatient(v); });
+  ForEachCameraAndLightVector(
+      scene, [&](v1::Vec3* v) { *v = ToProto(p.ToPatient(ToVec3d(*v))); },
+      [&](v1::Vec3* v) { *v = ToProto(p.DirectionToPatient(ToVec3d(*v))); });
   scene.set_frame(v1::PATIENT_LPS);
 }
 
 void MoveSceneToVolumeCentred(v1::Scene& scene, const Placement& p) {
   if (scene.frame() != v1::PATIENT_LPS) return;
-  MoveCameraAndLights(scene, [&](Vec3d v) { return p.ToVolume(v); },
-                      [&](Vec3d v) { return p.DirectionToVolume(v); });
+  ForEachCameraAndLightVector(
+      scene, [&](v1::Vec3* v) { *v = ToProto(p.ToVolume(ToVec3d(*v))); },
+      [&](v1::Vec3* v) { *v = ToProto(p.DirectionToVolume(ToVec3d(*v))); });
   scene.clear_frame();
 }
 

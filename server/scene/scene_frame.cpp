@@ -1,6 +1,6 @@
 #include "scene/scene_frame.h"
 
-#include <functional>
+#include "cinevol/v1/scene_vectors.h"
 
 namespace cinevol {
 namespace {
@@ -11,31 +11,6 @@ void Set(v1::Vec3* to, Vec3f v) {
   to->set_x(v.x);
   to->set_y(v.y);
   to->set_z(v.z);
-}
-
-// Every point and direction the camera and lights hold, moved by `point` and
-// `direction` (unset fields stay unset).
-void MoveCameraAndLights(v1::Scene& scene, const std::function<Vec3f(Vec3f)>& point,
-                         const std::function<Vec3f(Vec3f)>& direction) {
-  auto move = [](v1::Vec3* v, const std::function<Vec3f(Vec3f)>& f) { Set(v, f(ToVec(*v))); };
-  v1::Camera& camera = *scene.mutable_camera();
-  if (camera.has_eye()) move(camera.mutable_eye(), point);
-  if (camera.has_target()) move(camera.mutable_target(), point);
-  if (camera.has_up()) move(camera.mutable_up(), direction);
-  for (v1::Light& light : *scene.mutable_lights()) {
-    if (light.has_area()) {
-      move(light.mutable_area()->mutable_center(), point);
-      move(light.mutable_area()->mutable_edge_u(), direction);
-      move(light.mutable_area()->mutable_edge_v(), direction);
-    } else if (light.has_point()) {
-      move(light.mutable_point()->mutable_position(), point);
-    } else if (light.has_directional()) {
-      move(light.mutable_directional()->mutable_direction(), direction);
-    } else if (light.has_environment() && light.environment().has_gradient() &&
-               light.environment().gradient().has_up()) {
-      move(light.mutable_environment()->mutable_gradient()->mutable_up(), direction);
-    }
-  }
 }
 
 }  // namespace
@@ -76,15 +51,17 @@ Vec3f VolumePlacement::DirectionToPatient(Vec3f v) const {
 
 void ToVolumeFrame(v1::Scene& scene, const VolumePlacement& p) {
   if (scene.frame() != v1::PATIENT_LPS) return;
-  MoveCameraAndLights(scene, [&](Vec3f x) { return p.PointToVolume(x); },
-                      [&](Vec3f x) { return p.DirectionToVolume(x); });
+  ForEachCameraAndLightVector(
+      scene, [&](v1::Vec3* v) { Set(v, p.PointToVolume(ToVec(*v))); },
+      [&](v1::Vec3* v) { Set(v, p.DirectionToVolume(ToVec(*v))); });
   scene.clear_frame();
 }
 
 void ToPatientFrame(v1::Scene& scene, const VolumePlacement& p) {
   if (scene.frame() == v1::PATIENT_LPS) return;
-  MoveCameraAndLights(scene, [&](Vec3f x) { return p.PointToPatient(x); },
-                      [&](Vec3f x) { return p.DirectionToPatient(x); });
+  ForEachCameraAndLightVector(
+      scene, [&](v1::Vec3* v) { Set(v, p.PointToPatient(ToVec(*v))); },
+      [&](v1::Vec3* v) { Set(v, p.DirectionToPatient(ToVec(*v))); });
   scene.set_frame(v1::PATIENT_LPS);
 }
 
