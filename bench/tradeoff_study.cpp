@@ -417,6 +417,7 @@ const std::map<std::string, float WrlsSettings::*> kWrlsFloatKeys = {
     {"residual_rate", &WrlsSettings::residual_rate},
     {"drift", &WrlsSettings::drift_sigma},
     {"young", &WrlsSettings::young_variance},
+    {"young_surface", &WrlsSettings::young_variance_surface},
     {"rescale_sigma", &WrlsSettings::feature_rescale_sigma},
     {"firefly", &WrlsSettings::firefly_clamp},
     {"stabilize", &WrlsSettings::stabilize_history},

@@ -63,6 +63,13 @@ struct WrlsSettings {
   // prior, 4 takes 3-4% off the MR head's temporal error and 8 1% more;
   // 16 takes 1.5% more for 0.2 dB.
   float young_variance = 8.0f;   // >= 0
+  // >= 0: the floor instead where the pixel's 5x5 window all hit the volume
+  // (its coverage is 1: a surface, not semi-transparent tissue, whose thin
+  // shells need the floor's smoothing); < 0: young_variance everywhere. 2 at
+  // 640x360 on this workplace's CPU: +0.38-0.41 dB on CThead's still view and
+  // the phantom's orbit, the shells unchanged (young=2: -0.24 there); not yet
+  // run at 720p, so off (docs/tradeoff.md, "The young-variance floor").
+  float young_variance_surface = -1.0f;
   // [1, 8]: before the blend, the feature's reprojected history is scaled by
   // the ratio of this frame's input to it over (2r + 1)^2 taps 2 pixels apart
   // (wrls.h, Rescaled), so the feature does not lag a light that moves

@@ -289,10 +289,11 @@ class Wrls final : public DenoiserBase<B> {
     // temporal pass and the stabiliser then overwrite their histories.
     B::ForEachPixel(w, h, ReprojectHistoriesPass{rv, feature_.data(), StableOutput(output), pair.out, output_history,
                                                  previous_pixel});
+    const EdgeGuide* guides = FrameEdgeGuides<B>(frame, this->kept_first_hit());
     B::ForEachPixel(w, h, WrlsTemporalPass{rv, input, pair.out, previous_pixel, prev_model_.data(), feature_.data(),
                                            model_.data(), pair.in, s, still_frames_,
-                                           FeatureRatioRows(input, pair.out, rv)});
-    const EdgeGuide* guides = FrameEdgeGuides<B>(frame, this->kept_first_hit());
+                                           FeatureRatioRows(input, pair.out, rv),
+                                           s.young_variance_surface >= 0.0f ? guides : nullptr});
     const float* variance_scale = s.atrous_calibration_floor > 0.0f ? CalibrateStop(pair.in, guides) : nullptr;
     for (int level = 0; level < s.atrous_iterations; ++level) {
       RunAtrousLevel<B>(AtrousPass{pair.in, pair.out, guides, w, h, 1 << level, s.atrous_sigma_luminance,

@@ -28,6 +28,7 @@
 #include <cstring>
 
 #include "core/sampling.h"
+#include "denoise/baselines.h"
 #include "denoise/denoiser.h"
 #include "denoise/reprojection.h"
 
@@ -201,6 +202,12 @@ CINEVOL_HD float PredictionVariance(const WrlsModel& m, Vec3f z, float young_var
     sum += m.beta1[c] * m.beta1[c] / m.samples + m.p00[c] + 2.0f * m.p01[c] * u + m.p11[c] * u * u;
   }
   return m.residual * fmaxf(sum * (1.0f / 3.0f), young_variance / (m.samples * m.samples)) * m.scale * m.scale;
+}
+
+// The young-variance floor of a pixel whose edge guide reads `coverage`
+// (WrlsSettings::young_variance_surface).
+CINEVOL_HD float YoungVariance(const WrlsSettings& s, float coverage) {
+  return s.young_variance_surface >= 0.0f && coverage >= 1.0f ? s.young_variance_surface : s.young_variance;
 }
 
 // Eq. 13's weight of a sample: its distance from the feature, relative to
@@ -381,6 +388,7 @@ struct WrlsTemporalPass {
   WrlsSettings s;
   int still_frames;            // frames the view has stayed still (0: it moved or changed)
   const Vec4f* feature_ratio_rows;  // row sums of FeatureRatioTap; null: no rescaling
+  const EdgeGuide* guides;          // this frame's, where young_variance_surface is on (else null)
 
   // The finite inputs of the 3x3 window: their colour box, and the sum and
   // count of the centre's neighbours' brightest channel.
@@ -508,7 +516,7 @@ struct WrlsTemporalPass {
       if (!Healthy(m, s.max_coefficient)) Refit(m, z, s.initial_p);
     }
     model[i] = Store(m);
-    prediction[i] = Prediction(m, z, s.young_variance);
+    prediction[i] = Prediction(m, z, guides ? YoungVariance(s, guides[i].coverage) : s.young_variance);
   }
 };
 

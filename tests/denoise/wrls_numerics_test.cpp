@@ -105,6 +105,17 @@ TEST(WrlsNumerics, AYoungModelPredictsAtLeastTheYoungVariance) {
   EXPECT_NEAR(PredictionVariance(m, {1, 1, 1}, 4.0f), 0.5f * 0.45f, 1e-6f);
 }
 
+// A surface (every pixel of the 5x5 window hit) may have its own floor; a
+// pixel by a silhouette or in semi-transparent tissue keeps young_variance.
+TEST(WrlsNumerics, TheYoungFloorOnSurfacesIsItsOwn) {
+  WrlsSettings s;
+  EXPECT_EQ(YoungVariance(s, 1.0f), s.young_variance) << "off by default";
+  s.young_variance_surface = 2.0f;
+  EXPECT_EQ(YoungVariance(s, 1.0f), 2.0f);
+  EXPECT_EQ(YoungVariance(s, 24.0f / 25.0f), s.young_variance);
+  EXPECT_EQ(YoungVariance(s, 0.0f), s.young_variance);
+}
+
 TEST(WrlsNumerics, OutliersGetNoWeight) {
   EXPECT_NEAR(SampleWeight({1, 1, 1}, {1, 1, 1}, 0.75f, 1e-6f), 1.0f, 1e-6f);
   EXPECT_LT(SampleWeight({1e6f, 1e6f, 1e6f}, {1, 1, 1}, 0.75f, 1e-6f), 1e-30f);
