@@ -66,9 +66,10 @@ struct WrlsSettings {
   // >= 0: the floor instead where the pixel's 5x5 window all hit the volume
   // (its coverage is 1: a surface, not semi-transparent tissue, whose thin
   // shells need the floor's smoothing); < 0: young_variance everywhere. 2 at
-  // 640x360 on this workplace's CPU: +0.24-0.41 dB on the still views and
-  // orbits, the shells within 0.03 dB (young=2: -0.24 there); not yet run at
-  // 720p, so off (docs/tradeoff.md, "What is still short of the goal").
+  // 640x360 on this workplace's CPU: +0.20-0.41 dB on the still views,
+  // orbits, edits and sun and sky, the shells within 0.03 dB (young=2: -0.24
+  // there); not yet run at 720p, so off (docs/tradeoff.md, "What is still
+  // short of the goal").
   float young_variance_surface = -1.0f;
   // [1, 8]: before the blend, the feature's reprojected history is scaled by
   // the ratio of this frame's input to it over (2r + 1)^2 taps 2 pixels apart
