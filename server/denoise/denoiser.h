@@ -65,11 +65,11 @@ struct WrlsSettings {
   float young_variance = 8.0f;   // >= 0
   // >= 0: the floor instead where the pixel's 5x5 window all hit the volume
   // (its coverage is 1: a surface, not semi-transparent tissue, whose thin
-  // shells need the floor's smoothing); < 0: young_variance everywhere. 2 at
-  // 640x360 on this workplace's CPU: +0.20-0.41 dB on the still views,
-  // orbits, edits and sun and sky, the shells within 0.03 dB (young=2: -0.24
-  // there); not yet run at 720p, so off (docs/tradeoff.md, "What is still
-  // short of the goal").
+  // shells need the floor's smoothing); < 0: young_variance everywhere. On
+  // the study's 28 runs at 720p (an H100), 4 gains up to 0.20 dB and loses
+  // at most 0.02 (2 loses 0.08 on the phantom's shells), but raises temporal
+  // error on most runs and takes two more over SVGF's: off (docs/tradeoff.md,
+  // "What is still short of the goal").
   float young_variance_surface = -1.0f;
   // [1, 8]: before the blend, the feature's reprojected history is scaled by
   // the ratio of this frame's input to it over (2r + 1)^2 taps 2 pixels apart
