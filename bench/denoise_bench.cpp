@@ -64,7 +64,7 @@ int RunDenoiseBench(const DenoiseBenchOptions& o) {
 
   std::vector<ImageRgbF> references;
   for (int t = 0; o.reference_spp > 0 && t < o.frames; ++t) {
-    references.push_back(RenderReference(backend, loaded.volume, view(t), o.reference_spp, setup.max_bounces, t));
+    references.push_back(RenderReference(backend, loaded.volume, view(t), o.reference_spp, setup.max_bounces));
   }
 
   std::string table = fmt::format(

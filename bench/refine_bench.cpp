@@ -77,7 +77,7 @@ int RunRefineBench(const RefineBenchOptions& o) {
       throw InputError(
           fmt::format("--reference {}: {}x{}, not the frames' size", o.reference, reference.width, reference.height));
   } else {
-    reference = RenderReference(backend, loaded.volume, setup, o.reference_spp, setup.max_bounces, 0);
+    reference = RenderReference(backend, loaded.volume, setup, o.reference_spp, setup.max_bounces);
     if (!o.reference.empty()) WriteExr(o.reference, reference);
   }
   const ImageRgb8 reference_shown = ShownOnCpu(reference, setup.exposure);

@@ -102,10 +102,12 @@ std::vector<RunResult> RunStudy(const StudyOptions& options);
 // What the benchmarks share: the camera turned about its up axis through the
 // point it looks at, and a reference image of one view (its camera,
 // transfer function and lights): `spp` samples at `bounces` in chunks of 64,
-// seeded by `frame` alone, accumulated by a FramePipeline of its own.
+// accumulated by a FramePipeline of its own. Every view's chunks have the
+// same seeds, so two views' references differ by what changed between them,
+// not by their noise: a still view's references are one image.
 Camera Orbit(const Camera& camera, float degrees);
-ImageRgbF RenderReference(Backend backend, std::shared_ptr<const Volume> volume, RenderSetup view, int spp, int bounces,
-                          int frame);
+ImageRgbF RenderReference(Backend backend, std::shared_ptr<const Volume> volume, RenderSetup view, int spp,
+                          int bounces);
 
 // Markdown: per scenario, every configuration's means.
 std::string SummaryTable(const std::vector<RunResult>& results);

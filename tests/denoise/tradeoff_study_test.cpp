@@ -5,12 +5,14 @@
 // SVGF on the camera orbit.
 #include "tradeoff_study.h"
 
+#include <fmt/format.h>
 #include <gtest/gtest.h>
 
 #include <cmath>
 #include <map>
 
 #include "core/error.h"
+#include "encode/hdr_images.h"
 #include "support/test_paths.h"
 #include "support/time_series_nifti.h"
 
@@ -82,6 +84,18 @@ TEST(TradeoffStudy, TinyRunKeepsWrlsAheadAndNumbersFinite) {
   EXPECT_TRUE(std::filesystem::exists(o.out / "tradeoff.csv"));
   EXPECT_TRUE(std::filesystem::exists(o.out / "tradeoff.json"));
   EXPECT_TRUE(std::filesystem::exists(o.out / "images" / "phantom" / "orbit" / "reference.jpg"));
+
+  // Consecutive references of a still view are one image: their own noise
+  // would otherwise count as the denoisers' temporal error.
+  std::map<int, ImageRgbF> still_references;  // frame -> cached reference
+  for (const auto& entry : std::filesystem::directory_iterator(o.cache)) {
+    const std::string name = entry.path().filename().string();
+    for (int frame : {0, 1}) {
+      if (name.rfind(fmt::format("phantom-static-{:03}-", frame), 0) == 0) still_references[frame] = ReadExr(entry.path());
+    }
+  }
+  ASSERT_EQ(still_references.size(), 2u);
+  EXPECT_EQ(still_references[0].pixels, still_references[1].pixels);
 }
 
 // The beat scenario on a time series (a sphere moving a voxel a phase, the
