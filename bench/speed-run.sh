@@ -39,7 +39,8 @@
 #              whose cinevol_tests the bundle holds
 #   identity   both builds' cinevol-bench tradeoff on CThead (640x360, orbit and point light, every
 #              denoiser) and refine (a still to 96 spp): the same quality columns and images? (a
-#              change that claims the same output)
+#              change that claims the same output; both builds f44c2e1 or later, whose study
+#              references share their seeds, or both earlier)
 #   clients    CLIENTS_SESSIONS (8 128) full-size sessions from one loadtest process and from two (CLIENTS=2
 #              splits any step's sessions between that many), alternating
 # SECONDS_PER_RUN (8) is each loadtest's length, DENOISER (wrls) its sessions' denoiser, SPP (2) their samples a frame. Every session of a loadtest
