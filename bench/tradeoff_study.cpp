@@ -581,16 +581,28 @@ std::string Slug(std::string s) {
   return s;
 }
 
+// Whether two frames show the same: camera, transfer function, lights and
+// phase. Since the references share their seeds, such frames' references
+// are one image.
+bool SameView(const ScenarioFrame& a, const ScenarioFrame& b) {
+  const Camera &p = a.camera, &q = b.camera;
+  return a.tf == b.tf && a.lights == b.lights && a.phase == b.phase && p.eye == q.eye && p.forward == q.forward &&
+         p.right == q.right && p.up == q.up && p.tan_half_fov_y == q.tan_half_fov_y && p.lens_radius == q.lens_radius &&
+         p.focal_distance == q.focal_distance;
+}
+
 References LoadReferences(const Context& ctx, const Dataset& d, const std::string& scene_json, const Scenario& s,
                           int bounces) {
   References refs;
   fs::create_directories(ctx.o.cache);
   for (int t = 0; t < s.frames; ++t) {
+    const ScenarioFrame f = s.At(t);
     const fs::path path = ctx.o.cache / (ReferenceKey(d, scene_json, s.name, t, s.frames, bounces, ctx.o) + ".exr");
-    if (fs::exists(path)) {
+    if (t > 0 && SameView(f, s.At(t - 1))) {
+      refs.hdr.push_back(refs.hdr.back());
+    } else if (fs::exists(path)) {
       refs.hdr.push_back(ReadExr(path));
     } else {
-      const ScenarioFrame f = s.At(t);
       RenderSetup view;
       view.camera = f.camera;
       view.camera.width = ctx.o.width;

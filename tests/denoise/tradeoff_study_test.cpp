@@ -5,14 +5,12 @@
 // SVGF on the camera orbit.
 #include "tradeoff_study.h"
 
-#include <fmt/format.h>
 #include <gtest/gtest.h>
 
 #include <cmath>
 #include <map>
 
 #include "core/error.h"
-#include "encode/hdr_images.h"
 #include "support/test_paths.h"
 #include "support/time_series_nifti.h"
 
@@ -85,17 +83,16 @@ TEST(TradeoffStudy, TinyRunKeepsWrlsAheadAndNumbersFinite) {
   EXPECT_TRUE(std::filesystem::exists(o.out / "tradeoff.json"));
   EXPECT_TRUE(std::filesystem::exists(o.out / "images" / "phantom" / "orbit" / "reference.jpg"));
 
-  // Consecutive references of a still view are one image: their own noise
+  // A still view's references are one image, rendered once: their own noise
   // would otherwise count as the denoisers' temporal error.
-  std::map<int, ImageRgbF> still_references;  // frame -> cached reference
+  int still_references = 0, orbit_references = 0;
   for (const auto& entry : std::filesystem::directory_iterator(o.cache)) {
     const std::string name = entry.path().filename().string();
-    for (int frame : {0, 1}) {
-      if (name.rfind(fmt::format("phantom-static-{:03}-", frame), 0) == 0) still_references[frame] = ReadExr(entry.path());
-    }
+    still_references += name.rfind("phantom-static-", 0) == 0;
+    orbit_references += name.rfind("phantom-orbit-", 0) == 0;
   }
-  ASSERT_EQ(still_references.size(), 2u);
-  EXPECT_EQ(still_references[0].pixels, still_references[1].pixels);
+  EXPECT_EQ(still_references, 1);
+  EXPECT_GT(orbit_references, 1);
 }
 
 // The beat scenario on a time series (a sphere moving a voxel a phase, the
