@@ -591,28 +591,37 @@ bool SameView(const ScenarioFrame& a, const ScenarioFrame& b) {
          p.focal_distance == q.focal_distance;
 }
 
+// Frame t's reference: from the cache, else rendered and cached.
+ImageRgbF LoadReference(const Context& ctx, const Dataset& d, const std::string& scene_json, const Scenario& s, int t,
+                        const ScenarioFrame& f, int bounces) {
+  const fs::path path = ctx.o.cache / (ReferenceKey(d, scene_json, s.name, t, s.frames, bounces, ctx.o) + ".exr");
+  if (fs::exists(path)) return ReadExr(path);
+  RenderSetup view;
+  view.camera = f.camera;
+  view.camera.width = ctx.o.width;
+  view.camera.height = ctx.o.height;
+  view.transfer_function = *f.tf;
+  view.lights = *f.lights;
+  ImageRgbF reference = RenderReference(ctx.backend, ctx.PhaseVolume(f.phase), view, ctx.o.reference_spp, bounces);
+  WriteExr(path, reference);
+  return reference;
+}
+
 References LoadReferences(const Context& ctx, const Dataset& d, const std::string& scene_json, const Scenario& s,
                           int bounces) {
   References refs;
   fs::create_directories(ctx.o.cache);
+  ScenarioFrame previous;
   for (int t = 0; t < s.frames; ++t) {
     const ScenarioFrame f = s.At(t);
-    const fs::path path = ctx.o.cache / (ReferenceKey(d, scene_json, s.name, t, s.frames, bounces, ctx.o) + ".exr");
-    if (t > 0 && SameView(f, s.At(t - 1))) {
+    if (t > 0 && SameView(f, previous)) {
       refs.hdr.push_back(refs.hdr.back());
-    } else if (fs::exists(path)) {
-      refs.hdr.push_back(ReadExr(path));
+      refs.display.push_back(refs.display.back());
     } else {
-      RenderSetup view;
-      view.camera = f.camera;
-      view.camera.width = ctx.o.width;
-      view.camera.height = ctx.o.height;
-      view.transfer_function = *f.tf;
-      view.lights = *f.lights;
-      refs.hdr.push_back(RenderReference(ctx.backend, ctx.PhaseVolume(f.phase), view, ctx.o.reference_spp, bounces));
-      WriteExr(path, refs.hdr.back());
+      refs.hdr.push_back(LoadReference(ctx, d, scene_json, s, t, f, bounces));
+      refs.display.push_back(ToneMap(refs.hdr.back(), ctx.exposure));
     }
-    refs.display.push_back(ToneMap(refs.hdr.back(), ctx.exposure));
+    previous = f;
   }
   return refs;
 }
