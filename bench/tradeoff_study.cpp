@@ -478,6 +478,9 @@ StudyConfig Variant(const std::string& spec) {
     } else if (key == "squared") {
       if (v != 0.0f && v != 1.0f) throw InputError(fmt::format("--variant {}: squared is 0 or 1", spec));
       c.svgf.squared_luminance = c.wrls.atrous_squared_luminance = v != 0.0f;
+    } else if (key == "recenter_unmoved") {
+      if (v != 0.0f && v != 1.0f) throw InputError(fmt::format("--variant {}: recenter_unmoved is 0 or 1", spec));
+      c.wrls.stabilize_recenter_unmoved = v != 0.0f;
     } else if (c.method == DenoiseMethod::kSvgf) {
       if (key == "sigma_luminance")
         c.svgf.sigma_luminance = v;

@@ -122,6 +122,13 @@ struct WrlsSettings {
   // estimate over (2r + 1)^2 taps 2 pixels apart, so a shading change does
   // not lag (wrls.h, HistoryOffsetTap; 3 reads as 5).
   int stabilize_recenter = 5;
+  // Recentre also a pixel that stayed where it was while only the camera
+  // moved (DenoiseFrame::only_moved): its history is exact and the lights
+  // and what is drawn held still, so its shift from the estimate is noise
+  // that recentering would pass on (a client re-sending its view; the
+  // study's still view, which says every frame that the camera moved).
+  // Measured in docs/tradeoff.md, "Recentering only where something moved".
+  bool stabilize_recenter_unmoved = false;
   // On a still view the output accumulates as the feature does: the history
   // weight grows as 1 - 1/(n + 1) over the n still frames, up to this many,
   // and is not recentred (nothing moved; recentering would pass on the
@@ -192,6 +199,10 @@ struct DenoiseFrame {
   // camera, transfer function, lights, clipping or labels (the pipeline's
   // change bits say so; nothing compares cameras). false: only the samples did.
   bool changed = true;
+  // The change was the camera's alone: what is drawn, and the lights, held
+  // still in the patient's frame, so a surface point's shading moved only as
+  // far as it depends on the view. false where unknown.
+  bool only_moved = false;
 };
 
 class Denoiser {

@@ -300,7 +300,7 @@ class Wrls final : public DenoiserBase<B> {
                                    s.atrous_sigma_depth, s.atrous_squared_luminance, variance_scale});
       pair.Swap();
     }
-    Stabilize(pair.in, output_history, output);
+    Stabilize(pair.in, output_history, rv, frame.only_moved, output);
   }
 
   void Allocate(std::size_t n) override {
@@ -333,7 +333,8 @@ class Wrls final : public DenoiserBase<B> {
 
   // The estimate blended with the previous output (reprojected): recentred
   // while the view moves, accumulated while it holds still.
-  void Stabilize(const Vec4f* estimate, const Vec4f* output_history, Vec3f* output) {
+  void Stabilize(const Vec4f* estimate, const Vec4f* output_history, const ReprojectionView& rv, bool only_moved,
+                 Vec3f* output) {
     const WrlsSettings& s = this->settings_.wrls;
     const int w = this->width_, h = this->height_;
     const int still = MinInt(still_frames_, s.stabilize_still_frames);
@@ -345,8 +346,9 @@ class Wrls final : public DenoiserBase<B> {
                        rows);
       offsets = rows;
     }
-    B::ForEachPixel(w, h, WrlsStabilizePass{estimate, output_history, offsets, output, StableOutput(output), w, h, weight,
-                                            s.stabilize_clamp, s.stabilize_recenter});
+    B::ForEachPixel(w, h, WrlsStabilizePass{estimate, output_history, offsets, rv,
+                                            only_moved && !s.stabilize_recenter_unmoved, output, StableOutput(output),
+                                            w, h, weight, s.stabilize_clamp, s.stabilize_recenter});
   }
 
   // The frame's scale of the variance the luminance stop reads (baselines.h,

@@ -77,6 +77,23 @@ CINEVOL_HD Reprojection Reproject(const ReprojectionView& v, int x, int y) {
   return r;
 }
 
+// How far what pixel (x, y) shows moved on screen since the previous frame,
+// in pixels: its first hit (or, where its rays escaped, its direction) seen
+// by both cameras. 0 where the camera did not move; infinite where the
+// previous camera did not see it.
+CINEVOL_HD float ScreenMotion(const ReprojectionView& v, int x, int y) {
+  const Vec4f hit = v.first_hit[v.Index(x, y)];
+  Vec3f p = Xyz(hit), p_prev = p;
+  if (Escaped(hit)) {  // the background is at infinity: it moves with the cameras' turn, not their step
+    const Vec3f d = v.camera.GenerateRay(float(x) + 0.5f, float(y) + 0.5f, 0.5f, 0.5f).direction;
+    p = v.camera.eye + d;
+    p_prev = v.prev_camera.eye + d;
+  }
+  float cx, cy, px, py;
+  if (!v.camera.Project(p, cx, cy) || !v.prev_camera.Project(p_prev, px, py)) return INFINITY;
+  return sqrtf((px - cx) * (px - cx) + (py - cy) * (py - cy));
+}
+
 // The bilinear taps of a valid reprojection r: the four previous pixels
 // around its continuous position, each weighed where it saw the same kind of
 // thing as `hit` (0 elsewhere; a still view: the pixel itself). Histories

@@ -520,6 +520,9 @@ struct WrlsTemporalPass {
   }
 };
 
+// A pixel whose content moved less than this on screen stayed where it was.
+constexpr float kUnmovedPixels = 0.5f;
+
 // Pass 3, after the a-trous levels: temporal stabilisation of the output
 // (WrlsSettings::stabilize_*). The history is clipped to this frame's estimate +- clamp_sigma deviations
 // (Salvi's variance clipping; the deviation counts the 3x3 spread and the
@@ -527,11 +530,15 @@ struct WrlsTemporalPass {
 // function edited) passes through and only noise is averaged. The box is
 // centred on the pixel, not on the 3x3 mean, so that it does not blur edges.
 // The history is first recentred on the estimate (HistoryOffsetTap), so
-// a change of shading passes whole and noise keeps being smoothed.
+// a change of shading passes whole and noise keeps being smoothed; but not
+// where only the camera moved and what the pixel shows stayed on it: its
+// history is then its own, and its shift from the estimate is noise.
 struct WrlsStabilizePass {
   const Vec4f* current;      // this frame's estimate: colour, predicted variance
   const Vec4f* history;      // ReprojectHistoriesPass's output history
   const Vec4f* offset_rows;  // row sums of HistoryOffsetTap; null: not recentred (a still view)
+  ReprojectionView view;     // its cameras and first hits tell a pixel's motion
+  bool only_moved;           // DenoiseFrame::only_moved, and unmoved pixels are not recentred
   Vec3f* output;             // the denoiser's output
   Vec3f* kept;               // the same, kept as the next frame's history (may be `output`)
   int width, height;
@@ -546,7 +553,9 @@ struct WrlsStabilizePass {
     Vec3f out = c;
     if (history[i].w != 0.0f) {
       Vec3f h = Xyz(history[i]);
-      if (offset_rows) h = Max(h - Xyz(WindowMean(offset_rows, width, height, x, y, recenter)), Vec3f{});
+      if (offset_rows && !(only_moved && ScreenMotion(view, x, y) < kUnmovedPixels)) {
+        h = Max(h - Xyz(WindowMean(offset_rows, width, height, x, y, recenter)), Vec3f{});
+      }
       Vec3f sum{}, sum_sq{};
       float n = 0.0f;
       for (int dy = -1; dy <= 1; ++dy) {

@@ -193,7 +193,7 @@ void FramePipeline::SetPhase(std::shared_ptr<const Volume> phase) {
   ResetAccumulation();  // the samples so far are another phase's
   if (settings_.phase_history == PhaseHistory::kReset)
     denoiser_ = CreateDenoiser(renderer_->backend(), settings_.denoiser);
-  picture_changed_ |= settings_.phase_history != PhaseHistory::kKept;
+  if (settings_.phase_history != PhaseHistory::kKept) picture_changed_ = shading_changed_ = true;
 }
 
 void FramePipeline::SetTransferFunction(TransferFunction tf) {
@@ -210,6 +210,7 @@ void FramePipeline::Apply(const FrameSettings& settings, unsigned changes) {
     ++scene_version_;
   }
   picture_changed_ |= (changes & kPictureChanges) != 0;
+  shading_changed_ |= (changes & kPictureChanges & ~kCameraChanged) != 0;
   // On the CPU every edit of the picture is an interaction: a full-size
   // frame after a moved light would take seconds.
   const unsigned interactions = policy_ == InteractivePolicy::kCostModel
@@ -338,8 +339,9 @@ DisplayFrame FramePipeline::RenderFrame() {
   accumulated_spp_ += spp;
 
   const FrameTargets t = renderer_->Targets();
-  const Vec3f* denoised = denoiser_->Denoise(
-      {camera.width, camera.height, t.radiance, t.first_hit, t.albedo, camera, std::exchange(picture_changed_, false)});
+  const bool only_moved = picture_changed_ && !std::exchange(shading_changed_, false);
+  const Vec3f* denoised = denoiser_->Denoise({camera.width, camera.height, t.radiance, t.first_hit, t.albedo, camera,
+                                              std::exchange(picture_changed_, false), only_moved});
   out.denoise_ms = denoiser_->LastMilliseconds();
 
   const auto display_start = Clock::now();

@@ -281,6 +281,7 @@ class FramePipeline {
   std::uint64_t transfer_function_builds_ = 0;
   std::uint64_t scene_version_ = 0;  // bumped on edits of the picture other than the camera's (tests read it)
   bool picture_changed_ = true;      // since the denoiser's last frame (DenoiseFrame::changed)
+  bool shading_changed_ = true;      // the same, other than by the camera (DenoiseFrame::only_moved)
   std::uint32_t frame_ = 0;          // seeds each frame's samples
   int accumulated_spp_ = 0;
   float estimated_error_ = -1;  // the last refined frame's estimate; < 0 none yet

@@ -32,6 +32,8 @@ TEST(TradeoffStudy, VariantsParseTheirKeysAndNameBadOnes) {
   EXPECT_TRUE(Variant("q:squared=1").wrls.atrous_squared_luminance);
   EXPECT_TRUE(Variant("q:method=svgf,squared=1").svgf.squared_luminance);
   EXPECT_THROW(Variant("q:squared=2"), InputError);
+  EXPECT_TRUE(Variant("m:recenter_unmoved=1").wrls.stabilize_recenter_unmoved);
+  EXPECT_THROW(Variant("m:recenter_unmoved=2"), InputError);
   EXPECT_THROW(Variant("s:stabilize_still=-1"), InputError);
   EXPECT_THROW(Variant("s:stabilize_still=1e10"), InputError) << "beyond an int";
   EXPECT_THROW(Variant("a:atrous=40"), InputError) << "a step of 2^39 pixels";

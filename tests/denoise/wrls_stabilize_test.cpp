@@ -10,6 +10,7 @@
 #include <string>
 #include <vector>
 
+#include "core/camera.h"
 #include "core/rng.h"
 #include "device/cpu_backend.h"
 #include "denoise/wrls.h"
@@ -37,21 +38,24 @@ Frames Make(float now, float before) {
   return f;
 }
 
-// The stabiliser as the wRLS driver runs it: the recentering's row sums first.
+// The stabiliser as the wRLS driver runs it: the recentering's row sums
+// first. `only_moved`: the view whose cameras say how far each pixel moved,
+// where only the camera did (null: the shading may have changed).
 WrlsStabilizePass MakePass(const Frames& f, int recenter, std::vector<Vec4f>& rows, std::vector<Vec3f>& out,
-                           std::vector<Vec3f>& kept) {
+                           std::vector<Vec3f>& kept, const ReprojectionView* only_moved = nullptr) {
   rows.resize(f.current.size());
   out.resize(f.current.size());
   kept.resize(f.current.size());
   CpuBackend::RowWindowSums(kSize, kSize, recenter, kWindowTapStride,
                             HistoryOffsetTap{f.current.data(), f.history.data(), kSize}, rows.data());
-  return {f.current.data(), f.history.data(), rows.data(), out.data(), kept.data(), kSize, kSize, 0.5f, 4.0f, recenter};
+  return {f.current.data(), f.history.data(), rows.data(), only_moved ? *only_moved : ReprojectionView{},
+          only_moved != nullptr, out.data(), kept.data(), kSize, kSize, 0.5f, 4.0f, recenter};
 }
 
-std::vector<Vec3f> Stabilize(const Frames& f, int recenter) {
+std::vector<Vec3f> Stabilize(const Frames& f, int recenter, const ReprojectionView* only_moved = nullptr) {
   std::vector<Vec4f> rows;
   std::vector<Vec3f> out, kept;
-  CpuBackend::ForEachPixel(kSize, kSize, MakePass(f, recenter, rows, out, kept));
+  CpuBackend::ForEachPixel(kSize, kSize, MakePass(f, recenter, rows, out, kept, only_moved));
   EXPECT_EQ(out, kept);
   return out;
 }
@@ -81,6 +85,22 @@ TEST(WrlsStabilize, RecenteringStillAveragesNoise) {
   const double before = Deviation(current);
   EXPECT_LT(Deviation(Stabilize(still, 3)), 0.8 * before);
   EXPECT_NEAR(Mean(Stabilize(still, 3)), 1.0, 0.01);
+}
+
+// Where only the camera moved, a pixel whose content stayed where it was
+// keeps its history as it is: the same shift is now the estimate's noise,
+// and about half of it (what the clip box leaves) is kept back. Where the
+// content moved a pixel or more it is recentred as before.
+TEST(WrlsStabilize, WhereOnlyTheCameraMovedAPixelThatStayedIsNotRecentred) {
+  const Frames shifted = Make(1.0f, 0.7f);
+  const std::vector<Vec4f> hits(kSize * kSize, Vec4f{0, 0, 0, 1});  // everything on the point the camera looks at
+  ReprojectionView view;
+  view.first_hit = hits.data();
+  view.width = view.height = kSize;
+  view.camera = view.prev_camera = LookAt({0, -300, 0}, {0, 0, 0}, {0, 0, 1}, 30, kSize, kSize);
+  EXPECT_NEAR(Mean(Stabilize(shifted, 3, &view)), 0.86, 0.02) << "still";
+  view.prev_camera = LookAt({0, -300, 10}, {0, 0, 10}, {0, 0, 1}, 30, kSize, kSize);  // 10 mm: about 3 pixels
+  EXPECT_NEAR(Mean(Stabilize(shifted, 3, &view)), 1.0, 0.01) << "moved";
 }
 
 // Row sums added up down the column give the mean over the whole window of
