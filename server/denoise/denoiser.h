@@ -125,8 +125,9 @@ struct WrlsSettings {
   // Recentre also a pixel that stayed where it was while only the camera
   // moved (DenoiseFrame::only_moved): its history is exact and the lights
   // and what is drawn held still, so its shift from the estimate is noise
-  // that recentering would pass on (a client re-sending its view; the
-  // study's still view, which says every frame that the camera moved).
+  // that recentering would pass on (the centre of a zoom, the axis of a
+  // turn; most of all the study's still view, which says every frame that
+  // the camera moved: the server takes an unchanged camera as no change).
   // Measured in docs/tradeoff.md, "Recentering only where something moved".
   bool stabilize_recenter_unmoved = false;
   // On a still view the output accumulates as the feature does: the history

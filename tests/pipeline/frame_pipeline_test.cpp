@@ -147,7 +147,7 @@ double MeanAbsLuminanceChange(const ImageRgbF& a, const ImageRgbF& b) {
 
 // wRLS recentres its output's history on each frame's estimate only where
 // the shading may have changed. Told every frame that only the camera moved
-// (a client re-sending its view), the output of a view that holds still
+// (as the study's still view is), the output of a view that holds still
 // changes from frame to frame by less than told that the lights changed too,
 // where the shift toward each frame's estimate is taken as a change of
 // shading and passed on (0.84 of it at 48x32, 0.92 at 96x64).
