@@ -5,8 +5,8 @@
 
 #include <cmath>
 
-#include "denoise/denoiser.h"
 #include "image_metrics.h"
+#include "denoise/denoiser.h"
 #include "io/phantom.h"
 #include "render/renderer.h"
 #include "support/gpu.h"
@@ -17,7 +17,7 @@ namespace {
 struct Case {
   DenoiseMethod method;
   bool demodulate;
-  bool squared_stop = false;       // SvgfSettings::squared_luminance, WrlsSettings::atrous_squared_luminance
+  bool squared_stop = false;  // SvgfSettings::squared_luminance, WrlsSettings::atrous_squared_luminance
   float calibration_floor = 0.0f;  // WrlsSettings::atrous_calibration_floor
 };
 
@@ -83,14 +83,14 @@ TEST_P(CudaDenoiser, AgreesWithCpu) {
   }
 }
 
-INSTANTIATE_TEST_SUITE_P(Methods, CudaDenoiser,
-                         ::testing::Values(Case{DenoiseMethod::kNone, false}, Case{DenoiseMethod::kAccumulate, false},
-                                           Case{DenoiseMethod::kKnn, false}, Case{DenoiseMethod::kGuidedFilter, false},
-                                           Case{DenoiseMethod::kSvgf, false}, Case{DenoiseMethod::kWrls, false},
-                                           Case{DenoiseMethod::kWrls, true}, Case{DenoiseMethod::kSvgf, false, true},
-                                           Case{DenoiseMethod::kWrls, false, true},
-                                           Case{DenoiseMethod::kWrls, false, true, 0.0625f}),
-                         [](const auto& info) { return CaseName(info.param); });
+INSTANTIATE_TEST_SUITE_P(
+    Methods, CudaDenoiser,
+    ::testing::Values(Case{DenoiseMethod::kNone, false}, Case{DenoiseMethod::kAccumulate, false},
+                      Case{DenoiseMethod::kKnn, false}, Case{DenoiseMethod::kGuidedFilter, false},
+                      Case{DenoiseMethod::kSvgf, false}, Case{DenoiseMethod::kWrls, false},
+                      Case{DenoiseMethod::kWrls, true}, Case{DenoiseMethod::kSvgf, false, true},
+                      Case{DenoiseMethod::kWrls, false, true}, Case{DenoiseMethod::kWrls, false, true, 0.0625f}),
+    [](const auto& info) { return CaseName(info.param); });
 
 }  // namespace
 }  // namespace cinevol
