@@ -111,15 +111,41 @@ std::vector<float> Blur(const std::vector<float>& in, int width, int height) {
 
 }  // namespace
 
-double Psnr(const ImageRgb8& image, const ImageRgb8& reference) {
+namespace {
+// Mean squared difference in codes.
+double CodeMse(const ImageRgb8& image, const ImageRgb8& reference) {
   CheckSameSize(image, reference);
   double mse = 0;
   for (std::size_t i = 0; i < image.bytes.size(); ++i) {
     const double d = double(image.bytes[i]) - reference.bytes[i];
     mse += d * d;
   }
-  mse /= double(image.bytes.size());
-  return mse > 0 ? 10.0 * std::log10(255.0 * 255.0 / mse) : 100.0;
+  return mse / double(image.bytes.size());
+}
+
+double PsnrOfCodeMse(double mse) { return mse > 0 ? 10.0 * std::log10(255.0 * 255.0 / mse) : 100.0; }
+}  // namespace
+
+double Psnr(const ImageRgb8& image, const ImageRgb8& reference) { return PsnrOfCodeMse(CodeMse(image, reference)); }
+
+double ReferenceNoise(const ImageRgbF& a, const ImageRgbF& b, int a_spp, int b_spp, float exposure) {
+  CheckSameSize(a, b);
+  if (a_spp < 1 || b_spp < 1 || a.pixels.empty()) return 0.0;
+  const float scale = std::exp2(exposure);
+  double sum = 0;
+  for (std::size_t i = 0; i < a.pixels.size(); ++i) {
+    std::uint8_t codes[3];
+    float pa[3], pb[3];
+    ToneMapPixel(a.pixels[i], scale, codes, pa);
+    ToneMapPixel(b.pixels[i], scale, codes, pb);
+    for (int c = 0; c < 3; ++c) sum += double(pa[c] - pb[c]) * (pa[c] - pb[c]);
+  }
+  const double n = double(a_spp) + b_spp;
+  return sum / (3.0 * a.pixels.size()) * (double(a_spp) * b_spp / (n * n));
+}
+
+double CorrectedPsnr(const ImageRgb8& image, const ImageRgb8& reference, double reference_noise) {
+  return PsnrOfCodeMse(CodeMse(image, reference) - reference_noise);
 }
 
 double Ssim(const ImageRgb8& image, const ImageRgb8& reference) {

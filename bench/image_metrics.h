@@ -26,6 +26,21 @@ double RelativeMse(const ImageRgbF& image, const ImageRgbF& reference);
 // that applies):
 // PSNR in dB over the three channels (peak 255); 100 for identical images.
 double Psnr(const ImageRgb8& image, const ImageRgb8& reference);
+// The variance a reference's own noise adds to an image's squared error
+// against it, in 8-bit codes squared (as Psnr's). The reference is the mean,
+// by samples, of two halves rendered with independent seeds, `a` of `a_spp`
+// samples and `b` of `b_spp`; the halves' display values differ by their
+// noise alone, and their squared difference, scaled by a_spp b_spp /
+// (a_spp + b_spp)^2, is what the whole reference's noise is expected to be
+// (to first order in the display curve).
+double ReferenceNoise(const ImageRgbF& a, const ImageRgbF& b, int a_spp, int b_spp, float exposure);
+// PSNR against the converged image the reference estimates: the squared
+// error against `reference` less `reference_noise` (ReferenceNoise), an
+// unbiased estimate where the image's noise is independent of the
+// reference's. A good denoiser's error is near the noise of a reference of a
+// few hundred samples, which then hides most of the difference between two
+// of them (docs/tradeoff.md). 100 where nothing is left.
+double CorrectedPsnr(const ImageRgb8& image, const ImageRgb8& reference, double reference_noise);
 // SSIM (Wang et al. 2004: 11x11 Gaussian window, sigma 1.5, K1 0.01, K2 0.03)
 // of the Rec. 709 luma, averaged over the image.
 double Ssim(const ImageRgb8& image, const ImageRgb8& reference);

@@ -210,8 +210,8 @@ std::uint64_t Fnv1a(const std::string& text) {
 std::string ReferenceKey(const Dataset& d, const std::string& scene_json, const std::string& scenario, int frame,
                          int frames, int bounces, const StudyOptions& o) {
   const std::string text =
-      fmt::format("{}|{}|{}|{}|{}/{}|{}x{}|{}spp|{}bounces|renderer {}|seeds per chunk", d.name, d.volume, scene_json,
-                  scenario, frame, frames, o.width, o.height, o.reference_spp, bounces, kRendererVersion);
+      fmt::format("{}|{}|{}|{}|{}/{}|{}x{}|{}spp|{}bounces|renderer {}|seeds per chunk, two halves", d.name, d.volume,
+                  scene_json, scenario, frame, frames, o.width, o.height, o.reference_spp, bounces, kRendererVersion);
   return fmt::format("{}-{}-{:03}-{:016x}", d.name, scenario, frame, Fnv1a(text));
 }
 
@@ -292,6 +292,7 @@ ImageRgb8 Half(const ImageRgb8& image) {
 struct References {
   std::vector<ImageRgbF> hdr;
   std::vector<ImageRgb8> display;
+  std::vector<double> noise;  // ReferenceNoise of each frame's display
 };
 
 struct Context {
@@ -395,6 +396,7 @@ RunResult RunConfig(const Context& ctx, const Scenario& scenario, const Referenc
     fr.tonemap_ms = frame.display_ms;
     const ImageRgb8 shown = Shown(ctx, frame, c.jpeg_quality, &fr.encode_ms);
     fr.psnr = Psnr(shown, refs.display[t]);
+    fr.psnr_corrected = CorrectedPsnr(shown, refs.display[t], refs.noise[t]);
     fr.ssim = Ssim(shown, refs.display[t]);
     fr.rel_mse = RelativeMse(UpsampleHdr(pipeline.DenoisedRadiance(), ctx.o.width, ctx.o.height), refs.hdr[t]);
     if (t > 0) fr.temporal = TemporalError(shown, previous, refs.display[t], refs.display[t - 1]);
@@ -594,20 +596,30 @@ bool SameView(const ScenarioFrame& a, const ScenarioFrame& b) {
          p.focal_distance == q.focal_distance;
 }
 
-// Frame t's reference: from the cache, else rendered and cached.
-ImageRgbF LoadReference(const Context& ctx, const Dataset& d, const std::string& scene_json, const Scenario& s, int t,
-                        const ScenarioFrame& f, int bounces) {
-  const fs::path path = ctx.o.cache / (ReferenceKey(d, scene_json, s.name, t, s.frames, bounces, ctx.o) + ".exr");
-  if (fs::exists(path)) return ReadExr(path);
+// Frame t's reference, as its two halves: from the cache, else rendered and
+// cached (one EXR a half).
+ReferenceHalves LoadReference(const Context& ctx, const Dataset& d, const std::string& scene_json, const Scenario& s,
+                              int t, const ScenarioFrame& f, int bounces) {
+  const std::string key = ReferenceKey(d, scene_json, s.name, t, s.frames, bounces, ctx.o);
+  const fs::path path_a = ctx.o.cache / (key + "-a.exr"), path_b = ctx.o.cache / (key + "-b.exr");
+  ReferenceHalves halves;
+  halves.b_spp = ctx.o.reference_spp / 2;
+  halves.a_spp = ctx.o.reference_spp - halves.b_spp;
+  if (fs::exists(path_a) && (halves.b_spp == 0 || fs::exists(path_b))) {
+    halves.a = ReadExr(path_a);
+    if (halves.b_spp > 0) halves.b = ReadExr(path_b);
+    return halves;
+  }
   RenderSetup view;
   view.camera = f.camera;
   view.camera.width = ctx.o.width;
   view.camera.height = ctx.o.height;
   view.transfer_function = *f.tf;
   view.lights = *f.lights;
-  ImageRgbF reference = RenderReference(ctx.backend, ctx.PhaseVolume(f.phase), view, ctx.o.reference_spp, bounces);
-  WriteExr(path, reference);
-  return reference;
+  halves = RenderReferenceHalves(ctx.backend, ctx.PhaseVolume(f.phase), view, ctx.o.reference_spp, bounces);
+  WriteExr(path_a, halves.a);
+  if (halves.b_spp > 0) WriteExr(path_b, halves.b);
+  return halves;
 }
 
 References LoadReferences(const Context& ctx, const Dataset& d, const std::string& scene_json, const Scenario& s,
@@ -620,9 +632,13 @@ References LoadReferences(const Context& ctx, const Dataset& d, const std::strin
     if (t > 0 && SameView(f, previous)) {
       refs.hdr.push_back(refs.hdr.back());
       refs.display.push_back(refs.display.back());
+      refs.noise.push_back(refs.noise.back());
     } else {
-      refs.hdr.push_back(LoadReference(ctx, d, scene_json, s, t, f, bounces));
+      const ReferenceHalves halves = LoadReference(ctx, d, scene_json, s, t, f, bounces);
+      refs.hdr.push_back(halves.Mean());
       refs.display.push_back(ToneMap(refs.hdr.back(), ctx.exposure));
+      refs.noise.push_back(
+          halves.b_spp > 0 ? ReferenceNoise(halves.a, halves.b, halves.a_spp, halves.b_spp, ctx.exposure) : 0.0);
     }
     previous = f;
   }
@@ -632,14 +648,15 @@ References LoadReferences(const Context& ctx, const Dataset& d, const std::strin
 void WriteCsv(const fs::path& path, const std::vector<RunResult>& results) {
   std::ofstream out(path);
   out << "dataset,scenario,knob,config,method,demodulate,spp,bounces,jpeg_quality,scale,frame,psnr,ssim,rel_mse,"
-         "temporal,render_ms,denoise_ms,tonemap_ms,encode_ms\n";
+         "temporal,render_ms,denoise_ms,tonemap_ms,encode_ms,psnr_corrected\n";
   for (const RunResult& r : results) {
     const StudyConfig& c = r.config;
     for (const FrameResult& f : r.frames) {
-      out << fmt::format("{},{},{},{},{},{},{},{},{},{},{},{:.4f},{:.5f},{:.6g},{:.6f},{:.4f},{:.4f},{:.4f},{:.4f}\n",
-                         r.dataset, r.scenario, c.knob, c.Label(), ToString(c.method), c.demodulate ? 1 : 0, c.spp,
-                         c.bounces, c.jpeg_quality, c.scale, f.frame, f.psnr, f.ssim, f.rel_mse, f.temporal,
-                         f.render_ms, f.denoise_ms, f.tonemap_ms, f.encode_ms);
+      out << fmt::format(
+          "{},{},{},{},{},{},{},{},{},{},{},{:.4f},{:.5f},{:.6g},{:.6f},{:.4f},{:.4f},{:.4f},{:.4f},{:.4f}\n",
+          r.dataset, r.scenario, c.knob, c.Label(), ToString(c.method), c.demodulate ? 1 : 0, c.spp, c.bounces,
+          c.jpeg_quality, c.scale, f.frame, f.psnr, f.ssim, f.rel_mse, f.temporal, f.render_ms, f.denoise_ms,
+          f.tonemap_ms, f.encode_ms, f.psnr_corrected);
     }
   }
 }
@@ -657,14 +674,15 @@ void WriteJson(const fs::path& path, const StudyOptions& o, const std::string& d
     out << fmt::format(
         "{}\n  {{\"dataset\": \"{}\", \"scenario\": \"{}\", \"knob\": \"{}\", \"config\": \"{}\", \"method\": \"{}\", "
         "\"demodulate\": {}, \"spp\": {}, \"bounces\": {}, \"jpeg_quality\": {}, \"scale\": {}, \"frames\": {}, "
-        "\"psnr\": {:.4f}, \"ssim\": {:.5f}, \"rel_mse\": {:.6g}, \"temporal\": {:.6f}, \"flicker\": {:.6f}, "
-        "\"flicker_unrounded\": {:.6f}, \"still_psnr\": {:.4f}, \"ms\": {{\"render\": {:.4f}, \"denoise\": {:.4f}, "
-        "\"tonemap\": {:.4f}, \"encode\": {:.4f}, \"total\": {:.4f}}}}}",
+        "\"psnr\": {:.4f}, \"psnr_corrected\": {:.4f}, \"ssim\": {:.5f}, \"rel_mse\": {:.6g}, \"temporal\": {:.6f}, "
+        "\"flicker\": {:.6f}, \"flicker_unrounded\": {:.6f}, \"still_psnr\": {:.4f}, \"ms\": {{\"render\": {:.4f}, "
+        "\"denoise\": {:.4f}, \"tonemap\": {:.4f}, \"encode\": {:.4f}, \"total\": {:.4f}}}}}",
         i ? "," : "", r.dataset, r.scenario, c.knob, c.Label(), ToString(c.method), c.demodulate ? "true" : "false",
         c.spp, c.bounces, c.jpeg_quality, c.scale, r.frames.size(), r.Mean(&FrameResult::psnr),
-        r.Mean(&FrameResult::ssim), r.Mean(&FrameResult::rel_mse), r.Mean(&FrameResult::temporal), r.flicker,
-        r.flicker_unrounded, r.still_psnr, r.Mean(&FrameResult::render_ms), r.Mean(&FrameResult::denoise_ms),
-        r.Mean(&FrameResult::tonemap_ms), r.Mean(&FrameResult::encode_ms), r.MeanMs());
+        r.Mean(&FrameResult::psnr_corrected), r.Mean(&FrameResult::ssim), r.Mean(&FrameResult::rel_mse),
+        r.Mean(&FrameResult::temporal), r.flicker, r.flicker_unrounded, r.still_psnr, r.Mean(&FrameResult::render_ms),
+        r.Mean(&FrameResult::denoise_ms), r.Mean(&FrameResult::tonemap_ms), r.Mean(&FrameResult::encode_ms),
+        r.MeanMs());
   }
   out << "]}\n";
 }
@@ -679,23 +697,46 @@ Camera Orbit(const Camera& c, float degrees) {
   return out;
 }
 
-ImageRgbF RenderReference(Backend backend, std::shared_ptr<const Volume> volume, RenderSetup view, int spp,
-                          int bounces) {
-  FramePipeline pipeline(backend, std::move(volume));  // its frames count the chunks from 0
+ImageRgbF ReferenceHalves::Mean() const {
+  if (b_spp == 0) return a;
+  ImageRgbF mean = a;
+  const float wa = float(a_spp) / float(a_spp + b_spp), wb = 1.0f - wa;
+  for (std::size_t i = 0; i < mean.pixels.size(); ++i) mean.pixels[i] = a.pixels[i] * wa + b.pixels[i] * wb;
+  return mean;
+}
+
+ReferenceHalves RenderReferenceHalves(Backend backend, std::shared_ptr<const Volume> volume, RenderSetup view, int spp,
+                                      int bounces) {
   FrameSettings settings;
   settings.denoiser.method = DenoiseMethod::kNone;
   view.max_bounces = bounces;
-  for (int done = 0, chunk = 0; done < spp; done += 64, ++chunk) {
-    // Each chunk its own seed, in one accumulation: only the first update
-    // says what changed. The seeds do not depend on the frame: the temporal
-    // error subtracts consecutive references, whose own noise would
-    // otherwise be most of it on a still view (a still output scored 93% of
-    // the denoisers' error at 320x180, against 64-spp references).
-    view.seed = 1000003ull + chunk;
-    pipeline.Update(view, settings, chunk == 0 ? kEverythingChanged : 0u);
-    pipeline.Accumulate(std::min(64, spp - done));
-  }
-  return pipeline.AccumulatedRadiance();
+  int chunk = 0;
+  // `samples` in chunks of 64, each chunk its own seed, in one accumulation:
+  // only the first update says what changed. The seeds do not depend on the
+  // frame: the temporal error subtracts consecutive references, whose own
+  // noise would otherwise be most of it on a still view (a still output
+  // scored 93% of the denoisers' error at 320x180, against 64-spp
+  // references). The second half's chunks take the next seeds.
+  auto half = [&](int samples) {
+    FramePipeline pipeline(backend, volume);  // its frames count the chunks from 0
+    for (int done = 0, first = chunk; done < samples; done += 64, ++chunk) {
+      view.seed = 1000003ull + chunk;
+      pipeline.Update(view, settings, chunk == first ? kEverythingChanged : 0u);
+      pipeline.Accumulate(std::min(64, samples - done));
+    }
+    return pipeline.AccumulatedRadiance();
+  };
+  ReferenceHalves halves;
+  halves.b_spp = spp / 2;
+  halves.a_spp = spp - halves.b_spp;
+  halves.a = half(halves.a_spp);
+  if (halves.b_spp > 0) halves.b = half(halves.b_spp);
+  return halves;
+}
+
+ImageRgbF RenderReference(Backend backend, std::shared_ptr<const Volume> volume, RenderSetup view, int spp,
+                          int bounces) {
+  return RenderReferenceHalves(backend, std::move(volume), view, spp, bounces).Mean();
 }
 
 std::vector<RunResult> RunStudy(const StudyOptions& o) {
@@ -756,10 +797,11 @@ std::vector<RunResult> RunStudy(const StudyOptions& o) {
         const int bounces = c.knob == "bounces" ? o.reference_bounces : c.bounces;
         RunResult run = RunConfig(ctx, s, references(bounces), c, image, image_frame);
         run.dataset = d.name;
-        std::fprintf(stderr, "  %-22s PSNR %6.2f  SSIM %.4f  temporal %.4f  flicker %.4f (%.4f; %.2f dB)  %7.2f ms\n",
-                     c.Label().c_str(), run.Mean(&FrameResult::psnr), run.Mean(&FrameResult::ssim),
-                     run.Mean(&FrameResult::temporal), run.flicker, run.flicker_unrounded, run.still_psnr,
-                     run.MeanMs());
+        std::fprintf(stderr,
+                     "  %-22s PSNR %6.2f (%6.2f)  SSIM %.4f  temporal %.4f  flicker %.4f (%.4f; %.2f dB)  %7.2f ms\n",
+                     c.Label().c_str(), run.Mean(&FrameResult::psnr), run.Mean(&FrameResult::psnr_corrected),
+                     run.Mean(&FrameResult::ssim), run.Mean(&FrameResult::temporal), run.flicker, run.flicker_unrounded,
+                     run.still_psnr, run.MeanMs());
         results.push_back(std::move(run));
       }
     }
@@ -781,18 +823,19 @@ std::string SummaryTable(const std::vector<RunResult>& results) {
     if (heading != current) {
       current = heading;
       t += fmt::format(
-          "\n#### {} ({} frames)\n\n| configuration | PSNR dB | SSIM | relMSE | temporal error | "
+          "\n#### {} ({} frames)\n\n| configuration | PSNR dB (corrected) | SSIM | relMSE | temporal error | "
           "still view: flicker; before rounding; PSNR dB | ms (render + denoise + tone map + encode) |\n"
           "|---|---|---|---|---|---|---|\n",
           heading, r.frames.size());
     }
     t += fmt::format(
-        "| {} | {:.2f} | {:.4f} | {:.4g} | {:.4f} | {:.4f}; {:.4f}; {:.2f} | {:.2f} ({:.2f} + {:.2f} + {:.2f} + "
+        "| {} | {:.2f} ({:.2f}) | {:.4f} | {:.4g} | {:.4f} | {:.4f}; {:.4f}; {:.2f} | {:.2f} ({:.2f} + {:.2f} + {:.2f} "
+        "+ "
         "{:.2f}) "
         "|\n",
-        r.config.Label(), r.Mean(&FrameResult::psnr), r.Mean(&FrameResult::ssim), r.Mean(&FrameResult::rel_mse),
-        r.Mean(&FrameResult::temporal), r.flicker, r.flicker_unrounded, r.still_psnr, r.MeanMs(),
-        r.Mean(&FrameResult::render_ms), r.Mean(&FrameResult::denoise_ms), r.Mean(&FrameResult::tonemap_ms),
+        r.config.Label(), r.Mean(&FrameResult::psnr), r.Mean(&FrameResult::psnr_corrected), r.Mean(&FrameResult::ssim),
+        r.Mean(&FrameResult::rel_mse), r.Mean(&FrameResult::temporal), r.flicker, r.flicker_unrounded, r.still_psnr,
+        r.MeanMs(), r.Mean(&FrameResult::render_ms), r.Mean(&FrameResult::denoise_ms), r.Mean(&FrameResult::tonemap_ms),
         r.Mean(&FrameResult::encode_ms));
   }
   return t;

@@ -77,6 +77,10 @@ struct StudyOptions {
 struct FrameResult {
   int frame = 0;
   double psnr = 0, ssim = 0, rel_mse = 0;
+  // PSNR against the converged image, the reference's own noise taken out
+  // (CorrectedPsnr): where a denoiser's error is near that noise, plain PSNR
+  // reads two denoisers closer than they are.
+  double psnr_corrected = 0;
   double temporal = 0;  // 0 on the first frame
   double render_ms = 0, denoise_ms = 0, tonemap_ms = 0, encode_ms = 0;
 };
@@ -102,10 +106,19 @@ std::vector<RunResult> RunStudy(const StudyOptions& options);
 // What the benchmarks share: the camera turned about its up axis through the
 // point it looks at, and a reference image of one view (its camera,
 // transfer function and lights): `spp` samples at `bounces` in chunks of 64,
-// accumulated by a FramePipeline of its own. Every view's chunks have the
-// same seeds, so two views' references differ by what changed between them,
-// not by their noise: a still view's references are one image.
+// in two halves with seeds of their own (what tells the reference's noise,
+// ReferenceNoise), each accumulated by a FramePipeline of its own. Every
+// view's chunks have the same seeds, so two views' references differ by what
+// changed between them, not by their noise: a still view's references are
+// one image.
 Camera Orbit(const Camera& camera, float degrees);
+struct ReferenceHalves {
+  ImageRgbF a, b;  // b is empty at 1 sample
+  int a_spp = 0, b_spp = 0;
+  ImageRgbF Mean() const;  // by samples: the reference
+};
+ReferenceHalves RenderReferenceHalves(Backend backend, std::shared_ptr<const Volume> volume, RenderSetup view, int spp,
+                                      int bounces);
 ImageRgbF RenderReference(Backend backend, std::shared_ptr<const Volume> volume, RenderSetup view, int spp,
                           int bounces);
 

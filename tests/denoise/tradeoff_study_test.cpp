@@ -9,8 +9,11 @@
 
 #include <cmath>
 #include <map>
+#include <random>
 
 #include "core/error.h"
+#include "core/tone_map.h"
+#include "image_metrics.h"
 #include "support/test_paths.h"
 #include "support/time_series_nifti.h"
 
@@ -47,6 +50,33 @@ TEST(TradeoffStudy, VariantsParseTheirKeysAndNameBadOnes) {
   EXPECT_THROW(Variant("b:radius=2"), InputError) << "the paper's spatial blend left the code";
 }
 
+// A reference of few samples carries noise of its own, which adds to every
+// image's squared error against it. Its two halves (independent seeds) tell
+// how much: taken out, the PSNR is the one against the noise-free image.
+TEST(TradeoffStudy, CorrectedPsnrTakesTheReferencesNoiseOut) {
+  const int w = 256, h = 256, half_spp = 64;
+  std::mt19937 rng(11);
+  std::normal_distribution<float> unit;
+  ImageRgbF truth{w, h, std::vector<Vec3f>(std::size_t(w) * h)}, image = truth;
+  ReferenceHalves halves{truth, truth, half_spp, half_spp};
+  for (std::size_t i = 0; i < truth.pixels.size(); ++i) {
+    const float level = 0.05f + 1.5f * float(i % w) / float(w);
+    truth.pixels[i] = {level, 0.8f * level, 0.6f * level};
+    // A denoised image's error, and each half's noise at about the same size.
+    for (int c = 0; c < 3; ++c) {
+      image.pixels[i][c] = std::max(truth.pixels[i][c] + 0.02f * unit(rng), 0.0f);
+      halves.a.pixels[i][c] = std::max(truth.pixels[i][c] + 0.02f * unit(rng), 0.0f);
+      halves.b.pixels[i][c] = std::max(truth.pixels[i][c] + 0.02f * unit(rng), 0.0f);
+    }
+  }
+  const ImageRgb8 shown = ToneMap(image, 0), reference = ToneMap(halves.Mean(), 0);
+  const double exact = Psnr(shown, ToneMap(truth, 0)), plain = Psnr(shown, reference);
+  const double corrected = CorrectedPsnr(shown, reference, ReferenceNoise(halves.a, halves.b, half_spp, half_spp, 0));
+  EXPECT_LT(plain, exact - 1.0) << "the reference's noise should show here";
+  EXPECT_NEAR(corrected, exact, 0.15);
+  EXPECT_EQ(CorrectedPsnr(shown, shown, 0.0), 100.0);
+}
+
 TEST(TradeoffStudy, TinyRunKeepsWrlsAheadAndNumbersFinite) {
   testing::ScratchDir scratch;
   StudyOptions o;
@@ -67,7 +97,8 @@ TEST(TradeoffStudy, TinyRunKeepsWrlsAheadAndNumbersFinite) {
     ASSERT_TRUE(std::isfinite(r.flicker)) << r.scenario << " " << r.config.Label();
     flicker[r.scenario][r.config.Label()] = r.flicker;
     for (const FrameResult& f : r.frames) {
-      for (double v : {f.psnr, f.ssim, f.rel_mse, f.temporal, f.render_ms, f.denoise_ms, f.tonemap_ms, f.encode_ms}) {
+      for (double v : {f.psnr, f.psnr_corrected, f.ssim, f.rel_mse, f.temporal, f.render_ms, f.denoise_ms, f.tonemap_ms,
+                       f.encode_ms}) {
         ASSERT_TRUE(std::isfinite(v)) << r.scenario << " " << r.config.Label() << " frame " << f.frame;
       }
     }
@@ -85,15 +116,15 @@ TEST(TradeoffStudy, TinyRunKeepsWrlsAheadAndNumbersFinite) {
   EXPECT_TRUE(std::filesystem::exists(o.out / "tradeoff.json"));
   EXPECT_TRUE(std::filesystem::exists(o.out / "images" / "phantom" / "orbit" / "reference.jpg"));
 
-  // A still view's references are one image, rendered once: their own noise
-  // would otherwise count as the denoisers' temporal error.
+  // A still view's references are one image, rendered once (in two halves):
+  // their own noise would otherwise count as the denoisers' temporal error.
   int still_references = 0, orbit_references = 0;
   for (const auto& entry : std::filesystem::directory_iterator(o.cache)) {
     const std::string name = entry.path().filename().string();
     still_references += name.rfind("phantom-static-", 0) == 0;
     orbit_references += name.rfind("phantom-orbit-", 0) == 0;
   }
-  EXPECT_EQ(still_references, 1);
+  EXPECT_EQ(still_references, 2);
   EXPECT_GT(orbit_references, 1);
 }
 
