@@ -129,8 +129,9 @@ double PsnrOfCodeMse(double mse) { return mse > 0 ? 10.0 * std::log10(255.0 * 25
 double Psnr(const ImageRgb8& image, const ImageRgb8& reference) { return PsnrOfCodeMse(CodeMse(image, reference)); }
 
 double ReferenceNoise(const ImageRgbF& a, const ImageRgbF& b, int a_spp, int b_spp, float exposure) {
+  if (a_spp < 1 || b_spp < 1) return 0.0;  // one sample: no second half to tell
   CheckSameSize(a, b);
-  if (a_spp < 1 || b_spp < 1 || a.pixels.empty()) return 0.0;
+  if (a.pixels.empty()) return 0.0;
   const float scale = std::exp2(exposure);
   double sum = 0;
   for (std::size_t i = 0; i < a.pixels.size(); ++i) {

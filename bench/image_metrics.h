@@ -32,7 +32,7 @@ double Psnr(const ImageRgb8& image, const ImageRgb8& reference);
 // samples and `b` of `b_spp`; the halves' display values differ by their
 // noise alone, and their squared difference, scaled by a_spp b_spp /
 // (a_spp + b_spp)^2, is what the whole reference's noise is expected to be
-// (to first order in the display curve).
+// (to first order in the display curve). 0 where a half has no samples.
 double ReferenceNoise(const ImageRgbF& a, const ImageRgbF& b, int a_spp, int b_spp, float exposure);
 // PSNR against the converged image the reference estimates: the squared
 // error against `reference` less `reference_noise` (ReferenceNoise), an

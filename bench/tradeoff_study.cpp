@@ -602,9 +602,7 @@ ReferenceHalves LoadReference(const Context& ctx, const Dataset& d, const std::s
                               int t, const ScenarioFrame& f, int bounces) {
   const std::string key = ReferenceKey(d, scene_json, s.name, t, s.frames, bounces, ctx.o);
   const fs::path path_a = ctx.o.cache / (key + "-a.exr"), path_b = ctx.o.cache / (key + "-b.exr");
-  ReferenceHalves halves;
-  halves.b_spp = ctx.o.reference_spp / 2;
-  halves.a_spp = ctx.o.reference_spp - halves.b_spp;
+  ReferenceHalves halves = ReferenceHalves::Split(ctx.o.reference_spp);
   if (fs::exists(path_a) && (halves.b_spp == 0 || fs::exists(path_b))) {
     halves.a = ReadExr(path_a);
     if (halves.b_spp > 0) halves.b = ReadExr(path_b);
@@ -637,8 +635,7 @@ References LoadReferences(const Context& ctx, const Dataset& d, const std::strin
       const ReferenceHalves halves = LoadReference(ctx, d, scene_json, s, t, f, bounces);
       refs.hdr.push_back(halves.Mean());
       refs.display.push_back(ToneMap(refs.hdr.back(), ctx.exposure));
-      refs.noise.push_back(
-          halves.b_spp > 0 ? ReferenceNoise(halves.a, halves.b, halves.a_spp, halves.b_spp, ctx.exposure) : 0.0);
+      refs.noise.push_back(ReferenceNoise(halves.a, halves.b, halves.a_spp, halves.b_spp, ctx.exposure));
     }
     previous = f;
   }
@@ -697,6 +694,13 @@ Camera Orbit(const Camera& c, float degrees) {
   return out;
 }
 
+ReferenceHalves ReferenceHalves::Split(int spp) {
+  ReferenceHalves halves;
+  halves.b_spp = spp / 2;
+  halves.a_spp = spp - halves.b_spp;
+  return halves;
+}
+
 ImageRgbF ReferenceHalves::Mean() const {
   if (b_spp == 0) return a;
   ImageRgbF mean = a;
@@ -726,9 +730,7 @@ ReferenceHalves RenderReferenceHalves(Backend backend, std::shared_ptr<const Vol
     }
     return pipeline.AccumulatedRadiance();
   };
-  ReferenceHalves halves;
-  halves.b_spp = spp / 2;
-  halves.a_spp = spp - halves.b_spp;
+  ReferenceHalves halves = ReferenceHalves::Split(spp);
   halves.a = half(halves.a_spp);
   if (halves.b_spp > 0) halves.b = half(halves.b_spp);
   return halves;
@@ -829,10 +831,8 @@ std::string SummaryTable(const std::vector<RunResult>& results) {
           heading, r.frames.size());
     }
     t += fmt::format(
-        "| {} | {:.2f} ({:.2f}) | {:.4f} | {:.4g} | {:.4f} | {:.4f}; {:.4f}; {:.2f} | {:.2f} ({:.2f} + {:.2f} + {:.2f} "
-        "+ "
-        "{:.2f}) "
-        "|\n",
+        "| {} | {:.2f} ({:.2f}) | {:.4f} | {:.4g} | {:.4f} | {:.4f}; {:.4f}; {:.2f} | "
+        "{:.2f} ({:.2f} + {:.2f} + {:.2f} + {:.2f}) |\n",
         r.config.Label(), r.Mean(&FrameResult::psnr), r.Mean(&FrameResult::psnr_corrected), r.Mean(&FrameResult::ssim),
         r.Mean(&FrameResult::rel_mse), r.Mean(&FrameResult::temporal), r.flicker, r.flicker_unrounded, r.still_psnr,
         r.MeanMs(), r.Mean(&FrameResult::render_ms), r.Mean(&FrameResult::denoise_ms), r.Mean(&FrameResult::tonemap_ms),

@@ -115,7 +115,8 @@ Camera Orbit(const Camera& camera, float degrees);
 struct ReferenceHalves {
   ImageRgbF a, b;  // b is empty at 1 sample
   int a_spp = 0, b_spp = 0;
-  ImageRgbF Mean() const;  // by samples: the reference
+  static ReferenceHalves Split(int spp);  // no images yet: how many samples each half takes
+  ImageRgbF Mean() const;                 // by samples: the reference
 };
 ReferenceHalves RenderReferenceHalves(Backend backend, std::shared_ptr<const Volume> volume, RenderSetup view, int spp,
                                       int bounces);
