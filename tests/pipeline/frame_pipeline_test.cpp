@@ -6,7 +6,6 @@
 #include <cmath>
 #include <thread>
 
-#include "image_metrics.h"
 #include "io/phantom.h"
 #include "scene/presets.h"
 #include "scene/scene_builder.h"
