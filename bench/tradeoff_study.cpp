@@ -11,6 +11,7 @@
 #include <functional>
 #include <map>
 #include <sstream>
+#include <stdexcept>
 
 #include "core/error.h"
 #include "core/tone_map.h"
@@ -604,8 +605,18 @@ ReferenceHalves LoadReference(const Context& ctx, const Dataset& d, const std::s
   const fs::path path_a = ctx.o.cache / (key + "-a.exr"), path_b = ctx.o.cache / (key + "-b.exr");
   ReferenceHalves halves = ReferenceHalves::Split(ctx.o.reference_spp);
   if (fs::exists(path_a) && (halves.b_spp == 0 || fs::exists(path_b))) {
-    halves.a = ReadExr(path_a);
-    if (halves.b_spp > 0) halves.b = ReadExr(path_b);
+    // A cached half of another size (a cache edited or written by other
+    // code) would be compared pixel by pixel with frames it does not match.
+    auto cached = [&](const fs::path& path) {
+      ImageRgbF image = ReadExr(path);
+      if (image.width != ctx.o.width || image.height != ctx.o.height) {
+        throw InputError(fmt::format("cached reference {} is {}x{}, not the study's {}x{}: remove it", path.string(),
+                                     image.width, image.height, ctx.o.width, ctx.o.height));
+      }
+      return image;
+    };
+    halves.a = cached(path_a);
+    if (halves.b_spp > 0) halves.b = cached(path_b);
     return halves;
   }
   RenderSetup view;
@@ -703,6 +714,7 @@ ReferenceHalves ReferenceHalves::Split(int spp) {
 
 ImageRgbF ReferenceHalves::Mean() const {
   if (b_spp == 0) return a;
+  if (b.pixels.size() != a.pixels.size()) throw std::invalid_argument("reference halves differ in size");
   ImageRgbF mean = a;
   const float wa = float(a_spp) / float(a_spp + b_spp), wb = 1.0f - wa;
   for (std::size_t i = 0; i < mean.pixels.size(); ++i) mean.pixels[i] = a.pixels[i] * wa + b.pixels[i] * wb;

@@ -13,6 +13,7 @@
 
 #include "core/error.h"
 #include "core/tone_map.h"
+#include "encode/hdr_images.h"
 #include "image_metrics.h"
 #include "support/test_paths.h"
 #include "support/time_series_nifti.h"
@@ -75,6 +76,35 @@ TEST(TradeoffStudy, CorrectedPsnrTakesTheReferencesNoiseOut) {
   EXPECT_LT(plain, exact - 1.0) << "the reference's noise should show here";
   EXPECT_NEAR(corrected, exact, 0.15);
   EXPECT_EQ(CorrectedPsnr(shown, shown, 0.0), 100.0);
+}
+
+// A cached reference of another size than the study's (an edited cache) is
+// refused with its path, not compared pixel by pixel with frames it does not match.
+TEST(TradeoffStudy, RefusesACachedReferenceOfAnotherSize) {
+  testing::ScratchDir scratch;
+  StudyOptions o;
+  o.datasets = {{"phantom", std::string(CINEVOL_SOURCE_DIR) + "/examples/ct-bone.json", "phantom:head?size=16"}};
+  o.scenarios = {"static"};
+  o.width = 16;
+  o.height = 12;
+  o.frames_scale = 0.05f;
+  o.reference_spp = 2;
+  o.backend = "cpu";
+  o.cache = scratch / "cache";
+  o.configs = {StudyConfig{}};
+  RunStudy(o);
+  int replaced = 0;
+  for (const auto& entry : std::filesystem::directory_iterator(o.cache)) {
+    WriteExr(entry.path(), ImageRgbF{8, 8, std::vector<Vec3f>(64)});
+    ++replaced;
+  }
+  ASSERT_EQ(replaced, 2) << "one still reference, in two halves";
+  try {
+    RunStudy(o);
+    FAIL() << "a reference of another size was used";
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("8x8, not the study's 16x12"), std::string::npos) << e.what();
+  }
 }
 
 TEST(TradeoffStudy, TinyRunKeepsWrlsAheadAndNumbersFinite) {
