@@ -224,7 +224,9 @@ int main(int argc, char** argv) {
   t->add_option("--width", study.width, "Frame width")->capture_default_str();
   t->add_option("--height", study.height, "Frame height")->capture_default_str();
   t->add_option("--frames-scale", study.frames_scale, "Scenario lengths times this")->capture_default_str();
-  t->add_option("--reference-spp", study.reference_spp, "Samples per pixel of the references")->capture_default_str();
+  t->add_option("--reference-spp", study.reference_spp, "Samples per pixel of the references (two halves)")
+      ->check(CLI::Range(1, 1 << 16))
+      ->capture_default_str();
   t->add_option("--reference-bounces", study.reference_bounces,
                 "Bounces of the bounces sweep's references (the others: their own)")
       ->capture_default_str();
