@@ -427,6 +427,7 @@ const std::map<std::string, float WrlsSettings::*> kWrlsFloatKeys = {
     {"stabilize_clamp", &WrlsSettings::stabilize_clamp},
     {"calibrate", &WrlsSettings::atrous_calibration_floor},
     {"calibrate_fall", &WrlsSettings::atrous_calibration_fall},
+    {"normal_stop", &WrlsSettings::atrous_normal_stop},
 };
 const std::map<std::string, int WrlsSettings::*> kWrlsIntKeys = {
     {"atrous", &WrlsSettings::atrous_iterations},    {"still", &WrlsSettings::max_still_frames},
@@ -489,6 +490,8 @@ StudyConfig Variant(const std::string& spec) {
         c.svgf.sigma_luminance = v;
       else if (key == "sigma_depth")
         c.svgf.sigma_depth = v;
+      else if (key == "normal_stop")
+        c.svgf.normal_stop = v;
       else
         throw InputError(fmt::format("--variant {}: unknown SVGF key '{}'", spec, key));
     } else if (auto f = kWrlsFloatKeys.find(key); f != kWrlsFloatKeys.end()) {
@@ -505,10 +508,11 @@ StudyConfig Variant(const std::string& spec) {
   // 0 turned these stages off until the study settled them (docs/denoising.md).
   const WrlsSettings& w = c.wrls;
   if (w.feature_rescale < 1 || w.feature_rescale > 8 || w.stabilize_recenter < 1 || w.stabilize_recenter > 8 ||
-      !(w.drift_sigma > 0) || w.stabilize_still_frames < 0 || w.atrous_iterations < 0 || w.atrous_iterations > 8) {
+      !(w.drift_sigma > 0) || w.stabilize_still_frames < 0 || w.atrous_iterations < 0 || w.atrous_iterations > 8 ||
+      !(w.atrous_normal_stop >= 0) || !(c.svgf.normal_stop >= 0)) {
     throw InputError(
         fmt::format("--variant {}: rescale and recenter take 1 to 8, atrous 0 to 8, drift more than 0, "
-                    "stabilize_still 0 or more",
+                    "stabilize_still and normal_stop 0 or more",
                     spec));
   }
   return c;

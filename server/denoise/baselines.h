@@ -399,6 +399,12 @@ struct AtrousPass {
   // Null, or the frame's scale of the variance the luminance stop reads
   // (StopCalibrationPass); the variance carried through the level is not scaled.
   const float* variance_scale = nullptr;
+  // Null, or FrameTargets::surface_normal: taps also stop at e^-(normal_stop
+  // (|a| |b| - a . b)) between the centre's a and the tap's b, surface
+  // probability times normal each, so the stop acts only between surfaces
+  // that both are and face different ways.
+  const Vec3f* normals = nullptr;
+  float normal_stop = 0.0f;
 
   CINEVOL_HD static bool Hit(float depth) { return !std::isnan(depth); }
   CINEVOL_HD float StopVariance(float variance) const {
@@ -434,6 +440,8 @@ struct AtrousPass {
     const EdgeGuide centre = guides[i];
     const float z = centre.depth;
     const float z_scale = Hit(z) ? kLog2e / (sigma_depth * 0.01f * fmaxf(z, 1e-3f) * float(step) + 1e-6f) : 0.0f;
+    const Vec3f n = normals ? normals[i] : Vec3f{};
+    const float n_scale = normal_stop * kLog2e * Length(n);
     // Each tap's exponent is a chain of fused multiply-adds that starts from
     // the kernel's (-log2_kernel). The luminance is computed as l was, so
     // the centre's difference is exactly 0 whatever l_scale.
@@ -443,7 +451,10 @@ struct AtrousPass {
       const float e = squared_luminance ? fmaf(Sqr(dl * l_scale), kLog2e, -log2_kernel)
                                         : fmaf(dl, l_scale, -log2_kernel);
       const float ez = fmaxf(fmaf(fabsf(g.depth - z), z_scale, e), e);
-      return FastExp2(-fmaf(fabsf(g.coverage - centre.coverage), kCoverageStop * kLog2e, ez));
+      const float ec = fmaf(fabsf(g.coverage - centre.coverage), kCoverageStop * kLog2e, ez);
+      if (!normals) return FastExp2(-ec);
+      const Vec3f m = normals[k];
+      return FastExp2(-(ec + fmaxf(n_scale * Length(m) - normal_stop * kLog2e * Dot(n, m), 0.0f)));
     });
   }
 };

@@ -36,12 +36,16 @@ struct AtrousPlanes {
   const float* coverage;
   const float* l_scale;        // the centre's luminance stop: 1 / (sigma sqrt(blurred variance))
   const float* z_scale;        // the centre's depth stop
+  // AtrousPass::normals, where set: the surface normal's components and
+  // length, and the stop's scale
+  const float *nx = nullptr, *ny = nullptr, *nz = nullptr, *n_length = nullptr;
+  float normal_stop = 0.0f;
 };
 
 // Adds a tap to the row's sums: the luminance stop SVGF's (|dl| / (sigma
 // dev)) or squared (AtrousPass::squared_luminance). Inlined into the two
 // row kernels below, each built for AVX2 and the baseline x86-64.
-template <bool kSquared>
+template <bool kSquared, bool kNormals>
 inline __attribute__((always_inline)) void AddEdgeStoppedTap(const AtrousPlanes& p, AtrousRowSums s,
                                                              const AtrousRowTap& tap) {
   const std::ptrdiff_t row = tap.row, neighbour_row = tap.neighbour_row;
@@ -57,18 +61,35 @@ inline __attribute__((always_inline)) void AddEdgeStoppedTap(const AtrousPlanes&
     const float dz = n_escaped[x] != 0.0f ? 0.0f : centre_hit;
     const float dc = std::fabs(n_coverage[x] - c_coverage[x]);
     const float dl = std::fabs(n_l[x] - c_l[x]) * c_l_scale[x];
-    return -(kSquared ? dl * dl : dl) - dz * c_z_scale[x] - dc * AtrousPass::kCoverageStop;
+    const float e = -(kSquared ? dl * dl : dl) - dz * c_z_scale[x] - dc * AtrousPass::kCoverageStop;
+    if constexpr (!kNormals) {
+      return e;
+    } else {
+      const float dot = p.nx[row + x] * p.nx[neighbour_row + x] + p.ny[row + x] * p.ny[neighbour_row + x] +
+                        p.nz[row + x] * p.nz[neighbour_row + x];
+      return e - p.normal_stop * std::fmax(p.n_length[row + x] * p.n_length[neighbour_row + x] - dot, 0.0f);
+    }
   });
 }
 
 __attribute__((target_clones("avx2", "default"))) void AddTap(const AtrousPlanes& p, AtrousRowSums s,
                                                              const AtrousRowTap& tap) {
-  AddEdgeStoppedTap<false>(p, s, tap);
+  AddEdgeStoppedTap<false, false>(p, s, tap);
 }
 
 __attribute__((target_clones("avx2", "default"))) void AddTapSquared(const AtrousPlanes& p, AtrousRowSums s,
                                                                     const AtrousRowTap& tap) {
-  AddEdgeStoppedTap<true>(p, s, tap);
+  AddEdgeStoppedTap<true, false>(p, s, tap);
+}
+
+__attribute__((target_clones("avx2", "default"))) void AddTapNormals(const AtrousPlanes& p, AtrousRowSums s,
+                                                                     const AtrousRowTap& tap) {
+  AddEdgeStoppedTap<false, true>(p, s, tap);
+}
+
+__attribute__((target_clones("avx2", "default"))) void AddTapSquaredNormals(const AtrousPlanes& p, AtrousRowSums s,
+                                                                            const AtrousRowTap& tap) {
+  AddEdgeStoppedTap<true, true>(p, s, tap);
 }
 
 // The planes of one level, per pixel, as the functor computes them.
@@ -97,21 +118,41 @@ void FillPlanes(const AtrousPass& pass, std::vector<float>* planes, int y) {
     planes[7][i] = 1.0f / (pass.sigma_depth * 0.01f * fmaxf(z, 1e-3f) * float(pass.step) + 1e-6f);
     planes[8][i] = z;
     planes[9][i] = pass.guides[i].coverage;
+    if (pass.normals) {
+      const Vec3f n = pass.normals[i];
+      planes[10][i] = n.x;
+      planes[11][i] = n.y;
+      planes[12][i] = n.z;
+      planes[13][i] = Length(n);
+    }
   }
 }
 
 constexpr int kPlanes = 10;  // 40 bytes a pixel
+constexpr int kNormalPlanes = 4;  // and 16 more with AtrousPass::normals
 
 }  // namespace
 
 void CpuAtrousLevel(const AtrousPass& pass) {
   const int w = pass.width, h = pass.height;
-  std::vector<float>* const planes = ThreadPlanes(kPlanes, std::size_t(w) * h);
+  std::vector<float>* const planes = ThreadPlanes(kPlanes + (pass.normals ? kNormalPlanes : 0), std::size_t(w) * h);
   ParallelFor(h, [&](std::int64_t y) { FillPlanes(pass, planes, int(y)); });
-  const AtrousPlanes p{{planes[0].data(), planes[1].data(), planes[2].data(), planes[3].data()},
-                       planes[4].data(), planes[8].data(), planes[5].data(), planes[9].data(),
-                       planes[6].data(), planes[7].data()};
-  const auto add_tap = pass.squared_luminance ? AddTapSquared : AddTap;
+  AtrousPlanes p{{planes[0].data(), planes[1].data(), planes[2].data(), planes[3].data()},
+                 planes[4].data(),
+                 planes[8].data(),
+                 planes[5].data(),
+                 planes[9].data(),
+                 planes[6].data(),
+                 planes[7].data()};
+  auto add_tap = pass.squared_luminance ? AddTapSquared : AddTap;
+  if (pass.normals) {
+    p.nx = planes[10].data();
+    p.ny = planes[11].data();
+    p.nz = planes[12].data();
+    p.n_length = planes[13].data();
+    p.normal_stop = pass.normal_stop;
+    add_tap = pass.squared_luminance ? AddTapSquaredNormals : AddTapNormals;
+  }
   CpuAtrousRows(w, h, pass.step, pass.out, [&](AtrousRowSums s, const AtrousRowTap& tap) { add_tap(p, s, tap); });
 }
 

@@ -41,11 +41,11 @@ inline float VectorisableExp(float x) {
   return x < -87.33654f ? 0.0f : (x > 88.37626f ? INFINITY : e);
 }
 
-// `count` (at most 10) planes of n floats, this thread's, kept between calls
+// `count` (at most 14) planes of n floats, this thread's, kept between calls
 // (levels, frames): calls from several threads (sessions) each have their
 // own. Pass the pointer on: the helpers' own thread_local would be another.
 inline std::vector<float>* ThreadPlanes(int count, std::size_t n) {
-  thread_local std::vector<float> planes[10];
+  thread_local std::vector<float> planes[14];
   for (int k = 0; k < count; ++k) planes[k].resize(n);
   return planes;
 }

@@ -39,6 +39,11 @@ const char* ToString(DenoiseMethod method) {
   return "?";
 }
 
+bool UsesSurfaceNormals(const DenoiserSettings& s) {
+  return (s.method == DenoiseMethod::kWrls && s.wrls.atrous_normal_stop > 0.0f) ||
+         (s.method == DenoiseMethod::kSvgf && s.svgf.normal_stop > 0.0f);
+}
+
 bool operator==(const WrlsSettings&, const WrlsSettings&) = default;
 bool operator==(const KnnSettings&, const KnnSettings&) = default;
 bool operator==(const GuidedFilterSettings&, const GuidedFilterSettings&) = default;

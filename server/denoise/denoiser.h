@@ -109,6 +109,10 @@ struct WrlsSettings {
   // the first hit in semi-transparent tissue is itself a noisy estimate
   // (8 against 1: +1.2 dB on the CThead orbit).
   float atrous_sigma_depth = 8.0f;
+  // > 0: the levels also stop between surfaces that face different ways
+  // (AtrousPass::normals, normal_stop; the renderer then writes
+  // FrameTargets::surface_normal); 0: no normal stop.
+  float atrous_normal_stop = 0.0f;
   // Temporal stabilisation of the output (as NRD's): the previous output,
   // reprojected, recentred and clipped to where this frame's estimate could
   // lie (+- stabilize_clamp deviations), is blended in with this weight
@@ -171,6 +175,7 @@ struct SvgfSettings {
   float sigma_luminance = 4.0f;
   float sigma_depth = 1.0f;
   bool squared_luminance = false;  // AtrousPass::squared_luminance; the paper's stop is not squared
+  float normal_stop = 0.0f;        // AtrousPass::normal_stop (the paper's normals: its G-buffer's); 0: none
   friend bool operator==(const SvgfSettings&, const SvgfSettings&);  // defaulted in denoiser.cpp
 };
 
@@ -204,7 +209,14 @@ struct DenoiseFrame {
   // still in the patient's frame, so a surface point's shading moved only as
   // far as it depends on the view. false where unknown.
   bool only_moved = false;
+  // FrameTargets::surface_normal, where the settings stop at normals
+  // (UsesSurfaceNormals); null otherwise.
+  const Vec3f* surface_normal = nullptr;
 };
+
+// The settings stop the a-trous levels at surface normals: the renderer
+// must write FrameTargets::surface_normal.
+bool UsesSurfaceNormals(const DenoiserSettings& settings);
 
 class Denoiser {
  public:

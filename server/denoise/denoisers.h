@@ -27,6 +27,14 @@ const EdgeGuide* FrameEdgeGuides(const DenoiseFrame& frame, Vec4f* kept_first_hi
   return guides;
 }
 
+// The normals an a-trous level with this normal stop reads: null where the
+// stop is off.
+inline const Vec3f* NormalsFor(const DenoiseFrame& frame, float normal_stop) {
+  if (!(normal_stop > 0.0f)) return nullptr;
+  if (!frame.surface_normal) throw std::invalid_argument("a normal stop needs the surface normals");
+  return frame.surface_normal;
+}
+
 // The a-trous levels' pair of buffers (prediction and variance), in frame
 // scratch: a level reads `in` and writes `out`, then they swap.
 template <class B>
@@ -249,8 +257,8 @@ class Svgf final : public DenoiserBase<B> {
     B::ForEachPixel(w, h, SvgfVariancePass{history_.data(), frame.first_hit, pair.in, w, h});
     const EdgeGuide* guides = FrameEdgeGuides<B>(frame, this->kept_first_hit());
     for (int level = 0; level < s.iterations; ++level) {
-      RunAtrousLevel<B>(
-          AtrousPass{pair.in, pair.out, guides, w, h, 1 << level, s.sigma_luminance, s.sigma_depth, s.squared_luminance});
+      RunAtrousLevel<B>(AtrousPass{pair.in, pair.out, guides, w, h, 1 << level, s.sigma_luminance, s.sigma_depth,
+                                   s.squared_luminance, nullptr, NormalsFor(frame, s.normal_stop), s.normal_stop});
       if (level == 0) B::ForEachPixel(w, h, SvgfFeedbackPass{pair.out, history_.data(), w});
       pair.Swap();
     }
@@ -297,7 +305,8 @@ class Wrls final : public DenoiserBase<B> {
     const float* variance_scale = s.atrous_calibration_floor > 0.0f ? CalibrateStop(pair.in, guides) : nullptr;
     for (int level = 0; level < s.atrous_iterations; ++level) {
       RunAtrousLevel<B>(AtrousPass{pair.in, pair.out, guides, w, h, 1 << level, s.atrous_sigma_luminance,
-                                   s.atrous_sigma_depth, s.atrous_squared_luminance, variance_scale});
+                                   s.atrous_sigma_depth, s.atrous_squared_luminance, variance_scale,
+                                   NormalsFor(frame, s.atrous_normal_stop), s.atrous_normal_stop});
       pair.Swap();
     }
     Stabilize(pair.in, output_history, rv, frame.only_moved, output);

@@ -24,6 +24,7 @@ enum class Scratch : int {
   kRadiance,           // the render's outputs, read by the denoiser and the refinement
   kFirstHit,
   kAlbedo,
+  kSurfaceNormal,      // FrameTargets::surface_normal, where a frame asks for it
   kEstimate,           // the denoiser's a-trous pair: prediction and variance
   kEstimateNext,
   kOutputHistory,      // wRLS: the previous output, reprojected

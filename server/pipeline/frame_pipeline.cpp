@@ -306,6 +306,7 @@ FrameRequest FramePipeline::Request(int spp) {
   r.seed = seed_;
   r.frame = frame_++;
   r.features = render_features_;
+  r.surface_normals = UsesSurfaceNormals(settings_.denoiser);
   r.cancel = cancel_;
   return r;
 }
@@ -341,7 +342,7 @@ DisplayFrame FramePipeline::RenderFrame() {
   const FrameTargets t = renderer_->Targets();
   const bool only_moved = picture_changed_ && !std::exchange(shading_changed_, false);
   const Vec3f* denoised = denoiser_->Denoise({camera.width, camera.height, t.radiance, t.first_hit, t.albedo, camera,
-                                              std::exchange(picture_changed_, false), only_moved});
+                                              std::exchange(picture_changed_, false), only_moved, t.surface_normal});
   out.denoise_ms = denoiser_->LastMilliseconds();
 
   const auto display_start = Clock::now();

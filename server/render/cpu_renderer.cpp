@@ -80,6 +80,11 @@ void CpuRenderer::Render(const FrameRequest& request) {
     accumulated_.resize(std::size_t(w) * h);
     ResetAccumulation();
   }
+  if (request.surface_normals) {
+    surface_normal_.resize(std::size_t(w) * h);
+  } else {
+    surface_normal_.clear();
+  }
   RenderScene scene = data_.HostView();
   last_features_ = ApplyRequest(request, scene);
   const auto start = std::chrono::steady_clock::now();
@@ -108,7 +113,11 @@ ImageRgbF CpuRenderer::AccumulatedMean() const {
 
 FrameTargets CpuRenderer::Targets() const {
   auto* self = const_cast<CpuRenderer*>(this);
-  return {self->radiance_.data(), self->first_hit_.data(), self->accumulated_.data(), self->albedo_.data(),
+  return {self->radiance_.data(),
+          self->first_hit_.data(),
+          self->accumulated_.data(),
+          self->albedo_.data(),
+          self->surface_normal_.empty() ? nullptr : self->surface_normal_.data(),
           accumulated_frames_ == 0};
 }
 

@@ -29,6 +29,7 @@ class CpuRenderer final : public Renderer {
   ImageRgbF AccumulatedMean() const override;
   std::vector<Vec4f> FirstHits() const override { return first_hit_; }
   ImageRgbF Albedo() const override { return {width_, height_, albedo_}; }
+  std::vector<Vec3f> SurfaceNormals() const override { return surface_normal_; }
   FrameTargets Targets() const override;
   // The tables the integrator reads here, for deterministic queries that must
   // classify the scene as it does (picking, server/reading/pick.h).
@@ -42,6 +43,7 @@ class CpuRenderer final : public Renderer {
   SceneData data_;
   int width_ = 0, height_ = 0;
   std::vector<Vec3f> radiance_, accumulated_, albedo_;
+  std::vector<Vec3f> surface_normal_;  // where the last request asked for it
   std::vector<Vec4f> first_hit_;
   int accumulated_frames_ = 0;
   std::int64_t accumulated_samples_ = 0;  // per pixel: the accumulation is their sum

@@ -71,7 +71,11 @@ __global__ void __launch_bounds__(kBlockThreads, kMinBlocksPerSm)
     for (int k = lane; k < scene.spp; k += lanes) samples.Add(TracePixelSample<kFeatures>(scene, x, y, k), scene.camera.eye);
   }
   if (lanes == 2) samples.Merge(ShuffleFrom(samples, int(threadIdx.x % 32u) ^ 1));
-  if (inside && lane == 0) samples.Write(targets, y * scene.camera.width + x, scene.spp);
+  if (inside && lane == 0) {
+    const int pixel = y * scene.camera.width + x;
+    samples.Write(targets, pixel, scene.spp);
+    if (targets.surface_normal) targets.surface_normal[pixel] = SurfaceNormalAt<kFeatures>(scene, samples.first_hit);
+  }
 }
 
 using Kernel = void (*)(const RenderScene, const FrameTargets, int);
@@ -119,6 +123,7 @@ struct CudaRenderer::Device {
   Vec3f* radiance = nullptr;
   Vec3f* albedo = nullptr;
   Vec4f* first_hit = nullptr;
+  Vec3f* surface_normal = nullptr;  // where the frame asked for it
 
   Device() {
     CINEVOL_CUDA_CHECK(cudaEventCreate(&start));
@@ -216,6 +221,7 @@ void CudaRenderer::Render(const FrameRequest& request) {
   d.radiance = cuda::DeviceScratch<Vec3f>(Scratch::kRadiance, pixels);
   d.albedo = cuda::DeviceScratch<Vec3f>(Scratch::kAlbedo, pixels);
   d.first_hit = cuda::DeviceScratch<Vec4f>(Scratch::kFirstHit, pixels);
+  d.surface_normal = request.surface_normals ? cuda::DeviceScratch<Vec3f>(Scratch::kSurfaceNormal, pixels) : nullptr;
   RenderScene scene = data_.HostView();
   scene.volume.voxels = volume_->voxels();
   if (use_texture_) scene.volume.texture = volume_->texture();
@@ -272,8 +278,11 @@ std::vector<Vec4f> CudaRenderer::FirstHits() const { return Download(device_->fi
 
 ImageRgbF CudaRenderer::Albedo() const { return {width_, height_, Download(device_->albedo)}; }
 
+std::vector<Vec3f> CudaRenderer::SurfaceNormals() const { return Download(device_->surface_normal); }
+
 FrameTargets CudaRenderer::Targets() const {
-  return {device_->radiance, device_->first_hit, device_->accumulated.data(), device_->albedo, accumulated_frames_ == 0};
+  return {device_->radiance, device_->first_hit,      device_->accumulated.data(),
+          device_->albedo,   device_->surface_normal, accumulated_frames_ == 0};
 }
 
 template <class T>

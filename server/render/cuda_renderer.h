@@ -34,6 +34,7 @@ class CudaRenderer final : public Renderer {
   ImageRgbF AccumulatedMean() const override;
   std::vector<Vec4f> FirstHits() const override;
   ImageRgbF Albedo() const override;
+  std::vector<Vec3f> SurfaceNormals() const override;
   FrameTargets Targets() const override;
 
  private:

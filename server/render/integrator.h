@@ -322,12 +322,38 @@ struct PixelSamples {
   }
 };
 
+// FrameTargets::surface_normal for a pixel whose nearest first hit is
+// `first_hit`: read once a pixel after its samples, so the paths carry
+// nothing more.
+template <unsigned kFeatures>
+CINEVOL_HD Vec3f SurfaceNormalAt(const RenderScene& s, Vec4f first_hit) {
+  if constexpr ((kFeatures & kGradients) == 0) {
+    return {};
+  } else {
+    if (first_hit.w == 0.0f) return {};
+    constexpr bool kCubic = kFeatures & kTricubic, kWithLabels = kFeatures & kLabels;
+    const Vec3f p = Xyz(first_hit);
+    Classified c;
+    ExtinctionAt<kCubic, kWithLabels>(s, p, c);
+    const Vec3f grad = s.volume.template Gradient<kCubic>(p);
+    const float magnitude = Length(grad);
+    if (!(magnitude > 0.0f)) return {};
+    const float opacity = MaterialOf<kWithLabels>(s, c).opacity;
+    const float p_surface =
+        SurfaceProbability(opacity, s.transfer.gradient_factor, magnitude * s.transfer.gradient_normaliser);
+    const Vec3f n = grad * (p_surface / magnitude);
+    return Dot(n, s.camera.eye - p) < 0.0f ? -n : n;
+  }
+}
+
 // Renders pixel (x, y): its spp samples, one after the other.
 template <unsigned kFeatures>
 CINEVOL_HD void RenderPixel(const RenderScene& s, int x, int y, const FrameTargets& out) {
   PixelSamples samples;
   for (int k = 0; k < s.spp; ++k) samples.Add(TracePixelSample<kFeatures>(s, x, y, k), s.camera.eye);
-  samples.Write(out, y * s.camera.width + x, s.spp);
+  const int pixel = y * s.camera.width + x;
+  samples.Write(out, pixel, s.spp);
+  if (out.surface_normal) out.surface_normal[pixel] = SurfaceNormalAt<kFeatures>(s, samples.first_hit);
 }
 
 }  // namespace cinevol

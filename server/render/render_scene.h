@@ -71,6 +71,11 @@ struct FrameTargets {
   Vec4f* first_hit = nullptr;    // xyz: nearest first real collision (mm); w: 1 hit, 0 escaped
   Vec3f* accumulated = nullptr;  // running sum of radiance since the last reset
   Vec3f* albedo = nullptr;       // mean diffuse colour at the first collision (1 where escaped)
+  // Where set (FrameRequest::surface_normals): the volume's unit gradient at
+  // the nearest first hit, facing the eye, times the probability that the
+  // hybrid scattering takes it for a surface there; 0 where the ray escaped
+  // or the scene shades without gradients. A denoiser's normal stop.
+  Vec3f* surface_normal = nullptr;
   // The frame is the first since the reset: it writes `accumulated` rather
   // than adding to it, so a reset clears nothing (a moving view's every frame
   // is one; clearing cost a pass over the buffer and a read of it cold).

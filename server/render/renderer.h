@@ -38,6 +38,7 @@ struct FrameRequest {
   std::uint64_t seed = 0;
   std::uint32_t frame = 0;            // advance every frame: seeds this frame's samples
   unsigned features = kAutoFeatures;  // or a RenderFeature set to force (at least what the scene uses)
+  bool surface_normals = false;       // also FrameTargets::surface_normal (a denoiser's normal stop)
   // When set and raised, the CPU backend stops within a pixel and
   // Render throws Cancelled (the accumulation is then unusable). CUDA frames
   // are bounded by the service's per-frame sample limit instead.
@@ -107,6 +108,8 @@ class Renderer {
   virtual ImageRgbF AccumulatedMean() const = 0;
   virtual std::vector<Vec4f> FirstHits() const = 0;
   virtual ImageRgbF Albedo() const = 0;
+  // FrameTargets::surface_normal of the last frame; empty where it did not ask.
+  virtual std::vector<Vec3f> SurfaceNormals() const = 0;
 
   // The last frame's outputs in the backend's own memory (host or device),
   // for the denoiser of the same backend.

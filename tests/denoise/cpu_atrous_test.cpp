@@ -45,13 +45,14 @@ struct Frame {
   std::vector<Vec4f> image, first_hit;
   std::vector<EdgeGuide> guides;
   Camera camera;
+  std::vector<Vec3f> normals;  // surface probability times normal; 0 where escaped
 };
 
 // Noisy radiance over a silhouette, with escaped pixels, a band of depths
 // and odd sizes (the taps' clipping at every edge).
 Frame NoisyFrame(int width, int height) {
   const std::size_t n = std::size_t(width) * height;
-  Frame f{width, height, {}, {}, std::vector<EdgeGuide>(n), {}};
+  Frame f{width, height, {}, {}, std::vector<EdgeGuide>(n), {}, {}};
   f.camera = LookAt({0, -300, 0}, {0, 0, 0}, {0, 0, 1}, 30, width, height);
   Pcg32 rng(11, 3);
   for (int y = 0; y < height; ++y) {
@@ -60,6 +61,8 @@ Frame NoisyFrame(int width, int height) {
       const float v = (hit ? 1.0f : 0.3f) * (0.5f + rng.Uniform());
       f.image.push_back({v, 0.8f * v, 0.6f * v, 0.05f * rng.Uniform()});
       f.first_hit.push_back(hit ? Vec4f{20.0f * rng.Uniform(), float(y), float(x), 1} : Vec4f{});
+      const Vec3f n = Normalize(Vec3f{rng.Uniform() - 0.5f, -1.0f, rng.Uniform() - 0.5f});
+      f.normals.push_back(hit ? n * rng.Uniform() : Vec3f{});
     }
   }
   std::vector<float> row_hits(n);
@@ -74,6 +77,19 @@ TEST(CpuAtrousLevel, AgreesWithThePerPixelPass) {
       testing::ExpectRowsAgree(testing::FunctorAndRows(AtrousPass{f.image.data(), nullptr, f.guides.data(), f.width,
                                                                   f.height, step, 4.0f, 8.0f, squared}),
                                "step " + std::to_string(step) + (squared ? " squared" : ""));
+    }
+  }
+}
+
+TEST(CpuAtrousLevel, AgreesWithThePerPixelPassWithANormalStop) {
+  for (const bool squared : {false, true}) {
+    for (const int step : {1, 4}) {
+      Frame f = NoisyFrame(97, 83);
+      AtrousPass pass{f.image.data(), nullptr, f.guides.data(), f.width, f.height, step, 4.0f, 8.0f, squared};
+      pass.normals = f.normals.data();
+      pass.normal_stop = 16.0f;
+      testing::ExpectRowsAgree(testing::FunctorAndRows(pass),
+                               "normals, step " + std::to_string(step) + (squared ? " squared" : ""));
     }
   }
 }

@@ -174,6 +174,33 @@ TEST(FramePipeline, OnlyAMovedCameraKeepsTheOutputsHistory) {
   EXPECT_LT(moved, 0.9 * lit) << "only moved " << moved << ", lights changed " << lit;
 }
 
+// A denoiser that stops at surface normals asks the renderer for them
+// (FrameRequest::surface_normals), and they change its output; its
+// settings without the stop leave the frames as they were.
+TEST(FramePipeline, ANormalStopGetsTheRenderersSurfaceNormals) {
+  auto volume = SmallHead();
+  const v1::Scene scene = SmallScene(*volume);
+  auto denoised = [&](float normal_stop) {
+    FrameSettings settings;
+    settings.refine = false;
+    settings.denoiser.wrls.atrous_normal_stop = normal_stop;
+    FramePipeline pipeline(Backend::kCpu, volume);
+    pipeline.Update(scene, settings);
+    pipeline.RenderFrame();
+    return pipeline.DenoisedRadiance();
+  };
+  const ImageRgbF plain = denoised(0.0f), stopped = denoised(16.0f);
+  ASSERT_EQ(stopped.pixels.size(), plain.pixels.size());
+  int differ = 0;
+  for (std::size_t i = 0; i < plain.pixels.size(); ++i) {
+    ASSERT_TRUE(IsFinite(stopped.pixels[i])) << "pixel " << i;
+    differ += !(stopped.pixels[i] == plain.pixels[i]);
+  }
+  EXPECT_GT(differ, 0) << "the normals changed nothing";
+  const ImageRgbF again = denoised(0.0f);
+  for (std::size_t i = 0; i < plain.pixels.size(); ++i) ASSERT_TRUE(again.pixels[i] == plain.pixels[i]);
+}
+
 TEST(FramePipeline, ResizeChangesTheFrameSize) {
   auto volume = SmallHead();
   FramePipeline pipeline(Backend::kCpu, volume);

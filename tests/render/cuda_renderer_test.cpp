@@ -282,6 +282,33 @@ TEST(CudaRenderer, FirstHitsAndAccumulationMatchTheCpuLayout) {
   EXPECT_EQ(r->AccumulatedMean().pixels.size(), 64u);
 }
 
+// FrameTargets::surface_normal: the GPU's, from its own first hits, as the
+// CPU's on an opaque ball (most pixels' samples are the CPU's, above).
+TEST(CudaRenderer, SurfaceNormalsMatchTheCpus) {
+  CINEVOL_REQUIRE_CUDA();
+  std::vector<Vec3f> normals[2];
+  for (const Backend backend : {Backend::kCpu, Backend::kCuda}) {
+    auto r = CreateRenderer(backend);
+    r->SetVolume(testing::Ball());
+    r->SetTransferFunction(testing::BallSurface());
+    r->SetLights(UniformSky(1.0f));
+    FrameRequest req;
+    req.camera = LookAt({0, -200, 0}, {0, 0, 0}, {0, 0, 1}, 30.0f, 48, 48);
+    req.spp = 2;
+    req.surface_normals = true;
+    r->Render(req);
+    normals[backend == Backend::kCuda] = r->SurfaceNormals();
+  }
+  ASSERT_EQ(normals[1].size(), normals[0].size());
+  int same = 0, surfaces = 0;
+  for (std::size_t i = 0; i < normals[0].size(); ++i) {
+    same += Length(normals[0][i] - normals[1][i]) <= 1e-3f;
+    surfaces += Length(normals[1][i]) > 0.5f;
+  }
+  EXPECT_GE(same, int(0.9 * normals[0].size())) << "pixels whose normals match the CPU's";
+  EXPECT_GT(surfaces, 150) << "the ball's surface seen by the GPU";
+}
+
 // A reset clears nothing: the frame after it writes the sums instead of adding
 // to them. Two frames, a reset, two more: the accumulation holds the last two only.
 void ExpectAnAccumulationHoldsTheFramesSinceItsReset(Backend backend) {

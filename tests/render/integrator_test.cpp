@@ -276,6 +276,41 @@ TEST(Integrator, AHiddenLabelTakesItsUnlabelledShellAlong) {
   EXPECT_EQ(hits_on_a(with_shell), 0) << "with it, nothing of ball A";
 }
 
+// FrameTargets::surface_normal, asked for: on an opaque ball seen along +y
+// the nearest first hits' gradients face the eye, and the ball's left rim
+// faces left; the medium inside a ball of soft tissue (no surface) gives 0.
+// Not asked for, the renderer writes none.
+TEST(Integrator, SurfaceNormalsFaceTheEyeWhereTheyAreAskedFor) {
+  CpuRenderer r;
+  r.SetVolume(testing::Ball());
+  r.SetTransferFunction(testing::BallSurface());
+  r.SetLights(UniformSky(1.0f));
+  const int size = 48;
+  FrameRequest request = Request(LookAt({0, -200, 0}, {0, 0, 0}, {0, 0, 1}, 30.0f, size, size), 2, 0, 2);
+  r.Render(request);
+  EXPECT_TRUE(r.SurfaceNormals().empty()) << "written though not asked for";
+
+  request.surface_normals = true;
+  r.Render(request);
+  const std::vector<Vec3f> normals = r.SurfaceNormals();
+  ASSERT_EQ(normals.size(), std::size_t(size * size));
+  const std::vector<Vec4f> hits = r.FirstHits();
+  const Vec3f centre = normals[(size / 2) * size + size / 2], rim = normals[(size / 2) * size + size / 2 - 9];
+  ASSERT_NE(hits[(size / 2) * size + size / 2 - 9].w, 0.0f) << "the rim pixel must see the ball";
+  EXPECT_LT(centre.y, -0.8f) << "the ball's front faces the eye (at -y)";
+  EXPECT_LT(Normalize(rim).x, -0.6f) << "the left rim faces left";
+  for (int i = 0; i < size * size; ++i) {
+    ASSERT_LE(Length(normals[i]), 1.0001f) << "pixel " << i;
+    if (hits[i].w == 0.0f) {
+      EXPECT_EQ(Length(normals[i]), 0.0f) << "escaped pixel " << i;
+    }
+  }
+
+  r.SetTransferFunction(testing::BallSurface(0.0f));  // the phase function alone: no surfaces
+  r.Render(request);
+  for (const Vec3f& normal : r.SurfaceNormals()) ASSERT_EQ(Length(normal), 0.0f);
+}
+
 TEST(Integrator, WhiteFurnaceConservesEnergy) {
   for (float tau : {1e-3f, 0.1f, 1.0f, 10.0f}) {
     CpuRenderer r;

@@ -3,6 +3,8 @@
 #pragma once
 
 #include <memory>
+#include <utility>
+#include <vector>
 
 #include "core/volume.h"
 #include "io/phantom.h"
@@ -36,6 +38,26 @@ inline LightSetup UniformSky(float radiance = 1.0f) {
   s.environment.kind = Environment::Kind::kUniform;
   s.environment.zenith = {radiance, radiance, radiance};
   return s;
+}
+
+// A ball of radius 20 mm (value 1000) in a 64 mm cube of 0, and a transfer
+// function that makes it an opaque surface (shaded by gradients) or, with
+// `gradient_factor` 0, a medium shaded by the phase function alone.
+inline std::shared_ptr<const Volume> Ball() {
+  const int n = 32;
+  std::vector<float> values(std::size_t(n) * n * n, 0.0f);
+  for (int z = 0; z < n; ++z)
+    for (int y = 0; y < n; ++y)
+      for (int x = 0; x < n; ++x)
+        values[(std::size_t(z) * n + y) * n + x] = Length(Vec3f{x - 15.5f, y - 15.5f, z - 15.5f}) <= 10.0f ? 1000 : 0;
+  return std::make_shared<const Volume>(Vec3i{n, n, n}, Vec3f{2, 2, 2}, std::move(values), VolumeMetadata{});
+}
+inline TransferFunction BallSurface(float gradient_factor = 1.0f) {
+  TransferFunction tf;
+  tf.points = {{400, 0, {0.8f, 0.8f, 0.8f}, {}, 0.5f, {}}, {450, 1, {0.8f, 0.8f, 0.8f}, {}, 0.5f, {}}};
+  tf.density_scale = 5;
+  tf.gradient_factor = gradient_factor;
+  return tf;
 }
 
 // Looking along +y at the volume from far away, so rays through the middle
