@@ -428,6 +428,7 @@ const std::map<std::string, float WrlsSettings::*> kWrlsFloatKeys = {
     {"calibrate", &WrlsSettings::atrous_calibration_floor},
     {"calibrate_fall", &WrlsSettings::atrous_calibration_fall},
     {"normal_stop", &WrlsSettings::atrous_normal_stop},
+    {"normal_share", &WrlsSettings::atrous_normal_share},
 };
 const std::map<std::string, int WrlsSettings::*> kWrlsIntKeys = {
     {"atrous", &WrlsSettings::atrous_iterations},    {"still", &WrlsSettings::max_still_frames},
@@ -509,10 +510,11 @@ StudyConfig Variant(const std::string& spec) {
   const WrlsSettings& w = c.wrls;
   if (w.feature_rescale < 1 || w.feature_rescale > 8 || w.stabilize_recenter < 1 || w.stabilize_recenter > 8 ||
       !(w.drift_sigma > 0) || w.stabilize_still_frames < 0 || w.atrous_iterations < 0 || w.atrous_iterations > 8 ||
-      !(w.atrous_normal_stop >= 0) || !(c.svgf.normal_stop >= 0)) {
+      !(w.atrous_normal_stop >= 0) || !(c.svgf.normal_stop >= 0) ||
+      !(w.atrous_normal_share > 0 && w.atrous_normal_share <= 1)) {
     throw InputError(
         fmt::format("--variant {}: rescale and recenter take 1 to 8, atrous 0 to 8, drift more than 0, "
-                    "stabilize_still and normal_stop 0 or more",
+                    "stabilize_still and normal_stop 0 or more, normal_share above 0 to 1",
                     spec));
   }
   return c;

@@ -113,6 +113,9 @@ struct WrlsSettings {
   // (AtrousPass::normals, normal_stop; the renderer then writes
   // FrameTargets::surface_normal); 0: no normal stop.
   float atrous_normal_stop = 0.0f;
+  // (0, 1]: the normal stop reads this frame's normals blended into the
+  // previous frame's guide with this share (NormalGuidePass); 1: this frame's.
+  float atrous_normal_share = 1.0f;
   // Temporal stabilisation of the output (as NRD's): the previous output,
   // reprojected, recentred and clipped to where this frame's estimate could
   // lie (+- stabilize_clamp deviations), is blended in with this weight

@@ -303,10 +303,11 @@ class Wrls final : public DenoiserBase<B> {
                                            FeatureRatioRows(input, pair.out, rv),
                                            s.young_variance_surface >= 0.0f ? guides : nullptr});
     const float* variance_scale = s.atrous_calibration_floor > 0.0f ? CalibrateStop(pair.in, guides) : nullptr;
+    const Vec3f* normals = NormalGuide(frame, previous_pixel);
     for (int level = 0; level < s.atrous_iterations; ++level) {
       RunAtrousLevel<B>(AtrousPass{pair.in, pair.out, guides, w, h, 1 << level, s.atrous_sigma_luminance,
-                                   s.atrous_sigma_depth, s.atrous_squared_luminance, variance_scale,
-                                   NormalsFor(frame, s.atrous_normal_stop), s.atrous_normal_stop});
+                                   s.atrous_sigma_depth, s.atrous_squared_luminance, variance_scale, normals,
+                                   s.atrous_normal_stop});
       pair.Swap();
     }
     Stabilize(pair.in, output_history, rv, frame.only_moved, output);
@@ -314,6 +315,10 @@ class Wrls final : public DenoiserBase<B> {
 
   void Allocate(std::size_t n) override {
     stable_.Resize(this->settings_.demodulate ? n : 0);
+    const WrlsSettings& s = this->settings_.wrls;
+    const bool guided = s.atrous_normal_stop > 0.0f && s.atrous_normal_share < 1.0f;
+    normal_guide_.Resize(guided ? n : 0);
+    prev_normal_guide_.Resize(guided ? n : 0);
     feature_.Resize(n);
     model_.Resize(n);
     prev_model_.Resize(n);
@@ -374,6 +379,19 @@ class Wrls final : public DenoiserBase<B> {
     return variance_scale_.data();
   }
 
+  // What the normal stop reads: null where it is off, this frame's normals,
+  // or the guide they are blended into (atrous_normal_share < 1).
+  const Vec3f* NormalGuide(const DenoiseFrame& frame, const int* previous_pixel) {
+    const WrlsSettings& s = this->settings_.wrls;
+    const Vec3f* current = NormalsFor(frame, s.atrous_normal_stop);
+    if (!current || !(s.atrous_normal_share < 1.0f)) return current;
+    std::swap(normal_guide_, prev_normal_guide_);
+    B::ForEachPixel(this->width_, this->height_,
+                    NormalGuidePass{current, prev_normal_guide_.data(), previous_pixel, normal_guide_.data(),
+                                    this->width_, s.atrous_normal_share});
+    return normal_guide_.data();
+  }
+
   // The stabilised output, the next frame's history: the output itself,
   // unless demodulation remodulates that in place.
   Vec3f* StableOutput(Vec3f* output) { return this->settings_.demodulate ? stable_.data() : output; }
@@ -389,6 +407,7 @@ class Wrls final : public DenoiserBase<B> {
   typename DenoiserBase<B>::template Buffer<StoredWrlsModel> model_, prev_model_;
   typename DenoiserBase<B>::template Buffer<unsigned> calibration_bins_;
   typename DenoiserBase<B>::template Buffer<float> variance_scale_;
+  typename DenoiserBase<B>::template Buffer<Vec3f> normal_guide_, prev_normal_guide_;  // NormalGuide's
   int still_frames_ = 0;
   bool calibrated_ = false;  // variance_scale_ holds the previous frame's
 };

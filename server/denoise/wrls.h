@@ -520,6 +520,26 @@ struct WrlsTemporalPass {
   }
 };
 
+// The normal stop's guide (WrlsSettings::atrous_normal_share < 1): this
+// frame's surface normals blended into the previous guide at the pixel's
+// nearest previous pixel, so the guide holds still from frame to frame, and
+// where the normals disagree from frame to frame (soft tissue) the average
+// shortens and the stop weakens by itself.
+struct NormalGuidePass {
+  const Vec3f* current;       // FrameTargets::surface_normal
+  const Vec3f* previous;      // the previous frame's guide
+  const int* previous_pixel;  // ReprojectHistoriesPass's (-1: none)
+  Vec3f* guide;
+  int width;
+  float share;  // of this frame's normals
+
+  CINEVOL_HD void operator()(int x, int y) const {
+    const int i = y * width + x;
+    const int p = previous_pixel[i];
+    guide[i] = p >= 0 ? Lerp(previous[p], current[i], share) : current[i];
+  }
+};
+
 // A pixel whose content moved less than this on screen stayed where it was.
 constexpr float kUnmovedPixels = 0.5f;
 

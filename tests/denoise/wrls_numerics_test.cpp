@@ -157,5 +157,22 @@ TEST(WrlsNumerics, HalfPrecisionRoundsToNearestEven) {
   EXPECT_EQ(back.p11[1], m.p11[1]);
 }
 
+// The normal stop's guide (NormalGuidePass): this frame's normals blended
+// into the previous guide where the pixel was reprojected, alone where it
+// was not; normals that flip from frame to frame average to a short vector,
+// which weakens the stop.
+TEST(WrlsNumerics, TheNormalGuideAveragesWhereReprojected) {
+  const Vec3f current[2] = {{0, 0, -1}, {0, 0, -1}};
+  const Vec3f previous[2] = {{0, 0, 1}, {1, 0, 0}};
+  const int previous_pixel[2] = {0, -1};
+  Vec3f guide[2];
+  const NormalGuidePass pass{current, previous, previous_pixel, guide, 2, 0.25f};
+  pass(0, 0);
+  pass(1, 0);
+  EXPECT_NEAR(guide[0].z, 0.5f, 1e-6f) << "0.75 of the flipped history, 0.25 of this frame";
+  EXPECT_LT(Length(guide[0]), 0.6f);
+  EXPECT_EQ(guide[1].z, -1.0f) << "no history: this frame's normal";
+}
+
 }  // namespace
 }  // namespace cinevol
