@@ -510,12 +510,13 @@ StudyConfig Variant(const std::string& spec) {
   const WrlsSettings& w = c.wrls;
   if (w.feature_rescale < 1 || w.feature_rescale > 8 || w.stabilize_recenter < 1 || w.stabilize_recenter > 8 ||
       !(w.drift_sigma > 0) || w.stabilize_still_frames < 0 || w.atrous_iterations < 0 || w.atrous_iterations > 8 ||
-      !(w.atrous_normal_stop >= 0) || !(c.svgf.normal_stop >= 0) ||
+      !(w.atrous_normal_stop >= 0 && w.atrous_normal_stop <= kMaxNormalStop) ||
+      !(c.svgf.normal_stop >= 0 && c.svgf.normal_stop <= kMaxNormalStop) ||
       !(w.atrous_normal_share > 0 && w.atrous_normal_share <= 1)) {
     throw InputError(
         fmt::format("--variant {}: rescale and recenter take 1 to 8, atrous 0 to 8, drift more than 0, "
-                    "stabilize_still and normal_stop 0 or more, normal_share above 0 to 1",
-                    spec));
+                    "stabilize_still 0 or more, normal_stop 0 to {}, normal_share above 0 to 1",
+                    spec, kMaxNormalStop));
   }
   return c;
 }

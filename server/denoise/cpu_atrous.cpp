@@ -92,6 +92,9 @@ __attribute__((target_clones("avx2", "default"))) void AddTapSquaredNormals(cons
   AddEdgeStoppedTap<true, true>(p, s, tap);
 }
 
+constexpr int kPlanes = 10;       // 40 bytes a pixel
+constexpr int kNormalPlanes = 4;  // and 16 more with AtrousPass::normals
+
 // The planes of one level, per pixel, as the functor computes them.
 void FillPlanes(const AtrousPass& pass, std::vector<float>* planes, int y) {
   const int w = pass.width, h = pass.height;
@@ -120,16 +123,13 @@ void FillPlanes(const AtrousPass& pass, std::vector<float>* planes, int y) {
     planes[9][i] = pass.guides[i].coverage;
     if (pass.normals) {
       const Vec3f n = pass.normals[i];
-      planes[10][i] = n.x;
-      planes[11][i] = n.y;
-      planes[12][i] = n.z;
-      planes[13][i] = Length(n);
+      planes[kPlanes][i] = n.x;
+      planes[kPlanes + 1][i] = n.y;
+      planes[kPlanes + 2][i] = n.z;
+      planes[kPlanes + 3][i] = Length(n);
     }
   }
 }
-
-constexpr int kPlanes = 10;  // 40 bytes a pixel
-constexpr int kNormalPlanes = 4;  // and 16 more with AtrousPass::normals
 
 }  // namespace
 
@@ -137,22 +137,22 @@ void CpuAtrousLevel(const AtrousPass& pass) {
   const int w = pass.width, h = pass.height;
   std::vector<float>* const planes = ThreadPlanes(kPlanes + (pass.normals ? kNormalPlanes : 0), std::size_t(w) * h);
   ParallelFor(h, [&](std::int64_t y) { FillPlanes(pass, planes, int(y)); });
-  AtrousPlanes p{{planes[0].data(), planes[1].data(), planes[2].data(), planes[3].data()},
-                 planes[4].data(),
-                 planes[8].data(),
-                 planes[5].data(),
-                 planes[9].data(),
-                 planes[6].data(),
-                 planes[7].data()};
-  auto add_tap = pass.squared_luminance ? AddTapSquared : AddTap;
-  if (pass.normals) {
-    p.nx = planes[10].data();
-    p.ny = planes[11].data();
-    p.nz = planes[12].data();
-    p.n_length = planes[13].data();
-    p.normal_stop = pass.normal_stop;
-    add_tap = pass.squared_luminance ? AddTapSquaredNormals : AddTapNormals;
-  }
+  const bool normals = pass.normals != nullptr;
+  const auto normal_plane = [&](int k) { return normals ? planes[kPlanes + k].data() : nullptr; };
+  const AtrousPlanes p{{planes[0].data(), planes[1].data(), planes[2].data(), planes[3].data()},
+                       planes[4].data(),
+                       planes[8].data(),
+                       planes[5].data(),
+                       planes[9].data(),
+                       planes[6].data(),
+                       planes[7].data(),
+                       normal_plane(0),
+                       normal_plane(1),
+                       normal_plane(2),
+                       normal_plane(3),
+                       pass.normal_stop};
+  const auto add_tap = normals ? (pass.squared_luminance ? AddTapSquaredNormals : AddTapNormals)
+                               : (pass.squared_luminance ? AddTapSquared : AddTap);
   CpuAtrousRows(w, h, pass.step, pass.out, [&](AtrousRowSums s, const AtrousRowTap& tap) { add_tap(p, s, tap); });
 }
 

@@ -29,6 +29,11 @@ enum class DenoiseMethod { kNone, kAccumulate, kKnn, kGuidedFilter, kSvgf, kWrls
 DenoiseMethod ParseDenoiseMethod(std::string_view name);
 const char* ToString(DenoiseMethod method);
 
+// The largest normal stop a setting may take: a pixel's own tap differs from
+// itself only by rounding (|a| |a| against a . a), which a larger stop could
+// turn into a weight of 0 and an a-trous level into 0 / 0.
+inline constexpr float kMaxNormalStop = 1000.0f;
+
 // Weighted recursive least squares (Iglesias-Guitian et al., Sec. 5-6). Every
 // model is per pixel and channel, predictor p = [1, z] over the temporal
 // feature z; models and features are reprojected from the previous frame.
@@ -109,9 +114,9 @@ struct WrlsSettings {
   // the first hit in semi-transparent tissue is itself a noisy estimate
   // (8 against 1: +1.2 dB on the CThead orbit).
   float atrous_sigma_depth = 8.0f;
-  // > 0: the levels also stop between surfaces that face different ways
-  // (AtrousPass::normals, normal_stop; the renderer then writes
-  // FrameTargets::surface_normal); 0: no normal stop.
+  // (0, kMaxNormalStop]: the levels also stop between surfaces that face
+  // different ways (AtrousPass::normals, normal_stop; the renderer then
+  // writes FrameTargets::surface_normal); 0: no normal stop.
   float atrous_normal_stop = 0.0f;
   // (0, 1]: the normal stop reads this frame's normals blended into the
   // previous frame's guide with this share (NormalGuidePass); 1: this frame's.
@@ -178,7 +183,9 @@ struct SvgfSettings {
   float sigma_luminance = 4.0f;
   float sigma_depth = 1.0f;
   bool squared_luminance = false;  // AtrousPass::squared_luminance; the paper's stop is not squared
-  float normal_stop = 0.0f;        // AtrousPass::normal_stop (the paper's normals: its G-buffer's); 0: none
+  // AtrousPass::normal_stop (the paper's normals: its G-buffer's), up to
+  // kMaxNormalStop; 0: none.
+  float normal_stop = 0.0f;
   friend bool operator==(const SvgfSettings&, const SvgfSettings&);  // defaulted in denoiser.cpp
 };
 

@@ -41,6 +41,10 @@ TEST(TradeoffStudy, VariantsParseTheirKeysAndNameBadOnes) {
   EXPECT_THROW(Variant("s:stabilize_still=-1"), InputError);
   EXPECT_THROW(Variant("s:stabilize_still=1e10"), InputError) << "beyond an int";
   EXPECT_THROW(Variant("a:atrous=40"), InputError) << "a step of 2^39 pixels";
+  EXPECT_EQ(Variant("n:normal_stop=1000").wrls.atrous_normal_stop, 1000.0f);
+  EXPECT_THROW(Variant("n:normal_stop=1e30"), InputError) << "the centre tap's rounding would weigh 0";
+  EXPECT_THROW(Variant("n:method=svgf,normal_stop=-1"), InputError);
+  EXPECT_THROW(Variant("n:normal_share=0"), InputError);
   EXPECT_THROW(Variant("z:spp=0"), InputError);
   EXPECT_THROW(Variant("u:no_such_key=1"), InputError);
   EXPECT_THROW(Variant("n:alpha=abc"), InputError);
