@@ -41,6 +41,12 @@ CINEVOL_HD bool Escaped(const Vec4f& hit) { return hit.w == 0.0f; }
 // max_error_px of (x, y): a round trip that tolerates the depth noise of
 // semi-transparent media (a static camera always maps back exactly) and
 // rejects disocclusions.
+// The position is where the hit projects, so it carries the jitter of the
+// sample that found it (up to 1.5 pixels): a half-pixel blur of the
+// histories a frame, and a few random resets under moving shading. Moving
+// the pixel's centre by the hit's motion instead gains where the camera
+// moves but loses up to 0.65 dB at 720p where it stands and the lights move
+// (docs/tradeoff.md, "Reprojection by the hit's motion").
 CINEVOL_HD Reprojection Reproject(const ReprojectionView& v, int x, int y) {
   Reprojection r;
   if (!v.has_history) return r;
