@@ -39,7 +39,7 @@ CINEVOL_HD bool Escaped(const Vec4f& hit) { return hit.w == 0.0f; }
 // the previous pixel there saw the same kind of thing (volume or background)
 // and, for the volume, the previous pixel's own hit maps back within
 // max_error_px of (x, y): a round trip that tolerates the depth noise of
-// semi-transparent media (a static camera always maps back exactly) and
+// semi-transparent media (a still view always maps back exactly) and
 // rejects disocclusions.
 // The position is where the hit projects, so it carries the jitter of the
 // sample that found it (up to 1.5 pixels): a half-pixel blur of the
