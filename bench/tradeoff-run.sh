@@ -5,6 +5,9 @@
 #   DATASET=ct-head-cthead bash bench/tradeoff-run.sh     # or mr-head, mr-head-256, phantom, ct-aorta
 # EXTRA passes more flags to cinevol-bench tradeoff (e.g. "--variants-only");
 # LIMIT (seconds) stops the study early and still packs its log.
+# AB=1 runs the bundle's cinevol-bench-before (make-gpu-bundle.sh BEFORE=...)
+# first, the references cached once, and prints bench/compare_tradeoff.py's
+# table of the two: a before/after of one change, alternating by data set.
 # Results (CSV, JSON, Markdown, half-size images) go to $OUT/tradeoff-$DATASET.tgz.
 set -uo pipefail
 cd "$(dirname "$0")/.."
@@ -25,9 +28,19 @@ case "${DATASET:?set DATASET}" in
   *) echo "unknown DATASET $DATASET"; exit 2 ;;
 esac
 results=/tmp/cv/tradeoff-$DATASET
-timeout "${LIMIT:-86400}" /tmp/cv/bin/cinevol-bench tradeoff --dataset "$spec" --backend cuda --width "${WIDTH:-1280}" --height "${HEIGHT:-720}" \
-  --cache /tmp/cv/cache --out "$results" ${EXTRA:-} > "$results.log" 2>&1
-echo "tradeoff $DATASET rc=$?"
-cp "$results.log" "$results/"
+study() {  # PROGRAM RESULTS
+  timeout "${LIMIT:-86400}" "$1" tradeoff --dataset "$spec" --backend cuda --width "${WIDTH:-1280}" --height "${HEIGHT:-720}" \
+    --cache /tmp/cv/cache --out "$2" ${EXTRA:-} > "$2.log" 2>&1
+  echo "tradeoff $DATASET $(basename "$1") rc=$?"
+  cp "$2.log" "$2/"
+}
+if [ "${AB:-0}" = 1 ]; then
+  study /tmp/cv/bin/cinevol-bench-before "$results-before"
+  study /tmp/cv/bin/cinevol-bench "$results"
+  tar czf "$out/tradeoff-$DATASET.tgz" -C /tmp/cv "tradeoff-$DATASET-before" "tradeoff-$DATASET"
+  python3 bench/compare_tradeoff.py "$results-before/tradeoff.json" "$results/tradeoff.json"
+  exit 0
+fi
+study /tmp/cv/bin/cinevol-bench "$results"
 tar czf "$out/tradeoff-$DATASET.tgz" -C /tmp/cv "tradeoff-$DATASET"
 grep -E "^[a-z-]+/|PSNR" "$results.log" | grep -E "/|none |svgf |wrls |knn |guided |accumulate " | head -60
