@@ -51,6 +51,12 @@ struct Camera {
   }
 };
 
+// True when a and b project every point to the same pixel (the lens aside).
+inline bool SameProjection(const Camera& a, const Camera& b) {
+  return a.eye == b.eye && a.forward == b.forward && a.right == b.right && a.up == b.up &&
+         a.tan_half_fov_y == b.tan_half_fov_y && a.width == b.width && a.height == b.height;
+}
+
 // Builds a camera looking from eye at target; up need not be orthogonal.
 inline Camera LookAt(Vec3f eye, Vec3f target, Vec3f up, float fov_y_deg, int width, int height) {
   Camera c;
