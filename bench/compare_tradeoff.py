@@ -58,7 +58,7 @@ def main(paths):
         short[1] += lead(a) < 1.0
         t = [ratio(r["wrls"]["temporal"], r["svgf"]["temporal"]) for r in (b, a)]
         f = [r["wrls"]["flicker"] / r["svgf"]["flicker"] if r["svgf"]["flicker"] > 0 else float("nan") for r in (b, a)]
-        print(f"| {key[0]} / {key[1]} | {flag}{w:+.2f}{flag} ({wc:+.2f}) | "
+        print(f"| {key[0]} / {key[1]} | {flag}{w:+.2f} ({wc:+.2f}){flag} | "
               f"{change('svgf', 'psnr'):+.2f} ({change('svgf', 'psnr_corrected'):+.2f}) | "
               f"{lead(b):+.2f} / {lead(a):+.2f} | {t[0]:+.1%} / {t[1]:+.1%} | {f[0]:.2f} / {f[1]:.2f} |")
     print(f"\nruns short of a 1 dB corrected lead: {short[0]} before, {short[1]} after")

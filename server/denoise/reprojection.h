@@ -44,13 +44,13 @@ CINEVOL_HD bool Escaped(const Vec4f& hit) { return hit.w == 0.0f; }
 // from its centre (the Gaussian pixel filter), so its own projection carries
 // that jitter. Where the camera moved (`follow_motion`) the pixel's centre
 // moves by the hit's motion instead (its two projections' difference): the
-// history is read where the pixel was, +0.15 to +0.62 dB at 720p on the
+// history is read where the pixel was, +0.14 to +0.62 dB at 720p on the
 // study's orbits and sun and sky. Where the camera stood and the shading
 // moved, the jittered position is kept on purpose: it reads the history
 // between pixels (a half-pixel blur a frame) and the round trip sends a few
 // pixels back to no history, which both denoisers lean on there (reading it
 // exactly loses up to 0.65 dB under moving lights; docs/tradeoff.md,
-// "Reprojection by the hit's motion").
+// "The hit's motion where the camera moved").
 CINEVOL_HD bool Follow(const Camera& from, const Camera& to, bool follow_motion, Vec3f p, float cx, float cy, float& px,
                        float& py) {
   if (!to.Project(p, px, py)) return false;
