@@ -15,6 +15,10 @@ out=${OUT:-gpu-out}
 mkdir -p "$out" /tmp/cv
 [ -x /tmp/cv/bin/cinevol-bench ] || tar xJf .gpu/bundle.tar.xz -C /tmp/cv
 export LD_LIBRARY_PATH=/tmp/cv/lib
+# The bench reads volumes through the reader cage: the reader travels with it.
+for program in cinevol-bench cinevol-reader $([ "${AB:-0}" = 1 ] && echo cinevol-bench-before); do
+  [ -x "/tmp/cv/bin/$program" ] || { echo "the bundle lacks $program (bench/make-gpu-bundle.sh PROGRAMS=, BEFORE=)"; exit 2; }
+done
 data=/tmp/cv/data
 case "${DATASET:?set DATASET}" in
   ct-head-cthead) spec="ct-head-cthead=bench/scenes/ct-head-cthead.json,$data/ct-head-cthead/DERIVED_CThead.nhdr" ;;
