@@ -25,8 +25,15 @@ def runs(path):
     return out
 
 
-def ratio(a, b):
-    return a / b - 1.0 if b > 0 else float("nan")
+def against_svgf(run, field):
+    """wRLS's figure over SVGF's (nan where SVGF's is 0)."""
+    svgf = run["svgf"][field]
+    return run["wrls"][field] / svgf if svgf > 0 else float("nan")
+
+
+def lead(run):
+    """wRLS's corrected PSNR lead over SVGF, dB."""
+    return run["wrls"]["psnr_corrected"] - run["svgf"]["psnr_corrected"]
 
 
 def main(paths):
@@ -47,17 +54,14 @@ def main(paths):
         def change(method, field):
             return a[method][field] - b[method][field]
 
-        def lead(runs_):
-            return runs_["wrls"]["psnr_corrected"] - runs_["svgf"]["psnr_corrected"]
-
         w, wc = change("wrls", "psnr"), change("wrls", "psnr_corrected")
         flag = "**" if min(w, wc) < -RULE_DB else ""
         if flag:
             drops.append(key)
         short[0] += lead(b) < 1.0
         short[1] += lead(a) < 1.0
-        t = [ratio(r["wrls"]["temporal"], r["svgf"]["temporal"]) for r in (b, a)]
-        f = [r["wrls"]["flicker"] / r["svgf"]["flicker"] if r["svgf"]["flicker"] > 0 else float("nan") for r in (b, a)]
+        t = [against_svgf(r, "temporal") - 1.0 for r in (b, a)]
+        f = [against_svgf(r, "flicker") for r in (b, a)]
         print(f"| {key[0]} / {key[1]} | {flag}{w:+.2f} ({wc:+.2f}){flag} | "
               f"{change('svgf', 'psnr'):+.2f} ({change('svgf', 'psnr_corrected'):+.2f}) | "
               f"{lead(b):+.2f} / {lead(a):+.2f} | {t[0]:+.1%} / {t[1]:+.1%} | {f[0]:.2f} / {f[1]:.2f} |")

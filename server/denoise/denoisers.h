@@ -79,7 +79,7 @@ class DenoiserBase : public Denoiser {
     rv.height = height_;
     rv.has_history = has_history_;
     rv.still = SameScene(frame);
-    rv.camera_moved = has_history_ && !SameProjection(frame.camera, prev_camera_);
+    rv.camera_moved = !SameProjection(frame.camera, prev_camera_);
     Run(frame, input, rv, output_.data());
     if (settings_.demodulate) B::ForEachPixel(width_, height_, RemodulatePass{frame.albedo, output_.data(), width_});
     if (!KeepsFirstHits()) prev_first_hit_.CopyFrom(frame.first_hit, pixels());
