@@ -468,20 +468,29 @@ v1::VolumeInfo VolumeRegistry::LoadLabels(const std::string& id, const std::stri
   const fs::path table = table_path.empty() ? fs::path() : ResolveDataPath(table_path, "table_path");
   Reservation reservation(this, caller.name, false, "the segmentation");
   const std::string shown = "path '" + path + "'";
-  LabelVolume loaded;
-  if (IsDicomSegmentation(labels)) {  // a DICOM SEG: placed in the reader cage, its memory reserved there
-    loaded = LoadSegmentation(labels, *image, PolicyFor(shown, false, cancel, &reservation));
-  } else {
-    Volume file = LoadVolumeFile(labels, PolicyFor(shown, false, cancel, &reservation));
-    FollowImageOrientation(file, *image);
-    reservation.Add(LabelBytesFor(*image));
-    loaded = FitLabels(file, *image, shown);
-  }
-  if (held) CopyTable(*held, loaded);  // the table found when the volume loaded stays marked
+  LabelVolume loaded = LoadLabelFile(labels, *image, held.get(), shown, false, cancel, reservation);
   if (!table.empty()) {                // a SEG's own names stay where the table names no other
     for (auto& [value, name] : LoadLabelTable(table, "table_path '" + table_path + "'")) loaded.names[value] = name;
   }
   return AttachLabels(id, image, std::move(loaded), caller, &reservation);
+}
+
+LabelVolume VolumeRegistry::LoadLabelFile(const fs::path& file, const Volume& image, const LabelVolume* held,
+                                          const std::string& shown, bool upload, const std::atomic<bool>* cancel,
+                                          Reservation& reservation) {
+  LabelVolume loaded;
+  // A DICOM SEG is placed in the reader cage and its memory reserved there (of
+  // a .dcm the service lets only a SEG's labels through).
+  if (IsDicomSegmentation(file)) {
+    loaded = LoadSegmentation(file, image, PolicyFor(shown, upload, cancel, &reservation));
+  } else {
+    Volume labels = LoadVolumeFile(file, PolicyFor(shown, upload, cancel, &reservation));
+    FollowImageOrientation(labels, image);
+    reservation.Add(LabelBytesFor(image));
+    loaded = FitLabels(labels, image, shown);
+  }
+  if (held) CopyTable(*held, loaded);  // the table found when the volume loaded stays marked
+  return loaded;
 }
 
 void VolumeRegistry::RequireLabelsAllowed(const std::string& id, const Principal& caller,
@@ -510,16 +519,7 @@ v1::VolumeInfo VolumeRegistry::AddUploadedLabels(const std::string& id, const fs
   const std::shared_ptr<const Volume> image = VolumeForLabels(id, caller, &held);
   const std::string shown = "upload:" + file_name;
   Reservation reservation(this, caller.name, false, "the segmentation");
-  LabelVolume loaded;
-  if (IsDicomSegmentation(file)) {  // a .dcm: the service lets only a DICOM SEG's labels through
-    loaded = LoadSegmentation(file, *image, PolicyFor(shown, true, cancel, &reservation));
-  } else {
-    Volume labels = LoadVolumeFile(file, PolicyFor(shown, true, cancel, &reservation));
-    FollowImageOrientation(labels, *image);
-    reservation.Add(LabelBytesFor(*image));
-    loaded = FitLabels(labels, *image, shown);
-  }
-  if (held) CopyTable(*held, loaded);  // the table found when the volume loaded stays marked
+  LabelVolume loaded = LoadLabelFile(file, *image, held.get(), shown, true, cancel, reservation);
   for (auto& [value, name] : reader_cage::ReadLabelTableText(table, "header.label_table")) loaded.names[value] = name;
   return AttachLabels(id, image, std::move(loaded), caller, &reservation);
 }

@@ -216,6 +216,11 @@ class VolumeRegistry {
   // Holds `labels`, fitted to `image`, for volume `id` if that is still `image`.
   v1::VolumeInfo AttachLabels(const std::string& id, const std::shared_ptr<const Volume>& image, LabelVolume labels,
                               const Principal& caller, Reservation* reservation);
+  // A label file for `image`: a DICOM SEG, or a label volume fitted to it
+  // (its copy on `image`'s grid reserved first); `held`'s table stays marked.
+  LabelVolume LoadLabelFile(const std::filesystem::path& file, const Volume& image, const LabelVolume* held,
+                            const std::string& shown, bool upload, const std::atomic<bool>* cancel,
+                            Reservation& reservation);
   std::uint64_t HeldBytesLocked() const;
   LoadPolicy PolicyFor(const std::string& label, bool upload, const std::atomic<bool>* cancel = nullptr,
                        Reservation* reservation = nullptr);
