@@ -508,7 +508,7 @@ struct WrlsTemporalPass {
         // A fresh model has seen nothing yet: its first estimate of the noise
         // is the neighbourhood's luminance variance.
         m.residual = LocalLuminanceVariance(x, y) * inv_scale * inv_scale;
-      } else {
+      } else if (w > 0.0f) {  // a sample of no weight tells nothing (and its error may be out of range)
         AdaptForgetting(m, Luminance(error), w, s);
         m.residual += s.residual_rate * w * (Sqr(Luminance(error)) - m.residual);
       }

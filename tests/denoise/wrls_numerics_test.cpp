@@ -4,6 +4,7 @@
 
 #include <cmath>
 #include <cstdint>
+#include <vector>
 
 #include "denoise/wrls.h"
 
@@ -172,6 +173,47 @@ TEST(WrlsNumerics, TheNormalGuideAveragesWhereReprojected) {
   EXPECT_NEAR(guide[0].z, 0.5f, 1e-6f) << "0.75 of the flipped history, 0.25 of this frame";
   EXPECT_LT(Length(guide[0]), 0.6f);
   EXPECT_EQ(guide[1].z, -1.0f) << "no history: this frame's normal";
+}
+
+// A bright sample in the dark (no lit neighbour, a black history) is clamped
+// out of the feature, which stays black, and weighs 0 in the fit: its error,
+// in units of the black model's floor scale, is out of range and must not
+// reach the residual (0 times infinity: a NaN that froze the model for good).
+TEST(WrlsNumerics, ALoneSampleInTheDarkLeavesAFiniteModel) {
+  constexpr int kSide = 3, kPixels = kSide * kSide, kCentre = 4;
+  const WrlsSettings s;
+  std::vector<Vec3f> input(kPixels), feature(kPixels);
+  std::vector<Vec4f> history(kPixels), prediction(kPixels);
+  std::vector<int> previous_pixel(kPixels, -1);
+  std::vector<StoredWrlsModel> previous(kPixels), model(kPixels);
+  ReprojectionView rv;
+  rv.width = rv.height = kSide;
+  auto frame = [&] {
+    WrlsTemporalPass{rv,
+                     input.data(),
+                     history.data(),
+                     previous_pixel.data(),
+                     previous.data(),
+                     feature.data(),
+                     model.data(),
+                     prediction.data(),
+                     s,
+                     0,
+                     nullptr,
+                     nullptr}(1, 1);
+  };
+  frame();  // all black: a model at the floor scale, no noise seen
+  previous = model;
+  for (int i = 0; i < kPixels; ++i) {
+    previous_pixel[i] = i;
+    history[i] = ToVec4(feature[i], 1.0f);
+  }
+  input[kCentre] = {5.0f, 5.0f, 5.0f};
+  frame();
+  const WrlsModel m = Load(model[kCentre]);
+  EXPECT_TRUE(std::isfinite(m.residual) && std::isfinite(m.drift)) << m.residual << " " << m.drift;
+  EXPECT_TRUE(Healthy(m, s.max_coefficient));
+  EXPECT_TRUE(IsFinite(Xyz(prediction[kCentre])) && std::isfinite(prediction[kCentre].w));
 }
 
 }  // namespace
