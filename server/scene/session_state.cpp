@@ -212,7 +212,11 @@ void ResolveNamedView(v1::Scene& scene, const SceneContext& context) {
       in_view.label_blocks = &label_blocks;
     }
   }
-  const Camera c = ResolveCamera(proto, scene.render(), volume, tf, in_view);
+  // The target at the framed (or kept) distance, not at the lens's focal
+  // distance: that may be anything above 0, and 1e-12 mm put it onto the eye.
+  v1::Camera framed = proto;
+  framed.clear_focal_distance_mm();
+  const Camera c = ResolveCamera(framed, scene.render(), volume, tf, in_view);
   SetVec(proto.mutable_eye(), c.eye);
   SetVec(proto.mutable_target(), c.eye + c.forward * c.focal_distance);
   SetVec(proto.mutable_up(), c.up);

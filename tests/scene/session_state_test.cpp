@@ -9,6 +9,7 @@
 
 #include "core/error.h"
 #include "io/phantom.h"
+#include "scene/scene_file.h"
 
 namespace cinevol {
 namespace {
@@ -100,6 +101,28 @@ TEST(SessionEvents, EachEventReplacesOrMergesItsPartAndSaysWhatChanged) {
   e.mutable_resume();
   EXPECT_EQ(ApplyEvent(state, e, kHead, &limits), unsigned(kPauseChanged));
   EXPECT_FALSE(state.paused());
+}
+
+// A named view puts its target at the framed distance whatever the lens's
+// focal distance: at 8e-13 mm (a fuzzer's input) the target rounded onto the
+// eye and the accepted state failed the scene's own check.
+TEST(SessionEvents, ANamedViewsTargetIgnoresTheFocalDistance) {
+  const SessionLimits limits;
+  auto target_distance = [&](float focal_distance_mm) {
+    v1::SessionState state = Started(limits);
+    v1::SessionEvent e = Numbered(1);
+    e.mutable_camera()->set_view(v1::ANTERIOR);
+    e.mutable_camera()->set_focal_distance_mm(focal_distance_mm);
+    ApplyEvent(state, e, kHead, &limits);
+    EXPECT_TRUE(ValidateSceneParts(state.scene()).empty()) << focal_distance_mm;
+    EXPECT_EQ(state.scene().camera().focal_distance_mm(), focal_distance_mm) << "the lens keeps its focus";
+    const v1::Camera& c = state.scene().camera();
+    return std::hypot(c.target().x() - c.eye().x(), c.target().y() - c.eye().y(), c.target().z() - c.eye().z());
+  };
+  const double framed = target_distance(0.0f);
+  EXPECT_GT(framed, 1.0);
+  EXPECT_NEAR(target_distance(7.98e-13f), framed, 1e-3 * framed);
+  EXPECT_NEAR(target_distance(500.0f), framed, 1e-3 * framed);
 }
 
 TEST(SessionEvents, AnEventThatLeavesItsPartAsItWasChangesNothing) {
