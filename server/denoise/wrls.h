@@ -175,13 +175,27 @@ CINEVOL_HD bool Healthy(const WrlsModel& m, float max_coefficient) {
   return true;
 }
 
-// Re-expresses the model in units of `scale` (exact: predictions unchanged).
+// A noise estimate (residual) in a model's units: it overflows where the
+// model is black (scale at the floor, 1e-20) and its neighbourhood or its
+// next, lit frame is not; such an estimate reads as no noise seen (0), as a
+// black pixel's own samples show none, and the model learns its noise from
+// its next samples. Left infinite, the next update made it a NaN that froze
+// the model's noise at "none" for as long as the pixel kept its history
+// (about 1% of a 2-spp frame's pixels, docs/tradeoff.md).
+CINEVOL_HD float FiniteResidual(float residual) { return isfinite(residual) ? residual : 0.0f; }
+
+// Re-expresses the model in units of `scale`: its predictions are exact.
+// P is not re-expressed exactly (that would divide p01 by r and p11 by r^2):
+// scaled as below, a model that brightens by more than 16 times keeps a firm
+// prior on its slope rather than forgetting it. The exact P, which lets a
+// model lit after black fit its slope to one noisy sample, cost 0.1-0.7 dB
+// (docs/tradeoff.md, "A black pixel's noise").
 CINEVOL_HD void Rescale(WrlsModel& m, float scale) {
   const float r = m.scale / scale;
   m.beta0 *= r;
   m.p01 *= r;
   m.p11 *= r * r;
-  if (m.residual > 0) m.residual *= r * r;
+  if (m.residual > 0) m.residual = FiniteResidual(m.residual * r * r);
   m.drift *= r;
   m.scale = scale;
 }
@@ -507,7 +521,7 @@ struct WrlsTemporalPass {
       if (m.residual < 0.0f) {
         // A fresh model has seen nothing yet: its first estimate of the noise
         // is the neighbourhood's luminance variance.
-        m.residual = LocalLuminanceVariance(x, y) * inv_scale * inv_scale;
+        m.residual = FiniteResidual(LocalLuminanceVariance(x, y) * inv_scale * inv_scale);
       } else if (w > 0.0f) {  // a sample of no weight tells nothing (and its error may be out of range)
         AdaptForgetting(m, Luminance(error), w, s);
         m.residual += s.residual_rate * w * (Sqr(Luminance(error)) - m.residual);

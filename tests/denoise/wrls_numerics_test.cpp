@@ -216,5 +216,48 @@ TEST(WrlsNumerics, ALoneSampleInTheDarkLeavesAFiniteModel) {
   EXPECT_TRUE(IsFinite(Xyz(prediction[kCentre])) && std::isfinite(prediction[kCentre].w));
 }
 
+// A black pixel among lit, noisy ones (a silhouette): its noise in its own
+// units (scale 1e-20) overflows. It must read as none seen, not stay
+// infinite, nor become a NaN on the next frame or when the pixel is lit.
+TEST(WrlsNumerics, ABlackPixelAmongLitOnesKeepsAFiniteNoiseEstimate) {
+  constexpr int kSide = 3, kPixels = kSide * kSide, kCentre = 4;
+  const WrlsSettings s;
+  std::vector<Vec3f> input(kPixels), feature(kPixels);
+  std::vector<Vec4f> history(kPixels), prediction(kPixels);
+  std::vector<int> previous_pixel(kPixels, -1);
+  std::vector<StoredWrlsModel> previous(kPixels), model(kPixels);
+  ReprojectionView rv;
+  rv.width = rv.height = kSide;
+  for (int i = 0; i < kPixels; ++i) input[i] = i % 2 ? Vec3f{2.0f, 2.0f, 2.0f} : Vec3f{0.2f, 0.2f, 0.2f};
+  auto frame = [&](float centre) {
+    input[kCentre] = {centre, centre, centre};
+    WrlsTemporalPass{rv,
+                     input.data(),
+                     history.data(),
+                     previous_pixel.data(),
+                     previous.data(),
+                     feature.data(),
+                     model.data(),
+                     prediction.data(),
+                     s,
+                     0,
+                     nullptr,
+                     nullptr}(1, 1);
+    const WrlsModel m = Load(model[kCentre]);
+    EXPECT_TRUE(m.residual >= 0.0f && std::isfinite(m.residual)) << "centre " << centre << ": " << m.residual;
+    EXPECT_TRUE(IsFinite(Xyz(prediction[kCentre])) && std::isfinite(prediction[kCentre].w));
+    previous = model;
+    for (int i = 0; i < kPixels; ++i) {
+      previous_pixel[i] = i;
+      history[i] = ToVec4(feature[i], 1.0f);
+    }
+    return m;
+  };
+  frame(0.0f);                                             // its first noise estimate
+  frame(0.0f);                                             // and its first update
+  for (int t = 0; t < 4; ++t) frame(t % 2 ? 0.8f : 1.2f);  // lit, rescaled from the floor
+  EXPECT_GT(frame(1.0f).residual, 0.0f);                   // it learns its noise again
+}
+
 }  // namespace
 }  // namespace cinevol
