@@ -14,6 +14,7 @@
 #include <unistd.h>
 
 #include <chrono>
+#include <cstdio>
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
@@ -127,6 +128,11 @@ class ServerProcess {
     std::ifstream in(log_);
     return {std::istreambuf_iterator<char>(in), {}};
   }
+  // The log's last `bytes`.
+  std::string LogTail(std::size_t bytes = 4000) const {
+    const std::string log = Log();
+    return log.size() > bytes ? log.substr(log.size() - bytes) : log;
+  }
   Client Connect(const std::string& token = {}) const {
     ClientOptions options;
     options.address = address();
@@ -137,8 +143,16 @@ class ServerProcess {
   // SIGTERM by pid, then SIGKILL if it does not stop in time; returns its wait status.
   int Stop() {
     if (pid_ <= 0) return -1;
+    int status = WaitExit(pid_, std::chrono::milliseconds(0));
+    if (status != -1) {  // it ended before it was asked to: a failure's first clue
+      std::fprintf(stderr, "cinevol-server (pid %d) had ended by itself, %s %d; the end of its log:\n%s\n", pid_,
+                   WIFSIGNALED(status) ? "signal" : "exit code",
+                   WIFSIGNALED(status) ? WTERMSIG(status) : WEXITSTATUS(status), LogTail().c_str());
+      pid_ = -1;
+      return status;
+    }
     kill(pid_, SIGTERM);
-    int status = WaitExit(pid_, std::chrono::seconds(15));
+    status = WaitExit(pid_, std::chrono::seconds(15));
     if (status == -1) {
       kill(pid_, SIGKILL);
       status = WaitExit(pid_, std::chrono::seconds(5));
