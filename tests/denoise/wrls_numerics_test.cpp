@@ -175,20 +175,21 @@ TEST(WrlsNumerics, TheNormalGuideAveragesWhereReprojected) {
   EXPECT_EQ(guide[1].z, -1.0f) << "no history: this frame's normal";
 }
 
-// A bright sample in the dark (no lit neighbour, a black history) is clamped
-// out of the feature, which stays black, and weighs 0 in the fit: its error,
-// in units of the black model's floor scale, is out of range and must not
-// reach the residual (0 times infinity: a NaN that froze the model for good).
-TEST(WrlsNumerics, ALoneSampleInTheDarkLeavesAFiniteModel) {
-  constexpr int kSide = 3, kPixels = kSide * kSide, kCentre = 4;
-  const WrlsSettings s;
-  std::vector<Vec3f> input(kPixels), feature(kPixels);
-  std::vector<Vec4f> history(kPixels), prediction(kPixels);
-  std::vector<int> previous_pixel(kPixels, -1);
-  std::vector<StoredWrlsModel> previous(kPixels), model(kPixels);
-  ReprojectionView rv;
-  rv.width = rv.height = kSide;
-  auto frame = [&] {
+// Three by three pixels through the temporal pass, frame after frame: the
+// centre is updated, and each frame's feature and models are the next one's
+// history (the camera stands still).
+struct ThreeByThree {
+  static constexpr int kSide = 3, kPixels = kSide * kSide, kCentre = 4;
+  WrlsSettings s;
+  std::vector<Vec3f> input = std::vector<Vec3f>(kPixels), feature = std::vector<Vec3f>(kPixels);
+  std::vector<Vec4f> history = std::vector<Vec4f>(kPixels), prediction = std::vector<Vec4f>(kPixels);
+  std::vector<int> previous_pixel = std::vector<int>(kPixels, -1);
+  std::vector<StoredWrlsModel> previous = std::vector<StoredWrlsModel>(kPixels), model = previous;
+
+  // The centre's model after one frame.
+  WrlsModel Frame() {
+    ReprojectionView rv;
+    rv.width = rv.height = kSide;
     WrlsTemporalPass{rv,
                      input.data(),
                      history.data(),
@@ -201,56 +202,43 @@ TEST(WrlsNumerics, ALoneSampleInTheDarkLeavesAFiniteModel) {
                      0,
                      nullptr,
                      nullptr}(1, 1);
-  };
-  frame();  // all black: a model at the floor scale, no noise seen
-  previous = model;
-  for (int i = 0; i < kPixels; ++i) {
-    previous_pixel[i] = i;
-    history[i] = ToVec4(feature[i], 1.0f);
+    previous = model;
+    for (int i = 0; i < kPixels; ++i) {
+      previous_pixel[i] = i;
+      history[i] = ToVec4(feature[i], 1.0f);
+    }
+    return Load(model[kCentre]);
   }
-  input[kCentre] = {5.0f, 5.0f, 5.0f};
-  frame();
-  const WrlsModel m = Load(model[kCentre]);
+  bool PredictionIsFinite() const { return IsFinite(Xyz(prediction[kCentre])) && std::isfinite(prediction[kCentre].w); }
+};
+
+// A bright sample in the dark (no lit neighbour, a black history) is clamped
+// out of the feature, which stays black, and weighs 0 in the fit: its error,
+// in units of the black model's floor scale, is out of range and must not
+// reach the residual (0 times infinity: a NaN that froze the model for good).
+TEST(WrlsNumerics, ALoneSampleInTheDarkLeavesAFiniteModel) {
+  ThreeByThree square;
+  square.Frame();  // all black: a model at the floor scale, no noise seen
+  square.input[ThreeByThree::kCentre] = {5.0f, 5.0f, 5.0f};
+  const WrlsModel m = square.Frame();
   EXPECT_TRUE(std::isfinite(m.residual) && std::isfinite(m.drift)) << m.residual << " " << m.drift;
-  EXPECT_TRUE(Healthy(m, s.max_coefficient));
-  EXPECT_TRUE(IsFinite(Xyz(prediction[kCentre])) && std::isfinite(prediction[kCentre].w));
+  EXPECT_TRUE(Healthy(m, square.s.max_coefficient));
+  EXPECT_TRUE(square.PredictionIsFinite());
 }
 
 // A black pixel among lit, noisy ones (a silhouette): its noise in its own
 // units (scale 1e-20) overflows. It must read as none seen, not stay
 // infinite, nor become a NaN on the next frame or when the pixel is lit.
 TEST(WrlsNumerics, ABlackPixelAmongLitOnesKeepsAFiniteNoiseEstimate) {
-  constexpr int kSide = 3, kPixels = kSide * kSide, kCentre = 4;
-  const WrlsSettings s;
-  std::vector<Vec3f> input(kPixels), feature(kPixels);
-  std::vector<Vec4f> history(kPixels), prediction(kPixels);
-  std::vector<int> previous_pixel(kPixels, -1);
-  std::vector<StoredWrlsModel> previous(kPixels), model(kPixels);
-  ReprojectionView rv;
-  rv.width = rv.height = kSide;
-  for (int i = 0; i < kPixels; ++i) input[i] = i % 2 ? Vec3f{2.0f, 2.0f, 2.0f} : Vec3f{0.2f, 0.2f, 0.2f};
+  ThreeByThree square;
+  for (int i = 0; i < ThreeByThree::kPixels; ++i) {
+    square.input[i] = i % 2 ? Vec3f{2.0f, 2.0f, 2.0f} : Vec3f{0.2f, 0.2f, 0.2f};
+  }
   auto frame = [&](float centre) {
-    input[kCentre] = {centre, centre, centre};
-    WrlsTemporalPass{rv,
-                     input.data(),
-                     history.data(),
-                     previous_pixel.data(),
-                     previous.data(),
-                     feature.data(),
-                     model.data(),
-                     prediction.data(),
-                     s,
-                     0,
-                     nullptr,
-                     nullptr}(1, 1);
-    const WrlsModel m = Load(model[kCentre]);
+    square.input[ThreeByThree::kCentre] = {centre, centre, centre};
+    const WrlsModel m = square.Frame();
     EXPECT_TRUE(m.residual >= 0.0f && std::isfinite(m.residual)) << "centre " << centre << ": " << m.residual;
-    EXPECT_TRUE(IsFinite(Xyz(prediction[kCentre])) && std::isfinite(prediction[kCentre].w));
-    previous = model;
-    for (int i = 0; i < kPixels; ++i) {
-      previous_pixel[i] = i;
-      history[i] = ToVec4(feature[i], 1.0f);
-    }
+    EXPECT_TRUE(square.PredictionIsFinite());
     return m;
   };
   frame(0.0f);                                             // its first noise estimate
