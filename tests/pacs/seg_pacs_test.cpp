@@ -88,12 +88,6 @@ class SegFromPacs : public ::testing::Test {
     ASSERT_TRUE(server_->running()) << server_->Log();
   }
 
-  // A failure under the full suite (a connection reset once, 2026-12-07)
-  // needs the server's side to be understood.
-  void TearDown() override {
-    if (HasFailure() && server_) std::fprintf(stderr, "the server's log ends:\n%s\n", server_->LogTail().c_str());
-  }
-
   // The labels' box in x and y, widened to whole bytes of pixels: the SEG's
   // frames cover only it (DCMTK's own binary packing then; seg_writer.h).
   static SegGrid CroppedGrid() {

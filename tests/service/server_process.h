@@ -140,19 +140,24 @@ class ServerProcess {
     return Client(options);
   }
 
-  // SIGTERM by pid, then SIGKILL if it does not stop in time; returns its wait status.
+  // SIGTERM by pid, then SIGKILL if it does not stop in time; returns its wait
+  // status. A server that had ended by itself, or one whose test failed, prints
+  // its log's end first: a failure's first clue.
   int Stop() {
     if (pid_ <= 0) return -1;
     int status = WaitExit(pid_, std::chrono::milliseconds(0));
-    if (status != -1) {  // it ended before it was asked to: a failure's first clue
-      std::fprintf(stderr, "cinevol-server (pid %d) had ended by itself, %s %d; the end of its log:\n%s\n", pid_,
+    if (status != -1) {
+      std::fprintf(stderr, "cinevol-server (pid %d) had ended by itself, %s %d\n", pid_,
                    WIFSIGNALED(status) ? "signal" : "exit code",
-                   WIFSIGNALED(status) ? WTERMSIG(status) : WEXITSTATUS(status), LogTail().c_str());
-      pid_ = -1;
-      return status;
+                   WIFSIGNALED(status) ? WTERMSIG(status) : WEXITSTATUS(status));
     }
-    kill(pid_, SIGTERM);
-    status = WaitExit(pid_, std::chrono::seconds(15));
+    if (status != -1 || ::testing::Test::HasFailure()) {
+      std::fprintf(stderr, "the end of cinevol-server's log (pid %d):\n%s\n", pid_, LogTail().c_str());
+    }
+    if (status == -1) {
+      kill(pid_, SIGTERM);
+      status = WaitExit(pid_, std::chrono::seconds(15));
+    }
     if (status == -1) {
       kill(pid_, SIGKILL);
       status = WaitExit(pid_, std::chrono::seconds(5));
