@@ -41,6 +41,8 @@
 #              denoiser) and refine (a still to 96 spp): the same quality columns and images? (a
 #              change that claims the same output; both builds f44c2e1 or later, whose study
 #              references share their seeds, or both earlier)
+#   render     cinevol-bench render of both builds, alternating, RENDER_ROUNDS (2) times: the path
+#              tracer's median ms a frame on CThead at 1280x720 (a change to the render alone)
 #   clients    CLIENTS_SESSIONS (8 128) full-size sessions from one loadtest process and from two (CLIENTS=2
 #              splits any step's sessions between that many), alternating
 # SECONDS_PER_RUN (8) is each loadtest's length, DENOISER (wrls) its sessions' denoiser, SPP (2) their samples a frame. Every session of a loadtest
@@ -301,6 +303,18 @@ step_memory() {
       > "$logs/memory-$build.log" 2>&1
     { echo; echo "Device memory, $build ($(gpu_name)):"; grep -iE 'MiB|session' "$logs/memory-$build.log" | head -12; } \
       >> "$table"
+  done
+}
+
+step_render() {
+  local round build
+  echo >> "$table"
+  for round in $(seq "${RENDER_ROUNDS:-2}"); do
+    for build in bin-before bin; do
+      echo "render, $build, round $round: $("$cv/$build/cinevol-bench" render --scene "$scene" --volume "$volume" \
+        --backend cuda --width 1280 --height 720 --frames 40 --warmup 5 --default-only 2> "$logs/render-$build-$round.err" \
+        | grep '^| default')" >> "$table"
+    done
   done
 }
 

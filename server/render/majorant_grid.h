@@ -35,18 +35,21 @@ struct MajorantSegment {
 class MajorantIterator {
  public:
   CINEVOL_HD MajorantIterator(const MajorantGridView& grid, Vec3f o, Vec3f d, float t_min, float t_max)
-      : grid_(&grid), t_min_(t_min), t_max_(t_max) {
+      : majorant_(grid.majorant), t_min_(t_min), t_max_(t_max) {
     const Vec3f p = (o + d * t_min - grid.box_min) * grid.inv_brick_size;
     const Vec3f dg = d * grid.inv_brick_size;
-    x_ = Axis(p.x, dg.x, t_min, grid.bricks.x);
-    y_ = Axis(p.y, dg.y, t_min, grid.bricks.y);
-    z_ = Axis(p.z, dg.z, t_min, grid.bricks.z);
+    int bx, by, bz;
+    x_ = Axis(p.x, dg.x, t_min, grid.bricks.x, 1, bx);
+    y_ = Axis(p.y, dg.y, t_min, grid.bricks.y, grid.bricks.x, by);
+    z_ = Axis(p.z, dg.z, t_min, grid.bricks.z, grid.bricks.x * grid.bricks.y, bz);
+    // At most kMaxVoxels bricks (core/volume.h): an int holds the index.
+    index_ = (bz * grid.bricks.y + by) * grid.bricks.x + bx;
   }
 
   CINEVOL_HD bool Next(MajorantSegment& seg) {
     if (!(t_min_ < t_max_)) return false;
     seg.t_min = t_min_;
-    seg.sigma_maj = grid_->At({x_.brick, y_.brick, z_.brick});
+    seg.sigma_maj = LoadReadOnly(majorant_ + index_);
     // Step along the axis whose brick boundary comes first. One call per
     // axis, not a reference or an index chosen at run time: that keeps every
     // field in registers on a GPU.
@@ -64,33 +67,33 @@ class MajorantIterator {
  private:
   static constexpr float kNever = 3.4e38f;
 
+  // One axis of the walk: the bricks left before the ray leaves the grid
+  // along it, the step of the brick index, and where and how often the next
+  // boundary comes. The index moves by the stride, not recomputed from three
+  // brick coordinates a step.
   struct AxisState {
-    int brick, step, limit;
+    int left, stride;
     float next_t, delta_t;
   };
 
   CINEVOL_HD void Step(AxisState& a) {
     t_min_ = fminf(t_max_, a.next_t);
-    a.brick += a.step;
-    if (a.brick == a.limit) t_min_ = t_max_;
+    index_ += a.stride;
+    if (--a.left == 0) t_min_ = t_max_;
     a.next_t += a.delta_t;
   }
 
-  // p: entry position in bricks; d: direction in bricks per unit t.
-  CINEVOL_HD static AxisState Axis(float p, float d, float t_min, int bricks) {
-    AxisState s;
-    s.brick = MinInt(MaxInt(static_cast<int>(floorf(p)), 0), bricks - 1);
-    if (d > 0.0f) {
-      s = {s.brick, 1, bricks, t_min + (float(s.brick + 1) - p) / d, 1.0f / d};
-    } else if (d < 0.0f) {
-      s = {s.brick, -1, -1, t_min + (float(s.brick) - p) / d, -1.0f / d};
-    } else {
-      s = {s.brick, 0, -2, kNever, kNever};
-    }
-    return s;
+  // p: entry position in bricks; d: direction in bricks per unit t; stride:
+  // the index's step per brick along the axis. `brick` takes the entry brick.
+  CINEVOL_HD static AxisState Axis(float p, float d, float t_min, int bricks, int stride, int& brick) {
+    brick = MinInt(MaxInt(static_cast<int>(floorf(p)), 0), bricks - 1);
+    if (d > 0.0f) return {bricks - brick, stride, t_min + (float(brick + 1) - p) / d, 1.0f / d};
+    if (d < 0.0f) return {brick + 1, -stride, t_min + (float(brick) - p) / d, -1.0f / d};
+    return {-1, 0, kNever, kNever};  // never stepped along
   }
 
-  const MajorantGridView* grid_;
+  const float* majorant_;
+  int index_;
   float t_min_, t_max_;
   AxisState x_, y_, z_;
 };
