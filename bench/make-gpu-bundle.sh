@@ -5,10 +5,15 @@
 # working tree; only the reading and DICOM checks need it).
 # PROGRAMS="cinevol-server ..." packs only those of build/ (the carry limit
 # again: a run of tests and benches needs neither the client nor the viewer).
+# All the programs with their libraries no longer fit one call (about 70 MiB
+# packed): the script fails then, naming the sizes. A bench or two fit
+# (PROGRAMS="cinevol-bench cinevol-reader"); the tests and the service with their libraries
+# travel in bench/make-speed-bundle.sh's three folders.
 # BEFORE=PATH packs an earlier build's cinevol-bench as cinevol-bench-before,
 # for tables of before and after in one run (bench/gpu-run.sh).
 set -euo pipefail
 cd "$(dirname "$0")/.."
+. bench/carry-limit.sh
 stage=$(mktemp -d)
 programs=${PROGRAMS:-cinevol cinevol-server cinevol-reader cinevol-bench cinevol-viewer tests/cinevol_tests}
 # shellcheck disable=SC2086  # the programs are words
@@ -31,3 +36,4 @@ mkdir -p .gpu
 tar -I 'xz -T0 -9e' -cf .gpu/bundle.tar.xz -C "$stage" .
 rm -rf "$stage"
 du -h .gpu/bundle.tar.xz
+check_carry .gpu/bundle.tar.xz

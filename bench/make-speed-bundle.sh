@@ -16,6 +16,7 @@
 #   BEFORE=/path/to/old-build bench/make-speed-bundle.sh .gpu/speed
 set -euo pipefail
 cd "$(dirname "$0")/.."
+. bench/carry-limit.sh
 dest=${1:?usage: bench/make-speed-bundle.sh OUT_DIR}
 stage=$(mktemp -d)
 ../shared/tools/device-bundle.sh "$stage" build/cinevol-server build/cinevol build/cinevol-reader build/cinevol-bench \
@@ -43,3 +44,4 @@ tar -I 'xz -T0 -9' -cf "$dest/programs/bundle.tar.xz" -C "$stage" .
 cp bench/speed-run.sh "$dest/programs/run.sh"
 rm -rf "$stage"
 du -sh "$dest"/*
+for folder in "$dest"/*; do check_carry "$folder"; done
