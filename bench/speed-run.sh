@@ -40,11 +40,14 @@
 #   identity   both builds' cinevol-bench tradeoff on CThead (640x360, orbit and point light, every
 #              denoiser) and refine (a still to 96 spp): the same quality columns and images? (a
 #              change that claims the same output; both builds f44c2e1 or later, whose study
-#              references share their seeds, or both earlier)
+#              references share their seeds, or both earlier); where they differ, by how much
+#              (bench/compare_tradeoff.py)
 #   render     cinevol-bench render of both builds, alternating, RENDER_ROUNDS (2) times: the path
 #              tracer's median ms a frame on CThead at 1280x720 (a change to the render alone)
 #   clients    CLIENTS_SESSIONS (8 128) full-size sessions from one loadtest process and from two (CLIENTS=2
 #              splits any step's sessions between that many), alternating
+# EXTRA_BUILDS: folders under $CV beside bin/ (a call's command puts them there), each holding a
+# cinevol-bench that the render and identity steps measure too, against bin-before.
 # SECONDS_PER_RUN (8) is each loadtest's length, DENOISER (wrls) its sessions' denoiser, SPP (2) their samples a frame. Every session of a loadtest
 # shares one connection: servers allow 1024 streams on it (128 by default, which
 # 128 sessions' streams fill, and their closing calls then wait for a stream). This build's servers run with
@@ -310,7 +313,7 @@ step_render() {
   local round build
   echo >> "$table"
   for round in $(seq "${RENDER_ROUNDS:-2}"); do
-    for build in bin-before bin; do
+    for build in bin-before bin ${EXTRA_BUILDS:-}; do
       echo "render, $build, round $round: $("$cv/$build/cinevol-bench" render --scene "$scene" --volume "$volume" \
         --backend cuda --width 1280 --height 720 --frames 40 --warmup 5 --default-only 2> "$logs/render-$build-$round.err" \
         | grep '^| default')" >> "$table"
@@ -319,31 +322,34 @@ step_render() {
 }
 
 step_identity() {
-  local build
-  for build in bin-before bin; do
-    rm -rf "$cv/tradeoff-$build"
+  local build b same differing
+  for build in bin-before bin ${EXTRA_BUILDS:-}; do
+    rm -rf "$cv/tradeoff-$build" "$cv/refine-$build.csv"
     "$cv/$build/cinevol-bench" tradeoff --dataset "ct=$scene,$volume" --width 640 --height 360 --reference-spp 64 \
       --frames-scale 0.3 --scenario orbit --scenario point-light --denoisers-only --backend cuda \
       --cache "$cv/tradeoff-cache" --out "$cv/tradeoff-$build" > "$logs/identity-$build.log" 2>&1
     echo "tradeoff $build rc=$?"
-  done
-  local a=$cv/tradeoff-bin-before b=$cv/tradeoff-bin same=same differing
-  diff <(cut -d, -f1-15 "$a/tradeoff.csv") <(cut -d, -f1-15 "$b/tradeoff.csv") > /dev/null || same=DIFFERENT
-  differing=$(cd "$a/images" && find . -type f | while read -r f; do cmp -s "$f" "$b/images/$f" || echo "$f"; done | wc -l)
-  { echo; echo "Both builds' study (quality columns, $(wc -l < "$b/tradeoff.csv") rows): $same;" \
-      "images differing: $differing of $(find "$b/images" -type f | wc -l)"; } >> "$table"
-  # A still past the refinement's first error estimate (frame 16): its quality columns.
-  for build in bin-before bin; do
-    rm -f "$cv/refine-$build.csv"
+    # A still past the refinement's first error estimate (frame 16): its quality columns.
     "$cv/$build/cinevol-bench" refine --scene "$scene" --volume "$volume" --backend cuda --width 640 --height 360 \
       --reference-spp 256 --target-spp 96 --orbit-frames 2 --reference "$cv/refine-reference.exr" \
       --csv "$cv/refine-$build.csv" > "$logs/identity-refine-$build.log" 2>&1
     echo "refine $build rc=$?"
   done
-  same=same
-  diff <(cut -d, -f1-7,9,10,12,13 "$cv/refine-bin-before.csv") <(cut -d, -f1-7,9,10,12,13 "$cv/refine-bin.csv") \
-    > /dev/null || same=DIFFERENT
-  echo "Both builds' still (refine bench, quality columns, $(wc -l < "$cv/refine-bin.csv") rows): $same" >> "$table"
+  local a=$cv/tradeoff-bin-before
+  for build in bin ${EXTRA_BUILDS:-}; do
+    b=$cv/tradeoff-$build same=same
+    diff <(cut -d, -f1-15 "$a/tradeoff.csv") <(cut -d, -f1-15 "$b/tradeoff.csv") > /dev/null || same=DIFFERENT
+    differing=$(cd "$a/images" && find . -type f | while read -r f; do cmp -s "$f" "$b/images/$f" || echo "$f"; done | wc -l)
+    { echo; echo "bin-before and $build, the study (quality columns, $(wc -l < "$b/tradeoff.csv") rows): $same;" \
+        "images differing: $differing of $(find "$b/images" -type f | wc -l)"; } >> "$table"
+    # Images that differ: by how much, wRLS and SVGF before / after (the study's 0.05 dB rule).
+    [ "$same" = same ] || python3 bench/compare_tradeoff.py "$a/tradeoff.json" "$b/tradeoff.json" >> "$table"
+    same=same
+    diff <(cut -d, -f1-7,9,10,12,13 "$cv/refine-bin-before.csv") <(cut -d, -f1-7,9,10,12,13 "$cv/refine-$build.csv") \
+      > /dev/null || same=DIFFERENT
+    echo "bin-before and $build, the still (refine bench, quality columns, $(wc -l < "$cv/refine-$build.csv") rows): $same" \
+      >> "$table"
+  done
 }
 
 nvidia-smi --query-gpu=name,memory.total,driver_version --format=csv,noheader | tee "$out/gpu.txt"
