@@ -28,13 +28,14 @@ struct FusedView {
   CINEVOL_HD bool present() const { return volume.voxels != nullptr || volume.texture != 0; }
 
   // Its extinction (per mm) at render-frame point p, 0 outside its box;
-  // `entry` takes its table position there.
+  // `entry` takes its table position there (kTextureOnly: VolumeView::SampleAs).
+  template <bool kTextureOnly = false>
   CINEVOL_HD float SigmaT(Vec3f p, float& entry) const {
     const Vec3f q = to_volume(p);
     const bool inside = q.x >= volume.box_min.x && q.y >= volume.box_min.y && q.z >= volume.box_min.z &&
                         q.x <= volume.box_max.x && q.y <= volume.box_max.y && q.z <= volume.box_max.z;
     if (!inside) return 0.0f;
-    entry = transfer.Entry(volume.SampleTrilinear(q));
+    entry = transfer.Entry(volume.template SampleAs<false, kTextureOnly>(q));
     return transfer.SigmaT(entry);
   }
 };

@@ -17,11 +17,23 @@ CINEVOL_HD float Clamp(float v, float lo, float hi) { return fminf(fmaxf(v, lo),
 CINEVOL_HD float Sqr(float v) { return v * v; }
 CINEVOL_HD float SafeSqrt(float v) { return sqrtf(fmaxf(v, 0.0f)); }
 
+// sin x and cos x. On a GPU one call: the two share one argument reduction,
+// whose rarely taken path (arguments beyond 10^5) every call site carries.
+CINEVOL_HD void SinCos(float x, float& s, float& c) {
+#if CINEVOL_DEVICE_PASS
+  sincosf(x, &s, &c);
+#else
+  s = sinf(x);
+  c = cosf(x);
+#endif
+}
+
 CINEVOL_HD Vec3f SampleUniformSphere(float u1, float u2) {
   const float z = 1.0f - 2.0f * u1;
   const float r = SafeSqrt(1.0f - z * z);
-  const float phi = 2.0f * kPi * u2;
-  return {r * cosf(phi), r * sinf(phi), z};
+  float s, c;
+  SinCos(2.0f * kPi * u2, s, c);
+  return {r * c, r * s, z};
 }
 CINEVOL_HD float UniformSpherePdf() { return kInv4Pi; }
 
@@ -40,8 +52,10 @@ CINEVOL_HD void SampleConcentricDisk(float u1, float u2, float& x, float& y) {
     r = b;
     theta = 0.5f * kPi - 0.25f * kPi * (a / b);
   }
-  x = r * cosf(theta);
-  y = r * sinf(theta);
+  float s, c;
+  SinCos(theta, s, c);
+  x = r * c;
+  y = r * s;
 }
 
 // Cosine-weighted direction around +z.
@@ -70,11 +84,12 @@ CINEVOL_HD Vec3f SampleHenyeyGreenstein(Vec3f wo, float g, float u1, float u2) {
   }
   cos_theta = Clamp(cos_theta, -1.0f, 1.0f);
   const float sin_theta = SafeSqrt(1.0f - cos_theta * cos_theta);
-  const float phi = 2.0f * kPi * u2;
+  float sin_phi, cos_phi;
+  SinCos(2.0f * kPi * u2, sin_phi, cos_phi);
   Vec3f t, b;
   OrthonormalBasis(wo, t, b);
   // cos_theta is measured between wo and wi as HenyeyGreenstein(Dot(wo, wi)).
-  return t * (sin_theta * cosf(phi)) + b * (sin_theta * sinf(phi)) + wo * cos_theta;
+  return t * (sin_theta * cos_phi) + b * (sin_theta * sin_phi) + wo * cos_theta;
 }
 
 // Inverse error function (Giles 2010, single precision): for the Gaussian

@@ -43,27 +43,47 @@ struct VolumeView {
 
   // The reconstructed stored value at world position p, as `tricubic` says.
   CINEVOL_HD float Sample(Vec3f p) const { return tricubic ? SampleTricubic(p) : SampleTrilinear(p); }
+  CINEVOL_HD float SampleTrilinear(Vec3f p) const { return SampleAs<false>(p); }
+  CINEVOL_HD float SampleTricubic(Vec3f p) const { return SampleAs<true>(p); }
 
   // The same with the reconstruction fixed at compile time (the integrator's
-  // specialisations): no branch, and no registers for the other one.
-  template <bool kTricubic>
+  // specialisations): no branch, and no registers for the other one. On a
+  // GPU the texture where there is one, else the voxels one by one;
+  // kTextureOnly: the texture, which the caller knows is there, and no code
+  // for the voxels (the specialised render kernels', render/render_scene.h,
+  // ReadsTexturesOnly). The CPU reads its voxels either way.
+  template <bool kTricubic, bool kTextureOnly = false>
   CINEVOL_HD float SampleAs(Vec3f p) const {
-    if constexpr (kTricubic) {
-      return SampleTricubic(p);
-    } else {
-      return SampleTrilinear(p);
-    }
+#if CINEVOL_DEVICE_PASS
+    if (kTextureOnly || texture) return kTricubic ? TricubicFromTexture(p) : TrilinearFromTexture(p);
+#endif
+    return kTricubic ? TricubicFromVoxels(p) : TrilinearFromVoxels(p);
   }
 
-  CINEVOL_HD float SampleTrilinear(Vec3f p) const {
 #if CINEVOL_DEVICE_PASS
-    if (texture) {  // texel centres at i + 0.5, as ToVoxel's +0.5 gives them
-      const Vec3f t = (p - box_min) * inv_spacing;
-      return 65535.0f * tex3D<float>(texture, t.x, t.y, t.z);
-    }
-#endif
-    return TrilinearFromVoxels(p);
+  // Texel centres at i + 0.5, as ToVoxel's +0.5 gives them.
+  __device__ float TrilinearFromTexture(Vec3f p) const {
+    const Vec3f t = (p - box_min) * inv_spacing;
+    return 65535.0f * tex3D<float>(texture, t.x, t.y, t.z);
   }
+
+  // GPU Gems 2, ch. 20: each axis's four B-spline weights as two linear
+  // fetches placed between voxel pairs, so 8 hardware trilinear fetches do it.
+  __device__ float TricubicFromTexture(Vec3f p) const {
+    const Vec3f q = ToVoxel(p);
+    const Vec3f f{floorf(q.x), floorf(q.y), floorf(q.z)};
+    Vec3f w[4];
+    BSplineWeights(q - f, w);
+    const Vec3f g0 = w[0] + w[1], g1 = w[2] + w[3];
+    const Vec3f h0 = f + w[1] / g0 - Vec3f{0.5f, 0.5f, 0.5f}, h1 = f + w[3] / g1 + Vec3f{1.5f, 1.5f, 1.5f};
+    auto at = [&](float x, float y, float z) { return tex3D<float>(texture, x, y, z); };
+    const float a = g0.z * (g0.y * (g0.x * at(h0.x, h0.y, h0.z) + g1.x * at(h1.x, h0.y, h0.z)) +
+                            g1.y * (g0.x * at(h0.x, h1.y, h0.z) + g1.x * at(h1.x, h1.y, h0.z)));
+    const float b = g1.z * (g0.y * (g0.x * at(h0.x, h0.y, h1.z) + g1.x * at(h1.x, h0.y, h1.z)) +
+                            g1.y * (g0.x * at(h0.x, h1.y, h1.z) + g1.x * at(h1.x, h1.y, h1.z)));
+    return 65535.0f * (a + b);
+  }
+#endif
 
   // The voxels read one by one: the CPU's path, and a GPU's where the volume
   // exceeds its texture size (out of line there, so the kernels carry its
@@ -82,32 +102,10 @@ struct VolumeView {
     return c0 + tz * (c1 - c0);
   }
 
-  // Uniform cubic B-spline over the 4^3 voxels around p. Its weights are
+  // Uniform cubic B-spline over the 4^3 voxels around p, as
+  // TrilinearFromVoxels for the tricubic reconstruction. Its weights are
   // non-negative and sum to 1, so the value stays within those voxels'
   // range: the majorant grid bounds it with a two-voxel brick margin.
-  CINEVOL_HD float SampleTricubic(Vec3f p) const {
-#if CINEVOL_DEVICE_PASS
-    if (texture) {
-      const Vec3f q = ToVoxel(p);
-      const Vec3f f{floorf(q.x), floorf(q.y), floorf(q.z)};
-      Vec3f w[4];
-      BSplineWeights(q - f, w);
-      // GPU Gems 2, ch. 20: each axis's four weights as two linear fetches
-      // placed between voxel pairs, so 8 hardware trilinear fetches do it.
-      const Vec3f g0 = w[0] + w[1], g1 = w[2] + w[3];
-      const Vec3f h0 = f + w[1] / g0 - Vec3f{0.5f, 0.5f, 0.5f}, h1 = f + w[3] / g1 + Vec3f{1.5f, 1.5f, 1.5f};
-      auto at = [&](float x, float y, float z) { return tex3D<float>(texture, x, y, z); };
-      const float a = g0.z * (g0.y * (g0.x * at(h0.x, h0.y, h0.z) + g1.x * at(h1.x, h0.y, h0.z)) +
-                              g1.y * (g0.x * at(h0.x, h1.y, h0.z) + g1.x * at(h1.x, h1.y, h0.z)));
-      const float b = g1.z * (g0.y * (g0.x * at(h0.x, h0.y, h1.z) + g1.x * at(h1.x, h0.y, h1.z)) +
-                              g1.y * (g0.x * at(h0.x, h1.y, h1.z) + g1.x * at(h1.x, h1.y, h1.z)));
-      return 65535.0f * (a + b);
-    }
-#endif
-    return TricubicFromVoxels(p);
-  }
-
-  // As TrilinearFromVoxels, for SampleTricubic.
   CINEVOL_HD_COLD float TricubicFromVoxels(Vec3f p) const {
     const Vec3f q = ToVoxel(p);
     const Vec3f f{floorf(q.x), floorf(q.y), floorf(q.z)};
@@ -139,10 +137,10 @@ struct VolumeView {
   }
 
   // Gradient of the stored value per mm, by central differences one voxel apart.
-  template <bool kTricubic>
+  template <bool kTricubic, bool kTextureOnly = false>
   CINEVOL_HD Vec3f Gradient(Vec3f p) const {
     const Vec3f dx{spacing.x, 0, 0}, dy{0, spacing.y, 0}, dz{0, 0, spacing.z};
-    auto at = [&](Vec3f q) { return SampleAs<kTricubic>(q); };
+    auto at = [&](Vec3f q) { return SampleAs<kTricubic, kTextureOnly>(q); };
     return Vec3f{at(p + dx) - at(p - dx), at(p + dy) - at(p - dy), at(p + dz) - at(p - dz)} * (0.5f * inv_spacing);
   }
 };

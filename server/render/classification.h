@@ -24,10 +24,11 @@ struct Classified {
 };
 
 // The extinction (per mm) at p; `c` takes p's classification. With a second
-// volume the two media mix: their extinctions add.
-template <bool kCubic, bool kWithLabels, bool kWithFusion = false>
+// volume the two media mix: their extinctions add. kTextureOnly: both volumes
+// are read through their textures (VolumeView::SampleAs).
+template <bool kCubic, bool kWithLabels, bool kWithFusion = false, bool kTextureOnly = false>
 CINEVOL_HD float ExtinctionAt(const RenderScene& s, Vec3f p, Classified& c) {
-  c.entry = s.transfer.Entry(s.volume.template SampleAs<kCubic>(p));
+  c.entry = s.transfer.Entry(s.volume.template SampleAs<kCubic, kTextureOnly>(p));
   float sigma;
   if constexpr (!kWithLabels) {
     sigma = s.transfer.SigmaT(c.entry);
@@ -36,7 +37,7 @@ CINEVOL_HD float ExtinctionAt(const RenderScene& s, Vec3f p, Classified& c) {
     sigma = fminf(c.label.opacity_scale * s.transfer.SigmaT(c.entry, c.label.table), s.transfer.max_sigma_t);
   }
   if constexpr (kWithFusion) {
-    const float fused = s.fused.SigmaT(p, c.fused_entry);
+    const float fused = s.fused.template SigmaT<kTextureOnly>(p, c.fused_entry);
     const float total = sigma + fused;
     c.fused_share = total > 0.0f ? fused / total : 0.0f;
     return total;

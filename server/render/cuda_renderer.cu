@@ -241,11 +241,15 @@ void CudaRenderer::Render(const FrameRequest& request) {
   last_features_ = ApplyRequest(request, scene);
 
   static const auto kKernels = MakeKernels(std::make_integer_sequence<unsigned, kIntegratorVariants>());
+  // A volume no texture holds takes an integrator with every feature
+  // (ReadsTexturesOnly), which specialises less and draws the same image.
+  const bool textures = scene.volume.texture != 0 && (!scene.fused.present() || scene.fused.volume.texture != 0);
+  const Kernel kernel = kKernels[VariantOf(textures ? last_features_ : last_features_ | kAllFeatures)];
   const int lanes = LanesPerPixel(request.spp);
   const dim3 tile = BlockPixels(lanes);
   const dim3 grid((w + tile.x - 1) / tile.x, (h + tile.y - 1) / tile.y);
   CINEVOL_CUDA_CHECK(cudaEventRecord(d.start, d.stream));
-  kKernels[VariantOf(last_features_)]<<<grid, kBlockThreads, 0, d.stream>>>(scene, Targets(), lanes);
+  kernel<<<grid, kBlockThreads, 0, d.stream>>>(scene, Targets(), lanes);
   CINEVOL_CUDA_CHECK_LAUNCH();
   CINEVOL_CUDA_CHECK(cudaEventRecord(d.stop, d.stream));
   ++accumulated_frames_;

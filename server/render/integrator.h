@@ -45,6 +45,7 @@ class PathTracer {
   static constexpr bool kCubic = kFeatures & kTricubic;
   static constexpr bool kWithLabels = kFeatures & kLabels;
   static constexpr bool kWithFusion = kFeatures & kFusion;
+  static constexpr bool kTextureOnly = ReadsTexturesOnly(kFeatures);
 
   CINEVOL_HD PathTracer(const RenderScene& scene, Pcg32& rng) : s_(scene), rng_(rng) {}
 
@@ -115,7 +116,7 @@ class PathTracer {
   enum class Collision { kHit, kEscaped, kAbsorbedByBudget };
 
   CINEVOL_HD float Extinction(Vec3f p, Classified& c) const {
-    return ExtinctionAt<kCubic, kWithLabels, kWithFusion>(s_, p, c);
+    return ExtinctionAt<kCubic, kWithLabels, kWithFusion, kTextureOnly>(s_, p, c);
   }
   CINEVOL_HD Material MaterialOf(const Classified& c) const {
     return cinevol::MaterialOf<kWithLabels, kWithFusion>(s_, c);
@@ -194,7 +195,7 @@ class PathTracer {
     if (kWithFusion && fused) return {false, m.diffuse, {}, 0.0f, {}, s_.fused.transfer.phase_g};
     Scatterer sc{false, m.diffuse, {}, 0.0f, {}, s_.transfer.phase_g};
     if constexpr (kWithGradients) {
-      const Vec3f grad = s_.volume.template Gradient<kCubic>(p);
+      const Vec3f grad = s_.volume.template Gradient<kCubic, kTextureOnly>(p);
       const float magnitude = Length(grad);
       const float p_surface =
           SurfaceProbability(m.opacity, s_.transfer.gradient_factor, magnitude * s_.transfer.gradient_normaliser);
@@ -332,10 +333,11 @@ CINEVOL_HD Vec3f SurfaceNormalAt(const RenderScene& s, Vec4f first_hit) {
   } else {
     if (first_hit.w == 0.0f) return {};
     constexpr bool kCubic = kFeatures & kTricubic, kWithLabels = kFeatures & kLabels;
+    constexpr bool kTextureOnly = ReadsTexturesOnly(kFeatures);
     const Vec3f p = Xyz(first_hit);
     Classified c;
-    ExtinctionAt<kCubic, kWithLabels>(s, p, c);
-    const Vec3f grad = s.volume.template Gradient<kCubic>(p);
+    ExtinctionAt<kCubic, kWithLabels, false, kTextureOnly>(s, p, c);
+    const Vec3f grad = s.volume.template Gradient<kCubic, kTextureOnly>(p);
     const float magnitude = Length(grad);
     if (!(magnitude > 0.0f)) return {};
     const float opacity = MaterialOf<kWithLabels>(s, c).opacity;

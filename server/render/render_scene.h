@@ -32,6 +32,12 @@ enum RenderFeature : unsigned {
 };
 // Every feature that only specialises, never changes the image.
 inline constexpr unsigned kAllFeatures = (1u << 5) - 1;
+// On a GPU only the integrators with all of kAllFeatures read a volume no
+// texture holds (voxels one by one: too large for a texture, or
+// RendererOptions::volume_texture off); the others read textures alone and
+// carry no code for the voxels, which their lookups would each call out to
+// (cuda_renderer.cu). The CPU reads its voxels either way.
+constexpr bool ReadsTexturesOnly(unsigned features) { return (features & kAllFeatures) != kAllFeatures; }
 inline constexpr unsigned kClinicalFeatures = kTricubic | kLabels | kFusion;
 
 // The integrators compiled: every subset of kAllFeatures, then kAllFeatures

@@ -77,8 +77,9 @@ CINEVOL_HD Vec3f SampleFresnelBlend(const Scatterer& s, Vec3f wo, float u0, floa
   const float tan2 = s.alpha * s.alpha * u1 / (1.0f - u1);
   const float cos_h = 1.0f / sqrtf(1.0f + tan2);
   const float sin_h = SafeSqrt(1.0f - cos_h * cos_h);
-  const float phi = 2.0f * kPi * u2;
-  const Vec3f h = t * (sin_h * cosf(phi)) + b * (sin_h * sinf(phi)) + s.normal * cos_h;
+  float sin_phi, cos_phi;
+  SinCos(2.0f * kPi * u2, sin_phi, cos_phi);
+  const Vec3f h = t * (sin_h * cos_phi) + b * (sin_h * sin_phi) + s.normal * cos_h;
   return h * (2.0f * Dot(wo, h)) - wo;
 }
 

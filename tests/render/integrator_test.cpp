@@ -400,6 +400,20 @@ TEST(Integrator, SpecialisedVariantAgreesWithGeneral) {
   EXPECT_NEAR(special.mean, general.mean, 4 * sigma);
 }
 
+// A GPU volume no texture holds renders with VariantOf(features | kAllFeatures)
+// (CudaRenderer::Render): that integrator must read voxels and keep the scene's
+// clinical features, or it would fetch from a texture that is not there.
+TEST(Integrator, AVolumeWithoutATextureTakesAnIntegratorThatReadsVoxels) {
+  for (unsigned features = 0; features <= (kAllFeatures | kClinicalFeatures); ++features) {
+    const unsigned promoted = VariantFeatures(VariantOf(features | kAllFeatures));
+    EXPECT_FALSE(ReadsTexturesOnly(promoted)) << features;
+    EXPECT_EQ(promoted & kClinicalFeatures, features & kClinicalFeatures) << features;
+  }
+  for (unsigned variant = 0; variant < kIntegratorVariants; ++variant) {
+    EXPECT_EQ(ReadsTexturesOnly(VariantFeatures(variant)), variant < kAllFeatures) << variant;
+  }
+}
+
 TEST(Integrator, EmptySpaceSkippingIsUnbiased) {
   // A sparse volume: bricks skip empty space and tighten bounds, the global
   // majorant does neither; both must converge to the same image.
