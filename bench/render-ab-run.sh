@@ -11,7 +11,7 @@
 #     DATASET=... AB=1 EXTRA="--frames-scale 0.5 --reference-spp 256
 #     --reference-bounces 4 --variants-only" bash bench/tradeoff-run.sh
 set -uo pipefail
-cd "$(dirname "$0")/.."
+cd "$(dirname "$0")/.." || exit 2
 out=${OUT:-gpu-out}
 mkdir -p "$out" /tmp/cv
 [ -x /tmp/cv/bin/cinevol-bench-before ] || tar xJf .gpu/bundle.tar.xz -C /tmp/cv
