@@ -47,7 +47,8 @@
 #   clients    CLIENTS_SESSIONS (8 128) full-size sessions from one loadtest process and from two (CLIENTS=2
 #              splits any step's sessions between that many), alternating
 # EXTRA_BUILDS: folders under $CV beside bin/ (a call's command puts them there), each holding a
-# cinevol-bench that the render and identity steps measure too, against bin-before.
+# cinevol-bench and the cinevol-reader it starts, that the render and identity steps measure
+# too, against bin-before.
 # SECONDS_PER_RUN (8) is each loadtest's length, DENOISER (wrls) its sessions' denoiser, SPP (2) their samples a frame. Every session of a loadtest
 # shares one connection: servers allow 1024 streams on it (128 by default, which
 # 128 sessions' streams fill, and their closing calls then wait for a stream). This build's servers run with
