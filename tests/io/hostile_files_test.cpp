@@ -463,11 +463,21 @@ TEST(HostileFiles, MetaImageLongHeaderRunNeverReachesMetaIO) {
   ScratchDir dir;
   const std::string rest = "NDims = 3\nDimSize = 2 2 2\nElementType = MET_UCHAR\nElementDataFile = LOCAL\n" +
                            std::string(8, '\0');
-  for (const std::string& line :
-       {"BinaryData = " + std::string(300, '\xab') + "\n", std::string(300, 'K') + " = 1\n"}) {
+  const std::string long_key = std::string(300, 'K') + " = 1\n";
+  for (const std::string& line : {"BinaryData = " + std::string(300, '\xab') + "\n", long_key,
+                                  // The name in a value does not end the header for MetaIO.
+                                  "Comment = ElementDataFile\n" + long_key}) {
     WriteBytes(dir / "long.mha", "ObjectType = Image\n" + line + rest);
     const std::string message = LoadMessage([&] { return LoadVolumeFile(dir / "long.mha", Upload()); });
     EXPECT_TRUE(Has(message, "characters between separators")) << message;
+  }
+  // A line without '=' took the ElementDataFile line after it as its value,
+  // and MetaIO read the data as header, into a long run (fuzz_volume, 2026-12-07).
+  for (const std::string& line :
+       {std::string("Compressed51\n"), std::string("eorCmp\x01ressed51\n"), std::string("Key\r")}) {
+    WriteBytes(dir / "bare.mha", "ObjectType = Image\n" + line + rest + long_key);
+    const std::string message = LoadMessage([&] { return LoadVolumeFile(dir / "bare.mha", Upload()); });
+    EXPECT_TRUE(Has(message, "header line 2 holds no '='")) << message;
   }
   // NDims -3 made MetaIO loop for hours (a fuzz_volume timeout); 11 overflows its arrays.
   for (const char* ndims : {"-3", "11", "2.5", "x"}) {
@@ -476,7 +486,8 @@ TEST(HostileFiles, MetaImageLongHeaderRunNeverReachesMetaIO) {
     const std::string message = LoadMessage([&] { return LoadVolumeFile(dir / "ndims.mha", Upload()); });
     EXPECT_TRUE(Has(message, "NDims")) << ndims << ": " << message;
   }
-  WriteBytes(dir / "ok.mha", "ObjectType = Image\n" + rest);
+  // Blank lines, and lines that end in CR LF, are headers MetaIO reads.
+  WriteBytes(dir / "ok.mha", "ObjectType = Image\r\n \t\n\n" + rest);
   EXPECT_EQ(LoadMessage([&] { return LoadVolumeFile(dir / "ok.mha", Upload()); }), "(loaded)");
 }
 

@@ -145,41 +145,53 @@ std::string CompressedProblem(const fs::path& data, std::int64_t start, std::int
 
 }  // namespace
 
-// MetaIO copies each key it reads (up to 500 characters, up to '=', ':' or a
-// line end) into a 255-byte field name: a longer run overflows it (an abort
-// under _FORTIFY_SOURCE, found by fuzz_volume). A run can start anywhere (the
-// rest of a value MetaIO did not take is read as the next key), so no run of
-// the header, up to its ElementDataFile line, may reach 255 characters.
+// The header as MetaIO walks it, up to its ElementDataFile line, with what
+// fuzz_volume found MetaIO does with each kind of line:
+// - It copies each key it reads (up to 500 characters, up to '=', ':' or a
+//   line end) into a 255-byte field name: a longer run overflows it (an abort
+//   under _FORTIFY_SOURCE). A run can start anywhere (the rest of a value
+//   MetaIO did not take is read as the next key), so no run may reach 255.
+// - A line with no '=' or ':' is a key whose value MetaIO looks for on the
+//   lines after: the next line, an ElementDataFile one included, is eaten as
+//   that value, and MetaIO reads the binary data on as header.
+// - It reads NDims values for DimSize and the like (NDims squared for a
+//   matrix) into arrays of 10 (100): a negative or large NDims made it loop
+//   for hours or write past them.
+// The walk ends at the first line whose key is ElementDataFile, as MetaIO's
+// does (not at the name inside a value).
 void CheckHeaderText(const fs::path& path, const std::string& shown) {
   const std::string head = file_checks::ReadHead(path, kMaxHeaderBytes, shown);
   constexpr std::size_t kMaxRun = 254;
-  const std::size_t end = std::min(head.size(), head.find('\n', std::min(head.size(), head.find("ElementDataFile"))));
-  // MetaIO reads NDims values for DimSize and the like (NDims squared for a
-  // matrix) into arrays of 10 (100): a negative or large NDims made it loop
-  // for hours (found by fuzz_volume) or write past them.
-  for (std::size_t pos = 0; pos < end;) {
-    const std::size_t line_end = std::min(head.find_first_of("\r\n", pos), end);
-    const std::size_t sep = head.find_first_of("=:", pos);
-    if (TrimBlanks(head.substr(pos, std::min(sep, line_end) - pos)) == "NDims") {
-      const std::size_t from = sep == std::string::npos ? head.size() : sep + 1;
-      const std::size_t to = std::min(head.find_first_of("\r\n", std::min(from, head.size())), head.size());
-      const std::string value = from < to ? TrimBlanks(head.substr(from, to - from)) : "";
+  int line_number = 0;
+  for (std::size_t pos = 0; pos < head.size();) {
+    const std::size_t line_end = std::min(head.find_first_of("\r\n", pos), head.size());
+    const std::string line = head.substr(pos, line_end - pos);
+    pos = line_end + 1;
+    ++line_number;
+    const std::size_t sep = line.find_first_of("=:");
+    if (sep == std::string::npos) {
+      if (line.find_first_not_of(" \t") == std::string::npos) continue;  // blank: MetaIO skips it
+      throw InputError(fmt::format("{}: header line {} holds no '=' (MetaIO would take the next line as its value)",
+                                   shown, line_number));
+    }
+    std::size_t run = 0;
+    for (const char c : line) {
+      run = (c == '=' || c == ':') ? 0 : run + 1;
+      if (run > kMaxRun) {
+        throw InputError(
+            fmt::format("{}: a header line holds more than {} characters between separators", shown, kMaxRun));
+      }
+    }
+    const std::string key = TrimBlanks(line.substr(0, sep));
+    if (key == "NDims") {
+      const std::string value = TrimBlanks(line.substr(sep + 1));
       char* stop = nullptr;
       const double n = std::strtod(value.c_str(), &stop);
       if (stop == value.c_str() || !(n >= 1 && n <= 10) || n != std::floor(n)) {
         throw InputError(fmt::format("{}: NDims '{}' is not a dimension count (1 to 10)", shown, value.substr(0, 32)));
       }
     }
-    pos = line_end + 1;
-  }
-  std::size_t run = 0;
-  for (std::size_t i = 0; i < end; ++i) {
-    const char c = head[i];
-    run = (c == '=' || c == ':' || c == '\r' || c == '\n') ? 0 : run + 1;
-    if (run > kMaxRun) {
-      throw InputError(fmt::format("{}: a header line holds more than {} characters between separators", shown,
-                                   kMaxRun));
-    }
+    if (key == "ElementDataFile") return;
   }
 }
 
