@@ -15,7 +15,8 @@ class ImageIOBase;
 namespace cinevol::formats::metaimage {
 
 // Throws InputError for a header MetaIO would overflow or loop on: a run of
-// 255 characters between separators, an NDims outside 1 to 10.
+// 255 characters between separators, a line with no '=' (MetaIO would read
+// the next one as its value), an NDims outside 1 to 10.
 void CheckHeaderText(const std::filesystem::path& path, const std::string& shown);
 
 // Whether the header states where its axes point (TransformMatrix,
