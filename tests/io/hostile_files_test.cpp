@@ -557,6 +557,30 @@ TEST(HostileFiles, DicomSamplesPerPixelAboveFourNeverReachesGdcm) {
   EXPECT_TRUE(Has(message, "no DICOM files found")) << message;
 }
 
+// GDCM's scanner asserted (an abort, in the reader's child) reading Slice
+// Thickness as text where the file held a sequence there (fuzz_dicom,
+// 2026-12-07): fuzz_volume's implicit-VR CT seed with (0018,0050) an
+// undefined-length sequence of one empty item.
+TEST(HostileFiles, DicomPublicValueAsASequenceNeverReachesGdcm) {
+  ScratchDir dir;
+  std::string ct = CorpusBytes("volume/ct.dcm");
+  ASSERT_GT(ct.size(), 1u);
+  ct.erase(0, 1);                                            // fuzz_volume's format byte
+  const std::string thickness("\x18\0\x50\0\x02\0\0\0", 8);  // implicit VR, 2 bytes
+  const auto at = ct.find(thickness);
+  ASSERT_NE(at, std::string::npos);
+  EXPECT_EQ(LoadDicomFile(dir, "good", ct), "(loaded)");
+  const std::string sequence(
+      "\x18\0\x50\0\xff\xff\xff\xff"  // undefined length
+      "\xfe\xff\0\xe0\0\0\0\0"        // an empty item
+      "\xfe\xff\xdd\xe0\0\0\0\0",     // the sequence's end
+      24);
+  ct.replace(at, thickness.size() + 2, sequence);
+  const std::string message = LoadDicomFile(dir, "sequence", ct);
+  EXPECT_TRUE(Has(message, "no DICOM files found")) << message;
+  EXPECT_TRUE(Has(message, "(0018,0050) is a sequence")) << message;
+}
+
 // GDCM asserted (an abort, in the reader's child) on an odd length inside a
 // sequence of defined length, which the walk skipped whole: fuzz_dicom's
 // enhanced CT seed, first written with a 9-byte Image Position in each

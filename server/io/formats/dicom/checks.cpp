@@ -236,6 +236,15 @@ class DicomWalk {
         return Fragments(at, end, depth == 0);
       }
       if (explicit_vr && !sequence && !(un && depth == 0)) return Fail(tag() + " of VR " + vr + " has an undefined length");
+      // Read as a sequence (a UN, or implicit VR), a public element that the
+      // dictionary gives a value: GDCM's scanner asserts when it reads that
+      // element as text (Slice Thickness as a sequence, found by fuzz_dicom).
+      if (!sequence && group % 2 == 0) {
+        const gdcm::VR expected = DictionaryVr(group, element);
+        if (expected != gdcm::VR::INVALID && expected != gdcm::VR::SQ) {
+          return Fail(tag() + " is a sequence (an undefined length), which the DICOM dictionary does not make it");
+        }
+      }
       const IconScope icon(*this, depth == 0 && group == 0x0088 && element == 0x0200);
       return Items(at, end, explicit_vr && !un, depth + 1, 0xe0dd);  // implicit VR inside an undefined-length UN
     }
