@@ -42,9 +42,8 @@ struct VolumeView {
   CINEVOL_HD Vec3f ToVoxel(Vec3f p) const { return (p - box_min) * inv_spacing - Vec3f{0.5f, 0.5f, 0.5f}; }
 
   // The reconstructed stored value at world position p, as `tricubic` says.
-  CINEVOL_HD float Sample(Vec3f p) const { return tricubic ? SampleTricubic(p) : SampleTrilinear(p); }
+  CINEVOL_HD float Sample(Vec3f p) const { return tricubic ? SampleAs<true>(p) : SampleAs<false>(p); }
   CINEVOL_HD float SampleTrilinear(Vec3f p) const { return SampleAs<false>(p); }
-  CINEVOL_HD float SampleTricubic(Vec3f p) const { return SampleAs<true>(p); }
 
   // The same with the reconstruction fixed at compile time (the integrator's
   // specialisations): no branch, and no registers for the other one. On a
