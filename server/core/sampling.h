@@ -17,14 +17,15 @@ CINEVOL_HD float Clamp(float v, float lo, float hi) { return fminf(fmaxf(v, lo),
 CINEVOL_HD float Sqr(float v) { return v * v; }
 CINEVOL_HD float SafeSqrt(float v) { return sqrtf(fmaxf(v, 0.0f)); }
 
-// sin x and cos x. On a GPU one call: the two share one argument reduction,
-// whose rarely taken path (arguments beyond 10^5) every call site carries.
-CINEVOL_HD void SinCos(float x, float& s, float& c) {
+// sin and cos of pi x, for the sampled angles (x within [-2, 2]). On a GPU
+// one sincospif: reducing x is exact, so it carries none of the rarely taken
+// reduction path (arguments beyond 10^5) that sinf and cosf each inline.
+CINEVOL_HD void SinCosPi(float x, float& s, float& c) {
 #if CINEVOL_DEVICE_PASS
-  sincosf(x, &s, &c);
+  sincospif(x, &s, &c);
 #else
-  s = sinf(x);
-  c = cosf(x);
+  s = sinf(kPi * x);
+  c = cosf(kPi * x);
 #endif
 }
 
@@ -32,7 +33,7 @@ CINEVOL_HD Vec3f SampleUniformSphere(float u1, float u2) {
   const float z = 1.0f - 2.0f * u1;
   const float r = SafeSqrt(1.0f - z * z);
   float s, c;
-  SinCos(2.0f * kPi * u2, s, c);
+  SinCosPi(2.0f * u2, s, c);
   return {r * c, r * s, z};
 }
 CINEVOL_HD float UniformSpherePdf() { return kInv4Pi; }
@@ -44,16 +45,16 @@ CINEVOL_HD void SampleConcentricDisk(float u1, float u2, float& x, float& y) {
     x = y = 0.0f;
     return;
   }
-  float r, theta;
+  float r, turns;  // the angle over pi
   if (fabsf(a) > fabsf(b)) {
     r = a;
-    theta = 0.25f * kPi * (b / a);
+    turns = 0.25f * (b / a);
   } else {
     r = b;
-    theta = 0.5f * kPi - 0.25f * kPi * (a / b);
+    turns = 0.5f - 0.25f * (a / b);
   }
   float s, c;
-  SinCos(theta, s, c);
+  SinCosPi(turns, s, c);
   x = r * c;
   y = r * s;
 }
@@ -85,7 +86,7 @@ CINEVOL_HD Vec3f SampleHenyeyGreenstein(Vec3f wo, float g, float u1, float u2) {
   cos_theta = Clamp(cos_theta, -1.0f, 1.0f);
   const float sin_theta = SafeSqrt(1.0f - cos_theta * cos_theta);
   float sin_phi, cos_phi;
-  SinCos(2.0f * kPi * u2, sin_phi, cos_phi);
+  SinCosPi(2.0f * u2, sin_phi, cos_phi);
   Vec3f t, b;
   OrthonormalBasis(wo, t, b);
   // cos_theta is measured between wo and wi as HenyeyGreenstein(Dot(wo, wi)).

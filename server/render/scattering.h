@@ -78,7 +78,7 @@ CINEVOL_HD Vec3f SampleFresnelBlend(const Scatterer& s, Vec3f wo, float u0, floa
   const float cos_h = 1.0f / sqrtf(1.0f + tan2);
   const float sin_h = SafeSqrt(1.0f - cos_h * cos_h);
   float sin_phi, cos_phi;
-  SinCos(2.0f * kPi * u2, sin_phi, cos_phi);
+  SinCosPi(2.0f * u2, sin_phi, cos_phi);
   const Vec3f h = t * (sin_h * cos_phi) + b * (sin_h * sin_phi) + s.normal * cos_h;
   return h * (2.0f * Dot(wo, h)) - wo;
 }
