@@ -44,6 +44,12 @@
 #              (bench/compare_tradeoff.py)
 #   render     cinevol-bench render of both builds, alternating, RENDER_ROUNDS (2) times: the path
 #              tracer's median ms a frame on CThead at 1280x720 (a change to the render alone)
+#   study      the trade-off study at 720p (docs/tradeoff.md's 28 runs: --frames-scale 0.5, 256-spp
+#              references at 4 bounces, --variants-only) on STUDY_DATASETS (ct-head-cthead mr-head
+#              phantom ct-aorta), bin-before then bin and the EXTRA_BUILDS, the references cached
+#              once and shared; bench/compare_tradeoff.py of bin-before against each. About 100 s
+#              a build and data set on an H100, so two data sets a call; the MR head and the aorta
+#              crop from STUDY_DATA (a carried folder holding MR.nii.gz and aorta_ct_cropped.nii.gz)
 #   clients    CLIENTS_SESSIONS (8 128) full-size sessions from one loadtest process and from two (CLIENTS=2
 #              splits any step's sessions between that many), alternating
 # EXTRA_BUILDS: folders under $CV beside bin/ (a call's command puts them there), each holding a
@@ -350,6 +356,31 @@ step_identity() {
       > /dev/null || same=DIFFERENT
     echo "bin-before and $build, the still (refine bench, quality columns, $(wc -l < "$cv/refine-$build.csv") rows): $same" \
       >> "$table"
+  done
+}
+
+step_study() {
+  local dataset spec build
+  for dataset in ${STUDY_DATASETS:-ct-head-cthead mr-head phantom ct-aorta}; do
+    case $dataset in
+      ct-head-cthead) spec="$dataset=$scene,$volume" ;;
+      mr-head) spec="$dataset=examples/mr-head.json,${STUDY_DATA:?carry the MR head}/MR.nii.gz" ;;
+      phantom) spec="$dataset=examples/ct-bone.json,phantom:head" ;;
+      ct-aorta) spec="$dataset=bench/scenes/ct-aorta-bone.json,${STUDY_DATA:?carry the aorta crop}/aorta_ct_cropped.nii.gz" ;;
+      *) echo "unknown study data set $dataset"; return 1 ;;
+    esac
+    for build in bin-before bin ${EXTRA_BUILDS:-}; do
+      rm -rf "$cv/study-$dataset-$build"
+      "$cv/$build/cinevol-bench" tradeoff --dataset "$spec" --backend cuda --width 1280 --height 720 --frames-scale 0.5 \
+        --reference-spp 256 --reference-bounces 4 --variants-only --cache "$cv/study-cache" \
+        --out "$cv/study-$dataset-$build" > "$logs/study-$dataset-$build.log" 2>&1
+      echo "study $dataset $build rc=$?"
+      cp "$cv/study-$dataset-$build/tradeoff.json" "$out/study-$dataset-$build.json"
+    done
+    for build in bin ${EXTRA_BUILDS:-}; do
+      { echo; echo "The study at 720p, $dataset, bin-before against $build:"
+        python3 bench/compare_tradeoff.py "$out/study-$dataset-bin-before.json" "$out/study-$dataset-$build.json"; } >> "$table"
+    done
   done
 }
 
