@@ -227,22 +227,24 @@ std::string PayloadProblem(const fs::path& path) {
     }
   }
   gzFile f = pair_voxels.f ? pair_voxels.f : file.f;
-  std::int64_t voxels = 1, bitpix = 0, offset = 0;
+  std::int64_t voxels = 1, bitpix = 0;
+  double offset_field = 0;  // vox_offset: a float in NIfTI-1, checked before it becomes an integer
   if (header_size == 348) {
     const int ndim = std::clamp<int>(swap ? Swapped(h.n1.dim[0]) : h.n1.dim[0], 1, 7);
     for (int i = 1; i <= ndim; ++i) voxels *= swap ? Swapped(h.n1.dim[i]) : h.n1.dim[i];
     bitpix = swap ? Swapped(h.n1.bitpix) : h.n1.bitpix;
-    offset = std::int64_t(swap ? Swapped(h.n1.vox_offset) : h.n1.vox_offset);
+    offset_field = swap ? Swapped(h.n1.vox_offset) : h.n1.vox_offset;
   } else {
     const int ndim = int(std::clamp<std::int64_t>(swap ? Swapped(h.n2.dim[0]) : h.n2.dim[0], 1, 7));
     for (int i = 1; i <= ndim; ++i) voxels *= swap ? Swapped(h.n2.dim[i]) : h.n2.dim[i];
     bitpix = swap ? Swapped(h.n2.bitpix) : h.n2.bitpix;
-    offset = swap ? Swapped(h.n2.vox_offset) : h.n2.vox_offset;
+    offset_field = double(swap ? Swapped(h.n2.vox_offset) : h.n2.vox_offset);
   }
   // The readers inflate up to vox_offset too; extensions past it are absurd.
-  if (offset < 0 || offset > kMaxNiftiOffset) {
-    return fmt::format("vox_offset {} is outside [0, {}]", offset, kMaxNiftiOffset);
+  if (!(offset_field >= 0 && offset_field <= double(kMaxNiftiOffset))) {
+    return fmt::format("vox_offset {} is outside [0, {}]", offset_field, kMaxNiftiOffset);
   }
+  const auto offset = std::int64_t(offset_field);
   const std::int64_t expected = offset + voxels * bitpix / 8;
   std::int64_t total = pair_voxels.f ? 0 : header_size == 348 ? sizeof(nifti_1_header) : sizeof(nifti_2_header);
   std::vector<char> buffer(1 << 20);
