@@ -711,6 +711,24 @@ TEST(HostileFiles, DicomDeflatedDataSetIsWalkedInflated) {
   EXPECT_TRUE(Has(bomb, "its deflated data set inflates past 256 MiB")) << bomb;
 }
 
+// GDCM asserted (an abort, in the reader's child) reading the PET dose of
+// every Deflated PET without a Radiopharmaceutical Information Sequence: its
+// ReadSelectedTags seeks back in the inflating stream, which cannot (found
+// by fuzz_dicom, 2026-12-07). The dose is read as the scanner reads; the
+// deflated seed, made a PET, loads.
+TEST(HostileFiles, DicomDeflatedPetWithoutDoseSequenceLoads) {
+  ScratchDir dir;
+  const std::string file = CorpusBytes("dicom/deflated.dcm");
+  const std::size_t data_set = MetaGroupEnd(file);
+  ASSERT_LT(data_set, file.size());
+  std::string inflated = InflateRaw(file.substr(data_set));
+  const std::string modality("\x08\0\x60\0CS\x02\0CT", 10);
+  const std::size_t at = inflated.find(modality);
+  ASSERT_NE(at, std::string::npos);
+  inflated.replace(at + 8, 2, "PT");
+  EXPECT_EQ(LoadDicomFile(dir, "pet", file.substr(0, data_set) + Deflate(inflated, -15)), "(loaded)");
+}
+
 // ITK's factory let GDCM parse any file the volume formats declined (a
 // DICOM meta group in a ".nii.gz" made GDCM assert): a single file is never
 // read as DICOM.
