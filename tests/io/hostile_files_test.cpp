@@ -622,6 +622,9 @@ TEST(HostileFiles, DicomFuzzFindingsAreRefusedNamingTheirProblem) {
       {"j2k-bare-meta-group-larger-than-rows-columns", "the JPEG 2000 stream of fragment 1 describes another image"},
       // A palette icon whose tables disagree with their descriptors (GDCM read the icon's too).
       {"fuzz-20261205-e06a0a51", "its icon: Photometric Interpretation 'PALETTE COLOR'"},
+      // A repeated pixel module element, checked as GDCM reads it (the first).
+      {"gdcm-repeated-bits-stored-raw-heap-overflow", "High Bit is 15, not Bits Stored (8) - 1"},
+      {"gdcm-repeated-bits-allocated-24-overlay-cleanup-assert", "Bits Allocated is 24"},
   };
   ScratchDir dir;
   for (const auto& finding : kFindings) {
@@ -727,6 +730,33 @@ TEST(HostileFiles, DicomDeflatedPetWithoutDoseSequenceLoads) {
   ASSERT_NE(at, std::string::npos);
   inflated.replace(at + 8, 2, "PT");
   EXPECT_EQ(LoadDicomFile(dir, "pet", file.substr(0, data_set) + Deflate(inflated, -15)), "(loaded)");
+}
+
+// fuzz_volume's implicit-VR CT seed, without its format byte, with `bytes`
+// inserted before the element that starts with `before`.
+std::string CtSeedWith(const std::string& bytes, const std::string& before) {
+  std::string ct = CorpusBytes("volume/ct.dcm");
+  if (ct.size() < 2) return {};
+  ct.erase(0, 1);
+  const auto at = ct.find(before);
+  if (at == std::string::npos) return {};
+  return ct.insert(at, bytes);
+}
+
+// A data set that repeats a pixel module element: GDCM keeps the first, and
+// the walk checked the last. An 8 for Bits Stored before the seed's 16 made
+// GDCM copy pixels past its buffer (ASan); a 24 for Bits
+// Allocated, an assertion (fuzz_dicom, 2026-12-07). The walk checks the first.
+TEST(HostileFiles, DicomRepeatedPixelModuleElementIsCheckedAsGdcmReadsIt) {
+  ScratchDir dir;
+  const std::string bits_stored("\x28\0\x01\x01\x02\0\0\0", 8);  // implicit VR, 2 bytes
+  const std::string later = CtSeedWith(bits_stored + std::string("\x08\0", 2), std::string("\x28\0\x02\x01", 4));
+  ASSERT_FALSE(later.empty());
+  EXPECT_EQ(LoadDicomFile(dir, "later", later), "(loaded)");  // the seed's 16 first
+  const std::string first = CtSeedWith(bits_stored + std::string("\x08\0", 2), bits_stored);
+  const std::string message = LoadDicomFile(dir, "first", first);
+  EXPECT_TRUE(Has(message, "x.dcm is not DICOM that cinevol reads: High Bit is 15, not Bits Stored (8) - 1"))
+      << message;
 }
 
 // ITK's factory let GDCM parse any file the volume formats declined (a

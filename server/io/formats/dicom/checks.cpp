@@ -10,6 +10,7 @@
 #include <cstdint>
 #include <cstdio>
 #include <cstring>
+#include <set>
 #include <string>
 #include <vector>
 
@@ -327,6 +328,7 @@ class DicomWalk {
     int pixel_representation = 0;
     std::string photometric;  // trailing spaces trimmed
     bool pixel_data = false;
+    std::set<unsigned> seen;  // the (0028,xxxx) elements remembered: each one's first occurrence
     struct Fragment {
       std::int64_t at;
       std::uint32_t length;
@@ -353,14 +355,20 @@ class DicomWalk {
     bool icon;
   };
 
+  // An element the data set repeats counts as its first: GDCM keeps the
+  // first of a tag and drops the others, so a walk that read the last one
+  // checked another image than GDCM decodes (a Bits Stored of 8 where GDCM
+  // had 16, and its buffer overrun; a Bits Allocated of 24 where the walk
+  // had 16, and GDCM's assertion; found by fuzz_dicom).
   void Remember(PixelModule& module, unsigned group, unsigned element, std::int64_t at, std::uint32_t length,
                 bool pixel_data) {
     if (pixel_data) module.pixel_data = true;
-    if (group == 0x0028 && element == 0x0004 && length <= 64) {  // Photometric Interpretation
+    if (group != 0x0028 || !module.seen.insert(element).second) return;
+    if (element == 0x0004 && length <= 64) {  // Photometric Interpretation
       module.photometric = ReadText(at, length);
       return;
     }
-    if (group != 0x0028 || length < 2) return;
+    if (length < 2) return;
     std::uint8_t v[2];
     if (!Read(at, v, 2)) return;
     const int value = int(U16(v));
