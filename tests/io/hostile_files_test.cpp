@@ -622,6 +622,10 @@ TEST(HostileFiles, DicomFuzzFindingsAreRefusedNamingTheirProblem) {
       {"j2k-bare-meta-group-larger-than-rows-columns", "the JPEG 2000 stream of fragment 1 describes another image"},
       // A palette icon whose tables disagree with their descriptors (GDCM read the icon's too).
       {"fuzz-20261205-e06a0a51", "its icon: Photometric Interpretation 'PALETTE COLOR'"},
+      // fuzz_dicom, 2026-12-07: a date as the Recognition Code (GDCM's DICOM reader asserted), and in a
+      // bare data set, which GDCM reads as ACR-NEMA (its ACR-NEMA reader asserted).
+      {"gdcm-recognition-code-not-acr-nema-assert", "(0008,0010) Recognition Code is not an ACR-NEMA version"},
+      {"gdcm-acr-nema-libido-recognition-code-assert", "(0008,0010) Recognition Code is not an ACR-NEMA version"},
       // A repeated pixel module element, checked as GDCM reads it (the first).
       {"gdcm-repeated-bits-stored-raw-heap-overflow", "High Bit is 15, not Bits Stored (8) - 1"},
       {"gdcm-repeated-bits-allocated-24-overlay-cleanup-assert", "Bits Allocated is 24"},
@@ -741,6 +745,21 @@ std::string CtSeedWith(const std::string& bytes, const std::string& before) {
   const auto at = ct.find(before);
   if (at == std::string::npos) return {};
   return ct.insert(at, bytes);
+}
+
+// GDCM asserted (an abort, in the reader's child) on a Recognition Code
+// (0008,0010) that names no ACR-NEMA version: the fuzzer had put a date
+// there (fuzz_dicom, 2026-12-07).
+TEST(HostileFiles, DicomRecognitionCodeNotAcrNemaNeverReachesGdcm) {
+  ScratchDir dir;
+  const std::string sop_class("\x08\0\x16\0", 4);
+  const std::string empty = CtSeedWith(std::string("\x08\0\x10\0\0\0\0\0", 8), sop_class);
+  ASSERT_FALSE(empty.empty());
+  EXPECT_EQ(LoadDicomFile(dir, "empty", empty), "(loaded)");
+  const std::string date = CtSeedWith(std::string("\x08\0\x10\0\x08\0\0\0", 8) + "20261126", sop_class);
+  const std::string message = LoadDicomFile(dir, "date", date);
+  EXPECT_TRUE(Has(message, "x.dcm is not DICOM that cinevol reads: (0008,0010) Recognition Code is not an ACR-NEMA"))
+      << message;
 }
 
 // A data set that repeats a pixel module element: GDCM keeps the first, and

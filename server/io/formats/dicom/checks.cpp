@@ -264,6 +264,9 @@ class DicomWalk {
       return true;
     }
     if (PixelModule* module = ModuleAt(depth)) Remember(*module, group, element, at, length, pixel_data);
+    if (group == 0x0008 && element == 0x0010 && depth == 0 && !RecognitionCodeIsAcrNema(at, length)) {
+      return Fail("(0008,0010) Recognition Code is not an ACR-NEMA version GDCM reads");
+    }
     // (0002,0010) Transfer Syntax UID: in the file meta group, or in a file
     // without the preamble whose data set starts with one (GDCM reads that
     // meta group too, and decodes the pixels by its syntax).
@@ -280,6 +283,19 @@ class DicomWalk {
     }
     at += length;
     return true;
+  }
+
+  // (0008,0010) Recognition Code, retired: a file that has it, not empty, is
+  // ACR-NEMA, and GDCM asserts that it names a version it knows (its DICOM
+  // reader wants one of these prefixes, its ACR-NEMA reader one of these
+  // values; an abort on a date there, found by fuzz_dicom).
+  bool RecognitionCodeIsAcrNema(std::int64_t at, std::uint32_t length) {
+    static const char* const kVersions[] = {"ACR-NEMA 1.0", "ACR-NEMA 2.0", "ACRNEMA_LIBIDO_1.0", "ACRNEMA_LIBIDO_1.1"};
+    if (length == 0) return true;
+    if (length > 18) return false;
+    std::string value(length, '\0');
+    if (!Read(at, reinterpret_cast<std::uint8_t*>(value.data()), length)) return false;
+    return std::any_of(std::begin(kVersions), std::end(kVersions), [&](const char* v) { return value == v; });
   }
 
   // Items of plain bytes up to the sequence delimiter, which is consumed: the
