@@ -620,8 +620,9 @@ TEST(HostileFiles, DicomFuzzFindingsAreRefusedNamingTheirProblem) {
       // A file without the preamble whose data set starts with a meta group naming JPEG 2000:
       // GDCM decoded its 16x16 stream into a 4x4 frame (SIGSEGV in the server's fuzz run).
       {"j2k-bare-meta-group-larger-than-rows-columns", "the JPEG 2000 stream of fragment 1 describes another image"},
-      // A palette icon whose tables disagree with their descriptors (GDCM read the icon's too).
-      {"fuzz-20261205-e06a0a51", "its icon: Photometric Interpretation 'PALETTE COLOR'"},
+      // A palette icon whose tables disagree with their descriptors (GDCM read the icon's too); its
+      // icon's item repeats Photometric Interpretation, which the walk meets first now.
+      {"fuzz-20261205-e06a0a51", "(0028,0004) is repeated in an item"},
       // fuzz_dicom, 2026-12-07: a date as the Recognition Code (GDCM's DICOM reader asserted), and in a
       // bare data set, which GDCM reads as ACR-NEMA (its ACR-NEMA reader asserted).
       {"gdcm-recognition-code-not-acr-nema-assert", "(0008,0010) Recognition Code is not an ACR-NEMA version"},
@@ -629,6 +630,10 @@ TEST(HostileFiles, DicomFuzzFindingsAreRefusedNamingTheirProblem) {
       // A repeated pixel module element, checked as GDCM reads it (the first).
       {"gdcm-repeated-bits-stored-raw-heap-overflow", "High Bit is 15, not Bits Stored (8) - 1"},
       {"gdcm-repeated-bits-allocated-24-overlay-cleanup-assert", "Bits Allocated is 24"},
+      // A tag repeated in an item: GDCM's item lengths disagree, and it asserts.
+      {"gdcm-repeated-in-plane-position-item-sqi2-assert", "(0020,0032) is repeated in an item"},
+      {"gdcm-repeated-in-item-length-recovery-assert", "(0009,1011) is repeated in an item"},
+      {"gdcm-repeated-in-item-odd-nested-length-assert", "(0028,0004) is repeated in an item"},
   };
   ScratchDir dir;
   for (const auto& finding : kFindings) {
@@ -776,6 +781,24 @@ TEST(HostileFiles, DicomRepeatedPixelModuleElementIsCheckedAsGdcmReadsIt) {
   const std::string message = LoadDicomFile(dir, "first", first);
   EXPECT_TRUE(Has(message, "x.dcm is not DICOM that cinevol reads: High Bit is 15, not Bits Stored (8) - 1"))
       << message;
+}
+
+// GDCM keeps the first of a tag an item repeats, and reading the item it
+// counts the kept elements' bytes against the item's length: it asserted
+// three ways (a Plane Position read back as no sequence, an item's length
+// "recovered" past it, an odd nested length; fuzz_dicom, 2026-12-07). The
+// multi-frame seed with its third frame's Image Position (Patient) repeated
+// in its Plane Position item is refused by name.
+TEST(HostileFiles, DicomTagRepeatedInAnItemNeverReachesGdcm) {
+  ScratchDir dir;
+  std::string file = CorpusBytes("dicom/multiframe-uint8.dcm");
+  const std::string position = std::string("\x20\0\x32\0DS\x08\0", 8) + "-1\\-1\\12";  // the third frame's
+  const std::size_t at = file.find(position);
+  ASSERT_NE(at, std::string::npos);
+  EXPECT_EQ(LoadDicomFile(dir, "sound", file), "(loaded)");
+  file.insert(at + position.size(), position);  // the item's lengths are undefined: nothing else changes
+  const std::string message = LoadDicomFile(dir, "repeated", file);
+  EXPECT_TRUE(Has(message, "x.dcm is not DICOM that cinevol reads: (0020,0032) is repeated in an item")) << message;
 }
 
 // ITK's factory let GDCM parse any file the volume formats declined (a

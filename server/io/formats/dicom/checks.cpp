@@ -185,6 +185,7 @@ class DicomWalk {
       at += 8;
       if (element == 0xe00d || element == 0xe0dd) return length == 0 || Fail(tag() + ", a delimiter, has a length");
       if (element != 0xe000) return Fail(tag() + " stands where an item or an element should");
+      const ItemScope item(*this);
       if (length == 0xffffffffu) return Items(at, end, explicit_vr, depth + 1, 0xe00d);
       if (length > std::uint64_t(end - at)) return Fail(fmt::format("an item declares {} bytes past its end", length));
       const std::int64_t item_end = at + length;
@@ -219,6 +220,13 @@ class DicomWalk {
     // GDCM asserts on a sequence or an undefined length in the file meta
     // group (found by fuzz_volume); the standard allows neither there.
     if (meta && (sequence || length == 0xffffffffu)) return Fail(tag() + " in the file meta group is a sequence");
+    // GDCM keeps the first of a repeated tag, and reading an item it counts
+    // the bytes of the elements it kept against the item's length: they
+    // disagree, and it asserts (a Plane Position item read twice as long, an
+    // item's length "recovered" past its end; found by fuzz_dicom).
+    if (!item_tags_.empty() && !item_tags_.back().insert(std::uint32_t(group) << 16 | element).second) {
+      return Fail(tag() + " is repeated in an item");
+    }
     const bool pixel_data = group == 0x7fe0 && element == 0x0010;
     const bool un = explicit_vr && std::memcmp(h + 4, "UN", 2) == 0;
     const std::string vr(reinterpret_cast<const char*>(h + 4), 2);
@@ -376,6 +384,13 @@ class DicomWalk {
   // checked another image than GDCM decodes (a Bits Stored of 8 where GDCM
   // had 16, and its buffer overrun; a Bits Allocated of 24 where the walk
   // had 16, and GDCM's assertion; found by fuzz_dicom).
+  // While the walk is inside an item: the tags it has met there.
+  struct ItemScope {
+    explicit ItemScope(DicomWalk& walk) : walk(walk) { walk.item_tags_.emplace_back(); }
+    ~ItemScope() { walk.item_tags_.pop_back(); }
+    DicomWalk& walk;
+  };
+
   void Remember(PixelModule& module, unsigned group, unsigned element, std::int64_t at, std::uint32_t length,
                 bool pixel_data) {
     if (pixel_data) module.pixel_data = true;
@@ -539,6 +554,7 @@ class DicomWalk {
   std::string problem_;          // the first reason the walk stopped
   PixelModule pixels_, icon_;  // the data set's image and its icon's
   bool in_icon_ = false;        // inside the Icon Image Sequence (IconScope)
+  std::vector<std::set<std::uint32_t>> item_tags_;  // the items the walk is inside, innermost last (ItemScope)
 };
 
 }  // namespace
