@@ -634,6 +634,8 @@ TEST(HostileFiles, DicomFuzzFindingsAreRefusedNamingTheirProblem) {
       {"gdcm-repeated-in-plane-position-item-sqi2-assert", "(0020,0032) is repeated in an item"},
       {"gdcm-repeated-in-item-length-recovery-assert", "(0009,1011) is repeated in an item"},
       {"gdcm-repeated-in-item-odd-nested-length-assert", "(0028,0004) is repeated in an item"},
+      // 2 bytes of Pixel Data, not encapsulated, under JPEG 2000 (fuzz_dicom, 2026-12-05; open until now).
+      {"gdcm-j2k-native-pixel-data-should-not-happen-assert", "Pixel Data is not encapsulated"},
   };
   ScratchDir dir;
   for (const auto& finding : kFindings) {
@@ -799,6 +801,25 @@ TEST(HostileFiles, DicomTagRepeatedInAnItemNeverReachesGdcm) {
   file.insert(at + position.size(), position);  // the item's lengths are undefined: nothing else changes
   const std::string message = LoadDicomFile(dir, "repeated", file);
   EXPECT_TRUE(Has(message, "x.dcm is not DICOM that cinevol reads: (0020,0032) is repeated in an item")) << message;
+}
+
+// GDCM's JPEG 2000 codec read Pixel Data of a defined length as fragments
+// all the same, and asserted ("Should not happen") on 2 bytes that hold no
+// offset table (fuzz_dicom, 2026-12-05 and 2026-12-07): the JPEG 2000 seed
+// with its fragments replaced by 2 bytes of OW is refused by name.
+TEST(HostileFiles, DicomJpeg2000PixelDataNotEncapsulatedNeverReachesGdcm) {
+  ScratchDir dir;
+  std::string file = CorpusBytes("dicom/j2k-lossless-int16.dcm");
+  const std::string pixel_data("\xe0\x7f\x10\0OB\0\0\xff\xff\xff\xff", 12);
+  const std::size_t at = file.find(pixel_data);
+  ASSERT_NE(at, std::string::npos);
+  EXPECT_EQ(LoadDicomFile(dir, "sound", file), "(loaded)");
+  file.replace(at, std::string::npos, std::string("\xe0\x7f\x10\0OW\0\0\x02\0\0\0\xfe\xff", 14));
+  const std::string message = LoadDicomFile(dir, "native", file);
+  EXPECT_TRUE(Has(message,
+                  "x.dcm is not DICOM that cinevol reads: Pixel Data is not encapsulated, which its "
+                  "transfer syntax 1.2.840.10008.1.2.4.90 requires"))
+      << message;
 }
 
 // ITK's factory let GDCM parse any file the volume formats declined (a

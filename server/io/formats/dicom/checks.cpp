@@ -241,7 +241,7 @@ class DicomWalk {
       // of plain bytes), or a sequence; GDCM asserts on any other, and on
       // nested UN sequences it repairs otherwise than this walk reads them.
       if (pixel_data) {
-        if (PixelModule* module = ModuleAt(depth)) module->pixel_data = true;
+        if (PixelModule* module = ModuleAt(depth)) module->pixel_data = module->encapsulated = true;
         return Fragments(at, end, depth == 0);
       }
       if (explicit_vr && !sequence && !(un && depth == 0)) return Fail(tag() + " of VR " + vr + " has an undefined length");
@@ -352,6 +352,7 @@ class DicomWalk {
     int pixel_representation = 0;
     std::string photometric;  // trailing spaces trimmed
     bool pixel_data = false;
+    bool encapsulated = false;  // Pixel Data of undefined length: fragments
     std::set<unsigned> seen;  // the (0028,xxxx) elements remembered: each one's first occurrence
     struct Fragment {
       std::int64_t at;
@@ -447,8 +448,17 @@ class DicomWalk {
     if (p.high_bit != p.bits_stored - 1) {
       return Fail(fmt::format("{}High Bit is {}, not Bits Stored ({}) - 1", which, p.high_bit, p.bits_stored));
     }
+    const bool jpeg_2000 = transfer_syntax_.rfind(kJpeg2000Prefix, 0) == 0;
+    // GDCM's JPEG 2000 codec reads the image's Pixel Data of a defined length
+    // as fragments all the same, and asserts where its bytes hold no offset
+    // table (2 bytes of Pixel Data, found by fuzz_dicom). The standard
+    // encapsulates every compressed image.
+    if (jpeg_2000 && &p == &pixels_ && !p.encapsulated) {
+      return Fail(fmt::format("Pixel Data is not encapsulated, which its transfer syntax {} requires",
+                              LogSafe(transfer_syntax_)));
+    }
     if (p.fragments.empty()) return true;  // not encapsulated
-    if (transfer_syntax_.rfind(kJpeg2000Prefix, 0) == 0) {
+    if (jpeg_2000) {
       // A frame may span fragments: each one that starts a code stream (or
       // a JP2 file) is a frame's, and the first fragment must be one.
       for (std::size_t i = 0; i < p.fragments.size(); ++i) {
