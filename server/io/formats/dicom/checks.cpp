@@ -222,8 +222,9 @@ class DicomWalk {
     if (meta && (sequence || length == 0xffffffffu)) return Fail(tag() + " in the file meta group is a sequence");
     // GDCM keeps the first of a repeated tag, and reading an item it counts
     // the bytes of the elements it kept against the item's length: they
-    // disagree, and it asserts (a Plane Position item read twice as long, an
-    // item's length "recovered" past its end; found by fuzz_dicom).
+    // disagree, and it asserts (a Plane Position read back as no sequence,
+    // an item's length "recovered" past its end, retries through its other
+    // readers; found by fuzz_dicom). The standard names a tag once a data set.
     if (!item_tags_.empty() && !item_tags_.back().insert(std::uint32_t(group) << 16 | element).second) {
       return Fail(tag() + " is repeated in an item");
     }
@@ -380,11 +381,6 @@ class DicomWalk {
     bool icon;
   };
 
-  // An element the data set repeats counts as its first: GDCM keeps the
-  // first of a tag and drops the others, so a walk that read the last one
-  // checked another image than GDCM decodes (a Bits Stored of 8 where GDCM
-  // had 16, and its buffer overrun; a Bits Allocated of 24 where the walk
-  // had 16, and GDCM's assertion; found by fuzz_dicom).
   // While the walk is inside an item: the tags it has met there.
   struct ItemScope {
     explicit ItemScope(DicomWalk& walk) : walk(walk) { walk.item_tags_.emplace_back(); }
@@ -392,6 +388,11 @@ class DicomWalk {
     DicomWalk& walk;
   };
 
+  // An element the data set repeats counts as its first: GDCM keeps the
+  // first of a tag and drops the others, so a walk that read the last one
+  // checked another image than GDCM decodes (a Bits Stored of 8 where GDCM
+  // had 16, and its buffer overrun; a Bits Allocated of 24 where the walk
+  // had 16, and GDCM's assertion; found by fuzz_dicom).
   void Remember(PixelModule& module, unsigned group, unsigned element, std::int64_t at, std::uint32_t length,
                 bool pixel_data) {
     if (pixel_data) module.pixel_data = true;
