@@ -624,8 +624,28 @@ TEST(HostileFiles, DicomFuzzFindingsAreRefusedNamingTheirProblem) {
       // A file without the preamble whose data set starts with a meta group naming JPEG 2000:
       // GDCM decoded its 16x16 stream into a 4x4 frame (SIGSEGV in the server's fuzz run).
       {"j2k-bare-meta-group-larger-than-rows-columns", "the JPEG 2000 stream of fragment 1 describes another image"},
-      // A palette icon whose tables disagree with their descriptors (GDCM read the icon's too).
-      {"fuzz-20261205-e06a0a51", "its icon: Photometric Interpretation 'PALETTE COLOR'"},
+      // A palette icon whose tables disagree with their descriptors (GDCM read the icon's too); its
+      // icon's item repeats Photometric Interpretation, which the walk meets first now.
+      {"fuzz-20261205-e06a0a51", "(0028,0004) is repeated in an item"},
+      // fuzz_dicom, 2026-12-07: a date as the Recognition Code (GDCM's DICOM reader asserted), and in a
+      // bare data set, which GDCM reads as ACR-NEMA (its ACR-NEMA reader asserted).
+      {"gdcm-recognition-code-not-acr-nema-assert", "(0008,0010) Recognition Code is not an ACR-NEMA version"},
+      {"gdcm-acr-nema-libido-recognition-code-assert", "(0008,0010) Recognition Code is not an ACR-NEMA version"},
+      // A repeated pixel module element, checked as GDCM reads it (the first).
+      {"gdcm-repeated-bits-stored-raw-heap-overflow", "High Bit is 15, not Bits Stored (8) - 1"},
+      {"gdcm-repeated-bits-allocated-24-overlay-cleanup-assert", "Bits Allocated is 24"},
+      // A tag repeated in an item: GDCM's item lengths disagree, and it asserts.
+      {"gdcm-repeated-in-plane-position-item-sqi2-assert", "(0020,0032) is repeated in an item"},
+      {"gdcm-repeated-in-item-length-recovery-assert", "(0009,1011) is repeated in an item"},
+      {"gdcm-repeated-in-item-odd-nested-length-assert", "(0028,0004) is repeated in an item"},
+      // Kinds open since fuzz_dicom's 2026-12-05 run, each gone with the repeated element taken out of its item:
+      // GDCM's retry through its meta group compatibility path (is.good()), its mixed explicit/implicit reader
+      // ("Should not happen"), and a 2.4 GB allocation.
+      {"gdcm-repeated-in-item-meta-read-compat-is-good-assert", "(0018,0050) is repeated in an item"},
+      {"gdcm-repeated-in-item-read-pre-value-should-not-happen-assert", "(0028,0030) is repeated in an item"},
+      {"gdcm-repeated-in-item-implicit-2g4-allocation-oom", "(0020,0032) is repeated in an item"},
+      // 2 bytes of Pixel Data, not encapsulated, under JPEG 2000 (fuzz_dicom, 2026-12-05; open until now).
+      {"gdcm-j2k-native-pixel-data-should-not-happen-assert", "Pixel Data is not encapsulated"},
   };
   ScratchDir dir;
   for (const auto& finding : kFindings) {
@@ -713,6 +733,103 @@ TEST(HostileFiles, DicomDeflatedDataSetIsWalkedInflated) {
   EXPECT_TRUE(Has(bits, "x.dcm is not DICOM that cinevol reads: Bits Allocated is 12")) << bits;
   const std::string bomb = LoadDicomFile(dir, "bomb", file.substr(0, data_set) + Deflate(inflated, -15, std::size_t{300} << 20));
   EXPECT_TRUE(Has(bomb, "its deflated data set inflates past 256 MiB")) << bomb;
+}
+
+// GDCM asserted (an abort, in the reader's child) reading the PET dose of
+// every Deflated PET without a Radiopharmaceutical Information Sequence: its
+// ReadSelectedTags seeks back in the inflating stream, which cannot (found
+// by fuzz_dicom, 2026-12-07). The dose is read as the scanner reads; the
+// deflated seed, made a PET, loads.
+TEST(HostileFiles, DicomDeflatedPetWithoutDoseSequenceLoads) {
+  ScratchDir dir;
+  const std::string file = CorpusBytes("dicom/deflated.dcm");
+  const std::size_t data_set = MetaGroupEnd(file);
+  ASSERT_LT(data_set, file.size());
+  std::string inflated = InflateRaw(file.substr(data_set));
+  const std::string modality("\x08\0\x60\0CS\x02\0CT", 10);
+  const std::size_t at = inflated.find(modality);
+  ASSERT_NE(at, std::string::npos);
+  inflated.replace(at + 8, 2, "PT");
+  EXPECT_EQ(LoadDicomFile(dir, "pet", file.substr(0, data_set) + Deflate(inflated, -15)), "(loaded)");
+}
+
+// fuzz_volume's implicit-VR CT seed, without its format byte, with `bytes`
+// inserted before the element that starts with `before`.
+std::string CtSeedWith(const std::string& bytes, const std::string& before) {
+  std::string ct = CorpusBytes("volume/ct.dcm");
+  if (ct.size() < 2) return {};
+  ct.erase(0, 1);
+  const auto at = ct.find(before);
+  if (at == std::string::npos) return {};
+  return ct.insert(at, bytes);
+}
+
+// GDCM asserted (an abort, in the reader's child) on a Recognition Code
+// (0008,0010) that names no ACR-NEMA version: the fuzzer had put a date
+// there (fuzz_dicom, 2026-12-07).
+TEST(HostileFiles, DicomRecognitionCodeNotAcrNemaNeverReachesGdcm) {
+  ScratchDir dir;
+  const std::string sop_class("\x08\0\x16\0", 4);
+  const std::string empty = CtSeedWith(std::string("\x08\0\x10\0\0\0\0\0", 8), sop_class);
+  ASSERT_FALSE(empty.empty());
+  EXPECT_EQ(LoadDicomFile(dir, "empty", empty), "(loaded)");
+  const std::string date = CtSeedWith(std::string("\x08\0\x10\0\x08\0\0\0", 8) + "20261126", sop_class);
+  const std::string message = LoadDicomFile(dir, "date", date);
+  EXPECT_TRUE(Has(message, "x.dcm is not DICOM that cinevol reads: (0008,0010) Recognition Code is not an ACR-NEMA"))
+      << message;
+}
+
+// A data set that repeats a pixel module element: GDCM keeps the first, and
+// the walk checked the last. An 8 for Bits Stored before the seed's 16 made
+// GDCM copy pixels past its buffer (ASan); a 24 for Bits
+// Allocated, an assertion (fuzz_dicom, 2026-12-07). The walk checks the first.
+TEST(HostileFiles, DicomRepeatedPixelModuleElementIsCheckedAsGdcmReadsIt) {
+  ScratchDir dir;
+  const std::string bits_stored("\x28\0\x01\x01\x02\0\0\0", 8);  // implicit VR, 2 bytes
+  const std::string later = CtSeedWith(bits_stored + std::string("\x08\0", 2), std::string("\x28\0\x02\x01", 4));
+  ASSERT_FALSE(later.empty());
+  EXPECT_EQ(LoadDicomFile(dir, "later", later), "(loaded)");  // the seed's 16 first
+  const std::string first = CtSeedWith(bits_stored + std::string("\x08\0", 2), bits_stored);
+  const std::string message = LoadDicomFile(dir, "first", first);
+  EXPECT_TRUE(Has(message, "x.dcm is not DICOM that cinevol reads: High Bit is 15, not Bits Stored (8) - 1"))
+      << message;
+}
+
+// GDCM keeps the first of a tag an item repeats, and reading the item it
+// counts the kept elements' bytes against the item's length: it asserted
+// three ways (a Plane Position read back as no sequence, an item's length
+// "recovered" past it, an odd nested length; fuzz_dicom, 2026-12-07). The
+// multi-frame seed with its third frame's Image Position (Patient) repeated
+// in its Plane Position item is refused by name.
+TEST(HostileFiles, DicomTagRepeatedInAnItemNeverReachesGdcm) {
+  ScratchDir dir;
+  std::string file = CorpusBytes("dicom/multiframe-uint8.dcm");
+  const std::string position = std::string("\x20\0\x32\0DS\x08\0", 8) + "-1\\-1\\12";  // the third frame's
+  const std::size_t at = file.find(position);
+  ASSERT_NE(at, std::string::npos);
+  EXPECT_EQ(LoadDicomFile(dir, "sound", file), "(loaded)");
+  file.insert(at + position.size(), position);  // the item's lengths are undefined: nothing else changes
+  const std::string message = LoadDicomFile(dir, "repeated", file);
+  EXPECT_TRUE(Has(message, "x.dcm is not DICOM that cinevol reads: (0020,0032) is repeated in an item")) << message;
+}
+
+// GDCM's JPEG 2000 codec read Pixel Data of a defined length as fragments
+// all the same, and asserted ("Should not happen") on 2 bytes that hold no
+// offset table (fuzz_dicom, 2026-12-05 and 2026-12-07): the JPEG 2000 seed
+// with its fragments replaced by 2 bytes of OW is refused by name.
+TEST(HostileFiles, DicomJpeg2000PixelDataNotEncapsulatedNeverReachesGdcm) {
+  ScratchDir dir;
+  std::string file = CorpusBytes("dicom/j2k-lossless-int16.dcm");
+  const std::string pixel_data("\xe0\x7f\x10\0OB\0\0\xff\xff\xff\xff", 12);
+  const std::size_t at = file.find(pixel_data);
+  ASSERT_NE(at, std::string::npos);
+  EXPECT_EQ(LoadDicomFile(dir, "sound", file), "(loaded)");
+  file.replace(at, std::string::npos, std::string("\xe0\x7f\x10\0OW\0\0\x02\0\0\0\xfe\xff", 14));
+  const std::string message = LoadDicomFile(dir, "native", file);
+  EXPECT_TRUE(Has(message,
+                  "x.dcm is not DICOM that cinevol reads: Pixel Data is not encapsulated, which its "
+                  "transfer syntax 1.2.840.10008.1.2.4.90 requires"))
+      << message;
 }
 
 // ITK's factory let GDCM parse any file the volume formats declined (a

@@ -10,6 +10,7 @@
 #include <cstdint>
 #include <cstdio>
 #include <cstring>
+#include <set>
 #include <string>
 #include <vector>
 
@@ -184,6 +185,7 @@ class DicomWalk {
       at += 8;
       if (element == 0xe00d || element == 0xe0dd) return length == 0 || Fail(tag() + ", a delimiter, has a length");
       if (element != 0xe000) return Fail(tag() + " stands where an item or an element should");
+      const ItemScope item(*this);
       if (length == 0xffffffffu) return Items(at, end, explicit_vr, depth + 1, 0xe00d);
       if (length > std::uint64_t(end - at)) return Fail(fmt::format("an item declares {} bytes past its end", length));
       const std::int64_t item_end = at + length;
@@ -218,6 +220,14 @@ class DicomWalk {
     // GDCM asserts on a sequence or an undefined length in the file meta
     // group (found by fuzz_volume); the standard allows neither there.
     if (meta && (sequence || length == 0xffffffffu)) return Fail(tag() + " in the file meta group is a sequence");
+    // GDCM keeps the first of a repeated tag, and reading an item it counts
+    // the bytes of the elements it kept against the item's length: they
+    // disagree, and it asserts (a Plane Position read back as no sequence,
+    // an item's length "recovered" past its end, retries through its other
+    // readers; found by fuzz_dicom). The standard names a tag once a data set.
+    if (!item_tags_.empty() && !item_tags_.back().insert(std::uint32_t(group) << 16 | element).second) {
+      return Fail(tag() + " is repeated in an item");
+    }
     const bool pixel_data = group == 0x7fe0 && element == 0x0010;
     const bool un = explicit_vr && std::memcmp(h + 4, "UN", 2) == 0;
     const std::string vr(reinterpret_cast<const char*>(h + 4), 2);
@@ -232,7 +242,7 @@ class DicomWalk {
       // of plain bytes), or a sequence; GDCM asserts on any other, and on
       // nested UN sequences it repairs otherwise than this walk reads them.
       if (pixel_data) {
-        if (PixelModule* module = ModuleAt(depth)) module->pixel_data = true;
+        if (PixelModule* module = ModuleAt(depth)) module->pixel_data = module->encapsulated = true;
         return Fragments(at, end, depth == 0);
       }
       if (explicit_vr && !sequence && !(un && depth == 0)) return Fail(tag() + " of VR " + vr + " has an undefined length");
@@ -263,6 +273,9 @@ class DicomWalk {
       return true;
     }
     if (PixelModule* module = ModuleAt(depth)) Remember(*module, group, element, at, length, pixel_data);
+    if (group == 0x0008 && element == 0x0010 && depth == 0 && !RecognitionCodeIsAcrNema(at, length)) {
+      return Fail("(0008,0010) Recognition Code is not an ACR-NEMA version GDCM reads");
+    }
     // (0002,0010) Transfer Syntax UID: in the file meta group, or in a file
     // without the preamble whose data set starts with one (GDCM reads that
     // meta group too, and decodes the pixels by its syntax).
@@ -279,6 +292,19 @@ class DicomWalk {
     }
     at += length;
     return true;
+  }
+
+  // (0008,0010) Recognition Code, retired: a file that has it, not empty, is
+  // ACR-NEMA, and GDCM asserts that it names a version it knows (its DICOM
+  // reader wants one of these prefixes, its ACR-NEMA reader one of these
+  // values; an abort on a date there, found by fuzz_dicom).
+  bool RecognitionCodeIsAcrNema(std::int64_t at, std::uint32_t length) {
+    static const char* const kVersions[] = {"ACR-NEMA 1.0", "ACR-NEMA 2.0", "ACRNEMA_LIBIDO_1.0", "ACRNEMA_LIBIDO_1.1"};
+    if (length == 0) return true;
+    if (length > 18) return false;
+    std::string value(length, '\0');
+    if (!Read(at, reinterpret_cast<std::uint8_t*>(value.data()), length)) return false;
+    return std::any_of(std::begin(kVersions), std::end(kVersions), [&](const char* v) { return value == v; });
   }
 
   // Items of plain bytes up to the sequence delimiter, which is consumed: the
@@ -327,6 +353,8 @@ class DicomWalk {
     int pixel_representation = 0;
     std::string photometric;  // trailing spaces trimmed
     bool pixel_data = false;
+    bool encapsulated = false;  // Pixel Data of undefined length: fragments
+    std::set<unsigned> seen;  // the (0028,xxxx) elements remembered: each one's first occurrence
     struct Fragment {
       std::int64_t at;
       std::uint32_t length;
@@ -353,14 +381,27 @@ class DicomWalk {
     bool icon;
   };
 
+  // While the walk is inside an item: the tags it has met there.
+  struct ItemScope {
+    explicit ItemScope(DicomWalk& walk) : walk(walk) { walk.item_tags_.emplace_back(); }
+    ~ItemScope() { walk.item_tags_.pop_back(); }
+    DicomWalk& walk;
+  };
+
+  // An element the data set repeats counts as its first: GDCM keeps the
+  // first of a tag and drops the others, so a walk that read the last one
+  // checked another image than GDCM decodes (a Bits Stored of 8 where GDCM
+  // had 16, and its buffer overrun; a Bits Allocated of 24 where the walk
+  // had 16, and GDCM's assertion; found by fuzz_dicom).
   void Remember(PixelModule& module, unsigned group, unsigned element, std::int64_t at, std::uint32_t length,
                 bool pixel_data) {
     if (pixel_data) module.pixel_data = true;
-    if (group == 0x0028 && element == 0x0004 && length <= 64) {  // Photometric Interpretation
+    if (group != 0x0028 || !module.seen.insert(element).second) return;
+    if (element == 0x0004 && length <= 64) {  // Photometric Interpretation
       module.photometric = ReadText(at, length);
       return;
     }
-    if (group != 0x0028 || length < 2) return;
+    if (length < 2) return;
     std::uint8_t v[2];
     if (!Read(at, v, 2)) return;
     const int value = int(U16(v));
@@ -408,8 +449,17 @@ class DicomWalk {
     if (p.high_bit != p.bits_stored - 1) {
       return Fail(fmt::format("{}High Bit is {}, not Bits Stored ({}) - 1", which, p.high_bit, p.bits_stored));
     }
+    const bool jpeg_2000 = transfer_syntax_.rfind(kJpeg2000Prefix, 0) == 0;
+    // GDCM's JPEG 2000 codec reads the image's Pixel Data of a defined length
+    // as fragments all the same, and asserts where its bytes hold no offset
+    // table (2 bytes of Pixel Data, found by fuzz_dicom). The standard
+    // encapsulates every compressed image.
+    if (jpeg_2000 && &p == &pixels_ && !p.encapsulated) {
+      return Fail(fmt::format("Pixel Data is not encapsulated, which its transfer syntax {} requires",
+                              LogSafe(transfer_syntax_)));
+    }
     if (p.fragments.empty()) return true;  // not encapsulated
-    if (transfer_syntax_.rfind(kJpeg2000Prefix, 0) == 0) {
+    if (jpeg_2000) {
       // A frame may span fragments: each one that starts a code stream (or
       // a JP2 file) is a frame's, and the first fragment must be one.
       for (std::size_t i = 0; i < p.fragments.size(); ++i) {
@@ -515,6 +565,7 @@ class DicomWalk {
   std::string problem_;          // the first reason the walk stopped
   PixelModule pixels_, icon_;  // the data set's image and its icon's
   bool in_icon_ = false;        // inside the Icon Image Sequence (IconScope)
+  std::vector<std::set<std::uint32_t>> item_tags_;  // the items the walk is inside, innermost last (ItemScope)
 };
 
 }  // namespace

@@ -487,12 +487,17 @@ std::vector<double> StoredWindow(const Scan& scan, const std::string& file) {
 
 // The first item of the file's Radiopharmaceutical Information Sequence
 // (0054,0016): its dose, half life and start time into `pet`. GDCM reads the
-// header up to the sequence, never the pixels; a file without it leaves
-// `pet`'s fields empty.
+// header up to the sequence, or the first element past it (Pixel Data where
+// nothing lies between); a file without it leaves `pet`'s fields empty. This
+// is the scanner's read (ScanFiles), which went on to a later tag, stopped
+// sooner. Not ReadSelectedTags, which seeks back over the element past the
+// sequence, nor a skipped tag, which seeks past it: a deflated data set's
+// stream can do neither, and GDCM asserts (every Deflated PET without the
+// sequence aborted; found by fuzz_dicom).
 void ReadRadiopharmaceutical(const std::string& file, reader::PetDose& pet) {
   gdcm::Reader reader;
   reader.SetFileName(file.c_str());
-  if (!reader.ReadSelectedTags({kRadiopharmaceuticalInformation})) return;
+  if (!reader.ReadUpToTag(kRadiopharmaceuticalInformation)) return;
   const gdcm::DataSet& ds = reader.GetFile().GetDataSet();
   if (!ds.FindDataElement(kRadiopharmaceuticalInformation)) return;
   const gdcm::SmartPointer<gdcm::SequenceOfItems> sq =
