@@ -718,20 +718,31 @@ TEST(HostileFiles, DicomExtendedOffsetTableIsRefusedByName) {
 // deflated inputs aborted it a dozen ways (odd lengths in items, VRs the
 // dictionary does not allow, ...): the data set is walked inflated now, and
 // one that inflates past the walk's limit is refused before GDCM inflates it.
+// The deflated seed's meta group, and its data set inflated; Rejoin deflates
+// a data set (with `zeros` more bytes of zeros) behind the meta group.
+struct DeflatedSeed {
+  std::string meta, inflated;
+
+  DeflatedSeed() {
+    const std::string file = CorpusBytes("dicom/deflated.dcm");
+    const std::size_t data_set = MetaGroupEnd(file);
+    meta = file.substr(0, data_set);
+    if (data_set < file.size()) inflated = InflateRaw(file.substr(data_set));
+  }
+  std::string Rejoin(std::size_t zeros = 0) const { return meta + Deflate(inflated, -15, zeros); }
+};
+
 TEST(HostileFiles, DicomDeflatedDataSetIsWalkedInflated) {
   ScratchDir dir;
-  const std::string file = CorpusBytes("dicom/deflated.dcm");
-  const std::size_t data_set = MetaGroupEnd(file);
-  ASSERT_LT(data_set, file.size());
-  std::string inflated = InflateRaw(file.substr(data_set));
+  DeflatedSeed seed;
   const std::string bits_allocated("\x28\0\0\x01US\x02\0\x10\0", 10);
-  const std::size_t at = inflated.find(bits_allocated);
+  const std::size_t at = seed.inflated.find(bits_allocated);
   ASSERT_NE(at, std::string::npos);
-  EXPECT_EQ(LoadDicomFile(dir, "sound", file.substr(0, data_set) + Deflate(inflated, -15)), "(loaded)");
-  inflated[at + 8] = 12;
-  const std::string bits = LoadDicomFile(dir, "bits", file.substr(0, data_set) + Deflate(inflated, -15));
+  EXPECT_EQ(LoadDicomFile(dir, "sound", seed.Rejoin()), "(loaded)");
+  seed.inflated[at + 8] = 12;
+  const std::string bits = LoadDicomFile(dir, "bits", seed.Rejoin());
   EXPECT_TRUE(Has(bits, "x.dcm is not DICOM that cinevol reads: Bits Allocated is 12")) << bits;
-  const std::string bomb = LoadDicomFile(dir, "bomb", file.substr(0, data_set) + Deflate(inflated, -15, std::size_t{300} << 20));
+  const std::string bomb = LoadDicomFile(dir, "bomb", seed.Rejoin(std::size_t{300} << 20));
   EXPECT_TRUE(Has(bomb, "its deflated data set inflates past 256 MiB")) << bomb;
 }
 
@@ -742,15 +753,12 @@ TEST(HostileFiles, DicomDeflatedDataSetIsWalkedInflated) {
 // deflated seed, made a PET, loads.
 TEST(HostileFiles, DicomDeflatedPetWithoutDoseSequenceLoads) {
   ScratchDir dir;
-  const std::string file = CorpusBytes("dicom/deflated.dcm");
-  const std::size_t data_set = MetaGroupEnd(file);
-  ASSERT_LT(data_set, file.size());
-  std::string inflated = InflateRaw(file.substr(data_set));
+  DeflatedSeed seed;
   const std::string modality("\x08\0\x60\0CS\x02\0CT", 10);
-  const std::size_t at = inflated.find(modality);
+  const std::size_t at = seed.inflated.find(modality);
   ASSERT_NE(at, std::string::npos);
-  inflated.replace(at + 8, 2, "PT");
-  EXPECT_EQ(LoadDicomFile(dir, "pet", file.substr(0, data_set) + Deflate(inflated, -15)), "(loaded)");
+  seed.inflated.replace(at + 8, 2, "PT");
+  EXPECT_EQ(LoadDicomFile(dir, "pet", seed.Rejoin()), "(loaded)");
 }
 
 // fuzz_volume's implicit-VR CT seed, without its format byte, with `bytes`
