@@ -821,23 +821,59 @@ TEST(HostileFiles, DicomTagRepeatedInAnItemNeverReachesGdcm) {
   EXPECT_TRUE(Has(message, "x.dcm is not DICOM that cinevol reads: (0020,0032) is repeated in an item")) << message;
 }
 
-// GDCM's JPEG 2000 codec read Pixel Data of a defined length as fragments
-// all the same, and asserted ("Should not happen") on 2 bytes that hold no
-// offset table (fuzz_dicom, 2026-12-05 and 2026-12-07): the JPEG 2000 seed
-// with its fragments replaced by 2 bytes of OW is refused by name.
-TEST(HostileFiles, DicomJpeg2000PixelDataNotEncapsulatedNeverReachesGdcm) {
+// GDCM's JPEG and JPEG 2000 codecs read native Pixel Data of a defined
+// length as fragments all the same and asserted on 2 bytes of it ("Should
+// not happen", fuzz_dicom): a compressed syntax's image must be encapsulated.
+TEST(HostileFiles, DicomCompressedPixelDataNotEncapsulatedNeverReachesGdcm) {
   ScratchDir dir;
-  std::string file = CorpusBytes("dicom/j2k-lossless-int16.dcm");
-  const std::string pixel_data("\xe0\x7f\x10\0OB\0\0\xff\xff\xff\xff", 12);
-  const std::size_t at = file.find(pixel_data);
+  const std::pair<const char*, const char*> seeds[] = {{"j2k-lossless-int16.dcm", "1.2.840.10008.1.2.4.90"},
+                                                       {"jpeg-lossless-int16.dcm", "1.2.840.10008.1.2.4.70"},
+                                                       {"rle-uint8.dcm", "1.2.840.10008.1.2.5"}};
+  for (const auto& [seed, syntax] : seeds) {
+    std::string file = CorpusBytes(std::string("dicom/") + seed);
+    const std::string pixel_data("\xe0\x7f\x10\0OB\0\0\xff\xff\xff\xff", 12);
+    const std::size_t at = file.find(pixel_data);
+    ASSERT_NE(at, std::string::npos) << seed;
+    EXPECT_EQ(LoadDicomFile(dir, std::string("sound-") + seed, file), "(loaded)") << seed;
+    file.replace(at, std::string::npos, std::string("\xe0\x7f\x10\0OW\0\0\x02\0\0\0\xfe\xff", 14));
+    const std::string message = LoadDicomFile(dir, std::string("native-") + seed, file);
+    EXPECT_TRUE(Has(message, std::string("x.dcm is not DICOM that cinevol reads: Pixel Data is not encapsulated, "
+                                         "which its transfer syntax ") +
+                                 syntax + " requires"))
+        << message;
+  }
+}
+
+// GDCM reads the JPEG header of an image's first fragment, and asserted on
+// an empty one (a precision of 0; fuzz_dicom): it must start a JPEG stream.
+TEST(HostileFiles, DicomJpegFirstFragmentWithoutAStreamNeverReachesGdcm) {
+  ScratchDir dir;
+  for (const char* seed : {"jpeg-baseline-uint8.dcm", "jpeg-lossless-int16.dcm", "jpegls-uint16.dcm"}) {
+    std::string file = CorpusBytes(std::string("dicom/") + seed);
+    const std::string pixel_data("\xe0\x7f\x10\0OB\0\0\xff\xff\xff\xff", 12);
+    const std::size_t at = file.find(pixel_data);
+    ASSERT_NE(at, std::string::npos) << seed;
+    EXPECT_EQ(LoadDicomFile(dir, std::string("sound-") + seed, file), "(loaded)") << seed;
+    // After the offset table's item: an empty fragment first.
+    const std::size_t table = at + pixel_data.size();
+    ASSERT_LE(table + 8, file.size());
+    const std::size_t table_length = std::uint8_t(file[table + 4]) | std::size_t(std::uint8_t(file[table + 5])) << 8;
+    file.insert(table + 8 + table_length, std::string("\xfe\xff\0\xe0\0\0\0\0", 8));
+    const std::string message = LoadDicomFile(dir, std::string("empty-") + seed, file);
+    EXPECT_TRUE(Has(message, "the first fragment holds no JPEG stream")) << seed << ": " << message;
+  }
+}
+
+// GDCM asserted on a Planar Configuration other than 0 or 1 (fuzz_dicom).
+TEST(HostileFiles, DicomPlanarConfigurationBeyondOneNeverReachesGdcm) {
+  ScratchDir dir;
+  std::string file = CorpusBytes("dicom/uint8.dcm");
+  const std::string rows("\x28\0\x10\0US\x02\0", 8);
+  const std::size_t at = file.find(rows);
   ASSERT_NE(at, std::string::npos);
-  EXPECT_EQ(LoadDicomFile(dir, "sound", file), "(loaded)");
-  file.replace(at, std::string::npos, std::string("\xe0\x7f\x10\0OW\0\0\x02\0\0\0\xfe\xff", 14));
-  const std::string message = LoadDicomFile(dir, "native", file);
-  EXPECT_TRUE(Has(message,
-                  "x.dcm is not DICOM that cinevol reads: Pixel Data is not encapsulated, which its "
-                  "transfer syntax 1.2.840.10008.1.2.4.90 requires"))
-      << message;
+  file.insert(at, std::string("\x28\0\x06\0US\x02\0\x02\0", 10));
+  const std::string message = LoadDicomFile(dir, "planar", file);
+  EXPECT_TRUE(Has(message, "x.dcm is not DICOM that cinevol reads: Planar Configuration is 2, not 0 or 1")) << message;
 }
 
 // ITK's factory let GDCM parse any file the volume formats declined (a

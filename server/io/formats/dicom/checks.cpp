@@ -12,6 +12,7 @@
 #include <cstring>
 #include <set>
 #include <string>
+#include <string_view>
 #include <vector>
 
 #include "core/log_safe.h"
@@ -84,6 +85,7 @@ class DicomWalk {
   static constexpr const char* kDeflated = "1.2.840.10008.1.2.1.99";
   static constexpr const char* kRle = "1.2.840.10008.1.2.5";
   static constexpr const char* kJpeg2000Prefix = "1.2.840.10008.1.2.4.9";  // JPEG 2000 (.90-.93), JPIP (.94, .95)
+  static constexpr const char* kCompressedPrefix = "1.2.840.10008.1.2.4.";  // JPEG, JPEG-LS, JPEG 2000, MPEG, HTJ2K
 
   // Records the first reason the walk stops at; always false.
   bool Fail(std::string why) {
@@ -350,7 +352,7 @@ class DicomWalk {
   // The top-level image's pixel module, as the walk passes it.
   struct PixelModule {
     int rows = -1, columns = -1, samples = -1, bits_allocated = -1, bits_stored = -1, high_bit = -1;
-    int pixel_representation = 0;
+    int pixel_representation = 0, planar_configuration = 0;
     std::string photometric;  // trailing spaces trimmed
     bool pixel_data = false;
     bool encapsulated = false;  // Pixel Data of undefined length: fragments
@@ -407,6 +409,9 @@ class DicomWalk {
     const int value = int(U16(v));
     switch (element) {
       case 0x0002: module.samples = value; break;
+      case 0x0006:
+        module.planar_configuration = value;
+        break;
       case 0x0010: module.rows = value; break;
       case 0x0011: module.columns = value; break;
       case 0x0100: module.bits_allocated = value; break;
@@ -437,6 +442,9 @@ class DicomWalk {
     if (p.pixel_representation != 0 && p.pixel_representation != 1) {
       return Fail(fmt::format("{}Pixel Representation is {}, not 0 or 1", which, p.pixel_representation));
     }
+    if (p.planar_configuration != 0 && p.planar_configuration != 1) {
+      return Fail(fmt::format("{}Planar Configuration is {}, not 0 or 1", which, p.planar_configuration));
+    }
     const bool bits_known = p.bits_allocated == 1 || p.bits_allocated == 8 || p.bits_allocated == 16 ||
                             p.bits_allocated == 32 || p.bits_allocated == 64;
     if (p.bits_allocated < 0 || p.bits_stored < 0 || p.high_bit < 0) {
@@ -450,11 +458,12 @@ class DicomWalk {
       return Fail(fmt::format("{}High Bit is {}, not Bits Stored ({}) - 1", which, p.high_bit, p.bits_stored));
     }
     const bool jpeg_2000 = transfer_syntax_.rfind(kJpeg2000Prefix, 0) == 0;
-    // GDCM's JPEG 2000 codec reads the image's Pixel Data of a defined length
-    // as fragments all the same, and asserts where its bytes hold no offset
-    // table (2 bytes of Pixel Data, found by fuzz_dicom). The standard
-    // encapsulates every compressed image.
-    if (jpeg_2000 && &p == &pixels_ && !p.encapsulated) {
+    const bool compressed = transfer_syntax_.rfind(kCompressedPrefix, 0) == 0 || transfer_syntax_ == kRle;
+    // GDCM's JPEG and JPEG 2000 codecs read the image's Pixel Data of a
+    // defined length as fragments all the same, and assert where its bytes
+    // hold no offset table (2 bytes of Pixel Data, found by fuzz_dicom). The
+    // standard encapsulates every compressed image.
+    if (compressed && &p == &pixels_ && !p.encapsulated) {
       return Fail(fmt::format("Pixel Data is not encapsulated, which its transfer syntax {} requires",
                               LogSafe(transfer_syntax_)));
     }
@@ -469,6 +478,11 @@ class DicomWalk {
         }
       }
     }
+    // GDCM reads the JPEG header of the first fragment, and asserted on an
+    // empty one (a precision of 0; found by fuzz_dicom).
+    if (JpegFamily() && !StartsJpeg(p.fragments.front())) {
+      return Fail("the first fragment holds no JPEG stream (it starts with no SOI marker)");
+    }
     if (transfer_syntax_ == kRle) {  // one fragment a frame
       for (std::size_t i = 0; i < p.fragments.size(); ++i) {
         if (!RleFitsHeader(p.fragments[i])) return Fail(fmt::format("the RLE segments of fragment {} do not fit its header", i + 1));
@@ -478,6 +492,20 @@ class DicomWalk {
   }
 
   using Fragment = PixelModule::Fragment;
+
+  // The JPEG and JPEG-LS syntaxes (1.2.840.10008.1.2.4.50-.57, .70, .80, .81).
+  bool JpegFamily() const {
+    const std::string_view prefix = kCompressedPrefix;
+    if (transfer_syntax_.size() != prefix.size() + 2 || transfer_syntax_.rfind(prefix, 0) != 0) return false;
+    const char first = transfer_syntax_[prefix.size()];
+    return first >= '5' && first <= '8';
+  }
+
+  // Whether the fragment begins a JPEG stream (SOI, then a marker).
+  bool StartsJpeg(const Fragment& f) {
+    std::uint8_t b[3];
+    return f.length >= 4 && Read(f.at, b, 3) && b[0] == 0xff && b[1] == 0xd8 && b[2] == 0xff;
+  }
 
   // Whether the fragment begins a JPEG 2000 code stream (SOC, SIZ) or a JP2
   // file (its signature box).
