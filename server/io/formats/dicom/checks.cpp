@@ -244,7 +244,7 @@ class DicomWalk {
       // of plain bytes), or a sequence; GDCM asserts on any other, and on
       // nested UN sequences it repairs otherwise than this walk reads them.
       if (pixel_data) {
-        if (PixelModule* module = ModuleAt(depth)) module->pixel_data = module->encapsulated = true;
+        if (PixelModule* module = ModuleAt(depth)) module->pixel_data = true;
         return Fragments(at, end, depth == 0);
       }
       if (explicit_vr && !sequence && !(un && depth == 0)) return Fail(tag() + " of VR " + vr + " has an undefined length");
@@ -355,13 +355,12 @@ class DicomWalk {
     int pixel_representation = 0, planar_configuration = 0;
     std::string photometric;  // trailing spaces trimmed
     bool pixel_data = false;
-    bool encapsulated = false;  // Pixel Data of undefined length: fragments
     std::set<unsigned> seen;  // the (0028,xxxx) elements remembered: each one's first occurrence
     struct Fragment {
       std::int64_t at;
       std::uint32_t length;
     };
-    std::vector<Fragment> fragments;  // encapsulated: those after the offset table
+    std::vector<Fragment> fragments;  // encapsulated: those after the offset table (the top-level image's only)
   };
 
   // The pixel module an element at `depth` belongs to: the data set's, or
@@ -463,11 +462,11 @@ class DicomWalk {
     // defined length as fragments all the same, and assert where its bytes
     // hold no offset table (2 bytes of Pixel Data, found by fuzz_dicom). The
     // standard encapsulates every compressed image.
-    if (compressed && &p == &pixels_ && !p.encapsulated) {
+    if (compressed && &p == &pixels_ && p.fragments.empty()) {
       return Fail(fmt::format("Pixel Data is not encapsulated, which its transfer syntax {} requires",
                               LogSafe(transfer_syntax_)));
     }
-    if (p.fragments.empty()) return true;  // not encapsulated
+    if (p.fragments.empty()) return true;  // not encapsulated (or an icon's)
     if (jpeg_2000) {
       // A frame may span fragments: each one that starts a code stream (or
       // a JP2 file) is a frame's, and the first fragment must be one.
