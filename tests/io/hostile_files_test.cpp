@@ -646,6 +646,12 @@ TEST(HostileFiles, DicomFuzzFindingsAreRefusedNamingTheirProblem) {
       {"gdcm-repeated-in-item-implicit-2g4-allocation-oom", "(0020,0032) is repeated in an item"},
       // 2 bytes of Pixel Data, not encapsulated, under JPEG 2000 (fuzz_dicom, 2026-12-05; open until now).
       {"gdcm-j2k-native-pixel-data-should-not-happen-assert", "Pixel Data is not encapsulated"},
+      // fuzz_dicom seed 31337 (2026-12-07): a Planar Configuration of 65535 and no Pixel Data; a private
+      // element first in a data set with no syntax named, which GDCM reads big endian; Pixel Data repeated,
+      // native before its fragments, under JPEG 2000 (GDCM keeps the first).
+      {"gdcm-planar-configuration-without-pixel-data-assert", "Planar Configuration is 65535, not 0 or 1"},
+      {"gdcm-private-element-first-read-big-endian-item-assert", "(0900,1010) declares 436207616 bytes past its end"},
+      {"gdcm-j2k-repeated-pixel-data-native-first-assert", "Pixel Data is not encapsulated"},
   };
   ScratchDir dir;
   for (const auto& finding : kFindings) {
@@ -874,6 +880,22 @@ TEST(HostileFiles, DicomPlanarConfigurationBeyondOneNeverReachesGdcm) {
   file.insert(at, std::string("\x28\0\x06\0US\x02\0\x02\0", 10));
   const std::string message = LoadDicomFile(dir, "planar", file);
   EXPECT_TRUE(Has(message, "x.dcm is not DICOM that cinevol reads: Planar Configuration is 2, not 0 or 1")) << message;
+}
+
+// With no transfer syntax named, GDCM guesses the data set's byte order
+// from its first tag: a private element whose numbers pass 0xff makes it
+// read the file big endian, where the walk had read it little endian and
+// passed it (GDCM's item reader asserted; fuzz_dicom, 2026-12-07). The walk
+// reads such a file as GDCM does; a private creator first reads little endian.
+TEST(HostileFiles, DicomWithoutASyntaxIsWalkedInTheByteOrderGdcmGuesses) {
+  ScratchDir dir;
+  const std::string file = CorpusBytes("dicom/uint8.dcm");
+  const std::string preamble = file.substr(0, 132), data_set = file.substr(MetaGroupEnd(file));
+  const std::string creator = preamble + std::string("\x09\0\x10\0LO\x04\0", 8) + "ACME" + data_set;
+  EXPECT_EQ(LoadDicomFile(dir, "creator", creator), "(loaded)");
+  const std::string element = preamble + std::string("\x09\0\x10\x10LO\x04\0", 8) + "ACME" + data_set;
+  const std::string message = LoadDicomFile(dir, "element", element);
+  EXPECT_TRUE(Has(message, "x.dcm is not DICOM that cinevol reads: (0900,1010)")) << message;
 }
 
 // ITK's factory let GDCM parse any file the volume formats declined (a

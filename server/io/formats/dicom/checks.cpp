@@ -13,6 +13,7 @@
 #include <set>
 #include <string>
 #include <string_view>
+#include <utility>
 #include <vector>
 
 #include "core/log_safe.h"
@@ -64,8 +65,8 @@ class DicomWalk {
     // in that encoding before it would retry in another: 1.2 GB for a 3 KB
     // file whose syntax says explicit VR and whose elements have none). With
     // no syntax named, explicit VR where the bytes after the first tag read
-    // as a VR, as GDCM guesses.
-    big_endian_ = transfer_syntax_ == kExplicitBigEndian;
+    // as a VR, and the byte order GDCM guesses from that tag.
+    big_endian_ = transfer_syntax_.empty() ? GuessesBigEndian(at) : transfer_syntax_ == kExplicitBigEndian;
     std::uint8_t h[6];
     const bool looks_explicit = at + 6 <= size_ && Read(at, h, 6) && IsVr(h + 4);
     const bool explicit_vr = transfer_syntax_.empty() ? looks_explicit : transfer_syntax_ != kImplicitLittleEndian;
@@ -78,6 +79,21 @@ class DicomWalk {
       if (!Element(at, size_, explicit_vr, 0, false)) return false;
     }
     return PixelModuleIsSound(pixels_, "") && PixelModuleIsSound(icon_, "its icon: ");
+  }
+
+  // GDCM's guess at a data set's byte order where no transfer syntax names
+  // it (FileMetaInformation::ReadCompat), from the first tag read little
+  // endian: big endian in group 0800 (ACR-NEMA), or where the tag is neither
+  // in group 0008 nor a private creator's (gggg,0010), a VR follows it and
+  // either number is above 0xff. A private element first made GDCM read a
+  // file big endian that this walk had passed little endian (its item
+  // reader asserted; found by fuzz_dicom).
+  bool GuessesBigEndian(std::int64_t at) {
+    std::uint8_t h[6];
+    if (at + 6 > size_ || !Read(at, h, 6)) return false;
+    const unsigned group = unsigned(h[0]) | unsigned(h[1]) << 8, element = unsigned(h[2]) | unsigned(h[3]) << 8;
+    if (group == 0x0002 || group == 0x0008 || element == 0x0010) return false;
+    return group == 0x0800 || (IsVr(h + 4) && (group > 0xff || element > 0xff));
   }
 
   static constexpr const char* kImplicitLittleEndian = "1.2.840.10008.1.2";
@@ -244,8 +260,11 @@ class DicomWalk {
       // of plain bytes), or a sequence; GDCM asserts on any other, and on
       // nested UN sequences it repairs otherwise than this walk reads them.
       if (pixel_data) {
-        if (PixelModule* module = ModuleAt(depth)) module->pixel_data = true;
-        return Fragments(at, end, depth == 0);
+        // GDCM keeps a repeated Pixel Data's first (native Pixel Data, then
+        // fragments, made its JPEG 2000 codec assert; found by fuzz_dicom).
+        bool first = false;
+        if (PixelModule* module = ModuleAt(depth)) first = !std::exchange(module->pixel_data, true);
+        return Fragments(at, end, depth == 0 && first);
       }
       if (explicit_vr && !sequence && !(un && depth == 0)) return Fail(tag() + " of VR " + vr + " has an undefined length");
       // Read as a sequence (a UN, or implicit VR), a public element that the
@@ -432,17 +451,21 @@ class DicomWalk {
   // describe the image the header does. The same holds for an icon's
   // (`which` names it in the problem), whose fragments are not checked.
   bool PixelModuleIsSound(const PixelModule& p, const std::string& which) {
-    if (!p.pixel_data) return true;
-    if (!p.photometric.empty() && p.photometric != "MONOCHROME1" && p.photometric != "MONOCHROME2") {
-      return Fail(fmt::format("{}Photometric Interpretation '{}'; cinevol reads grey-scale series "
-                              "(MONOCHROME1 or MONOCHROME2)",
-                              which, LogSafe(p.photometric, 32)));
-    }
+    // GDCM reads these two into its image whether or not the data set has
+    // Pixel Data (a Planar Configuration of 65535 without it asserted;
+    // found by fuzz_dicom).
     if (p.pixel_representation != 0 && p.pixel_representation != 1) {
       return Fail(fmt::format("{}Pixel Representation is {}, not 0 or 1", which, p.pixel_representation));
     }
     if (p.planar_configuration != 0 && p.planar_configuration != 1) {
       return Fail(fmt::format("{}Planar Configuration is {}, not 0 or 1", which, p.planar_configuration));
+    }
+    if (!p.pixel_data) return true;
+    if (!p.photometric.empty() && p.photometric != "MONOCHROME1" && p.photometric != "MONOCHROME2") {
+      return Fail(
+          fmt::format("{}Photometric Interpretation '{}'; cinevol reads grey-scale series "
+                      "(MONOCHROME1 or MONOCHROME2)",
+                      which, LogSafe(p.photometric, 32)));
     }
     const bool bits_known = p.bits_allocated == 1 || p.bits_allocated == 8 || p.bits_allocated == 16 ||
                             p.bits_allocated == 32 || p.bits_allocated == 64;
