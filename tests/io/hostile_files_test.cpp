@@ -646,10 +646,15 @@ TEST(HostileFiles, DicomFuzzFindingsAreRefusedNamingTheirProblem) {
       {"gdcm-repeated-in-item-implicit-2g4-allocation-oom", "(0020,0032) is repeated in an item"},
       // 2 bytes of Pixel Data, not encapsulated, under JPEG 2000 (fuzz_dicom, 2026-12-05; open until now).
       {"gdcm-j2k-native-pixel-data-should-not-happen-assert", "Pixel Data is not encapsulated"},
-      // fuzz_dicom seed 31337 (2026-12-07): a Planar Configuration of 65535 and no Pixel Data; a private
-      // element first in a data set with no syntax named, which GDCM reads big endian; Pixel Data repeated,
-      // native before its fragments, under JPEG 2000 (GDCM keeps the first).
-      {"gdcm-planar-configuration-without-pixel-data-assert", "Planar Configuration is 65535, not 0 or 1"},
+      // fuzz_dicom seeds 31337 and 2718 (2026-12-07): no Pixel Data, whose image module GDCM reads all the
+      // same (a Planar Configuration of 65535, a palette of 24 bits; an element's length and a 3.7 GB
+      // allocation in its scanner); a private element first in a data set with no syntax named, which GDCM
+      // reads big endian; Pixel Data repeated, native before its fragments, under JPEG 2000 (GDCM keeps
+      // the first).
+      {"gdcm-planar-configuration-without-pixel-data-assert", "it has no Pixel Data (7FE0,0010)"},
+      {"gdcm-palette-of-24-bits-without-pixel-data-assert", "it has no Pixel Data (7FE0,0010)"},
+      {"gdcm-without-pixel-data-value-length-assert", "it has no Pixel Data (7FE0,0010)"},
+      {"gdcm-without-pixel-data-3g7-allocation-oom", "it has no Pixel Data (7FE0,0010)"},
       {"gdcm-private-element-first-read-big-endian-item-assert", "(0900,1010) declares 436207616 bytes past its end"},
       {"gdcm-j2k-repeated-pixel-data-native-first-assert", "Pixel Data is not encapsulated"},
   };

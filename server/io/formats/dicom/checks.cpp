@@ -78,6 +78,10 @@ class DicomWalk {
     while (at < size_) {
       if (!Element(at, size_, explicit_vr, 0, false)) return false;
     }
+    // GDCM reads the image module of a data set without Pixel Data all the
+    // same (a Planar Configuration of 65535 and a palette of 24 bits
+    // asserted; found by fuzz_dicom); cinevol reads images.
+    if (!pixels_.pixel_data) return Fail("it has no Pixel Data (7FE0,0010)");
     return PixelModuleIsSound(pixels_, "") && PixelModuleIsSound(icon_, "its icon: ");
   }
 
@@ -451,21 +455,18 @@ class DicomWalk {
   // describe the image the header does. The same holds for an icon's
   // (`which` names it in the problem), whose fragments are not checked.
   bool PixelModuleIsSound(const PixelModule& p, const std::string& which) {
-    // GDCM reads these two into its image whether or not the data set has
-    // Pixel Data (a Planar Configuration of 65535 without it asserted;
-    // found by fuzz_dicom).
-    if (p.pixel_representation != 0 && p.pixel_representation != 1) {
-      return Fail(fmt::format("{}Pixel Representation is {}, not 0 or 1", which, p.pixel_representation));
-    }
-    if (p.planar_configuration != 0 && p.planar_configuration != 1) {
-      return Fail(fmt::format("{}Planar Configuration is {}, not 0 or 1", which, p.planar_configuration));
-    }
     if (!p.pixel_data) return true;
     if (!p.photometric.empty() && p.photometric != "MONOCHROME1" && p.photometric != "MONOCHROME2") {
       return Fail(
           fmt::format("{}Photometric Interpretation '{}'; cinevol reads grey-scale series "
                       "(MONOCHROME1 or MONOCHROME2)",
                       which, LogSafe(p.photometric, 32)));
+    }
+    if (p.pixel_representation != 0 && p.pixel_representation != 1) {
+      return Fail(fmt::format("{}Pixel Representation is {}, not 0 or 1", which, p.pixel_representation));
+    }
+    if (p.planar_configuration != 0 && p.planar_configuration != 1) {
+      return Fail(fmt::format("{}Planar Configuration is {}, not 0 or 1", which, p.planar_configuration));
     }
     const bool bits_known = p.bits_allocated == 1 || p.bits_allocated == 8 || p.bits_allocated == 16 ||
                             p.bits_allocated == 32 || p.bits_allocated == 64;
