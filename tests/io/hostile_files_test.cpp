@@ -637,7 +637,7 @@ TEST(HostileFiles, DicomFuzzFindingsAreRefusedNamingTheirProblem) {
       // A tag repeated in an item: GDCM's item lengths disagree, and it asserts.
       {"gdcm-repeated-in-plane-position-item-sqi2-assert", "(0020,0032) is repeated in an item"},
       {"gdcm-repeated-in-item-length-recovery-assert", "(0009,1011) is repeated in an item"},
-      {"gdcm-repeated-in-item-odd-nested-length-assert", "(0028,0004) is repeated in an item"},
+      {"gdcm-repeated-in-item-odd-nested-length-assert", "it has a Modality LUT Sequence"},  // met first now
       // Kinds open since fuzz_dicom's 2026-12-05 run, each gone with the repeated element taken out of its item:
       // GDCM's retry through its meta group compatibility path (is.good()), its mixed explicit/implicit reader
       // ("Should not happen"), and a 2.4 GB allocation.
@@ -654,9 +654,17 @@ TEST(HostileFiles, DicomFuzzFindingsAreRefusedNamingTheirProblem) {
       {"gdcm-planar-configuration-without-pixel-data-assert", "it has no Pixel Data (7FE0,0010)"},
       {"gdcm-palette-of-24-bits-without-pixel-data-assert", "it has no Pixel Data (7FE0,0010)"},
       {"gdcm-without-pixel-data-value-length-assert", "it has no Pixel Data (7FE0,0010)"},
-      {"gdcm-without-pixel-data-3g7-allocation-oom", "it has no Pixel Data (7FE0,0010)"},
+      {"gdcm-without-pixel-data-3g7-allocation-oom", "an item stands where an element should"},  // met first now
       {"gdcm-private-element-first-read-big-endian-item-assert", "(0900,1010) declares 436207616 bytes past its end"},
       {"gdcm-j2k-repeated-pixel-data-native-first-assert", "Pixel Data is not encapsulated"},
+      // fuzz_dicom seed 5555 (2026-12-07): a Modality LUT, whose output GDCM takes as the pixel format
+      // (ITK's rescaling asserted); an item at an implicit VR data set's top level; a JPEG table whose
+      // length does not end where the next marker starts (GDCM's JPEG header read asserted).
+      {"itk-modality-lut-pixel-type-larger-than-output-assert", "it has a Modality LUT Sequence (0028,3000)"},
+      {"itk-modality-lut-palette-pixel-type-assert", "it has a Modality LUT Sequence (0028,3000)"},
+      {"gdcm-implicit-item-at-top-level-assert", "an item stands where an element should"},
+      {"gdcm-jpeg-table-length-off-the-next-marker-assert",
+       "the first fragment's JPEG marker segments do not lead from one to the next"},
   };
   ScratchDir dir;
   for (const auto& finding : kFindings) {

@@ -207,6 +207,10 @@ class DicomWalk {
       at += 8;
       if (element == 0xe00d || element == 0xe0dd) return length == 0 || Fail(tag() + ", a delimiter, has a length");
       if (element != 0xe000) return Fail(tag() + " stands where an item or an element should");
+      // Items stand at odd depths, in sequences; elements at even ones. GDCM
+      // asserts on an item where it reads an element (an implicit VR data
+      // set with an item at its top level; found by fuzz_dicom).
+      if (depth % 2 == 0) return Fail("an item stands where an element should");
       const ItemScope item(*this);
       if (length == 0xffffffffu) return Items(at, end, explicit_vr, depth + 1, 0xe00d);
       if (length > std::uint64_t(end - at)) return Fail(fmt::format("an item declares {} bytes past its end", length));
@@ -249,6 +253,12 @@ class DicomWalk {
     // readers; found by fuzz_dicom). The standard names a tag once a data set.
     if (!item_tags_.empty() && !item_tags_.back().insert(std::uint32_t(group) << 16 | element).second) {
       return Fail(tag() + " is repeated in an item");
+    }
+    // GDCM takes a Modality LUT's output as the image's pixel format, which
+    // ITK's rescaling asserts on (found by fuzz_dicom); cinevol applies
+    // Rescale Slope and Intercept and would show the stored values.
+    if (group == 0x0028 && element == 0x3000 && depth == 0) {
+      return Fail("it has a Modality LUT Sequence (0028,3000); cinevol applies Rescale Slope and Intercept only");
     }
     const bool pixel_data = group == 0x7fe0 && element == 0x0010;
     const bool un = explicit_vr && std::memcmp(h + 4, "UN", 2) == 0;
@@ -506,6 +516,9 @@ class DicomWalk {
     if (JpegFamily() && !StartsJpeg(p.fragments.front())) {
       return Fail("the first fragment holds no JPEG stream (it starts with no SOI marker)");
     }
+    if (JpegFamily() && !JpegMarkersChain(p.fragments.front())) {
+      return Fail("the first fragment's JPEG marker segments do not lead from one to the next");
+    }
     if (transfer_syntax_ == kRle) {  // one fragment a frame
       for (std::size_t i = 0; i < p.fragments.size(); ++i) {
         if (!RleFitsHeader(p.fragments[i])) return Fail(fmt::format("the RLE segments of fragment {} do not fit its header", i + 1));
@@ -528,6 +541,33 @@ class DicomWalk {
   bool StartsJpeg(const Fragment& f) {
     std::uint8_t b[3];
     return f.length >= 4 && Read(f.at, b, 3) && b[0] == 0xff && b[1] == 0xd8 && b[2] == 0xff;
+  }
+
+  // Whether a JPEG stream's marker segments, from SOI to its scan (SOS),
+  // each end where the next marker starts, as far as its first 64 KiB go.
+  // GDCM asserted reading the header of a stream whose table's length
+  // landed inside the next segment (found by fuzz_dicom).
+  bool JpegMarkersChain(const Fragment& f) {
+    std::vector<std::uint8_t> b(std::min<std::uint32_t>(f.length, 1u << 16));
+    if (!Read(f.at, b.data(), b.size())) return false;
+    std::size_t k = 2;  // after SOI
+    while (k + 1 < b.size()) {
+      if (b[k] != 0xff) return false;
+      const std::uint8_t marker = b[k + 1];
+      if (marker == 0xff) {  // a fill byte
+        ++k;
+      } else if (marker == 0xda) {
+        return true;
+      } else if (marker == 0xd8 || marker == 0xd9) {  // SOI or EOI before the scan
+        return false;
+      } else if (marker == 0x01 || (marker >= 0xd0 && marker <= 0xd7)) {  // no length
+        k += 2;
+      } else {
+        if (k + 3 >= b.size()) return true;  // beyond what was read: not judged
+        k += 2 + (std::size_t(b[k + 2]) << 8 | b[k + 3]);
+      }
+    }
+    return true;
   }
 
   // Whether the fragment begins a JPEG 2000 code stream (SOC, SIZ) or a JP2
