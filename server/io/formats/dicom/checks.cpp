@@ -9,6 +9,7 @@
 #include <algorithm>
 #include <cstdint>
 #include <cstdio>
+#include <cstdlib>
 #include <cstring>
 #include <set>
 #include <string>
@@ -149,6 +150,14 @@ class DicomWalk {
     if (!Read(at, reinterpret_cast<std::uint8_t*>(text.data()), length)) return {};
     while (!text.empty() && (text.back() == ' ' || text.back() == '\0')) text.pop_back();
     return text;
+  }
+
+  // Whether a decimal string's first value reads as zero.
+  static bool SlopeIsZero(const std::string& text) {
+    const char* begin = text.c_str();
+    char* end = nullptr;
+    const double value = std::strtod(begin, &end);
+    return end != begin && value == 0.0;
   }
 
   // Deflated Explicit VR Little Endian: the data set from `at` on is one raw
@@ -308,6 +317,12 @@ class DicomWalk {
       return true;
     }
     if (PixelModule* module = ModuleAt(depth)) Remember(*module, group, element, at, length, pixel_data);
+    // A Rescale Slope of 0, here or in a functional group, makes GDCM pick
+    // the smallest integer type for the rescaled image, which ITK asserts is
+    // no smaller than the stored one (found by fuzz_dicom); no image has it.
+    if (group == 0x0028 && element == 0x1053 && length <= 64 && SlopeIsZero(ReadText(at, length))) {
+      return Fail("(0028,1053) Rescale Slope is 0");
+    }
     if (group == 0x0008 && element == 0x0010 && depth == 0 && !RecognitionCodeIsAcrNema(at, length)) {
       return Fail("(0008,0010) Recognition Code is not an ACR-NEMA version GDCM reads");
     }
