@@ -12,16 +12,18 @@
 #include <thread>
 
 #include "core/error.h"
-#include "scene/scene_builder.h"
-#include "render/cpu_renderer.h"
-#include "render/integrator.h"
-#include "render/prepared_volume.h"
-#include "render/scene_data.h"
-#include "render_test_scenes.h"
 #include "encode/hdr_images.h"
 #include "encode/image_codecs.h"
 #include "io/reader_cage.h"
+#include "render/cpu_renderer.h"
+#include "render/integrator.h"
+#include "render/prepared_volume.h"
+#include "render/renderer.h"
+#include "render/scene_data.h"
+#include "render_test_scenes.h"
+#include "scene/scene_builder.h"
 #include "scene/scene_file.h"
+#include "support/gpu.h"
 #include "support/small_scene.h"
 #include "support/test_paths.h"
 
@@ -70,22 +72,22 @@ struct Outcome {
   double seconds = 0;
 };
 
-Outcome RenderOnce(std::shared_ptr<const Volume> volume, const TransferFunction& tf, const Camera& camera,
-                   int spp = 2, int bounces = 8) {
-  CpuRenderer r;
-  r.SetVolume(volume);
-  r.SetTransferFunction(tf);
-  r.SetLights(AllLights());
+Outcome RenderOnce(std::shared_ptr<const Volume> volume, const TransferFunction& tf, const Camera& camera, int spp = 2,
+                   int bounces = 8, Backend backend = Backend::kCpu) {
+  const auto r = CreateRenderer(backend);
+  r->SetVolume(volume);
+  r->SetTransferFunction(tf);
+  r->SetLights(AllLights());
   FrameRequest req;
   req.camera = camera;
   req.spp = spp;
   req.max_bounces = bounces;
   const auto start = std::chrono::steady_clock::now();
-  r.Render(req);
+  r->Render(req);
   Outcome o;
   o.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-  for (const Vec3f& p : r.Radiance().pixels) o.finite &= IsFinite(p) && MinComponent(p) >= 0.0f;
-  for (const Vec4f& h : r.FirstHits()) o.finite &= std::isfinite(h.x) && std::isfinite(h.y) && std::isfinite(h.z);
+  for (const Vec3f& p : r->Radiance().pixels) o.finite &= IsFinite(p) && MinComponent(p) >= 0.0f;
+  for (const Vec4f& h : r->FirstHits()) o.finite &= std::isfinite(h.x) && std::isfinite(h.y) && std::isfinite(h.z);
   return o;
 }
 
@@ -136,6 +138,40 @@ TEST(Extremes, ExtinctionOfAMillionPerMillimetre) {
 TEST(Extremes, OnePixelImage) {
   EXPECT_TRUE(RenderOnce(Sphere(16, 2.0f), EmissiveHybrid(0.1f), Oblique(1, 1)).finite);
 }
+
+#if CINEVOL_WITH_CUDA
+// The extremes above on the GPU, whose arithmetic differs from the CPU's:
+// denormals flushed to zero, divisions and square roots approximate
+// (server/render/CMakeLists.txt).
+TEST(CudaExtremes, DegenerateScenesGiveFiniteImages) {
+  CINEVOL_REQUIRE_CUDA();
+  const auto on_gpu = [](std::shared_ptr<const Volume> volume, const TransferFunction& tf, const Camera& camera,
+                         int bounces = 8) { return RenderOnce(volume, tf, camera, 2, bounces, Backend::kCuda); };
+  EXPECT_TRUE(on_gpu(UniformCube(8, 2.0f, 0.0f), EmissiveHybrid(1.0f), Oblique()).finite) << "empty";
+  EXPECT_TRUE(on_gpu(UniformCube(1, 10.0f, 1000.0f), EmissiveHybrid(1.0f), Oblique()).finite) << "one voxel";
+  EXPECT_TRUE(
+      on_gpu(Sphere(32, 2.0f), EmissiveHybrid(0.05f), LookAt({1, 2, 3}, {10, 0, 0}, {0, 0, 1}, 60, 16, 16)).finite)
+      << "camera inside";
+  EXPECT_TRUE(on_gpu(UniformCube(16, 2.0f, 1000.0f), EmissiveHybrid(1.0f),
+                     LookAt({-16, -200, 16}, {-16, 0, 16}, {0, 0, 1}, 2, 16, 16))
+                  .finite)
+      << "grazing";
+  EXPECT_TRUE(
+      on_gpu(Sphere(16, 1e-3f), EmissiveHybrid(1.0f), LookAt({0.02f, -0.03f, 0.01f}, {0, 0, 0}, {0, 0, 1}, 40, 16, 16))
+          .finite)
+      << "spacing 1e-3 mm";
+  EXPECT_TRUE(
+      on_gpu(Sphere(16, 100.0f), EmissiveHybrid(1e-3f), LookAt({2000, -3000, 1000}, {0, 0, 0}, {0, 0, 1}, 40, 16, 16))
+          .finite)
+      << "spacing 100 mm";
+  for (float density : {1e-30f, 1e3f, 1e6f}) {
+    const Outcome o = on_gpu(Sphere(32, 1.0f), EmissiveHybrid(density), Oblique(), 64);
+    EXPECT_TRUE(o.finite) << density;
+    EXPECT_LT(o.seconds, 30.0) << "bounded loops: " << density;
+  }
+  EXPECT_TRUE(on_gpu(Sphere(16, 2.0f), EmissiveHybrid(0.1f), Oblique(1, 1)).finite) << "one pixel";
+}
+#endif
 
 TEST(Extremes, LargestImage) {
   // 8192^2: the frame buffers hold radiance, first hit and the accumulation.
