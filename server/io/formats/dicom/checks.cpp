@@ -482,10 +482,9 @@ class DicomWalk {
   bool PixelModuleIsSound(const PixelModule& p, const std::string& which) {
     if (!p.pixel_data) return true;
     if (!p.photometric.empty() && p.photometric != "MONOCHROME1" && p.photometric != "MONOCHROME2") {
-      return Fail(
-          fmt::format("{}Photometric Interpretation '{}'; cinevol reads grey-scale series "
-                      "(MONOCHROME1 or MONOCHROME2)",
-                      which, LogSafe(p.photometric, 32)));
+      return Fail(fmt::format("{}Photometric Interpretation '{}'; cinevol reads grey-scale series "
+                              "(MONOCHROME1 or MONOCHROME2)",
+                              which, LogSafe(p.photometric, 32)));
     }
     if (p.pixel_representation != 0 && p.pixel_representation != 1) {
       return Fail(fmt::format("{}Pixel Representation is {}, not 0 or 1", which, p.pixel_representation));
