@@ -667,6 +667,9 @@ TEST(HostileFiles, DicomFuzzFindingsAreRefusedNamingTheirProblem) {
        "the first fragment's JPEG marker segments do not lead from one to the next"},
       // fuzz_dicom seed 8888: a Rescale Slope of 0 in an enhanced CT's functional groups.
       {"itk-rescale-slope-zero-pixel-type-assert", "(0028,1053) Rescale Slope is 0"},
+      // fuzz_dicom seed 5555, open until now: an undefined-length UN whose item holds encapsulated Pixel
+      // Data; GDCM's implicit read of it failed, and its explicit VR retry (CP-246) asserted.
+      {"gdcm-un-encapsulated-pixel-data-cp246-assert", "encapsulated Pixel Data stands in an implicit VR item"},
   };
   ScratchDir dir;
   for (const auto& finding : kFindings) {
@@ -911,6 +914,40 @@ TEST(HostileFiles, DicomWithoutASyntaxIsWalkedInTheByteOrderGdcmGuesses) {
   const std::string element = preamble + std::string("\x09\0\x10\x10LO\x04\0", 8) + "ACME" + data_set;
   const std::string message = LoadDicomFile(dir, "element", element);
   EXPECT_TRUE(Has(message, "x.dcm is not DICOM that cinevol reads: (0900,1010)")) << message;
+}
+
+// An undefined-length UN holds a sequence in implicit VR (CP-246). Where
+// GDCM's implicit read of it fails, GDCM reads it again as explicit VR, and
+// that retry asserted on a UN whose item held encapsulated Pixel Data
+// (fuzz_dicom seed 5555, 2026-12-07). The walk refuses what fails the first
+// read, by name: anything but an item directly in a sequence, and encapsulated
+// Pixel Data in implicit VR, which the standard does not allow.
+TEST(HostileFiles, DicomUnSequencesHoldImplicitItemsAlone) {
+  ScratchDir dir;
+  const std::string file = CorpusBytes("dicom/uint8.dcm");
+  const std::size_t data_set = MetaGroupEnd(file);
+  const auto le32 = [](std::uint32_t v) {
+    return std::string{char(v & 0xff), char(v >> 8 & 0xff), char(v >> 16 & 0xff), char(v >> 24)};
+  };
+  const auto mark = [&](char element, std::uint32_t length) {  // (FFFE,E0xx)
+    return std::string("\xfe\xff", 2) + element + '\xe0' + le32(length);
+  };
+  // ACME's private (0009,1011), an undefined-length UN holding `items`.
+  const auto with_un = [&](const std::string& items) {
+    const std::string creator = std::string("\x09\0\x10\0LO\x04\0", 8) + "ACME";
+    const std::string un = std::string("\x09\0\x11\x10UN\0\0", 8) + le32(0xffffffffu) + items + mark('\xdd', 0);
+    return file.substr(0, data_set) + creator + un + file.substr(data_set);
+  };
+  const std::string element = std::string("\x09\0\x12\x10", 4) + le32(4) + "ABCD";  // implicit VR
+  EXPECT_EQ(LoadDicomFile(dir, "item", with_un(mark('\0', 0xffffffffu) + element + mark('\x0d', 0))), "(loaded)");
+  std::string message = LoadDicomFile(dir, "bare", with_un(element));
+  EXPECT_TRUE(Has(message, "x.dcm is not DICOM that cinevol reads: an element stands where an item should")) << message;
+  const std::string fragments = mark('\0', 0) + mark('\0', 4) + "\xff\xd8\xff\xd9" + mark('\xdd', 0);
+  const std::string pixel_data = std::string("\xe0\x7f\x10\0", 4) + le32(0xffffffffu) + fragments;
+  message = LoadDicomFile(dir, "pixels", with_un(mark('\0', std::uint32_t(pixel_data.size())) + pixel_data));
+  EXPECT_TRUE(
+      Has(message, "x.dcm is not DICOM that cinevol reads: encapsulated Pixel Data stands in an implicit VR item"))
+      << message;
 }
 
 // ITK's factory let GDCM parse any file the volume formats declined (a

@@ -211,6 +211,11 @@ class DicomWalk {
     const auto tag = [&] { return TagName(group, element); };  // for a problem only
     std::uint32_t length;
     bool sequence = false;
+    // A sequence holds items alone: GDCM throws on anything else there, and
+    // where that sequence is an undefined-length UN's, it reads the UN again
+    // as explicit VR (CP-246), which asserts (found by fuzz_dicom).
+    const bool in_sequence = depth % 2 == 1;
+    if (in_sequence && (group != 0xfffe || element == 0xe00d)) return Fail("an element stands where an item should");
     if (group == 0xfffe) {  // item or delimiter: tag and a 4-byte length, never a VR
       length = U32(h + 4);
       at += 8;
@@ -219,7 +224,7 @@ class DicomWalk {
       // Items stand at odd depths, in sequences; elements at even ones. GDCM
       // asserts on an item where it reads an element (an implicit VR data
       // set with an item at its top level; found by fuzz_dicom).
-      if (depth % 2 == 0) return Fail("an item stands where an element should");
+      if (!in_sequence) return Fail("an item stands where an element should");
       const ItemScope item(*this);
       if (length == 0xffffffffu) return Items(at, end, explicit_vr, depth + 1, 0xe00d);
       if (length > std::uint64_t(end - at)) return Fail(fmt::format("an item declares {} bytes past its end", length));
@@ -285,6 +290,7 @@ class DicomWalk {
       if (pixel_data) {
         // GDCM keeps a repeated Pixel Data's first (native Pixel Data, then
         // fragments, made its JPEG 2000 codec assert; found by fuzz_dicom).
+        if (!explicit_vr && depth > 0) return Fail("encapsulated Pixel Data stands in an implicit VR item");
         bool first = false;
         if (PixelModule* module = ModuleAt(depth)) first = !std::exchange(module->pixel_data, true);
         return Fragments(at, end, depth == 0 && first);
