@@ -653,7 +653,8 @@ TEST(HostileFiles, DicomFuzzFindingsAreRefusedNamingTheirProblem) {
       // the first).
       {"gdcm-planar-configuration-without-pixel-data-assert", "it has no Pixel Data (7FE0,0010)"},
       {"gdcm-palette-of-24-bits-without-pixel-data-assert", "(0028,1053) Rescale Slope is 0"},  // met first now
-      {"gdcm-without-pixel-data-value-length-assert", "it has no Pixel Data (7FE0,0010)"},
+      {"gdcm-without-pixel-data-value-length-assert",
+       "a fragment of Pixel Data in a sequence has an odd length"},  // met first now: the same assertion as seed 6060's
       {"gdcm-without-pixel-data-3g7-allocation-oom", "an item stands where an element should"},  // met first now
       {"gdcm-private-element-first-read-big-endian-item-assert", "(0900,1010) declares 436207616 bytes past its end"},
       {"gdcm-j2k-repeated-pixel-data-native-first-assert", "Pixel Data is not encapsulated"},
@@ -670,6 +671,13 @@ TEST(HostileFiles, DicomFuzzFindingsAreRefusedNamingTheirProblem) {
       // fuzz_dicom seed 5555, open until now: an undefined-length UN whose item holds encapsulated Pixel
       // Data; GDCM's implicit read of it failed, and its explicit VR retry (CP-246) asserted.
       {"gdcm-un-encapsulated-pixel-data-cp246-assert", "encapsulated Pixel Data stands in an implicit VR item"},
+      // fuzz_dicom seed 6060: an odd fragment in an item (GDCM counts it padded, against the item's length); an
+      // icon's native Pixel Data under JPEG; three JPEG streams for one frame (GDCM decodes past the frames);
+      // Bits Allocated 64 under JPEG Lossless (GDCM's JPEG codec has none for it).
+      {"gdcm-odd-fragment-in-icon-item-sq-length-assert", "a fragment of Pixel Data in a sequence has an odd length"},
+      {"gdcm-native-icon-under-jpeg-syntax-assert", "its icon: Pixel Data is not encapsulated"},
+      {"gdcm-jpeg-streams-past-frames-nfrags-assert", "its fragments hold 3 JPEG streams for 1 frame(s)"},
+      {"gdcm-jpeg-bits-allocated-64-no-codec-assert", "Bits Allocated is 64 under JPEG, which holds 16 at most"},
   };
   ScratchDir dir;
   for (const auto& finding : kFindings) {

@@ -292,8 +292,11 @@ class DicomWalk {
         // fragments, made its JPEG 2000 codec assert; found by fuzz_dicom).
         if (!explicit_vr && depth > 0) return Fail("encapsulated Pixel Data stands in an implicit VR item");
         bool first = false;
-        if (PixelModule* module = ModuleAt(depth)) first = !std::exchange(module->pixel_data, true);
-        return Fragments(at, end, depth == 0 && first);
+        if (PixelModule* module = ModuleAt(depth)) {
+          first = !std::exchange(module->pixel_data, true);
+          module->encapsulated |= first;
+        }
+        return Fragments(at, end, depth, depth == 0 && first);
       }
       if (explicit_vr && !sequence && !(un && depth == 0)) return Fail(tag() + " of VR " + vr + " has an undefined length");
       // Read as a sequence (a UN, or implicit VR), a public element that the
@@ -366,7 +369,7 @@ class DicomWalk {
   // Items of plain bytes up to the sequence delimiter, which is consumed: the
   // basic offset table, then at least one fragment (GDCM asserts on none).
   // The top-level image's fragments are remembered, for its codec's check.
-  bool Fragments(std::int64_t& at, std::int64_t end, bool top_level) {
+  bool Fragments(std::int64_t& at, std::int64_t end, int depth, bool top_level) {
     for (int items = 0; at + 8 <= end; ++items) {
       std::uint8_t h[8];
       if (!Read(at, h, 8) || U16(h) != 0xfffe || ++elements_ > 200000) {
@@ -378,6 +381,10 @@ class DicomWalk {
       if (U16(h + 2) != 0xe000 || length > std::uint64_t(end - at)) {
         return Fail("a fragment of Pixel Data runs past its end");
       }
+      // GDCM counts an odd fragment padded to even, and in an item that
+      // disagrees with the item's length: it asserts (an icon's Pixel Data,
+      // found by fuzz_dicom). The standard's fragments are even.
+      if (depth > 0 && length % 2 != 0) return Fail("a fragment of Pixel Data in a sequence has an odd length");
       if (top_level && items >= 1) pixels_.fragments.push_back({at, length});
       at += length;
     }
@@ -408,7 +415,9 @@ class DicomWalk {
     int rows = -1, columns = -1, samples = -1, bits_allocated = -1, bits_stored = -1, high_bit = -1;
     int pixel_representation = 0, planar_configuration = 0;
     std::string photometric;  // trailing spaces trimmed
+    long frames = 1;          // Number of Frames (0028,0008), where it is a number above 1
     bool pixel_data = false;
+    bool encapsulated = false;  // its (first) Pixel Data
     std::set<unsigned> seen;  // the (0028,xxxx) elements remembered: each one's first occurrence
     struct Fragment {
       std::int64_t at;
@@ -454,6 +463,10 @@ class DicomWalk {
     if (group != 0x0028 || !module.seen.insert(element).second) return;
     if (element == 0x0004 && length <= 64) {  // Photometric Interpretation
       module.photometric = ReadText(at, length);
+      return;
+    }
+    if (element == 0x0008 && length <= 16) {  // Number of Frames, an IS
+      module.frames = std::max(1L, std::strtol(ReadText(at, length).c_str(), nullptr, 10));
       return;
     }
     if (length < 2) return;
@@ -510,14 +523,20 @@ class DicomWalk {
     if (p.high_bit != p.bits_stored - 1) {
       return Fail(fmt::format("{}High Bit is {}, not Bits Stored ({}) - 1", which, p.high_bit, p.bits_stored));
     }
+    // GDCM's JPEG codec has none for samples past 16 bits, and asserts (Bits
+    // Allocated 64 under JPEG Lossless, found by fuzz_dicom): JPEG and JPEG-LS
+    // hold 16 bits at most.
+    if (JpegFamily() && p.bits_allocated > 16) {
+      return Fail(fmt::format("{}Bits Allocated is {} under JPEG, which holds 16 at most", which, p.bits_allocated));
+    }
     const bool jpeg_2000 = transfer_syntax_.rfind(kJpeg2000Prefix, 0) == 0;
     const bool compressed = transfer_syntax_.rfind(kCompressedPrefix, 0) == 0 || transfer_syntax_ == kRle;
     // GDCM's JPEG and JPEG 2000 codecs read the image's Pixel Data of a
     // defined length as fragments all the same, and assert where its bytes
-    // hold no offset table (2 bytes of Pixel Data, found by fuzz_dicom). The
-    // standard encapsulates every compressed image.
-    if (compressed && &p == &pixels_ && p.fragments.empty()) {
-      return Fail(fmt::format("Pixel Data is not encapsulated, which its transfer syntax {} requires",
+    // hold no offset table (2 bytes of Pixel Data, found by fuzz_dicom); it
+    // asserts on an icon's too. The standard encapsulates every compressed image.
+    if (compressed && !p.encapsulated) {
+      return Fail(fmt::format("{}Pixel Data is not encapsulated, which its transfer syntax {} requires", which,
                               LogSafe(transfer_syntax_)));
     }
     if (p.fragments.empty()) return true;  // not encapsulated (or an icon's)
@@ -538,6 +557,16 @@ class DicomWalk {
     }
     if (JpegFamily() && !JpegMarkersChain(p.fragments.front())) {
       return Fail("the first fragment's JPEG marker segments do not lead from one to the next");
+    }
+    // Each frame is one JPEG stream (which may span fragments). GDCM decodes
+    // fragment by fragment, and where one past the frames fails it asserts
+    // (a single-frame image with three streams, found by fuzz_dicom).
+    if (JpegFamily()) {
+      const auto streams =
+          std::count_if(p.fragments.begin(), p.fragments.end(), [&](const Fragment& f) { return StartsJpeg(f); });
+      if (streams > p.frames) {
+        return Fail(fmt::format("its fragments hold {} JPEG streams for {} frame(s)", streams, p.frames));
+      }
     }
     if (transfer_syntax_ == kRle) {  // one fragment a frame
       for (std::size_t i = 0; i < p.fragments.size(); ++i) {
