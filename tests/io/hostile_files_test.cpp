@@ -668,14 +668,16 @@ TEST(HostileFiles, DicomFuzzFindingsAreRefusedNamingTheirProblem) {
        "the first fragment's JPEG marker segments do not lead from one to the next"},
       // fuzz_dicom seed 8888: a Rescale Slope of 0 in an enhanced CT's functional groups.
       {"itk-rescale-slope-zero-pixel-type-assert", "(0028,1053) Rescale Slope is 0"},
-      // fuzz_dicom seed 5555, open until now: an undefined-length UN whose item holds encapsulated Pixel
-      // Data; GDCM's implicit read of it failed, and its explicit VR retry (CP-246) asserted.
-      {"gdcm-un-encapsulated-pixel-data-cp246-assert", "encapsulated Pixel Data stands in an implicit VR item"},
-      // fuzz_dicom seed 6060: an odd fragment in an item (GDCM counts it padded, against the item's length); an
-      // icon's native Pixel Data under JPEG; three JPEG streams for one frame (GDCM decodes past the frames);
-      // Bits Allocated 64 under JPEG Lossless (GDCM's JPEG codec has none for it).
+      // fuzz_dicom seed 5555, open until now: an undefined-length UN whose item holds Pixel Data with an odd
+      // fragment; GDCM's implicit read of it failed, and its explicit VR retry (CP-246) asserted.
+      {"gdcm-un-odd-fragment-cp246-assert", "a fragment of Pixel Data in a sequence has an odd length"},
+      // fuzz_dicom seeds 6060 and 7070: an odd fragment in an item (GDCM counts it padded, against the item's
+      // length); Columns 0 under JPEG (GDCM took the size from the stream's header, and asserted on its
+      // precision); three JPEG streams for one frame (GDCM decodes past the frames); Bits Allocated 64 under
+      // JPEG Lossless (GDCM's JPEG codec has none for it).
       {"gdcm-odd-fragment-in-icon-item-sq-length-assert", "a fragment of Pixel Data in a sequence has an odd length"},
-      {"gdcm-native-icon-under-jpeg-syntax-assert", "its icon: Pixel Data is not encapsulated"},
+      {"gdcm-zero-columns-with-native-icon-assert", "an image of 16 rows and 0 columns"},
+      {"gdcm-zero-columns-jpeg-header-dimensions-assert", "an image of 16 rows and 0 columns"},
       {"gdcm-jpeg-streams-past-frames-nfrags-assert", "its fragments hold 3 JPEG streams for 1 frame(s)"},
       {"gdcm-jpeg-bits-allocated-64-no-codec-assert", "Bits Allocated is 64 under JPEG, which holds 16 at most"},
   };
@@ -926,11 +928,12 @@ TEST(HostileFiles, DicomWithoutASyntaxIsWalkedInTheByteOrderGdcmGuesses) {
 
 // An undefined-length UN holds a sequence in implicit VR (CP-246). Where
 // GDCM's implicit read of it fails, GDCM reads it again as explicit VR, and
-// that retry asserted on a UN whose item held encapsulated Pixel Data
-// (fuzz_dicom seed 5555, 2026-12-07). The walk refuses what fails the first
-// read, by name: anything but an item directly in a sequence, and encapsulated
-// Pixel Data in implicit VR, which the standard does not allow.
-TEST(HostileFiles, DicomUnSequencesHoldImplicitItemsAlone) {
+// that retry asserted on a UN whose item held Pixel Data with an odd fragment
+// (fuzz_dicom seed 5555, 2026-12-07): GDCM counts the fragment padded to even,
+// against the item's length. The walk refuses what fails the first read, by
+// name: an odd fragment in a sequence, and anything but an item directly in
+// a sequence.
+TEST(HostileFiles, DicomUnSequencesAreWalkedAsGdcmReadsThem) {
   ScratchDir dir;
   const std::string file = CorpusBytes("dicom/uint8.dcm");
   const std::size_t data_set = MetaGroupEnd(file);
@@ -950,11 +953,17 @@ TEST(HostileFiles, DicomUnSequencesHoldImplicitItemsAlone) {
   EXPECT_EQ(LoadDicomFile(dir, "item", with_un(mark('\0', 0xffffffffu) + element + mark('\x0d', 0))), "(loaded)");
   std::string message = LoadDicomFile(dir, "bare", with_un(element));
   EXPECT_TRUE(Has(message, "x.dcm is not DICOM that cinevol reads: an element stands where an item should")) << message;
-  const std::string fragments = mark('\0', 0) + mark('\0', 4) + "\xff\xd8\xff\xd9" + mark('\xdd', 0);
-  const std::string pixel_data = std::string("\xe0\x7f\x10\0", 4) + le32(0xffffffffu) + fragments;
-  message = LoadDicomFile(dir, "pixels", with_un(mark('\0', std::uint32_t(pixel_data.size())) + pixel_data));
+  // An item of defined length holding encapsulated Pixel Data: even fragments load, an odd one does not.
+  const auto pixels_item = [&](const std::string& fragment) {
+    const std::string fragments =
+        mark('\0', 0) + mark('\0', std::uint32_t(fragment.size())) + fragment + mark('\xdd', 0);
+    const std::string pixel_data = std::string("\xe0\x7f\x10\0", 4) + le32(0xffffffffu) + fragments;
+    return mark('\0', std::uint32_t(pixel_data.size())) + pixel_data;
+  };
+  EXPECT_EQ(LoadDicomFile(dir, "even", with_un(pixels_item("\xff\xd8\xff\xd9"))), "(loaded)");
+  message = LoadDicomFile(dir, "odd", with_un(pixels_item(std::string("\xff\xd8\xff\xd9\0", 5))));
   EXPECT_TRUE(
-      Has(message, "x.dcm is not DICOM that cinevol reads: encapsulated Pixel Data stands in an implicit VR item"))
+      Has(message, "x.dcm is not DICOM that cinevol reads: a fragment of Pixel Data in a sequence has an odd length"))
       << message;
 }
 

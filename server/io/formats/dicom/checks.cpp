@@ -290,12 +290,8 @@ class DicomWalk {
       if (pixel_data) {
         // GDCM keeps a repeated Pixel Data's first (native Pixel Data, then
         // fragments, made its JPEG 2000 codec assert; found by fuzz_dicom).
-        if (!explicit_vr && depth > 0) return Fail("encapsulated Pixel Data stands in an implicit VR item");
         bool first = false;
-        if (PixelModule* module = ModuleAt(depth)) {
-          first = !std::exchange(module->pixel_data, true);
-          module->encapsulated |= first;
-        }
+        if (PixelModule* module = ModuleAt(depth)) first = !std::exchange(module->pixel_data, true);
         return Fragments(at, end, depth, depth == 0 && first);
       }
       if (explicit_vr && !sequence && !(un && depth == 0)) return Fail(tag() + " of VR " + vr + " has an undefined length");
@@ -415,9 +411,8 @@ class DicomWalk {
     int rows = -1, columns = -1, samples = -1, bits_allocated = -1, bits_stored = -1, high_bit = -1;
     int pixel_representation = 0, planar_configuration = 0;
     std::string photometric;  // trailing spaces trimmed
-    long frames = 1;          // Number of Frames (0028,0008), where it is a number above 1
+    long frames = 1;          // Number of Frames (0028,0008); 1 where it is none, 0 or no number
     bool pixel_data = false;
-    bool encapsulated = false;  // its (first) Pixel Data
     std::set<unsigned> seen;  // the (0028,xxxx) elements remembered: each one's first occurrence
     struct Fragment {
       std::int64_t at;
@@ -511,6 +506,13 @@ class DicomWalk {
     if (p.planar_configuration != 0 && p.planar_configuration != 1) {
       return Fail(fmt::format("{}Planar Configuration is {}, not 0 or 1", which, p.planar_configuration));
     }
+    // A Rows or Columns of 0 (or none) makes GDCM take them from a JPEG
+    // stream's header, and assert where the stream's precision differs
+    // (found by fuzz_dicom); the image module requires both.
+    if (p.rows < 1 || p.columns < 1) {
+      return Fail(
+          fmt::format("{}an image of {} rows and {} columns", which, std::max(p.rows, 0), std::max(p.columns, 0)));
+    }
     const bool bits_known = p.bits_allocated == 1 || p.bits_allocated == 8 || p.bits_allocated == 16 ||
                             p.bits_allocated == 32 || p.bits_allocated == 64;
     if (p.bits_allocated < 0 || p.bits_stored < 0 || p.high_bit < 0) {
@@ -533,10 +535,10 @@ class DicomWalk {
     const bool compressed = transfer_syntax_.rfind(kCompressedPrefix, 0) == 0 || transfer_syntax_ == kRle;
     // GDCM's JPEG and JPEG 2000 codecs read the image's Pixel Data of a
     // defined length as fragments all the same, and assert where its bytes
-    // hold no offset table (2 bytes of Pixel Data, found by fuzz_dicom); it
-    // asserts on an icon's too. The standard encapsulates every compressed image.
-    if (compressed && !p.encapsulated) {
-      return Fail(fmt::format("{}Pixel Data is not encapsulated, which its transfer syntax {} requires", which,
+    // hold no offset table (2 bytes of Pixel Data, found by fuzz_dicom). The
+    // standard encapsulates every compressed image.
+    if (compressed && &p == &pixels_ && p.fragments.empty()) {
+      return Fail(fmt::format("Pixel Data is not encapsulated, which its transfer syntax {} requires",
                               LogSafe(transfer_syntax_)));
     }
     if (p.fragments.empty()) return true;  // not encapsulated (or an icon's)
