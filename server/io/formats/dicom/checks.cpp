@@ -211,9 +211,10 @@ class DicomWalk {
     const auto tag = [&] { return TagName(group, element); };  // for a problem only
     std::uint32_t length;
     bool sequence = false;
-    // A sequence holds items alone: GDCM throws on anything else there, and
-    // where that sequence is an undefined-length UN's, it reads the UN again
-    // as explicit VR (CP-246), which asserts (found by fuzz_dicom).
+    // A sequence holds items alone: GDCM throws on anything else there. The
+    // walk says so by name, and inside an undefined-length UN GDCM would read
+    // the UN again as explicit VR (CP-246), a retry that asserted on other
+    // damage (found by fuzz_dicom).
     const bool in_sequence = depth % 2 == 1;
     if (in_sequence && (group != 0xfffe || element == 0xe00d)) return Fail("an element stands where an item should");
     if (group == 0xfffe) {  // item or delimiter: tag and a 4-byte length, never a VR
@@ -378,8 +379,9 @@ class DicomWalk {
         return Fail("a fragment of Pixel Data runs past its end");
       }
       // GDCM counts an odd fragment padded to even, and in an item that
-      // disagrees with the item's length: it asserts (an icon's Pixel Data,
-      // found by fuzz_dicom). The standard's fragments are even.
+      // disagrees with the item's length: it asserts (an icon's Pixel Data;
+      // a private UN's, through its CP-246 retry; found by fuzz_dicom). The
+      // standard's fragments are even.
       if (depth > 0 && length % 2 != 0) return Fail("a fragment of Pixel Data in a sequence has an odd length");
       if (top_level && items >= 1) pixels_.fragments.push_back({at, length});
       at += length;
