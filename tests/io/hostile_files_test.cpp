@@ -679,7 +679,16 @@ TEST(HostileFiles, DicomFuzzFindingsAreRefusedNamingTheirProblem) {
       {"gdcm-zero-columns-with-native-icon-assert", "an image of 16 rows and 0 columns"},
       {"gdcm-zero-columns-jpeg-header-dimensions-assert", "an image of 16 rows and 0 columns"},
       {"gdcm-jpeg-streams-past-frames-nfrags-assert", "its fragments hold 3 JPEG streams for 1 frame(s)"},
-      {"gdcm-jpeg-bits-allocated-64-no-codec-assert", "Bits Allocated is 64 under JPEG, which holds 16 at most"},
+      {"gdcm-jpeg-bits-allocated-64-no-codec-assert",
+       "Bits Stored is 16 with Bits Allocated 64"},  // met first now; DicomJpegPast16BitsNeverReachesGdcm
+      // fuzz_dicom seed 9191: a JPEG 2000 stream whose first fragment ends inside a marker segment (GDCM's
+      // header parser read past it: a SEGV); three samples a pixel in a grey-scale image (its JPEG 2000
+      // decoder asserted on the components); 16 bits stored of 32 (GDCM clears unused bits of 16 only).
+      {"gdcm-j2k-segment-past-first-fragment-segv",
+       "the JPEG 2000 stream of fragment 1 has marker segments that run past it"},
+      {"gdcm-j2k-three-samples-monochrome-numcomps-assert", "Samples per Pixel is 3; cinevol reads grey-scale series"},
+      {"gdcm-bits-allocated-32-stored-16-overlay-cleanup-assert",
+       "Bits Stored is 16 with Bits Allocated 32; only 16-bit samples may leave bits unused"},
   };
   ScratchDir dir;
   for (const auto& finding : kFindings) {
@@ -896,6 +905,27 @@ TEST(HostileFiles, DicomJpegFirstFragmentWithoutAStreamNeverReachesGdcm) {
     const std::string message = LoadDicomFile(dir, std::string("empty-") + seed, file);
     EXPECT_TRUE(Has(message, "the first fragment holds no JPEG stream")) << seed << ": " << message;
   }
+}
+
+// GDCM's JPEG codec has coders for 8, 12 and 16 bits a sample, none past:
+// it asserted on Bits Allocated 64 under JPEG Lossless (fuzz_dicom, seed 6060).
+TEST(HostileFiles, DicomJpegPast16BitsNeverReachesGdcm) {
+  ScratchDir dir;
+  std::string file = CorpusBytes("dicom/jpeg-lossless-int16.dcm");
+  for (const char element : {'\x00', '\x01'}) {  // Bits Allocated and Bits Stored: 32
+    const std::string bits = std::string("\x28\0", 2) + element + std::string("\x01US\x02\0\x10\0", 7);
+    const std::size_t at = file.find(bits);
+    ASSERT_NE(at, std::string::npos);
+    file[at + 8] = '\x20';
+  }
+  const std::string high_bit("\x28\0\x02\x01US\x02\0\x0f\0", 10);
+  const std::size_t at = file.find(high_bit);
+  ASSERT_NE(at, std::string::npos);
+  file[at + 8] = '\x1f';
+  const std::string message = LoadDicomFile(dir, "jpeg32", file);
+  EXPECT_TRUE(
+      Has(message, "x.dcm is not DICOM that cinevol reads: Bits Allocated is 32 under JPEG, which holds 16 at most"))
+      << message;
 }
 
 // GDCM asserted on a Planar Configuration other than 0 or 1 (fuzz_dicom).

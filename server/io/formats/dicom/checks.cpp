@@ -502,6 +502,13 @@ class DicomWalk {
                               "(MONOCHROME1 or MONOCHROME2)",
                               which, LogSafe(p.photometric, 32)));
     }
+    // A grey-scale image has one sample a pixel; GDCM takes one from the
+    // photometric interpretation, and its JPEG 2000 decoder asserted on a
+    // stream of three components, as Samples per Pixel said (found by fuzz_dicom).
+    if (p.samples > 1) {
+      return Fail(fmt::format("{}Samples per Pixel is {}; cinevol reads grey-scale series (one sample a pixel)", which,
+                              p.samples));
+    }
     if (p.pixel_representation != 0 && p.pixel_representation != 1) {
       return Fail(fmt::format("{}Pixel Representation is {}, not 0 or 1", which, p.pixel_representation));
     }
@@ -527,6 +534,13 @@ class DicomWalk {
     if (p.high_bit != p.bits_stored - 1) {
       return Fail(fmt::format("{}High Bit is {}, not Bits Stored ({}) - 1", which, p.high_bit, p.bits_stored));
     }
+    // GDCM clears the bits above Bits Stored in 16-bit samples only, and
+    // asserts on any other with bits unused (Bits Allocated 32 with 16
+    // stored, found by fuzz_dicom; 8 with 7).
+    if (p.bits_stored != p.bits_allocated && p.bits_allocated != 16) {
+      return Fail(fmt::format("{}Bits Stored is {} with Bits Allocated {}; only 16-bit samples may leave bits unused",
+                              which, p.bits_stored, p.bits_allocated));
+    }
     // GDCM's JPEG codec has none for samples past 16 bits, and asserts (Bits
     // Allocated 64 under JPEG Lossless, found by fuzz_dicom): JPEG and JPEG-LS
     // hold 16 bits at most.
@@ -549,8 +563,12 @@ class DicomWalk {
       // a JP2 file) is a frame's, and the first fragment must be one.
       for (std::size_t i = 0; i < p.fragments.size(); ++i) {
         const Fragment& f = p.fragments[i];
-        if ((i == 0 || StartsJ2k(f)) && !J2kFitsHeader(f)) {
+        if (i > 0 && !StartsJ2k(f)) continue;
+        if (!J2kFitsHeader(f)) {
           return Fail(fmt::format("the JPEG 2000 stream of fragment {} describes another image than its header", i + 1));
+        }
+        if (!J2kMarkersChain(f)) {
+          return Fail(fmt::format("the JPEG 2000 stream of fragment {} has marker segments that run past it", i + 1));
         }
       }
     }
@@ -637,18 +655,21 @@ class DicomWalk {
     return std::uint32_t(b[0]) << 24 | std::uint32_t(b[1]) << 16 | std::uint32_t(b[2]) << 8 | b[3];
   }
 
+  // Where the JPEG 2000 code stream in `b` starts: at 0, or in a JP2 file
+  // after its 'jp2c' box's type; b.size() where there is none.
+  static std::size_t CodeStreamStart(const std::vector<std::uint8_t>& b) {
+    if (b.size() >= 2 && b[0] == 0xff && b[1] == 0x4f) return 0;
+    const auto box = std::search(b.begin(), b.end(), std::begin("jp2c"), std::begin("jp2c") + 4);
+    return box == b.end() ? b.size() : std::size_t(box - b.begin()) + 4;
+  }
+
   // A JPEG 2000 code stream (or a JP2 file's 'jp2c' box) whose SIZ marker
   // gives the header's columns, rows and samples, at a precision that fits.
   bool J2kFitsHeader(const Fragment& f) {
     const std::size_t n = std::min<std::size_t>(f.length, 4096);
     std::vector<std::uint8_t> b(n);
     if (n < 42 || !Read(f.at, b.data(), n)) return false;
-    std::size_t c = 0;  // where the code stream starts
-    if (b[0] != 0xff || b[1] != 0x4f) {
-      const auto box = std::search(b.begin(), b.end(), std::begin("jp2c"), std::begin("jp2c") + 4);
-      if (box == b.end()) return false;
-      c = std::size_t(box - b.begin()) + 4;
-    }
+    const std::size_t c = CodeStreamStart(b);
     if (c + 42 > n || b[c] != 0xff || b[c + 1] != 0x4f || b[c + 2] != 0xff || b[c + 3] != 0x51) return false;
     const std::uint8_t* siz = b.data() + c + 4;  // Lsiz, Rsiz, Xsiz, Ysiz, XOsiz, YOsiz, ..., Csiz
     const std::int64_t width = std::int64_t(Be32(siz + 4)) - Be32(siz + 12);
@@ -661,6 +682,30 @@ class DicomWalk {
     if (c + 42 + 3 * std::size_t(components) > n) return false;
     for (int i = 0; i < components; ++i) {
       if ((siz[38 + 3 * i] & 0x7f) + 1 > pixels_.bits_allocated) return false;
+    }
+    return true;
+  }
+
+  // Whether a JPEG 2000 code stream's marker segments, from SOC to the
+  // first tile's data (SOD), each end inside the fragment, as far as its
+  // first 64 KiB go; a coding style (COD) at its standard length. GDCM's
+  // header parser steps over a segment by its length unchecked, and read
+  // past the fragment where one ran beyond it (a SEGV, found by fuzz_dicom).
+  bool J2kMarkersChain(const Fragment& f) {
+    std::vector<std::uint8_t> b(std::min<std::uint32_t>(f.length, 1u << 16));
+    if (!Read(f.at, b.data(), b.size())) return false;
+    const bool whole = b.size() == f.length;  // else a segment past what was read is not judged
+    for (std::size_t k = CodeStreamStart(b); k + 2 <= b.size();) {
+      const unsigned marker = unsigned(b[k]) << 8 | b[k + 1];
+      k += 2;
+      if (marker == 0xff93) return true;  // SOD
+      // SOC, EOC, EPH and the reserved FF30-FF3F carry no length.
+      if (marker == 0xff4f || marker == 0xffd9 || marker == 0xff92 || (marker >= 0xff30 && marker <= 0xff3f)) continue;
+      if (k + 2 > b.size()) return !whole;
+      const std::size_t length = std::size_t(b[k]) << 8 | b[k + 1];
+      if (length < 2 || (marker == 0xff52 && length < 12)) return false;
+      if (k + length > b.size()) return !whole;
+      k += length;
     }
     return true;
   }
