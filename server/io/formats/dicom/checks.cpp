@@ -564,10 +564,11 @@ class DicomWalk {
       for (std::size_t i = 0; i < p.fragments.size(); ++i) {
         const Fragment& f = p.fragments[i];
         if (i > 0 && !StartsJ2k(f)) continue;
-        if (!J2kFitsHeader(f)) {
+        std::size_t code_stream = 0;
+        if (!J2kFitsHeader(f, code_stream)) {
           return Fail(fmt::format("the JPEG 2000 stream of fragment {} describes another image than its header", i + 1));
         }
-        if (!J2kMarkersChain(f)) {
+        if (!J2kMarkersChain(f, code_stream)) {
           return Fail(fmt::format("the JPEG 2000 stream of fragment {} has marker segments that run past it", i + 1));
         }
       }
@@ -655,21 +656,19 @@ class DicomWalk {
     return std::uint32_t(b[0]) << 24 | std::uint32_t(b[1]) << 16 | std::uint32_t(b[2]) << 8 | b[3];
   }
 
-  // Where the JPEG 2000 code stream in `b` starts: at 0, or in a JP2 file
-  // after its 'jp2c' box's type; b.size() where there is none.
-  static std::size_t CodeStreamStart(const std::vector<std::uint8_t>& b) {
-    if (b.size() >= 2 && b[0] == 0xff && b[1] == 0x4f) return 0;
-    const auto box = std::search(b.begin(), b.end(), std::begin("jp2c"), std::begin("jp2c") + 4);
-    return box == b.end() ? b.size() : std::size_t(box - b.begin()) + 4;
-  }
-
   // A JPEG 2000 code stream (or a JP2 file's 'jp2c' box) whose SIZ marker
   // gives the header's columns, rows and samples, at a precision that fits.
-  bool J2kFitsHeader(const Fragment& f) {
+  // `c` takes where the code stream starts in the fragment.
+  bool J2kFitsHeader(const Fragment& f, std::size_t& c) {
     const std::size_t n = std::min<std::size_t>(f.length, 4096);
     std::vector<std::uint8_t> b(n);
     if (n < 42 || !Read(f.at, b.data(), n)) return false;
-    const std::size_t c = CodeStreamStart(b);
+    c = 0;
+    if (b[0] != 0xff || b[1] != 0x4f) {
+      const auto box = std::search(b.begin(), b.end(), std::begin("jp2c"), std::begin("jp2c") + 4);
+      if (box == b.end()) return false;
+      c = std::size_t(box - b.begin()) + 4;
+    }
     if (c + 42 > n || b[c] != 0xff || b[c + 1] != 0x4f || b[c + 2] != 0xff || b[c + 3] != 0x51) return false;
     const std::uint8_t* siz = b.data() + c + 4;  // Lsiz, Rsiz, Xsiz, Ysiz, XOsiz, YOsiz, ..., Csiz
     const std::int64_t width = std::int64_t(Be32(siz + 4)) - Be32(siz + 12);
@@ -686,28 +685,30 @@ class DicomWalk {
     return true;
   }
 
-  // Whether a JPEG 2000 code stream's marker segments, from SOC to the
-  // first tile's data (SOD), each end inside the fragment, as far as its
-  // first 64 KiB go; a coding style (COD) at its standard length. GDCM's
-  // header parser steps over a segment by its length unchecked, and read
-  // past the fragment where one ran beyond it (a SEGV, found by fuzz_dicom).
-  bool J2kMarkersChain(const Fragment& f) {
-    std::vector<std::uint8_t> b(std::min<std::uint32_t>(f.length, 1u << 16));
-    if (!Read(f.at, b.data(), b.size())) return false;
-    const bool whole = b.size() == f.length;  // else a segment past what was read is not judged
-    for (std::size_t k = CodeStreamStart(b); k + 2 <= b.size();) {
-      const unsigned marker = unsigned(b[k]) << 8 | b[k + 1];
+  // Whether a JPEG 2000 code stream's marker segments, from SOC (at
+  // `start` in the fragment) to the first tile's data (SOD), each end inside
+  // the fragment; a coding style (COD) at its standard length. GDCM's header
+  // parser steps over a segment by its length unchecked, and read past the
+  // fragment where one ran beyond it (a SEGV, found by fuzz_dicom). A code
+  // stream's headers hold a few dozen segments: past kMaxSegments it is refused.
+  bool J2kMarkersChain(const Fragment& f, std::size_t start) {
+    constexpr int kMaxSegments = 4096;
+    std::uint64_t k = start;
+    for (int segments = 0; k + 2 <= f.length; ++segments) {
+      std::uint8_t m[4];
+      const std::size_t n = std::size_t(std::min<std::uint64_t>(4, f.length - k));
+      if (segments == kMaxSegments || !Read(f.at + std::int64_t(k), m, n)) return false;
+      const unsigned marker = unsigned(m[0]) << 8 | m[1];
       k += 2;
       if (marker == 0xff93) return true;  // SOD
       // SOC, EOC, EPH and the reserved FF30-FF3F carry no length.
       if (marker == 0xff4f || marker == 0xffd9 || marker == 0xff92 || (marker >= 0xff30 && marker <= 0xff3f)) continue;
-      if (k + 2 > b.size()) return !whole;
-      const std::size_t length = std::size_t(b[k]) << 8 | b[k + 1];
-      if (length < 2 || (marker == 0xff52 && length < 12)) return false;
-      if (k + length > b.size()) return !whole;
+      if (n < 4) return false;  // its length past the fragment
+      const unsigned length = unsigned(m[2]) << 8 | m[3];
+      if (length < 2 || (marker == 0xff52 && length < 12) || k + length > f.length) return false;
       k += length;
     }
-    return true;
+    return true;  // the fragment ends between segments: GDCM's parser stops there
   }
 
   // An RLE fragment's header: 1 to 15 segments, one per byte of each sample,
