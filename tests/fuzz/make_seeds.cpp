@@ -3,8 +3,8 @@
 // its format from; session requests in wire form, each prefixed by the byte
 // fuzz_requests reads the message type from; and DICOM files for fuzz_dicom
 // (corpus/dicom/: each transfer syntax GDCM writes, JPEG 2000 among them,
-// colour models, palettes, frames, an icon, 1 to 3 slices). Run from the
-// fuzz build:
+// colour models, palettes, frames, an icon, 1 to 3 slices); and what a PACS
+// answers for fuzz_pacs (corpus/pacs/). Run from the fuzz build:
 //   build-fuzz/fuzz_seeds tests/fuzz/corpus
 // fuzz_scene's seeds are examples/*.json (run.sh adds them). The inputs that
 // once crashed (corpus/*/regression-*) are kept as they were found.
@@ -33,6 +33,12 @@
 
 #include "cinevol/v1/service.pb.h"
 #include "dicom_model.h"
+#include "pacs/handmade_sr.h"
+#include "pacs/measurement_report.h"
+#include "pacs/multipart.h"
+#include "pacs/presentation_state.h"
+#include "runtime/presentation_store.h"
+#include "scene/scene_file.h"
 
 namespace fs = std::filesystem;
 
@@ -424,6 +430,57 @@ void WriteGeometrySeeds(const fs::path& out) {
   }
 }
 
+// fuzz_pacs' seeds, the first byte its kind (a Part 10 file's preamble): measurement reports as cinevol writes them
+// and as OHIF does (3D and on an image), a presentation state, and a WADO-RS answer holding a report and a state.
+void WritePacsSeeds(const fs::path& out) {
+  namespace pacs = cinevol::pacs;
+  namespace hand = cinevol::testing;
+  fs::create_directories(out);
+  pacs::SourceStudy study;
+  study.patient_name = "Fuzz^Seed";
+  study.patient_id = "FUZZ-1";
+  study.study_uid = "2.25.3400900";
+  study.series_uid = "2.25.3400900.1";
+  pacs::ReportSource source;
+  source.frame_of_reference_uid = "2.25.3400900.9";
+  for (int i = 1; i <= 2; ++i)
+    source.images.push_back({"1.2.840.10008.5.1.4.1.1.2", "2.25.3400900.1." + std::to_string(i)});
+  const std::string report = pacs::MakeMeasurementReport(
+      study, source,
+      {{"aorta", {{-12.5, 45.5, -123.25}, {30.125, -80.5, 210.75}}}, {"angle", {{10, 20, 30}, {0, 0, 0}, {5, -7, 1}}}},
+      "seed");
+  std::ofstream(out / "sr-cinevol.dcm", std::ios::binary) << report;  // the preamble's first byte: 0
+  const std::string ohif = hand::Report({
+      hand::Group({hand::Tracking("Cornerstone3DTools@^0.1.0:Length"), hand::FreeTextFinding("aorta"),
+                   hand::Num(hand::kLength, "mm", "42.1", hand::Scoord3d({1.5f, 2.5f, 3.5f, 10.25f, -20.5f, 30.75f}))}),
+      hand::Group(
+          {hand::Tracking("Cornerstone3DTools@^0.1.0:Length"), hand::FreeTextFinding("node"),
+           hand::Num(hand::kLength, "mm", "28.3", hand::Scoord({10.5f, 20.5f, 30.5f, 40.5f}, "2.25.3400359.7.3"))}),
+  });
+  std::ofstream(out / "sr-ohif.dcm", std::ios::binary) << ohif;
+  // A scene as a session stores one: patient coordinates, transfer-function points, a crop box and a capped plane.
+  const v1::Scene scene = cinevol::ParseSceneJson(R"({
+    "frame": "PATIENT_LPS",
+    "transferFunction": {"preset": "ct-bone", "densityScale": 3, "points": [
+      {"value": -200, "opacity": 0, "diffuse": {"r": 0.9, "g": 0.8, "b": 0.7}},
+      {"value": 1500, "opacity": 1, "diffuse": {"r": 1, "g": 1, "b": 1}}]},
+    "camera": {"eye": {"x": 10, "y": -600, "z": 40}, "target": {"x": 5, "y": -120, "z": 30},
+               "up": {"x": 0, "y": 0, "z": 1}, "fovYDeg": 28},
+    "render": {"width": 320, "height": 240, "spp": 64},
+    "clipping": {"cropBox": {"center": {"x": 0, "y": -150, "z": -20}, "size": {"x": 250, "y": 200, "z": 400}},
+                 "planes": [{"point": {"x": 30, "y": 0, "z": 0}, "normal": {"x": -1, "y": 0, "z": 0}, "cap": true}]}
+  })");
+  const cinevol::Volume volume({16, 16, 8}, {0.7f, 0.7f, 2.5f}, std::vector<float>(16 * 16 * 8, 0.0f), {});
+  std::string state =
+      pacs::MakePresentationState(study, source, cinevol::service::PresentationOf(scene, volume), "seed");
+  state[0] = 1;
+  std::ofstream(out / "presentation-state.dcm", std::ios::binary) << state;
+  const std::string boundary = "fuzz-seed-boundary";
+  Write(out / "wado-answer", 2,
+        "multipart/related; type=\"application/dicom\"; boundary=" + boundary + "\n" +
+            pacs::JoinMultipart({report, state}, boundary, "application/dicom"));
+}
+
 // fuzz_requests' kind 5: a frame number, then an instance's metadata: a
 // single-frame axial image, and an enhanced one of two frames.
 void WriteFrameSeeds(const fs::path& out) {
@@ -511,6 +568,7 @@ int main(int argc, char** argv) {
     std::cerr << "usage: fuzz_seeds CORPUS_DIR (tests/fuzz/corpus)\n";
     return 2;
   }
+  WritePacsSeeds(fs::path(argv[1]) / "pacs");
   if (!WriteRequestSeeds(fs::path(argv[1]) / "requests")) {
     std::cerr << "cannot read the example scenes\n";
     return 1;

@@ -28,7 +28,7 @@ build_only=false
 seconds=${1:-20}
 shift || true
 targets=("$@")
-[ ${#targets[@]} -gt 0 ] || targets=(fuzz_volume fuzz_dicom fuzz_scene fuzz_requests)
+[ ${#targets[@]} -gt 0 ] || targets=(fuzz_volume fuzz_dicom fuzz_scene fuzz_requests fuzz_pacs)
 build=${FUZZ_BUILD_DIR:-build-fuzz}
 jobs=${FUZZ_JOBS:-1}
 
@@ -60,6 +60,7 @@ run_one() {
     fuzz_volume) cp tests/fuzz/corpus/volume/* "$corpus"/ ;;
     fuzz_dicom) cp tests/fuzz/corpus/dicom/* "$corpus"/ ;;
     fuzz_requests) cp tests/fuzz/corpus/requests/* "$corpus"/ ;;
+    fuzz_pacs) cp tests/fuzz/corpus/pacs/* "$corpus"/ ;;
     fuzz_scene) cp examples/*.json "$corpus"/ ;;
   esac
   local runs_wanted=${FUZZ_RUNS:-}
@@ -68,6 +69,7 @@ run_one() {
       fuzz_volume) runs_wanted=3000 ;;
       fuzz_dicom) runs_wanted=1000 ;;
       fuzz_scene) runs_wanted=100000 ;;
+      fuzz_pacs) runs_wanted=30000 ;;
       *) runs_wanted=100000 ;;  # fuzz_requests: 500,000 ran past the 60 s cap in CI (about 5,000 a second)
     esac
   fi
