@@ -16,9 +16,9 @@
 #include <cstddef>
 #include <cstdint>
 #include <cstdlib>
-#include <exception>
 #include <string>
 #include <string_view>
+#include <utility>
 
 #include "core/error.h"
 #include "dicom_model.h"
