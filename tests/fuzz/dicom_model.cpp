@@ -1283,6 +1283,22 @@ std::string CrossOverDicomBytes(const std::uint8_t* a, std::size_t a_size, const
   return out;
 }
 
+std::size_t MutateDicomInPlace(std::uint8_t* data, std::size_t size, std::size_t max_size, unsigned int seed,
+                               const ByteMutator& mutate) {
+  Random random(seed);
+  const std::string out = MutateDicomBytes(data, size, max_size, random, mutate);
+  std::copy(out.begin(), out.end(), data);
+  return out.size();
+}
+
+std::size_t CrossOverDicomInto(const std::uint8_t* a, std::size_t a_size, const std::uint8_t* b, std::size_t b_size,
+                               std::uint8_t* out, std::size_t max_size, unsigned int seed) {
+  Random random(seed);
+  const std::string bytes = CrossOverDicomBytes(a, a_size, b, b_size, max_size, random);
+  std::copy(bytes.begin(), bytes.end(), out);
+  return bytes.size();
+}
+
 ByteMutator PlainByteMutator(Random& random) {
   return [&random](std::uint8_t* data, std::size_t size, std::size_t max_size) -> std::size_t {
     static const std::uint32_t kInteresting[] = {0, 1, 2, 0x7f, 0x80, 0xff, 0x100, 0x7fff, 0x8000, 0xffff,

@@ -136,4 +136,11 @@ std::string MutateDicomBytes(const std::uint8_t* data, std::size_t size, std::si
 std::string CrossOverDicomBytes(const std::uint8_t* a, std::size_t a_size, const std::uint8_t* b, std::size_t b_size,
                                 std::size_t max_size, Random& random);
 
+// The two as libFuzzer's custom mutator and crossover call them: seeded by
+// `seed`, the result written over `data` (or into `out`), its size returned.
+std::size_t MutateDicomInPlace(std::uint8_t* data, std::size_t size, std::size_t max_size, unsigned int seed,
+                               const ByteMutator& mutate);
+std::size_t CrossOverDicomInto(const std::uint8_t* a, std::size_t a_size, const std::uint8_t* b, std::size_t b_size,
+                               std::uint8_t* out, std::size_t max_size, unsigned int seed);
+
 }  // namespace cinevol::fuzz

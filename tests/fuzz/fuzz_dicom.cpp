@@ -79,17 +79,11 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
 
 extern "C" std::size_t LLVMFuzzerCustomMutator(std::uint8_t* data, std::size_t size, std::size_t max_size,
                                                unsigned int seed) {
-  cinevol::fuzz::Random random(seed);
-  const std::string out = cinevol::fuzz::MutateDicomBytes(data, size, max_size, random, LLVMFuzzerMutate);
-  std::copy(out.begin(), out.end(), data);
-  return out.size();
+  return cinevol::fuzz::MutateDicomInPlace(data, size, max_size, seed, LLVMFuzzerMutate);
 }
 
 extern "C" std::size_t LLVMFuzzerCustomCrossOver(const std::uint8_t* data1, std::size_t size1,
                                                  const std::uint8_t* data2, std::size_t size2, std::uint8_t* out,
                                                  std::size_t max_out_size, unsigned int seed) {
-  cinevol::fuzz::Random random(seed);
-  const std::string bytes = cinevol::fuzz::CrossOverDicomBytes(data1, size1, data2, size2, max_out_size, random);
-  std::copy(bytes.begin(), bytes.end(), out);
-  return bytes.size();
+  return cinevol::fuzz::CrossOverDicomInto(data1, size1, data2, size2, out, max_out_size, seed);
 }

@@ -10,7 +10,6 @@
 // breaks the readers' documented limits is a bug. Part 10 inputs are mutated
 // element by element, as fuzz_dicom's are (dicom_model.h): tags, VRs, lengths,
 // sequences and items, nesting, elements moved between a report and a state.
-#include <algorithm>
 #include <array>
 #include <cmath>
 #include <cstddef>
@@ -120,17 +119,11 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
 extern "C" std::size_t LLVMFuzzerCustomMutator(std::uint8_t* data, std::size_t size, std::size_t max_size,
                                                unsigned int seed) {
   if (size == 0 || KindOf(data) == kMultipart) return LLVMFuzzerMutate(data, size, max_size);
-  cv::fuzz::Random random(seed);
-  const std::string out = cv::fuzz::MutateDicomBytes(data, size, max_size, random, LLVMFuzzerMutate);
-  std::copy(out.begin(), out.end(), data);
-  return out.size();
+  return cv::fuzz::MutateDicomInPlace(data, size, max_size, seed, LLVMFuzzerMutate);
 }
 
 extern "C" std::size_t LLVMFuzzerCustomCrossOver(const std::uint8_t* data1, std::size_t size1,
                                                  const std::uint8_t* data2, std::size_t size2, std::uint8_t* out,
                                                  std::size_t max_out_size, unsigned int seed) {
-  cv::fuzz::Random random(seed);
-  const std::string bytes = cv::fuzz::CrossOverDicomBytes(data1, size1, data2, size2, max_out_size, random);
-  std::copy(bytes.begin(), bytes.end(), out);
-  return bytes.size();
+  return cv::fuzz::CrossOverDicomInto(data1, size1, data2, size2, out, max_out_size, seed);
 }
