@@ -689,6 +689,10 @@ TEST(HostileFiles, DicomFuzzFindingsAreRefusedNamingTheirProblem) {
       {"gdcm-j2k-three-samples-monochrome-numcomps-assert", "Samples per Pixel is 3; cinevol reads grey-scale series"},
       {"gdcm-bits-allocated-32-stored-16-overlay-cleanup-assert",
        "Bits Stored is 16 with Bits Allocated 32; only 16-bit samples may leave bits unused"},
+      // cinevol-server-fuzz seed 11 (2026-12-08): a JPEG stream whose header goes on past its first fragment
+      // (GDCM read the frame header from that fragment alone, and asserted on a precision of 0).
+      {"gdcm-jpeg-header-past-first-fragment-precision-assert",
+       "the first fragment ends inside its JPEG header (before the scan starts)"},
   };
   ScratchDir dir;
   for (const auto& finding : kFindings) {
@@ -926,6 +930,42 @@ TEST(HostileFiles, DicomJpegPast16BitsNeverReachesGdcm) {
   EXPECT_TRUE(
       Has(message, "x.dcm is not DICOM that cinevol reads: Bits Allocated is 32 under JPEG, which holds 16 at most"))
       << message;
+}
+
+// GDCM reads a JPEG stream's header from its first fragment alone: a frame header that goes on in the next
+// fragment made it assert on a precision of 0 (cinevol-server-fuzz, seed 11). A stream whose scan alone goes on
+// in later fragments is a frame split as the standard allows, and loads.
+TEST(HostileFiles, DicomJpegHeaderIsReadFromTheFirstFragment) {
+  const std::string file = CorpusBytes("dicom/jpeg-baseline-uint8.dcm");
+  // Pixel Data (OB, undefined length), the empty offset table, then the stream's one fragment.
+  const std::string pixel_data("\xe0\x7f\x10\x00OB\0\0\xff\xff\xff\xff", 12);
+  const std::string item("\xfe\xff\x00\xe0", 4);
+  const std::size_t table = file.find(pixel_data) + pixel_data.size();
+  ASSERT_EQ(file.compare(table, 8, item + std::string(4, '\0')), 0);
+  const std::size_t fragment = table + 8;
+  ASSERT_EQ(file.compare(fragment, 4, item), 0);
+  std::uint32_t length = 0;
+  std::memcpy(&length, file.data() + fragment + 4, 4);
+  const std::string stream = file.substr(fragment + 8, length);
+  const std::size_t scan = stream.find("\xff\xda");
+  ASSERT_GT(scan, 100u);
+  const auto split_at = [&](std::size_t cut) {
+    const auto item_of = [&](const std::string& bytes) {
+      const std::uint32_t n = std::uint32_t(bytes.size());
+      return item + std::string(reinterpret_cast<const char*>(&n), 4) + bytes;
+    };
+    return file.substr(0, fragment) + item_of(stream.substr(0, cut)) + item_of(stream.substr(cut)) +
+           file.substr(fragment + 8 + length);
+  };
+  ScratchDir dir;
+  for (const std::size_t cut : {std::size_t{20}, scan - scan % 2}) {  // in the first table; just before the scan
+    const std::string message = LoadDicomFile(dir, "cut" + std::to_string(cut), split_at(cut));
+    EXPECT_TRUE(Has(message,
+                    "x.dcm is not DICOM that cinevol reads: the first fragment ends inside its JPEG "
+                    "header (before the scan starts)"))
+        << cut << ": " << message;
+  }
+  EXPECT_EQ(LoadDicomFile(dir, "scan-split", split_at(scan + 20 - scan % 2)), "(loaded)");
 }
 
 // GDCM asserted on a Planar Configuration other than 0 or 1 (fuzz_dicom).

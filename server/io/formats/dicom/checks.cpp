@@ -578,8 +578,15 @@ class DicomWalk {
     if (JpegFamily() && !StartsJpeg(p.fragments.front())) {
       return Fail("the first fragment holds no JPEG stream (it starts with no SOI marker)");
     }
-    if (JpegFamily() && !JpegMarkersChain(p.fragments.front())) {
-      return Fail("the first fragment's JPEG marker segments do not lead from one to the next");
+    if (JpegFamily()) {
+      switch (JpegHeaderIn(p.fragments.front())) {
+        case JpegHeader::kWhole:
+          break;
+        case JpegHeader::kBroken:
+          return Fail("the first fragment's JPEG marker segments do not lead from one to the next");
+        case JpegHeader::kCut:
+          return Fail("the first fragment ends inside its JPEG header (before the scan starts)");
+      }
     }
     // Each frame is one JPEG stream (which may span fragments). GDCM decodes
     // fragment by fragment, and where one past the frames fails it asserts
@@ -615,31 +622,38 @@ class DicomWalk {
     return f.length >= 4 && Read(f.at, b, 3) && b[0] == 0xff && b[1] == 0xd8 && b[2] == 0xff;
   }
 
-  // Whether a JPEG stream's marker segments, from SOI to its scan (SOS),
-  // each end where the next marker starts, as far as its first 64 KiB go.
-  // GDCM asserted reading the header of a stream whose table's length
-  // landed inside the next segment (found by fuzz_dicom).
-  bool JpegMarkersChain(const Fragment& f) {
-    std::vector<std::uint8_t> b(std::min<std::uint32_t>(f.length, 1u << 16));
-    if (!Read(f.at, b.data(), b.size())) return false;
+  // What a JPEG stream's header, from SOI to its scan (SOS), looks like in
+  // its first fragment, as far as its first 64 KiB go: whole, each marker
+  // segment ending where the next marker starts; broken; or cut, going on
+  // past the fragment. GDCM asserted reading a header whose table's length
+  // landed inside the next segment (found by fuzz_dicom), and one whose
+  // frame header went on in the next fragment: it reads the header from the
+  // first fragment alone (found by cinevol-server-fuzz).
+  enum class JpegHeader { kWhole, kBroken, kCut };
+  JpegHeader JpegHeaderIn(const Fragment& f) {
+    constexpr std::uint32_t kLooked = 1u << 16;
+    // Where the fragment is longer than what is read, a header that runs past that is not judged.
+    const JpegHeader past_the_end = f.length > kLooked ? JpegHeader::kWhole : JpegHeader::kCut;
+    std::vector<std::uint8_t> b(std::min(f.length, kLooked));
+    if (!Read(f.at, b.data(), b.size())) return JpegHeader::kBroken;
     std::size_t k = 2;  // after SOI
     while (k + 1 < b.size()) {
-      if (b[k] != 0xff) return false;
+      if (b[k] != 0xff) return JpegHeader::kBroken;
       const std::uint8_t marker = b[k + 1];
       if (marker == 0xff) {  // a fill byte
         ++k;
       } else if (marker == 0xda) {
-        return true;
+        return JpegHeader::kWhole;
       } else if (marker == 0xd8 || marker == 0xd9) {  // SOI or EOI before the scan
-        return false;
+        return JpegHeader::kBroken;
       } else if (marker == 0x01 || (marker >= 0xd0 && marker <= 0xd7)) {  // no length
         k += 2;
       } else {
-        if (k + 3 >= b.size()) return true;  // beyond what was read: not judged
+        if (k + 3 >= b.size()) return past_the_end;
         k += 2 + (std::size_t(b[k + 2]) << 8 | b[k + 3]);
       }
     }
-    return true;
+    return past_the_end;
   }
 
   // Whether the fragment begins a JPEG 2000 code stream (SOC, SIZ) or a JP2
